@@ -1,0 +1,41 @@
+#!/bin/sh
+# setup.sh - install missing build tools (Debian, as root), build frep, and then
+#   ./setup.sh          run frep's main job on a bundled example
+#   ./setup.sh check    run the whole test suite
+#   ./setup.sh build    only build
+# The build goes to build/ (the frep command is build/frep).
+set -eu
+cd "$(dirname "$0")"
+
+need=""
+for pair in gcc:gcc make:make autoreconf:autoconf automake:automake libtoolize:libtool \
+            re2c:re2c bison:bison pkg-config:pkg-config; do
+    cmd=${pair%%:*}; pkg=${pair#*:}
+    command -v "$cmd" >/dev/null 2>&1 || need="$need $pkg"
+done
+if [ -n "$need" ]; then
+    echo "setup: installing$need"
+    if [ "$(id -u)" -ne 0 ]; then echo "setup: run as root to install$need" >&2; exit 1; fi
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq
+    apt-get install -y -qq $need >/dev/null
+fi
+
+if [ ! -x configure ] || [ configure.ac -nt configure ] || [ Makefile.am -nt Makefile.in ]; then
+    autoreconf -fi
+fi
+mkdir -p build
+cd build
+[ -f Makefile ] || ../configure --quiet
+jobs=$(nproc 2>/dev/null || echo 2)
+make -s -j"$jobs"
+
+case "${1:-run}" in
+build) ;;
+check) make -s -j"$jobs" check ;;
+run)
+    set -x
+    ./frep eval ../examples/gear.hf --grid 96 -b 12
+    ;;
+*) echo "usage: $0 [run|check|build]" >&2; exit 2 ;;
+esac
