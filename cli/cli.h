@@ -17,6 +17,30 @@ int cmd_check(int argc, char **argv);
 int cmd_eval(int argc, char **argv);
 int cmd_print(int argc, char **argv);
 int cmd_dis(int argc, char **argv);
+int cmd_mesh(int argc, char **argv);   /* cli/cmd_mesh.c */
+int cmd_sample(int argc, char **argv); /* cli/cmd_sample.c */
+int cmd_render(int argc, char **argv); /* cli/cmd_render.c */
+
+/* Model -> mesh steps shared by frep mesh, sample and render (cli/cmd_mesh.c):
+ * mesh_cli_option() handles -m -a -b -g --iso(I) -t --setops(S) (returns 0, a CLI_
+ * status after a message, or -1 for "not mine"); compile, then polygonize. */
+typedef struct mesh_cli {
+    const char *model, *path;
+    double *a;
+    size_t na;
+    double box[6];
+    int has_box, grid, nthreads, setops;
+    double iso;
+    frep_program *p;
+    char *src;
+} mesh_cli;
+void mesh_cli_init(mesh_cli *c);
+void mesh_cli_free(mesh_cli *c);
+int mesh_cli_option(mesh_cli *c, const char *sub, int opt, const char *arg);
+int mesh_cli_compile(mesh_cli *c, const char *path);
+struct frep_mesh;
+struct mesh_stats;
+int mesh_cli_polygonize(mesh_cli *c, const char *sub, struct frep_mesh *m, struct mesh_stats *st);
 
 /* Exit statuses. */
 #define CLI_OK 0

@@ -1,3 +1,58 @@
+/* main.c - the frep command: dispatches `frep SUBCOMMAND ...` to cli/cmd_*.c.
+ * The library (libfrep) never prints; everything users see is written from cli/.
+ */
+#include "config.h"
+
+#include "cli.h"
+
 #include <stdio.h>
-#include "frep.h"
-int main(void) { puts(FREP_VERSION_STRING); return 0; }
+#include <string.h>
+
+typedef struct cli_command {
+    const char *name;
+    cli_cmd_fn fn;
+    const char *summary;
+} cli_command;
+
+/* One entry per subcommand, in the order --help lists them. */
+static const cli_command commands[] = {
+    { "check", cmd_check, "parse and check a model file; report every problem" },
+    { "eval", cmd_eval, "evaluate a model at points or on a grid (volume, throughput)" },
+    { "print", cmd_print, "print the canonical source of a model file" },
+    { "dis", cmd_dis, "print the bytecode of a compiled model" },
+    { "mesh", cmd_mesh, "polygonize a model: STL, OBJ, PLY or OFF (dual contouring)" },
+    { "sample", cmd_sample, "sample a point cloud with normals from a model or a mesh" },
+    { "render", cmd_render, "draw a shaded PNG picture of a model, optionally with a cloud" },
+};
+
+static void usage(FILE *f)
+{
+    fprintf(f, "usage: frep SUBCOMMAND [options] [args]\n\n"
+               "frep %s: function-representation (FRep) modeling with HyperFun models.\n\n"
+               "Subcommands:\n", FREP_VERSION_STRING);
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        fprintf(f, "  %-8s %s\n", commands[i].name, commands[i].summary);
+    fprintf(f, "\n'frep SUBCOMMAND --help' describes a subcommand. frep --version prints the version.\n");
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        usage(stderr);
+        return CLI_USAGE;
+    }
+    const char *sub = argv[1];
+    if (strcmp(sub, "--help") == 0 || strcmp(sub, "-h") == 0 || strcmp(sub, "help") == 0) {
+        usage(stdout);
+        return CLI_OK;
+    }
+    if (strcmp(sub, "--version") == 0 || strcmp(sub, "version") == 0) {
+        printf("frep %s\n", FREP_VERSION_STRING);
+        return CLI_OK;
+    }
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        if (strcmp(sub, commands[i].name) == 0) return commands[i].fn(argc - 1, argv + 1);
+    fprintf(stderr, "frep: unknown subcommand '%s'\n", sub);
+    usage(stderr);
+    return CLI_USAGE;
+}

@@ -20,6 +20,25 @@ typedef struct ast_loc {
     uint32_t off, end;
 } ast_loc;
 
+/* Limits of the front end. Each is checked by lang/parse.y or lang/lex.re, reported
+ * as an ordinary error, and hit by a test in tests/test_parse.c. */
+#define FREP_MAX_SOURCE (64u << 20)  /* bytes of one file: offsets are 32-bit and the
+                                        tree of a file takes ~10x its size */
+#define FREP_MAX_NESTING 256         /* open brackets + if/while + prefix operators in a
+                                        row: bounds the parser stack (never "memory
+                                        exhausted") and the recursion of later passes */
+#define FREP_MAX_EXPR_DEPTH 10000    /* height of one expression tree (long chains such
+                                        as a|b|c|...): passes over the tree recurse, and
+                                        10000 frames stay well inside an 8 MiB stack */
+#define FREP_MAX_IDENT 255           /* characters of a name: the reference interpreter's
+                                        limit, so every file it reads is read here too */
+#define FREP_MAX_MODELS 4096         /* models in one file: calls between them are looked
+                                        up by name; far above any real file */
+#define FREP_MAX_ARRAY (1u << 16)    /* elements of a declared array or array literal:
+                                        every element becomes its own value slot */
+#define FREP_MAX_ARGS 1024           /* arguments of one call: no library function takes
+                                        more than a handful; bounds the call checks */
+
 typedef enum ast_kind {
     /* expressions */
     AST_NUM,       /* num */
@@ -61,11 +80,16 @@ struct ast_node {
     ast_kind kind;
     int op;              /* AST_UNARY / AST_BINARY operator code */
     ast_loc loc;         /* whole node; for AST_BINARY the operator token is op_loc */
-    ast_loc op_loc;      /* operator (binary/unary) or name (var/call/assign) span */
+    ast_loc op_loc;      /* operator (binary/unary) or name (var/call/assign) span;
+                            AST_IF: the 'then' keyword, AST_WHILE: the 'loop' keyword */
+    ast_loc else_loc;    /* AST_IF: the 'else' keyword (line 0 when there is none) */
+    ast_loc close_loc;   /* AST_IF/AST_WHILE: the 'endif'/'endloop' keyword */
+    uint32_t depth;      /* expressions: height of the tree below (a leaf is 1) */
     const char *name;    /* as written (VAR, INDEX, CALL, ASSIGN*) */
     const char *key;     /* lower-cased name: identifiers are case-insensitive */
     double num;          /* AST_NUM */
-    int parens;          /* expression was written in parentheses */
+    int parens;          /* expression was written in parentheses (not part of the tree:
+                            ast_node_equal ignores it) */
     ast_node *a, *b;     /* operands, index, condition, assigned value (see kind) */
     ast_list list;       /* call arguments, array literal elements */
     ast_list body, body2;/* if: then/else statements; while: body */
@@ -86,6 +110,7 @@ typedef struct ast_model {
     ast_array_decl *arrays;          /* local array declarations */
     uint32_t narrays;
     ast_list body;                   /* statements */
+    ast_loc open_loc;                /* opening brace */
     ast_loc end_loc;                 /* closing brace */
 } ast_model;
 
@@ -130,6 +155,23 @@ int ast_parse(arena *A, const char *filename, const char *src, size_t len, diag_
  * program. Returns a malloc'ed string; free() it. Implemented in print.c. */
 char *ast_print(const ast_file *f);
 
-void ast_list_push(arena *A, ast_list *l, ast_node *n);
+/* Append n to l (storage grows in the arena). Returns 0, or -1 when out of memory. */
+int ast_list_push(arena *A, ast_list *l, ast_node *n);
+
+/* Node constructors (lang/ast.c): zeroed arena nodes with kind, loc and depth set;
+ * NULL when out of memory. */
+ast_node *ast_new(arena *A, ast_kind kind, ast_loc loc);
+ast_node *ast_num(arena *A, ast_loc loc, double v);
+ast_node *ast_unary(arena *A, ast_loc loc, ast_loc op_loc, int op, ast_node *a);
+ast_node *ast_binary(arena *A, ast_loc loc, ast_loc op_loc, int op, ast_node *a,
+                     ast_node *b);
+
+/* Structural equality: kinds, operators, numbers, names as written, children and
+ * pragmas; source positions and the parens flag are ignored. 1 when equal. */
+int ast_node_equal(const ast_node *a, const ast_node *b);
+int ast_file_equal(const ast_file *a, const ast_file *b);
+
+/* Spelling of an operator code for messages and printing ("+", "<=", "and"...). */
+const char *ast_op_name(int op);
 
 #endif

@@ -39,6 +39,11 @@ typedef struct ir {
     int quiet;           /* new nodes get quiet = 1 (inside an if converted to select) */
     uint32_t line, col, len; /* position given to new nodes (ir_set_pos) */
     int failed;          /* out of memory or over FREP_IR_MAX_NODES */
+    /* Called when constant folding meets a domain error (e.g. sqrt(-1)): the node is
+     * left for the runtime to report; this gives the compiler a warning. May be NULL.
+     * Never called for quiet nodes (their branch may not be taken). */
+    void (*warn)(void *user, const ir_node *at, const char *what);
+    void *warn_user;
 } ir;
 
 #define FREP_IR_MAX_NODES (1u << 24) /* IR nodes of one model: bounds compile memory */
@@ -52,6 +57,8 @@ ir_ref ir_op1(ir *g, frep_opcode op, ir_ref a);
 ir_ref ir_op2(ir *g, frep_opcode op, ir_ref a, ir_ref b);
 ir_ref ir_op2k(ir *g, frep_opcode op, ir_ref a, ir_ref b, double k); /* AUNI/AINT */
 ir_ref ir_select(ir *g, ir_ref cond, ir_ref a, ir_ref b);
+/* LOADI: element `index` (1-based, a runtime value) of the `size` slots from `base`. */
+ir_ref ir_loadi(ir *g, uint32_t base, uint32_t size, ir_ref index);
 
 /* Is r a constant? Then *k receives its value. */
 int ir_is_const(const ir *g, ir_ref r, double *k);

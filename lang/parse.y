@@ -1,10 +1,644 @@
-%define api.pure full
-%define api.prefix {frep_yy}
-%expect 0
-%code {
-static int frep_yylex(FREP_YYSTYPE *v) { (void)v; return 0; }
-static void frep_yyerror(const char *m) { (void)m; }
+/* parse.y - Bison grammar of HyperFun 2.x models, building the tree of lang/ast.h.
+ *
+ * Pipeline: lang/lex.re (tokens) -> this parser (ast_file, arena-owned) ->
+ * lang/check.c -> lang/lower.c.  Pure and reentrant: all state lives in lex_state.
+ * Exactly one syntax error per file is reported (no recovery, no cascade), in words
+ * a person can act on (see report_syntax_error below).  Precedence follows the
+ * reference HyperFun interpreter (src/interpreter_lib/int_parse_N.c); where this
+ * grammar accepts more (general conditions, expressions in array literals) the
+ * checker decides.  doc/language.md documents every choice.
+ */
+%code requires {
+#include "ast.h"
+typedef struct lex_state lex_state;
 }
+
+%code top {
+#include "config.h"
+}
+
+%code {
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "lex.h"
+
+/* Enough for FREP_MAX_NESTING levels of every construct (about 16 states a level);
+ * the lexer stops deeper nesting first, so "memory exhausted" cannot happen. */
+#define YYMAXDEPTH 20000
+_Static_assert(YYMAXDEPTH > 16 * FREP_MAX_NESTING + 1000, "parser stack covers nesting");
+
+#define YYLLOC_DEFAULT(Cur, Rhs, N)                                  \
+    do {                                                             \
+        if (N) {                                                     \
+            (Cur).line = YYRHSLOC(Rhs, 1).line;                      \
+            (Cur).col = YYRHSLOC(Rhs, 1).col;                        \
+            (Cur).off = YYRHSLOC(Rhs, 1).off;                        \
+            (Cur).end = YYRHSLOC(Rhs, N).end;                        \
+        } else {                                                     \
+            (Cur).line = YYRHSLOC(Rhs, 0).line;                      \
+            (Cur).col = YYRHSLOC(Rhs, 0).col;                        \
+            (Cur).off = (Cur).end = YYRHSLOC(Rhs, 0).end;            \
+        }                                                            \
+    } while (0)
+
+static void frep_yyerror(FREP_YYLTYPE *loc, lex_state *L, const char *msg);
+static ast_node *binop(lex_state *L, ast_loc loc, ast_loc op_loc, int op, ast_node *a,
+                       ast_node *b);
+static ast_node *unop(lex_state *L, ast_loc loc, ast_loc op_loc, int op, ast_node *a);
+static ast_node *leaf(lex_state *L, ast_kind kind, ast_loc loc, ast_loc name_loc,
+                      const char *name, const char *key);
+static int push(lex_state *L, ast_list *l, ast_node *n, ast_loc loc, uint32_t limit,
+                const char *what);
+static int start_model(lex_state *L, ast_loc loc, const char *name, const char *key,
+                       ast_list *params);
+static int array_size(lex_state *L, ast_loc loc, double v, uint32_t min, uint32_t *size);
+static int add_array(lex_state *L, ast_loc loc, const char *name, const char *key,
+                     double size, ast_loc size_loc);
+static int model_statement(lex_state *L, ast_node *stmt);
+
+#define CHECK(x) do { if (!(x)) YYABORT; } while (0)
+}
+
+%define api.pure full
+%locations
+%define api.location.type {ast_loc}
+%define api.prefix {frep_yy}
+%define parse.error custom
+%define parse.lac full
+%expect 0
+%param {lex_state *L}
+
+%union {
+    double num;
+    struct { const char *name, *key; } id;
+    ast_node *node;
+    ast_list list;
+}
+
+%token YYEOF 0 "end of file"
+%token <id> T_IDENT "name"
+%token <num> T_NUM "number"
+%token T_ARRAY "array" T_IF "if" T_THEN "then" T_ELSE "else" T_ENDIF "endif"
+%token T_WHILE "while" T_LOOP "loop" T_ENDLOOP "endloop"
+%token T_AND "and" T_OR "or" T_NOT "not"
+%token T_PLUS "+" T_MINUS "-" T_STAR "*" T_SLASH "/" T_CARET "^"
+%token T_BAR "|" T_AMP "&" T_BSLASH "\\" T_AT "@" T_TILDE "~"
+%token T_EQ "=" T_NE "/=" T_LT "<" T_LE "<=" T_GT ">" T_GE ">="
+%token T_LPAREN "(" T_RPAREN ")" T_LBRACK "[" T_RBRACK "]" T_LBRACE "{" T_RBRACE "}"
+%token T_COMMA "," T_SEMI ";"
+
+/* Lowest first.  As in the reference: 'and' and 'or' share one level (left to
+ * right); + - and the set operators | & \ @ share one level; ^ groups left to right;
+ * the prefix operators - + ~ bind tighter than ^, so -a^2 is (-a)^2. */
+%left T_OR T_AND
+%precedence T_NOT
+%left T_EQ T_NE T_LT T_LE T_GT T_GE
+%left T_PLUS T_MINUS T_BAR T_AMP T_BSLASH T_AT
+%left T_STAR T_SLASH
+%left T_CARET
+%precedence UNARY
+
+%type <node> expr primary stmt
+%type <list> stmts args arglist elems params
+
 %%
-file: %empty ;
+
+/* file -> model { model } */
+file: model
+    | file model
+    ;
+
+/* model -> name '(' params ')' '{' { decl_stmt | stmt } '}' */
+model: T_IDENT T_LPAREN params T_RPAREN
+         { CHECK(start_model(L, @1, $1.name, $1.key, &$3) == 0); }
+       T_LBRACE items T_RBRACE
+         { ast_model *m = &L->models[L->nmodels - 1]; m->open_loc = @6; m->end_loc = @8; }
+     ;
+
+/* params -> name '[' number ']' { ',' name '[' number ']' }   (2 or 3 of them) */
+params: T_IDENT T_LBRACK T_NUM T_RBRACK
+          { $$ = (ast_list){ 0 };
+            ast_node *n = leaf(L, AST_INDEX, @$, @1, $1.name, $1.key); CHECK(n);
+            n->num = $3; n->op_loc = @3;
+            CHECK(push(L, &$$, n, @$, 3, "") == 0); }
+      | params T_COMMA T_IDENT T_LBRACK T_NUM T_RBRACK
+          { $$ = $1;
+            ast_loc at = @3; at.end = @6.end;
+            ast_node *n = leaf(L, AST_INDEX, at, @3, $3.name, $3.key); CHECK(n);
+            n->num = $5; n->op_loc = @5;
+            CHECK(push(L, &$$, n, at, 3, "") == 0); }
+      ;
+
+items: %empty
+     | items decl_stmt
+     | items stmt        { CHECK(model_statement(L, $2) == 0); }
+     ;
+
+/* decl_stmt -> 'array' decl { ',' decl } ';' */
+decl_stmt: T_ARRAY decls T_SEMI
+             { ast_model *m = &L->models[L->nmodels - 1];
+               if (m->body.n) {
+                   lex_error(L, @1, 5, "array declarations must come before the first "
+                             "statement of model '%s'", m->name);
+                   YYABORT;
+               } }
+         ;
+
+decls: decl
+     | decls T_COMMA decl
+     ;
+
+/* decl -> name '[' number ']' */
+decl: T_IDENT T_LBRACK T_NUM T_RBRACK
+        { CHECK(add_array(L, @$, $1.name, $1.key, $3, @3) == 0); }
+    ;
+
+stmts: %empty            { $$ = (ast_list){ 0 }; }
+     | stmts stmt        { $$ = $1; CHECK(push(L, &$$, $2, @2, UINT32_MAX, "") == 0); }
+     ;
+
+stmt: T_IDENT T_EQ expr T_SEMI
+        { $$ = leaf(L, AST_ASSIGN, @$, @1, $1.name, $1.key); CHECK($$); $$->a = $3; }
+    | T_IDENT T_LBRACK expr T_RBRACK T_EQ expr T_SEMI
+        { $$ = leaf(L, AST_ASSIGN_INDEX, @$, @1, $1.name, $1.key); CHECK($$);
+          $$->a = $3; $$->b = $6; }
+    | T_IDENT T_EQ T_LBRACK elems T_RBRACK T_SEMI
+        { $$ = leaf(L, AST_ASSIGN_ARRAY, @$, @1, $1.name, $1.key); CHECK($$);
+          $$->list = $4; }
+    | T_IF expr T_THEN stmts T_ENDIF T_SEMI
+        { $$ = ast_new(L->A, AST_IF, @$); CHECK($$);
+          $$->a = $2; $$->body = $4; $$->op_loc = @3; $$->close_loc = @5; }
+    | T_IF expr T_THEN stmts T_ELSE stmts T_ENDIF T_SEMI
+        { $$ = ast_new(L->A, AST_IF, @$); CHECK($$);
+          $$->a = $2; $$->body = $4; $$->body2 = $6;
+          $$->op_loc = @3; $$->else_loc = @5; $$->close_loc = @7; }
+    | T_WHILE expr T_LOOP stmts T_ENDLOOP T_SEMI
+        { $$ = ast_new(L->A, AST_WHILE, @$); CHECK($$);
+          $$->a = $2; $$->body = $4; $$->op_loc = @3; $$->close_loc = @5; }
+    ;
+
+elems: expr              { $$ = (ast_list){ 0 };
+                           CHECK(push(L, &$$, $1, @1, FREP_MAX_ARRAY, "elements in an array literal") == 0); }
+     | elems T_COMMA expr { $$ = $1;
+                           CHECK(push(L, &$$, $3, @3, FREP_MAX_ARRAY, "elements in an array literal") == 0); }
+     ;
+
+expr: expr T_OR expr     { CHECK($$ = binop(L, @$, @2, AST_OP_OR, $1, $3)); }
+    | expr T_AND expr    { CHECK($$ = binop(L, @$, @2, AST_OP_AND, $1, $3)); }
+    | T_NOT expr         { CHECK($$ = unop(L, @$, @1, AST_OP_NOT, $2)); }
+    | expr T_EQ expr     { CHECK($$ = binop(L, @$, @2, AST_OP_EQ, $1, $3)); }
+    | expr T_NE expr     { CHECK($$ = binop(L, @$, @2, AST_OP_NE, $1, $3)); }
+    | expr T_LT expr     { CHECK($$ = binop(L, @$, @2, AST_OP_LT, $1, $3)); }
+    | expr T_LE expr     { CHECK($$ = binop(L, @$, @2, AST_OP_LE, $1, $3)); }
+    | expr T_GT expr     { CHECK($$ = binop(L, @$, @2, AST_OP_GT, $1, $3)); }
+    | expr T_GE expr     { CHECK($$ = binop(L, @$, @2, AST_OP_GE, $1, $3)); }
+    | expr T_PLUS expr   { CHECK($$ = binop(L, @$, @2, '+', $1, $3)); }
+    | expr T_MINUS expr  { CHECK($$ = binop(L, @$, @2, '-', $1, $3)); }
+    | expr T_BAR expr    { CHECK($$ = binop(L, @$, @2, '|', $1, $3)); }
+    | expr T_AMP expr    { CHECK($$ = binop(L, @$, @2, '&', $1, $3)); }
+    | expr T_BSLASH expr { CHECK($$ = binop(L, @$, @2, '\\', $1, $3)); }
+    | expr T_AT expr     { CHECK($$ = binop(L, @$, @2, '@', $1, $3)); }
+    | expr T_STAR expr   { CHECK($$ = binop(L, @$, @2, '*', $1, $3)); }
+    | expr T_SLASH expr  { CHECK($$ = binop(L, @$, @2, '/', $1, $3)); }
+    | expr T_CARET expr  { CHECK($$ = binop(L, @$, @2, '^', $1, $3)); }
+    | T_MINUS expr %prec UNARY { CHECK($$ = unop(L, @$, @1, '-', $2)); }
+    | T_TILDE expr %prec UNARY { CHECK($$ = unop(L, @$, @1, '~', $2)); }
+    | T_PLUS expr %prec UNARY  { $$ = $2; /* the reference accepts a unary plus */ }
+    | primary
+    ;
+
+primary: T_NUM
+           { CHECK($$ = ast_num(L->A, @1, $1)); }
+       | T_IDENT
+           { CHECK($$ = leaf(L, AST_VAR, @1, @1, $1.name, $1.key)); }
+       | T_IDENT T_LBRACK expr T_RBRACK
+           { CHECK($$ = leaf(L, AST_INDEX, @$, @1, $1.name, $1.key));
+             $$->a = $3; $$->depth = $3->depth + 1; }
+       | T_IDENT T_LPAREN args T_RPAREN
+           { CHECK($$ = leaf(L, AST_CALL, @$, @1, $1.name, $1.key));
+             $$->list = $3;
+             for (uint32_t i = 0; i < $3.n; i++)
+                 if ($3.v[i]->depth + 1 > $$->depth) $$->depth = $3.v[i]->depth + 1;
+             if ($$->depth > FREP_MAX_EXPR_DEPTH) {
+                 lex_error(L, @$, @1.end - @1.off, "expression nested too deeply (more "
+                           "than %u levels)", FREP_MAX_EXPR_DEPTH);
+                 YYABORT;
+             } }
+       | T_LPAREN expr T_RPAREN
+           { $$ = $2; $$->parens = 1; }
+       ;
+
+args: %empty             { $$ = (ast_list){ 0 }; }
+    | arglist
+    ;
+
+arglist: expr            { $$ = (ast_list){ 0 };
+                           CHECK(push(L, &$$, $1, @1, FREP_MAX_ARGS, "arguments in a call") == 0); }
+       | arglist T_COMMA expr
+                         { $$ = $1;
+                           CHECK(push(L, &$$, $3, @3, FREP_MAX_ARGS, "arguments in a call") == 0); }
+       ;
+
 %%
+
+static void frep_yyerror(FREP_YYLTYPE *loc, lex_state *L, const char *msg)
+{
+    /* Only reached for Bison's own failures (syntax errors go through
+     * yyreport_syntax_error; the nesting limit keeps the stack from running out). */
+    lex_error(L, *loc, 1, "%s", msg);
+}
+
+static void out_of_memory(lex_state *L, ast_loc loc)
+{
+    lex_error(L, loc, 1, "out of memory");
+}
+
+static uint32_t span(ast_loc loc) { return loc.end > loc.off ? loc.end - loc.off : 1; }
+
+/* Operator classes that share the additive precedence level. */
+static int is_setop(int op) { return op == '|' || op == '&' || op == '\\' || op == '@'; }
+static int is_addop(int op) { return op == '+' || op == '-'; }
+static int is_logic(int op) { return op == AST_OP_AND || op == AST_OP_OR; }
+
+static ast_node *binop(lex_state *L, ast_loc loc, ast_loc op_loc, int op, ast_node *a,
+                       ast_node *b)
+{
+    ast_node *n = ast_binary(L->A, loc, op_loc, op, a, b);
+    if (!n) { out_of_memory(L, loc); return NULL; }
+    if (n->depth > FREP_MAX_EXPR_DEPTH) {
+        lex_error(L, op_loc, span(op_loc), "expression nested too deeply (more than %u "
+                  "levels); split it with intermediate variables", FREP_MAX_EXPR_DEPTH);
+        return NULL;
+    }
+    /* Left operand at the same level without parentheses: a | b + c is (a | b) + c,
+     * which surprises anyone who expects set operators to bind like logical ones. */
+    if (a->kind == AST_BINARY && !a->parens) {
+        if ((is_setop(op) && is_addop(a->op)) || (is_addop(op) && is_setop(a->op)))
+            diag_report(L->d, FREP_WARNING, op_loc, span(op_loc),
+                        "'%s' and '%s' share one precedence level and group left to "
+                        "right: this is (... %s ...) %s ...; add parentheses to make "
+                        "the order explicit", ast_op_name(a->op), ast_op_name(op),
+                        ast_op_name(a->op), ast_op_name(op));
+        else if (is_logic(op) && is_logic(a->op) && op != a->op)
+            diag_report(L->d, FREP_WARNING, op_loc, span(op_loc),
+                        "'and' and 'or' share one precedence level and group left to "
+                        "right (as in HyperFun): this is (... %s ...) %s ...; add "
+                        "parentheses to make the order explicit", ast_op_name(a->op),
+                        ast_op_name(op));
+    }
+    return n;
+}
+
+static ast_node *unop(lex_state *L, ast_loc loc, ast_loc op_loc, int op, ast_node *a)
+{
+    ast_node *n = ast_unary(L->A, loc, op_loc, op, a);
+    if (!n) { out_of_memory(L, loc); return NULL; }
+    if (n->depth > FREP_MAX_EXPR_DEPTH) {
+        lex_error(L, op_loc, span(op_loc), "expression nested too deeply (more than %u "
+                  "levels)", FREP_MAX_EXPR_DEPTH);
+        return NULL;
+    }
+    return n;
+}
+
+static ast_node *leaf(lex_state *L, ast_kind kind, ast_loc loc, ast_loc name_loc,
+                      const char *name, const char *key)
+{
+    ast_node *n = ast_new(L->A, kind, loc);
+    if (!n) { out_of_memory(L, loc); return NULL; }
+    n->op_loc = name_loc;
+    n->name = name;
+    n->key = key;
+    return n;
+}
+
+static int push(lex_state *L, ast_list *l, ast_node *n, ast_loc loc, uint32_t limit,
+                const char *what)
+{
+    if (l->n >= limit) {
+        if (*what)
+            lex_error(L, loc, span(loc), "too many %s (at most %u)", what, limit);
+        else
+            lex_error(L, loc, span(loc), "a model takes 2 or 3 arrays: "
+                      "name(x[3], a[1]) or name(x[3], a[1], s[1])");
+        return -1;
+    }
+    if (ast_list_push(L->A, l, n)) { out_of_memory(L, loc); return -1; }
+    return 0;
+}
+
+/* Array sizes are number literals holding whole numbers in [min, FREP_MAX_ARRAY].
+ * (The reference rounds fractional sizes silently; frep says so instead.) */
+static int array_size(lex_state *L, ast_loc loc, double v, uint32_t min, uint32_t *size)
+{
+    if (v != floor(v)) {
+        lex_error(L, loc, span(loc), "array size must be a whole number");
+        return -1;
+    }
+    if (v < min) {
+        lex_error(L, loc, span(loc), "array size must be at least %u", min);
+        return -1;
+    }
+    if (v > FREP_MAX_ARRAY) {
+        lex_error(L, loc, span(loc), "array too large (at most %u elements)",
+                  FREP_MAX_ARRAY);
+        return -1;
+    }
+    *size = (uint32_t)v;
+    return 0;
+}
+
+/* The header `name(x[N], a[M] [, s[K]])` has been read: open a new model. */
+static int start_model(lex_state *L, ast_loc loc, const char *name, const char *key,
+                       ast_list *params)
+{
+    if (params->n < 2) {
+        lex_error(L, params->v[0]->loc, span(params->v[0]->loc),
+                  "a model takes 2 or 3 arrays: name(x[3], a[1]) or "
+                  "name(x[3], a[1], s[1])");
+        return -1;
+    }
+    if (L->nmodels >= FREP_MAX_MODELS) {
+        lex_error(L, loc, span(loc), "too many models in one file (at most %u)",
+                  FREP_MAX_MODELS);
+        return -1;
+    }
+    if (L->nmodels == L->cap_models) {
+        uint32_t cap = L->cap_models ? 2 * L->cap_models : 4;
+        ast_model *m = arena_grow(L->A, L->models, L->nmodels, cap, sizeof *m);
+        if (!m) { out_of_memory(L, loc); return -1; }
+        L->models = m;
+        L->cap_models = cap;
+    }
+    ast_model *m = &L->models[L->nmodels++];
+    memset(m, 0, sizeof *m);
+    m->name = name;
+    m->key = key;
+    m->loc = loc;
+    m->nparams = params->n;
+    for (uint32_t i = 0; i < params->n; i++) {
+        ast_node *p = params->v[i];
+        ast_array_decl *d = &m->params[i];
+        d->name = p->name;
+        d->key = p->key;
+        d->loc = p->loc;
+        /* x[0] or a[0] is accepted as in the reference: a model may use no parameter */
+        if (array_size(L, p->op_loc, p->num, 0, &d->size)) return -1;
+    }
+    return 0;
+}
+
+static int add_array(lex_state *L, ast_loc loc, const char *name, const char *key,
+                     double size, ast_loc size_loc)
+{
+    ast_model *m = &L->models[L->nmodels - 1];
+    uint32_t n;
+    if (array_size(L, size_loc, size, 1, &n)) return -1;
+    if (m->narrays % 8 == 0) {
+        ast_array_decl *a = arena_grow(L->A, m->arrays, m->narrays, m->narrays + 8,
+                                       sizeof *a);
+        if (!a) { out_of_memory(L, loc); return -1; }
+        m->arrays = a;
+    }
+    ast_array_decl *d = &m->arrays[m->narrays++];
+    d->name = name;
+    d->key = key;
+    d->size = n;
+    d->loc = loc;
+    return 0;
+}
+
+static int model_statement(lex_state *L, ast_node *stmt)
+{
+    ast_model *m = &L->models[L->nmodels - 1];
+    return push(L, &m->body, stmt, stmt->loc, UINT32_MAX, "");
+}
+
+/* ---- syntax error messages ---------------------------------------------- */
+
+/* How an expected token is named in "expected X". */
+static const char *expected_name(yysymbol_kind_t k)
+{
+    if (k == YYSYMBOL_YYEOF) return "end of file";
+    if (k == YYSYMBOL_T_IDENT) return "a name";
+    if (k == YYSYMBOL_T_NUM) return "a number";
+    return NULL;
+}
+
+static int is_expr_start(yysymbol_kind_t k)
+{
+    return k == YYSYMBOL_T_NUM || k == YYSYMBOL_T_IDENT || k == YYSYMBOL_T_LPAREN ||
+           k == YYSYMBOL_T_MINUS || k == YYSYMBOL_T_PLUS || k == YYSYMBOL_T_TILDE ||
+           k == YYSYMBOL_T_NOT;
+}
+
+static int is_binary(yysymbol_kind_t k)
+{
+    return k == YYSYMBOL_T_PLUS || k == YYSYMBOL_T_MINUS || k == YYSYMBOL_T_STAR ||
+           k == YYSYMBOL_T_SLASH || k == YYSYMBOL_T_CARET || k == YYSYMBOL_T_BAR ||
+           k == YYSYMBOL_T_AMP || k == YYSYMBOL_T_BSLASH || k == YYSYMBOL_T_AT ||
+           k == YYSYMBOL_T_EQ || k == YYSYMBOL_T_NE || k == YYSYMBOL_T_LT ||
+           k == YYSYMBOL_T_LE || k == YYSYMBOL_T_GT || k == YYSYMBOL_T_GE ||
+           k == YYSYMBOL_T_AND || k == YYSYMBOL_T_OR;
+}
+
+/* The found token, described: "end of file", "name 'foo'", "number '1e5'", "'endif'". */
+static void describe_found(lex_state *L, yysymbol_kind_t k, ast_loc at, char *buf,
+                           size_t size)
+{
+    int n = (int)(at.end - at.off);
+    if (n > 40) n = 40;
+    if (k == YYSYMBOL_YYEOF)
+        snprintf(buf, size, "end of file");
+    else if (k == YYSYMBOL_T_IDENT)
+        snprintf(buf, size, "name '%.*s'", n, L->src + at.off);
+    else if (k == YYSYMBOL_T_NUM)
+        snprintf(buf, size, "number '%.*s'", n, L->src + at.off);
+    else
+        snprintf(buf, size, "'%s'", yysymbol_name(k));
+}
+
+static int closer_of(int open_kind, yysymbol_kind_t *k, const char **open_name,
+                     const char **close_name)
+{
+    switch (open_kind) {
+    case '(': *k = YYSYMBOL_T_RPAREN; *open_name = "("; *close_name = ")"; return 1;
+    case '[': *k = YYSYMBOL_T_RBRACK; *open_name = "["; *close_name = "]"; return 1;
+    case '{': *k = YYSYMBOL_T_RBRACE; *open_name = "{"; *close_name = "}"; return 1;
+    case 'i': *k = YYSYMBOL_T_ENDIF; *open_name = "if"; *close_name = "endif"; return 1;
+    case 'w': *k = YYSYMBOL_T_ENDLOOP; *open_name = "while"; *close_name = "endloop";
+              return 1;
+    default: return 0;
+    }
+}
+
+/* The position right after the token before the lookahead: where a missing ';' or
+ * the end of an unfinished construct belongs. */
+static ast_loc after_prev(const lex_state *L)
+{
+    ast_loc p = L->prev_loc;
+    p.col += p.end - p.off;
+    p.off = p.end;
+    return p;
+}
+
+static int yyreport_syntax_error(const yypcontext_t *ctx, lex_state *L)
+{
+    if (L->error) return 0;
+    yysymbol_kind_t tok = yypcontext_token(ctx);
+    ast_loc at = *yypcontext_location(ctx);
+    yysymbol_kind_t exp[YYNTOKENS];
+    int nexp = yypcontext_expected_tokens(ctx, exp, YYNTOKENS);
+    if (nexp < 0) nexp = 0;
+    int has[YYNTOKENS] = { 0 };
+    for (int i = 0; i < nexp; i++) has[exp[i]] = 1;
+    int eof = tok == YYSYMBOL_YYEOF;
+    const char *eof_note = eof ? " (reached end of file)" : "";
+    ast_loc where = eof && L->prev_tok ? after_prev(L) : at;
+    uint32_t len = eof ? 1 : span(at);
+    char found[96];
+    describe_found(L, tok, at, found, sizeof found);
+
+    /* the innermost open bracket or block, not counting the lookahead itself */
+    const lex_open *open = NULL;
+    for (uint32_t i = L->nopen; i-- > 0;)
+        if (L->open[i].loc.off != at.off || eof) { open = &L->open[i]; break; }
+
+    /* 0. a closer with nothing to close */
+    int want_open = tok == YYSYMBOL_T_RPAREN ? '(' : tok == YYSYMBOL_T_RBRACK ? '['
+                  : tok == YYSYMBOL_T_RBRACE ? '{' : tok == YYSYMBOL_T_ENDLOOP ? 'w'
+                  : tok == YYSYMBOL_T_ENDIF || tok == YYSYMBOL_T_ELSE ? 'i' : 0;
+    if (want_open) {
+        int found_open = 0;
+        for (uint32_t i = 0; i < L->nopen; i++) found_open |= L->open[i].kind == want_open;
+        /* ...unless it is a typo for the closer of the innermost bracket */
+        const lex_open *in = L->nopen ? &L->open[L->nopen - 1] : NULL;
+        if (in && ((in->kind == '(' && has[YYSYMBOL_T_RPAREN]) ||
+                   (in->kind == '[' && has[YYSYMBOL_T_RBRACK])))
+            found_open = 1;
+        if (!found_open) {
+            static const char *const opener_name[] = { "(", "[", "{", "while", "if" };
+            const char *o = opener_name[want_open == '(' ? 0 : want_open == '[' ? 1
+                                        : want_open == '{' ? 2 : want_open == 'w' ? 3 : 4];
+            lex_error(L, at, len, "unexpected %s without a matching '%s'", found, o);
+            return 0;
+        }
+    }
+    /* 1. a closer is possible here: name what it would close (for a block, only when
+     * what came instead could be a wrong closer) */
+    yysymbol_kind_t ck;
+    const char *on, *cn;
+    int closer_like = eof || want_open || tok == YYSYMBOL_T_SEMI || tok == YYSYMBOL_T_COMMA;
+    if (open && closer_of(open->kind, &ck, &on, &cn) && has[ck] &&
+        (closer_like || open->kind == '(' || open->kind == '[')) {
+        lex_error(L, where, len, "expected '%s' to close '%s' at %u:%u%s", cn, on,
+                  (unsigned)open->loc.line, (unsigned)open->loc.col, eof_note);
+        return 0;
+    }
+    /* 2. then/loop after a condition */
+    if (has[YYSYMBOL_T_THEN] || has[YYSYMBOL_T_LOOP]) {
+        const char *kw = has[YYSYMBOL_T_THEN] ? "then" : "loop";
+        const char *st = has[YYSYMBOL_T_THEN] ? "if" : "while";
+        lex_error(L, where, len, "expected '%s' after the condition of '%s', found %s",
+                  kw, st, found);
+        return 0;
+    }
+    /* 3. a missing ';' belongs right after the previous token */
+    if (has[YYSYMBOL_T_SEMI] && L->prev_tok) {
+        ast_loc p = after_prev(L);
+        if (L->prev_tok == T_ENDIF || L->prev_tok == T_ENDLOOP)
+            lex_error(L, p, 1, "expected ';' after '%s'",
+                      L->prev_tok == T_ENDIF ? "endif" : "endloop");
+        else if (L->in_decl)
+            lex_error(L, p, 1, "expected ',' or ';' in array declaration, found %s",
+                      found);
+        else
+            lex_error(L, p, 1, "expected ';' after assignment, found %s", found);
+        return 0;
+    }
+    /* 4. still inside a bracket or block at the end of the file */
+    if (eof && open && closer_of(open->kind, &ck, &on, &cn)) {
+        lex_error(L, where, len, "expected '%s' to close '%s' at %u:%u%s", cn, on,
+                  (unsigned)open->loc.line, (unsigned)open->loc.col, eof_note);
+        return 0;
+    }
+    /* 5. between models */
+    if (has[YYSYMBOL_T_IDENT] && !open && nexp <= 2) {
+        if (eof && L->nmodels == 0 && !L->prev_tok)
+            lex_error(L, (ast_loc){ 0, 0, 0, 0 }, 0, "no model in the file: expected a "
+                      "model such as 'my_model(x[3], a[1]) { ... }'");
+        else
+            lex_error(L, where, len, "expected a model such as "
+                      "'my_model(x[3], a[1]) { ... }', found %s", found);
+        return 0;
+    }
+    /* 6. a list of what would fit, grouped so that it stays short */
+    const char *names[8];
+    int nn = 0, expr_done = 0, nbin = 0, stmt = has[YYSYMBOL_T_IF] && has[YYSYMBOL_T_WHILE];
+    for (int i = 0; i < nexp; i++) nbin += is_binary(exp[i]);
+    for (int i = 0; i < nexp && nn < 8; i++) {
+        yysymbol_kind_t k = exp[i];
+        if (has[YYSYMBOL_T_NUM] && is_expr_start(k)) {
+            if (!expr_done) names[nn++] = "an expression";
+            expr_done = 1;
+        } else if (nbin > 3 && is_binary(k)) {
+            if (nbin > 0) names[nn++] = "an operator";
+            nbin = -1000;
+        } else if (stmt && (k == YYSYMBOL_T_IDENT || k == YYSYMBOL_T_IF ||
+                            k == YYSYMBOL_T_WHILE)) {
+            if (stmt == 1) names[nn++] = "a statement";
+            stmt = 2;
+        } else {
+            names[nn++] = expected_name(k) ? expected_name(k) : NULL;
+            if (!names[nn - 1]) names[nn - 1] = yysymbol_name(k);
+        }
+    }
+    if (nn == 0 || nn > 4) {
+        lex_error(L, where, len, "unexpected %s", found);
+        return 0;
+    }
+    char list[256];
+    size_t used = 0;
+    list[0] = '\0';
+    for (int i = 0; i < nn; i++) {
+        int quote = names[i][0] != 'a' || strchr(names[i], ' ') == NULL;
+        if (strcmp(names[i], "end of file") == 0) quote = 0;
+        int w = snprintf(list + used, sizeof list - used, "%s%s%s%s%s",
+                         i == 0 ? "" : i == nn - 1 ? " or " : ", ", quote ? "'" : "",
+                         names[i], quote ? "'" : "", "");
+        if (w < 0 || (size_t)w >= sizeof list - used) break;
+        used += (size_t)w;
+    }
+    lex_error(L, where, len, "expected %s, found %s", list, found);
+    return 0;
+}
+
+/* ---- entry point ---------------------------------------------------------- */
+
+int ast_parse(arena *A, const char *filename, const char *src, size_t len, diag_sink *d,
+              ast_file *out)
+{
+    memset(out, 0, sizeof *out);
+    out->filename = filename;
+    out->src = src;
+    out->len = len;
+    if (d && !d->file) d->file = filename;
+    lex_state *L = arena_alloc(A, sizeof *L);
+    if (!L) {
+        diag_report(d, FREP_ERROR, (ast_loc){ 0, 0, 0, 0 }, 0, "out of memory");
+        return -1;
+    }
+    if (lex_init(L, A, d, filename, src, len)) return -1;
+    int r = frep_yyparse(L);
+    if (r != 0 || L->error || A->failed) {
+        if (!L->error) lex_error(L, (ast_loc){ 0, 0, 0, 0 }, 0, "out of memory");
+        return -1;
+    }
+    out->models = L->models;
+    out->nmodels = L->nmodels;
+    out->pragmas = L->pragmas;
+    out->npragmas = L->npragmas;
+    return 0;
+}

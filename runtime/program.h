@@ -72,6 +72,7 @@ struct frep_program {
     char *model;               /* model name */
     double box[6];             /* extent from an `-- @box` pragma; valid when has_box */
     int has_box;
+    uint32_t cap;              /* allocated entries of code and pos (prog_emit's) */
 };
 
 /* Allocation helpers shared by the compiler and the GP engine. */

@@ -1,0 +1,346 @@
+/* cmd_eval.c - frep eval: evaluate a compiled model at given points, or on a regular
+ * grid with a summary (inside fraction, volume estimate, value range, throughput).
+ */
+#include "config.h"
+
+#include "cli.h"
+
+#include <errno.h>
+#include <getopt.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#define EVAL_MAX_GRID 4096 /* grid points per axis: 4096^3 evaluations is hours already */
+
+static const char eval_usage[] =
+    "usage: frep eval FILE.hf [--model NAME] [-a v1,v2,...] [--grad] [POINTS]\n"
+    "       frep eval FILE.hf --grid N [-b BOX] [--model NAME] [-a v1,...]\n\n"
+    "Evaluate a model. Without --model: my_model if the file has one, else its last model.\n\n"
+    "Point mode reads points from POINTS (or standard input), one a line: the first\n"
+    "three numbers of each line (further columns, e.g. normals, are ignored; blank lines\n"
+    "and lines starting with # are skipped). It prints one line per point: the value,\n"
+    "or with --grad 'f fx fy fz', in %.17g (nan/inf for non-finite values).\n\n"
+    "Grid mode evaluates on an N x N x N grid of the box, x_i = lo + (hi-lo) i/(N-1),\n"
+    "and prints the count and fraction of points inside (f >= 0), the estimated volume,\n"
+    "min/max/sum of the finite values, the NaN count and the throughput.\n\n"
+    "Options:\n"
+    "  -a, --params LIST   values of the model's a[] array, comma separated\n"
+    "  -b, --box BOX       HyperFun's -b: 'v' for [-v,v]^3, 'lo,hi', 'a,b,c' for\n"
+    "                      [-a,a]x[-b,b]x[-c,c], or 'x0,y0,z0,x1,y1,z1'; default: the\n"
+    "                      model's '-- @box' annotation, else 10\n"
+    "      --grad          also print the gradient (forward-mode differentiation)\n"
+    "      --grid N        grid mode with N points per axis (2..4096)\n"
+    "  -m, --model NAME    the model to evaluate\n"
+    "      --setops S      override the file's set operations: rfunc, minmax\n"
+    "  -t, --threads N     OpenMP threads (default: all cores)\n";
+
+static void print_num(FILE *f, double v)
+{
+    if (isnan(v)) fputs("nan", f);
+    else if (isinf(v)) fputs(v > 0 ? "inf" : "-inf", f);
+    else fprintf(f, "%.17g", v);
+}
+
+static double now_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+typedef struct point_buf {
+    double *x, *y, *z;
+    size_t n, cap;
+} point_buf;
+
+static int push_point(point_buf *b, double x, double y, double z)
+{
+    if (b->n == b->cap) {
+        size_t cap = b->cap ? 2 * b->cap : 1024;
+        double *nx = realloc(b->x, cap * sizeof *nx);
+        if (nx) b->x = nx;
+        double *ny = realloc(b->y, cap * sizeof *ny);
+        if (ny) b->y = ny;
+        double *nz = realloc(b->z, cap * sizeof *nz);
+        if (nz) b->z = nz;
+        if (!nx || !ny || !nz) return -1;
+        b->cap = cap;
+    }
+    b->x[b->n] = x;
+    b->y[b->n] = y;
+    b->z[b->n] = z;
+    b->n++;
+    return 0;
+}
+
+/* Read points: the first three numbers of each non-blank, non-# line. */
+static int read_points(const char *path, point_buf *b)
+{
+    size_t len;
+    char *text = cli_read_file(path, &len);
+    if (!text) return -1;
+    const char *name = strcmp(path, "-") == 0 ? "<stdin>" : path;
+    char *p = text;
+    size_t line = 0;
+    int status = 0;
+    while (*p && status == 0) {
+        line++;
+        char *eol = strchr(p, '\n');
+        if (eol) *eol = '\0';
+        char *s = p;
+        while (*s == ' ' || *s == '\t' || *s == '\r') s++;
+        if (*s && *s != '#') {
+            double v[3];
+            int k = 0;
+            while (k < 3) {
+                char *end;
+                errno = 0;
+                v[k] = strtod(s, &end);
+                if (end == s) break;
+                if (*end && *end != ' ' && *end != '\t' && *end != '\r' && *end != ',') {
+                    end = s;
+                    break;
+                }
+                k++;
+                s = end;
+                while (*s == ' ' || *s == '\t' || *s == '\r' || *s == ',') s++;
+            }
+            if (k < 3) {
+                fprintf(stderr, "%s:%zu: expected 3 numbers (x y z), got %d\n", name, line, k);
+                status = -1;
+            } else if (push_point(b, v[0], v[1], v[2]) != 0) {
+                fprintf(stderr, "frep: out of memory reading %s\n", name);
+                status = -1;
+            }
+        }
+        p = eol ? eol + 1 : p + strlen(p);
+    }
+    free(text);
+    return status;
+}
+
+static void report_errors(const frep_program *p, const frep_runtime_error *e,
+                          const char *src, size_t len)
+{
+    if (e->count == 0) return;
+    cli_diag_ctx dc = { src, len, 0, 0 };
+    frep_report_runtime_error(p, e, cli_print_diag, &dc);
+}
+
+static int eval_points(const frep_program *p, const char *path, int grad, int nthreads,
+                       const char *src, size_t srclen)
+{
+    point_buf b = { 0 };
+    int status = CLI_FAIL;
+    double *f = NULL, *g = NULL;
+    if (read_points(path, &b) != 0) goto done;
+    size_t n = b.n;
+    f = malloc((n ? n : 1) * sizeof *f);
+    g = grad ? malloc((n ? 3 * n : 1) * sizeof *g) : NULL;
+    if (!f || (grad && !g)) {
+        fprintf(stderr, "frep: out of memory\n");
+        goto done;
+    }
+    frep_runtime_error err;
+    int r = grad ? frep_eval_grad_par(p, n, b.x, b.y, b.z, NULL, f, g, g + n, g + 2 * n,
+                                      nthreads, &err)
+                 : frep_eval_par(p, n, b.x, b.y, b.z, NULL, f, nthreads, &err);
+    if (r != 0) {
+        fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
+        goto done;
+    }
+    for (size_t i = 0; i < n; i++) {
+        print_num(stdout, f[i]);
+        if (grad)
+            for (int c = 0; c < 3; c++) {
+                putchar(' ');
+                print_num(stdout, g[(size_t)c * n + i]);
+            }
+        putchar('\n');
+    }
+    report_errors(p, &err, src, srclen);
+    status = fflush(stdout) == 0 ? CLI_OK : CLI_FAIL;
+done:
+    free(b.x);
+    free(b.y);
+    free(b.z);
+    free(f);
+    free(g);
+    return status;
+}
+
+static int eval_grid(const frep_program *p, long N, const double box[6], int nthreads,
+                     const char *src, size_t srclen)
+{
+    size_t slab = (size_t)N * (size_t)N;
+    double *x = malloc(slab * sizeof *x), *y = malloc(slab * sizeof *y);
+    double *z = malloc(slab * sizeof *z), *f = malloc(slab * sizeof *f);
+    if (!x || !y || !z || !f) {
+        free(x); free(y); free(z); free(f);
+        fprintf(stderr, "frep: out of memory for a %ld^2 slab\n", N);
+        return CLI_FAIL;
+    }
+    double step[3];
+    for (int c = 0; c < 3; c++) step[c] = (box[c + 3] - box[c]) / (double)(N - 1);
+    for (long j = 0; j < N; j++)
+        for (long i = 0; i < N; i++) {
+            x[(size_t)j * (size_t)N + (size_t)i] = box[0] + step[0] * (double)i;
+            y[(size_t)j * (size_t)N + (size_t)i] = box[1] + step[1] * (double)j;
+        }
+    uint64_t inside = 0, nans = 0;
+    double vmin = INFINITY, vmax = -INFINITY, sum = 0;
+    frep_runtime_error all = { 0 };
+    double t0 = now_seconds(), eval_time = 0;
+    for (long k = 0; k < N; k++) {
+        double zk = box[2] + step[2] * (double)k;
+        for (size_t i = 0; i < slab; i++) z[i] = zk;
+        frep_runtime_error e;
+        double t1 = now_seconds();
+        if (frep_eval_par(p, slab, x, y, z, NULL, f, nthreads, &e) != 0) {
+            fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
+            free(x); free(y); free(z); free(f);
+            return CLI_FAIL;
+        }
+        eval_time += now_seconds() - t1;
+        if (e.count && (all.count == 0 || e.pc < all.pc)) {
+            uint64_t c = all.count;
+            all = e;
+            all.count += c;
+        } else {
+            all.count += e.count;
+        }
+        for (size_t i = 0; i < slab; i++) {
+            double v = f[i];
+            if (isnan(v)) { nans++; continue; }
+            if (v >= 0) inside++;
+            if (v < vmin) vmin = v;
+            if (v > vmax) vmax = v;
+            if (isfinite(v)) sum += v;
+        }
+    }
+    double total_time = now_seconds() - t0;
+    double npts = (double)N * (double)N * (double)N;
+    double vol = (box[3] - box[0]) * (box[4] - box[1]) * (box[5] - box[2]);
+    int threads = 1;
+#ifdef _OPENMP
+    threads = nthreads > 0 ? nthreads : omp_get_max_threads();
+#endif
+    printf("grid      %ld^3 = %.0f points over [%g,%g]x[%g,%g]x[%g,%g]\n", N, npts, box[0],
+           box[3], box[1], box[4], box[2], box[5]);
+    printf("inside    %llu (%.6f of the points, f >= 0)\n", (unsigned long long)inside,
+           (double)inside / npts);
+    printf("volume    %.6g (estimate: inside fraction x box volume %.6g)\n",
+           (double)inside / npts * vol, vol);
+    printf("values    min %.9g  max %.9g  sum %.9g\n", vmin, vmax, sum);
+    printf("nan       %llu\n", (unsigned long long)nans);
+    printf("time      %.3f s evaluating (%.3f s total), %.2f million points/s on %d thread%s\n",
+           eval_time, total_time, npts / eval_time * 1e-6, threads, threads == 1 ? "" : "s");
+    printf("program   %zu instructions\n", frep_program_size(p));
+    report_errors(p, &all, src, srclen);
+    free(x); free(y); free(z); free(f);
+    return CLI_OK;
+}
+
+int cmd_eval(int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        { "help", no_argument, NULL, 'h' },
+        { "model", required_argument, NULL, 'm' },
+        { "params", required_argument, NULL, 'a' },
+        { "box", required_argument, NULL, 'b' },
+        { "grad", no_argument, NULL, 'G' },
+        { "grid", required_argument, NULL, 'N' },
+        { "threads", required_argument, NULL, 't' },
+        { "setops", required_argument, NULL, 'S' },
+        { NULL, 0, NULL, 0 },
+    };
+    const char *model = NULL, *boxarg = NULL;
+    double *a = NULL;
+    size_t na = 0;
+    int grad = 0, setops = -1, nthreads = 0;
+    long grid = 0;
+    int status = CLI_USAGE;
+    optind = 1;
+    opterr = 0;
+    int c;
+    while ((c = getopt_long(argc, argv, "hm:a:b:t:", longopts, NULL)) != -1) {
+        char *end;
+        switch (c) {
+        case 'h': fputs(eval_usage, stdout); free(a); return CLI_OK;
+        case 'm': model = optarg; break;
+        case 'a':
+            free(a);
+            a = cli_parse_list("-a", optarg, &na);
+            if (!a) return CLI_USAGE;
+            break;
+        case 'b': boxarg = optarg; break;
+        case 'G': grad = 1; break;
+        case 'N':
+            errno = 0;
+            grid = strtol(optarg, &end, 10);
+            if (*end || errno || grid < 2 || grid > EVAL_MAX_GRID) {
+                free(a);
+                return cli_usage_error("eval", "--grid: expected an integer in 2..%d, got '%s'",
+                                       EVAL_MAX_GRID, optarg);
+            }
+            break;
+        case 't':
+            errno = 0;
+            nthreads = (int)strtol(optarg, &end, 10);
+            if (*end || errno || nthreads < 1 || nthreads > 1024) {
+                free(a);
+                return cli_usage_error("eval", "--threads: expected an integer in 1..1024");
+            }
+            break;
+        case 'S':
+            if (strcmp(optarg, "rfunc") == 0) setops = FREP_SETOPS_RFUNC;
+            else if (strcmp(optarg, "minmax") == 0) setops = FREP_SETOPS_MINMAX;
+            else {
+                free(a);
+                return cli_usage_error("eval", "--setops: expected rfunc or minmax, got '%s'", optarg);
+            }
+            break;
+        default:
+            free(a);
+            return cli_usage_error("eval", "unknown or incomplete option '%s'", argv[optind - 1]);
+        }
+    }
+    int nargs = argc - optind;
+    if (nargs < 1 || nargs > 2) {
+        free(a);
+        return cli_usage_error("eval", "expected FILE.hf [POINTS]");
+    }
+    if (grid && (nargs == 2 || grad)) {
+        free(a);
+        return cli_usage_error("eval", "--grid takes no POINTS file and no --grad");
+    }
+    if (!grid && boxarg) {
+        free(a);
+        return cli_usage_error("eval", "-b is only for --grid");
+    }
+    double box[6] = { -10, -10, -10, 10, 10, 10 };
+    if (boxarg && cli_parse_box(boxarg, box) != 0) {
+        free(a);
+        return CLI_USAGE;
+    }
+    char *src = NULL;
+    frep_program *p = cli_compile_file(argv[optind], model, a, na, setops, &src);
+    free(a);
+    if (!p) return CLI_FAIL;
+    if (grid && !boxarg) frep_program_box(p, box);
+    size_t srclen = src ? strlen(src) : 0;
+    if (grid)
+        status = eval_grid(p, grid, box, nthreads, src, srclen);
+    else
+        status = eval_points(p, nargs == 2 ? argv[optind + 1] : "-", grad, nthreads, src, srclen);
+    frep_program_free(p);
+    free(src);
+    return status;
+}

@@ -1,0 +1,330 @@
+/* cmd_evolve.c - frep evolve: from a point cloud (and optionally its primitives) to a
+ * readable .hf construction-tree model, by genetic programming (evolve/evolve.c);
+ * segments the cloud first (evolve/segment.c) when no primitive list is given.
+ */
+#include "config.h"
+
+#include "cli.h"
+#include "cloud.h"
+#include "evolve.h"
+#include "normals.h"
+#include "segment.h"
+
+#include <errno.h>
+#include <getopt.h>
+#include <math.h>
+#include <signal.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+static const char evolve_usage[] =
+    "usage: frep evolve CLOUD [-p PRIMS.hf|PRIMS.fit] [-o MODEL.hf] [options]\n\n"
+    "Discover a construction tree (primitives at the leaves, set operations at the nodes)\n"
+    "whose zero set fits the oriented point cloud CLOUD (.xyz or .ply), by genetic\n"
+    "programming (Fayolle & Pasko 2016), accelerated by partitioning the primitives'\n"
+    "overlap graph into cliques (Friedrich et al. 2018). Without -p the cloud is\n"
+    "segmented first with frep segment's defaults. The result is a .hf model: the\n"
+    "primitives, the tree, a clipping box, and comments with the figures of the run.\n"
+    "The same seed gives the same model at any thread count (without --max-time).\n"
+    "Ctrl-C stops the run and writes the best model so far.\n\n"
+    "Options:\n"
+    "  -p, --prims FILE      primitives: a .hf list written by frep segment, or a .fit list\n"
+    "  -o, --output FILE     model to write (default: standard output)\n"
+    "      --setops S        minmax (default) or rfunc\n"
+    "      --partition       partition the overlap graph (default)\n"
+    "      --no-partition    one GA over all primitives\n"
+    "      --seed S          random seed (default: from the clock; always printed)\n"
+    "      --generations G   generation limit (default 3000)\n"
+    "      --stagnation G    stop after G generations without improvement (default 40)\n"
+    "      --population P    individuals (default 150)\n"
+    "      --tournament K    tournament size (default 4)\n"
+    "      --crossover R     crossover rate (default 0.3)\n"
+    "      --mutation R      mutation rate (default 0.3)\n"
+    "      --elite E         best individuals kept each generation (default 2)\n"
+    "      --subtree-prob R  probability of an operation node when growing (default 0.7)\n"
+    "      --max-depth D     maximum tree depth (default: ceil(log2 primitives) + 3)\n"
+    "      --max-time T      stop after T seconds\n"
+    "      --epsilon E       distance tolerance as a fraction of the diagonal (default 0.01)\n"
+    "      --alpha DEG       normal tolerance in degrees (default 10; 35 for noisy data)\n"
+    "      --lambda-scale K  size penalty K*ln(N) per node (default 1)\n"
+    "      --sample N        points the GA scores (default 4096; 0: all)\n"
+    "      --no-simplify     keep the tree as evolved\n"
+    "      --dot FILE        also write the tree for Graphviz\n"
+    "  -t, --threads N       OpenMP threads\n"
+    "  -q, --quiet           no progress and no summary\n";
+
+/* The one piece of mutable global state the conventions allow: Ctrl-C. */
+static volatile sig_atomic_t evolve_interrupted = 0;
+
+static void on_sigint(int sig)
+{
+    (void)sig;
+    evolve_interrupted = 1;
+}
+
+typedef struct progress_ctx {
+    int tty, quiet;
+    double last;
+} progress_ctx;
+
+static int progress(void *user, const gp_progress *p)
+{
+    progress_ctx *c = user;
+    if (c->tty && !c->quiet && (p->elapsed - c->last >= 0.2 || p->generation == 1)) {
+        c->last = p->elapsed;
+        if (isnan(p->best_fitness))
+            fprintf(stderr, "\rfrep evolve: merging clique trees: tree size %u, %.1f s   ",
+                    p->best_len, p->elapsed);
+        else
+            fprintf(stderr, "\rfrep evolve: generation %u, best fitness %.6g, tree size %u, %.1f s   ",
+                    p->generation, p->best_fitness, p->best_len, p->elapsed);
+        fflush(stderr);
+    }
+    return evolve_interrupted != 0;
+}
+
+typedef struct write_ctx {
+    const evolve_result *r;
+    const prim *prims;
+    size_t nprims;
+    const evolve_meta *m;
+} write_ctx;
+
+static int write_model_cb(FILE *f, void *user)
+{
+    write_ctx *w = user;
+    return evolve_write_model(f, w->r, w->prims, w->nprims, w->m);
+}
+
+static int write_dot_cb(FILE *f, void *user)
+{
+    write_ctx *w = user;
+    return evolve_write_dot(f, w->r, w->prims, w->nprims);
+}
+
+static int parse_num(const char *opt, const char *s, double lo, double hi, int integer,
+                     double *out)
+{
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || *end || errno || !(v >= lo && v <= hi) || (integer && v != floor(v))) {
+        cli_usage_error("evolve", "%s: expected %s in [%g, %g], got '%s'", opt,
+                        integer ? "an integer" : "a number", lo, hi, s);
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
+static char *join_args(int argc, char **argv)
+{
+    size_t n = 16;
+    for (int i = 0; i < argc; i++) n += strlen(argv[i]) + 1;
+    char *s = malloc(n);
+    if (!s) return NULL;
+    strcpy(s, "frep");
+    for (int i = 0; i < argc; i++) {
+        /* Newlines would end the comment line of the model. */
+        strcat(s, " ");
+        size_t at = strlen(s);
+        strcat(s, argv[i]);
+        for (char *q = s + at; *q; q++)
+            if (*q == '\n' || *q == '\r') *q = ' ';
+    }
+    return s;
+}
+
+int cmd_evolve(int argc, char **argv)
+{
+    enum {
+        O_SETOPS = 256, O_PART, O_NOPART, O_SEED, O_GEN, O_STAG, O_POP, O_TOURN, O_CROSS,
+        O_MUT, O_ELITE, O_SUBP, O_DEPTH, O_TIME, O_EPS, O_ALPHA, O_LAMBDA, O_SAMPLE,
+        O_NOSIMP, O_DOT
+    };
+    static const struct option longopts[] = {
+        { "help", no_argument, NULL, 'h' },
+        { "prims", required_argument, NULL, 'p' },
+        { "output", required_argument, NULL, 'o' },
+        { "setops", required_argument, NULL, O_SETOPS },
+        { "partition", no_argument, NULL, O_PART },
+        { "no-partition", no_argument, NULL, O_NOPART },
+        { "seed", required_argument, NULL, O_SEED },
+        { "generations", required_argument, NULL, O_GEN },
+        { "stagnation", required_argument, NULL, O_STAG },
+        { "population", required_argument, NULL, O_POP },
+        { "tournament", required_argument, NULL, O_TOURN },
+        { "crossover", required_argument, NULL, O_CROSS },
+        { "mutation", required_argument, NULL, O_MUT },
+        { "elite", required_argument, NULL, O_ELITE },
+        { "subtree-prob", required_argument, NULL, O_SUBP },
+        { "max-depth", required_argument, NULL, O_DEPTH },
+        { "max-time", required_argument, NULL, O_TIME },
+        { "epsilon", required_argument, NULL, O_EPS },
+        { "alpha", required_argument, NULL, O_ALPHA },
+        { "lambda-scale", required_argument, NULL, O_LAMBDA },
+        { "sample", required_argument, NULL, O_SAMPLE },
+        { "no-simplify", no_argument, NULL, O_NOSIMP },
+        { "dot", required_argument, NULL, O_DOT },
+        { "threads", required_argument, NULL, 't' },
+        { "quiet", no_argument, NULL, 'q' },
+        { NULL, 0, NULL, 0 },
+    };
+    evolve_options eo;
+    evolve_options_init(&eo);
+    const char *prims_path = NULL, *out = "-", *dot = NULL;
+    int have_seed = 0, quiet = 0, c;
+    double v;
+    optind = 1;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, "hp:o:t:q", longopts, NULL)) != -1) {
+        int bad = 0;
+        switch (c) {
+        case 'h': fputs(evolve_usage, stdout); return CLI_OK;
+        case 'p': prims_path = optarg; break;
+        case 'o': out = optarg; break;
+        case 'q': quiet = 1; break;
+        case O_SETOPS:
+            if (strcmp(optarg, "minmax") == 0) eo.gp.setops = GP_SETOPS_MINMAX;
+            else if (strcmp(optarg, "rfunc") == 0) eo.gp.setops = GP_SETOPS_RFUNC;
+            else return cli_usage_error("evolve", "--setops: expected minmax or rfunc, got '%s'", optarg);
+            break;
+        case O_PART: eo.partition = 1; break;
+        case O_NOPART: eo.partition = 0; break;
+        case O_NOSIMP: eo.simplify = 0; break;
+        case O_DOT: dot = optarg; break;
+        case O_SEED: {
+            char *end;
+            errno = 0;
+            eo.gp.seed = strtoull(optarg, &end, 10);
+            if (*end || errno || optarg[0] == '-' || !*optarg)
+                return cli_usage_error("evolve", "--seed: expected a non-negative integer, got '%s'", optarg);
+            have_seed = 1;
+            break;
+        }
+        case O_GEN: bad = parse_num("--generations", optarg, 1, 1e9, 1, &v); eo.gp.generations = (uint32_t)v; break;
+        case O_STAG: bad = parse_num("--stagnation", optarg, 0, 1e9, 1, &v); eo.gp.stagnation = (uint32_t)v; break;
+        case O_POP: bad = parse_num("--population", optarg, 1, 1e6, 1, &v); eo.gp.population = (uint32_t)v; break;
+        case O_TOURN: bad = parse_num("--tournament", optarg, 1, 1e6, 1, &v); eo.gp.tournament = (uint32_t)v; break;
+        case O_CROSS: bad = parse_num("--crossover", optarg, 0, 1, 0, &v); eo.gp.p_crossover = v; break;
+        case O_MUT: bad = parse_num("--mutation", optarg, 0, 1, 0, &v); eo.gp.p_mutation = v; break;
+        case O_ELITE: bad = parse_num("--elite", optarg, 0, 1e6, 1, &v); eo.gp.elite = (uint32_t)v; break;
+        case O_SUBP: bad = parse_num("--subtree-prob", optarg, 0, 1, 0, &v); eo.gp.p_subtree = v; break;
+        case O_DEPTH: bad = parse_num("--max-depth", optarg, 1, GP_MAX_TREE_DEPTH, 1, &v); eo.gp.max_depth = (int)v; break;
+        case O_TIME: bad = parse_num("--max-time", optarg, 0, 1e9, 0, &v); eo.gp.max_time = v; break;
+        case O_EPS: bad = parse_num("--epsilon", optarg, 1e-9, 1, 0, &v); eo.eps_rel = v; break;
+        case O_ALPHA: bad = parse_num("--alpha", optarg, 0.01, 180, 0, &v); eo.alpha_deg = v; break;
+        case O_LAMBDA: bad = parse_num("--lambda-scale", optarg, 0, 1e6, 0, &v); eo.lambda_scale = v; break;
+        case O_SAMPLE: bad = parse_num("--sample", optarg, 0, 1e12, 1, &v); eo.sample = (size_t)v; break;
+        case 't': bad = parse_num("--threads", optarg, 1, 4096, 1, &v); eo.gp.threads = (int)v; break;
+        default:
+            return cli_usage_error("evolve", "unknown or incomplete option '%s'", argv[optind - 1]);
+        }
+        if (bad) return CLI_USAGE;
+    }
+    if (optind != argc - 1)
+        return cli_usage_error("evolve", optind >= argc ? "missing CLOUD" : "one CLOUD expected");
+    const char *cloud_path = argv[optind];
+    if (eo.gp.p_crossover + eo.gp.p_mutation > 1)
+        return cli_usage_error("evolve", "--crossover + --mutation must not exceed 1");
+    if (!have_seed) eo.gp.seed = (uint64_t)time(NULL);
+    if (eo.lambda_scale == 0) eo.lambda_scale = 1e-12;  /* 0 asks for no penalty */
+
+    int rc = CLI_FAIL;
+    char *err = NULL, *cmdline = NULL;
+    prim *prims = NULL;
+    size_t nprims = 0;
+    evolve_result res;
+    memset(&res, 0, sizeof res);
+    segment_result seg;
+    memset(&seg, 0, sizeof seg);
+    int have_seg = 0;
+    frep_cloud *cloud = cloud_read(cloud_path, &err);
+    if (!cloud) {
+        fprintf(stderr, "frep evolve: %s\n", err ? err : "cannot read the cloud");
+        goto done;
+    }
+    if (!quiet) fprintf(stderr, "frep evolve: %zu points, seed %llu\n", cloud->n,
+                        (unsigned long long)eo.gp.seed);
+    if (cloud->n == 0) {
+        fprintf(stderr, "frep evolve: %s: no points\n", cloud_path);
+        goto done;
+    }
+    if (prims_path) {
+        if (segment_read_prims(prims_path, &prims, &nprims, &err)) {
+            fprintf(stderr, "frep evolve: %s\n", err ? err : "cannot read the primitives");
+            goto done;
+        }
+        if (!cloud->has_normals || cloud_normalize_normals(cloud) == cloud->n) {
+            if (!quiet) fprintf(stderr, "frep evolve: the cloud has no normals: estimating them\n");
+            if (normals_estimate(cloud, 0, eo.gp.threads)) {
+                fprintf(stderr, "frep evolve: cannot estimate normals\n");
+                goto done;
+            }
+        }
+    } else {
+        segment_config sc;
+        segment_config_init(&sc);
+        sc.seed = eo.gp.seed;
+        sc.nthreads = eo.gp.threads;
+        sc.interrupt = &evolve_interrupted;
+        if (segment_run(cloud, &sc, &seg, &err)) {
+            fprintf(stderr, "frep evolve: %s: %s\n", cloud_path, err ? err : "segmentation failed");
+            goto done;
+        }
+        have_seg = 1;
+        prims = seg.prims;
+        nprims = seg.nprims;
+        if (!quiet)
+            fprintf(stderr, "frep evolve: segmented: %zu primitives (%zu fitted, %zu separating)%s\n",
+                    seg.nprims, seg.nfitted, seg.nprims - seg.nfitted,
+                    seg.normals_estimated ? ", normals estimated" : "");
+    }
+    if (nprims == 0) {
+        fprintf(stderr, "frep evolve: no primitives to combine%s\n",
+                prims_path ? "" : " (segmentation found none; try frep segment with other settings)");
+        goto done;
+    }
+
+    progress_ctx pc = { isatty(2), quiet, -1 };
+    void (*old)(int) = signal(SIGINT, on_sigint);
+    int r = evolve_run(&eo, cloud, prims, nprims, progress, &pc, &res, &err);
+    signal(SIGINT, old == SIG_ERR ? SIG_DFL : old);
+    if (pc.tty && !quiet) fputc('\n', stderr);
+    if (r) {
+        fprintf(stderr, "frep evolve: %s: %s\n", cloud_path, err ? err : "failed");
+        goto done;
+    }
+    if (evolve_interrupted && !quiet)
+        fprintf(stderr, "frep evolve: interrupted: writing the best tree so far\n");
+    cmdline = join_args(argc, argv);
+    evolve_meta meta = { cmdline, cloud_path, eo.gp.seed, eo.gp.setops };
+    write_ctx w = { &res, prims, nprims, &meta };
+    if (cli_write_atomic(out, write_model_cb, &w)) goto done;
+    if (dot && cli_write_atomic(dot, write_dot_cb, &w)) goto done;
+    if (!quiet) {
+        double pe = res.npoints ? 100.0 * (double)res.stats.explained / (double)res.npoints : 0;
+        fprintf(stderr,
+                "frep evolve: seed %llu: tree of %u nodes, %.2f%% of %zu points explained "
+                "(%.2f%% within epsilon, %.2f%% normals), %s, %u generations, %.2f s\n",
+                (unsigned long long)eo.gp.seed, res.tree.len, pe, res.npoints,
+                res.npoints ? 100.0 * (double)res.stats.within_eps / (double)res.npoints : 0,
+                res.npoints ? 100.0 * (double)res.stats.normals_ok / (double)res.npoints : 0,
+                res.partitioned ? "partitioned" : "not partitioned", res.generations, res.seconds);
+        if (res.dropped)
+            fprintf(stderr, "frep evolve: %zu points without finite coordinates or normal ignored\n",
+                    res.dropped);
+    }
+    rc = CLI_OK;
+done:
+    if (have_seg) segment_result_free(&seg);
+    else free(prims);
+    evolve_result_free(&res);
+    cloud_free(cloud);
+    free(err);
+    free(cmdline);
+    return rc;
+}

@@ -1,0 +1,196 @@
+/* util.c - helpers shared by the frep subcommands: reading files, printing
+ * diagnostics with carets, parsing option values, atomic output files.
+ */
+#include "config.h"
+
+#include "cli.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#define CLI_MAX_INPUT_BYTES ((size_t)1 << 30) /* refuse to slurp files over 1 GiB */
+
+char *cli_read_file(const char *path, size_t *len)
+{
+    FILE *f = strcmp(path, "-") == 0 ? stdin : fopen(path, "rb");
+    if (!f) {
+        fprintf(stderr, "frep: cannot read %s: %s\n", path, strerror(errno));
+        return NULL;
+    }
+    size_t cap = 1 << 16, n = 0;
+    char *buf = malloc(cap + 1);
+    while (buf) {
+        size_t got = fread(buf + n, 1, cap - n, f);
+        n += got;
+        if (n < cap) break;
+        if (cap >= CLI_MAX_INPUT_BYTES) {
+            fprintf(stderr, "frep: %s: file larger than %zu bytes\n", path, CLI_MAX_INPUT_BYTES);
+            free(buf);
+            buf = NULL;
+            break;
+        }
+        cap *= 2;
+        char *nb = realloc(buf, cap + 1);
+        if (!nb) { free(buf); buf = NULL; break; }
+        buf = nb;
+    }
+    int err = f != stdin && ferror(f);
+    if (f != stdin) fclose(f);
+    if (!buf) {
+        if (errno == ENOMEM) fprintf(stderr, "frep: %s: out of memory\n", path);
+        return NULL;
+    }
+    if (err) {
+        fprintf(stderr, "frep: cannot read %s\n", path);
+        free(buf);
+        return NULL;
+    }
+    buf[n] = '\0';
+    if (len) *len = n;
+    return buf;
+}
+
+void cli_print_diag(void *user, const frep_diag *d)
+{
+    cli_diag_ctx *c = user;
+    if (c) {
+        if (d->severity == FREP_ERROR) c->errors++;
+        else if (d->severity == FREP_WARNING) c->warnings++;
+    }
+    char *s = frep_diag_format(d, c ? c->src : NULL, c ? c->len : 0);
+    if (s) {
+        fputs(s, stderr);
+        free(s);
+    } else {
+        fprintf(stderr, "%s\n", d->message);
+    }
+}
+
+frep_program *cli_compile_file(const char *path, const char *model, const double *a,
+                               size_t na, int setops, char **src)
+{
+    size_t len = 0;
+    char *text = cli_read_file(path, &len);
+    if (!text) return NULL;
+    frep_compile_options o;
+    frep_compile_options_init(&o);
+    o.model = model;
+    o.a = a;
+    o.na = na;
+    if (setops >= 0) o.setops_override = setops;
+    cli_diag_ctx dc = { text, len, 0, 0 };
+    frep_program *p = frep_compile(path, text, len, &o, cli_print_diag, &dc);
+    if (src && p) *src = text;
+    else free(text);
+    return p;
+}
+
+double *cli_parse_list(const char *opt, const char *s, size_t *n)
+{
+    size_t cap = 8, k = 0;
+    double *v = malloc(cap * sizeof *v);
+    if (!v) return NULL;
+    const char *p = s;
+    for (;;) {
+        char *end;
+        errno = 0;
+        double d = strtod(p, &end);
+        if (end == p || errno == ERANGE || !isfinite(d) || (*end && *end != ',')) {
+            fprintf(stderr, "frep: %s: expected comma-separated numbers, got '%s'\n", opt, s);
+            free(v);
+            return NULL;
+        }
+        if (k == cap) {
+            cap *= 2;
+            double *nv = realloc(v, cap * sizeof *v);
+            if (!nv) { free(v); return NULL; }
+            v = nv;
+        }
+        v[k++] = d;
+        if (!*end) break;
+        p = end + 1;
+    }
+    *n = k;
+    return v;
+}
+
+int cli_parse_box(const char *s, double box[6])
+{
+    size_t n = 0;
+    double *v = cli_parse_list("-b", s, &n);
+    if (!v) return -1;
+    int ok = 1;
+    switch (n) {
+    case 1:
+        for (int i = 0; i < 3; i++) { box[i] = -fabs(v[0]); box[i + 3] = fabs(v[0]); }
+        break;
+    case 2:
+        for (int i = 0; i < 3; i++) { box[i] = v[0]; box[i + 3] = v[1]; }
+        break;
+    case 3:
+        for (int i = 0; i < 3; i++) { box[i] = -fabs(v[i]); box[i + 3] = fabs(v[i]); }
+        break;
+    case 6:
+        for (int i = 0; i < 6; i++) box[i] = v[i];
+        break;
+    default:
+        fprintf(stderr, "frep: -b: expected 1, 2, 3 or 6 numbers, got %zu\n", n);
+        ok = 0;
+    }
+    free(v);
+    if (!ok) return -1;
+    for (int i = 0; i < 3; i++) {
+        if (!(box[i] < box[i + 3])) {
+            fprintf(stderr, "frep: -b: empty box along %c: [%g, %g]\n", "xyz"[i], box[i],
+                    box[i + 3]);
+            return -1;
+        }
+    }
+    return 0;
+}
+
+int cli_write_atomic(const char *path, int (*fn)(FILE *f, void *user), void *user)
+{
+    if (strcmp(path, "-") == 0) {
+        int r = fn(stdout, user);
+        return fflush(stdout) == 0 ? r : -1;
+    }
+    size_t n = strlen(path);
+    char *tmp = malloc(n + 32);
+    if (!tmp) return -1;
+    snprintf(tmp, n + 32, "%s.tmp%ld", path, (long)getpid());
+    FILE *f = fopen(tmp, "wb");
+    if (!f) {
+        fprintf(stderr, "frep: cannot write %s: %s\n", path, strerror(errno));
+        free(tmp);
+        return -1;
+    }
+    int r = fn(f, user);
+    if (fflush(f) != 0 || ferror(f)) r = -1;
+    if (fclose(f) != 0) r = -1;
+    if (r == 0 && rename(tmp, path) != 0) {
+        fprintf(stderr, "frep: cannot write %s: %s\n", path, strerror(errno));
+        r = -1;
+    }
+    if (r != 0) {
+        remove(tmp);
+        if (r != -2) fprintf(stderr, "frep: %s not written\n", path);
+    }
+    free(tmp);
+    return r == 0 ? 0 : -1;
+}
+
+int cli_usage_error(const char *sub, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "frep %s: ", sub);
+    vfprintf(stderr, fmt, ap);
+    fprintf(stderr, "\nTry 'frep %s --help'.\n", sub);
+    va_end(ap);
+    return CLI_USAGE;
+}

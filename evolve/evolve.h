@@ -1,0 +1,88 @@
+/* evolve.h - the driver of `frep evolve`: from an oriented point cloud and fitted
+ * primitives to a simplified construction tree, and from the tree to a readable .hf
+ * model (and a Graphviz drawing).
+ *
+ * Pipeline: cloud + prims -> caches (fitness.c) -> partition.c or gp.c -> simplify.c
+ * -> statistics on every point -> evolve_write_model().  cli/cmd_evolve.c is the
+ * command around it.
+ */
+#ifndef FREP_EVOLVE_H
+#define FREP_EVOLVE_H
+
+#include <stddef.h>
+#include <stdio.h>
+
+#include "cloud.h"
+#include "fitness.h"
+#include "gp.h"
+#include "partition.h"
+#include "prim.h"
+
+/* Defaults of the options that are not the GA's. */
+#define EVOLVE_DEFAULT_EPS_REL 0.01     /* eps_d: 1% of the bounding-box diagonal (paper) */
+#define EVOLVE_DEFAULT_ALPHA_DEG 10.0   /* normal tolerance; the paper uses 35 for noisy data */
+/* Points the GA scores at most: a uniform random subset keeps every surface patch
+ * represented while each generation stays cheap; the final statistics and the
+ * simplification use every point. */
+#define EVOLVE_DEFAULT_SAMPLE 4096
+/* Proxy boxes are grown by this many eps_d so that faces meeting at an edge overlap. */
+#define EVOLVE_PROXY_MARGIN 2.0
+/* The clipping box is the cloud's oriented box grown by this fraction of the diagonal,
+ * far enough not to cut the surface. */
+#define EVOLVE_CLIP_MARGIN 0.02
+
+typedef struct evolve_options {
+    gp_config gp;            /* population, rates, seed, threads, max_time, setops */
+    int partition;           /* 1: partition acceleration (falls back when useless) */
+    size_t sample;           /* 0: all points */
+    double eps_rel;
+    double alpha_deg;
+    double lambda_scale;     /* lambda = lambda_scale * ln(N) per node */
+    int simplify;            /* 1: simplify the result */
+} evolve_options;
+
+void evolve_options_init(evolve_options *o);
+
+typedef struct evolve_result {
+    gp_tree tree;            /* PRIM j refers to the input primitive j */
+    gp_stats stats;          /* on every (valid) point */
+    double fitness;          /* on the scored sample */
+    size_t npoints;          /* valid points */
+    size_t dropped;          /* points with NaN/inf coordinates or no usable normal */
+    size_t nsample;          /* points scored by the GA */
+    double diag, eps_d, alpha;
+    uint32_t generations;
+    gp_stop stop;
+    int partitioned;
+    part_info part;
+    double seconds;
+    gp_obb obb;              /* oriented box of the cloud (not grown) */
+    double box[6];           /* axis-aligned extent for the @box pragma (grown) */
+} evolve_result;
+
+/* Run. The cloud must have normals. Returns 0, or -1 with *err (malloc'ed message,
+ * free()) for bad input (no primitives, no valid point) or out of memory. fn (may be
+ * NULL) gets the progress and may stop the run; the best tree so far is then kept.
+ * Free the result with evolve_result_free(). */
+int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
+               size_t nprims, gp_progress_fn fn, void *user, evolve_result *res,
+               char **err);
+void evolve_result_free(evolve_result *r);
+
+/* What the model's header comments say about the run. */
+typedef struct evolve_meta {
+    const char *command;     /* the command line (may be NULL) */
+    const char *cloud;       /* cloud file name (may be NULL) */
+    uint64_t seed;
+    gp_setops setops;
+} evolve_meta;
+
+/* The .hf model: primitives named pN after their input position, the tree with the
+ * language's operators under the matching @setops, clipped by the cloud's oriented box;
+ * comments with the figures; an @box pragma. Returns 0, or -1 on a write error. */
+int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_t nprims,
+                       const evolve_meta *m);
+/* Graphviz drawing of the tree with primitive names and types. */
+int evolve_write_dot(FILE *f, const evolve_result *r, const prim *prims, size_t nprims);
+
+#endif

@@ -1,0 +1,85 @@
+/* gp.h - the genetic-programming engine of `frep evolve` (Fayolle & Pasko, CAD 2016):
+ * a population of construction trees over cached primitives, tournament selection,
+ * subtree crossover and mutation, elitism; fitness evaluated in parallel.
+ *
+ * Runs on a gp_cache (fitness.h); called by evolve.c on all primitives and by
+ * partition.c once per clique.  Results depend on the seed only, never on the number
+ * of threads (all random choices are made serially; only scoring is parallel).
+ */
+#ifndef FREP_GP_H
+#define FREP_GP_H
+
+#include <stdint.h>
+
+#include "fitness.h"
+#include "tree.h"
+
+/* Defaults, from the paper unless noted. */
+#define GP_DEFAULT_POPULATION 150
+#define GP_DEFAULT_P_SUBTREE 0.7
+#define GP_DEFAULT_P_CROSSOVER 0.3
+#define GP_DEFAULT_P_MUTATION 0.3
+#define GP_DEFAULT_ELITE 2
+#define GP_DEFAULT_GENERATIONS 3000   /* the paper's longest runs */
+#define GP_DEFAULT_TOURNAMENT 4       /* not in the paper: pressure that converges fast */
+#define GP_DEFAULT_STAGNATION 40      /* generations without improvement before stopping */
+/* Extra depth beyond a balanced tree of all primitives, room for complements and
+ * subtractions (the default maximum depth is ceil(log2 k) + this). */
+#define GP_DEPTH_SLACK 2
+/* Fitness memo: direct-mapped entries; a tree met again (crossover often recreates
+ * its parents) is not scored again. */
+#define GP_MEMO_BITS 14
+
+typedef struct gp_config {
+    uint32_t population;
+    int max_depth;          /* 0: gp_default_depth(nprims) */
+    double p_subtree;
+    uint32_t tournament;
+    double p_crossover;
+    double p_mutation;
+    uint32_t elite;
+    uint32_t generations;   /* limit */
+    uint32_t stagnation;    /* stop after this many generations without improvement */
+    uint64_t seed;
+    int threads;            /* <= 0: OpenMP's default */
+    double max_time;        /* seconds; <= 0: no limit */
+    gp_setops setops;
+} gp_config;
+
+void gp_config_init(gp_config *c);
+int gp_default_depth(uint32_t nprims);
+
+typedef struct gp_progress {
+    uint32_t generation;
+    double best_fitness;
+    uint32_t best_len;
+    double elapsed;         /* seconds since gp_run started */
+} gp_progress;
+
+/* Called after each generation; a nonzero return stops the run (Ctrl-C). */
+typedef int (*gp_progress_fn)(void *user, const gp_progress *p);
+
+typedef enum gp_stop {
+    GP_STOP_GENERATIONS,
+    GP_STOP_STAGNATION,
+    GP_STOP_TIME,
+    GP_STOP_USER
+} gp_stop;
+
+typedef struct gp_result {
+    gp_tree best;           /* free with tree_free */
+    double fitness;
+    uint32_t generations;   /* generations run */
+    gp_stop stop;
+} gp_result;
+
+/* Evolve trees over the cache's primitives. seeds[0..nseeds) join the first
+ * population (may be NULL). Returns 0, or -1 on allocation failure or when the cache
+ * has no primitive or point. res->best is always initialised (maybe empty). */
+int gp_run(const gp_config *cfg, const gp_cache *c, const gp_tree *seeds, uint32_t nseeds,
+           gp_progress_fn fn, void *user, gp_result *res);
+
+/* Seconds on a monotonic-enough clock (for progress and --max-time). */
+double gp_now(void);
+
+#endif

@@ -1,0 +1,277 @@
+/* normals.c - PCA normals and their consistent orientation (evolve/normals.h).
+ *
+ * Per point: covariance of its k nearest neighbours, normal = eigenvector of the
+ * smallest eigenvalue (OpenMP over points; each point is independent, so the result
+ * does not depend on the thread count). Then Prim's algorithm over the k-NN graph with
+ * weights 1 - |ni.nj| flips normals so neighbours agree.
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "kdtree.h"
+#include "normals.h"
+
+/* Jacobi sweeps for a 3x3 symmetric matrix: converges quadratically, 50 sweeps is far
+ * beyond what double precision needs, and bounds the loop. */
+#define JACOBI_MAX_SWEEPS 50
+
+void normals_sym3_eig(const double m[9], double ev[3], double vec[9])
+{
+    double a[3][3], v[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) a[i][j] = 0.5 * (m[3 * i + j] + m[3 * j + i]);
+    for (int sweep = 0; sweep < JACOBI_MAX_SWEEPS; sweep++) {
+        double off = fabs(a[0][1]) + fabs(a[0][2]) + fabs(a[1][2]);
+        double diag = fabs(a[0][0]) + fabs(a[1][1]) + fabs(a[2][2]);
+        if (off <= 1e-300 || off <= 1e-17 * diag) break;
+        for (int p = 0; p < 2; p++)
+            for (int q = p + 1; q < 3; q++) {
+                if (a[p][q] == 0.0) continue;
+                double theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+                double t = (theta >= 0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+                double c = 1.0 / sqrt(t * t + 1.0), s = t * c;
+                for (int k = 0; k < 3; k++) { /* columns p, q */
+                    double akp = a[k][p], akq = a[k][q];
+                    a[k][p] = c * akp - s * akq;
+                    a[k][q] = s * akp + c * akq;
+                }
+                for (int k = 0; k < 3; k++) { /* rows p, q */
+                    double apk = a[p][k], aqk = a[q][k];
+                    a[p][k] = c * apk - s * aqk;
+                    a[q][k] = s * apk + c * aqk;
+                }
+                for (int k = 0; k < 3; k++) {
+                    double vkp = v[k][p], vkq = v[k][q];
+                    v[k][p] = c * vkp - s * vkq;
+                    v[k][q] = s * vkp + c * vkq;
+                }
+            }
+    }
+    int order[3] = {0, 1, 2};
+    for (int i = 0; i < 2; i++)
+        for (int j = i + 1; j < 3; j++)
+            if (a[order[j]][order[j]] < a[order[i]][order[i]]) {
+                int t = order[i];
+                order[i] = order[j];
+                order[j] = t;
+            }
+    for (int k = 0; k < 3; k++) {
+        ev[k] = a[order[k]][order[k]];
+        for (int i = 0; i < 3; i++) vec[3 * k + i] = v[i][order[k]];
+    }
+}
+
+/* Indexed binary min-heap over nodes with decrease-key, for Prim's algorithm. */
+typedef struct iheap {
+    uint32_t *heap;     /* node ids */
+    uint32_t *pos;      /* position of a node in heap, UINT32_MAX when absent */
+    double *key;
+    size_t n;
+} iheap;
+
+static void ih_swap(iheap *h, size_t i, size_t j)
+{
+    uint32_t a = h->heap[i], b = h->heap[j];
+    h->heap[i] = b;
+    h->heap[j] = a;
+    h->pos[b] = (uint32_t)i;
+    h->pos[a] = (uint32_t)j;
+}
+
+/* Order by key, then node id so the tree does not depend on heap history. */
+static int ih_less(const iheap *h, uint32_t a, uint32_t b)
+{
+    return h->key[a] < h->key[b] || (h->key[a] == h->key[b] && a < b);
+}
+
+static void ih_up(iheap *h, size_t i)
+{
+    while (i > 0) {
+        size_t p = (i - 1) / 2;
+        if (!ih_less(h, h->heap[i], h->heap[p])) break;
+        ih_swap(h, i, p);
+        i = p;
+    }
+}
+
+static void ih_down(iheap *h, size_t i)
+{
+    for (;;) {
+        size_t l = 2 * i + 1, r = l + 1, m = i;
+        if (l < h->n && ih_less(h, h->heap[l], h->heap[m])) m = l;
+        if (r < h->n && ih_less(h, h->heap[r], h->heap[m])) m = r;
+        if (m == i) return;
+        ih_swap(h, i, m);
+        i = m;
+    }
+}
+
+static void ih_push_or_decrease(iheap *h, uint32_t node, double key)
+{
+    if (h->pos[node] == UINT32_MAX) {
+        h->key[node] = key;
+        h->heap[h->n] = node;
+        h->pos[node] = (uint32_t)h->n;
+        h->n++;
+        ih_up(h, h->n - 1);
+    } else if (key < h->key[node]) {
+        h->key[node] = key;
+        ih_up(h, h->pos[node]);
+    }
+}
+
+static uint32_t ih_pop(iheap *h)
+{
+    uint32_t top = h->heap[0];
+    ih_swap(h, 0, h->n - 1);
+    h->n--;
+    h->pos[top] = UINT32_MAX;
+    if (h->n) ih_down(h, 0);
+    return top;
+}
+
+/* qsort has no user pointer in C11: sort (x, index) pairs instead. */
+typedef struct xkey {
+    double x;
+    uint32_t i;
+} xkey;
+
+static int cmp_xkey(const void *a, const void *b)
+{
+    const xkey *p = a, *q = b;
+    if (p->x > q->x) return -1;
+    if (p->x < q->x) return 1;
+    return (p->i > q->i) - (p->i < q->i);
+}
+
+int normals_estimate(frep_cloud *c, size_t k, int nthreads)
+{
+    size_t n = c->n;
+    if (n == 0) return 0;
+    if (k == 0) k = NORMALS_DEFAULT_K;
+    if (k < 3) k = 3;
+    if (k > KD_MAX_K) k = KD_MAX_K;
+    if (k > n) k = n;
+    if (!c->has_normals && cloud_add_normals(c)) return -1;
+    kd_tree *t = kd_build(n, c->x, c->y, c->z);
+    uint32_t *nb = malloc(n * k * sizeof *nb);
+    if (!t || !nb) {
+        kd_free(t);
+        free(nb);
+        return -1;
+    }
+    long ln = (long)n;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static, 1024) num_threads(nthreads > 0 ? nthreads : omp_get_max_threads())
+#else
+    (void)nthreads;
+#endif
+    for (long li = 0; li < ln; li++) {
+        size_t i = (size_t)li;
+        double d2[KD_MAX_K];
+        double q[3] = {c->x[i], c->y[i], c->z[i]};
+        uint32_t *idx = nb + i * k;
+        size_t m = kd_knn(t, q, k, idx, d2);
+        for (size_t j = m; j < k; j++) idx[j] = (uint32_t)i;
+        double mean[3] = {0, 0, 0};
+        for (size_t j = 0; j < m; j++) {
+            mean[0] += c->x[idx[j]];
+            mean[1] += c->y[idx[j]];
+            mean[2] += c->z[idx[j]];
+        }
+        for (int d = 0; d < 3; d++) mean[d] /= (double)m;
+        double cov[9] = {0};
+        for (size_t j = 0; j < m; j++) {
+            double v[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1],
+                           c->z[idx[j]] - mean[2]};
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++) cov[3 * a + b] += v[a] * v[b];
+        }
+        double ev[3], vec[9];
+        normals_sym3_eig(cov, ev, vec);
+        c->nx[i] = vec[0];
+        c->ny[i] = vec[1];
+        c->nz[i] = vec[2];
+    }
+    kd_free(t);
+
+    /* Orientation: Prim's algorithm from the extreme points, seeds in order of
+     * decreasing x so each component starts at its largest-x point. */
+    iheap h;
+    h.heap = malloc(n * sizeof *h.heap);
+    h.pos = malloc(n * sizeof *h.pos);
+    h.key = malloc(n * sizeof *h.key);
+    uint32_t *parent = malloc(n * sizeof *parent);
+    unsigned char *done = calloc(n, 1);
+    xkey *order = malloc(n * sizeof *order);
+    /* Reverse edges in CSR form (rstart[i]..rstart[i+1]): the k-NN relation is not
+     * symmetric, and orientation must cross edges both ways. */
+    size_t *rstart = calloc(n + 1, sizeof *rstart);
+    uint32_t *rev = malloc(n * k * sizeof *rev);
+    int rc = -1;
+    if (!h.heap || !h.pos || !h.key || !parent || !done || !order || !rstart || !rev)
+        goto out;
+    for (size_t e = 0; e < n * k; e++) rstart[nb[e] + 1]++;
+    for (size_t i = 0; i < n; i++) rstart[i + 1] += rstart[i];
+    for (size_t e = 0; e < n * k; e++) rev[rstart[nb[e]]++] = (uint32_t)(e / k);
+    for (size_t i = n; i > 0; i--) rstart[i] = rstart[i - 1];
+    rstart[0] = 0;
+    h.n = 0;
+    for (size_t i = 0; i < n; i++) {
+        h.pos[i] = UINT32_MAX;
+        order[i].x = c->x[i];
+        order[i].i = (uint32_t)i;
+    }
+    qsort(order, n, sizeof *order, cmp_xkey);
+    for (size_t s = 0; s < n; s++) {
+        uint32_t seed = order[s].i;
+        if (done[seed]) continue;
+        if (c->nx[seed] < 0) {
+            c->nx[seed] = -c->nx[seed];
+            c->ny[seed] = -c->ny[seed];
+            c->nz[seed] = -c->nz[seed];
+        }
+        parent[seed] = seed;
+        ih_push_or_decrease(&h, seed, 0.0);
+        while (h.n) {
+            uint32_t i = ih_pop(&h);
+            done[i] = 1;
+            uint32_t p = parent[i];
+            if (p != i &&
+                c->nx[i] * c->nx[p] + c->ny[i] * c->ny[p] + c->nz[i] * c->nz[p] < 0) {
+                c->nx[i] = -c->nx[i];
+                c->ny[i] = -c->ny[i];
+                c->nz[i] = -c->nz[i];
+            }
+            size_t nout = k, nin = rstart[i + 1] - rstart[i];
+            for (size_t j = 0; j < nout + nin; j++) {
+                uint32_t q = j < nout ? nb[(size_t)i * k + j] : rev[rstart[i] + (j - nout)];
+                if (done[q] || q == i) continue;
+                double w = 1.0 - fabs(c->nx[i] * c->nx[q] + c->ny[i] * c->ny[q] +
+                                      c->nz[i] * c->nz[q]);
+                uint32_t before = h.pos[q];
+                double old = before == UINT32_MAX ? INFINITY : h.key[q];
+                ih_push_or_decrease(&h, q, w);
+                if (w < old) parent[q] = i;
+            }
+        }
+    }
+    rc = 0;
+out:
+    free(h.heap);
+    free(h.pos);
+    free(h.key);
+    free(parent);
+    free(done);
+    free(order);
+    free(rstart);
+    free(rev);
+    free(nb);
+    return rc;
+}

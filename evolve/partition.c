@@ -1,0 +1,792 @@
+/* partition.c - overlap graph, maximal cliques, per-clique GAs and the merge of their
+ * trees (Friedrich, Feld, Phan, Fayolle, WSCG 2018); called by evolve.c before (or
+ * instead of) the GA over all primitives.
+ */
+#include "config.h"
+
+#include "partition.h"
+#include "simplify.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+/* ---- oriented boxes ----------------------------------------------------------- */
+
+/* Eigenvectors of a symmetric 3x3 matrix by cyclic Jacobi rotations (columns of v). */
+static void jacobi3(double a[3][3], double v[3][3])
+{
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) v[i][j] = i == j;
+    for (int sweep = 0; sweep < 50; sweep++) {
+        double off = fabs(a[0][1]) + fabs(a[0][2]) + fabs(a[1][2]);
+        if (off < 1e-300) break;
+        for (int p = 0; p < 2; p++)
+            for (int q = p + 1; q < 3; q++) {
+                if (fabs(a[p][q]) < 1e-300) continue;
+                double th = (a[q][q] - a[p][p]) / (2 * a[p][q]);
+                double t = (th >= 0 ? 1.0 : -1.0) / (fabs(th) + sqrt(th * th + 1));
+                double cs = 1 / sqrt(t * t + 1), sn = t * cs;
+                for (int k = 0; k < 3; k++) {
+                    double akp = a[k][p], akq = a[k][q];
+                    a[k][p] = cs * akp - sn * akq;
+                    a[k][q] = sn * akp + cs * akq;
+                }
+                for (int k = 0; k < 3; k++) {
+                    double apk = a[p][k], aqk = a[q][k];
+                    a[p][k] = cs * apk - sn * aqk;
+                    a[q][k] = sn * apk + cs * aqk;
+                }
+                for (int k = 0; k < 3; k++) {
+                    double vkp = v[k][p], vkq = v[k][q];
+                    v[k][p] = cs * vkp - sn * vkq;
+                    v[k][q] = sn * vkp + cs * vkq;
+                }
+            }
+    }
+}
+
+void part_obb_of_points(const double *x, const double *y, const double *z,
+                        const size_t *idx, size_t m, gp_obb *b)
+{
+    memset(b, 0, sizeof *b);
+    if (m == 0) return;
+    double mean[3] = { 0, 0, 0 };
+    for (size_t k = 0; k < m; k++) {
+        size_t i = idx ? idx[k] : k;
+        mean[0] += x[i];
+        mean[1] += y[i];
+        mean[2] += z[i];
+    }
+    for (int q = 0; q < 3; q++) mean[q] /= (double)m;
+    double cov[3][3] = { { 0 } };
+    for (size_t k = 0; k < m; k++) {
+        size_t i = idx ? idx[k] : k;
+        double d[3] = { x[i] - mean[0], y[i] - mean[1], z[i] - mean[2] };
+        for (int r = 0; r < 3; r++)
+            for (int s = 0; s < 3; s++) cov[r][s] += d[r] * d[s];
+    }
+    double v[3][3];
+    jacobi3(cov, v);
+    for (int a = 0; a < 3; a++)
+        for (int q = 0; q < 3; q++) b->ax[a][q] = v[q][a];
+    double lo[3] = { HUGE_VAL, HUGE_VAL, HUGE_VAL }, hi[3] = { -HUGE_VAL, -HUGE_VAL, -HUGE_VAL };
+    for (size_t k = 0; k < m; k++) {
+        size_t i = idx ? idx[k] : k;
+        double d[3] = { x[i] - mean[0], y[i] - mean[1], z[i] - mean[2] };
+        for (int a = 0; a < 3; a++) {
+            double t = d[0] * b->ax[a][0] + d[1] * b->ax[a][1] + d[2] * b->ax[a][2];
+            if (t < lo[a]) lo[a] = t;
+            if (t > hi[a]) hi[a] = t;
+        }
+    }
+    for (int q = 0; q < 3; q++) b->c[q] = mean[q];
+    for (int a = 0; a < 3; a++) {
+        double mid = 0.5 * (lo[a] + hi[a]);
+        for (int q = 0; q < 3; q++) b->c[q] += mid * b->ax[a][q];
+        b->h[a] = 0.5 * (hi[a] - lo[a]);
+    }
+    b->valid = 1;
+}
+
+static double dot3(const double *a, const double *b)
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+int part_obb_overlap(const gp_obb *a, const gp_obb *b, double margin)
+{
+    if (!a->valid || !b->valid) return 1;
+    double d[3] = { b->c[0] - a->c[0], b->c[1] - a->c[1], b->c[2] - a->c[2] };
+    double axes[15][3];
+    int na = 0;
+    for (int k = 0; k < 3; k++) {
+        memcpy(axes[na++], a->ax[k], sizeof axes[0]);
+        memcpy(axes[na++], b->ax[k], sizeof axes[0]);
+    }
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            const double *u = a->ax[i], *w = b->ax[j];
+            double c[3] = { u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
+                            u[0] * w[1] - u[1] * w[0] };
+            /* Parallel axes give no new separating direction. */
+            if (dot3(c, c) < 1e-12) continue;
+            memcpy(axes[na++], c, sizeof c);
+        }
+    for (int k = 0; k < na; k++) {
+        const double *L = axes[k];
+        double ra = 0, rb = 0;
+        for (int q = 0; q < 3; q++) {
+            ra += (a->h[q] + margin) * fabs(dot3(a->ax[q], L));
+            rb += (b->h[q] + margin) * fabs(dot3(b->ax[q], L));
+        }
+        if (fabs(dot3(d, L)) > ra + rb) return 0;
+    }
+    return 1;
+}
+
+int part_obb_contains(const gp_obb *b, const double p[3], double margin)
+{
+    if (!b->valid) return 0;
+    double d[3] = { p[0] - b->c[0], p[1] - b->c[1], p[2] - b->c[2] };
+    for (int a = 0; a < 3; a++)
+        if (fabs(dot3(d, b->ax[a])) > b->h[a] + margin) return 0;
+    return 1;
+}
+
+/* ---- overlap graph -------------------------------------------------------------- */
+
+int part_graph_has(const gp_graph *g, uint32_t i, uint32_t j)
+{
+    return (int)((g->adj[(size_t)i * g->words + j / 64] >> (j % 64)) & 1u);
+}
+
+void part_graph_set(gp_graph *g, uint32_t i, uint32_t j)
+{
+    g->adj[(size_t)i * g->words + j / 64] |= (uint64_t)1 << (j % 64);
+    g->adj[(size_t)j * g->words + i / 64] |= (uint64_t)1 << (i % 64);
+}
+
+void part_graph_free(gp_graph *g)
+{
+    free(g->adj);
+    memset(g, 0, sizeof *g);
+}
+
+typedef struct sweep_item {
+    double lo[3], hi[3];
+    uint32_t i;
+} sweep_item;
+
+static int cmp_sweep(const void *a, const void *b)
+{
+    const sweep_item *p = a, *q = b;
+    if (p->lo[0] != q->lo[0]) return p->lo[0] < q->lo[0] ? -1 : 1;
+    return p->i < q->i ? -1 : p->i > q->i;
+}
+
+int part_overlap_graph(const gp_obb *boxes, uint32_t n, double margin, gp_graph *g)
+{
+    memset(g, 0, sizeof *g);
+    if (n > PART_MAX_PRIMS) return -1;
+    g->n = n;
+    g->words = (n + 63) / 64;
+    g->adj = calloc((size_t)n * (g->words ? g->words : 1), sizeof *g->adj);
+    sweep_item *it = malloc((size_t)(n ? n : 1) * sizeof *it);
+    if (!g->adj || !it) {
+        free(it);
+        part_graph_free(g);
+        return -1;
+    }
+    uint32_t nv = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        const gp_obb *b = &boxes[i];
+        if (!b->valid) {  /* no proxy: conservatively overlaps everything */
+            for (uint32_t j = 0; j < n; j++)
+                if (j != i) part_graph_set(g, i, j);
+            continue;
+        }
+        sweep_item *s = &it[nv++];
+        s->i = i;
+        for (int q = 0; q < 3; q++) {
+            double r = 0;
+            for (int a = 0; a < 3; a++) r += (b->h[a] + margin) * fabs(b->ax[a][q]);
+            s->lo[q] = b->c[q] - r;
+            s->hi[q] = b->c[q] + r;
+        }
+    }
+    qsort(it, nv, sizeof *it, cmp_sweep);
+    for (uint32_t a = 0; a < nv; a++)
+        for (uint32_t b = a + 1; b < nv && it[b].lo[0] <= it[a].hi[0]; b++) {
+            if (it[b].lo[1] > it[a].hi[1] || it[a].lo[1] > it[b].hi[1] ||
+                it[b].lo[2] > it[a].hi[2] || it[a].lo[2] > it[b].hi[2])
+                continue;
+            if (part_obb_overlap(&boxes[it[a].i], &boxes[it[b].i], margin))
+                part_graph_set(g, it[a].i, it[b].i);
+        }
+    free(it);
+    return 0;
+}
+
+/* ---- maximal cliques -------------------------------------------------------------- */
+
+typedef struct bk_state {
+    const gp_graph *g;
+    uint32_t *r;          /* current clique */
+    uint32_t nr;
+    uint32_t max;
+    uint32_t count, cap_members, n_members;
+    uint32_t *start, *members;
+    size_t cap_start;
+    int overflow, nomem;
+} bk_state;
+
+static int bk_report(bk_state *s)
+{
+    if (s->count >= s->max) {
+        s->overflow = 1;
+        return -1;
+    }
+    if (s->n_members + s->nr > s->cap_members) {
+        uint32_t nc = s->cap_members ? s->cap_members * 2 : 64;
+        while (nc < s->n_members + s->nr) nc *= 2;
+        uint32_t *m = realloc(s->members, (size_t)nc * sizeof *m);
+        if (!m) { s->nomem = 1; return -1; }
+        s->members = m;
+        s->cap_members = nc;
+    }
+    if ((size_t)s->count + 2 > s->cap_start) {
+        size_t nc = s->cap_start ? s->cap_start * 2 : 64;
+        uint32_t *st = realloc(s->start, nc * sizeof *st);
+        if (!st) { s->nomem = 1; return -1; }
+        s->start = st;
+        s->cap_start = nc;
+    }
+    /* Members ascending: insertion sort of the (small) clique. */
+    uint32_t base = s->n_members;
+    for (uint32_t k = 0; k < s->nr; k++) {
+        uint32_t v = s->r[k], p = base + k;
+        while (p > base && s->members[p - 1] > v) {
+            s->members[p] = s->members[p - 1];
+            p--;
+        }
+        s->members[p] = v;
+    }
+    s->n_members += s->nr;
+    s->start[s->count] = base;
+    s->count++;
+    s->start[s->count] = s->n_members;
+    return 0;
+}
+
+static uint32_t popcount64(uint64_t x)
+{
+    uint32_t c = 0;
+    while (x) { x &= x - 1; c++; }
+    return c;
+}
+
+/* BronKerbosch2 with the pivot maximising |P & N(u)| (Tomita et al.). p and x are
+ * owned by the caller; recursion depth is at most the largest clique. */
+static int bk(bk_state *s, uint64_t *p, uint64_t *x)
+{
+    const gp_graph *g = s->g;
+    uint32_t W = g->words;
+    int emptyp = 1, emptyx = 1;
+    for (uint32_t w = 0; w < W; w++) {
+        if (p[w]) emptyp = 0;
+        if (x[w]) emptyx = 0;
+    }
+    if (emptyp) return emptyx ? bk_report(s) : 0;
+    uint32_t pivot = 0, best = 0;
+    int have = 0;
+    for (uint32_t w = 0; w < W; w++) {
+        uint64_t px = p[w] | x[w];
+        while (px) {
+            uint32_t u = w * 64 + (uint32_t)__builtin_ctzll(px);
+            px &= px - 1;
+            const uint64_t *nu = g->adj + (size_t)u * W;
+            uint32_t c = 0;
+            for (uint32_t q = 0; q < W; q++) c += popcount64(p[q] & nu[q]);
+            if (!have || c > best) { pivot = u; best = c; have = 1; }
+        }
+    }
+    uint64_t *np = malloc((size_t)2 * W * sizeof *np);
+    if (!np) { s->nomem = 1; return -1; }
+    uint64_t *nx = np + W;
+    const uint64_t *npiv = g->adj + (size_t)pivot * W;
+    for (uint32_t w = 0; w < W; w++) {
+        uint64_t cand = p[w] & ~npiv[w];
+        while (cand) {
+            uint32_t v = w * 64 + (uint32_t)__builtin_ctzll(cand);
+            cand &= cand - 1;
+            const uint64_t *nv = g->adj + (size_t)v * W;
+            for (uint32_t q = 0; q < W; q++) {
+                np[q] = p[q] & nv[q];
+                nx[q] = x[q] & nv[q];
+            }
+            s->r[s->nr++] = v;
+            int rc = bk(s, np, nx);
+            s->nr--;
+            if (rc) { free(np); return -1; }
+            p[w] &= ~((uint64_t)1 << (v % 64));
+            x[w] |= (uint64_t)1 << (v % 64);
+        }
+    }
+    free(np);
+    return 0;
+}
+
+int part_cliques(const gp_graph *g, uint32_t max_cliques, gp_cliques *out)
+{
+    memset(out, 0, sizeof *out);
+    bk_state s;
+    memset(&s, 0, sizeof s);
+    s.g = g;
+    s.max = max_cliques;
+    uint32_t W = g->words ? g->words : 1;
+    s.r = malloc((size_t)(g->n ? g->n : 1) * sizeof *s.r);
+    uint64_t *p = calloc((size_t)2 * W, sizeof *p);
+    if (!s.r || !p) {
+        free(s.r);
+        free(p);
+        return -1;
+    }
+    for (uint32_t i = 0; i < g->n; i++) p[i / 64] |= (uint64_t)1 << (i % 64);
+    int rc = g->n ? bk(&s, p, p + W) : 0;
+    free(p);
+    free(s.r);
+    if (rc) {
+        free(s.start);
+        free(s.members);
+        return s.nomem ? -1 : 1;
+    }
+    if (!s.start) {
+        s.start = calloc(1, sizeof *s.start);
+        if (!s.start) return -1;
+    }
+    out->count = s.count;
+    out->start = s.start;
+    out->members = s.members;
+    return 0;
+}
+
+void part_cliques_free(gp_cliques *c)
+{
+    free(c->start);
+    free(c->members);
+    memset(c, 0, sizeof *c);
+}
+
+/* ---- merging ---------------------------------------------------------------------- */
+
+static int is_union(uint8_t op) { return op == FREP_OP_MAX || op == FREP_OP_RUNI; }
+static int is_sub(uint8_t op) { return op == FREP_OP_MSUB || op == FREP_OP_RSUB; }
+
+int part_graft_valid(const frep_insn *code, uint32_t len, uint32_t target)
+{
+    if (!len || target >= len) return 0;
+    uint32_t cur = len - 1;
+    while (cur != target) {
+        const frep_insn *in = &code[cur];
+        if (tree_nin(in) != 2) return 0;  /* a leaf, or under a complement */
+        uint32_t l0, l1, r0;
+        tree_operands(code, cur, &l0, &l1, &r0);
+        if (target >= l0 && target <= l1) {
+            if (!is_union(in->op) && !is_sub(in->op)) return 0;
+            cur = l1;
+        } else if (target >= r0 && target < cur) {
+            if (!is_union(in->op)) return 0;
+            cur = cur - 1;
+        } else {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+uint32_t part_largest_common(const gp_tree *a, const gp_tree *b, uint32_t *ea,
+                             uint32_t *eb)
+{
+    uint32_t best = 0;
+    *ea = *eb = 0;
+    uint32_t *sb = malloc((size_t)(b->len ? b->len : 1) * sizeof *sb);
+    if (!sb) return 0;
+    for (uint32_t j = 0; j < b->len; j++) sb[j] = tree_subtree_start(b->code, j);
+    for (uint32_t i = 0; i < a->len; i++) {
+        uint32_t na = i - tree_subtree_start(a->code, i) + 1;
+        if (na <= best) continue;
+        for (uint32_t j = 0; j < b->len; j++) {
+            if (j - sb[j] + 1 != na) continue;
+            if (tree_compare(a->code, i, b->code, j) == 0) {
+                best = na;
+                *ea = i;
+                *eb = j;
+                break;
+            }
+        }
+    }
+    free(sb);
+    return best;
+}
+
+/* out = host with the subtree ending at `at` replaced by all of t. */
+static int graft(gp_tree *out, const gp_tree *host, uint32_t at, const gp_tree *t)
+{
+    if (tree_copy(out, host)) return -1;
+    return tree_splice(out, tree_subtree_start(host->code, at), at, t->code, t->len);
+}
+
+static int join(gp_tree *out, const gp_tree *a, const gp_tree *b, uint8_t op)
+{
+    out->len = 0;
+    if (tree_reserve(out, a->len + b->len + 1)) return -1;
+    memcpy(out->code, a->code, (size_t)a->len * sizeof *a->code);
+    memcpy(out->code + a->len, b->code, (size_t)b->len * sizeof *b->code);
+    out->len = a->len + b->len;
+    return tree_push(out, (frep_opcode)op, 0);
+}
+
+int part_merge_pair(const gp_tree *a, const gp_tree *b, gp_setops s, const gp_cache *c,
+                    gp_eval *e, gp_tree *out, double *fitness)
+{
+    gp_opset o = gp_opset_of(s);
+    gp_tree cand[4];
+    memset(cand, 0, sizeof cand);
+    int nc = 0, rc = -1;
+    uint32_t ea, eb;
+    if (part_largest_common(a, b, &ea, &eb)) {
+        /* b contains the common part where a graft keeps b's shape: put all of b
+         * in place of it inside a (and the other way round). */
+        if (part_graft_valid(b->code, b->len, eb) && graft(&cand[nc++], a, ea, b)) goto out;
+        if (part_graft_valid(a->code, a->len, ea) && graft(&cand[nc++], b, eb, a)) goto out;
+    }
+    if (join(&cand[nc++], a, b, o.uni) || join(&cand[nc++], a, b, o.inter)) goto out;
+    int best = -1;
+    double bf = -HUGE_VAL;
+    for (int k = 0; k < nc; k++) {
+        if (simplify_rules(&cand[k], s)) goto out;
+        double f = gp_fitness(c, e, cand[k].code, cand[k].len);
+        if (best < 0 || f > bf) {
+            best = k;
+            bf = f;
+        }
+    }
+    if (tree_copy(out, &cand[best]) || simplify_tree(out, s, c, e, fitness)) goto out;
+    rc = 0;
+out:
+    for (int k = 0; k < 4; k++) tree_free(&cand[k]);
+    return rc;
+}
+
+/* ---- the whole acceleration --------------------------------------------------------- */
+
+/* One piece of the partition: a tree over global primitive numbers, the points it
+ * explains (ascending indices into the cache) and its primitives (ascending). */
+typedef struct part_piece {
+    gp_tree t;
+    size_t *pts;
+    size_t npts;
+    uint32_t *prims;
+    uint32_t nprims;
+} part_piece;
+
+static void piece_free(part_piece *p)
+{
+    tree_free(&p->t);
+    free(p->pts);
+    free(p->prims);
+    memset(p, 0, sizeof *p);
+}
+
+static uint64_t mix_seed(uint64_t seed, uint64_t k)
+{
+    uint64_t z = seed + 0x9e3779b97f4a7c15u * (k + 1);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9u;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebu;
+    return z ^ (z >> 31);
+}
+
+/* Primitives used by t, ascending, into *out (malloc'ed). */
+static uint32_t used_prims(const gp_tree *t, uint32_t nprims, uint32_t **out)
+{
+    uint8_t *seen = calloc(nprims ? nprims : 1, 1);
+    uint32_t n = 0;
+    *out = NULL;
+    if (!seen) return 0;
+    for (uint32_t pc = 0; pc < t->len; pc++)
+        if (t->code[pc].op == FREP_OP_PRIM) seen[t->code[pc].arg] = 1;
+    for (uint32_t j = 0; j < nprims; j++) n += seen[j];
+    *out = malloc((size_t)(n ? n : 1) * sizeof **out);
+    if (*out) {
+        n = 0;
+        for (uint32_t j = 0; j < nprims; j++)
+            if (seen[j]) (*out)[n++] = j;
+    } else {
+        n = 0;
+    }
+    free(seen);
+    return n;
+}
+
+/* Renumber the PRIM leaves of t: global -> local through the ascending list
+ * prims[0..k) (dir = 0), or local -> global (dir = 1). */
+static void renumber(gp_tree *t, const uint32_t *prims, uint32_t k, int dir)
+{
+    for (uint32_t pc = 0; pc < t->len; pc++) {
+        frep_insn *in = &t->code[pc];
+        if (in->op != FREP_OP_PRIM) continue;
+        if (dir) {
+            in->arg = prims[in->arg];
+        } else {
+            uint32_t lo = 0, hi = k;
+            while (lo < hi) {
+                uint32_t mid = (lo + hi) / 2;
+                if (prims[mid] < in->arg) lo = mid + 1;
+                else hi = mid;
+            }
+            in->arg = lo;
+        }
+    }
+}
+
+/* Solve one clique: a tree over its members (global numbers) in *t. */
+static int solve_clique(const gp_config *cfg, const gp_cache *c, const uint32_t *mem,
+                        uint32_t k, const size_t *pts, size_t npts, uint64_t qseed,
+                        gp_eval *e, gp_tree *t, uint32_t *gens)
+{
+    gp_cache *sc = gp_cache_subset(c, pts, npts, mem, k, -1);
+    if (!sc) return -1;
+    int rc = -1;
+    t->len = 0;
+    *gens = 0;
+    if (k == 1) {
+        if (tree_push(t, FREP_OP_PRIM, 0)) goto out;
+    } else if (k == 2) {
+        /* The four set operations, exhaustively. */
+        gp_opset o = gp_opset_of(cfg->setops);
+        const uint8_t ops[4] = { o.uni, o.inter, o.sub, o.sub };
+        double bf = -HUGE_VAL;
+        gp_tree tr = { NULL, 0, 0 };
+        for (int q = 0; q < 4; q++) {
+            tr.len = 0;
+            uint32_t first = q == 3 ? 1 : 0;
+            if (tree_push(&tr, FREP_OP_PRIM, first) || tree_push(&tr, FREP_OP_PRIM, 1 - first) ||
+                tree_push(&tr, (frep_opcode)ops[q], 0)) {
+                tree_free(&tr);
+                goto out;
+            }
+            double f = gp_fitness(sc, e, tr.code, tr.len);
+            if (q == 0 || f > bf) {
+                bf = f;
+                if (tree_copy(t, &tr)) {
+                    tree_free(&tr);
+                    goto out;
+                }
+            }
+        }
+        tree_free(&tr);
+    } else {
+        gp_config cc = *cfg;
+        cc.threads = 1;
+        cc.seed = qseed;
+        cc.max_depth = gp_default_depth(k);
+        gp_result r;
+        if (gp_run(&cc, sc, NULL, 0, NULL, NULL, &r)) {
+            tree_free(&r.best);
+            goto out;
+        }
+        *gens = r.generations;
+        int bad = tree_copy(t, &r.best);
+        tree_free(&r.best);
+        if (bad || simplify_tree(t, cfg->setops, sc, e, NULL)) goto out;
+    }
+    renumber(t, mem, k, 1);
+    rc = 0;
+out:
+    gp_cache_free(sc);
+    return rc;
+}
+
+static size_t merge_sorted(const size_t *a, size_t na, const size_t *b, size_t nb, size_t *o)
+{
+    size_t i = 0, j = 0, n = 0;
+    while (i < na || j < nb) {
+        if (j >= nb || (i < na && a[i] < b[j])) o[n++] = a[i++];
+        else if (i >= na || b[j] < a[i]) o[n++] = b[j++];
+        else { o[n++] = a[i++]; j++; }
+    }
+    return n;
+}
+
+static uint32_t shared_count(const part_piece *a, const part_piece *b)
+{
+    uint32_t i = 0, j = 0, n = 0;
+    while (i < a->nprims && j < b->nprims) {
+        if (a->prims[i] < b->prims[j]) i++;
+        else if (b->prims[j] < a->prims[i]) j++;
+        else { n++; i++; j++; }
+    }
+    return n;
+}
+
+/* Merge piece j into piece i. */
+static int merge_pieces(const gp_config *cfg, const gp_cache *c, gp_eval *e,
+                        part_piece *pi, part_piece *pj)
+{
+    size_t *u = malloc((pi->npts + pj->npts + 1) * sizeof *u);
+    if (!u) return -1;
+    size_t nu = merge_sorted(pi->pts, pi->npts, pj->pts, pj->npts, u);
+    gp_tree both = { NULL, 0, 0 }, a = { NULL, 0, 0 }, b = { NULL, 0, 0 }, m = { NULL, 0, 0 };
+    uint32_t *prims = NULL;
+    gp_cache *sc = NULL;
+    int rc = -1;
+    if (join(&both, &pi->t, &pj->t, FREP_OP_MAX)) goto out;
+    uint32_t k = used_prims(&both, c->nprims, &prims);
+    if (!prims) goto out;
+    sc = gp_cache_subset(c, u, nu, prims, k, -1);
+    if (!sc || tree_copy(&a, &pi->t) || tree_copy(&b, &pj->t)) goto out;
+    renumber(&a, prims, k, 0);
+    renumber(&b, prims, k, 0);
+    if (part_merge_pair(&a, &b, cfg->setops, sc, e, &m, NULL)) goto out;
+    renumber(&m, prims, k, 1);
+    if (tree_copy(&pi->t, &m)) goto out;
+    free(pi->pts);
+    pi->pts = u;
+    pi->npts = nu;
+    u = NULL;
+    free(pi->prims);
+    pi->nprims = used_prims(&pi->t, c->nprims, &pi->prims);
+    if (!pi->prims) goto out;
+    rc = 0;
+out:
+    free(u);
+    free(prims);
+    gp_cache_free(sc);
+    tree_free(&both);
+    tree_free(&a);
+    tree_free(&b);
+    tree_free(&m);
+    return rc;
+}
+
+int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const double *y,
+             const double *z, const gp_obb *boxes, double margin, gp_progress_fn fn,
+             void *user, gp_result *res, part_info *info)
+{
+    memset(info, 0, sizeof *info);
+    memset(res, 0, sizeof *res);
+    res->fitness = -HUGE_VAL;
+    double t0 = gp_now();
+    gp_graph g;
+    gp_cliques cl;
+    memset(&cl, 0, sizeof cl);
+    if (part_overlap_graph(boxes, c->nprims, margin, &g)) return -1;
+    for (uint32_t i = 0; i < g.n; i++)
+        for (uint32_t j = i + 1; j < g.n; j++) info->nedges += (uint32_t)part_graph_has(&g, i, j);
+    int cr = part_cliques(&g, PART_MAX_CLIQUES, &cl);
+    part_graph_free(&g);
+    if (cr < 0) return -1;
+    if (cr > 0) return 0;  /* too many cliques: unpartitioned GA */
+    info->ncliques = cl.count;
+    for (uint32_t q = 0; q < cl.count; q++) {
+        uint32_t k = cl.start[q + 1] - cl.start[q];
+        if (k > info->largest) info->largest = k;
+    }
+    if (cl.count <= 1) {
+        part_cliques_free(&cl);
+        return 0;
+    }
+
+    uint32_t nq = cl.count;
+    part_piece *pc = calloc(nq, sizeof *pc);
+    uint32_t *gens = calloc(nq, sizeof *gens);
+    int nthreads = cfg->threads;
+#ifdef _OPENMP
+    if (nthreads <= 0) nthreads = omp_get_max_threads();
+#else
+    nthreads = 1;
+#endif
+    if (nthreads < 1) nthreads = 1;
+    gp_eval **ev = calloc((size_t)nthreads, sizeof *ev);
+    int rc = -1, failed = 0;
+    if (!pc || !gens || !ev) goto out;
+    for (int i = 0; i < nthreads; i++)
+        if (!(ev[i] = gp_eval_new())) goto out;
+
+    /* Points of each clique: inside the grown box of one of its members. */
+    for (uint32_t q = 0; q < nq; q++) {
+        const uint32_t *mem = cl.members + cl.start[q];
+        uint32_t k = cl.start[q + 1] - cl.start[q];
+        pc[q].pts = malloc((c->n ? c->n : 1) * sizeof *pc[q].pts);
+        pc[q].prims = malloc((size_t)k * sizeof *pc[q].prims);
+        if (!pc[q].pts || !pc[q].prims) goto out;
+        memcpy(pc[q].prims, mem, (size_t)k * sizeof *mem);
+        pc[q].nprims = k;
+        for (size_t i = 0; i < c->n; i++) {
+            double p[3] = { x[i], y[i], z[i] };
+            for (uint32_t m = 0; m < k; m++)
+                if (part_obb_contains(&boxes[mem[m]], p, margin)) {
+                    pc[q].pts[pc[q].npts++] = i;
+                    break;
+                }
+        }
+    }
+
+    long nql = (long)nq;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
+    for (long ql = 0; ql < nql; ql++) {
+        uint32_t q = (uint32_t)ql;
+        int tid = 0;
+#ifdef _OPENMP
+        tid = omp_get_thread_num();
+#endif
+        if (pc[q].npts == 0) continue;  /* explains no point: dropped */
+        if (solve_clique(cfg, c, pc[q].prims, pc[q].nprims, pc[q].pts, pc[q].npts,
+                         mix_seed(cfg->seed, q), ev[tid], &pc[q].t, &gens[q])) {
+#pragma omp atomic write
+            failed = 1;
+        }
+    }
+    if (failed) goto out;
+    for (uint32_t q = 0; q < nq; q++) info->generations += gens[q];
+
+    /* Merge: repeatedly the two pieces sharing the most primitives (ties: first). */
+    uint32_t live = 0;
+    for (uint32_t q = 0; q < nq; q++) {
+        if (pc[q].t.len) {
+            free(pc[q].prims);
+            pc[q].nprims = used_prims(&pc[q].t, c->nprims, &pc[q].prims);
+            if (!pc[q].prims) goto out;
+            if (live != q) {
+                pc[live] = pc[q];
+                memset(&pc[q], 0, sizeof pc[q]);
+            }
+            live++;
+        } else {
+            piece_free(&pc[q]);
+        }
+    }
+    if (live == 0) goto fallback;
+    while (live > 1) {
+        uint32_t bi = 0, bj = 1, bs = 0;
+        for (uint32_t i = 0; i < live; i++)
+            for (uint32_t j = i + 1; j < live; j++) {
+                uint32_t s = shared_count(&pc[i], &pc[j]);
+                if (s > bs) { bs = s; bi = i; bj = j; }
+            }
+        if (merge_pieces(cfg, c, ev[0], &pc[bi], &pc[bj])) goto out;
+        piece_free(&pc[bj]);
+        memmove(&pc[bj], &pc[bj + 1], (size_t)(live - bj - 1) * sizeof *pc);
+        memset(&pc[live - 1], 0, sizeof *pc);
+        live--;
+        if (fn) {
+            gp_progress pr = { info->generations, NAN, pc[bi].t.len, gp_now() - t0 };
+            if (fn(user, &pr)) break;
+        }
+    }
+    /* The merged tree over the whole cache. */
+    double fit;
+    if (tree_copy(&res->best, &pc[0].t) ||
+        simplify_tree(&res->best, cfg->setops, c, ev[0], &fit))
+        goto out;
+    res->fitness = fit;
+    res->generations = info->generations;
+    res->stop = GP_STOP_GENERATIONS;
+    info->partitioned = 1;
+fallback:
+    rc = 0;
+out:
+    if (pc)
+        for (uint32_t q = 0; q < nq; q++) piece_free(&pc[q]);
+    free(pc);
+    free(gens);
+    if (ev)
+        for (int i = 0; i < nthreads; i++) gp_eval_free(ev[i]);
+    free(ev);
+    part_cliques_free(&cl);
+    return rc;
+}

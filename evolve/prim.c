@@ -1,0 +1,141 @@
+/* prim.c - evaluation and source form of fitted primitives (evolve/prim.h).
+ *
+ * The same formulas as the language's frPlane/frSphere/frCylinder/frCone/frTorus, so a
+ * model written by prim_write_call evaluates to what segment and evolve computed.
+ */
+#include <math.h>
+#include <stdio.h>
+
+#include "prim.h"
+
+static double dot3(const double a[3], const double b[3])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+/* Below this length a radial vector has no direction: the gradient there is chosen
+ * perpendicular to the axis so it stays finite (the surface is not smooth there). */
+#define PRIM_TINY 1e-300
+
+/* Any unit vector perpendicular to unit a. */
+static void any_perp(const double a[3], double u[3])
+{
+    double t[3] = {0, 0, 0};
+    int k = fabs(a[0]) < fabs(a[1]) ? (fabs(a[0]) < fabs(a[2]) ? 0 : 2)
+                                    : (fabs(a[1]) < fabs(a[2]) ? 1 : 2);
+    t[k] = 1.0;
+    double d = dot3(t, a);
+    for (int i = 0; i < 3; i++) u[i] = t[i] - d * a[i];
+    double l = sqrt(dot3(u, u));
+    for (int i = 0; i < 3; i++) u[i] /= l;
+}
+
+double prim_eval(const prim *q, const double x[3], double g[3])
+{
+    double v[3], f = 0.0;
+    switch (q->type) {
+    case PRIM_PLANE:
+        f = q->r - dot3(q->p, x);
+        if (g) for (int i = 0; i < 3; i++) g[i] = -q->p[i];
+        return f;
+    case PRIM_SPHERE: {
+        for (int i = 0; i < 3; i++) v[i] = x[i] - q->p[i];
+        double l = sqrt(dot3(v, v));
+        f = q->r - l;
+        if (g) {
+            if (l > PRIM_TINY) for (int i = 0; i < 3; i++) g[i] = -v[i] / l;
+            else g[0] = -1, g[1] = 0, g[2] = 0;
+        }
+        return f;
+    }
+    case PRIM_CYLINDER:
+    case PRIM_CONE:
+    case PRIM_TORUS: {
+        for (int i = 0; i < 3; i++) v[i] = x[i] - q->p[i];
+        double h = dot3(v, q->a);
+        double w[3];
+        for (int i = 0; i < 3; i++) w[i] = v[i] - h * q->a[i];
+        double rho = sqrt(dot3(w, w));
+        double e[3]; /* unit radial direction */
+        if (rho > PRIM_TINY) for (int i = 0; i < 3; i++) e[i] = w[i] / rho;
+        else any_perp(q->a, e);
+        if (q->type == PRIM_CYLINDER) {
+            f = q->r - rho;
+            if (g) for (int i = 0; i < 3; i++) g[i] = -e[i];
+        } else if (q->type == PRIM_CONE) {
+            double s = sin(q->r), c = cos(q->r);
+            f = h * s - rho * c;
+            if (g) for (int i = 0; i < 3; i++) g[i] = s * q->a[i] - c * e[i];
+        } else {
+            double dr = rho - q->R;
+            double l = sqrt(dr * dr + h * h);
+            f = q->r - l;
+            if (g) {
+                if (l > PRIM_TINY)
+                    for (int i = 0; i < 3; i++) g[i] = -(dr * e[i] + h * q->a[i]) / l;
+                else
+                    for (int i = 0; i < 3; i++) g[i] = -e[i];
+            }
+        }
+        return f;
+    }
+    case PRIM__COUNT:
+        break;
+    }
+    if (g) g[0] = g[1] = g[2] = 0.0;
+    return NAN;
+}
+
+void prim_eval_many(const prim *q, size_t n, const double *x, const double *y,
+                    const double *z, double *f, double *gx, double *gy, double *gz)
+{
+    for (size_t i = 0; i < n; i++) {
+        double p[3] = {x[i], y[i], z[i]}, g[3];
+        f[i] = prim_eval(q, p, gx ? g : NULL);
+        if (gx) {
+            gx[i] = g[0];
+            gy[i] = g[1];
+            gz[i] = g[2];
+        }
+    }
+}
+
+const char *prim_type_name(prim_type t)
+{
+    switch (t) {
+    case PRIM_PLANE: return "plane";
+    case PRIM_SPHERE: return "sphere";
+    case PRIM_CYLINDER: return "cylinder";
+    case PRIM_CONE: return "cone";
+    case PRIM_TORUS: return "torus";
+    case PRIM__COUNT: break;
+    }
+    return "?";
+}
+
+void prim_write_call(FILE *f, const prim *q)
+{
+    switch (q->type) {
+    case PRIM_PLANE:
+        fprintf(f, "frPlane(x, %.17g, %.17g, %.17g, %.17g)", q->p[0], q->p[1], q->p[2], q->r);
+        return;
+    case PRIM_SPHERE:
+        fprintf(f, "frSphere(x, %.17g, %.17g, %.17g, %.17g)", q->p[0], q->p[1], q->p[2], q->r);
+        return;
+    case PRIM_CYLINDER:
+        fprintf(f, "frCylinder(x, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g)", q->p[0],
+                q->p[1], q->p[2], q->a[0], q->a[1], q->a[2], q->r);
+        return;
+    case PRIM_CONE:
+        fprintf(f, "frCone(x, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g)", q->p[0],
+                q->p[1], q->p[2], q->a[0], q->a[1], q->a[2], q->r);
+        return;
+    case PRIM_TORUS:
+        fprintf(f, "frTorus(x, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g)",
+                q->p[0], q->p[1], q->p[2], q->a[0], q->a[1], q->a[2], q->R, q->r);
+        return;
+    case PRIM__COUNT:
+        break;
+    }
+    fputs("0", f);
+}

@@ -1,0 +1,54 @@
+/* prim.h - fitted primitives in general position: what `frep segment` detects, what
+ * `frep evolve` combines, and how both are written as frep model source.
+ *
+ * Each primitive is a signed distance (inside >= 0) in frep's extension functions of
+ * the language (frPlane, frSphere, frCylinder, frCone, frTorus; doc/language.md), so a
+ * model written from a list of prim values evaluates to the same numbers.
+ */
+#ifndef FREP_PRIM_H
+#define FREP_PRIM_H
+
+#include <stddef.h>
+#include <stdio.h>
+
+typedef enum prim_type {
+    PRIM_PLANE,     /* n (unit, outward), d: f = d - n.x          frPlane(x, nx,ny,nz, d) */
+    PRIM_SPHERE,    /* c, r: f = r - |x - c|                       frSphere(x, cx,cy,cz, r) */
+    PRIM_CYLINDER,  /* p (point on axis), a (unit axis), r: f = r - dist(x, axis)
+                                                 frCylinder(x, px,py,pz, ax,ay,az, r) */
+    PRIM_CONE,      /* p (apex), a (unit axis, opening direction), angle (half-angle, rad):
+                       v = x - p, h = v.a, rho = |v - h a|, f = h sin(angle) - rho cos(angle)
+                                                 frCone(x, px,py,pz, ax,ay,az, angle) */
+    PRIM_TORUS,     /* p (centre), a (unit axis), R (major), r (minor):
+                       f = r - sqrt((rho - R)^2 + h^2)
+                                                 frTorus(x, px,py,pz, ax,ay,az, R, r) */
+    PRIM__COUNT
+} prim_type;
+
+typedef struct prim {
+    prim_type type;
+    double p[3];      /* plane: n; sphere: c; cylinder/cone/torus: point/apex/centre */
+    double a[3];      /* cylinder/cone/torus: unit axis; unused otherwise */
+    double r;         /* plane: d; sphere/cylinder/torus minor radius r; cone: angle */
+    double R;         /* torus: major radius */
+    int separating;   /* added by Algorithm 2 of Fayolle & Pasko 2016, not fitted */
+    size_t support;   /* inlier count (0 for separating primitives) */
+    double rms;       /* RMS distance of the inliers */
+    /* Bounded proxy: oriented box of the inliers (centre, axes, half sizes); valid when
+     * has_obb. Used by the overlap graph of frep evolve. */
+    double obb_c[3], obb_axes[3][3], obb_half[3];
+    int has_obb;
+} prim;
+
+/* Value and (if g != NULL) gradient of a primitive at one point. */
+double prim_eval(const prim *q, const double x[3], double g[3]);
+/* Values (and gradients if gx != NULL) at n points, structure of arrays. */
+void prim_eval_many(const prim *q, size_t n, const double *x, const double *y,
+                    const double *z, double *f, double *gx, double *gy, double *gz);
+
+/* Name of a type as in .fit files and summaries ("plane", "sphere", ...). */
+const char *prim_type_name(prim_type t);
+/* The frep source call for q, e.g. "frSphere(x, 1, 2, 3, 0.5)", %.17g numbers. */
+void prim_write_call(FILE *f, const prim *q);
+
+#endif

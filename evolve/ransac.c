@@ -1,0 +1,1244 @@
+/* ransac.c - efficient RANSAC primitive detection (evolve/ransac.h).
+ *
+ * Schnabel, Wahl, Klein, "Efficient RANSAC for point-cloud shape detection" (2007):
+ * minimal samples drawn locally through an octree (here: points sorted by Morton code,
+ * so an octree cell is a contiguous range), candidates scored on growing random
+ * subsets with confidence intervals, the best one extracted once the probability of
+ * having missed a better one is small, restricted to its largest connected component
+ * in the parameter domain and refitted on Euclidean distance.
+ */
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "normals.h"
+#include "ransac.h"
+
+/* Octree depth for localized sampling: 10 levels = cells of 1/1024 of the box side,
+ * finer than any useful sampling neighbourhood. */
+#define OCT_LEVELS 10
+/* Points in the first scoring subset; later subsets double. Small enough that scoring
+ * a fresh candidate is cheap, large enough for a first estimate. */
+#define SUBSET_FIRST 512
+/* Most scoring subsets (doubling from SUBSET_FIRST covers 2^31 points). */
+#define MAX_SUBSETS 40
+/* Minimal samples drawn per round before the acceptance test. */
+#define DRAWS_PER_ROUND 64
+/* Candidates kept alive at once: older, weaker ones are dropped beyond this. */
+#define MAX_POOL 4096
+/* Points per minimal sample (the torus needs four). */
+#define SAMPLE_SIZE 4
+/* Attempts to find distinct live points in an octree cell for one sample. */
+#define SAMPLE_TRIES 16
+/* Points used by a least-squares refit: an evenly spaced subset beyond this keeps the
+ * refit of huge patches fast without changing the estimate materially. */
+#define REFIT_MAX_POINTS 20000
+/* Levenberg-Marquardt iterations per refit. */
+#define LM_MAX_ITER 60
+/* Cells per axis of the connectivity bitmap; the cell grows past the configured
+ * cluster size when a patch would need more (ids must fit in 64 bits). */
+#define BITMAP_MAX_CELLS_AXIS (1u << 20)
+/* Cone half-angles outside [CONE_MIN_ANGLE, pi/2 - CONE_MIN_ANGLE] are degenerate
+ * (a cylinder or a plane describes the data better). */
+#define CONE_MIN_ANGLE (2.0 * M_PI / 180.0)
+/* Curved primitives with radii above this many box diagonals are planes in disguise. */
+#define MAX_RADIUS_DIAGONALS 2.0
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+/* ---- small vector and random helpers --------------------------------------- */
+
+static char *dupstr(const char *s)
+{
+    size_t l = strlen(s) + 1;
+    char *d = malloc(l);
+    if (d) memcpy(d, s, l);
+    return d;
+}
+
+static double dot(const double a[3], const double b[3])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static void cross(const double a[3], const double b[3], double c[3])
+{
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static double norm(const double a[3]) { return sqrt(dot(a, a)); }
+
+static int normalize(double a[3])
+{
+    double l = norm(a);
+    if (!(l > 1e-300) || !isfinite(l)) return -1;
+    a[0] /= l;
+    a[1] /= l;
+    a[2] /= l;
+    return 0;
+}
+
+static void sub(const double a[3], const double b[3], double c[3])
+{
+    c[0] = a[0] - b[0];
+    c[1] = a[1] - b[1];
+    c[2] = a[2] - b[2];
+}
+
+/* xoshiro256** seeded through splitmix64: same stream on every platform. */
+typedef struct rng {
+    uint64_t s[4];
+} rng;
+
+static uint64_t splitmix(uint64_t *x)
+{
+    uint64_t z = (*x += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
+static void rng_seed(rng *r, uint64_t seed)
+{
+    for (int i = 0; i < 4; i++) r->s[i] = splitmix(&seed);
+}
+
+static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
+
+static uint64_t rng_next(rng *r)
+{
+    uint64_t *s = r->s;
+    uint64_t res = rotl(s[1] * 5, 7) * 9, t = s[1] << 17;
+    s[2] ^= s[0];
+    s[3] ^= s[1];
+    s[1] ^= s[2];
+    s[0] ^= s[3];
+    s[2] ^= t;
+    s[3] = rotl(s[3], 45);
+    return res;
+}
+
+/* Uniform integer in [0, n), n > 0 (modulo bias is negligible for n << 2^64). */
+static size_t rng_below(rng *r, size_t n) { return (size_t)(rng_next(r) % n); }
+static double rng_unit(rng *r) { return (double)(rng_next(r) >> 11) * 0x1.0p-53; }
+
+static void point(const frep_cloud *c, size_t i, double p[3])
+{
+    p[0] = c->x[i];
+    p[1] = c->y[i];
+    p[2] = c->z[i];
+}
+
+static void normal(const frep_cloud *c, size_t i, double n[3])
+{
+    n[0] = c->nx[i];
+    n[1] = c->ny[i];
+    n[2] = c->nz[i];
+}
+
+/* Is point i an inlier of q: within eps and its normal within the angle? */
+static int compatible(const prim *q, const frep_cloud *c, size_t i, double eps, double cosn)
+{
+    double p[3], g[3];
+    point(c, i, p);
+    double f = prim_eval(q, p, g);
+    if (!(fabs(f) <= eps)) return 0;
+    double gl = norm(g);
+    double d = c->nx[i] * g[0] + c->ny[i] * g[1] + c->nz[i] * g[2];
+    return fabs(d) >= cosn * gl && gl > 0;
+}
+
+/* ---- candidates from minimal samples --------------------------------------- */
+
+/* Closest points of lines p1 + t d1 and p2 + s d2; returns -1 when parallel. */
+static int line_closest(const double p1[3], const double d1[3], const double p2[3],
+                        const double d2[3], double m[3])
+{
+    double w[3];
+    sub(p1, p2, w);
+    double a = dot(d1, d1), b = dot(d1, d2), cc = dot(d2, d2), d = dot(d1, w), e = dot(d2, w);
+    double den = a * cc - b * b;
+    if (!(fabs(den) > 1e-9 * a * cc)) return -1;
+    double t = (b * e - cc * d) / den, s = (a * e - b * d) / den;
+    for (int k = 0; k < 3; k++) m[k] = 0.5 * (p1[k] + t * d1[k] + p2[k] + s * d2[k]);
+    return 0;
+}
+
+/* Circle through three points: centre, unit normal and radius; -1 if collinear. */
+static int circle3(const double a3[3], const double b3[3], const double c3[3], double ctr[3],
+                   double nrm[3], double *rad)
+{
+    double a[3], b[3], axb[3];
+    sub(a3, c3, a);
+    sub(b3, c3, b);
+    cross(a, b, axb);
+    double l2 = dot(axb, axb);
+    if (!(l2 > 1e-24 * dot(a, a) * dot(b, b)) || l2 == 0) return -1;
+    double t[3], u[3];
+    for (int k = 0; k < 3; k++) t[k] = dot(a, a) * b[k] - dot(b, b) * a[k];
+    cross(t, axb, u);
+    for (int k = 0; k < 3; k++) ctr[k] = c3[k] + u[k] / (2.0 * l2);
+    for (int k = 0; k < 3; k++) nrm[k] = axb[k];
+    normalize(nrm);
+    double d[3];
+    sub(a3, ctr, d);
+    *rad = norm(d);
+    return 0;
+}
+
+/* Solve the 3x3 system m x = b (Cramer); -1 when singular. */
+static int solve3(const double m[3][3], const double b[3], double x[3])
+{
+    double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+                 m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+                 m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    if (!(fabs(det) > 1e-12)) return -1;
+    for (int k = 0; k < 3; k++) {
+        double t[3][3];
+        memcpy(t, m, sizeof t);
+        for (int r = 0; r < 3; r++) t[r][k] = b[r];
+        x[k] = (t[0][0] * (t[1][1] * t[2][2] - t[1][2] * t[2][1]) -
+                t[0][1] * (t[1][0] * t[2][2] - t[1][2] * t[2][0]) +
+                t[0][2] * (t[1][0] * t[2][1] - t[1][1] * t[2][0])) / det;
+    }
+    return 0;
+}
+
+typedef struct sample {
+    double p[SAMPLE_SIZE][3], n[SAMPLE_SIZE][3];
+} sample;
+
+static int make_plane(const sample *s, prim *q)
+{
+    double u[3], v[3], n[3];
+    sub(s->p[1], s->p[0], u);
+    sub(s->p[2], s->p[0], v);
+    cross(u, v, n);
+    if (normalize(n)) return -1;
+    if (dot(n, s->n[0]) < 0) for (int k = 0; k < 3; k++) n[k] = -n[k];
+    q->type = PRIM_PLANE;
+    memcpy(q->p, n, sizeof n);
+    q->r = dot(n, s->p[0]);
+    return 0;
+}
+
+static int make_sphere(const sample *s, prim *q)
+{
+    double c[3];
+    if (line_closest(s->p[0], s->n[0], s->p[1], s->n[1], c)) return -1;
+    double d0[3], d1[3];
+    sub(s->p[0], c, d0);
+    sub(s->p[1], c, d1);
+    q->type = PRIM_SPHERE;
+    memcpy(q->p, c, sizeof c);
+    q->r = 0.5 * (norm(d0) + norm(d1));
+    return 0;
+}
+
+static int make_cylinder(const sample *s, prim *q)
+{
+    double a[3];
+    cross(s->n[0], s->n[1], a);
+    if (norm(a) < 1e-2 || normalize(a)) return -1;
+    double c[3];
+    if (line_closest(s->p[0], s->n[0], s->p[1], s->n[1], c)) return -1;
+    q->type = PRIM_CYLINDER;
+    memcpy(q->p, c, sizeof c);
+    memcpy(q->a, a, sizeof a);
+    double r = 0;
+    for (int i = 0; i < 2; i++) {
+        double v[3], w[3];
+        sub(s->p[i], c, v);
+        double h = dot(v, a);
+        for (int k = 0; k < 3; k++) w[k] = v[k] - h * a[k];
+        r += 0.5 * norm(w);
+    }
+    q->r = r;
+    return 0;
+}
+
+static int make_cone(const sample *s, prim *q)
+{
+    double m[3][3], b[3], apex[3];
+    for (int i = 0; i < 3; i++) {
+        for (int k = 0; k < 3; k++) m[i][k] = s->n[i][k];
+        b[i] = dot(s->n[i], s->p[i]);
+    }
+    if (solve3(m, b, apex)) return -1;
+    double d[3][3];
+    for (int i = 0; i < 3; i++) {
+        sub(s->p[i], apex, d[i]);
+        if (normalize(d[i])) return -1;
+    }
+    double u[3], v[3], a[3];
+    sub(d[1], d[0], u);
+    sub(d[2], d[0], v);
+    cross(u, v, a);
+    if (normalize(a)) return -1;
+    if (dot(a, d[0]) < 0) for (int k = 0; k < 3; k++) a[k] = -a[k];
+    double ang = 0;
+    for (int i = 0; i < 3; i++) ang += acos(fmin(1.0, fmax(-1.0, dot(a, d[i])))) / 3.0;
+    if (ang < CONE_MIN_ANGLE || ang > M_PI / 2 - CONE_MIN_ANGLE) return -1;
+    q->type = PRIM_CONE;
+    memcpy(q->p, apex, sizeof apex);
+    memcpy(q->a, a, sizeof a);
+    q->r = ang;
+    return 0;
+}
+
+/* det[c2 - c1, c3 - c1, c4 - c1] with ci = pi - r ni: zero when the four tube centres
+ * are coplanar, as the spine circle of a torus is. */
+static double torus_det(const sample *s, double r)
+{
+    double c[4][3], u[3], v[3], w[3], x[3];
+    for (int i = 0; i < 4; i++)
+        for (int k = 0; k < 3; k++) c[i][k] = s->p[i][k] - r * s->n[i][k];
+    sub(c[1], c[0], u);
+    sub(c[2], c[0], v);
+    sub(c[3], c[0], w);
+    cross(v, w, x);
+    return dot(u, x);
+}
+
+/* Subdivisions of the minor-radius interval searched for roots of torus_det. */
+#define TORUS_ROOT_SCAN 48
+
+static int make_torus(const sample *s, prim *q, double rmax, double eps)
+{
+    double prev_r = -rmax, prev = torus_det(s, prev_r);
+    for (int k = 1; k <= TORUS_ROOT_SCAN; k++) {
+        double r1 = -rmax + 2.0 * rmax * k / TORUS_ROOT_SCAN, f1 = torus_det(s, r1);
+        if ((prev < 0) != (f1 < 0)) {
+            double lo = prev_r, hi = r1, flo = prev;
+            for (int it = 0; it < 60; it++) {
+                double mid = 0.5 * (lo + hi), fm = torus_det(s, mid);
+                if ((fm < 0) == (flo < 0)) lo = mid, flo = fm;
+                else hi = mid;
+            }
+            double r = 0.5 * (lo + hi);
+            double c[4][3];
+            for (int i = 0; i < 4; i++)
+                for (int j = 0; j < 3; j++) c[i][j] = s->p[i][j] - r * s->n[i][j];
+            double ctr[3], ax[3], R;
+            if (fabs(r) > eps && !circle3(c[0], c[1], c[2], ctr, ax, &R)) {
+                /* The fourth tube centre must lie on the same circle. */
+                double v[3];
+                sub(c[3], ctr, v);
+                double h = dot(v, ax), rho2 = dot(v, v) - h * h;
+                double rho = sqrt(fmax(0.0, rho2));
+                if (fabs(h) < eps && fabs(rho - R) < eps && R > fabs(r) * 0.05) {
+                    q->type = PRIM_TORUS;
+                    memcpy(q->p, ctr, sizeof ctr);
+                    memcpy(q->a, ax, sizeof ax);
+                    q->R = R;
+                    q->r = fabs(r);
+                    return 0;
+                }
+            }
+        }
+        prev_r = r1;
+        prev = f1;
+    }
+    return -1;
+}
+
+/* ---- connected component in the parameter domain --------------------------- */
+
+typedef struct cellpt {
+    uint64_t cell;
+    uint32_t pt;      /* position in the inlier list */
+} cellpt;
+
+static int cmp_cellpt(const void *a, const void *b)
+{
+    const cellpt *x = a, *y = b;
+    if (x->cell != y->cell) return x->cell < y->cell ? -1 : 1;
+    return (x->pt > y->pt) - (x->pt < y->pt);
+}
+
+static uint32_t uf_find(uint32_t *par, uint32_t i)
+{
+    while (par[i] != i) {
+        par[i] = par[par[i]];
+        i = par[i];
+    }
+    return i;
+}
+
+/* Orthonormal u, v completing unit a. */
+static void basis(const double a[3], double u[3], double v[3])
+{
+    double t[3] = {1, 0, 0};
+    if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
+    double d = dot(t, a);
+    for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
+    normalize(u);
+    cross(a, u, v);
+}
+
+/* Keep only the inliers (idx[0..n)) in the largest 8-connected patch of a bitmap with
+ * cells of size beta over the parameter domain of q. Returns the new count. */
+static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *idx, size_t n,
+                                double beta)
+{
+    if (n == 0) return 0;
+    double *uv = malloc(2 * n * sizeof *uv);
+    cellpt *cp = malloc(n * sizeof *cp);
+    uint32_t *par = NULL, *cnt = NULL;
+    if (!uv || !cp) goto oom;
+    double e1[3], e2[3];
+    const double *ax = q->type == PRIM_PLANE ? q->p : q->a;
+    double zaxis[3] = {0, 0, 1};
+    if (q->type == PRIM_SPHERE) ax = zaxis;
+    basis(ax, e1, e2);
+    double period[2] = {0, 0}; /* 0: not periodic */
+    double mean_rho = 0;
+    if (q->type == PRIM_CONE) {
+        for (size_t i = 0; i < n; i++) {
+            double p[3], v[3];
+            point(c, idx[i], p);
+            sub(p, q->p, v);
+            double h = dot(v, q->a);
+            mean_rho += sqrt(fmax(0, dot(v, v) - h * h)) / (double)n;
+        }
+    }
+    for (size_t i = 0; i < n; i++) {
+        double p[3], v[3];
+        point(c, idx[i], p);
+        double u = 0, w = 0;
+        switch (q->type) {
+        case PRIM_PLANE:
+            u = dot(p, e1);
+            w = dot(p, e2);
+            break;
+        case PRIM_SPHERE: {
+            sub(p, q->p, v);
+            normalize(v);
+            u = q->r * atan2(dot(v, e2), dot(v, e1));
+            w = q->r * acos(fmin(1, fmax(-1, dot(v, ax))));
+            period[0] = 2 * M_PI * q->r;
+            break;
+        }
+        case PRIM_CYLINDER:
+        case PRIM_CONE:
+        case PRIM_TORUS: {
+            sub(p, q->p, v);
+            double h = dot(v, q->a);
+            double ang = atan2(dot(v, e2), dot(v, e1));
+            double rho = sqrt(fmax(0, dot(v, v) - h * h));
+            if (q->type == PRIM_CYLINDER) {
+                u = q->r * ang;
+                w = h;
+                period[0] = 2 * M_PI * q->r;
+            } else if (q->type == PRIM_CONE) {
+                u = mean_rho * ang;
+                w = sqrt(h * h + rho * rho);
+                period[0] = 2 * M_PI * mean_rho;
+            } else {
+                u = q->R * ang;
+                w = q->r * atan2(h, rho - q->R);
+                period[0] = 2 * M_PI * q->R;
+                period[1] = 2 * M_PI * q->r;
+            }
+            break;
+        }
+        case PRIM__COUNT:
+            break;
+        }
+        uv[2 * i] = u;
+        uv[2 * i + 1] = w;
+    }
+    double lo[2] = {DBL_MAX, DBL_MAX}, hi[2] = {-DBL_MAX, -DBL_MAX};
+    for (size_t i = 0; i < n; i++)
+        for (int k = 0; k < 2; k++) {
+            if (uv[2 * i + k] < lo[k]) lo[k] = uv[2 * i + k];
+            if (uv[2 * i + k] > hi[k]) hi[k] = uv[2 * i + k];
+        }
+    uint64_t ncell[2];
+    for (int k = 0; k < 2; k++) {
+        double ext = period[k] > 0 ? period[k] : hi[k] - lo[k];
+        if (period[k] > 0) lo[k] = -0.5 * period[k] * (k == 0 ? 1 : 1);
+        if (ext / beta > BITMAP_MAX_CELLS_AXIS - 1) beta = ext / (BITMAP_MAX_CELLS_AXIS - 1);
+    }
+    for (int k = 0; k < 2; k++) {
+        double ext = period[k] > 0 ? period[k] : hi[k] - lo[k];
+        ncell[k] = (uint64_t)floor(ext / beta) + 1;
+        /* A periodic axis must wrap onto whole cells: cells of ext / ncell. */
+    }
+    double cell[2];
+    for (int k = 0; k < 2; k++) {
+        double ext = period[k] > 0 ? period[k] : hi[k] - lo[k];
+        cell[k] = period[k] > 0 ? ext / (double)ncell[k] : beta;
+        if (!(cell[k] > 0)) cell[k] = 1;
+    }
+    for (size_t i = 0; i < n; i++) {
+        uint64_t ci[2];
+        for (int k = 0; k < 2; k++) {
+            double t = floor((uv[2 * i + k] - lo[k]) / cell[k]);
+            if (!(t >= 0)) t = 0;
+            ci[k] = (uint64_t)t;
+            if (ci[k] >= ncell[k]) ci[k] = period[k] > 0 ? ci[k] % ncell[k] : ncell[k] - 1;
+        }
+        cp[i].cell = ci[0] * ncell[1] + ci[1];
+        cp[i].pt = (uint32_t)i;
+    }
+    qsort(cp, n, sizeof *cp, cmp_cellpt);
+    /* Unique cells: cell j spans cp[start[j]..]; union-find over cells. */
+    size_t ncells = 0;
+    uint32_t *start = malloc((n + 1) * sizeof *start);
+    par = malloc(n * sizeof *par);
+    cnt = calloc(n, sizeof *cnt);
+    if (!start || !par || !cnt) {
+        free(start);
+        goto oom;
+    }
+    for (size_t i = 0; i < n; i++)
+        if (i == 0 || cp[i].cell != cp[i - 1].cell) start[ncells++] = (uint32_t)i;
+    start[ncells] = (uint32_t)n;
+    for (size_t j = 0; j < ncells; j++) par[j] = (uint32_t)j;
+    for (size_t j = 0; j < ncells; j++) {
+        uint64_t id = cp[start[j]].cell, cu = id / ncell[1], cv = id % ncell[1];
+        for (int du = -1; du <= 1; du++)
+            for (int dv = -1; dv <= 1; dv++) {
+                if (!du && !dv) continue;
+                int64_t nu = (int64_t)cu + du, nv = (int64_t)cv + dv;
+                if (nu < 0 || nu >= (int64_t)ncell[0]) {
+                    if (period[0] <= 0) continue;
+                    nu = (nu + (int64_t)ncell[0]) % (int64_t)ncell[0];
+                }
+                if (nv < 0 || nv >= (int64_t)ncell[1]) {
+                    if (period[1] <= 0) continue;
+                    nv = (nv + (int64_t)ncell[1]) % (int64_t)ncell[1];
+                }
+                uint64_t nid = (uint64_t)nu * ncell[1] + (uint64_t)nv;
+                if (nid <= id) continue; /* each pair once, from its smaller id */
+                size_t a = 0, b = ncells;
+                while (a < b) {
+                    size_t m = (a + b) / 2;
+                    if (cp[start[m]].cell < nid) a = m + 1;
+                    else b = m;
+                }
+                if (a < ncells && cp[start[a]].cell == nid) {
+                    uint32_t ra = uf_find(par, (uint32_t)j), rb = uf_find(par, (uint32_t)a);
+                    if (ra != rb) par[ra > rb ? ra : rb] = ra < rb ? ra : rb;
+                }
+            }
+    }
+    for (size_t j = 0; j < ncells; j++) cnt[uf_find(par, (uint32_t)j)] += start[j + 1] - start[j];
+    uint32_t best = 0;
+    for (size_t j = 1; j < ncells; j++)
+        if (cnt[j] > cnt[best]) best = (uint32_t)j;
+    /* Keep the inliers of the best component, in their original order. */
+    unsigned char *keep = calloc(n, 1);
+    if (!keep) {
+        free(start);
+        goto oom;
+    }
+    for (size_t j = 0; j < ncells; j++)
+        if (uf_find(par, (uint32_t)j) == best)
+            for (uint32_t i = start[j]; i < start[j + 1]; i++) keep[cp[i].pt] = 1;
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++)
+        if (keep[i]) idx[m++] = idx[i];
+    free(keep);
+    free(start);
+    free(uv);
+    free(cp);
+    free(par);
+    free(cnt);
+    return m;
+oom:
+    free(uv);
+    free(cp);
+    free(par);
+    free(cnt);
+    return n; /* out of memory: keep everything rather than fail */
+}
+
+/* ---- least-squares refit ----------------------------------------------------- */
+
+static int npar(prim_type t)
+{
+    switch (t) {
+    case PRIM_SPHERE: return 4;
+    case PRIM_CYLINDER: case PRIM_CONE: return 7;
+    case PRIM_TORUS: return 8;
+    case PRIM_PLANE: case PRIM__COUNT: break;
+    }
+    return 0;
+}
+
+static void pack(const prim *q, double *v)
+{
+    memcpy(v, q->p, 3 * sizeof(double));
+    if (q->type == PRIM_SPHERE) {
+        v[3] = q->r;
+        return;
+    }
+    memcpy(v + 3, q->a, 3 * sizeof(double));
+    if (q->type == PRIM_TORUS) {
+        v[6] = q->R;
+        v[7] = q->r;
+    } else {
+        v[6] = q->r;
+    }
+}
+
+static int unpack(prim *q, const double *v)
+{
+    memcpy(q->p, v, 3 * sizeof(double));
+    if (q->type == PRIM_SPHERE) {
+        q->r = v[3];
+        return q->r > 0 ? 0 : -1;
+    }
+    double a[3] = {v[3], v[4], v[5]};
+    if (normalize(a)) return -1;
+    memcpy(q->a, a, sizeof a);
+    if (q->type == PRIM_TORUS) {
+        q->R = v[6];
+        q->r = v[7];
+        return q->r > 0 && q->R > 0 ? 0 : -1;
+    }
+    q->r = v[6];
+    if (q->type == PRIM_CONE) return q->r > 0 && q->r < M_PI / 2 ? 0 : -1;
+    return q->r > 0 ? 0 : -1;
+}
+
+/* Gaussian elimination with partial pivoting on an m x m system; -1 when singular. */
+static int solve_n(double *A, double *b, int m)
+{
+    for (int k = 0; k < m; k++) {
+        int piv = k;
+        for (int i = k + 1; i < m; i++)
+            if (fabs(A[i * m + k]) > fabs(A[piv * m + k])) piv = i;
+        if (!(fabs(A[piv * m + k]) > 1e-300)) return -1;
+        if (piv != k) {
+            for (int j = 0; j < m; j++) {
+                double t = A[k * m + j];
+                A[k * m + j] = A[piv * m + j];
+                A[piv * m + j] = t;
+            }
+            double t = b[k];
+            b[k] = b[piv];
+            b[piv] = t;
+        }
+        for (int i = k + 1; i < m; i++) {
+            double f = A[i * m + k] / A[k * m + k];
+            for (int j = k; j < m; j++) A[i * m + j] -= f * A[k * m + j];
+            b[i] -= f * b[k];
+        }
+    }
+    for (int k = m - 1; k >= 0; k--) {
+        double s = b[k];
+        for (int j = k + 1; j < m; j++) s -= A[k * m + j] * b[j];
+        b[k] = s / A[k * m + k];
+    }
+    return 0;
+}
+
+static double cost_of(const prim *q, const double *px, size_t n)
+{
+    double s = 0;
+    for (size_t i = 0; i < n; i++) {
+        double f = prim_eval(q, px + 3 * i, NULL);
+        s += f * f;
+    }
+    return s;
+}
+
+int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
+                 size_t max_points)
+{
+    if (n < 3) return -1;
+    if (max_points == 0 || max_points > n) max_points = n;
+    double *px = malloc(3 * max_points * sizeof *px);
+    if (!px) return -1;
+    for (size_t j = 0; j < max_points; j++) {
+        size_t i = idx[(size_t)((double)j * (double)n / (double)max_points)];
+        point(c, i, px + 3 * j);
+    }
+    size_t m = max_points;
+    int rc = -1;
+    if (q->type == PRIM_PLANE) {
+        double mean[3] = {0, 0, 0}, cov[9] = {0};
+        for (size_t j = 0; j < m; j++)
+            for (int k = 0; k < 3; k++) mean[k] += px[3 * j + k] / (double)m;
+        for (size_t j = 0; j < m; j++)
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++)
+                    cov[3 * a + b] += (px[3 * j + a] - mean[a]) * (px[3 * j + b] - mean[b]);
+        double ev[3], vec[9];
+        normals_sym3_eig(cov, ev, vec);
+        double nrm[3] = {vec[0], vec[1], vec[2]};
+        if (dot(nrm, q->p) < 0) for (int k = 0; k < 3; k++) nrm[k] = -nrm[k];
+        memcpy(q->p, nrm, sizeof nrm);
+        q->r = dot(nrm, mean);
+        free(px);
+        return 0;
+    }
+    int np = npar(q->type);
+    double v[8], vt[8], JtJ[64], Jtr[8], A[64], step[8];
+    pack(q, v);
+    double scale = 0;
+    for (size_t j = 0; j < m; j++) scale = fmax(scale, fabs(px[3 * j]) + fabs(px[3 * j + 1]) + fabs(px[3 * j + 2]));
+    scale = fmax(scale, 1e-12);
+    double cost = cost_of(q, px, m), lambda = 1e-3;
+    prim t = *q;
+    for (int it = 0; it < LM_MAX_ITER; it++) {
+        memset(JtJ, 0, sizeof JtJ);
+        memset(Jtr, 0, sizeof Jtr);
+        double h[8];
+        prim tq[8];
+        for (int k = 0; k < np; k++) {
+            h[k] = 1e-7 * (fabs(v[k]) + (k < 3 ? scale : 1.0));
+            memcpy(vt, v, sizeof vt);
+            vt[k] += h[k];
+            tq[k] = *q;
+            unpack(&tq[k], vt);
+        }
+        for (size_t j = 0; j < m; j++) {
+            double f = prim_eval(q, px + 3 * j, NULL), J[8];
+            for (int k = 0; k < np; k++) J[k] = (prim_eval(&tq[k], px + 3 * j, NULL) - f) / h[k];
+            for (int a = 0; a < np; a++) {
+                Jtr[a] += J[a] * f;
+                for (int b = 0; b < np; b++) JtJ[a * np + b] += J[a] * J[b];
+            }
+        }
+        int improved = 0;
+        for (int tries = 0; tries < 10 && !improved; tries++) {
+            memcpy(A, JtJ, sizeof A);
+            for (int k = 0; k < np; k++) {
+                A[k * np + k] += lambda * (JtJ[k * np + k] + 1e-12);
+                step[k] = -Jtr[k];
+            }
+            if (solve_n(A, step, np) == 0) {
+                for (int k = 0; k < np; k++) vt[k] = v[k] + step[k];
+                t = *q;
+                if (unpack(&t, vt) == 0) {
+                    double nc = cost_of(&t, px, m);
+                    if (nc < cost) {
+                        double rel = (cost - nc) / fmax(cost, 1e-300);
+                        *q = t;
+                        pack(q, v);
+                        cost = nc;
+                        lambda = fmax(lambda * 0.1, 1e-12);
+                        improved = 1;
+                        rc = 0;
+                        if (rel < 1e-12) it = LM_MAX_ITER;
+                        break;
+                    }
+                }
+            }
+            lambda *= 10;
+        }
+        if (!improved) break;
+    }
+    free(px);
+    return rc == 0 || cost >= 0 ? 0 : -1;
+}
+
+/* ---- the detection loop -------------------------------------------------------- */
+
+typedef struct cand {
+    prim q;
+    int level;          /* octree level the sample came from */
+    int ksample;        /* minimal sample size (for the acceptance probability) */
+    int nsub;           /* scoring subsets evaluated */
+    size_t score;       /* inliers among live points of those subsets */
+    size_t seen;        /* live points in those subsets */
+    double est, lo, hi; /* estimated support and its confidence interval */
+} cand;
+
+typedef struct det {
+    const frep_cloud *c;
+    const ransac_config *cfg;
+    size_t n, nalive;
+    unsigned char *alive;
+    uint32_t *shuf;          /* random permutation: the scoring subsets in order */
+    size_t sub_start[MAX_SUBSETS + 1];
+    size_t sub_alive[MAX_SUBSETS];
+    int nsub;
+    uint32_t *morton_idx;    /* point indices sorted by Morton code */
+    uint64_t *morton;        /* sorted codes */
+    uint32_t *alive_list;    /* live points, for drawing the first sample point */
+    double level_score[OCT_LEVELS + 1];
+    double rmax;
+} det;
+
+static uint64_t spread3(uint64_t v)
+{
+    uint64_t r = 0;
+    for (int b = 0; b < OCT_LEVELS; b++) r |= ((v >> b) & 1u) << (3 * b);
+    return r;
+}
+
+typedef struct mkey {
+    uint64_t code;
+    uint32_t i;
+} mkey;
+
+static int cmp_mkey(const void *a, const void *b)
+{
+    const mkey *x = a, *y = b;
+    if (x->code != y->code) return x->code < y->code ? -1 : 1;
+    return (x->i > y->i) - (x->i < y->i);
+}
+
+static void update_estimate(const det *d, cand *k)
+{
+    double N = (double)d->nalive, m = (double)k->seen, s = (double)k->score;
+    if (m <= 0) {
+        k->est = k->lo = 0;
+        k->hi = N;
+        return;
+    }
+    double frac = s / m;
+    k->est = frac * N;
+    /* Hypergeometric standard deviation of the subset count, scaled to the whole. */
+    double var = m * frac * (1 - frac) * (N > m ? (N - m) / fmax(N - 1, 1) : 0);
+    double sd = sqrt(fmax(var, 0)) * N / m + (N > m ? N / m : 0);
+    k->lo = fmax(0, k->est - 2 * sd);
+    k->hi = k->est + 2 * sd;
+}
+
+/* Score candidates [from, to) on their next scoring subset (parallel, per candidate). */
+static void score_next(det *d, cand *cs, const int *which, size_t nw)
+{
+    const ransac_config *cfg = d->cfg;
+    long lw = (long)nw;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 4) num_threads(cfg->nthreads > 0 ? cfg->nthreads : omp_get_max_threads())
+#endif
+    for (long w = 0; w < lw; w++) {
+        cand *k = &cs[which[w]];
+        if (k->nsub >= d->nsub) continue;
+        size_t s = 0;
+        for (size_t j = d->sub_start[k->nsub]; j < d->sub_start[k->nsub + 1]; j++) {
+            uint32_t i = d->shuf[j];
+            if (d->alive[i] && compatible(&k->q, d->c, i, cfg->epsilon, cfg->cos_normal)) s++;
+        }
+        k->score += s;
+        k->seen += d->sub_alive[k->nsub];
+        k->nsub++;
+    }
+    for (size_t w = 0; w < nw; w++) update_estimate(d, &cs[which[w]]);
+}
+
+static void recount_subsets(det *d)
+{
+    for (int b = 0; b < d->nsub; b++) {
+        size_t a = 0;
+        for (size_t j = d->sub_start[b]; j < d->sub_start[b + 1]; j++) a += d->alive[d->shuf[j]];
+        d->sub_alive[b] = a;
+    }
+    size_t m = 0;
+    for (size_t i = 0; i < d->n; i++)
+        if (d->alive[i]) d->alive_list[m++] = (uint32_t)i;
+    d->nalive = m;
+}
+
+/* Draw one localized minimal sample; returns the octree level or -1. */
+static int draw_sample(det *d, rng *r, sample *s)
+{
+    if (d->nalive < SAMPLE_SIZE) return -1;
+    uint32_t first = d->alive_list[rng_below(r, d->nalive)];
+    /* Level by the adaptive distribution: half uniform, half by past success. */
+    double tot = 0;
+    for (int l = 1; l <= OCT_LEVELS; l++) tot += d->level_score[l];
+    double u = rng_unit(r), acc = 0;
+    int level = OCT_LEVELS;
+    for (int l = 1; l <= OCT_LEVELS; l++) {
+        acc += 0.5 / OCT_LEVELS + (tot > 0 ? 0.5 * d->level_score[l] / tot : 0.5 / OCT_LEVELS);
+        if (u < acc) {
+            level = l;
+            break;
+        }
+    }
+    /* Cell of `first` at this level: all codes sharing its top 3*level bits. */
+    size_t a, b;
+    /* The codes by point index follow the sorted codes (see ransac_detect). */
+    uint64_t code = d->morton[d->n + 1 + first];
+    int shift = 3 * (OCT_LEVELS - level);
+    uint64_t pre = code >> shift;
+    size_t lo2 = 0, hi2 = d->n;
+    while (lo2 < hi2) {
+        size_t m = (lo2 + hi2) / 2;
+        if ((d->morton[m] >> shift) < pre) lo2 = m + 1;
+        else hi2 = m;
+    }
+    a = lo2;
+    hi2 = d->n;
+    while (lo2 < hi2) {
+        size_t m = (lo2 + hi2) / 2;
+        if ((d->morton[m] >> shift) <= pre) lo2 = m + 1;
+        else hi2 = m;
+    }
+    b = lo2;
+    if (b - a < SAMPLE_SIZE) return -1;
+    uint32_t pick[SAMPLE_SIZE];
+    pick[0] = first;
+    for (int k = 1; k < SAMPLE_SIZE; k++) {
+        int found = 0;
+        for (int t = 0; t < SAMPLE_TRIES && !found; t++) {
+            uint32_t cand_i = d->morton_idx[a + rng_below(r, b - a)];
+            if (!d->alive[cand_i]) continue;
+            int dup = 0;
+            for (int j = 0; j < k; j++) dup |= pick[j] == cand_i;
+            if (dup) continue;
+            pick[k] = cand_i;
+            found = 1;
+        }
+        if (!found) return -1;
+    }
+    for (int k = 0; k < SAMPLE_SIZE; k++) {
+        point(d->c, pick[k], s->p[k]);
+        normal(d->c, pick[k], s->n[k]);
+    }
+    return level;
+}
+
+/* Minimal sample points a candidate of type t is checked against. */
+static int verify_count(prim_type t)
+{
+    return t == PRIM_TORUS ? 4 : 3;
+}
+
+static int verify(const prim *q, const sample *s, int nv, double eps, double cosn)
+{
+    for (int k = 0; k < nv; k++) {
+        double g[3];
+        double f = prim_eval(q, s->p[k], g);
+        if (!(fabs(f) <= eps)) return 0;
+        double gl = norm(g);
+        if (!(gl > 0) || fabs(dot(g, s->n[k])) < cosn * gl) return 0;
+    }
+    return 1;
+}
+
+static int sane(const prim *q, double rmax)
+{
+    double v[9] = {q->p[0], q->p[1], q->p[2], q->a[0], q->a[1], q->a[2], q->r, q->R, 0};
+    for (int k = 0; k < 8; k++)
+        if (!isfinite(v[k])) return 0;
+    switch (q->type) {
+    case PRIM_SPHERE: case PRIM_CYLINDER: return q->r > 0 && q->r < rmax;
+    case PRIM_TORUS: return q->r > 0 && q->R > 0 && q->R + q->r < rmax;
+    case PRIM_PLANE: case PRIM_CONE: case PRIM__COUNT: break;
+    }
+    return 1;
+}
+
+/* Probability of drawing a minimal sample of k points from a shape of size `support`
+ * with localized sampling (Schnabel et al., eq. 2). */
+static double p_draw(double support, double N, int k)
+{
+    return support / (N * OCT_LEVELS * (double)(1u << (k - 1)));
+}
+
+static int cmp_cand_est(const cand *a, const cand *b)
+{
+    if (a->est != b->est) return a->est > b->est ? -1 : 1;
+    if (a->q.type != b->q.type) return a->q.type < b->q.type ? -1 : 1;
+    return 0;
+}
+
+/* All inliers of q among live points (parallel flagging, serial gather). */
+static size_t gather_inliers(det *d, const prim *q, unsigned char *flag, uint32_t *out)
+{
+    const ransac_config *cfg = d->cfg;
+    long ln = (long)d->n;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static, 4096) num_threads(cfg->nthreads > 0 ? cfg->nthreads : omp_get_max_threads())
+#endif
+    for (long li = 0; li < ln; li++) {
+        size_t i = (size_t)li;
+        flag[i] = d->alive[i] && compatible(q, d->c, i, cfg->epsilon, cfg->cos_normal);
+    }
+    size_t m = 0;
+    for (size_t i = 0; i < d->n; i++)
+        if (flag[i]) out[m++] = (uint32_t)i;
+    return m;
+}
+
+static double rms_of(const prim *q, const frep_cloud *c, const uint32_t *idx, size_t n)
+{
+    double s = 0;
+    for (size_t j = 0; j < n; j++) {
+        double p[3];
+        point(c, idx[j], p);
+        double f = prim_eval(q, p, NULL);
+        s += f * f;
+    }
+    return n ? sqrt(s / (double)n) : 0;
+}
+
+int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *res,
+                  char **err)
+{
+    memset(res, 0, sizeof *res);
+    if (err) *err = NULL;
+    det d;
+    memset(&d, 0, sizeof d);
+    d.c = c;
+    d.cfg = cfg;
+    d.n = c->n;
+    size_t n = c->n;
+    size_t cap_prims = 16;
+    cand *pool = NULL;
+    int *which = NULL;
+    uint32_t *inl = NULL;
+    unsigned char *flag = NULL;
+    mkey *mk = NULL;
+    res->label = malloc((n ? n : 1) * sizeof *res->label);
+    res->prims = malloc(cap_prims * sizeof *res->prims);
+    d.alive = malloc(n + 1);
+    d.shuf = malloc((n + 1) * sizeof *d.shuf);
+    d.morton_idx = malloc((n + 1) * sizeof *d.morton_idx);
+    d.morton = malloc((2 * n + 2) * sizeof *d.morton);
+    d.alive_list = malloc((n + 1) * sizeof *d.alive_list);
+    pool = malloc(MAX_POOL * sizeof *pool);
+    which = malloc(MAX_POOL * sizeof *which);
+    inl = malloc((n + 1) * sizeof *inl);
+    flag = malloc(n + 1);
+    mk = malloc((n + 1) * sizeof *mk);
+    if (!res->label || !res->prims || !d.alive || !d.shuf || !d.morton_idx || !d.morton ||
+        !d.alive_list || !pool || !which || !inl || !flag || !mk || !c->has_normals) {
+        if (err) *err = dupstr(c->has_normals ? "out of memory" : "the cloud has no normals");
+        goto fail;
+    }
+    for (size_t i = 0; i < n; i++) {
+        res->label[i] = -1;
+        d.alive[i] = 1;
+    }
+    d.rmax = MAX_RADIUS_DIAGONALS * fmax(cloud_diagonal(c), 1e-300);
+    rng r;
+    rng_seed(&r, cfg->seed);
+    /* Octree as Morton order over the bounding cube. */
+    double lo[3], hi[3];
+    cloud_bbox(c, lo, hi);
+    double side = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+    if (!(side > 0)) side = 1;
+    double cells = (double)(1u << OCT_LEVELS);
+    for (size_t i = 0; i < n; i++) {
+        double p[3];
+        point(c, i, p);
+        uint64_t code = 0;
+        for (int k = 0; k < 3; k++) {
+            double t = floor((p[k] - lo[k]) / side * cells);
+            if (t < 0) t = 0;
+            if (t > cells - 1) t = cells - 1;
+            code |= spread3((uint64_t)t) << (2 - k);
+        }
+        mk[i].code = code;
+        mk[i].i = (uint32_t)i;
+    }
+    qsort(mk, n, sizeof *mk, cmp_mkey);
+    for (size_t j = 0; j < n; j++) {
+        d.morton[j] = mk[j].code;
+        d.morton_idx[j] = mk[j].i;
+        d.morton[n + 1 + mk[j].i] = mk[j].code;
+    }
+    d.morton[n] = 0;
+    free(mk);
+    mk = NULL;
+    /* Scoring subsets: a seeded permutation cut into doubling blocks. */
+    for (size_t i = 0; i < n; i++) d.shuf[i] = (uint32_t)i;
+    for (size_t i = n; i > 1; i--) {
+        size_t j = rng_below(&r, i);
+        uint32_t t = d.shuf[i - 1];
+        d.shuf[i - 1] = d.shuf[j];
+        d.shuf[j] = t;
+    }
+    d.sub_start[0] = 0;
+    size_t sz = SUBSET_FIRST;
+    d.nsub = 0;
+    while (d.sub_start[d.nsub] < n && d.nsub < MAX_SUBSETS) {
+        size_t e = d.sub_start[d.nsub] + sz;
+        if (e > n || d.nsub == MAX_SUBSETS - 1) e = n;
+        d.sub_start[++d.nsub] = e;
+        sz *= 2;
+    }
+    recount_subsets(&d);
+
+    size_t npool = 0, draws_since = 0, ntypes = 0;
+    for (int ty = 0; ty < PRIM__COUNT; ty++) ntypes += (cfg->types >> ty) & 1u;
+    if (ntypes == 0) ntypes = 1;
+    size_t min_pts = cfg->min_points < 3 ? 3 : cfg->min_points;
+    double log_fail = log(fmax(1e-12, 1.0 - cfg->probability));
+    for (;;) {
+        if (cfg->interrupt && *cfg->interrupt) {
+            res->interrupted = 1;
+            break;
+        }
+        if (d.nalive < min_pts || d.nalive < RANSAC_MIN_CLOUD) break;
+        /* Draw a round of minimal samples; each gives one candidate per type. */
+        size_t first_new = npool;
+        for (int t = 0; t < DRAWS_PER_ROUND; t++) {
+            sample s;
+            int level = draw_sample(&d, &r, &s);
+            draws_since++;
+            res->draws++;
+            if (level < 0) continue;
+            for (int ty = 0; ty < PRIM__COUNT; ty++) {
+                if (!(cfg->types & (1u << ty))) continue;
+                prim q;
+                memset(&q, 0, sizeof q);
+                int bad;
+                switch ((prim_type)ty) {
+                case PRIM_PLANE: bad = make_plane(&s, &q); break;
+                case PRIM_SPHERE: bad = make_sphere(&s, &q); break;
+                case PRIM_CYLINDER: bad = make_cylinder(&s, &q); break;
+                case PRIM_CONE: bad = make_cone(&s, &q); break;
+                case PRIM_TORUS: bad = make_torus(&s, &q, d.rmax, cfg->epsilon); break;
+                case PRIM__COUNT: default: bad = 1; break;
+                }
+                if (bad || !sane(&q, d.rmax) ||
+                    !verify(&q, &s, verify_count(q.type), cfg->epsilon, cfg->cos_normal))
+                    continue;
+                if (npool == MAX_POOL) {
+                    /* Drop the weakest candidate to make room. */
+                    size_t w = 0;
+                    for (size_t j = 1; j < npool; j++)
+                        if (pool[j].est < pool[w].est) w = j;
+                    pool[w] = pool[--npool];
+                    if (first_new > npool) first_new = npool;
+                }
+                cand *k = &pool[npool++];
+                memset(k, 0, sizeof *k);
+                k->q = q;
+                k->level = level;
+                k->ksample = verify_count(q.type);
+            }
+        }
+        size_t nw = 0;
+        for (size_t j = first_new; j < npool; j++)
+            if (pool[j].nsub == 0) which[nw++] = (int)j;
+        score_next(&d, pool, which, nw);
+        /* Refine the leaders until the best one's interval separates from the rest. */
+        size_t best = SIZE_MAX;
+        for (int rounds = 0; rounds <= MAX_SUBSETS && npool > 0; rounds++) {
+            best = 0;
+            for (size_t j = 1; j < npool; j++)
+                if (cmp_cand_est(&pool[j], &pool[best]) < 0) best = j;
+            nw = 0;
+            for (size_t j = 0; j < npool; j++)
+                if (pool[j].nsub < d.nsub && (j == best || pool[j].hi >= pool[best].lo))
+                    which[nw++] = (int)j;
+            if (nw == 0) break;
+            score_next(&d, pool, which, nw);
+        }
+        if (cfg->progress) cfg->progress(cfg->user, d.nalive, n, res->nprims);
+        if (best == SIZE_MAX) {
+            if ((double)draws_since * log1p(-fmin(p_draw((double)min_pts, (double)d.nalive, 4), 0.999999)) < log_fail ||
+                draws_since > RANSAC_MAX_DRAWS)
+                break;
+            continue;
+        }
+        cand *b = &pool[best];
+        double pd = fmin(p_draw(b->est, (double)d.nalive, b->ksample), 0.999999);
+        int accept = b->est >= (double)min_pts &&
+                     (double)draws_since * log1p(-pd) < log_fail;
+        if (!accept) {
+            double pm = fmin(p_draw((double)min_pts, (double)d.nalive, 4), 0.999999);
+            if ((b->est < (double)min_pts && (double)draws_since * log1p(-pm) < log_fail) ||
+                draws_since > RANSAC_MAX_DRAWS)
+                break; /* a shape of the minimum size would have been found by now */
+            continue;
+        }
+        /* Extract: inliers, largest patch, refit, again with the refined shape. */
+        prim q = b->q;
+        size_t m = gather_inliers(&d, &q, flag, inl);
+        m = largest_component(&q, c, inl, m, cfg->cluster);
+        prim q2 = q;
+        if (m >= min_pts && ransac_refit(&q2, c, inl, m, REFIT_MAX_POINTS) == 0 &&
+            sane(&q2, d.rmax)) {
+            size_t m2 = gather_inliers(&d, &q2, flag, inl);
+            m2 = largest_component(&q2, c, inl, m2, cfg->cluster);
+            if (m2 >= m) {
+                q = q2;
+                m = m2;
+            } else {
+                m = gather_inliers(&d, &q, flag, inl);
+                m = largest_component(&q, c, inl, m, cfg->cluster);
+            }
+        }
+        int lvl = b->level;
+        pool[best] = pool[--npool];
+        if (m < min_pts) continue; /* the estimate was optimistic; keep drawing */
+        if (res->nprims == cap_prims) {
+            prim *np = realloc(res->prims, 2 * cap_prims * sizeof *np);
+            if (!np) {
+                if (err) *err = dupstr("out of memory");
+                goto fail;
+            }
+            res->prims = np;
+            cap_prims *= 2;
+        }
+        q.support = m;
+        q.rms = rms_of(&q, c, inl, m);
+        q.separating = 0;
+        for (size_t j = 0; j < m; j++) {
+            d.alive[inl[j]] = 0;
+            res->label[inl[j]] = (int32_t)res->nprims;
+        }
+        res->prims[res->nprims++] = q;
+        d.level_score[lvl] += (double)m;
+        recount_subsets(&d);
+        /* Old candidates were scored on points now removed: rescore from scratch. */
+        for (size_t j = 0; j < npool; j++) {
+            pool[j].nsub = 0;
+            pool[j].score = pool[j].seen = 0;
+        }
+        nw = 0;
+        for (size_t j = 0; j < npool; j++) which[nw++] = (int)j;
+        score_next(&d, pool, which, nw);
+        /* Drop candidates that lost their support. */
+        size_t keep = 0;
+        for (size_t j = 0; j < npool; j++)
+            if (pool[j].hi >= (double)min_pts) pool[keep++] = pool[j];
+        npool = keep;
+        draws_since = npool / ntypes;
+        if (cfg->progress) cfg->progress(cfg->user, d.nalive, n, res->nprims);
+    }
+    free(d.alive);
+    free(d.shuf);
+    free(d.morton_idx);
+    free(d.morton);
+    free(d.alive_list);
+    free(pool);
+    free(which);
+    free(inl);
+    free(flag);
+    return 0;
+fail:
+    free(d.alive);
+    free(d.shuf);
+    free(d.morton_idx);
+    free(d.morton);
+    free(d.alive_list);
+    free(pool);
+    free(which);
+    free(inl);
+    free(flag);
+    free(mk);
+    ransac_result_free(res);
+    return -1;
+}
+
+void ransac_result_free(ransac_result *r)
+{
+    free(r->prims);
+    free(r->label);
+    r->prims = NULL;
+    r->label = NULL;
+    r->nprims = 0;
+}

@@ -1,0 +1,611 @@
+/* segment.c - the segmentation driver (evolve/segment.h): defaults scaled to the
+ * cloud, normals when needed, efficient RANSAC, oriented boxes, separating primitives
+ * (Fayolle & Pasko 2016, Algorithm 2) and the .hf/.fit primitive lists.
+ */
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fitfile.h"
+#include "kdtree.h"
+#include "normals.h"
+#include "ransac.h"
+#include "segment.h"
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+/* Points whose nearest-neighbour distance estimates the sampling density. */
+#define SPACING_SAMPLES 2000
+/* Longest line of a .hf primitive list we parse. */
+#define HF_MAX_LINE 4096
+
+static char *fmt_msg(const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 1, 2)))
+#endif
+    ;
+static char *fmt_msg(const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    int k = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    if (k < 0) return NULL;
+    char *s = malloc((size_t)k + 1);
+    if (!s) return NULL;
+    va_start(ap, fmt);
+    vsnprintf(s, (size_t)k + 1, fmt, ap);
+    va_end(ap);
+    return s;
+}
+
+void segment_config_init(segment_config *c)
+{
+    memset(c, 0, sizeof *c);
+    c->types = 0;
+    c->seed = 1;
+    c->separating = 1;
+}
+
+void segment_result_free(segment_result *r)
+{
+    free(r->prims);
+    free(r->label);
+    r->prims = NULL;
+    r->label = NULL;
+    r->nprims = r->nfitted = 0;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Median distance to the nearest other point over an evenly spaced sample. */
+static double median_spacing(const frep_cloud *c)
+{
+    kd_tree *t = kd_build(c->n, c->x, c->y, c->z);
+    if (!t) return 0;
+    size_t m = c->n < SPACING_SAMPLES ? c->n : SPACING_SAMPLES;
+    double *d = malloc(m * sizeof *d);
+    if (!d) {
+        kd_free(t);
+        return 0;
+    }
+    size_t got = 0;
+    for (size_t j = 0; j < m; j++) {
+        size_t i = (size_t)((double)j * (double)c->n / (double)m);
+        double q[3] = {c->x[i], c->y[i], c->z[i]}, d2[2];
+        uint32_t idx[2];
+        if (kd_knn(t, q, 2, idx, d2) == 2) d[got++] = sqrt(d2[1]);
+    }
+    double med = 0;
+    if (got) {
+        qsort(d, got, sizeof *d, cmp_double);
+        med = d[got / 2];
+    }
+    free(d);
+    kd_free(t);
+    return med;
+}
+
+static void dot_basis(const double a[3], double u[3], double v[3])
+{
+    double t[3] = {1, 0, 0};
+    if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
+    double d = t[0] * a[0] + t[1] * a[1] + t[2] * a[2];
+    for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
+    double l = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    for (int k = 0; k < 3; k++) u[k] /= l;
+    v[0] = a[1] * u[2] - a[2] * u[1];
+    v[1] = a[2] * u[0] - a[0] * u[2];
+    v[2] = a[0] * u[1] - a[1] * u[0];
+}
+
+void segment_fit_obb(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n)
+{
+    double mean[3] = {0, 0, 0}, cov[9] = {0}, ax[3][3];
+    q->has_obb = 0;
+    if (n == 0) return;
+    for (size_t j = 0; j < n; j++) {
+        mean[0] += c->x[idx[j]] / (double)n;
+        mean[1] += c->y[idx[j]] / (double)n;
+        mean[2] += c->z[idx[j]] / (double)n;
+    }
+    const double *fixed = NULL;
+    if (q->type == PRIM_PLANE) fixed = q->p;
+    else if (q->type != PRIM_SPHERE) fixed = q->a;
+    if (fixed) {
+        /* One axis is given; PCA within the perpendicular plane for the others. */
+        double u[3], v[3];
+        dot_basis(fixed, u, v);
+        double suu = 0, suv = 0, svv = 0;
+        for (size_t j = 0; j < n; j++) {
+            double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1],
+                           c->z[idx[j]] - mean[2]};
+            double pu = w[0] * u[0] + w[1] * u[1] + w[2] * u[2];
+            double pv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
+            suu += pu * pu;
+            suv += pu * pv;
+            svv += pv * pv;
+        }
+        double th = 0.5 * atan2(2 * suv, suu - svv), cs = cos(th), sn = sin(th);
+        for (int k = 0; k < 3; k++) {
+            ax[0][k] = fixed[k];
+            ax[1][k] = cs * u[k] + sn * v[k];
+            ax[2][k] = -sn * u[k] + cs * v[k];
+        }
+    } else {
+        for (size_t j = 0; j < n; j++) {
+            double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1],
+                           c->z[idx[j]] - mean[2]};
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++) cov[3 * a + b] += w[a] * w[b];
+        }
+        double ev[3], vec[9];
+        normals_sym3_eig(cov, ev, vec);
+        for (int a = 0; a < 3; a++)
+            for (int k = 0; k < 3; k++) ax[a][k] = vec[3 * (2 - a) + k];
+    }
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t j = 0; j < n; j++) {
+        double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1], c->z[idx[j]] - mean[2]};
+        for (int a = 0; a < 3; a++) {
+            double t = w[0] * ax[a][0] + w[1] * ax[a][1] + w[2] * ax[a][2];
+            if (t < lo[a]) lo[a] = t;
+            if (t > hi[a]) hi[a] = t;
+        }
+    }
+    for (int k = 0; k < 3; k++) q->obb_c[k] = mean[k];
+    for (int a = 0; a < 3; a++) {
+        double mid = 0.5 * (lo[a] + hi[a]);
+        for (int k = 0; k < 3; k++) q->obb_c[k] += mid * ax[a][k];
+        q->obb_half[a] = 0.5 * (hi[a] - lo[a]);
+        for (int k = 0; k < 3; k++) q->obb_axes[a][k] = ax[a][k];
+    }
+    q->has_obb = 1;
+}
+
+static int plane_dup(const prim *list, size_t n, const double nrm[3], double d, double eps)
+{
+    double cmin = cos(SEGMENT_DUP_PLANE_DEG * M_PI / 180.0);
+    for (size_t i = 0; i < n; i++) {
+        if (list[i].type != PRIM_PLANE) continue;
+        double c = nrm[0] * list[i].p[0] + nrm[1] * list[i].p[1] + nrm[2] * list[i].p[2];
+        if (c > cmin && fabs(d - list[i].r) <= eps) return 1;
+        if (c < -cmin && fabs(d + list[i].r) <= eps) return 1;
+    }
+    return 0;
+}
+
+size_t segment_add_separating(prim **prims, size_t n, double eps)
+{
+    size_t cap = n + 8, cnt = n;
+    prim *v = realloc(*prims, cap * sizeof *v);
+    if (!v) return (size_t)-1;
+    for (size_t i = 0; i < n; i++) {
+        prim q = v[i];
+        if (q.type == PRIM_PLANE || q.separating || !q.has_obb) continue;
+        for (int pass = 0; pass < 2; pass++) {
+            prim add[6];
+            int nadd = 0;
+            if (pass == 0) {
+                for (int a = 0; a < 3; a++)
+                    for (int s = -1; s <= 1; s += 2) {
+                        prim *p = &add[nadd++];
+                        memset(p, 0, sizeof *p);
+                        p->type = PRIM_PLANE;
+                        for (int k = 0; k < 3; k++) p->p[k] = s * q.obb_axes[a][k];
+                        double cn = p->p[0] * q.obb_c[0] + p->p[1] * q.obb_c[1] +
+                                    p->p[2] * q.obb_c[2];
+                        p->r = cn + q.obb_half[a];
+                        p->separating = 1;
+                    }
+            } else if (q.type == PRIM_TORUS) {
+                prim *p = &add[nadd++];
+                memset(p, 0, sizeof *p);
+                p->type = PRIM_CYLINDER;
+                memcpy(p->p, q.p, sizeof q.p);
+                memcpy(p->a, q.a, sizeof q.a);
+                p->r = q.R;
+                p->separating = 1;
+            }
+            for (int j = 0; j < nadd; j++) {
+                if (add[j].type == PRIM_PLANE && plane_dup(v, cnt, add[j].p, add[j].r, eps))
+                    continue;
+                if (cnt == cap) {
+                    cap *= 2;
+                    prim *nv = realloc(v, cap * sizeof *nv);
+                    if (!nv) {
+                        *prims = v;
+                        return (size_t)-1;
+                    }
+                    v = nv;
+                }
+                v[cnt++] = add[j];
+            }
+        }
+    }
+    *prims = v;
+    return cnt;
+}
+
+/* Adapts the detector's progress reports to segment_config's. */
+static void ransac_progress(void *user, size_t remaining, size_t total, size_t nprims)
+{
+    const segment_config *cfg = user;
+    cfg->progress(cfg->user, "detect", total - remaining, total, nprims);
+}
+
+int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, char **err)
+{
+    memset(res, 0, sizeof *res);
+    if (err) *err = NULL;
+    if (c->n < RANSAC_MIN_CLOUD) {
+        if (err) *err = fmt_msg("too few points: %zu (segmentation needs at least %d)", c->n,
+                                RANSAC_MIN_CLOUD);
+        return -1;
+    }
+    double diag = cloud_diagonal(c);
+    if (!(diag > 0)) {
+        if (err) *err = fmt_msg("all %zu points are the same point: nothing to segment", c->n);
+        return -1;
+    }
+    res->epsilon = cfg->epsilon > 0 ? cfg->epsilon : SEGMENT_DEFAULT_EPSILON * diag;
+    if (cfg->cluster > 0) {
+        res->cluster = cfg->cluster;
+    } else {
+        double sp = median_spacing(c);
+        res->cluster = fmax(SEGMENT_DEFAULT_CLUSTER * diag, SEGMENT_CLUSTER_SPACINGS * sp);
+    }
+    res->normal_deg = cfg->normal_deg > 0 ? cfg->normal_deg : SEGMENT_DEFAULT_NORMAL_DEG;
+    res->probability = cfg->probability > 0 && cfg->probability < 1
+                           ? cfg->probability : SEGMENT_DEFAULT_PROBABILITY;
+    size_t mp = (size_t)(SEGMENT_DEFAULT_MIN_FRACTION * (double)c->n);
+    res->min_points = cfg->min_points ? cfg->min_points
+                                      : (mp > SEGMENT_MIN_POINTS_FLOOR ? mp : SEGMENT_MIN_POINTS_FLOOR);
+
+    if (c->has_normals) res->zero_normals = cloud_normalize_normals(c);
+    if (!c->has_normals || res->zero_normals > 0) {
+        if (cfg->progress) cfg->progress(cfg->user, "normals", 0, c->n, 0);
+        if (normals_estimate(c, cfg->knn, cfg->nthreads)) {
+            if (err) *err = fmt_msg("out of memory estimating normals");
+            return -1;
+        }
+        res->normals_estimated = 1;
+    }
+
+    ransac_config rc;
+    memset(&rc, 0, sizeof rc);
+    rc.epsilon = res->epsilon;
+    rc.cos_normal = cos(res->normal_deg * M_PI / 180.0);
+    rc.cluster = res->cluster;
+    rc.min_points = res->min_points;
+    rc.probability = res->probability;
+    rc.types = cfg->types ? cfg->types : (1u << PRIM__COUNT) - 1;
+    rc.seed = cfg->seed;
+    rc.nthreads = cfg->nthreads;
+    rc.interrupt = cfg->interrupt;
+    if (cfg->progress) {
+        rc.progress = ransac_progress;
+        rc.user = (void *)(uintptr_t)cfg;
+    }
+    ransac_result rr;
+    if (ransac_detect(c, &rc, &rr, err)) return -1;
+    res->draws = rr.draws;
+    res->interrupted = rr.interrupted;
+    res->label = rr.label;
+    res->nfitted = rr.nprims;
+    for (size_t i = 0; i < c->n; i++) res->unassigned += rr.label[i] < 0;
+
+    /* Boxes of every fitted primitive from its inliers (counting sort by label). */
+    size_t *start = calloc(rr.nprims + 2, sizeof *start);
+    uint32_t *order = malloc(c->n * sizeof *order);
+    if (!start || !order) {
+        free(start);
+        free(order);
+        free(rr.prims);
+        if (err) *err = fmt_msg("out of memory");
+        return -1;
+    }
+    for (size_t i = 0; i < c->n; i++)
+        if (rr.label[i] >= 0) start[rr.label[i] + 1]++;
+    for (size_t j = 0; j < rr.nprims; j++) start[j + 1] += start[j];
+    size_t *fill = calloc(rr.nprims + 1, sizeof *fill);
+    if (!fill) {
+        free(start);
+        free(order);
+        free(rr.prims);
+        if (err) *err = fmt_msg("out of memory");
+        return -1;
+    }
+    for (size_t i = 0; i < c->n; i++)
+        if (rr.label[i] >= 0) order[start[rr.label[i]] + fill[rr.label[i]]++] = (uint32_t)i;
+    for (size_t j = 0; j < rr.nprims; j++)
+        segment_fit_obb(&rr.prims[j], c, order + start[j], start[j + 1] - start[j]);
+    free(fill);
+    free(start);
+    free(order);
+
+    res->prims = rr.prims;
+    res->nprims = rr.nprims;
+    if (cfg->separating) {
+        size_t nn = segment_add_separating(&res->prims, res->nprims, res->epsilon);
+        if (nn == (size_t)-1) {
+            if (err) *err = fmt_msg("out of memory");
+            segment_result_free(res);
+            return -1;
+        }
+        res->nprims = nn;
+    }
+    return 0;
+}
+
+/* ---- .hf primitive lists -------------------------------------------------------- */
+
+int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header)
+{
+    if (header) {
+        const char *s = header;
+        while (*s) {
+            const char *e = strchr(s, '\n');
+            size_t l = e ? (size_t)(e - s) : strlen(s);
+            fprintf(f, "-- %.*s\n", (int)l, s);
+            s += l + (e ? 1 : 0);
+        }
+    }
+    fputs("primitives(x[3], a[1])\n{\n", f);
+    for (size_t i = 0; i < n; i++) {
+        const prim *q = &p[i];
+        fprintf(f, "  p%zu = ", i + 1);
+        prim_write_call(f, q);
+        if (q->separating)
+            fprintf(f, ";  -- separating %s\n", prim_type_name(q->type));
+        else
+            fprintf(f, ";  -- %s: %zu points, rms %.3g\n", prim_type_name(q->type), q->support,
+                    q->rms);
+        if (q->has_obb)
+            fprintf(f, "  --   obb %.9g %.9g %.9g  %.9g %.9g %.9g  %.9g %.9g %.9g  %.9g %.9g %.9g"
+                       "  %.9g %.9g %.9g\n",
+                    q->obb_c[0], q->obb_c[1], q->obb_c[2], q->obb_axes[0][0], q->obb_axes[0][1],
+                    q->obb_axes[0][2], q->obb_axes[1][0], q->obb_axes[1][1], q->obb_axes[1][2],
+                    q->obb_axes[2][0], q->obb_axes[2][1], q->obb_axes[2][2], q->obb_half[0],
+                    q->obb_half[1], q->obb_half[2]);
+    }
+    /* A valid model so the file evaluates: the union of the fitted primitives. */
+    fputs("  primitives = ", f);
+    int any = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (p[i].separating) continue;
+        fprintf(f, "%sp%zu", any ? " | " : "", i + 1);
+        any = 1;
+    }
+    if (!any) fputs("-1", f);
+    fputs(";\n}\n", f);
+    return ferror(f) ? -1 : 0;
+}
+
+/* Parse up to max comma/blank separated numbers from s; returns the count (max + 1 if
+ * more) or -1 on a non-number. */
+static int parse_nums(const char *s, const char *end, double *v, int max)
+{
+    int n = 0;
+    for (;;) {
+        while (s < end && (*s == ',' || isspace((unsigned char)*s))) s++;
+        if (s >= end) return n;
+        char buf[64];
+        size_t l = 0;
+        while (s + l < end && s[l] != ',' && !isspace((unsigned char)s[l])) {
+            if (l + 1 >= sizeof buf) return -1;
+            buf[l] = s[l];
+            l++;
+        }
+        buf[l] = '\0';
+        char *e;
+        double t = strtod(buf, &e);
+        if (*e || !isfinite(t)) return -1;
+        if (n < max) v[n] = t;
+        n++;
+        if (n > max) return n;
+        s += l;
+    }
+}
+
+static int unit3(double a[3])
+{
+    double l = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    if (!(l > 0)) return -1;
+    for (int k = 0; k < 3; k++) a[k] /= l;
+    return 0;
+}
+
+static int parse_hf(const char *name, const char *text, size_t len, prim **out, size_t *n,
+                    char **err)
+{
+    static const struct { const char *fn; prim_type t; int nargs; } calls[] = {
+        {"frPlane(", PRIM_PLANE, 4}, {"frSphere(", PRIM_SPHERE, 4},
+        {"frCylinder(", PRIM_CYLINDER, 7}, {"frCone(", PRIM_CONE, 7},
+        {"frTorus(", PRIM_TORUS, 8},
+    };
+    prim *v = NULL;
+    size_t cnt = 0, cap = 0, line = 0;
+    const char *p = text, *end = text + len;
+    while (p < end) {
+        line++;
+        const char *eol = memchr(p, '\n', (size_t)(end - p));
+        if (!eol) eol = end;
+        const char *lp = p;
+        size_t l = (size_t)(eol - p);
+        p = eol < end ? eol + 1 : end;
+        if (l >= HF_MAX_LINE) {
+            if (err) *err = fmt_msg("%s:%zu: line too long", name, line);
+            goto fail;
+        }
+        char buf[HF_MAX_LINE];
+        memcpy(buf, lp, l);
+        buf[l] = '\0';
+        char *s = buf;
+        while (isspace((unsigned char)*s)) s++;
+        if (strncmp(s, "--   obb", 8) == 0 && cnt > 0) {
+            double b[15];
+            if (parse_nums(s + 8, s + strlen(s), b, 15) != 15) {
+                if (err) *err = fmt_msg("%s:%zu: expected 15 numbers after 'obb'", name, line);
+                goto fail;
+            }
+            prim *q = &v[cnt - 1];
+            memcpy(q->obb_c, b, 3 * sizeof(double));
+            for (int a = 0; a < 3; a++) memcpy(q->obb_axes[a], b + 3 + 3 * a, 3 * sizeof(double));
+            memcpy(q->obb_half, b + 12, 3 * sizeof(double));
+            q->has_obb = 1;
+            continue;
+        }
+        if (strncmp(s, "--", 2) == 0) continue;
+        char *comment = strstr(s, "--");
+        if (comment) *comment = '\0';
+        for (size_t k = 0; k < sizeof calls / sizeof calls[0]; k++) {
+            char *c = strstr(s, calls[k].fn);
+            if (!c) continue;
+            char *args = c + strlen(calls[k].fn);
+            char *close = strchr(args, ')');
+            if (!close) {
+                if (err) *err = fmt_msg("%s:%zu: expected ')' to close '%.*s'", name, line,
+                                        (int)strlen(calls[k].fn), calls[k].fn);
+                goto fail;
+            }
+            while (isspace((unsigned char)*args)) args++;
+            if (*args != 'x') {
+                if (err) *err = fmt_msg("%s:%zu: expected 'x' as the first argument of %.*s)",
+                                        name, line, (int)strlen(calls[k].fn), calls[k].fn);
+                goto fail;
+            }
+            args++;
+            double a[9];
+            int got = parse_nums(args, close, a, calls[k].nargs);
+            if (got != calls[k].nargs) {
+                if (err) {
+                    if (got < 0)
+                        *err = fmt_msg("%s:%zu: arguments of %.*s) must be numbers", name, line,
+                                       (int)strlen(calls[k].fn), calls[k].fn);
+                    else
+                        *err = fmt_msg("%s:%zu: %.*s needs %d numbers after x, got %d", name,
+                                       line, (int)strlen(calls[k].fn) - 1, calls[k].fn,
+                                       calls[k].nargs, got);
+                }
+                goto fail;
+            }
+            prim q;
+            memset(&q, 0, sizeof q);
+            q.type = calls[k].t;
+            memcpy(q.p, a, 3 * sizeof(double));
+            int bad = 0;
+            if (q.type == PRIM_PLANE || q.type == PRIM_SPHERE) {
+                q.r = a[3];
+                if (q.type == PRIM_PLANE) {
+                    double l0 = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+                    bad = unit3(q.p);
+                    if (!bad) q.r /= l0;
+                }
+            } else {
+                memcpy(q.a, a + 3, 3 * sizeof(double));
+                bad = unit3(q.a);
+                if (q.type == PRIM_TORUS) {
+                    q.R = a[6];
+                    q.r = a[7];
+                } else {
+                    q.r = a[6];
+                }
+            }
+            if (bad) {
+                if (err) *err = fmt_msg("%s:%zu: zero-length %s", name, line,
+                                        q.type == PRIM_PLANE ? "normal" : "axis");
+                goto fail;
+            }
+            if (comment) {
+                const char *cm = comment + 2;
+                q.separating = strstr(cm, "separating") != NULL;
+                const char *pts = strstr(cm, " points");
+                if (pts) {
+                    const char *b = pts;
+                    while (b > cm && isdigit((unsigned char)b[-1])) b--;
+                    q.support = (size_t)strtoull(b, NULL, 10);
+                }
+                const char *rms = strstr(cm, "rms ");
+                if (rms) q.rms = strtod(rms + 4, NULL);
+            }
+            if (cnt == cap) {
+                cap = cap ? 2 * cap : 16;
+                prim *nv = realloc(v, cap * sizeof *nv);
+                if (!nv) {
+                    if (err) *err = fmt_msg("%s: out of memory", name);
+                    goto fail;
+                }
+                v = nv;
+            }
+            v[cnt++] = q;
+            break;
+        }
+    }
+    if (cnt == 0) {
+        if (err) *err = fmt_msg("%s: no frPlane/frSphere/frCylinder/frCone/frTorus calls", name);
+        goto fail;
+    }
+    *out = v;
+    *n = cnt;
+    return 0;
+fail:
+    free(v);
+    return -1;
+}
+
+int segment_parse_prims(const char *name, const char *text, size_t len, int is_fit,
+                        prim **out, size_t *n, char **err)
+{
+    if (err) *err = NULL;
+    *out = NULL;
+    *n = 0;
+    if (is_fit) return fitfile_parse(name, text, len, out, n, err);
+    return parse_hf(name, text, len, out, n, err);
+}
+
+int segment_read_prims(const char *path, prim **out, size_t *n, char **err)
+{
+    if (err) *err = NULL;
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        if (err) *err = fmt_msg("cannot read %s: %s", path, strerror(errno));
+        return -1;
+    }
+    size_t cap = 1 << 16, len = 0;
+    char *buf = malloc(cap);
+    while (buf) {
+        size_t got = fread(buf + len, 1, cap - len, f);
+        len += got;
+        if (len < cap) break;
+        char *nb = realloc(buf, cap * 2);
+        if (!nb) {
+            free(buf);
+            buf = NULL;
+            break;
+        }
+        buf = nb;
+        cap *= 2;
+    }
+    int rd_err = ferror(f);
+    fclose(f);
+    if (!buf || rd_err) {
+        free(buf);
+        if (err) *err = fmt_msg("cannot read %s", path);
+        return -1;
+    }
+    size_t pl = strlen(path);
+    int is_fit = pl >= 4 && strcmp(path + pl - 4, ".fit") == 0;
+    int rc = segment_parse_prims(path, buf, len, is_fit, out, n, err);
+    free(buf);
+    return rc;
+}

@@ -1,0 +1,88 @@
+/* segment.h - `frep segment`: split a point cloud into primitive patches and add the
+ * separating primitives a construction tree needs (Fayolle & Pasko 2016, Algorithms
+ * 1 and 2).  Pipeline: normals (evolve/normals.c) -> efficient RANSAC
+ * (evolve/ransac.c) -> bounding boxes and separating primitives (here) -> .hf / .fit.
+ */
+#ifndef FREP_SEGMENT_H
+#define FREP_SEGMENT_H
+
+#include <signal.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "cloud.h"
+#include "prim.h"
+
+/* Defaults, as fractions of the bounding-box diagonal or of the point count. */
+#define SEGMENT_DEFAULT_EPSILON 0.01      /* inlier distance: 1% of the diagonal */
+#define SEGMENT_DEFAULT_CLUSTER 0.01      /* connectivity cell: 1% of the diagonal ... */
+#define SEGMENT_CLUSTER_SPACINGS 3.0      /* ... but at least 3 median point spacings */
+#define SEGMENT_DEFAULT_NORMAL_DEG 25.0
+#define SEGMENT_DEFAULT_MIN_FRACTION 0.01 /* smallest support: 1% of the points ... */
+#define SEGMENT_MIN_POINTS_FLOOR 10       /* ... and never fewer than this */
+#define SEGMENT_DEFAULT_PROBABILITY 0.99
+/* Separating planes closer than this angle (and epsilon in offset) to an existing plane
+ * are duplicates (Algorithm 2 adds each plane once). */
+#define SEGMENT_DUP_PLANE_DEG 5.0
+
+typedef struct segment_config {
+    double epsilon;        /* <= 0: default */
+    double cluster;        /* <= 0: default */
+    double normal_deg;     /* <= 0: default */
+    size_t min_points;     /* 0: default */
+    double probability;    /* <= 0: default */
+    unsigned types;        /* bit (1u << prim_type); 0: all */
+    uint64_t seed;
+    int nthreads;
+    size_t knn;            /* neighbours for normals; 0: NORMALS_DEFAULT_K */
+    int separating;        /* add separating primitives (default 1) */
+    void (*progress)(void *user, const char *stage, size_t done, size_t total, size_t nprims);
+    void *user;
+    volatile sig_atomic_t *interrupt;
+} segment_config;
+
+void segment_config_init(segment_config *c);
+
+typedef struct segment_result {
+    prim *prims;           /* fitted primitives first, then separating ones (free()) */
+    size_t nprims, nfitted;
+    int32_t *label;        /* per point: index of its fitted primitive or -1 (free()) */
+    size_t unassigned;
+    /* The values actually used (defaults resolved). */
+    double epsilon, cluster, normal_deg, probability;
+    size_t min_points;
+    int normals_estimated; /* 1 when normals were computed (none, or zero ones, given) */
+    size_t zero_normals;   /* zero-length normals found in the input */
+    size_t draws;
+    int interrupted;
+} segment_result;
+
+/* Segment c (normals are added or replaced when missing or zero). Returns 0, or -1
+ * with *err (malloc'ed, free()) for bad input (too few points, all points equal) or
+ * out of memory. Free the result with segment_result_free(). */
+int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, char **err);
+void segment_result_free(segment_result *r);
+
+/* Oriented bounding box of the points idx[0..n) into q->obb_* (for axial types the
+ * primitive's axis is one box axis). */
+void segment_fit_obb(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n);
+/* Algorithm 2: append separating primitives for prims[0..n) to *prims (realloc'ed);
+ * eps is the duplicate offset tolerance. Returns the new count, or (size_t)-1 when
+ * out of memory. */
+size_t segment_add_separating(prim **prims, size_t n, double eps);
+
+/* Write primitives as a frep model "primitives(x[3], a[1])" with one named call per
+ * primitive; `header` (may be NULL) is written as comment lines first. Returns 0 or -1
+ * on a write error. */
+int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header);
+
+/* Read primitives from a .hf file written by segment_write_hf (the frX(...) calls and
+ * their comments) or from a .fit list (by extension ".fit"). Returns 0 with a malloc'ed
+ * array, or -1 and *err = "path:line: what" (free()). */
+int segment_read_prims(const char *path, prim **out, size_t *n, char **err);
+/* The same from memory; is_fit selects the format. */
+int segment_parse_prims(const char *name, const char *text, size_t len, int is_fit,
+                        prim **out, size_t *n, char **err);
+
+#endif

@@ -1,0 +1,287 @@
+/* simplify.c - smaller equivalent construction trees: exact identities applied
+ * bottom-up while copying the tree, then fitness-driven removal of nodes.
+ * Runs after each GA (gp.c) and after each partition merge (partition.c).
+ */
+#include "config.h"
+
+#include "simplify.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+/* Primitives the final hill climb may add at the root: each costs one pass over all
+ * primitives, and a GA result rarely lacks more than one or two. */
+#define SIMPLIFY_MAX_GROWTH 4
+
+static void remove_at(gp_tree *t, uint32_t pc)
+{
+    memmove(t->code + pc, t->code + pc + 1, (size_t)(t->len - pc - 1) * sizeof *t->code);
+    t->len--;
+}
+
+/* Exchange the adjacent ranges [a, b-1] and [b, len-1] at the end of t. */
+static int swap_tail(gp_tree *t, uint32_t a, uint32_t b)
+{
+    uint32_t n = t->len - a;
+    frep_insn *tmp = malloc((size_t)n * sizeof *tmp);
+    if (!tmp) return -1;
+    uint32_t nr = t->len - b, nl = b - a;
+    memcpy(tmp, t->code + b, (size_t)nr * sizeof *tmp);
+    memcpy(tmp + nr, t->code + a, (size_t)nl * sizeof *tmp);
+    memcpy(t->code + a, tmp, (size_t)n * sizeof *tmp);
+    free(tmp);
+    return 0;
+}
+
+/* Copy the subtree ending at `end` to the end of out, simplified. Recursion depth is
+ * the tree depth (<= GP_MAX_TREE_DEPTH). */
+static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opset *o)
+{
+    const frep_insn *in = &code[end];
+    int k = tree_nin(in);
+    if (k == 0) return tree_push(out, FREP_OP_PRIM, in->arg);
+    if (k == 1) {
+        if (simp(code, end - 1, out, o)) return -1;
+        if (out->code[out->len - 1].op == o->neg) {  /* ~~a = a */
+            out->len--;
+            return 0;
+        }
+        return tree_push(out, (frep_opcode)o->neg, 0);
+    }
+    uint32_t l0, l1, r0;
+    tree_operands(code, end, &l0, &l1, &r0);
+    (void)l0;
+    (void)r0;
+    uint32_t ls = out->len;
+    if (simp(code, l1, out, o)) return -1;
+    uint32_t rs = out->len;
+    if (simp(code, end - 1, out, o)) return -1;
+    uint8_t op = in->op;
+    int negate = 0;
+    for (;;) {
+        int lneg = out->code[rs - 1].op == o->neg, rneg = out->code[out->len - 1].op == o->neg;
+        if ((op == o->uni || op == o->inter) && lneg && rneg) {
+            /* De Morgan: ~a | ~b = ~(a & b), ~a & ~b = ~(a | b) (exact for R0 too). */
+            out->len--;
+            remove_at(out, rs - 1);
+            rs--;
+            op = op == o->uni ? o->inter : o->uni;
+            negate ^= 1;
+        } else if (op == o->sub && rneg) {  /* a \ ~b = a & b */
+            out->len--;
+            op = o->inter;
+        } else if (op == o->inter && rneg) {  /* a & ~b = a \ b */
+            out->len--;
+            op = o->sub;
+        } else if (op == o->inter && lneg) {  /* ~a & b = b & ~a */
+            if (swap_tail(out, ls, rs)) return -1;
+            rs = ls + (out->len - rs);
+        } else if (op == o->sub && lneg) {  /* ~a \ b = ~a & ~b = ~(a | b) */
+            remove_at(out, rs - 1);
+            rs--;
+            op = o->uni;
+            negate ^= 1;
+        } else {
+            break;
+        }
+    }
+    int emit = 1;
+    if (op == o->uni || op == o->inter) {
+        int c = tree_compare(out->code, rs - 1, out->code, out->len - 1);
+        if (c == 0) {  /* a | a = a & a = a */
+            out->len = rs;
+            emit = 0;
+        } else if (c > 0) {
+            if (swap_tail(out, ls, rs)) return -1;
+        }
+    }
+    if (emit && tree_push(out, (frep_opcode)op, 0)) return -1;
+    if (negate) {
+        if (out->code[out->len - 1].op == o->neg) out->len--;
+        else if (tree_push(out, (frep_opcode)o->neg, 0)) return -1;
+    }
+    return 0;
+}
+
+int simplify_rules(gp_tree *t, gp_setops s)
+{
+    if (!t->len) return 0;
+    gp_opset o = gp_opset_of(s);
+    gp_tree out = { NULL, 0, 0 };
+    /* A pass can enable another (a De Morgan exposes a double complement above). */
+    for (int pass = 0; pass < 8; pass++) {
+        out.len = 0;
+        if (tree_reserve(&out, t->len) || simp(t->code, t->len - 1, &out, &o)) {
+            tree_free(&out);
+            return -1;
+        }
+        int same = out.len == t->len &&
+                   memcmp(out.code, t->code, (size_t)t->len * sizeof *t->code) == 0;
+        if (tree_copy(t, &out)) {
+            tree_free(&out);
+            return -1;
+        }
+        if (same) break;
+    }
+    tree_free(&out);
+    return 0;
+}
+
+/* Try replacing the subtree [st, end] of t by cand; keep it when the fitness does not
+ * drop. Returns 1 when kept, 0 when not, -1 on allocation failure. */
+static int try_replace(gp_tree *t, gp_tree *trial, uint32_t st, uint32_t end,
+                       const gp_tree *cand, const gp_cache *c, gp_eval *e, double *fit)
+{
+    if (tree_copy(trial, t) || tree_splice(trial, st, end, cand->code, cand->len)) return -1;
+    double f = gp_fitness(c, e, trial->code, trial->len);
+    if (!(f >= *fit)) return 0;
+    if (tree_copy(t, trial)) return -1;
+    *fit = f;
+    return 1;
+}
+
+/* cand = code[a0..a1] code[b0..b1] op */
+static int build2(gp_tree *cand, const frep_insn *code, uint32_t a0, uint32_t a1,
+                  uint32_t b0, uint32_t b1, uint8_t op)
+{
+    uint32_t na = a1 - a0 + 1, nb = b1 - b0 + 1;
+    cand->len = 0;
+    if (tree_reserve(cand, na + nb + 1)) return -1;
+    memcpy(cand->code, code + a0, (size_t)na * sizeof *code);
+    memcpy(cand->code + na, code + b0, (size_t)nb * sizeof *code);
+    cand->len = na + nb;
+    return tree_push(cand, (frep_opcode)op, 0);
+}
+
+/* The moves at node `end`, smallest change first: the node replaced by an operand;
+ * then an operand that is itself an operation replaced by one of its operands, with
+ * any of the three operations at the node (a \ (b \ c) -> a & c when a lies in b).
+ * Every move shrinks the tree, so the search ends. Returns the new length of the
+ * node's subtree when a move was kept, 0 when none, -1 on allocation failure. */
+static long node_moves(gp_tree *t, gp_tree *trial, gp_tree *cand, uint32_t end,
+                       const gp_opset *o, const gp_cache *c, gp_eval *e, double *fit)
+{
+    int k = tree_nin(&t->code[end]);
+    uint32_t st = tree_subtree_start(t->code, end);
+    uint32_t rng[2][2];
+    int nr = 0;
+    if (k == 1) {
+        rng[nr][0] = st;
+        rng[nr++][1] = end - 1;
+    } else {
+        uint32_t l0, l1, r0;
+        tree_operands(t->code, end, &l0, &l1, &r0);
+        rng[nr][0] = l0;
+        rng[nr++][1] = l1;
+        rng[nr][0] = r0;
+        rng[nr++][1] = end - 1;
+    }
+    for (int q = 0; q < nr; q++) {
+        if (tree_set(cand, t->code + rng[q][0], rng[q][1] - rng[q][0] + 1)) return -1;
+        int r = try_replace(t, trial, st, end, cand, c, e, fit);
+        if (r) return r < 0 ? -1 : (long)cand->len;
+    }
+    if (k != 2) return 0;
+    const uint8_t ops[3] = { o->uni, o->inter, o->sub };
+    for (int side = 0; side < 2; side++) {
+        uint32_t ce = rng[side][1];
+        if (tree_nin(&t->code[ce]) != 2) continue;
+        uint32_t c0, c1, d0;
+        tree_operands(t->code, ce, &c0, &c1, &d0);
+        uint32_t sub[2][2] = { { c0, c1 }, { d0, ce - 1 } };
+        const uint32_t *other = rng[1 - side];
+        for (int g = 0; g < 2; g++)
+            for (int w = 0; w < 4; w++) {
+                /* w == 3: subtraction with the operands exchanged */
+                uint8_t op = ops[w < 3 ? w : 2];
+                int kept_first = (side == 0) != (w == 3);
+                int bad = kept_first
+                    ? build2(cand, t->code, sub[g][0], sub[g][1], other[0], other[1], op)
+                    : build2(cand, t->code, other[0], other[1], sub[g][0], sub[g][1], op);
+                if (bad) return -1;
+                int r = try_replace(t, trial, st, end, cand, c, e, fit);
+                if (r) return r < 0 ? -1 : (long)cand->len;
+            }
+    }
+    return 0;
+}
+
+/* Hill climb at the root: the best of t | p, t & p, t \ p over all primitives p, while
+ * it raises the fitness (a GA can stall one primitive short of the solution).
+ * Returns 1 when the tree grew, 0 when not, -1 on allocation failure. */
+static int grow_root(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
+                     gp_eval *e, double *fit)
+{
+    const uint8_t ops[3] = { o->uni, o->inter, o->sub };
+    uint32_t best_j = 0;
+    int best_w = -1;
+    double bf = *fit;
+    for (uint32_t j = 0; j < c->nprims; j++)
+        for (int w = 0; w < 3; w++) {
+            if (tree_copy(trial, t) || tree_push(trial, FREP_OP_PRIM, j) ||
+                tree_push(trial, (frep_opcode)ops[w], 0))
+                return -1;
+            double f = gp_fitness(c, e, trial->code, trial->len);
+            if (f > bf) {
+                bf = f;
+                best_j = j;
+                best_w = w;
+            }
+        }
+    if (best_w < 0) return 0;
+    if (tree_push(t, FREP_OP_PRIM, best_j) || tree_push(t, (frep_opcode)ops[best_w], 0))
+        return -1;
+    *fit = bf;
+    return 1;
+}
+
+/* Removal moves until none applies. */
+static int reduce(gp_tree *t, gp_tree *trial, gp_tree *cand, gp_setops s, const gp_opset *o,
+                  const gp_cache *c, gp_eval *e, double *fit)
+{
+    int changed = 1;
+    while (changed) {
+        changed = 0;
+        /* Root first: removing high nodes saves the most. After a replacement the
+         * scan continues at the node that took the place. */
+        for (uint32_t end = t->len; end-- > 0;) {
+            if (tree_nin(&t->code[end]) == 0) continue;
+            uint32_t st = tree_subtree_start(t->code, end);
+            long r = node_moves(t, trial, cand, end, o, c, e, fit);
+            if (r < 0) return -1;
+            if (r > 0) {
+                changed = 1;
+                end = st + (uint32_t)r;  /* the loop decrements to the new node */
+            }
+        }
+        if (changed) {
+            if (simplify_rules(t, s)) return -1;
+            *fit = gp_fitness(c, e, t->code, t->len);
+        }
+    }
+    return 0;
+}
+
+int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double *fitness)
+{
+    if (simplify_rules(t, s)) return -1;
+    gp_opset o = gp_opset_of(s);
+    double fit = gp_fitness(c, e, t->code, t->len);
+    gp_tree trial = { NULL, 0, 0 }, cand = { NULL, 0, 0 };
+    int rc = -1;
+    if (reduce(t, &trial, &cand, s, &o, c, e, &fit)) goto out;
+    for (int round = 0; round < SIMPLIFY_MAX_GROWTH; round++) {
+        int g = grow_root(t, &trial, &o, c, e, &fit);
+        if (g < 0) goto out;
+        if (g == 0) break;
+        if (simplify_rules(t, s)) goto out;
+        fit = gp_fitness(c, e, t->code, t->len);
+        if (reduce(t, &trial, &cand, s, &o, c, e, &fit)) goto out;
+    }
+    rc = 0;
+    if (fitness) *fitness = fit;
+out:
+    tree_free(&trial);
+    tree_free(&cand);
+    return rc;
+}

@@ -1,0 +1,24 @@
+/* simplify.h - simplification of construction trees found by `frep evolve`:
+ * exact rewrite rules (p & p -> p, ~~p -> p, a & ~b -> a \ b, ...) and the removal of
+ * every node whose removal does not lower the fitness (Fayolle & Pasko 2016, 5.4).
+ * Used on each GP result, on merged partition trees (partition.c) and by evolve.c.
+ */
+#ifndef FREP_GP_SIMPLIFY_H
+#define FREP_GP_SIMPLIFY_H
+
+#include "fitness.h"
+#include "tree.h"
+
+/* Apply the identities, exact for min/max and for R0 functions alike, until none
+ * applies; commutative operands are put in a canonical order, so that equal subtrees
+ * are equal code. Returns 0 or -1 (allocation; t unchanged then). */
+int simplify_rules(gp_tree *t, gp_setops s);
+
+/* Rules, then fitness-guarded moves on `c` until none applies: a node replaced by one
+ * of its operands, or an operand replaced by one of its own operands under any of the
+ * three operations, when the fitness does not decrease; then a hill climb joining one
+ * primitive at the root while that raises the fitness, each time followed by the
+ * removal moves again. *fitness (may be NULL) receives the final fitness. */
+int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double *fitness);
+
+#endif

@@ -1,0 +1,82 @@
+/* fit.h - the template-fitting driver behind `frep fit`: chains simulated annealing
+ * (global) and quasi-Newton or Levenberg-Marquardt (local) on the objectives of
+ * fit/objective.h, for any model seen as a fit_model (a compiled frep_program through
+ * fit_program_model(), or C callbacks in the tests).  cli/cmd_fit.c does the I/O.
+ */
+#ifndef FREP_FIT_FIT_H
+#define FREP_FIT_FIT_H
+
+#include <signal.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "frep.h"
+#include "objective.h"
+#include "optim.h"
+
+typedef enum fit_method {
+    FIT_METHOD_SAQN,    /* annealing, then quasi-Newton (the default) */
+    FIT_METHOD_QN,      /* quasi-Newton only, from the start values */
+    FIT_METHOD_SA,      /* annealing only (no local polish at the end) */
+    FIT_METHOD_LM       /* Levenberg-Marquardt only, from the start values */
+} fit_method;
+
+const char *fit_method_name(fit_method m);
+/* Parse "saqn", "qn", "sa", "lm"; returns 0 or -1. */
+int fit_method_parse(const char *s, fit_method *m);
+const char *fit_objective_name(fit_objective_kind k);
+int fit_objective_parse(const char *s, fit_objective_kind *k);
+const char *fit_loss_name(fit_loss l);
+int fit_loss_parse(const char *s, fit_loss *l);
+
+/* Every setting of a fit, with its default from fit_config_init(). */
+typedef struct fit_config {
+    fit_method method;
+    fit_objective_config obj;
+    uint64_t seed;              /* 1 */
+    double max_time;            /* seconds of wall clock; 0: no limit */
+    long max_evals;             /* objective evaluations; 0: no limit */
+    /* Global phase. The annealing runs on a random subset of the points (cheap
+     * evaluations; the local phase uses them all). */
+    size_t sa_points;           /* 1024 */
+    int sa_local;               /* BFGS from every new best inside the annealing (1) */
+    int sa_local_iter;          /* iteration cap of those inner searches (60) */
+    fit_sa_options sa;          /* see optim.h; fit_config_init sets stall_iter 15 */
+    /* Local phase. */
+    fit_qn_options qn;
+    fit_lm_options lm;
+    int reweight_rounds;        /* geometric kind: freeze weights and refit, at most (8) */
+    volatile sig_atomic_t *interrupt;   /* Ctrl-C flag; may be NULL */
+    void (*progress)(void *user, fit_phase phase, double temperature, double best);
+    void *progress_user;
+} fit_config;
+
+void fit_config_init(fit_config *c);
+
+typedef struct fit_result {
+    double objective;           /* final objective on all points */
+    double rms, max_dist;       /* first-order distances |f|/|grad f| at the result */
+    long evals;                 /* objective evaluations, all phases (subset ones too) */
+    double seconds;
+    fit_status status;          /* of the last phase; FIT_STOPPED after an interrupt */
+    long sa_iterations;
+    int local_iterations;
+} fit_result;
+
+/* Fit model m to the points: params holds the start on entry (m->nparams values) and
+ * the best parameters found on return, also after an interrupt or a spent budget.
+ * lo/hi: bounds (entries may be infinite; the annealing methods need finite ones).
+ * Returns 0, or -1 with a message in err[errlen] (params then unchanged). */
+int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const double *hi,
+            double *params, const fit_config *cfg, fit_result *res, char *err,
+            size_t errlen);
+
+/* Adapter from a compiled program to a fit_model: the fitted parameters are the
+ * program parameters listed in idx (nfree of them); the others keep the values in
+ * base (frep_program_nparams(p) values, copied). Free with fit_program_model_free().
+ * Returns 0, or -1 when out of memory. p must outlive the model. */
+int fit_program_model(const frep_program *p, const size_t *idx, size_t nfree,
+                      const double *base, fit_model *m);
+void fit_program_model_free(fit_model *m);
+
+#endif

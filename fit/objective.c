@@ -1,0 +1,409 @@
+/* objective.c - fitting objectives over a point cloud (see objective.h).
+ *
+ * Points are cut into blocks of FIT_BLOCK; each block's partial sums (objective,
+ * gradient, Gauss-Newton matrices) go to its own slot, and the slots are added in block
+ * order afterwards.  OpenMP spreads blocks over threads, each with its own model scratch
+ * and buffers, so a seed gives bit-identical fits at any thread count.
+ */
+#include "objective.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "optim.h"
+
+/* Gradient norms below this count as zero: the first-order distance is then undefined
+ * and the point gets this norm instead (a huge but finite residual). */
+#define FIT_GRAD_FLOOR 1e-300
+/* Blocks each thread should get before a pass is worth spreading over threads: waking
+ * a thread team costs about as much as evaluating a few blocks. */
+#define FIT_MIN_BLOCKS_PER_THREAD 4
+/* Relative step of the central differences of the normal term's gradient. */
+#define FIT_FD_STEP 1e-6
+
+typedef struct fit_ws {
+    void *scratch;
+    double *f, *g, *dp, *pp;    /* f[B], g[3B], dp[M*B], pp[M] */
+} fit_ws;
+
+struct fit_objective {
+    fit_model model;
+    fit_objective_config cfg;
+    size_t n, m;            /* points, parameters */
+    const double *x, *y, *z, *nx, *ny, *nz;
+    double *own;            /* copied points of a subset (NULL: referenced) */
+    double *w;              /* frozen weights 1/|grad f| (n); valid when frozen */
+    int frozen;
+    size_t nblocks, slot;   /* block count; doubles per block slot */
+    double *partial;        /* nblocks * slot */
+    int nthreads;
+    fit_ws *ws;             /* nthreads workspaces */
+};
+
+void fit_objective_config_init(fit_objective_config *c)
+{
+    c->kind = FIT_OBJ_ALGEBRAIC;
+    c->loss = FIT_LOSS_L2;
+    c->loss_scale = 1.0;
+    c->normals_weight = 0;
+    c->nthreads = 0;
+}
+
+size_t fit_objective_npoints(const fit_objective *o) { return o->n; }
+
+static void free_ws(fit_objective *o)
+{
+    if (o->ws == NULL) return;
+    for (int t = 0; t < o->nthreads; t++) {
+        fit_ws *w = &o->ws[t];
+        if (w->scratch != NULL && o->model.scratch_free != NULL)
+            o->model.scratch_free(o->model.user, w->scratch);
+        free(w->f);
+    }
+    free(o->ws);
+    o->ws = NULL;
+}
+
+void fit_objective_free(fit_objective *o)
+{
+    if (o == NULL) return;
+    free_ws(o);
+    free(o->partial);
+    free(o->w);
+    free(o->own);
+    free(o);
+}
+
+/* Buffers and slots; the points must be set. Returns 0 or -1. */
+static int setup(fit_objective *o)
+{
+    size_t m = o->m;
+    o->nblocks = (o->n + FIT_BLOCK - 1) / FIT_BLOCK;
+    o->slot = 2 + m + m * m;
+    o->partial = malloc((o->nblocks ? o->nblocks : 1) * o->slot * sizeof *o->partial);
+    o->w = malloc((o->n ? o->n : 1) * sizeof *o->w);
+    int nt = o->cfg.nthreads;
+#ifdef _OPENMP
+    if (nt <= 0) nt = omp_get_max_threads();
+#else
+    nt = 1;
+#endif
+    if (nt < 1) nt = 1;
+    o->nthreads = nt;
+    o->ws = calloc((size_t)nt, sizeof *o->ws);
+    if (o->partial == NULL || o->w == NULL || o->ws == NULL) return -1;
+    for (int t = 0; t < nt; t++) {
+        fit_ws *w = &o->ws[t];
+        w->f = malloc((4 * FIT_BLOCK + m * FIT_BLOCK + m) * sizeof *w->f);
+        if (w->f == NULL) return -1;
+        w->g = w->f + FIT_BLOCK;
+        w->dp = w->g + 3 * FIT_BLOCK;
+        w->pp = w->dp + m * FIT_BLOCK;
+        if (o->model.scratch_new != NULL) {
+            w->scratch = o->model.scratch_new(o->model.user);
+            if (w->scratch == NULL) return -1;
+        }
+    }
+    return 0;
+}
+
+fit_objective *fit_objective_new(const fit_model *m, const fit_points *pts,
+                                 const fit_objective_config *cfg)
+{
+    if (m->nparams == 0 || m->nparams > FIT_MAX_PARAMS) return NULL;
+    fit_objective *o = calloc(1, sizeof *o);
+    if (o == NULL) return NULL;
+    o->model = *m;
+    if (cfg != NULL) o->cfg = *cfg;
+    else fit_objective_config_init(&o->cfg);
+    o->n = pts->n;
+    o->m = m->nparams;
+    o->x = pts->x, o->y = pts->y, o->z = pts->z;
+    if (pts->nx != NULL && pts->ny != NULL && pts->nz != NULL)
+        o->nx = pts->nx, o->ny = pts->ny, o->nz = pts->nz;
+    if (setup(o) != 0) {
+        fit_objective_free(o);
+        return NULL;
+    }
+    return o;
+}
+
+fit_objective *fit_objective_subset(const fit_objective *src, size_t count, uint64_t seed)
+{
+    size_t n = src->n;
+    if (count > n) count = n;
+    fit_objective *o = calloc(1, sizeof *o);
+    if (o == NULL) return NULL;
+    o->model = src->model;
+    o->cfg = src->cfg;
+    o->cfg.nthreads = src->nthreads;
+    o->n = count;
+    o->m = src->m;
+    int normals = src->nx != NULL;
+    size_t *idx = malloc((n ? n : 1) * sizeof *idx);
+    o->own = malloc((count ? count : 1) * (normals ? 6 : 3) * sizeof *o->own);
+    if (idx == NULL || o->own == NULL) {
+        free(idx);
+        fit_objective_free(o);
+        return NULL;
+    }
+    /* Partial Fisher-Yates shuffle: the first `count` indices are a uniform sample. */
+    fit_rng r;
+    fit_rng_seed(&r, seed);
+    for (size_t i = 0; i < n; i++) idx[i] = i;
+    for (size_t i = 0; i < count; i++) {
+        size_t j = i + (size_t)(fit_rng_uniform(&r) * (double)(n - i));
+        if (j >= n) j = n - 1;
+        size_t t = idx[i];
+        idx[i] = idx[j];
+        idx[j] = t;
+    }
+    double *a = o->own;
+    for (size_t i = 0; i < count; i++) {
+        size_t k = idx[i];
+        a[i] = src->x[k];
+        a[count + i] = src->y[k];
+        a[2 * count + i] = src->z[k];
+        if (normals) {
+            a[3 * count + i] = src->nx[k];
+            a[4 * count + i] = src->ny[k];
+            a[5 * count + i] = src->nz[k];
+        }
+    }
+    free(idx);
+    o->x = a, o->y = a + count, o->z = a + 2 * count;
+    if (normals) o->nx = a + 3 * count, o->ny = a + 4 * count, o->nz = a + 5 * count;
+    if (setup(o) != 0) {
+        fit_objective_free(o);
+        return NULL;
+    }
+    return o;
+}
+
+/* What a pass over the blocks computes. */
+typedef enum pass_mode {
+    PASS_VALUE,     /* slot[0] = sum rho (+ normal term) */
+    PASS_GRAD,      /* and slot[1..m] = its gradient */
+    PASS_LSQ,       /* slot[0] = sum rho, slot[1..m] = J^T W r, then J^T W J */
+    PASS_DIST,      /* slot[0] = sum d^2, slot[1] = max d (first-order distance) */
+    PASS_FREEZE     /* store 1/|grad f| in o->w */
+} pass_mode;
+
+/* rho(r) and the IRLS weight omega = rho'(r) / (2 r) (1 at r = 0). */
+static double loss(fit_loss kind, double s, double r, double *omega)
+{
+    double a = fabs(r);
+    switch (kind) {
+    case FIT_LOSS_HUBER:
+        if (a <= s) {
+            *omega = 1;
+            return r * r;
+        }
+        *omega = s / a;
+        return 2 * s * a - s * s;
+    case FIT_LOSS_CAUCHY: {
+        double q = r * r / (s * s);
+        *omega = 1 / (1 + q);
+        return s * s * log1p(q);
+    }
+    case FIT_LOSS_L2:
+        break;
+    }
+    *omega = 1;
+    return r * r;
+}
+
+/* Sum over a block of the normal term 1 + n . grad f / |grad f| for gradients in g. */
+static double normal_term(const fit_objective *o, size_t i0, size_t n, const double *g)
+{
+    double s = 0;
+    for (size_t i = 0; i < n; i++) {
+        double gx = g[i], gy = g[n + i], gz = g[2 * n + i];
+        double gl = sqrt(gx * gx + gy * gy + gz * gz);
+        double nx = o->nx[i0 + i], ny = o->ny[i0 + i], nz = o->nz[i0 + i];
+        if (gl > 0 && (nx != 0 || ny != 0 || nz != 0))
+            s += 1 + (nx * gx + ny * gy + nz * gz) / gl;
+    }
+    return s;
+}
+
+static int run_block(fit_objective *o, fit_ws *w, size_t b, const double *p, pass_mode mode)
+{
+    const size_t m = o->m, i0 = b * FIT_BLOCK;
+    const size_t n = o->n - i0 < FIT_BLOCK ? o->n - i0 : FIT_BLOCK;
+    double *out = o->partial + b * o->slot;
+    const int geo = o->cfg.kind == FIT_OBJ_GEOMETRIC;
+    const int normals = o->cfg.normals_weight > 0 && o->nx != NULL &&
+                        (mode == PASS_VALUE || mode == PASS_GRAD);
+    const int need_g = (geo && !o->frozen) || normals || mode == PASS_DIST ||
+                       mode == PASS_FREEZE;
+    const int need_dp = mode == PASS_GRAD || mode == PASS_LSQ;
+    const double *x = o->x + i0, *y = o->y + i0, *z = o->z + i0;
+
+    memset(out, 0, o->slot * sizeof *out);
+    if (o->model.eval(o->model.user, w->scratch, n, x, y, z, p, w->f, need_g ? w->g : NULL,
+                      need_dp ? w->dp : NULL) != 0)
+        return -1;
+    const double s = o->cfg.loss_scale;
+    for (size_t i = 0; i < n; i++) {
+        double f = w->f[i], gl = 1;
+        if (need_g) {
+            double gx = w->g[i], gy = w->g[n + i], gz = w->g[2 * n + i];
+            gl = fmax(sqrt(gx * gx + gy * gy + gz * gz), FIT_GRAD_FLOOR);
+        }
+        if (mode == PASS_FREEZE) {
+            o->w[i0 + i] = 1 / gl;
+            continue;
+        }
+        if (mode == PASS_DIST) {
+            double d = fabs(f) / gl;
+            out[0] += d * d;
+            out[1] = fmax(out[1], d);
+            if (isnan(d)) out[1] = NAN;
+            continue;
+        }
+        /* dr/df: 1 (algebraic) or the weight 1/|grad f|, frozen or current. */
+        double wi = !geo ? 1 : o->frozen ? o->w[i0 + i] : 1 / gl;
+        double r = f * wi, omega;
+        out[0] += loss(o->cfg.loss, s, r, &omega);
+        if (mode == PASS_GRAD) {
+            double c = 2 * omega * r * wi;      /* d rho / d f */
+            for (size_t j = 0; j < m; j++) out[2 + j] += c * w->dp[j * n + i];
+        } else if (mode == PASS_LSQ) {
+            double *jtr = out + 2, *jtj = out + 2 + m;
+            for (size_t j = 0; j < m; j++) {
+                double Jj = wi * w->dp[j * n + i];
+                if (Jj == 0) continue;
+                jtr[j] += omega * r * Jj;
+                for (size_t k = 0; k <= j; k++) jtj[j * m + k] += omega * Jj * wi * w->dp[k * n + i];
+            }
+        }
+    }
+    if (normals) {
+        double nw = o->cfg.normals_weight;
+        out[0] += nw * normal_term(o, i0, n, w->g);
+        if (mode == PASS_GRAD) {
+            /* d(grad f)/dp needs second derivatives the evaluators do not give:
+             * central differences over each parameter. */
+            memcpy(w->pp, p, m * sizeof *p);
+            for (size_t j = 0; j < m; j++) {
+                double h = FIT_FD_STEP * fmax(1, fabs(p[j]));
+                w->pp[j] = p[j] + h;
+                if (o->model.eval(o->model.user, w->scratch, n, x, y, z, w->pp, w->f, w->g, NULL))
+                    return -1;
+                double sp = normal_term(o, i0, n, w->g);
+                w->pp[j] = p[j] - h;
+                if (o->model.eval(o->model.user, w->scratch, n, x, y, z, w->pp, w->f, w->g, NULL))
+                    return -1;
+                double sm = normal_term(o, i0, n, w->g);
+                w->pp[j] = p[j];
+                out[2 + j] += nw * (sp - sm) / (2 * h);
+            }
+        }
+    }
+    return 0;
+}
+
+/* Run every block; returns 0, or -1 when some block failed. */
+static int run_pass(fit_objective *o, const double *p, pass_mode mode)
+{
+    const long nb = (long)o->nblocks;
+    int failed = 0;
+#ifdef _OPENMP
+    long want = nb / FIT_MIN_BLOCKS_PER_THREAD;
+    int nt = want < o->nthreads ? (int)(want > 1 ? want : 1) : o->nthreads;
+#pragma omp parallel num_threads(nt) reduction(| : failed)
+    {
+        fit_ws *w = &o->ws[omp_get_thread_num()];
+#pragma omp for schedule(static)
+        for (long b = 0; b < nb; b++)
+            if (run_block(o, w, (size_t)b, p, mode) != 0) failed |= 1;
+    }
+#else
+    for (long b = 0; b < nb; b++)
+        if (run_block(o, &o->ws[0], (size_t)b, p, mode) != 0) failed |= 1;
+#endif
+    return failed ? -1 : 0;
+}
+
+/* Add the block slots in block order into sum[slot]. */
+static void reduce(const fit_objective *o, double *sum, size_t len)
+{
+    memset(sum, 0, len * sizeof *sum);
+    for (size_t b = 0; b < o->nblocks; b++) {
+        const double *s = o->partial + b * o->slot;
+        for (size_t k = 0; k < len; k++) sum[k] += s[k];
+    }
+}
+
+double fit_objective_value(void *user, const double *p, double *grad)
+{
+    fit_objective *o = user;
+    if (o->n == 0) return NAN;
+    if (run_pass(o, p, grad != NULL ? PASS_GRAD : PASS_VALUE) != 0) return NAN;
+    double head[2];
+    reduce(o, head, 2);
+    double inv = 1 / (double)o->n;
+    if (grad != NULL) {
+        memset(grad, 0, o->m * sizeof *grad);
+        for (size_t b = 0; b < o->nblocks; b++) {
+            const double *s = o->partial + b * o->slot + 2;
+            for (size_t j = 0; j < o->m; j++) grad[j] += s[j];
+        }
+        for (size_t j = 0; j < o->m; j++) grad[j] *= inv;
+    }
+    return head[0] * inv;
+}
+
+double fit_objective_lsq(void *user, const double *p, double *jtj, double *jtr)
+{
+    fit_objective *o = user;
+    const size_t m = o->m;
+    if (o->n == 0 || run_pass(o, p, PASS_LSQ) != 0) return NAN;
+    double cost = 0;
+    memset(jtr, 0, m * sizeof *jtr);
+    memset(jtj, 0, m * m * sizeof *jtj);
+    for (size_t b = 0; b < o->nblocks; b++) {
+        const double *s = o->partial + b * o->slot;
+        cost += s[0];
+        for (size_t j = 0; j < m; j++) jtr[j] += s[2 + j];
+        for (size_t k = 0; k < m * m; k++) jtj[k] += s[2 + m + k];
+    }
+    double inv = 1 / (double)o->n;
+    for (size_t j = 0; j < m; j++) {
+        jtr[j] *= inv;
+        for (size_t k = 0; k <= j; k++) jtj[k * m + j] = jtj[j * m + k] *= inv;
+    }
+    return 0.5 * cost * inv;
+}
+
+int fit_objective_freeze(fit_objective *o, const double *p)
+{
+    if (o->cfg.kind != FIT_OBJ_GEOMETRIC) return 0;
+    o->frozen = 0;
+    if (run_pass(o, p, PASS_FREEZE) != 0) return -1;
+    o->frozen = 1;
+    return 0;
+}
+
+void fit_objective_unfreeze(fit_objective *o) { o->frozen = 0; }
+
+int fit_objective_distances(fit_objective *o, const double *p, double *rms, double *max)
+{
+    if (o->n == 0 || run_pass(o, p, PASS_DIST) != 0) return -1;
+    double ss = 0, mx = 0;
+    for (size_t b = 0; b < o->nblocks; b++) {
+        const double *s = o->partial + b * o->slot;
+        ss += s[0];
+        mx = isnan(s[1]) || isnan(mx) ? NAN : fmax(mx, s[1]);
+    }
+    *rms = sqrt(ss / (double)o->n);
+    *max = mx;
+    return isfinite(*rms) ? 0 : -1;
+}

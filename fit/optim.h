@@ -1,0 +1,144 @@
+/* optim.h - the numerical optimizers behind `frep fit`: generalized simulated annealing
+ * (global phase), BFGS with a strong-Wolfe line search and Levenberg-Marquardt (local
+ * phase), all within box bounds.  They know nothing of models or points: fit/objective.c
+ * supplies the function, fit/fit.c chains the phases.
+ */
+#ifndef FREP_FIT_OPTIM_H
+#define FREP_FIT_OPTIM_H
+
+#include <signal.h>
+#include <stddef.h>
+#include <stdint.h>
+
+/* Most parameters the optimizers handle: bounds the n*n matrices they keep on the heap
+ * and the work per iteration (templates have a handful to a few dozen parameters). */
+#define FIT_MAX_PARAMS 256
+
+/* Objective: returns f(x) and, when grad != NULL, writes its gradient. A non-finite
+ * return marks x as infeasible (the optimizers step back). */
+typedef double (*fit_fn)(void *user, const double *x, double *grad);
+
+/* Least-squares objective for Levenberg-Marquardt: returns the cost 0.5 * sum r_i^2 and
+ * writes the Gauss-Newton normal equations J^T J (n*n, row-major) and J^T r (n). The
+ * caller accumulates them over residuals so the Jacobian itself is never stored. */
+typedef double (*fit_lsq_fn)(void *user, const double *x, double *jtj, double *jtr);
+
+/* Random numbers: xoshiro256** seeded through splitmix64, so a 64-bit seed gives the
+ * same stream on every platform. */
+typedef struct fit_rng {
+    uint64_t s[4];
+} fit_rng;
+
+void fit_rng_seed(fit_rng *r, uint64_t seed);
+uint64_t fit_rng_next(fit_rng *r);
+double fit_rng_uniform(fit_rng *r);     /* [0, 1) with 53 random bits */
+double fit_rng_normal(fit_rng *r);      /* standard normal (Box-Muller, one value) */
+
+/* Phases, for progress reports. */
+typedef enum fit_phase { FIT_PHASE_SA, FIT_PHASE_QN, FIT_PHASE_LM } fit_phase;
+
+/* Budget and reporting shared by every phase of one fit. The optimizers count every
+ * objective evaluation in `evals` and stop (status FIT_STOPPED) when `max_evals`
+ * (0: no limit) or the wall-clock `deadline` (seconds of fit_now(); 0: none) is reached,
+ * or when *interrupt becomes non-zero (Ctrl-C). */
+typedef struct fit_control {
+    long evals;
+    long max_evals;
+    double deadline;
+    volatile sig_atomic_t *interrupt;   /* may be NULL */
+    /* Called now and then (at most every progress_interval seconds) with the phase,
+     * the temperature (SA; 0 otherwise) and the best objective so far. May be NULL. */
+    void (*progress)(void *user, fit_phase phase, double temperature, double best);
+    void *progress_user;
+    double progress_interval;
+    double last_progress;
+} fit_control;
+
+void fit_control_init(fit_control *c);
+/* Monotonic wall clock in seconds. */
+double fit_now(void);
+/* Non-zero when the budget is spent or an interrupt arrived. */
+int fit_control_stop(const fit_control *c);
+
+typedef enum fit_status {
+    FIT_CONVERGED = 0,  /* a convergence test passed */
+    FIT_MAXITER,        /* iteration limit of the phase */
+    FIT_STOPPED,        /* budget spent or interrupted: x is the best point seen */
+    FIT_FAILED          /* no finite objective at the start, or out of memory */
+} fit_status;
+
+const char *fit_status_name(fit_status s);
+
+/* ---- BFGS ---------------------------------------------------------------- */
+
+typedef struct fit_qn_options {
+    int max_iter;       /* iterations (default 500) */
+    double gtol;        /* stop when the projected gradient's inf-norm <= gtol (1e-10) */
+    double ftol;        /* stop when the relative decrease of f is below ftol (1e-13)
+                           for two iterations in a row */
+    double xtol;        /* stop when the step's inf-norm <= xtol * (1 + |x|) (1e-12) */
+} fit_qn_options;
+
+void fit_qn_options_init(fit_qn_options *o);
+
+/* Minimize fn from x (n values, within [lo, hi]; lo/hi may be NULL for no bounds, and
+ * entries may be infinite). BFGS on the inverse Hessian with a strong-Wolfe line search
+ * (c1 = 1e-4, c2 = 0.9); variables at a bound whose gradient points outwards are held
+ * (projected active set). On return x holds the best point and *fx its value. */
+fit_status fit_bfgs(fit_fn fn, void *user, size_t n, double *x, const double *lo,
+                    const double *hi, const fit_qn_options *o, fit_control *c, double *fx,
+                    int *iterations);
+
+/* ---- Levenberg-Marquardt ---------------------------------------------------- */
+
+typedef struct fit_lm_options {
+    int max_iter;       /* accepted + rejected steps (default 200) */
+    double ftol;        /* relative cost decrease below which it stops (1e-14) */
+    double gtol;        /* inf-norm of J^T r below which it stops (1e-14) */
+    double xtol;        /* relative step below which it stops (1e-12) */
+} fit_lm_options;
+
+void fit_lm_options_init(fit_lm_options *o);
+
+/* Minimize 0.5 * sum r^2 by Levenberg-Marquardt with Marquardt's diagonal scaling
+ * (damping lambda * diag(J^T J)); steps are clipped to the bounds. */
+fit_status fit_lm(fit_lsq_fn fn, void *user, size_t n, double *x, const double *lo,
+                  const double *hi, const fit_lm_options *o, fit_control *c, double *fx,
+                  int *iterations);
+
+/* ---- generalized simulated annealing --------------------------------------- */
+
+typedef struct fit_sa_options {
+    double qv;              /* visiting distribution shape, 1 < qv < 3 (2.62) */
+    double qa;              /* acceptance parameter, < 1 (-5) */
+    double t0;              /* initial temperature (5230) */
+    double restart_ratio;   /* restart from a random point when T < t0 * ratio (2e-5) */
+    long max_iter;          /* annealing iterations, each 2n trial moves (1000) */
+    long stall_iter;        /* stop after this many iterations without a new best
+                               (improvement > rel_improve relative); 0: never (40) */
+    double rel_improve;     /* what counts as improving the best (1e-4) */
+    double threshold;       /* stop as soon as the best objective <= threshold (-inf) */
+    /* Local search run from the best point after every iteration that found a new best
+     * (dual annealing); NULL: pure annealing. It improves x in place, sets *fx and
+     * returns 0, or -1 when it failed (the point is then left alone). */
+    int (*local)(void *user, double *x, double *fx);
+    void *local_user;
+    /* Also run it from the chain's current point after this many iterations in a row
+     * without a new best (0: never): probes basins the chain visits but whose raw
+     * values are not yet better than the polished best (10). */
+    long local_period;
+} fit_sa_options;
+
+void fit_sa_options_init(fit_sa_options *o);
+
+/* Global minimization of fn within finite bounds [lo, hi] by generalized simulated
+ * annealing (Tsallis-Stariolo, as in Xiang et al.'s dual annealing): trial points drawn
+ * from a heavy-tailed distribution whose width follows the temperature, generalized
+ * Metropolis acceptance, restart from a random point when the temperature has fallen by
+ * restart_ratio. Gradients are not used. x holds the start on entry (may be outside:
+ * then a random start) and the best point on return. */
+fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
+                  const double *hi, const fit_sa_options *o, fit_rng *rng, fit_control *c,
+                  double *fx, long *iterations);
+
+#endif

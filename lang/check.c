@@ -1,0 +1,758 @@
+/* check.c - semantic checks between parsing (lang/parse.y) and lowering (lang/lower.c).
+ *
+ * Per model: arrays are declared (x, a, s parameters and `array` declarations),
+ * scalars exist from their first assignment in textual order, the model assigns its
+ * own name, constant indices are in range, calls name a library function or an
+ * earlier model with the right number and kinds of arguments, and comparisons and
+ * logic appear only in if/while conditions.  Then the pragmas (`-- @free`, `-- @setops`,
+ * `-- @box`).  Every problem is reported, each with did-you-mean suggestions.
+ */
+#include "check.h"
+
+#include <ctype.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "frep.h"
+#include "lib.h"
+
+/* ---- string map ---------------------------------------------------------------- */
+
+#define STRMAP_INITIAL_CAP 16u /* slots; doubled at half load */
+
+static uint32_t strmap_hash(const char *s)
+{
+    uint32_t h = 2166136261u;
+    while (*s) {
+        h ^= (unsigned char)*s++;
+        h *= 16777619u;
+    }
+    return h;
+}
+
+void strmap_init(strmap *m, arena *A)
+{
+    memset(m, 0, sizeof *m);
+    m->A = A;
+}
+
+uint32_t *strmap_get(const strmap *m, const char *key)
+{
+    uint32_t i;
+    if (!m->cap) return NULL;
+    for (i = strmap_hash(key) & (m->cap - 1); m->keys[i]; i = (i + 1) & (m->cap - 1))
+        if (strcmp(m->keys[i], key) == 0) return &m->vals[i];
+    return NULL;
+}
+
+int strmap_put(strmap *m, const char *key, uint32_t val)
+{
+    uint32_t *v = strmap_get(m, key), i;
+    if (v) {
+        *v = val;
+        return 0;
+    }
+    if (2 * (m->n + 1) > m->cap) {
+        uint32_t ncap = m->cap ? 2 * m->cap : STRMAP_INITIAL_CAP, j;
+        const char **k = arena_alloc(m->A, ncap * sizeof *k);
+        uint32_t *vs = arena_alloc(m->A, ncap * sizeof *vs);
+        if (!k || !vs) return -1;
+        for (j = 0; j < m->cap; j++) {
+            if (!m->keys[j]) continue;
+            for (i = strmap_hash(m->keys[j]) & (ncap - 1); k[i]; i = (i + 1) & (ncap - 1)) {}
+            k[i] = m->keys[j];
+            vs[i] = m->vals[j];
+        }
+        m->keys = k;
+        m->vals = vs;
+        m->cap = ncap;
+    }
+    for (i = strmap_hash(key) & (m->cap - 1); m->keys[i]; i = (i + 1) & (m->cap - 1)) {}
+    m->keys[i] = key;
+    m->vals[i] = val;
+    m->n++;
+    return 0;
+}
+
+/* ---- helpers ------------------------------------------------------------------------ */
+
+int check_find_model(const ast_file *f, const char *key, uint32_t before)
+{
+    uint32_t i;
+    for (i = 0; i < before && i < f->nmodels; i++)
+        if (strcmp(f->models[i].key, key) == 0) return (int)i;
+    return -1;
+}
+
+char check_lib_kind(const char *args, uint32_t i, uint32_t *min, int *variadic)
+{
+    size_t n = strlen(args);
+    int var = n > 0 && args[n - 1] == '*';
+    if (var) n--;
+    if (min) *min = (uint32_t)n;
+    if (variadic) *variadic = var;
+    if (i < n) return args[i];
+    if (var && n > 0) return args[n - 1];
+    return 0;
+}
+
+static uint32_t loc_len(ast_loc l)
+{
+    return l.end > l.off ? l.end - l.off : 1;
+}
+
+/* Case-insensitive edit distance, capped: larger distances are never suggested. */
+#define CHECK_MAX_SUGGEST_LEN 64 /* longer names get no suggestion (bounded work) */
+static unsigned edit_distance(const char *a, const char *b)
+{
+    unsigned row[CHECK_MAX_SUGGEST_LEN + 1];
+    size_t la = strlen(a), lb = strlen(b), i, j;
+    if (la > CHECK_MAX_SUGGEST_LEN || lb > CHECK_MAX_SUGGEST_LEN) return 1000;
+    for (j = 0; j <= lb; j++) row[j] = (unsigned)j;
+    for (i = 1; i <= la; i++) {
+        unsigned diag = row[0];
+        row[0] = (unsigned)i;
+        for (j = 1; j <= lb; j++) {
+            unsigned up = row[j];
+            unsigned cost = tolower((unsigned char)a[i - 1]) == tolower((unsigned char)b[j - 1]) ? 0u : 1u;
+            unsigned best = diag + cost;
+            if (up + 1 < best) best = up + 1;
+            if (row[j - 1] + 1 < best) best = row[j - 1] + 1;
+            row[j] = best;
+            diag = up;
+        }
+    }
+    return row[lb];
+}
+
+typedef struct suggest {
+    const char *name;
+    const char *best;
+    unsigned dist;
+} suggest;
+
+static void suggest_try(suggest *s, const char *cand)
+{
+    unsigned d = edit_distance(s->name, cand);
+    size_t len = strlen(s->name);
+    unsigned limit = (unsigned)(len / 3 + 1);
+    if (d == 0 || d > limit || d >= len) return;
+    if (!s->best || d < s->dist) {
+        s->best = cand;
+        s->dist = d;
+    }
+}
+
+/* ---- per-model scope ----------------------------------------------------------- */
+
+typedef struct ck_array {
+    const char *name, *key;
+    uint32_t size;
+} ck_array;
+
+typedef struct checker {
+    arena *A;
+    const ast_file *f;
+    diag_sink *d;
+    uint32_t model;          /* index of the model being checked */
+    strmap arrays;           /* key -> index into arr */
+    ck_array *arr;
+    uint32_t narr;
+    strmap vars;             /* scalars assigned so far (textual order) */
+    strmap later;            /* scalars assigned anywhere in the model */
+    const char **varnames;   /* for suggestions */
+    uint32_t nvarnames, capvarnames;
+} checker;
+
+static void ck_error(checker *c, ast_loc loc, const char *fmt, const char *a,
+                     const char *b, const char *sugg)
+{
+    char msg[512];
+    size_t n;
+    (void)snprintf(msg, sizeof msg, fmt, a ? a : "", b ? b : "");
+    n = strlen(msg);
+    if (sugg) (void)snprintf(msg + n, sizeof msg - n, "; did you mean '%s'?", sugg);
+    diag_report(c->d, FREP_ERROR, loc, loc_len(loc), "%s", msg);
+}
+
+static const ck_array *ck_array_find(const checker *c, const char *key)
+{
+    const uint32_t *i = strmap_get(&c->arrays, key);
+    return i ? &c->arr[*i] : NULL;
+}
+
+static void ck_add_var(checker *c, const ast_node *n)
+{
+    if (strmap_get(&c->vars, n->key)) return;
+    (void)strmap_put(&c->vars, n->key, 1);
+    if (c->nvarnames == c->capvarnames) {
+        uint32_t ncap = c->capvarnames ? 2 * c->capvarnames : 16;
+        const char **v = arena_grow(c->A, c->varnames, c->nvarnames, ncap, sizeof *v);
+        if (!v) return;
+        c->varnames = v;
+        c->capvarnames = ncap;
+    }
+    c->varnames[c->nvarnames++] = n->name;
+}
+
+/* Suggestions: which kinds of names are candidates. */
+#define SUGG_FUNCS 1u
+#define SUGG_VARS 2u
+#define SUGG_ARRAYS 4u
+
+static const char *ck_suggest(const checker *c, const char *name, unsigned what)
+{
+    suggest s = { name, NULL, 0 };
+    uint32_t i, n;
+    if (what & SUGG_FUNCS) {
+        const lib_fn *fns = lib_all(&n);
+        for (i = 0; i < n; i++) suggest_try(&s, fns[i].name);
+        for (i = 0; i < c->model; i++) suggest_try(&s, c->f->models[i].name);
+    }
+    if (what & SUGG_VARS)
+        for (i = 0; i < c->nvarnames; i++) suggest_try(&s, c->varnames[i]);
+    if (what & SUGG_ARRAYS)
+        for (i = 0; i < c->narr; i++) suggest_try(&s, c->arr[i].name);
+    return s.best;
+}
+
+static int is_cmp(int op)
+{
+    return op == AST_OP_EQ || op == AST_OP_NE || op == AST_OP_LT || op == AST_OP_LE ||
+           op == AST_OP_GT || op == AST_OP_GE;
+}
+
+static int is_logic(int op) { return op == AST_OP_AND || op == AST_OP_OR; }
+static int is_not(int op) { return op == AST_OP_NOT; }
+
+/* A literal number, possibly negated: its value in *v. */
+static int ck_literal(const ast_node *n, double *v)
+{
+    if (n->kind == AST_NUM) {
+        *v = n->num;
+        return 1;
+    }
+    if (n->kind == AST_UNARY && n->op == '-' && n->a && n->a->kind == AST_NUM) {
+        *v = -n->a->num;
+        return 1;
+    }
+    return 0;
+}
+
+static void ck_expr(checker *c, const ast_node *n, int cond);
+
+static void ck_index(checker *c, const ast_node *n, const ck_array *arr, const ast_node *idx)
+{
+    double v;
+    ck_expr(c, idx, 0);
+    if (arr && ck_literal(idx, &v)) {
+        /* Truncated toward zero, as the VM's LOADI does (opsem_bad_index). */
+        double r = trunc(v);
+        if (!(r >= 1 && r <= (double)arr->size)) {
+            char a[64], b[160];
+            (void)snprintf(a, sizeof a, "%g", v);
+            (void)snprintf(b, sizeof b, "'%s' of size %u", arr->name, (unsigned)arr->size);
+            ck_error(c, idx->loc, "index %s is out of range for array %s", a, b, NULL);
+        }
+    }
+    (void)n;
+}
+
+static void ck_call(checker *c, const ast_node *n)
+{
+    int mi = check_find_model(c->f, n->key, c->model);
+    uint32_t i;
+    if (mi >= 0) {
+        const ast_model *m = &c->f->models[mi];
+        if (n->list.n != m->nparams) {
+            char a[160], b[64];
+            (void)snprintf(a, sizeof a, "model '%s' takes %u array arguments", m->name,
+                           (unsigned)m->nparams);
+            (void)snprintf(b, sizeof b, "%u", (unsigned)n->list.n);
+            ck_error(c, n->op_loc, "%s, %s given", a, b, NULL);
+        }
+        for (i = 0; i < n->list.n; i++) {
+            const ast_node *arg = n->list.v[i];
+            const ck_array *arr = arg->kind == AST_VAR ? ck_array_find(c, arg->key) : NULL;
+            if (!arr) {
+                char a[200];
+                (void)snprintf(a, sizeof a, "argument %u of model '%s'", (unsigned)i + 1,
+                               m->name);
+                ck_error(c, arg->loc, "%s must be an array", a, NULL, NULL);
+                if (arg->kind != AST_VAR) ck_expr(c, arg, 0);
+                continue;
+            }
+            if (i < m->nparams && arr->size < m->params[i].size) {
+                char a[200], b[200];
+                (void)snprintf(a, sizeof a, "array '%s' has %u elements", arr->name,
+                               (unsigned)arr->size);
+                (void)snprintf(b, sizeof b, "model '%s' needs %u for '%s'", m->name,
+                               (unsigned)m->params[i].size, m->params[i].name);
+                ck_error(c, arg->loc, "%s; %s", a, b, NULL);
+            }
+        }
+        return;
+    }
+    {
+        const lib_fn *fn = lib_lookup(n->name);
+        uint32_t min;
+        int var;
+        if (!fn) {
+            int later = check_find_model(c->f, n->key, c->f->nmodels);
+            if (later >= 0 && (uint32_t)later == c->model)
+                ck_error(c, n->op_loc, "model '%s' cannot call itself", n->name, NULL, NULL);
+            else if (later >= 0)
+                ck_error(c, n->op_loc,
+                         "model '%s' is defined later in the file; a model can only call "
+                         "models defined before it%s", n->name, "", NULL);
+            else
+                ck_error(c, n->op_loc, "unknown function '%s'%s", n->name, "",
+                         ck_suggest(c, n->name, SUGG_FUNCS));
+            for (i = 0; i < n->list.n; i++)
+                if (n->list.v[i]->kind != AST_VAR) ck_expr(c, n->list.v[i], 0);
+            return;
+        }
+        (void)check_lib_kind(fn->args, 0, &min, &var);
+        if (n->list.n < min || (!var && n->list.n > min)) {
+            char a[200], b[64];
+            (void)snprintf(a, sizeof a, "'%s' takes %s%u argument%s", fn->name,
+                           var ? "at least " : "", (unsigned)min, min == 1 ? "" : "s");
+            (void)snprintf(b, sizeof b, "%u", (unsigned)n->list.n);
+            ck_error(c, n->op_loc, "%s, %s given", a, b, NULL);
+        }
+        for (i = 0; i < n->list.n; i++) {
+            const ast_node *arg = n->list.v[i];
+            char kind = check_lib_kind(fn->args, i, NULL, NULL);
+            char what[200];
+            (void)snprintf(what, sizeof what, "argument %u of '%s'", (unsigned)i + 1, fn->name);
+            if (kind == 0) {
+                ck_expr(c, arg, 0);
+                continue;
+            }
+            if (kind == 's') {
+                if (arg->kind == AST_VAR && ck_array_find(c, arg->key) &&
+                    !strmap_get(&c->vars, arg->key))
+                    ck_error(c, arg->loc, "%s must be a number, but '%s' is an array", what,
+                             arg->name, NULL);
+                else
+                    ck_expr(c, arg, 0);
+            } else {
+                const ck_array *arr = arg->kind == AST_VAR ? ck_array_find(c, arg->key) : NULL;
+                uint32_t need = kind == 'a' ? (i < 12 ? fn->sizes[i] : 0) :
+                                kind == 'v' ? 1 : 3;
+                if (!arr) {
+                    if (arg->kind == AST_VAR && !strmap_get(&c->vars, arg->key))
+                        ck_error(c, arg->loc, "%s must be an array; unknown array '%s'", what,
+                                 arg->name, ck_suggest(c, arg->name, SUGG_ARRAYS));
+                    else
+                        ck_error(c, arg->loc, "%s must be an array%s", what, "", NULL);
+                    if (arg->kind != AST_VAR) ck_expr(c, arg, 0);
+                } else if (arr->size < need) {
+                    char b[200];
+                    (void)snprintf(b, sizeof b, "at least %u elements, '%s' has %u",
+                                   (unsigned)need, arr->name, (unsigned)arr->size);
+                    ck_error(c, arg->loc, "%s must have %s", what, b, NULL);
+                }
+            }
+        }
+    }
+}
+
+/* expr -> NUM | VAR | VAR '[' expr ']' | CALL | unary | binary.  cond: the expression
+ * is (part of) an if/while condition, where comparisons and logic belong. */
+static void ck_expr(checker *c, const ast_node *n, int cond)
+{
+    if (!n) return;
+    if (cond && (n->kind == AST_NUM || n->kind == AST_VAR || n->kind == AST_INDEX ||
+                 n->kind == AST_CALL)) {
+        ck_error(c, n->loc, "a condition must be a comparison (=, /=, <, <=, >, >=) "
+                 "or 'and', 'or', 'not' of comparisons", NULL, NULL, NULL);
+        cond = 0;
+    }
+    switch (n->kind) {
+    case AST_NUM:
+        break;
+    case AST_VAR:
+        if (strmap_get(&c->vars, n->key)) break;
+        if (ck_array_find(c, n->key))
+            ck_error(c, n->loc, "array '%s' used as a number; index it ('%s[1]') or pass "
+                     "it to a function", n->name, n->name, NULL);
+        else if (strmap_get(&c->later, n->key))
+            ck_error(c, n->loc, "variable '%s' is used before it is assigned", n->name,
+                     NULL, NULL);
+        else
+            ck_error(c, n->loc, "unknown variable '%s'%s", n->name, "",
+                     ck_suggest(c, n->name, SUGG_VARS | SUGG_ARRAYS));
+        break;
+    case AST_INDEX: {
+        const ck_array *arr = ck_array_find(c, n->key);
+        if (!arr) {
+            if (strmap_get(&c->vars, n->key))
+                ck_error(c, n->op_loc, "'%s' is a number, not an array", n->name, NULL, NULL);
+            else
+                ck_error(c, n->op_loc, "unknown array '%s'%s", n->name, "",
+                         ck_suggest(c, n->name, SUGG_ARRAYS));
+        }
+        ck_index(c, n, arr, n->a);
+        break;
+    }
+    case AST_CALL:
+        ck_call(c, n);
+        break;
+    case AST_UNARY:
+        if (is_not(n->op)) {
+            if (!cond)
+                ck_error(c, n->op_loc, "'not' is only allowed in an if or while condition",
+                         NULL, NULL, NULL);
+            ck_expr(c, n->a, 1);
+        } else {
+            if (cond)
+                ck_error(c, n->loc, "a condition must be a comparison (=, /=, <, <=, >, >=) "
+                         "or 'and', 'or', 'not' of comparisons", NULL, NULL, NULL);
+            ck_expr(c, n->a, 0);
+        }
+        break;
+    case AST_BINARY:
+        if (is_logic(n->op)) {
+            if (!cond)
+                ck_error(c, n->op_loc, "'%s' is only allowed in an if or while condition",
+                         n->op == AST_OP_AND ? "and" : "or", NULL, NULL);
+            ck_expr(c, n->a, 1);
+            ck_expr(c, n->b, 1);
+        } else if (is_cmp(n->op)) {
+            if (!cond)
+                ck_error(c, n->op_loc, "comparison '%s' is only allowed in an if or while "
+                         "condition", ast_op_name(n->op), NULL, NULL);
+            ck_expr(c, n->a, 0);
+            ck_expr(c, n->b, 0);
+        } else {
+            if (cond)
+                ck_error(c, n->loc, "a condition must be a comparison (=, /=, <, <=, >, >=) "
+                         "or 'and', 'or', 'not' of comparisons", NULL, NULL, NULL);
+            ck_expr(c, n->a, 0);
+            ck_expr(c, n->b, 0);
+        }
+        break;
+    case AST_ASSIGN: case AST_ASSIGN_INDEX: case AST_ASSIGN_ARRAY: case AST_IF:
+    case AST_WHILE:
+        break;
+    }
+}
+
+static void ck_stmts(checker *c, const ast_list *l);
+
+static void ck_stmt(checker *c, const ast_node *n)
+{
+    switch (n->kind) {
+    case AST_ASSIGN:
+        ck_expr(c, n->a, 0);
+        if (ck_array_find(c, n->key))
+            ck_error(c, n->op_loc, "cannot assign a number to array '%s'; assign its "
+                     "elements or a list [...]", n->name, NULL, NULL);
+        else
+            ck_add_var(c, n);
+        break;
+    case AST_ASSIGN_INDEX: {
+        const ck_array *arr = ck_array_find(c, n->key);
+        if (!arr)
+            ck_error(c, n->op_loc, "'%s' is not a declared array%s", n->name, "",
+                     strmap_get(&c->vars, n->key) ? NULL : ck_suggest(c, n->name, SUGG_ARRAYS));
+        ck_index(c, n, arr, n->a);
+        ck_expr(c, n->b, 0);
+        break;
+    }
+    case AST_ASSIGN_ARRAY: {
+        const ck_array *arr = ck_array_find(c, n->key);
+        uint32_t i;
+        if (!arr) {
+            ck_error(c, n->op_loc, "'%s' is not a declared array%s", n->name, "",
+                     ck_suggest(c, n->name, SUGG_ARRAYS));
+        } else if (n->list.n > arr->size) {
+            char a[160], b[64];
+            (void)snprintf(a, sizeof a, "array '%s' has %u elements", arr->name,
+                           (unsigned)arr->size);
+            (void)snprintf(b, sizeof b, "%u", (unsigned)n->list.n);
+            ck_error(c, n->loc, "%s, but %s values are assigned", a, b, NULL);
+        }
+        for (i = 0; i < n->list.n; i++) ck_expr(c, n->list.v[i], 0);
+        break;
+    }
+    case AST_IF:
+        ck_expr(c, n->a, 1);
+        ck_stmts(c, &n->body);
+        ck_stmts(c, &n->body2);
+        break;
+    case AST_WHILE:
+        ck_expr(c, n->a, 1);
+        ck_stmts(c, &n->body);
+        break;
+    case AST_NUM: case AST_VAR: case AST_INDEX: case AST_CALL: case AST_UNARY:
+    case AST_BINARY:
+        ck_expr(c, n, 0);
+        break;
+    }
+}
+
+static void ck_stmts(checker *c, const ast_list *l)
+{
+    uint32_t i;
+    for (i = 0; i < l->n; i++) ck_stmt(c, l->v[i]);
+}
+
+/* Scalars assigned anywhere (for "used before it is assigned"). */
+static void ck_collect(checker *c, const ast_list *l)
+{
+    uint32_t i;
+    for (i = 0; i < l->n; i++) {
+        const ast_node *n = l->v[i];
+        if (n->kind == AST_ASSIGN) (void)strmap_put(&c->later, n->key, 1);
+        ck_collect(c, &n->body);
+        ck_collect(c, &n->body2);
+    }
+}
+
+static void ck_declare(checker *c, const ast_array_decl *d)
+{
+    if (ck_array_find(c, d->key)) {
+        ck_error(c, d->loc, "array '%s' is already declared", d->name, NULL, NULL);
+        return;
+    }
+    if (d->size == 0) ck_error(c, d->loc, "array '%s' must have at least one element",
+                               d->name, NULL, NULL);
+    c->arr[c->narr].name = d->name;
+    c->arr[c->narr].key = d->key;
+    c->arr[c->narr].size = d->size;
+    (void)strmap_put(&c->arrays, d->key, c->narr);
+    c->narr++;
+}
+
+static void ck_model(checker *c, uint32_t mi)
+{
+    const ast_model *m = &c->f->models[mi];
+    uint32_t i;
+    c->model = mi;
+    strmap_init(&c->arrays, c->A);
+    strmap_init(&c->vars, c->A);
+    strmap_init(&c->later, c->A);
+    c->narr = 0;
+    c->nvarnames = c->capvarnames = 0;
+    c->varnames = NULL;
+    c->arr = arena_alloc(c->A, (m->nparams + m->narrays + 1) * sizeof *c->arr);
+    if (!c->arr) return;
+    if (check_find_model(c->f, m->key, mi) >= 0)
+        ck_error(c, m->loc, "model '%s' is already defined", m->name, NULL, NULL);
+    for (i = 0; i < m->nparams; i++) ck_declare(c, &m->params[i]);
+    for (i = 0; i < m->narrays; i++) ck_declare(c, &m->arrays[i]);
+    if (ck_array_find(c, m->key))
+        ck_error(c, m->loc, "the result '%s' of a model cannot be an array", m->name, NULL,
+                 NULL);
+    ck_collect(c, &m->body);
+    ck_stmts(c, &m->body);
+    if (!strmap_get(&c->later, m->key))
+        ck_error(c, m->loc, "model '%s' never assigns its result; add '%s = ...;'", m->name,
+                 m->name, NULL);
+}
+
+/* ---- pragmas ------------------------------------------------------------------------ */
+
+static const char *skip_ws(const char *s)
+{
+    while (*s == ' ' || *s == '\t' || *s == '\r') s++;
+    return s;
+}
+
+/* The statement that ends on the line of the comment at byte offset off: the one
+ * with the largest end <= off and no newline in between. */
+static const ast_node *stmt_before(const ast_file *f, const ast_list *l, uint32_t off,
+                                   const ast_node *best)
+{
+    uint32_t i;
+    for (i = 0; i < l->n; i++) {
+        const ast_node *n = l->v[i];
+        if (n->loc.end <= off && (!best || n->loc.end > best->loc.end)) best = n;
+        best = stmt_before(f, &n->body, off, best);
+        best = stmt_before(f, &n->body2, off, best);
+    }
+    return best;
+}
+
+static int is_top_stmt(const ast_list *l, const ast_node *n, uint32_t *index)
+{
+    uint32_t i;
+    for (i = 0; i < l->n; i++)
+        if (l->v[i] == n) {
+            *index = i;
+            return 1;
+        }
+    return 0;
+}
+
+static void ck_free_pragma(checker *c, const ast_pragma *p, check_info *out)
+{
+    const ast_file *f = c->f;
+    const ast_node *st = NULL;
+    const ast_model *m = NULL;
+    uint32_t mi, idx = 0, j;
+    double v = 0;
+    check_free *fr;
+    const char *why = NULL;
+    for (mi = 0; mi < f->nmodels; mi++) {
+        const ast_node *s = stmt_before(f, &f->models[mi].body, p->loc.off, NULL);
+        if (s && (!st || s->loc.end > st->loc.end)) {
+            st = s;
+            m = &f->models[mi];
+        }
+    }
+    if (st) {
+        uint32_t o;
+        for (o = st->loc.end; o < p->loc.off && o < f->len; o++)
+            if (f->src[o] == '\n') {
+                st = NULL;
+                break;
+            }
+    }
+    if (!st || st->kind != AST_ASSIGN || !ck_literal(st->a, &v))
+        why = "'@free' must follow a statement 'name = NUMBER;' on the same line";
+    else if (!is_top_stmt(&m->body, st, &idx))
+        why = "'@free' parameters must be assigned outside if and while";
+    else {
+        for (j = 0; j < idx; j++)
+            if (m->body.v[j]->kind == AST_ASSIGN && strcmp(m->body.v[j]->key, st->key) == 0)
+                break;
+        if (j < idx) why = "'@free' must mark the first assignment of its variable";
+        else if (strcmp(st->key, m->key) == 0)
+            why = "the model's result cannot be a '@free' parameter";
+    }
+    if (why) {
+        diag_report(c->d, FREP_ERROR, p->loc, 5, "%s", why);
+        return;
+    }
+    fr = &out->frees[out->nfree];
+    memset(fr, 0, sizeof *fr);
+    fr->stmt = st;
+    fr->name = st->name;
+    fr->value = v;
+    fr->lo = -INFINITY;
+    fr->hi = INFINITY;
+    fr->lit = st->a->loc;
+    {
+        const char *t = skip_ws(p->text ? p->text : "");
+        if (*t == '[') {
+            char *e;
+            double lo, hi;
+            t = skip_ws(t + 1);
+            lo = strtod(t, &e);
+            if (e == t) goto bad;
+            t = skip_ws(e);
+            if (*t != ',') goto bad;
+            t = skip_ws(t + 1);
+            hi = strtod(t, &e);
+            if (e == t) goto bad;
+            t = skip_ws(e);
+            if (*t != ']' || *skip_ws(t + 1) != '\0') goto bad;
+            if (!(lo <= hi)) {
+                diag_report(c->d, FREP_ERROR, p->loc, 5,
+                            "'@free' bounds [%g, %g] are empty (lo > hi)", lo, hi);
+                return;
+            }
+            if (!(v >= lo && v <= hi))
+                diag_report(c->d, FREP_WARNING, p->loc, 5,
+                            "initial value %g of '%s' is outside its bounds [%g, %g]", v,
+                            st->name, lo, hi);
+            fr->lo = lo;
+            fr->hi = hi;
+            fr->has_bounds = 1;
+        } else if (*t != '\0') {
+            goto bad;
+        }
+    }
+    for (j = 0; j < out->nfree; j++)
+        if (out->frees[j].stmt == st) return; /* two pragmas on one line: one parameter */
+    out->nfree++;
+    return;
+bad:
+    diag_report(c->d, FREP_ERROR, p->loc, 5,
+                "malformed '@free': expected nothing or '[lo, hi]' after it");
+}
+
+static void ck_pragmas(checker *c, check_info *out)
+{
+    const ast_file *f = c->f;
+    uint32_t i;
+    uint32_t first_model = f->nmodels ? f->models[0].loc.off : UINT32_MAX;
+    out->frees = arena_alloc(c->A, (f->npragmas + 1) * sizeof *out->frees);
+    if (!out->frees) return;
+    for (i = 0; i < f->npragmas; i++) {
+        const ast_pragma *p = &f->pragmas[i];
+        const char *t = skip_ws(p->text ? p->text : "");
+        uint32_t wlen = (uint32_t)strlen(p->word) + 1;
+        if (strcmp(p->word, "free") == 0) {
+            ck_free_pragma(c, p, out);
+        } else if (strcmp(p->word, "setops") == 0) {
+            char *e;
+            if (p->loc.off > first_model) {
+                diag_report(c->d, FREP_ERROR, p->loc, wlen,
+                            "'@setops' must come before the first model");
+                continue;
+            }
+            if (strncmp(t, "rfunc", 5) == 0 && *skip_ws(t + 5) == '\0') {
+                out->setops = FREP_SETOPS_RFUNC;
+            } else if (strncmp(t, "minmax", 6) == 0 && *skip_ws(t + 6) == '\0') {
+                out->setops = FREP_SETOPS_MINMAX;
+            } else if (strncmp(t, "ralpha", 6) == 0 && (t[6] == ' ' || t[6] == '\t')) {
+                double a = strtod(t + 6, &e);
+                if (e == t + 6 || *skip_ws(e) != '\0' || !(a >= -1 && a <= 1)) {
+                    diag_report(c->d, FREP_ERROR, p->loc, wlen,
+                                "'@setops ralpha' needs one ALPHA in [-1, 1]");
+                    continue;
+                }
+                out->setops = FREP_SETOPS_RALPHA;
+                out->alpha = a;
+            } else {
+                diag_report(c->d, FREP_ERROR, p->loc, wlen,
+                            "'@setops' expects 'rfunc', 'minmax' or 'ralpha ALPHA'");
+                continue;
+            }
+            out->has_setops = 1;
+        } else if (strcmp(p->word, "box") == 0) {
+            double b[6];
+            int k;
+            const char *s = t;
+            for (k = 0; k < 6; k++) {
+                char *e;
+                b[k] = strtod(s, &e);
+                if (e == s) break;
+                s = skip_ws(e);
+                if (*s == ',') s = skip_ws(s + 1);
+            }
+            if (k < 6 || *s != '\0' || !(b[0] < b[3] && b[1] < b[4] && b[2] < b[5])) {
+                diag_report(c->d, FREP_ERROR, p->loc, wlen,
+                            "'@box' expects six numbers x0 y0 z0 x1 y1 z1 with x0 < x1, "
+                            "y0 < y1, z0 < z1");
+                continue;
+            }
+            memcpy(out->box, b, sizeof b);
+            out->has_box = 1;
+        } else {
+            diag_report(c->d, FREP_WARNING, p->loc, wlen,
+                        "unknown pragma '@%s' ignored (known: @free, @setops, @box)", p->word);
+        }
+    }
+}
+
+unsigned check_file(arena *A, const ast_file *f, diag_sink *d, check_info *out)
+{
+    checker c;
+    unsigned before = d->errors;
+    uint32_t i;
+    memset(out, 0, sizeof *out);
+    memset(&c, 0, sizeof c);
+    c.A = A;
+    c.f = f;
+    c.d = d;
+    for (i = 0; i < f->nmodels; i++) ck_model(&c, i);
+    ck_pragmas(&c, out);
+    return d->errors - before;
+}

@@ -1,0 +1,516 @@
+/* emit.c - schedule lowered IR (lang/lower.c) into postfix bytecode (program.h).
+ *
+ * Code is emitted region by region: the top level of a model (its stores, if
+ * conditions and final value) is one region; each statement inside real control
+ * flow is a region of its own.  Within a region a node used more than once is
+ * computed once, before the expression that first needs it ("hoisted"), STOREd to a
+ * temporary slot and LOADed at each use; the slot is reused after the last use.
+ * Everything else is a tree, emitted in Sethi-Ullman order (for operands that may be
+ * swapped exactly) so the stack stays shallow, with constant operands of binary ops
+ * as immediates.  So every expression is a contiguous range of instructions
+ * (prog_subtree_start finds it), which the GP engine relies on for splicing.
+ */
+#include "emit.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+/* Per-node bookkeeping of a region.  The top level keeps its bank while statements
+ * inside control flow (each a region, strictly one after another) use the other. */
+typedef struct bank {
+    uint32_t *ureg;     /* region in which uses[] was counted */
+    uint32_t *uses;     /* parent edges + root references; counts down as LOADs go out */
+    uint32_t *need;     /* stack needed to evaluate the tree (shared children: 1) */
+    uint32_t *height;
+    uint8_t *forced;    /* hoisted because too deep / needing too much stack */
+    uint32_t *mat;      /* temp slot + 1 while materialized (in region mreg) */
+    uint32_t *mreg;
+    uint32_t *rem;      /* LOADs still to come while materialized */
+} bank;
+
+typedef struct em {
+    const ir *g;
+    const lowered *lo;
+    frep_program *p;
+    bank banks[2];
+    bank *b;            /* banks[0] at the top level, banks[1] inside control flow */
+    uint32_t *ureg, *uses, *need, *height, *mat, *mreg, *rem; /* = b's arrays */
+    uint8_t *forced;
+    uint32_t *vis;      /* DFS stamp */
+    uint32_t stamp;
+    uint32_t region;
+    uint32_t *stk;      /* DFS stack: node, child index pairs */
+    uint32_t *post;     /* postorder buffer */
+    uint32_t *freet;    /* free temporaries */
+    uint32_t nfree;
+    uint32_t next_temp;
+    int failed;
+} em;
+
+static void use_bank(em *E, int i)
+{
+    bank *b = &E->banks[i];
+    E->b = b;
+    E->ureg = b->ureg;
+    E->uses = b->uses;
+    E->need = b->need;
+    E->height = b->height;
+    E->forced = b->forced;
+    E->mat = b->mat;
+    E->mreg = b->mreg;
+    E->rem = b->rem;
+}
+
+static int is_leaf(const ir_node *n) { return (op_flags((frep_opcode)n->op) & OPF_LEAF) != 0; }
+
+static int reorderable(frep_opcode op)
+{
+    /* min/max return (and differentiate) their first operand on a tie. */
+    return (op_flags(op) & OPF_COMMUT) && op != FREP_OP_MIN && op != FREP_OP_MAX;
+}
+
+/* Binary ops that may carry a constant operand as the immediate k. */
+static int takes_imm(frep_opcode op)
+{
+    return op_nin(op) == 2 && !(op_flags(op) & OPF_CTRL) && op != FREP_OP_AUNI &&
+           op != FREP_OP_AINT;
+}
+
+static int is_const(const em *E, ir_ref r) { return E->g->nodes[r].op == FREP_OP_CONST; }
+
+static int shared(const em *E, ir_ref r)
+{
+    const ir_node *n = &E->g->nodes[r];
+    if (is_leaf(n)) return 0;
+    return E->ureg[r] == E->region && (E->uses[r] >= 2 || E->forced[r]);
+}
+
+static frep_srcpos node_pos(const ir_node *n)
+{
+    frep_srcpos s;
+    s.line = n->line;
+    s.col = n->col;
+    s.len = n->len;
+    return s;
+}
+
+static uint32_t put(em *E, frep_opcode op, uint32_t arg, double k, uint8_t flags,
+                    frep_srcpos pos)
+{
+    uint32_t pc = prog_emit(E->p, op, arg, k, flags, pos);
+    if (pc == UINT32_MAX) E->failed = 1;
+    return pc;
+}
+
+static uint32_t temp_alloc(em *E)
+{
+    if (E->nfree) return E->freet[--E->nfree];
+    if (E->next_temp >= FREP_MAX_SLOTS) {
+        E->failed = 1;
+        return 0;
+    }
+    return E->next_temp++;
+}
+
+static void temp_free(em *E, uint32_t t) { E->freet[E->nfree++] = t; }
+
+/* Count uses of everything reachable from root r in the current region and append
+ * newly reached nodes to post[] in postorder. */
+static void count_root(em *E, ir_ref r, uint32_t *npost)
+{
+    uint32_t sp = 0;
+    if (E->ureg[r] == E->region) {
+        E->uses[r]++;
+        return;
+    }
+    E->ureg[r] = E->region;
+    E->uses[r] = 1;
+    E->forced[r] = 0;
+    E->stk[sp++] = r;
+    E->stk[sp++] = 0;
+    while (sp) {
+        uint32_t n = E->stk[sp - 2], i = E->stk[sp - 1];
+        const ir_node *nd = &E->g->nodes[n];
+        if ((int)i < op_nin((frep_opcode)nd->op) && !is_leaf(nd)) {
+            ir_ref c = nd->in[i];
+            E->stk[sp - 1] = i + 1;
+            if (E->ureg[c] == E->region) {
+                E->uses[c]++;
+            } else {
+                E->ureg[c] = E->region;
+                E->uses[c] = 1;
+                E->forced[c] = 0;
+                E->stk[sp++] = c;
+                E->stk[sp++] = 0;
+            }
+        } else {
+            sp -= 2;
+            E->post[(*npost)++] = n;
+        }
+    }
+}
+
+static uint32_t eff_need(const em *E, ir_ref c)
+{
+    return shared(E, c) || is_leaf(&E->g->nodes[c]) ? 1 : E->need[c];
+}
+
+static uint32_t eff_height(const em *E, ir_ref c)
+{
+    return shared(E, c) || is_leaf(&E->g->nodes[c]) ? 1 : E->height[c];
+}
+
+static uint32_t max2(uint32_t a, uint32_t b) { return a > b ? a : b; }
+
+/* Stack need and height of the region's nodes, children first; hoist nodes over the
+ * limits. */
+static void analyze(em *E, uint32_t npost)
+{
+    uint32_t i;
+    for (i = 0; i < npost; i++) {
+        ir_ref r = E->post[i];
+        const ir_node *n = &E->g->nodes[r];
+        frep_opcode op = (frep_opcode)n->op;
+        uint32_t need, h = 1;
+        int k, nin = op_nin(op);
+        if (is_leaf(n)) {
+            E->need[r] = E->height[r] = 1;
+            continue;
+        }
+        for (k = 0; k < nin; k++) h = max2(h, eff_height(E, n->in[k]) + 1);
+        if (nin == 1) {
+            need = eff_need(E, n->in[0]);
+        } else if (nin == 2) {
+            uint32_t na = eff_need(E, n->in[0]), nb = eff_need(E, n->in[1]);
+            if (takes_imm(op) && is_const(E, n->in[1])) need = na;
+            else if (takes_imm(op) && is_const(E, n->in[0])) need = nb;
+            else if (reorderable(op)) need = na == nb ? na + 1 : max2(na, nb);
+            else need = max2(na, nb + 1);
+        } else {
+            need = max2(eff_need(E, n->in[0]),
+                        max2(eff_need(E, n->in[1]) + 1, eff_need(E, n->in[2]) + 2));
+        }
+        E->need[r] = need;
+        E->height[r] = h;
+        if (h > FREP_EMIT_MAX_HEIGHT || need > FREP_EMIT_MAX_NEED) E->forced[r] = 1;
+    }
+}
+
+static void begin_region(em *E, const ir_ref *roots, uint32_t nroots)
+{
+    uint32_t i, npost = 0;
+    E->region++;
+    for (i = 0; i < nroots; i++) count_root(E, roots[i], &npost);
+    analyze(E, npost);
+}
+
+static void emit_use(em *E, ir_ref r);
+
+/* The instructions of node r itself (not a LOAD of its temporary). */
+static void emit_tree(em *E, ir_ref r)
+{
+    const ir_node *n = &E->g->nodes[r];
+    frep_opcode op = (frep_opcode)n->op;
+    frep_srcpos pos = node_pos(n);
+    uint8_t q = n->quiet ? INSN_QUIET : 0;
+    int nin = op_nin(op);
+    if (E->failed) return;
+    if (is_leaf(n)) {
+        /* Leaves cannot fail, and a shared leaf has no single position. */
+        frep_srcpos none = { 0, 0, 0 };
+        put(E, op, n->arg, n->k, 0, none);
+        return;
+    }
+    if (op == FREP_OP_LOADI) {
+        emit_use(E, n->in[0]);
+        put(E, op, n->arg, n->k, q, pos);
+        return;
+    }
+    if (nin == 1) {
+        emit_use(E, n->in[0]);
+        put(E, op, 0, 0, q, pos);
+        return;
+    }
+    if (nin == 2) {
+        ir_ref a = n->in[0], b = n->in[1];
+        if (takes_imm(op) && is_const(E, b)) {
+            emit_use(E, a);
+            put(E, op, 0, E->g->nodes[b].k, (uint8_t)(q | INSN_KB), pos);
+        } else if (takes_imm(op) && is_const(E, a)) {
+            emit_use(E, b);
+            put(E, op, 0, E->g->nodes[a].k,
+                (uint8_t)(q | (reorderable(op) ? INSN_KB : INSN_KA)), pos);
+        } else {
+            if (reorderable(op) && eff_need(E, b) > eff_need(E, a)) {
+                ir_ref t = a;
+                a = b;
+                b = t;
+            }
+            emit_use(E, a);
+            emit_use(E, b);
+            put(E, op, 0, n->k, q, pos);
+        }
+        return;
+    }
+    emit_use(E, n->in[0]);
+    emit_use(E, n->in[1]);
+    emit_use(E, n->in[2]);
+    put(E, op, 0, n->k, q, pos);
+}
+
+/* A use of r: a leaf, a LOAD of its temporary, or its tree. */
+static void emit_use(em *E, ir_ref r)
+{
+    const ir_node *n = &E->g->nodes[r];
+    if (is_leaf(n) || !shared(E, r)) {
+        emit_tree(E, r);
+        return;
+    }
+    if (E->mreg[r] != E->region || !E->mat[r]) {
+        E->failed = 1; /* hoisting guarantees this never happens */
+        return;
+    }
+    put(E, FREP_OP_LOAD, E->mat[r] - 1, 0, 0, node_pos(n)); /* the value it reloads */
+    if (--E->rem[r] == 0) {
+        temp_free(E, E->mat[r] - 1);
+        E->mat[r] = 0;
+    }
+}
+
+/* Compute the shared nodes below r that are not materialized yet, children first,
+ * each into a temporary; then r itself. */
+static void emit_root(em *E, ir_ref r)
+{
+    uint32_t sp = 0, npost = 0, i;
+    E->stamp++;
+    E->vis[r] = E->stamp;
+    E->stk[sp++] = r;
+    E->stk[sp++] = 0;
+    while (sp) {
+        uint32_t n = E->stk[sp - 2], k = E->stk[sp - 1];
+        const ir_node *nd = &E->g->nodes[n];
+        int stop = is_leaf(nd) || (shared(E, n) && E->mreg[n] == E->region && E->mat[n]);
+        if (!stop && (int)k < op_nin((frep_opcode)nd->op)) {
+            ir_ref c = nd->in[k];
+            E->stk[sp - 1] = k + 1;
+            if (E->vis[c] != E->stamp) {
+                E->vis[c] = E->stamp;
+                E->stk[sp++] = c;
+                E->stk[sp++] = 0;
+            }
+        } else {
+            sp -= 2;
+            if (!stop && shared(E, n)) E->post[npost++] = n;
+        }
+    }
+    for (i = 0; i < npost && !E->failed; i++) {
+        ir_ref n = E->post[i];
+        uint32_t t;
+        emit_tree(E, n);
+        t = temp_alloc(E);
+        put(E, FREP_OP_STORE, t, 0, 0, node_pos(&E->g->nodes[n]));
+        E->mat[n] = t + 1;
+        E->mreg[n] = E->region;
+        E->rem[n] = E->uses[n];
+    }
+    emit_use(E, r);
+}
+
+static frep_srcpos stmt_pos(const lstmt *s)
+{
+    frep_srcpos p;
+    p.line = s->line;
+    p.col = s->col;
+    p.len = s->len;
+    return p;
+}
+
+/* Roots a statement evaluates in its own region (not those of nested bodies). */
+static uint32_t stmt_roots(const lstmt *s, ir_ref *out)
+{
+    uint32_t i;
+    switch (s->kind) {
+    case LS_STORE:
+        for (i = 0; i < s->n; i++) out[i] = s->vals[i];
+        return s->n;
+    case LS_STOREI:
+        out[0] = s->value;
+        out[1] = s->index;
+        return 2;
+    case LS_IF:
+        out[0] = s->cond;
+        return 1;
+    case LS_WHILE:
+        return 0;
+    }
+    return 0;
+}
+
+static void emit_block(em *E, const lblock *b);
+
+/* Emit statement s whose region (roots) has been counted already. */
+static void emit_stmt(em *E, const lstmt *s)
+{
+    frep_srcpos pos = stmt_pos(s);
+    uint32_t i;
+    if (E->failed) return;
+    switch (s->kind) {
+    case LS_STORE:
+        if (s->n <= FREP_EMIT_MAX_PARALLEL) {
+            for (i = 0; i < s->n; i++) emit_root(E, s->vals[i]);
+            for (i = s->n; i-- > 0;) put(E, FREP_OP_STORE, s->slots[i], 0, 0, pos);
+        } else {
+            /* Through temporaries: every value is computed before any slot changes. */
+            uint32_t *t = malloc(s->n * sizeof *t);
+            if (!t) {
+                E->failed = 1;
+                return;
+            }
+            for (i = 0; i < s->n; i++) {
+                emit_root(E, s->vals[i]);
+                t[i] = temp_alloc(E);
+                put(E, FREP_OP_STORE, t[i], 0, 0, pos);
+            }
+            for (i = 0; i < s->n; i++) {
+                put(E, FREP_OP_LOAD, t[i], 0, 0, pos);
+                put(E, FREP_OP_STORE, s->slots[i], 0, 0, pos);
+                temp_free(E, t[i]);
+            }
+            free(t);
+        }
+        break;
+    case LS_STOREI:
+        emit_root(E, s->value);
+        emit_root(E, s->index);
+        put(E, FREP_OP_STOREI, s->base, (double)s->size, 0, pos);
+        break;
+    case LS_IF: {
+        uint32_t jz, jmp = UINT32_MAX;
+        emit_root(E, s->cond);
+        jz = put(E, FREP_OP_JZ, 0, 0, 0, pos);
+        emit_block(E, &s->body);
+        if (s->body2.n) jmp = put(E, FREP_OP_JMP, 0, 0, 0, pos);
+        if (E->failed) return;
+        E->p->code[jz].arg = E->p->ncode;
+        emit_block(E, &s->body2);
+        if (E->failed) return;
+        if (jmp != UINT32_MAX) E->p->code[jmp].arg = E->p->ncode;
+        break;
+    }
+    case LS_WHILE: {
+        uint32_t top = E->p->ncode, jz, region = E->region;
+        bank *saved = E->b;
+        emit_block(E, &s->pre);
+        {
+            ir_ref r = s->cond;
+            use_bank(E, 1);
+            begin_region(E, &r, 1);
+            emit_root(E, r);
+        }
+        jz = put(E, FREP_OP_JZ, 0, 0, 0, pos);
+        emit_block(E, &s->body);
+        put(E, FREP_OP_JMP, top, 0, 0, pos);
+        use_bank(E, saved == &E->banks[0] ? 0 : 1);
+        E->region = region;
+        if (E->failed) return;
+        E->p->code[jz].arg = E->p->ncode;
+        break;
+    }
+    }
+}
+
+/* Statements inside real control flow: each its own region. */
+static void emit_block(em *E, const lblock *b)
+{
+    uint32_t i, region = E->region;
+    bank *saved = E->b;
+    for (i = 0; i < b->n && !E->failed; i++) {
+        const lstmt *s = b->v[i];
+        ir_ref *roots = malloc((s->n + 2) * sizeof *roots);
+        uint32_t nr;
+        if (!roots) {
+            E->failed = 1;
+            return;
+        }
+        nr = stmt_roots(s, roots);
+        use_bank(E, 1);
+        begin_region(E, roots, nr);
+        free(roots);
+        emit_stmt(E, s);
+    }
+    /* Back to the caller's region (the top level's survives nested regions). */
+    use_bank(E, saved == &E->banks[0] ? 0 : 1);
+    E->region = region;
+}
+
+int emit_program(const ir *g, const lowered *lo, frep_program *p)
+{
+    em E;
+    uint32_t nn = g->n + 1, nroots = 0, i;
+    ir_ref *roots;
+    int rc = -1;
+    memset(&E, 0, sizeof E);
+    E.g = g;
+    E.lo = lo;
+    E.p = p;
+    E.next_temp = lo->nslots;
+    for (i = 0; i < lo->top.n; i++) {
+        const lstmt *s = lo->top.v[i];
+        nroots += s->kind == LS_STORE ? s->n : 2;
+    }
+    roots = malloc((nroots + 1) * sizeof *roots);
+    for (i = 0; i < 2; i++) {
+        bank *b = &E.banks[i];
+        b->ureg = calloc(nn, sizeof *b->ureg);
+        b->uses = calloc(nn, sizeof *b->uses);
+        b->need = calloc(nn, sizeof *b->need);
+        b->height = calloc(nn, sizeof *b->height);
+        b->forced = calloc(nn, 1);
+        b->mat = calloc(nn, sizeof *b->mat);
+        b->mreg = calloc(nn, sizeof *b->mreg);
+        b->rem = calloc(nn, sizeof *b->rem);
+        if (!b->ureg || !b->uses || !b->need || !b->height || !b->forced || !b->mat ||
+            !b->mreg || !b->rem)
+            E.failed = 1;
+    }
+    use_bank(&E, 0);
+    E.vis = calloc(nn, sizeof *E.vis);
+    E.stk = malloc(2 * nn * sizeof *E.stk);
+    E.post = malloc(nn * sizeof *E.post);
+    E.freet = malloc((g->n + lo->nslots + 1) * sizeof *E.freet);
+    if (roots && !E.failed && E.vis && E.stk && E.post && E.freet) {
+        uint32_t n = 0;
+        for (i = 0; i < lo->top.n; i++) n += stmt_roots(lo->top.v[i], roots + n);
+        roots[n++] = lo->root;
+        begin_region(&E, roots, n);
+        {
+            uint32_t top_region = E.region;
+            for (i = 0; i < lo->top.n && !E.failed; i++) {
+                use_bank(&E, 0);
+                E.region = top_region;
+                emit_stmt(&E, lo->top.v[i]);
+            }
+            use_bank(&E, 0);
+            E.region = top_region;
+        }
+        emit_root(&E, lo->root);
+        if (!E.failed && prog_finish(p) == 0) rc = 0;
+    }
+    free(roots);
+    for (i = 0; i < 2; i++) {
+        bank *b = &E.banks[i];
+        free(b->ureg);
+        free(b->uses);
+        free(b->need);
+        free(b->height);
+        free(b->forced);
+        free(b->mat);
+        free(b->mreg);
+        free(b->rem);
+    }
+    free(E.vis);
+    free(E.stk);
+    free(E.post);
+    free(E.freet);
+    return rc;
+}

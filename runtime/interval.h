@@ -1,0 +1,41 @@
+/* interval.h - interval evaluation of a frep_program over an axis-aligned box.
+ *
+ * runtime/vm_interval.c runs the same bytecode as the point evaluators with interval
+ * operands; runtime/mesh.c uses it to prove octree cells empty or full, so meshing
+ * cost follows the surface instead of the volume.
+ */
+#ifndef FREP_INTERVAL_H
+#define FREP_INTERVAL_H
+
+#include "program.h"
+
+/* A closed interval [lo, hi]; lo <= hi always ([-inf, inf] means "unknown"). */
+typedef struct ival {
+    double lo, hi;
+} ival;
+
+/* Per-thread scratch (interval stack and slots) sized for one program; as with the
+ * point evaluators, a program may be shared, a scratch may not. Free with
+ * vm_iscratch_free(). NULL when out of memory. */
+typedef struct vm_iscratch vm_iscratch;
+vm_iscratch *vm_iscratch_new(const frep_program *p);
+void vm_iscratch_free(vm_iscratch *s);
+
+/* Enclosure of f over the box {x0<=x<=x1, y0<=y<=y1, z0<=z<=z1}, box = {x0, y0, z0,
+ * x1, y1, z1} (HyperFun's order), with exact parameter values `params` (NULL: the
+ * program's own). On return *out holds [lo, hi] with lo <= f(p) <= hi for every point p
+ * of the box at which no intermediate value is NaN (a NaN produced by a domain error is
+ * not a number to enclose). Results are widened by one ulp per rounded operation, so
+ * rounding never makes the enclosure unsound. Programs whose branch conditions are
+ * undecided over the box, that read cached primitives, or loop beyond
+ * FREP_MAX_LOOP_ITERATIONS give [-inf, inf]. Returns 0, or -1 when the scratch is
+ * too small for the program (out is then [-inf, inf]). */
+int vm_eval_interval(const frep_program *p, vm_iscratch *s, const double box[6],
+                     const double *params, ival *out);
+
+/* One interval operation (exposed for the property tests): op applied to operands in
+ * push order (v[0] first; SELECT: condition, value if true, value if false), k the
+ * immediate. Leaves and control flow give [-inf, inf]. */
+ival ival_op(frep_opcode op, const ival *v, double k);
+
+#endif

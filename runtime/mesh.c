@@ -1,0 +1,1237 @@
+/* mesh.c - dual contouring on a sparse grid found by an interval-pruned octree.
+ *
+ * Pipeline: (1) an octree over blocks of MESH_BLOCK^3 cells drops blocks the interval
+ * evaluator proves empty or full; (2) each surviving block evaluates its corners,
+ * finds edge crossings (regula falsi) and their normals (analytic gradient), splits
+ * each cell's crossings into surface components (cycles, see below) and places one
+ * vertex per component by a QEF (truncated pseudo-inverse, mass-point bias, clamped to
+ * the cell), so sharp CSG edges and corners survive; (3) every crossing edge becomes a
+ * quad joining the component vertices of its four cells.  The result is written by
+ * runtime/meshio.c.
+ *
+ * Manifoldness: a cell's crossing edges are paired on each face (an ambiguous face,
+ * two inside corners on a diagonal, always separates the inside corners), which only
+ * depends on the face, so both cells sharing a face agree; following the pairs gives
+ * cycles, one vertex each.  The grid is padded with a layer of cells whose outer
+ * corners count as outside, so a solid cut by the box is closed by caps on the box.
+ * Determinism: blocks are processed independently and assembled in key order, so the
+ * mesh does not depend on the thread count.
+ */
+#include "config.h"
+
+#include "mesh.h"
+#include "interval.h"
+#include "program.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+/* Cells per block edge: 9^3 corner evaluations per call amortize the evaluator's
+ * per-call cost, while blocks stay small enough to follow the surface. */
+#define MESH_BLOCK 8
+#define MESH_BLOCK_CORNERS ((MESH_BLOCK + 1) * (MESH_BLOCK + 1) * (MESH_BLOCK + 1))
+#define MESH_BLOCK_CELLS (MESH_BLOCK * MESH_BLOCK * MESH_BLOCK)
+#define MESH_BLOCK_EDGES (3 * MESH_BLOCK_CORNERS)
+/* Regula falsi (Illinois) steps per crossing: converges superlinearly; 8 steps put
+ * crossings of smooth fields far below 1e-6 cell. */
+#define MESH_ROOT_STEPS 8
+/* QEF eigenvalues below this fraction of the largest are dropped (truncated
+ * pseudo-inverse): near-parallel normals must not throw the vertex out of its cell. */
+#define MESH_QEF_CUTOFF 0.05
+/* Vertices stay this fraction of a cell inside their cell, so that vertices of
+ * different cells never coincide (no zero-area triangles). */
+#define MESH_CLAMP 1e-4
+#define MESH_NO_VERTEX 0xFFFFu
+
+/* ---- cell topology table ---------------------------------------------------------
+ * Corner i of a cell is at (i & 1, (i >> 1) & 1, (i >> 2) & 1).  Edge e = 4a + u + 2v
+ * runs along axis a; u and v are its coordinates along the two other axes (lower
+ * axis first). */
+
+typedef struct cell_table {
+    uint8_t ncycles[256];
+    uint8_t cycle[256][12];   /* component of each crossing edge; 0xFF: no crossing */
+} cell_table;
+
+static void edge_other_axes(int a, int *o1, int *o2)
+{
+    *o1 = a == 0 ? 1 : 0;
+    *o2 = a == 2 ? 1 : 2;
+}
+
+static int edge_start(int e)
+{
+    int a = e / 4, o1, o2;
+    edge_other_axes(a, &o1, &o2);
+    return ((e & 1) << o1) | (((e >> 1) & 1) << o2);
+}
+
+static int edge_end(int e) { return edge_start(e) | (1 << (e / 4)); }
+
+static void build_table(cell_table *t)
+{
+    for (int cs = 0; cs < 256; cs++) {
+        int partner[12][2], np[12];
+        int cross[12];
+        for (int e = 0; e < 12; e++) {
+            cross[e] = ((cs >> edge_start(e)) & 1) != ((cs >> edge_end(e)) & 1);
+            np[e] = 0;
+            t->cycle[cs][e] = 0xFF;
+        }
+        for (int a = 0; a < 3; a++)
+            for (int s = 0; s < 2; s++) {
+                int fe[4], nf = 0;
+                for (int e = 0; e < 12; e++) {
+                    int ea = e / 4;
+                    if (ea == a) continue;
+                    int o1, o2;
+                    edge_other_axes(ea, &o1, &o2);
+                    int coord = o1 == a ? (e & 1) : ((e >> 1) & 1);
+                    if (coord == s && cross[e]) fe[nf++] = e;
+                }
+                if (nf == 2) {
+                    partner[fe[0]][np[fe[0]]++] = fe[1];
+                    partner[fe[1]][np[fe[1]]++] = fe[0];
+                } else if (nf == 4) {
+                    /* Ambiguous face: cut off each inside corner on its own. */
+                    for (int c = 0; c < 8; c++) {
+                        if (((c >> a) & 1) != s || !((cs >> c) & 1)) continue;
+                        int pair[2], k = 0;
+                        for (int i = 0; i < 4; i++)
+                            if (edge_start(fe[i]) == c || edge_end(fe[i]) == c) pair[k++] = fe[i];
+                        if (k == 2) {
+                            partner[pair[0]][np[pair[0]]++] = pair[1];
+                            partner[pair[1]][np[pair[1]]++] = pair[0];
+                        }
+                    }
+                }
+            }
+        uint8_t nc = 0;
+        for (int e = 0; e < 12; e++) {
+            if (!cross[e] || t->cycle[cs][e] != 0xFF) continue;
+            int prev = -1, cur = e;
+            while (cur >= 0 && t->cycle[cs][cur] == 0xFF) {
+                t->cycle[cs][cur] = nc;
+                int next = partner[cur][0] != prev ? partner[cur][0] : partner[cur][1];
+                if (np[cur] < 2) next = -1;
+                prev = cur;
+                cur = next;
+            }
+            nc++;
+        }
+        t->ncycles[cs] = nc;
+    }
+}
+
+/* ---- small linear algebra: symmetric 3x3 eigen decomposition (cyclic Jacobi) ------ */
+
+static void eig3(const double A0[3][3], double w[3], double V[3][3])
+{
+    double A[3][3];
+    memcpy(A, A0, sizeof A);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) V[i][j] = i == j;
+    for (int sweep = 0; sweep < 24; sweep++) {
+        double off = fabs(A[0][1]) + fabs(A[0][2]) + fabs(A[1][2]);
+        if (off < 1e-30) break;
+        for (int p = 0; p < 2; p++)
+            for (int q = p + 1; q < 3; q++) {
+                if (fabs(A[p][q]) < 1e-300) continue;
+                double th = (A[q][q] - A[p][p]) / (2 * A[p][q]);
+                double tt = (th >= 0 ? 1.0 : -1.0) / (fabs(th) + sqrt(th * th + 1));
+                double c = 1 / sqrt(tt * tt + 1), s = tt * c;
+                for (int k = 0; k < 3; k++) {
+                    double akp = A[k][p], akq = A[k][q];
+                    A[k][p] = c * akp - s * akq;
+                    A[k][q] = s * akp + c * akq;
+                }
+                for (int k = 0; k < 3; k++) {
+                    double apk = A[p][k], aqk = A[q][k];
+                    A[p][k] = c * apk - s * aqk;
+                    A[q][k] = s * apk + c * aqk;
+                }
+                for (int k = 0; k < 3; k++) {
+                    double vkp = V[k][p], vkq = V[k][q];
+                    V[k][p] = c * vkp - s * vkq;
+                    V[k][q] = s * vkp + c * vkq;
+                }
+            }
+    }
+    for (int i = 0; i < 3; i++) w[i] = A[i][i];
+}
+
+/* Minimize sum (n_i . (x - p_i))^2 near the mass point, inside [lo, hi]. */
+static void qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
+                      const double lo[3], const double hi[3], double out[3])
+{
+    double m[3] = { 0, 0, 0 };
+    for (int i = 0; i < np; i++)
+        for (int c = 0; c < 3; c++) m[c] += p[i][c] / np;
+    double A[3][3] = { { 0 } }, b[3] = { 0, 0, 0 };
+    for (int i = 0; i < np; i++) {
+        double d = nrm[i][0] * (p[i][0] - m[0]) + nrm[i][1] * (p[i][1] - m[1]) +
+                   nrm[i][2] * (p[i][2] - m[2]);
+        for (int r = 0; r < 3; r++) {
+            b[r] += nrm[i][r] * d;
+            for (int c = 0; c < 3; c++) A[r][c] += nrm[i][r] * nrm[i][c];
+        }
+    }
+    double w[3], V[3][3];
+    eig3((const double(*)[3])A, w, V);
+    int ord[3] = { 0, 1, 2 };
+    for (int i = 0; i < 3; i++)
+        for (int j = i + 1; j < 3; j++)
+            if (w[ord[j]] > w[ord[i]]) { int t = ord[i]; ord[i] = ord[j]; ord[j] = t; }
+    double wmax = w[ord[0]];
+    int rank = 0;
+    while (rank < 3 && wmax > 0 && w[ord[rank]] > MESH_QEF_CUTOFF * wmax) rank++;
+    double slack[3];
+    for (int c = 0; c < 3; c++) slack[c] = MESH_CLAMP * (hi[c] - lo[c]);
+    for (; rank >= 0; rank--) {
+        double x[3] = { m[0], m[1], m[2] };
+        for (int j = 0; j < rank; j++) {
+            int k = ord[j];
+            double coef = (V[0][k] * b[0] + V[1][k] * b[1] + V[2][k] * b[2]) / w[k];
+            for (int c = 0; c < 3; c++) x[c] += coef * V[c][k];
+        }
+        int inside = 1;
+        for (int c = 0; c < 3; c++)
+            if (!(x[c] >= lo[c] + slack[c] && x[c] <= hi[c] - slack[c])) inside = 0;
+        if (inside || rank == 0) {
+            for (int c = 0; c < 3; c++)
+                out[c] = fmin(fmax(x[c], lo[c] + slack[c]), hi[c] - slack[c]);
+            return;
+        }
+    }
+}
+
+/* ---- the program field ------------------------------------------------------------ */
+
+typedef struct prog_field {
+    const frep_program *p;
+    const double *params;
+} prog_field;
+
+typedef struct prog_thread {
+    frep_scratch *s;
+    vm_iscratch *is;
+} prog_thread;
+
+static void *prog_thread_new(void *ctx)
+{
+    prog_field *pf = ctx;
+    prog_thread *t = calloc(1, sizeof *t);
+    if (!t) return NULL;
+    t->s = frep_scratch_new(pf->p);
+    t->is = vm_iscratch_new(pf->p);
+    if (!t->s || !t->is) {
+        frep_scratch_free(t->s);
+        vm_iscratch_free(t->is);
+        free(t);
+        return NULL;
+    }
+    return t;
+}
+
+static void prog_thread_free(void *ctx, void *ts)
+{
+    prog_thread *t = ts;
+    (void)ctx;
+    if (!t) return;
+    frep_scratch_free(t->s);
+    vm_iscratch_free(t->is);
+    free(t);
+}
+
+static int prog_eval(void *ctx, void *ts, size_t n, const double *x, const double *y,
+                     const double *z, double *f)
+{
+    prog_field *pf = ctx;
+    prog_thread *t = ts;
+    return frep_eval(pf->p, t->s, n, x, y, z, pf->params, f);
+}
+
+static int prog_grad(void *ctx, void *ts, size_t n, const double *x, const double *y,
+                     const double *z, double *f, double *gx, double *gy, double *gz)
+{
+    prog_field *pf = ctx;
+    prog_thread *t = ts;
+    return frep_eval_grad(pf->p, t->s, n, x, y, z, pf->params, f, gx, gy, gz);
+}
+
+static int prog_interval(void *ctx, void *ts, const double box[6], double *lo, double *hi)
+{
+    prog_field *pf = ctx;
+    prog_thread *t = ts;
+    ival r;
+    int rc = vm_eval_interval(pf->p, t->is, box, pf->params, &r);
+    *lo = r.lo;
+    *hi = r.hi;
+    return rc;
+}
+
+int mesh_field_program(mesh_field *f, const frep_program *p, const double *params)
+{
+    prog_field *pf = malloc(sizeof *pf);
+    if (!pf) return -1;
+    pf->p = p;
+    pf->params = params;
+    f->ctx = pf;
+    f->thread_new = prog_thread_new;
+    f->thread_free = prog_thread_free;
+    f->eval = prog_eval;
+    f->grad = prog_grad;
+    f->interval = prog_interval;
+    return 0;
+}
+
+void mesh_field_program_free(mesh_field *f)
+{
+    free(f->ctx);
+    f->ctx = NULL;
+}
+
+void mesh_free(frep_mesh *m)
+{
+    if (!m) return;
+    free(m->v);
+    free(m->n);
+    free(m->tri);
+    memset(m, 0, sizeof *m);
+}
+
+void mesh_options_init(mesh_options *o)
+{
+    memset(o, 0, sizeof *o);
+    for (int c = 0; c < 3; c++) {
+        o->box[c] = -10;
+        o->box[c + 3] = 10;
+    }
+    o->grid = 30;
+    o->iso = 0;
+}
+
+/* ---- the mesher ------------------------------------------------------------------- */
+
+/* One block of cells. Valid after process_block: vertex data and the per-cell case
+ * and first-vertex index (cases 0 and 255 have no vertex). */
+typedef struct mblock {
+    uint64_t key;
+    int b[3];
+    uint32_t nverts;
+    uint32_t need;            /* bit (dx+1) + 3(dy+1) + 9(dz+1): neighbours with crossings */
+    uint32_t real_crossings, inside_corners, virtual_crossings, nan_points, split_cells;
+    size_t vglobal;           /* index of the first vertex in the whole mesh */
+    double *vpos, *vnrm;      /* 3 * nverts each */
+    uint8_t *cs;              /* MESH_BLOCK_CELLS cases */
+    uint16_t *vbase;          /* MESH_BLOCK_CELLS first vertex or MESH_NO_VERTEX */
+    uint32_t *tri;            /* triangles from the quads this block owns (phase 3) */
+    size_t ntri;
+    int failed;
+} mblock;
+
+typedef struct mesher {
+    const mesh_field *f;
+    const mesh_options *o;
+    cell_table table;
+    int g;                    /* cells per axis of the box */
+    int G;                    /* padded cells per axis: g + 2 */
+    int nb;                   /* blocks per axis */
+    double h[3];
+    int nthreads;
+    void **ts;                /* per-thread field state */
+    mblock **blocks;          /* sorted by key */
+    size_t nblocks, capblocks;
+    size_t bytes;
+} mesher;
+
+/* Per-thread buffers for one block. */
+typedef struct mwork {
+    double cx[MESH_BLOCK_CORNERS], cy[MESH_BLOCK_CORNERS], cz[MESH_BLOCK_CORNERS];
+    double cf[MESH_BLOCK_CORNERS];
+    uint8_t cin[MESH_BLOCK_CORNERS];
+    int32_t eidx[MESH_BLOCK_EDGES];
+    double px[MESH_BLOCK_EDGES], py[MESH_BLOCK_EDGES], pz[MESH_BLOCK_EDGES];
+    double nx[MESH_BLOCK_EDGES], ny[MESH_BLOCK_EDGES], nz[MESH_BLOCK_EDGES];
+    /* root finding: edge crossing index, bracket (t, f - iso) and last moved side */
+    int32_t rid[MESH_BLOCK_EDGES];
+    double t0[MESH_BLOCK_EDGES], g0[MESH_BLOCK_EDGES], t1[MESH_BLOCK_EDGES],
+        g1[MESH_BLOCK_EDGES], tt[MESH_BLOCK_EDGES];
+    double ax[MESH_BLOCK_EDGES], ay[MESH_BLOCK_EDGES], az[MESH_BLOCK_EDGES];
+    double dx[MESH_BLOCK_EDGES], dy[MESH_BLOCK_EDGES], dz[MESH_BLOCK_EDGES];
+    int8_t side[MESH_BLOCK_EDGES];
+    double qx[MESH_BLOCK_EDGES], qy[MESH_BLOCK_EDGES], qz[MESH_BLOCK_EDGES],
+        qf[MESH_BLOCK_EDGES], gx[MESH_BLOCK_EDGES], gy[MESH_BLOCK_EDGES],
+        gz[MESH_BLOCK_EDGES];
+    /* vertices under construction (at most 4 components per cell) */
+    double vx[4 * MESH_BLOCK_CELLS], vy[4 * MESH_BLOCK_CELLS], vz[4 * MESH_BLOCK_CELLS];
+    double fnx[4 * MESH_BLOCK_CELLS], fny[4 * MESH_BLOCK_CELLS], fnz[4 * MESH_BLOCK_CELLS];
+    double vf[4 * MESH_BLOCK_CELLS], vgx[4 * MESH_BLOCK_CELLS], vgy[4 * MESH_BLOCK_CELLS],
+        vgz[4 * MESH_BLOCK_CELLS];
+} mwork;
+
+static int corner_index(int i, int j, int k)
+{
+    return i + (MESH_BLOCK + 1) * (j + (MESH_BLOCK + 1) * k);
+}
+
+static int cell_index(int i, int j, int k) { return i + MESH_BLOCK * (j + MESH_BLOCK * k); }
+
+/* World coordinate of padded corner index P along axis c. */
+static double corner_coord(const mesher *M, int c, long P)
+{
+    if (P - 1 == M->g) return M->o->box[c + 3];
+    return M->o->box[c] + (double)(P - 1) * M->h[c];
+}
+
+static int corner_is_real(const mesher *M, long P) { return P >= 1 && P <= M->G - 1; }
+
+static void unit(double *x, double *y, double *z)
+{
+    double l = sqrt(*x * *x + *y * *y + *z * *z);
+    if (l > 0 && isfinite(l)) {
+        *x /= l;
+        *y /= l;
+        *z /= l;
+    } else {
+        *x = *y = *z = 0;
+    }
+}
+
+/* Evaluate, find crossings and place vertices for one block. Returns 0 or -1 (out of
+ * memory or the field failed). */
+static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
+{
+    const mesh_field *f = M->f;
+    const double iso = M->o->iso;
+    long base[3];
+    for (int c = 0; c < 3; c++) base[c] = (long)B->b[c] * MESH_BLOCK;
+
+    /* 1. corner values */
+    size_t nreal = 0;
+    int32_t *map = W->eidx; /* reused: corner -> position in the batch */
+    for (int k = 0; k <= MESH_BLOCK; k++)
+        for (int j = 0; j <= MESH_BLOCK; j++)
+            for (int i = 0; i <= MESH_BLOCK; i++) {
+                int ci = corner_index(i, j, k);
+                long P[3] = { base[0] + i, base[1] + j, base[2] + k };
+                map[ci] = -1;
+                if (corner_is_real(M, P[0]) && corner_is_real(M, P[1]) && corner_is_real(M, P[2])) {
+                    W->cx[nreal] = corner_coord(M, 0, P[0]);
+                    W->cy[nreal] = corner_coord(M, 1, P[1]);
+                    W->cz[nreal] = corner_coord(M, 2, P[2]);
+                    map[ci] = (int32_t)nreal++;
+                }
+            }
+    if (nreal && f->eval(f->ctx, ts, nreal, W->cx, W->cy, W->cz, W->qf) != 0) return -1;
+    for (int ci = 0; ci < MESH_BLOCK_CORNERS; ci++) {
+        if (map[ci] < 0) {
+            W->cf[ci] = NAN;
+            W->cin[ci] = 0;
+        } else {
+            double v = W->qf[map[ci]];
+            W->cf[ci] = v;
+            W->cin[ci] = v >= iso;
+            if (isnan(v)) B->nan_points++;
+            if (W->cin[ci]) B->inside_corners++;
+        }
+    }
+
+    /* 2. crossing edges */
+    int ncross = 0, nroot = 0;
+    for (int k = 0; k <= MESH_BLOCK; k++)
+        for (int j = 0; j <= MESH_BLOCK; j++)
+            for (int i = 0; i <= MESH_BLOCK; i++) {
+                int ci = corner_index(i, j, k);
+                int q[3] = { i, j, k };
+                for (int a = 0; a < 3; a++) {
+                    int ei = 3 * ci + a;
+                    W->eidx[ei] = -1;
+                }
+                for (int a = 0; a < 3; a++) {
+                    int ei = 3 * ci + a;
+                    if (q[a] == MESH_BLOCK) continue;
+                    int q2[3] = { i, j, k };
+                    q2[a]++;
+                    int cj = corner_index(q2[0], q2[1], q2[2]);
+                    if (W->cin[ci] == W->cin[cj]) continue;
+                    int id = ncross++;
+                    W->eidx[ei] = id;
+                    long P0[3] = { base[0] + i, base[1] + j, base[2] + k };
+                    long P1[3] = { P0[0], P0[1], P0[2] };
+                    P1[a]++;
+                    int real0 = corner_is_real(M, P0[0]) && corner_is_real(M, P0[1]) &&
+                                corner_is_real(M, P0[2]);
+                    int real1 = corner_is_real(M, P1[0]) && corner_is_real(M, P1[1]) &&
+                                corner_is_real(M, P1[2]);
+                    double x0 = corner_coord(M, 0, P0[0]), y0 = corner_coord(M, 1, P0[1]),
+                           z0 = corner_coord(M, 2, P0[2]);
+                    double x1 = corner_coord(M, 0, P1[0]), y1 = corner_coord(M, 1, P1[1]),
+                           z1 = corner_coord(M, 2, P1[2]);
+                    /* which cells around the edge lie in other blocks */
+                    int o1, o2;
+                    edge_other_axes(a, &o1, &o2);
+                    for (int d2 = 0; d2 < 2; d2++)
+                        for (int d1 = 0; d1 < 2; d1++) {
+                            int cell[3] = { i, j, k };
+                            cell[o1] -= d1;
+                            cell[o2] -= d2;
+                            int off[3];
+                            for (int c = 0; c < 3; c++)
+                                off[c] = cell[c] < 0 ? -1 : (cell[c] >= MESH_BLOCK ? 1 : 0);
+                            if (off[0] || off[1] || off[2])
+                                B->need |= 1u << ((off[0] + 1) + 3 * (off[1] + 1) + 9 * (off[2] + 1));
+                        }
+                    if (real0 && real1) {
+                        B->real_crossings++;
+                        int r = nroot++;
+                        W->rid[r] = id;
+                        W->ax[r] = x0; W->ay[r] = y0; W->az[r] = z0;
+                        W->dx[r] = x1 - x0; W->dy[r] = y1 - y0; W->dz[r] = z1 - z0;
+                        W->t0[r] = 0; W->g0[r] = W->cf[ci] - iso;
+                        W->t1[r] = 1; W->g1[r] = W->cf[cj] - iso;
+                        W->side[r] = 0;
+                    } else {
+                        /* A cap on the box: the crossing sits on the real (inside)
+                         * corner, its normal points out of the box. */
+                        B->virtual_crossings++;
+                        int in0 = W->cin[ci];
+                        W->px[id] = in0 ? x0 : x1;
+                        W->py[id] = in0 ? y0 : y1;
+                        W->pz[id] = in0 ? z0 : z1;
+                        W->nx[id] = W->ny[id] = W->nz[id] = 0;
+                        double sg = in0 ? 1.0 : -1.0;
+                        if (a == 0) W->nx[id] = sg;
+                        else if (a == 1) W->ny[id] = sg;
+                        else W->nz[id] = sg;
+                    }
+                }
+            }
+
+    /* 3. root finding on the real crossings (Illinois regula falsi, batched) */
+    for (int step = 0; step < MESH_ROOT_STEPS && nroot > 0; step++) {
+        for (int r = 0; r < nroot; r++) {
+            double g0 = W->g0[r], g1 = W->g1[r], t;
+            if (isfinite(g0) && isfinite(g1) && g0 != g1)
+                t = (W->t0[r] * g1 - W->t1[r] * g0) / (g1 - g0);
+            else
+                t = 0.5 * (W->t0[r] + W->t1[r]);
+            if (!(t > W->t0[r] && t < W->t1[r])) t = 0.5 * (W->t0[r] + W->t1[r]);
+            W->tt[r] = t;
+            W->qx[r] = W->ax[r] + t * W->dx[r];
+            W->qy[r] = W->ay[r] + t * W->dy[r];
+            W->qz[r] = W->az[r] + t * W->dz[r];
+        }
+        if (f->eval(f->ctx, ts, (size_t)nroot, W->qx, W->qy, W->qz, W->qf) != 0) return -1;
+        for (int r = 0; r < nroot; r++) {
+            double gv = W->qf[r] - iso;
+            int in_t = W->qf[r] >= iso, in_0 = W->g0[r] >= 0;
+            if (in_t == in_0) {
+                W->t0[r] = W->tt[r];
+                W->g0[r] = gv;
+                if (W->side[r] == -1) W->g1[r] *= 0.5; /* Illinois: unstick the far end */
+                W->side[r] = -1;
+            } else {
+                W->t1[r] = W->tt[r];
+                W->g1[r] = gv;
+                if (W->side[r] == 1) W->g0[r] *= 0.5;
+                W->side[r] = 1;
+            }
+        }
+    }
+    for (int r = 0; r < nroot; r++) {
+        double g0 = W->g0[r], g1 = W->g1[r], t;
+        if (isfinite(g0) && isfinite(g1) && g0 != g1)
+            t = (W->t0[r] * g1 - W->t1[r] * g0) / (g1 - g0);
+        else
+            t = 0.5 * (W->t0[r] + W->t1[r]);
+        if (!(t >= W->t0[r] && t <= W->t1[r])) t = 0.5 * (W->t0[r] + W->t1[r]);
+        int id = W->rid[r];
+        W->px[id] = W->qx[r] = W->ax[r] + t * W->dx[r];
+        W->py[id] = W->qy[r] = W->ay[r] + t * W->dy[r];
+        W->pz[id] = W->qz[r] = W->az[r] + t * W->dz[r];
+    }
+    if (nroot > 0 &&
+        f->grad(f->ctx, ts, (size_t)nroot, W->qx, W->qy, W->qz, W->qf, W->gx, W->gy, W->gz) != 0)
+        return -1;
+    for (int r = 0; r < nroot; r++) {
+        int id = W->rid[r];
+        /* inside is f >= iso, so the gradient points inward */
+        double nx = -W->gx[r], ny = -W->gy[r], nz = -W->gz[r];
+        unit(&nx, &ny, &nz);
+        if (nx == 0 && ny == 0 && nz == 0) {
+            /* no usable gradient: the edge direction, from inside to outside */
+            double s = W->g0[r] >= 0 ? 1.0 : -1.0;
+            nx = s * W->dx[r];
+            ny = s * W->dy[r];
+            nz = s * W->dz[r];
+            unit(&nx, &ny, &nz);
+        }
+        W->nx[id] = nx;
+        W->ny[id] = ny;
+        W->nz[id] = nz;
+    }
+
+    /* 4. one vertex per surface component of each cell */
+    size_t nv = 0;
+    B->cs = malloc(MESH_BLOCK_CELLS * sizeof *B->cs);
+    B->vbase = malloc(MESH_BLOCK_CELLS * sizeof *B->vbase);
+    if (!B->cs || !B->vbase) return -1;
+    for (int k = 0; k < MESH_BLOCK; k++)
+        for (int j = 0; j < MESH_BLOCK; j++)
+            for (int i = 0; i < MESH_BLOCK; i++) {
+                int cell = cell_index(i, j, k);
+                int cs = 0;
+                B->vbase[cell] = MESH_NO_VERTEX;
+                if (base[0] + i >= M->G || base[1] + j >= M->G || base[2] + k >= M->G) {
+                    B->cs[cell] = 0;
+                    continue;
+                }
+                for (int c = 0; c < 8; c++)
+                    cs |= W->cin[corner_index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))] << c;
+                B->cs[cell] = (uint8_t)cs;
+                int ncyc = M->table.ncycles[cs];
+                if (ncyc == 0) continue;
+                if (ncyc > 1) B->split_cells++;
+                B->vbase[cell] = (uint16_t)nv;
+                double lo[3] = { corner_coord(M, 0, base[0] + i), corner_coord(M, 1, base[1] + j),
+                                 corner_coord(M, 2, base[2] + k) };
+                double hi[3] = { corner_coord(M, 0, base[0] + i + 1),
+                                 corner_coord(M, 1, base[1] + j + 1),
+                                 corner_coord(M, 2, base[2] + k + 1) };
+                for (int cyc = 0; cyc < ncyc; cyc++) {
+                    double pts[12][3], nrm[12][3], sn[3] = { 0, 0, 0 };
+                    int np = 0;
+                    for (int e = 0; e < 12; e++) {
+                        if (M->table.cycle[cs][e] != cyc) continue;
+                        int s0 = edge_start(e);
+                        int ci = corner_index(i + (s0 & 1), j + ((s0 >> 1) & 1), k + ((s0 >> 2) & 1));
+                        int id = W->eidx[3 * ci + e / 4];
+                        if (id < 0) continue;
+                        pts[np][0] = W->px[id];
+                        pts[np][1] = W->py[id];
+                        pts[np][2] = W->pz[id];
+                        nrm[np][0] = W->nx[id];
+                        nrm[np][1] = W->ny[id];
+                        nrm[np][2] = W->nz[id];
+                        for (int c = 0; c < 3; c++) sn[c] += nrm[np][c];
+                        np++;
+                    }
+                    double x[3];
+                    if (np == 0) {
+                        for (int c = 0; c < 3; c++) x[c] = 0.5 * (lo[c] + hi[c]);
+                    } else {
+                        qef_solve(np, (const double(*)[3])pts, (const double(*)[3])nrm, lo, hi, x);
+                    }
+                    W->vx[nv] = x[0];
+                    W->vy[nv] = x[1];
+                    W->vz[nv] = x[2];
+                    unit(&sn[0], &sn[1], &sn[2]);
+                    W->fnx[nv] = sn[0];
+                    W->fny[nv] = sn[1];
+                    W->fnz[nv] = sn[2];
+                    nv++;
+                }
+            }
+    B->nverts = (uint32_t)nv;
+    if (nv == 0) return 0;
+    B->vpos = malloc(3 * nv * sizeof *B->vpos);
+    B->vnrm = malloc(3 * nv * sizeof *B->vnrm);
+    if (!B->vpos || !B->vnrm) return -1;
+    if (f->grad(f->ctx, ts, nv, W->vx, W->vy, W->vz, W->vf, W->vgx, W->vgy, W->vgz) != 0)
+        return -1;
+    for (size_t v = 0; v < nv; v++) {
+        B->vpos[3 * v] = W->vx[v];
+        B->vpos[3 * v + 1] = W->vy[v];
+        B->vpos[3 * v + 2] = W->vz[v];
+        double nx = -W->vgx[v], ny = -W->vgy[v], nz = -W->vgz[v];
+        unit(&nx, &ny, &nz);
+        /* on a box cap, or where the gradient says nothing, use the crossings' normals */
+        if ((nx == 0 && ny == 0 && nz == 0) || nx * W->fnx[v] + ny * W->fny[v] + nz * W->fnz[v] < 0) {
+            nx = W->fnx[v];
+            ny = W->fny[v];
+            nz = W->fnz[v];
+        }
+        B->vnrm[3 * v] = nx;
+        B->vnrm[3 * v + 1] = ny;
+        B->vnrm[3 * v + 2] = nz;
+    }
+    return 0;
+}
+
+static uint64_t block_key(const mesher *M, long bx, long by, long bz)
+{
+    return ((uint64_t)bz * (uint64_t)M->nb + (uint64_t)by) * (uint64_t)M->nb + (uint64_t)bx;
+}
+
+static mblock *find_block(const mesher *M, uint64_t key)
+{
+    size_t lo = 0, hi = M->nblocks;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (M->blocks[mid]->key < key) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo < M->nblocks && M->blocks[lo]->key == key ? M->blocks[lo] : NULL;
+}
+
+static int cmp_block(const void *a, const void *b)
+{
+    const mblock *x = *(mblock *const *)a, *y = *(mblock *const *)b;
+    return x->key < y->key ? -1 : x->key > y->key;
+}
+
+static void free_block(mblock *B)
+{
+    if (!B) return;
+    free(B->vpos);
+    free(B->vnrm);
+    free(B->cs);
+    free(B->vbase);
+    free(B->tri);
+    free(B);
+}
+
+static mblock *new_block(const mesher *M, long bx, long by, long bz)
+{
+    mblock *B = calloc(1, sizeof *B);
+    if (!B) return NULL;
+    B->b[0] = (int)bx;
+    B->b[1] = (int)by;
+    B->b[2] = (int)bz;
+    B->key = block_key(M, bx, by, bz);
+    return B;
+}
+
+/* Cell (global padded index) -> vertex of the component containing edge e. */
+static int cell_vertex(const mesher *M, long cx, long cy, long cz, int e, uint32_t *v,
+                       const double **pos)
+{
+    if (cx < 0 || cy < 0 || cz < 0 || cx >= M->G || cy >= M->G || cz >= M->G) return -1;
+    mblock *B = find_block(M, block_key(M, cx / MESH_BLOCK, cy / MESH_BLOCK, cz / MESH_BLOCK));
+    if (!B || !B->cs) return -1;
+    int cell = cell_index((int)(cx % MESH_BLOCK), (int)(cy % MESH_BLOCK), (int)(cz % MESH_BLOCK));
+    if (B->vbase[cell] == MESH_NO_VERTEX) return -1;
+    uint8_t cyc = M->table.cycle[B->cs[cell]][e];
+    if (cyc == 0xFF) return -1;
+    uint32_t local = (uint32_t)B->vbase[cell] + cyc;
+    *v = (uint32_t)(B->vglobal + local);
+    *pos = &B->vpos[3 * local];
+    return 0;
+}
+
+static double tri_area2(const double *a, const double *b, const double *c)
+{
+    double u[3], w[3];
+    for (int i = 0; i < 3; i++) {
+        u[i] = b[i] - a[i];
+        w[i] = c[i] - a[i];
+    }
+    double x = u[1] * w[2] - u[2] * w[1], y = u[2] * w[0] - u[0] * w[2],
+           z = u[0] * w[1] - u[1] * w[0];
+    return sqrt(x * x + y * y + z * z);
+}
+
+/* Quads of the crossing edges whose owner cell (the cell at the edge's lower corner)
+ * lies in block B, split into triangles along the diagonal whose midpoint is closer to
+ * the surface (that keeps a sharp edge that runs along a diagonal). */
+static int block_quads(mesher *M, mwork *W, void *ts, mblock *B)
+{
+    size_t cap = 0, nq = 0;
+    uint32_t *quads = NULL;
+    const double **qpos = NULL;
+    long base[3];
+    for (int c = 0; c < 3; c++) base[c] = (long)B->b[c] * MESH_BLOCK;
+    for (int k = 0; k < MESH_BLOCK; k++)
+        for (int j = 0; j < MESH_BLOCK; j++)
+            for (int i = 0; i < MESH_BLOCK; i++) {
+                int cell = cell_index(i, j, k);
+                int cs = B->cs[cell];
+                if (cs == 0 || cs == 255) continue;
+                for (int a = 0; a < 3; a++) {
+                    int in0 = cs & 1, in1 = (cs >> (1 << a)) & 1;
+                    if (in0 == in1) continue;
+                    int o1, o2;
+                    edge_other_axes(a, &o1, &o2);
+                    /* (d1, d2) counter-clockwise around +a when (o1, o2, a) is right-handed */
+                    static const int ring[4][2] = { { 1, 1 }, { 0, 1 }, { 0, 0 }, { 1, 0 } };
+                    uint32_t v[4];
+                    const double *p[4];
+                    int okq = 1;
+                    for (int r = 0; r < 4 && okq; r++) {
+                        long C[3] = { base[0] + i, base[1] + j, base[2] + k };
+                        C[o1] -= ring[r][0];
+                        C[o2] -= ring[r][1];
+                        int e = 4 * a + ring[r][0] + 2 * ring[r][1];
+                        if (cell_vertex(M, C[0], C[1], C[2], e, &v[r], &p[r]) != 0) okq = 0;
+                    }
+                    if (!okq) {
+                        B->failed = 1;
+                        continue;
+                    }
+                    /* (o1, o2, a) is right-handed except for a == 1 (x, z, y); the quad
+                     * must face away from the inside end of the edge. */
+                    int flip = (a == 1) ^ (in0 == 0);
+                    if (flip) {
+                        uint32_t t = v[1]; v[1] = v[3]; v[3] = t;
+                        const double *tp = p[1]; p[1] = p[3]; p[3] = tp;
+                    }
+                    if (nq == cap) {
+                        cap = cap ? 2 * cap : 256;
+                        uint32_t *nqs = realloc(quads, cap * 4 * sizeof *nqs);
+                        if (nqs) quads = nqs;
+                        const double **nps = realloc(qpos, cap * 4 * sizeof *nps);
+                        if (nps) qpos = nps;
+                        if (!nqs || !nps) { free(quads); free(qpos); return -1; }
+                    }
+                    memcpy(&quads[4 * nq], v, sizeof v);
+                    memcpy(&qpos[4 * nq], p, sizeof p);
+                    nq++;
+                }
+            }
+    B->ntri = 2 * nq;
+    B->tri = malloc((2 * nq + 1) * 3 * sizeof *B->tri);
+    if (!B->tri) { free(quads); free(qpos); return -1; }
+    /* diagonal midpoints, evaluated in batches of at most MESH_BLOCK_EDGES / 2 quads */
+    for (size_t q0 = 0; q0 < nq; q0 += MESH_BLOCK_EDGES / 2) {
+        size_t n = nq - q0 < MESH_BLOCK_EDGES / 2 ? nq - q0 : MESH_BLOCK_EDGES / 2;
+        for (size_t q = 0; q < n; q++) {
+            const double *const *P = &qpos[4 * (q0 + q)];
+            W->qx[2 * q] = 0.5 * (P[0][0] + P[2][0]);
+            W->qy[2 * q] = 0.5 * (P[0][1] + P[2][1]);
+            W->qz[2 * q] = 0.5 * (P[0][2] + P[2][2]);
+            W->qx[2 * q + 1] = 0.5 * (P[1][0] + P[3][0]);
+            W->qy[2 * q + 1] = 0.5 * (P[1][1] + P[3][1]);
+            W->qz[2 * q + 1] = 0.5 * (P[1][2] + P[3][2]);
+            /* areas of both splits, for the degeneracy guard below */
+            W->t0[q] = fmin(tri_area2(P[0], P[1], P[2]), tri_area2(P[0], P[2], P[3]));
+            W->t1[q] = fmin(tri_area2(P[0], P[1], P[3]), tri_area2(P[1], P[2], P[3]));
+        }
+        if (M->f->eval(M->f->ctx, ts, 2 * n, W->qx, W->qy, W->qz, W->qf) != 0) {
+            free(quads);
+            free(qpos);
+            return -1;
+        }
+        for (size_t q = 0; q < n; q++) {
+            const uint32_t *v = &quads[4 * (q0 + q)];
+            double e02 = fabs(W->qf[2 * q] - M->o->iso), e13 = fabs(W->qf[2 * q + 1] - M->o->iso);
+            int use02 = !(e13 < e02) || isnan(e13);
+            if (isnan(e02) && !isnan(e13)) use02 = 0;
+            double amax = fmax(W->t0[q], W->t1[q]);
+            if (use02 && W->t0[q] <= 1e-9 * amax) use02 = 0;
+            else if (!use02 && W->t1[q] <= 1e-9 * amax) use02 = 1;
+            uint32_t *t = &B->tri[6 * (q0 + q)];
+            if (use02) {
+                t[0] = v[0]; t[1] = v[1]; t[2] = v[2];
+                t[3] = v[0]; t[4] = v[2]; t[5] = v[3];
+            } else {
+                t[0] = v[0]; t[1] = v[1]; t[2] = v[3];
+                t[3] = v[1]; t[4] = v[2]; t[5] = v[3];
+            }
+        }
+    }
+    free(quads);
+    free(qpos);
+    return 0;
+}
+
+static double now_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static int thread_num(void)
+{
+#ifdef _OPENMP
+    return omp_get_thread_num();
+#else
+    return 0;
+#endif
+}
+
+typedef struct onode {
+    int x, y, z, s;
+} onode;
+
+/* Octree over blocks: returns the sorted blocks whose cells the interval test cannot
+ * prove all outside or all inside. */
+static int find_blocks(mesher *M, mesh_stats *st, char *err, size_t errlen)
+{
+    int S = 1;
+    while (S < M->nb) S *= 2;
+    onode *cur = malloc(sizeof *cur), *next = NULL;
+    size_t ncur = 1;
+    if (!cur) goto oom;
+    cur[0].x = cur[0].y = cur[0].z = 0;
+    cur[0].s = S;
+    while (ncur > 0) {
+        uint8_t *keep = malloc(ncur);
+        if (!keep) goto oom;
+        st->octree_nodes += ncur;
+        long n = (long)ncur;
+#pragma omp parallel for schedule(dynamic, 8) num_threads(M->nthreads)
+        for (long i = 0; i < n; i++) {
+            const onode *nd = &cur[i];
+            long c0[3] = { (long)nd->x * MESH_BLOCK, (long)nd->y * MESH_BLOCK, (long)nd->z * MESH_BLOCK };
+            long c1[3];
+            int pad = 0;
+            double box[6];
+            for (int c = 0; c < 3; c++) {
+                c1[c] = c0[c] + (long)nd->s * MESH_BLOCK;
+                if (c1[c] > M->G) c1[c] = M->G;
+                if (c0[c] == 0 || c1[c] == M->G) pad = 1;
+                box[c] = M->o->box[c] + (double)(c0[c] - 1) * M->h[c];
+                box[c + 3] = M->o->box[c] + (double)(c1[c] - 1) * M->h[c];
+            }
+            keep[i] = 1;
+            if (M->f->interval) {
+                double lo = -INFINITY, hi = INFINITY;
+                if (M->f->interval(M->f->ctx, M->ts[thread_num()], box, &lo, &hi) == 0) {
+                    if (hi < M->o->iso) keep[i] = 0;
+                    else if (lo >= M->o->iso && !pad) keep[i] = 0;
+                }
+            }
+        }
+        size_t nnext = 0, capn = 0;
+        next = NULL;
+        for (size_t i = 0; i < ncur; i++) {
+            if (!keep[i]) continue;
+            const onode *nd = &cur[i];
+            if (nd->s == 1) {
+                if (M->nblocks == M->capblocks) {
+                    M->capblocks = M->capblocks ? 2 * M->capblocks : 1024;
+                    mblock **nbk = realloc(M->blocks, M->capblocks * sizeof *nbk);
+                    if (!nbk) { free(keep); goto oom; }
+                    M->blocks = nbk;
+                }
+                mblock *B = new_block(M, nd->x, nd->y, nd->z);
+                if (!B) { free(keep); goto oom; }
+                M->blocks[M->nblocks++] = B;
+                continue;
+            }
+            int hs = nd->s / 2;
+            for (int c = 0; c < 8; c++) {
+                onode ch = { nd->x + (c & 1) * hs, nd->y + ((c >> 1) & 1) * hs,
+                             nd->z + ((c >> 2) & 1) * hs, hs };
+                if (ch.x >= M->nb || ch.y >= M->nb || ch.z >= M->nb) continue;
+                if (nnext == capn) {
+                    capn = capn ? 2 * capn : 64;
+                    onode *nn = realloc(next, capn * sizeof *nn);
+                    if (!nn) { free(keep); goto oom; }
+                    next = nn;
+                }
+                next[nnext++] = ch;
+            }
+        }
+        free(keep);
+        free(cur);
+        cur = next;
+        next = NULL;
+        ncur = nnext;
+    }
+    free(cur);
+    qsort(M->blocks, M->nblocks, sizeof *M->blocks, cmp_block);
+    return 0;
+oom:
+    free(cur);
+    free(next);
+    snprintf(err, errlen, "out of memory building the octree");
+    return -1;
+}
+
+int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
+                    mesh_stats *stats, char *err, size_t errlen)
+{
+    double t_start = now_seconds();
+    mesh_stats st_local;
+    mesh_stats *st = stats ? stats : &st_local;
+    memset(st, 0, sizeof *st);
+    memset(out, 0, sizeof *out);
+    if (o->grid < 1 || o->grid > MESH_MAX_GRID) {
+        snprintf(err, errlen, "grid of %d cells per axis is outside 1..%d", o->grid, MESH_MAX_GRID);
+        return -1;
+    }
+    for (int c = 0; c < 3; c++) {
+        if (!isfinite(o->box[c]) || !isfinite(o->box[c + 3]) || !(o->box[c + 3] > o->box[c])) {
+            snprintf(err, errlen, "empty or invalid box: %c from %g to %g", "xyz"[c], o->box[c],
+                     o->box[c + 3]);
+            return -1;
+        }
+    }
+    if (!isfinite(o->iso)) {
+        snprintf(err, errlen, "the iso level must be a finite number");
+        return -1;
+    }
+    mesher *M = calloc(1, sizeof *M);
+    if (!M) {
+        snprintf(err, errlen, "out of memory");
+        return -1;
+    }
+    int status = -1;
+    mwork **works = NULL;
+    M->f = f;
+    M->o = o;
+    build_table(&M->table);
+    M->g = o->grid;
+    M->G = o->grid + 2;
+    M->nb = (M->G + MESH_BLOCK - 1) / MESH_BLOCK;
+    for (int c = 0; c < 3; c++) M->h[c] = (o->box[c + 3] - o->box[c]) / o->grid;
+#ifdef _OPENMP
+    M->nthreads = o->nthreads > 0 ? o->nthreads : omp_get_max_threads();
+#else
+    M->nthreads = 1;
+#endif
+    st->blocks_total = (size_t)M->nb * (size_t)M->nb * (size_t)M->nb;
+    M->ts = calloc((size_t)M->nthreads, sizeof *M->ts);
+    works = calloc((size_t)M->nthreads, sizeof *works);
+    if (!M->ts || !works) goto oom;
+    for (int t = 0; t < M->nthreads; t++) {
+        M->ts[t] = f->thread_new(f->ctx);
+        works[t] = malloc(sizeof **works);
+        if (!M->ts[t] || !works[t]) goto oom;
+    }
+    if (find_blocks(M, st, err, errlen) != 0) goto done;
+
+    /* Process blocks; blocks found to have crossings towards a block not yet visited
+     * (the interval test is sound, but NaN and rounding are not its business) bring
+     * that block in, until the surface is closed. */
+    size_t first = 0, done_blocks = 0;
+    while (first < M->nblocks) {
+        long n = (long)(M->nblocks - first);
+        int failed = 0;
+        mblock **todo = M->blocks + first;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(M->nthreads)
+        for (long i = 0; i < n; i++) {
+            int t = thread_num();
+            if (process_block(M, works[t], M->ts[t], todo[i]) != 0) {
+#pragma omp atomic write
+                failed = 1;
+            }
+            if (t == 0 && o->progress) {
+                size_t d;
+#pragma omp atomic read
+                d = done_blocks;
+                o->progress(o->progress_user, 0.9 * (double)d / (double)(M->nblocks + 1));
+            }
+#pragma omp atomic
+            done_blocks++;
+        }
+        if (failed) {
+            snprintf(err, errlen, "out of memory or evaluation failure while meshing");
+            goto done;
+        }
+        size_t old = M->nblocks;
+        for (size_t i = first; i < old; i++) {
+            M->bytes += sizeof(mblock) + MESH_BLOCK_CELLS * 3 + 48 * (size_t)M->blocks[i]->nverts;
+        }
+        if (M->bytes > MESH_MAX_WORK_BYTES) {
+            snprintf(err, errlen, "the mesh needs more than %zu MiB of working memory; use a "
+                     "smaller -g", MESH_MAX_WORK_BYTES >> 20);
+            goto done;
+        }
+        /* blocks [0, old) are processed: sort them for lookups; new ones go after */
+        qsort(M->blocks, old, sizeof *M->blocks, cmp_block);
+        size_t nsorted = old;
+        for (size_t i = first; i < old; i++) {
+            mblock *B = M->blocks[i];
+            for (int bit = 0; bit < 27; bit++) {
+                if (!(B->need & (1u << bit))) continue;
+                long nx = B->b[0] + bit % 3 - 1, ny = B->b[1] + (bit / 3) % 3 - 1,
+                     nz = B->b[2] + bit / 9 - 1;
+                if (nx < 0 || ny < 0 || nz < 0 || nx >= M->nb || ny >= M->nb || nz >= M->nb)
+                    continue;
+                uint64_t key = block_key(M, nx, ny, nz);
+                size_t save = M->nblocks;
+                M->nblocks = nsorted;
+                mblock *have = find_block(M, key);
+                M->nblocks = save;
+                if (have) continue;
+                int dup = 0;
+                for (size_t q = old; q < M->nblocks; q++)
+                    if (M->blocks[q]->key == key) { dup = 1; break; }
+                if (dup) continue;
+                if (M->nblocks == M->capblocks) {
+                    M->capblocks *= 2;
+                    mblock **nbk = realloc(M->blocks, M->capblocks * sizeof *nbk);
+                    if (!nbk) goto oom;
+                    M->blocks = nbk;
+                }
+                mblock *NB = new_block(M, nx, ny, nz);
+                if (!NB) goto oom;
+                M->blocks[M->nblocks++] = NB;
+            }
+        }
+        first = old;
+    }
+    qsort(M->blocks, M->nblocks, sizeof *M->blocks, cmp_block);
+    st->blocks = M->nblocks;
+
+    /* drop blocks without vertices, number the vertices */
+    size_t nkeep = 0, nverts = 0;
+    uint32_t inside = 0, real_cross = 0;
+    for (size_t i = 0; i < M->nblocks; i++) {
+        mblock *B = M->blocks[i];
+        st->points_nan += B->nan_points;
+        st->cells_split += B->split_cells;
+        inside += B->inside_corners > 0;
+        real_cross += B->real_crossings > 0;
+        if (B->virtual_crossings) st->touches_box = 1;
+        if (B->nverts == 0) {
+            free_block(B);
+            continue;
+        }
+        B->vglobal = nverts;
+        nverts += B->nverts;
+        M->blocks[nkeep++] = B;
+    }
+    M->nblocks = nkeep;
+    st->full = inside > 0 && real_cross == 0;
+    if (nverts >= UINT32_MAX) {
+        snprintf(err, errlen, "the mesh has more than 2^32 vertices; use a smaller -g");
+        goto done;
+    }
+
+    /* quads */
+    {
+        long n = (long)M->nblocks;
+        int failed = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(M->nthreads)
+        for (long i = 0; i < n; i++) {
+            int t = thread_num();
+            if (block_quads(M, works[t], M->ts[t], M->blocks[i]) != 0) {
+#pragma omp atomic write
+                failed = 1;
+            }
+            if (t == 0 && o->progress)
+                o->progress(o->progress_user, 0.9 + 0.1 * (double)i / (double)(n + 1));
+        }
+        if (failed) {
+            snprintf(err, errlen, "out of memory or evaluation failure while meshing");
+            goto done;
+        }
+    }
+    size_t ntris = 0;
+    int holes = 0;
+    for (size_t i = 0; i < M->nblocks; i++) {
+        ntris += M->blocks[i]->ntri;
+        holes |= M->blocks[i]->failed;
+    }
+    if (holes) {
+        snprintf(err, errlen, "internal error: a surface cell was not evaluated");
+        goto done;
+    }
+    if (ntris > MESH_MAX_TRIANGLES) {
+        snprintf(err, errlen, "the mesh has more than %zu triangles; use a smaller -g",
+                 (size_t)MESH_MAX_TRIANGLES);
+        goto done;
+    }
+    out->nverts = nverts;
+    out->ntris = ntris;
+    out->v = malloc((3 * nverts + 1) * sizeof *out->v);
+    out->n = malloc((3 * nverts + 1) * sizeof *out->n);
+    out->tri = malloc((3 * ntris + 1) * sizeof *out->tri);
+    if (!out->v || !out->n || !out->tri) {
+        mesh_free(out);
+        goto oom;
+    }
+    size_t tpos = 0;
+    for (size_t i = 0; i < M->nblocks; i++) {
+        mblock *B = M->blocks[i];
+        memcpy(out->v + 3 * B->vglobal, B->vpos, 3 * B->nverts * sizeof *out->v);
+        memcpy(out->n + 3 * B->vglobal, B->vnrm, 3 * B->nverts * sizeof *out->n);
+        memcpy(out->tri + 3 * tpos, B->tri, 3 * B->ntri * sizeof *out->tri);
+        tpos += B->ntri;
+    }
+    if (o->progress) o->progress(o->progress_user, 1.0);
+    status = 0;
+    goto done;
+oom:
+    snprintf(err, errlen, "out of memory");
+done:
+    if (M->blocks)
+        for (size_t i = 0; i < M->nblocks; i++) free_block(M->blocks[i]);
+    free(M->blocks);
+    if (M->ts)
+        for (int t = 0; t < M->nthreads; t++)
+            if (M->ts[t]) f->thread_free(f->ctx, M->ts[t]);
+    free(M->ts);
+    if (works)
+        for (int t = 0; t < M->nthreads; t++) free(works[t]);
+    free(works);
+    free(M);
+    st->seconds = now_seconds() - t_start;
+    return status;
+}
+
+/* ---- validation ------------------------------------------------------------------- */
+
+typedef struct dedge {
+    uint32_t a, b;   /* a < b */
+    int dir;         /* +1: a->b, -1: b->a */
+} dedge;
+
+static int cmp_dedge(const void *x, const void *y)
+{
+    const dedge *p = x, *q = y;
+    if (p->a != q->a) return p->a < q->a ? -1 : 1;
+    if (p->b != q->b) return p->b < q->b ? -1 : 1;
+    return p->dir - q->dir;
+}
+
+int mesh_validate(const frep_mesh *m, mesh_check *c)
+{
+    memset(c, 0, sizeof *c);
+    for (size_t i = 0; i < 3 * m->nverts; i++)
+        if (!isfinite(m->v[i])) c->nonfinite++;
+    dedge *E = malloc((3 * m->ntris + 1) * sizeof *E);
+    if (!E) return -1;
+    for (size_t t = 0; t < m->ntris; t++) {
+        const uint32_t *v = &m->tri[3 * t];
+        const double *p0 = &m->v[3 * v[0]], *p1 = &m->v[3 * v[1]], *p2 = &m->v[3 * v[2]];
+        double u[3], w[3], cr[3];
+        for (int k = 0; k < 3; k++) {
+            u[k] = p1[k] - p0[k];
+            w[k] = p2[k] - p0[k];
+        }
+        cr[0] = u[1] * w[2] - u[2] * w[1];
+        cr[1] = u[2] * w[0] - u[0] * w[2];
+        cr[2] = u[0] * w[1] - u[1] * w[0];
+        double a2 = sqrt(cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]);
+        double lu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+        double lw = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+        if (!(a2 > 1e-12 * fmax(lu, lw))) c->degenerate++;
+        c->area += 0.5 * a2;
+        c->volume += (p0[0] * (p1[1] * p2[2] - p1[2] * p2[1]) - p0[1] * (p1[0] * p2[2] - p1[2] * p2[0]) +
+                      p0[2] * (p1[0] * p2[1] - p1[1] * p2[0])) / 6.0;
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = v[k], b = v[(k + 1) % 3];
+            dedge *d = &E[3 * t + k];
+            d->a = a < b ? a : b;
+            d->b = a < b ? b : a;
+            d->dir = a < b ? 1 : -1;
+        }
+    }
+    size_t ne = 3 * m->ntris;
+    qsort(E, ne, sizeof *E, cmp_dedge);
+    for (size_t i = 0; i < ne;) {
+        size_t j = i;
+        int sum = 0;
+        while (j < ne && E[j].a == E[i].a && E[j].b == E[i].b) sum += E[j++].dir;
+        size_t cnt = j - i;
+        if (cnt == 1) c->open_edges++;
+        else if (cnt > 2) c->nonmanifold_edges++;
+        else if (sum != 0) c->flipped_edges++;
+        i = j;
+    }
+    free(E);
+    return 0;
+}

@@ -1,0 +1,96 @@
+/* mesh.h - polygonization: dual contouring of a scalar field on a sparse grid whose
+ * active blocks are found by an interval-pruned octree (runtime/mesh.c).
+ *
+ * Sits after the evaluators (frep_eval, frep_eval_grad, vm_eval_interval) and before
+ * the mesh writers of runtime/meshio.c; `frep mesh`, `frep sample` and `frep render`
+ * call it.  The field is abstract (mesh_field) so tests can mesh C callbacks.
+ */
+#ifndef FREP_MESH_H
+#define FREP_MESH_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "frep.h"
+
+/* Limits, each with its reason. */
+#define MESH_MAX_GRID 2048       /* cells per axis: a closed surface at 2048^3 already has
+                                    ~10^8 triangles, more than any consumer can load */
+#define MESH_MAX_WORK_BYTES ((size_t)3 << 30) /* working memory of the active blocks; past
+                                    it the run stops with a message instead of swapping */
+#define MESH_MAX_TRIANGLES ((size_t)1 << 30) /* uint32 vertex indices, STL's uint32 count */
+
+/* A triangle mesh. v[3i..3i+2] is vertex i, n[3i..] its unit normal (zero when unknown),
+ * tri[3t..3t+2] the vertices of triangle t, counter-clockwise seen from outside.
+ * Free with mesh_free(). */
+typedef struct frep_mesh {
+    size_t nverts, ntris;
+    double *v;
+    double *n;        /* may be NULL (meshes read from files without normals) */
+    uint32_t *tri;
+} frep_mesh;
+
+void mesh_free(frep_mesh *m);
+
+/* A scalar field to polygonize: inside where f >= iso.  Callbacks receive ctx and a
+ * per-thread state made by thread_new (which may return ctx itself when the field has
+ * no per-thread state; NULL means out of memory).  eval and grad evaluate n points and
+ * return 0 or -1; interval (may be NULL: no pruning) encloses f over a box {x0, y0, z0,
+ * x1, y1, z1} in [*lo, *hi], soundly ([-inf, inf] when it cannot tell). */
+typedef struct mesh_field {
+    void *ctx;
+    void *(*thread_new)(void *ctx);
+    void (*thread_free)(void *ctx, void *ts);
+    int (*eval)(void *ctx, void *ts, size_t n, const double *x, const double *y,
+                const double *z, double *f);
+    int (*grad)(void *ctx, void *ts, size_t n, const double *x, const double *y,
+                const double *z, double *f, double *gx, double *gy, double *gz);
+    int (*interval)(void *ctx, void *ts, const double box[6], double *lo, double *hi);
+} mesh_field;
+
+/* The field of a compiled program with parameter values `params` (NULL: its own; the
+ * array must outlive the field). Returns 0, or -1 when out of memory. Release with
+ * mesh_field_program_free(). */
+int mesh_field_program(mesh_field *f, const frep_program *p, const double *params);
+void mesh_field_program_free(mesh_field *f);
+
+typedef struct mesh_options {
+    double box[6];      /* x0, y0, z0, x1, y1, z1 */
+    int grid;           /* cells per axis (1..MESH_MAX_GRID) */
+    double iso;         /* surface level: inside where f >= iso */
+    int nthreads;       /* <= 0: OpenMP's default */
+    /* Called from one thread with the fraction done (0..1); may be NULL. */
+    void (*progress)(void *user, double fraction);
+    void *progress_user;
+} mesh_options;
+
+void mesh_options_init(mesh_options *o);   /* box [-10,10]^3, grid 30, iso 0 */
+
+/* What happened, for the summary line and the tests. */
+typedef struct mesh_stats {
+    size_t octree_nodes;     /* interval tests made */
+    size_t blocks;           /* blocks evaluated (of MESH_BLOCK^3 cells) */
+    size_t blocks_total;     /* blocks of the whole grid */
+    size_t cells_split;      /* cells with more than one surface component */
+    size_t points_nan;       /* grid points where f was NaN (counted as outside) */
+    int touches_box;         /* the solid reaches the box: the mesh is capped there */
+    int full;                /* every grid point is inside */
+    double seconds;
+} mesh_stats;
+
+/* Polygonize. Returns 0 with a closed, oriented mesh in *out (possibly empty: no
+ * point of the grid inside, or, with stats->full, the box itself), or -1 with a
+ * message in err (errlen bytes). */
+int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
+                    mesh_stats *stats, char *err, size_t errlen);
+
+/* Checks used by the tests and `frep mesh --check`: counts of edges not shared by
+ * exactly two triangles, of edges used twice in the same direction (orientation
+ * flips), of triangles with (near) zero area and of non-finite coordinates. */
+typedef struct mesh_check {
+    size_t open_edges, nonmanifold_edges, flipped_edges, degenerate, nonfinite;
+    double volume, area;     /* signed enclosed volume (positive when outward) */
+} mesh_check;
+int mesh_validate(const frep_mesh *m, mesh_check *c);
+
+#endif

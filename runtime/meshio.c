@@ -1,0 +1,809 @@
+/* meshio.c - triangle mesh files (meshio.h): writers for the output of `frep mesh`
+ * and readers for the meshes `frep sample MESH` turns into point clouds.
+ *
+ * Readers take the whole file into memory and report the first problem as
+ * "file:line: what" (binary formats: "file: what"); the library never prints.
+ */
+#include "config.h"
+
+#include "meshio.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Bytes read at a time while slurping a mesh file. */
+#define MESHIO_READ_CHUNK ((size_t)1 << 20)
+/* PLY header limits: real headers are a few short lines. */
+#define MESHIO_PLY_MAX_PROPS 64
+#define MESHIO_PLY_MAX_ELEMENTS 16
+#define MESHIO_MAX_POLY 1024 /* vertices of one polygon: more is a corrupt file */
+
+static char *msgf(const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 1, 2)))
+#endif
+    ;
+static char *msgf(const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    if (n < 0) return NULL;
+    char *s = malloc((size_t)n + 1);
+    if (!s) return NULL;
+    va_start(ap, fmt);
+    vsnprintf(s, (size_t)n + 1, fmt, ap);
+    va_end(ap);
+    return s;
+}
+
+#define SET_ERR(...) do { if (err && !*err) *err = msgf(__VA_ARGS__); } while (0)
+
+meshio_format meshio_format_for_path(const char *path)
+{
+    const char *dot = strrchr(path, '.');
+    if (!dot) return MESHIO_UNKNOWN;
+    char ext[8] = { 0 };
+    size_t n = strlen(dot + 1);
+    if (n == 0 || n >= sizeof ext) return MESHIO_UNKNOWN;
+    for (size_t i = 0; i < n && i < sizeof ext - 1; i++)
+        ext[i] = (char)tolower((unsigned char)dot[1 + i]);
+    if (strcmp(ext, "stl") == 0) return MESHIO_STL;
+    if (strcmp(ext, "obj") == 0) return MESHIO_OBJ;
+    if (strcmp(ext, "ply") == 0) return MESHIO_PLY;
+    if (strcmp(ext, "off") == 0) return MESHIO_OFF;
+    return MESHIO_UNKNOWN;
+}
+
+const char *meshio_format_name(meshio_format f)
+{
+    switch (f) {
+    case MESHIO_STL: return "STL";
+    case MESHIO_OBJ: return "OBJ";
+    case MESHIO_PLY: return "PLY";
+    case MESHIO_OFF: return "OFF";
+    case MESHIO_UNKNOWN: break;
+    }
+    return "unknown";
+}
+
+/* ---- writers ---------------------------------------------------------------------- */
+
+static void put_f32(unsigned char *b, double v)
+{
+    float f = (float)v;
+    uint32_t u;
+    memcpy(&u, &f, 4);
+    for (int i = 0; i < 4; i++) b[i] = (unsigned char)(u >> (8 * i));
+}
+
+static void put_u32(unsigned char *b, uint32_t u)
+{
+    for (int i = 0; i < 4; i++) b[i] = (unsigned char)(u >> (8 * i));
+}
+
+static void face_normal(const frep_mesh *m, size_t t, double n[3])
+{
+    const double *a = &m->v[3 * m->tri[3 * t]], *b = &m->v[3 * m->tri[3 * t + 1]],
+                 *c = &m->v[3 * m->tri[3 * t + 2]];
+    double u[3] = { b[0] - a[0], b[1] - a[1], b[2] - a[2] };
+    double w[3] = { c[0] - a[0], c[1] - a[1], c[2] - a[2] };
+    n[0] = u[1] * w[2] - u[2] * w[1];
+    n[1] = u[2] * w[0] - u[0] * w[2];
+    n[2] = u[0] * w[1] - u[1] * w[0];
+    double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (int k = 0; k < 3; k++) n[k] = l > 0 ? n[k] / l : 0;
+}
+
+static int write_stl(FILE *f, const frep_mesh *m, int ascii)
+{
+    if (ascii) {
+        fprintf(f, "solid frep\n");
+        for (size_t t = 0; t < m->ntris; t++) {
+            double n[3];
+            face_normal(m, t, n);
+            fprintf(f, "  facet normal %.9g %.9g %.9g\n    outer loop\n", n[0], n[1], n[2]);
+            for (int k = 0; k < 3; k++) {
+                const double *p = &m->v[3 * m->tri[3 * t + k]];
+                fprintf(f, "      vertex %.9g %.9g %.9g\n", p[0], p[1], p[2]);
+            }
+            fprintf(f, "    endloop\n  endfacet\n");
+        }
+        fprintf(f, "endsolid frep\n");
+        return ferror(f) ? -1 : 0;
+    }
+    unsigned char head[84];
+    memset(head, 0, sizeof head);
+    snprintf((char *)head, 80, "binary STL written by frep");
+    put_u32(head + 80, (uint32_t)m->ntris);
+    fwrite(head, 1, sizeof head, f);
+    for (size_t t = 0; t < m->ntris; t++) {
+        unsigned char rec[50];
+        double n[3];
+        face_normal(m, t, n);
+        for (int k = 0; k < 3; k++) put_f32(rec + 4 * k, n[k]);
+        for (int v = 0; v < 3; v++) {
+            const double *p = &m->v[3 * m->tri[3 * t + v]];
+            for (int k = 0; k < 3; k++) put_f32(rec + 12 + 12 * v + 4 * k, p[k]);
+        }
+        rec[48] = rec[49] = 0;
+        fwrite(rec, 1, sizeof rec, f);
+    }
+    return ferror(f) ? -1 : 0;
+}
+
+static int write_obj(FILE *f, const frep_mesh *m)
+{
+    fprintf(f, "# written by frep: %zu vertices, %zu triangles\n", m->nverts, m->ntris);
+    for (size_t i = 0; i < m->nverts; i++)
+        fprintf(f, "v %.10g %.10g %.10g\n", m->v[3 * i], m->v[3 * i + 1], m->v[3 * i + 2]);
+    if (m->n)
+        for (size_t i = 0; i < m->nverts; i++)
+            fprintf(f, "vn %.6g %.6g %.6g\n", m->n[3 * i], m->n[3 * i + 1], m->n[3 * i + 2]);
+    for (size_t t = 0; t < m->ntris; t++) {
+        uint32_t a = m->tri[3 * t] + 1, b = m->tri[3 * t + 1] + 1, c = m->tri[3 * t + 2] + 1;
+        if (m->n) fprintf(f, "f %u//%u %u//%u %u//%u\n", a, a, b, b, c, c);
+        else fprintf(f, "f %u %u %u\n", a, b, c);
+    }
+    return ferror(f) ? -1 : 0;
+}
+
+static int write_ply(FILE *f, const frep_mesh *m, int ascii)
+{
+    fprintf(f, "ply\nformat %s 1.0\ncomment written by frep\nelement vertex %zu\n"
+               "property float x\nproperty float y\nproperty float z\n",
+            ascii ? "ascii" : "binary_little_endian", m->nverts);
+    if (m->n) fprintf(f, "property float nx\nproperty float ny\nproperty float nz\n");
+    fprintf(f, "element face %zu\nproperty list uchar int vertex_indices\nend_header\n", m->ntris);
+    int nc = m->n ? 6 : 3;
+    for (size_t i = 0; i < m->nverts; i++) {
+        double val[6];
+        for (int k = 0; k < 3; k++) {
+            val[k] = m->v[3 * i + k];
+            if (m->n) val[3 + k] = m->n[3 * i + k];
+        }
+        if (ascii) {
+            for (int k = 0; k < nc; k++) fprintf(f, k ? " %.9g" : "%.9g", val[k]);
+            fputc('\n', f);
+        } else {
+            unsigned char b[24];
+            for (int k = 0; k < nc; k++) put_f32(b + 4 * k, val[k]);
+            fwrite(b, 4, (size_t)nc, f);
+        }
+    }
+    for (size_t t = 0; t < m->ntris; t++) {
+        const uint32_t *v = &m->tri[3 * t];
+        if (ascii) {
+            fprintf(f, "3 %u %u %u\n", v[0], v[1], v[2]);
+        } else {
+            unsigned char b[13];
+            b[0] = 3;
+            for (int k = 0; k < 3; k++) put_u32(b + 1 + 4 * k, v[k]);
+            fwrite(b, 1, sizeof b, f);
+        }
+    }
+    return ferror(f) ? -1 : 0;
+}
+
+static int write_off(FILE *f, const frep_mesh *m)
+{
+    fprintf(f, "OFF\n%zu %zu 0\n", m->nverts, m->ntris);
+    for (size_t i = 0; i < m->nverts; i++)
+        fprintf(f, "%.10g %.10g %.10g\n", m->v[3 * i], m->v[3 * i + 1], m->v[3 * i + 2]);
+    for (size_t t = 0; t < m->ntris; t++)
+        fprintf(f, "3 %u %u %u\n", m->tri[3 * t], m->tri[3 * t + 1], m->tri[3 * t + 2]);
+    return ferror(f) ? -1 : 0;
+}
+
+int meshio_write(FILE *f, const frep_mesh *m, meshio_format fmt, int ascii)
+{
+    switch (fmt) {
+    case MESHIO_STL: return write_stl(f, m, ascii);
+    case MESHIO_OBJ: return write_obj(f, m);
+    case MESHIO_PLY: return write_ply(f, m, ascii);
+    case MESHIO_OFF: return write_off(f, m);
+    case MESHIO_UNKNOWN: break;
+    }
+    return -1;
+}
+
+/* ---- readers ---------------------------------------------------------------------- */
+
+typedef struct mbuild {
+    frep_mesh *m;
+    size_t capv, capt;
+} mbuild;
+
+static int add_vertex(mbuild *b, double x, double y, double z)
+{
+    frep_mesh *m = b->m;
+    if (m->nverts >= MESHIO_MAX_ELEMENTS) return -1;
+    if (m->nverts == b->capv) {
+        size_t cap = b->capv ? 2 * b->capv : 1024;
+        double *nv = realloc(m->v, 3 * cap * sizeof *nv);
+        if (!nv) return -1;
+        m->v = nv;
+        b->capv = cap;
+    }
+    m->v[3 * m->nverts] = x;
+    m->v[3 * m->nverts + 1] = y;
+    m->v[3 * m->nverts + 2] = z;
+    m->nverts++;
+    return 0;
+}
+
+static int add_tri(mbuild *b, uint32_t a, uint32_t c, uint32_t d)
+{
+    frep_mesh *m = b->m;
+    if (m->ntris >= MESHIO_MAX_ELEMENTS) return -1;
+    if (m->ntris == b->capt) {
+        size_t cap = b->capt ? 2 * b->capt : 1024;
+        uint32_t *nt = realloc(m->tri, 3 * cap * sizeof *nt);
+        if (!nt) return -1;
+        m->tri = nt;
+        b->capt = cap;
+    }
+    m->tri[3 * m->ntris] = a;
+    m->tri[3 * m->ntris + 1] = c;
+    m->tri[3 * m->ntris + 2] = d;
+    m->ntris++;
+    return 0;
+}
+
+/* A polygon of n vertex indices (already 0-based and checked) as a triangle fan. */
+static int add_poly(mbuild *b, const uint32_t *idx, size_t n)
+{
+    for (size_t i = 1; i + 1 < n; i++)
+        if (add_tri(b, idx[0], idx[i], idx[i + 1]) != 0) return -1;
+    return 0;
+}
+
+/* Line-oriented text cursor. */
+typedef struct tcur {
+    const char *p, *end;
+    size_t line;
+} tcur;
+
+/* Next non-blank, non-comment line into [*s, *e); returns 0 at the end. */
+static int next_line(tcur *c, const char **s, const char **e, char comment)
+{
+    while (c->p < c->end) {
+        const char *ls = c->p;
+        const char *le = memchr(ls, '\n', (size_t)(c->end - ls));
+        if (!le) le = c->end;
+        c->p = le < c->end ? le + 1 : le;
+        c->line++;
+        while (ls < le && isspace((unsigned char)*ls)) ls++;
+        const char *te = le;
+        while (te > ls && isspace((unsigned char)te[-1])) te--;
+        if (ls == te || *ls == comment) continue;
+        *s = ls;
+        *e = te;
+        return 1;
+    }
+    return 0;
+}
+
+/* Parse a number at *s (before e); advances *s. Returns 0 or -1. */
+static int num(const char **s, const char *e, double *v)
+{
+    while (*s < e && (**s == ' ' || **s == '\t')) (*s)++;
+    if (*s >= e) return -1;
+    char buf[64];
+    size_t n = 0;
+    while (*s + n < e && !isspace((unsigned char)(*s)[n]) && n < sizeof buf - 1) {
+        buf[n] = (*s)[n];
+        n++;
+    }
+    buf[n] = '\0';
+    char *end;
+    errno = 0;
+    *v = strtod(buf, &end);
+    if (end == buf) return -1;
+    *s += end - buf;
+    return 0;
+}
+
+static int parse_off(const char *name, const char *data, size_t len, mbuild *b, char **err)
+{
+    tcur c = { data, data + len, 0 };
+    const char *s, *e;
+    if (!next_line(&c, &s, &e, '#') || e - s < 3 || strncmp(s, "OFF", 3) != 0) {
+        SET_ERR("%s:%zu: expected 'OFF' header", name, c.line ? c.line : 1);
+        return -1;
+    }
+    s += 3;
+    double nv, nf, ne;
+    if (s >= e && !next_line(&c, &s, &e, '#')) {
+        SET_ERR("%s:%zu: missing vertex and face counts", name, c.line);
+        return -1;
+    }
+    if (num(&s, e, &nv) || num(&s, e, &nf) || num(&s, e, &ne) || nv < 0 || nf < 0 ||
+        nv > (double)MESHIO_MAX_ELEMENTS || nf > (double)MESHIO_MAX_ELEMENTS ||
+        nv != floor(nv) || nf != floor(nf)) {
+        SET_ERR("%s:%zu: expected three counts 'vertices faces edges'", name, c.line);
+        return -1;
+    }
+    for (size_t i = 0; i < (size_t)nv; i++) {
+        double p[3];
+        if (!next_line(&c, &s, &e, '#')) {
+            SET_ERR("%s:%zu: file ends after %zu of %zu vertices", name, c.line, i, (size_t)nv);
+            return -1;
+        }
+        if (num(&s, e, &p[0]) || num(&s, e, &p[1]) || num(&s, e, &p[2])) {
+            SET_ERR("%s:%zu: expected 3 coordinates", name, c.line);
+            return -1;
+        }
+        if (add_vertex(b, p[0], p[1], p[2])) goto oom;
+    }
+    uint32_t idx[MESHIO_MAX_POLY];
+    for (size_t i = 0; i < (size_t)nf; i++) {
+        double k;
+        if (!next_line(&c, &s, &e, '#')) {
+            SET_ERR("%s:%zu: file ends after %zu of %zu faces", name, c.line, i, (size_t)nf);
+            return -1;
+        }
+        if (num(&s, e, &k) || k < 3 || k > MESHIO_MAX_POLY || k != floor(k)) {
+            SET_ERR("%s:%zu: expected a vertex count 3..%d", name, c.line, MESHIO_MAX_POLY);
+            return -1;
+        }
+        for (size_t j = 0; j < (size_t)k; j++) {
+            double v;
+            if (num(&s, e, &v) || v < 0 || v >= nv || v != floor(v)) {
+                SET_ERR("%s:%zu: vertex index %zu of the face is missing or out of range 0..%zu",
+                        name, c.line, j + 1, (size_t)nv - (nv > 0));
+                return -1;
+            }
+            idx[j] = (uint32_t)v;
+        }
+        if (add_poly(b, idx, (size_t)k)) goto oom;
+    }
+    return 0;
+oom:
+    SET_ERR("%s: out of memory", name);
+    return -1;
+}
+
+static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, char **err)
+{
+    tcur c = { data, data + len, 0 };
+    const char *s, *e;
+    uint32_t idx[MESHIO_MAX_POLY];
+    while (next_line(&c, &s, &e, '#')) {
+        if (e - s >= 2 && s[0] == 'v' && (s[1] == ' ' || s[1] == '\t')) {
+            double p[3];
+            s += 2;
+            if (num(&s, e, &p[0]) || num(&s, e, &p[1]) || num(&s, e, &p[2])) {
+                SET_ERR("%s:%zu: expected 'v x y z'", name, c.line);
+                return -1;
+            }
+            if (add_vertex(b, p[0], p[1], p[2])) goto oom;
+        } else if (e - s >= 2 && s[0] == 'f' && (s[1] == ' ' || s[1] == '\t')) {
+            size_t k = 0;
+            s += 2;
+            for (;;) {
+                while (s < e && (*s == ' ' || *s == '\t')) s++;
+                if (s >= e) break;
+                char *endp;
+                errno = 0;
+                long v = strtol(s, &endp, 10);
+                if (endp == s) {
+                    SET_ERR("%s:%zu: expected vertex indices after 'f'", name, c.line);
+                    return -1;
+                }
+                /* 1-based; negative indices count back from the last vertex */
+                long ix = v > 0 ? v - 1 : (long)b->m->nverts + v;
+                if (v == 0 || ix < 0 || (size_t)ix >= b->m->nverts) {
+                    SET_ERR("%s:%zu: vertex index %ld out of range (1..%zu so far)", name, c.line,
+                            v, b->m->nverts);
+                    return -1;
+                }
+                if (k >= MESHIO_MAX_POLY) {
+                    SET_ERR("%s:%zu: polygon with more than %d vertices", name, c.line,
+                            MESHIO_MAX_POLY);
+                    return -1;
+                }
+                idx[k++] = (uint32_t)ix;
+                s = endp;
+                while (s < e && !isspace((unsigned char)*s)) s++; /* skip /vt/vn */
+            }
+            if (k < 3) {
+                SET_ERR("%s:%zu: a face needs at least 3 vertices", name, c.line);
+                return -1;
+            }
+            if (add_poly(b, idx, k)) goto oom;
+        }
+        /* vn, vt, o, g, s, usemtl, mtllib: not needed for sampling */
+    }
+    return 0;
+oom:
+    SET_ERR("%s: out of memory", name);
+    return -1;
+}
+
+static double get_f32(const unsigned char *p, int big)
+{
+    uint32_t u = 0;
+    for (int i = 0; i < 4; i++) u |= (uint32_t)p[big ? 3 - i : i] << (8 * i);
+    float f;
+    memcpy(&f, &u, 4);
+    return f;
+}
+
+static uint32_t get_u32(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, char **err)
+{
+    const unsigned char *u = (const unsigned char *)data;
+    /* Binary when the size matches the triangle count (some binary files start with
+     * "solid" too). */
+    if (len >= 84) {
+        uint32_t n = get_u32(u + 80);
+        if ((uint64_t)84 + 50ull * n == len) {
+            if (n > MESHIO_MAX_ELEMENTS / 3) {
+                SET_ERR("%s: too many triangles (%u)", name, n);
+                return -1;
+            }
+            for (uint32_t t = 0; t < n; t++) {
+                const unsigned char *r = u + 84 + 50 * (size_t)t + 12;
+                uint32_t base = (uint32_t)b->m->nverts;
+                for (int v = 0; v < 3; v++)
+                    if (add_vertex(b, get_f32(r + 12 * v, 0), get_f32(r + 12 * v + 4, 0),
+                                   get_f32(r + 12 * v + 8, 0)))
+                        goto oom;
+                if (add_tri(b, base, base + 1, base + 2)) goto oom;
+            }
+            return 0;
+        }
+    }
+    tcur c = { data, data + len, 0 };
+    const char *s, *e;
+    if (!next_line(&c, &s, &e, '\0') || e - s < 5 || strncmp(s, "solid", 5) != 0) {
+        SET_ERR("%s: neither binary STL (size does not match the triangle count) nor ASCII "
+                "STL (no 'solid')", name);
+        return -1;
+    }
+    int nv = 0;
+    while (next_line(&c, &s, &e, '\0')) {
+        if (e - s >= 6 && strncmp(s, "vertex", 6) == 0) {
+            double p[3];
+            s += 6;
+            if (num(&s, e, &p[0]) || num(&s, e, &p[1]) || num(&s, e, &p[2])) {
+                SET_ERR("%s:%zu: expected 'vertex x y z'", name, c.line);
+                return -1;
+            }
+            if (add_vertex(b, p[0], p[1], p[2])) goto oom;
+            nv++;
+        } else if (e - s >= 7 && strncmp(s, "endloop", 7) == 0) {
+            if (nv < 3) {
+                SET_ERR("%s:%zu: a facet needs at least 3 vertices", name, c.line);
+                return -1;
+            }
+            uint32_t base = (uint32_t)(b->m->nverts - (size_t)nv);
+            for (int i = 1; i + 1 < nv; i++)
+                if (add_tri(b, base, base + (uint32_t)i, base + (uint32_t)i + 1)) goto oom;
+            nv = 0;
+        }
+    }
+    return 0;
+oom:
+    SET_ERR("%s: out of memory", name);
+    return -1;
+}
+
+/* ---- PLY ---- */
+
+typedef enum ptype { PT_NONE, PT_I8, PT_U8, PT_I16, PT_U16, PT_I32, PT_U32, PT_F32, PT_F64 } ptype;
+
+static ptype ptype_of(const char *s)
+{
+    static const struct { const char *n; ptype t; } tab[] = {
+        { "char", PT_I8 }, { "int8", PT_I8 }, { "uchar", PT_U8 }, { "uint8", PT_U8 },
+        { "short", PT_I16 }, { "int16", PT_I16 }, { "ushort", PT_U16 }, { "uint16", PT_U16 },
+        { "int", PT_I32 }, { "int32", PT_I32 }, { "uint", PT_U32 }, { "uint32", PT_U32 },
+        { "float", PT_F32 }, { "float32", PT_F32 }, { "double", PT_F64 }, { "float64", PT_F64 },
+    };
+    for (size_t i = 0; i < sizeof tab / sizeof tab[0]; i++)
+        if (strcmp(s, tab[i].n) == 0) return tab[i].t;
+    return PT_NONE;
+}
+
+static size_t ptype_size(ptype t)
+{
+    switch (t) {
+    case PT_I8: case PT_U8: return 1;
+    case PT_I16: case PT_U16: return 2;
+    case PT_I32: case PT_U32: case PT_F32: return 4;
+    case PT_F64: return 8;
+    case PT_NONE: break;
+    }
+    return 0;
+}
+
+static double ptype_get(const unsigned char *p, ptype t, int big)
+{
+    unsigned char b[8];
+    size_t n = ptype_size(t);
+    for (size_t i = 0; i < n; i++) b[i] = p[big ? n - 1 - i : i];
+    uint64_t u = 0;
+    for (size_t i = 0; i < n; i++) u |= (uint64_t)b[i] << (8 * i);
+    switch (t) {
+    case PT_I8: return (double)(int8_t)u;
+    case PT_U8: return (double)(uint8_t)u;
+    case PT_I16: return (double)(int16_t)u;
+    case PT_U16: return (double)(uint16_t)u;
+    case PT_I32: return (double)(int32_t)(uint32_t)u;
+    case PT_U32: return (double)(uint32_t)u;
+    case PT_F32: {
+        uint32_t w = (uint32_t)u;
+        float f;
+        memcpy(&f, &w, 4);
+        return f;
+    }
+    case PT_F64: {
+        double d;
+        memcpy(&d, &u, 8);
+        return d;
+    }
+    case PT_NONE: break;
+    }
+    return NAN;
+}
+
+typedef struct pprop {
+    char name[32];
+    ptype type, count_type;   /* count_type != PT_NONE: a list */
+} pprop;
+
+typedef struct pelem {
+    char name[32];
+    size_t count;
+    int nprops;
+    pprop props[MESHIO_PLY_MAX_PROPS];
+} pelem;
+
+/* Values of one element record: fixed properties in v[], the first list in list[]. */
+typedef struct prec {
+    double v[MESHIO_PLY_MAX_PROPS];
+    uint32_t list[MESHIO_MAX_POLY];
+    size_t nlist;
+} prec;
+
+static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, char **err)
+{
+    tcur c = { data, data + len, 0 };
+    const char *s, *e;
+    int fmt = -1; /* 0 ascii, 1 binary LE, 2 binary BE */
+    pelem *el = calloc(MESHIO_PLY_MAX_ELEMENTS, sizeof *el);
+    prec *rec = malloc(sizeof *rec);
+    int nel = 0, status = -1;
+    if (!el || !rec) goto oom;
+    if (!next_line(&c, &s, &e, '\0') || e - s != 3 || strncmp(s, "ply", 3) != 0) {
+        SET_ERR("%s:1: expected 'ply'", name);
+        goto done;
+    }
+    for (;;) {
+        if (!next_line(&c, &s, &e, '\0')) {
+            SET_ERR("%s:%zu: header without end_header", name, c.line);
+            goto done;
+        }
+        char line[256], w[4][64];
+        size_t n = (size_t)(e - s) < sizeof line - 1 ? (size_t)(e - s) : sizeof line - 1;
+        memcpy(line, s, n);
+        line[n] = '\0';
+        int nw = sscanf(line, "%63s %63s %63s %63s", w[0], w[1], w[2], w[3]);
+        if (nw < 1) continue;
+        if (strcmp(w[0], "end_header") == 0) break;
+        if (strcmp(w[0], "comment") == 0 || strcmp(w[0], "obj_info") == 0) continue;
+        if (strcmp(w[0], "format") == 0 && nw >= 2) {
+            fmt = strcmp(w[1], "ascii") == 0 ? 0 : strcmp(w[1], "binary_little_endian") == 0 ? 1 :
+                  strcmp(w[1], "binary_big_endian") == 0 ? 2 : -1;
+            if (fmt < 0) {
+                SET_ERR("%s:%zu: unknown PLY format '%s'", name, c.line, w[1]);
+                goto done;
+            }
+        } else if (strcmp(w[0], "element") == 0 && nw >= 3) {
+            char *endp;
+            double cnt = strtod(w[2], &endp);
+            if (nel >= MESHIO_PLY_MAX_ELEMENTS || *endp || cnt < 0 ||
+                cnt > (double)MESHIO_MAX_ELEMENTS || cnt != floor(cnt)) {
+                SET_ERR("%s:%zu: bad or too many elements", name, c.line);
+                goto done;
+            }
+            snprintf(el[nel].name, sizeof el[nel].name, "%.31s", w[1]);
+            el[nel].count = (size_t)cnt;
+            nel++;
+        } else if (strcmp(w[0], "property") == 0 && nw >= 3 && nel > 0) {
+            pelem *E = &el[nel - 1];
+            if (E->nprops >= MESHIO_PLY_MAX_PROPS) {
+                SET_ERR("%s:%zu: too many properties", name, c.line);
+                goto done;
+            }
+            pprop *P = &E->props[E->nprops++];
+            if (strcmp(w[1], "list") == 0) {
+                if (nw < 4 || (P->count_type = ptype_of(w[2])) == PT_NONE ||
+                    (P->type = ptype_of(w[3])) == PT_NONE) {
+                    SET_ERR("%s:%zu: bad list property", name, c.line);
+                    goto done;
+                }
+                char nm[64] = "";
+                sscanf(line, "%*s %*s %*s %*s %63s", nm);
+                snprintf(P->name, sizeof P->name, "%.31s", nm);
+            } else {
+                if ((P->type = ptype_of(w[1])) == PT_NONE) {
+                    SET_ERR("%s:%zu: unknown property type '%s'", name, c.line, w[1]);
+                    goto done;
+                }
+                P->count_type = PT_NONE;
+                snprintf(P->name, sizeof P->name, "%.31s", w[2]);
+            }
+        } else {
+            SET_ERR("%s:%zu: unexpected header line", name, c.line);
+            goto done;
+        }
+    }
+    if (fmt < 0) {
+        SET_ERR("%s: PLY header without a format line", name);
+        goto done;
+    }
+    size_t nverts_decl = 0;
+    const unsigned char *bp = (const unsigned char *)c.p, *bend = (const unsigned char *)c.end;
+    for (int ei = 0; ei < nel; ei++) {
+        pelem *E = &el[ei];
+        int isv = strcmp(E->name, "vertex") == 0, isf = strcmp(E->name, "face") == 0;
+        int ix = -1, iy = -1, iz = -1;
+        for (int k = 0; k < E->nprops; k++) {
+            if (strcmp(E->props[k].name, "x") == 0) ix = k;
+            if (strcmp(E->props[k].name, "y") == 0) iy = k;
+            if (strcmp(E->props[k].name, "z") == 0) iz = k;
+        }
+        if (isv && (ix < 0 || iy < 0 || iz < 0)) {
+            SET_ERR("%s: the vertex element lacks x, y or z", name);
+            goto done;
+        }
+        if (isv) nverts_decl = E->count;
+        for (size_t r = 0; r < E->count; r++) {
+            rec->nlist = 0;
+            int got_list = 0;
+            if (fmt == 0) {
+                if (!next_line(&c, &s, &e, '\0')) {
+                    SET_ERR("%s:%zu: file ends inside element '%s'", name, c.line, E->name);
+                    goto done;
+                }
+            }
+            for (int k = 0; k < E->nprops; k++) {
+                const pprop *P = &E->props[k];
+                size_t cnt = 1;
+                if (P->count_type != PT_NONE) {
+                    double cv;
+                    if (fmt == 0) {
+                        if (num(&s, e, &cv)) goto short_rec;
+                    } else {
+                        size_t sz = ptype_size(P->count_type);
+                        if ((size_t)(bend - bp) < sz) goto short_rec;
+                        cv = ptype_get(bp, P->count_type, fmt == 2);
+                        bp += sz;
+                    }
+                    if (!(cv >= 0 && cv <= MESHIO_MAX_POLY)) {
+                        SET_ERR("%s:%zu: list of %g items in element '%s'", name, c.line, cv,
+                                E->name);
+                        goto done;
+                    }
+                    cnt = (size_t)cv;
+                }
+                for (size_t j = 0; j < cnt; j++) {
+                    double v;
+                    if (fmt == 0) {
+                        if (num(&s, e, &v)) goto short_rec;
+                    } else {
+                        size_t sz = ptype_size(P->type);
+                        if ((size_t)(bend - bp) < sz) goto short_rec;
+                        v = ptype_get(bp, P->type, fmt == 2);
+                        bp += sz;
+                    }
+                    if (P->count_type == PT_NONE) {
+                        rec->v[k] = v;
+                    } else if (!got_list) {
+                        if (!(v >= 0 && v < (double)nverts_decl)) {
+                            SET_ERR("%s:%zu: vertex index %g out of range", name, c.line, v);
+                            goto done;
+                        }
+                        rec->list[rec->nlist++] = (uint32_t)v;
+                    }
+                }
+                if (P->count_type != PT_NONE) got_list = 1;
+            }
+            if (isv && add_vertex(b, rec->v[ix], rec->v[iy], rec->v[iz])) goto oom;
+            if (isf && rec->nlist >= 3 && add_poly(b, rec->list, rec->nlist)) goto oom;
+        }
+    }
+    status = 0;
+    goto done;
+short_rec:
+    SET_ERR(fmt == 0 ? "%s:%zu: too few values in a record" : "%s: file ends inside the data",
+            name, c.line);
+    goto done;
+oom:
+    SET_ERR("%s: out of memory", name);
+done:
+    free(el);
+    free(rec);
+    return status;
+}
+
+int meshio_parse(const char *name, const char *data, size_t len, meshio_format fmt,
+                 frep_mesh *m, char **err)
+{
+    memset(m, 0, sizeof *m);
+    if (err) *err = NULL;
+    if (fmt == MESHIO_UNKNOWN) {
+        if (len >= 3 && strncmp(data, "ply", 3) == 0) fmt = MESHIO_PLY;
+        else if (len >= 3 && strncmp(data, "OFF", 3) == 0) fmt = MESHIO_OFF;
+        else fmt = MESHIO_STL;
+    }
+    mbuild b = { m, 0, 0 };
+    int rc = -1;
+    switch (fmt) {
+    case MESHIO_OFF: rc = parse_off(name, data, len, &b, err); break;
+    case MESHIO_OBJ: rc = parse_obj(name, data, len, &b, err); break;
+    case MESHIO_STL: rc = parse_stl(name, data, len, &b, err); break;
+    case MESHIO_PLY: rc = parse_ply(name, data, len, &b, err); break;
+    case MESHIO_UNKNOWN: break;
+    }
+    if (rc == 0 && m->ntris == 0) {
+        SET_ERR("%s: the mesh has no triangles", name);
+        rc = -1;
+    }
+    for (size_t i = 0; rc == 0 && i < 3 * m->nverts; i++)
+        if (!isfinite(m->v[i])) {
+            SET_ERR("%s: vertex %zu has a non-finite coordinate", name, i / 3 + 1);
+            rc = -1;
+        }
+    if (rc != 0) mesh_free(m);
+    return rc;
+}
+
+int meshio_read(const char *path, frep_mesh *m, char **err)
+{
+    memset(m, 0, sizeof *m);
+    if (err) *err = NULL;
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        SET_ERR("%s: cannot open: %s", path, strerror(errno));
+        return -1;
+    }
+    size_t cap = MESHIO_READ_CHUNK, n = 0;
+    char *buf = malloc(cap);
+    while (buf) {
+        size_t got = fread(buf + n, 1, cap - n, f);
+        n += got;
+        if (n < cap) break;
+        char *nb = realloc(buf, 2 * cap);
+        if (!nb) {
+            free(buf);
+            buf = NULL;
+            break;
+        }
+        buf = nb;
+        cap *= 2;
+    }
+    int rd_err = ferror(f);
+    fclose(f);
+    if (!buf || rd_err) {
+        free(buf);
+        SET_ERR("%s: %s", path, rd_err ? "read error" : "out of memory");
+        return -1;
+    }
+    int rc = meshio_parse(path, buf, n, meshio_format_for_path(path), m, err);
+    free(buf);
+    return rc;
+}

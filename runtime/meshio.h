@@ -1,0 +1,42 @@
+/* meshio.h - triangle mesh files: write what runtime/mesh.c makes (STL binary and
+ * ASCII, OBJ, PLY binary and ASCII, OFF) and read triangle meshes (OFF, OBJ, STL, PLY)
+ * for `frep sample MESH`.  Writers take a FILE so the CLI can write atomically.
+ */
+#ifndef FREP_MESHIO_H
+#define FREP_MESHIO_H
+
+#include <stdio.h>
+
+#include "mesh.h"
+
+typedef enum meshio_format {
+    MESHIO_UNKNOWN = 0,
+    MESHIO_STL,
+    MESHIO_OBJ,
+    MESHIO_PLY,
+    MESHIO_OFF
+} meshio_format;
+
+/* Longest mesh the readers accept (vertices or faces): refuses absurd header counts
+ * before allocating. */
+#define MESHIO_MAX_ELEMENTS ((size_t)1 << 28)
+
+/* Format from the file name's extension (case-insensitive); MESHIO_UNKNOWN if none. */
+meshio_format meshio_format_for_path(const char *path);
+const char *meshio_format_name(meshio_format f);
+
+/* Write m in format fmt; ascii selects text STL / text PLY (OBJ and OFF are always
+ * text). Returns 0, or -1 on a write error. */
+int meshio_write(FILE *f, const frep_mesh *m, meshio_format fmt, int ascii);
+
+/* Read a triangle mesh (polygons are split into fans). The format comes from the
+ * extension, or the content for STL (ASCII or binary) and PLY (ascii, binary little
+ * and big endian). Returns 0 and fills *m (free with mesh_free; m->n is NULL), or -1
+ * with a malloc'ed message "path:line: what" in *err (free() it). */
+int meshio_read(const char *path, frep_mesh *m, char **err);
+/* The same from memory; `name` names the data in messages, fmt may be MESHIO_UNKNOWN
+ * (then guessed from the content). */
+int meshio_parse(const char *name, const char *data, size_t len, meshio_format fmt,
+                 frep_mesh *m, char **err);
+
+#endif

@@ -1,0 +1,357 @@
+/* program.c - building, checking, querying and disassembling frep_programs.
+ *
+ * The compiler (lang/emit.c) and the genetic-programming engine (evolve/) assemble
+ * bytecode with prog_emit() and seal it with prog_finish(), which verifies the stack
+ * discipline so the evaluators (runtime/vm*.c) can run it without checks.  The opcode
+ * queries and the disassembler are generated from the FREP_OPS table of ops.h.
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "program.h"
+
+/* ---- the opcode table, expanded -------------------------------------------- */
+
+typedef struct op_info {
+    const char *name;
+    const char *meaning;
+    int nin;
+    unsigned flags;
+} op_info;
+
+static const op_info op_table[FREP_OP__COUNT] = {
+#define FREP_OP_INFO(name, id, nin, flags, meaning) [id] = {#name, meaning, nin, flags},
+    FREP_OPS(FREP_OP_INFO)
+#undef FREP_OP_INFO
+};
+
+static int op_valid(frep_opcode op)
+{
+    return (unsigned)op < FREP_OP__COUNT && op_table[op].name != NULL;
+}
+
+const char *op_name(frep_opcode op) { return op_valid(op) ? op_table[op].name : "?"; }
+const char *op_meaning(frep_opcode op) { return op_valid(op) ? op_table[op].meaning : "?"; }
+int op_nin(frep_opcode op) { return op_valid(op) ? op_table[op].nin : 0; }
+unsigned op_flags(frep_opcode op) { return op_valid(op) ? op_table[op].flags : 0; }
+
+int op_pushes(frep_opcode op)
+{
+    if (op == FREP_OP_STORE || op == FREP_OP_JMP || op == FREP_OP_JZ || op == FREP_OP_STOREI)
+        return 0;
+    return op_valid(op) ? 1 : 0;
+}
+
+int insn_nin(const frep_insn *in)
+{
+    int n = op_nin((frep_opcode)in->op);
+    if (n == 2 && (in->flags & (INSN_KA | INSN_KB))) n = 1;
+    return n;
+}
+
+uint32_t prog_subtree_start(const frep_insn *code, uint32_t end)
+{
+    long need = 1;
+    uint32_t pc = end;
+    for (;;) {
+        need -= op_pushes((frep_opcode)code[pc].op);
+        need += insn_nin(&code[pc]);
+        if (need <= 0 || pc == 0) return pc;
+        --pc;
+    }
+}
+
+/* ---- building ---------------------------------------------------------------- */
+
+/* Initial instruction capacity; doubled as needed. */
+#define PROG_INITIAL_CAP 64u
+
+frep_program *prog_new(void)
+{
+    return calloc(1, sizeof(frep_program));
+}
+
+uint32_t prog_emit(frep_program *p, frep_opcode op, uint32_t arg, double k, uint8_t flags,
+                   frep_srcpos pos)
+{
+    if (p->ncode >= UINT32_MAX / 4) return UINT32_MAX;
+    /* Code built elsewhere (evolve/ splices its own arrays) may have cap 0 or no pos:
+     * grow both and give earlier instructions "no position". */
+    if (p->ncode >= p->cap || !p->code || !p->pos) {
+        uint32_t ncap = p->ncode < PROG_INITIAL_CAP ? PROG_INITIAL_CAP : 2 * p->ncode;
+        frep_insn *c;
+        frep_srcpos *ps;
+        int had_pos = p->pos != NULL;
+        if (ncap < p->cap) ncap = p->cap;
+        c = realloc(p->code, ncap * sizeof *c);
+        if (!c) return UINT32_MAX;
+        p->code = c;
+        ps = realloc(p->pos, ncap * sizeof *ps);
+        if (!ps) return UINT32_MAX;
+        if (!had_pos && p->ncode) memset(ps, 0, p->ncode * sizeof *ps);
+        p->pos = ps;
+        p->cap = ncap;
+    }
+    {
+        frep_insn *in = &p->code[p->ncode];
+        memset(in, 0, sizeof *in);
+        in->op = (uint8_t)op;
+        in->flags = flags;
+        in->arg = arg;
+        in->k = k;
+        p->pos[p->ncode] = pos;
+    }
+    return p->ncode++;
+}
+
+/* Check one instruction's operands against the program; may grow nslots/nprims so
+ * that hand-assembled programs need not set them. */
+static int prog_check_insn(frep_program *p, const frep_insn *in, uint32_t pc)
+{
+    frep_opcode op = (frep_opcode)in->op;
+    int nin = op_nin(op);
+    if (!op_valid(op)) return -1;
+    /* A switch over unsigned: only the ops with checked operands are listed. */
+    if ((in->flags & (INSN_KA | INSN_KB)) == (INSN_KA | INSN_KB)) return -1;
+    if ((in->flags & (INSN_KA | INSN_KB)) &&
+        (nin != 2 || op == FREP_OP_AUNI || op == FREP_OP_AINT || (op_flags(op) & OPF_CTRL)))
+        return -1; /* only plain binary ops have an immediate operand */
+    switch ((unsigned)op) {
+    case FREP_OP_X:
+        if (in->arg > 2) return -1;
+        break;
+    case FREP_OP_PARAM:
+        if (in->arg >= p->nparams) return -1;
+        break;
+    case FREP_OP_PRIM:
+        if (in->arg >= p->nprims) p->nprims = in->arg + 1;
+        break;
+    case FREP_OP_LOAD: case FREP_OP_STORE:
+        if (in->arg >= FREP_MAX_SLOTS) return -1;
+        if (in->arg >= p->nslots) p->nslots = in->arg + 1;
+        break;
+    case FREP_OP_LOADI: case FREP_OP_STOREI: {
+        double end = (double)in->arg + in->k;
+        if (!(in->k >= 1) || !(end <= FREP_MAX_SLOTS) || in->k != floor(in->k)) return -1;
+        if ((uint32_t)end > p->nslots) p->nslots = (uint32_t)end;
+        break;
+    }
+    case FREP_OP_JMP: case FREP_OP_JZ:
+        if (in->arg > p->ncode) return -1;
+        break;
+    default:
+        break;
+    }
+    (void)pc;
+    return 0;
+}
+
+int prog_finish(frep_program *p)
+{
+    long *depth;
+    uint32_t *work, nwork = 0, pc, flags = 0;
+    long maxd = 0;
+    int rc = 0;
+
+    if (!p || p->ncode == 0 || !p->code) return -1;
+    for (pc = 0; pc < p->ncode; pc++) {
+        frep_opcode op = (frep_opcode)p->code[pc].op;
+        if (prog_check_insn(p, &p->code[pc], pc) < 0) return -1;
+        if (op == FREP_OP_JMP || op == FREP_OP_JZ) flags |= PROG_HAS_BRANCHES;
+        if (op == FREP_OP_PRIM) flags |= PROG_HAS_PRIMS;
+    }
+
+    /* Stack depth before each pc (and at the end, index ncode) by a worklist over the
+     * control-flow graph: every path must agree on the depth at a join. */
+    depth = malloc((p->ncode + 1) * sizeof *depth);
+    work = malloc((p->ncode + 1) * sizeof *work);
+    if (!depth || !work) { free(depth); free(work); return -1; }
+    for (pc = 0; pc <= p->ncode; pc++) depth[pc] = -1;
+    depth[0] = 0;
+    work[nwork++] = 0;
+    while (nwork > 0 && rc == 0) {
+        uint32_t succ[2];
+        int nsucc = 0, i;
+        long d;
+        const frep_insn *in;
+        pc = work[--nwork];
+        if (pc == p->ncode) continue;
+        in = &p->code[pc];
+        d = depth[pc] - insn_nin(in);
+        if (d < 0) { rc = -1; break; }
+        d += op_pushes((frep_opcode)in->op);
+        if (d > maxd) maxd = d;
+        if (in->op == FREP_OP_JMP) {
+            succ[nsucc++] = in->arg;
+        } else {
+            succ[nsucc++] = pc + 1;
+            if (in->op == FREP_OP_JZ) succ[nsucc++] = in->arg;
+        }
+        for (i = 0; i < nsucc; i++) {
+            uint32_t s = succ[i];
+            if (depth[s] < 0) {
+                depth[s] = d;
+                work[nwork++] = s;
+            } else if (depth[s] != d) {
+                rc = -1;
+            }
+        }
+    }
+    /* The program must leave exactly its one result on the stack. */
+    if (rc == 0 && depth[p->ncode] != 1) rc = -1;
+    if (rc == 0 && maxd > FREP_MAX_STACK) rc = -1;
+    free(depth);
+    free(work);
+    if (rc < 0) return -1;
+    p->max_stack = (uint32_t)maxd;
+    p->flags = flags;
+    return 0;
+}
+
+void frep_program_free(frep_program *p)
+{
+    uint32_t i;
+    if (!p) return;
+    for (i = 0; i < p->nparams && p->params; i++) free(p->params[i].name);
+    free(p->params);
+    free(p->code);
+    free(p->pos);
+    free(p->file);
+    free(p->model);
+    free(p);
+}
+
+/* ---- queries ------------------------------------------------------------------ */
+
+size_t frep_program_size(const frep_program *p) { return p->ncode; }
+size_t frep_program_nparams(const frep_program *p) { return p->nparams; }
+
+const char *frep_program_param_name(const frep_program *p, size_t i)
+{
+    return i < p->nparams && p->params ? p->params[i].name : NULL;
+}
+
+double frep_program_param_value(const frep_program *p, size_t i)
+{
+    return i < p->nparams && p->params ? p->params[i].value : NAN;
+}
+
+int frep_program_param_bounds(const frep_program *p, size_t i, double *lo, double *hi)
+{
+    if (i >= p->nparams || !p->params) return 0;
+    if (lo) *lo = p->params[i].lo;
+    if (hi) *hi = p->params[i].hi;
+    return p->params[i].has_bounds != 0;
+}
+
+int frep_program_box(const frep_program *p, double box[6])
+{
+    if (!p->has_box) return 0;
+    memcpy(box, p->box, sizeof p->box);
+    return 1;
+}
+
+/* ---- disassembly ---------------------------------------------------------------- */
+
+typedef struct strbuf {
+    char *s;
+    size_t len, cap;
+    int failed;
+} strbuf;
+
+static void sb_printf(strbuf *b, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+static void sb_printf(strbuf *b, const char *fmt, ...)
+{
+    va_list ap;
+    int n;
+    if (b->failed) return;
+    for (;;) {
+        size_t room = b->cap - b->len;
+        va_start(ap, fmt);
+        n = vsnprintf(b->s ? b->s + b->len : NULL, room, fmt, ap);
+        va_end(ap);
+        if (n < 0) { b->failed = 1; return; }
+        if ((size_t)n < room) { b->len += (size_t)n; return; }
+        {
+            size_t ncap = b->cap ? 2 * b->cap : 1024;
+            char *s;
+            while (ncap < b->len + (size_t)n + 1) ncap *= 2;
+            s = realloc(b->s, ncap);
+            if (!s) { b->failed = 1; return; }
+            b->s = s;
+            b->cap = ncap;
+        }
+    }
+}
+
+static const char *axis_name(uint32_t a) { return a == 0 ? "x" : a == 1 ? "y" : "z"; }
+
+/* Operand text of one instruction, chosen by the op's fields (see ops.h). */
+static void dis_operands(strbuf *b, const frep_program *p, const frep_insn *in)
+{
+    /* A switch over unsigned: ops without operand fields share the default. */
+    switch ((unsigned)in->op) {
+    case FREP_OP_CONST: sb_printf(b, "%.17g", in->k); break;
+    case FREP_OP_X: sb_printf(b, "%s", axis_name(in->arg)); break;
+    case FREP_OP_PARAM:
+        sb_printf(b, "%u", in->arg);
+        if (p->params && in->arg < p->nparams && p->params[in->arg].name)
+            sb_printf(b, " (%s)", p->params[in->arg].name);
+        break;
+    case FREP_OP_LOAD: case FREP_OP_STORE: sb_printf(b, "s%u", in->arg); break;
+    case FREP_OP_PRIM: sb_printf(b, "p%u", in->arg); break;
+    case FREP_OP_JMP: case FREP_OP_JZ: sb_printf(b, "-> %u", in->arg); break;
+    case FREP_OP_LOADI: case FREP_OP_STOREI:
+        sb_printf(b, "s%u[%.17g]", in->arg, in->k);
+        break;
+    case FREP_OP_AUNI: case FREP_OP_AINT: sb_printf(b, "alpha=%.17g", in->k); break;
+    default:
+        if (in->flags & INSN_KB) sb_printf(b, "b=%.17g", in->k);
+        else if (in->flags & INSN_KA) sb_printf(b, "a=%.17g", in->k);
+        break;
+    }
+    if (in->flags & INSN_QUIET) sb_printf(b, "%squiet", b->s && b->len && b->s[b->len - 1] != ' ' ? " " : "");
+}
+
+char *frep_disassemble(const frep_program *p)
+{
+    strbuf b = {NULL, 0, 0, 0};
+    uint32_t pc, i;
+    sb_printf(&b, "; model %s", p->model ? p->model : "(unnamed)");
+    if (p->file) sb_printf(&b, " from %s", p->file);
+    sb_printf(&b, "\n; %u instructions, %u slots, stack %u, %u parameters", p->ncode,
+              p->nslots, p->max_stack, p->nparams);
+    if (p->nprims) sb_printf(&b, ", %u primitives", p->nprims);
+    sb_printf(&b, "\n");
+    for (i = 0; i < p->nparams && p->params; i++) {
+        const frep_param_info *q = &p->params[i];
+        sb_printf(&b, "; param %u %s = %.17g", i, q->name ? q->name : "?", q->value);
+        if (q->has_bounds) sb_printf(&b, " in [%.17g, %.17g]", q->lo, q->hi);
+        sb_printf(&b, "\n");
+    }
+    for (pc = 0; pc < p->ncode; pc++) {
+        const frep_insn *in = &p->code[pc];
+        size_t start;
+        sb_printf(&b, "%6u  %-7s ", pc, op_name((frep_opcode)in->op));
+        start = b.len;
+        dis_operands(&b, p, in);
+        if (p->pos && p->pos[pc].line) {
+            size_t w = b.len - start;
+            sb_printf(&b, "%*s; %u:%u", w < 24 ? (int)(24 - w) : 1, "", p->pos[pc].line,
+                      p->pos[pc].col);
+        }
+        /* Trim the padding of operand-less lines. */
+        while (!b.failed && b.len > 0 && b.s[b.len - 1] == ' ') b.len--;
+        sb_printf(&b, "\n");
+    }
+    if (b.failed) { free(b.s); return NULL; }
+    if (!b.s) return calloc(1, 1);
+    return b.s;
+}

@@ -1,0 +1,78 @@
+/* vm_internal.h - the per-thread evaluation state shared by runtime/vm.c (values),
+ * runtime/vm_tangent.c (forward-mode derivatives) and runtime/eval.c (public API).
+ *
+ * One vm_scratch per thread: every field is mutable evaluation state, so a scratch is
+ * never shared.  Buffers grow on demand to fit the program being run.
+ */
+#ifndef FREP_VM_INTERNAL_H
+#define FREP_VM_INTERNAL_H
+
+#include <stdint.h>
+
+#include "vm.h"
+
+/* The evaluators' main loops are compiled twice, for AVX2 and for the baseline ISA,
+ * and picked at load time (GCC function multi-versioning on x86-64 GNU/Linux): AVX2
+ * processes 4 lanes per instruction instead of 2.  FMA is deliberately not enabled, so
+ * both versions round exactly like opsem.h's scalar code. */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && \
+    !defined(FREP_NO_CLONES)
+#define VM_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define VM_CLONES
+#endif
+
+/* Runtime errors of one run of a block: committed to the scratch's totals only when
+ * the run completes (a run abandoned for divergent branches records nothing). */
+typedef struct vm_errstate {
+    uint64_t count;     /* points with an error */
+    uint32_t pc;        /* lowest pc with an error; valid when count > 0 */
+    double x, y, z;     /* a point that raised the error at pc */
+    const char *what;   /* opsem_error_what() of the op at pc */
+} vm_errstate;
+
+/* Tangent evaluation state for T tangents (vm_tangent.c); allocated on first use. */
+typedef struct vm_tanstate vm_tanstate;
+
+struct vm_scratch {
+    /* Capacities (grown by vm_scratch_fit). */
+    uint32_t cap_stack, cap_slots, cap_params, cap_prims;
+
+    /* Value evaluator.  Every stack level owns two lane buffers (lv[2L], lv[2L+1]): an
+     * operator writes the one its operand does not occupy, so loops never alias and
+     * can use restrict.  sp[L] points at the level's value: a level buffer, or the
+     * input, slot or parameter vector a leaf pushed (no copy). */
+    double **lv;
+    const double **sp;
+    /* Slots: slotbuf[s] is owned storage; slotp[s] is the slot's current value, either
+     * slotbuf[s] or `zeros` (never assigned in this run: variables start at 0). */
+    double **slotbuf;
+    const double **slotp;
+    double *parambuf;          /* parameter j broadcast at parambuf[j*FREP_BLOCK] */
+    double *zeros;             /* FREP_BLOCK zeros, never written */
+    const double **primp;      /* per-lane PRIM pointers of a divergent rerun */
+    const double **primg;      /* same for prim gradients */
+    unsigned char *errlane;    /* per lane: raised an error in the current run */
+
+    vm_errstate blk;           /* errors of the current run */
+    vm_errstate total;         /* errors since the last reset */
+
+    vm_tanstate *tan;          /* tangent evaluator state, NULL until used */
+    const frep_program *cur;   /* program of the current run (error messages) */
+};
+
+/* Make s big enough for p. Returns 0 or -1 on allocation failure. */
+int vm_scratch_fit(vm_scratch *s, const frep_program *p);
+
+/* Error bookkeeping used by both evaluators. */
+void vm_err_begin(vm_scratch *s, size_t n);
+/* Lane i raised an error at pc. */
+void vm_err_lane(vm_scratch *s, uint32_t pc, size_t i, const vm_inputs *in);
+/* Commit the run's errors (n lanes) into the scratch totals. */
+void vm_err_commit(vm_scratch *s, size_t n);
+/* Merge error totals: deterministic (lowest pc wins, counts add). */
+void vm_err_merge(vm_errstate *into, const vm_errstate *from);
+
+void vm_tan_free(vm_tanstate *t);
+
+#endif

@@ -1,0 +1,468 @@
+/* vm_interval.c - the interval evaluator: runs a program's bytecode with intervals for
+ * x, y, z and yields a sound enclosure of f over a box (interval.h).
+ *
+ * Used by the octree of runtime/mesh.c to skip space the surface cannot cross.  Every
+ * opcode of ops.h is handled; the common ones (arithmetic, R-functions, min/max,
+ * elementary functions, integer powers) give tight bounds, exotic ones a safe hull.
+ */
+#include "config.h"
+
+#include "interval.h"
+#include "opsem.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+#define IV_PI 3.14159265358979323846
+#define IV_HALF_PI 1.57079632679489661923
+#define IV_TWO_PI 6.28318530717958647692
+
+struct vm_iscratch {
+    uint32_t nstack, nslots;
+    ival *stack;
+    ival *slots;
+};
+
+vm_iscratch *vm_iscratch_new(const frep_program *p)
+{
+    vm_iscratch *s = calloc(1, sizeof *s);
+    if (!s) return NULL;
+    s->nstack = p->max_stack + 1;
+    s->nslots = p->nslots + 1;
+    s->stack = malloc(s->nstack * sizeof *s->stack);
+    s->slots = malloc(s->nslots * sizeof *s->slots);
+    if (!s->stack || !s->slots) {
+        vm_iscratch_free(s);
+        return NULL;
+    }
+    return s;
+}
+
+void vm_iscratch_free(vm_iscratch *s)
+{
+    if (!s) return;
+    free(s->stack);
+    free(s->slots);
+    free(s);
+}
+
+/* ---- helpers ------------------------------------------------------------------ */
+
+static ival iv(double lo, double hi) { ival r = { lo, hi }; return r; }
+static ival iv_entire(void) { return iv(-INFINITY, INFINITY); }
+static ival iv_exact(double v) { return isnan(v) ? iv_entire() : iv(v, v); }
+
+/* A NaN bound (inf - inf, 0 * inf) means "anything" on that side. */
+static ival iv_fix(ival r)
+{
+    if (isnan(r.lo)) r.lo = -INFINITY;
+    if (isnan(r.hi)) r.hi = INFINITY;
+    if (r.lo > r.hi) return iv_entire();
+    return r;
+}
+
+/* Widen outward by one ulp: round-to-nearest operations (and glibc's elementary
+ * functions, accurate to within an ulp in their main ranges) then stay inside. */
+static ival iv_round(ival r)
+{
+    r = iv_fix(r);
+    if (r.lo > -INFINITY) r.lo = nextafter(r.lo, -INFINITY);
+    if (r.hi < INFINITY) r.hi = nextafter(r.hi, INFINITY);
+    return r;
+}
+
+static ival iv_hull(ival a, ival b) { return iv(fmin(a.lo, b.lo), fmax(a.hi, b.hi)); }
+
+static int iv_is_exact(ival a) { return a.lo == a.hi; }
+/* Truth of an interval as a condition: nonzero is true (NaN included). */
+static int iv_surely_true(ival a) { return a.lo > 0 || a.hi < 0; }
+static int iv_surely_false(ival a) { return a.lo == 0 && a.hi == 0; }
+static ival iv_bool(int surely_true, int surely_false)
+{
+    return surely_true ? iv(1, 1) : (surely_false ? iv(0, 0) : iv(0, 1));
+}
+
+static double min4(double a, double b, double c, double d)
+{
+    /* fmin drops NaN operands, which here are 0 * inf products: never extremes. */
+    return fmin(fmin(a, b), fmin(c, d));
+}
+static double max4(double a, double b, double c, double d)
+{
+    return fmax(fmax(a, b), fmax(c, d));
+}
+
+static ival iv_mul(ival a, ival b)
+{
+    double p1 = a.lo * b.lo, p2 = a.lo * b.hi, p3 = a.hi * b.lo, p4 = a.hi * b.hi;
+    return iv_round(iv(min4(p1, p2, p3, p4), max4(p1, p2, p3, p4)));
+}
+
+static ival iv_div(ival a, ival b)
+{
+    if (b.lo <= 0 && b.hi >= 0) return iv_entire();
+    return iv_mul(a, iv_round(iv(1.0 / b.hi, 1.0 / b.lo)));
+}
+
+static ival iv_square(ival a)
+{
+    double l = a.lo * a.lo, h = a.hi * a.hi;
+    if (a.lo <= 0 && a.hi >= 0) return iv(0, iv_round(iv(0, fmax(l, h))).hi);
+    return iv_round(iv(fmin(l, h), fmax(l, h)));
+}
+
+/* Monotone nondecreasing / nonincreasing functions. */
+static ival iv_incr(double (*f)(double), ival a) { return iv_round(iv(f(a.lo), f(a.hi))); }
+
+/* Does [lo, hi] contain c + 2 pi n for some integer n? Conservative near the ends. */
+static int iv_has_phase(ival a, double c)
+{
+    double n = ceil((a.lo - c) / IV_TWO_PI - 1e-12);
+    return c + n * IV_TWO_PI <= a.hi + 1e-12 * (1 + fabs(a.hi));
+}
+
+static ival iv_sin(ival a)
+{
+    if (!isfinite(a.lo) || !isfinite(a.hi) || a.hi - a.lo >= IV_TWO_PI) return iv(-1, 1);
+    double s1 = sin(a.lo), s2 = sin(a.hi);
+    ival r = iv(fmin(s1, s2), fmax(s1, s2));
+    if (iv_has_phase(a, IV_HALF_PI)) r.hi = 1;
+    if (iv_has_phase(a, -IV_HALF_PI)) r.lo = -1;
+    r = iv_round(r);
+    return iv(fmax(r.lo, -1), fmin(r.hi, 1));
+}
+
+static ival iv_cos(ival a)
+{
+    if (!isfinite(a.lo) || !isfinite(a.hi) || a.hi - a.lo >= IV_TWO_PI) return iv(-1, 1);
+    double c1 = cos(a.lo), c2 = cos(a.hi);
+    ival r = iv(fmin(c1, c2), fmax(c1, c2));
+    if (iv_has_phase(a, 0)) r.hi = 1;
+    if (iv_has_phase(a, IV_PI)) r.lo = -1;
+    r = iv_round(r);
+    return iv(fmax(r.lo, -1), fmin(r.hi, 1));
+}
+
+static ival iv_tan(ival a)
+{
+    if (!isfinite(a.lo) || !isfinite(a.hi) || a.hi - a.lo >= IV_PI) return iv_entire();
+    /* tan is increasing between its poles pi/2 + n pi. */
+    if (iv_has_phase(a, IV_HALF_PI) || iv_has_phase(a, -IV_HALF_PI)) return iv_entire();
+    return iv_round(iv(tan(a.lo), tan(a.hi)));
+}
+
+/* x^n for an integer n (pow with a constant integer exponent). */
+static ival iv_powi(ival a, double n)
+{
+    if (n == 0) return iv(1, 1);
+    int even = fmod(n, 2.0) == 0;
+    if (n > 0) {
+        if (!even) return iv_round(iv(pow(a.lo, n), pow(a.hi, n)));
+        double l = pow(a.lo, n), h = pow(a.hi, n);
+        if (a.lo <= 0 && a.hi >= 0) return iv(0, iv_round(iv(0, fmax(l, h))).hi);
+        return iv_round(iv(fmin(l, h), fmax(l, h)));
+    }
+    if (a.lo <= 0 && a.hi >= 0) return iv_entire();
+    double l = pow(a.lo, n), h = pow(a.hi, n);
+    return iv_round(iv(fmin(l, h), fmax(l, h)));
+}
+
+static ival iv_pow(ival a, ival b)
+{
+    if (iv_is_exact(b) && isfinite(b.lo) && b.lo == trunc(b.lo)) return iv_powi(a, b.lo);
+    if (a.lo >= 0 && iv_is_exact(b) && isfinite(b.lo)) {
+        if (b.lo > 0) return iv_round(iv(pow(a.lo, b.lo), pow(a.hi, b.lo)));
+        return iv_round(iv(pow(a.hi, b.lo), pow(a.lo, b.lo)));
+    }
+    if (a.lo > 0) {
+        /* a^b = exp(b log a): monotone in each factor. */
+        ival l = iv_round(iv(log(a.lo), log(a.hi)));
+        ival m = iv_mul(b, l);
+        return iv_round(iv(exp(m.lo), exp(m.hi)));
+    }
+    return iv_entire();
+}
+
+static ival iv_fmod(ival a, ival b)
+{
+    if (b.lo <= 0 && b.hi >= 0) return iv_entire();
+    double m = fmax(fabs(b.lo), fabs(b.hi));
+    if (iv_is_exact(b) && isfinite(a.lo) && isfinite(a.hi) && (a.lo >= 0 || a.hi <= 0)) {
+        double c = fabs(b.lo);
+        double q1 = trunc(a.lo / c), q2 = trunc(a.hi / c);
+        if (q1 == q2) return iv_round(iv(fmod(a.lo, c), fmod(a.hi, c)));
+    }
+    /* |fmod(a, b)| < |b| and <= |a|, with the sign of a. */
+    double lo = a.lo >= 0 ? 0 : fmax(-m, a.lo);
+    double hi = a.hi <= 0 ? 0 : fmin(m, a.hi);
+    return iv(lo, hi);
+}
+
+static ival iv_frac(ival a)
+{
+    if (isfinite(a.lo) && isfinite(a.hi) && trunc(a.lo) == trunc(a.hi) &&
+        (a.lo >= 0 || a.hi <= 0)) {
+        double t = trunc(a.lo);
+        return iv_round(iv(a.lo - t, a.hi - t));
+    }
+    if (a.lo >= 0) return iv(0, 1);
+    if (a.hi <= 0) return iv(-1, 0);
+    return iv(-1, 1);
+}
+
+static ival iv_atan2(ival y, ival x)
+{
+    /* Away from the branch cut (the negative x axis) and the origin, atan2 is
+     * continuous and monotone in each argument over the box: corners bound it. */
+    if (y.lo > 0 || y.hi < 0 || x.lo > 0) {
+        double c1 = atan2(y.lo, x.lo), c2 = atan2(y.lo, x.hi);
+        double c3 = atan2(y.hi, x.lo), c4 = atan2(y.hi, x.hi);
+        return iv_round(iv(min4(c1, c2, c3, c4), max4(c1, c2, c3, c4)));
+    }
+    return iv_round(iv(-IV_PI, IV_PI));
+}
+
+/* R-functions are nondecreasing in each argument (d/da = 1 +- a/sqrt(a^2+b^2) >= 0),
+ * so the corners (lo, lo) and (hi, hi) bound them. */
+static ival iv_mono2(double (*f)(double, double), ival a, ival b)
+{
+    return iv_round(iv(f(a.lo, b.lo), f(a.hi, b.hi)));
+}
+
+/* R-alpha functions are monotone too when |alpha| <= 1 (a^2+b^2-2k ab >= (a-kb)^2). */
+static ival iv_ralpha(frep_opcode op, ival a, ival b, double k)
+{
+    if (!(k >= -1 && k <= 1) || k == -1) return iv_entire();
+    if (op == FREP_OP_AUNI)
+        return iv_round(iv(opsem_auni(a.lo, b.lo, k), opsem_auni(a.hi, b.hi, k)));
+    return iv_round(iv(opsem_aint(a.lo, b.lo, k), opsem_aint(a.hi, b.hi, k)));
+}
+
+static double iv_runi_f(double a, double b) { return opsem_runi(a, b); }
+static double iv_rint_f(double a, double b) { return opsem_rint(a, b); }
+
+/* Comparisons are decided when the operand intervals do not overlap (or touch, for the
+ * strict ones); otherwise both truth values are possible. */
+static ival iv_compare(frep_opcode op, ival a, ival b)
+{
+    int exact_eq = iv_is_exact(a) && iv_is_exact(b) && a.lo == b.lo;
+    int apart = a.hi < b.lo || b.hi < a.lo;
+    if (op == FREP_OP_EQ) return iv_bool(exact_eq, apart);
+    if (op == FREP_OP_NE) return iv_bool(apart, exact_eq);
+    if (op == FREP_OP_LT) return iv_bool(a.hi < b.lo, a.lo >= b.hi);
+    if (op == FREP_OP_LE) return iv_bool(a.hi <= b.lo, a.lo > b.hi);
+    if (op == FREP_OP_GT) return iv_bool(a.lo > b.hi, a.hi <= b.lo);
+    return iv_bool(a.lo >= b.hi, a.hi < b.lo); /* GE */
+}
+
+ival ival_op(frep_opcode op, const ival *v, double k)
+{
+    ival a = v[0], b = v[1];
+    switch (op) {
+    case FREP_OP_NEG: return iv(-a.hi, -a.lo);
+    case FREP_OP_NOT: return iv_bool(iv_surely_false(a), iv_surely_true(a));
+    case FREP_OP_ABS:
+        if (a.lo >= 0) return a;
+        if (a.hi <= 0) return iv(-a.hi, -a.lo);
+        return iv(0, fmax(-a.lo, a.hi));
+    case FREP_OP_SQRT:
+        if (a.hi < 0) return iv_entire(); /* NaN everywhere: nothing to enclose */
+        return iv_round(iv(sqrt(fmax(a.lo, 0)), sqrt(a.hi)));
+    case FREP_OP_SQUARE: return iv_square(a);
+    case FREP_OP_EXP: return iv_round(iv(fmax(exp(a.lo), 0), exp(a.hi)));
+    case FREP_OP_LOG:
+        if (a.hi <= 0) return iv_entire();
+        return iv_round(iv(a.lo > 0 ? log(a.lo) : -INFINITY, log(a.hi)));
+    case FREP_OP_LOGD:
+        if (a.hi <= 0) return iv_entire();
+        return iv_round(iv(a.lo > 0 ? log10(a.lo) : -INFINITY, log10(a.hi)));
+    case FREP_OP_SIN: return iv_sin(a);
+    case FREP_OP_COS: return iv_cos(a);
+    case FREP_OP_TAN: return iv_tan(a);
+    case FREP_OP_ASIN:
+        if (a.lo > 1 || a.hi < -1) return iv_entire();
+        return iv_round(iv(asin(fmax(a.lo, -1)), asin(fmin(a.hi, 1))));
+    case FREP_OP_ACOS:
+        if (a.lo > 1 || a.hi < -1) return iv_entire();
+        return iv_round(iv(acos(fmin(a.hi, 1)), acos(fmax(a.lo, -1))));
+    case FREP_OP_ATAN: return iv_incr(atan, a);
+    case FREP_OP_SINH: return iv_incr(sinh, a);
+    case FREP_OP_COSH: {
+        double l = cosh(a.lo), h = cosh(a.hi);
+        if (a.lo <= 0 && a.hi >= 0) return iv_round(iv(1, fmax(l, h)));
+        return iv_round(iv(fmin(l, h), fmax(l, h)));
+    }
+    case FREP_OP_TANH: return iv_incr(tanh, a);
+    case FREP_OP_SIGN: return iv(opsem_sign(a.lo), opsem_sign(a.hi));
+    case FREP_OP_CEIL: return iv(ceil(a.lo), ceil(a.hi));
+    case FREP_OP_FLOOR: return iv(floor(a.lo), floor(a.hi));
+    case FREP_OP_INT: return iv(trunc(a.lo), trunc(a.hi));
+    case FREP_OP_FRAC: return iv_frac(a);
+    case FREP_OP_ADD: return iv_round(iv(a.lo + b.lo, a.hi + b.hi));
+    case FREP_OP_SUB: return iv_round(iv(a.lo - b.hi, a.hi - b.lo));
+    case FREP_OP_MUL: return iv_mul(a, b);
+    case FREP_OP_DIV: return iv_div(a, b);
+    case FREP_OP_POW: return iv_pow(a, b);
+    case FREP_OP_MOD: return iv_fmod(a, b);
+    case FREP_OP_MIN: return iv(fmin(a.lo, b.lo), fmin(a.hi, b.hi));
+    case FREP_OP_MAX: return iv(fmax(a.lo, b.lo), fmax(a.hi, b.hi));
+    case FREP_OP_ATAN2: return iv_atan2(a, b);
+    case FREP_OP_EQ: case FREP_OP_NE: case FREP_OP_LT: case FREP_OP_LE:
+    case FREP_OP_GT: case FREP_OP_GE:
+        return iv_compare(op, a, b);
+    case FREP_OP_AND:
+        return iv_bool(iv_surely_true(a) && iv_surely_true(b),
+                       iv_surely_false(a) || iv_surely_false(b));
+    case FREP_OP_OR:
+        return iv_bool(iv_surely_true(a) || iv_surely_true(b),
+                       iv_surely_false(a) && iv_surely_false(b));
+    case FREP_OP_RUNI: return iv_mono2(iv_runi_f, a, b);
+    case FREP_OP_RINT: return iv_mono2(iv_rint_f, a, b);
+    case FREP_OP_RSUB: return iv_mono2(iv_rint_f, a, iv(-b.hi, -b.lo));
+    case FREP_OP_MSUB: return iv(fmin(a.lo, -b.hi), fmin(a.hi, -b.lo));
+    case FREP_OP_AUNI: case FREP_OP_AINT: return iv_ralpha(op, a, b, k);
+    case FREP_OP_SELECT:
+        if (iv_surely_true(v[0])) return v[1];
+        if (iv_surely_false(v[0])) return v[2];
+        return iv_hull(v[1], v[2]);
+    case FREP_OP_CONST: case FREP_OP_X: case FREP_OP_PARAM: case FREP_OP_LOAD:
+    case FREP_OP_PRIM: case FREP_OP_STORE: case FREP_OP_JMP: case FREP_OP_JZ:
+    case FREP_OP_LOADI: case FREP_OP_STOREI: case FREP_OP__COUNT:
+        break;
+    }
+    return iv_entire();
+}
+
+/* The 1-based slot range an index interval may select in an array of size k;
+ * returns 0 when no valid index is possible. */
+static int iv_index_range(ival i, double k, uint32_t *first, uint32_t *last)
+{
+    double lo = trunc(fmax(i.lo, 1)), hi = trunc(fmin(i.hi, k));
+    if (!(lo <= hi)) return 0;
+    *first = (uint32_t)lo - 1;
+    *last = (uint32_t)hi - 1;
+    return 1;
+}
+
+int vm_eval_interval(const frep_program *p, vm_iscratch *s, const double box[6],
+                     const double *params, ival *out)
+{
+    *out = iv_entire();
+    if (p->max_stack + 1 > s->nstack || p->nslots + 1 > s->nslots) return -1;
+    if (p->flags & PROG_HAS_PRIMS) return 0;
+    ival *st = s->stack;
+    uint32_t sp = 0;
+    long loops = 0;
+    for (uint32_t i = 0; i < p->nslots; i++) s->slots[i] = iv(0, 0);
+    for (uint32_t pc = 0; pc < p->ncode;) {
+        const frep_insn *in = &p->code[pc];
+        frep_opcode op = (frep_opcode)in->op;
+        uint32_t next = pc + 1;
+        ival v[3];
+        switch (op) {
+        case FREP_OP_CONST: st[sp++] = iv_exact(in->k); break;
+        case FREP_OP_X:
+            if (in->arg > 2) return 0;
+            st[sp++] = iv(box[in->arg], box[in->arg + 3]);
+            break;
+        case FREP_OP_PARAM:
+            if (in->arg >= p->nparams) return 0;
+            st[sp++] = iv_exact(params ? params[in->arg] : p->params[in->arg].value);
+            break;
+        case FREP_OP_LOAD:
+            if (in->arg >= p->nslots) return 0;
+            st[sp++] = s->slots[in->arg];
+            break;
+        case FREP_OP_PRIM: return 0;
+        case FREP_OP_STORE:
+            if (in->arg >= p->nslots || sp < 1) return 0;
+            s->slots[in->arg] = st[--sp];
+            break;
+        case FREP_OP_JMP:
+            if (in->arg <= pc && ++loops > FREP_MAX_LOOP_ITERATIONS) return 0;
+            next = in->arg;
+            break;
+        case FREP_OP_JZ:
+            if (sp < 1) return 0;
+            v[0] = st[--sp];
+            if (iv_surely_false(v[0])) next = in->arg;
+            else if (!iv_surely_true(v[0])) return 0; /* undecided branch */
+            break;
+        case FREP_OP_LOADI: {
+            uint32_t first, last;
+            if (sp < 1) return 0;
+            ival idx = st[sp - 1];
+            if (!iv_index_range(idx, in->k, &first, &last) ||
+                (uint64_t)in->arg + last >= p->nslots)
+                return 0;
+            ival r = s->slots[in->arg + first];
+            for (uint32_t j = first + 1; j <= last; j++) r = iv_hull(r, s->slots[in->arg + j]);
+            st[sp - 1] = r;
+            break;
+        }
+        case FREP_OP_STOREI: {
+            uint32_t first, last;
+            if (sp < 2) return 0;
+            ival idx = st[--sp], val = st[--sp];
+            if (!iv_index_range(idx, in->k, &first, &last) ||
+                (uint64_t)in->arg + last >= p->nslots)
+                return 0;
+            /* An undecided index may write any candidate slot: each keeps the hull. */
+            for (uint32_t j = first; j <= last; j++) {
+                ival *slot = &s->slots[in->arg + j];
+                *slot = first == last ? val : iv_hull(*slot, val);
+            }
+            break;
+        }
+        case FREP_OP_NEG: case FREP_OP_NOT: case FREP_OP_ABS: case FREP_OP_SQRT:
+        case FREP_OP_SQUARE: case FREP_OP_EXP: case FREP_OP_LOG: case FREP_OP_LOGD:
+        case FREP_OP_SIN: case FREP_OP_COS: case FREP_OP_TAN: case FREP_OP_ASIN:
+        case FREP_OP_ACOS: case FREP_OP_ATAN: case FREP_OP_SINH: case FREP_OP_COSH:
+        case FREP_OP_TANH: case FREP_OP_SIGN: case FREP_OP_CEIL: case FREP_OP_FLOOR:
+        case FREP_OP_INT: case FREP_OP_FRAC:
+            if (sp < 1) return 0;
+            v[0] = st[sp - 1];
+            v[1] = v[2] = iv(0, 0);
+            st[sp - 1] = ival_op(op, v, in->k);
+            break;
+        case FREP_OP_ADD: case FREP_OP_SUB: case FREP_OP_MUL: case FREP_OP_DIV:
+        case FREP_OP_POW: case FREP_OP_MOD: case FREP_OP_MIN: case FREP_OP_MAX:
+        case FREP_OP_ATAN2: case FREP_OP_EQ: case FREP_OP_NE: case FREP_OP_LT:
+        case FREP_OP_LE: case FREP_OP_GT: case FREP_OP_GE: case FREP_OP_AND:
+        case FREP_OP_OR: case FREP_OP_RUNI: case FREP_OP_RINT: case FREP_OP_RSUB:
+        case FREP_OP_MSUB: case FREP_OP_AUNI: case FREP_OP_AINT: {
+            double kk = in->k;
+            if (in->flags & INSN_KB) {
+                if (sp < 1) return 0;
+                v[0] = st[--sp];
+                v[1] = iv_exact(kk);
+            } else if (in->flags & INSN_KA) {
+                if (sp < 1) return 0;
+                v[1] = st[--sp];
+                v[0] = iv_exact(kk);
+            } else {
+                if (sp < 2) return 0;
+                v[1] = st[--sp];
+                v[0] = st[--sp];
+            }
+            v[2] = iv(0, 0);
+            st[sp++] = ival_op(op, v, kk);
+            break;
+        }
+        case FREP_OP_SELECT:
+            if (sp < 3) return 0;
+            v[2] = st[--sp];
+            v[1] = st[--sp];
+            v[0] = st[--sp];
+            st[sp++] = ival_op(op, v, in->k);
+            break;
+        case FREP_OP__COUNT:
+        default:
+            return 0;
+        }
+        if (sp > s->nstack) return 0;
+        pc = next;
+    }
+    if (sp >= 1) *out = iv_fix(st[sp - 1]);
+    return 0;
+}

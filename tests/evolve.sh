@@ -1,0 +1,130 @@
+#!/bin/sh
+# evolve.sh - end-to-end tests of `frep evolve`: a cube and a block with a hole sampled
+# from models by `frep sample`, primitives given as a .fit list or found by
+# segmentation, the written model checked and evaluated by frep itself, the same seed
+# at 1 and 2 threads, --dot, and bad input. Prints TAP. Needs FREP.
+
+: "${FREP:?FREP must name the frep binary}"
+
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-evolve.XXXXXX") || exit 1
+trap 'rm -rf "$tmp"' EXIT INT TERM
+
+n=0
+failed=0
+report() { # report STATUS DESCRIPTION
+    n=$((n + 1))
+    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
+}
+show() { sed 's/^/# /' "$1"; }
+
+# The unit cube [-1,1]^3 as six half-spaces (inside >= 0).
+cat >"$tmp/cube.hf" <<'EOF'
+-- @setops minmax
+-- @box -1.5 -1.5 -1.5 1.5 1.5 1.5
+my_model(x[3], a[1])
+{
+    my_model = frPlane(x, 1, 0, 0, 1) & frPlane(x, -1, 0, 0, 1) &
+               frPlane(x, 0, 1, 0, 1) & frPlane(x, 0, -1, 0, 1) &
+               frPlane(x, 0, 0, 1, 1) & frPlane(x, 0, 0, -1, 1);
+}
+EOF
+# The same planes, and two distractors, as a .fit list (f = d - n.x).
+cat >"$tmp/cube.fit" <<'EOF'
+plane 1 0 0 1
+plane -1 0 0 1
+plane 0 1 0 1
+plane 0 -1 0 1
+sphere 3 3 3 0.5
+plane 0 0 1 1
+plane 0 0 -1 1
+plane 0.6 0.8 0 4
+EOF
+
+"$FREP" sample "$tmp/cube.hf" -n 3000 --seed 1 -o "$tmp/cube.xyz" -q 2>"$tmp/err"
+report $? "sample the cube"
+
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/m1.hf" --seed 5 -t 1 \
+    --dot "$tmp/m1.dot" 2>"$tmp/err"
+st=$?
+report $st "evolve the cube from a .fit list"
+[ $st = 0 ] || show "$tmp/err"
+grep -q "tree size 11 nodes, 6 primitives" "$tmp/m1.hf"
+st=$?
+report $st "minimal tree: 11 nodes over the 6 faces"
+[ $st = 0 ] || show "$tmp/m1.hf"
+grep -q "100.00% both" "$tmp/m1.hf"
+report $? "every point explained"
+grep -q "seed 5" "$tmp/err"
+report $? "seed printed"
+grep -q '^-- @box ' "$tmp/m1.hf" && grep -q '^-- @setops minmax' "$tmp/m1.hf"
+report $? "model has @box and @setops pragmas"
+! grep -q "p5 = \|p8 = " "$tmp/m1.hf"
+report $? "distractor primitives left out"
+"$FREP" check "$tmp/m1.hf" >/dev/null 2>"$tmp/err"
+st=$?
+report $st "written model compiles"
+[ $st = 0 ] || show "$tmp/err"
+
+# The model is the cube: inside at the centre, outside beyond each face, zero on faces.
+printf '0 0 0\n0.9 0.5 -0.5\n1.2 0 0\n0 -1.2 0\n0 0 1.3\n1 0.3 0.2\n' >"$tmp/pts"
+"$FREP" eval "$tmp/m1.hf" "$tmp/pts" >"$tmp/vals" 2>"$tmp/err"
+awk 'NR==1 && $1 > 0.5 {a++} NR==2 && $1 > 0.05 {a++} NR>=3 && NR<=5 && $1 < -0.1 {a++}
+     NR==6 && ($1 < 1e-9 && $1 > -1e-9) {a++} END {exit a == 6 ? 0 : 1}' "$tmp/vals"
+st=$?
+report $st "model evaluates as the cube"
+[ $st = 0 ] || show "$tmp/vals"
+
+grep -q "digraph" "$tmp/m1.dot" && [ "$(grep -c 'shape=box' "$tmp/m1.dot")" = 6 ]
+report $? "--dot writes the tree with 6 leaves"
+
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/m2.hf" --seed 5 -t 2 -q 2>"$tmp/err"
+grep '^    tree = ' "$tmp/m1.hf" >"$tmp/t1"
+grep '^    tree = ' "$tmp/m2.hf" >"$tmp/t2"
+cmp -s "$tmp/t1" "$tmp/t2"
+report $? "same seed, same tree at 1 and 2 threads (partitioned)"
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/m3.hf" --seed 6 -t 1 -q --no-partition
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/m4.hf" --seed 6 -t 2 -q --no-partition
+grep '^    tree = ' "$tmp/m3.hf" >"$tmp/t3"
+grep '^    tree = ' "$tmp/m4.hf" >"$tmp/t4"
+cmp -s "$tmp/t3" "$tmp/t4" && grep -q "tree size 11 nodes" "$tmp/m3.hf"
+report $? "unpartitioned GA: 11 nodes, same tree at 1 and 2 threads"
+
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/m5.hf" --seed 2 -q --setops rfunc
+grep -q "tree size 11 nodes" "$tmp/m5.hf" && grep -q '^-- @setops rfunc' "$tmp/m5.hf" &&
+    "$FREP" check "$tmp/m5.hf" >/dev/null 2>&1
+report $? "R-functions: 11 nodes, model compiles"
+
+# Without -p: segmentation first.
+"$FREP" evolve "$tmp/cube.xyz" -o "$tmp/m6.hf" --seed 3 -q 2>"$tmp/err"
+st=$?
+[ $st = 0 ] && grep -q "100.00% both\|99\.[5-9][0-9]% both" "$tmp/m6.hf"
+st=$?
+report $st "segment then evolve explains the cube"
+[ $st = 0 ] || { show "$tmp/err"; show "$tmp/m6.hf"; }
+
+# Bad input: clear messages, non-zero exit, no crash.
+: >"$tmp/empty.fit"
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/empty.fit" -o "$tmp/x.hf" -q 2>"$tmp/err"
+st=$?
+[ $st = 1 ] && grep -q "no primitives" "$tmp/err" && [ ! -e "$tmp/x.hf" ]
+report $? "no primitives: error, no output"
+printf 'plane 1 0 0\n' >"$tmp/bad.fit"
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/bad.fit" -q 2>"$tmp/err" >/dev/null
+[ $? = 1 ] && grep -q "bad.fit:1" "$tmp/err"
+report $? "malformed .fit: file:line message"
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" --population 1 --seed 1 -q -o "$tmp/p1.hf" 2>"$tmp/err"
+[ $? = 0 ] && "$FREP" check "$tmp/p1.hf" >/dev/null 2>&1
+report $? "population of 1 gives a model"
+printf 'plane 0 0 1 50\n' >"$tmp/far.fit"
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/far.fit" --seed 1 -q -o "$tmp/far.hf" 2>"$tmp/err"
+[ $? = 0 ] && grep -q "0.00% both" "$tmp/far.hf"
+report $? "a primitive that explains nothing: a model saying so"
+"$FREP" evolve "$tmp/cube.xyz" --population -3 2>"$tmp/err"
+[ $? = 2 ] && grep -q "population" "$tmp/err"
+report $? "bad option value: usage error"
+"$FREP" evolve "$tmp/nonexistent.xyz" -p "$tmp/cube.fit" 2>"$tmp/err"
+[ $? = 1 ] && grep -q "nonexistent.xyz" "$tmp/err"
+report $? "missing cloud: message"
+
+echo "1..$n"
+exit $failed

@@ -1,0 +1,87 @@
+#!/bin/sh
+# golden.sh - golden language tests: for every tests/lang/AREA/NAME.hf, run
+# `frep check NAME.hf` from the file's directory and compare its standard error with
+# NAME.err (whole diagnostics: message, source line, caret) or, without NAME.err,
+# expect a clean check; where NAME.print exists, compare `frep print NAME.hf` with it.
+# Prints TAP.  Needs FREP (the frep binary) and srcdir (the source tree).
+# To refresh an expectation after a deliberate change: run the same command in the
+# file's directory and review the difference before committing it.
+
+: "${FREP:?FREP must name the frep binary}"
+: "${srcdir:?srcdir must name the source tree}"
+
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-golden.XXXXXX") || exit 1
+trap 'rm -rf "$tmp"' EXIT INT TERM
+
+n=0
+failed=0
+
+report() { # report OK DESCRIPTION
+    n=$((n + 1))
+    if [ "$1" = 0 ]; then
+        echo "ok $n - $2"
+    else
+        echo "not ok $n - $2"
+        failed=1
+    fi
+}
+
+show_diff() { # show_diff EXPECTED ACTUAL: as TAP comments
+    diff -u "$1" "$2" | sed 's/^/# /'
+}
+
+for hf in "$srcdir"/tests/lang/*/*.hf; do
+    [ -e "$hf" ] || continue
+    dir=$(dirname "$hf")
+    name=$(basename "$hf" .hf)
+    area=$(basename "$dir")
+
+    # frep check: diagnostics and exit status
+    (cd "$dir" && "$FREP" check "$name.hf" >/dev/null 2>"$tmp/err")
+    status=$?
+    if [ -f "$dir/$name.err" ]; then
+        expected="$dir/$name.err"
+        # a file with an error must fail; one with warnings only must pass
+        if grep -q ': error: ' "$expected"; then want_fail=1; else want_fail=0; fi
+    else
+        : >"$tmp/empty"
+        expected="$tmp/empty"
+        want_fail=0
+    fi
+    if cmp -s "$expected" "$tmp/err"; then same=0; else same=1; fi
+    if [ "$want_fail" = 1 ]; then
+        [ "$status" -ne 0 ] && [ "$status" -lt 128 ]; st=$?
+    else
+        [ "$status" -eq 0 ]; st=$?
+    fi
+    if [ "$same" = 0 ] && [ "$st" = 0 ]; then
+        report 0 "$area/$name: check"
+    else
+        report 1 "$area/$name: check (exit status $status)"
+        show_diff "$expected" "$tmp/err"
+    fi
+
+    # frep print: the canonical source
+    if [ -f "$dir/$name.print" ]; then
+        (cd "$dir" && "$FREP" print "$name.hf" >"$tmp/out" 2>/dev/null)
+        status=$?
+        if [ "$status" = 0 ] && cmp -s "$dir/$name.print" "$tmp/out"; then
+            report 0 "$area/$name: print"
+        else
+            report 1 "$area/$name: print (exit status $status)"
+            show_diff "$dir/$name.print" "$tmp/out"
+        fi
+        # printing the printed source again changes nothing
+        cp "$tmp/out" "$tmp/again.hf"
+        (cd "$tmp" && "$FREP" print again.hf >"$tmp/out2" 2>/dev/null)
+        if cmp -s "$tmp/out" "$tmp/out2"; then
+            report 0 "$area/$name: print is a fixed point"
+        else
+            report 1 "$area/$name: print is a fixed point"
+            show_diff "$tmp/out" "$tmp/out2"
+        fi
+    fi
+done
+
+echo "1..$n"
+exit $failed

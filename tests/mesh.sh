@@ -1,0 +1,57 @@
+#!/bin/sh
+# mesh.sh - script tests of frep mesh, frep sample and frep render: formats, the
+# --check invariants on the examples and test models, and bad input (TAP output).
+: "${FREP:=./frep}" "${srcdir:=.}"
+T=${TMPDIR:-/tmp}/frep-mesh-test.$$
+mkdir -p "$T" || exit 1
+trap 'rm -rf "$T"' EXIT
+n=0
+fails=0
+t() { # t DESCRIPTION COMMAND...: ok when the command succeeds
+  desc=$1; shift
+  n=$((n + 1))
+  if "$@" >"$T/out" 2>"$T/err"; then echo "ok $n - $desc"
+  else echo "not ok $n - $desc"; sed 's/^/# /' "$T/err" "$T/out"; fails=$((fails + 1)); fi
+}
+f() { # f DESCRIPTION PATTERN COMMAND...: ok when the command fails saying PATTERN
+  desc=$1; pat=$2; shift 2
+  n=$((n + 1))
+  if "$@" >"$T/out" 2>"$T/err"; then echo "not ok $n - $desc (succeeded)"; fails=$((fails + 1))
+  elif grep -q -- "$pat" "$T/err"; then echo "ok $n - $desc"
+  else echo "not ok $n - $desc"; sed 's/^/# /' "$T/err"; fails=$((fails + 1)); fi
+}
+M="$srcdir/tests/models"
+E="$srcdir/examples"
+for hf in "$E"/*.hf; do
+  t "mesh $(basename "$hf") is closed, manifold and oriented" \
+    "$FREP" mesh "$hf" -g 41 -o "$T/m.stl" --check -q
+done
+for hf in "$M"/*.hf; do
+  for g in 13 40; do
+    t "mesh $(basename "$hf") -g $g is closed, manifold and oriented" \
+      "$FREP" mesh "$hf" -b 1.2 -g $g -o "$T/m.stl" --check -q
+  done
+done
+t "block minus ball at 1 thread" "$FREP" mesh "$M/block_minus_ball.hf" -b 1 -g 50 -t 1 -o "$T/a.ply" -q
+t "block minus ball at 2 threads" "$FREP" mesh "$M/block_minus_ball.hf" -b 1 -g 50 -t 2 -o "$T/b.ply" -q
+t "the same mesh at 1 and 2 threads" cmp "$T/a.ply" "$T/b.ply"
+for ext in stl obj ply off; do
+  t "writes .$ext" "$FREP" mesh "$M/block_minus_ball.hf" -b 1 -g 16 -o "$T/m.$ext" -q
+  t "samples .$ext" "$FREP" sample "$T/m.$ext" -n 50 -o "$T/s.xyz" --seed 3 -q
+done
+t "ASCII STL" sh -c "'$FREP' mesh '$M/block_minus_ball.hf' -b 1 -g 16 --ascii -o '$T/a.stl' -q && head -1 '$T/a.stl' | grep -q '^solid'"
+t "sample a model" "$FREP" sample "$M/block_minus_ball.hf" -b 1 -n 1000 -o "$T/c.xyz" --seed 9 --noise 0.001 --outliers 0.05
+t "sample prints the seed" sh -c "'$FREP' sample '$M/block_minus_ball.hf' -b 1 -n 10 -o '$T/d.xyz' --seed 9 | grep -q 'seed 9'"
+t "sample writes 1000 lines of 6 numbers" sh -c "test \$(wc -l < '$T/c.xyz') -eq 1000 && awk 'NF != 6 { exit 1 }' '$T/c.xyz'"
+t "render with points" "$FREP" render "$M/block_minus_ball.hf" -b 1 -g 32 --size 64x48 --view top --points "$T/c.xyz" -o "$T/v.png"
+t "render writes a PNG" sh -c "head -c 8 '$T/v.png' | od -An -c | grep -q 'P   N   G'"
+f "empty model" "empty in the box" "$FREP" mesh "$M/block_minus_ball.hf" -b 5,6 -o "$T/e.stl"
+f "full model" "fills all of" "$FREP" mesh "$M/block_minus_ball.hf" -b 0.1 -o "$T/e.stl"
+f "huge -g" "1..2048" "$FREP" mesh "$M/block_minus_ball.hf" -g 99999 -o "$T/e.stl"
+f "zero-size box" "empty box" "$FREP" mesh "$M/block_minus_ball.hf" -b 1,1 -o "$T/e.stl"
+f "unknown format" "cannot tell the format" "$FREP" mesh "$M/block_minus_ball.hf" -o "$T/e.xyz"
+f "bad mesh input" "e.off:" sh -c "printf 'OFF\n1 1 0\n0 0 0\n3 0 0 7\n' > '$T/e.off' && '$FREP' sample '$T/e.off' -n 5 -o '$T/e.xyz'"
+f "bad --view" "expected one of" "$FREP" render "$M/block_minus_ball.hf" --view upside -o "$T/e.png"
+t "no output left behind by failures" sh -c "! ls '$T'/e.stl '$T'/e.png 2>/dev/null"
+echo "1..$n"
+test $fails -eq 0

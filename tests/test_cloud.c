@@ -1,0 +1,226 @@
+/* test_cloud.c - unit tests of runtime/cloud.c: .xyz and PLY readers (every format,
+ * malformed input with its message), writers and their round trip, bounding box.
+ */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cloud.h"
+#include "tap.h"
+
+static frep_cloud *parse(const char *s, char **err)
+{
+    return cloud_parse("t.xyz", s, strlen(s), err);
+}
+
+/* The parser must fail with exactly this message. */
+static void expect_error(const char *data, size_t len, const char *want, const char *what)
+{
+    char *err = NULL;
+    frep_cloud *c = cloud_parse("t.xyz", data, len, &err);
+    ok(c == NULL, "%s: rejected", what);
+    is_str(err ? err : "(none)", want, "%s: message", what);
+    cloud_free(c);
+    free(err);
+}
+
+static void test_xyz(void)
+{
+    char *err = NULL;
+    frep_cloud *c = parse("# header\n1 2 3\n\n  4\t5 6  # trailing\r\n-1e-3,0.5,7\n", &err);
+    ok(c != NULL, "xyz with comments, blank lines, tabs, commas, CRLF");
+    if (c) {
+        is_int(c->n, 3, "three points");
+        ok(!c->has_normals, "no normals");
+        is_double(c->x[1], 4, 0, "x of point 2");
+        is_double(c->z[1], 6, 0, "z of point 2");
+        is_double(c->x[2], -1e-3, 0, "exponent notation");
+    }
+    cloud_free(c);
+
+    c = parse("0 0 0 0 0 1\n1 0 0 0 0 -2\n", &err);
+    ok(c && c->has_normals && c->n == 2, "six columns give normals");
+    if (c) {
+        is_double(c->nz[1], -2, 0, "normal kept as written");
+        is_int(cloud_normalize_normals(c), 0, "no zero normals");
+        is_double(c->nz[1], -1, 1e-15, "normalized");
+    }
+    cloud_free(c);
+
+    const char *bad5 = "1 2 3\n1 2 3 4 5\n";
+    expect_error(bad5, strlen(bad5), "t.xyz:2: expected 3 or 6 numbers, got 5", "5 numbers");
+    const char *mixed = "1 2 3 0 0 1\n\n4 5 6\n";
+    expect_error(mixed, strlen(mixed), "t.xyz:3: expected 6 numbers as on line 1, got 3",
+                 "mixed columns");
+    const char *nan = "1 2 3\n4 nan 6\n";
+    expect_error(nan, strlen(nan), "t.xyz:2: number 2 is not finite", "NaN");
+    const char *inf = "1 2 -inf\n";
+    expect_error(inf, strlen(inf), "t.xyz:1: number 3 is not finite", "inf");
+    const char *word = "1 2 3\n\n1 x2 3\n";
+    expect_error(word, strlen(word), "t.xyz:3: 'x2' is not a number", "word");
+    expect_error("# only a comment\n\n", 18, "t.xyz: no points", "empty");
+    expect_error("", 0, "t.xyz: no points", "zero bytes");
+}
+
+static void test_ply_ascii(void)
+{
+    const char *s =
+        "ply\nformat ascii 1.0\ncomment hi\nelement vertex 2\n"
+        "property float x\nproperty float y\nproperty float z\nproperty uchar red\n"
+        "property float nx\nproperty float ny\nproperty float nz\n"
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+        "1 2 3 255 0 0 1\n4 5 6 0 1 0 0\n3 0 1 1\n";
+    char *err = NULL;
+    frep_cloud *c = cloud_parse("t.ply", s, strlen(s), &err);
+    ok(c != NULL, "ascii PLY with colour and faces: %s", err ? err : "ok");
+    if (c) {
+        is_int(c->n, 2, "2 vertices");
+        ok(c->has_normals, "normals");
+        is_double(c->y[1], 5, 0, "y");
+        is_double(c->nx[0], 0, 0, "nx skips colour");
+        is_double(c->nx[1], 1, 0, "nx of vertex 1");
+    }
+    cloud_free(c);
+    free(err);
+
+    /* Header errors name the line. */
+    const char *h1 = "ply\nformat ascii 1.0\nelement vertex 1\nproperty flot x\nend_header\n";
+    err = NULL;
+    c = cloud_parse("t.ply", h1, strlen(h1), &err);
+    ok(!c, "unknown type rejected");
+    is_str(err ? err : "", "t.ply:4: unknown property type 'flot'", "message with line");
+    free(err);
+    const char *h2 = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+                     "property float y\nend_header\n1 2\n";
+    err = NULL;
+    c = cloud_parse("t.ply", h2, strlen(h2), &err);
+    ok(!c, "missing z rejected");
+    is_str(err ? err : "", "t.ply: vertex element lacks x, y or z", "message");
+    free(err);
+    const char *h3 = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                     "property float y\nproperty float z\nend_header\n1 2 3\n4 5 6\n";
+    err = NULL;
+    c = cloud_parse("t.ply", h3, strlen(h3), &err);
+    ok(!c, "truncated data rejected");
+    is_str(err ? err : "", "t.ply:10: data ends in vertex 2 of 3", "message");
+    free(err);
+    const char *h4 = "ply\nformat ascii 1.0\nelement vertex 1\n";
+    err = NULL;
+    c = cloud_parse("t.ply", h4, strlen(h4), &err);
+    ok(!c, "header without end rejected");
+    is_str(err ? err : "", "t.ply:3: header ends without end_header", "message");
+    free(err);
+    const char *h5 = "ply\nformat ascii 1.0\nelement vertex 99999999999\nend_header\n";
+    err = NULL;
+    c = cloud_parse("t.ply", h5, strlen(h5), &err);
+    ok(!c, "absurd vertex count rejected before allocating");
+    free(err);
+}
+
+/* Binary PLY built by hand: float x y z, a uchar we skip, double nz (no nx/ny: no
+ * normals), in either byte order. */
+static size_t put(unsigned char *b, const void *v, size_t n, int big)
+{
+    const unsigned char *s = v;
+    uint16_t one = 1;
+    int host_big = *(const unsigned char *)&one == 0;
+    for (size_t i = 0; i < n; i++) b[i] = (big != host_big) ? s[n - 1 - i] : s[i];
+    return n;
+}
+
+static void test_ply_binary(int big)
+{
+    unsigned char buf[512];
+    const char *hdr = big ? "ply\nformat binary_big_endian 1.0\n"
+                          : "ply\nformat binary_little_endian 1.0\n";
+    const char *rest = "element vertex 2\nproperty float x\nproperty float y\n"
+                       "property float z\nproperty uchar q\nproperty double nz\nend_header\n";
+    size_t n = 0;
+    memcpy(buf, hdr, strlen(hdr)); n += strlen(hdr);
+    memcpy(buf + n, rest, strlen(rest)); n += strlen(rest);
+    for (int i = 0; i < 2; i++) {
+        float xyz[3] = {1.5f + (float)i, -2.0f, 0.25f};
+        for (int k = 0; k < 3; k++) n += put(buf + n, &xyz[k], 4, big);
+        buf[n++] = 7;
+        double nz = 3.0;
+        n += put(buf + n, &nz, 8, big);
+    }
+    char *err = NULL;
+    frep_cloud *c = cloud_parse("b.ply", (const char *)buf, n, &err);
+    ok(c != NULL, "binary %s PLY: %s", big ? "big" : "little", err ? err : "ok");
+    if (c) {
+        is_int(c->n, 2, "2 vertices");
+        ok(!c->has_normals, "partial normals ignored");
+        is_double(c->x[1], 2.5, 0, "x of vertex 1");
+        is_double(c->y[0], -2, 0, "y");
+        is_double(c->z[1], 0.25, 0, "z");
+    }
+    cloud_free(c);
+    free(err);
+    err = NULL;
+    c = cloud_parse("b.ply", (const char *)buf, n - 3, &err);
+    ok(!c, "truncated binary rejected");
+    is_str(err ? err : "", "b.ply: binary data ends or is corrupt in vertex 1 of 2",
+           "truncation message");
+    free(err);
+}
+
+static void test_roundtrip(int ply)
+{
+    frep_cloud *c = cloud_new(1);
+    for (int i = 0; i < 100; i++) {
+        double p[3] = {i * 0.1, 1.0 / (i + 1), -i * 1e-7};
+        double nrm[3] = {0.1, 0.2, -0.3 * i};
+        cloud_push(c, p, nrm);
+    }
+    FILE *f = tmpfile();
+    ok(f != NULL, "tmpfile");
+    if (!f) { cloud_free(c); return; }
+    int rc = ply ? cloud_write_ply(f, c) : cloud_write_xyz(f, c);
+    is_int(rc, 0, "%s written", ply ? "PLY" : "xyz");
+    long len = ftell(f);
+    rewind(f);
+    char *data = malloc((size_t)len);
+    size_t got = fread(data, 1, (size_t)len, f);
+    fclose(f);
+    char *err = NULL;
+    frep_cloud *d = cloud_parse("rt", data, got, &err);
+    ok(d && d->n == 100 && d->has_normals, "%s read back", ply ? "PLY" : "xyz");
+    int same = d != NULL;
+    for (size_t i = 0; d && i < 100 && same; i++)
+        same = d->x[i] == c->x[i] && d->y[i] == c->y[i] && d->z[i] == c->z[i] &&
+               d->nx[i] == c->nx[i] && d->ny[i] == c->ny[i] && d->nz[i] == c->nz[i];
+    ok(same, "%s round trip is exact", ply ? "PLY" : "xyz");
+    cloud_free(d);
+    cloud_free(c);
+    free(data);
+    free(err);
+}
+
+static void test_bbox(void)
+{
+    frep_cloud *c = cloud_new(0);
+    is_double(cloud_diagonal(c), 0, 0, "empty cloud: zero diagonal");
+    double a[3] = {1, 2, 3}, b[3] = {4, -2, 3};
+    cloud_push(c, a, NULL);
+    is_double(cloud_diagonal(c), 0, 0, "one point: zero diagonal");
+    cloud_push(c, b, NULL);
+    double lo[3], hi[3];
+    cloud_bbox(c, lo, hi);
+    is_double(lo[1], -2, 0, "lo y");
+    is_double(hi[0], 4, 0, "hi x");
+    is_double(cloud_diagonal(c), 5, 1e-15, "3-4-5 diagonal");
+    cloud_free(c);
+}
+
+int main(void)
+{
+    test_xyz();
+    test_ply_ascii();
+    test_ply_binary(0);
+    test_ply_binary(1);
+    test_roundtrip(0);
+    test_roundtrip(1);
+    test_bbox();
+    return done_testing();
+}

@@ -1,0 +1,535 @@
+/* test_compile.c - tests of the compiler (lang/check.c, ir.c, lower.c, emit.c,
+ * compile.c): diagnostics with positions, folding and CSE in instruction counts,
+ * control flow evaluated at points on both sides, loops, free parameters, limits.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "frep.h"
+#include "lower.h"
+#include "program.h"
+#include "tap.h"
+
+/* Collected diagnostics of one compile. */
+#define MAX_DIAGS 64
+typedef struct diags {
+    int n, errors, warnings;
+    char msg[MAX_DIAGS][512];
+    uint32_t line[MAX_DIAGS], col[MAX_DIAGS], len[MAX_DIAGS];
+    frep_severity sev[MAX_DIAGS];
+} diags;
+
+static void collect(void *user, const frep_diag *d)
+{
+    diags *D = user;
+    if (d->severity == FREP_ERROR) D->errors++;
+    if (d->severity == FREP_WARNING) D->warnings++;
+    if (D->n >= MAX_DIAGS) return;
+    (void)snprintf(D->msg[D->n], sizeof D->msg[0], "%s", d->message);
+    D->line[D->n] = d->line;
+    D->col[D->n] = d->col;
+    D->len[D->n] = d->len;
+    D->sev[D->n] = d->severity;
+    D->n++;
+}
+
+static frep_program *compile_opt(const char *src, diags *D, const frep_compile_options *o)
+{
+    memset(D, 0, sizeof *D);
+    return frep_compile("t.hf", src, strlen(src), o, collect, D);
+}
+
+static frep_program *compile(const char *src, diags *D)
+{
+    return compile_opt(src, D, NULL);
+}
+
+/* Index of the first diagnostic containing `part`, or -1. */
+static int find_diag(const diags *D, const char *part)
+{
+    int i;
+    for (i = 0; i < D->n; i++)
+        if (strstr(D->msg[i], part)) return i;
+    return -1;
+}
+
+static void dump(const diags *D)
+{
+    int i;
+    for (i = 0; i < D->n; i++)
+        diag("  %u:%u (+%u): %s", (unsigned)D->line[i], (unsigned)D->col[i],
+             (unsigned)D->len[i], D->msg[i]);
+}
+
+/* Expect an error containing `part` at line:col. */
+static void expect_error(const char *src, const char *part, uint32_t line, uint32_t col,
+                         const char *what)
+{
+    diags D;
+    frep_program *p = compile(src, &D);
+    int i = find_diag(&D, part);
+    ok(p == NULL && i >= 0 && D.sev[i] == FREP_ERROR && D.line[i] == line && D.col[i] == col,
+       "%s: error '%s' at %u:%u", what, part, (unsigned)line, (unsigned)col);
+    if (!(p == NULL && i >= 0 && D.line[i] == line && D.col[i] == col)) dump(&D);
+    frep_program_free(p);
+}
+
+static double eval1(const frep_program *p, double x, double y, double z)
+{
+    frep_scratch *s = frep_scratch_new(p);
+    double f = NAN;
+    if (s && frep_eval(p, s, 1, &x, &y, &z, NULL, &f) != 0) f = NAN;
+    frep_scratch_free(s);
+    return f;
+}
+
+static size_t count_op(const frep_program *p, frep_opcode op)
+{
+    size_t i, n = 0;
+    for (i = 0; i < p->ncode; i++) n += p->code[i].op == op;
+    return n;
+}
+
+static void test_basic(void)
+{
+    diags D;
+    frep_program *p = compile("m(x[3], a[1]) { m = 1 - x[1]*x[1] - x[2]*x[2] - x[3]*x[3]; }", &D);
+    ok(p != NULL, "sphere compiles");
+    if (!p) { dump(&D); return; }
+    is_double(eval1(p, 0, 0, 0), 1.0, 0, "sphere at origin");
+    is_double(eval1(p, 0.5, 0.5, 0.5), 0.25, 1e-15, "sphere at (.5,.5,.5)");
+    ok(count_op(p, FREP_OP_SQUARE) == 3, "x*x becomes SQUARE");
+    frep_program_free(p);
+}
+
+/* Evaluate at n points along x (y = z = 0 unless given) into f. */
+static void eval_n(const frep_program *p, size_t n, const double *x, const double *y,
+                   const double *z, const double *params, double *f)
+{
+    frep_scratch *s = frep_scratch_new(p);
+    if (!s || frep_eval(p, s, n, x, y, z, params, f) != 0) {
+        size_t i;
+        for (i = 0; i < n; i++) f[i] = NAN;
+    }
+    frep_scratch_free(s);
+}
+
+static void test_checks(void)
+{
+    diags D;
+    frep_program *p;
+    expect_error("m(x[3], a[1]) {\n  rad = 1;\n  m = radd + x[1];\n}", "unknown variable 'radd'; "
+                 "did you mean 'rad'?", 3, 7, "unknown variable");
+    expect_error("m(x[3], a[1]) {\n  m = r;\n  r = 1;\n}", "variable 'r' is used before it is "
+                 "assigned", 2, 7, "use before assignment");
+    expect_error("m(x[3], a[1]) {\n  array c[2];\n  c = [1, 2];\n  m = c + 1;\n}",
+                 "array 'c' used as a number", 4, 7, "array as a number");
+    expect_error("m(x[3], a[1]) { m = x[4]; }", "index 4 is out of range for array 'x' of "
+                 "size 3", 1, 23, "constant index out of range");
+    expect_error("m(x[3], a[1]) { m = x[0]; }", "index 0 is out of range", 1, 23,
+                 "index 0 (indices are 1-based)");
+    expect_error("m(x[3], a[1]) { r = 1; }", "model 'm' never assigns its result", 1, 1,
+                 "model without result");
+    expect_error("a1(x[3], a[1]) { a1 = b1(x, a); }\nb1(x[3], a[1]) { b1 = 1; }",
+                 "model 'b1' is defined later", 1, 23, "call of a later model");
+    expect_error("m(x[3], a[1]) { m = m(x, a); }", "model 'm' cannot call itself", 1, 21,
+                 "recursion");
+    expect_error("m(x[3], a[1]) { m = hfSphere(x, 1); }", "'hfSphere' takes 3 arguments, 2 "
+                 "given", 1, 21, "arity");
+    expect_error("m(x[3], a[1]) { m = sqrt(1, 2); }", "'sqrt' takes 1 argument, 2 given", 1, 21,
+                 "built-in arity");
+    expect_error("m(x[3], a[1]) {\n  array c[3];\n  c = [0, 0, 0];\n  m = hfSphere(x, c, c);\n}",
+                 "argument 3 of 'hfSphere' must be a number, but 'c' is an array", 4, 22,
+                 "number argument given an array");
+    expect_error("m(x[3], a[1]) { m = hfSphere(x, 1, 2); }", "argument 2 of 'hfSphere' must be "
+                 "an array", 1, 33, "array argument given a number");
+    expect_error("m(x[3], a[1]) {\n  array c[2];\n  c = [0, 0];\n  m = hfSphere(x, c, 1);\n}",
+                 "argument 2 of 'hfSphere' must have at least 3 elements, 'c' has 2", 4, 19,
+                 "array argument too small");
+    expect_error("m(x[3], a[1]) { m = x[1] < 2; }", "comparison '<' is only allowed in an if or "
+                 "while condition", 1, 26, "comparison outside a condition");
+    expect_error("m(x[3], a[1]) {\n  if x[1] then m = 1; else m = 2; endif;\n}",
+                 "a condition must be a comparison", 2, 6, "condition without comparison");
+    expect_error("m(x[3], a[1]) {\n  array c[2];\n  c = 3;\n  m = 1;\n}",
+                 "cannot assign a number to array 'c'", 3, 3, "number assigned to an array");
+    expect_error("m(x[3], a[1]) {\n  array c[2], c[3];\n  m = 1;\n}",
+                 "array 'c' is already declared", 2, 15, "duplicate array");
+    expect_error("m(x[3], a[1]) {\n  array c[2];\n  c = [1, 2, 3];\n  m = 1;\n}",
+                 "array 'c' has 2 elements, but 3 values are assigned", 3, 3,
+                 "array literal too long");
+    expect_error("u(x[3], a[2]) { u = a[2]; }\nm(x[3], a[1]) { m = u(x, a); }",
+                 "array 'a' has 1 elements; model 'u' needs 2 for 'a'", 2, 26,
+                 "model call with a small array");
+    expect_error("u(x[3], a[1]) { u = 1; }\nm(x[3], a[1]) { m = u(x); }",
+                 "model 'u' takes 2 array arguments, 1 given", 2, 21, "model call arity");
+    expect_error("m(x[3], a[1]) {\n  r = 1; -- @free\n  r = 2; -- @free\n  m = r;\n}",
+                 "'@free' must mark the first assignment", 3, 13, "@free on a reassignment");
+    expect_error("m(x[3], a[1]) {\n  r = 1 + 2; -- @free\n  m = r;\n}",
+                 "'@free' must follow a statement 'name = NUMBER;'", 2, 17, "@free on an expression");
+    expect_error("m(x[3], a[1]) {\n  r = 1; -- @free [2, 1]\n  m = r;\n}",
+                 "are empty", 2, 13, "@free with empty bounds");
+    expect_error("m(x[3], a[1]) {\n  r = 1; -- @free [0 1]\n  m = r;\n}",
+                 "malformed '@free'", 2, 13, "@free with malformed bounds");
+    expect_error("m(x[3], a[1]) { m = 1; }\n-- @setops minmax\n", "'@setops' must come before "
+                 "the first model", 2, 4, "@setops after a model");
+    expect_error("-- @setops ralpha 3\nm(x[3], a[1]) { m = 1; }", "ALPHA in [-1, 1]", 1, 4,
+                 "@setops ralpha out of range");
+    expect_error("-- @box 1 2 3\nm(x[3], a[1]) { m = 1; }", "'@box' expects six numbers", 1, 4,
+                 "@box with three numbers");
+
+    /* Every problem is reported, not only the first. */
+    p = compile("m(x[3], a[1]) {\n  m = foo(x) + bar + x[7];\n  z = 1 < 2;\n}", &D);
+    ok(p == NULL && D.errors == 4, "four independent errors reported together (got %d)",
+       D.errors);
+    if (D.errors != 4) dump(&D);
+    frep_program_free(p);
+
+    /* Unknown pragma: warning only. */
+    p = compile("-- @frobnicate 3\nm(x[3], a[1]) { m = 1; }", &D);
+    ok(p != NULL && D.warnings == 1 && find_diag(&D, "unknown pragma '@frobnicate'") >= 0 &&
+           D.line[0] == 1 && D.col[0] == 4,
+       "unknown pragma: a warning at its '@'");
+    frep_program_free(p);
+}
+
+static void test_fold_cse(void)
+{
+    diags D;
+    frep_compile_options o;
+    frep_program *p, *q;
+    double x[3] = { -0.7, 0.3, 2 }, y[3] = { 0, 0, 0 }, f1[3], f2[3];
+    const char *twice = "m(x[3], a[1]) { m = sin(x[1]) * 2 + sin(x[1]) * (4 - 1); }";
+    frep_compile_options_init(&o);
+    p = compile(twice, &D);
+    o.optimize = 0;
+    q = compile_opt(twice, &D, &o);
+    ok(p && q, "CSE test compiles with and without optimization");
+    if (!p || !q) return;
+    is_int(count_op(p, FREP_OP_SIN), 1, "CSE: sin(x[1]) computed once");
+    is_int(count_op(q, FREP_OP_SIN), 2, "optimize = 0: sin(x[1]) computed twice");
+    is_int(count_op(p, FREP_OP_SUB), 0, "folding: 4 - 1 is folded");
+    ok(p->ncode < q->ncode, "optimized code is shorter (%u < %u)", (unsigned)p->ncode,
+       (unsigned)q->ncode);
+    eval_n(p, 3, x, y, y, NULL, f1);
+    eval_n(q, 3, x, y, y, NULL, f2);
+    ok(f1[0] == f2[0] && f1[1] == f2[1] && f1[2] == f2[2],
+       "optimized and unoptimized code agree exactly");
+    is_double(f1[1], 5 * sin(0.3), 1e-15, "value of the CSE model");
+    frep_program_free(p);
+    frep_program_free(q);
+
+    /* Exact simplifications only: x*1 and x-0 vanish, x+0 stays (-0 + 0 = +0). */
+    p = compile("m(x[3], a[1]) { m = (x[1] * 1 - 0) / 1; }", &D);
+    ok(p && p->ncode == 1 && p->code[0].op == FREP_OP_X, "x*1 - 0 / 1 is just x");
+    frep_program_free(p);
+    p = compile("m(x[3], a[1]) { m = x[1] + 0; }", &D);
+    ok(p && count_op(p, FREP_OP_ADD) == 1, "x + 0 is kept (not exact for -0)");
+    if (p) {
+        double mz = -0.0, z0 = 0, f;
+        eval_n(p, 1, &mz, &z0, &z0, NULL, &f);
+        ok(f == 0 && !signbit(f), "-0 + 0 evaluates to +0");
+    }
+    frep_program_free(p);
+
+    /* Folding a constant expression. */
+    p = compile("m(x[3], a[1]) { m = x[1] + sqrt(16) * 2 ^ 3; }", &D);
+    ok(p && count_op(p, FREP_OP_SQRT) == 0 && count_op(p, FREP_OP_POW) == 0 && p->ncode == 2,
+       "sqrt(16) * 2^3 folded into an immediate");
+    if (p) is_double(eval1(p, 1, 0, 0), 33, 0, "folded value");
+    frep_program_free(p);
+
+    /* A domain error is not folded: runtime reports it; compile warns. */
+    p = compile("m(x[3], a[1]) {\n  m = x[1] + sqrt(-1);\n}", &D);
+    ok(p && count_op(p, FREP_OP_SQRT) == 1, "sqrt(-1) is left for the runtime");
+    ok(D.warnings == 1 && find_diag(&D, "sqrt of a negative number") >= 0 && D.line[0] == 2 &&
+       D.col[0] == 14, "... with a warning at 'sqrt'");
+    if (p) {
+        frep_scratch *s = frep_scratch_new(p);
+        frep_runtime_error e;
+        double xx = 1, zz = 0, f = 0;
+        frep_eval(p, s, 1, &xx, &zz, &zz, NULL, &f);
+        frep_scratch_errors(s, &e);
+        ok(isnan(f) && e.count == 1, "... and evaluates to NaN with a runtime error");
+        frep_scratch_free(s);
+    }
+    frep_program_free(p);
+
+    /* Integer powers: multiplication chains up to FREP_POW_CHAIN_MAX, then POW. */
+    p = compile("m(x[3], a[1]) { m = x[1] ^ 3 + x[2] ^ -2 + x[3] ^ 0.5; }", &D);
+    ok(p && count_op(p, FREP_OP_POW) == 1 && count_op(p, FREP_OP_SQUARE) == 2,
+       "x^3 and x^-2 are multiplications, x^0.5 is POW");
+    if (p) is_double(eval1(p, 1.5, 2, 4), 1.5 * 1.5 * 1.5 + 1 / (2.0 * 2.0) + 2, 1e-15,
+                     "value of the powers");
+    frep_program_free(p);
+    p = compile("m(x[3], a[1]) { m = x[1] ^ 64 + x[2] ^ 65; }", &D);
+    ok(p && count_op(p, FREP_OP_POW) == 1, "x^64 is a chain, x^65 a POW (FREP_POW_CHAIN_MAX)");
+    frep_program_free(p);
+}
+
+static void test_control(void)
+{
+    diags D;
+    frep_program *p, *q;
+    double xs[4] = { -2, -0.5, 0.5, 2 }, zero[4] = { 0, 0, 0, 0 }, f[4], g[4];
+    int i;
+    /* Straight-line branches: select; both sides of x = 0. */
+    p = compile("m(x[3], a[1]) {\n  if x[1] > 0 then\n    t = sqrt(x[1]);\n  else\n"
+                "    t = -x[1] * 3;\n  endif;\n  m = t;\n}", &D);
+    ok(p && count_op(p, FREP_OP_SELECT) == 1 && count_op(p, FREP_OP_JZ) == 0,
+       "straight-line if becomes SELECT");
+    if (p) {
+        eval_n(p, 4, xs, zero, zero, NULL, f);
+        ok(f[0] == 6 && f[1] == 1.5 && f[2] == sqrt(0.5) && f[3] == sqrt(2.0),
+           "select if: values on both sides");
+        for (i = 0; i < (int)p->ncode; i++)
+            if (p->code[i].op == FREP_OP_SQRT) break;
+        ok(i < (int)p->ncode && (p->code[i].flags & INSN_QUIET), "speculative sqrt is quiet");
+        {
+            frep_scratch *s = frep_scratch_new(p);
+            frep_runtime_error e;
+            frep_eval(p, s, 4, xs, zero, zero, NULL, f);
+            frep_scratch_errors(s, &e);
+            ok(e.count == 0, "no domain error from the branch not taken");
+            frep_scratch_free(s);
+        }
+    }
+    frep_program_free(p);
+
+    /* A loop depending on x inside the if: real control flow. */
+    p = compile("m(x[3], a[1]) {\n  n = 0;\n  if x[1] > 0 then\n    v = x[1];\n"
+                "    while v < 8 loop v = v * 2; n = n + 1; endloop;\n  else\n    n = -1;\n"
+                "  endif;\n  m = n;\n}", &D);
+    ok(p && count_op(p, FREP_OP_JZ) == 2, "if with a point-dependent loop: real branches");
+    if (p) {
+        eval_n(p, 4, xs, zero, zero, NULL, f);
+        ok(f[0] == -1 && f[1] == -1 && f[2] == 4 && f[3] == 2, "real if/while: values (%g %g %g %g)",
+           f[0], f[1], f[2], f[3]);
+    }
+    frep_program_free(p);
+
+    /* The same loop unrolled (constant bound) and real (bound depends on x). */
+    p = compile("m(x[3], a[1]) {\n  i = 0; s = 0;\n  while i < 5 loop\n    s = s + x[1] * i;\n"
+                "    i = i + 1;\n  endloop;\n  m = s;\n}", &D);
+    q = compile("m(x[3], a[1]) {\n  i = 0; s = 0;\n  while i < 5 + 0 * x[1] loop\n"
+                "    s = s + x[1] * i;\n    i = i + 1;\n  endloop;\n  m = s;\n}", &D);
+    ok(p && q && count_op(p, FREP_OP_JMP) == 0 && count_op(q, FREP_OP_JMP) == 1,
+       "constant loop unrolled, point-dependent loop kept");
+    if (p && q) {
+        eval_n(p, 4, xs, zero, zero, NULL, f);
+        eval_n(q, 4, xs, zero, zero, NULL, g);
+        ok(f[0] == g[0] && f[1] == g[1] && f[2] == g[2] && f[3] == g[3] && f[3] == 20,
+           "unrolled and real loops agree");
+    }
+    frep_program_free(p);
+    frep_program_free(q);
+
+    /* Dynamic index in a real loop: LOADI/STOREI. */
+    p = compile("m(x[3], a[1]) {\n  array c[4];\n  c = [10, 20, 30, 40];\n  k = 1;\n"
+                "  while k < x[1] loop k = k + 1; endloop;\n  r = c[k];\n  c[k] = -1;\n"
+                "  m = r + c[k];\n}", &D);
+    ok(p && count_op(p, FREP_OP_LOADI) >= 1 && count_op(p, FREP_OP_STOREI) == 1,
+       "dynamic index uses LOADI/STOREI");
+    if (p) {
+        double x2[3] = { 1, 2.5, 9 };
+        eval_n(p, 3, x2, zero, zero, NULL, f);
+        ok(f[0] == 9 && f[1] == 29 && isnan(f[2]), "dynamic index values, NaN out of range");
+    }
+    frep_program_free(p);
+
+    /* Runaway loops are stopped. */
+    p = compile("m(x[3], a[1]) {\n  v = 0;\n  while x[1] < 1 loop v = v + 1; endloop;\n"
+                "  m = v;\n}", &D);
+    if (p) {
+        frep_scratch *s = frep_scratch_new(p);
+        frep_runtime_error e;
+        double xx[2] = { 0, 2 }, zz[2] = { 0, 0 };
+        frep_eval(p, s, 2, xx, zz, zz, NULL, f);
+        frep_scratch_errors(s, &e);
+        ok(isnan(f[0]) && f[1] == 0 && e.count == 1, "runaway loop stopped: NaN + error");
+        frep_scratch_free(s);
+    } else {
+        ok(0, "runaway loop compiles");
+    }
+    frep_program_free(p);
+
+    /* A constant infinite loop: unrolled up to FREP_MAX_UNROLL, then a real loop. */
+    p = compile("m(x[3], a[1]) {\n  i = 0;\n  while 1 < 2 loop i = i + 1; endloop;\n  m = i;\n}", &D);
+    ok(p && find_diag(&D, "loop not unrolled after 100000 iterations") >= 0,
+       "FREP_MAX_UNROLL: warning, loop kept");
+    if (p) ok(isnan(eval1(p, 0, 0, 0)), "... and stopped at runtime");
+    frep_program_free(p);
+
+    /* FREP_MAX_UNROLL_NODES: a loop with a big body stops unrolling earlier. */
+    p = compile("m(x[3], a[1]) {\n  i = 0; s = 0;\n  while i < 200000 loop\n"
+                "    s = s + sin(x[1] + i) * cos(x[2] + i) * tan(x[3] + i) * exp(x[1] - i);\n"
+                "    i = i + 1;\n  endloop;\n  m = s;\n}", &D);
+    {
+        int k = find_diag(&D, "loop not unrolled after ");
+        ok(p && k >= 0 && !strstr(D.msg[k], "after 100000 "),
+           "FREP_MAX_UNROLL_NODES: unrolling stops on the node budget");
+        if (k >= 0) diag("  %s", D.msg[k]);
+    }
+    frep_program_free(p);
+}
+
+static void test_params(void)
+{
+    diags D;
+    frep_compile_options o;
+    frep_program *p;
+    const char *src = "m(x[3], a[2]) {\n  r = -0.5; -- @free [-1, 1]\n  k = 2;  -- @free\n"
+                      "  m = a[2] * x[1] + r * k;\n}";
+    double av[2] = { 7, 3 };
+    frep_compile_options_init(&o);
+    o.a = av;
+    o.na = 2;
+    p = compile_opt(src, &D, &o);
+    ok(p != NULL, "free parameters compile");
+    if (!p) { dump(&D); return; }
+    is_int(frep_program_nparams(p), 4, "a[1], a[2], r, k");
+    is_str(frep_program_param_name(p, 1), "a[2]", "name of a[2]");
+    is_double(frep_program_param_value(p, 1), 3, 0, "a[2] from the options");
+    is_str(frep_program_param_name(p, 2), "r", "name of r");
+    is_double(frep_program_param_value(p, 2), -0.5, 0, "value of r");
+    {
+        double lo = 0, hi = 0;
+        ok(frep_program_param_bounds(p, 2, &lo, &hi) == 1 && lo == -1 && hi == 1, "bounds of r");
+        ok(frep_program_param_bounds(p, 3, &lo, &hi) == 0, "k has no bounds");
+    }
+    ok(p->params[2].off == (uint32_t)(strstr(src, "-0.5") - src) &&
+       p->params[2].end == p->params[2].off + 4, "span of r's literal includes the minus");
+    ok(p->params[3].off == (uint32_t)(strstr(src, "2;") - src) && p->params[3].end ==
+       p->params[3].off + 1, "span of k's literal");
+    ok(p->params[2].pos.line == 2 && p->params[2].pos.col == 7, "position of r's literal");
+    is_double(eval1(p, 2, 0, 0), 3 * 2 - 1, 0, "value with the initial parameters");
+    {
+        double pv[4] = { 0, 1, 0.25, 4 }, xx = 2, zz = 0, f;
+        eval_n(p, 1, &xx, &zz, &zz, pv, &f);
+        is_double(f, 2 + 1, 0, "value with other parameters");
+    }
+    frep_program_free(p);
+}
+
+static void test_models(void)
+{
+    diags D;
+    frep_compile_options o;
+    frep_program *p;
+    size_t n = 0;
+    char **names;
+    const char *src = "shift(x[3], a[1]) {\n  d = hfShift3D(x, 1, 0, 0);\n  shift = x[1];\n}\n"
+                      "my_model(x[3], a[1]) {\n  t = shift(x, a);\n  my_model = t * 10 + x[1];\n}\n"
+                      "last(x[3], a[1]) { last = 5; }\n";
+    p = compile(src, &D);
+    ok(p && strcmp(p->model, "my_model") == 0, "my_model is the default");
+    if (p) is_double(eval1(p, 3, 0, 0), 23, 0, "model call: arrays passed by value");
+    frep_program_free(p);
+    frep_compile_options_init(&o);
+    o.model = "LAST";
+    p = compile_opt(src, &D, &o);
+    ok(p && strcmp(p->model, "last") == 0 && eval1(p, 0, 0, 0) == 5, "--model (case-insensitive)");
+    frep_program_free(p);
+    o.model = "nope";
+    p = compile_opt(src, &D, &o);
+    ok(!p && find_diag(&D, "no model named 'nope'") >= 0, "unknown --model");
+    p = compile("a1(x[3], a[1]) { a1 = 1; }\nb1(x[3], a[1]) { b1 = 2; }", &D);
+    ok(p && eval1(p, 0, 0, 0) == 2, "without my_model: the last model");
+    frep_program_free(p);
+    names = frep_list_models("t.hf", src, strlen(src), &n, collect, &D);
+    ok(names && n == 3 && strcmp(names[0], "shift") == 0 && strcmp(names[2], "last") == 0,
+       "frep_list_models");
+    frep_free_strings(names, n);
+
+    /* x[4..] read 0; s[] writes are ignored and reads give 0. */
+    p = compile("m(x[4], a[1], s[2]) {\n  s[1] = 5;\n  m = x[4] + s[1] + x[1];\n}", &D);
+    ok(p && eval1(p, 2, 0, 0) == 2, "x[4] and s[] read 0");
+    frep_program_free(p);
+
+    /* Set-operation semantics: pragma and override. */
+    p = compile("-- @setops minmax\nm(x[3], a[1]) { m = x[1] | x[2] & x[3] \\ x[1]; }", &D);
+    ok(p && count_op(p, FREP_OP_MAX) == 1 && count_op(p, FREP_OP_MIN) == 1 &&
+       count_op(p, FREP_OP_MSUB) == 1, "@setops minmax");
+    frep_program_free(p);
+    frep_compile_options_init(&o);
+    o.setops_override = FREP_SETOPS_RFUNC;
+    p = compile_opt("-- @setops minmax\nm(x[3], a[1]) { m = x[1] | x[2] @ x[3]; }", &D, &o);
+    ok(p && count_op(p, FREP_OP_RUNI) == 1 && count_op(p, FREP_OP_RINT) == 1,
+       "override wins; '@' is an intersection as in the reference");
+    frep_program_free(p);
+    p = compile("-- @box -1 -2 -3 1 2 3\nm(x[3], a[1]) { m = 1; }", &D);
+    {
+        double b[6] = { 0 };
+        ok(p && frep_program_box(p, b) == 1 && b[0] == -1 && b[5] == 3, "@box");
+    }
+    frep_program_free(p);
+}
+
+static void test_limits(void)
+{
+    diags D;
+    frep_program *p;
+    char *src = malloc(200000);
+    size_t len = 0;
+    int i;
+    /* FREP_MAX_INLINE_DEPTH: a chain of 70 models each calling the previous one. */
+    len += (size_t)sprintf(src + len, "m0(x[3], a[1]) { m0 = x[1]; }\n");
+    for (i = 1; i < 70; i++)
+        len += (size_t)sprintf(src + len, "m%d(x[3], a[1]) { m%d = m%d(x, a) + 1; }\n", i, i, i - 1);
+    p = compile(src, &D);
+    ok(!p && find_diag(&D, "model calls nested more than 64 deep") >= 0,
+       "FREP_MAX_INLINE_DEPTH");
+    frep_program_free(p);
+
+    /* FREP_EMIT_MAX_HEIGHT: a 5000-term chain is split with temporaries. */
+    p = compile("m(x[3], a[1]) {\n  i = 0; s = 0;\n  while i < 5000 loop s = s + x[1] * x[2]; "
+                "i = i + 1; endloop;\n  m = s;\n}", &D);
+    ok(p && p->max_stack <= 4 && count_op(p, FREP_OP_STORE) >= 2,
+       "FREP_EMIT_MAX_HEIGHT: deep chain hoisted (stack %u)", p ? (unsigned)p->max_stack : 0);
+    if (p) is_double(eval1(p, 0.5, 3, 0), 5000 * 1.5, 1e-9, "... value of the deep chain");
+    frep_program_free(p);
+
+    /* FREP_EMIT_MAX_NEED: right-nested subtractions need a deep stack. */
+    len = 0;
+    len += (size_t)sprintf(src + len, "m(x[3], a[1]) { m = ");
+    for (i = 0; i < 100; i++) len += (size_t)sprintf(src + len, "x[%d] - (", i % 3 + 1);
+    len += (size_t)sprintf(src + len, "x[1]");
+    for (i = 0; i < 100; i++) src[len++] = ')';
+    (void)sprintf(src + len, "; }");
+    p = compile(src, &D);
+    ok(p && p->max_stack <= 70, "FREP_EMIT_MAX_NEED: stack bounded (%u)",
+       p ? (unsigned)p->max_stack : 0);
+    if (p) {
+        /* x - (y - (z - (x - ...))): with x = 1, y = 2, z = 4 the terms alternate. */
+        double v = 1, xv[3] = { 1, 2, 4 };
+        for (i = 99; i >= 0; i--) v = xv[i % 3] - v;
+        is_double(eval1(p, 1, 2, 4), v, 0, "... value of the nested subtractions");
+    }
+    frep_program_free(p);
+
+    /* FREP_EMIT_MAX_PARALLEL: a 20-element array rotated inside a real loop. */
+    len = 0;
+    len += (size_t)sprintf(src + len, "m(x[3], a[1]) {\n  array c[20];\n  c = [");
+    for (i = 0; i < 20; i++) len += (size_t)sprintf(src + len, "%s%d", i ? ", " : "", i + 1);
+    len += (size_t)sprintf(src + len, "];\n  k = 0;\n  while k < x[1] loop\n    c = [");
+    for (i = 0; i < 20; i++) len += (size_t)sprintf(src + len, "%sc[%d]", i ? ", " : "", (i + 1) % 20 + 1);
+    (void)sprintf(src + len, "];\n    k = k + 1;\n  endloop;\n  m = c[1] * 100 + c[20];\n}");
+    p = compile(src, &D);
+    ok(p != NULL, "FREP_EMIT_MAX_PARALLEL: large parallel store compiles");
+    if (p) is_double(eval1(p, 3, 0, 0), 4 * 100 + 3, 0, "... rotated by three");
+    frep_program_free(p);
+    free(src);
+}
+
+int main(void)
+{
+    test_basic();
+    test_checks();
+    test_fold_cse();
+    test_control();
+    test_params();
+    test_models();
+    test_limits();
+    return done_testing();
+}

@@ -1,0 +1,266 @@
+/* test_fit.c - unit tests of the fitting engine (fit/objective.c, fit/fit.c) on the
+ * paper's test part written in C with forward-mode dual numbers: a block minus two
+ * z-cylinders, 12 parameters, combined with Rvachev functions as HyperFun does.  Points
+ * are sampled exactly on the ground-truth surface here, so the test needs neither the
+ * compiler nor `frep sample`.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fit.h"
+#include "tap.h"
+
+#define NP 12           /* parameters of the test part */
+#define ND (NP + 3)     /* tangents: parameters, then x, y, z */
+
+typedef struct dual {
+    double v, d[ND];
+} dual;
+
+static dual dconst(double v)
+{
+    dual r;
+    memset(&r, 0, sizeof r);
+    r.v = v;
+    return r;
+}
+
+static dual dvar(double v, int k)
+{
+    dual r = dconst(v);
+    r.d[k] = 1;
+    return r;
+}
+
+static dual dadd(dual a, dual b)
+{
+    for (int k = 0; k < ND; k++) a.d[k] += b.d[k];
+    a.v += b.v;
+    return a;
+}
+
+static dual dsub(dual a, dual b)
+{
+    for (int k = 0; k < ND; k++) a.d[k] -= b.d[k];
+    a.v -= b.v;
+    return a;
+}
+
+static dual dmul(dual a, dual b)
+{
+    dual r;
+    r.v = a.v * b.v;
+    for (int k = 0; k < ND; k++) r.d[k] = a.d[k] * b.v + a.v * b.d[k];
+    return r;
+}
+
+static dual dneg(dual a) { return dsub(dconst(0), a); }
+
+static dual dsqrt(dual a)
+{
+    dual r;
+    r.v = sqrt(a.v);
+    double c = r.v > 0 ? 0.5 / r.v : 0;
+    for (int k = 0; k < ND; k++) r.d[k] = c * a.d[k];
+    return r;
+}
+
+/* Rvachev intersection a & b = a + b - sqrt(a^2 + b^2) (HyperFun's default). */
+static dual rand_(dual a, dual b)
+{
+    return dsub(dadd(a, b), dsqrt(dadd(dmul(a, a), dmul(b, b))));
+}
+
+/* The test part at point (x, y, z) with parameters p:
+ * block vertex p0..p2, edges p3..p5 (HyperFun's hfBlock slabs (x - v)(v + d - x)),
+ * minus cylinders hfCylinderZ with axis (p6, p7) radius p8 and axis (p9, p10) radius p11. */
+static dual part(double x, double y, double z, const double *p)
+{
+    dual X[3] = {dvar(x, NP), dvar(y, NP + 1), dvar(z, NP + 2)}, P[NP];
+    for (int j = 0; j < NP; j++) P[j] = dvar(p[j], j);
+    dual s[3];
+    for (int c = 0; c < 3; c++)
+        s[c] = dmul(dsub(X[c], P[c]), dsub(dadd(P[c], P[3 + c]), X[c]));
+    dual f = rand_(rand_(s[0], s[1]), s[2]);
+    for (int k = 0; k < 2; k++) {
+        dual dx = dsub(X[0], P[6 + 3 * k]), dy = dsub(X[1], P[7 + 3 * k]);
+        dual cyl = dsub(dmul(P[8 + 3 * k], P[8 + 3 * k]), dadd(dmul(dx, dx), dmul(dy, dy)));
+        f = rand_(f, dneg(cyl));
+    }
+    return f;
+}
+
+static int part_eval(void *user, void *scratch, size_t n, const double *x, const double *y,
+                     const double *z, const double *params, double *f, double *g, double *dp)
+{
+    (void)user, (void)scratch;
+    for (size_t i = 0; i < n; i++) {
+        dual r = part(x[i], y[i], z[i], params);
+        f[i] = r.v;
+        if (g)
+            for (int c = 0; c < 3; c++) g[(size_t)c * n + i] = r.d[NP + c];
+        if (dp)
+            for (int j = 0; j < NP; j++) dp[(size_t)j * n + i] = r.d[j];
+    }
+    return 0;
+}
+
+/* Ground truth: block [-4, 4] x [-2, 2] x [-1, 1] minus radius 1 at (-2, 0) and radius
+ * 0.6 at (2.2, 0.3). */
+static const double truth[NP] = {-4, -2, -1, 8, 4, 2, -2, 0, 1, 2.2, 0.3, 0.6};
+
+/* Uniform random points on the true surface: faces of the block outside the holes and
+ * hole walls, by rejection from area-weighted candidates. */
+static size_t sample_part(size_t n, double *x, double *y, double *z, uint64_t seed)
+{
+    fit_rng r;
+    fit_rng_seed(&r, seed);
+    const double *t = truth;
+    double lx = t[3], ly = t[4], lz = t[5];
+    double area[5] = {2 * lx * ly, 2 * lx * lz, 2 * ly * lz, 2 * 3.14159265 * t[8] * lz,
+                      2 * 3.14159265 * t[11] * lz};
+    double total = 0;
+    for (int k = 0; k < 5; k++) total += area[k];
+    size_t got = 0;
+    while (got < n) {
+        double u = fit_rng_uniform(&r) * total, a = fit_rng_uniform(&r), b = fit_rng_uniform(&r);
+        int side = fit_rng_uniform(&r) < 0.5;
+        double px, py, pz;
+        int k = 0;
+        while (k < 4 && u > area[k]) u -= area[k++];
+        if (k == 0) px = t[0] + a * lx, py = t[1] + b * ly, pz = t[2] + side * lz;
+        else if (k == 1) px = t[0] + a * lx, py = t[1] + side * ly, pz = t[2] + b * lz;
+        else if (k == 2) px = t[0] + side * lx, py = t[1] + a * ly, pz = t[2] + b * lz;
+        else {
+            int c = k - 3;
+            double ang = 2 * 3.14159265358979 * a;
+            px = t[6 + 3 * c] + t[8 + 3 * c] * cos(ang);
+            py = t[7 + 3 * c] + t[8 + 3 * c] * sin(ang);
+            pz = t[2] + b * lz;
+        }
+        /* Keep points on the boundary of the solid: outside the other cylinder (and
+         * outside both for face points), inside the block's xy extent for walls. */
+        int keep = px >= t[0] && px <= t[0] + lx && py >= t[1] && py <= t[1] + ly;
+        for (int c = 0; c < 2; c++) {
+            double dx = px - t[6 + 3 * c], dy = py - t[7 + 3 * c];
+            if (k != 3 + c && dx * dx + dy * dy < t[8 + 3 * c] * t[8 + 3 * c]) keep = 0;
+        }
+        if (!keep) continue;
+        x[got] = px, y[got] = py, z[got] = pz;
+        got++;
+    }
+    return got;
+}
+
+/* Largest parameter error relative to the box diagonal. */
+static double rel_error(const double *p)
+{
+    double diag = sqrt(truth[3] * truth[3] + truth[4] * truth[4] + truth[5] * truth[5]);
+    double e = 0;
+    for (int j = 0; j < NP; j++) e = fmax(e, fabs(p[j] - truth[j]));
+    return e / diag;
+}
+
+int main(void)
+{
+    enum { N = 10714 };
+    double *px = malloc(3 * N * sizeof *px), *py = px + N, *pz = py + N;
+    sample_part(N, px, py, pz, 7);
+    fit_model model = {NP, NULL, NULL, NULL, part_eval};
+    fit_points pts = {N, px, py, pz, NULL, NULL, NULL};
+    double lo[NP], hi[NP];
+    for (int j = 0; j < NP; j++) lo[j] = -10, hi[j] = 10;
+    for (int j = 3; j < 6; j++) lo[j] = 0.01;      /* block edges stay positive */
+    for (int j = 8; j < NP; j += 3) lo[j] = 0.01;  /* radii too */
+
+    /* The sampler puts points on the surface: f = 0 there at the true parameters. */
+    {
+        fit_objective_config oc;
+        fit_objective_config_init(&oc);
+        fit_objective *o = fit_objective_new(&model, &pts, &oc);
+        double rms, mx;
+        fit_objective_distances(o, truth, &rms, &mx);
+        ok(mx < 1e-9, "sampled points lie on the true surface (max distance %g)", mx);
+        is_double(fit_objective_value(o, truth, NULL), 0, 1e-20, "objective 0 at the truth");
+
+        /* Objective gradient against central differences, both kinds. */
+        double p[NP], g[NP];
+        for (int j = 0; j < NP; j++) p[j] = truth[j] + 0.05 * (j % 3) - 0.04;
+        for (int kind = 0; kind < 2; kind++) {
+            fit_objective_config c2 = oc;
+            c2.kind = kind ? FIT_OBJ_GEOMETRIC : FIT_OBJ_ALGEBRAIC;
+            c2.loss = kind ? FIT_LOSS_CAUCHY : FIT_LOSS_HUBER;
+            c2.loss_scale = 0.05;
+            fit_objective *o2 = fit_objective_new(&model, &pts, &c2);
+            if (kind) fit_objective_freeze(o2, p);
+            fit_objective_value(o2, p, g);
+            double worst = 0;
+            for (int j = 0; j < NP; j++) {
+                double q[NP];
+                memcpy(q, p, sizeof q);
+                double h = 1e-6;
+                q[j] = p[j] + h;
+                double fp = fit_objective_value(o2, q, NULL);
+                q[j] = p[j] - h;
+                double fm = fit_objective_value(o2, q, NULL);
+                worst = fmax(worst, fabs((fp - fm) / (2 * h) - g[j]) / fmax(1e-3, fabs(g[j])));
+            }
+            ok(worst < 1e-5, "%s objective gradient matches differences (rel. error %g)",
+               kind ? "geometric (frozen weights, cauchy)" : "algebraic (huber)", worst);
+            /* The LM normal equations agree with the gradient: J^T W r = dE/dp / 2. */
+            double jtj[NP * NP], jtr[NP];
+            double cost = fit_objective_lsq(o2, p, jtj, jtr);
+            double e2 = 0;
+            for (int j = 0; j < NP; j++) e2 = fmax(e2, fabs(2 * jtr[j] - g[j]) / fmax(1e-3, fabs(g[j])));
+            ok(e2 < 1e-9, "lsq gradient agrees (rel. error %g)", e2);
+            is_double(2 * cost, fit_objective_value(o2, p, NULL), 1e-12, "lsq cost is half the objective");
+            fit_objective_free(o2);
+        }
+
+        /* Reduction order is fixed: 1 and 2 threads give the same bits. */
+        fit_objective_config c1 = oc, c2 = oc;
+        c1.nthreads = 1, c2.nthreads = 2;
+        fit_objective *o1 = fit_objective_new(&model, &pts, &c1);
+        fit_objective *o2 = fit_objective_new(&model, &pts, &c2);
+        double g1[NP], g2[NP];
+        double v1 = fit_objective_value(o1, p, g1), v2 = fit_objective_value(o2, p, g2);
+        ok(v1 == v2 && memcmp(g1, g2, sizeof g1) == 0, "1 and 2 threads: identical objective and gradient");
+        fit_objective_free(o1);
+        fit_objective_free(o2);
+        fit_objective_free(o);
+    }
+
+    /* The paper's experiment: set1 (near the answer) and set2 (all parameters 1). */
+    double set1[NP];
+    for (int j = 0; j < NP; j++) set1[j] = truth[j] + (j % 2 ? 0.3 : -0.25);
+    double set2[NP];
+    for (int j = 0; j < NP; j++) set2[j] = 1;
+
+    fit_config cfg;
+    fit_config_init(&cfg);
+    fit_result res;
+    char err[200];
+    double p[NP];
+
+    cfg.method = FIT_METHOD_QN;
+    memcpy(p, set1, sizeof p);
+    fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+    ok(rel_error(p) < 1e-6, "qn from set1 reaches the truth (error %.2g of the diagonal, %.3f s, %ld evals)",
+       rel_error(p), res.seconds, res.evals);
+
+    memcpy(p, set2, sizeof p);
+    fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+    ok(rel_error(p) > 1e-2, "qn from set2 stops in a wrong local minimum (error %.2g, objective %.3g)",
+       rel_error(p), res.objective);
+
+    cfg.method = FIT_METHOD_SAQN;
+    memcpy(p, set2, sizeof p);
+    fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+    ok(rel_error(p) < 1e-3, "sa+qn from set2 reaches the truth (error %.2g, %.3f s, %ld evals, %ld sa iterations)",
+       rel_error(p), res.seconds, res.evals, res.sa_iterations);
+    for (int j = 0; j < NP; j++) diag("  p%d = %.9g (truth %g)", j, p[j], truth[j]);
+
+    free(px);
+    return done_testing();
+}

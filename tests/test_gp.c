@@ -1,0 +1,603 @@
+/* test_gp.c - unit tests of the construction-tree engine of `frep evolve`: tree
+ * operations over bytecode, the simplifier, fitness, the GA on analytic scenes (cube,
+ * block minus cylinder, union of spheres), the overlap graph, Bron-Kerbosch and the
+ * merge of partition trees.  Scenes are sampled here from analytic surfaces so the
+ * test needs no other part of frep.
+ */
+#include "config.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fitness.h"
+#include "gp.h"
+#include "partition.h"
+#include "simplify.h"
+#include "tap.h"
+#include "tree.h"
+
+/* ---- analytic scenes ------------------------------------------------------------ */
+
+enum { T_PLANE, T_SPHERE, T_CYLZ };
+typedef struct aprim {
+    int type;
+    double p[3];   /* plane normal / centre / axis point */
+    double r;      /* plane offset d / radius */
+} aprim;
+
+/* f >= 0 inside; gradient. */
+static double aprim_eval(const aprim *q, const double x[3], double g[3])
+{
+    if (q->type == T_PLANE) {
+        for (int k = 0; k < 3; k++) g[k] = -q->p[k];
+        return q->r - (q->p[0] * x[0] + q->p[1] * x[1] + q->p[2] * x[2]);
+    }
+    double d[3] = { x[0] - q->p[0], x[1] - q->p[1], q->type == T_SPHERE ? x[2] - q->p[2] : 0 };
+    double l = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    for (int k = 0; k < 3; k++) g[k] = l > 0 ? -d[k] / l : 0;
+    return q->r - l;
+}
+
+typedef struct scene {
+    size_t n, cap;
+    double *x, *y, *z, *nrm;
+    aprim prims[16];
+    uint32_t nprims;
+} scene;
+
+static void scene_add(scene *s, double px, double py, double pz, double nx, double ny, double nz)
+{
+    if (s->n == s->cap) {
+        s->cap = s->cap ? 2 * s->cap : 1024;
+        s->x = realloc(s->x, s->cap * sizeof(double));
+        s->y = realloc(s->y, s->cap * sizeof(double));
+        s->z = realloc(s->z, s->cap * sizeof(double));
+        s->nrm = realloc(s->nrm, 3 * s->cap * sizeof(double));
+    }
+    s->x[s->n] = px;
+    s->y[s->n] = py;
+    s->z[s->n] = pz;
+    s->nrm[3 * s->n] = nx;
+    s->nrm[3 * s->n + 1] = ny;
+    s->nrm[3 * s->n + 2] = nz;
+    s->n++;
+}
+
+static void scene_free(scene *s)
+{
+    free(s->x);
+    free(s->y);
+    free(s->z);
+    free(s->nrm);
+    memset(s, 0, sizeof *s);
+}
+
+static void add_plane(scene *s, int axis, double sign, double d)
+{
+    aprim *q = &s->prims[s->nprims++];
+    q->type = T_PLANE;
+    memset(q->p, 0, sizeof q->p);
+    q->p[axis] = sign;
+    q->r = d;
+}
+
+/* Box [-hx,hx]x[-hy,hy]x[-hz,hz] sampled on its faces, points inside the z-cylinder of
+ * radius hole (if > 0) left out of the top and bottom faces. */
+static void sample_box(scene *s, gp_rng *r, size_t per_face, double h[3], double hole)
+{
+    for (int axis = 0; axis < 3; axis++)
+        for (int sg = -1; sg <= 1; sg += 2) {
+            add_plane(s, axis, sg, h[axis]);
+            for (size_t k = 0; k < per_face; k++) {
+                double p[3], nn[3] = { 0, 0, 0 };
+                for (int q = 0; q < 3; q++) p[q] = (2 * gp_rng_unif(r) - 1) * h[q];
+                p[axis] = sg * h[axis];
+                nn[axis] = sg;
+                if (hole > 0 && axis == 2 && p[0] * p[0] + p[1] * p[1] < hole * hole) continue;
+                scene_add(s, p[0], p[1], p[2], nn[0], nn[1], nn[2]);
+            }
+        }
+}
+
+static gp_cache *scene_cache(const scene *s, gp_setops so, double alpha_deg)
+{
+    size_t n = s->n;
+    double *v = malloc(s->nprims * n * sizeof *v);
+    double *g = malloc(3 * s->nprims * n * sizeof *g);
+    for (uint32_t j = 0; j < s->nprims; j++)
+        for (size_t i = 0; i < n; i++) {
+            double p[3] = { s->x[i], s->y[i], s->z[i] }, gg[3];
+            v[j * n + i] = aprim_eval(&s->prims[j], p, gg);
+            for (int c = 0; c < 3; c++) g[(3 * j + c) * n + i] = gg[c];
+        }
+    /* eps_d: 1% of the bounding-box diagonal. */
+    double lo[3] = { HUGE_VAL, HUGE_VAL, HUGE_VAL }, hi[3] = { -HUGE_VAL, -HUGE_VAL, -HUGE_VAL };
+    for (size_t i = 0; i < n; i++) {
+        double p[3] = { s->x[i], s->y[i], s->z[i] };
+        for (int c = 0; c < 3; c++) {
+            if (p[c] < lo[c]) lo[c] = p[c];
+            if (p[c] > hi[c]) hi[c] = p[c];
+        }
+    }
+    double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                       (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    return gp_cache_new(n, s->nprims, so, v, g, s->nrm, 0.01 * diag,
+                        alpha_deg * 3.14159265358979323846 / 180, -1);
+}
+
+/* Proxy boxes: the points explained by each primitive alone. */
+static void scene_boxes(const scene *s, const gp_cache *c, gp_obb *boxes)
+{
+    size_t *idx = malloc(s->n * sizeof *idx);
+    for (uint32_t j = 0; j < s->nprims; j++) {
+        size_t m = 0;
+        for (size_t i = 0; i < s->n; i++) {
+            double p[3] = { s->x[i], s->y[i], s->z[i] }, g[3];
+            double f = aprim_eval(&s->prims[j], p, g);
+            double dt = -(g[0] * s->nrm[3 * i] + g[1] * s->nrm[3 * i + 1] + g[2] * s->nrm[3 * i + 2]);
+            if (fabs(f) < c->eps_d && dt > cos(c->alpha)) idx[m++] = i;
+        }
+        part_obb_of_points(s->x, s->y, s->z, idx, m, &boxes[j]);
+    }
+    free(idx);
+}
+
+/* ---- helpers ---------------------------------------------------------------------- */
+
+static void parse_tree(gp_tree *t, const char *postfix, gp_setops so)
+{
+    /* Postfix words: digits = PRIM (1-based), | & \ ~ operators. */
+    gp_opset o = gp_opset_of(so);
+    t->len = 0;
+    for (const char *p = postfix; *p; p++) {
+        if (*p >= '1' && *p <= '9') tree_push(t, FREP_OP_PRIM, (uint32_t)(*p - '1'));
+        else if (*p == '|') tree_push(t, (frep_opcode)o.uni, 0);
+        else if (*p == '&') tree_push(t, (frep_opcode)o.inter, 0);
+        else if (*p == '\\') tree_push(t, (frep_opcode)o.sub, 0);
+        else if (*p == '~') tree_push(t, (frep_opcode)o.neg, 0);
+    }
+}
+
+static char *print_str(const gp_tree *t)
+{
+    static char buf[4096];  /* test-only scratch; the library has no such state */
+    FILE *f = tmpfile();
+    tree_print(f, t->code, t->len, "p");
+    rewind(f);
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    buf[n] = 0;
+    fclose(f);
+    return buf;
+}
+
+static int run_gp(const gp_cache *c, uint64_t seed, int threads, gp_result *r)
+{
+    gp_config cfg;
+    gp_config_init(&cfg);
+    cfg.seed = seed;
+    cfg.threads = threads;
+    cfg.generations = 400;
+    cfg.setops = c->setops;
+    return gp_run(&cfg, c, NULL, 0, NULL, NULL, r);
+}
+
+/* ---- tests ------------------------------------------------------------------------- */
+
+static void test_tree_ops(void)
+{
+    gp_tree t = { NULL, 0, 0 }, u = { NULL, 0, 0 }, ch = { NULL, 0, 0 };
+    parse_tree(&t, "12|3&~", GP_SETOPS_MINMAX);
+    is_int(t.len, 6, "parsed postfix length");
+    is_int(tree_subtree_start(t.code, 4), 0, "subtree of the & spans the whole left part");
+    is_int(tree_subtree_start(t.code, 2), 0, "subtree of |");
+    is_int(tree_subtree_start(t.code, 3), 3, "leaf is its own subtree");
+    is_int(tree_depth(t.code, t.len), 4, "depth counts the complement");
+    is_str(print_str(&t), "~((p1 | p2) & p3)", "infix printing");
+    ok(tree_valid(t.code, t.len, 3, GP_SETOPS_MINMAX), "valid tree");
+    ok(!tree_valid(t.code, t.len, 2, GP_SETOPS_MINMAX), "primitive out of range is invalid");
+    ok(!tree_valid(t.code, t.len, 3, GP_SETOPS_RFUNC), "wrong family is invalid");
+    uint16_t lev[6];
+    tree_levels(t.code, t.len, lev);
+    ok(lev[5] == 1 && lev[4] == 2 && lev[3] == 3 && lev[2] == 3 && lev[0] == 4 && lev[1] == 4,
+       "node levels from the root");
+
+    /* Splice: replace p3 by (p1 \ p2). */
+    parse_tree(&u, "12\\", GP_SETOPS_MINMAX);
+    tree_splice(&t, 3, 3, u.code, u.len);
+    is_str(print_str(&t), "~((p1 | p2) & (p1 \\ p2))", "splice replaces a subtree");
+
+    gp_rng r;
+    gp_rng_seed(&r, 7);
+    int all_valid = 1, depth_ok = 1, cancelled = 0, done = 0;
+    for (int k = 0; k < 300; k++) {
+        gp_tree a = { NULL, 0, 0 }, b = { NULL, 0, 0 };
+        tree_grow(&a, &r, GP_SETOPS_RFUNC, 5, 5, 0.7);
+        tree_grow(&b, &r, GP_SETOPS_RFUNC, 5, 5, 0.7);
+        all_valid &= tree_valid(a.code, a.len, 5, GP_SETOPS_RFUNC);
+        depth_ok &= tree_depth(a.code, a.len) <= 5;
+        int x = tree_crossover(&ch, &a, &b, &r, 5);
+        if (x == 0) cancelled++;
+        else done++;
+        all_valid &= tree_valid(ch.code, ch.len, 5, GP_SETOPS_RFUNC);
+        depth_ok &= tree_depth(ch.code, ch.len) <= 5;
+        tree_mutate(&ch, &r, GP_SETOPS_RFUNC, 5, 5, 0.7);
+        all_valid &= tree_valid(ch.code, ch.len, 5, GP_SETOPS_RFUNC);
+        depth_ok &= tree_depth(ch.code, ch.len) <= 5;
+        tree_free(&a);
+        tree_free(&b);
+    }
+    ok(all_valid, "grown, crossed and mutated trees are well formed");
+    ok(depth_ok, "no tree exceeds the maximum depth");
+    ok(cancelled > 0 && done > 0, "crossover sometimes cancelled for depth (%d of %d)",
+       cancelled, cancelled + done);
+    tree_free(&t);
+    tree_free(&u);
+    tree_free(&ch);
+}
+
+static void check_rule(const char *in, const char *want, gp_setops so)
+{
+    gp_tree t = { NULL, 0, 0 };
+    parse_tree(&t, in, so);
+    simplify_rules(&t, so);
+    is_str(print_str(&t), want, "rules: %s", in);
+    tree_free(&t);
+}
+
+static void test_rules(void)
+{
+    check_rule("1~~", "p1", GP_SETOPS_MINMAX);
+    check_rule("11&", "p1", GP_SETOPS_MINMAX);
+    check_rule("12|12|&", "p1 | p2", GP_SETOPS_MINMAX);
+    check_rule("21|", "p1 | p2", GP_SETOPS_MINMAX);
+    check_rule("12~&", "p1 \\ p2", GP_SETOPS_MINMAX);
+    check_rule("1~2&", "p2 \\ p1", GP_SETOPS_MINMAX);
+    check_rule("12~\\", "p1 & p2", GP_SETOPS_RFUNC);
+    check_rule("1~2~|", "~(p1 & p2)", GP_SETOPS_RFUNC);
+    check_rule("1~2~|~", "p1 & p2", GP_SETOPS_MINMAX);
+    check_rule("12\\", "p1 \\ p2", GP_SETOPS_MINMAX);
+}
+
+/* The identities of the rules hold numerically for both families, except idempotence
+ * (p & p -> p), which for R-functions keeps the sign and zero set but not the values. */
+static void test_rules_exact(void)
+{
+    const char *exprs[] = { "12~&", "1~2&", "12~\\", "1~2~|", "1~2~&", "1~2\\", "12|21|&" };
+    for (int so = 0; so < 2; so++) {
+        scene s;
+        memset(&s, 0, sizeof s);
+        gp_rng r;
+        gp_rng_seed(&r, 3);
+        s.prims[0] = (aprim){ T_SPHERE, { 0.2, 0, 0 }, 0.7 };
+        s.prims[1] = (aprim){ T_CYLZ, { -0.1, 0.3, 0 }, 0.5 };
+        s.nprims = 2;
+        for (int i = 0; i < 300; i++)
+            scene_add(&s, 2 * gp_rng_unif(&r) - 1, 2 * gp_rng_unif(&r) - 1,
+                      2 * gp_rng_unif(&r) - 1, 0, 0, 1);
+        gp_cache *c = scene_cache(&s, (gp_setops)so, 10);
+        gp_eval *e = gp_eval_new();
+        int same = 1;
+        size_t nex = sizeof exprs / sizeof exprs[0] - (so == GP_SETOPS_RFUNC);
+        for (size_t k = 0; k < nex; k++) {
+            gp_tree t = { NULL, 0, 0 };
+            parse_tree(&t, exprs[k], (gp_setops)so);
+            double a = gp_score(c, e, t.code, t.len);
+            simplify_rules(&t, (gp_setops)so);
+            double b = gp_score(c, e, t.code, t.len);
+            if (fabs(a - b) > 1e-9 * fabs(a)) {
+                same = 0;
+                diag("%s: %.17g vs %.17g", exprs[k], a, b);
+            }
+            tree_free(&t);
+        }
+        ok(same, "rewritten trees score the same (%s)", so ? "rfunc" : "minmax");
+        gp_eval_free(e);
+        gp_cache_free(c);
+        scene_free(&s);
+    }
+}
+
+static void test_fitness(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 11);
+    double h[3] = { 1, 1, 1 };
+    sample_box(&s, &r, 200, h, 0);
+    for (int so = 0; so < 2; so++) {
+        gp_cache *c = scene_cache(&s, (gp_setops)so, 10);
+        gp_eval *e = gp_eval_new();
+        gp_tree t = { NULL, 0, 0 };
+        parse_tree(&t, "12&34&&56&&", (gp_setops)so);
+        gp_stats st;
+        gp_tree_stats(c, e, t.code, t.len, &st);
+        /* min/max: the exact cube is 0 at every sample with the right normal: each
+         * point scores 2. R-functions are 0 there too (one operand is 0, the others
+         * positive... except on edges), normals agree to within alpha. */
+        if (so == 0) {
+            is_double(st.score, 2.0 * (double)s.n, 1e-3 * (double)s.n, "cube scores 2 per point (minmax)");
+            is_double(gp_score(c, e, t.code, t.len), st.score, 1e-2, "tabulated score agrees with direct");
+            is_int(st.explained, s.n, "every point explained");
+        } else {
+            ok(st.within_eps == s.n, "rfunc cube: zero set through all points (%zu/%zu)",
+               st.within_eps, s.n);
+        }
+        is_double(st.fitness, st.score - log((double)s.n) * 11, 1e-9, "lambda = ln N per node");
+        parse_tree(&t, "12&34&&5&", (gp_setops)so);
+        ok(gp_fitness(c, e, t.code, t.len) < st.fitness, "a missing face lowers the fitness");
+        tree_free(&t);
+        gp_eval_free(e);
+        gp_cache_free(c);
+    }
+    scene_free(&s);
+}
+
+static void test_cube_gp(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 5);
+    double h[3] = { 1, 1, 1 };
+    sample_box(&s, &r, 500, h, 0);
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 10);
+    gp_result r1, r2;
+    run_gp(c, 42, 1, &r1);
+    run_gp(c, 42, 2, &r2);
+    gp_eval *e = gp_eval_new();
+    double fit;
+    simplify_tree(&r1.best, GP_SETOPS_MINMAX, c, e, &fit);
+    gp_stats st;
+    gp_tree_stats(c, e, r1.best.code, r1.best.len, &st);
+    is_int(r1.best.len, 11, "cube: minimal tree of 11 nodes (%s)", print_str(&r1.best));
+    is_int(st.explained, s.n, "cube: all points explained");
+    is_int(tree_count_prims(r1.best.code, r1.best.len, 6), 6, "cube uses the 6 planes");
+    simplify_tree(&r2.best, GP_SETOPS_MINMAX, c, e, NULL);
+    ok(r1.best.len == r2.best.len &&
+       memcmp(r1.best.code, r2.best.code, r1.best.len * sizeof(frep_insn)) == 0 &&
+       r1.generations == r2.generations,
+       "same seed, same tree at 1 and 2 threads (%u generations)", r1.generations);
+    tree_free(&r1.best);
+    tree_free(&r2.best);
+
+    /* Partitioned: the faces' boxes form the octahedral graph: 12 edges, 8 corners. */
+    gp_obb boxes[6];
+    scene_boxes(&s, c, boxes);
+    gp_graph g;
+    part_overlap_graph(boxes, 6, 2 * c->eps_d, &g);
+    uint32_t edges = 0;
+    for (uint32_t i = 0; i < 6; i++)
+        for (uint32_t j = i + 1; j < 6; j++) edges += (uint32_t)part_graph_has(&g, i, j);
+    is_int(edges, 12, "cube overlap graph: adjacent faces only");
+    ok(!part_graph_has(&g, 0, 1) && !part_graph_has(&g, 2, 3) && !part_graph_has(&g, 4, 5),
+       "opposite faces do not overlap");
+    gp_cliques cl;
+    part_cliques(&g, PART_MAX_CLIQUES, &cl);
+    is_int(cl.count, 8, "8 maximal cliques (corners)");
+    int all3 = 1;
+    for (uint32_t q = 0; q < cl.count; q++) all3 &= cl.start[q + 1] - cl.start[q] == 3;
+    ok(all3, "each corner clique has 3 faces");
+    part_cliques_free(&cl);
+    part_graph_free(&g);
+
+    gp_config cfg;
+    gp_config_init(&cfg);
+    cfg.seed = 9;
+    gp_result pr;
+    part_info info;
+    int rc = part_run(&cfg, c, s.x, s.y, s.z, boxes, 2 * c->eps_d, NULL, NULL, &pr, &info);
+    ok(rc == 0 && info.partitioned, "partitioned run");
+    is_int(pr.best.len, 11, "partitioned cube: 11 nodes (%s)", print_str(&pr.best));
+    gp_tree_stats(c, e, pr.best.code, pr.best.len, &st);
+    is_int(st.explained, s.n, "partitioned cube explains every point");
+    tree_free(&pr.best);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+}
+
+static void test_block_minus_cylinder(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 6);
+    double h[3] = { 1, 1, 0.5 };
+    sample_box(&s, &r, 400, h, 0.4);
+    s.prims[s.nprims++] = (aprim){ T_CYLZ, { 0, 0, 0 }, 0.4 };
+    for (int k = 0; k < 600; k++) {
+        double a = 2 * 3.14159265358979323846 * gp_rng_unif(&r), zz = gp_rng_unif(&r) - 0.5;
+        scene_add(&s, 0.4 * cos(a), 0.4 * sin(a), zz, -cos(a), -sin(a), 0);
+    }
+    for (int so = 0; so < 2; so++) {
+        gp_cache *c = scene_cache(&s, (gp_setops)so, 10);
+        gp_result res;
+        run_gp(c, 4, 2, &res);
+        gp_eval *e = gp_eval_new();
+        simplify_tree(&res.best, (gp_setops)so, c, e, NULL);
+        gp_stats st;
+        gp_tree_stats(c, e, res.best.code, res.best.len, &st);
+        is_int(res.best.len, 13, "block minus cylinder (%s): 13 nodes: %s",
+               so ? "rfunc" : "minmax", print_str(&res.best));
+        ok((double)st.explained > 0.97 * (double)s.n, "explains %zu of %zu points",
+           st.explained, s.n);
+        tree_free(&res.best);
+        gp_eval_free(e);
+        gp_cache_free(c);
+    }
+    scene_free(&s);
+}
+
+static void test_union_spheres(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 8);
+    s.prims[0] = (aprim){ T_SPHERE, { -0.5, 0, 0 }, 0.8 };
+    s.prims[1] = (aprim){ T_SPHERE, { 0.5, 0, 0 }, 0.8 };
+    s.prims[2] = (aprim){ T_SPHERE, { 0, 2, 0 }, 0.3 };  /* a distractor far away */
+    s.nprims = 3;
+    while (s.n < 2000) {
+        double d[3] = { gp_rng_unif(&r) - 0.5, gp_rng_unif(&r) - 0.5, gp_rng_unif(&r) - 0.5 };
+        double l = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        if (l < 1e-3 || l > 0.5) continue;
+        int which = (int)(s.n % 2);
+        const aprim *q = &s.prims[which], *o = &s.prims[1 - which];
+        double p[3] = { q->p[0] + q->r * d[0] / l, q->p[1] + q->r * d[1] / l, q->p[2] + q->r * d[2] / l };
+        double g[3];
+        if (aprim_eval(o, p, g) > 0) continue;  /* inside the other sphere */
+        scene_add(&s, p[0], p[1], p[2], d[0] / l, d[1] / l, d[2] / l);
+    }
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 10);
+    gp_result res;
+    run_gp(c, 1, 2, &res);
+    gp_eval *e = gp_eval_new();
+    simplify_tree(&res.best, GP_SETOPS_MINMAX, c, e, NULL);
+    is_str(print_str(&res.best), "p1 | p2", "union of two spheres, distractor dropped");
+    tree_free(&res.best);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+}
+
+static void test_cliques(void)
+{
+    /* Two triangles sharing vertex 2, plus an isolated vertex 5 and an edge 6-7. */
+    gp_graph g = { 8, 1, calloc(8, sizeof(uint64_t)) };
+    part_graph_set(&g, 0, 1);
+    part_graph_set(&g, 1, 2);
+    part_graph_set(&g, 0, 2);
+    part_graph_set(&g, 2, 3);
+    part_graph_set(&g, 3, 4);
+    part_graph_set(&g, 2, 4);
+    part_graph_set(&g, 6, 7);
+    gp_cliques cl;
+    is_int(part_cliques(&g, 100, &cl), 0, "cliques enumerated");
+    is_int(cl.count, 4, "4 maximal cliques");
+    int seen012 = 0, seen234 = 0, seen5 = 0, seen67 = 0;
+    for (uint32_t q = 0; q < cl.count; q++) {
+        const uint32_t *m = cl.members + cl.start[q];
+        uint32_t k = cl.start[q + 1] - cl.start[q];
+        if (k == 3 && m[0] == 0 && m[1] == 1 && m[2] == 2) seen012 = 1;
+        if (k == 3 && m[0] == 2 && m[1] == 3 && m[2] == 4) seen234 = 1;
+        if (k == 1 && m[0] == 5) seen5 = 1;
+        if (k == 2 && m[0] == 6 && m[1] == 7) seen67 = 1;
+    }
+    ok(seen012 && seen234 && seen5 && seen67, "the cliques are {0,1,2} {2,3,4} {5} {6,7}");
+    part_cliques_free(&cl);
+    is_int(part_cliques(&g, 3, &cl), 1, "clique limit reported");
+    free(g.adj);
+
+    /* K_40 minus a perfect matching has 2^20 maximal cliques: the limit stops it. */
+    gp_graph h = { 40, 1, calloc(40, sizeof(uint64_t)) };
+    for (uint32_t i = 0; i < 40; i++)
+        for (uint32_t j = i + 1; j < 40; j++)
+            if (!(i % 2 == 0 && j == i + 1)) part_graph_set(&h, i, j);
+    is_int(part_cliques(&h, PART_MAX_CLIQUES, &cl), 1, "exponential clique count hits PART_MAX_CLIQUES");
+    free(h.adj);
+
+    gp_obb a, b;
+    memset(&a, 0, sizeof a);
+    a.valid = 1;
+    for (int k = 0; k < 3; k++) { a.ax[k][k] = 1; a.h[k] = 1; }
+    b = a;
+    /* b rotated 45 degrees about z, centre at distance 2.5 along x: the corner of b
+     * reaches 2.5 - sqrt(2) = 1.09 > 1, so they are apart; at 2.3 they touch. */
+    double c45 = sqrt(0.5);
+    b.ax[0][0] = c45; b.ax[0][1] = c45; b.ax[1][0] = -c45; b.ax[1][1] = c45;
+    b.c[0] = 2.5;
+    ok(!part_obb_overlap(&a, &b, 0), "rotated boxes apart");
+    ok(part_obb_overlap(&a, &b, 0.1), "margin makes them overlap");
+    b.c[0] = 2.3;
+    ok(part_obb_overlap(&a, &b, 0), "rotated boxes overlapping");
+}
+
+static void test_merge(void)
+{
+    gp_tree a = { NULL, 0, 0 }, b = { NULL, 0, 0 }, m = { NULL, 0, 0 };
+    uint32_t ea, eb;
+    parse_tree(&a, "12&3\\", GP_SETOPS_MINMAX);
+    parse_tree(&b, "12&4|", GP_SETOPS_MINMAX);
+    is_int(part_largest_common(&a, &b, &ea, &eb), 3, "largest common subtree p1 & p2");
+    is_int(ea, 2, "its end in a");
+    ok(part_graft_valid(b.code, b.len, eb), "under a union: valid graft position");
+    ok(part_graft_valid(a.code, a.len, ea), "first operand of a subtraction: valid");
+    parse_tree(&b, "412&\\", GP_SETOPS_MINMAX);
+    ok(!part_graft_valid(b.code, b.len, 3), "second operand of a subtraction: invalid");
+    parse_tree(&b, "12&~", GP_SETOPS_MINMAX);
+    ok(!part_graft_valid(b.code, b.len, 2), "under a complement: invalid");
+
+    /* Hand-built partition: an L-shaped part = union of two boxes sharing the plane
+     * z = 0.5 (p5); one clique gives box A, the other box B, the merge must find the
+     * union and keep p5 once per box. Box A = [-1,1]x[-1,1]x[-0.5,0.5], box B =
+     * [-1,0]x[-1,1]x[-0.5,1.5] ... sampled as a scene. */
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 21);
+    /* Primitives: x<=1 (1), x>=-1 (2), y<=1 (3), y>=-1 (4), z<=0.5 (5), z>=-0.5 (6),
+     * x<=0 (7), z<=1.5 (8). A = 1&2&3&4&5&6, B = 7&2&3&4&8&6. */
+    add_plane(&s, 0, 1, 1);
+    add_plane(&s, 0, -1, 1);
+    add_plane(&s, 1, 1, 1);
+    add_plane(&s, 1, -1, 1);
+    add_plane(&s, 2, 1, 0.5);
+    add_plane(&s, 2, -1, 0.5);
+    add_plane(&s, 0, 1, 0);
+    add_plane(&s, 2, 1, 1.5);
+    /* Sample the union's boundary: random points on each plane inside the union's
+     * bounds, kept when on the boundary of the union (value 0 of the union). */
+    while (s.n < 6000) {
+        uint32_t j = gp_rng_below(&r, 8);
+        double p[3] = { 2 * gp_rng_unif(&r) - 1, 2 * gp_rng_unif(&r) - 1, 2 * gp_rng_unif(&r) - 0.5 };
+        const aprim *q = &s.prims[j];
+        int ax = q->p[0] != 0 ? 0 : q->p[1] != 0 ? 1 : 2;
+        p[ax] = q->p[ax] * q->r;
+        double g[3], fa = HUGE_VAL, fb = HUGE_VAL;
+        const int A[6] = { 0, 1, 2, 3, 4, 5 }, B[6] = { 6, 1, 2, 3, 7, 5 };
+        for (int k = 0; k < 6; k++) {
+            double v1 = aprim_eval(&s.prims[A[k]], p, g), v2 = aprim_eval(&s.prims[B[k]], p, g);
+            if (v1 < fa) fa = v1;
+            if (v2 < fb) fb = v2;
+        }
+        double f = fa > fb ? fa : fb;
+        if (fabs(f) > 1e-12) continue;
+        double nn[3] = { 0, 0, 0 };
+        nn[ax] = q->p[ax];
+        scene_add(&s, p[0], p[1], p[2], nn[0], nn[1], nn[2]);
+    }
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 10);
+    gp_eval *e = gp_eval_new();
+    parse_tree(&a, "12&34&&56&&", GP_SETOPS_MINMAX);
+    parse_tree(&b, "72&34&&86&&", GP_SETOPS_MINMAX);
+    double fit;
+    ok(part_merge_pair(&a, &b, GP_SETOPS_MINMAX, c, e, &m, &fit) == 0, "merge ran");
+    gp_stats st;
+    gp_tree_stats(c, e, m.code, m.len, &st);
+    ok((double)st.explained > 0.99 * (double)s.n, "merged L-shape explains the points (%zu/%zu): %s",
+       st.explained, s.n, print_str(&m));
+    ok(m.len <= 23, "merged tree no larger than the two boxes joined (%u)", m.len);
+    tree_free(&a);
+    tree_free(&b);
+    tree_free(&m);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+}
+
+int main(void)
+{
+    test_tree_ops();
+    test_rules();
+    test_rules_exact();
+    test_fitness();
+    test_cliques();
+    test_merge();
+    test_union_spheres();
+    test_cube_gp();
+    test_block_minus_cylinder();
+    return done_testing();
+}

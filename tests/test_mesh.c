@@ -1,0 +1,663 @@
+/* test_mesh.c - unit tests of the interval evaluator (runtime/vm_interval.c) and the
+ * dual-contouring mesher (runtime/mesh.c) on analytic fields given as C callbacks:
+ * interval enclosures hold at sampled points; meshes are closed, 2-manifold,
+ * outward, NaN-free, accurate (volume, distance, sharp corners) and thread-invariant.
+ */
+#include "config.h"
+
+#include "interval.h"
+#include "mesh.h"
+#include "meshio.h"
+#include "opsem.h"
+#include "program.h"
+#include "tap.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+
+/* ---- a small deterministic RNG (xorshift64*) ------------------------------------- */
+
+static double rnd(uint64_t *s)
+{
+    *s ^= *s >> 12;
+    *s ^= *s << 25;
+    *s ^= *s >> 27;
+    return (double)((*s * 2685821657736338717ULL) >> 11) / 9007199254740992.0;
+}
+
+/* ---- interval evaluator: every operation against point samples --------------------- */
+
+static ival rand_ival(uint64_t *s)
+{
+    static const double scales[] = { 0.5, 2, 10, 1e3 };
+    double sc = scales[(int)(rnd(s) * 4)];
+    double a = (rnd(s) * 2 - 1) * sc, b = (rnd(s) * 2 - 1) * sc;
+    if (rnd(s) < 0.2) b = a;                      /* degenerate (exact) operands */
+    if (rnd(s) < 0.1) a = b = (double)(int)(a);   /* integer constants (for pow) */
+    ival r = { a < b ? a : b, a < b ? b : a };
+    return r;
+}
+
+static double in_ival(const ival *v, uint64_t *s)
+{
+    double u = rnd(s);
+    if (u < 0.1) return v->lo;
+    if (u < 0.2) return v->hi;
+    return v->lo + (v->hi - v->lo) * rnd(s);
+}
+
+static void test_interval_ops(void)
+{
+    uint64_t seed = 12345;
+    for (int op = 0; op < FREP_OP__COUNT; op++) {
+        unsigned fl = op_flags((frep_opcode)op);
+        if ((fl & (OPF_LEAF | OPF_CTRL)) || op == FREP_OP_LOADI) continue;
+        int nin = op_nin((frep_opcode)op);
+        long bad = 0, samples = 0;
+        for (int trial = 0; trial < 400; trial++) {
+            ival v[3] = { rand_ival(&seed), rand_ival(&seed), rand_ival(&seed) };
+            if (op == FREP_OP_SELECT && rnd(&seed) < 0.5) v[0].lo = v[0].hi = rnd(&seed) < 0.5 ? 0 : 1;
+            if ((op == FREP_OP_AND || op == FREP_OP_OR || op == FREP_OP_NOT) && rnd(&seed) < 0.5)
+                v[0].lo = v[0].hi = 0;
+            double k = (op == FREP_OP_AUNI || op == FREP_OP_AINT) ? rnd(&seed) * 2 - 1 : 0;
+            ival r = ival_op((frep_opcode)op, v, k);
+            if (!(r.lo <= r.hi)) { bad++; continue; }
+            for (int t = 0; t < 30; t++) {
+                double a = in_ival(&v[0], &seed), b = in_ival(&v[1], &seed), c = in_ival(&v[2], &seed);
+                double y = op_scalar((frep_opcode)op, a, nin > 1 ? b : 0, c, k, NULL);
+                if (isnan(y)) continue;
+                samples++;
+                if (!(y >= r.lo && y <= r.hi)) {
+                    if (bad < 3)
+                        diag("%s(%g, %g, %g) = %.17g outside [%.17g, %.17g] of [%g,%g] [%g,%g]",
+                             op_name((frep_opcode)op), a, b, c, y, r.lo, r.hi, v[0].lo, v[0].hi,
+                             v[1].lo, v[1].hi);
+                    bad++;
+                }
+            }
+        }
+        ok(bad == 0 && samples > 0, "interval %s encloses %ld sampled values", op_name((frep_opcode)op),
+           samples);
+    }
+}
+
+/* Tightness: enclosures of simple operations are the exact ranges (up to an ulp). */
+static void test_interval_tight(void)
+{
+    ival v[3] = { { 1, 2 }, { 3, 4 }, { 0, 0 } };
+    ival r = ival_op(FREP_OP_ADD, v, 0);
+    ok(r.lo >= 4 - 1e-15 && r.lo <= 4 && r.hi >= 6 && r.hi <= 6 + 1e-14, "[1,2]+[3,4] is [4,6]");
+    v[0].lo = -1; v[0].hi = 2;
+    r = ival_op(FREP_OP_SQUARE, v, 0);
+    ok(r.lo == 0 && r.hi >= 4 && r.hi <= 4 + 1e-14, "[-1,2]^2 is [0,4]");
+    v[0].lo = 0.1; v[0].hi = 0.2;
+    r = ival_op(FREP_OP_SIN, v, 0);
+    ok(r.lo <= sin(0.1) && r.lo > sin(0.1) - 1e-15 && r.hi >= sin(0.2) && r.hi < sin(0.2) + 1e-15,
+       "sin is tight on a monotone piece");
+    v[0].lo = 1; v[0].hi = 2; v[1].lo = -3; v[1].hi = 5;
+    r = ival_op(FREP_OP_RUNI, v, 0);
+    is_double(r.lo, opsem_runi(1, -3), 1e-14, "R-union lower bound is its value at (lo, lo)");
+    is_double(r.hi, opsem_runi(2, 5), 1e-14, "R-union upper bound is its value at (hi, hi)");
+    v[0].lo = -2; v[0].hi = 3; v[1].lo = v[1].hi = 3;
+    r = ival_op(FREP_OP_POW, v, 0);
+    ok(fabs(r.lo + 8) < 1e-13 && fabs(r.hi - 27) < 1e-13, "[-2,3]^3 is [-8,27]");
+    v[1].lo = v[1].hi = 2;
+    r = ival_op(FREP_OP_POW, v, 0);
+    ok(r.lo == 0 && fabs(r.hi - 9) < 1e-13, "[-2,3]^2 is [0,9]");
+    v[0].lo = 1; v[0].hi = 2; v[1].lo = 3; v[1].hi = 4;
+    r = ival_op(FREP_OP_LT, v, 0);
+    ok(r.lo == 1 && r.hi == 1, "[1,2] < [3,4] is decided");
+}
+
+/* A program assembled by hand: sphere of radius 1 united (R0) with a block, minus a
+ * cylinder, then a branch on x (decided or not) for the conservative path. */
+static frep_program *sphere_prog(int with_branch)
+{
+    frep_program *p = prog_new();
+    frep_srcpos pos = { 0, 0, 0 };
+    prog_emit(p, FREP_OP_CONST, 0, 1, 0, pos);
+    prog_emit(p, FREP_OP_X, 0, 0, 0, pos);
+    prog_emit(p, FREP_OP_SQUARE, 0, 0, 0, pos);
+    prog_emit(p, FREP_OP_X, 1, 0, 0, pos);
+    prog_emit(p, FREP_OP_SQUARE, 0, 0, 0, pos);
+    prog_emit(p, FREP_OP_ADD, 0, 0, 0, pos);
+    prog_emit(p, FREP_OP_X, 2, 0, 0, pos);
+    prog_emit(p, FREP_OP_SQUARE, 0, 0, 0, pos);
+    prog_emit(p, FREP_OP_ADD, 0, 0, 0, pos);
+    prog_emit(p, FREP_OP_SUB, 0, 0, 0, pos);          /* 1 - r^2 */
+    prog_emit(p, FREP_OP_CONST, 0, 0.5, 0, pos);
+    prog_emit(p, FREP_OP_X, 0, 0, 0, pos);
+    prog_emit(p, FREP_OP_ABS, 0, 0, 0, pos);
+    prog_emit(p, FREP_OP_SUB, 0, 0, 0, pos);          /* 0.5 - |x| */
+    prog_emit(p, FREP_OP_RSUB, 0, 0, 0, pos);
+    prog_emit(p, FREP_OP_X, 1, 0, 0, pos);
+    prog_emit(p, FREP_OP_SIN, 0, 0, 0, pos);
+    prog_emit(p, FREP_OP_MUL, 0, 0.3, INSN_KB, pos);
+    prog_emit(p, FREP_OP_ADD, 0, 0, 0, pos);
+    if (with_branch) {
+        /* t = f; if x > 0 then t = t * 2 */
+        prog_emit(p, FREP_OP_STORE, 0, 0, 0, pos);
+        prog_emit(p, FREP_OP_X, 0, 0, 0, pos);
+        prog_emit(p, FREP_OP_GT, 0, 0, INSN_KB, pos);
+        prog_emit(p, FREP_OP_JZ, 27, 0, 0, pos);
+        prog_emit(p, FREP_OP_LOAD, 0, 0, 0, pos);
+        prog_emit(p, FREP_OP_MUL, 0, 2, INSN_KB, pos);
+        prog_emit(p, FREP_OP_STORE, 0, 0, 0, pos);
+        prog_emit(p, FREP_OP_JMP, 27, 0, 0, pos);
+        prog_emit(p, FREP_OP_LOAD, 0, 0, 0, pos);
+        p->nslots = 1;
+    }
+    if (prog_finish(p) != 0) {
+        frep_program_free(p);
+        return NULL;
+    }
+    return p;
+}
+
+static void test_interval_program(void)
+{
+    for (int br = 0; br < 2; br++) {
+        frep_program *p = sphere_prog(br);
+        ok(p != NULL, "assembled test program %d", br);
+        if (!p) continue;
+        vm_iscratch *is = vm_iscratch_new(p);
+        frep_scratch *s = frep_scratch_new(p);
+        uint64_t seed = 99;
+        long bad = 0, finite = 0, undecided = 0;
+        for (int trial = 0; trial < 300; trial++) {
+            double box[6];
+            for (int c = 0; c < 3; c++) {
+                double a = rnd(&seed) * 4 - 2, w = rnd(&seed) * (trial % 3 == 0 ? 2 : 0.2);
+                box[c] = a;
+                box[c + 3] = a + w;
+            }
+            ival r;
+            vm_eval_interval(p, is, box, NULL, &r);
+            if (isinf(r.lo) && isinf(r.hi)) undecided++;
+            else finite++;
+            double x[64], y[64], z[64], f[64];
+            for (int i = 0; i < 64; i++) {
+                x[i] = box[0] + (box[3] - box[0]) * (i < 8 ? (i & 1) : rnd(&seed));
+                y[i] = box[1] + (box[4] - box[1]) * (i < 8 ? ((i >> 1) & 1) : rnd(&seed));
+                z[i] = box[2] + (box[5] - box[2]) * (i < 8 ? ((i >> 2) & 1) : rnd(&seed));
+            }
+            frep_eval(p, s, 64, x, y, z, NULL, f);
+            for (int i = 0; i < 64; i++)
+                if (!isnan(f[i]) && !(f[i] >= r.lo && f[i] <= r.hi)) bad++;
+        }
+        ok(bad == 0, "program %d: every sampled value lies in its box's interval", br);
+        ok(finite > (br ? 100 : 290), "program %d: %ld of 300 enclosures are finite (%ld unknown)",
+           br, finite, undecided);
+        vm_iscratch_free(is);
+        frep_scratch_free(s);
+        frep_program_free(p);
+    }
+}
+
+/* ---- analytic fields for the mesher -------------------------------------------------- */
+
+typedef enum field_kind {
+    F_SPHERE, F_BLOCK, F_CYLINDER, F_CSG, F_THIN, F_BLEND, F_EMPTY, F_FULL, F_NANHALF, F_TORI
+} field_kind;
+
+typedef struct tfield {
+    field_kind kind;
+    double r;            /* sphere / cylinder radius */
+    double b[6];         /* block x0 y0 z0 x1 y1 z1 */
+    int evals;
+} tfield;
+
+static double block_f(const double *b, double x, double y, double z, double g[3])
+{
+    double d[6] = { x - b[0], y - b[1], z - b[2], b[3] - x, b[4] - y, b[5] - z };
+    int m = 0;
+    for (int i = 1; i < 6; i++)
+        if (d[i] < d[m]) m = i;
+    if (g) {
+        g[0] = g[1] = g[2] = 0;
+        g[m % 3] = m < 3 ? 1 : -1;
+    }
+    return d[m];
+}
+
+static double tf_eval1(const tfield *t, double x, double y, double z, double g[3])
+{
+    double gg[3], f1, f2;
+    switch (t->kind) {
+    case F_SPHERE:
+        if (g) { g[0] = -2 * x; g[1] = -2 * y; g[2] = -2 * z; }
+        return t->r * t->r - x * x - y * y - z * z;
+    case F_BLOCK: return block_f(t->b, x, y, z, g);
+    case F_CYLINDER: {
+        /* |z| <= 0.8 and x^2 + y^2 <= r^2, min/max intersection: sharp rims */
+        double fc = t->r * t->r - x * x - y * y, fz = 0.8 - fabs(z);
+        if (fc < fz) {
+            if (g) { g[0] = -2 * x; g[1] = -2 * y; g[2] = 0; }
+            return fc;
+        }
+        if (g) { g[0] = g[1] = 0; g[2] = z > 0 ? -1 : 1; }
+        return fz;
+    }
+    case F_CSG: {
+        /* block minus a sphere (min/max): sharp edges, corners and a spherical cavity */
+        f1 = block_f(t->b, x, y, z, g);
+        double rr = 0.7;
+        f2 = x * x + (y - 0.6) * (y - 0.6) + z * z - rr * rr;
+        if (f2 < f1) {
+            if (g) { g[0] = 2 * x; g[1] = 2 * (y - 0.6); g[2] = 2 * z; }
+            return f2;
+        }
+        return f1;
+    }
+    case F_THIN: {
+        /* a wall 0.12 thick: thinner than a cell, one layer of grid points inside */
+        double f = 0.06 - fabs(x - 0.013);
+        f1 = 0.9 - y * y - z * z;
+        if (f1 < f) {
+            if (g) { g[0] = 0; g[1] = -2 * y; g[2] = -2 * z; }
+            return f1;
+        }
+        if (g) { g[0] = x > 0.013 ? -1 : 1; g[1] = g[2] = 0; }
+        return f;
+    }
+    case F_BLEND: {
+        /* two spheres joined by an R0 union (smooth blend) */
+        double a = 0.36 - (x - 0.4) * (x - 0.4) - y * y - z * z;
+        double b = 0.36 - (x + 0.4) * (x + 0.4) - y * y - z * z;
+        double s = sqrt(a * a + b * b);
+        if (g) {
+            double da = 1 + (s > 0 ? a / s : 0), db = 1 + (s > 0 ? b / s : 0);
+            g[0] = da * -2 * (x - 0.4) + db * -2 * (x + 0.4);
+            g[1] = (da + db) * -2 * y;
+            g[2] = (da + db) * -2 * z;
+        }
+        return a + b + s;
+    }
+    case F_EMPTY: if (g) g[0] = g[1] = g[2] = 0; return -1;
+    case F_FULL: if (g) g[0] = g[1] = g[2] = 0; return 1;
+    case F_NANHALF:
+        if (x > 0.3) { if (g) g[0] = g[1] = g[2] = NAN; return NAN; }
+        if (g) { g[0] = -2 * x; g[1] = -2 * y; g[2] = -2 * z; }
+        return 1 - x * x - y * y - z * z;
+    case F_TORI: {
+        /* two linked tori: genus, saddles, near-touching sheets */
+        double q = sqrt(x * x + y * y) - 0.6;
+        f1 = 0.04 - q * q - z * z;
+        double q2 = sqrt((x - 0.6) * (x - 0.6) + z * z) - 0.6;
+        f2 = 0.04 - q2 * q2 - y * y;
+        if (g) {
+            double rr = sqrt(x * x + y * y), r2 = sqrt((x - 0.6) * (x - 0.6) + z * z);
+            if (f1 >= f2) {
+                g[0] = rr > 0 ? -2 * q * x / rr : 0; g[1] = rr > 0 ? -2 * q * y / rr : 0;
+                g[2] = -2 * z;
+            } else {
+                g[0] = r2 > 0 ? -2 * q2 * (x - 0.6) / r2 : 0; g[1] = -2 * y;
+                g[2] = r2 > 0 ? -2 * q2 * z / r2 : 0;
+            }
+            (void)gg;
+        }
+        return f1 > f2 ? f1 : f2;
+    }
+    }
+    return NAN;
+}
+
+static int tf_eval(void *ctx, void *ts, size_t n, const double *x, const double *y,
+                   const double *z, double *f)
+{
+    (void)ts;
+    for (size_t i = 0; i < n; i++) f[i] = tf_eval1(ctx, x[i], y[i], z[i], NULL);
+    return 0;
+}
+
+static int tf_grad(void *ctx, void *ts, size_t n, const double *x, const double *y,
+                   const double *z, double *f, double *gx, double *gy, double *gz)
+{
+    (void)ts;
+    for (size_t i = 0; i < n; i++) {
+        double g[3] = { 0, 0, 0 };
+        f[i] = tf_eval1(ctx, x[i], y[i], z[i], g);
+        gx[i] = g[0];
+        gy[i] = g[1];
+        gz[i] = g[2];
+    }
+    return 0;
+}
+
+/* Sound intervals for the sphere (exact range of 1 - r^2 over a box). */
+static int tf_interval(void *ctx, void *ts, const double box[6], double *lo, double *hi)
+{
+    const tfield *t = ctx;
+    (void)ts;
+    if (t->kind != F_SPHERE) {
+        *lo = -INFINITY;
+        *hi = INFINITY;
+        return 0;
+    }
+    double mn = 0, mx = 0;
+    for (int c = 0; c < 3; c++) {
+        double a = box[c] * box[c], b = box[c + 3] * box[c + 3];
+        mx += a > b ? a : b;
+        mn += (box[c] <= 0 && box[c + 3] >= 0) ? 0 : (a < b ? a : b);
+    }
+    *lo = t->r * t->r - mx;
+    *hi = t->r * t->r - mn;
+    return 0;
+}
+
+static void *tf_thread_new(void *ctx) { return ctx; }
+static void tf_thread_free(void *ctx, void *ts) { (void)ctx; (void)ts; }
+
+static mesh_field make_field(tfield *t, int with_interval)
+{
+    mesh_field f = { t, tf_thread_new, tf_thread_free, tf_eval, tf_grad,
+                     with_interval ? tf_interval : NULL };
+    return f;
+}
+
+static int run_mesh(tfield *t, const double box[6], int grid, int threads, frep_mesh *m,
+                    mesh_stats *st)
+{
+    mesh_field f = make_field(t, 1);
+    mesh_options o;
+    mesh_options_init(&o);
+    memcpy(o.box, box, sizeof o.box);
+    o.grid = grid;
+    o.nthreads = threads;
+    char err[256] = "";
+    int rc = mesh_polygonize(&f, &o, m, st, err, sizeof err);
+    if (rc != 0) diag("mesh_polygonize: %s", err);
+    return rc;
+}
+
+static void check_closed(const char *name, const frep_mesh *m, mesh_check *c)
+{
+    mesh_validate(m, c);
+    ok(m->ntris > 0 && c->open_edges == 0 && c->nonmanifold_edges == 0 && c->flipped_edges == 0,
+       "%s: %zu triangles, every edge shared by two triangles in opposite directions "
+       "(open %zu, non-manifold %zu, flipped %zu)", name, m->ntris, c->open_edges,
+       c->nonmanifold_edges, c->flipped_edges);
+    ok(c->degenerate == 0 && c->nonfinite == 0, "%s: no zero-area triangle (%zu), no NaN (%zu)",
+       name, c->degenerate, c->nonfinite);
+}
+
+/* Largest |distance| of vertices and triangle centroids to the true surface, given
+ * a distance function. */
+static double max_dist(const frep_mesh *m, double (*dist)(const double *p))
+{
+    double worst = 0;
+    for (size_t t = 0; t < m->ntris; t++) {
+        double c[3] = { 0, 0, 0 };
+        for (int k = 0; k < 3; k++) {
+            const double *p = &m->v[3 * m->tri[3 * t + k]];
+            double d = fabs(dist(p));
+            if (d > worst) worst = d;
+            for (int j = 0; j < 3; j++) c[j] += p[j] / 3;
+        }
+        double d = fabs(dist(c));
+        if (d > worst) worst = d;
+    }
+    return worst;
+}
+
+static double sphere_dist(const double *p) { return sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) - 1; }
+
+static const double test_block[6] = { -0.71, -0.53, -0.47, 0.63, 0.58, 0.66 };
+
+static double block_dist(const double *p)
+{
+    /* distance to the boundary of the block (inside: distance to the nearest face) */
+    double out2 = 0, inner = INFINITY;
+    for (int c = 0; c < 3; c++) {
+        double lo = test_block[c], hi = test_block[c + 3];
+        double d = p[c] < lo ? lo - p[c] : (p[c] > hi ? p[c] - hi : 0);
+        out2 += d * d;
+        double e = fmin(p[c] - lo, hi - p[c]);
+        if (e < inner) inner = e;
+    }
+    return out2 > 0 ? sqrt(out2) : inner;
+}
+
+static void test_mesh_shapes(void)
+{
+    const double box[6] = { -1.5, -1.5, -1.5, 1.5, 1.5, 1.5 };
+    frep_mesh m;
+    mesh_stats st;
+    mesh_check c;
+    tfield t;
+    const double PI = 3.14159265358979323846;
+
+    /* sphere */
+    memset(&t, 0, sizeof t);
+    t.kind = F_SPHERE;
+    t.r = 1;
+    if (run_mesh(&t, box, 48, 2, &m, &st) == 0) {
+        check_closed("sphere", &m, &c);
+        double cell = 3.0 / 48, v = 4 * PI / 3;
+        ok(c.volume > 0 && fabs(c.volume - v) < 0.01 * v, "sphere: volume %.5f within 1%% of %.5f",
+           c.volume, v);
+        double d = max_dist(&m, sphere_dist);
+        ok(d < 0.1 * cell, "sphere: Hausdorff distance %.2e below a tenth of a cell", d);
+        ok(st.blocks < st.blocks_total, "sphere: octree skipped blocks (%zu of %zu evaluated)",
+           st.blocks, st.blocks_total);
+        /* outward vertex normals */
+        size_t badn = 0;
+        for (size_t i = 0; i < m.nverts; i++) {
+            const double *p = &m.v[3 * i], *n = &m.n[3 * i];
+            double r = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+            if ((p[0] * n[0] + p[1] * n[1] + p[2] * n[2]) / r < 0.99) badn++;
+        }
+        ok(badn == 0, "sphere: vertex normals are the outward analytic normals (%zu off)", badn);
+        mesh_free(&m);
+    } else {
+        ok(0, "sphere meshed");
+    }
+
+    /* block with corners off the grid */
+    memset(&t, 0, sizeof t);
+    t.kind = F_BLOCK;
+    memcpy(t.b, test_block, sizeof t.b);
+    if (run_mesh(&t, box, 40, 2, &m, &st) == 0) {
+        double cell = 3.0 / 40;
+        check_closed("block", &m, &c);
+        double v = (t.b[3] - t.b[0]) * (t.b[4] - t.b[1]) * (t.b[5] - t.b[2]);
+        ok(fabs(c.volume - v) < 0.01 * v, "block: volume %.5f within 1%% of %.5f", c.volume, v);
+        double d = max_dist(&m, block_dist);
+        ok(d < 0.01 * cell, "block: faces reproduced (distance %.2e, cell %.3f)", d, cell);
+        double worst = 0;
+        for (int k = 0; k < 8; k++) {
+            double q[3] = { t.b[(k & 1) ? 3 : 0], t.b[(k & 2) ? 4 : 1], t.b[(k & 4) ? 5 : 2] };
+            double best = INFINITY;
+            for (size_t i = 0; i < m.nverts; i++) {
+                double dx = m.v[3 * i] - q[0], dy = m.v[3 * i + 1] - q[1], dz = m.v[3 * i + 2] - q[2];
+                double dd = sqrt(dx * dx + dy * dy + dz * dz);
+                if (dd < best) best = dd;
+            }
+            if (best > worst) worst = best;
+        }
+        ok(worst < 0.01 * cell, "block: the 8 corners are mesh vertices within 1%% of a cell (%.2e)",
+           worst);
+        mesh_free(&m);
+    } else {
+        ok(0, "block meshed");
+    }
+
+    /* cylinder with sharp rims */
+    memset(&t, 0, sizeof t);
+    t.kind = F_CYLINDER;
+    t.r = 0.6;
+    if (run_mesh(&t, box, 48, 2, &m, &st) == 0) {
+        check_closed("cylinder", &m, &c);
+        double v = PI * 0.36 * 1.6;
+        ok(fabs(c.volume - v) < 0.01 * v, "cylinder: volume %.5f within 1%% of %.5f", c.volume, v);
+        mesh_free(&m);
+    } else {
+        ok(0, "cylinder meshed");
+    }
+
+    /* other shapes: closed and valid */
+    static const struct { field_kind k; const char *name; int grid; } more[] = {
+        { F_CSG, "block minus sphere", 37 }, { F_THIN, "thin wall", 23 },
+        { F_BLEND, "blended spheres", 31 }, { F_TORI, "linked tori", 29 },
+        { F_TORI, "linked tori (coarse)", 11 }, { F_THIN, "thin wall (coarse)", 10 },
+    };
+    for (size_t i = 0; i < sizeof more / sizeof more[0]; i++) {
+        memset(&t, 0, sizeof t);
+        t.kind = more[i].k;
+        memcpy(t.b, test_block, sizeof t.b);
+        if (run_mesh(&t, box, more[i].grid, 2, &m, &st) == 0) {
+            check_closed(more[i].name, &m, &c);
+            ok(c.volume > 0, "%s: positive volume %.4f", more[i].name, c.volume);
+            mesh_free(&m);
+        } else {
+            ok(0, "%s meshed", more[i].name);
+        }
+    }
+}
+
+static void test_mesh_threads(void)
+{
+    const double box[6] = { -1.2, -1.1, -1.3, 1.3, 1.2, 1.1 };
+    tfield t;
+    memset(&t, 0, sizeof t);
+    t.kind = F_CSG;
+    memcpy(t.b, test_block, sizeof t.b);
+    frep_mesh a, b;
+    mesh_stats st;
+    int ra = run_mesh(&t, box, 45, 1, &a, &st), rb = run_mesh(&t, box, 45, 3, &b, &st);
+    ok(ra == 0 && rb == 0 && a.nverts == b.nverts && a.ntris == b.ntris &&
+       memcmp(a.v, b.v, 3 * a.nverts * sizeof *a.v) == 0 &&
+       memcmp(a.tri, b.tri, 3 * a.ntris * sizeof *a.tri) == 0,
+       "the same mesh at 1 and 3 threads (%zu triangles)", a.ntris);
+    mesh_free(&a);
+    mesh_free(&b);
+}
+
+static void test_mesh_bad(void)
+{
+    const double box[6] = { -1.5, -1.5, -1.5, 1.5, 1.5, 1.5 };
+    tfield t;
+    frep_mesh m;
+    mesh_stats st;
+    mesh_check c;
+    memset(&t, 0, sizeof t);
+    t.kind = F_EMPTY;
+    ok(run_mesh(&t, box, 20, 2, &m, &st) == 0 && m.ntris == 0 && !st.full,
+       "empty model: no triangles");
+    mesh_free(&m);
+    t.kind = F_FULL;
+    if (run_mesh(&t, box, 20, 2, &m, &st) == 0) {
+        ok(st.full && st.touches_box, "full model: reported as filling the box");
+        check_closed("full model (box caps)", &m, &c);
+        ok(fabs(c.volume - 27) < 0.01 * 27, "full model: the mesh is the box (volume %.3f)", c.volume);
+        mesh_free(&m);
+    } else {
+        ok(0, "full model meshed");
+    }
+    t.kind = F_NANHALF;
+    if (run_mesh(&t, box, 24, 2, &m, &st) == 0) {
+        ok(st.points_nan > 0, "NaN region: %zu NaN grid points counted", st.points_nan);
+        check_closed("sphere cut by a NaN region", &m, &c);
+        mesh_free(&m);
+    } else {
+        ok(0, "NaN region meshed");
+    }
+    t.kind = F_SPHERE;
+    t.r = 1;
+    /* a sphere cut by the box: capped, closed */
+    const double half[6] = { -1.5, -1.5, -1.5, 1.5, 1.5, 0.25 };
+    if (run_mesh(&t, half, 24, 2, &m, &st) == 0) {
+        ok(st.touches_box, "sphere cut by the box touches it");
+        check_closed("sphere cut by the box", &m, &c);
+        mesh_free(&m);
+    } else {
+        ok(0, "cut sphere meshed");
+    }
+    mesh_field f = make_field(&t, 1);
+    mesh_options o;
+    char err[256];
+    mesh_options_init(&o);
+    o.grid = 0;
+    ok(mesh_polygonize(&f, &o, &m, &st, err, sizeof err) != 0, "grid 0 refused: %s", err);
+    o.grid = MESH_MAX_GRID + 1;
+    ok(mesh_polygonize(&f, &o, &m, &st, err, sizeof err) != 0, "huge grid refused: %s", err);
+    o.grid = 10;
+    o.box[3] = o.box[0];
+    ok(mesh_polygonize(&f, &o, &m, &st, err, sizeof err) != 0, "zero-size box refused: %s", err);
+    mesh_options_init(&o);
+    o.box[4] = NAN;
+    ok(mesh_polygonize(&f, &o, &m, &st, err, sizeof err) != 0, "NaN box refused: %s", err);
+}
+
+/* Write a mesh in every format, read it back: same triangles, same volume. */
+static void test_meshio(void)
+{
+    const double box[6] = { -1.5, -1.5, -1.5, 1.5, 1.5, 1.5 };
+    tfield t;
+    memset(&t, 0, sizeof t);
+    t.kind = F_CSG;
+    memcpy(t.b, test_block, sizeof t.b);
+    frep_mesh m;
+    mesh_stats st;
+    mesh_check c0;
+    if (run_mesh(&t, box, 20, 2, &m, &st) != 0) {
+        ok(0, "mesh for I/O");
+        return;
+    }
+    mesh_validate(&m, &c0);
+    static const struct { meshio_format f; int ascii; const char *name; } fm[] = {
+        { MESHIO_STL, 0, "binary STL" }, { MESHIO_STL, 1, "ASCII STL" }, { MESHIO_OBJ, 0, "OBJ" },
+        { MESHIO_PLY, 0, "binary PLY" }, { MESHIO_PLY, 1, "ASCII PLY" }, { MESHIO_OFF, 0, "OFF" },
+    };
+    for (size_t i = 0; i < sizeof fm / sizeof fm[0]; i++) {
+        FILE *f = tmpfile();
+        if (!f) { ok(0, "tmpfile"); continue; }
+        int wr = meshio_write(f, &m, fm[i].f, fm[i].ascii);
+        long len = ftell(f);
+        rewind(f);
+        char *buf = malloc((size_t)len + 1);
+        size_t got = fread(buf, 1, (size_t)len, f);
+        fclose(f);
+        frep_mesh r;
+        char *err = NULL;
+        int rd = meshio_parse("mem", buf, got, fm[i].f, &r, &err);
+        mesh_check c1;
+        memset(&c1, 0, sizeof c1);
+        if (rd == 0) mesh_validate(&r, &c1);
+        ok(wr == 0 && rd == 0 && r.ntris == m.ntris && fabs(c1.volume - c0.volume) < 1e-5 * fabs(c0.volume),
+           "%s: written and read back (%zu triangles, volume %.6f vs %.6f)%s%s", fm[i].name,
+           rd == 0 ? r.ntris : 0, c1.volume, c0.volume, err ? ": " : "", err ? err : "");
+        free(err);
+        free(buf);
+        if (rd == 0) mesh_free(&r);
+    }
+    mesh_free(&m);
+    static const struct { meshio_format f; const char *text; const char *want; } bad[] = {
+        { MESHIO_OFF, "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 5\n", "mem:6: vertex index 3" },
+        { MESHIO_OFF, "OFF\n3 1 0\n0 0 0\n1 0\n", "mem:4: expected 3 coordinates" },
+        { MESHIO_OBJ, "v 0 0 0\nv 1 0 0\nf 1 2 3\n", "mem:3: vertex index 3 out of range" },
+        { MESHIO_PLY, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n",
+          "mem: the vertex element lacks" },
+        { MESHIO_STL, "hello", "mem: neither binary STL" },
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        frep_mesh r;
+        char *err = NULL;
+        int rd = meshio_parse("mem", bad[i].text, strlen(bad[i].text), bad[i].f, &r, &err);
+        ok(rd != 0 && err && strncmp(err, bad[i].want, strlen(bad[i].want)) == 0,
+           "bad mesh file: '%s'", err ? err : "(no message)");
+        free(err);
+    }
+}
+
+int main(void)
+{
+    test_interval_ops();
+    test_interval_tight();
+    test_interval_program();
+    test_mesh_shapes();
+    test_mesh_threads();
+    test_mesh_bad();
+    test_meshio();
+    return done_testing();
+}

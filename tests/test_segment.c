@@ -1,0 +1,610 @@
+/* test_segment.c - tests of evolve/: kd-tree against brute force, PCA normals,
+ * efficient RANSAC on clouds sampled here from analytic primitives (clean, noisy, with
+ * outliers), separating primitives, the .fit and .hf lists, and bad input.
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cloud.h"
+#include "fitfile.h"
+#include "kdtree.h"
+#include "normals.h"
+#include "prim.h"
+#include "segment.h"
+#include "tap.h"
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+/* ---- a seeded sampler (splitmix64; independent of the code under test) ---- */
+
+typedef struct trng {
+    uint64_t s;
+} trng;
+
+static double uni(trng *r)
+{
+    uint64_t z = (r->s += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    z ^= z >> 31;
+    return (double)(z >> 11) * 0x1.0p-53;
+}
+
+static double gauss(trng *r)
+{
+    double u = uni(r), v = uni(r);
+    return sqrt(-2.0 * log(u + 1e-300)) * cos(2 * M_PI * v);
+}
+
+static void frame(const double a[3], double u[3], double v[3])
+{
+    double t[3] = {1, 0, 0};
+    if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
+    double d = t[0] * a[0] + t[1] * a[1] + t[2] * a[2];
+    for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
+    double l = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    for (int k = 0; k < 3; k++) u[k] /= l;
+    v[0] = a[1] * u[2] - a[2] * u[1];
+    v[1] = a[2] * u[0] - a[0] * u[2];
+    v[2] = a[0] * u[1] - a[1] * u[0];
+}
+
+static void add(frep_cloud *c, const double p[3], const double n[3])
+{
+    cloud_push(c, p, n);
+}
+
+/* Points on the six faces of the box [lo, hi]^3 (equal counts per face). */
+static void sample_box(frep_cloud *c, trng *r, double lo, double hi, size_t per_face)
+{
+    for (int f = 0; f < 6; f++)
+        for (size_t i = 0; i < per_face; i++) {
+            int ax = f / 2;
+            double p[3], n[3] = {0, 0, 0};
+            for (int k = 0; k < 3; k++) p[k] = lo + (hi - lo) * uni(r);
+            p[ax] = f % 2 ? hi : lo;
+            n[ax] = f % 2 ? 1 : -1;
+            add(c, p, n);
+        }
+}
+
+static void sample_sphere(frep_cloud *c, trng *r, const double ctr[3], double rad, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        double d[3] = {gauss(r), gauss(r), gauss(r)};
+        double l = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        double p[3];
+        for (int k = 0; k < 3; k++) {
+            d[k] /= l;
+            p[k] = ctr[k] + rad * d[k];
+        }
+        add(c, p, d);
+    }
+}
+
+/* Closed cylinder: side and both caps at density ~ n / area. */
+static void sample_cylinder(frep_cloud *c, trng *r, const double base[3], const double a[3],
+                            double rad, double h, size_t nside, size_t ncap)
+{
+    double u[3], v[3];
+    frame(a, u, v);
+    for (size_t i = 0; i < nside; i++) {
+        double t = 2 * M_PI * uni(r), z = h * uni(r), p[3], n[3];
+        for (int k = 0; k < 3; k++) {
+            n[k] = cos(t) * u[k] + sin(t) * v[k];
+            p[k] = base[k] + z * a[k] + rad * n[k];
+        }
+        add(c, p, n);
+    }
+    for (int cap = 0; cap < 2; cap++)
+        for (size_t i = 0; i < ncap; i++) {
+            double t = 2 * M_PI * uni(r), s = rad * sqrt(uni(r)), p[3], n[3];
+            for (int k = 0; k < 3; k++) {
+                n[k] = cap ? a[k] : -a[k];
+                p[k] = base[k] + (cap ? h : 0) * a[k] + s * (cos(t) * u[k] + sin(t) * v[k]);
+            }
+            add(c, p, n);
+        }
+}
+
+/* Cone frustum between heights h0 and h1 from the apex, with a cap at h1. */
+static void sample_cone(frep_cloud *c, trng *r, const double apex[3], const double a[3],
+                        double ang, double h0, double h1, size_t nside, size_t ncap)
+{
+    double u[3], v[3];
+    frame(a, u, v);
+    for (size_t i = 0; i < nside; i++) {
+        double h = sqrt(h0 * h0 + uni(r) * (h1 * h1 - h0 * h0)), t = 2 * M_PI * uni(r);
+        double rho = h * tan(ang), p[3], n[3];
+        for (int k = 0; k < 3; k++) {
+            double e = cos(t) * u[k] + sin(t) * v[k];
+            p[k] = apex[k] + h * a[k] + rho * e;
+            n[k] = cos(ang) * e - sin(ang) * a[k];
+        }
+        add(c, p, n);
+    }
+    for (size_t i = 0; i < ncap; i++) {
+        double t = 2 * M_PI * uni(r), s = h1 * tan(ang) * sqrt(uni(r)), p[3];
+        for (int k = 0; k < 3; k++) p[k] = apex[k] + h1 * a[k] + s * (cos(t) * u[k] + sin(t) * v[k]);
+        add(c, p, a);
+    }
+}
+
+static void sample_torus(frep_cloud *c, trng *r, const double ctr[3], const double a[3],
+                         double R, double rr, size_t n)
+{
+    double u[3], v[3];
+    frame(a, u, v);
+    for (size_t i = 0; i < n;) {
+        double t = 2 * M_PI * uni(r), s = 2 * M_PI * uni(r);
+        /* Area element (R + r cos s): rejection sampling. */
+        if (uni(r) * (R + rr) > R + rr * cos(s)) continue;
+        double p[3], nn[3];
+        for (int k = 0; k < 3; k++) {
+            double e = cos(t) * u[k] + sin(t) * v[k];
+            nn[k] = cos(s) * e + sin(s) * a[k];
+            p[k] = ctr[k] + R * e + rr * nn[k];
+        }
+        add(c, p, nn);
+        i++;
+    }
+}
+
+static void perturb(frep_cloud *c, trng *r, double sigma, size_t outliers)
+{
+    double lo[3], hi[3];
+    cloud_bbox(c, lo, hi);
+    for (size_t i = 0; i < c->n; i++) {
+        c->x[i] += sigma * gauss(r);
+        c->y[i] += sigma * gauss(r);
+        c->z[i] += sigma * gauss(r);
+    }
+    for (size_t i = 0; i < outliers; i++) {
+        double p[3], n[3] = {gauss(r), gauss(r), gauss(r)};
+        for (int k = 0; k < 3; k++) p[k] = lo[k] + (hi[k] - lo[k]) * uni(r);
+        add(c, p, n);
+    }
+}
+
+/* ---- matching detected primitives against the truth ---- */
+
+static double axis_angle_deg(const double a[3], const double b[3])
+{
+    double d = fabs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
+    return acos(fmin(1.0, d)) * 180.0 / M_PI;
+}
+
+/* Distance of point p from the line (q, a). */
+static double line_dist(const double p[3], const double q[3], const double a[3])
+{
+    double v[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+    double h = v[0] * a[0] + v[1] * a[1] + v[2] * a[2];
+    double w[3] = {v[0] - h * a[0], v[1] - h * a[1], v[2] - h * a[2]};
+    return sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+}
+
+/* Does detected d match truth t within position tolerance tol (absolute) and angular
+ * tolerance deg? Plane normals may be flipped. */
+static int matches(const prim *d, const prim *t, double tol, double deg)
+{
+    if (d->type != t->type) return 0;
+    switch (t->type) {
+    case PRIM_PLANE: {
+        double c = d->p[0] * t->p[0] + d->p[1] * t->p[1] + d->p[2] * t->p[2];
+        double off = c > 0 ? fabs(d->r - t->r) : fabs(d->r + t->r);
+        return axis_angle_deg(d->p, t->p) < deg && off < tol;
+    }
+    case PRIM_SPHERE: {
+        double dc = sqrt(pow(d->p[0] - t->p[0], 2) + pow(d->p[1] - t->p[1], 2) +
+                         pow(d->p[2] - t->p[2], 2));
+        return dc < tol && fabs(d->r - t->r) < tol;
+    }
+    case PRIM_CYLINDER:
+        return axis_angle_deg(d->a, t->a) < deg && line_dist(d->p, t->p, t->a) < tol &&
+               fabs(d->r - t->r) < tol;
+    case PRIM_CONE: {
+        double dc = sqrt(pow(d->p[0] - t->p[0], 2) + pow(d->p[1] - t->p[1], 2) +
+                         pow(d->p[2] - t->p[2], 2));
+        double dd = d->a[0] * t->a[0] + d->a[1] * t->a[1] + d->a[2] * t->a[2];
+        return dd > 0 && axis_angle_deg(d->a, t->a) < deg && dc < 3 * tol &&
+               fabs(d->r - t->r) * 180 / M_PI < deg;
+    }
+    case PRIM_TORUS: {
+        double dc = sqrt(pow(d->p[0] - t->p[0], 2) + pow(d->p[1] - t->p[1], 2) +
+                         pow(d->p[2] - t->p[2], 2));
+        return axis_angle_deg(d->a, t->a) < deg && dc < tol && fabs(d->R - t->R) < tol &&
+               fabs(d->r - t->r) < tol;
+    }
+    case PRIM__COUNT:
+        break;
+    }
+    return 0;
+}
+
+/* Run segmentation and check every truth primitive is found once; with `exact`, no
+ * other fitted primitive may appear. */
+static void check_found(const char *what, frep_cloud *c, const prim *truth, size_t nt,
+                        double tol, double deg, int exact, unsigned types)
+{
+    segment_config cfg;
+    segment_config_init(&cfg);
+    cfg.seed = 7;
+    cfg.types = types;
+    segment_result res;
+    char *err = NULL;
+    int rc = segment_run(c, &cfg, &res, &err);
+    ok(rc == 0, "%s: segmentation runs%s%s", what, err ? ": " : "", err ? err : "");
+    free(err);
+    if (rc) return;
+    for (size_t i = 0; i < nt; i++) {
+        int found = 0;
+        for (size_t j = 0; j < res.nfitted; j++) found += matches(&res.prims[j], &truth[i], tol, deg);
+        ok(found >= 1, "%s: %s %zu found", what, prim_type_name(truth[i].type), i + 1);
+    }
+    if (exact)
+        is_int(res.nfitted, nt, "%s: no spurious primitives", what);
+    else
+        ok(res.nfitted <= nt + nt / 2 + 1, "%s: few spurious primitives (%zu for %zu)", what,
+           res.nfitted, nt);
+    for (size_t j = 0; j < res.nfitted; j++)
+        diag("  %s support %zu rms %.3g", prim_type_name(res.prims[j].type), res.prims[j].support,
+             res.prims[j].rms);
+    segment_result_free(&res);
+}
+
+static prim mk(prim_type t, double p0, double p1, double p2, double a0, double a1, double a2,
+               double r, double R)
+{
+    prim q;
+    memset(&q, 0, sizeof q);
+    q.type = t;
+    q.p[0] = p0, q.p[1] = p1, q.p[2] = p2;
+    double l = sqrt(a0 * a0 + a1 * a1 + a2 * a2);
+    if (l > 0) q.a[0] = a0 / l, q.a[1] = a1 / l, q.a[2] = a2 / l;
+    q.r = r;
+    q.R = R;
+    return q;
+}
+
+/* ---- the tests ---- */
+
+static void test_kdtree(void)
+{
+    trng r = {42};
+    size_t n = 3000;
+    double *x = malloc(n * sizeof *x), *y = malloc(n * sizeof *y), *z = malloc(n * sizeof *z);
+    for (size_t i = 0; i < n; i++) {
+        x[i] = uni(&r);
+        y[i] = uni(&r);
+        z[i] = i % 7 == 0 ? 0.5 : uni(&r); /* many equal keys */
+    }
+    x[10] = x[11], y[10] = y[11], z[10] = z[11]; /* an exact duplicate */
+    kd_tree *t = kd_build(n, x, y, z);
+    int good = t != NULL;
+    for (int q = 0; q < 200 && good; q++) {
+        double p[3] = {uni(&r), uni(&r), uni(&r)};
+        uint32_t idx[10];
+        double d2[10];
+        size_t m = kd_knn(t, p, 10, idx, d2);
+        /* Brute force: the 10th smallest distance must equal d2[9]. */
+        double best[10];
+        for (int k = 0; k < 10; k++) best[k] = INFINITY;
+        for (size_t i = 0; i < n; i++) {
+            double d = (x[i] - p[0]) * (x[i] - p[0]) + (y[i] - p[1]) * (y[i] - p[1]) +
+                       (z[i] - p[2]) * (z[i] - p[2]);
+            for (int k = 0; k < 10; k++)
+                if (d < best[k]) {
+                    memmove(best + k + 1, best + k, (size_t)(9 - k) * sizeof *best);
+                    best[k] = d;
+                    break;
+                }
+        }
+        good = m == 10;
+        for (int k = 0; k < 10 && good; k++) good = d2[k] == best[k];
+    }
+    ok(good, "kd-tree k-NN agrees with brute force (200 queries, duplicates)");
+    kd_free(t);
+    /* One point repeated: no crash, k results. */
+    for (size_t i = 0; i < n; i++) x[i] = y[i] = z[i] = 1.0;
+    t = kd_build(n, x, y, z);
+    uint32_t idx[5];
+    double d2[5], q[3] = {0, 0, 0};
+    ok(t && kd_knn(t, q, 5, idx, d2) == 5 && d2[4] == 3.0, "kd-tree of one repeated point");
+    kd_free(t);
+    free(x);
+    free(y);
+    free(z);
+}
+
+static void test_normals(void)
+{
+    trng r = {3};
+    frep_cloud *c = cloud_new(1);
+    double ctr[3] = {0.1, 0.2, 0.3};
+    sample_sphere(c, &r, ctr, 1.0, 3000);
+    sample_box(c, &r, 3.0, 4.0, 500); /* a second component, away from the sphere */
+    frep_cloud *d = cloud_new(0);
+    for (size_t i = 0; i < c->n; i++) {
+        double p[3] = {c->x[i], c->y[i], c->z[i]};
+        cloud_push(d, p, NULL);
+    }
+    ok(normals_estimate(d, 0, 0) == 0, "normals estimated");
+    size_t agree = 0, good_axis = 0;
+    for (size_t i = 0; i < c->n; i++) {
+        double dd = c->nx[i] * d->nx[i] + c->ny[i] * d->ny[i] + c->nz[i] * d->nz[i];
+        good_axis += fabs(dd) > cos(10 * M_PI / 180);
+        agree += dd > 0;
+    }
+    ok((double)good_axis > 0.97 * (double)c->n, "PCA normals within 10 degrees (%zu of %zu)",
+       good_axis, c->n);
+    ok((double)agree > 0.97 * (double)c->n, "orientation outward on both components (%zu of %zu)",
+       agree, c->n);
+    cloud_free(c);
+    cloud_free(d);
+}
+
+static void test_shapes(void)
+{
+    trng r = {11};
+    /* Box: six planes. */
+    frep_cloud *c = cloud_new(1);
+    sample_box(c, &r, -1, 1, 1500);
+    prim box[6];
+    for (int f = 0; f < 6; f++) {
+        double n[3] = {0, 0, 0};
+        n[f / 2] = f % 2 ? 1 : -1;
+        box[f] = mk(PRIM_PLANE, n[0], n[1], n[2], 0, 0, 0, 1, 0);
+    }
+    check_found("box", c, box, 6, 0.01, 1.0, 1, 0);
+    cloud_free(c);
+
+    /* Sphere. */
+    c = cloud_new(1);
+    double sc[3] = {0.2, -0.1, 0.3};
+    sample_sphere(c, &r, sc, 0.8, 6000);
+    prim sph = mk(PRIM_SPHERE, 0.2, -0.1, 0.3, 0, 0, 0, 0.8, 0);
+    check_found("sphere", c, &sph, 1, 0.01, 1.0, 1, 0);
+    cloud_free(c);
+
+    /* Closed cylinder, tilted: side plus two cap planes. */
+    c = cloud_new(1);
+    double base[3] = {0.1, 0.2, -0.5}, ax[3] = {0.3, 0.2, 0.93};
+    double l = sqrt(ax[0] * ax[0] + ax[1] * ax[1] + ax[2] * ax[2]);
+    for (int k = 0; k < 3; k++) ax[k] /= l;
+    sample_cylinder(c, &r, base, ax, 0.5, 2.0, 6000, 1000);
+    prim cyl[3];
+    cyl[0] = mk(PRIM_CYLINDER, base[0], base[1], base[2], ax[0], ax[1], ax[2], 0.5, 0);
+    cyl[1] = mk(PRIM_PLANE, ax[0], ax[1], ax[2], 0, 0, 0,
+                ax[0] * base[0] + ax[1] * base[1] + ax[2] * base[2] + 2.0, 0);
+    cyl[2] = mk(PRIM_PLANE, ax[0], ax[1], ax[2], 0, 0, 0,
+                ax[0] * base[0] + ax[1] * base[1] + ax[2] * base[2], 0);
+    check_found("cylinder", c, cyl, 3, 0.02, 1.0, 1, 0);
+    cloud_free(c);
+
+    /* Cone frustum with its cap. */
+    c = cloud_new(1);
+    double apex[3] = {0, 0, 1}, ca[3] = {0, 0, -1};
+    sample_cone(c, &r, apex, ca, 30 * M_PI / 180, 0.3, 1.5, 6000, 1500);
+    prim cone[2];
+    cone[0] = mk(PRIM_CONE, 0, 0, 1, 0, 0, -1, 30 * M_PI / 180, 0);
+    cone[1] = mk(PRIM_PLANE, 0, 0, -1, 0, 0, 0, 0.5, 0);
+    check_found("cone", c, cone, 2, 0.02, 1.5, 1, 0);
+    cloud_free(c);
+
+    /* Torus, tilted. */
+    c = cloud_new(1);
+    double tc[3] = {0.5, 0, 0}, ta[3] = {0, 0.6, 0.8};
+    sample_torus(c, &r, tc, ta, 1.0, 0.3, 8000);
+    prim tor = mk(PRIM_TORUS, 0.5, 0, 0, 0, 0.6, 0.8, 0.3, 1.0);
+    check_found("torus", c, &tor, 1, 0.02, 1.0, 1, 0);
+    cloud_free(c);
+
+    /* Noisy (sigma 0.2% of the diagonal) with 1% outliers, normals estimated. */
+    c = cloud_new(1);
+    sample_cylinder(c, &r, base, ax, 0.5, 2.0, 6000, 1000);
+    sample_sphere(c, &r, (double[3]){2.5, 0, 0}, 0.6, 4000);
+    perturb(c, &r, 0.002 * cloud_diagonal(c), c->n / 100);
+    frep_cloud *d = cloud_new(0);
+    for (size_t i = 0; i < c->n; i++) {
+        double p[3] = {c->x[i], c->y[i], c->z[i]};
+        cloud_push(d, p, NULL);
+    }
+    prim both[4] = {cyl[0], cyl[1], cyl[2], mk(PRIM_SPHERE, 2.5, 0, 0, 0, 0, 0, 0.6, 0)};
+    check_found("noisy cylinder + sphere, estimated normals", d, both, 4, 0.03, 3.0, 0, 0);
+    cloud_free(c);
+    cloud_free(d);
+}
+
+static void test_determinism(void)
+{
+    trng r = {5};
+    frep_cloud *c = cloud_new(1);
+    double base[3] = {0, 0, 0}, ax[3] = {0, 0, 1};
+    sample_cylinder(c, &r, base, ax, 0.5, 1.0, 4000, 800);
+    frep_cloud *c2 = cloud_new(1);
+    for (size_t i = 0; i < c->n; i++) {
+        double p[3] = {c->x[i], c->y[i], c->z[i]}, n[3] = {c->nx[i], c->ny[i], c->nz[i]};
+        cloud_push(c2, p, n);
+    }
+    segment_config cfg;
+    segment_config_init(&cfg);
+    cfg.seed = 99;
+    segment_result a, b;
+    cfg.nthreads = 1;
+    int ra = segment_run(c, &cfg, &a, NULL);
+    cfg.nthreads = 2;
+    int rb = segment_run(c2, &cfg, &b, NULL);
+    ok(ra == 0 && rb == 0 && a.nprims == b.nprims &&
+           memcmp(a.prims, b.prims, a.nprims * sizeof *a.prims) == 0 &&
+           memcmp(a.label, b.label, c->n * sizeof *a.label) == 0,
+       "same seed: same primitives and labels at 1 and 2 threads");
+    /* Separating primitives: the cylinder gets box planes, no duplicates of its caps. */
+    size_t sep = 0, sep_planes = 0;
+    for (size_t j = 0; j < a.nprims; j++) {
+        sep += a.prims[j].separating;
+        sep_planes += a.prims[j].separating && a.prims[j].type == PRIM_PLANE;
+        ok(a.prims[j].separating || a.prims[j].has_obb, "primitive %zu has a box", j + 1);
+    }
+    is_int(sep_planes, 4, "cylinder: 4 separating box planes (2 are the caps already)");
+    segment_result_free(&a);
+    segment_result_free(&b);
+    cloud_free(c);
+    cloud_free(c2);
+
+    /* Torus: separating cylinder of the major radius. */
+    prim t = mk(PRIM_TORUS, 0, 0, 0, 0, 0, 1, 0.2, 1.0);
+    t.has_obb = 1;
+    for (int a2 = 0; a2 < 3; a2++) t.obb_axes[a2][a2] = 1;
+    t.obb_half[0] = t.obb_half[1] = 1.2;
+    t.obb_half[2] = 0.2;
+    prim *list = malloc(sizeof *list);
+    list[0] = t;
+    size_t n = segment_add_separating(&list, 1, 1e-3);
+    is_int(n, 8, "torus: 6 planes and 1 cylinder added");
+    ok(n == 8 && list[7].type == PRIM_CYLINDER && list[7].r == 1.0 && list[7].separating,
+       "torus: separating cylinder with the major radius");
+    free(list);
+}
+
+static void test_files(void)
+{
+    const char *fit = "# comment\nplane 0 0 2 1\nsphere 1 2 3 0.5\n"
+                      "cylinder 0 0 1 1 2 3 0.25\ncone 0 1 0 0 0 0 0.5\n"
+                      "torus 1 0 0 0 0 0 0.1 2\n";
+    prim *p = NULL;
+    size_t n = 0;
+    char *err = NULL;
+    int rc = fitfile_parse("t.fit", fit, strlen(fit), &p, &n, &err);
+    ok(rc == 0 && n == 5, ".fit parsed: %s", err ? err : "ok");
+    if (rc == 0 && n == 5) {
+        is_double(p[0].r, 0.5, 1e-15, "plane normal normalized with its offset");
+        is_double(p[2].p[2], 3, 0, "cylinder: point after axis");
+        is_double(p[2].a[2], 1, 0, "cylinder axis");
+        is_double(p[4].r, 0.1, 0, "torus minor radius first");
+        is_double(p[4].R, 2, 0, "torus major radius second");
+        /* Round trip through the writer. */
+        FILE *f = tmpfile();
+        fitfile_write(f, p, n);
+        long len = ftell(f);
+        rewind(f);
+        char *buf = malloc((size_t)len + 1);
+        size_t got = fread(buf, 1, (size_t)len, f);
+        fclose(f);
+        prim *q = NULL;
+        size_t m = 0;
+        rc = fitfile_parse("rt.fit", buf, got, &q, &m, NULL);
+        ok(rc == 0 && m == n && memcmp(p, q, n * sizeof *p) == 0, ".fit round trip exact");
+        free(q);
+        free(buf);
+
+        /* .hf written and read back, boxes included. */
+        p[1].has_obb = 1;
+        p[1].obb_half[0] = 0.5;
+        p[1].obb_axes[0][0] = 1;
+        p[1].support = 123;
+        p[1].rms = 0.001;
+        p[3].separating = 1;
+        f = tmpfile();
+        segment_write_hf(f, p, n, "frep segment test\nseed 1");
+        len = ftell(f);
+        rewind(f);
+        buf = malloc((size_t)len + 1);
+        got = fread(buf, 1, (size_t)len, f);
+        fclose(f);
+        rc = segment_parse_prims("t.hf", buf, got, 0, &q, &m, &err);
+        ok(rc == 0 && m == n, ".hf read back: %s", err ? err : "ok");
+        int same = rc == 0 && m == n;
+        for (size_t i = 0; same && i < n; i++)
+            same = q[i].type == p[i].type && q[i].r == p[i].r && q[i].R == p[i].R &&
+                   memcmp(q[i].p, p[i].p, sizeof p[i].p) == 0 && q[i].separating == p[i].separating;
+        ok(same, ".hf round trip of parameters is exact");
+        ok(rc == 0 && q[1].support == 123 && q[1].has_obb && q[1].obb_half[0] == 0.5,
+           ".hf keeps support and box");
+        ok(strstr(buf, "primitives = p1 | p2 | p3 | p5;") != NULL, ".hf model is the union of fitted ones");
+        free(q);
+        free(buf);
+    }
+    free(p);
+    free(err);
+
+    const char *bad[][2] = {
+        {"plane 0 0 1\n", "t.fit:1: expected 4 numbers after 'plane', got 3"},
+        {"\nblob 1 2 3\n", "t.fit:2: unknown primitive type 'blob'"},
+        {"cylinder 0 0 0 1 2 3 4\n", "t.fit:1: zero-length axis"},
+        {"sphere 1 2 x 4\n", "t.fit:1: 'x 4' is not a number"},
+        {"sphere 1 2 nan 4\n", "t.fit:1: number 3 is not finite"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        err = NULL;
+        p = NULL;
+        rc = fitfile_parse("t.fit", bad[i][0], strlen(bad[i][0]), &p, &n, &err);
+        ok(rc == -1, "bad .fit %zu rejected", i + 1);
+        is_str(err ? err : "", bad[i][1], "message");
+        free(err);
+        free(p);
+    }
+    const char *hf = "m(x[3], a[1])\n{\n  p1 = frCylinder(x, 1, 2, 3, 0, 0, 1);\n}\n";
+    err = NULL;
+    rc = segment_parse_prims("t.hf", hf, strlen(hf), 0, &p, &n, &err);
+    ok(rc == -1, "short frCylinder call rejected");
+    is_str(err ? err : "", "t.hf:3: frCylinder needs 7 numbers after x, got 6", "message");
+    free(err);
+}
+
+static void test_bad_input(void)
+{
+    segment_config cfg;
+    segment_config_init(&cfg);
+    segment_result res;
+    char *err = NULL;
+    frep_cloud *c = cloud_new(0);
+    double p[3] = {1, 2, 3};
+    for (int i = 0; i < 5; i++) cloud_push(c, p, NULL);
+    ok(segment_run(c, &cfg, &res, &err) == -1, "5 points rejected");
+    is_str(err ? err : "", "too few points: 5 (segmentation needs at least 8)", "message");
+    free(err);
+    for (int i = 0; i < 1000; i++) cloud_push(c, p, NULL);
+    err = NULL;
+    ok(segment_run(c, &cfg, &res, &err) == -1, "one point repeated rejected");
+    is_str(err ? err : "", "all 1005 points are the same point: nothing to segment", "message");
+    free(err);
+    cloud_free(c);
+
+    /* All points on one plane, every point twice, zero normals: one plane found. */
+    trng r = {8};
+    c = cloud_new(1);
+    for (int i = 0; i < 2000; i++) {
+        double q[3] = {uni(&r), uni(&r), 0.25}, zero[3] = {0, 0, 0};
+        cloud_push(c, q, zero);
+        cloud_push(c, q, zero);
+    }
+    err = NULL;
+    int rc = segment_run(c, &cfg, &res, &err);
+    ok(rc == 0, "planar cloud with duplicates and zero normals: %s", err ? err : "ok");
+    if (rc == 0) {
+        ok(res.normals_estimated && res.zero_normals == c->n, "zero normals detected and replaced");
+        is_int(res.nfitted, 1, "exactly one primitive");
+        ok(res.nfitted == 1 && res.prims[0].type == PRIM_PLANE &&
+               fabs(fabs(res.prims[0].p[2]) - 1) < 1e-9 && fabs(fabs(res.prims[0].r) - 0.25) < 1e-9,
+           "it is the plane z = 0.25");
+        is_int(res.unassigned, 0, "every point assigned");
+        segment_result_free(&res);
+    }
+    free(err);
+    cloud_free(c);
+}
+
+int main(void)
+{
+    test_kdtree();
+    test_normals();
+    test_files();
+    test_bad_input();
+    test_determinism();
+    test_shapes();
+    return done_testing();
+}

@@ -1,0 +1,862 @@
+/* test_vm.c - property tests of the bytecode evaluators (runtime/vm*.c), driven by
+ * the opcode table: every opcode against its opsem.h reference at awkward arguments,
+ * tangents against central differences, batch against single point, branches, loops,
+ * domain errors and thread-count independence.  Programs are assembled with
+ * prog_emit, so no compiler is needed.
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "opsem.h"
+#include "program.h"
+#include "tap.h"
+#include "vm.h"
+
+#define NB FREP_BLOCK
+
+static const frep_srcpos nopos = {0, 0, 0};
+
+/* Deterministic xorshift generator: tests must not depend on the clock. */
+static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
+static double urand(double lo, double hi)
+{
+    rng_state ^= rng_state << 13;
+    rng_state ^= rng_state >> 7;
+    rng_state ^= rng_state << 17;
+    return lo + (hi - lo) * (double)(rng_state >> 11) / 9007199254740992.0;
+}
+
+/* Same bits, or both NaN. */
+static int same(double a, double b)
+{
+    if (isnan(a) || isnan(b)) return isnan(a) && isnan(b);
+    return memcmp(&a, &b, sizeof a) == 0;
+}
+
+static void emit(frep_program *p, frep_opcode op, uint32_t arg, double k, uint8_t fl)
+{
+    prog_emit(p, op, arg, k, fl, nopos);
+}
+
+static frep_program *finish(frep_program *p)
+{
+    if (prog_finish(p) != 0) {
+        diag("prog_finish failed");
+        frep_program_free(p);
+        return NULL;
+    }
+    return p;
+}
+
+static vm_inputs inputs(const double *x, const double *y, const double *z, const double *pr)
+{
+    vm_inputs in;
+    memset(&in, 0, sizeof in);
+    in.x = x;
+    in.y = y;
+    in.z = z;
+    in.params = pr;
+    return in;
+}
+
+static int is_expr(frep_opcode op)
+{
+    unsigned f = op_flags(op);
+    return !(f & (OPF_LEAF | OPF_CTRL)) && op != FREP_OP_LOADI;
+}
+
+static const double awkward[16] = {0.0, -0.0, 1.0, -1.0, 0.5, -0.5, 2.0, 3.7,
+                                   -2.5, 1e300, -1e300, 1e-300, 5e-324, NAN, INFINITY,
+                                   -INFINITY};
+
+/* ---- (1) every opcode equals its scalar reference ------------------------------- */
+
+static void test_opsem_parity(void)
+{
+    double x[NB], y[NB], z[NB], out[NB];
+    int op;
+    size_t i;
+    vm_scratch *s = vm_scratch_new(NULL);
+    /* Lanes: all pairs of awkward values (16 x 16 = 256), z alternating for SELECT. */
+    for (i = 0; i < NB; i++) {
+        x[i] = awkward[i % 16];
+        y[i] = awkward[i / 16];
+        z[i] = (i % 3) == 0 ? 0.0 : (i % 3 == 1 ? NAN : -1.0);
+    }
+    for (op = 0; op < FREP_OP__COUNT; op++) {
+        int nin = op_nin((frep_opcode)op), okv = 1, variant;
+        if (!is_expr((frep_opcode)op)) continue;
+        /* variant 0: stack operands; 1: b immediate; 2: a immediate. */
+        for (variant = 0; variant < 3; variant++) {
+            int kidx;
+            if (variant > 0 && (nin != 2 || op == FREP_OP_AUNI || op == FREP_OP_AINT)) break;
+            for (kidx = 0; kidx < (variant ? 16 : 1); kidx++) {
+                double k = variant ? awkward[kidx] : 0.0;
+                double alpha = op == FREP_OP_AUNI || op == FREP_OP_AINT ? 0.5 : 0.0;
+                frep_program *p = prog_new();
+                vm_inputs in = inputs(x, y, z, NULL);
+                frep_runtime_error e;
+                uint64_t want_bad = 0;
+                if (nin == 3) emit(p, FREP_OP_X, 2, 0, 0);
+                if (variant != 2) emit(p, FREP_OP_X, 0, 0, 0);
+                if (nin >= 2 && variant != 1) emit(p, FREP_OP_X, 1, 0, 0);
+                emit(p, (frep_opcode)op, 0, variant ? k : alpha,
+                     (uint8_t)(variant == 1 ? INSN_KB : variant == 2 ? INSN_KA : 0));
+                if (nin == 3) {
+                    /* SELECT pops c, a, b: reorder by emitting z first (above). */
+                }
+                p = finish(p);
+                if (!p) { okv = 0; continue; }
+                vm_eval_block(p, s, &in, NB, out);
+                for (i = 0; i < NB; i++) {
+                    double a = variant == 2 ? k : x[i], b = variant == 1 ? k : y[i], r;
+                    int bad = 0;
+                    if (nin == 3) r = op_scalar((frep_opcode)op, z[i], x[i], y[i], 0, &bad);
+                    else r = op_scalar((frep_opcode)op, a, b, 0, variant ? 0 : alpha, &bad);
+                    if (!same(out[i], r)) {
+                        if (okv) diag("%s variant %d lane %zu (%g, %g): got %.17g want %.17g",
+                                      op_name((frep_opcode)op), variant, i, a, b, out[i], r);
+                        okv = 0;
+                    }
+                    want_bad += (uint64_t)bad;
+                }
+                frep_scratch_errors((frep_scratch *)s, &e);
+                if (e.count != want_bad || (want_bad && e.pc != (uint32_t)(p->ncode - 1))) {
+                    if (okv) diag("%s variant %d: %llu errors at pc %u, want %llu",
+                                  op_name((frep_opcode)op), variant,
+                                  (unsigned long long)e.count, e.pc,
+                                  (unsigned long long)want_bad);
+                    okv = 0;
+                }
+                frep_scratch_reset_errors((frep_scratch *)s);
+                /* The same with INSN_QUIET reports nothing and gives the same values. */
+                p->code[p->ncode - 1].flags |= INSN_QUIET;
+                vm_eval_block(p, s, &in, NB, out);
+                frep_scratch_errors((frep_scratch *)s, &e);
+                if (e.count != 0) {
+                    if (okv) diag("%s quiet still reports", op_name((frep_opcode)op));
+                    okv = 0;
+                }
+                frep_program_free(p);
+            }
+        }
+        /* Random arguments too. */
+        {
+            frep_program *p = prog_new();
+            vm_inputs in = inputs(x, y, z, NULL);
+            double rx[NB], ry[NB], rz[NB];
+            for (i = 0; i < NB; i++) {
+                rx[i] = urand(-4, 4);
+                ry[i] = urand(-4, 4);
+                rz[i] = urand(-1, 1) > 0 ? 1.0 : 0.0;
+            }
+            in = inputs(rx, ry, rz, NULL);
+            if (nin == 3) emit(p, FREP_OP_X, 2, 0, 0);
+            emit(p, FREP_OP_X, 0, 0, 0);
+            if (nin >= 2) emit(p, FREP_OP_X, 1, 0, 0);
+            emit(p, (frep_opcode)op, 0, 0.25, 0);
+            p = finish(p);
+            if (p) {
+                vm_eval_block(p, s, &in, NB, out);
+                for (i = 0; i < NB; i++) {
+                    double r = nin == 3 ? op_scalar((frep_opcode)op, rz[i], rx[i], ry[i], 0, NULL)
+                                        : op_scalar((frep_opcode)op, rx[i], ry[i], 0, 0.25, NULL);
+                    if (!same(out[i], r)) {
+                        if (okv) diag("%s random lane %zu", op_name((frep_opcode)op), i);
+                        okv = 0;
+                    }
+                }
+                frep_program_free(p);
+            } else {
+                okv = 0;
+            }
+            frep_scratch_reset_errors((frep_scratch *)s);
+        }
+        ok(okv, "%s equals opsem.h at awkward and random arguments, with immediates",
+           op_name((frep_opcode)op));
+    }
+    vm_scratch_free(s);
+}
+
+/* ---- (2) tangents against central differences ---------------------------------- */
+
+/* Build op(u, v) with u = x + 0.5 y - 0.25 z, v = y - 0.2 x + 0.3 z (binary), or
+ * op(u) (unary), or select(z > 0, u, v).  With params: u = x p0 + 0.1, v = y + p1. */
+static frep_program *tangent_program(frep_opcode op, int with_params)
+{
+    frep_program *p = prog_new();
+    int nin = op_nin(op);
+    if (with_params) {
+        p->nparams = 2;
+        p->params = calloc(2, sizeof *p->params);
+    }
+    if (nin == 3) {
+        emit(p, FREP_OP_X, 2, 0, 0);
+        emit(p, FREP_OP_GT, 0, 0, INSN_KB);
+    }
+    if (with_params) {
+        emit(p, FREP_OP_X, 0, 0, 0);
+        emit(p, FREP_OP_PARAM, 0, 0, 0);
+        emit(p, FREP_OP_MUL, 0, 0, 0);
+        emit(p, FREP_OP_ADD, 0, 0.1, INSN_KB);
+    } else {
+        emit(p, FREP_OP_X, 0, 0, 0);
+        emit(p, FREP_OP_X, 1, 0, 0);
+        emit(p, FREP_OP_MUL, 0, 0.5, INSN_KB);
+        emit(p, FREP_OP_ADD, 0, 0, 0);
+        emit(p, FREP_OP_X, 2, 0, 0);
+        emit(p, FREP_OP_MUL, 0, 0.25, INSN_KB);
+        emit(p, FREP_OP_SUB, 0, 0, 0);
+    }
+    if (nin >= 2) {
+        if (with_params) {
+            emit(p, FREP_OP_X, 1, 0, 0);
+            emit(p, FREP_OP_PARAM, 1, 0, 0);
+            emit(p, FREP_OP_ADD, 0, 0, 0);
+        } else {
+            emit(p, FREP_OP_X, 1, 0, 0);
+            emit(p, FREP_OP_X, 0, 0, 0);
+            emit(p, FREP_OP_MUL, 0, 0.2, INSN_KB);
+            emit(p, FREP_OP_SUB, 0, 0, 0);
+            emit(p, FREP_OP_X, 2, 0, 0);
+            emit(p, FREP_OP_MUL, 0, 0.3, INSN_KA);
+            emit(p, FREP_OP_ADD, 0, 0, 0);
+        }
+    }
+    emit(p, op, 0, 0.5, 0);
+    return finish(p);
+}
+
+/* Is op smooth at (u, v), far enough from kinks for a central difference? */
+static int smooth_at(frep_opcode op, double u, double v)
+{
+    switch ((unsigned)op) {
+    case FREP_OP_SQRT: case FREP_OP_LOG: case FREP_OP_LOGD: return u > 0.1;
+    case FREP_OP_ASIN: case FREP_OP_ACOS: return fabs(u) < 0.9;
+    case FREP_OP_TAN: return fabs(u) < 1.2;
+    case FREP_OP_ABS: return fabs(u) > 1e-3;
+    case FREP_OP_FRAC: return fabs(u - round(u)) > 1e-3;
+    case FREP_OP_EXP: case FREP_OP_SINH: case FREP_OP_COSH: return fabs(u) < 5;
+    case FREP_OP_DIV: return fabs(v) > 0.2;
+    case FREP_OP_POW: return u > 0.2 && u < 3 && fabs(v) < 3;
+    case FREP_OP_MOD: {
+        double q = u / v;
+        return fabs(v) > 0.2 && fabs(q - round(q)) > 1e-3;
+    }
+    case FREP_OP_MIN: case FREP_OP_MAX: return fabs(u - v) > 1e-3;
+    case FREP_OP_MSUB: return fabs(u + v) > 1e-3;
+    case FREP_OP_ATAN2: case FREP_OP_RUNI: case FREP_OP_RINT: case FREP_OP_RSUB:
+    case FREP_OP_AUNI: case FREP_OP_AINT:
+        return u * u + v * v > 1e-4;
+    default: return 1;
+    }
+}
+
+static void test_tangents(void)
+{
+    double x[NB], y[NB], z[NB], f[NB], d[3 * NB], fp[NB], fm[NB];
+    double xs[NB], ys[NB], zs[NB];
+    double params[2] = {0.8, -0.3}, dpar[2 * NB];
+    vm_scratch *s = vm_scratch_new(NULL);
+    const double h = 1e-5;
+    int op;
+    size_t i, c;
+    for (op = 0; op < FREP_OP__COUNT; op++) {
+        frep_program *p;
+        int okv = 1, checked = 0, seeds;
+        if (!is_expr((frep_opcode)op)) continue;
+        for (seeds = 0; seeds < 2; seeds++) {
+            p = tangent_program((frep_opcode)op, seeds);
+            if (!p) { okv = 0; continue; }
+            for (i = 0; i < NB; i++) {
+                x[i] = urand(-2, 2);
+                y[i] = urand(-2, 2);
+                z[i] = urand(-2, 2);
+            }
+            {
+                vm_inputs in = inputs(x, y, z, params);
+                if (vm_eval_block_tangent(p, s, &in, NB, seeds ? VM_SEED_PARAMS : VM_SEED_XYZ,
+                                          f, seeds ? dpar : d) != 0) {
+                    okv = 0;
+                    frep_program_free(p);
+                    continue;
+                }
+                /* Values equal the value evaluator's. */
+                vm_eval_block(p, s, &in, NB, fp);
+                for (i = 0; i < NB; i++)
+                    if (!same(f[i], fp[i])) {
+                        if (okv) diag("%s: tangent evaluator value differs", op_name((frep_opcode)op));
+                        okv = 0;
+                        break;
+                    }
+            }
+            for (c = 0; c < (seeds ? 2u : 3u); c++) {
+                double pp[2], pm[2];
+                vm_inputs inp, inm;
+                memcpy(xs, x, sizeof xs);
+                memcpy(ys, y, sizeof ys);
+                memcpy(zs, z, sizeof zs);
+                memcpy(pp, params, sizeof pp);
+                memcpy(pm, params, sizeof pm);
+                if (seeds) {
+                    pp[c] += h;
+                    pm[c] -= h;
+                    inp = inputs(x, y, z, pp);
+                    inm = inputs(x, y, z, pm);
+                    vm_eval_block(p, s, &inp, NB, fp);
+                    vm_eval_block(p, s, &inm, NB, fm);
+                } else {
+                    double *axis = c == 0 ? xs : c == 1 ? ys : zs;
+                    const double *orig = c == 0 ? x : c == 1 ? y : z;
+                    for (i = 0; i < NB; i++) axis[i] = orig[i] + h;
+                    inp = inputs(c == 0 ? xs : x, c == 1 ? ys : y, c == 2 ? zs : z, params);
+                    vm_eval_block(p, s, &inp, NB, fp);
+                    for (i = 0; i < NB; i++) axis[i] = orig[i] - h;
+                    vm_eval_block(p, s, &inp, NB, fm);
+                }
+                for (i = 0; i < NB; i++) {
+                    double u, v, fd, ad = seeds ? dpar[c * NB + i] : d[c * NB + i];
+                    if (seeds) {
+                        u = x[i] * params[0] + 0.1;
+                        v = y[i] + params[1];
+                    } else {
+                        u = x[i] + 0.5 * y[i] - 0.25 * z[i];
+                        v = y[i] - 0.2 * x[i] + 0.3 * z[i];
+                    }
+                    if (op_flags((frep_opcode)op) & OPF_NOGRAD) {
+                        if (ad != 0) {
+                            if (okv) diag("%s: NOGRAD tangent %g", op_name((frep_opcode)op), ad);
+                            okv = 0;
+                        }
+                        continue;
+                    }
+                    if (!smooth_at((frep_opcode)op, u, v)) continue;
+                    if (op == FREP_OP_SELECT && fabs(z[i]) < 1e-3) continue;
+                    fd = (fp[i] - fm[i]) / (2 * h);
+                    if (!isfinite(fd)) continue;
+                    checked++;
+                    if (!(fabs(ad - fd) <= 1e-5 * (1 + fabs(fd)))) {
+                        if (okv) diag("%s seed %s %zu: at u=%g v=%g AD %.12g FD %.12g",
+                                      op_name((frep_opcode)op), seeds ? "param" : "xyz", c,
+                                      u, v, ad, fd);
+                        okv = 0;
+                    }
+                }
+            }
+            frep_program_free(p);
+        }
+        frep_scratch_reset_errors((frep_scratch *)s);
+        ok(okv && (checked > 100 || (op_flags((frep_opcode)op) & OPF_NOGRAD)),
+           "%s tangents (xyz and parameter seeds) match central differences (%d checks)",
+           op_name((frep_opcode)op), checked);
+    }
+    vm_scratch_free(s);
+}
+
+/* Defined derivatives at kinks (op_partials' rules), checked through the evaluator. */
+static void test_kink_rules(void)
+{
+    vm_scratch *s = vm_scratch_new(NULL);
+    double x[4] = {0, 1, 0, -1}, y[4] = {0, 1, 2, 3}, z[4] = {0, 0, 0, 0};
+    double f[4], d[12];
+    vm_inputs in = inputs(x, y, z, NULL);
+    frep_program *p;
+    /* min(x, x*1) tie -> derivative of a; here both are x: 1. max(x, y) at x = y -> dx. */
+    p = prog_new();
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_X, 1, 0, 0);
+    emit(p, FREP_OP_MAX, 0, 0, 0);
+    p = finish(p);
+    vm_eval_block_tangent(p, s, &in, 4, VM_SEED_XYZ, f, d);
+    ok(d[0] == 1 && d[4] == 0 && d[1] == 1 && d[5] == 0,
+       "max tie: derivative of the first operand");
+    frep_program_free(p);
+    p = prog_new();
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_ABS, 0, 0, 0);
+    p = finish(p);
+    vm_eval_block_tangent(p, s, &in, 4, VM_SEED_XYZ, f, d);
+    ok(d[0] == 0 && d[1] == 1 && d[3] == -1, "abs: derivative 0 at 0, sign elsewhere");
+    frep_program_free(p);
+    p = prog_new();
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_SQRT, 0, 0, 0);
+    p = finish(p);
+    vm_eval_block_tangent(p, s, &in, 4, VM_SEED_XYZ, f, d);
+    ok(d[0] == 0 && d[1] == 0.5 && isnan(d[3]), "sqrt: derivative 0 at 0, NaN where undefined");
+    frep_program_free(p);
+    p = prog_new();
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_X, 2, 0, 0);
+    emit(p, FREP_OP_RUNI, 0, 0, 0);
+    p = finish(p);
+    vm_eval_block_tangent(p, s, &in, 4, VM_SEED_XYZ, f, d);
+    ok(d[0] == 1 && d[8] == 1 && d[4] == 0, "R-union at (0, 0): root term contributes 0");
+    frep_program_free(p);
+    vm_scratch_free(s);
+}
+
+/* ---- (3) batch, single point and odd block sizes agree --------------------------- */
+
+static frep_program *mixed_program(void)
+{
+    /* s0 = sqrt(x^2 + y^2) - 1; f = runi(s0, z - 0.5) * (1 + p0) + atan2(y, x) */
+    frep_program *p = prog_new();
+    p->nparams = 1;
+    p->params = calloc(1, sizeof *p->params);
+    p->params[0].value = 0.25;
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_SQUARE, 0, 0, 0);
+    emit(p, FREP_OP_X, 1, 0, 0);
+    emit(p, FREP_OP_SQUARE, 0, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    emit(p, FREP_OP_SQRT, 0, 0, 0);
+    emit(p, FREP_OP_SUB, 0, 1, INSN_KB);
+    emit(p, FREP_OP_STORE, 0, 0, 0);
+    emit(p, FREP_OP_LOAD, 0, 0, 0);
+    emit(p, FREP_OP_X, 2, 0, 0);
+    emit(p, FREP_OP_SUB, 0, 0.5, INSN_KB);
+    emit(p, FREP_OP_RUNI, 0, 0, 0);
+    emit(p, FREP_OP_PARAM, 0, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 1, INSN_KA);
+    emit(p, FREP_OP_MUL, 0, 0, 0);
+    emit(p, FREP_OP_X, 1, 0, 0);
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_ATAN2, 0, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    return finish(p);
+}
+
+static void test_batch_vs_single(void)
+{
+    enum { N = 1000 };
+    static double x[N], y[N], z[N], f1[N], f2[N], g1[3 * N], g2[3 * NB];
+    frep_program *p = mixed_program();
+    vm_scratch *s = vm_scratch_new(p);
+    size_t i, off, step;
+    int okv = 1, okg = 1;
+    for (i = 0; i < N; i++) {
+        x[i] = urand(-2, 2);
+        y[i] = urand(-2, 2);
+        z[i] = urand(-2, 2);
+    }
+    /* Reference: one point at a time. */
+    for (i = 0; i < N; i++) {
+        vm_inputs in = inputs(x + i, y + i, z + i, NULL);
+        double d[3];
+        vm_eval_block(p, s, &in, 1, f1 + i);
+        vm_eval_block_tangent(p, s, &in, 1, VM_SEED_XYZ, f2, d);
+        okg &= same(f2[0], f1[i]);
+        g1[i] = d[0];
+        g1[N + i] = d[1];
+        g1[2 * N + i] = d[2];
+    }
+    for (step = 1; step <= NB; step = step == 1 ? 37 : step == 37 ? 255 : step + 1) {
+        for (off = 0; off < N; off += step) {
+            size_t nb = N - off < step ? N - off : step;
+            vm_inputs in = inputs(x + off, y + off, z + off, NULL);
+            vm_eval_block(p, s, &in, nb, f2 + off);
+            vm_eval_block_tangent(p, s, &in, nb, VM_SEED_XYZ, f2 + off, g2);
+            for (i = 0; i < nb; i++)
+                for (int c = 0; c < 3; c++) okg &= same(g2[c * nb + i], g1[c * N + off + i]);
+        }
+        for (i = 0; i < N; i++) okv &= same(f1[i], f2[i]);
+    }
+    ok(okv, "values: blocks of 1, 37, 255 and 256 points equal single-point evaluation");
+    ok(okg, "gradients: blocks of 1, 37, 255 and 256 points equal single-point evaluation");
+    /* The parameter vector passed explicitly equals the program's own values. */
+    {
+        double pr = 0.25;
+        vm_inputs in = inputs(x, y, z, &pr);
+        vm_eval_block(p, s, &in, NB, f2);
+        okv = 1;
+        for (i = 0; i < NB; i++) okv &= same(f1[i], f2[i]);
+        ok(okv, "explicit parameters equal the program's initial values");
+    }
+    vm_scratch_free(s);
+    frep_program_free(p);
+}
+
+/* ---- (4) branches and loops -------------------------------------------------------- */
+
+/* while i < x loop acc = acc + i*y; i = i + 1 endloop; f = acc + (x > 5 ? 1 : -1) * z
+ * (the if as JZ).  Slots: 0 = i, 1 = acc. */
+static frep_program *loop_program(void)
+{
+    frep_program *p = prog_new();
+    uint32_t top, jz, jz2, jmp2;
+    emit(p, FREP_OP_CONST, 0, 0, 0);
+    emit(p, FREP_OP_STORE, 0, 0, 0);
+    top = p->ncode;
+    emit(p, FREP_OP_LOAD, 0, 0, 0);
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_LT, 0, 0, 0);
+    jz = p->ncode;
+    emit(p, FREP_OP_JZ, 0, 0, 0);
+    emit(p, FREP_OP_LOAD, 1, 0, 0);
+    emit(p, FREP_OP_LOAD, 0, 0, 0);
+    emit(p, FREP_OP_X, 1, 0, 0);
+    emit(p, FREP_OP_MUL, 0, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    emit(p, FREP_OP_STORE, 1, 0, 0);
+    emit(p, FREP_OP_LOAD, 0, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 1, INSN_KB);
+    emit(p, FREP_OP_STORE, 0, 0, 0);
+    emit(p, FREP_OP_JMP, top, 0, 0);
+    p->code[jz].arg = p->ncode;
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_GT, 0, 5, INSN_KB);
+    jz2 = p->ncode;
+    emit(p, FREP_OP_JZ, 0, 0, 0);
+    emit(p, FREP_OP_X, 2, 0, 0);
+    emit(p, FREP_OP_STORE, 2, 0, 0);
+    jmp2 = p->ncode;
+    emit(p, FREP_OP_JMP, 0, 0, 0);
+    p->code[jz2].arg = p->ncode;
+    emit(p, FREP_OP_X, 2, 0, 0);
+    emit(p, FREP_OP_NEG, 0, 0, 0);
+    emit(p, FREP_OP_STORE, 2, 0, 0);
+    p->code[jmp2].arg = p->ncode;
+    emit(p, FREP_OP_LOAD, 1, 0, 0);
+    emit(p, FREP_OP_LOAD, 2, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    return finish(p);
+}
+
+static void test_branches(void)
+{
+    static double x[NB], y[NB], z[NB], f[NB], ft[NB], g[3 * NB];
+    frep_program *p = loop_program();
+    vm_scratch *s = vm_scratch_new(p);
+    vm_inputs in = inputs(x, y, z, NULL);
+    frep_runtime_error e;
+    size_t i;
+    int okv = 1, okg = 1;
+    ok(p && (p->flags & PROG_HAS_BRANCHES), "loop program assembles, flagged as branching");
+    for (i = 0; i < NB; i++) {
+        x[i] = urand(0, 10);
+        y[i] = urand(-1, 1);
+        z[i] = urand(-1, 1);
+    }
+    vm_eval_block(p, s, &in, NB, f);
+    vm_eval_block_tangent(p, s, &in, NB, VM_SEED_XYZ, ft, g);
+    for (i = 0; i < NB; i++) {
+        double acc = 0, want, it;
+        long m = 0;
+        for (it = 0; it < x[i]; it += 1) { acc += it * y[i]; m++; }
+        want = acc + (x[i] > 5 ? z[i] : -z[i]);
+        okv &= fabs(f[i] - want) <= 1e-12 * (1 + fabs(want)) && same(ft[i], f[i]);
+        /* d/dy = sum of i = m(m-1)/2; d/dz = +-1; d/dx = 0 (loop count is discrete). */
+        okg &= fabs(g[NB + i] - (double)m * (double)(m - 1) / 2) <= 1e-9 &&
+               g[2 * NB + i] == (x[i] > 5 ? 1.0 : -1.0) && g[i] == 0;
+    }
+    ok(okv, "divergent while/if: values equal a per-point reference");
+    ok(okg, "divergent while/if: gradients equal the per-point derivatives");
+    frep_scratch_errors((frep_scratch *)s, &e);
+    is_int(e.count, 0, "no runtime errors in the loop program");
+    frep_program_free(p);
+
+    /* A runaway loop: while 1 loop endloop. */
+    p = prog_new();
+    emit(p, FREP_OP_CONST, 0, 1, 0);
+    emit(p, FREP_OP_JZ, 3, 0, 0);
+    emit(p, FREP_OP_JMP, 0, 0, 0);
+    emit(p, FREP_OP_X, 0, 0, 0);
+    p = finish(p);
+    in = inputs(x, y, z, NULL);
+    vm_eval_block(p, s, &in, 3, f);
+    frep_scratch_errors((frep_scratch *)s, &e);
+    ok(isnan(f[0]) && isnan(f[2]) && e.count == 3 && e.pc == 2 &&
+       strstr(e.what, "loop") != NULL,
+       "a runaway loop stops at FREP_MAX_LOOP_ITERATIONS with NaN and an error at the JMP");
+    frep_scratch_reset_errors((frep_scratch *)s);
+    vm_eval_block_tangent(p, s, &in, 2, VM_SEED_XYZ, f, g);
+    frep_scratch_errors((frep_scratch *)s, &e);
+    ok(isnan(f[0]) && isnan(g[0]) && e.count == 2, "the tangent evaluator stops it too");
+    frep_program_free(p);
+    vm_scratch_free(s);
+}
+
+/* ---- slots: stores, aliasing, arrays -------------------------------------------------- */
+
+static void test_slots(void)
+{
+    double x[5] = {1, 2, 3, 0.5, -4}, y[5] = {0, 0, 0, 0, 0}, z[5] = {0, 0, 0, 0, 0};
+    double f[5], ft[5], g[15];
+    vm_scratch *s = vm_scratch_new(NULL);
+    vm_inputs in = inputs(x, y, z, NULL);
+    frep_runtime_error e;
+    frep_program *p;
+    size_t i;
+    int okv;
+
+    /* s0 = 5; push s0; s0 = 2x (a computed value: buffers are swapped); f = old + new */
+    p = prog_new();
+    emit(p, FREP_OP_CONST, 0, 5, 0);
+    emit(p, FREP_OP_STORE, 0, 0, 0);
+    emit(p, FREP_OP_LOAD, 0, 0, 0);
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_MUL, 0, 2, INSN_KB);
+    emit(p, FREP_OP_STORE, 0, 0, 0);
+    emit(p, FREP_OP_LOAD, 0, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    p = finish(p);
+    vm_eval_block(p, s, &in, 5, f);
+    vm_eval_block_tangent(p, s, &in, 5, VM_SEED_XYZ, ft, g);
+    okv = 1;
+    for (i = 0; i < 5; i++) okv &= f[i] == 5 + 2 * x[i] && ft[i] == f[i] && g[i] == 2;
+    ok(okv, "a loaded value stays live while its slot is reassigned (swap path)");
+    frep_program_free(p);
+
+    /* Same with the copy path (storing an input), and an unassigned slot reads 0. */
+    p = prog_new();
+    emit(p, FREP_OP_LOAD, 1, 0, 0);
+    emit(p, FREP_OP_CONST, 0, 5, 0);
+    emit(p, FREP_OP_STORE, 0, 0, 0);
+    emit(p, FREP_OP_LOAD, 0, 0, 0);
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_STORE, 0, 0, 0);
+    emit(p, FREP_OP_LOAD, 0, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    p = finish(p);
+    vm_eval_block(p, s, &in, 5, f);
+    vm_eval_block_tangent(p, s, &in, 5, VM_SEED_XYZ, ft, g);
+    okv = 1;
+    for (i = 0; i < 5; i++) okv &= f[i] == 5 + x[i] && ft[i] == f[i] && g[i] == 1;
+    ok(okv, "a loaded value stays live while its slot is reassigned (copy path)");
+    frep_program_free(p);
+
+    /* Array c[3] in slots 0..2: c[idx] = x with idx = 1 + (x > 1) + (x > 2.5), then
+     * f = c[1] + 10 c[2] + 100 c[3], and c[round(x)] read directly. */
+    p = prog_new();
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_GT, 0, 1, INSN_KB);
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_GT, 0, 2.5, INSN_KB);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 1, INSN_KB);
+    emit(p, FREP_OP_STOREI, 0, 3, 0);
+    emit(p, FREP_OP_CONST, 0, 1, 0);
+    emit(p, FREP_OP_LOADI, 0, 3, 0);
+    emit(p, FREP_OP_CONST, 0, 2, 0);
+    emit(p, FREP_OP_LOADI, 0, 3, 0);
+    emit(p, FREP_OP_MUL, 0, 10, INSN_KB);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    emit(p, FREP_OP_CONST, 0, 3, 0);
+    emit(p, FREP_OP_LOADI, 0, 3, 0);
+    emit(p, FREP_OP_MUL, 0, 100, INSN_KB);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    p = finish(p);
+    ok(p && p->nslots == 3, "STOREI/LOADI: prog_finish sizes the slots from the array");
+    vm_eval_block(p, s, &in, 5, f);
+    vm_eval_block_tangent(p, s, &in, 5, VM_SEED_XYZ, ft, g);
+    okv = 1;
+    for (i = 0; i < 5; i++) {
+        double w = x[i] > 1 ? (x[i] > 2.5 ? 100 : 10) : 1;
+        okv &= f[i] == w * x[i] && ft[i] == f[i] && g[i] == w;
+    }
+    ok(okv, "STOREI scatters per lane, LOADI gathers; tangents follow");
+    frep_program_free(p);
+
+    /* Index out of range: LOADI gives NaN + error; STOREI is ignored + error. */
+    p = prog_new();
+    emit(p, FREP_OP_X, 1, 0, 0);     /* value 0 */
+    emit(p, FREP_OP_X, 0, 0, 0);     /* index x: 1, 2, 3, 0.5, -4 */
+    emit(p, FREP_OP_STOREI, 0, 2, 0);
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_LOADI, 0, 2, 0);
+    p = finish(p);
+    frep_scratch_reset_errors((frep_scratch *)s);
+    vm_eval_block(p, s, &in, 5, f);
+    frep_scratch_errors((frep_scratch *)s, &e);
+    ok(f[0] == 0 && f[1] == 0 && isnan(f[2]) && isnan(f[3]) && isnan(f[4]),
+       "LOADI out of range (3, 0.5, -4 in an array of 2) gives NaN");
+    ok(e.count == 3 && e.pc == 2 && e.x == 3, "index errors: 3 points, first at the STOREI");
+    frep_program_free(p);
+    vm_scratch_free(s);
+}
+
+/* ---- (5) domain errors --------------------------------------------------------------- */
+
+typedef struct diag_capture {
+    char msg[512];
+    uint32_t line, col;
+    int n;
+} diag_capture;
+
+static void capture(void *user, const frep_diag *d)
+{
+    diag_capture *c = user;
+    snprintf(c->msg, sizeof c->msg, "%s", d->message);
+    c->line = d->line;
+    c->col = d->col;
+    c->n++;
+}
+
+static void test_domain_errors(void)
+{
+    double x[6] = {1, -1, 4, -2, NAN, 0}, y[6] = {1, 1, 0, 1, 1, 0}, z[6] = {0, 0, 0, 0, 0, 0};
+    double f[6];
+    vm_scratch *s = vm_scratch_new(NULL);
+    vm_inputs in = inputs(x, y, z, NULL);
+    frep_runtime_error e;
+    diag_capture cap;
+    frep_srcpos pos = {7, 12, 4};
+    frep_program *p = prog_new();
+    /* f = sqrt(x) + x / y: sqrt fails at x = -1, -2; division at y = 0 (x = 4, 0). */
+    prog_emit(p, FREP_OP_X, 0, 0, 0, nopos);
+    prog_emit(p, FREP_OP_SQRT, 0, 0, 0, pos);
+    prog_emit(p, FREP_OP_X, 0, 0, 0, nopos);
+    prog_emit(p, FREP_OP_X, 1, 0, 0, nopos);
+    prog_emit(p, FREP_OP_DIV, 0, 0, 0, nopos);
+    prog_emit(p, FREP_OP_ADD, 0, 0, 0, nopos);
+    p = finish(p);
+    p->file = strdup("part.hf");
+    vm_eval_block(p, s, &in, 6, f);
+    frep_scratch_errors((frep_scratch *)s, &e);
+    ok(isnan(f[1]) && isnan(f[2]) && isnan(f[3]) && isnan(f[5]),
+       "domain errors give NaN");
+    is_double(f[0], 2.0, 0.0, "sqrt(1) + 1/1 = 2 where there is no error");
+    is_int(e.count, 4, "4 points raised errors (NaN input is not an error)");
+    is_int(e.pc, 1, "the lowest pc is reported");
+    ok(e.x == -1 && strcmp(e.what, "sqrt of a negative number") == 0,
+       "with the first offending point and what happened");
+    memset(&cap, 0, sizeof cap);
+    frep_report_runtime_error(p, &e, capture, &cap);
+    is_str(cap.msg, "sqrt of a negative number at 4 points, e.g. (-1, 1, 0)",
+           "frep_report_runtime_error message");
+    ok(cap.line == 7 && cap.col == 12, "reported at the instruction's source position");
+    /* Errors accumulate over calls until reset. */
+    vm_eval_block(p, s, &in, 6, f);
+    frep_scratch_errors((frep_scratch *)s, &e);
+    is_int(e.count, 8, "errors accumulate across blocks");
+    frep_scratch_reset_errors((frep_scratch *)s);
+    frep_scratch_errors((frep_scratch *)s, &e);
+    is_int(e.count, 0, "reset clears them");
+    /* Division by exactly zero only: a tiny divisor is fine. */
+    y[2] = 5e-324;
+    vm_eval_block(p, s, &in, 6, f);
+    frep_scratch_errors((frep_scratch *)s, &e);
+    ok(e.count == 3 && isinf(f[2]), "division by a denormal is not an error");
+    frep_program_free(p);
+    vm_scratch_free(s);
+}
+
+/* ---- program building and disassembly -------------------------------------------- */
+
+static void test_program(void)
+{
+    frep_program *p = prog_new();
+    char *dis;
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    ok(prog_finish(p) == -1, "prog_finish rejects a stack underflow");
+    frep_program_free(p);
+    p = prog_new();
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_JZ, 9, 0, 0);
+    emit(p, FREP_OP_X, 0, 0, 0);
+    ok(prog_finish(p) == -1, "prog_finish rejects a jump out of the code");
+    frep_program_free(p);
+    p = prog_new();
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_X, 1, 0, 0);
+    ok(prog_finish(p) == -1, "prog_finish rejects code leaving two values");
+    frep_program_free(p);
+    p = prog_new();
+    emit(p, FREP_OP_PARAM, 0, 0, 0);
+    ok(prog_finish(p) == -1, "prog_finish rejects an unknown parameter");
+    frep_program_free(p);
+
+    p = mixed_program();
+    ok(p && p->max_stack == 3, "max_stack computed (3 for the mixed program)");
+    is_int(prog_subtree_start(p->code, 6), 0, "subtree of the SUB at pc 6 starts at 0");
+    is_int(prog_subtree_start(p->code, 14), 8, "subtree of the MUL at pc 14 starts at 8");
+    is_int(prog_subtree_start(p->code, 3), 2, "subtree of a unary op");
+    dis = frep_disassemble(p);
+    ok(dis && strstr(dis, "SQRT") && strstr(dis, "b=1") && strstr(dis, "a=1") &&
+       strstr(dis, "STORE   s0") && strstr(dis, "stack 3"),
+       "disassembly names ops, immediates, slots and the stack size");
+    if (dis) diag("%s", strtok(dis, "\n"));
+    free(dis);
+    frep_program_free(p);
+    {
+        int okt = 1, op;
+        for (op = 0; op < FREP_OP__COUNT; op++) {
+            okt &= op_name((frep_opcode)op)[0] != '?' && op_meaning((frep_opcode)op)[0] != 0;
+            okt &= op_pushes((frep_opcode)op) == ((op_flags((frep_opcode)op) & OPF_CTRL) ? 0 : 1) ||
+                   op == FREP_OP_LOADI;
+        }
+        ok(okt, "every opcode has a name, a meaning and a push count");
+    }
+}
+
+/* ---- (6) thread count does not change anything --------------------------------------- */
+
+static void test_threads(void)
+{
+    enum { N = 10007 };
+    static double x[N], y[N], z[N], f1[N], f2[N], g1[3 * N], g2[3 * N];
+    frep_program *p = mixed_program();
+    frep_runtime_error e1, e2;
+    size_t i;
+    int okv = 1;
+    for (i = 0; i < N; i++) {
+        x[i] = urand(-2, 2);
+        y[i] = urand(-2, 2);
+        z[i] = urand(-2, 2);
+    }
+    /* An error region: sqrt(x^2+y^2) is fine; make params produce none, errors come
+     * from a second program below. */
+    frep_eval_par(p, N, x, y, z, NULL, f1, 1, &e1);
+    frep_eval_par(p, N, x, y, z, NULL, f2, 2, &e2);
+    for (i = 0; i < N; i++) okv &= same(f1[i], f2[i]);
+    ok(okv, "frep_eval_par: 1 and 2 threads give identical values");
+    frep_eval_grad_par(p, N, x, y, z, NULL, f1, g1, g1 + N, g1 + 2 * N, 1, &e1);
+    frep_eval_grad_par(p, N, x, y, z, NULL, f2, g2, g2 + N, g2 + 2 * N, 2, &e2);
+    okv = 1;
+    for (i = 0; i < 3 * N; i++) okv &= same(g1[i], g2[i]);
+    ok(okv, "frep_eval_grad_par: 1 and 2 threads give identical gradients");
+    frep_program_free(p);
+
+    p = prog_new();
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_LOG, 0, 0, 0);
+    emit(p, FREP_OP_X, 1, 0, 0);
+    emit(p, FREP_OP_SQRT, 0, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    p = finish(p);
+    frep_eval_par(p, N, x, y, z, NULL, f1, 1, &e1);
+    frep_eval_par(p, N, x, y, z, NULL, f2, 2, &e2);
+    ok(e1.count == e2.count && e1.pc == e2.pc && same(e1.x, e2.x) && same(e1.y, e2.y) &&
+       e1.count > 0 && e1.pc == 1, "errors merge identically at 1 and 2 threads");
+    {
+        /* The serial API agrees. */
+        frep_scratch *s = frep_scratch_new(p);
+        frep_runtime_error e3;
+        frep_eval(p, s, N, x, y, z, NULL, f2);
+        frep_scratch_errors(s, &e3);
+        ok(e3.count == e1.count && e3.pc == e1.pc && same(e3.x, e1.x),
+           "frep_eval reports the same errors as frep_eval_par");
+        frep_scratch_free(s);
+    }
+    frep_program_free(p);
+}
+
+int main(void)
+{
+    test_program();
+    test_opsem_parity();
+    test_tangents();
+    test_kink_rules();
+    test_batch_vs_single();
+    test_branches();
+    test_slots();
+    test_domain_errors();
+    test_threads();
+    return done_testing();
+}
