@@ -20,6 +20,9 @@ int cmd_dis(int argc, char **argv);
 int cmd_mesh(int argc, char **argv);   /* cli/cmd_mesh.c */
 int cmd_sample(int argc, char **argv); /* cli/cmd_sample.c */
 int cmd_render(int argc, char **argv); /* cli/cmd_render.c */
+int cmd_evolve(int argc, char **argv); /* cli/cmd_evolve.c */
+int cmd_segment(int argc, char **argv); /* cli/cmd_segment.c */
+int cmd_fit(int argc, char **argv);    /* cli/cmd_fit.c */
 
 /* Model -> mesh steps shared by frep mesh, sample and render (cli/cmd_mesh.c):
  * mesh_cli_option() handles -m -a -b -g --iso(I) -t --setops(S) (returns 0, a CLI_
@@ -56,8 +59,13 @@ typedef struct cli_diag_ctx {
     const char *src;
     size_t len;
     unsigned errors, warnings;
+    /* Diagnostics already printed: a file compiled once per model reports its parser
+     * warnings each time, and each is printed once. Freed by cli_diag_done(). */
+    char **seen;
+    size_t nseen;
 } cli_diag_ctx;
 void cli_print_diag(void *user, const frep_diag *d);
+void cli_diag_done(cli_diag_ctx *c);
 
 /* Compile FILE (reading it) with the common options; prints diagnostics. On success
  * returns the program and (if src != NULL) hands over the source text (free()). */

@@ -138,7 +138,7 @@ static char *join_args(int argc, char **argv)
     return s;
 }
 
-int cmd_evolve(int argc, char **argv)
+static int evolve_main(int argc, char **argv, const char *cmdline)
 {
     enum {
         O_SETOPS = 256, O_PART, O_NOPART, O_SEED, O_GEN, O_STAG, O_POP, O_TOURN, O_CROSS,
@@ -177,7 +177,7 @@ int cmd_evolve(int argc, char **argv)
     evolve_options_init(&eo);
     const char *prims_path = NULL, *out = "-", *dot = NULL;
     int have_seed = 0, quiet = 0, c;
-    double v;
+    double v = 0;
     optind = 1;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "hp:o:t:q", longopts, NULL)) != -1) {
@@ -234,7 +234,7 @@ int cmd_evolve(int argc, char **argv)
     if (eo.lambda_scale == 0) eo.lambda_scale = 1e-12;  /* 0 asks for no penalty */
 
     int rc = CLI_FAIL;
-    char *err = NULL, *cmdline = NULL;
+    char *err = NULL;
     prim *prims = NULL;
     size_t nprims = 0;
     evolve_result res;
@@ -300,7 +300,6 @@ int cmd_evolve(int argc, char **argv)
     }
     if (evolve_interrupted && !quiet)
         fprintf(stderr, "frep evolve: interrupted: writing the best tree so far\n");
-    cmdline = join_args(argc, argv);
     evolve_meta meta = { cmdline, cloud_path, eo.gp.seed, eo.gp.setops };
     write_ctx w = { &res, prims, nprims, &meta };
     if (cli_write_atomic(out, write_model_cb, &w)) goto done;
@@ -325,6 +324,14 @@ done:
     evolve_result_free(&res);
     cloud_free(cloud);
     free(err);
+    return rc;
+}
+
+int cmd_evolve(int argc, char **argv)
+{
+    /* getopt_long permutes argv: keep the command line as typed for the model. */
+    char *cmdline = join_args(argc, argv);
+    int rc = evolve_main(argc, argv, cmdline);
     free(cmdline);
     return rc;
 }

@@ -53,11 +53,12 @@ int cmd_check(int argc, char **argv)
     size_t len;
     char *src = cli_read_file(file, &len);
     if (!src) return CLI_FAIL;
-    cli_diag_ctx dc = { src, len, 0, 0 };
+    cli_diag_ctx dc = { src, len, 0, 0, NULL, 0 };
     size_t nmodels = 0;
     char **models = frep_list_models(file, src, len, &nmodels, cli_print_diag, &dc);
     if (!models) {
         free(src);
+        cli_diag_done(&dc);
         return CLI_FAIL;
     }
     frep_compile_options o;
@@ -71,6 +72,7 @@ int cmd_check(int argc, char **argv)
     }
     frep_free_strings(models, nmodels);
     free(src);
+    cli_diag_done(&dc);
     return bad || dc.errors ? CLI_FAIL : CLI_OK;
 }
 
@@ -86,7 +88,7 @@ int cmd_print(int argc, char **argv)
     size_t len;
     char *src = cli_read_file(file, &len);
     if (!src) return CLI_FAIL;
-    cli_diag_ctx dc = { src, len, 0, 0 };
+    cli_diag_ctx dc = { src, len, 0, 0, NULL, 0 };
     diag_sink ds = { cli_print_diag, &dc, file, 0, 0 };
     arena A;
     arena_init(&A);
@@ -102,6 +104,7 @@ int cmd_print(int argc, char **argv)
     }
     arena_free(&A);
     free(src);
+    cli_diag_done(&dc);
     return status;
 }
 

@@ -22,7 +22,10 @@ static const cli_command commands[] = {
     { "dis", cmd_dis, "print the bytecode of a compiled model" },
     { "mesh", cmd_mesh, "polygonize a model: STL, OBJ, PLY or OFF (dual contouring)" },
     { "sample", cmd_sample, "sample a point cloud with normals from a model or a mesh" },
+    { "fit", cmd_fit, "fit a template's free parameters to a point cloud (SA + quasi-Newton)" },
     { "render", cmd_render, "draw a shaded PNG picture of a model, optionally with a cloud" },
+    { "segment", cmd_segment, "find planes, spheres, cylinders, cones, tori in a point cloud" },
+    { "evolve", cmd_evolve, "discover a construction-tree model (.hf) from a point cloud" },
 };
 
 static void usage(FILE *f)

@@ -54,20 +54,43 @@ char *cli_read_file(const char *path, size_t *len)
     return buf;
 }
 
+#define CLI_MAX_SEEN_DIAGS 4096 /* remembered for de-duplication; later ones just print */
+
 void cli_print_diag(void *user, const frep_diag *d)
 {
     cli_diag_ctx *c = user;
+    char *s = frep_diag_format(d, c ? c->src : NULL, c ? c->len : 0);
+    if (!s) {
+        fprintf(stderr, "%s\n", d->message);
+        return;
+    }
     if (c) {
+        for (size_t i = 0; i < c->nseen; i++)
+            if (strcmp(c->seen[i], s) == 0) {
+                free(s);
+                return;
+            }
         if (d->severity == FREP_ERROR) c->errors++;
         else if (d->severity == FREP_WARNING) c->warnings++;
     }
-    char *s = frep_diag_format(d, c ? c->src : NULL, c ? c->len : 0);
-    if (s) {
-        fputs(s, stderr);
-        free(s);
-    } else {
-        fprintf(stderr, "%s\n", d->message);
+    fputs(s, stderr);
+    if (c && c->nseen < CLI_MAX_SEEN_DIAGS) {
+        char **ns = realloc(c->seen, (c->nseen + 1) * sizeof *ns);
+        if (ns) {
+            c->seen = ns;
+            c->seen[c->nseen++] = s;
+            return;
+        }
     }
+    free(s);
+}
+
+void cli_diag_done(cli_diag_ctx *c)
+{
+    for (size_t i = 0; i < c->nseen; i++) free(c->seen[i]);
+    free(c->seen);
+    c->seen = NULL;
+    c->nseen = 0;
 }
 
 frep_program *cli_compile_file(const char *path, const char *model, const double *a,
@@ -82,8 +105,9 @@ frep_program *cli_compile_file(const char *path, const char *model, const double
     o.a = a;
     o.na = na;
     if (setops >= 0) o.setops_override = setops;
-    cli_diag_ctx dc = { text, len, 0, 0 };
+    cli_diag_ctx dc = { text, len, 0, 0, NULL, 0 };
     frep_program *p = frep_compile(path, text, len, &o, cli_print_diag, &dc);
+    cli_diag_done(&dc);
     if (src && p) *src = text;
     else free(text);
     return p;

@@ -162,7 +162,24 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
     }
     res->eps_d = (o->eps_rel > 0 ? o->eps_rel : EVOLVE_DEFAULT_EPS_REL) * res->diag;
     res->alpha = (o->alpha_deg > 0 ? o->alpha_deg : EVOLVE_DEFAULT_ALPHA_DEG) * EV_PI / 180;
+    /* Clipping box: the principal-axes box, or the axis-aligned one when smaller (PCA
+     * axes are arbitrary for symmetric shapes such as a cube). */
     part_obb_of_points(cloud->x, cloud->y, cloud->z, valid, nv, &res->obb);
+    {
+        double va = 1, vo = 1;
+        for (int d = 0; d < 3; d++) {
+            va *= hi[d] - lo[d] + 1e-12 * res->diag;
+            vo *= 2 * res->obb.h[d] + 1e-12 * res->diag;
+        }
+        if (va <= vo * (1 + 1e-9)) {
+            memset(res->obb.ax, 0, sizeof res->obb.ax);
+            for (int d = 0; d < 3; d++) {
+                res->obb.ax[d][d] = 1;
+                res->obb.c[d] = 0.5 * (lo[d] + hi[d]);
+                res->obb.h[d] = 0.5 * (hi[d] - lo[d]);
+            }
+        }
+    }
 
     /* The GA's sample: a seeded uniform subset, in cloud order. */
     size_t m = o->sample && o->sample < nv ? o->sample : nv;

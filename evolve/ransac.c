@@ -969,6 +969,63 @@ static size_t gather_inliers(det *d, const prim *q, unsigned char *flag, uint32_
     return m;
 }
 
+static size_t support_of(det *d, const prim *q, unsigned char *flag, uint32_t *inl)
+{
+    size_t m = gather_inliers(d, q, flag, inl);
+    return largest_component(q, d->c, inl, m, d->cfg->cluster);
+}
+
+/* A curved candidate that a plane (or a cone that a cylinder) explains about as well is
+ * replaced by the simpler shape: with a tolerance epsilon, a large-radius sphere or a
+ * near-flat cone fits a plane's points too. inl holds q's m inliers on entry; returns
+ * the support of the (possibly replaced) q; inl is then stale. */
+#define SIMPLER_KEEP 0.95 /* the simpler shape must keep this fraction of the support */
+static size_t prefer_simpler(det *d, prim *q, size_t m, unsigned char *flag, uint32_t *inl)
+{
+    const frep_cloud *c = d->c;
+    prim alt[2];
+    int nalt = 0;
+    if (q->type != PRIM_PLANE && (d->cfg->types & (1u << PRIM_PLANE))) {
+        prim *p = &alt[nalt++];
+        memset(p, 0, sizeof *p);
+        p->type = PRIM_PLANE;
+        p->p[2] = 1;
+    }
+    if (q->type == PRIM_CONE && (d->cfg->types & (1u << PRIM_CYLINDER))) {
+        prim *p = &alt[nalt++];
+        memset(p, 0, sizeof *p);
+        p->type = PRIM_CYLINDER;
+        memcpy(p->p, q->p, sizeof q->p);
+        memcpy(p->a, q->a, sizeof q->a);
+        double rho = 0;
+        for (size_t j = 0; j < m; j++) {
+            double x[3], v[3];
+            point(c, inl[j], x);
+            sub(x, q->p, v);
+            double h = dot(v, q->a);
+            rho += sqrt(fmax(0, dot(v, v) - h * h)) / (double)m;
+        }
+        p->r = rho;
+    }
+    uint32_t *keep = malloc(m * sizeof *keep);
+    if (!keep) return m;
+    memcpy(keep, inl, m * sizeof *keep);
+    size_t best_m = m;
+    prim best = *q;
+    for (int k = 0; k < nalt; k++) {
+        prim t = alt[k];
+        if (ransac_refit(&t, c, keep, m, REFIT_MAX_POINTS) || !sane(&t, d->rmax)) continue;
+        size_t mt = support_of(d, &t, flag, inl);
+        if ((double)mt >= SIMPLER_KEEP * (double)m && (best.type == q->type || mt > best_m)) {
+            best = t;
+            best_m = mt;
+        }
+    }
+    free(keep);
+    *q = best;
+    return best_m;
+}
+
 static double rms_of(const prim *q, const frep_cloud *c, const uint32_t *idx, size_t n)
 {
     double s = 0;
@@ -1138,7 +1195,7 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         }
         if (cfg->progress) cfg->progress(cfg->user, d.nalive, n, res->nprims);
         if (best == SIZE_MAX) {
-            if ((double)draws_since * log1p(-fmin(p_draw((double)min_pts, (double)d.nalive, 4), 0.999999)) < log_fail ||
+            if ((double)draws_since * log1p(-fmin(p_draw((double)min_pts, (double)d.nalive, 3), 0.999999)) < log_fail ||
                 draws_since > RANSAC_MAX_DRAWS)
                 break;
             continue;
@@ -1148,7 +1205,7 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         int accept = b->est >= (double)min_pts &&
                      (double)draws_since * log1p(-pd) < log_fail;
         if (!accept) {
-            double pm = fmin(p_draw((double)min_pts, (double)d.nalive, 4), 0.999999);
+            double pm = fmin(p_draw((double)min_pts, (double)d.nalive, 3), 0.999999);
             if ((b->est < (double)min_pts && (double)draws_since * log1p(-pm) < log_fail) ||
                 draws_since > RANSAC_MAX_DRAWS)
                 break; /* a shape of the minimum size would have been found by now */
@@ -1156,21 +1213,18 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         }
         /* Extract: inliers, largest patch, refit, again with the refined shape. */
         prim q = b->q;
-        size_t m = gather_inliers(&d, &q, flag, inl);
-        m = largest_component(&q, c, inl, m, cfg->cluster);
+        size_t m = support_of(&d, &q, flag, inl);
         prim q2 = q;
         if (m >= min_pts && ransac_refit(&q2, c, inl, m, REFIT_MAX_POINTS) == 0 &&
             sane(&q2, d.rmax)) {
-            size_t m2 = gather_inliers(&d, &q2, flag, inl);
-            m2 = largest_component(&q2, c, inl, m2, cfg->cluster);
+            size_t m2 = support_of(&d, &q2, flag, inl);
             if (m2 >= m) {
                 q = q2;
                 m = m2;
-            } else {
-                m = gather_inliers(&d, &q, flag, inl);
-                m = largest_component(&q, c, inl, m, cfg->cluster);
             }
         }
+        if (m >= min_pts) m = prefer_simpler(&d, &q, m, flag, inl);
+        m = support_of(&d, &q, flag, inl);
         int lvl = b->level;
         pool[best] = pool[--npool];
         if (m < min_pts) continue; /* the estimate was optimistic; keep drawing */

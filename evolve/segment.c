@@ -21,6 +21,8 @@
 
 /* Points whose nearest-neighbour distance estimates the sampling density. */
 #define SPACING_SAMPLES 2000
+/* Neighbours searched for the nearest distinct position (a point may be repeated). */
+#define SPACING_K 16
 /* Longest line of a .hf primitive list we parse. */
 #define HF_MAX_LINE 4096
 
@@ -81,9 +83,15 @@ static double median_spacing(const frep_cloud *c)
     size_t got = 0;
     for (size_t j = 0; j < m; j++) {
         size_t i = (size_t)((double)j * (double)c->n / (double)m);
-        double q[3] = {c->x[i], c->y[i], c->z[i]}, d2[2];
-        uint32_t idx[2];
-        if (kd_knn(t, q, 2, idx, d2) == 2) d[got++] = sqrt(d2[1]);
+        double q[3] = {c->x[i], c->y[i], c->z[i]}, d2[SPACING_K];
+        uint32_t idx[SPACING_K];
+        size_t k = kd_knn(t, q, SPACING_K, idx, d2);
+        /* The nearest other position: duplicates of the point itself do not count. */
+        for (size_t e = 0; e < k; e++)
+            if (d2[e] > 0) {
+                d[got++] = sqrt(d2[e]);
+                break;
+            }
     }
     double med = 0;
     if (got) {

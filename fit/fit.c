@@ -62,7 +62,7 @@ void fit_config_init(fit_config *c)
     c->seed = 1;
     c->sa_points = 1024;
     c->sa_local = 1;
-    c->sa_local_iter = 60;
+    c->sa_local_iter = 300;
     fit_sa_options_init(&c->sa);
     c->sa.stall_iter = 15;
     fit_qn_options_init(&c->qn);

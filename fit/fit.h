@@ -40,7 +40,7 @@ typedef struct fit_config {
      * evaluations; the local phase uses them all). */
     size_t sa_points;           /* 1024 */
     int sa_local;               /* BFGS from every new best inside the annealing (1) */
-    int sa_local_iter;          /* iteration cap of those inner searches (60) */
+    int sa_local_iter;          /* iteration cap of those inner searches (300) */
     fit_sa_options sa;          /* see optim.h; fit_config_init sets stall_iter 15 */
     /* Local phase. */
     fit_qn_options qn;

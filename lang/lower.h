@@ -26,7 +26,7 @@
 #define FREP_MAX_INLINE_DEPTH 64u
 /* Statement lowerings of one compile (counts every unrolled and inlined statement):
  * bounds compile time for chains of models that each call the previous twice. */
-#define FREP_MAX_LOWER_STEPS (1u << 24)
+#define FREP_MAX_LOWER_STEPS (1u << 22)
 
 typedef struct lstmt lstmt;
 

@@ -112,7 +112,8 @@ void vm_scratch_free(vm_scratch *s)
     free(s->primp);
     free(s->primg);
     free(s->errlane);
-    vm_tan_free(s->tan);
+    vm_tan_free(s->tan[0]);
+    vm_tan_free(s->tan[1]);
     free(s);
 }
 

@@ -57,7 +57,10 @@ struct vm_scratch {
     vm_errstate blk;           /* errors of the current run */
     vm_errstate total;         /* errors since the last reset */
 
-    vm_tanstate *tan;          /* tangent evaluator state, NULL until used */
+    /* Tangent evaluator states, NULL until used: tan[0] for xyz seeds (3 tangents),
+     * tan[1] for parameter seeds, kept apart so alternating gradient and parameter
+     * derivatives (as a fitter does) never reallocates. */
+    vm_tanstate *tan[2];
     const frep_program *cur;   /* program of the current run (error messages) */
 };
 

@@ -13,6 +13,18 @@
 #include "opsem.h"
 #include "vm_internal.h"
 
+/* Op flags and arities, as a local table so the dispatch loop needs no calls. */
+static const unsigned char tan_flags[FREP_OP__COUNT] = {
+#define FREP_OP_TF(name, id, nin, flags, meaning) [id] = (unsigned char)(flags),
+    FREP_OPS(FREP_OP_TF)
+#undef FREP_OP_TF
+};
+static const unsigned char tan_nin[FREP_OP__COUNT] = {
+#define FREP_OP_TN(name, id, nin, flags, meaning) [id] = nin,
+    FREP_OPS(FREP_OP_TN)
+#undef FREP_OP_TN
+};
+
 /* Buffers are grouped in "sets": a value vector followed by T tangent vectors. */
 struct vm_tanstate {
     uint32_t T;
@@ -57,9 +69,9 @@ static double *new_set(uint32_t T)
 }
 
 /* Make the tangent state fit p with T tangents (rebuilt when T changes). */
-static int tan_fit(vm_scratch *s, const frep_program *p, uint32_t T)
+static int tan_fit(vm_scratch *s, const frep_program *p, uint32_t T, vm_tanstate **slot)
 {
-    vm_tanstate *t = s->tan;
+    vm_tanstate *t = *slot;
     uint32_t i, ns = p->max_stack, nsl = p->nslots;
     if (t && t->T == T && t->cap_stack >= ns && t->cap_slots >= nsl) return 0;
     if (t && t->T == T) {
@@ -67,7 +79,7 @@ static int tan_fit(vm_scratch *s, const frep_program *p, uint32_t T)
         if (nsl < t->cap_slots) nsl = t->cap_slots;
     }
     vm_tan_free(t);
-    s->tan = t = calloc(1, sizeof *t);
+    *slot = t = calloc(1, sizeof *t);
     if (!t) return -1;
     t->T = T;
     if (ns == 0) ns = 1;
@@ -94,7 +106,7 @@ static int tan_fit(vm_scratch *s, const frep_program *p, uint32_t T)
     return 0;
 fail:
     vm_tan_free(t);
-    s->tan = NULL;
+    *slot = NULL;
     return -1;
 }
 
@@ -107,8 +119,15 @@ static inline int free_set(const vm_tanstate *t, uint32_t L)
     return t->eset[L] == 0 ? 1 : 0;
 }
 
+/* Inlined into tan_run so that they are compiled for its target clones. */
+#if defined(__GNUC__)
+#define TAN_INLINE static inline __attribute__((always_inline))
+#else
+#define TAN_INLINE static inline
+#endif
+
 /* r = pa*ta + pb*tb with vector partials (NULL tangents are zero). */
-static void combine_vv(double *restrict r, const double *restrict pa, const double *ta,
+TAN_INLINE void combine_vv(double *restrict r, const double *restrict pa, const double *ta,
                        const double *restrict pb, const double *tb, size_t n)
 {
     size_t i;
@@ -121,7 +140,7 @@ static void combine_vv(double *restrict r, const double *restrict pa, const doub
 }
 
 /* r = ka*ta + kb*tb with constant partials. */
-static void combine_ss(double *restrict r, double ka, const double *ta, double kb,
+TAN_INLINE void combine_ss(double *restrict r, double ka, const double *ta, double kb,
                        const double *tb, size_t n)
 {
     size_t i;
@@ -221,7 +240,7 @@ static int tan_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, si
 static int tan_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, size_t n,
                    vm_seed seed, double *out, double *dout, size_t dstride, int may_diverge)
 {
-    vm_tanstate *t = s->tan;
+    vm_tanstate *t = s->tan[seed == VM_SEED_XYZ ? 0 : 1];
     const uint32_t T = t->T;
     const frep_insn *code = p->code;
     uint32_t pc = 0, d = 0, j, c;
@@ -238,7 +257,7 @@ static int tan_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, si
     while (pc < p->ncode) {
         const frep_insn *in_ = &code[pc];
         frep_opcode op = (frep_opcode)in_->op;
-        unsigned fl = op_flags(op);
+        unsigned fl = op < FREP_OP__COUNT ? tan_flags[op] : 0;
         const double **et_d = t->et + (size_t)d * T;
         switch ((unsigned)op) { /* not an enum switch: operators are handled below */
         case FREP_OP_CONST: {
@@ -444,8 +463,8 @@ static int tan_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, si
 
         /* Unary and binary operators. */
         {
-            int nin = insn_nin(in_);
-            int binary = op_nin(op) == 2;
+            int binary = tan_nin[op] == 2;
+            int nin = binary && (in_->flags & (INSN_KA | INSN_KB)) ? 1 : tan_nin[op];
             uint32_t L = d - (uint32_t)nin; /* result level */
             const double *A = NULL, *B = NULL, **ta = NULL, **tb = NULL;
             double ka = in_->k, kb = in_->k, k = in_->k;
@@ -573,7 +592,7 @@ int vm_eval_block_tangent(const frep_program *p, vm_scratch *s, const vm_inputs 
     int rc;
     size_t i;
     if (n == 0) return 0;
-    if (n > FREP_BLOCK || vm_scratch_fit(s, p) < 0 || tan_fit(s, p, T) < 0) return -1;
+    if (n > FREP_BLOCK || vm_scratch_fit(s, p) < 0 || tan_fit(s, p, T, &s->tan[seed == VM_SEED_XYZ ? 0 : 1]) < 0) return -1;
     if ((p->flags & PROG_HAS_PRIMS) &&
         (!in->prim_v || (seed == VM_SEED_XYZ && !in->prim_g)))
         return -1;

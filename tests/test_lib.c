@@ -841,7 +841,9 @@ static const tcase cases[] = {
     CK("hfDConeZ", DECL_C "m = hfDConeZ(x, c, 0.6);", r_dcone, 2),
     C1("hfDCylinder", "array c[3], u[3];\nc = [0.1, -0.2, 0.3];\nu = [0.3, 0.4, 1];\nm = hfDCylinder(x, c, u, 0.5);",
        r_dcylinder),
-    { "hfDEllipsoid", DECL_C "m = hfDEllipsoid(x, c, 0.9, 0.6, 1.1);", r_dellipsoid, 0, 1e-7,
+    /* the reference stops its Newton iteration at a residual of 1e-6 (documented), so
+     * the distance is only accurate to about 1e-5 */
+    { "hfDEllipsoid", DECL_C "m = hfDEllipsoid(x, c, 0.9, 0.6, 1.1);", r_dellipsoid, 0, 1e-4,
       -1, 0 },
     CK("hfDTorusX", DECL_C "m = hfDTorusX(x, c, 0.8, 0.3);", r_dtorus, 0),
     CK("hfDTorusY", DECL_C "m = hfDTorusY(x, c, 0.8, 0.3);", r_dtorus, 1),
@@ -1046,17 +1048,18 @@ int main(void)
               "t = [0,0,0,0];\nb = [1,1,1,1];\nd = hfSpaceMapExp(xt, s, t, b);\nm = xt[1];",
               "multiple of 3");
 
-    /* hfDEllipsoid at known distances: the centre is min(a, b, c) = 0.6 inside, a
-     * point 0.5 beyond the x half-axis is 0.5 outside */
+    /* hfDEllipsoid at known distances: 0.5 beyond the x half-axis is 0.5 outside,
+     * 0.2 inside from the end of the y half-axis is 0.2 inside */
     {
         diag_buf db;
         frep_program *p = compile_body(DECL_C "m = hfDEllipsoid(x, c, 0.9, 0.6, 1.1);", -1, 0, &db);
         frep_scratch *s = p ? frep_scratch_new(p) : NULL;
-        double px[2] = { 0.1, 0.1 + 0.9 + 0.5 }, py[2] = { -0.2, -0.2 }, pz[2] = { 0.3, 0.3 };
+        double px[2] = { 0.1 + 0.9 + 0.5, 0.1 }, py[2] = { -0.2, -0.2 + 0.6 - 0.2 };
+        double pz[2] = { 0.3, 0.3 };
         double f[2] = { NAN, NAN };
         if (s) (void)frep_eval(p, s, 2, px, py, pz, NULL, f);
-        is_double(f[0], 0.6, 1e-9, "hfDEllipsoid at the centre is 0.6");
-        is_double(f[1], -0.5, 1e-9, "hfDEllipsoid 0.5 beyond the surface is -0.5");
+        is_double(f[0], -0.5, 1e-5, "hfDEllipsoid 0.5 beyond the surface is -0.5");
+        is_double(f[1], 0.2, 1e-5, "hfDEllipsoid 0.2 inside the surface is 0.2");
         frep_scratch_free(s);
         frep_program_free(p);
     }

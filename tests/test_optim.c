@@ -170,6 +170,22 @@ static double hybrid(fit_fn fn, void *user, size_t n, double *x, const double *l
     return f;
 }
 
+/* Local search hook of fit_sa: BFGS within the bounds. */
+typedef struct local_ctx {
+    fit_fn fn;
+    void *user;
+    size_t n;
+    const double *lo, *hi;
+    fit_control *c;
+} local_ctx;
+
+static int local_bfgs(void *user, double *x, double *fx)
+{
+    local_ctx *L = user;
+    fit_status s = fit_bfgs(L->fn, L->user, L->n, x, L->lo, L->hi, NULL, L->c, fx, NULL);
+    return s == FIT_FAILED ? -1 : 0;
+}
+
 int main(void)
 {
     /* RNG: deterministic, uniform in [0, 1), normal with the right moments. */
@@ -301,12 +317,29 @@ int main(void)
         ok(fl > 3.5, "bfgs alone stops in a local minimum of goldstein-price (f = %g)", fl);
     }
     {
-        double lo[4] = {0, 0, 0, 0}, hi[4] = {10, 10, 10, 10}, x[4] = {1, 1, 1, 1};
-        double f = hybrid(shekel, NULL, 4, x, lo, hi, 3, NULL);
-        ok(f < -10.536, "sa+bfgs shekel-10 global minimum (f = %.6f)", f);
-        double err = 0;
-        for (int j = 0; j < 4; j++) err = fmax(err, fabs(x[j] - 4));
-        ok(err < 0.01, "shekel-10 minimum near (4, 4, 4, 4) (max error %g)", err);
+        /* Shekel's narrow global basin defeats annealing alone; with BFGS from every new
+         * best (dual annealing, as frep fit runs it) most seeds find it. */
+        int hits = 0;
+        double worst = 0;
+        for (uint64_t seed = 1; seed <= 10; seed++) {
+            double lo[4] = {0, 0, 0, 0}, hi[4] = {10, 10, 10, 10}, x[4] = {1, 1, 1, 1}, f;
+            fit_rng rng;
+            fit_rng_seed(&rng, seed);
+            fit_control c;
+            fit_control_init(&c);
+            local_ctx L = {shekel, NULL, 4, lo, hi, &c};
+            fit_sa_options so;
+            fit_sa_options_init(&so);
+            so.local = local_bfgs;
+            so.local_user = &L;
+            fit_sa(shekel, NULL, 4, x, lo, hi, &so, &rng, &c, &f, NULL);
+            if (f < -10.536) {
+                hits++;
+                for (int j = 0; j < 4; j++) worst = fmax(worst, fabs(x[j] - 4));
+            }
+        }
+        ok(hits >= 6, "sa with local searches: shekel-10 global minimum for %d of 10 seeds", hits);
+        ok(hits > 0 && worst < 0.01, "shekel-10 minimum near (4, 4, 4, 4) (max error %g)", worst);
     }
     {
         size_t n = 5;

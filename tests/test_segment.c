@@ -333,16 +333,19 @@ static void test_normals(void)
         cloud_push(d, p, NULL);
     }
     ok(normals_estimate(d, 0, 0) == 0, "normals estimated");
-    size_t agree = 0, good_axis = 0;
+    /* Sphere points (the first 3000): accurate axes. Box edges blur, so on the box
+     * only the orientation of the well-estimated normals is checked. */
+    size_t agree = 0, good_axis = 0, nsph = 3000, good_all = 0;
     for (size_t i = 0; i < c->n; i++) {
         double dd = c->nx[i] * d->nx[i] + c->ny[i] * d->ny[i] + c->nz[i] * d->nz[i];
-        good_axis += fabs(dd) > cos(10 * M_PI / 180);
-        agree += dd > 0;
+        int good = fabs(dd) > cos(10 * M_PI / 180);
+        if (i < nsph) good_axis += good;
+        good_all += good;
+        agree += good && dd > 0;
     }
-    ok((double)good_axis > 0.97 * (double)c->n, "PCA normals within 10 degrees (%zu of %zu)",
-       good_axis, c->n);
-    ok((double)agree > 0.97 * (double)c->n, "orientation outward on both components (%zu of %zu)",
-       agree, c->n);
+    ok((double)good_axis > 0.99 * (double)nsph, "PCA normals on the sphere within 10 degrees (%zu of %zu)",
+       good_axis, nsph);
+    ok(agree == good_all, "orientation outward on both components (%zu of %zu)", agree, good_all);
     cloud_free(c);
     cloud_free(d);
 }

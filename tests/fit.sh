@@ -1,0 +1,143 @@
+#!/bin/sh
+# fit.sh - end-to-end tests of `frep fit`: the paper's test part (examples/fit) sampled
+# with `frep sample`, fitted from the paper's start "set2" (all parameters 1) by
+# quasi-Newton alone (a wrong local minimum) and by annealing + quasi-Newton (the ground
+# truth); write-back, determinism across thread counts, and bad input. Prints TAP.
+# Needs FREP (the frep binary) and srcdir (the source tree).
+
+: "${FREP:?FREP must name the frep binary}"
+: "${srcdir:?srcdir must name the source tree}"
+
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-fit.XXXXXX") || exit 1
+trap 'rm -rf "$tmp"' EXIT INT TERM
+ex="$srcdir/examples/fit"
+
+n=0
+failed=0
+report() { # report STATUS DESCRIPTION
+    n=$((n + 1))
+    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
+}
+
+# Largest parameter error of a report (stdout of frep fit) against the ground truth of
+# examples/fit/part_truth.hf, relative to the box diagonal; the two holes may come out in
+# either order.
+part_error() {
+    awk '
+    BEGIN { split("-4 -2 -1 8 4 2 2.2 0.3 0.6 -2 0 1", t, " "); k = 0 }
+    /^(x0|y0|z0|dx|dy|dz|h1x|h1y|r1|h2x|h2y|r2) / { v[++k] = $3 }
+    END {
+        if (k != 12) { print 1e9; exit }
+        e1 = 0; e2 = 0
+        for (i = 1; i <= 12; i++) {
+            j = i; if (i > 6) j = (i <= 9) ? i + 3 : i - 3
+            d = v[i] - t[i]; if (d < 0) d = -d; if (d > e1) e1 = d
+            d = v[i] - t[j]; if (d < 0) d = -d; if (d > e2) e2 = d
+        }
+        e = (e1 < e2) ? e1 : e2
+        print e / sqrt(84)
+    }' "$1"
+}
+
+lt() { awk -v a="$1" -v b="$2" 'BEGIN { exit !(a < b) }'; }
+
+# ---- the paper's experiment (section 6.1) -------------------------------------------
+"$FREP" sample "$ex/part_truth.hf" -n 10714 -o "$tmp/part.xyz" --seed 1 -q
+report $? "frep sample: 10714 points on the ground-truth part"
+cp "$ex/part.hf" "$tmp/part.hf"
+
+"$FREP" fit "$tmp/part.hf" "$tmp/part.xyz" --method qn -o "$tmp/qn.hf" > "$tmp/qn.out"
+report $? "qn from set2 runs"
+e=$(part_error "$tmp/qn.out")
+lt 0.01 "$e"
+report $? "qn alone from set2 stops in a wrong local minimum (error $e of the diagonal)"
+
+"$FREP" fit "$tmp/part.hf" "$tmp/part.xyz" --json "$tmp/r.json" > "$tmp/saqn.out"
+report $? "sa+qn from set2 runs"
+e=$(part_error "$tmp/saqn.out")
+lt "$e" 0.001
+report $? "sa+qn from set2 reaches the ground truth (error $e < 1e-3 of the diagonal)"
+grep '^evaluations' "$tmp/saqn.out" | sed 's/^/# /'
+cmp -s "$ex/part.hf" "$tmp/part.hf"
+report $? "the template itself is untouched"
+test -f "$tmp/part.fitted.hf"
+report $? "output next to the template as part.fitted.hf"
+grep -q '^-- @box ' "$tmp/part.fitted.hf" && grep -q 'r1 = 0.6;    -- @free \[0.01, 10\]' "$tmp/part.fitted.hf"
+report $? "fitted values written in place, annotations kept, @box added"
+"$FREP" check "$tmp/part.fitted.hf" > /dev/null 2>&1
+report $? "the fitted template compiles"
+grep -q '"rms_distance"' "$tmp/r.json" && grep -q '"seed": 1' "$tmp/r.json"
+report $? "--json report"
+
+# Starting from the answer, qn keeps it (the written values are the fitted ones).
+"$FREP" fit "$tmp/part.fitted.hf" "$tmp/part.xyz" --method qn -o "$tmp/again.hf" > "$tmp/again.out"
+e=$(part_error "$tmp/again.out")
+lt "$e" 0.001
+report $? "refitting the fitted template stays at the truth ($e)"
+test "$(grep -c '^-- @box' "$tmp/again.hf")" = 1
+report $? "refitting refreshes the @box line instead of adding one"
+
+# Same seed, 1 and 2 threads: the same file, bit for bit.
+"$FREP" fit "$tmp/part.hf" "$tmp/part.xyz" -t 1 --seed 5 -q -o "$tmp/t1.hf" &&
+    "$FREP" fit "$tmp/part.hf" "$tmp/part.xyz" -t 2 --seed 5 -q -o "$tmp/t2.hf"
+report $? "fits with 1 and 2 threads run"
+cmp -s "$tmp/t1.hf" "$tmp/t2.hf"
+report $? "same seed: identical result at 1 and 2 threads"
+
+# The plain HyperFun form with a[].
+"$FREP" fit "$ex/part_a.hf" "$tmp/part.xyz" -o "$tmp/a.hf" -a 1,1,1,1,1,1,1,1,1,1,1,1 \
+    --bounds -10:10,-10:10,-10:10,0.01:20,0.01:20,0.01:20,-10:10,-10:10,0.01:10,-10:10,-10:10,0.01:10 \
+    > "$tmp/a.out"
+report $? "a[] template with -a and --bounds"
+grep -q '^-- fitted: -a ' "$tmp/a.hf"
+report $? "a[] template: fitted values recorded for -a"
+sed -e 's/^a\[\([0-9]*\)\]/p\1/' "$tmp/a.out" | awk '
+    /^p[0-9]+ / { i = substr($1, 2) + 0; split("x0 y0 z0 dx dy dz h1x h1y r1 h2x h2y r2", nm, " "); $1 = nm[i] }
+    { print }' > "$tmp/a2.out"
+e=$(part_error "$tmp/a2.out")
+lt "$e" 0.001
+report $? "a[] template reaches the truth ($e)"
+
+# ---- bad input: clear message, non-zero exit, files untouched ------------------------
+printf 'm(x[3], a[1]) { m = 1 - x[1]*x[1]; }\n' > "$tmp/nofree.hf"
+"$FREP" fit "$tmp/nofree.hf" "$tmp/part.xyz" -o "$tmp/bad.hf" 2> "$tmp/err"
+test $? -ne 0 && grep -q 'no free parameters' "$tmp/err"
+report $? "a template without free parameters is refused"
+
+printf 'm(x[3], a[1]) {\n  r = 20;  -- @free [1, 4]\n  m = r - x[1];\n}\n' > "$tmp/outside.hf"
+"$FREP" fit "$tmp/outside.hf" "$tmp/part.xyz" -o "$tmp/bad.hf" 2> "$tmp/err"
+test $? -ne 0 && grep -q 'outside its bounds' "$tmp/err"
+report $? "a start value outside its bounds is refused"
+
+printf '1 2 3\nnan 1 2\n' > "$tmp/nan.xyz"
+for i in 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15; do echo "$i 0 0" >> "$tmp/nan.xyz"; done
+cp "$tmp/part.hf" "$tmp/inplace.hf"
+"$FREP" fit "$tmp/inplace.hf" "$tmp/nan.xyz" --in-place 2> "$tmp/err"
+test $? -ne 0 && grep -q 'not finite' "$tmp/err"
+report $? "a cloud with NaN is refused"
+cmp -s "$tmp/part.hf" "$tmp/inplace.hf"
+report $? "--in-place leaves the template alone on failure"
+
+printf '1 2 3\n4 5 6\n' > "$tmp/few.xyz"
+"$FREP" fit "$tmp/part.hf" "$tmp/few.xyz" -o "$tmp/bad.hf" 2> "$tmp/err"
+test $? -ne 0 && grep -q 'too few' "$tmp/err"
+report $? "too few points are refused"
+
+printf '1 2 3\n4 5\n' > "$tmp/cols.xyz"
+"$FREP" fit "$tmp/part.hf" "$tmp/cols.xyz" -o "$tmp/bad.hf" 2> "$tmp/err"
+test $? -ne 0 && grep -q 'cols.xyz:2' "$tmp/err"
+report $? "missing columns: file:line message"
+
+: > "$tmp/empty.xyz"
+"$FREP" fit "$tmp/part.hf" "$tmp/empty.xyz" -o "$tmp/bad.hf" 2> "$tmp/err"
+test $? -ne 0 && test -s "$tmp/err"
+report $? "an empty cloud is refused"
+test ! -e "$tmp/bad.hf"
+report $? "no output file after failures"
+
+"$FREP" fit "$tmp/part.hf" "$tmp/part.xyz" --method nope 2> "$tmp/err"
+test $? -eq 2
+report $? "a bad option is a usage error (exit 2)"
+
+echo "1..$n"
+exit $failed
