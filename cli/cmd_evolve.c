@@ -8,6 +8,8 @@
 #include "cloud.h"
 #include "evolve.h"
 #include "normals.h"
+#include "refit.h"
+#include "residual.h"
 #include "segment.h"
 
 #include <errno.h>
@@ -53,6 +55,12 @@ static const char evolve_usage[] =
     "      --sample N        points the GA scores (default 4096; 0: all)\n"
     "      --no-simplify     keep the tree as evolved\n"
     "      --dot FILE        also write the tree for Graphviz\n"
+    "      --residual MODEL  join to MODEL.hf a tree evolved for the points it explains\n"
+    "                        poorly (segmented from them without -p); the output holds\n"
+    "                        MODEL's source and the joined model my_model\n"
+    "      --refit           refine the parameters of the tree's primitives together on\n"
+    "                        every point (frep fit's Levenberg-Marquardt) and report the\n"
+    "                        RMS distance before and after\n"
     "  -t, --threads N       OpenMP threads\n"
     "  -q, --quiet           no progress and no summary\n";
 
@@ -143,7 +151,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     enum {
         O_SETOPS = 256, O_PART, O_NOPART, O_SEED, O_GEN, O_STAG, O_POP, O_TOURN, O_CROSS,
         O_MUT, O_ELITE, O_SUBP, O_DEPTH, O_TIME, O_EPS, O_ALPHA, O_LAMBDA, O_SAMPLE,
-        O_NOSIMP, O_DOT
+        O_NOSIMP, O_DOT, O_RESIDUAL, O_REFIT
     };
     static const struct option longopts[] = {
         { "help", no_argument, NULL, 'h' },
@@ -169,14 +177,16 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         { "sample", required_argument, NULL, O_SAMPLE },
         { "no-simplify", no_argument, NULL, O_NOSIMP },
         { "dot", required_argument, NULL, O_DOT },
+        { "residual", required_argument, NULL, O_RESIDUAL },
+        { "refit", no_argument, NULL, O_REFIT },
         { "threads", required_argument, NULL, 't' },
         { "quiet", no_argument, NULL, 'q' },
         { NULL, 0, NULL, 0 },
     };
     evolve_options eo;
     evolve_options_init(&eo);
-    const char *prims_path = NULL, *out = "-", *dot = NULL;
-    int have_seed = 0, quiet = 0, c;
+    const char *prims_path = NULL, *out = "-", *dot = NULL, *residual_path = NULL;
+    int have_seed = 0, have_setops = 0, refit = 0, quiet = 0, c;
     double v = 0;
     optind = 1;
     opterr = 0;
@@ -191,7 +201,10 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
             if (strcmp(optarg, "minmax") == 0) eo.gp.setops = GP_SETOPS_MINMAX;
             else if (strcmp(optarg, "rfunc") == 0) eo.gp.setops = GP_SETOPS_RFUNC;
             else return cli_usage_error("evolve", "--setops: expected minmax or rfunc, got '%s'", optarg);
+            have_setops = 1;
             break;
+        case O_RESIDUAL: residual_path = optarg; break;
+        case O_REFIT: refit = 1; break;
         case O_PART: eo.partition = 1; break;
         case O_NOPART: eo.partition = 0; break;
         case O_NOSIMP: eo.simplify = 0; break;
@@ -242,6 +255,14 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     segment_result seg;
     memset(&seg, 0, sizeof seg);
     int have_seg = 0;
+    evolve_base base;
+    memset(&base, 0, sizeof base);
+    frep_program *base_prog = NULL;
+    char *base_src = NULL;
+    double *base_f = NULL, *base_g = NULL;
+    uint8_t *mask = NULL;
+    frep_cloud *sub = NULL;
+    char note[256] = "";
     frep_cloud *cloud = cloud_read(cloud_path, &err);
     if (!cloud) {
         fprintf(stderr, "frep evolve: %s\n", err ? err : "cannot read the cloud");
@@ -252,6 +273,67 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     if (cloud->n == 0) {
         fprintf(stderr, "frep evolve: %s: no points\n", cloud_path);
         goto done;
+    }
+    /* Normals are needed before the GA, and before the residual is known. */
+    if ((prims_path || residual_path) &&
+        (!cloud->has_normals || cloud_normalize_normals(cloud) == cloud->n)) {
+        if (!quiet) fprintf(stderr, "frep evolve: the cloud has no normals: estimating them\n");
+        if (normals_estimate(cloud, 0, eo.gp.threads)) {
+            fprintf(stderr, "frep evolve: cannot estimate normals\n");
+            goto done;
+        }
+    }
+    if (residual_path) {
+        base_prog = cli_compile_file(residual_path, NULL, NULL, 0, -1, &base_src);
+        if (!base_prog) goto done;
+        if (residual_prepare(residual_path, base_src, strlen(base_src), NULL, base_prog, &base,
+                             &err)) {
+            fprintf(stderr, "frep evolve: %s\n", err ? err : "cannot use the model");
+            goto done;
+        }
+        if (have_setops && eo.gp.setops != base.setops) {
+            fprintf(stderr, "frep evolve: --setops %s disagrees with %s, which uses %s: the "
+                            "joined model has one family\n",
+                    eo.gp.setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax", residual_path,
+                    base.setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax");
+            goto done;
+        }
+        eo.gp.setops = base.setops;
+        size_t N = cloud->n, nbad = 0, nres = 0;
+        base_f = malloc(N * sizeof *base_f);
+        base_g = malloc(3 * N * sizeof *base_g);
+        mask = malloc(N);
+        if (!base_f || !base_g || !mask ||
+            residual_eval(&base, cloud, eo.gp.threads, base_f, base_g, &nbad)) {
+            fprintf(stderr, "frep evolve: out of memory\n");
+            goto done;
+        }
+        if (nbad && !quiet)
+            fprintf(stderr, "frep evolve: %s cannot be evaluated at %zu points (treated as "
+                            "unexplained)\n", residual_path, nbad);
+        eo.base_f = base_f;
+        eo.base_g = base_g;
+        if (evolve_residual_points(&eo, cloud, mask, &nres)) {
+            fprintf(stderr, "frep evolve: out of memory\n");
+            goto done;
+        }
+        if (!quiet)
+            fprintf(stderr, "frep evolve: %s explains %zu of %zu points; evolving for the %zu others\n",
+                    residual_path, cloud->n - nres, cloud->n, nres);
+        if (!prims_path) {
+            /* Segment the residual points only. */
+            sub = cloud_new(1);
+            if (!sub || cloud_reserve(sub, nres ? nres : 1)) {
+                fprintf(stderr, "frep evolve: out of memory\n");
+                goto done;
+            }
+            for (size_t i = 0; i < N; i++)
+                if (mask[i]) {
+                    double p[3] = { cloud->x[i], cloud->y[i], cloud->z[i] };
+                    double q[3] = { cloud->nx[i], cloud->ny[i], cloud->nz[i] };
+                    cloud_push(sub, p, q);
+                }
+        }
     }
     if (prims_path) {
         if (segment_read_prims(prims_path, &prims, &nprims, &err)) {
@@ -265,25 +347,34 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
                 goto done;
             }
         }
-    } else {
+    } else if (!residual_path || sub->n > 0) {
         segment_config sc;
         segment_config_init(&sc);
         sc.seed = eo.gp.seed;
         sc.nthreads = eo.gp.threads;
         sc.interrupt = &evolve_interrupted;
-        if (segment_run(cloud, &sc, &seg, &err)) {
-            fprintf(stderr, "frep evolve: %s: %s\n", cloud_path, err ? err : "segmentation failed");
-            goto done;
+        if (segment_run(sub ? sub : cloud, &sc, &seg, &err)) {
+            if (!residual_path) {
+                fprintf(stderr, "frep evolve: %s: %s\n", cloud_path, err ? err : "segmentation failed");
+                goto done;
+            }
+            /* Too few residual points to segment: the result is the base model. */
+            if (!quiet)
+                fprintf(stderr, "frep evolve: the residual points give no primitive (%s)\n",
+                        err ? err : "segmentation failed");
+            free(err);
+            err = NULL;
+        } else {
+            have_seg = 1;
+            prims = seg.prims;
+            nprims = seg.nprims;
+            if (!quiet)
+                fprintf(stderr, "frep evolve: segmented%s: %zu primitives (%zu fitted, %zu separating)%s\n",
+                        sub ? " the residual" : "", seg.nprims, seg.nfitted,
+                        seg.nprims - seg.nfitted, seg.normals_estimated ? ", normals estimated" : "");
         }
-        have_seg = 1;
-        prims = seg.prims;
-        nprims = seg.nprims;
-        if (!quiet)
-            fprintf(stderr, "frep evolve: segmented: %zu primitives (%zu fitted, %zu separating)%s\n",
-                    seg.nprims, seg.nfitted, seg.nprims - seg.nfitted,
-                    seg.normals_estimated ? ", normals estimated" : "");
     }
-    if (nprims == 0) {
+    if (nprims == 0 && !residual_path) {
         fprintf(stderr, "frep evolve: no primitives to combine%s\n",
                 prims_path ? "" : " (segmentation found none; try frep segment with other settings)");
         goto done;
@@ -300,7 +391,24 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     }
     if (evolve_interrupted && !quiet)
         fprintf(stderr, "frep evolve: interrupted: writing the best tree so far\n");
-    evolve_meta meta = { cmdline, cloud_path, eo.gp.seed, eo.gp.setops };
+    if (refit && !evolve_interrupted) {
+        evolve_refit_info ri;
+        if (evolve_refit(&eo, cloud, prims, nprims, residual_path ? &base : NULL, &res, &ri,
+                         &err)) {
+            fprintf(stderr, "frep evolve: --refit: %s (the model keeps the parameters as "
+                            "segmented)\n", err ? err : "failed");
+            free(err);
+            err = NULL;
+        } else if (ri.nparams) {
+            snprintf(note, sizeof note,
+                     "refit: %zu parameters, RMS distance %.6g -> %.6g, max %.6g -> %.6g, %.2f s",
+                     ri.nparams, ri.rms_before, ri.rms_after, ri.max_before, ri.max_after,
+                     ri.seconds);
+            if (!quiet) fprintf(stderr, "frep evolve: %s\n", note);
+        }
+    }
+    evolve_meta meta = { cmdline, cloud_path, eo.gp.seed, eo.gp.setops,
+                         residual_path ? &base : NULL, note[0] ? note : NULL };
     write_ctx w = { &res, prims, nprims, &meta };
     if (cli_write_atomic(out, write_model_cb, &w)) goto done;
     if (dot && cli_write_atomic(dot, write_dot_cb, &w)) goto done;
@@ -322,6 +430,13 @@ done:
     if (have_seg) segment_result_free(&seg);
     else free(prims);
     evolve_result_free(&res);
+    residual_free(&base);
+    frep_program_free(base_prog);
+    free(base_src);
+    free(base_f);
+    free(base_g);
+    free(mask);
+    cloud_free(sub);
     cloud_free(cloud);
     free(err);
     return rc;

@@ -34,7 +34,8 @@ static const char fit_usage[] =
     "      --in-place        overwrite TEMPLATE.hf itself\n"
     "  -m, --model NAME      the model to fit (default: my_model, else the last one)\n"
     "      --method M        saqn (annealing, then quasi-Newton; default), qn, sa, lm\n"
-    "      --objective K     algebraic (sum f^2, default) or geometric (f/|grad f|)\n"
+    "      --objective K     local phase: algebraic (f, default) or geometric (f/|grad f|)\n"
+    "      --global-objective K  the annealing's: algebraic (default) or geometric\n"
     "      --loss L          l2 (default), huber or cauchy (robust to outliers)\n"
     "      --loss-scale S    scale of the robust losses (default 0.01 x cloud diagonal)\n"
     "      --normals-weight W  weight of the normal-agreement term (cloud with normals)\n"
@@ -148,9 +149,10 @@ static int write_json(FILE *f, void *user)
     fputs(",\n  \"output\": ", f);
     json_str(f, r->output);
     fprintf(f, ",\n  \"points\": %zu,\n  \"method\": \"%s\",\n  \"objective_kind\": \"%s\",\n"
+               "  \"global_objective_kind\": \"%s\",\n"
                "  \"loss\": \"%s\",\n  \"seed\": %llu,\n  \"parameters\": [\n",
             r->npoints, fit_method_name(r->cfg->method), fit_objective_name(r->cfg->obj.kind),
-            fit_loss_name(r->cfg->obj.loss), (unsigned long long)r->cfg->seed);
+            fit_objective_name(r->cfg->global_kind), fit_loss_name(r->cfg->obj.loss), (unsigned long long)r->cfg->seed);
     for (size_t i = 0; i < r->nrows; i++) {
         fputs("    {\"name\": ", f);
         json_str(f, r->rows[i].name);
@@ -252,6 +254,7 @@ int cmd_fit(int argc, char **argv)
         {"method", required_argument, NULL, 'M'},
         {"objective", required_argument, NULL, 'K'},
         {"loss", required_argument, NULL, 'L'},
+        {"global-objective", required_argument, NULL, 'G'},
         {"loss-scale", required_argument, NULL, 'S'},
         {"normals-weight", required_argument, NULL, 'W'},
         {"seed", required_argument, NULL, 's'},
@@ -292,6 +295,10 @@ int cmd_fit(int argc, char **argv)
         case 'K':
             if (fit_objective_parse(optarg, &cfg.obj.kind) != 0)
                 bad = cli_usage_error("fit", "--objective: expected algebraic or geometric, got '%s'", optarg);
+            break;
+        case 'G':
+            if (fit_objective_parse(optarg, &cfg.global_kind) != 0)
+                bad = cli_usage_error("fit", "--global-objective: expected algebraic or geometric, got '%s'", optarg);
             break;
         case 'L':
             if (fit_loss_parse(optarg, &cfg.obj.loss) != 0)
@@ -571,8 +578,9 @@ int cmd_fit(int argc, char **argv)
     if (!quiet) {
         printf("frep fit: %s <- %s (%zu points%s)\n", tmpl, cloud_path, cloud->n,
                cloud->has_normals ? ", with normals" : "");
-        printf("method %s, objective %s, loss %s, seed %llu\n", fit_method_name(cfg.method),
-               fit_objective_name(cfg.obj.kind), fit_loss_name(cfg.obj.loss),
+        printf("method %s, objective %s (annealing: %s), loss %s, seed %llu\n",
+               fit_method_name(cfg.method), fit_objective_name(cfg.obj.kind),
+               fit_objective_name(cfg.global_kind), fit_loss_name(cfg.obj.loss),
                (unsigned long long)cfg.seed);
         printf("%-12s %16s %18s   %s\n", "parameter", "start", "fitted", "bounds");
         for (size_t j = 0; j < nfree; j++)

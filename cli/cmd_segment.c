@@ -261,7 +261,7 @@ int cmd_segment(int argc, char **argv)
     char *err = NULL;
     frep_cloud *c = cloud_read(in, &err);
     if (!c) {
-        fprintf(stderr, "%s: error: %s\n", in, err ? err : "cannot read");
+        fprintf(stderr, "frep segment: %s\n", err ? err : "cannot read the cloud");
         free(err);
         return CLI_FAIL;
     }

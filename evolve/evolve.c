@@ -5,6 +5,7 @@
 #include "config.h"
 
 #include "evolve.h"
+#include "residual.h"
 #include "simplify.h"
 
 #include <math.h>
@@ -56,10 +57,13 @@ static int cmp_size(const void *a, const void *b)
 }
 
 /* Cache of prims[use[0..k)] at the points pts[0..m) (indices into x/y/z/nrm). */
-static gp_cache *build_cache(const prim *prims, const uint32_t *use, uint32_t k,
-                             const double *x, const double *y, const double *z,
-                             const double *nrm, const size_t *pts, size_t m, gp_setops s,
-                             double eps_d, double alpha, double lambda)
+/* Leaf number nprims (use[j] == nprims) is the base model of --residual, whose values
+ * and gradients at every cloud point are bf[i], bg[3i+c] (NULL otherwise). */
+static gp_cache *build_cache(const prim *prims, size_t nprims, const uint32_t *use,
+                             uint32_t k, const double *x, const double *y, const double *z,
+                             const double *nrm, const double *bf, const double *bg,
+                             const size_t *pts, size_t m, gp_setops s, double eps_d,
+                             double alpha, double lambda)
 {
     double *px = malloc((m ? m : 1) * sizeof *px), *py = malloc((m ? m : 1) * sizeof *py);
     double *pz = malloc((m ? m : 1) * sizeof *pz), *pn = malloc(3 * (m ? m : 1) * sizeof *pn);
@@ -82,8 +86,16 @@ static gp_cache *build_cache(const prim *prims, const uint32_t *use, uint32_t k,
 #pragma omp parallel for schedule(dynamic, 1)
     for (long jl = 0; jl < kl; jl++) {
         size_t j = (size_t)jl;
-        prim_eval_many(&prims[use[j]], m, px, py, pz, v + j * m, g + 3 * j * m,
-                       g + (3 * j + 1) * m, g + (3 * j + 2) * m);
+        if (use[j] < nprims) {
+            prim_eval_many(&prims[use[j]], m, px, py, pz, v + j * m, g + 3 * j * m,
+                           g + (3 * j + 1) * m, g + (3 * j + 2) * m);
+            continue;
+        }
+        for (size_t i = 0; i < m; i++) {
+            size_t q = pts[i];
+            v[j * m + i] = bf[q];
+            for (size_t d = 0; d < 3; d++) g[(3 * j + d) * m + i] = bg[3 * q + d];
+        }
     }
     c = gp_cache_new(m, k, s, v, g, pn, eps_d, alpha, lambda);
 out:
@@ -94,6 +106,210 @@ out:
     return c;
 }
 
+/* Points the base model explains poorly: |f|/|grad f| >= eps_d, or a normal more than
+ * alpha away from -grad f (a zero gradient explains nothing). */
+static int base_poor(const double *bf, const double *bg, const double *nrm, size_t i,
+                     double eps_d, double cos_alpha)
+{
+    const double *g = bg + 3 * i, *n = nrm + 3 * i;
+    double gl = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+    if (!(gl > 0)) return 1;
+    if (!(fabs(bf[i]) / gl < eps_d)) return 1;
+    return !(-(g[0] * n[0] + g[1] * n[1] + g[2] * n[2]) / gl > cos_alpha);
+}
+
+/* Valid points (finite coordinates, usable normal) into valid[] with unit normals in
+ * nrm[3i+c]; their diagonal. Returns the count. */
+static size_t valid_points(const frep_cloud *cloud, size_t *valid, double *nrm, double lo[3],
+                           double hi[3], double *diag)
+{
+    size_t nv = 0;
+    for (int d = 0; d < 3; d++) {
+        lo[d] = HUGE_VAL;
+        hi[d] = -HUGE_VAL;
+    }
+    for (size_t i = 0; i < cloud->n; i++) {
+        double p[3] = { cloud->x[i], cloud->y[i], cloud->z[i] };
+        double q[3] = { 0, 0, 0 };
+        if (cloud->has_normals) {
+            q[0] = cloud->nx[i];
+            q[1] = cloud->ny[i];
+            q[2] = cloud->nz[i];
+        }
+        double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]) || !isfinite(l) || !(l > 0))
+            continue;
+        for (int d = 0; d < 3; d++) {
+            nrm[3 * i + d] = q[d] / l;
+            if (p[d] < lo[d]) lo[d] = p[d];
+            if (p[d] > hi[d]) hi[d] = p[d];
+        }
+        valid[nv++] = i;
+    }
+    *diag = nv ? sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                      (hi[2] - lo[2]) * (hi[2] - lo[2]))
+               : 0;
+    return nv;
+}
+
+int evolve_residual_points(const evolve_options *o, const frep_cloud *cloud, uint8_t *mask,
+                           size_t *count)
+{
+    size_t N = cloud->n;
+    size_t *valid = malloc((N ? N : 1) * sizeof *valid);
+    double *nrm = malloc(3 * (N ? N : 1) * sizeof *nrm);
+    if (!valid || !nrm) {
+        free(valid);
+        free(nrm);
+        return -1;
+    }
+    double lo[3], hi[3], diag;
+    size_t nv = valid_points(cloud, valid, nrm, lo, hi, &diag);
+    double eps_d = (o->eps_rel > 0 ? o->eps_rel : EVOLVE_DEFAULT_EPS_REL) * diag;
+    double ca = cos((o->alpha_deg > 0 ? o->alpha_deg : EVOLVE_DEFAULT_ALPHA_DEG) * EV_PI / 180);
+    memset(mask, 0, N);
+    size_t k = 0;
+    for (size_t q = 0; q < nv; q++) {
+        size_t i = valid[q];
+        if (o->base_f && base_poor(o->base_f, o->base_g, nrm, i, eps_d, ca)) {
+            mask[i] = 1;
+            k++;
+        }
+    }
+    *count = k;
+    free(valid);
+    free(nrm);
+    return 0;
+}
+
+/* A seeded uniform subset of m of the pool's np indices, in cloud order, into out[m]. */
+static void draw_sample(const size_t *pool, size_t np, size_t m, uint64_t seed, size_t *out,
+                        size_t *tmp)
+{
+    memcpy(tmp, pool, np * sizeof *tmp);
+    if (m < np) {
+        gp_rng r;
+        gp_rng_seed(&r, seed);
+        for (size_t k = 0; k < m; k++) {
+            size_t j = k + (size_t)(gp_rng_unif(&r) * (double)(np - k));
+            if (j >= np) j = np - 1;
+            size_t t = tmp[k];
+            tmp[k] = tmp[j];
+            tmp[j] = t;
+        }
+        qsort(tmp, m, sizeof *tmp, cmp_size);
+    }
+    memcpy(out, tmp, m * sizeof *out);
+}
+
+/* 1 when the tree uses leaf j. */
+static int tree_uses(const gp_tree *t, uint32_t j)
+{
+    for (uint32_t pc = 0; pc < t->len; pc++)
+        if (t->code[pc].op == FREP_OP_PRIM && t->code[pc].arg == j) return 1;
+    return 0;
+}
+
+int evolve_stats(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
+                 size_t nprims, evolve_result *res)
+{
+    size_t N = cloud->n;
+    size_t nleaves = nprims + (o->base_f ? 1 : 0);
+    size_t *valid = malloc((N ? N : 1) * sizeof *valid);
+    double *nrm = malloc(3 * (N ? N : 1) * sizeof *nrm);
+    uint8_t *seen = calloc(nleaves ? nleaves : 1, 1);
+    uint32_t *used = malloc((nleaves ? nleaves : 1) * sizeof *used);
+    uint32_t *map = malloc((nleaves ? nleaves : 1) * sizeof *map);
+    gp_tree local = { NULL, 0, 0 };
+    gp_cache *fc = NULL;
+    gp_eval *ev = gp_eval_new();
+    int rc = -1;
+    if (!valid || !nrm || !seen || !used || !map || !ev || tree_copy(&local, &res->tree))
+        goto out;
+    double lo[3], hi[3], diag;
+    size_t nv = valid_points(cloud, valid, nrm, lo, hi, &diag);
+    for (uint32_t pc = 0; pc < local.len; pc++)
+        if (local.code[pc].op == FREP_OP_PRIM) seen[local.code[pc].arg] = 1;
+    uint32_t k = 0;
+    for (uint32_t j = 0; j < nleaves; j++)
+        if (seen[j]) {
+            map[j] = k;
+            used[k++] = j;
+        }
+    for (uint32_t pc = 0; pc < local.len; pc++)
+        if (local.code[pc].op == FREP_OP_PRIM) local.code[pc].arg = map[local.code[pc].arg];
+    double ls = o->lambda_scale > 0 ? o->lambda_scale : 1.0;
+    fc = build_cache(prims, nprims, used, k, cloud->x, cloud->y, cloud->z, nrm, o->base_f,
+                     o->base_g, valid, nv, o->gp.setops, res->eps_d, res->alpha,
+                     ls * log((double)(nv > 1 ? nv : 2)));
+    if (!fc || gp_tree_stats(fc, ev, local.code, local.len, &res->stats)) goto out;
+    rc = 0;
+out:
+    tree_free(&local);
+    gp_cache_free(fc);
+    gp_eval_free(ev);
+    free(valid);
+    free(nrm);
+    free(seen);
+    free(used);
+    free(map);
+    return rc;
+}
+
+/* --residual: the evolved tree t (over the primitives; may be empty) joined to the
+ * base leaf B = nprims. Candidates B, B | t, B & t, B \ t, each simplified on c (the
+ * cache of all leaves on a sample of every point); the fittest that still contains B
+ * wins. (B & t is how a missing hole comes back: the GA finds ~cyl on the hole's wall,
+ * and the rules turn B & ~cyl into B \ cyl.) */
+static int join_base(const evolve_options *o, const gp_tree *t, uint32_t nprims,
+                     const gp_cache *c, gp_eval *ev, gp_tree *out, double *fitness)
+{
+    gp_opset ops = gp_opset_of(o->gp.setops);
+    uint8_t opc[4] = { 0, ops.uni, ops.inter, ops.sub };
+    gp_tree cand = { NULL, 0, 0 };
+    double best = -HUGE_VAL;
+    int rc = -1;
+    out->len = 0;
+    for (int k = 0; k < (t->len ? 4 : 1); k++) {
+        cand.len = 0;
+        if (tree_push(&cand, FREP_OP_PRIM, nprims)) goto out;
+        if (k > 0) {
+            if (tree_reserve(&cand, cand.len + t->len + 1)) goto out;
+            memcpy(cand.code + cand.len, t->code, t->len * sizeof *t->code);
+            cand.len += t->len;
+            if (tree_push(&cand, (frep_opcode)opc[k], 0)) goto out;
+        }
+        double fit;
+        if (o->simplify) {
+            gp_tree keep = { NULL, 0, 0 };
+            if (tree_copy(&keep, &cand)) goto out;
+            if (simplify_tree(&cand, o->gp.setops, c, ev, &fit)) {
+                tree_free(&keep);
+                goto out;
+            }
+            if (!tree_uses(&cand, nprims)) {
+                /* The simplifier dropped the base: keep the join as built. */
+                tree_free(&cand);
+                cand = keep;
+                fit = gp_fitness(c, ev, cand.code, cand.len);
+            } else {
+                tree_free(&keep);
+            }
+        } else {
+            fit = gp_fitness(c, ev, cand.code, cand.len);
+        }
+        if (fit > best) {
+            best = fit;
+            if (tree_copy(out, &cand)) goto out;
+        }
+    }
+    *fitness = best;
+    rc = 0;
+out:
+    tree_free(&cand);
+    return rc;
+}
+
 int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
                size_t nprims, gp_progress_fn fn, void *user, evolve_result *res,
                char **err)
@@ -101,13 +317,14 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
     memset(res, 0, sizeof *res);
     if (err) *err = NULL;
     double t0 = gp_now();
-    if (nprims == 0) {
+    int residual = o->base_f != NULL;
+    if (nprims == 0 && !residual) {
         set_err(err, "no primitives to combine (segmentation found none; try -p or "
                      "different segment settings)");
         return -1;
     }
-    if (nprims > PART_MAX_PRIMS) {
-        set_err(err, "%zu primitives: at most %u are supported", nprims, PART_MAX_PRIMS);
+    if (nprims >= PART_MAX_PRIMS) {
+        set_err(err, "%zu primitives: at most %u are supported", nprims, PART_MAX_PRIMS - 1);
         return -1;
     }
     if (!cloud->has_normals) {
@@ -117,45 +334,27 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
     size_t N = cloud->n;
     int rc = -1;
     size_t *valid = malloc((N ? N : 1) * sizeof *valid);
+    size_t *pool = malloc((N ? N : 1) * sizeof *pool);
+    size_t *tmp = malloc((N ? N : 1) * sizeof *tmp);
     double *nrm = malloc(3 * (N ? N : 1) * sizeof *nrm);
     size_t *samp = NULL;
-    uint32_t *all = malloc(nprims * sizeof *all), *used = NULL;
-    gp_cache *sc = NULL, *fc = NULL;
+    uint32_t *all = malloc((nprims + 1) * sizeof *all);
+    gp_cache *sc = NULL, *jc = NULL;
     gp_eval *ev = gp_eval_new();
     gp_obb *boxes = NULL;
     gp_result gr;
     memset(&gr, 0, sizeof gr);
-    if (!valid || !nrm || !all || !ev) goto oom;
-    for (uint32_t j = 0; j < nprims; j++) all[j] = j;
+    if (!valid || !pool || !tmp || !nrm || !all || !ev) goto oom;
+    for (uint32_t j = 0; j <= nprims; j++) all[j] = j;
 
-    /* Valid points: finite coordinates and a usable normal. */
-    size_t nv = 0;
-    for (size_t i = 0; i < N; i++) {
-        double p[3] = { cloud->x[i], cloud->y[i], cloud->z[i] };
-        double q[3] = { cloud->nx[i], cloud->ny[i], cloud->nz[i] };
-        double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
-        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]) || !isfinite(l) || !(l > 0))
-            continue;
-        for (int d = 0; d < 3; d++) nrm[3 * i + d] = q[d] / l;
-        valid[nv++] = i;
-    }
+    double lo[3], hi[3];
+    size_t nv = valid_points(cloud, valid, nrm, lo, hi, &res->diag);
     res->npoints = nv;
     res->dropped = N - nv;
     if (nv == 0) {
         set_err(err, "no point with finite coordinates and a normal");
         goto out;
     }
-    double lo[3] = { HUGE_VAL, HUGE_VAL, HUGE_VAL }, hi[3] = { -HUGE_VAL, -HUGE_VAL, -HUGE_VAL };
-    for (size_t k = 0; k < nv; k++) {
-        size_t i = valid[k];
-        double p[3] = { cloud->x[i], cloud->y[i], cloud->z[i] };
-        for (int d = 0; d < 3; d++) {
-            if (p[d] < lo[d]) lo[d] = p[d];
-            if (p[d] > hi[d]) hi[d] = p[d];
-        }
-    }
-    res->diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                     (hi[2] - lo[2]) * (hi[2] - lo[2]));
     if (!(res->diag > 0)) {
         set_err(err, "all %zu points coincide: nothing to fit", nv);
         goto out;
@@ -181,131 +380,134 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
         }
     }
 
-    /* The GA's sample: a seeded uniform subset, in cloud order. */
-    size_t m = o->sample && o->sample < nv ? o->sample : nv;
-    samp = malloc(nv * sizeof *samp);
+    /* The GA's pool: every valid point, or with --residual those the base model
+     * explains poorly. */
+    size_t np = 0;
+    if (residual) {
+        double ca = cos(res->alpha);
+        for (size_t q = 0; q < nv; q++)
+            if (base_poor(o->base_f, o->base_g, nrm, valid[q], res->eps_d, ca))
+                pool[np++] = valid[q];
+        res->residual = 1;
+        res->nresidual = np;
+    } else {
+        memcpy(pool, valid, nv * sizeof *pool);
+        np = nv;
+    }
+    size_t m = o->sample && o->sample < np ? o->sample : np;
+    samp = malloc((nv ? nv : 1) * sizeof *samp);
     if (!samp) goto oom;
-    memcpy(samp, valid, nv * sizeof *samp);
-    if (m < nv) {
-        gp_rng r;
-        gp_rng_seed(&r, o->gp.seed ^ 0x5a5a5a5a5a5a5a5au);
-        for (size_t k = 0; k < m; k++) {
-            size_t j = k + (size_t)(gp_rng_unif(&r) * (double)(nv - k));
-            if (j >= nv) j = nv - 1;
-            size_t t = samp[k];
-            samp[k] = samp[j];
-            samp[j] = t;
-        }
-        qsort(samp, m, sizeof *samp, cmp_size);
-    }
-    res->nsample = m;
     double ls = o->lambda_scale > 0 ? o->lambda_scale : 1.0;
-    sc = build_cache(prims, all, (uint32_t)nprims, cloud->x, cloud->y, cloud->z, nrm, samp,
-                     m, o->gp.setops, res->eps_d, res->alpha, ls * log((double)(m > 1 ? m : 2)));
-    if (!sc) goto oom;
+    /* With --residual and fewer residual points than a tree could use, or no
+     * primitive, there is nothing to evolve: the result is the base model. */
+    int evolve_tree = nprims > 0 && m > 0;
+    if (evolve_tree) {
+        draw_sample(pool, np, m, o->gp.seed ^ 0x5a5a5a5a5a5a5a5au, samp, tmp);
+        res->nsample = m;
+        sc = build_cache(prims, nprims, all, (uint32_t)nprims, cloud->x, cloud->y, cloud->z,
+                         nrm, NULL, NULL, samp, m, o->gp.setops, res->eps_d, res->alpha,
+                         ls * log((double)(m > 1 ? m : 2)));
+        if (!sc) goto oom;
+    }
 
-    /* Proxies: the primitive's own box, else the box of the sample points it explains
-     * alone. Primitives explaining no point get none and overlap everything. */
-    boxes = calloc(nprims, sizeof *boxes);
-    size_t *idx = malloc(m * sizeof *idx);
-    if (!boxes || !idx) {
+    if (evolve_tree) {
+        /* Proxies: the primitive's own box, else the box of the sample points it
+         * explains alone. Primitives explaining no point get none and overlap
+         * everything. */
+        boxes = calloc(nprims, sizeof *boxes);
+        size_t *idx = malloc(m * sizeof *idx);
+        if (!boxes || !idx) {
+            free(idx);
+            goto oom;
+        }
+        for (uint32_t j = 0; j < nprims; j++) {
+            const prim *q = &prims[j];
+            if (q->has_obb) {
+                gp_obb *b = &boxes[j];
+                memcpy(b->c, q->obb_c, sizeof b->c);
+                memcpy(b->ax, q->obb_axes, sizeof b->ax);
+                memcpy(b->h, q->obb_half, sizeof b->h);
+                b->valid = 1;
+                continue;
+            }
+            size_t nk = 0;
+            for (size_t i = 0; i < m; i++) {
+                double f = sc->v[(size_t)j * m + i];
+                double g[3] = { sc->g[(3 * (size_t)j) * m + i],
+                                sc->g[(3 * (size_t)j + 1) * m + i],
+                                sc->g[(3 * (size_t)j + 2) * m + i] };
+                double gl = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+                const double *nn = sc->nrm + 3 * i;
+                if (fabs(f) < res->eps_d && gl > 0 &&
+                    -(g[0] * nn[0] + g[1] * nn[1] + g[2] * nn[2]) / gl > cos(res->alpha))
+                    idx[nk++] = samp[i];
+            }
+            part_obb_of_points(cloud->x, cloud->y, cloud->z, idx, nk, &boxes[j]);
+        }
         free(idx);
-        goto oom;
-    }
-    for (uint32_t j = 0; j < nprims; j++) {
-        const prim *q = &prims[j];
-        if (q->has_obb) {
-            gp_obb *b = &boxes[j];
-            memcpy(b->c, q->obb_c, sizeof b->c);
-            memcpy(b->ax, q->obb_axes, sizeof b->ax);
-            memcpy(b->h, q->obb_half, sizeof b->h);
-            b->valid = 1;
-            continue;
-        }
-        size_t nk = 0;
-        for (size_t i = 0; i < m; i++) {
-            double f = sc->v[(size_t)j * m + i];
-            double g[3] = { sc->g[(3 * (size_t)j) * m + i], sc->g[(3 * (size_t)j + 1) * m + i],
-                            sc->g[(3 * (size_t)j + 2) * m + i] };
-            double gl = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
-            const double *nn = sc->nrm + 3 * i;
-            if (fabs(f) < res->eps_d && gl > 0 &&
-                -(g[0] * nn[0] + g[1] * nn[1] + g[2] * nn[2]) / gl > cos(res->alpha))
-                idx[nk++] = samp[i];
-        }
-        part_obb_of_points(cloud->x, cloud->y, cloud->z, idx, nk, &boxes[j]);
-    }
-    free(idx);
 
-    int done = 0;
-    if (o->partition && nprims > 1) {
-        /* part_run needs the sample's coordinates. */
-        double *xs = malloc(m * sizeof *xs), *ys = malloc(m * sizeof *ys), *zs = malloc(m * sizeof *zs);
-        if (!xs || !ys || !zs) {
+        int done = 0;
+        if (o->partition && nprims > 1) {
+            /* part_run needs the sample's coordinates. */
+            double *xs = malloc(m * sizeof *xs), *ys = malloc(m * sizeof *ys);
+            double *zs = malloc(m * sizeof *zs);
+            if (!xs || !ys || !zs) {
+                free(xs);
+                free(ys);
+                free(zs);
+                goto oom;
+            }
+            for (size_t i = 0; i < m; i++) {
+                xs[i] = cloud->x[samp[i]];
+                ys[i] = cloud->y[samp[i]];
+                zs[i] = cloud->z[samp[i]];
+            }
+            int pr = part_run(&o->gp, sc, xs, ys, zs, boxes, EVOLVE_PROXY_MARGIN * res->eps_d,
+                              fn, user, &gr, &res->part);
             free(xs);
             free(ys);
             free(zs);
+            if (pr) goto oom;
+            done = res->part.partitioned;
+            res->partitioned = done;
+        }
+        if (!done) {
+            tree_free(&gr.best);
+            if (gp_run(&o->gp, sc, NULL, 0, fn, user, &gr)) goto oom;
+        }
+        if (!gr.best.len && !residual) {
+            set_err(err, "the run stopped before any tree was scored");
+            goto out;
+        }
+        res->generations = gr.generations;
+        res->stop = gr.stop;
+        res->fitness = gr.fitness;
+        if (tree_copy(&res->tree, &gr.best)) goto oom;
+        if (o->simplify && res->tree.len &&
+            simplify_tree(&res->tree, o->gp.setops, sc, ev, &res->fitness))
             goto oom;
-        }
-        for (size_t i = 0; i < m; i++) {
-            xs[i] = cloud->x[samp[i]];
-            ys[i] = cloud->y[samp[i]];
-            zs[i] = cloud->z[samp[i]];
-        }
-        int pr = part_run(&o->gp, sc, xs, ys, zs, boxes, EVOLVE_PROXY_MARGIN * res->eps_d, fn,
-                          user, &gr, &res->part);
-        free(xs);
-        free(ys);
-        free(zs);
-        if (pr) goto oom;
-        done = res->part.partitioned;
-        res->partitioned = done;
     }
-    if (!done) {
-        tree_free(&gr.best);
-        if (gp_run(&o->gp, sc, NULL, 0, fn, user, &gr)) goto oom;
-    }
-    if (!gr.best.len) {
-        set_err(err, "the run stopped before any tree was scored");
-        goto out;
-    }
-    res->generations = gr.generations;
-    res->stop = gr.stop;
-    res->fitness = gr.fitness;
-    if (tree_copy(&res->tree, &gr.best)) goto oom;
-    if (o->simplify && simplify_tree(&res->tree, o->gp.setops, sc, ev, &res->fitness)) goto oom;
 
-    /* Statistics on every valid point, over the primitives of the tree only. */
-    {
-        gp_tree local = { NULL, 0, 0 };
-        uint8_t *seen = calloc(nprims, 1);
-        if (!seen || tree_copy(&local, &res->tree)) {
-            free(seen);
-            tree_free(&local);
+    if (residual) {
+        /* Join on a sample of every point, with the base model as leaf nprims. */
+        size_t mj = o->sample && o->sample < nv ? o->sample : nv;
+        draw_sample(valid, nv, mj, o->gp.seed ^ 0xa5a5a5a5a5a5a5a5u, samp, tmp);
+        jc = build_cache(prims, nprims, all, (uint32_t)nprims + 1, cloud->x, cloud->y,
+                         cloud->z, nrm, o->base_f, o->base_g, samp, mj, o->gp.setops,
+                         res->eps_d, res->alpha, ls * log((double)(mj > 1 ? mj : 2)));
+        if (!jc) goto oom;
+        gp_tree joined = { NULL, 0, 0 };
+        if (join_base(o, &res->tree, (uint32_t)nprims, jc, ev, &joined, &res->fitness)) {
+            tree_free(&joined);
             goto oom;
         }
-        for (uint32_t pc = 0; pc < local.len; pc++)
-            if (local.code[pc].op == FREP_OP_PRIM) seen[local.code[pc].arg] = 1;
-        used = malloc(nprims * sizeof *used);
-        uint32_t *map = malloc(nprims * sizeof *map);
-        uint32_t k = 0;
-        if (used && map) {
-            for (uint32_t j = 0; j < nprims; j++)
-                if (seen[j]) {
-                    map[j] = k;
-                    used[k++] = j;
-                }
-            for (uint32_t pc = 0; pc < local.len; pc++)
-                if (local.code[pc].op == FREP_OP_PRIM) local.code[pc].arg = map[local.code[pc].arg];
-            fc = build_cache(prims, used, k, cloud->x, cloud->y, cloud->z, nrm, valid, nv,
-                             o->gp.setops, res->eps_d, res->alpha, ls * log((double)(nv > 1 ? nv : 2)));
-        }
-        free(seen);
-        free(map);
-        int bad = !fc || gp_tree_stats(fc, ev, local.code, local.len, &res->stats);
-        tree_free(&local);
-        if (bad) goto oom;
+        tree_free(&res->tree);
+        res->tree = joined;
+        res->nsample = mj;
     }
+
+    /* Statistics on every valid point, over the leaves of the tree only. */
+    if (evolve_stats(o, cloud, prims, nprims, res)) goto oom;
 
     /* The @box extent: the grown oriented box's axis-aligned hull. */
     {
@@ -326,13 +528,14 @@ out:
     if (rc) tree_free(&res->tree);
     tree_free(&gr.best);
     free(valid);
+    free(pool);
+    free(tmp);
     free(nrm);
     free(samp);
     free(all);
-    free(used);
     free(boxes);
     gp_cache_free(sc);
-    gp_cache_free(fc);
+    gp_cache_free(jc);
     gp_eval_free(ev);
     return rc;
 }
@@ -345,7 +548,8 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
                        const evolve_meta *m)
 {
     const gp_tree *t = &r->tree;
-    uint8_t *seen = calloc(nprims ? nprims : 1, 1);
+    const evolve_base *base = m->base;
+    uint8_t *seen = calloc(nprims + 1, 1);
     if (!seen) return -1;
     uint32_t k = 0;
     for (uint32_t pc = 0; pc < t->len; pc++)
@@ -353,6 +557,8 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
             seen[t->code[pc].arg] = 1;
             k++;
         }
+    int uses_base = base && tree_uses(t, (uint32_t)nprims);
+    const char *mname = base ? "my_model" : "evolved";
     const char *so = m->setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax";
     fprintf(f, "-- Construction tree discovered by frep evolve from %s\n",
             m->cloud ? m->cloud : "a point cloud");
@@ -369,11 +575,27 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
             pct(r->stats.within_eps, r->npoints), r->npoints, r->eps_d,
             pct(r->stats.normals_ok, r->npoints), r->alpha * 180 / EV_PI,
             pct(r->stats.explained, r->npoints));
+    if (base)
+        fprintf(f, "-- residual of model '%s': it explained %.2f%% of the points; the tree was "
+                   "evolved on the %zu it explained poorly and joined to it (p%zu)\n",
+                base->name, pct(r->npoints - r->nresidual, r->npoints), r->nresidual,
+                nprims + 1);
+    if (m->refit_note) fprintf(f, "-- %s\n", m->refit_note);
     fprintf(f, "-- @setops %s\n", so);
     fprintf(f, "-- @box %.9g %.9g %.9g %.9g %.9g %.9g\n\n", r->box[0], r->box[1], r->box[2],
             r->box[3], r->box[4], r->box[5]);
-    fprintf(f, "evolved(x[3], a[1])\n{\n");
+    if (base) {
+        fprintf(f, "-- ---- the model given with --residual (its annotations disarmed) ----\n");
+        fputs(base->text, f);
+        size_t bl = strlen(base->text);
+        if (bl && base->text[bl - 1] != '\n') fputc('\n', f);
+        fprintf(f, "-- ---- end of the model given with --residual ----\n\n");
+        fprintf(f, "%s(%s)\n{\n", mname, base->header);
+    } else {
+        fprintf(f, "%s(x[3], a[1])\n{\n", mname);
+    }
     fprintf(f, "    -- primitives, named after their position in the input list\n");
+
     for (size_t j = 0; j < nprims; j++) {
         if (!seen[j]) continue;
         fprintf(f, "    p%zu = ", j + 1);
@@ -383,6 +605,8 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
         else if (prims[j].support) fprintf(f, ", %zu inliers", prims[j].support);
         fputc('\n', f);
     }
+    if (uses_base) fprintf(f, "    p%zu = %s;  -- the model given with --residual\n", nprims + 1,
+                           base->call);
     fprintf(f, "    -- the construction tree: | union, & intersection, \\ subtraction, ~ complement\n");
     fprintf(f, "    tree = ");
     tree_print(f, t->code, t->len, "p");
@@ -405,23 +629,24 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
             prim_write_call(f, &q);
             fprintf(f, ";\n");
         }
-    fprintf(f, "    evolved = tree & (((b1 & b2) & (b3 & b4)) & (b5 & b6));\n}\n");
+    fprintf(f, "    %s = tree & (((b1 & b2) & (b3 & b4)) & (b5 & b6));\n}\n", mname);
     free(seen);
     return ferror(f) ? -1 : 0;
 }
 
 int evolve_write_dot(FILE *f, const evolve_result *r, const prim *prims, size_t nprims)
 {
-    char **names = calloc(nprims ? nprims : 1, sizeof *names);
+    char **names = calloc(nprims + 1, sizeof *names);
     if (!names) return -1;
     int rc = 0;
-    for (size_t j = 0; j < nprims && !rc; j++) {
+    for (size_t j = 0; j <= nprims && !rc; j++) {
         names[j] = malloc(64);
         if (!names[j]) rc = -1;
+        else if (j == nprims) snprintf(names[j], 64, "p%zu\\nbase model", j + 1);
         else snprintf(names[j], 64, "p%zu\\n%s", j + 1, prim_type_name(prims[j].type));
     }
     if (!rc) tree_print_dot(f, r->tree.code, r->tree.len, (const char *const *)names);
-    for (size_t j = 0; j < nprims; j++) free(names[j]);
+    for (size_t j = 0; j <= nprims; j++) free(names[j]);
     free(names);
     return rc || ferror(f) ? -1 : 0;
 }

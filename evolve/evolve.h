@@ -39,6 +39,11 @@ typedef struct evolve_options {
     double alpha_deg;
     double lambda_scale;     /* lambda = lambda_scale * ln(N) per node */
     int simplify;            /* 1: simplify the result */
+    /* --residual: the base model's value bf[i] and gradient bg[3i+c] at every cloud
+     * point (residual.h), NULL otherwise. The GA then runs on the points the base
+     * explains poorly, and its tree is joined to the base, which is leaf number nprims
+     * of the result's tree. */
+    const double *base_f, *base_g;
 } evolve_options;
 
 void evolve_options_init(evolve_options *o);
@@ -58,6 +63,8 @@ typedef struct evolve_result {
     double seconds;
     gp_obb obb;              /* oriented box of the cloud (not grown) */
     double box[6];           /* axis-aligned extent for the @box pragma (grown) */
+    int residual;            /* 1: --residual run; leaf nprims is the base model */
+    size_t nresidual;        /* valid points the base model explains poorly */
 } evolve_result;
 
 /* Run. The cloud must have normals. Returns 0, or -1 with *err (malloc'ed message,
@@ -69,12 +76,25 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
                char **err);
 void evolve_result_free(evolve_result *r);
 
+/* Recompute r->stats of r->tree on every valid point (after the primitives changed,
+ * e.g. by evolve_refit). r->eps_d and r->alpha must be set. 0 or -1 (memory). */
+int evolve_stats(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
+                 size_t nprims, evolve_result *r);
+/* --residual: mask[i] = 1 for the valid points the base model (o->base_f, o->base_g)
+ * explains poorly, with the tolerances evolve_run uses; *count of them. 0 or -1. */
+int evolve_residual_points(const evolve_options *o, const frep_cloud *cloud, uint8_t *mask,
+                           size_t *count);
+
 /* What the model's header comments say about the run. */
 typedef struct evolve_meta {
     const char *command;     /* the command line (may be NULL) */
     const char *cloud;       /* cloud file name (may be NULL) */
     uint64_t seed;
     gp_setops setops;
+    /* --residual: the base model (residual.h) written before the joined model, which
+     * is then called my_model; NULL otherwise. */
+    const struct evolve_base *base;
+    const char *refit_note;  /* a comment line about --refit (may be NULL) */
 } evolve_meta;
 
 /* The .hf model: primitives named pN after their input position, the tree with the

@@ -30,7 +30,9 @@
 /* Minimal samples drawn per round before the acceptance test. */
 #define DRAWS_PER_ROUND 64
 /* Candidates kept alive at once: older, weaker ones are dropped beyond this. */
-#define MAX_POOL 4096
+#define MAX_POOL 1024
+/* Rivals of the best candidate refined per step (see the main loop). */
+#define REFINE_TOP 4
 /* Points per minimal sample (the torus needs four). */
 #define SAMPLE_SIZE 4
 /* Attempts to find distinct live points in an octree cell for one sample. */
@@ -924,6 +926,36 @@ static int verify(const prim *q, const sample *s, int nv, double eps, double cos
     return 1;
 }
 
+/* Same shape within the tolerances (epsilon in position, DUP_DEG in direction)? A
+ * candidate like one already pooled adds nothing but scoring work. */
+#define DUP_DEG 2.0
+static int same_shape(const prim *a, const prim *b, double eps)
+{
+    if (a->type != b->type) return 0;
+    double cmin = cos(DUP_DEG * M_PI / 180.0), dp[3];
+    sub(a->p, b->p, dp);
+    switch (a->type) {
+    case PRIM_PLANE:
+        return dot(a->p, b->p) > cmin && fabs(a->r - b->r) < eps;
+    case PRIM_SPHERE:
+        return norm(dp) < eps && fabs(a->r - b->r) < eps;
+    case PRIM_CYLINDER: {
+        double h = dot(dp, b->a), w[3];
+        for (int k = 0; k < 3; k++) w[k] = dp[k] - h * b->a[k];
+        return fabs(dot(a->a, b->a)) > cmin && norm(w) < eps && fabs(a->r - b->r) < eps;
+    }
+    case PRIM_CONE:
+        return norm(dp) < eps && dot(a->a, b->a) > cmin &&
+               fabs(a->r - b->r) < DUP_DEG * M_PI / 180.0;
+    case PRIM_TORUS:
+        return norm(dp) < eps && fabs(dot(a->a, b->a)) > cmin && fabs(a->r - b->r) < eps &&
+               fabs(a->R - b->R) < eps;
+    case PRIM__COUNT:
+        break;
+    }
+    return 0;
+}
+
 static int sane(const prim *q, double rmax)
 {
     double v[9] = {q->p[0], q->p[1], q->p[2], q->a[0], q->a[1], q->a[2], q->r, q->R, 0};
@@ -1161,6 +1193,10 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
                 if (bad || !sane(&q, d.rmax) ||
                     !verify(&q, &s, verify_count(q.type), cfg->epsilon, cfg->cos_normal))
                     continue;
+                int dup = 0;
+                for (size_t j = 0; j < npool && !dup; j++)
+                    dup = same_shape(&q, &pool[j].q, cfg->epsilon);
+                if (dup) continue;
                 if (npool == MAX_POOL) {
                     /* Drop the weakest candidate to make room. */
                     size_t w = 0;
@@ -1186,10 +1222,27 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
             best = 0;
             for (size_t j = 1; j < npool; j++)
                 if (cmp_cand_est(&pool[j], &pool[best]) < 0) best = j;
+            /* The best and the REFINE_TOP rivals of highest upper bound that still
+             * overlap it: near-duplicates of one shape would otherwise all be scored
+             * on every point. */
             nw = 0;
-            for (size_t j = 0; j < npool; j++)
-                if (pool[j].nsub < d.nsub && (j == best || pool[j].hi >= pool[best].lo))
-                    which[nw++] = (int)j;
+            if (pool[best].nsub < d.nsub) which[nw++] = (int)best;
+            size_t base = nw;
+            for (size_t j = 0; j < npool; j++) {
+                if (j == best || pool[j].nsub >= d.nsub || pool[j].hi < pool[best].lo) continue;
+                size_t pos = nw;
+                if (nw - base == REFINE_TOP) {
+                    if (pool[j].hi <= pool[which[nw - 1]].hi) continue;
+                    pos = nw - 1;
+                } else {
+                    nw++;
+                }
+                while (pos > base && pool[which[pos - 1]].hi < pool[j].hi) {
+                    which[pos] = which[pos - 1];
+                    pos--;
+                }
+                which[pos] = (int)j;
+            }
             if (nw == 0) break;
             score_next(&d, pool, which, nw);
         }
@@ -1226,8 +1279,16 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         if (m >= min_pts) m = prefer_simpler(&d, &q, m, flag, inl);
         m = support_of(&d, &q, flag, inl);
         int lvl = b->level;
+        if (m < min_pts) {
+            /* The estimate was optimistic. Keep the candidate, scored zero, so that
+             * duplicates of it are not drawn again, and keep drawing. */
+            b->nsub = d.nsub;
+            b->score = 0;
+            b->seen = 1;
+            update_estimate(&d, b);
+            continue;
+        }
         pool[best] = pool[--npool];
-        if (m < min_pts) continue; /* the estimate was optimistic; keep drawing */
         if (res->nprims == cap_prims) {
             prim *np = realloc(res->prims, 2 * cap_prims * sizeof *np);
             if (!np) {

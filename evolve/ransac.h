@@ -20,7 +20,7 @@
 #define RANSAC_MIN_CLOUD 8
 /* Candidates drawn without an extraction before giving up: bounds the main loop even
  * when the acceptance test can never pass (probability near 1). */
-#define RANSAC_MAX_DRAWS 200000
+#define RANSAC_MAX_DRAWS 20000
 
 typedef struct ransac_config {
     double epsilon;       /* inlier distance (absolute units) */

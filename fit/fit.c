@@ -59,6 +59,8 @@ void fit_config_init(fit_config *c)
     memset(c, 0, sizeof *c);
     c->method = FIT_METHOD_SAQN;
     fit_objective_config_init(&c->obj);
+    c->obj.kind = FIT_OBJ_ALGEBRAIC;
+    c->global_kind = FIT_OBJ_ALGEBRAIC;
     c->seed = 1;
     c->sa_points = 1024;
     c->sa_local = 1;
@@ -204,7 +206,7 @@ static fit_status local_phase(fit_run_ctx *R, fit_objective *o, double *x, doubl
     fit_qn_options qn = cfg->qn;
     fit_lm_options lm = cfg->lm;
     if (max_iter > 0) qn.max_iter = lm.max_iter = max_iter;
-    int geo = cfg->obj.kind == FIT_OBJ_GEOMETRIC;
+    int geo = fit_objective_kind_of(o) == FIT_OBJ_GEOMETRIC;
     if (!geo) rounds = 1;
     fit_status st = FIT_FAILED;
     double prev[FIT_MAX_PARAMS];
@@ -281,9 +283,22 @@ int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const d
         set_err(err, errlen, "out of memory");
         return -1;
     }
-    fit_objective *sub = obj;
+    fit_objective *sub = obj, *gobj = obj;
+    if (global && cfg->global_kind != cfg->obj.kind) {
+        fit_objective_config gc = cfg->obj;
+        gc.kind = cfg->global_kind;
+        gobj = fit_objective_new(m, pts, &gc);
+        if (gobj == NULL) {
+            fit_objective_free(obj);
+            set_err(err, errlen, "out of memory");
+            return -1;
+        }
+        sub = gobj;
+    }
     if (global && cfg->sa_points > 0 && cfg->sa_points < pts->n) {
-        sub = fit_objective_subset(obj, cfg->sa_points, cfg->seed);
+        sub = fit_objective_subset(gobj, cfg->sa_points, cfg->seed);
+        if (gobj != obj) fit_objective_free(gobj);
+        gobj = NULL;
         if (sub == NULL) {
             fit_objective_free(obj);
             set_err(err, errlen, "out of memory");

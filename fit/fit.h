@@ -32,7 +32,11 @@ int fit_loss_parse(const char *s, fit_loss *l);
 /* Every setting of a fit, with its default from fit_config_init(). */
 typedef struct fit_config {
     fit_method method;
-    fit_objective_config obj;
+    fit_objective_config obj;   /* the local phase's objective (algebraic by default) */
+    /* The annealing's objective kind (algebraic by default: the geometric one has
+     * degenerate minima far from the start, such as infinitely thin slabs, that the
+     * global search finds; see doc/fit.md). Loss and threads as in obj. */
+    fit_objective_kind global_kind;
     uint64_t seed;              /* 1 */
     double max_time;            /* seconds of wall clock; 0: no limit */
     long max_evals;             /* objective evaluations; 0: no limit */

@@ -56,6 +56,7 @@ void fit_objective_config_init(fit_objective_config *c)
 }
 
 size_t fit_objective_npoints(const fit_objective *o) { return o->n; }
+fit_objective_kind fit_objective_kind_of(const fit_objective *o) { return o->cfg.kind; }
 
 static void free_ws(fit_objective *o)
 {

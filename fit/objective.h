@@ -92,5 +92,6 @@ void fit_objective_unfreeze(fit_objective *o);
 int fit_objective_distances(fit_objective *o, const double *p, double *rms, double *max);
 
 size_t fit_objective_npoints(const fit_objective *o);
+fit_objective_kind fit_objective_kind_of(const fit_objective *o);
 
 #endif

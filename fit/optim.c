@@ -645,6 +645,16 @@ fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
         free(mem);
         return FIT_FAILED;
     }
+    /* Polish the start first: a start near the answer then is the answer, and the chain
+     * only has to beat it. */
+    if (opt->local != NULL && !fit_control_stop(c)) {
+        memcpy(trial, cur, n * sizeof *trial);
+        double el;
+        if (opt->local(opt->local_user, trial, &el) == 0 && el < e) {
+            memcpy(cur, trial, n * sizeof *cur);
+            e = el;
+        }
+    }
     memcpy(best, cur, n * sizeof *best);
     double ebest = e, emark = e;
     const double t1 = exp((opt->qv - 1.0) * log(2.0)) - 1.0;

@@ -118,8 +118,8 @@ typedef struct fit_sa_options {
                                (improvement > rel_improve relative); 0: never (40) */
     double rel_improve;     /* what counts as improving the best (1e-4) */
     double threshold;       /* stop as soon as the best objective <= threshold (-inf) */
-    /* Local search run from the best point after every iteration that found a new best
-     * (dual annealing); NULL: pure annealing. It improves x in place, sets *fx and
+    /* Local search run from the start and then from the best point after every
+     * iteration that found a new best (dual annealing); NULL: pure annealing. It improves x in place, sets *fx and
      * returns 0, or -1 when it failed (the point is then left alone). */
     int (*local)(void *user, double *x, double *fx);
     void *local_user;

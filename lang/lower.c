@@ -869,7 +869,7 @@ static void lw_if(lw *L, scope *sc, const ast_node *n)
 /* while_stmt -> WHILE cond LOOP stmts ENDLOOP */
 static void lw_while(lw *L, scope *sc, const ast_node *n)
 {
-    uint32_t iter = 0, nodes0 = L->g->n;
+    uint32_t iter = 0, nodes0 = L->g->n, steps0 = L->steps;
     lblock *saved;
     lstmt *s;
     for (;;) {
@@ -880,7 +880,8 @@ static void lw_while(lw *L, scope *sc, const ast_node *n)
         if (L->dead || L->abort) return;
         if (!ir_is_const(L->g, cond, &c)) break;
         if (c == 0) return;
-        if (iter >= FREP_MAX_UNROLL || L->g->n - nodes0 >= FREP_MAX_UNROLL_NODES) {
+        if (iter >= FREP_MAX_UNROLL || L->g->n - nodes0 >= FREP_MAX_UNROLL_NODES ||
+            L->steps - steps0 >= FREP_MAX_LOWER_STEPS / 4) {
             if (!L->trial)
                 lw_report(L, FREP_WARNING, n->loc, "loop not unrolled after %u iterations: "
                           "it runs at evaluation time (at most %ld iterations per point)",

@@ -25,8 +25,9 @@
  * doubles the work per level). */
 #define FREP_MAX_INLINE_DEPTH 64u
 /* Statement lowerings of one compile (counts every unrolled and inlined statement):
- * bounds compile time for chains of models that each call the previous twice. */
-#define FREP_MAX_LOWER_STEPS (1u << 22)
+ * bounds compile time (about a second) for chains of models that each call the
+ * previous one twice.  Unrolling one loop stops at a quarter of it. */
+#define FREP_MAX_LOWER_STEPS (1u << 20)
 
 typedef struct lstmt lstmt;
 

@@ -317,7 +317,8 @@ static void dis_operands(strbuf *b, const frep_program *p, const frep_insn *in)
         else if (in->flags & INSN_KA) sb_printf(b, "a=%.17g", in->k);
         break;
     }
-    if (in->flags & INSN_QUIET) sb_printf(b, "%squiet", b->s && b->len && b->s[b->len - 1] != ' ' ? " " : "");
+    if (in->flags & INSN_QUIET)
+        sb_printf(b, "%squiet", b->s && b->len && b->s[b->len - 1] != ' ' ? " " : "");
 }
 
 char *frep_disassemble(const frep_program *p)

@@ -2,7 +2,8 @@
 # evolve.sh - end-to-end tests of `frep evolve`: a cube and a block with a hole sampled
 # from models by `frep sample`, primitives given as a .fit list or found by
 # segmentation, the written model checked and evaluated by frep itself, the same seed
-# at 1 and 2 threads, --dot, and bad input. Prints TAP. Needs FREP.
+# at 1 and 2 threads, --dot, bad input; --residual (a block model joined with the hole
+# its cloud shows) and --refit (perturbed faces corrected). Prints TAP. Needs FREP.
 
 : "${FREP:?FREP must name the frep binary}"
 
@@ -125,6 +126,87 @@ report $? "bad option value: usage error"
 "$FREP" evolve "$tmp/nonexistent.xyz" -p "$tmp/cube.fit" 2>"$tmp/err"
 [ $? = 1 ] && grep -q "nonexistent.xyz" "$tmp/err"
 report $? "missing cloud: message"
+
+# --residual: a block model, a cloud of the block with a hole; the tree evolved for the
+# hole's wall is joined by subtraction. With the cylinder given (-p) and segmented.
+cat >"$tmp/block.hf" <<'EOF'
+-- @setops minmax
+-- @box -1.5 -1.5 -1 1.5 1.5 1
+my_model(x[3], a[1])
+{
+    my_model = frPlane(x, 1, 0, 0, 1) & frPlane(x, -1, 0, 0, 1) & frPlane(x, 0, 1, 0, 1) &
+               frPlane(x, 0, -1, 0, 1) & frPlane(x, 0, 0, 1, 0.5) & frPlane(x, 0, 0, -1, 0.5);
+}
+EOF
+cat >"$tmp/hole.hf" <<'EOF'
+-- @setops minmax
+-- @box -1.5 -1.5 -1 1.5 1.5 1
+my_model(x[3], a[1])
+{
+    blk = frPlane(x, 1, 0, 0, 1) & frPlane(x, -1, 0, 0, 1) & frPlane(x, 0, 1, 0, 1) &
+          frPlane(x, 0, -1, 0, 1) & frPlane(x, 0, 0, 1, 0.5) & frPlane(x, 0, 0, -1, 0.5);
+    my_model = blk \ frCylinder(x, 0.2, 0.1, 0, 0, 0, 1, 0.4);
+}
+EOF
+"$FREP" sample "$tmp/hole.hf" -n 4000 --seed 1 -o "$tmp/hole.xyz" -q
+# .fit cylinders are: axis, point on the axis, radius.
+printf 'sphere 3 3 3 1\ncylinder 0 0 1 0.2 0.1 0 0.4\n' >"$tmp/hole.fit"
+"$FREP" evolve "$tmp/hole.xyz" --residual "$tmp/block.hf" -p "$tmp/hole.fit" -o "$tmp/r1.hf" \
+    --seed 1 2>"$tmp/err"
+st=$?
+[ $st = 0 ] && grep -q '^    tree = p3 \\ p2;$' "$tmp/r1.hf" && grep -q '100.00% both' "$tmp/r1.hf" &&
+    grep -q 'p3 = base_model(x, a);' "$tmp/r1.hf" && grep -q 'explains 3[0-9]* of 4000 points' "$tmp/err"
+st=$?
+report $st "--residual -p: the block joined with minus the cylinder, every point explained"
+[ $st = 0 ] || { show "$tmp/err"; show "$tmp/r1.hf"; }
+# Values: 0.4 (the faces), 0.2 (faces), -0.4 (on the hole's axis).
+printf -- '-0.6 -0.6 0\n0.8 0.8 0\n0.2 0.1 0.3\n' >"$tmp/rpts"
+"$FREP" eval "$tmp/r1.hf" "$tmp/rpts" >"$tmp/rvals" 2>"$tmp/err"
+awk 'NR==1 && $1 > 0.39 && $1 < 0.41 {a++} NR==2 && $1 > 0.19 && $1 < 0.21 {a++} NR==3 && $1 < -0.39 {a++}
+     END {exit a == 3 ? 0 : 1}' "$tmp/rvals"
+st=$?
+report $st "--residual model is my_model (the default) and evaluates as the block with a hole"
+[ $st = 0 ] || { show "$tmp/rvals"; show "$tmp/err"; }
+"$FREP" evolve "$tmp/hole.xyz" --residual "$tmp/block.hf" -o "$tmp/r2.hf" --seed 1 -q 2>"$tmp/err" &&
+    grep -q '100.00% both' "$tmp/r2.hf" && grep -q 'frCylinder' "$tmp/r2.hf" &&
+    "$FREP" check "$tmp/r2.hf" >/dev/null 2>&1
+st=$?
+report $st "--residual without -p: the residual points are segmented, the hole recovered"
+[ $st = 0 ] || { show "$tmp/err"; show "$tmp/r2.hf"; }
+# Residual of a residual: the base's my_model is renamed again, the file still compiles.
+"$FREP" evolve "$tmp/hole.xyz" --residual "$tmp/r1.hf" -o "$tmp/r3.hf" --seed 1 -q 2>"$tmp/err" &&
+    grep -q '^base_model2(x\[3\], a\[1\])' "$tmp/r3.hf" && grep -q '100.00% both' "$tmp/r3.hf" &&
+    "$FREP" check "$tmp/r3.hf" >/dev/null 2>&1
+report $? "--residual of an evolved model: nested, compiles, explains every point"
+grep -v '@setops' "$tmp/block.hf" >"$tmp/block_rf.hf"
+"$FREP" evolve "$tmp/hole.xyz" --residual "$tmp/block_rf.hf" --setops minmax -q -o "$tmp/x2.hf" 2>"$tmp/err"
+[ $? = 1 ] && grep -q 'disagrees' "$tmp/err" && [ ! -e "$tmp/x2.hf" ]
+report $? "--residual with other set operations than the model's: error"
+printf 'my_model(x[3], a[1]) {\n  my_model = 1 +;\n}\n' >"$tmp/broken.hf"
+"$FREP" evolve "$tmp/hole.xyz" --residual "$tmp/broken.hf" -q -o "$tmp/x3.hf" 2>"$tmp/err"
+[ $? = 1 ] && grep -q 'broken.hf:2:' "$tmp/err" && [ ! -e "$tmp/x3.hf" ]
+report $? "--residual with a broken model: its diagnostic, no output"
+
+# --refit: two faces perturbed (one tilted by 0.02 and shifted by 0.02, one shifted by
+# 0.015) are moved back onto the points.
+printf 'plane 1 0.02 0 0.98\nplane -1 0 0 1\nplane 0 1 0 1\nplane 0 -1 0 1.015\nplane 0 0 1 1\nplane 0 0 -1 1\n' \
+    >"$tmp/pert.fit"
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/pert.fit" --refit -o "$tmp/rf.hf" --seed 1 2>"$tmp/err"
+st=$?
+[ $st = 0 ] && grep -q '^-- refit: 24 parameters, RMS distance' "$tmp/rf.hf" &&
+    grep -q 'frep evolve: refit:' "$tmp/err"
+report $? "--refit reports the RMS distance before and after"
+# On the faces x = 1 and y = -1 the value is 0; at (0.2, 0.9, 0) it is 0.1.
+printf '1 0.3 0.2\n-0.5 -1 0.7\n0.2 0.9 0\n' >"$tmp/fpts"
+"$FREP" eval "$tmp/rf.hf" "$tmp/fpts" >"$tmp/fvals" 2>"$tmp/err"
+awk 'NR<=2 && ($1 > 1e-6 || $1 < -1e-6) {bad++} NR==3 && ($1 < 0.0999 || $1 > 0.1001) {bad++}
+     END {exit NR == 3 && !bad ? 0 : 1}' "$tmp/fvals"
+st=$?
+report $st "--refit moves the perturbed faces back onto the points"
+[ $st = 0 ] || { show "$tmp/fvals"; grep 'refit\|p[14] =' "$tmp/rf.hf" | sed 's/^/# /'; }
+sed -n 's/^-- refit: .*RMS distance \([0-9.e+-]*\) -> \([0-9.e+-]*\),.*/\1 \2/p' "$tmp/rf.hf" >"$tmp/rms"
+awk 'NF == 2 && $1 > 0.005 && $2 < $1 / 100 {ok = 1} END {exit ok ? 0 : 1}' "$tmp/rms"
+report $? "--refit: the RMS distance falls a hundredfold or more"
 
 echo "1..$n"
 exit $failed

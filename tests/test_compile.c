@@ -482,6 +482,17 @@ static void test_limits(void)
        "FREP_MAX_INLINE_DEPTH");
     frep_program_free(p);
 
+    /* FREP_MAX_LOWER_STEPS: 2^21 inlined statements. */
+    len = 0;
+    len += (size_t)sprintf(src + len, "m0(x[3], a[1]) { m0 = x[1]; }\n");
+    for (i = 1; i < 22; i++)
+        len += (size_t)sprintf(src + len, "m%d(x[3], a[1]) { m%d = m%d(x, a) + m%d(x, a); }\n",
+                               i, i, i - 1, i - 1);
+    p = compile(src, &D);
+    ok(!p && find_diag(&D, "model too large: more than 1048576 statements") >= 0,
+       "FREP_MAX_LOWER_STEPS");
+    frep_program_free(p);
+
     /* FREP_EMIT_MAX_HEIGHT: a 5000-term chain is split with temporaries. */
     p = compile("m(x[3], a[1]) {\n  i = 0; s = 0;\n  while i < 5000 loop s = s + x[1] * x[2]; "
                 "i = i + 1; endloop;\n  m = s;\n}", &D);

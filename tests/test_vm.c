@@ -184,10 +184,35 @@ static void test_opsem_parity(void)
 
 /* Build op(u, v) with u = x + 0.5 y - 0.25 z, v = y - 0.2 x + 0.3 z (binary), or
  * op(u) (unary), or select(z > 0, u, v).  With params: u = x p0 + 0.1, v = y + p1. */
-static frep_program *tangent_program(frep_opcode op, int with_params)
+/* mode 0: xyz; 1: params; 2: op(u, 0.7) with b immediate; 3: op(1.3, v), a immediate. */
+#define KB_VALUE 0.7
+#define KA_VALUE 1.3
+static frep_program *tangent_program(frep_opcode op, int mode)
 {
     frep_program *p = prog_new();
-    int nin = op_nin(op);
+    int nin = op_nin(op), with_params = mode == 1;
+    if (mode >= 2) {
+        if (mode == 2) {
+            emit(p, FREP_OP_X, 0, 0, 0);
+            emit(p, FREP_OP_X, 1, 0, 0);
+            emit(p, FREP_OP_MUL, 0, 0.5, INSN_KB);
+            emit(p, FREP_OP_ADD, 0, 0, 0);
+            emit(p, FREP_OP_X, 2, 0, 0);
+            emit(p, FREP_OP_MUL, 0, 0.25, INSN_KB);
+            emit(p, FREP_OP_SUB, 0, 0, 0);
+            emit(p, op, 0, KB_VALUE, INSN_KB);
+        } else {
+            emit(p, FREP_OP_X, 1, 0, 0);
+            emit(p, FREP_OP_X, 0, 0, 0);
+            emit(p, FREP_OP_MUL, 0, 0.2, INSN_KB);
+            emit(p, FREP_OP_SUB, 0, 0, 0);
+            emit(p, FREP_OP_X, 2, 0, 0);
+            emit(p, FREP_OP_MUL, 0, 0.3, INSN_KA);
+            emit(p, FREP_OP_ADD, 0, 0, 0);
+            emit(p, op, 0, KA_VALUE, INSN_KA);
+        }
+        return finish(p);
+    }
     if (with_params) {
         p->nparams = 2;
         p->params = calloc(2, sizeof *p->params);
@@ -265,10 +290,14 @@ static void test_tangents(void)
     size_t i, c;
     for (op = 0; op < FREP_OP__COUNT; op++) {
         frep_program *p;
-        int okv = 1, checked = 0, seeds;
+        int okv = 1, checked = 0, mode;
         if (!is_expr((frep_opcode)op)) continue;
-        for (seeds = 0; seeds < 2; seeds++) {
-            p = tangent_program((frep_opcode)op, seeds);
+        for (mode = 0; mode < 4; mode++) {
+            int seeds = mode == 1;
+            if (mode >= 2 && (op_nin((frep_opcode)op) != 2 || op == FREP_OP_AUNI ||
+                              op == FREP_OP_AINT))
+                break;
+            p = tangent_program((frep_opcode)op, mode);
             if (!p) { okv = 0; continue; }
             for (i = 0; i < NB; i++) {
                 x[i] = urand(-2, 2);
@@ -287,7 +316,8 @@ static void test_tangents(void)
                 vm_eval_block(p, s, &in, NB, fp);
                 for (i = 0; i < NB; i++)
                     if (!same(f[i], fp[i])) {
-                        if (okv) diag("%s: tangent evaluator value differs", op_name((frep_opcode)op));
+                        if (okv)
+                            diag("%s: tangent evaluator value differs", op_name((frep_opcode)op));
                         okv = 0;
                         break;
                     }
@@ -324,6 +354,8 @@ static void test_tangents(void)
                     } else {
                         u = x[i] + 0.5 * y[i] - 0.25 * z[i];
                         v = y[i] - 0.2 * x[i] + 0.3 * z[i];
+                        if (mode == 2) v = KB_VALUE;
+                        if (mode == 3) { u = KA_VALUE; v = y[i] - 0.2 * x[i] + 0.3 * z[i]; }
                     }
                     if (op_flags((frep_opcode)op) & OPF_NOGRAD) {
                         if (ad != 0) {
@@ -338,9 +370,8 @@ static void test_tangents(void)
                     if (!isfinite(fd)) continue;
                     checked++;
                     if (!(fabs(ad - fd) <= 1e-5 * (1 + fabs(fd)))) {
-                        if (okv) diag("%s seed %s %zu: at u=%g v=%g AD %.12g FD %.12g",
-                                      op_name((frep_opcode)op), seeds ? "param" : "xyz", c,
-                                      u, v, ad, fd);
+                        if (okv) diag("%s mode %d tangent %zu: at u=%g v=%g AD %.12g FD %.12g",
+                                      op_name((frep_opcode)op), mode, c, u, v, ad, fd);
                         okv = 0;
                     }
                 }
@@ -349,7 +380,7 @@ static void test_tangents(void)
         }
         frep_scratch_reset_errors((frep_scratch *)s);
         ok(okv && (checked > 100 || (op_flags((frep_opcode)op) & OPF_NOGRAD)),
-           "%s tangents (xyz and parameter seeds) match central differences (%d checks)",
+           "%s tangents (xyz, parameter seeds, immediates) match central differences (%d checks)",
            op_name((frep_opcode)op), checked);
     }
     vm_scratch_free(s);

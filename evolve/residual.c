@@ -1,0 +1,268 @@
+/* residual.c - the base model of `frep evolve --residual`: its source prepared for the
+ * output file, its values and gradients at the cloud's points.  See residual.h; the
+ * join itself is in evolve.c.
+ */
+#include "config.h"
+
+#include "residual.h"
+
+#include "arena.h"
+#include "ast.h"
+
+#include <ctype.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Value given to points where the base model cannot be evaluated: far outside. */
+#define RESIDUAL_BAD_VALUE (-1e30)
+/* Points per call of the evaluator (bounds the temporary arrays). */
+#define RESIDUAL_CHUNK 65536
+
+static void set_err(char **err, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+static void set_err(char **err, const char *fmt, ...)
+{
+    if (!err) return;
+    char buf[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    *err = malloc(strlen(buf) + 1);
+    if (*err) strcpy(*err, buf);
+}
+
+void residual_free(evolve_base *b)
+{
+    free(b->text);
+    free(b->name);
+    free(b->header);
+    free(b->call);
+    memset(b, 0, sizeof *b);
+}
+
+static int name_eq(const char *a, size_t na, const char *b)
+{
+    size_t nb = strlen(b);
+    if (na != nb) return 0;
+    for (size_t i = 0; i < na; i++)
+        if (tolower((unsigned char)a[i]) != tolower((unsigned char)b[i])) return 0;
+    return 1;
+}
+
+static int is_id0(int c) { return isalpha(c) || c == '_'; }
+static int is_id(int c) { return isalnum(c) || c == '_'; }
+
+/* Copy of src with every identifier token equal to `from` (case-insensitive, as names
+ * are) at or after offset `start` replaced by `to`; comments and numbers are skipped.
+ * Renaming from the chosen model's header on catches its result variable and the calls
+ * of later models, the only places the name can appear. */
+static char *rename_ident(const char *src, size_t len, size_t start, const char *from,
+                          const char *to)
+{
+    size_t cap = len + 1, n = 0, tl = strlen(to);
+    char *out = malloc(cap);
+    if (!out) return NULL;
+    size_t i = 0;
+    while (i < len) {
+        size_t j = i;
+        if (src[i] == '-' && i + 1 < len && src[i + 1] == '-') {
+            while (j < len && src[j] != '\n') j++;
+        } else if (isdigit((unsigned char)src[i]) || src[i] == '.') {
+            while (j < len && (is_id((unsigned char)src[j]) || src[j] == '.' ||
+                               ((src[j] == '+' || src[j] == '-') && j > i &&
+                                (src[j - 1] == 'e' || src[j - 1] == 'E'))))
+                j++;
+        } else if (is_id0((unsigned char)src[i])) {
+            while (j < len && is_id((unsigned char)src[j])) j++;
+            if (i >= start && name_eq(src + i, j - i, from)) {
+                if (n + tl + (len - j) + 1 > cap) {
+                    cap = 2 * cap + tl;
+                    char *t = realloc(out, cap);
+                    if (!t) {
+                        free(out);
+                        return NULL;
+                    }
+                    out = t;
+                }
+                memcpy(out + n, to, tl);
+                n += tl;
+                i = j;
+                continue;
+            }
+        } else {
+            j = i + 1;
+        }
+        if (n + (j - i) + 1 > cap) {
+            cap = 2 * cap + (j - i);
+            char *t = realloc(out, cap);
+            if (!t) {
+                free(out);
+                return NULL;
+            }
+            out = t;
+        }
+        memcpy(out + n, src + i, j - i);
+        n += j - i;
+        i = j;
+    }
+    out[n] = '\0';
+    return out;
+}
+
+static char *dup_str(const char *s)
+{
+    char *d = malloc(strlen(s) + 1);
+    if (d) strcpy(d, s);
+    return d;
+}
+
+/* Diagnostics of the second parse are those the caller saw when compiling: drop them. */
+static void quiet_diag(void *user, const frep_diag *d)
+{
+    (void)user;
+    (void)d;
+}
+
+int residual_prepare(const char *file, const char *src, size_t len, const char *model,
+                     frep_program *prog, evolve_base *b, char **err)
+{
+    memset(b, 0, sizeof *b);
+    if (err) *err = NULL;
+    b->prog = prog;
+    arena A;
+    arena_init(&A);
+    diag_sink ds = { quiet_diag, NULL, file, 0, 0 };
+    ast_file af;
+    memset(&af, 0, sizeof af);
+    int rc = -1;
+    if (ast_parse(&A, file, src, len, &ds, &af) || af.nmodels == 0) {
+        set_err(err, "%s: cannot parse the model", file);
+        goto out;
+    }
+    /* The model frep_compile chose: the named one, else my_model, else the last. */
+    const ast_model *m = &af.models[af.nmodels - 1];
+    for (uint32_t k = 0; k < af.nmodels; k++) {
+        const char *nm = af.models[k].name;
+        if (model ? name_eq(nm, strlen(nm), model) : name_eq(nm, strlen(nm), "my_model")) {
+            m = &af.models[k];
+            break;
+        }
+    }
+    if (model && !name_eq(m->name, strlen(m->name), model)) {
+        set_err(err, "%s: no model named '%s'", file, model);
+        goto out;
+    }
+    b->setops = GP_SETOPS_RFUNC; /* HyperFun's default */
+    for (uint32_t k = 0; k < af.npragmas; k++) {
+        const ast_pragma *p = &af.pragmas[k];
+        if (strcmp(p->word, "setops") != 0) continue;
+        if (strncmp(p->text, "minmax", 6) == 0) b->setops = GP_SETOPS_MINMAX;
+        else if (strncmp(p->text, "rfunc", 5) == 0) b->setops = GP_SETOPS_RFUNC;
+        else {
+            set_err(err, "%s:%u: the residual of a model with '@setops %s' cannot be "
+                         "evolved (minmax or rfunc only)", file, p->loc.line, p->text);
+            goto out;
+        }
+    }
+
+    /* Its name in the output: my_model is reserved for the joined model. */
+    char newname[64];
+    snprintf(newname, sizeof newname, "%s", m->name);
+    if (name_eq(m->name, strlen(m->name), "my_model")) {
+        for (int k = 1;; k++) {
+            if (k == 1) snprintf(newname, sizeof newname, "%s", RESIDUAL_BASE_NAME);
+            else snprintf(newname, sizeof newname, "%s%d", RESIDUAL_BASE_NAME, k);
+            int taken = 0;
+            for (uint32_t q = 0; q < af.nmodels; q++)
+                if (name_eq(af.models[q].name, strlen(af.models[q].name), newname)) taken = 1;
+            if (!taken) break;
+        }
+    }
+    /* Disarm every pragma of the base: the output's own @setops/@box come first, and the
+     * base's @free parameters stay fixed (a refit changes the new primitives only). */
+    char *text = malloc(len + 1);
+    if (!text) goto oom;
+    memcpy(text, src, len);
+    text[len] = '\0';
+    for (uint32_t k = 0; k < af.npragmas; k++) {
+        uint32_t at = af.pragmas[k].loc.off;
+        if (at < len && text[at] == '@') text[at] = ' ';
+    }
+    if (strcmp(newname, m->name) != 0) {
+        b->text = rename_ident(text, len, m->loc.off, m->name, newname);
+        free(text);
+        if (!b->text) goto oom;
+    } else {
+        b->text = text;
+    }
+    b->name = dup_str(newname);
+    /* Header and call: the joined model passes its arrays on unchanged. */
+    char hdr[256], call[256 + 64];
+    if (m->nparams == 3)
+        snprintf(hdr, sizeof hdr, "x[%u], a[%u], s[%u]", m->params[0].size,
+                 m->params[1].size, m->params[2].size);
+    else
+        snprintf(hdr, sizeof hdr, "x[%u], a[%u]", m->params[0].size, m->params[1].size);
+    snprintf(call, sizeof call, "%s(x, a%s)", newname, m->nparams == 3 ? ", s" : "");
+    if (m->params[0].size < 3) {
+        set_err(err, "%s: model '%s' takes x[%u]: a residual needs 3D points", file, m->name,
+                m->params[0].size);
+        goto out;
+    }
+    b->header = dup_str(hdr);
+    b->call = dup_str(call);
+    if (!b->name || !b->header || !b->call) goto oom;
+    rc = 0;
+    goto out;
+oom:
+    set_err(err, "out of memory");
+out:
+    arena_free(&A);
+    if (rc) residual_free(b);
+    return rc;
+}
+
+int residual_eval(const evolve_base *b, const frep_cloud *c, int threads, double *f,
+                  double *g, size_t *nbad)
+{
+    size_t n = c->n, bad = 0;
+    size_t ch = n < RESIDUAL_CHUNK ? (n ? n : 1) : RESIDUAL_CHUNK;
+    double *gx = malloc(ch * sizeof *gx), *gy = malloc(ch * sizeof *gy);
+    double *gz = malloc(ch * sizeof *gz);
+    int rc = -1;
+    if (!gx || !gy || !gz) goto out;
+    for (size_t i0 = 0; i0 < n; i0 += ch) {
+        size_t m = n - i0 < ch ? n - i0 : ch;
+        frep_runtime_error re;
+        memset(&re, 0, sizeof re);
+        if (frep_eval_grad_par(b->prog, m, c->x + i0, c->y + i0, c->z + i0, NULL, f + i0, gx,
+                               gy, gz, threads, &re))
+            goto out;
+        for (size_t k = 0; k < m; k++) {
+            size_t i = i0 + k;
+            if (!isfinite(f[i]) || !isfinite(gx[k]) || !isfinite(gy[k]) || !isfinite(gz[k])) {
+                f[i] = RESIDUAL_BAD_VALUE;
+                g[3 * i] = g[3 * i + 1] = g[3 * i + 2] = 0;
+                bad++;
+                continue;
+            }
+            g[3 * i] = gx[k];
+            g[3 * i + 1] = gy[k];
+            g[3 * i + 2] = gz[k];
+        }
+    }
+    rc = 0;
+out:
+    if (nbad) *nbad = bad;
+    free(gx);
+    free(gy);
+    free(gz);
+    return rc;
+}
