@@ -32,10 +32,19 @@ make -s -j"$jobs"
 
 case "${1:-run}" in
 build) ;;
-check) make -s -j"$jobs" check ;;
+check) make -s -j"$jobs" check || { cat test-suite.log; exit 1; } ;;
 run)
+    # The journey frep is for: a scan (here sampled from a bundled model, with
+    # noise) -> frep evolve -> a readable model.hf -> frep mesh -> a picture.
+    mkdir -p quickstart
     set -x
-    ./frep eval ../examples/gear.hf --grid 96 -b 12
+    ./frep sample ../examples/csg.hf -n 20000 --noise 0.002 --seed 1 -b 2 -o quickstart/scan.xyz
+    ./frep evolve quickstart/scan.xyz --seed 1 -o quickstart/model.hf
+    cat quickstart/model.hf
+    ./frep mesh quickstart/model.hf -g 96 -o quickstart/model.stl
+    ./frep render quickstart/model.hf --points quickstart/scan.xyz -o quickstart/model.png
+    { set +x; } 2>/dev/null
+    echo "setup: the model is build/quickstart/model.hf, its mesh model.stl, its picture model.png"
     ;;
 *) echo "usage: $0 [run|check|build]" >&2; exit 2 ;;
 esac

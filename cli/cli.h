@@ -36,6 +36,8 @@ typedef struct mesh_cli {
     double iso;
     frep_program *p;
     char *src;
+    size_t srclen;
+    frep_runtime_error err;  /* runtime errors of every evaluation so far */
 } mesh_cli;
 void mesh_cli_init(mesh_cli *c);
 void mesh_cli_free(mesh_cli *c);
@@ -44,6 +46,10 @@ int mesh_cli_compile(mesh_cli *c, const char *path);
 struct frep_mesh;
 struct mesh_stats;
 int mesh_cli_polygonize(mesh_cli *c, const char *sub, struct frep_mesh *m, struct mesh_stats *st);
+/* Add runtime errors to c->err; print them (once, as a warning with the source
+ * position of the first failing operation) with mesh_cli_report_errors(). */
+void mesh_cli_add_errors(mesh_cli *c, const frep_runtime_error *e);
+void mesh_cli_report_errors(mesh_cli *c);
 
 /* Exit statuses. */
 #define CLI_OK 0

@@ -38,6 +38,8 @@ static const char evolve_usage[] =
     "      --setops S        minmax (default) or rfunc\n"
     "      --partition       partition the overlap graph (default)\n"
     "      --no-partition    one GA over all primitives\n"
+    "      --no-polish       after partitioning, skip the GA over all primitives seeded\n"
+    "                        with the merged tree\n"
     "      --seed S          random seed (default: from the clock; always printed)\n"
     "      --generations G   generation limit (default 3000)\n"
     "      --stagnation G    stop after G generations without improvement (default 40)\n"
@@ -151,7 +153,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     enum {
         O_SETOPS = 256, O_PART, O_NOPART, O_SEED, O_GEN, O_STAG, O_POP, O_TOURN, O_CROSS,
         O_MUT, O_ELITE, O_SUBP, O_DEPTH, O_TIME, O_EPS, O_ALPHA, O_LAMBDA, O_SAMPLE,
-        O_NOSIMP, O_DOT, O_RESIDUAL, O_REFIT
+        O_NOSIMP, O_DOT, O_RESIDUAL, O_REFIT, O_NOPOLISH
     };
     static const struct option longopts[] = {
         { "help", no_argument, NULL, 'h' },
@@ -179,6 +181,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         { "dot", required_argument, NULL, O_DOT },
         { "residual", required_argument, NULL, O_RESIDUAL },
         { "refit", no_argument, NULL, O_REFIT },
+        { "no-polish", no_argument, NULL, O_NOPOLISH },
         { "threads", required_argument, NULL, 't' },
         { "quiet", no_argument, NULL, 'q' },
         { NULL, 0, NULL, 0 },
@@ -205,6 +208,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
             break;
         case O_RESIDUAL: residual_path = optarg; break;
         case O_REFIT: refit = 1; break;
+        case O_NOPOLISH: eo.polish = 0; break;
         case O_PART: eo.partition = 1; break;
         case O_NOPART: eo.partition = 0; break;
         case O_NOSIMP: eo.simplify = 0; break;

@@ -37,7 +37,9 @@ static const char mesh_usage[] =
     "  -t, --threads N     OpenMP threads (default: all cores); the mesh is the same\n"
     "      --check         verify the mesh (closed, 2-manifold, oriented, no degenerate\n"
     "                      triangles), print the counts and the enclosed volume; fail if not\n"
-    "  -q, --quiet         no summary line\n";
+    "  -q, --quiet         no summary line\n"
+    "  -v, --verbose       also print the work done: octree nodes (interval tests),\n"
+    "                      blocks, points evaluated, gradients evaluated\n";
 
 void mesh_cli_init(mesh_cli *c)
 {
@@ -101,6 +103,32 @@ int mesh_cli_option(mesh_cli *c, const char *sub, int opt, const char *arg)
     return -1;
 }
 
+void mesh_cli_add_errors(mesh_cli *c, const frep_runtime_error *e)
+{
+    if (e->count == 0) return;
+    uint64_t n = c->err.count;
+    if (n == 0 || e->pc < c->err.pc) c->err = *e;
+    c->err.count = n + e->count;
+}
+
+/* Runtime errors do not stop meshing (the points are NaN and count as outside), so
+ * they are warnings here; frep eval's format otherwise. */
+static void warning_diag(void *user, const frep_diag *d)
+{
+    frep_diag w = *d;
+    w.severity = FREP_WARNING;
+    cli_print_diag(user, &w);
+}
+
+void mesh_cli_report_errors(mesh_cli *c)
+{
+    if (c->err.count == 0 || !c->p) return;
+    cli_diag_ctx dc = { c->src, c->srclen, 0, 0, NULL, 0 };
+    frep_report_runtime_error(c->p, &c->err, warning_diag, &dc);
+    cli_diag_done(&dc);
+    memset(&c->err, 0, sizeof c->err);
+}
+
 static void progress_cb(void *user, double frac)
 {
     int *last = user;
@@ -116,6 +144,7 @@ int mesh_cli_compile(mesh_cli *c, const char *path)
     c->path = path;
     c->p = cli_compile_file(path, c->model, c->a, c->na, c->setops, &c->src);
     if (!c->p) return CLI_FAIL;
+    c->srclen = c->src ? strlen(c->src) : 0;
     if (!c->has_box && !frep_program_box(c->p, c->box)) {
         for (int i = 0; i < 3; i++) {
             c->box[i] = -10;
@@ -146,7 +175,11 @@ int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *
     }
     char err[256];
     int rc = mesh_polygonize(&f, &o, m, st, err, sizeof err);
+    frep_runtime_error re;
+    mesh_field_program_errors(&f, &re);
+    mesh_cli_add_errors(c, &re);
     mesh_field_program_free(&f);
+    mesh_cli_report_errors(c);
     if (tty && last >= 0) fputs("\r                     \r", stderr);
     if (rc != 0) {
         fprintf(stderr, "frep %s: %s\n", sub, err);
@@ -196,21 +229,23 @@ int cmd_mesh(int argc, char **argv)
         { "threads", required_argument, NULL, 't' },
         { "quiet", no_argument, NULL, 'q' },
         { "check", no_argument, NULL, 'C' },
+        { "verbose", no_argument, NULL, 'v' },
         { NULL, 0, NULL, 0 },
     };
     mesh_cli mc;
     mesh_cli_init(&mc);
     const char *out = NULL;
-    int ascii = 0, quiet = 0, check = 0, c, rc;
+    int ascii = 0, quiet = 0, check = 0, verbose = 0, c, rc;
     optind = 1;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "ho:m:a:b:g:t:q", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "ho:m:a:b:g:t:qv", longopts, NULL)) != -1) {
         switch (c) {
         case 'h': fputs(mesh_usage, stdout); mesh_cli_free(&mc); return CLI_OK;
         case 'o': out = optarg; break;
         case 'A': ascii = 1; break;
         case 'q': quiet = 1; break;
         case 'C': check = 1; break;
+        case 'v': verbose = 1; break;
         default:
             rc = mesh_cli_option(&mc, "mesh", c, optarg);
             if (rc == -1)
@@ -253,6 +288,12 @@ int cmd_mesh(int argc, char **argv)
                         "grid %d, %.3f s\n", out, m.nverts, m.ntris, ascii ? "ASCII " : "",
                     meshio_format_name(fmt), mc.box[0], mc.box[3], mc.box[1], mc.box[4],
                     mc.box[2], mc.box[5], mc.grid, st.seconds);
+        }
+        if (rc == CLI_OK && verbose) {
+            FILE *sf = strcmp(out, "-") == 0 ? stderr : stdout;
+            fprintf(sf, "work: %zu octree nodes, %zu of %zu blocks, %zu points evaluated, %zu "
+                        "gradients, %zu cells with several components\n", st.octree_nodes,
+                    st.blocks, st.blocks_total, st.eval_points, st.grad_points, st.cells_split);
         }
         if (rc == CLI_OK && check) {
             mesh_check mk;

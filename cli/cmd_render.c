@@ -172,6 +172,8 @@ int cmd_render(int argc, char **argv)
             fprintf(stderr, "frep render: evaluation failed\n");
             goto done;
         }
+        mesh_cli_add_errors(&mc, &e);
+        mesh_cli_report_errors(&mc);
         for (size_t i = 0; i < cl->n; i++) {
             double gx = g[i], gy = g[cl->n + i], gz = g[2 * cl->n + i];
             double gl = sqrt(gx * gx + gy * gy + gz * gz);

@@ -173,7 +173,11 @@ int cmd_sample(int argc, char **argv)
         so.mesh.iso = mc.iso;
         so.mesh.nthreads = mc.nthreads;
         rc = sample_field(&f, &so, &cl, err, sizeof err);
+        frep_runtime_error re;
+        mesh_field_program_errors(&f, &re);
+        mesh_cli_add_errors(&mc, &re);
         mesh_field_program_free(&f);
+        mesh_cli_report_errors(&mc);
     }
     if (rc != 0) {
         fprintf(stderr, "frep sample: %s: %s\n", in, err);

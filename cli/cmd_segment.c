@@ -88,7 +88,7 @@ typedef struct out_ctx {
 static int write_hf_cb(FILE *f, void *user)
 {
     out_ctx *o = user;
-    return segment_write_hf(f, o->r->prims, o->r->nprims, o->header);
+    return segment_write_hf(f, o->r->prims, o->r->nprims, o->header, o->r->diagonal);
 }
 
 static int write_fit_cb(FILE *f, void *user)
@@ -152,26 +152,42 @@ static int parse_types(const char *s, unsigned *mask)
     return 0;
 }
 
-static void print_params(const prim *q)
+/* Summary precision: relative to the diagonal for lengths, absolute for directions. */
+#define SUMMARY_QUANTUM 1e-6
+
+/* One number of the summary table, rounded (prim_format_number). */
+static const char *num(char *buf, double v, double quantum)
 {
+    prim_format_number(buf, v, quantum);
+    return buf;
+}
+
+static void print_params(const prim *q, double diag)
+{
+    char b[8][PRIM_NUM_BUF];
+    double qp = SUMMARY_QUANTUM * diag, qd = SUMMARY_QUANTUM;
     switch (q->type) {
     case PRIM_PLANE:
-        printf("n=(%.4g, %.4g, %.4g) d=%.6g", q->p[0], q->p[1], q->p[2], q->r);
+        printf("n=(%s, %s, %s) d=%s", num(b[0], q->p[0], qd), num(b[1], q->p[1], qd),
+               num(b[2], q->p[2], qd), num(b[3], q->r, qp));
         break;
     case PRIM_SPHERE:
-        printf("c=(%.6g, %.6g, %.6g) r=%.6g", q->p[0], q->p[1], q->p[2], q->r);
+        printf("c=(%s, %s, %s) r=%s", num(b[0], q->p[0], qp), num(b[1], q->p[1], qp),
+               num(b[2], q->p[2], qp), num(b[3], q->r, qp));
         break;
     case PRIM_CYLINDER:
-        printf("p=(%.6g, %.6g, %.6g) a=(%.4g, %.4g, %.4g) r=%.6g", q->p[0], q->p[1], q->p[2],
-               q->a[0], q->a[1], q->a[2], q->r);
-        break;
     case PRIM_CONE:
-        printf("apex=(%.6g, %.6g, %.6g) a=(%.4g, %.4g, %.4g) angle=%.4g deg", q->p[0], q->p[1],
-               q->p[2], q->a[0], q->a[1], q->a[2], q->r * 180.0 / 3.14159265358979323846);
-        break;
     case PRIM_TORUS:
-        printf("c=(%.6g, %.6g, %.6g) a=(%.4g, %.4g, %.4g) R=%.6g r=%.6g", q->p[0], q->p[1],
-               q->p[2], q->a[0], q->a[1], q->a[2], q->R, q->r);
+        printf("%s=(%s, %s, %s) a=(%s, %s, %s)", q->type == PRIM_CYLINDER ? "p"
+                                                 : q->type == PRIM_CONE   ? "apex" : "c",
+               num(b[0], q->p[0], qp), num(b[1], q->p[1], qp), num(b[2], q->p[2], qp),
+               num(b[3], q->a[0], qd), num(b[4], q->a[1], qd), num(b[5], q->a[2], qd));
+        if (q->type == PRIM_CYLINDER)
+            printf(" r=%s", num(b[6], q->r, qp));
+        else if (q->type == PRIM_CONE)
+            printf(" angle=%s deg", num(b[6], q->r * 180.0 / 3.14159265358979323846, 1e-4));
+        else
+            printf(" R=%s r=%s", num(b[6], q->R, qp), num(b[7], q->r, qp));
         break;
     case PRIM__COUNT:
         break;
@@ -316,7 +332,7 @@ int cmd_segment(int argc, char **argv)
                 printf("  %-5s %-9s %9s %10s  ", name, prim_type_name(q->type), "separating", "");
             else
                 printf("  %-5s %-9s %9zu %10.3g  ", name, prim_type_name(q->type), q->support, q->rms);
-            print_params(q);
+            print_params(q, r.diagonal);
             putchar('\n');
         }
         printf("  %zu fitted, %zu separating; %zu points unassigned; %zu samples; %.2f s\n",

@@ -25,6 +25,7 @@ void evolve_options_init(evolve_options *o)
     o->alpha_deg = EVOLVE_DEFAULT_ALPHA_DEG;
     o->lambda_scale = 1.0;
     o->simplify = 1;
+    o->polish = 1;
 }
 
 void evolve_result_free(evolve_result *r)
@@ -470,6 +471,34 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
             if (pr) goto oom;
             done = res->part.partitioned;
             res->partitioned = done;
+            if (done && o->polish && gr.best.len) {
+                /* Polish: a GA over all primitives seeded with the merged tree. The
+                 * merge is greedy and the clique trees see only their points; the
+                 * seeded GA repairs what that misses (a part a clique got wrong, a
+                 * subtraction the merge placed too low) and never does worse, since
+                 * the seed is kept by elitism. Its depth limit leaves room to grow
+                 * the seed. */
+                gp_config pc = o->gp;
+                int dd = tree_depth(gr.best.code, gr.best.len) + GP_DEPTH_SLACK;
+                int d0 = pc.max_depth > 0 ? pc.max_depth : gp_default_depth((uint32_t)nprims);
+                pc.max_depth = dd > d0 ? dd : d0;
+                if (pc.max_time > 0) pc.max_time = fmax(pc.max_time - (gp_now() - t0), 1e-3);
+                gp_result pg;
+                memset(&pg, 0, sizeof pg);
+                if (gp_run(&pc, sc, &gr.best, 1, fn, user, &pg)) {
+                    tree_free(&pg.best);
+                    goto oom;
+                }
+                res->part.polish_generations = pg.generations;
+                if (pg.best.len && pg.fitness > gr.fitness) {
+                    tree_free(&gr.best);
+                    gr.best = pg.best;
+                    gr.fitness = pg.fitness;
+                } else {
+                    tree_free(&pg.best);
+                }
+                gr.generations += pg.generations;
+            }
         }
         if (!done) {
             tree_free(&gr.best);
@@ -566,7 +595,8 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
     fprintf(f, "-- seed %llu, set operations %s, %s", (unsigned long long)m->seed, so,
             r->partitioned ? "partitioned" : "not partitioned");
     if (r->partitioned)
-        fprintf(f, " (%u cliques, largest %u)", r->part.ncliques, r->part.largest);
+        fprintf(f, " (%u cliques, largest %u; %u generations polishing)", r->part.ncliques,
+                r->part.largest, r->part.polish_generations);
     fprintf(f, ", %u generations, %.2f s\n", r->generations, r->seconds);
     fprintf(f, "-- fitness %.6g on %zu scored points; tree size %u nodes, %u primitives\n",
             r->fitness, r->nsample, t->len, k);

@@ -39,6 +39,8 @@ typedef struct evolve_options {
     double alpha_deg;
     double lambda_scale;     /* lambda = lambda_scale * ln(N) per node */
     int simplify;            /* 1: simplify the result */
+    int polish;              /* 1: after a partitioned run, a GA over all primitives
+                                seeded with the merged tree (not in the paper) */
     /* --residual: the base model's value bf[i] and gradient bg[3i+c] at every cloud
      * point (residual.h), NULL otherwise. The GA then runs on the points the base
      * explains poorly, and its tree is joined to the base, which is leaf number nprims

@@ -653,6 +653,28 @@ out:
     return rc;
 }
 
+/* Primitives that explain point i alone, as themselves or complemented (|f| < eps_d,
+ * normal within alpha of -grad f or of grad f): own[j] = 1. Returns their number. */
+static uint32_t point_owners(const gp_cache *c, size_t i, uint8_t *own)
+{
+    uint32_t k = 0;
+    double ca = cos(c->alpha);
+    const double *nn = c->nrm + 3 * i;
+    for (uint32_t j = 0; j < c->nprims; j++) {
+        double f = c->v[(size_t)j * c->n + i];
+        if (!(fabs(f) < c->eps_d)) continue;
+        double g[3] = { c->g[(3 * (size_t)j) * c->n + i], c->g[(3 * (size_t)j + 1) * c->n + i],
+                        c->g[(3 * (size_t)j + 2) * c->n + i] };
+        double gl = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+        if (!(gl > 0)) continue;
+        if (fabs(g[0] * nn[0] + g[1] * nn[1] + g[2] * nn[2]) / gl > ca) {
+            own[j] = 1;
+            k++;
+        }
+    }
+    return k;
+}
+
 int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const double *y,
              const double *z, const gp_obb *boxes, double margin, gp_progress_fn fn,
              void *user, gp_result *res, part_info *info)
@@ -697,23 +719,54 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
     for (int i = 0; i < nthreads; i++)
         if (!(ev[i] = gp_eval_new())) goto out;
 
-    /* Points of each clique: inside the grown box of one of its members. */
+    /* Points of each clique: inside the grown box of one of its members. A point that
+     * a primitive explains (its owners) goes only to the cliques holding an owner whose
+     * members' boxes contain it most often: a plane shared by several parts brings
+     * each part's face to that part's clique, not to every clique of the plane (where
+     * the clique's correct tree cannot explain it and the GA is pushed to wrong ones). */
+    uint8_t *owner = calloc(c->nprims ? c->nprims : 1, 1);
+    uint32_t *bestcnt = calloc(c->n ? c->n : 1, sizeof *bestcnt);
+    if (!owner || !bestcnt) {
+        free(owner);
+        free(bestcnt);
+        goto out;
+    }
+    for (int pass = 0; pass < 2; pass++)
+        for (size_t i = 0; i < c->n; i++) {
+            double p[3] = { x[i], y[i], z[i] };
+            uint32_t nown = point_owners(c, i, owner);
+            for (uint32_t q = 0; q < nq; q++) {
+                const uint32_t *mem = cl.members + cl.start[q];
+                uint32_t k = cl.start[q + 1] - cl.start[q], cnt = 0, has_owner = 0;
+                for (uint32_t m = 0; m < k; m++) {
+                    cnt += (uint32_t)part_obb_contains(&boxes[mem[m]], p, margin);
+                    has_owner |= owner[mem[m]];
+                }
+                if (nown && !has_owner) continue;
+                if (pass == 0) {
+                    if (cnt > bestcnt[i]) bestcnt[i] = cnt;
+                    continue;
+                }
+                if (cnt > 0 && (nown == 0 || cnt == bestcnt[i])) {
+                    if (!pc[q].pts) {
+                        pc[q].pts = malloc((c->n ? c->n : 1) * sizeof *pc[q].pts);
+                        if (!pc[q].pts) failed = 1;
+                    }
+                    if (pc[q].pts) pc[q].pts[pc[q].npts++] = i;
+                }
+            }
+            for (uint32_t j = 0; j < c->nprims; j++) owner[j] = 0;
+        }
+    free(owner);
+    free(bestcnt);
+    if (failed) goto out;
     for (uint32_t q = 0; q < nq; q++) {
         const uint32_t *mem = cl.members + cl.start[q];
         uint32_t k = cl.start[q + 1] - cl.start[q];
-        pc[q].pts = malloc((c->n ? c->n : 1) * sizeof *pc[q].pts);
         pc[q].prims = malloc((size_t)k * sizeof *pc[q].prims);
-        if (!pc[q].pts || !pc[q].prims) goto out;
+        if (!pc[q].prims) goto out;
         memcpy(pc[q].prims, mem, (size_t)k * sizeof *mem);
         pc[q].nprims = k;
-        for (size_t i = 0; i < c->n; i++) {
-            double p[3] = { x[i], y[i], z[i] };
-            for (uint32_t m = 0; m < k; m++)
-                if (part_obb_contains(&boxes[mem[m]], p, margin)) {
-                    pc[q].pts[pc[q].npts++] = i;
-                    break;
-                }
-        }
     }
 
     long nql = (long)nq;

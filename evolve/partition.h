@@ -81,6 +81,7 @@ typedef struct part_info {
     uint32_t nedges, ncliques, largest;  /* graph and clique figures */
     int partitioned;     /* 0: fell back (one clique, too many cliques) */
     uint32_t generations;/* sum over the cliques' GAs */
+    uint32_t polish_generations; /* of the seeded GA after the merge (evolve.c) */
 } part_info;
 
 /* The whole acceleration on cache c, whose points are x/y/z[0..c->n), with proxy

@@ -5,6 +5,8 @@
  */
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "prim.h"
 
@@ -113,29 +115,78 @@ const char *prim_type_name(prim_type t)
     return "?";
 }
 
-void prim_write_call(FILE *f, const prim *q)
+void prim_format_number(char *buf, double v, double quantum)
 {
+    if (!isfinite(v)) {
+        snprintf(buf, PRIM_NUM_BUF, "%.17g", v);
+        return;
+    }
+    if (quantum > 0 && fabs(v) < 0.5 * quantum) {
+        strcpy(buf, "0");
+        return;
+    }
+    /* At 17 significant digits every double reads back exactly, so the loop ends. */
+    for (int digits = 1; digits <= 17; digits++) {
+        snprintf(buf, PRIM_NUM_BUF, "%.*g", digits, v);
+        double t = strtod(buf, NULL);
+        if (quantum > 0 ? fabs(t - v) <= 0.5 * quantum : t == v) break;
+    }
+    if (strcmp(buf, "-0") == 0) strcpy(buf, "0");
+}
+
+void prim_write_call_scaled(FILE *f, const prim *q, double scale)
+{
+    int exact = !(scale > 0) || !isfinite(scale);
+    double qp = exact ? 0 : PRIM_POS_QUANTUM * scale, qd = exact ? 0 : PRIM_DIR_QUANTUM;
+    /* Each argument after x with its quantum, in the call's order. */
+    double v[8], qu[8];
+    int n = 0;
+    const char *name = "frPlane";
     switch (q->type) {
     case PRIM_PLANE:
-        fprintf(f, "frPlane(x, %.17g, %.17g, %.17g, %.17g)", q->p[0], q->p[1], q->p[2], q->r);
-        return;
     case PRIM_SPHERE:
-        fprintf(f, "frSphere(x, %.17g, %.17g, %.17g, %.17g)", q->p[0], q->p[1], q->p[2], q->r);
-        return;
-    case PRIM_CYLINDER:
-        fprintf(f, "frCylinder(x, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g)", q->p[0],
-                q->p[1], q->p[2], q->a[0], q->a[1], q->a[2], q->r);
-        return;
-    case PRIM_CONE:
-        fprintf(f, "frCone(x, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g)", q->p[0],
-                q->p[1], q->p[2], q->a[0], q->a[1], q->a[2], q->r);
-        return;
-    case PRIM_TORUS:
-        fprintf(f, "frTorus(x, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g)",
-                q->p[0], q->p[1], q->p[2], q->a[0], q->a[1], q->a[2], q->R, q->r);
-        return;
-    case PRIM__COUNT:
+        name = q->type == PRIM_PLANE ? "frPlane" : "frSphere";
+        for (int k = 0; k < 3; k++) {
+            v[n] = q->p[k];
+            qu[n++] = q->type == PRIM_PLANE ? qd : qp;
+        }
+        v[n] = q->r;
+        qu[n++] = qp;
         break;
+    case PRIM_CYLINDER:
+    case PRIM_CONE:
+    case PRIM_TORUS:
+        name = q->type == PRIM_CYLINDER ? "frCylinder" : q->type == PRIM_CONE ? "frCone"
+                                                                            : "frTorus";
+        for (int k = 0; k < 3; k++) {
+            v[n] = q->p[k];
+            qu[n++] = qp;
+        }
+        for (int k = 0; k < 3; k++) {
+            v[n] = q->a[k];
+            qu[n++] = qd;
+        }
+        if (q->type == PRIM_TORUS) {
+            v[n] = q->R;
+            qu[n++] = qp;
+        }
+        v[n] = q->r;
+        qu[n++] = q->type == PRIM_CONE ? qd : qp;
+        break;
+    case PRIM__COUNT:
+        fputs("0", f);
+        return;
     }
-    fputs("0", f);
+    fprintf(f, "%s(x", name);
+    for (int k = 0; k < n; k++) {
+        char buf[PRIM_NUM_BUF];
+        prim_format_number(buf, v[k], qu[k]);
+        fprintf(f, ", %s", buf);
+    }
+    fputc(')', f);
+}
+
+void prim_write_call(FILE *f, const prim *q)
+{
+    prim_write_call_scaled(f, q, 0.0);
 }

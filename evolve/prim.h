@@ -48,7 +48,25 @@ void prim_eval_many(const prim *q, size_t n, const double *x, const double *y,
 
 /* Name of a type as in .fit files and summaries ("plane", "sphere", ...). */
 const char *prim_type_name(prim_type t);
-/* The frep source call for q, e.g. "frSphere(x, 1, 2, 3, 0.5)", %.17g numbers. */
+/* Printed precision of prim_write_call_scaled, relative to the model's size (scale,
+ * e.g. the cloud's diagonal) for positions, radii and plane offsets, and absolute for
+ * unit-vector components and cone angles (radians). Fitting noise is orders of
+ * magnitude larger, so these digits only drop round-off like 2.9e-13 for 0. */
+#define PRIM_POS_QUANTUM 1e-7
+#define PRIM_DIR_QUANTUM 1e-9
+
+/* The frep source call for q, e.g. "frSphere(x, 1, 2, 3, 0.5)", each number in the
+ * shortest form that reads back exactly. */
 void prim_write_call(FILE *f, const prim *q);
+/* The same with numbers rounded for reading: each printed value is within half a
+ * quantum of the fitted one (PRIM_POS_QUANTUM * scale for positions and lengths,
+ * PRIM_DIR_QUANTUM for directions and angles), in the fewest significant digits.
+ * scale <= 0 (or not finite) means exact output, as prim_write_call. */
+void prim_write_call_scaled(FILE *f, const prim *q, double scale);
+/* Format v into buf (at least PRIM_NUM_BUF bytes) with the fewest significant digits
+ * that stay within quantum / 2 of v ("0" when |v| is below that); quantum <= 0: the
+ * shortest form that reads back exactly. */
+#define PRIM_NUM_BUF 32
+void prim_format_number(char *buf, double v, double quantum);
 
 #endif

@@ -27,6 +27,10 @@
 #define SUBSET_FIRST 512
 /* Most scoring subsets (doubling from SUBSET_FIRST covers 2^31 points). */
 #define MAX_SUBSETS 40
+/* Point tests below which a loop runs on one thread: starting a parallel region costs
+ * more than this work, and idle OpenMP threads spin, which on a loaded machine takes
+ * CPU from the working one. */
+#define PAR_MIN_WORK 65536
 /* Minimal samples drawn per round before the acceptance test. */
 #define DRAWS_PER_ROUND 64
 /* Candidates kept alive at once: older, weaker ones are dropped beyond this. */
@@ -157,6 +161,59 @@ static int compatible(const prim *q, const frep_cloud *c, size_t i, double eps, 
     double gl = norm(g);
     double d = c->nx[i] * g[0] + c->ny[i] * g[1] + c->nz[i] * g[2];
     return fabs(d) >= cosn * gl && gl > 0;
+}
+
+/* The test of compatible() for many points: the type's formula with its constants
+ * hoisted (no gradient normalization, no call per point). Unit axes and normals. */
+typedef struct kern {
+    prim_type t;
+    double p[3], a[3], r, R, s, c; /* s, c: sine and cosine of a cone's half-angle */
+    double eps, cosn;
+} kern;
+
+static void kern_init(kern *k, const prim *q, double eps, double cosn)
+{
+    k->t = q->type;
+    memcpy(k->p, q->p, sizeof k->p);
+    memcpy(k->a, q->a, sizeof k->a);
+    k->r = q->r;
+    k->R = q->R;
+    k->s = q->type == PRIM_CONE ? sin(q->r) : 0;
+    k->c = q->type == PRIM_CONE ? cos(q->r) : 0;
+    k->eps = eps;
+    k->cosn = cosn;
+}
+
+static inline int kern_test(const kern *k, const double x[3], const double nv[3])
+{
+    if (k->t == PRIM_PLANE) {
+        double f = k->r - dot(k->p, x);
+        return fabs(f) <= k->eps && fabs(dot(k->p, nv)) >= k->cosn;
+    }
+    double v[3];
+    sub(x, k->p, v);
+    if (k->t == PRIM_SPHERE) {
+        double l = sqrt(dot(v, v));
+        return fabs(k->r - l) <= k->eps && l > 0 && fabs(dot(v, nv)) >= k->cosn * l;
+    }
+    double h = dot(v, k->a), rho2 = dot(v, v) - h * h;
+    double rho = sqrt(rho2 > 0 ? rho2 : 0);
+    if (!(rho > 0)) return 0;
+    double an = dot(k->a, nv), wn = dot(v, nv) - h * an; /* w = v - h a, the radial part */
+    switch (k->t) {
+    case PRIM_CYLINDER:
+        return fabs(k->r - rho) <= k->eps && fabs(wn) >= k->cosn * rho;
+    case PRIM_CONE:
+        return fabs(h * k->s - rho * k->c) <= k->eps &&
+               fabs(k->s * an * rho - k->c * wn) >= k->cosn * rho;
+    case PRIM_TORUS: {
+        double dr = rho - k->R, l = sqrt(dr * dr + h * h);
+        return fabs(k->r - l) <= k->eps && l > 0 &&
+               fabs(dr * wn + h * an * rho) >= k->cosn * l * rho;
+    }
+    case PRIM_PLANE: case PRIM_SPHERE: case PRIM__COUNT: break;
+    }
+    return 0;
 }
 
 /* ---- candidates from minimal samples --------------------------------------- */
@@ -367,6 +424,43 @@ static int cmp_cellpt(const void *a, const void *b)
     return (x->pt > y->pt) - (x->pt < y->pt);
 }
 
+/* Radix sort bits per pass: 2^11 counters fit in L1. */
+#define RADIX_BITS 11
+/* Sort by (cell, pt) as cmp_cellpt does, by a stable LSD radix sort on the cell (the
+ * input is in pt order, so equal cells stay in pt order): linear time where qsort's
+ * comparisons dominated the extraction of large patches. Returns -1 when out of
+ * memory (nothing sorted). */
+static int sort_cellpt(cellpt *a, size_t n)
+{
+    uint64_t maxc = 0;
+    for (size_t i = 0; i < n; i++)
+        if (a[i].cell > maxc) maxc = a[i].cell;
+    int bits = 0;
+    while (bits < 64 && (maxc >> bits) != 0) bits++;
+    if (bits == 0) return 0;
+    cellpt *tmp = malloc(n * sizeof *tmp);
+    if (!tmp) return -1;
+    size_t cnt[1u << RADIX_BITS];
+    cellpt *src = a, *dst = tmp;
+    for (int sh = 0; sh < bits; sh += RADIX_BITS) {
+        memset(cnt, 0, sizeof cnt);
+        for (size_t i = 0; i < n; i++) cnt[(src[i].cell >> sh) & ((1u << RADIX_BITS) - 1)]++;
+        size_t sum = 0;
+        for (size_t k = 0; k < (1u << RADIX_BITS); k++) {
+            size_t t = cnt[k];
+            cnt[k] = sum;
+            sum += t;
+        }
+        for (size_t i = 0; i < n; i++) dst[cnt[(src[i].cell >> sh) & ((1u << RADIX_BITS) - 1)]++] = src[i];
+        cellpt *t = src;
+        src = dst;
+        dst = t;
+    }
+    if (src != a) memcpy(a, src, n * sizeof *a);
+    free(tmp);
+    return 0;
+}
+
 static uint32_t uf_find(uint32_t *par, uint32_t i)
 {
     while (par[i] != i) {
@@ -493,7 +587,7 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
         cp[i].cell = ci[0] * ncell[1] + ci[1];
         cp[i].pt = (uint32_t)i;
     }
-    qsort(cp, n, sizeof *cp, cmp_cellpt);
+    if (sort_cellpt(cp, n)) qsort(cp, n, sizeof *cp, cmp_cellpt);
     /* Unique cells: cell j spans cp[start[j]..]; union-find over cells. */
     size_t ncells = 0;
     uint32_t *start = malloc((n + 1) * sizeof *start);
@@ -681,7 +775,19 @@ int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
         double ev[3], vec[9];
         normals_sym3_eig(cov, ev, vec);
         double nrm[3] = {vec[0], vec[1], vec[2]};
-        if (dot(nrm, q->p) < 0) for (int k = 0; k < 3; k++) nrm[k] = -nrm[k];
+        /* Outward by the inliers' own normals when there are any (a plane that
+         * replaces a curved shape has no orientation of its own), else as before. */
+        double ref[3] = {q->p[0], q->p[1], q->p[2]};
+        if (c->has_normals) {
+            double sn[3] = {0, 0, 0};
+            for (size_t j = 0; j < n; j++) {
+                sn[0] += c->nx[idx[j]];
+                sn[1] += c->ny[idx[j]];
+                sn[2] += c->nz[idx[j]];
+            }
+            if (fabs(dot(sn, nrm)) > 1e-9 * (double)n) memcpy(ref, sn, sizeof ref);
+        }
+        if (dot(nrm, ref) < 0) for (int k = 0; k < 3; k++) nrm[k] = -nrm[k];
         memcpy(q->p, nrm, sizeof nrm);
         q->r = dot(nrm, mean);
         free(px);
@@ -766,6 +872,9 @@ typedef struct det {
     size_t n, nalive;
     unsigned char *alive;
     uint32_t *shuf;          /* random permutation: the scoring subsets in order */
+    double *spts;            /* points and normals in that order, 6 per point, so that
+                                scoring streams through memory */
+    unsigned char *salive;   /* alive[] in that order */
     size_t sub_start[MAX_SUBSETS + 1];
     size_t sub_alive[MAX_SUBSETS];
     int nsub;
@@ -774,6 +883,8 @@ typedef struct det {
     uint32_t *alive_list;    /* live points, for drawing the first sample point */
     double level_score[OCT_LEVELS + 1];
     double rmax;
+    double band;             /* inlier distance of the current extraction (>= epsilon) */
+    uint32_t *tmp;           /* scratch index list of n entries */
 } det;
 
 static uint64_t spread3(uint64_t v)
@@ -817,17 +928,23 @@ static void score_next(det *d, cand *cs, const int *which, size_t nw)
 {
     const ransac_config *cfg = d->cfg;
     long lw = (long)nw;
+    size_t work = 0;
+    for (size_t w = 0; w < nw; w++) {
+        const cand *k = &cs[which[w]];
+        if (k->nsub < d->nsub) work += d->sub_start[k->nsub + 1] - d->sub_start[k->nsub];
+    }
+    (void)work;
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 4) num_threads(cfg->nthreads > 0 ? cfg->nthreads : omp_get_max_threads())
+#pragma omp parallel for schedule(dynamic, 4) if (work >= PAR_MIN_WORK) num_threads(cfg->nthreads > 0 ? cfg->nthreads : omp_get_max_threads())
 #endif
     for (long w = 0; w < lw; w++) {
         cand *k = &cs[which[w]];
         if (k->nsub >= d->nsub) continue;
         size_t s = 0;
-        for (size_t j = d->sub_start[k->nsub]; j < d->sub_start[k->nsub + 1]; j++) {
-            uint32_t i = d->shuf[j];
-            if (d->alive[i] && compatible(&k->q, d->c, i, cfg->epsilon, cfg->cos_normal)) s++;
-        }
+        kern kn;
+        kern_init(&kn, &k->q, cfg->epsilon, cfg->cos_normal);
+        for (size_t j = d->sub_start[k->nsub]; j < d->sub_start[k->nsub + 1]; j++)
+            s += d->salive[j] && kern_test(&kn, d->spts + 6 * j, d->spts + 6 * j + 3);
         k->score += s;
         k->seen += d->sub_alive[k->nsub];
         k->nsub++;
@@ -839,7 +956,10 @@ static void recount_subsets(det *d)
 {
     for (int b = 0; b < d->nsub; b++) {
         size_t a = 0;
-        for (size_t j = d->sub_start[b]; j < d->sub_start[b + 1]; j++) a += d->alive[d->shuf[j]];
+        for (size_t j = d->sub_start[b]; j < d->sub_start[b + 1]; j++) {
+            d->salive[j] = d->alive[d->shuf[j]];
+            a += d->salive[j];
+        }
         d->sub_alive[b] = a;
     }
     size_t m = 0;
@@ -969,6 +1089,11 @@ static int sane(const prim *q, double rmax)
     return 1;
 }
 
+/* Refit / band-widening passes per extraction: the band settles in two or three. */
+#define NOISE_PASSES 4
+/* A new band must exceed the current one by this factor to be worth another pass. */
+#define NOISE_BAND_GROWTH 1.05
+
 /* Probability of drawing a minimal sample of k points from a shape of size `support`
  * with localized sampling (Schnabel et al., eq. 2). */
 static double p_draw(double support, double N, int k)
@@ -987,13 +1112,17 @@ static int cmp_cand_est(const cand *a, const cand *b)
 static size_t gather_inliers(det *d, const prim *q, unsigned char *flag, uint32_t *out)
 {
     const ransac_config *cfg = d->cfg;
+    const frep_cloud *c = d->c;
     long ln = (long)d->n;
+    kern kn;
+    kern_init(&kn, q, d->band, cfg->cos_normal);
 #ifdef _OPENMP
-#pragma omp parallel for schedule(static, 4096) num_threads(cfg->nthreads > 0 ? cfg->nthreads : omp_get_max_threads())
+#pragma omp parallel for schedule(static, 4096) if (d->n >= PAR_MIN_WORK) num_threads(cfg->nthreads > 0 ? cfg->nthreads : omp_get_max_threads())
 #endif
     for (long li = 0; li < ln; li++) {
         size_t i = (size_t)li;
-        flag[i] = d->alive[i] && compatible(q, d->c, i, cfg->epsilon, cfg->cos_normal);
+        double x[3] = {c->x[i], c->y[i], c->z[i]}, nv[3] = {c->nx[i], c->ny[i], c->nz[i]};
+        flag[i] = d->alive[i] && kern_test(&kn, x, nv);
     }
     size_t m = 0;
     for (size_t i = 0; i < d->n; i++)
@@ -1004,7 +1133,59 @@ static size_t gather_inliers(det *d, const prim *q, unsigned char *flag, uint32_
 static size_t support_of(det *d, const prim *q, unsigned char *flag, uint32_t *inl)
 {
     size_t m = gather_inliers(d, q, flag, inl);
-    return largest_component(q, d->c, inl, m, d->cfg->cluster);
+    /* A wider band spreads a patch as much in the parameter domain. */
+    return largest_component(q, d->c, inl, m, fmax(d->cfg->cluster, d->band));
+}
+
+/* Noise-adaptive extraction band. With Gaussian noise of about epsilon, a band of
+ * epsilon holds only the middle of a surface's points and the rest come back as
+ * shells of the same shape (an onion of spheres). The noise is measured on the
+ * refitted shape: sigma = 1.4826 median|f| over the live, normal-compatible points
+ * within NOISE_PROBE epsilons (robust to the few points of other surfaces there), and
+ * the band becomes NOISE_BAND_SIGMAS sigma, at most NOISE_PROBE epsilons. On clean or
+ * mildly noisy data sigma is far below epsilon and nothing changes. */
+#define NOISE_PROBE 3.0
+#define NOISE_BAND_SIGMAS 2.5
+#define NOISE_MAD_TO_SIGMA 1.4826
+static double noise_band(det *d, const prim *q, unsigned char *flag)
+{
+    uint32_t *tmp = d->tmp;
+    double eps = d->cfg->epsilon, saved = d->band;
+    d->band = NOISE_PROBE * eps;
+    size_t m = gather_inliers(d, q, flag, tmp);
+    d->band = saved;
+    if (m < RANSAC_MIN_CLOUD) return eps;
+    double *r = malloc(m * sizeof *r);
+    if (!r) return eps;
+    for (size_t j = 0; j < m; j++) {
+        double p[3];
+        point(d->c, tmp[j], p);
+        r[j] = fabs(prim_eval(q, p, NULL));
+    }
+    /* Median by selection (Hoare's quickselect; bounded: each pass shrinks the range). */
+    size_t lo = 0, hi = m - 1, k = m / 2;
+    while (lo < hi) {
+        double pivot = r[lo + (hi - lo) / 2];
+        size_t i = lo, j = hi;
+        while (i <= j) {
+            while (r[i] < pivot) i++;
+            while (r[j] > pivot) j--;
+            if (i <= j) {
+                double t = r[i];
+                r[i] = r[j];
+                r[j] = t;
+                i++;
+                if (j == 0) break;
+                j--;
+            }
+        }
+        if (k <= j) hi = j;
+        else if (k >= i) lo = i;
+        else break;
+    }
+    double sigma = NOISE_MAD_TO_SIGMA * r[k];
+    free(r);
+    return fmin(NOISE_PROBE * eps, fmax(eps, NOISE_BAND_SIGMAS * sigma));
 }
 
 /* A curved candidate that a plane (or a cone that a cylinder) explains about as well is
@@ -1058,6 +1239,35 @@ static size_t prefer_simpler(det *d, prim *q, size_t m, unsigned char *flag, uin
     return best_m;
 }
 
+/* Inliers of q at epsilon, refitted, then at the noise-adaptive band (noise_band)
+ * and refitted again until the band settles; q is updated, inl holds its support
+ * (returned) and d->band the band used. */
+static size_t refit_with_band(det *d, prim *q, size_t min_pts, unsigned char *flag,
+                              uint32_t *inl)
+{
+    d->band = d->cfg->epsilon;
+    size_t m = support_of(d, q, flag, inl);
+    for (int pass = 0; pass < NOISE_PASSES; pass++) {
+        prim q2 = *q;
+        if (m >= min_pts && ransac_refit(&q2, d->c, inl, m, REFIT_MAX_POINTS) == 0 &&
+            sane(&q2, d->rmax)) {
+            size_t m2 = support_of(d, &q2, flag, inl);
+            if (m2 >= m) {
+                *q = q2;
+                m = m2;
+            } else {
+                m = support_of(d, q, flag, inl);
+            }
+        }
+        if (m < min_pts) break;
+        double nb = noise_band(d, q, flag);
+        if (nb <= d->band * NOISE_BAND_GROWTH) break;
+        d->band = nb;
+        m = support_of(d, q, flag, inl);
+    }
+    return m;
+}
+
 static double rms_of(const prim *q, const frep_cloud *c, const uint32_t *idx, size_t n)
 {
     double s = 0;
@@ -1068,6 +1278,84 @@ static double rms_of(const prim *q, const frep_cloud *c, const uint32_t *idx, si
         s += f * f;
     }
     return n ? sqrt(s / (double)n) : 0;
+}
+
+/* A primitive is redundant when at least MERGE_FRACTION of its inliers are inliers of
+ * a larger one (at MERGE_BAND_SLACK times that one's band) and the two patches touch
+ * in the larger one's parameter domain. That is a facetted cylinder split in two, the
+ * outer rim of a noisy torus taken by a sphere, or a torus made of the leftovers
+ * around a facetted sphere. */
+#define MERGE_FRACTION 0.8
+#define MERGE_BAND_SLACK 1.5
+/* The union of the two patches must be one connected patch up to this fraction. */
+#define MERGE_CONNECTED 0.95
+
+/* Fold redundant primitives into the ones that explain their points: labels move,
+ * the larger primitive is refitted on the union, and the list is compacted. Every
+ * fold removes a primitive, so the loop ends. Out of memory: nothing is merged. */
+static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t *buf)
+{
+    const frep_cloud *c = d->c;
+    size_t n = c->n;
+    for (int changed = 1; changed && res->nprims > 1;) {
+        changed = 0;
+        size_t np = res->nprims;
+        /* Inliers of each primitive, contiguous (counting sort by label). */
+        size_t *start = calloc(np + 1, sizeof *start);
+        uint32_t *order = malloc((n + 1) * sizeof *order);
+        if (!start || !order) {
+            free(start);
+            free(order);
+            return;
+        }
+        for (size_t i = 0; i < n; i++)
+            if (res->label[i] >= 0) start[res->label[i] + 1]++;
+        for (size_t j = 0; j < np; j++) start[j + 1] += start[j];
+        for (size_t i = 0; i < n; i++)
+            if (res->label[i] >= 0) order[start[res->label[i]]++] = (uint32_t)i;
+        for (size_t j = np; j > 0; j--) start[j] = start[j - 1];
+        start[0] = 0;
+        for (size_t pi = 0; pi < np && !changed; pi++) {
+            size_t mp = start[pi + 1] - start[pi];
+            for (size_t qi = 0; qi < np && !changed; qi++) {
+                const prim *Q = &res->prims[qi];
+                size_t mq = start[qi + 1] - start[qi];
+                if (qi == pi || mq < mp || (mq == mp && qi > pi)) continue;
+                double band = MERGE_BAND_SLACK * bands[qi];
+                size_t hit = 0;
+                for (size_t j = start[pi]; j < start[pi + 1]; j++)
+                    hit += compatible(Q, c, order[j], band, d->cfg->cos_normal) != 0;
+                if ((double)hit < MERGE_FRACTION * (double)mp) continue;
+                /* Touching: one patch in Q's parameter domain. */
+                size_t mu = mp + mq;
+                memcpy(buf, order + start[qi], mq * sizeof *buf);
+                memcpy(buf + mq, order + start[pi], mp * sizeof *buf);
+                size_t kept = largest_component(Q, c, buf, mu, fmax(d->cfg->cluster, band));
+                if ((double)kept < MERGE_CONNECTED * (double)mu) continue;
+                memcpy(buf, order + start[qi], mq * sizeof *buf);
+                memcpy(buf + mq, order + start[pi], mp * sizeof *buf);
+                prim q2 = *Q;
+                if (ransac_refit(&q2, c, buf, mu, REFIT_MAX_POINTS) == 0 && sane(&q2, d->rmax))
+                    res->prims[qi] = q2;
+                Q = &res->prims[qi];
+                res->prims[qi].support = mu;
+                res->prims[qi].rms = rms_of(Q, c, buf, mu);
+                for (size_t j = start[pi]; j < start[pi + 1]; j++)
+                    res->label[order[j]] = (int32_t)qi;
+                /* Remove pi, shifting the later ones (labels follow). */
+                for (size_t k = pi; k + 1 < np; k++) {
+                    res->prims[k] = res->prims[k + 1];
+                    bands[k] = bands[k + 1];
+                }
+                for (size_t i = 0; i < n; i++)
+                    if (res->label[i] > (int32_t)pi) res->label[i]--;
+                res->nprims--;
+                changed = 1;
+            }
+        }
+        free(start);
+        free(order);
+    }
 }
 
 int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *res,
@@ -1082,6 +1370,7 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
     d.n = c->n;
     size_t n = c->n;
     size_t cap_prims = 16;
+    double *bands = malloc(cap_prims * sizeof *bands); /* extraction band per primitive */
     cand *pool = NULL;
     int *which = NULL;
     uint32_t *inl = NULL;
@@ -1091,6 +1380,9 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
     res->prims = malloc(cap_prims * sizeof *res->prims);
     d.alive = malloc(n + 1);
     d.shuf = malloc((n + 1) * sizeof *d.shuf);
+    d.spts = malloc((6 * n + 6) * sizeof *d.spts);
+    d.salive = malloc(n + 1);
+    d.tmp = malloc((n + 1) * sizeof *d.tmp);
     d.morton_idx = malloc((n + 1) * sizeof *d.morton_idx);
     d.morton = malloc((2 * n + 2) * sizeof *d.morton);
     d.alive_list = malloc((n + 1) * sizeof *d.alive_list);
@@ -1099,7 +1391,7 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
     inl = malloc((n + 1) * sizeof *inl);
     flag = malloc(n + 1);
     mk = malloc((n + 1) * sizeof *mk);
-    if (!res->label || !res->prims || !d.alive || !d.shuf || !d.morton_idx || !d.morton ||
+    if (!bands || !d.tmp || !d.spts || !d.salive || !res->label || !res->prims || !d.alive || !d.shuf || !d.morton_idx || !d.morton ||
         !d.alive_list || !pool || !which || !inl || !flag || !mk || !c->has_normals) {
         if (err) *err = dupstr(c->has_normals ? "out of memory" : "the cloud has no normals");
         goto fail;
@@ -1146,6 +1438,16 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         uint32_t t = d.shuf[i - 1];
         d.shuf[i - 1] = d.shuf[j];
         d.shuf[j] = t;
+    }
+    for (size_t j = 0; j < n; j++) {
+        uint32_t i = d.shuf[j];
+        double *sp = d.spts + 6 * j;
+        sp[0] = c->x[i];
+        sp[1] = c->y[i];
+        sp[2] = c->z[i];
+        sp[3] = c->nx[i];
+        sp[4] = c->ny[i];
+        sp[5] = c->nz[i];
     }
     d.sub_start[0] = 0;
     size_t sz = SUBSET_FIRST;
@@ -1264,19 +1566,17 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
                 break; /* a shape of the minimum size would have been found by now */
             continue;
         }
-        /* Extract: inliers, largest patch, refit, again with the refined shape. */
+        /* Extract: inliers, largest patch, refit, again with the refined shape; then
+         * widen the band to the measured noise and refit on the wider patch. */
         prim q = b->q;
-        size_t m = support_of(&d, &q, flag, inl);
-        prim q2 = q;
-        if (m >= min_pts && ransac_refit(&q2, c, inl, m, REFIT_MAX_POINTS) == 0 &&
-            sane(&q2, d.rmax)) {
-            size_t m2 = support_of(&d, &q2, flag, inl);
-            if (m2 >= m) {
-                q = q2;
-                m = m2;
-            }
+        size_t m = refit_with_band(&d, &q, min_pts, flag, inl);
+        if (m >= min_pts) {
+            prim_type before = q.type;
+            m = prefer_simpler(&d, &q, m, flag, inl);
+            /* A simpler shape measures its own noise: the band of a large cylinder
+             * standing in for a plane is wider than the plane's. */
+            if (q.type != before) m = refit_with_band(&d, &q, min_pts, flag, inl);
         }
-        if (m >= min_pts) m = prefer_simpler(&d, &q, m, flag, inl);
         m = support_of(&d, &q, flag, inl);
         int lvl = b->level;
         if (m < min_pts) {
@@ -1296,8 +1596,15 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
                 goto fail;
             }
             res->prims = np;
+            double *nb = realloc(bands, 2 * cap_prims * sizeof *nb);
+            if (!nb) {
+                if (err) *err = dupstr("out of memory");
+                goto fail;
+            }
+            bands = nb;
             cap_prims *= 2;
         }
+        bands[res->nprims] = d.band;
         q.support = m;
         q.rms = rms_of(&q, c, inl, m);
         q.separating = 0;
@@ -1324,8 +1631,13 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         draws_since = npool / ntypes;
         if (cfg->progress) cfg->progress(cfg->user, d.nalive, n, res->nprims);
     }
+    if (!res->interrupted) merge_redundant(&d, res, bands, inl);
+    free(bands);
     free(d.alive);
     free(d.shuf);
+    free(d.spts);
+    free(d.salive);
+    free(d.tmp);
     free(d.morton_idx);
     free(d.morton);
     free(d.alive_list);
@@ -1335,8 +1647,12 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
     free(flag);
     return 0;
 fail:
+    free(bands);
     free(d.alive);
     free(d.shuf);
+    free(d.spts);
+    free(d.salive);
+    free(d.tmp);
     free(d.morton_idx);
     free(d.morton);
     free(d.alive_list);

@@ -16,6 +16,15 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Points the optimizer fits at most (a seeded uniform subset; the RMS figures use every
+ * point): each iteration differentiates the tree with respect to every parameter at
+ * every point, and a few thousand points already fix a few dozen parameters. */
+#define REFIT_MAX_POINTS 4096
+/* Levenberg-Marquardt iterations per weight round, and rounds of re-frozen geometric
+ * weights: the start is close (the segmented fit), so few are needed. */
+#define REFIT_LM_ITER 50
+#define REFIT_ROUNDS 4
+
 /* Parameters of a primitive in frep's call order (prim_write_call). */
 #define REFIT_MAX_PRIM_PARAMS 8
 
@@ -169,7 +178,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     int rc = -1;
     uint8_t *used = calloc(nprims + 1, 1);
     size_t *pidx = NULL, *gidx = NULL;
-    double *all = NULL, *px = NULL, *py = NULL, *pz = NULL, *qx = NULL, *qy = NULL, *qz = NULL;
+    double *all = NULL, *sx = NULL, *px = NULL, *py = NULL, *pz = NULL, *qx = NULL, *qy = NULL, *qz = NULL;
     char *src = NULL;
     frep_program *prog = NULL;
     prim *saved = malloc((nprims ? nprims : 1) * sizeof *saved);
@@ -254,6 +263,37 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     }
 
     fit_points pts = { n, px, py, pz, qx, qy, qz };
+    /* The optimizer's subset: the first m of a seeded shuffle, copied after the points. */
+    size_t m = n < REFIT_MAX_POINTS ? n : REFIT_MAX_POINTS;
+    fit_points spts = pts;
+    if (m < n) {
+        sx = malloc(6 * m * sizeof *sx);
+        size_t *perm = malloc(n * sizeof *perm);
+        if (!sx || !perm) {
+            free(perm);
+            free(fidx);
+            goto oom;
+        }
+        for (size_t i = 0; i < n; i++) perm[i] = i;
+        gp_rng rng;
+        gp_rng_seed(&rng, o->gp.seed ^ 0x7e417e417e417e41u);
+        for (size_t i = 0; i < m; i++) {
+            size_t j = i + (size_t)(gp_rng_unif(&rng) * (double)(n - i));
+            if (j >= n) j = n - 1;
+            size_t t = perm[i];
+            perm[i] = perm[j];
+            perm[j] = t;
+            sx[i] = px[perm[i]];
+            sx[m + i] = py[perm[i]];
+            sx[2 * m + i] = pz[perm[i]];
+            sx[3 * m + i] = qx[perm[i]];
+            sx[4 * m + i] = qy[perm[i]];
+            sx[5 * m + i] = qz[perm[i]];
+        }
+        free(perm);
+        fit_points sp = { m, sx, sx + m, sx + 2 * m, sx + 3 * m, sx + 4 * m, sx + 5 * m };
+        spts = sp;
+    }
     fit_config cfg;
     fit_config_init(&cfg);
     cfg.method = FIT_METHOD_LM;
@@ -264,6 +304,8 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     cfg.obj.loss_scale = res->eps_d;
     cfg.obj.nthreads = o->gp.threads;
     cfg.seed = o->gp.seed;
+    cfg.lm.max_iter = REFIT_LM_ITER;
+    cfg.reweight_rounds = REFIT_ROUNDS;
 
     double x[FIT_MAX_PARAMS];
     /* RMS before and after, over the tree with every parameter at its value. */
@@ -301,15 +343,15 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
             }
             if (fit_program_model(prog, gidx, nf, all, &fm)) {
                 free(fidx);
-                goto oom;
+                    goto oom;
             }
             fit_result fr;
             char msg[256] = "";
-            int r = fit_run(&fm, &pts, NULL, NULL, x, &cfg, &fr, msg, sizeof msg);
+            int r = fit_run(&fm, &spts, NULL, NULL, x, &cfg, &fr, msg, sizeof msg);
             fit_program_model_free(&fm);
             if (r) {
                 free(fidx);
-                set_err(err, "refit: %s", msg);
+                    set_err(err, "refit: %s", msg);
                 goto out;
             }
             for (size_t k = 0; k < nf; k++) all[gidx[k]] = x[k];
@@ -342,6 +384,7 @@ out:
     free(pidx);
     free(gidx);
     free(all);
+    free(sx);
     free(px);
     free(py);
     free(pz);

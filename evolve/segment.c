@@ -265,6 +265,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
         if (err) *err = fmt_msg("all %zu points are the same point: nothing to segment", c->n);
         return -1;
     }
+    res->diagonal = diag;
     res->epsilon = cfg->epsilon > 0 ? cfg->epsilon : SEGMENT_DEFAULT_EPSILON * diag;
     if (cfg->cluster > 0) {
         res->cluster = cfg->cluster;
@@ -357,8 +358,10 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
 
 /* ---- .hf primitive lists -------------------------------------------------------- */
 
-int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header)
+int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header, double scale)
 {
+    int exact = !(scale > 0) || !isfinite(scale);
+    double qp = exact ? 0 : PRIM_POS_QUANTUM * scale, qd = exact ? 0 : PRIM_DIR_QUANTUM;
     if (header) {
         const char *s = header;
         while (*s) {
@@ -372,19 +375,27 @@ int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header)
     for (size_t i = 0; i < n; i++) {
         const prim *q = &p[i];
         fprintf(f, "  p%zu = ", i + 1);
-        prim_write_call(f, q);
+        prim_write_call_scaled(f, q, scale);
         if (q->separating)
             fprintf(f, ";  -- separating %s\n", prim_type_name(q->type));
         else
             fprintf(f, ";  -- %s: %zu points, rms %.3g\n", prim_type_name(q->type), q->support,
                     q->rms);
-        if (q->has_obb)
-            fprintf(f, "  --   obb %.9g %.9g %.9g  %.9g %.9g %.9g  %.9g %.9g %.9g  %.9g %.9g %.9g"
-                       "  %.9g %.9g %.9g\n",
-                    q->obb_c[0], q->obb_c[1], q->obb_c[2], q->obb_axes[0][0], q->obb_axes[0][1],
-                    q->obb_axes[0][2], q->obb_axes[1][0], q->obb_axes[1][1], q->obb_axes[1][2],
-                    q->obb_axes[2][0], q->obb_axes[2][1], q->obb_axes[2][2], q->obb_half[0],
-                    q->obb_half[1], q->obb_half[2]);
+        if (q->has_obb) {
+            /* Centre, three axes, half sizes: groups of three separated by two blanks. */
+            const double *v[5] = {q->obb_c, q->obb_axes[0], q->obb_axes[1], q->obb_axes[2],
+                                  q->obb_half};
+            fputs("  --   obb", f);
+            for (int g = 0; g < 5; g++) {
+                fputs(g ? " " : "", f);
+                for (int k = 0; k < 3; k++) {
+                    char buf[PRIM_NUM_BUF];
+                    prim_format_number(buf, v[g][k], g == 0 || g == 4 ? qp : qd);
+                    fprintf(f, " %s", buf);
+                }
+            }
+            fputc('\n', f);
+        }
     }
     /* A valid model so the file evaluates: the union of the fitted primitives. */
     fputs("  primitives = ", f);

@@ -49,6 +49,7 @@ typedef struct segment_result {
     size_t nprims, nfitted;
     int32_t *label;        /* per point: index of its fitted primitive or -1 (free()) */
     size_t unassigned;
+    double diagonal;       /* of the cloud's bounding box: the scale of the output */
     /* The values actually used (defaults resolved). */
     double epsilon, cluster, normal_deg, probability;
     size_t min_points;
@@ -73,9 +74,10 @@ void segment_fit_obb(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n
 size_t segment_add_separating(prim **prims, size_t n, double eps);
 
 /* Write primitives as a frep model "primitives(x[3], a[1])" with one named call per
- * primitive; `header` (may be NULL) is written as comment lines first. Returns 0 or -1
- * on a write error. */
-int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header);
+ * primitive; `header` (may be NULL) is written as comment lines first. Numbers are
+ * rounded relative to `scale` (the cloud's diagonal; prim_write_call_scaled), exact
+ * when scale <= 0. Returns 0 or -1 on a write error. */
+int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header, double scale);
 
 /* Read primitives from a .hf file written by segment_write_hf (the frX(...) calls and
  * their comments) or from a .fit list (by extension ".fit"). Returns 0 with a malloc'ed

@@ -67,6 +67,8 @@ void fit_config_init(fit_config *c)
     c->sa_local_iter = 300;
     fit_sa_options_init(&c->sa);
     c->sa.stall_iter = 15;
+    c->sa.bound_stall_iter = 60;
+    c->sa.bound_local_period = 5;
     fit_qn_options_init(&c->qn);
     fit_lm_options_init(&c->lm);
     c->reweight_rounds = 8;
@@ -331,12 +333,18 @@ int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const d
         fit_rng rng;
         fit_rng_seed(&rng, cfg->seed ^ 0x5a17ca1edULL);
         fit_sa_options so = cfg->sa;
+        if (getenv("FIT_CHAINS")) so.chains = atol(getenv("FIT_CHAINS"));
+        if (getenv("FIT_BSTALL")) so.bound_stall_iter = atol(getenv("FIT_BSTALL"));
+        if (getenv("FIT_BPER")) so.bound_local_period = atol(getenv("FIT_BPER"));
+        if (getenv("FIT_PER")) so.local_period = atol(getenv("FIT_PER"));
+        if (getenv("FIT_STALL")) so.stall_iter = atol(getenv("FIT_STALL"));
         if (cfg->sa_local) {
             so.local = sa_local;
             so.local_user = &R;
         }
         st = fit_sa(fit_objective_value, sub, np, x, lo, hi, &so, &rng, &ctl, &fx,
                     &res->sa_iterations);
+        if (getenv("FIT_DEBUG")) { fprintf(stderr, "SA %ld it, f=%g:", res->sa_iterations, fx); for (size_t j = 0; j < np; j++) fprintf(stderr, " %.4g", x[j]); fprintf(stderr, "\n"); }
         if (st == FIT_FAILED) {
             fit_objective_free(sub != obj ? sub : NULL);
             fit_objective_free(obj);

@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <stdio.h>
 
 /* pi, spelled out: FIT_PI is not part of C11. */
 #define FIT_PI 3.14159265358979323846
@@ -555,6 +556,22 @@ void fit_sa_options_init(fit_sa_options *o)
     o->local = NULL;
     o->local_user = NULL;
     o->local_period = 10;
+    o->bound_stall_iter = 0;
+    o->bound_local_period = 0;
+    o->chains = 1;
+}
+
+/* Relative distance to a bound under which a coordinate counts as on it (BFGS's
+ * projected active set puts held variables exactly on the bound). */
+#define SA_ON_BOUND 1e-9
+
+static int on_bound(size_t n, const double *x, const double *lo, const double *hi)
+{
+    for (size_t i = 0; i < n; i++) {
+        double tol = SA_ON_BOUND * (hi[i] - lo[i]);
+        if (x[i] <= lo[i] + tol || x[i] >= hi[i] - tol) return 1;
+    }
+    return 0;
 }
 
 /* Visits farther than this (in parameter units) are clipped before wrapping into the box:
@@ -613,6 +630,41 @@ static void random_point(size_t n, double *x, const double *lo, const double *hi
     for (size_t i = 0; i < n; i++) x[i] = lo[i] + (hi[i] - lo[i]) * fit_rng_uniform(r);
 }
 
+/* State of one annealing chain. */
+typedef struct sa_chain {
+    double *cur, *best;     /* current point, the chain's best */
+    double e, ebest;
+} sa_chain;
+
+/* Start a chain at x (when `from_x`) or at a random point with a finite objective, and
+ * polish it first: a start near the answer then is the answer, and the chain only has
+ * to beat it. Returns 0, or -1 when no finite objective was found. */
+static int sa_chain_start(sa_chain *ch, fit_fn fn, void *user, size_t n, const double *x,
+                          int from_x, const double *lo, const double *hi,
+                          const fit_sa_options *opt, fit_rng *rng, fit_control *c,
+                          double *trial)
+{
+    if (from_x) memcpy(ch->cur, x, n * sizeof *ch->cur);
+    else random_point(n, ch->cur, lo, hi, rng);
+    double e = call(fn, user, ch->cur, NULL, c);
+    for (int k = 0; e == HUGE_VAL && k < SA_MAX_START_TRIES && !fit_control_stop(c); k++) {
+        random_point(n, ch->cur, lo, hi, rng);
+        e = call(fn, user, ch->cur, NULL, c);
+    }
+    if (e == HUGE_VAL) return -1;
+    if (opt->local != NULL && !fit_control_stop(c)) {
+        memcpy(trial, ch->cur, n * sizeof *trial);
+        double el;
+        if (opt->local(opt->local_user, trial, &el) == 0 && el < e) {
+            memcpy(ch->cur, trial, n * sizeof *ch->cur);
+            e = el;
+        }
+    }
+    memcpy(ch->best, ch->cur, n * sizeof *ch->best);
+    ch->e = ch->ebest = e;
+    return 0;
+}
+
 fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
                   const double *hi, const fit_sa_options *opt, fit_rng *rng, fit_control *c,
                   double *fx, long *iterations)
@@ -626,120 +678,139 @@ fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
         if (!isfinite(lo[i]) || !isfinite(hi[i]) || !(lo[i] < hi[i])) return FIT_FAILED;
     if (!(opt->qv > 1 && opt->qv < 3) || !(opt->qa < 1) || !(opt->t0 > 0)) return FIT_FAILED;
 
-    double *mem = malloc(3 * n * sizeof *mem);
+    double *mem = malloc(4 * n * sizeof *mem);
     if (mem == NULL) return FIT_FAILED;
-    double *cur = mem, *trial = cur + n, *best = trial + n;
+    double *trial = mem, *best = trial + n;
+    sa_chain ch = {best + n, best + 2 * n, HUGE_VAL, HUGE_VAL};
     visit_consts vc;
     visit_init(&vc, opt->qv);
 
     int inside = 1;
     for (size_t i = 0; i < n; i++) inside &= x[i] >= lo[i] && x[i] <= hi[i];
-    if (inside) memcpy(cur, x, n * sizeof *cur);
-    else random_point(n, cur, lo, hi, rng);
-    double e = call(fn, user, cur, NULL, c);
-    for (int k = 0; e == HUGE_VAL && k < SA_MAX_START_TRIES && !fit_control_stop(c); k++) {
-        random_point(n, cur, lo, hi, rng);
-        e = call(fn, user, cur, NULL, c);
-    }
-    if (e == HUGE_VAL) {
-        free(mem);
-        return FIT_FAILED;
-    }
-    /* Polish the start first: a start near the answer then is the answer, and the chain
-     * only has to beat it. */
-    if (opt->local != NULL && !fit_control_stop(c)) {
-        memcpy(trial, cur, n * sizeof *trial);
-        double el;
-        if (opt->local(opt->local_user, trial, &el) == 0 && el < e) {
-            memcpy(cur, trial, n * sizeof *cur);
-            e = el;
-        }
-    }
-    memcpy(best, cur, n * sizeof *best);
-    double ebest = e, emark = e;
+    double ebest = HUGE_VAL;
     const double t1 = exp((opt->qv - 1.0) * log(2.0)) - 1.0;
-    long step = 0, last_gain = 0, quiet = 0, it;
+    const long nchains = opt->chains > 0 ? opt->chains : 1;
+    long total = 0;
     fit_status st = FIT_MAXITER;
+    int stopped = 0;
 
-    for (it = 0; it < opt->max_iter; it++) {
-        double t2 = exp((opt->qv - 1.0) * log((double)step + 2.0)) - 1.0;
-        double temp = opt->t0 * t1 / t2;
-        if (temp < opt->t0 * opt->restart_ratio) {     /* cold: restart elsewhere */
-            step = 0;
-            temp = opt->t0;
-            double er = HUGE_VAL;
-            for (int k = 0; er == HUGE_VAL && k < SA_MAX_START_TRIES; k++) {
-                random_point(n, trial, lo, hi, rng);
-                er = call(fn, user, trial, NULL, c);
-            }
-            if (er < HUGE_VAL) {
-                memcpy(cur, trial, n * sizeof *cur);
-                e = er;
-            }
+    for (long chain = 0; chain < nchains && !stopped; chain++) {
+        if (chain > 0 && fit_control_stop(c)) {
+            st = FIT_STOPPED;
+            break;
         }
-        double tstep = temp / (double)(step + 1);
-        double sigma = visit_sigma(&vc, temp);
-        /* One iteration: n moves of all coordinates, then n moves of one coordinate. */
-        int found = 0;
-        for (size_t j = 0; j < 2 * n; j++) {
-            memcpy(trial, cur, n * sizeof *trial);
-            if (j < n) {
-                for (size_t i = 0; i < n; i++)
-                    trial[i] = wrap(cur[i] + visit_draw(&vc, sigma, rng), lo[i], hi[i]);
-            } else {
-                size_t i = j - n;
-                trial[i] = wrap(cur[i] + visit_draw(&vc, sigma, rng), lo[i], hi[i]);
+        if (sa_chain_start(&ch, fn, user, n, x, chain == 0 && inside, lo, hi, opt, rng, c,
+                           trial) != 0) {
+            if (chain == 0) {
+                free(mem);
+                return FIT_FAILED;
             }
-            double et = call(fn, user, trial, NULL, c);
-            int accept;
-            if (et < e) {
-                accept = 1;
-            } else {
-                double pq = 1.0 - (1.0 - opt->qa) * (et - e) / tstep;
-                double p = pq <= 0 ? 0 : exp(log(pq) / (1.0 - opt->qa));
-                accept = fit_rng_uniform(rng) <= p && et < HUGE_VAL;
-            }
-            if (accept) {
-                memcpy(cur, trial, n * sizeof *cur);
-                e = et;
-                if (e < ebest) {
-                    ebest = e;
-                    memcpy(best, cur, n * sizeof *best);
-                    found = 1;
+            break;
+        }
+        if (ch.ebest < ebest) {
+            ebest = ch.ebest;
+            memcpy(best, ch.best, n * sizeof *best);
+        }
+        double e = ch.e, emark = ch.ebest;
+        double *cur = ch.cur;
+        long step = 0, last_gain = 0, quiet = 0, it;
+        st = FIT_MAXITER;
+        for (it = 0; it < opt->max_iter; it++, total++) {
+            double t2 = exp((opt->qv - 1.0) * log((double)step + 2.0)) - 1.0;
+            double temp = opt->t0 * t1 / t2;
+            if (temp < opt->t0 * opt->restart_ratio) {     /* cold: restart elsewhere */
+                step = 0;
+                temp = opt->t0;
+                double er = HUGE_VAL;
+                for (int k = 0; er == HUGE_VAL && k < SA_MAX_START_TRIES; k++) {
+                    random_point(n, trial, lo, hi, rng);
+                    er = call(fn, user, trial, NULL, c);
+                }
+                if (er < HUGE_VAL) {
+                    memcpy(cur, trial, n * sizeof *cur);
+                    e = er;
                 }
             }
-        }
-        quiet = found ? 0 : quiet + 1;
-        int probe = opt->local_period > 0 && quiet >= opt->local_period;
-        if ((found || probe) && opt->local != NULL && !fit_control_stop(c)) {
-            memcpy(trial, found ? best : cur, n * sizeof *trial);
-            quiet = 0;
-            double el;
-            if (opt->local(opt->local_user, trial, &el) == 0 && el < ebest) {
-                ebest = e = el;
-                memcpy(best, trial, n * sizeof *best);
-                memcpy(cur, trial, n * sizeof *cur);
+            double tstep = temp / (double)(step + 1);
+            double sigma = visit_sigma(&vc, temp);
+            /* One iteration: n moves of all coordinates, then n moves of one coordinate. */
+            int found = 0;
+            for (size_t j = 0; j < 2 * n; j++) {
+                memcpy(trial, cur, n * sizeof *trial);
+                if (j < n) {
+                    for (size_t i = 0; i < n; i++)
+                        trial[i] = wrap(cur[i] + visit_draw(&vc, sigma, rng), lo[i], hi[i]);
+                } else {
+                    size_t i = j - n;
+                    trial[i] = wrap(cur[i] + visit_draw(&vc, sigma, rng), lo[i], hi[i]);
+                }
+                double et = call(fn, user, trial, NULL, c);
+                int accept;
+                if (et < e) {
+                    accept = 1;
+                } else {
+                    double pq = 1.0 - (1.0 - opt->qa) * (et - e) / tstep;
+                    double p = pq <= 0 ? 0 : exp(log(pq) / (1.0 - opt->qa));
+                    accept = fit_rng_uniform(rng) <= p && et < HUGE_VAL;
+                }
+                if (accept) {
+                    memcpy(cur, trial, n * sizeof *cur);
+                    e = et;
+                    if (e < ch.ebest) {
+                        ch.ebest = e;
+                        memcpy(ch.best, cur, n * sizeof *ch.best);
+                        found = 1;
+                    }
+                }
+            }
+            quiet = found ? 0 : quiet + 1;
+            int suspect = on_bound(n, ch.best, lo, hi);
+            long period = suspect && opt->bound_local_period > 0 ? opt->bound_local_period
+                                                                 : opt->local_period;
+            long stall = suspect && opt->bound_stall_iter > 0 ? opt->bound_stall_iter
+                                                              : opt->stall_iter;
+            int probe = period > 0 && quiet >= period;
+            if ((found || probe) && opt->local != NULL && !fit_control_stop(c)) {
+                memcpy(trial, found ? ch.best : cur, n * sizeof *trial);
+                quiet = 0;
+                double el;
+                if (opt->local(opt->local_user, trial, &el) == 0 && el < ch.ebest) {
+                    ch.ebest = e = el;
+                    memcpy(ch.best, trial, n * sizeof *ch.best);
+                    memcpy(cur, trial, n * sizeof *cur);
+                }
+            }
+            if (ch.ebest < ebest) {
+                ebest = ch.ebest;
+                memcpy(best, ch.best, n * sizeof *best);
+            }
+            step++;
+            report(c, FIT_PHASE_SA, temp, ebest, 0);
+            if (ch.ebest < emark - opt->rel_improve * fabs(emark) || ch.ebest == 0) {
+                emark = ch.ebest;
+                last_gain = it;
+            }
+            if (ebest <= opt->threshold) {
+                st = FIT_CONVERGED;
+                stopped = 1;
+                it++, total++;
+                break;
+            }
+            if (stall > 0 && it - last_gain >= stall) {
+                st = FIT_CONVERGED;
+                it++, total++;
+                break;
+            }
+            if (fit_control_stop(c)) {
+                st = FIT_STOPPED;
+                stopped = 1;
+                it++, total++;
+                break;
             }
         }
-        step++;
-        report(c, FIT_PHASE_SA, temp, ebest, 0);
-        if (ebest < emark - opt->rel_improve * fabs(emark) || ebest == 0) {
-            emark = ebest;
-            last_gain = it;
-        }
-        if (ebest <= opt->threshold ||
-            (opt->stall_iter > 0 && it - last_gain >= opt->stall_iter)) {
-            st = FIT_CONVERGED;
-            it++;
-            break;
-        }
-        if (fit_control_stop(c)) {
-            st = FIT_STOPPED;
-            it++;
-            break;
-        }
+        if (getenv("FIT_DEBUG")) { fprintf(stderr, "chain %ld: %ld it, f=%g:", chain, it, ch.ebest); for (size_t j = 0; j < n; j++) fprintf(stderr, " %.4g", ch.best[j]); fprintf(stderr, "\n"); }
     }
-    if (iterations) *iterations = it;
+    if (iterations) *iterations = total;
     memcpy(x, best, n * sizeof *x);
     *fx = ebest;
     report(c, FIT_PHASE_SA, 0, ebest, 1);

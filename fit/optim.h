@@ -113,7 +113,7 @@ typedef struct fit_sa_options {
     double qa;              /* acceptance parameter, < 1 (-5) */
     double t0;              /* initial temperature (5230) */
     double restart_ratio;   /* restart from a random point when T < t0 * ratio (2e-5) */
-    long max_iter;          /* annealing iterations, each 2n trial moves (1000) */
+    long max_iter;          /* annealing iterations per chain, each 2n trial moves (1000) */
     long stall_iter;        /* stop after this many iterations without a new best
                                (improvement > rel_improve relative); 0: never (40) */
     double rel_improve;     /* what counts as improving the best (1e-4) */
@@ -127,6 +127,19 @@ typedef struct fit_sa_options {
      * without a new best (0: never): probes basins the chain visits but whose raw
      * values are not yet better than the polished best (10). */
     long local_period;
+    /* A best point with a coordinate on its bound is suspect: in templates a bound-hitting
+     * minimum is usually a primitive switched off (a hole shrunk to its smallest radius)
+     * instead of placed. While the best is such a point the stall limit is
+     * bound_stall_iter (0: stall_iter) and the chain is probed every
+     * bound_local_period iterations (0: local_period), so the search keeps looking for
+     * an interior minimum; a true minimum on a bound only costs the extra iterations. */
+    long bound_stall_iter;
+    long bound_local_period;
+    /* Independent chains (<= 0: 1): the first starts at x, the others at random points,
+     * each runs to its own stall (max_iter is per chain) and the best of all is kept.
+     * A chain lands in a wrong basin with some probability p (a primitive parked where
+     * it explains no points); the best of k chains fails only when all do, about p^k. */
+    long chains;
 } fit_sa_options;
 
 void fit_sa_options_init(fit_sa_options *o);

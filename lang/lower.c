@@ -882,8 +882,10 @@ static void lw_while(lw *L, scope *sc, const ast_node *n)
         if (c == 0) return;
         if (iter >= FREP_MAX_UNROLL || L->g->n - nodes0 >= FREP_MAX_UNROLL_NODES ||
             L->steps - steps0 >= FREP_MAX_LOWER_STEPS / 4) {
+            ast_loc kw = n->loc; /* the 'while' keyword */
+            kw.end = kw.off + 5;
             if (!L->trial)
-                lw_report(L, FREP_WARNING, n->loc, "loop not unrolled after %u iterations: "
+                lw_report(L, FREP_WARNING, kw, "loop not unrolled after %u iterations: "
                           "it runs at evaluation time (at most %ld iterations per point)",
                           (unsigned)iter, (long)FREP_MAX_LOOP_ITERATIONS);
             break;

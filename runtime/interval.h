@@ -33,6 +33,21 @@ void vm_iscratch_free(vm_iscratch *s);
 int vm_eval_interval(const frep_program *p, vm_iscratch *s, const double box[6],
                      const double *params, ival *out);
 
+/* Tape pruning (libfive's idea, adapted to R-functions): a pruner holds the analysis
+ * of one straight-line program (NULL from vm_pruner_new when the program has
+ * branches, arrays indexed at run time or cached primitives, or on allocation
+ * failure).  vm_prune() writes into code/pos/orig (each p->ncode entries) a shorter
+ * program for the points of `box`: the same inside/outside at every point, the same
+ * zero set and surface normals, but other values away from the surface where
+ * R-functions were pruned (see vm_interval.c); orig[i] is the original pc of
+ * instruction i, for error positions.  *out receives the enclosure of f over the box.
+ * A pruner has mutable scratch: one per thread. Returns 0, or -1 as vm_eval_interval. */
+typedef struct vm_pruner vm_pruner;
+vm_pruner *vm_pruner_new(const frep_program *p);
+void vm_pruner_free(vm_pruner *r);
+int vm_prune(vm_pruner *r, vm_iscratch *s, const double box[6], const double *params,
+             frep_insn *code, frep_srcpos *pos, uint32_t *orig, uint32_t *ncode, ival *out);
+
 /* One interval operation (exposed for the property tests): op applied to operands in
  * push order (v[0] first; SELECT: condition, value if true, value if false), k the
  * immediate. Leaves and control flow give [-inf, inf]. */

@@ -39,9 +39,12 @@
 #define MESH_BLOCK_CORNERS ((MESH_BLOCK + 1) * (MESH_BLOCK + 1) * (MESH_BLOCK + 1))
 #define MESH_BLOCK_CELLS (MESH_BLOCK * MESH_BLOCK * MESH_BLOCK)
 #define MESH_BLOCK_EDGES (3 * MESH_BLOCK_CORNERS)
-/* Regula falsi (Illinois) steps per crossing: converges superlinearly; 8 steps put
- * crossings of smooth fields far below 1e-6 cell. */
+/* Regula falsi (Illinois) steps per crossing at most: converges superlinearly; 8 steps
+ * put crossings of smooth fields far below 1e-6 cell.  A crossing stops earlier when
+ * its guess moves by less than MESH_ROOT_TOL (fraction of the edge): the error is
+ * then smaller than the last move. */
 #define MESH_ROOT_STEPS 8
+#define MESH_ROOT_TOL 1e-5
 /* QEF eigenvalues below this fraction of the largest are dropped (truncated
  * pseudo-inverse): near-parallel normals must not throw the vertex out of its cell. */
 #define MESH_QEF_CUTOFF 0.05
@@ -167,8 +170,9 @@ static void eig3(const double A0[3][3], double w[3], double V[3][3])
     for (int i = 0; i < 3; i++) w[i] = A[i][i];
 }
 
-/* Minimize sum (n_i . (x - p_i))^2 near the mass point, inside [lo, hi]. */
-static void qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
+/* Minimize sum (n_i . (x - p_i))^2 near the mass point, inside [lo, hi]. Returns the
+ * rank used: 1 on a flat patch, 2 on an edge, 3 at a corner (0: the mass point). */
+static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
                       const double lo[3], const double hi[3], double out[3])
 {
     double m[3] = { 0, 0, 0 };
@@ -207,9 +211,10 @@ static void qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
         if (inside || rank == 0) {
             for (int c = 0; c < 3; c++)
                 out[c] = fmin(fmax(x[c], lo[c] + slack[c]), hi[c] - slack[c]);
-            return;
+            return rank;
         }
     }
+    return 0;
 }
 
 /* ---- the program field ------------------------------------------------------------ */
@@ -217,7 +222,18 @@ static void qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
 typedef struct prog_field {
     const frep_program *p;
     const double *params;
+    frep_runtime_error err;   /* merged from the threads' scratches as they are freed */
 } prog_field;
+
+/* Merge runtime error e into *acc: counts add, the lowest pc names the error (the
+ * rule of frep_eval_par, so the report does not depend on the thread count). */
+static void merge_error(frep_runtime_error *acc, const frep_runtime_error *e)
+{
+    if (e->count == 0) return;
+    uint64_t c = acc->count;
+    if (c == 0 || e->pc < acc->pc) *acc = *e;
+    acc->count = c + e->count;
+}
 
 typedef struct prog_thread {
     frep_scratch *s;
@@ -243,8 +259,14 @@ static void *prog_thread_new(void *ctx)
 static void prog_thread_free(void *ctx, void *ts)
 {
     prog_thread *t = ts;
-    (void)ctx;
+    prog_field *pf = ctx;
     if (!t) return;
+    if (t->s) {
+        /* thread states are freed one at a time (after the parallel regions) */
+        frep_runtime_error e;
+        frep_scratch_errors(t->s, &e);
+        merge_error(&pf->err, &e);
+    }
     frep_scratch_free(t->s);
     vm_iscratch_free(t->is);
     free(t);
@@ -283,6 +305,7 @@ int mesh_field_program(mesh_field *f, const frep_program *p, const double *param
     if (!pf) return -1;
     pf->p = p;
     pf->params = params;
+    memset(&pf->err, 0, sizeof pf->err);
     f->ctx = pf;
     f->thread_new = prog_thread_new;
     f->thread_free = prog_thread_free;
@@ -290,6 +313,12 @@ int mesh_field_program(mesh_field *f, const frep_program *p, const double *param
     f->grad = prog_grad;
     f->interval = prog_interval;
     return 0;
+}
+
+void mesh_field_program_errors(const mesh_field *f, frep_runtime_error *e)
+{
+    const prog_field *pf = f->ctx;
+    *e = pf->err;
 }
 
 void mesh_field_program_free(mesh_field *f)
@@ -330,6 +359,8 @@ typedef struct mblock {
     uint32_t real_crossings, inside_corners, virtual_crossings, nan_points, split_cells;
     size_t vglobal;           /* index of the first vertex in the whole mesh */
     double *vpos, *vnrm;      /* 3 * nverts each */
+    double *vfg;              /* 4 * nverts: f - iso and the gradient at each vertex */
+    uint8_t *vrank;           /* nverts: QEF rank (2: on a sharp edge, 3: a corner) */
     uint8_t *cs;              /* MESH_BLOCK_CELLS cases */
     uint16_t *vbase;          /* MESH_BLOCK_CELLS first vertex or MESH_NO_VERTEX */
     uint32_t *tri;            /* triangles from the quads this block owns (phase 3) */
@@ -366,7 +397,8 @@ typedef struct mwork {
         g1[MESH_BLOCK_EDGES], tt[MESH_BLOCK_EDGES];
     double ax[MESH_BLOCK_EDGES], ay[MESH_BLOCK_EDGES], az[MESH_BLOCK_EDGES];
     double dx[MESH_BLOCK_EDGES], dy[MESH_BLOCK_EDGES], dz[MESH_BLOCK_EDGES];
-    int8_t side[MESH_BLOCK_EDGES];
+    int8_t side[MESH_BLOCK_EDGES];   /* -1, 1: end moved last; 0: none yet; 2: converged */
+    int32_t act[MESH_BLOCK_EDGES];   /* crossings evaluated in this step */
     double qx[MESH_BLOCK_EDGES], qy[MESH_BLOCK_EDGES], qz[MESH_BLOCK_EDGES],
         qf[MESH_BLOCK_EDGES], gx[MESH_BLOCK_EDGES], gy[MESH_BLOCK_EDGES],
         gz[MESH_BLOCK_EDGES];
@@ -375,6 +407,8 @@ typedef struct mwork {
     double fnx[4 * MESH_BLOCK_CELLS], fny[4 * MESH_BLOCK_CELLS], fnz[4 * MESH_BLOCK_CELLS];
     double vf[4 * MESH_BLOCK_CELLS], vgx[4 * MESH_BLOCK_CELLS], vgy[4 * MESH_BLOCK_CELLS],
         vgz[4 * MESH_BLOCK_CELLS];
+    uint8_t vrank[4 * MESH_BLOCK_CELLS];
+    size_t eval_points, grad_points;  /* work done by this thread, for mesh_stats */
 } mwork;
 
 static int corner_index(int i, int j, int k)
@@ -405,6 +439,19 @@ static void unit(double *x, double *y, double *z)
     }
 }
 
+/* Regula falsi guess for crossing r from its bracket; bisection when the values
+ * cannot be used. */
+static double root_guess(const mwork *W, int r)
+{
+    double g0 = W->g0[r], g1 = W->g1[r], t;
+    if (isfinite(g0) && isfinite(g1) && g0 != g1)
+        t = (W->t0[r] * g1 - W->t1[r] * g0) / (g1 - g0);
+    else
+        t = 0.5 * (W->t0[r] + W->t1[r]);
+    if (!(t >= W->t0[r] && t <= W->t1[r])) t = 0.5 * (W->t0[r] + W->t1[r]);
+    return t;
+}
+
 /* Evaluate, find crossings and place vertices for one block. Returns 0 or -1 (out of
  * memory or the field failed). */
 static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
@@ -431,6 +478,7 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
                 }
             }
     if (nreal && f->eval(f->ctx, ts, nreal, W->cx, W->cy, W->cz, W->qf) != 0) return -1;
+    W->eval_points += nreal;
     for (int ci = 0; ci < MESH_BLOCK_CORNERS; ci++) {
         if (map[ci] < 0) {
             W->cf[ci] = NAN;
@@ -515,24 +563,33 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
                 }
             }
 
-    /* 3. root finding on the real crossings (Illinois regula falsi, batched) */
+    /* 3. root finding on the real crossings (Illinois regula falsi, batched): each
+     * step evaluates only the crossings still moving, so near-linear fields (planes,
+     * R-functions away from their creases) cost one or two evaluations a crossing. */
+    for (int r = 0; r < nroot; r++) W->tt[r] = NAN;
     for (int step = 0; step < MESH_ROOT_STEPS && nroot > 0; step++) {
+        int na = 0;
         for (int r = 0; r < nroot; r++) {
-            double g0 = W->g0[r], g1 = W->g1[r], t;
-            if (isfinite(g0) && isfinite(g1) && g0 != g1)
-                t = (W->t0[r] * g1 - W->t1[r] * g0) / (g1 - g0);
-            else
-                t = 0.5 * (W->t0[r] + W->t1[r]);
-            if (!(t > W->t0[r] && t < W->t1[r])) t = 0.5 * (W->t0[r] + W->t1[r]);
+            if (W->side[r] == 2) continue;
+            double t = root_guess(W, r);
+            if (fabs(t - W->tt[r]) <= MESH_ROOT_TOL || W->t1[r] - W->t0[r] <= MESH_ROOT_TOL) {
+                W->side[r] = 2; /* converged: the final guess below lands here */
+                continue;
+            }
             W->tt[r] = t;
-            W->qx[r] = W->ax[r] + t * W->dx[r];
-            W->qy[r] = W->ay[r] + t * W->dy[r];
-            W->qz[r] = W->az[r] + t * W->dz[r];
+            W->act[na] = r;
+            W->qx[na] = W->ax[r] + t * W->dx[r];
+            W->qy[na] = W->ay[r] + t * W->dy[r];
+            W->qz[na] = W->az[r] + t * W->dz[r];
+            na++;
         }
-        if (f->eval(f->ctx, ts, (size_t)nroot, W->qx, W->qy, W->qz, W->qf) != 0) return -1;
-        for (int r = 0; r < nroot; r++) {
-            double gv = W->qf[r] - iso;
-            int in_t = W->qf[r] >= iso, in_0 = W->g0[r] >= 0;
+        if (na == 0) break;
+        if (f->eval(f->ctx, ts, (size_t)na, W->qx, W->qy, W->qz, W->qf) != 0) return -1;
+        W->eval_points += (size_t)na;
+        for (int q = 0; q < na; q++) {
+            int r = W->act[q];
+            double gv = W->qf[q] - iso;
+            int in_t = W->qf[q] >= iso, in_0 = W->g0[r] >= 0;
             if (in_t == in_0) {
                 W->t0[r] = W->tt[r];
                 W->g0[r] = gv;
@@ -547,12 +604,7 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
         }
     }
     for (int r = 0; r < nroot; r++) {
-        double g0 = W->g0[r], g1 = W->g1[r], t;
-        if (isfinite(g0) && isfinite(g1) && g0 != g1)
-            t = (W->t0[r] * g1 - W->t1[r] * g0) / (g1 - g0);
-        else
-            t = 0.5 * (W->t0[r] + W->t1[r]);
-        if (!(t >= W->t0[r] && t <= W->t1[r])) t = 0.5 * (W->t0[r] + W->t1[r]);
+        double t = root_guess(W, r);
         int id = W->rid[r];
         W->px[id] = W->qx[r] = W->ax[r] + t * W->dx[r];
         W->py[id] = W->qy[r] = W->ay[r] + t * W->dy[r];
@@ -561,6 +613,7 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
     if (nroot > 0 &&
         f->grad(f->ctx, ts, (size_t)nroot, W->qx, W->qy, W->qz, W->qf, W->gx, W->gy, W->gz) != 0)
         return -1;
+    W->grad_points += (size_t)nroot;
     for (int r = 0; r < nroot; r++) {
         int id = W->rid[r];
         /* inside is f >= iso, so the gradient points inward */
@@ -625,11 +678,14 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
                         np++;
                     }
                     double x[3];
+                    int rank = 0;
                     if (np == 0) {
                         for (int c = 0; c < 3; c++) x[c] = 0.5 * (lo[c] + hi[c]);
                     } else {
-                        qef_solve(np, (const double(*)[3])pts, (const double(*)[3])nrm, lo, hi, x);
+                        rank = qef_solve(np, (const double(*)[3])pts, (const double(*)[3])nrm, lo,
+                                         hi, x);
                     }
+                    W->vrank[nv] = (uint8_t)rank;
                     W->vx[nv] = x[0];
                     W->vy[nv] = x[1];
                     W->vz[nv] = x[2];
@@ -644,13 +700,21 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
     if (nv == 0) return 0;
     B->vpos = malloc(3 * nv * sizeof *B->vpos);
     B->vnrm = malloc(3 * nv * sizeof *B->vnrm);
-    if (!B->vpos || !B->vnrm) return -1;
+    B->vfg = malloc(4 * nv * sizeof *B->vfg);
+    B->vrank = malloc(nv);
+    if (!B->vpos || !B->vnrm || !B->vfg || !B->vrank) return -1;
+    memcpy(B->vrank, W->vrank, nv);
     if (f->grad(f->ctx, ts, nv, W->vx, W->vy, W->vz, W->vf, W->vgx, W->vgy, W->vgz) != 0)
         return -1;
+    W->grad_points += nv;
     for (size_t v = 0; v < nv; v++) {
         B->vpos[3 * v] = W->vx[v];
         B->vpos[3 * v + 1] = W->vy[v];
         B->vpos[3 * v + 2] = W->vz[v];
+        B->vfg[4 * v] = W->vf[v] - M->o->iso;
+        B->vfg[4 * v + 1] = W->vgx[v];
+        B->vfg[4 * v + 2] = W->vgy[v];
+        B->vfg[4 * v + 3] = W->vgz[v];
         double nx = -W->vgx[v], ny = -W->vgy[v], nz = -W->vgz[v];
         unit(&nx, &ny, &nz);
         /* on a box cap, or where the gradient says nothing, use the crossings' normals */
@@ -693,6 +757,8 @@ static void free_block(mblock *B)
     if (!B) return;
     free(B->vpos);
     free(B->vnrm);
+    free(B->vfg);
+    free(B->vrank);
     free(B->cs);
     free(B->vbase);
     free(B->tri);
@@ -710,9 +776,24 @@ static mblock *new_block(const mesher *M, long bx, long by, long bz)
     return B;
 }
 
+/* What the diagonal choice needs of a quad's vertex. */
+typedef struct qcorner {
+    const double *pos, *fg;   /* position; f - iso and gradient there */
+    int rank;
+} qcorner;
+
+/* f - iso at the midpoint of a and b estimated by the cubic Hermite interpolant of the
+ * values and gradients at the ends: (fa + fb) / 2 + (ga - gb) . (b - a) / 8. */
+static double hermite_mid(const qcorner *a, const qcorner *b)
+{
+    double d = 0;
+    for (int c = 0; c < 3; c++) d += (a->fg[c + 1] - b->fg[c + 1]) * (b->pos[c] - a->pos[c]);
+    return 0.5 * (a->fg[0] + b->fg[0]) + d / 8;
+}
+
 /* Cell (global padded index) -> vertex of the component containing edge e. */
 static int cell_vertex(const mesher *M, long cx, long cy, long cz, int e, uint32_t *v,
-                       const double **pos)
+                       qcorner *q)
 {
     if (cx < 0 || cy < 0 || cz < 0 || cx >= M->G || cy >= M->G || cz >= M->G) return -1;
     mblock *B = find_block(M, block_key(M, cx / MESH_BLOCK, cy / MESH_BLOCK, cz / MESH_BLOCK));
@@ -723,7 +804,9 @@ static int cell_vertex(const mesher *M, long cx, long cy, long cz, int e, uint32
     if (cyc == 0xFF) return -1;
     uint32_t local = (uint32_t)B->vbase[cell] + cyc;
     *v = (uint32_t)(B->vglobal + local);
-    *pos = &B->vpos[3 * local];
+    q->pos = &B->vpos[3 * local];
+    q->fg = &B->vfg[4 * local];
+    q->rank = B->vrank[local];
     return 0;
 }
 
@@ -740,13 +823,15 @@ static double tri_area2(const double *a, const double *b, const double *c)
 }
 
 /* Quads of the crossing edges whose owner cell (the cell at the edge's lower corner)
- * lies in block B, split into triangles along the diagonal whose midpoint is closer to
- * the surface (that keeps a sharp edge that runs along a diagonal). */
-static int block_quads(mesher *M, mwork *W, void *ts, mblock *B)
+ * lies in block B, each split into two triangles.  The diagonal: the one joining two
+ * feature vertices (QEF rank >= 2) when only one does, since it lies on the sharp edge;
+ * otherwise the one whose midpoint is closer to the surface by the Hermite estimate
+ * from the vertices' values and gradients (no extra evaluations); never a split that
+ * makes a zero-area triangle. */
+static int block_quads(mesher *M, mblock *B)
 {
     size_t cap = 0, nq = 0;
-    uint32_t *quads = NULL;
-    const double **qpos = NULL;
+    uint32_t *tri = NULL;
     long base[3];
     for (int c = 0; c < 3; c++) base[c] = (long)B->b[c] * MESH_BLOCK;
     for (int k = 0; k < MESH_BLOCK; k++)
@@ -763,14 +848,14 @@ static int block_quads(mesher *M, mwork *W, void *ts, mblock *B)
                     /* (d1, d2) counter-clockwise around +a when (o1, o2, a) is right-handed */
                     static const int ring[4][2] = { { 1, 1 }, { 0, 1 }, { 0, 0 }, { 1, 0 } };
                     uint32_t v[4];
-                    const double *p[4];
+                    qcorner q[4];
                     int okq = 1;
                     for (int r = 0; r < 4 && okq; r++) {
                         long C[3] = { base[0] + i, base[1] + j, base[2] + k };
                         C[o1] -= ring[r][0];
                         C[o2] -= ring[r][1];
                         int e = 4 * a + ring[r][0] + 2 * ring[r][1];
-                        if (cell_vertex(M, C[0], C[1], C[2], e, &v[r], &p[r]) != 0) okq = 0;
+                        if (cell_vertex(M, C[0], C[1], C[2], e, &v[r], &q[r]) != 0) okq = 0;
                     }
                     if (!okq) {
                         B->failed = 1;
@@ -781,64 +866,44 @@ static int block_quads(mesher *M, mwork *W, void *ts, mblock *B)
                     int flip = (a == 1) ^ (in0 == 0);
                     if (flip) {
                         uint32_t t = v[1]; v[1] = v[3]; v[3] = t;
-                        const double *tp = p[1]; p[1] = p[3]; p[3] = tp;
+                        qcorner tq = q[1]; q[1] = q[3]; q[3] = tq;
                     }
+                    int f02 = q[0].rank >= 2 && q[2].rank >= 2;
+                    int f13 = q[1].rank >= 2 && q[3].rank >= 2;
+                    int use02;
+                    if (f02 != f13) {
+                        use02 = f02;
+                    } else {
+                        double e02 = fabs(hermite_mid(&q[0], &q[2]));
+                        double e13 = fabs(hermite_mid(&q[1], &q[3]));
+                        use02 = !(e13 < e02) || isnan(e13);
+                        if (isnan(e02) && !isnan(e13)) use02 = 0;
+                    }
+                    double a02 = fmin(tri_area2(q[0].pos, q[1].pos, q[2].pos),
+                                      tri_area2(q[0].pos, q[2].pos, q[3].pos));
+                    double a13 = fmin(tri_area2(q[0].pos, q[1].pos, q[3].pos),
+                                      tri_area2(q[1].pos, q[2].pos, q[3].pos));
+                    double amax = fmax(a02, a13);
+                    if (use02 && a02 <= 1e-9 * amax) use02 = 0;
+                    else if (!use02 && a13 <= 1e-9 * amax) use02 = 1;
                     if (nq == cap) {
                         cap = cap ? 2 * cap : 256;
-                        uint32_t *nqs = realloc(quads, cap * 4 * sizeof *nqs);
-                        if (nqs) quads = nqs;
-                        const double **nps = realloc(qpos, cap * 4 * sizeof *nps);
-                        if (nps) qpos = nps;
-                        if (!nqs || !nps) { free(quads); free(qpos); return -1; }
+                        uint32_t *nt = realloc(tri, cap * 6 * sizeof *nt);
+                        if (!nt) { free(tri); return -1; }
+                        tri = nt;
                     }
-                    memcpy(&quads[4 * nq], v, sizeof v);
-                    memcpy(&qpos[4 * nq], p, sizeof p);
-                    nq++;
+                    uint32_t *t = &tri[6 * nq++];
+                    if (use02) {
+                        t[0] = v[0]; t[1] = v[1]; t[2] = v[2];
+                        t[3] = v[0]; t[4] = v[2]; t[5] = v[3];
+                    } else {
+                        t[0] = v[0]; t[1] = v[1]; t[2] = v[3];
+                        t[3] = v[1]; t[4] = v[2]; t[5] = v[3];
+                    }
                 }
             }
     B->ntri = 2 * nq;
-    B->tri = malloc((2 * nq + 1) * 3 * sizeof *B->tri);
-    if (!B->tri) { free(quads); free(qpos); return -1; }
-    /* diagonal midpoints, evaluated in batches of at most MESH_BLOCK_EDGES / 2 quads */
-    for (size_t q0 = 0; q0 < nq; q0 += MESH_BLOCK_EDGES / 2) {
-        size_t n = nq - q0 < MESH_BLOCK_EDGES / 2 ? nq - q0 : MESH_BLOCK_EDGES / 2;
-        for (size_t q = 0; q < n; q++) {
-            const double *const *P = &qpos[4 * (q0 + q)];
-            W->qx[2 * q] = 0.5 * (P[0][0] + P[2][0]);
-            W->qy[2 * q] = 0.5 * (P[0][1] + P[2][1]);
-            W->qz[2 * q] = 0.5 * (P[0][2] + P[2][2]);
-            W->qx[2 * q + 1] = 0.5 * (P[1][0] + P[3][0]);
-            W->qy[2 * q + 1] = 0.5 * (P[1][1] + P[3][1]);
-            W->qz[2 * q + 1] = 0.5 * (P[1][2] + P[3][2]);
-            /* areas of both splits, for the degeneracy guard below */
-            W->t0[q] = fmin(tri_area2(P[0], P[1], P[2]), tri_area2(P[0], P[2], P[3]));
-            W->t1[q] = fmin(tri_area2(P[0], P[1], P[3]), tri_area2(P[1], P[2], P[3]));
-        }
-        if (M->f->eval(M->f->ctx, ts, 2 * n, W->qx, W->qy, W->qz, W->qf) != 0) {
-            free(quads);
-            free(qpos);
-            return -1;
-        }
-        for (size_t q = 0; q < n; q++) {
-            const uint32_t *v = &quads[4 * (q0 + q)];
-            double e02 = fabs(W->qf[2 * q] - M->o->iso), e13 = fabs(W->qf[2 * q + 1] - M->o->iso);
-            int use02 = !(e13 < e02) || isnan(e13);
-            if (isnan(e02) && !isnan(e13)) use02 = 0;
-            double amax = fmax(W->t0[q], W->t1[q]);
-            if (use02 && W->t0[q] <= 1e-9 * amax) use02 = 0;
-            else if (!use02 && W->t1[q] <= 1e-9 * amax) use02 = 1;
-            uint32_t *t = &B->tri[6 * (q0 + q)];
-            if (use02) {
-                t[0] = v[0]; t[1] = v[1]; t[2] = v[2];
-                t[3] = v[0]; t[4] = v[2]; t[5] = v[3];
-            } else {
-                t[0] = v[0]; t[1] = v[1]; t[2] = v[3];
-                t[3] = v[1]; t[4] = v[2]; t[5] = v[3];
-            }
-        }
-    }
-    free(quads);
-    free(qpos);
+    B->tri = tri;
     return 0;
 }
 
@@ -998,6 +1063,7 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
         M->ts[t] = f->thread_new(f->ctx);
         works[t] = malloc(sizeof **works);
         if (!M->ts[t] || !works[t]) goto oom;
+        works[t]->eval_points = works[t]->grad_points = 0;
     }
     if (find_blocks(M, st, err, errlen) != 0) goto done;
 
@@ -1107,7 +1173,7 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
 #pragma omp parallel for schedule(dynamic, 1) num_threads(M->nthreads)
         for (long i = 0; i < n; i++) {
             int t = thread_num();
-            if (block_quads(M, works[t], M->ts[t], M->blocks[i]) != 0) {
+            if (block_quads(M, M->blocks[i]) != 0) {
 #pragma omp atomic write
                 failed = 1;
             }
@@ -1165,7 +1231,13 @@ done:
             if (M->ts[t]) f->thread_free(f->ctx, M->ts[t]);
     free(M->ts);
     if (works)
-        for (int t = 0; t < M->nthreads; t++) free(works[t]);
+        for (int t = 0; t < M->nthreads; t++) {
+            if (works[t]) {
+                st->eval_points += works[t]->eval_points;
+                st->grad_points += works[t]->grad_points;
+            }
+            free(works[t]);
+        }
     free(works);
     free(M);
     st->seconds = now_seconds() - t_start;

@@ -34,7 +34,8 @@ void mesh_free(frep_mesh *m);
 
 /* A scalar field to polygonize: inside where f >= iso.  Callbacks receive ctx and a
  * per-thread state made by thread_new (which may return ctx itself when the field has
- * no per-thread state; NULL means out of memory).  eval and grad evaluate n points and
+ * no per-thread state; NULL means out of memory); thread_free is never called by two
+ * threads at once (it may merge the thread's results into ctx).  eval and grad evaluate n points and
  * return 0 or -1; interval (may be NULL: no pruning) encloses f over a box {x0, y0, z0,
  * x1, y1, z1} in [*lo, *hi], soundly ([-inf, inf] when it cannot tell). */
 typedef struct mesh_field {
@@ -53,6 +54,10 @@ typedef struct mesh_field {
  * mesh_field_program_free(). */
 int mesh_field_program(mesh_field *f, const frep_program *p, const double *params);
 void mesh_field_program_free(mesh_field *f);
+/* Runtime domain errors (sqrt of a negative, ...) raised so far by evaluations through
+ * the field, merged over threads (lowest pc first, counts added; a point evaluated
+ * twice counts twice).  Report with frep_report_runtime_error(). */
+void mesh_field_program_errors(const mesh_field *f, frep_runtime_error *e);
 
 typedef struct mesh_options {
     double box[6];      /* x0, y0, z0, x1, y1, z1 */
@@ -75,6 +80,8 @@ typedef struct mesh_stats {
     size_t points_nan;       /* grid points where f was NaN (counted as outside) */
     int touches_box;         /* the solid reaches the box: the mesh is capped there */
     int full;                /* every grid point is inside */
+    size_t eval_points;      /* points evaluated (values only) */
+    size_t grad_points;      /* points evaluated with the gradient */
     double seconds;
 } mesh_stats;
 

@@ -2,7 +2,8 @@
  *
  * Orthographic camera looking at the centre of the framed box from a named direction;
  * two-sided lighting (a key light over the viewer's shoulder plus ambient), normals
- * interpolated from the mesh's vertex normals (face normals when it has none).  Cloud
+ * interpolated from the mesh's vertex normals (the face normal where a vertex normal
+ * disagrees with it by more than 30 degrees, and where the mesh has none).  Cloud
  * points are drawn as small depth-tested discs on top, coloured blue (on the surface)
  * to red (far from it).
  */
@@ -16,6 +17,12 @@
 
 /* Disc radius of an overlay point, in pixels per 1000 pixels of image height. */
 #define RENDER_POINT_RADIUS 2.5
+/* A vertex normal deviating from the triangle's own normal by more than this angle
+ * (cosine of 30 degrees) is not used for that triangle: gradient normals at R-function
+ * creases and at vertices snapped onto sharp edges belong to the other side of the
+ * edge, and interpolating them makes edges look jagged; the face normal keeps them
+ * crisp while smooth surfaces keep their smooth shading. */
+#define RENDER_CREASE_COS 0.866
 /* Depth slack for overlay points, as a fraction of the framed box's diagonal: points on
  * the surface must not be hidden by it. */
 #define RENDER_POINT_DEPTH_SLACK 0.01
@@ -154,6 +161,7 @@ int render_mesh(const frep_mesh *m, const render_points *pts, const render_optio
         for (int k = 0; k < 3; k++) {
             project(&cam, P[k], &sx[k], &sy[k], &sd[k]);
             N[k] = m->n ? &m->n[3 * m->tri[3 * t + k]] : fn;
+            if (!(dot(N[k], fn) >= RENDER_CREASE_COS)) N[k] = fn;
         }
         double area = (sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]);
         if (area == 0 || !isfinite(area)) continue;

@@ -298,7 +298,11 @@ int sample_field(const mesh_field *f, const sample_options *o, frep_cloud **out,
             }
         }
         free(buf);
-        if (ts) f->thread_free(f->ctx, ts);
+        if (ts) {
+            /* thread_free may merge per-thread state (runtime errors) into ctx */
+#pragma omp critical(sample_thread_free)
+            f->thread_free(f->ctx, ts);
+        }
     }
     if (failed) {
         cloud_free(c);

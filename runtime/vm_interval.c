@@ -344,8 +344,10 @@ static int iv_index_range(ival i, double k, uint32_t *first, uint32_t *last)
     return 1;
 }
 
-int vm_eval_interval(const frep_program *p, vm_iscratch *s, const double box[6],
-                     const double *params, ival *out)
+/* The interval evaluator; trace (may be NULL; p->ncode entries) receives the value
+ * each instruction pushes. */
+static int interval_run(const frep_program *p, vm_iscratch *s, const double box[6],
+                        const double *params, ival *out, ival *trace)
 {
     *out = iv_entire();
     if (p->max_stack + 1 > s->nstack || p->nslots + 1 > s->nslots) return -1;
@@ -461,8 +463,268 @@ int vm_eval_interval(const frep_program *p, vm_iscratch *s, const double box[6],
             return 0;
         }
         if (sp > s->nstack) return 0;
+        if (trace && sp >= 1) trace[pc] = st[sp - 1];
         pc = next;
     }
     if (sp >= 1) *out = iv_fix(st[sp - 1]);
+    return 0;
+}
+
+int vm_eval_interval(const frep_program *p, vm_iscratch *s, const double box[6],
+                     const double *params, ival *out)
+{
+    return interval_run(p, s, box, params, out, NULL);
+}
+
+/* ---- tape pruning ---------------------------------------------------------------
+ * Over a box, a set operation whose interval operands decide it can be replaced by
+ * one operand.  min/max (and min(a, -b)) keep their values exactly.  The R-functions
+ * keep only the sign: a | b with b < 0 on the box has the sign of a, the same zero
+ * set and, on it, the same gradient (d/db = 1 + b/|b| = 0 there); likewise a & b with
+ * b > 0 and a \ b with b < 0 (a \ b with a > 0 is -b).  So an R-function is pruned
+ * only where its value reaches the result through sign-preserving operations alone
+ * (set operations, negation, variables read only by those): the zero set, the
+ * inside/outside of every point and the surface normals do not change, the values
+ * off the surface may.  A dropped operand must not contain a domain check (its
+ * errors and NaNs must still be seen) nor a store.  Stores nobody reads any more are
+ * removed with the code computing their values. */
+
+enum { PR_NONE, PR_KEEP_A, PR_KEEP_B, PR_KEEP_NEG_B };
+
+struct vm_pruner {
+    const frep_program *p;
+    uint32_t n;
+    uint32_t *a0, *b0;       /* operand starts of a prunable set operation (else 0) */
+    uint8_t *kind;           /* 0: not prunable; 1: exact (min/max); 2: sign (R0) */
+    uint32_t *ndomain;       /* prefix counts: domain ops, stores in code[0..pc) */
+    uint32_t *nstore;
+    uint32_t *vstart;        /* STORE: start of the stored value's subtree */
+    ival *trace;             /* scratch of vm_prune: one per pruner, hence per thread */
+    uint8_t *keep, *neg, *live;
+};
+
+void vm_pruner_free(vm_pruner *r)
+{
+    if (!r) return;
+    free(r->a0);
+    free(r->b0);
+    free(r->kind);
+    free(r->ndomain);
+    free(r->nstore);
+    free(r->vstart);
+    free(r->trace);
+    free(r->keep);
+    free(r->neg);
+    free(r->live);
+    free(r);
+}
+
+vm_pruner *vm_pruner_new(const frep_program *p)
+{
+    if (!p || !p->code || p->ncode == 0 || (p->flags & (PROG_HAS_BRANCHES | PROG_HAS_PRIMS)))
+        return NULL;
+    uint32_t n = p->ncode;
+    for (uint32_t pc = 0; pc < n; pc++) {
+        frep_opcode op = (frep_opcode)p->code[pc].op;
+        if (op == FREP_OP_LOADI || op == FREP_OP_STOREI || op == FREP_OP_JMP ||
+            op == FREP_OP_JZ || op == FREP_OP_PRIM || op >= FREP_OP__COUNT)
+            return NULL;
+    }
+    vm_pruner *r = calloc(1, sizeof *r);
+    uint32_t *producer = malloc((n + 1) * sizeof *producer);  /* stack of producing pcs */
+    uint32_t *consumer = malloc((n + 1) * sizeof *consumer);  /* pc popping the value */
+    uint32_t *reads = malloc((n + 1) * sizeof *reads);        /* LOAD: the STORE it reads */
+    uint32_t *last = malloc((p->nslots + 1) * sizeof *last);
+    uint8_t *sign = malloc(n + 1), *store_ok = malloc(n + 1);
+    if (!r || !producer || !consumer || !reads || !last || !sign || !store_ok) goto fail;
+    r->p = p;
+    r->n = n;
+    r->a0 = calloc(n, sizeof *r->a0);
+    r->b0 = calloc(n, sizeof *r->b0);
+    r->kind = calloc(n, 1);
+    r->ndomain = malloc((n + 1) * sizeof *r->ndomain);
+    r->nstore = malloc((n + 1) * sizeof *r->nstore);
+    r->vstart = calloc(n, sizeof *r->vstart);
+    r->trace = malloc(n * sizeof *r->trace);
+    r->keep = malloc(n);
+    r->neg = malloc(n);
+    r->live = malloc(p->nslots + 1);
+    if (!r->a0 || !r->b0 || !r->kind || !r->ndomain || !r->nstore || !r->vstart || !r->trace ||
+        !r->keep || !r->neg || !r->live)
+        goto fail;
+    const uint32_t NONE = UINT32_MAX;
+    /* forward: who consumes each value, which store each load reads */
+    uint32_t sp = 0;
+    for (uint32_t j = 0; j <= p->nslots; j++) last[j] = NONE;
+    r->ndomain[0] = r->nstore[0] = 0;
+    for (uint32_t pc = 0; pc < n; pc++) {
+        const frep_insn *in = &p->code[pc];
+        frep_opcode op = (frep_opcode)in->op;
+        int nin = insn_nin(in);
+        if ((uint32_t)nin > sp || in->arg > p->nslots) goto fail;
+        for (int i = 0; i < nin; i++) consumer[producer[--sp]] = pc;
+        consumer[pc] = NONE;
+        reads[pc] = NONE;
+        if (op == FREP_OP_LOAD) reads[pc] = last[in->arg];
+        if (op == FREP_OP_STORE) {
+            last[in->arg] = pc;
+            r->vstart[pc] = pc > 0 ? prog_subtree_start(p->code, pc - 1) : 0;
+        }
+        if (op_pushes(op)) producer[sp++] = pc;
+        r->ndomain[pc + 1] = r->ndomain[pc] + ((op_flags(op) & OPF_DOMAIN) != 0);
+        r->nstore[pc + 1] = r->nstore[pc] + (op == FREP_OP_STORE);
+    }
+    /* the values left on the stack are the result: their sign is what counts */
+    for (uint32_t i = 0; i < sp; i++) consumer[producer[i]] = n;
+    /* backward: is each value used only through sign-preserving operations? */
+    for (uint32_t pc = 0; pc < n; pc++) store_ok[pc] = 1;
+    for (uint32_t pc = n; pc-- > 0;) {
+        frep_opcode op = (frep_opcode)p->code[pc].op;
+        uint32_t c = consumer[pc];
+        int ok = 0;
+        if (op == FREP_OP_STORE) {
+            sign[pc] = store_ok[pc];
+            continue;
+        }
+        if (c == n) {
+            ok = 1;
+        } else if (c != NONE) {
+            frep_opcode cop = (frep_opcode)p->code[c].op;
+            switch (cop) {
+            case FREP_OP_RUNI: case FREP_OP_RINT: case FREP_OP_RSUB: case FREP_OP_MIN:
+            case FREP_OP_MAX: case FREP_OP_MSUB: case FREP_OP_NEG: case FREP_OP_STORE:
+                ok = sign[c];
+                break;
+            default: break;
+            }
+        }
+        sign[pc] = (uint8_t)ok;
+        if (op == FREP_OP_LOAD && reads[pc] != NONE && !ok) store_ok[reads[pc]] = 0;
+    }
+    /* the prunable set operations */
+    for (uint32_t pc = 0; pc < n; pc++) {
+        const frep_insn *in = &p->code[pc];
+        frep_opcode op = (frep_opcode)in->op;
+        int k = 0;
+        if (op == FREP_OP_MIN || op == FREP_OP_MAX || op == FREP_OP_MSUB) k = 1;
+        else if ((op == FREP_OP_RUNI || op == FREP_OP_RINT || op == FREP_OP_RSUB) && sign[pc]) k = 2;
+        if (!k || (in->flags & (INSN_KA | INSN_KB)) || pc < 2) continue;
+        uint32_t b0 = prog_subtree_start(p->code, pc - 1);
+        if (b0 == 0) continue;
+        uint32_t a0 = prog_subtree_start(p->code, b0 - 1);
+        r->a0[pc] = a0;
+        r->b0[pc] = b0;
+        r->kind[pc] = (uint8_t)k;
+    }
+    free(producer);
+    free(consumer);
+    free(reads);
+    free(last);
+    free(sign);
+    free(store_ok);
+    return r;
+fail:
+    free(producer);
+    free(consumer);
+    free(reads);
+    free(last);
+    free(sign);
+    free(store_ok);
+    vm_pruner_free(r);
+    return NULL;
+}
+
+/* May the code [from, to) be dropped? */
+static int pr_droppable(const vm_pruner *r, uint32_t from, uint32_t to)
+{
+    return r->ndomain[to] == r->ndomain[from] && r->nstore[to] == r->nstore[from];
+}
+
+int vm_prune(vm_pruner *r, vm_iscratch *s, const double box[6], const double *params,
+             frep_insn *code, frep_srcpos *pos, uint32_t *orig, uint32_t *ncode, ival *out)
+{
+    const frep_program *p = r->p;
+    uint32_t n = r->n;
+    for (uint32_t pc = 0; pc < n; pc++) r->trace[pc] = iv_entire();
+    if (interval_run(p, s, box, params, out, r->trace) != 0) return -1;
+    memset(r->keep, 1, n);
+    memset(r->neg, 0, n);
+    int changed = 0;
+    for (uint32_t pc = 0; pc < n; pc++) {
+        if (!r->kind[pc] || !r->keep[pc]) continue;
+        frep_opcode op = (frep_opcode)p->code[pc].op;
+        ival A = r->trace[r->b0[pc] - 1], B = r->trace[pc - 1];
+        int d = PR_NONE;
+        switch (op) {
+        case FREP_OP_RUNI:
+            if (B.hi < 0) d = PR_KEEP_A;
+            else if (A.hi < 0) d = PR_KEEP_B;
+            break;
+        case FREP_OP_RINT:
+            if (B.lo > 0) d = PR_KEEP_A;
+            else if (A.lo > 0) d = PR_KEEP_B;
+            break;
+        case FREP_OP_RSUB:
+            if (B.hi < 0) d = PR_KEEP_A;
+            else if (A.lo > 0) d = PR_KEEP_NEG_B;
+            break;
+        case FREP_OP_MIN:
+            if (A.hi < B.lo) d = PR_KEEP_A;
+            else if (B.hi < A.lo) d = PR_KEEP_B;
+            break;
+        case FREP_OP_MAX:
+            if (A.lo > B.hi) d = PR_KEEP_A;
+            else if (B.lo > A.hi) d = PR_KEEP_B;
+            break;
+        case FREP_OP_MSUB: /* min(a, -b) */
+            if (A.hi < -B.hi) d = PR_KEEP_A;
+            else if (-B.lo < A.lo) d = PR_KEEP_NEG_B;
+            break;
+        default: break;
+        }
+        uint32_t a0 = r->a0[pc], b0 = r->b0[pc];
+        if (d == PR_KEEP_A && pr_droppable(r, b0, pc)) {
+            memset(r->keep + b0, 0, pc + 1 - b0);
+            changed = 1;
+        } else if ((d == PR_KEEP_B || d == PR_KEEP_NEG_B) && pr_droppable(r, a0, b0)) {
+            memset(r->keep + a0, 0, b0 - a0);
+            if (d == PR_KEEP_B) r->keep[pc] = 0;
+            else r->neg[pc] = 1;
+            changed = 1;
+        }
+    }
+    /* dead stores, with the code of their values */
+    if (changed) {
+        memset(r->live, 0, p->nslots + 1);
+        for (uint32_t pc = n; pc-- > 0;) {
+            if (!r->keep[pc]) continue;
+            const frep_insn *in = &p->code[pc];
+            if (in->op == FREP_OP_STORE) {
+                if (!r->live[in->arg] && pr_droppable(r, r->vstart[pc], pc) &&
+                    r->ndomain[pc] == r->ndomain[r->vstart[pc]]) {
+                    memset(r->keep + r->vstart[pc], 0, pc + 1 - r->vstart[pc]);
+                    continue;
+                }
+                r->live[in->arg] = 0;
+            } else if (in->op == FREP_OP_LOAD) {
+                r->live[in->arg] = 1;
+            }
+        }
+    }
+    uint32_t m = 0;
+    for (uint32_t pc = 0; pc < n; pc++) {
+        if (!r->keep[pc]) continue;
+        code[m] = p->code[pc];
+        if (r->neg[pc]) {
+            code[m].op = FREP_OP_NEG;
+            code[m].flags = 0;
+            code[m].arg = 0;
+            code[m].k = 0;
+        }
+        pos[m] = p->pos ? p->pos[pc] : (frep_srcpos){ 0, 0, 0 };
+        orig[m] = pc;
+        m++;
+    }
+    *ncode = m;
     return 0;
 }

@@ -204,26 +204,10 @@ static void tan_record(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_opc
 }
 
 /* Value and partials of a unary op, with its constant opcode folded into the loop.
- * With 3 tangents all nonzero (the common case of a gradient), the chain rule is
- * fused into the same loop and the partials are never stored. */
+ * (A variant fusing the 3-tangent chain rule into this loop measured 1.5-2x slower
+ * with GCC 12: too many streams per loop; the separate passes below vectorize well.) */
 #define TAN_UNARY(NAME)                                                            \
     case FREP_OP_##NAME:                                                           \
-        if (fused) {                                                               \
-            double *restrict Rr = R, *restrict O0 = Of[0], *restrict O1 = Of[1];   \
-            double *restrict O2 = Of[2];                                           \
-            const double *restrict TA0 = Tf[0], *restrict TA1 = Tf[1];             \
-            const double *restrict TA2 = Tf[2], *restrict Ar = A;                  \
-            for (i = 0; i < n; i++) {                                              \
-                double a = Ar[i], dd[3];                                           \
-                double r = op_scalar(FREP_OP_##NAME, a, 0, 0, 0, NULL);            \
-                op_partials(FREP_OP_##NAME, a, 0, 0, 0, r, dd);                    \
-                Rr[i] = r;                                                         \
-                O0[i] = dd[0] * TA0[i];                                            \
-                O1[i] = dd[0] * TA1[i];                                            \
-                O2[i] = dd[0] * TA2[i];                                            \
-            }                                                                      \
-            break;                                                                 \
-        }                                                                          \
         for (i = 0; i < n; i++) {                                                  \
             double a = A[i], r = op_scalar(FREP_OP_##NAME, a, 0, 0, 0, NULL), dd[3]; \
             op_partials(FREP_OP_##NAME, a, 0, 0, 0, r, dd);                        \
@@ -242,42 +226,10 @@ static void tan_record(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_opc
         PB[i] = dd[1];                                                             \
     }
 
-/* Fused: O_c = da TA_c + db TB_c (TX expressions select operand tangents or 0). */
-#define TAN_BINARY_FUSED(NAME, AV, BV, T0, T1, T2)                                 \
-    {                                                                              \
-    /* restrict copies: outputs live in the free set, inputs elsewhere */          \
-    double *restrict Rr = R, *restrict O0 = Of[0], *restrict O1 = Of[1];           \
-    double *restrict O2 = Of[2];                                                   \
-    const double *restrict TA0 = Tf[0], *restrict TA1 = Tf[1];                     \
-    const double *restrict TA2 = Tf[2], *restrict TB0 = Tf[3];                     \
-    const double *restrict TB1 = Tf[4], *restrict TB2 = Tf[5];                     \
-    const double *restrict Ar = A, *restrict Br = B;                               \
-    (void)TA0; (void)TA1; (void)TA2; (void)TB0; (void)TB1; (void)TB2; (void)Ar; (void)Br; \
-    for (i = 0; i < n; i++) {                                                      \
-        double a = (AV), b = (BV), dd[3];                                          \
-        double r = op_scalar(FREP_OP_##NAME, a, b, 0, k, NULL);                    \
-        op_partials(FREP_OP_##NAME, a, b, 0, k, r, dd);                            \
-        Rr[i] = r;                                                                 \
-        O0[i] = (T0);                                                              \
-        O1[i] = (T1);                                                              \
-        O2[i] = (T2);                                                              \
-    }                                                                              \
-    }
-
 /* Binary: separate loops for stack operands and immediates, so each vectorizes. */
 #define TAN_BINARY(NAME)                                                           \
     case FREP_OP_##NAME:                                                           \
-        if (fused && A && B) {                                                     \
-            TAN_BINARY_FUSED(NAME, Ar[i], Br[i], dd[0] * TA0[i] + dd[1] * TB0[i],    \
-                             dd[0] * TA1[i] + dd[1] * TB1[i],                      \
-                             dd[0] * TA2[i] + dd[1] * TB2[i])                      \
-        } else if (fused && A) {                                                   \
-            TAN_BINARY_FUSED(NAME, Ar[i], kb, dd[0] * TA0[i], dd[0] * TA1[i],       \
-                             dd[0] * TA2[i])                                       \
-        } else if (fused) {                                                        \
-            TAN_BINARY_FUSED(NAME, ka, Br[i], dd[1] * TB0[i], dd[1] * TB1[i],       \
-                             dd[1] * TB2[i])                                       \
-        } else if (A && B) {                                                       \
+        if (A && B) {                                                              \
             TAN_BINARY_LOOP(NAME, A[i], B[i])                                      \
         } else if (A) {                                                            \
             TAN_BINARY_LOOP(NAME, A[i], kb)                                        \
@@ -525,10 +477,8 @@ static int tan_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, si
             double *set = t->lvset[2 * L + (uint32_t)w];
             double *R = set_val(set), *PA = t->pa, *PB = t->pb;
             const double **eo;
-            int constpart = 0, fused;
+            int constpart = 0;
             double ca = 0, cb = 0;
-            double *Of[3] = {NULL, NULL, NULL};      /* fused: output tangents */
-            const double *Tf[6] = {NULL, NULL, NULL, NULL, NULL, NULL}; /* fused: inputs */
 
             if (!binary) {
                 A = t->ev[d - 1];
@@ -547,17 +497,6 @@ static int tan_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, si
             }
             if ((fl & OPF_DOMAIN) && !(in_->flags & INSN_QUIET))
                 tan_record(s, in, pc, op, A, ka, B, kb, n);
-            /* The fused T = 3 path: every operand on the stack has 3 nonzero tangents. */
-            fused = T == 3 && !(fl & OPF_NOGRAD) && (!ta || (ta[0] && ta[1] && ta[2])) &&
-                    (!tb || (tb[0] && tb[1] && tb[2]));
-            if (fused) {
-                for (c = 0; c < 3; c++) {
-                    Of[c] = set_tan(set, c);
-                    if (ta) Tf[c] = ta[c];
-                    if (tb) Tf[3 + c] = tb[c];
-                }
-            }
-
             switch (op) {
             /* Cheap ops: value loop plus constant or operand-vector partials. */
             case FREP_OP_ADD: case FREP_OP_SUB: case FREP_OP_MUL: {
@@ -608,11 +547,7 @@ static int tan_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, si
 
             /* Tangents by the chain rule; NOGRAD ops and constant operands give NULL. */
             eo = t->et + (size_t)L * T;
-            if (fused && !constpart && op != FREP_OP_MUL) {
-                eo[0] = Of[0];
-                eo[1] = Of[1];
-                eo[2] = Of[2];
-            } else for (c = 0; c < T; c++) {
+            for (c = 0; c < T; c++) {
                 const double *xa = ta ? ta[c] : NULL, *xb = tb ? tb[c] : NULL;
                 if ((fl & OPF_NOGRAD) || (!xa && !xb)) { eo[c] = NULL; continue; }
                 if (constpart) {

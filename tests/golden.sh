@@ -2,7 +2,8 @@
 # golden.sh - golden language tests: for every tests/lang/AREA/NAME.hf, run
 # `frep check NAME.hf` from the file's directory and compare its standard error with
 # NAME.err (whole diagnostics: message, source line, caret) or, without NAME.err,
-# expect a clean check; where NAME.print exists, compare `frep print NAME.hf` with it.
+# expect a clean check; where NAME.print exists, compare `frep print NAME.hf` with it;
+# for every tests/dis/NAME.hf compare `frep dis NAME.hf` with NAME.dis.
 # Prints TAP.  Needs FREP (the frep binary) and srcdir (the source tree).
 # To refresh an expectation after a deliberate change: run the same command in the
 # file's directory and review the difference before committing it.
@@ -80,6 +81,22 @@ for hf in "$srcdir"/tests/lang/*/*.hf; do
             report 1 "$area/$name: print is a fixed point"
             show_diff "$tmp/out" "$tmp/out2"
         fi
+    fi
+done
+
+# frep dis: disassembly goldens pin what the compiler emits
+for hf in "$srcdir"/tests/dis/*.hf; do
+    [ -e "$hf" ] || continue
+    dir=$(dirname "$hf")
+    name=$(basename "$hf" .hf)
+    (cd "$dir" && "$FREP" dis "$name.hf" >"$tmp/dis" 2>"$tmp/err")
+    status=$?
+    if [ "$status" = 0 ] && cmp -s "$dir/$name.dis" "$tmp/dis"; then
+        report 0 "dis/$name: disassembly"
+    else
+        report 1 "dis/$name: disassembly (exit status $status)"
+        show_diff "$dir/$name.dis" "$tmp/dis"
+        sed 's/^/# /' "$tmp/err"
     fi
 done
 

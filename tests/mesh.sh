@@ -20,11 +20,22 @@ f() { # f DESCRIPTION PATTERN COMMAND...: ok when the command fails saying PATTE
   elif grep -q -- "$pat" "$T/err"; then echo "ok $n - $desc"
   else echo "not ok $n - $desc"; sed 's/^/# /' "$T/err"; fails=$((fails + 1)); fi
 }
+w() { # w DESCRIPTION PATTERN COMMAND...: ok when the command succeeds saying PATTERN
+  desc=$1; pat=$2; shift 2
+  n=$((n + 1))
+  if ! "$@" >"$T/out" 2>"$T/err"; then echo "not ok $n - $desc (failed)"; sed 's/^/# /' "$T/err"; fails=$((fails + 1))
+  elif grep -q -- "$pat" "$T/err"; then echo "ok $n - $desc"
+  else echo "not ok $n - $desc"; sed 's/^/# /' "$T/err"; fails=$((fails + 1)); fi
+}
 M="$srcdir/tests/models"
 E="$srcdir/examples"
+# every example: checks clean, meshes closed, manifold and oriented in its own box
 for hf in "$E"/*.hf; do
+  t "check $(basename "$hf")" "$FREP" check "$hf"
   t "mesh $(basename "$hf") is closed, manifold and oriented" \
     "$FREP" mesh "$hf" -g 41 -o "$T/m.stl" --check -q
+  cp "$T/err" "$T/mesh.err"
+  t "... and has no warnings" test ! -s "$T/mesh.err"
 done
 for hf in "$M"/*.hf; do
   for g in 13 40; do
@@ -52,6 +63,18 @@ f "zero-size box" "empty box" "$FREP" mesh "$M/block_minus_ball.hf" -b 1,1 -o "$
 f "unknown format" "cannot tell the format" "$FREP" mesh "$M/block_minus_ball.hf" -o "$T/e.xyz"
 f "bad mesh input" "e.off:" sh -c "printf 'OFF\n1 1 0\n0 0 0\n3 0 0 7\n' > '$T/e.off' && '$FREP' sample '$T/e.off' -n 5 -o '$T/e.xyz'"
 f "bad --view" "expected one of" "$FREP" render "$M/block_minus_ball.hf" --view upside -o "$T/e.png"
+# runtime domain errors: one warning with the position of the failing operation
+RE='thin_nan.hf:7:34: warning: sqrt of a negative number at [0-9]* points'
+w "mesh reports sqrt of a negative with its position" "$RE" \
+  "$FREP" mesh "$M/thin_nan.hf" -b 1.2 -g 20 -o "$T/n.stl" -q
+cp "$T/err" "$T/warn"
+t "... once" test "$(grep -c 'warning: sqrt' "$T/warn")" -eq 1
+t "... with the source line and a caret" grep -q '^ *\^~~~$' "$T/warn"
+w "sample reports it too" "$RE" \
+  "$FREP" sample "$M/thin_nan.hf" -b 1.2 -n 100 --seed 1 -o "$T/n.xyz" -q
+w "render reports it too" "$RE" \
+  "$FREP" render "$M/thin_nan.hf" -b 1.2 -g 20 --size 32x32 -o "$T/n.png" -q
+t "no warning without domain errors" sh -c "'$FREP' mesh '$M/block_minus_ball.hf' -b 1 -g 16 -o '$T/q.stl' -q 2>&1 | grep -c warning | grep -qx 0"
 t "no output left behind by failures" sh -c "! ls '$T'/e.stl '$T'/e.png 2>/dev/null"
 echo "1..$n"
 test $fails -eq 0

@@ -473,6 +473,65 @@ static void test_determinism(void)
     free(list);
 }
 
+/* Readable output: numbers rounded relative to the scale, never by more than half a
+ * quantum, round-off noise printed as 0, and exact output without a scale. */
+static void test_rounding(void)
+{
+    char buf[PRIM_NUM_BUF];
+    prim_format_number(buf, 2.9e-13, 1e-7);
+    is_str(buf, "0", "round-off noise below the quantum is 0");
+    prim_format_number(buf, -2.9e-13, 1e-7);
+    is_str(buf, "0", "negative noise is 0, not -0");
+    prim_format_number(buf, 0.49999999987, 1e-7);
+    is_str(buf, "0.5", "shortest form within half a quantum");
+    prim_format_number(buf, 1.2345678912345, 1e-7);
+    ok(fabs(strtod(buf, NULL) - 1.2345678912345) <= 0.5e-7 && strlen(buf) <= 10,
+       "1.2345678912345 at 1e-7: %s", buf);
+    prim_format_number(buf, 0.1 + 0.2, 0);
+    ok(strtod(buf, NULL) == 0.1 + 0.2, "quantum 0: exact round trip (%s)", buf);
+    prim_format_number(buf, 0.5, 0);
+    is_str(buf, "0.5", "quantum 0: still shortest");
+
+    /* A tilted cylinder with round-off in every parameter, written at scale 3. */
+    prim q;
+    memset(&q, 0, sizeof q);
+    q.type = PRIM_CYLINDER;
+    double a[3] = {0.6, 1e-14, 0.8 + 3e-13}, l = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    for (int k = 0; k < 3; k++) q.a[k] = a[k] / l;
+    q.p[0] = 0.25 + 4e-12;
+    q.p[1] = -1.5 - 2e-11;
+    q.p[2] = 3.1e-13;
+    q.r = 0.7499999999;
+    FILE *f = tmpfile();
+    prim_write_call_scaled(f, &q, 3.0);
+    long len = ftell(f);
+    rewind(f);
+    char line[256] = "";
+    size_t got = fread(line, 1, sizeof line - 1, f);
+    line[got] = '\0';
+    fclose(f);
+    (void)len;
+    is_str(line, "frCylinder(x, 0.25, -1.5, 0, 0.6, 0, 0.8, 0.75)", "readable cylinder call");
+    prim *back = NULL;
+    size_t nb = 0;
+    char src[400];
+    snprintf(src, sizeof src, "m(x[3], a[1])\n{\n  p1 = %s;\n}\n", line);
+    int rc = segment_parse_prims("r.hf", src, strlen(src), 0, &back, &nb, NULL);
+    ok(rc == 0 && nb == 1, "rounded call reads back");
+    if (rc == 0 && nb == 1) {
+        /* The surface moves by far less than the quantum times the scale. */
+        double worst = 0;
+        for (int i = 0; i < 50; i++) {
+            double t = 0.1 * i, x[3] = {q.p[0] + t * q.a[0] + 0.75 * 0.8,
+                                        q.p[1] + 0.3 * t, q.p[2] + t * q.a[2] - 0.75 * 0.6};
+            double d = fabs(prim_eval(&q, x, NULL) - prim_eval(back, x, NULL));
+            if (d > worst) worst = d;
+        }
+        ok(worst < 10 * PRIM_POS_QUANTUM * 3.0, "rounding moves the surface by %.2g", worst);
+    }
+    free(back);
+}
+
 static void test_files(void)
 {
     const char *fit = "# comment\nplane 0 0 2 1\nsphere 1 2 3 0.5\n"
@@ -512,7 +571,7 @@ static void test_files(void)
         p[1].rms = 0.001;
         p[3].separating = 1;
         f = tmpfile();
-        segment_write_hf(f, p, n, "frep segment test\nseed 1");
+        segment_write_hf(f, p, n, "frep segment test\nseed 1", 0.0);
         len = ftell(f);
         rewind(f);
         buf = malloc((size_t)len + 1);
@@ -533,6 +592,8 @@ static void test_files(void)
     }
     free(p);
     free(err);
+
+    test_rounding();
 
     const char *bad[][2] = {
         {"plane 0 0 1\n", "t.fit:1: expected 4 numbers after 'plane', got 3"},

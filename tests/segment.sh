@@ -1,0 +1,179 @@
+#!/bin/sh
+# segment.sh - end-to-end tests of `frep segment` on clouds made by `frep sample` from
+# tests/models/segment_*.hf (a box of six planes, a sphere, a capped cylinder, a cone
+# frustum, a torus, all in general position): clean, and with Gaussian noise of 1% of
+# the diagonal plus 5% outliers. Every surface must be found with the right type and
+# parameters within the tolerances below, and nothing else. Prints TAP.
+# Needs FREP (the frep binary) and srcdir (the source tree).
+
+: "${FREP:?FREP must name the frep binary}"
+: "${srcdir:?srcdir must name the source tree}"
+
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-segment.XXXXXX") || exit 1
+trap 'rm -rf "$tmp"' EXIT INT TERM
+M="$srcdir/tests/models"
+
+# Points per cloud: enough for the smallest surface (the cone's near cap, 2% of the
+# area) to clear the default minimum support of 1% of the points.
+NPTS=20000
+# Tolerances (the models are about 1 unit across, diagonals 2.7 to 3.1):
+# positions and radii in model units, directions and the cone angle in degrees.
+TOL_POS_CLEAN=0.005
+TOL_DEG_CLEAN=0.5
+TOL_POS_NOISY=0.03
+TOL_DEG_NOISY=2.5
+
+n=0
+failed=0
+report() { # report STATUS DESCRIPTION
+    n=$((n + 1))
+    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
+}
+
+# The ground truth of each model in the .fit format of frep segment, derived from the
+# model sources by hand: unit vectors are the models' vectors divided by their length,
+# plane offsets are distances (frPlane normalizes), cylinder and cone points are on
+# the axis, the torus line is "torus a c r R". Planes point outward.
+truth() {
+    case $1 in
+    box)
+        for v in "2 2 1 0.5" "-2 -2 -1 0.5" "-2 1 2 0.4" "2 -1 -2 0.4" "1 -2 2 0.3" \
+                 "-1 2 -2 0.3"; do
+            echo "$v" | awk '{ print "plane", $1 / 3, $2 / 3, $3 / 3, $4 }'
+        done ;;
+    sphere) echo "sphere 0.1 -0.2 0.05 0.7" ;;
+    cylinder)
+        echo "cylinder 0.333333333 0.666666667 0.666666667 0.3 0 0 0.4"
+        echo "plane 0.333333333 0.666666667 0.666666667 0.7"
+        echo "plane -0.333333333 -0.666666667 -0.666666667 0.5" ;;
+    cone)
+        # a = (1, 0, -3) / sqrt(10); the caps are 0.3 and 1.2 from the apex along a.
+        echo "cone 0.316227766 0 -0.948683298 0.1 0.1 0.8 0.5"
+        echo "plane 0.316227766 0 -0.948683298 0.472676"
+        echo "plane -0.316227766 0 0.948683298 0.427324" ;;
+    torus) echo "torus 0 0.707106781 0.707106781 0.1 0 -0.1 0.2 0.6" ;;
+    esac
+}
+
+# compare TRUTH FOUND TOL_POS TOL_DEG: prints "matched spurious worst-detail" where each
+# truth line is matched to one found line of its type within the tolerances.
+compare() {
+    awk -v tp="$3" -v td="$4" '
+    function dot(a, b, i, j) { return a[i] * b[j] + a[i + 1] * b[j + 1] + a[i + 2] * b[j + 2] }
+    function ang(x) { return atan2(sqrt(1 - (x > 1 ? 1 : x) ^ 2), x) * 57.29577951308232 }
+    function absv(x) { return x < 0 ? -x : x }
+    # Distance from point (b[j..j+2]) to the line through a[i..] along unit a[k..].
+    function linedist(a, i, k, b, j,   d0, d1, d2, h) {
+        d0 = b[j] - a[i]; d1 = b[j + 1] - a[i + 1]; d2 = b[j + 2] - a[i + 2]
+        h = d0 * a[k] + d1 * a[k + 1] + d2 * a[k + 2]
+        return sqrt((d0 - h * a[k]) ^ 2 + (d1 - h * a[k + 1]) ^ 2 + (d2 - h * a[k + 2]) ^ 2)
+    }
+    function pdist(a, i, b, j) {
+        return sqrt((a[i] - b[j]) ^ 2 + (a[i + 1] - b[j + 1]) ^ 2 + (a[i + 2] - b[j + 2]) ^ 2)
+    }
+    # Worst error of found line f against truth line t, as a multiple of the tolerances
+    # (<= 1: a match), or 1e9 for another type.
+    function err(t, f,   T, F, e, x) {
+        split(t, T, " "); split(f, F, " ")
+        if (T[1] != F[1]) return 1e9
+        if (T[1] == "plane") {
+            e = ang(dot(T, F, 2, 2)) / td
+            x = absv(T[5] - F[5]) / tp; if (x > e) e = x
+        } else if (T[1] == "sphere") {
+            e = pdist(T, 2, F, 2) / tp
+            x = absv(T[5] - F[5]) / tp; if (x > e) e = x
+        } else if (T[1] == "cylinder") {
+            e = ang(absv(dot(T, F, 2, 2))) / td
+            x = linedist(T, 5, 2, F, 5) / tp; if (x > e) e = x
+            x = absv(T[8] - F[8]) / tp; if (x > e) e = x
+        } else if (T[1] == "cone") {
+            e = ang(dot(T, F, 2, 2)) / td
+            x = pdist(T, 5, F, 5) / tp; if (x > e) e = x
+            x = absv(T[8] - F[8]) * 57.29577951308232 / td; if (x > e) e = x
+        } else {
+            e = ang(absv(dot(T, F, 2, 2))) / td
+            x = pdist(T, 5, F, 5) / tp; if (x > e) e = x
+            x = absv(T[8] - F[8]) / tp; if (x > e) e = x
+            x = absv(T[9] - F[9]) / tp; if (x > e) e = x
+        }
+        return e
+    }
+    FNR == NR { t[++nt] = $0; next }
+    /^[a-z]/ { f[++nf] = $0 }
+    END {
+        matched = 0; worst = 0
+        for (i = 1; i <= nt; i++) {
+            best = 0; be = 1e18
+            for (j = 1; j <= nf; j++)
+                if (!used[j]) { e = err(t[i], f[j]); if (e < be) { be = e; best = j } }
+            if (best && be <= 1) { used[best] = 1; matched++; if (be > worst) worst = be }
+            else print "# missed:", t[i], "(best error", be, "x tolerance)" > "/dev/stderr"
+        }
+        for (j = 1; j <= nf; j++) if (!used[j]) print "# spurious:", f[j] > "/dev/stderr"
+        printf "%d %d %.2f\n", matched, nf - matched, worst
+    }' "$1" "$2"
+}
+
+for model in box sphere cylinder cone torus; do
+    truth $model > "$tmp/$model.truth"
+    want=$(wc -l < "$tmp/$model.truth")
+    for kind in clean noisy; do
+        if [ $kind = clean ]; then
+            opts="--noise 0 --outliers 0"; tp=$TOL_POS_CLEAN; td=$TOL_DEG_CLEAN
+        else
+            opts="--noise 0.01 --outliers 0.05"; tp=$TOL_POS_NOISY; td=$TOL_DEG_NOISY
+        fi
+        c="$tmp/$model-$kind.xyz"
+        # shellcheck disable=SC2086
+        "$FREP" sample "$M/segment_$model.hf" -n $NPTS $opts --seed 7 -o "$c" -q
+        "$FREP" segment "$c" --seed 1 --no-separating -q -o "$tmp/$model-$kind.fit" \
+            2> "$tmp/err"
+        st=$?
+        report $st "$model, $kind: frep segment runs"
+        [ $st = 0 ] || { sed 's/^/# /' "$tmp/err"; continue; }
+        set -- $(compare "$tmp/$model.truth" "$tmp/$model-$kind.fit" $tp $td 2> "$tmp/cmp")
+        sed 's/^/# /' "$tmp/cmp"
+        [ "$1" = "$want" ]
+        report $? "$model, $kind: all $want surfaces found with the right type and parameters (worst error $3 x tolerance)"
+        [ "$2" = 0 ]
+        report $? "$model, $kind: no spurious primitive ($2)"
+    done
+done
+
+# Normals estimated by frep (PCA and propagation) instead of the sampler's: the clean
+# box and cylinder without their normal columns.
+for model in box cylinder; do
+    cut -d' ' -f1-3 "$tmp/$model-clean.xyz" > "$tmp/$model-nonormals.xyz"
+    "$FREP" segment "$tmp/$model-nonormals.xyz" --seed 1 --no-separating -q \
+        -o "$tmp/$model-nonormals.fit" 2> "$tmp/err"
+    set -- $(compare "$tmp/$model.truth" "$tmp/$model-nonormals.fit" \
+                     $TOL_POS_CLEAN $TOL_DEG_CLEAN 2> "$tmp/cmp")
+    sed 's/^/# /' "$tmp/cmp"
+    [ "$1" = "$(wc -l < "$tmp/$model.truth")" ] && [ "$2" = 0 ]
+    report $? "$model, clean, estimated normals: every surface and nothing else ($1 found, $2 spurious)"
+done
+
+# Readable .hf output: the clean box written with separating primitives off. The
+# fitted values carry round-off (e.g. 1e-13 for 0); the file must show none of it,
+# every number at most 10 significant digits, and still evaluate (frep check).
+"$FREP" segment "$tmp/box-clean.xyz" --seed 1 --no-separating -q -o "$tmp/box.hf"
+report $? "box: .hf written"
+! grep -Eq '[0-9]e-(0[89]|[1-9][0-9])' "$tmp/box.hf"
+report $? "box .hf: no round-off noise like 2.9e-13"
+awk '!/^ *--/ { s = $0; gsub(/[^0-9.eE+-]+/, " ", s); k = split(s, w, " ")
+     for (i = 1; i <= k; i++) { d = w[i]; sub(/[eE].*/, "", d); gsub(/[^0-9]/, "", d)
+         sub(/^0+/, "", d); if (length(d) > 10) bad = 1 } }
+     END { exit bad }' "$tmp/box.hf"
+report $? "box .hf: at most 10 significant digits per number"
+"$FREP" check "$tmp/box.hf" > /dev/null 2>&1
+report $? "box .hf: a valid model (frep check)"
+# The rounded file against the exact fit: the planes read back from the .hf and the
+# .fit differ by far less than the tolerance (1e-7 of the diagonal for offsets).
+awk '/frPlane/ { s = $0; sub(/.*frPlane\(x, /, "", s); sub(/\).*/, "", s); gsub(/,/, "", s)
+     print "plane", s }' "$tmp/box.hf" > "$tmp/box-hf.fit"
+set -- $(compare "$tmp/box-clean.fit" "$tmp/box-hf.fit" 1e-6 1e-4 2> "$tmp/cmp")
+[ "$1" = 6 ] && [ "$2" = 0 ]
+report $? "box .hf: rounded planes within 1e-6 of the exact fit ($1 of 6)"
+
+echo "1..$n"
+exit $failed
