@@ -1,17 +1,53 @@
 #!/bin/sh
-# bench_mesh.sh - meshing time and peak memory of frep mesh on bench/bench_mesh.hf at
-# -g 128, 256 and 512 (make bench). Usage: bench_mesh.sh FREP [SRCDIR]
+# bench_mesh.sh - meshing time and peak memory of frep mesh (make bench-mesh):
+#  1. bench/bench_mesh.hf (~150-instruction CSG part) at -g 128, 256 and 512;
+#  2. the comparison with libfive and HyperFun's polygonizer: bench/bench_gear.hf
+#     (~440 instructions) and bench/bench_gyroid.hf at -g 128 over [-1.6,1.6]^3 with
+#     1 and 2 threads.
+# Each line: the median of 5 runs of the mesher's own time (the summary line: octree,
+# evaluation, vertices, triangles), and of the whole command's wall time, CPU time
+# (user + system: compiling, meshing, writing the binary STL) and peak resident
+# memory (/usr/bin/time).
+# Usage: bench_mesh.sh FREP [SRCDIR]
 FREP=${1:-./frep}
 SRCDIR=${2:-.}
-MODEL="$SRCDIR/bench/bench_mesh.hf"
 OUT=${TMPDIR:-/tmp}/frep-bench-mesh.$$.stl
-echo "# frep mesh on $MODEL, box 1.6 (the model spans [-1.4,1.4]x[-1,1]x[-0.2,1])"
-"$FREP" dis "$MODEL" 2>/dev/null | grep -c . | sed 's/^/# bytecode lines: /'
-for g in 128 256 512; do
-  if [ -x /usr/bin/time ]; then
-    /usr/bin/time -f "%e s wall, %U s user, %M KiB peak" "$FREP" mesh "$MODEL" -b 1.6 -g $g -o "$OUT" 2>&1
+RUNS=5
+trap 'rm -f "$OUT" "$OUT.t" "$OUT.s"' EXIT
+echo "# $(nproc 2>/dev/null || echo '?') cores, load average: $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)"
+
+# median of the numbers on standard input
+median() { sort -n | awk '{ v[NR] = $1 } END { if (NR % 2) print v[(NR + 1) / 2]; else print (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
+
+# run MODEL GRID THREADS: RUNS runs, prints medians
+run() {
+  model=$1; g=$2; t=$3
+  : > "$OUT.t"
+  for i in $(seq $RUNS); do
+    if [ -x /usr/bin/time ]; then
+      /usr/bin/time -f "%e %U %S %M" -o "$OUT.t.1" "$FREP" mesh "$model" -b 1.6 -g "$g" -t "$t" -o "$OUT" > "$OUT.s" || return 1
+      echo "$(cat "$OUT.t.1") $(sed -n 's/.*, \([0-9.]*\) s$/\1/p' "$OUT.s")" >> "$OUT.t"
+    else
+      "$FREP" mesh "$model" -b 1.6 -g "$g" -t "$t" -o "$OUT" -q || return 1
+    fi
+  done
+  rm -f "$OUT.t.1"
+  tris=$("$FREP" mesh "$model" -b 1.6 -g "$g" -t "$t" -o "$OUT" | sed -n 's/.* \([0-9]*\) triangles.*/\1/p')
+  if [ -s "$OUT.t" ]; then
+    wall=$(awk '{ print $1 }' "$OUT.t" | median)
+    cpu=$(awk '{ print $2 + $3 }' "$OUT.t" | median)
+    mem=$(awk '{ print $4 }' "$OUT.t" | median)
+    mesh=$(awk '{ print $5 }' "$OUT.t" | median)
+    printf '%-18s -g %-4s -t %s  %9s triangles  meshing %6.3f s  wall %6.3f s  cpu %6.3f s  peak %6.1f MB\n' \
+      "$(basename "$model")" "$g" "$t" "$tris" "$mesh" "$wall" "$cpu" "$(echo "$mem" | awk '{ print $1 / 1024 }')"
   else
-    "$FREP" mesh "$MODEL" -b 1.6 -g $g -o "$OUT"
+    printf '%-18s -g %-4s -t %s  %9s triangles (no /usr/bin/time)\n' "$(basename "$model")" "$g" "$t" "$tris"
   fi
+}
+
+for m in "$SRCDIR/bench/bench_gear.hf" "$SRCDIR/bench/bench_gyroid.hf"; do
+  "$FREP" dis "$m" 2>/dev/null | sed -n '2s/^; /# '"$(basename "$m")"': /p'
+  for t in 1 2; do run "$m" 128 "$t"; done
 done
-rm -f "$OUT"
+"$FREP" dis "$SRCDIR/bench/bench_mesh.hf" 2>/dev/null | sed -n '2s/^; /# bench_mesh.hf: /p'
+for g in 128 256 512; do run "$SRCDIR/bench/bench_mesh.hf" "$g" 2; done

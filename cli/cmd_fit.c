@@ -43,7 +43,8 @@ static const char fit_usage[] =
     "      --max-time T      stop after T seconds and keep the best so far\n"
     "      --max-evals N     stop after N objective evaluations\n"
     "      --sa-points N     points the annealing uses (default 1024; 0: all)\n"
-    "      --sa-stall N      leave the annealing after N iterations without progress (15)\n"
+    "      --sa-stall N      end an annealing chain after N iterations without progress (15)\n"
+    "      --sa-chains N     independent annealing chains, the best kept (2)\n"
     "      --sa-threshold V  leave the annealing once the objective is <= V\n"
     "      --json FILE       also write the report as JSON\n"
     "  -t, --threads N       OpenMP threads (results do not depend on it)\n"
@@ -262,6 +263,7 @@ int cmd_fit(int argc, char **argv)
         {"max-evals", required_argument, NULL, 'E'},
         {"sa-points", required_argument, NULL, 'P'},
         {"sa-stall", required_argument, NULL, 'X'},
+        {"sa-chains", required_argument, NULL, 'C'},
         {"sa-threshold", required_argument, NULL, 'H'},
         {"json", required_argument, NULL, 'J'},
         {"threads", required_argument, NULL, 't'},
@@ -331,6 +333,9 @@ int cmd_fit(int argc, char **argv)
             break;
         case 'X':
             if (parse_count("--sa-stall", optarg, 1, &cfg.sa.stall_iter)) bad = CLI_USAGE;
+            break;
+        case 'C':
+            if (parse_count("--sa-chains", optarg, 1, &cfg.sa.chains)) bad = CLI_USAGE;
             break;
         case 'H':
             if (parse_real("--sa-threshold", optarg, 0, &dv)) bad = CLI_USAGE;

@@ -43,9 +43,21 @@
 #define SAMPLE_TRIES 16
 /* Points used by a least-squares refit: an evenly spaced subset beyond this keeps the
  * refit of huge patches fast without changing the estimate materially. */
-#define REFIT_MAX_POINTS 20000
+#define REFIT_MAX_POINTS 10000
 /* Levenberg-Marquardt iterations per refit. */
 #define LM_MAX_ITER 60
+/* ... and the relative cost decrease below which it has converged: parameters then
+ * move by about sqrt(1e-10) of the noise, far below anything the output shows. */
+#define LM_REL_STOP 1e-10
+/* ... counted only once the damping is this small: with heavy damping the steps are
+ * tiny however far the minimum is. */
+#define LM_LAMBDA_CONVERGED 1e-2
+/* Smallest damping: the point on an axis (and an axis' length) is free, so the normal
+ * equations are singular and an undamped step may run off along those directions. */
+#define LM_LAMBDA_MIN 1e-6
+/* Damping increases (x10 each) tried per iteration before giving up: from
+ * LM_LAMBDA_MIN up to about 1e14, i.e. down to a plain gradient step. */
+#define LM_TRIES 20
 /* Cells per axis of the connectivity bitmap; the cell grows past the configured
  * cluster size when a patch would need more (ids must fit in 64 bits). */
 #define BITMAP_MAX_CELLS_AXIS (1u << 20)
@@ -662,6 +674,15 @@ oom:
 
 /* ---- least-squares refit ----------------------------------------------------- */
 
+/* Robust sigma from the median absolute residual, for Gaussian noise. */
+#define NOISE_MAD_TO_SIGMA 1.4826
+
+static int cmp_abs_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
 static int npar(prim_type t)
 {
     switch (t) {
@@ -751,18 +772,11 @@ static double cost_of(const prim *q, const double *px, size_t n)
     return s;
 }
 
-int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
-                 size_t max_points)
+/* The least-squares fit of q to the m points px (3 coordinates each); idx[0..n) are
+ * the inliers, whose normals orient a plane. */
+static int refit_points(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
+                        const double *px, size_t m)
 {
-    if (n < 3) return -1;
-    if (max_points == 0 || max_points > n) max_points = n;
-    double *px = malloc(3 * max_points * sizeof *px);
-    if (!px) return -1;
-    for (size_t j = 0; j < max_points; j++) {
-        size_t i = idx[(size_t)((double)j * (double)n / (double)max_points)];
-        point(c, i, px + 3 * j);
-    }
-    size_t m = max_points;
     int rc = -1;
     if (q->type == PRIM_PLANE) {
         double mean[3] = {0, 0, 0}, cov[9] = {0};
@@ -790,7 +804,6 @@ int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
         if (dot(nrm, ref) < 0) for (int k = 0; k < 3; k++) nrm[k] = -nrm[k];
         memcpy(q->p, nrm, sizeof nrm);
         q->r = dot(nrm, mean);
-        free(px);
         return 0;
     }
     int np = npar(q->type);
@@ -822,7 +835,7 @@ int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
             }
         }
         int improved = 0;
-        for (int tries = 0; tries < 10 && !improved; tries++) {
+        for (int tries = 0; tries < LM_TRIES && !improved; tries++) {
             memcpy(A, JtJ, sizeof A);
             for (int k = 0; k < np; k++) {
                 A[k * np + k] += lambda * (JtJ[k * np + k] + 1e-12);
@@ -838,10 +851,10 @@ int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
                         *q = t;
                         pack(q, v);
                         cost = nc;
-                        lambda = fmax(lambda * 0.1, 1e-12);
+                        lambda = fmax(lambda * 0.1, LM_LAMBDA_MIN);
                         improved = 1;
                         rc = 0;
-                        if (rel < 1e-12) it = LM_MAX_ITER;
+                        if (rel < LM_REL_STOP && lambda < LM_LAMBDA_CONVERGED) it = LM_MAX_ITER;
                         break;
                     }
                 }
@@ -850,8 +863,57 @@ int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
         }
         if (!improved) break;
     }
-    free(px);
     return rc == 0 || cost >= 0 ? 0 : -1;
+}
+
+/* Points farther than TRIM_SIGMAS robust standard deviations (1.4826 median |f|)
+ * from the first fit are dropped and the fit is repeated: a few points of a
+ * neighbouring surface (at an edge, where estimated normals are poor) would otherwise
+ * pull a least-squares fit by far more than the noise. */
+#define TRIM_SIGMAS 3.0
+/* ... unless fewer than this fraction would remain (then the fit itself is poor). */
+#define TRIM_KEEP_MIN 0.5
+
+int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
+                 size_t max_points)
+{
+    if (n < 3) return -1;
+    if (max_points == 0 || max_points > n) max_points = n;
+    size_t m = max_points;
+    double *px = malloc(3 * m * sizeof *px), *res = malloc(2 * m * sizeof *res);
+    if (!px || !res) {
+        free(px);
+        free(res);
+        return -1;
+    }
+    for (size_t j = 0; j < m; j++) {
+        size_t i = idx[(size_t)((double)j * (double)n / (double)m)];
+        point(c, i, px + 3 * j);
+    }
+    prim t = *q;
+    int rc = refit_points(&t, c, idx, n, px, m);
+    if (rc == 0) {
+        *q = t;
+        double *sorted = res + m;
+        for (size_t j = 0; j < m; j++) {
+            res[j] = fabs(prim_eval(q, px + 3 * j, NULL));
+            sorted[j] = res[j];
+        }
+        qsort(sorted, m, sizeof *sorted, cmp_abs_double);
+        double lim = TRIM_SIGMAS * NOISE_MAD_TO_SIGMA * sorted[m / 2];
+        size_t kept = 0;
+        for (size_t j = 0; j < m; j++)
+            if (res[j] <= lim) {
+                memmove(px + 3 * kept, px + 3 * j, 3 * sizeof *px);
+                kept++;
+            }
+        if (kept < m && kept >= 3 && (double)kept >= TRIM_KEEP_MIN * (double)m &&
+            refit_points(&t, c, idx, n, px, kept) == 0)
+            *q = t;
+    }
+    free(px);
+    free(res);
+    return rc;
 }
 
 /* ---- the detection loop -------------------------------------------------------- */
@@ -1142,11 +1204,11 @@ static size_t support_of(det *d, const prim *q, unsigned char *flag, uint32_t *i
  * shells of the same shape (an onion of spheres). The noise is measured on the
  * refitted shape: sigma = 1.4826 median|f| over the live, normal-compatible points
  * within NOISE_PROBE epsilons (robust to the few points of other surfaces there), and
- * the band becomes NOISE_BAND_SIGMAS sigma, at most NOISE_PROBE epsilons. On clean or
- * mildly noisy data sigma is far below epsilon and nothing changes. */
+ * the band becomes NOISE_BAND_SIGMAS sigma when that is at most NOISE_PROBE epsilons
+ * (noise up to about 1.2 epsilon; beyond that, raise --epsilon). On clean or mildly
+ * noisy data sigma is far below epsilon and nothing changes. */
 #define NOISE_PROBE 3.0
 #define NOISE_BAND_SIGMAS 2.5
-#define NOISE_MAD_TO_SIGMA 1.4826
 static double noise_band(det *d, const prim *q, unsigned char *flag)
 {
     uint32_t *tmp = d->tmp;
@@ -1185,7 +1247,10 @@ static double noise_band(det *d, const prim *q, unsigned char *flag)
     }
     double sigma = NOISE_MAD_TO_SIGMA * r[k];
     free(r);
-    return fmin(NOISE_PROBE * eps, fmax(eps, NOISE_BAND_SIGMAS * sigma));
+    /* Residuals that fill the whole probe evenly are not noise about this surface but
+     * a wrong shape (a sphere touching a cone): widening would only feed it. */
+    if (NOISE_BAND_SIGMAS * sigma > NOISE_PROBE * eps) return eps;
+    return fmax(eps, NOISE_BAND_SIGMAS * sigma);
 }
 
 /* A curved candidate that a plane (or a cone that a cylinder) explains about as well is
@@ -1239,6 +1304,11 @@ static size_t prefer_simpler(det *d, prim *q, size_t m, unsigned char *flag, uin
     return best_m;
 }
 
+/* A refit is kept unless it loses more than this fraction of the support: a rough
+ * candidate's band may hold a few points of a neighbouring surface that the true
+ * shape (the least-squares fit) leaves out. */
+#define REFIT_ACCEPT 0.97
+
 /* Inliers of q at epsilon, refitted, then at the noise-adaptive band (noise_band)
  * and refitted again until the band settles; q is updated, inl holds its support
  * (returned) and d->band the band used. */
@@ -1252,7 +1322,7 @@ static size_t refit_with_band(det *d, prim *q, size_t min_pts, unsigned char *fl
         if (m >= min_pts && ransac_refit(&q2, d->c, inl, m, REFIT_MAX_POINTS) == 0 &&
             sane(&q2, d->rmax)) {
             size_t m2 = support_of(d, &q2, flag, inl);
-            if (m2 >= m) {
+            if ((double)m2 >= REFIT_ACCEPT * (double)m) {
                 *q = q2;
                 m = m2;
             } else {
@@ -1290,6 +1360,36 @@ static double rms_of(const prim *q, const frep_cloud *c, const uint32_t *idx, si
 /* The union of the two patches must be one connected patch up to this fraction. */
 #define MERGE_CONNECTED 0.95
 
+/* Parameters of two primitives of one type closer than tol (lengths) and MERGE_DEG
+ * (directions): worth trying as one. */
+#define MERGE_NEAR 4.0
+#define MERGE_DEG 10.0
+static int near_same(const prim *a, const prim *b, double tol)
+{
+    double cmin = cos(MERGE_DEG * M_PI / 180.0), dp[3];
+    sub(a->p, b->p, dp);
+    switch (a->type) {
+    case PRIM_PLANE:
+        return dot(a->p, b->p) > cmin && fabs(a->r - b->r) < tol;
+    case PRIM_SPHERE:
+        return norm(dp) < tol && fabs(a->r - b->r) < tol;
+    case PRIM_CYLINDER: {
+        double h = dot(dp, b->a), w[3];
+        for (int k = 0; k < 3; k++) w[k] = dp[k] - h * b->a[k];
+        return fabs(dot(a->a, b->a)) > cmin && norm(w) < tol && fabs(a->r - b->r) < tol;
+    }
+    case PRIM_CONE:
+        return norm(dp) < tol && dot(a->a, b->a) > cmin &&
+               fabs(a->r - b->r) < MERGE_DEG * M_PI / 180.0;
+    case PRIM_TORUS:
+        return norm(dp) < tol && fabs(dot(a->a, b->a)) > cmin && fabs(a->r - b->r) < tol &&
+               fabs(a->R - b->R) < tol;
+    case PRIM__COUNT:
+        break;
+    }
+    return 0;
+}
+
 /* Fold redundant primitives into the ones that explain their points: labels move,
  * the larger primitive is refitted on the union, and the list is compacted. Every
  * fold removes a primitive, so the loop ends. Out of memory: nothing is merged. */
@@ -1321,22 +1421,34 @@ static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t 
                 const prim *Q = &res->prims[qi];
                 size_t mq = start[qi + 1] - start[qi];
                 if (qi == pi || mq < mp || (mq == mp && qi > pi)) continue;
-                double band = MERGE_BAND_SLACK * bands[qi];
-                size_t hit = 0;
+                double band = MERGE_BAND_SLACK * fmax(bands[qi], bands[pi]);
+                size_t hit = 0, mu = mp + mq;
                 for (size_t j = start[pi]; j < start[pi + 1]; j++)
                     hit += compatible(Q, c, order[j], band, d->cfg->cos_normal) != 0;
-                if ((double)hit < MERGE_FRACTION * (double)mp) continue;
-                /* Touching: one patch in Q's parameter domain. */
-                size_t mu = mp + mq;
-                memcpy(buf, order + start[qi], mq * sizeof *buf);
-                memcpy(buf + mq, order + start[pi], mp * sizeof *buf);
-                size_t kept = largest_component(Q, c, buf, mu, fmax(d->cfg->cluster, band));
-                if ((double)kept < MERGE_CONNECTED * (double)mu) continue;
                 memcpy(buf, order + start[qi], mq * sizeof *buf);
                 memcpy(buf + mq, order + start[pi], mp * sizeof *buf);
                 prim q2 = *Q;
-                if (ransac_refit(&q2, c, buf, mu, REFIT_MAX_POINTS) == 0 && sane(&q2, d->rmax))
-                    res->prims[qi] = q2;
+                int refitted = ransac_refit(&q2, c, buf, mu, REFIT_MAX_POINTS) == 0 &&
+                               sane(&q2, d->rmax);
+                if ((double)hit < MERGE_FRACTION * (double)mp) {
+                    /* Two pieces of one shape fitted apart (a noisy torus split into
+                     * inner and outer halves): one shape of the same type explains
+                     * both once refitted on the union. */
+                    if (res->prims[pi].type != Q->type || !refitted ||
+                        !near_same(&res->prims[pi], Q, MERGE_NEAR * band))
+                        continue;
+                    size_t hu = 0;
+                    for (size_t j = 0; j < mu; j++)
+                        hu += compatible(&q2, c, buf[j], band, d->cfg->cos_normal) != 0;
+                    if ((double)hu < MERGE_FRACTION * (double)mu) continue;
+                }
+                /* Touching: one patch in Q's parameter domain. */
+                size_t kept = largest_component(refitted ? &q2 : Q, c, buf, mu,
+                                                fmax(d->cfg->cluster, band));
+                if ((double)kept < MERGE_CONNECTED * (double)mu) continue;
+                memcpy(buf, order + start[qi], mq * sizeof *buf);
+                memcpy(buf + mq, order + start[pi], mp * sizeof *buf);
+                if (refitted) res->prims[qi] = q2;
                 Q = &res->prims[qi];
                 res->prims[qi].support = mu;
                 res->prims[qi].rms = rms_of(Q, c, buf, mu);

@@ -21,6 +21,8 @@
 
 /* Points whose nearest-neighbour distance estimates the sampling density. */
 #define SPACING_SAMPLES 2000
+/* Most points in the spacing estimate's tree (see median_spacing). */
+#define SPACING_TREE_MAX 100000
 /* Neighbours searched for the nearest distinct position (a point may be repeated). */
 #define SPACING_K 16
 /* Longest line of a .hf primitive list we parse. */
@@ -69,20 +71,53 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* Median distance to the nearest other point over an evenly spaced sample. */
+/* Median distance to the nearest other point over an evenly spaced sample. Large
+ * clouds use a tree of every k-th point only (SPACING_TREE_MAX of them), and the
+ * spacing is scaled back by sqrt(k): on a surface the spacing goes as one over the
+ * square root of the density. */
 static double median_spacing(const frep_cloud *c)
 {
-    kd_tree *t = kd_build(c->n, c->x, c->y, c->z);
-    if (!t) return 0;
-    size_t m = c->n < SPACING_SAMPLES ? c->n : SPACING_SAMPLES;
+    size_t stride = c->n > SPACING_TREE_MAX ? (c->n + SPACING_TREE_MAX - 1) / SPACING_TREE_MAX : 1;
+    size_t nt = (c->n + stride - 1) / stride;
+    double *sx = NULL, *sy = NULL, *sz = NULL;
+    kd_tree *t;
+    if (stride > 1) {
+        sx = malloc(nt * sizeof *sx);
+        sy = malloc(nt * sizeof *sy);
+        sz = malloc(nt * sizeof *sz);
+        if (!sx || !sy || !sz) {
+            free(sx);
+            free(sy);
+            free(sz);
+            return 0;
+        }
+        for (size_t j = 0; j < nt; j++) {
+            sx[j] = c->x[j * stride];
+            sy[j] = c->y[j * stride];
+            sz[j] = c->z[j * stride];
+        }
+        t = kd_build(nt, sx, sy, sz);
+    } else {
+        t = kd_build(c->n, c->x, c->y, c->z);
+    }
+    if (!t) {
+        free(sx);
+        free(sy);
+        free(sz);
+        return 0;
+    }
+    size_t m = nt < SPACING_SAMPLES ? nt : SPACING_SAMPLES;
     double *d = malloc(m * sizeof *d);
     if (!d) {
         kd_free(t);
+        free(sx);
+        free(sy);
+        free(sz);
         return 0;
     }
     size_t got = 0;
     for (size_t j = 0; j < m; j++) {
-        size_t i = (size_t)((double)j * (double)c->n / (double)m);
+        size_t i = (size_t)((double)j * (double)nt / (double)m) * stride;
         double q[3] = {c->x[i], c->y[i], c->z[i]}, d2[SPACING_K];
         uint32_t idx[SPACING_K];
         size_t k = kd_knn(t, q, SPACING_K, idx, d2);
@@ -96,10 +131,13 @@ static double median_spacing(const frep_cloud *c)
     double med = 0;
     if (got) {
         qsort(d, got, sizeof *d, cmp_double);
-        med = d[got / 2];
+        med = d[got / 2] / sqrt((double)stride);
     }
     free(d);
     kd_free(t);
+    free(sx);
+    free(sy);
+    free(sz);
     return med;
 }
 

@@ -68,7 +68,8 @@ void fit_config_init(fit_config *c)
     fit_sa_options_init(&c->sa);
     c->sa.stall_iter = 15;
     c->sa.bound_stall_iter = 60;
-    c->sa.bound_local_period = 5;
+    c->sa.local_period = 2;
+    c->sa.chains = 2;
     fit_qn_options_init(&c->qn);
     fit_lm_options_init(&c->lm);
     c->reweight_rounds = 8;
@@ -333,27 +334,49 @@ int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const d
         fit_rng rng;
         fit_rng_seed(&rng, cfg->seed ^ 0x5a17ca1edULL);
         fit_sa_options so = cfg->sa;
-        if (getenv("FIT_CHAINS")) so.chains = atol(getenv("FIT_CHAINS"));
-        if (getenv("FIT_BSTALL")) so.bound_stall_iter = atol(getenv("FIT_BSTALL"));
-        if (getenv("FIT_BPER")) so.bound_local_period = atol(getenv("FIT_BPER"));
-        if (getenv("FIT_PER")) so.local_period = atol(getenv("FIT_PER"));
-        if (getenv("FIT_STALL")) so.stall_iter = atol(getenv("FIT_STALL"));
         if (cfg->sa_local) {
             so.local = sa_local;
             so.local_user = &R;
         }
-        st = fit_sa(fit_objective_value, sub, np, x, lo, hi, &so, &rng, &ctl, &fx,
-                    &res->sa_iterations);
-        if (getenv("FIT_DEBUG")) { fprintf(stderr, "SA %ld it, f=%g:", res->sa_iterations, fx); for (size_t j = 0; j < np; j++) fprintf(stderr, " %.4g", x[j]); fprintf(stderr, "\n"); }
-        if (st == FIT_FAILED) {
-            fit_objective_free(sub != obj ? sub : NULL);
-            fit_objective_free(obj);
-            set_err(err, errlen, "the model cannot be evaluated anywhere the annealing looked "
-                                 "(runtime errors or non-finite values)");
-            return -1;
+        /* With a local phase the chains run one at a time and each chain's best is
+         * polished on all points with the local objective before the best is chosen:
+         * on noisy clouds the annealing's objective (algebraic, on a subset) can rank a
+         * wrong basin below the right one, the final objective (geometric, all points)
+         * tells them apart far better. */
+        long chains = so.chains > 0 ? so.chains : 1;
+        int polish = cfg->method != FIT_METHOD_SA;
+        if (polish) so.chains = 1;
+        else chains = 1;
+        double xs[FIT_MAX_PARAMS], best[FIT_MAX_PARAMS], fbest = HUGE_VAL;
+        for (long k = 0; k < chains; k++) {
+            /* Chains after the first start at a random point (fit_sa picks one for a
+             * start outside the box). */
+            memcpy(xs, params, np * sizeof *xs);
+            if (k > 0) xs[0] = HUGE_VAL;
+            long its = 0;
+            st = fit_sa(fit_objective_value, sub, np, xs, lo, hi, &so, &rng, &ctl, &fx, &its);
+            res->sa_iterations += its;
+            if (st == FIT_FAILED) {
+                if (k > 0) break;
+                fit_objective_free(sub != obj ? sub : NULL);
+                fit_objective_free(obj);
+                set_err(err, errlen, "the model cannot be evaluated anywhere the annealing "
+                                     "looked (runtime errors or non-finite values)");
+                return -1;
+            }
+            if (polish && st != FIT_STOPPED)
+                st = local_phase(&R, obj, xs, &fx, 0, cfg->reweight_rounds);
+            fx = fit_objective_value(obj, xs, NULL);    /* comparable across chains */
+            ctl.evals++;
+            if (fx < fbest || k == 0) {
+                fbest = fx;
+                memcpy(best, xs, np * sizeof *best);
+            }
+            if (st == FIT_STOPPED) break;
         }
-    }
-    if (cfg->method != FIT_METHOD_SA && st != FIT_STOPPED) {
+        memcpy(x, best, np * sizeof *x);
+        fx = fbest;
+    } else {
         st = local_phase(&R, obj, x, &fx, 0, cfg->reweight_rounds);
     }
     fx = fit_objective_value(obj, x, NULL);

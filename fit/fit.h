@@ -45,7 +45,8 @@ typedef struct fit_config {
     size_t sa_points;           /* 1024 */
     int sa_local;               /* BFGS from every new best inside the annealing (1) */
     int sa_local_iter;          /* iteration cap of those inner searches (300) */
-    fit_sa_options sa;          /* see optim.h; fit_config_init sets stall_iter 15 */
+    fit_sa_options sa;          /* see optim.h; fit_config_init sets stall_iter 15,
+                                   bound_stall_iter 60, local_period 2, chains 2 */
     /* Local phase. */
     fit_qn_options qn;
     fit_lm_options lm;

@@ -12,7 +12,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-#include <stdio.h>
 
 /* pi, spelled out: FIT_PI is not part of C11. */
 #define FIT_PI 3.14159265358979323846
@@ -557,7 +556,6 @@ void fit_sa_options_init(fit_sa_options *o)
     o->local_user = NULL;
     o->local_period = 10;
     o->bound_stall_iter = 0;
-    o->bound_local_period = 0;
     o->chains = 1;
 }
 
@@ -765,8 +763,7 @@ fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
             }
             quiet = found ? 0 : quiet + 1;
             int suspect = on_bound(n, ch.best, lo, hi);
-            long period = suspect && opt->bound_local_period > 0 ? opt->bound_local_period
-                                                                 : opt->local_period;
+            long period = opt->local_period;
             long stall = suspect && opt->bound_stall_iter > 0 ? opt->bound_stall_iter
                                                               : opt->stall_iter;
             int probe = period > 0 && quiet >= period;
@@ -808,7 +805,6 @@ fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
                 break;
             }
         }
-        if (getenv("FIT_DEBUG")) { fprintf(stderr, "chain %ld: %ld it, f=%g:", chain, it, ch.ebest); for (size_t j = 0; j < n; j++) fprintf(stderr, " %.4g", ch.best[j]); fprintf(stderr, "\n"); }
     }
     if (iterations) *iterations = total;
     memcpy(x, best, n * sizeof *x);

@@ -41,12 +41,18 @@ int vm_eval_interval(const frep_program *p, vm_iscratch *s, const double box[6],
  * zero set and surface normals, but other values away from the surface where
  * R-functions were pruned (see vm_interval.c); orig[i] is the original pc of
  * instruction i, for error positions.  *out receives the enclosure of f over the box.
+ * The side is kept exactly only for values of magnitude >= *sign_tol: rounding may
+ * give values closer to 0 the other sign than the original program gives them, so
+ * callers that need the same sign as the original (blocks sharing grid points)
+ * re-evaluate those with the original program.  The side is relative to 0: with
+ * another iso level the pruned values are useless.
  * A pruner has mutable scratch: one per thread. Returns 0, or -1 as vm_eval_interval. */
 typedef struct vm_pruner vm_pruner;
 vm_pruner *vm_pruner_new(const frep_program *p);
 void vm_pruner_free(vm_pruner *r);
 int vm_prune(vm_pruner *r, vm_iscratch *s, const double box[6], const double *params,
-             frep_insn *code, frep_srcpos *pos, uint32_t *orig, uint32_t *ncode, ival *out);
+             frep_insn *code, frep_srcpos *pos, uint32_t *orig, uint32_t *ncode, ival *out,
+             double *sign_tol);
 
 /* One interval operation (exposed for the property tests): op applied to operands in
  * push order (v[0] first; SELECT: condition, value if true, value if false), k the

@@ -41,8 +41,8 @@
 #define MESH_BLOCK_EDGES (3 * MESH_BLOCK_CORNERS)
 /* Regula falsi (Illinois) steps per crossing at most: converges superlinearly; 8 steps
  * put crossings of smooth fields far below 1e-6 cell.  A crossing stops earlier when
- * its guess moves by less than MESH_ROOT_TOL (fraction of the edge): the error is
- * then smaller than the last move. */
+ * its bracket is narrower than MESH_ROOT_TOL (fraction of the edge) or it hit the
+ * level exactly, so near-linear fields (planes) cost one or two evaluations. */
 #define MESH_ROOT_STEPS 8
 #define MESH_ROOT_TOL 1e-5
 /* QEF eigenvalues below this fraction of the largest are dropped (truncated
@@ -238,23 +238,14 @@ static void merge_error(frep_runtime_error *acc, const frep_runtime_error *e)
 typedef struct prog_thread {
     frep_scratch *s;
     vm_iscratch *is;
+    vm_pruner *pr;            /* NULL: the program cannot be pruned */
+    frep_program sub;         /* the program pruned for the focused box (own code, pos) */
+    uint32_t *orig;           /* sub's pc -> the original pc */
+    const frep_program *cur;  /* what eval and grad run: the program or &sub */
+    int have_sub;             /* sub is the pruned program for sub_box */
+    double sub_box[6], sub_tol;
+    frep_runtime_error err;   /* errors raised by sub, with original pcs */
 } prog_thread;
-
-static void *prog_thread_new(void *ctx)
-{
-    prog_field *pf = ctx;
-    prog_thread *t = calloc(1, sizeof *t);
-    if (!t) return NULL;
-    t->s = frep_scratch_new(pf->p);
-    t->is = vm_iscratch_new(pf->p);
-    if (!t->s || !t->is) {
-        frep_scratch_free(t->s);
-        vm_iscratch_free(t->is);
-        free(t);
-        return NULL;
-    }
-    return t;
-}
 
 static void prog_thread_free(void *ctx, void *ts)
 {
@@ -267,9 +258,54 @@ static void prog_thread_free(void *ctx, void *ts)
         frep_scratch_errors(t->s, &e);
         merge_error(&pf->err, &e);
     }
+    merge_error(&pf->err, &t->err);
     frep_scratch_free(t->s);
     vm_iscratch_free(t->is);
+    vm_pruner_free(t->pr);
+    free(t->sub.code);
+    free(t->sub.pos);
+    free(t->orig);
     free(t);
+}
+
+static void *prog_thread_new(void *ctx)
+{
+    prog_field *pf = ctx;
+    prog_thread *t = calloc(1, sizeof *t);
+    if (!t) return NULL;
+    t->s = frep_scratch_new(pf->p);
+    t->is = vm_iscratch_new(pf->p);
+    t->cur = pf->p;
+    if (!t->s || !t->is) {
+        prog_thread_free(ctx, t);
+        return NULL;
+    }
+    t->pr = vm_pruner_new(pf->p);
+    if (t->pr) {
+        size_t n = pf->p->ncode;
+        t->sub = *pf->p;
+        t->sub.code = malloc(n * sizeof *t->sub.code);
+        t->sub.pos = malloc(n * sizeof *t->sub.pos);
+        t->orig = malloc(n * sizeof *t->orig);
+        if (!t->sub.code || !t->sub.pos || !t->orig) {
+            /* pruning is an optimization: go without it */
+            vm_pruner_free(t->pr);
+            t->pr = NULL;
+        }
+    }
+    return t;
+}
+
+/* Errors raised by the pruned program name its pcs: map them to the original's. */
+static void prog_harvest_errors(prog_thread *t)
+{
+    if (t->cur != &t->sub) return;
+    frep_runtime_error e;
+    frep_scratch_errors(t->s, &e);
+    if (e.count == 0) return;
+    e.pc = e.pc < t->sub.ncode ? t->orig[e.pc] : 0;
+    merge_error(&t->err, &e);
+    frep_scratch_reset_errors(t->s);
 }
 
 static int prog_eval(void *ctx, void *ts, size_t n, const double *x, const double *y,
@@ -277,7 +313,9 @@ static int prog_eval(void *ctx, void *ts, size_t n, const double *x, const doubl
 {
     prog_field *pf = ctx;
     prog_thread *t = ts;
-    return frep_eval(pf->p, t->s, n, x, y, z, pf->params, f);
+    int rc = frep_eval(t->cur, t->s, n, x, y, z, pf->params, f);
+    prog_harvest_errors(t);
+    return rc;
 }
 
 static int prog_grad(void *ctx, void *ts, size_t n, const double *x, const double *y,
@@ -285,7 +323,32 @@ static int prog_grad(void *ctx, void *ts, size_t n, const double *x, const doubl
 {
     prog_field *pf = ctx;
     prog_thread *t = ts;
-    return frep_eval_grad(pf->p, t->s, n, x, y, z, pf->params, f, gx, gy, gz);
+    int rc = frep_eval_grad(t->cur, t->s, n, x, y, z, pf->params, f, gx, gy, gz);
+    prog_harvest_errors(t);
+    return rc;
+}
+
+static int prog_focus(void *ctx, void *ts, const double box[6], double *sign_tol)
+{
+    prog_field *pf = ctx;
+    prog_thread *t = ts;
+    t->cur = pf->p;
+    if (sign_tol) *sign_tol = 0;
+    if (!box || !t->pr) return 0;
+    if (!t->have_sub || memcmp(box, t->sub_box, sizeof t->sub_box) != 0) {
+        ival r;
+        uint32_t n;
+        t->have_sub = 0;
+        if (vm_prune(t->pr, t->is, box, pf->params, t->sub.code, t->sub.pos, t->orig, &n, &r,
+                     &t->sub_tol) != 0)
+            return 0;
+        t->sub.ncode = n;
+        memcpy(t->sub_box, box, sizeof t->sub_box);
+        t->have_sub = 1;
+    }
+    t->cur = &t->sub;
+    if (sign_tol) *sign_tol = t->sub_tol;
+    return 0;
 }
 
 static int prog_interval(void *ctx, void *ts, const double box[6], double *lo, double *hi)
@@ -312,6 +375,7 @@ int mesh_field_program(mesh_field *f, const frep_program *p, const double *param
     f->eval = prog_eval;
     f->grad = prog_grad;
     f->interval = prog_interval;
+    f->focus = prog_focus;
     return 0;
 }
 
@@ -461,6 +525,18 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
     long base[3];
     for (int c = 0; c < 3; c++) base[c] = (long)B->b[c] * MESH_BLOCK;
 
+    /* 0. specialize the field to the block (every evaluation below lies in it) */
+    double bb[6], sign_tol = 0;
+    int focused = f->focus && iso == 0;
+    if (focused) {
+        for (int c = 0; c < 3; c++) {
+            double slack = 1e-9 * M->h[c];
+            bb[c] = M->o->box[c] + (double)(base[c] - 1) * M->h[c] - slack;
+            bb[c + 3] = M->o->box[c] + (double)(base[c] + MESH_BLOCK - 1) * M->h[c] + slack;
+        }
+        if (f->focus(f->ctx, ts, bb, &sign_tol) != 0) return -1;
+    }
+
     /* 1. corner values */
     size_t nreal = 0;
     int32_t *map = W->eidx; /* reused: corner -> position in the batch */
@@ -479,6 +555,28 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
             }
     if (nreal && f->eval(f->ctx, ts, nreal, W->cx, W->cy, W->cz, W->qf) != 0) return -1;
     W->eval_points += nreal;
+    if (focused && sign_tol > 0) {
+        /* Corners are shared with the neighbouring blocks, which prune differently:
+         * values near 0, whose sign rounding may decide, come from the whole program
+         * so that all blocks agree. */
+        size_t nz = 0;
+        for (size_t q = 0; q < nreal; q++)
+            if (fabs(W->qf[q]) < sign_tol) {
+                W->rid[nz] = (int32_t)q;
+                W->qx[nz] = W->cx[q];
+                W->qy[nz] = W->cy[q];
+                W->qz[nz] = W->cz[q];
+                nz++;
+            }
+        if (nz) {
+            if (f->focus(f->ctx, ts, NULL, NULL) != 0 ||
+                f->eval(f->ctx, ts, nz, W->qx, W->qy, W->qz, W->tt) != 0 ||
+                f->focus(f->ctx, ts, bb, &sign_tol) != 0)
+                return -1;
+            W->eval_points += nz;
+            for (size_t q = 0; q < nz; q++) W->qf[W->rid[q]] = W->tt[q];
+        }
+    }
     for (int ci = 0; ci < MESH_BLOCK_CORNERS; ci++) {
         if (map[ci] < 0) {
             W->cf[ci] = NAN;
@@ -564,15 +662,14 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
             }
 
     /* 3. root finding on the real crossings (Illinois regula falsi, batched): each
-     * step evaluates only the crossings still moving, so near-linear fields (planes,
-     * R-functions away from their creases) cost one or two evaluations a crossing. */
+     * step evaluates only the crossings whose bracket is still too wide. */
     for (int r = 0; r < nroot; r++) W->tt[r] = NAN;
     for (int step = 0; step < MESH_ROOT_STEPS && nroot > 0; step++) {
         int na = 0;
         for (int r = 0; r < nroot; r++) {
             if (W->side[r] == 2) continue;
             double t = root_guess(W, r);
-            if (fabs(t - W->tt[r]) <= MESH_ROOT_TOL || W->t1[r] - W->t0[r] <= MESH_ROOT_TOL) {
+            if (W->t1[r] - W->t0[r] <= MESH_ROOT_TOL || W->g0[r] == 0 || W->g1[r] == 0) {
                 W->side[r] = 2; /* converged: the final guess below lands here */
                 continue;
             }
@@ -697,7 +794,7 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
                 }
             }
     B->nverts = (uint32_t)nv;
-    if (nv == 0) return 0;
+    if (nv == 0) return focused ? f->focus(f->ctx, ts, NULL, NULL) : 0;
     B->vpos = malloc(3 * nv * sizeof *B->vpos);
     B->vnrm = malloc(3 * nv * sizeof *B->vnrm);
     B->vfg = malloc(4 * nv * sizeof *B->vfg);
@@ -727,6 +824,7 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
         B->vnrm[3 * v + 1] = ny;
         B->vnrm[3 * v + 2] = nz;
     }
+    if (focused && f->focus(f->ctx, ts, NULL, NULL) != 0) return -1;
     return 0;
 }
 

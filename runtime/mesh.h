@@ -47,6 +47,12 @@ typedef struct mesh_field {
     int (*grad)(void *ctx, void *ts, size_t n, const double *x, const double *y,
                 const double *z, double *f, double *gx, double *gy, double *gz);
     int (*interval)(void *ctx, void *ts, const double box[6], double *lo, double *hi);
+    /* May be NULL; only used when iso is 0.  Announce that the thread's next
+     * evaluations lie in box (NULL: may lie anywhere): the field may then specialize
+     * itself (tape pruning), provided every value of magnitude >= *sign_tol keeps its
+     * sign, the zero set and its normals stay; values closer to 0 are evaluated again
+     * after focus(NULL).  Focusing again on the same box must be cheap. */
+    int (*focus)(void *ctx, void *ts, const double box[6], double *sign_tol);
 } mesh_field;
 
 /* The field of a compiled program with parameter values `params` (NULL: its own; the

@@ -12,6 +12,7 @@
 
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #define IV_PI 3.14159265358979323846
 #define IV_HALF_PI 1.57079632679489661923
@@ -491,6 +492,11 @@ int vm_eval_interval(const frep_program *p, vm_iscratch *s, const double box[6],
 
 enum { PR_NONE, PR_KEEP_A, PR_KEEP_B, PR_KEEP_NEG_B };
 
+/* Relative size of the values whose sign pruning may change through rounding: far
+ * above the rounding error of thousands of operations (1e-13 relative), far below
+ * any value a sampled grid point has off the surface. */
+#define VM_PRUNE_MARGIN 1e-8
+
 struct vm_pruner {
     const frep_program *p;
     uint32_t n;
@@ -590,13 +596,10 @@ vm_pruner *vm_pruner_new(const frep_program *p)
             ok = 1;
         } else if (c != NONE) {
             frep_opcode cop = (frep_opcode)p->code[c].op;
-            switch (cop) {
-            case FREP_OP_RUNI: case FREP_OP_RINT: case FREP_OP_RSUB: case FREP_OP_MIN:
-            case FREP_OP_MAX: case FREP_OP_MSUB: case FREP_OP_NEG: case FREP_OP_STORE:
+            if (cop == FREP_OP_RUNI || cop == FREP_OP_RINT || cop == FREP_OP_RSUB ||
+                cop == FREP_OP_MIN || cop == FREP_OP_MAX || cop == FREP_OP_MSUB ||
+                cop == FREP_OP_NEG || cop == FREP_OP_STORE)
                 ok = sign[c];
-                break;
-            default: break;
-            }
         }
         sign[pc] = (uint8_t)ok;
         if (op == FREP_OP_LOAD && reads[pc] != NONE && !ok) store_ok[reads[pc]] = 0;
@@ -641,12 +644,25 @@ static int pr_droppable(const vm_pruner *r, uint32_t from, uint32_t to)
 }
 
 int vm_prune(vm_pruner *r, vm_iscratch *s, const double box[6], const double *params,
-             frep_insn *code, frep_srcpos *pos, uint32_t *orig, uint32_t *ncode, ival *out)
+             frep_insn *code, frep_srcpos *pos, uint32_t *orig, uint32_t *ncode, ival *out,
+             double *sign_tol)
 {
     const frep_program *p = r->p;
     uint32_t n = r->n;
     for (uint32_t pc = 0; pc < n; pc++) r->trace[pc] = iv_entire();
     if (interval_run(p, s, box, params, out, r->trace) != 0) return -1;
+    /* Rounding: the original and the pruned program may disagree on the sign of values
+     * within their rounding errors of 0.  Those are below VM_PRUNE_MARGIN x the largest
+     * intermediate magnitude S; an R-function is pruned only when the dropped operand
+     * keeps its sign by more than T = VM_PRUNE_MARGIN S, and the caller re-evaluates
+     * values smaller than T with the original program. */
+    double S = 0;
+    for (uint32_t pc = 0; pc < n; pc++) {
+        if (isfinite(r->trace[pc].lo)) S = fmax(S, fabs(r->trace[pc].lo));
+        if (isfinite(r->trace[pc].hi)) S = fmax(S, fabs(r->trace[pc].hi));
+    }
+    double T = VM_PRUNE_MARGIN * S;
+    *sign_tol = T;
     memset(r->keep, 1, n);
     memset(r->neg, 0, n);
     int changed = 0;
@@ -655,32 +671,24 @@ int vm_prune(vm_pruner *r, vm_iscratch *s, const double box[6], const double *pa
         frep_opcode op = (frep_opcode)p->code[pc].op;
         ival A = r->trace[r->b0[pc] - 1], B = r->trace[pc - 1];
         int d = PR_NONE;
-        switch (op) {
-        case FREP_OP_RUNI:
-            if (B.hi < 0) d = PR_KEEP_A;
-            else if (A.hi < 0) d = PR_KEEP_B;
-            break;
-        case FREP_OP_RINT:
-            if (B.lo > 0) d = PR_KEEP_A;
-            else if (A.lo > 0) d = PR_KEEP_B;
-            break;
-        case FREP_OP_RSUB:
-            if (B.hi < 0) d = PR_KEEP_A;
-            else if (A.lo > 0) d = PR_KEEP_NEG_B;
-            break;
-        case FREP_OP_MIN:
+        if (op == FREP_OP_RUNI) {
+            if (B.hi < -T) d = PR_KEEP_A;
+            else if (A.hi < -T) d = PR_KEEP_B;
+        } else if (op == FREP_OP_RINT) {
+            if (B.lo > T) d = PR_KEEP_A;
+            else if (A.lo > T) d = PR_KEEP_B;
+        } else if (op == FREP_OP_RSUB) {
+            if (B.hi < -T) d = PR_KEEP_A;
+            else if (A.lo > T) d = PR_KEEP_NEG_B;
+        } else if (op == FREP_OP_MIN) {
             if (A.hi < B.lo) d = PR_KEEP_A;
             else if (B.hi < A.lo) d = PR_KEEP_B;
-            break;
-        case FREP_OP_MAX:
+        } else if (op == FREP_OP_MAX) {
             if (A.lo > B.hi) d = PR_KEEP_A;
             else if (B.lo > A.hi) d = PR_KEEP_B;
-            break;
-        case FREP_OP_MSUB: /* min(a, -b) */
+        } else if (op == FREP_OP_MSUB) { /* min(a, -b) */
             if (A.hi < -B.hi) d = PR_KEEP_A;
             else if (-B.lo < A.lo) d = PR_KEEP_NEG_B;
-            break;
-        default: break;
         }
         uint32_t a0 = r->a0[pc], b0 = r->b0[pc];
         if (d == PR_KEEP_A && pr_droppable(r, b0, pc)) {

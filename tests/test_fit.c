@@ -107,6 +107,54 @@ static double part_value(double x, double y, double z, const double *p)
     return f;
 }
 
+/* a & b with its partial derivatives ka = d/da, kb = d/db (1 where the root is 0, as the
+ * dual numbers give). */
+static double rand_d(double a, double b, double *ka, double *kb)
+{
+    double r = sqrt(a * a + b * b);
+    *ka = r > 0 ? 1 - a / r : 1;
+    *kb = r > 0 ? 1 - b / r : 1;
+    return a + b - r;
+}
+
+/* The part with its spatial gradient d[12..14] and parameter derivatives d[0..11] by
+ * hand-written reverse mode: the same numbers as the dual numbers (checked below) at a
+ * small fraction of the cost, which keeps the annealing tests quick. */
+static double part_rev(double x, double y, double z, const double *p, double *d)
+{
+    double X[3] = {x, y, z}, u[3], w[3], s[3], ka[4], kb[4], b[2], ddx[2], ddy[2];
+    for (int c = 0; c < 3; c++) {
+        u[c] = X[c] - p[c];
+        w[c] = p[c] + p[3 + c] - X[c];
+        s[c] = u[c] * w[c];
+    }
+    double f = rand_d(s[0], s[1], &ka[0], &kb[0]);
+    f = rand_d(f, s[2], &ka[1], &kb[1]);
+    for (int k = 0; k < 2; k++) {
+        ddx[k] = x - p[6 + 3 * k], ddy[k] = y - p[7 + 3 * k];
+        b[k] = ddx[k] * ddx[k] + ddy[k] * ddy[k] - p[8 + 3 * k] * p[8 + 3 * k];
+        f = rand_d(f, b[k], &ka[2 + k], &kb[2 + k]);
+    }
+    /* Adjoints of the intermediate values. */
+    double a_b2 = kb[3], a_f3 = ka[3], a_b1 = a_f3 * kb[2], a_f2 = a_f3 * ka[2];
+    double a_s2 = a_f2 * kb[1], a_f1 = a_f2 * ka[1];
+    double a_s[3] = {a_f1 * ka[0], a_f1 * kb[0], a_s2}, a_b[2] = {a_b1, a_b2};
+    memset(d, 0, ND * sizeof *d);
+    for (int c = 0; c < 3; c++) {
+        d[NP + c] += a_s[c] * (w[c] - u[c]);
+        d[c] = a_s[c] * (u[c] - w[c]);
+        d[3 + c] = a_s[c] * u[c];
+    }
+    for (int k = 0; k < 2; k++) {
+        d[NP] += a_b[k] * 2 * ddx[k];
+        d[NP + 1] += a_b[k] * 2 * ddy[k];
+        d[6 + 3 * k] = -a_b[k] * 2 * ddx[k];
+        d[7 + 3 * k] = -a_b[k] * 2 * ddy[k];
+        d[8 + 3 * k] = -a_b[k] * 2 * p[8 + 3 * k];
+    }
+    return f;
+}
+
 static int part_eval(void *user, void *scratch, size_t n, const double *x, const double *y,
                      const double *z, const double *params, double *f, double *g, double *dp)
 {
@@ -116,12 +164,12 @@ static int part_eval(void *user, void *scratch, size_t n, const double *x, const
         return 0;
     }
     for (size_t i = 0; i < n; i++) {
-        dual r = part(x[i], y[i], z[i], params);
-        f[i] = r.v;
+        double d[ND];
+        f[i] = part_rev(x[i], y[i], z[i], params, d);
         if (g)
-            for (int c = 0; c < 3; c++) g[(size_t)c * n + i] = r.d[NP + c];
+            for (int c = 0; c < 3; c++) g[(size_t)c * n + i] = d[NP + c];
         if (dp)
-            for (int j = 0; j < NP; j++) dp[(size_t)j * n + i] = r.d[j];
+            for (int j = 0; j < NP; j++) dp[(size_t)j * n + i] = d[j];
     }
     return 0;
 }
@@ -235,6 +283,127 @@ static void test_writeback(void)
     free(out3);
 }
 
+/* A sphere of centre p0..p2 and radius p3 as HyperFun writes it: r^2 - |x - c|^2. */
+static int sphere_eval(void *user, void *scratch, size_t n, const double *x, const double *y,
+                       const double *z, const double *p, double *f, double *g, double *dp)
+{
+    (void)user, (void)scratch;
+    for (size_t i = 0; i < n; i++) {
+        double d[3] = {x[i] - p[0], y[i] - p[1], z[i] - p[2]};
+        f[i] = p[3] * p[3] - d[0] * d[0] - d[1] * d[1] - d[2] * d[2];
+        for (size_t c = 0; c < 3; c++) {
+            if (g) g[c * n + i] = -2 * d[c];
+            if (dp) dp[c * n + i] = 2 * d[c];
+        }
+        if (dp) dp[3 * n + i] = 2 * p[3];
+    }
+    return 0;
+}
+
+/* Largest of |gradient - central differences of the value| / max(1e-3, |gradient|). */
+static double grad_check(fit_objective *o, const double *p, size_t m)
+{
+    double g[NP], q[NP], worst = 0;
+    fit_objective_value(o, p, g);
+    for (size_t j = 0; j < m; j++) {
+        memcpy(q, p, m * sizeof *q);
+        double h = 1e-6;
+        q[j] = p[j] + h;
+        double fp = fit_objective_value(o, q, NULL);
+        q[j] = p[j] - h;
+        double fm = fit_objective_value(o, q, NULL);
+        worst = fmax(worst, fabs((fp - fm) / (2 * h) - g[j]) / fmax(1e-3, fabs(g[j])));
+    }
+    return worst;
+}
+
+/* The normal-agreement term: its gradient, and a case where it should help. Positions
+ * on a small spherical cap say little about the centre and radius (the cap is nearly
+ * flat, and noise hides its curvature), while the normals point straight at the centre:
+ * with noisy positions and good normals the normal term must recover the centre and
+ * radius far better than the positions alone. */
+static void test_normals(const double *px, const double *py, const double *pz, size_t npts)
+{
+    /* Gradient check on the test part, normals from the true model. */
+    {
+        double *nrm = malloc(3 * npts * sizeof *nrm);
+        double p[NP];
+        for (size_t i = 0; i < npts; i++) {
+            double d[ND];
+            part_rev(px[i], py[i], pz[i], truth, d);
+            double l = sqrt(d[NP] * d[NP] + d[NP + 1] * d[NP + 1] + d[NP + 2] * d[NP + 2]);
+            for (int c = 0; c < 3; c++) nrm[(size_t)c * npts + i] = l > 0 ? -d[NP + c] / l : 0;
+        }
+        fit_points pts = {npts, px, py, pz, nrm, nrm + npts, nrm + 2 * npts};
+        fit_model model = {NP, NULL, NULL, NULL, part_eval};
+        for (int j = 0; j < NP; j++) p[j] = truth[j] + 0.05 * (j % 3) - 0.04;
+        for (int kind = 0; kind < 2; kind++) {
+            fit_objective_config oc;
+            fit_objective_config_init(&oc);
+            oc.kind = kind ? FIT_OBJ_GEOMETRIC : FIT_OBJ_ALGEBRAIC;
+            oc.normals_weight = 0.5;
+            fit_objective *o = fit_objective_new(&model, &pts, &oc);
+            if (kind) fit_objective_freeze(o, p);
+            double v0 = fit_objective_value(o, truth, NULL);
+            double worst = grad_check(o, p, NP);
+            ok(worst < 1e-5, "%s + normal term: gradient matches differences (rel. error %g)",
+               kind ? "geometric (frozen)" : "algebraic", worst);
+            if (!kind) is_double(v0, 0, 1e-12, "normal term is 0 where the normals agree");
+            fit_objective_free(o);
+        }
+        free(nrm);
+    }
+
+    /* Sphere cap: centre (0.3, -0.2, 0.1), radius 2; points within 25 degrees of +z with
+     * Gaussian noise of 1% of the radius along the normal, normals exact. */
+    enum { NS = 600 };
+    static const double sp_truth[4] = {0.3, -0.2, 0.1, 2};
+    double *a = malloc(6 * NS * sizeof *a);
+    double *sx = a, *sy = a + NS, *sz = a + 2 * NS, *nx = a + 3 * NS, *ny = a + 4 * NS, *nz = a + 5 * NS;
+    fit_rng r;
+    fit_rng_seed(&r, 11);
+    const double cap = 25 * 3.14159265358979 / 180;
+    for (size_t i = 0; i < NS; i++) {
+        /* Uniform on the cap: cos(theta) uniform in [cos(cap), 1]. */
+        double ct = 1 - fit_rng_uniform(&r) * (1 - cos(cap)), st = sqrt(1 - ct * ct);
+        double ph = 2 * 3.14159265358979 * fit_rng_uniform(&r);
+        double n[3] = {st * cos(ph), st * sin(ph), ct};
+        double rad = sp_truth[3] + 0.02 * fit_rng_normal(&r);
+        sx[i] = sp_truth[0] + rad * n[0], nx[i] = n[0];
+        sy[i] = sp_truth[1] + rad * n[1], ny[i] = n[1];
+        sz[i] = sp_truth[2] + rad * n[2], nz[i] = n[2];
+    }
+    fit_model sm = {4, NULL, NULL, NULL, sphere_eval};
+    fit_points sp = {NS, sx, sy, sz, nx, ny, nz};
+    double lo[4] = {-5, -5, -5, 0.1}, hi[4] = {5, 5, 5, 10};
+    double err_w[2];
+    for (int w = 0; w < 2; w++) {
+        fit_config cfg;
+        fit_config_init(&cfg);
+        cfg.method = FIT_METHOD_QN;
+        cfg.obj.normals_weight = w ? 100 : 0;
+        double q[4] = {0, 0, -1, 3};
+        fit_result res;
+        char err[200];
+        if (w) {
+            fit_objective *o = fit_objective_new(&sm, &sp, &cfg.obj);
+            double worst = grad_check(o, q, 4);
+            ok(worst < 1e-6, "sphere + normal term: gradient matches differences (%g)", worst);
+            fit_objective_free(o);
+        }
+        int rc = fit_run(&sm, &sp, lo, hi, q, &cfg, &res, err, sizeof err);
+        double e = 0;
+        for (int j = 0; j < 4; j++) e = fmax(e, fabs(q[j] - sp_truth[j]));
+        err_w[w] = rc == 0 ? e : HUGE_VAL;
+        diag("sphere cap, normals weight %d: centre (%.4f, %.4f, %.4f) radius %.4f, error %.3g, "
+             "%ld evals", w ? 100 : 0, q[0], q[1], q[2], q[3], e, res.evals);
+    }
+    ok(err_w[1] < 0.02 && err_w[1] < 0.2 * err_w[0],
+       "the normal term recovers a sphere from a noisy cap (error %.3g, without it %.3g)",
+       err_w[1], err_w[0]);
+    free(a);
+}
+
 int main(void)
 {
     /* Fewer points than the paper's 10,714 keep this C model (15 tangents per operation,
@@ -250,6 +419,8 @@ int main(void)
     for (int j = 0; j < NP; j++) lo[j] = -10, hi[j] = 10;
     for (int j = 3; j < 6; j++) lo[j] = 0.01, hi[j] = 20;  /* block edges stay positive */
     for (int j = 8; j < NP; j += 3) lo[j] = 0.01;         /* radii too */
+
+    test_normals(px, py, pz, N);
 
     /* The sampler puts points on the surface: f = 0 there at the true parameters. */
     {
@@ -331,29 +502,35 @@ int main(void)
     ok(rel_error(p) > 1e-2, "qn from set2 stops in a wrong local minimum (error %.2g, objective %.3g)",
        rel_error(p), res.objective);
 
-    /* The dual-number and plain evaluations agree. */
+    /* The dual-number, reverse-mode and plain evaluations agree. */
     {
-        double worst = 0;
+        double worst = 0, worst_d = 0;
         for (int i = 0; i < 50; i++) {
-            dual d = part(px[i] + 0.1, py[i] - 0.05, pz[i], set1);
-            worst = fmax(worst, fabs(d.v - part_value(px[i] + 0.1, py[i] - 0.05, pz[i], set1)));
+            double qx = px[i] + 0.1, qy = py[i] - 0.05, qz = pz[i], d[ND];
+            dual r = part(qx, qy, qz, set1);
+            worst = fmax(worst, fabs(r.v - part_value(qx, qy, qz, set1)));
+            worst = fmax(worst, fabs(r.v - part_rev(qx, qy, qz, set1, d)));
+            for (int k = 0; k < ND; k++) worst_d = fmax(worst_d, fabs(r.d[k] - d[k]));
         }
-        ok(worst < 1e-12, "value-only path agrees with the dual numbers (%g)", worst);
+        ok(worst < 1e-12, "value-only and reverse-mode values agree with the dual numbers (%g)", worst);
+        ok(worst_d < 1e-12, "reverse-mode derivatives agree with the dual numbers (%g)", worst_d);
     }
 
+    /* Every seed must reach the truth (FIT_TEST_SEEDS=N tries seeds 1..N; 50 were
+     * tried when the annealing was tuned, see doc/fit.md). */
     cfg.method = FIT_METHOD_SAQN;
-    int hits = 0;
-    for (uint64_t seed = 1; seed <= 3; seed++) {
-        cfg.seed = seed;
+    int hits = 0, nseeds = 4;
+    const char *ns = getenv("FIT_TEST_SEEDS");
+    if (ns != NULL && atoi(ns) > 0) nseeds = atoi(ns);
+    for (int seed = 1; seed <= nseeds; seed++) {
+        cfg.seed = (uint64_t)seed;
         memcpy(p, set2, sizeof p);
         fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
         hits += rel_error(p) < 1e-3;
-        diag("seed %llu: error %.2g of the diagonal, %.3f s, %ld evals, %ld sa iterations",
-             (unsigned long long)seed, rel_error(p), res.seconds, res.evals, res.sa_iterations);
+        diag("seed %d: error %.2g of the diagonal, %.3f s, %ld evals, %ld sa iterations",
+             seed, rel_error(p), res.seconds, res.evals, res.sa_iterations);
     }
-    /* Not every seed: on this 2,000-point cloud seed 1 ends with one hole misplaced
-     * (tests/fit.sh and the benchmark check the paper's 10,714-point cloud). */
-    ok(hits >= 2, "sa+qn from set2 reaches the truth for %d of 3 seeds (>= 2)", hits);
+    ok(hits == nseeds, "sa+qn from set2 reaches the truth for %d of %d seeds", hits, nseeds);
 
     /* Same seed, 1 and 2 threads: the same parameters bit for bit. */
     double q1[NP], q2[NP];

@@ -12,8 +12,10 @@
 #include "program.h"
 #include "tap.h"
 
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 /* ---- a small deterministic RNG (xorshift64*) ------------------------------------- */
 
@@ -351,7 +353,7 @@ static void tf_thread_free(void *ctx, void *ts) { (void)ctx; (void)ts; }
 static mesh_field make_field(tfield *t, int with_interval)
 {
     mesh_field f = { t, tf_thread_new, tf_thread_free, tf_eval, tf_grad,
-                     with_interval ? tf_interval : NULL };
+                     with_interval ? tf_interval : NULL, NULL };
     return f;
 }
 
@@ -650,6 +652,186 @@ static void test_meshio(void)
     }
 }
 
+/* ---- tape pruning (vm_prune) and the program field ---------------------------------- */
+
+/* A gear: a loop of teeth unioned by R-functions (unrolled by the compiler), a body,
+ * a hub and a bore; the pruner has plenty to drop away from each tooth. */
+static const char prune_src[] =
+    "my_model(x[3], a[1])\n"
+    "{\n"
+    "  array c[3];\n"
+    "  c = [0, 0, 0];\n"
+    "  body = hfCylinderZ(x, c, 1.2) & (0.25 - x[3]) & (x[3] + 0.25);\n"
+    "  teeth = -1;\n"
+    "  i = 0;\n"
+    "  while i < 9 loop\n"
+    "    t = 2 * 3.14159265358979 * i / 9;\n"
+    "    u = cos(t) * x[1] + sin(t) * x[2];\n"
+    "    v = cos(t) * x[2] - sin(t) * x[1];\n"
+    "    teeth = teeth | ((u - 1.1) & (1.45 - u) & (0.12 - v) & (v + 0.12));\n"
+    "    i = i + 1;\n"
+    "  endloop;\n"
+    "  my_model = ((body | (teeth & (0.25 - x[3]) & (x[3] + 0.25))) \\ hfCylinderZ(x, c, 0.3))"
+    " | hfSphere(x, c, 0.5);\n"
+    "}\n";
+
+static frep_program *compile_text(const char *src, int setops)
+{
+    frep_compile_options o;
+    frep_compile_options_init(&o);
+    o.setops_override = setops;
+    return frep_compile("prune.hf", src, strlen(src), &o, NULL, NULL);
+}
+
+static void test_prune_program(int setops)
+{
+    const char *name = setops == FREP_SETOPS_MINMAX ? "min/max" : "R-functions";
+    frep_program *p = compile_text(prune_src, setops);
+    ok(p != NULL, "%s: the gear compiles", name);
+    if (!p) return;
+    vm_pruner *pr = vm_pruner_new(p);
+    ok(pr != NULL, "%s: straight-line code can be pruned", name);
+    vm_iscratch *is = vm_iscratch_new(p);
+    frep_scratch *s = frep_scratch_new(p);
+    frep_program sub = *p;
+    sub.code = malloc(p->ncode * sizeof *sub.code);
+    sub.pos = malloc(p->ncode * sizeof *sub.pos);
+    uint32_t *orig = malloc(p->ncode * sizeof *orig);
+    uint64_t seed = 7;
+    long shorter = 0, sign_bad = 0, value_bad = 0, checked = 0, orig_bad = 0;
+    uint32_t shortest = p->ncode;
+    for (int trial = 0; pr && trial < 200; trial++) {
+        double box[6];
+        for (int c = 0; c < 3; c++) {
+            double a = rnd(&seed) * 3.2 - 1.6, w = 0.05 + rnd(&seed) * (trial % 4 ? 0.2 : 1);
+            box[c] = a;
+            box[c + 3] = a + w;
+        }
+        ival r;
+        uint32_t n = 0;
+        double tol = -1;
+        if (vm_prune(pr, is, box, NULL, sub.code, sub.pos, orig, &n, &r, &tol) != 0) continue;
+        sub.ncode = n;
+        if (n < p->ncode) shorter++;
+        if (n < shortest) shortest = n;
+        for (uint32_t i = 0; i < n; i++)
+            if (orig[i] >= p->ncode || (orig[i] > 0 && i > 0 && orig[i] <= orig[i - 1])) orig_bad++;
+        double x[64], y[64], z[64], f[64], g[64];
+        for (int i = 0; i < 64; i++) {
+            x[i] = box[0] + (box[3] - box[0]) * rnd(&seed);
+            y[i] = box[1] + (box[4] - box[1]) * rnd(&seed);
+            z[i] = box[2] + (box[5] - box[2]) * rnd(&seed);
+        }
+        frep_eval(p, s, 64, x, y, z, NULL, f);
+        frep_eval(&sub, s, 64, x, y, z, NULL, g);
+        for (int i = 0; i < 64; i++) {
+            checked++;
+            if (fabs(g[i]) >= tol && (g[i] >= 0) != (f[i] >= 0)) sign_bad++;
+            if (setops == FREP_SETOPS_MINMAX && g[i] != f[i]) value_bad++;
+        }
+    }
+    ok(shorter > 50, "%s: %ld of 200 boxes give a shorter program (shortest %u of %u)", name,
+       shorter, shortest, p->ncode);
+    ok(sign_bad == 0, "%s: pruned values have the original's sign at %ld points", name, checked);
+    if (setops == FREP_SETOPS_MINMAX)
+        ok(value_bad == 0, "min/max: pruned values equal the original's exactly");
+    ok(orig_bad == 0, "%s: the pc map points into the original program, in order", name);
+
+    /* meshing with and without pruning: the same topology, vertices within 1e-3 cell */
+    mesh_options o;
+    mesh_options_init(&o);
+    for (int c = 0; c < 3; c++) {
+        o.box[c] = -1.6;
+        o.box[c + 3] = 1.6;
+    }
+    o.grid = 61; /* no plane of the model on the grid: no ties at zero */
+    frep_mesh a, b, c3;
+    mesh_stats st;
+    char err[256] = "";
+    mesh_field f;
+    mesh_field_program(&f, p, NULL);
+    o.nthreads = 1;
+    int ra = mesh_polygonize(&f, &o, &a, &st, err, sizeof err);
+    o.nthreads = 3;
+    int rc = mesh_polygonize(&f, &o, &c3, &st, err, sizeof err);
+    f.focus = NULL;
+    o.nthreads = 1;
+    int rb = mesh_polygonize(&f, &o, &b, &st, err, sizeof err);
+    mesh_field_program_free(&f);
+    ok(ra == 0 && rb == 0 && rc == 0, "%s: meshed with and without pruning", name);
+    if (ra == 0 && rb == 0 && rc == 0) {
+        /* The same cells hold the same vertices.  The R-function blends near creases
+         * see other values, which may tip the QEF's rank decision of a cell (a vertex
+         * snaps to an edge or stays at the mass point) or a quad's diagonal: rare,
+         * and bounded by the cell. */
+        ok(a.nverts == b.nverts && a.ntris == b.ntris,
+           "%s: pruning keeps the vertices and triangles (%zu, %zu)", name, a.nverts, a.ntris);
+        double dmax = 0, dsum = 0;
+        for (size_t i = 0; a.nverts == b.nverts && i < a.nverts; i++) {
+            double d = 0;
+            for (int k = 0; k < 3; k++) d = fmax(d, fabs(a.v[3 * i + k] - b.v[3 * i + k]));
+            dmax = fmax(dmax, d);
+            dsum += d;
+        }
+        double cell = 3.2 / 61;
+        ok(dmax < cell && dsum / (double)a.nverts < 0.01 * cell,
+           "%s: vertices move by %.2g cell at most, %.2g on average", name, dmax / cell,
+           dsum / (double)a.nverts / cell);
+        ok(a.nverts == c3.nverts && memcmp(a.v, c3.v, 3 * a.nverts * sizeof *a.v) == 0,
+           "%s: pruned meshes are the same at 1 and 3 threads", name);
+        mesh_check ck;
+        mesh_validate(&a, &ck);
+        ok(ck.open_edges == 0 && ck.nonmanifold_edges == 0 && ck.flipped_edges == 0 &&
+           ck.degenerate == 0, "%s: the pruned mesh is closed and manifold", name);
+    }
+    if (ra == 0) mesh_free(&a);
+    if (rb == 0) mesh_free(&b);
+    if (rc == 0) mesh_free(&c3);
+    free(sub.code);
+    free(sub.pos);
+    free(orig);
+    vm_pruner_free(pr);
+    vm_iscratch_free(is);
+    frep_scratch_free(s);
+    frep_program_free(p);
+}
+
+/* Domain errors raised while meshing reach mesh_field_program_errors with the
+ * original program's pc, pruned or not. */
+static void test_mesh_errors(void)
+{
+    const char *src = "my_model(x[3], a[1])\n{\n  b = 0.5 - x[1] * x[1] - x[2] * x[2] - x[3] * x[3];\n"
+                      "  my_model = (b | (x[1] - 5)) + 0 * sqrt(x[1]);\n}\n";
+    frep_program *p = compile_text(src, -1);
+    ok(p != NULL, "error model compiles");
+    if (!p) return;
+    uint32_t sqrt_pc = UINT32_MAX;
+    for (uint32_t pc = 0; pc < p->ncode; pc++)
+        if (p->code[pc].op == FREP_OP_SQRT) sqrt_pc = pc;
+    mesh_options o;
+    mesh_options_init(&o);
+    for (int c = 0; c < 3; c++) {
+        o.box[c] = -1;
+        o.box[c + 3] = 1;
+    }
+    o.grid = 20;
+    o.nthreads = 2;
+    mesh_field f;
+    mesh_field_program(&f, p, NULL);
+    frep_mesh m;
+    mesh_stats st;
+    char err[256];
+    int rc = mesh_polygonize(&f, &o, &m, &st, err, sizeof err);
+    frep_runtime_error e;
+    mesh_field_program_errors(&f, &e);
+    mesh_field_program_free(&f);
+    ok(rc == 0 && e.count > 0 && e.pc == sqrt_pc && e.x < 0,
+       "sqrt of a negative is reported at pc %u (expected %u), %llu times, at x = %g", e.pc,
+       sqrt_pc, (unsigned long long)e.count, e.x);
+    if (rc == 0) mesh_free(&m);
+    frep_program_free(p);
+}
+
 int main(void)
 {
     test_interval_ops();
@@ -659,5 +841,8 @@ int main(void)
     test_mesh_threads();
     test_mesh_bad();
     test_meshio();
+    test_prune_program(-1);
+    test_prune_program(FREP_SETOPS_MINMAX);
+    test_mesh_errors();
     return done_testing();
 }

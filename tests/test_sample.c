@@ -44,7 +44,7 @@ static void e_free(void *ctx, void *ts) { (void)ctx; (void)ts; }
 
 static mesh_field field(ell *e)
 {
-    mesh_field f = { e, e_new, e_free, e_eval, e_grad, NULL };
+    mesh_field f = { e, e_new, e_free, e_eval, e_grad, NULL, NULL };
     return f;
 }
 

@@ -1,0 +1,583 @@
+/* prune.c - exact interval tape pruning (libfive's and fidget's technique) and the
+ * tiled grid evaluator of `frep eval --grid`.
+ *
+ * bytecode -> prune_plan (data flow of the straight-line program, once) -> per tile:
+ * interval pass, decisions, dead-code removal -> shorter program -> runtime/vm.c.
+ * Only exact rewrites are made (min/max, min(a, -b), decided selects), so values and
+ * domain errors are those of the original program; R-functions are left alone.
+ */
+#include "config.h"
+
+#include "prune.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "vm_internal.h"
+
+#define PR_NONE UINT32_MAX
+
+/* What the pruned program does with an instruction of the original. */
+enum {
+    ACT_KEEP,   /* emitted as it is */
+    ACT_FWD,    /* not emitted: its value is that of instruction fwd[pc] */
+    ACT_CONST,  /* emitted as CONST k (a min/max decided for its immediate operand) */
+    ACT_NEG_B   /* emitted as NEG of operand b (min(a, -b) decided for -b) */
+};
+
+struct prune_plan {
+    const frep_program *p;
+    uint32_t n;
+    uint32_t root;          /* pc producing the program's result */
+    uint32_t *opnd;         /* opnd[3*pc + i]: producer of stack operand i (push order);
+                               LOAD: the STORE it reads (PR_NONE: slot never written) */
+    uint8_t *nopnd;         /* stack operands of pc (LOAD: 1 when it reads a STORE) */
+    uint8_t *sink;          /* STORE nobody reads: always kept (its errors must show) */
+};
+
+struct prune_state {
+    const prune_plan *pl;
+    ival *iv;               /* iv[pc]: enclosure of the value pc pushes (STORE: stores) */
+    uint8_t *clean;         /* value finite, |.| <= PRUNE_MAX_MAG, no error, at every
+                               point of the box (so iv[pc] holds at every point) */
+    uint8_t *errfree;       /* no reported domain error anywhere in pc's data flow */
+    uint8_t *act;           /* ACT_* */
+    uint32_t *fwd;          /* valid when act == ACT_FWD */
+    uint8_t *need;
+    frep_insn *code;        /* the pruned program */
+    frep_srcpos *pos;
+    uint32_t *orig;
+    frep_program view;      /* the original's fields with code/pos/ncode replaced */
+};
+
+void prune_plan_free(prune_plan *pl)
+{
+    if (!pl) return;
+    free(pl->opnd);
+    free(pl->nopnd);
+    free(pl->sink);
+    free(pl);
+}
+
+prune_plan *prune_plan_new(const frep_program *p)
+{
+    if (!p || !p->code || p->ncode == 0 || (p->flags & (PROG_HAS_BRANCHES | PROG_HAS_PRIMS)))
+        return NULL;
+    uint32_t n = p->ncode;
+    prune_plan *pl = calloc(1, sizeof *pl);
+    uint32_t *stack = malloc((size_t)(n + 1) * sizeof *stack);
+    uint32_t *last = malloc((size_t)(p->nslots + 1) * sizeof *last);
+    uint8_t *read = calloc((size_t)n + 1, 1);
+    if (!pl || !stack || !last || !read) goto fail;
+    pl->p = p;
+    pl->n = n;
+    pl->opnd = malloc((size_t)n * 3 * sizeof *pl->opnd);
+    pl->nopnd = calloc(n, 1);
+    pl->sink = calloc(n, 1);
+    if (!pl->opnd || !pl->nopnd || !pl->sink) goto fail;
+    for (uint32_t j = 0; j <= p->nslots; j++) last[j] = PR_NONE;
+    uint32_t sp = 0;
+    for (uint32_t pc = 0; pc < n; pc++) {
+        const frep_insn *in = &p->code[pc];
+        frep_opcode op = (frep_opcode)in->op;
+        switch (op) {
+        case FREP_OP_JMP: case FREP_OP_JZ: case FREP_OP_LOADI: case FREP_OP_STOREI:
+        case FREP_OP_PRIM: case FREP_OP__COUNT:
+            goto fail;
+        case FREP_OP_CONST: case FREP_OP_X: case FREP_OP_PARAM: case FREP_OP_LOAD:
+        case FREP_OP_STORE: case FREP_OP_NEG: case FREP_OP_NOT: case FREP_OP_ABS:
+        case FREP_OP_SQRT: case FREP_OP_SQUARE: case FREP_OP_EXP: case FREP_OP_LOG:
+        case FREP_OP_LOGD: case FREP_OP_SIN: case FREP_OP_COS: case FREP_OP_TAN:
+        case FREP_OP_ASIN: case FREP_OP_ACOS: case FREP_OP_ATAN: case FREP_OP_SINH:
+        case FREP_OP_COSH: case FREP_OP_TANH: case FREP_OP_SIGN: case FREP_OP_CEIL:
+        case FREP_OP_FLOOR: case FREP_OP_INT: case FREP_OP_FRAC: case FREP_OP_ADD:
+        case FREP_OP_SUB: case FREP_OP_MUL: case FREP_OP_DIV: case FREP_OP_POW:
+        case FREP_OP_MOD: case FREP_OP_MIN: case FREP_OP_MAX: case FREP_OP_ATAN2:
+        case FREP_OP_EQ: case FREP_OP_NE: case FREP_OP_LT: case FREP_OP_LE:
+        case FREP_OP_GT: case FREP_OP_GE: case FREP_OP_AND: case FREP_OP_OR:
+        case FREP_OP_RUNI: case FREP_OP_RINT: case FREP_OP_RSUB: case FREP_OP_MSUB:
+        case FREP_OP_AUNI: case FREP_OP_AINT: case FREP_OP_SELECT:
+            break;
+        default:
+            goto fail;
+        }
+        int nin = insn_nin(in);
+        if (nin < 0 || nin > 3 || (uint32_t)nin > sp) goto fail;
+        for (int i = 0; i < 3; i++) pl->opnd[3 * pc + (uint32_t)i] = PR_NONE;
+        sp -= (uint32_t)nin;
+        for (int i = 0; i < nin; i++) pl->opnd[3 * pc + (uint32_t)i] = stack[sp + (uint32_t)i];
+        pl->nopnd[pc] = (uint8_t)nin;
+        if (op == FREP_OP_LOAD || op == FREP_OP_STORE) {
+            if (in->arg >= p->nslots) goto fail;
+            if (op == FREP_OP_LOAD) {
+                pl->opnd[3 * pc] = last[in->arg];
+                pl->nopnd[pc] = last[in->arg] != PR_NONE;
+                if (last[in->arg] != PR_NONE) read[last[in->arg]] = 1;
+            } else {
+                last[in->arg] = pc;
+            }
+        }
+        if (op_pushes(op)) stack[sp++] = pc;
+    }
+    if (sp != 1) goto fail;
+    /* nothing to decide: the caller saves the interval pass */
+    uint32_t ndec = 0;
+    for (uint32_t pc = 0; pc < n; pc++) {
+        uint8_t op = p->code[pc].op;
+        ndec += op == FREP_OP_MIN || op == FREP_OP_MAX || op == FREP_OP_MSUB ||
+                op == FREP_OP_SELECT;
+    }
+    if (ndec == 0) goto fail;
+    pl->root = stack[0];
+    for (uint32_t pc = 0; pc < n; pc++)
+        pl->sink[pc] = p->code[pc].op == FREP_OP_STORE && !read[pc];
+    free(stack);
+    free(last);
+    free(read);
+    return pl;
+fail:
+    free(stack);
+    free(last);
+    free(read);
+    prune_plan_free(pl);
+    return NULL;
+}
+
+void prune_state_free(prune_state *st)
+{
+    if (!st) return;
+    free(st->iv);
+    free(st->clean);
+    free(st->errfree);
+    free(st->act);
+    free(st->fwd);
+    free(st->need);
+    free(st->code);
+    free(st->pos);
+    free(st->orig);
+    free(st);
+}
+
+prune_state *prune_state_new(const prune_plan *pl)
+{
+    prune_state *st = calloc(1, sizeof *st);
+    if (!st) return NULL;
+    uint32_t n = pl->n;
+    st->pl = pl;
+    st->iv = malloc(n * sizeof *st->iv);
+    st->clean = malloc(n);
+    st->errfree = malloc(n);
+    st->act = malloc(n);
+    st->fwd = malloc(n * sizeof *st->fwd);
+    st->need = malloc(n);
+    st->code = malloc(n * sizeof *st->code);
+    st->pos = malloc(n * sizeof *st->pos);
+    st->orig = malloc(n * sizeof *st->orig);
+    if (!st->iv || !st->clean || !st->errfree || !st->act || !st->fwd || !st->need ||
+        !st->code || !st->pos || !st->orig) {
+        prune_state_free(st);
+        return NULL;
+    }
+    st->view = *pl->p;
+    st->view.code = st->code;
+    st->view.pos = st->pos;
+    st->view.cap = n;
+    return st;
+}
+
+uint32_t prune_orig_pc(const prune_state *st, uint32_t pc)
+{
+    return pc < st->view.ncode ? st->orig[pc] : pc;
+}
+
+/* ---- the interval pass ----------------------------------------------------------- */
+
+static ival pr_iv(double lo, double hi)
+{
+    ival r = { lo, hi };
+    return r;
+}
+
+static int pr_bounded(ival a)
+{
+    return fabs(a.lo) <= PRUNE_MAX_MAG && fabs(a.hi) <= PRUNE_MAX_MAG;
+}
+
+/* Is a domain-checked operation error-free at every point, given operands that are
+ * clean (so their intervals hold everywhere)?  The conditions are the complements of
+ * opsem.h's opsem_bad_* tests. */
+static int pr_domain_ok(frep_opcode op, ival a, ival b)
+{
+    switch ((unsigned)op) { /* not an enum switch: only the OPF_DOMAIN ops matter */
+    case FREP_OP_SQRT: return a.lo >= 0;
+    case FREP_OP_LOG: case FREP_OP_LOGD: return a.lo > 0;
+    case FREP_OP_ASIN: case FREP_OP_ACOS: return a.lo >= -1 && a.hi <= 1;
+    case FREP_OP_DIV: case FREP_OP_MOD: return b.lo > 0 || b.hi < 0;
+    case FREP_OP_POW: return a.lo >= 0 || (b.lo == b.hi && b.lo == trunc(b.lo));
+    default: return 0;
+    }
+}
+
+/* Enclosures, cleanliness and error-freedom of every instruction over the box. */
+static void pr_intervals(const prune_plan *pl, prune_state *st, const double box[6],
+                         const double *params)
+{
+    const frep_program *p = pl->p;
+    for (uint32_t pc = 0; pc < pl->n; pc++) {
+        const frep_insn *in = &p->code[pc];
+        frep_opcode op = (frep_opcode)in->op;
+        const uint32_t *o = &pl->opnd[3 * pc];
+        ival r;
+        int clean = 1, errfree = 1;
+        for (uint32_t i = 0; i < pl->nopnd[pc]; i++) {
+            clean &= st->clean[o[i]];
+            errfree &= st->errfree[o[i]];
+        }
+        if (op == FREP_OP_CONST) {
+            r = pr_iv(in->k, in->k);
+        } else if (op == FREP_OP_X) {
+            r = in->arg <= 2 ? pr_iv(box[in->arg], box[in->arg + 3]) : pr_iv(-INFINITY, INFINITY);
+        } else if (op == FREP_OP_PARAM) {
+            double v = in->arg < p->nparams ? (params ? params[in->arg] : p->params[in->arg].value)
+                                            : NAN;
+            r = pr_iv(v, v);
+        } else if (op == FREP_OP_LOAD || op == FREP_OP_STORE) {
+            r = o[0] == PR_NONE ? pr_iv(0, 0) : st->iv[o[0]];
+        } else {
+            ival v[3];
+            uint32_t j = 0;
+            if (op_nin(op) == 2 && (in->flags & INSN_KA)) v[j++] = pr_iv(in->k, in->k);
+            for (uint32_t i = 0; i < pl->nopnd[pc]; i++) v[j++] = st->iv[o[i]];
+            if (op_nin(op) == 2 && (in->flags & INSN_KB)) v[j++] = pr_iv(in->k, in->k);
+            while (j < 3) v[j++] = pr_iv(0, 0);
+            r = ival_op(op, v, in->k);
+            /* ival_op widens every rounded bound by an ulp, so a sum or product of
+             * nonnegative numbers could get a negative lower bound and hide that a
+             * later sqrt is safe; in IEEE arithmetic such results are never < 0. */
+            if ((op == FREP_OP_ADD || op == FREP_OP_MUL) && v[0].lo >= 0 && v[1].lo >= 0 &&
+                r.lo < 0)
+                r.lo = 0;
+            if (op_flags(op) & OPF_DOMAIN) {
+                int ok = clean && pr_domain_ok(op, v[0], v[1]);
+                clean &= ok;
+                if (!(in->flags & INSN_QUIET)) errfree &= ok;
+            }
+        }
+        if (isnan(r.lo) || isnan(r.hi) || !(r.lo <= r.hi)) r = pr_iv(-INFINITY, INFINITY);
+        st->iv[pc] = r;
+        st->clean[pc] = (uint8_t)(clean && pr_bounded(r));
+        st->errfree[pc] = (uint8_t)errfree;
+    }
+}
+
+/* ---- decisions and the pruned program ---------------------------------------------- */
+
+static uint32_t pr_resolve(const prune_state *st, uint32_t pc)
+{
+    while (st->act[pc] == ACT_FWD) pc = st->fwd[pc];
+    return pc;
+}
+
+/* Decide instruction pc over the box. A binary set operation with a clean operand
+ * strictly below (min) or above (max) the other at every point returns that operand
+ * exactly (opsem_min/max: no tie, no NaN); the other is dropped, which is allowed only
+ * when it raises no error. */
+static void pr_decide(const prune_plan *pl, prune_state *st, uint32_t pc)
+{
+    const frep_insn *in = &pl->p->code[pc];
+    frep_opcode op = (frep_opcode)in->op;
+    const uint32_t *o = &pl->opnd[3 * pc];
+    if (op == FREP_OP_SELECT) {
+        uint32_t c = o[0];
+        if (!st->clean[c]) return;
+        ival ci = st->iv[c];
+        int t = ci.lo > 0 || ci.hi < 0, f = ci.lo == 0 && ci.hi == 0;
+        uint32_t keep = t ? o[1] : o[2], drop = t ? o[2] : o[1];
+        if ((t || f) && st->errfree[drop]) {
+            st->act[pc] = ACT_FWD;
+            st->fwd[pc] = keep;
+        }
+        return;
+    }
+    if (op != FREP_OP_MIN && op != FREP_OP_MAX && op != FREP_OP_MSUB) return;
+    /* operands a, b in the op's order; ka/kb: that operand is the immediate */
+    int ka = (in->flags & INSN_KA) != 0, kb = (in->flags & INSN_KB) != 0;
+    uint32_t pa = ka ? PR_NONE : o[0], pb = kb ? PR_NONE : o[ka ? 0 : 1];
+    ival k = { in->k, in->k };
+    ival A = ka ? k : st->iv[pa], B = kb ? k : st->iv[pb];
+    int ca = ka ? pr_bounded(k) : st->clean[pa], cb = kb ? pr_bounded(k) : st->clean[pb];
+    if (!ca || !cb) return;
+    if (op == FREP_OP_MSUB) B = pr_iv(-B.hi, -B.lo);
+    int keep_a = 0, keep_b = 0;
+    if (op == FREP_OP_MAX) {
+        keep_a = A.lo > B.hi;
+        keep_b = B.lo > A.hi;
+    } else {
+        keep_a = A.hi < B.lo;
+        keep_b = B.hi < A.lo;
+    }
+    if (keep_a) {
+        if (ka) st->act[pc] = ACT_CONST;
+        else {
+            st->act[pc] = ACT_FWD;
+            st->fwd[pc] = pa;
+        }
+    } else if (keep_b) {
+        if (op == FREP_OP_MSUB) {
+            /* -b: b's value negated (exact); a constant folds to -k */
+            if (kb) st->act[pc] = ACT_CONST;
+            else st->act[pc] = ACT_NEG_B;
+        } else if (kb) {
+            st->act[pc] = ACT_CONST;
+        } else {
+            st->act[pc] = ACT_FWD;
+            st->fwd[pc] = pb;
+        }
+    }
+}
+
+const frep_program *prune_for_box(const prune_plan *pl, prune_state *st, const double box[6],
+                                  const double *params, ival *enclosure)
+{
+    const frep_program *p = pl->p;
+    uint32_t n = pl->n;
+    pr_intervals(pl, st, box, params);
+    memset(st->act, ACT_KEEP, n);
+    for (uint32_t pc = 0; pc < n; pc++) pr_decide(pl, st, pc);
+    /* keep what the result, and stores nobody reads, depend on */
+    memset(st->need, 0, n);
+    st->need[pr_resolve(st, pl->root)] = 1;
+    for (uint32_t pc = n; pc-- > 0;) {
+        if (pl->sink[pc]) st->need[pc] = 1;
+        if (!st->need[pc]) continue;
+        const uint32_t *o = &pl->opnd[3 * pc];
+        switch (st->act[pc]) {
+        case ACT_KEEP:
+            for (uint32_t i = 0; i < pl->nopnd[pc]; i++) st->need[pr_resolve(st, o[i])] = 1;
+            break;
+        case ACT_NEG_B:
+            st->need[pr_resolve(st, o[pl->nopnd[pc] - 1])] = 1;
+            break;
+        default:
+            break;
+        }
+    }
+    uint32_t m = 0;
+    for (uint32_t pc = 0; pc < n; pc++) {
+        if (!st->need[pc]) continue;
+        frep_insn in = p->code[pc];
+        if (st->act[pc] == ACT_CONST) {
+            /* the kept immediate: k, or -k when it is b of min(a, -b) */
+            double k = in.op == FREP_OP_MSUB && (in.flags & INSN_KB) ? -in.k : in.k;
+            in.op = FREP_OP_CONST;
+            in.flags = 0;
+            in.arg = 0;
+            in.k = k;
+        } else if (st->act[pc] == ACT_NEG_B) {
+            in.op = FREP_OP_NEG;
+            in.flags = 0;
+            in.arg = 0;
+            in.k = 0;
+        }
+        st->code[m] = in;
+        st->pos[m] = p->pos ? p->pos[pc] : (frep_srcpos){ 0, 0, 0 };
+        st->orig[m] = pc;
+        m++;
+    }
+    st->view.ncode = m;
+    if (enclosure) {
+        ival r = st->iv[pl->root];
+        *enclosure = st->clean[pl->root] ? r : pr_iv(-INFINITY, INFINITY);
+    }
+    return &st->view;
+}
+
+/* ---- the tiled grid evaluator --------------------------------------------------- */
+
+/* One thread's tools. */
+typedef struct grid_worker {
+    vm_scratch *s;
+    prune_state *st;
+    double *x, *y, *z, *f;   /* one block of points */
+    uint32_t *idx;           /* their offsets in the caller's f */
+} grid_worker;
+
+static void worker_free(grid_worker *w)
+{
+    vm_scratch_free(w->s);
+    prune_state_free(w->st);
+    free(w->x);
+    free(w->y);
+    free(w->z);
+    free(w->f);
+    free(w->idx);
+}
+
+static int worker_init(grid_worker *w, const frep_program *p, const prune_plan *pl)
+{
+    memset(w, 0, sizeof *w);
+    w->s = vm_scratch_new(p);
+    w->st = pl ? prune_state_new(pl) : NULL;
+    w->x = malloc(FREP_BLOCK * sizeof *w->x);
+    w->y = malloc(FREP_BLOCK * sizeof *w->y);
+    w->z = malloc(FREP_BLOCK * sizeof *w->z);
+    w->f = malloc(FREP_BLOCK * sizeof *w->f);
+    w->idx = malloc(FREP_BLOCK * sizeof *w->idx);
+    if (!w->s || (pl && !w->st) || !w->x || !w->y || !w->z || !w->f || !w->idx) {
+        worker_free(w);
+        return -1;
+    }
+    return 0;
+}
+
+typedef struct grid_job {
+    const frep_program *p;
+    const prune_plan *pl;
+    long n, k0, nk, ntx;
+    const double *c[3];      /* the grid's coordinates per axis: lo + step * i */
+    double *f;
+} grid_job;
+
+/* Evaluate nb points gathered in w, scatter rows back to f (row r of w's block has
+ * idx[r] as its first offset and `row` points). */
+static int grid_flush(const grid_job *g, grid_worker *w, const frep_program *q, size_t nb,
+                      size_t row, double *insns)
+{
+    vm_inputs in;
+    memset(&in, 0, sizeof in);
+    in.x = w->x;
+    in.y = w->y;
+    in.z = w->z;
+    if (vm_eval_block(q, w->s, &in, nb, w->f) < 0) return -1;
+    for (size_t b = 0; b < nb; b += row)
+        memcpy(g->f + w->idx[b / row], w->f + b, row * sizeof *w->f);
+    *insns += (double)q->ncode * (double)nb;
+    return 0;
+}
+
+/* Evaluate tile t (rows of up to PRUNE_TILE points, PRUNE_TILE^2 rows); its errors
+ * (original pcs) go to *err, its cost to *insns. */
+static int grid_tile(const grid_job *g, grid_worker *w, long t, vm_errstate *err, double *insns)
+{
+    long tx = t % g->ntx, ty = t / g->ntx;
+    long i0 = tx * PRUNE_TILE, j0 = ty * PRUNE_TILE;
+    long i1 = i0 + PRUNE_TILE < g->n ? i0 + PRUNE_TILE : g->n;
+    long j1 = j0 + PRUNE_TILE < g->n ? j0 + PRUNE_TILE : g->n;
+    long k0 = g->k0, k1 = g->k0 + g->nk;
+    const frep_program *q = g->p;
+    if (g->pl) {
+        /* the coordinates are monotone in the index, so the corners bound the tile */
+        double box[6] = { g->c[0][i0], g->c[1][j0], g->c[2][k0],
+                          g->c[0][i1 - 1], g->c[1][j1 - 1], g->c[2][k1 - 1] };
+        q = prune_for_box(g->pl, w->st, box, NULL, NULL);
+    }
+    memset(&w->s->total, 0, sizeof w->s->total);
+    size_t row = (size_t)(i1 - i0), nb = 0, nn = (size_t)g->n;
+    for (long k = k0; k < k1; k++)
+        for (long j = j0; j < j1; j++) {
+            if (nb + row > FREP_BLOCK) {
+                if (grid_flush(g, w, q, nb, row, insns) < 0) return -1;
+                nb = 0;
+            }
+            memcpy(w->x + nb, g->c[0] + i0, row * sizeof *w->x);
+            for (size_t i = 0; i < row; i++) {
+                w->y[nb + i] = g->c[1][j];
+                w->z[nb + i] = g->c[2][k];
+            }
+            w->idx[nb / row] = (uint32_t)(((size_t)(k - k0) * nn + (size_t)j) * nn + (size_t)i0);
+            nb += row;
+        }
+    if (nb && grid_flush(g, w, q, nb, row, insns) < 0) return -1;
+    *err = w->s->total;
+    if (err->count && g->pl) err->pc = prune_orig_pc(w->st, err->pc);
+    return 0;
+}
+
+int prune_eval_grid_planes(const frep_program *p, long n, const double box[6], long k0,
+                           long nk, int prune, int nthreads, double *f,
+                           frep_runtime_error *err, double *insns)
+{
+    grid_job g;
+    memset(&g, 0, sizeof g);
+    g.p = p;
+    g.n = n;
+    g.k0 = k0;
+    g.nk = nk;
+    g.f = f;
+    double *coord = malloc((size_t)n * 3 * sizeof *coord);
+    if (!coord) return -1;
+    for (int c = 0; c < 3; c++) {
+        double step = (box[c + 3] - box[c]) / (double)(n - 1);
+        for (long i = 0; i < n; i++) coord[(size_t)c * (size_t)n + (size_t)i] = box[c] + step * (double)i;
+        g.c[c] = coord + (size_t)c * (size_t)n;
+    }
+    /* the flat index of a point in f is a uint32_t: plenty for a slab of planes */
+    if ((double)n * (double)n * (double)nk > 4294967295.0) {
+        free(coord);
+        return -1;
+    }
+    prune_plan *pl = prune ? prune_plan_new(p) : NULL;
+    g.pl = pl;
+    g.ntx = (n + PRUNE_TILE - 1) / PRUNE_TILE;
+    long ntiles = g.ntx * g.ntx;
+    vm_errstate *terr = calloc((size_t)ntiles, sizeof *terr);
+    if (!terr) {
+        prune_plan_free(pl);
+        free(coord);
+        return -1;
+    }
+    int failed = 0;
+    double cost = 0;
+#ifdef _OPENMP
+    int nt = nthreads > 0 ? nthreads : omp_get_max_threads();
+#pragma omp parallel num_threads(nt) reduction(+ : cost)
+#else
+    (void)nthreads;
+#endif
+    {
+        grid_worker w;
+        int ok = worker_init(&w, p, pl) == 0;
+        if (!ok) {
+#ifdef _OPENMP
+#pragma omp atomic write
+#endif
+            failed = 1;
+        }
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 1)
+#endif
+        for (long t = 0; t < ntiles; t++) {
+            if (ok && grid_tile(&g, &w, t, &terr[t], &cost) < 0) {
+#ifdef _OPENMP
+#pragma omp atomic write
+#endif
+                failed = 1;
+            }
+        }
+        if (ok) worker_free(&w);
+    }
+    vm_errstate all;
+    memset(&all, 0, sizeof all);
+    for (long t = 0; t < ntiles; t++) vm_err_merge(&all, &terr[t]);
+    free(terr);
+    free(coord);
+    prune_plan_free(pl);
+    if (failed) return -1;
+    if (err) {
+        memset(err, 0, sizeof *err);
+        err->count = all.count;
+        if (all.count) {
+            err->pc = all.pc;
+            err->what = all.what;
+            err->x = all.x;
+            err->y = all.y;
+            err->z = all.z;
+        }
+    }
+    if (insns) *insns += cost;
+    return 0;
+}

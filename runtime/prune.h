@@ -1,0 +1,66 @@
+/* prune.h - exact interval tape pruning and the tiled grid evaluator built on it.
+ *
+ * Sits between the bytecode (program.h) and the point VM (vm.h): for a sub-box of a
+ * grid, an interval pass over the program decides the min/max set operations and
+ * selects whose one operand dominates, and a shorter program is built that computes
+ * bit for bit the same values at every point of the sub-box.  `frep eval --grid` runs
+ * it (cli/cmd_eval.c); doc/architecture.md, "Tape pruning", explains the rules.
+ */
+#ifndef FREP_PRUNE_H
+#define FREP_PRUNE_H
+
+#include <stdint.h>
+
+#include "frep.h"
+#include "interval.h"
+#include "program.h"
+
+/* Tile edge of the grid evaluator, in grid points: 16^3 = 4096 points (16 VM blocks)
+ * amortize the interval pass and program rebuild (~10-20 us for 450 instructions)
+ * while still following the surface closely; 8 pays more for pruning than it saves,
+ * 32 prunes less (measured in doc/benchmarks.md). */
+#define PRUNE_TILE 8
+
+/* Largest magnitude of an interval bound trusted by the pruner: below it no operation
+ * of two bounded operands (sum, product of one with a bounded constant, the squares
+ * of an R-function) overflows to infinity, so inf - inf or 0 * inf, and thus NaN,
+ * cannot appear unseen at a point of the box. */
+#define PRUNE_MAX_MAG 1e150
+
+/* The analysis of one program, immutable once built and shared by threads.  NULL from
+ * prune_plan_new when the program cannot be pruned: it has branches, indexed arrays
+ * or cached primitives, does not end with exactly one value, has no min, max or
+ * select to decide (nothing to prune), or memory ran out. */
+typedef struct prune_plan prune_plan;
+prune_plan *prune_plan_new(const frep_program *p);
+void prune_plan_free(prune_plan *pl);
+
+/* Per-thread pruning state: the interval trace and the pruned program's storage. */
+typedef struct prune_state prune_state;
+prune_state *prune_state_new(const prune_plan *pl);
+void prune_state_free(prune_state *st);
+
+/* The program for the points of box {x0, y0, z0, x1, y1, z1} with parameter values
+ * params (NULL: the program's own): valid until the next call with st, same slots,
+ * parameters and maximum stack as the original (the original's vm_scratch fits it).
+ * At every point of the box it computes the original's value bit for bit and raises
+ * the same domain errors.  *enclosure (may be NULL) receives f's interval over the box
+ * ([-inf, inf] when unknown). */
+const frep_program *prune_for_box(const prune_plan *pl, prune_state *st, const double box[6],
+                                  const double *params, ival *enclosure);
+/* Original pc of instruction pc of the last pruned program (error positions). */
+uint32_t prune_orig_pc(const prune_state *st, uint32_t pc);
+
+/* Evaluate planes k0 .. k0+nk-1 of the N x N x N grid of box (x_i = lo + step * i,
+ * step = (hi - lo) / (N - 1)) into f[((k - k0) * N + j) * N + i], tile by tile over
+ * nthreads OpenMP threads (<= 0: the default), pruning each tile's program when
+ * `prune` is nonzero and the program allows it.  Values never depend on pruning or the
+ * thread count; the error summary is merged into *err (count, lowest original pc, a
+ * point of the lowest-numbered tile with that pc), deterministic too.  *insns (may be
+ * NULL) accumulates instructions x points evaluated.  Returns 0, or -1 on allocation
+ * failure. */
+int prune_eval_grid_planes(const frep_program *p, long n, const double box[6], long k0,
+                           long nk, int prune, int nthreads, double *f,
+                           frep_runtime_error *err, double *insns);
+
+#endif
