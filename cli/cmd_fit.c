@@ -587,6 +587,11 @@ int cmd_fit(int argc, char **argv)
                fit_method_name(cfg.method), fit_objective_name(cfg.obj.kind),
                fit_objective_name(cfg.global_kind), fit_loss_name(cfg.obj.loss),
                (unsigned long long)cfg.seed);
+        if (cfg.method == FIT_METHOD_SAQN || cfg.method == FIT_METHOD_SA)
+            printf("annealing: %ld chain%s on %zu points, stall %ld\n", cfg.sa.chains,
+                   cfg.sa.chains == 1 ? "" : "s",
+                   cfg.sa_points > 0 && cfg.sa_points < pts.n ? cfg.sa_points : pts.n,
+                   cfg.sa.stall_iter);
         printf("%-12s %16s %18s   %s\n", "parameter", "start", "fitted", "bounds");
         for (size_t j = 0; j < nfree; j++)
             printf("%-12s %16.10g %18.12g   [%g, %g]\n", rows[j].name, rows[j].start,

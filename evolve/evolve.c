@@ -515,6 +515,12 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
         if (o->simplify && res->tree.len &&
             simplify_tree(&res->tree, o->gp.setops, sc, ev, &res->fitness))
             goto oom;
+        /* Pieces of two or three primitives at the root (a subtracted pocket, an
+         * added block) that neither the GA nor the one-primitive hill climb found;
+         * only on the final tree, since one pass tries every pair of primitives. */
+        if (o->simplify && res->tree.len &&
+            simplify_grow_pieces(&res->tree, o->gp.setops, sc, ev, &res->fitness))
+            goto oom;
     }
 
     if (residual) {
@@ -629,7 +635,7 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
     for (size_t j = 0; j < nprims; j++) {
         if (!seen[j]) continue;
         fprintf(f, "    p%zu = ", j + 1);
-        prim_write_call(f, &prims[j]);
+        prim_write_call_scaled(f, &prims[j], r->diag);
         fprintf(f, ";  -- %s", prim_type_name(prims[j].type));
         if (prims[j].separating) fprintf(f, ", separating");
         else if (prims[j].support) fprintf(f, ", %zu inliers", prims[j].support);
@@ -656,7 +662,7 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
             }
             q.r = d + r->obb.h[a] + mg;
             fprintf(f, "    b%d = ", 2 * a + s + 1);
-            prim_write_call(f, &q);
+            prim_write_call_scaled(f, &q, r->diag);
             fprintf(f, ";\n");
         }
     fprintf(f, "    %s = tree & (((b1 & b2) & (b3 & b4)) & (b5 & b6));\n}\n", mname);

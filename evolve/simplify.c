@@ -6,6 +6,8 @@
 
 #include "simplify.h"
 
+#include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -283,5 +285,156 @@ int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double
 out:
     tree_free(&trial);
     tree_free(&cand);
+    return rc;
+}
+
+/* ---- pieces: two or three primitives joined at the root ------------------------ */
+
+/* Best two-leaf pieces kept for the extension by a third leaf. A pocket such as M0's
+ * groove (three planes intersected, then subtracted) scores nothing as a single plane
+ * and little as a pair, so the pairs are ranked, not required to improve. */
+#define SIMPLIFY_PIECE_BEAM 24
+/* Pieces added at most: each round is one pass over the pairs. */
+#define SIMPLIFY_MAX_PIECES 3
+
+typedef struct piece {
+    double f;
+    uint32_t a, b, c;          /* c == UINT32_MAX: a two-leaf piece */
+    uint8_t inner, third, outer;
+} piece;
+
+/* t (a inner b) [c third] outer, in postfix. */
+static int build_piece(gp_tree *trial, const gp_tree *t, const piece *p)
+{
+    if (tree_copy(trial, t) || tree_push(trial, FREP_OP_PRIM, p->a) ||
+        tree_push(trial, FREP_OP_PRIM, p->b) || tree_push(trial, (frep_opcode)p->inner, 0))
+        return -1;
+    if (p->c != UINT32_MAX &&
+        (tree_push(trial, FREP_OP_PRIM, p->c) || tree_push(trial, (frep_opcode)p->third, 0)))
+        return -1;
+    return tree_push(trial, (frep_opcode)p->outer, 0);
+}
+
+/* Insert p into the beam sorted by decreasing fitness (ties: first found first, so
+ * the result does not depend on anything but the order of the loops). */
+static void beam_insert(piece *beam, int *nb, const piece *p)
+{
+    int k = *nb < SIMPLIFY_PIECE_BEAM ? (*nb)++ : SIMPLIFY_PIECE_BEAM - 1;
+    if (k == SIMPLIFY_PIECE_BEAM - 1 && *nb == SIMPLIFY_PIECE_BEAM &&
+        !(p->f > beam[k].f))
+        return;
+    while (k > 0 && p->f > beam[k - 1].f) {
+        beam[k] = beam[k - 1];
+        k--;
+    }
+    beam[k] = *p;
+}
+
+/* Primitives that explain, alone or complemented, more than lambda points the tree
+ * does not explain: a piece must bring at least one of them, else it cannot pay for
+ * its nodes. use[j] = 1 for those. Returns how many, or -1 on allocation failure. */
+static long useful_prims(const gp_tree *t, const gp_cache *c, gp_eval *e, uint8_t *use)
+{
+    uint8_t *ok = malloc(c->n ? c->n : 1);
+    if (!ok) return -1;
+    if (gp_explained(c, e, t->code, t->len, ok)) {
+        free(ok);
+        return -1;
+    }
+    double ca = cos(c->alpha);
+    long nu = 0;
+    for (uint32_t j = 0; j < c->nprims; j++) {
+        const double *v = c->v + (size_t)j * c->n;
+        const double *gx = c->g + 3 * (size_t)j * c->n, *gy = gx + c->n, *gz = gy + c->n;
+        double cnt = 0;
+        for (size_t i = 0; i < c->n; i++) {
+            if (ok[i] || !(fabs(v[i]) < c->eps_d)) continue;
+            double gl = sqrt(gx[i] * gx[i] + gy[i] * gy[i] + gz[i] * gz[i]);
+            if (!(gl > 0)) continue;
+            const double *nn = c->nrm + 3 * i;
+            double cs = (gx[i] * nn[0] + gy[i] * nn[1] + gz[i] * nn[2]) / gl;
+            if (fabs(cs) > ca) cnt += 1;  /* either sign: the piece may complement it */
+        }
+        use[j] = cnt > c->lambda;
+        nu += use[j];
+    }
+    free(ok);
+    return nu;
+}
+
+/* One round: the best piece t | P or t \ P, P = a & b, a \ b, b \ a, optionally
+ * extended by & c or \ c, when it raises the fitness and keeps the depth limit. */
+static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
+                      gp_eval *e, double *fit)
+{
+    uint32_t k = c->nprims;
+    if (k < 2) return 0;
+    uint8_t *use = malloc(k);
+    piece *beam = malloc(SIMPLIFY_PIECE_BEAM * sizeof *beam);
+    int rc = -1, nb = 0;
+    if (!use || !beam) goto out;
+    long nu = useful_prims(t, c, e, use);
+    if (nu < 0) goto out;
+    rc = 0;
+    if (nu == 0) goto out;
+    const uint8_t outers[2] = { o->uni, o->sub };
+    piece best = { *fit, 0, 0, UINT32_MAX, 0, 0, 0 };
+    int found = 0;
+    for (uint32_t a = 0; a < k; a++)
+        for (uint32_t b = a + 1; b < k; b++) {
+            if (!use[a] && !use[b]) continue;
+            for (int w = 0; w < 2; w++)
+                for (int q = 0; q < 3; q++) {
+                    piece p = { 0, q == 2 ? b : a, q == 2 ? a : b, UINT32_MAX,
+                                q == 0 ? o->inter : o->sub, 0, outers[w] };
+                    if (build_piece(trial, t, &p)) { rc = -1; goto out; }
+                    p.f = gp_fitness(c, e, trial->code, trial->len);
+                    if (p.f > best.f) { best = p; found = 1; }
+                    beam_insert(beam, &nb, &p);
+                }
+        }
+    for (int i = 0; i < nb; i++)
+        for (uint32_t cc = 0; cc < k; cc++) {
+            if (cc == beam[i].a || cc == beam[i].b) continue;
+            for (int q = 0; q < 2; q++) {
+                piece p = beam[i];
+                p.c = cc;
+                p.third = q == 0 ? o->inter : o->sub;
+                if (build_piece(trial, t, &p)) { rc = -1; goto out; }
+                p.f = gp_fitness(c, e, trial->code, trial->len);
+                if (p.f > best.f) { best = p; found = 1; }
+            }
+        }
+    if (!found) goto out;
+    if (build_piece(trial, t, &best)) { rc = -1; goto out; }
+    if (tree_depth(trial->code, trial->len) > GP_MAX_TREE_DEPTH) goto out;
+    if (tree_copy(t, trial)) { rc = -1; goto out; }
+    *fit = best.f;
+    rc = 1;
+out:
+    free(use);
+    free(beam);
+    return rc;
+}
+
+int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
+                         double *fitness)
+{
+    if (!t->len) return 0;
+    gp_opset o = gp_opset_of(s);
+    gp_tree trial = { NULL, 0, 0 };
+    double fit = gp_fitness(c, e, t->code, t->len);
+    int rc = -1;
+    for (int round = 0; round < SIMPLIFY_MAX_PIECES; round++) {
+        int g = grow_piece(t, &trial, &o, c, e, &fit);
+        if (g < 0) goto out;
+        if (g == 0) break;
+        /* The piece may make part of the tree redundant (a face the GA had faked). */
+        if (simplify_tree(t, s, c, e, &fit)) goto out;
+    }
+    rc = 0;
+    if (fitness) *fitness = fit;
+out:
+    tree_free(&trial);
     return rc;
 }

@@ -1,6 +1,7 @@
-/* fit.c - the template-fitting driver: global phase (generalized simulated annealing on
- * a subset of the points, with short BFGS searches from each new best, as in dual
- * annealing), then the local phase (BFGS or Levenberg-Marquardt on all points).
+/* fit.c - the template-fitting driver: global phase (chains of generalized simulated
+ * annealing on a subset of the points, with short BFGS searches from each new best, as
+ * in dual annealing), then the local phase (BFGS or Levenberg-Marquardt on all points)
+ * from each chain's best, keeping the best result.
  * Sits between cli/cmd_fit.c and fit/optim.c + fit/objective.c.
  */
 #include "fit.h"

@@ -148,8 +148,9 @@ void fit_sa_options_init(fit_sa_options *o);
  * annealing (Tsallis-Stariolo, as in Xiang et al.'s dual annealing): trial points drawn
  * from a heavy-tailed distribution whose width follows the temperature, generalized
  * Metropolis acceptance, restart from a random point when the temperature has fallen by
- * restart_ratio. Gradients are not used. x holds the start on entry (may be outside:
- * then a random start) and the best point on return. */
+ * restart_ratio, in o->chains independent chains. Gradients are not used (only by the
+ * local searches). x holds the start on entry (may be outside: then a random start) and
+ * the best point of all chains on return; *iterations counts all chains'. */
 fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
                   const double *hi, const fit_sa_options *o, fit_rng *rng, fit_control *c,
                   double *fx, long *iterations);

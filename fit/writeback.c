@@ -73,8 +73,8 @@ char *fit_writeback(const char *src, size_t len, const fit_edit *edits, size_t n
 {
     fit_edit *e = malloc((n ? n : 1) * sizeof *e);
     if (e == NULL) return NULL;
-    memcpy(e, edits, n * sizeof *e);
-    qsort(e, n, sizeof *e, cmp_edit);
+    if (n) memcpy(e, edits, n * sizeof *e);
+    if (n > 1) qsort(e, n, sizeof *e, cmp_edit);
     for (size_t k = 0; k < n; k++) {
         if (e[k].off >= e[k].end || e[k].end > len || (k > 0 && e[k].off < e[k - 1].end)) {
             free(e);

@@ -800,7 +800,7 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
     B->vfg = malloc(4 * nv * sizeof *B->vfg);
     B->vrank = malloc(nv);
     if (!B->vpos || !B->vnrm || !B->vfg || !B->vrank) return -1;
-    memcpy(B->vrank, W->vrank, nv);
+    if (nv) memcpy(B->vrank, W->vrank, nv);
     if (f->grad(f->ctx, ts, nv, W->vx, W->vy, W->vz, W->vf, W->vgx, W->vgy, W->vgz) != 0)
         return -1;
     W->grad_points += nv;
@@ -1102,7 +1102,7 @@ static int find_blocks(mesher *M, mesh_stats *st, char *err, size_t errlen)
         ncur = nnext;
     }
     free(cur);
-    qsort(M->blocks, M->nblocks, sizeof *M->blocks, cmp_block);
+    if (M->nblocks > 1) qsort(M->blocks, M->nblocks, sizeof *M->blocks, cmp_block);
     return 0;
 oom:
     free(cur);
@@ -1203,7 +1203,7 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
             goto done;
         }
         /* blocks [0, old) are processed: sort them for lookups; new ones go after */
-        qsort(M->blocks, old, sizeof *M->blocks, cmp_block);
+        if (old > 1) qsort(M->blocks, old, sizeof *M->blocks, cmp_block);
         size_t nsorted = old;
         for (size_t i = first; i < old; i++) {
             mblock *B = M->blocks[i];
@@ -1236,7 +1236,7 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
         }
         first = old;
     }
-    qsort(M->blocks, M->nblocks, sizeof *M->blocks, cmp_block);
+    if (M->nblocks > 1) qsort(M->blocks, M->nblocks, sizeof *M->blocks, cmp_block);
     st->blocks = M->nblocks;
 
     /* drop blocks without vertices, number the vertices */
@@ -1310,9 +1310,12 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
     size_t tpos = 0;
     for (size_t i = 0; i < M->nblocks; i++) {
         mblock *B = M->blocks[i];
-        memcpy(out->v + 3 * B->vglobal, B->vpos, 3 * B->nverts * sizeof *out->v);
-        memcpy(out->n + 3 * B->vglobal, B->vnrm, 3 * B->nverts * sizeof *out->n);
-        memcpy(out->tri + 3 * tpos, B->tri, 3 * B->ntri * sizeof *out->tri);
+        /* empty blocks may hold NULL arrays: memcpy from NULL is undefined even for 0 */
+        if (B->nverts) {
+            memcpy(out->v + 3 * B->vglobal, B->vpos, 3 * B->nverts * sizeof *out->v);
+            memcpy(out->n + 3 * B->vglobal, B->vnrm, 3 * B->nverts * sizeof *out->n);
+        }
+        if (B->ntri) memcpy(out->tri + 3 * tpos, B->tri, 3 * B->ntri * sizeof *out->tri);
         tpos += B->ntri;
     }
     if (o->progress) o->progress(o->progress_user, 1.0);
@@ -1391,7 +1394,7 @@ int mesh_validate(const frep_mesh *m, mesh_check *c)
         }
     }
     size_t ne = 3 * m->ntris;
-    qsort(E, ne, sizeof *E, cmp_dedge);
+    if (ne > 1) qsort(E, ne, sizeof *E, cmp_dedge);
     for (size_t i = 0; i < ne;) {
         size_t j = i;
         int sum = 0;

@@ -172,7 +172,7 @@ prune_state *prune_state_new(const prune_plan *pl)
     st->clean = malloc(n);
     st->errfree = malloc(n);
     st->act = malloc(n);
-    st->fwd = malloc(n * sizeof *st->fwd);
+    st->fwd = calloc(n, sizeof *st->fwd);
     st->need = malloc(n);
     st->code = malloc(n * sizeof *st->code);
     st->pos = malloc(n * sizeof *st->pos);
@@ -223,8 +223,8 @@ static int pr_domain_ok(frep_opcode op, ival a, ival b)
 }
 
 /* Enclosures, cleanliness and error-freedom of every instruction over the box. */
-static void pr_intervals(const prune_plan *pl, prune_state *st, const double box[6],
-                         const double *params)
+static void pr_intervals(const prune_plan *pl, prune_state *st, const prune_state *parent,
+                         const double box[6], const double *params)
 {
     const frep_program *p = pl->p;
     for (uint32_t pc = 0; pc < pl->n; pc++) {
@@ -233,6 +233,35 @@ static void pr_intervals(const prune_plan *pl, prune_state *st, const double box
         const uint32_t *o = &pl->opnd[3 * pc];
         ival r;
         int clean = 1, errfree = 1;
+        if (parent && parent->act[pc] == ACT_FWD) {
+            /* the same values as the instruction it forwards to, here too */
+            uint32_t q = parent->fwd[pc];
+            st->iv[pc] = st->iv[q];
+            st->clean[pc] = st->clean[q];
+            st->errfree[pc] = st->errfree[q];
+            continue;
+        }
+        if (parent && !parent->need[pc]) {
+            /* not in the parent's program, so in none of its sub-boxes' */
+            st->iv[pc] = pr_iv(-INFINITY, INFINITY);
+            st->clean[pc] = 0;
+            st->errfree[pc] = 0;
+            continue;
+        }
+        if (parent && parent->act[pc] == ACT_CONST) {
+            double k = in->op == FREP_OP_MSUB && (in->flags & INSN_KB) ? -in->k : in->k;
+            st->iv[pc] = pr_iv(k, k);
+            st->clean[pc] = (uint8_t)pr_bounded(st->iv[pc]);
+            st->errfree[pc] = 1;
+            continue;
+        }
+        if (parent && parent->act[pc] == ACT_NEG_B) {
+            uint32_t b = o[pl->nopnd[pc] - 1];
+            st->iv[pc] = pr_iv(-st->iv[b].hi, -st->iv[b].lo);
+            st->clean[pc] = st->clean[b];
+            st->errfree[pc] = st->errfree[b];
+            continue;
+        }
         for (uint32_t i = 0; i < pl->nopnd[pc]; i++) {
             clean &= st->clean[o[i]];
             errfree &= st->errfree[o[i]];
@@ -343,11 +372,26 @@ static void pr_decide(const prune_plan *pl, prune_state *st, uint32_t pc)
 const frep_program *prune_for_box(const prune_plan *pl, prune_state *st, const double box[6],
                                   const double *params, ival *enclosure)
 {
+    return prune_for_subbox(pl, st, NULL, box, params, enclosure);
+}
+
+const frep_program *prune_for_subbox(const prune_plan *pl, prune_state *st,
+                                     const prune_state *parent, const double box[6],
+                                     const double *params, ival *enclosure)
+{
     const frep_program *p = pl->p;
     uint32_t n = pl->n;
-    pr_intervals(pl, st, box, params);
-    memset(st->act, ACT_KEEP, n);
-    for (uint32_t pc = 0; pc < n; pc++) pr_decide(pl, st, pc);
+    pr_intervals(pl, st, parent, box, params);
+    if (parent) {
+        /* the parent's decisions hold on a sub-box; decide what it kept */
+        memcpy(st->act, parent->act, n);
+        memcpy(st->fwd, parent->fwd, n * sizeof *st->fwd);
+        for (uint32_t pc = 0; pc < n; pc++)
+            if (parent->need[pc] && parent->act[pc] == ACT_KEEP) pr_decide(pl, st, pc);
+    } else {
+        memset(st->act, ACT_KEEP, n);
+        for (uint32_t pc = 0; pc < n; pc++) pr_decide(pl, st, pc);
+    }
     /* keep what the result, and stores nobody reads, depend on */
     memset(st->need, 0, n);
     st->need[pr_resolve(st, pl->root)] = 1;
@@ -401,7 +445,8 @@ const frep_program *prune_for_box(const prune_plan *pl, prune_state *st, const d
 /* One thread's tools. */
 typedef struct grid_worker {
     vm_scratch *s;
-    prune_state *st;
+    prune_state *st;         /* a tile's pruned program */
+    prune_state *sp;         /* its super-tile's */
     double *x, *y, *z, *f;   /* one block of points */
     uint32_t *idx;           /* their offsets in the caller's f */
 } grid_worker;
@@ -410,6 +455,7 @@ static void worker_free(grid_worker *w)
 {
     vm_scratch_free(w->s);
     prune_state_free(w->st);
+    prune_state_free(w->sp);
     free(w->x);
     free(w->y);
     free(w->z);
@@ -422,12 +468,13 @@ static int worker_init(grid_worker *w, const frep_program *p, const prune_plan *
     memset(w, 0, sizeof *w);
     w->s = vm_scratch_new(p);
     w->st = pl ? prune_state_new(pl) : NULL;
+    w->sp = pl ? prune_state_new(pl) : NULL;
     w->x = malloc(FREP_BLOCK * sizeof *w->x);
     w->y = malloc(FREP_BLOCK * sizeof *w->y);
     w->z = malloc(FREP_BLOCK * sizeof *w->z);
     w->f = malloc(FREP_BLOCK * sizeof *w->f);
     w->idx = malloc(FREP_BLOCK * sizeof *w->idx);
-    if (!w->s || (pl && !w->st) || !w->x || !w->y || !w->z || !w->f || !w->idx) {
+    if (!w->s || (pl && (!w->st || !w->sp)) || !w->x || !w->y || !w->z || !w->f || !w->idx) {
         worker_free(w);
         return -1;
     }
@@ -473,7 +520,7 @@ static int grid_tile(const grid_job *g, grid_worker *w, long t, vm_errstate *err
         /* the coordinates are monotone in the index, so the corners bound the tile */
         double box[6] = { g->c[0][i0], g->c[1][j0], g->c[2][k0],
                           g->c[0][i1 - 1], g->c[1][j1 - 1], g->c[2][k1 - 1] };
-        q = prune_for_box(g->pl, w->st, box, NULL, NULL);
+        q = prune_for_subbox(g->pl, w->st, w->sp, box, NULL, NULL);
     }
     memset(&w->s->total, 0, sizeof w->s->total);
     size_t row = (size_t)(i1 - i0), nb = 0, nn = (size_t)g->n;
@@ -494,6 +541,30 @@ static int grid_tile(const grid_job *g, grid_worker *w, long t, vm_errstate *err
     if (nb && grid_flush(g, w, q, nb, row, insns) < 0) return -1;
     *err = w->s->total;
     if (err->count && g->pl) err->pc = prune_orig_pc(w->st, err->pc);
+    return 0;
+}
+
+/* Evaluate super-tile u: prune for its box, then each of its tiles from there. */
+static int grid_super(const grid_job *g, grid_worker *w, long u, vm_errstate *terr,
+                      double *insns)
+{
+    long nsx = (g->ntx + PRUNE_SUPER - 1) / PRUNE_SUPER;
+    long sx = u % nsx, sy = u / nsx;
+    long tx0 = sx * PRUNE_SUPER, ty0 = sy * PRUNE_SUPER;
+    long tx1 = tx0 + PRUNE_SUPER < g->ntx ? tx0 + PRUNE_SUPER : g->ntx;
+    long ty1 = ty0 + PRUNE_SUPER < g->ntx ? ty0 + PRUNE_SUPER : g->ntx;
+    if (g->pl) {
+        long i1 = tx1 * PRUNE_TILE < g->n ? tx1 * PRUNE_TILE : g->n;
+        long j1 = ty1 * PRUNE_TILE < g->n ? ty1 * PRUNE_TILE : g->n;
+        double box[6] = { g->c[0][tx0 * PRUNE_TILE], g->c[1][ty0 * PRUNE_TILE], g->c[2][g->k0],
+                          g->c[0][i1 - 1], g->c[1][j1 - 1], g->c[2][g->k0 + g->nk - 1] };
+        prune_for_box(g->pl, w->sp, box, NULL, NULL);
+    }
+    for (long ty = ty0; ty < ty1; ty++)
+        for (long tx = tx0; tx < tx1; tx++) {
+            long t = ty * g->ntx + tx;
+            if (grid_tile(g, w, t, &terr[t], insns) < 0) return -1;
+        }
     return 0;
 }
 
@@ -524,6 +595,8 @@ int prune_eval_grid_planes(const frep_program *p, long n, const double box[6], l
     g.pl = pl;
     g.ntx = (n + PRUNE_TILE - 1) / PRUNE_TILE;
     long ntiles = g.ntx * g.ntx;
+    long nsuper = (g.ntx + PRUNE_SUPER - 1) / PRUNE_SUPER;
+    nsuper *= nsuper;
     vm_errstate *terr = calloc((size_t)ntiles, sizeof *terr);
     if (!terr) {
         prune_plan_free(pl);
@@ -550,8 +623,8 @@ int prune_eval_grid_planes(const frep_program *p, long n, const double box[6], l
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 1)
 #endif
-        for (long t = 0; t < ntiles; t++) {
-            if (ok && grid_tile(&g, &w, t, &terr[t], &cost) < 0) {
+        for (long u = 0; u < nsuper; u++) {
+            if (ok && grid_super(&g, &w, u, terr, &cost) < 0) {
 #ifdef _OPENMP
 #pragma omp atomic write
 #endif

@@ -19,7 +19,11 @@
  * amortize the interval pass and program rebuild (~10-20 us for 450 instructions)
  * while still following the surface closely; 8 pays more for pruning than it saves,
  * 32 prunes less (measured in doc/benchmarks.md). */
-#define PRUNE_TILE 8
+#define PRUNE_TILE 16
+
+/* Tiles per edge of a super-tile (64 x 64 x 16 points): pruned first, so each of its
+ * tiles analyses only what the super-tile's program kept (two-level, as fidget). */
+#define PRUNE_SUPER 4
 
 /* Largest magnitude of an interval bound trusted by the pruner: below it no operation
  * of two bounded operands (sum, product of one with a bounded constant, the squares
@@ -48,6 +52,14 @@ void prune_state_free(prune_state *st);
  * ([-inf, inf] when unknown). */
 const frep_program *prune_for_box(const prune_plan *pl, prune_state *st, const double box[6],
                                   const double *params, ival *enclosure);
+/* The same for a box inside the box `parent` was last pruned for (parent != st):
+ * starts from the parent's decisions and analyses only the parent's program, so a
+ * hierarchy of boxes costs less than pruning each from scratch.  The values and
+ * errors are prune_for_box's (the exact rewrites made may differ).  parent NULL: the
+ * same as prune_for_box. */
+const frep_program *prune_for_subbox(const prune_plan *pl, prune_state *st,
+                                     const prune_state *parent, const double box[6],
+                                     const double *params, ival *enclosure);
 /* Original pc of instruction pc of the last pruned program (error positions). */
 uint32_t prune_orig_pc(const prune_state *st, uint32_t pc);
 

@@ -588,6 +588,59 @@ static void test_merge(void)
     scene_free(&s);
 }
 
+/* A block with a groove cut across its top (three planes intersected, then subtracted,
+ * as in M0): starting from the block alone, neither the removal moves nor the
+ * one-primitive hill climb can add the groove (each of its planes alone cuts away half
+ * the block); the two-or-three-primitive pieces of simplify_grow_pieces must. */
+static void test_groove_pieces(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 11);
+    const double h[3] = { 2, 1.5, 0.5 }, gx0 = 0.5, gx1 = 1.0, gz = 0.1;
+    for (int axis = 0; axis < 3; axis++)
+        for (int sg = -1; sg <= 1; sg += 2) {
+            add_plane(&s, axis, sg, h[axis]);
+            for (int k = 0; k < 500; k++) {
+                double p[3], nn[3] = { 0, 0, 0 };
+                for (int q = 0; q < 3; q++) p[q] = (2 * gp_rng_unif(&r) - 1) * h[q];
+                p[axis] = sg * h[axis];
+                nn[axis] = sg;
+                if (p[0] > gx0 && p[0] < gx1 && p[2] > gz) continue;  /* cut by the groove */
+                scene_add(&s, p[0], p[1], p[2], nn[0], nn[1], nn[2]);
+            }
+        }
+    add_plane(&s, 0, -1, -gx0);  /* p7: x >= gx0 */
+    add_plane(&s, 0, 1, gx1);    /* p8: x <= gx1 */
+    add_plane(&s, 2, -1, -gz);   /* p9: z >= gz */
+    for (int k = 0; k < 300; k++) {  /* the groove's walls and floor */
+        double y = (2 * gp_rng_unif(&r) - 1) * h[1], z = gz + (h[2] - gz) * gp_rng_unif(&r);
+        scene_add(&s, gx0, y, z, 1, 0, 0);
+        scene_add(&s, gx1, y, z, -1, 0, 0);
+        scene_add(&s, gx0 + (gx1 - gx0) * gp_rng_unif(&r), y, gz, 0, 0, 1);
+    }
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 10);
+    gp_eval *e = gp_eval_new();
+    gp_tree t = { NULL, 0, 0 };
+    parse_tree(&t, "12&34&&56&&", GP_SETOPS_MINMAX);
+    double f0 = 0, f1 = 0;
+    simplify_tree(&t, GP_SETOPS_MINMAX, c, e, &f0);
+    gp_stats st;
+    gp_tree_stats(c, e, t.code, t.len, &st);
+    ok(st.explained < s.n - 600, "the block alone misses the groove (%zu of %zu points): %s",
+       st.explained, s.n, print_str(&t));
+    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1), 0, "pieces search runs");
+    gp_tree_stats(c, e, t.code, t.len, &st);
+    ok(f1 > f0, "fitness rises with the groove: %.1f -> %.1f", f0, f1);
+    is_int(t.len, 17, "block minus groove: 11 + 5 + 1 nodes: %s", print_str(&t));
+    is_int(st.explained, s.n, "every point explained (%zu of %zu)", st.explained, s.n);
+    tree_free(&t);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+}
+
 int main(void)
 {
     test_tree_ops();
@@ -599,5 +652,6 @@ int main(void)
     test_union_spheres();
     test_cube_gp();
     test_block_minus_cylinder();
+    test_groove_pieces();
     return done_testing();
 }

@@ -209,6 +209,84 @@ static void test_random_grids(void)
        cost_full);
 }
 
+/* A random box inside `outer`, from a tenth of its size to all of it. */
+static void sub_box(const double outer[6], double box[6])
+{
+    for (int c = 0; c < 3; c++) {
+        double w = (outer[c + 3] - outer[c]) * urand(0.1, 1);
+        box[c] = outer[c] + urand(0, 1) * (outer[c + 3] - outer[c] - w);
+        box[c + 3] = box[c] + w;
+    }
+}
+
+/* prune_for_box and prune_for_subbox on random boxes, checked at random points of
+ * the innermost box against the original program (values and error counts). */
+static void test_random_boxes(void)
+{
+    enum { NPROG = 80, NBOX = 20, NPT = 256 };
+    static double x[NPT], y[NPT], z[NPT], f0[NPT], f1[NPT], f2[NPT];
+    int vals = 1, errs = 1, shorter = 0, checked = 0;
+    for (int t = 0; t < NPROG; t++) {
+        frep_program *p = random_program(3 + t % 5, 0);
+        prune_plan *pl = p ? prune_plan_new(p) : NULL;
+        if (!pl) {
+            frep_program_free(p);
+            continue;
+        }
+        prune_state *sa = prune_state_new(pl), *sb = prune_state_new(pl);
+        vm_scratch *s = vm_scratch_new(p);
+        for (int b = 0; b < NBOX && sa && sb && s; b++) {
+            double world[6] = { -1.5, -1.5, -1.5, 1.5, 1.5, 1.5 }, outer[6], inner[6];
+            sub_box(world, outer);
+            sub_box(outer, inner);
+            for (int i = 0; i < NPT; i++) {
+                x[i] = urand(inner[0], inner[3]);
+                y[i] = urand(inner[1], inner[4]);
+                z[i] = urand(inner[2], inner[5]);
+            }
+            x[0] = inner[0], y[0] = inner[1], z[0] = inner[2];
+            x[1] = inner[3], y[1] = inner[4], z[1] = inner[5];
+            vm_inputs in;
+            memset(&in, 0, sizeof in);
+            in.x = x;
+            in.y = y;
+            in.z = z;
+            frep_runtime_error e0, e1, e2;
+            frep_scratch_reset_errors((frep_scratch *)s);
+            vm_eval_block(p, s, &in, NPT, f0);
+            frep_scratch_errors((frep_scratch *)s, &e0);
+            const frep_program *q1 = prune_for_box(pl, sa, outer, NULL, NULL);
+            const frep_program *q2 = prune_for_subbox(pl, sb, sa, inner, NULL, NULL);
+            frep_scratch_reset_errors((frep_scratch *)s);
+            vm_eval_block(q1, s, &in, NPT, f1);
+            frep_scratch_errors((frep_scratch *)s, &e1);
+            frep_scratch_reset_errors((frep_scratch *)s);
+            vm_eval_block(q2, s, &in, NPT, f2);
+            frep_scratch_errors((frep_scratch *)s, &e2);
+            for (int i = 0; i < NPT; i++) {
+                if (!same(f0[i], f1[i]) || !same(f0[i], f2[i])) {
+                    if (vals)
+                        diag("program %d box %d point %d: %.17g, box %.17g, sub-box %.17g", t,
+                             b, i, f0[i], f1[i], f2[i]);
+                    vals = 0;
+                }
+            }
+            errs &= e0.count == e1.count && e0.count == e2.count;
+            shorter += q2->ncode < q1->ncode;
+            checked++;
+        }
+        vm_scratch_free(s);
+        prune_state_free(sa);
+        prune_state_free(sb);
+        prune_plan_free(pl);
+        frep_program_free(p);
+    }
+    ok(checked > NPROG * NBOX / 2, "%d random boxes checked", checked);
+    ok(vals, "box- and sub-box-pruned programs give the original's values at random points");
+    ok(errs, "and the same error counts");
+    ok(shorter > 0, "sub-boxes prune further (%d of %d)", shorter, checked);
+}
+
 /* A hand-checked case: max(sphere at -1, sphere at +1); over a box around +1 the
  * left sphere is dominated and only the right one (and no MAX) remains. */
 static void test_hand_case(void)
@@ -256,5 +334,6 @@ int main(void)
 {
     test_hand_case();
     test_random_grids();
+    test_random_boxes();
     return done_testing();
 }

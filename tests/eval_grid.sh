@@ -1,0 +1,60 @@
+#!/bin/sh
+# eval_grid.sh - script tests of frep eval --grid (TAP output): interval tape pruning
+# changes nothing but the time (summaries and runtime errors identical with and without
+# it, at 1 and 2 threads), it does shorten min/max CSG, and the volume estimate of a
+# sphere is right.
+: "${FREP:=./frep}" "${srcdir:=.}"
+T=${TMPDIR:-/tmp}/frep-grid-test.$$
+mkdir -p "$T" || exit 1
+trap 'rm -rf "$T"' EXIT
+n=0
+fails=0
+t() { # t DESCRIPTION COMMAND...: ok when the command succeeds
+  desc=$1; shift
+  n=$((n + 1))
+  if "$@" >"$T/out" 2>"$T/err"; then echo "ok $n - $desc"
+  else echo "not ok $n - $desc"; sed 's/^/# /' "$T/err" "$T/out"; fails=$((fails + 1)); fi
+}
+# grid FILE OUT ARGS...: the summary without the time and program lines, and stderr
+grid() {
+  f=$1; o=$2; shift 2
+  "$FREP" eval "$f" --grid 49 -b 1.6 "$@" > "$o.full" 2> "$o.err" || return 1
+  grep -v '^time\|^program' "$o.full" > "$o"
+}
+B="$srcdir/bench"
+for m in eval_gear_minmax eval_gear eval_csg; do
+  t "$m: summary computed" grid "$B/$m.hf" "$T/$m.0" --no-prune -t 1
+  t "$m: pruned, 1 thread: computed" grid "$B/$m.hf" "$T/$m.1" -t 1
+  t "$m: pruned, 2 threads: computed" grid "$B/$m.hf" "$T/$m.2" -t 2
+  t "$m: pruned, 1 thread: same summary" cmp "$T/$m.0" "$T/$m.1"
+  t "$m: pruned, 2 threads: same summary" cmp "$T/$m.0" "$T/$m.2"
+done
+per=$(sed -n 's/^program *\([0-9]*\) instructions, \([0-9.]*\) evaluated.*/\1 \2/p' "$T/eval_gear_minmax.1.full")
+t "min/max gear: pruning evaluates under 60% of the instructions ($per)" \
+  awk -v s="$per" 'BEGIN { split(s, v, " "); exit !(v[1] > 400 && v[2] < v[1] * 0.6) }'
+per=$(sed -n 's/^program *\([0-9]*\) instructions, \([0-9.]*\) evaluated.*/\1 \2/p' "$T/eval_gear.1.full")
+t "R-function gear: nothing is pruned ($per)" \
+  awk -v s="$per" 'BEGIN { split(s, v, " "); exit !(v[1] == v[2]) }'
+
+# Sphere of radius 1.2: volume V = 4/3 pi 1.2^3 = 7.2382.  About V / h^3 of the grid
+# points (spacing h = 3.2/48) are inside, so the estimate (inside fraction x box
+# volume) is V (48/49)^3 = 6.8066; within 1.5%.
+grid "$B/eval_sphere.hf" "$T/sphere" -t 2
+vol=$(sed -n 's/^volume *\([0-9.e+-]*\) .*/\1/p' "$T/sphere")
+t "sphere volume estimate $vol is 6.807 within 1.5%" \
+  awk -v v="$vol" 'BEGIN { exit !(v > 6.8066 * 0.985 && v < 6.8066 * 1.015) }'
+
+# Domain errors: the same count and position with and without pruning.
+cat > "$T/err.hf" <<'HF'
+my_model(x[3], a[1])
+{
+  my_model = max(sqrt(x[1] - 0.5), 0.3 - x[2]^2 - x[3]^2);
+}
+HF
+grid "$T/err.hf" "$T/e0" --no-prune
+grid "$T/err.hf" "$T/e1"
+t "runtime error reported" grep -q "sqrt of a negative number" "$T/e0.err"
+t "runtime error count and position identical with pruning" \
+  sh -c "sed 's/e\\.g\\..*//' '$T/e0.err' > '$T/e0.m' && sed 's/e\\.g\\..*//' '$T/e1.err' > '$T/e1.m' && cmp '$T/e0.m' '$T/e1.m' && cmp '$T/e0' '$T/e1'"
+echo "1..$n"
+[ "$fails" -eq 0 ]
