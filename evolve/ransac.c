@@ -16,6 +16,7 @@
 #include <omp.h>
 #endif
 
+#include "rng.h"
 #include "normals.h"
 #include "ransac.h"
 
@@ -112,42 +113,14 @@ static void sub(const double a[3], const double b[3], double c[3])
     c[2] = a[2] - b[2];
 }
 
-/* xoshiro256** seeded through splitmix64: same stream on every platform. */
-typedef struct rng {
-    uint64_t s[4];
-} rng;
-
-static uint64_t splitmix(uint64_t *x)
-{
-    uint64_t z = (*x += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
-
-static void rng_seed(rng *r, uint64_t seed)
-{
-    for (int i = 0; i < 4; i++) r->s[i] = splitmix(&seed);
-}
-
-static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-
-static uint64_t rng_next(rng *r)
-{
-    uint64_t *s = r->s;
-    uint64_t res = rotl(s[1] * 5, 7) * 9, t = s[1] << 17;
-    s[2] ^= s[0];
-    s[3] ^= s[1];
-    s[1] ^= s[2];
-    s[0] ^= s[3];
-    s[2] ^= t;
-    s[3] = rotl(s[3], 45);
-    return res;
-}
+/* The shared generator (runtime/rng.h) under this file's short names. */
+typedef frep_rng rng;
+static void rng_seed(rng *r, uint64_t seed) { frep_rng_seed(r, seed); }
+static uint64_t rng_next(rng *r) { return frep_rng_next(r); }
 
 /* Uniform integer in [0, n), n > 0 (modulo bias is negligible for n << 2^64). */
 static size_t rng_below(rng *r, size_t n) { return (size_t)(rng_next(r) % n); }
-static double rng_unit(rng *r) { return (double)(rng_next(r) >> 11) * 0x1.0p-53; }
+static double rng_unit(rng *r) { return frep_rng_unit(r); }
 
 static void point(const frep_cloud *c, size_t i, double p[3])
 {

@@ -27,37 +27,9 @@ gp_opset gp_opset_of(gp_setops s)
 
 /* ---- random numbers ------------------------------------------------------- */
 
-static uint64_t splitmix64(uint64_t *x)
-{
-    uint64_t z = (*x += 0x9e3779b97f4a7c15u);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9u;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebu;
-    return z ^ (z >> 31);
-}
-
-void gp_rng_seed(gp_rng *r, uint64_t seed)
-{
-    uint64_t x = seed;
-    for (int i = 0; i < 4; i++) r->s[i] = splitmix64(&x);
-}
-
-static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-
-uint64_t gp_rng_next(gp_rng *r)
-{
-    uint64_t *s = r->s;
-    uint64_t res = rotl(s[1] * 5, 7) * 9;
-    uint64_t t = s[1] << 17;
-    s[2] ^= s[0];
-    s[3] ^= s[1];
-    s[1] ^= s[2];
-    s[0] ^= s[3];
-    s[2] ^= t;
-    s[3] = rotl(s[3], 45);
-    return res;
-}
-
-double gp_rng_unif(gp_rng *r) { return (double)(gp_rng_next(r) >> 11) * 0x1.0p-53; }
+void gp_rng_seed(gp_rng *r, uint64_t seed) { frep_rng_seed(r, seed); }
+uint64_t gp_rng_next(gp_rng *r) { return frep_rng_next(r); }
+double gp_rng_unif(gp_rng *r) { return frep_rng_unit(r); }
 
 uint32_t gp_rng_below(gp_rng *r, uint32_t n)
 {

@@ -9,6 +9,8 @@
 #define FREP_GP_TREE_H
 
 #include <stdint.h>
+
+#include "rng.h"
 #include <stdio.h>
 
 #include "program.h"
@@ -34,9 +36,7 @@ gp_opset gp_opset_of(gp_setops s);
 
 /* Deterministic random numbers (xoshiro256**): one generator per independent stream,
  * never shared between threads. */
-typedef struct gp_rng {
-    uint64_t s[4];
-} gp_rng;
+typedef frep_rng gp_rng;                         /* runtime/rng.h */
 
 void gp_rng_seed(gp_rng *r, uint64_t seed);
 uint64_t gp_rng_next(gp_rng *r);

@@ -5,6 +5,7 @@
 #include "config.h"
 
 #include "sample.h"
+#include "rng.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -27,40 +28,11 @@ void sample_options_init(sample_options *o)
     o->mesh.grid = 0; /* chosen from the point count unless set */
 }
 
-/* xoshiro256** seeded by splitmix64: a fixed stream for a given seed. */
-typedef struct rng {
-    uint64_t s[4];
-} rng;
+/* The shared generator (runtime/rng.h) under this file's short names. */
+typedef frep_rng rng;
+static void rng_seed(rng *r, uint64_t seed) { frep_rng_seed(r, seed); }
 
-static uint64_t splitmix(uint64_t *x)
-{
-    uint64_t z = (*x += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-
-static void rng_seed(rng *r, uint64_t seed)
-{
-    for (int i = 0; i < 4; i++) r->s[i] = splitmix(&seed);
-}
-
-static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-
-static uint64_t rng_next(rng *r)
-{
-    uint64_t *s = r->s;
-    uint64_t out = rotl(s[1] * 5, 7) * 9, t = s[1] << 17;
-    s[2] ^= s[0];
-    s[3] ^= s[1];
-    s[1] ^= s[2];
-    s[0] ^= s[3];
-    s[2] ^= t;
-    s[3] = rotl(s[3], 45);
-    return out;
-}
-
-static double rng_unit(rng *r) { return (double)(rng_next(r) >> 11) * 0x1.0p-53; }
+static double rng_unit(rng *r) { return frep_rng_unit(r); }
 
 static double rng_gauss(rng *r)
 {

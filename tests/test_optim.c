@@ -339,6 +339,32 @@ int main(void)
             }
         }
         ok(hits >= 6, "sa with local searches: shekel-10 global minimum for %d of 10 seeds", hits);
+        /* Independent chains: the best of three fails only where all three do. With
+         * probes every 2 quiet iterations, as frep fit runs them. */
+        int hits3 = 0;
+        long its1 = 0, its3 = 0;
+        for (uint64_t seed = 1; seed <= 10; seed++) {
+            for (int chains = 1; chains <= 3; chains += 2) {
+                double lo[4] = {0, 0, 0, 0}, hi[4] = {10, 10, 10, 10}, x[4] = {1, 1, 1, 1}, f;
+                fit_rng rng;
+                fit_rng_seed(&rng, seed);
+                fit_control c;
+                fit_control_init(&c);
+                local_ctx L = {shekel, NULL, 4, lo, hi, &c};
+                fit_sa_options so;
+                fit_sa_options_init(&so);
+                so.local = local_bfgs;
+                so.local_user = &L;
+                so.local_period = 2;
+                so.chains = chains;
+                long its = 0;
+                fit_sa(shekel, NULL, 4, x, lo, hi, &so, &rng, &c, &f, &its);
+                if (chains == 3) hits3 += f < -10.536, its3 += its;
+                else its1 += its;
+            }
+        }
+        ok(hits3 == 10, "sa, 3 chains: shekel-10 global minimum for %d of 10 seeds", hits3);
+        ok(its3 > its1, "3 chains run more iterations than 1 (%ld against %ld)", its3, its1);
         ok(hits > 0 && worst < 0.01, "shekel-10 minimum near (4, 4, 4, 4) (max error %g)", worst);
     }
     {
