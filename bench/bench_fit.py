@@ -47,12 +47,18 @@ def main():
         return float(np.mean(model(p, x, y, z) ** 2))
 
     print("%-5s %10s %9s %8s" % ("seed", "error", "seconds", "evals"))
+    rows = []
     for seed in seeds:
         count[0] = 0
         t0 = time.perf_counter()
         r = dual_annealing(objective, list(zip(LO, HI)), x0=np.ones(12), seed=seed)
         dt = time.perf_counter() - t0
-        print("%-5d %10.3g %9.3f %8d" % (seed, error(r.x), dt, count[0]))
+        rows.append((error(r.x), dt, count[0]))
+        print("%-5d %10.3g %9.3f %8d" % (seed, rows[-1][0], dt, count[0]))
+    med = np.median(np.array(rows), axis=0)
+    hits = sum(1 for e, _, _ in rows if e < 1e-3)
+    print("median: error %.3g, %.3f s, %d evals; truth (error < 1e-3) for %d of %d seeds"
+          % (med[0], med[1], int(med[2]), hits, len(rows)))
 
 
 if __name__ == "__main__":

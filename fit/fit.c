@@ -74,8 +74,6 @@ void fit_config_init(fit_config *c)
     fit_qn_options_init(&c->qn);
     fit_lm_options_init(&c->lm);
     c->reweight_rounds = 8;
-    c->gnc_stages = 2;
-    c->gnc_factor = 4;
 }
 
 /* ---- the frep_program adapter ------------------------------------------------ */
@@ -240,27 +238,6 @@ static fit_status local_phase(fit_run_ctx *R, fit_objective *o, double *x, doubl
     return st;
 }
 
-/* The local phase on all points, for a robust loss in stages of decreasing scale
- * (graduated non-convexity, fit_config.gnc_stages). */
-static fit_status final_phase(fit_run_ctx *R, double *x, double *fx)
-{
-    const fit_config *cfg = R->cfg;
-    int stages = cfg->obj.loss == FIT_LOSS_L2 || cfg->method == FIT_METHOD_LM ? 0
-                                                                                : cfg->gnc_stages;
-    double s0 = fit_objective_loss_scale(R->obj);
-    double gf = cfg->gnc_factor;
-    if (getenv("GNC_S")) stages = atoi(getenv("GNC_S"));
-    if (getenv("GNC_F")) gf = atof(getenv("GNC_F"));
-    fit_status st = FIT_CONVERGED;
-    for (int k = stages; k >= 0; k--) {
-        fit_objective_set_loss_scale(R->obj, s0 * pow(gf, k));
-        st = local_phase(R, R->obj, x, fx, 0, cfg->reweight_rounds);
-        if (st == FIT_FAILED || st == FIT_STOPPED) break;
-    }
-    fit_objective_set_loss_scale(R->obj, s0);
-    return st;
-}
-
 /* Inner local search of the annealing (fit_sa_options.local). */
 static int sa_local(void *user, double *x, double *fx)
 {
@@ -389,10 +366,9 @@ int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const d
                 return -1;
             }
             if (polish && st != FIT_STOPPED)
-                st = final_phase(&R, xs, &fx);
+                st = local_phase(&R, obj, xs, &fx, 0, cfg->reweight_rounds);
             fx = fit_objective_value(obj, xs, NULL);    /* comparable across chains */
             ctl.evals++;
-            if (getenv("FIT_DEBUG")) { fprintf(stderr, "chain %ld: f=%g:", k, fx); for (size_t j = 0; j < np; j++) fprintf(stderr, " %.4g", xs[j]); fprintf(stderr, "\n"); }
             if (fx < fbest || k == 0) {
                 fbest = fx;
                 memcpy(best, xs, np * sizeof *best);
@@ -402,7 +378,7 @@ int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const d
         memcpy(x, best, np * sizeof *x);
         fx = fbest;
     } else {
-        st = final_phase(&R, x, &fx);
+        st = local_phase(&R, obj, x, &fx, 0, cfg->reweight_rounds);
     }
     fx = fit_objective_value(obj, x, NULL);
     /* Never hand back something worse than the start. */

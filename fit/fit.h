@@ -51,13 +51,6 @@ typedef struct fit_config {
     fit_qn_options qn;
     fit_lm_options lm;
     int reweight_rounds;        /* geometric kind: freeze weights and refit, at most (8) */
-    /* Robust losses: graduated non-convexity. The local phase first fits with the loss
-     * scale multiplied by gnc_factor^gnc_stages, then by each smaller power down to 1.
-     * Cauchy's loss flattens out beyond its scale, so from a poor start a whole face of
-     * points can sit in its flat tail (a block face pushed out by 10%, its points taken
-     * for outliers) and stay there; a wide scale first pulls them back in. (2, 4) */
-    int gnc_stages;
-    double gnc_factor;
     volatile sig_atomic_t *interrupt;   /* Ctrl-C flag; may be NULL */
     void (*progress)(void *user, fit_phase phase, double temperature, double best);
     void *progress_user;

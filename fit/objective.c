@@ -452,13 +452,6 @@ int fit_objective_freeze(fit_objective *o, const double *p)
 
 void fit_objective_unfreeze(fit_objective *o) { o->frozen = 0; }
 
-double fit_objective_loss_scale(const fit_objective *o) { return o->cfg.loss_scale; }
-
-void fit_objective_set_loss_scale(fit_objective *o, double s)
-{
-    if (s > 0) o->cfg.loss_scale = s;
-}
-
 int fit_objective_distances(fit_objective *o, const double *p, double *rms, double *max)
 {
     if (o->n == 0 || run_pass(o, p, PASS_DIST) != 0) return -1;

@@ -89,10 +89,6 @@ double fit_objective_lsq(void *user, const double *p, double *jtj, double *jtr);
 int fit_objective_freeze(fit_objective *o, const double *p);
 void fit_objective_unfreeze(fit_objective *o);
 
-/* The scale s of the robust losses, and a new one (> 0) for graduated fitting. */
-double fit_objective_loss_scale(const fit_objective *o);
-void fit_objective_set_loss_scale(fit_objective *o, double s);
-
 /* RMS and maximum of the first-order distance |f|/|grad f| of the points at p. Returns
  * 0, or -1 when the model cannot be evaluated. */
 int fit_objective_distances(fit_objective *o, const double *p, double *rms, double *max);
