@@ -4,34 +4,14 @@
  * point for cylinders, cones and tori, minor radius before major radius for tori.
  */
 #include <math.h>
-#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "fitfile.h"
+#include "util.h"
 
 /* Most numbers on one line (a torus has 8); one more detects trailing junk. */
 #define FIT_MAX_NUMS 9
-
-static char *fmt_err(const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 1, 2)))
-#endif
-    ;
-static char *fmt_err(const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    int k = vsnprintf(NULL, 0, fmt, ap);
-    va_end(ap);
-    if (k < 0) return NULL;
-    char *s = malloc((size_t)k + 1);
-    if (!s) return NULL;
-    va_start(ap, fmt);
-    vsnprintf(s, (size_t)k + 1, fmt, ap);
-    va_end(ap);
-    return s;
-}
 
 static int unit(double v[3])
 {
@@ -59,7 +39,7 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
         const char *lp = p;
         p = eol < end ? eol + 1 : end;
         if (l >= sizeof buf) {
-            if (err) *err = fmt_err("%s:%zu: line too long", name, line);
+            if (err) *err = frep_strdupf("%s:%zu: line too long", name, line);
             goto fail;
         }
         memcpy(buf, lp, l);
@@ -84,7 +64,7 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
         else if (strcmp(word, "cone") == 0) q.type = PRIM_CONE, want = 7;
         else if (strcmp(word, "torus") == 0) q.type = PRIM_TORUS, want = 8;
         else {
-            if (err) *err = fmt_err("%s:%zu: unknown primitive type '%s'", name, line, word);
+            if (err) *err = frep_strdupf("%s:%zu: unknown primitive type '%s'", name, line, word);
             goto fail;
         }
         double x[FIT_MAX_NUMS];
@@ -95,11 +75,11 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
             char *e;
             double t = strtod(s, &e);
             if (e == s || (*e && *e != ' ' && *e != '\t' && *e != '\r')) {
-                if (err) *err = fmt_err("%s:%zu: '%.20s' is not a number", name, line, s);
+                if (err) *err = frep_strdupf("%s:%zu: '%.20s' is not a number", name, line, s);
                 goto fail;
             }
             if (!isfinite(t)) {
-                if (err) *err = fmt_err("%s:%zu: number %d is not finite", name, line, got + 1);
+                if (err) *err = frep_strdupf("%s:%zu: number %d is not finite", name, line, got + 1);
                 goto fail;
             }
             if (got < FIT_MAX_NUMS) x[got] = t;
@@ -107,8 +87,8 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
             s = e;
         }
         if (got != want) {
-            if (err) *err = fmt_err("%s:%zu: expected %d numbers after '%s', got %d", name, line,
-                                   want, word, got);
+            if (err) *err = frep_strdupf("%s:%zu: expected %d numbers after '%s', got %d", name, line,
+                                        want, word, got);
             goto fail;
         }
         int bad = 0;
@@ -142,15 +122,15 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
             break;
         }
         if (bad) {
-            if (err) *err = fmt_err("%s:%zu: zero-length %s", name, line,
-                                   q.type == PRIM_PLANE ? "normal" : "axis");
+            if (err) *err = frep_strdupf("%s:%zu: zero-length %s", name, line,
+                                        q.type == PRIM_PLANE ? "normal" : "axis");
             goto fail;
         }
         if (cnt == cap) {
             size_t nc = cap ? 2 * cap : 16;
             prim *nv = realloc(v, nc * sizeof *nv);
             if (!nv) {
-                if (err) *err = fmt_err("%s: out of memory", name);
+                if (err) *err = frep_strdupf("%s: out of memory", name);
                 goto fail;
             }
             v = nv;

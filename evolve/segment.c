@@ -5,7 +5,6 @@
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -14,6 +13,7 @@
 #include "normals.h"
 #include "ransac.h"
 #include "segment.h"
+#include "util.h"
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -27,26 +27,6 @@
 #define SPACING_K 16
 /* Longest line of a .hf primitive list we parse. */
 #define HF_MAX_LINE 4096
-
-static char *fmt_msg(const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 1, 2)))
-#endif
-    ;
-static char *fmt_msg(const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    int k = vsnprintf(NULL, 0, fmt, ap);
-    va_end(ap);
-    if (k < 0) return NULL;
-    char *s = malloc((size_t)k + 1);
-    if (!s) return NULL;
-    va_start(ap, fmt);
-    vsnprintf(s, (size_t)k + 1, fmt, ap);
-    va_end(ap);
-    return s;
-}
 
 void segment_config_init(segment_config *c)
 {
@@ -294,13 +274,13 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
     memset(res, 0, sizeof *res);
     if (err) *err = NULL;
     if (c->n < RANSAC_MIN_CLOUD) {
-        if (err) *err = fmt_msg("too few points: %zu (segmentation needs at least %d)", c->n,
-                                RANSAC_MIN_CLOUD);
+        if (err) *err = frep_strdupf("too few points: %zu (segmentation needs at least %d)", c->n,
+                                     RANSAC_MIN_CLOUD);
         return -1;
     }
     double diag = cloud_diagonal(c);
     if (!(diag > 0)) {
-        if (err) *err = fmt_msg("all %zu points are the same point: nothing to segment", c->n);
+        if (err) *err = frep_strdupf("all %zu points are the same point: nothing to segment", c->n);
         return -1;
     }
     res->diagonal = diag;
@@ -322,7 +302,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
     if (!c->has_normals || res->zero_normals > 0) {
         if (cfg->progress) cfg->progress(cfg->user, "normals", 0, c->n, 0);
         if (normals_estimate(c, cfg->knn, cfg->nthreads)) {
-            if (err) *err = fmt_msg("out of memory estimating normals");
+            if (err) *err = frep_strdupf("out of memory estimating normals");
             return -1;
         }
         res->normals_estimated = 1;
@@ -358,7 +338,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
         free(start);
         free(order);
         free(rr.prims);
-        if (err) *err = fmt_msg("out of memory");
+        if (err) *err = frep_strdupf("out of memory");
         return -1;
     }
     for (size_t i = 0; i < c->n; i++)
@@ -369,7 +349,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
         free(start);
         free(order);
         free(rr.prims);
-        if (err) *err = fmt_msg("out of memory");
+        if (err) *err = frep_strdupf("out of memory");
         return -1;
     }
     for (size_t i = 0; i < c->n; i++)
@@ -385,7 +365,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
     if (cfg->separating) {
         size_t nn = segment_add_separating(&res->prims, res->nprims, res->epsilon);
         if (nn == (size_t)-1) {
-            if (err) *err = fmt_msg("out of memory");
+            if (err) *err = frep_strdupf("out of memory");
             segment_result_free(res);
             return -1;
         }
@@ -501,7 +481,7 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
         size_t l = (size_t)(eol - p);
         p = eol < end ? eol + 1 : end;
         if (l >= HF_MAX_LINE) {
-            if (err) *err = fmt_msg("%s:%zu: line too long", name, line);
+            if (err) *err = frep_strdupf("%s:%zu: line too long", name, line);
             goto fail;
         }
         char buf[HF_MAX_LINE];
@@ -512,7 +492,7 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
         if (strncmp(s, "--   obb", 8) == 0 && cnt > 0) {
             double b[15];
             if (parse_nums(s + 8, s + strlen(s), b, 15) != 15) {
-                if (err) *err = fmt_msg("%s:%zu: expected 15 numbers after 'obb'", name, line);
+                if (err) *err = frep_strdupf("%s:%zu: expected 15 numbers after 'obb'", name, line);
                 goto fail;
             }
             prim *q = &v[cnt - 1];
@@ -531,14 +511,14 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
             char *args = c + strlen(calls[k].fn);
             char *close = strchr(args, ')');
             if (!close) {
-                if (err) *err = fmt_msg("%s:%zu: expected ')' to close '%.*s'", name, line,
-                                        (int)strlen(calls[k].fn), calls[k].fn);
+                if (err) *err = frep_strdupf("%s:%zu: expected ')' to close '%.*s'", name, line,
+                                             (int)strlen(calls[k].fn), calls[k].fn);
                 goto fail;
             }
             while (isspace((unsigned char)*args)) args++;
             if (*args != 'x') {
-                if (err) *err = fmt_msg("%s:%zu: expected 'x' as the first argument of %.*s)",
-                                        name, line, (int)strlen(calls[k].fn), calls[k].fn);
+                if (err) *err = frep_strdupf("%s:%zu: expected 'x' as the first argument of %.*s)",
+                                             name, line, (int)strlen(calls[k].fn), calls[k].fn);
                 goto fail;
             }
             args++;
@@ -547,12 +527,12 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
             if (got != calls[k].nargs) {
                 if (err) {
                     if (got < 0)
-                        *err = fmt_msg("%s:%zu: arguments of %.*s) must be numbers", name, line,
-                                       (int)strlen(calls[k].fn), calls[k].fn);
+                        *err = frep_strdupf("%s:%zu: arguments of %.*s) must be numbers", name, line,
+                                            (int)strlen(calls[k].fn), calls[k].fn);
                     else
-                        *err = fmt_msg("%s:%zu: %.*s needs %d numbers after x, got %d", name,
-                                       line, (int)strlen(calls[k].fn) - 1, calls[k].fn,
-                                       calls[k].nargs, got);
+                        *err = frep_strdupf("%s:%zu: %.*s needs %d numbers after x, got %d", name,
+                                            line, (int)strlen(calls[k].fn) - 1, calls[k].fn,
+                                            calls[k].nargs, got);
                 }
                 goto fail;
             }
@@ -579,8 +559,8 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
                 }
             }
             if (bad) {
-                if (err) *err = fmt_msg("%s:%zu: zero-length %s", name, line,
-                                        q.type == PRIM_PLANE ? "normal" : "axis");
+                if (err) *err = frep_strdupf("%s:%zu: zero-length %s", name, line,
+                                             q.type == PRIM_PLANE ? "normal" : "axis");
                 goto fail;
             }
             if (comment) {
@@ -599,7 +579,7 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
                 cap = cap ? 2 * cap : 16;
                 prim *nv = realloc(v, cap * sizeof *nv);
                 if (!nv) {
-                    if (err) *err = fmt_msg("%s: out of memory", name);
+                    if (err) *err = frep_strdupf("%s: out of memory", name);
                     goto fail;
                 }
                 v = nv;
@@ -609,7 +589,7 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
         }
     }
     if (cnt == 0) {
-        if (err) *err = fmt_msg("%s: no frPlane/frSphere/frCylinder/frCone/frTorus calls", name);
+        if (err) *err = frep_strdupf("%s: no frPlane/frSphere/frCylinder/frCone/frTorus calls", name);
         goto fail;
     }
     *out = v;
@@ -635,7 +615,7 @@ int segment_read_prims(const char *path, prim **out, size_t *n, char **err)
     if (err) *err = NULL;
     FILE *f = fopen(path, "rb");
     if (!f) {
-        if (err) *err = fmt_msg("cannot read %s: %s", path, strerror(errno));
+        if (err) *err = frep_strdupf("cannot read %s: %s", path, strerror(errno));
         return -1;
     }
     size_t cap = 1 << 16, len = 0;
@@ -657,7 +637,7 @@ int segment_read_prims(const char *path, prim **out, size_t *n, char **err)
     fclose(f);
     if (!buf || rd_err) {
         free(buf);
-        if (err) *err = fmt_msg("cannot read %s", path);
+        if (err) *err = frep_strdupf("cannot read %s", path);
         return -1;
     }
     size_t pl = strlen(path);

@@ -7,13 +7,13 @@
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cloud.h"
+#include "util.h"
 
 /* Bytes read from a stream at a time while slurping a file or standard input. */
 #define CLOUD_READ_CHUNK ((size_t)1 << 20)
@@ -25,27 +25,7 @@
 /* Longest list in a PLY element we skip (a face with more vertices is corrupt). */
 #define PLY_MAX_LIST 1000000u
 
-static char *msg_printf(const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 1, 2)))
-#endif
-    ;
-static char *msg_printf(const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    int n = vsnprintf(NULL, 0, fmt, ap);
-    va_end(ap);
-    if (n < 0) return NULL;
-    char *s = malloc((size_t)n + 1);
-    if (!s) return NULL;
-    va_start(ap, fmt);
-    vsnprintf(s, (size_t)n + 1, fmt, ap);
-    va_end(ap);
-    return s;
-}
-
-#define SET_ERR(...) do { if (err && !*err) *err = msg_printf(__VA_ARGS__); } while (0)
+#define SET_ERR(...) do { if (err && !*err) *err = frep_strdupf(__VA_ARGS__); } while (0)
 
 /* ---- storage ------------------------------------------------------------- */
 
@@ -260,16 +240,12 @@ fail:
 
 /* ---- PLY ----------------------------------------------------------------- */
 
-typedef enum ply_type {
-    PLY_NONE, PLY_I8, PLY_U8, PLY_I16, PLY_U16, PLY_I32, PLY_U32, PLY_F32, PLY_F64
-} ply_type;
-
 typedef enum ply_format { PLY_ASCII, PLY_BIN_LE, PLY_BIN_BE } ply_format;
 
 typedef struct ply_prop {
-    ply_type type;       /* scalar type, or item type of a list */
-    ply_type count_type; /* PLY_NONE for scalar properties */
-    int role;            /* 0..5: x y z nx ny nz in the vertex element; -1 otherwise */
+    frep_ply_type type;       /* scalar type, or item type of a list */
+    frep_ply_type count_type; /* FREP_PLY_NONE for scalar properties */
+    int role;                 /* 0..5: x y z nx ny nz in the vertex element; -1 otherwise */
 } ply_prop;
 
 typedef struct ply_element {
@@ -278,62 +254,6 @@ typedef struct ply_element {
     size_t nprops;
     ply_prop props[PLY_MAX_PROPS];
 } ply_element;
-
-static ply_type ply_type_of(const char *s)
-{
-    static const struct { const char *name; ply_type t; } names[] = {
-        {"char", PLY_I8}, {"int8", PLY_I8}, {"uchar", PLY_U8}, {"uint8", PLY_U8},
-        {"short", PLY_I16}, {"int16", PLY_I16}, {"ushort", PLY_U16}, {"uint16", PLY_U16},
-        {"int", PLY_I32}, {"int32", PLY_I32}, {"uint", PLY_U32}, {"uint32", PLY_U32},
-        {"float", PLY_F32}, {"float32", PLY_F32}, {"double", PLY_F64}, {"float64", PLY_F64},
-    };
-    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
-        if (strcmp(s, names[i].name) == 0) return names[i].t;
-    return PLY_NONE;
-}
-
-static size_t ply_size(ply_type t)
-{
-    switch (t) {
-    case PLY_I8: case PLY_U8: return 1;
-    case PLY_I16: case PLY_U16: return 2;
-    case PLY_I32: case PLY_U32: case PLY_F32: return 4;
-    case PLY_F64: return 8;
-    case PLY_NONE: break;
-    }
-    return 0;
-}
-
-/* Decode one binary value of type t at p in the given byte order. */
-static double ply_decode(const unsigned char *p, ply_type t, int big)
-{
-    unsigned char b[8];
-    size_t n = ply_size(t);
-    for (size_t i = 0; i < n; i++) b[i] = big ? p[n - 1 - i] : p[i];
-    uint64_t u = 0;
-    for (size_t i = 0; i < n; i++) u |= (uint64_t)b[i] << (8 * i);
-    switch (t) {
-    case PLY_I8: return (double)(int8_t)(uint8_t)u;
-    case PLY_U8: return (double)(uint8_t)u;
-    case PLY_I16: return (double)(int16_t)(uint16_t)u;
-    case PLY_U16: return (double)(uint16_t)u;
-    case PLY_I32: return (double)(int32_t)(uint32_t)u;
-    case PLY_U32: return (double)(uint32_t)u;
-    case PLY_F32: {
-        uint32_t w = (uint32_t)u;
-        float f;
-        memcpy(&f, &w, sizeof f);
-        return (double)f;
-    }
-    case PLY_F64: {
-        double d;
-        memcpy(&d, &u, sizeof d);
-        return d;
-    }
-    case PLY_NONE: break;
-    }
-    return 0.0;
-}
 
 /* Split a header line into at most 4 words; returns the word count. */
 static int split_words(char *s, char **w, int maxw)
@@ -440,22 +360,22 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
             if (E->nprops == PLY_MAX_PROPS) { SET_ERR("%s:%zu: too many properties", name, line); goto fail; }
             ply_prop *P = &E->props[E->nprops];
             P->role = -1;
-            P->count_type = PLY_NONE;
+            P->count_type = FREP_PLY_NONE;
             const char *pname;
             if (nw >= 2 && strcmp(w[1], "list") == 0) {
                 if (nw != 5) { SET_ERR("%s:%zu: expected 'property list COUNT-TYPE TYPE NAME'", name, line); goto fail; }
-                P->count_type = ply_type_of(w[2]);
-                P->type = ply_type_of(w[3]);
-                if (P->count_type == PLY_NONE || P->type == PLY_NONE ||
-                    P->count_type == PLY_F32 || P->count_type == PLY_F64) {
+                P->count_type = frep_ply_type_of(w[2]);
+                P->type = frep_ply_type_of(w[3]);
+                if (P->count_type == FREP_PLY_NONE || P->type == FREP_PLY_NONE ||
+                    P->count_type == FREP_PLY_F32 || P->count_type == FREP_PLY_F64) {
                     SET_ERR("%s:%zu: bad list types '%s %s'", name, line, w[2], w[3]);
                     goto fail;
                 }
                 pname = w[4];
             } else {
                 if (nw != 3) { SET_ERR("%s:%zu: expected 'property TYPE NAME'", name, line); goto fail; }
-                P->type = ply_type_of(w[1]);
-                if (P->type == PLY_NONE) { SET_ERR("%s:%zu: unknown property type '%s'", name, line, w[1]); goto fail; }
+                P->type = frep_ply_type_of(w[1]);
+                if (P->type == FREP_PLY_NONE) { SET_ERR("%s:%zu: unknown property type '%s'", name, line, w[1]); goto fail; }
                 pname = w[2];
                 if (E->is_vertex) {
                     static const char *const roles[6] = {"x", "y", "z", "nx", "ny", "nz"};
@@ -510,15 +430,15 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
             for (size_t k = 0; k < E->nprops; k++) {
                 const ply_prop *P = &E->props[k];
                 size_t nitems = 1;
-                if (P->count_type != PLY_NONE) {
+                if (P->count_type != FREP_PLY_NONE) {
                     double cnt;
                     if (fmt == PLY_ASCII) {
                         int rc = ascii_next(&ac, &cnt);
                         if (rc) goto data_error;
                     } else {
-                        size_t sz = ply_size(P->count_type);
+                        size_t sz = frep_ply_type_size(P->count_type);
                         if ((size_t)(bend - bp) < sz) goto data_error;
-                        cnt = ply_decode(bp, P->count_type, big);
+                        cnt = frep_ply_decode(bp, P->count_type, big);
                         bp += sz;
                     }
                     if (!(cnt >= 0) || cnt > PLY_MAX_LIST || cnt != floor(cnt)) goto data_error;
@@ -529,9 +449,9 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
                     if (fmt == PLY_ASCII) {
                         if (ascii_next(&ac, &t)) goto data_error;
                     } else {
-                        size_t sz = ply_size(P->type);
+                        size_t sz = frep_ply_type_size(P->type);
                         if ((size_t)(bend - bp) < sz) goto data_error;
-                        t = ply_decode(bp, P->type, big);
+                        t = frep_ply_decode(bp, P->type, big);
                         bp += sz;
                     }
                     if (P->role >= 0) v[P->role] = t;

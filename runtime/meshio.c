@@ -7,11 +7,11 @@
 #include "config.h"
 
 #include "meshio.h"
+#include "util.h"
 
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -23,27 +23,7 @@
 #define MESHIO_PLY_MAX_ELEMENTS 16
 #define MESHIO_MAX_POLY 1024 /* vertices of one polygon: more is a corrupt file */
 
-static char *msgf(const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 1, 2)))
-#endif
-    ;
-static char *msgf(const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    int n = vsnprintf(NULL, 0, fmt, ap);
-    va_end(ap);
-    if (n < 0) return NULL;
-    char *s = malloc((size_t)n + 1);
-    if (!s) return NULL;
-    va_start(ap, fmt);
-    vsnprintf(s, (size_t)n + 1, fmt, ap);
-    va_end(ap);
-    return s;
-}
-
-#define SET_ERR(...) do { if (err && !*err) *err = msgf(__VA_ARGS__); } while (0)
+#define SET_ERR(...) do { if (err && !*err) *err = frep_strdupf(__VA_ARGS__); } while (0)
 
 meshio_format meshio_format_for_path(const char *path)
 {
@@ -502,66 +482,9 @@ oom:
 
 /* ---- PLY ---- */
 
-typedef enum ptype { PT_NONE, PT_I8, PT_U8, PT_I16, PT_U16, PT_I32, PT_U32, PT_F32, PT_F64 } ptype;
-
-static ptype ptype_of(const char *s)
-{
-    static const struct { const char *n; ptype t; } tab[] = {
-        { "char", PT_I8 }, { "int8", PT_I8 }, { "uchar", PT_U8 }, { "uint8", PT_U8 },
-        { "short", PT_I16 }, { "int16", PT_I16 }, { "ushort", PT_U16 }, { "uint16", PT_U16 },
-        { "int", PT_I32 }, { "int32", PT_I32 }, { "uint", PT_U32 }, { "uint32", PT_U32 },
-        { "float", PT_F32 }, { "float32", PT_F32 }, { "double", PT_F64 }, { "float64", PT_F64 },
-    };
-    for (size_t i = 0; i < sizeof tab / sizeof tab[0]; i++)
-        if (strcmp(s, tab[i].n) == 0) return tab[i].t;
-    return PT_NONE;
-}
-
-static size_t ptype_size(ptype t)
-{
-    switch (t) {
-    case PT_I8: case PT_U8: return 1;
-    case PT_I16: case PT_U16: return 2;
-    case PT_I32: case PT_U32: case PT_F32: return 4;
-    case PT_F64: return 8;
-    case PT_NONE: break;
-    }
-    return 0;
-}
-
-static double ptype_get(const unsigned char *p, ptype t, int big)
-{
-    unsigned char b[8];
-    size_t n = ptype_size(t);
-    for (size_t i = 0; i < n; i++) b[i] = p[big ? n - 1 - i : i];
-    uint64_t u = 0;
-    for (size_t i = 0; i < n; i++) u |= (uint64_t)b[i] << (8 * i);
-    switch (t) {
-    case PT_I8: return (double)(int8_t)u;
-    case PT_U8: return (double)(uint8_t)u;
-    case PT_I16: return (double)(int16_t)u;
-    case PT_U16: return (double)(uint16_t)u;
-    case PT_I32: return (double)(int32_t)(uint32_t)u;
-    case PT_U32: return (double)(uint32_t)u;
-    case PT_F32: {
-        uint32_t w = (uint32_t)u;
-        float f;
-        memcpy(&f, &w, 4);
-        return f;
-    }
-    case PT_F64: {
-        double d;
-        memcpy(&d, &u, 8);
-        return d;
-    }
-    case PT_NONE: break;
-    }
-    return NAN;
-}
-
 typedef struct pprop {
     char name[32];
-    ptype type, count_type;   /* count_type != PT_NONE: a list */
+    frep_ply_type type, count_type;   /* count_type != FREP_PLY_NONE: a list */
 } pprop;
 
 typedef struct pelem {
@@ -630,8 +553,8 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
             }
             pprop *P = &E->props[E->nprops++];
             if (strcmp(w[1], "list") == 0) {
-                if (nw < 4 || (P->count_type = ptype_of(w[2])) == PT_NONE ||
-                    (P->type = ptype_of(w[3])) == PT_NONE) {
+                if (nw < 4 || (P->count_type = frep_ply_type_of(w[2])) == FREP_PLY_NONE ||
+                    (P->type = frep_ply_type_of(w[3])) == FREP_PLY_NONE) {
                     SET_ERR("%s:%zu: bad list property", name, c.line);
                     goto done;
                 }
@@ -639,11 +562,11 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
                 sscanf(line, "%*s %*s %*s %*s %63s", nm);
                 snprintf(P->name, sizeof P->name, "%.31s", nm);
             } else {
-                if ((P->type = ptype_of(w[1])) == PT_NONE) {
+                if ((P->type = frep_ply_type_of(w[1])) == FREP_PLY_NONE) {
                     SET_ERR("%s:%zu: unknown property type '%s'", name, c.line, w[1]);
                     goto done;
                 }
-                P->count_type = PT_NONE;
+                P->count_type = FREP_PLY_NONE;
                 snprintf(P->name, sizeof P->name, "%.31s", w[2]);
             }
         } else {
@@ -683,14 +606,14 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
             for (int k = 0; k < E->nprops; k++) {
                 const pprop *P = &E->props[k];
                 size_t cnt = 1;
-                if (P->count_type != PT_NONE) {
+                if (P->count_type != FREP_PLY_NONE) {
                     double cv;
                     if (fmt == 0) {
                         if (num(&s, e, &cv)) goto short_rec;
                     } else {
-                        size_t sz = ptype_size(P->count_type);
+                        size_t sz = frep_ply_type_size(P->count_type);
                         if ((size_t)(bend - bp) < sz) goto short_rec;
-                        cv = ptype_get(bp, P->count_type, fmt == 2);
+                        cv = frep_ply_decode(bp, P->count_type, fmt == 2);
                         bp += sz;
                     }
                     if (!(cv >= 0 && cv <= MESHIO_MAX_POLY)) {
@@ -705,12 +628,12 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
                     if (fmt == 0) {
                         if (num(&s, e, &v)) goto short_rec;
                     } else {
-                        size_t sz = ptype_size(P->type);
+                        size_t sz = frep_ply_type_size(P->type);
                         if ((size_t)(bend - bp) < sz) goto short_rec;
-                        v = ptype_get(bp, P->type, fmt == 2);
+                        v = frep_ply_decode(bp, P->type, fmt == 2);
                         bp += sz;
                     }
-                    if (P->count_type == PT_NONE) {
+                    if (P->count_type == FREP_PLY_NONE) {
                         rec->v[k] = v;
                     } else if (!got_list) {
                         if (!(v >= 0 && v < (double)nverts_decl)) {
@@ -720,7 +643,7 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
                         rec->list[rec->nlist++] = (uint32_t)v;
                     }
                 }
-                if (P->count_type != PT_NONE) got_list = 1;
+                if (P->count_type != FREP_PLY_NONE) got_list = 1;
             }
             if (isv && add_vertex(b, rec->v[ix], rec->v[iy], rec->v[iz])) goto oom;
             if (isf && rec->nlist >= 3 && add_poly(b, rec->list, rec->nlist)) goto oom;

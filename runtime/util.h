@@ -1,0 +1,34 @@
+/* util.h - small internal helpers shared by the library modules (not public API).
+ *
+ * A malloc'ed printf for the "file:line: what" messages the readers hand back, and
+ * the PLY scalar types that both the cloud reader (cloud.c) and the mesh reader
+ * (meshio.c) decode.
+ */
+#ifndef FREP_UTIL_H
+#define FREP_UTIL_H
+
+#include <stddef.h>
+
+/* printf into a new string; returns it (free with free()) or NULL when out of memory
+ * or on an encoding error. */
+char *frep_strdupf(const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 1, 2)))
+#endif
+    ;
+
+/* The scalar types of a PLY property; FREP_PLY_NONE for a name PLY does not define. */
+typedef enum frep_ply_type {
+    FREP_PLY_NONE, FREP_PLY_I8, FREP_PLY_U8, FREP_PLY_I16, FREP_PLY_U16,
+    FREP_PLY_I32, FREP_PLY_U32, FREP_PLY_F32, FREP_PLY_F64
+} frep_ply_type;
+
+/* The type named s in a PLY header ("uchar", "float32", ...), or FREP_PLY_NONE. */
+frep_ply_type frep_ply_type_of(const char *s);
+/* Bytes one binary value of type t takes (0 for FREP_PLY_NONE). */
+size_t frep_ply_type_size(frep_ply_type t);
+/* Decode one binary value of type t at p (frep_ply_type_size(t) bytes), big-endian
+ * when big_endian is non-zero, little-endian otherwise. */
+double frep_ply_decode(const unsigned char *p, frep_ply_type t, int big_endian);
+
+#endif
