@@ -38,7 +38,7 @@ run)
     # noise) -> frep evolve -> a readable model.hf -> frep mesh -> a picture.
     mkdir -p quickstart
     set -x
-    ./frep sample ../examples/csg.hf -n 20000 --noise 0.002 --seed 1 -b 2 -o quickstart/scan.xyz
+    ./frep sample ../examples/reverse/part.hf -n 20000 --noise 0.001 --seed 1 -o quickstart/scan.xyz
     ./frep evolve quickstart/scan.xyz --seed 1 -o quickstart/model.hf
     cat quickstart/model.hf
     ./frep mesh quickstart/model.hf -g 96 -o quickstart/model.stl
