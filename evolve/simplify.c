@@ -35,18 +35,29 @@ static int swap_tail(gp_tree *t, uint32_t a, uint32_t b)
     return 0;
 }
 
-/* Copy the subtree ending at `end` to the end of out, simplified. Recursion depth is
- * the tree depth (<= GP_MAX_TREE_DEPTH). */
+/* What simp() left for a subtree: a tree pushed to out, or a degenerate set that needs
+ * no code.  Regularized CSG (the closure of the interior): a | ~a is all of space and
+ * a & ~a, a \ a are empty; with min/max their functions |a| and -|a| would otherwise
+ * leave zero-thickness sheets on the plane a = 0 that explain points without being
+ * solid, which the fitness rewards and a person would not write. */
+enum { SIMP_TREE = 0, SIMP_FULL = 1, SIMP_EMPTY = 2 };
+
+static int simp_flip(int r) { return r == SIMP_FULL ? SIMP_EMPTY : r == SIMP_EMPTY ? SIMP_FULL : r; }
+
+/* Copy the subtree ending at `end` to the end of out, simplified. Returns SIMP_TREE,
+ * SIMP_FULL or SIMP_EMPTY (nothing pushed), -1 on allocation failure. Recursion depth
+ * is the tree depth (<= GP_MAX_TREE_DEPTH). */
 static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opset *o)
 {
     const frep_insn *in = &code[end];
     int k = tree_nin(in);
     if (k == 0) return tree_push(out, FREP_OP_PRIM, in->arg);
     if (k == 1) {
-        if (simp(code, end - 1, out, o)) return -1;
+        int r = simp(code, end - 1, out, o);
+        if (r != SIMP_TREE) return r < 0 ? r : simp_flip(r);
         if (out->code[out->len - 1].op == o->neg) {  /* ~~a = a */
             out->len--;
-            return 0;
+            return SIMP_TREE;
         }
         return tree_push(out, (frep_opcode)o->neg, 0);
     }
@@ -55,10 +66,37 @@ static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opse
     (void)l0;
     (void)r0;
     uint32_t ls = out->len;
-    if (simp(code, l1, out, o)) return -1;
+    int rl = simp(code, l1, out, o);
+    if (rl < 0) return -1;
     uint32_t rs = out->len;
-    if (simp(code, end - 1, out, o)) return -1;
+    int rr = simp(code, end - 1, out, o);
+    if (rr < 0) return -1;
     uint8_t op = in->op;
+    if (rl != SIMP_TREE || rr != SIMP_TREE) {
+        /* One side is a degenerate set: the result is a constant set or one operand. */
+        int keep_left = 0, keep_right = 0, result = SIMP_TREE;
+        if (op == o->uni) {
+            if (rl == SIMP_FULL || rr == SIMP_FULL) result = SIMP_FULL;
+            else if (rl == SIMP_EMPTY) keep_right = 1;
+            else keep_left = 1;
+        } else if (op == o->inter) {
+            if (rl == SIMP_EMPTY || rr == SIMP_EMPTY) result = SIMP_EMPTY;
+            else if (rl == SIMP_FULL) keep_right = 1;
+            else keep_left = 1;
+        } else {  /* a \ b */
+            if (rl == SIMP_EMPTY || rr == SIMP_FULL) result = SIMP_EMPTY;
+            else if (rr == SIMP_EMPTY) keep_left = 1;
+            else {  /* all \ b = ~b */
+                keep_right = 1;
+                if (out->code[out->len - 1].op == o->neg) out->len--;
+                else if (tree_push(out, (frep_opcode)o->neg, 0)) return -1;
+            }
+        }
+        if (keep_left) return rl;        /* the right side pushed nothing */
+        if (keep_right) return rr;       /* the left side pushed nothing */
+        out->len = ls;
+        return result;
+    }
     int negate = 0;
     for (;;) {
         int lneg = out->code[rs - 1].op == o->neg, rneg = out->code[out->len - 1].op == o->neg;
@@ -87,6 +125,20 @@ static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opse
             break;
         }
     }
+    /* Regularization (see SIMP_FULL): a \ a is empty; a | ~a is everything. */
+    int degenerate = SIMP_TREE;
+    if (op == o->sub && tree_compare(out->code, rs - 1, out->code, out->len - 1) == 0)
+        degenerate = SIMP_EMPTY;
+    else if (op == o->uni && out->code[out->len - 1].op == o->neg && out->len - 1 > rs &&
+             tree_compare(out->code, rs - 1, out->code, out->len - 2) == 0)
+        degenerate = SIMP_FULL;
+    else if (op == o->uni && out->code[rs - 1].op == o->neg && rs - 1 > ls &&
+             tree_compare(out->code, rs - 2, out->code, out->len - 1) == 0)
+        degenerate = SIMP_FULL;
+    if (degenerate != SIMP_TREE) {
+        out->len = ls;
+        return negate ? simp_flip(degenerate) : degenerate;
+    }
     int emit = 1;
     if (op == o->uni || op == o->inter) {
         int c = tree_compare(out->code, rs - 1, out->code, out->len - 1);
@@ -102,7 +154,7 @@ static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opse
         if (out->code[out->len - 1].op == o->neg) out->len--;
         else if (tree_push(out, (frep_opcode)o->neg, 0)) return -1;
     }
-    return 0;
+    return SIMP_TREE;
 }
 
 int simplify_rules(gp_tree *t, gp_setops s)
@@ -113,10 +165,16 @@ int simplify_rules(gp_tree *t, gp_setops s)
     /* A pass can enable another (a De Morgan exposes a double complement above). */
     for (int pass = 0; pass < 8; pass++) {
         out.len = 0;
-        if (tree_reserve(&out, t->len) || simp(t->code, t->len - 1, &out, &o)) {
+        if (tree_reserve(&out, t->len)) {
             tree_free(&out);
             return -1;
         }
+        int r = simp(t->code, t->len - 1, &out, &o);
+        if (r < 0) {
+            tree_free(&out);
+            return -1;
+        }
+        if (r != SIMP_TREE) break; /* the whole tree is degenerate: leave it as it is */
         int same = out.len == t->len &&
                    memcmp(out.code, t->code, (size_t)t->len * sizeof *t->code) == 0;
         if (tree_copy(t, &out)) {

@@ -442,6 +442,55 @@ const frep_program *prune_for_subbox(const prune_plan *pl, prune_state *st,
 
 /* ---- the tiled grid evaluator --------------------------------------------------- */
 
+void prune_grid_stats_init(prune_grid_stats *s)
+{
+    memset(s, 0, sizeof *s);
+    s->min = INFINITY;
+    s->max = -INFINITY;
+}
+
+/* Independent accumulators of the summary loop: one per lane of two AVX2 vectors, so
+ * the loop has no branch and no serial dependence and GCC vectorizes it; the lanes
+ * are combined in a fixed order, so the sum depends only on the block's values. */
+#define SUM_LANES 8
+
+/* Add the summary of f[0..n-1] to *t. */
+static void grid_summarize(const double *f, size_t n, prune_grid_stats *t) VM_CLONES;
+static void grid_summarize(const double *f, size_t n, prune_grid_stats *t)
+{
+    double mn[SUM_LANES], mx[SUM_LANES], sm[SUM_LANES];
+    uint64_t ins[SUM_LANES], nan[SUM_LANES];
+    size_t i = 0, l;
+    for (l = 0; l < SUM_LANES; l++) {
+        mn[l] = INFINITY;
+        mx[l] = -INFINITY;
+        sm[l] = 0;
+        ins[l] = nan[l] = 0;
+    }
+    /* NaN fails every comparison: not inside, leaves min and max alone */
+#define SUMMARIZE_LANE(v, l)                                                       \
+    do {                                                                           \
+        ins[l] += (uint64_t)((v) >= 0);                                            \
+        nan[l] += (uint64_t)(isnan(v) != 0);                                       \
+        mn[l] = (v) < mn[l] ? (v) : mn[l];                                         \
+        mx[l] = (v) > mx[l] ? (v) : mx[l];                                         \
+        sm[l] += fabs(v) < INFINITY ? (v) : 0.0;                                   \
+    } while (0)
+    for (; i + SUM_LANES <= n; i += SUM_LANES)
+        for (l = 0; l < SUM_LANES; l++) SUMMARIZE_LANE(f[i + l], l);
+    for (l = 0; i < n; i++, l++) SUMMARIZE_LANE(f[i], l);
+#undef SUMMARIZE_LANE
+    double sum = 0;
+    for (l = 0; l < SUM_LANES; l++) {
+        t->inside += ins[l];
+        t->nans += nan[l];
+        if (mn[l] < t->min) t->min = mn[l];
+        if (mx[l] > t->max) t->max = mx[l];
+        sum += sm[l];
+    }
+    t->sum += sum;
+}
+
 /* One thread's tools. */
 typedef struct grid_worker {
     vm_scratch *s;
@@ -486,13 +535,14 @@ typedef struct grid_job {
     const prune_plan *pl;
     long n, k0, nk, ntx;
     const double *c[3];      /* the grid's coordinates per axis: lo + step * i */
-    double *f;
+    double *f;               /* the values, or NULL */
+    prune_grid_stats *tst;   /* per-tile summaries, or NULL */
 } grid_job;
 
 /* Evaluate nb points gathered in w, scatter rows back to f (row r of w's block has
  * idx[r] as its first offset and `row` points). */
 static int grid_flush(const grid_job *g, grid_worker *w, const frep_program *q, size_t nb,
-                      size_t row, double *insns)
+                      size_t row, prune_grid_stats *tst, double *insns)
 {
     vm_inputs in;
     memset(&in, 0, sizeof in);
@@ -500,8 +550,10 @@ static int grid_flush(const grid_job *g, grid_worker *w, const frep_program *q, 
     in.y = w->y;
     in.z = w->z;
     if (vm_eval_block(q, w->s, &in, nb, w->f) < 0) return -1;
-    for (size_t b = 0; b < nb; b += row)
-        memcpy(g->f + w->idx[b / row], w->f + b, row * sizeof *w->f);
+    if (g->f)
+        for (size_t b = 0; b < nb; b += row)
+            memcpy(g->f + w->idx[b / row], w->f + b, row * sizeof *w->f);
+    if (tst) grid_summarize(w->f, nb, tst);
     *insns += (double)q->ncode * (double)nb;
     return 0;
 }
@@ -523,22 +575,32 @@ static int grid_tile(const grid_job *g, grid_worker *w, long t, vm_errstate *err
         q = prune_for_subbox(g->pl, w->st, w->sp, box, NULL, NULL);
     }
     memset(&w->s->total, 0, sizeof w->s->total);
+    prune_grid_stats *tst = g->tst ? &g->tst[t] : NULL;
+    if (tst) prune_grid_stats_init(tst);
     size_t row = (size_t)(i1 - i0), nb = 0, nn = (size_t)g->n;
-    for (long k = k0; k < k1; k++)
+    /* x repeats the tile's row in every block: written once per tile */
+    for (size_t b = 0; b + row <= FREP_BLOCK; b += row)
+        memcpy(w->x + b, g->c[0] + i0, row * sizeof *w->x);
+    for (long k = k0; k < k1; k++) {
+        const double zk = g->c[2][k];
         for (long j = j0; j < j1; j++) {
             if (nb + row > FREP_BLOCK) {
-                if (grid_flush(g, w, q, nb, row, insns) < 0) return -1;
+                if (grid_flush(g, w, q, nb, row, tst, insns) < 0) return -1;
                 nb = 0;
             }
-            memcpy(w->x + nb, g->c[0] + i0, row * sizeof *w->x);
+            const double yj = g->c[1][j];
+            double *y = w->y + nb, *z = w->z + nb;
             for (size_t i = 0; i < row; i++) {
-                w->y[nb + i] = g->c[1][j];
-                w->z[nb + i] = g->c[2][k];
+                y[i] = yj;
+                z[i] = zk;
             }
-            w->idx[nb / row] = (uint32_t)(((size_t)(k - k0) * nn + (size_t)j) * nn + (size_t)i0);
+            if (g->f)
+                w->idx[nb / row] =
+                    (uint32_t)(((size_t)(k - k0) * nn + (size_t)j) * nn + (size_t)i0);
             nb += row;
         }
-    if (nb && grid_flush(g, w, q, nb, row, insns) < 0) return -1;
+    }
+    if (nb && grid_flush(g, w, q, nb, row, tst, insns) < 0) return -1;
     *err = w->s->total;
     if (err->count && g->pl) err->pc = prune_orig_pc(w->st, err->pc);
     return 0;
@@ -572,6 +634,13 @@ int prune_eval_grid_planes(const frep_program *p, long n, const double box[6], l
                            long nk, int prune, int nthreads, double *f,
                            frep_runtime_error *err, double *insns)
 {
+    return prune_eval_grid_summary(p, n, box, k0, nk, prune, nthreads, f, NULL, err, insns);
+}
+
+int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], long k0,
+                            long nk, int prune, int nthreads, double *f,
+                            prune_grid_stats *stats, frep_runtime_error *err, double *insns)
+{
     grid_job g;
     memset(&g, 0, sizeof g);
     g.p = p;
@@ -587,7 +656,7 @@ int prune_eval_grid_planes(const frep_program *p, long n, const double box[6], l
         g.c[c] = coord + (size_t)c * (size_t)n;
     }
     /* the flat index of a point in f is a uint32_t: plenty for a slab of planes */
-    if ((double)n * (double)n * (double)nk > 4294967295.0) {
+    if (f && (double)n * (double)n * (double)nk > 4294967295.0) {
         free(coord);
         return -1;
     }
@@ -598,7 +667,10 @@ int prune_eval_grid_planes(const frep_program *p, long n, const double box[6], l
     long nsuper = (g.ntx + PRUNE_SUPER - 1) / PRUNE_SUPER;
     nsuper *= nsuper;
     vm_errstate *terr = calloc((size_t)ntiles, sizeof *terr);
-    if (!terr) {
+    g.tst = stats ? malloc((size_t)ntiles * sizeof *g.tst) : NULL;
+    if (!terr || (stats && !g.tst)) {
+        free(terr);
+        free(g.tst);
         prune_plan_free(pl);
         free(coord);
         return -1;
@@ -637,6 +709,17 @@ int prune_eval_grid_planes(const frep_program *p, long n, const double box[6], l
     memset(&all, 0, sizeof all);
     for (long t = 0; t < ntiles; t++) vm_err_merge(&all, &terr[t]);
     free(terr);
+    if (stats && !failed)
+        for (long t = 0; t < ntiles; t++) {
+            /* in tile order: the sum does not depend on which thread ran which tile */
+            const prune_grid_stats *ts = &g.tst[t];
+            stats->inside += ts->inside;
+            stats->nans += ts->nans;
+            if (ts->min < stats->min) stats->min = ts->min;
+            if (ts->max > stats->max) stats->max = ts->max;
+            stats->sum += ts->sum;
+        }
+    free(g.tst);
     free(coord);
     prune_plan_free(pl);
     if (failed) return -1;

@@ -75,4 +75,23 @@ int prune_eval_grid_planes(const frep_program *p, long n, const double box[6], l
                            long nk, int prune, int nthreads, double *f,
                            frep_runtime_error *err, double *insns);
 
+/* Summary of grid values: NaNs are counted apart; min/max cover the other values
+ * (infinities included), sum the finite ones. */
+typedef struct prune_grid_stats {
+    uint64_t inside;        /* values >= 0 */
+    uint64_t nans;
+    double min, max, sum;
+} prune_grid_stats;
+/* Start value of a summary: nothing seen (min +inf, max -inf). */
+void prune_grid_stats_init(prune_grid_stats *s);
+
+/* prune_eval_grid_planes, with f optional (NULL: the values are not stored, so no
+ * slab buffer is needed) and the planes' summary added to *stats (may be NULL), each
+ * block summarized as soon as it is evaluated.  The sum's order of additions is fixed
+ * by the tiling alone (per tile, then tiles in order), so it is the same with or
+ * without pruning and at any thread count. */
+int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], long k0,
+                            long nk, int prune, int nthreads, double *f,
+                            prune_grid_stats *stats, frep_runtime_error *err, double *insns);
+
 #endif

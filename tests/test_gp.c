@@ -257,6 +257,13 @@ static void test_rules(void)
     check_rule("1~2~|", "~(p1 & p2)", GP_SETOPS_RFUNC);
     check_rule("1~2~|~", "p1 & p2", GP_SETOPS_MINMAX);
     check_rule("12\\", "p1 \\ p2", GP_SETOPS_MINMAX);
+    /* regularization: degenerate sets (zero-thickness sheets) vanish */
+    check_rule("122~|~|", "p1", GP_SETOPS_MINMAX);   /* p1 | ~(p2 | ~p2) */
+    check_rule("12~2|&", "p1", GP_SETOPS_RFUNC);     /* p1 & (~p2 | p2) */
+    check_rule("122\\|", "p1", GP_SETOPS_MINMAX);  /* p1 | (p2 \ p2) */
+    check_rule("122~&|", "p1", GP_SETOPS_MINMAX);    /* p1 | (p2 & ~p2) */
+    check_rule("122~|\\", "p1 \\ (p2 | ~p2)", GP_SETOPS_MINMAX); /* all degenerate: kept */
+    check_rule("3122~|~|&", "p1 & p3", GP_SETOPS_MINMAX);
 }
 
 /* The identities of the rules hold numerically for both families, except idempotence
