@@ -182,28 +182,24 @@ done:
 }
 
 /* Grid mode: planes are evaluated PRUNE_TILE at a time, tile by tile with a pruned
- * program per tile (runtime/prune.c), then summarized in grid order, so every figure
- * but the time is the same with or without pruning and at any thread count. */
+ * program per tile (runtime/prune.c), each block summarized as soon as it is computed
+ * (no buffer of values), the partial sums added in tile order, so every figure but the
+ * time is the same with or without pruning and at any thread count. */
 static int eval_grid(const frep_program *p, long N, const double box[6], int nthreads,
                      int prune, const char *src, size_t srclen)
 {
-    size_t slab = (size_t)N * (size_t)N * PRUNE_TILE;
-    double *f = malloc(slab * sizeof *f);
-    if (!f) {
-        fprintf(stderr, "frep: out of memory for %d planes of %ld^2 points\n", PRUNE_TILE, N);
-        return CLI_FAIL;
-    }
-    uint64_t inside = 0, nans = 0;
-    double vmin = INFINITY, vmax = -INFINITY, sum = 0, insns = 0;
+    prune_grid_stats st;
+    prune_grid_stats_init(&st);
+    double insns = 0;
     frep_runtime_error all = { 0 };
     double t0 = now_seconds(), eval_time = 0;
     for (long k0 = 0; k0 < N; k0 += PRUNE_TILE) {
         long nk = N - k0 < PRUNE_TILE ? N - k0 : PRUNE_TILE;
         frep_runtime_error e;
         double t1 = now_seconds();
-        if (prune_eval_grid_planes(p, N, box, k0, nk, prune, nthreads, f, &e, &insns) != 0) {
+        if (prune_eval_grid_summary(p, N, box, k0, nk, prune, nthreads, NULL, &st, &e,
+                                    &insns) != 0) {
             fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
-            free(f);
             return CLI_FAIL;
         }
         eval_time += now_seconds() - t1;
@@ -214,16 +210,9 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
         } else {
             all.count += e.count;
         }
-        size_t np = (size_t)nk * (size_t)N * (size_t)N;
-        for (size_t i = 0; i < np; i++) {
-            double v = f[i];
-            if (isnan(v)) { nans++; continue; }
-            if (v >= 0) inside++;
-            if (v < vmin) vmin = v;
-            if (v > vmax) vmax = v;
-            if (isfinite(v)) sum += v;
-        }
     }
+    uint64_t inside = st.inside, nans = st.nans;
+    double vmin = st.min, vmax = st.max, sum = st.sum;
     double total_time = now_seconds() - t0;
     double npts = (double)N * (double)N * (double)N;
     double vol = (box[3] - box[0]) * (box[4] - box[1]) * (box[5] - box[2]);
@@ -244,7 +233,6 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
     printf("program   %zu instructions, %.1f evaluated per point on average (%s)\n",
            frep_program_size(p), insns / npts, prune ? "interval pruning" : "no pruning");
     report_errors(p, &all, src, srclen);
-    free(f);
     return CLI_OK;
 }
 

@@ -450,28 +450,29 @@ void prune_grid_stats_init(prune_grid_stats *s)
 }
 
 /* Independent accumulators of the summary loop: one per lane of two AVX2 vectors, so
- * the loop has no branch and no serial dependence and GCC vectorizes it; the lanes
- * are combined in a fixed order, so the sum depends only on the block's values. */
+ * the loop has no branch and no serial dependence and GCC vectorizes it (all of them
+ * doubles: mixing in integer counters stopped it; counts of at most FREP_BLOCK are
+ * exact in a double).  The lanes are combined in a fixed order, so the sum depends
+ * only on the block's values. */
 #define SUM_LANES 8
 
 /* Add the summary of f[0..n-1] to *t. */
 static void grid_summarize(const double *f, size_t n, prune_grid_stats *t) VM_CLONES;
 static void grid_summarize(const double *f, size_t n, prune_grid_stats *t)
 {
-    double mn[SUM_LANES], mx[SUM_LANES], sm[SUM_LANES];
-    uint64_t ins[SUM_LANES], nan[SUM_LANES];
+    double mn[SUM_LANES], mx[SUM_LANES], sm[SUM_LANES], ge[SUM_LANES], lt[SUM_LANES];
     size_t i = 0, l;
     for (l = 0; l < SUM_LANES; l++) {
         mn[l] = INFINITY;
         mx[l] = -INFINITY;
-        sm[l] = 0;
-        ins[l] = nan[l] = 0;
+        sm[l] = ge[l] = lt[l] = 0;
     }
-    /* NaN fails every comparison: not inside, leaves min and max alone */
+    /* NaN fails every comparison: neither >= 0 nor < 0 (so NaNs are the rest), and
+     * leaves min and max alone */
 #define SUMMARIZE_LANE(v, l)                                                       \
     do {                                                                           \
-        ins[l] += (uint64_t)((v) >= 0);                                            \
-        nan[l] += (uint64_t)(isnan(v) != 0);                                       \
+        ge[l] += (v) >= 0 ? 1.0 : 0.0;                                             \
+        lt[l] += (v) < 0 ? 1.0 : 0.0;                                              \
         mn[l] = (v) < mn[l] ? (v) : mn[l];                                         \
         mx[l] = (v) > mx[l] ? (v) : mx[l];                                         \
         sm[l] += fabs(v) < INFINITY ? (v) : 0.0;                                   \
@@ -480,14 +481,16 @@ static void grid_summarize(const double *f, size_t n, prune_grid_stats *t)
         for (l = 0; l < SUM_LANES; l++) SUMMARIZE_LANE(f[i + l], l);
     for (l = 0; i < n; i++, l++) SUMMARIZE_LANE(f[i], l);
 #undef SUMMARIZE_LANE
-    double sum = 0;
+    double sum = 0, nge = 0, nlt = 0;
     for (l = 0; l < SUM_LANES; l++) {
-        t->inside += ins[l];
-        t->nans += nan[l];
+        nge += ge[l];
+        nlt += lt[l];
         if (mn[l] < t->min) t->min = mn[l];
         if (mx[l] > t->max) t->max = mx[l];
         sum += sm[l];
     }
+    t->inside += (uint64_t)nge;
+    t->nans += (uint64_t)n - (uint64_t)nge - (uint64_t)nlt;
     t->sum += sum;
 }
 
@@ -497,6 +500,8 @@ typedef struct grid_worker {
     prune_state *st;         /* a tile's pruned program */
     prune_state *sp;         /* its super-tile's */
     double *x, *y, *z, *f;   /* one block of points */
+    double *zp;              /* z of each plane of the slab over a block (see below) */
+    int zp_ready;
     uint32_t *idx;           /* their offsets in the caller's f */
 } grid_worker;
 
@@ -508,6 +513,7 @@ static void worker_free(grid_worker *w)
     free(w->x);
     free(w->y);
     free(w->z);
+    free(w->zp);
     free(w->f);
     free(w->idx);
 }
@@ -521,9 +527,11 @@ static int worker_init(grid_worker *w, const frep_program *p, const prune_plan *
     w->x = malloc(FREP_BLOCK * sizeof *w->x);
     w->y = malloc(FREP_BLOCK * sizeof *w->y);
     w->z = malloc(FREP_BLOCK * sizeof *w->z);
+    w->zp = malloc((size_t)PRUNE_TILE * FREP_BLOCK * sizeof *w->zp);
     w->f = malloc(FREP_BLOCK * sizeof *w->f);
     w->idx = malloc(FREP_BLOCK * sizeof *w->idx);
-    if (!w->s || (pl && (!w->st || !w->sp)) || !w->x || !w->y || !w->z || !w->f || !w->idx) {
+    if (!w->s || (pl && (!w->st || !w->sp)) || !w->x || !w->y || !w->z || !w->zp || !w->f ||
+        !w->idx) {
         worker_free(w);
         return -1;
     }
@@ -542,13 +550,13 @@ typedef struct grid_job {
 /* Evaluate nb points gathered in w, scatter rows back to f (row r of w's block has
  * idx[r] as its first offset and `row` points). */
 static int grid_flush(const grid_job *g, grid_worker *w, const frep_program *q, size_t nb,
-                      size_t row, prune_grid_stats *tst, double *insns)
+                      size_t row, const double *z, prune_grid_stats *tst, double *insns)
 {
     vm_inputs in;
     memset(&in, 0, sizeof in);
     in.x = w->x;
     in.y = w->y;
-    in.z = w->z;
+    in.z = z;
     if (vm_eval_block(q, w->s, &in, nb, w->f) < 0) return -1;
     if (g->f)
         for (size_t b = 0; b < nb; b += row)
@@ -581,11 +589,34 @@ static int grid_tile(const grid_job *g, grid_worker *w, long t, vm_errstate *err
     /* x repeats the tile's row in every block: written once per tile */
     for (size_t b = 0; b + row <= FREP_BLOCK; b += row)
         memcpy(w->x + b, g->c[0] + i0, row * sizeof *w->x);
+    if (row * (size_t)(j1 - j0) == FREP_BLOCK && g->nk <= PRUNE_TILE) {
+        /* a whole tile: each block is one plane of it, so y is the same in every block
+         * (written once per tile) and z constant over a block (written once per slab):
+         * no coordinate is written per point */
+        for (long j = j0; j < j1; j++)
+            for (size_t i = 0; i < row; i++) w->y[(size_t)(j - j0) * row + i] = g->c[1][j];
+        if (!w->zp_ready) {
+            for (long k = 0; k < g->nk; k++)
+                for (size_t i = 0; i < FREP_BLOCK; i++)
+                    w->zp[(size_t)k * FREP_BLOCK + i] = g->c[2][g->k0 + k];
+            w->zp_ready = 1;
+        }
+        for (long k = k0; k < k1; k++) {
+            if (g->f)
+                for (long j = j0; j < j1; j++)
+                    w->idx[j - j0] =
+                        (uint32_t)(((size_t)(k - k0) * nn + (size_t)j) * nn + (size_t)i0);
+            if (grid_flush(g, w, q, FREP_BLOCK, row, w->zp + (size_t)(k - k0) * FREP_BLOCK,
+                           tst, insns) < 0)
+                return -1;
+        }
+        k1 = k0; /* every plane done: nothing left for the general loop below */
+    }
     for (long k = k0; k < k1; k++) {
         const double zk = g->c[2][k];
         for (long j = j0; j < j1; j++) {
             if (nb + row > FREP_BLOCK) {
-                if (grid_flush(g, w, q, nb, row, tst, insns) < 0) return -1;
+                if (grid_flush(g, w, q, nb, row, w->z, tst, insns) < 0) return -1;
                 nb = 0;
             }
             const double yj = g->c[1][j];
@@ -600,7 +631,7 @@ static int grid_tile(const grid_job *g, grid_worker *w, long t, vm_errstate *err
             nb += row;
         }
     }
-    if (nb && grid_flush(g, w, q, nb, row, tst, insns) < 0) return -1;
+    if (nb && grid_flush(g, w, q, nb, row, w->z, tst, insns) < 0) return -1;
     *err = w->s->total;
     if (err->count && g->pl) err->pc = prune_orig_pc(w->st, err->pc);
     return 0;

@@ -66,9 +66,17 @@ int vm_scratch_fit(vm_scratch *s, const frep_program *p)
     }
     if (p->nparams > s->cap_params) {
         double *pb = aligned_alloc(64, (size_t)p->nparams * FREP_BLOCK * sizeof(double));
-        if (!pb) return -1;
+        double *pv = pb ? malloc((size_t)p->nparams * sizeof *pv) : NULL;
+        if (!pv) {
+            free(pb);
+            return -1;
+        }
         free(s->parambuf);
+        free(s->paramval);
         s->parambuf = pb;
+        s->paramval = pv;
+        s->param_lanes = 0;
+        s->param_count = 0;
         s->cap_params = p->nparams;
     }
     if (p->nprims > s->cap_prims) {
@@ -108,6 +116,7 @@ void vm_scratch_free(vm_scratch *s)
     free(s->slotbuf);
     free(s->slotp);
     free(s->parambuf);
+    free(s->paramval);
     free(s->zeros);
     free(s->primp);
     free(s->primg);
@@ -490,17 +499,26 @@ static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
     return 0;
 }
 
-/* Broadcast the parameter values over the block's lanes. */
-static void broadcast_params(const frep_program *p, vm_scratch *s, const vm_inputs *in,
-                             size_t n)
+/* Broadcast the parameter values over the block's lanes, unless they are there
+ * already (compared bit for bit: a NaN or -0 parameter must be rewritten exactly). */
+void vm_broadcast_params(const frep_program *p, vm_scratch *s, const vm_inputs *in, size_t n)
 {
     uint32_t j;
     size_t i;
+    int same = n <= s->param_lanes && p->nparams <= s->param_count;
+    for (j = 0; j < p->nparams && same; j++) {
+        double v = in->params ? in->params[j] : p->params ? p->params[j].value : 0.0;
+        same = memcmp(&v, &s->paramval[j], sizeof v) == 0;
+    }
+    if (same) return;
     for (j = 0; j < p->nparams; j++) {
         double *b = s->parambuf + (size_t)j * FREP_BLOCK;
         double v = in->params ? in->params[j] : p->params ? p->params[j].value : 0.0;
         for (i = 0; i < n; i++) b[i] = v;
+        s->paramval[j] = v;
     }
+    s->param_lanes = n;
+    s->param_count = p->nparams;
 }
 
 /* Inputs of lane i alone (divergent branches). */
@@ -531,7 +549,7 @@ int vm_eval_block(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
     if (n == 0) return 0;
     if (n > FREP_BLOCK || vm_scratch_fit(s, p) < 0) return -1;
     if ((p->flags & PROG_HAS_PRIMS) && !in->prim_v) return -1;
-    broadcast_params(p, s, in, n);
+    vm_broadcast_params(p, s, in, n);
     rc = vm_run(p, s, in, n, out, n > 1);
     if (rc != 1) return rc;
     for (i = 0; i < n; i++) {

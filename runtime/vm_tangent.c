@@ -580,13 +580,7 @@ static int tan_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, si
 static void tan_broadcast_params(const frep_program *p, vm_scratch *s, const vm_inputs *in,
                                  size_t n)
 {
-    uint32_t j;
-    size_t i;
-    for (j = 0; j < p->nparams; j++) {
-        double *b = s->parambuf + (size_t)j * FREP_BLOCK;
-        double v = in->params ? in->params[j] : p->params ? p->params[j].value : 0.0;
-        for (i = 0; i < n; i++) b[i] = v;
-    }
+    vm_broadcast_params(p, s, in, n);
 }
 
 int vm_eval_block_tangent(const frep_program *p, vm_scratch *s, const vm_inputs *in,

@@ -145,8 +145,9 @@ enum { GN = 21 }; /* grid points per axis: one full tile and a partial one */
 
 static void test_random_grids(void)
 {
-    static double f0[GN * GN * GN], f1[GN * GN * GN], f2[GN * GN * GN];
+    static double f0[GN * GN * GN], f1[GN * GN * GN], f2[GN * GN * GN], f3[GN * GN * GN];
     int nprog = 60, all_same = 1, errs_same = 1, threads_same = 1, prunable = 0;
+    int slabs_same = 1, stats_ok = 1;
     int with_errors = 0;
     double cost_full = 0, cost_pruned = 0;
     for (int t = 0; t < nprog; t++) {
@@ -170,10 +171,36 @@ static void test_random_grids(void)
             frep_program_free(p);
             continue;
         }
-        int s = 1, s2 = 1;
+        /* as frep eval --grid: slabs of PRUNE_TILE planes (whole tiles take another
+         * path), summarized on the fly; the summary must be f0's */
+        prune_grid_stats st;
+        prune_grid_stats_init(&st);
+        for (long k0 = 0; k0 < GN; k0 += PRUNE_TILE) {
+            long nk = GN - k0 < PRUNE_TILE ? GN - k0 : PRUNE_TILE;
+            r |= prune_eval_grid_summary(p, GN, box, k0, nk, 1, 2, f3 + (size_t)k0 * GN * GN,
+                                         &st, NULL, NULL);
+        }
+        uint64_t ins = 0, nans = 0;
+        double mn = INFINITY, mx = -INFINITY, sum = 0, mag = 0;
+        int s = 1, s2 = 1, s3 = 1;
         for (size_t i = 0; i < (size_t)GN * GN * GN; i++) {
             s &= same(f0[i], f1[i]);
             s2 &= same(f1[i], f2[i]);
+            s3 &= same(f0[i], f3[i]);
+            double v = f0[i];
+            if (isnan(v)) { nans++; continue; }
+            ins += v >= 0;
+            if (v < mn) mn = v;
+            if (v > mx) mx = v;
+            if (isfinite(v)) { sum += v; mag += fabs(v); }
+        }
+        slabs_same &= s3;
+        if (r != 0 || st.inside != ins || st.nans != nans || st.min < mn || st.min > mn ||
+            st.max < mx || st.max > mx || !(fabs(st.sum - sum) <= 1e-12 * mag)) {
+            diag("program %d: summary %llu %llu %g %g %g, expected %llu %llu %g %g %g", t,
+                 (unsigned long long)st.inside, (unsigned long long)st.nans, st.min, st.max,
+                 st.sum, (unsigned long long)ins, (unsigned long long)nans, mn, mx, sum);
+            stats_ok = 0;
         }
         if (!s) diag("program %d (%u instructions): pruned values differ", t, p->ncode);
         all_same &= s;
@@ -203,6 +230,8 @@ static void test_random_grids(void)
        with_errors);
     ok(with_errors > 0, "some random programs raise domain errors");
     ok(threads_same, "pruned grids: 1 and 2 threads give the same values and errors");
+    ok(slabs_same, "slabs of %d planes give the values of the whole grid", PRUNE_TILE);
+    ok(stats_ok, "on-the-fly summaries (inside, NaNs, min, max, sum) match the values");
     ok(prunable == nprog, "a straight-line program gets a prune plan iff it has a min, max or select");
     ok(cost_pruned < 0.8 * cost_full,
        "pruning shortens the programs (%.0f of %.0f instruction-evaluations)", cost_pruned,
