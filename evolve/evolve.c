@@ -3,6 +3,7 @@
  * output model (.hf) and drawing (.dot).  See evolve.h for the pipeline.
  */
 #include "config.h"
+#include "util.h"
 
 #include "evolve.h"
 #include "residual.h"
@@ -34,22 +35,8 @@ void evolve_result_free(evolve_result *r)
     memset(r, 0, sizeof *r);
 }
 
-static void set_err(char **err, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
-#endif
-    ;
-static void set_err(char **err, const char *fmt, ...)
-{
-    if (!err) return;
-    char buf[512];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(buf, sizeof buf, fmt, ap);
-    va_end(ap);
-    *err = malloc(strlen(buf) + 1);
-    if (*err) strcpy(*err, buf);
-}
+/* A malloc'ed message for the caller (runtime/util.h), when it asked for one. */
+#define set_err(err, ...) do { if (err) *(err) = frep_strdupf(__VA_ARGS__); } while (0)
 
 static int cmp_size(const void *a, const void *b)
 {

@@ -5,6 +5,7 @@
  */
 #define _POSIX_C_SOURCE 200809L /* open_memstream */
 #include "config.h"
+#include "util.h"
 
 #include "refit.h"
 
@@ -28,22 +29,8 @@
 /* Parameters of a primitive in frep's call order (prim_write_call). */
 #define REFIT_MAX_PRIM_PARAMS 8
 
-static void set_err(char **err, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
-#endif
-    ;
-static void set_err(char **err, const char *fmt, ...)
-{
-    if (!err) return;
-    char buf[512];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(buf, sizeof buf, fmt, ap);
-    va_end(ap);
-    *err = malloc(strlen(buf) + 1);
-    if (*err) strcpy(*err, buf);
-}
+/* A malloc'ed message for the caller (runtime/util.h), when it asked for one. */
+#define set_err(err, ...) do { if (err) *(err) = frep_strdupf(__VA_ARGS__); } while (0)
 
 /* The call arguments of q (after x) into v; returns their number. */
 static int prim_params(const prim *q, double v[REFIT_MAX_PRIM_PARAMS])

@@ -3,6 +3,7 @@
  * join itself is in evolve.c.
  */
 #include "config.h"
+#include "util.h"
 
 #include "residual.h"
 
@@ -21,22 +22,8 @@
 /* Points per call of the evaluator (bounds the temporary arrays). */
 #define RESIDUAL_CHUNK 65536
 
-static void set_err(char **err, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
-#endif
-    ;
-static void set_err(char **err, const char *fmt, ...)
-{
-    if (!err) return;
-    char buf[512];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(buf, sizeof buf, fmt, ap);
-    va_end(ap);
-    *err = malloc(strlen(buf) + 1);
-    if (*err) strcpy(*err, buf);
-}
+/* A malloc'ed message for the caller (runtime/util.h), when it asked for one. */
+#define set_err(err, ...) do { if (err) *(err) = frep_strdupf(__VA_ARGS__); } while (0)
 
 void residual_free(evolve_base *b)
 {
