@@ -11,7 +11,14 @@
 #            (29 primitives, twelve 4-primitive cliques, after M2);
 #    m0-m2 at 10^4 and 1.5*10^5 points with Gaussian noise sigma 0.01 (model units).
 #    Unpartitioned and partitioned GA at 1 and 2 threads; RUNS seeds each; medians of the
-#    time to solution (evolve's own clock), CPU seconds, tree size and explained share.
+#    run time (evolve's own clock), CPU seconds, tree size and explained share, and the
+#    ratio of the 1- and 2-thread wall times.
+#    Speed-up of partitioning (m0, m2 at 10^4 points, 1 thread, SPEEDUP_RUNS seeds): the
+#    partitioned run's time T_p (whole run) and quality Q_p (the best share of the scored
+#    points its GA phases reached, from --trace); the unpartitioned GA run long
+#    (--generations SGENS --stagnation 0 --max-time BUDGET --trace); its time to solution
+#    T_u = the first trace line whose share >= Q_p - 1 point; speed-up T_u / T_p, or
+#    ">= T_end / T_p" when it never gets there (doc/evolve.md, "Speed-up").
 # 2. Real data, when ../shared/data/inversecsg exists next to the source tree:
 #    frep sample MESH -> frep segment -> frep evolve -> frep mesh per model; time, tree
 #    size, the ground truth's primitive counts, and the symmetric Chamfer and Hausdorff
@@ -20,6 +27,9 @@
 #
 # usage: FREP=path/to/frep sh bench_evolve.sh [SRCDIR]
 # Environment: BENCH_EVOLVE_RUNS (3), BENCH_EVOLVE_MAX_TIME (60 s per run),
+# BENCH_EVOLVE_SPEEDUP_RUNS (3), BENCH_EVOLVE_SPEEDUP_BUDGET (90 s per unpartitioned
+# run; longer budgets give tighter lower bounds), BENCH_EVOLVE_SPEEDUP_GENERATIONS
+# (100000: the budget decides), BENCH_EVOLVE_SKIP_SPEEDUP=1,
 # BENCH_EVOLVE_SKIP_SYNTH=1, BENCH_EVOLVE_SKIP_REAL=1, BENCH_EVOLVE_DATA (data folder).
 
 : "${FREP:?FREP must name the frep binary}"
@@ -28,6 +38,9 @@ tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-bench-evolve.XXXXXX") || exit 1
 trap 'rm -rf "$tmp"' EXIT INT TERM
 RUNS=${BENCH_EVOLVE_RUNS:-3}
 MAXT=${BENCH_EVOLVE_MAX_TIME:-60}
+SRUNS=${BENCH_EVOLVE_SPEEDUP_RUNS:-3}
+BUDGET=${BENCH_EVOLVE_SPEEDUP_BUDGET:-90}
+SGENS=${BENCH_EVOLVE_SPEEDUP_GENERATIONS:-100000}
 DATA=${BENCH_EVOLVE_DATA:-$srcdir/../shared/data/inversecsg}
 
 echo "frep evolve benchmark: $(nproc 2>/dev/null || echo '?') cores, $RUNS runs per configuration (medians)"
@@ -131,7 +144,55 @@ bench_row() { # bench_row MODEL CLOUD MODE THREADS
     done
     np=$(grep -c . "$tmp/$m.fit")
     pts=$(grep -c . "$tmp/$cloud.xyz")
-    echo "| $m | $pts | $np | ${mode#--} | $t | $(cut -d' ' -f1 "$tmp/runs" | median) | $(cut -d' ' -f2 "$tmp/runs" | median) | $(cut -d' ' -f3 "$tmp/runs" | median) | $(cut -d' ' -f4 "$tmp/runs" | median)% |"
+    wall=$(cut -d' ' -f1 "$tmp/runs" | median)
+    echo "$cloud ${mode#--} $t $wall" >>"$tmp/walls"
+    echo "| $m | $pts | $np | ${mode#--} | $t | $wall | $(cut -d' ' -f2 "$tmp/runs" | median) | $(cut -d' ' -f3 "$tmp/runs" | median) | $(cut -d' ' -f4 "$tmp/runs" | median)% |"
+}
+
+# Median of "value flag" lines (flag 1: the value is a lower bound); ">=" when the
+# median is, or averages, a lower bound.
+median_bound() {
+    sort -g | awk '{ v[NR] = $1; b[NR] = $2 }
+        END { if (NR == 0) { print "-"; exit }
+              if (NR % 2) { k = (NR + 1) / 2; m = v[k]; lb = b[k] }
+              else { k = NR / 2; m = (v[k] + v[k + 1]) / 2; lb = b[k] || b[k + 1] }
+              printf "%s%.1f\n", lb ? ">= " : "", m }'
+}
+
+# Speed-up of partitioning on one model: SRUNS seeds, 1 thread.
+speedup_rows() { # speedup_rows MODEL CLOUD
+    m=$1 cloud=$2
+    : >"$tmp/sp"
+    s=1
+    while [ "$s" -le "$SRUNS" ]; do
+        "$FREP" evolve "$tmp/$cloud.xyz" -p "$tmp/$m.fit" -o "$tmp/p.hf" --seed "$s" -t 1 \
+            --partition --max-time "$MAXT" --trace "$tmp/tp" -q 2>/dev/null
+        # T_p, Q_p: the partitioned run's end (wall, CPU) and the best share of its GA phases.
+        set -- $(awk '/^# end:/ { w = $3; c = $6; n = $9; f = $11 }
+                      !/^#/ && $7 != "merge" && $6 > q { q = $6 }
+                      END { print w, c, q + 0, n, f }' "$tmp/tp")
+        tpw=$1 tpc=$2 qp=$3 np_=$4 fp=$5
+        # The unpartitioned GA stops at the target (--stop-share), else at the budget.
+        target=$(awk -v q="$qp" 'BEGIN { printf "%.3f", (q > 1 ? q - 1 : 0.001) }')
+        "$FREP" evolve "$tmp/$cloud.xyz" -p "$tmp/$m.fit" -o "$tmp/u.hf" --seed "$s" -t 1 \
+            --no-partition --generations "$SGENS" --stagnation 0 --max-time "$BUDGET" \
+            --stop-share "$target" --trace "$tmp/tu" -q 2>/dev/null
+        # T_u: the first unpartitioned line with share >= Q_p - 1; else the run's end.
+        set -- $(awk -v q="$qp" '/^# end:/ { w = $3; c = $6; n = $9; f = $11 }
+                      !/^#/ && !hit && $6 >= q - 1 { hit = 1; hw = $2; hc = $3; g = $1 }
+                      !/^#/ { last = $1; best = $6 }
+                      END { if (hit) print hw, hc, 0, g, n, f, best
+                            else print w, c, 1, last, n, f, best }' "$tmp/tu")
+        tuw=$1 tuc=$2 lb=$3 gen=$4 nu=$5 fu=$6 bu=$7
+        rw=$(awk -v a="$tuw" -v b="$tpw" 'BEGIN { printf "%.2f", a / b }')
+        rc=$(awk -v a="$tuc" -v b="$tpc" 'BEGIN { printf "%.2f", a / b }')
+        ge=""
+        [ "$lb" = 1 ] && ge=">= "
+        echo "$rw $lb $rc $np_ $nu" >>"$tmp/sp"
+        echo "| $m | $s | $tpw | $tpc | $qp% | $np_ | $fp | $ge$tuw | $ge$tuc | $gen | $bu% | $nu | $fu | $ge$rw | $ge$rc |"
+        s=$((s + 1))
+    done
+    echo "| $m | median | | | | $(cut -d' ' -f4 "$tmp/sp" | median) | | | | | | $(cut -d' ' -f5 "$tmp/sp" | median) | | $(cut -d' ' -f1,2 "$tmp/sp" | median_bound) | $(awk '{ print $3, $2 }' "$tmp/sp" | median_bound) |"
 }
 
 if [ -z "$BENCH_EVOLVE_SKIP_SYNTH" ]; then
@@ -144,6 +205,7 @@ if [ -z "$BENCH_EVOLVE_SKIP_SYNTH" ]; then
     echo
     echo "| model | points | primitives | GA | threads | time s | CPU s | nodes | explained |"
     echo "|---|---:|---:|---|---:|---:|---:|---:|---:|"
+    : >"$tmp/walls"
     for mc in cube:cube m0:m0_10k m0:m0_150k m1:m1_10k m1:m1_150k m2:m2_10k m2:m2_150k; do
         for mode in --no-partition --partition; do
             for t in 1 2; do
@@ -151,6 +213,28 @@ if [ -z "$BENCH_EVOLVE_SKIP_SYNTH" ]; then
             done
         done
     done
+    echo
+    echo "Wall time, 1 thread / 2 threads (medians above; > 1: the second thread helps):"
+    echo
+    echo "| cloud | GA | 1 thread s | 2 threads s | ratio |"
+    echo "|---|---|---:|---:|---:|"
+    awk '$3 == 1 { one[$1 " " $2] = $4 } $3 == 2 { two[$1 " " $2] = $4; k[++n] = $1 " " $2 }
+         END { for (i = 1; i <= n; i++) { split(k[i], a, " ")
+                   printf "| %s | %s | %s | %s | %.2f |\n", a[1], a[2], one[k[i]], two[k[i]],
+                          (two[k[i]] > 0 ? one[k[i]] / two[k[i]] : 0) } }' "$tmp/walls"
+
+    if [ -z "$BENCH_EVOLVE_SKIP_SPEEDUP" ]; then
+        echo
+        echo "Speed-up of partitioning: 1 thread, seeds 1-$SRUNS; unpartitioned GA run with"
+        echo "--generations $SGENS --stagnation 0 --max-time $BUDGET; target = partitioned GA share - 1 point;"
+        echo "shares of the scored sample (GA phases, before simplification); final = every point."
+        echo
+        echo "| model | seed | part. s | part. CPU s | part. GA share | part. nodes | part. final | unpart. to target s | CPU s | generations | unpart. best share | unpart. nodes | unpart. final | speed-up | speed-up CPU |"
+        echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        for mc in m0:m0_10k m2:m2_10k; do
+            speedup_rows "${mc%%:*}" "${mc#*:}"
+        done
+    fi
 fi
 
 # ---- real data: InverseCSG's meshes ---------------------------------------------
@@ -161,10 +245,11 @@ if [ -z "$BENCH_EVOLVE_SKIP_REAL" ] && [ -d "$DATA" ]; then
     fi
     echo
     echo "Real data ($DATA): 20,000 points sampled from each mesh, segmented, evolved"
-    echo "(seed 1, at most $MAXT s), meshed at -g 128; distances relative to the mesh diagonal."
+    echo "(seed 1, at most $MAXT s), meshed at -g 128; distances relative to the mesh diagonal;"
+    echo "time: wall seconds of sample + segment + evolve, CPU: their user + system seconds."
     echo
-    echo "| model | GT solids | GT surfaces | segmented | tree nodes | tree primitives | explained | time s | Chamfer | Hausdorff |"
-    echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    echo "| model | GT solids | GT surfaces | segmented | tree nodes | tree primitives | explained | time s | CPU s | Chamfer | Hausdorff |"
+    echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     for d in "$DATA"/*/; do
         name=$(basename "$d")
         mesh="$d/csg_low_res.off"
@@ -174,15 +259,18 @@ if [ -z "$BENCH_EVOLVE_SKIP_REAL" ] && [ -d "$DATA" ]; then
         [ -f "$d/csg.scad" ] && gts=$(grep -o -E '\b(cube|cylinder|sphere)\s*\(' "$d/csg.scad" | wc -l)
         [ -f "$d/surface_primitives.prim" ] && gtp=$(grep -c -E '^(plane|sphere|cylinder|cone|torus)' "$d/surface_primitives.prim")
         t0=$(date +%s.%N)
+        : >"$tmp/cpu"
         ok=1
-        "$FREP" sample "$mesh" -n 20000 --seed 1 -o "$tmp/r.xyz" -q 2>"$tmp/err" || ok=0
-        [ $ok = 1 ] && { "$FREP" segment "$tmp/r.xyz" -o "$tmp/r.fit" --seed 1 -q 2>"$tmp/err" || ok=0; }
-        [ $ok = 1 ] && { "$FREP" evolve "$tmp/r.xyz" -p "$tmp/r.fit" -o "$tmp/r.hf" --seed 1 \
+        /usr/bin/time -a -o "$tmp/cpu" -f "%U %S" \
+            "$FREP" sample "$mesh" -n 20000 --seed 1 -o "$tmp/r.xyz" -q 2>"$tmp/err" || ok=0
+        [ $ok = 1 ] && { /usr/bin/time -a -o "$tmp/cpu" -f "%U %S" \
+            "$FREP" segment "$tmp/r.xyz" -o "$tmp/r.fit" --seed 1 -q 2>"$tmp/err" || ok=0; }
+        [ $ok = 1 ] && { /usr/bin/time -a -o "$tmp/cpu" -f "%U %S" "$FREP" evolve "$tmp/r.xyz" -p "$tmp/r.fit" -o "$tmp/r.hf" --seed 1 \
             --max-time "$MAXT" -q 2>"$tmp/err" || ok=0; }
         t1=$(date +%s.%N)
         [ $ok = 1 ] && { "$FREP" mesh "$tmp/r.hf" -o "$tmp/r.off" -g 128 -q 2>"$tmp/err" || ok=0; }
         if [ $ok = 0 ]; then
-            echo "| $name | $gts | $gtp | - | - | - | - | - | failed: $(head -c 80 "$tmp/err" | tr '\n|' '  ') | |"
+            echo "| $name | $gts | $gtp | - | - | - | - | - | - | failed: $(head -c 80 "$tmp/err" | tr '\n|' '  ') | |"
             continue
         fi
         nseg=$(grep -c . "$tmp/r.fit")
@@ -190,9 +278,10 @@ if [ -z "$BENCH_EVOLVE_SKIP_REAL" ] && [ -d "$DATA" ]; then
         nprim=$(sed -n 's/.*tree size \([0-9]*\) nodes, \([0-9]*\) primitives.*/\2/p' "$tmp/r.hf")
         expl=$(sed -n 's/.* \([0-9.]*\)% both$/\1/p' "$tmp/r.hf")
         secs=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.1f", b - a }')
+        cpu=$(awk '{ s += $1 + $2 } END { printf "%.1f", s }' "$tmp/cpu")
         dist=$(/usr/bin/python3 "$srcdir/bench/mesh_distance.py" "$mesh" "$tmp/r.off" 200000 2>/dev/null)
         ch=$(echo "$dist" | awk '{ printf "%.3f%%", 100 * $1 }')
         ha=$(echo "$dist" | awk '{ printf "%.2f%%", 100 * $2 }')
-        echo "| $name | $gts | $gtp | $nseg | $nodes | $nprim | $expl% | $secs | $ch | $ha |"
+        echo "| $name | $gts | $gtp | $nseg | $nodes | $nprim | $expl% | $secs | $cpu | $ch | $ha |"
     done
 fi

@@ -7,10 +7,19 @@
 # Each line: the median of 5 runs of the mesher's own time (the summary line: octree,
 # evaluation, vertices, triangles), and of the whole command's wall time, CPU time
 # (user + system: compiling, meshing, writing the binary STL) and peak resident
-# memory (/usr/bin/time).
+# memory (/usr/bin/time).  For the gear and the gyroid at 1 thread it also prints the
+# ratio of the whole command's CPU time to libfive's meshing time on the same work
+# (doc/benchmarks.md: 0.08 s and 0.36 s, measured on this kind of machine).
 # Usage: bench_mesh.sh FREP [SRCDIR]
 FREP=${1:-./frep}
 SRCDIR=${2:-.}
+# An uninstalled build's ./frep is libtool's wrapper script, whose shell start-up
+# costs ~15 ms per run: time the real program next to it.
+if [ -x "$(dirname "$FREP")/.libs/frep" ] && head -c 2 "$FREP" | grep -q '#!'; then
+  LD_LIBRARY_PATH="$(cd "$(dirname "$FREP")/.libs" && pwd)${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+  export LD_LIBRARY_PATH
+  FREP="$(dirname "$FREP")/.libs/frep"
+fi
 OUT=${TMPDIR:-/tmp}/frep-bench-mesh.$$.stl
 RUNS=5
 trap 'rm -f "$OUT" "$OUT.t" "$OUT.s"' EXIT
@@ -38,8 +47,14 @@ run() {
     cpu=$(awk '{ print $2 + $3 }' "$OUT.t" | median)
     mem=$(awk '{ print $4 }' "$OUT.t" | median)
     mesh=$(awk '{ print $5 }' "$OUT.t" | median)
-    printf '%-18s -g %-4s -t %s  %9s triangles  meshing %6.3f s  wall %6.3f s  cpu %6.3f s  peak %6.1f MB\n' \
-      "$(basename "$model")" "$g" "$t" "$tris" "$mesh" "$wall" "$cpu" "$(echo "$mem" | awk '{ print $1 / 1024 }')"
+    ref=
+    case "$(basename "$model") $g $t" in
+      "bench_gear.hf 128 1") ref=0.08 ;;
+      "bench_gyroid.hf 128 1") ref=0.36 ;;
+    esac
+    printf '%-18s -g %-4s -t %s  %9s triangles  meshing %6.3f s  wall %6.3f s  cpu %6.3f s  peak %6.1f MB%s\n' \
+      "$(basename "$model")" "$g" "$t" "$tris" "$mesh" "$wall" "$cpu" "$(echo "$mem" | awk '{ print $1 / 1024 }')" \
+      "$(if [ -n "$ref" ]; then echo "$cpu $ref" | awk '{ printf "  cpu / libfive %.2f", $1 / $2 }'; fi)"
   else
     printf '%-18s -g %-4s -t %s  %9s triangles (no /usr/bin/time)\n' "$(basename "$model")" "$g" "$t" "$tris"
   fi

@@ -13,6 +13,7 @@
 #include "segment.h"
 
 #include <errno.h>
+#include <stdarg.h>
 #include <getopt.h>
 #include <math.h>
 #include <signal.h>
@@ -52,11 +53,17 @@ static const char evolve_usage[] =
     "      --max-depth D     maximum tree depth (default: ceil(log2 primitives) + 3)\n"
     "      --max-time T      stop after T seconds\n"
     "      --epsilon E       distance tolerance as a fraction of the diagonal (default 0.01)\n"
-    "      --alpha DEG       normal tolerance in degrees (default 10; 35 for noisy data)\n"
+    "      --alpha DEG       normal tolerance in degrees (default: automatic, 35 when the\n"
+    "                        cloud is noisy or faceted against the primitives, else 10)\n"
     "      --lambda-scale K  size penalty K*ln(N) per node (default 1)\n"
     "      --sample N        points the GA scores (default 4096; 0: all)\n"
     "      --no-simplify     keep the tree as evolved\n"
     "      --dot FILE        also write the tree for Graphviz\n"
+    "      --trace FILE      write one line per generation: generation, wall and CPU\n"
+    "                        seconds since the start, best fitness, tree size, % of the\n"
+    "                        scored points the best tree explains, phase\n"
+    "      --stop-share P    end a GA phase once its best tree explains P% of the scored\n"
+    "                        points (time-to-solution measurements)\n"
     "      --residual MODEL  join to MODEL.hf a tree evolved for the points it explains\n"
     "                        poorly (segmented from them without -p); the output holds\n"
     "                        MODEL's source and the joined model my_model\n"
@@ -75,14 +82,75 @@ static void on_sigint(int sig)
     evolve_interrupted = 1;
 }
 
+/* --trace: one line per generation, kept in memory and written atomically at the end
+ * (a 3000-generation run is about 200 KB). */
+typedef struct trace_buf {
+    char *s;
+    size_t len, cap;
+    int failed;              /* out of memory: the trace is incomplete */
+} trace_buf;
+
+static void trace_add(trace_buf *t, const char *fmt, ...)
+{
+    char line[256];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    if (n < 0 || t->failed) return;
+    size_t k = (size_t)n < sizeof line ? (size_t)n : sizeof line - 1;
+    if (t->len + k + 1 > t->cap) {
+        size_t cap = t->cap ? 2 * t->cap : 65536;
+        while (cap < t->len + k + 1) cap *= 2;
+        char *q = realloc(t->s, cap);
+        if (!q) {
+            t->failed = 1;
+            return;
+        }
+        t->s = q;
+        t->cap = cap;
+    }
+    memcpy(t->s + t->len, line, k);
+    t->len += k;
+    t->s[t->len] = 0;
+}
+
+static int write_trace_cb(FILE *f, void *user)
+{
+    const trace_buf *t = user;
+    if (t->len) fwrite(t->s, 1, t->len, f);
+    return ferror(f) ? -1 : 0;
+}
+
 typedef struct progress_ctx {
     int tty, quiet;
     double last;
+    trace_buf *trace;        /* NULL without --trace */
+    gp_report report;        /* filled by gp_run before each call (gp.h) */
+    double t0;               /* gp_now() when evolve_run started */
+    clock_t c0;              /* clock() then */
+    int polish;              /* 1 once the merge of a partitioned run was reported */
+    double stop_share;       /* --stop-share: percent; 0: none */
 } progress_ctx;
 
 static int progress(void *user, const gp_progress *p)
 {
     progress_ctx *c = user;
+    if (c->trace) {
+        double wall = gp_now() - c->t0;
+        double cpu = (double)(clock() - c->c0) / CLOCKS_PER_SEC;
+        if (isnan(p->best_fitness)) {
+            c->polish = 1;
+            trace_add(c->trace, "%u %.4f %.4f nan %u - merge\n", p->generation, wall, cpu,
+                      p->best_len);
+        } else {
+            double share = c->report.npoints
+                               ? 100.0 * (double)c->report.explained / (double)c->report.npoints
+                               : 0.0;
+            trace_add(c->trace, "%u %.4f %.4f %.10g %u %.3f %s\n", p->generation, wall, cpu,
+                      p->best_fitness, p->best_len, share, c->polish ? "polish" : "ga");
+        }
+    }
     if (c->tty && !c->quiet && (p->elapsed - c->last >= 0.2 || p->generation == 1)) {
         c->last = p->elapsed;
         if (isnan(p->best_fitness))
@@ -93,6 +161,10 @@ static int progress(void *user, const gp_progress *p)
                     p->generation, p->best_fitness, p->best_len, p->elapsed);
         fflush(stderr);
     }
+    /* --stop-share: a GA phase ends once its best tree explains enough points. */
+    if (c->stop_share > 0 && !isnan(p->best_fitness) && c->report.npoints &&
+        100.0 * (double)c->report.explained >= c->stop_share * (double)c->report.npoints)
+        return 1;
     return evolve_interrupted != 0;
 }
 
@@ -153,7 +225,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     enum {
         O_SETOPS = 256, O_PART, O_NOPART, O_SEED, O_GEN, O_STAG, O_POP, O_TOURN, O_CROSS,
         O_MUT, O_ELITE, O_SUBP, O_DEPTH, O_TIME, O_EPS, O_ALPHA, O_LAMBDA, O_SAMPLE,
-        O_NOSIMP, O_DOT, O_RESIDUAL, O_REFIT, O_NOPOLISH
+        O_NOSIMP, O_DOT, O_RESIDUAL, O_REFIT, O_NOPOLISH, O_TRACE, O_STOPSHARE
     };
     static const struct option longopts[] = {
         { "help", no_argument, NULL, 'h' },
@@ -179,6 +251,8 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         { "sample", required_argument, NULL, O_SAMPLE },
         { "no-simplify", no_argument, NULL, O_NOSIMP },
         { "dot", required_argument, NULL, O_DOT },
+        { "trace", required_argument, NULL, O_TRACE },
+        { "stop-share", required_argument, NULL, O_STOPSHARE },
         { "residual", required_argument, NULL, O_RESIDUAL },
         { "refit", no_argument, NULL, O_REFIT },
         { "no-polish", no_argument, NULL, O_NOPOLISH },
@@ -189,6 +263,8 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     evolve_options eo;
     evolve_options_init(&eo);
     const char *prims_path = NULL, *out = "-", *dot = NULL, *residual_path = NULL;
+    const char *trace_path = NULL;
+    double stop_share = 0;
     int have_seed = 0, have_setops = 0, refit = 0, quiet = 0, c;
     double v = 0;
     optind = 1;
@@ -213,6 +289,8 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         case O_NOPART: eo.partition = 0; break;
         case O_NOSIMP: eo.simplify = 0; break;
         case O_DOT: dot = optarg; break;
+        case O_TRACE: trace_path = optarg; break;
+        case O_STOPSHARE: bad = parse_num("--stop-share", optarg, 0, 100, 0, &v); stop_share = v; break;
         case O_SEED: {
             char *end;
             errno = 0;
@@ -233,7 +311,11 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         case O_DEPTH: bad = parse_num("--max-depth", optarg, 1, GP_MAX_TREE_DEPTH, 1, &v); eo.gp.max_depth = (int)v; break;
         case O_TIME: bad = parse_num("--max-time", optarg, 0, 1e9, 0, &v); eo.gp.max_time = v; break;
         case O_EPS: bad = parse_num("--epsilon", optarg, 1e-9, 1, 0, &v); eo.eps_rel = v; break;
-        case O_ALPHA: bad = parse_num("--alpha", optarg, 0.01, 180, 0, &v); eo.alpha_deg = v; break;
+        case O_ALPHA:
+            bad = parse_num("--alpha", optarg, 0.01, 180, 0, &v);
+            eo.alpha_deg = v;
+            eo.alpha_auto = 0;
+            break;
         case O_LAMBDA: bad = parse_num("--lambda-scale", optarg, 0, 1e6, 0, &v); eo.lambda_scale = v; break;
         case O_SAMPLE: bad = parse_num("--sample", optarg, 0, 1e12, 1, &v); eo.sample = (size_t)v; break;
         case 't': bad = parse_num("--threads", optarg, 1, 4096, 1, &v); eo.gp.threads = (int)v; break;
@@ -267,6 +349,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     uint8_t *mask = NULL;
     frep_cloud *sub = NULL;
     char note[256] = "";
+    trace_buf trace = { NULL, 0, 0, 0 };
     frep_cloud *cloud = cloud_read(cloud_path, &err);
     if (!cloud) {
         fprintf(stderr, "frep evolve: %s\n", err ? err : "cannot read the cloud");
@@ -384,7 +467,25 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         goto done;
     }
 
-    progress_ctx pc = { isatty(2), quiet, -1 };
+    progress_ctx pc;
+    memset(&pc, 0, sizeof pc);
+    pc.tty = isatty(2);
+    pc.quiet = quiet;
+    pc.last = -1;
+    pc.stop_share = stop_share;
+    if (stop_share > 0) eo.gp.report = &pc.report;
+    if (trace_path) {
+        pc.trace = &trace;
+        eo.gp.report = &pc.report;
+        trace_add(&trace, "# frep evolve trace, seed %llu\n", (unsigned long long)eo.gp.seed);
+        trace_add(&trace, "# columns: generation, wall and CPU (process) seconds since the "
+                          "start of the run, best fitness, tree size,\n");
+        trace_add(&trace, "# %% of the scored points the best tree explains, phase (ga: the "
+                          "GA; merge: merging clique trees;\n");
+        trace_add(&trace, "# polish: the GA seeded with the merged tree)\n");
+    }
+    pc.t0 = gp_now();
+    pc.c0 = clock();
     void (*old)(int) = signal(SIGINT, on_sigint);
     int r = evolve_run(&eo, cloud, prims, nprims, progress, &pc, &res, &err);
     signal(SIGINT, old == SIG_ERR ? SIG_DFL : old);
@@ -395,6 +496,13 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     }
     if (evolve_interrupted && !quiet)
         fprintf(stderr, "frep evolve: interrupted: writing the best tree so far\n");
+    if (res.alpha_auto && !quiet)
+        fprintf(stderr, "frep evolve: alpha %g degrees (automatic: %s; position spread %.3g eps, "
+                        "median normal deviation %.2g degrees over %zu inliers; --alpha overrides)\n",
+                res.alpha * 180 / 3.14159265358979323846,
+                res.alpha * 180 / 3.14159265358979323846 > EVOLVE_DEFAULT_ALPHA_DEG ? "noisy or faceted"
+                                                                                  : "clean",
+                res.noise.sigma_d, res.noise.median_deg, res.noise.inliers);
     if (refit && !evolve_interrupted) {
         evolve_refit_info ri;
         if (evolve_refit(&eo, cloud, prims, nprims, residual_path ? &base : NULL, &res, &ri,
@@ -416,6 +524,14 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     write_ctx w = { &res, prims, nprims, &meta };
     if (cli_write_atomic(out, write_model_cb, &w)) goto done;
     if (dot && cli_write_atomic(dot, write_dot_cb, &w)) goto done;
+    if (trace_path) {
+        double pe = res.npoints ? 100.0 * (double)res.stats.explained / (double)res.npoints : 0;
+        trace_add(&trace, "# end: %.4f s wall, %.4f s CPU, %u nodes, %.3f%% of %zu points "
+                          "explained (every point, after simplification)%s\n",
+                  gp_now() - pc.t0, (double)(clock() - pc.c0) / CLOCKS_PER_SEC, res.tree.len, pe,
+                  res.npoints, trace.failed ? "; out of memory: lines missing" : "");
+        if (cli_write_atomic(trace_path, write_trace_cb, &trace)) goto done;
+    }
     if (!quiet) {
         double pe = res.npoints ? 100.0 * (double)res.stats.explained / (double)res.npoints : 0;
         fprintf(stderr,
@@ -431,6 +547,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     }
     rc = CLI_OK;
 done:
+    free(trace.s);
     if (have_seg) segment_result_free(&seg);
     else free(prims);
     evolve_result_free(&res);

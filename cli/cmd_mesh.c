@@ -35,11 +35,13 @@ static const char mesh_usage[] =
     "      --ascii         text STL / text PLY\n"
     "      --setops S      override the file's set operations: rfunc, minmax\n"
     "  -t, --threads N     OpenMP threads (default: all cores); the mesh is the same\n"
-    "      --check         verify the mesh (closed, 2-manifold, oriented, no degenerate\n"
-    "                      triangles), print the counts and the enclosed volume; fail if not\n"
+    "      --check         verify the mesh (closed, 2-manifold at edges and vertices,\n"
+    "                      oriented, no degenerate triangles), print the counts and the\n"
+    "                      enclosed volume; fail if not\n"
     "  -q, --quiet         no summary line\n"
     "  -v, --verbose       also print the work done: octree nodes (interval tests),\n"
-    "                      blocks, points evaluated, gradients evaluated\n";
+    "                      blocks, points evaluated, gradients evaluated, cells with\n"
+    "                      several sheets, vertices added on faces a sheet crosses twice\n";
 
 void mesh_cli_init(mesh_cli *c)
 {
@@ -292,8 +294,9 @@ int cmd_mesh(int argc, char **argv)
         if (rc == CLI_OK && verbose) {
             FILE *sf = strcmp(out, "-") == 0 ? stderr : stdout;
             fprintf(sf, "work: %zu octree nodes, %zu of %zu blocks, %zu points evaluated, %zu "
-                        "gradients, %zu cells with several components\n", st.octree_nodes,
-                    st.blocks, st.blocks_total, st.eval_points, st.grad_points, st.cells_split);
+                        "gradients, %zu cells with several components, %zu face vertices\n",
+                    st.octree_nodes, st.blocks, st.blocks_total, st.eval_points, st.grad_points,
+                    st.cells_split, st.face_vertices);
         }
         if (rc == CLI_OK && check) {
             mesh_check mk;
@@ -303,11 +306,14 @@ int cmd_mesh(int argc, char **argv)
             } else {
                 FILE *sf = strcmp(out, "-") == 0 ? stderr : stdout;
                 fprintf(sf, "check: open edges %zu, non-manifold edges %zu, flipped edges %zu, "
-                            "degenerate triangles %zu, non-finite coordinates %zu, volume %.9g, "
-                            "area %.9g\n", mk.open_edges, mk.nonmanifold_edges, mk.flipped_edges,
-                        mk.degenerate, mk.nonfinite, mk.volume, mk.area);
-                if (mk.open_edges || mk.nonmanifold_edges || mk.flipped_edges || mk.degenerate ||
-                    mk.nonfinite || !(mk.volume > 0))
+                            "non-manifold vertices %zu, unused vertices %zu, degenerate "
+                            "triangles %zu, non-finite coordinates %zu, volume %.9g, area %.9g\n",
+                        mk.open_edges, mk.nonmanifold_edges, mk.flipped_edges,
+                        mk.nonmanifold_verts, mk.unused_verts, mk.degenerate, mk.nonfinite,
+                        mk.volume, mk.area);
+                if (mk.open_edges || mk.nonmanifold_edges || mk.flipped_edges ||
+                    mk.nonmanifold_verts || mk.unused_verts || mk.degenerate || mk.nonfinite ||
+                    !(mk.volume > 0))
                     rc = CLI_FAIL;
             }
         }

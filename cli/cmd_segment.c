@@ -40,6 +40,8 @@ static const char segment_usage[] =
     "      --normal-threshold T  largest normal deviation of an inlier, degrees (25)\n"
     "      --min-points M        smallest support of a primitive (default 1% of the points,\n"
     "                            at least 10)\n"
+    "      --min-points-small M  then tight shapes down to M points (default 0.25% of the\n"
+    "                            points, at least 10; 0: no second phase)\n"
     "      --probability P       confidence of not having missed a better shape (0.99)\n"
     "      --knn K               neighbours for normal estimation (12)\n"
     "      --no-separating       do not add separating primitives\n"
@@ -196,7 +198,7 @@ static void print_params(const prim *q, double diag)
 
 int cmd_segment(int argc, char **argv)
 {
-    enum { O_LABELS = 256, O_TYPES, O_EPS, O_CLUSTER, O_NORMAL, O_MINPTS, O_PROB, O_SEED,
+    enum { O_LABELS = 256, O_TYPES, O_EPS, O_CLUSTER, O_NORMAL, O_MINPTS, O_MINSMALL, O_PROB, O_SEED,
            O_KNN, O_NOSEP };
     static const struct option longopts[] = {
         { "help", no_argument, NULL, 'h' },
@@ -207,6 +209,7 @@ int cmd_segment(int argc, char **argv)
         { "cluster", required_argument, NULL, O_CLUSTER },
         { "normal-threshold", required_argument, NULL, O_NORMAL },
         { "min-points", required_argument, NULL, O_MINPTS },
+        { "min-points-small", required_argument, NULL, O_MINSMALL },
         { "probability", required_argument, NULL, O_PROB },
         { "seed", required_argument, NULL, O_SEED },
         { "knn", required_argument, NULL, O_KNN },
@@ -241,6 +244,10 @@ int cmd_segment(int argc, char **argv)
         case O_MINPTS:
             if (parse_double("--min-points", optarg, &v, 3, 4e9)) return CLI_USAGE;
             cfg.min_points = (size_t)v;
+            break;
+        case O_MINSMALL:
+            if (parse_double("--min-points-small", optarg, &v, 0, 4e9)) return CLI_USAGE;
+            cfg.min_points_small = v < 1 ? SEGMENT_NO_SMALL : (size_t)(v < 3 ? 3 : v);
             break;
         case O_PROB:
             if (parse_double("--probability", optarg, &cfg.probability, 0.01, 0.999999)) return CLI_USAGE;
@@ -310,10 +317,10 @@ int cmd_segment(int argc, char **argv)
         hl += snprintf(header + hl, sizeof header - (size_t)hl, " %s", argv[i]);
     snprintf(header + hl, sizeof header - (size_t)hl,
              "\nseed %llu, epsilon %.6g, cluster %.6g, normal threshold %g deg, "
-             "min points %zu, probability %g\n%zu points, %zu fitted primitives, %zu separating, "
+             "min points %zu (small %zu), probability %g\n%zu points, %zu fitted primitives, %zu separating, "
              "%zu unassigned points",
              (unsigned long long)cfg.seed, r.epsilon, r.cluster, r.normal_deg, r.min_points,
-             r.probability, c->n, r.nfitted, r.nprims - r.nfitted, r.unassigned);
+             r.min_points_small, r.probability, c->n, r.nfitted, r.nprims - r.nfitted, r.unassigned);
 
     if (!quiet) {
         printf("frep segment: %s: %zu points, normals %s, seed %llu\n", in, c->n,
@@ -321,8 +328,9 @@ int cmd_segment(int argc, char **argv)
                                                   : "estimated")
                                    : "from the file",
                (unsigned long long)cfg.seed);
-        printf("  epsilon %.6g, cluster %.6g, normal threshold %g deg, min points %zu, "
-               "probability %g\n", r.epsilon, r.cluster, r.normal_deg, r.min_points, r.probability);
+        printf("  epsilon %.6g, cluster %.6g, normal threshold %g deg, min points %zu (small %zu), "
+               "probability %g\n", r.epsilon, r.cluster, r.normal_deg, r.min_points,
+               r.min_points_small, r.probability);
         printf("  %-5s %-9s %9s %10s  %s\n", "name", "type", "support", "rms", "parameters");
         for (size_t j = 0; j < r.nprims; j++) {
             const prim *q = &r.prims[j];

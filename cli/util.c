@@ -169,8 +169,9 @@ int cli_parse_box(const char *s, double box[6])
     if (!ok) return -1;
     for (int i = 0; i < 3; i++) {
         if (!(box[i] < box[i + 3])) {
-            fprintf(stderr, "frep: -b: empty box along %c: [%g, %g]\n", "xyz"[i], box[i],
-                    box[i + 3]);
+            /* + 0.0 prints -b 0's lower bound -0 as 0 */
+            fprintf(stderr, "frep: -b: the box has no extent along %c: [%g, %g]\n", "xyz"[i],
+                    box[i] + 0.0, box[i + 3] + 0.0);
             return -1;
         }
     }

@@ -24,6 +24,7 @@ void evolve_options_init(evolve_options *o)
     o->sample = EVOLVE_DEFAULT_SAMPLE;
     o->eps_rel = EVOLVE_DEFAULT_EPS_REL;
     o->alpha_deg = EVOLVE_DEFAULT_ALPHA_DEG;
+    o->alpha_auto = 1;
     o->lambda_scale = 1.0;
     o->simplify = 1;
     o->polish = 1;
@@ -348,7 +349,9 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
         goto out;
     }
     res->eps_d = (o->eps_rel > 0 ? o->eps_rel : EVOLVE_DEFAULT_EPS_REL) * res->diag;
-    res->alpha = (o->alpha_deg > 0 ? o->alpha_deg : EVOLVE_DEFAULT_ALPHA_DEG) * EV_PI / 180;
+    res->alpha = (o->alpha_deg > 0 && !(o->alpha_auto && !residual) ? o->alpha_deg
+                                                                    : EVOLVE_DEFAULT_ALPHA_DEG) *
+                 EV_PI / 180;
     /* Clipping box: the principal-axes box, or the axis-aligned one when smaller (PCA
      * axes are arbitrary for symmetric shapes such as a cube). */
     part_obb_of_points(cloud->x, cloud->y, cloud->z, valid, nv, &res->obb);
@@ -396,6 +399,19 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
                          nrm, NULL, NULL, samp, m, o->gp.setops, res->eps_d, res->alpha,
                          ls * log((double)(m > 1 ? m : 2)));
         if (!sc) goto oom;
+        /* Automatic alpha: 35 degrees when the sample is noisy or faceted against the
+         * primitives (evolve.h). With --residual the pool was chosen with alpha_deg
+         * already, so it stays. */
+        if (o->alpha_auto && !residual) {
+            if (gp_cache_noise(sc, &res->noise)) goto oom;
+            res->alpha_auto = 1;
+            if (res->noise.sigma_d > EVOLVE_NOISY_SIGMA ||
+                res->noise.median_deg > EVOLVE_NOISY_DEG ||
+                res->noise.p90_deg > EVOLVE_FACETED_P90_DEG) {
+                res->alpha = EVOLVE_NOISY_ALPHA_DEG * EV_PI / 180;
+                if (gp_cache_set_alpha(sc, res->alpha)) goto oom;
+            }
+        }
     }
 
     if (evolve_tree) {

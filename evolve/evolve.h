@@ -21,6 +21,17 @@
 /* Defaults of the options that are not the GA's. */
 #define EVOLVE_DEFAULT_EPS_REL 0.01     /* eps_d: 1% of the bounding-box diagonal (paper) */
 #define EVOLVE_DEFAULT_ALPHA_DEG 10.0   /* normal tolerance; the paper uses 35 for noisy data */
+/* Automatic alpha (doc/evolve.md, "Automatic alpha"): the paper's 35 degrees when the
+ * cloud is noisy or faceted against the primitives, else 10. Noisy: the inliers'
+ * robust position spread exceeds EVOLVE_NOISY_SIGMA x eps_d, or their median normal
+ * deviation exceeds EVOLVE_NOISY_DEG (gp_cache_noise). */
+#define EVOLVE_NOISY_ALPHA_DEG 35.0
+#define EVOLVE_NOISY_SIGMA 0.05
+#define EVOLVE_NOISY_DEG 2.0
+/* ... or when a tenth of them deviate by more than this (facetted curved surfaces
+ * beside exact planes: InverseCSG's mount, 12-facet rails, p90 15 degrees, median 0;
+ * its cuboid stacks: p90 0). */
+#define EVOLVE_FACETED_P90_DEG 8.0
 /* Points the GA scores at most: a uniform random subset keeps every surface patch
  * represented while each generation stays cheap; the final statistics and the
  * simplification use every point. */
@@ -36,7 +47,8 @@ typedef struct evolve_options {
     int partition;           /* 1: partition acceleration (falls back when useless) */
     size_t sample;           /* 0: all points */
     double eps_rel;
-    double alpha_deg;
+    double alpha_deg;        /* used when alpha_auto is 0 (and for --residual runs) */
+    int alpha_auto;          /* 1 (default): alpha from the cloud's noise, see above */
     double lambda_scale;     /* lambda = lambda_scale * ln(N) per node */
     int simplify;            /* 1: simplify the result */
     int polish;              /* 1: after a partitioned run, a GA over all primitives
@@ -58,6 +70,8 @@ typedef struct evolve_result {
     size_t dropped;          /* points with NaN/inf coordinates or no usable normal */
     size_t nsample;          /* points scored by the GA */
     double diag, eps_d, alpha;
+    int alpha_auto;          /* 1: alpha was chosen from noise (below) */
+    gp_noise noise;          /* the estimate behind it (valid when alpha_auto) */
     uint32_t generations;
     gp_stop stop;
     int partitioned;

@@ -21,7 +21,11 @@ struct gp_eval {
     double *sg;          /* sg[(3k + c)*GP_FIT_BLOCK + i]: gradient (R-functions) */
     float *sf;           /* sf[k*GP_FIT_BLOCK + i]: value of stack entry k (min/max) */
     uint32_t *si;        /* si[k*GP_FIT_BLOCK + i]: 2*prim + complemented (min/max) */
+    uint64_t *sb;        /* sb[(4k + r)*GP_FIT_WORDS + w]: the four threshold bits of
+                            stack entry k (rows r as in gp_cache.side) */
 };
+
+_Static_assert(GP_FIT_BLOCK % 64 == 0, "blocks are whole words of the crossing masks");
 
 gp_eval *gp_eval_new(void)
 {
@@ -35,6 +39,7 @@ void gp_eval_free(gp_eval *e)
     free(e->sg);
     free(e->si);
     free(e->sf);
+    free(e->sb);
     free(e);
 }
 
@@ -47,17 +52,21 @@ static int eval_reserve(gp_eval *e, uint32_t need)
     double *sg = malloc((size_t)cap * 3 * GP_FIT_BLOCK * sizeof *sg);
     uint32_t *si = malloc((size_t)cap * GP_FIT_BLOCK * sizeof *si);
     float *sf = malloc((size_t)cap * GP_FIT_BLOCK * sizeof *sf);
-    if (!sv || !sg || !si || !sf) {
+    uint64_t *sb = malloc((size_t)cap * 4 * GP_FIT_WORDS * sizeof *sb);
+    if (!sv || !sg || !si || !sf || !sb) {
         free(sv);
         free(sg);
         free(si);
         free(sf);
+        free(sb);
         return -1;
     }
     free(e->sv);
     free(e->sg);
     free(e->si);
     free(e->sf);
+    free(e->sb);
+    e->sb = sb;
     e->sf = sf;
     e->sv = sv;
     e->sg = sg;
@@ -103,14 +112,39 @@ static double point_term(const gp_cache *c, double f, double gx, double gy, doub
 
 /* ---- caches ---------------------------------------------------------------- */
 
-static int build_scores(gp_cache *c)
+/* Threshold bits of every primitive at x +- h n (first order: v +- h g.n, exact for
+ * planes; for curved primitives their tangent planes, which is what a crossing within
+ * h means at the scale of eps_d). */
+static int build_sides(gp_cache *c)
 {
-    if (c->setops != GP_SETOPS_MINMAX) return 0;
+    size_t n = c->n, nw = (n + 63) / 64;
+    c->nw = nw;
+    c->side = calloc((size_t)4 * c->nprims * (nw ? nw : 1), sizeof *c->side);
+    if (!c->side) return -1;
+    double h = GP_CROSS_H * c->eps_d, tol = GP_CROSS_TOL * c->eps_d;
+    for (size_t j = 0; j < c->nprims; j++) {
+        const double *v = c->v + j * n;
+        const double *g = c->g + 3 * j * n;
+        uint64_t *row = c->side + 4 * j * nw;
+        for (size_t i = 0; i < n; i++) {
+            const double *q = c->nrm + 3 * i;
+            double gn = g[i] * q[0] + g[n + i] * q[1] + g[2 * n + i] * q[2];
+            double vo = v[i] + h * gn, vi = v[i] - h * gn;
+            uint64_t bit = (uint64_t)1 << (i & 63);
+            size_t w = i >> 6;
+            if (vo > tol) row[w] |= bit;
+            if (vo > -tol) row[nw + w] |= bit;
+            if (vi > tol) row[2 * nw + w] |= bit;
+            if (vi > -tol) row[3 * nw + w] |= bit;
+        }
+    }
+    return 0;
+}
+
+/* The score tables of a min/max cache (they depend on eps_d and alpha). */
+static void fill_scores(gp_cache *c)
+{
     size_t n = c->n;
-    c->score = malloc((size_t)2 * c->nprims * (n ? n : 1) * sizeof *c->score);
-    c->vf = malloc((size_t)c->nprims * (n ? n : 1) * sizeof *c->vf);
-    if (!c->score || !c->vf) return -1;
-    for (size_t k = 0; k < (size_t)c->nprims * n; k++) c->vf[k] = (float)c->v[k];
     long np = (long)c->nprims;
 #pragma omp parallel for schedule(static)
     for (long jl = 0; jl < np; jl++) {
@@ -125,6 +159,76 @@ static int build_scores(gp_cache *c)
             s1[i] = (float)point_term(c, -v[i], -gx, -gy, -gz, c->nrm + 3 * i, &w, &k);
         }
     }
+}
+
+static int build_scores(gp_cache *c)
+{
+    if (c->setops != GP_SETOPS_MINMAX) return 0;
+    size_t n = c->n;
+    c->score = malloc((size_t)2 * c->nprims * (n ? n : 1) * sizeof *c->score);
+    c->vf = malloc((size_t)c->nprims * (n ? n : 1) * sizeof *c->vf);
+    if (!c->score || !c->vf) return -1;
+    for (size_t k = 0; k < (size_t)c->nprims * n; k++) c->vf[k] = (float)c->v[k];
+    fill_scores(c);
+    return 0;
+}
+
+int gp_cache_set_alpha(gp_cache *c, double alpha)
+{
+    c->alpha = alpha;
+    if (c->setops == GP_SETOPS_MINMAX) fill_scores(c);
+    return 0;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+int gp_cache_noise(const gp_cache *c, gp_noise *out)
+{
+    memset(out, 0, sizeof *out);
+    size_t n = c->n;
+    double *dist = malloc((n ? n : 1) * sizeof *dist), *ang = malloc((n ? n : 1) * sizeof *ang);
+    if (!dist || !ang) {
+        free(dist);
+        free(ang);
+        return -1;
+    }
+    double cmax = cos(GP_NOISE_MAX_DEG * 3.14159265358979323846 / 180);
+    size_t k = 0;
+    for (size_t i = 0; i < n; i++) {
+        const double *q = c->nrm + 3 * i;
+        double best = HUGE_VAL, bcos = 1;
+        for (size_t j = 0; j < c->nprims; j++) {
+            double f = fabs(c->v[j * n + i]);
+            if (!(f < c->eps_d) || f >= best) continue;
+            const double *g = c->g + 3 * j * n;
+            double gx = g[i], gy = g[n + i], gz = g[2 * n + i];
+            double gl = sqrt(gx * gx + gy * gy + gz * gz);
+            if (!(gl > 0)) continue;
+            /* Either orientation: the wall of a hole is a complemented primitive. */
+            double cs = fabs(gx * q[0] + gy * q[1] + gz * q[2]) / gl;
+            if (cs < cmax) continue;
+            best = f;
+            bcos = cs > 1 ? 1 : cs;
+        }
+        if (best < HUGE_VAL) {
+            dist[k] = best;
+            ang[k++] = acos(bcos) * 180 / 3.14159265358979323846;
+        }
+    }
+    out->inliers = k;
+    if (k) {
+        qsort(dist, k, sizeof *dist, cmp_double);
+        qsort(ang, k, sizeof *ang, cmp_double);
+        out->sigma_d = 1.4826 * dist[k / 2] / c->eps_d;
+        out->median_deg = ang[k / 2];
+        out->p90_deg = ang[(k - 1) * 9 / 10];
+    }
+    free(dist);
+    free(ang);
     return 0;
 }
 
@@ -143,6 +247,7 @@ gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double
     c->v = v;
     c->g = g;
     c->eps_d = eps_d;
+    c->crossing = 1;
     c->alpha = alpha;
     c->lambda = lambda >= 0 ? lambda : (n > 1 ? log((double)n) : 0.0);
     c->nrm = malloc(3 * (n ? n : 1) * sizeof *c->nrm);
@@ -155,7 +260,7 @@ gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double
         double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
         for (int k = 0; k < 3; k++) c->nrm[3 * i + k] = l > 0 ? q[k] / l : 0.0;
     }
-    if (build_scores(c)) {
+    if (build_scores(c) || build_sides(c)) {
         gp_cache_free(c);
         return NULL;
     }
@@ -187,6 +292,7 @@ gp_cache *gp_cache_subset(const gp_cache *c, const size_t *idx, size_t m,
     for (size_t i = 0; i < m; i++)
         for (int q = 0; q < 3; q++) nrm[3 * i + q] = c->nrm[3 * idx[i] + q];
     gp_cache *s = gp_cache_new(m, k, c->setops, v, g, nrm, c->eps_d, c->alpha, lambda);
+    if (s) s->crossing = c->crossing;
     free(nrm);
     return s;
 }
@@ -199,6 +305,7 @@ void gp_cache_free(gp_cache *c)
     free(c->nrm);
     free(c->score);
     free(c->vf);
+    free(c->side);
     free(c);
 }
 
@@ -343,6 +450,79 @@ static void eval_rfunc(const gp_cache *c, gp_eval *e, const frep_insn *code, uin
     }
 }
 
+/* The crossing test of the block [i0, i0+m): ok[w] bit i set when the tree is above
+ * -tol at x_i - h n_i and not above tol at x_i + h n_i. Each stack entry carries the
+ * four threshold bits of gp_cache.side (outer hi, outer lo, inner hi, inner lo). */
+static void eval_sides(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                       size_t i0, size_t m, uint64_t ok[GP_FIT_WORDS])
+{
+    const size_t W = GP_FIT_WORDS;
+    size_t w0 = i0 >> 6, mw = (m + 63) >> 6;
+    uint64_t *sb = e->sb;
+    uint32_t sp = 0;
+    for (uint32_t pc = 0; pc < len; pc++) {
+        const frep_insn *in = &code[pc];
+        switch (in->op) {
+        case FREP_OP_PRIM: {
+            const uint64_t *row = c->side + 4 * (size_t)in->arg * c->nw + w0;
+            uint64_t *a = sb + 4 * sp * W;
+            for (size_t r = 0; r < 4; r++) {
+                memcpy(a + r * W, row + r * c->nw, mw * sizeof *sb);
+                for (size_t w = mw; w < W; w++) a[r * W + w] = 0;
+            }
+            sp++;
+            break;
+        }
+        case FREP_OP_NEG: {
+            /* -a > t iff not a >= -t: hi and lo swap and flip (ties have measure 0). */
+            uint64_t *a = sb + 4 * (sp - 1) * W;
+            for (size_t o = 0; o < 4; o += 2)
+                for (size_t w = 0; w < W; w++) {
+                    uint64_t hi = a[o * W + w], lo = a[(o + 1) * W + w];
+                    a[o * W + w] = ~lo;
+                    a[(o + 1) * W + w] = ~hi;
+                }
+            break;
+        }
+        case FREP_OP_MAX:
+        case FREP_OP_RUNI:
+        case FREP_OP_MIN:
+        case FREP_OP_RINT:
+        case FREP_OP_MSUB:
+        case FREP_OP_RSUB: {
+            sp--;
+            uint64_t *restrict a = sb + 4 * (sp - 1) * W;
+            const uint64_t *restrict b = sb + 4 * sp * W;
+            if (in->op == FREP_OP_MAX || in->op == FREP_OP_RUNI) {
+                for (size_t w = 0; w < 4 * W; w++) a[w] |= b[w];
+            } else if (in->op == FREP_OP_MIN || in->op == FREP_OP_RINT) {
+                for (size_t w = 0; w < 4 * W; w++) a[w] &= b[w];
+            } else {
+                /* a \ b = min(a, -b): each threshold of a with the complement of the
+                 * opposite threshold of b. */
+                for (size_t o = 0; o < 4; o += 2)
+                    for (size_t w = 0; w < W; w++) {
+                        a[o * W + w] &= ~b[(o + 1) * W + w];
+                        a[(o + 1) * W + w] &= ~b[o * W + w];
+                    }
+            }
+            break;
+        }
+        default:
+            break;
+        }
+    }
+    /* Outer point not above tol (not outer hi), inner point above -tol (inner lo). */
+    for (size_t w = 0; w < W; w++) ok[w] = ~sb[w] & sb[3 * W + w];
+}
+
+/* 1 when point i of the block passes the crossing test (which applies where
+ * |f| < eps_d; eq. 7 is unchanged elsewhere). */
+static inline int crosses(const uint64_t ok[GP_FIT_WORDS], size_t i)
+{
+    return (int)((ok[i >> 6] >> (i & 63)) & 1u);
+}
+
 /* Value and gradient at the block's points (entry 0 of the stacks). */
 static void eval_full(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                       size_t i0, size_t m)
@@ -367,19 +547,37 @@ double gp_score(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t l
     if (!len || eval_reserve(e, max_stack(code, len))) return NAN;
     double total = 0;
     const size_t B = GP_FIT_BLOCK;
+    uint64_t ok[GP_FIT_WORDS];
+    const float epsf = (float)c->eps_d;
     for (size_t i0 = 0; i0 < c->n; i0 += B) {
         size_t m = c->n - i0 < B ? c->n - i0 : B;
         double part = 0;
+        if (c->crossing) eval_sides(c, e, code, len, i0, m, ok);
+        else memset(ok, 0xff, sizeof ok);
         if (c->setops == GP_SETOPS_MINMAX) {
             eval_minmax(c, e, code, len, i0, m);
-            for (size_t i = 0; i < m; i++)
-                part += (double)c->score[(size_t)e->si[i] * c->n + i0 + i];
+            const float *sc = c->score + i0;
+            uint64_t all = ~(uint64_t)0;
+            for (size_t w = 0; w < (m >> 6); w++) all &= ok[w];
+            if (m & 63) all &= ok[m >> 6] | (~(uint64_t)0 << (m & 63));
+            if (all == ~(uint64_t)0) {
+                /* Every point passes (the common case for good trees). */
+                for (size_t i = 0; i < m; i++) part += (double)sc[(size_t)e->si[i] * c->n + i];
+            } else {
+                for (size_t i = 0; i < m; i++) {
+                    float s = sc[(size_t)e->si[i] * c->n + i];
+                    int keep = crosses(ok, i) | !(fabsf(e->sf[i]) < epsf);
+                    part += keep ? (double)s : 0.0;
+                }
+            }
         } else {
             eval_rfunc(c, e, code, len, i0, m);
             for (size_t i = 0; i < m; i++) {
                 int w, k;
-                part += point_term(c, e->sv[i], e->sg[i], e->sg[B + i], e->sg[2 * B + i],
-                                   c->nrm + 3 * (i0 + i), &w, &k);
+                double s = point_term(c, e->sv[i], e->sg[i], e->sg[B + i], e->sg[2 * B + i],
+                                      c->nrm + 3 * (i0 + i), &w, &k);
+                if (!crosses(ok, i) && w) s = 0;
+                part += s;
             }
         }
         total += part;
@@ -399,14 +597,23 @@ static int per_point(const gp_cache *c, gp_eval *e, const frep_insn *code, uint3
     gp_stats s;
     memset(&s, 0, sizeof s);
     const size_t B = GP_FIT_BLOCK;
+    uint64_t okw[GP_FIT_WORDS];
     for (size_t i0 = 0; i0 < c->n; i0 += B) {
         size_t m = c->n - i0 < B ? c->n - i0 : B;
+        if (c->crossing) eval_sides(c, e, code, len, i0, m, okw);
+        else memset(okw, 0xff, sizeof okw);
         eval_full(c, e, code, len, i0, m);
         double part = 0;
         for (size_t i = 0; i < m; i++) {
             int w, k;
-            part += point_term(c, e->sv[i], e->sg[i], e->sg[B + i], e->sg[2 * B + i],
-                               c->nrm + 3 * (i0 + i), &w, &k);
+            double t = point_term(c, e->sv[i], e->sg[i], e->sg[B + i], e->sg[2 * B + i],
+                                  c->nrm + 3 * (i0 + i), &w, &k);
+            if (!crosses(okw, i) && w) {
+                /* On a sheet: no score, not within epsilon of a boundary. */
+                t = 0;
+                w = 0;
+            }
+            part += t;
             s.within_eps += (size_t)w;
             s.normals_ok += (size_t)k;
             s.explained += (size_t)(w && k);

@@ -16,6 +16,17 @@
 /* Points scored per block: the evaluation stack (value, gradient, active primitive)
  * of a deep tree stays in the L2 cache. */
 #define GP_FIT_BLOCK 256
+/* The crossing test (doc/evolve.md, "Fitness"): a point with |f| < eps_d counts only
+ * when f(x - h n) > -tol and f(x + h n) < tol, h = GP_CROSS_H x eps_d, tol =
+ * GP_CROSS_TOL x eps_d. With h = eps_d a correct boundary anywhere in that band passes
+ * (the offsets reach the other side); the tolerance lets pass points that noise put
+ * just beyond a neighbouring face at an edge, and walls or gaps thicker than h - tol.
+ * A sheet (|f| = h |g.n| at both offsets) fails while the normal is within 60 degrees
+ * of its gradient. */
+#define GP_CROSS_H 1.0
+#define GP_CROSS_TOL 0.5
+/* 64-bit words of one block's bit masks (the crossing test). */
+#define GP_FIT_WORDS (GP_FIT_BLOCK / 64)
 
 /* Score tables, caches: immutable once built, shared by all threads. */
 typedef struct gp_cache {
@@ -32,12 +43,27 @@ typedef struct gp_cache {
     float *score;
     float *vf;           /* v in single precision for the min/max comparisons (half the
                             memory traffic); valid when setops == GP_SETOPS_MINMAX */
+    /* The crossing test (above): a point on the tree's zero set counts only when the
+     * field changes sign across it along the point's normal, so a zero-thickness sheet
+     * (max(p, -p) = |p|, whose zero set is a plane but which is inside on both sides)
+     * explains nothing. side[(4*j + r)*nw + i/64], bit i%64, for the first-order value
+     * q = v + s h g.n of primitive j at point i: r = 0: q > tol at the outer point
+     * (s = 1); r = 1: q > -tol there; r = 2, 3: the same at the inner point (s = -1).
+     * Whether a min/max tree exceeds a threshold is a Boolean function of whether its
+     * leaves exceed it or its negative (max(a, b) > t iff a > t or b > t; -a > t iff
+     * not a >= -t), so each offset is a few word operations per node and 64 points. R0
+     * functions lie beyond min/max (union >= max, intersection <= min) and use the
+     * same logic. */
+    uint64_t *side;
+    size_t nw;           /* words per row of side: ceil(n / 64) */
+    int crossing;        /* 1 (default): apply the crossing test; 0: plain eq. 7 */
     double eps_d;        /* distance tolerance (0.01 x bounding-box diagonal) */
     double alpha;        /* angle tolerance, radians */
     double lambda;       /* size penalty per node */
 } gp_cache;
 
-/* Build a cache from primitive values/gradients computed by the caller:
+/* Build a cache from primitive values/gradients computed by the caller (crossing test
+ * on):
  * v[j*n+i], g[(3j+c)*n+i] (the cache takes ownership of both malloc'ed arrays, also on
  * failure), normals nrm[3i+c] (copied; normalised here). lambda < 0: ln(n).
  * Returns NULL on allocation failure. */
@@ -48,13 +74,38 @@ gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double
 gp_cache *gp_cache_subset(const gp_cache *c, const size_t *idx, size_t m,
                           const uint32_t *prims, uint32_t k, double lambda);
 void gp_cache_free(gp_cache *c);
+/* Change the angle tolerance (radians): the score tables are rebuilt. 0 or -1. */
+int gp_cache_set_alpha(gp_cache *c, double alpha);
+
+/* Normals further than this from a primitive's are not its inliers in the noise
+ * estimate: beyond it a point belongs to another surface (an edge, a distractor), not
+ * to this one with a noisy normal. */
+#define GP_NOISE_MAX_DEG 45.0
+
+/* How noisy the cloud is against the primitives (the automatic alpha of evolve.c):
+ * each point's inlier primitive is the one with the smallest |f| among those with
+ * |f| < eps_d and the normal within GP_NOISE_MAX_DEG of its own. */
+typedef struct gp_noise {
+    size_t inliers;      /* points with an inlier primitive */
+    double sigma_d;      /* 1.4826 x median |f| of the inliers / eps_d: a robust standard
+                            deviation of the positions against the surfaces */
+    double p90_deg;      /* 90th percentile of those angles: a coarsely facetted part
+                            (a tenth of the points on cylinders of 12 facets) shows
+                            here while planes hold the median at 0 */
+    double median_deg;   /* median angle between the inliers' normals and the
+                            primitives' (degrees) */
+} gp_noise;
+/* Returns 0, or -1 on allocation failure. */
+int gp_cache_noise(const gp_cache *c, gp_noise *out);
 
 /* Per-thread evaluation state. */
 typedef struct gp_eval gp_eval;
 gp_eval *gp_eval_new(void);
 void gp_eval_free(gp_eval *e);
 
-/* Raw score sum_i exp(-d_i^2) + exp(-theta_i^2) of a tree (no size penalty). NaN on
+/* Raw score sum_i exp(-d_i^2) + exp(-theta_i^2) of a tree (no size penalty), where a
+ * point with |f| < eps_d across which the field does not change sign (crossing test)
+ * scores 0. NaN on
  * allocation failure. Deterministic: the same tree gives the same bits on any thread. */
 double gp_score(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len);
 /* Fitness (eq. 7): score - lambda * len. */
@@ -63,7 +114,8 @@ double gp_fitness(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t
 /* How well a tree explains the points. */
 typedef struct gp_stats {
     double score, fitness;
-    size_t within_eps;   /* points with |f| < eps_d */
+    size_t within_eps;   /* points with |f| < eps_d, except those failing the crossing
+                            test (on a sheet, not a boundary) */
     size_t normals_ok;   /* points whose normal is within alpha of -grad f */
     size_t explained;    /* both */
 } gp_stats;

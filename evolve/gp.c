@@ -205,6 +205,7 @@ int gp_run(const gp_config *cfg, const gp_cache *c, const gp_tree *seeds, uint32
 
     double best_fit = -HUGE_VAL;
     uint32_t since = 0, gen = 0;
+    size_t best_expl = 0;
     res->stop = GP_STOP_GENERATIONS;
     for (gen = 0;; gen++) {
         if (score_population(c, pop, P, memo, ev, nthreads)) goto out;
@@ -213,6 +214,9 @@ int gp_run(const gp_config *cfg, const gp_cache *c, const gp_tree *seeds, uint32
         if (b->fitness > best_fit) {
             best_fit = b->fitness;
             since = 0;
+            gp_stats st;
+            if (fn && cfg->report && gp_tree_stats(c, ev[0], b->t.code, b->t.len, &st) == 0)
+                best_expl = st.explained;
         } else {
             since++;
         }
@@ -222,6 +226,10 @@ int gp_run(const gp_config *cfg, const gp_cache *c, const gp_tree *seeds, uint32
         double el = gp_now() - t0;
         if (fn) {
             gp_progress pr = { gen + 1, b->fitness, b->t.len, el };
+            if (cfg->report) {
+                cfg->report->explained = best_expl;
+                cfg->report->npoints = c->n;
+            }
             if (fn(user, &pr)) { res->stop = GP_STOP_USER; break; }
         }
         if (gen + 1 >= cfg->generations) { res->stop = GP_STOP_GENERATIONS; break; }

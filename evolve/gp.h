@@ -30,6 +30,8 @@
  * its parents) is not scored again. */
 #define GP_MEMO_BITS 14
 
+struct gp_report;
+
 typedef struct gp_config {
     uint32_t population;
     int max_depth;          /* 0: gp_default_depth(nprims) */
@@ -44,6 +46,10 @@ typedef struct gp_config {
     int threads;            /* <= 0: OpenMP's default */
     double max_time;        /* seconds; <= 0: no limit */
     gp_setops setops;
+    /* NULL, or where gp_run stores, before each progress callback, how well the best
+     * tree explains the scored points (recomputed when the best fitness changes; only
+     * runs with a callback report, so the clique GAs of partition.c never do). */
+    struct gp_report *report;
 } gp_config;
 
 void gp_config_init(gp_config *c);
@@ -55,6 +61,12 @@ typedef struct gp_progress {
     uint32_t best_len;
     double elapsed;         /* seconds since gp_run started */
 } gp_progress;
+
+/* What gp_run reports besides gp_progress (for --trace): the points of the scored set
+ * the best tree explains (gp_tree_stats), out of npoints. */
+typedef struct gp_report {
+    size_t explained, npoints;
+} gp_report;
 
 /* Called after each generation; a nonzero return stops the run (Ctrl-C). */
 typedef int (*gp_progress_fn)(void *user, const gp_progress *p);

@@ -1323,6 +1323,153 @@ static double rms_of(const prim *q, const frep_cloud *c, const uint32_t *idx, si
     return n ? sqrt(s / (double)n) : 0;
 }
 
+/* Median |f| of q over (an evenly spaced subset of at most MODE_VOTERS of) the points
+ * idx[0..n); -1 when out of memory. */
+#define MODE_VOTERS 4096
+static double median_abs(const prim *q, const frep_cloud *c, const uint32_t *idx, size_t n)
+{
+    size_t k = n < MODE_VOTERS ? n : MODE_VOTERS;
+    if (k == 0) return 0;
+    double *r = malloc(k * sizeof *r);
+    if (!r) return -1;
+    for (size_t j = 0; j < k; j++) {
+        double p[3];
+        point(c, idx[(size_t)((double)j * (double)n / (double)k)], p);
+        r[j] = fabs(prim_eval(q, p, NULL));
+    }
+    qsort(r, k, sizeof *r, cmp_abs_double);
+    double med = r[k / 2];
+    free(r);
+    return med;
+}
+
+/* Shapes across faces. A plane's band (epsilon, or wider on noisy data) and normal
+ * threshold also hold nearby faces of the same or a similar orientation: the two
+ * walls of a thin shell 2 epsilon apart (the least-squares plane then lies between
+ * them, explaining neither), a staircase of parallel faces (a tilted plane through
+ * all of them), a face and its neighbour meeting at 10-20 degrees (a plane tilted
+ * between them); and a curved shape of large radius or a flat cone can lie across
+ * two or three such faces. The face is found from the inliers' own normals and
+ * offsets: the dominant normal (the inlier normal with the most others within
+ * MODE_NORMAL_DEG), then the densest slab of offsets along it, MODE_SLAB bands wide.
+ * The plane refitted on that slab replaces q when the median distance of its inliers
+ * (at q's band) is below MODE_GAIN of q's. One face under noise gives the same plane
+ * and about the same median, so noisy data keep their fit; a mixed shape's median is
+ * of the order of the faces' spacing, a pure plane's of the noise. A curved shape is
+ * examined only when the dominant normal holds MODE_FLAT of its inliers: the facets of
+ * a facetted cylinder or sphere each hold a few percent. */
+#define MODE_NORMAL_DEG 3.0
+#define MODE_SLAB 0.5
+#define MODE_GAIN 0.5
+#define MODE_FLAT 0.5
+/* Inliers examined as centres of the dominant normal (a fixed subset bounds the
+ * quadratic count; the voters are MODE_VOTERS). */
+#define MODE_CENTRES 256
+static int cmp_mode_t(const void *a, const void *b)
+{
+    double x = ((const double *)a)[0], y = ((const double *)b)[0];
+    return (x > y) - (x < y);
+}
+
+static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned char *flag,
+                         uint32_t *inl)
+{
+    const frep_cloud *c = d->c;
+    if (m < min_pts || m < RANSAC_MIN_CLOUD || !c->has_normals ||
+        !(d->cfg->types & (1u << PRIM_PLANE)))
+        return m;
+    double med0 = median_abs(q, c, inl, m), band0 = d->band;
+    /* Exact already (clean data): nothing to separate. */
+    if (!(med0 > 1e-3 * d->cfg->epsilon)) return m;
+    double cosm = cos(MODE_NORMAL_DEG * M_PI / 180.0);
+    size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS, ncen = m < MODE_CENTRES ? m : MODE_CENTRES;
+    double *tv = malloc(2 * m * sizeof *tv);
+    uint32_t *slab = malloc(m * sizeof *slab);
+    if (!tv || !slab) {
+        free(tv);
+        free(slab);
+        return m;
+    }
+    size_t best_cnt = 0, best_j = 0;
+    for (size_t k = 0; k < ncen; k++) {
+        size_t j = (size_t)((double)k * (double)m / (double)ncen);
+        double nj[3];
+        normal(c, inl[j], nj);
+        size_t cnt = 0;
+        for (size_t v = 0; v < nv; v++) {
+            double nk[3];
+            normal(c, inl[(size_t)((double)v * (double)m / (double)nv)], nk);
+            cnt += fabs(dot(nj, nk)) >= cosm;
+        }
+        if (cnt > best_cnt) {
+            best_cnt = cnt;
+            best_j = j;
+        }
+    }
+    size_t m_out = m;
+    double nc[3], ns[3] = {0, 0, 0};
+    normal(c, inl[best_j], nc);
+    size_t nt = 0;
+    if (q->type == PRIM_PLANE || (double)best_cnt >= MODE_FLAT * (double)nv) {
+        for (size_t j = 0; j < m; j++) {
+            double nj[3];
+            normal(c, inl[j], nj);
+            double cs = dot(nj, nc);
+            if (fabs(cs) < cosm) continue;
+            for (int k = 0; k < 3; k++) ns[k] += cs < 0 ? -nj[k] : nj[k];
+            tv[2 * nt + 1] = (double)inl[j];
+            nt++;
+        }
+    }
+    if (nt >= RANSAC_MIN_CLOUD && normalize(ns) == 0) {
+        /* Offsets along the mean normal of the dominant group; densest slab. */
+        for (size_t j = 0; j < nt; j++) {
+            double x[3];
+            point(c, (size_t)tv[2 * j + 1], x);
+            tv[2 * j] = dot(ns, x);
+        }
+        qsort(tv, nt, 2 * sizeof *tv, cmp_mode_t);
+        double w = MODE_SLAB * band0;
+        size_t lo = 0, blo = 0, bhi = 0;
+        for (size_t hi = 0; hi < nt; hi++) {
+            while (tv[2 * hi] - tv[2 * lo] > w) lo++;
+            if (hi - lo > bhi - blo) {
+                blo = lo;
+                bhi = hi;
+            }
+        }
+        size_t ns_pts = 0;
+        for (size_t j = blo; j <= bhi; j++) slab[ns_pts++] = (uint32_t)tv[2 * j + 1];
+        prim alt;
+        memset(&alt, 0, sizeof alt);
+        alt.type = PRIM_PLANE;
+        memcpy(alt.p, ns, sizeof ns);
+        alt.r = tv[2 * ((blo + bhi) / 2)];
+        if (ns_pts >= 3 && ransac_refit(&alt, c, slab, ns_pts, REFIT_MAX_POINTS) == 0) {
+            /* Extracted as a fresh shape: at epsilon, then at its own measured noise
+             * (q's band may have been widened by the mixture itself). */
+            d->band = d->cfg->epsilon;
+            double nb = noise_band(d, &alt, flag);
+            if (nb > d->band * NOISE_BAND_GROWTH) d->band = nb;
+            size_t ma = support_of(d, &alt, flag, inl);
+            double meda = ma >= min_pts ? median_abs(&alt, c, inl, ma) : -1;
+            if (meda >= 0 && meda < MODE_GAIN * med0) {
+                *q = alt;
+                m_out = ma;
+                free(tv);
+                free(slab);
+                return m_out;
+            }
+        }
+    }
+    /* Keep q: its inliers back. */
+    d->band = band0;
+    m_out = support_of(d, q, flag, inl);
+    free(tv);
+    free(slab);
+    return m_out;
+}
+
 /* A primitive is redundant when at least MERGE_FRACTION of its inliers are inliers of
  * a larger one (at MERGE_BAND_SLACK times that one's band) and the two patches touch
  * in the larger one's parameter domain. That is a facetted cylinder split in two, the
@@ -1332,6 +1479,11 @@ static double rms_of(const prim *q, const frep_cloud *c, const uint32_t *idx, si
 #define MERGE_BAND_SLACK 1.5
 /* The union of the two patches must be one connected patch up to this fraction. */
 #define MERGE_CONNECTED 0.95
+/* The primitive refitted on the union may have an RMS distance of at most this many
+ * times the larger of the two parts' plus this fraction of epsilon (clean parts have
+ * RMS near 0; a facetted cylinder's halves have the chord error, and so has the union). */
+#define MERGE_RMS_GROWTH 2.0
+#define MERGE_RMS_SLACK 0.1
 
 /* Parameters of two primitives of one type closer than tol (lengths) and MERGE_DEG
  * (directions): worth trying as one. */
@@ -1415,6 +1567,13 @@ static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t 
                         hu += compatible(&q2, c, buf[j], band, d->cfg->cos_normal) != 0;
                     if ((double)hu < MERGE_FRACTION * (double)mu) continue;
                 }
+                /* The union must be about as tight as its parts: two walls of a thin
+                 * shell, 2 epsilon apart, are both within the slack band of the plane
+                 * between them, which explains neither. */
+                if (refitted && rms_of(&q2, c, buf, mu) >
+                                    MERGE_RMS_GROWTH * fmax(res->prims[pi].rms, Q->rms) +
+                                        MERGE_RMS_SLACK * d->cfg->epsilon)
+                    continue;
                 /* Touching: one patch in Q's parameter domain. */
                 size_t kept = largest_component(refitted ? &q2 : Q, c, buf, mu,
                                                 fmax(d->cfg->cluster, band));
@@ -1441,6 +1600,90 @@ static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t 
         free(start);
         free(order);
     }
+}
+
+/* Second phase of detection (ransac_config.min_points_small): once no shape of
+ * min_points is left, detection goes on down to min_points_small, for the small faces
+ * of a part (the top of a thin wall, a rounded corner). Among few points a rough
+ * shape fits leftovers as easily as a surface (strips along sharp edges on noisy
+ * data), so a small shape is kept only when the median distance of its inliers is
+ * below SMALL_TIGHT epsilon: on clean or mildly noisy data (noise under about 0.3
+ * epsilon, facetted meshes) small surfaces are found, on noisy data nothing is added. */
+#define SMALL_TIGHT 0.2
+/* ... and when the patch is at least SMALL_WIDTH epsilon wide (the width of a uniform
+ * strip with the patch's second principal variance, sqrt(12 var)): what is left along
+ * a sharp edge once both faces are extracted (where estimated normals turn from one
+ * face to the other) is a strip narrower than epsilon that a thin cylinder or torus
+ * fits tightly; the smallest faces worth finding (the top of a wall 2 epsilon thick,
+ * a step 2 epsilon high) are wider. */
+#define SMALL_WIDTH 1.5
+/* A leftover strip around a circular edge (a cone's cap) is a ring, wide by that
+ * measure, which a thin torus fits: small shapes are planes, spheres and cylinders
+ * only (what small features of parts are: faces, rounded corners and edges), of radius
+ * at least SMALL_RADIUS epsilon. */
+#define SMALL_RADIUS 2.0
+/* ... and the median angle between the inliers' normals and the shape's is at most
+ * SMALL_NORMAL_DEG: the normals of a real face agree with it (exactly on clean data,
+ * within half a facet angle on a facetted mesh), while the blended normals along an
+ * edge, which a sphere through the edge's circle fits within the normal threshold,
+ * turn across the strip. */
+#define SMALL_NORMAL_DEG 5.0
+static double median_normal_dev(const prim *q, const frep_cloud *c, const uint32_t *idx,
+                                size_t n)
+{
+    size_t k = n < MODE_VOTERS ? n : MODE_VOTERS;
+    if (k == 0) return 0;
+    double *r = malloc(k * sizeof *r);
+    if (!r) return M_PI;
+    for (size_t j = 0; j < k; j++) {
+        size_t i = idx[(size_t)((double)j * (double)n / (double)k)];
+        double p[3], g[3], nv[3];
+        point(c, i, p);
+        normal(c, i, nv);
+        prim_eval(q, p, g);
+        double gl = norm(g), cs = gl > 0 ? fabs(dot(g, nv)) / gl : 0;
+        r[j] = acos(fmin(1, cs));
+    }
+    qsort(r, k, sizeof *r, cmp_abs_double);
+    double med = r[k / 2];
+    free(r);
+    return med;
+}
+static double patch_width(const frep_cloud *c, const uint32_t *idx, size_t n)
+{
+    size_t k = n < MODE_VOTERS ? n : MODE_VOTERS;
+    if (k < 3) return 0;
+    double mean[3] = {0, 0, 0}, cov[9] = {0}, ev[3], vec[9];
+    for (size_t j = 0; j < k; j++) {
+        double p[3];
+        point(c, idx[(size_t)((double)j * (double)n / (double)k)], p);
+        for (int a = 0; a < 3; a++) mean[a] += p[a] / (double)k;
+    }
+    for (size_t j = 0; j < k; j++) {
+        double p[3];
+        point(c, idx[(size_t)((double)j * (double)n / (double)k)], p);
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++) cov[3 * a + b] += (p[a] - mean[a]) * (p[b] - mean[b]) / (double)k;
+    }
+    normals_sym3_eig(cov, ev, vec);
+    return sqrt(12.0 * fmax(0, ev[1]));
+}
+static int next_phase(det *d, cand *pool, size_t npool, int *which, int *phase,
+                      size_t *min_pts, size_t small_pts, size_t *draws_since)
+{
+    if (*phase != 0 || small_pts >= *min_pts) return 0;
+    *phase = 1;
+    *min_pts = small_pts;
+    *draws_since = 0;
+    /* Candidates whose patch was too small were kept scored zero (so as not to be
+     * drawn again): a small shape may be among them, so every candidate is rescored. */
+    for (size_t j = 0; j < npool; j++) {
+        pool[j].nsub = 0;
+        pool[j].score = pool[j].seen = 0;
+        which[j] = (int)j;
+    }
+    score_next(d, pool, which, npool);
+    return 1;
 }
 
 int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *res,
@@ -1549,13 +1792,19 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
     for (int ty = 0; ty < PRIM__COUNT; ty++) ntypes += (cfg->types >> ty) & 1u;
     if (ntypes == 0) ntypes = 1;
     size_t min_pts = cfg->min_points < 3 ? 3 : cfg->min_points;
+    size_t small_pts = cfg->min_points_small < 3 ? 3 : cfg->min_points_small;
+    if (cfg->min_points_small == 0) small_pts = min_pts;
+    int phase = 0;
     double log_fail = log(fmax(1e-12, 1.0 - cfg->probability));
     for (;;) {
         if (cfg->interrupt && *cfg->interrupt) {
             res->interrupted = 1;
             break;
         }
-        if (d.nalive < min_pts || d.nalive < RANSAC_MIN_CLOUD) break;
+        if (d.nalive < min_pts || d.nalive < RANSAC_MIN_CLOUD) {
+            if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since)) continue;
+            break;
+        }
         /* Draw a round of minimal samples; each gives one candidate per type. */
         size_t first_new = npool;
         for (int t = 0; t < DRAWS_PER_ROUND; t++) {
@@ -1636,8 +1885,10 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         if (cfg->progress) cfg->progress(cfg->user, d.nalive, n, res->nprims);
         if (best == SIZE_MAX) {
             if ((double)draws_since * log1p(-fmin(p_draw((double)min_pts, (double)d.nalive, 3), 0.999999)) < log_fail ||
-                draws_since > RANSAC_MAX_DRAWS)
+                draws_since > RANSAC_MAX_DRAWS) {
+                if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since)) continue;
                 break;
+            }
             continue;
         }
         cand *b = &pool[best];
@@ -1647,23 +1898,38 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         if (!accept) {
             double pm = fmin(p_draw((double)min_pts, (double)d.nalive, 3), 0.999999);
             if ((b->est < (double)min_pts && (double)draws_since * log1p(-pm) < log_fail) ||
-                draws_since > RANSAC_MAX_DRAWS)
-                break; /* a shape of the minimum size would have been found by now */
+                draws_since > RANSAC_MAX_DRAWS) {
+                /* A shape of the minimum size would have been found by now. */
+                if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since)) continue;
+                break;
+            }
             continue;
         }
         /* Extract: inliers, largest patch, refit, again with the refined shape; then
          * widen the band to the measured noise and refit on the wider patch. */
         prim q = b->q;
         size_t m = refit_with_band(&d, &q, min_pts, flag, inl);
+        m = face_modes(&d, &q, m, min_pts, flag, inl);
         if (m >= min_pts) {
             prim_type before = q.type;
             m = prefer_simpler(&d, &q, m, flag, inl);
             /* A simpler shape measures its own noise: the band of a large cylinder
              * standing in for a plane is wider than the plane's. */
-            if (q.type != before) m = refit_with_band(&d, &q, min_pts, flag, inl);
+            if (q.type != before) {
+                m = refit_with_band(&d, &q, min_pts, flag, inl);
+                m = face_modes(&d, &q, m, min_pts, flag, inl);
+            }
         }
         m = support_of(&d, &q, flag, inl);
         int lvl = b->level;
+        /* Small shapes must be tight (see SMALL_TIGHT). */
+        if (phase == 1 && m >= min_pts &&
+            (q.type == PRIM_CONE || q.type == PRIM_TORUS ||
+             (q.type != PRIM_PLANE && !(q.r >= SMALL_RADIUS * cfg->epsilon)) ||
+             !(median_abs(&q, c, inl, m) <= SMALL_TIGHT * cfg->epsilon) ||
+             !(median_normal_dev(&q, c, inl, m) <= SMALL_NORMAL_DEG * M_PI / 180.0) ||
+             !(patch_width(c, inl, m) >= SMALL_WIDTH * cfg->epsilon)))
+            m = 0;
         if (m < min_pts) {
             /* The estimate was optimistic. Keep the candidate, scored zero, so that
              * duplicates of it are not drawn again, and keep drawing. */

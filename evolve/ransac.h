@@ -27,6 +27,8 @@ typedef struct ransac_config {
     double cos_normal;    /* cosine of the largest normal deviation of an inlier */
     double cluster;       /* cell size of the connectivity bitmap (absolute units) */
     size_t min_points;    /* smallest support of a primitive */
+    size_t min_points_small; /* then down to this support for tight shapes only
+                                (second phase; 0 or >= min_points: none) */
     double probability;   /* accept when the chance of having missed a better candidate
                              is below 1 - probability */
     unsigned types;       /* bit (1u << prim_type) for each type to detect */

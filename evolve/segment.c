@@ -297,6 +297,10 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
     size_t mp = (size_t)(SEGMENT_DEFAULT_MIN_FRACTION * (double)c->n);
     res->min_points = cfg->min_points ? cfg->min_points
                                       : (mp > SEGMENT_MIN_POINTS_FLOOR ? mp : SEGMENT_MIN_POINTS_FLOOR);
+    size_t ms = (size_t)(SEGMENT_DEFAULT_SMALL_FRACTION * (double)c->n);
+    if (ms < SEGMENT_MIN_POINTS_FLOOR) ms = SEGMENT_MIN_POINTS_FLOOR;
+    if (cfg->min_points_small) ms = cfg->min_points_small;
+    res->min_points_small = ms < res->min_points ? ms : res->min_points;
 
     if (c->has_normals) res->zero_normals = cloud_normalize_normals(c);
     if (!c->has_normals || res->zero_normals > 0) {
@@ -314,6 +318,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
     rc.cos_normal = cos(res->normal_deg * M_PI / 180.0);
     rc.cluster = res->cluster;
     rc.min_points = res->min_points;
+    rc.min_points_small = res->min_points_small;
     rc.probability = res->probability;
     rc.types = cfg->types ? cfg->types : (1u << PRIM__COUNT) - 1;
     rc.seed = cfg->seed;

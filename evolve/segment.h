@@ -21,6 +21,10 @@
 #define SEGMENT_DEFAULT_NORMAL_DEG 25.0
 #define SEGMENT_DEFAULT_MIN_FRACTION 0.01 /* smallest support: 1% of the points ... */
 #define SEGMENT_MIN_POINTS_FLOOR 10       /* ... and never fewer than this */
+/* Second detection phase (evolve/ransac.c, SMALL_TIGHT): tight shapes down to 0.25% of
+ * the points, so that the small faces of a part (under 1% of its area) are found. */
+#define SEGMENT_DEFAULT_SMALL_FRACTION 0.0025
+#define SEGMENT_NO_SMALL ((size_t)-1)     /* min_points_small: no second phase */
 #define SEGMENT_DEFAULT_PROBABILITY 0.99
 /* Separating planes closer than this angle (and epsilon in offset) to an existing plane
  * are duplicates (Algorithm 2 adds each plane once). */
@@ -31,6 +35,7 @@ typedef struct segment_config {
     double cluster;        /* <= 0: default */
     double normal_deg;     /* <= 0: default */
     size_t min_points;     /* 0: default */
+    size_t min_points_small; /* 0: default; SEGMENT_NO_SMALL: none */
     double probability;    /* <= 0: default */
     unsigned types;        /* bit (1u << prim_type); 0: all */
     uint64_t seed;
@@ -53,6 +58,7 @@ typedef struct segment_result {
     /* The values actually used (defaults resolved). */
     double epsilon, cluster, normal_deg, probability;
     size_t min_points;
+    size_t min_points_small; /* == min_points: no second phase */
     int normals_estimated; /* 1 when normals were computed (none, or zero ones, given) */
     size_t zero_normals;   /* zero-length normals found in the input */
     size_t draws;

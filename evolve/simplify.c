@@ -420,8 +420,9 @@ static long useful_prims(const gp_tree *t, const gp_cache *c, gp_eval *e, uint8_
     return nu;
 }
 
-/* One round: the best piece t | P or t \ P, P = a & b, a \ b, b \ a, optionally
- * extended by & c or \ c, when it raises the fitness and keeps the depth limit. */
+/* One round: the best piece t | P, t \ P or t & P, P = a & b, a \ b, b \ a or a | b,
+ * optionally extended by & c, \ c or | c, when it raises the fitness and keeps the
+ * depth limit. */
 static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
                       gp_eval *e, double *fit)
 {
@@ -435,16 +436,18 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     if (nu < 0) goto out;
     rc = 0;
     if (nu == 0) goto out;
-    const uint8_t outers[2] = { o->uni, o->sub };
+    /* t & (a | b | c) is the pocket cut by the faces' complements, t \ (~a & ~b & ~c)
+     * (a notch cut by a box corner, fitted faces pointing into the notch). */
+    const uint8_t outers[3] = { o->uni, o->sub, o->inter };
     piece best = { *fit, 0, 0, UINT32_MAX, 0, 0, 0 };
     int found = 0;
     for (uint32_t a = 0; a < k; a++)
         for (uint32_t b = a + 1; b < k; b++) {
             if (!use[a] && !use[b]) continue;
-            for (int w = 0; w < 2; w++)
-                for (int q = 0; q < 3; q++) {
+            for (int w = 0; w < 3; w++)
+                for (int q = 0; q < 4; q++) {
                     piece p = { 0, q == 2 ? b : a, q == 2 ? a : b, UINT32_MAX,
-                                q == 0 ? o->inter : o->sub, 0, outers[w] };
+                                q == 0 ? o->inter : q == 3 ? o->uni : o->sub, 0, outers[w] };
                     if (build_piece(trial, t, &p)) { rc = -1; goto out; }
                     p.f = gp_fitness(c, e, trial->code, trial->len);
                     if (p.f > best.f) { best = p; found = 1; }
@@ -454,10 +457,10 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     for (int i = 0; i < nb; i++)
         for (uint32_t cc = 0; cc < k; cc++) {
             if (cc == beam[i].a || cc == beam[i].b) continue;
-            for (int q = 0; q < 2; q++) {
+            for (int q = 0; q < 3; q++) {
                 piece p = beam[i];
                 p.c = cc;
-                p.third = q == 0 ? o->inter : o->sub;
+                p.third = q == 0 ? o->inter : q == 1 ? o->sub : o->uni;
                 if (build_piece(trial, t, &p)) { rc = -1; goto out; }
                 p.f = gp_fitness(c, e, trial->code, trial->len);
                 if (p.f > best.f) { best = p; found = 1; }
@@ -475,6 +478,82 @@ out:
     return rc;
 }
 
+/* ---- inner growth: one primitive joined below the root ------------------------- */
+
+/* Primitives joined inside the tree at most (each is one pass over every subtree and
+ * every useful primitive). */
+#define SIMPLIFY_MAX_INNER 16
+
+/* One round: the best S & p, S \ p or S | p replacing a subtree S of t, over every
+ * subtree and every primitive p that explains points t misses (useful_prims), when it
+ * raises the fitness. A face missing from one part of a union (a subtracted box short
+ * of two of its faces, so that it cuts away a whole quadrant) cannot be added at the
+ * root, where it would cut every other part too. Returns 1 when t changed, 0 when
+ * not, -1 on allocation failure. */
+static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
+                      gp_eval *e, double *fit)
+{
+    uint32_t k = c->nprims;
+    uint8_t *use = malloc(k ? k : 1);
+    int rc = -1;
+    if (!use) return -1;
+    long nu = useful_prims(t, c, e, use);
+    if (nu < 0) goto out;
+    rc = 0;
+    if (nu == 0) goto out;
+    const uint8_t ops[3] = { o->inter, o->sub, o->uni };
+    double bf = *fit;
+    uint32_t best_end = 0, best_j = 0;
+    int best_w = -1;
+    for (uint32_t end = 0; end < t->len; end++) {
+        uint32_t st = tree_subtree_start(t->code, end);
+        for (uint32_t j = 0; j < k; j++) {
+            if (!use[j]) continue;
+            for (int w = 0; w < 3; w++) {
+                /* trial = t with [st, end] followed by PRIM j, op */
+                if (tree_copy(trial, t)) { rc = -1; goto out; }
+                gp_tree sub = { NULL, 0, 0 };
+                if (tree_set(&sub, t->code + st, end - st + 1) ||
+                    tree_push(&sub, FREP_OP_PRIM, j) || tree_push(&sub, (frep_opcode)ops[w], 0) ||
+                    tree_splice(trial, st, end, sub.code, sub.len)) {
+                    tree_free(&sub);
+                    rc = -1;
+                    goto out;
+                }
+                tree_free(&sub);
+                double f = gp_fitness(c, e, trial->code, trial->len);
+                if (f > bf) {
+                    bf = f;
+                    best_end = end;
+                    best_j = j;
+                    best_w = w;
+                }
+            }
+        }
+    }
+    if (best_w < 0) goto out;
+    {
+        uint32_t st = tree_subtree_start(t->code, best_end);
+        gp_tree sub = { NULL, 0, 0 };
+        if (tree_copy(trial, t) || tree_set(&sub, t->code + st, best_end - st + 1) ||
+            tree_push(&sub, FREP_OP_PRIM, best_j) ||
+            tree_push(&sub, (frep_opcode)ops[best_w], 0) ||
+            tree_splice(trial, st, best_end, sub.code, sub.len)) {
+            tree_free(&sub);
+            rc = -1;
+            goto out;
+        }
+        tree_free(&sub);
+    }
+    if (tree_depth(trial->code, trial->len) > GP_MAX_TREE_DEPTH) goto out;
+    if (tree_copy(t, trial)) { rc = -1; goto out; }
+    *fit = bf;
+    rc = 1;
+out:
+    free(use);
+    return rc;
+}
+
 int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                          double *fitness)
 {
@@ -483,6 +562,12 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
     gp_tree trial = { NULL, 0, 0 };
     double fit = gp_fitness(c, e, t->code, t->len);
     int rc = -1;
+    for (int round = 0; round < SIMPLIFY_MAX_INNER; round++) {
+        int g = grow_inner(t, &trial, &o, c, e, &fit);
+        if (g < 0) goto out;
+        if (g == 0) break;
+        if (simplify_tree(t, s, c, e, &fit)) goto out;
+    }
     for (int round = 0; round < SIMPLIFY_MAX_PIECES; round++) {
         int g = grow_piece(t, &trial, &o, c, e, &fit);
         if (g < 0) goto out;

@@ -21,13 +21,18 @@ int simplify_rules(gp_tree *t, gp_setops s);
  * removal moves again. *fitness (may be NULL) receives the final fitness. */
 int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double *fitness);
 
-/* After simplify_tree: join at the root, while that raises the fitness (at most 3
- * times), the best piece of two or three primitives, t | P or t \ P with
- * P = a & b, a \ b, (a & b) & c, (a & b) \ c, ... (a pocket such as a groove, three
- * planes intersected then subtracted, which no single primitive improves); pairs must
- * bring a primitive explaining points the tree misses, and the best pairs by fitness
- * are extended by a third primitive. The tree is simplified again after each piece.
- * *fitness (may be NULL) receives the final fitness. 0 or -1 (allocation). */
+/* After simplify_tree: first, while that raises the fitness (at most 16 times), the
+ * best S & p, S \ p or S | p replacing any subtree S, p a primitive explaining points
+ * the tree misses (a face missing from one part of a union, which cannot be added at
+ * the root without cutting the other parts). Then join at the root, while that raises
+ * the fitness (at most 3 times), the best piece of two or three primitives, t | P,
+ * t \ P or t & P with P = a & b, a \ b, a | b, (a & b) & c, (a & b) \ c, (a | b) | c,
+ * ... (a pocket such as a groove, three planes intersected then subtracted, or a notch
+ * t & (a | b | c) cut by faces that point into it, which no single primitive
+ * improves); pairs must bring a primitive explaining points the tree misses, and the
+ * best pairs by fitness are extended by a third primitive. The tree is simplified
+ * again after each step. *fitness (may be NULL) receives the final fitness. 0 or -1
+ * (allocation). */
 int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                          double *fitness);
 

@@ -12,10 +12,15 @@
  * Manifoldness: a cell's crossing edges are paired on each face (an ambiguous face,
  * two inside corners on a diagonal, always separates the inside corners), which only
  * depends on the face, so both cells sharing a face agree; following the pairs gives
- * cycles, one vertex each.  The grid is padded with a layer of cells whose outer
- * corners count as outside, so a solid cut by the box is closed by caps on the box.
- * Determinism: blocks are processed independently and assembled in key order, so the
- * mesh does not depend on the thread count.
+ * cycles, one vertex each.  Every mesh edge then joins the vertices of two cells across
+ * one segment of their common face, and every vertex's quads follow its cycle around:
+ * one closed fan.  The one exception, a face whose two segments belong to one
+ * component on both sides (a tunnel thinner than a cell), would make the same mesh
+ * edge twice; such faces get a vertex per segment (face_candidates, resolve_faces),
+ * so the mesh is a closed 2-manifold for any field.  The grid is padded with a layer
+ * of cells whose outer corners count as outside, so a solid cut by the box is closed
+ * by caps on the box.  Determinism: blocks are processed independently and assembled
+ * in key order, so the mesh does not depend on the thread count.
  */
 #include "config.h"
 
@@ -45,6 +50,11 @@
  * level exactly, so near-linear fields (planes) cost one or two evaluations. */
 #define MESH_ROOT_STEPS 8
 #define MESH_ROOT_TOL 1e-5
+/* A crossing also stops when the secant slope over its bracket puts the last point
+ * within this fraction of the edge from the root: the Newton step along the edge that
+ * the gradient at the final point pays for (step 3) then takes a smooth field's
+ * crossing to about the square of that. */
+#define MESH_ROOT_FTOL 1e-2
 /* QEF eigenvalues below this fraction of the largest are dropped (truncated
  * pseudo-inverse): near-parallel normals must not throw the vertex out of its cell. */
 #define MESH_QEF_CUTOFF 0.05
@@ -52,6 +62,10 @@
  * different cells never coincide (no zero-area triangles). */
 #define MESH_CLAMP 1e-4
 #define MESH_NO_VERTEX 0xFFFFu
+/* Vertices of a block at most: 4 surface components per cell, plus 2 vertices on each
+ * of a cell's 3 low faces when one component crosses that face twice (see
+ * face_candidates). */
+#define MESH_BLOCK_VMAX (10 * MESH_BLOCK_CELLS)
 
 /* ---- cell topology table ---------------------------------------------------------
  * Corner i of a cell is at (i & 1, (i >> 1) & 1, (i >> 2) & 1).  Edge e = 4a + u + 2v
@@ -61,6 +75,9 @@
 typedef struct cell_table {
     uint8_t ncycles[256];
     uint8_t cycle[256][12];   /* component of each crossing edge; 0xFF: no crossing */
+    /* bit 2a + s: face s (0 low, 1 high) across axis a is ambiguous (four crossings,
+     * two segments) and both segments belong to one component of the cell */
+    uint8_t dupface[256];
 } cell_table;
 
 static void edge_other_axes(int a, int *o1, int *o2)
@@ -130,6 +147,21 @@ static void build_table(cell_table *t)
             nc++;
         }
         t->ncycles[cs] = nc;
+        t->dupface[cs] = 0;
+        for (int a = 0; a < 3; a++)
+            for (int s = 0; s < 2; s++) {
+                int nf = 0, same = 1, first = -1;
+                for (int e = 0; e < 12; e++) {
+                    if (e / 4 == a || !cross[e]) continue;
+                    int o1, o2;
+                    edge_other_axes(e / 4, &o1, &o2);
+                    if ((o1 == a ? (e & 1) : ((e >> 1) & 1)) != s) continue;
+                    nf++;
+                    if (first < 0) first = t->cycle[cs][e];
+                    else if (t->cycle[cs][e] != first) same = 0;
+                }
+                if (nf == 4 && same) t->dupface[cs] |= (uint8_t)(1u << (2 * a + s));
+            }
     }
 }
 
@@ -187,6 +219,40 @@ static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
             for (int c = 0; c < 3; c++) A[r][c] += nrm[i][r] * nrm[i][c];
         }
     }
+    double slack[3];
+    for (int c = 0; c < 3; c++) slack[c] = MESH_CLAMP * (hi[c] - lo[c]);
+    /* Flat patch, the common case: with u the mean normal's direction, the two lower
+     * eigenvalues sum to at most sum (1 - (n_i.u)^2) (the trace is sum |n_i|^2) and
+     * the largest is at least u'Au; when the first is below MESH_QEF_CUTOFF times the
+     * second, the rank is 1 and u stands in for the top eigenvector (they differ by
+     * less than the normals' spread): no eigen decomposition. */
+    {
+        double u[3] = { 0, 0, 0 }, tr = 0, lu = 0;
+        for (int i = 0; i < np; i++)
+            for (int c = 0; c < 3; c++) u[c] += nrm[i][c];
+        lu = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+        if (lu > 0) {
+            for (int c = 0; c < 3; c++) u[c] /= lu;
+            double uau = 0, ub = u[0] * b[0] + u[1] * b[1] + u[2] * b[2];
+            for (int r = 0; r < 3; r++)
+                for (int c = 0; c < 3; c++) uau += u[r] * A[r][c] * u[c];
+            tr = A[0][0] + A[1][1] + A[2][2];
+            if (uau > 0 && tr - uau <= MESH_QEF_CUTOFF * uau) {
+                double x[3];
+                int inside = 1;
+                for (int c = 0; c < 3; c++) {
+                    x[c] = m[c] + u[c] * ub / uau;
+                    if (!(x[c] >= lo[c] + slack[c] && x[c] <= hi[c] - slack[c])) inside = 0;
+                }
+                int rank = inside;
+                for (int c = 0; c < 3; c++) {
+                    double y = inside ? x[c] : m[c];
+                    out[c] = fmin(fmax(y, lo[c] + slack[c]), hi[c] - slack[c]);
+                }
+                return rank;
+            }
+        }
+    }
     double w[3], V[3][3];
     eig3((const double(*)[3])A, w, V);
     int ord[3] = { 0, 1, 2 };
@@ -196,8 +262,6 @@ static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
     double wmax = w[ord[0]];
     int rank = 0;
     while (rank < 3 && wmax > 0 && w[ord[rank]] > MESH_QEF_CUTOFF * wmax) rank++;
-    double slack[3];
-    for (int c = 0; c < 3; c++) slack[c] = MESH_CLAMP * (hi[c] - lo[c]);
     for (; rank >= 0; rank--) {
         double x[3] = { m[0], m[1], m[2] };
         for (int j = 0; j < rank; j++) {
@@ -418,13 +482,19 @@ void mesh_options_init(mesh_options *o)
 typedef struct mblock {
     uint64_t key;
     int b[3];
-    uint32_t nverts;
+    uint32_t nverts;          /* component vertices of the cells */
+    /* Faces one sheet crosses twice whose high-side cell is in this block (candidates
+     * after process_block, only the confirmed ones after resolve_faces): each has two
+     * vertices, one per segment, stored after the nverts cell vertices. */
+    uint32_t nfaces;
+    uint16_t *fkey;           /* per face: 3 * (local index of the high-side cell) + axis,
+                                 ascending */
     uint32_t need;            /* bit (dx+1) + 3(dy+1) + 9(dz+1): neighbours with crossings */
     uint32_t real_crossings, inside_corners, virtual_crossings, nan_points, split_cells;
     size_t vglobal;           /* index of the first vertex in the whole mesh */
-    double *vpos, *vnrm;      /* 3 * nverts each */
-    double *vfg;              /* 4 * nverts: f - iso and the gradient at each vertex */
-    uint8_t *vrank;           /* nverts: QEF rank (2: on a sharp edge, 3: a corner) */
+    double *vpos, *vnrm;      /* 3 * (nverts + 2 nfaces) each */
+    double *vfg;              /* 4 * (...): f - iso and the gradient at each vertex */
+    uint8_t *vrank;           /* QEF rank (2: on a sharp edge, 3: a corner; 0 on faces) */
     uint8_t *cs;              /* MESH_BLOCK_CELLS cases */
     uint16_t *vbase;          /* MESH_BLOCK_CELLS first vertex or MESH_NO_VERTEX */
     uint32_t *tri;            /* triangles from the quads this block owns (phase 3) */
@@ -452,6 +522,7 @@ typedef struct mwork {
     double cx[MESH_BLOCK_CORNERS], cy[MESH_BLOCK_CORNERS], cz[MESH_BLOCK_CORNERS];
     double cf[MESH_BLOCK_CORNERS];
     uint8_t cin[MESH_BLOCK_CORNERS];
+    uint32_t rows[MESH_BLOCK + 1][MESH_BLOCK + 1];  /* [k][j]: bit i is cin of (i, j, k) */
     int32_t eidx[MESH_BLOCK_EDGES];
     double px[MESH_BLOCK_EDGES], py[MESH_BLOCK_EDGES], pz[MESH_BLOCK_EDGES];
     double nx[MESH_BLOCK_EDGES], ny[MESH_BLOCK_EDGES], nz[MESH_BLOCK_EDGES];
@@ -466,12 +537,16 @@ typedef struct mwork {
     double qx[MESH_BLOCK_EDGES], qy[MESH_BLOCK_EDGES], qz[MESH_BLOCK_EDGES],
         qf[MESH_BLOCK_EDGES], gx[MESH_BLOCK_EDGES], gy[MESH_BLOCK_EDGES],
         gz[MESH_BLOCK_EDGES];
-    /* vertices under construction (at most 4 components per cell) */
-    double vx[4 * MESH_BLOCK_CELLS], vy[4 * MESH_BLOCK_CELLS], vz[4 * MESH_BLOCK_CELLS];
-    double fnx[4 * MESH_BLOCK_CELLS], fny[4 * MESH_BLOCK_CELLS], fnz[4 * MESH_BLOCK_CELLS];
-    double vf[4 * MESH_BLOCK_CELLS], vgx[4 * MESH_BLOCK_CELLS], vgy[4 * MESH_BLOCK_CELLS],
-        vgz[4 * MESH_BLOCK_CELLS];
-    uint8_t vrank[4 * MESH_BLOCK_CELLS];
+    /* vertices under construction */
+    double vx[MESH_BLOCK_VMAX], vy[MESH_BLOCK_VMAX], vz[MESH_BLOCK_VMAX];
+    double fnx[MESH_BLOCK_VMAX], fny[MESH_BLOCK_VMAX], fnz[MESH_BLOCK_VMAX];
+    double vf[MESH_BLOCK_VMAX], vgx[MESH_BLOCK_VMAX], vgy[MESH_BLOCK_VMAX],
+        vgz[MESH_BLOCK_VMAX];
+    uint8_t vrank[MESH_BLOCK_VMAX];
+    /* face candidates: keys and their two vertices (position, mean crossing normal) */
+    uint16_t fkey[3 * MESH_BLOCK_CELLS];
+    double sx[6 * MESH_BLOCK_CELLS], sy[6 * MESH_BLOCK_CELLS], sz[6 * MESH_BLOCK_CELLS];
+    double snx[6 * MESH_BLOCK_CELLS], sny[6 * MESH_BLOCK_CELLS], snz[6 * MESH_BLOCK_CELLS];
     size_t eval_points, grad_points;  /* work done by this thread, for mesh_stats */
 } mwork;
 
@@ -516,6 +591,57 @@ static double root_guess(const mwork *W, int r)
     return t;
 }
 
+/* A face that one surface component of a cell crosses twice (two segments, each
+ * cutting off one inside corner) would join that component's vertex to the vertex of
+ * the cell across the face twice, once per segment: if the component across the face
+ * also crosses it twice, four quads share that mesh edge and the mesh is not
+ * 2-manifold there (a tunnel thinner than a cell).  Such a face gets one vertex per
+ * segment, between its two crossings, which the quads of the segment's crossing edges
+ * take as an extra corner: the two mesh edges become four distinct ones.  Here the
+ * candidates: the low faces (s = 0) of cell (i, j, k) that its own component crosses
+ * twice; resolve_faces() keeps those whose other side does so too.  Segment 0 is the
+ * one cutting off the inside corner with the lower coordinate along the face's first
+ * axis.  Returns the new number of candidates. */
+static size_t face_candidates(mwork *W, int cs, int dup, int i, int j, int k, size_t nf)
+{
+    int cell = cell_index(i, j, k);
+    for (int a = 0; a < 3; a++) {
+        if (!(dup & (1 << (2 * a)))) continue;
+        int ax[2];
+        edge_other_axes(a, &ax[0], &ax[1]);
+        W->fkey[nf] = (uint16_t)(3 * cell + a);
+        for (int c = 0; c < 8; c++) {
+            if (((c >> a) & 1) || !((cs >> c) & 1)) continue;
+            size_t q = 2 * nf + (size_t)((c >> ax[0]) & 1);
+            double p[3] = { 0, 0, 0 }, n[3] = { 0, 0, 0 };
+            int np = 0;
+            for (int t = 0; t < 2; t++) {
+                int b = ax[t], lo = c & ~(1 << b);
+                int ci = corner_index(i + (lo & 1), j + ((lo >> 1) & 1), k + ((lo >> 2) & 1));
+                int id = W->eidx[3 * ci + b];
+                if (id < 0) continue;
+                p[0] += W->px[id];
+                p[1] += W->py[id];
+                p[2] += W->pz[id];
+                n[0] += W->nx[id];
+                n[1] += W->ny[id];
+                n[2] += W->nz[id];
+                np++;
+            }
+            if (np == 0) np = 1;
+            W->sx[q] = p[0] / np;
+            W->sy[q] = p[1] / np;
+            W->sz[q] = p[2] / np;
+            unit(&n[0], &n[1], &n[2]);
+            W->snx[q] = n[0];
+            W->sny[q] = n[1];
+            W->snz[q] = n[2];
+        }
+        nf++;
+    }
+    return nf;
+}
+
 /* Evaluate, find crossings and place vertices for one block. Returns 0 or -1 (out of
  * memory or the field failed). */
 static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
@@ -537,6 +663,15 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
         if (f->focus(f->ctx, ts, bb, &sign_tol) != 0) return -1;
     }
 
+    double cc[3][MESH_BLOCK + 1];          /* corner coordinates along each axis */
+    int creal[3][MESH_BLOCK + 1];          /* ... and whether they are real grid points */
+    static const int cstride[3] = { 1, MESH_BLOCK + 1, (MESH_BLOCK + 1) * (MESH_BLOCK + 1) };
+    for (int c = 0; c < 3; c++)
+        for (int q = 0; q <= MESH_BLOCK; q++) {
+            cc[c][q] = corner_coord(M, c, base[c] + q);
+            creal[c][q] = corner_is_real(M, base[c] + q);
+        }
+
     /* 1. corner values */
     size_t nreal = 0;
     int32_t *map = W->eidx; /* reused: corner -> position in the batch */
@@ -544,12 +679,11 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
         for (int j = 0; j <= MESH_BLOCK; j++)
             for (int i = 0; i <= MESH_BLOCK; i++) {
                 int ci = corner_index(i, j, k);
-                long P[3] = { base[0] + i, base[1] + j, base[2] + k };
                 map[ci] = -1;
-                if (corner_is_real(M, P[0]) && corner_is_real(M, P[1]) && corner_is_real(M, P[2])) {
-                    W->cx[nreal] = corner_coord(M, 0, P[0]);
-                    W->cy[nreal] = corner_coord(M, 1, P[1]);
-                    W->cz[nreal] = corner_coord(M, 2, P[2]);
+                if (creal[0][i] && creal[1][j] && creal[2][k]) {
+                    W->cx[nreal] = cc[0][i];
+                    W->cy[nreal] = cc[1][j];
+                    W->cz[nreal] = cc[2][k];
                     map[ci] = (int32_t)nreal++;
                 }
             }
@@ -592,39 +726,43 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
 
     /* 2. crossing edges */
     int ncross = 0, nroot = 0;
+    memset(W->eidx, 0xFF, sizeof W->eidx);  /* -1: no crossing */
+    /* inside corners as bit rows along x, so that crossing edges are found a row of
+     * edges at a time (most rows have none) */
+    for (int k = 0; k <= MESH_BLOCK; k++)
+        for (int j = 0; j <= MESH_BLOCK; j++) {
+            unsigned m = 0;
+            for (int i = 0; i <= MESH_BLOCK; i++) m |= (unsigned)W->cin[corner_index(i, j, k)] << i;
+            W->rows[k][j] = m;
+        }
     for (int k = 0; k <= MESH_BLOCK; k++)
         for (int j = 0; j <= MESH_BLOCK; j++)
-            for (int i = 0; i <= MESH_BLOCK; i++) {
-                int ci = corner_index(i, j, k);
-                int q[3] = { i, j, k };
-                for (int a = 0; a < 3; a++) {
+            for (int a = 0; a < 3; a++) {
+                unsigned row = W->rows[k][j], cross;
+                if (a == 0) cross = (row ^ (row >> 1)) & ((1u << MESH_BLOCK) - 1);
+                else if (a == 1) cross = j < MESH_BLOCK ? row ^ W->rows[k][j + 1] : 0;
+                else cross = k < MESH_BLOCK ? row ^ W->rows[k + 1][j] : 0;
+                for (int i = 0; cross; i++, cross >>= 1) {
+                    if (!(cross & 1)) continue;
+                    int ci = corner_index(i, j, k);
+                    int q[3] = { i, j, k };
                     int ei = 3 * ci + a;
-                    W->eidx[ei] = -1;
-                }
-                for (int a = 0; a < 3; a++) {
-                    int ei = 3 * ci + a;
-                    if (q[a] == MESH_BLOCK) continue;
-                    int q2[3] = { i, j, k };
-                    q2[a]++;
-                    int cj = corner_index(q2[0], q2[1], q2[2]);
-                    if (W->cin[ci] == W->cin[cj]) continue;
+                    int cj = ci + cstride[a];
                     int id = ncross++;
                     W->eidx[ei] = id;
-                    long P0[3] = { base[0] + i, base[1] + j, base[2] + k };
-                    long P1[3] = { P0[0], P0[1], P0[2] };
-                    P1[a]++;
-                    int real0 = corner_is_real(M, P0[0]) && corner_is_real(M, P0[1]) &&
-                                corner_is_real(M, P0[2]);
-                    int real1 = corner_is_real(M, P1[0]) && corner_is_real(M, P1[1]) &&
-                                corner_is_real(M, P1[2]);
-                    double x0 = corner_coord(M, 0, P0[0]), y0 = corner_coord(M, 1, P0[1]),
-                           z0 = corner_coord(M, 2, P0[2]);
-                    double x1 = corner_coord(M, 0, P1[0]), y1 = corner_coord(M, 1, P1[1]),
-                           z1 = corner_coord(M, 2, P1[2]);
-                    /* which cells around the edge lie in other blocks */
+                    int q2[3] = { i, j, k };
+                    q2[a]++;
+                    int real0 = creal[0][i] && creal[1][j] && creal[2][k];
+                    int real1 = creal[0][q2[0]] && creal[1][q2[1]] && creal[2][q2[2]];
+                    double x0 = cc[0][i], y0 = cc[1][j], z0 = cc[2][k];
+                    double x1 = cc[0][q2[0]], y1 = cc[1][q2[1]], z1 = cc[2][q2[2]];
+                    /* which cells around the edge lie in other blocks (only edges on
+                     * the block's faces have such cells) */
                     int o1, o2;
                     edge_other_axes(a, &o1, &o2);
-                    for (int d2 = 0; d2 < 2; d2++)
+                    int on_face = !(q[o1] > 0 && q[o1] < MESH_BLOCK && q[o2] > 0 &&
+                                    q[o2] < MESH_BLOCK);
+                    for (int d2 = 0; d2 < 2 && on_face; d2++)
                         for (int d1 = 0; d1 < 2; d1++) {
                             int cell[3] = { i, j, k };
                             cell[o1] -= d1;
@@ -698,11 +836,16 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
                 if (W->side[r] == 1) W->g0[r] *= 0.5;
                 W->side[r] = 1;
             }
+            /* close: by the secant slope over the new bracket, the root is within
+             * MESH_ROOT_FTOL of the edge */
+            if (fabs(gv) * (W->t1[r] - W->t0[r]) <= MESH_ROOT_FTOL * fabs(W->g1[r] - W->g0[r]))
+                W->side[r] = 2;
         }
     }
     for (int r = 0; r < nroot; r++) {
         double t = root_guess(W, r);
         int id = W->rid[r];
+        W->tt[r] = t;
         W->px[id] = W->qx[r] = W->ax[r] + t * W->dx[r];
         W->py[id] = W->qy[r] = W->ay[r] + t * W->dy[r];
         W->pz[id] = W->qz[r] = W->az[r] + t * W->dz[r];
@@ -713,6 +856,16 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
     W->grad_points += (size_t)nroot;
     for (int r = 0; r < nroot; r++) {
         int id = W->rid[r];
+        /* One Newton step along the edge from the final point, with the value and
+         * gradient evaluated there anyway; kept only inside the bracket (a kink of a
+         * CSG field may send it anywhere). */
+        double fd = W->gx[r] * W->dx[r] + W->gy[r] * W->dy[r] + W->gz[r] * W->dz[r];
+        double tn = fd != 0 ? W->tt[r] - (W->qf[r] - iso) / fd : NAN;
+        if (tn >= W->t0[r] && tn <= W->t1[r]) {
+            W->px[id] = W->ax[r] + tn * W->dx[r];
+            W->py[id] = W->ay[r] + tn * W->dy[r];
+            W->pz[id] = W->az[r] + tn * W->dz[r];
+        }
         /* inside is f >= iso, so the gradient points inward */
         double nx = -W->gx[r], ny = -W->gy[r], nz = -W->gz[r];
         unit(&nx, &ny, &nz);
@@ -730,7 +883,7 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
     }
 
     /* 4. one vertex per surface component of each cell */
-    size_t nv = 0;
+    size_t nv = 0, nf = 0;
     B->cs = malloc(MESH_BLOCK_CELLS * sizeof *B->cs);
     B->vbase = malloc(MESH_BLOCK_CELLS * sizeof *B->vbase);
     if (!B->cs || !B->vbase) return -1;
@@ -744,8 +897,10 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
                     B->cs[cell] = 0;
                     continue;
                 }
-                for (int c = 0; c < 8; c++)
-                    cs |= W->cin[corner_index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))] << c;
+                /* corner c = x + 2y + 4z: two bits from each of four rows */
+                cs = (int)(((W->rows[k][j] >> i) & 3u) | (((W->rows[k][j + 1] >> i) & 3u) << 2) |
+                           (((W->rows[k + 1][j] >> i) & 3u) << 4) |
+                           (((W->rows[k + 1][j + 1] >> i) & 3u) << 6));
                 B->cs[cell] = (uint8_t)cs;
                 int ncyc = M->table.ncycles[cs];
                 if (ncyc == 0) continue;
@@ -792,19 +947,37 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
                     W->fnz[nv] = sn[2];
                     nv++;
                 }
+                if (M->table.dupface[cs] & 0x15)
+                    nf = face_candidates(W, cs, M->table.dupface[cs], i, j, k, nf);
             }
     B->nverts = (uint32_t)nv;
+    B->nfaces = (uint32_t)nf;
     if (nv == 0) return focused ? f->focus(f->ctx, ts, NULL, NULL) : 0;
-    B->vpos = malloc(3 * nv * sizeof *B->vpos);
-    B->vnrm = malloc(3 * nv * sizeof *B->vnrm);
-    B->vfg = malloc(4 * nv * sizeof *B->vfg);
-    B->vrank = malloc(nv);
+    if (nf) {
+        B->fkey = malloc(nf * sizeof *B->fkey);
+        if (!B->fkey) return -1;
+        memcpy(B->fkey, W->fkey, nf * sizeof *B->fkey);
+        for (size_t q = 0; q < 2 * nf; q++) {
+            W->vx[nv + q] = W->sx[q];
+            W->vy[nv + q] = W->sy[q];
+            W->vz[nv + q] = W->sz[q];
+            W->fnx[nv + q] = W->snx[q];
+            W->fny[nv + q] = W->sny[q];
+            W->fnz[nv + q] = W->snz[q];
+            W->vrank[nv + q] = 0;
+        }
+    }
+    size_t nall = nv + 2 * nf;
+    B->vpos = malloc(3 * nall * sizeof *B->vpos);
+    B->vnrm = malloc(3 * nall * sizeof *B->vnrm);
+    B->vfg = malloc(4 * nall * sizeof *B->vfg);
+    B->vrank = malloc(nall);
     if (!B->vpos || !B->vnrm || !B->vfg || !B->vrank) return -1;
-    if (nv) memcpy(B->vrank, W->vrank, nv);
-    if (f->grad(f->ctx, ts, nv, W->vx, W->vy, W->vz, W->vf, W->vgx, W->vgy, W->vgz) != 0)
+    memcpy(B->vrank, W->vrank, nall);
+    if (f->grad(f->ctx, ts, nall, W->vx, W->vy, W->vz, W->vf, W->vgx, W->vgy, W->vgz) != 0)
         return -1;
-    W->grad_points += nv;
-    for (size_t v = 0; v < nv; v++) {
+    W->grad_points += nall;
+    for (size_t v = 0; v < nall; v++) {
         B->vpos[3 * v] = W->vx[v];
         B->vpos[3 * v + 1] = W->vy[v];
         B->vpos[3 * v + 2] = W->vz[v];
@@ -857,6 +1030,7 @@ static void free_block(mblock *B)
     free(B->vnrm);
     free(B->vfg);
     free(B->vrank);
+    free(B->fkey);
     free(B->cs);
     free(B->vbase);
     free(B->tri);
@@ -889,15 +1063,60 @@ static double hermite_mid(const qcorner *a, const qcorner *b)
     return 0.5 * (a->fg[0] + b->fg[0]) + d / 8;
 }
 
-/* Cell (global padded index) -> vertex of the component containing edge e. */
-static int cell_vertex(const mesher *M, long cx, long cy, long cz, int e, uint32_t *v,
-                       qcorner *q)
+/* The block holding cell C (global padded index) and the cell's index in it; NULL
+ * when the block was not processed. */
+static mblock *cell_block(const mesher *M, const long C[3], int *cell)
 {
-    if (cx < 0 || cy < 0 || cz < 0 || cx >= M->G || cy >= M->G || cz >= M->G) return -1;
-    mblock *B = find_block(M, block_key(M, cx / MESH_BLOCK, cy / MESH_BLOCK, cz / MESH_BLOCK));
-    if (!B || !B->cs) return -1;
-    int cell = cell_index((int)(cx % MESH_BLOCK), (int)(cy % MESH_BLOCK), (int)(cz % MESH_BLOCK));
-    if (B->vbase[cell] == MESH_NO_VERTEX) return -1;
+    if (C[0] < 0 || C[1] < 0 || C[2] < 0 || C[0] >= M->G || C[1] >= M->G || C[2] >= M->G)
+        return NULL;
+    mblock *B = find_block(M, block_key(M, C[0] / MESH_BLOCK, C[1] / MESH_BLOCK, C[2] / MESH_BLOCK));
+    if (!B || !B->cs) return NULL;
+    *cell = cell_index((int)(C[0] % MESH_BLOCK), (int)(C[1] % MESH_BLOCK), (int)(C[2] % MESH_BLOCK));
+    return B;
+}
+
+/* The quads of block B only reach cells in B and its 7 lower neighbours: looked up
+ * once per block (below[dx + 2 dy + 4 dz] is the block at B - (dx, dy, dz)), not once
+ * per cell.  A NULL table falls back to the search. */
+typedef struct nbhood {
+    const mblock *B;
+    mblock *below[8];
+} nbhood;
+
+static void nbhood_init(const mesher *M, mblock *B, nbhood *h)
+{
+    h->B = B;
+    for (int c = 0; c < 8; c++) {
+        long bx = B->b[0] - (c & 1), by = B->b[1] - ((c >> 1) & 1), bz = B->b[2] - (c >> 2);
+        h->below[c] = bx < 0 || by < 0 || bz < 0 ? NULL : find_block(M, block_key(M, bx, by, bz));
+    }
+}
+
+static mblock *cell_block_nb(const mesher *M, const nbhood *h, const long C[3], int *cell)
+{
+    if (!h) return cell_block(M, C, cell);
+    if (C[0] < 0 || C[1] < 0 || C[2] < 0 || C[0] >= M->G || C[1] >= M->G || C[2] >= M->G)
+        return NULL;
+    long d[3];
+    for (int c = 0; c < 3; c++) {
+        d[c] = h->B->b[c] - C[c] / MESH_BLOCK;
+        if (d[c] < 0 || d[c] > 1) return cell_block(M, C, cell);
+    }
+    mblock *B = h->below[d[0] + 2 * d[1] + 4 * d[2]];
+    if (!B || !B->cs) return NULL;
+    *cell = cell_index((int)(C[0] % MESH_BLOCK), (int)(C[1] % MESH_BLOCK), (int)(C[2] % MESH_BLOCK));
+    return B;
+}
+
+/* Cell C (global padded index) -> vertex of the component containing edge e, and the
+ * cell's case. */
+static int cell_vertex(const mesher *M, const nbhood *h, const long C[3], int e, uint32_t *v,
+                       qcorner *q, int *cs)
+{
+    int cell;
+    mblock *B = cell_block_nb(M, h, C, &cell);
+    if (!B || B->vbase[cell] == MESH_NO_VERTEX) return -1;
+    *cs = B->cs[cell];
     uint8_t cyc = M->table.cycle[B->cs[cell]][e];
     if (cyc == 0xFF) return -1;
     uint32_t local = (uint32_t)B->vbase[cell] + cyc;
@@ -920,6 +1139,66 @@ static double tri_area2(const double *a, const double *b, const double *c)
     return sqrt(x * x + y * y + z * z);
 }
 
+/* Make room for at least 8 more triangles in *tri (capacity *cap triangles). On failure
+ * frees *tri. */
+static int grow_tris(mblock *B, uint32_t **tri, size_t *cap)
+{
+    (void)B;
+    size_t nc = *cap + *cap / 2 + 16;
+    uint32_t *nt = realloc(*tri, 3 * nc * sizeof *nt);
+    if (!nt) {
+        free(*tri);
+        *tri = NULL;
+        return -1;
+    }
+    *tri = nt;
+    *cap = nc;
+    return 0;
+}
+
+/* Global index of the vertex of segment seg on the face across axis ax below cell C
+ * (the face's high-side cell), or -1 when resolve_faces() did not confirm it. */
+static int face_vertex(const mesher *M, const nbhood *h, const long C[3], int ax, int seg)
+{
+    int cell;
+    mblock *B = cell_block_nb(M, h, C, &cell);
+    if (!B || seg < 0 || seg > 1) return -1;
+    uint16_t key = (uint16_t)(3 * cell + ax);
+    size_t lo = 0, hi = B->nfaces;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (B->fkey[mid] < key) lo = mid + 1;
+        else hi = mid;
+    }
+    if (lo == B->nfaces || B->fkey[lo] != key) return -1;
+    return (int)(B->vglobal + B->nverts + 2 * lo + (size_t)seg);
+}
+
+/* Triangles of polygon p[0..n-1] (ring order, reversed when flip), where mid[t] marks
+ * the face vertices: fanned from the first face vertex, so every new diagonal ends at
+ * a vertex only the two polygons of one face segment share and no mesh edge is made
+ * twice.  Returns 0 or -1 (out of memory; *tri freed). */
+static int quad_fan(mblock *B, uint32_t **tri, size_t *cap, size_t *nt, const uint32_t *p,
+                    const uint8_t *mid, int n, int flip)
+{
+    uint32_t r[8];
+    int s = -1;
+    for (int t = 0; t < n; t++) {
+        int from = flip ? (n - t) % n : t;
+        r[t] = p[from];
+        if (mid[from] && s < 0) s = t;
+    }
+    if (s < 0) s = 0;
+    if (*nt + 8 > *cap && grow_tris(B, tri, cap) != 0) return -1;
+    for (int t = 1; t + 1 < n; t++) {
+        uint32_t *o = &(*tri)[3 * (*nt)++];
+        o[0] = r[s];
+        o[1] = r[(s + t) % n];
+        o[2] = r[(s + t + 1) % n];
+    }
+    return 0;
+}
+
 /* Quads of the crossing edges whose owner cell (the cell at the edge's lower corner)
  * lies in block B, each split into two triangles.  The diagonal: the one joining two
  * feature vertices (QEF rank >= 2) when only one does, since it lies on the sharp edge;
@@ -928,8 +1207,24 @@ static double tri_area2(const double *a, const double *b, const double *c)
  * makes a zero-area triangle. */
 static int block_quads(mesher *M, mblock *B)
 {
-    size_t cap = 0, nq = 0;
+    size_t cap = 0, nt = 0;
     uint32_t *tri = NULL;
+    /* two triangles per crossing edge owned (more only for the rare polygons): sized
+     * up front, as over-allocation here was a good part of the peak memory */
+    for (int cell = 0; cell < MESH_BLOCK_CELLS; cell++) {
+        int cs = B->cs[cell];
+        cap += (size_t)(((cs ^ (cs >> 1)) & 1) + ((cs ^ (cs >> 2)) & 1) + ((cs ^ (cs >> 4)) & 1));
+    }
+    cap *= 2;
+    if (cap == 0) {
+        B->ntri = 0;
+        B->tri = NULL;
+        return 0;
+    }
+    tri = malloc(3 * cap * sizeof *tri);
+    if (!tri) return -1;
+    nbhood nh;
+    nbhood_init(M, B, &nh);
     long base[3];
     for (int c = 0; c < 3; c++) base[c] = (long)B->b[c] * MESH_BLOCK;
     for (int k = 0; k < MESH_BLOCK; k++)
@@ -938,6 +1233,7 @@ static int block_quads(mesher *M, mblock *B)
                 int cell = cell_index(i, j, k);
                 int cs = B->cs[cell];
                 if (cs == 0 || cs == 255) continue;
+                const int L[3] = { i, j, k };
                 for (int a = 0; a < 3; a++) {
                     int in0 = cs & 1, in1 = (cs >> (1 << a)) & 1;
                     if (in0 == in1) continue;
@@ -947,13 +1243,16 @@ static int block_quads(mesher *M, mblock *B)
                     static const int ring[4][2] = { { 1, 1 }, { 0, 1 }, { 0, 0 }, { 1, 0 } };
                     uint32_t v[4];
                     qcorner q[4];
-                    int okq = 1;
+                    int okq = 1, csr[4];
+                    long C[4][3];
                     for (int r = 0; r < 4 && okq; r++) {
-                        long C[3] = { base[0] + i, base[1] + j, base[2] + k };
-                        C[o1] -= ring[r][0];
-                        C[o2] -= ring[r][1];
+                        C[r][0] = base[0] + i;
+                        C[r][1] = base[1] + j;
+                        C[r][2] = base[2] + k;
+                        C[r][o1] -= ring[r][0];
+                        C[r][o2] -= ring[r][1];
                         int e = 4 * a + ring[r][0] + 2 * ring[r][1];
-                        if (cell_vertex(M, C[0], C[1], C[2], e, &v[r], &q[r]) != 0) okq = 0;
+                        if (cell_vertex(M, &nh, C[r], e, &v[r], &q[r], &csr[r]) != 0) okq = 0;
                     }
                     if (!okq) {
                         B->failed = 1;
@@ -962,6 +1261,34 @@ static int block_quads(mesher *M, mblock *B)
                     /* (o1, o2, a) is right-handed except for a == 1 (x, z, y); the quad
                      * must face away from the inside end of the edge. */
                     int flip = (a == 1) ^ (in0 == 0);
+                    /* faces crossed twice on both sides get a vertex per segment
+                     * (face_candidates): then the quad is a polygon, fanned out */
+                    uint32_t poly[8];
+                    uint8_t pmid[8];
+                    int npoly = 0, nmid = 0;
+                    for (int r = 0; r < 4; r++) {
+                        pmid[npoly] = 0;
+                        poly[npoly++] = v[r];
+                        int r2 = (r + 1) & 3, ax = C[r][o1] != C[r2][o1] ? o1 : o2;
+                        int hi = C[r][ax] > C[r2][ax] ? r : r2, lo = hi == r ? r2 : r;
+                        if (!((M->table.dupface[csr[lo]] >> (2 * ax + 1)) & 1) ||
+                            !((M->table.dupface[csr[hi]] >> (2 * ax)) & 1))
+                            continue;
+                        int u = a < 3 - a - ax ? a : 3 - a - ax;
+                        long pin = base[u] + L[u] + (u == a ? !in0 : 0);
+                        int mv = face_vertex(M, &nh, C[hi], ax, (int)(pin - C[hi][u]));
+                        if (mv < 0) {
+                            B->failed = 1;
+                            continue;
+                        }
+                        pmid[npoly] = 1;
+                        poly[npoly++] = (uint32_t)mv;
+                        nmid++;
+                    }
+                    if (nmid) {
+                        if (quad_fan(B, &tri, &cap, &nt, poly, pmid, npoly, flip) != 0) return -1;
+                        continue;
+                    }
                     if (flip) {
                         uint32_t t = v[1]; v[1] = v[3]; v[3] = t;
                         qcorner tq = q[1]; q[1] = q[3]; q[3] = tq;
@@ -984,13 +1311,9 @@ static int block_quads(mesher *M, mblock *B)
                     double amax = fmax(a02, a13);
                     if (use02 && a02 <= 1e-9 * amax) use02 = 0;
                     else if (!use02 && a13 <= 1e-9 * amax) use02 = 1;
-                    if (nq == cap) {
-                        cap = cap ? 2 * cap : 256;
-                        uint32_t *nt = realloc(tri, cap * 6 * sizeof *nt);
-                        if (!nt) { free(tri); return -1; }
-                        tri = nt;
-                    }
-                    uint32_t *t = &tri[6 * nq++];
+                    if (nt + 2 > cap && grow_tris(B, &tri, &cap) != 0) return -1;
+                    uint32_t *t = &tri[3 * nt];
+                    nt += 2;
                     if (use02) {
                         t[0] = v[0]; t[1] = v[1]; t[2] = v[2];
                         t[3] = v[0]; t[4] = v[2]; t[5] = v[3];
@@ -1000,7 +1323,7 @@ static int block_quads(mesher *M, mblock *B)
                     }
                 }
             }
-    B->ntri = 2 * nq;
+    B->ntri = nt;
     B->tri = tri;
     return 0;
 }
@@ -1019,6 +1342,37 @@ static int thread_num(void)
 #else
     return 0;
 #endif
+}
+
+/* Keep the face candidates of face_candidates() whose cell across the face has its
+ * component cross the face twice as well (only then would the mesh edge be made four
+ * times), dropping the other candidates' vertices.  Serial and in block order: the
+ * vertex numbering stays independent of the thread count. */
+static void resolve_faces(mesher *M)
+{
+    for (size_t b = 0; b < M->nblocks; b++) {
+        mblock *B = M->blocks[b];
+        uint32_t keep = 0;
+        for (uint32_t q = 0; q < B->nfaces; q++) {
+            int cell = B->fkey[q] / 3, a = B->fkey[q] % 3, ocell;
+            long C[3] = { (long)B->b[0] * MESH_BLOCK + cell % MESH_BLOCK,
+                          (long)B->b[1] * MESH_BLOCK + (cell / MESH_BLOCK) % MESH_BLOCK,
+                          (long)B->b[2] * MESH_BLOCK + cell / (MESH_BLOCK * MESH_BLOCK) };
+            C[a]--;
+            const mblock *O = cell_block(M, C, &ocell);
+            if (!O || !((M->table.dupface[O->cs[ocell]] >> (2 * a + 1)) & 1)) continue;
+            if (keep != q) {
+                size_t from = B->nverts + 2 * (size_t)q, to = B->nverts + 2 * (size_t)keep;
+                memmove(&B->vpos[3 * to], &B->vpos[3 * from], 6 * sizeof *B->vpos);
+                memmove(&B->vnrm[3 * to], &B->vnrm[3 * from], 6 * sizeof *B->vnrm);
+                memmove(&B->vfg[4 * to], &B->vfg[4 * from], 8 * sizeof *B->vfg);
+                memmove(&B->vrank[to], &B->vrank[from], 2);
+                B->fkey[keep] = B->fkey[q];
+            }
+            keep++;
+        }
+        B->nfaces = keep;
+    }
 }
 
 typedef struct onode {
@@ -1238,6 +1592,7 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
     }
     if (M->nblocks > 1) qsort(M->blocks, M->nblocks, sizeof *M->blocks, cmp_block);
     st->blocks = M->nblocks;
+    resolve_faces(M);
 
     /* drop blocks without vertices, number the vertices */
     size_t nkeep = 0, nverts = 0;
@@ -1254,7 +1609,8 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
             continue;
         }
         B->vglobal = nverts;
-        nverts += B->nverts;
+        nverts += B->nverts + 2 * (size_t)B->nfaces;
+        st->face_vertices += 2 * (size_t)B->nfaces;
         M->blocks[nkeep++] = B;
     }
     M->nblocks = nkeep;
@@ -1312,8 +1668,9 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
         mblock *B = M->blocks[i];
         /* empty blocks may hold NULL arrays: memcpy from NULL is undefined even for 0 */
         if (B->nverts) {
-            memcpy(out->v + 3 * B->vglobal, B->vpos, 3 * B->nverts * sizeof *out->v);
-            memcpy(out->n + 3 * B->vglobal, B->vnrm, 3 * B->nverts * sizeof *out->n);
+            size_t nall = B->nverts + 2 * (size_t)B->nfaces;
+            memcpy(out->v + 3 * B->vglobal, B->vpos, 3 * nall * sizeof *out->v);
+            memcpy(out->n + 3 * B->vglobal, B->vnrm, 3 * nall * sizeof *out->n);
         }
         if (B->ntri) memcpy(out->tri + 3 * tpos, B->tri, 3 * B->ntri * sizeof *out->tri);
         tpos += B->ntri;
@@ -1358,6 +1715,54 @@ static int cmp_dedge(const void *x, const void *y)
     if (p->a != q->a) return p->a < q->a ? -1 : 1;
     if (p->b != q->b) return p->b < q->b ? -1 : 1;
     return p->dir - q->dir;
+}
+
+/* Vertex fans: triangle (a, b, c) gives each of its vertices a link edge (a: b -> c,
+ * b: c -> a, c: a -> b).  Around a vertex of a closed, oriented 2-manifold the link
+ * edges form exactly one cycle; two cycles are two cones touching at the vertex. */
+static int check_fans(const frep_mesh *m, mesh_check *c)
+{
+    size_t nv = m->nverts;
+    size_t *start = calloc(nv + 2, sizeof *start);
+    uint32_t *lk = malloc((6 * m->ntris + 1) * sizeof *lk);
+    if (!start || !lk) {
+        free(start);
+        free(lk);
+        return -1;
+    }
+    for (size_t i = 0; i < 3 * m->ntris; i++)
+        if (m->tri[i] < nv) start[m->tri[i] + 2]++;
+    for (size_t v = 0; v < nv; v++) start[v + 2] += start[v + 1];
+    for (size_t t = 0; t < m->ntris; t++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t v = m->tri[3 * t + k];
+            if (v >= nv) continue;
+            size_t at = start[v + 1]++;
+            lk[2 * at] = m->tri[3 * t + (k + 1) % 3];
+            lk[2 * at + 1] = m->tri[3 * t + (k + 2) % 3];
+        }
+    /* now start[v] .. start[v + 1] are v's link edges */
+    for (size_t v = 0; v < nv; v++) {
+        size_t s = start[v], d = start[v + 1] - s;
+        if (d == 0) {
+            c->unused_verts++;
+            continue;
+        }
+        /* follow the cycle through the first edge: it must use every edge once */
+        uint32_t first = lk[2 * s], to = lk[2 * s + 1];
+        size_t steps = 1;
+        while (to != first && steps <= d) {
+            size_t q;
+            for (q = 0; q < d && lk[2 * (s + q)] != to; q++) continue;
+            if (q == d) break;
+            to = lk[2 * (s + q) + 1];
+            steps++;
+        }
+        if (to != first || steps != d) c->nonmanifold_verts++;
+    }
+    free(start);
+    free(lk);
+    return 0;
 }
 
 int mesh_validate(const frep_mesh *m, mesh_check *c)
@@ -1406,5 +1811,5 @@ int mesh_validate(const frep_mesh *m, mesh_check *c)
         i = j;
     }
     free(E);
-    return 0;
+    return check_fans(m, c);
 }

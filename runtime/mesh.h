@@ -83,6 +83,7 @@ typedef struct mesh_stats {
     size_t blocks;           /* blocks evaluated (of MESH_BLOCK^3 cells) */
     size_t blocks_total;     /* blocks of the whole grid */
     size_t cells_split;      /* cells with more than one surface component */
+    size_t face_vertices;    /* extra vertices on faces crossed twice by one sheet */
     size_t points_nan;       /* grid points where f was NaN (counted as outside) */
     int touches_box;         /* the solid reaches the box: the mesh is capped there */
     int full;                /* every grid point is inside */
@@ -99,10 +100,14 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
 
 /* Checks used by the tests and `frep mesh --check`: counts of edges not shared by
  * exactly two triangles, of edges used twice in the same direction (orientation
- * flips), of triangles with (near) zero area and of non-finite coordinates. */
+ * flips), of triangles with (near) zero area and of non-finite coordinates, and of
+ * non-manifold vertices: vertices whose triangles do not form one closed fan (two
+ * cones touching at a point, or a fan left open).  Vertices no triangle uses are
+ * counted apart (unused). */
 typedef struct mesh_check {
     size_t open_edges, nonmanifold_edges, flipped_edges, degenerate, nonfinite;
     double volume, area;     /* signed enclosed volume (positive when outward) */
+    size_t nonmanifold_verts, unused_verts;
 } mesh_check;
 int mesh_validate(const frep_mesh *m, mesh_check *c);
 

@@ -78,8 +78,13 @@ static void face_normal(const frep_mesh *m, size_t t, double n[3])
     n[1] = u[2] * w[0] - u[0] * w[2];
     n[2] = u[0] * w[1] - u[1] * w[0];
     double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    for (int k = 0; k < 3; k++) n[k] = l > 0 ? n[k] / l : 0;
+    double il = l > 0 ? 1 / l : 0;
+    for (int k = 0; k < 3; k++) n[k] *= il;
 }
+
+/* Binary STL records written per fwrite: one call per triangle cost more than
+ * computing the record. */
+#define STL_BATCH 256
 
 static int write_stl(FILE *f, const frep_mesh *m, int ascii)
 {
@@ -103,8 +108,10 @@ static int write_stl(FILE *f, const frep_mesh *m, int ascii)
     snprintf((char *)head, 80, "binary STL written by frep");
     put_u32(head + 80, (uint32_t)m->ntris);
     fwrite(head, 1, sizeof head, f);
+    unsigned char buf[50 * STL_BATCH];
+    size_t nb = 0;
     for (size_t t = 0; t < m->ntris; t++) {
-        unsigned char rec[50];
+        unsigned char *rec = buf + 50 * nb;
         double n[3];
         face_normal(m, t, n);
         for (int k = 0; k < 3; k++) put_f32(rec + 4 * k, n[k]);
@@ -113,8 +120,12 @@ static int write_stl(FILE *f, const frep_mesh *m, int ascii)
             for (int k = 0; k < 3; k++) put_f32(rec + 12 + 12 * v + 4 * k, p[k]);
         }
         rec[48] = rec[49] = 0;
-        fwrite(rec, 1, sizeof rec, f);
+        if (++nb == STL_BATCH) {
+            fwrite(buf, 50, nb, f);
+            nb = 0;
+        }
     }
+    if (nb) fwrite(buf, 50, nb, f);
     return ferror(f) ? -1 : 0;
 }
 

@@ -9,6 +9,8 @@
 #define FREP_OPSEM_H
 
 #include <math.h>
+#include <stdint.h>
+#include <string.h>
 
 #include "ops.h"
 
@@ -22,6 +24,94 @@
 
 /* ln(10), for the derivative of log10 (M_LN10 is not ISO C). */
 #define OPSEM_LN10 2.30258509299404568402
+
+/* ---- sine and cosine --------------------------------------------------------
+ * frep's own sin and cos: libm's are calls the evaluators' lane loops cannot
+ * vectorize (they were 40% of the time of meshing a gyroid).  opsem_sincos_fast() is
+ * branch-free straight-line arithmetic, so a loop over it compiles to AVX2 code, and
+ * the scalar opsem_sin/opsem_cos run the same operations: the VM, the tangent VM and
+ * the constant folder agree bit for bit (no FMA contraction: the x86-64 builds do not
+ * enable FMA, see vm_internal.h).
+ *  - Reduction: k = round(a 2/pi) (adding 1.5 * 2^52 rounds to an integer, whose low
+ *    bits are the quadrant), r = a - k pi/2 with pi/2 split Cody-Waite style into
+ *    three 33-bit parts and a tail: for |k| < 2^20 each k * part is exact and
+ *    a - k P1 is exact, so r keeps its relative accuracy even next to a multiple of
+ *    pi/2 (the closest double there is ~2^-60 away).
+ *  - Kernels on |r| <= pi/4: the minimax polynomials of fdlibm's __kernel_sin (degree
+ *    13) and __kernel_cos (degree 14), published coefficients; tiny r returns r itself
+ *    (sin(-0) = -0, subnormals exact).
+ *  - Accuracy: within OPSEM_TRIG_ULPS ulp of glibc's sin and cos (themselves within
+ *    an ulp of exact); tests/test_vm.c checks it, and 2 ulp is the most seen over 12
+ *    million arguments; |sin|, |cos| <= 1.
+ *  - |a| > OPSEM_TRIG_MAX, inf and NaN: libm's sin and cos (opsem_trig_slow tells
+ *    which lanes; the evaluators patch those lanes after their vector loop). */
+#define OPSEM_TRIG_MAX 1.0e6  /* |k| = |round(a 2/pi)| < 2^20: k times a 33-bit part of
+                                 pi/2 fits the 53-bit significand exactly */
+#define OPSEM_TRIG_ULPS 3     /* documented bound on the difference from glibc */
+
+static inline int opsem_trig_slow(double a) { return !(fabs(a) <= OPSEM_TRIG_MAX); }
+
+/* sin(a) and cos(a) for |a| <= OPSEM_TRIG_MAX (other arguments give some finite or
+ * NaN garbage, never undefined behaviour). */
+static inline void opsem_sincos_fast(double a, double *sinv, double *cosv)
+{
+    const double two_over_pi = 6.36619772367581382433e-01;
+    const double round_magic = 6755399441055744.0;        /* 1.5 * 2^52 */
+    const double p1 = 1.57079632673412561417e+00;         /* first 33 bits of pi/2 */
+    const double p2 = 6.07710050630396597660e-11;         /* next 33 bits */
+    const double p3 = 2.02226624871116645580e-21;         /* next 33 bits */
+    const double p3t = 8.47842766036889956997e-32;        /* pi/2 - p1 - p2 - p3 */
+    const double S1 = -1.66666666666666324348e-01, S2 = 8.33333333332248946124e-03,
+                 S3 = -1.98412698298579493134e-04, S4 = 2.75573137070700676789e-06,
+                 S5 = -2.50507602534068634195e-08, S6 = 1.58969099521155010221e-10;
+    const double C1 = 4.16666666666666019037e-02, C2 = -1.38888888888741095749e-03,
+                 C3 = 2.48015872894767294178e-05, C4 = -2.75573143513906633035e-07,
+                 C5 = 2.08757232129817482790e-09, C6 = -1.13596475577881948265e-11;
+    double t = a * two_over_pi + round_magic;
+    double k = t - round_magic;
+    uint64_t bits;
+    memcpy(&bits, &t, sizeof bits);
+    double r = a - k * p1;
+    r = r - k * p2;
+    r = r - k * p3;
+    r = r - k * p3t;
+    double z = r * r, w = z * z;
+    double ps = S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)));
+    double s = r + z * r * (S1 + z * ps);
+    double pc = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
+    double hz = 0.5 * z, c1 = 1.0 - hz;
+    double c = c1 + (((1.0 - c1) - hz) + z * pc);
+    /* quadrant q = k mod 4: sin a = s, c, -s, -c; cos a = c, -s, -c, s.  Chosen with
+     * bit masks on the representations: GCC vectorizes these, not the ternaries. */
+    uint64_t sb, cb, rb, odd = (uint64_t)0 - (bits & 1u);
+    memcpy(&sb, &s, sizeof sb);
+    memcpy(&cb, &c, sizeof cb);
+    memcpy(&rb, &r, sizeof rb);
+    /* |r| < 2^-27: sin r = r within half an ulp (keeps sin(-0) = -0, subnormals) */
+    uint64_t tiny = (uint64_t)0 - (uint64_t)((int64_t)(rb & 0x7FFFFFFFFFFFFFFFu) <
+                                             (int64_t)0x3E40000000000000);
+    sb = (sb & ~tiny) | (rb & tiny);
+    uint64_t rs = ((sb & ~odd) | (cb & odd)) ^ ((bits & 2u) << 62);
+    uint64_t rc = ((cb & ~odd) | (sb & odd)) ^ (((bits + 1u) & 2u) << 62);
+    memcpy(sinv, &rs, sizeof rs);
+    memcpy(cosv, &rc, sizeof rc);
+}
+
+static inline double opsem_sin(double a)
+{
+    double s, c;
+    if (opsem_trig_slow(a)) return sin(a);
+    opsem_sincos_fast(a, &s, &c);
+    return s;
+}
+
+static inline double opsem_cos(double a)
+{
+    double s, c;
+    if (opsem_trig_slow(a)) return cos(a);
+    opsem_sincos_fast(a, &s, &c);
+    return c;
+}
 
 /* ---- values ---------------------------------------------------------------
  * NaN conventions:
@@ -43,8 +133,6 @@ static inline double opsem_exp(double a) { return exp(a); }
 /* log(0) would be -inf; frep treats a <= 0 as a domain error (NaN), as documented. */
 static inline double opsem_log(double a) { return a > 0 ? log(a) : (a <= 0 ? NAN : a); }
 static inline double opsem_logd(double a) { return a > 0 ? log10(a) : (a <= 0 ? NAN : a); }
-static inline double opsem_sin(double a) { return sin(a); }
-static inline double opsem_cos(double a) { return cos(a); }
 static inline double opsem_tan(double a) { return tan(a); }
 static inline double opsem_asin(double a) { return asin(a); }
 static inline double opsem_acos(double a) { return acos(a); }
@@ -258,8 +346,8 @@ OPSEM_INLINE void op_partials(frep_opcode op, double v0, double v1, double v2, d
     case FREP_OP_EXP: d[0] = r; break;
     case FREP_OP_LOG: d[0] = a > 0 ? 1 / (a > 0 ? a : 1.0) : NAN; break;
     case FREP_OP_LOGD: d[0] = a > 0 ? 1 / ((a > 0 ? a : 1.0) * OPSEM_LN10) : NAN; break;
-    case FREP_OP_SIN: d[0] = cos(a); break;
-    case FREP_OP_COS: d[0] = -sin(a); break;
+    case FREP_OP_SIN: d[0] = opsem_cos(a); break;
+    case FREP_OP_COS: d[0] = -opsem_sin(a); break;
     case FREP_OP_TAN: d[0] = 1 + r * r; break;
     case FREP_OP_ASIN: d[0] = 1 / sqrt(1 - a * a); break;
     case FREP_OP_ACOS: d[0] = -1 / sqrt(1 - a * a); break;

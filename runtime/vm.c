@@ -97,7 +97,8 @@ vm_scratch *vm_scratch_new(const frep_program *p)
     if (!s) return NULL;
     s->zeros = aligned_alloc(64, FREP_BLOCK * sizeof(double));
     s->errlane = malloc(FREP_BLOCK);
-    if (!s->zeros || !s->errlane || (p && vm_scratch_fit(s, p) < 0)) {
+    if (!s->zeros || !s->errlane || alloc_lanes(s->trig, 0, VM_TRIG_CACHE) < 0 ||
+        (p && vm_scratch_fit(s, p) < 0)) {
         vm_scratch_free(s);
         return NULL;
     }
@@ -118,6 +119,7 @@ void vm_scratch_free(vm_scratch *s)
     free(s->parambuf);
     free(s->paramval);
     free(s->zeros);
+    for (i = 0; i < VM_TRIG_CACHE; i++) free(s->trig[i]);
     free(s->primp);
     free(s->primg);
     free(s->errlane);
@@ -297,6 +299,78 @@ static void record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_
         break;                                                                     \
     }
 
+/* The sine/cosine cache of one run.  An entry holds the sine (want_sin) or cosine of
+ * the vector arg, valid while gen (bumped by every store) is unchanged.  Only stable
+ * vectors are cached: the inputs and slot buffers, which change only by stores; the
+ * stack's level buffers are rewritten by every operator. */
+typedef struct trig_cache {
+    const double *arg[VM_TRIG_CACHE];
+    int has_sin[VM_TRIG_CACHE];
+    unsigned long gen[VM_TRIG_CACHE];
+    unsigned next;
+} trig_cache;
+
+static int vm_stable(const frep_program *p, const vm_scratch *s, const vm_inputs *in,
+                     const double *a)
+{
+    uint32_t j;
+    if (a == in->x || a == in->y || a == in->z) return 1;
+    for (j = 0; j < p->nslots; j++)
+        if (s->slotp[j] == a) return 1;
+    return 0;
+}
+
+/* SIN or COS of A into R (n lanes), through the cache tc (inlined into each of
+ * vm_run's clones, so the loops get AVX2 code there). */
+OPSEM_INLINE void vm_trig(const frep_program *p, vm_scratch *s, const vm_inputs *in,
+                          trig_cache *tc, unsigned long gen, int want_sin,
+                          const double *VM_RESTRICT A, double *VM_RESTRICT R, size_t n)
+{
+    size_t i;
+    unsigned e;
+    int slow = 0;
+    for (e = 0; e < VM_TRIG_CACHE; e++)
+        if (tc->arg[e] == A && tc->gen[e] == gen && tc->has_sin[e] == want_sin) {
+            memcpy(R, s->trig[e], n * sizeof *R);
+            return;
+        }
+    /* opsem.h's own sin/cos: a vectorized loop, then libm for the lanes outside its
+     * range (rare); the same bits as opsem_sin/opsem_cos */
+    e = tc->next;
+    {
+        double *VM_RESTRICT T = s->trig[e];
+        if (want_sin) {
+            for (i = 0; i < n; i++) {
+                double sv, cv;
+                opsem_sincos_fast(A[i], &sv, &cv);
+                R[i] = sv;
+                T[i] = cv;
+                slow |= opsem_trig_slow(A[i]);
+            }
+        } else {
+            for (i = 0; i < n; i++) {
+                double sv, cv;
+                opsem_sincos_fast(A[i], &sv, &cv);
+                R[i] = cv;
+                T[i] = sv;
+                slow |= opsem_trig_slow(A[i]);
+            }
+        }
+        if (slow)
+            for (i = 0; i < n; i++) {
+                if (!opsem_trig_slow(A[i])) continue;
+                R[i] = want_sin ? opsem_sin(A[i]) : opsem_cos(A[i]);
+                T[i] = want_sin ? opsem_cos(A[i]) : opsem_sin(A[i]);
+            }
+    }
+    if (vm_stable(p, s, in, A)) {
+        tc->arg[e] = A;
+        tc->gen[e] = gen;
+        tc->has_sin[e] = !want_sin;
+        tc->next = (e + 1) % VM_TRIG_CACHE;
+    }
+}
+
 /* Run the code over lanes 0..n-1.  Returns 0 when done, 1 when a branch diverged
  * (only if may_diverge; nothing is committed then), -1 on an unusable program. */
 static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, size_t n,
@@ -310,7 +384,10 @@ static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
     uint32_t pc = 0, d = 0, j;
     long loops = 0;
     size_t i;
+    trig_cache tc;
+    unsigned long gen = 0;      /* stores so far: the trig cache's validity */
 
+    memset(&tc, 0, sizeof tc);
     s->cur = p;
     vm_err_begin(s, n);
     for (j = 0; j < p->nslots; j++) s->slotp[j] = s->zeros;
@@ -340,6 +417,7 @@ static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
         case FREP_OP_STORE: {
             uint32_t slot = in_->arg;
             const double *v = s->sp[--d];
+            gen++;
             if (v == s->slotp[slot]) break; /* LOAD s; STORE s */
             unalias_slot(s, slot, d, n);
             if (v == s->lv[2 * d] || v == s->lv[2 * d + 1]) {
@@ -407,6 +485,7 @@ static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
             const double k = in_->k;
             const uint32_t kk = (uint32_t)k;
             d -= 2;
+            gen++;
             for (j = 0; j < kk; j++) {
                 unalias_slot(s, in_->arg + j, d, n);
                 materialize_slot(s, in_->arg + j, n);
@@ -429,8 +508,12 @@ static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
         UNARY(EXP, opsem_exp(a))
         UNARY_DOM(LOG, opsem_log(a), opsem_bad_log(a))
         UNARY_DOM(LOGD, opsem_logd(a), opsem_bad_log(a))
-        UNARY(SIN, opsem_sin(a))
-        UNARY(COS, opsem_cos(a))
+        case FREP_OP_SIN: case FREP_OP_COS: {
+            double *R = lvl_out(s, d - 1);
+            vm_trig(p, s, in, &tc, gen, in_->op == FREP_OP_SIN, s->sp[d - 1], R, n);
+            s->sp[d - 1] = R;
+            break;
+        }
         UNARY(TAN, opsem_tan(a))
         UNARY_DOM(ASIN, opsem_asin(a), opsem_bad_asin(a))
         UNARY_DOM(ACOS, opsem_acos(a), opsem_bad_asin(a))

@@ -22,6 +22,12 @@
 #define VM_CLONES
 #endif
 
+/* Entries of the value evaluator's sine/cosine cache: sin and cos of one argument are
+ * computed together (opsem_sincos_fast), so the one not asked for is kept for a later
+ * instruction wanting it of the same stable vector; a gyroid's 6 sines and cosines of
+ * 3 arguments need 4 entries to find all 3 partners in its usual instruction order. */
+#define VM_TRIG_CACHE 4
+
 /* Runtime errors of one run of a block: committed to the scratch's totals only when
  * the run completes (a run abandoned for divergent branches records nothing). */
 typedef struct vm_errstate {
@@ -56,6 +62,7 @@ struct vm_scratch {
     size_t param_lanes;
     uint32_t param_count;
     double *zeros;             /* FREP_BLOCK zeros, never written */
+    double *trig[VM_TRIG_CACHE]; /* FREP_BLOCK lanes each: the sine/cosine cache */
     const double **primp;      /* per-lane PRIM pointers of a divergent rerun */
     const double **primg;      /* same for prim gradients */
     unsigned char *errlane;    /* per lane: raised an error in the current run */

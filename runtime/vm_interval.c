@@ -122,11 +122,15 @@ static int iv_has_phase(ival a, double c)
     return c + n * IV_TWO_PI <= a.hi + 1e-12 * (1 + fabs(a.hi));
 }
 
+/* sin and cos are those of opsem.h, within OPSEM_TRIG_ULPS + 1 = 4 ulp of exact:
+ * the bounds are widened by 2^-50 absolute, 8 ulp of any value in [-1, 1]. */
+#define IV_TRIG_SLACK 0x1p-50
+
 static ival iv_sin(ival a)
 {
     if (!isfinite(a.lo) || !isfinite(a.hi) || a.hi - a.lo >= IV_TWO_PI) return iv(-1, 1);
-    double s1 = sin(a.lo), s2 = sin(a.hi);
-    ival r = iv(fmin(s1, s2), fmax(s1, s2));
+    double s1 = opsem_sin(a.lo), s2 = opsem_sin(a.hi);
+    ival r = iv(fmin(s1, s2) - IV_TRIG_SLACK, fmax(s1, s2) + IV_TRIG_SLACK);
     if (iv_has_phase(a, IV_HALF_PI)) r.hi = 1;
     if (iv_has_phase(a, -IV_HALF_PI)) r.lo = -1;
     r = iv_round(r);
@@ -136,8 +140,8 @@ static ival iv_sin(ival a)
 static ival iv_cos(ival a)
 {
     if (!isfinite(a.lo) || !isfinite(a.hi) || a.hi - a.lo >= IV_TWO_PI) return iv(-1, 1);
-    double c1 = cos(a.lo), c2 = cos(a.hi);
-    ival r = iv(fmin(c1, c2), fmax(c1, c2));
+    double c1 = opsem_cos(a.lo), c2 = opsem_cos(a.hi);
+    ival r = iv(fmin(c1, c2) - IV_TRIG_SLACK, fmax(c1, c2) + IV_TRIG_SLACK);
     if (iv_has_phase(a, 0)) r.hi = 1;
     if (iv_has_phase(a, IV_PI)) r.lo = -1;
     r = iv_round(r);

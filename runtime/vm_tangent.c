@@ -529,7 +529,27 @@ static int tan_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, si
                 ca = -1;
                 break;
             TAN_UNARY(NOT) TAN_UNARY(ABS) TAN_UNARY(SQRT) TAN_UNARY(SQUARE)
-            TAN_UNARY(EXP) TAN_UNARY(LOG) TAN_UNARY(LOGD) TAN_UNARY(SIN) TAN_UNARY(COS)
+            TAN_UNARY(EXP) TAN_UNARY(LOG) TAN_UNARY(LOGD)
+            case FREP_OP_SIN: case FREP_OP_COS: {
+                /* value and derivative from one vectorized opsem_sincos_fast, libm
+                 * for the lanes outside its range: the bits of op_scalar and
+                 * op_partials */
+                int slow = 0, is_sin = op == FREP_OP_SIN;
+                for (i = 0; i < n; i++) {
+                    double sv, cv;
+                    opsem_sincos_fast(A[i], &sv, &cv);
+                    R[i] = is_sin ? sv : cv;
+                    PA[i] = is_sin ? cv : -sv;
+                    slow |= opsem_trig_slow(A[i]);
+                }
+                if (slow)
+                    for (i = 0; i < n; i++) {
+                        if (!opsem_trig_slow(A[i])) continue;
+                        R[i] = is_sin ? opsem_sin(A[i]) : opsem_cos(A[i]);
+                        PA[i] = is_sin ? opsem_cos(A[i]) : -opsem_sin(A[i]);
+                    }
+                break;
+            }
             TAN_UNARY(TAN) TAN_UNARY(ASIN) TAN_UNARY(ACOS) TAN_UNARY(ATAN)
             TAN_UNARY(SINH) TAN_UNARY(COSH) TAN_UNARY(TANH) TAN_UNARY(SIGN)
             TAN_UNARY(CEIL) TAN_UNARY(FLOOR) TAN_UNARY(INT) TAN_UNARY(FRAC)

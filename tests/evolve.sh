@@ -103,6 +103,47 @@ st=$?
 report $st "segment then evolve explains the cube"
 [ $st = 0 ] || { show "$tmp/err"; show "$tmp/m6.hf"; }
 
+# Automatic alpha: 10 degrees on the clean cube, 35 on a noisy one (positions with
+# Gaussian noise of 0.2% of the diagonal, a fifth of eps_d); --alpha overrides.
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/a1.hf" --seed 1 2>"$tmp/err"
+grep -q 'frep evolve: alpha 10 degrees (automatic: clean' "$tmp/err" &&
+    grep -q 'normals within 10 degrees' "$tmp/a1.hf"
+report $? "automatic alpha: 10 degrees for a clean cloud"
+"$FREP" sample "$tmp/cube.hf" -n 3000 --seed 2 --noise 0.002 -o "$tmp/noisy.xyz" -q
+"$FREP" evolve "$tmp/noisy.xyz" -p "$tmp/cube.fit" -o "$tmp/a2.hf" --seed 1 2>"$tmp/err"
+st=$?
+[ $st = 0 ] && grep -q 'frep evolve: alpha 35 degrees (automatic: noisy' "$tmp/err" &&
+    grep -q 'normals within 35 degrees' "$tmp/a2.hf" && grep -q 'tree size 11 nodes' "$tmp/a2.hf"
+st=$?
+report $st "automatic alpha: 35 degrees for a noisy cloud, still the 11-node cube"
+[ $st = 0 ] || { show "$tmp/err"; show "$tmp/a2.hf"; }
+"$FREP" evolve "$tmp/noisy.xyz" -p "$tmp/cube.fit" -o "$tmp/a3.hf" --seed 1 --alpha 20 2>"$tmp/err"
+! grep -q 'automatic' "$tmp/err" && grep -q 'normals within 20 degrees' "$tmp/a3.hf"
+report $? "--alpha overrides the automatic choice"
+
+# --trace: a line per generation; the GA keeps its best (elitism), so the best fitness
+# never falls within a phase; the last line gives the figures of the model.
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/tr.hf" --seed 1 --no-partition \
+    --trace "$tmp/trace" -q 2>"$tmp/err"
+st=$?
+awk -v want="$(sed -n 's/.* \([0-9]*\) generations, .*/\1/p' "$tmp/tr.hf")" '
+    /^#/ { if ($2 == "end:") end = $9; next }
+    { n++; if ($1 != n || $6 < 0 || $6 > 100 || (n > 1 && $4 < f) || $7 != "ga") bad++; f = $4 }
+    END { exit !bad && n == want && n > 0 && end == 11 && f > 0 ? 0 : 1 }' "$tmp/trace"
+st=$?
+report $st "--trace: one line per generation, best fitness never falls, end line"
+[ $st = 0 ] || { show "$tmp/trace"; show "$tmp/err"; }
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/tr2.hf" --seed 1 --partition \
+    --trace "$tmp/trace2" -q 2>"$tmp/err"
+tail -n 2 "$tmp/trace2" | head -n 1 | awk '$6 == 100 && $7 == "polish" { ok = 1 } END { exit !ok }'
+report $? "--trace of a partitioned run: the polish phase explains every scored point"
+
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/tr3.hf" --seed 1 --no-partition \
+    --stop-share 50 --trace "$tmp/trace3" -q 2>"$tmp/err"
+awk '!/^#/ { n++; s = $6; if (s >= 50) hit++ } END { exit hit == 1 && s >= 50 && n > 0 ? 0 : 1 }' \
+    "$tmp/trace3" && [ "$(grep -vc '^#' "$tmp/trace3")" -lt "$(grep -vc '^#' "$tmp/trace")" ]
+report $? "--stop-share: the GA ends at the first generation explaining 50% of the points"
+
 # Bad input: clear messages, non-zero exit, no crash.
 : >"$tmp/empty.fit"
 "$FREP" evolve "$tmp/cube.xyz" -p "$tmp/empty.fit" -o "$tmp/x.hf" -q 2>"$tmp/err"

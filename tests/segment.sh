@@ -142,6 +142,61 @@ for model in box sphere cylinder cone torus; do
     done
 done
 
+# Small and close faces, clean: models written here (axis-aligned, planes only).
+#  stairs: three treads 0.065 apart (2 epsilon of its diagonal, 3.17): the old
+#          detector put one plane tilted by 3.3 degrees across all three (its band and
+#          normal threshold hold them all); the risers (0.9% of the area) need the
+#          second phase (--min-points-small).
+#  boss:   a 2 x 2 x 0.2 plate with a 0.24 x 0.24 x 0.15 boss: the boss's five faces
+#          hold 0.4-0.6% of the points each, under the 1% minimum support.
+cat > "$tmp/stairs.hf" <<'EOF'
+-- @setops minmax
+-- @box -0.2 -0.2 -0.2 3.2 1.2 0.4
+my_model(x[3], a[1])
+{
+  side = frPlane(x, 0, 1, 0, 1) & frPlane(x, 0, -1, 0, 0) & frPlane(x, 1, 0, 0, 3)
+       & frPlane(x, 0, 0, -1, 0) & frPlane(x, -1, 0, 0, 0);
+  my_model = side & (frPlane(x, 0, 0, 1, 0.065)
+                     | (frPlane(x, -1, 0, 0, -1) & frPlane(x, 0, 0, 1, 0.13))
+                     | (frPlane(x, -1, 0, 0, -2) & frPlane(x, 0, 0, 1, 0.195)));
+}
+EOF
+printf '%s\n' "plane 0 1 0 1" "plane 0 -1 0 0" "plane 1 0 0 3" "plane 0 0 -1 0" "plane -1 0 0 0" \
+    "plane 0 0 1 0.065" "plane 0 0 1 0.13" "plane 0 0 1 0.195" "plane -1 0 0 -1" \
+    "plane -1 0 0 -2" > "$tmp/stairs.truth"
+cat > "$tmp/boss.hf" <<'EOF'
+-- @setops minmax
+-- @box -1.2 -1.2 -0.2 1.2 1.2 0.5
+my_model(x[3], a[1])
+{
+  plate = frPlane(x, 1, 0, 0, 1) & frPlane(x, -1, 0, 0, 1) & frPlane(x, 0, 1, 0, 1)
+        & frPlane(x, 0, -1, 0, 1) & frPlane(x, 0, 0, 1, 0.2) & frPlane(x, 0, 0, -1, 0);
+  boss = frPlane(x, 1, 0, 0, 0.12) & frPlane(x, -1, 0, 0, 0.12) & frPlane(x, 0, 1, 0, 0.12)
+       & frPlane(x, 0, -1, 0, 0.12) & frPlane(x, 0, 0, 1, 0.35) & frPlane(x, 0, 0, -1, 0);
+  my_model = plate | boss;
+}
+EOF
+printf '%s\n' "plane 1 0 0 1" "plane -1 0 0 1" "plane 0 1 0 1" "plane 0 -1 0 1" \
+    "plane 0 0 1 0.2" "plane 0 0 -1 0" "plane 1 0 0 0.12" "plane -1 0 0 0.12" \
+    "plane 0 1 0 0.12" "plane 0 -1 0 0.12" "plane 0 0 1 0.35" > "$tmp/boss.truth"
+for model in stairs boss; do
+    "$FREP" sample "$tmp/$model.hf" -n $NPTS --seed "$SEED" -o "$tmp/$model.xyz" -q
+    "$FREP" segment "$tmp/$model.xyz" --seed 1 --no-separating -q -o "$tmp/$model.fit" \
+        2> "$tmp/err"
+    report $? "$model, clean: frep segment runs"
+    want=$(wc -l < "$tmp/$model.truth")
+    set -- $(compare "$tmp/$model.truth" "$tmp/$model.fit" $TOL_POS_CLEAN $TOL_DEG_CLEAN \
+             2> "$tmp/cmp")
+    sed 's/^/# /' "$tmp/cmp"
+    [ "$1" = "$want" ] && [ "$2" = 0 ]
+    report $? "$model, clean: all $want faces and nothing else ($1 found, $2 spurious)"
+done
+# Without the second phase the boss's faces are missed (what the option turns off).
+"$FREP" segment "$tmp/boss.xyz" --seed 1 --no-separating -q --min-points-small 0 \
+    -o "$tmp/boss1.fit" 2> "$tmp/err"
+[ "$(grep -c . "$tmp/boss1.fit")" = 6 ]
+report $? "boss, --min-points-small 0: only the plate's 6 faces ($(grep -c . "$tmp/boss1.fit"))"
+
 # Normals estimated by frep (PCA and propagation) instead of the sampler's: the clean
 # box and cylinder without their normal columns.
 for model in box cylinder; do

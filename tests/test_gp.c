@@ -421,7 +421,7 @@ static void test_block_minus_cylinder(void)
     for (int so = 0; so < 2; so++) {
         gp_cache *c = scene_cache(&s, (gp_setops)so, 10);
         gp_result res;
-        run_gp(c, 4, 2, &res);
+        run_gp(c, 1, 2, &res);
         gp_eval *e = gp_eval_new();
         simplify_tree(&res.best, (gp_setops)so, c, e, NULL);
         gp_stats st;
@@ -648,6 +648,117 @@ static void test_groove_pieces(void)
     scene_free(&s);
 }
 
+/* Independent evaluation of a min/max tree at a point (for checks that must not trust
+ * fitness.c): the value of the postfix code over the scene's primitives. */
+static double tree_value(const scene *s, const gp_tree *t, const double x[3])
+{
+    double st[64];
+    int sp = 0;
+    for (uint32_t pc = 0; pc < t->len; pc++) {
+        const frep_insn *in = &t->code[pc];
+        double g[3];
+        switch (in->op) {
+        case FREP_OP_PRIM:
+            if (sp == 64) return NAN;  /* deeper than any tree of these tests */
+            st[sp++] = aprim_eval(&s->prims[in->arg], x, g);
+            break;
+        case FREP_OP_NEG: st[sp - 1] = -st[sp - 1]; break;
+        case FREP_OP_MAX: sp--; st[sp - 1] = fmax(st[sp - 1], st[sp]); break;
+        case FREP_OP_MIN: sp--; st[sp - 1] = fmin(st[sp - 1], st[sp]); break;
+        case FREP_OP_MSUB: sp--; st[sp - 1] = fmin(st[sp - 1], -st[sp]); break;
+        default: return NAN;
+        }
+    }
+    return st[0];
+}
+
+/* Points i0.. of the scene on the tree's zero set (|f| < h) across which the field
+ * does not change sign along the normal (f(x - h n) > 0 > f(x + h n) fails): points a
+ * zero-thickness sheet "explains". */
+static size_t sheet_points(const scene *s, const gp_tree *t, size_t i0, double h)
+{
+    size_t k = 0;
+    for (size_t i = i0; i < s->n; i++) {
+        double x[3] = { s->x[i], s->y[i], s->z[i] }, xo[3], xi[3];
+        for (int q = 0; q < 3; q++) {
+            xo[q] = x[q] + h * s->nrm[3 * i + q];
+            xi[q] = x[q] - h * s->nrm[3 * i + q];
+        }
+        if (fabs(tree_value(s, t, x)) < h && !(tree_value(s, t, xi) > 0 && tree_value(s, t, xo) < 0))
+            k++;
+    }
+    return k;
+}
+
+/* A cube and, beside it, a one-sided patch on the plane z = 2 (a face of a part whose
+ * other faces were not scanned; its plane p7 is in the list). The only trees that
+ * explain the patch with these primitives are sheets such as p7 \ p7 = -|p7| (inside
+ * nowhere, zero on the plane) or solids that give up a cube face: under plain eq. 7 the
+ * GA adds a sheet; with the crossing test it keeps the solid cube. */
+static void test_sheet(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 7);
+    double h[3] = { 1, 1, 1 };
+    sample_box(&s, &r, 300, h, 0);
+    size_t patch = s.n;
+    add_plane(&s, 2, 1, 2); /* p7: z <= 2 */
+    for (int k = 0; k < 250; k++)
+        scene_add(&s, 2 + gp_rng_unif(&r), gp_rng_unif(&r) - 0.5, 2, 0, 0, 1);
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 10);
+    gp_eval *e = gp_eval_new();
+
+    /* The fitness itself: the cube beats the cube with a sheet only under the test. */
+    gp_tree cube = { NULL, 0, 0 }, sheet = { NULL, 0, 0 };
+    parse_tree(&cube, "12&34&&56&&", GP_SETOPS_MINMAX);
+    parse_tree(&sheet, "12&34&&56&&77\\|", GP_SETOPS_MINMAX);
+    is_int(sheet_points(&s, &sheet, patch, c->eps_d), s.n - patch,
+           "cube | (p7 \\ p7): every patch point is on a sheet");
+    c->crossing = 0;
+    double f0c = gp_fitness(c, e, cube.code, cube.len), f0s = gp_fitness(c, e, sheet.code, sheet.len);
+    gp_stats st0;
+    gp_tree_stats(c, e, sheet.code, sheet.len, &st0);
+    c->crossing = 1;
+    double f1c = gp_fitness(c, e, cube.code, cube.len), f1s = gp_fitness(c, e, sheet.code, sheet.len);
+    gp_stats st1;
+    gp_tree_stats(c, e, sheet.code, sheet.len, &st1);
+    ok(f0s > f0c, "plain eq. 7 prefers the sheet: %.1f > %.1f", f0s, f0c);
+    ok(f1c > f1s, "with the crossing test the cube wins: %.1f > %.1f", f1c, f1s);
+    is_double(f1c, f0c, 1e-6 * f0c, "a solid scores the same with or without the test");
+    is_int(st0.explained - st1.explained, s.n - patch, "the sheet's points no longer count");
+
+    /* The GA, same seed, without and with the test. */
+    gp_result old, now, now2;
+    c->crossing = 0;
+    run_gp(c, 1, 1, &old);
+    size_t so = sheet_points(&s, &old.best, patch, c->eps_d);
+    ok(so > (s.n - patch) / 2, "plain eq. 7: the GA builds a sheet (%zu patch points): %s", so,
+       print_str(&old.best));
+    c->crossing = 1;
+    run_gp(c, 1, 1, &now);
+    run_gp(c, 1, 2, &now2);
+    is_int(sheet_points(&s, &now.best, 0, c->eps_d), 0,
+           "crossing test: no point on a sheet: %s", print_str(&now.best));
+    ok(now.best.len == now2.best.len &&
+       memcmp(now.best.code, now2.best.code, now.best.len * sizeof(frep_insn)) == 0,
+       "same seed, same tree at 1 and 2 threads");
+    simplify_tree(&now.best, GP_SETOPS_MINMAX, c, e, NULL);
+    gp_stats st;
+    gp_tree_stats(c, e, now.best.code, now.best.len, &st);
+    ok(now.best.len == 11 && st.explained == patch, "simplified: the cube, 11 nodes (%s)",
+       print_str(&now.best));
+    tree_free(&old.best);
+    tree_free(&now.best);
+    tree_free(&now2.best);
+    tree_free(&cube);
+    tree_free(&sheet);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+}
+
 int main(void)
 {
     test_tree_ops();
@@ -660,5 +771,6 @@ int main(void)
     test_cube_gp();
     test_block_minus_cylinder();
     test_groove_pieces();
+    test_sheet();
     return done_testing();
 }

@@ -199,7 +199,8 @@ static void test_interval_program(void)
 /* ---- analytic fields for the mesher -------------------------------------------------- */
 
 typedef enum field_kind {
-    F_SPHERE, F_BLOCK, F_CYLINDER, F_CSG, F_THIN, F_BLEND, F_EMPTY, F_FULL, F_NANHALF, F_TORI
+    F_SPHERE, F_BLOCK, F_CYLINDER, F_CSG, F_THIN, F_BLEND, F_EMPTY, F_FULL, F_NANHALF, F_TORI,
+    F_GYROID
 } field_kind;
 
 typedef struct tfield {
@@ -300,6 +301,25 @@ static double tf_eval1(const tfield *t, double x, double y, double z, double g[3
         }
         return f1 > f2 ? f1 : f2;
     }
+    case F_GYROID: {
+        /* bench/bench_gyroid.hf with min: the solid side of a gyroid of period 2 pi / 10
+         * in a ball of radius 1.5; its tunnels get thinner than a cell at coarse grids */
+        const double k = 10;
+        double sx = sin(k * x), cx = cos(k * x), sy = sin(k * y), cy = cos(k * y);
+        double sz = sin(k * z), cz = cos(k * z);
+        f1 = 2.25 - x * x - y * y - z * z;
+        f2 = -(sx * cy + sy * cz + sz * cx);
+        if (g) {
+            if (f1 < f2) {
+                g[0] = -2 * x; g[1] = -2 * y; g[2] = -2 * z;
+            } else {
+                g[0] = -k * (cx * cy - sz * sx);
+                g[1] = -k * (-sx * sy + cy * cz);
+                g[2] = -k * (-sy * sz + cz * cx);
+            }
+        }
+        return f1 < f2 ? f1 : f2;
+    }
     }
     return NAN;
 }
@@ -379,6 +399,9 @@ static void check_closed(const char *name, const frep_mesh *m, mesh_check *c)
        "%s: %zu triangles, every edge shared by two triangles in opposite directions "
        "(open %zu, non-manifold %zu, flipped %zu)", name, m->ntris, c->open_edges,
        c->nonmanifold_edges, c->flipped_edges);
+    ok(c->nonmanifold_verts == 0 && c->unused_verts == 0,
+       "%s: every vertex's triangles form one closed fan (%zu do not, %zu unused)", name,
+       c->nonmanifold_verts, c->unused_verts);
     ok(c->degenerate == 0 && c->nonfinite == 0, "%s: no zero-area triangle (%zu), no NaN (%zu)",
        name, c->degenerate, c->nonfinite);
 }
@@ -531,6 +554,69 @@ static void test_mesh_threads(void)
        memcmp(a.v, b.v, 3 * a.nverts * sizeof *a.v) == 0 &&
        memcmp(a.tri, b.tri, 3 * a.ntris * sizeof *a.tri) == 0,
        "the same mesh at 1 and 3 threads (%zu triangles)", a.ntris);
+    mesh_free(&a);
+    mesh_free(&b);
+}
+
+/* The checker itself: two tetrahedra sharing one vertex are closed and every edge has
+ * two triangles, but the shared vertex is two cones touching at a point. */
+static void test_validate_pinch(void)
+{
+    double v[21] = { 0, 0, 0,  1, 0, 0,  0, 1, 0,  0, 0, 1,  -1, 0, 0,  0, -1, 0,  0, 0, -1 };
+    /* outward triangles of tetrahedra (0,1,2,3) and (0,4,5,6) */
+    uint32_t tri[24] = { 0, 2, 1,  0, 1, 3,  0, 3, 2,  1, 2, 3,
+                         0, 4, 5,  0, 6, 4,  0, 5, 6,  4, 6, 5 };
+    frep_mesh m = { 7, 8, v, NULL, tri };
+    mesh_check c;
+    mesh_validate(&m, &c);
+    ok(c.open_edges == 0 && c.nonmanifold_edges == 0 && c.flipped_edges == 0,
+       "two tetrahedra touching at a vertex: edges closed and oriented");
+    is_int((long)c.nonmanifold_verts, 1, "... and the shared vertex is non-manifold");
+    m.ntris = 4;
+    mesh_validate(&m, &c);
+    ok(c.nonmanifold_verts == 0 && c.unused_verts == 3, "one tetrahedron: manifold, 3 unused vertices");
+}
+
+/* One sheet crossing a cell face twice on both sides (tunnels of the gyroid thinner
+ * than a cell): before face vertices, four quads shared a mesh edge on these grids. */
+static void test_mesh_tunnels(void)
+{
+    static const struct { int grid; double box[6]; } cases[] = {
+        { 24, { -1.55, -1.63, -1.6, 1.61, 1.58, 1.67 } },
+        { 37, { -1.6, -1.6, -1.6, 1.6, 1.6, 1.6 } },
+        { 45, { -1.55, -1.63, -1.6, 1.61, 1.58, 1.67 } },
+    };
+    size_t extra = 0;
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        tfield t;
+        frep_mesh m;
+        mesh_stats st;
+        mesh_check c;
+        char name[64];
+        memset(&t, 0, sizeof t);
+        t.kind = F_GYROID;
+        snprintf(name, sizeof name, "gyroid -g %d", cases[i].grid);
+        if (run_mesh(&t, cases[i].box, cases[i].grid, 2, &m, &st) == 0) {
+            check_closed(name, &m, &c);
+            extra += st.face_vertices;
+            mesh_free(&m);
+        } else {
+            ok(0, "%s meshed", name);
+        }
+    }
+    ok(extra > 0, "the gyroid needed %zu face vertices", extra);
+    /* the face vertices do not depend on the thread count either */
+    tfield t;
+    memset(&t, 0, sizeof t);
+    t.kind = F_GYROID;
+    frep_mesh a, b;
+    mesh_stats st;
+    int ra = run_mesh(&t, cases[1].box, cases[1].grid, 1, &a, &st);
+    int rb = run_mesh(&t, cases[1].box, cases[1].grid, 3, &b, &st);
+    ok(ra == 0 && rb == 0 && st.face_vertices > 0 && a.nverts == b.nverts && a.ntris == b.ntris &&
+       memcmp(a.v, b.v, 3 * a.nverts * sizeof *a.v) == 0 &&
+       memcmp(a.tri, b.tri, 3 * a.ntris * sizeof *a.tri) == 0,
+       "gyroid: the same mesh at 1 and 3 threads (%zu triangles)", a.ntris);
     mesh_free(&a);
     mesh_free(&b);
 }
@@ -839,6 +925,8 @@ int main(void)
     test_interval_program();
     test_mesh_shapes();
     test_mesh_threads();
+    test_validate_pinch();
+    test_mesh_tunnels();
     test_mesh_bad();
     test_meshio();
     test_prune_program(-1);

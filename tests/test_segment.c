@@ -1,6 +1,7 @@
 /* test_segment.c - tests of evolve/: kd-tree against brute force, PCA normals,
  * efficient RANSAC on clouds sampled here from analytic primitives (clean, noisy, with
- * outliers), separating primitives, the .fit and .hf lists, and bad input.
+ * outliers), separating primitives, the .fit and .hf lists, bad input, and the
+ * growth steps of evolve/simplify.c that complete a tree short of faces.
  */
 #include <math.h>
 #include <stdint.h>
@@ -13,6 +14,7 @@
 #include "normals.h"
 #include "prim.h"
 #include "segment.h"
+#include "simplify.h"
 #include "tap.h"
 
 #ifndef M_PI
@@ -662,6 +664,88 @@ static void test_bad_input(void)
     cloud_free(c);
 }
 
+/* simplify_grow_pieces completes a tree that lacks a face of one part of a union:
+ * boxes A = [0,1]^3 and B = [2,3] x [0,1]^2 sampled on their faces, the tree
+ * A | B' with B' lacking B's face x >= 2, so that B' is a slab over A too (A's x = 0
+ * face and B's x = 2 face explained by nothing). Joining a primitive at the root
+ * cannot fix that (& x>=2 cuts A away); the face must go into B's subtree, or the
+ * slab be cut by t & ((x<=1 & x>=0) | x>=2). */
+static void test_grow_inner(void)
+{
+    /* Planes: A's six (x<=1, x>=0, y<=1, y>=0, z<=1, z>=0), then B's x<=3, x>=2. */
+    prim pl[8];
+    memset(pl, 0, sizeof pl);
+    const double nx[8] = {1, -1, 0, 0, 0, 0, 1, -1}, ny[8] = {0, 0, 1, -1, 0, 0, 0, 0},
+                 nz[8] = {0, 0, 0, 0, 1, -1, 0, 0}, d[8] = {1, 0, 1, 0, 1, 0, 3, -2};
+    for (int j = 0; j < 8; j++) {
+        pl[j].type = PRIM_PLANE;
+        pl[j].p[0] = nx[j];
+        pl[j].p[1] = ny[j];
+        pl[j].p[2] = nz[j];
+        pl[j].r = d[j];
+    }
+    /* 300 points on each face of each box, outward normals. */
+    enum { PER_FACE = 300, NPTS = 2 * 6 * PER_FACE };
+    double *x = malloc(3 * NPTS * sizeof *x), *nrm = malloc(3 * NPTS * sizeof *nrm);
+    trng r = {11};
+    size_t n = 0;
+    for (int b = 0; b < 2; b++)
+        for (int axis = 0; axis < 3; axis++)
+            for (int sg = 0; sg < 2; sg++)
+                for (int k = 0; k < PER_FACE; k++, n++) {
+                    for (int a = 0; a < 3; a++) {
+                        x[3 * n + a] = uni(&r);
+                        nrm[3 * n + a] = 0;
+                    }
+                    x[3 * n + axis] = sg ? 0 : 1;
+                    nrm[3 * n + axis] = sg ? -1 : 1;
+                    x[3 * n] += 2 * b;
+                }
+    double *v = malloc(8 * n * sizeof *v), *g = malloc(3 * 8 * n * sizeof *g);
+    for (uint32_t j = 0; j < 8; j++)
+        for (size_t i = 0; i < n; i++) {
+            double gg[3];
+            v[j * n + i] = prim_eval(&pl[j], x + 3 * i, gg);
+            for (int a = 0; a < 3; a++) g[(3 * j + (uint32_t)a) * n + i] = gg[a];
+        }
+    /* eps_d 1% of the diagonal (sqrt(11)), alpha 10 degrees, lambda ln(n). */
+    gp_cache *c = gp_cache_new(n, 8, GP_SETOPS_MINMAX, v, g, nrm, 0.01 * sqrt(11.0),
+                               10 * M_PI / 180, -1);
+    gp_eval *e = gp_eval_new();
+    gp_opset o = gp_opset_of(GP_SETOPS_MINMAX);
+    gp_tree t = {NULL, 0, 0};
+    /* (p0 & p1 & p2 & p3 & p4 & p5) | (p6 & p2 & p3 & p4 & p5) */
+    tree_push(&t, FREP_OP_PRIM, 0);
+    for (uint32_t j = 1; j < 6; j++) {
+        tree_push(&t, FREP_OP_PRIM, j);
+        tree_push(&t, (frep_opcode)o.inter, 0);
+    }
+    tree_push(&t, FREP_OP_PRIM, 6);
+    for (uint32_t j = 2; j < 6; j++) {
+        tree_push(&t, FREP_OP_PRIM, j);
+        tree_push(&t, (frep_opcode)o.inter, 0);
+    }
+    tree_push(&t, (frep_opcode)o.uni, 0);
+    uint8_t *okp = malloc(n);
+    size_t before = 0, after = 0;
+    if (c && e && okp && gp_explained(c, e, t.code, t.len, okp) == 0)
+        for (size_t i = 0; i < n; i++) before += okp[i];
+    ok(c && e && before < n - PER_FACE, "the slab tree explains %zu of %zu points", before, n);
+    double fit = 0;
+    int rc = c && e ? simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &fit) : -1;
+    if (rc == 0 && gp_explained(c, e, t.code, t.len, okp) == 0)
+        for (size_t i = 0; i < n; i++) after += okp[i];
+    ok(rc == 0 && after >= n - n / 100, "completed: %zu of %zu points explained, %u nodes", after,
+       n, t.len);
+    ok(rc == 0 && tree_count_prims(t.code, t.len, 8) == 8, "it uses all 8 planes");
+    tree_free(&t);
+    free(okp);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    free(x);
+    free(nrm);
+}
+
 int main(void)
 {
     test_kdtree();
@@ -670,5 +754,6 @@ int main(void)
     test_bad_input();
     test_determinism();
     test_shapes();
+    test_grow_inner();
     return done_testing();
 }
