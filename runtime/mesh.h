@@ -83,13 +83,13 @@ typedef struct mesh_stats {
     size_t blocks;           /* blocks evaluated (of MESH_BLOCK^3 cells) */
     size_t blocks_total;     /* blocks of the whole grid */
     size_t cells_split;      /* cells with more than one surface component */
-    size_t face_vertices;    /* extra vertices on faces crossed twice by one sheet */
     size_t points_nan;       /* grid points where f was NaN (counted as outside) */
     int touches_box;         /* the solid reaches the box: the mesh is capped there */
     int full;                /* every grid point is inside */
     size_t eval_points;      /* points evaluated (values only) */
     size_t grad_points;      /* points evaluated with the gradient */
     double seconds;
+    size_t face_vertices;    /* extra vertices on faces crossed twice by one sheet */
 } mesh_stats;
 
 /* Polygonize. Returns 0 with a closed, oriented mesh in *out (possibly empty: no

@@ -8,6 +8,7 @@
 #ifndef FREP_OPSEM_H
 #define FREP_OPSEM_H
 
+#include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
@@ -49,7 +50,18 @@
                                  pi/2 fits the 53-bit significand exactly */
 #define OPSEM_TRIG_ULPS 3     /* documented bound on the difference from glibc */
 
-static inline int opsem_trig_slow(double a) { return !(fabs(a) <= OPSEM_TRIG_MAX); }
+/* The reduction needs double arithmetic rounded to double (FLT_EVAL_METHOD 0: SSE2,
+ * AArch64, ...); with x87 extended precision every argument takes libm's path. */
+#if defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD == 0
+#define OPSEM_TRIG_FAST 1
+#else
+#define OPSEM_TRIG_FAST 0
+#endif
+
+static inline int opsem_trig_slow(double a)
+{
+    return !OPSEM_TRIG_FAST || !(fabs(a) <= OPSEM_TRIG_MAX);
+}
 
 /* sin(a) and cos(a) for |a| <= OPSEM_TRIG_MAX (other arguments give some finite or
  * NaN garbage, never undefined behaviour). */

@@ -5,7 +5,9 @@
  * itself, operators write a buffer owned by their stack level, and every operator is
  * a simple loop over the block's lanes that GCC vectorizes.  Branches run all lanes
  * together while they agree; when a JZ condition differs between lanes the block is
- * re-run one lane at a time, which is exact for point-dependent if/while.
+ * re-run one lane at a time, which is exact for point-dependent if/while.  Sine and
+ * cosine are opsem.h's vectorizable ones; the one of a pair not asked for is kept for a
+ * later instruction on the same input or variable (vm_trig).
  */
 #include <math.h>
 #include <stdlib.h>

@@ -997,6 +997,64 @@ static void test_trig(void)
         ok(okv, "sin, cos: the block VM equals the scalar reference bit for bit");
         vm_scratch_free(sc);
     }
+    {
+        /* The VM keeps the cosine computed with a sine (and the reverse) for a later
+         * instruction on the same input or slot: it must never serve a stale value. */
+        double x[NB], y[NB], z[NB], out[NB];
+        size_t i;
+        int which, okc = 1;
+        vm_scratch *sc = vm_scratch_new(NULL);
+        for (i = 0; i < NB; i++) {
+            x[i] = i % 61 == 5 ? -2e7 : urand(-9, 9);
+            y[i] = z[i] = 0;
+        }
+        for (which = 0; which < 3; which++) {
+            frep_program *p = prog_new();
+            vm_inputs in = inputs(x, y, z, NULL);
+            if (which == 0) {
+                /* cos(3 sin(2x)) + x: the argument of COS reuses the buffer that
+                 * held 2x, the argument of SIN */
+                emit(p, FREP_OP_X, 0, 0, 0);
+                emit(p, FREP_OP_MUL, 0, 2.0, INSN_KB);
+                emit(p, FREP_OP_SIN, 0, 0, 0);
+                emit(p, FREP_OP_MUL, 0, 3.0, INSN_KB);
+                emit(p, FREP_OP_COS, 0, 0, 0);
+                emit(p, FREP_OP_X, 0, 0, 0);
+            } else if (which == 1) {
+                /* s0 = 2x; sin(s0); s0 = x (copied into the same buffer); cos(s0) */
+                emit(p, FREP_OP_X, 0, 0, 0);
+                emit(p, FREP_OP_MUL, 0, 2.0, INSN_KB);
+                emit(p, FREP_OP_STORE, 0, 0, 0);
+                emit(p, FREP_OP_LOAD, 0, 0, 0);
+                emit(p, FREP_OP_SIN, 0, 0, 0);
+                emit(p, FREP_OP_X, 0, 0, 0);
+                emit(p, FREP_OP_STORE, 0, 0, 0);
+                emit(p, FREP_OP_LOAD, 0, 0, 0);
+                emit(p, FREP_OP_COS, 0, 0, 0);
+            } else {
+                /* sin(x) + cos(x): the cached partner */
+                emit(p, FREP_OP_X, 0, 0, 0);
+                emit(p, FREP_OP_SIN, 0, 0, 0);
+                emit(p, FREP_OP_X, 0, 0, 0);
+                emit(p, FREP_OP_COS, 0, 0, 0);
+            }
+            emit(p, FREP_OP_ADD, 0, 0, 0);
+            p = finish(p);
+            if (!p || vm_eval_block(p, sc, &in, NB, out) != 0) { okc = 0; continue; }
+            for (i = 0; i < NB; i++) {
+                double want = which == 0 ? opsem_cos(3 * opsem_sin(2 * x[i])) + x[i]
+                            : which == 1 ? opsem_sin(2 * x[i]) + opsem_cos(x[i])
+                                         : opsem_sin(x[i]) + opsem_cos(x[i]);
+                if (!same(out[i], want)) {
+                    if (okc) diag("case %d lane %zu: got %.17g want %.17g", which, i, out[i], want);
+                    okc = 0;
+                }
+            }
+            frep_program_free(p);
+        }
+        ok(okc, "sin/cos partner cache: level buffers, stores and inputs give fresh values");
+        vm_scratch_free(sc);
+    }
 }
 
 int main(void)
