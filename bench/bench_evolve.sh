@@ -16,9 +16,10 @@
 #    Speed-up of partitioning (m0, m2 at 10^4 points, 1 thread, SPEEDUP_RUNS seeds): the
 #    partitioned run's time T_p (whole run) and quality Q_p (the best share of the scored
 #    points its GA phases reached, from --trace); the unpartitioned GA run long
-#    (--generations SGENS --stagnation 0 --max-time BUDGET --trace); its time to solution
-#    T_u = the first trace line whose share >= Q_p - 1 point; speed-up T_u / T_p, or
-#    ">= T_end / T_p" when it never gets there (doc/evolve.md, "Speed-up").
+#    (--generations SGENS --stagnation 0 --max-time BUDGET --stop-share Q_p-1 --trace);
+#    its time to solution T_u = the first trace line whose share >= Q_p - 1 point;
+#    speed-up T_u / T_p, or ">= T_end / T_p" when it never gets there (doc/evolve.md,
+#    "Speed-up of partitioning").
 # 2. Real data, when ../shared/data/inversecsg exists next to the source tree:
 #    frep sample MESH -> frep segment -> frep evolve -> frep mesh per model; time, tree
 #    size, the ground truth's primitive counts, and the symmetric Chamfer and Hausdorff

@@ -498,11 +498,12 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         fprintf(stderr, "frep evolve: interrupted: writing the best tree so far\n");
     if (res.alpha_auto && !quiet)
         fprintf(stderr, "frep evolve: alpha %g degrees (automatic: %s; position spread %.3g eps, "
-                        "median normal deviation %.2g degrees over %zu inliers; --alpha overrides)\n",
+                        "normal deviation median %.2g, 90th percentile %.2g degrees over %zu "
+                        "inliers; --alpha overrides)\n",
                 res.alpha * 180 / 3.14159265358979323846,
                 res.alpha * 180 / 3.14159265358979323846 > EVOLVE_DEFAULT_ALPHA_DEG ? "noisy or faceted"
                                                                                   : "clean",
-                res.noise.sigma_d, res.noise.median_deg, res.noise.inliers);
+                res.noise.sigma_d, res.noise.median_deg, res.noise.p90_deg, res.noise.inliers);
     if (refit && !evolve_interrupted) {
         evolve_refit_info ri;
         if (evolve_refit(&eo, cloud, prims, nprims, residual_path ? &base : NULL, &res, &ri,

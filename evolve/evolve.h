@@ -23,7 +23,8 @@
 #define EVOLVE_DEFAULT_ALPHA_DEG 10.0   /* normal tolerance; the paper uses 35 for noisy data */
 /* Automatic alpha (doc/evolve.md, "Automatic alpha"): the paper's 35 degrees when the
  * cloud is noisy or faceted against the primitives, else 10. Noisy: the inliers'
- * robust position spread exceeds EVOLVE_NOISY_SIGMA x eps_d, or their median normal
+ * robust position spread exceeds EVOLVE_NOISY_SIGMA x eps_d (0.05% of the diagonal: a
+ * sampled surface is exact to 1e-6 eps_d, a scan is not), or their median normal
  * deviation exceeds EVOLVE_NOISY_DEG (gp_cache_noise). */
 #define EVOLVE_NOISY_ALPHA_DEG 35.0
 #define EVOLVE_NOISY_SIGMA 0.05

@@ -5,7 +5,8 @@
  * the GP subset (PRIM, NEG and the set operations) rather than by runtime/vm.c: for
  * min/max trees it tracks which primitive is active at each point instead of a
  * gradient, so scoring a tree costs a few comparisons per node and point and one table
- * lookup per point (the exp/acos terms are tabulated once per primitive).
+ * lookup per point (the exp/acos terms are tabulated once per primitive). The crossing
+ * test that keeps zero-thickness sheets from scoring runs beside it on bit masks.
  */
 #include "config.h"
 

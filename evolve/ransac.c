@@ -1352,8 +1352,9 @@ static double median_abs(const prim *q, const frep_cloud *c, const uint32_t *idx
  * two or three such faces. The face is found from the inliers' own normals and
  * offsets: the dominant normal (the inlier normal with the most others within
  * MODE_NORMAL_DEG), then the densest slab of offsets along it, MODE_SLAB bands wide.
- * The plane refitted on that slab replaces q when the median distance of its inliers
- * (at q's band) is below MODE_GAIN of q's. One face under noise gives the same plane
+ * The plane refitted on that slab, extracted as a fresh shape (at epsilon, then at its
+ * own measured noise), replaces q when the median distance of its inliers is below
+ * MODE_GAIN of q's. One face under noise gives the same plane
  * and about the same median, so noisy data keep their fit; a mixed shape's median is
  * of the order of the faces' spacing, a pure plane's of the noise. A curved shape is
  * examined only when the dominant normal holds MODE_FLAT of its inliers: the facets of
@@ -1362,6 +1363,9 @@ static double median_abs(const prim *q, const frep_cloud *c, const uint32_t *idx
 #define MODE_SLAB 0.5
 #define MODE_GAIN 0.5
 #define MODE_FLAT 0.5
+/* A median distance under this fraction of epsilon is an exact fit (clean data, one
+ * face): nothing to separate, and the search is skipped. */
+#define MODE_EXACT 1e-3
 /* Inliers examined as centres of the dominant normal (a fixed subset bounds the
  * quadratic count; the voters are MODE_VOTERS). */
 #define MODE_CENTRES 256
@@ -1380,7 +1384,7 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
         return m;
     double med0 = median_abs(q, c, inl, m), band0 = d->band;
     /* Exact already (clean data): nothing to separate. */
-    if (!(med0 > 1e-3 * d->cfg->epsilon)) return m;
+    if (!(med0 > MODE_EXACT * d->cfg->epsilon)) return m;
     double cosm = cos(MODE_NORMAL_DEG * M_PI / 180.0);
     size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS, ncen = m < MODE_CENTRES ? m : MODE_CENTRES;
     double *tv = malloc(2 * m * sizeof *tv);
@@ -1649,6 +1653,7 @@ static double median_normal_dev(const prim *q, const frep_cloud *c, const uint32
     free(r);
     return med;
 }
+
 static double patch_width(const frep_cloud *c, const uint32_t *idx, size_t n)
 {
     size_t k = n < MODE_VOTERS ? n : MODE_VOTERS;
@@ -1663,11 +1668,13 @@ static double patch_width(const frep_cloud *c, const uint32_t *idx, size_t n)
         double p[3];
         point(c, idx[(size_t)((double)j * (double)n / (double)k)], p);
         for (int a = 0; a < 3; a++)
-            for (int b = 0; b < 3; b++) cov[3 * a + b] += (p[a] - mean[a]) * (p[b] - mean[b]) / (double)k;
+            for (int b = 0; b < 3; b++)
+                cov[3 * a + b] += (p[a] - mean[a]) * (p[b] - mean[b]) / (double)k;
     }
     normals_sym3_eig(cov, ev, vec);
     return sqrt(12.0 * fmax(0, ev[1]));
 }
+
 static int next_phase(det *d, cand *pool, size_t npool, int *which, int *phase,
                       size_t *min_pts, size_t small_pts, size_t *draws_since)
 {
@@ -1802,7 +1809,8 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
             break;
         }
         if (d.nalive < min_pts || d.nalive < RANSAC_MIN_CLOUD) {
-            if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since)) continue;
+            if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since))
+                continue;
             break;
         }
         /* Draw a round of minimal samples; each gives one candidate per type. */
@@ -1886,7 +1894,8 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         if (best == SIZE_MAX) {
             if ((double)draws_since * log1p(-fmin(p_draw((double)min_pts, (double)d.nalive, 3), 0.999999)) < log_fail ||
                 draws_since > RANSAC_MAX_DRAWS) {
-                if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since)) continue;
+                if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since))
+                    continue;
                 break;
             }
             continue;
@@ -1900,7 +1909,8 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
             if ((b->est < (double)min_pts && (double)draws_since * log1p(-pm) < log_fail) ||
                 draws_since > RANSAC_MAX_DRAWS) {
                 /* A shape of the minimum size would have been found by now. */
-                if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since)) continue;
+                if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since))
+                    continue;
                 break;
             }
             continue;

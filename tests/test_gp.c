@@ -1,8 +1,8 @@
 /* test_gp.c - unit tests of the construction-tree engine of `frep evolve`: tree
  * operations over bytecode, the simplifier, fitness, the GA on analytic scenes (cube,
- * block minus cylinder, union of spheres), the overlap graph, Bron-Kerbosch and the
- * merge of partition trees.  Scenes are sampled here from analytic surfaces so the
- * test needs no other part of frep.
+ * block minus cylinder, union of spheres, a sheet the crossing test must refuse), the
+ * overlap graph, Bron-Kerbosch and the merge of partition trees.  Scenes are sampled
+ * here from analytic surfaces so the test needs no other part of frep.
  */
 #include "config.h"
 
