@@ -377,10 +377,9 @@ static int build_piece(gp_tree *trial, const gp_tree *t, const piece *p)
  * the result does not depend on anything but the order of the loops). */
 static void beam_insert(piece *beam, int *nb, const piece *p)
 {
-    int k = *nb < SIMPLIFY_PIECE_BEAM ? (*nb)++ : SIMPLIFY_PIECE_BEAM - 1;
-    if (k == SIMPLIFY_PIECE_BEAM - 1 && *nb == SIMPLIFY_PIECE_BEAM &&
-        !(p->f > beam[k].f))
-        return;
+    int full = *nb == SIMPLIFY_PIECE_BEAM;  /* only then is beam[k] a kept piece */
+    if (full && !(p->f > beam[SIMPLIFY_PIECE_BEAM - 1].f)) return;
+    int k = full ? SIMPLIFY_PIECE_BEAM - 1 : (*nb)++;
     while (k > 0 && p->f > beam[k - 1].f) {
         beam[k] = beam[k - 1];
         k--;
@@ -390,8 +389,20 @@ static void beam_insert(piece *beam, int *nb, const piece *p)
 
 /* Primitives that explain, alone or complemented, more than lambda points the tree
  * does not explain: a piece must bring at least one of them, else it cannot pay for
- * its nodes. use[j] = 1 for those. Returns how many, or -1 on allocation failure. */
+ * its nodes. use[j] = 1 for those. When cnt is not NULL, cnt[j] receives how many
+ * such points primitive j explains and neg[j] whether most of them need its
+ * complement (f >= 0 inside: p explains a point when -grad p agrees with the outward
+ * normal). Returns how many, or -1 on allocation failure. */
+static long useful_prims_oriented(const gp_tree *t, const gp_cache *c, gp_eval *e,
+                                  uint8_t *use, double *cnt_out, uint8_t *neg);
+
 static long useful_prims(const gp_tree *t, const gp_cache *c, gp_eval *e, uint8_t *use)
+{
+    return useful_prims_oriented(t, c, e, use, NULL, NULL);
+}
+
+static long useful_prims_oriented(const gp_tree *t, const gp_cache *c, gp_eval *e,
+                                  uint8_t *use, double *cnt_out, uint8_t *neg)
 {
     uint8_t *ok = malloc(c->n ? c->n : 1);
     if (!ok) return -1;
@@ -404,7 +415,7 @@ static long useful_prims(const gp_tree *t, const gp_cache *c, gp_eval *e, uint8_
     for (uint32_t j = 0; j < c->nprims; j++) {
         const double *v = c->v + (size_t)j * c->n;
         const double *gx = c->g + 3 * (size_t)j * c->n, *gy = gx + c->n, *gz = gy + c->n;
-        double cnt = 0;
+        double cnt = 0, cneg = 0;
         for (size_t i = 0; i < c->n; i++) {
             if (ok[i] || !(fabs(v[i]) < c->eps_d)) continue;
             double gl = sqrt(gx[i] * gx[i] + gy[i] * gy[i] + gz[i] * gz[i]);
@@ -412,8 +423,11 @@ static long useful_prims(const gp_tree *t, const gp_cache *c, gp_eval *e, uint8_
             const double *nn = c->nrm + 3 * i;
             double cs = (gx[i] * nn[0] + gy[i] * nn[1] + gz[i] * nn[2]) / gl;
             if (fabs(cs) > ca) cnt += 1;  /* either sign: the piece may complement it */
+            if (cs > ca) cneg += 1;       /* grad p along the outward normal: ~p */
         }
         use[j] = cnt > c->lambda;
+        if (cnt_out) cnt_out[j] = cnt;
+        if (neg) neg[j] = 2 * cneg > cnt;
         nu += use[j];
     }
     free(ok);
@@ -554,6 +568,171 @@ out:
     return rc;
 }
 
+/* ---- pockets: up to four primitives joined below the root ---------------------- */
+
+/* Primitives a pocket is built from: the useful ones explaining the most missed
+ * points (a 4-face pocket needs its 4 faces among them; 8 gives 154 subsets). */
+#define SIMPLIFY_POCKET_CANDS 8
+/* Faces of a pocket at most: a box pocket or boss cut through a part has four walls. */
+#define SIMPLIFY_POCKET_MAX 4
+/* Pockets added at most (each round is one pass over subtrees and subsets). */
+#define SIMPLIFY_MAX_POCKETS 3
+/* Forms tried: 1 = pockets only. A boss (form 1) of at most four planes is unbounded:
+ * joined by a union it adds material through empty space, where no point objects
+ * (six_cuboids, GA seed 3: Chamfer 0.82% -> 1.21% with bosses). A pocket is cut from
+ * S and so bounded by it. */
+#define SIMPLIFY_POCKET_FORMS 1
+
+/* sub = code[st..end] then the piece over literals lits[0..m): pocket (form 0):
+ * S & (L1 | L2 | ...), the material kept near each face being the side its points
+ * say; boss (form 1): S | (L1 & L2 & ...). L = p or ~p by the orientation of p's
+ * missed points. */
+static int build_pocket(gp_tree *sub, const frep_insn *code, uint32_t st, uint32_t end,
+                        const uint32_t *lits, const uint8_t *neg, int m, int form,
+                        const gp_opset *o)
+{
+    if (tree_set(sub, code + st, end - st + 1)) return -1;
+    for (int q = 0; q < m; q++) {
+        if (tree_push(sub, FREP_OP_PRIM, lits[q])) return -1;
+        if (neg[lits[q]] && tree_push(sub, (frep_opcode)o->neg, 0)) return -1;
+        if (q > 0 && tree_push(sub, (frep_opcode)(form == 0 ? o->uni : o->inter), 0))
+            return -1;
+    }
+    return tree_push(sub, (frep_opcode)(form == 0 ? o->inter : o->uni), 0);
+}
+
+/* One round: the best pocket of 2 to SIMPLIFY_POCKET_MAX primitives cut from
+ * any subtree S (a box cut from one part of a union: its faces intersected there, not
+ * at the root where they would cut every part), when it raises the fitness. No part
+ * of such a pocket improves the tree alone (one wall cuts a half-space away), so the
+ * inner growth and the root pieces cannot build it. 1 when t changed, 0 when not, -1
+ * on allocation failure. */
+static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
+                       gp_eval *e, double *fit)
+{
+    uint32_t k = c->nprims;
+    if (k < 2) return 0;
+    uint8_t *use = malloc(k), *neg = malloc(k), *ok = NULL;
+    double *cnt = malloc(k * sizeof *cnt);
+    gp_tree sub = { NULL, 0, 0 };
+    int rc = -1;
+    if (!use || !neg || !cnt) goto out;
+    long nu = useful_prims_oriented(t, c, e, use, cnt, neg);
+    if (nu < 0) goto out;
+    rc = 0;
+    if (nu < 2) goto out;
+    /* The candidates: useful primitives by decreasing count (ties: lower index). */
+    uint32_t cand[SIMPLIFY_POCKET_CANDS];
+    int nc = 0;
+    for (uint32_t j = 0; j < k; j++) {
+        if (!use[j]) continue;
+        int full = nc == SIMPLIFY_POCKET_CANDS;
+        if (full && !(cnt[j] > cnt[cand[nc - 1]])) continue;
+        int q = full ? nc - 1 : nc++;
+        while (q > 0 && cnt[j] > cnt[cand[q - 1]]) {
+            cand[q] = cand[q - 1];
+            q--;
+        }
+        cand[q] = j;
+    }
+    /* Which candidates can be faces of one pocket (form 0) or boss (form 1): the missed
+     * points of face a lie on the boundary of the piece only where every other literal
+     * L_b is <= 0 (pocket: inside the removed region) or >= 0 (boss), up to eps_d.
+     * fits[form][a][b]: most of a's missed points do. The pairs test prunes most
+     * subsets before any tree is scored (a tree of 100 nodes and 154 subsets would
+     * otherwise cost 30,000 fitness evaluations per round). */
+    uint8_t fits[2][SIMPLIFY_POCKET_CANDS][SIMPLIFY_POCKET_CANDS];
+    ok = malloc(c->n ? c->n : 1);
+    if (!ok || gp_explained(c, e, t->code, t->len, ok)) { rc = -1; goto out; }
+    {
+        double ca = cos(c->alpha);
+        for (int a = 0; a < nc; a++) {
+            uint32_t ja = cand[a];
+            const double *va = c->v + (size_t)ja * c->n;
+            const double *gx = c->g + 3 * (size_t)ja * c->n, *gy = gx + c->n, *gz = gy + c->n;
+            double na = 0, in[2][SIMPLIFY_POCKET_CANDS];
+            memset(in, 0, sizeof in);
+            for (size_t i = 0; i < c->n; i++) {
+                if (ok[i] || !(fabs(va[i]) < c->eps_d)) continue;
+                double gl = sqrt(gx[i] * gx[i] + gy[i] * gy[i] + gz[i] * gz[i]);
+                if (!(gl > 0)) continue;
+                const double *nn = c->nrm + 3 * i;
+                if (!(fabs(gx[i] * nn[0] + gy[i] * nn[1] + gz[i] * nn[2]) / gl > ca)) continue;
+                na += 1;
+                for (int b = 0; b < nc; b++) {
+                    double lb = c->v[(size_t)cand[b] * c->n + i];
+                    if (neg[cand[b]]) lb = -lb;
+                    if (lb < c->eps_d) in[0][b] += 1;
+                    if (lb > -c->eps_d) in[1][b] += 1;
+                }
+            }
+            for (int form = 0; form < 2; form++)
+                for (int b = 0; b < nc; b++) fits[form][a][b] = 2 * in[form][b] > na;
+        }
+    }
+    double bf = *fit;
+    uint32_t best_end = 0, best_lits[SIMPLIFY_POCKET_MAX] = { 0 };
+    int best_m = 0, best_form = 0;
+    /* Subsets as bit masks over the candidates, 2 to SIMPLIFY_POCKET_MAX members. */
+    for (unsigned mask = 0; mask < (1u << nc); mask++) {
+        uint32_t lits[SIMPLIFY_POCKET_MAX];
+        int idx[SIMPLIFY_POCKET_MAX];
+        int m = 0;
+        for (int q = 0; q < nc; q++)
+            if (mask >> q & 1u) {
+                if (m == SIMPLIFY_POCKET_MAX) { m = SIMPLIFY_POCKET_MAX + 1; break; }
+                idx[m] = q;
+                lits[m++] = cand[q];
+            }
+        if (m < 2 || m > SIMPLIFY_POCKET_MAX) continue;
+        int form_ok[2] = { 1, 1 };
+        for (int form = 0; form < 2; form++)
+            for (int a = 0; a < m; a++)
+                for (int b = 0; b < m; b++)
+                    if (a != b && !fits[form][idx[a]][idx[b]]) form_ok[form] = 0;
+        if (!form_ok[0] && !form_ok[1]) continue;
+        for (uint32_t end = 0; end < t->len; end++) {
+            uint32_t st = tree_subtree_start(t->code, end);
+            for (int form = 0; form < SIMPLIFY_POCKET_FORMS; form++) {
+                if (!form_ok[form]) continue;
+                if (build_pocket(&sub, t->code, st, end, lits, neg, m, form, o) ||
+                    tree_copy(trial, t) || tree_splice(trial, st, end, sub.code, sub.len)) {
+                    rc = -1;
+                    goto out;
+                }
+                double f = gp_fitness(c, e, trial->code, trial->len);
+                if (f > bf) {
+                    bf = f;
+                    best_end = end;
+                    best_m = m;
+                    best_form = form;
+                    memcpy(best_lits, lits, sizeof lits);
+                }
+            }
+        }
+    }
+    if (!best_m) goto out;
+    {
+        uint32_t st = tree_subtree_start(t->code, best_end);
+        if (build_pocket(&sub, t->code, st, best_end, best_lits, neg, best_m, best_form, o) ||
+            tree_copy(trial, t) || tree_splice(trial, st, best_end, sub.code, sub.len)) {
+            rc = -1;
+            goto out;
+        }
+    }
+    if (tree_depth(trial->code, trial->len) > GP_MAX_TREE_DEPTH) goto out;
+    if (tree_copy(t, trial)) { rc = -1; goto out; }
+    *fit = bf;
+    rc = 1;
+out:
+    tree_free(&sub);
+    free(use);
+    free(neg);
+    free(cnt);
+    free(ok);
+    return rc;
+}
+
 int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                          double *fitness)
 {
@@ -564,6 +743,12 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
     int rc = -1;
     for (int round = 0; round < SIMPLIFY_MAX_INNER; round++) {
         int g = grow_inner(t, &trial, &o, c, e, &fit);
+        if (g < 0) goto out;
+        if (g == 0) break;
+        if (simplify_tree(t, s, c, e, &fit)) goto out;
+    }
+    for (int round = 0; round < SIMPLIFY_MAX_POCKETS; round++) {
+        int g = grow_pocket(t, &trial, &o, c, e, &fit);
         if (g < 0) goto out;
         if (g == 0) break;
         if (simplify_tree(t, s, c, e, &fit)) goto out;

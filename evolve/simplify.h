@@ -24,7 +24,12 @@ int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double
 /* After simplify_tree: first, while that raises the fitness (at most 16 times), the
  * best S & p, S \ p or S | p replacing any subtree S, p a primitive explaining points
  * the tree misses (a face missing from one part of a union, which cannot be added at
- * the root without cutting the other parts). Then join at the root, while that raises
+ * the root without cutting the other parts). Then, while that raises the fitness (at
+ * most 3 times), the best pocket S & (L1 | ... | Lm) replacing any subtree S,
+ * 2 <= m <= 4, Li a primitive or its complement as its missed points say, the faces
+ * chosen among the 8 primitives explaining the most missed points and such that each
+ * face's missed points lie on the pocket's boundary (a box cut from one part of a
+ * union, which no part of it improves alone). Then join at the root, while that raises
  * the fitness (at most 3 times), the best piece of two or three primitives, t | P,
  * t \ P or t & P with P = a & b, a \ b, a | b, (a & b) & c, (a & b) \ c, (a | b) | c,
  * ... (a pocket such as a groove, three planes intersected then subtracted, or a notch

@@ -648,9 +648,90 @@ static void test_groove_pieces(void)
     scene_free(&s);
 }
 
+/* Tree_value is defined below; the pocket test uses it. */
+static double tree_value(const struct scene *s, const gp_tree *t, const double x[3]);
+
+/* Two blocks with the same x and z extents side by side along y; a square tunnel
+ * along y through the first one only (four walls). Starting from the two blocks
+ * without the tunnel (a GA result one pocket short), neither the inner growth (one
+ * wall alone cuts half the block away) nor the root pieces (three primitives at most,
+ * and at the root the tunnel would also pierce the second block) can add it; the
+ * pocket step of simplify_grow_pieces must, on the first block only. */
+static void test_tunnel_pocket(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 5);
+    /* Block B: x in [1,3], y in [-1,1], z in [-1,1]; block A: the same but y in [2,4].
+     * Tunnel: 1.6 < x < 2.4, -0.4 < z < 0.4, through B along y. */
+    const double lo[2][3] = { { 1, -1, -1 }, { 1, 2, -1 } }, hi[2][3] = { { 3, 1, 1 }, { 3, 4, 1 } };
+    const double tx0 = 1.6, tx1 = 2.4, tz = 0.4;
+    add_plane(&s, 0, 1, 3);     /* p1: x <= 3 */
+    add_plane(&s, 0, -1, -1);   /* p2: x >= 1 */
+    add_plane(&s, 2, 1, 1);     /* p3: z <= 1 */
+    add_plane(&s, 2, -1, 1);    /* p4: z >= -1 */
+    add_plane(&s, 1, 1, 1);     /* p5: y <= 1 */
+    add_plane(&s, 1, -1, 1);    /* p6: y >= -1 */
+    add_plane(&s, 1, 1, 4);     /* p7: y <= 4 */
+    add_plane(&s, 1, -1, -2);   /* p8: y >= 2 */
+    add_plane(&s, 0, -1, -tx0); /* p9: x >= tx0 */
+    add_plane(&s, 0, 1, tx1);   /* p10: x <= tx1 */
+    add_plane(&s, 2, -1, tz);   /* p11: z >= -tz */
+    add_plane(&s, 2, 1, tz);    /* p12: z <= tz */
+    for (int b = 0; b < 2; b++)
+        for (int axis = 0; axis < 3; axis++)
+            for (int sg = 0; sg < 2; sg++)
+                for (int k = 0; k < 400; k++) {
+                    double p[3], nn[3] = { 0, 0, 0 };
+                    for (int q = 0; q < 3; q++)
+                        p[q] = lo[b][q] + (hi[b][q] - lo[b][q]) * gp_rng_unif(&r);
+                    p[axis] = sg ? hi[b][axis] : lo[b][axis];
+                    nn[axis] = sg ? 1 : -1;
+                    if (b == 0 && axis == 1 && p[0] > tx0 && p[0] < tx1 && fabs(p[2]) < tz)
+                        continue;  /* the tunnel's openings */
+                    scene_add(&s, p[0], p[1], p[2], nn[0], nn[1], nn[2]);
+                }
+    for (int k = 0; k < 200; k++) {  /* the tunnel's walls, normals into the tunnel */
+        double y = -1 + 2 * gp_rng_unif(&r), u = gp_rng_unif(&r);
+        scene_add(&s, tx0, y, -tz + 2 * tz * u, 1, 0, 0);
+        scene_add(&s, tx1, y, -tz + 2 * tz * u, -1, 0, 0);
+        scene_add(&s, tx0 + (tx1 - tx0) * u, y, -tz, 0, 0, 1);
+        scene_add(&s, tx0 + (tx1 - tx0) * u, y, tz, 0, 0, -1);
+    }
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 10);
+    gp_eval *e = gp_eval_new();
+    gp_opset o = gp_opset_of(GP_SETOPS_MINMAX);
+    gp_tree t = { NULL, 0, 0 };
+    /* (p1 & p2 & p3 & p4) & ((p5 & p6) | (p7 & p8)), 0-based leaves */
+    const int code[] = { 0, 1, -1, 2, 3, -1, -1, 4, 5, -1, 6, 7, -1, -2, -1 };
+    for (size_t q = 0; q < sizeof code / sizeof code[0]; q++)
+        tree_push(&t, code[q] >= 0 ? FREP_OP_PRIM : (frep_opcode)(code[q] == -1 ? o.inter : o.uni),
+                  code[q] >= 0 ? (uint32_t)code[q] : 0);
+    double f0 = 0, f1 = 0;
+    simplify_tree(&t, GP_SETOPS_MINMAX, c, e, &f0);
+    gp_stats st;
+    gp_tree_stats(c, e, t.code, t.len, &st);
+    ok(st.explained + 800 <= s.n, "the blocks alone miss the tunnel (%zu of %zu points): %s",
+       st.explained, s.n, print_str(&t));
+    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1), 0, "pocket search runs");
+    gp_tree_stats(c, e, t.code, t.len, &st);
+    ok(f1 > f0, "fitness rises with the tunnel: %.1f -> %.1f", f0, f1);
+    is_int(st.explained, s.n, "every point explained (%zu of %zu): %s", st.explained, s.n,
+           print_str(&t));
+    const double in_b[3] = { 2, 0, 0 }, in_a[3] = { 2, 3, 0 }, solid_b[3] = { 1.3, 0, 0 };
+    ok(tree_value(&s, &t, in_b) < 0, "the tunnel is empty in the first block");
+    ok(tree_value(&s, &t, in_a) > 0, "the second block is not pierced");
+    ok(tree_value(&s, &t, solid_b) > 0, "the first block keeps its walls");
+    tree_free(&t);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+}
+
 /* Independent evaluation of a min/max tree at a point (for checks that must not trust
  * fitness.c): the value of the postfix code over the scene's primitives. */
-static double tree_value(const scene *s, const gp_tree *t, const double x[3])
+static double tree_value(const struct scene *s, const gp_tree *t, const double x[3])
 {
     double st[64];
     int sp = 0;
@@ -771,6 +852,7 @@ int main(void)
     test_cube_gp();
     test_block_minus_cylinder();
     test_groove_pieces();
+    test_tunnel_pocket();
     test_sheet();
     return done_testing();
 }
