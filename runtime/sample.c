@@ -215,7 +215,7 @@ int sample_field(const mesh_field *f, const sample_options *o, frep_cloud **out,
 #ifdef _OPENMP
     if (nthreads <= 0) nthreads = omp_get_max_threads();
 #else
-    nthreads = 1;
+    (void)nthreads; /* serial build: the pragma below is ignored */
 #endif
 #pragma omp parallel num_threads(nthreads)
     {

@@ -60,6 +60,7 @@ double frep_ply_decode(const unsigned char *p, frep_ply_type t, int big_endian)
      * same on hosts of either byte order. */
     unsigned char b[8];
     size_t n = frep_ply_type_size(t);
+    if (n > sizeof b) n = sizeof b; /* never: the largest PLY type has 8 bytes */
     for (size_t i = 0; i < n; i++) b[i] = big_endian ? p[n - 1 - i] : p[i];
     uint64_t u = 0;
     for (size_t i = 0; i < n; i++) u |= (uint64_t)b[i] << (8 * i);
