@@ -733,6 +733,150 @@ out:
     return rc;
 }
 
+/* ---- trims: a part of a union bounded by a face it lacks ----------------------- */
+
+/* Trims added at most (each round is one pass over the union's parts and every
+ * primitive, both orientations). */
+#define SIMPLIFY_MAX_TRIMS 8
+
+/* Polarity of every node of t: 1 when its material adds to the solid (an even number
+ * of complements and right operands of subtractions above it), 0 when it is removed.
+ * pol[len] filled; parents come after their children in postfix, so one pass from the
+ * root down sets every node. */
+static void node_polarity(const gp_tree *t, const gp_opset *o, uint8_t *pol)
+{
+    if (!t->len) return;
+    pol[t->len - 1] = 1;
+    for (uint32_t end = t->len; end-- > 0;) {
+        int k = tree_nin(&t->code[end]);
+        if (k == 0) continue;
+        uint8_t op = (uint8_t)t->code[end].op;
+        if (k == 1) {
+            pol[end - 1] = op == o->neg ? (uint8_t)!pol[end] : pol[end];
+            continue;
+        }
+        uint32_t l0, l1, r0;
+        tree_operands(t->code, end, &l0, &l1, &r0);
+        pol[l1] = pol[end];
+        pol[end - 1] = op == o->sub ? (uint8_t)!pol[end] : pol[end];
+    }
+}
+
+/* One round: the best S & L replacing an operand S of a union that adds material,
+ * L = p or ~p for a primitive p that keeps every point S explains (L >= -eps_d there),
+ * when the trimmed tree explains more points and scores no lower (size penalty aside).
+ * A part whose points lie between two planes the tree does not use runs through empty
+ * space to the clipping box; eq. 7 sees no material where there are no points, and the
+ * few points of the part's small end faces (inside it until trimmed) do not pay for
+ * the nodes, so the fitness alone never adds the face. The trim is supported by those
+ * points: it is kept only when the face explains points the tree missed, so a plane
+ * merely lying beyond S's points (which would cut nothing the points show) is not
+ * added. 1 when t changed, 0 when not, -1 on allocation failure. */
+static int grow_trim(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
+                     gp_eval *e)
+{
+    uint32_t k = c->nprims;
+    size_t n = c->n;
+    uint8_t *pol = malloc(t->len), *ok = malloc(n ? n : 1), *oks = malloc(n ? n : 1);
+    uint8_t *sup = NULL;
+    gp_tree sub = { NULL, 0, 0 };
+    int rc = -1;
+    if (!pol || !ok || !oks) goto out;
+    if (gp_explained(c, e, t->code, t->len, ok)) goto out;
+    node_polarity(t, o, pol);
+    /* sup[2j + ng]: L = p (ng 0) or ~p (ng 1) has inliers the tree misses, the points a
+     * trim by it can explain (and the cheap test that prunes most candidates). */
+    sup = calloc(2 * (size_t)(k ? k : 1), 1);
+    if (!sup) goto out;
+    {
+        double ca = cos(c->alpha);
+        for (uint32_t j = 0; j < k; j++) {
+            const double *v = c->v + (size_t)j * n;
+            const double *gx = c->g + 3 * (size_t)j * n, *gy = gx + n, *gz = gy + n;
+            for (size_t i = 0; i < n && !(sup[2 * j] && sup[2 * j + 1]); i++) {
+                if (ok[i] || !(fabs(v[i]) < c->eps_d)) continue;
+                double gl = sqrt(gx[i] * gx[i] + gy[i] * gy[i] + gz[i] * gz[i]);
+                if (!(gl > 0)) continue;
+                const double *nn = c->nrm + 3 * i;
+                double cs = (gx[i] * nn[0] + gy[i] * nn[1] + gz[i] * nn[2]) / gl;
+                if (-cs > ca) sup[2 * j] = 1;     /* f >= 0 inside: -grad p points out */
+                if (cs > ca) sup[2 * j + 1] = 1;
+            }
+        }
+    }
+    gp_stats st0;
+    if (gp_tree_stats(c, e, t->code, t->len, &st0)) goto out;
+    double bs = st0.score;
+    size_t bn = st0.explained;
+    uint32_t best_end = 0, best_j = 0;
+    int best_neg = -1;
+    for (uint32_t u = 0; u < t->len; u++) {
+        if (tree_nin(&t->code[u]) != 2 || t->code[u].op != o->uni || !pol[u]) continue;
+        uint32_t l0, l1, r0;
+        tree_operands(t->code, u, &l0, &l1, &r0);
+        const uint32_t ends[2] = { l1, u - 1 };
+        for (int side = 0; side < 2; side++) {
+            uint32_t end = ends[side];
+            uint32_t st = tree_subtree_start(t->code, end);
+            /* The points S explains alone that the tree explains too. */
+            if (gp_explained(c, e, t->code + st, end - st + 1, oks)) goto out;
+            for (uint32_t j = 0; j < k; j++) {
+                const double *v = c->v + (size_t)j * n;
+                int can[2] = { sup[2 * j], sup[2 * j + 1] };  /* keeps them as p, ~p */
+                for (size_t i = 0; i < n && (can[0] || can[1]); i++) {
+                    if (!oks[i] || !ok[i]) continue;
+                    if (v[i] < -c->eps_d) can[0] = 0;
+                    if (v[i] > c->eps_d) can[1] = 0;
+                }
+                /* A | (B & ~A) is A | B: no trim when the other operand is p. */
+                const frep_insn *oth = &t->code[ends[1 - side]];
+                if (tree_nin(oth) == 0 && oth->arg == j) can[1] = 0;
+                for (int ng = 0; ng < 2; ng++) {
+                    if (!can[ng]) continue;
+                    if (tree_set(&sub, t->code + st, end - st + 1) ||
+                        tree_push(&sub, FREP_OP_PRIM, j) ||
+                        (ng && tree_push(&sub, (frep_opcode)o->neg, 0)) ||
+                        tree_push(&sub, (frep_opcode)o->inter, 0) || tree_copy(trial, t) ||
+                        tree_splice(trial, st, end, sub.code, sub.len))
+                        goto out;
+                    gp_stats stt;
+                    if (gp_tree_stats(c, e, trial->code, trial->len, &stt)) goto out;
+                    if (stt.explained > bn && !(stt.score < bs)) {
+                        bs = stt.score;
+                        bn = stt.explained;
+                        best_end = end;
+                        best_j = j;
+                        best_neg = ng;
+                    }
+                }
+            }
+        }
+    }
+    rc = 0;
+    if (best_neg < 0) goto out;
+    {
+        uint32_t st = tree_subtree_start(t->code, best_end);
+        if (tree_set(&sub, t->code + st, best_end - st + 1) ||
+            tree_push(&sub, FREP_OP_PRIM, best_j) ||
+            (best_neg && tree_push(&sub, (frep_opcode)o->neg, 0)) ||
+            tree_push(&sub, (frep_opcode)o->inter, 0) || tree_copy(trial, t) ||
+            tree_splice(trial, st, best_end, sub.code, sub.len)) {
+            rc = -1;
+            goto out;
+        }
+    }
+    if (tree_depth(trial->code, trial->len) > GP_MAX_TREE_DEPTH) goto out;
+    if (tree_copy(t, trial)) { rc = -1; goto out; }
+    rc = 1;
+out:
+    tree_free(&sub);
+    free(pol);
+    free(ok);
+    free(oks);
+    free(sup);
+    return rc;
+}
+
 int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                          double *fitness)
 {
@@ -759,6 +903,15 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
         if (g == 0) break;
         /* The piece may make part of the tree redundant (a face the GA had faked). */
         if (simplify_tree(t, s, c, e, &fit)) goto out;
+    }
+    /* Last: a trim costs two nodes the fitness does not pay for, so the removal moves
+     * of simplify_tree would take it out again; only the exact rules follow it. */
+    for (int round = 0; round < SIMPLIFY_MAX_TRIMS; round++) {
+        int g = grow_trim(t, &trial, &o, c, e);
+        if (g < 0) goto out;
+        if (g == 0) break;
+        if (simplify_rules(t, s)) goto out;
+        fit = gp_fitness(c, e, t->code, t->len);
     }
     rc = 0;
     if (fitness) *fitness = fit;

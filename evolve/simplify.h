@@ -36,8 +36,12 @@ int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double
  * t & (a | b | c) cut by faces that point into it, which no single primitive
  * improves); pairs must bring a primitive explaining points the tree misses, and the
  * best pairs by fitness are extended by a third primitive. The tree is simplified
- * again after each step. *fitness (may be NULL) receives the final fitness. 0 or -1
- * (allocation). */
+ * again after each step. Last, at most 8 times, the best trim S & p or S & ~p of an
+ * operand S of a union (one adding material) that keeps every point S explains, makes
+ * inliers of p the tree misses explained and does not lower the score without the size
+ * penalty: a part bounded only by the clipping box where no points are (the fitness
+ * does not pay for such faces, so only the exact rules follow). *fitness (may be NULL)
+ * receives the final fitness. 0 or -1 (allocation). */
 int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                          double *fitness);
 

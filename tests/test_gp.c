@@ -771,6 +771,74 @@ static size_t sheet_points(const scene *s, const gp_tree *t, size_t i0, double h
     return k;
 }
 
+/* A cube united with a bar whose far end face holds few points, in a tree that lacks
+ * that face (bar = p8 & p7 & p9 & p6 & p4, no p10): the bar runs through empty space
+ * to the clipping box. Its six end points do not pay for two nodes (2 x 2 < 2 lambda),
+ * so no fitness-driven step adds the plane; the trim step of simplify_grow_pieces
+ * must, on the bar only, without losing a point. */
+static void test_trim_part(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 9);
+    add_plane(&s, 0, 1, 2);     /* p1: x <= 2 */
+    add_plane(&s, 0, -1, 0);    /* p2: x >= 0 */
+    add_plane(&s, 1, 1, 2);     /* p3: y <= 2 */
+    add_plane(&s, 1, -1, 0);    /* p4: y >= 0 */
+    add_plane(&s, 2, 1, 2);     /* p5: z <= 2 */
+    add_plane(&s, 2, -1, 0);    /* p6: z >= 0 */
+    add_plane(&s, 0, 1, 3.4);   /* p7: x <= 3.4 */
+    add_plane(&s, 0, -1, -3);   /* p8: x >= 3 */
+    add_plane(&s, 2, 1, 0.4);   /* p9: z <= 0.4 */
+    add_plane(&s, 1, 1, 4);     /* p10: y <= 4, the bar's far end */
+    /* Cube [0,2]^3 (300 points a face), bar [3,3.4] x [0,4] x [0,0.4] (150 a long
+     * face, 6 an end). */
+    const double lo[2][3] = { { 0, 0, 0 }, { 3, 0, 0 } }, hi[2][3] = { { 2, 2, 2 }, { 3.4, 4, 0.4 } };
+    for (int b = 0; b < 2; b++)
+        for (int axis = 0; axis < 3; axis++)
+            for (int sg = 0; sg < 2; sg++) {
+                int m = b == 0 ? 300 : axis == 1 ? 6 : 150;
+                for (int k = 0; k < m; k++) {
+                    double p[3], nn[3] = { 0, 0, 0 };
+                    for (int q = 0; q < 3; q++)
+                        p[q] = lo[b][q] + (hi[b][q] - lo[b][q]) * gp_rng_unif(&r);
+                    p[axis] = sg ? hi[b][axis] : lo[b][axis];
+                    nn[axis] = sg ? 1 : -1;
+                    scene_add(&s, p[0], p[1], p[2], nn[0], nn[1], nn[2]);
+                }
+            }
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 10);
+    gp_eval *e = gp_eval_new();
+    gp_opset o = gp_opset_of(GP_SETOPS_MINMAX);
+    gp_tree t = { NULL, 0, 0 };
+    /* (p1 & p2 & p3 & p4 & p5 & p6) | (p7 & p8 & p9 & p6 & p4), 0-based leaves */
+    const int code[] = { 0, 1, -1, 2, -1, 3, -1, 4, -1, 5, -1,
+                         6, 7, -1, 8, -1, 5, -1, 3, -1, -2 };
+    for (size_t q = 0; q < sizeof code / sizeof code[0]; q++)
+        tree_push(&t, code[q] >= 0 ? FREP_OP_PRIM : (frep_opcode)(code[q] == -1 ? o.inter : o.uni),
+                  code[q] >= 0 ? (uint32_t)code[q] : 0);
+    double f0 = 0, f1 = 0;
+    simplify_tree(&t, GP_SETOPS_MINMAX, c, e, &f0);
+    const double beyond[3] = { 3.2, 6, 0.2 }, bar[3] = { 3.2, 3, 0.2 }, cube[3] = { 1, 1, 1 };
+    gp_stats st0, st;
+    gp_tree_stats(c, e, t.code, t.len, &st0);
+    ok(tree_value(&s, &t, beyond) > 0 && st0.explained + 6 <= s.n,
+       "simplify_tree leaves the bar unbounded (%zu of %zu points): %s", st0.explained, s.n,
+       print_str(&t));
+    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1), 0, "growth and trims run");
+    gp_tree_stats(c, e, t.code, t.len, &st);
+    is_int(st.explained, s.n, "every point explained (%zu of %zu): %s", st.explained, s.n,
+           print_str(&t));
+    ok(tree_value(&s, &t, beyond) < 0, "the bar ends at its far face");
+    ok(tree_value(&s, &t, bar) > 0 && tree_value(&s, &t, cube) > 0, "bar and cube kept");
+    ok(f1 < f0 + 6 * 2, "the fitness alone did not pay for the face: %.1f -> %.1f", f0, f1);
+    tree_free(&t);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+}
+
 /* A cube and, beside it, a one-sided patch on the plane z = 2 (a face of a part whose
  * other faces were not scanned; its plane p7 is in the list). The only trees that
  * explain the patch with these primitives are sheets such as p7 \ p7 = -|p7| (inside
@@ -854,5 +922,6 @@ int main(void)
     test_groove_pieces();
     test_tunnel_pocket();
     test_sheet();
+    test_trim_part();
     return done_testing();
 }
