@@ -434,6 +434,15 @@ static long useful_prims_oriented(const gp_tree *t, const gp_cache *c, gp_eval *
     return nu;
 }
 
+/* The growth steps below find their best change in the scratch tree trial, then keep
+ * it here: t becomes trial unless trial is deeper than GP_MAX_TREE_DEPTH.
+ * Returns 1 (kept), 0 (too deep: t unchanged) or -1 (out of memory). */
+static int commit_trial(gp_tree *t, const gp_tree *trial)
+{
+    if (tree_depth(trial->code, trial->len) > GP_MAX_TREE_DEPTH) return 0;
+    return tree_copy(t, trial) ? -1 : 1;
+}
+
 /* One round: the best piece t | P, t \ P or t & P, P = a & b, a \ b, b \ a or a | b,
  * optionally extended by & c, \ c or | c, when it raises the fitness and keeps the
  * depth limit. */
@@ -482,10 +491,8 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
         }
     if (!found) goto out;
     if (build_piece(trial, t, &best)) { rc = -1; goto out; }
-    if (tree_depth(trial->code, trial->len) > GP_MAX_TREE_DEPTH) goto out;
-    if (tree_copy(t, trial)) { rc = -1; goto out; }
+    if ((rc = commit_trial(t, trial)) <= 0) goto out;
     *fit = best.f;
-    rc = 1;
 out:
     free(use);
     free(beam);
@@ -559,10 +566,8 @@ static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
         }
         tree_free(&sub);
     }
-    if (tree_depth(trial->code, trial->len) > GP_MAX_TREE_DEPTH) goto out;
-    if (tree_copy(t, trial)) { rc = -1; goto out; }
+    if ((rc = commit_trial(t, trial)) <= 0) goto out;
     *fit = bf;
-    rc = 1;
 out:
     free(use);
     return rc;
@@ -720,10 +725,8 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
             goto out;
         }
     }
-    if (tree_depth(trial->code, trial->len) > GP_MAX_TREE_DEPTH) goto out;
-    if (tree_copy(t, trial)) { rc = -1; goto out; }
+    if ((rc = commit_trial(t, trial)) <= 0) goto out;
     *fit = bf;
-    rc = 1;
 out:
     tree_free(&sub);
     free(use);
@@ -865,9 +868,7 @@ static int grow_trim(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
             goto out;
         }
     }
-    if (tree_depth(trial->code, trial->len) > GP_MAX_TREE_DEPTH) goto out;
-    if (tree_copy(t, trial)) { rc = -1; goto out; }
-    rc = 1;
+    if ((rc = commit_trial(t, trial)) <= 0) goto out;
 out:
     tree_free(&sub);
     free(pol);
