@@ -21,6 +21,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include <unistd.h>
 
 static const char evolve_usage[] =
@@ -331,6 +335,11 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         return cli_usage_error("evolve", "--crossover + --mutation must not exceed 1");
     if (!have_seed) eo.gp.seed = (uint64_t)time(NULL);
     if (eo.lambda_scale == 0) eo.lambda_scale = 1e-12;  /* 0 asks for no penalty */
+#ifdef _OPENMP
+    /* -t also bounds the parallel loops that take no thread count (the primitive
+     * caches' tables), so that -t 1 runs on one core. */
+    if (eo.gp.threads > 0) omp_set_num_threads(eo.gp.threads);
+#endif
 
     int rc = CLI_FAIL;
     char *err = NULL;

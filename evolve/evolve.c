@@ -443,14 +443,14 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
                 double gl = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
                 const double *nn = sc->nrm + 3 * i;
                 if (fabs(f) < res->eps_d && gl > 0 &&
-                    -(g[0] * nn[0] + g[1] * nn[1] + g[2] * nn[2]) / gl > cos(res->alpha))
+                    fabs(g[0] * nn[0] + g[1] * nn[1] + g[2] * nn[2]) / gl > cos(res->alpha))
                     idx[nk++] = samp[i];
             }
             part_obb_of_points(cloud->x, cloud->y, cloud->z, idx, nk, &boxes[j]);
         }
         free(idx);
 
-        int done = 0;
+        int done = 0, grown = 0;  /* grown: gr.best is simplified and grown already */
         if (o->partition && nprims > 1) {
             /* part_run needs the sample's coordinates. */
             double *xs = malloc(m * sizeof *xs), *ys = malloc(m * sizeof *ys);
@@ -474,6 +474,13 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
             if (pr) goto oom;
             done = res->part.partitioned;
             res->partitioned = done;
+            /* The merged tree grown as the final tree is (below): pieces the merge
+             * lost (a pocket whose clique trees disagreed) come back here, before the
+             * polish, which then starts from them. */
+            if (done && o->simplify && gr.best.len &&
+                simplify_grow_pieces(&gr.best, o->gp.setops, sc, ev, &gr.fitness))
+                goto oom;
+            grown = done && o->simplify;
             if (done && o->polish && gr.best.len) {
                 /* Polish: a GA over all primitives seeded with the merged tree. The
                  * merge is greedy and the clique trees see only their points; the
@@ -497,6 +504,7 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
                     tree_free(&gr.best);
                     gr.best = pg.best;
                     gr.fitness = pg.fitness;
+                    grown = 0;  /* a new tree: simplified and grown again below */
                 } else {
                     tree_free(&pg.best);
                 }
@@ -515,13 +523,13 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
         res->stop = gr.stop;
         res->fitness = gr.fitness;
         if (tree_copy(&res->tree, &gr.best)) goto oom;
-        if (o->simplify && res->tree.len &&
+        if (o->simplify && res->tree.len && !grown &&
             simplify_tree(&res->tree, o->gp.setops, sc, ev, &res->fitness))
             goto oom;
         /* Pieces of two or three primitives at the root (a subtracted pocket, an
          * added block) that neither the GA nor the one-primitive hill climb found;
          * only on the final tree, since one pass tries every pair of primitives. */
-        if (o->simplify && res->tree.len &&
+        if (o->simplify && res->tree.len && !grown &&
             simplify_grow_pieces(&res->tree, o->gp.setops, sc, ev, &res->fitness))
             goto oom;
     }

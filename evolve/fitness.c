@@ -16,7 +16,27 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* The tape of one tree (fitness.h, "Tapes"): every node's stack entry at every
+ * point of the cache it was recorded on. */
+typedef struct gp_tape {
+    const gp_cache *c;   /* the cache of the recording; NULL: nothing recorded */
+    uint32_t len;        /* nodes of the recorded tree */
+    size_t cells;        /* node-point cells allocated (len * n at most) */
+    size_t wcells;       /* words of side allocated */
+    frep_insn *code;     /* the recorded tree, and the subtree start of each node */
+    uint32_t *start;
+    uint32_t codecap;
+    float *vf;           /* min/max: vf[k*n + i], si[k*n + i] as in the stack */
+    uint32_t *si;
+    double *v, *g;       /* R-functions: v[k*n + i], g[(3k + c)*n + i] */
+    uint64_t *side;      /* side[(4k + r)*nw + w]: the crossing bits */
+    int valued;          /* 1: the arrays hold the node values; 0: the tree was too
+                            large (GP_TAPE_MAX_CELLS), replacements are scored in full */
+    gp_tree path;        /* scratch: the tree scored by gp_fitness_replaced */
+} gp_tape;
+
 struct gp_eval {
+    gp_tape tape;        /* of the last gp_tape_record */
     uint32_t cap;        /* stack entries allocated */
     double *sv;          /* sv[k*GP_FIT_BLOCK + i]: value of stack entry k */
     double *sg;          /* sg[(3k + c)*GP_FIT_BLOCK + i]: gradient (R-functions) */
@@ -36,6 +56,14 @@ gp_eval *gp_eval_new(void)
 void gp_eval_free(gp_eval *e)
 {
     if (!e) return;
+    free(e->tape.code);
+    free(e->tape.start);
+    free(e->tape.vf);
+    free(e->tape.si);
+    free(e->tape.v);
+    free(e->tape.g);
+    free(e->tape.side);
+    tree_free(&e->tape.path);
     free(e->sv);
     free(e->sg);
     free(e->si);
@@ -271,30 +299,51 @@ gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double
 gp_cache *gp_cache_subset(const gp_cache *c, const size_t *idx, size_t m,
                           const uint32_t *prims, uint32_t k, double lambda)
 {
-    size_t mm = m ? m : 1;
-    double *v = malloc((size_t)k * mm * sizeof *v);
-    double *g = malloc((size_t)3 * k * mm * sizeof *g);
-    double *nrm = malloc(3 * mm * sizeof *nrm);
-    if (!v || !g || !nrm) {
-        free(v);
-        free(g);
-        free(nrm);
+    /* Every table is gathered from c's (the same numbers as building them again from
+     * the gathered values, without the exp and acos of the score tables). */
+    size_t mm = m ? m : 1, n = c->n, nw = (m + 63) / 64;
+    gp_cache *s = calloc(1, sizeof *s);
+    if (!s) return NULL;
+    s->n = m;
+    s->nprims = k;
+    s->setops = c->setops;
+    s->eps_d = c->eps_d;
+    s->alpha = c->alpha;
+    s->crossing = c->crossing;
+    s->lambda = lambda >= 0 ? lambda : (m > 1 ? log((double)m) : 0.0);
+    s->nw = nw;
+    s->v = malloc((size_t)k * mm * sizeof *s->v);
+    s->g = malloc((size_t)3 * k * mm * sizeof *s->g);
+    s->nrm = malloc(3 * mm * sizeof *s->nrm);
+    s->side = calloc((size_t)4 * k * (nw ? nw : 1), sizeof *s->side);
+    if (c->setops == GP_SETOPS_MINMAX) {
+        s->score = malloc((size_t)2 * k * mm * sizeof *s->score);
+        s->vf = malloc((size_t)k * mm * sizeof *s->vf);
+    }
+    if (!s->v || !s->g || !s->nrm || !s->side ||
+        (c->setops == GP_SETOPS_MINMAX && (!s->score || !s->vf))) {
+        gp_cache_free(s);
         return NULL;
     }
-    size_t n = c->n;
     for (uint32_t jj = 0; jj < k; jj++) {
         size_t j = prims[jj];
         for (size_t i = 0; i < m; i++) {
-            v[(size_t)jj * m + i] = c->v[j * n + idx[i]];
-            for (size_t q = 0; q < 3; q++)
-                g[(3 * (size_t)jj + q) * m + i] = c->g[(3 * j + q) * n + idx[i]];
+            size_t q = idx[i];
+            s->v[(size_t)jj * m + i] = c->v[j * n + q];
+            for (size_t d = 0; d < 3; d++)
+                s->g[(3 * (size_t)jj + d) * m + i] = c->g[(3 * j + d) * n + q];
+            if (s->score) {
+                s->vf[(size_t)jj * m + i] = c->vf[j * n + q];
+                s->score[2 * (size_t)jj * m + i] = c->score[2 * j * n + q];
+                s->score[(2 * (size_t)jj + 1) * m + i] = c->score[(2 * j + 1) * n + q];
+            }
+            for (size_t r = 0; r < 4; r++)
+                if (c->side[(4 * j + r) * c->nw + (q >> 6)] >> (q & 63) & 1u)
+                    s->side[(4 * (size_t)jj + r) * nw + (i >> 6)] |= (uint64_t)1 << (i & 63);
         }
     }
     for (size_t i = 0; i < m; i++)
-        for (int q = 0; q < 3; q++) nrm[3 * i + q] = c->nrm[3 * idx[i] + q];
-    gp_cache *s = gp_cache_new(m, k, c->setops, v, g, nrm, c->eps_d, c->alpha, lambda);
-    if (s) s->crossing = c->crossing;
-    free(nrm);
+        for (int d = 0; d < 3; d++) s->nrm[3 * i + d] = c->nrm[3 * idx[i] + d];
     return s;
 }
 
@@ -315,7 +364,7 @@ void gp_cache_free(gp_cache *c)
 /* Min/max: values and active primitive of the block [i0, i0+m) into stack entry 0
  * (single precision: only the comparisons need the values). */
 static void eval_minmax(const gp_cache *c, gp_eval *e, const frep_insn *code,
-                        uint32_t len, size_t i0, size_t m)
+                        uint32_t len, size_t i0, size_t m, const gp_tape *tp, gp_tape *rec)
 {
     const size_t B = GP_FIT_BLOCK;
     uint32_t sp = 0;
@@ -325,8 +374,14 @@ static void eval_minmax(const gp_cache *c, gp_eval *e, const frep_insn *code,
         case FREP_OP_PRIM: {
             float *v = e->sf + sp * B;
             uint32_t *ix = e->si + sp * B;
-            memcpy(v, c->vf + (size_t)in->arg * c->n + i0, m * sizeof *v);
-            for (size_t i = 0; i < m; i++) ix[i] = 2 * in->arg;
+            if (in->arg < c->nprims) {
+                memcpy(v, c->vf + (size_t)in->arg * c->n + i0, m * sizeof *v);
+                for (size_t i = 0; i < m; i++) ix[i] = 2 * in->arg;
+            } else {  /* a tape leaf */
+                size_t k = in->arg - c->nprims;
+                memcpy(v, tp->vf + k * c->n + i0, m * sizeof *v);
+                memcpy(ix, tp->si + k * c->n + i0, m * sizeof *ix);
+            }
             sp++;
             break;
         }
@@ -375,12 +430,16 @@ static void eval_minmax(const gp_cache *c, gp_eval *e, const frep_insn *code,
         default:
             break;  /* R-function ops never reach a min/max cache (tree_valid) */
         }
+        if (rec) {
+            memcpy(rec->vf + pc * c->n + i0, e->sf + (sp - 1) * B, m * sizeof *e->sf);
+            memcpy(rec->si + pc * c->n + i0, e->si + (sp - 1) * B, m * sizeof *e->si);
+        }
     }
 }
 
 /* R-functions: values and gradients of the block into stack entry 0. */
 static void eval_rfunc(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
-                       size_t i0, size_t m)
+                       size_t i0, size_t m, const gp_tape *tp, gp_tape *rec)
 {
     const size_t B = GP_FIT_BLOCK;
     uint32_t sp = 0;
@@ -389,9 +448,15 @@ static void eval_rfunc(const gp_cache *c, gp_eval *e, const frep_insn *code, uin
         switch (in->op) {
         case FREP_OP_PRIM: {
             size_t j = in->arg;
-            memcpy(e->sv + sp * B, c->v + j * c->n + i0, m * sizeof(double));
+            const double *v = c->v, *g = c->g;
+            if (j >= c->nprims) {  /* a tape leaf */
+                j -= c->nprims;
+                v = tp->v;
+                g = tp->g;
+            }
+            memcpy(e->sv + sp * B, v + j * c->n + i0, m * sizeof(double));
             for (size_t q = 0; q < 3; q++)
-                memcpy(e->sg + (3 * sp + q) * B, c->g + (3 * j + q) * c->n + i0,
+                memcpy(e->sg + (3 * sp + q) * B, g + (3 * j + q) * c->n + i0,
                        m * sizeof(double));
             sp++;
             break;
@@ -448,6 +513,12 @@ static void eval_rfunc(const gp_cache *c, gp_eval *e, const frep_insn *code, uin
         default:
             break;
         }
+        if (rec) {
+            memcpy(rec->v + pc * c->n + i0, e->sv + (sp - 1) * B, m * sizeof *e->sv);
+            for (size_t q = 0; q < 3; q++)
+                memcpy(rec->g + (3 * pc + q) * c->n + i0, e->sg + (3 * (sp - 1) + q) * B,
+                       m * sizeof *e->sg);
+        }
     }
 }
 
@@ -455,7 +526,8 @@ static void eval_rfunc(const gp_cache *c, gp_eval *e, const frep_insn *code, uin
  * -tol at x_i - h n_i and not above tol at x_i + h n_i. Each stack entry carries the
  * four threshold bits of gp_cache.side (outer hi, outer lo, inner hi, inner lo). */
 static void eval_sides(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
-                       size_t i0, size_t m, uint64_t ok[GP_FIT_WORDS])
+                       size_t i0, size_t m, uint64_t ok[GP_FIT_WORDS], const gp_tape *tp,
+                       gp_tape *rec)
 {
     const size_t W = GP_FIT_WORDS;
     size_t w0 = i0 >> 6, mw = (m + 63) >> 6;
@@ -465,7 +537,9 @@ static void eval_sides(const gp_cache *c, gp_eval *e, const frep_insn *code, uin
         const frep_insn *in = &code[pc];
         switch (in->op) {
         case FREP_OP_PRIM: {
-            const uint64_t *row = c->side + 4 * (size_t)in->arg * c->nw + w0;
+            const uint64_t *row = in->arg < c->nprims
+                                      ? c->side + 4 * (size_t)in->arg * c->nw + w0
+                                      : tp->side + 4 * (size_t)(in->arg - c->nprims) * c->nw + w0;
             uint64_t *a = sb + 4 * sp * W;
             for (size_t r = 0; r < 4; r++) {
                 memcpy(a + r * W, row + r * c->nw, mw * sizeof *sb);
@@ -512,6 +586,10 @@ static void eval_sides(const gp_cache *c, gp_eval *e, const frep_insn *code, uin
         default:
             break;
         }
+        if (rec)
+            for (size_t r = 0; r < 4; r++)
+                memcpy(rec->side + (4 * pc + r) * c->nw + w0, sb + (4 * (sp - 1) + r) * W,
+                       mw * sizeof *sb);
     }
     /* Outer point not above tol (not outer hi), inner point above -tol (inner lo). */
     for (size_t w = 0; w < W; w++) ok[w] = ~sb[w] & sb[3 * W + w];
@@ -526,10 +604,10 @@ static inline int crosses(const uint64_t ok[GP_FIT_WORDS], size_t i)
 
 /* Value and gradient at the block's points (entry 0 of the stacks). */
 static void eval_full(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
-                      size_t i0, size_t m)
+                      size_t i0, size_t m, const gp_tape *tp)
 {
     if (c->setops == GP_SETOPS_MINMAX) {
-        eval_minmax(c, e, code, len, i0, m);
+        eval_minmax(c, e, code, len, i0, m, tp, NULL);
         const size_t B = GP_FIT_BLOCK;
         for (size_t i = 0; i < m; i++) {
             uint32_t ix = e->si[i];
@@ -539,11 +617,14 @@ static void eval_full(const gp_cache *c, gp_eval *e, const frep_insn *code, uint
             for (size_t q = 0; q < 3; q++) e->sg[q * B + i] = s * c->g[(3 * j + q) * c->n + i0 + i];
         }
     } else {
-        eval_rfunc(c, e, code, len, i0, m);
+        eval_rfunc(c, e, code, len, i0, m, tp, NULL);
     }
 }
 
-double gp_score(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len)
+/* The score of code, whose tape leaves refer to tp; the stack entries of every node go
+ * to rec when it is not NULL. */
+static double score_code(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                         const gp_tape *tp, gp_tape *rec)
 {
     if (!len || eval_reserve(e, max_stack(code, len))) return NAN;
     double total = 0;
@@ -553,10 +634,10 @@ double gp_score(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t l
     for (size_t i0 = 0; i0 < c->n; i0 += B) {
         size_t m = c->n - i0 < B ? c->n - i0 : B;
         double part = 0;
-        if (c->crossing) eval_sides(c, e, code, len, i0, m, ok);
+        if (c->crossing) eval_sides(c, e, code, len, i0, m, ok, tp, rec);
         else memset(ok, 0xff, sizeof ok);
         if (c->setops == GP_SETOPS_MINMAX) {
-            eval_minmax(c, e, code, len, i0, m);
+            eval_minmax(c, e, code, len, i0, m, tp, rec);
             const float *sc = c->score + i0;
             uint64_t all = ~(uint64_t)0;
             for (size_t w = 0; w < (m >> 6); w++) all &= ok[w];
@@ -572,7 +653,7 @@ double gp_score(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t l
                 }
             }
         } else {
-            eval_rfunc(c, e, code, len, i0, m);
+            eval_rfunc(c, e, code, len, i0, m, tp, rec);
             for (size_t i = 0; i < m; i++) {
                 int w, k;
                 double s = point_term(c, e->sv[i], e->sg[i], e->sg[B + i], e->sg[2 * B + i],
@@ -586,13 +667,18 @@ double gp_score(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t l
     return total;
 }
 
+double gp_score(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len)
+{
+    return score_code(c, e, code, len, NULL, NULL);
+}
+
 double gp_fitness(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len)
 {
     return gp_score(c, e, code, len) - c->lambda * (double)len;
 }
 
 static int per_point(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
-                     gp_stats *st, uint8_t *ok)
+                     const gp_tape *tp, gp_stats *st, uint8_t *ok)
 {
     if (!len || eval_reserve(e, max_stack(code, len))) return -1;
     gp_stats s;
@@ -601,9 +687,9 @@ static int per_point(const gp_cache *c, gp_eval *e, const frep_insn *code, uint3
     uint64_t okw[GP_FIT_WORDS];
     for (size_t i0 = 0; i0 < c->n; i0 += B) {
         size_t m = c->n - i0 < B ? c->n - i0 : B;
-        if (c->crossing) eval_sides(c, e, code, len, i0, m, okw);
+        if (c->crossing) eval_sides(c, e, code, len, i0, m, okw, tp, NULL);
         else memset(okw, 0xff, sizeof okw);
-        eval_full(c, e, code, len, i0, m);
+        eval_full(c, e, code, len, i0, m, tp);
         double part = 0;
         for (size_t i = 0; i < m; i++) {
             int w, k;
@@ -630,11 +716,197 @@ static int per_point(const gp_cache *c, gp_eval *e, const frep_insn *code, uint3
 int gp_tree_stats(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                   gp_stats *st)
 {
-    return per_point(c, e, code, len, st, NULL);
+    return per_point(c, e, code, len, NULL, st, NULL);
 }
 
 int gp_explained(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                  uint8_t *ok)
 {
-    return per_point(c, e, code, len, NULL, ok);
+    return per_point(c, e, code, len, NULL, NULL, ok);
+}
+
+/* ---- tapes ------------------------------------------------------------------ */
+
+int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                   double *score)
+{
+    gp_tape *tp = &e->tape;
+    tp->c = NULL;
+    if (!len) return -1;
+    size_t cells = (size_t)len * c->n, wcells = 4 * (size_t)len * c->nw;
+    if (len > tp->codecap) {
+        frep_insn *nc = realloc(tp->code, (size_t)len * sizeof *nc);
+        if (nc) tp->code = nc;
+        uint32_t *ns = realloc(tp->start, (size_t)len * sizeof *ns);
+        if (ns) tp->start = ns;
+        if (!nc || !ns) return -1;
+        tp->codecap = len;
+    }
+    memcpy(tp->code, code, (size_t)len * sizeof *code);
+    for (uint32_t k = 0; k < len; k++) tp->start[k] = tree_subtree_start(code, k);
+    tp->len = len;
+    if (cells > GP_TAPE_MAX_CELLS) {
+        /* Too large to keep: the code only, replacements are scored in full. */
+        double sc = score_code(c, e, code, len, NULL, NULL);
+        if (isnan(sc)) return -1;
+        tp->valued = 0;
+        tp->c = c;
+        if (score) *score = sc;
+        return 0;
+    }
+    if (cells > tp->cells) {
+        free(tp->vf);
+        free(tp->si);
+        free(tp->v);
+        free(tp->g);
+        tp->vf = NULL;
+        tp->si = NULL;
+        tp->v = tp->g = NULL;
+        tp->cells = 0;
+        /* Both families' arrays: a gp_eval serves caches of either. */
+        tp->vf = malloc(cells * sizeof *tp->vf);
+        tp->si = malloc(cells * sizeof *tp->si);
+        if (c->setops == GP_SETOPS_RFUNC) {
+            tp->v = malloc(cells * sizeof *tp->v);
+            tp->g = malloc(3 * cells * sizeof *tp->g);
+        }
+        if (!tp->vf || !tp->si || (c->setops == GP_SETOPS_RFUNC && (!tp->v || !tp->g)))
+            return -1;
+        tp->cells = cells;
+    } else if (c->setops == GP_SETOPS_RFUNC && !tp->v) {
+        tp->v = malloc(tp->cells * sizeof *tp->v);
+        tp->g = malloc(3 * tp->cells * sizeof *tp->g);
+        if (!tp->v || !tp->g) return -1;
+    }
+    if (wcells > tp->wcells) {
+        free(tp->side);
+        tp->side = malloc((wcells ? wcells : 1) * sizeof *tp->side);
+        tp->wcells = tp->side ? wcells : 0;
+        if (!tp->side) return -1;
+    }
+    double sc = score_code(c, e, code, len, NULL, tp);
+    if (isnan(sc)) return -1;
+    tp->valued = 1;
+    tp->c = c;
+    if (score) *score = sc;
+    return 0;
+}
+
+frep_insn gp_tape_leaf(const gp_cache *c, uint32_t node)
+{
+    frep_insn in;
+    memset(&in, 0, sizeof in);
+    in.op = FREP_OP_PRIM;
+    in.arg = c->nprims + node;
+    return in;
+}
+
+/* tp->path = the recorded tree below `node` with the subtree ending at `end` replaced
+ * by sub and every subtree off the path from `end` to the root by its tape leaf. */
+static int path_emit(const gp_cache *c, gp_tape *tp, uint32_t node, uint32_t end,
+                     const frep_insn *sub, uint32_t nsub)
+{
+    gp_tree *p = &tp->path;
+    if (node == end) {
+        if (tree_reserve(p, p->len + nsub)) return -1;
+        memcpy(p->code + p->len, sub, (size_t)nsub * sizeof *sub);
+        p->len += nsub;
+        return 0;
+    }
+    if (end < tp->start[node] || end > node) {
+        frep_insn lf = gp_tape_leaf(c, node);
+        return tree_push(p, (frep_opcode)lf.op, lf.arg);
+    }
+    if (tree_nin(&tp->code[node]) == 1) {
+        if (path_emit(c, tp, node - 1, end, sub, nsub)) return -1;
+    } else {
+        uint32_t l0, l1, r0;
+        tree_operands(tp->code, node, &l0, &l1, &r0);
+        if (path_emit(c, tp, l1, end, sub, nsub) || path_emit(c, tp, node - 1, end, sub, nsub))
+            return -1;
+    }
+    if (tree_reserve(p, p->len + 1)) return -1;
+    p->code[p->len++] = tp->code[node];
+    return 0;
+}
+
+/* Length of the tree the replacement stands for (tape leaves expanded). */
+static uint32_t replaced_len(const gp_cache *c, const gp_tape *tp, uint32_t st, uint32_t end,
+                             const frep_insn *sub, uint32_t nsub)
+{
+    uint32_t n = tp->len - (end - st + 1);
+    for (uint32_t q = 0; q < nsub; q++) {
+        const frep_insn *in = &sub[q];
+        if (in->op == FREP_OP_PRIM && in->arg >= c->nprims) {
+            uint32_t k = in->arg - c->nprims;
+            n += k - tp->start[k] + 1;
+        } else {
+            n++;
+        }
+    }
+    return n;
+}
+
+/* The tree to score for the replacement, in tp->path: the taped path, or without
+ * values the whole tree. -1 when nothing is recorded on c (a caller's error) or on
+ * allocation failure. */
+static int build_path(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
+                      const frep_insn *sub, uint32_t nsub)
+{
+    gp_tape *tp = &e->tape;
+    if (tp->c != c || end >= tp->len || st > end) return -1;
+    tp->path.len = 0;
+    if (tp->valued) return path_emit(c, tp, tp->len - 1, end, sub, nsub);
+    gp_tree mid = { NULL, 0, 0 };
+    gp_tree *p = &tp->path;
+    int rc = gp_tape_expand(c, e, sub, nsub, &mid) ||
+             tree_reserve(p, tp->len - (end - st + 1) + mid.len + 1);
+    if (!rc) {
+        memcpy(p->code, tp->code, (size_t)st * sizeof *p->code);
+        memcpy(p->code + st, mid.code, (size_t)mid.len * sizeof *p->code);
+        memcpy(p->code + st + mid.len, tp->code + end + 1,
+               (size_t)(tp->len - end - 1) * sizeof *p->code);
+        p->len = tp->len - (end - st + 1) + mid.len;
+    }
+    tree_free(&mid);
+    return rc ? -1 : 0;
+}
+
+double gp_fitness_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
+                           const frep_insn *sub, uint32_t nsub)
+{
+    gp_tape *tp = &e->tape;
+    if (build_path(c, e, st, end, sub, nsub)) return NAN;
+    double sc = score_code(c, e, tp->path.code, tp->path.len, tp, NULL);
+    return sc - c->lambda * (double)replaced_len(c, tp, st, end, sub, nsub);
+}
+
+int gp_stats_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
+                      const frep_insn *sub, uint32_t nsub, gp_stats *st_out)
+{
+    gp_tape *tp = &e->tape;
+    if (build_path(c, e, st, end, sub, nsub)) return -1;
+    if (per_point(c, e, tp->path.code, tp->path.len, tp, st_out, NULL)) return -1;
+    st_out->fitness = st_out->score - c->lambda * (double)replaced_len(c, tp, st, end, sub, nsub);
+    return 0;
+}
+
+int gp_tape_expand(const gp_cache *c, const gp_eval *e, const frep_insn *sub, uint32_t nsub,
+                   gp_tree *out)
+{
+    const gp_tape *tp = &e->tape;
+    out->len = 0;
+    for (uint32_t q = 0; q < nsub; q++) {
+        const frep_insn *in = &sub[q];
+        if (in->op == FREP_OP_PRIM && in->arg >= c->nprims) {
+            uint32_t k = in->arg - c->nprims, s0 = tp->start[k];
+            if (tree_reserve(out, out->len + (k - s0 + 1))) return -1;
+            memcpy(out->code + out->len, tp->code + s0, (size_t)(k - s0 + 1) * sizeof *in);
+            out->len += k - s0 + 1;
+        } else {
+            if (tree_reserve(out, out->len + 1)) return -1;
+            out->code[out->len++] = *in;
+        }
+    }
+    return 0;
 }

@@ -125,4 +125,39 @@ int gp_tree_stats(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t
 int gp_explained(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                  uint8_t *ok);
 
+/* ---- Tapes: scoring a tree with one subtree replaced ----
+ *
+ * The simplifier and the merge of partition.c score hundreds of variants of one tree,
+ * each differing from it in one subtree. gp_tape_record evaluates the tree once and
+ * keeps every node's stack entry (min/max: value and active primitive; R-functions:
+ * value and gradient; the crossing bits) at every point of the cache, in the gp_eval.
+ * A variant is then scored from the replacement and the path from it to the root, the
+ * subtrees off the path read from the tape as "tape leaves" (PRIM nprims + node): a
+ * few nodes instead of the whole tree, with the same bits as gp_fitness of the
+ * variant, since min/max select and R-functions compute the same numbers in the same
+ * order. A replacement may itself hold tape leaves (an operand of the tree joined
+ * elsewhere). The tape belongs to the gp_eval: any gp_tape_record on it replaces it. */
+
+/* Node-point cells a tape keeps at most (48 bytes each with R-functions): beyond it
+ * the tree is kept without values and replacements are scored in full. */
+#define GP_TAPE_MAX_CELLS ((size_t)1 << 23)
+
+/* Record code on c in e's tape; its score (gp_score) in *score. 0 or -1 (allocation;
+ * the tape is then empty). */
+int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                   double *score);
+/* The leaf standing for the recorded tree's subtree ending at node. */
+frep_insn gp_tape_leaf(const gp_cache *c, uint32_t node);
+/* Fitness (eq. 7, the size penalty on the expanded length) of the recorded tree with
+ * its subtree [st, end] replaced by sub[0..nsub). NaN on allocation failure or when
+ * nothing is recorded on c. */
+double gp_fitness_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
+                           const frep_insn *sub, uint32_t nsub);
+/* The same as gp_tree_stats. 0 or -1. */
+int gp_stats_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
+                      const frep_insn *sub, uint32_t nsub, gp_stats *st_out);
+/* out = sub with its tape leaves expanded to the recorded subtrees. 0 or -1. */
+int gp_tape_expand(const gp_cache *c, const gp_eval *e, const frep_insn *sub, uint32_t nsub,
+                   gp_tree *out);
+
 #endif

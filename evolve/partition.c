@@ -533,6 +533,85 @@ static void renumber(gp_tree *t, const uint32_t *prims, uint32_t k, int dir)
     }
 }
 
+static uint32_t low_bit(uint32_t x)
+{
+    uint32_t i = 0;
+    while (!(x & 1u)) {
+        x >>= 1;
+        i++;
+    }
+    return i;
+}
+
+int part_exhaustive(gp_setops s, const gp_cache *c, gp_eval *e, gp_tree *t)
+{
+    uint32_t k = c->nprims;
+    if (k == 0 || k > PART_EXHAUSTIVE_MAX) return -1;
+    gp_opset o = gp_opset_of(s);
+    uint32_t nsets = 1u << k;
+    /* lists[S]: the trees over subset S, concatenated, each 2|S| - 1 instructions. */
+    gp_tree lists[1u << PART_EXHAUSTIVE_MAX];
+    uint32_t count[1u << PART_EXHAUSTIVE_MAX];
+    memset(lists, 0, sizeof lists);
+    memset(count, 0, sizeof count);
+    int rc = -1;
+    double bf = -HUGE_VAL;
+    t->len = 0;
+    /* Subsets by size, so that every proper subset is listed before its supersets. */
+    for (uint32_t size = 1; size <= k; size++)
+        for (uint32_t S = 1; S < nsets; S++) {
+            if (popcount64(S) != size) continue;
+            uint32_t tl = 2 * size - 1;
+            if (size == 1) {
+                if (tree_push(&lists[S], FREP_OP_PRIM, low_bit(S))) goto out;
+                count[S] = 1;
+            } else {
+                /* Splits S = A + B with A holding S's lowest member (each once). */
+                uint32_t low = S & (0u - S);
+                for (uint32_t A = (S - 1) & S; A; A = (A - 1) & S) {
+                    if (!(A & low)) continue;
+                    uint32_t B = S ^ A;
+                    uint32_t la = 2 * popcount64(A) - 1;
+                    uint32_t lb = 2 * popcount64(B) - 1;
+                    for (uint32_t ia = 0; ia < count[A]; ia++)
+                        for (uint32_t ib = 0; ib < count[B]; ib++)
+                            for (int w = 0; w < 4; w++) {
+                                const frep_insn *x = lists[A].code + ia * la;
+                                const frep_insn *y = lists[B].code + ib * lb;
+                                uint32_t lx = la, ly = lb;
+                                if (w == 3) {  /* b \ a */
+                                    x = lists[B].code + ib * lb;
+                                    y = lists[A].code + ia * la;
+                                    lx = lb;
+                                    ly = la;
+                                }
+                                const uint8_t op = w == 0 ? o.uni : w == 1 ? o.inter : o.sub;
+                                gp_tree *l = &lists[S];
+                                if (tree_reserve(l, l->len + tl)) goto out;
+                                memcpy(l->code + l->len, x, lx * sizeof *x);
+                                memcpy(l->code + l->len + lx, y, ly * sizeof *y);
+                                l->len += lx + ly;
+                                if (tree_push(l, (frep_opcode)op, 0)) goto out;
+                                count[S]++;
+                            }
+                }
+            }
+            for (uint32_t q = 0; q < count[S]; q++) {
+                const frep_insn *code = lists[S].code + q * tl;
+                double f = gp_fitness(c, e, code, tl);
+                if (isnan(f)) goto out;  /* allocation failure */
+                if (f > bf || t->len == 0) {
+                    bf = f;
+                    if (tree_set(t, code, tl)) goto out;
+                }
+            }
+        }
+    rc = 0;
+out:
+    for (uint32_t S = 0; S < nsets; S++) tree_free(&lists[S]);
+    return rc;
+}
+
 /* Solve one clique: a tree over its members (global numbers) in *t. */
 static int solve_clique(const gp_config *cfg, const gp_cache *c, const uint32_t *mem,
                         uint32_t k, const size_t *pts, size_t npts, uint64_t qseed,
@@ -545,30 +624,9 @@ static int solve_clique(const gp_config *cfg, const gp_cache *c, const uint32_t 
     *gens = 0;
     if (k == 1) {
         if (tree_push(t, FREP_OP_PRIM, 0)) goto out;
-    } else if (k == 2) {
-        /* The four set operations, exhaustively. */
-        gp_opset o = gp_opset_of(cfg->setops);
-        const uint8_t ops[4] = { o.uni, o.inter, o.sub, o.sub };
-        double bf = -HUGE_VAL;
-        gp_tree tr = { NULL, 0, 0 };
-        for (int q = 0; q < 4; q++) {
-            tr.len = 0;
-            uint32_t first = q == 3 ? 1 : 0;
-            if (tree_push(&tr, FREP_OP_PRIM, first) || tree_push(&tr, FREP_OP_PRIM, 1 - first) ||
-                tree_push(&tr, (frep_opcode)ops[q], 0)) {
-                tree_free(&tr);
-                goto out;
-            }
-            double f = gp_fitness(sc, e, tr.code, tr.len);
-            if (q == 0 || f > bf) {
-                bf = f;
-                if (tree_copy(t, &tr)) {
-                    tree_free(&tr);
-                    goto out;
-                }
-            }
-        }
-        tree_free(&tr);
+    } else if (k <= PART_EXHAUSTIVE_MAX) {
+        if (part_exhaustive(cfg->setops, sc, e, t)) goto out;
+        if (k > 2 && simplify_tree(t, cfg->setops, sc, e, NULL)) goto out;
     } else {
         gp_config cc = *cfg;
         cc.threads = 1;

@@ -19,6 +19,10 @@
 #define PART_MAX_CLIQUES 4096
 /* Most primitives the bitset graph takes (words of 64 bits per row). */
 #define PART_MAX_PRIMS 65536
+/* Cliques of at most this many primitives are solved by trying every tree that uses
+ * each primitive once (1,180 trees for four, 26,880 for five: there the GA is
+ * cheaper); larger ones by a GA. */
+#define PART_EXHAUSTIVE_MAX 4
 
 /* An oriented box: centre, orthonormal axes ax[k], half sizes h[k]. */
 typedef struct gp_obb {
@@ -75,6 +79,16 @@ uint32_t part_largest_common(const gp_tree *a, const gp_tree *b, uint32_t *ea,
  * and a & b; the winner is simplified. Returns 0 or -1. */
 int part_merge_pair(const gp_tree *a, const gp_tree *b, gp_setops s, const gp_cache *c,
                     gp_eval *e, gp_tree *out, double *fitness);
+
+/* The best tree for a clique of at most PART_EXHAUSTIVE_MAX primitives (c's), by
+ * trying every tree over a non-empty subset of them that uses each once, with the four
+ * set operations (a | b, a & b, a \ b, b \ a) at every node: 4 trees over two
+ * primitives, 48 over three, 960 over four (1,180 in all for a clique of four). The
+ * fittest goes to *t (ties: the first enumerated, subsets by size, so the shortest).
+ * Trees with a primitive twice or with a complement are left out: a solid built from
+ * the primitives once each, as CAD parts are, is in the set. 0, or -1 on allocation
+ * failure or too many primitives. */
+int part_exhaustive(gp_setops s, const gp_cache *c, gp_eval *e, gp_tree *t);
 
 /* Statistics of a partitioned run. */
 typedef struct part_info {

@@ -187,30 +187,47 @@ int simplify_rules(gp_tree *t, gp_setops s)
     return 0;
 }
 
-/* Try replacing the subtree [st, end] of t by cand; keep it when the fitness does not
- * drop. Returns 1 when kept, 0 when not, -1 on allocation failure. */
+/* Try replacing the subtree [st, end] of t by cand, which may hold tape leaves of t
+ * (fitness.h; e holds t's tape); keep it when the fitness does not drop, the expanded
+ * cand then in trial and t's tape recorded again. Returns 1 when kept, 0 when not, -1
+ * on allocation failure. */
 static int try_replace(gp_tree *t, gp_tree *trial, uint32_t st, uint32_t end,
                        const gp_tree *cand, const gp_cache *c, gp_eval *e, double *fit)
 {
-    if (tree_copy(trial, t) || tree_splice(trial, st, end, cand->code, cand->len)) return -1;
-    double f = gp_fitness(c, e, trial->code, trial->len);
+    double f = gp_fitness_replaced(c, e, st, end, cand->code, cand->len);
     if (!(f >= *fit)) return 0;
-    if (tree_copy(t, trial)) return -1;
+    if (gp_tape_expand(c, e, cand->code, cand->len, trial) ||
+        tree_splice(t, st, end, trial->code, trial->len) ||
+        gp_tape_record(c, e, t->code, t->len, NULL))
+        return -1;
     *fit = f;
     return 1;
 }
 
-/* cand = code[a0..a1] code[b0..b1] op */
-static int build2(gp_tree *cand, const frep_insn *code, uint32_t a0, uint32_t a1,
-                  uint32_t b0, uint32_t b1, uint8_t op)
+/* t's tape recorded in e, and t's fitness. 0 or -1. */
+static int record(const gp_tree *t, const gp_cache *c, gp_eval *e, double *fit)
 {
-    uint32_t na = a1 - a0 + 1, nb = b1 - b0 + 1;
+    double sc;
+    if (gp_tape_record(c, e, t->code, t->len, &sc)) return -1;
+    if (fit) *fit = sc - c->lambda * (double)t->len;
+    return 0;
+}
+
+/* cand = the tape leaf of node a (a whole subtree of the recorded tree). */
+static int leaf1(gp_tree *cand, const gp_cache *c, uint32_t a)
+{
+    frep_insn la = gp_tape_leaf(c, a);
     cand->len = 0;
-    if (tree_reserve(cand, na + nb + 1)) return -1;
-    memcpy(cand->code, code + a0, (size_t)na * sizeof *code);
-    memcpy(cand->code + na, code + b0, (size_t)nb * sizeof *code);
-    cand->len = na + nb;
-    return tree_push(cand, (frep_opcode)op, 0);
+    return tree_push(cand, (frep_opcode)la.op, la.arg);
+}
+
+/* cand = (subtree ending at a) (subtree ending at b) op, as tape leaves. */
+static int build2(gp_tree *cand, const gp_cache *c, uint32_t a, uint32_t b, uint8_t op)
+{
+    frep_insn la = gp_tape_leaf(c, a), lb = gp_tape_leaf(c, b);
+    cand->len = 0;
+    return tree_push(cand, (frep_opcode)la.op, la.arg) ||
+           tree_push(cand, (frep_opcode)lb.op, lb.arg) || tree_push(cand, (frep_opcode)op, 0);
 }
 
 /* The moves at node `end`, smallest change first: the node replaced by an operand;
@@ -237,9 +254,9 @@ static long node_moves(gp_tree *t, gp_tree *trial, gp_tree *cand, uint32_t end,
         rng[nr++][1] = end - 1;
     }
     for (int q = 0; q < nr; q++) {
-        if (tree_set(cand, t->code + rng[q][0], rng[q][1] - rng[q][0] + 1)) return -1;
+        if (leaf1(cand, c, rng[q][1])) return -1;
         int r = try_replace(t, trial, st, end, cand, c, e, fit);
-        if (r) return r < 0 ? -1 : (long)cand->len;
+        if (r) return r < 0 ? -1 : (long)trial->len;
     }
     if (k != 2) return 0;
     const uint8_t ops[3] = { o->uni, o->inter, o->sub };
@@ -255,12 +272,11 @@ static long node_moves(gp_tree *t, gp_tree *trial, gp_tree *cand, uint32_t end,
                 /* w == 3: subtraction with the operands exchanged */
                 uint8_t op = ops[w < 3 ? w : 2];
                 int kept_first = (side == 0) != (w == 3);
-                int bad = kept_first
-                    ? build2(cand, t->code, sub[g][0], sub[g][1], other[0], other[1], op)
-                    : build2(cand, t->code, other[0], other[1], sub[g][0], sub[g][1], op);
+                int bad = kept_first ? build2(cand, c, sub[g][1], other[1], op)
+                                     : build2(cand, c, other[1], sub[g][1], op);
                 if (bad) return -1;
                 int r = try_replace(t, trial, st, end, cand, c, e, fit);
-                if (r) return r < 0 ? -1 : (long)cand->len;
+                if (r) return r < 0 ? -1 : (long)trial->len;
             }
     }
     return 0;
@@ -276,12 +292,13 @@ static int grow_root(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
     uint32_t best_j = 0;
     int best_w = -1;
     double bf = *fit;
+    if (record(t, c, e, NULL)) return -1;
     for (uint32_t j = 0; j < c->nprims; j++)
         for (int w = 0; w < 3; w++) {
-            if (tree_copy(trial, t) || tree_push(trial, FREP_OP_PRIM, j) ||
+            if (leaf1(trial, c, t->len - 1) || tree_push(trial, FREP_OP_PRIM, j) ||
                 tree_push(trial, (frep_opcode)ops[w], 0))
                 return -1;
-            double f = gp_fitness(c, e, trial->code, trial->len);
+            double f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len);
             if (f > bf) {
                 bf = f;
                 best_j = j;
@@ -302,6 +319,7 @@ static int reduce(gp_tree *t, gp_tree *trial, gp_tree *cand, gp_setops s, const 
     int changed = 1;
     while (changed) {
         changed = 0;
+        if (record(t, c, e, fit)) return -1;
         /* Root first: removing high nodes saves the most. After a replacement the
          * scan continues at the node that took the place. */
         for (uint32_t end = t->len; end-- > 0;) {
@@ -314,10 +332,7 @@ static int reduce(gp_tree *t, gp_tree *trial, gp_tree *cand, gp_setops s, const 
                 end = st + (uint32_t)r;  /* the loop decrements to the new node */
             }
         }
-        if (changed) {
-            if (simplify_rules(t, s)) return -1;
-            *fit = gp_fitness(c, e, t->code, t->len);
-        }
+        if (changed && simplify_rules(t, s)) return -1;
     }
     return 0;
 }
@@ -361,10 +376,10 @@ typedef struct piece {
     uint8_t inner, third, outer;
 } piece;
 
-/* t (a inner b) [c third] outer, in postfix. */
-static int build_piece(gp_tree *trial, const gp_tree *t, const piece *p)
+/* head (a inner b) [c third] outer, in postfix; head is t, or t's tape leaf. */
+static int build_piece(gp_tree *trial, const frep_insn *head, uint32_t nhead, const piece *p)
 {
-    if (tree_copy(trial, t) || tree_push(trial, FREP_OP_PRIM, p->a) ||
+    if (tree_set(trial, head, nhead) || tree_push(trial, FREP_OP_PRIM, p->a) ||
         tree_push(trial, FREP_OP_PRIM, p->b) || tree_push(trial, (frep_opcode)p->inner, 0))
         return -1;
     if (p->c != UINT32_MAX &&
@@ -464,6 +479,8 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     const uint8_t outers[3] = { o->uni, o->sub, o->inter };
     piece best = { *fit, 0, 0, UINT32_MAX, 0, 0, 0 };
     int found = 0;
+    if (record(t, c, e, NULL)) { rc = -1; goto out; }
+    frep_insn root = gp_tape_leaf(c, t->len - 1);
     for (uint32_t a = 0; a < k; a++)
         for (uint32_t b = a + 1; b < k; b++) {
             if (!use[a] && !use[b]) continue;
@@ -471,8 +488,8 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
                 for (int q = 0; q < 4; q++) {
                     piece p = { 0, q == 2 ? b : a, q == 2 ? a : b, UINT32_MAX,
                                 q == 0 ? o->inter : q == 3 ? o->uni : o->sub, 0, outers[w] };
-                    if (build_piece(trial, t, &p)) { rc = -1; goto out; }
-                    p.f = gp_fitness(c, e, trial->code, trial->len);
+                    if (build_piece(trial, &root, 1, &p)) { rc = -1; goto out; }
+                    p.f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len);
                     if (p.f > best.f) { best = p; found = 1; }
                     beam_insert(beam, &nb, &p);
                 }
@@ -484,13 +501,13 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
                 piece p = beam[i];
                 p.c = cc;
                 p.third = q == 0 ? o->inter : q == 1 ? o->sub : o->uni;
-                if (build_piece(trial, t, &p)) { rc = -1; goto out; }
-                p.f = gp_fitness(c, e, trial->code, trial->len);
+                if (build_piece(trial, &root, 1, &p)) { rc = -1; goto out; }
+                p.f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len);
                 if (p.f > best.f) { best = p; found = 1; }
             }
         }
     if (!found) goto out;
-    if (build_piece(trial, t, &best)) { rc = -1; goto out; }
+    if (build_piece(trial, t->code, t->len, &best)) { rc = -1; goto out; }
     if ((rc = commit_trial(t, trial)) <= 0) goto out;
     *fit = best.f;
 out:
@@ -526,23 +543,19 @@ static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     double bf = *fit;
     uint32_t best_end = 0, best_j = 0;
     int best_w = -1;
+    if (record(t, c, e, NULL)) { rc = -1; goto out; }
     for (uint32_t end = 0; end < t->len; end++) {
         uint32_t st = tree_subtree_start(t->code, end);
         for (uint32_t j = 0; j < k; j++) {
             if (!use[j]) continue;
             for (int w = 0; w < 3; w++) {
-                /* trial = t with [st, end] followed by PRIM j, op */
-                if (tree_copy(trial, t)) { rc = -1; goto out; }
-                gp_tree sub = { NULL, 0, 0 };
-                if (tree_set(&sub, t->code + st, end - st + 1) ||
-                    tree_push(&sub, FREP_OP_PRIM, j) || tree_push(&sub, (frep_opcode)ops[w], 0) ||
-                    tree_splice(trial, st, end, sub.code, sub.len)) {
-                    tree_free(&sub);
+                /* [st, end] followed by PRIM j, op */
+                if (leaf1(trial, c, end) || tree_push(trial, FREP_OP_PRIM, j) ||
+                    tree_push(trial, (frep_opcode)ops[w], 0)) {
                     rc = -1;
                     goto out;
                 }
-                tree_free(&sub);
-                double f = gp_fitness(c, e, trial->code, trial->len);
+                double f = gp_fitness_replaced(c, e, st, end, trial->code, trial->len);
                 if (f > bf) {
                     bf = f;
                     best_end = end;
@@ -678,6 +691,7 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
     double bf = *fit;
     uint32_t best_end = 0, best_lits[SIMPLIFY_POCKET_MAX] = { 0 };
     int best_m = 0, best_form = 0;
+    if (record(t, c, e, NULL)) { rc = -1; goto out; }
     /* Subsets as bit masks over the candidates, 2 to SIMPLIFY_POCKET_MAX members. */
     for (unsigned mask = 0; mask < (1u << nc); mask++) {
         uint32_t lits[SIMPLIFY_POCKET_MAX];
@@ -698,14 +712,14 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
         if (!form_ok[0] && !form_ok[1]) continue;
         for (uint32_t end = 0; end < t->len; end++) {
             uint32_t st = tree_subtree_start(t->code, end);
+            frep_insn lf = gp_tape_leaf(c, end);
             for (int form = 0; form < SIMPLIFY_POCKET_FORMS; form++) {
                 if (!form_ok[form]) continue;
-                if (build_pocket(&sub, t->code, st, end, lits, neg, m, form, o) ||
-                    tree_copy(trial, t) || tree_splice(trial, st, end, sub.code, sub.len)) {
+                if (build_pocket(&sub, &lf, 0, 0, lits, neg, m, form, o)) {
                     rc = -1;
                     goto out;
                 }
-                double f = gp_fitness(c, e, trial->code, trial->len);
+                double f = gp_fitness_replaced(c, e, st, end, sub.code, sub.len);
                 if (f > bf) {
                     bf = f;
                     best_end = end;
@@ -808,7 +822,7 @@ static int grow_trim(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
         }
     }
     gp_stats st0;
-    if (gp_tree_stats(c, e, t->code, t->len, &st0)) goto out;
+    if (gp_tree_stats(c, e, t->code, t->len, &st0) || record(t, c, e, NULL)) goto out;
     double bs = st0.score;
     size_t bn = st0.explained;
     uint32_t best_end = 0, best_j = 0;
@@ -836,14 +850,12 @@ static int grow_trim(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
                 if (tree_nin(oth) == 0 && oth->arg == j) can[1] = 0;
                 for (int ng = 0; ng < 2; ng++) {
                     if (!can[ng]) continue;
-                    if (tree_set(&sub, t->code + st, end - st + 1) ||
-                        tree_push(&sub, FREP_OP_PRIM, j) ||
+                    if (leaf1(&sub, c, end) || tree_push(&sub, FREP_OP_PRIM, j) ||
                         (ng && tree_push(&sub, (frep_opcode)o->neg, 0)) ||
-                        tree_push(&sub, (frep_opcode)o->inter, 0) || tree_copy(trial, t) ||
-                        tree_splice(trial, st, end, sub.code, sub.len))
+                        tree_push(&sub, (frep_opcode)o->inter, 0))
                         goto out;
                     gp_stats stt;
-                    if (gp_tree_stats(c, e, trial->code, trial->len, &stt)) goto out;
+                    if (gp_stats_replaced(c, e, st, end, sub.code, sub.len, &stt)) goto out;
                     if (stt.explained > bn && !(stt.score < bs)) {
                         bs = stt.score;
                         bn = stt.explained;

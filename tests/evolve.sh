@@ -95,6 +95,32 @@ grep -q "tree size 11 nodes" "$tmp/m5.hf" && grep -q '^-- @setops rfunc' "$tmp/m
     "$FREP" check "$tmp/m5.hf" >/dev/null 2>&1
 report $? "R-functions: 11 nodes, model compiles"
 
+# A plate with two holes from a .fit list: the proxy of a subtracted primitive is the
+# box of the points it explains as a complement (normals along +grad f), so each hole
+# overlaps the top and bottom faces only and no clique holds both holes (before, such
+# primitives had no proxy and overlapped everything: largest clique 5).
+cat >"$tmp/plate.hf" <<'EOF'
+-- @setops minmax
+-- @box -2.5 -1.5 -0.5 2.5 1.5 1
+my_model(x[3], a[1])
+{
+    my_model = frPlane(x, 1, 0, 0, 2) & frPlane(x, -1, 0, 0, 2) &
+               frPlane(x, 0, 1, 0, 1) & frPlane(x, 0, -1, 0, 1) &
+               frPlane(x, 0, 0, 1, 0.5) & frPlane(x, 0, 0, -1, 0) \
+               frCylinder(x, -1.2, 0, 0, 0, 0, 1, 0.25) \ frCylinder(x, 1.2, 0, 0, 0, 0, 1, 0.25);
+}
+EOF
+printf 'plane 1 0 0 2\nplane -1 0 0 2\nplane 0 1 0 1\nplane 0 -1 0 1\nplane 0 0 1 0.5\nplane 0 0 -1 0\ncylinder 0 0 1 -1.2 0 0 0.25\ncylinder 0 0 1 1.2 0 0 0.25\n' >"$tmp/plate.fit"
+"$FREP" sample "$tmp/plate.hf" -n 4000 --seed 1 -o "$tmp/plate.xyz" -q &&
+    "$FREP" evolve "$tmp/plate.xyz" -p "$tmp/plate.fit" -o "$tmp/plate_out.hf" --seed 1 -q 2>"$tmp/err"
+st=$?
+[ $st = 0 ] && grep -q "partitioned (12 cliques, largest 3;" "$tmp/plate_out.hf" &&
+    grep -q "tree size 15 nodes, 8 primitives" "$tmp/plate_out.hf" &&
+    grep -q "100.00% both" "$tmp/plate_out.hf"
+st=$?
+report $st "plate with two holes: holes' proxies local (12 cliques of 3), the 15-node tree"
+[ $st = 0 ] || { show "$tmp/err"; show "$tmp/plate_out.hf"; }
+
 # Without -p: segmentation first.
 "$FREP" evolve "$tmp/cube.xyz" -o "$tmp/m6.hf" --seed 3 -q 2>"$tmp/err"
 st=$?

@@ -908,12 +908,225 @@ static void test_sheet(void)
     scene_free(&s);
 }
 
+/* Tapes (fitness.h): the fitness of a tree with one subtree replaced, scored from the
+ * tape of the tree, has the same bits as the spliced tree scored in full; with
+ * replacements holding tape leaves too; for both families; and for a tree too large
+ * to tape (scored in full). */
+static void test_tape(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 21);
+    double h[3] = { 1, 1, 0.5 };
+    sample_box(&s, &r, 150, h, 0.4);
+    s.prims[s.nprims++] = (aprim){ T_CYLZ, { 0, 0, 0 }, 0.4 };
+    s.prims[s.nprims++] = (aprim){ T_SPHERE, { 0.5, 0.5, 0.3 }, 0.6 };
+    for (int so = 0; so < 2; so++) {
+        gp_cache *c = scene_cache(&s, (gp_setops)so, 20);
+        gp_eval *e = gp_eval_new();
+        gp_tree t = { NULL, 0, 0 }, sub = { NULL, 0, 0 }, full = { NULL, 0, 0 };
+        gp_tree exp = { NULL, 0, 0 };
+        int same = 1, same_stats = 1, lens = 1, tries = 0;
+        for (int k = 0; k < 40; k++) {
+            t.len = 0;
+            tree_grow(&t, &r, (gp_setops)so, c->nprims, 6, 0.8);
+            double sc;
+            if (gp_tape_record(c, e, t.code, t.len, &sc) ||
+                sc != gp_score(c, e, t.code, t.len)) {
+                same = 0;
+                break;
+            }
+            for (int q = 0; q < 10; q++) {
+                uint32_t end = gp_rng_below(&r, t.len), st = tree_subtree_start(t.code, end);
+                sub.len = 0;
+                if (q % 2 == 0) {
+                    tree_grow(&sub, &r, (gp_setops)so, c->nprims, 3, 0.6);
+                } else {
+                    /* (a random subtree as a tape leaf) op (a new subtree) */
+                    uint32_t a = gp_rng_below(&r, t.len);
+                    frep_insn la = gp_tape_leaf(c, a);
+                    gp_opset o = gp_opset_of((gp_setops)so);
+                    tree_push(&sub, (frep_opcode)la.op, la.arg);
+                    tree_grow(&sub, &r, (gp_setops)so, c->nprims, 2, 0.5);
+                    tree_push(&sub, (frep_opcode)(q % 4 == 1 ? o.sub : o.uni), 0);
+                }
+                gp_tape_expand(c, e, sub.code, sub.len, &exp);
+                tree_copy(&full, &t);
+                tree_splice(&full, st, end, exp.code, exp.len);
+                double f1 = gp_fitness_replaced(c, e, st, end, sub.code, sub.len);
+                double f2 = gp_fitness(c, e, full.code, full.len);
+                same &= f1 == f2;
+                gp_stats a1, a2;
+                gp_stats_replaced(c, e, st, end, sub.code, sub.len, &a1);
+                gp_tree_stats(c, e, full.code, full.len, &a2);
+                same_stats &= a1.score == a2.score && a1.explained == a2.explained &&
+                              a1.within_eps == a2.within_eps && a1.fitness == a2.fitness;
+                lens &= tree_valid(full.code, full.len, c->nprims, (gp_setops)so);
+                tries++;
+            }
+        }
+        ok(same, "%s: %d replacements scored from the tape as in full, bit for bit",
+           so ? "rfunc" : "minmax", tries);
+        ok(same_stats, "%s: statistics of replacements from the tape as in full",
+           so ? "rfunc" : "minmax");
+        ok(lens, "%s: expanded replacements are valid trees", so ? "rfunc" : "minmax");
+
+        /* A tree beyond GP_TAPE_MAX_CELLS is kept without values: still exact. */
+        uint32_t want = (uint32_t)(GP_TAPE_MAX_CELLS / c->n) + 2;
+        gp_opset o = gp_opset_of((gp_setops)so);
+        t.len = 0;
+        tree_push(&t, FREP_OP_PRIM, 0);
+        for (uint32_t j = 1; t.len < want; j++) {
+            tree_push(&t, FREP_OP_PRIM, j % c->nprims);
+            tree_push(&t, (frep_opcode)(j % 3 ? o.inter : o.uni), 0);
+        }
+        double sc;
+        int rec = gp_tape_record(c, e, t.code, t.len, &sc);
+        parse_tree(&sub, "12|", (gp_setops)so);
+        uint32_t end = t.len / 2;
+        while (tree_nin(&t.code[end]) == 0) end++;
+        uint32_t st = tree_subtree_start(t.code, end);
+        tree_copy(&full, &t);
+        tree_splice(&full, st, end, sub.code, sub.len);
+        ok(rec == 0 && sc == gp_score(c, e, t.code, t.len) &&
+           gp_fitness_replaced(c, e, st, end, sub.code, sub.len) ==
+               gp_fitness(c, e, full.code, full.len),
+           "%s: a tree of %u nodes (beyond the tape) scored in full", so ? "rfunc" : "minmax",
+           t.len);
+        tree_free(&t);
+        tree_free(&sub);
+        tree_free(&full);
+        tree_free(&exp);
+        gp_eval_free(e);
+        gp_cache_free(c);
+    }
+    scene_free(&s);
+}
+
+/* gp_cache_subset gathers the parent's tables: the same scores as a cache built from
+ * the gathered points and primitives. */
+static void test_cache_subset(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 23);
+    double h[3] = { 1, 0.7, 0.5 };
+    sample_box(&s, &r, 100, h, 0);
+    s.prims[s.nprims++] = (aprim){ T_SPHERE, { 0.5, 0.5, 0.3 }, 0.6 };
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 20);
+    size_t idx[300];
+    size_t m = 0;
+    for (size_t i = 3; i < s.n && m < 300; i += 2) idx[m++] = i;
+    uint32_t prims[3] = { 6, 1, 4 };
+    gp_cache *sc = gp_cache_subset(c, idx, m, prims, 3, -1);
+    scene t;
+    memset(&t, 0, sizeof t);
+    for (size_t q = 0; q < m; q++) {
+        size_t i = idx[q];
+        scene_add(&t, s.x[i], s.y[i], s.z[i], s.nrm[3 * i], s.nrm[3 * i + 1], s.nrm[3 * i + 2]);
+    }
+    for (int k = 0; k < 3; k++) t.prims[k] = s.prims[prims[k]];
+    t.nprims = 3;
+    double *v = malloc(3 * m * sizeof *v), *g = malloc(9 * m * sizeof *g);
+    memcpy(v, sc->v, 3 * m * sizeof *v);
+    memcpy(g, sc->g, 9 * m * sizeof *g);
+    gp_cache *bc = gp_cache_new(m, 3, GP_SETOPS_MINMAX, v, g, t.nrm, c->eps_d, c->alpha, -1);
+    int same = sc->n == bc->n && sc->nw == bc->nw && sc->lambda == bc->lambda;
+    for (size_t q = 0; same && q < 2 * 3 * m; q++) same &= sc->score[q] == bc->score[q];
+    for (size_t q = 0; same && q < 4 * 3 * sc->nw; q++) {
+        /* bits beyond m in the last word are not points */
+        uint64_t mask = (q % sc->nw == sc->nw - 1 && m % 64) ? ((uint64_t)1 << (m % 64)) - 1 : ~(uint64_t)0;
+        same &= (sc->side[q] & mask) == (bc->side[q] & mask);
+    }
+    ok(same, "subset cache: the parent's score tables and crossing bits, gathered");
+    gp_eval *e = gp_eval_new();
+    gp_tree tr = { NULL, 0, 0 };
+    parse_tree(&tr, "23&1\\", GP_SETOPS_MINMAX);
+    ok(gp_fitness(sc, e, tr.code, tr.len) == gp_fitness(bc, e, tr.code, tr.len),
+       "subset cache scores a tree as a cache built from its points");
+    tree_free(&tr);
+    gp_eval_free(e);
+    gp_cache_free(bc);
+    gp_cache_free(sc);
+    gp_cache_free(c);
+    scene_free(&t);
+    scene_free(&s);
+}
+
+/* part_exhaustive: a clique of four primitives solved by enumeration, at least as fit
+ * as the GA's tree, the same at every call. */
+static void test_exhaustive(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 25);
+    /* The half slab x >= -1, z in [-0.3, 0.3] minus the vertical cylinder of radius 0.8
+     * about (1, 1), sampled on its boundary over [-1, 1.2]^2: four primitives, one
+     * subtracted. */
+    add_plane(&s, 0, -1, 1);  /* x >= -1 */
+    add_plane(&s, 2, 1, 0.3);
+    add_plane(&s, 2, -1, 0.3);
+    s.prims[s.nprims++] = (aprim){ T_CYLZ, { 1, 1, 0 }, 0.8 };
+    while (s.n < 3000) {
+        double p[3] = { 2.2 * gp_rng_unif(&r) - 1, 2.2 * gp_rng_unif(&r) - 1,
+                        0.6 * gp_rng_unif(&r) - 0.3 }, nn[3] = { 0, 0, 0 };
+        int face = (int)gp_rng_below(&r, 4);
+        if (face == 0) { p[0] = -1; nn[0] = -1; }
+        else if (face == 1) { p[2] = 0.3; nn[2] = 1; }
+        else if (face == 2) { p[2] = -0.3; nn[2] = -1; }
+        else {
+            double a = 2 * 3.14159265358979323846 * gp_rng_unif(&r);
+            p[0] = 1 + 0.8 * cos(a);
+            p[1] = 1 + 0.8 * sin(a);
+            nn[0] = -cos(a);
+            nn[1] = -sin(a);
+        }
+        double dx = p[0] - 1, dy = p[1] - 1;
+        if (face != 3 && dx * dx + dy * dy < 0.64) continue;  /* removed by the ball */
+        if (p[0] < -1 || p[0] > 1.2 || p[1] < -1 || p[1] > 1.2) continue;
+        scene_add(&s, p[0], p[1], p[2], nn[0], nn[1], nn[2]);
+    }
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 10);
+    gp_eval *e = gp_eval_new();
+    gp_tree t = { NULL, 0, 0 }, t2 = { NULL, 0, 0 };
+    int rc = part_exhaustive(GP_SETOPS_MINMAX, c, e, &t);
+    gp_stats st;
+    gp_tree_stats(c, e, t.code, t.len, &st);
+    ok(rc == 0 && t.len == 7 && tree_count_prims(t.code, t.len, 4) == 4,
+       "exhaustive: the 4-primitive tree (%s)", print_str(&t));
+    ok((double)st.explained > 0.97 * (double)s.n, "exhaustive tree explains %zu of %zu points",
+       st.explained, s.n);
+    gp_result gr;
+    run_gp(c, 3, 1, &gr);
+    ok(gp_fitness(c, e, t.code, t.len) >= gr.fitness, "exhaustive fitness %.1f >= the GA's %.1f",
+       gp_fitness(c, e, t.code, t.len), gr.fitness);
+    part_exhaustive(GP_SETOPS_MINMAX, c, e, &t2);
+    ok(t2.len == t.len && memcmp(t.code, t2.code, t.len * sizeof *t.code) == 0,
+       "exhaustive search is deterministic");
+    gp_cache *c5 = gp_cache_subset(c, (size_t[]){ 0, 1, 2 }, 3, (uint32_t[]){ 0, 1, 2, 3, 0 }, 5, -1);
+    ok(part_exhaustive(GP_SETOPS_MINMAX, c5, e, &t2) == -1,
+       "more than PART_EXHAUSTIVE_MAX primitives refused");
+    gp_cache_free(c5);
+    tree_free(&gr.best);
+    tree_free(&t);
+    tree_free(&t2);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+}
+
 int main(void)
 {
     test_tree_ops();
     test_rules();
     test_rules_exact();
     test_fitness();
+    test_tape();
+    test_cache_subset();
+    test_exhaustive();
     test_cliques();
     test_merge();
     test_union_spheres();
