@@ -45,6 +45,8 @@ static const char evolve_usage[] =
     "      --no-partition    one GA over all primitives\n"
     "      --no-polish       after partitioning, skip the GA over all primitives seeded\n"
     "                        with the merged tree\n"
+    "      --polish-stagnation G  stop the polish after G generations without\n"
+    "                        improvement (default 15; at most --stagnation)\n"
     "      --seed S          random seed (default: from the clock; always printed)\n"
     "      --generations G   generation limit (default 3000)\n"
     "      --stagnation G    stop after G generations without improvement (default 40)\n"
@@ -143,7 +145,7 @@ static int progress(void *user, const gp_progress *p)
     if (c->trace) {
         double wall = gp_now() - c->t0;
         double cpu = (double)(clock() - c->c0) / CLOCKS_PER_SEC;
-        if (isnan(p->best_fitness)) {
+        if (p->phase == GP_PHASE_MERGE) {
             c->polish = 1;
             trace_add(c->trace, "%u %.4f %.4f nan %u - merge\n", p->generation, wall, cpu,
                       p->best_len);
@@ -151,14 +153,21 @@ static int progress(void *user, const gp_progress *p)
             double share = c->report.npoints
                                ? 100.0 * (double)c->report.explained / (double)c->report.npoints
                                : 0.0;
+            const char *ph = p->phase == GP_PHASE_MERGED ? "merged"
+                             : p->phase == GP_PHASE_GROWN ? "grown"
+                             : c->polish                  ? "polish"
+                                                          : "ga";
             trace_add(c->trace, "%u %.4f %.4f %.10g %u %.3f %s\n", p->generation, wall, cpu,
-                      p->best_fitness, p->best_len, share, c->polish ? "polish" : "ga");
+                      p->best_fitness, p->best_len, share, ph);
         }
     }
     if (c->tty && !c->quiet && (p->elapsed - c->last >= 0.2 || p->generation == 1)) {
         c->last = p->elapsed;
-        if (isnan(p->best_fitness))
+        if (p->phase == GP_PHASE_MERGE || p->phase == GP_PHASE_MERGED)
             fprintf(stderr, "\rfrep evolve: merging clique trees: tree size %u, %.1f s   ",
+                    p->best_len, p->elapsed);
+        else if (p->phase == GP_PHASE_GROWN)
+            fprintf(stderr, "\rfrep evolve: merged tree grown: tree size %u, %.1f s   ",
                     p->best_len, p->elapsed);
         else
             fprintf(stderr, "\rfrep evolve: generation %u, best fitness %.6g, tree size %u, %.1f s   ",
@@ -166,7 +175,7 @@ static int progress(void *user, const gp_progress *p)
         fflush(stderr);
     }
     /* --stop-share: a GA phase ends once its best tree explains enough points. */
-    if (c->stop_share > 0 && !isnan(p->best_fitness) && c->report.npoints &&
+    if (c->stop_share > 0 && p->phase == GP_PHASE_GA && c->report.npoints &&
         100.0 * (double)c->report.explained >= c->stop_share * (double)c->report.npoints)
         return 1;
     return evolve_interrupted != 0;
@@ -229,7 +238,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     enum {
         O_SETOPS = 256, O_PART, O_NOPART, O_SEED, O_GEN, O_STAG, O_POP, O_TOURN, O_CROSS,
         O_MUT, O_ELITE, O_SUBP, O_DEPTH, O_TIME, O_EPS, O_ALPHA, O_LAMBDA, O_SAMPLE,
-        O_NOSIMP, O_DOT, O_RESIDUAL, O_REFIT, O_NOPOLISH, O_TRACE, O_STOPSHARE
+        O_NOSIMP, O_DOT, O_RESIDUAL, O_REFIT, O_NOPOLISH, O_POLSTAG, O_TRACE, O_STOPSHARE
     };
     static const struct option longopts[] = {
         { "help", no_argument, NULL, 'h' },
@@ -260,6 +269,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         { "residual", required_argument, NULL, O_RESIDUAL },
         { "refit", no_argument, NULL, O_REFIT },
         { "no-polish", no_argument, NULL, O_NOPOLISH },
+        { "polish-stagnation", required_argument, NULL, O_POLSTAG },
         { "threads", required_argument, NULL, 't' },
         { "quiet", no_argument, NULL, 'q' },
         { NULL, 0, NULL, 0 },
@@ -306,6 +316,10 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         }
         case O_GEN: bad = parse_num("--generations", optarg, 1, 1e9, 1, &v); eo.gp.generations = (uint32_t)v; break;
         case O_STAG: bad = parse_num("--stagnation", optarg, 0, 1e9, 1, &v); eo.gp.stagnation = (uint32_t)v; break;
+        case O_POLSTAG:
+            bad = parse_num("--polish-stagnation", optarg, 1, 1e9, 1, &v);
+            eo.polish_stagnation = (uint32_t)v;
+            break;
         case O_POP: bad = parse_num("--population", optarg, 1, 1e6, 1, &v); eo.gp.population = (uint32_t)v; break;
         case O_TOURN: bad = parse_num("--tournament", optarg, 1, 1e6, 1, &v); eo.gp.tournament = (uint32_t)v; break;
         case O_CROSS: bad = parse_num("--crossover", optarg, 0, 1, 0, &v); eo.gp.p_crossover = v; break;
@@ -491,7 +505,8 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
                           "start of the run, best fitness, tree size,\n");
         trace_add(&trace, "# %% of the scored points the best tree explains, phase (ga: the "
                           "GA; merge: merging clique trees;\n");
-        trace_add(&trace, "# polish: the GA seeded with the merged tree)\n");
+        trace_add(&trace, "# merged: the merged tree; grown: after the growth steps; polish: "
+                          "the GA seeded with it)\n");
     }
     pc.t0 = gp_now();
     pc.c0 = clock();

@@ -28,6 +28,7 @@ void evolve_options_init(evolve_options *o)
     o->lambda_scale = 1.0;
     o->simplify = 1;
     o->polish = 1;
+    o->polish_stagnation = EVOLVE_POLISH_STAGNATION;
 }
 
 void evolve_result_free(evolve_result *r)
@@ -477,10 +478,22 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
             /* The merged tree grown as the final tree is (below): pieces the merge
              * lost (a pocket whose clique trees disagreed) come back here, before the
              * polish, which then starts from them. */
-            if (done && o->simplify && gr.best.len &&
-                simplify_grow_pieces(&gr.best, o->gp.setops, sc, ev, &gr.fitness))
-                goto oom;
-            grown = done && o->simplify;
+            if (done && o->simplify && gr.best.len) {
+                if (simplify_grow_pieces(&gr.best, o->gp.setops, sc, ev, &gr.fitness))
+                    goto oom;
+                grown = 1;
+                if (fn) {
+                    gp_stats st;
+                    if (o->gp.report &&
+                        gp_tree_stats(sc, ev, gr.best.code, gr.best.len, &st) == 0) {
+                        o->gp.report->explained = st.explained;
+                        o->gp.report->npoints = sc->n;
+                    }
+                    gp_progress gpr = { gr.generations, gr.fitness, gr.best.len,
+                                        gp_now() - t0, GP_PHASE_GROWN };
+                    fn(user, &gpr);
+                }
+            }
             if (done && o->polish && gr.best.len) {
                 /* Polish: a GA over all primitives seeded with the merged tree. The
                  * merge is greedy and the clique trees see only their points; the
@@ -492,6 +505,9 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
                 int dd = tree_depth(gr.best.code, gr.best.len) + GP_DEPTH_SLACK;
                 int d0 = pc.max_depth > 0 ? pc.max_depth : gp_default_depth((uint32_t)nprims);
                 pc.max_depth = dd > d0 ? dd : d0;
+                if (o->polish_stagnation &&
+                    (pc.stagnation == 0 || o->polish_stagnation < pc.stagnation))
+                    pc.stagnation = o->polish_stagnation;
                 if (pc.max_time > 0) pc.max_time = fmax(pc.max_time - (gp_now() - t0), 1e-3);
                 gp_result pg;
                 memset(&pg, 0, sizeof pg);

@@ -730,6 +730,8 @@ int gp_explained(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t 
 int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                    double *score)
 {
+    /* code may be a forest (trees one after the other): each node's entry is recorded
+     * all the same, and the score is the first tree's. */
     gp_tape *tp = &e->tape;
     tp->c = NULL;
     if (!len) return -1;
@@ -790,6 +792,17 @@ int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_
     tp->c = c;
     if (score) *score = sc;
     return 0;
+}
+
+double gp_score_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len)
+{
+    if (e->tape.c != c || !e->tape.valued) return NAN;
+    return score_code(c, e, code, len, &e->tape, NULL);
+}
+
+int gp_tape_valued(const gp_cache *c, const gp_eval *e)
+{
+    return e->tape.c == c && e->tape.valued;
 }
 
 frep_insn gp_tape_leaf(const gp_cache *c, uint32_t node)

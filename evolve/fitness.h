@@ -146,6 +146,12 @@ int gp_explained(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t 
  * the tape is then empty). */
 int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                    double *score);
+/* Score (no size penalty) of code whose tape leaves refer to e's tape. The tape may
+ * have been recorded from a forest (several trees one after the other: their nodes are
+ * all recorded). NaN when the tape holds no values for c (gp_tape_valued). */
+double gp_score_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len);
+/* 1 when e's tape holds node values recorded on c. */
+int gp_tape_valued(const gp_cache *c, const gp_eval *e);
 /* The leaf standing for the recorded tree's subtree ending at node. */
 frep_insn gp_tape_leaf(const gp_cache *c, uint32_t node);
 /* Fitness (eq. 7, the size penalty on the expanded length) of the recorded tree with

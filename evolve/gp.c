@@ -225,7 +225,7 @@ int gp_run(const gp_config *cfg, const gp_cache *c, const gp_tree *seeds, uint32
         res->generations = gen + 1;
         double el = gp_now() - t0;
         if (fn) {
-            gp_progress pr = { gen + 1, b->fitness, b->t.len, el };
+            gp_progress pr = { gen + 1, b->fitness, b->t.len, el, GP_PHASE_GA };
             if (cfg->report) {
                 cfg->report->explained = best_expl;
                 cfg->report->npoints = c->n;

@@ -55,15 +55,25 @@ typedef struct gp_config {
 void gp_config_init(gp_config *c);
 int gp_default_depth(uint32_t nprims);
 
+/* What a progress report is about. */
+typedef enum gp_phase {
+    GP_PHASE_GA,            /* a generation of a GA (the whole run's, or the polish) */
+    GP_PHASE_MERGE,         /* two clique trees merged (best_fitness NaN: a partial tree) */
+    GP_PHASE_MERGED,        /* the merged, simplified tree on the whole sample */
+    GP_PHASE_GROWN          /* the merged tree after the growth steps (evolve.c) */
+} gp_phase;
+
 typedef struct gp_progress {
     uint32_t generation;
     double best_fitness;
     uint32_t best_len;
-    double elapsed;         /* seconds since gp_run started */
+    double elapsed;         /* seconds since gp_run (part_run) started */
+    gp_phase phase;
 } gp_progress;
 
 /* What gp_run reports besides gp_progress (for --trace): the points of the scored set
- * the best tree explains (gp_tree_stats), out of npoints. */
+ * the best tree explains (gp_tree_stats), out of npoints; filled too before the
+ * reports of the merged and grown trees. */
 typedef struct gp_report {
     size_t explained, npoints;
 } gp_report;

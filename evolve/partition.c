@@ -543,72 +543,149 @@ static uint32_t low_bit(uint32_t x)
     return i;
 }
 
+/* Fitness of the tree of `leaves` (1: a tree of the forest; 2: two trees and op) of
+ * expanded length tl: from e's tape of the forest when it has values, else in full. */
+static double exh_fitness(const gp_cache *c, gp_eval *e, const gp_tree *forest,
+                          const uint32_t *ends, int nl, uint8_t op, uint32_t tl,
+                          gp_tree *scratch)
+{
+    scratch->len = 0;
+    if (gp_tape_valued(c, e)) {
+        for (int q = 0; q < nl; q++) {
+            frep_insn lf = gp_tape_leaf(c, ends[q]);
+            if (tree_push(scratch, (frep_opcode)lf.op, lf.arg)) return NAN;
+        }
+        if (nl == 2 && tree_push(scratch, (frep_opcode)op, 0)) return NAN;
+        return gp_score_taped(c, e, scratch->code, scratch->len) - c->lambda * (double)tl;
+    }
+    for (int q = 0; q < nl; q++) {
+        uint32_t s0 = tree_subtree_start(forest->code, ends[q]);
+        uint32_t n = ends[q] - s0 + 1;
+        if (tree_reserve(scratch, scratch->len + n + 1)) return NAN;
+        memcpy(scratch->code + scratch->len, forest->code + s0, n * sizeof *scratch->code);
+        scratch->len += n;
+    }
+    if (nl == 2 && tree_push(scratch, (frep_opcode)op, 0)) return NAN;
+    return gp_fitness(c, e, scratch->code, scratch->len);
+}
+
 int part_exhaustive(gp_setops s, const gp_cache *c, gp_eval *e, gp_tree *t)
 {
     uint32_t k = c->nprims;
     if (k == 0 || k > PART_EXHAUSTIVE_MAX) return -1;
     gp_opset o = gp_opset_of(s);
-    uint32_t nsets = 1u << k;
-    /* lists[S]: the trees over subset S, concatenated, each 2|S| - 1 instructions. */
-    gp_tree lists[1u << PART_EXHAUSTIVE_MAX];
-    uint32_t count[1u << PART_EXHAUSTIVE_MAX];
-    memset(lists, 0, sizeof lists);
+    uint32_t nsets = 1u << k, full = nsets - 1;
+    /* The trees over every proper subset S, one after the other in the forest (each
+     * 2|S| - 1 instructions, subsets by size so that each comes after its parts):
+     * off[S] is the first one's pc, count[S] their number. A tree over all k is
+     * split into two trees of the forest, scored from the forest's tape as two tape
+     * leaves and the operation. */
+    uint32_t off[1u << PART_EXHAUSTIVE_MAX], count[1u << PART_EXHAUSTIVE_MAX];
+    memset(off, 0, sizeof off);
     memset(count, 0, sizeof count);
+    gp_tree forest = { NULL, 0, 0 }, scratch = { NULL, 0, 0 };
     int rc = -1;
-    double bf = -HUGE_VAL;
-    t->len = 0;
-    /* Subsets by size, so that every proper subset is listed before its supersets. */
-    for (uint32_t size = 1; size <= k; size++)
-        for (uint32_t S = 1; S < nsets; S++) {
+    for (uint32_t size = 1; size < k; size++)
+        for (uint32_t S = 1; S < full; S++) {
             if (popcount64(S) != size) continue;
-            uint32_t tl = 2 * size - 1;
+            off[S] = forest.len;
             if (size == 1) {
-                if (tree_push(&lists[S], FREP_OP_PRIM, low_bit(S))) goto out;
+                if (tree_push(&forest, FREP_OP_PRIM, low_bit(S))) goto out;
                 count[S] = 1;
-            } else {
-                /* Splits S = A + B with A holding S's lowest member (each once). */
-                uint32_t low = S & (0u - S);
-                for (uint32_t A = (S - 1) & S; A; A = (A - 1) & S) {
-                    if (!(A & low)) continue;
-                    uint32_t B = S ^ A;
-                    uint32_t la = 2 * popcount64(A) - 1;
-                    uint32_t lb = 2 * popcount64(B) - 1;
-                    for (uint32_t ia = 0; ia < count[A]; ia++)
-                        for (uint32_t ib = 0; ib < count[B]; ib++)
-                            for (int w = 0; w < 4; w++) {
-                                const frep_insn *x = lists[A].code + ia * la;
-                                const frep_insn *y = lists[B].code + ib * lb;
-                                uint32_t lx = la, ly = lb;
-                                if (w == 3) {  /* b \ a */
-                                    x = lists[B].code + ib * lb;
-                                    y = lists[A].code + ia * la;
-                                    lx = lb;
-                                    ly = la;
-                                }
-                                const uint8_t op = w == 0 ? o.uni : w == 1 ? o.inter : o.sub;
-                                gp_tree *l = &lists[S];
-                                if (tree_reserve(l, l->len + tl)) goto out;
-                                memcpy(l->code + l->len, x, lx * sizeof *x);
-                                memcpy(l->code + l->len + lx, y, ly * sizeof *y);
-                                l->len += lx + ly;
-                                if (tree_push(l, (frep_opcode)op, 0)) goto out;
-                                count[S]++;
-                            }
-                }
+                continue;
             }
-            for (uint32_t q = 0; q < count[S]; q++) {
-                const frep_insn *code = lists[S].code + q * tl;
-                double f = gp_fitness(c, e, code, tl);
+            /* Splits S = A + B with A holding S's lowest member (each once). */
+            uint32_t low = S & (0u - S);
+            for (uint32_t A = (S - 1) & S; A; A = (A - 1) & S) {
+                if (!(A & low)) continue;
+                uint32_t B = S ^ A;
+                uint32_t la = 2 * popcount64(A) - 1, lb = 2 * popcount64(B) - 1;
+                for (uint32_t ia = 0; ia < count[A]; ia++)
+                    for (uint32_t ib = 0; ib < count[B]; ib++)
+                        for (int w = 0; w < 4; w++) {
+                            uint32_t x = off[A] + ia * la, lx = la;
+                            uint32_t y = off[B] + ib * lb, ly = lb;
+                            if (w == 3) {  /* b \ a */
+                                x = off[B] + ib * lb;
+                                lx = lb;
+                                y = off[A] + ia * la;
+                                ly = la;
+                            }
+                            uint8_t op = w == 0 ? o.uni : w == 1 ? o.inter : o.sub;
+                            if (tree_reserve(&forest, forest.len + lx + ly + 1)) goto out;
+                            /* Copied from the forest itself: index, not pointer. */
+                            memmove(forest.code + forest.len, forest.code + x,
+                                    lx * sizeof *forest.code);
+                            memmove(forest.code + forest.len + lx, forest.code + y,
+                                    ly * sizeof *forest.code);
+                            forest.len += lx + ly;
+                            if (tree_push(&forest, (frep_opcode)op, 0)) goto out;
+                            count[S]++;
+                        }
+            }
+        }
+    if (k == 1 && tree_push(&forest, FREP_OP_PRIM, 0)) goto out;
+    if (gp_tape_record(c, e, forest.code, forest.len, NULL)) goto out;
+
+    double bf = -HUGE_VAL;
+    int have = 0;
+    uint32_t best[2] = { 0, 0 }, best_nl = 0;
+    uint8_t best_op = 0;
+    /* Subsets by size (ties: the first, so the shortest). */
+    for (uint32_t size = 1; size < k || (k == 1 && size == 1); size++)
+        for (uint32_t S = 1; S < nsets; S++) {
+            if (popcount64(S) != size || (S == full && k > 1)) continue;
+            uint32_t tl = 2 * size - 1;
+            for (uint32_t q = 0; q < count[S] || (k == 1 && q == 0); q++) {
+                uint32_t end = off[S] + q * tl + tl - 1;
+                double f = exh_fitness(c, e, &forest, &end, 1, 0, tl, &scratch);
                 if (isnan(f)) goto out;  /* allocation failure */
-                if (f > bf || t->len == 0) {
+                if (!have || f > bf) {
                     bf = f;
-                    if (tree_set(t, code, tl)) goto out;
+                    have = 1;
+                    best[0] = end;
+                    best_nl = 1;
                 }
             }
         }
+    if (k > 1) {
+        uint32_t tl = 2 * k - 1, low = 1;
+        for (uint32_t A = (full - 1) & full; A; A = (A - 1) & full) {
+            if (!(A & low)) continue;
+            uint32_t B = full ^ A;
+            uint32_t la = 2 * popcount64(A) - 1, lb = 2 * popcount64(B) - 1;
+            for (uint32_t ia = 0; ia < count[A]; ia++)
+                for (uint32_t ib = 0; ib < count[B]; ib++)
+                    for (int w = 0; w < 4; w++) {
+                        uint32_t ea = off[A] + ia * la + la - 1, eb = off[B] + ib * lb + lb - 1;
+                        uint32_t ends[2] = { w == 3 ? eb : ea, w == 3 ? ea : eb };
+                        uint8_t op = w == 0 ? o.uni : w == 1 ? o.inter : o.sub;
+                        double f = exh_fitness(c, e, &forest, ends, 2, op, tl, &scratch);
+                        if (isnan(f)) goto out;
+                        if (f > bf) {
+                            bf = f;
+                            best[0] = ends[0];
+                            best[1] = ends[1];
+                            best_nl = 2;
+                            best_op = op;
+                        }
+                    }
+        }
+    }
+    /* The winner, expanded from the forest. */
+    t->len = 0;
+    for (uint32_t q = 0; q < best_nl; q++) {
+        uint32_t s0 = tree_subtree_start(forest.code, best[q]);
+        uint32_t n = best[q] - s0 + 1;
+        if (tree_reserve(t, t->len + n + 1)) goto out;
+        memcpy(t->code + t->len, forest.code + s0, n * sizeof *t->code);
+        t->len += n;
+    }
+    if (best_nl == 2 && tree_push(t, (frep_opcode)best_op, 0)) goto out;
     rc = 0;
 out:
-    for (uint32_t S = 0; S < nsets; S++) tree_free(&lists[S]);
+    tree_free(&forest);
+    tree_free(&scratch);
     return rc;
 }
 
@@ -875,7 +952,8 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
         memset(&pc[live - 1], 0, sizeof *pc);
         live--;
         if (fn) {
-            gp_progress pr = { info->generations, NAN, pc[bi].t.len, gp_now() - t0 };
+            gp_progress pr = { info->generations, NAN, pc[bi].t.len, gp_now() - t0,
+                                GP_PHASE_MERGE };
             if (fn(user, &pr)) break;
         }
     }
@@ -888,6 +966,16 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
     res->generations = info->generations;
     res->stop = GP_STOP_GENERATIONS;
     info->partitioned = 1;
+    if (fn) {
+        gp_stats st;
+        if (cfg->report && gp_tree_stats(c, ev[0], res->best.code, res->best.len, &st) == 0) {
+            cfg->report->explained = st.explained;
+            cfg->report->npoints = c->n;
+        }
+        gp_progress pr = { info->generations, fit, res->best.len, gp_now() - t0,
+                           GP_PHASE_MERGED };
+        fn(user, &pr);  /* a stop request reaches the polish's first report */
+    }
 fallback:
     rc = 0;
 out:

@@ -163,6 +163,24 @@ report $st "--trace: one line per generation, best fitness never falls, end line
     --trace "$tmp/trace2" -q 2>"$tmp/err"
 tail -n 2 "$tmp/trace2" | head -n 1 | awk '$6 == 100 && $7 == "polish" { ok = 1 } END { exit !ok }'
 report $? "--trace of a partitioned run: the polish phase explains every scored point"
+# Phases in order: merge lines, one merged and one grown line (with shares), then the
+# polish, which stops after EVOLVE_POLISH_STAGNATION = 15 generations without
+# improvement (the cube's merged tree is already perfect: 16 generations).
+awk '!/^#/ { ph[++n] = $7; sh[n] = $6 }
+     END { i = 1; while (ph[i] == "merge") i++
+           if (i == 1 || ph[i] != "merged" || ph[i + 1] != "grown" || sh[i] != 100) exit 1
+           for (j = i + 2; j <= n; j++) if (ph[j] != "polish") exit 1
+           exit n - i - 1 == 16 ? 0 : 1 }' "$tmp/trace2" &&
+    grep -q "16 generations polishing" "$tmp/tr2.hf"
+st=$?
+report $st "--trace phases: merge, merged, grown, 16 polish generations"
+[ $st = 0 ] || show "$tmp/trace2"
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/tr4.hf" --seed 1 --partition \
+    --polish-stagnation 5 -q 2>"$tmp/err" && grep -q "6 generations polishing" "$tmp/tr4.hf"
+report $? "--polish-stagnation 5: 6 polish generations"
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" --polish-stagnation 0 -q 2>"$tmp/err" >/dev/null
+[ $? = 2 ] && grep -q "polish-stagnation" "$tmp/err"
+report $? "--polish-stagnation 0 refused"
 
 "$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/tr3.hf" --seed 1 --no-partition \
     --stop-share 50 --trace "$tmp/trace3" -q 2>"$tmp/err"
