@@ -591,15 +591,60 @@ out:
 /* Primitives a pocket is built from: the useful ones explaining the most missed
  * points (a 4-face pocket needs its 4 faces among them; 8 gives 154 subsets). */
 #define SIMPLIFY_POCKET_CANDS 8
-/* Faces of a pocket at most: a box pocket or boss cut through a part has four walls. */
+/* Faces of a pocket at most: a box pocket cut through a part has four walls. */
 #define SIMPLIFY_POCKET_MAX 4
-/* Pockets added at most (each round is one pass over subtrees and subsets). */
+/* Faces of a boss at most: a box has six. */
+#define SIMPLIFY_BOSS_MAX 6
+/* Pockets and bosses added at most (each round is one pass over subtrees and subsets). */
 #define SIMPLIFY_MAX_POCKETS 3
-/* Forms tried: 1 = pockets only. A boss (form 1) of at most four planes is unbounded:
- * joined by a union it adds material through empty space, where no point objects
- * (six_cuboids, GA seed 3: Chamfer 0.82% -> 1.21% with bosses). A pocket is cut from
- * S and so bounded by it. */
-#define SIMPLIFY_POCKET_FORMS 1
+/* Which candidates may form a boss: only planes whose intersection is bounded. A boss
+ * of a few planes is unbounded: joined by a union it adds material through empty
+ * space, where no point objects (six_cuboids, GA seed 3: Chamfer 0.82% -> 1.21% with
+ * unbounded bosses). A pocket is cut from S and so bounded by it. */
+
+/* 1 when primitive j of c is a plane (the same gradient at every point); its
+ * gradient in g. */
+static int cache_plane(const gp_cache *c, uint32_t j, double g[3])
+{
+    size_t n = c->n;
+    if (n == 0) return 0;
+    const double *gx = c->g + 3 * (size_t)j * n, *gy = gx + n, *gz = gy + n;
+    g[0] = gx[0];
+    g[1] = gy[0];
+    g[2] = gz[0];
+    double l = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+    if (!(l > 0)) return 0;
+    for (size_t i = 1; i < n; i++)
+        if (fabs(gx[i] - g[0]) + fabs(gy[i] - g[1]) + fabs(gz[i] - g[2]) > 1e-9 * l) return 0;
+    return 1;
+}
+
+/* 1 when the half-spaces with outward normals nn[0..m) bound a finite region: no
+ * direction u has nn[k].u <= 0 for every k. Such a direction, when there is one,
+ * can be taken along an edge of the cone of them, the cross product of two normals
+ * (or the normals span no more than a plane). */
+static int planes_bounded(const double (*nn)[3], int m)
+{
+    if (m < 4) return 0;
+    int rank3 = 0;
+    for (int i = 0; i < m; i++)
+        for (int j = i + 1; j < m; j++) {
+            double u[3] = { nn[i][1] * nn[j][2] - nn[i][2] * nn[j][1],
+                            nn[i][2] * nn[j][0] - nn[i][0] * nn[j][2],
+                            nn[i][0] * nn[j][1] - nn[i][1] * nn[j][0] };
+            double ul = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+            if (!(ul > 1e-9)) continue;
+            for (int sg = -1; sg <= 1; sg += 2) {
+                int all = 1;
+                for (int k = 0; k < m && all; k++)
+                    all = sg * (nn[k][0] * u[0] + nn[k][1] * u[1] + nn[k][2] * u[2]) <= 1e-9 * ul;
+                if (all) return 0;
+            }
+            for (int k = 0; k < m; k++)
+                if (fabs(nn[k][0] * u[0] + nn[k][1] * u[1] + nn[k][2] * u[2]) > 1e-6 * ul) rank3 = 1;
+        }
+    return rank3;
+}
 
 /* sub = code[st..end] then the piece over literals lits[0..m): pocket (form 0):
  * S & (L1 | L2 | ...), the material kept near each face being the side its points
@@ -621,10 +666,11 @@ static int build_pocket(gp_tree *sub, const frep_insn *code, uint32_t st, uint32
 
 /* One round: the best pocket of 2 to SIMPLIFY_POCKET_MAX primitives cut from
  * any subtree S (a box cut from one part of a union: its faces intersected there, not
- * at the root where they would cut every part), when it raises the fitness. No part
- * of such a pocket improves the tree alone (one wall cuts a half-space away), so the
- * inner growth and the root pieces cannot build it. 1 when t changed, 0 when not, -1
- * on allocation failure. */
+ * at the root where they would cut every part), or boss of 4 to SIMPLIFY_BOSS_MAX
+ * planes bounding a finite region joined to S (a missing cuboid), when it raises the
+ * fitness. No part of either improves the tree alone (one wall cuts a half-space away,
+ * one face of a box adds a half-space), so the inner growth and the root pieces cannot
+ * build them. 1 when t changed, 0 when not, -1 on allocation failure. */
 static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
                        gp_eval *e, double *fit)
 {
@@ -688,32 +734,46 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
                 for (int b = 0; b < nc; b++) fits[form][a][b] = 2 * in[form][b] > na;
         }
     }
+    /* Outward normals of the candidates that are planes, as literals (a boss). */
+    double pn[SIMPLIFY_POCKET_CANDS][3];
+    uint8_t isplane[SIMPLIFY_POCKET_CANDS];
+    for (int a = 0; a < nc; a++) {
+        double g[3] = { 0, 0, 0 };
+        isplane[a] = (uint8_t)cache_plane(c, cand[a], g);
+        double sg = neg[cand[a]] ? 1.0 : -1.0;  /* f >= 0 inside: -grad p points out */
+        for (int d = 0; d < 3; d++) pn[a][d] = sg * g[d];
+    }
     double bf = *fit;
-    uint32_t best_end = 0, best_lits[SIMPLIFY_POCKET_MAX] = { 0 };
+    uint32_t best_end = 0, best_lits[SIMPLIFY_BOSS_MAX] = { 0 };
     int best_m = 0, best_form = 0;
     if (record(t, c, e, NULL)) { rc = -1; goto out; }
-    /* Subsets as bit masks over the candidates, 2 to SIMPLIFY_POCKET_MAX members. */
+    /* Subsets as bit masks over the candidates: 2 to SIMPLIFY_POCKET_MAX members for
+     * pockets, 4 to SIMPLIFY_BOSS_MAX planes for bosses. */
     for (unsigned mask = 0; mask < (1u << nc); mask++) {
-        uint32_t lits[SIMPLIFY_POCKET_MAX];
-        int idx[SIMPLIFY_POCKET_MAX];
-        int m = 0;
+        uint32_t lits[SIMPLIFY_BOSS_MAX];
+        int idx[SIMPLIFY_BOSS_MAX];
+        double bn[SIMPLIFY_BOSS_MAX][3];
+        int m = 0, planes = 1;
         for (int q = 0; q < nc; q++)
             if (mask >> q & 1u) {
-                if (m == SIMPLIFY_POCKET_MAX) { m = SIMPLIFY_POCKET_MAX + 1; break; }
+                if (m == SIMPLIFY_BOSS_MAX) { m = SIMPLIFY_BOSS_MAX + 1; break; }
                 idx[m] = q;
+                planes &= isplane[q];
+                memcpy(bn[m], pn[q], sizeof bn[m]);
                 lits[m++] = cand[q];
             }
-        if (m < 2 || m > SIMPLIFY_POCKET_MAX) continue;
-        int form_ok[2] = { 1, 1 };
+        if (m < 2 || m > SIMPLIFY_BOSS_MAX) continue;
+        int form_ok[2] = { m <= SIMPLIFY_POCKET_MAX, planes && m >= 4 };
         for (int form = 0; form < 2; form++)
             for (int a = 0; a < m; a++)
                 for (int b = 0; b < m; b++)
                     if (a != b && !fits[form][idx[a]][idx[b]]) form_ok[form] = 0;
+        if (form_ok[1] && !planes_bounded((const double (*)[3])bn, m)) form_ok[1] = 0;
         if (!form_ok[0] && !form_ok[1]) continue;
         for (uint32_t end = 0; end < t->len; end++) {
             uint32_t st = tree_subtree_start(t->code, end);
             frep_insn lf = gp_tape_leaf(c, end);
-            for (int form = 0; form < SIMPLIFY_POCKET_FORMS; form++) {
+            for (int form = 0; form < 2; form++) {
                 if (!form_ok[form]) continue;
                 if (build_pocket(&sub, &lf, 0, 0, lits, neg, m, form, o)) {
                     rc = -1;

@@ -1118,6 +1118,55 @@ static void test_exhaustive(void)
     scene_free(&s);
 }
 
+/* A boss: a cube and, apart from it, a smaller box whose six faces the tree lacks; the
+ * growth steps add the box as the intersection of its six planes (bounded: the only
+ * boss they may add), so every point is explained and nothing reaches beyond it. */
+static void test_boss(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 31);
+    const double lo[2][3] = { { 0, 0, 0 }, { 3, 0.5, 0.5 } }, hi[2][3] = { { 2, 2, 2 }, { 4, 1.5, 1.5 } };
+    for (int b = 0; b < 2; b++)
+        for (int axis = 0; axis < 3; axis++) {
+            add_plane(&s, axis, 1, hi[b][axis]);
+            add_plane(&s, axis, -1, -lo[b][axis]);
+        }
+    for (int b = 0; b < 2; b++)
+        for (int axis = 0; axis < 3; axis++)
+            for (int sg = 0; sg < 2; sg++)
+                for (int k = 0; k < (b == 0 ? 300 : 120); k++) {
+                    double p[3], nn[3] = { 0, 0, 0 };
+                    for (int q = 0; q < 3; q++)
+                        p[q] = lo[b][q] + (hi[b][q] - lo[b][q]) * gp_rng_unif(&r);
+                    p[axis] = sg ? hi[b][axis] : lo[b][axis];
+                    nn[axis] = sg ? 1 : -1;
+                    scene_add(&s, p[0], p[1], p[2], nn[0], nn[1], nn[2]);
+                }
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 10);
+    gp_eval *e = gp_eval_new();
+    gp_tree t = { NULL, 0, 0 };
+    parse_tree(&t, "12&34&&56&&", GP_SETOPS_MINMAX);  /* the cube alone */
+    double f0 = gp_fitness(c, e, t.code, t.len), f1 = 0;
+    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1), 0, "growth runs");
+    gp_stats st;
+    gp_tree_stats(c, e, t.code, t.len, &st);
+    is_int(st.explained, s.n, "cube and box: every point explained (%zu of %zu): %s",
+           st.explained, s.n, print_str(&t));
+    const double inbox[3] = { 3.5, 1, 1 }, beyond[4][3] = { { 6, 1, 1 }, { 3.5, 4, 1 },
+                                                           { 3.5, 1, -3 }, { 2.5, 1, 1 } };
+    int outside = 1;
+    for (int k = 0; k < 4; k++) outside &= tree_value(&s, &t, beyond[k]) < 0;
+    ok(tree_value(&s, &t, inbox) > 0 && outside, "the box is added, bounded by its faces");
+    is_int(tree_count_prims(t.code, t.len, 12), 12, "all twelve faces used");
+    ok(f1 > f0, "fitness %.1f -> %.1f", f0, f1);
+    tree_free(&t);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+}
+
 int main(void)
 {
     test_tree_ops();
@@ -1136,5 +1185,6 @@ int main(void)
     test_tunnel_pocket();
     test_sheet();
     test_trim_part();
+    test_boss();
     return done_testing();
 }
