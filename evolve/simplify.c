@@ -10,6 +10,9 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 /* Primitives the final hill climb may add at the root: each costs one pass over all
  * primitives, and a GA result rarely lacks more than one or two. */
@@ -528,6 +531,38 @@ out:
  * of two of its faces, so that it cuts away a whole quadrant) cannot be added at the
  * root, where it would cut every other part too. Returns 1 when t changed, 0 when
  * not, -1 on allocation failure. */
+/* Candidates (subtree end x useful primitive x operation) of one inner-growth round
+ * above which the round runs in parallel (each thread records its own tape of t). */
+#define SIMPLIFY_PAR_MIN 512
+
+/* The best inner growth among the subtree ends [e0, e1), scored on ev (t's tape
+ * recorded there): *bf raised, *best = end * 3k + j * 3 + w, the sequential order of
+ * the candidates (UINT64_MAX: none beats *bf). 0 or -1. */
+static int inner_range(const gp_tree *t, const uint8_t *use, const uint8_t ops[3],
+                       const gp_cache *c, gp_eval *ev, uint32_t e0, uint32_t e1,
+                       gp_tree *cand, double *bf, uint64_t *best)
+{
+    uint32_t k = c->nprims;
+    for (uint32_t end = e0; end < e1; end++) {
+        uint32_t st = tree_subtree_start(t->code, end);
+        for (uint32_t j = 0; j < k; j++) {
+            if (!use[j]) continue;
+            for (int w = 0; w < 3; w++) {
+                /* [st, end] followed by PRIM j, op */
+                if (leaf1(cand, c, end) || tree_push(cand, FREP_OP_PRIM, j) ||
+                    tree_push(cand, (frep_opcode)ops[w], 0))
+                    return -1;
+                double f = gp_fitness_replaced(c, ev, st, end, cand->code, cand->len);
+                if (f > *bf) {
+                    *bf = f;
+                    *best = ((uint64_t)end * k + j) * 3 + (uint64_t)w;
+                }
+            }
+        }
+    }
+    return 0;
+}
+
 static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
                       gp_eval *e, double *fit)
 {
@@ -541,32 +576,66 @@ static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     if (nu == 0) goto out;
     const uint8_t ops[3] = { o->inter, o->sub, o->uni };
     double bf = *fit;
-    uint32_t best_end = 0, best_j = 0;
-    int best_w = -1;
-    if (record(t, c, e, NULL)) { rc = -1; goto out; }
-    for (uint32_t end = 0; end < t->len; end++) {
-        uint32_t st = tree_subtree_start(t->code, end);
-        for (uint32_t j = 0; j < k; j++) {
-            if (!use[j]) continue;
-            for (int w = 0; w < 3; w++) {
-                /* [st, end] followed by PRIM j, op */
-                if (leaf1(trial, c, end) || tree_push(trial, FREP_OP_PRIM, j) ||
-                    tree_push(trial, (frep_opcode)ops[w], 0)) {
-                    rc = -1;
-                    goto out;
-                }
-                double f = gp_fitness_replaced(c, e, st, end, trial->code, trial->len);
-                if (f > bf) {
-                    bf = f;
-                    best_end = end;
-                    best_j = j;
-                    best_w = w;
-                }
+    uint64_t best = UINT64_MAX;
+    int nt = 1;
+#ifdef _OPENMP
+    if (!omp_in_parallel() && (uint64_t)t->len * (uint64_t)nu * 3 >= SIMPLIFY_PAR_MIN)
+        nt = omp_get_max_threads();
+#endif
+    if (nt <= 1) {
+        if (record(t, c, e, NULL) || inner_range(t, use, ops, c, e, 0, t->len, trial, &bf, &best)) {
+            rc = -1;
+            goto out;
+        }
+    } else {
+        /* Each thread takes whole subtree ends; the best of the threads is the first
+         * in the sequential order among the fittest, as in one thread. */
+        double *tbf = malloc((size_t)nt * sizeof *tbf);
+        uint64_t *tbest = malloc((size_t)nt * sizeof *tbest);
+        if (!tbf || !tbest) {
+            free(tbf);
+            free(tbest);
+            rc = -1;
+            goto out;
+        }
+        int failed = 0;
+        uint32_t len = t->len;
+#pragma omp parallel num_threads(nt) reduction(| : failed)
+        {
+            int id = 0, n = 1;
+#ifdef _OPENMP
+            id = omp_get_thread_num();
+            n = omp_get_num_threads();
+#endif
+            gp_eval *ev = gp_eval_new();
+            gp_tree cand = { NULL, 0, 0 };
+            tbf[id] = *fit;
+            tbest[id] = UINT64_MAX;
+            uint32_t e0 = (uint32_t)((uint64_t)len * (uint64_t)id / (uint64_t)n);
+            uint32_t e1 = (uint32_t)((uint64_t)len * (uint64_t)(id + 1) / (uint64_t)n);
+            if (!ev || record(t, c, ev, NULL) ||
+                inner_range(t, use, ops, c, ev, e0, e1, &cand, &tbf[id], &tbest[id]))
+                failed = 1;
+            tree_free(&cand);
+            gp_eval_free(ev);
+            if (id == 0) nt = n;
+        }
+        for (int q = 0; q < nt && !failed; q++)
+            if (tbest[q] != UINT64_MAX && (tbf[q] > bf || (tbf[q] == bf && tbest[q] < best))) {
+                bf = tbf[q];
+                best = tbest[q];
             }
+        free(tbf);
+        free(tbest);
+        if (failed) {
+            rc = -1;
+            goto out;
         }
     }
-    if (best_w < 0) goto out;
+    if (best == UINT64_MAX) goto out;
     {
+        uint32_t best_end = (uint32_t)(best / 3 / k), best_j = (uint32_t)(best / 3 % k);
+        int best_w = (int)(best % 3);
         uint32_t st = tree_subtree_start(t->code, best_end);
         gp_tree sub = { NULL, 0, 0 };
         if (tree_copy(trial, t) || tree_set(&sub, t->code + st, best_end - st + 1) ||

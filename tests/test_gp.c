@@ -9,6 +9,9 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "fitness.h"
 #include "gp.h"
@@ -1167,6 +1170,49 @@ static void test_boss(void)
     scene_free(&s);
 }
 
+/* The growth steps give the same tree at 1 and 2 threads (the inner growth scores its
+ * candidates in parallel on large trees and keeps the first of the fittest in the
+ * sequential order). */
+static void test_grow_threads(void)
+{
+#ifdef _OPENMP
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 41);
+    double h[3] = { 1, 1, 0.5 };
+    sample_box(&s, &r, 200, h, 0.4);
+    s.prims[s.nprims++] = (aprim){ T_CYLZ, { 0, 0, 0 }, 0.4 };
+    s.prims[s.nprims++] = (aprim){ T_SPHERE, { 0.5, 0.5, 0.3 }, 0.6 };
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 20);
+    gp_eval *e = gp_eval_new();
+    int same = 1, big = 0, n = 0;
+    for (int k = 0; k < 6; k++) {
+        gp_tree t1 = { NULL, 0, 0 }, t2 = { NULL, 0, 0 };
+        tree_grow(&t1, &r, GP_SETOPS_MINMAX, c->nprims, 7, 0.9);
+        tree_copy(&t2, &t1);
+        big += t1.len >= 40;
+        double f1 = 0, f2 = 0;
+        omp_set_num_threads(1);
+        int r1 = simplify_grow_pieces(&t1, GP_SETOPS_MINMAX, c, e, &f1);
+        omp_set_num_threads(2);
+        int r2 = simplify_grow_pieces(&t2, GP_SETOPS_MINMAX, c, e, &f2);
+        same &= r1 == 0 && r2 == 0 && f1 == f2 && t1.len == t2.len &&
+                memcmp(t1.code, t2.code, t1.len * sizeof *t1.code) == 0;
+        n++;
+        tree_free(&t1);
+        tree_free(&t2);
+    }
+    ok(same && big > 0, "growth from %d random trees (%d of 40+ nodes): same at 1 and 2 threads",
+       n, big);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+#else
+    ok(1, "# SKIP growth at 1 and 2 threads: built without OpenMP");
+#endif
+}
+
 int main(void)
 {
     test_tree_ops();
@@ -1186,5 +1232,6 @@ int main(void)
     test_sheet();
     test_trim_part();
     test_boss();
+    test_grow_threads();
     return done_testing();
 }
