@@ -727,6 +727,43 @@ int gp_explained(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t 
 
 /* ---- tapes ------------------------------------------------------------------ */
 
+/* Room in tp for cells node-point cells of c's family and wcells words of crossing
+ * bits. 0 or -1. */
+static int tape_reserve(gp_tape *tp, const gp_cache *c, size_t cells, size_t wcells)
+{
+    if (cells > tp->cells) {
+        free(tp->vf);
+        free(tp->si);
+        free(tp->v);
+        free(tp->g);
+        tp->vf = NULL;
+        tp->si = NULL;
+        tp->v = tp->g = NULL;
+        tp->cells = 0;
+        tp->vf = malloc(cells * sizeof *tp->vf);
+        tp->si = malloc(cells * sizeof *tp->si);
+        if (c->setops == GP_SETOPS_RFUNC) {
+            tp->v = malloc(cells * sizeof *tp->v);
+            tp->g = malloc(3 * cells * sizeof *tp->g);
+        }
+        if (!tp->vf || !tp->si || (c->setops == GP_SETOPS_RFUNC && (!tp->v || !tp->g)))
+            return -1;
+        tp->cells = cells;
+    } else if (c->setops == GP_SETOPS_RFUNC && !tp->v) {
+        /* A gp_eval serves caches of either family. */
+        tp->v = malloc(tp->cells * sizeof *tp->v);
+        tp->g = malloc(3 * tp->cells * sizeof *tp->g);
+        if (!tp->v || !tp->g) return -1;
+    }
+    if (wcells > tp->wcells) {
+        free(tp->side);
+        tp->side = malloc((wcells ? wcells : 1) * sizeof *tp->side);
+        tp->wcells = tp->side ? wcells : 0;
+        if (!tp->side) return -1;
+    }
+    return 0;
+}
+
 int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                    double *score)
 {
@@ -747,48 +784,12 @@ int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_
     memcpy(tp->code, code, (size_t)len * sizeof *code);
     for (uint32_t k = 0; k < len; k++) tp->start[k] = tree_subtree_start(code, k);
     tp->len = len;
-    if (cells > GP_TAPE_MAX_CELLS) {
-        /* Too large to keep: the code only, replacements are scored in full. */
-        double sc = score_code(c, e, code, len, NULL, NULL);
-        if (isnan(sc)) return -1;
-        tp->valued = 0;
-        tp->c = c;
-        if (score) *score = sc;
-        return 0;
-    }
-    if (cells > tp->cells) {
-        free(tp->vf);
-        free(tp->si);
-        free(tp->v);
-        free(tp->g);
-        tp->vf = NULL;
-        tp->si = NULL;
-        tp->v = tp->g = NULL;
-        tp->cells = 0;
-        /* Both families' arrays: a gp_eval serves caches of either. */
-        tp->vf = malloc(cells * sizeof *tp->vf);
-        tp->si = malloc(cells * sizeof *tp->si);
-        if (c->setops == GP_SETOPS_RFUNC) {
-            tp->v = malloc(cells * sizeof *tp->v);
-            tp->g = malloc(3 * cells * sizeof *tp->g);
-        }
-        if (!tp->vf || !tp->si || (c->setops == GP_SETOPS_RFUNC && (!tp->v || !tp->g)))
-            return -1;
-        tp->cells = cells;
-    } else if (c->setops == GP_SETOPS_RFUNC && !tp->v) {
-        tp->v = malloc(tp->cells * sizeof *tp->v);
-        tp->g = malloc(3 * tp->cells * sizeof *tp->g);
-        if (!tp->v || !tp->g) return -1;
-    }
-    if (wcells > tp->wcells) {
-        free(tp->side);
-        tp->side = malloc((wcells ? wcells : 1) * sizeof *tp->side);
-        tp->wcells = tp->side ? wcells : 0;
-        if (!tp->side) return -1;
-    }
-    double sc = score_code(c, e, code, len, NULL, tp);
+    /* Beyond GP_TAPE_MAX_CELLS only the code is kept: replacements are scored in full. */
+    int valued = cells <= GP_TAPE_MAX_CELLS;
+    if (valued && tape_reserve(tp, c, cells, wcells)) return -1;
+    double sc = score_code(c, e, code, len, NULL, valued ? tp : NULL);
     if (isnan(sc)) return -1;
-    tp->valued = 1;
+    tp->valued = valued;
     tp->c = c;
     if (score) *score = sc;
     return 0;

@@ -455,7 +455,7 @@ int part_merge_pair(const gp_tree *a, const gp_tree *b, gp_setops s, const gp_ca
             bf = f;
         }
     }
-    if (tree_copy(out, &cand[best]) || simplify_tree(out, s, c, e, fitness)) goto out;
+    if (tree_copy(out, &cand[best]) || simplify_tree_both(out, s, c, e, fitness)) goto out;
     rc = 0;
 out:
     for (int k = 0; k < 4; k++) tree_free(&cand[k]);
@@ -960,7 +960,7 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
     /* The merged tree over the whole cache. */
     double fit;
     if (tree_copy(&res->best, &pc[0].t) ||
-        simplify_tree(&res->best, cfg->setops, c, ev[0], &fit))
+        simplify_tree_both(&res->best, cfg->setops, c, ev[0], &fit))
         goto out;
     res->fitness = fit;
     res->generations = info->generations;

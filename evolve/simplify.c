@@ -317,22 +317,38 @@ static int grow_root(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
 
 /* Removal moves until none applies. */
 static int reduce(gp_tree *t, gp_tree *trial, gp_tree *cand, gp_setops s, const gp_opset *o,
-                  const gp_cache *c, gp_eval *e, double *fit)
+                  const gp_cache *c, gp_eval *e, double *fit, int leaves_first)
 {
     int changed = 1;
     while (changed) {
         changed = 0;
         if (record(t, c, e, fit)) return -1;
-        /* Root first: removing high nodes saves the most. After a replacement the
-         * scan continues at the node that took the place. */
-        for (uint32_t end = t->len; end-- > 0;) {
-            if (tree_nin(&t->code[end]) == 0) continue;
-            uint32_t st = tree_subtree_start(t->code, end);
-            long r = node_moves(t, trial, cand, end, o, c, e, fit);
-            if (r < 0) return -1;
-            if (r > 0) {
-                changed = 1;
-                end = st + (uint32_t)r;  /* the loop decrements to the new node */
+        if (!leaves_first) {
+            /* Root first: removing high nodes saves the most. After a replacement the
+             * scan continues at the node that took the place. */
+            for (uint32_t end = t->len; end-- > 0;) {
+                if (tree_nin(&t->code[end]) == 0) continue;
+                uint32_t st = tree_subtree_start(t->code, end);
+                long r = node_moves(t, trial, cand, end, o, c, e, fit);
+                if (r < 0) return -1;
+                if (r > 0) {
+                    changed = 1;
+                    end = st + (uint32_t)r;  /* the loop decrements to the new node */
+                }
+            }
+        } else {
+            /* Deepest first (postfix order): a part removed before a larger part that
+             * only it made redundant (partition.c, merged trees). After a replacement
+             * the scan continues after the node that took the place. */
+            for (uint32_t end = 0; end < t->len; end++) {
+                if (tree_nin(&t->code[end]) == 0) continue;
+                uint32_t st = tree_subtree_start(t->code, end);
+                long r = node_moves(t, trial, cand, end, o, c, e, fit);
+                if (r < 0) return -1;
+                if (r > 0) {
+                    changed = 1;
+                    end = st + (uint32_t)r - 1;  /* the loop increments past it */
+                }
             }
         }
         if (changed && simplify_rules(t, s)) return -1;
@@ -340,27 +356,53 @@ static int reduce(gp_tree *t, gp_tree *trial, gp_tree *cand, gp_setops s, const 
     return 0;
 }
 
-int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double *fitness)
+static int simplify_order(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
+                          double *fitness, int leaves_first)
 {
     if (simplify_rules(t, s)) return -1;
     gp_opset o = gp_opset_of(s);
     double fit = gp_fitness(c, e, t->code, t->len);
     gp_tree trial = { NULL, 0, 0 }, cand = { NULL, 0, 0 };
     int rc = -1;
-    if (reduce(t, &trial, &cand, s, &o, c, e, &fit)) goto out;
+    if (reduce(t, &trial, &cand, s, &o, c, e, &fit, leaves_first)) goto out;
     for (int round = 0; round < SIMPLIFY_MAX_GROWTH; round++) {
         int g = grow_root(t, &trial, &o, c, e, &fit);
         if (g < 0) goto out;
         if (g == 0) break;
         if (simplify_rules(t, s)) goto out;
         fit = gp_fitness(c, e, t->code, t->len);
-        if (reduce(t, &trial, &cand, s, &o, c, e, &fit)) goto out;
+        if (reduce(t, &trial, &cand, s, &o, c, e, &fit, leaves_first)) goto out;
     }
     rc = 0;
     if (fitness) *fitness = fit;
 out:
     tree_free(&trial);
     tree_free(&cand);
+    return rc;
+}
+
+int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double *fitness)
+{
+    return simplify_order(t, s, c, e, fitness, 0);
+}
+
+int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
+                       double *fitness)
+{
+    gp_tree u = { NULL, 0, 0 };
+    double fr = 0, fl = 0;
+    int rc = -1;
+    if (tree_copy(&u, t) || simplify_order(t, s, c, e, &fr, 0) ||
+        simplify_order(&u, s, c, e, &fl, 1))
+        goto out;
+    if (fl > fr || (fl == fr && u.len < t->len)) {
+        if (tree_copy(t, &u)) goto out;
+        fr = fl;
+    }
+    if (fitness) *fitness = fr;
+    rc = 0;
+out:
+    tree_free(&u);
     return rc;
 }
 

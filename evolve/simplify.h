@@ -20,6 +20,14 @@ int simplify_rules(gp_tree *t, gp_setops s);
  * primitive at the root while that raises the fitness, each time followed by the
  * removal moves again. *fitness (may be NULL) receives the final fitness. */
 int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double *fitness);
+/* simplify_tree with the removal moves tried from the root down (simplify_tree's
+ * order: the largest removals first) and, on a copy, from the leaves up; the fitter
+ * result (ties: the shorter, then the first). The greedy removals of one order can
+ * drop the part that another part made redundant and keep the wrong one: a merged tree
+ * with a pocket both as its clique trees built it, through (a clique without the
+ * pocket's floor) and complete, keeps the complete one only from the leaves up. */
+int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
+                       double *fitness);
 
 /* After simplify_tree: first, while that raises the fitness (at most 16 times), the
  * best S & p, S \ p or S | p replacing any subtree S, p a primitive explaining points

@@ -1213,6 +1213,66 @@ static void test_grow_threads(void)
 #endif
 }
 
+/* simplify_tree_both: a block with a groove, given as a tree that cuts the groove twice,
+ * once through the whole block (a slot without a floor, as a clique without the floor
+ * plane builds it) and once complete. From the root down the complete cut goes first
+ * (the slot makes it redundant) and the slot stays; from the leaves up the slot goes
+ * and the groove is right. */
+static void test_simplify_both(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 51);
+    add_plane(&s, 0, 1, 2);      /* p1: x <= 2 */
+    add_plane(&s, 0, -1, 0);     /* p2: x >= 0 */
+    add_plane(&s, 1, 1, 1);      /* p3: y <= 1 */
+    add_plane(&s, 1, -1, 0);     /* p4: y >= 0 */
+    add_plane(&s, 2, 1, 1);      /* p5: z <= 1 */
+    add_plane(&s, 2, -1, 0);     /* p6: z >= 0 */
+    add_plane(&s, 0, -1, -0.8);  /* p7: x >= 0.8 */
+    add_plane(&s, 0, 1, 1.2);    /* p8: x <= 1.2 */
+    add_plane(&s, 2, -1, -0.6);  /* p9: z >= 0.6 */
+    /* The block [0,2] x [0,1] x [0,1] minus the groove x in [0.8, 1.2], z >= 0.6. */
+    while (s.n < 4000) {
+        double p[3] = { 2 * gp_rng_unif(&r), gp_rng_unif(&r), gp_rng_unif(&r) }, nn[3] = { 0, 0, 0 };
+        int f = (int)gp_rng_below(&r, 9);
+        if (f < 6) {
+            p[f / 2] = f % 2 ? 0 : (f / 2 == 0 ? 2 : 1);
+            nn[f / 2] = f % 2 ? -1 : 1;
+        } else if (f == 6) { p[0] = 0.8; nn[0] = 1; }   /* groove walls, floor */
+        else if (f == 7) { p[0] = 1.2; nn[0] = -1; }
+        else { p[2] = 0.6; nn[2] = 1; }
+        int in_groove = p[0] > 0.8 + 1e-9 && p[0] < 1.2 - 1e-9 && p[2] > 0.6 + 1e-9;
+        if (f < 6 && in_groove) continue;
+        if (f >= 6 && f < 8 && p[2] < 0.6) continue;
+        if (f == 8 && (p[0] < 0.8 || p[0] > 1.2)) continue;
+        scene_add(&s, p[0], p[1], p[2], nn[0], nn[1], nn[2]);
+    }
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 10);
+    gp_eval *e = gp_eval_new();
+    gp_tree t1 = { NULL, 0, 0 }, t2 = { NULL, 0, 0 };
+    /* ((p1 & p2 & p3 & p4 & p6) & (p5 \ (p7 & p8))) \ (p7 & p8 & p9) */
+    parse_tree(&t1, "12&3&4&6&578&\\&78&9&\\", GP_SETOPS_MINMAX);
+    tree_copy(&t2, &t1);
+    double f1 = 0, f2 = 0;
+    simplify_tree(&t1, GP_SETOPS_MINMAX, c, e, &f1);
+    simplify_tree_both(&t2, GP_SETOPS_MINMAX, c, e, &f2);
+    gp_stats s1, s2;
+    gp_tree_stats(c, e, t1.code, t1.len, &s1);
+    gp_tree_stats(c, e, t2.code, t2.len, &s2);
+    ok(s1.explained < s.n * 95 / 100, "root first keeps the slot: %zu of %zu points (%s)",
+       s1.explained, s.n, print_str(&t1));
+    is_int(s2.explained, s.n, "both orders: the groove with its floor, every point (%s)",
+           print_str(&t2));
+    ok(f2 > f1 && tree_count_prims(t2.code, t2.len, 9) == 9, "fitter, all nine planes");
+    tree_free(&t1);
+    tree_free(&t2);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+}
+
 int main(void)
 {
     test_tree_ops();
@@ -1233,5 +1293,6 @@ int main(void)
     test_trim_part();
     test_boss();
     test_grow_threads();
+    test_simplify_both();
     return done_testing();
 }
