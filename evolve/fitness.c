@@ -31,7 +31,7 @@ typedef struct gp_tape {
     double *v, *g;       /* R-functions: v[k*n + i], g[(3k + c)*n + i] */
     uint64_t *side;      /* side[(4k + r)*nw + w]: the crossing bits */
     int valued;          /* 1: the arrays hold the node values; 0: the tree was too
-                            large (GP_TAPE_MAX_CELLS), replacements are scored in full */
+                            large (GP_TAPE_MAX_BYTES), replacements are scored in full */
     gp_tree path;        /* scratch: the tree scored by gp_fitness_replaced */
 } gp_tape;
 
@@ -729,9 +729,18 @@ int gp_explained(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t 
 
 /* Room in tp for cells node-point cells of c's family and wcells words of crossing
  * bits. 0 or -1. */
+size_t gp_tape_max_cells(gp_setops s)
+{
+    /* 2 cells per byte of crossing bits (4 bits per cell). */
+    return GP_TAPE_MAX_BYTES * 2 / (s == GP_SETOPS_RFUNC ? 2 * 32 + 1 : 2 * 8 + 1);
+}
+
 static int tape_reserve(gp_tape *tp, const gp_cache *c, size_t cells, size_t wcells)
 {
-    if (cells > tp->cells) {
+    /* Min/max tapes keep values and active primitives, R-function tapes values and
+     * gradients: the arrays of the other family are freed. */
+    int rf = c->setops == GP_SETOPS_RFUNC;
+    if (cells > tp->cells || (rf ? !tp->v : !tp->vf)) {
         free(tp->vf);
         free(tp->si);
         free(tp->v);
@@ -740,20 +749,16 @@ static int tape_reserve(gp_tape *tp, const gp_cache *c, size_t cells, size_t wce
         tp->si = NULL;
         tp->v = tp->g = NULL;
         tp->cells = 0;
-        tp->vf = malloc(cells * sizeof *tp->vf);
-        tp->si = malloc(cells * sizeof *tp->si);
-        if (c->setops == GP_SETOPS_RFUNC) {
+        if (rf) {
             tp->v = malloc(cells * sizeof *tp->v);
             tp->g = malloc(3 * cells * sizeof *tp->g);
+            if (!tp->v || !tp->g) return -1;
+        } else {
+            tp->vf = malloc(cells * sizeof *tp->vf);
+            tp->si = malloc(cells * sizeof *tp->si);
+            if (!tp->vf || !tp->si) return -1;
         }
-        if (!tp->vf || !tp->si || (c->setops == GP_SETOPS_RFUNC && (!tp->v || !tp->g)))
-            return -1;
         tp->cells = cells;
-    } else if (c->setops == GP_SETOPS_RFUNC && !tp->v) {
-        /* A gp_eval serves caches of either family. */
-        tp->v = malloc(tp->cells * sizeof *tp->v);
-        tp->g = malloc(3 * tp->cells * sizeof *tp->g);
-        if (!tp->v || !tp->g) return -1;
     }
     if (wcells > tp->wcells) {
         free(tp->side);
@@ -784,8 +789,8 @@ int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_
     memcpy(tp->code, code, (size_t)len * sizeof *code);
     for (uint32_t k = 0; k < len; k++) tp->start[k] = tree_subtree_start(code, k);
     tp->len = len;
-    /* Beyond GP_TAPE_MAX_CELLS only the code is kept: replacements are scored in full. */
-    int valued = cells <= GP_TAPE_MAX_CELLS;
+    /* Beyond GP_TAPE_MAX_BYTES only the code is kept: replacements are scored in full. */
+    int valued = cells <= gp_tape_max_cells(c->setops);
     if (valued && tape_reserve(tp, c, cells, wcells)) return -1;
     double sc = score_code(c, e, code, len, NULL, valued ? tp : NULL);
     if (isnan(sc)) return -1;

@@ -138,9 +138,12 @@ int gp_explained(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t 
  * order. A replacement may itself hold tape leaves (an operand of the tree joined
  * elsewhere). The tape belongs to the gp_eval: any gp_tape_record on it replaces it. */
 
-/* Node-point cells a tape keeps at most (48 bytes each with R-functions): beyond it
- * the tree is kept without values and replacements are scored in full. */
-#define GP_TAPE_MAX_CELLS ((size_t)1 << 23)
+/* Bytes a tape keeps at most (per gp_eval): a node-point cell takes 8 bytes with
+ * min/max and 32 with R-functions, plus half a byte of crossing bits. Beyond it the
+ * tree is kept without values and replacements are scored in full. */
+#define GP_TAPE_MAX_BYTES ((size_t)128 << 20)
+/* The node-point cells that makes for the family s. */
+size_t gp_tape_max_cells(gp_setops s);
 
 /* Record code on c in e's tape; its score (gp_score) in *score. 0 or -1 (allocation;
  * the tape is then empty). */

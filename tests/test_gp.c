@@ -975,8 +975,8 @@ static void test_tape(void)
            so ? "rfunc" : "minmax");
         ok(lens, "%s: expanded replacements are valid trees", so ? "rfunc" : "minmax");
 
-        /* A tree beyond GP_TAPE_MAX_CELLS is kept without values: still exact. */
-        uint32_t want = (uint32_t)(GP_TAPE_MAX_CELLS / c->n) + 2;
+        /* A tree beyond GP_TAPE_MAX_BYTES is kept without values: still exact. */
+        uint32_t want = (uint32_t)(gp_tape_max_cells((gp_setops)so) / c->n) + 2;
         gp_opset o = gp_opset_of((gp_setops)so);
         t.len = 0;
         tree_push(&t, FREP_OP_PRIM, 0);
@@ -1109,6 +1109,16 @@ static void test_exhaustive(void)
     part_exhaustive(GP_SETOPS_MINMAX, c, e, &t2);
     ok(t2.len == t.len && memcmp(t.code, t2.code, t.len * sizeof *t.code) == 0,
        "exhaustive search is deterministic");
+    /* Every point eight times: the forest of a 4-clique (1,036 nodes) then exceeds the
+     * tape's limit, and the trees are scored in full: the same tree. */
+    size_t n3 = 8 * s.n, *idx3 = malloc(n3 * sizeof *idx3);
+    for (size_t i = 0; i < n3; i++) idx3[i] = i % s.n;
+    gp_cache *c3 = gp_cache_subset(c, idx3, n3, (uint32_t[]){ 0, 1, 2, 3 }, 4, -1);
+    ok(1036 * n3 > gp_tape_max_cells(GP_SETOPS_MINMAX) && part_exhaustive(GP_SETOPS_MINMAX, c3, e, &t2) == 0 &&
+           t2.len == t.len && memcmp(t.code, t2.code, t.len * sizeof *t.code) == 0,
+       "exhaustive search beyond the tape (%zu points): the same tree", n3);
+    gp_cache_free(c3);
+    free(idx3);
     gp_cache *c5 = gp_cache_subset(c, (size_t[]){ 0, 1, 2 }, 3, (uint32_t[]){ 0, 1, 2, 3, 0 }, 5, -1);
     ok(part_exhaustive(GP_SETOPS_MINMAX, c5, e, &t2) == -1,
        "more than PART_EXHAUSTIVE_MAX primitives refused");
