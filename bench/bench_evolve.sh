@@ -19,8 +19,9 @@
 #    unpartitioned GA run long
 #    (--generations SGENS --stagnation 0 --max-time BUDGET --stop-share Q_p-1 --trace);
 #    its time to solution T_u = the first trace line whose share >= Q_p - 1 point;
-#    speed-up T_u / T_p, or ">= T_end / T_p" when it never gets there (doc/evolve.md,
-#    "Speed-up of partitioning").
+#    speed-up T_u / T_p, or ">= T_end / T_p" when it never gets there, and T_u / T_m
+#    with T_m the time of the merged tree (where the papers' pipeline ends)
+#    (doc/evolve.md, "Speed-up of partitioning").
 # 2. Real data, when ../shared/data/inversecsg exists next to the source tree:
 #    frep sample MESH -> frep segment -> frep evolve -> frep mesh per model; time, tree
 #    size, the ground truth's primitive counts, and the symmetric Chamfer and Hausdorff
@@ -31,8 +32,9 @@
 # Environment: BENCH_EVOLVE_RUNS (3), BENCH_EVOLVE_MAX_TIME (60 s per run),
 # BENCH_EVOLVE_SPEEDUP_RUNS (3), BENCH_EVOLVE_SPEEDUP_BUDGET (90 s per unpartitioned
 # run; longer budgets give tighter lower bounds), BENCH_EVOLVE_SPEEDUP_GENERATIONS
-# (100000: the budget decides), BENCH_EVOLVE_SKIP_SPEEDUP=1,
-# BENCH_EVOLVE_SKIP_SYNTH=1, BENCH_EVOLVE_SKIP_REAL=1, BENCH_EVOLVE_DATA (data folder).
+# (100000: the budget decides), BENCH_EVOLVE_SKIP_SPEEDUP=1, BENCH_EVOLVE_SKIP_TABLE=1
+# (the speed-up rows only), BENCH_EVOLVE_SKIP_SYNTH=1, BENCH_EVOLVE_SKIP_REAL=1,
+# BENCH_EVOLVE_DATA (data folder).
 
 : "${FREP:?FREP must name the frep binary}"
 srcdir=${1:-$(dirname "$0")/..}
@@ -170,11 +172,12 @@ speedup_rows() { # speedup_rows MODEL CLOUD
         "$FREP" evolve "$tmp/$cloud.xyz" -p "$tmp/$m.fit" -o "$tmp/p.hf" --seed "$s" -t 1 \
             --partition --max-time "$MAXT" --trace "$tmp/tp" -q 2>/dev/null
         # T_p, Q_p: the partitioned run's end (wall, CPU) and the share of the tree its
-        # GA phases give (the merged clique trees, before growth and polish).
+        # GA phases give (the merged clique trees, before growth and polish); T_m: the
+        # time of that tree (the papers' pipeline ends there).
         set -- $(awk '/^# end:/ { w = $3; c = $6; n = $9; f = $11 }
-                      !/^#/ && $7 == "merged" { q = $6 }
-                      END { print w, c, q + 0, n, f }' "$tmp/tp")
-        tpw=$1 tpc=$2 qp=$3 np_=$4 fp=$5
+                      !/^#/ && $7 == "merged" { q = $6; mw = $2; mc = $3 }
+                      END { print w, c, q + 0, n, f, mw + 0, mc + 0 }' "$tmp/tp")
+        tpw=$1 tpc=$2 qp=$3 np_=$4 fp=$5 tmw=$6 tmc=$7
         # The unpartitioned GA stops at the target (--stop-share), else at the budget.
         target=$(awk -v q="$qp" 'BEGIN { printf "%.3f", (q > 1 ? q - 1 : 0.001) }')
         "$FREP" evolve "$tmp/$cloud.xyz" -p "$tmp/$m.fit" -o "$tmp/u.hf" --seed "$s" -t 1 \
@@ -189,13 +192,14 @@ speedup_rows() { # speedup_rows MODEL CLOUD
         tuw=$1 tuc=$2 lb=$3 gen=$4 nu=$5 fu=$6 bu=$7
         rw=$(awk -v a="$tuw" -v b="$tpw" 'BEGIN { printf "%.2f", a / b }')
         rc=$(awk -v a="$tuc" -v b="$tpc" 'BEGIN { printf "%.2f", a / b }')
+        rm=$(awk -v a="$tuw" -v b="$tmw" 'BEGIN { printf "%.2f", (b > 0 ? a / b : 0) }')
         ge=""
         [ "$lb" = 1 ] && ge=">= "
-        echo "$rw $lb $rc $np_ $nu" >>"$tmp/sp"
-        echo "| $m | $s | $tpw | $tpc | $qp% | $np_ | $fp | $ge$tuw | $ge$tuc | $gen | $bu% | $nu | $fu | $ge$rw | $ge$rc |"
+        echo "$rw $lb $rc $np_ $nu $rm" >>"$tmp/sp"
+        echo "| $m | $s | $tpw | $tpc | $tmw | $qp% | $np_ | $fp | $ge$tuw | $ge$tuc | $gen | $bu% | $nu | $fu | $ge$rw | $ge$rc | $ge$rm |"
         s=$((s + 1))
     done
-    echo "| $m | median | | | | $(cut -d' ' -f4 "$tmp/sp" | median) | | | | | | $(cut -d' ' -f5 "$tmp/sp" | median) | | $(cut -d' ' -f1,2 "$tmp/sp" | median_bound) | $(awk '{ print $3, $2 }' "$tmp/sp" | median_bound) |"
+    echo "| $m | median | | | | | $(cut -d' ' -f4 "$tmp/sp" | median) | | | | | | $(cut -d' ' -f5 "$tmp/sp" | median) | | $(cut -d' ' -f1,2 "$tmp/sp" | median_bound) | $(awk '{ print $3, $2 }' "$tmp/sp" | median_bound) | $(awk '{ print $6, $2 }' "$tmp/sp" | median_bound) |"
 }
 
 if [ -z "$BENCH_EVOLVE_SKIP_SYNTH" ]; then
@@ -205,6 +209,7 @@ if [ -z "$BENCH_EVOLVE_SKIP_SYNTH" ]; then
         "$FREP" sample "$tmp/$m.hf" -n 10000 --seed 1 --noise 0.01abs -o "$tmp/${m}_10k.xyz" -q || exit 1
         "$FREP" sample "$tmp/$m.hf" -n 150000 --seed 1 --noise 0.01abs -o "$tmp/${m}_150k.xyz" -q || exit 1
     done
+    if [ -z "$BENCH_EVOLVE_SKIP_TABLE" ]; then
     echo
     echo "| model | points | primitives | GA | threads | time s | CPU s | nodes | explained |"
     echo "|---|---:|---:|---|---:|---:|---:|---:|---:|"
@@ -225,6 +230,7 @@ if [ -z "$BENCH_EVOLVE_SKIP_SYNTH" ]; then
          END { for (i = 1; i <= n; i++) { split(k[i], a, " ")
                    printf "| %s | %s | %s | %s | %.2f |\n", a[1], a[2], one[k[i]], two[k[i]],
                           (two[k[i]] > 0 ? one[k[i]] / two[k[i]] : 0) } }' "$tmp/walls"
+    fi
 
     if [ -z "$BENCH_EVOLVE_SKIP_SPEEDUP" ]; then
         echo
@@ -232,8 +238,8 @@ if [ -z "$BENCH_EVOLVE_SKIP_SYNTH" ]; then
         echo "--generations $SGENS --stagnation 0 --max-time $BUDGET; target = share of the merged clique trees - 1 point;"
         echo "shares of the scored sample (GA phases, before growth and simplification); final = every point."
         echo
-        echo "| model | seed | part. s | part. CPU s | part. GA share | part. nodes | part. final | unpart. to target s | CPU s | generations | unpart. best share | unpart. nodes | unpart. final | speed-up | speed-up CPU |"
-        echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        echo "| model | seed | part. s | part. CPU s | part. to merged s | part. GA share | part. nodes | part. final | unpart. to target s | CPU s | generations | unpart. best share | unpart. nodes | unpart. final | speed-up | speed-up CPU | speed-up to merged |"
+        echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         for mc in m0:m0_10k m2:m2_10k; do
             speedup_rows "${mc%%:*}" "${mc#*:}"
         done
