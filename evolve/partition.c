@@ -455,10 +455,7 @@ int part_merge_pair(const gp_tree *a, const gp_tree *b, gp_setops s, const gp_ca
             bf = f;
         }
     }
-    /* From the leaves up: the two trees were simplified already, the redundancy is
-     * between them, and a complete part must win over one that a clique built
-     * without one of its faces (simplify.h). */
-    if (tree_copy(out, &cand[best]) || simplify_tree_leaves(out, s, c, e, fitness)) goto out;
+    if (tree_copy(out, &cand[best]) || simplify_tree_both(out, s, c, e, fitness)) goto out;
     rc = 0;
 out:
     for (int k = 0; k < 4; k++) tree_free(&cand[k]);

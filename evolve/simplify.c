@@ -386,12 +386,6 @@ int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double
     return simplify_order(t, s, c, e, fitness, 0);
 }
 
-int simplify_tree_leaves(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
-                         double *fitness)
-{
-    return simplify_order(t, s, c, e, fitness, 1);
-}
-
 int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                        double *fitness)
 {

@@ -28,10 +28,6 @@ int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double
  * pocket's floor) and complete, keeps the complete one only from the leaves up. */
 int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                        double *fitness);
-/* simplify_tree with the removal moves tried from the leaves up only (the merges of
- * partition.c: half the cost of both orders). */
-int simplify_tree_leaves(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
-                         double *fitness);
 
 /* After simplify_tree: first, while that raises the fitness (at most 16 times), the
  * best S & p, S \ p or S | p replacing any subtree S, p a primitive explaining points

@@ -1276,12 +1276,6 @@ static void test_simplify_both(void)
     is_int(s2.explained, s.n, "both orders: the groove with its floor, every point (%s)",
            print_str(&t2));
     ok(f2 > f1 && tree_count_prims(t2.code, t2.len, 9) == 9, "fitter, all nine planes");
-    gp_tree t3 = { NULL, 0, 0 };
-    parse_tree(&t3, "12&3&4&6&578&\\&78&9&\\", GP_SETOPS_MINMAX);
-    double f3 = 0;
-    simplify_tree_leaves(&t3, GP_SETOPS_MINMAX, c, e, &f3);
-    ok(f3 == f2 && t3.len == t2.len, "from the leaves up alone: the same (%s)", print_str(&t3));
-    tree_free(&t3);
     tree_free(&t1);
     tree_free(&t2);
     gp_eval_free(e);
