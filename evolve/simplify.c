@@ -503,6 +503,15 @@ static int commit_trial(gp_tree *t, const gp_tree *trial)
     return tree_copy(t, trial) ? -1 : 1;
 }
 
+/* commit_trial of t with the subtree ending at `end` replaced by sub (built in trial). */
+static int commit_splice(gp_tree *t, gp_tree *trial, uint32_t end, const gp_tree *sub)
+{
+    if (tree_copy(trial, t) ||
+        tree_splice(trial, tree_subtree_start(t->code, end), end, sub->code, sub->len))
+        return -1;
+    return commit_trial(t, trial);
+}
+
 /* One round: the best piece t | P, t \ P or t & P, P = a & b, a \ b, b \ a or a | b,
  * optionally extended by & c, \ c or | c, when it raises the fitness and keeps the
  * depth limit. */
@@ -680,17 +689,14 @@ static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
         int best_w = (int)(best % 3);
         uint32_t st = tree_subtree_start(t->code, best_end);
         gp_tree sub = { NULL, 0, 0 };
-        if (tree_copy(trial, t) || tree_set(&sub, t->code + st, best_end - st + 1) ||
-            tree_push(&sub, FREP_OP_PRIM, best_j) ||
-            tree_push(&sub, (frep_opcode)ops[best_w], 0) ||
-            tree_splice(trial, st, best_end, sub.code, sub.len)) {
-            tree_free(&sub);
-            rc = -1;
-            goto out;
-        }
+        rc = tree_set(&sub, t->code + st, best_end - st + 1) ||
+                     tree_push(&sub, FREP_OP_PRIM, best_j) ||
+                     tree_push(&sub, (frep_opcode)ops[best_w], 0)
+                 ? -1
+                 : commit_splice(t, trial, best_end, &sub);
         tree_free(&sub);
+        if (rc <= 0) goto out;
     }
-    if ((rc = commit_trial(t, trial)) <= 0) goto out;
     *fit = bf;
 out:
     free(use);
@@ -904,13 +910,11 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
     if (!best_m) goto out;
     {
         uint32_t st = tree_subtree_start(t->code, best_end);
-        if (build_pocket(&sub, t->code, st, best_end, best_lits, neg, best_m, best_form, o) ||
-            tree_copy(trial, t) || tree_splice(trial, st, best_end, sub.code, sub.len)) {
-            rc = -1;
-            goto out;
-        }
+        rc = build_pocket(&sub, t->code, st, best_end, best_lits, neg, best_m, best_form, o)
+                 ? -1
+                 : commit_splice(t, trial, best_end, &sub);
+        if (rc <= 0) goto out;
     }
-    if ((rc = commit_trial(t, trial)) <= 0) goto out;
     *fit = bf;
 out:
     tree_free(&sub);
@@ -1042,16 +1046,13 @@ static int grow_trim(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
     if (best_neg < 0) goto out;
     {
         uint32_t st = tree_subtree_start(t->code, best_end);
-        if (tree_set(&sub, t->code + st, best_end - st + 1) ||
-            tree_push(&sub, FREP_OP_PRIM, best_j) ||
-            (best_neg && tree_push(&sub, (frep_opcode)o->neg, 0)) ||
-            tree_push(&sub, (frep_opcode)o->inter, 0) || tree_copy(trial, t) ||
-            tree_splice(trial, st, best_end, sub.code, sub.len)) {
-            rc = -1;
-            goto out;
-        }
+        rc = tree_set(&sub, t->code + st, best_end - st + 1) ||
+                     tree_push(&sub, FREP_OP_PRIM, best_j) ||
+                     (best_neg && tree_push(&sub, (frep_opcode)o->neg, 0)) ||
+                     tree_push(&sub, (frep_opcode)o->inter, 0)
+                 ? -1
+                 : commit_splice(t, trial, best_end, &sub);
     }
-    if ((rc = commit_trial(t, trial)) <= 0) goto out;
 out:
     tree_free(&sub);
     free(pol);
