@@ -190,6 +190,27 @@ static void fill_scores(gp_cache *c)
     }
 }
 
+/* gp_cache.tail from the score tables. 0 or -1. */
+static int build_tail(gp_cache *c)
+{
+    size_t n = c->n, B = GP_FIT_BLOCK, nb = (n + B - 1) / B;
+    if (!c->tail) c->tail = malloc((nb + 1) * sizeof *c->tail);
+    if (!c->tail) return -1;
+    c->tail[nb] = 0;
+    for (size_t b = nb; b-- > 0;) {
+        /* Summed in the order score_code sums the block. */
+        double u = 0;
+        for (size_t i = b * B; i < n && i < (b + 1) * B; i++) {
+            float mx = 0;
+            for (size_t q = 0; q < 2 * (size_t)c->nprims; q++)
+                if (c->score[q * n + i] > mx) mx = c->score[q * n + i];
+            u += (double)mx;
+        }
+        c->tail[b] = u + c->tail[b + 1];
+    }
+    return 0;
+}
+
 static int build_scores(gp_cache *c)
 {
     if (c->setops != GP_SETOPS_MINMAX) return 0;
@@ -199,14 +220,15 @@ static int build_scores(gp_cache *c)
     if (!c->score || !c->vf) return -1;
     for (size_t k = 0; k < (size_t)c->nprims * n; k++) c->vf[k] = (float)c->v[k];
     fill_scores(c);
-    return 0;
+    return build_tail(c);
 }
 
 int gp_cache_set_alpha(gp_cache *c, double alpha)
 {
     c->alpha = alpha;
-    if (c->setops == GP_SETOPS_MINMAX) fill_scores(c);
-    return 0;
+    if (c->setops != GP_SETOPS_MINMAX) return 0;
+    fill_scores(c);
+    return build_tail(c);
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -344,6 +366,10 @@ gp_cache *gp_cache_subset(const gp_cache *c, const size_t *idx, size_t m,
     }
     for (size_t i = 0; i < m; i++)
         for (int d = 0; d < 3; d++) s->nrm[3 * i + d] = c->nrm[3 * idx[i] + d];
+    if (s->score && build_tail(s)) {
+        gp_cache_free(s);
+        return NULL;
+    }
     return s;
 }
 
@@ -356,6 +382,7 @@ void gp_cache_free(gp_cache *c)
     free(c->score);
     free(c->vf);
     free(c->side);
+    free(c->tail);
     free(c);
 }
 
@@ -622,11 +649,16 @@ static void eval_full(const gp_cache *c, gp_eval *e, const frep_insn *code, uint
 }
 
 /* The score of code, whose tape leaves refer to tp; the stack entries of every node go
- * to rec when it is not NULL. */
+ * to rec when it is not NULL. -HUGE_VAL as soon as gp_cache.tail shows the score
+ * below floor (-HUGE_VAL: never). */
 static double score_code(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
-                         const gp_tape *tp, gp_tape *rec)
+                         const gp_tape *tp, gp_tape *rec, double floor)
 {
     if (!len || eval_reserve(e, max_stack(code, len))) return NAN;
+    /* The bound is summed in another order than the score: a margin far above the
+     * rounding keeps every decision exact. */
+    const double *tail = floor > -HUGE_VAL ? c->tail : NULL;
+    floor -= 1e-9 * (fabs(floor) + 1);
     double total = 0;
     const size_t B = GP_FIT_BLOCK;
     uint64_t ok[GP_FIT_WORDS];
@@ -663,13 +695,14 @@ static double score_code(const gp_cache *c, gp_eval *e, const frep_insn *code, u
             }
         }
         total += part;
+        if (tail && total + tail[(i0 + m + B - 1) / B] < floor) return -HUGE_VAL;
     }
     return total;
 }
 
 double gp_score(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len)
 {
-    return score_code(c, e, code, len, NULL, NULL);
+    return score_code(c, e, code, len, NULL, NULL, -HUGE_VAL);
 }
 
 double gp_fitness(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len)
@@ -792,7 +825,7 @@ int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_
     /* Beyond GP_TAPE_MAX_BYTES only the code is kept: replacements are scored in full. */
     int valued = cells <= gp_tape_max_cells(c->setops);
     if (valued && tape_reserve(tp, c, cells, wcells)) return -1;
-    double sc = score_code(c, e, code, len, NULL, valued ? tp : NULL);
+    double sc = score_code(c, e, code, len, NULL, valued ? tp : NULL, -HUGE_VAL);
     if (isnan(sc)) return -1;
     tp->valued = valued;
     tp->c = c;
@@ -800,10 +833,11 @@ int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_
     return 0;
 }
 
-double gp_score_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len)
+double gp_score_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                      double floor)
 {
     if (e->tape.c != c || !e->tape.valued) return NAN;
-    return score_code(c, e, code, len, &e->tape, NULL);
+    return score_code(c, e, code, len, &e->tape, NULL, floor);
 }
 
 int gp_tape_valued(const gp_cache *c, const gp_eval *e)
@@ -892,12 +926,13 @@ static int build_path(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
 }
 
 double gp_fitness_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
-                           const frep_insn *sub, uint32_t nsub)
+                           const frep_insn *sub, uint32_t nsub, double floor)
 {
     gp_tape *tp = &e->tape;
     if (build_path(c, e, st, end, sub, nsub)) return NAN;
-    double sc = score_code(c, e, tp->path.code, tp->path.len, tp, NULL);
-    return sc - c->lambda * (double)replaced_len(c, tp, st, end, sub, nsub);
+    double pen = c->lambda * (double)replaced_len(c, tp, st, end, sub, nsub);
+    double sc = score_code(c, e, tp->path.code, tp->path.len, tp, NULL, floor + pen);
+    return sc - pen;
 }
 
 int gp_stats_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,

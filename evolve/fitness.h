@@ -43,6 +43,12 @@ typedef struct gp_cache {
     float *score;
     float *vf;           /* v in single precision for the min/max comparisons (half the
                             memory traffic); valid when setops == GP_SETOPS_MINMAX */
+    /* tail[b]: an upper bound of the score of the points from block b (GP_FIT_BLOCK
+     * points each) to the end, b = 0..nblocks: the sum of each point's largest table
+     * entry, since a min/max tree scores at most that at the point. A search that
+     * only wants trees above a floor stops scoring one once the blocks scored plus
+     * this bound fall below it (gp_fitness_replaced). Min/max only; NULL otherwise. */
+    double *tail;
     /* The crossing test (above): a point on the tree's zero set counts only when the
      * field changes sign across it along the point's normal, so a zero-thickness sheet
      * (max(p, -p) = |p|, whose zero set is a plane but which is inside on both sides)
@@ -151,17 +157,23 @@ int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_
                    double *score);
 /* Score (no size penalty) of code whose tape leaves refer to e's tape. The tape may
  * have been recorded from a forest (several trees one after the other: their nodes are
- * all recorded). NaN when the tape holds no values for c (gp_tape_valued). */
-double gp_score_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len);
+ * all recorded). NaN when the tape holds no values for c (gp_tape_valued). floor: as
+ * in gp_fitness_replaced, on the score. */
+double gp_score_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                      double floor);
 /* 1 when e's tape holds node values recorded on c. */
 int gp_tape_valued(const gp_cache *c, const gp_eval *e);
 /* The leaf standing for the recorded tree's subtree ending at node. */
 frep_insn gp_tape_leaf(const gp_cache *c, uint32_t node);
 /* Fitness (eq. 7, the size penalty on the expanded length) of the recorded tree with
  * its subtree [st, end] replaced by sub[0..nsub). NaN on allocation failure or when
- * nothing is recorded on c. */
+ * nothing is recorded on c.
+ * floor: searches keep a variant only when it beats a fitness (the best so far, the
+ * tree's own); with a min/max cache, a variant that cannot reach floor is left as soon
+ * as gp_cache.tail shows it and -HUGE_VAL is returned. Every fitness at or above floor
+ * is exact, so the searches choose as with full scores. -HUGE_VAL: always exact. */
 double gp_fitness_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
-                           const frep_insn *sub, uint32_t nsub);
+                           const frep_insn *sub, uint32_t nsub, double floor);
 /* The same as gp_tree_stats. 0 or -1. */
 int gp_stats_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
                       const frep_insn *sub, uint32_t nsub, gp_stats *st_out);

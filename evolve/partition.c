@@ -544,10 +544,11 @@ static uint32_t low_bit(uint32_t x)
 }
 
 /* Fitness of the tree of `leaves` (1: a tree of the forest; 2: two trees and op) of
- * expanded length tl: from e's tape of the forest when it has values, else in full. */
+ * expanded length tl: from e's tape of the forest when it has values, else in full.
+ * floor as in gp_fitness_replaced. */
 static double exh_fitness(const gp_cache *c, gp_eval *e, const gp_tree *forest,
                           const uint32_t *ends, int nl, uint8_t op, uint32_t tl,
-                          gp_tree *scratch)
+                          gp_tree *scratch, double floor)
 {
     scratch->len = 0;
     if (gp_tape_valued(c, e)) {
@@ -556,7 +557,8 @@ static double exh_fitness(const gp_cache *c, gp_eval *e, const gp_tree *forest,
             if (tree_push(scratch, (frep_opcode)lf.op, lf.arg)) return NAN;
         }
         if (nl == 2 && tree_push(scratch, (frep_opcode)op, 0)) return NAN;
-        return gp_score_taped(c, e, scratch->code, scratch->len) - c->lambda * (double)tl;
+        double pen = c->lambda * (double)tl;
+        return gp_score_taped(c, e, scratch->code, scratch->len, floor + pen) - pen;
     }
     for (int q = 0; q < nl; q++) {
         uint32_t s0 = tree_subtree_start(forest->code, ends[q]);
@@ -638,7 +640,8 @@ int part_exhaustive(gp_setops s, const gp_cache *c, gp_eval *e, gp_tree *t)
             uint32_t tl = 2 * size - 1;
             for (uint32_t q = 0; q < count[S] || (k == 1 && q == 0); q++) {
                 uint32_t end = off[S] + q * tl + tl - 1;
-                double f = exh_fitness(c, e, &forest, &end, 1, 0, tl, &scratch);
+                double f = exh_fitness(c, e, &forest, &end, 1, 0, tl, &scratch,
+                                       have ? bf : -HUGE_VAL);
                 if (isnan(f)) goto out;  /* allocation failure */
                 if (!have || f > bf) {
                     bf = f;
@@ -660,7 +663,7 @@ int part_exhaustive(gp_setops s, const gp_cache *c, gp_eval *e, gp_tree *t)
                         uint32_t ea = off[A] + ia * la + la - 1, eb = off[B] + ib * lb + lb - 1;
                         uint32_t ends[2] = { w == 3 ? eb : ea, w == 3 ? ea : eb };
                         uint8_t op = w == 0 ? o.uni : w == 1 ? o.inter : o.sub;
-                        double f = exh_fitness(c, e, &forest, ends, 2, op, tl, &scratch);
+                        double f = exh_fitness(c, e, &forest, ends, 2, op, tl, &scratch, bf);
                         if (isnan(f)) goto out;
                         if (f > bf) {
                             bf = f;

@@ -197,7 +197,7 @@ int simplify_rules(gp_tree *t, gp_setops s)
 static int try_replace(gp_tree *t, gp_tree *trial, uint32_t st, uint32_t end,
                        const gp_tree *cand, const gp_cache *c, gp_eval *e, double *fit)
 {
-    double f = gp_fitness_replaced(c, e, st, end, cand->code, cand->len);
+    double f = gp_fitness_replaced(c, e, st, end, cand->code, cand->len, *fit);
     if (!(f >= *fit)) return 0;
     if (gp_tape_expand(c, e, cand->code, cand->len, trial) ||
         tree_splice(t, st, end, trial->code, trial->len) ||
@@ -301,7 +301,7 @@ static int grow_root(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
             if (leaf1(trial, c, t->len - 1) || tree_push(trial, FREP_OP_PRIM, j) ||
                 tree_push(trial, (frep_opcode)ops[w], 0))
                 return -1;
-            double f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len);
+            double f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len, bf);
             if (f > bf) {
                 bf = f;
                 best_j = j;
@@ -543,7 +543,10 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
                     piece p = { 0, q == 2 ? b : a, q == 2 ? a : b, UINT32_MAX,
                                 q == 0 ? o->inter : q == 3 ? o->uni : o->sub, 0, outers[w] };
                     if (build_piece(trial, &root, 1, &p)) { rc = -1; goto out; }
-                    p.f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len);
+                    /* Below the beam's last piece a piece is neither kept nor best. */
+                    double fl = nb == SIMPLIFY_PIECE_BEAM ? beam[nb - 1].f : -HUGE_VAL;
+                    p.f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len,
+                                              fl);
                     if (p.f > best.f) { best = p; found = 1; }
                     beam_insert(beam, &nb, &p);
                 }
@@ -556,7 +559,8 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
                 p.c = cc;
                 p.third = q == 0 ? o->inter : q == 1 ? o->sub : o->uni;
                 if (build_piece(trial, &root, 1, &p)) { rc = -1; goto out; }
-                p.f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len);
+                p.f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len,
+                                          best.f);
                 if (p.f > best.f) { best = p; found = 1; }
             }
         }
@@ -603,7 +607,7 @@ static int inner_range(const gp_tree *t, const uint8_t *use, const uint8_t ops[3
                 if (leaf1(cand, c, end) || tree_push(cand, FREP_OP_PRIM, j) ||
                     tree_push(cand, (frep_opcode)ops[w], 0))
                     return -1;
-                double f = gp_fitness_replaced(c, ev, st, end, cand->code, cand->len);
+                double f = gp_fitness_replaced(c, ev, st, end, cand->code, cand->len, *bf);
                 if (f > *bf) {
                     *bf = f;
                     *best = ((uint64_t)end * k + j) * 3 + (uint64_t)w;
@@ -896,7 +900,7 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
                     rc = -1;
                     goto out;
                 }
-                double f = gp_fitness_replaced(c, e, st, end, sub.code, sub.len);
+                double f = gp_fitness_replaced(c, e, st, end, sub.code, sub.len, bf);
                 if (f > bf) {
                     bf = f;
                     best_end = end;

@@ -914,7 +914,8 @@ static void test_sheet(void)
 /* Tapes (fitness.h): the fitness of a tree with one subtree replaced, scored from the
  * tape of the tree, has the same bits as the spliced tree scored in full; with
  * replacements holding tape leaves too; for both families; and for a tree too large
- * to tape (scored in full). */
+ * to tape (scored in full). With a floor, a fitness at or above it is still exact and
+ * one below it stays below it; min/max scoring stops early on some variants. */
 static void test_tape(void)
 {
     scene s;
@@ -930,7 +931,7 @@ static void test_tape(void)
         gp_eval *e = gp_eval_new();
         gp_tree t = { NULL, 0, 0 }, sub = { NULL, 0, 0 }, full = { NULL, 0, 0 };
         gp_tree exp = { NULL, 0, 0 };
-        int same = 1, same_stats = 1, lens = 1, tries = 0;
+        int same = 1, same_stats = 1, lens = 1, tries = 0, floors = 1, cut = 0;
         for (int k = 0; k < 40; k++) {
             t.len = 0;
             tree_grow(&t, &r, (gp_setops)so, c->nprims, 6, 0.8);
@@ -957,9 +958,16 @@ static void test_tape(void)
                 gp_tape_expand(c, e, sub.code, sub.len, &exp);
                 tree_copy(&full, &t);
                 tree_splice(&full, st, end, exp.code, exp.len);
-                double f1 = gp_fitness_replaced(c, e, st, end, sub.code, sub.len);
+                double f1 = gp_fitness_replaced(c, e, st, end, sub.code, sub.len, -HUGE_VAL);
                 double f2 = gp_fitness(c, e, full.code, full.len);
                 same &= f1 == f2;
+                const double dfl[5] = { -40, -0.5, 0, 0.5, 40 };
+                for (int d = 0; d < 5; d++) {
+                    double fl = f2 + dfl[d];
+                    double f3 = gp_fitness_replaced(c, e, st, end, sub.code, sub.len, fl);
+                    floors &= f2 >= fl ? f3 == f2 : f3 < fl;
+                    cut += f3 == -HUGE_VAL;
+                }
                 gp_stats a1, a2;
                 gp_stats_replaced(c, e, st, end, sub.code, sub.len, &a1);
                 gp_tree_stats(c, e, full.code, full.len, &a2);
@@ -974,6 +982,9 @@ static void test_tape(void)
         ok(same_stats, "%s: statistics of replacements from the tape as in full",
            so ? "rfunc" : "minmax");
         ok(lens, "%s: expanded replacements are valid trees", so ? "rfunc" : "minmax");
+        ok(floors && (so ? cut == 0 : cut > tries / 2),
+           "%s: with a floor, exact at or above it, below it below (%d of %d stopped early)",
+           so ? "rfunc" : "minmax", cut, 5 * tries);
 
         /* A tree beyond GP_TAPE_MAX_BYTES is kept without values: still exact. */
         uint32_t want = (uint32_t)(gp_tape_max_cells((gp_setops)so) / c->n) + 2;
@@ -993,7 +1004,7 @@ static void test_tape(void)
         tree_copy(&full, &t);
         tree_splice(&full, st, end, sub.code, sub.len);
         ok(rec == 0 && sc == gp_score(c, e, t.code, t.len) &&
-           gp_fitness_replaced(c, e, st, end, sub.code, sub.len) ==
+           gp_fitness_replaced(c, e, st, end, sub.code, sub.len, -HUGE_VAL) ==
                gp_fitness(c, e, full.code, full.len),
            "%s: a tree of %u nodes (beyond the tape) scored in full", so ? "rfunc" : "minmax",
            t.len);
