@@ -47,6 +47,8 @@ static const char evolve_usage[] =
     "                        with the merged tree\n"
     "      --polish-stagnation G  stop the polish after G generations without\n"
     "                        improvement (default 15; at most --stagnation)\n"
+    "      --no-support      keep material no point supports (by default the final\n"
+    "                        tree is trimmed where its surface runs far from the cloud)\n"
     "      --seed S          random seed (default: from the clock; always printed)\n"
     "      --generations G   generation limit (default 3000)\n"
     "      --stagnation G    stop after G generations without improvement (default 40)\n"
@@ -238,7 +240,8 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     enum {
         O_SETOPS = 256, O_PART, O_NOPART, O_SEED, O_GEN, O_STAG, O_POP, O_TOURN, O_CROSS,
         O_MUT, O_ELITE, O_SUBP, O_DEPTH, O_TIME, O_EPS, O_ALPHA, O_LAMBDA, O_SAMPLE,
-        O_NOSIMP, O_DOT, O_RESIDUAL, O_REFIT, O_NOPOLISH, O_POLSTAG, O_TRACE, O_STOPSHARE
+        O_NOSIMP, O_DOT, O_RESIDUAL, O_REFIT, O_NOPOLISH, O_POLSTAG, O_TRACE, O_STOPSHARE,
+        O_NOSUPPORT
     };
     static const struct option longopts[] = {
         { "help", no_argument, NULL, 'h' },
@@ -269,6 +272,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         { "residual", required_argument, NULL, O_RESIDUAL },
         { "refit", no_argument, NULL, O_REFIT },
         { "no-polish", no_argument, NULL, O_NOPOLISH },
+        { "no-support", no_argument, NULL, O_NOSUPPORT },
         { "polish-stagnation", required_argument, NULL, O_POLSTAG },
         { "threads", required_argument, NULL, 't' },
         { "quiet", no_argument, NULL, 'q' },
@@ -299,6 +303,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         case O_RESIDUAL: residual_path = optarg; break;
         case O_REFIT: refit = 1; break;
         case O_NOPOLISH: eo.polish = 0; break;
+        case O_NOSUPPORT: eo.support = 0; break;
         case O_PART: eo.partition = 1; break;
         case O_NOPART: eo.partition = 0; break;
         case O_NOSIMP: eo.simplify = 0; break;

@@ -8,6 +8,7 @@
 #include "evolve.h"
 #include "residual.h"
 #include "simplify.h"
+#include "kdtree.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -29,6 +30,7 @@ void evolve_options_init(evolve_options *o)
     o->simplify = 1;
     o->polish = 1;
     o->polish_stagnation = EVOLVE_POLISH_STAGNATION;
+    o->support = 1;
 }
 
 void evolve_result_free(evolve_result *r)
@@ -43,6 +45,12 @@ void evolve_result_free(evolve_result *r)
 static int cmp_size(const void *a, const void *b)
 {
     size_t x = *(const size_t *)a, y = *(const size_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+static int cmp_double_asc(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
     return x < y ? -1 : x > y;
 }
 
@@ -94,6 +102,133 @@ out:
     free(pz);
     free(pn);
     return c;
+}
+
+/* Most cloud points the support grid's distances are measured to (a regular subset
+ * of larger clouds). */
+#define EVOLVE_SUPPORT_MAX_POINTS 200000
+
+/* The support trims (support.h) of res->tree: the grid over the clipping box, its
+ * distances to the cloud's valid points and the primitives at its nodes. 0 or -1. */
+static int support_run(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
+                       size_t nprims, const size_t *valid, size_t nv,
+                       const gp_cache *sc, gp_eval *ev, evolve_result *res)
+{
+    const gp_obb *b = &res->obb;
+    double H[3], hmax = 0, mg = EVOLVE_CLIP_MARGIN * res->diag;
+    for (int d = 0; d < 3; d++) {
+        H[d] = b->h[d] + mg;
+        if (H[d] > hmax) hmax = H[d];
+    }
+    double h = 2 * hmax / SUPPORT_GRID_CELLS;
+    if (!(h > 0) || nv == 0) return 0;
+    support_grid g;
+    memset(&g, 0, sizeof g);
+    size_t ng = 1;
+    for (int d = 0; d < 3; d++) {
+        /* One node beyond the box on each side: the clip closes every part. */
+        g.dims[d] = (size_t)ceil(2 * H[d] / h) + 3;
+        ng *= g.dims[d];
+    }
+    /* Node (0, 0, 0) in the box's frame, and the steps along its axes. */
+    double q0[3];
+    for (int d = 0; d < 3; d++) q0[d] = -0.5 * (double)(g.dims[d] - 1) * h;
+    for (int c = 0; c < 3; c++) {
+        g.o[c] = b->c[c];
+        for (int d = 0; d < 3; d++) {
+            g.o[c] += q0[d] * b->ax[d][c];
+            g.u[d][c] = h * b->ax[d][c];
+        }
+    }
+    double *gx = malloc(ng * sizeof *gx), *gy = malloc(ng * sizeof *gy);
+    double *gz = malloc(ng * sizeof *gz);
+    double *clip = malloc(ng * sizeof *clip), *dist = malloc(ng * sizeof *dist);
+    double *cx = NULL, *cy = NULL, *cz = NULL;
+    kd_tree *kd = NULL;
+    gp_cache *gc = NULL;
+    gp_eval *eg = NULL;
+    int rc = -1;
+    if (!gx || !gy || !gz || !clip || !dist) goto out;
+    for (size_t i = 0, a = 0; i < g.dims[0]; i++)
+        for (size_t j = 0; j < g.dims[1]; j++)
+            for (size_t k = 0; k < g.dims[2]; k++, a++) {
+                const size_t ijk[3] = { i, j, k };
+                double q[3], p[3] = { b->c[0], b->c[1], b->c[2] }, in = HUGE_VAL;
+                for (int d = 0; d < 3; d++) {
+                    q[d] = q0[d] + (double)ijk[d] * h;
+                    if (H[d] - fabs(q[d]) < in) in = H[d] - fabs(q[d]);
+                    for (int c = 0; c < 3; c++) p[c] += q[d] * b->ax[d][c];
+                }
+                gx[a] = p[0];
+                gy[a] = p[1];
+                gz[a] = p[2];
+                clip[a] = in;
+            }
+    /* The distances, to the valid points (a regular subset beyond the limit). */
+    size_t stride = (nv + EVOLVE_SUPPORT_MAX_POINTS - 1) / EVOLVE_SUPPORT_MAX_POINTS, m = 0;
+    cx = malloc((nv / stride + 1) * sizeof *cx);
+    cy = malloc((nv / stride + 1) * sizeof *cy);
+    cz = malloc((nv / stride + 1) * sizeof *cz);
+    if (!cx || !cy || !cz) goto out;
+    for (size_t q = 0; q < nv; q += stride, m++) {
+        cx[m] = cloud->x[valid[q]];
+        cy[m] = cloud->y[valid[q]];
+        cz[m] = cloud->z[valid[q]];
+    }
+    if (!(kd = kd_build(m, cx, cy, cz))) goto out;
+    for (size_t a = 0; a < ng; a++) dist[a] = NAN;
+    /* tau: two cells (a crossing lies within a cell of the surface it samples) and two
+     * point spacings (the median distance between neighbours, of up to 1,000 points). */
+    {
+        size_t ns = m < 1000 ? m : 1000, sst = m / (ns ? ns : 1), cnt = 0;
+        double *sp = malloc((ns ? ns : 1) * sizeof *sp);
+        if (!sp) goto out;
+        for (size_t q = 0; q < ns; q++) {
+            size_t r = q * sst;
+            double p[3] = { cx[r], cy[r], cz[r] }, d2[2];
+            uint32_t nb[2];
+            if (kd_knn(kd, p, 2, nb, d2) == 2) sp[cnt++] = sqrt(d2[1]);
+        }
+        qsort(sp, cnt, sizeof *sp, cmp_double_asc);
+        double spacing = cnt ? sp[cnt / 2] : 0;
+        free(sp);
+        g.tau = 2 * h + 2 * spacing;
+    }
+    {
+        /* The primitives at the nodes: values only (no normals to score). */
+        double *v = malloc(nprims * ng * sizeof *v), *gg = malloc(3 * nprims * ng * sizeof *gg);
+        if (v && gg) {
+            long npl = (long)nprims;
+#pragma omp parallel for schedule(dynamic, 1)
+            for (long jl = 0; jl < npl; jl++) {
+                size_t j = (size_t)jl;
+                prim_eval_many(&prims[j], ng, gx, gy, gz, v + j * ng, gg + 3 * j * ng,
+                               gg + (3 * j + 1) * ng, gg + (3 * j + 2) * ng);
+            }
+        }
+        gc = gp_cache_values(ng, (uint32_t)nprims, o->gp.setops, v, gg);
+    }
+    if (!gc || !(eg = gp_eval_new())) goto out;
+    g.c = gc;
+    g.clip = clip;
+    g.cloud = kd;
+    g.dist = dist;
+    if (support_trim(&res->tree, o->gp.setops, sc, ev, &g, eg, &res->support)) goto out;
+    if (res->support.trims) res->fitness = gp_fitness(sc, ev, res->tree.code, res->tree.len);
+    rc = 0;
+out:
+    free(gx);
+    free(gy);
+    free(gz);
+    free(clip);
+    free(dist);
+    free(cx);
+    free(cy);
+    free(cz);
+    kd_free(kd);
+    gp_cache_free(gc);
+    gp_eval_free(eg);
+    return rc;
 }
 
 /* Points the base model explains poorly: |f|/|grad f| >= eps_d, or a normal more than
@@ -550,6 +685,12 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
             goto oom;
     }
 
+    /* Material no point supports, trimmed; not with --residual, whose base model is a
+     * leaf known at the cloud's points only. */
+    if (o->simplify && o->support && !residual && sc && res->tree.len &&
+        support_run(o, cloud, prims, nprims, valid, nv, sc, ev, res))
+        goto oom;
+
     if (residual) {
         /* Join on a sample of every point, with the base model as leaf nprims. */
         size_t mj = o->sample && o->sample < nv ? o->sample : nv;
@@ -643,6 +784,11 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
                    "evolved on the %zu it explained poorly and joined to it (p%zu)\n",
                 base->name, pct(r->npoints - r->nresidual, r->npoints), r->nresidual,
                 nprims + 1);
+    if (r->support.trims)
+        fprintf(f, "-- %u trim%s of material no point supports (unsupported grid edges %zu -> "
+                   "%zu; --no-support keeps it)\n",
+                r->support.trims, r->support.trims == 1 ? "" : "s", r->support.before,
+                r->support.after);
     if (m->refit_note) fprintf(f, "-- %s\n", m->refit_note);
     fprintf(f, "-- @setops %s\n", so);
     fprintf(f, "-- @box %.9g %.9g %.9g %.9g %.9g %.9g\n\n", r->box[0], r->box[1], r->box[2],

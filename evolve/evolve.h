@@ -17,6 +17,7 @@
 #include "gp.h"
 #include "partition.h"
 #include "prim.h"
+#include "support.h"
 
 /* Defaults of the options that are not the GA's. */
 #define EVOLVE_DEFAULT_EPS_REL 0.01     /* eps_d: 1% of the bounding-box diagonal (paper) */
@@ -61,6 +62,7 @@ typedef struct evolve_options {
     int polish;              /* 1: after a partitioned run, a GA over all primitives
                                 seeded with the merged tree (not in the paper) */
     uint32_t polish_stagnation; /* its stagnation limit (min with gp.stagnation) */
+    int support;             /* 1: trim material no point supports (support.h) */
     /* --residual: the base model's value bf[i] and gradient bg[3i+c] at every cloud
      * point (residual.h), NULL otherwise. The GA then runs on the points the base
      * explains poorly, and its tree is joined to the base, which is leaf number nprims
@@ -89,6 +91,7 @@ typedef struct evolve_result {
     double box[6];           /* axis-aligned extent for the @box pragma (grown) */
     int residual;            /* 1: --residual run; leaf nprims is the base model */
     size_t nresidual;        /* valid points the base model explains poorly */
+    support_info support;    /* the support trims (all 0 when not run) */
 } evolve_result;
 
 /* Run. The cloud must have normals. Returns 0, or -1 with *err (malloc'ed message,

@@ -283,11 +283,12 @@ int gp_cache_noise(const gp_cache *c, gp_noise *out)
     return 0;
 }
 
-gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double *g,
-                       const double *nrm, double eps_d, double alpha, double lambda)
+/* A cache holding v and g (taken, also on failure); NULL on allocation failure. */
+static gp_cache *cache_of(size_t n, uint32_t nprims, gp_setops s, double *v, double *g)
 {
     gp_cache *c = calloc(1, sizeof *c);
-    if (!c) {
+    if (!c || !v || !g) {
+        free(c);
         free(v);
         free(g);
         return NULL;
@@ -297,12 +298,21 @@ gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double
     c->setops = s;
     c->v = v;
     c->g = g;
+    c->nw = (n + 63) / 64;
+    return c;
+}
+
+gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double *g,
+                       const double *nrm, double eps_d, double alpha, double lambda)
+{
+    gp_cache *c = cache_of(n, nprims, s, v, g);
+    if (!c) return NULL;
     c->eps_d = eps_d;
     c->crossing = 1;
     c->alpha = alpha;
     c->lambda = lambda >= 0 ? lambda : (n > 1 ? log((double)n) : 0.0);
     c->nrm = malloc(3 * (n ? n : 1) * sizeof *c->nrm);
-    if (!c->v || !c->g || !c->nrm) {
+    if (!c->nrm) {
         gp_cache_free(c);
         return NULL;
     }
@@ -314,6 +324,22 @@ gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double
     if (build_scores(c) || build_sides(c)) {
         gp_cache_free(c);
         return NULL;
+    }
+    return c;
+}
+
+gp_cache *gp_cache_values(size_t n, uint32_t nprims, gp_setops s, double *v, double *g)
+{
+    gp_cache *c = cache_of(n, nprims, s, v, g);
+    if (!c) return NULL;
+    c->values_only = 1;
+    if (s == GP_SETOPS_MINMAX) {
+        c->vf = malloc((size_t)nprims * (n ? n : 1) * sizeof *c->vf);
+        if (!c->vf) {
+            gp_cache_free(c);
+            return NULL;
+        }
+        for (size_t k = 0; k < (size_t)nprims * n; k++) c->vf[k] = (float)v[k];
     }
     return c;
 }
@@ -660,6 +686,15 @@ static double score_code(const gp_cache *c, gp_eval *e, const frep_insn *code, u
     const double *tail = floor > -HUGE_VAL ? c->tail : NULL;
     floor -= 1e-9 * (fabs(floor) + 1);
     double total = 0;
+    if (c->values_only) {
+        /* No terms to score: the values only (recorded when rec is set). */
+        for (size_t i0 = 0; i0 < c->n; i0 += GP_FIT_BLOCK) {
+            size_t m = c->n - i0 < GP_FIT_BLOCK ? c->n - i0 : GP_FIT_BLOCK;
+            if (c->setops == GP_SETOPS_MINMAX) eval_minmax(c, e, code, len, i0, m, tp, rec);
+            else eval_rfunc(c, e, code, len, i0, m, tp, rec);
+        }
+        return 0;
+    }
     const size_t B = GP_FIT_BLOCK;
     uint64_t ok[GP_FIT_WORDS];
     const float epsf = (float)c->eps_d;
@@ -713,7 +748,7 @@ double gp_fitness(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t
 static int per_point(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                      const gp_tape *tp, gp_stats *st, uint8_t *ok)
 {
-    if (!len || eval_reserve(e, max_stack(code, len))) return -1;
+    if (!len || c->values_only || eval_reserve(e, max_stack(code, len))) return -1;
     gp_stats s;
     memset(&s, 0, sizeof s);
     const size_t B = GP_FIT_BLOCK;
@@ -750,6 +785,24 @@ int gp_tree_stats(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t
                   gp_stats *st)
 {
     return per_point(c, e, code, len, NULL, st, NULL);
+}
+
+static int values_code(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                       const gp_tape *tp, double *out)
+{
+    if (!len || eval_reserve(e, max_stack(code, len))) return -1;
+    for (size_t i0 = 0; i0 < c->n; i0 += GP_FIT_BLOCK) {
+        size_t m = c->n - i0 < GP_FIT_BLOCK ? c->n - i0 : GP_FIT_BLOCK;
+        eval_full(c, e, code, len, i0, m, tp);
+        memcpy(out + i0, e->sv, m * sizeof *out);
+    }
+    return 0;
+}
+
+int gp_tree_values(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                   double *out)
+{
+    return values_code(c, e, code, len, NULL, out);
 }
 
 int gp_explained(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
@@ -933,6 +986,26 @@ double gp_fitness_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t 
     double pen = c->lambda * (double)replaced_len(c, tp, st, end, sub, nsub);
     double sc = score_code(c, e, tp->path.code, tp->path.len, tp, NULL, floor + pen);
     return sc - pen;
+}
+
+int gp_values_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                    double *out)
+{
+    if (e->tape.c != c) return -1;
+    if (e->tape.valued) return values_code(c, e, code, len, &e->tape, out);
+    gp_tree full = { NULL, 0, 0 };
+    int rc = gp_tape_expand(c, e, code, len, &full) ||
+             values_code(c, e, full.code, full.len, NULL, out);
+    tree_free(&full);
+    return rc ? -1 : 0;
+}
+
+int gp_values_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
+                       const frep_insn *sub, uint32_t nsub, double *out)
+{
+    gp_tape *tp = &e->tape;
+    if (build_path(c, e, st, end, sub, nsub)) return -1;
+    return values_code(c, e, tp->path.code, tp->path.len, tp, out);
 }
 
 int gp_stats_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,

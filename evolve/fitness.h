@@ -63,6 +63,7 @@ typedef struct gp_cache {
     uint64_t *side;
     size_t nw;           /* words per row of side: ceil(n / 64) */
     int crossing;        /* 1 (default): apply the crossing test; 0: plain eq. 7 */
+    int values_only;     /* 1: gp_cache_values (no normals, tables or crossing bits) */
     double eps_d;        /* distance tolerance (0.01 x bounding-box diagonal) */
     double alpha;        /* angle tolerance, radians */
     double lambda;       /* size penalty per node */
@@ -75,6 +76,10 @@ typedef struct gp_cache {
  * Returns NULL on allocation failure. */
 gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double *g,
                        const double *nrm, double eps_d, double alpha, double lambda);
+/* A cache for the values of trees only (gp_tree_values, tapes, gp_values_*), at points
+ * that have no normals (a grid): v and g as in gp_cache_new (taken, also on failure),
+ * no score tables or crossing bits; every score on it is 0. NULL on allocation failure. */
+gp_cache *gp_cache_values(size_t n, uint32_t nprims, gp_setops s, double *v, double *g);
 /* The cache restricted to points idx[0..m) and primitives prims[0..k) (renumbered
  * 0..k-1); lambda < 0: ln(m). */
 gp_cache *gp_cache_subset(const gp_cache *c, const size_t *idx, size_t m,
@@ -128,6 +133,10 @@ typedef struct gp_stats {
 int gp_tree_stats(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                   gp_stats *st);
 /* Per point: 1 when explained (within eps and normal agrees). ok[n]. */
+/* The tree's value at every point of c: out[0..c->n) (min/max: the value of the active
+ * primitive, as scored). 0 or -1 (allocation). */
+int gp_tree_values(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                   double *out);
 int gp_explained(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                  uint8_t *ok);
 
@@ -174,6 +183,14 @@ frep_insn gp_tape_leaf(const gp_cache *c, uint32_t node);
  * is exact, so the searches choose as with full scores. -HUGE_VAL: always exact. */
 double gp_fitness_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
                            const frep_insn *sub, uint32_t nsub, double floor);
+/* The tree's value at every point of c (out[0..c->n)) with the subtree [st, end] of
+ * the recorded tree replaced by sub, as gp_tree_values. 0 or -1. */
+int gp_values_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
+                       const frep_insn *sub, uint32_t nsub, double *out);
+/* The values of code whose tape leaves refer to e's tape (recorded on c), as
+ * gp_tree_values. 0 or -1. */
+int gp_values_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                    double *out);
 /* The same as gp_tree_stats. 0 or -1. */
 int gp_stats_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
                       const frep_insn *sub, uint32_t nsub, gp_stats *st_out);

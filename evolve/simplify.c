@@ -958,6 +958,12 @@ static void node_polarity(const gp_tree *t, const gp_opset *o, uint8_t *pol)
     }
 }
 
+void simplify_polarity(const gp_tree *t, gp_setops s, uint8_t *pol)
+{
+    gp_opset o = gp_opset_of(s);
+    node_polarity(t, &o, pol);
+}
+
 /* One round: the best S & L replacing an operand S of a union that adds material,
  * L = p or ~p for a primitive p that keeps every point S explains (L >= -eps_d there),
  * when the trimmed tree explains more points and scores no lower (size penalty aside).

@@ -53,4 +53,8 @@ int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
 int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                          double *fitness);
 
+/* pol[k] = 1 when node k of t adds material to the solid (an even number of
+ * complements and right operands of subtractions above it), 0 when it removes some. */
+void simplify_polarity(const gp_tree *t, gp_setops s, uint8_t *pol);
+
 #endif

@@ -2,7 +2,7 @@
 # evolve.sh - end-to-end tests of `frep evolve`: a cube and a block with a hole sampled
 # from models by `frep sample`, primitives given as a .fit list or found by
 # segmentation, the written model checked and evaluated by frep itself, the same seed
-# at 1 and 2 threads, --dot, bad input; --residual (a block model joined with the hole
+# at 1 and 2 threads, --dot, --no-support, bad input; --residual (a block model joined with the hole
 # its cloud shows) and --refit (perturbed faces corrected). Prints TAP. Needs FREP.
 
 : "${FREP:?FREP must name the frep binary}"
@@ -77,6 +77,14 @@ report $st "model evaluates as the cube"
 
 grep -q "digraph" "$tmp/m1.dot" && [ "$(grep -c 'shape=box' "$tmp/m1.dot")" = 6 ]
 report $? "--dot writes the tree with 6 leaves"
+
+# Support trims (support.h) leave a solid whose surface the cloud covers as it is.
+"$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/m1n.hf" --seed 5 -t 1 -q \
+    --no-support 2>"$tmp/err"
+grep '^    tree = ' "$tmp/m1n.hf" >"$tmp/t1n"
+grep '^    tree = ' "$tmp/m1.hf" >"$tmp/t1"
+cmp -s "$tmp/t1" "$tmp/t1n" && ! grep -q "no point supports" "$tmp/m1.hf"
+report $? "no support trim on the cube: the same tree as with --no-support"
 
 "$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/m2.hf" --seed 5 -t 2 -q 2>"$tmp/err"
 grep '^    tree = ' "$tmp/m1.hf" >"$tmp/t1"

@@ -17,6 +17,7 @@
 #include "gp.h"
 #include "partition.h"
 #include "simplify.h"
+#include "support.h"
 #include "tap.h"
 #include "tree.h"
 
@@ -1294,6 +1295,149 @@ static void test_simplify_both(void)
     scene_free(&s);
 }
 
+/* Support (support.h): a box united with a bar that runs on 0.8 above it, where the
+ * cloud has no point (the box's top face has a hole over the bar, so the points do not
+ * tell the two trees apart). The grid finds the bar's unsupported surface and none on
+ * the box alone; the trim cuts the bar at the box's top face, loses no point, and
+ * leaves the box alone untouched. Both families. */
+static void test_support(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 41);
+    double hb[3] = { 1, 1, 1 };
+    sample_box(&s, &r, 500, hb, 0.3);            /* prims 0-5: the box's faces */
+    add_plane(&s, 0, 1, 0.2);                    /* 6-9: the bar's sides */
+    add_plane(&s, 0, -1, 0.2);
+    add_plane(&s, 1, 1, 0.2);
+    add_plane(&s, 1, -1, 0.2);
+    add_plane(&s, 2, 1, 1.8);                    /* 10: its top, 0.8 above the box */
+    add_plane(&s, 2, -1, 0);                     /* 11: its bottom, inside the box */
+    /* The grid over [-1.5, 1.5]^3, 24 cells, one node beyond each side. */
+    const double H = 1.5, h = 2 * H / 24;
+    size_t dim = (size_t)ceil(2 * H / h) + 3, ng = dim * dim * dim;
+    double *gv = NULL, *gg = NULL;
+    double *clip = malloc(ng * sizeof *clip), *dist = malloc(ng * sizeof *dist);
+    double *vals = malloc(ng * sizeof *vals);
+    double (*gp3)[3] = malloc(ng * sizeof *gp3);
+    for (size_t a = 0; a < ng; a++) {
+        size_t ijk[3] = { a / (dim * dim), a / dim % dim, a % dim };
+        double in = HUGE_VAL;
+        for (int d = 0; d < 3; d++) {
+            gp3[a][d] = -0.5 * (double)(dim - 1) * h + (double)ijk[d] * h;
+            if (H - fabs(gp3[a][d]) < in) in = H - fabs(gp3[a][d]);
+        }
+        clip[a] = in;
+    }
+    kd_tree *kd = kd_build(s.n, s.x, s.y, s.z);
+    /* tau: two cells and two point spacings (the median neighbour distance). */
+    double sp[200];
+    for (size_t q = 0; q < 200; q++) {
+        double best = HUGE_VAL;
+        for (size_t i = 0; i < s.n; i++) {
+            double dx = s.x[i] - s.x[q], dy = s.y[i] - s.y[q], dz = s.z[i] - s.z[q];
+            double d2 = dx * dx + dy * dy + dz * dz;
+            if (i != q && d2 < best) best = d2;
+        }
+        sp[q] = sqrt(best);
+    }
+    for (size_t q = 1; q < 200; q++)
+        for (size_t u = q; u > 0 && sp[u] < sp[u - 1]; u--) {
+            double t = sp[u];
+            sp[u] = sp[u - 1];
+            sp[u - 1] = t;
+        }
+    double tau = 2 * h + 2 * sp[100];
+    for (int so = 0; so < 2; so++) {
+        gp_cache *c = scene_cache(&s, (gp_setops)so, 10);
+        gv = malloc(s.nprims * ng * sizeof *gv);
+        gg = malloc(3 * s.nprims * ng * sizeof *gg);
+        for (uint32_t j = 0; j < s.nprims; j++)
+            for (size_t a = 0; a < ng; a++) {
+                double g3[3];
+                gv[j * ng + a] = aprim_eval(&s.prims[j], gp3[a], g3);
+                for (int d = 0; d < 3; d++) gg[(3 * j + d) * ng + a] = g3[d];
+            }
+        gp_cache *gc = gp_cache_values(ng, s.nprims, (gp_setops)so, gv, gg);
+        for (size_t a = 0; a < ng; a++) dist[a] = NAN;
+        const double o0 = -0.5 * (double)(dim - 1) * h;
+        support_grid g = { gc, { dim, dim, dim }, { o0, o0, o0 },
+                           { { h, 0, 0 }, { 0, h, 0 }, { 0, 0, h } }, clip, kd, dist, tau };
+        gp_eval *e = gp_eval_new(), *eg = gp_eval_new();
+        gp_opset o = gp_opset_of((gp_setops)so);
+        gp_tree box = { NULL, 0, 0 }, t = { NULL, 0, 0 };
+        tree_push(&box, FREP_OP_PRIM, 0);
+        for (uint32_t j = 1; j < 6; j++) {
+            tree_push(&box, FREP_OP_PRIM, j);
+            tree_push(&box, (frep_opcode)o.inter, 0);
+        }
+        tree_copy(&t, &box);
+        tree_push(&t, FREP_OP_PRIM, 6);
+        for (uint32_t j = 7; j < 12; j++) {
+            tree_push(&t, FREP_OP_PRIM, j);
+            tree_push(&t, (frep_opcode)o.inter, 0);
+        }
+        tree_push(&t, (frep_opcode)o.uni, 0);
+        const char *fam = so ? "rfunc" : "minmax";
+        gp_tree_values(gc, eg, box.code, box.len, vals);
+        size_t ub = support_count(&g, vals);
+        gp_tree_values(gc, eg, t.code, t.len, vals);
+        size_t ut = support_count(&g, vals);
+        ok(ub == 0 && ut > 4 * SUPPORT_MIN_GAIN,
+           "%s: unsupported grid edges: the box %zu, with the bar %zu",
+           fam, ub, ut);
+        gp_stats s0, s1;
+        gp_tree_stats(c, e, t.code, t.len, &s0);
+        support_info info;
+        int rc = support_trim(&t, (gp_setops)so, c, e, &g, eg, &info);
+        gp_tree_stats(c, e, t.code, t.len, &s1);
+        /* The bar's top half is gone, its part inside the box and the box stay. */
+        double above[3] = { 0, 0, 1.4 }, inside[3] = { 0, 0, 0.5 }, g3[3];
+        double va = HUGE_VAL, vi = HUGE_VAL;
+        {
+            /* The tree's value at a point: a one-point cache. */
+            double *pv = malloc(2 * s.nprims * sizeof *pv), *pg = malloc(6 * s.nprims * sizeof *pg);
+            double pn[6] = { 0, 0, 0, 0, 0, 0 }, out[2];
+            for (uint32_t j = 0; j < s.nprims; j++) {
+                pv[2 * j] = aprim_eval(&s.prims[j], above, g3);
+                for (int d = 0; d < 3; d++) pg[(3 * j + d) * 2] = g3[d];
+                pv[2 * j + 1] = aprim_eval(&s.prims[j], inside, g3);
+                for (int d = 0; d < 3; d++) pg[(3 * j + d) * 2 + 1] = g3[d];
+            }
+            gp_cache *pc = gp_cache_new(2, s.nprims, (gp_setops)so, pv, pg, pn, c->eps_d,
+                                        c->alpha, c->lambda);
+            if (pc && gp_tree_values(pc, e, t.code, t.len, out) == 0) {
+                va = out[0];
+                vi = out[1];
+            }
+            gp_cache_free(pc);
+        }
+        ok(rc == 0 && info.trims >= 1 && info.before == ut && info.after < SUPPORT_MIN_GAIN &&
+               va < 0 && vi > 0 && s1.explained >= s0.explained,
+           "%s: the bar trimmed at the box's top (%u trims, %zu -> %zu edges, f %.3g above, "
+           "%.3g inside, %zu -> %zu points): %s",
+           fam, info.trims, info.before, info.after, va, vi, s0.explained, s1.explained,
+           print_str(&t));
+        tree_copy(&t, &box);
+        rc = support_trim(&t, (gp_setops)so, c, e, &g, eg, &info);
+        int same = t.len == box.len && memcmp(t.code, box.code, t.len * sizeof *t.code) == 0;
+        ok(rc == 0 && info.trims == 0 && same, "%s: the box alone is left as it is", fam);
+        tree_free(&box);
+        tree_free(&t);
+        gp_eval_free(e);
+        gp_eval_free(eg);
+        gp_cache_free(gc);
+        gp_cache_free(c);
+    }
+    kd_free(kd);
+    free(clip);
+    free(dist);
+    free(vals);
+    free(gp3);
+    scene_free(&s);
+}
+
 int main(void)
 {
     test_tree_ops();
@@ -1315,5 +1459,6 @@ int main(void)
     test_boss();
     test_grow_threads();
     test_simplify_both();
+    test_support();
     return done_testing();
 }
