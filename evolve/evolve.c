@@ -145,8 +145,9 @@ static int support_run(const evolve_options *o, const frep_cloud *cloud, const p
     double *clip = malloc(ng * sizeof *clip), *dist = malloc(ng * sizeof *dist);
     double *cx = NULL, *cy = NULL, *cz = NULL;
     kd_tree *kd = NULL;
-    gp_cache *gc = NULL;
+    gp_cache *gc = NULL, *pc = NULL;
     gp_eval *eg = NULL;
+    uint32_t *used = NULL, nu = 0;
     int rc = -1;
     if (!gx || !gy || !gz || !clip || !dist) goto out;
     for (size_t i = 0, a = 0; i < g.dims[0]; i++)
@@ -194,29 +195,46 @@ static int support_run(const evolve_options *o, const frep_cloud *cloud, const p
         free(sp);
         g.tau = 2 * h + 2 * spacing;
     }
+    /* Only the tree's primitives (the trims bound its parts by their own faces): the
+     * grid's memory grows with the tree, not with a long primitive list. */
+    nu = tree_used_prims(&res->tree, (uint32_t)nprims, &used);
+    if (!used) goto out;
     {
         /* The primitives at the nodes: values only (no normals to score). */
-        double *v = malloc(nprims * ng * sizeof *v), *gg = malloc(3 * nprims * ng * sizeof *gg);
+        double *v = malloc((size_t)nu * ng * sizeof *v), *gg = malloc(3 * (size_t)nu * ng * sizeof *gg);
         if (v && gg) {
-            long npl = (long)nprims;
+            long kl = (long)nu;
 #pragma omp parallel for schedule(dynamic, 1)
-            for (long jl = 0; jl < npl; jl++) {
+            for (long jl = 0; jl < kl; jl++) {
                 size_t j = (size_t)jl;
-                prim_eval_many(&prims[j], ng, gx, gy, gz, v + j * ng, gg + 3 * j * ng,
+                prim_eval_many(&prims[used[j]], ng, gx, gy, gz, v + j * ng, gg + 3 * j * ng,
                                gg + (3 * j + 1) * ng, gg + (3 * j + 2) * ng);
             }
         }
-        gc = gp_cache_values(ng, (uint32_t)nprims, o->gp.setops, v, gg);
+        gc = gp_cache_values(ng, nu, o->gp.setops, v, gg);
     }
-    if (!gc || !(eg = gp_eval_new())) goto out;
+    {
+        size_t *all_pts = malloc((sc->n ? sc->n : 1) * sizeof *all_pts);
+        if (all_pts) {
+            for (size_t i = 0; i < sc->n; i++) all_pts[i] = i;
+            pc = gp_cache_subset(sc, all_pts, sc->n, used, nu, sc->lambda);
+        }
+        free(all_pts);
+    }
+    if (!gc || !pc || !(eg = gp_eval_new())) goto out;
     g.c = gc;
     g.clip = clip;
     g.cloud = kd;
     g.dist = dist;
-    if (support_trim(&res->tree, o->gp.setops, sc, ev, &g, eg, &res->support)) goto out;
+    tree_renumber(&res->tree, used, nu, 0);
+    int bad = support_trim(&res->tree, o->gp.setops, pc, ev, &g, eg, &res->support);
+    tree_renumber(&res->tree, used, nu, 1);
+    if (bad) goto out;
     if (res->support.trims) res->fitness = gp_fitness(sc, ev, res->tree.code, res->tree.len);
     rc = 0;
 out:
+    free(used);
+    gp_cache_free(pc);
     free(gx);
     free(gy);
     free(gz);

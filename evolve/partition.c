@@ -490,49 +490,6 @@ static uint64_t mix_seed(uint64_t seed, uint64_t k)
     return z ^ (z >> 31);
 }
 
-/* Primitives used by t, ascending, into *out (malloc'ed). */
-static uint32_t used_prims(const gp_tree *t, uint32_t nprims, uint32_t **out)
-{
-    uint8_t *seen = calloc(nprims ? nprims : 1, 1);
-    uint32_t n = 0;
-    *out = NULL;
-    if (!seen) return 0;
-    for (uint32_t pc = 0; pc < t->len; pc++)
-        if (t->code[pc].op == FREP_OP_PRIM) seen[t->code[pc].arg] = 1;
-    for (uint32_t j = 0; j < nprims; j++) n += seen[j];
-    *out = malloc((size_t)(n ? n : 1) * sizeof **out);
-    if (*out) {
-        n = 0;
-        for (uint32_t j = 0; j < nprims; j++)
-            if (seen[j]) (*out)[n++] = j;
-    } else {
-        n = 0;
-    }
-    free(seen);
-    return n;
-}
-
-/* Renumber the PRIM leaves of t: global -> local through the ascending list
- * prims[0..k) (dir = 0), or local -> global (dir = 1). */
-static void renumber(gp_tree *t, const uint32_t *prims, uint32_t k, int dir)
-{
-    for (uint32_t pc = 0; pc < t->len; pc++) {
-        frep_insn *in = &t->code[pc];
-        if (in->op != FREP_OP_PRIM) continue;
-        if (dir) {
-            in->arg = prims[in->arg];
-        } else {
-            uint32_t lo = 0, hi = k;
-            while (lo < hi) {
-                uint32_t mid = (lo + hi) / 2;
-                if (prims[mid] < in->arg) lo = mid + 1;
-                else hi = mid;
-            }
-            in->arg = lo;
-        }
-    }
-}
-
 static uint32_t low_bit(uint32_t x)
 {
     uint32_t i = 0;
@@ -722,7 +679,7 @@ static int solve_clique(const gp_config *cfg, const gp_cache *c, const uint32_t 
         tree_free(&r.best);
         if (bad || simplify_tree(t, cfg->setops, sc, e, NULL)) goto out;
     }
-    renumber(t, mem, k, 1);
+    tree_renumber(t, mem, k, 1);
     rc = 0;
 out:
     gp_cache_free(sc);
@@ -763,21 +720,21 @@ static int merge_pieces(const gp_config *cfg, const gp_cache *c, gp_eval *e,
     gp_cache *sc = NULL;
     int rc = -1;
     if (join(&both, &pi->t, &pj->t, FREP_OP_MAX)) goto out;
-    uint32_t k = used_prims(&both, c->nprims, &prims);
+    uint32_t k = tree_used_prims(&both, c->nprims, &prims);
     if (!prims) goto out;
     sc = gp_cache_subset(c, u, nu, prims, k, -1);
     if (!sc || tree_copy(&a, &pi->t) || tree_copy(&b, &pj->t)) goto out;
-    renumber(&a, prims, k, 0);
-    renumber(&b, prims, k, 0);
+    tree_renumber(&a, prims, k, 0);
+    tree_renumber(&b, prims, k, 0);
     if (part_merge_pair(&a, &b, cfg->setops, sc, e, &m, NULL)) goto out;
-    renumber(&m, prims, k, 1);
+    tree_renumber(&m, prims, k, 1);
     if (tree_copy(&pi->t, &m)) goto out;
     free(pi->pts);
     pi->pts = u;
     pi->npts = nu;
     u = NULL;
     free(pi->prims);
-    pi->nprims = used_prims(&pi->t, c->nprims, &pi->prims);
+    pi->nprims = tree_used_prims(&pi->t, c->nprims, &pi->prims);
     if (!pi->prims) goto out;
     rc = 0;
 out:
@@ -930,7 +887,7 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
     for (uint32_t q = 0; q < nq; q++) {
         if (pc[q].t.len) {
             free(pc[q].prims);
-            pc[q].nprims = used_prims(&pc[q].t, c->nprims, &pc[q].prims);
+            pc[q].nprims = tree_used_prims(&pc[q].t, c->nprims, &pc[q].prims);
             if (!pc[q].prims) goto out;
             if (live != q) {
                 pc[live] = pc[q];

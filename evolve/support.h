@@ -8,7 +8,8 @@
  * piece of surface, *unsupported* when both ends are farther than tau from every cloud
  * point. Trims S & L, as simplify.c's (S an operand of a union that adds material, L a
  * primitive or its complement keeping every point S explains), are kept when they lose
- * no point of the scored sample and remove the most unsupported surface.
+ * no point of the scored sample and remove the most unsupported surface. evolve.c
+ * passes caches of the tree's own primitives only.
  */
 #ifndef FREP_GP_SUPPORT_H
 #define FREP_GP_SUPPORT_H

@@ -370,3 +370,43 @@ void tree_print_dot(FILE *f, const frep_insn *code, uint32_t len,
     }
     fprintf(f, "}\n");
 }
+
+uint32_t tree_used_prims(const gp_tree *t, uint32_t nprims, uint32_t **out)
+{
+    uint8_t *seen = calloc(nprims ? nprims : 1, 1);
+    uint32_t n = 0;
+    *out = NULL;
+    if (!seen) return 0;
+    for (uint32_t pc = 0; pc < t->len; pc++)
+        if (t->code[pc].op == FREP_OP_PRIM) seen[t->code[pc].arg] = 1;
+    for (uint32_t j = 0; j < nprims; j++) n += seen[j];
+    *out = malloc((size_t)(n ? n : 1) * sizeof **out);
+    if (*out) {
+        n = 0;
+        for (uint32_t j = 0; j < nprims; j++)
+            if (seen[j]) (*out)[n++] = j;
+    } else {
+        n = 0;
+    }
+    free(seen);
+    return n;
+}
+
+void tree_renumber(gp_tree *t, const uint32_t *prims, uint32_t k, int dir)
+{
+    for (uint32_t pc = 0; pc < t->len; pc++) {
+        frep_insn *in = &t->code[pc];
+        if (in->op != FREP_OP_PRIM) continue;
+        if (dir) {
+            in->arg = prims[in->arg];
+        } else {
+            uint32_t lo = 0, hi = k;
+            while (lo < hi) {
+                uint32_t mid = (lo + hi) / 2;
+                if (prims[mid] < in->arg) lo = mid + 1;
+                else hi = mid;
+            }
+            in->arg = lo;
+        }
+    }
+}

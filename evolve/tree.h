@@ -103,4 +103,11 @@ void tree_print(FILE *f, const frep_insn *code, uint32_t len, const char *prefix
 void tree_print_dot(FILE *f, const frep_insn *code, uint32_t len,
                     const char *const *names);
 
+/* The primitives t uses, ascending, into *out (malloc'ed; NULL and 0 on allocation
+ * failure). nprims: the leaves' range. */
+uint32_t tree_used_prims(const gp_tree *t, uint32_t nprims, uint32_t **out);
+/* Renumber the PRIM leaves of t: global -> local through the ascending list
+ * prims[0..k) (dir = 0; every leaf must be in it), or local -> global (dir = 1). */
+void tree_renumber(gp_tree *t, const uint32_t *prims, uint32_t k, int dir);
+
 #endif
