@@ -61,7 +61,7 @@ static gp_cache *build_cache(const prim *prims, size_t nprims, const uint32_t *u
                              uint32_t k, const double *x, const double *y, const double *z,
                              const double *nrm, const double *bf, const double *bg,
                              const size_t *pts, size_t m, gp_setops s, double eps_d,
-                             double alpha, double lambda)
+                             double alpha, double lambda, int stats_only)
 {
     double *px = malloc((m ? m : 1) * sizeof *px), *py = malloc((m ? m : 1) * sizeof *py);
     double *pz = malloc((m ? m : 1) * sizeof *pz), *pn = malloc(3 * (m ? m : 1) * sizeof *pn);
@@ -95,7 +95,8 @@ static gp_cache *build_cache(const prim *prims, size_t nprims, const uint32_t *u
             for (size_t d = 0; d < 3; d++) g[(3 * j + d) * m + i] = bg[3 * q + d];
         }
     }
-    c = gp_cache_new(m, k, s, v, g, pn, eps_d, alpha, lambda);
+    c = stats_only ? gp_cache_new_stats(m, k, s, v, g, pn, eps_d, alpha, lambda)
+                   : gp_cache_new(m, k, s, v, g, pn, eps_d, alpha, lambda);
 out:
     free(px);
     free(py);
@@ -105,8 +106,10 @@ out:
 }
 
 /* Most cloud points the support grid's distances are measured to (a regular subset
- * of larger clouds). */
-#define EVOLVE_SUPPORT_MAX_POINTS 200000
+ * of larger clouds): 20,000 points on a 32-cell grid put several points in every cell
+ * a face crosses, and tau grows with their spacing, so a subset finds the same
+ * unsupported edges at a fraction of the kd-tree's cost. */
+#define EVOLVE_SUPPORT_MAX_POINTS 20000
 
 /* The support trims (support.h) of res->tree: the grid over the clipping box, its
  * distances to the cloud's valid points and the primitives at its nodes. 0 or -1. */
@@ -384,7 +387,7 @@ int evolve_stats(const evolve_options *o, const frep_cloud *cloud, const prim *p
     double ls = o->lambda_scale > 0 ? o->lambda_scale : 1.0;
     fc = build_cache(prims, nprims, used, k, cloud->x, cloud->y, cloud->z, nrm, o->base_f,
                      o->base_g, valid, nv, o->gp.setops, res->eps_d, res->alpha,
-                     ls * log((double)(nv > 1 ? nv : 2)));
+                     ls * log((double)(nv > 1 ? nv : 2)), 1);
     if (!fc || gp_tree_stats(fc, ev, local.code, local.len, &res->stats)) goto out;
     rc = 0;
 out:
@@ -551,7 +554,7 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
         res->nsample = m;
         sc = build_cache(prims, nprims, all, (uint32_t)nprims, cloud->x, cloud->y, cloud->z,
                          nrm, NULL, NULL, samp, m, o->gp.setops, res->eps_d, res->alpha,
-                         ls * log((double)(m > 1 ? m : 2)));
+                         ls * log((double)(m > 1 ? m : 2)), 0);
         if (!sc) goto oom;
         /* Automatic alpha: 35 degrees when the sample is noisy or faceted against the
          * primitives (evolve.h). With --residual the pool was chosen with alpha_deg
@@ -715,7 +718,7 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
         draw_sample(valid, nv, mj, o->gp.seed ^ 0xa5a5a5a5a5a5a5a5u, samp, tmp);
         jc = build_cache(prims, nprims, all, (uint32_t)nprims + 1, cloud->x, cloud->y,
                          cloud->z, nrm, o->base_f, o->base_g, samp, mj, o->gp.setops,
-                         res->eps_d, res->alpha, ls * log((double)(mj > 1 ? mj : 2)));
+                         res->eps_d, res->alpha, ls * log((double)(mj > 1 ? mj : 2)), 0);
         if (!jc) goto oom;
         gp_tree joined = { NULL, 0, 0 };
         if (join_base(o, &res->tree, (uint32_t)nprims, jc, ev, &joined, &res->fitness)) {

@@ -211,14 +211,17 @@ static int build_tail(gp_cache *c)
     return 0;
 }
 
-static int build_scores(gp_cache *c)
+/* vf, and with tables the score tables and their tail (min/max caches). */
+static int build_scores(gp_cache *c, int tables)
 {
     if (c->setops != GP_SETOPS_MINMAX) return 0;
     size_t n = c->n;
-    c->score = malloc((size_t)2 * c->nprims * (n ? n : 1) * sizeof *c->score);
     c->vf = malloc((size_t)c->nprims * (n ? n : 1) * sizeof *c->vf);
-    if (!c->score || !c->vf) return -1;
+    if (!c->vf) return -1;
     for (size_t k = 0; k < (size_t)c->nprims * n; k++) c->vf[k] = (float)c->v[k];
+    if (!tables) return 0;
+    c->score = malloc((size_t)2 * c->nprims * (n ? n : 1) * sizeof *c->score);
+    if (!c->score) return -1;
     fill_scores(c);
     return build_tail(c);
 }
@@ -226,7 +229,7 @@ static int build_scores(gp_cache *c)
 int gp_cache_set_alpha(gp_cache *c, double alpha)
 {
     c->alpha = alpha;
-    if (c->setops != GP_SETOPS_MINMAX) return 0;
+    if (c->setops != GP_SETOPS_MINMAX || !c->score) return 0;
     fill_scores(c);
     return build_tail(c);
 }
@@ -302,8 +305,9 @@ static gp_cache *cache_of(size_t n, uint32_t nprims, gp_setops s, double *v, dou
     return c;
 }
 
-gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double *g,
-                       const double *nrm, double eps_d, double alpha, double lambda)
+static gp_cache *cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double *g,
+                           const double *nrm, double eps_d, double alpha, double lambda,
+                           int tables)
 {
     gp_cache *c = cache_of(n, nprims, s, v, g);
     if (!c) return NULL;
@@ -321,11 +325,23 @@ gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double
         double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
         for (int k = 0; k < 3; k++) c->nrm[3 * i + k] = l > 0 ? q[k] / l : 0.0;
     }
-    if (build_scores(c) || build_sides(c)) {
+    if (build_scores(c, tables) || build_sides(c)) {
         gp_cache_free(c);
         return NULL;
     }
     return c;
+}
+
+gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double *g,
+                       const double *nrm, double eps_d, double alpha, double lambda)
+{
+    return cache_new(n, nprims, s, v, g, nrm, eps_d, alpha, lambda, 1);
+}
+
+gp_cache *gp_cache_new_stats(size_t n, uint32_t nprims, gp_setops s, double *v, double *g,
+                             const double *nrm, double eps_d, double alpha, double lambda)
+{
+    return cache_new(n, nprims, s, v, g, nrm, eps_d, alpha, lambda, 0);
 }
 
 gp_cache *gp_cache_values(size_t n, uint32_t nprims, gp_setops s, double *v, double *g)
@@ -365,11 +381,11 @@ gp_cache *gp_cache_subset(const gp_cache *c, const size_t *idx, size_t m,
     s->nrm = malloc(3 * mm * sizeof *s->nrm);
     s->side = calloc((size_t)4 * k * (nw ? nw : 1), sizeof *s->side);
     if (c->setops == GP_SETOPS_MINMAX) {
-        s->score = malloc((size_t)2 * k * mm * sizeof *s->score);
+        if (c->score) s->score = malloc((size_t)2 * k * mm * sizeof *s->score);
         s->vf = malloc((size_t)k * mm * sizeof *s->vf);
     }
     if (!s->v || !s->g || !s->nrm || !s->side ||
-        (c->setops == GP_SETOPS_MINMAX && (!s->score || !s->vf))) {
+        (c->setops == GP_SETOPS_MINMAX && ((c->score && !s->score) || !s->vf))) {
         gp_cache_free(s);
         return NULL;
     }
@@ -380,8 +396,8 @@ gp_cache *gp_cache_subset(const gp_cache *c, const size_t *idx, size_t m,
             s->v[(size_t)jj * m + i] = c->v[j * n + q];
             for (size_t d = 0; d < 3; d++)
                 s->g[(3 * (size_t)jj + d) * m + i] = c->g[(3 * j + d) * n + q];
+            if (s->vf) s->vf[(size_t)jj * m + i] = c->vf[j * n + q];
             if (s->score) {
-                s->vf[(size_t)jj * m + i] = c->vf[j * n + q];
                 s->score[2 * (size_t)jj * m + i] = c->score[2 * j * n + q];
                 s->score[(2 * (size_t)jj + 1) * m + i] = c->score[(2 * j + 1) * n + q];
             }
@@ -681,6 +697,7 @@ static double score_code(const gp_cache *c, gp_eval *e, const frep_insn *code, u
                          const gp_tape *tp, gp_tape *rec, double floor)
 {
     if (!len || eval_reserve(e, max_stack(code, len))) return NAN;
+    if (c->setops == GP_SETOPS_MINMAX && !c->score && !c->values_only) return NAN;
     /* The bound is summed in another order than the score: a margin far above the
      * rounding keeps every decision exact. */
     const double *tail = floor > -HUGE_VAL ? c->tail : NULL;

@@ -1070,6 +1070,51 @@ static void test_cache_subset(void)
     scene_free(&s);
 }
 
+/* gp_cache_new_stats: without the score tables, the statistics of random trees are
+ * those of the full cache, for both families, and scoring on it is refused (NaN). */
+static void test_cache_stats(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 29);
+    double h[3] = { 1, 0.8, 0.6 };
+    sample_box(&s, &r, 120, h, 0.3);
+    s.prims[s.nprims++] = (aprim){ T_CYLZ, { 0, 0, 0 }, 0.3 };
+    s.prims[s.nprims++] = (aprim){ T_SPHERE, { 0.6, 0.4, 0.4 }, 0.5 };
+    for (int so = 0; so < 2; so++) {
+        gp_cache *c = scene_cache(&s, (gp_setops)so, 20);
+        size_t n = c->n;
+        double *v = malloc(c->nprims * n * sizeof *v), *g = malloc(3 * c->nprims * n * sizeof *g);
+        memcpy(v, c->v, c->nprims * n * sizeof *v);
+        memcpy(g, c->g, 3 * c->nprims * n * sizeof *g);
+        gp_cache *st = gp_cache_new_stats(n, c->nprims, (gp_setops)so, v, g, s.nrm, c->eps_d,
+                                          c->alpha, c->lambda);
+        gp_eval *e = gp_eval_new();
+        gp_tree t = { NULL, 0, 0 };
+        int same = st != NULL, trees = 0;
+        for (int k = 0; same && k < 30; k++) {
+            t.len = 0;
+            tree_grow(&t, &r, (gp_setops)so, c->nprims, 5, 0.7);
+            gp_stats a, b;
+            same &= gp_tree_stats(c, e, t.code, t.len, &a) == 0 &&
+                    gp_tree_stats(st, e, t.code, t.len, &b) == 0 && a.score == b.score &&
+                    a.explained == b.explained && a.within_eps == b.within_eps &&
+                    a.normals_ok == b.normals_ok;
+            trees++;
+        }
+        double f = st ? gp_fitness(st, e, t.code, t.len) : 0;
+        ok(same && (so ? !isnan(f) : isnan(f)),
+           "%s: a cache without score tables gives the same statistics (%d trees)%s",
+           so ? "rfunc" : "minmax", trees, so ? "" : ", and no score");
+        tree_free(&t);
+        gp_eval_free(e);
+        gp_cache_free(st);
+        gp_cache_free(c);
+    }
+    scene_free(&s);
+}
+
 /* part_exhaustive: a clique of four primitives solved by enumeration, at least as fit
  * as the GA's tree, the same at every call. */
 static void test_exhaustive(void)
@@ -1460,5 +1505,6 @@ int main(void)
     test_grow_threads();
     test_simplify_both();
     test_support();
+    test_cache_stats();
     return done_testing();
 }
