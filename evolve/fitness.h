@@ -78,7 +78,8 @@ gp_cache *gp_cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, double
                        const double *nrm, double eps_d, double alpha, double lambda);
 /* gp_cache_new without the score tables, for gp_tree_stats and gp_explained only
  * (they score each point from the tree's value and gradient): the exp and acos of
- * 2 x nprims terms per point are left out. Scores on it are NaN. */
+ * 2 x nprims terms per point are left out. Min/max scores on it are NaN (R-function
+ * scores need no tables). */
 gp_cache *gp_cache_new_stats(size_t n, uint32_t nprims, gp_setops s, double *v, double *g,
                              const double *nrm, double eps_d, double alpha, double lambda);
 /* A cache for the values of trees only (gp_tree_values, tapes, gp_values_*), at points
