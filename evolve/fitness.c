@@ -190,7 +190,8 @@ static void fill_scores(gp_cache *c)
     }
 }
 
-/* gp_cache.tail from the score tables. 0 or -1. */
+/* gp_cache.tail: from the score tables (min/max), else 2 per point (each of the two
+ * exp terms is at most 1). 0 or -1. */
 static int build_tail(gp_cache *c)
 {
     size_t n = c->n, B = GP_FIT_BLOCK, nb = (n + B - 1) / B;
@@ -201,8 +202,8 @@ static int build_tail(gp_cache *c)
         /* Summed in the order score_code sums the block. */
         double u = 0;
         for (size_t i = b * B; i < n && i < (b + 1) * B; i++) {
-            float mx = 0;
-            for (size_t q = 0; q < 2 * (size_t)c->nprims; q++)
+            float mx = c->score ? 0 : 2;
+            for (size_t q = 0; c->score && q < 2 * (size_t)c->nprims; q++)
                 if (c->score[q * n + i] > mx) mx = c->score[q * n + i];
             u += (double)mx;
         }
@@ -214,7 +215,7 @@ static int build_tail(gp_cache *c)
 /* vf, and with tables the score tables and their tail (min/max caches). */
 static int build_scores(gp_cache *c, int tables)
 {
-    if (c->setops != GP_SETOPS_MINMAX) return 0;
+    if (c->setops != GP_SETOPS_MINMAX) return tables ? build_tail(c) : 0;
     size_t n = c->n;
     c->vf = malloc((size_t)c->nprims * (n ? n : 1) * sizeof *c->vf);
     if (!c->vf) return -1;
@@ -408,7 +409,7 @@ gp_cache *gp_cache_subset(const gp_cache *c, const size_t *idx, size_t m,
     }
     for (size_t i = 0; i < m; i++)
         for (int d = 0; d < 3; d++) s->nrm[3 * i + d] = c->nrm[3 * idx[i] + d];
-    if (s->score && build_tail(s)) {
+    if ((s->score || (c->tail && s->setops != GP_SETOPS_MINMAX)) && build_tail(s)) {
         gp_cache_free(s);
         return NULL;
     }

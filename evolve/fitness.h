@@ -45,9 +45,11 @@ typedef struct gp_cache {
                             memory traffic); valid when setops == GP_SETOPS_MINMAX */
     /* tail[b]: an upper bound of the score of the points from block b (GP_FIT_BLOCK
      * points each) to the end, b = 0..nblocks: the sum of each point's largest table
-     * entry, since a min/max tree scores at most that at the point. A search that
-     * only wants trees above a floor stops scoring one once the blocks scored plus
-     * this bound fall below it (gp_fitness_replaced). Min/max only; NULL otherwise. */
+     * entry, since a min/max tree scores at most that at the point (R-functions: 2 per
+     * point, each exp term being at most 1). A search that only wants trees above a
+     * floor stops scoring one once the blocks scored plus this bound fall below it
+     * (gp_fitness_replaced). NULL for the caches of gp_cache_new_stats and
+     * gp_cache_values, which are not scored. */
     double *tail;
     /* The crossing test (above): a point on the tree's zero set counts only when the
      * field changes sign across it along the point's normal, so a zero-thickness sheet
@@ -184,8 +186,8 @@ frep_insn gp_tape_leaf(const gp_cache *c, uint32_t node);
  * its subtree [st, end] replaced by sub[0..nsub). NaN on allocation failure or when
  * nothing is recorded on c.
  * floor: searches keep a variant only when it beats a fitness (the best so far, the
- * tree's own); with a min/max cache, a variant that cannot reach floor is left as soon
- * as gp_cache.tail shows it and -HUGE_VAL is returned. Every fitness at or above floor
+ * tree's own); a variant that cannot reach floor is left as soon as gp_cache.tail
+ * shows it and -HUGE_VAL is returned. Every fitness at or above floor
  * is exact, so the searches choose as with full scores. -HUGE_VAL: always exact. */
 double gp_fitness_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
                            const frep_insn *sub, uint32_t nsub, double floor);
