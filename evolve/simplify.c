@@ -964,6 +964,30 @@ void simplify_polarity(const gp_tree *t, gp_setops s, uint8_t *pol)
     node_polarity(t, &o, pol);
 }
 
+void simplify_trim_keeps(const gp_tree *t, uint32_t other, const gp_cache *c, uint32_t j,
+                         const uint8_t *ok, const uint8_t *oks, int can[2])
+{
+    const double *v = c->v + (size_t)j * c->n;
+    for (size_t i = 0; i < c->n && (can[0] || can[1]); i++) {
+        if (!oks[i] || !ok[i]) continue;
+        if (v[i] < -c->eps_d) can[0] = 0;
+        if (v[i] > c->eps_d) can[1] = 0;
+    }
+    /* A | (B & ~A) is A | B: no trim when the other operand is p. */
+    const frep_insn *oth = &t->code[other];
+    if (tree_nin(oth) == 0 && oth->arg == j) can[1] = 0;
+}
+
+int simplify_trim_code(gp_tree *sub, const frep_insn *head, uint32_t nhead, uint32_t j,
+                       int neg, const gp_opset *o)
+{
+    return tree_set(sub, head, nhead) || tree_push(sub, FREP_OP_PRIM, j) ||
+                   (neg && tree_push(sub, (frep_opcode)o->neg, 0)) ||
+                   tree_push(sub, (frep_opcode)o->inter, 0)
+               ? -1
+               : 0;
+}
+
 /* One round: the best S & L replacing an operand S of a union that adds material,
  * L = p or ~p for a primitive p that keeps every point S explains (L >= -eps_d there),
  * when the trimmed tree explains more points and scores no lower (size penalty aside).
@@ -1022,23 +1046,13 @@ static int grow_trim(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
             uint32_t st = tree_subtree_start(t->code, end);
             /* The points S explains alone that the tree explains too. */
             if (gp_explained(c, e, t->code + st, end - st + 1, oks)) goto out;
+            frep_insn lf = gp_tape_leaf(c, end);
             for (uint32_t j = 0; j < k; j++) {
-                const double *v = c->v + (size_t)j * n;
                 int can[2] = { sup[2 * j], sup[2 * j + 1] };  /* keeps them as p, ~p */
-                for (size_t i = 0; i < n && (can[0] || can[1]); i++) {
-                    if (!oks[i] || !ok[i]) continue;
-                    if (v[i] < -c->eps_d) can[0] = 0;
-                    if (v[i] > c->eps_d) can[1] = 0;
-                }
-                /* A | (B & ~A) is A | B: no trim when the other operand is p. */
-                const frep_insn *oth = &t->code[ends[1 - side]];
-                if (tree_nin(oth) == 0 && oth->arg == j) can[1] = 0;
+                simplify_trim_keeps(t, ends[1 - side], c, j, ok, oks, can);
                 for (int ng = 0; ng < 2; ng++) {
                     if (!can[ng]) continue;
-                    if (leaf1(&sub, c, end) || tree_push(&sub, FREP_OP_PRIM, j) ||
-                        (ng && tree_push(&sub, (frep_opcode)o->neg, 0)) ||
-                        tree_push(&sub, (frep_opcode)o->inter, 0))
-                        goto out;
+                    if (simplify_trim_code(&sub, &lf, 1, j, ng, o)) goto out;
                     gp_stats stt;
                     if (gp_stats_replaced(c, e, st, end, sub.code, sub.len, &stt)) goto out;
                     if (stt.explained > bn && !(stt.score < bs)) {
@@ -1056,10 +1070,7 @@ static int grow_trim(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
     if (best_neg < 0) goto out;
     {
         uint32_t st = tree_subtree_start(t->code, best_end);
-        rc = tree_set(&sub, t->code + st, best_end - st + 1) ||
-                     tree_push(&sub, FREP_OP_PRIM, best_j) ||
-                     (best_neg && tree_push(&sub, (frep_opcode)o->neg, 0)) ||
-                     tree_push(&sub, (frep_opcode)o->inter, 0)
+        rc = simplify_trim_code(&sub, t->code + st, best_end - st + 1, best_j, best_neg, o)
                  ? -1
                  : commit_splice(t, trial, best_end, &sub);
     }

@@ -57,4 +57,15 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
  * complements and right operands of subtractions above it), 0 when it removes some. */
 void simplify_polarity(const gp_tree *t, gp_setops s, uint8_t *pol);
 
+/* The trims S & L of the growth steps (simplify.c) and of support.c, L = p or ~p for
+ * primitive j, must keep every point S explains that the tree explains (oks[i] and
+ * ok[i] set): can[0] (L = p) is cleared when p < -eps_d at such a point, can[1]
+ * (L = ~p) when p > eps_d, or when the union's other operand (ending at node other)
+ * is p itself (A | (B & ~A) is A | B). */
+void simplify_trim_keeps(const gp_tree *t, uint32_t other, const gp_cache *c, uint32_t j,
+                         const uint8_t *ok, const uint8_t *oks, int can[2]);
+/* sub = head[0..nhead) & L, L = PRIM j (neg 0) or its complement (neg 1). 0 or -1. */
+int simplify_trim_code(gp_tree *sub, const frep_insn *head, uint32_t nhead, uint32_t j,
+                       int neg, const gp_opset *o);
+
 #endif

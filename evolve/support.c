@@ -146,27 +146,14 @@ int support_trim(gp_tree *t, gp_setops s, const gp_cache *pc, gp_eval *e,
                 uint32_t end = ends[side], st = tree_subtree_start(t->code, end);
                 /* The points S explains alone that the tree explains too: L keeps them. */
                 if (gp_explained(pc, e, t->code + st, end - st + 1, oks)) goto out;
+                frep_insn lf = gp_tape_leaf(pc, end);
                 for (uint32_t j = 0; j < k; j++) {
                     int can[2];
                     cuts(g, &el, j, can);
-                    const double *pv = pc->v + (size_t)j * n;
-                    for (size_t i = 0; i < n && (can[0] || can[1]); i++) {
-                        if (!oks[i] || !ok[i]) continue;
-                        if (pv[i] < -pc->eps_d) can[0] = 0;
-                        if (pv[i] > pc->eps_d) can[1] = 0;
-                    }
-                    /* A | (B & ~A) is A | B. */
-                    const frep_insn *oth = &t->code[ends[1 - side]];
-                    if (tree_nin(oth) == 0 && oth->arg == j) can[1] = 0;
+                    simplify_trim_keeps(t, ends[1 - side], pc, j, ok, oks, can);
                     for (int neg = 0; neg < 2; neg++) {
                         if (!can[neg]) continue;
-                        frep_insn lf = gp_tape_leaf(pc, end);
-                        sub.len = 0;
-                        if (tree_push(&sub, (frep_opcode)lf.op, lf.arg) ||
-                            tree_push(&sub, FREP_OP_PRIM, j) ||
-                            (neg && tree_push(&sub, (frep_opcode)o.neg, 0)) ||
-                            tree_push(&sub, (frep_opcode)o.inter, 0))
-                            goto out;
+                        if (simplify_trim_code(&sub, &lf, 1, j, neg, &o)) goto out;
                         gp_stats stt;
                         if (gp_stats_replaced(pc, e, st, end, sub.code, sub.len, &stt)) goto out;
                         /* No point lost; the score may drop by a node's worth (points
@@ -199,10 +186,7 @@ int support_trim(gp_tree *t, gp_setops s, const gp_cache *pc, gp_eval *e,
         }
         if (best_neg < 0 || best_u + SUPPORT_MIN_GAIN > u) break;
         uint32_t st = tree_subtree_start(t->code, best_end);
-        if (tree_set(&sub, t->code + st, best_end - st + 1) ||
-            tree_push(&sub, FREP_OP_PRIM, best_j) ||
-            (best_neg && tree_push(&sub, (frep_opcode)o.neg, 0)) ||
-            tree_push(&sub, (frep_opcode)o.inter, 0))
+        if (simplify_trim_code(&sub, t->code + st, best_end - st + 1, best_j, best_neg, &o))
             goto out;
         gp_tree keep = { NULL, 0, 0 };
         if (tree_copy(&keep, t) || tree_splice(t, st, best_end, sub.code, sub.len)) {
