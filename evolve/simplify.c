@@ -315,6 +315,20 @@ static int grow_root(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
     return 1;
 }
 
+/* node_moves at node `end` of a removal scan: -1 on allocation failure, 0 when no move
+ * applies, else 1 with *took the end of the node that took the place. */
+static int reduce_at(gp_tree *t, gp_tree *trial, gp_tree *cand, uint32_t end,
+                     const gp_opset *o, const gp_cache *c, gp_eval *e, double *fit,
+                     uint32_t *took)
+{
+    if (tree_nin(&t->code[end]) == 0) return 0;
+    uint32_t st = tree_subtree_start(t->code, end);
+    long r = node_moves(t, trial, cand, end, o, c, e, fit);
+    if (r <= 0) return (int)r;
+    *took = st + (uint32_t)r - 1;
+    return 1;
+}
+
 /* Removal moves until none applies. */
 static int reduce(gp_tree *t, gp_tree *trial, gp_tree *cand, gp_setops s, const gp_opset *o,
                   const gp_cache *c, gp_eval *e, double *fit, int leaves_first)
@@ -323,17 +337,16 @@ static int reduce(gp_tree *t, gp_tree *trial, gp_tree *cand, gp_setops s, const 
     while (changed) {
         changed = 0;
         if (record(t, c, e, fit)) return -1;
+        uint32_t took = 0;
         if (!leaves_first) {
             /* Root first: removing high nodes saves the most. After a replacement the
              * scan continues at the node that took the place. */
             for (uint32_t end = t->len; end-- > 0;) {
-                if (tree_nin(&t->code[end]) == 0) continue;
-                uint32_t st = tree_subtree_start(t->code, end);
-                long r = node_moves(t, trial, cand, end, o, c, e, fit);
+                int r = reduce_at(t, trial, cand, end, o, c, e, fit, &took);
                 if (r < 0) return -1;
                 if (r > 0) {
                     changed = 1;
-                    end = st + (uint32_t)r;  /* the loop decrements to the new node */
+                    end = took + 1;  /* the loop decrements to the new node */
                 }
             }
         } else {
@@ -341,13 +354,11 @@ static int reduce(gp_tree *t, gp_tree *trial, gp_tree *cand, gp_setops s, const 
              * only it made redundant (partition.c, merged trees). After a replacement
              * the scan continues after the node that took the place. */
             for (uint32_t end = 0; end < t->len; end++) {
-                if (tree_nin(&t->code[end]) == 0) continue;
-                uint32_t st = tree_subtree_start(t->code, end);
-                long r = node_moves(t, trial, cand, end, o, c, e, fit);
+                int r = reduce_at(t, trial, cand, end, o, c, e, fit, &took);
                 if (r < 0) return -1;
                 if (r > 0) {
                     changed = 1;
-                    end = st + (uint32_t)r - 1;  /* the loop increments past it */
+                    end = took;  /* the loop increments past it */
                 }
             }
         }
