@@ -66,7 +66,7 @@ def read_truth(path):
 
 
 def read_fit(path):
-    """frep's .fit list (evolve/fitfile.c)."""
+    """frep's .fit list (geom/fitfile.c)."""
     out = []
     for line in open(path):
         w = line.split()

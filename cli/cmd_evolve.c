@@ -1,6 +1,6 @@
 /* cmd_evolve.c - frep evolve: from a point cloud (and optionally its primitives) to a
  * readable .hf construction-tree model, by genetic programming (evolve/evolve.c);
- * segments the cloud first (evolve/segment.c) when no primitive list is given.
+ * segments the cloud first (segment/segment.c) when no primitive list is given.
  */
 #include "config.h"
 

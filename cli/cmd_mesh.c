@@ -1,5 +1,5 @@
-/* cmd_mesh.c - frep mesh: polygonize a model (runtime/mesh.c) and write STL, OBJ, PLY
- * or OFF (runtime/meshio.c).  Also holds the model-to-mesh steps that frep sample and
+/* cmd_mesh.c - frep mesh: polygonize a model (mesh/mesh.c) and write STL, OBJ, PLY
+ * or OFF (geom/meshio.c).  Also holds the model-to-mesh steps that frep sample and
  * frep render share (mesh_cli_*).
  */
 #include "config.h"

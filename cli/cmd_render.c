@@ -1,5 +1,5 @@
 /* cmd_render.c - frep render: a shaded PNG picture of a model (polygonized by
- * runtime/mesh.c, rasterized by runtime/render.c, encoded by runtime/png.c), optionally
+ * mesh/mesh.c, rasterized by mesh/render.c, encoded by mesh/png.c), optionally
  * with a point cloud drawn over it, coloured by its distance to the surface.
  */
 #include "config.h"

@@ -1,6 +1,6 @@
 /* cmd_sample.c - frep sample: a point cloud with normals from a model's surface (or
- * from a triangle mesh file), with optional noise and outliers (runtime/sample.c),
- * written as .xyz or PLY (runtime/cloud.c).
+ * from a triangle mesh file), with optional noise and outliers (mesh/sample.c),
+ * written as .xyz or PLY (geom/cloud.c).
  */
 #include "config.h"
 

@@ -1,5 +1,5 @@
 /* cmd_segment.c - frep segment: detect planes, spheres, cylinders, cones and tori in a
- * point cloud (evolve/segment.c) and write them, with the separating primitives a
+ * point cloud (segment/segment.c) and write them, with the separating primitives a
  * construction tree needs, as a readable .hf model or a .fit list for frep evolve.
  */
 #include "config.h"

@@ -213,7 +213,7 @@ static const lib_fn lib_table[] = {
     { "frBlendUnion", "sssss", { 0 }, hf_blend_uni, "blending union (same as hfBlendUni)" },
     { "frBlendIntersection", "sssss", { 0 }, hf_blend_int,
       "blending intersection (same as hfBlendInt)" },
-    /* frep extensions: signed-distance primitives in general position (evolve/prim.h) */
+    /* frep extensions: signed-distance primitives in general position (geom/prim.h) */
     { "frPlane", "xssss", { 0 }, ext_plane, "half-space d - n.x / |n|" },
     { "frSphere", "xssss", { 0 }, ext_sphere, "sphere r - |x - c|" },
     { "frCylinder", "xsssssss", { 0 }, ext_cylinder, "cylinder: point, axis, radius" },

@@ -1,7 +1,7 @@
 /* lib_ext.c - frep's extensions to the HyperFun library, expanded into IR (called
  * through lib.c's table by lang/lower.c): explicit set operations of each family,
  * and signed-distance primitives in general position with the exact names, argument
- * order and formulas of evolve/prim.h, so that models written by `frep segment` and
+ * order and formulas of geom/prim.h, so that models written by `frep segment` and
  * `frep evolve` evaluate to the numbers prim_eval() gives.
  */
 #include <stddef.h>

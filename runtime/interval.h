@@ -1,7 +1,7 @@
 /* interval.h - interval evaluation of a frep_program over an axis-aligned box.
  *
  * runtime/vm_interval.c runs the same bytecode as the point evaluators with interval
- * operands; runtime/mesh.c uses it to prove octree cells empty or full, so meshing
+ * operands; mesh/mesh.c uses it to prove octree cells empty or full, so meshing
  * cost follows the surface instead of the volume.
  */
 #ifndef FREP_INTERVAL_H

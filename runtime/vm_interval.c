@@ -1,7 +1,7 @@
 /* vm_interval.c - the interval evaluator: runs a program's bytecode with intervals for
  * x, y, z and yields a sound enclosure of f over a box (interval.h).
  *
- * Used by the octree of runtime/mesh.c to skip space the surface cannot cross.  Every
+ * Used by the octree of mesh/mesh.c to skip space the surface cannot cross.  Every
  * opcode of ops.h is handled; the common ones (arithmetic, R-functions, min/max,
  * elementary functions, integer powers) give tight bounds, exotic ones a safe hull.
  */

@@ -45,7 +45,7 @@ for hf in "$M"/*.hf; do
 done
 # One sheet crossing a cell face twice on both sides of the face (a tunnel thinner than
 # a cell; near-touching parts): four quads used to share one mesh edge there.  These
-# grids and boxes did so before the face vertices of runtime/mesh.c.
+# grids and boxes did so before the face vertices of mesh/mesh.c.
 cat > "$T/near.hf" <<'EOF'
 my_model(x[3], a[1])
 {

@@ -1,4 +1,4 @@
-/* test_cloud.c - unit tests of runtime/cloud.c: .xyz and PLY readers (every format,
+/* test_cloud.c - unit tests of geom/cloud.c: .xyz and PLY readers (every format,
  * malformed input with its message), writers and their round trip, bounding box.
  */
 #include <stdint.h>

@@ -1,5 +1,5 @@
 /* test_mesh.c - unit tests of the interval evaluator (runtime/vm_interval.c) and the
- * dual-contouring mesher (runtime/mesh.c) on analytic fields given as C callbacks:
+ * dual-contouring mesher (mesh/mesh.c) on analytic fields given as C callbacks:
  * interval enclosures hold at sampled points; meshes are closed, 2-manifold,
  * outward, NaN-free, accurate (volume, distance, sharp corners) and thread-invariant.
  */

@@ -1,4 +1,4 @@
-/* test_sample.c - unit tests of surface sampling (runtime/sample.c): points lie on the
+/* test_sample.c - unit tests of surface sampling (mesh/sample.c): points lie on the
  * zero set, normals are the outward analytic normals, density is even, the cloud does
  * not depend on the thread count, noise and outliers have the requested size, and mesh
  * sampling uses face normals.

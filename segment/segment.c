@@ -1,4 +1,4 @@
-/* segment.c - the segmentation driver (evolve/segment.h): defaults scaled to the
+/* segment.c - the segmentation driver (segment/segment.h): defaults scaled to the
  * cloud, normals when needed, efficient RANSAC, oriented boxes, separating primitives
  * (Fayolle & Pasko 2016, Algorithm 2) and the .hf/.fit primitive lists.
  */

@@ -1,6 +1,6 @@
 /* png.c - the minimal PNG encoder of png.h: a signature, IHDR, IDAT chunks holding a
  * zlib stream of stored (uncompressed) deflate blocks, and IEND.
- * Used by runtime/render.c through `frep render`.
+ * Used by mesh/render.c through `frep render`.
  */
 #include "config.h"
 

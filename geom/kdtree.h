@@ -1,6 +1,6 @@
 /* kdtree.h - a static kd-tree over a point cloud for k-nearest-neighbour queries.
  *
- * Used by evolve/normals.c (PCA neighbourhoods and the orientation graph) and by the
+ * Used by geom/normals.c (PCA neighbourhoods and the orientation graph) and by the
  * connectivity checks of segmentation.  Built once, then read-only: any number of
  * threads may query one tree at the same time.
  */

@@ -1,7 +1,7 @@
 /* render.h - a shaded picture of a mesh (z-buffer rasterizer, Phong shading with the
  * mesh's per-vertex normals) with an optional point overlay coloured by a per-point
  * value (the distance of a cloud to the model).  Called by `frep render` after
- * runtime/mesh.c; the image goes to runtime/png.c.
+ * mesh/mesh.c; the image goes to mesh/png.c.
  */
 #ifndef FREP_RENDER_H
 #define FREP_RENDER_H

@@ -1,8 +1,8 @@
 /* mesh.h - polygonization: dual contouring of a scalar field on a sparse grid whose
- * active blocks are found by an interval-pruned octree (runtime/mesh.c).
+ * active blocks are found by an interval-pruned octree (mesh/mesh.c).
  *
  * Sits after the evaluators (frep_eval, frep_eval_grad, vm_eval_interval) and before
- * the mesh writers of runtime/meshio.c; `frep mesh`, `frep sample` and `frep render`
+ * the mesh writers of geom/meshio.c; `frep mesh`, `frep sample` and `frep render`
  * call it.  The field is abstract (mesh_field) so tests can mesh C callbacks.
  */
 #ifndef FREP_MESH_H
@@ -12,6 +12,7 @@
 #include <stdint.h>
 
 #include "frep.h"
+#include "trimesh.h"
 
 /* Limits, each with its reason. */
 #define MESH_MAX_GRID 2048       /* cells per axis: a closed surface at 2048^3 already has
@@ -19,18 +20,6 @@
 #define MESH_MAX_WORK_BYTES ((size_t)3 << 30) /* working memory of the active blocks; past
                                     it the run stops with a message instead of swapping */
 #define MESH_MAX_TRIANGLES ((size_t)1 << 30) /* uint32 vertex indices, STL's uint32 count */
-
-/* A triangle mesh. v[3i..3i+2] is vertex i, n[3i..] its unit normal (zero when unknown),
- * tri[3t..3t+2] the vertices of triangle t, counter-clockwise seen from outside.
- * Free with mesh_free(). */
-typedef struct frep_mesh {
-    size_t nverts, ntris;
-    double *v;
-    double *n;        /* may be NULL (meshes read from files without normals) */
-    uint32_t *tri;
-} frep_mesh;
-
-void mesh_free(frep_mesh *m);
 
 /* A scalar field to polygonize: inside where f >= iso.  Callbacks receive ctx and a
  * per-thread state made by thread_new (which may return ctx itself when the field has
@@ -97,18 +86,5 @@ typedef struct mesh_stats {
  * message in err (errlen bytes). */
 int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
                     mesh_stats *stats, char *err, size_t errlen);
-
-/* Checks used by the tests and `frep mesh --check`: counts of edges not shared by
- * exactly two triangles, of edges used twice in the same direction (orientation
- * flips), of triangles with (near) zero area and of non-finite coordinates, and of
- * non-manifold vertices: vertices whose triangles do not form one closed fan (two
- * cones touching at a point, or a fan left open).  Vertices no triangle uses are
- * counted apart (unused). */
-typedef struct mesh_check {
-    size_t open_edges, nonmanifold_edges, flipped_edges, degenerate, nonfinite;
-    double volume, area;     /* signed enclosed volume (positive when outward) */
-    size_t nonmanifold_verts, unused_verts;
-} mesh_check;
-int mesh_validate(const frep_mesh *m, mesh_check *c);
 
 #endif

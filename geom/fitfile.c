@@ -1,4 +1,4 @@
-/* fitfile.c - reader and writer of the ".fit" primitive list (evolve/fitfile.h).
+/* fitfile.c - reader and writer of the ".fit" primitive list (geom/fitfile.h).
  *
  * The parameter order per type follows the reference implementation: direction before
  * point for cylinders, cones and tori, minor radius before major radius for tori.

@@ -1,4 +1,4 @@
-/* meshio.h - triangle mesh files: write what runtime/mesh.c makes (STL binary and
+/* meshio.h - triangle mesh files: write what mesh/mesh.c makes (STL binary and
  * ASCII, OBJ, PLY binary and ASCII, OFF) and read triangle meshes (OFF, OBJ, STL, PLY)
  * for `frep sample MESH`.  Writers take a FILE so the CLI can write atomically.
  */
@@ -7,7 +7,7 @@
 
 #include <stdio.h>
 
-#include "mesh.h"
+#include "trimesh.h"
 
 typedef enum meshio_format {
     MESHIO_UNKNOWN = 0,

@@ -1,4 +1,4 @@
-/* kdtree.c - static kd-tree for k-nearest-neighbour queries (evolve/kdtree.h).
+/* kdtree.c - static kd-tree for k-nearest-neighbour queries (geom/kdtree.h).
  *
  * Balanced by median splits on the widest axis, stored implicitly: node i covers a
  * contiguous range of the permuted points and has children 2i and 2i+1, so the tree is

@@ -1,4 +1,4 @@
-/* normals.c - PCA normals and their consistent orientation (evolve/normals.h).
+/* normals.c - PCA normals and their consistent orientation (geom/normals.h).
  *
  * Per point: covariance of its k nearest neighbours, normal = eigenvector of the
  * smallest eigenvalue (OpenMP over points; each point is independent, so the result

@@ -1,6 +1,6 @@
 /* sample.h - point clouds sampled from a model's surface or from a triangle mesh.
  *
- * A model is polygonized (runtime/mesh.c), points are drawn area-weighted on the
+ * A model is polygonized (mesh/mesh.c), points are drawn area-weighted on the
  * triangles and projected onto the zero set with Newton steps along the gradient;
  * normals are the outward unit normals -grad f / |grad f|.  Optional Gaussian noise
  * and uniform outliers make test clouds for fit/segment/evolve.  The random stream is

@@ -1,4 +1,4 @@
-/* ransac.c - efficient RANSAC primitive detection (evolve/ransac.h).
+/* ransac.c - efficient RANSAC primitive detection (segment/ransac.h).
  *
  * Schnabel, Wahl, Klein, "Efficient RANSAC for point-cloud shape detection" (2007):
  * minimal samples drawn locally through an octree (here: points sorted by Morton code,

@@ -1,7 +1,7 @@
 /* segment.h - `frep segment`: split a point cloud into primitive patches and add the
  * separating primitives a construction tree needs (Fayolle & Pasko 2016, Algorithms
- * 1 and 2).  Pipeline: normals (evolve/normals.c) -> efficient RANSAC
- * (evolve/ransac.c) -> bounding boxes and separating primitives (here) -> .hf / .fit.
+ * 1 and 2).  Pipeline: normals (geom/normals.c) -> efficient RANSAC
+ * (segment/ransac.c) -> bounding boxes and separating primitives (here) -> .hf / .fit.
  */
 #ifndef FREP_SEGMENT_H
 #define FREP_SEGMENT_H
@@ -21,7 +21,7 @@
 #define SEGMENT_DEFAULT_NORMAL_DEG 25.0
 #define SEGMENT_DEFAULT_MIN_FRACTION 0.01 /* smallest support: 1% of the points ... */
 #define SEGMENT_MIN_POINTS_FLOOR 10       /* ... and never fewer than this */
-/* Second detection phase (evolve/ransac.c, SMALL_TIGHT): tight shapes down to 0.25% of
+/* Second detection phase (segment/ransac.c, SMALL_TIGHT): tight shapes down to 0.25% of
  * the points, so that the small faces of a part (under 1% of its area) are found. */
 #define SEGMENT_DEFAULT_SMALL_FRACTION 0.0025
 #define SEGMENT_NO_SMALL ((size_t)-1)     /* min_points_small: no second phase */

@@ -1,4 +1,4 @@
-/* prim.c - evaluation and source form of fitted primitives (evolve/prim.h).
+/* prim.c - evaluation and source form of fitted primitives (geom/prim.h).
  *
  * The same formulas as the language's frPlane/frSphere/frCylinder/frCone/frTorus, so a
  * model written by prim_write_call evaluates to what segment and evolve computed.

@@ -1,0 +1,35 @@
+/* trimesh.h - the indexed triangle mesh of frep: what the polygonizer (mesh/mesh.c)
+ * makes, the mesh files (geom/meshio.c) read and write, and sampling and rendering use.
+ */
+#ifndef FREP_TRIMESH_H
+#define FREP_TRIMESH_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* A triangle mesh. v[3i..3i+2] is vertex i, n[3i..] its unit normal (zero when unknown),
+ * tri[3t..3t+2] the vertices of triangle t, counter-clockwise seen from outside.
+ * Free with mesh_free(). */
+typedef struct frep_mesh {
+    size_t nverts, ntris;
+    double *v;
+    double *n;        /* may be NULL (meshes read from files without normals) */
+    uint32_t *tri;
+} frep_mesh;
+
+void mesh_free(frep_mesh *m);
+
+/* Checks used by the tests and `frep mesh --check`: counts of edges not shared by
+ * exactly two triangles, of edges used twice in the same direction (orientation
+ * flips), of triangles with (near) zero area and of non-finite coordinates, and of
+ * non-manifold vertices: vertices whose triangles do not form one closed fan (two
+ * cones touching at a point, or a fan left open).  Vertices no triangle uses are
+ * counted apart (unused). */
+typedef struct mesh_check {
+    size_t open_edges, nonmanifold_edges, flipped_edges, degenerate, nonfinite;
+    double volume, area;     /* signed enclosed volume (positive when outward) */
+    size_t nonmanifold_verts, unused_verts;
+} mesh_check;
+int mesh_validate(const frep_mesh *m, mesh_check *c);
+
+#endif

@@ -1,0 +1,55 @@
+#!/bin/sh
+# tests/layers.sh - the include directions of the library's folders (TAP).
+# Each folder is a layer; a file may include the headers of its own folder and of
+# earlier layers only. Folders of one rank are independent of each other:
+#   runtime (0) <- lang (1) <- geom (2) <- mesh, fit, segment (3) <- evolve (4) <- cli (5)
+# Headers are included by bare name (Makefile.am puts every folder on the include
+# path), so a header name must also be unique across the folders.
+src=${srcdir:-$(cd "$(dirname "$0")/.." && pwd)}
+cd "$src" || exit 1
+layers="runtime:0 lang:1 geom:2 mesh:3 fit:3 segment:3 evolve:4 cli:5"
+
+rank() {
+    for l in $layers; do [ "${l%%:*}" = "$1" ] && { echo "${l#*:}"; return; }; done
+    echo -1
+}
+
+# header -> folder, for every header of the layered folders
+map=$(mktemp); trap 'rm -f "$map"' EXIT
+for l in $layers; do
+    d=${l%%:*}
+    for h in "$d"/*.h; do [ -f "$h" ] && echo "$(basename "$h") $d"; done
+done | sort >"$map"
+
+n=0; bad=0
+dups=$(awk '{print $1}' "$map" | uniq -d)
+n=$((n + 1))
+if [ -n "$dups" ]; then
+    echo "not ok $n - header names unique across folders: $(echo $dups)"; bad=1
+else
+    echo "ok $n - header names unique across folders"
+fi
+
+for l in $layers; do
+    d=${l%%:*}; r=${l#*:}
+    problems=""
+    for f in "$d"/*.c "$d"/*.h "$d"/*.re "$d"/*.y; do
+        [ -f "$f" ] || continue
+        case "$f" in lang/lex.c|lang/parse.c|lang/parse.h) continue ;; esac
+        for inc in $(sed -n 's/^[[:space:]]*#[[:space:]]*include[[:space:]]*"\([^"]*\)".*/\1/p' "$f"); do
+            owner=$(awk -v h="$inc" '$1 == h {print $2}' "$map")
+            [ -n "$owner" ] || continue          # config.h, generated or system headers
+            [ "$owner" = "$d" ] && continue
+            ro=$(rank "$owner")
+            if [ "$ro" -ge "$r" ]; then problems="$problems $f:$inc($owner)"; fi
+        done
+    done
+    n=$((n + 1))
+    if [ -n "$problems" ]; then
+        echo "not ok $n - $d (layer $r) includes only earlier layers:$problems"; bad=1
+    else
+        echo "ok $n - $d (layer $r) includes only earlier layers"
+    fi
+done
+echo "1..$n"
+exit $bad
