@@ -3,6 +3,7 @@
  * output model (.hf) and drawing (.dot).  See evolve.h for the pipeline.
  */
 #include "config.h"
+#include "alloc.h"
 #include "util.h"
 
 #include "evolve.h"
@@ -63,14 +64,14 @@ static gp_cache *build_cache(const prim *prims, size_t nprims, const uint32_t *u
                              const size_t *pts, size_t m, gp_setops s, double eps_d,
                              double alpha, double lambda, int stats_only)
 {
-    double *px = malloc((m ? m : 1) * sizeof *px), *py = malloc((m ? m : 1) * sizeof *py);
-    double *pz = malloc((m ? m : 1) * sizeof *pz), *pn = malloc(3 * (m ? m : 1) * sizeof *pn);
-    double *v = malloc((size_t)(k ? k : 1) * (m ? m : 1) * sizeof *v);
-    double *g = malloc((size_t)3 * (k ? k : 1) * (m ? m : 1) * sizeof *g);
+    double *px = frep_malloc((m ? m : 1) * sizeof *px), *py = frep_malloc((m ? m : 1) * sizeof *py);
+    double *pz = frep_malloc((m ? m : 1) * sizeof *pz), *pn = frep_malloc(3 * (m ? m : 1) * sizeof *pn);
+    double *v = frep_malloc((size_t)(k ? k : 1) * (m ? m : 1) * sizeof *v);
+    double *g = frep_malloc((size_t)3 * (k ? k : 1) * (m ? m : 1) * sizeof *g);
     gp_cache *c = NULL;
     if (!px || !py || !pz || !pn || !v || !g) {
-        free(v);
-        free(g);
+        frep_free(v);
+        frep_free(g);
         goto out;
     }
     for (size_t i = 0; i < m; i++) {
@@ -98,10 +99,10 @@ static gp_cache *build_cache(const prim *prims, size_t nprims, const uint32_t *u
     c = stats_only ? gp_cache_new_stats(m, k, s, v, g, pn, eps_d, alpha, lambda)
                    : gp_cache_new(m, k, s, v, g, pn, eps_d, alpha, lambda);
 out:
-    free(px);
-    free(py);
-    free(pz);
-    free(pn);
+    frep_free(px);
+    frep_free(py);
+    frep_free(pz);
+    frep_free(pn);
     return c;
 }
 
@@ -143,9 +144,9 @@ static int support_run(const evolve_options *o, const frep_cloud *cloud, const p
             g.u[d][c] = h * b->ax[d][c];
         }
     }
-    double *gx = malloc(ng * sizeof *gx), *gy = malloc(ng * sizeof *gy);
-    double *gz = malloc(ng * sizeof *gz);
-    double *clip = malloc(ng * sizeof *clip), *dist = malloc(ng * sizeof *dist);
+    double *gx = frep_malloc(ng * sizeof *gx), *gy = frep_malloc(ng * sizeof *gy);
+    double *gz = frep_malloc(ng * sizeof *gz);
+    double *clip = frep_malloc(ng * sizeof *clip), *dist = frep_malloc(ng * sizeof *dist);
     double *cx = NULL, *cy = NULL, *cz = NULL;
     kd_tree *kd = NULL;
     gp_cache *gc = NULL, *pc = NULL;
@@ -170,9 +171,9 @@ static int support_run(const evolve_options *o, const frep_cloud *cloud, const p
             }
     /* The distances, to the valid points (a regular subset beyond the limit). */
     size_t stride = (nv + EVOLVE_SUPPORT_MAX_POINTS - 1) / EVOLVE_SUPPORT_MAX_POINTS, m = 0;
-    cx = malloc((nv / stride + 1) * sizeof *cx);
-    cy = malloc((nv / stride + 1) * sizeof *cy);
-    cz = malloc((nv / stride + 1) * sizeof *cz);
+    cx = frep_malloc((nv / stride + 1) * sizeof *cx);
+    cy = frep_malloc((nv / stride + 1) * sizeof *cy);
+    cz = frep_malloc((nv / stride + 1) * sizeof *cz);
     if (!cx || !cy || !cz) goto out;
     for (size_t q = 0; q < nv; q += stride, m++) {
         cx[m] = cloud->x[valid[q]];
@@ -185,7 +186,7 @@ static int support_run(const evolve_options *o, const frep_cloud *cloud, const p
      * point spacings (the median distance between neighbours, of up to 1,000 points). */
     {
         size_t ns = m < 1000 ? m : 1000, sst = m / (ns ? ns : 1), cnt = 0;
-        double *sp = malloc((ns ? ns : 1) * sizeof *sp);
+        double *sp = frep_malloc((ns ? ns : 1) * sizeof *sp);
         if (!sp) goto out;
         for (size_t q = 0; q < ns; q++) {
             size_t r = q * sst;
@@ -195,7 +196,7 @@ static int support_run(const evolve_options *o, const frep_cloud *cloud, const p
         }
         qsort(sp, cnt, sizeof *sp, cmp_double_asc);
         double spacing = cnt ? sp[cnt / 2] : 0;
-        free(sp);
+        frep_free(sp);
         g.tau = 2 * h + 2 * spacing;
     }
     /* Only the tree's primitives (the trims bound its parts by their own faces): the
@@ -204,7 +205,7 @@ static int support_run(const evolve_options *o, const frep_cloud *cloud, const p
     if (!used) goto out;
     {
         /* The primitives at the nodes: values only (no normals to score). */
-        double *v = malloc((size_t)nu * ng * sizeof *v), *gg = malloc(3 * (size_t)nu * ng * sizeof *gg);
+        double *v = frep_malloc((size_t)nu * ng * sizeof *v), *gg = frep_malloc(3 * (size_t)nu * ng * sizeof *gg);
         if (v && gg) {
             long kl = (long)nu;
 #pragma omp parallel for schedule(dynamic, 1)
@@ -217,12 +218,12 @@ static int support_run(const evolve_options *o, const frep_cloud *cloud, const p
         gc = gp_cache_values(ng, nu, o->gp.setops, v, gg);
     }
     {
-        size_t *all_pts = malloc((sc->n ? sc->n : 1) * sizeof *all_pts);
+        size_t *all_pts = frep_malloc((sc->n ? sc->n : 1) * sizeof *all_pts);
         if (all_pts) {
             for (size_t i = 0; i < sc->n; i++) all_pts[i] = i;
             pc = gp_cache_subset(sc, all_pts, sc->n, used, nu, sc->lambda);
         }
-        free(all_pts);
+        frep_free(all_pts);
     }
     if (!gc || !pc || !(eg = gp_eval_new())) goto out;
     g.c = gc;
@@ -236,16 +237,16 @@ static int support_run(const evolve_options *o, const frep_cloud *cloud, const p
     if (res->support.trims) res->fitness = gp_fitness(sc, ev, res->tree.code, res->tree.len);
     rc = 0;
 out:
-    free(used);
+    frep_free(used);
     gp_cache_free(pc);
-    free(gx);
-    free(gy);
-    free(gz);
-    free(clip);
-    free(dist);
-    free(cx);
-    free(cy);
-    free(cz);
+    frep_free(gx);
+    frep_free(gy);
+    frep_free(gz);
+    frep_free(clip);
+    frep_free(dist);
+    frep_free(cx);
+    frep_free(cy);
+    frep_free(cz);
     kd_free(kd);
     gp_cache_free(gc);
     gp_eval_free(eg);
@@ -302,11 +303,11 @@ int evolve_residual_points(const evolve_options *o, const frep_cloud *cloud, uin
                            size_t *count)
 {
     size_t N = cloud->n;
-    size_t *valid = malloc((N ? N : 1) * sizeof *valid);
-    double *nrm = malloc(3 * (N ? N : 1) * sizeof *nrm);
+    size_t *valid = frep_malloc((N ? N : 1) * sizeof *valid);
+    double *nrm = frep_malloc(3 * (N ? N : 1) * sizeof *nrm);
     if (!valid || !nrm) {
-        free(valid);
-        free(nrm);
+        frep_free(valid);
+        frep_free(nrm);
         return -1;
     }
     double lo[3], hi[3], diag;
@@ -323,8 +324,8 @@ int evolve_residual_points(const evolve_options *o, const frep_cloud *cloud, uin
         }
     }
     *count = k;
-    free(valid);
-    free(nrm);
+    frep_free(valid);
+    frep_free(nrm);
     return 0;
 }
 
@@ -361,11 +362,11 @@ int evolve_stats(const evolve_options *o, const frep_cloud *cloud, const prim *p
 {
     size_t N = cloud->n;
     size_t nleaves = nprims + (o->base_f ? 1 : 0);
-    size_t *valid = malloc((N ? N : 1) * sizeof *valid);
-    double *nrm = malloc(3 * (N ? N : 1) * sizeof *nrm);
-    uint8_t *seen = calloc(nleaves ? nleaves : 1, 1);
-    uint32_t *used = malloc((nleaves ? nleaves : 1) * sizeof *used);
-    uint32_t *map = malloc((nleaves ? nleaves : 1) * sizeof *map);
+    size_t *valid = frep_malloc((N ? N : 1) * sizeof *valid);
+    double *nrm = frep_malloc(3 * (N ? N : 1) * sizeof *nrm);
+    uint8_t *seen = frep_calloc(nleaves ? nleaves : 1, 1);
+    uint32_t *used = frep_malloc((nleaves ? nleaves : 1) * sizeof *used);
+    uint32_t *map = frep_malloc((nleaves ? nleaves : 1) * sizeof *map);
     gp_tree local = { NULL, 0, 0 };
     gp_cache *fc = NULL;
     gp_eval *ev = gp_eval_new();
@@ -394,11 +395,11 @@ out:
     tree_free(&local);
     gp_cache_free(fc);
     gp_eval_free(ev);
-    free(valid);
-    free(nrm);
-    free(seen);
-    free(used);
-    free(map);
+    frep_free(valid);
+    frep_free(nrm);
+    frep_free(seen);
+    frep_free(used);
+    frep_free(map);
     return rc;
 }
 
@@ -479,12 +480,12 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
     }
     size_t N = cloud->n;
     int rc = -1;
-    size_t *valid = malloc((N ? N : 1) * sizeof *valid);
-    size_t *pool = malloc((N ? N : 1) * sizeof *pool);
-    size_t *tmp = malloc((N ? N : 1) * sizeof *tmp);
-    double *nrm = malloc(3 * (N ? N : 1) * sizeof *nrm);
+    size_t *valid = frep_malloc((N ? N : 1) * sizeof *valid);
+    size_t *pool = frep_malloc((N ? N : 1) * sizeof *pool);
+    size_t *tmp = frep_malloc((N ? N : 1) * sizeof *tmp);
+    double *nrm = frep_malloc(3 * (N ? N : 1) * sizeof *nrm);
     size_t *samp = NULL;
-    uint32_t *all = malloc((nprims + 1) * sizeof *all);
+    uint32_t *all = frep_malloc((nprims + 1) * sizeof *all);
     gp_cache *sc = NULL, *jc = NULL;
     gp_eval *ev = gp_eval_new();
     gp_obb *boxes = NULL;
@@ -543,7 +544,7 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
         np = nv;
     }
     size_t m = o->sample && o->sample < np ? o->sample : np;
-    samp = malloc((nv ? nv : 1) * sizeof *samp);
+    samp = frep_malloc((nv ? nv : 1) * sizeof *samp);
     if (!samp) goto oom;
     double ls = o->lambda_scale > 0 ? o->lambda_scale : 1.0;
     /* With --residual and fewer residual points than a tree could use, or no
@@ -575,10 +576,10 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
         /* Proxies: the primitive's own box, else the box of the sample points it
          * explains alone. Primitives explaining no point get none and overlap
          * everything. */
-        boxes = calloc(nprims, sizeof *boxes);
-        size_t *idx = malloc(m * sizeof *idx);
+        boxes = frep_calloc(nprims, sizeof *boxes);
+        size_t *idx = frep_malloc(m * sizeof *idx);
         if (!boxes || !idx) {
-            free(idx);
+            frep_free(idx);
             goto oom;
         }
         for (uint32_t j = 0; j < nprims; j++) {
@@ -605,17 +606,17 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
             }
             part_obb_of_points(cloud->x, cloud->y, cloud->z, idx, nk, &boxes[j]);
         }
-        free(idx);
+        frep_free(idx);
 
         int done = 0, grown = 0;  /* grown: gr.best is simplified and grown already */
         if (o->partition && nprims > 1) {
             /* part_run needs the sample's coordinates. */
-            double *xs = malloc(m * sizeof *xs), *ys = malloc(m * sizeof *ys);
-            double *zs = malloc(m * sizeof *zs);
+            double *xs = frep_malloc(m * sizeof *xs), *ys = frep_malloc(m * sizeof *ys);
+            double *zs = frep_malloc(m * sizeof *zs);
             if (!xs || !ys || !zs) {
-                free(xs);
-                free(ys);
-                free(zs);
+                frep_free(xs);
+                frep_free(ys);
+                frep_free(zs);
                 goto oom;
             }
             for (size_t i = 0; i < m; i++) {
@@ -625,9 +626,9 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
             }
             int pr = part_run(&o->gp, sc, xs, ys, zs, boxes, EVOLVE_PROXY_MARGIN * res->eps_d,
                               fn, user, &gr, &res->part);
-            free(xs);
-            free(ys);
-            free(zs);
+            frep_free(xs);
+            frep_free(ys);
+            frep_free(zs);
             if (pr) goto oom;
             done = res->part.partitioned;
             res->partitioned = done;
@@ -751,13 +752,13 @@ oom:
 out:
     if (rc) tree_free(&res->tree);
     tree_free(&gr.best);
-    free(valid);
-    free(pool);
-    free(tmp);
-    free(nrm);
-    free(samp);
-    free(all);
-    free(boxes);
+    frep_free(valid);
+    frep_free(pool);
+    frep_free(tmp);
+    frep_free(nrm);
+    frep_free(samp);
+    frep_free(all);
+    frep_free(boxes);
     gp_cache_free(sc);
     gp_cache_free(jc);
     gp_eval_free(ev);
@@ -773,7 +774,7 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
 {
     const gp_tree *t = &r->tree;
     const evolve_base *base = m->base;
-    uint8_t *seen = calloc(nprims + 1, 1);
+    uint8_t *seen = frep_calloc(nprims + 1, 1);
     if (!seen) return -1;
     uint32_t k = 0;
     for (uint32_t pc = 0; pc < t->len; pc++)
@@ -860,23 +861,23 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
             fprintf(f, ";\n");
         }
     fprintf(f, "    %s = tree & (((b1 & b2) & (b3 & b4)) & (b5 & b6));\n}\n", mname);
-    free(seen);
+    frep_free(seen);
     return ferror(f) ? -1 : 0;
 }
 
 int evolve_write_dot(FILE *f, const evolve_result *r, const prim *prims, size_t nprims)
 {
-    char **names = calloc(nprims + 1, sizeof *names);
+    char **names = frep_calloc(nprims + 1, sizeof *names);
     if (!names) return -1;
     int rc = 0;
     for (size_t j = 0; j <= nprims && !rc; j++) {
-        names[j] = malloc(64);
+        names[j] = frep_malloc(64);
         if (!names[j]) rc = -1;
         else if (j == nprims) snprintf(names[j], 64, "p%zu\\nbase model", j + 1);
         else snprintf(names[j], 64, "p%zu\\n%s", j + 1, prim_type_name(prims[j].type));
     }
     if (!rc) tree_print_dot(f, r->tree.code, r->tree.len, (const char *const *)names);
-    for (size_t j = 0; j <= nprims; j++) free(names[j]);
-    free(names);
+    for (size_t j = 0; j <= nprims; j++) frep_free(names[j]);
+    frep_free(names);
     return rc || ferror(f) ? -1 : 0;
 }

@@ -95,7 +95,7 @@ typedef struct evolve_result {
 } evolve_result;
 
 /* Run. The cloud must have normals. Returns 0, or -1 with *err (malloc'ed message,
- * free()) for bad input (no primitives, no valid point) or out of memory. fn (may be
+ * frep_free()) for bad input (no primitives, no valid point) or out of memory. fn (may be
  * NULL) gets the progress and may stop the run; the best tree so far is then kept.
  * Free the result with evolve_result_free(). */
 int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *prims,

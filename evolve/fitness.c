@@ -10,6 +10,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "fitness.h"
 
 #include <math.h>
@@ -50,26 +51,26 @@ _Static_assert(GP_FIT_BLOCK % 64 == 0, "blocks are whole words of the crossing m
 
 gp_eval *gp_eval_new(void)
 {
-    return calloc(1, sizeof(gp_eval));
+    return frep_calloc(1, sizeof(gp_eval));
 }
 
 void gp_eval_free(gp_eval *e)
 {
     if (!e) return;
-    free(e->tape.code);
-    free(e->tape.start);
-    free(e->tape.vf);
-    free(e->tape.si);
-    free(e->tape.v);
-    free(e->tape.g);
-    free(e->tape.side);
+    frep_free(e->tape.code);
+    frep_free(e->tape.start);
+    frep_free(e->tape.vf);
+    frep_free(e->tape.si);
+    frep_free(e->tape.v);
+    frep_free(e->tape.g);
+    frep_free(e->tape.side);
     tree_free(&e->tape.path);
-    free(e->sv);
-    free(e->sg);
-    free(e->si);
-    free(e->sf);
-    free(e->sb);
-    free(e);
+    frep_free(e->sv);
+    frep_free(e->sg);
+    frep_free(e->si);
+    frep_free(e->sf);
+    frep_free(e->sb);
+    frep_free(e);
 }
 
 static int eval_reserve(gp_eval *e, uint32_t need)
@@ -77,24 +78,24 @@ static int eval_reserve(gp_eval *e, uint32_t need)
     if (need <= e->cap) return 0;
     uint32_t cap = e->cap ? e->cap : 16;
     while (cap < need) cap *= 2;
-    double *sv = malloc((size_t)cap * GP_FIT_BLOCK * sizeof *sv);
-    double *sg = malloc((size_t)cap * 3 * GP_FIT_BLOCK * sizeof *sg);
-    uint32_t *si = malloc((size_t)cap * GP_FIT_BLOCK * sizeof *si);
-    float *sf = malloc((size_t)cap * GP_FIT_BLOCK * sizeof *sf);
-    uint64_t *sb = malloc((size_t)cap * 4 * GP_FIT_WORDS * sizeof *sb);
+    double *sv = frep_malloc((size_t)cap * GP_FIT_BLOCK * sizeof *sv);
+    double *sg = frep_malloc((size_t)cap * 3 * GP_FIT_BLOCK * sizeof *sg);
+    uint32_t *si = frep_malloc((size_t)cap * GP_FIT_BLOCK * sizeof *si);
+    float *sf = frep_malloc((size_t)cap * GP_FIT_BLOCK * sizeof *sf);
+    uint64_t *sb = frep_malloc((size_t)cap * 4 * GP_FIT_WORDS * sizeof *sb);
     if (!sv || !sg || !si || !sf || !sb) {
-        free(sv);
-        free(sg);
-        free(si);
-        free(sf);
-        free(sb);
+        frep_free(sv);
+        frep_free(sg);
+        frep_free(si);
+        frep_free(sf);
+        frep_free(sb);
         return -1;
     }
-    free(e->sv);
-    free(e->sg);
-    free(e->si);
-    free(e->sf);
-    free(e->sb);
+    frep_free(e->sv);
+    frep_free(e->sg);
+    frep_free(e->si);
+    frep_free(e->sf);
+    frep_free(e->sb);
     e->sb = sb;
     e->sf = sf;
     e->sv = sv;
@@ -148,7 +149,7 @@ static int build_sides(gp_cache *c)
 {
     size_t n = c->n, nw = (n + 63) / 64;
     c->nw = nw;
-    c->side = calloc((size_t)4 * c->nprims * (nw ? nw : 1), sizeof *c->side);
+    c->side = frep_calloc((size_t)4 * c->nprims * (nw ? nw : 1), sizeof *c->side);
     if (!c->side) return -1;
     double h = GP_CROSS_H * c->eps_d, tol = GP_CROSS_TOL * c->eps_d;
     for (size_t j = 0; j < c->nprims; j++) {
@@ -195,7 +196,7 @@ static void fill_scores(gp_cache *c)
 static int build_tail(gp_cache *c)
 {
     size_t n = c->n, B = GP_FIT_BLOCK, nb = (n + B - 1) / B;
-    if (!c->tail) c->tail = malloc((nb + 1) * sizeof *c->tail);
+    if (!c->tail) c->tail = frep_malloc((nb + 1) * sizeof *c->tail);
     if (!c->tail) return -1;
     c->tail[nb] = 0;
     for (size_t b = nb; b-- > 0;) {
@@ -217,11 +218,11 @@ static int build_scores(gp_cache *c, int tables)
 {
     if (c->setops != GP_SETOPS_MINMAX) return tables ? build_tail(c) : 0;
     size_t n = c->n;
-    c->vf = malloc((size_t)c->nprims * (n ? n : 1) * sizeof *c->vf);
+    c->vf = frep_malloc((size_t)c->nprims * (n ? n : 1) * sizeof *c->vf);
     if (!c->vf) return -1;
     for (size_t k = 0; k < (size_t)c->nprims * n; k++) c->vf[k] = (float)c->v[k];
     if (!tables) return 0;
-    c->score = malloc((size_t)2 * c->nprims * (n ? n : 1) * sizeof *c->score);
+    c->score = frep_malloc((size_t)2 * c->nprims * (n ? n : 1) * sizeof *c->score);
     if (!c->score) return -1;
     fill_scores(c);
     return build_tail(c);
@@ -245,10 +246,10 @@ int gp_cache_noise(const gp_cache *c, gp_noise *out)
 {
     memset(out, 0, sizeof *out);
     size_t n = c->n;
-    double *dist = malloc((n ? n : 1) * sizeof *dist), *ang = malloc((n ? n : 1) * sizeof *ang);
+    double *dist = frep_malloc((n ? n : 1) * sizeof *dist), *ang = frep_malloc((n ? n : 1) * sizeof *ang);
     if (!dist || !ang) {
-        free(dist);
-        free(ang);
+        frep_free(dist);
+        frep_free(ang);
         return -1;
     }
     double cmax = cos(GP_NOISE_MAX_DEG * 3.14159265358979323846 / 180);
@@ -282,19 +283,19 @@ int gp_cache_noise(const gp_cache *c, gp_noise *out)
         out->median_deg = ang[k / 2];
         out->p90_deg = ang[(k - 1) * 9 / 10];
     }
-    free(dist);
-    free(ang);
+    frep_free(dist);
+    frep_free(ang);
     return 0;
 }
 
 /* A cache holding v and g (taken, also on failure); NULL on allocation failure. */
 static gp_cache *cache_of(size_t n, uint32_t nprims, gp_setops s, double *v, double *g)
 {
-    gp_cache *c = calloc(1, sizeof *c);
+    gp_cache *c = frep_calloc(1, sizeof *c);
     if (!c || !v || !g) {
-        free(c);
-        free(v);
-        free(g);
+        frep_free(c);
+        frep_free(v);
+        frep_free(g);
         return NULL;
     }
     c->n = n;
@@ -316,7 +317,7 @@ static gp_cache *cache_new(size_t n, uint32_t nprims, gp_setops s, double *v, do
     c->crossing = 1;
     c->alpha = alpha;
     c->lambda = lambda >= 0 ? lambda : (n > 1 ? log((double)n) : 0.0);
-    c->nrm = malloc(3 * (n ? n : 1) * sizeof *c->nrm);
+    c->nrm = frep_malloc(3 * (n ? n : 1) * sizeof *c->nrm);
     if (!c->nrm) {
         gp_cache_free(c);
         return NULL;
@@ -351,7 +352,7 @@ gp_cache *gp_cache_values(size_t n, uint32_t nprims, gp_setops s, double *v, dou
     if (!c) return NULL;
     c->values_only = 1;
     if (s == GP_SETOPS_MINMAX) {
-        c->vf = malloc((size_t)nprims * (n ? n : 1) * sizeof *c->vf);
+        c->vf = frep_malloc((size_t)nprims * (n ? n : 1) * sizeof *c->vf);
         if (!c->vf) {
             gp_cache_free(c);
             return NULL;
@@ -367,7 +368,7 @@ gp_cache *gp_cache_subset(const gp_cache *c, const size_t *idx, size_t m,
     /* Every table is gathered from c's (the same numbers as building them again from
      * the gathered values, without the exp and acos of the score tables). */
     size_t mm = m ? m : 1, n = c->n, nw = (m + 63) / 64;
-    gp_cache *s = calloc(1, sizeof *s);
+    gp_cache *s = frep_calloc(1, sizeof *s);
     if (!s) return NULL;
     s->n = m;
     s->nprims = k;
@@ -377,13 +378,13 @@ gp_cache *gp_cache_subset(const gp_cache *c, const size_t *idx, size_t m,
     s->crossing = c->crossing;
     s->lambda = lambda >= 0 ? lambda : (m > 1 ? log((double)m) : 0.0);
     s->nw = nw;
-    s->v = malloc((size_t)k * mm * sizeof *s->v);
-    s->g = malloc((size_t)3 * k * mm * sizeof *s->g);
-    s->nrm = malloc(3 * mm * sizeof *s->nrm);
-    s->side = calloc((size_t)4 * k * (nw ? nw : 1), sizeof *s->side);
+    s->v = frep_malloc((size_t)k * mm * sizeof *s->v);
+    s->g = frep_malloc((size_t)3 * k * mm * sizeof *s->g);
+    s->nrm = frep_malloc(3 * mm * sizeof *s->nrm);
+    s->side = frep_calloc((size_t)4 * k * (nw ? nw : 1), sizeof *s->side);
     if (c->setops == GP_SETOPS_MINMAX) {
-        if (c->score) s->score = malloc((size_t)2 * k * mm * sizeof *s->score);
-        s->vf = malloc((size_t)k * mm * sizeof *s->vf);
+        if (c->score) s->score = frep_malloc((size_t)2 * k * mm * sizeof *s->score);
+        s->vf = frep_malloc((size_t)k * mm * sizeof *s->vf);
     }
     if (!s->v || !s->g || !s->nrm || !s->side ||
         (c->setops == GP_SETOPS_MINMAX && ((c->score && !s->score) || !s->vf))) {
@@ -419,14 +420,14 @@ gp_cache *gp_cache_subset(const gp_cache *c, const size_t *idx, size_t m,
 void gp_cache_free(gp_cache *c)
 {
     if (!c) return;
-    free(c->v);
-    free(c->g);
-    free(c->nrm);
-    free(c->score);
-    free(c->vf);
-    free(c->side);
-    free(c->tail);
-    free(c);
+    frep_free(c->v);
+    frep_free(c->g);
+    frep_free(c->nrm);
+    frep_free(c->score);
+    frep_free(c->vf);
+    frep_free(c->side);
+    frep_free(c->tail);
+    frep_free(c);
 }
 
 /* ---- evaluation ------------------------------------------------------------- */
@@ -845,28 +846,28 @@ static int tape_reserve(gp_tape *tp, const gp_cache *c, size_t cells, size_t wce
      * gradients: the arrays of the other family are freed. */
     int rf = c->setops == GP_SETOPS_RFUNC;
     if (cells > tp->cells || (rf ? !tp->v : !tp->vf)) {
-        free(tp->vf);
-        free(tp->si);
-        free(tp->v);
-        free(tp->g);
+        frep_free(tp->vf);
+        frep_free(tp->si);
+        frep_free(tp->v);
+        frep_free(tp->g);
         tp->vf = NULL;
         tp->si = NULL;
         tp->v = tp->g = NULL;
         tp->cells = 0;
         if (rf) {
-            tp->v = malloc(cells * sizeof *tp->v);
-            tp->g = malloc(3 * cells * sizeof *tp->g);
+            tp->v = frep_malloc(cells * sizeof *tp->v);
+            tp->g = frep_malloc(3 * cells * sizeof *tp->g);
             if (!tp->v || !tp->g) return -1;
         } else {
-            tp->vf = malloc(cells * sizeof *tp->vf);
-            tp->si = malloc(cells * sizeof *tp->si);
+            tp->vf = frep_malloc(cells * sizeof *tp->vf);
+            tp->si = frep_malloc(cells * sizeof *tp->si);
             if (!tp->vf || !tp->si) return -1;
         }
         tp->cells = cells;
     }
     if (wcells > tp->wcells) {
-        free(tp->side);
-        tp->side = malloc((wcells ? wcells : 1) * sizeof *tp->side);
+        frep_free(tp->side);
+        tp->side = frep_malloc((wcells ? wcells : 1) * sizeof *tp->side);
         tp->wcells = tp->side ? wcells : 0;
         if (!tp->side) return -1;
     }
@@ -883,9 +884,9 @@ int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_
     if (!len) return -1;
     size_t cells = (size_t)len * c->n, wcells = 4 * (size_t)len * c->nw;
     if (len > tp->codecap) {
-        frep_insn *nc = realloc(tp->code, (size_t)len * sizeof *nc);
+        frep_insn *nc = frep_realloc(tp->code, (size_t)len * sizeof *nc);
         if (nc) tp->code = nc;
-        uint32_t *ns = realloc(tp->start, (size_t)len * sizeof *ns);
+        uint32_t *ns = frep_realloc(tp->start, (size_t)len * sizeof *ns);
         if (ns) tp->start = ns;
         if (!nc || !ns) return -1;
         tp->codecap = len;

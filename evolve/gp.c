@@ -4,6 +4,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "gp.h"
 
 #include <math.h>
@@ -66,7 +67,7 @@ static memo_entry *memo_find(memo_entry *m, const gp_tree *t, uint64_t h)
 static void memo_put(memo_entry *m, const gp_tree *t, uint64_t h, double fit)
 {
     memo_entry *e = &m[h & ((1u << GP_MEMO_BITS) - 1)];
-    frep_insn *c = realloc(e->code, (size_t)(t->len ? t->len : 1) * sizeof *c);
+    frep_insn *c = frep_realloc(e->code, (size_t)(t->len ? t->len : 1) * sizeof *c);
     if (!c) return;  /* the memo is an optimisation only */
     memcpy(c, t->code, (size_t)t->len * sizeof *c);
     e->code = c;
@@ -103,11 +104,11 @@ static uint32_t tournament(const indiv *pop, uint32_t n, uint32_t k, gp_rng *r)
 static int score_population(const gp_cache *c, indiv *pop, uint32_t n, memo_entry *memo,
                             gp_eval **ev, int nthreads)
 {
-    uint32_t *todo = malloc((size_t)n * sizeof *todo);
-    uint64_t *hs = malloc((size_t)n * sizeof *hs);
+    uint32_t *todo = frep_malloc((size_t)n * sizeof *todo);
+    uint64_t *hs = frep_malloc((size_t)n * sizeof *hs);
     if (!todo || !hs) {
-        free(todo);
-        free(hs);
+        frep_free(todo);
+        frep_free(hs);
         return -1;
     }
     uint32_t nt = 0;
@@ -144,8 +145,8 @@ static int score_population(const gp_cache *c, indiv *pop, uint32_t n, memo_entr
          * with the same content, so the memo stays deterministic. */
         memo_put(memo, &pop[i].t, hs[i], pop[i].fitness);
     }
-    free(todo);
-    free(hs);
+    frep_free(todo);
+    frep_free(hs);
     return 0;
 }
 
@@ -186,10 +187,10 @@ int gp_run(const gp_config *cfg, const gp_cache *c, const gp_tree *seeds, uint32
 
     gp_rng rng;
     gp_rng_seed(&rng, cfg->seed);
-    indiv *pop = calloc(P, sizeof *pop), *next = calloc(P, sizeof *next);
-    memo_entry *memo = calloc((size_t)1 << GP_MEMO_BITS, sizeof *memo);
-    gp_eval **ev = calloc((size_t)nthreads, sizeof *ev);
-    uint32_t *elite = calloc(E ? E : 1, sizeof *elite);
+    indiv *pop = frep_calloc(P, sizeof *pop), *next = frep_calloc(P, sizeof *next);
+    memo_entry *memo = frep_calloc((size_t)1 << GP_MEMO_BITS, sizeof *memo);
+    gp_eval **ev = frep_calloc((size_t)nthreads, sizeof *ev);
+    uint32_t *elite = frep_calloc(E ? E : 1, sizeof *elite);
     int rc = -1;
     if (!pop || !next || !memo || !ev || !elite) goto out;
     for (int i = 0; i < nthreads; i++)
@@ -276,13 +277,13 @@ out:
     if (next)
         for (uint32_t i = 0; i < P; i++) tree_free(&next[i].t);
     if (memo)
-        for (size_t i = 0; i < ((size_t)1 << GP_MEMO_BITS); i++) free(memo[i].code);
+        for (size_t i = 0; i < ((size_t)1 << GP_MEMO_BITS); i++) frep_free(memo[i].code);
     if (ev)
         for (int i = 0; i < nthreads; i++) gp_eval_free(ev[i]);
-    free(pop);
-    free(next);
-    free(memo);
-    free(ev);
-    free(elite);
+    frep_free(pop);
+    frep_free(next);
+    frep_free(memo);
+    frep_free(ev);
+    frep_free(elite);
     return rc;
 }

@@ -4,6 +4,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "partition.h"
 #include "simplify.h"
 
@@ -152,7 +153,7 @@ void part_graph_set(gp_graph *g, uint32_t i, uint32_t j)
 
 void part_graph_free(gp_graph *g)
 {
-    free(g->adj);
+    frep_free(g->adj);
     memset(g, 0, sizeof *g);
 }
 
@@ -174,10 +175,10 @@ int part_overlap_graph(const gp_obb *boxes, uint32_t n, double margin, gp_graph 
     if (n > PART_MAX_PRIMS) return -1;
     g->n = n;
     g->words = (n + 63) / 64;
-    g->adj = calloc((size_t)n * (g->words ? g->words : 1), sizeof *g->adj);
-    sweep_item *it = malloc((size_t)(n ? n : 1) * sizeof *it);
+    g->adj = frep_calloc((size_t)n * (g->words ? g->words : 1), sizeof *g->adj);
+    sweep_item *it = frep_malloc((size_t)(n ? n : 1) * sizeof *it);
     if (!g->adj || !it) {
-        free(it);
+        frep_free(it);
         part_graph_free(g);
         return -1;
     }
@@ -207,7 +208,7 @@ int part_overlap_graph(const gp_obb *boxes, uint32_t n, double margin, gp_graph 
             if (part_obb_overlap(&boxes[it[a].i], &boxes[it[b].i], margin))
                 part_graph_set(g, it[a].i, it[b].i);
         }
-    free(it);
+    frep_free(it);
     return 0;
 }
 
@@ -233,14 +234,14 @@ static int bk_report(bk_state *s)
     if (s->n_members + s->nr > s->cap_members) {
         uint32_t nc = s->cap_members ? s->cap_members * 2 : 64;
         while (nc < s->n_members + s->nr) nc *= 2;
-        uint32_t *m = realloc(s->members, (size_t)nc * sizeof *m);
+        uint32_t *m = frep_realloc(s->members, (size_t)nc * sizeof *m);
         if (!m) { s->nomem = 1; return -1; }
         s->members = m;
         s->cap_members = nc;
     }
     if ((size_t)s->count + 2 > s->cap_start) {
         size_t nc = s->cap_start ? s->cap_start * 2 : 64;
-        uint32_t *st = realloc(s->start, nc * sizeof *st);
+        uint32_t *st = frep_realloc(s->start, nc * sizeof *st);
         if (!st) { s->nomem = 1; return -1; }
         s->start = st;
         s->cap_start = nc;
@@ -294,7 +295,7 @@ static int bk(bk_state *s, uint64_t *p, uint64_t *x)
             if (!have || c > best) { pivot = u; best = c; have = 1; }
         }
     }
-    uint64_t *np = malloc((size_t)2 * W * sizeof *np);
+    uint64_t *np = frep_malloc((size_t)2 * W * sizeof *np);
     if (!np) { s->nomem = 1; return -1; }
     uint64_t *nx = np + W;
     const uint64_t *npiv = g->adj + (size_t)pivot * W;
@@ -311,12 +312,12 @@ static int bk(bk_state *s, uint64_t *p, uint64_t *x)
             s->r[s->nr++] = v;
             int rc = bk(s, np, nx);
             s->nr--;
-            if (rc) { free(np); return -1; }
+            if (rc) { frep_free(np); return -1; }
             p[w] &= ~((uint64_t)1 << (v % 64));
             x[w] |= (uint64_t)1 << (v % 64);
         }
     }
-    free(np);
+    frep_free(np);
     return 0;
 }
 
@@ -328,24 +329,24 @@ int part_cliques(const gp_graph *g, uint32_t max_cliques, gp_cliques *out)
     s.g = g;
     s.max = max_cliques;
     uint32_t W = g->words ? g->words : 1;
-    s.r = malloc((size_t)(g->n ? g->n : 1) * sizeof *s.r);
-    uint64_t *p = calloc((size_t)2 * W, sizeof *p);
+    s.r = frep_malloc((size_t)(g->n ? g->n : 1) * sizeof *s.r);
+    uint64_t *p = frep_calloc((size_t)2 * W, sizeof *p);
     if (!s.r || !p) {
-        free(s.r);
-        free(p);
+        frep_free(s.r);
+        frep_free(p);
         return -1;
     }
     for (uint32_t i = 0; i < g->n; i++) p[i / 64] |= (uint64_t)1 << (i % 64);
     int rc = g->n ? bk(&s, p, p + W) : 0;
-    free(p);
-    free(s.r);
+    frep_free(p);
+    frep_free(s.r);
     if (rc) {
-        free(s.start);
-        free(s.members);
+        frep_free(s.start);
+        frep_free(s.members);
         return s.nomem ? -1 : 1;
     }
     if (!s.start) {
-        s.start = calloc(1, sizeof *s.start);
+        s.start = frep_calloc(1, sizeof *s.start);
         if (!s.start) return -1;
     }
     out->count = s.count;
@@ -356,8 +357,8 @@ int part_cliques(const gp_graph *g, uint32_t max_cliques, gp_cliques *out)
 
 void part_cliques_free(gp_cliques *c)
 {
-    free(c->start);
-    free(c->members);
+    frep_free(c->start);
+    frep_free(c->members);
     memset(c, 0, sizeof *c);
 }
 
@@ -393,7 +394,7 @@ uint32_t part_largest_common(const gp_tree *a, const gp_tree *b, uint32_t *ea,
 {
     uint32_t best = 0;
     *ea = *eb = 0;
-    uint32_t *sb = malloc((size_t)(b->len ? b->len : 1) * sizeof *sb);
+    uint32_t *sb = frep_malloc((size_t)(b->len ? b->len : 1) * sizeof *sb);
     if (!sb) return 0;
     for (uint32_t j = 0; j < b->len; j++) sb[j] = tree_subtree_start(b->code, j);
     for (uint32_t i = 0; i < a->len; i++) {
@@ -409,7 +410,7 @@ uint32_t part_largest_common(const gp_tree *a, const gp_tree *b, uint32_t *ea,
             }
         }
     }
-    free(sb);
+    frep_free(sb);
     return best;
 }
 
@@ -477,8 +478,8 @@ typedef struct part_piece {
 static void piece_free(part_piece *p)
 {
     tree_free(&p->t);
-    free(p->pts);
-    free(p->prims);
+    frep_free(p->pts);
+    frep_free(p->prims);
     memset(p, 0, sizeof *p);
 }
 
@@ -712,7 +713,7 @@ static uint32_t shared_count(const part_piece *a, const part_piece *b)
 static int merge_pieces(const gp_config *cfg, const gp_cache *c, gp_eval *e,
                         part_piece *pi, part_piece *pj)
 {
-    size_t *u = malloc((pi->npts + pj->npts + 1) * sizeof *u);
+    size_t *u = frep_malloc((pi->npts + pj->npts + 1) * sizeof *u);
     if (!u) return -1;
     size_t nu = merge_sorted(pi->pts, pi->npts, pj->pts, pj->npts, u);
     gp_tree both = { NULL, 0, 0 }, a = { NULL, 0, 0 }, b = { NULL, 0, 0 }, m = { NULL, 0, 0 };
@@ -729,17 +730,17 @@ static int merge_pieces(const gp_config *cfg, const gp_cache *c, gp_eval *e,
     if (part_merge_pair(&a, &b, cfg->setops, sc, e, &m, NULL)) goto out;
     tree_renumber(&m, prims, k, 1);
     if (tree_copy(&pi->t, &m)) goto out;
-    free(pi->pts);
+    frep_free(pi->pts);
     pi->pts = u;
     pi->npts = nu;
     u = NULL;
-    free(pi->prims);
+    frep_free(pi->prims);
     pi->nprims = tree_used_prims(&pi->t, c->nprims, &pi->prims);
     if (!pi->prims) goto out;
     rc = 0;
 out:
-    free(u);
-    free(prims);
+    frep_free(u);
+    frep_free(prims);
     gp_cache_free(sc);
     tree_free(&both);
     tree_free(&a);
@@ -799,8 +800,8 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
     }
 
     uint32_t nq = cl.count;
-    part_piece *pc = calloc(nq, sizeof *pc);
-    uint32_t *gens = calloc(nq, sizeof *gens);
+    part_piece *pc = frep_calloc(nq, sizeof *pc);
+    uint32_t *gens = frep_calloc(nq, sizeof *gens);
     int nthreads = cfg->threads;
 #ifdef _OPENMP
     if (nthreads <= 0) nthreads = omp_get_max_threads();
@@ -808,7 +809,7 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
     nthreads = 1;
 #endif
     if (nthreads < 1) nthreads = 1;
-    gp_eval **ev = calloc((size_t)nthreads, sizeof *ev);
+    gp_eval **ev = frep_calloc((size_t)nthreads, sizeof *ev);
     int rc = -1, failed = 0;
     if (!pc || !gens || !ev) goto out;
     for (int i = 0; i < nthreads; i++)
@@ -819,11 +820,11 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
      * members' boxes contain it most often: a plane shared by several parts brings
      * each part's face to that part's clique, not to every clique of the plane (where
      * the clique's correct tree cannot explain it and the GA is pushed to wrong ones). */
-    uint8_t *owner = calloc(c->nprims ? c->nprims : 1, 1);
-    uint32_t *bestcnt = calloc(c->n ? c->n : 1, sizeof *bestcnt);
+    uint8_t *owner = frep_calloc(c->nprims ? c->nprims : 1, 1);
+    uint32_t *bestcnt = frep_calloc(c->n ? c->n : 1, sizeof *bestcnt);
     if (!owner || !bestcnt) {
-        free(owner);
-        free(bestcnt);
+        frep_free(owner);
+        frep_free(bestcnt);
         goto out;
     }
     for (int pass = 0; pass < 2; pass++)
@@ -844,7 +845,7 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
                 }
                 if (cnt > 0 && (nown == 0 || cnt == bestcnt[i])) {
                     if (!pc[q].pts) {
-                        pc[q].pts = malloc((c->n ? c->n : 1) * sizeof *pc[q].pts);
+                        pc[q].pts = frep_malloc((c->n ? c->n : 1) * sizeof *pc[q].pts);
                         if (!pc[q].pts) failed = 1;
                     }
                     if (pc[q].pts) pc[q].pts[pc[q].npts++] = i;
@@ -852,13 +853,13 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
             }
             for (uint32_t j = 0; j < c->nprims; j++) owner[j] = 0;
         }
-    free(owner);
-    free(bestcnt);
+    frep_free(owner);
+    frep_free(bestcnt);
     if (failed) goto out;
     for (uint32_t q = 0; q < nq; q++) {
         const uint32_t *mem = cl.members + cl.start[q];
         uint32_t k = cl.start[q + 1] - cl.start[q];
-        pc[q].prims = malloc((size_t)k * sizeof *pc[q].prims);
+        pc[q].prims = frep_malloc((size_t)k * sizeof *pc[q].prims);
         if (!pc[q].prims) goto out;
         memcpy(pc[q].prims, mem, (size_t)k * sizeof *mem);
         pc[q].nprims = k;
@@ -886,7 +887,7 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
     uint32_t live = 0;
     for (uint32_t q = 0; q < nq; q++) {
         if (pc[q].t.len) {
-            free(pc[q].prims);
+            frep_free(pc[q].prims);
             pc[q].nprims = tree_used_prims(&pc[q].t, c->nprims, &pc[q].prims);
             if (!pc[q].prims) goto out;
             if (live != q) {
@@ -941,11 +942,11 @@ fallback:
 out:
     if (pc)
         for (uint32_t q = 0; q < nq; q++) piece_free(&pc[q]);
-    free(pc);
-    free(gens);
+    frep_free(pc);
+    frep_free(gens);
     if (ev)
         for (int i = 0; i < nthreads; i++) gp_eval_free(ev[i]);
-    free(ev);
+    frep_free(ev);
     part_cliques_free(&cl);
     return rc;
 }

@@ -5,6 +5,7 @@
  */
 #define _POSIX_C_SOURCE 200809L /* open_memstream */
 #include "config.h"
+#include "alloc.h"
 #include "util.h"
 
 #include "refit.h"
@@ -135,12 +136,12 @@ static char *refit_source(const evolve_result *res, const prim *prims, size_t np
     fprintf(f, "    refit_tree = ");
     tree_print(f, res->tree.code, res->tree.len, "p");
     fprintf(f, ";\n}\n");
-    if (fclose(f)) {
-        free(buf);
-        return NULL;
-    }
-    *len = blen;
-    return buf;
+    /* open_memstream's buffer comes from the C library: hand over a copy made by
+     * frep's allocator, which the caller releases with frep_free. */
+    char *text = fclose(f) == 0 ? frep_strndup(buf, blen) : NULL;
+    free(buf);
+    if (text) *len = blen;
+    return text;
 }
 
 /* Compilation of generated text fails only on a bug: the first message is kept. */
@@ -163,12 +164,12 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     if (err) *err = NULL;
     double t0 = gp_now();
     int rc = -1;
-    uint8_t *used = calloc(nprims + 1, 1);
+    uint8_t *used = frep_calloc(nprims + 1, 1);
     size_t *pidx = NULL, *gidx = NULL;
     double *all = NULL, *sx = NULL, *px = NULL, *py = NULL, *pz = NULL, *qx = NULL, *qy = NULL, *qz = NULL;
     char *src = NULL;
     frep_program *prog = NULL;
-    prim *saved = malloc((nprims ? nprims : 1) * sizeof *saved);
+    prim *saved = frep_malloc((nprims ? nprims : 1) * sizeof *saved);
     if (!used || !saved) goto oom;
     memcpy(saved, prims, nprims * sizeof *prims);
     for (uint32_t pc = 0; pc < res->tree.len; pc++)
@@ -181,12 +182,12 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
 
     /* Points: finite, with a normal (the same set evolve_run scored). */
     size_t n = 0, N = cloud->n;
-    px = malloc((N ? N : 1) * sizeof *px);
-    py = malloc((N ? N : 1) * sizeof *py);
-    pz = malloc((N ? N : 1) * sizeof *pz);
-    qx = malloc((N ? N : 1) * sizeof *qx);
-    qy = malloc((N ? N : 1) * sizeof *qy);
-    qz = malloc((N ? N : 1) * sizeof *qz);
+    px = frep_malloc((N ? N : 1) * sizeof *px);
+    py = frep_malloc((N ? N : 1) * sizeof *py);
+    pz = frep_malloc((N ? N : 1) * sizeof *pz);
+    qx = frep_malloc((N ? N : 1) * sizeof *qx);
+    qy = frep_malloc((N ? N : 1) * sizeof *qy);
+    qz = frep_malloc((N ? N : 1) * sizeof *qz);
     if (!px || !py || !pz || !qx || !qy || !qz) goto oom;
     for (size_t i = 0; i < N; i++) {
         double q[3] = { cloud->nx[i], cloud->ny[i], cloud->nz[i] };
@@ -218,12 +219,12 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     }
     /* Program parameters: the qJ_K (refined) and others (the a[] array: held). */
     size_t npa = frep_program_nparams(prog), np = 0;
-    pidx = malloc(2 * (npa ? npa : 1) * sizeof *pidx);
-    gidx = malloc((npa ? npa : 1) * sizeof *gidx);
-    all = malloc((npa ? npa : 1) * sizeof *all);
-    size_t *fidx = malloc((npa ? npa : 1) * sizeof *fidx);
+    pidx = frep_malloc(2 * (npa ? npa : 1) * sizeof *pidx);
+    gidx = frep_malloc((npa ? npa : 1) * sizeof *gidx);
+    all = frep_malloc((npa ? npa : 1) * sizeof *all);
+    size_t *fidx = frep_malloc((npa ? npa : 1) * sizeof *fidx);
     if (!pidx || !gidx || !all || !fidx) {
-        free(fidx);
+        frep_free(fidx);
         goto oom;
     }
     for (size_t k = 0; k < npa; k++) {
@@ -239,12 +240,12 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     }
     info->nparams = np;
     if (np == 0) { /* the tree is the base model alone */
-        free(fidx);
+        frep_free(fidx);
         rc = 0;
         goto out;
     }
     if (n < REFIT_MIN_POINTS_PER_PARAM * np) {
-        free(fidx);
+        frep_free(fidx);
         set_err(err, "%zu points cannot determine the %zu parameters of the tree", n, np);
         goto out;
     }
@@ -254,11 +255,11 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     size_t m = n < REFIT_MAX_POINTS ? n : REFIT_MAX_POINTS;
     fit_points spts = pts;
     if (m < n) {
-        sx = malloc(6 * m * sizeof *sx);
-        size_t *perm = malloc(n * sizeof *perm);
+        sx = frep_malloc(6 * m * sizeof *sx);
+        size_t *perm = frep_malloc(n * sizeof *perm);
         if (!sx || !perm) {
-            free(perm);
-            free(fidx);
+            frep_free(perm);
+            frep_free(fidx);
             goto oom;
         }
         for (size_t i = 0; i < n; i++) perm[i] = i;
@@ -277,7 +278,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
             sx[4 * m + i] = qy[perm[i]];
             sx[5 * m + i] = qz[perm[i]];
         }
-        free(perm);
+        frep_free(perm);
         fit_points sp = { m, sx, sx + m, sx + 2 * m, sx + 3 * m, sx + 4 * m, sx + 5 * m };
         spts = sp;
     }
@@ -299,7 +300,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     for (int pass = 0; pass < 2; pass++) {
         fit_model fm;
         if (fit_program_model(prog, fidx, 1, all, &fm)) {
-            free(fidx);
+            frep_free(fidx);
             goto oom;
         }
         fit_objective *ob = fit_objective_new(&fm, &pts, &cfg.obj);
@@ -309,7 +310,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
         fit_objective_free(ob);
         fit_program_model_free(&fm);
         if (bad) {
-            free(fidx);
+            frep_free(fidx);
             set_err(err, "the tree cannot be evaluated at the points");
             goto out;
         }
@@ -329,7 +330,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
                 x[k] = all[gidx[k]];
             }
             if (fit_program_model(prog, gidx, nf, all, &fm)) {
-                free(fidx);
+                frep_free(fidx);
                     goto oom;
             }
             fit_result fr;
@@ -337,7 +338,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
             int r = fit_run(&fm, &spts, NULL, NULL, x, &cfg, &fr, msg, sizeof msg);
             fit_program_model_free(&fm);
             if (r) {
-                free(fidx);
+                frep_free(fidx);
                     set_err(err, "refit: %s", msg);
                 goto out;
             }
@@ -355,7 +356,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
             if (pidx[2 * k] == j) v[pidx[2 * k + 1]] = all[fidx[k]];
         prim_set_params(&prims[j], v);
     }
-    free(fidx);
+    frep_free(fidx);
     if (evolve_stats(o, cloud, prims, nprims, res)) goto oom;
     rc = 0;
     goto out;
@@ -365,18 +366,18 @@ out:
     if (rc && saved) memcpy(prims, saved, nprims * sizeof *prims);
     info->seconds = gp_now() - t0;
     frep_program_free(prog);
-    free(src);
-    free(used);
-    free(saved);
-    free(pidx);
-    free(gidx);
-    free(all);
-    free(sx);
-    free(px);
-    free(py);
-    free(pz);
-    free(qx);
-    free(qy);
-    free(qz);
+    frep_free(src);
+    frep_free(used);
+    frep_free(saved);
+    frep_free(pidx);
+    frep_free(gidx);
+    frep_free(all);
+    frep_free(sx);
+    frep_free(px);
+    frep_free(py);
+    frep_free(pz);
+    frep_free(qx);
+    frep_free(qy);
+    frep_free(qz);
     return rc;
 }

@@ -3,6 +3,7 @@
  * join itself is in evolve.c.
  */
 #include "config.h"
+#include "alloc.h"
 #include "util.h"
 
 #include "residual.h"
@@ -27,10 +28,10 @@
 
 void residual_free(evolve_base *b)
 {
-    free(b->text);
-    free(b->name);
-    free(b->header);
-    free(b->call);
+    frep_free(b->text);
+    frep_free(b->name);
+    frep_free(b->header);
+    frep_free(b->call);
     memset(b, 0, sizeof *b);
 }
 
@@ -54,7 +55,7 @@ static char *rename_ident(const char *src, size_t len, size_t start, const char 
                           const char *to)
 {
     size_t cap = len + 1, n = 0, tl = strlen(to);
-    char *out = malloc(cap);
+    char *out = frep_malloc(cap);
     if (!out) return NULL;
     size_t i = 0;
     while (i < len) {
@@ -71,9 +72,9 @@ static char *rename_ident(const char *src, size_t len, size_t start, const char 
             if (i >= start && name_eq(src + i, j - i, from)) {
                 if (n + tl + (len - j) + 1 > cap) {
                     cap = 2 * cap + tl;
-                    char *t = realloc(out, cap);
+                    char *t = frep_realloc(out, cap);
                     if (!t) {
-                        free(out);
+                        frep_free(out);
                         return NULL;
                     }
                     out = t;
@@ -88,9 +89,9 @@ static char *rename_ident(const char *src, size_t len, size_t start, const char 
         }
         if (n + (j - i) + 1 > cap) {
             cap = 2 * cap + (j - i);
-            char *t = realloc(out, cap);
+            char *t = frep_realloc(out, cap);
             if (!t) {
-                free(out);
+                frep_free(out);
                 return NULL;
             }
             out = t;
@@ -105,7 +106,7 @@ static char *rename_ident(const char *src, size_t len, size_t start, const char 
 
 static char *dup_str(const char *s)
 {
-    char *d = malloc(strlen(s) + 1);
+    char *d = frep_malloc(strlen(s) + 1);
     if (d) strcpy(d, s);
     return d;
 }
@@ -174,7 +175,7 @@ int residual_prepare(const char *file, const char *src, size_t len, const char *
     }
     /* Disarm every pragma of the base: the output's own @setops/@box come first, and the
      * base's @free parameters stay fixed (a refit changes the new primitives only). */
-    char *text = malloc(len + 1);
+    char *text = frep_malloc(len + 1);
     if (!text) goto oom;
     memcpy(text, src, len);
     text[len] = '\0';
@@ -184,7 +185,7 @@ int residual_prepare(const char *file, const char *src, size_t len, const char *
     }
     if (strcmp(newname, m->name) != 0) {
         b->text = rename_ident(text, len, m->loc.off, m->name, newname);
-        free(text);
+        frep_free(text);
         if (!b->text) goto oom;
     } else {
         b->text = text;
@@ -221,8 +222,8 @@ int residual_eval(const evolve_base *b, const frep_cloud *c, int threads, double
 {
     size_t n = c->n, bad = 0;
     size_t ch = n < RESIDUAL_CHUNK ? (n ? n : 1) : RESIDUAL_CHUNK;
-    double *gx = malloc(ch * sizeof *gx), *gy = malloc(ch * sizeof *gy);
-    double *gz = malloc(ch * sizeof *gz);
+    double *gx = frep_malloc(ch * sizeof *gx), *gy = frep_malloc(ch * sizeof *gy);
+    double *gz = frep_malloc(ch * sizeof *gz);
     int rc = -1;
     if (!gx || !gy || !gz) goto out;
     for (size_t i0 = 0; i0 < n; i0 += ch) {
@@ -248,8 +249,8 @@ int residual_eval(const evolve_base *b, const frep_cloud *c, int threads, double
     rc = 0;
 out:
     if (nbad) *nbad = bad;
-    free(gx);
-    free(gy);
-    free(gz);
+    frep_free(gx);
+    frep_free(gy);
+    frep_free(gz);
     return rc;
 }

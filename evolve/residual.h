@@ -33,7 +33,7 @@ typedef struct evolve_base {
 
 /* Prepare the base model from its source (it must compile: prog is its program, with
  * `model` the chosen model's name or NULL for the default choice). Returns 0, or -1 with
- * *err (malloc'ed; free()): parse failure, R-alpha set operations, out of memory.
+ * *err (malloc'ed; frep_free()): parse failure, R-alpha set operations, out of memory.
  * Free with residual_free(). */
 int residual_prepare(const char *file, const char *src, size_t len, const char *model,
                      frep_program *prog, evolve_base *b, char **err);

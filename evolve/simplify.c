@@ -4,6 +4,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "simplify.h"
 
 #include <math.h>
@@ -28,13 +29,13 @@ static void remove_at(gp_tree *t, uint32_t pc)
 static int swap_tail(gp_tree *t, uint32_t a, uint32_t b)
 {
     uint32_t n = t->len - a;
-    frep_insn *tmp = malloc((size_t)n * sizeof *tmp);
+    frep_insn *tmp = frep_malloc((size_t)n * sizeof *tmp);
     if (!tmp) return -1;
     uint32_t nr = t->len - b, nl = b - a;
     memcpy(tmp, t->code + b, (size_t)nr * sizeof *tmp);
     memcpy(tmp + nr, t->code + a, (size_t)nl * sizeof *tmp);
     memcpy(t->code + a, tmp, (size_t)n * sizeof *tmp);
-    free(tmp);
+    frep_free(tmp);
     return 0;
 }
 
@@ -475,10 +476,10 @@ static long useful_prims(const gp_tree *t, const gp_cache *c, gp_eval *e, uint8_
 static long useful_prims_oriented(const gp_tree *t, const gp_cache *c, gp_eval *e,
                                   uint8_t *use, double *cnt_out, uint8_t *neg)
 {
-    uint8_t *ok = malloc(c->n ? c->n : 1);
+    uint8_t *ok = frep_malloc(c->n ? c->n : 1);
     if (!ok) return -1;
     if (gp_explained(c, e, t->code, t->len, ok)) {
-        free(ok);
+        frep_free(ok);
         return -1;
     }
     double ca = cos(c->alpha);
@@ -501,7 +502,7 @@ static long useful_prims_oriented(const gp_tree *t, const gp_cache *c, gp_eval *
         if (neg) neg[j] = 2 * cneg > cnt;
         nu += use[j];
     }
-    free(ok);
+    frep_free(ok);
     return nu;
 }
 
@@ -531,8 +532,8 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
 {
     uint32_t k = c->nprims;
     if (k < 2) return 0;
-    uint8_t *use = malloc(k);
-    piece *beam = malloc(SIMPLIFY_PIECE_BEAM * sizeof *beam);
+    uint8_t *use = frep_malloc(k);
+    piece *beam = frep_malloc(SIMPLIFY_PIECE_BEAM * sizeof *beam);
     int rc = -1, nb = 0;
     if (!use || !beam) goto out;
     long nu = useful_prims(t, c, e, use);
@@ -580,8 +581,8 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     if ((rc = commit_trial(t, trial)) <= 0) goto out;
     *fit = best.f;
 out:
-    free(use);
-    free(beam);
+    frep_free(use);
+    frep_free(beam);
     return rc;
 }
 
@@ -633,7 +634,7 @@ static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
                       gp_eval *e, double *fit)
 {
     uint32_t k = c->nprims;
-    uint8_t *use = malloc(k ? k : 1);
+    uint8_t *use = frep_malloc(k ? k : 1);
     int rc = -1;
     if (!use) return -1;
     long nu = useful_prims(t, c, e, use);
@@ -656,11 +657,11 @@ static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     } else {
         /* Each thread takes whole subtree ends; the best of the threads is the first
          * in the sequential order among the fittest, as in one thread. */
-        double *tbf = malloc((size_t)nt * sizeof *tbf);
-        uint64_t *tbest = malloc((size_t)nt * sizeof *tbest);
+        double *tbf = frep_malloc((size_t)nt * sizeof *tbf);
+        uint64_t *tbest = frep_malloc((size_t)nt * sizeof *tbest);
         if (!tbf || !tbest) {
-            free(tbf);
-            free(tbest);
+            frep_free(tbf);
+            frep_free(tbest);
             rc = -1;
             goto out;
         }
@@ -691,8 +692,8 @@ static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
                 bf = tbf[q];
                 best = tbest[q];
             }
-        free(tbf);
-        free(tbest);
+        frep_free(tbf);
+        frep_free(tbest);
         if (failed) {
             rc = -1;
             goto out;
@@ -714,7 +715,7 @@ static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     }
     *fit = bf;
 out:
-    free(use);
+    frep_free(use);
     return rc;
 }
 
@@ -808,8 +809,8 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
 {
     uint32_t k = c->nprims;
     if (k < 2) return 0;
-    uint8_t *use = malloc(k), *neg = malloc(k), *ok = NULL;
-    double *cnt = malloc(k * sizeof *cnt);
+    uint8_t *use = frep_malloc(k), *neg = frep_malloc(k), *ok = NULL;
+    double *cnt = frep_malloc(k * sizeof *cnt);
     gp_tree sub = { NULL, 0, 0 };
     int rc = -1;
     if (!use || !neg || !cnt) goto out;
@@ -838,7 +839,7 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
      * subsets before any tree is scored (a tree of 100 nodes and 154 subsets would
      * otherwise cost 30,000 fitness evaluations per round). */
     uint8_t fits[2][SIMPLIFY_POCKET_CANDS][SIMPLIFY_POCKET_CANDS];
-    ok = malloc(c->n ? c->n : 1);
+    ok = frep_malloc(c->n ? c->n : 1);
     if (!ok || gp_explained(c, e, t->code, t->len, ok)) { rc = -1; goto out; }
     {
         double ca = cos(c->alpha);
@@ -933,10 +934,10 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
     *fit = bf;
 out:
     tree_free(&sub);
-    free(use);
-    free(neg);
-    free(cnt);
-    free(ok);
+    frep_free(use);
+    frep_free(neg);
+    frep_free(cnt);
+    frep_free(ok);
     return rc;
 }
 
@@ -1014,7 +1015,7 @@ static int grow_trim(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
 {
     uint32_t k = c->nprims;
     size_t n = c->n;
-    uint8_t *pol = malloc(t->len), *ok = malloc(n ? n : 1), *oks = malloc(n ? n : 1);
+    uint8_t *pol = frep_malloc(t->len), *ok = frep_malloc(n ? n : 1), *oks = frep_malloc(n ? n : 1);
     uint8_t *sup = NULL;
     gp_tree sub = { NULL, 0, 0 };
     int rc = -1;
@@ -1023,7 +1024,7 @@ static int grow_trim(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
     node_polarity(t, o, pol);
     /* sup[2j + ng]: L = p (ng 0) or ~p (ng 1) has inliers the tree misses, the points a
      * trim by it can explain (and the cheap test that prunes most candidates). */
-    sup = calloc(2 * (size_t)(k ? k : 1), 1);
+    sup = frep_calloc(2 * (size_t)(k ? k : 1), 1);
     if (!sup) goto out;
     {
         double ca = cos(c->alpha);
@@ -1087,10 +1088,10 @@ static int grow_trim(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
     }
 out:
     tree_free(&sub);
-    free(pol);
-    free(ok);
-    free(oks);
-    free(sup);
+    frep_free(pol);
+    frep_free(ok);
+    frep_free(oks);
+    frep_free(sup);
     return rc;
 }
 

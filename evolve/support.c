@@ -8,6 +8,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "support.h"
 
 #include "simplify.h"
@@ -111,9 +112,9 @@ int support_trim(gp_tree *t, gp_setops s, const gp_cache *pc, gp_eval *e,
     gp_opset o = gp_opset_of(s);
     size_t ng = g->c->n, n = pc->n;
     uint32_t k = pc->nprims;
-    double *v = malloc((ng ? ng : 1) * sizeof *v), *w = malloc((ng ? ng : 1) * sizeof *w);
-    uint8_t *ok = malloc(n ? n : 1), *oks = malloc(n ? n : 1), *pol = NULL;
-    edge_list el = { malloc(6 * (ng ? ng : 1) * sizeof *el.ab), 0 };
+    double *v = frep_malloc((ng ? ng : 1) * sizeof *v), *w = frep_malloc((ng ? ng : 1) * sizeof *w);
+    uint8_t *ok = frep_malloc(n ? n : 1), *oks = frep_malloc(n ? n : 1), *pol = NULL;
+    edge_list el = { frep_malloc(6 * (ng ? ng : 1) * sizeof *el.ab), 0 };
     gp_tree sub = { NULL, 0, 0 };
     int rc = -1;
     if (!v || !w || !ok || !oks || !el.ab) goto out;
@@ -123,7 +124,7 @@ int support_trim(gp_tree *t, gp_setops s, const gp_cache *pc, gp_eval *e,
     for (uint32_t round = 0; round < SUPPORT_MAX_TRIMS && u >= SUPPORT_MIN_GAIN; round++) {
         el.n = 0;
         each_unsupported(g, v, push_edge, &el);
-        uint8_t *np = realloc(pol, t->len);
+        uint8_t *np = frep_realloc(pol, t->len);
         if (!np) goto out;
         pol = np;
         simplify_polarity(t, s, pol);
@@ -207,12 +208,12 @@ int support_trim(gp_tree *t, gp_setops s, const gp_cache *pc, gp_eval *e,
     info->after = u;
     rc = 0;
 out:
-    free(v);
-    free(w);
-    free(ok);
-    free(oks);
-    free(pol);
-    free(el.ab);
+    frep_free(v);
+    frep_free(w);
+    frep_free(ok);
+    frep_free(oks);
+    frep_free(pol);
+    frep_free(el.ab);
     tree_free(&sub);
     return rc;
 }

@@ -4,6 +4,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "tree.h"
 
 #include <stdlib.h>
@@ -45,7 +46,7 @@ int tree_reserve(gp_tree *t, uint32_t cap)
     if (cap > GP_MAX_TREE_LEN) return -1;
     uint32_t nc = t->cap ? t->cap : 16;
     while (nc < cap) nc = nc > GP_MAX_TREE_LEN / 2 ? GP_MAX_TREE_LEN : nc * 2;
-    frep_insn *c = realloc(t->code, (size_t)nc * sizeof *c);
+    frep_insn *c = frep_realloc(t->code, (size_t)nc * sizeof *c);
     if (!c) return -1;
     t->code = c;
     t->cap = nc;
@@ -54,7 +55,7 @@ int tree_reserve(gp_tree *t, uint32_t cap)
 
 void tree_free(gp_tree *t)
 {
-    free(t->code);
+    frep_free(t->code);
     t->code = NULL;
     t->len = t->cap = 0;
 }
@@ -120,7 +121,7 @@ void tree_levels(const frep_insn *code, uint32_t len, uint16_t *lev)
     /* Reversed postfix is a preorder (right operand first): a stack of the levels of
      * the nodes still to visit assigns each node its level. */
     if (!len) return;
-    uint16_t *st = malloc((size_t)len * sizeof *st);
+    uint16_t *st = frep_malloc((size_t)len * sizeof *st);
     if (!st) {
         for (uint32_t i = 0; i < len; i++) lev[i] = 1;
         return;
@@ -133,14 +134,14 @@ void tree_levels(const frep_insn *code, uint32_t len, uint16_t *lev)
         int k = tree_nin(&code[pc]);
         for (int i = 0; i < k && sp < len; i++) st[sp++] = (uint16_t)(l + 1);
     }
-    free(st);
+    frep_free(st);
 }
 
 int tree_depth(const frep_insn *code, uint32_t len)
 {
     /* Postfix evaluation of heights. */
     if (!len) return 0;
-    int *st = malloc((size_t)len * sizeof *st);
+    int *st = frep_malloc((size_t)len * sizeof *st);
     if (!st) return GP_MAX_TREE_DEPTH + 1;
     uint32_t sp = 0;
     for (uint32_t pc = 0; pc < len; pc++) {
@@ -152,7 +153,7 @@ int tree_depth(const frep_insn *code, uint32_t len)
         st[sp++] = h + 1;
     }
     int d = sp ? st[sp - 1] : 0;
-    free(st);
+    frep_free(st);
     return d;
 }
 
@@ -177,7 +178,7 @@ int tree_valid(const frep_insn *code, uint32_t len, uint32_t nprims, gp_setops s
 
 uint32_t tree_count_prims(const frep_insn *code, uint32_t len, uint32_t nprims)
 {
-    uint8_t *seen = calloc(nprims ? nprims : 1, 1);
+    uint8_t *seen = frep_calloc(nprims ? nprims : 1, 1);
     if (!seen) return 0;
     uint32_t n = 0;
     for (uint32_t pc = 0; pc < len; pc++)
@@ -185,7 +186,7 @@ uint32_t tree_count_prims(const frep_insn *code, uint32_t len, uint32_t nprims)
             seen[code[pc].arg] = 1;
             n++;
         }
-    free(seen);
+    frep_free(seen);
     return n;
 }
 
@@ -253,11 +254,11 @@ int tree_mutate(gp_tree *t, gp_rng *r, gp_setops s, uint32_t nprims, int max_dep
     }
     uint32_t e = gp_rng_below(r, t->len);
     uint32_t st = tree_subtree_start(t->code, e);
-    uint16_t *lev = malloc((size_t)t->len * sizeof *lev);
+    uint16_t *lev = frep_malloc((size_t)t->len * sizeof *lev);
     if (!lev) return -1;
     tree_levels(t->code, t->len, lev);
     int room = max_depth - lev[e] + 1;
-    free(lev);
+    frep_free(lev);
     gp_tree sub = { NULL, 0, 0 };
     if (tree_grow(&sub, r, s, nprims, room < 1 ? 1 : room, p_sub) ||
         tree_splice(t, st, e, sub.code, sub.len)) {
@@ -373,14 +374,14 @@ void tree_print_dot(FILE *f, const frep_insn *code, uint32_t len,
 
 uint32_t tree_used_prims(const gp_tree *t, uint32_t nprims, uint32_t **out)
 {
-    uint8_t *seen = calloc(nprims ? nprims : 1, 1);
+    uint8_t *seen = frep_calloc(nprims ? nprims : 1, 1);
     uint32_t n = 0;
     *out = NULL;
     if (!seen) return 0;
     for (uint32_t pc = 0; pc < t->len; pc++)
         if (t->code[pc].op == FREP_OP_PRIM) seen[t->code[pc].arg] = 1;
     for (uint32_t j = 0; j < nprims; j++) n += seen[j];
-    *out = malloc((size_t)(n ? n : 1) * sizeof **out);
+    *out = frep_malloc((size_t)(n ? n : 1) * sizeof **out);
     if (*out) {
         n = 0;
         for (uint32_t j = 0; j < nprims; j++)
@@ -388,7 +389,7 @@ uint32_t tree_used_prims(const gp_tree *t, uint32_t nprims, uint32_t **out)
     } else {
         n = 0;
     }
-    free(seen);
+    frep_free(seen);
     return n;
 }
 

@@ -4,6 +4,7 @@
  * from each chain's best, keeping the best result.
  * Sits between cli/cmd_fit.c and fit/optim.c + fit/objective.c.
  */
+#include "alloc.h"
 #include "fit.h"
 
 #include <math.h>
@@ -98,17 +99,17 @@ static void prog_scratch_free(void *user, void *sv)
     prog_scratch *ps = sv;
     if (ps == NULL) return;
     frep_scratch_free(ps->s);
-    free(ps->full);
-    free(ps);
+    frep_free(ps->full);
+    frep_free(ps);
 }
 
 static void *prog_scratch_new(void *user)
 {
     const prog_model *pm = user;
-    prog_scratch *ps = calloc(1, sizeof *ps);
+    prog_scratch *ps = frep_calloc(1, sizeof *ps);
     if (ps == NULL) return NULL;
     ps->s = frep_scratch_new(pm->p);
-    ps->full = malloc((pm->nall + pm->nall * FIT_BLOCK) * sizeof *ps->full);
+    ps->full = frep_malloc((pm->nall + pm->nall * FIT_BLOCK) * sizeof *ps->full);
     if (ps->s == NULL || ps->full == NULL) {
         prog_scratch_free(user, ps);
         return NULL;
@@ -142,17 +143,17 @@ int fit_program_model(const frep_program *p, const size_t *idx, size_t nfree,
                       const double *base, fit_model *m)
 {
     memset(m, 0, sizeof *m);
-    prog_model *pm = calloc(1, sizeof *pm);
+    prog_model *pm = frep_calloc(1, sizeof *pm);
     if (pm == NULL) return -1;
     pm->p = p;
     pm->nall = frep_program_nparams(p);
     pm->nfree = nfree;
-    pm->idx = malloc((nfree ? nfree : 1) * sizeof *pm->idx);
-    pm->base = malloc((pm->nall ? pm->nall : 1) * sizeof *pm->base);
+    pm->idx = frep_malloc((nfree ? nfree : 1) * sizeof *pm->idx);
+    pm->base = frep_malloc((pm->nall ? pm->nall : 1) * sizeof *pm->base);
     if (pm->idx == NULL || pm->base == NULL) {
-        free(pm->idx);
-        free(pm->base);
-        free(pm);
+        frep_free(pm->idx);
+        frep_free(pm->base);
+        frep_free(pm);
         return -1;
     }
     memcpy(pm->idx, idx, nfree * sizeof *idx);
@@ -169,9 +170,9 @@ void fit_program_model_free(fit_model *m)
 {
     prog_model *pm = m->user;
     if (pm == NULL) return;
-    free(pm->idx);
-    free(pm->base);
-    free(pm);
+    frep_free(pm->idx);
+    frep_free(pm->base);
+    frep_free(pm);
     m->user = NULL;
 }
 

@@ -5,6 +5,7 @@
  * order afterwards.  OpenMP spreads blocks over threads, each with its own model scratch
  * and buffers, so a seed gives bit-identical fits at any thread count.
  */
+#include "alloc.h"
 #include "objective.h"
 
 #include <float.h>
@@ -75,9 +76,9 @@ static void free_ws(fit_objective *o)
         fit_ws *w = &o->ws[t];
         if (w->scratch != NULL && o->model.scratch_free != NULL)
             o->model.scratch_free(o->model.user, w->scratch);
-        free(w->f);
+        frep_free(w->f);
     }
-    free(o->ws);
+    frep_free(o->ws);
     o->ws = NULL;
 }
 
@@ -85,10 +86,10 @@ void fit_objective_free(fit_objective *o)
 {
     if (o == NULL) return;
     free_ws(o);
-    free(o->partial);
-    free(o->w);
-    free(o->own);
-    free(o);
+    frep_free(o->partial);
+    frep_free(o->w);
+    frep_free(o->own);
+    frep_free(o);
 }
 
 /* Buffers and slots; the points must be set. Returns 0 or -1. */
@@ -106,8 +107,8 @@ static int setup(fit_objective *o)
     o->fd_step = FIT_FD_XSTEP * (diag > 0 && isfinite(diag) ? diag : 1);
     o->nblocks = (o->n + FIT_BLOCK - 1) / FIT_BLOCK;
     o->slot = 2 + m + m * m;
-    o->partial = malloc((o->nblocks ? o->nblocks : 1) * o->slot * sizeof *o->partial);
-    o->w = malloc((o->n ? o->n : 1) * sizeof *o->w);
+    o->partial = frep_malloc((o->nblocks ? o->nblocks : 1) * o->slot * sizeof *o->partial);
+    o->w = frep_malloc((o->n ? o->n : 1) * sizeof *o->w);
     int nt = o->cfg.nthreads;
 #ifdef _OPENMP
     if (nt <= 0) nt = omp_get_max_threads();
@@ -116,11 +117,11 @@ static int setup(fit_objective *o)
 #endif
     if (nt < 1) nt = 1;
     o->nthreads = nt;
-    o->ws = calloc((size_t)nt, sizeof *o->ws);
+    o->ws = frep_calloc((size_t)nt, sizeof *o->ws);
     if (o->partial == NULL || o->w == NULL || o->ws == NULL) return -1;
     for (int t = 0; t < nt; t++) {
         fit_ws *w = &o->ws[t];
-        w->f = malloc((11 * FIT_BLOCK + 2 * m * FIT_BLOCK) * sizeof *w->f);
+        w->f = frep_malloc((11 * FIT_BLOCK + 2 * m * FIT_BLOCK) * sizeof *w->f);
         if (w->f == NULL) return -1;
         w->g = w->f + FIT_BLOCK;
         w->dp = w->g + 3 * FIT_BLOCK;
@@ -139,7 +140,7 @@ fit_objective *fit_objective_new(const fit_model *m, const fit_points *pts,
                                  const fit_objective_config *cfg)
 {
     if (m->nparams == 0 || m->nparams > FIT_MAX_PARAMS) return NULL;
-    fit_objective *o = calloc(1, sizeof *o);
+    fit_objective *o = frep_calloc(1, sizeof *o);
     if (o == NULL) return NULL;
     o->model = *m;
     if (cfg != NULL) o->cfg = *cfg;
@@ -160,7 +161,7 @@ fit_objective *fit_objective_subset(const fit_objective *src, size_t count, uint
 {
     size_t n = src->n;
     if (count > n) count = n;
-    fit_objective *o = calloc(1, sizeof *o);
+    fit_objective *o = frep_calloc(1, sizeof *o);
     if (o == NULL) return NULL;
     o->model = src->model;
     o->cfg = src->cfg;
@@ -168,10 +169,10 @@ fit_objective *fit_objective_subset(const fit_objective *src, size_t count, uint
     o->n = count;
     o->m = src->m;
     int normals = src->nx != NULL;
-    size_t *idx = malloc((n ? n : 1) * sizeof *idx);
-    o->own = malloc((count ? count : 1) * (normals ? 6 : 3) * sizeof *o->own);
+    size_t *idx = frep_malloc((n ? n : 1) * sizeof *idx);
+    o->own = frep_malloc((count ? count : 1) * (normals ? 6 : 3) * sizeof *o->own);
     if (idx == NULL || o->own == NULL) {
-        free(idx);
+        frep_free(idx);
         fit_objective_free(o);
         return NULL;
     }
@@ -198,7 +199,7 @@ fit_objective *fit_objective_subset(const fit_objective *src, size_t count, uint
             a[5 * count + i] = src->nz[k];
         }
     }
-    free(idx);
+    frep_free(idx);
     o->x = a, o->y = a + count, o->z = a + 2 * count;
     if (normals) o->nx = a + 3 * count, o->ny = a + 4 * count, o->nz = a + 5 * count;
     if (setup(o) != 0) {

@@ -5,6 +5,7 @@
  */
 #define _POSIX_C_SOURCE 200809L
 
+#include "alloc.h"
 #include "optim.h"
 
 #include <float.h>
@@ -283,7 +284,7 @@ fit_status fit_bfgs(fit_fn fn, void *user, size_t n, double *x, const double *lo
     if (opt == NULL) fit_qn_options_init(&defaults), opt = &defaults;
     if (iterations) *iterations = 0;
     if (n == 0 || n > FIT_MAX_PARAMS) return FIT_FAILED;
-    double *mem = malloc((n * n + 8 * n) * sizeof *mem);
+    double *mem = frep_malloc((n * n + 8 * n) * sizeof *mem);
     if (mem == NULL) return FIT_FAILED;
     double *H = mem, *g = H + n * n, *pg = g + n, *d = pg + n, *xn = d + n, *gn = xn + n;
     double *xt = gn + n, *gt = xt + n, *Hy = gt + n;
@@ -291,7 +292,7 @@ fit_status fit_bfgs(fit_fn fn, void *user, size_t n, double *x, const double *lo
     for (size_t i = 0; i < n; i++) x[i] = clampd(x[i], lo_of(lo, i), hi_of(hi, i));
     double f = call(fn, user, x, g, c);
     if (f == HUGE_VAL) {
-        free(mem);
+        frep_free(mem);
         *fx = f;
         return FIT_FAILED;
     }
@@ -402,7 +403,7 @@ fit_status fit_bfgs(fit_fn fn, void *user, size_t n, double *x, const double *lo
     if (iterations) *iterations = it;
     *fx = f;
     report(c, FIT_PHASE_QN, 0, f, 1);
-    free(mem);
+    frep_free(mem);
     return st;
 }
 
@@ -458,7 +459,7 @@ fit_status fit_lm(fit_lsq_fn fn, void *user, size_t n, double *x, const double *
     if (opt == NULL) fit_lm_options_init(&defaults), opt = &defaults;
     if (iterations) *iterations = 0;
     if (n == 0 || n > FIT_MAX_PARAMS) return FIT_FAILED;
-    double *mem = malloc((3 * n * n + 4 * n) * sizeof *mem);
+    double *mem = frep_malloc((3 * n * n + 4 * n) * sizeof *mem);
     if (mem == NULL) return FIT_FAILED;
     double *A = mem, *An = A + n * n, *M = An + n * n, *b = M + n * n, *bn = b + n;
     double *delta = bn + n, *xn = delta + n;
@@ -467,7 +468,7 @@ fit_status fit_lm(fit_lsq_fn fn, void *user, size_t n, double *x, const double *
     if (c) c->evals++;
     double cost = fn(user, x, A, b);
     if (!isfinite(cost)) {
-        free(mem);
+        frep_free(mem);
         *fx = HUGE_VAL;
         return FIT_FAILED;
     }
@@ -536,7 +537,7 @@ fit_status fit_lm(fit_lsq_fn fn, void *user, size_t n, double *x, const double *
     if (iterations) *iterations = it;
     *fx = cost;
     report(c, FIT_PHASE_LM, 0, cost, 1);
-    free(mem);
+    frep_free(mem);
     return st;
 }
 
@@ -676,7 +677,7 @@ fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
         if (!isfinite(lo[i]) || !isfinite(hi[i]) || !(lo[i] < hi[i])) return FIT_FAILED;
     if (!(opt->qv > 1 && opt->qv < 3) || !(opt->qa < 1) || !(opt->t0 > 0)) return FIT_FAILED;
 
-    double *mem = malloc(4 * n * sizeof *mem);
+    double *mem = frep_malloc(4 * n * sizeof *mem);
     if (mem == NULL) return FIT_FAILED;
     double *trial = mem, *best = trial + n;
     sa_chain ch = {best + n, best + 2 * n, HUGE_VAL, HUGE_VAL};
@@ -700,7 +701,7 @@ fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
         if (sa_chain_start(&ch, fn, user, n, x, chain == 0 && inside, lo, hi, opt, rng, c,
                            trial) != 0) {
             if (chain == 0) {
-                free(mem);
+                frep_free(mem);
                 return FIT_FAILED;
             }
             break;
@@ -810,6 +811,6 @@ fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
     memcpy(x, best, n * sizeof *x);
     *fx = ebest;
     report(c, FIT_PHASE_SA, 0, ebest, 1);
-    free(mem);
+    frep_free(mem);
     return st;
 }

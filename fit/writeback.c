@@ -2,6 +2,7 @@
  * writeback.h): literal spans are replaced back to front, then the `-- @box` and note
  * lines are refreshed.  Pure text processing; cli/cmd_fit.c writes the result atomically.
  */
+#include "alloc.h"
 #include "writeback.h"
 
 #include <stdio.h>
@@ -27,7 +28,7 @@ static void sb_put(sbuf *b, const char *s, size_t n)
     if (b->failed) return;
     if (b->n + n + 1 > b->cap) {
         size_t cap = (b->n + n + 1) * 2;
-        char *q = realloc(b->p, cap);
+        char *q = frep_realloc(b->p, cap);
         if (q == NULL) {
             b->failed = 1;
             return;
@@ -71,13 +72,13 @@ static int line_is(const char *s, size_t len, size_t i, const char *word)
 char *fit_writeback(const char *src, size_t len, const fit_edit *edits, size_t n,
                     const double *box, const char *note, size_t *outlen)
 {
-    fit_edit *e = malloc((n ? n : 1) * sizeof *e);
+    fit_edit *e = frep_malloc((n ? n : 1) * sizeof *e);
     if (e == NULL) return NULL;
     if (n) memcpy(e, edits, n * sizeof *e);
     if (n > 1) qsort(e, n, sizeof *e, cmp_edit);
     for (size_t k = 0; k < n; k++) {
         if (e[k].off >= e[k].end || e[k].end > len || (k > 0 && e[k].off < e[k - 1].end)) {
-            free(e);
+            frep_free(e);
             return NULL;
         }
     }
@@ -92,9 +93,9 @@ char *fit_writeback(const char *src, size_t len, const fit_edit *edits, size_t n
         pos = e[k].end;
     }
     sb_put(&a, src + pos, len - pos);
-    free(e);
+    frep_free(e);
     if (a.failed || (a.p == NULL && (sb_put(&a, "", 0), a.failed))) {
-        free(a.p);
+        frep_free(a.p);
         return NULL;
     }
     if (box == NULL && note == NULL) {
@@ -179,9 +180,9 @@ char *fit_writeback(const char *src, size_t len, const fit_edit *edits, size_t n
         sb_put(&b, note, strlen(note));
         sb_put(&b, "\n", 1);
     }
-    free(a.p);
+    frep_free(a.p);
     if (b.failed || b.p == NULL) {
-        free(b.p);
+        frep_free(b.p);
         return NULL;
     }
     *outlen = b.n;

@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "alloc.h"
 #include "cloud.h"
 #include "util.h"
 
@@ -31,7 +32,7 @@
 
 frep_cloud *cloud_new(int with_normals)
 {
-    frep_cloud *c = calloc(1, sizeof *c);
+    frep_cloud *c = frep_calloc(1, sizeof *c);
     if (c) c->has_normals = with_normals != 0;
     return c;
 }
@@ -39,14 +40,14 @@ frep_cloud *cloud_new(int with_normals)
 void cloud_free(frep_cloud *c)
 {
     if (!c) return;
-    free(c->x); free(c->y); free(c->z);
-    free(c->nx); free(c->ny); free(c->nz);
-    free(c);
+    frep_free(c->x); frep_free(c->y); frep_free(c->z);
+    frep_free(c->nx); frep_free(c->ny); frep_free(c->nz);
+    frep_free(c);
 }
 
 static int grow(double **a, size_t cap)
 {
-    double *p = realloc(*a, cap * sizeof *p);
+    double *p = frep_realloc(*a, cap * sizeof *p);
     if (!p) return -1;
     *a = p;
     return 0;
@@ -86,11 +87,11 @@ int cloud_add_normals(frep_cloud *c)
 {
     if (c->has_normals) return 0;
     size_t cap = c->cap ? c->cap : 1;
-    c->nx = calloc(cap, sizeof(double));
-    c->ny = calloc(cap, sizeof(double));
-    c->nz = calloc(cap, sizeof(double));
+    c->nx = frep_calloc(cap, sizeof(double));
+    c->ny = frep_calloc(cap, sizeof(double));
+    c->nz = frep_calloc(cap, sizeof(double));
     if (!c->nx || !c->ny || !c->nz) {
-        free(c->nx); free(c->ny); free(c->nz);
+        frep_free(c->nx); frep_free(c->ny); frep_free(c->nz);
         c->nx = c->ny = c->nz = NULL;
         return -1;
     }
@@ -298,7 +299,7 @@ static int ascii_next(ascii_cursor *a, double *v)
 
 static frep_cloud *parse_ply(const char *name, const char *data, size_t len, char **err)
 {
-    ply_element *el = calloc(PLY_MAX_ELEMENTS, sizeof *el);
+    ply_element *el = frep_calloc(PLY_MAX_ELEMENTS, sizeof *el);
     frep_cloud *c = NULL;
     if (!el) { SET_ERR("%s: out of memory", name); return NULL; }
     size_t nel = 0, line = 0;
@@ -484,10 +485,10 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
             goto fail;
         }
     }
-    free(el);
+    frep_free(el);
     return c;
 fail:
-    free(el);
+    frep_free(el);
     cloud_free(c);
     return NULL;
 }
@@ -514,7 +515,7 @@ frep_cloud *cloud_read(const char *path, char **err)
     for (;;) {
         if (cap - len < CLOUD_READ_CHUNK) {
             size_t ncap = cap ? 2 * cap : CLOUD_READ_CHUNK;
-            char *nb = realloc(buf, ncap);
+            char *nb = frep_realloc(buf, ncap);
             if (!nb) {
                 SET_ERR("cannot read %s: out of memory", path);
                 goto fail;
@@ -532,11 +533,11 @@ frep_cloud *cloud_read(const char *path, char **err)
     }
     if (!is_stdin) fclose(f);
     frep_cloud *c = cloud_parse(is_stdin ? "<stdin>" : path, buf, len, err);
-    free(buf);
+    frep_free(buf);
     return c;
 fail:
     if (!is_stdin) fclose(f);
-    free(buf);
+    frep_free(buf);
     return NULL;
 }
 

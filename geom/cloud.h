@@ -38,7 +38,7 @@ int cloud_add_normals(frep_cloud *c);
 
 /* Read a cloud from `path` ("-": standard input). The format is PLY when the data
  * start with "ply\n" (or "ply\r\n"), else .xyz text. Returns NULL on failure and sets
- * *err (if err != NULL) to a malloc'ed message "path:line: what" (free() it). */
+ * *err (if err != NULL) to a malloc'ed message "path:line: what" (frep_free() it). */
 frep_cloud *cloud_read(const char *path, char **err);
 /* Parse a cloud from memory; `name` is used in messages. Same conventions. */
 frep_cloud *cloud_parse(const char *name, const char *data, size_t len, char **err);

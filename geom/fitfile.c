@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "alloc.h"
 #include "fitfile.h"
 #include "util.h"
 
@@ -128,7 +129,7 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
         }
         if (cnt == cap) {
             size_t nc = cap ? 2 * cap : 16;
-            prim *nv = realloc(v, nc * sizeof *nv);
+            prim *nv = frep_realloc(v, nc * sizeof *nv);
             if (!nv) {
                 if (err) *err = frep_strdupf("%s: out of memory", name);
                 goto fail;
@@ -142,7 +143,7 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
     *n = cnt;
     return 0;
 fail:
-    free(v);
+    frep_free(v);
     return -1;
 }
 

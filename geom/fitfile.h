@@ -14,7 +14,7 @@
 
 /* Parse a .fit list from memory (`name` for messages). Blank lines and lines starting
  * with '#' are skipped. Axes and plane normals are normalized. On success returns 0 and
- * a malloc'ed array in *out (free()); else -1 and *err = "name:line: what" (free()). */
+ * a malloc'ed array in *out (frep_free()); else -1 and *err = "name:line: what" (frep_free()). */
 int fitfile_parse(const char *name, const char *text, size_t len, prim **out, size_t *n,
                   char **err);
 /* Write the list (%.17g). Returns 0 or -1 on a write error. */

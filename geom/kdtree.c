@@ -8,6 +8,7 @@
 #include <math.h>
 #include <stdlib.h>
 
+#include "alloc.h"
 #include "kdtree.h"
 
 typedef struct kd_split {
@@ -81,16 +82,16 @@ static void build(kd_tree *t, size_t node, size_t lo, size_t hi)
 kd_tree *kd_build(size_t n, const double *x, const double *y, const double *z)
 {
     if (n == 0 || n > UINT32_MAX) return NULL;
-    kd_tree *t = calloc(1, sizeof *t);
+    kd_tree *t = frep_calloc(1, sizeof *t);
     if (!t) return NULL;
     t->n = n;
     /* Leaves hold <= KD_LEAF points, so depth <= log2(n / KD_LEAF) + 2 levels. */
     size_t nn = 2;
     while (nn / 2 * KD_LEAF < n) nn *= 2;
     t->nnodes = 2 * nn;
-    t->pts = malloc(3 * n * sizeof *t->pts);
-    t->id = malloc(n * sizeof *t->id);
-    t->nodes = calloc(t->nnodes, sizeof *t->nodes);
+    t->pts = frep_malloc(3 * n * sizeof *t->pts);
+    t->id = frep_malloc(n * sizeof *t->id);
+    t->nodes = frep_calloc(t->nnodes, sizeof *t->nodes);
     if (!t->pts || !t->id || !t->nodes) {
         kd_free(t);
         return NULL;
@@ -109,10 +110,10 @@ kd_tree *kd_build(size_t n, const double *x, const double *y, const double *z)
 void kd_free(kd_tree *t)
 {
     if (!t) return;
-    free(t->pts);
-    free(t->id);
-    free(t->nodes);
-    free(t);
+    frep_free(t->pts);
+    frep_free(t->id);
+    frep_free(t->nodes);
+    frep_free(t);
 }
 
 /* Max-heap of the best k candidates so far, ordered by (d2, index). */

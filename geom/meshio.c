@@ -6,6 +6,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "meshio.h"
 #include "util.h"
 
@@ -217,7 +218,7 @@ static int add_vertex(mbuild *b, double x, double y, double z)
     if (m->nverts >= MESHIO_MAX_ELEMENTS) return -1;
     if (m->nverts == b->capv) {
         size_t cap = b->capv ? 2 * b->capv : 1024;
-        double *nv = realloc(m->v, 3 * cap * sizeof *nv);
+        double *nv = frep_realloc(m->v, 3 * cap * sizeof *nv);
         if (!nv) return -1;
         m->v = nv;
         b->capv = cap;
@@ -235,7 +236,7 @@ static int add_tri(mbuild *b, uint32_t a, uint32_t c, uint32_t d)
     if (m->ntris >= MESHIO_MAX_ELEMENTS) return -1;
     if (m->ntris == b->capt) {
         size_t cap = b->capt ? 2 * b->capt : 1024;
-        uint32_t *nt = realloc(m->tri, 3 * cap * sizeof *nt);
+        uint32_t *nt = frep_realloc(m->tri, 3 * cap * sizeof *nt);
         if (!nt) return -1;
         m->tri = nt;
         b->capt = cap;
@@ -517,8 +518,8 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
     tcur c = { data, data + len, 0 };
     const char *s, *e;
     int fmt = -1; /* 0 ascii, 1 binary LE, 2 binary BE */
-    pelem *el = calloc(MESHIO_PLY_MAX_ELEMENTS, sizeof *el);
-    prec *rec = malloc(sizeof *rec);
+    pelem *el = frep_calloc(MESHIO_PLY_MAX_ELEMENTS, sizeof *el);
+    prec *rec = frep_malloc(sizeof *rec);
     int nel = 0, status = -1;
     if (!el || !rec) goto oom;
     if (!next_line(&c, &s, &e, '\0') || e - s != 3 || strncmp(s, "ply", 3) != 0) {
@@ -669,8 +670,8 @@ short_rec:
 oom:
     SET_ERR("%s: out of memory", name);
 done:
-    free(el);
-    free(rec);
+    frep_free(el);
+    frep_free(rec);
     return status;
 }
 
@@ -716,14 +717,14 @@ int meshio_read(const char *path, frep_mesh *m, char **err)
         return -1;
     }
     size_t cap = MESHIO_READ_CHUNK, n = 0;
-    char *buf = malloc(cap);
+    char *buf = frep_malloc(cap);
     while (buf) {
         size_t got = fread(buf + n, 1, cap - n, f);
         n += got;
         if (n < cap) break;
-        char *nb = realloc(buf, 2 * cap);
+        char *nb = frep_realloc(buf, 2 * cap);
         if (!nb) {
-            free(buf);
+            frep_free(buf);
             buf = NULL;
             break;
         }
@@ -733,11 +734,11 @@ int meshio_read(const char *path, frep_mesh *m, char **err)
     int rd_err = ferror(f);
     fclose(f);
     if (!buf || rd_err) {
-        free(buf);
+        frep_free(buf);
         SET_ERR("%s: %s", path, rd_err ? "read error" : "out of memory");
         return -1;
     }
     int rc = meshio_parse(path, buf, n, meshio_format_for_path(path), m, err);
-    free(buf);
+    frep_free(buf);
     return rc;
 }

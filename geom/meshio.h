@@ -32,7 +32,7 @@ int meshio_write(FILE *f, const frep_mesh *m, meshio_format fmt, int ascii);
 /* Read a triangle mesh (polygons are split into fans). The format comes from the
  * extension, or the content for STL (ASCII or binary) and PLY (ascii, binary little
  * and big endian). Returns 0 and fills *m (free with mesh_free; m->n is NULL), or -1
- * with a malloc'ed message "path:line: what" in *err (free() it). */
+ * with a malloc'ed message "path:line: what" in *err (frep_free() it). */
 int meshio_read(const char *path, frep_mesh *m, char **err);
 /* The same from memory; `name` names the data in messages, fmt may be MESHIO_UNKNOWN
  * (then guessed from the content). */

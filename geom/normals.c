@@ -14,6 +14,7 @@
 #include <omp.h>
 #endif
 
+#include "alloc.h"
 #include "kdtree.h"
 #include "normals.h"
 
@@ -160,10 +161,10 @@ int normals_estimate(frep_cloud *c, size_t k, int nthreads)
     if (k > n) k = n;
     if (!c->has_normals && cloud_add_normals(c)) return -1;
     kd_tree *t = kd_build(n, c->x, c->y, c->z);
-    uint32_t *nb = malloc(n * k * sizeof *nb);
+    uint32_t *nb = frep_malloc(n * k * sizeof *nb);
     if (!t || !nb) {
         kd_free(t);
-        free(nb);
+        frep_free(nb);
         return -1;
     }
     long ln = (long)n;
@@ -204,16 +205,16 @@ int normals_estimate(frep_cloud *c, size_t k, int nthreads)
     /* Orientation: Prim's algorithm from the extreme points, seeds in order of
      * decreasing x so each component starts at its largest-x point. */
     iheap h;
-    h.heap = malloc(n * sizeof *h.heap);
-    h.pos = malloc(n * sizeof *h.pos);
-    h.key = malloc(n * sizeof *h.key);
-    uint32_t *parent = malloc(n * sizeof *parent);
-    unsigned char *done = calloc(n, 1);
-    xkey *order = malloc(n * sizeof *order);
+    h.heap = frep_malloc(n * sizeof *h.heap);
+    h.pos = frep_malloc(n * sizeof *h.pos);
+    h.key = frep_malloc(n * sizeof *h.key);
+    uint32_t *parent = frep_malloc(n * sizeof *parent);
+    unsigned char *done = frep_calloc(n, 1);
+    xkey *order = frep_malloc(n * sizeof *order);
     /* Reverse edges in CSR form (rstart[i]..rstart[i+1]): the k-NN relation is not
      * symmetric, and orientation must cross edges both ways. */
-    size_t *rstart = calloc(n + 1, sizeof *rstart);
-    uint32_t *rev = malloc(n * k * sizeof *rev);
+    size_t *rstart = frep_calloc(n + 1, sizeof *rstart);
+    uint32_t *rev = frep_malloc(n * k * sizeof *rev);
     int rc = -1;
     if (!h.heap || !h.pos || !h.key || !parent || !done || !order || !rstart || !rev)
         goto out;
@@ -264,14 +265,14 @@ int normals_estimate(frep_cloud *c, size_t k, int nthreads)
     }
     rc = 0;
 out:
-    free(h.heap);
-    free(h.pos);
-    free(h.key);
-    free(parent);
-    free(done);
-    free(order);
-    free(rstart);
-    free(rev);
-    free(nb);
+    frep_free(h.heap);
+    frep_free(h.pos);
+    frep_free(h.key);
+    frep_free(parent);
+    frep_free(done);
+    frep_free(order);
+    frep_free(rstart);
+    frep_free(rev);
+    frep_free(nb);
     return rc;
 }

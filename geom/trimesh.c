@@ -2,6 +2,7 @@
  * invariant checks of `frep mesh --check` and the tests (closed, 2-manifold, oriented).
  * Made by mesh/mesh.c (polygonization) and geom/meshio.c (mesh files).
  */
+#include "alloc.h"
 #include "trimesh.h"
 
 #include <math.h>
@@ -11,9 +12,9 @@
 void mesh_free(frep_mesh *m)
 {
     if (!m) return;
-    free(m->v);
-    free(m->n);
-    free(m->tri);
+    frep_free(m->v);
+    frep_free(m->n);
+    frep_free(m->tri);
     memset(m, 0, sizeof *m);
 }
 
@@ -38,11 +39,11 @@ static int cmp_dedge(const void *x, const void *y)
 static int check_fans(const frep_mesh *m, mesh_check *c)
 {
     size_t nv = m->nverts;
-    size_t *start = calloc(nv + 2, sizeof *start);
-    uint32_t *lk = malloc((6 * m->ntris + 1) * sizeof *lk);
+    size_t *start = frep_calloc(nv + 2, sizeof *start);
+    uint32_t *lk = frep_malloc((6 * m->ntris + 1) * sizeof *lk);
     if (!start || !lk) {
-        free(start);
-        free(lk);
+        frep_free(start);
+        frep_free(lk);
         return -1;
     }
     for (size_t i = 0; i < 3 * m->ntris; i++)
@@ -75,8 +76,8 @@ static int check_fans(const frep_mesh *m, mesh_check *c)
         }
         if (to != first || steps != d) c->nonmanifold_verts++;
     }
-    free(start);
-    free(lk);
+    frep_free(start);
+    frep_free(lk);
     return 0;
 }
 
@@ -85,7 +86,7 @@ int mesh_validate(const frep_mesh *m, mesh_check *c)
     memset(c, 0, sizeof *c);
     for (size_t i = 0; i < 3 * m->nverts; i++)
         if (!isfinite(m->v[i])) c->nonfinite++;
-    dedge *E = malloc((3 * m->ntris + 1) * sizeof *E);
+    dedge *E = frep_malloc((3 * m->ntris + 1) * sizeof *E);
     if (!E) return -1;
     for (size_t t = 0; t < m->ntris; t++) {
         const uint32_t *v = &m->tri[3 * t];
@@ -125,6 +126,6 @@ int mesh_validate(const frep_mesh *m, mesh_check *c)
         else if (sum != 0) c->flipped_edges++;
         i = j;
     }
-    free(E);
+    frep_free(E);
     return check_fans(m, c);
 }

@@ -1,4 +1,5 @@
 /* arena.c - bump allocator of a compile session (see arena.h). */
+#include "alloc.h"
 #include "arena.h"
 
 #include <stdlib.h>
@@ -19,7 +20,7 @@ void arena_free(arena *A)
     arena_chunk *c = A->head;
     while (c) {
         arena_chunk *n = c->next;
-        free(c);
+        frep_free(c);
         c = n;
     }
     A->head = NULL;
@@ -33,7 +34,7 @@ void *arena_alloc(arena *A, size_t size)
     arena_chunk *c = A->head;
     if (!c || c->cap - c->used < size) {
         size_t cap = size > ARENA_CHUNK_MIN ? size : ARENA_CHUNK_MIN;
-        c = malloc(sizeof *c + cap);
+        c = frep_malloc(sizeof *c + cap);
         if (!c) { A->failed = 1; return NULL; }
         c->used = 0;
         c->cap = cap;

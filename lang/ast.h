@@ -152,7 +152,7 @@ int ast_parse(arena *A, const char *filename, const char *src, size_t len, diag_
               ast_file *out);
 
 /* Canonical source of a file (frep print). Parsing the result gives the same
- * program. Returns a malloc'ed string; free() it. Implemented in print.c. */
+ * program. Returns a malloc'ed string; frep_free() it. Implemented in print.c. */
 char *ast_print(const ast_file *f);
 
 /* Append n to l (storage grows in the arena). Returns 0, or -1 when out of memory. */

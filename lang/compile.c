@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "alloc.h"
 #include "ast.h"
 #include "check.h"
 #include "emit.h"
@@ -31,7 +32,7 @@ void frep_compile_options_init(frep_compile_options *o)
 static char *dup_str(const char *s)
 {
     size_t n = strlen(s);
-    char *p = malloc(n + 1);
+    char *p = frep_malloc(n + 1);
     if (p) memcpy(p, s, n + 1);
     return p;
 }
@@ -67,7 +68,7 @@ static int fill_params(frep_program *p, const lowered *lo, const frep_compile_op
     uint32_t n = lo->na + lo->nnamed, i;
     p->nparams = n;
     if (n == 0) return 0;
-    p->params = calloc(n, sizeof *p->params);
+    p->params = frep_calloc(n, sizeof *p->params);
     if (!p->params) return -1;
     for (i = 0; i < lo->na; i++) {
         frep_param_info *pi = &p->params[i];
@@ -191,7 +192,7 @@ char **frep_list_models(const char *file, const char *text, size_t len, size_t *
     *count = 0;
     arena_init(&A);
     if (ast_parse(&A, file, text, len, &d, &f) == 0 && !d.errors) {
-        v = calloc(f.nmodels + 1, sizeof *v);
+        v = frep_calloc(f.nmodels + 1, sizeof *v);
         if (v) {
             for (i = 0; i < f.nmodels; i++) {
                 v[i] = dup_str(f.models[i].name);
@@ -212,6 +213,6 @@ void frep_free_strings(char **v, size_t n)
 {
     size_t i;
     if (!v) return;
-    for (i = 0; i < n; i++) free(v[i]);
-    free(v);
+    for (i = 0; i < n; i++) frep_free(v[i]);
+    frep_free(v);
 }

@@ -2,6 +2,7 @@
  * to the user's callback (the library never prints), frep_diag_format renders one
  * GNU-style with the source line and a caret span, as the frep command prints it.
  */
+#include "alloc.h"
 #include "ast.h"
 
 #include <stdarg.h>
@@ -48,7 +49,7 @@ static void sb_put(sbuf *b, const char *s, size_t n)
     if (b->n + n + 1 > b->cap) {
         size_t cap = b->cap ? b->cap : 128;
         while (cap < b->n + n + 1) cap *= 2;
-        char *p = realloc(b->s, cap);
+        char *p = frep_realloc(b->s, cap);
         if (!p) { b->failed = 1; return; }
         b->s = p;
         b->cap = cap;
@@ -125,7 +126,7 @@ char *frep_diag_format(const frep_diag *d, const char *source, size_t source_len
         }
     }
     if (b.failed) {
-        free(b.s);
+        frep_free(b.s);
         return NULL;
     }
     return b.s;

@@ -10,6 +10,7 @@
  * as immediates.  So every expression is a contiguous range of instructions
  * (prog_subtree_start finds it), which the GP engine relies on for splicing.
  */
+#include "alloc.h"
 #include "emit.h"
 
 #include <stdlib.h>
@@ -361,7 +362,7 @@ static void emit_stmt(em *E, const lstmt *s)
             for (i = s->n; i-- > 0;) put(E, FREP_OP_STORE, s->slots[i], 0, 0, pos);
         } else {
             /* Through temporaries: every value is computed before any slot changes. */
-            uint32_t *t = malloc(s->n * sizeof *t);
+            uint32_t *t = frep_malloc(s->n * sizeof *t);
             if (!t) {
                 E->failed = 1;
                 return;
@@ -376,7 +377,7 @@ static void emit_stmt(em *E, const lstmt *s)
                 put(E, FREP_OP_STORE, s->slots[i], 0, 0, pos);
                 temp_free(E, t[i]);
             }
-            free(t);
+            frep_free(t);
         }
         break;
     case LS_STOREI:
@@ -426,7 +427,7 @@ static void emit_block(em *E, const lblock *b)
     bank *saved = E->b;
     for (i = 0; i < b->n && !E->failed; i++) {
         const lstmt *s = b->v[i];
-        ir_ref *roots = malloc((s->n + 2) * sizeof *roots);
+        ir_ref *roots = frep_malloc((s->n + 2) * sizeof *roots);
         uint32_t nr;
         if (!roots) {
             E->failed = 1;
@@ -435,7 +436,7 @@ static void emit_block(em *E, const lblock *b)
         nr = stmt_roots(s, roots);
         use_bank(E, 1);
         begin_region(E, roots, nr);
-        free(roots);
+        frep_free(roots);
         emit_stmt(E, s);
     }
     /* Back to the caller's region (the top level's survives nested regions). */
@@ -458,26 +459,26 @@ int emit_program(const ir *g, const lowered *lo, frep_program *p)
         const lstmt *s = lo->top.v[i];
         nroots += s->kind == LS_STORE ? s->n : 2;
     }
-    roots = malloc((nroots + 1) * sizeof *roots);
+    roots = frep_malloc((nroots + 1) * sizeof *roots);
     for (i = 0; i < 2; i++) {
         bank *b = &E.banks[i];
-        b->ureg = calloc(nn, sizeof *b->ureg);
-        b->uses = calloc(nn, sizeof *b->uses);
-        b->need = calloc(nn, sizeof *b->need);
-        b->height = calloc(nn, sizeof *b->height);
-        b->forced = calloc(nn, 1);
-        b->mat = calloc(nn, sizeof *b->mat);
-        b->mreg = calloc(nn, sizeof *b->mreg);
-        b->rem = calloc(nn, sizeof *b->rem);
+        b->ureg = frep_calloc(nn, sizeof *b->ureg);
+        b->uses = frep_calloc(nn, sizeof *b->uses);
+        b->need = frep_calloc(nn, sizeof *b->need);
+        b->height = frep_calloc(nn, sizeof *b->height);
+        b->forced = frep_calloc(nn, 1);
+        b->mat = frep_calloc(nn, sizeof *b->mat);
+        b->mreg = frep_calloc(nn, sizeof *b->mreg);
+        b->rem = frep_calloc(nn, sizeof *b->rem);
         if (!b->ureg || !b->uses || !b->need || !b->height || !b->forced || !b->mat ||
             !b->mreg || !b->rem)
             E.failed = 1;
     }
     use_bank(&E, 0);
-    E.vis = calloc(nn, sizeof *E.vis);
-    E.stk = malloc(2 * nn * sizeof *E.stk);
-    E.post = malloc(nn * sizeof *E.post);
-    E.freet = malloc((g->n + lo->nslots + 1) * sizeof *E.freet);
+    E.vis = frep_calloc(nn, sizeof *E.vis);
+    E.stk = frep_malloc(2 * nn * sizeof *E.stk);
+    E.post = frep_malloc(nn * sizeof *E.post);
+    E.freet = frep_malloc((g->n + lo->nslots + 1) * sizeof *E.freet);
     if (roots && !E.failed && E.vis && E.stk && E.post && E.freet) {
         uint32_t n = 0;
         for (i = 0; i < lo->top.n; i++) n += stmt_roots(lo->top.v[i], roots + n);
@@ -496,21 +497,21 @@ int emit_program(const ir *g, const lowered *lo, frep_program *p)
         emit_root(&E, lo->root);
         if (!E.failed && prog_finish(p) == 0) rc = 0;
     }
-    free(roots);
+    frep_free(roots);
     for (i = 0; i < 2; i++) {
         bank *b = &E.banks[i];
-        free(b->ureg);
-        free(b->uses);
-        free(b->need);
-        free(b->height);
-        free(b->forced);
-        free(b->mat);
-        free(b->mreg);
-        free(b->rem);
+        frep_free(b->ureg);
+        frep_free(b->uses);
+        frep_free(b->need);
+        frep_free(b->height);
+        frep_free(b->forced);
+        frep_free(b->mat);
+        frep_free(b->mreg);
+        frep_free(b->rem);
     }
-    free(E.vis);
-    free(E.stk);
-    free(E.post);
-    free(E.freet);
+    frep_free(E.vis);
+    frep_free(E.stk);
+    frep_free(E.post);
+    frep_free(E.freet);
     return rc;
 }

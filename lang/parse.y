@@ -22,7 +22,12 @@ typedef struct lex_state lex_state;
 #include <stdio.h>
 #include <string.h>
 
+#include "alloc.h"
 #include "lex.h"
+
+/* The parser's stack grows through frep's allocator like every other allocation. */
+#define YYMALLOC frep_malloc
+#define YYFREE frep_free
 
 /* Enough for FREP_MAX_NESTING levels of every construct (about 16 states a level);
  * the lexer stops deeper nesting first, so "memory exhausted" cannot happen. */

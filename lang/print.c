@@ -7,6 +7,7 @@
  * case, names as written.  Annotations (-- @word text) stay in order: at the end
  * of the line of the construct they followed, or on a line of their own.
  */
+#include "alloc.h"
 #include "ast.h"
 
 #include <stdio.h>
@@ -30,7 +31,7 @@ static void put(printer *p, const char *s, size_t n)
     if (p->n + n + 1 > p->cap) {
         size_t cap = p->cap ? p->cap : 1024;
         while (cap < p->n + n + 1) cap *= 2;
-        char *q = realloc(p->s, cap);
+        char *q = frep_realloc(p->s, cap);
         if (!q) { p->failed = 1; return; }
         p->s = q;
         p->cap = cap;
@@ -358,7 +359,7 @@ char *ast_print(const ast_file *f)
     }
     flush(&p, UINT32_MAX);
     if (p.failed || !p.s) {
-        free(p.s);
+        frep_free(p.s);
         return NULL;
     }
     return p.s;

@@ -24,6 +24,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "mesh.h"
 #include "interval.h"
 #include "program.h"
@@ -326,16 +327,16 @@ static void prog_thread_free(void *ctx, void *ts)
     frep_scratch_free(t->s);
     vm_iscratch_free(t->is);
     vm_pruner_free(t->pr);
-    free(t->sub.code);
-    free(t->sub.pos);
-    free(t->orig);
-    free(t);
+    frep_free(t->sub.code);
+    frep_free(t->sub.pos);
+    frep_free(t->orig);
+    frep_free(t);
 }
 
 static void *prog_thread_new(void *ctx)
 {
     prog_field *pf = ctx;
-    prog_thread *t = calloc(1, sizeof *t);
+    prog_thread *t = frep_calloc(1, sizeof *t);
     if (!t) return NULL;
     t->s = frep_scratch_new(pf->p);
     t->is = vm_iscratch_new(pf->p);
@@ -348,9 +349,9 @@ static void *prog_thread_new(void *ctx)
     if (t->pr) {
         size_t n = pf->p->ncode;
         t->sub = *pf->p;
-        t->sub.code = malloc(n * sizeof *t->sub.code);
-        t->sub.pos = malloc(n * sizeof *t->sub.pos);
-        t->orig = malloc(n * sizeof *t->orig);
+        t->sub.code = frep_malloc(n * sizeof *t->sub.code);
+        t->sub.pos = frep_malloc(n * sizeof *t->sub.pos);
+        t->orig = frep_malloc(n * sizeof *t->orig);
         if (!t->sub.code || !t->sub.pos || !t->orig) {
             /* pruning is an optimization: go without it */
             vm_pruner_free(t->pr);
@@ -428,7 +429,7 @@ static int prog_interval(void *ctx, void *ts, const double box[6], double *lo, d
 
 int mesh_field_program(mesh_field *f, const frep_program *p, const double *params)
 {
-    prog_field *pf = malloc(sizeof *pf);
+    prog_field *pf = frep_malloc(sizeof *pf);
     if (!pf) return -1;
     pf->p = p;
     pf->params = params;
@@ -451,7 +452,7 @@ void mesh_field_program_errors(const mesh_field *f, frep_runtime_error *e)
 
 void mesh_field_program_free(mesh_field *f)
 {
-    free(f->ctx);
+    frep_free(f->ctx);
     f->ctx = NULL;
 }
 
@@ -875,8 +876,8 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
 
     /* 4. one vertex per surface component of each cell */
     size_t nv = 0, nf = 0;
-    B->cs = malloc(MESH_BLOCK_CELLS * sizeof *B->cs);
-    B->vbase = malloc(MESH_BLOCK_CELLS * sizeof *B->vbase);
+    B->cs = frep_malloc(MESH_BLOCK_CELLS * sizeof *B->cs);
+    B->vbase = frep_malloc(MESH_BLOCK_CELLS * sizeof *B->vbase);
     if (!B->cs || !B->vbase) return -1;
     for (int k = 0; k < MESH_BLOCK; k++)
         for (int j = 0; j < MESH_BLOCK; j++)
@@ -945,7 +946,7 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
     B->nfaces = (uint32_t)nf;
     if (nv == 0) return focused ? f->focus(f->ctx, ts, NULL, NULL) : 0;
     if (nf) {
-        B->fkey = malloc(nf * sizeof *B->fkey);
+        B->fkey = frep_malloc(nf * sizeof *B->fkey);
         if (!B->fkey) return -1;
         memcpy(B->fkey, W->fkey, nf * sizeof *B->fkey);
         for (size_t q = 0; q < 2 * nf; q++) {
@@ -959,10 +960,10 @@ static int process_block(mesher *M, mwork *W, void *ts, mblock *B)
         }
     }
     size_t nall = nv + 2 * nf;
-    B->vpos = malloc(3 * nall * sizeof *B->vpos);
-    B->vnrm = malloc(3 * nall * sizeof *B->vnrm);
-    B->vfg = malloc(4 * nall * sizeof *B->vfg);
-    B->vrank = malloc(nall);
+    B->vpos = frep_malloc(3 * nall * sizeof *B->vpos);
+    B->vnrm = frep_malloc(3 * nall * sizeof *B->vnrm);
+    B->vfg = frep_malloc(4 * nall * sizeof *B->vfg);
+    B->vrank = frep_malloc(nall);
     if (!B->vpos || !B->vnrm || !B->vfg || !B->vrank) return -1;
     memcpy(B->vrank, W->vrank, nall);
     if (f->grad(f->ctx, ts, nall, W->vx, W->vy, W->vz, W->vf, W->vgx, W->vgy, W->vgz) != 0)
@@ -1017,20 +1018,20 @@ static int cmp_block(const void *a, const void *b)
 static void free_block(mblock *B)
 {
     if (!B) return;
-    free(B->vpos);
-    free(B->vnrm);
-    free(B->vfg);
-    free(B->vrank);
-    free(B->fkey);
-    free(B->cs);
-    free(B->vbase);
-    free(B->tri);
-    free(B);
+    frep_free(B->vpos);
+    frep_free(B->vnrm);
+    frep_free(B->vfg);
+    frep_free(B->vrank);
+    frep_free(B->fkey);
+    frep_free(B->cs);
+    frep_free(B->vbase);
+    frep_free(B->tri);
+    frep_free(B);
 }
 
 static mblock *new_block(const mesher *M, long bx, long by, long bz)
 {
-    mblock *B = calloc(1, sizeof *B);
+    mblock *B = frep_calloc(1, sizeof *B);
     if (!B) return NULL;
     B->b[0] = (int)bx;
     B->b[1] = (int)by;
@@ -1136,9 +1137,9 @@ static int grow_tris(mblock *B, uint32_t **tri, size_t *cap)
 {
     (void)B;
     size_t nc = *cap + *cap / 2 + 16;
-    uint32_t *nt = realloc(*tri, 3 * nc * sizeof *nt);
+    uint32_t *nt = frep_realloc(*tri, 3 * nc * sizeof *nt);
     if (!nt) {
-        free(*tri);
+        frep_free(*tri);
         *tri = NULL;
         return -1;
     }
@@ -1212,7 +1213,7 @@ static int block_quads(mesher *M, mblock *B)
         B->tri = NULL;
         return 0;
     }
-    tri = malloc(3 * cap * sizeof *tri);
+    tri = frep_malloc(3 * cap * sizeof *tri);
     if (!tri) return -1;
     nbhood nh;
     nbhood_init(M, B, &nh);
@@ -1376,13 +1377,13 @@ static int find_blocks(mesher *M, mesh_stats *st, char *err, size_t errlen)
 {
     int S = 1;
     while (S < M->nb) S *= 2;
-    onode *cur = malloc(sizeof *cur), *next = NULL;
+    onode *cur = frep_malloc(sizeof *cur), *next = NULL;
     size_t ncur = 1;
     if (!cur) goto oom;
     cur[0].x = cur[0].y = cur[0].z = 0;
     cur[0].s = S;
     while (ncur > 0) {
-        uint8_t *keep = malloc(ncur);
+        uint8_t *keep = frep_malloc(ncur);
         if (!keep) goto oom;
         st->octree_nodes += ncur;
         long n = (long)ncur;
@@ -1417,12 +1418,12 @@ static int find_blocks(mesher *M, mesh_stats *st, char *err, size_t errlen)
             if (nd->s == 1) {
                 if (M->nblocks == M->capblocks) {
                     M->capblocks = M->capblocks ? 2 * M->capblocks : 1024;
-                    mblock **nbk = realloc(M->blocks, M->capblocks * sizeof *nbk);
-                    if (!nbk) { free(keep); goto oom; }
+                    mblock **nbk = frep_realloc(M->blocks, M->capblocks * sizeof *nbk);
+                    if (!nbk) { frep_free(keep); goto oom; }
                     M->blocks = nbk;
                 }
                 mblock *B = new_block(M, nd->x, nd->y, nd->z);
-                if (!B) { free(keep); goto oom; }
+                if (!B) { frep_free(keep); goto oom; }
                 M->blocks[M->nblocks++] = B;
                 continue;
             }
@@ -1433,25 +1434,25 @@ static int find_blocks(mesher *M, mesh_stats *st, char *err, size_t errlen)
                 if (ch.x >= M->nb || ch.y >= M->nb || ch.z >= M->nb) continue;
                 if (nnext == capn) {
                     capn = capn ? 2 * capn : 64;
-                    onode *nn = realloc(next, capn * sizeof *nn);
-                    if (!nn) { free(keep); goto oom; }
+                    onode *nn = frep_realloc(next, capn * sizeof *nn);
+                    if (!nn) { frep_free(keep); goto oom; }
                     next = nn;
                 }
                 next[nnext++] = ch;
             }
         }
-        free(keep);
-        free(cur);
+        frep_free(keep);
+        frep_free(cur);
         cur = next;
         next = NULL;
         ncur = nnext;
     }
-    free(cur);
+    frep_free(cur);
     if (M->nblocks > 1) qsort(M->blocks, M->nblocks, sizeof *M->blocks, cmp_block);
     return 0;
 oom:
-    free(cur);
-    free(next);
+    frep_free(cur);
+    frep_free(next);
     snprintf(err, errlen, "out of memory building the octree");
     return -1;
 }
@@ -1479,7 +1480,7 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
         snprintf(err, errlen, "the iso level must be a finite number");
         return -1;
     }
-    mesher *M = calloc(1, sizeof *M);
+    mesher *M = frep_calloc(1, sizeof *M);
     if (!M) {
         snprintf(err, errlen, "out of memory");
         return -1;
@@ -1499,12 +1500,12 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
     M->nthreads = 1;
 #endif
     st->blocks_total = (size_t)M->nb * (size_t)M->nb * (size_t)M->nb;
-    M->ts = calloc((size_t)M->nthreads, sizeof *M->ts);
-    works = calloc((size_t)M->nthreads, sizeof *works);
+    M->ts = frep_calloc((size_t)M->nthreads, sizeof *M->ts);
+    works = frep_calloc((size_t)M->nthreads, sizeof *works);
     if (!M->ts || !works) goto oom;
     for (int t = 0; t < M->nthreads; t++) {
         M->ts[t] = f->thread_new(f->ctx);
-        works[t] = malloc(sizeof **works);
+        works[t] = frep_malloc(sizeof **works);
         if (!M->ts[t] || !works[t]) goto oom;
         works[t]->eval_points = works[t]->grad_points = 0;
     }
@@ -1570,7 +1571,7 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
                 if (dup) continue;
                 if (M->nblocks == M->capblocks) {
                     M->capblocks *= 2;
-                    mblock **nbk = realloc(M->blocks, M->capblocks * sizeof *nbk);
+                    mblock **nbk = frep_realloc(M->blocks, M->capblocks * sizeof *nbk);
                     if (!nbk) goto oom;
                     M->blocks = nbk;
                 }
@@ -1647,9 +1648,9 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
     }
     out->nverts = nverts;
     out->ntris = ntris;
-    out->v = malloc((3 * nverts + 1) * sizeof *out->v);
-    out->n = malloc((3 * nverts + 1) * sizeof *out->n);
-    out->tri = malloc((3 * ntris + 1) * sizeof *out->tri);
+    out->v = frep_malloc((3 * nverts + 1) * sizeof *out->v);
+    out->n = frep_malloc((3 * nverts + 1) * sizeof *out->n);
+    out->tri = frep_malloc((3 * ntris + 1) * sizeof *out->tri);
     if (!out->v || !out->n || !out->tri) {
         mesh_free(out);
         goto oom;
@@ -1674,21 +1675,21 @@ oom:
 done:
     if (M->blocks)
         for (size_t i = 0; i < M->nblocks; i++) free_block(M->blocks[i]);
-    free(M->blocks);
+    frep_free(M->blocks);
     if (M->ts)
         for (int t = 0; t < M->nthreads; t++)
             if (M->ts[t]) f->thread_free(f->ctx, M->ts[t]);
-    free(M->ts);
+    frep_free(M->ts);
     if (works)
         for (int t = 0; t < M->nthreads; t++) {
             if (works[t]) {
                 st->eval_points += works[t]->eval_points;
                 st->grad_points += works[t]->grad_points;
             }
-            free(works[t]);
+            frep_free(works[t]);
         }
-    free(works);
-    free(M);
+    frep_free(works);
+    frep_free(M);
     st->seconds = now_seconds() - t_start;
     return status;
 }

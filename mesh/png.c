@@ -4,6 +4,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "png.h"
 
 #include <stdlib.h>
@@ -61,7 +62,7 @@ int png_write_rgb(FILE *f, const uint8_t *rgb, int w, int h)
 
     /* raw scanlines: filter byte 0, then the row */
     size_t row = 1 + 3 * (size_t)w, raw_n = row * (size_t)h;
-    uint8_t *raw = malloc(raw_n);
+    uint8_t *raw = frep_malloc(raw_n);
     if (!raw) return -1;
     for (int y = 0; y < h; y++) {
         raw[row * (size_t)y] = 0;
@@ -70,9 +71,9 @@ int png_write_rgb(FILE *f, const uint8_t *rgb, int w, int h)
     /* zlib stream: header, stored blocks, Adler-32 */
     size_t nblocks = (raw_n + PNG_STORED_MAX - 1) / PNG_STORED_MAX;
     size_t z_n = 2 + raw_n + 5 * nblocks + 4;
-    uint8_t *z = malloc(z_n);
+    uint8_t *z = frep_malloc(z_n);
     if (!z) {
-        free(raw);
+        frep_free(raw);
         return -1;
     }
     size_t o = 0;
@@ -101,7 +102,7 @@ int png_write_rgb(FILE *f, const uint8_t *rgb, int w, int h)
         chunk(f, "IDAT", z + pos, (uint32_t)n);
     }
     chunk(f, "IEND", NULL, 0);
-    free(raw);
-    free(z);
+    frep_free(raw);
+    frep_free(z);
     return ferror(f) ? -1 : 0;
 }

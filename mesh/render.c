@@ -9,6 +9,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "render.h"
 
 #include <math.h>
@@ -99,7 +100,7 @@ int render_mesh(const frep_mesh *m, const render_points *pts, const render_optio
     if (!vd || o->width < 1 || o->height < 1) return -1;
     int W = o->width, H = o->height;
     size_t npix = (size_t)W * (size_t)H;
-    double *zbuf = malloc(npix * sizeof *zbuf);
+    double *zbuf = frep_malloc(npix * sizeof *zbuf);
     if (!zbuf) return -1;
     for (size_t i = 0; i < npix; i++) zbuf[i] = INFINITY;
     /* background: a light vertical gradient */
@@ -224,6 +225,6 @@ int render_mesh(const frep_mesh *m, const render_points *pts, const render_optio
                 }
         }
     }
-    free(zbuf);
+    frep_free(zbuf);
     return 0;
 }

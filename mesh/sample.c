@@ -4,6 +4,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "sample.h"
 #include "rng.h"
 
@@ -43,7 +44,7 @@ static double rng_gauss(rng *r)
 /* Draw n points on m's triangles, area-weighted; tri_of[i] receives the triangle. */
 static int draw_on_mesh(const frep_mesh *m, rng *r, size_t n, frep_cloud *c, size_t *tri_of)
 {
-    double *cum = malloc((m->ntris + 1) * sizeof *cum);
+    double *cum = frep_malloc((m->ntris + 1) * sizeof *cum);
     if (!cum) return -1;
     double total = 0;
     for (size_t t = 0; t < m->ntris; t++) {
@@ -57,7 +58,7 @@ static int draw_on_mesh(const frep_mesh *m, rng *r, size_t n, frep_cloud *c, siz
         cum[t] = total;
     }
     if (!(total > 0)) {
-        free(cum);
+        frep_free(cum);
         return -2;
     }
     for (size_t i = 0; i < n; i++) {
@@ -84,12 +85,12 @@ static int draw_on_mesh(const frep_mesh *m, rng *r, size_t n, frep_cloud *c, siz
         double l = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
         for (int k = 0; k < 3; k++) nrm[k] = l > 0 ? nrm[k] / l : 0;
         if (cloud_push(c, p, nrm) != 0) {
-            free(cum);
+            frep_free(cum);
             return -1;
         }
         if (tri_of) tri_of[i] = lo;
     }
-    free(cum);
+    frep_free(cum);
     return 0;
 }
 
@@ -220,7 +221,7 @@ int sample_field(const mesh_field *f, const sample_options *o, frep_cloud **out,
 #pragma omp parallel num_threads(nthreads)
     {
         void *ts = f->thread_new(f->ctx);
-        double *buf = malloc(7 * SAMPLE_BATCH * sizeof *buf);
+        double *buf = frep_malloc(7 * SAMPLE_BATCH * sizeof *buf);
         if (!ts || !buf) {
 #pragma omp atomic write
             failed = 1;
@@ -269,7 +270,7 @@ int sample_field(const mesh_field *f, const sample_options *o, frep_cloud **out,
                 }
             }
         }
-        free(buf);
+        frep_free(buf);
         if (ts) {
             /* thread_free may merge per-thread state (runtime errors) into ctx */
 #pragma omp critical(sample_thread_free)

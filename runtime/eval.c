@@ -13,6 +13,7 @@
 #include <omp.h>
 #endif
 
+#include "alloc.h"
 #include "opsem.h"
 #include "vm_internal.h"
 
@@ -149,18 +150,18 @@ int frep_eval_dparams(const frep_program *p, frep_scratch *s, size_t n, const do
     double *d;
     if (check_args(p, s) < 0) return -1;
     np = p->nparams;
-    d = malloc((np ? np : 1) * FREP_BLOCK * sizeof *d);
+    d = frep_malloc((np ? np : 1) * FREP_BLOCK * sizeof *d);
     if (!d) return -1;
     for (off = 0; off < n; off += FREP_BLOCK) {
         vm_inputs in = block_inputs(x, y, z, params, off);
         size_t nb = block_len(n, off), j;
         if (vm_eval_block_tangent(p, (vm_scratch *)s, &in, nb, VM_SEED_PARAMS, f + off, d) < 0) {
-            free(d);
+            frep_free(d);
             return -1;
         }
         for (j = 0; j < np; j++) memcpy(dp + j * n + off, d + j * nb, nb * sizeof *d);
     }
-    free(d);
+    frep_free(d);
     return 0;
 }
 
@@ -205,7 +206,7 @@ static int par_run(const par_job *j, int nthreads, frep_runtime_error *err)
         vm_errstate *errs;
         if (nt < 1) nt = 1;
         if ((size_t)nt > nblocks) nt = (int)nblocks;
-        errs = calloc((size_t)nt, sizeof *errs);
+        errs = frep_calloc((size_t)nt, sizeof *errs);
         if (!errs) return -1;
 #pragma omp parallel num_threads(nt) reduction(| : failed)
         {
@@ -224,7 +225,7 @@ static int par_run(const par_job *j, int nthreads, frep_runtime_error *err)
             }
         }
         for (t = 0; t < nt; t++) vm_err_merge(&total, &errs[t]);
-        free(errs);
+        frep_free(errs);
     }
 #else
     {

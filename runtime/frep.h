@@ -5,7 +5,10 @@
  *  - A frep_program is immutable after frep_compile() and may be shared by threads.
  *  - A frep_scratch is per thread; never use one from two threads at once.
  *  - The library never prints: diagnostics go to the frep_diag_fn callback.
- *  - Every function that returns an allocation names the function that frees it.
+ *  - Every function that returns an allocation names the function that frees it;
+ *    strings and arrays the library hands over are released with frep_free().
+ *  - The allocator hook (frep_set_allocator) is the only process-wide state: set it
+ *    before any other call, from one thread.
  */
 #ifndef FREP_H
 #define FREP_H
@@ -18,6 +21,21 @@ extern "C" {
 #endif
 
 #define FREP_VERSION_STRING "0.1.0"
+
+/* ---- memory ------------------------------------------------------------- */
+
+/* An allocator: p NULL allocates n bytes, n 0 frees p, otherwise p is resized to n
+ * bytes (contents kept, like realloc). Returns NULL when it cannot allocate; it is
+ * never asked for 0 bytes. Called from any thread at once: it must be thread-safe. */
+typedef void *(*frep_alloc_fn)(void *user, void *p, size_t n);
+
+/* Route every allocation of the library through fn (NULL: the C library's malloc,
+ * realloc and free). Install it before any other call of the library. */
+void frep_set_allocator(frep_alloc_fn fn, void *user);
+
+/* Release memory that the library handed to the caller (messages, disassembly,
+ * model lists' arrays). NULL is ignored. */
+void frep_free(void *p);
 
 /* ---- diagnostics -------------------------------------------------------- */
 
@@ -35,7 +53,7 @@ typedef void (*frep_diag_fn)(void *user, const frep_diag *d);
 
 /* Format a diagnostic GNU-style: "file:line:col: error: msg\n  <source line>\n  ^~~\n".
  * `source` (may be NULL) is the text the positions refer to. Returns a malloc'ed
- * string; free() it. */
+ * string; frep_free() it. */
 char *frep_diag_format(const frep_diag *d, const char *source, size_t source_len);
 
 /* ---- compilation -------------------------------------------------------- */
@@ -82,7 +100,7 @@ int frep_program_param_bounds(const frep_program *p, size_t i, double *lo, doubl
 /* Model extent from an `-- @box` pragma; returns 1 and fills box[6] when known. */
 int frep_program_box(const frep_program *p, double box[6]);
 
-/* Write the disassembly to a malloc'ed string; free() it. */
+/* Write the disassembly to a malloc'ed string; frep_free() it. */
 char *frep_disassemble(const frep_program *p);
 
 /* ---- evaluation --------------------------------------------------------- */

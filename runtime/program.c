@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "alloc.h"
 #include "program.h"
 
 /* ---- the opcode table, expanded -------------------------------------------- */
@@ -71,7 +72,7 @@ uint32_t prog_subtree_start(const frep_insn *code, uint32_t end)
 
 frep_program *prog_new(void)
 {
-    return calloc(1, sizeof(frep_program));
+    return frep_calloc(1, sizeof(frep_program));
 }
 
 uint32_t prog_emit(frep_program *p, frep_opcode op, uint32_t arg, double k, uint8_t flags,
@@ -86,10 +87,10 @@ uint32_t prog_emit(frep_program *p, frep_opcode op, uint32_t arg, double k, uint
         frep_srcpos *ps;
         int had_pos = p->pos != NULL;
         if (ncap < p->cap) ncap = p->cap;
-        c = realloc(p->code, ncap * sizeof *c);
+        c = frep_realloc(p->code, ncap * sizeof *c);
         if (!c) return UINT32_MAX;
         p->code = c;
-        ps = realloc(p->pos, ncap * sizeof *ps);
+        ps = frep_realloc(p->pos, ncap * sizeof *ps);
         if (!ps) return UINT32_MAX;
         if (!had_pos && p->ncode) memset(ps, 0, p->ncode * sizeof *ps);
         p->pos = ps;
@@ -166,9 +167,9 @@ int prog_finish(frep_program *p)
 
     /* Stack depth before each pc (and at the end, index ncode) by a worklist over the
      * control-flow graph: every path must agree on the depth at a join. */
-    depth = malloc((p->ncode + 1) * sizeof *depth);
-    work = malloc((p->ncode + 1) * sizeof *work);
-    if (!depth || !work) { free(depth); free(work); return -1; }
+    depth = frep_malloc((p->ncode + 1) * sizeof *depth);
+    work = frep_malloc((p->ncode + 1) * sizeof *work);
+    if (!depth || !work) { frep_free(depth); frep_free(work); return -1; }
     for (pc = 0; pc <= p->ncode; pc++) depth[pc] = -1;
     depth[0] = 0;
     work[nwork++] = 0;
@@ -203,8 +204,8 @@ int prog_finish(frep_program *p)
     /* The program must leave exactly its one result on the stack. */
     if (rc == 0 && depth[p->ncode] != 1) rc = -1;
     if (rc == 0 && maxd > FREP_MAX_STACK) rc = -1;
-    free(depth);
-    free(work);
+    frep_free(depth);
+    frep_free(work);
     if (rc < 0) return -1;
     p->max_stack = (uint32_t)maxd;
     p->flags = flags;
@@ -215,13 +216,13 @@ void frep_program_free(frep_program *p)
 {
     uint32_t i;
     if (!p) return;
-    for (i = 0; i < p->nparams && p->params; i++) free(p->params[i].name);
-    free(p->params);
-    free(p->code);
-    free(p->pos);
-    free(p->file);
-    free(p->model);
-    free(p);
+    for (i = 0; i < p->nparams && p->params; i++) frep_free(p->params[i].name);
+    frep_free(p->params);
+    frep_free(p->code);
+    frep_free(p->pos);
+    frep_free(p->file);
+    frep_free(p->model);
+    frep_free(p);
 }
 
 /* ---- queries ------------------------------------------------------------------ */
@@ -283,7 +284,7 @@ static void sb_printf(strbuf *b, const char *fmt, ...)
             size_t ncap = b->cap ? 2 * b->cap : 1024;
             char *s;
             while (ncap < b->len + (size_t)n + 1) ncap *= 2;
-            s = realloc(b->s, ncap);
+            s = frep_realloc(b->s, ncap);
             if (!s) { b->failed = 1; return; }
             b->s = s;
             b->cap = ncap;
@@ -352,7 +353,7 @@ char *frep_disassemble(const frep_program *p)
         while (!b.failed && b.len > 0 && b.s[b.len - 1] == ' ') b.len--;
         sb_printf(&b, "\n");
     }
-    if (b.failed) { free(b.s); return NULL; }
-    if (!b.s) return calloc(1, 1);
+    if (b.failed) { frep_free(b.s); return NULL; }
+    if (!b.s) return frep_calloc(1, 1);
     return b.s;
 }

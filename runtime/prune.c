@@ -8,6 +8,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "prune.h"
 
 #include <math.h>
@@ -57,10 +58,10 @@ struct prune_state {
 void prune_plan_free(prune_plan *pl)
 {
     if (!pl) return;
-    free(pl->opnd);
-    free(pl->nopnd);
-    free(pl->sink);
-    free(pl);
+    frep_free(pl->opnd);
+    frep_free(pl->nopnd);
+    frep_free(pl->sink);
+    frep_free(pl);
 }
 
 prune_plan *prune_plan_new(const frep_program *p)
@@ -68,16 +69,16 @@ prune_plan *prune_plan_new(const frep_program *p)
     if (!p || !p->code || p->ncode == 0 || (p->flags & (PROG_HAS_BRANCHES | PROG_HAS_PRIMS)))
         return NULL;
     uint32_t n = p->ncode;
-    prune_plan *pl = calloc(1, sizeof *pl);
-    uint32_t *stack = malloc((size_t)(n + 1) * sizeof *stack);
-    uint32_t *last = malloc((size_t)(p->nslots + 1) * sizeof *last);
-    uint8_t *read = calloc((size_t)n + 1, 1);
+    prune_plan *pl = frep_calloc(1, sizeof *pl);
+    uint32_t *stack = frep_malloc((size_t)(n + 1) * sizeof *stack);
+    uint32_t *last = frep_malloc((size_t)(p->nslots + 1) * sizeof *last);
+    uint8_t *read = frep_calloc((size_t)n + 1, 1);
     if (!pl || !stack || !last || !read) goto fail;
     pl->p = p;
     pl->n = n;
-    pl->opnd = malloc((size_t)n * 3 * sizeof *pl->opnd);
-    pl->nopnd = calloc(n, 1);
-    pl->sink = calloc(n, 1);
+    pl->opnd = frep_malloc((size_t)n * 3 * sizeof *pl->opnd);
+    pl->nopnd = frep_calloc(n, 1);
+    pl->sink = frep_calloc(n, 1);
     if (!pl->opnd || !pl->nopnd || !pl->sink) goto fail;
     for (uint32_t j = 0; j <= p->nslots; j++) last[j] = PR_NONE;
     uint32_t sp = 0;
@@ -135,14 +136,14 @@ prune_plan *prune_plan_new(const frep_program *p)
     pl->root = stack[0];
     for (uint32_t pc = 0; pc < n; pc++)
         pl->sink[pc] = p->code[pc].op == FREP_OP_STORE && !read[pc];
-    free(stack);
-    free(last);
-    free(read);
+    frep_free(stack);
+    frep_free(last);
+    frep_free(read);
     return pl;
 fail:
-    free(stack);
-    free(last);
-    free(read);
+    frep_free(stack);
+    frep_free(last);
+    frep_free(read);
     prune_plan_free(pl);
     return NULL;
 }
@@ -150,33 +151,33 @@ fail:
 void prune_state_free(prune_state *st)
 {
     if (!st) return;
-    free(st->iv);
-    free(st->clean);
-    free(st->errfree);
-    free(st->act);
-    free(st->fwd);
-    free(st->need);
-    free(st->code);
-    free(st->pos);
-    free(st->orig);
-    free(st);
+    frep_free(st->iv);
+    frep_free(st->clean);
+    frep_free(st->errfree);
+    frep_free(st->act);
+    frep_free(st->fwd);
+    frep_free(st->need);
+    frep_free(st->code);
+    frep_free(st->pos);
+    frep_free(st->orig);
+    frep_free(st);
 }
 
 prune_state *prune_state_new(const prune_plan *pl)
 {
-    prune_state *st = calloc(1, sizeof *st);
+    prune_state *st = frep_calloc(1, sizeof *st);
     if (!st) return NULL;
     uint32_t n = pl->n;
     st->pl = pl;
-    st->iv = malloc(n * sizeof *st->iv);
-    st->clean = malloc(n);
-    st->errfree = malloc(n);
-    st->act = malloc(n);
-    st->fwd = calloc(n, sizeof *st->fwd);
-    st->need = malloc(n);
-    st->code = malloc(n * sizeof *st->code);
-    st->pos = malloc(n * sizeof *st->pos);
-    st->orig = malloc(n * sizeof *st->orig);
+    st->iv = frep_malloc(n * sizeof *st->iv);
+    st->clean = frep_malloc(n);
+    st->errfree = frep_malloc(n);
+    st->act = frep_malloc(n);
+    st->fwd = frep_calloc(n, sizeof *st->fwd);
+    st->need = frep_malloc(n);
+    st->code = frep_malloc(n * sizeof *st->code);
+    st->pos = frep_malloc(n * sizeof *st->pos);
+    st->orig = frep_malloc(n * sizeof *st->orig);
     if (!st->iv || !st->clean || !st->errfree || !st->act || !st->fwd || !st->need ||
         !st->code || !st->pos || !st->orig) {
         prune_state_free(st);
@@ -510,12 +511,12 @@ static void worker_free(grid_worker *w)
     vm_scratch_free(w->s);
     prune_state_free(w->st);
     prune_state_free(w->sp);
-    free(w->x);
-    free(w->y);
-    free(w->z);
-    free(w->zp);
-    free(w->f);
-    free(w->idx);
+    frep_free(w->x);
+    frep_free(w->y);
+    frep_free(w->z);
+    frep_free(w->zp);
+    frep_free(w->f);
+    frep_free(w->idx);
 }
 
 static int worker_init(grid_worker *w, const frep_program *p, const prune_plan *pl)
@@ -524,12 +525,12 @@ static int worker_init(grid_worker *w, const frep_program *p, const prune_plan *
     w->s = vm_scratch_new(p);
     w->st = pl ? prune_state_new(pl) : NULL;
     w->sp = pl ? prune_state_new(pl) : NULL;
-    w->x = malloc(FREP_BLOCK * sizeof *w->x);
-    w->y = malloc(FREP_BLOCK * sizeof *w->y);
-    w->z = malloc(FREP_BLOCK * sizeof *w->z);
-    w->zp = malloc((size_t)PRUNE_TILE * FREP_BLOCK * sizeof *w->zp);
-    w->f = malloc(FREP_BLOCK * sizeof *w->f);
-    w->idx = malloc(FREP_BLOCK * sizeof *w->idx);
+    w->x = frep_malloc(FREP_BLOCK * sizeof *w->x);
+    w->y = frep_malloc(FREP_BLOCK * sizeof *w->y);
+    w->z = frep_malloc(FREP_BLOCK * sizeof *w->z);
+    w->zp = frep_malloc((size_t)PRUNE_TILE * FREP_BLOCK * sizeof *w->zp);
+    w->f = frep_malloc(FREP_BLOCK * sizeof *w->f);
+    w->idx = frep_malloc(FREP_BLOCK * sizeof *w->idx);
     if (!w->s || (pl && (!w->st || !w->sp)) || !w->x || !w->y || !w->z || !w->zp || !w->f ||
         !w->idx) {
         worker_free(w);
@@ -679,7 +680,7 @@ int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], 
     g.k0 = k0;
     g.nk = nk;
     g.f = f;
-    double *coord = malloc((size_t)n * 3 * sizeof *coord);
+    double *coord = frep_malloc((size_t)n * 3 * sizeof *coord);
     if (!coord) return -1;
     for (int c = 0; c < 3; c++) {
         double step = (box[c + 3] - box[c]) / (double)(n - 1);
@@ -688,7 +689,7 @@ int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], 
     }
     /* the flat index of a point in f is a uint32_t: plenty for a slab of planes */
     if (f && (double)n * (double)n * (double)nk > 4294967295.0) {
-        free(coord);
+        frep_free(coord);
         return -1;
     }
     prune_plan *pl = prune ? prune_plan_new(p) : NULL;
@@ -697,13 +698,13 @@ int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], 
     long ntiles = g.ntx * g.ntx;
     long nsuper = (g.ntx + PRUNE_SUPER - 1) / PRUNE_SUPER;
     nsuper *= nsuper;
-    vm_errstate *terr = calloc((size_t)ntiles, sizeof *terr);
-    g.tst = stats ? malloc((size_t)ntiles * sizeof *g.tst) : NULL;
+    vm_errstate *terr = frep_calloc((size_t)ntiles, sizeof *terr);
+    g.tst = stats ? frep_malloc((size_t)ntiles * sizeof *g.tst) : NULL;
     if (!terr || (stats && !g.tst)) {
-        free(terr);
-        free(g.tst);
+        frep_free(terr);
+        frep_free(g.tst);
         prune_plan_free(pl);
-        free(coord);
+        frep_free(coord);
         return -1;
     }
     int failed = 0;
@@ -739,7 +740,7 @@ int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], 
     vm_errstate all;
     memset(&all, 0, sizeof all);
     for (long t = 0; t < ntiles; t++) vm_err_merge(&all, &terr[t]);
-    free(terr);
+    frep_free(terr);
     if (stats && !failed)
         for (long t = 0; t < ntiles; t++) {
             /* in tile order: the sum does not depend on which thread ran which tile */
@@ -750,8 +751,8 @@ int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], 
             if (ts->max > stats->max) stats->max = ts->max;
             stats->sum += ts->sum;
         }
-    free(g.tst);
-    free(coord);
+    frep_free(g.tst);
+    frep_free(coord);
     prune_plan_free(pl);
     if (failed) return -1;
     if (err) {

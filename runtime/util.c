@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "alloc.h"
 #include "util.h"
 
 char *frep_strdupf(const char *fmt, ...)
@@ -17,7 +18,7 @@ char *frep_strdupf(const char *fmt, ...)
     int n = vsnprintf(NULL, 0, fmt, ap);
     va_end(ap);
     if (n < 0) return NULL;
-    char *s = malloc((size_t)n + 1);
+    char *s = frep_malloc((size_t)n + 1);
     if (!s) return NULL;
     va_start(ap, fmt);
     vsnprintf(s, (size_t)n + 1, fmt, ap);

@@ -9,7 +9,7 @@
 
 #include <stddef.h>
 
-/* printf into a new string; returns it (free with free()) or NULL when out of memory
+/* printf into a new string; returns it (free with frep_free()) or NULL when out of memory
  * or on an encoding error. */
 char *frep_strdupf(const char *fmt, ...)
 #if defined(__GNUC__)

@@ -13,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "alloc.h"
 #include "opsem.h"
 #include "vm_internal.h"
 
@@ -21,7 +22,7 @@
 static void *grow(void *p, size_t count, size_t size)
 {
     if (count == 0) count = 1;
-    return realloc(p, count * size);
+    return frep_realloc(p, count * size);
 }
 
 /* Allocate n lane buffers into v[from..n-1] (each FREP_BLOCK doubles, aligned for
@@ -30,9 +31,9 @@ static int alloc_lanes(double **v, uint32_t from, uint32_t n)
 {
     uint32_t i;
     for (i = from; i < n; i++) {
-        v[i] = aligned_alloc(64, FREP_BLOCK * sizeof(double));
+        v[i] = frep_aligned_alloc(64, FREP_BLOCK * sizeof(double));
         if (!v[i]) {
-            while (i > from) free(v[--i]);
+            while (i > from) frep_aligned_free(v[--i]);
             return -1;
         }
         memset(v[i], 0, FREP_BLOCK * sizeof(double));
@@ -67,14 +68,14 @@ int vm_scratch_fit(vm_scratch *s, const frep_program *p)
         s->cap_slots = n;
     }
     if (p->nparams > s->cap_params) {
-        double *pb = aligned_alloc(64, (size_t)p->nparams * FREP_BLOCK * sizeof(double));
-        double *pv = pb ? malloc((size_t)p->nparams * sizeof *pv) : NULL;
+        double *pb = frep_aligned_alloc(64, (size_t)p->nparams * FREP_BLOCK * sizeof(double));
+        double *pv = pb ? frep_malloc((size_t)p->nparams * sizeof *pv) : NULL;
         if (!pv) {
-            free(pb);
+            frep_aligned_free(pb);
             return -1;
         }
-        free(s->parambuf);
-        free(s->paramval);
+        frep_aligned_free(s->parambuf);
+        frep_free(s->paramval);
         s->parambuf = pb;
         s->paramval = pv;
         s->param_lanes = 0;
@@ -95,10 +96,10 @@ int vm_scratch_fit(vm_scratch *s, const frep_program *p)
 
 vm_scratch *vm_scratch_new(const frep_program *p)
 {
-    vm_scratch *s = calloc(1, sizeof *s);
+    vm_scratch *s = frep_calloc(1, sizeof *s);
     if (!s) return NULL;
-    s->zeros = aligned_alloc(64, FREP_BLOCK * sizeof(double));
-    s->errlane = malloc(FREP_BLOCK);
+    s->zeros = frep_aligned_alloc(64, FREP_BLOCK * sizeof(double));
+    s->errlane = frep_malloc(FREP_BLOCK);
     if (!s->zeros || !s->errlane || alloc_lanes(s->trig, 0, VM_TRIG_CACHE) < 0 ||
         (p && vm_scratch_fit(s, p) < 0)) {
         vm_scratch_free(s);
@@ -112,22 +113,22 @@ void vm_scratch_free(vm_scratch *s)
 {
     uint32_t i;
     if (!s) return;
-    for (i = 0; i < 2 * s->cap_stack; i++) free(s->lv[i]);
-    for (i = 0; i < s->cap_slots; i++) free(s->slotbuf[i]);
-    free(s->lv);
-    free(s->sp);
-    free(s->slotbuf);
-    free(s->slotp);
-    free(s->parambuf);
-    free(s->paramval);
-    free(s->zeros);
-    for (i = 0; i < VM_TRIG_CACHE; i++) free(s->trig[i]);
-    free(s->primp);
-    free(s->primg);
-    free(s->errlane);
+    for (i = 0; i < 2 * s->cap_stack; i++) frep_aligned_free(s->lv[i]);
+    for (i = 0; i < s->cap_slots; i++) frep_aligned_free(s->slotbuf[i]);
+    frep_free(s->lv);
+    frep_free(s->sp);
+    frep_free(s->slotbuf);
+    frep_free(s->slotp);
+    frep_aligned_free(s->parambuf);
+    frep_free(s->paramval);
+    frep_aligned_free(s->zeros);
+    for (i = 0; i < VM_TRIG_CACHE; i++) frep_aligned_free(s->trig[i]);
+    frep_free(s->primp);
+    frep_free(s->primg);
+    frep_free(s->errlane);
     vm_tan_free(s->tan[0]);
     vm_tan_free(s->tan[1]);
-    free(s);
+    frep_free(s);
 }
 
 /* ---- runtime errors ------------------------------------------------------------------ */

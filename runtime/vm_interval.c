@@ -7,6 +7,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "interval.h"
 #include "opsem.h"
 
@@ -26,12 +27,12 @@ struct vm_iscratch {
 
 vm_iscratch *vm_iscratch_new(const frep_program *p)
 {
-    vm_iscratch *s = calloc(1, sizeof *s);
+    vm_iscratch *s = frep_calloc(1, sizeof *s);
     if (!s) return NULL;
     s->nstack = p->max_stack + 1;
     s->nslots = p->nslots + 1;
-    s->stack = malloc(s->nstack * sizeof *s->stack);
-    s->slots = malloc(s->nslots * sizeof *s->slots);
+    s->stack = frep_malloc(s->nstack * sizeof *s->stack);
+    s->slots = frep_malloc(s->nslots * sizeof *s->slots);
     if (!s->stack || !s->slots) {
         vm_iscratch_free(s);
         return NULL;
@@ -42,9 +43,9 @@ vm_iscratch *vm_iscratch_new(const frep_program *p)
 void vm_iscratch_free(vm_iscratch *s)
 {
     if (!s) return;
-    free(s->stack);
-    free(s->slots);
-    free(s);
+    frep_free(s->stack);
+    frep_free(s->slots);
+    frep_free(s);
 }
 
 /* ---- helpers ------------------------------------------------------------------ */
@@ -516,17 +517,17 @@ struct vm_pruner {
 void vm_pruner_free(vm_pruner *r)
 {
     if (!r) return;
-    free(r->a0);
-    free(r->b0);
-    free(r->kind);
-    free(r->ndomain);
-    free(r->nstore);
-    free(r->vstart);
-    free(r->trace);
-    free(r->keep);
-    free(r->neg);
-    free(r->live);
-    free(r);
+    frep_free(r->a0);
+    frep_free(r->b0);
+    frep_free(r->kind);
+    frep_free(r->ndomain);
+    frep_free(r->nstore);
+    frep_free(r->vstart);
+    frep_free(r->trace);
+    frep_free(r->keep);
+    frep_free(r->neg);
+    frep_free(r->live);
+    frep_free(r);
 }
 
 vm_pruner *vm_pruner_new(const frep_program *p)
@@ -540,25 +541,25 @@ vm_pruner *vm_pruner_new(const frep_program *p)
             op == FREP_OP_JZ || op == FREP_OP_PRIM || op >= FREP_OP__COUNT)
             return NULL;
     }
-    vm_pruner *r = calloc(1, sizeof *r);
-    uint32_t *producer = malloc((n + 1) * sizeof *producer);  /* stack of producing pcs */
-    uint32_t *consumer = malloc((n + 1) * sizeof *consumer);  /* pc popping the value */
-    uint32_t *reads = malloc((n + 1) * sizeof *reads);        /* LOAD: the STORE it reads */
-    uint32_t *last = malloc((p->nslots + 1) * sizeof *last);
-    uint8_t *sign = malloc(n + 1), *store_ok = malloc(n + 1);
+    vm_pruner *r = frep_calloc(1, sizeof *r);
+    uint32_t *producer = frep_malloc((n + 1) * sizeof *producer);  /* stack of producing pcs */
+    uint32_t *consumer = frep_malloc((n + 1) * sizeof *consumer);  /* pc popping the value */
+    uint32_t *reads = frep_malloc((n + 1) * sizeof *reads);        /* LOAD: the STORE it reads */
+    uint32_t *last = frep_malloc((p->nslots + 1) * sizeof *last);
+    uint8_t *sign = frep_malloc(n + 1), *store_ok = frep_malloc(n + 1);
     if (!r || !producer || !consumer || !reads || !last || !sign || !store_ok) goto fail;
     r->p = p;
     r->n = n;
-    r->a0 = calloc(n, sizeof *r->a0);
-    r->b0 = calloc(n, sizeof *r->b0);
-    r->kind = calloc(n, 1);
-    r->ndomain = malloc((n + 1) * sizeof *r->ndomain);
-    r->nstore = malloc((n + 1) * sizeof *r->nstore);
-    r->vstart = calloc(n, sizeof *r->vstart);
-    r->trace = malloc(n * sizeof *r->trace);
-    r->keep = malloc(n);
-    r->neg = malloc(n);
-    r->live = malloc(p->nslots + 1);
+    r->a0 = frep_calloc(n, sizeof *r->a0);
+    r->b0 = frep_calloc(n, sizeof *r->b0);
+    r->kind = frep_calloc(n, 1);
+    r->ndomain = frep_malloc((n + 1) * sizeof *r->ndomain);
+    r->nstore = frep_malloc((n + 1) * sizeof *r->nstore);
+    r->vstart = frep_calloc(n, sizeof *r->vstart);
+    r->trace = frep_malloc(n * sizeof *r->trace);
+    r->keep = frep_malloc(n);
+    r->neg = frep_malloc(n);
+    r->live = frep_malloc(p->nslots + 1);
     if (!r->a0 || !r->b0 || !r->kind || !r->ndomain || !r->nstore || !r->vstart || !r->trace ||
         !r->keep || !r->neg || !r->live)
         goto fail;
@@ -623,20 +624,20 @@ vm_pruner *vm_pruner_new(const frep_program *p)
         r->b0[pc] = b0;
         r->kind[pc] = (uint8_t)k;
     }
-    free(producer);
-    free(consumer);
-    free(reads);
-    free(last);
-    free(sign);
-    free(store_ok);
+    frep_free(producer);
+    frep_free(consumer);
+    frep_free(reads);
+    frep_free(last);
+    frep_free(sign);
+    frep_free(store_ok);
     return r;
 fail:
-    free(producer);
-    free(consumer);
-    free(reads);
-    free(last);
-    free(sign);
-    free(store_ok);
+    frep_free(producer);
+    frep_free(consumer);
+    frep_free(reads);
+    frep_free(last);
+    frep_free(sign);
+    frep_free(store_ok);
     vm_pruner_free(r);
     return NULL;
 }

@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "alloc.h"
 #include "opsem.h"
 #include "vm_internal.h"
 
@@ -46,24 +47,24 @@ void vm_tan_free(vm_tanstate *t)
 {
     uint32_t i;
     if (!t) return;
-    for (i = 0; i < 2 * t->cap_stack; i++) free(t->lvset[i]);
-    for (i = 0; i < t->cap_slots; i++) free(t->slotset[i]);
-    free(t->lvset);
-    free(t->slotset);
-    free(t->ev);
-    free(t->et);
-    free(t->eset);
-    free(t->sv);
-    free(t->st);
-    free(t->pa);
-    free(t->pb);
-    free(t->ones);
-    free(t);
+    for (i = 0; i < 2 * t->cap_stack; i++) frep_aligned_free(t->lvset[i]);
+    for (i = 0; i < t->cap_slots; i++) frep_aligned_free(t->slotset[i]);
+    frep_free(t->lvset);
+    frep_free(t->slotset);
+    frep_free(t->ev);
+    frep_free(t->et);
+    frep_free(t->eset);
+    frep_free(t->sv);
+    frep_free(t->st);
+    frep_aligned_free(t->pa);
+    frep_aligned_free(t->pb);
+    frep_aligned_free(t->ones);
+    frep_free(t);
 }
 
 static double *new_set(uint32_t T)
 {
-    double *b = aligned_alloc(64, set_doubles(T) * sizeof(double));
+    double *b = frep_aligned_alloc(64, set_doubles(T) * sizeof(double));
     if (b) memset(b, 0, set_doubles(T) * sizeof(double));
     return b;
 }
@@ -79,20 +80,20 @@ static int tan_fit(vm_scratch *s, const frep_program *p, uint32_t T, vm_tanstate
         if (nsl < t->cap_slots) nsl = t->cap_slots;
     }
     vm_tan_free(t);
-    *slot = t = calloc(1, sizeof *t);
+    *slot = t = frep_calloc(1, sizeof *t);
     if (!t) return -1;
     t->T = T;
     if (ns == 0) ns = 1;
-    t->lvset = calloc(2 * (size_t)ns, sizeof *t->lvset);
-    t->slotset = calloc(nsl ? nsl : 1, sizeof *t->slotset);
-    t->ev = calloc(ns, sizeof *t->ev);
-    t->et = calloc((size_t)ns * (T ? T : 1), sizeof *t->et);
-    t->eset = calloc(ns, sizeof *t->eset);
-    t->sv = calloc(nsl ? nsl : 1, sizeof *t->sv);
-    t->st = calloc((size_t)(nsl ? nsl : 1) * (T ? T : 1), sizeof *t->st);
-    t->pa = aligned_alloc(64, FREP_BLOCK * sizeof(double));
-    t->pb = aligned_alloc(64, FREP_BLOCK * sizeof(double));
-    t->ones = aligned_alloc(64, FREP_BLOCK * sizeof(double));
+    t->lvset = frep_calloc(2 * (size_t)ns, sizeof *t->lvset);
+    t->slotset = frep_calloc(nsl ? nsl : 1, sizeof *t->slotset);
+    t->ev = frep_calloc(ns, sizeof *t->ev);
+    t->et = frep_calloc((size_t)ns * (T ? T : 1), sizeof *t->et);
+    t->eset = frep_calloc(ns, sizeof *t->eset);
+    t->sv = frep_calloc(nsl ? nsl : 1, sizeof *t->sv);
+    t->st = frep_calloc((size_t)(nsl ? nsl : 1) * (T ? T : 1), sizeof *t->st);
+    t->pa = frep_aligned_alloc(64, FREP_BLOCK * sizeof(double));
+    t->pb = frep_aligned_alloc(64, FREP_BLOCK * sizeof(double));
+    t->ones = frep_aligned_alloc(64, FREP_BLOCK * sizeof(double));
     if (!t->lvset || !t->slotset || !t->ev || !t->et || !t->eset || !t->sv || !t->st ||
         !t->pa || !t->pb || !t->ones)
         goto fail;

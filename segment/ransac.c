@@ -16,6 +16,7 @@
 #include <omp.h>
 #endif
 
+#include "alloc.h"
 #include "rng.h"
 #include "normals.h"
 #include "ransac.h"
@@ -77,7 +78,7 @@
 static char *dupstr(const char *s)
 {
     size_t l = strlen(s) + 1;
-    char *d = malloc(l);
+    char *d = frep_malloc(l);
     if (d) memcpy(d, s, l);
     return d;
 }
@@ -423,7 +424,7 @@ static int sort_cellpt(cellpt *a, size_t n)
     int bits = 0;
     while (bits < 64 && (maxc >> bits) != 0) bits++;
     if (bits == 0) return 0;
-    cellpt *tmp = malloc(n * sizeof *tmp);
+    cellpt *tmp = frep_malloc(n * sizeof *tmp);
     if (!tmp) return -1;
     size_t cnt[1u << RADIX_BITS];
     cellpt *src = a, *dst = tmp;
@@ -442,7 +443,7 @@ static int sort_cellpt(cellpt *a, size_t n)
         dst = t;
     }
     if (src != a) memcpy(a, src, n * sizeof *a);
-    free(tmp);
+    frep_free(tmp);
     return 0;
 }
 
@@ -472,8 +473,8 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
                                 double beta)
 {
     if (n == 0) return 0;
-    double *uv = malloc(2 * n * sizeof *uv);
-    cellpt *cp = malloc(n * sizeof *cp);
+    double *uv = frep_malloc(2 * n * sizeof *uv);
+    cellpt *cp = frep_malloc(n * sizeof *cp);
     uint32_t *par = NULL, *cnt = NULL;
     if (!uv || !cp) goto oom;
     double e1[3], e2[3];
@@ -575,11 +576,11 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
     if (sort_cellpt(cp, n)) qsort(cp, n, sizeof *cp, cmp_cellpt);
     /* Unique cells: cell j spans cp[start[j]..]; union-find over cells. */
     size_t ncells = 0;
-    uint32_t *start = malloc((n + 1) * sizeof *start);
-    par = malloc(n * sizeof *par);
-    cnt = calloc(n, sizeof *cnt);
+    uint32_t *start = frep_malloc((n + 1) * sizeof *start);
+    par = frep_malloc(n * sizeof *par);
+    cnt = frep_calloc(n, sizeof *cnt);
     if (!start || !par || !cnt) {
-        free(start);
+        frep_free(start);
         goto oom;
     }
     for (size_t i = 0; i < n; i++)
@@ -619,9 +620,9 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
     for (size_t j = 1; j < ncells; j++)
         if (cnt[j] > cnt[best]) best = (uint32_t)j;
     /* Keep the inliers of the best component, in their original order. */
-    unsigned char *keep = calloc(n, 1);
+    unsigned char *keep = frep_calloc(n, 1);
     if (!keep) {
-        free(start);
+        frep_free(start);
         goto oom;
     }
     for (size_t j = 0; j < ncells; j++)
@@ -630,18 +631,18 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
     size_t m = 0;
     for (size_t i = 0; i < n; i++)
         if (keep[i]) idx[m++] = idx[i];
-    free(keep);
-    free(start);
-    free(uv);
-    free(cp);
-    free(par);
-    free(cnt);
+    frep_free(keep);
+    frep_free(start);
+    frep_free(uv);
+    frep_free(cp);
+    frep_free(par);
+    frep_free(cnt);
     return m;
 oom:
-    free(uv);
-    free(cp);
-    free(par);
-    free(cnt);
+    frep_free(uv);
+    frep_free(cp);
+    frep_free(par);
+    frep_free(cnt);
     return n; /* out of memory: keep everything rather than fail */
 }
 
@@ -853,10 +854,10 @@ int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
     if (n < 3) return -1;
     if (max_points == 0 || max_points > n) max_points = n;
     size_t m = max_points;
-    double *px = malloc(3 * m * sizeof *px), *res = malloc(2 * m * sizeof *res);
+    double *px = frep_malloc(3 * m * sizeof *px), *res = frep_malloc(2 * m * sizeof *res);
     if (!px || !res) {
-        free(px);
-        free(res);
+        frep_free(px);
+        frep_free(res);
         return -1;
     }
     for (size_t j = 0; j < m; j++) {
@@ -884,8 +885,8 @@ int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
             refit_points(&t, c, idx, n, px, kept) == 0)
             *q = t;
     }
-    free(px);
-    free(res);
+    frep_free(px);
+    frep_free(res);
     return rc;
 }
 
@@ -1190,7 +1191,7 @@ static double noise_band(det *d, const prim *q, unsigned char *flag)
     size_t m = gather_inliers(d, q, flag, tmp);
     d->band = saved;
     if (m < RANSAC_MIN_CLOUD) return eps;
-    double *r = malloc(m * sizeof *r);
+    double *r = frep_malloc(m * sizeof *r);
     if (!r) return eps;
     for (size_t j = 0; j < m; j++) {
         double p[3];
@@ -1219,7 +1220,7 @@ static double noise_band(det *d, const prim *q, unsigned char *flag)
         else break;
     }
     double sigma = NOISE_MAD_TO_SIGMA * r[k];
-    free(r);
+    frep_free(r);
     /* Residuals that fill the whole probe evenly are not noise about this surface but
      * a wrong shape (a sphere touching a cone): widening would only feed it. */
     if (NOISE_BAND_SIGMAS * sigma > NOISE_PROBE * eps) return eps;
@@ -1258,7 +1259,7 @@ static size_t prefer_simpler(det *d, prim *q, size_t m, unsigned char *flag, uin
         }
         p->r = rho;
     }
-    uint32_t *keep = malloc(m * sizeof *keep);
+    uint32_t *keep = frep_malloc(m * sizeof *keep);
     if (!keep) return m;
     memcpy(keep, inl, m * sizeof *keep);
     size_t best_m = m;
@@ -1272,7 +1273,7 @@ static size_t prefer_simpler(det *d, prim *q, size_t m, unsigned char *flag, uin
             best_m = mt;
         }
     }
-    free(keep);
+    frep_free(keep);
     *q = best;
     return best_m;
 }
@@ -1330,7 +1331,7 @@ static double median_abs(const prim *q, const frep_cloud *c, const uint32_t *idx
 {
     size_t k = n < MODE_VOTERS ? n : MODE_VOTERS;
     if (k == 0) return 0;
-    double *r = malloc(k * sizeof *r);
+    double *r = frep_malloc(k * sizeof *r);
     if (!r) return -1;
     for (size_t j = 0; j < k; j++) {
         double p[3];
@@ -1339,7 +1340,7 @@ static double median_abs(const prim *q, const frep_cloud *c, const uint32_t *idx
     }
     qsort(r, k, sizeof *r, cmp_abs_double);
     double med = r[k / 2];
-    free(r);
+    frep_free(r);
     return med;
 }
 
@@ -1387,11 +1388,11 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
     if (!(med0 > MODE_EXACT * d->cfg->epsilon)) return m;
     double cosm = cos(MODE_NORMAL_DEG * M_PI / 180.0);
     size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS, ncen = m < MODE_CENTRES ? m : MODE_CENTRES;
-    double *tv = malloc(2 * m * sizeof *tv);
-    uint32_t *slab = malloc(m * sizeof *slab);
+    double *tv = frep_malloc(2 * m * sizeof *tv);
+    uint32_t *slab = frep_malloc(m * sizeof *slab);
     if (!tv || !slab) {
-        free(tv);
-        free(slab);
+        frep_free(tv);
+        frep_free(slab);
         return m;
     }
     size_t best_cnt = 0, best_j = 0;
@@ -1460,8 +1461,8 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
             if (meda >= 0 && meda < MODE_GAIN * med0) {
                 *q = alt;
                 m_out = ma;
-                free(tv);
-                free(slab);
+                frep_free(tv);
+                frep_free(slab);
                 return m_out;
             }
         }
@@ -1469,8 +1470,8 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
     /* Keep q: its inliers back. */
     d->band = band0;
     m_out = support_of(d, q, flag, inl);
-    free(tv);
-    free(slab);
+    frep_free(tv);
+    frep_free(slab);
     return m_out;
 }
 
@@ -1530,11 +1531,11 @@ static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t 
         changed = 0;
         size_t np = res->nprims;
         /* Inliers of each primitive, contiguous (counting sort by label). */
-        size_t *start = calloc(np + 1, sizeof *start);
-        uint32_t *order = malloc((n + 1) * sizeof *order);
+        size_t *start = frep_calloc(np + 1, sizeof *start);
+        uint32_t *order = frep_malloc((n + 1) * sizeof *order);
         if (!start || !order) {
-            free(start);
-            free(order);
+            frep_free(start);
+            frep_free(order);
             return;
         }
         for (size_t i = 0; i < n; i++)
@@ -1601,8 +1602,8 @@ static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t 
                 changed = 1;
             }
         }
-        free(start);
-        free(order);
+        frep_free(start);
+        frep_free(order);
     }
 }
 
@@ -1637,7 +1638,7 @@ static double median_normal_dev(const prim *q, const frep_cloud *c, const uint32
 {
     size_t k = n < MODE_VOTERS ? n : MODE_VOTERS;
     if (k == 0) return 0;
-    double *r = malloc(k * sizeof *r);
+    double *r = frep_malloc(k * sizeof *r);
     if (!r) return M_PI;
     for (size_t j = 0; j < k; j++) {
         size_t i = idx[(size_t)((double)j * (double)n / (double)k)];
@@ -1650,7 +1651,7 @@ static double median_normal_dev(const prim *q, const frep_cloud *c, const uint32
     }
     qsort(r, k, sizeof *r, cmp_abs_double);
     double med = r[k / 2];
-    free(r);
+    frep_free(r);
     return med;
 }
 
@@ -1705,27 +1706,27 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
     d.n = c->n;
     size_t n = c->n;
     size_t cap_prims = 16;
-    double *bands = malloc(cap_prims * sizeof *bands); /* extraction band per primitive */
+    double *bands = frep_malloc(cap_prims * sizeof *bands); /* extraction band per primitive */
     cand *pool = NULL;
     int *which = NULL;
     uint32_t *inl = NULL;
     unsigned char *flag = NULL;
     mkey *mk = NULL;
-    res->label = malloc((n ? n : 1) * sizeof *res->label);
-    res->prims = malloc(cap_prims * sizeof *res->prims);
-    d.alive = malloc(n + 1);
-    d.shuf = malloc((n + 1) * sizeof *d.shuf);
-    d.spts = malloc((6 * n + 6) * sizeof *d.spts);
-    d.salive = malloc(n + 1);
-    d.tmp = malloc((n + 1) * sizeof *d.tmp);
-    d.morton_idx = malloc((n + 1) * sizeof *d.morton_idx);
-    d.morton = malloc((2 * n + 2) * sizeof *d.morton);
-    d.alive_list = malloc((n + 1) * sizeof *d.alive_list);
-    pool = malloc(MAX_POOL * sizeof *pool);
-    which = malloc(MAX_POOL * sizeof *which);
-    inl = malloc((n + 1) * sizeof *inl);
-    flag = malloc(n + 1);
-    mk = malloc((n + 1) * sizeof *mk);
+    res->label = frep_malloc((n ? n : 1) * sizeof *res->label);
+    res->prims = frep_malloc(cap_prims * sizeof *res->prims);
+    d.alive = frep_malloc(n + 1);
+    d.shuf = frep_malloc((n + 1) * sizeof *d.shuf);
+    d.spts = frep_malloc((6 * n + 6) * sizeof *d.spts);
+    d.salive = frep_malloc(n + 1);
+    d.tmp = frep_malloc((n + 1) * sizeof *d.tmp);
+    d.morton_idx = frep_malloc((n + 1) * sizeof *d.morton_idx);
+    d.morton = frep_malloc((2 * n + 2) * sizeof *d.morton);
+    d.alive_list = frep_malloc((n + 1) * sizeof *d.alive_list);
+    pool = frep_malloc(MAX_POOL * sizeof *pool);
+    which = frep_malloc(MAX_POOL * sizeof *which);
+    inl = frep_malloc((n + 1) * sizeof *inl);
+    flag = frep_malloc(n + 1);
+    mk = frep_malloc((n + 1) * sizeof *mk);
     if (!bands || !d.tmp || !d.spts || !d.salive || !res->label || !res->prims || !d.alive || !d.shuf || !d.morton_idx || !d.morton ||
         !d.alive_list || !pool || !which || !inl || !flag || !mk || !c->has_normals) {
         if (err) *err = dupstr(c->has_normals ? "out of memory" : "the cloud has no normals");
@@ -1764,7 +1765,7 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         d.morton[n + 1 + mk[j].i] = mk[j].code;
     }
     d.morton[n] = 0;
-    free(mk);
+    frep_free(mk);
     mk = NULL;
     /* Scoring subsets: a seeded permutation cut into doubling blocks. */
     for (size_t i = 0; i < n; i++) d.shuf[i] = (uint32_t)i;
@@ -1951,13 +1952,13 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         }
         pool[best] = pool[--npool];
         if (res->nprims == cap_prims) {
-            prim *np = realloc(res->prims, 2 * cap_prims * sizeof *np);
+            prim *np = frep_realloc(res->prims, 2 * cap_prims * sizeof *np);
             if (!np) {
                 if (err) *err = dupstr("out of memory");
                 goto fail;
             }
             res->prims = np;
-            double *nb = realloc(bands, 2 * cap_prims * sizeof *nb);
+            double *nb = frep_realloc(bands, 2 * cap_prims * sizeof *nb);
             if (!nb) {
                 if (err) *err = dupstr("out of memory");
                 goto fail;
@@ -1993,43 +1994,43 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         if (cfg->progress) cfg->progress(cfg->user, d.nalive, n, res->nprims);
     }
     if (!res->interrupted) merge_redundant(&d, res, bands, inl);
-    free(bands);
-    free(d.alive);
-    free(d.shuf);
-    free(d.spts);
-    free(d.salive);
-    free(d.tmp);
-    free(d.morton_idx);
-    free(d.morton);
-    free(d.alive_list);
-    free(pool);
-    free(which);
-    free(inl);
-    free(flag);
+    frep_free(bands);
+    frep_free(d.alive);
+    frep_free(d.shuf);
+    frep_free(d.spts);
+    frep_free(d.salive);
+    frep_free(d.tmp);
+    frep_free(d.morton_idx);
+    frep_free(d.morton);
+    frep_free(d.alive_list);
+    frep_free(pool);
+    frep_free(which);
+    frep_free(inl);
+    frep_free(flag);
     return 0;
 fail:
-    free(bands);
-    free(d.alive);
-    free(d.shuf);
-    free(d.spts);
-    free(d.salive);
-    free(d.tmp);
-    free(d.morton_idx);
-    free(d.morton);
-    free(d.alive_list);
-    free(pool);
-    free(which);
-    free(inl);
-    free(flag);
-    free(mk);
+    frep_free(bands);
+    frep_free(d.alive);
+    frep_free(d.shuf);
+    frep_free(d.spts);
+    frep_free(d.salive);
+    frep_free(d.tmp);
+    frep_free(d.morton_idx);
+    frep_free(d.morton);
+    frep_free(d.alive_list);
+    frep_free(pool);
+    frep_free(which);
+    frep_free(inl);
+    frep_free(flag);
+    frep_free(mk);
     ransac_result_free(res);
     return -1;
 }
 
 void ransac_result_free(ransac_result *r)
 {
-    free(r->prims);
-    free(r->label);
+    frep_free(r->prims);
+    frep_free(r->label);
     r->prims = NULL;
     r->label = NULL;
     r->nprims = 0;

@@ -41,9 +41,9 @@ typedef struct ransac_config {
 } ransac_config;
 
 typedef struct ransac_result {
-    prim *prims;          /* detected primitives, in order of extraction (free()) */
+    prim *prims;          /* detected primitives, in order of extraction (frep_free()) */
     size_t nprims;
-    int32_t *label;       /* per point: index into prims, or -1 (free()) */
+    int32_t *label;       /* per point: index into prims, or -1 (frep_free()) */
     size_t draws;         /* minimal samples drawn in all */
     int interrupted;
 } ransac_result;

@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "alloc.h"
 #include "fitfile.h"
 #include "kdtree.h"
 #include "normals.h"
@@ -38,8 +39,8 @@ void segment_config_init(segment_config *c)
 
 void segment_result_free(segment_result *r)
 {
-    free(r->prims);
-    free(r->label);
+    frep_free(r->prims);
+    frep_free(r->label);
     r->prims = NULL;
     r->label = NULL;
     r->nprims = r->nfitted = 0;
@@ -62,13 +63,13 @@ static double median_spacing(const frep_cloud *c)
     double *sx = NULL, *sy = NULL, *sz = NULL;
     kd_tree *t;
     if (stride > 1) {
-        sx = malloc(nt * sizeof *sx);
-        sy = malloc(nt * sizeof *sy);
-        sz = malloc(nt * sizeof *sz);
+        sx = frep_malloc(nt * sizeof *sx);
+        sy = frep_malloc(nt * sizeof *sy);
+        sz = frep_malloc(nt * sizeof *sz);
         if (!sx || !sy || !sz) {
-            free(sx);
-            free(sy);
-            free(sz);
+            frep_free(sx);
+            frep_free(sy);
+            frep_free(sz);
             return 0;
         }
         for (size_t j = 0; j < nt; j++) {
@@ -81,18 +82,18 @@ static double median_spacing(const frep_cloud *c)
         t = kd_build(c->n, c->x, c->y, c->z);
     }
     if (!t) {
-        free(sx);
-        free(sy);
-        free(sz);
+        frep_free(sx);
+        frep_free(sy);
+        frep_free(sz);
         return 0;
     }
     size_t m = nt < SPACING_SAMPLES ? nt : SPACING_SAMPLES;
-    double *d = malloc(m * sizeof *d);
+    double *d = frep_malloc(m * sizeof *d);
     if (!d) {
         kd_free(t);
-        free(sx);
-        free(sy);
-        free(sz);
+        frep_free(sx);
+        frep_free(sy);
+        frep_free(sz);
         return 0;
     }
     size_t got = 0;
@@ -113,11 +114,11 @@ static double median_spacing(const frep_cloud *c)
         qsort(d, got, sizeof *d, cmp_double);
         med = d[got / 2] / sqrt((double)stride);
     }
-    free(d);
+    frep_free(d);
     kd_free(t);
-    free(sx);
-    free(sy);
-    free(sz);
+    frep_free(sx);
+    frep_free(sy);
+    frep_free(sz);
     return med;
 }
 
@@ -213,7 +214,7 @@ static int plane_dup(const prim *list, size_t n, const double nrm[3], double d, 
 size_t segment_add_separating(prim **prims, size_t n, double eps)
 {
     size_t cap = n + 8, cnt = n;
-    prim *v = realloc(*prims, cap * sizeof *v);
+    prim *v = frep_realloc(*prims, cap * sizeof *v);
     if (!v) return (size_t)-1;
     for (size_t i = 0; i < n; i++) {
         prim q = v[i];
@@ -247,7 +248,7 @@ size_t segment_add_separating(prim **prims, size_t n, double eps)
                     continue;
                 if (cnt == cap) {
                     cap *= 2;
-                    prim *nv = realloc(v, cap * sizeof *nv);
+                    prim *nv = frep_realloc(v, cap * sizeof *nv);
                     if (!nv) {
                         *prims = v;
                         return (size_t)-1;
@@ -337,23 +338,23 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
     for (size_t i = 0; i < c->n; i++) res->unassigned += rr.label[i] < 0;
 
     /* Boxes of every fitted primitive from its inliers (counting sort by label). */
-    size_t *start = calloc(rr.nprims + 2, sizeof *start);
-    uint32_t *order = malloc(c->n * sizeof *order);
+    size_t *start = frep_calloc(rr.nprims + 2, sizeof *start);
+    uint32_t *order = frep_malloc(c->n * sizeof *order);
     if (!start || !order) {
-        free(start);
-        free(order);
-        free(rr.prims);
+        frep_free(start);
+        frep_free(order);
+        frep_free(rr.prims);
         if (err) *err = frep_strdupf("out of memory");
         return -1;
     }
     for (size_t i = 0; i < c->n; i++)
         if (rr.label[i] >= 0) start[rr.label[i] + 1]++;
     for (size_t j = 0; j < rr.nprims; j++) start[j + 1] += start[j];
-    size_t *fill = calloc(rr.nprims + 1, sizeof *fill);
+    size_t *fill = frep_calloc(rr.nprims + 1, sizeof *fill);
     if (!fill) {
-        free(start);
-        free(order);
-        free(rr.prims);
+        frep_free(start);
+        frep_free(order);
+        frep_free(rr.prims);
         if (err) *err = frep_strdupf("out of memory");
         return -1;
     }
@@ -361,9 +362,9 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
         if (rr.label[i] >= 0) order[start[rr.label[i]] + fill[rr.label[i]]++] = (uint32_t)i;
     for (size_t j = 0; j < rr.nprims; j++)
         segment_fit_obb(&rr.prims[j], c, order + start[j], start[j + 1] - start[j]);
-    free(fill);
-    free(start);
-    free(order);
+    frep_free(fill);
+    frep_free(start);
+    frep_free(order);
 
     res->prims = rr.prims;
     res->nprims = rr.nprims;
@@ -582,7 +583,7 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
             }
             if (cnt == cap) {
                 cap = cap ? 2 * cap : 16;
-                prim *nv = realloc(v, cap * sizeof *nv);
+                prim *nv = frep_realloc(v, cap * sizeof *nv);
                 if (!nv) {
                     if (err) *err = frep_strdupf("%s: out of memory", name);
                     goto fail;
@@ -601,7 +602,7 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
     *n = cnt;
     return 0;
 fail:
-    free(v);
+    frep_free(v);
     return -1;
 }
 
@@ -624,14 +625,14 @@ int segment_read_prims(const char *path, prim **out, size_t *n, char **err)
         return -1;
     }
     size_t cap = 1 << 16, len = 0;
-    char *buf = malloc(cap);
+    char *buf = frep_malloc(cap);
     while (buf) {
         size_t got = fread(buf + len, 1, cap - len, f);
         len += got;
         if (len < cap) break;
-        char *nb = realloc(buf, cap * 2);
+        char *nb = frep_realloc(buf, cap * 2);
         if (!nb) {
-            free(buf);
+            frep_free(buf);
             buf = NULL;
             break;
         }
@@ -641,13 +642,13 @@ int segment_read_prims(const char *path, prim **out, size_t *n, char **err)
     int rd_err = ferror(f);
     fclose(f);
     if (!buf || rd_err) {
-        free(buf);
+        frep_free(buf);
         if (err) *err = frep_strdupf("cannot read %s", path);
         return -1;
     }
     size_t pl = strlen(path);
     int is_fit = pl >= 4 && strcmp(path + pl - 4, ".fit") == 0;
     int rc = segment_parse_prims(path, buf, len, is_fit, out, n, err);
-    free(buf);
+    frep_free(buf);
     return rc;
 }

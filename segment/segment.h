@@ -50,9 +50,9 @@ typedef struct segment_config {
 void segment_config_init(segment_config *c);
 
 typedef struct segment_result {
-    prim *prims;           /* fitted primitives first, then separating ones (free()) */
+    prim *prims;           /* fitted primitives first, then separating ones (frep_free()) */
     size_t nprims, nfitted;
-    int32_t *label;        /* per point: index of its fitted primitive or -1 (free()) */
+    int32_t *label;        /* per point: index of its fitted primitive or -1 (frep_free()) */
     size_t unassigned;
     double diagonal;       /* of the cloud's bounding box: the scale of the output */
     /* The values actually used (defaults resolved). */
@@ -66,7 +66,7 @@ typedef struct segment_result {
 } segment_result;
 
 /* Segment c (normals are added or replaced when missing or zero). Returns 0, or -1
- * with *err (malloc'ed, free()) for bad input (too few points, all points equal) or
+ * with *err (malloc'ed, frep_free()) for bad input (too few points, all points equal) or
  * out of memory. Free the result with segment_result_free(). */
 int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, char **err);
 void segment_result_free(segment_result *r);
@@ -87,7 +87,7 @@ int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header, doubl
 
 /* Read primitives from a .hf file written by segment_write_hf (the frX(...) calls and
  * their comments) or from a .fit list (by extension ".fit"). Returns 0 with a malloc'ed
- * array, or -1 and *err = "path:line: what" (free()). */
+ * array, or -1 and *err = "path:line: what" (frep_free()). */
 int segment_read_prims(const char *path, prim **out, size_t *n, char **err);
 /* The same from memory; is_fit selects the format. */
 int segment_parse_prims(const char *name, const char *text, size_t len, int is_fit,
