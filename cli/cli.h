@@ -1,14 +1,17 @@
 /* cli.h - the frep command: one function per subcommand (cli/cmd_*.c), dispatched by
- * cli/main.c.  Shared helpers (option parsing, reading files, diagnostics printing,
- * atomic output) live in cli/util.c.
+ * cli/main.c.  Shared helpers: the option layer (cli/opt.c), reading files, diagnostics
+ * printing, atomic output, Ctrl-C (cli/util.c), the model -> mesh steps (cli/model.c).
  */
 #ifndef FREP_CLI_H
 #define FREP_CLI_H
 
+#include <math.h>
+#include <signal.h>
 #include <stddef.h>
 #include <stdio.h>
 
 #include "frep.h"
+#include "opt.h"
 
 /* A subcommand: argv[0] is the subcommand name. Returns the process exit status. */
 typedef int (*cli_cmd_fn)(int argc, char **argv);
@@ -24,13 +27,11 @@ int cmd_evolve(int argc, char **argv); /* cli/cmd_evolve.c */
 int cmd_segment(int argc, char **argv); /* cli/cmd_segment.c */
 int cmd_fit(int argc, char **argv);    /* cli/cmd_fit.c */
 
-/* Model -> mesh steps shared by frep mesh, sample and render (cli/cmd_mesh.c):
- * mesh_cli_option() handles -m -a -b -g --iso(I) -t --setops(S) (returns 0, a CLI_
- * status after a message, or -1 for "not mine"); compile, then polygonize. */
+/* Model -> mesh steps shared by frep mesh, sample and render (cli/model.c): the model
+ * options (-m -a -b -g --iso -t --setops, table entries below), compile, polygonize. */
 typedef struct mesh_cli {
     const char *model, *path;
-    double *a;
-    size_t na;
+    cli_list a;
     double box[6];
     int has_box, grid, nthreads, setops;
     double iso;
@@ -41,7 +42,9 @@ typedef struct mesh_cli {
 } mesh_cli;
 void mesh_cli_init(mesh_cli *c);
 void mesh_cli_free(mesh_cli *c);
-int mesh_cli_option(mesh_cli *c, const char *sub, int opt, const char *arg);
+/* cli_opt_parse() for a table holding mesh_cli entries at `mc` bytes into ctx. */
+int mesh_cli_parse(const cli_opt_spec *spec, int argc, char **argv, void *ctx, size_t mc,
+                   cli_args *args);
 int mesh_cli_compile(mesh_cli *c, const char *path);
 struct frep_mesh;
 struct mesh_stats;
@@ -50,6 +53,42 @@ int mesh_cli_polygonize(mesh_cli *c, const char *sub, struct frep_mesh *m, struc
  * position of the first failing operation) with mesh_cli_report_errors(). */
 void mesh_cli_add_errors(mesh_cli *c, const frep_runtime_error *e);
 void mesh_cli_report_errors(mesh_cli *c);
+/* Is PATH a mesh file (by its extension) rather than a model? cli_read_mesh() reads
+ * one, printing why it cannot; returns CLI_OK or CLI_FAIL. */
+int cli_is_mesh_path(const char *path);
+int cli_read_mesh(const char *sub, const char *path, struct frep_mesh *m);
+
+/* Option table entries shared by several subcommands: one parser each for the model
+ * options, the thread count, the seed and -q. T is the context type, f its field. */
+#define CLI_OPT_MODEL(T, f, h) \
+    { 'm', "model", "NAME", CLI_OPT_STRING, offsetof(T, f), .help = h }
+#define CLI_OPT_PARAMS(T, f, h) \
+    { 'a', "params", "LIST", CLI_OPT_LIST, offsetof(T, f), .help = h }
+#define CLI_OPT_BOX(T, f, h) \
+    { 'b', "box", "BOX", CLI_OPT_CUSTOM, offsetof(T, f), .parse = cli_opt_box, .help = h }
+#define CLI_OPT_GRID(T, f, d, h) \
+    { 'g', "grid", "N", CLI_OPT_INT, offsetof(T, f), .lo = 1, .hi = MESH_MAX_GRID, \
+      .what = "grid cells per axis", .above = " (the mesh would not fit in memory)", \
+      .def = d, .help = h }
+#define CLI_OPT_ISO(T, f, h) \
+    { 0, "iso", "V", CLI_OPT_DOUBLE, offsetof(T, f), .lo = -INFINITY, .hi = INFINITY, .help = h }
+#define CLI_OPT_SETOPS(T, f, h) \
+    { 0, "setops", "S", CLI_OPT_CUSTOM, offsetof(T, f), .parse = cli_opt_setops, \
+      .expect = "rfunc or minmax", .help = h }
+#define CLI_OPT_THREADS(T, f, h) \
+    { 't', "threads", "N", CLI_OPT_INT, offsetof(T, f), .lo = 1, .hi = CLI_MAX_THREADS, .help = h }
+#define CLI_OPT_SEED(T, f, h) \
+    { 0, "seed", "S", CLI_OPT_SEED, offsetof(T, f), .help = h }
+#define CLI_OPT_QUIET(T, f, h) \
+    { 'q', "quiet", NULL, CLI_OPT_SET, offsetof(T, f), .help = h }
+
+/* Ctrl-C: cli_sigint_catch() clears the flag and installs a handler that sets it (the
+ * one piece of global mutable state frep allows: a signal handler can reach nothing
+ * else); cli_sigint_restore() puts the previous handler back. The library polls the
+ * flag through a pointer (fit, segment, evolve configs). */
+volatile sig_atomic_t *cli_sigint_catch(void);
+void cli_sigint_restore(void);
+int cli_interrupted(void);
 
 /* Exit statuses. */
 #define CLI_OK 0
@@ -77,12 +116,6 @@ void cli_diag_done(cli_diag_ctx *c);
  * returns the program and (if src != NULL) hands over the source text (free()). */
 frep_program *cli_compile_file(const char *path, const char *model, const double *a,
                                size_t na, int setops, char **src);
-
-/* Parse "v1,v2,..." into a malloc'ed array; NULL + message on a malformed list. */
-double *cli_parse_list(const char *opt, const char *s, size_t *n);
-/* HyperFun's -b conventions: 1 number -> [-v,v]^3; 2 -> [lo,hi]^3; 3 -> [-a,a]x[-b,b]x[-c,c];
- * 6 -> xlo,ylo,zlo,xhi,yhi,zhi. Returns 0 or -1 after a message. */
-int cli_parse_box(const char *s, double box[6]);
 
 /* Write a file atomically: data goes to a temporary in the same directory, which is
  * renamed over `path` when `fn` succeeds. fn returns 0 on success. */

@@ -7,16 +7,11 @@
 #include "prune.h"
 
 #include <errno.h>
-#include <getopt.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #define EVAL_MAX_GRID 4096 /* grid points per axis: 4096^3 evaluations is hours already */
 
@@ -32,18 +27,7 @@ static const char eval_usage[] =
     "and prints the count and fraction of points inside (f >= 0), the estimated volume,\n"
     "min/max/sum of the finite values, the NaN count and the throughput. It evaluates\n"
     "16^3-point tiles, each with a program shortened by interval analysis (min/max set\n"
-    "operations and selects decided over the tile); the values are exactly the same.\n\n"
-    "Options:\n"
-    "  -a, --params LIST   values of the model's a[] array, comma separated\n"
-    "  -b, --box BOX       HyperFun's -b: 'v' for [-v,v]^3, 'lo,hi', 'a,b,c' for\n"
-    "                      [-a,a]x[-b,b]x[-c,c], or 'x0,y0,z0,x1,y1,z1'; default: the\n"
-    "                      model's '-- @box' annotation, else 10\n"
-    "      --grad          also print the gradient (forward-mode differentiation)\n"
-    "      --grid N        grid mode with N points per axis (2..4096)\n"
-    "  -m, --model NAME    the model to evaluate\n"
-    "      --no-prune      grid mode: evaluate every tile with the whole program\n"
-    "      --setops S      override the file's set operations: rfunc, minmax\n"
-    "  -t, --threads N     OpenMP threads (default: all cores)\n";
+    "operations and selects decided over the tile); the values are exactly the same.\n\n";
 
 static void print_num(FILE *f, double v)
 {
@@ -216,10 +200,7 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
     double total_time = now_seconds() - t0;
     double npts = (double)N * (double)N * (double)N;
     double vol = (box[3] - box[0]) * (box[4] - box[1]) * (box[5] - box[2]);
-    int threads = 1;
-#ifdef _OPENMP
-    threads = nthreads > 0 ? nthreads : omp_get_max_threads();
-#endif
+    int threads = cli_threads(nthreads);
     printf("grid      %ld^3 = %.0f points over [%g,%g]x[%g,%g]x[%g,%g]\n", N, npts, box[0],
            box[3], box[1], box[4], box[2], box[5]);
     printf("inside    %llu (%.6f of the points, f >= 0)\n", (unsigned long long)inside,
@@ -236,101 +217,74 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
     return CLI_OK;
 }
 
+typedef struct eval_cmd {
+    const char *model, *boxarg;
+    cli_list a;
+    int grad, setops, nthreads, prune;
+    long grid;                /* points per axis; 0: point mode */
+    const char *file, *points;
+    double box[6];
+    frep_program *p;
+    char *src;
+} eval_cmd;
+
+#define OFF(f) offsetof(eval_cmd, f)
+static const cli_opt eval_opts[] = {
+    CLI_OPT_PARAMS(eval_cmd, a, "values of the model's a[] array, comma separated"),
+    { 'b', "box", "BOX", CLI_OPT_STRING, OFF(boxarg),
+      .help = "HyperFun's -b: 'v' for [-v,v]^3, 'lo,hi', 'a,b,c' for\n"
+              "[-a,a]x[-b,b]x[-c,c], or 'x0,y0,z0,x1,y1,z1'; default: the\n"
+              "model's '-- @box' annotation, else 10" },
+    { 0, "grad", NULL, CLI_OPT_SET, OFF(grad),
+      .help = "also print the gradient (forward-mode differentiation)" },
+    { 0, "grid", "N", CLI_OPT_LONG, OFF(grid), .lo = 2, .hi = EVAL_MAX_GRID,
+      .help = "grid mode with N points per axis (2..4096)" },
+    CLI_OPT_MODEL(eval_cmd, model, "the model to evaluate"),
+    { 0, "no-prune", NULL, CLI_OPT_CLEAR, OFF(prune),
+      .help = "grid mode: evaluate every tile with the whole program" },
+    CLI_OPT_SETOPS(eval_cmd, setops, "override the file's set operations: rfunc, minmax"),
+    CLI_OPT_THREADS(eval_cmd, nthreads, "OpenMP threads (default: all cores)"),
+};
+#undef OFF
+static const cli_opt_spec eval_spec = { "eval", eval_usage, eval_opts,
+                                        sizeof eval_opts / sizeof eval_opts[0], 22 };
+
+/* Options -> FILE.hf [POINTS]; --grid excludes POINTS and --grad, -b needs --grid. */
+static int stage_options(eval_cmd *c, int argc, char **argv)
+{
+    cli_args args;
+    int rc = cli_opt_parse(&eval_spec, argc, argv, c, &args);
+    if (rc != CLI_GO_ON) return rc;
+    if (args.n < 1 || args.n > 2) return cli_usage_error("eval", "expected FILE.hf [POINTS]");
+    if (c->grid && (args.n == 2 || c->grad))
+        return cli_usage_error("eval", "--grid takes no POINTS file and no --grad");
+    if (!c->grid && c->boxarg) return cli_usage_error("eval", "-b is only for --grid");
+    char why[256] = "";
+    if (c->boxarg && cli_opt_box(c->boxarg, c->box, why, sizeof why) != 0)
+        return cli_usage_error("eval", "-b: %s", why);
+    c->file = args.v[0];
+    c->points = args.n == 2 ? args.v[1] : "-";
+    return CLI_GO_ON;
+}
+
+/* Compile, then evaluate on the grid or at the points. */
+static int eval_run(eval_cmd *c)
+{
+    c->p = cli_compile_file(c->file, c->model, c->a.v, c->a.n, c->setops, &c->src);
+    if (!c->p) return CLI_FAIL;
+    if (c->grid && !c->boxarg) frep_program_box(c->p, c->box);
+    size_t srclen = c->src ? strlen(c->src) : 0;
+    return c->grid ? eval_grid(c->p, c->grid, c->box, c->nthreads, c->prune, c->src, srclen)
+                   : eval_points(c->p, c->points, c->grad, c->nthreads, c->src, srclen);
+}
+
 int cmd_eval(int argc, char **argv)
 {
-    static const struct option longopts[] = {
-        { "help", no_argument, NULL, 'h' },
-        { "model", required_argument, NULL, 'm' },
-        { "params", required_argument, NULL, 'a' },
-        { "box", required_argument, NULL, 'b' },
-        { "grad", no_argument, NULL, 'G' },
-        { "grid", required_argument, NULL, 'N' },
-        { "threads", required_argument, NULL, 't' },
-        { "setops", required_argument, NULL, 'S' },
-        { "no-prune", no_argument, NULL, 'P' },
-        { NULL, 0, NULL, 0 },
-    };
-    const char *model = NULL, *boxarg = NULL;
-    double *a = NULL;
-    size_t na = 0;
-    int grad = 0, setops = -1, nthreads = 0, prune = 1;
-    long grid = 0;
-    int status = CLI_USAGE;
-    optind = 1;
-    opterr = 0;
-    int c;
-    while ((c = getopt_long(argc, argv, "hm:a:b:t:", longopts, NULL)) != -1) {
-        char *end;
-        switch (c) {
-        case 'h': fputs(eval_usage, stdout); free(a); return CLI_OK;
-        case 'm': model = optarg; break;
-        case 'a':
-            free(a);
-            a = cli_parse_list("-a", optarg, &na);
-            if (!a) return CLI_USAGE;
-            break;
-        case 'b': boxarg = optarg; break;
-        case 'G': grad = 1; break;
-        case 'P': prune = 0; break;
-        case 'N':
-            errno = 0;
-            grid = strtol(optarg, &end, 10);
-            if (*end || errno || grid < 2 || grid > EVAL_MAX_GRID) {
-                free(a);
-                return cli_usage_error("eval", "--grid: expected an integer in 2..%d, got '%s'",
-                                       EVAL_MAX_GRID, optarg);
-            }
-            break;
-        case 't':
-            errno = 0;
-            nthreads = (int)strtol(optarg, &end, 10);
-            if (*end || errno || nthreads < 1 || nthreads > 1024) {
-                free(a);
-                return cli_usage_error("eval", "--threads: expected an integer in 1..1024");
-            }
-            break;
-        case 'S':
-            if (strcmp(optarg, "rfunc") == 0) setops = FREP_SETOPS_RFUNC;
-            else if (strcmp(optarg, "minmax") == 0) setops = FREP_SETOPS_MINMAX;
-            else {
-                free(a);
-                return cli_usage_error("eval", "--setops: expected rfunc or minmax, got '%s'", optarg);
-            }
-            break;
-        default:
-            free(a);
-            return cli_usage_error("eval", "unknown or incomplete option '%s'", argv[optind - 1]);
-        }
-    }
-    int nargs = argc - optind;
-    if (nargs < 1 || nargs > 2) {
-        free(a);
-        return cli_usage_error("eval", "expected FILE.hf [POINTS]");
-    }
-    if (grid && (nargs == 2 || grad)) {
-        free(a);
-        return cli_usage_error("eval", "--grid takes no POINTS file and no --grad");
-    }
-    if (!grid && boxarg) {
-        free(a);
-        return cli_usage_error("eval", "-b is only for --grid");
-    }
-    double box[6] = { -10, -10, -10, 10, 10, 10 };
-    if (boxarg && cli_parse_box(boxarg, box) != 0) {
-        free(a);
-        return CLI_USAGE;
-    }
-    char *src = NULL;
-    frep_program *p = cli_compile_file(argv[optind], model, a, na, setops, &src);
-    free(a);
-    if (!p) return CLI_FAIL;
-    if (grid && !boxarg) frep_program_box(p, box);
-    size_t srclen = src ? strlen(src) : 0;
-    if (grid)
-        status = eval_grid(p, grid, box, nthreads, prune, src, srclen);
-    else
-        status = eval_points(p, nargs == 2 ? argv[optind + 1] : "-", grad, nthreads, src, srclen);
-    frep_program_free(p);
-    free(src);
-    return status;
+    eval_cmd c = { .setops = -1, .prune = 1, .box = { -10, -10, -10, 10, 10, 10 } };
+    int rc = stage_options(&c, argc, argv);
+    if (rc == CLI_GO_ON) rc = eval_run(&c);
+    frep_program_free(c.p);
+    free(c.src);
+    cli_list_free(&c.a);
+    return rc;
 }

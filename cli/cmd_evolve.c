@@ -11,12 +11,9 @@
 #include "refit.h"
 #include "residual.h"
 #include "segment.h"
+#include "buf.h"
 
-#include <errno.h>
-#include <stdarg.h>
-#include <getopt.h>
 #include <math.h>
-#include <signal.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -36,96 +33,11 @@ static const char evolve_usage[] =
     "segmented first with frep segment's defaults. The result is a .hf model: the\n"
     "primitives, the tree, a clipping box, and comments with the figures of the run.\n"
     "The same seed gives the same model at any thread count (without --max-time).\n"
-    "Ctrl-C stops the run and writes the best model so far.\n\n"
-    "Options:\n"
-    "  -p, --prims FILE      primitives: a .hf list written by frep segment, or a .fit list\n"
-    "  -o, --output FILE     model to write (default: standard output)\n"
-    "      --setops S        minmax (default) or rfunc\n"
-    "      --partition       partition the overlap graph (default)\n"
-    "      --no-partition    one GA over all primitives\n"
-    "      --no-polish       after partitioning, skip the GA over all primitives seeded\n"
-    "                        with the merged tree\n"
-    "      --polish-stagnation G  stop the polish after G generations without\n"
-    "                        improvement (default 15; at most --stagnation)\n"
-    "      --no-support      keep material no point supports (by default the final\n"
-    "                        tree is trimmed where its surface runs far from the cloud)\n"
-    "      --seed S          random seed (default: from the clock; always printed)\n"
-    "      --generations G   generation limit (default 3000)\n"
-    "      --stagnation G    stop after G generations without improvement (default 40)\n"
-    "      --population P    individuals (default 150)\n"
-    "      --tournament K    tournament size (default 4)\n"
-    "      --crossover R     crossover rate (default 0.3)\n"
-    "      --mutation R      mutation rate (default 0.3)\n"
-    "      --elite E         best individuals kept each generation (default 2)\n"
-    "      --subtree-prob R  probability of an operation node when growing (default 0.7)\n"
-    "      --max-depth D     maximum tree depth (default: ceil(log2 primitives) + 3)\n"
-    "      --max-time T      stop after T seconds\n"
-    "      --epsilon E       distance tolerance as a fraction of the diagonal (default 0.01)\n"
-    "      --alpha DEG       normal tolerance in degrees (default: automatic, 35 when the\n"
-    "                        cloud is noisy or faceted against the primitives, else 10)\n"
-    "      --lambda-scale K  size penalty K*ln(N) per node (default 1)\n"
-    "      --sample N        points the GA scores (default 4096; 0: all)\n"
-    "      --no-simplify     keep the tree as evolved\n"
-    "      --dot FILE        also write the tree for Graphviz\n"
-    "      --trace FILE      write one line per generation: generation, wall and CPU\n"
-    "                        seconds since the start, best fitness, tree size, % of the\n"
-    "                        scored points the best tree explains, phase\n"
-    "      --stop-share P    end a GA phase once its best tree explains P% of the scored\n"
-    "                        points (time-to-solution measurements)\n"
-    "      --residual MODEL  join to MODEL.hf a tree evolved for the points it explains\n"
-    "                        poorly (segmented from them without -p); the output holds\n"
-    "                        MODEL's source and the joined model my_model\n"
-    "      --refit           refine the parameters of the tree's primitives together on\n"
-    "                        every point (frep fit's Levenberg-Marquardt) and report the\n"
-    "                        RMS distance before and after\n"
-    "  -t, --threads N       OpenMP threads\n"
-    "  -q, --quiet           no progress and no summary\n";
-
-/* The one piece of mutable global state the conventions allow: Ctrl-C. */
-static volatile sig_atomic_t evolve_interrupted = 0;
-
-static void on_sigint(int sig)
-{
-    (void)sig;
-    evolve_interrupted = 1;
-}
-
-/* --trace: one line per generation, kept in memory and written atomically at the end
- * (a 3000-generation run is about 200 KB). */
-typedef struct trace_buf {
-    char *s;
-    size_t len, cap;
-    int failed;              /* out of memory: the trace is incomplete */
-} trace_buf;
-
-static void trace_add(trace_buf *t, const char *fmt, ...)
-{
-    char line[256];
-    va_list ap;
-    va_start(ap, fmt);
-    int n = vsnprintf(line, sizeof line, fmt, ap);
-    va_end(ap);
-    if (n < 0 || t->failed) return;
-    size_t k = (size_t)n < sizeof line ? (size_t)n : sizeof line - 1;
-    if (t->len + k + 1 > t->cap) {
-        size_t cap = t->cap ? 2 * t->cap : 65536;
-        while (cap < t->len + k + 1) cap *= 2;
-        char *q = realloc(t->s, cap);
-        if (!q) {
-            t->failed = 1;
-            return;
-        }
-        t->s = q;
-        t->cap = cap;
-    }
-    memcpy(t->s + t->len, line, k);
-    t->len += k;
-    t->s[t->len] = 0;
-}
+    "Ctrl-C stops the run and writes the best model so far.\n\n";
 
 static int write_trace_cb(FILE *f, void *user)
 {
-    const trace_buf *t = user;
+    const frep_buf *t = user;
     if (t->len) fwrite(t->s, 1, t->len, f);
     return ferror(f) ? -1 : 0;
 }
@@ -133,7 +45,7 @@ static int write_trace_cb(FILE *f, void *user)
 typedef struct progress_ctx {
     int tty, quiet;
     double last;
-    trace_buf *trace;        /* NULL without --trace */
+    frep_buf *trace;         /* NULL without --trace */
     gp_report report;        /* filled by gp_run before each call (gp.h) */
     double t0;               /* gp_now() when evolve_run started */
     clock_t c0;              /* clock() then */
@@ -149,7 +61,7 @@ static int progress(void *user, const gp_progress *p)
         double cpu = (double)(clock() - c->c0) / CLOCKS_PER_SEC;
         if (p->phase == GP_PHASE_MERGE) {
             c->polish = 1;
-            trace_add(c->trace, "%u %.4f %.4f nan %u - merge\n", p->generation, wall, cpu,
+            buf_printf(c->trace, "%u %.4f %.4f nan %u - merge\n", p->generation, wall, cpu,
                       p->best_len);
         } else {
             double share = c->report.npoints
@@ -159,7 +71,7 @@ static int progress(void *user, const gp_progress *p)
                              : p->phase == GP_PHASE_GROWN ? "grown"
                              : c->polish                  ? "polish"
                                                           : "ga";
-            trace_add(c->trace, "%u %.4f %.4f %.10g %u %.3f %s\n", p->generation, wall, cpu,
+            buf_printf(c->trace, "%u %.4f %.4f %.10g %u %.3f %s\n", p->generation, wall, cpu,
                       p->best_fitness, p->best_len, share, ph);
         }
     }
@@ -180,7 +92,7 @@ static int progress(void *user, const gp_progress *p)
     if (c->stop_share > 0 && p->phase == GP_PHASE_GA && c->report.npoints &&
         100.0 * (double)c->report.explained >= c->stop_share * (double)c->report.npoints)
         return 1;
-    return evolve_interrupted != 0;
+    return cli_interrupted();
 }
 
 typedef struct write_ctx {
@@ -202,21 +114,6 @@ static int write_dot_cb(FILE *f, void *user)
     return evolve_write_dot(f, w->r, w->prims, w->nprims);
 }
 
-static int parse_num(const char *opt, const char *s, double lo, double hi, int integer,
-                     double *out)
-{
-    char *end;
-    errno = 0;
-    double v = strtod(s, &end);
-    if (end == s || *end || errno || !(v >= lo && v <= hi) || (integer && v != floor(v))) {
-        cli_usage_error("evolve", "%s: expected %s in [%g, %g], got '%s'", opt,
-                        integer ? "an integer" : "a number", lo, hi, s);
-        return -1;
-    }
-    *out = v;
-    return 0;
-}
-
 static char *join_args(int argc, char **argv)
 {
     size_t n = 16;
@@ -235,369 +132,441 @@ static char *join_args(int argc, char **argv)
     return s;
 }
 
-static int evolve_main(int argc, char **argv, const char *cmdline)
-{
-    enum {
-        O_SETOPS = 256, O_PART, O_NOPART, O_SEED, O_GEN, O_STAG, O_POP, O_TOURN, O_CROSS,
-        O_MUT, O_ELITE, O_SUBP, O_DEPTH, O_TIME, O_EPS, O_ALPHA, O_LAMBDA, O_SAMPLE,
-        O_NOSIMP, O_DOT, O_RESIDUAL, O_REFIT, O_NOPOLISH, O_POLSTAG, O_TRACE, O_STOPSHARE,
-        O_NOSUPPORT
-    };
-    static const struct option longopts[] = {
-        { "help", no_argument, NULL, 'h' },
-        { "prims", required_argument, NULL, 'p' },
-        { "output", required_argument, NULL, 'o' },
-        { "setops", required_argument, NULL, O_SETOPS },
-        { "partition", no_argument, NULL, O_PART },
-        { "no-partition", no_argument, NULL, O_NOPART },
-        { "seed", required_argument, NULL, O_SEED },
-        { "generations", required_argument, NULL, O_GEN },
-        { "stagnation", required_argument, NULL, O_STAG },
-        { "population", required_argument, NULL, O_POP },
-        { "tournament", required_argument, NULL, O_TOURN },
-        { "crossover", required_argument, NULL, O_CROSS },
-        { "mutation", required_argument, NULL, O_MUT },
-        { "elite", required_argument, NULL, O_ELITE },
-        { "subtree-prob", required_argument, NULL, O_SUBP },
-        { "max-depth", required_argument, NULL, O_DEPTH },
-        { "max-time", required_argument, NULL, O_TIME },
-        { "epsilon", required_argument, NULL, O_EPS },
-        { "alpha", required_argument, NULL, O_ALPHA },
-        { "lambda-scale", required_argument, NULL, O_LAMBDA },
-        { "sample", required_argument, NULL, O_SAMPLE },
-        { "no-simplify", no_argument, NULL, O_NOSIMP },
-        { "dot", required_argument, NULL, O_DOT },
-        { "trace", required_argument, NULL, O_TRACE },
-        { "stop-share", required_argument, NULL, O_STOPSHARE },
-        { "residual", required_argument, NULL, O_RESIDUAL },
-        { "refit", no_argument, NULL, O_REFIT },
-        { "no-polish", no_argument, NULL, O_NOPOLISH },
-        { "no-support", no_argument, NULL, O_NOSUPPORT },
-        { "polish-stagnation", required_argument, NULL, O_POLSTAG },
-        { "threads", required_argument, NULL, 't' },
-        { "quiet", no_argument, NULL, 'q' },
-        { NULL, 0, NULL, 0 },
-    };
+/* Every step's inputs and results, from the options to the summary. */
+typedef struct evolve_cmd {
     evolve_options eo;
-    evolve_options_init(&eo);
-    const char *prims_path = NULL, *out = "-", *dot = NULL, *residual_path = NULL;
-    const char *trace_path = NULL;
-    double stop_share = 0;
-    int have_seed = 0, have_setops = 0, refit = 0, quiet = 0, c;
-    double v = 0;
-    optind = 1;
-    opterr = 0;
-    while ((c = getopt_long(argc, argv, "hp:o:t:q", longopts, NULL)) != -1) {
-        int bad = 0;
-        switch (c) {
-        case 'h': fputs(evolve_usage, stdout); return CLI_OK;
-        case 'p': prims_path = optarg; break;
-        case 'o': out = optarg; break;
-        case 'q': quiet = 1; break;
-        case O_SETOPS:
-            if (strcmp(optarg, "minmax") == 0) eo.gp.setops = GP_SETOPS_MINMAX;
-            else if (strcmp(optarg, "rfunc") == 0) eo.gp.setops = GP_SETOPS_RFUNC;
-            else return cli_usage_error("evolve", "--setops: expected minmax or rfunc, got '%s'", optarg);
-            have_setops = 1;
-            break;
-        case O_RESIDUAL: residual_path = optarg; break;
-        case O_REFIT: refit = 1; break;
-        case O_NOPOLISH: eo.polish = 0; break;
-        case O_NOSUPPORT: eo.support = 0; break;
-        case O_PART: eo.partition = 1; break;
-        case O_NOPART: eo.partition = 0; break;
-        case O_NOSIMP: eo.simplify = 0; break;
-        case O_DOT: dot = optarg; break;
-        case O_TRACE: trace_path = optarg; break;
-        case O_STOPSHARE: bad = parse_num("--stop-share", optarg, 0, 100, 0, &v); stop_share = v; break;
-        case O_SEED: {
-            char *end;
-            errno = 0;
-            eo.gp.seed = strtoull(optarg, &end, 10);
-            if (*end || errno || optarg[0] == '-' || !*optarg)
-                return cli_usage_error("evolve", "--seed: expected a non-negative integer, got '%s'", optarg);
-            have_seed = 1;
-            break;
-        }
-        case O_GEN: bad = parse_num("--generations", optarg, 1, 1e9, 1, &v); eo.gp.generations = (uint32_t)v; break;
-        case O_STAG: bad = parse_num("--stagnation", optarg, 0, 1e9, 1, &v); eo.gp.stagnation = (uint32_t)v; break;
-        case O_POLSTAG:
-            bad = parse_num("--polish-stagnation", optarg, 1, 1e9, 1, &v);
-            eo.polish_stagnation = (uint32_t)v;
-            break;
-        case O_POP: bad = parse_num("--population", optarg, 1, 1e6, 1, &v); eo.gp.population = (uint32_t)v; break;
-        case O_TOURN: bad = parse_num("--tournament", optarg, 1, 1e6, 1, &v); eo.gp.tournament = (uint32_t)v; break;
-        case O_CROSS: bad = parse_num("--crossover", optarg, 0, 1, 0, &v); eo.gp.p_crossover = v; break;
-        case O_MUT: bad = parse_num("--mutation", optarg, 0, 1, 0, &v); eo.gp.p_mutation = v; break;
-        case O_ELITE: bad = parse_num("--elite", optarg, 0, 1e6, 1, &v); eo.gp.elite = (uint32_t)v; break;
-        case O_SUBP: bad = parse_num("--subtree-prob", optarg, 0, 1, 0, &v); eo.gp.p_subtree = v; break;
-        case O_DEPTH: bad = parse_num("--max-depth", optarg, 1, GP_MAX_TREE_DEPTH, 1, &v); eo.gp.max_depth = (int)v; break;
-        case O_TIME: bad = parse_num("--max-time", optarg, 0, 1e9, 0, &v); eo.gp.max_time = v; break;
-        case O_EPS: bad = parse_num("--epsilon", optarg, 1e-9, 1, 0, &v); eo.eps_rel = v; break;
-        case O_ALPHA:
-            bad = parse_num("--alpha", optarg, 0.01, 180, 0, &v);
-            eo.alpha_deg = v;
-            eo.alpha_auto = 0;
-            break;
-        case O_LAMBDA: bad = parse_num("--lambda-scale", optarg, 0, 1e6, 0, &v); eo.lambda_scale = v; break;
-        case O_SAMPLE: bad = parse_num("--sample", optarg, 0, 1e12, 1, &v); eo.sample = (size_t)v; break;
-        case 't': bad = parse_num("--threads", optarg, 1, 4096, 1, &v); eo.gp.threads = (int)v; break;
-        default:
-            return cli_usage_error("evolve", "unknown or incomplete option '%s'", argv[optind - 1]);
-        }
-        if (bad) return CLI_USAGE;
-    }
-    if (optind != argc - 1)
-        return cli_usage_error("evolve", optind >= argc ? "missing CLOUD" : "one CLOUD expected");
-    const char *cloud_path = argv[optind];
-    if (eo.gp.p_crossover + eo.gp.p_mutation > 1)
+    const char *prims_path, *out, *dot, *residual_path, *trace_path;
+    double stop_share;          /* --stop-share, percent; 0: none */
+    int refit, quiet, have_setops;
+    const char *cloud_path, *cmdline;
+    frep_cloud *cloud;
+    frep_cloud *sub;            /* --residual without -p: the points to segment */
+    prim *prims;                /* from -p (free()) or seg.prims */
+    size_t nprims;
+    segment_result seg;
+    int have_seg;
+    evolve_base base;           /* --residual */
+    frep_program *base_prog;
+    char *base_src;
+    double *base_f, *base_g;
+    uint8_t *mask;
+    progress_ctx pc;
+    frep_buf trace;
+    evolve_result res;
+    char note[256];             /* --refit's figures for the model's comments */
+    char *err;
+} evolve_cmd;
+
+static int parse_setops(const char *arg, void *dest, char *why, size_t whylen)
+{
+    gp_setops *s = dest;
+    if (strcmp(arg, "minmax") == 0) *s = GP_SETOPS_MINMAX;
+    else if (strcmp(arg, "rfunc") == 0) *s = GP_SETOPS_RFUNC;
+    else return -1;
+    return 0;
+}
+
+#define OFF(f) offsetof(evolve_cmd, f)
+static const cli_opt evolve_opts[] = {
+    { 'p', "prims", "FILE", CLI_OPT_STRING, OFF(prims_path),
+      .help = "primitives: a .hf list written by frep segment, or a .fit list" },
+    { 'o', "output", "FILE", CLI_OPT_STRING, OFF(out), .def = "-",
+      .help = "model to write (default: standard output)" },
+    { 0, "setops", "S", CLI_OPT_CUSTOM, OFF(eo.gp.setops), .parse = parse_setops,
+      .expect = "minmax or rfunc", .help = "minmax (default) or rfunc" },
+    { 0, "partition", NULL, CLI_OPT_SET, OFF(eo.partition),
+      .help = "partition the overlap graph (default)" },
+    { 0, "no-partition", NULL, CLI_OPT_CLEAR, OFF(eo.partition),
+      .help = "one GA over all primitives" },
+    { 0, "no-polish", NULL, CLI_OPT_CLEAR, OFF(eo.polish),
+      .help = "after partitioning, skip the GA over all primitives seeded\n"
+              "with the merged tree" },
+    { 0, "polish-stagnation", "G", CLI_OPT_U32, OFF(eo.polish_stagnation), .lo = 1, .hi = 1e9,
+      .help = "stop the polish after G generations without\n"
+              "improvement (default 15; at most --stagnation)" },
+    { 0, "no-support", NULL, CLI_OPT_CLEAR, OFF(eo.support),
+      .help = "keep material no point supports (by default the final\n"
+              "tree is trimmed where its surface runs far from the cloud)" },
+    CLI_OPT_SEED(evolve_cmd, eo.gp.seed, "random seed (default: from the clock; always printed)"),
+    { 0, "generations", "G", CLI_OPT_U32, OFF(eo.gp.generations), .lo = 1, .hi = 1e9,
+      .help = "generation limit (default 3000)" },
+    { 0, "stagnation", "G", CLI_OPT_U32, OFF(eo.gp.stagnation), .lo = 0, .hi = 1e9,
+      .help = "stop after G generations without improvement (default 40)" },
+    { 0, "population", "P", CLI_OPT_U32, OFF(eo.gp.population), .lo = 1, .hi = 1e6,
+      .help = "individuals (default 150)" },
+    { 0, "tournament", "K", CLI_OPT_U32, OFF(eo.gp.tournament), .lo = 1, .hi = 1e6,
+      .help = "tournament size (default 4)" },
+    { 0, "crossover", "R", CLI_OPT_DOUBLE, OFF(eo.gp.p_crossover), .lo = 0, .hi = 1,
+      .help = "crossover rate (default 0.3)" },
+    { 0, "mutation", "R", CLI_OPT_DOUBLE, OFF(eo.gp.p_mutation), .lo = 0, .hi = 1,
+      .help = "mutation rate (default 0.3)" },
+    { 0, "elite", "E", CLI_OPT_U32, OFF(eo.gp.elite), .lo = 0, .hi = 1e6,
+      .help = "best individuals kept each generation (default 2)" },
+    { 0, "subtree-prob", "R", CLI_OPT_DOUBLE, OFF(eo.gp.p_subtree), .lo = 0, .hi = 1,
+      .help = "probability of an operation node when growing (default 0.7)" },
+    { 0, "max-depth", "D", CLI_OPT_INT, OFF(eo.gp.max_depth), .lo = 1, .hi = GP_MAX_TREE_DEPTH,
+      .help = "maximum tree depth (default: ceil(log2 primitives) + 3)" },
+    { 0, "max-time", "T", CLI_OPT_DOUBLE, OFF(eo.gp.max_time), .lo = 0, .hi = 1e9,
+      .help = "stop after T seconds" },
+    { 0, "epsilon", "E", CLI_OPT_DOUBLE, OFF(eo.eps_rel), .lo = 1e-9, .hi = 1,
+      .help = "distance tolerance as a fraction of the diagonal (default 0.01)" },
+    { 0, "alpha", "DEG", CLI_OPT_DOUBLE, OFF(eo.alpha_deg), .lo = 0.01, .hi = 180,
+      .help = "normal tolerance in degrees (default: automatic, 35 when the\n"
+              "cloud is noisy or faceted against the primitives, else 10)" },
+    { 0, "lambda-scale", "K", CLI_OPT_DOUBLE, OFF(eo.lambda_scale), .lo = 0, .hi = 1e6,
+      .help = "size penalty K*ln(N) per node (default 1)" },
+    { 0, "sample", "N", CLI_OPT_SIZE, OFF(eo.sample), .lo = 0, .hi = 1e12,
+      .help = "points the GA scores (default 4096; 0: all)" },
+    { 0, "no-simplify", NULL, CLI_OPT_CLEAR, OFF(eo.simplify), .help = "keep the tree as evolved" },
+    { 0, "dot", "FILE", CLI_OPT_STRING, OFF(dot), .help = "also write the tree for Graphviz" },
+    { 0, "trace", "FILE", CLI_OPT_STRING, OFF(trace_path),
+      .help = "write one line per generation: generation, wall and CPU\n"
+              "seconds since the start, best fitness, tree size, % of the\n"
+              "scored points the best tree explains, phase" },
+    { 0, "stop-share", "P", CLI_OPT_DOUBLE, OFF(stop_share), .lo = 0, .hi = 100,
+      .help = "end a GA phase once its best tree explains P% of the scored\n"
+              "points (time-to-solution measurements)" },
+    { 0, "residual", "MODEL", CLI_OPT_STRING, OFF(residual_path),
+      .help = "join to MODEL.hf a tree evolved for the points it explains\n"
+              "poorly (segmented from them without -p); the output holds\n"
+              "MODEL's source and the joined model my_model" },
+    { 0, "refit", NULL, CLI_OPT_SET, OFF(refit),
+      .help = "refine the parameters of the tree's primitives together on\n"
+              "every point (frep fit's Levenberg-Marquardt) and report the\n"
+              "RMS distance before and after" },
+    CLI_OPT_THREADS(evolve_cmd, eo.gp.threads, "OpenMP threads"),
+    CLI_OPT_QUIET(evolve_cmd, quiet, "no progress and no summary"),
+};
+#undef OFF
+static const cli_opt_spec evolve_spec = { "evolve", evolve_usage, evolve_opts,
+                                          sizeof evolve_opts / sizeof evolve_opts[0], 24 };
+
+static const char *setops_name(gp_setops s)
+{
+    return s == GP_SETOPS_RFUNC ? "rfunc" : "minmax";
+}
+
+/* Options -> one CLOUD; the settings the options imply (seed from the clock, automatic
+ * alpha unless --alpha, lambda 0 as no penalty, the OpenMP default from -t). */
+static int stage_options(evolve_cmd *e, int argc, char **argv)
+{
+    cli_args args;
+    int rc = cli_opt_parse(&evolve_spec, argc, argv, e, &args);
+    if (rc != CLI_GO_ON) return rc;
+    if (args.n != 1) return cli_usage_error("evolve", args.n < 1 ? "missing CLOUD" : "one CLOUD expected");
+    e->cloud_path = args.v[0];
+    evolve_options *eo = &e->eo;
+    if (eo->gp.p_crossover + eo->gp.p_mutation > 1)
         return cli_usage_error("evolve", "--crossover + --mutation must not exceed 1");
-    if (!have_seed) eo.gp.seed = (uint64_t)time(NULL);
-    if (eo.lambda_scale == 0) eo.lambda_scale = 1e-12;  /* 0 asks for no penalty */
+    e->have_setops = cli_opt_given(&evolve_spec, &args, "setops");
+    if (cli_opt_given(&evolve_spec, &args, "alpha")) eo->alpha_auto = 0;
+    if (!cli_opt_given(&evolve_spec, &args, "seed")) eo->gp.seed = (uint64_t)time(NULL);
+    if (eo->lambda_scale == 0) eo->lambda_scale = 1e-12;  /* 0 asks for no penalty */
 #ifdef _OPENMP
     /* -t also bounds the parallel loops that take no thread count (the primitive
      * caches' tables), so that -t 1 runs on one core. */
-    if (eo.gp.threads > 0) omp_set_num_threads(eo.gp.threads);
+    if (eo->gp.threads > 0) omp_set_num_threads(eo->gp.threads);
 #endif
+    return CLI_GO_ON;
+}
 
-    int rc = CLI_FAIL;
-    char *err = NULL;
-    prim *prims = NULL;
-    size_t nprims = 0;
-    evolve_result res;
-    memset(&res, 0, sizeof res);
-    segment_result seg;
-    memset(&seg, 0, sizeof seg);
-    int have_seg = 0;
-    evolve_base base;
-    memset(&base, 0, sizeof base);
-    frep_program *base_prog = NULL;
-    char *base_src = NULL;
-    double *base_f = NULL, *base_g = NULL;
-    uint8_t *mask = NULL;
-    frep_cloud *sub = NULL;
-    char note[256] = "";
-    trace_buf trace = { NULL, 0, 0, 0 };
-    frep_cloud *cloud = cloud_read(cloud_path, &err);
-    if (!cloud) {
-        fprintf(stderr, "frep evolve: %s\n", err ? err : "cannot read the cloud");
-        goto done;
+/* Normals for the GA: estimated when the cloud has none (or only zero-length ones). */
+static int ensure_normals(evolve_cmd *e)
+{
+    frep_cloud *c = e->cloud;
+    if (c->has_normals && cloud_normalize_normals(c) != c->n) return CLI_OK;
+    if (!e->quiet) fprintf(stderr, "frep evolve: the cloud has no normals: estimating them\n");
+    if (normals_estimate(c, 0, e->eo.gp.threads)) {
+        fprintf(stderr, "frep evolve: cannot estimate normals\n");
+        return CLI_FAIL;
     }
-    if (!quiet) fprintf(stderr, "frep evolve: %zu points, seed %llu\n", cloud->n,
-                        (unsigned long long)eo.gp.seed);
-    if (cloud->n == 0) {
-        fprintf(stderr, "frep evolve: %s: no points\n", cloud_path);
-        goto done;
+    return CLI_OK;
+}
+
+/* The cloud read; normals are needed before the GA, and before the residual is known. */
+static int stage_cloud(evolve_cmd *e)
+{
+    e->cloud = cloud_read(e->cloud_path, &e->err);
+    if (!e->cloud) {
+        fprintf(stderr, "frep evolve: %s\n", e->err ? e->err : "cannot read the cloud");
+        return CLI_FAIL;
     }
-    /* Normals are needed before the GA, and before the residual is known. */
-    if ((prims_path || residual_path) &&
-        (!cloud->has_normals || cloud_normalize_normals(cloud) == cloud->n)) {
-        if (!quiet) fprintf(stderr, "frep evolve: the cloud has no normals: estimating them\n");
-        if (normals_estimate(cloud, 0, eo.gp.threads)) {
-            fprintf(stderr, "frep evolve: cannot estimate normals\n");
-            goto done;
-        }
+    if (!e->quiet) fprintf(stderr, "frep evolve: %zu points, seed %llu\n", e->cloud->n,
+                           (unsigned long long)e->eo.gp.seed);
+    if (e->cloud->n == 0) {
+        fprintf(stderr, "frep evolve: %s: no points\n", e->cloud_path);
+        return CLI_FAIL;
     }
-    if (residual_path) {
-        base_prog = cli_compile_file(residual_path, NULL, NULL, 0, -1, &base_src);
-        if (!base_prog) goto done;
-        if (residual_prepare(residual_path, base_src, strlen(base_src), NULL, base_prog, &base,
-                             &err)) {
-            fprintf(stderr, "frep evolve: %s\n", err ? err : "cannot use the model");
-            goto done;
+    if (e->prims_path || e->residual_path) return ensure_normals(e);
+    return CLI_OK;
+}
+
+static int out_of_memory(void)
+{
+    fprintf(stderr, "frep evolve: out of memory\n");
+    return CLI_FAIL;
+}
+
+/* The points the base model explains poorly, as a cloud to segment. */
+static int residual_cloud(evolve_cmd *e, size_t nres)
+{
+    const frep_cloud *c = e->cloud;
+    e->sub = cloud_new(1);
+    if (!e->sub || cloud_reserve(e->sub, nres ? nres : 1)) return out_of_memory();
+    for (size_t i = 0; i < c->n; i++)
+        if (e->mask[i]) {
+            double p[3] = { c->x[i], c->y[i], c->z[i] };
+            double q[3] = { c->nx[i], c->ny[i], c->nz[i] };
+            cloud_push(e->sub, p, q);
         }
-        if (have_setops && eo.gp.setops != base.setops) {
-            fprintf(stderr, "frep evolve: --setops %s disagrees with %s, which uses %s: the "
-                            "joined model has one family\n",
-                    eo.gp.setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax", residual_path,
-                    base.setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax");
-            goto done;
-        }
-        eo.gp.setops = base.setops;
-        size_t N = cloud->n, nbad = 0, nres = 0;
-        base_f = malloc(N * sizeof *base_f);
-        base_g = malloc(3 * N * sizeof *base_g);
-        mask = malloc(N);
-        if (!base_f || !base_g || !mask ||
-            residual_eval(&base, cloud, eo.gp.threads, base_f, base_g, &nbad)) {
-            fprintf(stderr, "frep evolve: out of memory\n");
-            goto done;
-        }
-        if (nbad && !quiet)
-            fprintf(stderr, "frep evolve: %s cannot be evaluated at %zu points (treated as "
-                            "unexplained)\n", residual_path, nbad);
-        eo.base_f = base_f;
-        eo.base_g = base_g;
-        if (evolve_residual_points(&eo, cloud, mask, &nres)) {
-            fprintf(stderr, "frep evolve: out of memory\n");
-            goto done;
-        }
-        if (!quiet)
-            fprintf(stderr, "frep evolve: %s explains %zu of %zu points; evolving for the %zu others\n",
-                    residual_path, cloud->n - nres, cloud->n, nres);
-        if (!prims_path) {
-            /* Segment the residual points only. */
-            sub = cloud_new(1);
-            if (!sub || cloud_reserve(sub, nres ? nres : 1)) {
-                fprintf(stderr, "frep evolve: out of memory\n");
-                goto done;
-            }
-            for (size_t i = 0; i < N; i++)
-                if (mask[i]) {
-                    double p[3] = { cloud->x[i], cloud->y[i], cloud->z[i] };
-                    double q[3] = { cloud->nx[i], cloud->ny[i], cloud->nz[i] };
-                    cloud_push(sub, p, q);
-                }
-        }
+    return CLI_OK;
+}
+
+/* --residual: the base model evaluated at every point; the GA runs for the points it
+ * explains poorly, which are segmented on their own when no -p is given. */
+static int stage_residual(evolve_cmd *e)
+{
+    evolve_options *eo = &e->eo;
+    e->base_prog = cli_compile_file(e->residual_path, NULL, NULL, 0, -1, &e->base_src);
+    if (!e->base_prog) return CLI_FAIL;
+    if (residual_prepare(e->residual_path, e->base_src, strlen(e->base_src), NULL, e->base_prog,
+                         &e->base, &e->err)) {
+        fprintf(stderr, "frep evolve: %s\n", e->err ? e->err : "cannot use the model");
+        return CLI_FAIL;
     }
-    if (prims_path) {
-        if (segment_read_prims(prims_path, &prims, &nprims, &err)) {
-            fprintf(stderr, "frep evolve: %s\n", err ? err : "cannot read the primitives");
-            goto done;
-        }
-        if (!cloud->has_normals || cloud_normalize_normals(cloud) == cloud->n) {
-            if (!quiet) fprintf(stderr, "frep evolve: the cloud has no normals: estimating them\n");
-            if (normals_estimate(cloud, 0, eo.gp.threads)) {
-                fprintf(stderr, "frep evolve: cannot estimate normals\n");
-                goto done;
-            }
-        }
-    } else if (!residual_path || sub->n > 0) {
-        segment_config sc;
-        segment_config_init(&sc);
-        sc.seed = eo.gp.seed;
-        sc.nthreads = eo.gp.threads;
-        sc.interrupt = &evolve_interrupted;
-        if (segment_run(sub ? sub : cloud, &sc, &seg, &err)) {
-            if (!residual_path) {
-                fprintf(stderr, "frep evolve: %s: %s\n", cloud_path, err ? err : "segmentation failed");
-                goto done;
-            }
-            /* Too few residual points to segment: the result is the base model. */
-            if (!quiet)
-                fprintf(stderr, "frep evolve: the residual points give no primitive (%s)\n",
-                        err ? err : "segmentation failed");
-            free(err);
-            err = NULL;
-        } else {
-            have_seg = 1;
-            prims = seg.prims;
-            nprims = seg.nprims;
-            if (!quiet)
-                fprintf(stderr, "frep evolve: segmented%s: %zu primitives (%zu fitted, %zu separating)%s\n",
-                        sub ? " the residual" : "", seg.nprims, seg.nfitted,
-                        seg.nprims - seg.nfitted, seg.normals_estimated ? ", normals estimated" : "");
-        }
+    if (e->have_setops && eo->gp.setops != e->base.setops) {
+        fprintf(stderr, "frep evolve: --setops %s disagrees with %s, which uses %s: the "
+                        "joined model has one family\n",
+                setops_name(eo->gp.setops), e->residual_path, setops_name(e->base.setops));
+        return CLI_FAIL;
     }
-    if (nprims == 0 && !residual_path) {
+    eo->gp.setops = e->base.setops;
+    size_t N = e->cloud->n, nbad = 0, nres = 0;
+    e->base_f = malloc(N * sizeof *e->base_f);
+    e->base_g = malloc(3 * N * sizeof *e->base_g);
+    e->mask = malloc(N);
+    if (!e->base_f || !e->base_g || !e->mask ||
+        residual_eval(&e->base, e->cloud, eo->gp.threads, e->base_f, e->base_g, &nbad))
+        return out_of_memory();
+    if (nbad && !e->quiet)
+        fprintf(stderr, "frep evolve: %s cannot be evaluated at %zu points (treated as "
+                        "unexplained)\n", e->residual_path, nbad);
+    eo->base_f = e->base_f;
+    eo->base_g = e->base_g;
+    if (evolve_residual_points(eo, e->cloud, e->mask, &nres)) return out_of_memory();
+    if (!e->quiet)
+        fprintf(stderr, "frep evolve: %s explains %zu of %zu points; evolving for the %zu others\n",
+                e->residual_path, N - nres, N, nres);
+    return e->prims_path ? CLI_OK : residual_cloud(e, nres);
+}
+
+/* Without -p: segment the cloud (or the residual points) with frep segment's defaults. */
+static int segment_prims(evolve_cmd *e)
+{
+    segment_config sc;
+    segment_config_init(&sc);
+    sc.seed = e->eo.gp.seed;
+    sc.nthreads = e->eo.gp.threads;
+    if (segment_run(e->sub ? e->sub : e->cloud, &sc, &e->seg, &e->err)) {
+        if (!e->residual_path) {
+            fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path,
+                    e->err ? e->err : "segmentation failed");
+            return CLI_FAIL;
+        }
+        /* Too few residual points to segment: the result is the base model. */
+        if (!e->quiet)
+            fprintf(stderr, "frep evolve: the residual points give no primitive (%s)\n",
+                    e->err ? e->err : "segmentation failed");
+        free(e->err);
+        e->err = NULL;
+        return CLI_OK;
+    }
+    e->have_seg = 1;
+    e->prims = e->seg.prims;
+    e->nprims = e->seg.nprims;
+    if (!e->quiet)
+        fprintf(stderr, "frep evolve: segmented%s: %zu primitives (%zu fitted, %zu separating)%s\n",
+                e->sub ? " the residual" : "", e->seg.nprims, e->seg.nfitted,
+                e->seg.nprims - e->seg.nfitted, e->seg.normals_estimated ? ", normals estimated" : "");
+    return CLI_OK;
+}
+
+/* The primitives to combine: -p's list, or found by segmentation. */
+static int stage_prims(evolve_cmd *e)
+{
+    int rc = CLI_OK;
+    if (e->prims_path) {
+        if (segment_read_prims(e->prims_path, &e->prims, &e->nprims, &e->err)) {
+            fprintf(stderr, "frep evolve: %s\n", e->err ? e->err : "cannot read the primitives");
+            return CLI_FAIL;
+        }
+        rc = ensure_normals(e);
+    } else if (!e->residual_path || e->sub->n > 0) {
+        rc = segment_prims(e);
+    }
+    if (rc == CLI_OK && e->nprims == 0 && !e->residual_path) {
         fprintf(stderr, "frep evolve: no primitives to combine%s\n",
-                prims_path ? "" : " (segmentation found none; try frep segment with other settings)");
-        goto done;
+                e->prims_path ? "" : " (segmentation found none; try frep segment with other settings)");
+        return CLI_FAIL;
     }
+    return rc;
+}
 
-    progress_ctx pc;
-    memset(&pc, 0, sizeof pc);
-    pc.tty = isatty(2);
-    pc.quiet = quiet;
-    pc.last = -1;
-    pc.stop_share = stop_share;
-    if (stop_share > 0) eo.gp.report = &pc.report;
-    if (trace_path) {
-        pc.trace = &trace;
-        eo.gp.report = &pc.report;
-        trace_add(&trace, "# frep evolve trace, seed %llu\n", (unsigned long long)eo.gp.seed);
-        trace_add(&trace, "# columns: generation, wall and CPU (process) seconds since the "
-                          "start of the run, best fitness, tree size,\n");
-        trace_add(&trace, "# %% of the scored points the best tree explains, phase (ga: the "
-                          "GA; merge: merging clique trees;\n");
-        trace_add(&trace, "# merged: the merged tree; grown: after the growth steps; polish: "
-                          "the GA seeded with it)\n");
+/* --trace's header lines. */
+static void trace_header(frep_buf *t, uint64_t seed)
+{
+    buf_printf(t, "# frep evolve trace, seed %llu\n", (unsigned long long)seed);
+    buf_printf(t, "# columns: generation, wall and CPU (process) seconds since the "
+                  "start of the run, best fitness, tree size,\n");
+    buf_printf(t, "# %% of the scored points the best tree explains, phase (ga: the "
+                  "GA; merge: merging clique trees;\n");
+    buf_printf(t, "# merged: the merged tree; grown: after the growth steps; polish: "
+                  "the GA seeded with it)\n");
+}
+
+/* The automatic alpha and the noise estimate behind it. */
+static void report_alpha(const evolve_result *res)
+{
+    double deg = res->alpha * 180 / 3.14159265358979323846;
+    fprintf(stderr, "frep evolve: alpha %g degrees (automatic: %s; position spread %.3g eps, "
+                    "normal deviation median %.2g, 90th percentile %.2g degrees over %zu "
+                    "inliers; --alpha overrides)\n",
+            deg, deg > EVOLVE_DEFAULT_ALPHA_DEG ? "noisy or faceted" : "clean",
+            res->noise.sigma_d, res->noise.median_deg, res->noise.p90_deg, res->noise.inliers);
+}
+
+/* The GA (evolve/evolve.c) with progress, --trace and --stop-share; Ctrl-C keeps the
+ * best tree so far. */
+static int stage_evolve(evolve_cmd *e)
+{
+    progress_ctx *pc = &e->pc;
+    pc->tty = isatty(2);
+    pc->quiet = e->quiet;
+    pc->last = -1;
+    pc->stop_share = e->stop_share;
+    if (e->stop_share > 0) e->eo.gp.report = &pc->report;
+    if (e->trace_path) {
+        pc->trace = &e->trace;
+        e->eo.gp.report = &pc->report;
+        trace_header(&e->trace, e->eo.gp.seed);
     }
-    pc.t0 = gp_now();
-    pc.c0 = clock();
-    void (*old)(int) = signal(SIGINT, on_sigint);
-    int r = evolve_run(&eo, cloud, prims, nprims, progress, &pc, &res, &err);
-    signal(SIGINT, old == SIG_ERR ? SIG_DFL : old);
-    if (pc.tty && !quiet) fputc('\n', stderr);
+    pc->t0 = gp_now();
+    pc->c0 = clock();
+    cli_sigint_catch();
+    int r = evolve_run(&e->eo, e->cloud, e->prims, e->nprims, progress, pc, &e->res, &e->err);
+    cli_sigint_restore();
+    if (pc->tty && !e->quiet) fputc('\n', stderr);
     if (r) {
-        fprintf(stderr, "frep evolve: %s: %s\n", cloud_path, err ? err : "failed");
-        goto done;
+        fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path, e->err ? e->err : "failed");
+        return CLI_FAIL;
     }
-    if (evolve_interrupted && !quiet)
+    if (cli_interrupted() && !e->quiet)
         fprintf(stderr, "frep evolve: interrupted: writing the best tree so far\n");
-    if (res.alpha_auto && !quiet)
-        fprintf(stderr, "frep evolve: alpha %g degrees (automatic: %s; position spread %.3g eps, "
-                        "normal deviation median %.2g, 90th percentile %.2g degrees over %zu "
-                        "inliers; --alpha overrides)\n",
-                res.alpha * 180 / 3.14159265358979323846,
-                res.alpha * 180 / 3.14159265358979323846 > EVOLVE_DEFAULT_ALPHA_DEG ? "noisy or faceted"
-                                                                                  : "clean",
-                res.noise.sigma_d, res.noise.median_deg, res.noise.p90_deg, res.noise.inliers);
-    if (refit && !evolve_interrupted) {
-        evolve_refit_info ri;
-        if (evolve_refit(&eo, cloud, prims, nprims, residual_path ? &base : NULL, &res, &ri,
-                         &err)) {
-            fprintf(stderr, "frep evolve: --refit: %s (the model keeps the parameters as "
-                            "segmented)\n", err ? err : "failed");
-            free(err);
-            err = NULL;
-        } else if (ri.nparams) {
-            snprintf(note, sizeof note,
-                     "refit: %zu parameters, RMS distance %.6g -> %.6g, max %.6g -> %.6g, %.2f s",
-                     ri.nparams, ri.rms_before, ri.rms_after, ri.max_before, ri.max_after,
-                     ri.seconds);
-            if (!quiet) fprintf(stderr, "frep evolve: %s\n", note);
-        }
+    if (e->res.alpha_auto && !e->quiet) report_alpha(&e->res);
+    return CLI_OK;
+}
+
+/* --refit: the primitives' parameters refined together; a failure keeps them. */
+static void stage_refit(evolve_cmd *e)
+{
+    evolve_refit_info ri;
+    if (evolve_refit(&e->eo, e->cloud, e->prims, e->nprims, e->residual_path ? &e->base : NULL,
+                     &e->res, &ri, &e->err)) {
+        fprintf(stderr, "frep evolve: --refit: %s (the model keeps the parameters as "
+                        "segmented)\n", e->err ? e->err : "failed");
+        free(e->err);
+        e->err = NULL;
+    } else if (ri.nparams) {
+        snprintf(e->note, sizeof e->note,
+                 "refit: %zu parameters, RMS distance %.6g -> %.6g, max %.6g -> %.6g, %.2f s",
+                 ri.nparams, ri.rms_before, ri.rms_after, ri.max_before, ri.max_after,
+                 ri.seconds);
+        if (!e->quiet) fprintf(stderr, "frep evolve: %s\n", e->note);
     }
-    evolve_meta meta = { cmdline, cloud_path, eo.gp.seed, eo.gp.setops,
-                         residual_path ? &base : NULL, note[0] ? note : NULL };
-    write_ctx w = { &res, prims, nprims, &meta };
-    if (cli_write_atomic(out, write_model_cb, &w)) goto done;
-    if (dot && cli_write_atomic(dot, write_dot_cb, &w)) goto done;
-    if (trace_path) {
-        double pe = res.npoints ? 100.0 * (double)res.stats.explained / (double)res.npoints : 0;
-        trace_add(&trace, "# end: %.4f s wall, %.4f s CPU, %u nodes, %.3f%% of %zu points "
+}
+
+static double percent(size_t k, size_t n)
+{
+    return n ? 100.0 * (double)k / (double)n : 0;
+}
+
+/* The model, --dot and --trace, each atomically. */
+static int stage_write(evolve_cmd *e)
+{
+    evolve_meta meta = { e->cmdline, e->cloud_path, e->eo.gp.seed, e->eo.gp.setops,
+                         e->residual_path ? &e->base : NULL, e->note[0] ? e->note : NULL };
+    write_ctx w = { &e->res, e->prims, e->nprims, &meta };
+    if (cli_write_atomic(e->out, write_model_cb, &w)) return CLI_FAIL;
+    if (e->dot && cli_write_atomic(e->dot, write_dot_cb, &w)) return CLI_FAIL;
+    if (!e->trace_path) return CLI_OK;
+    const evolve_result *res = &e->res;
+    buf_printf(&e->trace, "# end: %.4f s wall, %.4f s CPU, %u nodes, %.3f%% of %zu points "
                           "explained (every point, after simplification)%s\n",
-                  gp_now() - pc.t0, (double)(clock() - pc.c0) / CLOCKS_PER_SEC, res.tree.len, pe,
-                  res.npoints, trace.failed ? "; out of memory: lines missing" : "");
-        if (cli_write_atomic(trace_path, write_trace_cb, &trace)) goto done;
-    }
-    if (!quiet) {
-        double pe = res.npoints ? 100.0 * (double)res.stats.explained / (double)res.npoints : 0;
-        fprintf(stderr,
-                "frep evolve: seed %llu: tree of %u nodes, %.2f%% of %zu points explained "
-                "(%.2f%% within epsilon, %.2f%% normals), %s, %u generations, %.2f s\n",
-                (unsigned long long)eo.gp.seed, res.tree.len, pe, res.npoints,
-                res.npoints ? 100.0 * (double)res.stats.within_eps / (double)res.npoints : 0,
-                res.npoints ? 100.0 * (double)res.stats.normals_ok / (double)res.npoints : 0,
-                res.partitioned ? "partitioned" : "not partitioned", res.generations, res.seconds);
-        if (res.dropped)
-            fprintf(stderr, "frep evolve: %zu points without finite coordinates or normal ignored\n",
-                    res.dropped);
-    }
-    rc = CLI_OK;
-done:
-    free(trace.s);
-    if (have_seg) segment_result_free(&seg);
-    else free(prims);
-    evolve_result_free(&res);
-    residual_free(&base);
-    frep_program_free(base_prog);
-    free(base_src);
-    free(base_f);
-    free(base_g);
-    free(mask);
-    cloud_free(sub);
-    cloud_free(cloud);
-    free(err);
+               gp_now() - e->pc.t0, (double)(clock() - e->pc.c0) / CLOCKS_PER_SEC, res->tree.len,
+               percent(res->stats.explained, res->npoints), res->npoints,
+               e->trace.failed ? "; out of memory: lines missing" : "");
+    return cli_write_atomic(e->trace_path, write_trace_cb, &e->trace) ? CLI_FAIL : CLI_OK;
+}
+
+/* The summary on stderr. */
+static void stage_report(const evolve_cmd *e)
+{
+    const evolve_result *res = &e->res;
+    fprintf(stderr,
+            "frep evolve: seed %llu: tree of %u nodes, %.2f%% of %zu points explained "
+            "(%.2f%% within epsilon, %.2f%% normals), %s, %u generations, %.2f s\n",
+            (unsigned long long)e->eo.gp.seed, res->tree.len,
+            percent(res->stats.explained, res->npoints), res->npoints,
+            percent(res->stats.within_eps, res->npoints), percent(res->stats.normals_ok, res->npoints),
+            res->partitioned ? "partitioned" : "not partitioned", res->generations, res->seconds);
+    if (res->dropped)
+        fprintf(stderr, "frep evolve: %zu points without finite coordinates or normal ignored\n",
+                res->dropped);
+}
+
+static void evolve_cmd_free(evolve_cmd *e)
+{
+    buf_free(&e->trace);
+    if (e->have_seg) segment_result_free(&e->seg);
+    else free(e->prims);
+    evolve_result_free(&e->res);
+    residual_free(&e->base);
+    frep_program_free(e->base_prog);
+    free(e->base_src);
+    free(e->base_f);
+    free(e->base_g);
+    free(e->mask);
+    cloud_free(e->sub);
+    cloud_free(e->cloud);
+    free(e->err);
+}
+
+/* cloud -> [residual] -> primitives -> GA -> [refit] -> files -> summary */
+static int evolve_steps(evolve_cmd *e)
+{
+    int rc = stage_cloud(e);
+    if (rc == CLI_OK && e->residual_path) rc = stage_residual(e);
+    if (rc == CLI_OK) rc = stage_prims(e);
+    if (rc == CLI_OK) rc = stage_evolve(e);
+    if (rc != CLI_OK) return rc;
+    if (e->refit && !cli_interrupted()) stage_refit(e);
+    rc = stage_write(e);
+    if (rc == CLI_OK && !e->quiet) stage_report(e);
     return rc;
 }
 
 int cmd_evolve(int argc, char **argv)
 {
+    evolve_cmd *e = calloc(1, sizeof *e);
+    if (!e) return out_of_memory();
+    evolve_options_init(&e->eo);
     /* getopt_long permutes argv: keep the command line as typed for the model. */
     char *cmdline = join_args(argc, argv);
-    int rc = evolve_main(argc, argv, cmdline);
+    e->cmdline = cmdline;
+    int rc = stage_options(e, argc, argv);
+    if (rc == CLI_GO_ON) rc = evolve_steps(e);
+    evolve_cmd_free(e);
+    free(e);
     free(cmdline);
     return rc;
 }

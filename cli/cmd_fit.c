@@ -2,8 +2,6 @@
  * (fit/fit.c: simulated annealing + quasi-Newton) and write the fitted template back
  * with the values in place (fit/writeback.c), atomically and next to the template.
  */
-#define _POSIX_C_SOURCE 200809L
-
 #include "config.h"
 
 #include "cli.h"
@@ -13,9 +11,7 @@
 #include "writeback.h"
 
 #include <errno.h>
-#include <getopt.h>
 #include <math.h>
-#include <signal.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -28,38 +24,7 @@ static const char fit_usage[] =
     "normals, or PLY) and write the template with the fitted values in place of the old\n"
     "ones (comments and layout kept) to TEMPLATE.fitted.hf. Free parameters are the\n"
     "variables marked '-- @free [lo, hi]'; a template without them fits its a[] array,\n"
-    "started from -a and bounded by --bounds. See doc/fit.md.\n\n"
-    "Options:\n"
-    "  -o, --output FILE     write the fitted template here\n"
-    "      --in-place        overwrite TEMPLATE.hf itself\n"
-    "  -m, --model NAME      the model to fit (default: my_model, else the last one)\n"
-    "      --method M        saqn (annealing, then quasi-Newton; default), qn, sa, lm\n"
-    "      --objective K     local phase: algebraic (f, default) or geometric (f/|grad f|)\n"
-    "      --global-objective K  the annealing's: algebraic (default) or geometric\n"
-    "      --loss L          l2 (default), huber or cauchy (robust to outliers)\n"
-    "      --loss-scale S    scale of the robust losses (default 0.01 x cloud diagonal)\n"
-    "      --normals-weight W  weight of the normal-agreement term (cloud with normals)\n"
-    "      --seed S          random seed (default 1)\n"
-    "      --max-time T      stop after T seconds and keep the best so far\n"
-    "      --max-evals N     stop after N objective evaluations\n"
-    "      --sa-points N     points the annealing uses (default 1024; 0: all)\n"
-    "      --sa-stall N      end an annealing chain after N iterations without progress (15)\n"
-    "      --sa-chains N     independent annealing chains, the best kept (2)\n"
-    "      --sa-threshold V  leave the annealing once the objective is <= V\n"
-    "      --json FILE       also write the report as JSON\n"
-    "  -t, --threads N       OpenMP threads (results do not depend on it)\n"
-    "  -a, --params LIST     start values of a[] (v1,v2,...)\n"
-    "      --bounds LIST     bounds of a[]: lo1:hi1,lo2:hi2,...\n"
-    "  -q, --quiet           no report on stdout\n";
-
-/* Ctrl-C: the one piece of global mutable state frep allows; fit/optim.c polls it. */
-static volatile sig_atomic_t fit_interrupted;
-
-static void on_sigint(int sig)
-{
-    (void)sig;
-    fit_interrupted = 1;
-}
+    "started from -a and bounded by --bounds. See doc/fit.md.\n\n";
 
 /* Room added around the cloud's bounding box in the `-- @box` line, as a fraction of its
  * diagonal: the surface must not touch the polygonizer's box. */
@@ -219,408 +184,388 @@ static size_t parse_bounds(const char *s, double **lo, double **hi)
     return 0;
 }
 
-static int parse_count(const char *opt, const char *s, long lo, long *out)
+/* Every step's inputs and results, from the options to the report. */
+typedef struct fit_cmd {
+    fit_config cfg;
+    const char *out, *model, *json, *bounds;
+    cli_list a;
+    double loss_scale;         /* --loss-scale; <= 0: 0.01 x the cloud's diagonal */
+    int in_place, quiet;
+    const char *tmpl, *cloud_path;
+    frep_program *p;
+    char *src;                 /* the template's text */
+    size_t nall, nfree, nnamed; /* parameters: all, fitted, named by '-- @free' */
+    param_row *rows;           /* the fitted ones */
+    size_t *idx;               /* their indices in the program's parameter vector */
+    double *base, *x0, *lo, *hi;
+    double *blo, *bhi;         /* --bounds */
+    size_t nb;
+    frep_cloud *cloud;
+    double diagonal;
+    fit_model fm;
+    fit_points pts;
+    fit_result res;
+    int interrupted;
+    char *text, *output;       /* the fitted template and where it goes */
+} fit_cmd;
+
+static int parse_method(const char *arg, void *dest, char *why, size_t whylen)
 {
-    char *e;
-    errno = 0;
-    long v = strtol(s, &e, 10);
-    if (*e || e == s || errno || v < lo) {
-        cli_usage_error("fit", "%s: expected an integer >= %ld, got '%s'", opt, lo, s);
-        return -1;
-    }
-    *out = v;
-    return 0;
+    return fit_method_parse(arg, dest);
 }
 
-static int parse_real(const char *opt, const char *s, double lo, double *out)
+static int parse_objective(const char *arg, void *dest, char *why, size_t whylen)
 {
-    char *e;
-    errno = 0;
-    double v = strtod(s, &e);
-    if (*e || e == s || errno || !(v >= lo) || !isfinite(v)) {
-        cli_usage_error("fit", "%s: expected a number >= %g, got '%s'", opt, lo, s);
-        return -1;
+    return fit_objective_parse(arg, dest);
+}
+
+static int parse_loss(const char *arg, void *dest, char *why, size_t whylen)
+{
+    return fit_loss_parse(arg, dest);
+}
+
+#define OFF(f) offsetof(fit_cmd, f)
+static const cli_opt fit_opts[] = {
+    { 'o', "output", "FILE", CLI_OPT_STRING, OFF(out), .help = "write the fitted template here" },
+    { 0, "in-place", NULL, CLI_OPT_SET, OFF(in_place), .help = "overwrite TEMPLATE.hf itself" },
+    CLI_OPT_MODEL(fit_cmd, model, "the model to fit (default: my_model, else the last one)"),
+    { 0, "method", "M", CLI_OPT_CUSTOM, OFF(cfg.method), .parse = parse_method,
+      .expect = "saqn, qn, sa or lm",
+      .help = "saqn (annealing, then quasi-Newton; default), qn, sa, lm" },
+    { 0, "objective", "K", CLI_OPT_CUSTOM, OFF(cfg.obj.kind), .parse = parse_objective,
+      .expect = "algebraic or geometric",
+      .help = "local phase: algebraic (f, default) or geometric (f/|grad f|)" },
+    { 0, "global-objective", "K", CLI_OPT_CUSTOM, OFF(cfg.global_kind), .parse = parse_objective,
+      .expect = "algebraic or geometric", .help = "the annealing's: algebraic (default) or geometric" },
+    { 0, "loss", "L", CLI_OPT_CUSTOM, OFF(cfg.obj.loss), .parse = parse_loss,
+      .expect = "l2, huber or cauchy", .help = "l2 (default), huber or cauchy (robust to outliers)" },
+    { 0, "loss-scale", "S", CLI_OPT_DOUBLE, OFF(loss_scale), .lo = 0, .hi = INFINITY, .open_lo = 1,
+      .help = "scale of the robust losses (default 0.01 x cloud diagonal)" },
+    { 0, "normals-weight", "W", CLI_OPT_DOUBLE, OFF(cfg.obj.normals_weight), .lo = 0, .hi = INFINITY,
+      .help = "weight of the normal-agreement term (cloud with normals)" },
+    CLI_OPT_SEED(fit_cmd, cfg.seed, "random seed (default 1)"),
+    { 0, "max-time", "T", CLI_OPT_DOUBLE, OFF(cfg.max_time), .lo = 0, .hi = INFINITY,
+      .help = "stop after T seconds and keep the best so far" },
+    { 0, "max-evals", "N", CLI_OPT_LONG, OFF(cfg.max_evals), .lo = 1, .hi = INFINITY,
+      .help = "stop after N objective evaluations" },
+    { 0, "sa-points", "N", CLI_OPT_SIZE, OFF(cfg.sa_points), .lo = 0, .hi = INFINITY,
+      .help = "points the annealing uses (default 1024; 0: all)" },
+    { 0, "sa-stall", "N", CLI_OPT_LONG, OFF(cfg.sa.stall_iter), .lo = 1, .hi = INFINITY,
+      .help = "end an annealing chain after N iterations without progress (15)" },
+    { 0, "sa-chains", "N", CLI_OPT_LONG, OFF(cfg.sa.chains), .lo = 1, .hi = INFINITY,
+      .help = "independent annealing chains, the best kept (2)" },
+    { 0, "sa-threshold", "V", CLI_OPT_DOUBLE, OFF(cfg.sa.threshold), .lo = 0, .hi = INFINITY,
+      .help = "leave the annealing once the objective is <= V" },
+    { 0, "json", "FILE", CLI_OPT_STRING, OFF(json), .help = "also write the report as JSON" },
+    CLI_OPT_THREADS(fit_cmd, cfg.obj.nthreads, "OpenMP threads (results do not depend on it)"),
+    { 'a', "params", "LIST", CLI_OPT_LIST, OFF(a), .help = "start values of a[] (v1,v2,...)" },
+    { 0, "bounds", "LIST", CLI_OPT_STRING, OFF(bounds), .help = "bounds of a[]: lo1:hi1,lo2:hi2,..." },
+    CLI_OPT_QUIET(fit_cmd, quiet, "no report on stdout"),
+};
+#undef OFF
+static const cli_opt_spec fit_spec = { "fit", fit_usage, fit_opts,
+                                       sizeof fit_opts / sizeof fit_opts[0], 24 };
+
+/* Options -> TEMPLATE.hf and CLOUD; -o and --in-place exclude each other. */
+static int stage_options(fit_cmd *f, int argc, char **argv)
+{
+    cli_args args;
+    int rc = cli_opt_parse(&fit_spec, argc, argv, f, &args);
+    if (rc != CLI_GO_ON) return rc;
+    if (args.n != 2) return cli_usage_error("fit", "expected TEMPLATE.hf and CLOUD");
+    if (f->out != NULL && f->in_place)
+        return cli_usage_error("fit", "-o and --in-place exclude each other");
+    f->tmpl = args.v[0];
+    f->cloud_path = args.v[1];
+    return CLI_GO_ON;
+}
+
+/* The template compiled, its parameter tables allocated, --bounds read. */
+static int stage_template(fit_cmd *f)
+{
+    f->p = cli_compile_file(f->tmpl, f->model, f->a.v, f->a.n, -1, &f->src);
+    if (f->p == NULL) return CLI_FAIL;
+    f->nall = frep_program_nparams(f->p);
+    for (size_t i = 0; i < f->nall; i++) f->nnamed += f->p->params[i].end > f->p->params[i].off;
+    size_t n = f->nall ? f->nall : 1;
+    f->rows = calloc(n, sizeof *f->rows);
+    f->idx = malloc(n * sizeof *f->idx);
+    f->base = malloc(n * sizeof *f->base);
+    f->x0 = malloc(n * sizeof *f->x0);
+    f->lo = malloc(n * sizeof *f->lo);
+    f->hi = malloc(n * sizeof *f->hi);
+    if (!f->rows || !f->idx || !f->base || !f->x0 || !f->lo || !f->hi) {
+        fprintf(stderr, "frep fit: out of memory\n");
+        return CLI_FAIL;
     }
-    *out = v;
-    return 0;
+    if (f->bounds != NULL) {
+        f->nb = parse_bounds(f->bounds, &f->blo, &f->bhi);
+        if (f->nb == 0) return CLI_USAGE;
+        if (f->nnamed > 0) {
+            fprintf(stderr, "frep fit: --bounds is for templates fitted through a[]; %s has "
+                            "'-- @free' parameters, whose bounds are in the template\n", f->tmpl);
+            return CLI_USAGE;
+        }
+    }
+    return CLI_OK;
+}
+
+/* Is parameter i one to fit? The '-- @free' ones when there are any, else the a[]
+ * elements the code reads. */
+static int is_free(const fit_cmd *f, size_t i)
+{
+    const frep_param_info *pi = &f->p->params[i];
+    int named = pi->end > pi->off;
+    if (f->nnamed > 0 ? !named : named) return 0;
+    int used = named;
+    for (uint32_t k = 0; k < f->p->ncode && !used; k++)
+        used = f->p->code[k].op == FREP_OP_PARAM && f->p->code[k].arg == i;
+    return used;
+}
+
+/* The parameters to fit, with their start values and bounds (--bounds for a[]). */
+static int stage_params(fit_cmd *f)
+{
+    for (size_t i = 0; i < f->nall; i++) {
+        const frep_param_info *pi = &f->p->params[i];
+        f->base[i] = pi->value;
+        if (!is_free(f, i)) continue;
+        param_row *r = &f->rows[f->nfree];
+        int named = pi->end > pi->off;
+        *r = (param_row){ pi->name, i, pi->value, pi->value, pi->lo, pi->hi, named, pi->off, pi->end };
+        if (!named && f->nb > 0) {
+            if (f->nb != f->nall) {
+                fprintf(stderr, "frep fit: --bounds gives %zu ranges; the template's a[] has %zu "
+                                "elements\n", f->nb, f->nall);
+                return CLI_USAGE;
+            }
+            r->lo = f->blo[i], r->hi = f->bhi[i];
+        }
+        f->idx[f->nfree++] = i;
+    }
+    if (f->nfree == 0) {
+        fprintf(stderr, "%s: error: the template has no free parameters: mark values with "
+                        "'-- @free [lo, hi]' or use an a[] array\n", f->tmpl);
+        return CLI_FAIL;
+    }
+    if (f->nnamed == 0 && f->a.n != 0 && f->a.n != f->nall)
+        fprintf(stderr, "frep fit: note: -a gives %zu values for the %zu elements of a[]; the "
+                        "others start at 0\n", f->a.n, f->nall);
+    for (size_t j = 0; j < f->nfree; j++) {
+        const param_row *r = &f->rows[j];
+        if (r->start < r->lo || r->start > r->hi) {
+            fprintf(stderr, "%s: error: parameter %s starts at %g, outside its bounds [%g, %g]\n",
+                    f->tmpl, r->name, r->start, r->lo, r->hi);
+            return CLI_FAIL;
+        }
+    }
+    return CLI_OK;
+}
+
+static int point_finite(const frep_cloud *c, size_t i)
+{
+    return isfinite(c->x[i]) && isfinite(c->y[i]) && isfinite(c->z[i]) &&
+           (!c->has_normals || (isfinite(c->nx[i]) && isfinite(c->ny[i]) && isfinite(c->nz[i])));
+}
+
+/* The cloud read and checked (finite, enough points, normals for --normals-weight); its
+ * diagonal sets the default loss scale. */
+static int stage_cloud(fit_cmd *f)
+{
+    char *cerr = NULL;
+    f->cloud = cloud_read(f->cloud_path, &cerr);
+    if (f->cloud == NULL) {
+        fprintf(stderr, "%s\n", cerr ? cerr : "frep fit: cannot read the cloud");
+        free(cerr);
+        return CLI_FAIL;
+    }
+    frep_cloud *c = f->cloud;
+    for (size_t i = 0; i < c->n; i++) {
+        if (!point_finite(c, i)) {
+            fprintf(stderr, "%s: point %zu is not finite (NaN or infinity)\n", f->cloud_path, i + 1);
+            return CLI_FAIL;
+        }
+    }
+    if (c->n < f->nfree + FIT_MIN_POINTS) {
+        fprintf(stderr, "%s: %zu points are too few to fit %zu parameters (need at least %zu)\n",
+                f->cloud_path, c->n, f->nfree, f->nfree + FIT_MIN_POINTS);
+        return CLI_FAIL;
+    }
+    if (f->cfg.obj.normals_weight > 0 && !c->has_normals) {
+        fprintf(stderr, "frep fit: --normals-weight needs a cloud with normals; %s has none\n",
+                f->cloud_path);
+        return CLI_USAGE;
+    }
+    if (c->has_normals) cloud_normalize_normals(c);
+    f->diagonal = cloud_diagonal(c);
+    f->cfg.obj.loss_scale = f->loss_scale > 0 ? f->loss_scale
+                                              : 0.01 * (f->diagonal > 0 ? f->diagonal : 1);
+    f->pts = (fit_points){ c->n, c->x, c->y, c->z, NULL, NULL, NULL };
+    if (c->has_normals) f->pts.nx = c->nx, f->pts.ny = c->ny, f->pts.nz = c->nz;
+    return CLI_OK;
+}
+
+/* The search box: the annealing needs a finite one, so an unbounded parameter searches
+ * its start plus or minus the cloud's diagonal. */
+static void stage_search_box(fit_cmd *f)
+{
+    int global = f->cfg.method == FIT_METHOD_SAQN || f->cfg.method == FIT_METHOD_SA;
+    for (size_t j = 0; j < f->nfree; j++) {
+        f->lo[j] = f->rows[j].lo, f->hi[j] = f->rows[j].hi;
+        f->x0[j] = f->rows[j].start;
+        if (global && (!isfinite(f->lo[j]) || !isfinite(f->hi[j]))) {
+            double d = f->diagonal > 0 ? f->diagonal : 1;
+            if (!isfinite(f->lo[j])) f->lo[j] = f->x0[j] - d;
+            if (!isfinite(f->hi[j])) f->hi[j] = f->x0[j] + d;
+            if (!f->quiet)
+                fprintf(stderr, "frep fit: note: %s has no bounds; the annealing searches "
+                                "[%g, %g]\n", f->rows[j].name, f->lo[j], f->hi[j]);
+        }
+    }
+}
+
+/* The fit itself, with progress on a terminal; Ctrl-C keeps the best so far. */
+static int stage_fit(fit_cmd *f)
+{
+    if (fit_program_model(f->p, f->idx, f->nfree, f->base, &f->fm) != 0) {
+        fprintf(stderr, "frep fit: out of memory\n");
+        return CLI_FAIL;
+    }
+    int tty = isatty(STDERR_FILENO) && !f->quiet;
+    if (tty) f->cfg.progress = progress;
+    f->cfg.interrupt = cli_sigint_catch();
+    char err[256];
+    int frc = fit_run(&f->fm, &f->pts, f->lo, f->hi, f->x0, &f->cfg, &f->res, err, sizeof err);
+    cli_sigint_restore();
+    if (tty) fputs("\r\033[K", stderr);
+    if (frc != 0) {
+        fprintf(stderr, "%s: error: %s\n", f->tmpl, err);
+        return CLI_FAIL;
+    }
+    f->interrupted = cli_interrupted();
+    return CLI_OK;
+}
+
+/* The "-- fitted: -a v1,v2,..." comment of an a[] template (its text stays as it is). */
+static char *fitted_note(const fit_cmd *f)
+{
+    size_t cap = 32 + f->nfree * FIT_NUMBER_MAX, m;
+    char *note = malloc(cap);
+    if (note == NULL) return NULL;
+    m = (size_t)snprintf(note, cap, "-- fitted: -a ");
+    for (size_t j = 0; j < f->nfree; j++) {
+        char num[FIT_NUMBER_MAX];
+        fit_format_number(num, f->x0[j], f->rows[j].lo, f->rows[j].hi);
+        m += (size_t)snprintf(note + m, cap - m, "%s%s", j ? "," : "", num);
+    }
+    return note;
+}
+
+/* The fitted template: named values edited in place, the cloud's box in '-- @box'. */
+static int stage_writeback(fit_cmd *f)
+{
+    fit_edit *edits = malloc(f->nfree * sizeof *edits);
+    size_t ne = 0;
+    if (edits == NULL) return CLI_FAIL;
+    for (size_t j = 0; j < f->nfree; j++) {
+        param_row *r = &f->rows[j];
+        r->value = f->x0[j];
+        if (r->has_span) edits[ne++] = (fit_edit){ r->off, r->end, f->x0[j], r->lo, r->hi };
+    }
+    char *note = f->nnamed == 0 ? fitted_note(f) : NULL;
+    double blo3[3], bhi3[3], box[6];
+    cloud_bbox(f->cloud, blo3, bhi3);
+    double margin = FIT_BOX_MARGIN * (f->diagonal > 0 ? f->diagonal : 1);
+    for (int k = 0; k < 3; k++) box[k] = blo3[k] - margin, box[3 + k] = bhi3[k] + margin;
+    size_t tlen = 0;
+    f->text = fit_writeback(f->src, strlen(f->src), edits, ne, box, note, &tlen);
+    free(edits);
+    free(note);
+    if (f->text == NULL) {
+        fprintf(stderr, "frep fit: cannot rewrite the template (out of memory)\n");
+        return CLI_FAIL;
+    }
+    f->output = f->in_place ? strdup(f->tmpl) : f->out != NULL ? strdup(f->out)
+                                                                : derived_name(f->tmpl);
+    text_out to = { f->text, tlen };
+    if (f->output == NULL || cli_write_atomic(f->output, write_text, &to) != 0) return CLI_FAIL;
+    return CLI_OK;
+}
+
+/* The report on stdout: settings, a table of the parameters, the result. */
+static void stage_report(const fit_cmd *f)
+{
+    const fit_config *cfg = &f->cfg;
+    const fit_result *res = &f->res;
+    printf("frep fit: %s <- %s (%zu points%s)\n", f->tmpl, f->cloud_path, f->cloud->n,
+           f->cloud->has_normals ? ", with normals" : "");
+    printf("method %s, objective %s (annealing: %s), loss %s, seed %llu\n",
+           fit_method_name(cfg->method), fit_objective_name(cfg->obj.kind),
+           fit_objective_name(cfg->global_kind), fit_loss_name(cfg->obj.loss),
+           (unsigned long long)cfg->seed);
+    if (cfg->method == FIT_METHOD_SAQN || cfg->method == FIT_METHOD_SA)
+        printf("annealing: %ld chain%s on %zu points, stall %ld\n", cfg->sa.chains,
+               cfg->sa.chains == 1 ? "" : "s",
+               cfg->sa_points > 0 && cfg->sa_points < f->pts.n ? cfg->sa_points : f->pts.n,
+               cfg->sa.stall_iter);
+    printf("%-12s %16s %18s   %s\n", "parameter", "start", "fitted", "bounds");
+    for (size_t j = 0; j < f->nfree; j++)
+        printf("%-12s %16.10g %18.12g   [%g, %g]\n", f->rows[j].name, f->rows[j].start,
+               f->rows[j].value, f->rows[j].lo, f->rows[j].hi);
+    printf("objective %.6g\n", res->objective);
+    printf("distance rms %.6g, max %.6g (cloud diagonal %.6g)\n", res->rms, res->max_dist,
+           f->diagonal);
+    printf("evaluations %ld, time %.3f s, %s\n", res->evals, res->seconds,
+           f->interrupted ? "interrupted: best so far" : fit_status_name(res->status));
+    printf("wrote %s\n", f->output);
+}
+
+/* template -> parameters -> cloud -> search box -> fit -> fitted template -> JSON ->
+ * report; 130 after Ctrl-C. */
+static int fit_steps(fit_cmd *f)
+{
+    int rc = stage_template(f);
+    if (rc == CLI_OK) rc = stage_params(f);
+    if (rc == CLI_OK) rc = stage_cloud(f);
+    if (rc != CLI_OK) return rc;
+    stage_search_box(f);
+    rc = stage_fit(f);
+    if (rc == CLI_OK) rc = stage_writeback(f);
+    if (rc != CLI_OK) return rc;
+    report_ctx rep = { f->tmpl, f->cloud_path, f->output, f->rows, f->nfree, f->cloud->n,
+                       &f->cfg, &f->res, f->diagonal, f->interrupted };
+    if (f->json != NULL && cli_write_atomic(f->json, write_json, &rep) != 0) rc = CLI_FAIL;
+    if (!f->quiet) stage_report(f);
+    return f->interrupted && rc == CLI_OK ? 130 : rc;
+}
+
+static void fit_cmd_free(fit_cmd *f)
+{
+    if (f->fm.user != NULL) fit_program_model_free(&f->fm);
+    cloud_free(f->cloud);
+    free(f->text);
+    free(f->output);
+    free(f->rows);
+    free(f->idx);
+    free(f->base);
+    free(f->x0);
+    free(f->lo);
+    free(f->hi);
+    free(f->blo);
+    free(f->bhi);
+    free(f->src);
+    cli_list_free(&f->a);
+    if (f->p != NULL) frep_program_free(f->p);
 }
 
 int cmd_fit(int argc, char **argv)
 {
-    static const struct option longopts[] = {
-        {"help", no_argument, NULL, 'h'},
-        {"output", required_argument, NULL, 'o'},
-        {"in-place", no_argument, NULL, 'I'},
-        {"model", required_argument, NULL, 'm'},
-        {"method", required_argument, NULL, 'M'},
-        {"objective", required_argument, NULL, 'K'},
-        {"loss", required_argument, NULL, 'L'},
-        {"global-objective", required_argument, NULL, 'G'},
-        {"loss-scale", required_argument, NULL, 'S'},
-        {"normals-weight", required_argument, NULL, 'W'},
-        {"seed", required_argument, NULL, 's'},
-        {"max-time", required_argument, NULL, 'T'},
-        {"max-evals", required_argument, NULL, 'E'},
-        {"sa-points", required_argument, NULL, 'P'},
-        {"sa-stall", required_argument, NULL, 'X'},
-        {"sa-chains", required_argument, NULL, 'C'},
-        {"sa-threshold", required_argument, NULL, 'H'},
-        {"json", required_argument, NULL, 'J'},
-        {"threads", required_argument, NULL, 't'},
-        {"params", required_argument, NULL, 'a'},
-        {"bounds", required_argument, NULL, 'B'},
-        {"quiet", no_argument, NULL, 'q'},
-        {NULL, 0, NULL, 0},
-    };
-    fit_config cfg;
-    fit_config_init(&cfg);
-    const char *out = NULL, *model = NULL, *json = NULL, *bounds = NULL;
-    double *a = NULL, loss_scale = -1;
-    size_t na = 0;
-    int in_place = 0, quiet = 0, c;
-    long lv;
-    double dv;
-    int rc = CLI_OK;
-    optind = 1;
-    opterr = 0;
-    while ((c = getopt_long(argc, argv, "ho:m:t:a:q", longopts, NULL)) != -1) {
-        int bad = 0;
-        switch (c) {
-        case 'h': fputs(fit_usage, stdout); free(a); return CLI_OK;
-        case 'o': out = optarg; break;
-        case 'I': in_place = 1; break;
-        case 'm': model = optarg; break;
-        case 'M':
-            if (fit_method_parse(optarg, &cfg.method) != 0)
-                bad = cli_usage_error("fit", "--method: expected saqn, qn, sa or lm, got '%s'", optarg);
-            break;
-        case 'K':
-            if (fit_objective_parse(optarg, &cfg.obj.kind) != 0)
-                bad = cli_usage_error("fit", "--objective: expected algebraic or geometric, got '%s'", optarg);
-            break;
-        case 'G':
-            if (fit_objective_parse(optarg, &cfg.global_kind) != 0)
-                bad = cli_usage_error("fit", "--global-objective: expected algebraic or geometric, got '%s'", optarg);
-            break;
-        case 'L':
-            if (fit_loss_parse(optarg, &cfg.obj.loss) != 0)
-                bad = cli_usage_error("fit", "--loss: expected l2, huber or cauchy, got '%s'", optarg);
-            break;
-        case 'S':
-            if (parse_real("--loss-scale", optarg, 0, &loss_scale) || !(loss_scale > 0))
-                bad = loss_scale > 0 ? CLI_USAGE : cli_usage_error("fit", "--loss-scale must be > 0");
-            break;
-        case 'W':
-            if (parse_real("--normals-weight", optarg, 0, &cfg.obj.normals_weight)) bad = CLI_USAGE;
-            break;
-        case 's': {
-            char *e;
-            errno = 0;
-            cfg.seed = strtoull(optarg, &e, 10);
-            if (*e || e == optarg || errno || optarg[0] == '-')
-                bad = cli_usage_error("fit", "--seed: expected a non-negative integer, got '%s'", optarg);
-            break;
-        }
-        case 'T':
-            if (parse_real("--max-time", optarg, 0, &cfg.max_time)) bad = CLI_USAGE;
-            break;
-        case 'E':
-            if (parse_count("--max-evals", optarg, 1, &cfg.max_evals)) bad = CLI_USAGE;
-            break;
-        case 'P':
-            if (parse_count("--sa-points", optarg, 0, &lv)) bad = CLI_USAGE;
-            else cfg.sa_points = (size_t)lv;
-            break;
-        case 'X':
-            if (parse_count("--sa-stall", optarg, 1, &cfg.sa.stall_iter)) bad = CLI_USAGE;
-            break;
-        case 'C':
-            if (parse_count("--sa-chains", optarg, 1, &cfg.sa.chains)) bad = CLI_USAGE;
-            break;
-        case 'H':
-            if (parse_real("--sa-threshold", optarg, 0, &dv)) bad = CLI_USAGE;
-            else cfg.sa.threshold = dv;
-            break;
-        case 'J': json = optarg; break;
-        case 't':
-            if (parse_count("--threads", optarg, 1, &lv)) bad = CLI_USAGE;
-            else cfg.obj.nthreads = (int)(lv > 1024 ? 1024 : lv);
-            break;
-        case 'a':
-            free(a);
-            a = cli_parse_list("-a", optarg, &na);
-            if (a == NULL) bad = CLI_USAGE;
-            break;
-        case 'B': bounds = optarg; break;
-        case 'q': quiet = 1; break;
-        default:
-            bad = cli_usage_error("fit", "unknown or incomplete option '%s'", argv[optind - 1]);
-        }
-        if (bad) {
-            free(a);
-            return CLI_USAGE;
-        }
-    }
-    if (argc - optind != 2) {
-        free(a);
-        return cli_usage_error("fit", "expected TEMPLATE.hf and CLOUD");
-    }
-    if (out != NULL && in_place) {
-        free(a);
-        return cli_usage_error("fit", "-o and --in-place exclude each other");
-    }
-    const char *tmpl = argv[optind], *cloud_path = argv[optind + 1];
-
-    char *src = NULL, *output = NULL, *text = NULL, *cerr = NULL;
-    double *blo = NULL, *bhi = NULL, *x0 = NULL, *lo = NULL, *hi = NULL, *base = NULL;
-    size_t *idx = NULL;
-    param_row *rows = NULL;
-    frep_cloud *cloud = NULL;
-    fit_model fm = {0};
-    size_t nb = 0;
-
-    frep_program *p = cli_compile_file(tmpl, model, a, na, -1, &src);
-    if (p == NULL) {
-        rc = CLI_FAIL;
-        goto done;
-    }
-    size_t nall = frep_program_nparams(p), nfree = 0, nnamed = 0;
-    for (size_t i = 0; i < nall; i++) nnamed += p->params[i].end > p->params[i].off;
-    rows = calloc(nall ? nall : 1, sizeof *rows);
-    idx = malloc((nall ? nall : 1) * sizeof *idx);
-    base = malloc((nall ? nall : 1) * sizeof *base);
-    x0 = malloc((nall ? nall : 1) * sizeof *x0);
-    lo = malloc((nall ? nall : 1) * sizeof *lo);
-    hi = malloc((nall ? nall : 1) * sizeof *hi);
-    if (!rows || !idx || !base || !x0 || !lo || !hi) {
-        fprintf(stderr, "frep fit: out of memory\n");
-        rc = CLI_FAIL;
-        goto done;
-    }
-    if (bounds != NULL) {
-        nb = parse_bounds(bounds, &blo, &bhi);
-        if (nb == 0) {
-            rc = CLI_USAGE;
-            goto done;
-        }
-        if (nnamed > 0) {
-            fprintf(stderr, "frep fit: --bounds is for templates fitted through a[]; %s has "
-                            "'-- @free' parameters, whose bounds are in the template\n", tmpl);
-            rc = CLI_USAGE;
-            goto done;
-        }
-    }
-    for (size_t i = 0; i < nall; i++) {
-        const frep_param_info *pi = &p->params[i];
-        base[i] = pi->value;
-        int named = pi->end > pi->off;
-        if (nnamed > 0 ? !named : named) continue;
-        /* An a[] element the code never reads is not something to fit. */
-        int used = named;
-        for (uint32_t k = 0; k < p->ncode && !used; k++)
-            used = p->code[k].op == FREP_OP_PARAM && p->code[k].arg == i;
-        if (!used) continue;
-        param_row *r = &rows[nfree];
-        r->name = pi->name;
-        r->index = i;
-        r->start = r->value = pi->value;
-        r->lo = pi->lo, r->hi = pi->hi;
-        r->has_span = named;
-        r->off = pi->off, r->end = pi->end;
-        if (!named && nb > 0) {
-            if (nb != nall) {
-                fprintf(stderr, "frep fit: --bounds gives %zu ranges; the template's a[] has %zu "
-                                "elements\n", nb, nall);
-                rc = CLI_USAGE;
-                goto done;
-            }
-            r->lo = blo[i], r->hi = bhi[i];
-        }
-        idx[nfree++] = i;
-    }
-    if (nfree == 0) {
-        fprintf(stderr, "%s: error: the template has no free parameters: mark values with "
-                        "'-- @free [lo, hi]' or use an a[] array\n", tmpl);
-        rc = CLI_FAIL;
-        goto done;
-    }
-    if (nnamed == 0 && na != 0 && na != nall)
-        fprintf(stderr, "frep fit: note: -a gives %zu values for the %zu elements of a[]; the "
-                        "others start at 0\n", na, nall);
-    for (size_t j = 0; j < nfree; j++) {
-        if (rows[j].start < rows[j].lo || rows[j].start > rows[j].hi) {
-            fprintf(stderr, "%s: error: parameter %s starts at %g, outside its bounds [%g, %g]\n",
-                    tmpl, rows[j].name, rows[j].start, rows[j].lo, rows[j].hi);
-            rc = CLI_FAIL;
-            goto done;
-        }
-    }
-
-    cloud = cloud_read(cloud_path, &cerr);
-    if (cloud == NULL) {
-        fprintf(stderr, "%s\n", cerr ? cerr : "frep fit: cannot read the cloud");
-        rc = CLI_FAIL;
-        goto done;
-    }
-    for (size_t i = 0; i < cloud->n; i++) {
-        if (!isfinite(cloud->x[i]) || !isfinite(cloud->y[i]) || !isfinite(cloud->z[i]) ||
-            (cloud->has_normals && (!isfinite(cloud->nx[i]) || !isfinite(cloud->ny[i]) ||
-                                    !isfinite(cloud->nz[i])))) {
-            fprintf(stderr, "%s: point %zu is not finite (NaN or infinity)\n", cloud_path, i + 1);
-            rc = CLI_FAIL;
-            goto done;
-        }
-    }
-    if (cloud->n < nfree + FIT_MIN_POINTS) {
-        fprintf(stderr, "%s: %zu points are too few to fit %zu parameters (need at least %zu)\n",
-                cloud_path, cloud->n, nfree, nfree + FIT_MIN_POINTS);
-        rc = CLI_FAIL;
-        goto done;
-    }
-    if (cfg.obj.normals_weight > 0 && !cloud->has_normals) {
-        fprintf(stderr, "frep fit: --normals-weight needs a cloud with normals; %s has none\n",
-                cloud_path);
-        rc = CLI_USAGE;
-        goto done;
-    }
-    if (cloud->has_normals) cloud_normalize_normals(cloud);
-    double diagonal = cloud_diagonal(cloud);
-    cfg.obj.loss_scale = loss_scale > 0 ? loss_scale : 0.01 * (diagonal > 0 ? diagonal : 1);
-
-    /* The annealing needs a finite box: an unbounded parameter searches its start plus
-     * or minus the cloud's diagonal. */
-    int global = cfg.method == FIT_METHOD_SAQN || cfg.method == FIT_METHOD_SA;
-    for (size_t j = 0; j < nfree; j++) {
-        lo[j] = rows[j].lo, hi[j] = rows[j].hi;
-        x0[j] = rows[j].start;
-        if (global && (!isfinite(lo[j]) || !isfinite(hi[j]))) {
-            double d = diagonal > 0 ? diagonal : 1;
-            if (!isfinite(lo[j])) lo[j] = x0[j] - d;
-            if (!isfinite(hi[j])) hi[j] = x0[j] + d;
-            if (!quiet)
-                fprintf(stderr, "frep fit: note: %s has no bounds; the annealing searches "
-                                "[%g, %g]\n", rows[j].name, lo[j], hi[j]);
-        }
-    }
-
-    if (fit_program_model(p, idx, nfree, base, &fm) != 0) {
-        fprintf(stderr, "frep fit: out of memory\n");
-        rc = CLI_FAIL;
-        goto done;
-    }
-    fit_points pts = {cloud->n, cloud->x, cloud->y, cloud->z, NULL, NULL, NULL};
-    if (cloud->has_normals) pts.nx = cloud->nx, pts.ny = cloud->ny, pts.nz = cloud->nz;
-    fit_interrupted = 0;
-    cfg.interrupt = &fit_interrupted;
-    int tty = isatty(STDERR_FILENO) && !quiet;
-    if (tty) cfg.progress = progress;
-    struct sigaction sa, old;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_sigint;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, &old);
-    fit_result res;
-    char err[256];
-    int frc = fit_run(&fm, &pts, lo, hi, x0, &cfg, &res, err, sizeof err);
-    sigaction(SIGINT, &old, NULL);
-    if (tty) fputs("\r\033[K", stderr);
-    if (frc != 0) {
-        fprintf(stderr, "%s: error: %s\n", tmpl, err);
-        rc = CLI_FAIL;
-        goto done;
-    }
-    int interrupted = fit_interrupted != 0;
-
-    /* The fitted template. */
-    fit_edit *edits = malloc(nfree * sizeof *edits);
-    size_t ne = 0;
-    char *note = NULL;
-    if (edits == NULL) {
-        rc = CLI_FAIL;
-        goto done;
-    }
-    for (size_t j = 0; j < nfree; j++) {
-        rows[j].value = x0[j];
-        if (rows[j].has_span)
-            edits[ne++] = (fit_edit){rows[j].off, rows[j].end, x0[j], rows[j].lo, rows[j].hi};
-    }
-    if (nnamed == 0) {
-        /* a[] templates keep their text; the values go into a comment for -a. */
-        size_t cap = 32 + nfree * FIT_NUMBER_MAX, m;
-        note = malloc(cap);
-        if (note != NULL) {
-            m = (size_t)snprintf(note, cap, "-- fitted: -a ");
-            for (size_t j = 0; j < nfree; j++) {
-                char num[FIT_NUMBER_MAX];
-                fit_format_number(num, x0[j], rows[j].lo, rows[j].hi);
-                m += (size_t)snprintf(note + m, cap - m, "%s%s", j ? "," : "", num);
-            }
-        }
-    }
-    double blo3[3], bhi3[3], box[6];
-    cloud_bbox(cloud, blo3, bhi3);
-    double margin = FIT_BOX_MARGIN * (diagonal > 0 ? diagonal : 1);
-    for (int k = 0; k < 3; k++) box[k] = blo3[k] - margin, box[3 + k] = bhi3[k] + margin;
-    size_t tlen = 0;
-    text = fit_writeback(src, strlen(src), edits, ne, box, note, &tlen);
-    free(edits);
-    free(note);
-    if (text == NULL) {
-        fprintf(stderr, "frep fit: cannot rewrite the template (out of memory)\n");
-        rc = CLI_FAIL;
-        goto done;
-    }
-    output = in_place ? strdup(tmpl) : out != NULL ? strdup(out) : derived_name(tmpl);
-    text_out to = {text, tlen};
-    if (output == NULL || cli_write_atomic(output, write_text, &to) != 0) {
-        rc = CLI_FAIL;
-        goto done;
-    }
-    report_ctx rep = {tmpl, cloud_path, output, rows, nfree, cloud->n, &cfg, &res, diagonal,
-                      interrupted};
-    if (json != NULL && cli_write_atomic(json, write_json, &rep) != 0) rc = CLI_FAIL;
-
-    if (!quiet) {
-        printf("frep fit: %s <- %s (%zu points%s)\n", tmpl, cloud_path, cloud->n,
-               cloud->has_normals ? ", with normals" : "");
-        printf("method %s, objective %s (annealing: %s), loss %s, seed %llu\n",
-               fit_method_name(cfg.method), fit_objective_name(cfg.obj.kind),
-               fit_objective_name(cfg.global_kind), fit_loss_name(cfg.obj.loss),
-               (unsigned long long)cfg.seed);
-        if (cfg.method == FIT_METHOD_SAQN || cfg.method == FIT_METHOD_SA)
-            printf("annealing: %ld chain%s on %zu points, stall %ld\n", cfg.sa.chains,
-                   cfg.sa.chains == 1 ? "" : "s",
-                   cfg.sa_points > 0 && cfg.sa_points < pts.n ? cfg.sa_points : pts.n,
-                   cfg.sa.stall_iter);
-        printf("%-12s %16s %18s   %s\n", "parameter", "start", "fitted", "bounds");
-        for (size_t j = 0; j < nfree; j++)
-            printf("%-12s %16.10g %18.12g   [%g, %g]\n", rows[j].name, rows[j].start,
-                   rows[j].value, rows[j].lo, rows[j].hi);
-        printf("objective %.6g\n", res.objective);
-        printf("distance rms %.6g, max %.6g (cloud diagonal %.6g)\n", res.rms, res.max_dist,
-               diagonal);
-        printf("evaluations %ld, time %.3f s, %s\n", res.evals, res.seconds,
-               interrupted ? "interrupted: best so far" : fit_status_name(res.status));
-        printf("wrote %s\n", output);
-    }
-    if (interrupted && rc == CLI_OK) rc = 130;
-
-done:
-    if (fm.user != NULL) fit_program_model_free(&fm);
-    cloud_free(cloud);
-    free(cerr);
-    free(text);
-    free(output);
-    free(rows);
-    free(idx);
-    free(base);
-    free(x0);
-    free(lo);
-    free(hi);
-    free(blo);
-    free(bhi);
-    free(src);
-    free(a);
-    if (p != NULL) frep_program_free(p);
+    fit_cmd f;
+    memset(&f, 0, sizeof f);
+    fit_config_init(&f.cfg);
+    f.loss_scale = -1;
+    int rc = stage_options(&f, argc, argv);
+    if (rc == CLI_GO_ON) rc = fit_steps(&f);
+    fit_cmd_free(&f);
     return rc;
 }

@@ -6,95 +6,92 @@
 
 #include "cli.h"
 
-#include <getopt.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "arena.h"
 #include "ast.h"
 
-static int help_or_file(int argc, char **argv, const char *usage, const char **file,
-                        const char **model)
+/* The input of every language subcommand: one model file (and for dis a model name). */
+typedef struct lang_cmd {
+    const char *model;
+    const char *file;
+    char *src;               /* the file's text (free()) */
+    size_t len;
+} lang_cmd;
+
+static const cli_opt dis_opts[] = {
+    CLI_OPT_MODEL(lang_cmd, model, NULL),
+};
+
+/* Options -> the one model file, read. Returns CLI_GO_ON or an exit status. */
+static int lang_input(const cli_opt_spec *spec, int argc, char **argv, lang_cmd *c, int read)
 {
-    static const struct option longopts[] = {
-        { "help", no_argument, NULL, 'h' },
-        { "model", required_argument, NULL, 'm' },
-        { NULL, 0, NULL, 0 },
-    };
-    optind = 1;
-    opterr = 0;
-    int c;
-    while ((c = getopt_long(argc, argv, "hm:", longopts, NULL)) != -1) {
-        switch (c) {
-        case 'h': fputs(usage, stdout); return CLI_OK;
-        case 'm':
-            if (!model) return cli_usage_error(argv[0], "--model is not an option here");
-            *model = optarg;
-            break;
-        default:
-            return cli_usage_error(argv[0], "unknown option '%s'", argv[optind - 1]);
-        }
-    }
-    if (argc - optind != 1) return cli_usage_error(argv[0], "expected one model file");
-    *file = argv[optind];
-    return -1;
+    cli_args args;
+    int rc = cli_opt_parse(spec, argc, argv, c, &args);
+    if (rc != CLI_GO_ON) return rc;
+    if (args.n != 1) return cli_usage_error(spec->sub, "expected one model file");
+    c->file = args.v[0];
+    if (read && !(c->src = cli_read_file(c->file, &c->len))) return CLI_FAIL;
+    return CLI_GO_ON;
 }
 
-int cmd_check(int argc, char **argv)
+static const cli_opt_spec check_spec = { "check",
+    "usage: frep check FILE.hf\n\n"
+    "Parse and check every model of FILE.hf and report every problem found, as\n"
+    "file:line:col: error: message, with the source line and a caret.\n"
+    "Exit status: 0 when the file has no errors (warnings allowed), 1 otherwise.\n",
+    NULL, 0, 0 };
+
+/* Compile every model of the file: each reports its own problems. */
+static int check_models(const lang_cmd *c, cli_diag_ctx *dc)
 {
-    const char *file = NULL;
-    int r = help_or_file(argc, argv,
-        "usage: frep check FILE.hf\n\n"
-        "Parse and check every model of FILE.hf and report every problem found, as\n"
-        "file:line:col: error: message, with the source line and a caret.\n"
-        "Exit status: 0 when the file has no errors (warnings allowed), 1 otherwise.\n",
-        &file, NULL);
-    if (r >= 0) return r;
-    size_t len;
-    char *src = cli_read_file(file, &len);
-    if (!src) return CLI_FAIL;
-    cli_diag_ctx dc = { src, len, 0, 0, NULL, 0 };
     size_t nmodels = 0;
-    char **models = frep_list_models(file, src, len, &nmodels, cli_print_diag, &dc);
-    if (!models) {
-        free(src);
-        cli_diag_done(&dc);
-        return CLI_FAIL;
-    }
+    char **models = frep_list_models(c->file, c->src, c->len, &nmodels, cli_print_diag, dc);
+    if (!models) return CLI_FAIL;
     frep_compile_options o;
     frep_compile_options_init(&o);
     int bad = 0;
     for (size_t i = 0; i < nmodels; i++) {
         o.model = models[i];
-        frep_program *p = frep_compile(file, src, len, &o, cli_print_diag, &dc);
+        frep_program *p = frep_compile(c->file, c->src, c->len, &o, cli_print_diag, dc);
         if (!p) bad = 1;
         frep_program_free(p);
     }
     frep_free_strings(models, nmodels);
-    free(src);
-    cli_diag_done(&dc);
-    return bad || dc.errors ? CLI_FAIL : CLI_OK;
+    return bad || dc->errors ? CLI_FAIL : CLI_OK;
 }
+
+int cmd_check(int argc, char **argv)
+{
+    lang_cmd c = { 0 };
+    int rc = lang_input(&check_spec, argc, argv, &c, 1);
+    if (rc != CLI_GO_ON) return rc;
+    cli_diag_ctx dc = { c.src, c.len, 0, 0, NULL, 0 };
+    rc = check_models(&c, &dc);
+    cli_diag_done(&dc);
+    free(c.src);
+    return rc;
+}
+
+static const cli_opt_spec print_spec = { "print",
+    "usage: frep print FILE.hf\n\n"
+    "Print the canonical source of FILE.hf: the same program (parsing the output\n"
+    "again gives the same tree), laid out uniformly, with annotations kept.\n",
+    NULL, 0, 0 };
 
 int cmd_print(int argc, char **argv)
 {
-    const char *file = NULL;
-    int r = help_or_file(argc, argv,
-        "usage: frep print FILE.hf\n\n"
-        "Print the canonical source of FILE.hf: the same program (parsing the output\n"
-        "again gives the same tree), laid out uniformly, with annotations kept.\n",
-        &file, NULL);
-    if (r >= 0) return r;
-    size_t len;
-    char *src = cli_read_file(file, &len);
-    if (!src) return CLI_FAIL;
-    cli_diag_ctx dc = { src, len, 0, 0, NULL, 0 };
-    diag_sink ds = { cli_print_diag, &dc, file, 0, 0 };
+    lang_cmd c = { 0 };
+    int rc = lang_input(&print_spec, argc, argv, &c, 1);
+    if (rc != CLI_GO_ON) return rc;
+    cli_diag_ctx dc = { c.src, c.len, 0, 0, NULL, 0 };
+    diag_sink ds = { cli_print_diag, &dc, c.file, 0, 0 };
     arena A;
     arena_init(&A);
     ast_file f;
     int status = CLI_FAIL;
-    if (ast_parse(&A, file, src, len, &ds, &f) == 0) {
+    if (ast_parse(&A, c.file, c.src, c.len, &ds, &f) == 0) {
         char *out = ast_print(&f);
         if (out) {
             fputs(out, stdout);
@@ -103,22 +100,24 @@ int cmd_print(int argc, char **argv)
         }
     }
     arena_free(&A);
-    free(src);
+    free(c.src);
     cli_diag_done(&dc);
     return status;
 }
 
+static const cli_opt_spec dis_spec = { "dis",
+    "usage: frep dis [--model NAME] FILE.hf\n\n"
+    "Compile a model of FILE.hf and print its bytecode: one instruction a line\n"
+    "with its operands and source position (see doc/architecture.md).\n"
+    "Without --model: my_model if present, else the last model of the file.\n",
+    dis_opts, sizeof dis_opts / sizeof dis_opts[0], 0 };
+
 int cmd_dis(int argc, char **argv)
 {
-    const char *file = NULL, *model = NULL;
-    int r = help_or_file(argc, argv,
-        "usage: frep dis [--model NAME] FILE.hf\n\n"
-        "Compile a model of FILE.hf and print its bytecode: one instruction a line\n"
-        "with its operands and source position (see doc/architecture.md).\n"
-        "Without --model: my_model if present, else the last model of the file.\n",
-        &file, &model);
-    if (r >= 0) return r;
-    frep_program *p = cli_compile_file(file, model, NULL, 0, -1, NULL);
+    lang_cmd c = { 0 };
+    int rc = lang_input(&dis_spec, argc, argv, &c, 0);
+    if (rc != CLI_GO_ON) return rc;
+    frep_program *p = cli_compile_file(c.file, c.model, NULL, 0, -1, NULL);
     if (!p) return CLI_FAIL;
     char *s = frep_disassemble(p);
     frep_program_free(p);

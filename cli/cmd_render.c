@@ -7,18 +7,16 @@
 #include "cli.h"
 #include "cloud.h"
 #include "mesh.h"
-#include "meshio.h"
 #include "png.h"
 #include "render.h"
 
-#include <errno.h>
-#include <getopt.h>
-#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 /* Distance (as a fraction of the framed box diagonal) drawn fully red by --points. */
 #define RENDER_FAR_FRACTION 0.02
+#define RENDER_STR_(x) #x
+#define RENDER_STR(x) RENDER_STR_(x)
 
 static const char render_usage[] =
     "usage: frep render FILE.hf -o VIEW.png [options]\n"
@@ -26,205 +24,211 @@ static const char render_usage[] =
     "Draw a shaded picture of a model (polygonized as by frep mesh) or of a mesh file.\n"
     "With --points, the points of a cloud are drawn over it, coloured by their distance\n"
     "|f|/|grad f| to the model's surface: blue on the surface, red at 2% of the picture's\n"
-    "box diagonal or farther.\n\n"
-    "Options:\n"
-    "  -o, --output PNG    the picture to write (required)\n"
-    "      --size WxH      picture size in pixels (default 800x600)\n"
-    "      --view V        " RENDER_VIEWS " (default iso)\n"
-    "      --points CLOUD  overlay a point cloud (.xyz or .ply)\n"
-    "  -m, --model NAME    the model (default: my_model, else the last one)\n"
-    "  -a, --params LIST   values of the model's a[] array\n"
-    "  -b, --box BOX       HyperFun's -b (default: the model's '-- @box', else 10)\n"
-    "  -g, --grid N        grid cells per axis of the mesh (default 128)\n"
-    "      --iso V         draw f = V\n"
-    "      --setops S      override the file's set operations: rfunc, minmax\n"
-    "  -t, --threads N     OpenMP threads\n"
-    "  -q, --quiet         no summary line\n";
+    "box diagonal or farther.\n\n";
 
-typedef struct png_ctx {
-    const uint8_t *rgb;
-    int w, h;
-} png_ctx;
+typedef struct render_cmd {
+    mesh_cli mc;
+    const char *in, *out, *view, *points;
+    int size[2];             /* width, height */
+    int quiet;
+    frep_mesh m;
+    mesh_stats st;
+    double bbox[6];          /* the framed region: the mesh and the points */
+    frep_cloud *cl;          /* --points */
+    double *dist;            /* distances of the points, then room for their gradients */
+    double dmean, dmax;
+    render_points rp;
+    uint8_t *rgb;
+} render_cmd;
+
+/* --size WxH. */
+static int parse_size(const char *arg, void *dest, char *why, size_t whylen)
+{
+    int *wh = dest;
+    char x;
+    int n = sscanf(arg, "%d%c%d", &wh[0], &x, &wh[1]);
+    return n != 3 || (x != 'x' && x != 'X') || wh[0] < 1 || wh[1] < 1 || wh[0] > PNG_MAX_SIDE ||
+                   wh[1] > PNG_MAX_SIDE ? -1 : 0;
+}
+
+static int parse_view(const char *arg, void *dest, char *why, size_t whylen)
+{
+    if (!render_view_ok(arg)) return -1;
+    *(const char **)dest = arg;
+    return 0;
+}
+
+#define OFF(f) offsetof(render_cmd, f)
+static const cli_opt render_opts[] = {
+    { 'o', "output", "PNG", CLI_OPT_STRING, OFF(out), .help = "the picture to write (required)" },
+    { 0, "size", "WxH", CLI_OPT_CUSTOM, OFF(size), .parse = parse_size, .def = "800x600",
+      .expect = "WxH with sides 1.." RENDER_STR(PNG_MAX_SIDE),
+      .help = "picture size in pixels (default 800x600)" },
+    { 0, "view", "V", CLI_OPT_CUSTOM, OFF(view), .parse = parse_view, .def = "iso",
+      .expect = "one of " RENDER_VIEWS, .help = RENDER_VIEWS " (default iso)" },
+    { 0, "points", "CLOUD", CLI_OPT_STRING, OFF(points),
+      .help = "overlay a point cloud (.xyz or .ply)" },
+    CLI_OPT_MODEL(render_cmd, mc.model, "the model (default: my_model, else the last one)"),
+    CLI_OPT_PARAMS(render_cmd, mc.a, "values of the model's a[] array"),
+    CLI_OPT_BOX(render_cmd, mc.box, "HyperFun's -b (default: the model's '-- @box', else 10)"),
+    CLI_OPT_GRID(render_cmd, mc.grid, "128", "grid cells per axis of the mesh (default 128)"),
+    CLI_OPT_ISO(render_cmd, mc.iso, "draw f = V"),
+    CLI_OPT_SETOPS(render_cmd, mc.setops, "override the file's set operations: rfunc, minmax"),
+    CLI_OPT_THREADS(render_cmd, mc.nthreads, "OpenMP threads"),
+    CLI_OPT_QUIET(render_cmd, quiet, "no summary line"),
+};
+#undef OFF
+static const cli_opt_spec render_spec = { "render", render_usage, render_opts,
+                                          sizeof render_opts / sizeof render_opts[0], 22 };
+
+/* Options -> one input and -o. */
+static int stage_options(render_cmd *c, int argc, char **argv)
+{
+    cli_args args;
+    int rc = mesh_cli_parse(&render_spec, argc, argv, c, offsetof(render_cmd, mc), &args);
+    if (rc != CLI_GO_ON) return rc;
+    if (args.n != 1) return cli_usage_error("render", "expected one input: FILE.hf or a mesh file");
+    if (!c->out) return cli_usage_error("render", "-o VIEW.png is required");
+    c->in = args.v[0];
+    return CLI_GO_ON;
+}
+
+/* The mesh to draw: a mesh file as it is, or the model polygonized; the box it spans. */
+static int stage_mesh(render_cmd *c)
+{
+    if (cli_is_mesh_path(c->in)) {
+        if (cli_read_mesh("render", c->in, &c->m) != CLI_OK) return CLI_FAIL;
+        if (c->points) {
+            fprintf(stderr, "frep render: --points needs a model (FILE.hf) to measure distances\n");
+            return CLI_USAGE;
+        }
+    } else {
+        if (mesh_cli_compile(&c->mc, c->in) != CLI_OK) return CLI_FAIL;
+        if (mesh_cli_polygonize(&c->mc, "render", &c->m, &c->st) != CLI_OK) return CLI_FAIL;
+    }
+    for (int k = 0; k < 3; k++) {
+        c->bbox[k] = INFINITY;
+        c->bbox[k + 3] = -INFINITY;
+    }
+    for (size_t i = 0; i < c->m.nverts; i++)
+        for (int k = 0; k < 3; k++) {
+            c->bbox[k] = fmin(c->bbox[k], c->m.v[3 * i + k]);
+            c->bbox[k + 3] = fmax(c->bbox[k + 3], c->m.v[3 * i + k]);
+        }
+    return CLI_OK;
+}
+
+/* Distance |f - iso|/|grad f| of each point (infinite where the gradient vanishes); the
+ * framed box grows to hold the points. */
+static void point_distances(render_cmd *c, const double *g)
+{
+    const frep_cloud *cl = c->cl;
+    for (size_t i = 0; i < cl->n; i++) {
+        double gx = g[i], gy = g[cl->n + i], gz = g[2 * cl->n + i];
+        double gl = sqrt(gx * gx + gy * gy + gz * gz);
+        c->dist[i] = gl > 0 ? fabs(c->dist[i] - c->mc.iso) / gl : INFINITY;
+        if (isfinite(c->dist[i])) {
+            c->dmean += c->dist[i] / (double)cl->n;
+            c->dmax = fmax(c->dmax, c->dist[i]);
+        }
+        c->bbox[0] = fmin(c->bbox[0], cl->x[i]);
+        c->bbox[3] = fmax(c->bbox[3], cl->x[i]);
+        c->bbox[1] = fmin(c->bbox[1], cl->y[i]);
+        c->bbox[4] = fmax(c->bbox[4], cl->y[i]);
+        c->bbox[2] = fmin(c->bbox[2], cl->z[i]);
+        c->bbox[5] = fmax(c->bbox[5], cl->z[i]);
+    }
+}
+
+/* --points: read the cloud, measure its distances to the surface, scale the colours. */
+static int stage_points(render_cmd *c)
+{
+    char *msg = NULL;
+    c->cl = cloud_read(c->points, &msg);
+    if (!c->cl) {
+        fprintf(stderr, "%s\n", msg ? msg : "frep render: cannot read the cloud");
+        free(msg);
+        return CLI_FAIL;
+    }
+    const frep_cloud *cl = c->cl;
+    c->dist = malloc((cl->n + 1) * 4 * sizeof *c->dist);
+    if (!c->dist) {
+        fprintf(stderr, "frep render: out of memory\n");
+        return CLI_FAIL;
+    }
+    double *g = c->dist + cl->n;
+    frep_runtime_error e;
+    if (frep_eval_grad_par(c->mc.p, cl->n, cl->x, cl->y, cl->z, NULL, c->dist, g, g + cl->n,
+                           g + 2 * cl->n, c->mc.nthreads, &e) != 0) {
+        fprintf(stderr, "frep render: evaluation failed\n");
+        return CLI_FAIL;
+    }
+    mesh_cli_add_errors(&c->mc, &e);
+    mesh_cli_report_errors(&c->mc);
+    point_distances(c, g);
+    const double *b = c->bbox;
+    double diag = sqrt((b[3] - b[0]) * (b[3] - b[0]) + (b[4] - b[1]) * (b[4] - b[1]) +
+                       (b[5] - b[2]) * (b[5] - b[2]));
+    c->rp = (render_points){ cl->n, cl->x, cl->y, cl->z, c->dist, RENDER_FAR_FRACTION * diag };
+    return CLI_OK;
+}
+
+/* Rasterize the mesh (and the points) into c->rgb. */
+static int stage_draw(render_cmd *c)
+{
+    int W = c->size[0], H = c->size[1];
+    c->rgb = malloc(3 * (size_t)W * (size_t)H);
+    if (!c->rgb) {
+        fprintf(stderr, "frep render: out of memory for a %dx%d picture\n", W, H);
+        return CLI_FAIL;
+    }
+    render_options ro = { W, H, c->view, { 0 } };
+    memcpy(ro.bbox, c->bbox, sizeof c->bbox);
+    if (render_mesh(&c->m, c->points ? &c->rp : NULL, &ro, c->rgb) != 0) {
+        fprintf(stderr, "frep render: out of memory\n");
+        return CLI_FAIL;
+    }
+    return CLI_OK;
+}
 
 static int write_png_cb(FILE *f, void *user)
 {
-    png_ctx *p = user;
-    return png_write_rgb(f, p->rgb, p->w, p->h);
+    render_cmd *c = user;
+    return png_write_rgb(f, c->rgb, c->size[0], c->size[1]);
+}
+
+static void stage_report(const render_cmd *c)
+{
+    printf("%s: %dx%d, %s view of %zu triangles", c->out, c->size[0], c->size[1], c->view,
+           c->m.ntris);
+    if (c->points)
+        printf(", %zu points (distance to the surface: mean %.3g, max %.3g)", c->cl->n, c->dmean,
+               c->dmax);
+    printf("\n");
+}
+
+/* mesh -> [points] -> draw -> write -> report */
+static int render_steps(render_cmd *c)
+{
+    int rc = stage_mesh(c);
+    if (rc == CLI_OK && c->points) rc = stage_points(c);
+    if (rc == CLI_OK) rc = stage_draw(c);
+    if (rc == CLI_OK && cli_write_atomic(c->out, write_png_cb, c) != 0) rc = CLI_FAIL;
+    if (rc == CLI_OK && !c->quiet) stage_report(c);
+    return rc;
 }
 
 int cmd_render(int argc, char **argv)
 {
-    static const struct option longopts[] = {
-        { "help", no_argument, NULL, 'h' },
-        { "output", required_argument, NULL, 'o' },
-        { "size", required_argument, NULL, 'Z' },
-        { "view", required_argument, NULL, 'V' },
-        { "points", required_argument, NULL, 'P' },
-        { "model", required_argument, NULL, 'm' },
-        { "params", required_argument, NULL, 'a' },
-        { "box", required_argument, NULL, 'b' },
-        { "grid", required_argument, NULL, 'g' },
-        { "iso", required_argument, NULL, 'I' },
-        { "setops", required_argument, NULL, 'S' },
-        { "threads", required_argument, NULL, 't' },
-        { "quiet", no_argument, NULL, 'q' },
-        { NULL, 0, NULL, 0 },
-    };
-    mesh_cli mc;
-    mesh_cli_init(&mc);
-    mc.grid = 128;
-    const char *out = NULL, *view = "iso", *points = NULL;
-    int W = 800, H = 600, quiet = 0, c, rc;
-    optind = 1;
-    opterr = 0;
-    while ((c = getopt_long(argc, argv, "ho:m:a:b:g:t:q", longopts, NULL)) != -1) {
-        rc = 0;
-        switch (c) {
-        case 'h': fputs(render_usage, stdout); mesh_cli_free(&mc); return CLI_OK;
-        case 'o': out = optarg; break;
-        case 'Z': {
-            char x;
-            int n = sscanf(optarg, "%d%c%d", &W, &x, &H);
-            if (n != 3 || (x != 'x' && x != 'X') || W < 1 || H < 1 || W > PNG_MAX_SIDE ||
-                H > PNG_MAX_SIDE)
-                rc = cli_usage_error("render", "--size: expected WxH with sides 1..%d, got '%s'",
-                                     PNG_MAX_SIDE, optarg);
-            break;
-        }
-        case 'V':
-            view = optarg;
-            if (!render_view_ok(view))
-                rc = cli_usage_error("render", "--view: expected one of %s, got '%s'", RENDER_VIEWS,
-                                     optarg);
-            break;
-        case 'P': points = optarg; break;
-        case 'q': quiet = 1; break;
-        default:
-            rc = mesh_cli_option(&mc, "render", c, optarg);
-            if (rc == -1)
-                rc = cli_usage_error("render", "unknown or incomplete option '%s'", argv[optind - 1]);
-        }
-        if (rc != 0) {
-            mesh_cli_free(&mc);
-            return rc;
-        }
-    }
-    if (argc - optind != 1) {
-        mesh_cli_free(&mc);
-        return cli_usage_error("render", "expected one input: FILE.hf or a mesh file");
-    }
-    if (!out) {
-        mesh_cli_free(&mc);
-        return cli_usage_error("render", "-o VIEW.png is required");
-    }
-    const char *in = argv[optind];
-    int is_mesh = meshio_format_for_path(in) != MESHIO_UNKNOWN;
-    frep_mesh m;
-    memset(&m, 0, sizeof m);
-    mesh_stats st;
-    memset(&st, 0, sizeof st);
-    frep_cloud *cl = NULL;
-    double *dist = NULL;
-    uint8_t *rgb = NULL;
-    rc = CLI_FAIL;
-    if (is_mesh) {
-        char *msg = NULL;
-        if (meshio_read(in, &m, &msg) != 0) {
-            fprintf(stderr, "%s\n", msg ? msg : "frep render: cannot read the mesh");
-            free(msg);
-            goto done;
-        }
-        if (points) {
-            fprintf(stderr, "frep render: --points needs a model (FILE.hf) to measure distances\n");
-            rc = CLI_USAGE;
-            goto done;
-        }
-    } else {
-        if (mesh_cli_compile(&mc, in) != CLI_OK) goto done;
-        if (mesh_cli_polygonize(&mc, "render", &m, &st) != CLI_OK) goto done;
-    }
-    double bbox[6] = { INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY };
-    for (size_t i = 0; i < m.nverts; i++)
-        for (int k = 0; k < 3; k++) {
-            bbox[k] = fmin(bbox[k], m.v[3 * i + k]);
-            bbox[k + 3] = fmax(bbox[k + 3], m.v[3 * i + k]);
-        }
-    render_points rp;
-    memset(&rp, 0, sizeof rp);
-    double dmean = 0, dmax = 0;
-    if (points) {
-        char *msg = NULL;
-        cl = cloud_read(points, &msg);
-        if (!cl) {
-            fprintf(stderr, "%s\n", msg ? msg : "frep render: cannot read the cloud");
-            free(msg);
-            goto done;
-        }
-        dist = malloc((cl->n + 1) * 4 * sizeof *dist);
-        if (!dist) {
-            fprintf(stderr, "frep render: out of memory\n");
-            goto done;
-        }
-        double *g = dist + cl->n;
-        frep_runtime_error e;
-        if (frep_eval_grad_par(mc.p, cl->n, cl->x, cl->y, cl->z, NULL, dist, g, g + cl->n,
-                               g + 2 * cl->n, mc.nthreads, &e) != 0) {
-            fprintf(stderr, "frep render: evaluation failed\n");
-            goto done;
-        }
-        mesh_cli_add_errors(&mc, &e);
-        mesh_cli_report_errors(&mc);
-        for (size_t i = 0; i < cl->n; i++) {
-            double gx = g[i], gy = g[cl->n + i], gz = g[2 * cl->n + i];
-            double gl = sqrt(gx * gx + gy * gy + gz * gz);
-            dist[i] = gl > 0 ? fabs(dist[i] - mc.iso) / gl : INFINITY;
-            if (isfinite(dist[i])) {
-                dmean += dist[i] / (double)cl->n;
-                dmax = fmax(dmax, dist[i]);
-            }
-            bbox[0] = fmin(bbox[0], cl->x[i]);
-            bbox[3] = fmax(bbox[3], cl->x[i]);
-            bbox[1] = fmin(bbox[1], cl->y[i]);
-            bbox[4] = fmax(bbox[4], cl->y[i]);
-            bbox[2] = fmin(bbox[2], cl->z[i]);
-            bbox[5] = fmax(bbox[5], cl->z[i]);
-        }
-        double diag = sqrt((bbox[3] - bbox[0]) * (bbox[3] - bbox[0]) +
-                           (bbox[4] - bbox[1]) * (bbox[4] - bbox[1]) +
-                           (bbox[5] - bbox[2]) * (bbox[5] - bbox[2]));
-        rp.n = cl->n;
-        rp.x = cl->x;
-        rp.y = cl->y;
-        rp.z = cl->z;
-        rp.value = dist;
-        rp.vmax = RENDER_FAR_FRACTION * diag;
-    }
-    rgb = malloc(3 * (size_t)W * (size_t)H);
-    if (!rgb) {
-        fprintf(stderr, "frep render: out of memory for a %dx%d picture\n", W, H);
-        goto done;
-    }
-    render_options ro = { W, H, view, { 0 } };
-    memcpy(ro.bbox, bbox, sizeof bbox);
-    if (render_mesh(&m, points ? &rp : NULL, &ro, rgb) != 0) {
-        fprintf(stderr, "frep render: out of memory\n");
-        goto done;
-    }
-    png_ctx pc = { rgb, W, H };
-    if (cli_write_atomic(out, write_png_cb, &pc) != 0) goto done;
-    if (!quiet) {
-        printf("%s: %dx%d, %s view of %zu triangles", out, W, H, view, m.ntris);
-        if (points)
-            printf(", %zu points (distance to the surface: mean %.3g, max %.3g)", cl->n, dmean,
-                   dmax);
-        printf("\n");
-    }
-    rc = CLI_OK;
-done:
-    mesh_free(&m);
-    cloud_free(cl);
-    free(dist);
-    free(rgb);
-    mesh_cli_free(&mc);
+    render_cmd c;
+    memset(&c, 0, sizeof c);
+    mesh_cli_init(&c.mc);
+    int rc = stage_options(&c, argc, argv);
+    if (rc == CLI_GO_ON) rc = render_steps(&c);
+    mesh_free(&c.m);
+    cloud_free(c.cl);
+    free(c.dist);
+    free(c.rgb);
+    mesh_cli_free(&c.mc);
     return rc;
 }

@@ -7,13 +7,9 @@
 #include "cli.h"
 #include "cloud.h"
 #include "mesh.h"
-#include "meshio.h"
 #include "sample.h"
 
 #include <errno.h>
-#include <getopt.h>
-#include <math.h>
-#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -25,175 +21,150 @@ static const char sample_usage[] =
     "outward unit normal -grad f/|grad f|: area-weighted points on a fine mesh, projected\n"
     "onto the surface by Newton steps. From a triangle mesh file: area-weighted points\n"
     "with the face normals. The same seed gives the same cloud at any thread count.\n"
-    "CLOUD is .xyz text (x y z nx ny nz a line) or .ply (binary).\n\n"
-    "Options:\n"
-    "  -n, --points N      number of points, outliers included (required)\n"
-    "  -o, --output CLOUD  file to write (required; '-' for .xyz on stdout)\n"
-    "      --noise SIGMA   Gaussian noise on the positions: standard deviation SIGMA times\n"
-    "                      the box diagonal (the mesh's bounding box for mesh input), or\n"
-    "                      SIGMA in model units when written with the suffix 'abs' (0.01abs)\n"
-    "      --outliers F    fraction F of the N points drawn uniformly in the box\n"
-    "      --seed S        random seed (default: from the clock; always printed)\n"
-    "  -m, --model NAME    the model (default: my_model, else the last one)\n"
-    "  -a, --params LIST   values of the model's a[] array\n"
-    "  -b, --box BOX       HyperFun's -b (default: the model's '-- @box', else 10)\n"
-    "  -g, --grid N        grid of the sampling mesh (default: from N, 32..256)\n"
-    "      --iso V         sample f = V\n"
-    "      --setops S      override the file's set operations: rfunc, minmax\n"
-    "  -t, --threads N     OpenMP threads\n"
-    "  -q, --quiet         no summary line\n";
+    "CLOUD is .xyz text (x y z nx ny nz a line) or .ply (binary).\n\n";
 
-typedef struct cloud_write_ctx {
-    const frep_cloud *c;
-    const char *path;
-} cloud_write_ctx;
+typedef struct sample_cmd {
+    mesh_cli mc;
+    sample_options so;
+    const char *in, *out;
+    int quiet;
+    frep_cloud *cl;
+    double t0;               /* clock() when the input is read */
+} sample_cmd;
+
+/* --noise SIGMA or SIGMAabs (model units). */
+static int parse_noise(const char *arg, void *dest, char *why, size_t whylen)
+{
+    sample_options *so = dest;
+    char *end;
+    errno = 0;
+    so->noise = strtod(arg, &end);
+    so->noise_absolute = strcmp(end, "abs") == 0;
+    return (*end && !so->noise_absolute) || errno || !(so->noise >= 0) || !isfinite(so->noise)
+               ? -1 : 0;
+}
+
+#define OFF(f) offsetof(sample_cmd, f)
+static const cli_opt sample_opts[] = {
+    { 'n', "points", "N", CLI_OPT_SIZE, OFF(so.n), .lo = 1, .hi = (double)SAMPLE_MAX_POINTS,
+      .what = "a point count", .help = "number of points, outliers included (required)" },
+    { 'o', "output", "CLOUD", CLI_OPT_STRING, OFF(out),
+      .help = "file to write (required; '-' for .xyz on stdout)" },
+    { 0, "noise", "SIGMA", CLI_OPT_CUSTOM, OFF(so), .parse = parse_noise,
+      .expect = "a number >= 0, optionally with the suffix 'abs'",
+      .help = "Gaussian noise on the positions: standard deviation SIGMA times\n"
+              "the box diagonal (the mesh's bounding box for mesh input), or\n"
+              "SIGMA in model units when written with the suffix 'abs' (0.01abs)" },
+    { 0, "outliers", "F", CLI_OPT_DOUBLE, OFF(so.outliers), .lo = 0, .hi = 1, .what = "a fraction",
+      .help = "fraction F of the N points drawn uniformly in the box" },
+    CLI_OPT_SEED(sample_cmd, so.seed, "random seed (default: from the clock; always printed)"),
+    CLI_OPT_MODEL(sample_cmd, mc.model, "the model (default: my_model, else the last one)"),
+    CLI_OPT_PARAMS(sample_cmd, mc.a, "values of the model's a[] array"),
+    CLI_OPT_BOX(sample_cmd, mc.box, "HyperFun's -b (default: the model's '-- @box', else 10)"),
+    CLI_OPT_GRID(sample_cmd, mc.grid, NULL, "grid of the sampling mesh (default: from N, 32..256)"),
+    CLI_OPT_ISO(sample_cmd, mc.iso, "sample f = V"),
+    CLI_OPT_SETOPS(sample_cmd, mc.setops, "override the file's set operations: rfunc, minmax"),
+    CLI_OPT_THREADS(sample_cmd, mc.nthreads, "OpenMP threads"),
+    CLI_OPT_QUIET(sample_cmd, quiet, "no summary line"),
+};
+#undef OFF
+static const cli_opt_spec sample_spec = { "sample", sample_usage, sample_opts,
+                                          sizeof sample_opts / sizeof sample_opts[0], 22 };
+
+/* Options -> one input, -n and -o; the seed from the clock unless given. */
+static int stage_options(sample_cmd *c, int argc, char **argv)
+{
+    cli_args args;
+    int rc = mesh_cli_parse(&sample_spec, argc, argv, c, offsetof(sample_cmd, mc), &args);
+    if (rc != CLI_GO_ON) return rc;
+    if (args.n != 1) return cli_usage_error("sample", "expected one input: FILE.hf or a mesh file");
+    if (!c->out || c->so.n == 0) return cli_usage_error("sample", "-n N and -o CLOUD are required");
+    if (!cli_opt_given(&sample_spec, &args, "seed")) c->so.seed = (uint64_t)time(NULL);
+    c->in = args.v[0];
+    return CLI_GO_ON;
+}
+
+/* The sampler's status -> the exit status, with its reason. */
+static int sampled(const sample_cmd *c, int rc, const char *err)
+{
+    if (rc == 0) return CLI_OK;
+    fprintf(stderr, "frep sample: %s: %s\n", c->in, err);
+    return CLI_FAIL;
+}
+
+/* Area-weighted points on a mesh file's triangles. */
+static int stage_sample_mesh(sample_cmd *c)
+{
+    char err[256];
+    frep_mesh m;
+    memset(&m, 0, sizeof m);
+    if (cli_read_mesh("sample", c->in, &m) != CLI_OK) return CLI_FAIL;
+    int rc = sample_mesh(&m, &c->so, &c->cl, err, sizeof err);
+    mesh_free(&m);
+    return sampled(c, rc, err);
+}
+
+/* Points on the model's surface, through the sampling mesh of the model's box. */
+static int stage_sample_model(sample_cmd *c)
+{
+    char err[256];
+    mesh_cli *mc = &c->mc;
+    int rc = mesh_cli_compile(mc, c->in);
+    if (rc != CLI_OK) return rc;
+    mesh_field f;
+    if (mesh_field_program(&f, mc->p, NULL) != 0) {
+        fprintf(stderr, "frep sample: out of memory\n");
+        return CLI_FAIL;
+    }
+    memcpy(c->so.mesh.box, mc->box, sizeof mc->box);
+    c->so.mesh.grid = mc->grid;
+    c->so.mesh.iso = mc->iso;
+    c->so.mesh.nthreads = mc->nthreads;
+    rc = sample_field(&f, &c->so, &c->cl, err, sizeof err);
+    frep_runtime_error re;
+    mesh_field_program_errors(&f, &re);
+    mesh_cli_add_errors(mc, &re);
+    mesh_field_program_free(&f);
+    mesh_cli_report_errors(mc);
+    return sampled(c, rc, err);
+}
 
 static int write_cloud_cb(FILE *f, void *user)
 {
-    cloud_write_ctx *w = user;
-    return cloud_write_for_path(f, w->c, w->path);
+    sample_cmd *c = user;
+    return cloud_write_for_path(f, c->cl, c->out);
+}
+
+/* The summary line: on stderr when the cloud goes to stdout. */
+static void stage_report(const sample_cmd *c)
+{
+    FILE *sf = strcmp(c->out, "-") == 0 ? stderr : stdout;
+    size_t nout = (size_t)floor(c->so.outliers * (double)c->so.n + 0.5);
+    fprintf(sf, "%s: %zu points (%zu outliers), noise %g%s, seed %llu, %.2f s cpu\n", c->out,
+            c->cl->n, nout, c->so.noise, c->so.noise_absolute ? " (absolute)" : " x box diagonal",
+            (unsigned long long)c->so.seed, ((double)clock() - c->t0) / CLOCKS_PER_SEC);
+}
+
+/* sample (a mesh file or a model) -> write -> report */
+static int sample_steps(sample_cmd *c)
+{
+    c->t0 = (double)clock();
+    int rc = cli_is_mesh_path(c->in) ? stage_sample_mesh(c) : stage_sample_model(c);
+    if (rc == CLI_OK) rc = cli_write_atomic(c->out, write_cloud_cb, c) == 0 ? CLI_OK : CLI_FAIL;
+    if (rc == CLI_OK && !c->quiet) stage_report(c);
+    return rc;
 }
 
 int cmd_sample(int argc, char **argv)
 {
-    static const struct option longopts[] = {
-        { "help", no_argument, NULL, 'h' },
-        { "points", required_argument, NULL, 'n' },
-        { "output", required_argument, NULL, 'o' },
-        { "noise", required_argument, NULL, 'N' },
-        { "outliers", required_argument, NULL, 'O' },
-        { "seed", required_argument, NULL, 's' },
-        { "model", required_argument, NULL, 'm' },
-        { "params", required_argument, NULL, 'a' },
-        { "box", required_argument, NULL, 'b' },
-        { "grid", required_argument, NULL, 'g' },
-        { "iso", required_argument, NULL, 'I' },
-        { "setops", required_argument, NULL, 'S' },
-        { "threads", required_argument, NULL, 't' },
-        { "quiet", no_argument, NULL, 'q' },
-        { NULL, 0, NULL, 0 },
-    };
-    mesh_cli mc;
-    mesh_cli_init(&mc);
-    mc.grid = 0;
-    sample_options so;
-    sample_options_init(&so);
-    so.n = 0;
-    const char *out = NULL;
-    int have_seed = 0, quiet = 0, c, rc;
-    char *end;
-    optind = 1;
-    opterr = 0;
-    while ((c = getopt_long(argc, argv, "hn:o:m:a:b:g:t:q", longopts, NULL)) != -1) {
-        rc = 0;
-        switch (c) {
-        case 'h': fputs(sample_usage, stdout); mesh_cli_free(&mc); return CLI_OK;
-        case 'n': {
-            errno = 0;
-            double v = strtod(optarg, &end);
-            if (*end || errno || !(v >= 1 && v <= (double)SAMPLE_MAX_POINTS) || v != floor(v))
-                rc = cli_usage_error("sample", "-n: expected a point count in 1..%zu, got '%s'",
-                                     (size_t)SAMPLE_MAX_POINTS, optarg);
-            so.n = (size_t)v;
-            break;
-        }
-        case 'o': out = optarg; break;
-        case 'N':
-            errno = 0;
-            so.noise = strtod(optarg, &end);
-            so.noise_absolute = strcmp(end, "abs") == 0;
-            if ((*end && !so.noise_absolute) || errno || !(so.noise >= 0) || !isfinite(so.noise))
-                rc = cli_usage_error("sample", "--noise: expected a number >= 0, optionally with "
-                                     "the suffix 'abs', got '%s'", optarg);
-            break;
-        case 'O':
-            errno = 0;
-            so.outliers = strtod(optarg, &end);
-            if (*end || errno || !(so.outliers >= 0 && so.outliers <= 1))
-                rc = cli_usage_error("sample", "--outliers: expected a fraction in [0, 1], got '%s'",
-                                     optarg);
-            break;
-        case 's':
-            errno = 0;
-            so.seed = strtoull(optarg, &end, 10);
-            if (*end || errno || optarg[0] == '-')
-                rc = cli_usage_error("sample", "--seed: expected a non-negative integer, got '%s'",
-                                     optarg);
-            have_seed = 1;
-            break;
-        case 'q': quiet = 1; break;
-        default:
-            rc = mesh_cli_option(&mc, "sample", c, optarg);
-            if (rc == -1)
-                rc = cli_usage_error("sample", "unknown or incomplete option '%s'", argv[optind - 1]);
-        }
-        if (rc != 0) {
-            mesh_cli_free(&mc);
-            return rc;
-        }
-    }
-    if (argc - optind != 1) {
-        mesh_cli_free(&mc);
-        return cli_usage_error("sample", "expected one input: FILE.hf or a mesh file");
-    }
-    if (!out || so.n == 0) {
-        mesh_cli_free(&mc);
-        return cli_usage_error("sample", "-n N and -o CLOUD are required");
-    }
-    if (!have_seed) so.seed = (uint64_t)time(NULL);
-    const char *in = argv[optind];
-    frep_cloud *cl = NULL;
-    char err[256];
-    double t0 = (double)clock();
-    if (meshio_format_for_path(in) != MESHIO_UNKNOWN) {
-        frep_mesh m;
-        char *msg = NULL;
-        if (meshio_read(in, &m, &msg) != 0) {
-            fprintf(stderr, "%s\n", msg ? msg : "frep sample: cannot read the mesh");
-            free(msg);
-            mesh_cli_free(&mc);
-            return CLI_FAIL;
-        }
-        rc = sample_mesh(&m, &so, &cl, err, sizeof err);
-        mesh_free(&m);
-    } else {
-        rc = mesh_cli_compile(&mc, in);
-        if (rc != CLI_OK) {
-            mesh_cli_free(&mc);
-            return rc;
-        }
-        mesh_field f;
-        if (mesh_field_program(&f, mc.p, NULL) != 0) {
-            mesh_cli_free(&mc);
-            fprintf(stderr, "frep sample: out of memory\n");
-            return CLI_FAIL;
-        }
-        memcpy(so.mesh.box, mc.box, sizeof mc.box);
-        so.mesh.grid = mc.grid;
-        so.mesh.iso = mc.iso;
-        so.mesh.nthreads = mc.nthreads;
-        rc = sample_field(&f, &so, &cl, err, sizeof err);
-        frep_runtime_error re;
-        mesh_field_program_errors(&f, &re);
-        mesh_cli_add_errors(&mc, &re);
-        mesh_field_program_free(&f);
-        mesh_cli_report_errors(&mc);
-    }
-    if (rc != 0) {
-        fprintf(stderr, "frep sample: %s: %s\n", in, err);
-        mesh_cli_free(&mc);
-        return CLI_FAIL;
-    }
-    cloud_write_ctx w = { cl, out };
-    rc = cli_write_atomic(out, write_cloud_cb, &w) == 0 ? CLI_OK : CLI_FAIL;
-    if (rc == CLI_OK && !quiet) {
-        FILE *sf = strcmp(out, "-") == 0 ? stderr : stdout;
-        size_t nout = (size_t)floor(so.outliers * (double)so.n + 0.5);
-        fprintf(sf, "%s: %zu points (%zu outliers), noise %g%s, seed %llu, %.2f s cpu\n", out,
-                cl->n, nout, so.noise, so.noise_absolute ? " (absolute)" : " x box diagonal",
-                (unsigned long long)so.seed, ((double)clock() - t0) / CLOCKS_PER_SEC);
-    }
-    cloud_free(cl);
-    mesh_cli_free(&mc);
+    sample_cmd c;
+    memset(&c, 0, sizeof c);
+    mesh_cli_init(&c.mc);
+    sample_options_init(&c.so);
+    c.so.n = 0;
+    int rc = stage_options(&c, argc, argv);
+    if (rc == CLI_GO_ON) rc = sample_steps(&c);
+    cloud_free(c.cl);
+    mesh_cli_free(&c.mc);
     return rc;
 }

@@ -9,10 +9,7 @@
 #include "fitfile.h"
 #include "segment.h"
 
-#include <errno.h>
-#include <getopt.h>
 #include <math.h>
-#include <signal.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -28,34 +25,7 @@ static const char segment_usage[] =
     "by efficient RANSAC (Schnabel et al. 2007) and add the separating primitives of\n"
     "Fayolle & Pasko (2016): the oriented box planes of each curved primitive and a\n"
     "cylinder for each torus. Prints a summary table; with -o writes a frep model listing\n"
-    "each primitive (.hf) or the plain .fit list of the reference GP implementation.\n\n"
-    "Options:\n"
-    "  -o, --output FILE         primitives: .hf model, or .fit list\n"
-    "      --labels FILE         per point (one a line): number N of its primitive pN, 0: none\n"
-    "      --types LIST          among plane,sphere,cylinder,cone,torus (default: all)\n"
-    "      --epsilon E           inlier distance (default 1% of the box diagonal; 'abs'\n"
-    "                            suffix not needed: E is in model units)\n"
-    "      --cluster D           connectivity cell size (default: 1% of the diagonal, at\n"
-    "                            least 3 median point spacings)\n"
-    "      --normal-threshold T  largest normal deviation of an inlier, degrees (25)\n"
-    "      --min-points M        smallest support of a primitive (default 1% of the points,\n"
-    "                            at least 10)\n"
-    "      --min-points-small M  then tight shapes down to M points (default 0.25% of the\n"
-    "                            points, at least 10; 0: no second phase)\n"
-    "      --probability P       confidence of not having missed a better shape (0.99)\n"
-    "      --knn K               neighbours for normal estimation (12)\n"
-    "      --no-separating       do not add separating primitives\n"
-    "      --seed S              random seed (default: from the clock; always printed)\n"
-    "  -t, --threads N           OpenMP threads (the result does not depend on it)\n"
-    "  -q, --quiet               no summary\n";
-
-static volatile sig_atomic_t segment_interrupted;
-
-static void on_sigint(int sig)
-{
-    (void)sig;
-    segment_interrupted = 1;
-}
+    "each primitive (.hf) or the plain .fit list of the reference GP implementation.\n\n";
 
 static double now_seconds(void)
 {
@@ -112,24 +82,12 @@ static int ends_with(const char *s, const char *suf)
     return a >= b && strcmp(s + a - b, suf) == 0;
 }
 
-static int parse_double(const char *opt, const char *s, double *v, double lo, double hi)
+/* --types plane,sphere,...: a bit per type. */
+static int parse_types(const char *arg, void *dest, char *why, size_t whylen)
 {
-    char *e;
-    errno = 0;
-    double t = strtod(s, &e);
-    if (e == s || *e || errno || !(t >= lo && t <= hi)) {
-        cli_usage_error("segment", "%s expects a number in [%g, %g], got '%s'", opt, lo, hi, s);
-        return -1;
-    }
-    *v = t;
-    return 0;
-}
-
-static int parse_types(const char *s, unsigned *mask)
-{
+    unsigned *mask = dest;
     *mask = 0;
-    const char *p = s;
-    while (*p) {
+    for (const char *p = arg; *p;) {
         const char *e = strchr(p, ',');
         size_t l = e ? (size_t)(e - p) : strlen(p);
         int found = 0;
@@ -141,17 +99,14 @@ static int parse_types(const char *s, unsigned *mask)
             }
         }
         if (!found) {
-            cli_usage_error("segment", "unknown primitive type '%.*s' in --types "
-                            "(expected plane, sphere, cylinder, cone, torus)", (int)l, p);
+            snprintf(why, whylen, "unknown primitive type '%.*s' (expected plane, sphere, "
+                     "cylinder, cone, torus)", (int)l, p);
             return -1;
         }
         p += l + (e ? 1 : 0);
     }
-    if (!*mask) {
-        cli_usage_error("segment", "--types needs at least one type");
-        return -1;
-    }
-    return 0;
+    if (!*mask) snprintf(why, whylen, "needs at least one type");
+    return *mask ? 0 : -1;
 }
 
 /* Summary precision: relative to the diagonal for lengths, absolute for directions. */
@@ -196,165 +151,180 @@ static void print_params(const prim *q, double diag)
     }
 }
 
-int cmd_segment(int argc, char **argv)
-{
-    enum { O_LABELS = 256, O_TYPES, O_EPS, O_CLUSTER, O_NORMAL, O_MINPTS, O_MINSMALL, O_PROB, O_SEED,
-           O_KNN, O_NOSEP };
-    static const struct option longopts[] = {
-        { "help", no_argument, NULL, 'h' },
-        { "output", required_argument, NULL, 'o' },
-        { "labels", required_argument, NULL, O_LABELS },
-        { "types", required_argument, NULL, O_TYPES },
-        { "epsilon", required_argument, NULL, O_EPS },
-        { "cluster", required_argument, NULL, O_CLUSTER },
-        { "normal-threshold", required_argument, NULL, O_NORMAL },
-        { "min-points", required_argument, NULL, O_MINPTS },
-        { "min-points-small", required_argument, NULL, O_MINSMALL },
-        { "probability", required_argument, NULL, O_PROB },
-        { "seed", required_argument, NULL, O_SEED },
-        { "knn", required_argument, NULL, O_KNN },
-        { "no-separating", no_argument, NULL, O_NOSEP },
-        { "threads", required_argument, NULL, 't' },
-        { "quiet", no_argument, NULL, 'q' },
-        { NULL, 0, NULL, 0 },
-    };
+typedef struct segment_cmd {
     segment_config cfg;
-    segment_config_init(&cfg);
-    const char *out = NULL, *labels = NULL;
-    int quiet = 0, have_seed = 0;
-    double v;
-    optind = 1;
-    opterr = 0;
-    int ch;
-    while ((ch = getopt_long(argc, argv, ":ho:t:q", longopts, NULL)) != -1) {
-        switch (ch) {
-        case 'h': fputs(segment_usage, stdout); return CLI_OK;
-        case 'o': out = optarg; break;
-        case O_LABELS: labels = optarg; break;
-        case O_TYPES: if (parse_types(optarg, &cfg.types)) return CLI_USAGE; break;
-        case O_EPS:
-            if (parse_double("--epsilon", optarg, &cfg.epsilon, 1e-300, 1e300)) return CLI_USAGE;
-            break;
-        case O_CLUSTER:
-            if (parse_double("--cluster", optarg, &cfg.cluster, 1e-300, 1e300)) return CLI_USAGE;
-            break;
-        case O_NORMAL:
-            if (parse_double("--normal-threshold", optarg, &cfg.normal_deg, 0.01, 90)) return CLI_USAGE;
-            break;
-        case O_MINPTS:
-            if (parse_double("--min-points", optarg, &v, 3, 4e9)) return CLI_USAGE;
-            cfg.min_points = (size_t)v;
-            break;
-        case O_MINSMALL:
-            if (parse_double("--min-points-small", optarg, &v, 0, 4e9)) return CLI_USAGE;
-            cfg.min_points_small = v < 1 ? SEGMENT_NO_SMALL : (size_t)(v < 3 ? 3 : v);
-            break;
-        case O_PROB:
-            if (parse_double("--probability", optarg, &cfg.probability, 0.01, 0.999999)) return CLI_USAGE;
-            break;
-        case O_KNN:
-            if (parse_double("--knn", optarg, &v, 3, 256)) return CLI_USAGE;
-            cfg.knn = (size_t)v;
-            break;
-        case O_SEED: {
-            char *e;
-            errno = 0;
-            unsigned long long s = strtoull(optarg, &e, 10);
-            if (e == optarg || *e || errno || optarg[0] == '-')
-                return cli_usage_error("segment", "--seed expects a non-negative integer, got '%s'", optarg);
-            cfg.seed = s;
-            have_seed = 1;
-            break;
-        }
-        case O_NOSEP: cfg.separating = 0; break;
-        case 't':
-            if (parse_double("--threads", optarg, &v, 1, 1024)) return CLI_USAGE;
-            cfg.nthreads = (int)v;
-            break;
-        case 'q': quiet = 1; break;
-        case ':': return cli_usage_error("segment", "option '%s' needs a value", argv[optind - 1]);
-        default: return cli_usage_error("segment", "unknown option '%s'", argv[optind - 1]);
-        }
-    }
-    if (optind != argc - 1)
-        return cli_usage_error("segment", optind >= argc ? "missing CLOUD file" : "too many arguments");
-    const char *in = argv[optind];
-    if (!have_seed) cfg.seed = (uint64_t)time(NULL) ^ ((uint64_t)getpid() << 32);
+    const char *in, *out, *labels;
+    size_t min_small;          /* --min-points-small as given */
+    int quiet;
+    frep_cloud *c;
+    int had_normals;           /* the file had normals (before segment_run) */
+    segment_result r;
+    double elapsed;
+    char header[2048];         /* of the .hf output: the command line and every setting */
+} segment_cmd;
 
+#define OFF(f) offsetof(segment_cmd, f)
+static const cli_opt segment_opts[] = {
+    { 'o', "output", "FILE", CLI_OPT_STRING, OFF(out), .help = "primitives: .hf model, or .fit list" },
+    { 0, "labels", "FILE", CLI_OPT_STRING, OFF(labels),
+      .help = "per point (one a line): number N of its primitive pN, 0: none" },
+    { 0, "types", "LIST", CLI_OPT_CUSTOM, OFF(cfg.types), .parse = parse_types,
+      .help = "among plane,sphere,cylinder,cone,torus (default: all)" },
+    { 0, "epsilon", "E", CLI_OPT_DOUBLE, OFF(cfg.epsilon), .lo = 0, .hi = INFINITY, .open_lo = 1,
+      .help = "inlier distance (default 1% of the box diagonal; 'abs'\n"
+              "suffix not needed: E is in model units)" },
+    { 0, "cluster", "D", CLI_OPT_DOUBLE, OFF(cfg.cluster), .lo = 0, .hi = INFINITY, .open_lo = 1,
+      .help = "connectivity cell size (default: 1% of the diagonal, at\n"
+              "least 3 median point spacings)" },
+    { 0, "normal-threshold", "T", CLI_OPT_DOUBLE, OFF(cfg.normal_deg), .lo = 0.01, .hi = 90,
+      .help = "largest normal deviation of an inlier, degrees (25)" },
+    { 0, "min-points", "M", CLI_OPT_SIZE, OFF(cfg.min_points), .lo = 3, .hi = 4e9,
+      .help = "smallest support of a primitive (default 1% of the points,\n"
+              "at least 10)" },
+    { 0, "min-points-small", "M", CLI_OPT_SIZE, OFF(min_small), .lo = 0, .hi = 4e9,
+      .help = "then tight shapes down to M points (default 0.25% of the\n"
+              "points, at least 10; 0: no second phase)" },
+    { 0, "probability", "P", CLI_OPT_DOUBLE, OFF(cfg.probability), .lo = 0.01, .hi = 0.999999,
+      .help = "confidence of not having missed a better shape (0.99)" },
+    { 0, "knn", "K", CLI_OPT_SIZE, OFF(cfg.knn), .lo = 3, .hi = 256,
+      .help = "neighbours for normal estimation (12)" },
+    { 0, "no-separating", NULL, CLI_OPT_CLEAR, OFF(cfg.separating),
+      .help = "do not add separating primitives" },
+    CLI_OPT_SEED(segment_cmd, cfg.seed, "random seed (default: from the clock; always printed)"),
+    CLI_OPT_THREADS(segment_cmd, cfg.nthreads, "OpenMP threads (the result does not depend on it)"),
+    CLI_OPT_QUIET(segment_cmd, quiet, "no summary"),
+};
+#undef OFF
+static const cli_opt_spec segment_spec = { "segment", segment_usage, segment_opts,
+                                           sizeof segment_opts / sizeof segment_opts[0], 28 };
+
+/* Options -> one CLOUD; the seed from the clock and the process unless given. */
+static int stage_options(segment_cmd *s, int argc, char **argv)
+{
+    cli_args args;
+    int rc = cli_opt_parse(&segment_spec, argc, argv, s, &args);
+    if (rc != CLI_GO_ON) return rc;
+    if (args.n != 1)
+        return cli_usage_error("segment", args.n < 1 ? "missing CLOUD file" : "too many arguments");
+    if (cli_opt_given(&segment_spec, &args, "min-points-small"))
+        s->cfg.min_points_small = s->min_small < 1 ? SEGMENT_NO_SMALL
+                                                   : s->min_small < 3 ? 3 : s->min_small;
+    if (!cli_opt_given(&segment_spec, &args, "seed"))
+        s->cfg.seed = (uint64_t)time(NULL) ^ ((uint64_t)getpid() << 32);
+    s->in = args.v[0];
+    return CLI_GO_ON;
+}
+
+/* RANSAC over the cloud, with progress on a terminal; Ctrl-C keeps what was found. */
+static int stage_segment(segment_cmd *s)
+{
     char *err = NULL;
-    frep_cloud *c = cloud_read(in, &err);
-    if (!c) {
+    s->c = cloud_read(s->in, &err);
+    if (!s->c) {
         fprintf(stderr, "frep segment: %s\n", err ? err : "cannot read the cloud");
         free(err);
         return CLI_FAIL;
     }
-    int had_normals = c->has_normals;
+    s->had_normals = s->c->has_normals;
     progress_state ps = {0, 0};
-    if (isatty(2) && !quiet) {
-        cfg.progress = progress;
-        cfg.user = &ps;
+    if (isatty(2) && !s->quiet) {
+        s->cfg.progress = progress;
+        s->cfg.user = &ps;
     }
-    cfg.interrupt = &segment_interrupted;
-    void (*old)(int) = signal(SIGINT, on_sigint);
+    s->cfg.interrupt = cli_sigint_catch();
     double t0 = now_seconds();
-    segment_result r;
-    int rc = segment_run(c, &cfg, &r, &err);
-    double elapsed = now_seconds() - t0;
-    signal(SIGINT, old == SIG_ERR ? SIG_DFL : old);
+    int rc = segment_run(s->c, &s->cfg, &s->r, &err);
+    s->elapsed = now_seconds() - t0;
+    cli_sigint_restore();
     if (ps.shown) fputs("\r\033[K", stderr);
     if (rc) {
-        fprintf(stderr, "%s: error: %s\n", in, err ? err : "segmentation failed");
+        fprintf(stderr, "%s: error: %s\n", s->in, err ? err : "segmentation failed");
         free(err);
-        cloud_free(c);
         return CLI_FAIL;
     }
-    if (r.interrupted) fprintf(stderr, "frep segment: interrupted; writing what was found\n");
+    if (s->r.interrupted) fprintf(stderr, "frep segment: interrupted; writing what was found\n");
+    return CLI_OK;
+}
 
-    /* The header of the .hf output: the command line and every setting. */
-    char header[2048];
-    int hl = snprintf(header, sizeof header, "frep segment");
-    for (int i = 1; i < argc && hl < (int)sizeof header - 64; i++)
-        hl += snprintf(header + hl, sizeof header - (size_t)hl, " %s", argv[i]);
-    snprintf(header + hl, sizeof header - (size_t)hl,
+/* The header of the .hf output: the command line and every setting. */
+static void stage_header(segment_cmd *s, int argc, char **argv)
+{
+    const segment_result *r = &s->r;
+    char *h = s->header;
+    size_t cap = sizeof s->header;
+    int hl = snprintf(h, cap, "frep segment");
+    for (int i = 1; i < argc && hl < (int)cap - 64; i++)
+        hl += snprintf(h + hl, cap - (size_t)hl, " %s", argv[i]);
+    snprintf(h + hl, cap - (size_t)hl,
              "\nseed %llu, epsilon %.6g, cluster %.6g, normal threshold %g deg, "
              "min points %zu (small %zu), probability %g\n%zu points, %zu fitted primitives, %zu separating, "
              "%zu unassigned points",
-             (unsigned long long)cfg.seed, r.epsilon, r.cluster, r.normal_deg, r.min_points,
-             r.min_points_small, r.probability, c->n, r.nfitted, r.nprims - r.nfitted, r.unassigned);
+             (unsigned long long)s->cfg.seed, r->epsilon, r->cluster, r->normal_deg, r->min_points,
+             r->min_points_small, r->probability, s->c->n, r->nfitted, r->nprims - r->nfitted,
+             r->unassigned);
+}
 
-    if (!quiet) {
-        printf("frep segment: %s: %zu points, normals %s, seed %llu\n", in, c->n,
-               r.normals_estimated ? (had_normals ? "re-estimated (zero-length ones in the file)"
+/* The summary table on stdout. */
+static void stage_report(const segment_cmd *s)
+{
+    const segment_result *r = &s->r;
+    printf("frep segment: %s: %zu points, normals %s, seed %llu\n", s->in, s->c->n,
+           r->normals_estimated ? (s->had_normals ? "re-estimated (zero-length ones in the file)"
                                                   : "estimated")
-                                   : "from the file",
-               (unsigned long long)cfg.seed);
-        printf("  epsilon %.6g, cluster %.6g, normal threshold %g deg, min points %zu (small %zu), "
-               "probability %g\n", r.epsilon, r.cluster, r.normal_deg, r.min_points,
-               r.min_points_small, r.probability);
-        printf("  %-5s %-9s %9s %10s  %s\n", "name", "type", "support", "rms", "parameters");
-        for (size_t j = 0; j < r.nprims; j++) {
-            const prim *q = &r.prims[j];
-            char name[32];
-            snprintf(name, sizeof name, "p%zu", j + 1);
-            if (q->separating)
-                printf("  %-5s %-9s %9s %10s  ", name, prim_type_name(q->type), "separating", "");
-            else
-                printf("  %-5s %-9s %9zu %10.3g  ", name, prim_type_name(q->type), q->support, q->rms);
-            print_params(q, r.diagonal);
-            putchar('\n');
-        }
-        printf("  %zu fitted, %zu separating; %zu points unassigned; %zu samples; %.2f s\n",
-               r.nfitted, r.nprims - r.nfitted, r.unassigned, r.draws, elapsed);
+                                : "from the file",
+           (unsigned long long)s->cfg.seed);
+    printf("  epsilon %.6g, cluster %.6g, normal threshold %g deg, min points %zu (small %zu), "
+           "probability %g\n", r->epsilon, r->cluster, r->normal_deg, r->min_points,
+           r->min_points_small, r->probability);
+    printf("  %-5s %-9s %9s %10s  %s\n", "name", "type", "support", "rms", "parameters");
+    for (size_t j = 0; j < r->nprims; j++) {
+        const prim *q = &r->prims[j];
+        char name[32];
+        snprintf(name, sizeof name, "p%zu", j + 1);
+        if (q->separating)
+            printf("  %-5s %-9s %9s %10s  ", name, prim_type_name(q->type), "separating", "");
+        else
+            printf("  %-5s %-9s %9zu %10.3g  ", name, prim_type_name(q->type), q->support, q->rms);
+        print_params(q, r->diagonal);
+        putchar('\n');
     }
-    out_ctx o = {&r, c, header};
+    printf("  %zu fitted, %zu separating; %zu points unassigned; %zu samples; %.2f s\n",
+           r->nfitted, r->nprims - r->nfitted, r->unassigned, r->draws, s->elapsed);
+}
+
+/* -o (.fit list or .hf model) and --labels, each atomically. */
+static int stage_write(const segment_cmd *s)
+{
+    out_ctx o = {&s->r, s->c, s->header};
     int status = CLI_OK;
-    if (out) {
-        int w = ends_with(out, ".fit") ? cli_write_atomic(out, write_fit_cb, &o)
-                                       : cli_write_atomic(out, write_hf_cb, &o);
+    if (s->out) {
+        int w = ends_with(s->out, ".fit") ? cli_write_atomic(s->out, write_fit_cb, &o)
+                                          : cli_write_atomic(s->out, write_hf_cb, &o);
         if (w) status = CLI_FAIL;
     }
-    if (labels && cli_write_atomic(labels, write_labels_cb, &o)) status = CLI_FAIL;
-    segment_result_free(&r);
-    cloud_free(c);
+    if (s->labels && cli_write_atomic(s->labels, write_labels_cb, &o)) status = CLI_FAIL;
     return status;
+}
+
+/* segment -> header -> summary -> files */
+static int segment_steps(segment_cmd *s, int argc, char **argv)
+{
+    int rc = stage_segment(s);
+    if (rc != CLI_OK) return rc;
+    stage_header(s, argc, argv);
+    if (!s->quiet) stage_report(s);
+    rc = stage_write(s);
+    segment_result_free(&s->r);
+    return rc;
+}
+
+int cmd_segment(int argc, char **argv)
+{
+    segment_cmd s;
+    memset(&s, 0, sizeof s);
+    segment_config_init(&s.cfg);
+    int rc = stage_options(&s, argc, argv);
+    if (rc == CLI_GO_ON) rc = segment_steps(&s, argc, argv);
+    cloud_free(s.c);
+    return rc;
 }

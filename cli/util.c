@@ -1,5 +1,5 @@
 /* util.c - helpers shared by the frep subcommands: reading files, printing
- * diagnostics with carets, parsing option values, atomic output files.
+ * diagnostics with carets, atomic output files, usage errors, Ctrl-C.
  */
 #include "config.h"
 
@@ -7,6 +7,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
@@ -113,71 +114,6 @@ frep_program *cli_compile_file(const char *path, const char *model, const double
     return p;
 }
 
-double *cli_parse_list(const char *opt, const char *s, size_t *n)
-{
-    size_t cap = 8, k = 0;
-    double *v = malloc(cap * sizeof *v);
-    if (!v) return NULL;
-    const char *p = s;
-    for (;;) {
-        char *end;
-        errno = 0;
-        double d = strtod(p, &end);
-        if (end == p || errno == ERANGE || !isfinite(d) || (*end && *end != ',')) {
-            fprintf(stderr, "frep: %s: expected comma-separated numbers, got '%s'\n", opt, s);
-            free(v);
-            return NULL;
-        }
-        if (k == cap) {
-            cap *= 2;
-            double *nv = realloc(v, cap * sizeof *v);
-            if (!nv) { free(v); return NULL; }
-            v = nv;
-        }
-        v[k++] = d;
-        if (!*end) break;
-        p = end + 1;
-    }
-    *n = k;
-    return v;
-}
-
-int cli_parse_box(const char *s, double box[6])
-{
-    size_t n = 0;
-    double *v = cli_parse_list("-b", s, &n);
-    if (!v) return -1;
-    int ok = 1;
-    switch (n) {
-    case 1:
-        for (int i = 0; i < 3; i++) { box[i] = -fabs(v[0]); box[i + 3] = fabs(v[0]); }
-        break;
-    case 2:
-        for (int i = 0; i < 3; i++) { box[i] = v[0]; box[i + 3] = v[1]; }
-        break;
-    case 3:
-        for (int i = 0; i < 3; i++) { box[i] = -fabs(v[i]); box[i + 3] = fabs(v[i]); }
-        break;
-    case 6:
-        for (int i = 0; i < 6; i++) box[i] = v[i];
-        break;
-    default:
-        fprintf(stderr, "frep: -b: expected 1, 2, 3 or 6 numbers, got %zu\n", n);
-        ok = 0;
-    }
-    free(v);
-    if (!ok) return -1;
-    for (int i = 0; i < 3; i++) {
-        if (!(box[i] < box[i + 3])) {
-            /* + 0.0 prints -b 0's lower bound -0 as 0 */
-            fprintf(stderr, "frep: -b: the box has no extent along %c: [%g, %g]\n", "xyz"[i],
-                    box[i] + 0.0, box[i + 3] + 0.0);
-            return -1;
-        }
-    }
-    return 0;
-}
-
 int cli_write_atomic(const char *path, int (*fn)(FILE *f, void *user), void *user)
 {
     if (strcmp(path, "-") == 0) {
@@ -218,4 +154,36 @@ int cli_usage_error(const char *sub, const char *fmt, ...)
     fprintf(stderr, "\nTry 'frep %s --help'.\n", sub);
     va_end(ap);
     return CLI_USAGE;
+}
+
+/* Set by the SIGINT handler, read by the library through cli_sigint_catch()'s pointer. */
+static volatile sig_atomic_t cli_sigint_flag;
+static struct sigaction cli_sigint_old;
+
+static void on_sigint(int sig)
+{
+    (void)sig;
+    cli_sigint_flag = 1;
+}
+
+volatile sig_atomic_t *cli_sigint_catch(void)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_sigint;
+    sa.sa_flags = SA_RESTART;
+    sigemptyset(&sa.sa_mask);
+    cli_sigint_flag = 0;
+    sigaction(SIGINT, &sa, &cli_sigint_old);
+    return &cli_sigint_flag;
+}
+
+void cli_sigint_restore(void)
+{
+    sigaction(SIGINT, &cli_sigint_old, NULL);
+}
+
+int cli_interrupted(void)
+{
+    return cli_sigint_flag != 0;
 }

@@ -1,0 +1,159 @@
+/* model.c - the model -> mesh steps that frep mesh, sample and render share: their model
+ * options, compiling with the default box, polygonizing with progress and the
+ * messages about the result, runtime errors reported once as warnings; mesh input.
+ */
+#include "config.h"
+
+#include "cli.h"
+#include "mesh.h"
+#include "meshio.h"
+
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+/* The box of a model without '-- @box' and without -b: HyperFun's default. */
+#define MESH_CLI_DEFAULT_BOX 10.0
+
+void mesh_cli_init(mesh_cli *c)
+{
+    memset(c, 0, sizeof *c);
+    c->setops = -1;
+}
+
+void mesh_cli_free(mesh_cli *c)
+{
+    cli_list_free(&c->a);
+    if (c->p) frep_program_free(c->p);
+    free(c->src);
+    c->p = NULL;
+    c->src = NULL;
+}
+
+int mesh_cli_parse(const cli_opt_spec *spec, int argc, char **argv, void *ctx, size_t mc,
+                   cli_args *args)
+{
+    int rc = cli_opt_parse(spec, argc, argv, ctx, args);
+    ((mesh_cli *)((char *)ctx + mc))->has_box = cli_opt_given(spec, args, "box");
+    return rc;
+}
+
+void mesh_cli_add_errors(mesh_cli *c, const frep_runtime_error *e)
+{
+    if (e->count == 0) return;
+    uint64_t n = c->err.count;
+    if (n == 0 || e->pc < c->err.pc) c->err = *e;
+    c->err.count = n + e->count;
+}
+
+/* Runtime errors do not stop meshing (the points are NaN and count as outside), so
+ * they are warnings here; frep eval's format otherwise. */
+static void warning_diag(void *user, const frep_diag *d)
+{
+    frep_diag w = *d;
+    w.severity = FREP_WARNING;
+    cli_print_diag(user, &w);
+}
+
+void mesh_cli_report_errors(mesh_cli *c)
+{
+    if (c->err.count == 0 || !c->p) return;
+    cli_diag_ctx dc = { c->src, c->srclen, 0, 0, NULL, 0 };
+    frep_report_runtime_error(c->p, &c->err, warning_diag, &dc);
+    cli_diag_done(&dc);
+    memset(&c->err, 0, sizeof c->err);
+}
+
+static void progress_cb(void *user, double frac)
+{
+    int *last = user;
+    int pct = (int)(100 * frac);
+    if (pct == *last) return;
+    *last = pct;
+    fprintf(stderr, "\rfrep: meshing %3d%%", pct);
+    fflush(stderr);
+}
+
+int mesh_cli_compile(mesh_cli *c, const char *path)
+{
+    c->path = path;
+    c->p = cli_compile_file(path, c->model, c->a.v, c->a.n, c->setops, &c->src);
+    if (!c->p) return CLI_FAIL;
+    c->srclen = c->src ? strlen(c->src) : 0;
+    if (!c->has_box && !frep_program_box(c->p, c->box)) {
+        for (int i = 0; i < 3; i++) {
+            c->box[i] = -MESH_CLI_DEFAULT_BOX;
+            c->box[i + 3] = MESH_CLI_DEFAULT_BOX;
+        }
+    }
+    return CLI_OK;
+}
+
+/* What the polygonizer found: NaN points, no surface at all, a solid cut by the box. */
+static int check_surface(const mesh_cli *c, const char *sub, frep_mesh *m, const mesh_stats *st)
+{
+    if (st->points_nan)
+        fprintf(stderr, "%s: warning: the model is NaN (undefined) at %zu grid points; they count "
+                        "as outside\n", c->path, st->points_nan);
+    if (m->ntris == 0 || st->full) {
+        fprintf(stderr, "frep %s: %s: the model %s the box [%g,%g]x[%g,%g]x[%g,%g] at grid %d: "
+                        "no surface (check -b and -g)\n", sub, c->path,
+                st->full ? "fills all of" : "is empty in", c->box[0], c->box[3], c->box[1],
+                c->box[4], c->box[2], c->box[5], c->grid);
+        mesh_free(m);
+        return CLI_FAIL;
+    }
+    if (st->touches_box)
+        fprintf(stderr, "%s: note: the solid reaches the box; the mesh is closed by caps on the "
+                        "box faces (a larger -b shows all of it)\n", c->path);
+    return CLI_OK;
+}
+
+int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *st)
+{
+    mesh_field f;
+    if (mesh_field_program(&f, c->p, NULL) != 0) {
+        fprintf(stderr, "frep %s: out of memory\n", sub);
+        return CLI_FAIL;
+    }
+    mesh_options o;
+    mesh_options_init(&o);
+    memcpy(o.box, c->box, sizeof o.box);
+    o.grid = c->grid;
+    o.iso = c->iso;
+    o.nthreads = c->nthreads;
+    int last = -1;
+    int tty = isatty(2);
+    if (tty) {
+        o.progress = progress_cb;
+        o.progress_user = &last;
+    }
+    char err[256];
+    int rc = mesh_polygonize(&f, &o, m, st, err, sizeof err);
+    frep_runtime_error re;
+    mesh_field_program_errors(&f, &re);
+    mesh_cli_add_errors(c, &re);
+    mesh_field_program_free(&f);
+    mesh_cli_report_errors(c);
+    if (tty && last >= 0) fputs("\r                     \r", stderr);
+    if (rc != 0) {
+        fprintf(stderr, "frep %s: %s\n", sub, err);
+        return CLI_FAIL;
+    }
+    return check_surface(c, sub, m, st);
+}
+
+int cli_is_mesh_path(const char *path)
+{
+    return meshio_format_for_path(path) != MESHIO_UNKNOWN;
+}
+
+int cli_read_mesh(const char *sub, const char *path, frep_mesh *m)
+{
+    char *msg = NULL;
+    if (meshio_read(path, m, &msg) == 0) return CLI_OK;
+    if (msg) fprintf(stderr, "%s\n", msg);
+    else fprintf(stderr, "frep %s: cannot read the mesh\n", sub);
+    free(msg);
+    return CLI_FAIL;
+}
