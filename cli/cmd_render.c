@@ -206,8 +206,10 @@ int cmd_render(int argc, char **argv)
     }
     render_options ro = { W, H, view, { 0 } };
     memcpy(ro.bbox, bbox, sizeof bbox);
-    if (render_mesh(&m, points ? &rp : NULL, &ro, rgb) != 0) {
-        fprintf(stderr, "frep render: out of memory\n");
+    frep_error err;
+    frep_error_init(&err);
+    if (render_mesh(&m, points ? &rp : NULL, &ro, rgb, &err) != 0) {
+        fprintf(stderr, "frep render: %s\n", err.msg);
         goto done;
     }
     png_ctx pc = { rgb, W, H };

@@ -143,7 +143,8 @@ int cmd_sample(int argc, char **argv)
     if (!have_seed) so.seed = (uint64_t)time(NULL);
     const char *in = argv[optind];
     frep_cloud *cl = NULL;
-    char err[256];
+    frep_error err;
+    frep_error_init(&err);
     double t0 = (double)clock();
     if (meshio_format_for_path(in) != MESHIO_UNKNOWN) {
         frep_mesh m;
@@ -154,7 +155,7 @@ int cmd_sample(int argc, char **argv)
             mesh_cli_free(&mc);
             return CLI_FAIL;
         }
-        rc = sample_mesh(&m, &so, &cl, err, sizeof err);
+        rc = sample_mesh(&m, &so, &cl, &err);
         mesh_free(&m);
     } else {
         rc = mesh_cli_compile(&mc, in);
@@ -172,7 +173,7 @@ int cmd_sample(int argc, char **argv)
         so.mesh.grid = mc.grid;
         so.mesh.iso = mc.iso;
         so.mesh.nthreads = mc.nthreads;
-        rc = sample_field(&f, &so, &cl, err, sizeof err);
+        rc = sample_field(&f, &so, &cl, &err);
         frep_runtime_error re;
         mesh_field_program_errors(&f, &re);
         mesh_cli_add_errors(&mc, &re);
@@ -180,7 +181,7 @@ int cmd_sample(int argc, char **argv)
         mesh_cli_report_errors(&mc);
     }
     if (rc != 0) {
-        fprintf(stderr, "frep sample: %s: %s\n", in, err);
+        fprintf(stderr, "frep sample: %s: %s\n", in, err.msg);
         mesh_cli_free(&mc);
         return CLI_FAIL;
     }

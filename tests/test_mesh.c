@@ -377,6 +377,14 @@ static mesh_field make_field(tfield *t, int with_interval)
     return f;
 }
 
+/* mesh_polygonize with a fresh error (the first error set wins). */
+static int polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *m, mesh_stats *st,
+                      frep_error *err)
+{
+    frep_error_init(err);
+    return mesh_polygonize(f, o, m, st, err);
+}
+
 static int run_mesh(tfield *t, const double box[6], int grid, int threads, frep_mesh *m,
                     mesh_stats *st)
 {
@@ -386,9 +394,9 @@ static int run_mesh(tfield *t, const double box[6], int grid, int threads, frep_
     memcpy(o.box, box, sizeof o.box);
     o.grid = grid;
     o.nthreads = threads;
-    char err[256] = "";
-    int rc = mesh_polygonize(&f, &o, m, st, err, sizeof err);
-    if (rc != 0) diag("mesh_polygonize: %s", err);
+    frep_error err;
+    int rc = polygonize(&f, &o, m, st, &err);
+    if (rc != 0) diag("mesh_polygonize: %s", err.msg);
     return rc;
 }
 
@@ -663,18 +671,18 @@ static void test_mesh_bad(void)
     }
     mesh_field f = make_field(&t, 1);
     mesh_options o;
-    char err[256];
+    frep_error err;
     mesh_options_init(&o);
     o.grid = 0;
-    ok(mesh_polygonize(&f, &o, &m, &st, err, sizeof err) != 0, "grid 0 refused: %s", err);
+    ok(polygonize(&f, &o, &m, &st, &err) != 0 && err.code == FREP_EINPUT, "grid 0 refused: %s", err.msg);
     o.grid = MESH_MAX_GRID + 1;
-    ok(mesh_polygonize(&f, &o, &m, &st, err, sizeof err) != 0, "huge grid refused: %s", err);
+    ok(polygonize(&f, &o, &m, &st, &err) != 0 && err.code == FREP_EINPUT, "huge grid refused: %s", err.msg);
     o.grid = 10;
     o.box[3] = o.box[0];
-    ok(mesh_polygonize(&f, &o, &m, &st, err, sizeof err) != 0, "zero-size box refused: %s", err);
+    ok(polygonize(&f, &o, &m, &st, &err) != 0 && err.code == FREP_EINPUT, "zero-size box refused: %s", err.msg);
     mesh_options_init(&o);
     o.box[4] = NAN;
-    ok(mesh_polygonize(&f, &o, &m, &st, err, sizeof err) != 0, "NaN box refused: %s", err);
+    ok(polygonize(&f, &o, &m, &st, &err) != 0 && err.code == FREP_EINPUT, "NaN box refused: %s", err.msg);
 }
 
 /* Write a mesh in every format, read it back: same triangles, same volume. */
@@ -833,16 +841,16 @@ static void test_prune_program(int setops)
     o.grid = 61; /* no plane of the model on the grid: no ties at zero */
     frep_mesh a, b, c3;
     mesh_stats st;
-    char err[256] = "";
+    frep_error err;
     mesh_field f;
     mesh_field_program(&f, p, NULL);
     o.nthreads = 1;
-    int ra = mesh_polygonize(&f, &o, &a, &st, err, sizeof err);
+    int ra = polygonize(&f, &o, &a, &st, &err);
     o.nthreads = 3;
-    int rc = mesh_polygonize(&f, &o, &c3, &st, err, sizeof err);
+    int rc = polygonize(&f, &o, &c3, &st, &err);
     f.focus = NULL;
     o.nthreads = 1;
-    int rb = mesh_polygonize(&f, &o, &b, &st, err, sizeof err);
+    int rb = polygonize(&f, &o, &b, &st, &err);
     mesh_field_program_free(&f);
     ok(ra == 0 && rb == 0 && rc == 0, "%s: meshed with and without pruning", name);
     if (ra == 0 && rb == 0 && rc == 0) {
@@ -906,8 +914,8 @@ static void test_mesh_errors(void)
     mesh_field_program(&f, p, NULL);
     frep_mesh m;
     mesh_stats st;
-    char err[256];
-    int rc = mesh_polygonize(&f, &o, &m, &st, err, sizeof err);
+    frep_error err;
+    int rc = polygonize(&f, &o, &m, &st, &err);
     frep_runtime_error e;
     mesh_field_program_errors(&f, &e);
     mesh_field_program_free(&f);
