@@ -16,8 +16,8 @@
 
 /* Points per evaluation batch in the projection: a multiple of FREP_BLOCK. */
 #define SAMPLE_BATCH 1024
-/* The grid chosen from the point count: about 4 points per mesh triangle at most (a
- * closed surface at grid g has about 6 g^2 of them), within these bounds. */
+/* The grid chosen from the point count, sqrt(n / SAMPLE_POINTS_PER_GRID2) within these
+ * bounds: about 4 points per mesh triangle at most, so the grid follows the density. */
 #define SAMPLE_GRID_MIN 32
 #define SAMPLE_GRID_MAX 256
 #define SAMPLE_POINTS_PER_GRID2 6.0

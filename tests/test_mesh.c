@@ -926,6 +926,65 @@ static void test_mesh_errors(void)
     frep_program_free(p);
 }
 
+/* An allocator failing allocation number fail_at (counting from 1; 0: none). */
+typedef struct failing_alloc {
+    long count, fail_at;
+} failing_alloc;
+
+static void *failing_alloc_fn(void *user, void *p, size_t n)
+{
+    failing_alloc *a = user;
+    if (n == 0) {
+        free(p);
+        return NULL;
+    }
+    if (++a->count == a->fail_at) return NULL;
+    return realloc(p, n);
+}
+
+/* Every allocation of a run failing in turn: the run fails with FREP_ENOMEM and
+ * "out of memory" (possibly with what it was doing), never with another report. */
+static void test_mesh_nomem(void)
+{
+    tfield t;
+    memset(&t, 0, sizeof t);
+    t.kind = F_SPHERE;
+    t.r = 1;
+    mesh_field f = make_field(&t, 1);
+    mesh_options o;
+    mesh_options_init(&o);
+    for (int c = 0; c < 3; c++) {
+        o.box[c] = -1.5;
+        o.box[c + 3] = 1.5;
+    }
+    o.grid = 20;
+    o.nthreads = 1;
+    failing_alloc fa = { 0, 0 };
+    frep_set_allocator(failing_alloc_fn, &fa);
+    frep_mesh m;
+    mesh_stats st;
+    frep_error err;
+    int rc0 = polygonize(&f, &o, &m, &st, &err);
+    mesh_free(&m);
+    long total = fa.count, failed = 0, wrong = 0;
+    for (long k = 1; k <= total; k++) {
+        fa.count = 0;
+        fa.fail_at = k;
+        if (polygonize(&f, &o, &m, &st, &err) == 0) {
+            mesh_free(&m);
+            continue;
+        }
+        failed++;
+        if (err.code != FREP_ENOMEM || strncmp(err.msg, "out of memory", 13) != 0) {
+            if (wrong++ == 0) diag("allocation %ld: '%s'", k, err.msg);
+        }
+    }
+    frep_set_allocator(NULL, NULL);
+    ok(rc0 == 0 && total > 0 && failed == total && wrong == 0,
+       "each of %ld allocations failing: %ld runs fail, %ld not as out of memory", total, failed,
+       wrong);
+}
+
 int main(void)
 {
     test_interval_ops();
@@ -936,6 +995,7 @@ int main(void)
     test_validate_pinch();
     test_mesh_tunnels();
     test_mesh_bad();
+    test_mesh_nomem();
     test_meshio();
     test_prune_program(-1);
     test_prune_program(FREP_SETOPS_MINMAX);
