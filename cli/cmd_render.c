@@ -184,8 +184,10 @@ static int stage_draw(render_cmd *c)
     }
     render_options ro = { W, H, c->view, { 0 } };
     memcpy(ro.bbox, c->bbox, sizeof c->bbox);
-    if (render_mesh(&c->m, c->points ? &c->rp : NULL, &ro, c->rgb) != 0) {
-        fprintf(stderr, "frep render: out of memory\n");
+    frep_error err;
+    frep_error_init(&err);
+    if (render_mesh(&c->m, c->points ? &c->rp : NULL, &ro, c->rgb, &err) != 0) {
+        fprintf(stderr, "frep render: %s\n", err.msg);
         return CLI_FAIL;
     }
     return CLI_OK;

@@ -95,19 +95,21 @@ static int sampled(const sample_cmd *c, int rc, const char *err)
 /* Area-weighted points on a mesh file's triangles. */
 static int stage_sample_mesh(sample_cmd *c)
 {
-    char err[256];
+    frep_error err;
+    frep_error_init(&err);
     frep_mesh m;
     memset(&m, 0, sizeof m);
     if (cli_read_mesh("sample", c->in, &m) != CLI_OK) return CLI_FAIL;
-    int rc = sample_mesh(&m, &c->so, &c->cl, err, sizeof err);
+    int rc = sample_mesh(&m, &c->so, &c->cl, &err);
     mesh_free(&m);
-    return sampled(c, rc, err);
+    return sampled(c, rc, err.msg);
 }
 
 /* Points on the model's surface, through the sampling mesh of the model's box. */
 static int stage_sample_model(sample_cmd *c)
 {
-    char err[256];
+    frep_error err;
+    frep_error_init(&err);
     mesh_cli *mc = &c->mc;
     int rc = mesh_cli_compile(mc, c->in);
     if (rc != CLI_OK) return rc;
@@ -120,13 +122,13 @@ static int stage_sample_model(sample_cmd *c)
     c->so.mesh.grid = mc->grid;
     c->so.mesh.iso = mc->iso;
     c->so.mesh.nthreads = mc->nthreads;
-    rc = sample_field(&f, &c->so, &c->cl, err, sizeof err);
+    rc = sample_field(&f, &c->so, &c->cl, &err);
     frep_runtime_error re;
     mesh_field_program_errors(&f, &re);
     mesh_cli_add_errors(mc, &re);
     mesh_field_program_free(&f);
     mesh_cli_report_errors(mc);
-    return sampled(c, rc, err);
+    return sampled(c, rc, err.msg);
 }
 
 static int write_cloud_cb(FILE *f, void *user)

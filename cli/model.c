@@ -128,8 +128,9 @@ int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *
         o.progress = progress_cb;
         o.progress_user = &last;
     }
-    char err[256];
-    int rc = mesh_polygonize(&f, &o, m, st, err, sizeof err);
+    frep_error err;
+    frep_error_init(&err);
+    int rc = mesh_polygonize(&f, &o, m, st, &err);
     frep_runtime_error re;
     mesh_field_program_errors(&f, &re);
     mesh_cli_add_errors(c, &re);
@@ -137,7 +138,7 @@ int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *
     mesh_cli_report_errors(c);
     if (tty && last >= 0) fputs("\r                     \r", stderr);
     if (rc != 0) {
-        fprintf(stderr, "frep %s: %s\n", sub, err);
+        fprintf(stderr, "frep %s: %s\n", sub, err.msg);
         return CLI_FAIL;
     }
     return check_surface(c, sub, m, st);

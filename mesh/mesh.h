@@ -1,5 +1,6 @@
 /* mesh.h - polygonization: dual contouring of a scalar field on a sparse grid whose
- * active blocks are found by an interval-pruned octree (mesh/mesh.c).
+ * active blocks are found by an interval-pruned octree (mesh/polygonize.c drives
+ * octree.c -> mesh.c -> quads.c; mesh/field.c is the field of a compiled program).
  *
  * Sits after the evaluators (frep_eval, frep_eval_grad, vm_eval_interval) and before
  * the mesh writers of geom/meshio.c; `frep mesh`, `frep sample` and `frep render`
@@ -11,6 +12,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "err.h"
 #include "frep.h"
 #include "trimesh.h"
 
@@ -82,9 +84,10 @@ typedef struct mesh_stats {
 } mesh_stats;
 
 /* Polygonize. Returns 0 with a closed, oriented mesh in *out (possibly empty: no
- * point of the grid inside, or, with stats->full, the box itself), or -1 with a
- * message in err (errlen bytes). */
+ * point of the grid inside, or, with stats->full, the box itself; free with
+ * mesh_free), or -1 with *e set: bad options (FREP_EINPUT), a limit of this header
+ * (FREP_ELIMIT), out of memory (FREP_ENOMEM), a failing field (FREP_EINPUT). */
 int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
-                    mesh_stats *stats, char *err, size_t errlen);
+                    mesh_stats *stats, frep_error *e);
 
 #endif

@@ -11,9 +11,9 @@
 
 #include "alloc.h"
 #include "render.h"
+#include "vec3.h"
 
 #include <math.h>
-#include <stdlib.h>
 #include <string.h>
 
 /* Disc radius of an overlay point, in pixels per 1000 pixels of image height. */
@@ -27,6 +27,15 @@
 /* Depth slack for overlay points, as a fraction of the framed box's diagonal: points on
  * the surface must not be hidden by it. */
 #define RENDER_POINT_DEPTH_SLACK 0.01
+/* Smallest disc radius of an overlay point, in pixels: smaller discs vanish. */
+#define RENDER_POINT_MIN_RADIUS 1.2
+/* The framed box's projection fills this fraction of the image's half-size. */
+#define RENDER_FILL 0.45
+/* Phong shading: ambient and diffuse shares, specular weight and exponent. */
+#define RENDER_AMBIENT 0.22
+#define RENDER_DIFFUSE 0.78
+#define RENDER_SPECULAR 0.35
+#define RENDER_SHININESS 40
 
 typedef struct view_def {
     const char *name;
@@ -53,23 +62,12 @@ static const view_def *find_view(const char *name)
 
 int render_view_ok(const char *view) { return find_view(view) != NULL; }
 
+/* v / |v|, left as it is when |v| is not positive. */
 static void normalize(double v[3])
 {
-    double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    double l = vec3_len(v);
     if (l > 0)
         for (int i = 0; i < 3; i++) v[i] /= l;
-}
-
-static void cross(const double a[3], const double b[3], double c[3])
-{
-    c[0] = a[1] * b[2] - a[2] * b[1];
-    c[1] = a[2] * b[0] - a[0] * b[2];
-    c[2] = a[0] * b[1] - a[1] * b[0];
-}
-
-static double dot(const double a[3], const double b[3])
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
 typedef struct camera {
@@ -82,9 +80,9 @@ typedef struct camera {
 static void project(const camera *c, const double p[3], double *sx, double *sy, double *d)
 {
     double q[3] = { p[0] - c->centre[0], p[1] - c->centre[1], p[2] - c->centre[2] };
-    *sx = 0.5 * c->w + c->scale * dot(q, c->right);
-    *sy = 0.5 * c->h - c->scale * dot(q, c->up);
-    *d = dot(q, c->fwd);
+    *sx = 0.5 * c->w + c->scale * vec3_dot(q, c->right);
+    *sy = 0.5 * c->h - c->scale * vec3_dot(q, c->up);
+    *d = vec3_dot(q, c->fwd);
 }
 
 static uint8_t to_byte(double v)
@@ -93,138 +91,195 @@ static uint8_t to_byte(double v)
     return (uint8_t)(255.0 * v + 0.5);
 }
 
-int render_mesh(const frep_mesh *m, const render_points *pts, const render_options *o,
-                uint8_t *rgb)
+/* A picture being drawn: camera, lights and the depth of each pixel. */
+typedef struct raster {
+    camera cam;
+    double back[3];           /* towards the viewer */
+    double light[3], half[3]; /* key light; half vector of light and view (specular) */
+    double diag;              /* the framed box's diagonal */
+    double *zbuf;             /* w * h depths, INFINITY: nothing drawn */
+    uint8_t *rgb;
+} raster;
+
+/* The empty picture: a light vertical gradient, nothing in depth. */
+static void clear_picture(raster *R)
 {
-    const view_def *vd = find_view(o->view ? o->view : "iso");
-    if (!vd || o->width < 1 || o->height < 1) return -1;
-    int W = o->width, H = o->height;
-    size_t npix = (size_t)W * (size_t)H;
-    double *zbuf = frep_malloc(npix * sizeof *zbuf);
-    if (!zbuf) return -1;
-    for (size_t i = 0; i < npix; i++) zbuf[i] = INFINITY;
-    /* background: a light vertical gradient */
+    int W = R->cam.w, H = R->cam.h;
+    for (size_t i = 0; i < (size_t)W * (size_t)H; i++) R->zbuf[i] = INFINITY;
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++) {
             double t = (double)y / H;
-            uint8_t *px = &rgb[3 * ((size_t)y * W + x)];
+            uint8_t *px = &R->rgb[3 * ((size_t)y * W + x)];
             px[0] = to_byte(0.93 - 0.12 * t);
             px[1] = to_byte(0.94 - 0.12 * t);
             px[2] = to_byte(0.97 - 0.10 * t);
         }
+}
 
-    camera cam;
-    cam.w = W;
-    cam.h = H;
-    double back[3] = { vd->from[0], vd->from[1], vd->from[2] };
+/* An orthographic camera looking at the centre of the framed box from view vd, the
+ * projected box corners fitted into 90% of the image. */
+static void camera_init(raster *R, const view_def *vd, const render_options *o)
+{
+    camera *cam = &R->cam;
+    double *back = R->back;
+    cam->w = o->width;
+    cam->h = o->height;
+    for (int i = 0; i < 3; i++) back[i] = vd->from[i];
     normalize(back);
-    for (int i = 0; i < 3; i++) cam.fwd[i] = -back[i];
+    for (int i = 0; i < 3; i++) cam->fwd[i] = -back[i];
     double upv[3] = { vd->up[0], vd->up[1], vd->up[2] };
-    cross(cam.fwd, upv, cam.right);
-    normalize(cam.right);
-    cross(cam.right, cam.fwd, cam.up);
-    normalize(cam.up);
-    for (int i = 0; i < 3; i++) cam.centre[i] = 0.5 * (o->bbox[i] + o->bbox[i + 3]);
-    /* fit the projected box corners into 90% of the image */
+    vec3_cross(cam->fwd, upv, cam->right);
+    normalize(cam->right);
+    vec3_cross(cam->right, cam->fwd, cam->up);
+    normalize(cam->up);
+    for (int i = 0; i < 3; i++) cam->centre[i] = 0.5 * (o->bbox[i] + o->bbox[i + 3]);
     double ex = 0, ey = 0;
     for (int k = 0; k < 8; k++) {
-        double p[3] = { o->bbox[(k & 1) ? 3 : 0] - cam.centre[0],
-                        o->bbox[(k & 2) ? 4 : 1] - cam.centre[1],
-                        o->bbox[(k & 4) ? 5 : 2] - cam.centre[2] };
-        ex = fmax(ex, fabs(dot(p, cam.right)));
-        ey = fmax(ey, fabs(dot(p, cam.up)));
+        double p[3] = { o->bbox[(k & 1) ? 3 : 0] - cam->centre[0],
+                        o->bbox[(k & 2) ? 4 : 1] - cam->centre[1],
+                        o->bbox[(k & 4) ? 5 : 2] - cam->centre[2] };
+        ex = fmax(ex, fabs(vec3_dot(p, cam->right)));
+        ey = fmax(ey, fabs(vec3_dot(p, cam->up)));
     }
-    cam.scale = 0.45 * fmin(W / fmax(ex, 1e-300), H / fmax(ey, 1e-300));
-    double diag = sqrt((o->bbox[3] - o->bbox[0]) * (o->bbox[3] - o->bbox[0]) +
-                       (o->bbox[4] - o->bbox[1]) * (o->bbox[4] - o->bbox[1]) +
-                       (o->bbox[5] - o->bbox[2]) * (o->bbox[5] - o->bbox[2]));
+    cam->scale = RENDER_FILL * fmin(cam->w / fmax(ex, 1e-300), cam->h / fmax(ey, 1e-300));
+    R->diag = sqrt((o->bbox[3] - o->bbox[0]) * (o->bbox[3] - o->bbox[0]) +
+                   (o->bbox[4] - o->bbox[1]) * (o->bbox[4] - o->bbox[1]) +
+                   (o->bbox[5] - o->bbox[2]) * (o->bbox[5] - o->bbox[2]));
+}
 
-    /* light: from the viewer, up and to the left */
-    double light[3];
-    for (int i = 0; i < 3; i++) light[i] = back[i] + 0.5 * cam.up[i] - 0.4 * cam.right[i];
-    normalize(light);
-    double half[3];
-    for (int i = 0; i < 3; i++) half[i] = light[i] + back[i];
-    normalize(half);
+/* The key light: from the viewer, up and to the left; and the half vector. */
+static void lights_init(raster *R)
+{
+    for (int i = 0; i < 3; i++)
+        R->light[i] = R->back[i] + 0.5 * R->cam.up[i] - 0.4 * R->cam.right[i];
+    normalize(R->light);
+    for (int i = 0; i < 3; i++) R->half[i] = R->light[i] + R->back[i];
+    normalize(R->half);
+}
 
-    for (size_t t = 0; t < m->ntris; t++) {
-        double sx[3], sy[3], sd[3];
-        const double *P[3], *N[3];
-        double fn[3];
-        for (int k = 0; k < 3; k++) P[k] = &m->v[3 * m->tri[3 * t + k]];
-        double u[3], w[3];
-        for (int i = 0; i < 3; i++) {
-            u[i] = P[1][i] - P[0][i];
-            w[i] = P[2][i] - P[0][i];
-        }
-        cross(u, w, fn);
-        normalize(fn);
-        for (int k = 0; k < 3; k++) {
-            project(&cam, P[k], &sx[k], &sy[k], &sd[k]);
-            N[k] = m->n ? &m->n[3 * m->tri[3 * t + k]] : fn;
-            if (!(dot(N[k], fn) >= RENDER_CREASE_COS)) N[k] = fn;
-        }
-        double area = (sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]);
-        if (area == 0 || !isfinite(area)) continue;
-        int x0 = (int)floor(fmin(sx[0], fmin(sx[1], sx[2]))), x1 = (int)ceil(fmax(sx[0], fmax(sx[1], sx[2])));
-        int y0 = (int)floor(fmin(sy[0], fmin(sy[1], sy[2]))), y1 = (int)ceil(fmax(sy[0], fmax(sy[1], sy[2])));
-        if (x0 < 0) x0 = 0;
-        if (y0 < 0) y0 = 0;
-        if (x1 > W - 1) x1 = W - 1;
-        if (y1 > H - 1) y1 = H - 1;
-        for (int y = y0; y <= y1; y++)
-            for (int x = x0; x <= x1; x++) {
-                double px = x + 0.5, py = y + 0.5;
-                double b0 = ((sx[1] - px) * (sy[2] - py) - (sx[2] - px) * (sy[1] - py)) / area;
-                double b1 = ((sx[2] - px) * (sy[0] - py) - (sx[0] - px) * (sy[2] - py)) / area;
-                double b2 = 1 - b0 - b1;
-                if (b0 < 0 || b1 < 0 || b2 < 0) continue;
-                double d = b0 * sd[0] + b1 * sd[1] + b2 * sd[2];
-                size_t pi = (size_t)y * W + x;
-                if (d >= zbuf[pi]) continue;
-                zbuf[pi] = d;
-                double n[3];
-                for (int i = 0; i < 3; i++) n[i] = b0 * N[0][i] + b1 * N[1][i] + b2 * N[2][i];
-                normalize(n);
-                /* seen from behind (inside a cut-open model): shade the back side */
-                if (dot(n, back) < 0)
-                    for (int i = 0; i < 3; i++) n[i] = -n[i];
-                double diff = fmax(0, dot(n, light));
-                double spec = pow(fmax(0, dot(n, half)), 40);
-                double base[3] = { 0.62, 0.70, 0.82 };
-                uint8_t *c = &rgb[3 * pi];
-                for (int i = 0; i < 3; i++)
-                    c[i] = to_byte(base[i] * (0.22 + 0.78 * diff) + 0.35 * spec);
-            }
+/* One triangle in screen space: corners, depths, the normals to interpolate. */
+typedef struct stri {
+    double sx[3], sy[3], sd[3];
+    const double *N[3];
+    double area;              /* twice the signed screen area */
+} stri;
+
+/* Pixel (x, y) of triangle T when it covers the pixel's centre in front of what is
+ * there: depth, and the Phong shading of the interpolated normal (two-sided: seen
+ * from behind, inside a cut-open model, the back side is shaded). */
+static void shade_pixel(raster *R, const stri *T, int x, int y)
+{
+    double px = x + 0.5, py = y + 0.5;
+    const double *sx = T->sx, *sy = T->sy;
+    double b0 = ((sx[1] - px) * (sy[2] - py) - (sx[2] - px) * (sy[1] - py)) / T->area;
+    double b1 = ((sx[2] - px) * (sy[0] - py) - (sx[0] - px) * (sy[2] - py)) / T->area;
+    double b2 = 1 - b0 - b1;
+    if (b0 < 0 || b1 < 0 || b2 < 0) return;
+    double d = b0 * T->sd[0] + b1 * T->sd[1] + b2 * T->sd[2];
+    size_t pi = (size_t)y * R->cam.w + x;
+    if (d >= R->zbuf[pi]) return;
+    R->zbuf[pi] = d;
+    double n[3];
+    for (int i = 0; i < 3; i++) n[i] = b0 * T->N[0][i] + b1 * T->N[1][i] + b2 * T->N[2][i];
+    normalize(n);
+    if (vec3_dot(n, R->back) < 0)
+        for (int i = 0; i < 3; i++) n[i] = -n[i];
+    double diff = fmax(0, vec3_dot(n, R->light));
+    double spec = pow(fmax(0, vec3_dot(n, R->half)), RENDER_SHININESS);
+    double base[3] = { 0.62, 0.70, 0.82 };
+    uint8_t *c = &R->rgb[3 * pi];
+    for (int i = 0; i < 3; i++)
+        c[i] = to_byte(base[i] * (RENDER_AMBIENT + RENDER_DIFFUSE * diff) + RENDER_SPECULAR * spec);
+}
+
+/* Triangle t of m, z-buffered: vertex normals where they agree with the face normal
+ * within RENDER_CREASE_COS, the face normal elsewhere. */
+static void draw_triangle(raster *R, const frep_mesh *m, size_t t)
+{
+    stri T;
+    const double *P[3];
+    double fn[3];
+    for (int k = 0; k < 3; k++) P[k] = &m->v[3 * m->tri[3 * t + k]];
+    double u[3], w[3];
+    vec3_sub(P[1], P[0], u);
+    vec3_sub(P[2], P[0], w);
+    vec3_cross(u, w, fn);
+    normalize(fn);
+    for (int k = 0; k < 3; k++) {
+        project(&R->cam, P[k], &T.sx[k], &T.sy[k], &T.sd[k]);
+        T.N[k] = m->n ? &m->n[3 * m->tri[3 * t + k]] : fn;
+        if (!(vec3_dot(T.N[k], fn) >= RENDER_CREASE_COS)) T.N[k] = fn;
     }
+    const double *sx = T.sx, *sy = T.sy;
+    T.area = (sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]);
+    if (T.area == 0 || !isfinite(T.area)) return;
+    int x0 = (int)floor(fmin(sx[0], fmin(sx[1], sx[2]))), x1 = (int)ceil(fmax(sx[0], fmax(sx[1], sx[2])));
+    int y0 = (int)floor(fmin(sy[0], fmin(sy[1], sy[2]))), y1 = (int)ceil(fmax(sy[0], fmax(sy[1], sy[2])));
+    if (x0 < 0) x0 = 0;
+    if (y0 < 0) y0 = 0;
+    if (x1 > R->cam.w - 1) x1 = R->cam.w - 1;
+    if (y1 > R->cam.h - 1) y1 = R->cam.h - 1;
+    for (int y = y0; y <= y1; y++)
+        for (int x = x0; x <= x1; x++) shade_pixel(R, &T, x, y);
+}
 
-    if (pts) {
-        double r = RENDER_POINT_RADIUS * H / 1000.0;
-        if (r < 1.2) r = 1.2;
-        int ir = (int)ceil(r);
-        double slack = RENDER_POINT_DEPTH_SLACK * diag;
-        for (size_t i = 0; i < pts->n; i++) {
-            double p[3] = { pts->x[i], pts->y[i], pts->z[i] }, sx, sy, d;
-            project(&cam, p, &sx, &sy, &d);
-            double t = pts->value && pts->vmax > 0 ? fabs(pts->value[i]) / pts->vmax : 0;
-            if (!(t <= 1)) t = 1;
-            /* blue -> green -> red */
-            double col[3] = { t < 0.5 ? 0.1 : 2 * (t - 0.5) + 0.1 * (1 - t),
-                              t < 0.5 ? 0.3 + 1.2 * t : 1.8 * (1 - t),
-                              t < 0.5 ? 0.9 * (1 - 2 * t) + 0.1 : 0.05 };
-            for (int dy = -ir; dy <= ir; dy++)
-                for (int dx = -ir; dx <= ir; dx++) {
-                    int x = (int)floor(sx) + dx, y = (int)floor(sy) + dy;
-                    if (x < 0 || y < 0 || x >= W || y >= H) continue;
-                    double ddx = x + 0.5 - sx, ddy = y + 0.5 - sy;
-                    if (ddx * ddx + ddy * ddy > r * r) continue;
-                    size_t pi = (size_t)y * W + x;
-                    if (d > zbuf[pi] + slack) continue;
-                    uint8_t *c = &rgb[3 * pi];
-                    for (int k = 0; k < 3; k++) c[k] = to_byte(col[k]);
-                }
+/* The colour of value t in [0, 1]: blue -> green -> red. */
+static void value_colour(double t, double col[3])
+{
+    col[0] = t < 0.5 ? 0.1 : 2 * (t - 0.5) + 0.1 * (1 - t);
+    col[1] = t < 0.5 ? 0.3 + 1.2 * t : 1.8 * (1 - t);
+    col[2] = t < 0.5 ? 0.9 * (1 - 2 * t) + 0.1 : 0.05;
+}
+
+/* Overlay point i as a disc of radius r pixels, depth-tested with slack. */
+static void draw_point(raster *R, const render_points *pts, size_t i, double r, double slack)
+{
+    int W = R->cam.w, H = R->cam.h, ir = (int)ceil(r);
+    double p[3] = { pts->x[i], pts->y[i], pts->z[i] }, sx, sy, d;
+    project(&R->cam, p, &sx, &sy, &d);
+    double t = pts->value && pts->vmax > 0 ? fabs(pts->value[i]) / pts->vmax : 0;
+    if (!(t <= 1)) t = 1;
+    double col[3];
+    value_colour(t, col);
+    for (int dy = -ir; dy <= ir; dy++)
+        for (int dx = -ir; dx <= ir; dx++) {
+            int x = (int)floor(sx) + dx, y = (int)floor(sy) + dy;
+            if (x < 0 || y < 0 || x >= W || y >= H) continue;
+            double ddx = x + 0.5 - sx, ddy = y + 0.5 - sy;
+            if (ddx * ddx + ddy * ddy > r * r) continue;
+            size_t pi = (size_t)y * W + x;
+            if (d > R->zbuf[pi] + slack) continue;
+            uint8_t *c = &R->rgb[3 * pi];
+            for (int k = 0; k < 3; k++) c[k] = to_byte(col[k]);
         }
-    }
-    frep_free(zbuf);
+}
+
+/* The overlay: every point on top of the surface, coloured by its value. */
+static void draw_points(raster *R, const render_points *pts)
+{
+    double r = RENDER_POINT_RADIUS * R->cam.h / 1000.0;
+    if (r < RENDER_POINT_MIN_RADIUS) r = RENDER_POINT_MIN_RADIUS;
+    double slack = RENDER_POINT_DEPTH_SLACK * R->diag;
+    for (size_t i = 0; i < pts->n; i++) draw_point(R, pts, i, r, slack);
+}
+
+int render_mesh(const frep_mesh *m, const render_points *pts, const render_options *o,
+                uint8_t *rgb, frep_error *e)
+{
+    const char *view = o->view ? o->view : "iso";
+    const view_def *vd = find_view(view);
+    if (!vd) return frep_error_set(e, FREP_EINPUT, "unknown view '%s' (known: %s)", view, RENDER_VIEWS);
+    if (o->width < 1 || o->height < 1)
+        return frep_error_set(e, FREP_EINPUT, "a picture of %dx%d pixels", o->width, o->height);
+    raster R;
+    R.rgb = rgb;
+    R.zbuf = frep_malloc((size_t)o->width * (size_t)o->height * sizeof *R.zbuf);
+    if (!R.zbuf) return frep_error_nomem(e);
+    camera_init(&R, vd, o);
+    clear_picture(&R);
+    lights_init(&R);
+    for (size_t t = 0; t < m->ntris; t++) draw_triangle(&R, m, t);
+    if (pts) draw_points(&R, pts);
+    frep_free(R.zbuf);
     return 0;
 }

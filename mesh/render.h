@@ -8,6 +8,7 @@
 
 #include <stdint.h>
 
+#include "err.h"
 #include "mesh.h"
 
 typedef struct render_points {
@@ -30,8 +31,9 @@ typedef struct render_options {
 int render_view_ok(const char *view);
 
 /* Render into rgb (3 * width * height bytes, rows top to bottom). pts may be NULL.
- * Returns 0, or -1 for a bad view name or out of memory. */
+ * Returns 0, or -1 with *e set: a bad view name or size (FREP_EINPUT), out of memory
+ * (FREP_ENOMEM). */
 int render_mesh(const frep_mesh *m, const render_points *pts, const render_options *o,
-                uint8_t *rgb);
+                uint8_t *rgb, frep_error *e);
 
 #endif

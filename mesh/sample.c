@@ -5,20 +5,22 @@
 #include "config.h"
 
 #include "alloc.h"
-#include "sample.h"
+#include "mesh_internal.h"
 #include "rng.h"
+#include "sample.h"
+#include "util.h"
+#include "vec3.h"
 
 #include <math.h>
-#include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
-
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 /* Points per evaluation batch in the projection: a multiple of FREP_BLOCK. */
 #define SAMPLE_BATCH 1024
+/* The grid chosen from the point count, sqrt(n / SAMPLE_POINTS_PER_GRID2) within these
+ * bounds: about 4 points per mesh triangle at most, so the grid follows the density. */
+#define SAMPLE_GRID_MIN 32
+#define SAMPLE_GRID_MAX 256
+#define SAMPLE_POINTS_PER_GRID2 6.0
 
 void sample_options_init(sample_options *o)
 {
@@ -29,74 +31,79 @@ void sample_options_init(sample_options *o)
     o->mesh.grid = 0; /* chosen from the point count unless set */
 }
 
-/* The shared generator (runtime/rng.h) under this file's short names. */
-typedef frep_rng rng;
-static void rng_seed(rng *r, uint64_t seed) { frep_rng_seed(r, seed); }
-
-static double rng_unit(rng *r) { return frep_rng_unit(r); }
-
-static double rng_gauss(rng *r)
+/* A standard normal deviate (Box-Muller, one of the pair). */
+static double rng_gauss(frep_rng *r)
 {
-    double u = rng_unit(r), v = rng_unit(r);
-    return sqrt(-2 * log(1 - u)) * cos(6.283185307179586 * v);
+    double u = frep_rng_unit(r), v = frep_rng_unit(r);
+    return sqrt(-2 * log(1 - u)) * cos(2 * FREP_PI * v);
 }
 
-/* Draw n points on m's triangles, area-weighted; tri_of[i] receives the triangle. */
-static int draw_on_mesh(const frep_mesh *m, rng *r, size_t n, frep_cloud *c, size_t *tri_of)
+/* cum[t]: the area of m's triangles 0..t; returns the total. */
+static double triangle_areas(const frep_mesh *m, double *cum)
 {
-    double *cum = frep_malloc((m->ntris + 1) * sizeof *cum);
-    if (!cum) return -1;
     double total = 0;
     for (size_t t = 0; t < m->ntris; t++) {
         const double *a = &m->v[3 * m->tri[3 * t]], *b = &m->v[3 * m->tri[3 * t + 1]],
                      *d = &m->v[3 * m->tri[3 * t + 2]];
-        double u[3] = { b[0] - a[0], b[1] - a[1], b[2] - a[2] };
-        double w[3] = { d[0] - a[0], d[1] - a[1], d[2] - a[2] };
-        double cx = u[1] * w[2] - u[2] * w[1], cy = u[2] * w[0] - u[0] * w[2],
-               cz = u[0] * w[1] - u[1] * w[0];
-        total += 0.5 * sqrt(cx * cx + cy * cy + cz * cz);
+        double u[3], w[3], n[3];
+        vec3_sub(b, a, u);
+        vec3_sub(d, a, w);
+        vec3_cross(u, w, n);
+        total += 0.5 * vec3_len(n);
         cum[t] = total;
     }
-    if (!(total > 0)) {
-        frep_free(cum);
-        return -2;
+    return total;
+}
+
+/* One point uniform on m's surface (cum and total from triangle_areas) with its
+ * triangle's unit normal (by vertex order); returns the triangle. */
+static size_t draw_point(const frep_mesh *m, const double *cum, double total, frep_rng *r,
+                         double p[3], double nrm[3])
+{
+    double u = frep_rng_unit(r) * total;
+    size_t lo = 0, hi = m->ntris - 1;
+    while (lo < hi) {
+        size_t mid = (lo + hi) / 2;
+        if (cum[mid] <= u) lo = mid + 1;
+        else hi = mid;
     }
-    for (size_t i = 0; i < n; i++) {
-        double u = rng_unit(r) * total;
-        size_t lo = 0, hi = m->ntris - 1;
-        while (lo < hi) {
-            size_t mid = (lo + hi) / 2;
-            if (cum[mid] <= u) lo = mid + 1;
-            else hi = mid;
-        }
-        double s = rng_unit(r), t = rng_unit(r);
-        if (s + t > 1) {
-            s = 1 - s;
-            t = 1 - t;
-        }
-        const double *a = &m->v[3 * m->tri[3 * lo]], *b = &m->v[3 * m->tri[3 * lo + 1]],
-                     *d = &m->v[3 * m->tri[3 * lo + 2]];
-        double p[3];
-        for (int k = 0; k < 3; k++) p[k] = a[k] + s * (b[k] - a[k]) + t * (d[k] - a[k]);
-        double u3[3] = { b[0] - a[0], b[1] - a[1], b[2] - a[2] };
-        double w3[3] = { d[0] - a[0], d[1] - a[1], d[2] - a[2] };
-        double nrm[3] = { u3[1] * w3[2] - u3[2] * w3[1], u3[2] * w3[0] - u3[0] * w3[2],
-                          u3[0] * w3[1] - u3[1] * w3[0] };
-        double l = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
-        for (int k = 0; k < 3; k++) nrm[k] = l > 0 ? nrm[k] / l : 0;
-        if (cloud_push(c, p, nrm) != 0) {
-            frep_free(cum);
-            return -1;
-        }
-        if (tri_of) tri_of[i] = lo;
+    double s = frep_rng_unit(r), t = frep_rng_unit(r);
+    if (s + t > 1) {
+        s = 1 - s;
+        t = 1 - t;
+    }
+    const double *a = &m->v[3 * m->tri[3 * lo]], *b = &m->v[3 * m->tri[3 * lo + 1]],
+                 *d = &m->v[3 * m->tri[3 * lo + 2]];
+    for (int k = 0; k < 3; k++) p[k] = a[k] + s * (b[k] - a[k]) + t * (d[k] - a[k]);
+    double u3[3], w3[3];
+    vec3_sub(b, a, u3);
+    vec3_sub(d, a, w3);
+    vec3_cross(u3, w3, nrm);
+    double l = vec3_len(nrm);
+    for (int k = 0; k < 3; k++) nrm[k] = l > 0 ? nrm[k] / l : 0;
+    return lo;
+}
+
+/* Draw n points on m's triangles, area-weighted, into c. */
+static int draw_on_mesh(const frep_mesh *m, frep_rng *r, size_t n, frep_cloud *c, frep_error *e)
+{
+    double *cum = frep_malloc((m->ntris + 1) * sizeof *cum);
+    if (!cum) return frep_error_nomem(e);
+    double total = triangle_areas(m, cum);
+    int rc = 0;
+    if (!(total > 0)) rc = frep_error_set(e, FREP_EINPUT, "the mesh has zero area");
+    for (size_t i = 0; i < n && rc == 0; i++) {
+        double p[3], nrm[3];
+        draw_point(m, cum, total, r, p, nrm);
+        if (cloud_push(c, p, nrm) != 0) rc = frep_error_nomem(e);
     }
     frep_free(cum);
-    return 0;
+    return rc;
 }
 
 /* Noise and outliers, drawn after the surface points so that the surface points of
  * a cloud do not change when only these options do. */
-static void perturb(const sample_options *o, const double box[6], rng *r, frep_cloud *c,
+static void perturb(const sample_options *o, const double box[6], frep_rng *r, frep_cloud *c,
                     size_t nsurf)
 {
     double dx = box[3] - box[0], dy = box[4] - box[1], dz = box[5] - box[2];
@@ -109,31 +116,39 @@ static void perturb(const sample_options *o, const double box[6], rng *r, frep_c
             c->z[i] += sigma * rng_gauss(r);
         }
     for (size_t i = nsurf; i < c->n; i++) {
-        c->x[i] = box[0] + dx * rng_unit(r);
-        c->y[i] = box[1] + dy * rng_unit(r);
-        c->z[i] = box[2] + dz * rng_unit(r);
+        c->x[i] = box[0] + dx * frep_rng_unit(r);
+        c->y[i] = box[1] + dy * frep_rng_unit(r);
+        c->z[i] = box[2] + dz * frep_rng_unit(r);
         double nv[3] = { rng_gauss(r), rng_gauss(r), rng_gauss(r) };
-        double l = sqrt(nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]);
+        double l = vec3_len(nv);
         c->nx[i] = l > 0 ? nv[0] / l : 1;
         c->ny[i] = l > 0 ? nv[1] / l : 0;
         c->nz[i] = l > 0 ? nv[2] / l : 0;
     }
 }
 
-static int check_opts(const sample_options *o, char *err, size_t errlen)
+/* The outliers' slots after the nsurf surface points of c, then noise and outliers
+ * (perturb) over box. */
+static int add_outliers(const sample_options *o, const double box[6], frep_rng *r,
+                        frep_cloud *c, size_t nsurf, frep_error *e)
 {
-    if (o->n < 1 || o->n > SAMPLE_MAX_POINTS) {
-        snprintf(err, errlen, "the number of points must be 1..%zu", (size_t)SAMPLE_MAX_POINTS);
-        return -1;
+    for (size_t i = nsurf; i < o->n; i++) {
+        double zero[3] = { 0, 0, 0 };
+        if (cloud_push(c, zero, zero)) return frep_error_nomem(e);
     }
-    if (!(o->noise >= 0) || !isfinite(o->noise)) {
-        snprintf(err, errlen, "the noise must be a finite number >= 0");
-        return -1;
-    }
-    if (!(o->outliers >= 0 && o->outliers <= 1)) {
-        snprintf(err, errlen, "the outlier fraction must be in [0, 1]");
-        return -1;
-    }
+    perturb(o, box, r, c, nsurf);
+    return 0;
+}
+
+static int check_opts(const sample_options *o, frep_error *e)
+{
+    if (o->n < 1 || o->n > SAMPLE_MAX_POINTS)
+        return frep_error_set(e, FREP_EINPUT, "the number of points must be 1..%zu",
+                              (size_t)SAMPLE_MAX_POINTS);
+    if (!(o->noise >= 0) || !isfinite(o->noise))
+        return frep_error_set(e, FREP_EINPUT, "the noise must be a finite number >= 0");
+    if (!(o->outliers >= 0 && o->outliers <= 1))
+        return frep_error_set(e, FREP_EINPUT, "the outlier fraction must be in [0, 1]");
     return 0;
 }
 
@@ -142,156 +157,209 @@ static size_t n_outliers(const sample_options *o)
     return (size_t)floor(o->outliers * (double)o->n + 0.5);
 }
 
-int sample_mesh(const frep_mesh *m, const sample_options *o, frep_cloud **out, char *err,
-                size_t errlen)
+/* A new cloud with normals and room for o->n points, or NULL when out of memory. */
+static frep_cloud *new_cloud(const sample_options *o)
 {
-    *out = NULL;
-    if (check_opts(o, err, errlen)) return -1;
-    size_t nout = n_outliers(o), nsurf = o->n - nout;
     frep_cloud *c = cloud_new(1);
-    if (!c || cloud_reserve(c, o->n) != 0) goto oom;
-    rng r;
-    rng_seed(&r, o->seed);
-    int rc = draw_on_mesh(m, &r, nsurf, c, NULL);
-    if (rc == -2) {
-        snprintf(err, errlen, "the mesh has zero area");
+    if (c && cloud_reserve(c, o->n) != 0) {
         cloud_free(c);
-        return -1;
+        c = NULL;
     }
-    if (rc) goto oom;
-    double box[6] = { INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY };
+    return c;
+}
+
+/* The bounding box of m's vertices. */
+static void mesh_bounds(const frep_mesh *m, double box[6])
+{
+    for (int k = 0; k < 3; k++) {
+        box[k] = INFINITY;
+        box[k + 3] = -INFINITY;
+    }
     for (size_t i = 0; i < m->nverts; i++)
         for (int k = 0; k < 3; k++) {
             box[k] = fmin(box[k], m->v[3 * i + k]);
             box[k + 3] = fmax(box[k + 3], m->v[3 * i + k]);
         }
-    for (size_t i = nsurf; i < o->n; i++) {
-        double zero[3] = { 0, 0, 0 };
-        if (cloud_push(c, zero, zero)) goto oom;
-    }
-    perturb(o, box, &r, c, nsurf);
-    *out = c;
-    return 0;
-oom:
-    cloud_free(c);
-    snprintf(err, errlen, "out of memory");
-    return -1;
 }
 
-int sample_field(const mesh_field *f, const sample_options *o, frep_cloud **out, char *err,
-                 size_t errlen)
+int sample_mesh(const frep_mesh *m, const sample_options *o, frep_cloud **out, frep_error *e)
 {
     *out = NULL;
-    if (check_opts(o, err, errlen)) return -1;
-    mesh_options mo = o->mesh;
-    if (mo.grid <= 0) {
-        /* about 4 points per mesh triangle at most: the grid follows the density */
-        double g = sqrt((double)o->n / 6.0);
-        mo.grid = g < 32 ? 32 : (g > 256 ? 256 : (int)g);
-    }
-    frep_mesh m;
-    mesh_stats st;
-    if (mesh_polygonize(f, &mo, &m, &st, err, errlen) != 0) return -1;
-    if (m.ntris == 0 || st.full) {
-        snprintf(err, errlen, st.full ? "the model fills the whole box: no surface to sample"
-                                      : "the model is empty in the box: no surface to sample");
-        mesh_free(&m);
+    if (check_opts(o, e)) return -1;
+    size_t nsurf = o->n - n_outliers(o);
+    frep_cloud *c = new_cloud(o);
+    if (!c) return frep_error_nomem(e);
+    frep_rng r;
+    frep_rng_seed(&r, o->seed);
+    double box[6];
+    mesh_bounds(m, box);
+    if (draw_on_mesh(m, &r, nsurf, c, e) != 0 || add_outliers(o, box, &r, c, nsurf, e) != 0) {
+        cloud_free(c);
         return -1;
     }
-    size_t nout = n_outliers(o), nsurf = o->n - nout;
-    frep_cloud *c = cloud_new(1);
-    if (!c || cloud_reserve(c, o->n) != 0) goto oom;
-    rng r;
-    rng_seed(&r, o->seed);
-    if (draw_on_mesh(&m, &r, nsurf, c, NULL) != 0) goto oom;
-    mesh_free(&m);
+    *out = c;
+    return 0;
+}
 
-    /* project onto the zero set: p -= (f - iso) grad / |grad|^2, staying inside a
-     * cell of the start (a step longer than that means a bad gradient) */
+/* ---- projection onto the zero set ------------------------------------------------- */
+
+/* One thread's projection: its field state and a batch of points with their values
+ * and gradients. */
+typedef struct proj {
+    const mesh_field *f;
+    void *ts;
+    frep_cloud *c;
+    double iso, cell;         /* the level; the longest step (a cell of the grid) */
+    double *x, *y, *z, *fv, *gx, *gy, *gz;   /* SAMPLE_BATCH each */
+} proj;
+
+/* Point i of the batch starting at cloud point i0, at the last step: onto the cloud
+ * with the outward normal -grad f / |grad f|, where that is defined. */
+static void proj_store(proj *P, size_t i0, size_t i)
+{
+    double g2 = P->gx[i] * P->gx[i] + P->gy[i] * P->gy[i] + P->gz[i] * P->gz[i];
+    double l = sqrt(g2);
+    if (!(l > 0 && isfinite(l) && isfinite(P->fv[i]))) return;
+    frep_cloud *c = P->c;
+    c->x[i0 + i] = P->x[i];
+    c->y[i0 + i] = P->y[i];
+    c->z[i0 + i] = P->z[i];
+    c->nx[i0 + i] = -P->gx[i] / l;
+    c->ny[i0 + i] = -P->gy[i] / l;
+    c->nz[i0 + i] = -P->gz[i] / l;
+}
+
+/* One Newton step of point i: p -= (f - iso) grad / |grad|^2, refused when longer than
+ * a cell or ending more than a cell from the start (a bad gradient). */
+static void proj_step(proj *P, size_t i0, size_t i)
+{
+    double g2 = P->gx[i] * P->gx[i] + P->gy[i] * P->gy[i] + P->gz[i] * P->gz[i];
+    if (!(g2 > 0) || !isfinite(g2) || !isfinite(P->fv[i])) return;
+    double s = (P->fv[i] - P->iso) / g2;
+    double dx = s * P->gx[i], dy = s * P->gy[i], dz = s * P->gz[i];
+    double len = sqrt(dx * dx + dy * dy + dz * dz);
+    if (len > P->cell) return;
+    double nxp = P->x[i] - dx, nyp = P->y[i] - dy, nzp = P->z[i] - dz;
+    const frep_cloud *c = P->c;
+    double ox = c->x[i0 + i] - nxp, oy = c->y[i0 + i] - nyp, oz = c->z[i0 + i] - nzp;
+    if (ox * ox + oy * oy + oz * oz > P->cell * P->cell) return;
+    P->x[i] = nxp;
+    P->y[i] = nyp;
+    P->z[i] = nzp;
+}
+
+/* Project the n cloud points from i0 by SAMPLE_NEWTON_STEPS steps. 0, or -1 when the
+ * field failed. */
+static int proj_batch(proj *P, size_t i0, size_t n)
+{
+    memcpy(P->x, P->c->x + i0, n * sizeof *P->x);
+    memcpy(P->y, P->c->y + i0, n * sizeof *P->y);
+    memcpy(P->z, P->c->z + i0, n * sizeof *P->z);
+    for (int step = 0; step <= SAMPLE_NEWTON_STEPS; step++) {
+        if (P->f->grad(P->f->ctx, P->ts, n, P->x, P->y, P->z, P->fv, P->gx, P->gy, P->gz) != 0)
+            return -1;
+        for (size_t i = 0; i < n; i++) {
+            if (step == SAMPLE_NEWTON_STEPS) proj_store(P, i0, i);
+            else proj_step(P, i0, i);
+        }
+    }
+    return 0;
+}
+
+/* Move the first nsurf points of c onto f = iso, in parallel batches; their normals
+ * from the gradient. */
+static int project(const mesh_field *f, const mesh_options *mo, frep_cloud *c, size_t nsurf,
+                   frep_error *e)
+{
     double cell = 0;
-    for (int k = 0; k < 3; k++) cell = fmax(cell, (mo.box[k + 3] - mo.box[k]) / mo.grid);
+    for (int k = 0; k < 3; k++) cell = fmax(cell, (mo->box[k + 3] - mo->box[k]) / mo->grid);
     long nb = (long)((nsurf + SAMPLE_BATCH - 1) / SAMPLE_BATCH);
-    int failed = 0;
-    int nthreads = mo.nthreads;
-#ifdef _OPENMP
-    if (nthreads <= 0) nthreads = omp_get_max_threads();
-#else
+    int nomem = 0, bad = 0;
+    int nthreads = mesh_thread_count(mo->nthreads);
     (void)nthreads; /* serial build: the pragma below is ignored */
-#endif
 #pragma omp parallel num_threads(nthreads)
     {
-        void *ts = f->thread_new(f->ctx);
+        proj P = { f, f->thread_new(f->ctx), c, mo->iso, cell, NULL, NULL, NULL, NULL, NULL, NULL, NULL };
         double *buf = frep_malloc(7 * SAMPLE_BATCH * sizeof *buf);
-        if (!ts || !buf) {
+        if (!P.ts || !buf) {
 #pragma omp atomic write
-            failed = 1;
+            nomem = 1;
+        } else {
+            P.x = buf;
+            P.y = P.x + SAMPLE_BATCH;
+            P.z = P.y + SAMPLE_BATCH;
+            P.fv = P.z + SAMPLE_BATCH;
+            P.gx = P.fv + SAMPLE_BATCH;
+            P.gy = P.gx + SAMPLE_BATCH;
+            P.gz = P.gy + SAMPLE_BATCH;
         }
 #pragma omp for schedule(dynamic, 4)
         for (long b = 0; b < nb; b++) {
-            if (!ts || !buf) continue;
+            if (!P.ts || !buf) continue;
             size_t i0 = (size_t)b * SAMPLE_BATCH;
             size_t n = nsurf - i0 < SAMPLE_BATCH ? nsurf - i0 : SAMPLE_BATCH;
-            double *x = buf, *y = x + SAMPLE_BATCH, *z = y + SAMPLE_BATCH, *fv = z + SAMPLE_BATCH,
-                   *gx = fv + SAMPLE_BATCH, *gy = gx + SAMPLE_BATCH, *gz = gy + SAMPLE_BATCH;
-            memcpy(x, c->x + i0, n * sizeof *x);
-            memcpy(y, c->y + i0, n * sizeof *y);
-            memcpy(z, c->z + i0, n * sizeof *z);
-            for (int step = 0; step <= SAMPLE_NEWTON_STEPS; step++) {
-                if (f->grad(f->ctx, ts, n, x, y, z, fv, gx, gy, gz) != 0) {
+            if (proj_batch(&P, i0, n) != 0) {
 #pragma omp atomic write
-                    failed = 1;
-                    break;
-                }
-                for (size_t i = 0; i < n; i++) {
-                    double g2 = gx[i] * gx[i] + gy[i] * gy[i] + gz[i] * gz[i];
-                    if (step == SAMPLE_NEWTON_STEPS) {
-                        double l = sqrt(g2);
-                        if (l > 0 && isfinite(l) && isfinite(fv[i])) {
-                            c->x[i0 + i] = x[i];
-                            c->y[i0 + i] = y[i];
-                            c->z[i0 + i] = z[i];
-                            c->nx[i0 + i] = -gx[i] / l;
-                            c->ny[i0 + i] = -gy[i] / l;
-                            c->nz[i0 + i] = -gz[i] / l;
-                        }
-                        continue;
-                    }
-                    if (!(g2 > 0) || !isfinite(g2) || !isfinite(fv[i])) continue;
-                    double s = (fv[i] - mo.iso) / g2;
-                    double dx = s * gx[i], dy = s * gy[i], dz = s * gz[i];
-                    double len = sqrt(dx * dx + dy * dy + dz * dz);
-                    if (len > cell) continue;
-                    double nxp = x[i] - dx, nyp = y[i] - dy, nzp = z[i] - dz;
-                    double ox = c->x[i0 + i] - nxp, oy = c->y[i0 + i] - nyp, oz = c->z[i0 + i] - nzp;
-                    if (ox * ox + oy * oy + oz * oz > cell * cell) continue;
-                    x[i] = nxp;
-                    y[i] = nyp;
-                    z[i] = nzp;
-                }
+                bad = 1;
             }
         }
         frep_free(buf);
-        if (ts) {
+        if (P.ts) {
             /* thread_free may merge per-thread state (runtime errors) into ctx */
 #pragma omp critical(sample_thread_free)
-            f->thread_free(f->ctx, ts);
+            f->thread_free(f->ctx, P.ts);
         }
     }
-    if (failed) {
+    if (nomem || bad)
+        return frep_error_set(e, nomem ? FREP_ENOMEM : FREP_EINPUT,
+                              "out of memory or evaluation failure while sampling");
+    return 0;
+}
+
+/* The polygonizer's options for sampling: the grid follows the point count unless
+ * set. */
+static mesh_options sample_mesh_options(const sample_options *o)
+{
+    mesh_options mo = o->mesh;
+    if (mo.grid <= 0) {
+        double g = sqrt((double)o->n / SAMPLE_POINTS_PER_GRID2);
+        mo.grid = g < SAMPLE_GRID_MIN ? SAMPLE_GRID_MIN : (g > SAMPLE_GRID_MAX ? SAMPLE_GRID_MAX : (int)g);
+    }
+    return mo;
+}
+
+/* The polygonized surface to sample: not empty, not the whole box. */
+static int surface_mesh(const mesh_field *f, const mesh_options *mo, frep_mesh *m,
+                        frep_error *e)
+{
+    mesh_stats st;
+    if (mesh_polygonize(f, mo, m, &st, e) != 0) return -1;
+    if (m->ntris > 0 && !st.full) return 0;
+    mesh_free(m);
+    return frep_error_set(e, FREP_EINPUT, st.full
+                                              ? "the model fills the whole box: no surface to sample"
+                                              : "the model is empty in the box: no surface to sample");
+}
+
+int sample_field(const mesh_field *f, const sample_options *o, frep_cloud **out, frep_error *e)
+{
+    *out = NULL;
+    if (check_opts(o, e)) return -1;
+    mesh_options mo = sample_mesh_options(o);
+    frep_mesh m;
+    if (surface_mesh(f, &mo, &m, e) != 0) return -1;
+    size_t nsurf = o->n - n_outliers(o);
+    frep_cloud *c = new_cloud(o);
+    frep_rng r;
+    frep_rng_seed(&r, o->seed);
+    int rc = c ? draw_on_mesh(&m, &r, nsurf, c, e) : frep_error_nomem(e);
+    mesh_free(&m);
+    if (rc == 0) rc = project(f, &mo, c, nsurf, e);
+    if (rc == 0) rc = add_outliers(o, mo.box, &r, c, nsurf, e);
+    if (rc != 0) {
         cloud_free(c);
-        snprintf(err, errlen, "out of memory or evaluation failure while sampling");
         return -1;
     }
-    for (size_t i = nsurf; i < o->n; i++) {
-        double zero[3] = { 0, 0, 0 };
-        if (cloud_push(c, zero, zero)) goto oom;
-    }
-    perturb(o, mo.box, &r, c, nsurf);
     *out = c;
     return 0;
-oom:
-    mesh_free(&m);
-    cloud_free(c);
-    snprintf(err, errlen, "out of memory");
-    return -1;
 }

@@ -12,6 +12,7 @@
 #include <stdint.h>
 
 #include "cloud.h"
+#include "err.h"
 #include "mesh.h"
 
 /* Most points one call produces (cloud memory: 48 bytes a point). */
@@ -32,13 +33,14 @@ typedef struct sample_options {
 void sample_options_init(sample_options *o);  /* 10000 points, seed 1, no noise */
 
 /* Sample a field's surface into *out (a new cloud with normals; free with
- * cloud_free). Returns 0, or -1 with a message in err. */
-int sample_field(const mesh_field *f, const sample_options *o, frep_cloud **out, char *err,
-                 size_t errlen);
+ * cloud_free). Returns 0, or -1 with *e set: bad options or no surface in the box
+ * (FREP_EINPUT), out of memory (FREP_ENOMEM), or mesh_polygonize's errors. */
+int sample_field(const mesh_field *f, const sample_options *o, frep_cloud **out,
+                 frep_error *e);
 
 /* Area-weighted points on a triangle mesh with its face normals (box: the mesh's
- * bounding box, for noise and outliers). */
-int sample_mesh(const frep_mesh *m, const sample_options *o, frep_cloud **out, char *err,
-                size_t errlen);
+ * bounding box, for noise and outliers). Errors as sample_field's (a mesh of zero
+ * area is FREP_EINPUT). */
+int sample_mesh(const frep_mesh *m, const sample_options *o, frep_cloud **out, frep_error *e);
 
 #endif

@@ -1,12 +1,15 @@
 /* util.c - small internal helpers shared by the library modules (runtime/util.h):
- * the malloc'ed printf behind the readers' error messages and the PLY scalar types
- * decoded by both the point-cloud reader and the mesh reader.
+ * the malloc'ed printf behind the readers' error messages, the PLY scalar types
+ * decoded by both the point-cloud reader and the mesh reader, the monotonic clock.
  */
+#include "config.h"
+
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "alloc.h"
 #include "util.h"
@@ -86,4 +89,11 @@ double frep_ply_decode(const unsigned char *p, frep_ply_type t, int big_endian)
     case FREP_PLY_NONE: break;
     }
     return 0.0;
+}
+
+double frep_now_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }

@@ -1,8 +1,8 @@
 /* util.h - small internal helpers shared by the library modules (not public API).
  *
- * A malloc'ed printf for the "file:line: what" messages the readers hand back, and
- * the PLY scalar types that both the cloud reader (cloud.c) and the mesh reader
- * (meshio.c) decode.
+ * A malloc'ed printf for the "file:line: what" messages the readers hand back, the
+ * PLY scalar types that both the cloud reader (cloud.c) and the mesh reader
+ * (meshio.c) decode, a monotonic clock for timings, and pi.
  */
 #ifndef FREP_UTIL_H
 #define FREP_UTIL_H
@@ -30,5 +30,11 @@ size_t frep_ply_type_size(frep_ply_type t);
 /* Decode one binary value of type t at p (frep_ply_type_size(t) bytes), big-endian
  * when big_endian is non-zero, little-endian otherwise. */
 double frep_ply_decode(const unsigned char *p, frep_ply_type t, int big_endian);
+
+/* Seconds on a monotonic clock (differences are wall time, immune to clock changes). */
+double frep_now_seconds(void);
+
+/* pi to more digits than a double holds (C11 has no M_PI). */
+#define FREP_PI 3.14159265358979323846
 
 #endif

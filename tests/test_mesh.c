@@ -377,6 +377,14 @@ static mesh_field make_field(tfield *t, int with_interval)
     return f;
 }
 
+/* mesh_polygonize with a fresh error (the first error set wins). */
+static int polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *m, mesh_stats *st,
+                      frep_error *err)
+{
+    frep_error_init(err);
+    return mesh_polygonize(f, o, m, st, err);
+}
+
 static int run_mesh(tfield *t, const double box[6], int grid, int threads, frep_mesh *m,
                     mesh_stats *st)
 {
@@ -386,9 +394,9 @@ static int run_mesh(tfield *t, const double box[6], int grid, int threads, frep_
     memcpy(o.box, box, sizeof o.box);
     o.grid = grid;
     o.nthreads = threads;
-    char err[256] = "";
-    int rc = mesh_polygonize(&f, &o, m, st, err, sizeof err);
-    if (rc != 0) diag("mesh_polygonize: %s", err);
+    frep_error err;
+    int rc = polygonize(&f, &o, m, st, &err);
+    if (rc != 0) diag("mesh_polygonize: %s", err.msg);
     return rc;
 }
 
@@ -663,18 +671,18 @@ static void test_mesh_bad(void)
     }
     mesh_field f = make_field(&t, 1);
     mesh_options o;
-    char err[256];
+    frep_error err;
     mesh_options_init(&o);
     o.grid = 0;
-    ok(mesh_polygonize(&f, &o, &m, &st, err, sizeof err) != 0, "grid 0 refused: %s", err);
+    ok(polygonize(&f, &o, &m, &st, &err) != 0 && err.code == FREP_EINPUT, "grid 0 refused: %s", err.msg);
     o.grid = MESH_MAX_GRID + 1;
-    ok(mesh_polygonize(&f, &o, &m, &st, err, sizeof err) != 0, "huge grid refused: %s", err);
+    ok(polygonize(&f, &o, &m, &st, &err) != 0 && err.code == FREP_EINPUT, "huge grid refused: %s", err.msg);
     o.grid = 10;
     o.box[3] = o.box[0];
-    ok(mesh_polygonize(&f, &o, &m, &st, err, sizeof err) != 0, "zero-size box refused: %s", err);
+    ok(polygonize(&f, &o, &m, &st, &err) != 0 && err.code == FREP_EINPUT, "zero-size box refused: %s", err.msg);
     mesh_options_init(&o);
     o.box[4] = NAN;
-    ok(mesh_polygonize(&f, &o, &m, &st, err, sizeof err) != 0, "NaN box refused: %s", err);
+    ok(polygonize(&f, &o, &m, &st, &err) != 0 && err.code == FREP_EINPUT, "NaN box refused: %s", err.msg);
 }
 
 /* Write a mesh in every format, read it back: same triangles, same volume. */
@@ -833,16 +841,16 @@ static void test_prune_program(int setops)
     o.grid = 61; /* no plane of the model on the grid: no ties at zero */
     frep_mesh a, b, c3;
     mesh_stats st;
-    char err[256] = "";
+    frep_error err;
     mesh_field f;
     mesh_field_program(&f, p, NULL);
     o.nthreads = 1;
-    int ra = mesh_polygonize(&f, &o, &a, &st, err, sizeof err);
+    int ra = polygonize(&f, &o, &a, &st, &err);
     o.nthreads = 3;
-    int rc = mesh_polygonize(&f, &o, &c3, &st, err, sizeof err);
+    int rc = polygonize(&f, &o, &c3, &st, &err);
     f.focus = NULL;
     o.nthreads = 1;
-    int rb = mesh_polygonize(&f, &o, &b, &st, err, sizeof err);
+    int rb = polygonize(&f, &o, &b, &st, &err);
     mesh_field_program_free(&f);
     ok(ra == 0 && rb == 0 && rc == 0, "%s: meshed with and without pruning", name);
     if (ra == 0 && rb == 0 && rc == 0) {
@@ -906,8 +914,8 @@ static void test_mesh_errors(void)
     mesh_field_program(&f, p, NULL);
     frep_mesh m;
     mesh_stats st;
-    char err[256];
-    int rc = mesh_polygonize(&f, &o, &m, &st, err, sizeof err);
+    frep_error err;
+    int rc = polygonize(&f, &o, &m, &st, &err);
     frep_runtime_error e;
     mesh_field_program_errors(&f, &e);
     mesh_field_program_free(&f);
@@ -916,6 +924,65 @@ static void test_mesh_errors(void)
        sqrt_pc, (unsigned long long)e.count, e.x);
     if (rc == 0) mesh_free(&m);
     frep_program_free(p);
+}
+
+/* An allocator failing allocation number fail_at (counting from 1; 0: none). */
+typedef struct failing_alloc {
+    long count, fail_at;
+} failing_alloc;
+
+static void *failing_alloc_fn(void *user, void *p, size_t n)
+{
+    failing_alloc *a = user;
+    if (n == 0) {
+        free(p);
+        return NULL;
+    }
+    if (++a->count == a->fail_at) return NULL;
+    return realloc(p, n);
+}
+
+/* Every allocation of a run failing in turn: the run fails with FREP_ENOMEM and
+ * "out of memory" (possibly with what it was doing), never with another report. */
+static void test_mesh_nomem(void)
+{
+    tfield t;
+    memset(&t, 0, sizeof t);
+    t.kind = F_SPHERE;
+    t.r = 1;
+    mesh_field f = make_field(&t, 1);
+    mesh_options o;
+    mesh_options_init(&o);
+    for (int c = 0; c < 3; c++) {
+        o.box[c] = -1.5;
+        o.box[c + 3] = 1.5;
+    }
+    o.grid = 20;
+    o.nthreads = 1;
+    failing_alloc fa = { 0, 0 };
+    frep_set_allocator(failing_alloc_fn, &fa);
+    frep_mesh m;
+    mesh_stats st;
+    frep_error err;
+    int rc0 = polygonize(&f, &o, &m, &st, &err);
+    mesh_free(&m);
+    long total = fa.count, failed = 0, wrong = 0;
+    for (long k = 1; k <= total; k++) {
+        fa.count = 0;
+        fa.fail_at = k;
+        if (polygonize(&f, &o, &m, &st, &err) == 0) {
+            mesh_free(&m);
+            continue;
+        }
+        failed++;
+        if (err.code != FREP_ENOMEM || strncmp(err.msg, "out of memory", 13) != 0) {
+            if (wrong++ == 0) diag("allocation %ld: '%s'", k, err.msg);
+        }
+    }
+    frep_set_allocator(NULL, NULL);
+    ok(rc0 == 0 && total > 0 && failed == total && wrong == 0,
+       "each of %ld allocations failing: %ld runs fail, %ld not as out of memory", total, failed,
+       wrong);
 }
 
 int main(void)
@@ -928,6 +995,7 @@ int main(void)
     test_validate_pinch();
     test_mesh_tunnels();
     test_mesh_bad();
+    test_mesh_nomem();
     test_meshio();
     test_prune_program(-1);
     test_prune_program(FREP_SETOPS_MINMAX);

@@ -63,14 +63,29 @@ static sample_options opts(size_t n, int threads)
     return o;
 }
 
+/* sample_field and sample_mesh with a fresh error (the first error set wins). */
+static int sample_f(const mesh_field *f, const sample_options *o, frep_cloud **out,
+                    frep_error *err)
+{
+    frep_error_init(err);
+    return sample_field(f, o, out, err);
+}
+
+static int sample_m(const frep_mesh *m, const sample_options *o, frep_cloud **out,
+                    frep_error *err)
+{
+    frep_error_init(err);
+    return sample_mesh(m, o, out, err);
+}
+
 int main(void)
 {
     ell sph = { 1, 1, 1 };
     mesh_field f = field(&sph);
-    char err[256];
+    frep_error err;
     frep_cloud *c = NULL, *c2 = NULL;
     sample_options o = opts(20000, 2);
-    ok(sample_field(&f, &o, &c, err, sizeof err) == 0 && c && c->n == 20000,
+    ok(sample_f(&f, &o, &c, &err) == 0 && c && c->n == 20000,
        "20000 points sampled from a sphere");
     if (c) {
         double worst = 0, worst_n = 0;
@@ -104,7 +119,7 @@ int main(void)
         ok(lo > 2330 && hi < 2670, "even density: octants hold %zu..%zu of 2500 expected", lo, hi);
     }
     sample_options o1 = opts(20000, 1);
-    ok(sample_field(&f, &o1, &c2, err, sizeof err) == 0 && c && c2 && c2->n == c->n &&
+    ok(sample_f(&f, &o1, &c2, &err) == 0 && c && c2 && c2->n == c->n &&
        memcmp(c->x, c2->x, c->n * sizeof *c->x) == 0 &&
        memcmp(c->nz, c2->nz, c->n * sizeof *c->nz) == 0,
        "the same cloud at 1 and 2 threads");
@@ -115,7 +130,7 @@ int main(void)
     ell el = { 1.2, 0.7, 0.5 };
     mesh_field fe = field(&el);
     o = opts(5000, 2);
-    if (sample_field(&fe, &o, &c2, err, sizeof err) == 0) {
+    if (sample_f(&fe, &o, &c2, &err) == 0) {
         double worst = 0, worst_n = 0;
         for (size_t i = 0; i < c2->n; i++) {
             double x = c2->x[i], y = c2->y[i], z = c2->z[i];
@@ -129,7 +144,7 @@ int main(void)
         ok(worst < 1e-9 && worst_n < 1e-9, "ellipsoid: |f|/|grad f| %.1e, normal error %.1e",
            worst, worst_n);
     } else {
-        ok(0, "ellipsoid sampled: %s", err);
+        ok(0, "ellipsoid sampled: %s", err.msg);
     }
     cloud_free(c2);
     c2 = NULL;
@@ -138,7 +153,7 @@ int main(void)
     o = opts(10000, 2);
     o.noise = 0.01;
     o.outliers = 0.1;
-    if (sample_field(&f, &o, &c2, err, sizeof err) == 0) {
+    if (sample_f(&f, &o, &c2, &err) == 0) {
         double s2 = 0;
         size_t far = 0;
         for (size_t i = 0; i < 9000; i++) {
@@ -154,7 +169,7 @@ int main(void)
         is_double(got, sigma, 0.1 * sigma, "noise: radial deviation of the surface points");
         ok(far > 700, "outliers: %zu of the last 1000 points are off the surface", far);
     } else {
-        ok(0, "noisy sampling: %s", err);
+        ok(0, "noisy sampling: %s", err.msg);
     }
     cloud_free(c2);
     c2 = NULL;
@@ -164,7 +179,7 @@ int main(void)
     uint32_t t[] = { 0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7 };
     frep_mesh m = { 8, 4, v, NULL, t };
     o = opts(4000, 1);
-    if (sample_mesh(&m, &o, &c2, err, sizeof err) == 0) {
+    if (sample_m(&m, &o, &c2, &err) == 0) {
         size_t bad = 0, top = 0;
         for (size_t i = 0; i < c2->n; i++) {
             int up = c2->z[i] > 0.5;
@@ -175,21 +190,20 @@ int main(void)
         ok(bad == 0, "mesh sampling: points on the faces with face normals (%zu bad)", bad);
         ok(top > 1800 && top < 2200, "mesh sampling is area-weighted (%zu of 4000 on top)", top);
     } else {
-        ok(0, "mesh sampled: %s", err);
+        ok(0, "mesh sampled: %s", err.msg);
     }
     cloud_free(c2);
     o = opts(0, 1);
-    ok(sample_field(&f, &o, &c2, err, sizeof err) != 0, "zero points refused: %s", err);
+    ok(sample_f(&f, &o, &c2, &err) != 0 && err.code == FREP_EINPUT, "zero points refused: %s", err.msg);
     o = opts(10, 1);
     o.outliers = 2;
-    ok(sample_field(&f, &o, &c2, err, sizeof err) != 0, "outlier fraction 2 refused: %s", err);
+    ok(sample_f(&f, &o, &c2, &err) != 0 && err.code == FREP_EINPUT, "outlier fraction 2 refused: %s", err.msg);
     ell tiny = { 0.01, 0.01, 0.01 };
     mesh_field ft = field(&tiny);
     o = opts(10, 1);
     o.mesh.grid = 9; /* no grid point within 0.01 of the origin */
-    err[0] = '\0';
-    ok(sample_field(&ft, &o, &c2, err, sizeof err) != 0 && err[0],
-       "a model smaller than the grid: %s", err);
+    ok(sample_f(&ft, &o, &c2, &err) != 0 && err.msg[0] && err.code == FREP_EINPUT,
+       "a model smaller than the grid: %s", err.msg);
     cloud_free(c);
     return done_testing();
 }

@@ -1,0 +1,152 @@
+/* mesh_internal.h - what the stages of the polygonizer share (not public API).
+ *
+ * mesh_polygonize (polygonize.c) runs: the octree finds the blocks (octree.c), each
+ * block places its vertices by dual contouring (mesh.c), faces crossed twice are
+ * confirmed and the quads made (quads.c).  The types below carry a run's state
+ * between them: one mesher per run, one mblock per block of MESH_BLOCK^3 cells.
+ */
+#ifndef FREP_MESH_INTERNAL_H
+#define FREP_MESH_INTERNAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "err.h"
+#include "mesh.h"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+/* Cells per block edge: 9^3 corner evaluations per call amortize the evaluator's
+ * per-call cost, while blocks stay small enough to follow the surface. */
+#define MESH_BLOCK 8
+#define MESH_BLOCK_CORNERS ((MESH_BLOCK + 1) * (MESH_BLOCK + 1) * (MESH_BLOCK + 1))
+#define MESH_BLOCK_CELLS (MESH_BLOCK * MESH_BLOCK * MESH_BLOCK)
+#define MESH_BLOCK_EDGES (3 * MESH_BLOCK_CORNERS)
+#define MESH_NO_VERTEX 0xFFFFu
+
+/* ---- cell topology table ---------------------------------------------------------
+ * Corner i of a cell is at (i & 1, (i >> 1) & 1, (i >> 2) & 1).  Edge e = 4a + u + 2v
+ * runs along axis a; u and v are its coordinates along the two other axes (lower
+ * axis first). */
+
+typedef struct cell_table {
+    uint8_t ncycles[256];
+    uint8_t cycle[256][12];   /* component of each crossing edge; 0xFF: no crossing */
+    /* bit 2a + s: face s (0 low, 1 high) across axis a is ambiguous (four crossings,
+     * two segments) and both segments belong to one component of the cell */
+    uint8_t dupface[256];
+} cell_table;
+
+/* Fill t for the 256 cases of a cell's inside corners (mesh.c). */
+void mesh_cell_table_build(cell_table *t);
+
+/* The two axes other than a, lower first. */
+static inline void mesh_edge_other_axes(int a, int *o1, int *o2)
+{
+    *o1 = a == 0 ? 1 : 0;
+    *o2 = a == 2 ? 1 : 2;
+}
+
+static inline int mesh_cell_index(int i, int j, int k)
+{
+    return i + MESH_BLOCK * (j + MESH_BLOCK * k);
+}
+
+/* ---- a run and its blocks --------------------------------------------------------- */
+
+/* One block of cells. Valid after mesh_block_contour: vertex data and the per-cell
+ * case and first-vertex index (cases 0 and 255 have no vertex). */
+typedef struct mblock {
+    uint64_t key;
+    int b[3];
+    uint32_t nverts;          /* component vertices of the cells */
+    /* Faces one sheet crosses twice whose high-side cell is in this block (candidates
+     * after mesh_block_contour, only the confirmed ones after mesh_resolve_faces):
+     * each has two vertices, one per segment, stored after the nverts cell vertices. */
+    uint32_t nfaces;
+    uint16_t *fkey;           /* per face: 3 * (local index of the high-side cell) + axis,
+                                 ascending */
+    uint32_t need;            /* bit (dx+1) + 3(dy+1) + 9(dz+1): neighbours with crossings */
+    uint32_t real_crossings, inside_corners, virtual_crossings, nan_points, split_cells;
+    size_t vglobal;           /* index of the first vertex in the whole mesh */
+    double *vpos, *vnrm;      /* 3 * (nverts + 2 nfaces) each */
+    double *vfg;              /* 4 * (...): f - iso and the gradient at each vertex */
+    uint8_t *vrank;           /* QEF rank (2: on a sharp edge, 3: a corner; 0 on faces) */
+    uint8_t *cs;              /* MESH_BLOCK_CELLS cases */
+    uint16_t *vbase;          /* MESH_BLOCK_CELLS first vertex or MESH_NO_VERTEX */
+    uint32_t *tri;            /* triangles from the quads this block owns (phase 3) */
+    size_t ntri;
+    int failed;
+} mblock;
+
+typedef struct mwork mwork;   /* per-thread buffers of mesh_block_contour (mesh.c) */
+
+typedef struct mesher {
+    const mesh_field *f;
+    const mesh_options *o;
+    cell_table table;
+    int g;                    /* cells per axis of the box */
+    int G;                    /* padded cells per axis: g + 2 */
+    int nb;                   /* blocks per axis */
+    double h[3];
+    int nthreads;
+    void **ts;                /* per-thread field state */
+    mwork **works;            /* per-thread block buffers */
+    mblock **blocks;          /* sorted by key */
+    size_t nblocks, capblocks;
+    size_t bytes;
+} mesher;
+
+/* ---- the stages (each file's header says more) ------------------------------------ */
+
+/* octree.c: the sorted list of blocks and the octree that fills it. */
+uint64_t mesh_block_key(const mesher *M, long bx, long by, long bz);
+mblock *mesh_block_find(const mesher *M, uint64_t key);   /* NULL: not in the list */
+int mesh_block_cmp(const void *a, const void *b);         /* qsort by key */
+void mesh_block_free(mblock *B);
+/* Append a new empty block at (bx, by, bz); 0, or -1 when out of memory. */
+int mesh_block_add(mesher *M, long bx, long by, long bz);
+/* The blocks the interval test cannot prove empty or full, sorted. */
+int mesh_find_blocks(mesher *M, mesh_stats *st, frep_error *e);
+/* After blocks [first, old) were contoured: append the unlisted neighbours towards
+ * which they found crossings.  0, or -1 when out of memory. */
+int mesh_add_needed_blocks(mesher *M, size_t first, size_t old);
+
+/* mesh.c: dual contouring of one block, with per-thread buffers. */
+mwork *mesh_work_new(void);
+/* Add W's evaluation counts to st and free W. */
+void mesh_work_free(mwork *W, mesh_stats *st);
+/* Evaluate block B's corners, find its crossings and place its cell vertices. Returns 0,
+ * FREP_ENOMEM when out of memory or FREP_EINPUT when the field failed. */
+int mesh_block_contour(const mesher *M, mwork *W, void *ts, mblock *B);
+
+/* quads.c: the faces crossed twice on both sides, then the triangles. */
+void mesh_resolve_faces(mesher *M);
+/* The triangles of the quads block B owns into B->tri. 0, or -1 when out of memory. */
+int mesh_block_quads(mesher *M, mblock *B);
+
+/* ---- threads ---------------------------------------------------------------------- */
+
+/* The threads of a run asking for n (<= 0: OpenMP's default). */
+static inline int mesh_thread_count(int n)
+{
+#ifdef _OPENMP
+    return n > 0 ? n : omp_get_max_threads();
+#else
+    (void)n;
+    return 1;
+#endif
+}
+
+static inline int mesh_thread_num(void)
+{
+#ifdef _OPENMP
+    return omp_get_thread_num();
+#else
+    return 0;
+#endif
+}
+
+#endif

@@ -1,0 +1,278 @@
+/* polygonize.c - mesh_polygonize (mesh.h): the polygonizer's driver, the steps of
+ * doc/mesh.md ("Method") in order.
+ *
+ * Octree pruning finds the blocks (octree.c); each block is contoured (mesh.c), in
+ * parallel, blocks with crossings towards unlisted ones bringing them in; the faces
+ * crossed twice are confirmed and the quads made (quads.c); the blocks' vertices and
+ * triangles are assembled in key order, so the mesh does not depend on the thread
+ * count.  The result goes to geom/meshio.c, mesh/sample.c or mesh/render.c.
+ */
+#include "config.h"
+
+#include "alloc.h"
+#include "mesh_internal.h"
+#include "util.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Working memory a contoured block is charged for: the block, its cases and vertex
+ * indices (3 bytes a cell) and 48 bytes a vertex (position, normal). */
+#define POLY_BLOCK_BYTES (sizeof(mblock) + MESH_BLOCK_CELLS * 3)
+#define POLY_VERTEX_BYTES 48
+/* Shares of the progress fraction: contouring, then the quads. */
+#define POLY_CONTOUR_SHARE 0.9
+#define POLY_QUADS_SHARE 0.1
+
+void mesh_options_init(mesh_options *o)
+{
+    memset(o, 0, sizeof *o);
+    for (int c = 0; c < 3; c++) {
+        o->box[c] = -10;
+        o->box[c + 3] = 10;
+    }
+    o->grid = 30;
+    o->iso = 0;
+}
+
+/* Refuse a grid outside 1..MESH_MAX_GRID, an empty or non-finite box, a non-finite
+ * iso level. */
+static int check_options(const mesh_options *o, frep_error *e)
+{
+    if (o->grid < 1 || o->grid > MESH_MAX_GRID)
+        return frep_error_set(e, FREP_EINPUT, "grid of %d cells per axis is outside 1..%d",
+                              o->grid, MESH_MAX_GRID);
+    for (int c = 0; c < 3; c++) {
+        if (!isfinite(o->box[c]) || !isfinite(o->box[c + 3]) || !(o->box[c + 3] > o->box[c]))
+            return frep_error_set(e, FREP_EINPUT, "empty or invalid box: %c from %g to %g",
+                                  "xyz"[c], o->box[c], o->box[c + 3]);
+    }
+    if (!isfinite(o->iso)) return frep_error_set(e, FREP_EINPUT, "the iso level must be a finite number");
+    return 0;
+}
+
+/* The run's grid (padded by one cell on every side), its blocks per axis, threads,
+ * and per-thread field states and buffers.  0, or -1 when out of memory. */
+static int mesher_init(mesher *M, const mesh_field *f, const mesh_options *o, mesh_stats *st)
+{
+    M->f = f;
+    M->o = o;
+    mesh_cell_table_build(&M->table);
+    M->g = o->grid;
+    M->G = o->grid + 2;
+    M->nb = (M->G + MESH_BLOCK - 1) / MESH_BLOCK;
+    for (int c = 0; c < 3; c++) M->h[c] = (o->box[c + 3] - o->box[c]) / o->grid;
+    M->nthreads = mesh_thread_count(o->nthreads);
+    st->blocks_total = (size_t)M->nb * (size_t)M->nb * (size_t)M->nb;
+    M->ts = frep_calloc((size_t)M->nthreads, sizeof *M->ts);
+    M->works = frep_calloc((size_t)M->nthreads, sizeof *M->works);
+    if (!M->ts || !M->works) return -1;
+    for (int t = 0; t < M->nthreads; t++) {
+        M->ts[t] = f->thread_new(f->ctx);
+        M->works[t] = mesh_work_new();
+        if (!M->ts[t] || !M->works[t]) return -1;
+    }
+    return 0;
+}
+
+/* Free the run; the threads' evaluation counts go to st. */
+static void mesher_free(mesher *M, mesh_stats *st)
+{
+    if (M->blocks)
+        for (size_t i = 0; i < M->nblocks; i++) mesh_block_free(M->blocks[i]);
+    frep_free(M->blocks);
+    if (M->ts)
+        for (int t = 0; t < M->nthreads; t++)
+            if (M->ts[t]) M->f->thread_free(M->f->ctx, M->ts[t]);
+    frep_free(M->ts);
+    if (M->works)
+        for (int t = 0; t < M->nthreads; t++) mesh_work_free(M->works[t], st);
+    frep_free(M->works);
+    frep_free(M);
+}
+
+/* Contour blocks [first, nblocks) in parallel; *done counts the blocks contoured so
+ * far, for the progress. */
+static int contour_round(mesher *M, size_t first, size_t *done, frep_error *e)
+{
+    const mesh_options *o = M->o;
+    long n = (long)(M->nblocks - first);
+    int nomem = 0, bad = 0;
+    size_t done_blocks = *done;
+    mblock **todo = M->blocks + first;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(M->nthreads)
+    for (long i = 0; i < n; i++) {
+        int t = mesh_thread_num();
+        int rc = mesh_block_contour(M, M->works[t], M->ts[t], todo[i]);
+        if (rc == FREP_ENOMEM) {
+#pragma omp atomic write
+            nomem = 1;
+        } else if (rc != 0) {
+#pragma omp atomic write
+            bad = 1;
+        }
+        if (t == 0 && o->progress) {
+            size_t d;
+#pragma omp atomic read
+            d = done_blocks;
+            o->progress(o->progress_user,
+                        POLY_CONTOUR_SHARE * (double)d / (double)(M->nblocks + 1));
+        }
+#pragma omp atomic
+        done_blocks++;
+    }
+    *done = done_blocks;
+    if (nomem || bad)
+        return frep_error_set(e, nomem ? FREP_ENOMEM : FREP_EINPUT,
+                              "out of memory or evaluation failure while meshing");
+    return 0;
+}
+
+/* Charge blocks [first, old) to the working memory; refuse more than
+ * MESH_MAX_WORK_BYTES. */
+static int charge_memory(mesher *M, size_t first, size_t old, frep_error *e)
+{
+    for (size_t i = first; i < old; i++)
+        M->bytes += POLY_BLOCK_BYTES + POLY_VERTEX_BYTES * (size_t)M->blocks[i]->nverts;
+    if (M->bytes > MESH_MAX_WORK_BYTES)
+        return frep_error_set(e, FREP_ELIMIT, "the mesh needs more than %zu MiB of working "
+                              "memory; use a smaller -g", MESH_MAX_WORK_BYTES >> 20);
+    return 0;
+}
+
+/* Step 2 with the closure of step 6: contour the listed blocks; blocks found to have
+ * crossings towards a block not yet listed (the interval test is sound, but NaN and
+ * rounding are not its business) bring that block in, until the surface is closed.
+ * Leaves the blocks sorted. */
+static int contour_blocks(mesher *M, frep_error *e)
+{
+    size_t first = 0, done = 0;
+    while (first < M->nblocks) {
+        size_t old = M->nblocks;
+        if (contour_round(M, first, &done, e) != 0 || charge_memory(M, first, old, e) != 0)
+            return -1;
+        if (mesh_add_needed_blocks(M, first, old) != 0) return frep_error_nomem(e);
+        first = old;
+    }
+    if (M->nblocks > 1) qsort(M->blocks, M->nblocks, sizeof *M->blocks, mesh_block_cmp);
+    return 0;
+}
+
+/* Sum the blocks' counts into st, drop the blocks without vertices and number the
+ * vertices in block order (cell vertices, then face vertices).  Returns the number
+ * of vertices. */
+static size_t number_vertices(mesher *M, mesh_stats *st)
+{
+    size_t nkeep = 0, nverts = 0;
+    uint32_t inside = 0, real_cross = 0;
+    for (size_t i = 0; i < M->nblocks; i++) {
+        mblock *B = M->blocks[i];
+        st->points_nan += B->nan_points;
+        st->cells_split += B->split_cells;
+        inside += B->inside_corners > 0;
+        real_cross += B->real_crossings > 0;
+        if (B->virtual_crossings) st->touches_box = 1;
+        if (B->nverts == 0) {
+            mesh_block_free(B);
+            continue;
+        }
+        B->vglobal = nverts;
+        nverts += B->nverts + 2 * (size_t)B->nfaces;
+        st->face_vertices += 2 * (size_t)B->nfaces;
+        M->blocks[nkeep++] = B;
+    }
+    M->nblocks = nkeep;
+    st->full = inside > 0 && real_cross == 0;
+    return nverts;
+}
+
+/* Step 5: every block's quads, in parallel. */
+static int make_quads(mesher *M, frep_error *e)
+{
+    const mesh_options *o = M->o;
+    long n = (long)M->nblocks;
+    int failed = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(M->nthreads)
+    for (long i = 0; i < n; i++) {
+        int t = mesh_thread_num();
+        if (mesh_block_quads(M, M->blocks[i]) != 0) {
+#pragma omp atomic write
+            failed = 1;
+        }
+        if (t == 0 && o->progress)
+            o->progress(o->progress_user, POLY_CONTOUR_SHARE +
+                                              POLY_QUADS_SHARE * (double)i / (double)(n + 1));
+    }
+    if (failed)
+        return frep_error_set(e, FREP_ENOMEM, "out of memory or evaluation failure while meshing");
+    return 0;
+}
+
+/* The blocks' vertices and triangles, in block order, into out. */
+static int assemble(const mesher *M, size_t nverts, frep_mesh *out, frep_error *e)
+{
+    size_t ntris = 0;
+    int holes = 0;
+    for (size_t i = 0; i < M->nblocks; i++) {
+        ntris += M->blocks[i]->ntri;
+        holes |= M->blocks[i]->failed;
+    }
+    if (holes) return frep_error_set(e, FREP_EINTERNAL, "internal error: a surface cell was not evaluated");
+    if (ntris > MESH_MAX_TRIANGLES)
+        return frep_error_set(e, FREP_ELIMIT, "the mesh has more than %zu triangles; use a smaller -g",
+                              (size_t)MESH_MAX_TRIANGLES);
+    out->nverts = nverts;
+    out->ntris = ntris;
+    out->v = frep_malloc((3 * nverts + 1) * sizeof *out->v);
+    out->n = frep_malloc((3 * nverts + 1) * sizeof *out->n);
+    out->tri = frep_malloc((3 * ntris + 1) * sizeof *out->tri);
+    if (!out->v || !out->n || !out->tri) {
+        mesh_free(out);
+        return frep_error_nomem(e);
+    }
+    size_t tpos = 0;
+    for (size_t i = 0; i < M->nblocks; i++) {
+        const mblock *B = M->blocks[i];
+        /* empty blocks may hold NULL arrays: memcpy from NULL is undefined even for 0 */
+        if (B->nverts) {
+            size_t nall = B->nverts + 2 * (size_t)B->nfaces;
+            memcpy(out->v + 3 * B->vglobal, B->vpos, 3 * nall * sizeof *out->v);
+            memcpy(out->n + 3 * B->vglobal, B->vnrm, 3 * nall * sizeof *out->n);
+        }
+        if (B->ntri) memcpy(out->tri + 3 * tpos, B->tri, 3 * B->ntri * sizeof *out->tri);
+        tpos += B->ntri;
+    }
+    return 0;
+}
+
+/* Steps 1 to 6 on an initialized run. */
+static int polygonize(mesher *M, mesh_stats *st, frep_mesh *out, frep_error *e)
+{
+    if (mesh_find_blocks(M, st, e) != 0 || contour_blocks(M, e) != 0) return -1;
+    st->blocks = M->nblocks;
+    mesh_resolve_faces(M);
+    size_t nverts = number_vertices(M, st);
+    if (nverts >= UINT32_MAX)
+        return frep_error_set(e, FREP_ELIMIT, "the mesh has more than 2^32 vertices; use a smaller -g");
+    if (make_quads(M, e) != 0 || assemble(M, nverts, out, e) != 0) return -1;
+    if (M->o->progress) M->o->progress(M->o->progress_user, 1.0);
+    return 0;
+}
+
+int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
+                    mesh_stats *stats, frep_error *e)
+{
+    double t_start = frep_now_seconds();
+    mesh_stats st_local;
+    mesh_stats *st = stats ? stats : &st_local;
+    memset(st, 0, sizeof *st);
+    memset(out, 0, sizeof *out);
+    if (check_options(o, e) != 0) return -1;
+    mesher *M = frep_calloc(1, sizeof *M);
+    if (!M) return frep_error_nomem(e);
+    int status = mesher_init(M, f, o, st) != 0 ? frep_error_nomem(e) : polygonize(M, st, out, e);
+    mesher_free(M, st);
+    st->seconds = frep_now_seconds() - t_start;
+    return status;
+}

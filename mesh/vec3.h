@@ -1,0 +1,41 @@
+/* vec3.h - the 3-vector arithmetic of the mesh folder (polygonizer, sampler, renderer):
+ * dot and cross products, length, and the unit vector that stays 0 where there is no
+ * direction.  Inline and exact as written, so every caller rounds the same way.
+ */
+#ifndef FREP_VEC3_H
+#define FREP_VEC3_H
+
+#include <math.h>
+
+static inline double vec3_dot(const double a[3], const double b[3])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static inline void vec3_cross(const double a[3], const double b[3], double c[3])
+{
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static inline double vec3_len(const double a[3]) { return sqrt(vec3_dot(a, a)); }
+
+/* b - a */
+static inline void vec3_sub(const double b[3], const double a[3], double d[3])
+{
+    for (int i = 0; i < 3; i++) d[i] = b[i] - a[i];
+}
+
+/* v / |v|, or 0 when |v| is 0 or not finite (no usable direction). */
+static inline void vec3_unit(double v[3])
+{
+    double l = vec3_len(v);
+    if (l > 0 && isfinite(l)) {
+        for (int i = 0; i < 3; i++) v[i] /= l;
+    } else {
+        v[0] = v[1] = v[2] = 0;
+    }
+}
+
+#endif
