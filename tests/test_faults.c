@@ -10,6 +10,7 @@
  */
 #include "config.h"
 
+#include "buf.h"
 #include "cloud.h"
 #include "evolve.h"
 #include "faults.h"
@@ -747,6 +748,21 @@ static int case_render(const fixture *fx, fault_out *o)
     return mem_close(&mo, o, png_write_rgb(mo.f, rgb, W, H));
 }
 
+/* The shared growable buffer, grown past its first block. */
+static int case_buf(const fixture *fx, fault_out *o)
+{
+    (void)fx;
+    frep_buf b = FREP_BUF_INIT;
+    for (int i = 0; i < 40; i++) buf_printf(&b, "line %d of the buffer test\n", i);
+    buf_putc(&b, '.');
+    size_t len;
+    char *str = buf_finish(&b, &len);
+    if (!str) return -1;
+    digest_bytes(o, str, len);
+    frep_free(str);
+    return 0;
+}
+
 /* ---- the driver --------------------------------------------------------------------- */
 
 typedef int (*case_fn)(const fixture *fx, fault_out *o);
@@ -806,6 +822,7 @@ static const fault_case cases[] = {
       "evolve_refit reports out of memory as 'the tree cannot be evaluated at the "
       "points' or without a message (evolve/refit.c, fit/objective.c)" },
     { "render", case_render, MSG_NONE, NULL },
+    { "buf", case_buf, MSG_NONE, NULL },
 };
 
 /* Injected failures reported in detail per case; the others are only counted. */
