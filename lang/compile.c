@@ -204,6 +204,7 @@ char **frep_list_models(const char *file, const char *text, size_t len, size_t *
             }
             if (v) *count = f.nmodels;
         }
+        if (!v) diag_report(&d, FREP_ERROR, (ast_loc){ 0, 0, 0, 0 }, 0, "out of memory");
     }
     arena_free(&A);
     return v;

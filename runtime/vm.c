@@ -33,7 +33,10 @@ static int alloc_lanes(double **v, uint32_t from, uint32_t n)
     for (i = from; i < n; i++) {
         v[i] = frep_aligned_alloc(64, FREP_BLOCK * sizeof(double));
         if (!v[i]) {
-            while (i > from) frep_aligned_free(v[--i]);
+            while (i > from) {
+                frep_aligned_free(v[--i]);
+                v[i] = NULL;   /* the trig cache is freed whole by vm_scratch_free */
+            }
             return -1;
         }
         memset(v[i], 0, FREP_BLOCK * sizeof(double));

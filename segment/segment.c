@@ -343,7 +343,8 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
     if (!start || !order) {
         frep_free(start);
         frep_free(order);
-        frep_free(rr.prims);
+        ransac_result_free(&rr);
+        res->label = NULL;
         if (err) *err = frep_strdupf("out of memory");
         return -1;
     }
@@ -354,7 +355,8 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
     if (!fill) {
         frep_free(start);
         frep_free(order);
-        frep_free(rr.prims);
+        ransac_result_free(&rr);
+        res->label = NULL;
         if (err) *err = frep_strdupf("out of memory");
         return -1;
     }
