@@ -209,9 +209,8 @@ static void materialize_slot(vm_scratch *s, uint32_t slot, size_t n)
     }
 }
 
-/* Record the domain errors of instruction pc: lanes where bad(op, a, b). */
-static void record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_opcode op,
-                          const double *A, double ka, const double *B, double kb, size_t n)
+void vm_record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_opcode op,
+                      const double *A, double ka, const double *B, double kb, size_t n)
 {
     size_t i;
     for (i = 0; i < n; i++) {
@@ -220,11 +219,21 @@ static void record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_
     }
 }
 
+void vm_runaway(vm_scratch *s, const vm_inputs *in, uint32_t pc, size_t n, double *out)
+{
+    size_t i;
+    for (i = 0; i < n; i++) {
+        out[i] = NAN;
+        vm_err_lane(s, pc, i, in);
+    }
+    vm_err_commit(s, n);
+}
+
 #define VM_RESTRICT restrict
 
 /* Loop bodies.  Each macro expands to a case computing R[i] from operand vectors
  * A (and B) or immediates; the domain check runs only for OPF_DOMAIN ops and its
- * slow path (record_errors) only when some lane failed. */
+ * slow path (vm_record_errors) only when some lane failed. */
 #define UNARY(NAME, EXPR)                                                          \
     case FREP_OP_##NAME: {                                                         \
         const double *VM_RESTRICT A = s->sp[d - 1];                                \
@@ -242,7 +251,7 @@ static void record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_
         if (!(in_->flags & INSN_QUIET)) {                                          \
             int bad = 0;                                                           \
             for (i = 0; i < n; i++) { double a = A[i]; bad |= (BAD); }            \
-            if (bad) record_errors(s, in, pc, FREP_OP_##NAME, A, 0, NULL, 0, n);   \
+            if (bad) vm_record_errors(s, in, pc, FREP_OP_##NAME, A, 0, NULL, 0, n);   \
         }                                                                          \
         s->sp[d - 1] = R;                                                          \
         break;                                                                     \
@@ -296,7 +305,7 @@ static void record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_
             } else {                                                               \
                 for (i = 0; i < n; i++) { double a = ka, b = B[i]; bad |= (BAD); } \
             }                                                                      \
-            if (bad) record_errors(s, in, pc, FREP_OP_##NAME, A, ka, B, kb, n);    \
+            if (bad) vm_record_errors(s, in, pc, FREP_OP_##NAME, A, ka, B, kb, n);    \
         }                                                                          \
         BINARY_LOOPS(EXPR)                                                         \
         break;                                                                     \
@@ -406,7 +415,7 @@ static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
             break;
         }
         case FREP_OP_X:
-            s->sp[d++] = in_->arg == 0 ? in->x : in_->arg == 1 ? in->y : in->z;
+            s->sp[d++] = vm_axis(in, in_->arg);
             break;
         case FREP_OP_PARAM:
             s->sp[d++] = s->parambuf + (size_t)in_->arg * FREP_BLOCK;
@@ -435,30 +444,8 @@ static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
             s->slotp[slot] = s->slotbuf[slot];
             break;
         }
-        case FREP_OP_JMP:
-            if (in_->arg <= pc && ++loops > FREP_MAX_LOOP_ITERATIONS) {
-                /* A runaway loop: every lane's result is NaN with an error. */
-                for (i = 0; i < n; i++) {
-                    out[i] = NAN;
-                    vm_err_lane(s, pc, i, in);
-                }
-                vm_err_commit(s, n);
-                return 0;
-            }
-            pc = in_->arg;
-            continue;
-        case FREP_OP_JZ: {
-            const double *C = s->sp[--d];
-            size_t zeros = 0;
-            for (i = 0; i < n; i++) zeros += C[i] == 0;
-            if (zeros == n) { pc = in_->arg; continue; }
-            if (zeros != 0) {
-                if (may_diverge) return 1;
-                /* n == 1 cannot diverge; reaching here is a bug, but stay safe. */
-                return -1;
-            }
-            break;
-        }
+        VM_CASE_JMP(vm_runaway(s, in, pc, n, out))
+        VM_CASE_JZ(s->sp[--d])
         case FREP_OP_LOADI: {
             const double *I = s->sp[d - 1];
             double *R = lvl_out(s, d - 1);
@@ -607,9 +594,7 @@ void vm_broadcast_params(const frep_program *p, vm_scratch *s, const vm_inputs *
     s->param_count = p->nparams;
 }
 
-/* Inputs of lane i alone (divergent branches). */
-static vm_inputs lane_inputs(const frep_program *p, vm_scratch *s, const vm_inputs *in,
-                             size_t i)
+vm_inputs vm_lane_inputs(const frep_program *p, vm_scratch *s, const vm_inputs *in, size_t i)
 {
     vm_inputs li = *in;
     uint32_t j;
@@ -639,7 +624,7 @@ int vm_eval_block(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
     rc = vm_run(p, s, in, n, out, n > 1);
     if (rc != 1) return rc;
     for (i = 0; i < n; i++) {
-        vm_inputs li = lane_inputs(p, s, in, i);
+        vm_inputs li = vm_lane_inputs(p, s, in, i);
         if (vm_run(p, s, &li, 1, out + i, 0) < 0) return -1;
     }
     return 0;
