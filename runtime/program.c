@@ -3,7 +3,8 @@
  * The compiler (lang/emit.c) and the genetic-programming engine (evolve/) assemble
  * bytecode with prog_emit() and seal it with prog_finish(), which verifies the stack
  * discipline so the evaluators (runtime/vm*.c) can run it without checks.  The opcode
- * queries and the disassembler are generated from the FREP_OPS table of ops.h.
+ * queries and the disassembler's mnemonics come from the FREP_OPS table of ops.h; the
+ * operand checks and operand text name the ops with special fields.
  */
 #include <math.h>
 #include <stdarg.h>
