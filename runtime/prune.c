@@ -64,6 +64,80 @@ void prune_plan_free(prune_plan *pl)
     frep_free(pl);
 }
 
+/* May grid code contain op?  Jumps, indexed arrays and cached primitives have no
+ * single producer per operand, so programs with them are not pruned. */
+static int plan_supported(frep_opcode op)
+{
+    switch (op) {
+    case FREP_OP_JMP: case FREP_OP_JZ: case FREP_OP_LOADI: case FREP_OP_STOREI:
+    case FREP_OP_PRIM: case FREP_OP__COUNT:
+        return 0;
+    case FREP_OP_CONST: case FREP_OP_X: case FREP_OP_PARAM: case FREP_OP_LOAD:
+    case FREP_OP_STORE: case FREP_OP_NEG: case FREP_OP_NOT: case FREP_OP_ABS:
+    case FREP_OP_SQRT: case FREP_OP_SQUARE: case FREP_OP_EXP: case FREP_OP_LOG:
+    case FREP_OP_LOGD: case FREP_OP_SIN: case FREP_OP_COS: case FREP_OP_TAN:
+    case FREP_OP_ASIN: case FREP_OP_ACOS: case FREP_OP_ATAN: case FREP_OP_SINH:
+    case FREP_OP_COSH: case FREP_OP_TANH: case FREP_OP_SIGN: case FREP_OP_CEIL:
+    case FREP_OP_FLOOR: case FREP_OP_INT: case FREP_OP_FRAC: case FREP_OP_ADD:
+    case FREP_OP_SUB: case FREP_OP_MUL: case FREP_OP_DIV: case FREP_OP_POW:
+    case FREP_OP_MOD: case FREP_OP_MIN: case FREP_OP_MAX: case FREP_OP_ATAN2:
+    case FREP_OP_EQ: case FREP_OP_NE: case FREP_OP_LT: case FREP_OP_LE:
+    case FREP_OP_GT: case FREP_OP_GE: case FREP_OP_AND: case FREP_OP_OR:
+    case FREP_OP_RUNI: case FREP_OP_RINT: case FREP_OP_RSUB: case FREP_OP_MSUB:
+    case FREP_OP_AUNI: case FREP_OP_AINT: case FREP_OP_SELECT:
+        return 1;
+    default:
+        return 0;
+    }
+}
+
+/* The symbolic run of the stack: each instruction's operand producers, each LOAD's
+ * STORE (read[] marks the stores some LOAD reads).  Returns the pc producing the
+ * result, or PR_NONE when the code is not supported or does not leave one value. */
+static uint32_t plan_symbolic_run(prune_plan *pl, uint32_t *stack, uint32_t *last,
+                                  uint8_t *read)
+{
+    const frep_program *p = pl->p;
+    uint32_t sp = 0;
+    for (uint32_t j = 0; j <= p->nslots; j++) last[j] = PR_NONE;
+    for (uint32_t pc = 0; pc < pl->n; pc++) {
+        const frep_insn *in = &p->code[pc];
+        frep_opcode op = (frep_opcode)in->op;
+        if (!plan_supported(op)) return PR_NONE;
+        int nin = insn_nin(in);
+        if (nin < 0 || nin > 3 || (uint32_t)nin > sp) return PR_NONE;
+        for (int i = 0; i < 3; i++) pl->opnd[3 * pc + (uint32_t)i] = PR_NONE;
+        sp -= (uint32_t)nin;
+        for (int i = 0; i < nin; i++) pl->opnd[3 * pc + (uint32_t)i] = stack[sp + (uint32_t)i];
+        pl->nopnd[pc] = (uint8_t)nin;
+        if (op == FREP_OP_LOAD || op == FREP_OP_STORE) {
+            if (in->arg >= p->nslots) return PR_NONE;
+            if (op == FREP_OP_LOAD) {
+                pl->opnd[3 * pc] = last[in->arg];
+                pl->nopnd[pc] = last[in->arg] != PR_NONE;
+                if (last[in->arg] != PR_NONE) read[last[in->arg]] = 1;
+            } else {
+                last[in->arg] = pc;
+            }
+        }
+        if (op_pushes(op)) stack[sp++] = pc;
+    }
+    return sp == 1 ? stack[0] : PR_NONE;
+}
+
+/* Does the program have a min, max or select to decide?  (If not, the caller saves
+ * the interval pass.) */
+static int plan_has_decisions(const frep_program *p)
+{
+    for (uint32_t pc = 0; pc < p->ncode; pc++) {
+        uint8_t op = p->code[pc].op;
+        if (op == FREP_OP_MIN || op == FREP_OP_MAX || op == FREP_OP_MSUB ||
+            op == FREP_OP_SELECT)
+            return 1;
+    }
+    return 0;
+}
+
 prune_plan *prune_plan_new(const frep_program *p)
 {
     if (!p || !p->code || p->ncode == 0 || (p->flags & (PROG_HAS_BRANCHES | PROG_HAS_PRIMS)))
@@ -80,60 +154,8 @@ prune_plan *prune_plan_new(const frep_program *p)
     pl->nopnd = frep_calloc(n, 1);
     pl->sink = frep_calloc(n, 1);
     if (!pl->opnd || !pl->nopnd || !pl->sink) goto fail;
-    for (uint32_t j = 0; j <= p->nslots; j++) last[j] = PR_NONE;
-    uint32_t sp = 0;
-    for (uint32_t pc = 0; pc < n; pc++) {
-        const frep_insn *in = &p->code[pc];
-        frep_opcode op = (frep_opcode)in->op;
-        switch (op) {
-        case FREP_OP_JMP: case FREP_OP_JZ: case FREP_OP_LOADI: case FREP_OP_STOREI:
-        case FREP_OP_PRIM: case FREP_OP__COUNT:
-            goto fail;
-        case FREP_OP_CONST: case FREP_OP_X: case FREP_OP_PARAM: case FREP_OP_LOAD:
-        case FREP_OP_STORE: case FREP_OP_NEG: case FREP_OP_NOT: case FREP_OP_ABS:
-        case FREP_OP_SQRT: case FREP_OP_SQUARE: case FREP_OP_EXP: case FREP_OP_LOG:
-        case FREP_OP_LOGD: case FREP_OP_SIN: case FREP_OP_COS: case FREP_OP_TAN:
-        case FREP_OP_ASIN: case FREP_OP_ACOS: case FREP_OP_ATAN: case FREP_OP_SINH:
-        case FREP_OP_COSH: case FREP_OP_TANH: case FREP_OP_SIGN: case FREP_OP_CEIL:
-        case FREP_OP_FLOOR: case FREP_OP_INT: case FREP_OP_FRAC: case FREP_OP_ADD:
-        case FREP_OP_SUB: case FREP_OP_MUL: case FREP_OP_DIV: case FREP_OP_POW:
-        case FREP_OP_MOD: case FREP_OP_MIN: case FREP_OP_MAX: case FREP_OP_ATAN2:
-        case FREP_OP_EQ: case FREP_OP_NE: case FREP_OP_LT: case FREP_OP_LE:
-        case FREP_OP_GT: case FREP_OP_GE: case FREP_OP_AND: case FREP_OP_OR:
-        case FREP_OP_RUNI: case FREP_OP_RINT: case FREP_OP_RSUB: case FREP_OP_MSUB:
-        case FREP_OP_AUNI: case FREP_OP_AINT: case FREP_OP_SELECT:
-            break;
-        default:
-            goto fail;
-        }
-        int nin = insn_nin(in);
-        if (nin < 0 || nin > 3 || (uint32_t)nin > sp) goto fail;
-        for (int i = 0; i < 3; i++) pl->opnd[3 * pc + (uint32_t)i] = PR_NONE;
-        sp -= (uint32_t)nin;
-        for (int i = 0; i < nin; i++) pl->opnd[3 * pc + (uint32_t)i] = stack[sp + (uint32_t)i];
-        pl->nopnd[pc] = (uint8_t)nin;
-        if (op == FREP_OP_LOAD || op == FREP_OP_STORE) {
-            if (in->arg >= p->nslots) goto fail;
-            if (op == FREP_OP_LOAD) {
-                pl->opnd[3 * pc] = last[in->arg];
-                pl->nopnd[pc] = last[in->arg] != PR_NONE;
-                if (last[in->arg] != PR_NONE) read[last[in->arg]] = 1;
-            } else {
-                last[in->arg] = pc;
-            }
-        }
-        if (op_pushes(op)) stack[sp++] = pc;
-    }
-    if (sp != 1) goto fail;
-    /* nothing to decide: the caller saves the interval pass */
-    uint32_t ndec = 0;
-    for (uint32_t pc = 0; pc < n; pc++) {
-        uint8_t op = p->code[pc].op;
-        ndec += op == FREP_OP_MIN || op == FREP_OP_MAX || op == FREP_OP_MSUB ||
-                op == FREP_OP_SELECT;
-    }
-    if (ndec == 0) goto fail;
-    pl->root = stack[0];
+    pl->root = plan_symbolic_run(pl, stack, last, read);
+    if (pl->root == PR_NONE || !plan_has_decisions(p)) goto fail;
     for (uint32_t pc = 0; pc < n; pc++)
         pl->sink[pc] = p->code[pc].op == FREP_OP_STORE && !read[pc];
     frep_free(stack);
