@@ -150,25 +150,17 @@ static int prog_check_insn(frep_program *p, const frep_insn *in, uint32_t pc)
     return 0;
 }
 
-int prog_finish(frep_program *p)
+/* The maximum stack depth of the code, by a worklist over the control-flow graph from
+ * the depth before each pc (index ncode: at the end): every path must agree on the
+ * depth at a join, none may underflow, and the program must leave exactly its one
+ * result.  -1 when one of these fails or memory runs out. */
+static long prog_max_depth(const frep_program *p)
 {
-    long *depth;
-    uint32_t *work, nwork = 0, pc, flags = 0;
+    long *depth = frep_malloc((p->ncode + 1) * sizeof *depth);
+    uint32_t *work = frep_malloc((p->ncode + 1) * sizeof *work);
+    uint32_t nwork = 0, pc;
     long maxd = 0;
     int rc = 0;
-
-    if (!p || p->ncode == 0 || !p->code) return -1;
-    for (pc = 0; pc < p->ncode; pc++) {
-        frep_opcode op = (frep_opcode)p->code[pc].op;
-        if (prog_check_insn(p, &p->code[pc], pc) < 0) return -1;
-        if (op == FREP_OP_JMP || op == FREP_OP_JZ) flags |= PROG_HAS_BRANCHES;
-        if (op == FREP_OP_PRIM) flags |= PROG_HAS_PRIMS;
-    }
-
-    /* Stack depth before each pc (and at the end, index ncode) by a worklist over the
-     * control-flow graph: every path must agree on the depth at a join. */
-    depth = frep_malloc((p->ncode + 1) * sizeof *depth);
-    work = frep_malloc((p->ncode + 1) * sizeof *work);
     if (!depth || !work) { frep_free(depth); frep_free(work); return -1; }
     for (pc = 0; pc <= p->ncode; pc++) depth[pc] = -1;
     depth[0] = 0;
@@ -201,12 +193,26 @@ int prog_finish(frep_program *p)
             }
         }
     }
-    /* The program must leave exactly its one result on the stack. */
     if (rc == 0 && depth[p->ncode] != 1) rc = -1;
-    if (rc == 0 && maxd > FREP_MAX_STACK) rc = -1;
     frep_free(depth);
     frep_free(work);
-    if (rc < 0) return -1;
+    return rc < 0 ? -1 : maxd;
+}
+
+int prog_finish(frep_program *p)
+{
+    uint32_t pc, flags = 0;
+    long maxd;
+
+    if (!p || p->ncode == 0 || !p->code) return -1;
+    for (pc = 0; pc < p->ncode; pc++) {
+        frep_opcode op = (frep_opcode)p->code[pc].op;
+        if (prog_check_insn(p, &p->code[pc], pc) < 0) return -1;
+        if (op == FREP_OP_JMP || op == FREP_OP_JZ) flags |= PROG_HAS_BRANCHES;
+        if (op == FREP_OP_PRIM) flags |= PROG_HAS_PRIMS;
+    }
+    maxd = prog_max_depth(p);
+    if (maxd < 0 || maxd > FREP_MAX_STACK) return -1;
     p->max_stack = (uint32_t)maxd;
     p->flags = flags;
     return 0;

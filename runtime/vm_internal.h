@@ -99,6 +99,8 @@ void vm_runaway(vm_scratch *s, const vm_inputs *in, uint32_t pc, size_t n, doubl
 void vm_err_commit(vm_scratch *s, size_t n);
 /* Merge error totals: deterministic (lowest pc wins, counts add). */
 void vm_err_merge(vm_errstate *into, const vm_errstate *from);
+/* The public form of an error total (runtime/eval.c). */
+void vm_err_to_public(const vm_errstate *e, frep_runtime_error *out);
 
 /* Inputs of lane i of *in alone, for the lane-by-lane rerun of a divergent block (the
  * PRIM pointers go to s->primp/primg). */
