@@ -5,6 +5,7 @@
  * the derivatives with respect to the free parameters (used by fit/).  The derivative
  * rules, including the defined values at kinks, are op_partials() of opsem.h; a NULL
  * tangent means "identically zero" and lets constant subtrees skip all tangent work.
+ * tan_run is laid out like vm.c's vm_run, and shares its jumps (vm_internal.h).
  */
 #include <math.h>
 #include <stdlib.h>
@@ -14,7 +15,8 @@
 #include "opsem.h"
 #include "vm_internal.h"
 
-/* Op flags and arities, as a local table so the dispatch loop needs no calls. */
+/* Op flags and arities from the opcode table: each operator case indexes them with
+ * its constant opcode, so they fold to constants (op_flags() would be a call). */
 static const unsigned char tan_flags[FREP_OP__COUNT] = {
 #define FREP_OP_TF(name, id, nin, flags, meaning) [id] = (unsigned char)(flags),
     FREP_OPS(FREP_OP_TF)
