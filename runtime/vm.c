@@ -51,6 +51,8 @@ int vm_scratch_fit(vm_scratch *s, const frep_program *p)
         s->lv = lv;
         sp = grow(s->sp, n, sizeof *sp);
         if (!sp) return -1;
+        /* lvl_out reads a level's entry before its first push */
+        memset(sp + s->cap_stack, 0, (n - s->cap_stack) * sizeof *sp);
         s->sp = sp;
         if (alloc_lanes(s->lv, 2u * s->cap_stack, 2u * n) < 0) return -1;
         s->cap_stack = n;
