@@ -29,7 +29,7 @@ void frep_scratch_free(frep_scratch *s)
     vm_scratch_free((vm_scratch *)s);
 }
 
-static void errstate_to_public(const vm_errstate *e, frep_runtime_error *out)
+void vm_err_to_public(const vm_errstate *e, frep_runtime_error *out)
 {
     memset(out, 0, sizeof *out);
     out->count = e->count;
@@ -44,7 +44,7 @@ static void errstate_to_public(const vm_errstate *e, frep_runtime_error *out)
 
 void frep_scratch_errors(const frep_scratch *s, frep_runtime_error *e)
 {
-    errstate_to_public(&((const vm_scratch *)s)->total, e);
+    vm_err_to_public(&((const vm_scratch *)s)->total, e);
 }
 
 void frep_scratch_reset_errors(frep_scratch *s)
@@ -237,7 +237,7 @@ static int par_run(const par_job *j, int nthreads, frep_runtime_error *err)
         vm_scratch_free(s);
     }
 #endif
-    if (err) errstate_to_public(&total, err);
+    if (err) vm_err_to_public(&total, err);
     return failed ? -1 : 0;
 }
 

@@ -1,9 +1,12 @@
 /* ops.h - the one opcode table of frep's bytecode.
  *
- * Every evaluator (values, tangents, intervals), the disassembler, the compiler's
- * constant folder and the genetic-programming engine are generated from this list by
- * expanding FREP_OP.  Opcode ids are fixed numbers: saved genomes and golden
- * disassembly keep their meaning when opcodes are added (append; never renumber).
+ * Expanding FREP_OP generates the enum below, the name, meaning, arity and flag table
+ * of runtime/program.c (op_name, op_nin, op_flags, the disassembler's mnemonics) and
+ * the flag and arity tables of the tangent evaluator.  The compiler's emitter and
+ * optimizer (lang/emit.c, lang/ir.c) read those tables and op_scalar, naming only a
+ * few ops.  What each op computes is written by hand, once per evaluator: see the
+ * checklist below.  Opcode ids are fixed numbers: saved genomes and golden disassembly
+ * keep their meaning when opcodes are added (append; never renumber).
  *
  * FREP_OP(NAME, id, nin, flags, "meaning")
  *   nin    stack operands popped (every op except STORE/JMP/JZ/STOREI pushes one value)
@@ -14,6 +17,34 @@
  *   k    immediate constant (CONST), alpha (AUNI/AINT), array size (LOADI/STOREI)
  * Binary ops may carry an immediate operand instead of a stack operand: flag
  * INSN_KB means "b is k" (only a is popped), INSN_KA means "a is k" (only b popped).
+ *
+ * Adding an opcode (doc/architecture.md, "Adding an opcode", says why each is needed).
+ * Switches marked [enum] list every opcode and -Wswitch-enum (the strict build) fails
+ * until the new one is there; the others list only some ops and must be checked by
+ * hand.
+ *   runtime/ops.h         a FREP_OP line with the next free id, its flags and meaning
+ *   runtime/opsem.h       opsem_<name>() and its case in op_scalar [enum] (values: the
+ *                         VM, the tangent VM and the constant folder agree through it),
+ *                         op_partials [enum] (derivative rule); OPF_DOMAIN ops also
+ *                         opsem_bad_<name>(), opsem_is_bad and opsem_error_what
+ *   runtime/vm.c          vm_run [enum]: a UNARY/BINARY(_DOM) line
+ *   runtime/vm_tangent.c  tan_run [enum]: a TAN_UNARY/TAN_BINARY line
+ *   runtime/vm_interval.c ival_op [enum] (interval rule), interval_run [enum] (stack
+ *                         effect); vm_pruner_new/vm_prune if it is an R-function or
+ *                         min/max-like set operation the mesh pruner may drop
+ *   runtime/prune.c       prune_plan_new [enum] (may grid code contain it?);
+ *                         pr_domain_ok for OPF_DOMAIN ops, pr_decide for set operations
+ *   runtime/program.c     prog_check_insn and dis_operands if it uses arg or k other
+ *                         than as an immediate operand; op_pushes if it pushes nothing
+ *   lang/lib.c, lib_hf.c, lib_ext.c   a library function that emits it (else no
+ *                         source reaches it); lang/lower.c if it is a language operator;
+ *                         lang/ir.c ir_op1/ir_op2 for algebraic simplifications (optional)
+ *   evolve/tree.c, fitness.c, partition.c   only for a set operation the genetic
+ *                         programming engine should use (tree_nin, op_char; eval_minmax,
+ *                         eval_rfunc, eval_sides; is_union, is_sub)
+ *   tests/test_vm.c, test_mesh.c   the table-driven property tests cover it; the
+ *                         smooth_at list of test_vm.c needs an entry where central
+ *                         differences fail
  */
 #ifndef FREP_OPS_H
 #define FREP_OPS_H

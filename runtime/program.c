@@ -3,15 +3,15 @@
  * The compiler (lang/emit.c) and the genetic-programming engine (evolve/) assemble
  * bytecode with prog_emit() and seal it with prog_finish(), which verifies the stack
  * discipline so the evaluators (runtime/vm*.c) can run it without checks.  The opcode
- * queries and the disassembler are generated from the FREP_OPS table of ops.h.
+ * queries and the disassembler's mnemonics come from the FREP_OPS table of ops.h; the
+ * operand checks and operand text name the ops with special fields.
  */
 #include <math.h>
-#include <stdarg.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "alloc.h"
+#include "buf.h"
 #include "program.h"
 
 /* ---- the opcode table, expanded -------------------------------------------- */
@@ -150,25 +150,17 @@ static int prog_check_insn(frep_program *p, const frep_insn *in, uint32_t pc)
     return 0;
 }
 
-int prog_finish(frep_program *p)
+/* The maximum stack depth of the code, by a worklist over the control-flow graph from
+ * the depth before each pc (index ncode: at the end): every path must agree on the
+ * depth at a join, none may underflow, and the program must leave exactly its one
+ * result.  -1 when one of these fails or memory runs out. */
+static long prog_max_depth(const frep_program *p)
 {
-    long *depth;
-    uint32_t *work, nwork = 0, pc, flags = 0;
+    long *depth = frep_malloc((p->ncode + 1) * sizeof *depth);
+    uint32_t *work = frep_malloc((p->ncode + 1) * sizeof *work);
+    uint32_t nwork = 0, pc;
     long maxd = 0;
     int rc = 0;
-
-    if (!p || p->ncode == 0 || !p->code) return -1;
-    for (pc = 0; pc < p->ncode; pc++) {
-        frep_opcode op = (frep_opcode)p->code[pc].op;
-        if (prog_check_insn(p, &p->code[pc], pc) < 0) return -1;
-        if (op == FREP_OP_JMP || op == FREP_OP_JZ) flags |= PROG_HAS_BRANCHES;
-        if (op == FREP_OP_PRIM) flags |= PROG_HAS_PRIMS;
-    }
-
-    /* Stack depth before each pc (and at the end, index ncode) by a worklist over the
-     * control-flow graph: every path must agree on the depth at a join. */
-    depth = frep_malloc((p->ncode + 1) * sizeof *depth);
-    work = frep_malloc((p->ncode + 1) * sizeof *work);
     if (!depth || !work) { frep_free(depth); frep_free(work); return -1; }
     for (pc = 0; pc <= p->ncode; pc++) depth[pc] = -1;
     depth[0] = 0;
@@ -201,12 +193,26 @@ int prog_finish(frep_program *p)
             }
         }
     }
-    /* The program must leave exactly its one result on the stack. */
     if (rc == 0 && depth[p->ncode] != 1) rc = -1;
-    if (rc == 0 && maxd > FREP_MAX_STACK) rc = -1;
     frep_free(depth);
     frep_free(work);
-    if (rc < 0) return -1;
+    return rc < 0 ? -1 : maxd;
+}
+
+int prog_finish(frep_program *p)
+{
+    uint32_t pc, flags = 0;
+    long maxd;
+
+    if (!p || p->ncode == 0 || !p->code) return -1;
+    for (pc = 0; pc < p->ncode; pc++) {
+        frep_opcode op = (frep_opcode)p->code[pc].op;
+        if (prog_check_insn(p, &p->code[pc], pc) < 0) return -1;
+        if (op == FREP_OP_JMP || op == FREP_OP_JZ) flags |= PROG_HAS_BRANCHES;
+        if (op == FREP_OP_PRIM) flags |= PROG_HAS_PRIMS;
+    }
+    maxd = prog_max_depth(p);
+    if (maxd < 0 || maxd > FREP_MAX_STACK) return -1;
     p->max_stack = (uint32_t)maxd;
     p->flags = flags;
     return 0;
@@ -257,103 +263,66 @@ int frep_program_box(const frep_program *p, double box[6])
 
 /* ---- disassembly ---------------------------------------------------------------- */
 
-typedef struct strbuf {
-    char *s;
-    size_t len, cap;
-    int failed;
-} strbuf;
-
-static void sb_printf(strbuf *b, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
-#endif
-    ;
-static void sb_printf(strbuf *b, const char *fmt, ...)
-{
-    va_list ap;
-    int n;
-    if (b->failed) return;
-    for (;;) {
-        size_t room = b->cap - b->len;
-        va_start(ap, fmt);
-        n = vsnprintf(b->s ? b->s + b->len : NULL, room, fmt, ap);
-        va_end(ap);
-        if (n < 0) { b->failed = 1; return; }
-        if ((size_t)n < room) { b->len += (size_t)n; return; }
-        {
-            size_t ncap = b->cap ? 2 * b->cap : 1024;
-            char *s;
-            while (ncap < b->len + (size_t)n + 1) ncap *= 2;
-            s = frep_realloc(b->s, ncap);
-            if (!s) { b->failed = 1; return; }
-            b->s = s;
-            b->cap = ncap;
-        }
-    }
-}
-
 static const char *axis_name(uint32_t a) { return a == 0 ? "x" : a == 1 ? "y" : "z"; }
 
 /* Operand text of one instruction, chosen by the op's fields (see ops.h). */
-static void dis_operands(strbuf *b, const frep_program *p, const frep_insn *in)
+static void dis_operands(frep_buf *b, const frep_program *p, const frep_insn *in)
 {
     /* A switch over unsigned: ops without operand fields share the default. */
     switch ((unsigned)in->op) {
-    case FREP_OP_CONST: sb_printf(b, "%.17g", in->k); break;
-    case FREP_OP_X: sb_printf(b, "%s", axis_name(in->arg)); break;
+    case FREP_OP_CONST: buf_printf(b, "%.17g", in->k); break;
+    case FREP_OP_X: buf_printf(b, "%s", axis_name(in->arg)); break;
     case FREP_OP_PARAM:
-        sb_printf(b, "%u", in->arg);
+        buf_printf(b, "%u", in->arg);
         if (p->params && in->arg < p->nparams && p->params[in->arg].name)
-            sb_printf(b, " (%s)", p->params[in->arg].name);
+            buf_printf(b, " (%s)", p->params[in->arg].name);
         break;
-    case FREP_OP_LOAD: case FREP_OP_STORE: sb_printf(b, "s%u", in->arg); break;
-    case FREP_OP_PRIM: sb_printf(b, "p%u", in->arg); break;
-    case FREP_OP_JMP: case FREP_OP_JZ: sb_printf(b, "-> %u", in->arg); break;
+    case FREP_OP_LOAD: case FREP_OP_STORE: buf_printf(b, "s%u", in->arg); break;
+    case FREP_OP_PRIM: buf_printf(b, "p%u", in->arg); break;
+    case FREP_OP_JMP: case FREP_OP_JZ: buf_printf(b, "-> %u", in->arg); break;
     case FREP_OP_LOADI: case FREP_OP_STOREI:
-        sb_printf(b, "s%u[%.17g]", in->arg, in->k);
+        buf_printf(b, "s%u[%.17g]", in->arg, in->k);
         break;
-    case FREP_OP_AUNI: case FREP_OP_AINT: sb_printf(b, "alpha=%.17g", in->k); break;
+    case FREP_OP_AUNI: case FREP_OP_AINT: buf_printf(b, "alpha=%.17g", in->k); break;
     default:
-        if (in->flags & INSN_KB) sb_printf(b, "b=%.17g", in->k);
-        else if (in->flags & INSN_KA) sb_printf(b, "a=%.17g", in->k);
+        if (in->flags & INSN_KB) buf_printf(b, "b=%.17g", in->k);
+        else if (in->flags & INSN_KA) buf_printf(b, "a=%.17g", in->k);
         break;
     }
     if (in->flags & INSN_QUIET)
-        sb_printf(b, "%squiet", b->s && b->len && b->s[b->len - 1] != ' ' ? " " : "");
+        buf_printf(b, "%squiet", b->s && b->len && b->s[b->len - 1] != ' ' ? " " : "");
 }
 
 char *frep_disassemble(const frep_program *p)
 {
-    strbuf b = {NULL, 0, 0, 0};
+    frep_buf b = FREP_BUF_INIT;
     uint32_t pc, i;
-    sb_printf(&b, "; model %s", p->model ? p->model : "(unnamed)");
-    if (p->file) sb_printf(&b, " from %s", p->file);
-    sb_printf(&b, "\n; %u instructions, %u slots, stack %u, %u parameters", p->ncode,
-              p->nslots, p->max_stack, p->nparams);
-    if (p->nprims) sb_printf(&b, ", %u primitives", p->nprims);
-    sb_printf(&b, "\n");
+    buf_printf(&b, "; model %s", p->model ? p->model : "(unnamed)");
+    if (p->file) buf_printf(&b, " from %s", p->file);
+    buf_printf(&b, "\n; %u instructions, %u slots, stack %u, %u parameters", p->ncode,
+               p->nslots, p->max_stack, p->nparams);
+    if (p->nprims) buf_printf(&b, ", %u primitives", p->nprims);
+    buf_printf(&b, "\n");
     for (i = 0; i < p->nparams && p->params; i++) {
         const frep_param_info *q = &p->params[i];
-        sb_printf(&b, "; param %u %s = %.17g", i, q->name ? q->name : "?", q->value);
-        if (q->has_bounds) sb_printf(&b, " in [%.17g, %.17g]", q->lo, q->hi);
-        sb_printf(&b, "\n");
+        buf_printf(&b, "; param %u %s = %.17g", i, q->name ? q->name : "?", q->value);
+        if (q->has_bounds) buf_printf(&b, " in [%.17g, %.17g]", q->lo, q->hi);
+        buf_printf(&b, "\n");
     }
     for (pc = 0; pc < p->ncode; pc++) {
         const frep_insn *in = &p->code[pc];
         size_t start;
-        sb_printf(&b, "%6u  %-7s ", pc, op_name((frep_opcode)in->op));
+        buf_printf(&b, "%6u  %-7s ", pc, op_name((frep_opcode)in->op));
         start = b.len;
         dis_operands(&b, p, in);
         if (p->pos && p->pos[pc].line) {
             size_t w = b.len - start;
-            sb_printf(&b, "%*s; %u:%u", w < 24 ? (int)(24 - w) : 1, "", p->pos[pc].line,
-                      p->pos[pc].col);
+            buf_printf(&b, "%*s; %u:%u", w < 24 ? (int)(24 - w) : 1, "", p->pos[pc].line,
+                       p->pos[pc].col);
         }
         /* Trim the padding of operand-less lines. */
         while (!b.failed && b.len > 0 && b.s[b.len - 1] == ' ') b.len--;
-        sb_printf(&b, "\n");
+        buf_printf(&b, "\n");
     }
-    if (b.failed) { frep_free(b.s); return NULL; }
-    if (!b.s) return frep_calloc(1, 1);
-    return b.s;
+    return buf_finish(&b, NULL);
 }

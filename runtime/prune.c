@@ -64,6 +64,80 @@ void prune_plan_free(prune_plan *pl)
     frep_free(pl);
 }
 
+/* May grid code contain op?  Jumps, indexed arrays and cached primitives have no
+ * single producer per operand, so programs with them are not pruned. */
+static int plan_supported(frep_opcode op)
+{
+    switch (op) {
+    case FREP_OP_JMP: case FREP_OP_JZ: case FREP_OP_LOADI: case FREP_OP_STOREI:
+    case FREP_OP_PRIM: case FREP_OP__COUNT:
+        return 0;
+    case FREP_OP_CONST: case FREP_OP_X: case FREP_OP_PARAM: case FREP_OP_LOAD:
+    case FREP_OP_STORE: case FREP_OP_NEG: case FREP_OP_NOT: case FREP_OP_ABS:
+    case FREP_OP_SQRT: case FREP_OP_SQUARE: case FREP_OP_EXP: case FREP_OP_LOG:
+    case FREP_OP_LOGD: case FREP_OP_SIN: case FREP_OP_COS: case FREP_OP_TAN:
+    case FREP_OP_ASIN: case FREP_OP_ACOS: case FREP_OP_ATAN: case FREP_OP_SINH:
+    case FREP_OP_COSH: case FREP_OP_TANH: case FREP_OP_SIGN: case FREP_OP_CEIL:
+    case FREP_OP_FLOOR: case FREP_OP_INT: case FREP_OP_FRAC: case FREP_OP_ADD:
+    case FREP_OP_SUB: case FREP_OP_MUL: case FREP_OP_DIV: case FREP_OP_POW:
+    case FREP_OP_MOD: case FREP_OP_MIN: case FREP_OP_MAX: case FREP_OP_ATAN2:
+    case FREP_OP_EQ: case FREP_OP_NE: case FREP_OP_LT: case FREP_OP_LE:
+    case FREP_OP_GT: case FREP_OP_GE: case FREP_OP_AND: case FREP_OP_OR:
+    case FREP_OP_RUNI: case FREP_OP_RINT: case FREP_OP_RSUB: case FREP_OP_MSUB:
+    case FREP_OP_AUNI: case FREP_OP_AINT: case FREP_OP_SELECT:
+        return 1;
+    default:
+        return 0;
+    }
+}
+
+/* The symbolic run of the stack: each instruction's operand producers, each LOAD's
+ * STORE (read[] marks the stores some LOAD reads).  Returns the pc producing the
+ * result, or PR_NONE when the code is not supported or does not leave one value. */
+static uint32_t plan_symbolic_run(prune_plan *pl, uint32_t *stack, uint32_t *last,
+                                  uint8_t *read)
+{
+    const frep_program *p = pl->p;
+    uint32_t sp = 0;
+    for (uint32_t j = 0; j <= p->nslots; j++) last[j] = PR_NONE;
+    for (uint32_t pc = 0; pc < pl->n; pc++) {
+        const frep_insn *in = &p->code[pc];
+        frep_opcode op = (frep_opcode)in->op;
+        if (!plan_supported(op)) return PR_NONE;
+        int nin = insn_nin(in);
+        if (nin < 0 || nin > 3 || (uint32_t)nin > sp) return PR_NONE;
+        for (int i = 0; i < 3; i++) pl->opnd[3 * pc + (uint32_t)i] = PR_NONE;
+        sp -= (uint32_t)nin;
+        for (int i = 0; i < nin; i++) pl->opnd[3 * pc + (uint32_t)i] = stack[sp + (uint32_t)i];
+        pl->nopnd[pc] = (uint8_t)nin;
+        if (op == FREP_OP_LOAD || op == FREP_OP_STORE) {
+            if (in->arg >= p->nslots) return PR_NONE;
+            if (op == FREP_OP_LOAD) {
+                pl->opnd[3 * pc] = last[in->arg];
+                pl->nopnd[pc] = last[in->arg] != PR_NONE;
+                if (last[in->arg] != PR_NONE) read[last[in->arg]] = 1;
+            } else {
+                last[in->arg] = pc;
+            }
+        }
+        if (op_pushes(op)) stack[sp++] = pc;
+    }
+    return sp == 1 ? stack[0] : PR_NONE;
+}
+
+/* Does the program have a min, max or select to decide?  (If not, the caller saves
+ * the interval pass.) */
+static int plan_has_decisions(const frep_program *p)
+{
+    for (uint32_t pc = 0; pc < p->ncode; pc++) {
+        uint8_t op = p->code[pc].op;
+        if (op == FREP_OP_MIN || op == FREP_OP_MAX || op == FREP_OP_MSUB ||
+            op == FREP_OP_SELECT)
+            return 1;
+    }
+    return 0;
+}
+
 prune_plan *prune_plan_new(const frep_program *p)
 {
     if (!p || !p->code || p->ncode == 0 || (p->flags & (PROG_HAS_BRANCHES | PROG_HAS_PRIMS)))
@@ -80,60 +154,8 @@ prune_plan *prune_plan_new(const frep_program *p)
     pl->nopnd = frep_calloc(n, 1);
     pl->sink = frep_calloc(n, 1);
     if (!pl->opnd || !pl->nopnd || !pl->sink) goto fail;
-    for (uint32_t j = 0; j <= p->nslots; j++) last[j] = PR_NONE;
-    uint32_t sp = 0;
-    for (uint32_t pc = 0; pc < n; pc++) {
-        const frep_insn *in = &p->code[pc];
-        frep_opcode op = (frep_opcode)in->op;
-        switch (op) {
-        case FREP_OP_JMP: case FREP_OP_JZ: case FREP_OP_LOADI: case FREP_OP_STOREI:
-        case FREP_OP_PRIM: case FREP_OP__COUNT:
-            goto fail;
-        case FREP_OP_CONST: case FREP_OP_X: case FREP_OP_PARAM: case FREP_OP_LOAD:
-        case FREP_OP_STORE: case FREP_OP_NEG: case FREP_OP_NOT: case FREP_OP_ABS:
-        case FREP_OP_SQRT: case FREP_OP_SQUARE: case FREP_OP_EXP: case FREP_OP_LOG:
-        case FREP_OP_LOGD: case FREP_OP_SIN: case FREP_OP_COS: case FREP_OP_TAN:
-        case FREP_OP_ASIN: case FREP_OP_ACOS: case FREP_OP_ATAN: case FREP_OP_SINH:
-        case FREP_OP_COSH: case FREP_OP_TANH: case FREP_OP_SIGN: case FREP_OP_CEIL:
-        case FREP_OP_FLOOR: case FREP_OP_INT: case FREP_OP_FRAC: case FREP_OP_ADD:
-        case FREP_OP_SUB: case FREP_OP_MUL: case FREP_OP_DIV: case FREP_OP_POW:
-        case FREP_OP_MOD: case FREP_OP_MIN: case FREP_OP_MAX: case FREP_OP_ATAN2:
-        case FREP_OP_EQ: case FREP_OP_NE: case FREP_OP_LT: case FREP_OP_LE:
-        case FREP_OP_GT: case FREP_OP_GE: case FREP_OP_AND: case FREP_OP_OR:
-        case FREP_OP_RUNI: case FREP_OP_RINT: case FREP_OP_RSUB: case FREP_OP_MSUB:
-        case FREP_OP_AUNI: case FREP_OP_AINT: case FREP_OP_SELECT:
-            break;
-        default:
-            goto fail;
-        }
-        int nin = insn_nin(in);
-        if (nin < 0 || nin > 3 || (uint32_t)nin > sp) goto fail;
-        for (int i = 0; i < 3; i++) pl->opnd[3 * pc + (uint32_t)i] = PR_NONE;
-        sp -= (uint32_t)nin;
-        for (int i = 0; i < nin; i++) pl->opnd[3 * pc + (uint32_t)i] = stack[sp + (uint32_t)i];
-        pl->nopnd[pc] = (uint8_t)nin;
-        if (op == FREP_OP_LOAD || op == FREP_OP_STORE) {
-            if (in->arg >= p->nslots) goto fail;
-            if (op == FREP_OP_LOAD) {
-                pl->opnd[3 * pc] = last[in->arg];
-                pl->nopnd[pc] = last[in->arg] != PR_NONE;
-                if (last[in->arg] != PR_NONE) read[last[in->arg]] = 1;
-            } else {
-                last[in->arg] = pc;
-            }
-        }
-        if (op_pushes(op)) stack[sp++] = pc;
-    }
-    if (sp != 1) goto fail;
-    /* nothing to decide: the caller saves the interval pass */
-    uint32_t ndec = 0;
-    for (uint32_t pc = 0; pc < n; pc++) {
-        uint8_t op = p->code[pc].op;
-        ndec += op == FREP_OP_MIN || op == FREP_OP_MAX || op == FREP_OP_MSUB ||
-                op == FREP_OP_SELECT;
-    }
-    if (ndec == 0) goto fail;
-    pl->root = stack[0];
+    pl->root = plan_symbolic_run(pl, stack, last, read);
+    if (pl->root == PR_NONE || !plan_has_decisions(p)) goto fail;
     for (uint32_t pc = 0; pc < n; pc++)
         pl->sink[pc] = p->code[pc].op == FREP_OP_STORE && !read[pc];
     frep_free(stack);
@@ -223,80 +245,101 @@ static int pr_domain_ok(frep_opcode op, ival a, ival b)
     }
 }
 
+/* Over a sub-box, the facts of pc that follow from the parent's decision alone; 0 when
+ * pc is kept by the parent and must be analysed. */
+static int pr_inherit(const prune_plan *pl, prune_state *st, const prune_state *parent,
+                      uint32_t pc)
+{
+    const frep_insn *in = &pl->p->code[pc];
+    if (parent->act[pc] == ACT_FWD) {
+        /* the same values as the instruction it forwards to, here too */
+        uint32_t q = parent->fwd[pc];
+        st->iv[pc] = st->iv[q];
+        st->clean[pc] = st->clean[q];
+        st->errfree[pc] = st->errfree[q];
+    } else if (!parent->need[pc]) {
+        /* not in the parent's program, so in none of its sub-boxes' */
+        st->iv[pc] = pr_iv(-INFINITY, INFINITY);
+        st->clean[pc] = 0;
+        st->errfree[pc] = 0;
+    } else if (parent->act[pc] == ACT_CONST) {
+        double k = in->op == FREP_OP_MSUB && (in->flags & INSN_KB) ? -in->k : in->k;
+        st->iv[pc] = pr_iv(k, k);
+        st->clean[pc] = (uint8_t)pr_bounded(st->iv[pc]);
+        st->errfree[pc] = 1;
+    } else if (parent->act[pc] == ACT_NEG_B) {
+        uint32_t b = pl->opnd[3 * pc + pl->nopnd[pc] - 1];
+        st->iv[pc] = pr_iv(-st->iv[b].hi, -st->iv[b].lo);
+        st->clean[pc] = st->clean[b];
+        st->errfree[pc] = st->errfree[b];
+    } else {
+        return 0;
+    }
+    return 1;
+}
+
+/* The enclosure of an operator pc from its operands'; a domain operation keeps *clean
+ * (and, unless quiet, *errfree) only when its operands are provably inside the domain. */
+static ival pr_operator(const prune_plan *pl, const prune_state *st, uint32_t pc, int *clean,
+                        int *errfree)
+{
+    const frep_insn *in = &pl->p->code[pc];
+    frep_opcode op = (frep_opcode)in->op;
+    const uint32_t *o = &pl->opnd[3 * pc];
+    ival v[3];
+    uint32_t j = 0;
+    if (op_nin(op) == 2 && (in->flags & INSN_KA)) v[j++] = pr_iv(in->k, in->k);
+    for (uint32_t i = 0; i < pl->nopnd[pc]; i++) v[j++] = st->iv[o[i]];
+    if (op_nin(op) == 2 && (in->flags & INSN_KB)) v[j++] = pr_iv(in->k, in->k);
+    while (j < 3) v[j++] = pr_iv(0, 0);
+    ival r = ival_op(op, v, in->k);
+    /* ival_op widens every rounded bound by an ulp, so a sum or product of nonnegative
+     * numbers could get a negative lower bound and hide that a later sqrt is safe; in
+     * IEEE arithmetic such results are never < 0. */
+    if ((op == FREP_OP_ADD || op == FREP_OP_MUL) && v[0].lo >= 0 && v[1].lo >= 0 && r.lo < 0)
+        r.lo = 0;
+    if (op_flags(op) & OPF_DOMAIN) {
+        int ok = *clean && pr_domain_ok(op, v[0], v[1]);
+        *clean &= ok;
+        if (!(in->flags & INSN_QUIET)) *errfree &= ok;
+    }
+    return r;
+}
+
+/* The enclosure of instruction pc over the box (leaves, slots, operators). */
+static ival pr_enclosure(const prune_plan *pl, const prune_state *st, uint32_t pc,
+                         const double box[6], const double *params, int *clean, int *errfree)
+{
+    const frep_program *p = pl->p;
+    const frep_insn *in = &p->code[pc];
+    const uint32_t o0 = pl->opnd[3 * pc];
+    switch ((unsigned)in->op) { /* not an enum switch: the operators share the default */
+    case FREP_OP_CONST: return pr_iv(in->k, in->k);
+    case FREP_OP_X:
+        return in->arg <= 2 ? pr_iv(box[in->arg], box[in->arg + 3]) : pr_iv(-INFINITY, INFINITY);
+    case FREP_OP_PARAM: {
+        double v = in->arg < p->nparams ? (params ? params[in->arg] : p->params[in->arg].value)
+                                        : NAN;
+        return pr_iv(v, v);
+    }
+    case FREP_OP_LOAD: case FREP_OP_STORE: return o0 == PR_NONE ? pr_iv(0, 0) : st->iv[o0];
+    default: return pr_operator(pl, st, pc, clean, errfree);
+    }
+}
+
 /* Enclosures, cleanliness and error-freedom of every instruction over the box. */
 static void pr_intervals(const prune_plan *pl, prune_state *st, const prune_state *parent,
                          const double box[6], const double *params)
 {
-    const frep_program *p = pl->p;
     for (uint32_t pc = 0; pc < pl->n; pc++) {
-        const frep_insn *in = &p->code[pc];
-        frep_opcode op = (frep_opcode)in->op;
         const uint32_t *o = &pl->opnd[3 * pc];
-        ival r;
         int clean = 1, errfree = 1;
-        if (parent && parent->act[pc] == ACT_FWD) {
-            /* the same values as the instruction it forwards to, here too */
-            uint32_t q = parent->fwd[pc];
-            st->iv[pc] = st->iv[q];
-            st->clean[pc] = st->clean[q];
-            st->errfree[pc] = st->errfree[q];
-            continue;
-        }
-        if (parent && !parent->need[pc]) {
-            /* not in the parent's program, so in none of its sub-boxes' */
-            st->iv[pc] = pr_iv(-INFINITY, INFINITY);
-            st->clean[pc] = 0;
-            st->errfree[pc] = 0;
-            continue;
-        }
-        if (parent && parent->act[pc] == ACT_CONST) {
-            double k = in->op == FREP_OP_MSUB && (in->flags & INSN_KB) ? -in->k : in->k;
-            st->iv[pc] = pr_iv(k, k);
-            st->clean[pc] = (uint8_t)pr_bounded(st->iv[pc]);
-            st->errfree[pc] = 1;
-            continue;
-        }
-        if (parent && parent->act[pc] == ACT_NEG_B) {
-            uint32_t b = o[pl->nopnd[pc] - 1];
-            st->iv[pc] = pr_iv(-st->iv[b].hi, -st->iv[b].lo);
-            st->clean[pc] = st->clean[b];
-            st->errfree[pc] = st->errfree[b];
-            continue;
-        }
+        if (parent && pr_inherit(pl, st, parent, pc)) continue;
         for (uint32_t i = 0; i < pl->nopnd[pc]; i++) {
             clean &= st->clean[o[i]];
             errfree &= st->errfree[o[i]];
         }
-        if (op == FREP_OP_CONST) {
-            r = pr_iv(in->k, in->k);
-        } else if (op == FREP_OP_X) {
-            r = in->arg <= 2 ? pr_iv(box[in->arg], box[in->arg + 3]) : pr_iv(-INFINITY, INFINITY);
-        } else if (op == FREP_OP_PARAM) {
-            double v = in->arg < p->nparams ? (params ? params[in->arg] : p->params[in->arg].value)
-                                            : NAN;
-            r = pr_iv(v, v);
-        } else if (op == FREP_OP_LOAD || op == FREP_OP_STORE) {
-            r = o[0] == PR_NONE ? pr_iv(0, 0) : st->iv[o[0]];
-        } else {
-            ival v[3];
-            uint32_t j = 0;
-            if (op_nin(op) == 2 && (in->flags & INSN_KA)) v[j++] = pr_iv(in->k, in->k);
-            for (uint32_t i = 0; i < pl->nopnd[pc]; i++) v[j++] = st->iv[o[i]];
-            if (op_nin(op) == 2 && (in->flags & INSN_KB)) v[j++] = pr_iv(in->k, in->k);
-            while (j < 3) v[j++] = pr_iv(0, 0);
-            r = ival_op(op, v, in->k);
-            /* ival_op widens every rounded bound by an ulp, so a sum or product of
-             * nonnegative numbers could get a negative lower bound and hide that a
-             * later sqrt is safe; in IEEE arithmetic such results are never < 0. */
-            if ((op == FREP_OP_ADD || op == FREP_OP_MUL) && v[0].lo >= 0 && v[1].lo >= 0 &&
-                r.lo < 0)
-                r.lo = 0;
-            if (op_flags(op) & OPF_DOMAIN) {
-                int ok = clean && pr_domain_ok(op, v[0], v[1]);
-                clean &= ok;
-                if (!(in->flags & INSN_QUIET)) errfree &= ok;
-            }
-        }
+        ival r = pr_enclosure(pl, st, pc, box, params, &clean, &errfree);
         if (isnan(r.lo) || isnan(r.hi) || !(r.lo <= r.hi)) r = pr_iv(-INFINITY, INFINITY);
         st->iv[pc] = r;
         st->clean[pc] = (uint8_t)(clean && pr_bounded(r));
@@ -376,15 +419,12 @@ const frep_program *prune_for_box(const prune_plan *pl, prune_state *st, const d
     return prune_for_subbox(pl, st, NULL, box, params, enclosure);
 }
 
-const frep_program *prune_for_subbox(const prune_plan *pl, prune_state *st,
-                                     const prune_state *parent, const double box[6],
-                                     const double *params, ival *enclosure)
+/* Decide every instruction over the box; on a sub-box the parent's decisions hold, so
+ * only what the parent kept is decided again. */
+static void pr_decide_box(const prune_plan *pl, prune_state *st, const prune_state *parent)
 {
-    const frep_program *p = pl->p;
     uint32_t n = pl->n;
-    pr_intervals(pl, st, parent, box, params);
     if (parent) {
-        /* the parent's decisions hold on a sub-box; decide what it kept */
         memcpy(st->act, parent->act, n);
         memcpy(st->fwd, parent->fwd, n * sizeof *st->fwd);
         for (uint32_t pc = 0; pc < n; pc++)
@@ -393,10 +433,14 @@ const frep_program *prune_for_subbox(const prune_plan *pl, prune_state *st,
         memset(st->act, ACT_KEEP, n);
         for (uint32_t pc = 0; pc < n; pc++) pr_decide(pl, st, pc);
     }
-    /* keep what the result, and stores nobody reads, depend on */
-    memset(st->need, 0, n);
+}
+
+/* Mark what the result, and stores nobody reads, depend on (through forwards). */
+static void pr_mark_needed(const prune_plan *pl, prune_state *st)
+{
+    memset(st->need, 0, pl->n);
     st->need[pr_resolve(st, pl->root)] = 1;
-    for (uint32_t pc = n; pc-- > 0;) {
+    for (uint32_t pc = pl->n; pc-- > 0;) {
         if (pl->sink[pc]) st->need[pc] = 1;
         if (!st->need[pc]) continue;
         const uint32_t *o = &pl->opnd[3 * pc];
@@ -411,8 +455,15 @@ const frep_program *prune_for_subbox(const prune_plan *pl, prune_state *st,
             break;
         }
     }
+}
+
+/* The needed instructions in their original order (rewritten per their action): valid
+ * stack code, since every value has one consumer. */
+static void pr_build(const prune_plan *pl, prune_state *st)
+{
+    const frep_program *p = pl->p;
     uint32_t m = 0;
-    for (uint32_t pc = 0; pc < n; pc++) {
+    for (uint32_t pc = 0; pc < pl->n; pc++) {
         if (!st->need[pc]) continue;
         frep_insn in = p->code[pc];
         if (st->act[pc] == ACT_CONST) {
@@ -434,6 +485,16 @@ const frep_program *prune_for_subbox(const prune_plan *pl, prune_state *st,
         m++;
     }
     st->view.ncode = m;
+}
+
+const frep_program *prune_for_subbox(const prune_plan *pl, prune_state *st,
+                                     const prune_state *parent, const double box[6],
+                                     const double *params, ival *enclosure)
+{
+    pr_intervals(pl, st, parent, box, params);
+    pr_decide_box(pl, st, parent);
+    pr_mark_needed(pl, st);
+    pr_build(pl, st);
     if (enclosure) {
         ival r = st->iv[pl->root];
         *enclosure = st->clean[pl->root] ? r : pr_iv(-INFINITY, INFINITY);
@@ -567,55 +628,64 @@ static int grid_flush(const grid_job *g, grid_worker *w, const frep_program *q, 
     return 0;
 }
 
-/* Evaluate tile t (rows of up to PRUNE_TILE points, PRUNE_TILE^2 rows); its errors
- * (original pcs) go to *err, its cost to *insns. */
-static int grid_tile(const grid_job *g, grid_worker *w, long t, vm_errstate *err, double *insns)
+/* The index ranges [i0, i1) x [j0, j1) x [k0, k1) of one tile. */
+typedef struct tile_span {
+    long i0, i1, j0, j1, k0, k1;
+} tile_span;
+
+static tile_span tile_span_of(const grid_job *g, long t)
 {
+    tile_span ts;
     long tx = t % g->ntx, ty = t / g->ntx;
-    long i0 = tx * PRUNE_TILE, j0 = ty * PRUNE_TILE;
-    long i1 = i0 + PRUNE_TILE < g->n ? i0 + PRUNE_TILE : g->n;
-    long j1 = j0 + PRUNE_TILE < g->n ? j0 + PRUNE_TILE : g->n;
-    long k0 = g->k0, k1 = g->k0 + g->nk;
-    const frep_program *q = g->p;
-    if (g->pl) {
-        /* the coordinates are monotone in the index, so the corners bound the tile */
-        double box[6] = { g->c[0][i0], g->c[1][j0], g->c[2][k0],
-                          g->c[0][i1 - 1], g->c[1][j1 - 1], g->c[2][k1 - 1] };
-        q = prune_for_subbox(g->pl, w->st, w->sp, box, NULL, NULL);
+    ts.i0 = tx * PRUNE_TILE;
+    ts.j0 = ty * PRUNE_TILE;
+    ts.i1 = ts.i0 + PRUNE_TILE < g->n ? ts.i0 + PRUNE_TILE : g->n;
+    ts.j1 = ts.j0 + PRUNE_TILE < g->n ? ts.j0 + PRUNE_TILE : g->n;
+    ts.k0 = g->k0;
+    ts.k1 = g->k0 + g->nk;
+    return ts;
+}
+
+/* Offset in the caller's f of the first point of row (j, k) of the tile. */
+static uint32_t tile_row_offset(const grid_job *g, const tile_span *ts, long j, long k)
+{
+    size_t nn = (size_t)g->n;
+    return (uint32_t)(((size_t)(k - ts->k0) * nn + (size_t)j) * nn + (size_t)ts->i0);
+}
+
+/* A whole tile: each block is one plane of it, so y is the same in every block (written
+ * once per tile) and z constant over a block (written once per slab): no coordinate is
+ * written per point. */
+static int grid_tile_planes(const grid_job *g, grid_worker *w, const frep_program *q,
+                            const tile_span *ts, prune_grid_stats *tst, double *insns)
+{
+    size_t row = (size_t)(ts->i1 - ts->i0);
+    for (long j = ts->j0; j < ts->j1; j++)
+        for (size_t i = 0; i < row; i++) w->y[(size_t)(j - ts->j0) * row + i] = g->c[1][j];
+    if (!w->zp_ready) {
+        for (long k = 0; k < g->nk; k++)
+            for (size_t i = 0; i < FREP_BLOCK; i++)
+                w->zp[(size_t)k * FREP_BLOCK + i] = g->c[2][g->k0 + k];
+        w->zp_ready = 1;
     }
-    memset(&w->s->total, 0, sizeof w->s->total);
-    prune_grid_stats *tst = g->tst ? &g->tst[t] : NULL;
-    if (tst) prune_grid_stats_init(tst);
-    size_t row = (size_t)(i1 - i0), nb = 0, nn = (size_t)g->n;
-    /* x repeats the tile's row in every block: written once per tile */
-    for (size_t b = 0; b + row <= FREP_BLOCK; b += row)
-        memcpy(w->x + b, g->c[0] + i0, row * sizeof *w->x);
-    if (row * (size_t)(j1 - j0) == FREP_BLOCK && g->nk <= PRUNE_TILE) {
-        /* a whole tile: each block is one plane of it, so y is the same in every block
-         * (written once per tile) and z constant over a block (written once per slab):
-         * no coordinate is written per point */
-        for (long j = j0; j < j1; j++)
-            for (size_t i = 0; i < row; i++) w->y[(size_t)(j - j0) * row + i] = g->c[1][j];
-        if (!w->zp_ready) {
-            for (long k = 0; k < g->nk; k++)
-                for (size_t i = 0; i < FREP_BLOCK; i++)
-                    w->zp[(size_t)k * FREP_BLOCK + i] = g->c[2][g->k0 + k];
-            w->zp_ready = 1;
-        }
-        for (long k = k0; k < k1; k++) {
-            if (g->f)
-                for (long j = j0; j < j1; j++)
-                    w->idx[j - j0] =
-                        (uint32_t)(((size_t)(k - k0) * nn + (size_t)j) * nn + (size_t)i0);
-            if (grid_flush(g, w, q, FREP_BLOCK, row, w->zp + (size_t)(k - k0) * FREP_BLOCK,
-                           tst, insns) < 0)
-                return -1;
-        }
-        k1 = k0; /* every plane done: nothing left for the general loop below */
+    for (long k = ts->k0; k < ts->k1; k++) {
+        if (g->f)
+            for (long j = ts->j0; j < ts->j1; j++) w->idx[j - ts->j0] = tile_row_offset(g, ts, j, k);
+        if (grid_flush(g, w, q, FREP_BLOCK, row, w->zp + (size_t)(k - ts->k0) * FREP_BLOCK, tst,
+                       insns) < 0)
+            return -1;
     }
-    for (long k = k0; k < k1; k++) {
+    return 0;
+}
+
+/* Any tile: rows gathered into blocks of whole rows, y and z written per point. */
+static int grid_tile_rows(const grid_job *g, grid_worker *w, const frep_program *q,
+                          const tile_span *ts, prune_grid_stats *tst, double *insns)
+{
+    size_t row = (size_t)(ts->i1 - ts->i0), nb = 0;
+    for (long k = ts->k0; k < ts->k1; k++) {
         const double zk = g->c[2][k];
-        for (long j = j0; j < j1; j++) {
+        for (long j = ts->j0; j < ts->j1; j++) {
             if (nb + row > FREP_BLOCK) {
                 if (grid_flush(g, w, q, nb, row, w->z, tst, insns) < 0) return -1;
                 nb = 0;
@@ -626,13 +696,37 @@ static int grid_tile(const grid_job *g, grid_worker *w, long t, vm_errstate *err
                 y[i] = yj;
                 z[i] = zk;
             }
-            if (g->f)
-                w->idx[nb / row] =
-                    (uint32_t)(((size_t)(k - k0) * nn + (size_t)j) * nn + (size_t)i0);
+            if (g->f) w->idx[nb / row] = tile_row_offset(g, ts, j, k);
             nb += row;
         }
     }
     if (nb && grid_flush(g, w, q, nb, row, w->z, tst, insns) < 0) return -1;
+    return 0;
+}
+
+/* Evaluate tile t (rows of up to PRUNE_TILE points, PRUNE_TILE^2 rows); its errors
+ * (original pcs) go to *err, its cost to *insns. */
+static int grid_tile(const grid_job *g, grid_worker *w, long t, vm_errstate *err, double *insns)
+{
+    tile_span ts = tile_span_of(g, t);
+    const frep_program *q = g->p;
+    if (g->pl) {
+        /* the coordinates are monotone in the index, so the corners bound the tile */
+        double box[6] = { g->c[0][ts.i0], g->c[1][ts.j0], g->c[2][ts.k0],
+                          g->c[0][ts.i1 - 1], g->c[1][ts.j1 - 1], g->c[2][ts.k1 - 1] };
+        q = prune_for_subbox(g->pl, w->st, w->sp, box, NULL, NULL);
+    }
+    memset(&w->s->total, 0, sizeof w->s->total);
+    prune_grid_stats *tst = g->tst ? &g->tst[t] : NULL;
+    if (tst) prune_grid_stats_init(tst);
+    size_t row = (size_t)(ts.i1 - ts.i0);
+    /* x repeats the tile's row in every block: written once per tile */
+    for (size_t b = 0; b + row <= FREP_BLOCK; b += row)
+        memcpy(w->x + b, g->c[0] + ts.i0, row * sizeof *w->x);
+    int whole = row * (size_t)(ts.j1 - ts.j0) == FREP_BLOCK && g->nk <= PRUNE_TILE;
+    int rc = whole ? grid_tile_planes(g, w, q, &ts, tst, insns)
+                   : grid_tile_rows(g, w, q, &ts, tst, insns);
+    if (rc < 0) return -1;
     *err = w->s->total;
     if (err->count && g->pl) err->pc = prune_orig_pc(w->st, err->pc);
     return 0;
@@ -669,6 +763,75 @@ int prune_eval_grid_planes(const frep_program *p, long n, const double box[6], l
     return prune_eval_grid_summary(p, n, box, k0, nk, prune, nthreads, f, NULL, err, insns);
 }
 
+/* The grid's coordinates per axis, lo + step * i, into g->c (one allocation, returned
+ * for frep_free; NULL when out of memory). */
+static double *grid_coords(grid_job *g, const double box[6])
+{
+    size_t n = (size_t)g->n;
+    double *coord = frep_malloc(n * 3 * sizeof *coord);
+    if (!coord) return NULL;
+    for (int c = 0; c < 3; c++) {
+        double step = (box[c + 3] - box[c]) / (double)(g->n - 1);
+        for (long i = 0; i < g->n; i++) coord[(size_t)c * n + (size_t)i] = box[c] + step * (double)i;
+        g->c[c] = coord + (size_t)c * n;
+    }
+    return coord;
+}
+
+/* Evaluate every super-tile over the threads, each tile's errors into terr[t]; the
+ * instructions x points evaluated are added to *cost.  Returns -1 if a worker could not
+ * be set up or a tile failed (out of memory). */
+static int grid_run(const grid_job *g, long nsuper, int nthreads, vm_errstate *terr,
+                    double *cost)
+{
+    int failed = 0;
+    double insns = 0;
+#ifdef _OPENMP
+    int nt = nthreads > 0 ? nthreads : omp_get_max_threads();
+#pragma omp parallel num_threads(nt) reduction(+ : insns)
+#else
+    (void)nthreads;
+#endif
+    {
+        grid_worker w;
+        int ok = worker_init(&w, g->p, g->pl) == 0;
+        if (!ok) {
+#ifdef _OPENMP
+#pragma omp atomic write
+#endif
+            failed = 1;
+        }
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 1)
+#endif
+        for (long u = 0; u < nsuper; u++) {
+            if (ok && grid_super(g, &w, u, terr, &insns) < 0) {
+#ifdef _OPENMP
+#pragma omp atomic write
+#endif
+                failed = 1;
+            }
+        }
+        if (ok) worker_free(&w);
+    }
+    *cost += insns;
+    return failed ? -1 : 0;
+}
+
+/* Add the tiles' summaries to *stats in tile order: the sum does not depend on which
+ * thread ran which tile. */
+static void grid_add_stats(prune_grid_stats *stats, const prune_grid_stats *tst, long ntiles)
+{
+    for (long t = 0; t < ntiles; t++) {
+        const prune_grid_stats *ts = &tst[t];
+        stats->inside += ts->inside;
+        stats->nans += ts->nans;
+        if (ts->min < stats->min) stats->min = ts->min;
+        if (ts->max > stats->max) stats->max = ts->max;
+        stats->sum += ts->sum;
+    }
+}
+
 int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], long k0,
                             long nk, int prune, int nthreads, double *f,
                             prune_grid_stats *stats, frep_runtime_error *err, double *insns)
@@ -680,13 +843,8 @@ int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], 
     g.k0 = k0;
     g.nk = nk;
     g.f = f;
-    double *coord = frep_malloc((size_t)n * 3 * sizeof *coord);
+    double *coord = grid_coords(&g, box);
     if (!coord) return -1;
-    for (int c = 0; c < 3; c++) {
-        double step = (box[c + 3] - box[c]) / (double)(n - 1);
-        for (long i = 0; i < n; i++) coord[(size_t)c * (size_t)n + (size_t)i] = box[c] + step * (double)i;
-        g.c[c] = coord + (size_t)c * (size_t)n;
-    }
     /* the flat index of a point in f is a uint32_t: plenty for a slab of planes */
     if (f && (double)n * (double)n * (double)nk > 4294967295.0) {
         frep_free(coord);
@@ -700,72 +858,19 @@ int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], 
     nsuper *= nsuper;
     vm_errstate *terr = frep_calloc((size_t)ntiles, sizeof *terr);
     g.tst = stats ? frep_malloc((size_t)ntiles * sizeof *g.tst) : NULL;
-    if (!terr || (stats && !g.tst)) {
-        frep_free(terr);
-        frep_free(g.tst);
-        prune_plan_free(pl);
-        frep_free(coord);
-        return -1;
-    }
-    int failed = 0;
     double cost = 0;
-#ifdef _OPENMP
-    int nt = nthreads > 0 ? nthreads : omp_get_max_threads();
-#pragma omp parallel num_threads(nt) reduction(+ : cost)
-#else
-    (void)nthreads;
-#endif
-    {
-        grid_worker w;
-        int ok = worker_init(&w, p, pl) == 0;
-        if (!ok) {
-#ifdef _OPENMP
-#pragma omp atomic write
-#endif
-            failed = 1;
-        }
-#ifdef _OPENMP
-#pragma omp for schedule(dynamic, 1)
-#endif
-        for (long u = 0; u < nsuper; u++) {
-            if (ok && grid_super(&g, &w, u, terr, &cost) < 0) {
-#ifdef _OPENMP
-#pragma omp atomic write
-#endif
-                failed = 1;
-            }
-        }
-        if (ok) worker_free(&w);
-    }
+    int rc = !terr || (stats && !g.tst) ? -1 : grid_run(&g, nsuper, nthreads, terr, &cost);
     vm_errstate all;
     memset(&all, 0, sizeof all);
-    for (long t = 0; t < ntiles; t++) vm_err_merge(&all, &terr[t]);
+    if (terr)
+        for (long t = 0; t < ntiles; t++) vm_err_merge(&all, &terr[t]);
+    if (stats && rc == 0) grid_add_stats(stats, g.tst, ntiles);
     frep_free(terr);
-    if (stats && !failed)
-        for (long t = 0; t < ntiles; t++) {
-            /* in tile order: the sum does not depend on which thread ran which tile */
-            const prune_grid_stats *ts = &g.tst[t];
-            stats->inside += ts->inside;
-            stats->nans += ts->nans;
-            if (ts->min < stats->min) stats->min = ts->min;
-            if (ts->max > stats->max) stats->max = ts->max;
-            stats->sum += ts->sum;
-        }
     frep_free(g.tst);
     frep_free(coord);
     prune_plan_free(pl);
-    if (failed) return -1;
-    if (err) {
-        memset(err, 0, sizeof *err);
-        err->count = all.count;
-        if (all.count) {
-            err->pc = all.pc;
-            err->what = all.what;
-            err->x = all.x;
-            err->y = all.y;
-            err->z = all.z;
-        }
-    }
+    if (rc < 0) return -1;
+    if (err) vm_err_to_public(&all, err);
     if (insns) *insns += cost;
     return 0;
 }

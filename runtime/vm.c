@@ -54,6 +54,8 @@ int vm_scratch_fit(vm_scratch *s, const frep_program *p)
         s->lv = lv;
         sp = grow(s->sp, n, sizeof *sp);
         if (!sp) return -1;
+        /* lvl_out reads a level's entry before its first push */
+        memset(sp + s->cap_stack, 0, (n - s->cap_stack) * sizeof *sp);
         s->sp = sp;
         if (alloc_lanes(s->lv, 2u * s->cap_stack, 2u * n) < 0) return -1;
         s->cap_stack = n;
@@ -212,9 +214,8 @@ static void materialize_slot(vm_scratch *s, uint32_t slot, size_t n)
     }
 }
 
-/* Record the domain errors of instruction pc: lanes where bad(op, a, b). */
-static void record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_opcode op,
-                          const double *A, double ka, const double *B, double kb, size_t n)
+void vm_record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_opcode op,
+                      const double *A, double ka, const double *B, double kb, size_t n)
 {
     size_t i;
     for (i = 0; i < n; i++) {
@@ -223,11 +224,21 @@ static void record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_
     }
 }
 
+void vm_runaway(vm_scratch *s, const vm_inputs *in, uint32_t pc, size_t n, double *out)
+{
+    size_t i;
+    for (i = 0; i < n; i++) {
+        out[i] = NAN;
+        vm_err_lane(s, pc, i, in);
+    }
+    vm_err_commit(s, n);
+}
+
 #define VM_RESTRICT restrict
 
 /* Loop bodies.  Each macro expands to a case computing R[i] from operand vectors
  * A (and B) or immediates; the domain check runs only for OPF_DOMAIN ops and its
- * slow path (record_errors) only when some lane failed. */
+ * slow path (vm_record_errors) only when some lane failed. */
 #define UNARY(NAME, EXPR)                                                          \
     case FREP_OP_##NAME: {                                                         \
         const double *VM_RESTRICT A = s->sp[d - 1];                                \
@@ -245,7 +256,7 @@ static void record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_
         if (!(in_->flags & INSN_QUIET)) {                                          \
             int bad = 0;                                                           \
             for (i = 0; i < n; i++) { double a = A[i]; bad |= (BAD); }            \
-            if (bad) record_errors(s, in, pc, FREP_OP_##NAME, A, 0, NULL, 0, n);   \
+            if (bad) vm_record_errors(s, in, pc, FREP_OP_##NAME, A, 0, NULL, 0, n);   \
         }                                                                          \
         s->sp[d - 1] = R;                                                          \
         break;                                                                     \
@@ -299,11 +310,104 @@ static void record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_
             } else {                                                               \
                 for (i = 0; i < n; i++) { double a = ka, b = B[i]; bad |= (BAD); } \
             }                                                                      \
-            if (bad) record_errors(s, in, pc, FREP_OP_##NAME, A, ka, B, kb, n);    \
+            if (bad) vm_record_errors(s, in, pc, FREP_OP_##NAME, A, ka, B, kb, n);    \
         }                                                                          \
         BINARY_LOOPS(EXPR)                                                         \
         break;                                                                     \
     }
+
+/* ---- leaves, slots and arrays ------------------------------------------------------ */
+
+/* Push the constant k: a lane vector in the level's free buffer. */
+OPSEM_INLINE void vm_push_const(vm_scratch *s, uint32_t L, double k, size_t n)
+{
+    double *VM_RESTRICT R = lvl_out(s, L);
+    size_t i;
+    for (i = 0; i < n; i++) R[i] = k;
+    s->sp[L] = R;
+}
+
+/* STORE: pop level L into slot `slot`. */
+static void vm_store(vm_scratch *s, uint32_t slot, uint32_t L, size_t n)
+{
+    const double *v = s->sp[L];
+    if (v == s->slotp[slot]) return; /* LOAD s; STORE s */
+    unalias_slot(s, slot, L, n);
+    if (v == s->lv[2 * L] || v == s->lv[2 * L + 1]) {
+        /* The value is in a level buffer: trade buffers instead of copying. */
+        uint32_t w = v == s->lv[2 * L] ? 2 * L : 2 * L + 1;
+        double *t = s->slotbuf[slot];
+        s->slotbuf[slot] = s->lv[w];
+        s->lv[w] = t;
+    } else {
+        memcpy(s->slotbuf[slot], v, n * sizeof(double));
+    }
+    s->slotp[slot] = s->slotbuf[slot];
+}
+
+/* LOADI: replace the index at level L by element arg+i-1 of the array (NaN and an
+ * error for an index out of range). */
+static void vm_loadi(vm_scratch *s, const vm_inputs *in, const frep_insn *in_, uint32_t pc,
+                     uint32_t L, size_t n)
+{
+    const double *I = s->sp[L];
+    double *R = lvl_out(s, L);
+    const double k = in_->k;
+    int bad = 0;
+    size_t i;
+    for (i = 0; i < n; i++) {
+        double ix = I[i];
+        if (opsem_bad_index(ix, k)) {
+            R[i] = NAN;
+            bad = 1;
+        } else {
+            R[i] = s->slotp[in_->arg + (uint32_t)ix - 1][i];
+        }
+    }
+    if (bad && !(in_->flags & INSN_QUIET))
+        for (i = 0; i < n; i++)
+            if (opsem_bad_index(I[i], k)) vm_err_lane(s, pc, i, in);
+    s->sp[L] = R;
+}
+
+/* STOREI: store the value at level L into element arg+i-1, i the index at L+1 (both
+ * popped).  Each lane reads its value and index before it writes its own lane of one
+ * slot, so V or I being a slot of the array is harmless; only older stack entries
+ * need unaliasing. */
+static void vm_storei(vm_scratch *s, const vm_inputs *in, const frep_insn *in_, uint32_t pc,
+                      uint32_t L, size_t n)
+{
+    const double *I = s->sp[L + 1];
+    const double *V = s->sp[L];
+    const double k = in_->k;
+    const uint32_t kk = (uint32_t)k;
+    uint32_t j;
+    size_t i;
+    for (j = 0; j < kk; j++) {
+        unalias_slot(s, in_->arg + j, L, n);
+        materialize_slot(s, in_->arg + j, n);
+    }
+    for (i = 0; i < n; i++) {
+        double ix = I[i];
+        if (opsem_bad_index(ix, k)) {
+            if (!(in_->flags & INSN_QUIET)) vm_err_lane(s, pc, i, in);
+        } else {
+            s->slotbuf[in_->arg + (uint32_t)ix - 1][i] = V[i];
+        }
+    }
+}
+
+/* SELECT c, a, b at levels L..L+2 into level L. */
+OPSEM_INLINE void vm_select(vm_scratch *s, uint32_t L, size_t n)
+{
+    const double *VM_RESTRICT C = s->sp[L];
+    const double *VM_RESTRICT A = s->sp[L + 1];
+    const double *VM_RESTRICT B = s->sp[L + 2];
+    double *VM_RESTRICT R = lvl_out(s, L);
+    size_t i;
+    for (i = 0; i < n; i++) R[i] = opsem_select(C[i], A[i], B[i]);
+    s->sp[L] = R;
+}
 
 /* The sine/cosine cache of one run.  An entry holds the sine (want_sin) or cosine of
  * the vector arg, valid while gen (bumped by every store) is unchanged.  Only stable
@@ -377,6 +481,15 @@ OPSEM_INLINE void vm_trig(const frep_program *p, vm_scratch *s, const vm_inputs 
     }
 }
 
+/* SIN or COS through the run's cache. */
+#define TRIG(NAME, WANT_SIN)                                                       \
+    case FREP_OP_##NAME: {                                                         \
+        double *R = lvl_out(s, d - 1);                                             \
+        vm_trig(p, s, in, &tc, gen, WANT_SIN, s->sp[d - 1], R, n);                 \
+        s->sp[d - 1] = R;                                                          \
+        break;                                                                     \
+    }
+
 /* Run the code over lanes 0..n-1.  Returns 0 when done, 1 when a branch diverged
  * (only if may_diverge; nothing is committed then), -1 on an unusable program. */
 static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, size_t n,
@@ -401,111 +514,16 @@ static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
     while (pc < ncode) {
         const frep_insn *in_ = &code[pc];
         switch ((frep_opcode)in_->op) {
-        case FREP_OP_CONST: {
-            double *R = lvl_out(s, d);
-            const double k = in_->k;
-            for (i = 0; i < n; i++) R[i] = k;
-            s->sp[d++] = R;
-            break;
-        }
-        case FREP_OP_X:
-            s->sp[d++] = in_->arg == 0 ? in->x : in_->arg == 1 ? in->y : in->z;
-            break;
-        case FREP_OP_PARAM:
-            s->sp[d++] = s->parambuf + (size_t)in_->arg * FREP_BLOCK;
-            break;
-        case FREP_OP_LOAD:
-            s->sp[d++] = s->slotp[in_->arg];
-            break;
-        case FREP_OP_PRIM:
-            s->sp[d++] = in->prim_v[in_->arg];
-            break;
-        case FREP_OP_STORE: {
-            uint32_t slot = in_->arg;
-            const double *v = s->sp[--d];
-            gen++;
-            if (v == s->slotp[slot]) break; /* LOAD s; STORE s */
-            unalias_slot(s, slot, d, n);
-            if (v == s->lv[2 * d] || v == s->lv[2 * d + 1]) {
-                /* The value is in a level buffer: trade buffers instead of copying. */
-                uint32_t w = v == s->lv[2 * d] ? 2 * d : 2 * d + 1;
-                double *t = s->slotbuf[slot];
-                s->slotbuf[slot] = s->lv[w];
-                s->lv[w] = t;
-            } else {
-                memcpy(s->slotbuf[slot], v, n * sizeof(double));
-            }
-            s->slotp[slot] = s->slotbuf[slot];
-            break;
-        }
-        case FREP_OP_JMP:
-            if (in_->arg <= pc && ++loops > FREP_MAX_LOOP_ITERATIONS) {
-                /* A runaway loop: every lane's result is NaN with an error. */
-                for (i = 0; i < n; i++) {
-                    out[i] = NAN;
-                    vm_err_lane(s, pc, i, in);
-                }
-                vm_err_commit(s, n);
-                return 0;
-            }
-            pc = in_->arg;
-            continue;
-        case FREP_OP_JZ: {
-            const double *C = s->sp[--d];
-            size_t zeros = 0;
-            for (i = 0; i < n; i++) zeros += C[i] == 0;
-            if (zeros == n) { pc = in_->arg; continue; }
-            if (zeros != 0) {
-                if (may_diverge) return 1;
-                /* n == 1 cannot diverge; reaching here is a bug, but stay safe. */
-                return -1;
-            }
-            break;
-        }
-        case FREP_OP_LOADI: {
-            const double *I = s->sp[d - 1];
-            double *R = lvl_out(s, d - 1);
-            const double k = in_->k;
-            int bad = 0;
-            for (i = 0; i < n; i++) {
-                double ix = I[i];
-                if (opsem_bad_index(ix, k)) {
-                    R[i] = NAN;
-                    bad = 1;
-                } else {
-                    R[i] = s->slotp[in_->arg + (uint32_t)ix - 1][i];
-                }
-            }
-            if (bad && !(in_->flags & INSN_QUIET))
-                for (i = 0; i < n; i++)
-                    if (opsem_bad_index(I[i], k)) vm_err_lane(s, pc, i, in);
-            s->sp[d - 1] = R;
-            break;
-        }
-        case FREP_OP_STOREI: {
-            /* Stack: value, index.  Each lane reads its value and index before it
-             * writes its own lane of one slot, so V or I being a slot of the array
-             * is harmless; only older stack entries need unaliasing. */
-            const double *I = s->sp[d - 1];
-            const double *V = s->sp[d - 2];
-            const double k = in_->k;
-            const uint32_t kk = (uint32_t)k;
-            d -= 2;
-            gen++;
-            for (j = 0; j < kk; j++) {
-                unalias_slot(s, in_->arg + j, d, n);
-                materialize_slot(s, in_->arg + j, n);
-            }
-            for (i = 0; i < n; i++) {
-                double ix = I[i];
-                if (opsem_bad_index(ix, k)) {
-                    if (!(in_->flags & INSN_QUIET)) vm_err_lane(s, pc, i, in);
-                } else {
-                    s->slotbuf[in_->arg + (uint32_t)ix - 1][i] = V[i];
-                }
-            }
-            break;
-        }
+        case FREP_OP_CONST: vm_push_const(s, d++, in_->k, n); break;
+        case FREP_OP_X: s->sp[d++] = vm_axis(in, in_->arg); break;
+        case FREP_OP_PARAM: s->sp[d++] = s->parambuf + (size_t)in_->arg * FREP_BLOCK; break;
+        case FREP_OP_LOAD: s->sp[d++] = s->slotp[in_->arg]; break;
+        case FREP_OP_PRIM: s->sp[d++] = in->prim_v[in_->arg]; break;
+        case FREP_OP_STORE: gen++; vm_store(s, in_->arg, --d, n); break;
+        VM_CASE_JMP(vm_runaway(s, in, pc, n, out))
+        VM_CASE_JZ(s->sp[--d])
+        case FREP_OP_LOADI: vm_loadi(s, in, in_, pc, d - 1, n); break;
+        case FREP_OP_STOREI: d -= 2; gen++; vm_storei(s, in, in_, pc, d, n); break;
         UNARY(NEG, opsem_neg(a))
         UNARY(NOT, opsem_not(a))
         UNARY(ABS, opsem_abs(a))
@@ -514,12 +532,8 @@ static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
         UNARY(EXP, opsem_exp(a))
         UNARY_DOM(LOG, opsem_log(a), opsem_bad_log(a))
         UNARY_DOM(LOGD, opsem_logd(a), opsem_bad_log(a))
-        case FREP_OP_SIN: case FREP_OP_COS: {
-            double *R = lvl_out(s, d - 1);
-            vm_trig(p, s, in, &tc, gen, in_->op == FREP_OP_SIN, s->sp[d - 1], R, n);
-            s->sp[d - 1] = R;
-            break;
-        }
+        TRIG(SIN, 1)
+        TRIG(COS, 0)
         UNARY(TAN, opsem_tan(a))
         UNARY_DOM(ASIN, opsem_asin(a), opsem_bad_asin(a))
         UNARY_DOM(ACOS, opsem_acos(a), opsem_bad_asin(a))
@@ -553,29 +567,9 @@ static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
         BINARY(RINT, opsem_rint(a, b))
         BINARY(RSUB, opsem_rsub(a, b))
         BINARY(MSUB, opsem_msub(a, b))
-        case FREP_OP_AUNI: case FREP_OP_AINT: {
-            const double *VM_RESTRICT A = s->sp[d - 2];
-            const double *VM_RESTRICT B = s->sp[d - 1];
-            double *VM_RESTRICT R = lvl_out(s, d - 2);
-            const double k = in_->k;
-            if (in_->op == FREP_OP_AUNI)
-                for (i = 0; i < n; i++) R[i] = opsem_auni(A[i], B[i], k);
-            else
-                for (i = 0; i < n; i++) R[i] = opsem_aint(A[i], B[i], k);
-            s->sp[d - 2] = R;
-            d--;
-            break;
-        }
-        case FREP_OP_SELECT: {
-            const double *VM_RESTRICT C = s->sp[d - 3];
-            const double *VM_RESTRICT A = s->sp[d - 2];
-            const double *VM_RESTRICT B = s->sp[d - 1];
-            double *VM_RESTRICT R = lvl_out(s, d - 3);
-            for (i = 0; i < n; i++) R[i] = opsem_select(C[i], A[i], B[i]);
-            s->sp[d - 3] = R;
-            d -= 2;
-            break;
-        }
+        BINARY(AUNI, opsem_auni(a, b, in_->k))
+        BINARY(AINT, opsem_aint(a, b, in_->k))
+        case FREP_OP_SELECT: d -= 2; vm_select(s, d - 1, n); break;
         case FREP_OP__COUNT:
         default:
             return -1;
@@ -610,9 +604,7 @@ void vm_broadcast_params(const frep_program *p, vm_scratch *s, const vm_inputs *
     s->param_count = p->nparams;
 }
 
-/* Inputs of lane i alone (divergent branches). */
-static vm_inputs lane_inputs(const frep_program *p, vm_scratch *s, const vm_inputs *in,
-                             size_t i)
+vm_inputs vm_lane_inputs(const frep_program *p, vm_scratch *s, const vm_inputs *in, size_t i)
 {
     vm_inputs li = *in;
     uint32_t j;
@@ -642,7 +634,7 @@ int vm_eval_block(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
     rc = vm_run(p, s, in, n, out, n > 1);
     if (rc != 1) return rc;
     for (i = 0; i < n; i++) {
-        vm_inputs li = lane_inputs(p, s, in, i);
+        vm_inputs li = vm_lane_inputs(p, s, in, i);
         if (vm_run(p, s, &li, 1, out + i, 0) < 0) return -1;
     }
     return 0;

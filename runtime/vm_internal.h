@@ -88,11 +88,67 @@ void vm_broadcast_params(const frep_program *p, vm_scratch *s, const vm_inputs *
 void vm_err_begin(vm_scratch *s, size_t n);
 /* Lane i raised an error at pc. */
 void vm_err_lane(vm_scratch *s, uint32_t pc, size_t i, const vm_inputs *in);
+/* Record the domain errors of instruction pc (opcode op) over n lanes: the lanes where
+ * opsem_is_bad(op, a, b), with a = A[i] (A NULL: the immediate ka), b likewise. */
+void vm_record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_opcode op,
+                      const double *A, double ka, const double *B, double kb, size_t n);
+/* A runaway loop at the JMP at pc: every lane's value is NaN with an error, committed
+ * (the run ends there). */
+void vm_runaway(vm_scratch *s, const vm_inputs *in, uint32_t pc, size_t n, double *out);
 /* Commit the run's errors (n lanes) into the scratch totals. */
 void vm_err_commit(vm_scratch *s, size_t n);
 /* Merge error totals: deterministic (lowest pc wins, counts add). */
 void vm_err_merge(vm_errstate *into, const vm_errstate *from);
+/* The public form of an error total (runtime/eval.c). */
+void vm_err_to_public(const vm_errstate *e, frep_runtime_error *out);
+
+/* Inputs of lane i of *in alone, for the lane-by-lane rerun of a divergent block (the
+ * PRIM pointers go to s->primp/primg). */
+vm_inputs vm_lane_inputs(const frep_program *p, vm_scratch *s, const vm_inputs *in, size_t i);
 
 void vm_tan_free(vm_tanstate *t);
+
+/* The input vector of coordinate axis a (0 = x, 1 = y, 2 = z) of an X leaf. */
+static inline const double *vm_axis(const vm_inputs *in, uint32_t a)
+{
+    return a == 0 ? in->x : a == 1 ? in->y : in->z;
+}
+
+/* ---- control flow shared by the point evaluators (vm_run, tan_run) --------------
+ * Both run all lanes of a block together while their branches agree: a JZ whose
+ * condition is zero in every lane jumps, nonzero in every lane falls through, and
+ * mixed lanes make the run give up (1) so that the caller reruns the block one lane at
+ * a time, which is exact for point-dependent if/while.  A backward JMP counts a loop
+ * iteration; past FREP_MAX_LOOP_ITERATIONS the run ends with NaN and an error. */
+typedef enum vm_branch { VM_FALL, VM_JUMP, VM_DIVERGE } vm_branch;
+
+static inline vm_branch vm_jz(const double *C, size_t n)
+{
+    size_t i, zeros = 0;
+    for (i = 0; i < n; i++) zeros += C[i] == 0;
+    return zeros == n ? VM_JUMP : zeros == 0 ? VM_FALL : VM_DIVERGE;
+}
+
+/* The JMP and JZ cases of a dispatch loop over `pc` with locals in_ (the instruction),
+ * loops, n and may_diverge.  RUNAWAY ends a runaway loop's run (its results); COND is
+ * the popped condition vector.  A run that diverges without may_diverge (n == 1 cannot
+ * diverge) is a bug: -1, as for an unusable program. */
+#define VM_CASE_JMP(RUNAWAY)                                                       \
+    case FREP_OP_JMP:                                                              \
+        if (in_->arg <= pc && ++loops > FREP_MAX_LOOP_ITERATIONS) {                \
+            RUNAWAY;                                                               \
+            return 0;                                                              \
+        }                                                                          \
+        pc = in_->arg;                                                             \
+        continue;
+
+#define VM_CASE_JZ(COND)                                                           \
+    case FREP_OP_JZ:                                                               \
+        switch (vm_jz(COND, n)) {                                                  \
+        case VM_JUMP: pc = in_->arg; continue;                                     \
+        case VM_DIVERGE: return may_diverge ? 1 : -1;                              \
+        case VM_FALL: break;                                                       \
+        }                                                                          \
+        break;
 
 #endif

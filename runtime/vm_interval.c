@@ -261,43 +261,84 @@ static ival iv_compare(frep_opcode op, ival a, ival b)
     return iv_bool(a.lo >= b.hi, a.hi < b.lo); /* GE */
 }
 
+static ival iv_abs(ival a)
+{
+    if (a.lo >= 0) return a;
+    if (a.hi <= 0) return iv(-a.hi, -a.lo);
+    return iv(0, fmax(-a.lo, a.hi));
+}
+
+static ival iv_sqrt(ival a)
+{
+    if (a.hi < 0) return iv_entire(); /* NaN everywhere: nothing to enclose */
+    return iv_round(iv(sqrt(fmax(a.lo, 0)), sqrt(a.hi)));
+}
+
+/* log or log10 (f): increasing on a > 0, -inf toward 0; NaN everywhere when a.hi <= 0. */
+static ival iv_log(double (*f)(double), ival a)
+{
+    if (a.hi <= 0) return iv_entire();
+    return iv_round(iv(a.lo > 0 ? f(a.lo) : -INFINITY, f(a.hi)));
+}
+
+static ival iv_asin(ival a)
+{
+    if (a.lo > 1 || a.hi < -1) return iv_entire();
+    return iv_round(iv(asin(fmax(a.lo, -1)), asin(fmin(a.hi, 1))));
+}
+
+static ival iv_acos(ival a)
+{
+    if (a.lo > 1 || a.hi < -1) return iv_entire();
+    return iv_round(iv(acos(fmin(a.hi, 1)), acos(fmax(a.lo, -1))));
+}
+
+static ival iv_cosh(ival a)
+{
+    double l = cosh(a.lo), h = cosh(a.hi);
+    if (a.lo <= 0 && a.hi >= 0) return iv_round(iv(1, fmax(l, h)));
+    return iv_round(iv(fmin(l, h), fmax(l, h)));
+}
+
+static ival iv_and(ival a, ival b)
+{
+    return iv_bool(iv_surely_true(a) && iv_surely_true(b),
+                   iv_surely_false(a) || iv_surely_false(b));
+}
+
+static ival iv_or(ival a, ival b)
+{
+    return iv_bool(iv_surely_true(a) || iv_surely_true(b),
+                   iv_surely_false(a) && iv_surely_false(b));
+}
+
+static ival iv_select(ival c, ival a, ival b)
+{
+    if (iv_surely_true(c)) return a;
+    if (iv_surely_false(c)) return b;
+    return iv_hull(a, b);
+}
+
 ival ival_op(frep_opcode op, const ival *v, double k)
 {
     ival a = v[0], b = v[1];
     switch (op) {
     case FREP_OP_NEG: return iv(-a.hi, -a.lo);
     case FREP_OP_NOT: return iv_bool(iv_surely_false(a), iv_surely_true(a));
-    case FREP_OP_ABS:
-        if (a.lo >= 0) return a;
-        if (a.hi <= 0) return iv(-a.hi, -a.lo);
-        return iv(0, fmax(-a.lo, a.hi));
-    case FREP_OP_SQRT:
-        if (a.hi < 0) return iv_entire(); /* NaN everywhere: nothing to enclose */
-        return iv_round(iv(sqrt(fmax(a.lo, 0)), sqrt(a.hi)));
+    case FREP_OP_ABS: return iv_abs(a);
+    case FREP_OP_SQRT: return iv_sqrt(a);
     case FREP_OP_SQUARE: return iv_square(a);
     case FREP_OP_EXP: return iv_round(iv(fmax(exp(a.lo), 0), exp(a.hi)));
-    case FREP_OP_LOG:
-        if (a.hi <= 0) return iv_entire();
-        return iv_round(iv(a.lo > 0 ? log(a.lo) : -INFINITY, log(a.hi)));
-    case FREP_OP_LOGD:
-        if (a.hi <= 0) return iv_entire();
-        return iv_round(iv(a.lo > 0 ? log10(a.lo) : -INFINITY, log10(a.hi)));
+    case FREP_OP_LOG: return iv_log(log, a);
+    case FREP_OP_LOGD: return iv_log(log10, a);
     case FREP_OP_SIN: return iv_sin(a);
     case FREP_OP_COS: return iv_cos(a);
     case FREP_OP_TAN: return iv_tan(a);
-    case FREP_OP_ASIN:
-        if (a.lo > 1 || a.hi < -1) return iv_entire();
-        return iv_round(iv(asin(fmax(a.lo, -1)), asin(fmin(a.hi, 1))));
-    case FREP_OP_ACOS:
-        if (a.lo > 1 || a.hi < -1) return iv_entire();
-        return iv_round(iv(acos(fmin(a.hi, 1)), acos(fmax(a.lo, -1))));
+    case FREP_OP_ASIN: return iv_asin(a);
+    case FREP_OP_ACOS: return iv_acos(a);
     case FREP_OP_ATAN: return iv_incr(atan, a);
     case FREP_OP_SINH: return iv_incr(sinh, a);
-    case FREP_OP_COSH: {
-        double l = cosh(a.lo), h = cosh(a.hi);
-        if (a.lo <= 0 && a.hi >= 0) return iv_round(iv(1, fmax(l, h)));
-        return iv_round(iv(fmin(l, h), fmax(l, h)));
-    }
+    case FREP_OP_COSH: return iv_cosh(a);
     case FREP_OP_TANH: return iv_incr(tanh, a);
     case FREP_OP_SIGN: return iv(opsem_sign(a.lo), opsem_sign(a.hi));
     case FREP_OP_CEIL: return iv(ceil(a.lo), ceil(a.hi));
@@ -316,21 +357,14 @@ ival ival_op(frep_opcode op, const ival *v, double k)
     case FREP_OP_EQ: case FREP_OP_NE: case FREP_OP_LT: case FREP_OP_LE:
     case FREP_OP_GT: case FREP_OP_GE:
         return iv_compare(op, a, b);
-    case FREP_OP_AND:
-        return iv_bool(iv_surely_true(a) && iv_surely_true(b),
-                       iv_surely_false(a) || iv_surely_false(b));
-    case FREP_OP_OR:
-        return iv_bool(iv_surely_true(a) || iv_surely_true(b),
-                       iv_surely_false(a) && iv_surely_false(b));
+    case FREP_OP_AND: return iv_and(a, b);
+    case FREP_OP_OR: return iv_or(a, b);
     case FREP_OP_RUNI: return iv_mono2(iv_runi_f, a, b);
     case FREP_OP_RINT: return iv_mono2(iv_rint_f, a, b);
     case FREP_OP_RSUB: return iv_mono2(iv_rint_f, a, iv(-b.hi, -b.lo));
     case FREP_OP_MSUB: return iv(fmin(a.lo, -b.hi), fmin(a.hi, -b.lo));
     case FREP_OP_AUNI: case FREP_OP_AINT: return iv_ralpha(op, a, b, k);
-    case FREP_OP_SELECT:
-        if (iv_surely_true(v[0])) return v[1];
-        if (iv_surely_false(v[0])) return v[2];
-        return iv_hull(v[1], v[2]);
+    case FREP_OP_SELECT: return iv_select(v[0], v[1], v[2]);
     case FREP_OP_CONST: case FREP_OP_X: case FREP_OP_PARAM: case FREP_OP_LOAD:
     case FREP_OP_PRIM: case FREP_OP_STORE: case FREP_OP_JMP: case FREP_OP_JZ:
     case FREP_OP_LOADI: case FREP_OP_STOREI: case FREP_OP__COUNT:
@@ -350,8 +384,61 @@ static int iv_index_range(ival i, double k, uint32_t *first, uint32_t *last)
     return 1;
 }
 
+/* LOADI over the index interval *idx (replaced by the hull of every element it may
+ * select); 0 when no valid index is possible or the array leaves the slots. */
+static int iv_loadi(const frep_program *p, const vm_iscratch *s, const frep_insn *in,
+                    ival *idx)
+{
+    uint32_t first, last;
+    if (!iv_index_range(*idx, in->k, &first, &last) || (uint64_t)in->arg + last >= p->nslots)
+        return 0;
+    ival r = s->slots[in->arg + first];
+    for (uint32_t j = first + 1; j <= last; j++) r = iv_hull(r, s->slots[in->arg + j]);
+    *idx = r;
+    return 1;
+}
+
+/* STOREI of val at the index interval idx; 0 as iv_loadi. */
+static int iv_storei(const frep_program *p, vm_iscratch *s, const frep_insn *in, ival idx,
+                     ival val)
+{
+    uint32_t first, last;
+    if (!iv_index_range(idx, in->k, &first, &last) || (uint64_t)in->arg + last >= p->nslots)
+        return 0;
+    /* An undecided index may write any candidate slot: each keeps the hull. */
+    for (uint32_t j = first; j <= last; j++) {
+        ival *slot = &s->slots[in->arg + j];
+        *slot = first == last ? val : iv_hull(*slot, val);
+    }
+    return 1;
+}
+
+/* An operator (unary, binary, binary with an immediate, SELECT): pop its operands from
+ * st[0..*sp), push ival_op of them in push order; 0 on a stack underflow. */
+static int iv_operator(ival *st, uint32_t *sp, const frep_insn *in)
+{
+    frep_opcode op = (frep_opcode)in->op;
+    uint32_t nin = (uint32_t)insn_nin(in), j = 0;
+    ival v[3] = { { 0, 0 }, { 0, 0 }, { 0, 0 } };
+    if (*sp < nin) return 0;
+    *sp -= nin;
+    if (op_nin(op) == 2 && (in->flags & INSN_KA)) v[j++] = iv_exact(in->k);
+    for (uint32_t i = 0; i < nin; i++) v[j++] = st[*sp + i];
+    if (op_nin(op) == 2 && (in->flags & INSN_KB)) v[j++] = iv_exact(in->k);
+    st[(*sp)++] = ival_op(op, v, in->k);
+    return 1;
+}
+
+/* Give up on a bound: the result is [-inf, inf] (no error). */
+#define IV_UNKNOWN_UNLESS(c) \
+    do {                     \
+        if (!(c)) return 0;  \
+    } while (0)
+
 /* The interval evaluator; trace (may be NULL; p->ncode entries) receives the value
- * each instruction pushes. */
+ * each instruction pushes.  The stack effects are checked as it runs (a program the
+ * point evaluators reject gives [-inf, inf] here); ival_op holds the interval rule of
+ * each operator. */
 static int interval_run(const frep_program *p, vm_iscratch *s, const double box[6],
                         const double *params, ival *out, ival *trace)
 {
@@ -364,105 +451,55 @@ static int interval_run(const frep_program *p, vm_iscratch *s, const double box[
     for (uint32_t i = 0; i < p->nslots; i++) s->slots[i] = iv(0, 0);
     for (uint32_t pc = 0; pc < p->ncode;) {
         const frep_insn *in = &p->code[pc];
-        frep_opcode op = (frep_opcode)in->op;
         uint32_t next = pc + 1;
-        ival v[3];
-        switch (op) {
+        switch ((frep_opcode)in->op) {
         case FREP_OP_CONST: st[sp++] = iv_exact(in->k); break;
         case FREP_OP_X:
-            if (in->arg > 2) return 0;
+            IV_UNKNOWN_UNLESS(in->arg <= 2);
             st[sp++] = iv(box[in->arg], box[in->arg + 3]);
             break;
         case FREP_OP_PARAM:
-            if (in->arg >= p->nparams) return 0;
+            IV_UNKNOWN_UNLESS(in->arg < p->nparams);
             st[sp++] = iv_exact(params ? params[in->arg] : p->params[in->arg].value);
             break;
         case FREP_OP_LOAD:
-            if (in->arg >= p->nslots) return 0;
+            IV_UNKNOWN_UNLESS(in->arg < p->nslots);
             st[sp++] = s->slots[in->arg];
             break;
         case FREP_OP_PRIM: return 0;
         case FREP_OP_STORE:
-            if (in->arg >= p->nslots || sp < 1) return 0;
+            IV_UNKNOWN_UNLESS(in->arg < p->nslots && sp >= 1);
             s->slots[in->arg] = st[--sp];
             break;
         case FREP_OP_JMP:
-            if (in->arg <= pc && ++loops > FREP_MAX_LOOP_ITERATIONS) return 0;
+            IV_UNKNOWN_UNLESS(!(in->arg <= pc && ++loops > FREP_MAX_LOOP_ITERATIONS));
             next = in->arg;
             break;
         case FREP_OP_JZ:
-            if (sp < 1) return 0;
-            v[0] = st[--sp];
-            if (iv_surely_false(v[0])) next = in->arg;
-            else if (!iv_surely_true(v[0])) return 0; /* undecided branch */
+            IV_UNKNOWN_UNLESS(sp >= 1);
+            sp--;
+            if (iv_surely_false(st[sp])) next = in->arg;
+            else IV_UNKNOWN_UNLESS(iv_surely_true(st[sp])); /* undecided branch */
             break;
-        case FREP_OP_LOADI: {
-            uint32_t first, last;
-            if (sp < 1) return 0;
-            ival idx = st[sp - 1];
-            if (!iv_index_range(idx, in->k, &first, &last) ||
-                (uint64_t)in->arg + last >= p->nslots)
-                return 0;
-            ival r = s->slots[in->arg + first];
-            for (uint32_t j = first + 1; j <= last; j++) r = iv_hull(r, s->slots[in->arg + j]);
-            st[sp - 1] = r;
+        case FREP_OP_LOADI: IV_UNKNOWN_UNLESS(sp >= 1 && iv_loadi(p, s, in, &st[sp - 1])); break;
+        case FREP_OP_STOREI:
+            IV_UNKNOWN_UNLESS(sp >= 2);
+            sp -= 2;
+            IV_UNKNOWN_UNLESS(iv_storei(p, s, in, st[sp + 1], st[sp]));
             break;
-        }
-        case FREP_OP_STOREI: {
-            uint32_t first, last;
-            if (sp < 2) return 0;
-            ival idx = st[--sp], val = st[--sp];
-            if (!iv_index_range(idx, in->k, &first, &last) ||
-                (uint64_t)in->arg + last >= p->nslots)
-                return 0;
-            /* An undecided index may write any candidate slot: each keeps the hull. */
-            for (uint32_t j = first; j <= last; j++) {
-                ival *slot = &s->slots[in->arg + j];
-                *slot = first == last ? val : iv_hull(*slot, val);
-            }
-            break;
-        }
         case FREP_OP_NEG: case FREP_OP_NOT: case FREP_OP_ABS: case FREP_OP_SQRT:
         case FREP_OP_SQUARE: case FREP_OP_EXP: case FREP_OP_LOG: case FREP_OP_LOGD:
         case FREP_OP_SIN: case FREP_OP_COS: case FREP_OP_TAN: case FREP_OP_ASIN:
         case FREP_OP_ACOS: case FREP_OP_ATAN: case FREP_OP_SINH: case FREP_OP_COSH:
         case FREP_OP_TANH: case FREP_OP_SIGN: case FREP_OP_CEIL: case FREP_OP_FLOOR:
         case FREP_OP_INT: case FREP_OP_FRAC:
-            if (sp < 1) return 0;
-            v[0] = st[sp - 1];
-            v[1] = v[2] = iv(0, 0);
-            st[sp - 1] = ival_op(op, v, in->k);
-            break;
         case FREP_OP_ADD: case FREP_OP_SUB: case FREP_OP_MUL: case FREP_OP_DIV:
         case FREP_OP_POW: case FREP_OP_MOD: case FREP_OP_MIN: case FREP_OP_MAX:
         case FREP_OP_ATAN2: case FREP_OP_EQ: case FREP_OP_NE: case FREP_OP_LT:
         case FREP_OP_LE: case FREP_OP_GT: case FREP_OP_GE: case FREP_OP_AND:
         case FREP_OP_OR: case FREP_OP_RUNI: case FREP_OP_RINT: case FREP_OP_RSUB:
-        case FREP_OP_MSUB: case FREP_OP_AUNI: case FREP_OP_AINT: {
-            double kk = in->k;
-            if (in->flags & INSN_KB) {
-                if (sp < 1) return 0;
-                v[0] = st[--sp];
-                v[1] = iv_exact(kk);
-            } else if (in->flags & INSN_KA) {
-                if (sp < 1) return 0;
-                v[1] = st[--sp];
-                v[0] = iv_exact(kk);
-            } else {
-                if (sp < 2) return 0;
-                v[1] = st[--sp];
-                v[0] = st[--sp];
-            }
-            v[2] = iv(0, 0);
-            st[sp++] = ival_op(op, v, kk);
-            break;
-        }
-        case FREP_OP_SELECT:
-            if (sp < 3) return 0;
-            v[2] = st[--sp];
-            v[1] = st[--sp];
-            v[0] = st[--sp];
-            st[sp++] = ival_op(op, v, in->k);
+        case FREP_OP_MSUB: case FREP_OP_AUNI: case FREP_OP_AINT: case FREP_OP_SELECT:
+            IV_UNKNOWN_UNLESS(iv_operator(st, &sp, in));
             break;
         case FREP_OP__COUNT:
         default:
@@ -530,24 +567,59 @@ void vm_pruner_free(vm_pruner *r)
     frep_free(r);
 }
 
-vm_pruner *vm_pruner_new(const frep_program *p)
+/* Straight-line code without arrays indexed at run time or cached primitives: what
+ * the analysis below can follow. */
+static int pr_supported(const frep_program *p)
 {
     if (!p || !p->code || p->ncode == 0 || (p->flags & (PROG_HAS_BRANCHES | PROG_HAS_PRIMS)))
-        return NULL;
-    uint32_t n = p->ncode;
-    for (uint32_t pc = 0; pc < n; pc++) {
+        return 0;
+    for (uint32_t pc = 0; pc < p->ncode; pc++) {
         frep_opcode op = (frep_opcode)p->code[pc].op;
         if (op == FREP_OP_LOADI || op == FREP_OP_STOREI || op == FREP_OP_JMP ||
             op == FREP_OP_JZ || op == FREP_OP_PRIM || op >= FREP_OP__COUNT)
-            return NULL;
+            return 0;
     }
+    return 1;
+}
+
+/* The data flow of a program, needed only while its pruner is built. */
+typedef struct pr_flow {
+    uint32_t *producer;      /* stack of producing pcs */
+    uint32_t *consumer;      /* pc popping the value of pc (n: the result; PR_NOBODY) */
+    uint32_t *reads;         /* LOAD: the STORE it reads (PR_NOBODY: none) */
+    uint32_t *last;          /* per slot: its last STORE so far */
+    uint8_t *sign;           /* only the value's sign reaches the result */
+    uint8_t *store_ok;       /* STORE: every LOAD of it passes on only the sign */
+} pr_flow;
+
+#define PR_NOBODY UINT32_MAX
+
+static void pr_flow_free(pr_flow *f)
+{
+    frep_free(f->producer);
+    frep_free(f->consumer);
+    frep_free(f->reads);
+    frep_free(f->last);
+    frep_free(f->sign);
+    frep_free(f->store_ok);
+}
+
+static int pr_flow_alloc(pr_flow *f, uint32_t n, uint32_t nslots)
+{
+    f->producer = frep_malloc((n + 1) * sizeof *f->producer);
+    f->consumer = frep_malloc((n + 1) * sizeof *f->consumer);
+    f->reads = frep_malloc((n + 1) * sizeof *f->reads);
+    f->last = frep_malloc((nslots + 1) * sizeof *f->last);
+    f->sign = frep_malloc(n + 1);
+    f->store_ok = frep_malloc(n + 1);
+    return f->producer && f->consumer && f->reads && f->last && f->sign && f->store_ok ? 0 : -1;
+}
+
+static vm_pruner *pr_alloc(const frep_program *p)
+{
+    uint32_t n = p->ncode;
     vm_pruner *r = frep_calloc(1, sizeof *r);
-    uint32_t *producer = frep_malloc((n + 1) * sizeof *producer);  /* stack of producing pcs */
-    uint32_t *consumer = frep_malloc((n + 1) * sizeof *consumer);  /* pc popping the value */
-    uint32_t *reads = frep_malloc((n + 1) * sizeof *reads);        /* LOAD: the STORE it reads */
-    uint32_t *last = frep_malloc((p->nslots + 1) * sizeof *last);
-    uint8_t *sign = frep_malloc(n + 1), *store_ok = frep_malloc(n + 1);
-    if (!r || !producer || !consumer || !reads || !last || !sign || !store_ok) goto fail;
+    if (!r) return NULL;
     r->p = p;
     r->n = n;
     r->a0 = frep_calloc(n, sizeof *r->a0);
@@ -561,61 +633,85 @@ vm_pruner *vm_pruner_new(const frep_program *p)
     r->neg = frep_malloc(n);
     r->live = frep_malloc(p->nslots + 1);
     if (!r->a0 || !r->b0 || !r->kind || !r->ndomain || !r->nstore || !r->vstart || !r->trace ||
-        !r->keep || !r->neg || !r->live)
-        goto fail;
-    const uint32_t NONE = UINT32_MAX;
-    /* forward: who consumes each value, which store each load reads */
-    uint32_t sp = 0;
-    for (uint32_t j = 0; j <= p->nslots; j++) last[j] = NONE;
+        !r->keep || !r->neg || !r->live) {
+        vm_pruner_free(r);
+        return NULL;
+    }
+    return r;
+}
+
+/* Forward: who consumes each value, which store each load reads, where each stored
+ * value starts, and the prefix counts of domain ops and stores.  -1 on a malformed
+ * program. */
+static int pr_forward(vm_pruner *r, pr_flow *f)
+{
+    const frep_program *p = r->p;
+    uint32_t n = r->n, sp = 0;
+    for (uint32_t j = 0; j <= p->nslots; j++) f->last[j] = PR_NOBODY;
     r->ndomain[0] = r->nstore[0] = 0;
     for (uint32_t pc = 0; pc < n; pc++) {
         const frep_insn *in = &p->code[pc];
         frep_opcode op = (frep_opcode)in->op;
         int nin = insn_nin(in);
-        if ((uint32_t)nin > sp || in->arg > p->nslots) goto fail;
-        for (int i = 0; i < nin; i++) consumer[producer[--sp]] = pc;
-        consumer[pc] = NONE;
-        reads[pc] = NONE;
-        if (op == FREP_OP_LOAD) reads[pc] = last[in->arg];
+        if ((uint32_t)nin > sp || in->arg > p->nslots) return -1;
+        for (int i = 0; i < nin; i++) f->consumer[f->producer[--sp]] = pc;
+        f->consumer[pc] = PR_NOBODY;
+        f->reads[pc] = PR_NOBODY;
+        if (op == FREP_OP_LOAD) f->reads[pc] = f->last[in->arg];
         if (op == FREP_OP_STORE) {
-            last[in->arg] = pc;
+            f->last[in->arg] = pc;
             r->vstart[pc] = pc > 0 ? prog_subtree_start(p->code, pc - 1) : 0;
         }
-        if (op_pushes(op)) producer[sp++] = pc;
+        if (op_pushes(op)) f->producer[sp++] = pc;
         r->ndomain[pc + 1] = r->ndomain[pc] + ((op_flags(op) & OPF_DOMAIN) != 0);
         r->nstore[pc + 1] = r->nstore[pc] + (op == FREP_OP_STORE);
     }
     /* the values left on the stack are the result: their sign is what counts */
-    for (uint32_t i = 0; i < sp; i++) consumer[producer[i]] = n;
-    /* backward: is each value used only through sign-preserving operations? */
-    for (uint32_t pc = 0; pc < n; pc++) store_ok[pc] = 1;
+    for (uint32_t i = 0; i < sp; i++) f->consumer[f->producer[i]] = n;
+    return 0;
+}
+
+/* Backward: is each value used only through sign-preserving operations (set
+ * operations, negation, stores whose loads are)? */
+static void pr_backward(const vm_pruner *r, pr_flow *f)
+{
+    const frep_program *p = r->p;
+    uint32_t n = r->n;
+    for (uint32_t pc = 0; pc < n; pc++) f->store_ok[pc] = 1;
     for (uint32_t pc = n; pc-- > 0;) {
         frep_opcode op = (frep_opcode)p->code[pc].op;
-        uint32_t c = consumer[pc];
+        uint32_t c = f->consumer[pc];
         int ok = 0;
         if (op == FREP_OP_STORE) {
-            sign[pc] = store_ok[pc];
+            f->sign[pc] = f->store_ok[pc];
             continue;
         }
         if (c == n) {
             ok = 1;
-        } else if (c != NONE) {
+        } else if (c != PR_NOBODY) {
             frep_opcode cop = (frep_opcode)p->code[c].op;
             if (cop == FREP_OP_RUNI || cop == FREP_OP_RINT || cop == FREP_OP_RSUB ||
                 cop == FREP_OP_MIN || cop == FREP_OP_MAX || cop == FREP_OP_MSUB ||
                 cop == FREP_OP_NEG || cop == FREP_OP_STORE)
-                ok = sign[c];
+                ok = f->sign[c];
         }
-        sign[pc] = (uint8_t)ok;
-        if (op == FREP_OP_LOAD && reads[pc] != NONE && !ok) store_ok[reads[pc]] = 0;
+        f->sign[pc] = (uint8_t)ok;
+        if (op == FREP_OP_LOAD && f->reads[pc] != PR_NOBODY && !ok) f->store_ok[f->reads[pc]] = 0;
     }
-    /* the prunable set operations */
-    for (uint32_t pc = 0; pc < n; pc++) {
+}
+
+/* The prunable set operations: min/max always (exact), R-functions when only their
+ * sign matters; their operand ranges a0..b0-1 and b0..pc-1. */
+static void pr_set_operations(vm_pruner *r, const pr_flow *f)
+{
+    const frep_program *p = r->p;
+    for (uint32_t pc = 0; pc < r->n; pc++) {
         const frep_insn *in = &p->code[pc];
         frep_opcode op = (frep_opcode)in->op;
         int k = 0;
         if (op == FREP_OP_MIN || op == FREP_OP_MAX || op == FREP_OP_MSUB) k = 1;
-        else if ((op == FREP_OP_RUNI || op == FREP_OP_RINT || op == FREP_OP_RSUB) && sign[pc]) k = 2;
+        else if ((op == FREP_OP_RUNI || op == FREP_OP_RINT || op == FREP_OP_RSUB) && f->sign[pc])
+            k = 2;
         if (!k || (in->flags & (INSN_KA | INSN_KB)) || pc < 2) continue;
         uint32_t b0 = prog_subtree_start(p->code, pc - 1);
         if (b0 == 0) continue;
@@ -624,22 +720,24 @@ vm_pruner *vm_pruner_new(const frep_program *p)
         r->b0[pc] = b0;
         r->kind[pc] = (uint8_t)k;
     }
-    frep_free(producer);
-    frep_free(consumer);
-    frep_free(reads);
-    frep_free(last);
-    frep_free(sign);
-    frep_free(store_ok);
+}
+
+vm_pruner *vm_pruner_new(const frep_program *p)
+{
+    pr_flow f;
+    vm_pruner *r;
+    if (!pr_supported(p)) return NULL;
+    memset(&f, 0, sizeof f);
+    r = pr_alloc(p);
+    if (!r || pr_flow_alloc(&f, p->ncode, p->nslots) < 0 || pr_forward(r, &f) < 0) {
+        pr_flow_free(&f);
+        vm_pruner_free(r);
+        return NULL;
+    }
+    pr_backward(r, &f);
+    pr_set_operations(r, &f);
+    pr_flow_free(&f);
     return r;
-fail:
-    frep_free(producer);
-    frep_free(consumer);
-    frep_free(reads);
-    frep_free(last);
-    frep_free(sign);
-    frep_free(store_ok);
-    vm_pruner_free(r);
-    return NULL;
 }
 
 /* May the code [from, to) be dropped? */
@@ -648,53 +746,67 @@ static int pr_droppable(const vm_pruner *r, uint32_t from, uint32_t to)
     return r->ndomain[to] == r->ndomain[from] && r->nstore[to] == r->nstore[from];
 }
 
-int vm_prune(vm_pruner *r, vm_iscratch *s, const double box[6], const double *params,
-             frep_insn *code, frep_srcpos *pos, uint32_t *orig, uint32_t *ncode, ival *out,
-             double *sign_tol)
+/* Rounding: the original and the pruned program may disagree on the sign of values
+ * within their rounding errors of 0.  Those are below VM_PRUNE_MARGIN x the largest
+ * intermediate magnitude S; an R-function is pruned only when the dropped operand
+ * keeps its sign by more than T = VM_PRUNE_MARGIN S, and the caller re-evaluates
+ * values smaller than T with the original program. */
+static double pr_sign_tol(const vm_pruner *r)
 {
-    const frep_program *p = r->p;
-    uint32_t n = r->n;
-    for (uint32_t pc = 0; pc < n; pc++) r->trace[pc] = iv_entire();
-    if (interval_run(p, s, box, params, out, r->trace) != 0) return -1;
-    /* Rounding: the original and the pruned program may disagree on the sign of values
-     * within their rounding errors of 0.  Those are below VM_PRUNE_MARGIN x the largest
-     * intermediate magnitude S; an R-function is pruned only when the dropped operand
-     * keeps its sign by more than T = VM_PRUNE_MARGIN S, and the caller re-evaluates
-     * values smaller than T with the original program. */
     double S = 0;
-    for (uint32_t pc = 0; pc < n; pc++) {
+    for (uint32_t pc = 0; pc < r->n; pc++) {
         if (isfinite(r->trace[pc].lo)) S = fmax(S, fabs(r->trace[pc].lo));
         if (isfinite(r->trace[pc].hi)) S = fmax(S, fabs(r->trace[pc].hi));
     }
-    double T = VM_PRUNE_MARGIN * S;
-    *sign_tol = T;
-    memset(r->keep, 1, n);
-    memset(r->neg, 0, n);
+    return VM_PRUNE_MARGIN * S;
+}
+
+/* Which operand decides set operation op over the box, given its operands' intervals
+ * A and B (PR_NONE: neither). */
+static int pr_decision(frep_opcode op, ival A, ival B, double T)
+{
+    switch ((unsigned)op) { /* not an enum switch: only the prunable set operations */
+    case FREP_OP_RUNI:
+        if (B.hi < -T) return PR_KEEP_A;
+        if (A.hi < -T) return PR_KEEP_B;
+        break;
+    case FREP_OP_RINT:
+        if (B.lo > T) return PR_KEEP_A;
+        if (A.lo > T) return PR_KEEP_B;
+        break;
+    case FREP_OP_RSUB:
+        if (B.hi < -T) return PR_KEEP_A;
+        if (A.lo > T) return PR_KEEP_NEG_B;
+        break;
+    case FREP_OP_MIN:
+        if (A.hi < B.lo) return PR_KEEP_A;
+        if (B.hi < A.lo) return PR_KEEP_B;
+        break;
+    case FREP_OP_MAX:
+        if (A.lo > B.hi) return PR_KEEP_A;
+        if (B.lo > A.hi) return PR_KEEP_B;
+        break;
+    case FREP_OP_MSUB: /* min(a, -b) */
+        if (A.hi < -B.hi) return PR_KEEP_A;
+        if (-B.lo < A.lo) return PR_KEEP_NEG_B;
+        break;
+    default:
+        break;
+    }
+    return PR_NONE;
+}
+
+/* Decide every set operation still kept, in program order, dropping the code of the
+ * operand it does not need (when that code may be dropped).  Returns 1 if any was. */
+static int pr_decide_all(vm_pruner *r, double T)
+{
     int changed = 0;
-    for (uint32_t pc = 0; pc < n; pc++) {
+    memset(r->keep, 1, r->n);
+    memset(r->neg, 0, r->n);
+    for (uint32_t pc = 0; pc < r->n; pc++) {
         if (!r->kind[pc] || !r->keep[pc]) continue;
-        frep_opcode op = (frep_opcode)p->code[pc].op;
         ival A = r->trace[r->b0[pc] - 1], B = r->trace[pc - 1];
-        int d = PR_NONE;
-        if (op == FREP_OP_RUNI) {
-            if (B.hi < -T) d = PR_KEEP_A;
-            else if (A.hi < -T) d = PR_KEEP_B;
-        } else if (op == FREP_OP_RINT) {
-            if (B.lo > T) d = PR_KEEP_A;
-            else if (A.lo > T) d = PR_KEEP_B;
-        } else if (op == FREP_OP_RSUB) {
-            if (B.hi < -T) d = PR_KEEP_A;
-            else if (A.lo > T) d = PR_KEEP_NEG_B;
-        } else if (op == FREP_OP_MIN) {
-            if (A.hi < B.lo) d = PR_KEEP_A;
-            else if (B.hi < A.lo) d = PR_KEEP_B;
-        } else if (op == FREP_OP_MAX) {
-            if (A.lo > B.hi) d = PR_KEEP_A;
-            else if (B.lo > A.hi) d = PR_KEEP_B;
-        } else if (op == FREP_OP_MSUB) { /* min(a, -b) */
-            if (A.hi < -B.hi) d = PR_KEEP_A;
-            else if (-B.lo < A.lo) d = PR_KEEP_NEG_B;
-        }
+        int d = pr_decision((frep_opcode)r->p->code[pc].op, A, B, T);
         uint32_t a0 = r->a0[pc], b0 = r->b0[pc];
         if (d == PR_KEEP_A && pr_droppable(r, b0, pc)) {
             memset(r->keep + b0, 0, pc + 1 - b0);
@@ -706,26 +818,36 @@ int vm_prune(vm_pruner *r, vm_iscratch *s, const double box[6], const double *pa
             changed = 1;
         }
     }
-    /* dead stores, with the code of their values */
-    if (changed) {
-        memset(r->live, 0, p->nslots + 1);
-        for (uint32_t pc = n; pc-- > 0;) {
-            if (!r->keep[pc]) continue;
-            const frep_insn *in = &p->code[pc];
-            if (in->op == FREP_OP_STORE) {
-                if (!r->live[in->arg] && pr_droppable(r, r->vstart[pc], pc) &&
-                    r->ndomain[pc] == r->ndomain[r->vstart[pc]]) {
-                    memset(r->keep + r->vstart[pc], 0, pc + 1 - r->vstart[pc]);
-                    continue;
-                }
-                r->live[in->arg] = 0;
-            } else if (in->op == FREP_OP_LOAD) {
-                r->live[in->arg] = 1;
+    return changed;
+}
+
+/* Drop the stores nobody reads any more, with the code of their values. */
+static void pr_dead_stores(vm_pruner *r)
+{
+    const frep_program *p = r->p;
+    memset(r->live, 0, p->nslots + 1);
+    for (uint32_t pc = r->n; pc-- > 0;) {
+        if (!r->keep[pc]) continue;
+        const frep_insn *in = &p->code[pc];
+        if (in->op == FREP_OP_STORE) {
+            if (!r->live[in->arg] && pr_droppable(r, r->vstart[pc], pc) &&
+                r->ndomain[pc] == r->ndomain[r->vstart[pc]]) {
+                memset(r->keep + r->vstart[pc], 0, pc + 1 - r->vstart[pc]);
+                continue;
             }
+            r->live[in->arg] = 0;
+        } else if (in->op == FREP_OP_LOAD) {
+            r->live[in->arg] = 1;
         }
     }
+}
+
+/* Write the kept instructions (a set operation decided for -b becomes NEG). */
+static uint32_t pr_emit(const vm_pruner *r, frep_insn *code, frep_srcpos *pos, uint32_t *orig)
+{
+    const frep_program *p = r->p;
     uint32_t m = 0;
-    for (uint32_t pc = 0; pc < n; pc++) {
+    for (uint32_t pc = 0; pc < r->n; pc++) {
         if (!r->keep[pc]) continue;
         code[m] = p->code[pc];
         if (r->neg[pc]) {
@@ -738,6 +860,17 @@ int vm_prune(vm_pruner *r, vm_iscratch *s, const double box[6], const double *pa
         orig[m] = pc;
         m++;
     }
-    *ncode = m;
+    return m;
+}
+
+int vm_prune(vm_pruner *r, vm_iscratch *s, const double box[6], const double *params,
+             frep_insn *code, frep_srcpos *pos, uint32_t *orig, uint32_t *ncode, ival *out,
+             double *sign_tol)
+{
+    for (uint32_t pc = 0; pc < r->n; pc++) r->trace[pc] = iv_entire();
+    if (interval_run(r->p, s, box, params, out, r->trace) != 0) return -1;
+    *sign_tol = pr_sign_tol(r);
+    if (pr_decide_all(r, *sign_tol)) pr_dead_stores(r);
+    *ncode = pr_emit(r, code, pos, orig);
     return 0;
 }
