@@ -1676,70 +1676,99 @@ static double patch_width(const frep_cloud *c, const uint32_t *idx, size_t n)
     return sqrt(12.0 * fmax(0, ev[1]));
 }
 
-static int next_phase(det *d, cand *pool, size_t npool, int *which, int *phase,
-                      size_t *min_pts, size_t small_pts, size_t *draws_since)
+/* ---- the driver ------------------------------------------------------------------ */
+
+/* One detection run (ransac_detect): the point structures, the candidate pool, the
+ * result being built and the counters of the stopping rules. */
+typedef struct run {
+    det d;
+    rng rng;              /* the seeded generator: subsets, then every sample */
+    ransac_result *res;
+    double *bands;        /* extraction band of each primitive of res (for the merge) */
+    size_t cap_prims;     /* room in res->prims and bands */
+    cand *pool;           /* candidates alive, at most MAX_POOL */
+    size_t npool;
+    int *which;           /* scratch: pool indices to score */
+    uint32_t *inl;        /* inliers of the shape being extracted */
+    unsigned char *flag;  /* scratch: per point, inlier of that shape */
+    size_t ntypes;        /* types detected (at least 1) */
+    size_t min_pts;       /* smallest support of the current phase */
+    size_t small_pts;     /* smallest support of the second phase */
+    int phase;            /* 0: shapes of min_points; 1: small shapes */
+    size_t draws_since;   /* minimal samples drawn since the last extraction */
+    double log_fail;      /* log(1 - probability): the acceptance threshold */
+} run;
+
+/* Free what run_alloc and build_octree allocated (not the result). */
+static void run_free(run *r)
 {
-    if (*phase != 0 || small_pts >= *min_pts) return 0;
-    *phase = 1;
-    *min_pts = small_pts;
-    *draws_since = 0;
-    /* Candidates whose patch was too small were kept scored zero (so as not to be
-     * drawn again): a small shape may be among them, so every candidate is rescored. */
-    for (size_t j = 0; j < npool; j++) {
-        pool[j].nsub = 0;
-        pool[j].score = pool[j].seen = 0;
-        which[j] = (int)j;
-    }
-    score_next(d, pool, which, npool);
-    return 1;
+    det *d = &r->d;
+    frep_free(r->bands);
+    frep_free(d->alive);
+    frep_free(d->shuf);
+    frep_free(d->spts);
+    frep_free(d->salive);
+    frep_free(d->tmp);
+    frep_free(d->morton_idx);
+    frep_free(d->morton);
+    frep_free(d->alive_list);
+    frep_free(r->pool);
+    frep_free(r->which);
+    frep_free(r->inl);
+    frep_free(r->flag);
 }
 
-int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *res,
-                  char **err)
+/* The buffers of a run and of its result, every point alive and unlabelled; 0, or -1
+ * with *err set (out of memory, or a cloud without normals). */
+static int run_alloc(run *r, const frep_cloud *c, const ransac_config *cfg,
+                     ransac_result *res, char **err)
 {
-    memset(res, 0, sizeof *res);
-    if (err) *err = NULL;
-    det d;
-    memset(&d, 0, sizeof d);
-    d.c = c;
-    d.cfg = cfg;
-    d.n = c->n;
+    det *d = &r->d;
     size_t n = c->n;
-    size_t cap_prims = 16;
-    double *bands = frep_malloc(cap_prims * sizeof *bands); /* extraction band per primitive */
-    cand *pool = NULL;
-    int *which = NULL;
-    uint32_t *inl = NULL;
-    unsigned char *flag = NULL;
-    mkey *mk = NULL;
+    memset(r, 0, sizeof *r);
+    d->c = c;
+    d->cfg = cfg;
+    d->n = n;
+    r->res = res;
+    r->cap_prims = 16;
+    r->bands = frep_malloc(r->cap_prims * sizeof *r->bands);
     res->label = frep_malloc((n ? n : 1) * sizeof *res->label);
-    res->prims = frep_malloc(cap_prims * sizeof *res->prims);
-    d.alive = frep_malloc(n + 1);
-    d.shuf = frep_malloc((n + 1) * sizeof *d.shuf);
-    d.spts = frep_malloc((6 * n + 6) * sizeof *d.spts);
-    d.salive = frep_malloc(n + 1);
-    d.tmp = frep_malloc((n + 1) * sizeof *d.tmp);
-    d.morton_idx = frep_malloc((n + 1) * sizeof *d.morton_idx);
-    d.morton = frep_malloc((2 * n + 2) * sizeof *d.morton);
-    d.alive_list = frep_malloc((n + 1) * sizeof *d.alive_list);
-    pool = frep_malloc(MAX_POOL * sizeof *pool);
-    which = frep_malloc(MAX_POOL * sizeof *which);
-    inl = frep_malloc((n + 1) * sizeof *inl);
-    flag = frep_malloc(n + 1);
-    mk = frep_malloc((n + 1) * sizeof *mk);
-    if (!bands || !d.tmp || !d.spts || !d.salive || !res->label || !res->prims || !d.alive || !d.shuf || !d.morton_idx || !d.morton ||
-        !d.alive_list || !pool || !which || !inl || !flag || !mk || !c->has_normals) {
+    res->prims = frep_malloc(r->cap_prims * sizeof *res->prims);
+    d->alive = frep_malloc(n + 1);
+    d->shuf = frep_malloc((n + 1) * sizeof *d->shuf);
+    d->spts = frep_malloc((6 * n + 6) * sizeof *d->spts);
+    d->salive = frep_malloc(n + 1);
+    d->tmp = frep_malloc((n + 1) * sizeof *d->tmp);
+    d->morton_idx = frep_malloc((n + 1) * sizeof *d->morton_idx);
+    d->morton = frep_malloc((2 * n + 2) * sizeof *d->morton);
+    d->alive_list = frep_malloc((n + 1) * sizeof *d->alive_list);
+    r->pool = frep_malloc(MAX_POOL * sizeof *r->pool);
+    r->which = frep_malloc(MAX_POOL * sizeof *r->which);
+    r->inl = frep_malloc((n + 1) * sizeof *r->inl);
+    r->flag = frep_malloc(n + 1);
+    if (!r->bands || !d->tmp || !d->spts || !d->salive || !res->label || !res->prims ||
+        !d->alive || !d->shuf || !d->morton_idx || !d->morton || !d->alive_list || !r->pool ||
+        !r->which || !r->inl || !r->flag || !c->has_normals) {
         if (err) *err = dupstr(c->has_normals ? "out of memory" : "the cloud has no normals");
-        goto fail;
+        return -1;
     }
     for (size_t i = 0; i < n; i++) {
         res->label[i] = -1;
-        d.alive[i] = 1;
+        d->alive[i] = 1;
     }
-    d.rmax = MAX_RADIUS_DIAGONALS * fmax(cloud_diagonal(c), 1e-300);
-    rng r;
-    rng_seed(&r, cfg->seed);
-    /* Octree as Morton order over the bounding cube. */
+    d->rmax = MAX_RADIUS_DIAGONALS * fmax(cloud_diagonal(c), 1e-300);
+    return 0;
+}
+
+/* The octree as Morton order over the bounding cube: d->morton holds the sorted codes,
+ * then (from n + 1) each point's code by index; d->morton_idx the points in that order.
+ * Returns -1 when out of memory. */
+static int build_octree(det *d)
+{
+    const frep_cloud *c = d->c;
+    size_t n = d->n;
+    mkey *mk = frep_malloc((n + 1) * sizeof *mk);
+    if (!mk) return -1;
     double lo[3], hi[3];
     cloud_bbox(c, lo, hi);
     double side = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
@@ -1760,24 +1789,31 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
     }
     qsort(mk, n, sizeof *mk, cmp_mkey);
     for (size_t j = 0; j < n; j++) {
-        d.morton[j] = mk[j].code;
-        d.morton_idx[j] = mk[j].i;
-        d.morton[n + 1 + mk[j].i] = mk[j].code;
+        d->morton[j] = mk[j].code;
+        d->morton_idx[j] = mk[j].i;
+        d->morton[n + 1 + mk[j].i] = mk[j].code;
     }
-    d.morton[n] = 0;
+    d->morton[n] = 0;
     frep_free(mk);
-    mk = NULL;
-    /* Scoring subsets: a seeded permutation cut into doubling blocks. */
-    for (size_t i = 0; i < n; i++) d.shuf[i] = (uint32_t)i;
+    return 0;
+}
+
+/* Scoring subsets: a seeded permutation of the points (with their normals copied in
+ * that order, so that scoring streams through memory) cut into doubling blocks. */
+static void build_subsets(det *d, rng *r)
+{
+    const frep_cloud *c = d->c;
+    size_t n = d->n;
+    for (size_t i = 0; i < n; i++) d->shuf[i] = (uint32_t)i;
     for (size_t i = n; i > 1; i--) {
-        size_t j = rng_below(&r, i);
-        uint32_t t = d.shuf[i - 1];
-        d.shuf[i - 1] = d.shuf[j];
-        d.shuf[j] = t;
+        size_t j = rng_below(r, i);
+        uint32_t t = d->shuf[i - 1];
+        d->shuf[i - 1] = d->shuf[j];
+        d->shuf[j] = t;
     }
     for (size_t j = 0; j < n; j++) {
-        uint32_t i = d.shuf[j];
-        double *sp = d.spts + 6 * j;
+        uint32_t i = d->shuf[j];
+        double *sp = d->spts + 6 * j;
         sp[0] = c->x[i];
         sp[1] = c->y[i];
         sp[2] = c->z[i];
@@ -1785,244 +1821,338 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         sp[4] = c->ny[i];
         sp[5] = c->nz[i];
     }
-    d.sub_start[0] = 0;
+    d->sub_start[0] = 0;
     size_t sz = SUBSET_FIRST;
-    d.nsub = 0;
-    while (d.sub_start[d.nsub] < n && d.nsub < MAX_SUBSETS) {
-        size_t e = d.sub_start[d.nsub] + sz;
-        if (e > n || d.nsub == MAX_SUBSETS - 1) e = n;
-        d.sub_start[++d.nsub] = e;
+    d->nsub = 0;
+    while (d->sub_start[d->nsub] < n && d->nsub < MAX_SUBSETS) {
+        size_t e = d->sub_start[d->nsub] + sz;
+        if (e > n || d->nsub == MAX_SUBSETS - 1) e = n;
+        d->sub_start[++d->nsub] = e;
         sz *= 2;
     }
-    recount_subsets(&d);
+    recount_subsets(d);
+}
 
-    size_t npool = 0, draws_since = 0, ntypes = 0;
-    for (int ty = 0; ty < PRIM__COUNT; ty++) ntypes += (cfg->types >> ty) & 1u;
-    if (ntypes == 0) ntypes = 1;
-    size_t min_pts = cfg->min_points < 3 ? 3 : cfg->min_points;
-    size_t small_pts = cfg->min_points_small < 3 ? 3 : cfg->min_points_small;
-    if (cfg->min_points_small == 0) small_pts = min_pts;
-    int phase = 0;
-    double log_fail = log(fmax(1e-12, 1.0 - cfg->probability));
+/* The thresholds of both phases and of the acceptance test, from the configuration. */
+static void init_phases(run *r)
+{
+    const ransac_config *cfg = r->d.cfg;
+    r->ntypes = 0;
+    for (int ty = 0; ty < PRIM__COUNT; ty++) r->ntypes += (cfg->types >> ty) & 1u;
+    if (r->ntypes == 0) r->ntypes = 1;
+    r->min_pts = cfg->min_points < 3 ? 3 : cfg->min_points;
+    r->small_pts = cfg->min_points_small < 3 ? 3 : cfg->min_points_small;
+    if (cfg->min_points_small == 0) r->small_pts = r->min_pts;
+    r->phase = 0;
+    r->log_fail = log(fmax(1e-12, 1.0 - cfg->probability));
+}
+
+/* Every candidate of the pool scored afresh from its first subset (the live points
+ * have changed). */
+static void rescore_all(run *r)
+{
+    for (size_t j = 0; j < r->npool; j++) {
+        r->pool[j].nsub = 0;
+        r->pool[j].score = r->pool[j].seen = 0;
+        r->which[j] = (int)j;
+    }
+    score_next(&r->d, r->pool, r->which, r->npool);
+}
+
+/* Second phase (see SMALL_TIGHT): once no shape of min_points is left, detection goes
+ * on down to small_pts. Returns 1 when the phase began (detection goes on), 0 when
+ * there is none (detection is over). */
+static int next_phase(run *r)
+{
+    if (r->phase != 0 || r->small_pts >= r->min_pts) return 0;
+    r->phase = 1;
+    r->min_pts = r->small_pts;
+    r->draws_since = 0;
+    /* Candidates whose patch was too small were kept scored zero (so as not to be
+     * drawn again): a small shape may be among them, so every candidate is rescored. */
+    rescore_all(r);
+    return 1;
+}
+
+/* The candidate of type ty from sample s; -1 when degenerate, implausible or not an
+ * inlier shape of its own sample points. */
+static int make_candidate(const run *r, const sample *s, prim_type ty, prim *q)
+{
+    const ransac_config *cfg = r->d.cfg;
+    memset(q, 0, sizeof *q);
+    int bad;
+    switch (ty) {
+    case PRIM_PLANE: bad = make_plane(s, q); break;
+    case PRIM_SPHERE: bad = make_sphere(s, q); break;
+    case PRIM_CYLINDER: bad = make_cylinder(s, q); break;
+    case PRIM_CONE: bad = make_cone(s, q); break;
+    case PRIM_TORUS: bad = make_torus(s, q, r->d.rmax, cfg->epsilon); break;
+    case PRIM__COUNT: default: bad = 1; break;
+    }
+    if (bad || !sane(q, r->d.rmax) ||
+        !verify(q, s, verify_count(q->type), cfg->epsilon, cfg->cos_normal))
+        return -1;
+    return 0;
+}
+
+/* Pool candidate q from a sample at the given level, unless the pool holds the same
+ * shape; a full pool drops its weakest candidate first (*first_new, the first new
+ * candidate of the round, follows the slot that moves). */
+static void pool_add(run *r, const prim *q, int level, size_t *first_new)
+{
+    for (size_t j = 0; j < r->npool; j++)
+        if (same_shape(q, &r->pool[j].q, r->d.cfg->epsilon)) return;
+    if (r->npool == MAX_POOL) {
+        size_t w = 0;
+        for (size_t j = 1; j < r->npool; j++)
+            if (r->pool[j].est < r->pool[w].est) w = j;
+        r->pool[w] = r->pool[--r->npool];
+        if (*first_new > r->npool) *first_new = r->npool;
+    }
+    cand *k = &r->pool[r->npool++];
+    memset(k, 0, sizeof *k);
+    k->q = *q;
+    k->level = level;
+    k->ksample = verify_count(q->type);
+}
+
+/* A round of DRAWS_PER_ROUND minimal samples, each giving one candidate per type;
+ * the new candidates are scored on their first subset. */
+static void draw_round(run *r)
+{
+    size_t first_new = r->npool;
+    for (int t = 0; t < DRAWS_PER_ROUND; t++) {
+        sample s;
+        int level = draw_sample(&r->d, &r->rng, &s);
+        r->draws_since++;
+        r->res->draws++;
+        if (level < 0) continue;
+        for (int ty = 0; ty < PRIM__COUNT; ty++) {
+            prim q;
+            if (!(r->d.cfg->types & (1u << ty)) || make_candidate(r, &s, (prim_type)ty, &q))
+                continue;
+            pool_add(r, &q, level, &first_new);
+        }
+    }
+    size_t nw = 0;
+    for (size_t j = first_new; j < r->npool; j++)
+        if (r->pool[j].nsub == 0) r->which[nw++] = (int)j;
+    score_next(&r->d, r->pool, r->which, nw);
+}
+
+/* Into r->which: the best candidate (unless scored on every subset) and the
+ * REFINE_TOP rivals of highest upper bound that still overlap it, so that
+ * near-duplicates of one shape are not all scored on every point. Returns the count. */
+static size_t pick_leaders(run *r, size_t best)
+{
+    const cand *pool = r->pool;
+    int *which = r->which;
+    int nsub = r->d.nsub;
+    size_t nw = 0;
+    if (pool[best].nsub < nsub) which[nw++] = (int)best;
+    size_t base = nw;
+    for (size_t j = 0; j < r->npool; j++) {
+        if (j == best || pool[j].nsub >= nsub || pool[j].hi < pool[best].lo) continue;
+        size_t pos = nw;
+        if (nw - base == REFINE_TOP) {
+            if (pool[j].hi <= pool[which[nw - 1]].hi) continue;
+            pos = nw - 1;
+        } else {
+            nw++;
+        }
+        while (pos > base && pool[which[pos - 1]].hi < pool[j].hi) {
+            which[pos] = which[pos - 1];
+            pos--;
+        }
+        which[pos] = (int)j;
+    }
+    return nw;
+}
+
+/* Refine the leaders until the best one's interval separates from the rest; returns
+ * the best candidate, SIZE_MAX when the pool is empty. */
+static size_t refine_leaders(run *r)
+{
+    size_t best = SIZE_MAX;
+    for (int rounds = 0; rounds <= MAX_SUBSETS && r->npool > 0; rounds++) {
+        best = 0;
+        for (size_t j = 1; j < r->npool; j++)
+            if (cmp_cand_est(&r->pool[j], &r->pool[best]) < 0) best = j;
+        size_t nw = pick_leaders(r, best);
+        if (nw == 0) break;
+        score_next(&r->d, r->pool, r->which, nw);
+    }
+    return best;
+}
+
+/* Would a shape of the phase's minimum size have been found by now? */
+static int min_shape_missed(const run *r)
+{
+    double pm = fmin(p_draw((double)r->min_pts, (double)r->d.nalive, 3), 0.999999);
+    return (double)r->draws_since * log1p(-pm) < r->log_fail;
+}
+
+/* The acceptance test: b is large enough, and the chance of having missed a better
+ * candidate, (1 - P(n))^s, is below 1 - probability. */
+static int accepted(const run *r, const cand *b)
+{
+    double pd = fmin(p_draw(b->est, (double)r->d.nalive, b->ksample), 0.999999);
+    return b->est >= (double)r->min_pts && (double)r->draws_since * log1p(-pd) < r->log_fail;
+}
+
+/* Is small shape q (second phase) with its m inliers tight (see SMALL_TIGHT and the
+ * limits after it)? */
+static int tight_small_shape(const run *r, const prim *q, size_t m)
+{
+    double eps = r->d.cfg->epsilon;
+    const frep_cloud *c = r->d.c;
+    return !(q->type == PRIM_CONE || q->type == PRIM_TORUS ||
+             (q->type != PRIM_PLANE && !(q->r >= SMALL_RADIUS * eps)) ||
+             !(median_abs(q, c, r->inl, m) <= SMALL_TIGHT * eps) ||
+             !(median_normal_dev(q, c, r->inl, m) <= SMALL_NORMAL_DEG * M_PI / 180.0) ||
+             !(patch_width(c, r->inl, m) >= SMALL_WIDTH * eps));
+}
+
+/* Extract the accepted shape q: inliers, largest patch, refit, again with the refined
+ * shape, the band widened to the measured noise (refit_with_band); a face of mixed
+ * faces (face_modes); a simpler shape when it explains as much. Returns the support
+ * (inliers in r->inl), 0 when a small shape is not tight. */
+static size_t extract(run *r, prim *q)
+{
+    det *d = &r->d;
+    size_t m = refit_with_band(d, q, r->min_pts, r->flag, r->inl);
+    m = face_modes(d, q, m, r->min_pts, r->flag, r->inl);
+    if (m >= r->min_pts) {
+        prim_type before = q->type;
+        m = prefer_simpler(d, q, m, r->flag, r->inl);
+        /* A simpler shape measures its own noise: the band of a large cylinder
+         * standing in for a plane is wider than the plane's. */
+        if (q->type != before) {
+            m = refit_with_band(d, q, r->min_pts, r->flag, r->inl);
+            m = face_modes(d, q, m, r->min_pts, r->flag, r->inl);
+        }
+    }
+    m = support_of(d, q, r->flag, r->inl);
+    if (r->phase == 1 && m >= r->min_pts && !tight_small_shape(r, q, m)) m = 0;
+    return m;
+}
+
+/* The estimate of b was optimistic: keep it, scored zero, so that duplicates of it
+ * are not drawn again. */
+static void keep_rejected(const det *d, cand *b)
+{
+    b->nsub = d->nsub;
+    b->score = 0;
+    b->seen = 1;
+    update_estimate(d, b);
+}
+
+/* Append q with its m inliers (r->inl) to the result: the points leave the live set
+ * and the level that sampled q gains their count. Returns -1 when out of memory. */
+static int record_prim(run *r, prim *q, size_t m, int level)
+{
+    det *d = &r->d;
+    ransac_result *res = r->res;
+    if (res->nprims == r->cap_prims) {
+        prim *np = frep_realloc(res->prims, 2 * r->cap_prims * sizeof *np);
+        if (!np) return -1;
+        res->prims = np;
+        double *nb = frep_realloc(r->bands, 2 * r->cap_prims * sizeof *nb);
+        if (!nb) return -1;
+        r->bands = nb;
+        r->cap_prims *= 2;
+    }
+    r->bands[res->nprims] = d->band;
+    q->support = m;
+    q->rms = rms_of(q, d->c, r->inl, m);
+    q->separating = 0;
+    for (size_t j = 0; j < m; j++) {
+        d->alive[r->inl[j]] = 0;
+        res->label[r->inl[j]] = (int32_t)res->nprims;
+    }
+    res->prims[res->nprims++] = *q;
+    d->level_score[level] += (double)m;
+    recount_subsets(d);
+    return 0;
+}
+
+/* After an extraction: old candidates were scored on points now removed, so all are
+ * rescored from scratch, and those that lost their support are dropped. */
+static void prune_pool(run *r)
+{
+    rescore_all(r);
+    size_t keep = 0;
+    for (size_t j = 0; j < r->npool; j++)
+        if (r->pool[j].hi >= (double)r->min_pts) r->pool[keep++] = r->pool[j];
+    r->npool = keep;
+    r->draws_since = r->npool / r->ntypes;
+}
+
+static void report(const run *r)
+{
+    const ransac_config *cfg = r->d.cfg;
+    if (cfg->progress) cfg->progress(cfg->user, r->d.nalive, r->d.n, r->res->nprims);
+}
+
+/* One step of detection: a round of samples, the leaders refined, and the best
+ * candidate extracted when it passes the acceptance test. Returns 1 to go on, 0 when
+ * detection is over, -1 when out of memory. */
+static int detect_step(run *r)
+{
+    det *d = &r->d;
+    if (d->nalive < r->min_pts || d->nalive < RANSAC_MIN_CLOUD) return next_phase(r);
+    draw_round(r);
+    size_t best = refine_leaders(r);
+    report(r);
+    if (best == SIZE_MAX)
+        return min_shape_missed(r) || r->draws_since > RANSAC_MAX_DRAWS ? next_phase(r) : 1;
+    cand *b = &r->pool[best];
+    if (!accepted(r, b)) {
+        int over = (b->est < (double)r->min_pts && min_shape_missed(r)) ||
+                   r->draws_since > RANSAC_MAX_DRAWS;
+        return over ? next_phase(r) : 1;
+    }
+    prim q = b->q;
+    size_t m = extract(r, &q);
+    if (m < r->min_pts) {
+        keep_rejected(d, b);
+        return 1;
+    }
+    int level = b->level;
+    r->pool[best] = r->pool[--r->npool];
+    if (record_prim(r, &q, m, level)) return -1;
+    prune_pool(r);
+    report(r);
+    return 1;
+}
+
+int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *res,
+                  char **err)
+{
+    memset(res, 0, sizeof *res);
+    if (err) *err = NULL;
+    run r;
+    if (run_alloc(&r, c, cfg, res, err)) goto fail;
+    rng_seed(&r.rng, cfg->seed);
+    if (build_octree(&r.d)) goto oom;
+    build_subsets(&r.d, &r.rng);
+    init_phases(&r);
     for (;;) {
         if (cfg->interrupt && *cfg->interrupt) {
             res->interrupted = 1;
             break;
         }
-        if (d.nalive < min_pts || d.nalive < RANSAC_MIN_CLOUD) {
-            if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since))
-                continue;
-            break;
-        }
-        /* Draw a round of minimal samples; each gives one candidate per type. */
-        size_t first_new = npool;
-        for (int t = 0; t < DRAWS_PER_ROUND; t++) {
-            sample s;
-            int level = draw_sample(&d, &r, &s);
-            draws_since++;
-            res->draws++;
-            if (level < 0) continue;
-            for (int ty = 0; ty < PRIM__COUNT; ty++) {
-                if (!(cfg->types & (1u << ty))) continue;
-                prim q;
-                memset(&q, 0, sizeof q);
-                int bad;
-                switch ((prim_type)ty) {
-                case PRIM_PLANE: bad = make_plane(&s, &q); break;
-                case PRIM_SPHERE: bad = make_sphere(&s, &q); break;
-                case PRIM_CYLINDER: bad = make_cylinder(&s, &q); break;
-                case PRIM_CONE: bad = make_cone(&s, &q); break;
-                case PRIM_TORUS: bad = make_torus(&s, &q, d.rmax, cfg->epsilon); break;
-                case PRIM__COUNT: default: bad = 1; break;
-                }
-                if (bad || !sane(&q, d.rmax) ||
-                    !verify(&q, &s, verify_count(q.type), cfg->epsilon, cfg->cos_normal))
-                    continue;
-                int dup = 0;
-                for (size_t j = 0; j < npool && !dup; j++)
-                    dup = same_shape(&q, &pool[j].q, cfg->epsilon);
-                if (dup) continue;
-                if (npool == MAX_POOL) {
-                    /* Drop the weakest candidate to make room. */
-                    size_t w = 0;
-                    for (size_t j = 1; j < npool; j++)
-                        if (pool[j].est < pool[w].est) w = j;
-                    pool[w] = pool[--npool];
-                    if (first_new > npool) first_new = npool;
-                }
-                cand *k = &pool[npool++];
-                memset(k, 0, sizeof *k);
-                k->q = q;
-                k->level = level;
-                k->ksample = verify_count(q.type);
-            }
-        }
-        size_t nw = 0;
-        for (size_t j = first_new; j < npool; j++)
-            if (pool[j].nsub == 0) which[nw++] = (int)j;
-        score_next(&d, pool, which, nw);
-        /* Refine the leaders until the best one's interval separates from the rest. */
-        size_t best = SIZE_MAX;
-        for (int rounds = 0; rounds <= MAX_SUBSETS && npool > 0; rounds++) {
-            best = 0;
-            for (size_t j = 1; j < npool; j++)
-                if (cmp_cand_est(&pool[j], &pool[best]) < 0) best = j;
-            /* The best and the REFINE_TOP rivals of highest upper bound that still
-             * overlap it: near-duplicates of one shape would otherwise all be scored
-             * on every point. */
-            nw = 0;
-            if (pool[best].nsub < d.nsub) which[nw++] = (int)best;
-            size_t base = nw;
-            for (size_t j = 0; j < npool; j++) {
-                if (j == best || pool[j].nsub >= d.nsub || pool[j].hi < pool[best].lo) continue;
-                size_t pos = nw;
-                if (nw - base == REFINE_TOP) {
-                    if (pool[j].hi <= pool[which[nw - 1]].hi) continue;
-                    pos = nw - 1;
-                } else {
-                    nw++;
-                }
-                while (pos > base && pool[which[pos - 1]].hi < pool[j].hi) {
-                    which[pos] = which[pos - 1];
-                    pos--;
-                }
-                which[pos] = (int)j;
-            }
-            if (nw == 0) break;
-            score_next(&d, pool, which, nw);
-        }
-        if (cfg->progress) cfg->progress(cfg->user, d.nalive, n, res->nprims);
-        if (best == SIZE_MAX) {
-            if ((double)draws_since * log1p(-fmin(p_draw((double)min_pts, (double)d.nalive, 3), 0.999999)) < log_fail ||
-                draws_since > RANSAC_MAX_DRAWS) {
-                if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since))
-                    continue;
-                break;
-            }
-            continue;
-        }
-        cand *b = &pool[best];
-        double pd = fmin(p_draw(b->est, (double)d.nalive, b->ksample), 0.999999);
-        int accept = b->est >= (double)min_pts &&
-                     (double)draws_since * log1p(-pd) < log_fail;
-        if (!accept) {
-            double pm = fmin(p_draw((double)min_pts, (double)d.nalive, 3), 0.999999);
-            if ((b->est < (double)min_pts && (double)draws_since * log1p(-pm) < log_fail) ||
-                draws_since > RANSAC_MAX_DRAWS) {
-                /* A shape of the minimum size would have been found by now. */
-                if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since))
-                    continue;
-                break;
-            }
-            continue;
-        }
-        /* Extract: inliers, largest patch, refit, again with the refined shape; then
-         * widen the band to the measured noise and refit on the wider patch. */
-        prim q = b->q;
-        size_t m = refit_with_band(&d, &q, min_pts, flag, inl);
-        m = face_modes(&d, &q, m, min_pts, flag, inl);
-        if (m >= min_pts) {
-            prim_type before = q.type;
-            m = prefer_simpler(&d, &q, m, flag, inl);
-            /* A simpler shape measures its own noise: the band of a large cylinder
-             * standing in for a plane is wider than the plane's. */
-            if (q.type != before) {
-                m = refit_with_band(&d, &q, min_pts, flag, inl);
-                m = face_modes(&d, &q, m, min_pts, flag, inl);
-            }
-        }
-        m = support_of(&d, &q, flag, inl);
-        int lvl = b->level;
-        /* Small shapes must be tight (see SMALL_TIGHT). */
-        if (phase == 1 && m >= min_pts &&
-            (q.type == PRIM_CONE || q.type == PRIM_TORUS ||
-             (q.type != PRIM_PLANE && !(q.r >= SMALL_RADIUS * cfg->epsilon)) ||
-             !(median_abs(&q, c, inl, m) <= SMALL_TIGHT * cfg->epsilon) ||
-             !(median_normal_dev(&q, c, inl, m) <= SMALL_NORMAL_DEG * M_PI / 180.0) ||
-             !(patch_width(c, inl, m) >= SMALL_WIDTH * cfg->epsilon)))
-            m = 0;
-        if (m < min_pts) {
-            /* The estimate was optimistic. Keep the candidate, scored zero, so that
-             * duplicates of it are not drawn again, and keep drawing. */
-            b->nsub = d.nsub;
-            b->score = 0;
-            b->seen = 1;
-            update_estimate(&d, b);
-            continue;
-        }
-        pool[best] = pool[--npool];
-        if (res->nprims == cap_prims) {
-            prim *np = frep_realloc(res->prims, 2 * cap_prims * sizeof *np);
-            if (!np) {
-                if (err) *err = dupstr("out of memory");
-                goto fail;
-            }
-            res->prims = np;
-            double *nb = frep_realloc(bands, 2 * cap_prims * sizeof *nb);
-            if (!nb) {
-                if (err) *err = dupstr("out of memory");
-                goto fail;
-            }
-            bands = nb;
-            cap_prims *= 2;
-        }
-        bands[res->nprims] = d.band;
-        q.support = m;
-        q.rms = rms_of(&q, c, inl, m);
-        q.separating = 0;
-        for (size_t j = 0; j < m; j++) {
-            d.alive[inl[j]] = 0;
-            res->label[inl[j]] = (int32_t)res->nprims;
-        }
-        res->prims[res->nprims++] = q;
-        d.level_score[lvl] += (double)m;
-        recount_subsets(&d);
-        /* Old candidates were scored on points now removed: rescore from scratch. */
-        for (size_t j = 0; j < npool; j++) {
-            pool[j].nsub = 0;
-            pool[j].score = pool[j].seen = 0;
-        }
-        nw = 0;
-        for (size_t j = 0; j < npool; j++) which[nw++] = (int)j;
-        score_next(&d, pool, which, nw);
-        /* Drop candidates that lost their support. */
-        size_t keep = 0;
-        for (size_t j = 0; j < npool; j++)
-            if (pool[j].hi >= (double)min_pts) pool[keep++] = pool[j];
-        npool = keep;
-        draws_since = npool / ntypes;
-        if (cfg->progress) cfg->progress(cfg->user, d.nalive, n, res->nprims);
+        int go = detect_step(&r);
+        if (go < 0) goto oom;
+        if (go == 0) break;
     }
-    if (!res->interrupted) merge_redundant(&d, res, bands, inl);
-    frep_free(bands);
-    frep_free(d.alive);
-    frep_free(d.shuf);
-    frep_free(d.spts);
-    frep_free(d.salive);
-    frep_free(d.tmp);
-    frep_free(d.morton_idx);
-    frep_free(d.morton);
-    frep_free(d.alive_list);
-    frep_free(pool);
-    frep_free(which);
-    frep_free(inl);
-    frep_free(flag);
+    if (!res->interrupted) merge_redundant(&r.d, res, r.bands, r.inl);
+    run_free(&r);
     return 0;
+oom:
+    if (err) *err = dupstr("out of memory");
 fail:
-    frep_free(bands);
-    frep_free(d.alive);
-    frep_free(d.shuf);
-    frep_free(d.spts);
-    frep_free(d.salive);
-    frep_free(d.tmp);
-    frep_free(d.morton_idx);
-    frep_free(d.morton);
-    frep_free(d.alive_list);
-    frep_free(pool);
-    frep_free(which);
-    frep_free(inl);
-    frep_free(flag);
-    frep_free(mk);
+    run_free(&r);
     ransac_result_free(res);
     return -1;
 }
