@@ -5,6 +5,7 @@
  * does not depend on the thread count). Then Prim's algorithm over the k-NN graph with
  * weights 1 - |ni.nj| flips normals so neighbours agree.
  */
+#include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -16,56 +17,23 @@
 
 #include "alloc.h"
 #include "kdtree.h"
+#include "linalg.h"
 #include "normals.h"
 
 /* Jacobi sweeps for a 3x3 symmetric matrix: converges quadratically, 50 sweeps is far
  * beyond what double precision needs, and bounds the loop. */
 #define JACOBI_MAX_SWEEPS 50
+/* Covariances of neighbourhoods and patches: converged when the off-diagonal part is
+ * at most 1e-17 of the diagonal (double precision at the matrix's own scale), or at
+ * most 1e-300 for a matrix of zeros or of tiny entries (1.0000000000000002e-300 is the
+ * double after 1e-300, so the solver's `off <` test stops at off <= 1e-300); only
+ * pairs that are exactly zero are left unrotated (|apq| < DBL_TRUE_MIN). */
+static const linalg_jacobi_stop pca_stop = {JACOBI_MAX_SWEEPS, 1.0000000000000002e-300,
+                                            1e-17, DBL_TRUE_MIN};
 
 void normals_sym3_eig(const double m[9], double ev[3], double vec[9])
 {
-    double a[3][3], v[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) a[i][j] = 0.5 * (m[3 * i + j] + m[3 * j + i]);
-    for (int sweep = 0; sweep < JACOBI_MAX_SWEEPS; sweep++) {
-        double off = fabs(a[0][1]) + fabs(a[0][2]) + fabs(a[1][2]);
-        double diag = fabs(a[0][0]) + fabs(a[1][1]) + fabs(a[2][2]);
-        if (off <= 1e-300 || off <= 1e-17 * diag) break;
-        for (int p = 0; p < 2; p++)
-            for (int q = p + 1; q < 3; q++) {
-                if (a[p][q] == 0.0) continue;
-                double theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-                double t = (theta >= 0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
-                double c = 1.0 / sqrt(t * t + 1.0), s = t * c;
-                for (int k = 0; k < 3; k++) { /* columns p, q */
-                    double akp = a[k][p], akq = a[k][q];
-                    a[k][p] = c * akp - s * akq;
-                    a[k][q] = s * akp + c * akq;
-                }
-                for (int k = 0; k < 3; k++) { /* rows p, q */
-                    double apk = a[p][k], aqk = a[q][k];
-                    a[p][k] = c * apk - s * aqk;
-                    a[q][k] = s * apk + c * aqk;
-                }
-                for (int k = 0; k < 3; k++) {
-                    double vkp = v[k][p], vkq = v[k][q];
-                    v[k][p] = c * vkp - s * vkq;
-                    v[k][q] = s * vkp + c * vkq;
-                }
-            }
-    }
-    int order[3] = {0, 1, 2};
-    for (int i = 0; i < 2; i++)
-        for (int j = i + 1; j < 3; j++)
-            if (a[order[j]][order[j]] < a[order[i]][order[i]]) {
-                int t = order[i];
-                order[i] = order[j];
-                order[j] = t;
-            }
-    for (int k = 0; k < 3; k++) {
-        ev[k] = a[order[k]][order[k]];
-        for (int i = 0; i < 3; i++) vec[3 * k + i] = v[i][order[k]];
-    }
+    linalg_sym3_eig(m, &pca_stop, ev, vec);
 }
 
 /* Indexed binary min-heap over nodes with decrease-key, for Prim's algorithm. */
