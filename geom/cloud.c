@@ -14,10 +14,9 @@
 
 #include "alloc.h"
 #include "cloud.h"
+#include "file.h"
 #include "util.h"
 
-/* Bytes read from a stream at a time while slurping a file or standard input. */
-#define CLOUD_READ_CHUNK ((size_t)1 << 20)
 /* Longest PLY header line and most header lines we parse: real headers are a few
  * dozen short lines; more is a corrupt or hostile file. */
 #define PLY_MAX_LINE 1024
@@ -504,41 +503,16 @@ frep_cloud *cloud_parse(const char *name, const char *data, size_t len, char **e
 frep_cloud *cloud_read(const char *path, char **err)
 {
     if (err) *err = NULL;
-    int is_stdin = strcmp(path, "-") == 0;
-    FILE *f = is_stdin ? stdin : fopen(path, "rb");
-    if (!f) {
-        SET_ERR("cannot read %s: %s", path, strerror(errno));
+    frep_file f;
+    frep_error fe;
+    frep_error_init(&fe);
+    if (frep_file_read(&f, path, FREP_FILE_MAX_BYTES, FREP_FILE_STDIN, &fe)) {
+        SET_ERR("cannot read %s: %s", path, fe.msg);
         return NULL;
     }
-    char *buf = NULL;
-    size_t len = 0, cap = 0;
-    for (;;) {
-        if (cap - len < CLOUD_READ_CHUNK) {
-            size_t ncap = cap ? 2 * cap : CLOUD_READ_CHUNK;
-            char *nb = frep_realloc(buf, ncap);
-            if (!nb) {
-                SET_ERR("cannot read %s: out of memory", path);
-                goto fail;
-            }
-            buf = nb;
-            cap = ncap;
-        }
-        size_t got = fread(buf + len, 1, cap - len, f);
-        len += got;
-        if (got == 0) break;
-    }
-    if (ferror(f)) {
-        SET_ERR("cannot read %s: %s", path, strerror(errno));
-        goto fail;
-    }
-    if (!is_stdin) fclose(f);
-    frep_cloud *c = cloud_parse(is_stdin ? "<stdin>" : path, buf, len, err);
-    frep_free(buf);
+    frep_cloud *c = cloud_parse(strcmp(path, "-") == 0 ? "<stdin>" : path, f.data, f.len, err);
+    frep_free(f.data);
     return c;
-fail:
-    if (!is_stdin) fclose(f);
-    frep_free(buf);
-    return NULL;
 }
 
 /* ---- writers ------------------------------------------------------------- */

@@ -7,6 +7,7 @@
 #include "config.h"
 
 #include "alloc.h"
+#include "file.h"
 #include "meshio.h"
 #include "util.h"
 
@@ -17,8 +18,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Bytes read at a time while slurping a mesh file. */
-#define MESHIO_READ_CHUNK ((size_t)1 << 20)
 /* PLY header limits: real headers are a few short lines. */
 #define MESHIO_PLY_MAX_PROPS 64
 #define MESHIO_PLY_MAX_ELEMENTS 16
@@ -711,34 +710,15 @@ int meshio_read(const char *path, frep_mesh *m, char **err)
 {
     memset(m, 0, sizeof *m);
     if (err) *err = NULL;
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        SET_ERR("%s: cannot open: %s", path, strerror(errno));
+    frep_file f;
+    frep_error fe;
+    frep_error_init(&fe);
+    if (frep_file_read(&f, path, FREP_FILE_MAX_BYTES, 0, &fe)) {
+        if (f.open_failed) SET_ERR("%s: cannot open: %s", path, fe.msg);
+        else SET_ERR("%s: %s", path, fe.code == FREP_EIO ? "read error" : fe.msg);
         return -1;
     }
-    size_t cap = MESHIO_READ_CHUNK, n = 0;
-    char *buf = frep_malloc(cap);
-    while (buf) {
-        size_t got = fread(buf + n, 1, cap - n, f);
-        n += got;
-        if (n < cap) break;
-        char *nb = frep_realloc(buf, 2 * cap);
-        if (!nb) {
-            frep_free(buf);
-            buf = NULL;
-            break;
-        }
-        buf = nb;
-        cap *= 2;
-    }
-    int rd_err = ferror(f);
-    fclose(f);
-    if (!buf || rd_err) {
-        frep_free(buf);
-        SET_ERR("%s: %s", path, rd_err ? "read error" : "out of memory");
-        return -1;
-    }
-    int rc = meshio_parse(path, buf, n, meshio_format_for_path(path), m, err);
-    frep_free(buf);
+    int rc = meshio_parse(path, f.data, f.len, meshio_format_for_path(path), m, err);
+    frep_free(f.data);
     return rc;
 }

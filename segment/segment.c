@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "alloc.h"
+#include "file.h"
 #include "fitfile.h"
 #include "kdtree.h"
 #include "normals.h"
@@ -26,6 +27,9 @@
 #define SPACING_TREE_MAX 100000
 /* Neighbours searched for the nearest distinct position (a point may be repeated). */
 #define SPACING_K 16
+/* Largest primitive list read: 256 MiB is millions of primitives, far more than a
+ * segmentation finds or a construction tree combines. */
+#define SEGMENT_PRIMS_MAX_BYTES ((size_t)1 << 28)
 /* Longest line of a .hf primitive list we parse. */
 #define HF_MAX_LINE 4096
 
@@ -619,36 +623,19 @@ int segment_parse_prims(const char *name, const char *text, size_t len, int is_f
 int segment_read_prims(const char *path, prim **out, size_t *n, char **err)
 {
     if (err) *err = NULL;
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        if (err) *err = frep_strdupf("cannot read %s: %s", path, strerror(errno));
-        return -1;
-    }
-    size_t cap = 1 << 16, len = 0;
-    char *buf = frep_malloc(cap);
-    while (buf) {
-        size_t got = fread(buf + len, 1, cap - len, f);
-        len += got;
-        if (len < cap) break;
-        char *nb = frep_realloc(buf, cap * 2);
-        if (!nb) {
-            frep_free(buf);
-            buf = NULL;
-            break;
-        }
-        buf = nb;
-        cap *= 2;
-    }
-    int rd_err = ferror(f);
-    fclose(f);
-    if (!buf || rd_err) {
-        frep_free(buf);
-        if (err) *err = frep_strdupf("cannot read %s", path);
+    frep_file f;
+    frep_error fe;
+    frep_error_init(&fe);
+    if (frep_file_read(&f, path, SEGMENT_PRIMS_MAX_BYTES, 0, &fe)) {
+        if (err)
+            *err = f.open_failed || fe.code == FREP_ELIMIT
+                       ? frep_strdupf("cannot read %s: %s", path, fe.msg)
+                       : frep_strdupf("cannot read %s", path);
         return -1;
     }
     size_t pl = strlen(path);
     int is_fit = pl >= 4 && strcmp(path + pl - 4, ".fit") == 0;
-    int rc = segment_parse_prims(path, buf, len, is_fit, out, n, err);
-    frep_free(buf);
+    int rc = segment_parse_prims(path, f.data, f.len, is_fit, out, n, err);
+    frep_free(f.data);
     return rc;
 }

@@ -1,11 +1,16 @@
 /* test_cloud.c - unit tests of geom/cloud.c: .xyz and PLY readers (every format,
- * malformed input with its message), writers and their round trip, bounding box.
+ * malformed input with its message), writers and their round trip, bounding box; and
+ * of the whole-file reader they use (runtime/file.c).
  */
+#include <errno.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
+#include "alloc.h"
 #include "cloud.h"
+#include "file.h"
 #include "tap.h"
 
 static frep_cloud *parse(const char *s, char **err)
@@ -213,8 +218,78 @@ static void test_bbox(void)
     cloud_free(c);
 }
 
+/* A fresh file in TMPDIR (or /tmp) holding len bytes of data; its path in path. */
+static int temp_file(char *path, size_t size, const char *data, size_t len)
+{
+    const char *dir = getenv("TMPDIR");
+    snprintf(path, size, "%s/frep_test_file_XXXXXX", dir && *dir ? dir : "/tmp");
+    int fd = mkstemp(path);
+    if (fd < 0) return -1;
+    ssize_t w = write(fd, data, len);
+    close(fd);
+    return w == (ssize_t)len ? 0 : -1;
+}
+
+static void test_file_read(void)
+{
+    char path[512];
+    const char text[] = "1 2 3\n4 5 6\n";
+    size_t tl = sizeof text - 1;
+    if (!ok(temp_file(path, sizeof path, text, tl) == 0, "file: temporary file")) return;
+    frep_file f;
+    frep_error e;
+    frep_error_init(&e);
+    ok(frep_file_read(&f, path, FREP_FILE_MAX_BYTES, 0, &e) == 0 && f.len == tl &&
+           memcmp(f.data, text, tl) == 0 && f.data[tl] == '\0',
+       "file: whole file read, NUL-ended");
+    frep_free(f.data);
+    ok(frep_file_read(&f, path, tl, 0, &e) == 0 && f.len == tl, "file: exactly the limit");
+    frep_free(f.data);
+    ok(frep_file_read(&f, path, tl - 1, 0, &e) == -1 && e.code == FREP_ELIMIT && !f.data,
+       "file: over the limit rejected");
+    char want[64];
+    snprintf(want, sizeof want, "larger than %zu bytes", tl - 1);
+    is_str(e.msg, want, "file: limit message");
+    frep_cloud *c = NULL;
+    char *err = NULL;
+    c = cloud_read(path, &err);
+    ok(c && c->n == 2, "file: cloud_read reads the cloud");
+    cloud_free(c);
+    free(err);
+    unlink(path);
+
+    frep_error_init(&e);
+    ok(frep_file_read(&f, path, FREP_FILE_MAX_BYTES, 0, &e) == -1 && f.open_failed &&
+           e.code == FREP_EIO,
+       "file: missing file fails to open");
+    is_str(e.msg, strerror(ENOENT), "file: errno's reason");
+    err = NULL;
+    c = cloud_read(path, &err);
+    char want2[600];
+    snprintf(want2, sizeof want2, "cannot read %s: %s", path, strerror(ENOENT));
+    ok(!c, "file: cloud_read of a missing file fails");
+    is_str(err ? err : "", want2, "file: cloud_read message");
+    free(err);
+
+    frep_error_init(&e);
+    const char *dir = getenv("TMPDIR");
+    ok(frep_file_read(&f, dir && *dir ? dir : "/tmp", FREP_FILE_MAX_BYTES, 0, &e) == -1 &&
+           !f.open_failed && e.code == FREP_EIO,
+       "file: a directory opens but cannot be read");
+
+    if (temp_file(path, sizeof path, "", 0) == 0) {
+        frep_error_init(&e);
+        ok(frep_file_read(&f, path, FREP_FILE_MAX_BYTES, 0, &e) == 0 && f.len == 0 && f.data &&
+               f.data[0] == '\0',
+           "file: empty file gives an empty string");
+        frep_free(f.data);
+        unlink(path);
+    }
+}
+
 int main(void)
 {
+    test_file_read();
     test_xyz();
     test_ply_ascii();
     test_ply_binary(0);
