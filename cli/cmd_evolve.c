@@ -378,9 +378,10 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     frep_cloud *sub = NULL;
     char note[256] = "";
     trace_buf trace = { NULL, 0, 0, 0 };
-    frep_cloud *cloud = cloud_read(cloud_path, &err);
+    frep_error ferr; /* of the cloud, primitive and segmentation calls */
+    frep_cloud *cloud = cloud_read(cloud_path, &ferr);
     if (!cloud) {
-        fprintf(stderr, "frep evolve: %s\n", err ? err : "cannot read the cloud");
+        fprintf(stderr, "frep evolve: %s\n", ferr.msg[0] ? ferr.msg : "cannot read the cloud");
         goto done;
     }
     if (!quiet) fprintf(stderr, "frep evolve: %zu points, seed %llu\n", cloud->n,
@@ -451,8 +452,8 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         }
     }
     if (prims_path) {
-        if (segment_read_prims(prims_path, &prims, &nprims, &err)) {
-            fprintf(stderr, "frep evolve: %s\n", err ? err : "cannot read the primitives");
+        if (segment_read_prims(prims_path, &prims, &nprims, &ferr)) {
+            fprintf(stderr, "frep evolve: %s\n", ferr.msg[0] ? ferr.msg : "cannot read the primitives");
             goto done;
         }
         if (!cloud->has_normals || cloud_normalize_normals(cloud) == cloud->n) {
@@ -468,17 +469,16 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         sc.seed = eo.gp.seed;
         sc.nthreads = eo.gp.threads;
         sc.interrupt = &evolve_interrupted;
-        if (segment_run(sub ? sub : cloud, &sc, &seg, &err)) {
+        if (segment_run(sub ? sub : cloud, &sc, &seg, &ferr)) {
             if (!residual_path) {
-                fprintf(stderr, "frep evolve: %s: %s\n", cloud_path, err ? err : "segmentation failed");
+                fprintf(stderr, "frep evolve: %s: %s\n", cloud_path,
+                        ferr.msg[0] ? ferr.msg : "segmentation failed");
                 goto done;
             }
             /* Too few residual points to segment: the result is the base model. */
             if (!quiet)
                 fprintf(stderr, "frep evolve: the residual points give no primitive (%s)\n",
-                        err ? err : "segmentation failed");
-            free(err);
-            err = NULL;
+                        ferr.msg[0] ? ferr.msg : "segmentation failed");
         } else {
             have_seg = 1;
             prims = seg.prims;

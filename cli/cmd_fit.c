@@ -371,7 +371,7 @@ int cmd_fit(int argc, char **argv)
     }
     const char *tmpl = argv[optind], *cloud_path = argv[optind + 1];
 
-    char *src = NULL, *output = NULL, *text = NULL, *cerr = NULL;
+    char *src = NULL, *output = NULL, *text = NULL;
     double *blo = NULL, *bhi = NULL, *x0 = NULL, *lo = NULL, *hi = NULL, *base = NULL;
     size_t *idx = NULL;
     param_row *rows = NULL;
@@ -456,9 +456,10 @@ int cmd_fit(int argc, char **argv)
         }
     }
 
+    frep_error cerr;
     cloud = cloud_read(cloud_path, &cerr);
     if (cloud == NULL) {
-        fprintf(stderr, "%s\n", cerr ? cerr : "frep fit: cannot read the cloud");
+        fprintf(stderr, "%s\n", cerr.msg[0] ? cerr.msg : "frep fit: cannot read the cloud");
         rc = CLI_FAIL;
         goto done;
     }
@@ -608,7 +609,6 @@ int cmd_fit(int argc, char **argv)
 done:
     if (fm.user != NULL) fit_program_model_free(&fm);
     cloud_free(cloud);
-    free(cerr);
     free(text);
     free(output);
     free(rows);

@@ -128,10 +128,9 @@ int cmd_render(int argc, char **argv)
     uint8_t *rgb = NULL;
     rc = CLI_FAIL;
     if (is_mesh) {
-        char *msg = NULL;
+        frep_error msg;
         if (meshio_read(in, &m, &msg) != 0) {
-            fprintf(stderr, "%s\n", msg ? msg : "frep render: cannot read the mesh");
-            free(msg);
+            fprintf(stderr, "%s\n", msg.msg[0] ? msg.msg : "frep render: cannot read the mesh");
             goto done;
         }
         if (points) {
@@ -153,11 +152,10 @@ int cmd_render(int argc, char **argv)
     memset(&rp, 0, sizeof rp);
     double dmean = 0, dmax = 0;
     if (points) {
-        char *msg = NULL;
+        frep_error msg;
         cl = cloud_read(points, &msg);
         if (!cl) {
-            fprintf(stderr, "%s\n", msg ? msg : "frep render: cannot read the cloud");
-            free(msg);
+            fprintf(stderr, "%s\n", msg.msg[0] ? msg.msg : "frep render: cannot read the cloud");
             goto done;
         }
         dist = malloc((cl->n + 1) * 4 * sizeof *dist);

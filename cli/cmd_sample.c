@@ -147,10 +147,9 @@ int cmd_sample(int argc, char **argv)
     double t0 = (double)clock();
     if (meshio_format_for_path(in) != MESHIO_UNKNOWN) {
         frep_mesh m;
-        char *msg = NULL;
+        frep_error msg;
         if (meshio_read(in, &m, &msg) != 0) {
-            fprintf(stderr, "%s\n", msg ? msg : "frep sample: cannot read the mesh");
-            free(msg);
+            fprintf(stderr, "%s\n", msg.msg[0] ? msg.msg : "frep sample: cannot read the mesh");
             mesh_cli_free(&mc);
             return CLI_FAIL;
         }

@@ -281,11 +281,10 @@ int cmd_segment(int argc, char **argv)
     const char *in = argv[optind];
     if (!have_seed) cfg.seed = (uint64_t)time(NULL) ^ ((uint64_t)getpid() << 32);
 
-    char *err = NULL;
+    frep_error err;
     frep_cloud *c = cloud_read(in, &err);
     if (!c) {
-        fprintf(stderr, "frep segment: %s\n", err ? err : "cannot read the cloud");
-        free(err);
+        fprintf(stderr, "frep segment: %s\n", err.msg[0] ? err.msg : "cannot read the cloud");
         return CLI_FAIL;
     }
     int had_normals = c->has_normals;
@@ -303,8 +302,7 @@ int cmd_segment(int argc, char **argv)
     signal(SIGINT, old == SIG_ERR ? SIG_DFL : old);
     if (ps.shown) fputs("\r\033[K", stderr);
     if (rc) {
-        fprintf(stderr, "%s: error: %s\n", in, err ? err : "segmentation failed");
-        free(err);
+        fprintf(stderr, "%s: error: %s\n", in, err.msg[0] ? err.msg : "segmentation failed");
         cloud_free(c);
         return CLI_FAIL;
     }

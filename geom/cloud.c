@@ -2,7 +2,7 @@
  *
  * The input side of fit/segment/evolve and the output side of `frep sample`.  Readers
  * take the whole file into memory and parse it, reporting the first problem as
- * "file:line: what" in a malloc'ed string; the library never prints.
+ * "file:line: what" in a frep_error; the library never prints.
  */
 #include <ctype.h>
 #include <errno.h>
@@ -24,8 +24,6 @@
 #define PLY_MAX_ELEMENTS 64
 /* Longest list in a PLY element we skip (a face with more vertices is corrupt). */
 #define PLY_MAX_LIST 1000000u
-
-#define SET_ERR(...) do { if (err && !*err) *err = frep_strdupf(__VA_ARGS__); } while (0)
 
 /* ---- storage ------------------------------------------------------------- */
 
@@ -171,7 +169,7 @@ static const char *parse_number(const char *s, const char *end, double *v)
     return s + k;
 }
 
-static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, char **err)
+static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, frep_error *err)
 {
     frep_cloud *c = NULL;
     const char *p = data, *end = data + len;
@@ -193,7 +191,7 @@ static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, cha
             if (!qe) {
                 int tl = 0;
                 while (q + tl < eol && !is_sep(q[tl]) && tl < 40) tl++;
-                SET_ERR("%s:%zu: '%.*s' is not a number", name, line, tl, q);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: '%.*s' is not a number", name, line, tl, q);
                 goto fail;
             }
             if (nv < 7) v[nv] = t;
@@ -203,33 +201,33 @@ static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, cha
         p = eol < end ? eol + 1 : end;
         if (nv == 0) continue;
         if (nv != 3 && nv != 6) {
-            SET_ERR("%s:%zu: expected 3 or 6 numbers, got %d", name, line, nv);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 3 or 6 numbers, got %d", name, line, nv);
             goto fail;
         }
         if (ncols == 0) {
             ncols = nv;
             first_line = line;
             c = cloud_new(nv == 6);
-            if (!c) { SET_ERR("%s: out of memory", name); goto fail; }
+            if (!c) { frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name); goto fail; }
         } else if (nv != ncols) {
-            SET_ERR("%s:%zu: expected %d numbers as on line %zu, got %d", name, line, ncols,
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected %d numbers as on line %zu, got %d", name, line, ncols,
                     first_line, nv);
             goto fail;
         }
         for (int k = 0; k < nv; k++) {
             if (!isfinite(v[k])) {
-                SET_ERR("%s:%zu: number %d is not finite", name, line, k + 1);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: number %d is not finite", name, line, k + 1);
                 goto fail;
             }
         }
         if (cloud_push(c, v, nv == 6 ? v + 3 : NULL)) {
-            SET_ERR("%s:%zu: out of memory (or more than %zu points)", name, line,
+            frep_error_set(err, FREP_ENOMEM, "%s:%zu: out of memory (or more than %zu points)", name, line,
                     (size_t)CLOUD_MAX_POINTS);
             goto fail;
         }
     }
     if (!c) {
-        SET_ERR("%s: no points", name);
+        frep_error_set(err, FREP_EINPUT, "%s: no points", name);
         return NULL;
     }
     return c;
@@ -296,11 +294,11 @@ static int ascii_next(ascii_cursor *a, double *v)
     return 0;
 }
 
-static frep_cloud *parse_ply(const char *name, const char *data, size_t len, char **err)
+static frep_cloud *parse_ply(const char *name, const char *data, size_t len, frep_error *err)
 {
     ply_element *el = frep_calloc(PLY_MAX_ELEMENTS, sizeof *el);
     frep_cloud *c = NULL;
-    if (!el) { SET_ERR("%s: out of memory", name); return NULL; }
+    if (!el) { frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name); return NULL; }
     size_t nel = 0, line = 0;
     ply_format fmt = PLY_ASCII;
     int have_format = 0, have_vertex = 0, ended = 0;
@@ -309,9 +307,9 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
     while (p < end && !ended) {
         line++;
         const char *eol = memchr(p, '\n', (size_t)(end - p));
-        if (!eol) { SET_ERR("%s:%zu: header ends without end_header", name, line); goto fail; }
+        if (!eol) { frep_error_set(err, FREP_EINPUT, "%s:%zu: header ends without end_header", name, line); goto fail; }
         size_t l = (size_t)(eol - p);
-        if (l >= sizeof buf) { SET_ERR("%s:%zu: header line too long", name, line); goto fail; }
+        if (l >= sizeof buf) { frep_error_set(err, FREP_EINPUT, "%s:%zu: header line too long", name, line); goto fail; }
         memcpy(buf, p, l);
         buf[l] = '\0';
         p = eol + 1;
@@ -319,7 +317,7 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
         int nw = split_words(buf, w, 4);
         if (line == 1) {
             if (nw != 1 || strcmp(w[0], "ply") != 0) {
-                SET_ERR("%s:1: not a PLY file (first line is not 'ply')", name);
+                frep_error_set(err, FREP_EINPUT, "%s:1: not a PLY file (first line is not 'ply')", name);
                 goto fail;
             }
             continue;
@@ -327,20 +325,20 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
         if (nw == 0) continue;
         if (strcmp(w[0], "comment") == 0 || strcmp(w[0], "obj_info") == 0) continue;
         if (strcmp(w[0], "format") == 0) {
-            if (nw != 3) { SET_ERR("%s:%zu: expected 'format TYPE VERSION'", name, line); goto fail; }
+            if (nw != 3) { frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 'format TYPE VERSION'", name, line); goto fail; }
             if (strcmp(w[1], "ascii") == 0) fmt = PLY_ASCII;
             else if (strcmp(w[1], "binary_little_endian") == 0) fmt = PLY_BIN_LE;
             else if (strcmp(w[1], "binary_big_endian") == 0) fmt = PLY_BIN_BE;
-            else { SET_ERR("%s:%zu: unknown PLY format '%s'", name, line, w[1]); goto fail; }
+            else { frep_error_set(err, FREP_EINPUT, "%s:%zu: unknown PLY format '%s'", name, line, w[1]); goto fail; }
             have_format = 1;
         } else if (strcmp(w[0], "element") == 0) {
-            if (nw != 3) { SET_ERR("%s:%zu: expected 'element NAME COUNT'", name, line); goto fail; }
-            if (nel == PLY_MAX_ELEMENTS) { SET_ERR("%s:%zu: too many elements", name, line); goto fail; }
+            if (nw != 3) { frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 'element NAME COUNT'", name, line); goto fail; }
+            if (nel == PLY_MAX_ELEMENTS) { frep_error_set(err, FREP_EINPUT, "%s:%zu: too many elements", name, line); goto fail; }
             char *e;
             errno = 0;
             unsigned long long cnt = strtoull(w[2], &e, 10);
             if (*e != '\0' || w[2][0] == '-' || errno) {
-                SET_ERR("%s:%zu: bad element count '%s'", name, line, w[2]);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: bad element count '%s'", name, line, w[2]);
                 goto fail;
             }
             ply_element *E = &el[nel++];
@@ -348,34 +346,34 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
             if (E->is_vertex) {
                 have_vertex = 1;
                 if (cnt > CLOUD_MAX_POINTS) {
-                    SET_ERR("%s:%zu: %llu vertices is more than the limit of %zu", name, line,
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: %llu vertices is more than the limit of %zu", name, line,
                             cnt, (size_t)CLOUD_MAX_POINTS);
                     goto fail;
                 }
             }
             E->count = (size_t)cnt;
         } else if (strcmp(w[0], "property") == 0) {
-            if (nel == 0) { SET_ERR("%s:%zu: property before any element", name, line); goto fail; }
+            if (nel == 0) { frep_error_set(err, FREP_EINPUT, "%s:%zu: property before any element", name, line); goto fail; }
             ply_element *E = &el[nel - 1];
-            if (E->nprops == PLY_MAX_PROPS) { SET_ERR("%s:%zu: too many properties", name, line); goto fail; }
+            if (E->nprops == PLY_MAX_PROPS) { frep_error_set(err, FREP_EINPUT, "%s:%zu: too many properties", name, line); goto fail; }
             ply_prop *P = &E->props[E->nprops];
             P->role = -1;
             P->count_type = FREP_PLY_NONE;
             const char *pname;
             if (nw >= 2 && strcmp(w[1], "list") == 0) {
-                if (nw != 5) { SET_ERR("%s:%zu: expected 'property list COUNT-TYPE TYPE NAME'", name, line); goto fail; }
+                if (nw != 5) { frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 'property list COUNT-TYPE TYPE NAME'", name, line); goto fail; }
                 P->count_type = frep_ply_type_of(w[2]);
                 P->type = frep_ply_type_of(w[3]);
                 if (P->count_type == FREP_PLY_NONE || P->type == FREP_PLY_NONE ||
                     P->count_type == FREP_PLY_F32 || P->count_type == FREP_PLY_F64) {
-                    SET_ERR("%s:%zu: bad list types '%s %s'", name, line, w[2], w[3]);
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: bad list types '%s %s'", name, line, w[2], w[3]);
                     goto fail;
                 }
                 pname = w[4];
             } else {
-                if (nw != 3) { SET_ERR("%s:%zu: expected 'property TYPE NAME'", name, line); goto fail; }
+                if (nw != 3) { frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 'property TYPE NAME'", name, line); goto fail; }
                 P->type = frep_ply_type_of(w[1]);
-                if (P->type == FREP_PLY_NONE) { SET_ERR("%s:%zu: unknown property type '%s'", name, line, w[1]); goto fail; }
+                if (P->type == FREP_PLY_NONE) { frep_error_set(err, FREP_EINPUT, "%s:%zu: unknown property type '%s'", name, line, w[1]); goto fail; }
                 pname = w[2];
                 if (E->is_vertex) {
                     static const char *const roles[6] = {"x", "y", "z", "nx", "ny", "nz"};
@@ -388,13 +386,13 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
         } else if (strcmp(w[0], "end_header") == 0) {
             ended = 1;
         } else {
-            SET_ERR("%s:%zu: unknown header keyword '%s'", name, line, w[0]);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: unknown header keyword '%s'", name, line, w[0]);
             goto fail;
         }
     }
-    if (!ended) { SET_ERR("%s:%zu: header ends without end_header", name, line); goto fail; }
-    if (!have_format) { SET_ERR("%s:%zu: header has no format line", name, line); goto fail; }
-    if (!have_vertex) { SET_ERR("%s:%zu: no vertex element", name, line); goto fail; }
+    if (!ended) { frep_error_set(err, FREP_EINPUT, "%s:%zu: header ends without end_header", name, line); goto fail; }
+    if (!have_format) { frep_error_set(err, FREP_EINPUT, "%s:%zu: header has no format line", name, line); goto fail; }
+    if (!have_vertex) { frep_error_set(err, FREP_EINPUT, "%s:%zu: no vertex element", name, line); goto fail; }
 
     /* Which vertex properties are present. */
     int has_role[6] = {0};
@@ -408,12 +406,12 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
         }
     }
     if (!has_role[0] || !has_role[1] || !has_role[2]) {
-        SET_ERR("%s: vertex element lacks x, y or z", name);
+        frep_error_set(err, FREP_EINPUT, "%s: vertex element lacks x, y or z", name);
         goto fail;
     }
     int normals = has_role[3] && has_role[4] && has_role[5];
     c = cloud_new(normals);
-    if (!c) { SET_ERR("%s: out of memory", name); goto fail; }
+    if (!c) { frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name); goto fail; }
 
     ascii_cursor ac = {p, end, line + 1};
     const unsigned char *bp = (const unsigned char *)p, *bend = (const unsigned char *)end;
@@ -421,7 +419,7 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
     for (size_t e = 0; e < nel; e++) {
         ply_element *E = &el[e];
         if (E->is_vertex && cloud_reserve(c, E->count)) {
-            SET_ERR("%s: out of memory for %zu vertices", name, E->count);
+            frep_error_set(err, FREP_ENOMEM, "%s: out of memory for %zu vertices", name, E->count);
             goto fail;
         }
         for (size_t i = 0; i < E->count; i++) {
@@ -461,9 +459,9 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
             for (int r = 0; r < 6; r++) {
                 if (!isfinite(v[r])) {
                     if (fmt == PLY_ASCII)
-                        SET_ERR("%s:%zu: vertex %zu has a non-finite value", name, item_line, i);
+                        frep_error_set(err, FREP_EINPUT, "%s:%zu: vertex %zu has a non-finite value", name, item_line, i);
                     else
-                        SET_ERR("%s: vertex %zu has a non-finite value", name, i);
+                        frep_error_set(err, FREP_EINPUT, "%s: vertex %zu has a non-finite value", name, i);
                     goto fail;
                 }
             }
@@ -472,13 +470,13 @@ static frep_cloud *parse_ply(const char *name, const char *data, size_t len, cha
         data_error:
             if (fmt == PLY_ASCII) {
                 if (ac.p >= ac.end)
-                    SET_ERR("%s:%zu: data ends in %s %zu of %zu", name, ac.line,
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: data ends in %s %zu of %zu", name, ac.line,
                             E->is_vertex ? "vertex" : "element item", i, E->count);
                 else
-                    SET_ERR("%s:%zu: bad number in %s %zu", name, ac.line,
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: bad number in %s %zu", name, ac.line,
                             E->is_vertex ? "vertex" : "element item", i);
             } else {
-                SET_ERR("%s: binary data ends or is corrupt in %s %zu of %zu", name,
+                frep_error_set(err, FREP_EINPUT, "%s: binary data ends or is corrupt in %s %zu of %zu", name,
                         E->is_vertex ? "vertex" : "element item", i, E->count);
             }
             goto fail;
@@ -492,22 +490,22 @@ fail:
     return NULL;
 }
 
-frep_cloud *cloud_parse(const char *name, const char *data, size_t len, char **err)
+frep_cloud *cloud_parse(const char *name, const char *data, size_t len, frep_error *err)
 {
-    if (err) *err = NULL;
+    frep_error_init(err);
     if (len >= 4 && memcmp(data, "ply", 3) == 0 && (data[3] == '\n' || data[3] == '\r'))
         return parse_ply(name, data, len, err);
     return parse_xyz(name, data, len, err);
 }
 
-frep_cloud *cloud_read(const char *path, char **err)
+frep_cloud *cloud_read(const char *path, frep_error *err)
 {
-    if (err) *err = NULL;
+    frep_error_init(err);
     frep_file f;
     frep_error fe;
     frep_error_init(&fe);
     if (frep_file_read(&f, path, FREP_FILE_MAX_BYTES, FREP_FILE_STDIN, &fe)) {
-        SET_ERR("cannot read %s: %s", path, fe.msg);
+        frep_error_set(err, fe.code, "cannot read %s: %s", path, fe.msg);
         return NULL;
     }
     frep_cloud *c = cloud_parse(strcmp(path, "-") == 0 ? "<stdin>" : path, f.data, f.len, err);

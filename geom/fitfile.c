@@ -23,11 +23,11 @@ static int unit(double v[3])
 }
 
 int fitfile_parse(const char *name, const char *text, size_t len, prim **out, size_t *n,
-                  char **err)
+                  frep_error *err)
 {
     *out = NULL;
     *n = 0;
-    if (err) *err = NULL;
+    frep_error_init(err);
     size_t cap = 0, cnt = 0, line = 0;
     prim *v = NULL;
     const char *p = text, *end = text + len;
@@ -40,7 +40,7 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
         const char *lp = p;
         p = eol < end ? eol + 1 : end;
         if (l >= sizeof buf) {
-            if (err) *err = frep_strdupf("%s:%zu: line too long", name, line);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: line too long", name, line);
             goto fail;
         }
         memcpy(buf, lp, l);
@@ -65,7 +65,7 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
         else if (strcmp(word, "cone") == 0) q.type = PRIM_CONE, want = 7;
         else if (strcmp(word, "torus") == 0) q.type = PRIM_TORUS, want = 8;
         else {
-            if (err) *err = frep_strdupf("%s:%zu: unknown primitive type '%s'", name, line, word);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: unknown primitive type '%s'", name, line, word);
             goto fail;
         }
         double x[FIT_MAX_NUMS];
@@ -76,11 +76,11 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
             char *e;
             double t = strtod(s, &e);
             if (e == s || (*e && *e != ' ' && *e != '\t' && *e != '\r')) {
-                if (err) *err = frep_strdupf("%s:%zu: '%.20s' is not a number", name, line, s);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: '%.20s' is not a number", name, line, s);
                 goto fail;
             }
             if (!isfinite(t)) {
-                if (err) *err = frep_strdupf("%s:%zu: number %d is not finite", name, line, got + 1);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: number %d is not finite", name, line, got + 1);
                 goto fail;
             }
             if (got < FIT_MAX_NUMS) x[got] = t;
@@ -88,7 +88,7 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
             s = e;
         }
         if (got != want) {
-            if (err) *err = frep_strdupf("%s:%zu: expected %d numbers after '%s', got %d", name, line,
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected %d numbers after '%s', got %d", name, line,
                                         want, word, got);
             goto fail;
         }
@@ -123,7 +123,7 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
             break;
         }
         if (bad) {
-            if (err) *err = frep_strdupf("%s:%zu: zero-length %s", name, line,
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: zero-length %s", name, line,
                                         q.type == PRIM_PLANE ? "normal" : "axis");
             goto fail;
         }
@@ -131,7 +131,7 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
             size_t nc = cap ? 2 * cap : 16;
             prim *nv = frep_realloc(v, nc * sizeof *nv);
             if (!nv) {
-                if (err) *err = frep_strdupf("%s: out of memory", name);
+                frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
                 goto fail;
             }
             v = nv;

@@ -23,8 +23,6 @@
 #define MESHIO_PLY_MAX_ELEMENTS 16
 #define MESHIO_MAX_POLY 1024 /* vertices of one polygon: more is a corrupt file */
 
-#define SET_ERR(...) do { if (err && !*err) *err = frep_strdupf(__VA_ARGS__); } while (0)
-
 meshio_format meshio_format_for_path(const char *path)
 {
     const char *dot = strrchr(path, '.');
@@ -301,34 +299,34 @@ static int num(const char **s, const char *e, double *v)
     return 0;
 }
 
-static int parse_off(const char *name, const char *data, size_t len, mbuild *b, char **err)
+static int parse_off(const char *name, const char *data, size_t len, mbuild *b, frep_error *err)
 {
     tcur c = { data, data + len, 0 };
     const char *s, *e;
     if (!next_line(&c, &s, &e, '#') || e - s < 3 || strncmp(s, "OFF", 3) != 0) {
-        SET_ERR("%s:%zu: expected 'OFF' header", name, c.line ? c.line : 1);
+        frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 'OFF' header", name, c.line ? c.line : 1);
         return -1;
     }
     s += 3;
     double nv, nf, ne;
     if (s >= e && !next_line(&c, &s, &e, '#')) {
-        SET_ERR("%s:%zu: missing vertex and face counts", name, c.line);
+        frep_error_set(err, FREP_EINPUT, "%s:%zu: missing vertex and face counts", name, c.line);
         return -1;
     }
     if (num(&s, e, &nv) || num(&s, e, &nf) || num(&s, e, &ne) || nv < 0 || nf < 0 ||
         nv > (double)MESHIO_MAX_ELEMENTS || nf > (double)MESHIO_MAX_ELEMENTS ||
         nv != floor(nv) || nf != floor(nf)) {
-        SET_ERR("%s:%zu: expected three counts 'vertices faces edges'", name, c.line);
+        frep_error_set(err, FREP_EINPUT, "%s:%zu: expected three counts 'vertices faces edges'", name, c.line);
         return -1;
     }
     for (size_t i = 0; i < (size_t)nv; i++) {
         double p[3];
         if (!next_line(&c, &s, &e, '#')) {
-            SET_ERR("%s:%zu: file ends after %zu of %zu vertices", name, c.line, i, (size_t)nv);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: file ends after %zu of %zu vertices", name, c.line, i, (size_t)nv);
             return -1;
         }
         if (num(&s, e, &p[0]) || num(&s, e, &p[1]) || num(&s, e, &p[2])) {
-            SET_ERR("%s:%zu: expected 3 coordinates", name, c.line);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 3 coordinates", name, c.line);
             return -1;
         }
         if (add_vertex(b, p[0], p[1], p[2])) goto oom;
@@ -337,17 +335,17 @@ static int parse_off(const char *name, const char *data, size_t len, mbuild *b, 
     for (size_t i = 0; i < (size_t)nf; i++) {
         double k;
         if (!next_line(&c, &s, &e, '#')) {
-            SET_ERR("%s:%zu: file ends after %zu of %zu faces", name, c.line, i, (size_t)nf);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: file ends after %zu of %zu faces", name, c.line, i, (size_t)nf);
             return -1;
         }
         if (num(&s, e, &k) || k < 3 || k > MESHIO_MAX_POLY || k != floor(k)) {
-            SET_ERR("%s:%zu: expected a vertex count 3..%d", name, c.line, MESHIO_MAX_POLY);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected a vertex count 3..%d", name, c.line, MESHIO_MAX_POLY);
             return -1;
         }
         for (size_t j = 0; j < (size_t)k; j++) {
             double v;
             if (num(&s, e, &v) || v < 0 || v >= nv || v != floor(v)) {
-                SET_ERR("%s:%zu: vertex index %zu of the face is missing or out of range 0..%zu",
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: vertex index %zu of the face is missing or out of range 0..%zu",
                         name, c.line, j + 1, (size_t)nv - (nv > 0));
                 return -1;
             }
@@ -357,11 +355,11 @@ static int parse_off(const char *name, const char *data, size_t len, mbuild *b, 
     }
     return 0;
 oom:
-    SET_ERR("%s: out of memory", name);
+    frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
     return -1;
 }
 
-static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, char **err)
+static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, frep_error *err)
 {
     tcur c = { data, data + len, 0 };
     const char *s, *e;
@@ -371,7 +369,7 @@ static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, 
             double p[3];
             s += 2;
             if (num(&s, e, &p[0]) || num(&s, e, &p[1]) || num(&s, e, &p[2])) {
-                SET_ERR("%s:%zu: expected 'v x y z'", name, c.line);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 'v x y z'", name, c.line);
                 return -1;
             }
             if (add_vertex(b, p[0], p[1], p[2])) goto oom;
@@ -385,18 +383,18 @@ static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, 
                 errno = 0;
                 long v = strtol(s, &endp, 10);
                 if (endp == s) {
-                    SET_ERR("%s:%zu: expected vertex indices after 'f'", name, c.line);
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: expected vertex indices after 'f'", name, c.line);
                     return -1;
                 }
                 /* 1-based; negative indices count back from the last vertex */
                 long ix = v > 0 ? v - 1 : (long)b->m->nverts + v;
                 if (v == 0 || ix < 0 || (size_t)ix >= b->m->nverts) {
-                    SET_ERR("%s:%zu: vertex index %ld out of range (1..%zu so far)", name, c.line,
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: vertex index %ld out of range (1..%zu so far)", name, c.line,
                             v, b->m->nverts);
                     return -1;
                 }
                 if (k >= MESHIO_MAX_POLY) {
-                    SET_ERR("%s:%zu: polygon with more than %d vertices", name, c.line,
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: polygon with more than %d vertices", name, c.line,
                             MESHIO_MAX_POLY);
                     return -1;
                 }
@@ -405,7 +403,7 @@ static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, 
                 while (s < e && !isspace((unsigned char)*s)) s++; /* skip /vt/vn */
             }
             if (k < 3) {
-                SET_ERR("%s:%zu: a face needs at least 3 vertices", name, c.line);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: a face needs at least 3 vertices", name, c.line);
                 return -1;
             }
             if (add_poly(b, idx, k)) goto oom;
@@ -414,7 +412,7 @@ static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, 
     }
     return 0;
 oom:
-    SET_ERR("%s: out of memory", name);
+    frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
     return -1;
 }
 
@@ -432,7 +430,7 @@ static uint32_t get_u32(const unsigned char *p)
     return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
 }
 
-static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, char **err)
+static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, frep_error *err)
 {
     const unsigned char *u = (const unsigned char *)data;
     /* Binary when the size matches the triangle count (some binary files start with
@@ -441,7 +439,7 @@ static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, 
         uint32_t n = get_u32(u + 80);
         if ((uint64_t)84 + 50ull * n == len) {
             if (n > MESHIO_MAX_ELEMENTS / 3) {
-                SET_ERR("%s: too many triangles (%u)", name, n);
+                frep_error_set(err, FREP_EINPUT, "%s: too many triangles (%u)", name, n);
                 return -1;
             }
             for (uint32_t t = 0; t < n; t++) {
@@ -459,7 +457,7 @@ static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, 
     tcur c = { data, data + len, 0 };
     const char *s, *e;
     if (!next_line(&c, &s, &e, '\0') || e - s < 5 || strncmp(s, "solid", 5) != 0) {
-        SET_ERR("%s: neither binary STL (size does not match the triangle count) nor ASCII "
+        frep_error_set(err, FREP_EINPUT, "%s: neither binary STL (size does not match the triangle count) nor ASCII "
                 "STL (no 'solid')", name);
         return -1;
     }
@@ -469,14 +467,14 @@ static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, 
             double p[3];
             s += 6;
             if (num(&s, e, &p[0]) || num(&s, e, &p[1]) || num(&s, e, &p[2])) {
-                SET_ERR("%s:%zu: expected 'vertex x y z'", name, c.line);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 'vertex x y z'", name, c.line);
                 return -1;
             }
             if (add_vertex(b, p[0], p[1], p[2])) goto oom;
             nv++;
         } else if (e - s >= 7 && strncmp(s, "endloop", 7) == 0) {
             if (nv < 3) {
-                SET_ERR("%s:%zu: a facet needs at least 3 vertices", name, c.line);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: a facet needs at least 3 vertices", name, c.line);
                 return -1;
             }
             uint32_t base = (uint32_t)(b->m->nverts - (size_t)nv);
@@ -487,7 +485,7 @@ static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, 
     }
     return 0;
 oom:
-    SET_ERR("%s: out of memory", name);
+    frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
     return -1;
 }
 
@@ -512,7 +510,7 @@ typedef struct prec {
     size_t nlist;
 } prec;
 
-static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, char **err)
+static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, frep_error *err)
 {
     tcur c = { data, data + len, 0 };
     const char *s, *e;
@@ -522,12 +520,12 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
     int nel = 0, status = -1;
     if (!el || !rec) goto oom;
     if (!next_line(&c, &s, &e, '\0') || e - s != 3 || strncmp(s, "ply", 3) != 0) {
-        SET_ERR("%s:1: expected 'ply'", name);
+        frep_error_set(err, FREP_EINPUT, "%s:1: expected 'ply'", name);
         goto done;
     }
     for (;;) {
         if (!next_line(&c, &s, &e, '\0')) {
-            SET_ERR("%s:%zu: header without end_header", name, c.line);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: header without end_header", name, c.line);
             goto done;
         }
         char line[256], w[4][64];
@@ -542,7 +540,7 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
             fmt = strcmp(w[1], "ascii") == 0 ? 0 : strcmp(w[1], "binary_little_endian") == 0 ? 1 :
                   strcmp(w[1], "binary_big_endian") == 0 ? 2 : -1;
             if (fmt < 0) {
-                SET_ERR("%s:%zu: unknown PLY format '%s'", name, c.line, w[1]);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: unknown PLY format '%s'", name, c.line, w[1]);
                 goto done;
             }
         } else if (strcmp(w[0], "element") == 0 && nw >= 3) {
@@ -550,7 +548,7 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
             double cnt = strtod(w[2], &endp);
             if (nel >= MESHIO_PLY_MAX_ELEMENTS || *endp || cnt < 0 ||
                 cnt > (double)MESHIO_MAX_ELEMENTS || cnt != floor(cnt)) {
-                SET_ERR("%s:%zu: bad or too many elements", name, c.line);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: bad or too many elements", name, c.line);
                 goto done;
             }
             snprintf(el[nel].name, sizeof el[nel].name, "%.31s", w[1]);
@@ -559,14 +557,14 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
         } else if (strcmp(w[0], "property") == 0 && nw >= 3 && nel > 0) {
             pelem *E = &el[nel - 1];
             if (E->nprops >= MESHIO_PLY_MAX_PROPS) {
-                SET_ERR("%s:%zu: too many properties", name, c.line);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: too many properties", name, c.line);
                 goto done;
             }
             pprop *P = &E->props[E->nprops++];
             if (strcmp(w[1], "list") == 0) {
                 if (nw < 4 || (P->count_type = frep_ply_type_of(w[2])) == FREP_PLY_NONE ||
                     (P->type = frep_ply_type_of(w[3])) == FREP_PLY_NONE) {
-                    SET_ERR("%s:%zu: bad list property", name, c.line);
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: bad list property", name, c.line);
                     goto done;
                 }
                 char nm[64] = "";
@@ -574,19 +572,19 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
                 snprintf(P->name, sizeof P->name, "%.31s", nm);
             } else {
                 if ((P->type = frep_ply_type_of(w[1])) == FREP_PLY_NONE) {
-                    SET_ERR("%s:%zu: unknown property type '%s'", name, c.line, w[1]);
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: unknown property type '%s'", name, c.line, w[1]);
                     goto done;
                 }
                 P->count_type = FREP_PLY_NONE;
                 snprintf(P->name, sizeof P->name, "%.31s", w[2]);
             }
         } else {
-            SET_ERR("%s:%zu: unexpected header line", name, c.line);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: unexpected header line", name, c.line);
             goto done;
         }
     }
     if (fmt < 0) {
-        SET_ERR("%s: PLY header without a format line", name);
+        frep_error_set(err, FREP_EINPUT, "%s: PLY header without a format line", name);
         goto done;
     }
     size_t nverts_decl = 0;
@@ -601,7 +599,7 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
             if (strcmp(E->props[k].name, "z") == 0) iz = k;
         }
         if (isv && (ix < 0 || iy < 0 || iz < 0)) {
-            SET_ERR("%s: the vertex element lacks x, y or z", name);
+            frep_error_set(err, FREP_EINPUT, "%s: the vertex element lacks x, y or z", name);
             goto done;
         }
         if (isv) nverts_decl = E->count;
@@ -610,7 +608,7 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
             int got_list = 0;
             if (fmt == 0) {
                 if (!next_line(&c, &s, &e, '\0')) {
-                    SET_ERR("%s:%zu: file ends inside element '%s'", name, c.line, E->name);
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: file ends inside element '%s'", name, c.line, E->name);
                     goto done;
                 }
             }
@@ -628,7 +626,7 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
                         bp += sz;
                     }
                     if (!(cv >= 0 && cv <= MESHIO_MAX_POLY)) {
-                        SET_ERR("%s:%zu: list of %g items in element '%s'", name, c.line, cv,
+                        frep_error_set(err, FREP_EINPUT, "%s:%zu: list of %g items in element '%s'", name, c.line, cv,
                                 E->name);
                         goto done;
                     }
@@ -648,7 +646,7 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
                         rec->v[k] = v;
                     } else if (!got_list) {
                         if (!(v >= 0 && v < (double)nverts_decl)) {
-                            SET_ERR("%s:%zu: vertex index %g out of range", name, c.line, v);
+                            frep_error_set(err, FREP_EINPUT, "%s:%zu: vertex index %g out of range", name, c.line, v);
                             goto done;
                         }
                         rec->list[rec->nlist++] = (uint32_t)v;
@@ -663,11 +661,11 @@ static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, 
     status = 0;
     goto done;
 short_rec:
-    SET_ERR(fmt == 0 ? "%s:%zu: too few values in a record" : "%s: file ends inside the data",
+    frep_error_set(err, FREP_EINPUT, fmt == 0 ? "%s:%zu: too few values in a record" : "%s: file ends inside the data",
             name, c.line);
     goto done;
 oom:
-    SET_ERR("%s: out of memory", name);
+    frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
 done:
     frep_free(el);
     frep_free(rec);
@@ -675,10 +673,10 @@ done:
 }
 
 int meshio_parse(const char *name, const char *data, size_t len, meshio_format fmt,
-                 frep_mesh *m, char **err)
+                 frep_mesh *m, frep_error *err)
 {
     memset(m, 0, sizeof *m);
-    if (err) *err = NULL;
+    frep_error_init(err);
     if (fmt == MESHIO_UNKNOWN) {
         if (len >= 3 && strncmp(data, "ply", 3) == 0) fmt = MESHIO_PLY;
         else if (len >= 3 && strncmp(data, "OFF", 3) == 0) fmt = MESHIO_OFF;
@@ -694,28 +692,28 @@ int meshio_parse(const char *name, const char *data, size_t len, meshio_format f
     case MESHIO_UNKNOWN: break;
     }
     if (rc == 0 && m->ntris == 0) {
-        SET_ERR("%s: the mesh has no triangles", name);
+        frep_error_set(err, FREP_EINPUT, "%s: the mesh has no triangles", name);
         rc = -1;
     }
     for (size_t i = 0; rc == 0 && i < 3 * m->nverts; i++)
         if (!isfinite(m->v[i])) {
-            SET_ERR("%s: vertex %zu has a non-finite coordinate", name, i / 3 + 1);
+            frep_error_set(err, FREP_EINPUT, "%s: vertex %zu has a non-finite coordinate", name, i / 3 + 1);
             rc = -1;
         }
     if (rc != 0) mesh_free(m);
     return rc;
 }
 
-int meshio_read(const char *path, frep_mesh *m, char **err)
+int meshio_read(const char *path, frep_mesh *m, frep_error *err)
 {
     memset(m, 0, sizeof *m);
-    if (err) *err = NULL;
+    frep_error_init(err);
     frep_file f;
     frep_error fe;
     frep_error_init(&fe);
     if (frep_file_read(&f, path, FREP_FILE_MAX_BYTES, 0, &fe)) {
-        if (f.open_failed) SET_ERR("%s: cannot open: %s", path, fe.msg);
-        else SET_ERR("%s: %s", path, fe.code == FREP_EIO ? "read error" : fe.msg);
+        if (f.open_failed) frep_error_set(err, FREP_EINPUT, "%s: cannot open: %s", path, fe.msg);
+        else frep_error_set(err, FREP_EINPUT, "%s: %s", path, fe.code == FREP_EIO ? "read error" : fe.msg);
         return -1;
     }
     int rc = meshio_parse(path, f.data, f.len, meshio_format_for_path(path), m, err);

@@ -75,14 +75,6 @@
 
 /* ---- small vector and random helpers --------------------------------------- */
 
-static char *dupstr(const char *s)
-{
-    size_t l = strlen(s) + 1;
-    char *d = frep_malloc(l);
-    if (d) memcpy(d, s, l);
-    return d;
-}
-
 static double dot(const double a[3], const double b[3])
 {
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
@@ -1719,9 +1711,9 @@ static void run_free(run *r)
 }
 
 /* The buffers of a run and of its result, every point alive and unlabelled; 0, or -1
- * with *err set (out of memory, or a cloud without normals). */
+ * with err set (out of memory, or a cloud without normals). */
 static int run_alloc(run *r, const frep_cloud *c, const ransac_config *cfg,
-                     ransac_result *res, char **err)
+                     ransac_result *res, frep_error *err)
 {
     det *d = &r->d;
     size_t n = c->n;
@@ -1749,8 +1741,8 @@ static int run_alloc(run *r, const frep_cloud *c, const ransac_config *cfg,
     if (!r->bands || !d->tmp || !d->spts || !d->salive || !res->label || !res->prims ||
         !d->alive || !d->shuf || !d->morton_idx || !d->morton || !d->alive_list || !r->pool ||
         !r->which || !r->inl || !r->flag || !c->has_normals) {
-        if (err) *err = dupstr(c->has_normals ? "out of memory" : "the cloud has no normals");
-        return -1;
+        if (!c->has_normals) return frep_error_set(err, FREP_EINPUT, "the cloud has no normals");
+        return frep_error_nomem(err);
     }
     for (size_t i = 0; i < n; i++) {
         res->label[i] = -1;
@@ -2127,10 +2119,10 @@ static int detect_step(run *r)
 }
 
 int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *res,
-                  char **err)
+                  frep_error *err)
 {
     memset(res, 0, sizeof *res);
-    if (err) *err = NULL;
+    frep_error_init(err);
     run r;
     if (run_alloc(&r, c, cfg, res, err)) goto fail;
     rng_seed(&r.rng, cfg->seed);
@@ -2150,7 +2142,7 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
     run_free(&r);
     return 0;
 oom:
-    if (err) *err = dupstr("out of memory");
+    frep_error_nomem(err);
 fail:
     run_free(&r);
     ransac_result_free(res);

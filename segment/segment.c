@@ -274,18 +274,18 @@ static void ransac_progress(void *user, size_t remaining, size_t total, size_t n
     cfg->progress(cfg->user, "detect", total - remaining, total, nprims);
 }
 
-int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, char **err)
+int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, frep_error *err)
 {
     memset(res, 0, sizeof *res);
-    if (err) *err = NULL;
+    frep_error_init(err);
     if (c->n < RANSAC_MIN_CLOUD) {
-        if (err) *err = frep_strdupf("too few points: %zu (segmentation needs at least %d)", c->n,
+        frep_error_set(err, FREP_EINPUT, "too few points: %zu (segmentation needs at least %d)", c->n,
                                      RANSAC_MIN_CLOUD);
         return -1;
     }
     double diag = cloud_diagonal(c);
     if (!(diag > 0)) {
-        if (err) *err = frep_strdupf("all %zu points are the same point: nothing to segment", c->n);
+        frep_error_set(err, FREP_EINPUT, "all %zu points are the same point: nothing to segment", c->n);
         return -1;
     }
     res->diagonal = diag;
@@ -311,7 +311,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
     if (!c->has_normals || res->zero_normals > 0) {
         if (cfg->progress) cfg->progress(cfg->user, "normals", 0, c->n, 0);
         if (normals_estimate(c, cfg->knn, cfg->nthreads)) {
-            if (err) *err = frep_strdupf("out of memory estimating normals");
+            frep_error_set(err, FREP_ENOMEM, "out of memory estimating normals");
             return -1;
         }
         res->normals_estimated = 1;
@@ -348,7 +348,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
         frep_free(start);
         frep_free(order);
         frep_free(rr.prims);
-        if (err) *err = frep_strdupf("out of memory");
+        frep_error_set(err, FREP_ENOMEM, "out of memory");
         return -1;
     }
     for (size_t i = 0; i < c->n; i++)
@@ -359,7 +359,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
         frep_free(start);
         frep_free(order);
         frep_free(rr.prims);
-        if (err) *err = frep_strdupf("out of memory");
+        frep_error_set(err, FREP_ENOMEM, "out of memory");
         return -1;
     }
     for (size_t i = 0; i < c->n; i++)
@@ -375,7 +375,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
     if (cfg->separating) {
         size_t nn = segment_add_separating(&res->prims, res->nprims, res->epsilon);
         if (nn == (size_t)-1) {
-            if (err) *err = frep_strdupf("out of memory");
+            frep_error_set(err, FREP_ENOMEM, "out of memory");
             segment_result_free(res);
             return -1;
         }
@@ -473,7 +473,7 @@ static int unit3(double a[3])
 }
 
 static int parse_hf(const char *name, const char *text, size_t len, prim **out, size_t *n,
-                    char **err)
+                    frep_error *err)
 {
     static const struct { const char *fn; prim_type t; int nargs; } calls[] = {
         {"frPlane(", PRIM_PLANE, 4}, {"frSphere(", PRIM_SPHERE, 4},
@@ -491,7 +491,7 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
         size_t l = (size_t)(eol - p);
         p = eol < end ? eol + 1 : end;
         if (l >= HF_MAX_LINE) {
-            if (err) *err = frep_strdupf("%s:%zu: line too long", name, line);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: line too long", name, line);
             goto fail;
         }
         char buf[HF_MAX_LINE];
@@ -502,7 +502,7 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
         if (strncmp(s, "--   obb", 8) == 0 && cnt > 0) {
             double b[15];
             if (parse_nums(s + 8, s + strlen(s), b, 15) != 15) {
-                if (err) *err = frep_strdupf("%s:%zu: expected 15 numbers after 'obb'", name, line);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 15 numbers after 'obb'", name, line);
                 goto fail;
             }
             prim *q = &v[cnt - 1];
@@ -521,13 +521,13 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
             char *args = c + strlen(calls[k].fn);
             char *close = strchr(args, ')');
             if (!close) {
-                if (err) *err = frep_strdupf("%s:%zu: expected ')' to close '%.*s'", name, line,
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: expected ')' to close '%.*s'", name, line,
                                              (int)strlen(calls[k].fn), calls[k].fn);
                 goto fail;
             }
             while (isspace((unsigned char)*args)) args++;
             if (*args != 'x') {
-                if (err) *err = frep_strdupf("%s:%zu: expected 'x' as the first argument of %.*s)",
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 'x' as the first argument of %.*s)",
                                              name, line, (int)strlen(calls[k].fn), calls[k].fn);
                 goto fail;
             }
@@ -535,15 +535,13 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
             double a[9];
             int got = parse_nums(args, close, a, calls[k].nargs);
             if (got != calls[k].nargs) {
-                if (err) {
-                    if (got < 0)
-                        *err = frep_strdupf("%s:%zu: arguments of %.*s) must be numbers", name, line,
-                                            (int)strlen(calls[k].fn), calls[k].fn);
-                    else
-                        *err = frep_strdupf("%s:%zu: %.*s needs %d numbers after x, got %d", name,
-                                            line, (int)strlen(calls[k].fn) - 1, calls[k].fn,
-                                            calls[k].nargs, got);
-                }
+                if (got < 0)
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: arguments of %.*s) must be numbers",
+                                   name, line, (int)strlen(calls[k].fn), calls[k].fn);
+                else
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: %.*s needs %d numbers after x, got %d",
+                                   name, line, (int)strlen(calls[k].fn) - 1, calls[k].fn,
+                                   calls[k].nargs, got);
                 goto fail;
             }
             prim q;
@@ -569,7 +567,7 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
                 }
             }
             if (bad) {
-                if (err) *err = frep_strdupf("%s:%zu: zero-length %s", name, line,
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: zero-length %s", name, line,
                                              q.type == PRIM_PLANE ? "normal" : "axis");
                 goto fail;
             }
@@ -589,7 +587,7 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
                 cap = cap ? 2 * cap : 16;
                 prim *nv = frep_realloc(v, cap * sizeof *nv);
                 if (!nv) {
-                    if (err) *err = frep_strdupf("%s: out of memory", name);
+                    frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
                     goto fail;
                 }
                 v = nv;
@@ -599,7 +597,7 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
         }
     }
     if (cnt == 0) {
-        if (err) *err = frep_strdupf("%s: no frPlane/frSphere/frCylinder/frCone/frTorus calls", name);
+        frep_error_set(err, FREP_EINPUT, "%s: no frPlane/frSphere/frCylinder/frCone/frTorus calls", name);
         goto fail;
     }
     *out = v;
@@ -611,26 +609,25 @@ fail:
 }
 
 int segment_parse_prims(const char *name, const char *text, size_t len, int is_fit,
-                        prim **out, size_t *n, char **err)
+                        prim **out, size_t *n, frep_error *err)
 {
-    if (err) *err = NULL;
+    frep_error_init(err);
     *out = NULL;
     *n = 0;
     if (is_fit) return fitfile_parse(name, text, len, out, n, err);
     return parse_hf(name, text, len, out, n, err);
 }
 
-int segment_read_prims(const char *path, prim **out, size_t *n, char **err)
+int segment_read_prims(const char *path, prim **out, size_t *n, frep_error *err)
 {
-    if (err) *err = NULL;
+    frep_error_init(err);
     frep_file f;
     frep_error fe;
     frep_error_init(&fe);
     if (frep_file_read(&f, path, SEGMENT_PRIMS_MAX_BYTES, 0, &fe)) {
-        if (err)
-            *err = f.open_failed || fe.code == FREP_ELIMIT
-                       ? frep_strdupf("cannot read %s: %s", path, fe.msg)
-                       : frep_strdupf("cannot read %s", path);
+        if (f.open_failed || fe.code == FREP_ELIMIT)
+            return frep_error_set(err, fe.code, "cannot read %s: %s", path, fe.msg);
+        return frep_error_set(err, fe.code, "cannot read %s", path);
         return -1;
     }
     size_t pl = strlen(path);
