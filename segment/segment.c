@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "alloc.h"
+#include "ast.h"
 #include "file.h"
 #include "fitfile.h"
 #include "kdtree.h"
@@ -438,6 +439,154 @@ int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header, doubl
     return ferror(f) ? -1 : 0;
 }
 
+/* ---- reading .hf primitive lists through the front end ----------------------------
+ * The model is parsed by lang/ (ast_parse), so a list is any valid HyperFun file: the
+ * primitives are its assignments `name = frX(x, c1, c2, ...)` with constant arguments,
+ * in file order. The comments segment_write_hf adds (support, rms, "separating", the
+ * "--   obb" box line after a call) are read from the source lines of those calls. */
+
+typedef struct hf_call {
+    const char *key;   /* lower-case name, as the front end keys calls */
+    const char *name;  /* as written, for messages */
+    prim_type type;
+    int nargs;         /* constants after x */
+} hf_call;
+
+static const hf_call hf_calls[] = {
+    {"frplane", "frPlane", PRIM_PLANE, 4},       {"frsphere", "frSphere", PRIM_SPHERE, 4},
+    {"frcylinder", "frCylinder", PRIM_CYLINDER, 7}, {"frcone", "frCone", PRIM_CONE, 7},
+    {"frtorus", "frTorus", PRIM_TORUS, 8},
+};
+
+/* One reading of a list: the primitives found so far with the source line of each and
+ * the offset where its call ends (its comment follows). */
+typedef struct hf_reader {
+    const char *name, *src;
+    size_t len;
+    frep_error *err;
+    prim *v;
+    uint32_t *line;
+    uint32_t *end;
+    size_t n, cap;
+} hf_reader;
+
+/* The front end's first error, as "file:line:col: message". */
+static void hf_diag(void *user, const frep_diag *d)
+{
+    if (d->severity == FREP_ERROR)
+        frep_error_at(user, FREP_EINPUT, d->file, d->line, (int)d->col, "%s", d->message);
+}
+
+/* A constant argument: a number or a negated number. Returns -1 for anything else. */
+static int hf_const(const ast_node *a, double *v)
+{
+    if (a->kind == AST_NUM) *v = a->num;
+    else if (a->kind == AST_UNARY && a->op == '-' && a->a->kind == AST_NUM) *v = -a->a->num;
+    else return -1;
+    return isfinite(*v) ? 0 : -1;
+}
+
+static int unit3(double a[3])
+{
+    double l = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    if (!(l > 0)) return -1;
+    for (int k = 0; k < 3; k++) a[k] /= l;
+    return 0;
+}
+
+/* The primitive of call k with constants a: axes and plane normals made unit (a
+ * plane's offset with its normal). Returns -1 for a zero-length one. */
+static int hf_prim_of(const hf_call *k, const double *a, prim *q)
+{
+    memset(q, 0, sizeof *q);
+    q->type = k->type;
+    memcpy(q->p, a, 3 * sizeof(double));
+    if (q->type == PRIM_PLANE || q->type == PRIM_SPHERE) {
+        q->r = a[3];
+        if (q->type != PRIM_PLANE) return 0;
+        double l0 = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        if (unit3(q->p)) return -1;
+        q->r /= l0;
+        return 0;
+    }
+    memcpy(q->a, a + 3, 3 * sizeof(double));
+    if (q->type == PRIM_TORUS) {
+        q->R = a[6];
+        q->r = a[7];
+    } else {
+        q->r = a[6];
+    }
+    return unit3(q->a);
+}
+
+/* The primitive of an assignment's value, if it is a primitive call: 1 when found, 0
+ * when the value is something else, -1 (error set) when the call is malformed. */
+static int hf_call_prim(hf_reader *r, const ast_node *call, prim *q)
+{
+    const hf_call *k = NULL;
+    for (size_t j = 0; j < sizeof hf_calls / sizeof *hf_calls && call->kind == AST_CALL; j++)
+        if (strcmp(call->key, hf_calls[j].key) == 0) k = &hf_calls[j];
+    if (!k) return 0;
+    const ast_loc *at = &call->op_loc;
+    const ast_node *x = call->list.n > 0 ? call->list.v[0] : NULL;
+    if (!x || x->kind != AST_VAR || strcmp(x->key, "x") != 0)
+        return frep_error_at(r->err, FREP_EINPUT, r->name, x ? x->loc.line : at->line,
+                             (int)(x ? x->loc.col : at->col),
+                             "expected 'x' as the first argument of %s()", k->name);
+    if (call->list.n - 1 != (uint32_t)k->nargs)
+        return frep_error_at(r->err, FREP_EINPUT, r->name, at->line, (int)at->col,
+                             "%s needs %d numbers after x, got %u", k->name, k->nargs,
+                             call->list.n - 1);
+    double a[9];
+    for (int j = 0; j < k->nargs; j++) {
+        const ast_node *arg = call->list.v[j + 1];
+        if (hf_const(arg, &a[j]))
+            return frep_error_at(r->err, FREP_EINPUT, r->name, arg->loc.line, (int)arg->loc.col,
+                                 "arguments of %s() must be numbers", k->name);
+    }
+    if (hf_prim_of(k, a, q))
+        return frep_error_at(r->err, FREP_EINPUT, r->name, at->line, (int)at->col,
+                             "zero-length %s", k->type == PRIM_PLANE ? "normal" : "axis");
+    return 1;
+}
+
+/* Append q, called at the given span, to the list; -1 when out of memory. */
+static int hf_push(hf_reader *r, const prim *q, const ast_loc *loc)
+{
+    if (r->n == r->cap) {
+        size_t cap = r->cap ? 2 * r->cap : 16;
+        prim *nv = frep_realloc(r->v, cap * sizeof *nv);
+        if (nv) r->v = nv;
+        uint32_t *nl = nv ? frep_realloc(r->line, cap * sizeof *nl) : NULL;
+        if (nl) r->line = nl;
+        uint32_t *ne = nl ? frep_realloc(r->end, cap * sizeof *ne) : NULL;
+        if (!ne) return frep_error_set(r->err, FREP_ENOMEM, "%s: out of memory", r->name);
+        r->end = ne;
+        r->cap = cap;
+    }
+    r->v[r->n] = *q;
+    r->line[r->n] = loc->line;
+    r->end[r->n] = loc->end;
+    r->n++;
+    return 0;
+}
+
+/* The primitives of every model's top-level assignments, in file order. */
+static int hf_collect(hf_reader *r, const ast_file *f)
+{
+    for (uint32_t m = 0; m < f->nmodels; m++) {
+        const ast_list *body = &f->models[m].body;
+        for (uint32_t i = 0; i < body->n; i++) {
+            const ast_node *st = body->v[i];
+            if (st->kind != AST_ASSIGN || !st->a) continue;
+            prim q;
+            int got = hf_call_prim(r, st->a, &q);
+            if (got < 0 || (got > 0 && hf_push(r, &q, &st->a->loc))) return -1;
+        }
+    }
+    return 0;
+}
+
 /* Parse up to max comma/blank separated numbers from s; returns the count (max + 1 if
  * more) or -1 on a non-number. */
 static int parse_nums(const char *s, const char *end, double *v, int max)
@@ -464,148 +613,99 @@ static int parse_nums(const char *s, const char *end, double *v, int max)
     }
 }
 
-static int unit3(double a[3])
+/* The comment after a call: "N points", "rms R" or "separating". */
+static void hf_comment(prim *q, const char *cm)
 {
-    double l = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-    if (!(l > 0)) return -1;
-    for (int k = 0; k < 3; k++) a[k] /= l;
+    q->separating = strstr(cm, "separating") != NULL;
+    const char *pts = strstr(cm, " points");
+    if (pts) {
+        const char *b = pts;
+        while (b > cm && isdigit((unsigned char)b[-1])) b--;
+        q->support = (size_t)strtoull(b, NULL, 10);
+    }
+    const char *rms = strstr(cm, "rms ");
+    if (rms) q->rms = strtod(rms + 4, NULL);
+}
+
+/* A "--   obb" line: centre, three axes and half sizes of the primitive before it. */
+static int hf_obb(hf_reader *r, prim *q, const char *s, size_t ln)
+{
+    double b[15];
+    if (parse_nums(s + 8, s + strlen(s), b, 15) != 15)
+        return frep_error_set(r->err, FREP_EINPUT, "%s:%zu: expected 15 numbers after 'obb'",
+                              r->name, ln);
+    memcpy(q->obb_c, b, 3 * sizeof(double));
+    for (int a = 0; a < 3; a++) memcpy(q->obb_axes[a], b + 3 + 3 * a, 3 * sizeof(double));
+    memcpy(q->obb_half, b + 12, 3 * sizeof(double));
+    q->has_obb = 1;
+    return 0;
+}
+
+/* The comments segment_write_hf puts on and after each call's line, line by line:
+ * the current primitive is the last one called on or before the line. */
+static int hf_metadata(hf_reader *r)
+{
+    const char *p = r->src, *end = r->src + r->len;
+    size_t j = 0;
+    for (size_t ln = 1; p < end; ln++) {
+        const char *eol = memchr(p, '\n', (size_t)(end - p));
+        if (!eol) eol = end;
+        const char *lp = p;
+        p = eol < end ? eol + 1 : end;
+        while (j < r->n && r->line[j] <= ln) j++;
+        if (j == 0) continue;
+        prim *q = &r->v[j - 1];
+        int on_call = r->line[j - 1] == ln;
+        /* On the call's line only what follows the call is a comment. */
+        const char *from = on_call ? r->src + r->end[j - 1] : lp;
+        if (from > eol) from = eol;
+        size_t l = (size_t)(eol - from);
+        if (l >= HF_MAX_LINE)
+            return frep_error_set(r->err, FREP_EINPUT, "%s:%zu: line too long", r->name, ln);
+        char buf[HF_MAX_LINE];
+        memcpy(buf, from, l);
+        buf[l] = '\0';
+        char *s = buf;
+        while (isspace((unsigned char)*s)) s++;
+        if (!on_call && strncmp(s, "--   obb", 8) == 0) {
+            if (hf_obb(r, q, s, ln)) return -1;
+        } else if (on_call) {
+            char *cm = strstr(s, "--");
+            if (cm) hf_comment(q, cm + 2);
+        }
+    }
     return 0;
 }
 
 static int parse_hf(const char *name, const char *text, size_t len, prim **out, size_t *n,
                     frep_error *err)
 {
-    static const struct { const char *fn; prim_type t; int nargs; } calls[] = {
-        {"frPlane(", PRIM_PLANE, 4}, {"frSphere(", PRIM_SPHERE, 4},
-        {"frCylinder(", PRIM_CYLINDER, 7}, {"frCone(", PRIM_CONE, 7},
-        {"frTorus(", PRIM_TORUS, 8},
-    };
-    prim *v = NULL;
-    size_t cnt = 0, cap = 0, line = 0;
-    const char *p = text, *end = text + len;
-    while (p < end) {
-        line++;
-        const char *eol = memchr(p, '\n', (size_t)(end - p));
-        if (!eol) eol = end;
-        const char *lp = p;
-        size_t l = (size_t)(eol - p);
-        p = eol < end ? eol + 1 : end;
-        if (l >= HF_MAX_LINE) {
-            frep_error_set(err, FREP_EINPUT, "%s:%zu: line too long", name, line);
-            goto fail;
-        }
-        char buf[HF_MAX_LINE];
-        memcpy(buf, lp, l);
-        buf[l] = '\0';
-        char *s = buf;
-        while (isspace((unsigned char)*s)) s++;
-        if (strncmp(s, "--   obb", 8) == 0 && cnt > 0) {
-            double b[15];
-            if (parse_nums(s + 8, s + strlen(s), b, 15) != 15) {
-                frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 15 numbers after 'obb'", name, line);
-                goto fail;
-            }
-            prim *q = &v[cnt - 1];
-            memcpy(q->obb_c, b, 3 * sizeof(double));
-            for (int a = 0; a < 3; a++) memcpy(q->obb_axes[a], b + 3 + 3 * a, 3 * sizeof(double));
-            memcpy(q->obb_half, b + 12, 3 * sizeof(double));
-            q->has_obb = 1;
-            continue;
-        }
-        if (strncmp(s, "--", 2) == 0) continue;
-        char *comment = strstr(s, "--");
-        if (comment) *comment = '\0';
-        for (size_t k = 0; k < sizeof calls / sizeof calls[0]; k++) {
-            char *c = strstr(s, calls[k].fn);
-            if (!c) continue;
-            char *args = c + strlen(calls[k].fn);
-            char *close = strchr(args, ')');
-            if (!close) {
-                frep_error_set(err, FREP_EINPUT, "%s:%zu: expected ')' to close '%.*s'", name, line,
-                                             (int)strlen(calls[k].fn), calls[k].fn);
-                goto fail;
-            }
-            while (isspace((unsigned char)*args)) args++;
-            if (*args != 'x') {
-                frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 'x' as the first argument of %.*s)",
-                                             name, line, (int)strlen(calls[k].fn), calls[k].fn);
-                goto fail;
-            }
-            args++;
-            double a[9];
-            int got = parse_nums(args, close, a, calls[k].nargs);
-            if (got != calls[k].nargs) {
-                if (got < 0)
-                    frep_error_set(err, FREP_EINPUT, "%s:%zu: arguments of %.*s) must be numbers",
-                                   name, line, (int)strlen(calls[k].fn), calls[k].fn);
-                else
-                    frep_error_set(err, FREP_EINPUT, "%s:%zu: %.*s needs %d numbers after x, got %d",
-                                   name, line, (int)strlen(calls[k].fn) - 1, calls[k].fn,
-                                   calls[k].nargs, got);
-                goto fail;
-            }
-            prim q;
-            memset(&q, 0, sizeof q);
-            q.type = calls[k].t;
-            memcpy(q.p, a, 3 * sizeof(double));
-            int bad = 0;
-            if (q.type == PRIM_PLANE || q.type == PRIM_SPHERE) {
-                q.r = a[3];
-                if (q.type == PRIM_PLANE) {
-                    double l0 = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-                    bad = unit3(q.p);
-                    if (!bad) q.r /= l0;
-                }
-            } else {
-                memcpy(q.a, a + 3, 3 * sizeof(double));
-                bad = unit3(q.a);
-                if (q.type == PRIM_TORUS) {
-                    q.R = a[6];
-                    q.r = a[7];
-                } else {
-                    q.r = a[6];
-                }
-            }
-            if (bad) {
-                frep_error_set(err, FREP_EINPUT, "%s:%zu: zero-length %s", name, line,
-                                             q.type == PRIM_PLANE ? "normal" : "axis");
-                goto fail;
-            }
-            if (comment) {
-                const char *cm = comment + 2;
-                q.separating = strstr(cm, "separating") != NULL;
-                const char *pts = strstr(cm, " points");
-                if (pts) {
-                    const char *b = pts;
-                    while (b > cm && isdigit((unsigned char)b[-1])) b--;
-                    q.support = (size_t)strtoull(b, NULL, 10);
-                }
-                const char *rms = strstr(cm, "rms ");
-                if (rms) q.rms = strtod(rms + 4, NULL);
-            }
-            if (cnt == cap) {
-                cap = cap ? 2 * cap : 16;
-                prim *nv = frep_realloc(v, cap * sizeof *nv);
-                if (!nv) {
-                    frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
-                    goto fail;
-                }
-                v = nv;
-            }
-            v[cnt++] = q;
-            break;
-        }
+    hf_reader r = {name, text, len, err, NULL, NULL, NULL, 0, 0};
+    arena A;
+    arena_init(&A);
+    diag_sink ds = {hf_diag, err, name, 0, 0};
+    ast_file f;
+    memset(&f, 0, sizeof f);
+    int rc = -1;
+    if (ast_parse(&A, name, text, len, &ds, &f) || ds.errors) {
+        if (A.failed) frep_error_nomem(err);
+        frep_error_set(err, FREP_EINPUT, "%s: cannot parse the primitive list", name);
+    } else if (hf_collect(&r, &f) == 0 && hf_metadata(&r) == 0) {
+        if (r.n == 0)
+            frep_error_set(err, FREP_EINPUT,
+                           "%s: no frPlane/frSphere/frCylinder/frCone/frTorus calls", name);
+        else rc = 0;
     }
-    if (cnt == 0) {
-        frep_error_set(err, FREP_EINPUT, "%s: no frPlane/frSphere/frCylinder/frCone/frTorus calls", name);
-        goto fail;
+    arena_free(&A);
+    frep_free(r.line);
+    frep_free(r.end);
+    if (rc) {
+        frep_free(r.v);
+        return -1;
     }
-    *out = v;
-    *n = cnt;
+    *out = r.v;
+    *n = r.n;
     return 0;
-fail:
-    frep_free(v);
-    return -1;
 }
 
 int segment_parse_prims(const char *name, const char *text, size_t len, int is_fit,

@@ -612,7 +612,38 @@ static void test_files(void)
     const char *hf = "m(x[3], a[1])\n{\n  p1 = frCylinder(x, 1, 2, 3, 0, 0, 1);\n}\n";
     rc = segment_parse_prims("t.hf", hf, strlen(hf), 0, &p, &n, &err);
     ok(rc == -1, "short frCylinder call rejected");
-    is_str(err.msg[0] ? err.msg : "", "t.hf:3: frCylinder needs 7 numbers after x, got 6", "message");
+    is_str(err.msg[0] ? err.msg : "", "t.hf:3:8: frCylinder needs 7 numbers after x, got 6", "message");
+    /* Lists go through the front end: positions of what is not a primitive list. */
+    const char *bad_hf[][2] = {
+        {"m(x[3], a[1])\n{\n  p1 = frSphere(x, 0, 0, a[0], 1);\n  m = p1;\n}\n",
+         "t.hf:3:26: arguments of frSphere() must be numbers"},
+        {"m(x[3], a[1])\n{\n  p1 = frPlane(a, 0, 0, 1, 0);\n  m = p1;\n}\n",
+         "t.hf:3:16: expected 'x' as the first argument of frPlane()"},
+        {"m(x[3], a[1])\n{\n  p1 = frPlane(x, 0, 0, 0, 1);\n  m = p1;\n}\n",
+         "t.hf:3:8: zero-length normal"},
+        {"m(x[3], a[1])\n{\n  p1 = hfSphere(x, 0, 0, 0, 1);\n  m = p1;\n}\n",
+         "t.hf: no frPlane/frSphere/frCylinder/frCone/frTorus calls"},
+    };
+    for (size_t i = 0; i < sizeof bad_hf / sizeof bad_hf[0]; i++) {
+        p = NULL;
+        rc = segment_parse_prims("t.hf", bad_hf[i][0], strlen(bad_hf[i][0]), 0, &p, &n, &err);
+        ok(rc == -1, "bad .hf %zu rejected", i + 1);
+        is_str(err.msg[0] ? err.msg : "", bad_hf[i][1], "message");
+        free(p);
+    }
+    const char *syntax = "m(x[3], a[1])\n{\n  p1 = frPlane(x, 0, 0, 1, 0)\n  m = p1;\n}\n";
+    rc = segment_parse_prims("t.hf", syntax, strlen(syntax), 0, &p, &n, &err);
+    ok(rc == -1 && strncmp(err.msg, "t.hf:3:30: expected ';'", 23) == 0,
+       "syntax error reported by the front end with line and column: %s", err.msg);
+    /* Negative constants, primitives inside any model, comments after the call. */
+    const char *two = "m1(x[3], a[1])\n{\n  s = frSphere(x, -1, 0, 0, 2);  -- sphere: 7 points, rms 0.5\n"
+                      "  m1 = s;\n}\nm2(x[3], a[1])\n{\n  t = frPlane(x, 0, -2, 0, 1);  -- separating plane\n"
+                      "  m2 = t;\n}\n";
+    rc = segment_parse_prims("t.hf", two, strlen(two), 0, &p, &n, &err);
+    ok(rc == 0 && n == 2 && p[0].p[0] == -1 && p[0].support == 7 && p[0].rms == 0.5 &&
+           !p[0].separating && p[1].separating && p[1].p[1] == -1 && p[1].r == 0.5,
+       "two models: negative constants, comments read%s%s", err.msg[0] ? ": " : "", err.msg);
+    free(p);
 }
 
 static void test_bad_input(void)
