@@ -9,6 +9,7 @@
 #include "alloc.h"
 #include "file.h"
 #include "meshio.h"
+#include "ply.h"
 #include "util.h"
 
 #include <ctype.h>
@@ -510,164 +511,204 @@ typedef struct prec {
     size_t nlist;
 } prec;
 
-static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, frep_error *err)
+/* A PLY mesh being read: the header, then the body (one record a line in ASCII). */
+typedef struct mesh_ply {
+    const char *name;
+    frep_error *err;
+    tcur c;                  /* the lines; in a binary file the data start at c.p */
+    pelem *el;
+    int nel;
+    int have_format;
+    ply_format fmt;
+    const char *s, *e;       /* ASCII: the rest of the current record's line */
+    const unsigned char *bp, *bend; /* binary: the data left */
+    size_t nverts_decl;      /* vertices of the last vertex element (face indices) */
+} mesh_ply;
+
+/* format TYPE ... */
+static int ply_header_format(mesh_ply *h, char w[4][64])
 {
-    tcur c = { data, data + len, 0 };
-    const char *s, *e;
-    int fmt = -1; /* 0 ascii, 1 binary LE, 2 binary BE */
-    pelem *el = frep_calloc(MESHIO_PLY_MAX_ELEMENTS, sizeof *el);
-    prec *rec = frep_malloc(sizeof *rec);
-    int nel = 0, status = -1;
-    if (!el || !rec) goto oom;
-    if (!next_line(&c, &s, &e, '\0') || e - s != 3 || strncmp(s, "ply", 3) != 0) {
-        frep_error_set(err, FREP_EINPUT, "%s:1: expected 'ply'", name);
-        goto done;
+    if (ply_format_of(w[1], &h->fmt))
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: unknown PLY format '%s'", h->name,
+                              h->c.line, w[1]);
+    h->have_format = 1;
+    return 0;
+}
+
+/* element NAME COUNT ... */
+static int ply_header_element(mesh_ply *h, char w[4][64])
+{
+    char *endp;
+    double cnt = strtod(w[2], &endp);
+    if (h->nel >= MESHIO_PLY_MAX_ELEMENTS || *endp || cnt < 0 ||
+        cnt > (double)MESHIO_MAX_ELEMENTS || cnt != floor(cnt))
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: bad or too many elements", h->name,
+                              h->c.line);
+    snprintf(h->el[h->nel].name, sizeof h->el[h->nel].name, "%.31s", w[1]);
+    h->el[h->nel].count = (size_t)cnt;
+    h->nel++;
+    return 0;
+}
+
+/* property TYPE NAME ... | property list COUNT-TYPE TYPE NAME ... (line: the whole) */
+static int ply_header_property(mesh_ply *h, char w[4][64], int nw, const char *line)
+{
+    pelem *E = &h->el[h->nel - 1];
+    if (E->nprops >= MESHIO_PLY_MAX_PROPS)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: too many properties", h->name,
+                              h->c.line);
+    pprop *P = &E->props[E->nprops++];
+    if (strcmp(w[1], "list") == 0) {
+        if (nw < 4 || (P->count_type = frep_ply_type_of(w[2])) == FREP_PLY_NONE ||
+            (P->type = frep_ply_type_of(w[3])) == FREP_PLY_NONE)
+            return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: bad list property", h->name,
+                                  h->c.line);
+        char nm[64] = "";
+        sscanf(line, "%*s %*s %*s %*s %63s", nm);
+        snprintf(P->name, sizeof P->name, "%.31s", nm);
+        return 0;
     }
+    if ((P->type = frep_ply_type_of(w[1])) == FREP_PLY_NONE)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: unknown property type '%s'",
+                              h->name, h->c.line, w[1]);
+    P->count_type = FREP_PLY_NONE;
+    snprintf(P->name, sizeof P->name, "%.31s", w[2]);
+    return 0;
+}
+
+/* The header after 'ply', up to end_header (lines cut at 255 characters, the first
+ * four words read). */
+static int ply_read_header(mesh_ply *h)
+{
+    const char *s, *e;
     for (;;) {
-        if (!next_line(&c, &s, &e, '\0')) {
-            frep_error_set(err, FREP_EINPUT, "%s:%zu: header without end_header", name, c.line);
-            goto done;
-        }
+        if (!next_line(&h->c, &s, &e, '\0'))
+            return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: header without end_header",
+                                  h->name, h->c.line);
         char line[256], w[4][64];
         size_t n = (size_t)(e - s) < sizeof line - 1 ? (size_t)(e - s) : sizeof line - 1;
         memcpy(line, s, n);
         line[n] = '\0';
         int nw = sscanf(line, "%63s %63s %63s %63s", w[0], w[1], w[2], w[3]);
+        int rc = 0;
         if (nw < 1) continue;
         if (strcmp(w[0], "end_header") == 0) break;
         if (strcmp(w[0], "comment") == 0 || strcmp(w[0], "obj_info") == 0) continue;
-        if (strcmp(w[0], "format") == 0 && nw >= 2) {
-            fmt = strcmp(w[1], "ascii") == 0 ? 0 : strcmp(w[1], "binary_little_endian") == 0 ? 1 :
-                  strcmp(w[1], "binary_big_endian") == 0 ? 2 : -1;
-            if (fmt < 0) {
-                frep_error_set(err, FREP_EINPUT, "%s:%zu: unknown PLY format '%s'", name, c.line, w[1]);
-                goto done;
-            }
-        } else if (strcmp(w[0], "element") == 0 && nw >= 3) {
-            char *endp;
-            double cnt = strtod(w[2], &endp);
-            if (nel >= MESHIO_PLY_MAX_ELEMENTS || *endp || cnt < 0 ||
-                cnt > (double)MESHIO_MAX_ELEMENTS || cnt != floor(cnt)) {
-                frep_error_set(err, FREP_EINPUT, "%s:%zu: bad or too many elements", name, c.line);
-                goto done;
-            }
-            snprintf(el[nel].name, sizeof el[nel].name, "%.31s", w[1]);
-            el[nel].count = (size_t)cnt;
-            nel++;
-        } else if (strcmp(w[0], "property") == 0 && nw >= 3 && nel > 0) {
-            pelem *E = &el[nel - 1];
-            if (E->nprops >= MESHIO_PLY_MAX_PROPS) {
-                frep_error_set(err, FREP_EINPUT, "%s:%zu: too many properties", name, c.line);
-                goto done;
-            }
-            pprop *P = &E->props[E->nprops++];
-            if (strcmp(w[1], "list") == 0) {
-                if (nw < 4 || (P->count_type = frep_ply_type_of(w[2])) == FREP_PLY_NONE ||
-                    (P->type = frep_ply_type_of(w[3])) == FREP_PLY_NONE) {
-                    frep_error_set(err, FREP_EINPUT, "%s:%zu: bad list property", name, c.line);
-                    goto done;
-                }
-                char nm[64] = "";
-                sscanf(line, "%*s %*s %*s %*s %63s", nm);
-                snprintf(P->name, sizeof P->name, "%.31s", nm);
-            } else {
-                if ((P->type = frep_ply_type_of(w[1])) == FREP_PLY_NONE) {
-                    frep_error_set(err, FREP_EINPUT, "%s:%zu: unknown property type '%s'", name, c.line, w[1]);
-                    goto done;
-                }
-                P->count_type = FREP_PLY_NONE;
-                snprintf(P->name, sizeof P->name, "%.31s", w[2]);
-            }
-        } else {
-            frep_error_set(err, FREP_EINPUT, "%s:%zu: unexpected header line", name, c.line);
-            goto done;
-        }
+        if (strcmp(w[0], "format") == 0 && nw >= 2) rc = ply_header_format(h, w);
+        else if (strcmp(w[0], "element") == 0 && nw >= 3) rc = ply_header_element(h, w);
+        else if (strcmp(w[0], "property") == 0 && nw >= 3 && h->nel > 0)
+            rc = ply_header_property(h, w, nw, line);
+        else
+            rc = frep_error_set(h->err, FREP_EINPUT, "%s:%zu: unexpected header line", h->name,
+                                h->c.line);
+        if (rc) return -1;
     }
-    if (fmt < 0) {
-        frep_error_set(err, FREP_EINPUT, "%s: PLY header without a format line", name);
-        goto done;
-    }
-    size_t nverts_decl = 0;
-    const unsigned char *bp = (const unsigned char *)c.p, *bend = (const unsigned char *)c.end;
-    for (int ei = 0; ei < nel; ei++) {
-        pelem *E = &el[ei];
-        int isv = strcmp(E->name, "vertex") == 0, isf = strcmp(E->name, "face") == 0;
-        int ix = -1, iy = -1, iz = -1;
-        for (int k = 0; k < E->nprops; k++) {
-            if (strcmp(E->props[k].name, "x") == 0) ix = k;
-            if (strcmp(E->props[k].name, "y") == 0) iy = k;
-            if (strcmp(E->props[k].name, "z") == 0) iz = k;
+    if (!h->have_format)
+        return frep_error_set(h->err, FREP_EINPUT, "%s: PLY header without a format line",
+                              h->name);
+    return 0;
+}
+
+/* The next value of the record, of type t in a binary file; -1 when it is missing. */
+static int ply_value(mesh_ply *h, frep_ply_type t, double *v)
+{
+    if (h->fmt == PLY_ASCII) return num(&h->s, h->e, v);
+    return ply_binary_value(&h->bp, h->bend, t, h->fmt, v);
+}
+
+/* The short-record message (the data end inside a record). */
+static int ply_short_record(const mesh_ply *h)
+{
+    if (h->fmt == PLY_ASCII)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: too few values in a record",
+                              h->name, h->c.line);
+    return frep_error_set(h->err, FREP_EINPUT, "%s: file ends inside the data", h->name);
+}
+
+/* One record of E into rec: scalars by property, the first list's vertex indices
+ * (checked against the vertices declared so far). */
+static int ply_read_record(mesh_ply *h, const pelem *E, prec *rec)
+{
+    rec->nlist = 0;
+    int got_list = 0;
+    if (h->fmt == PLY_ASCII && !next_line(&h->c, &h->s, &h->e, '\0'))
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: file ends inside element '%s'",
+                              h->name, h->c.line, E->name);
+    for (int k = 0; k < E->nprops; k++) {
+        const pprop *P = &E->props[k];
+        size_t cnt = 1;
+        if (P->count_type != FREP_PLY_NONE) {
+            double cv;
+            if (ply_value(h, P->count_type, &cv)) return ply_short_record(h);
+            if (!(cv >= 0 && cv <= MESHIO_MAX_POLY))
+                return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: list of %g items in element '%s'",
+                                      h->name, h->c.line, cv, E->name);
+            cnt = (size_t)cv;
         }
-        if (isv && (ix < 0 || iy < 0 || iz < 0)) {
-            frep_error_set(err, FREP_EINPUT, "%s: the vertex element lacks x, y or z", name);
-            goto done;
-        }
-        if (isv) nverts_decl = E->count;
-        for (size_t r = 0; r < E->count; r++) {
-            rec->nlist = 0;
-            int got_list = 0;
-            if (fmt == 0) {
-                if (!next_line(&c, &s, &e, '\0')) {
-                    frep_error_set(err, FREP_EINPUT, "%s:%zu: file ends inside element '%s'", name, c.line, E->name);
-                    goto done;
-                }
+        for (size_t j = 0; j < cnt; j++) {
+            double v;
+            if (ply_value(h, P->type, &v)) return ply_short_record(h);
+            if (P->count_type == FREP_PLY_NONE) {
+                rec->v[k] = v;
+            } else if (!got_list) {
+                if (!(v >= 0 && v < (double)h->nverts_decl))
+                    return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: vertex index %g out of range",
+                                          h->name, h->c.line, v);
+                rec->list[rec->nlist++] = (uint32_t)v;
             }
-            for (int k = 0; k < E->nprops; k++) {
-                const pprop *P = &E->props[k];
-                size_t cnt = 1;
-                if (P->count_type != FREP_PLY_NONE) {
-                    double cv;
-                    if (fmt == 0) {
-                        if (num(&s, e, &cv)) goto short_rec;
-                    } else {
-                        size_t sz = frep_ply_type_size(P->count_type);
-                        if ((size_t)(bend - bp) < sz) goto short_rec;
-                        cv = frep_ply_decode(bp, P->count_type, fmt == 2);
-                        bp += sz;
-                    }
-                    if (!(cv >= 0 && cv <= MESHIO_MAX_POLY)) {
-                        frep_error_set(err, FREP_EINPUT, "%s:%zu: list of %g items in element '%s'", name, c.line, cv,
-                                E->name);
-                        goto done;
-                    }
-                    cnt = (size_t)cv;
-                }
-                for (size_t j = 0; j < cnt; j++) {
-                    double v;
-                    if (fmt == 0) {
-                        if (num(&s, e, &v)) goto short_rec;
-                    } else {
-                        size_t sz = frep_ply_type_size(P->type);
-                        if ((size_t)(bend - bp) < sz) goto short_rec;
-                        v = frep_ply_decode(bp, P->type, fmt == 2);
-                        bp += sz;
-                    }
-                    if (P->count_type == FREP_PLY_NONE) {
-                        rec->v[k] = v;
-                    } else if (!got_list) {
-                        if (!(v >= 0 && v < (double)nverts_decl)) {
-                            frep_error_set(err, FREP_EINPUT, "%s:%zu: vertex index %g out of range", name, c.line, v);
-                            goto done;
-                        }
-                        rec->list[rec->nlist++] = (uint32_t)v;
-                    }
-                }
-                if (P->count_type != FREP_PLY_NONE) got_list = 1;
-            }
-            if (isv && add_vertex(b, rec->v[ix], rec->v[iy], rec->v[iz])) goto oom;
-            if (isf && rec->nlist >= 3 && add_poly(b, rec->list, rec->nlist)) goto oom;
         }
+        if (P->count_type != FREP_PLY_NONE) got_list = 1;
     }
-    status = 0;
-    goto done;
-short_rec:
-    frep_error_set(err, FREP_EINPUT, fmt == 0 ? "%s:%zu: too few values in a record" : "%s: file ends inside the data",
-            name, c.line);
-    goto done;
-oom:
-    frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
-done:
-    frep_free(el);
+    return 0;
+}
+
+/* The records of element E: vertices (x, y, z) and faces (fans) go into b. */
+static int ply_read_element(mesh_ply *h, const pelem *E, prec *rec, mbuild *b)
+{
+    int isv = strcmp(E->name, "vertex") == 0, isf = strcmp(E->name, "face") == 0;
+    int ix = -1, iy = -1, iz = -1;
+    for (int k = 0; k < E->nprops; k++) {
+        if (strcmp(E->props[k].name, "x") == 0) ix = k;
+        if (strcmp(E->props[k].name, "y") == 0) iy = k;
+        if (strcmp(E->props[k].name, "z") == 0) iz = k;
+    }
+    if (isv && (ix < 0 || iy < 0 || iz < 0))
+        return frep_error_set(h->err, FREP_EINPUT, "%s: the vertex element lacks x, y or z",
+                              h->name);
+    if (isv) h->nverts_decl = E->count;
+    for (size_t r = 0; r < E->count; r++) {
+        if (ply_read_record(h, E, rec)) return -1;
+        if ((isv && add_vertex(b, rec->v[ix], rec->v[iy], rec->v[iz])) ||
+            (isf && rec->nlist >= 3 && add_poly(b, rec->list, rec->nlist)))
+            return frep_error_set(h->err, FREP_ENOMEM, "%s: out of memory", h->name);
+    }
+    return 0;
+}
+
+/* A PLY mesh: 'ply', the header, then every element's records. */
+static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, frep_error *err)
+{
+    mesh_ply h;
+    memset(&h, 0, sizeof h);
+    h.name = name;
+    h.err = err;
+    h.c = (tcur){ data, data + len, 0 };
+    h.el = frep_calloc(MESHIO_PLY_MAX_ELEMENTS, sizeof *h.el);
+    prec *rec = frep_malloc(sizeof *rec);
+    int status = -1;
+    const char *s, *e;
+    if (!h.el || !rec) {
+        frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
+    } else if (!next_line(&h.c, &s, &e, '\0') || e - s != 3 || strncmp(s, "ply", 3) != 0) {
+        frep_error_set(err, FREP_EINPUT, "%s:1: expected 'ply'", name);
+    } else if (ply_read_header(&h) == 0) {
+        h.bp = (const unsigned char *)h.c.p;
+        h.bend = (const unsigned char *)h.c.end;
+        status = 0;
+        for (int ei = 0; ei < h.nel && status == 0; ei++)
+            status = ply_read_element(&h, &h.el[ei], rec, b);
+    }
+    frep_free(h.el);
     frep_free(rec);
     return status;
 }
