@@ -459,32 +459,43 @@ static void basis(const double a[3], double u[3], double v[3])
     cross(a, u, v);
 }
 
-/* Keep only the inliers (idx[0..n)) in the largest 8-connected patch of a bitmap with
- * cells of size beta over the parameter domain of q. Returns the new count. */
-static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *idx, size_t n,
-                                double beta)
+/* The parameter domain of q, flattened: point i of the patch at (uv[2i], uv[2i+1]),
+ * lengths along the surface; period[k] > 0 for an axis that wraps around. */
+typedef struct pdomain {
+    double *uv;
+    double period[2];
+    double lo[2];          /* the bitmap's corner */
+    double cell[2];        /* its cell sizes */
+    uint64_t ncell[2];     /* its cells per axis */
+} pdomain;
+
+/* Mean distance from a cone's axis over the inliers: the radius its angle is scaled by. */
+static double cone_mean_rho(const prim *q, const frep_cloud *c, const uint32_t *idx, size_t n)
 {
-    if (n == 0) return 0;
-    double *uv = frep_malloc(2 * n * sizeof *uv);
-    cellpt *cp = frep_malloc(n * sizeof *cp);
-    uint32_t *par = NULL, *cnt = NULL;
-    if (!uv || !cp) goto oom;
+    double mean_rho = 0;
+    for (size_t i = 0; i < n; i++) {
+        double p[3], v[3];
+        point(c, idx[i], p);
+        sub(p, q->p, v);
+        double h = dot(v, q->a);
+        mean_rho += sqrt(fmax(0, dot(v, v) - h * h)) / (double)n;
+    }
+    return mean_rho;
+}
+
+/* The domain coordinates of every inlier (see doc/segment.md, extraction): in-plane
+ * axes; longitude and colatitude times r; angle times r (or the cone's mean radius,
+ * or R) with height, slant distance or the tube angle times r. */
+static void domain_coords(const prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
+                          pdomain *D)
+{
     double e1[3], e2[3];
     const double *ax = q->type == PRIM_PLANE ? q->p : q->a;
     double zaxis[3] = {0, 0, 1};
     if (q->type == PRIM_SPHERE) ax = zaxis;
     basis(ax, e1, e2);
-    double period[2] = {0, 0}; /* 0: not periodic */
-    double mean_rho = 0;
-    if (q->type == PRIM_CONE) {
-        for (size_t i = 0; i < n; i++) {
-            double p[3], v[3];
-            point(c, idx[i], p);
-            sub(p, q->p, v);
-            double h = dot(v, q->a);
-            mean_rho += sqrt(fmax(0, dot(v, v) - h * h)) / (double)n;
-        }
-    }
+    D->period[0] = D->period[1] = 0;
+    double mean_rho = q->type == PRIM_CONE ? cone_mean_rho(q, c, idx, n) : 0;
     for (size_t i = 0; i < n; i++) {
         double p[3], v[3];
         point(c, idx[i], p);
@@ -499,7 +510,7 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
             normalize(v);
             u = q->r * atan2(dot(v, e2), dot(v, e1));
             w = q->r * acos(fmin(1, fmax(-1, dot(v, ax))));
-            period[0] = 2 * M_PI * q->r;
+            D->period[0] = 2 * M_PI * q->r;
             break;
         }
         case PRIM_CYLINDER:
@@ -512,72 +523,75 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
             if (q->type == PRIM_CYLINDER) {
                 u = q->r * ang;
                 w = h;
-                period[0] = 2 * M_PI * q->r;
+                D->period[0] = 2 * M_PI * q->r;
             } else if (q->type == PRIM_CONE) {
                 u = mean_rho * ang;
                 w = sqrt(h * h + rho * rho);
-                period[0] = 2 * M_PI * mean_rho;
+                D->period[0] = 2 * M_PI * mean_rho;
             } else {
                 u = q->R * ang;
                 w = q->r * atan2(h, rho - q->R);
-                period[0] = 2 * M_PI * q->R;
-                period[1] = 2 * M_PI * q->r;
+                D->period[0] = 2 * M_PI * q->R;
+                D->period[1] = 2 * M_PI * q->r;
             }
             break;
         }
         case PRIM__COUNT:
             break;
         }
-        uv[2 * i] = u;
-        uv[2 * i + 1] = w;
+        D->uv[2 * i] = u;
+        D->uv[2 * i + 1] = w;
     }
-    double lo[2] = {DBL_MAX, DBL_MAX}, hi[2] = {-DBL_MAX, -DBL_MAX};
+}
+
+/* The bitmap over the coordinates: cells of beta (larger when an axis would need more
+ * than BITMAP_MAX_CELLS_AXIS); a periodic axis wraps onto whole cells of ext / ncell. */
+static void domain_grid(pdomain *D, size_t n, double beta)
+{
+    double hi[2] = {-DBL_MAX, -DBL_MAX};
+    D->lo[0] = D->lo[1] = DBL_MAX;
     for (size_t i = 0; i < n; i++)
         for (int k = 0; k < 2; k++) {
-            if (uv[2 * i + k] < lo[k]) lo[k] = uv[2 * i + k];
-            if (uv[2 * i + k] > hi[k]) hi[k] = uv[2 * i + k];
+            if (D->uv[2 * i + k] < D->lo[k]) D->lo[k] = D->uv[2 * i + k];
+            if (D->uv[2 * i + k] > hi[k]) hi[k] = D->uv[2 * i + k];
         }
-    uint64_t ncell[2];
+    double ext[2];
     for (int k = 0; k < 2; k++) {
-        double ext = period[k] > 0 ? period[k] : hi[k] - lo[k];
-        if (period[k] > 0) lo[k] = -0.5 * period[k] * (k == 0 ? 1 : 1);
-        if (ext / beta > BITMAP_MAX_CELLS_AXIS - 1) beta = ext / (BITMAP_MAX_CELLS_AXIS - 1);
+        ext[k] = D->period[k] > 0 ? D->period[k] : hi[k] - D->lo[k];
+        if (D->period[k] > 0) D->lo[k] = -0.5 * D->period[k];
+        if (ext[k] / beta > BITMAP_MAX_CELLS_AXIS - 1) beta = ext[k] / (BITMAP_MAX_CELLS_AXIS - 1);
     }
+    for (int k = 0; k < 2; k++) D->ncell[k] = (uint64_t)floor(ext[k] / beta) + 1;
     for (int k = 0; k < 2; k++) {
-        double ext = period[k] > 0 ? period[k] : hi[k] - lo[k];
-        ncell[k] = (uint64_t)floor(ext / beta) + 1;
-        /* A periodic axis must wrap onto whole cells: cells of ext / ncell. */
+        D->cell[k] = D->period[k] > 0 ? ext[k] / (double)D->ncell[k] : beta;
+        if (!(D->cell[k] > 0)) D->cell[k] = 1;
     }
-    double cell[2];
-    for (int k = 0; k < 2; k++) {
-        double ext = period[k] > 0 ? period[k] : hi[k] - lo[k];
-        cell[k] = period[k] > 0 ? ext / (double)ncell[k] : beta;
-        if (!(cell[k] > 0)) cell[k] = 1;
-    }
+}
+
+/* The bitmap cell of every point, sorted by cell (then by point). */
+static void domain_cells(const pdomain *D, size_t n, cellpt *cp)
+{
     for (size_t i = 0; i < n; i++) {
         uint64_t ci[2];
         for (int k = 0; k < 2; k++) {
-            double t = floor((uv[2 * i + k] - lo[k]) / cell[k]);
+            double t = floor((D->uv[2 * i + k] - D->lo[k]) / D->cell[k]);
             if (!(t >= 0)) t = 0;
             ci[k] = (uint64_t)t;
-            if (ci[k] >= ncell[k]) ci[k] = period[k] > 0 ? ci[k] % ncell[k] : ncell[k] - 1;
+            if (ci[k] >= D->ncell[k])
+                ci[k] = D->period[k] > 0 ? ci[k] % D->ncell[k] : D->ncell[k] - 1;
         }
-        cp[i].cell = ci[0] * ncell[1] + ci[1];
+        cp[i].cell = ci[0] * D->ncell[1] + ci[1];
         cp[i].pt = (uint32_t)i;
     }
     if (sort_cellpt(cp, n)) qsort(cp, n, sizeof *cp, cmp_cellpt);
-    /* Unique cells: cell j spans cp[start[j]..]; union-find over cells. */
-    size_t ncells = 0;
-    uint32_t *start = frep_malloc((n + 1) * sizeof *start);
-    par = frep_malloc(n * sizeof *par);
-    cnt = frep_calloc(n, sizeof *cnt);
-    if (!start || !par || !cnt) {
-        frep_free(start);
-        goto oom;
-    }
-    for (size_t i = 0; i < n; i++)
-        if (i == 0 || cp[i].cell != cp[i - 1].cell) start[ncells++] = (uint32_t)i;
-    start[ncells] = (uint32_t)n;
+}
+
+/* Union-find over the occupied cells (cell j spans cp[start[j] .. start[j + 1])): each
+ * cell joins its 8 neighbours, across the seam of a periodic axis. */
+static void join_neighbours(const pdomain *D, const cellpt *cp, const uint32_t *start,
+                            size_t ncells, uint32_t *par)
+{
+    const uint64_t *ncell = D->ncell;
     for (size_t j = 0; j < ncells; j++) par[j] = (uint32_t)j;
     for (size_t j = 0; j < ncells; j++) {
         uint64_t id = cp[start[j]].cell, cu = id / ncell[1], cv = id % ncell[1];
@@ -586,11 +600,11 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
                 if (!du && !dv) continue;
                 int64_t nu = (int64_t)cu + du, nv = (int64_t)cv + dv;
                 if (nu < 0 || nu >= (int64_t)ncell[0]) {
-                    if (period[0] <= 0) continue;
+                    if (D->period[0] <= 0) continue;
                     nu = (nu + (int64_t)ncell[0]) % (int64_t)ncell[0];
                 }
                 if (nv < 0 || nv >= (int64_t)ncell[1]) {
-                    if (period[1] <= 0) continue;
+                    if (D->period[1] <= 0) continue;
                     nv = (nv + (int64_t)ncell[1]) % (int64_t)ncell[1];
                 }
                 uint64_t nid = (uint64_t)nu * ncell[1] + (uint64_t)nv;
@@ -607,35 +621,58 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
                 }
             }
     }
+}
+
+/* The component of most points (the first of equals); keep[pt] marks its points. */
+static void mark_largest(const cellpt *cp, const uint32_t *start, size_t ncells,
+                         uint32_t *par, uint32_t *cnt, unsigned char *keep)
+{
     for (size_t j = 0; j < ncells; j++) cnt[uf_find(par, (uint32_t)j)] += start[j + 1] - start[j];
     uint32_t best = 0;
     for (size_t j = 1; j < ncells; j++)
         if (cnt[j] > cnt[best]) best = (uint32_t)j;
-    /* Keep the inliers of the best component, in their original order. */
-    unsigned char *keep = frep_calloc(n, 1);
-    if (!keep) {
-        frep_free(start);
-        goto oom;
-    }
     for (size_t j = 0; j < ncells; j++)
         if (uf_find(par, (uint32_t)j) == best)
             for (uint32_t i = start[j]; i < start[j + 1]; i++) keep[cp[i].pt] = 1;
-    size_t m = 0;
-    for (size_t i = 0; i < n; i++)
-        if (keep[i]) idx[m++] = idx[i];
-    frep_free(keep);
+}
+
+/* Keep only the inliers (idx[0..n)) in the largest 8-connected patch of a bitmap with
+ * cells of size beta over the parameter domain of q. Returns the new count (n, all
+ * kept, when out of memory). */
+static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *idx, size_t n,
+                                double beta)
+{
+    if (n == 0) return 0;
+    pdomain D;
+    D.uv = frep_malloc(2 * n * sizeof *D.uv);
+    cellpt *cp = frep_malloc(n * sizeof *cp);
+    uint32_t *start = frep_malloc((n + 1) * sizeof *start);
+    uint32_t *par = frep_malloc(n * sizeof *par);
+    uint32_t *cnt = frep_calloc(n, sizeof *cnt);
+    unsigned char *keep = frep_calloc(n, 1);
+    size_t m = n; /* out of memory: keep everything rather than fail */
+    if (D.uv && cp && start && par && cnt && keep) {
+        domain_coords(q, c, idx, n, &D);
+        domain_grid(&D, n, beta);
+        domain_cells(&D, n, cp);
+        size_t ncells = 0;
+        for (size_t i = 0; i < n; i++)
+            if (i == 0 || cp[i].cell != cp[i - 1].cell) start[ncells++] = (uint32_t)i;
+        start[ncells] = (uint32_t)n;
+        join_neighbours(&D, cp, start, ncells, par);
+        mark_largest(cp, start, ncells, par, cnt, keep);
+        /* The inliers of the best component, in their original order. */
+        m = 0;
+        for (size_t i = 0; i < n; i++)
+            if (keep[i]) idx[m++] = idx[i];
+    }
+    frep_free(D.uv);
+    frep_free(cp);
     frep_free(start);
-    frep_free(uv);
-    frep_free(cp);
     frep_free(par);
     frep_free(cnt);
+    frep_free(keep);
     return m;
-oom:
-    frep_free(uv);
-    frep_free(cp);
-    frep_free(par);
-    frep_free(cnt);
-    return n; /* out of memory: keep everything rather than fail */
 }
 
 /* ---- least-squares refit ----------------------------------------------------- */
@@ -1074,34 +1111,39 @@ static int verify(const prim *q, const sample *s, int nv, double eps, double cos
     return 1;
 }
 
+/* Do a and b, of one type, have parameters within tol (positions, radii) and deg
+ * degrees (directions, cone angles)? */
+static int shapes_close(const prim *a, const prim *b, double tol, double deg)
+{
+    double cmin = cos(deg * M_PI / 180.0), dp[3];
+    sub(a->p, b->p, dp);
+    switch (a->type) {
+    case PRIM_PLANE:
+        return dot(a->p, b->p) > cmin && fabs(a->r - b->r) < tol;
+    case PRIM_SPHERE:
+        return norm(dp) < tol && fabs(a->r - b->r) < tol;
+    case PRIM_CYLINDER: {
+        double h = dot(dp, b->a), w[3];
+        for (int k = 0; k < 3; k++) w[k] = dp[k] - h * b->a[k];
+        return fabs(dot(a->a, b->a)) > cmin && norm(w) < tol && fabs(a->r - b->r) < tol;
+    }
+    case PRIM_CONE:
+        return norm(dp) < tol && dot(a->a, b->a) > cmin && fabs(a->r - b->r) < deg * M_PI / 180.0;
+    case PRIM_TORUS:
+        return norm(dp) < tol && fabs(dot(a->a, b->a)) > cmin && fabs(a->r - b->r) < tol &&
+               fabs(a->R - b->R) < tol;
+    case PRIM__COUNT:
+        break;
+    }
+    return 0;
+}
+
 /* Same shape within the tolerances (epsilon in position, DUP_DEG in direction)? A
  * candidate like one already pooled adds nothing but scoring work. */
 #define DUP_DEG 2.0
 static int same_shape(const prim *a, const prim *b, double eps)
 {
-    if (a->type != b->type) return 0;
-    double cmin = cos(DUP_DEG * M_PI / 180.0), dp[3];
-    sub(a->p, b->p, dp);
-    switch (a->type) {
-    case PRIM_PLANE:
-        return dot(a->p, b->p) > cmin && fabs(a->r - b->r) < eps;
-    case PRIM_SPHERE:
-        return norm(dp) < eps && fabs(a->r - b->r) < eps;
-    case PRIM_CYLINDER: {
-        double h = dot(dp, b->a), w[3];
-        for (int k = 0; k < 3; k++) w[k] = dp[k] - h * b->a[k];
-        return fabs(dot(a->a, b->a)) > cmin && norm(w) < eps && fabs(a->r - b->r) < eps;
-    }
-    case PRIM_CONE:
-        return norm(dp) < eps && dot(a->a, b->a) > cmin &&
-               fabs(a->r - b->r) < DUP_DEG * M_PI / 180.0;
-    case PRIM_TORUS:
-        return norm(dp) < eps && fabs(dot(a->a, b->a)) > cmin && fabs(a->r - b->r) < eps &&
-               fabs(a->R - b->R) < eps;
-    case PRIM__COUNT:
-        break;
-    }
-    return 0;
+    return a->type == b->type && shapes_close(a, b, eps, DUP_DEG);
 }
 
 static int sane(const prim *q, double rmax)
@@ -1488,28 +1530,7 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
 #define MERGE_DEG 10.0
 static int near_same(const prim *a, const prim *b, double tol)
 {
-    double cmin = cos(MERGE_DEG * M_PI / 180.0), dp[3];
-    sub(a->p, b->p, dp);
-    switch (a->type) {
-    case PRIM_PLANE:
-        return dot(a->p, b->p) > cmin && fabs(a->r - b->r) < tol;
-    case PRIM_SPHERE:
-        return norm(dp) < tol && fabs(a->r - b->r) < tol;
-    case PRIM_CYLINDER: {
-        double h = dot(dp, b->a), w[3];
-        for (int k = 0; k < 3; k++) w[k] = dp[k] - h * b->a[k];
-        return fabs(dot(a->a, b->a)) > cmin && norm(w) < tol && fabs(a->r - b->r) < tol;
-    }
-    case PRIM_CONE:
-        return norm(dp) < tol && dot(a->a, b->a) > cmin &&
-               fabs(a->r - b->r) < MERGE_DEG * M_PI / 180.0;
-    case PRIM_TORUS:
-        return norm(dp) < tol && fabs(dot(a->a, b->a)) > cmin && fabs(a->r - b->r) < tol &&
-               fabs(a->R - b->R) < tol;
-    case PRIM__COUNT:
-        break;
-    }
-    return 0;
+    return shapes_close(a, b, tol, MERGE_DEG);
 }
 
 /* Fold redundant primitives into the ones that explain their points: labels move,
