@@ -275,20 +275,11 @@ static void ransac_progress(void *user, size_t remaining, size_t total, size_t n
     cfg->progress(cfg->user, "detect", total - remaining, total, nprims);
 }
 
-int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, frep_error *err)
+/* The settings the run uses, as reported in res: the configured ones, or defaults
+ * scaled to the cloud (its diagonal, point spacing and count). */
+static void scaled_defaults(const frep_cloud *c, const segment_config *cfg, double diag,
+                            segment_result *res)
 {
-    memset(res, 0, sizeof *res);
-    frep_error_init(err);
-    if (c->n < RANSAC_MIN_CLOUD) {
-        frep_error_set(err, FREP_EINPUT, "too few points: %zu (segmentation needs at least %d)", c->n,
-                                     RANSAC_MIN_CLOUD);
-        return -1;
-    }
-    double diag = cloud_diagonal(c);
-    if (!(diag > 0)) {
-        frep_error_set(err, FREP_EINPUT, "all %zu points are the same point: nothing to segment", c->n);
-        return -1;
-    }
     res->diagonal = diag;
     res->epsilon = cfg->epsilon > 0 ? cfg->epsilon : SEGMENT_DEFAULT_EPSILON * diag;
     if (cfg->cluster > 0) {
@@ -307,78 +298,100 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, f
     if (ms < SEGMENT_MIN_POINTS_FLOOR) ms = SEGMENT_MIN_POINTS_FLOOR;
     if (cfg->min_points_small) ms = cfg->min_points_small;
     res->min_points_small = ms < res->min_points ? ms : res->min_points;
+}
 
+/* Normals: those of the file, normalized, unless there are none or some are zero;
+ * then all are estimated. */
+static int ensure_normals(frep_cloud *c, const segment_config *cfg, segment_result *res,
+                          frep_error *err)
+{
     if (c->has_normals) res->zero_normals = cloud_normalize_normals(c);
-    if (!c->has_normals || res->zero_normals > 0) {
-        if (cfg->progress) cfg->progress(cfg->user, "normals", 0, c->n, 0);
-        if (normals_estimate(c, cfg->knn, cfg->nthreads)) {
-            frep_error_set(err, FREP_ENOMEM, "out of memory estimating normals");
-            return -1;
-        }
-        res->normals_estimated = 1;
-    }
+    if (c->has_normals && res->zero_normals == 0) return 0;
+    if (cfg->progress) cfg->progress(cfg->user, "normals", 0, c->n, 0);
+    if (normals_estimate(c, cfg->knn, cfg->nthreads))
+        return frep_error_set(err, FREP_ENOMEM, "out of memory estimating normals");
+    res->normals_estimated = 1;
+    return 0;
+}
 
-    ransac_config rc;
-    memset(&rc, 0, sizeof rc);
-    rc.epsilon = res->epsilon;
-    rc.cos_normal = cos(res->normal_deg * M_PI / 180.0);
-    rc.cluster = res->cluster;
-    rc.min_points = res->min_points;
-    rc.min_points_small = res->min_points_small;
-    rc.probability = res->probability;
-    rc.types = cfg->types ? cfg->types : (1u << PRIM__COUNT) - 1;
-    rc.seed = cfg->seed;
-    rc.nthreads = cfg->nthreads;
-    rc.interrupt = cfg->interrupt;
+/* The detection settings from the run's. */
+static void detect_config(const segment_config *cfg, const segment_result *res,
+                          ransac_config *rc)
+{
+    memset(rc, 0, sizeof *rc);
+    rc->epsilon = res->epsilon;
+    rc->cos_normal = cos(res->normal_deg * M_PI / 180.0);
+    rc->cluster = res->cluster;
+    rc->min_points = res->min_points;
+    rc->min_points_small = res->min_points_small;
+    rc->probability = res->probability;
+    rc->types = cfg->types ? cfg->types : (1u << PRIM__COUNT) - 1;
+    rc->seed = cfg->seed;
+    rc->nthreads = cfg->nthreads;
+    rc->interrupt = cfg->interrupt;
     if (cfg->progress) {
-        rc.progress = ransac_progress;
-        rc.user = (void *)(uintptr_t)cfg;
+        rc->progress = ransac_progress;
+        rc->user = (void *)(uintptr_t)cfg;
     }
+}
+
+/* The oriented box of every fitted primitive from its inliers (by label, a counting
+ * sort). Returns -1 when out of memory. */
+static int fit_boxes(const frep_cloud *c, prim *prims, size_t np, const int32_t *label)
+{
+    size_t *start = frep_calloc(np + 2, sizeof *start);
+    uint32_t *order = frep_malloc(c->n * sizeof *order);
+    size_t *fill = frep_calloc(np + 1, sizeof *fill);
+    int rc = -1;
+    if (start && order && fill) {
+        for (size_t i = 0; i < c->n; i++)
+            if (label[i] >= 0) start[label[i] + 1]++;
+        for (size_t j = 0; j < np; j++) start[j + 1] += start[j];
+        for (size_t i = 0; i < c->n; i++)
+            if (label[i] >= 0) order[start[label[i]] + fill[label[i]]++] = (uint32_t)i;
+        for (size_t j = 0; j < np; j++)
+            segment_fit_obb(&prims[j], c, order + start[j], start[j + 1] - start[j]);
+        rc = 0;
+    }
+    frep_free(fill);
+    frep_free(start);
+    frep_free(order);
+    return rc;
+}
+
+int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, frep_error *err)
+{
+    memset(res, 0, sizeof *res);
+    frep_error_init(err);
+    if (c->n < RANSAC_MIN_CLOUD)
+        return frep_error_set(err, FREP_EINPUT,
+                              "too few points: %zu (segmentation needs at least %d)", c->n,
+                              RANSAC_MIN_CLOUD);
+    double diag = cloud_diagonal(c);
+    if (!(diag > 0))
+        return frep_error_set(err, FREP_EINPUT,
+                              "all %zu points are the same point: nothing to segment", c->n);
+    scaled_defaults(c, cfg, diag, res);
+    if (ensure_normals(c, cfg, res, err)) return -1;
+    ransac_config rc;
+    detect_config(cfg, res, &rc);
     ransac_result rr;
     if (ransac_detect(c, &rc, &rr, err)) return -1;
     res->draws = rr.draws;
     res->interrupted = rr.interrupted;
     res->label = rr.label;
-    res->nfitted = rr.nprims;
-    for (size_t i = 0; i < c->n; i++) res->unassigned += rr.label[i] < 0;
-
-    /* Boxes of every fitted primitive from its inliers (counting sort by label). */
-    size_t *start = frep_calloc(rr.nprims + 2, sizeof *start);
-    uint32_t *order = frep_malloc(c->n * sizeof *order);
-    if (!start || !order) {
-        frep_free(start);
-        frep_free(order);
-        frep_free(rr.prims);
-        frep_error_set(err, FREP_ENOMEM, "out of memory");
-        return -1;
-    }
-    for (size_t i = 0; i < c->n; i++)
-        if (rr.label[i] >= 0) start[rr.label[i] + 1]++;
-    for (size_t j = 0; j < rr.nprims; j++) start[j + 1] += start[j];
-    size_t *fill = frep_calloc(rr.nprims + 1, sizeof *fill);
-    if (!fill) {
-        frep_free(start);
-        frep_free(order);
-        frep_free(rr.prims);
-        frep_error_set(err, FREP_ENOMEM, "out of memory");
-        return -1;
-    }
-    for (size_t i = 0; i < c->n; i++)
-        if (rr.label[i] >= 0) order[start[rr.label[i]] + fill[rr.label[i]]++] = (uint32_t)i;
-    for (size_t j = 0; j < rr.nprims; j++)
-        segment_fit_obb(&rr.prims[j], c, order + start[j], start[j + 1] - start[j]);
-    frep_free(fill);
-    frep_free(start);
-    frep_free(order);
-
     res->prims = rr.prims;
-    res->nprims = rr.nprims;
+    res->nprims = res->nfitted = rr.nprims;
+    for (size_t i = 0; i < c->n; i++) res->unassigned += rr.label[i] < 0;
+    if (fit_boxes(c, res->prims, res->nprims, res->label)) {
+        segment_result_free(res);
+        return frep_error_nomem(err);
+    }
     if (cfg->separating) {
         size_t nn = segment_add_separating(&res->prims, res->nprims, res->epsilon);
         if (nn == (size_t)-1) {
-            frep_error_set(err, FREP_ENOMEM, "out of memory");
             segment_result_free(res);
-            return -1;
+            return frep_error_nomem(err);
         }
         res->nprims = nn;
     }
