@@ -775,68 +775,82 @@ static double cost_of(const prim *q, const double *px, size_t n)
     return s;
 }
 
-/* The least-squares fit of q to the m points px (3 coordinates each); idx[0..n) are
- * the inliers, whose normals orient a plane. */
-static int refit_points(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
-                        const double *px, size_t m)
+/* The least-squares plane through the m points px: the covariance's smallest-eigenvalue
+ * eigenvector, oriented as the inliers' (idx[0..n)) summed normals when they have a
+ * clear direction (a plane that replaces a curved shape has none of its own), else as
+ * q was. */
+static int refit_plane(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
+                       const double *px, size_t m)
 {
-    int rc = -1;
-    if (q->type == PRIM_PLANE) {
-        double mean[3] = {0, 0, 0}, cov[9] = {0};
-        for (size_t j = 0; j < m; j++)
-            for (int k = 0; k < 3; k++) mean[k] += px[3 * j + k] / (double)m;
-        for (size_t j = 0; j < m; j++)
-            for (int a = 0; a < 3; a++)
-                for (int b = 0; b < 3; b++)
-                    cov[3 * a + b] += (px[3 * j + a] - mean[a]) * (px[3 * j + b] - mean[b]);
-        double ev[3], vec[9];
-        normals_sym3_eig(cov, ev, vec);
-        double nrm[3] = {vec[0], vec[1], vec[2]};
-        /* Outward by the inliers' own normals when there are any (a plane that
-         * replaces a curved shape has no orientation of its own), else as before. */
-        double ref[3] = {q->p[0], q->p[1], q->p[2]};
-        if (c->has_normals) {
-            double sn[3] = {0, 0, 0};
-            for (size_t j = 0; j < n; j++) {
-                sn[0] += c->nx[idx[j]];
-                sn[1] += c->ny[idx[j]];
-                sn[2] += c->nz[idx[j]];
-            }
-            if (fabs(dot(sn, nrm)) > 1e-9 * (double)n) memcpy(ref, sn, sizeof ref);
+    double mean[3] = {0, 0, 0}, cov[9] = {0};
+    for (size_t j = 0; j < m; j++)
+        for (int k = 0; k < 3; k++) mean[k] += px[3 * j + k] / (double)m;
+    for (size_t j = 0; j < m; j++)
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++)
+                cov[3 * a + b] += (px[3 * j + a] - mean[a]) * (px[3 * j + b] - mean[b]);
+    double ev[3], vec[9];
+    normals_sym3_eig(cov, ev, vec);
+    double nrm[3] = {vec[0], vec[1], vec[2]};
+    double ref[3] = {q->p[0], q->p[1], q->p[2]};
+    if (c->has_normals) {
+        double sn[3] = {0, 0, 0};
+        for (size_t j = 0; j < n; j++) {
+            sn[0] += c->nx[idx[j]];
+            sn[1] += c->ny[idx[j]];
+            sn[2] += c->nz[idx[j]];
         }
-        if (dot(nrm, ref) < 0) for (int k = 0; k < 3; k++) nrm[k] = -nrm[k];
-        memcpy(q->p, nrm, sizeof nrm);
-        q->r = dot(nrm, mean);
-        return 0;
+        if (fabs(dot(sn, nrm)) > 1e-9 * (double)n) memcpy(ref, sn, sizeof ref);
     }
+    if (dot(nrm, ref) < 0) for (int k = 0; k < 3; k++) nrm[k] = -nrm[k];
+    memcpy(q->p, nrm, sizeof nrm);
+    q->r = dot(nrm, mean);
+    return 0;
+}
+
+/* J^T J and J^T f of the np parameters v of q over the m points px, with
+ * forward-difference Jacobians (steps 1e-7 of each parameter's size; positions count
+ * the points' extent, scale). */
+static void lm_normal_equations(const prim *q, const double *v, int np, const double *px,
+                                size_t m, double scale, double *JtJ, double *Jtr)
+{
+    double h[8], vt[8];
+    prim tq[8];
+    memset(JtJ, 0, 64 * sizeof *JtJ);
+    memset(Jtr, 0, 8 * sizeof *Jtr);
+    for (int k = 0; k < np; k++) {
+        h[k] = 1e-7 * (fabs(v[k]) + (k < 3 ? scale : 1.0));
+        memcpy(vt, v, sizeof vt);
+        vt[k] += h[k];
+        tq[k] = *q;
+        unpack(&tq[k], vt);
+    }
+    for (size_t j = 0; j < m; j++) {
+        double f = prim_eval(q, px + 3 * j, NULL), J[8];
+        for (int k = 0; k < np; k++) J[k] = (prim_eval(&tq[k], px + 3 * j, NULL) - f) / h[k];
+        for (int a = 0; a < np; a++) {
+            Jtr[a] += J[a] * f;
+            for (int b = 0; b < np; b++) JtJ[a * np + b] += J[a] * J[b];
+        }
+    }
+}
+
+/* The Levenberg-Marquardt fit of q's parameters to the m points px (Euclidean
+ * distance): damping from 1e-3, times 10 after a failed step, a tenth after a good one. */
+static int refit_lm(prim *q, const double *px, size_t m)
+{
     int np = npar(q->type);
     double v[8], vt[8], JtJ[64], Jtr[8], A[64], step[8];
     pack(q, v);
     double scale = 0;
-    for (size_t j = 0; j < m; j++) scale = fmax(scale, fabs(px[3 * j]) + fabs(px[3 * j + 1]) + fabs(px[3 * j + 2]));
+    for (size_t j = 0; j < m; j++)
+        scale = fmax(scale, fabs(px[3 * j]) + fabs(px[3 * j + 1]) + fabs(px[3 * j + 2]));
     scale = fmax(scale, 1e-12);
     double cost = cost_of(q, px, m), lambda = 1e-3;
     prim t = *q;
+    int rc = -1;
     for (int it = 0; it < LM_MAX_ITER; it++) {
-        memset(JtJ, 0, sizeof JtJ);
-        memset(Jtr, 0, sizeof Jtr);
-        double h[8];
-        prim tq[8];
-        for (int k = 0; k < np; k++) {
-            h[k] = 1e-7 * (fabs(v[k]) + (k < 3 ? scale : 1.0));
-            memcpy(vt, v, sizeof vt);
-            vt[k] += h[k];
-            tq[k] = *q;
-            unpack(&tq[k], vt);
-        }
-        for (size_t j = 0; j < m; j++) {
-            double f = prim_eval(q, px + 3 * j, NULL), J[8];
-            for (int k = 0; k < np; k++) J[k] = (prim_eval(&tq[k], px + 3 * j, NULL) - f) / h[k];
-            for (int a = 0; a < np; a++) {
-                Jtr[a] += J[a] * f;
-                for (int b = 0; b < np; b++) JtJ[a * np + b] += J[a] * J[b];
-            }
-        }
+        lm_normal_equations(q, v, np, px, m, scale, JtJ, Jtr);
         int improved = 0;
         for (int tries = 0; tries < LM_TRIES && !improved; tries++) {
             memcpy(A, JtJ, sizeof A);
@@ -867,6 +881,15 @@ static int refit_points(prim *q, const frep_cloud *c, const uint32_t *idx, size_
         if (!improved) break;
     }
     return rc == 0 || cost >= 0 ? 0 : -1;
+}
+
+/* The least-squares fit of q to the m points px (3 coordinates each); idx[0..n) are
+ * the inliers, whose normals orient a plane. */
+static int refit_points(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
+                        const double *px, size_t m)
+{
+    if (q->type == PRIM_PLANE) return refit_plane(q, c, idx, n, px, m);
+    return refit_lm(q, px, m);
 }
 
 /* Points farther than TRIM_SIGMAS robust standard deviations (1.4826 median |f|)
@@ -1410,25 +1433,13 @@ static int cmp_mode_t(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned char *flag,
-                         uint32_t *inl)
+/* The dominant normal among q's m inliers: the centre (of MODE_CENTRES evenly spaced
+ * ones) with the most of MODE_VOTERS voters within MODE_NORMAL_DEG; its inlier index,
+ * with its vote count in *count. */
+static size_t dominant_normal(const frep_cloud *c, const uint32_t *inl, size_t m, double cosm,
+                              size_t *count)
 {
-    const frep_cloud *c = d->c;
-    if (m < min_pts || m < RANSAC_MIN_CLOUD || !c->has_normals ||
-        !(d->cfg->types & (1u << PRIM_PLANE)))
-        return m;
-    double med0 = median_abs(q, c, inl, m), band0 = d->band;
-    /* Exact already (clean data): nothing to separate. */
-    if (!(med0 > MODE_EXACT * d->cfg->epsilon)) return m;
-    double cosm = cos(MODE_NORMAL_DEG * M_PI / 180.0);
     size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS, ncen = m < MODE_CENTRES ? m : MODE_CENTRES;
-    double *tv = frep_malloc(2 * m * sizeof *tv);
-    uint32_t *slab = frep_malloc(m * sizeof *slab);
-    if (!tv || !slab) {
-        frep_free(tv);
-        frep_free(slab);
-        return m;
-    }
     size_t best_cnt = 0, best_j = 0;
     for (size_t k = 0; k < ncen; k++) {
         size_t j = (size_t)((double)k * (double)m / (double)ncen);
@@ -1445,68 +1456,108 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
             best_j = j;
         }
     }
-    size_t m_out = m;
+    *count = best_cnt;
+    return best_j;
+}
+
+/* The inliers whose normal is within MODE_NORMAL_DEG of nc (either way): their indices
+ * into tv[2 j + 1], their summed normal (oriented as nc) into ns. Returns the count. */
+static size_t dominant_group(const frep_cloud *c, const uint32_t *inl, size_t m,
+                             const double nc[3], double cosm, double ns[3], double *tv)
+{
+    size_t nt = 0;
+    for (size_t j = 0; j < m; j++) {
+        double nj[3];
+        normal(c, inl[j], nj);
+        double cs = dot(nj, nc);
+        if (fabs(cs) < cosm) continue;
+        for (int k = 0; k < 3; k++) ns[k] += cs < 0 ? -nj[k] : nj[k];
+        tv[2 * nt + 1] = (double)inl[j];
+        nt++;
+    }
+    return nt;
+}
+
+/* The densest slab, w wide, of the group's offsets along unit ns: its points into
+ * slab (returns their count) and the plane through its middle point into alt. */
+static size_t densest_slab(const frep_cloud *c, double *tv, size_t nt, const double ns[3],
+                           double w, uint32_t *slab, prim *alt)
+{
+    for (size_t j = 0; j < nt; j++) {
+        double x[3];
+        point(c, (size_t)tv[2 * j + 1], x);
+        tv[2 * j] = dot(ns, x);
+    }
+    qsort(tv, nt, 2 * sizeof *tv, cmp_mode_t);
+    size_t lo = 0, blo = 0, bhi = 0;
+    for (size_t hi = 0; hi < nt; hi++) {
+        while (tv[2 * hi] - tv[2 * lo] > w) lo++;
+        if (hi - lo > bhi - blo) {
+            blo = lo;
+            bhi = hi;
+        }
+    }
+    size_t ns_pts = 0;
+    for (size_t j = blo; j <= bhi; j++) slab[ns_pts++] = (uint32_t)tv[2 * j + 1];
+    memset(alt, 0, sizeof *alt);
+    alt->type = PRIM_PLANE;
+    memcpy(alt->p, ns, 3 * sizeof *ns);
+    alt->r = tv[2 * ((blo + bhi) / 2)];
+    return ns_pts;
+}
+
+/* The plane alt refitted on the slab, extracted as a fresh shape (at epsilon, then at
+ * its own measured noise: q's band may have been widened by the mixture itself): its
+ * support (inliers in inl) when its median distance is below MODE_GAIN med0, else 0. */
+static size_t try_face(det *d, prim *alt, const uint32_t *slab, size_t ns_pts, size_t min_pts,
+                       double med0, unsigned char *flag, uint32_t *inl)
+{
+    if (ns_pts < 3 || ransac_refit(alt, d->c, slab, ns_pts, REFIT_MAX_POINTS) != 0) return 0;
+    d->band = d->cfg->epsilon;
+    double nb = noise_band(d, alt, flag);
+    if (nb > d->band * NOISE_BAND_GROWTH) d->band = nb;
+    size_t ma = support_of(d, alt, flag, inl);
+    double meda = ma >= min_pts ? median_abs(alt, d->c, inl, ma) : -1;
+    return meda >= 0 && meda < MODE_GAIN * med0 ? ma : 0;
+}
+
+static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned char *flag,
+                         uint32_t *inl)
+{
+    const frep_cloud *c = d->c;
+    if (m < min_pts || m < RANSAC_MIN_CLOUD || !c->has_normals ||
+        !(d->cfg->types & (1u << PRIM_PLANE)))
+        return m;
+    double med0 = median_abs(q, c, inl, m), band0 = d->band;
+    /* Exact already (clean data): nothing to separate. */
+    if (!(med0 > MODE_EXACT * d->cfg->epsilon)) return m;
+    double cosm = cos(MODE_NORMAL_DEG * M_PI / 180.0);
+    size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS;
+    double *tv = frep_malloc(2 * m * sizeof *tv);
+    uint32_t *slab = frep_malloc(m * sizeof *slab);
+    if (!tv || !slab) {
+        frep_free(tv);
+        frep_free(slab);
+        return m;
+    }
+    size_t best_cnt, best_j = dominant_normal(c, inl, m, cosm, &best_cnt);
     double nc[3], ns[3] = {0, 0, 0};
     normal(c, inl[best_j], nc);
-    size_t nt = 0;
-    if (q->type == PRIM_PLANE || (double)best_cnt >= MODE_FLAT * (double)nv) {
-        for (size_t j = 0; j < m; j++) {
-            double nj[3];
-            normal(c, inl[j], nj);
-            double cs = dot(nj, nc);
-            if (fabs(cs) < cosm) continue;
-            for (int k = 0; k < 3; k++) ns[k] += cs < 0 ? -nj[k] : nj[k];
-            tv[2 * nt + 1] = (double)inl[j];
-            nt++;
-        }
-    }
+    size_t nt = 0, ma = 0;
+    if (q->type == PRIM_PLANE || (double)best_cnt >= MODE_FLAT * (double)nv)
+        nt = dominant_group(c, inl, m, nc, cosm, ns, tv);
     if (nt >= RANSAC_MIN_CLOUD && normalize(ns) == 0) {
-        /* Offsets along the mean normal of the dominant group; densest slab. */
-        for (size_t j = 0; j < nt; j++) {
-            double x[3];
-            point(c, (size_t)tv[2 * j + 1], x);
-            tv[2 * j] = dot(ns, x);
-        }
-        qsort(tv, nt, 2 * sizeof *tv, cmp_mode_t);
-        double w = MODE_SLAB * band0;
-        size_t lo = 0, blo = 0, bhi = 0;
-        for (size_t hi = 0; hi < nt; hi++) {
-            while (tv[2 * hi] - tv[2 * lo] > w) lo++;
-            if (hi - lo > bhi - blo) {
-                blo = lo;
-                bhi = hi;
-            }
-        }
-        size_t ns_pts = 0;
-        for (size_t j = blo; j <= bhi; j++) slab[ns_pts++] = (uint32_t)tv[2 * j + 1];
         prim alt;
-        memset(&alt, 0, sizeof alt);
-        alt.type = PRIM_PLANE;
-        memcpy(alt.p, ns, sizeof ns);
-        alt.r = tv[2 * ((blo + bhi) / 2)];
-        if (ns_pts >= 3 && ransac_refit(&alt, c, slab, ns_pts, REFIT_MAX_POINTS) == 0) {
-            /* Extracted as a fresh shape: at epsilon, then at its own measured noise
-             * (q's band may have been widened by the mixture itself). */
-            d->band = d->cfg->epsilon;
-            double nb = noise_band(d, &alt, flag);
-            if (nb > d->band * NOISE_BAND_GROWTH) d->band = nb;
-            size_t ma = support_of(d, &alt, flag, inl);
-            double meda = ma >= min_pts ? median_abs(&alt, c, inl, ma) : -1;
-            if (meda >= 0 && meda < MODE_GAIN * med0) {
-                *q = alt;
-                m_out = ma;
-                frep_free(tv);
-                frep_free(slab);
-                return m_out;
-            }
-        }
+        size_t ns_pts = densest_slab(c, tv, nt, ns, MODE_SLAB * band0, slab, &alt);
+        ma = try_face(d, &alt, slab, ns_pts, min_pts, med0, flag, inl);
+        if (ma > 0) *q = alt;
     }
-    /* Keep q: its inliers back. */
-    d->band = band0;
-    m_out = support_of(d, q, flag, inl);
     frep_free(tv);
     frep_free(slab);
-    return m_out;
+    if (ma > 0) return ma;
+    /* Keep q: its inliers back. */
+    d->band = band0;
+    return support_of(d, q, flag, inl);
 }
 
 /* A primitive is redundant when at least MERGE_FRACTION of its inliers are inliers of
@@ -1533,90 +1584,131 @@ static int near_same(const prim *a, const prim *b, double tol)
     return shapes_close(a, b, tol, MERGE_DEG);
 }
 
+/* The inliers of each primitive, contiguous: those of j are order[start[j] ..
+ * start[j + 1]) (a counting sort by label). */
+static void inliers_by_label(const ransac_result *res, size_t n, size_t *start, uint32_t *order)
+{
+    size_t np = res->nprims;
+    for (size_t i = 0; i < n; i++)
+        if (res->label[i] >= 0) start[res->label[i] + 1]++;
+    for (size_t j = 0; j < np; j++) start[j + 1] += start[j];
+    for (size_t i = 0; i < n; i++)
+        if (res->label[i] >= 0) order[start[res->label[i]]++] = (uint32_t)i;
+    for (size_t j = np; j > 0; j--) start[j] = start[j - 1];
+    start[0] = 0;
+}
+
+/* The merge state of one pass: the inliers by label and a scratch list. */
+typedef struct merger {
+    det *d;
+    ransac_result *res;
+    double *bands;
+    size_t *start;
+    uint32_t *order;
+    uint32_t *buf;       /* the union: Q's inliers, then P's */
+} merger;
+
+/* Does primitive pi fold into the larger qi (see MERGE_FRACTION)? Then *q2 is the
+ * shape of the union (buf[0 .. mu)) and *refitted says whether it was refitted. */
+static int mergeable(merger *g, size_t pi, size_t qi, prim *q2, int *refitted)
+{
+    det *d = g->d;
+    const frep_cloud *c = d->c;
+    const prim *P = &g->res->prims[pi], *Q = &g->res->prims[qi];
+    size_t mp = g->start[pi + 1] - g->start[pi], mq = g->start[qi + 1] - g->start[qi];
+    double band = MERGE_BAND_SLACK * fmax(g->bands[qi], g->bands[pi]);
+    size_t hit = 0, mu = mp + mq;
+    for (size_t j = g->start[pi]; j < g->start[pi + 1]; j++)
+        hit += compatible(Q, c, g->order[j], band, d->cfg->cos_normal) != 0;
+    memcpy(g->buf, g->order + g->start[qi], mq * sizeof *g->buf);
+    memcpy(g->buf + mq, g->order + g->start[pi], mp * sizeof *g->buf);
+    *q2 = *Q;
+    *refitted = ransac_refit(q2, c, g->buf, mu, REFIT_MAX_POINTS) == 0 && sane(q2, d->rmax);
+    if ((double)hit < MERGE_FRACTION * (double)mp) {
+        /* Two pieces of one shape fitted apart (a noisy torus split into inner and
+         * outer halves): one shape of the same type explains both once refitted on the
+         * union. */
+        if (P->type != Q->type || !*refitted || !near_same(P, Q, MERGE_NEAR * band)) return 0;
+        size_t hu = 0;
+        for (size_t j = 0; j < mu; j++)
+            hu += compatible(q2, c, g->buf[j], band, d->cfg->cos_normal) != 0;
+        if ((double)hu < MERGE_FRACTION * (double)mu) return 0;
+    }
+    /* The union must be about as tight as its parts: two walls of a thin shell, 2
+     * epsilon apart, are both within the slack band of the plane between them, which
+     * explains neither. */
+    if (*refitted && rms_of(q2, c, g->buf, mu) > MERGE_RMS_GROWTH * fmax(P->rms, Q->rms) +
+                                                   MERGE_RMS_SLACK * d->cfg->epsilon)
+        return 0;
+    /* Touching: one patch in Q's parameter domain. */
+    size_t kept = largest_component(*refitted ? q2 : Q, c, g->buf, mu,
+                                    fmax(d->cfg->cluster, band));
+    return (double)kept >= MERGE_CONNECTED * (double)mu;
+}
+
+/* Fold pi into qi: qi becomes q2 (when refitted) with the union's support and RMS, the
+ * labels of pi move to qi, and pi leaves the list (later ones shift, labels follow). */
+static void fold(merger *g, size_t pi, size_t qi, const prim *q2, int refitted)
+{
+    ransac_result *res = g->res;
+    const frep_cloud *c = g->d->c;
+    size_t np = res->nprims, n = c->n;
+    size_t mp = g->start[pi + 1] - g->start[pi], mq = g->start[qi + 1] - g->start[qi];
+    size_t mu = mp + mq;
+    memcpy(g->buf, g->order + g->start[qi], mq * sizeof *g->buf);
+    memcpy(g->buf + mq, g->order + g->start[pi], mp * sizeof *g->buf);
+    if (refitted) res->prims[qi] = *q2;
+    res->prims[qi].support = mu;
+    res->prims[qi].rms = rms_of(&res->prims[qi], c, g->buf, mu);
+    for (size_t j = g->start[pi]; j < g->start[pi + 1]; j++)
+        res->label[g->order[j]] = (int32_t)qi;
+    for (size_t k = pi; k + 1 < np; k++) {
+        res->prims[k] = res->prims[k + 1];
+        g->bands[k] = g->bands[k + 1];
+    }
+    for (size_t i = 0; i < n; i++)
+        if (res->label[i] > (int32_t)pi) res->label[i]--;
+    res->nprims--;
+}
+
+/* One pass: the first pair (pi into a larger qi) that merges is folded. Returns 1 when
+ * one was. */
+static int merge_pass(merger *g)
+{
+    size_t np = g->res->nprims;
+    for (size_t pi = 0; pi < np; pi++) {
+        size_t mp = g->start[pi + 1] - g->start[pi];
+        for (size_t qi = 0; qi < np; qi++) {
+            size_t mq = g->start[qi + 1] - g->start[qi];
+            if (qi == pi || mq < mp || (mq == mp && qi > pi)) continue;
+            prim q2;
+            int refitted;
+            if (!mergeable(g, pi, qi, &q2, &refitted)) continue;
+            fold(g, pi, qi, &q2, refitted);
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* Fold redundant primitives into the ones that explain their points: labels move,
  * the larger primitive is refitted on the union, and the list is compacted. Every
  * fold removes a primitive, so the loop ends. Out of memory: nothing is merged. */
 static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t *buf)
 {
-    const frep_cloud *c = d->c;
-    size_t n = c->n;
+    size_t n = d->c->n;
     for (int changed = 1; changed && res->nprims > 1;) {
-        changed = 0;
-        size_t np = res->nprims;
-        /* Inliers of each primitive, contiguous (counting sort by label). */
-        size_t *start = frep_calloc(np + 1, sizeof *start);
-        uint32_t *order = frep_malloc((n + 1) * sizeof *order);
-        if (!start || !order) {
-            frep_free(start);
-            frep_free(order);
+        merger g = {d, res, bands, frep_calloc(res->nprims + 1, sizeof(size_t)),
+                    frep_malloc((n + 1) * sizeof(uint32_t)), buf};
+        if (!g.start || !g.order) {
+            frep_free(g.start);
+            frep_free(g.order);
             return;
         }
-        for (size_t i = 0; i < n; i++)
-            if (res->label[i] >= 0) start[res->label[i] + 1]++;
-        for (size_t j = 0; j < np; j++) start[j + 1] += start[j];
-        for (size_t i = 0; i < n; i++)
-            if (res->label[i] >= 0) order[start[res->label[i]]++] = (uint32_t)i;
-        for (size_t j = np; j > 0; j--) start[j] = start[j - 1];
-        start[0] = 0;
-        for (size_t pi = 0; pi < np && !changed; pi++) {
-            size_t mp = start[pi + 1] - start[pi];
-            for (size_t qi = 0; qi < np && !changed; qi++) {
-                const prim *Q = &res->prims[qi];
-                size_t mq = start[qi + 1] - start[qi];
-                if (qi == pi || mq < mp || (mq == mp && qi > pi)) continue;
-                double band = MERGE_BAND_SLACK * fmax(bands[qi], bands[pi]);
-                size_t hit = 0, mu = mp + mq;
-                for (size_t j = start[pi]; j < start[pi + 1]; j++)
-                    hit += compatible(Q, c, order[j], band, d->cfg->cos_normal) != 0;
-                memcpy(buf, order + start[qi], mq * sizeof *buf);
-                memcpy(buf + mq, order + start[pi], mp * sizeof *buf);
-                prim q2 = *Q;
-                int refitted = ransac_refit(&q2, c, buf, mu, REFIT_MAX_POINTS) == 0 &&
-                               sane(&q2, d->rmax);
-                if ((double)hit < MERGE_FRACTION * (double)mp) {
-                    /* Two pieces of one shape fitted apart (a noisy torus split into
-                     * inner and outer halves): one shape of the same type explains
-                     * both once refitted on the union. */
-                    if (res->prims[pi].type != Q->type || !refitted ||
-                        !near_same(&res->prims[pi], Q, MERGE_NEAR * band))
-                        continue;
-                    size_t hu = 0;
-                    for (size_t j = 0; j < mu; j++)
-                        hu += compatible(&q2, c, buf[j], band, d->cfg->cos_normal) != 0;
-                    if ((double)hu < MERGE_FRACTION * (double)mu) continue;
-                }
-                /* The union must be about as tight as its parts: two walls of a thin
-                 * shell, 2 epsilon apart, are both within the slack band of the plane
-                 * between them, which explains neither. */
-                if (refitted && rms_of(&q2, c, buf, mu) >
-                                    MERGE_RMS_GROWTH * fmax(res->prims[pi].rms, Q->rms) +
-                                        MERGE_RMS_SLACK * d->cfg->epsilon)
-                    continue;
-                /* Touching: one patch in Q's parameter domain. */
-                size_t kept = largest_component(refitted ? &q2 : Q, c, buf, mu,
-                                                fmax(d->cfg->cluster, band));
-                if ((double)kept < MERGE_CONNECTED * (double)mu) continue;
-                memcpy(buf, order + start[qi], mq * sizeof *buf);
-                memcpy(buf + mq, order + start[pi], mp * sizeof *buf);
-                if (refitted) res->prims[qi] = q2;
-                Q = &res->prims[qi];
-                res->prims[qi].support = mu;
-                res->prims[qi].rms = rms_of(Q, c, buf, mu);
-                for (size_t j = start[pi]; j < start[pi + 1]; j++)
-                    res->label[order[j]] = (int32_t)qi;
-                /* Remove pi, shifting the later ones (labels follow). */
-                for (size_t k = pi; k + 1 < np; k++) {
-                    res->prims[k] = res->prims[k + 1];
-                    bands[k] = bands[k + 1];
-                }
-                for (size_t i = 0; i < n; i++)
-                    if (res->label[i] > (int32_t)pi) res->label[i]--;
-                res->nprims--;
-                changed = 1;
-            }
-        }
-        frep_free(start);
-        frep_free(order);
+        inliers_by_label(res, n, g.start, g.order);
+        changed = merge_pass(&g);
+        frep_free(g.start);
+        frep_free(g.order);
     }
 }
 
