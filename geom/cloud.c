@@ -170,6 +170,30 @@ static const char *parse_number(const char *s, const char *end, double *v)
     return s + k;
 }
 
+/* The numbers of one line [q, eol) (up to '#'): the first 7 into v, the count into
+ * *nv. Returns -1 with err set on a word that is not a number. */
+static int xyz_numbers(const char *name, size_t line, const char *q, const char *eol,
+                       double v[7], int *nv, frep_error *err)
+{
+    *nv = 0;
+    for (;;) {
+        while (q < eol && is_sep(*q)) q++;
+        if (q >= eol || *q == '#') return 0;
+        double t;
+        const char *qe = parse_number(q, eol, &t);
+        if (!qe) {
+            int tl = 0;
+            while (q + tl < eol && !is_sep(q[tl]) && tl < 40) tl++;
+            return frep_error_set(err, FREP_EINPUT, "%s:%zu: '%.*s' is not a number", name, line,
+                                  tl, q);
+        }
+        if (*nv < 7) v[*nv] = t;
+        (*nv)++;
+        q = qe;
+    }
+}
+
+/* An .xyz cloud: 3 or 6 finite numbers a data line, the same count on every one. */
 static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, frep_error *err)
 {
     frep_cloud *c = NULL;
@@ -182,27 +206,13 @@ static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, fre
         const char *eol = memchr(p, '\n', (size_t)(end - p));
         if (!eol) eol = end;
         double v[7];
-        int nv = 0;
-        const char *q = p;
-        for (;;) {
-            while (q < eol && is_sep(*q)) q++;
-            if (q >= eol || *q == '#') break;
-            double t;
-            const char *qe = parse_number(q, eol, &t);
-            if (!qe) {
-                int tl = 0;
-                while (q + tl < eol && !is_sep(q[tl]) && tl < 40) tl++;
-                frep_error_set(err, FREP_EINPUT, "%s:%zu: '%.*s' is not a number", name, line, tl, q);
-                goto fail;
-            }
-            if (nv < 7) v[nv] = t;
-            nv++;
-            q = qe;
-        }
+        int nv;
+        if (xyz_numbers(name, line, p, eol, v, &nv, err)) goto fail;
         p = eol < end ? eol + 1 : end;
         if (nv == 0) continue;
         if (nv != 3 && nv != 6) {
-            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 3 or 6 numbers, got %d", name, line, nv);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 3 or 6 numbers, got %d", name,
+                           line, nv);
             goto fail;
         }
         if (ncols == 0) {
@@ -211,19 +221,20 @@ static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, fre
             c = cloud_new(nv == 6);
             if (!c) { frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name); goto fail; }
         } else if (nv != ncols) {
-            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected %d numbers as on line %zu, got %d", name, line, ncols,
-                    first_line, nv);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected %d numbers as on line %zu, got %d",
+                           name, line, ncols, first_line, nv);
             goto fail;
         }
         for (int k = 0; k < nv; k++) {
             if (!isfinite(v[k])) {
-                frep_error_set(err, FREP_EINPUT, "%s:%zu: number %d is not finite", name, line, k + 1);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: number %d is not finite", name, line,
+                               k + 1);
                 goto fail;
             }
         }
         if (cloud_push(c, v, nv == 6 ? v + 3 : NULL)) {
-            frep_error_set(err, FREP_ENOMEM, "%s:%zu: out of memory (or more than %zu points)", name, line,
-                    (size_t)CLOUD_MAX_POINTS);
+            frep_error_set(err, FREP_ENOMEM, "%s:%zu: out of memory (or more than %zu points)",
+                           name, line, (size_t)CLOUD_MAX_POINTS);
             goto fail;
         }
     }

@@ -57,50 +57,15 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* Median distance to the nearest other point over an evenly spaced sample. Large
- * clouds use a tree of every k-th point only (SPACING_TREE_MAX of them), and the
- * spacing is scaled back by sqrt(k): on a surface the spacing goes as one over the
- * square root of the density. */
-static double median_spacing(const frep_cloud *c)
+/* The median distance to the nearest other position over SPACING_SAMPLES evenly
+ * spaced points of tree t (of nt points, every stride-th of c), scaled back by
+ * sqrt(stride): on a surface the spacing goes as one over the square root of the
+ * density. 0 when out of memory. */
+static double sampled_spacing(const frep_cloud *c, const kd_tree *t, size_t nt, size_t stride)
 {
-    size_t stride = c->n > SPACING_TREE_MAX ? (c->n + SPACING_TREE_MAX - 1) / SPACING_TREE_MAX : 1;
-    size_t nt = (c->n + stride - 1) / stride;
-    double *sx = NULL, *sy = NULL, *sz = NULL;
-    kd_tree *t;
-    if (stride > 1) {
-        sx = frep_malloc(nt * sizeof *sx);
-        sy = frep_malloc(nt * sizeof *sy);
-        sz = frep_malloc(nt * sizeof *sz);
-        if (!sx || !sy || !sz) {
-            frep_free(sx);
-            frep_free(sy);
-            frep_free(sz);
-            return 0;
-        }
-        for (size_t j = 0; j < nt; j++) {
-            sx[j] = c->x[j * stride];
-            sy[j] = c->y[j * stride];
-            sz[j] = c->z[j * stride];
-        }
-        t = kd_build(nt, sx, sy, sz);
-    } else {
-        t = kd_build(c->n, c->x, c->y, c->z);
-    }
-    if (!t) {
-        frep_free(sx);
-        frep_free(sy);
-        frep_free(sz);
-        return 0;
-    }
     size_t m = nt < SPACING_SAMPLES ? nt : SPACING_SAMPLES;
     double *d = frep_malloc(m * sizeof *d);
-    if (!d) {
-        kd_free(t);
-        frep_free(sx);
-        frep_free(sy);
-        frep_free(sz);
-        return 0;
-    }
+    if (!d) return 0;
     size_t got = 0;
     for (size_t j = 0; j < m; j++) {
         size_t i = (size_t)((double)j * (double)nt / (double)m) * stride;
@@ -120,6 +85,33 @@ static double median_spacing(const frep_cloud *c)
         med = d[got / 2] / sqrt((double)stride);
     }
     frep_free(d);
+    return med;
+}
+
+/* Median distance to the nearest other point over an evenly spaced sample. Large
+ * clouds use a tree of every stride-th point only (SPACING_TREE_MAX of them). */
+static double median_spacing(const frep_cloud *c)
+{
+    size_t stride = c->n > SPACING_TREE_MAX ? (c->n + SPACING_TREE_MAX - 1) / SPACING_TREE_MAX : 1;
+    size_t nt = (c->n + stride - 1) / stride;
+    double *sx = NULL, *sy = NULL, *sz = NULL;
+    kd_tree *t = NULL;
+    if (stride > 1) {
+        sx = frep_malloc(nt * sizeof *sx);
+        sy = frep_malloc(nt * sizeof *sy);
+        sz = frep_malloc(nt * sizeof *sz);
+        if (sx && sy && sz) {
+            for (size_t j = 0; j < nt; j++) {
+                sx[j] = c->x[j * stride];
+                sy[j] = c->y[j * stride];
+                sz[j] = c->z[j * stride];
+            }
+            t = kd_build(nt, sx, sy, sz);
+        }
+    } else {
+        t = kd_build(c->n, c->x, c->y, c->z);
+    }
+    double med = t ? sampled_spacing(c, t, nt, stride) : 0;
     kd_free(t);
     frep_free(sx);
     frep_free(sy);
@@ -140,9 +132,49 @@ static void dot_basis(const double a[3], double u[3], double v[3])
     v[2] = a[0] * u[1] - a[1] * u[0];
 }
 
+/* Box axes with ax[0] = fixed (the primitive's normal or axis): the other two by PCA
+ * in the perpendicular plane (the angle of its principal direction). */
+static void axes_around(const double fixed[3], const frep_cloud *c, const uint32_t *idx,
+                        size_t n, const double mean[3], double ax[3][3])
+{
+    double u[3], v[3];
+    dot_basis(fixed, u, v);
+    double suu = 0, suv = 0, svv = 0;
+    for (size_t j = 0; j < n; j++) {
+        double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1], c->z[idx[j]] - mean[2]};
+        double pu = w[0] * u[0] + w[1] * u[1] + w[2] * u[2];
+        double pv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
+        suu += pu * pu;
+        suv += pu * pv;
+        svv += pv * pv;
+    }
+    double th = 0.5 * atan2(2 * suv, suu - svv), cs = cos(th), sn = sin(th);
+    for (int k = 0; k < 3; k++) {
+        ax[0][k] = fixed[k];
+        ax[1][k] = cs * u[k] + sn * v[k];
+        ax[2][k] = -sn * u[k] + cs * v[k];
+    }
+}
+
+/* Box axes by full PCA (spheres), largest variance first. */
+static void axes_pca(const frep_cloud *c, const uint32_t *idx, size_t n, const double mean[3],
+                     double ax[3][3])
+{
+    double cov[9] = {0};
+    for (size_t j = 0; j < n; j++) {
+        double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1], c->z[idx[j]] - mean[2]};
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++) cov[3 * a + b] += w[a] * w[b];
+    }
+    double ev[3], vec[9];
+    normals_sym3_eig(cov, ev, vec);
+    for (int a = 0; a < 3; a++)
+        for (int k = 0; k < 3; k++) ax[a][k] = vec[3 * (2 - a) + k];
+}
+
 void segment_fit_obb(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n)
 {
-    double mean[3] = {0, 0, 0}, cov[9] = {0}, ax[3][3];
+    double mean[3] = {0, 0, 0}, ax[3][3];
     q->has_obb = 0;
     if (n == 0) return;
     for (size_t j = 0; j < n; j++) {
@@ -150,41 +182,9 @@ void segment_fit_obb(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n
         mean[1] += c->y[idx[j]] / (double)n;
         mean[2] += c->z[idx[j]] / (double)n;
     }
-    const double *fixed = NULL;
-    if (q->type == PRIM_PLANE) fixed = q->p;
-    else if (q->type != PRIM_SPHERE) fixed = q->a;
-    if (fixed) {
-        /* One axis is given; PCA within the perpendicular plane for the others. */
-        double u[3], v[3];
-        dot_basis(fixed, u, v);
-        double suu = 0, suv = 0, svv = 0;
-        for (size_t j = 0; j < n; j++) {
-            double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1],
-                           c->z[idx[j]] - mean[2]};
-            double pu = w[0] * u[0] + w[1] * u[1] + w[2] * u[2];
-            double pv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
-            suu += pu * pu;
-            suv += pu * pv;
-            svv += pv * pv;
-        }
-        double th = 0.5 * atan2(2 * suv, suu - svv), cs = cos(th), sn = sin(th);
-        for (int k = 0; k < 3; k++) {
-            ax[0][k] = fixed[k];
-            ax[1][k] = cs * u[k] + sn * v[k];
-            ax[2][k] = -sn * u[k] + cs * v[k];
-        }
-    } else {
-        for (size_t j = 0; j < n; j++) {
-            double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1],
-                           c->z[idx[j]] - mean[2]};
-            for (int a = 0; a < 3; a++)
-                for (int b = 0; b < 3; b++) cov[3 * a + b] += w[a] * w[b];
-        }
-        double ev[3], vec[9];
-        normals_sym3_eig(cov, ev, vec);
-        for (int a = 0; a < 3; a++)
-            for (int k = 0; k < 3; k++) ax[a][k] = vec[3 * (2 - a) + k];
-    }
+    if (q->type == PRIM_PLANE) axes_around(q->p, c, idx, n, mean, ax);
+    else if (q->type != PRIM_SPHERE) axes_around(q->a, c, idx, n, mean, ax);
+    else axes_pca(c, idx, n, mean, ax);
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t j = 0; j < n; j++) {
         double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1], c->z[idx[j]] - mean[2]};
