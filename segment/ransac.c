@@ -1306,15 +1306,7 @@ static size_t prefer_simpler(det *d, prim *q, size_t m, unsigned char *flag, uin
         p->type = PRIM_CYLINDER;
         memcpy(p->p, q->p, sizeof q->p);
         memcpy(p->a, q->a, sizeof q->a);
-        double rho = 0;
-        for (size_t j = 0; j < m; j++) {
-            double x[3], v[3];
-            point(c, inl[j], x);
-            sub(x, q->p, v);
-            double h = dot(v, q->a);
-            rho += sqrt(fmax(0, dot(v, v) - h * h)) / (double)m;
-        }
-        p->r = rho;
+        p->r = cone_mean_rho(q, c, inl, m);
     }
     uint32_t *keep = frep_malloc(m * sizeof *keep);
     if (!keep) return m;
