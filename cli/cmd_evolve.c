@@ -155,6 +155,7 @@ typedef struct evolve_cmd {
     evolve_result res;
     char note[256];             /* --refit's figures for the model's comments */
     char *err;
+    frep_error ferr;            /* of the cloud, primitive-list and segmentation calls */
 } evolve_cmd;
 
 static int parse_setops(const char *arg, void *dest, char *why, size_t whylen)
@@ -286,9 +287,9 @@ static int ensure_normals(evolve_cmd *e)
 /* The cloud read; normals are needed before the GA, and before the residual is known. */
 static int stage_cloud(evolve_cmd *e)
 {
-    e->cloud = cloud_read(e->cloud_path, &e->err);
+    e->cloud = cloud_read(e->cloud_path, &e->ferr);
     if (!e->cloud) {
-        fprintf(stderr, "frep evolve: %s\n", e->err ? e->err : "cannot read the cloud");
+        fprintf(stderr, "frep evolve: %s\n", e->ferr.msg[0] ? e->ferr.msg : "cannot read the cloud");
         return CLI_FAIL;
     }
     if (!e->quiet) fprintf(stderr, "frep evolve: %zu points, seed %llu\n", e->cloud->n,
@@ -367,18 +368,16 @@ static int segment_prims(evolve_cmd *e)
     segment_config_init(&sc);
     sc.seed = e->eo.gp.seed;
     sc.nthreads = e->eo.gp.threads;
-    if (segment_run(e->sub ? e->sub : e->cloud, &sc, &e->seg, &e->err)) {
+    if (segment_run(e->sub ? e->sub : e->cloud, &sc, &e->seg, &e->ferr)) {
         if (!e->residual_path) {
             fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path,
-                    e->err ? e->err : "segmentation failed");
+                    e->ferr.msg[0] ? e->ferr.msg : "segmentation failed");
             return CLI_FAIL;
         }
         /* Too few residual points to segment: the result is the base model. */
         if (!e->quiet)
             fprintf(stderr, "frep evolve: the residual points give no primitive (%s)\n",
-                    e->err ? e->err : "segmentation failed");
-        free(e->err);
-        e->err = NULL;
+                    e->ferr.msg[0] ? e->ferr.msg : "segmentation failed");
         return CLI_OK;
     }
     e->have_seg = 1;
@@ -396,8 +395,8 @@ static int stage_prims(evolve_cmd *e)
 {
     int rc = CLI_OK;
     if (e->prims_path) {
-        if (segment_read_prims(e->prims_path, &e->prims, &e->nprims, &e->err)) {
-            fprintf(stderr, "frep evolve: %s\n", e->err ? e->err : "cannot read the primitives");
+        if (segment_read_prims(e->prims_path, &e->prims, &e->nprims, &e->ferr)) {
+            fprintf(stderr, "frep evolve: %s\n", e->ferr.msg[0] ? e->ferr.msg : "cannot read the primitives");
             return CLI_FAIL;
         }
         rc = ensure_normals(e);

@@ -372,11 +372,10 @@ static int point_finite(const frep_cloud *c, size_t i)
  * diagonal sets the default loss scale. */
 static int stage_cloud(fit_cmd *f)
 {
-    char *cerr = NULL;
+    frep_error cerr;
     f->cloud = cloud_read(f->cloud_path, &cerr);
     if (f->cloud == NULL) {
-        fprintf(stderr, "%s\n", cerr ? cerr : "frep fit: cannot read the cloud");
-        free(cerr);
+        fprintf(stderr, "%s\n", cerr.msg[0] ? cerr.msg : "frep fit: cannot read the cloud");
         return CLI_FAIL;
     }
     frep_cloud *c = f->cloud;

@@ -143,11 +143,10 @@ static void point_distances(render_cmd *c, const double *g)
 /* --points: read the cloud, measure its distances to the surface, scale the colours. */
 static int stage_points(render_cmd *c)
 {
-    char *msg = NULL;
+    frep_error msg;
     c->cl = cloud_read(c->points, &msg);
     if (!c->cl) {
-        fprintf(stderr, "%s\n", msg ? msg : "frep render: cannot read the cloud");
-        free(msg);
+        fprintf(stderr, "%s\n", msg.msg[0] ? msg.msg : "frep render: cannot read the cloud");
         return CLI_FAIL;
     }
     const frep_cloud *cl = c->cl;

@@ -218,11 +218,10 @@ static int stage_options(segment_cmd *s, int argc, char **argv)
 /* RANSAC over the cloud, with progress on a terminal; Ctrl-C keeps what was found. */
 static int stage_segment(segment_cmd *s)
 {
-    char *err = NULL;
+    frep_error err;
     s->c = cloud_read(s->in, &err);
     if (!s->c) {
-        fprintf(stderr, "frep segment: %s\n", err ? err : "cannot read the cloud");
-        free(err);
+        fprintf(stderr, "frep segment: %s\n", err.msg[0] ? err.msg : "cannot read the cloud");
         return CLI_FAIL;
     }
     s->had_normals = s->c->has_normals;
@@ -238,8 +237,7 @@ static int stage_segment(segment_cmd *s)
     cli_sigint_restore();
     if (ps.shown) fputs("\r\033[K", stderr);
     if (rc) {
-        fprintf(stderr, "%s: error: %s\n", s->in, err ? err : "segmentation failed");
-        free(err);
+        fprintf(stderr, "%s: error: %s\n", s->in, err.msg[0] ? err.msg : "segmentation failed");
         return CLI_FAIL;
     }
     if (s->r.interrupted) fprintf(stderr, "frep segment: interrupted; writing what was found\n");

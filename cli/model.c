@@ -151,10 +151,9 @@ int cli_is_mesh_path(const char *path)
 
 int cli_read_mesh(const char *sub, const char *path, frep_mesh *m)
 {
-    char *msg = NULL;
+    frep_error msg;
     if (meshio_read(path, m, &msg) == 0) return CLI_OK;
-    if (msg) fprintf(stderr, "%s\n", msg);
+    if (msg.msg[0]) fprintf(stderr, "%s\n", msg.msg);
     else fprintf(stderr, "frep %s: cannot read the mesh\n", sub);
-    free(msg);
     return CLI_FAIL;
 }

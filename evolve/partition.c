@@ -5,6 +5,7 @@
 #include "config.h"
 
 #include "alloc.h"
+#include "linalg.h"
 #include "partition.h"
 #include "simplify.h"
 
@@ -17,38 +18,9 @@
 
 /* ---- oriented boxes ----------------------------------------------------------- */
 
-/* Eigenvectors of a symmetric 3x3 matrix by cyclic Jacobi rotations (columns of v). */
-static void jacobi3(double a[3][3], double v[3][3])
-{
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) v[i][j] = i == j;
-    for (int sweep = 0; sweep < 50; sweep++) {
-        double off = fabs(a[0][1]) + fabs(a[0][2]) + fabs(a[1][2]);
-        if (off < 1e-300) break;
-        for (int p = 0; p < 2; p++)
-            for (int q = p + 1; q < 3; q++) {
-                if (fabs(a[p][q]) < 1e-300) continue;
-                double th = (a[q][q] - a[p][p]) / (2 * a[p][q]);
-                double t = (th >= 0 ? 1.0 : -1.0) / (fabs(th) + sqrt(th * th + 1));
-                double cs = 1 / sqrt(t * t + 1), sn = t * cs;
-                for (int k = 0; k < 3; k++) {
-                    double akp = a[k][p], akq = a[k][q];
-                    a[k][p] = cs * akp - sn * akq;
-                    a[k][q] = sn * akp + cs * akq;
-                }
-                for (int k = 0; k < 3; k++) {
-                    double apk = a[p][k], aqk = a[q][k];
-                    a[p][k] = cs * apk - sn * aqk;
-                    a[q][k] = sn * apk + cs * aqk;
-                }
-                for (int k = 0; k < 3; k++) {
-                    double vkp = v[k][p], vkq = v[k][q];
-                    v[k][p] = cs * vkp - sn * vkq;
-                    v[k][q] = sn * vkp + cs * vkq;
-                }
-            }
-    }
-}
+/* Box axes: the covariance's eigenvectors, iterated to full convergence whatever the
+ * points' scale (off-diagonal sum below 1e-300); 50 sweeps bound the loop. */
+static const linalg_jacobi_stop obb_stop = {50, 1e-300, 0, 1e-300};
 
 void part_obb_of_points(const double *x, const double *y, const double *z,
                         const size_t *idx, size_t m, gp_obb *b)
@@ -70,8 +42,8 @@ void part_obb_of_points(const double *x, const double *y, const double *z,
         for (int r = 0; r < 3; r++)
             for (int s = 0; s < 3; s++) cov[r][s] += d[r] * d[s];
     }
-    double v[3][3];
-    jacobi3(cov, v);
+    double v[3][3], w[3];
+    linalg_sym3_jacobi((const double(*)[3])cov, &obb_stop, w, v);
     for (int a = 0; a < 3; a++)
         for (int q = 0; q < 3; q++) b->ax[a][q] = v[q][a];
     double lo[3] = { HUGE_VAL, HUGE_VAL, HUGE_VAL }, hi[3] = { -HUGE_VAL, -HUGE_VAL, -HUGE_VAL };

@@ -389,12 +389,13 @@ static int case_meshio(const fixture *fx, fault_out *o)
         int rc = meshio_write(mo.f, &fx->mesh, fm[k].fmt, fm[k].ascii);
         if (fclose(mo.f)) rc = -1;
         frep_mesh m;
-        char *err = NULL;
+        frep_error err;
+    frep_error_init(&err);
         meshio_format guess = k == 1 ? MESHIO_UNKNOWN : fm[k].fmt;   /* STL by content */
         if (!rc) rc = meshio_parse("m", mo.buf, mo.len, guess, &m, &err);
         free(mo.buf);
         if (rc) {
-            take_msg(o, err);
+            set_msg(o, err.msg);
             return -1;
         }
         digest_size(o, m.ntris);
@@ -410,9 +411,10 @@ static int case_meshio_read(const fixture *fx, fault_out *o)
     char path[128];
     snprintf(path, sizeof path, "%s/m.off", fx->tmpdir);
     frep_mesh m;
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     if (meshio_read(path, &m, &err)) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_doubles(o, m.v, 3 * m.nverts);
@@ -426,10 +428,11 @@ static const char cloud_xyz[] =
 /* .xyz and PLY (written by cloud_write_ply) parsed; both writers. */
 static int case_cloud(const fixture *fx, fault_out *o)
 {
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     frep_cloud *c = cloud_parse("c.xyz", cloud_xyz, strlen(cloud_xyz), &err);
     if (!c) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_size(o, c->n);
@@ -441,7 +444,7 @@ static int case_cloud(const fixture *fx, fault_out *o)
     c = rc ? NULL : cloud_parse("c.ply", mo.buf, mo.len, &err);
     free(mo.buf);
     if (!c) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_doubles(o, c->x, c->n);
@@ -456,10 +459,11 @@ static int case_cloud_read(const fixture *fx, fault_out *o)
 {
     char path[128];
     snprintf(path, sizeof path, "%s/c.xyz", fx->tmpdir);
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     frep_cloud *c = cloud_read(path, &err);
     if (!c) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_doubles(o, c->x, c->n);
@@ -575,11 +579,12 @@ static int case_segment(const fixture *fx, fault_out *o)
     cfg.nthreads = 1;
     cfg.probability = SEGMENT_PROBABILITY;
     segment_result res;
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     int rc = segment_run(c, &cfg, &res, &err);
     cloud_free(c);
     if (rc) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_size(o, res.nprims);
@@ -600,9 +605,10 @@ static int case_prims(const fixture *fx, fault_out *o)
 {
     prim *p = NULL;
     size_t n = 0;
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     if (fitfile_parse("c.fit", cube_fit, strlen(cube_fit), &p, &n, &err)) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     frep_free(p);
@@ -613,7 +619,7 @@ static int case_prims(const fixture *fx, fault_out *o)
     if (!rc) rc = segment_parse_prims("c.hf", mo.buf, mo.len, 0, &p, &n, &err);
     free(mo.buf);
     if (rc) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_bytes(o, p, n * sizeof *p);
@@ -973,8 +979,9 @@ static int fixture_init(fixture *fx)
     mesh_field_program_free(&fld);
     char *e = NULL;
     if (rc) return diag("fixture cloud: %s", err.msg), -1;
-    if (fitfile_parse("cube.fit", cube_fit, strlen(cube_fit), &fx->prims, &fx->nprims, &e))
-        return -1;
+    frep_error fe;
+    if (fitfile_parse("cube.fit", cube_fit, strlen(cube_fit), &fx->prims, &fx->nprims, &fe))
+        return diag("fixture primitives: %s", fe.msg), -1;
     evolve_options eo;
     evolve_opts(&eo, 0);
     if (fx->nprims > MAX_PRIMS ||
