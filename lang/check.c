@@ -754,5 +754,6 @@ unsigned check_file(arena *A, const ast_file *f, diag_sink *d, check_info *out)
     c.d = d;
     for (i = 0; i < f->nmodels; i++) ck_model(&c, i);
     ck_pragmas(&c, out);
+    if (A->failed) diag_nomem(d); /* the checks above may have been cut short */
     return d->errors - before;
 }

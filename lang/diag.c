@@ -14,18 +14,13 @@
  * quotes a few of them plus fixed text. Longer messages are cut, never overflowed. */
 #define DIAG_MAX_MESSAGE 2048
 
-void diag_report(diag_sink *d, frep_severity sev, ast_loc loc, uint32_t len,
-                 const char *fmt, ...)
+/* Hand one message to the callback, counted by severity. */
+static void diag_emit(diag_sink *d, frep_severity sev, ast_loc loc, uint32_t len,
+                      const char *msg)
 {
-    if (!d) return;
     if (sev == FREP_ERROR) d->errors++;
     else if (sev == FREP_WARNING) d->warnings++;
     if (!d->fn) return;
-    char msg[DIAG_MAX_MESSAGE];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
     frep_diag fd;
     fd.severity = sev;
     fd.file = d->file;
@@ -34,6 +29,32 @@ void diag_report(diag_sink *d, frep_severity sev, ast_loc loc, uint32_t len,
     fd.len = loc.line ? (len ? len : 1) : 0;
     fd.message = msg;
     d->fn(d->user, &fd);
+}
+
+void diag_nomem(diag_sink *d)
+{
+    if (!d || d->nomem) return;
+    d->nomem = 1;
+    ast_loc none = { 0, 0, 0, 0 };
+    diag_emit(d, FREP_ERROR, none, 0, "out of memory");
+}
+
+void diag_report(diag_sink *d, frep_severity sev, ast_loc loc, uint32_t len,
+                 const char *fmt, ...)
+{
+    if (!d) return;
+    if (d->A && d->A->failed) diag_nomem(d);
+    if (d->nomem) {
+        /* Counted (so the stages stop) but not shown: see diag_sink. */
+        if (sev == FREP_ERROR) d->errors++;
+        return;
+    }
+    char msg[DIAG_MAX_MESSAGE];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    diag_emit(d, sev, loc, len, msg);
 }
 
 /* Growable output string; `failed` once an allocation fails. */

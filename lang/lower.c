@@ -791,7 +791,9 @@ static void lw_stmt(lw *L, scope *sc, const ast_node *n)
         (void)lw_expr(L, sc, n);
         break;
     }
-    if (L->g->failed)
+    if (L->A->failed || L->g->failed == IR_NOMEM)
+        L->dead = 1; /* reported as out of memory by lower_model */
+    else if (L->g->failed == IR_TOO_LARGE)
         lw_fatal(L, n->loc, "model too large: more than %u IR nodes",
                  (unsigned)FREP_IR_MAX_NODES);
 }
@@ -934,10 +936,16 @@ int lower_model(arena *A, const ast_file *f, uint32_t mi, const check_info *ci,
     L.lc.alpha = o->alpha;
     strmap_init(&L.seen, A);
     L.named = arena_alloc(A, (ci->nfree + 1) * sizeof *L.named);
-    if (!L.named) return -1;
+    if (!L.named) {
+        diag_nomem(d);
+        return -1;
+    }
     g->warn = ir_warn_cb;
     g->warn_user = &L;
-    if (scope_init(&L, &sc, m) < 0) return -1;
+    if (scope_init(&L, &sc, m) < 0) {
+        diag_nomem(d);
+        return -1;
+    }
     /* x: the point (elements past the third read 0); a: parameters; s: attributes. */
     for (j = 0; j < sc.syms[0].size; j++)
         sc.vals[sc.syms[0].first + j] = j < 3 ? ir_leaf(g, FREP_OP_X, j) : ir_const(g, 0);
@@ -956,8 +964,8 @@ int lower_model(arena *A, const ast_file *f, uint32_t mi, const check_info *ci,
     out->nnamed = L.nnamed;
     out->has_s = m->nparams == 3;
     (void)o->a;
-    if (A->failed) {
-        diag_report(d, FREP_ERROR, m->loc, 1, "out of memory while compiling '%s'", m->name);
+    if (A->failed || g->failed == IR_NOMEM) {
+        diag_nomem(d);
         return -1;
     }
     return L.dead || d->errors != errors0 ? -1 : 0;

@@ -630,6 +630,7 @@ int ast_parse(arena *A, const char *filename, const char *src, size_t len, diag_
     out->src = src;
     out->len = len;
     if (d && !d->file) d->file = filename;
+    if (d && !d->A) d->A = A;
     lex_state *L = arena_alloc(A, sizeof *L);
     if (!L) {
         diag_report(d, FREP_ERROR, (ast_loc){ 0, 0, 0, 0 }, 0, "out of memory");
