@@ -9,15 +9,14 @@
  */
 #include "alloc.h"
 #include "ast.h"
+#include "buf.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 typedef struct printer {
-    char *s;
-    size_t n, cap;
-    int failed;
+    frep_buf out;
     const ast_file *f;
     uint32_t next_pragma;   /* first annotation not printed yet */
     uint32_t line_end_line; /* source line where the current output line's construct
@@ -25,23 +24,7 @@ typedef struct printer {
     int indent;             /* of the current block, in levels */
 } printer;
 
-static void put(printer *p, const char *s, size_t n)
-{
-    if (p->failed) return;
-    if (p->n + n + 1 > p->cap) {
-        size_t cap = p->cap ? p->cap : 1024;
-        while (cap < p->n + n + 1) cap *= 2;
-        char *q = frep_realloc(p->s, cap);
-        if (!q) { p->failed = 1; return; }
-        p->s = q;
-        p->cap = cap;
-    }
-    memcpy(p->s + p->n, s, n);
-    p->n += n;
-    p->s[p->n] = '\0';
-}
-
-static void puts_(printer *p, const char *s) { put(p, s, strlen(s)); }
+static void puts_(printer *p, const char *s) { buf_puts(&p->out, s); }
 
 static void pad(printer *p, int levels)
 {
@@ -358,9 +341,6 @@ char *ast_print(const ast_file *f)
         end_line(&p, m->end_loc.line);
     }
     flush(&p, UINT32_MAX);
-    if (p.failed || !p.s) {
-        frep_free(p.s);
-        return NULL;
-    }
-    return p.s;
+    if (!p.out.s) return NULL; /* nothing printed */
+    return buf_finish(&p.out, NULL);
 }

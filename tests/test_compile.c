@@ -1,6 +1,7 @@
 /* test_compile.c - tests of the compiler (lang/check.c, ir.c, lower.c, emit.c,
  * compile.c): diagnostics with positions, folding and CSE in instruction counts,
- * control flow evaluated at points on both sides, loops, free parameters, limits.
+ * control flow evaluated at points on both sides, loops, free parameters, limits,
+ * and allocation failures (reported as "out of memory", never as something else).
  */
 #include <math.h>
 #include <stdio.h>
@@ -630,6 +631,46 @@ static void test_out_of_memory(void)
         ok(names && count == 2 && reported == n,
            "frep_list_models: %d of %ld failures reported as out of memory", reported, n);
         frep_free_strings(names, count);
+    }
+
+    /* The two string builders (runtime/buf.h): NULL when memory runs out, else the
+     * whole text. */
+    {
+        frep_diag d = { FREP_ERROR, "t.hf", 4, 8, 3, "some message" };
+        char *want = frep_diag_format(&d, src, strlen(src)), *got = NULL;
+        int same = 1;
+        for (n = 0; !got; n++) {
+            f.count = 0;
+            f.fail_at = n;
+            frep_set_allocator(failing_alloc, &f);
+            got = frep_diag_format(&d, src, strlen(src));
+            frep_set_allocator(NULL, NULL);
+            if (got && strcmp(got, want) != 0) same = 0;
+        }
+        ok(want && same, "frep_diag_format: NULL for %ld failures, then the text", n - 1);
+        frep_free(want);
+        frep_free(got);
+    }
+    {
+        arena A;
+        ast_file af;
+        char *want, *got = NULL;
+        int same = 1;
+        arena_init(&A);
+        ok(ast_parse(&A, "t.hf", src, strlen(src), NULL, &af) == 0, "source parses");
+        want = ast_print(&af);
+        for (n = 0; !got; n++) {
+            f.count = 0;
+            f.fail_at = n;
+            frep_set_allocator(failing_alloc, &f);
+            got = ast_print(&af);
+            frep_set_allocator(NULL, NULL);
+            if (got && strcmp(got, want) != 0) same = 0;
+        }
+        ok(want && same, "ast_print: NULL for %ld failures, then the text", n - 1);
+        frep_free(want);
+        frep_free(got);
+        arena_free(&A);
     }
 }
 
