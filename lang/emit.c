@@ -359,74 +359,90 @@ static uint32_t stmt_roots(const lstmt *s, ir_ref *out)
 
 static void emit_block(em *E, const lblock *b);
 
+/* LS_STORE: the values on the stack, then the stores in reverse; more than
+ * FREP_EMIT_MAX_PARALLEL values go through temporaries, so that every value is
+ * computed before any slot changes. */
+static void emit_store(em *E, const lstmt *s, frep_srcpos pos)
+{
+    uint32_t i, *t;
+    if (s->n <= FREP_EMIT_MAX_PARALLEL) {
+        for (i = 0; i < s->n; i++) emit_root(E, s->vals[i]);
+        for (i = s->n; i-- > 0;) put(E, FREP_OP_STORE, s->slots[i], 0, 0, pos);
+        return;
+    }
+    t = frep_malloc(s->n * sizeof *t);
+    if (!t) {
+        E->failed = EMIT_NOMEM;
+        return;
+    }
+    for (i = 0; i < s->n; i++) {
+        emit_root(E, s->vals[i]);
+        t[i] = temp_alloc(E);
+        put(E, FREP_OP_STORE, t[i], 0, 0, pos);
+    }
+    for (i = 0; i < s->n; i++) {
+        put(E, FREP_OP_LOAD, t[i], 0, 0, pos);
+        put(E, FREP_OP_STORE, s->slots[i], 0, 0, pos);
+        temp_free(E, t[i]);
+    }
+    frep_free(t);
+}
+
+/* LS_IF: cond JZ(else) body [JMP(end)] else: body2 end: */
+static void emit_if(em *E, const lstmt *s, frep_srcpos pos)
+{
+    uint32_t jz, jmp = UINT32_MAX;
+    emit_root(E, s->cond);
+    jz = put(E, FREP_OP_JZ, 0, 0, 0, pos);
+    emit_block(E, &s->body);
+    if (s->body2.n) jmp = put(E, FREP_OP_JMP, 0, 0, 0, pos);
+    if (E->failed) return;
+    E->p->code[jz].arg = E->p->ncode;
+    emit_block(E, &s->body2);
+    if (E->failed) return;
+    if (jmp != UINT32_MAX) E->p->code[jmp].arg = E->p->ncode;
+}
+
+/* LS_WHILE: top: pre cond JZ(end) body JMP(top) end:  (cond in a region of its own,
+ * as it runs after pre on every iteration) */
+static void emit_while(em *E, const lstmt *s, frep_srcpos pos)
+{
+    uint32_t top = E->p->ncode, jz, region = E->region;
+    bank *saved = E->b;
+    ir_ref r = s->cond;
+    emit_block(E, &s->pre);
+    use_bank(E, 1);
+    begin_region(E, &r, 1);
+    emit_root(E, r);
+    jz = put(E, FREP_OP_JZ, 0, 0, 0, pos);
+    emit_block(E, &s->body);
+    put(E, FREP_OP_JMP, top, 0, 0, pos);
+    use_bank(E, saved == &E->banks[0] ? 0 : 1);
+    E->region = region;
+    if (E->failed) return;
+    E->p->code[jz].arg = E->p->ncode;
+}
+
 /* Emit statement s whose region (roots) has been counted already. */
 static void emit_stmt(em *E, const lstmt *s)
 {
     frep_srcpos pos = stmt_pos(s);
-    uint32_t i;
     if (E->failed) return;
     switch (s->kind) {
     case LS_STORE:
-        if (s->n <= FREP_EMIT_MAX_PARALLEL) {
-            for (i = 0; i < s->n; i++) emit_root(E, s->vals[i]);
-            for (i = s->n; i-- > 0;) put(E, FREP_OP_STORE, s->slots[i], 0, 0, pos);
-        } else {
-            /* Through temporaries: every value is computed before any slot changes. */
-            uint32_t *t = frep_malloc(s->n * sizeof *t);
-            if (!t) {
-                E->failed = EMIT_NOMEM;
-                return;
-            }
-            for (i = 0; i < s->n; i++) {
-                emit_root(E, s->vals[i]);
-                t[i] = temp_alloc(E);
-                put(E, FREP_OP_STORE, t[i], 0, 0, pos);
-            }
-            for (i = 0; i < s->n; i++) {
-                put(E, FREP_OP_LOAD, t[i], 0, 0, pos);
-                put(E, FREP_OP_STORE, s->slots[i], 0, 0, pos);
-                temp_free(E, t[i]);
-            }
-            frep_free(t);
-        }
+        emit_store(E, s, pos);
         break;
     case LS_STOREI:
         emit_root(E, s->value);
         emit_root(E, s->index);
         put(E, FREP_OP_STOREI, s->base, (double)s->size, 0, pos);
         break;
-    case LS_IF: {
-        uint32_t jz, jmp = UINT32_MAX;
-        emit_root(E, s->cond);
-        jz = put(E, FREP_OP_JZ, 0, 0, 0, pos);
-        emit_block(E, &s->body);
-        if (s->body2.n) jmp = put(E, FREP_OP_JMP, 0, 0, 0, pos);
-        if (E->failed) return;
-        E->p->code[jz].arg = E->p->ncode;
-        emit_block(E, &s->body2);
-        if (E->failed) return;
-        if (jmp != UINT32_MAX) E->p->code[jmp].arg = E->p->ncode;
+    case LS_IF:
+        emit_if(E, s, pos);
         break;
-    }
-    case LS_WHILE: {
-        uint32_t top = E->p->ncode, jz, region = E->region;
-        bank *saved = E->b;
-        emit_block(E, &s->pre);
-        {
-            ir_ref r = s->cond;
-            use_bank(E, 1);
-            begin_region(E, &r, 1);
-            emit_root(E, r);
-        }
-        jz = put(E, FREP_OP_JZ, 0, 0, 0, pos);
-        emit_block(E, &s->body);
-        put(E, FREP_OP_JMP, top, 0, 0, pos);
-        use_bank(E, saved == &E->banks[0] ? 0 : 1);
-        E->region = region;
-        if (E->failed) return;
-        E->p->code[jz].arg = E->p->ncode;
+    case LS_WHILE:
+        emit_while(E, s, pos);
         break;
-    }
     }
 }
 

@@ -218,6 +218,47 @@ static uint32_t line_of(const ast_file *f, uint32_t off, uint32_t from_line,
 
 static void stmts(printer *p, const ast_list *l);
 
+/* if_stmt -> 'if' expr 'then' stmts ['else' stmts] 'endif;' */
+static void if_stmt(printer *p, const ast_node *s)
+{
+    begin_line(p, s->loc.off);
+    puts_(p, "if ");
+    expr(p, s->a);
+    puts_(p, " then");
+    end_line(p, s->op_loc.line);
+    p->indent++;
+    stmts(p, &s->body);
+    p->indent--;
+    if (s->body2.n) {
+        begin_line(p, s->else_loc.off);
+        puts_(p, "else");
+        end_line(p, s->else_loc.line);
+        p->indent++;
+        stmts(p, &s->body2);
+        p->indent--;
+    }
+    begin_line(p, s->close_loc.off);
+    puts_(p, "endif;");
+    end_line(p, s->close_loc.line);
+}
+
+/* while_stmt -> 'while' expr 'loop' stmts 'endloop;' */
+static void while_stmt(printer *p, const ast_node *s)
+{
+    begin_line(p, s->loc.off);
+    puts_(p, "while ");
+    expr(p, s->a);
+    puts_(p, " loop");
+    end_line(p, s->op_loc.line);
+    p->indent++;
+    stmts(p, &s->body);
+    p->indent--;
+    begin_line(p, s->close_loc.off);
+    puts_(p, "endloop;");
+    end_line(p, s->close_loc.line);
+}
+
+/* stmt -> assignment ';' | if_stmt | while_stmt, each on lines of its own */
 static void stmt(printer *p, const ast_node *s)
 {
     switch (s->kind) {
@@ -245,38 +286,10 @@ static void stmt(printer *p, const ast_node *s)
         puts_(p, "];");
         break;
     case AST_IF:
-        begin_line(p, s->loc.off);
-        puts_(p, "if ");
-        expr(p, s->a);
-        puts_(p, " then");
-        end_line(p, s->op_loc.line);
-        p->indent++;
-        stmts(p, &s->body);
-        p->indent--;
-        if (s->body2.n) {
-            begin_line(p, s->else_loc.off);
-            puts_(p, "else");
-            end_line(p, s->else_loc.line);
-            p->indent++;
-            stmts(p, &s->body2);
-            p->indent--;
-        }
-        begin_line(p, s->close_loc.off);
-        puts_(p, "endif;");
-        end_line(p, s->close_loc.line);
+        if_stmt(p, s);
         return;
     case AST_WHILE:
-        begin_line(p, s->loc.off);
-        puts_(p, "while ");
-        expr(p, s->a);
-        puts_(p, " loop");
-        end_line(p, s->op_loc.line);
-        p->indent++;
-        stmts(p, &s->body);
-        p->indent--;
-        begin_line(p, s->close_loc.off);
-        puts_(p, "endloop;");
-        end_line(p, s->close_loc.line);
+        while_stmt(p, s);
         return;
     case AST_NUM: case AST_VAR: case AST_INDEX: case AST_CALL: case AST_UNARY:
     case AST_BINARY:
