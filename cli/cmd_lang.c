@@ -86,7 +86,7 @@ int cmd_print(int argc, char **argv)
     int rc = lang_input(&print_spec, argc, argv, &c, 1);
     if (rc != CLI_GO_ON) return rc;
     cli_diag_ctx dc = { c.src, c.len, 0, 0, NULL, 0 };
-    diag_sink ds = { cli_print_diag, &dc, c.file, 0, 0 };
+    diag_sink ds = { cli_print_diag, &dc, c.file, 0, 0, NULL, 0 };
     arena A;
     arena_init(&A);
     ast_file f;

@@ -126,7 +126,7 @@ int residual_prepare(const char *file, const char *src, size_t len, const char *
     b->prog = prog;
     arena A;
     arena_init(&A);
-    diag_sink ds = { quiet_diag, NULL, file, 0, 0 };
+    diag_sink ds = { quiet_diag, NULL, file, 0, 0, NULL, 0 };
     ast_file af;
     memset(&af, 0, sizeof af);
     int rc = -1;

@@ -696,7 +696,7 @@ static int parse_hf(const char *name, const char *text, size_t len, prim **out, 
     hf_reader r = {name, text, len, err, NULL, NULL, NULL, 0, 0};
     arena A;
     arena_init(&A);
-    diag_sink ds = {hf_diag, err, name, 0, 0};
+    diag_sink ds = {hf_diag, err, name, 0, 0, &A, 0};
     ast_file f;
     memset(&f, 0, sizeof f);
     int rc = -1;
