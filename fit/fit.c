@@ -333,8 +333,8 @@ int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const d
         return -1;
     }
     if (global) {
-        fit_rng rng;
-        fit_rng_seed(&rng, cfg->seed ^ 0x5a17ca1edULL);
+        frep_rng rng;
+        frep_rng_seed(&rng, cfg->seed ^ 0x5a17ca1edULL);
         fit_sa_options so = cfg->sa;
         if (cfg->sa_local) {
             so.local = sa_local;

@@ -14,50 +14,15 @@
 #include <string.h>
 #include <time.h>
 
-/* pi, spelled out: FIT_PI is not part of C11. */
+/* pi, spelled out: M_PI is not part of C11. */
 #define FIT_PI 3.14159265358979323846
 
 /* ---- random numbers ------------------------------------------------------ */
 
-static uint64_t splitmix64(uint64_t *state)
-{
-    uint64_t z = (*state += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
-
-void fit_rng_seed(fit_rng *r, uint64_t seed)
-{
-    uint64_t st = seed;
-    for (int i = 0; i < 4; i++) r->s[i] = splitmix64(&st);
-}
-
-static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-
-uint64_t fit_rng_next(fit_rng *r)
-{
-    uint64_t *s = r->s;
-    uint64_t result = rotl(s[1] * 5, 7) * 9;
-    uint64_t t = s[1] << 17;
-    s[2] ^= s[0];
-    s[3] ^= s[1];
-    s[1] ^= s[2];
-    s[0] ^= s[3];
-    s[2] ^= t;
-    s[3] = rotl(s[3], 45);
-    return result;
-}
-
-double fit_rng_uniform(fit_rng *r)
-{
-    return (double)(fit_rng_next(r) >> 11) * 0x1.0p-53;
-}
-
-double fit_rng_normal(fit_rng *r)
+double fit_rng_normal(frep_rng *r)
 {
     /* 1 - u lies in (0, 1], so the logarithm is finite. */
-    double u = 1.0 - fit_rng_uniform(r), v = fit_rng_uniform(r);
+    double u = 1.0 - frep_rng_unit(r), v = frep_rng_unit(r);
     return sqrt(-2.0 * log(u)) * cos(2.0 * FIT_PI * v);
 }
 
@@ -604,13 +569,13 @@ static double visit_sigma(const visit_consts *v, double t)
     return exp(-(qv - 1.0) * log(v->f6 / f4) / (3.0 - qv));
 }
 
-static double visit_draw(const visit_consts *v, double sigma, fit_rng *r)
+static double visit_draw(const visit_consts *v, double sigma, frep_rng *r)
 {
     double a = sigma * fit_rng_normal(r);
     double b = fabs(fit_rng_normal(r));
     double den = exp((v->qv - 1.0) * log(b) / (3.0 - v->qv));
     double s = a / den;
-    if (!isfinite(s) || fabs(s) > SA_TAIL_LIMIT) s = copysign(SA_TAIL_LIMIT, a) * fit_rng_uniform(r);
+    if (!isfinite(s) || fabs(s) > SA_TAIL_LIMIT) s = copysign(SA_TAIL_LIMIT, a) * frep_rng_unit(r);
     return s;
 }
 
@@ -624,9 +589,9 @@ static double wrap(double v, double lo, double hi)
     return r < hi ? r : lo;
 }
 
-static void random_point(size_t n, double *x, const double *lo, const double *hi, fit_rng *r)
+static void random_point(size_t n, double *x, const double *lo, const double *hi, frep_rng *r)
 {
-    for (size_t i = 0; i < n; i++) x[i] = lo[i] + (hi[i] - lo[i]) * fit_rng_uniform(r);
+    for (size_t i = 0; i < n; i++) x[i] = lo[i] + (hi[i] - lo[i]) * frep_rng_unit(r);
 }
 
 /* State of one annealing chain. */
@@ -640,7 +605,7 @@ typedef struct sa_chain {
  * to beat it. Returns 0, or -1 when no finite objective was found. */
 static int sa_chain_start(sa_chain *ch, fit_fn fn, void *user, size_t n, const double *x,
                           int from_x, const double *lo, const double *hi,
-                          const fit_sa_options *opt, fit_rng *rng, fit_control *c,
+                          const fit_sa_options *opt, frep_rng *rng, fit_control *c,
                           double *trial)
 {
     if (from_x) memcpy(ch->cur, x, n * sizeof *ch->cur);
@@ -665,7 +630,7 @@ static int sa_chain_start(sa_chain *ch, fit_fn fn, void *user, size_t n, const d
 }
 
 fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
-                  const double *hi, const fit_sa_options *opt, fit_rng *rng, fit_control *c,
+                  const double *hi, const fit_sa_options *opt, frep_rng *rng, fit_control *c,
                   double *fx, long *iterations)
 {
     fit_sa_options defaults;
@@ -750,7 +715,7 @@ fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
                 } else {
                     double pq = 1.0 - (1.0 - opt->qa) * (et - e) / tstep;
                     double p = pq <= 0 ? 0 : exp(log(pq) / (1.0 - opt->qa));
-                    accept = fit_rng_uniform(rng) <= p && et < HUGE_VAL;
+                    accept = frep_rng_unit(rng) <= p && et < HUGE_VAL;
                 }
                 if (accept) {
                     memcpy(cur, trial, n * sizeof *cur);

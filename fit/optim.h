@@ -10,6 +10,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "rng.h"
+
 /* Most parameters the optimizers handle: bounds the n*n matrices they keep on the heap
  * and the work per iteration (templates have a handful to a few dozen parameters). */
 #define FIT_MAX_PARAMS 256
@@ -23,16 +25,9 @@ typedef double (*fit_fn)(void *user, const double *x, double *grad);
  * caller accumulates them over residuals so the Jacobian itself is never stored. */
 typedef double (*fit_lsq_fn)(void *user, const double *x, double *jtj, double *jtr);
 
-/* Random numbers: xoshiro256** seeded through splitmix64, so a 64-bit seed gives the
- * same stream on every platform. */
-typedef struct fit_rng {
-    uint64_t s[4];
-} fit_rng;
-
-void fit_rng_seed(fit_rng *r, uint64_t seed);
-uint64_t fit_rng_next(fit_rng *r);
-double fit_rng_uniform(fit_rng *r);     /* [0, 1) with 53 random bits */
-double fit_rng_normal(fit_rng *r);      /* standard normal (Box-Muller, one value) */
+/* Random numbers: the shared generator (runtime/rng.h), and its standard normal
+ * draw for the annealing's visiting distribution (Box-Muller, one value per call). */
+double fit_rng_normal(frep_rng *r);
 
 /* Phases, for progress reports. */
 typedef enum fit_phase { FIT_PHASE_SA, FIT_PHASE_QN, FIT_PHASE_LM } fit_phase;
@@ -152,7 +147,7 @@ void fit_sa_options_init(fit_sa_options *o);
  * local searches). x holds the start on entry (may be outside: then a random start) and
  * the best point of all chains on return; *iterations counts all chains'. */
 fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
-                  const double *hi, const fit_sa_options *o, fit_rng *rng, fit_control *c,
+                  const double *hi, const fit_sa_options *o, frep_rng *rng, fit_control *c,
                   double *fx, long *iterations);
 
 #endif

@@ -182,8 +182,8 @@ static const double truth[NP] = {-4, -2, -1, 8, 4, 2, -2, 0, 1, 2.2, 0.3, 0.6};
  * hole walls, by rejection from area-weighted candidates. */
 static size_t sample_part(size_t n, double *x, double *y, double *z, uint64_t seed)
 {
-    fit_rng r;
-    fit_rng_seed(&r, seed);
+    frep_rng r;
+    frep_rng_seed(&r, seed);
     const double *t = truth;
     double lx = t[3], ly = t[4], lz = t[5];
     double area[5] = {2 * lx * ly, 2 * lx * lz, 2 * ly * lz, 2 * 3.14159265 * t[8] * lz,
@@ -192,8 +192,8 @@ static size_t sample_part(size_t n, double *x, double *y, double *z, uint64_t se
     for (int k = 0; k < 5; k++) total += area[k];
     size_t got = 0;
     while (got < n) {
-        double u = fit_rng_uniform(&r) * total, a = fit_rng_uniform(&r), b = fit_rng_uniform(&r);
-        int side = fit_rng_uniform(&r) < 0.5;
+        double u = frep_rng_unit(&r) * total, a = frep_rng_unit(&r), b = frep_rng_unit(&r);
+        int side = frep_rng_unit(&r) < 0.5;
         double px, py, pz;
         int k = 0;
         while (k < 4 && u > area[k]) u -= area[k++];
@@ -360,13 +360,13 @@ static void test_normals(const double *px, const double *py, const double *pz, s
     static const double sp_truth[4] = {0.3, -0.2, 0.1, 2};
     double *a = malloc(6 * NS * sizeof *a);
     double *sx = a, *sy = a + NS, *sz = a + 2 * NS, *nx = a + 3 * NS, *ny = a + 4 * NS, *nz = a + 5 * NS;
-    fit_rng r;
-    fit_rng_seed(&r, 11);
+    frep_rng r;
+    frep_rng_seed(&r, 11);
     const double cap = 25 * 3.14159265358979 / 180;
     for (size_t i = 0; i < NS; i++) {
         /* Uniform on the cap: cos(theta) uniform in [cos(cap), 1]. */
-        double ct = 1 - fit_rng_uniform(&r) * (1 - cos(cap)), st = sqrt(1 - ct * ct);
-        double ph = 2 * 3.14159265358979 * fit_rng_uniform(&r);
+        double ct = 1 - frep_rng_unit(&r) * (1 - cos(cap)), st = sqrt(1 - ct * ct);
+        double ph = 2 * 3.14159265358979 * frep_rng_unit(&r);
         double n[3] = {st * cos(ph), st * sin(ph), ct};
         double rad = sp_truth[3] + 0.02 * fit_rng_normal(&r);
         sx[i] = sp_truth[0] + rad * n[0], nx[i] = n[0];
@@ -416,13 +416,13 @@ static void test_noise(const double *set1, const double *lo, const double *hi)
     sample_part(NN, x, y, z, 21);
     const double dg = sqrt(truth[3] * truth[3] + truth[4] * truth[4] + truth[5] * truth[5]);
     const double sigma = 0.01 * dg, box[6] = {-5, -3, -2, 5, 3, 2};
-    fit_rng r;
-    fit_rng_seed(&r, 22);
+    frep_rng r;
+    frep_rng_seed(&r, 22);
     for (size_t i = 0; i < NN; i++) {
-        if (fit_rng_uniform(&r) < 0.05) {
-            x[i] = box[0] + (box[3] - box[0]) * fit_rng_uniform(&r);
-            y[i] = box[1] + (box[4] - box[1]) * fit_rng_uniform(&r);
-            z[i] = box[2] + (box[5] - box[2]) * fit_rng_uniform(&r);
+        if (frep_rng_unit(&r) < 0.05) {
+            x[i] = box[0] + (box[3] - box[0]) * frep_rng_unit(&r);
+            y[i] = box[1] + (box[4] - box[1]) * frep_rng_unit(&r);
+            z[i] = box[2] + (box[5] - box[2]) * frep_rng_unit(&r);
         } else {
             x[i] += sigma * fit_rng_normal(&r);
             y[i] += sigma * fit_rng_normal(&r);

@@ -157,8 +157,8 @@ static double grad_error(fit_fn fn, void *user, size_t n, const double *x)
 static double hybrid(fit_fn fn, void *user, size_t n, double *x, const double *lo,
                      const double *hi, uint64_t seed, long *evals)
 {
-    fit_rng rng;
-    fit_rng_seed(&rng, seed);
+    frep_rng rng;
+    frep_rng_seed(&rng, seed);
     fit_control c;
     fit_control_init(&c);
     fit_sa_options so;
@@ -190,15 +190,15 @@ int main(void)
 {
     /* RNG: deterministic, uniform in [0, 1), normal with the right moments. */
     {
-        fit_rng a, b;
-        fit_rng_seed(&a, 42);
-        fit_rng_seed(&b, 42);
+        frep_rng a, b;
+        frep_rng_seed(&a, 42);
+        frep_rng_seed(&b, 42);
         int same = 1;
-        for (int i = 0; i < 100; i++) same &= fit_rng_next(&a) == fit_rng_next(&b);
+        for (int i = 0; i < 100; i++) same &= frep_rng_next(&a) == frep_rng_next(&b);
         ok(same, "rng: the same seed gives the same stream");
         double s = 0, s2 = 0, umin = 1, umax = 0;
         for (int i = 0; i < 100000; i++) {
-            double u = fit_rng_uniform(&a);
+            double u = frep_rng_unit(&a);
             umin = fmin(umin, u), umax = fmax(umax, u);
             double z = fit_rng_normal(&a);
             s += z, s2 += z * z;
@@ -323,8 +323,8 @@ int main(void)
         double worst = 0;
         for (uint64_t seed = 1; seed <= 10; seed++) {
             double lo[4] = {0, 0, 0, 0}, hi[4] = {10, 10, 10, 10}, x[4] = {1, 1, 1, 1}, f;
-            fit_rng rng;
-            fit_rng_seed(&rng, seed);
+            frep_rng rng;
+            frep_rng_seed(&rng, seed);
             fit_control c;
             fit_control_init(&c);
             local_ctx L = {shekel, NULL, 4, lo, hi, &c};
@@ -346,8 +346,8 @@ int main(void)
         for (uint64_t seed = 1; seed <= 10; seed++) {
             for (int chains = 1; chains <= 3; chains += 2) {
                 double lo[4] = {0, 0, 0, 0}, hi[4] = {10, 10, 10, 10}, x[4] = {1, 1, 1, 1}, f;
-                fit_rng rng;
-                fit_rng_seed(&rng, seed);
+                frep_rng rng;
+                frep_rng_seed(&rng, seed);
                 fit_control c;
                 fit_control_init(&c);
                 local_ctx L = {shekel, NULL, 4, lo, hi, &c};
@@ -387,8 +387,8 @@ int main(void)
     /* SA rejects unusable bounds. */
     {
         double lo[1] = {1}, hi[1] = {1}, x[1] = {1}, f;
-        fit_rng r;
-        fit_rng_seed(&r, 1);
+        frep_rng r;
+        frep_rng_seed(&r, 1);
         size_t n = 1;
         is_int(fit_sa(rastrigin, &n, 1, x, lo, hi, NULL, &r, NULL, &f, NULL), FIT_FAILED,
                "sa refuses an empty box");
