@@ -44,6 +44,7 @@ void fit_control_init(fit_control *c)
 int fit_control_stop(const fit_control *c)
 {
     if (c == NULL) return 0;
+    if (c->out_of_memory) return 1;
     if (c->interrupt != NULL && *c->interrupt) return 1;
     if (c->max_evals > 0 && c->evals >= c->max_evals) return 1;
     /* The clock is read at most once per call; callers check once per iteration. */
@@ -74,8 +75,16 @@ const char *fit_status_name(fit_status s)
     case FIT_MAXITER: return "iteration limit";
     case FIT_STOPPED: return "stopped";
     case FIT_FAILED: return "failed";
+    case FIT_NOMEM: return "out of memory";
     }
     return "?";
+}
+
+/* A phase's work arrays could not be allocated: every phase sharing c stops. */
+static fit_status out_of_memory(fit_control *c)
+{
+    if (c != NULL) c->out_of_memory = 1;
+    return FIT_NOMEM;
 }
 
 static double lo_of(const double *lo, size_t i) { return lo != NULL ? lo[i] : -HUGE_VAL; }
@@ -250,7 +259,7 @@ fit_status fit_bfgs(fit_fn fn, void *user, size_t n, double *x, const double *lo
     if (iterations) *iterations = 0;
     if (n == 0 || n > FIT_MAX_PARAMS) return FIT_FAILED;
     double *mem = frep_malloc((n * n + 8 * n) * sizeof *mem);
-    if (mem == NULL) return FIT_FAILED;
+    if (mem == NULL) return out_of_memory(c);
     double *H = mem, *g = H + n * n, *pg = g + n, *d = pg + n, *xn = d + n, *gn = xn + n;
     double *xt = gn + n, *gt = xt + n, *Hy = gt + n;
 
@@ -425,7 +434,7 @@ fit_status fit_lm(fit_lsq_fn fn, void *user, size_t n, double *x, const double *
     if (iterations) *iterations = 0;
     if (n == 0 || n > FIT_MAX_PARAMS) return FIT_FAILED;
     double *mem = frep_malloc((3 * n * n + 4 * n) * sizeof *mem);
-    if (mem == NULL) return FIT_FAILED;
+    if (mem == NULL) return out_of_memory(c);
     double *A = mem, *An = A + n * n, *M = An + n * n, *b = M + n * n, *bn = b + n;
     double *delta = bn + n, *xn = delta + n;
 
@@ -643,7 +652,7 @@ fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
     if (!(opt->qv > 1 && opt->qv < 3) || !(opt->qa < 1) || !(opt->t0 > 0)) return FIT_FAILED;
 
     double *mem = frep_malloc(4 * n * sizeof *mem);
-    if (mem == NULL) return FIT_FAILED;
+    if (mem == NULL) return out_of_memory(c);
     double *trial = mem, *best = trial + n;
     sa_chain ch = {best + n, best + 2 * n, HUGE_VAL, HUGE_VAL};
     visit_consts vc;

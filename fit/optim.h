@@ -35,7 +35,7 @@ typedef enum fit_phase { FIT_PHASE_SA, FIT_PHASE_QN, FIT_PHASE_LM } fit_phase;
 /* Budget and reporting shared by every phase of one fit. The optimizers count every
  * objective evaluation in `evals` and stop (status FIT_STOPPED) when `max_evals`
  * (0: no limit) or the wall-clock `deadline` (seconds of fit_now(); 0: none) is reached,
- * or when *interrupt becomes non-zero (Ctrl-C). */
+ * or when *interrupt becomes non-zero (Ctrl-C), or a phase ran out of memory. */
 typedef struct fit_control {
     long evals;
     long max_evals;
@@ -47,6 +47,10 @@ typedef struct fit_control {
     void *progress_user;
     double progress_interval;
     double last_progress;
+    /* Set by a phase whose work arrays could not be allocated (it returns FIT_NOMEM):
+     * every phase sharing this control then stops, the searches inside the annealing
+     * included, and the caller reports "out of memory". */
+    int out_of_memory;
 } fit_control;
 
 void fit_control_init(fit_control *c);
@@ -59,7 +63,8 @@ typedef enum fit_status {
     FIT_CONVERGED = 0,  /* a convergence test passed */
     FIT_MAXITER,        /* iteration limit of the phase */
     FIT_STOPPED,        /* budget spent or interrupted: x is the best point seen */
-    FIT_FAILED          /* no finite objective at the start, or out of memory */
+    FIT_FAILED,         /* no finite objective at the start, or invalid arguments */
+    FIT_NOMEM           /* out of memory (fit_control.out_of_memory is set too) */
 } fit_status;
 
 const char *fit_status_name(fit_status s);

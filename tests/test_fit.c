@@ -384,14 +384,15 @@ static void test_normals(const double *px, const double *py, const double *pz, s
         cfg.obj.normals_weight = w ? 100 : 0;
         double q[4] = {0, 0, -1, 3};
         fit_result res;
-        char err[200];
+        frep_error err;
         if (w) {
             fit_objective *o = fit_objective_new(&sm, &sp, &cfg.obj);
             double worst = grad_check(o, q, 4);
             ok(worst < 1e-6, "sphere + normal term: gradient matches differences (%g)", worst);
             fit_objective_free(o);
         }
-        int rc = fit_run(&sm, &sp, lo, hi, q, &cfg, &res, err, sizeof err);
+        frep_error_init(&err);
+        int rc = fit_run(&sm, &sp, lo, hi, q, &cfg, &res, &err);
         double e = 0;
         for (int j = 0; j < 4; j++) e = fmax(e, fabs(q[j] - sp_truth[j]));
         err_w[w] = rc == 0 ? e : HUGE_VAL;
@@ -442,8 +443,9 @@ static void test_noise(const double *set1, const double *lo, const double *hi)
         double p[NP];
         memcpy(p, set1, sizeof p);
         fit_result res;
-        char err[200];
-        int rc = fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+        frep_error err;
+        frep_error_init(&err);
+        int rc = fit_run(&model, &pts, lo, hi, p, &cfg, &res, &err);
         e[robust] = rc == 0 ? rel_error(p) : HUGE_VAL;
         diag("noise 1%% + 5%% outliers, set1, %s: error %.3g of the diagonal, %ld evals",
              robust ? "geometric cauchy" : "algebraic l2 (the default)", e[robust], res.evals);
@@ -539,19 +541,21 @@ int main(void)
     fit_config cfg;
     fit_config_init(&cfg);
     fit_result res;
-    char err[200];
+    frep_error err;
     double p[NP];
 
     test_noise(set1, lo, hi);
 
     cfg.method = FIT_METHOD_QN;
     memcpy(p, set1, sizeof p);
-    fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+    frep_error_init(&err);
+    fit_run(&model, &pts, lo, hi, p, &cfg, &res, &err);
     ok(rel_error(p) < 1e-6, "qn from set1 reaches the truth (error %.2g of the diagonal, %.3f s, %ld evals)",
        rel_error(p), res.seconds, res.evals);
 
     memcpy(p, set2, sizeof p);
-    fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+    frep_error_init(&err);
+    fit_run(&model, &pts, lo, hi, p, &cfg, &res, &err);
     ok(rel_error(p) > 1e-2, "qn from set2 stops in a wrong local minimum (error %.2g, objective %.3g)",
        rel_error(p), res.objective);
 
@@ -578,7 +582,8 @@ int main(void)
     for (int seed = 1; seed <= nseeds; seed++) {
         cfg.seed = (uint64_t)seed;
         memcpy(p, set2, sizeof p);
-        fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+        frep_error_init(&err);
+        fit_run(&model, &pts, lo, hi, p, &cfg, &res, &err);
         hits += rel_error(p) < 1e-3;
         diag("seed %d: error %.2g of the diagonal, %.3f s, %ld evals, %ld sa iterations",
              seed, rel_error(p), res.seconds, res.evals, res.sa_iterations);
@@ -590,17 +595,20 @@ int main(void)
     cfg.seed = 2;
     cfg.obj.nthreads = 1;
     memcpy(q1, set2, sizeof q1);
-    fit_run(&model, &pts, lo, hi, q1, &cfg, &res, err, sizeof err);
+    frep_error_init(&err);
+    fit_run(&model, &pts, lo, hi, q1, &cfg, &res, &err);
     cfg.obj.nthreads = 2;
     memcpy(q2, set2, sizeof q2);
-    fit_run(&model, &pts, lo, hi, q2, &cfg, &res, err, sizeof err);
+    frep_error_init(&err);
+    fit_run(&model, &pts, lo, hi, q2, &cfg, &res, &err);
     ok(memcmp(q1, q2, sizeof q1) == 0, "fit_run: same seed, same result at 1 and 2 threads");
 
     /* An evaluation budget stops the search and still returns a point no worse than the
      * start. */
     cfg.max_evals = 50;
     memcpy(p, set2, sizeof p);
-    fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+    frep_error_init(&err);
+    fit_run(&model, &pts, lo, hi, p, &cfg, &res, &err);
     ok(res.status == FIT_STOPPED && res.evals <= 50 + 40, "max-evals stops the fit (%ld evals, %s)",
        res.evals, fit_status_name(res.status));
     cfg.max_evals = 0;
@@ -608,11 +616,13 @@ int main(void)
     /* Bad input. */
     fit_points few = {5, px, py, pz, NULL, NULL, NULL};
     memcpy(p, set2, sizeof p);
-    ok(fit_run(&model, &few, lo, hi, p, &cfg, &res, err, sizeof err) == -1 && strstr(err, "points"),
-       "too few points refused: %s", err);
+    frep_error_init(&err);
+    ok(fit_run(&model, &few, lo, hi, p, &cfg, &res, &err) == -1 && err.code == FREP_EINPUT &&
+       strstr(err.msg, "points"), "too few points refused: %s", err.msg);
     p[3] = 30;
-    ok(fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err) == -1 && strstr(err, "outside"),
-       "start outside the bounds refused: %s", err);
+    frep_error_init(&err);
+    ok(fit_run(&model, &pts, lo, hi, p, &cfg, &res, &err) == -1 && err.code == FREP_EINPUT &&
+       strstr(err.msg, "outside"), "start outside the bounds refused: %s", err.msg);
 
     free(px);
     return done_testing();

@@ -183,7 +183,7 @@ static int local_bfgs(void *user, double *x, double *fx)
 {
     local_ctx *L = user;
     fit_status s = fit_bfgs(L->fn, L->user, L->n, x, L->lo, L->hi, NULL, L->c, fx, NULL);
-    return s == FIT_FAILED ? -1 : 0;
+    return s == FIT_FAILED || s == FIT_NOMEM ? -1 : 0;
 }
 
 int main(void)
