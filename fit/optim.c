@@ -753,39 +753,204 @@ static void random_point(size_t n, double *x, const double *lo, const double *hi
     for (size_t i = 0; i < n; i++) x[i] = lo[i] + (hi[i] - lo[i]) * frep_rng_unit(r);
 }
 
+/* One run of fit_sa: the problem, the settings and the best point of all chains. */
+typedef struct sa_ctx {
+    fit_fn fn;
+    void *user;
+    size_t n;
+    const double *lo, *hi;
+    const fit_sa_options *opt;
+    frep_rng *rng;
+    fit_control *c;
+    visit_consts vc;
+    double t1;                  /* 2^(qv-1) - 1, the numerator of the cooling schedule */
+    double *trial;              /* scratch point */
+    double *best, ebest;        /* best of all chains */
+    long total;                 /* iterations of all chains */
+} sa_ctx;
+
 /* State of one annealing chain. */
 typedef struct sa_chain {
     double *cur, *best;     /* current point, the chain's best */
     double e, ebest;
+    double emark;           /* the chain's best when it last improved by rel_improve */
+    long step;              /* iterations since the schedule (re)started */
+    long last_gain;         /* iteration of that improvement */
+    long quiet;             /* iterations in a row without a new best */
 } sa_chain;
+
+static double sa_call(sa_ctx *S, const double *x) { return call(S->fn, S->user, x, NULL, S->c); }
 
 /* Start a chain at x (when `from_x`) or at a random point with a finite objective, and
  * polish it first: a start near the answer then is the answer, and the chain only has
  * to beat it. Returns 0, or -1 when no finite objective was found. */
-static int sa_chain_start(sa_chain *ch, fit_fn fn, void *user, size_t n, const double *x,
-                          int from_x, const double *lo, const double *hi,
-                          const fit_sa_options *opt, frep_rng *rng, fit_control *c,
-                          double *trial)
+static int sa_chain_start(sa_ctx *S, sa_chain *ch, const double *x, int from_x)
 {
+    const size_t n = S->n;
+    const fit_sa_options *opt = S->opt;
     if (from_x) memcpy(ch->cur, x, n * sizeof *ch->cur);
-    else random_point(n, ch->cur, lo, hi, rng);
-    double e = call(fn, user, ch->cur, NULL, c);
-    for (int k = 0; e == HUGE_VAL && k < SA_MAX_START_TRIES && !fit_control_stop(c); k++) {
-        random_point(n, ch->cur, lo, hi, rng);
-        e = call(fn, user, ch->cur, NULL, c);
+    else random_point(n, ch->cur, S->lo, S->hi, S->rng);
+    double e = sa_call(S, ch->cur);
+    for (int k = 0; e == HUGE_VAL && k < SA_MAX_START_TRIES && !fit_control_stop(S->c); k++) {
+        random_point(n, ch->cur, S->lo, S->hi, S->rng);
+        e = sa_call(S, ch->cur);
     }
     if (e == HUGE_VAL) return -1;
-    if (opt->local != NULL && !fit_control_stop(c)) {
-        memcpy(trial, ch->cur, n * sizeof *trial);
+    if (opt->local != NULL && !fit_control_stop(S->c)) {
+        memcpy(S->trial, ch->cur, n * sizeof *S->trial);
         double el;
-        if (opt->local(opt->local_user, trial, &el) == 0 && el < e) {
-            memcpy(ch->cur, trial, n * sizeof *ch->cur);
+        if (opt->local(opt->local_user, S->trial, &el) == 0 && el < e) {
+            memcpy(ch->cur, S->trial, n * sizeof *ch->cur);
             e = el;
         }
     }
     memcpy(ch->best, ch->cur, n * sizeof *ch->best);
     ch->e = ch->ebest = e;
+    ch->emark = ch->ebest;
+    ch->step = ch->last_gain = ch->quiet = 0;
     return 0;
+}
+
+/* Temperature of the schedule T0 (2^(qv-1) - 1) / ((step+2)^(qv-1) - 1). Once it has
+ * fallen below restart_ratio T0 the schedule starts again from T0 at a random point with
+ * a finite objective (the chain stays where it is when none is found). */
+static double sa_temperature(sa_ctx *S, sa_chain *ch)
+{
+    const fit_sa_options *opt = S->opt;
+    double t2 = exp((opt->qv - 1.0) * log((double)ch->step + 2.0)) - 1.0;
+    double temp = opt->t0 * S->t1 / t2;
+    if (temp >= opt->t0 * opt->restart_ratio) return temp;
+    ch->step = 0;
+    double er = HUGE_VAL;
+    for (int k = 0; er == HUGE_VAL && k < SA_MAX_START_TRIES; k++) {
+        random_point(S->n, S->trial, S->lo, S->hi, S->rng);
+        er = sa_call(S, S->trial);
+    }
+    if (er < HUGE_VAL) {
+        memcpy(ch->cur, S->trial, S->n * sizeof *ch->cur);
+        ch->e = er;
+    }
+    return opt->t0;
+}
+
+/* Generalized Metropolis rule (acceptance parameter qa): a worse trial et > e is taken
+ * with probability [1 - (1 - qa) (et - e) / tstep]^(1 / (1 - qa)). */
+static int sa_accept(sa_ctx *S, double e, double et, double tstep)
+{
+    if (et < e) return 1;
+    const double qa = S->opt->qa;
+    double pq = 1.0 - (1.0 - qa) * (et - e) / tstep;
+    double p = pq <= 0 ? 0 : exp(log(pq) / (1.0 - qa));
+    return frep_rng_unit(S->rng) <= p && et < HUGE_VAL;
+}
+
+/* One iteration at temperature temp: n moves of all coordinates, then n moves of one
+ * coordinate, each drawn from the visiting distribution and wrapped into the box.
+ * Returns 1 when the chain's best improved. */
+static int sa_sweep(sa_ctx *S, sa_chain *ch, double temp)
+{
+    const size_t n = S->n;
+    const double *lo = S->lo, *hi = S->hi;
+    double *trial = S->trial, *cur = ch->cur;
+    double tstep = temp / (double)(ch->step + 1);
+    double sigma = visit_sigma(&S->vc, temp);
+    int found = 0;
+    for (size_t j = 0; j < 2 * n; j++) {
+        memcpy(trial, cur, n * sizeof *trial);
+        if (j < n) {
+            for (size_t i = 0; i < n; i++)
+                trial[i] = wrap(cur[i] + visit_draw(&S->vc, sigma, S->rng), lo[i], hi[i]);
+        } else {
+            size_t i = j - n;
+            trial[i] = wrap(cur[i] + visit_draw(&S->vc, sigma, S->rng), lo[i], hi[i]);
+        }
+        double et = sa_call(S, trial);
+        if (!sa_accept(S, ch->e, et, tstep)) continue;
+        memcpy(cur, trial, n * sizeof *cur);
+        ch->e = et;
+        if (ch->e < ch->ebest) {
+            ch->ebest = ch->e;
+            memcpy(ch->best, cur, n * sizeof *ch->best);
+            found = 1;
+        }
+    }
+    return found;
+}
+
+/* The stall limit of the chain now: bound_stall_iter while its best lies on a bound
+ * (probably a primitive switched off rather than placed), else stall_iter. */
+static long sa_stall_limit(const sa_ctx *S, const sa_chain *ch)
+{
+    int suspect = on_bound(S->n, ch->best, S->lo, S->hi);
+    return suspect && S->opt->bound_stall_iter > 0 ? S->opt->bound_stall_iter
+                                                   : S->opt->stall_iter;
+}
+
+/* Dual annealing's local search: from the new best after an iteration that found one,
+ * or from the current point after local_period quiet iterations (a probe of the basin
+ * the chain is in). A better result becomes the chain's best and current point. */
+static void sa_polish(sa_ctx *S, sa_chain *ch, int found)
+{
+    const size_t n = S->n;
+    const fit_sa_options *opt = S->opt;
+    int probe = opt->local_period > 0 && ch->quiet >= opt->local_period;
+    if (!(found || probe) || opt->local == NULL || fit_control_stop(S->c)) return;
+    memcpy(S->trial, found ? ch->best : ch->cur, n * sizeof *S->trial);
+    ch->quiet = 0;
+    double el;
+    if (opt->local(opt->local_user, S->trial, &el) == 0 && el < ch->ebest) {
+        ch->ebest = ch->e = el;
+        memcpy(ch->best, S->trial, n * sizeof *ch->best);
+        memcpy(ch->cur, S->trial, n * sizeof *ch->cur);
+    }
+}
+
+/* Run one chain until it stalls (FIT_CONVERGED), reaches max_iter (FIT_MAXITER), the
+ * best of all chains reaches the threshold (FIT_CONVERGED) or the budget is spent
+ * (FIT_STOPPED); *stop_all is set in the last two cases, which end the other chains
+ * too. */
+static fit_status sa_chain_run(sa_ctx *S, sa_chain *ch, int *stop_all)
+{
+    const fit_sa_options *opt = S->opt;
+    for (long it = 0; it < opt->max_iter; it++) {
+        double temp = sa_temperature(S, ch);
+        int found = sa_sweep(S, ch, temp);
+        ch->quiet = found ? 0 : ch->quiet + 1;
+        long stall = sa_stall_limit(S, ch);
+        sa_polish(S, ch, found);
+        if (ch->ebest < S->ebest) {
+            S->ebest = ch->ebest;
+            memcpy(S->best, ch->best, S->n * sizeof *S->best);
+        }
+        ch->step++;
+        S->total++;
+        report(S->c, FIT_PHASE_SA, temp, S->ebest, 0);
+        if (ch->ebest < ch->emark - opt->rel_improve * fabs(ch->emark) || ch->ebest == 0) {
+            ch->emark = ch->ebest;
+            ch->last_gain = it;
+        }
+        if (S->ebest <= opt->threshold) {
+            *stop_all = 1;
+            return FIT_CONVERGED;
+        }
+        if (stall > 0 && it - ch->last_gain >= stall) return FIT_CONVERGED;
+        if (fit_control_stop(S->c)) {
+            *stop_all = 1;
+            return FIT_STOPPED;
+        }
+    }
+    return FIT_MAXITER;
+}
+
+/* Arguments the annealing cannot work with: no or too many parameters, a box that is
+ * not finite and non-empty in every coordinate, shape parameters out of range. */
+static int sa_bad_arguments(size_t n, const double *lo, const double *hi,
+                            const fit_sa_options *opt)
+{
+    if (n == 0 || n > FIT_MAX_PARAMS || lo == NULL || hi == NULL) return 1;
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(lo[i]) || !isfinite(hi[i]) || !(lo[i] < hi[i])) return 1;
+    return !(opt->qv > 1 && opt->qv < 3) || !(opt->qa < 1) || !(opt->t0 > 0);
 }
 
 fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
@@ -796,145 +961,42 @@ fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
     if (opt == NULL) fit_sa_options_init(&defaults), opt = &defaults;
     if (iterations) *iterations = 0;
     *fx = HUGE_VAL;
-    if (n == 0 || n > FIT_MAX_PARAMS || lo == NULL || hi == NULL) return FIT_FAILED;
-    for (size_t i = 0; i < n; i++)
-        if (!isfinite(lo[i]) || !isfinite(hi[i]) || !(lo[i] < hi[i])) return FIT_FAILED;
-    if (!(opt->qv > 1 && opt->qv < 3) || !(opt->qa < 1) || !(opt->t0 > 0)) return FIT_FAILED;
-
+    if (sa_bad_arguments(n, lo, hi, opt)) return FIT_FAILED;
     double *mem = frep_malloc(4 * n * sizeof *mem);
     if (mem == NULL) return out_of_memory(c);
-    double *trial = mem, *best = trial + n;
-    sa_chain ch = {best + n, best + 2 * n, HUGE_VAL, HUGE_VAL};
-    visit_consts vc;
-    visit_init(&vc, opt->qv);
+    sa_ctx S = {.fn = fn, .user = user, .n = n, .lo = lo, .hi = hi, .opt = opt, .rng = rng,
+                .c = c, .trial = mem, .best = mem + n, .ebest = HUGE_VAL};
+    S.t1 = exp((opt->qv - 1.0) * log(2.0)) - 1.0;
+    visit_init(&S.vc, opt->qv);
+    sa_chain ch = {.cur = mem + 2 * n, .best = mem + 3 * n, .e = HUGE_VAL, .ebest = HUGE_VAL};
 
     int inside = 1;
     for (size_t i = 0; i < n; i++) inside &= x[i] >= lo[i] && x[i] <= hi[i];
-    double ebest = HUGE_VAL;
-    const double t1 = exp((opt->qv - 1.0) * log(2.0)) - 1.0;
     const long nchains = opt->chains > 0 ? opt->chains : 1;
-    long total = 0;
     fit_status st = FIT_MAXITER;
-    int stopped = 0;
-
-    for (long chain = 0; chain < nchains && !stopped; chain++) {
+    int stop_all = 0;
+    for (long chain = 0; chain < nchains && !stop_all; chain++) {
         if (chain > 0 && fit_control_stop(c)) {
             st = FIT_STOPPED;
             break;
         }
-        if (sa_chain_start(&ch, fn, user, n, x, chain == 0 && inside, lo, hi, opt, rng, c,
-                           trial) != 0) {
+        if (sa_chain_start(&S, &ch, x, chain == 0 && inside) != 0) {
             if (chain == 0) {
                 frep_free(mem);
                 return FIT_FAILED;
             }
             break;
         }
-        if (ch.ebest < ebest) {
-            ebest = ch.ebest;
-            memcpy(best, ch.best, n * sizeof *best);
+        if (ch.ebest < S.ebest) {
+            S.ebest = ch.ebest;
+            memcpy(S.best, ch.best, n * sizeof *S.best);
         }
-        double e = ch.e, emark = ch.ebest;
-        double *cur = ch.cur;
-        long step = 0, last_gain = 0, quiet = 0, it;
-        st = FIT_MAXITER;
-        for (it = 0; it < opt->max_iter; it++, total++) {
-            double t2 = exp((opt->qv - 1.0) * log((double)step + 2.0)) - 1.0;
-            double temp = opt->t0 * t1 / t2;
-            if (temp < opt->t0 * opt->restart_ratio) {     /* cold: restart elsewhere */
-                step = 0;
-                temp = opt->t0;
-                double er = HUGE_VAL;
-                for (int k = 0; er == HUGE_VAL && k < SA_MAX_START_TRIES; k++) {
-                    random_point(n, trial, lo, hi, rng);
-                    er = call(fn, user, trial, NULL, c);
-                }
-                if (er < HUGE_VAL) {
-                    memcpy(cur, trial, n * sizeof *cur);
-                    e = er;
-                }
-            }
-            double tstep = temp / (double)(step + 1);
-            double sigma = visit_sigma(&vc, temp);
-            /* One iteration: n moves of all coordinates, then n moves of one coordinate. */
-            int found = 0;
-            for (size_t j = 0; j < 2 * n; j++) {
-                memcpy(trial, cur, n * sizeof *trial);
-                if (j < n) {
-                    for (size_t i = 0; i < n; i++)
-                        trial[i] = wrap(cur[i] + visit_draw(&vc, sigma, rng), lo[i], hi[i]);
-                } else {
-                    size_t i = j - n;
-                    trial[i] = wrap(cur[i] + visit_draw(&vc, sigma, rng), lo[i], hi[i]);
-                }
-                double et = call(fn, user, trial, NULL, c);
-                int accept;
-                if (et < e) {
-                    accept = 1;
-                } else {
-                    double pq = 1.0 - (1.0 - opt->qa) * (et - e) / tstep;
-                    double p = pq <= 0 ? 0 : exp(log(pq) / (1.0 - opt->qa));
-                    accept = frep_rng_unit(rng) <= p && et < HUGE_VAL;
-                }
-                if (accept) {
-                    memcpy(cur, trial, n * sizeof *cur);
-                    e = et;
-                    if (e < ch.ebest) {
-                        ch.ebest = e;
-                        memcpy(ch.best, cur, n * sizeof *ch.best);
-                        found = 1;
-                    }
-                }
-            }
-            quiet = found ? 0 : quiet + 1;
-            int suspect = on_bound(n, ch.best, lo, hi);
-            long period = opt->local_period;
-            long stall = suspect && opt->bound_stall_iter > 0 ? opt->bound_stall_iter
-                                                              : opt->stall_iter;
-            int probe = period > 0 && quiet >= period;
-            if ((found || probe) && opt->local != NULL && !fit_control_stop(c)) {
-                memcpy(trial, found ? ch.best : cur, n * sizeof *trial);
-                quiet = 0;
-                double el;
-                if (opt->local(opt->local_user, trial, &el) == 0 && el < ch.ebest) {
-                    ch.ebest = e = el;
-                    memcpy(ch.best, trial, n * sizeof *ch.best);
-                    memcpy(cur, trial, n * sizeof *cur);
-                }
-            }
-            if (ch.ebest < ebest) {
-                ebest = ch.ebest;
-                memcpy(best, ch.best, n * sizeof *best);
-            }
-            step++;
-            report(c, FIT_PHASE_SA, temp, ebest, 0);
-            if (ch.ebest < emark - opt->rel_improve * fabs(emark) || ch.ebest == 0) {
-                emark = ch.ebest;
-                last_gain = it;
-            }
-            if (ebest <= opt->threshold) {
-                st = FIT_CONVERGED;
-                stopped = 1;
-                it++, total++;
-                break;
-            }
-            if (stall > 0 && it - last_gain >= stall) {
-                st = FIT_CONVERGED;
-                it++, total++;
-                break;
-            }
-            if (fit_control_stop(c)) {
-                st = FIT_STOPPED;
-                stopped = 1;
-                it++, total++;
-                break;
-            }
-        }
+        st = sa_chain_run(&S, &ch, &stop_all);
     }
-    if (iterations) *iterations = total;
-    memcpy(x, best, n * sizeof *x);
-    *fx = ebest;
-    report(c, FIT_PHASE_SA, 0, ebest, 1);
+    if (iterations) *iterations = S.total;
+    memcpy(x, S.best, n * sizeof *x);
+    *fx = S.ebest;
+    report(c, FIT_PHASE_SA, 0, S.ebest, 1);
     frep_free(mem);
     return st;
 }
