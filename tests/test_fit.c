@@ -496,17 +496,7 @@ int main(void)
             fit_objective *o2 = fit_objective_new(&model, &pts, &c2);
             if (kind) fit_objective_freeze(o2, p);
             fit_objective_value(o2, p, g);
-            double worst = 0;
-            for (int j = 0; j < NP; j++) {
-                double q[NP];
-                memcpy(q, p, sizeof q);
-                double h = 1e-6;
-                q[j] = p[j] + h;
-                double fp = fit_objective_value(o2, q, NULL);
-                q[j] = p[j] - h;
-                double fm = fit_objective_value(o2, q, NULL);
-                worst = fmax(worst, fabs((fp - fm) / (2 * h) - g[j]) / fmax(1e-3, fabs(g[j])));
-            }
+            double worst = grad_check(o2, p, NP);
             ok(worst < 1e-5, "%s objective gradient matches differences (rel. error %g)",
                kind ? "geometric (frozen weights, cauchy)" : "algebraic (huber)", worst);
             /* The LM normal equations agree with the gradient: J^T W r = dE/dp / 2. */

@@ -186,6 +186,25 @@ static int local_bfgs(void *user, double *x, double *fx)
     return s == FIT_FAILED || s == FIT_NOMEM ? -1 : 0;
 }
 
+/* fit_sa with BFGS from every new best (dual annealing, as frep fit runs it) on
+ * Shekel-10 in [0, 10]^4 from (1, 1, 1, 1), with the options so (the local search is set
+ * here) and a generator seeded with seed. x gets the best point, *its (may be NULL) the
+ * iterations; returns the best value. */
+static double shekel_dual(fit_sa_options *so, uint64_t seed, double x[4], long *its)
+{
+    double lo[4] = {0, 0, 0, 0}, hi[4] = {10, 10, 10, 10}, f;
+    for (int j = 0; j < 4; j++) x[j] = 1;
+    frep_rng rng;
+    frep_rng_seed(&rng, seed);
+    fit_control c;
+    fit_control_init(&c);
+    local_ctx L = {shekel, NULL, 4, lo, hi, &c};
+    so->local = local_bfgs;
+    so->local_user = &L;
+    fit_sa(shekel, NULL, 4, x, lo, hi, so, &rng, &c, &f, its);
+    return f;
+}
+
 int main(void)
 {
     /* RNG: deterministic, uniform in [0, 1), normal with the right moments. */
@@ -322,17 +341,10 @@ int main(void)
         int hits = 0;
         double worst = 0;
         for (uint64_t seed = 1; seed <= 10; seed++) {
-            double lo[4] = {0, 0, 0, 0}, hi[4] = {10, 10, 10, 10}, x[4] = {1, 1, 1, 1}, f;
-            frep_rng rng;
-            frep_rng_seed(&rng, seed);
-            fit_control c;
-            fit_control_init(&c);
-            local_ctx L = {shekel, NULL, 4, lo, hi, &c};
+            double x[4];
             fit_sa_options so;
             fit_sa_options_init(&so);
-            so.local = local_bfgs;
-            so.local_user = &L;
-            fit_sa(shekel, NULL, 4, x, lo, hi, &so, &rng, &c, &f, NULL);
+            double f = shekel_dual(&so, seed, x, NULL);
             if (f < -10.536) {
                 hits++;
                 for (int j = 0; j < 4; j++) worst = fmax(worst, fabs(x[j] - 4));
@@ -345,20 +357,13 @@ int main(void)
         long its1 = 0, its3 = 0;
         for (uint64_t seed = 1; seed <= 10; seed++) {
             for (int chains = 1; chains <= 3; chains += 2) {
-                double lo[4] = {0, 0, 0, 0}, hi[4] = {10, 10, 10, 10}, x[4] = {1, 1, 1, 1}, f;
-                frep_rng rng;
-                frep_rng_seed(&rng, seed);
-                fit_control c;
-                fit_control_init(&c);
-                local_ctx L = {shekel, NULL, 4, lo, hi, &c};
+                double x[4];
                 fit_sa_options so;
                 fit_sa_options_init(&so);
-                so.local = local_bfgs;
-                so.local_user = &L;
                 so.local_period = 2;
                 so.chains = chains;
                 long its = 0;
-                fit_sa(shekel, NULL, 4, x, lo, hi, &so, &rng, &c, &f, &its);
+                double f = shekel_dual(&so, seed, x, &its);
                 if (chains == 3) hits3 += f < -10.536, its3 += its;
                 else its1 += its;
             }
