@@ -433,12 +433,13 @@ static int stage_fit(fit_cmd *f)
     int tty = isatty(STDERR_FILENO) && !f->quiet;
     if (tty) f->cfg.progress = progress;
     f->cfg.interrupt = cli_sigint_catch();
-    char err[256];
-    int frc = fit_run(&f->fm, &f->pts, f->lo, f->hi, f->x0, &f->cfg, &f->res, err, sizeof err);
+    frep_error err;
+    frep_error_init(&err);
+    int frc = fit_run(&f->fm, &f->pts, f->lo, f->hi, f->x0, &f->cfg, &f->res, &err);
     cli_sigint_restore();
     if (tty) fputs("\r\033[K", stderr);
     if (frc != 0) {
-        fprintf(stderr, "%s: error: %s\n", f->tmpl, err);
+        fprintf(stderr, "%s: error: %s\n", f->tmpl, err.msg);
         return CLI_FAIL;
     }
     f->interrupted = cli_interrupted();

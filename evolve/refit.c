@@ -334,12 +334,13 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
                     goto oom;
             }
             fit_result fr;
-            char msg[256] = "";
-            int r = fit_run(&fm, &spts, NULL, NULL, x, &cfg, &fr, msg, sizeof msg);
+            frep_error fe;
+            frep_error_init(&fe);
+            int r = fit_run(&fm, &spts, NULL, NULL, x, &cfg, &fr, &fe);
             fit_program_model_free(&fm);
             if (r) {
                 frep_free(fidx);
-                    set_err(err, "refit: %s", msg);
+                    set_err(err, "refit: %s", fe.msg);
                 goto out;
             }
             for (size_t k = 0; k < nf; k++) all[gidx[k]] = x[k];

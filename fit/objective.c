@@ -177,11 +177,11 @@ fit_objective *fit_objective_subset(const fit_objective *src, size_t count, uint
         return NULL;
     }
     /* Partial Fisher-Yates shuffle: the first `count` indices are a uniform sample. */
-    fit_rng r;
-    fit_rng_seed(&r, seed);
+    frep_rng r;
+    frep_rng_seed(&r, seed);
     for (size_t i = 0; i < n; i++) idx[i] = i;
     for (size_t i = 0; i < count; i++) {
-        size_t j = i + (size_t)(fit_rng_uniform(&r) * (double)(n - i));
+        size_t j = i + (size_t)(frep_rng_unit(&r) * (double)(n - i));
         if (j >= n) j = n - 1;
         size_t t = idx[i];
         idx[i] = idx[j];

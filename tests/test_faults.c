@@ -655,11 +655,12 @@ static int case_fit(const fixture *fx, fault_out *o)
     cfg.sa_points = 50;
     cfg.obj.nthreads = 1;
     fit_result res;
-    char err[256] = "";
-    int rc = fit_run(&m, &pts, lo, hi, q, &cfg, &res, err, sizeof err);
+    frep_error err;
+    frep_error_init(&err);
+    int rc = fit_run(&m, &pts, lo, hi, q, &cfg, &res, &err);
     fit_program_model_free(&m);
     if (rc) {
-        set_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_doubles(o, q, 2);
