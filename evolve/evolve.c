@@ -457,311 +457,459 @@ out:
     return rc;
 }
 
+/* ---- the driver: the steps of doc/evolve.md ("Method") as stages over run_ctx ---- */
+
+/* One evolve_run: its inputs, the points and caches the stages build, and the GA's
+ * best tree before it becomes res->tree. Stages return 0, or -1 with *err set. */
+typedef struct run_ctx {
+    const evolve_options *o;
+    const frep_cloud *cloud;
+    const prim *prims;
+    size_t nprims;
+    gp_progress_fn fn;
+    void *user;
+    evolve_result *res;
+    char **err;
+    double t0;               /* gp_now() when the run started */
+    int residual;            /* --residual: o->base_f and o->base_g are set */
+    size_t *valid, nv;       /* the valid points (valid_points), cloud indices */
+    double *nrm;             /* their unit normals, nrm[3i+c] by cloud index */
+    double lo[3], hi[3];     /* their axis-aligned extent */
+    size_t *pool, np;        /* the GA's points: the valid ones, or the base's poor ones */
+    size_t *samp, m;         /* the scored sample of the pool (samp holds nv entries) */
+    size_t *tmp;             /* scratch of draw_sample */
+    uint32_t *all;           /* all[j] = j for every leaf j <= nprims */
+    double ls;               /* lambda scale: lambda = ls * ln(points) */
+    gp_cache *sc;            /* the sample's cache of every primitive; NULL: no GA */
+    gp_eval *ev;
+    gp_obb *boxes;           /* proxies, one per primitive */
+    gp_result gr;            /* the GA's (or the merge's) best tree */
+    int partitioned;         /* part_run partitioned the primitives */
+    int grown;               /* gr.best is simplified and grown already */
+} run_ctx;
+
+static int run_oom(run_ctx *c)
+{
+    set_err(c->err, "out of memory");
+    return -1;
+}
+
+/* The inputs refused before any work: no primitives, too many, no normals. */
+static int run_check(run_ctx *c)
+{
+    if (c->nprims == 0 && !c->residual) {
+        set_err(c->err, "no primitives to combine (segmentation found none; try -p or "
+                        "different segment settings)");
+        return -1;
+    }
+    if (c->nprims >= PART_MAX_PRIMS) {
+        set_err(c->err, "%zu primitives: at most %u are supported", c->nprims,
+                PART_MAX_PRIMS - 1);
+        return -1;
+    }
+    if (!c->cloud->has_normals) {
+        set_err(c->err, "the cloud has no normals");
+        return -1;
+    }
+    return 0;
+}
+
+/* The arrays sized by the cloud and the leaf list, and the evaluator of the stages. */
+static int run_alloc(run_ctx *c)
+{
+    size_t N = c->cloud->n;
+    c->valid = frep_malloc((N ? N : 1) * sizeof *c->valid);
+    c->pool = frep_malloc((N ? N : 1) * sizeof *c->pool);
+    c->tmp = frep_malloc((N ? N : 1) * sizeof *c->tmp);
+    c->nrm = frep_malloc(3 * (N ? N : 1) * sizeof *c->nrm);
+    c->all = frep_malloc((c->nprims + 1) * sizeof *c->all);
+    c->ev = gp_eval_new();
+    if (!c->valid || !c->pool || !c->tmp || !c->nrm || !c->all || !c->ev) return run_oom(c);
+    for (uint32_t j = 0; j <= c->nprims; j++) c->all[j] = j;
+    return 0;
+}
+
+/* Valid points (finite, with a normal), the diagonal, and the tolerances eps_d and
+ * alpha (the automatic alpha starts from the default). */
+static int stage_points(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    evolve_result *res = c->res;
+    c->nv = valid_points(c->cloud, c->valid, c->nrm, c->lo, c->hi, &res->diag);
+    res->npoints = c->nv;
+    res->dropped = c->cloud->n - c->nv;
+    if (c->nv == 0) {
+        set_err(c->err, "no point with finite coordinates and a normal");
+        return -1;
+    }
+    if (!(res->diag > 0)) {
+        set_err(c->err, "all %zu points coincide: nothing to fit", c->nv);
+        return -1;
+    }
+    res->eps_d = (o->eps_rel > 0 ? o->eps_rel : EVOLVE_DEFAULT_EPS_REL) * res->diag;
+    res->alpha = (o->alpha_deg > 0 && !(o->alpha_auto && !c->residual)
+                      ? o->alpha_deg
+                      : EVOLVE_DEFAULT_ALPHA_DEG) *
+                 EV_PI / 180;
+    return 0;
+}
+
+/* Clipping box: the principal-axes box, or the axis-aligned one when smaller (PCA axes
+ * are arbitrary for symmetric shapes such as a cube). */
+static void stage_clip_box(run_ctx *c)
+{
+    evolve_result *res = c->res;
+    part_obb_of_points(c->cloud->x, c->cloud->y, c->cloud->z, c->valid, c->nv, &res->obb);
+    double va = 1, vo = 1;
+    for (int d = 0; d < 3; d++) {
+        va *= c->hi[d] - c->lo[d] + 1e-12 * res->diag;
+        vo *= 2 * res->obb.h[d] + 1e-12 * res->diag;
+    }
+    if (va <= vo * (1 + 1e-9)) {
+        memset(res->obb.ax, 0, sizeof res->obb.ax);
+        for (int d = 0; d < 3; d++) {
+            res->obb.ax[d][d] = 1;
+            res->obb.c[d] = 0.5 * (c->lo[d] + c->hi[d]);
+            res->obb.h[d] = 0.5 * (c->hi[d] - c->lo[d]);
+        }
+    }
+}
+
+/* The GA's pool: every valid point, or with --residual those the base model explains
+ * poorly; the sample size m drawn from it. */
+static int stage_pool(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    evolve_result *res = c->res;
+    c->np = 0;
+    if (c->residual) {
+        double ca = cos(res->alpha);
+        for (size_t q = 0; q < c->nv; q++)
+            if (base_poor(o->base_f, o->base_g, c->nrm, c->valid[q], res->eps_d, ca))
+                c->pool[c->np++] = c->valid[q];
+        res->residual = 1;
+        res->nresidual = c->np;
+    } else {
+        memcpy(c->pool, c->valid, c->nv * sizeof *c->pool);
+        c->np = c->nv;
+    }
+    c->m = o->sample && o->sample < c->np ? o->sample : c->np;
+    c->samp = frep_malloc((c->nv ? c->nv : 1) * sizeof *c->samp);
+    if (!c->samp) return run_oom(c);
+    c->ls = o->lambda_scale > 0 ? o->lambda_scale : 1.0;
+    return 0;
+}
+
+/* The seeded sample the GA scores, and its cache of every primitive. */
+static int stage_sample_cache(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    evolve_result *res = c->res;
+    draw_sample(c->pool, c->np, c->m, o->gp.seed ^ 0x5a5a5a5a5a5a5a5au, c->samp, c->tmp);
+    res->nsample = c->m;
+    c->sc = build_cache(c->prims, c->nprims, c->all, (uint32_t)c->nprims, c->cloud->x,
+                        c->cloud->y, c->cloud->z, c->nrm, NULL, NULL, c->samp, c->m,
+                        o->gp.setops, res->eps_d, res->alpha,
+                        c->ls * log((double)(c->m > 1 ? c->m : 2)), 0);
+    return c->sc ? 0 : run_oom(c);
+}
+
+/* Automatic alpha: 35 degrees when the sample is noisy or faceted against the
+ * primitives (evolve.h). With --residual the pool was chosen with alpha_deg already,
+ * so it stays. */
+static int stage_auto_alpha(run_ctx *c)
+{
+    evolve_result *res = c->res;
+    if (!c->o->alpha_auto || c->residual) return 0;
+    if (gp_cache_noise(c->sc, &res->noise)) return run_oom(c);
+    res->alpha_auto = 1;
+    if (res->noise.sigma_d > EVOLVE_NOISY_SIGMA || res->noise.median_deg > EVOLVE_NOISY_DEG ||
+        res->noise.p90_deg > EVOLVE_FACETED_P90_DEG) {
+        res->alpha = EVOLVE_NOISY_ALPHA_DEG * EV_PI / 180;
+        if (gp_cache_set_alpha(c->sc, res->alpha)) return run_oom(c);
+    }
+    return 0;
+}
+
+/* The sample points (cloud indices) primitive j explains alone, as itself or as a
+ * complement, into idx; their count. */
+static size_t proxy_points(const run_ctx *c, uint32_t j, size_t *idx)
+{
+    const gp_cache *sc = c->sc;
+    size_t m = c->m, nk = 0;
+    double ca = cos(c->res->alpha);
+    for (size_t i = 0; i < m; i++) {
+        double f = sc->v[(size_t)j * m + i];
+        double g[3] = { sc->g[(3 * (size_t)j) * m + i], sc->g[(3 * (size_t)j + 1) * m + i],
+                        sc->g[(3 * (size_t)j + 2) * m + i] };
+        double gl = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+        const double *nn = sc->nrm + 3 * i;
+        if (fabs(f) < c->res->eps_d && gl > 0 &&
+            fabs(g[0] * nn[0] + g[1] * nn[1] + g[2] * nn[2]) / gl > ca)
+            idx[nk++] = c->samp[i];
+    }
+    return nk;
+}
+
+/* Proxies of the partitioning: the primitive's own box, else the box of the sample
+ * points it explains alone. Primitives explaining no point get none and overlap
+ * everything. */
+static int stage_proxies(run_ctx *c)
+{
+    c->boxes = frep_calloc(c->nprims, sizeof *c->boxes);
+    size_t *idx = frep_malloc(c->m * sizeof *idx);
+    if (!c->boxes || !idx) {
+        frep_free(idx);
+        return run_oom(c);
+    }
+    for (uint32_t j = 0; j < c->nprims; j++) {
+        const prim *q = &c->prims[j];
+        gp_obb *b = &c->boxes[j];
+        if (q->has_obb) {
+            memcpy(b->c, q->obb_c, sizeof b->c);
+            memcpy(b->ax, q->obb_axes, sizeof b->ax);
+            memcpy(b->h, q->obb_half, sizeof b->h);
+            b->valid = 1;
+            continue;
+        }
+        size_t nk = proxy_points(c, j, idx);
+        part_obb_of_points(c->cloud->x, c->cloud->y, c->cloud->z, idx, nk, b);
+    }
+    frep_free(idx);
+    return 0;
+}
+
+/* The partitioned GA (partition.c): cliques of overlapping proxies, a tree per clique,
+ * the trees merged; it falls back (c->partitioned 0) when partitioning is useless. */
+static int stage_partition(run_ctx *c)
+{
+    size_t m = c->m;
+    /* part_run needs the sample's coordinates. */
+    double *xs = frep_malloc(m * sizeof *xs), *ys = frep_malloc(m * sizeof *ys);
+    double *zs = frep_malloc(m * sizeof *zs);
+    if (!xs || !ys || !zs) {
+        frep_free(xs);
+        frep_free(ys);
+        frep_free(zs);
+        return run_oom(c);
+    }
+    for (size_t i = 0; i < m; i++) {
+        xs[i] = c->cloud->x[c->samp[i]];
+        ys[i] = c->cloud->y[c->samp[i]];
+        zs[i] = c->cloud->z[c->samp[i]];
+    }
+    int pr = part_run(&c->o->gp, c->sc, xs, ys, zs, c->boxes,
+                      EVOLVE_PROXY_MARGIN * c->res->eps_d, c->fn, c->user, &c->gr,
+                      &c->res->part);
+    frep_free(xs);
+    frep_free(ys);
+    frep_free(zs);
+    if (pr) return run_oom(c);
+    c->partitioned = c->res->part.partitioned;
+    c->res->partitioned = c->partitioned;
+    return 0;
+}
+
+/* The merged tree grown as the final tree is (stage_simplify): pieces the merge lost
+ * (a pocket whose clique trees disagreed) come back here, before the polish, which
+ * then starts from them. */
+static int stage_grow_merged(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    gp_result *gr = &c->gr;
+    if (!c->partitioned || !o->simplify || !gr->best.len) return 0;
+    if (simplify_grow_pieces(&gr->best, o->gp.setops, c->sc, c->ev, &gr->fitness))
+        return run_oom(c);
+    c->grown = 1;
+    if (c->fn) {
+        gp_stats st;
+        if (o->gp.report && gp_tree_stats(c->sc, c->ev, gr->best.code, gr->best.len, &st) == 0) {
+            o->gp.report->explained = st.explained;
+            o->gp.report->npoints = c->sc->n;
+        }
+        gp_progress gpr = { gr->generations, gr->fitness, gr->best.len, gp_now() - c->t0,
+                            GP_PHASE_GROWN };
+        c->fn(c->user, &gpr);
+    }
+    return 0;
+}
+
+/* Polish: a GA over all primitives seeded with the merged tree. The merge is greedy
+ * and the clique trees see only their points; the seeded GA repairs what that misses
+ * (a part a clique got wrong, a subtraction the merge placed too low) and never does
+ * worse, since the seed is kept by elitism. Its depth limit leaves room to grow the
+ * seed. */
+static int stage_polish(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    gp_result *gr = &c->gr;
+    if (!c->partitioned || !o->polish || !gr->best.len) return 0;
+    gp_config pc = o->gp;
+    int dd = tree_depth(gr->best.code, gr->best.len) + GP_DEPTH_SLACK;
+    int d0 = pc.max_depth > 0 ? pc.max_depth : gp_default_depth((uint32_t)c->nprims);
+    pc.max_depth = dd > d0 ? dd : d0;
+    if (o->polish_stagnation && (pc.stagnation == 0 || o->polish_stagnation < pc.stagnation))
+        pc.stagnation = o->polish_stagnation;
+    if (pc.max_time > 0) pc.max_time = fmax(pc.max_time - (gp_now() - c->t0), 1e-3);
+    gp_result pg;
+    memset(&pg, 0, sizeof pg);
+    if (gp_run(&pc, c->sc, &gr->best, 1, c->fn, c->user, &pg)) {
+        tree_free(&pg.best);
+        return run_oom(c);
+    }
+    c->res->part.polish_generations = pg.generations;
+    if (pg.best.len && pg.fitness > gr->fitness) {
+        tree_free(&gr->best);
+        gr->best = pg.best;
+        gr->fitness = pg.fitness;
+        c->grown = 0;  /* a new tree: simplified and grown again */
+    } else {
+        tree_free(&pg.best);
+    }
+    gr->generations += pg.generations;
+    return 0;
+}
+
+/* The GA over all primitives (gp.c), when the run is not partitioned. */
+static int stage_ga(run_ctx *c)
+{
+    tree_free(&c->gr.best);
+    if (gp_run(&c->o->gp, c->sc, NULL, 0, c->fn, c->user, &c->gr)) return run_oom(c);
+    return 0;
+}
+
+/* The GA's tree becomes the result, simplified and then grown by pieces of two or
+ * three primitives at the root (a subtracted pocket, an added block) that neither the
+ * GA nor the one-primitive hill climb found; only on the final tree, since one pass
+ * tries every pair of primitives. */
+static int stage_simplify(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    evolve_result *res = c->res;
+    if (!c->gr.best.len && !c->residual) {
+        set_err(c->err, "the run stopped before any tree was scored");
+        return -1;
+    }
+    res->generations = c->gr.generations;
+    res->stop = c->gr.stop;
+    res->fitness = c->gr.fitness;
+    if (tree_copy(&res->tree, &c->gr.best)) return run_oom(c);
+    if (!o->simplify || !res->tree.len || c->grown) return 0;
+    if (simplify_tree(&res->tree, o->gp.setops, c->sc, c->ev, &res->fitness) ||
+        simplify_grow_pieces(&res->tree, o->gp.setops, c->sc, c->ev, &res->fitness))
+        return run_oom(c);
+    return 0;
+}
+
+/* Material no point supports, trimmed; not with --residual, whose base model is a leaf
+ * known at the cloud's points only. */
+static int stage_support(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    if (!o->simplify || !o->support || c->residual || !c->sc || !c->res->tree.len) return 0;
+    if (support_run(o, c->cloud, c->prims, c->nprims, c->valid, c->nv, c->sc, c->ev, c->res))
+        return run_oom(c);
+    return 0;
+}
+
+/* --residual: the tree joined to the base model (leaf nprims), on a sample of every
+ * point. */
+static int stage_join(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    evolve_result *res = c->res;
+    if (!c->residual) return 0;
+    size_t mj = o->sample && o->sample < c->nv ? o->sample : c->nv;
+    draw_sample(c->valid, c->nv, mj, o->gp.seed ^ 0xa5a5a5a5a5a5a5a5u, c->samp, c->tmp);
+    gp_cache *jc = build_cache(c->prims, c->nprims, c->all, (uint32_t)c->nprims + 1,
+                               c->cloud->x, c->cloud->y, c->cloud->z, c->nrm, o->base_f,
+                               o->base_g, c->samp, mj, o->gp.setops, res->eps_d, res->alpha,
+                               c->ls * log((double)(mj > 1 ? mj : 2)), 0);
+    if (!jc) return run_oom(c);
+    gp_tree joined = { NULL, 0, 0 };
+    int bad = join_base(o, &res->tree, (uint32_t)c->nprims, jc, c->ev, &joined, &res->fitness);
+    gp_cache_free(jc);
+    if (bad) {
+        tree_free(&joined);
+        return run_oom(c);
+    }
+    tree_free(&res->tree);
+    res->tree = joined;
+    res->nsample = mj;
+    return 0;
+}
+
+/* The @box extent: the grown oriented box's axis-aligned hull. */
+static void stage_box_extent(evolve_result *res)
+{
+    double mg = EVOLVE_CLIP_MARGIN * res->diag;
+    for (int d = 0; d < 3; d++) {
+        double r = 0;
+        for (int a = 0; a < 3; a++) r += (res->obb.h[a] + 2 * mg) * fabs(res->obb.ax[a][d]);
+        res->box[d] = res->obb.c[d] - r;
+        res->box[d + 3] = res->obb.c[d] + r;
+    }
+}
+
+/* The pipeline of doc/evolve.md: points and tolerances, clipping box, sample and its
+ * cache, alpha, proxies, partitioned GA (merge, growth, polish) or plain GA,
+ * simplification and growth, support trims, the --residual join, statistics on every
+ * point. */
+static int run_stages(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    if (run_alloc(c) || stage_points(c)) return -1;
+    stage_clip_box(c);
+    if (stage_pool(c)) return -1;
+    /* With --residual and fewer residual points than a tree could use, or no
+     * primitive, there is nothing to evolve: the result is the base model. */
+    if (c->nprims > 0 && c->m > 0) {
+        if (stage_sample_cache(c) || stage_auto_alpha(c) || stage_proxies(c)) return -1;
+        if (o->partition && c->nprims > 1 &&
+            (stage_partition(c) || stage_grow_merged(c) || stage_polish(c)))
+            return -1;
+        if (!c->partitioned && stage_ga(c)) return -1;
+        if (stage_simplify(c)) return -1;
+    }
+    if (stage_support(c) || stage_join(c)) return -1;
+    /* Statistics on every valid point, over the leaves of the tree only. */
+    if (evolve_stats(o, c->cloud, c->prims, c->nprims, c->res)) return run_oom(c);
+    stage_box_extent(c->res);
+    c->res->seconds = gp_now() - c->t0;
+    return 0;
+}
+
 int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
                size_t nprims, gp_progress_fn fn, void *user, evolve_result *res,
                char **err)
 {
     memset(res, 0, sizeof *res);
     if (err) *err = NULL;
-    double t0 = gp_now();
-    int residual = o->base_f != NULL;
-    if (nprims == 0 && !residual) {
-        set_err(err, "no primitives to combine (segmentation found none; try -p or "
-                     "different segment settings)");
-        return -1;
-    }
-    if (nprims >= PART_MAX_PRIMS) {
-        set_err(err, "%zu primitives: at most %u are supported", nprims, PART_MAX_PRIMS - 1);
-        return -1;
-    }
-    if (!cloud->has_normals) {
-        set_err(err, "the cloud has no normals");
-        return -1;
-    }
-    size_t N = cloud->n;
-    int rc = -1;
-    size_t *valid = frep_malloc((N ? N : 1) * sizeof *valid);
-    size_t *pool = frep_malloc((N ? N : 1) * sizeof *pool);
-    size_t *tmp = frep_malloc((N ? N : 1) * sizeof *tmp);
-    double *nrm = frep_malloc(3 * (N ? N : 1) * sizeof *nrm);
-    size_t *samp = NULL;
-    uint32_t *all = frep_malloc((nprims + 1) * sizeof *all);
-    gp_cache *sc = NULL, *jc = NULL;
-    gp_eval *ev = gp_eval_new();
-    gp_obb *boxes = NULL;
-    gp_result gr;
-    memset(&gr, 0, sizeof gr);
-    if (!valid || !pool || !tmp || !nrm || !all || !ev) goto oom;
-    for (uint32_t j = 0; j <= nprims; j++) all[j] = j;
-
-    double lo[3], hi[3];
-    size_t nv = valid_points(cloud, valid, nrm, lo, hi, &res->diag);
-    res->npoints = nv;
-    res->dropped = N - nv;
-    if (nv == 0) {
-        set_err(err, "no point with finite coordinates and a normal");
-        goto out;
-    }
-    if (!(res->diag > 0)) {
-        set_err(err, "all %zu points coincide: nothing to fit", nv);
-        goto out;
-    }
-    res->eps_d = (o->eps_rel > 0 ? o->eps_rel : EVOLVE_DEFAULT_EPS_REL) * res->diag;
-    res->alpha = (o->alpha_deg > 0 && !(o->alpha_auto && !residual) ? o->alpha_deg
-                                                                    : EVOLVE_DEFAULT_ALPHA_DEG) *
-                 EV_PI / 180;
-    /* Clipping box: the principal-axes box, or the axis-aligned one when smaller (PCA
-     * axes are arbitrary for symmetric shapes such as a cube). */
-    part_obb_of_points(cloud->x, cloud->y, cloud->z, valid, nv, &res->obb);
-    {
-        double va = 1, vo = 1;
-        for (int d = 0; d < 3; d++) {
-            va *= hi[d] - lo[d] + 1e-12 * res->diag;
-            vo *= 2 * res->obb.h[d] + 1e-12 * res->diag;
-        }
-        if (va <= vo * (1 + 1e-9)) {
-            memset(res->obb.ax, 0, sizeof res->obb.ax);
-            for (int d = 0; d < 3; d++) {
-                res->obb.ax[d][d] = 1;
-                res->obb.c[d] = 0.5 * (lo[d] + hi[d]);
-                res->obb.h[d] = 0.5 * (hi[d] - lo[d]);
-            }
-        }
-    }
-
-    /* The GA's pool: every valid point, or with --residual those the base model
-     * explains poorly. */
-    size_t np = 0;
-    if (residual) {
-        double ca = cos(res->alpha);
-        for (size_t q = 0; q < nv; q++)
-            if (base_poor(o->base_f, o->base_g, nrm, valid[q], res->eps_d, ca))
-                pool[np++] = valid[q];
-        res->residual = 1;
-        res->nresidual = np;
-    } else {
-        memcpy(pool, valid, nv * sizeof *pool);
-        np = nv;
-    }
-    size_t m = o->sample && o->sample < np ? o->sample : np;
-    samp = frep_malloc((nv ? nv : 1) * sizeof *samp);
-    if (!samp) goto oom;
-    double ls = o->lambda_scale > 0 ? o->lambda_scale : 1.0;
-    /* With --residual and fewer residual points than a tree could use, or no
-     * primitive, there is nothing to evolve: the result is the base model. */
-    int evolve_tree = nprims > 0 && m > 0;
-    if (evolve_tree) {
-        draw_sample(pool, np, m, o->gp.seed ^ 0x5a5a5a5a5a5a5a5au, samp, tmp);
-        res->nsample = m;
-        sc = build_cache(prims, nprims, all, (uint32_t)nprims, cloud->x, cloud->y, cloud->z,
-                         nrm, NULL, NULL, samp, m, o->gp.setops, res->eps_d, res->alpha,
-                         ls * log((double)(m > 1 ? m : 2)), 0);
-        if (!sc) goto oom;
-        /* Automatic alpha: 35 degrees when the sample is noisy or faceted against the
-         * primitives (evolve.h). With --residual the pool was chosen with alpha_deg
-         * already, so it stays. */
-        if (o->alpha_auto && !residual) {
-            if (gp_cache_noise(sc, &res->noise)) goto oom;
-            res->alpha_auto = 1;
-            if (res->noise.sigma_d > EVOLVE_NOISY_SIGMA ||
-                res->noise.median_deg > EVOLVE_NOISY_DEG ||
-                res->noise.p90_deg > EVOLVE_FACETED_P90_DEG) {
-                res->alpha = EVOLVE_NOISY_ALPHA_DEG * EV_PI / 180;
-                if (gp_cache_set_alpha(sc, res->alpha)) goto oom;
-            }
-        }
-    }
-
-    if (evolve_tree) {
-        /* Proxies: the primitive's own box, else the box of the sample points it
-         * explains alone. Primitives explaining no point get none and overlap
-         * everything. */
-        boxes = frep_calloc(nprims, sizeof *boxes);
-        size_t *idx = frep_malloc(m * sizeof *idx);
-        if (!boxes || !idx) {
-            frep_free(idx);
-            goto oom;
-        }
-        for (uint32_t j = 0; j < nprims; j++) {
-            const prim *q = &prims[j];
-            if (q->has_obb) {
-                gp_obb *b = &boxes[j];
-                memcpy(b->c, q->obb_c, sizeof b->c);
-                memcpy(b->ax, q->obb_axes, sizeof b->ax);
-                memcpy(b->h, q->obb_half, sizeof b->h);
-                b->valid = 1;
-                continue;
-            }
-            size_t nk = 0;
-            for (size_t i = 0; i < m; i++) {
-                double f = sc->v[(size_t)j * m + i];
-                double g[3] = { sc->g[(3 * (size_t)j) * m + i],
-                                sc->g[(3 * (size_t)j + 1) * m + i],
-                                sc->g[(3 * (size_t)j + 2) * m + i] };
-                double gl = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
-                const double *nn = sc->nrm + 3 * i;
-                if (fabs(f) < res->eps_d && gl > 0 &&
-                    fabs(g[0] * nn[0] + g[1] * nn[1] + g[2] * nn[2]) / gl > cos(res->alpha))
-                    idx[nk++] = samp[i];
-            }
-            part_obb_of_points(cloud->x, cloud->y, cloud->z, idx, nk, &boxes[j]);
-        }
-        frep_free(idx);
-
-        int done = 0, grown = 0;  /* grown: gr.best is simplified and grown already */
-        if (o->partition && nprims > 1) {
-            /* part_run needs the sample's coordinates. */
-            double *xs = frep_malloc(m * sizeof *xs), *ys = frep_malloc(m * sizeof *ys);
-            double *zs = frep_malloc(m * sizeof *zs);
-            if (!xs || !ys || !zs) {
-                frep_free(xs);
-                frep_free(ys);
-                frep_free(zs);
-                goto oom;
-            }
-            for (size_t i = 0; i < m; i++) {
-                xs[i] = cloud->x[samp[i]];
-                ys[i] = cloud->y[samp[i]];
-                zs[i] = cloud->z[samp[i]];
-            }
-            int pr = part_run(&o->gp, sc, xs, ys, zs, boxes, EVOLVE_PROXY_MARGIN * res->eps_d,
-                              fn, user, &gr, &res->part);
-            frep_free(xs);
-            frep_free(ys);
-            frep_free(zs);
-            if (pr) goto oom;
-            done = res->part.partitioned;
-            res->partitioned = done;
-            /* The merged tree grown as the final tree is (below): pieces the merge
-             * lost (a pocket whose clique trees disagreed) come back here, before the
-             * polish, which then starts from them. */
-            if (done && o->simplify && gr.best.len) {
-                if (simplify_grow_pieces(&gr.best, o->gp.setops, sc, ev, &gr.fitness))
-                    goto oom;
-                grown = 1;
-                if (fn) {
-                    gp_stats st;
-                    if (o->gp.report &&
-                        gp_tree_stats(sc, ev, gr.best.code, gr.best.len, &st) == 0) {
-                        o->gp.report->explained = st.explained;
-                        o->gp.report->npoints = sc->n;
-                    }
-                    gp_progress gpr = { gr.generations, gr.fitness, gr.best.len,
-                                        gp_now() - t0, GP_PHASE_GROWN };
-                    fn(user, &gpr);
-                }
-            }
-            if (done && o->polish && gr.best.len) {
-                /* Polish: a GA over all primitives seeded with the merged tree. The
-                 * merge is greedy and the clique trees see only their points; the
-                 * seeded GA repairs what that misses (a part a clique got wrong, a
-                 * subtraction the merge placed too low) and never does worse, since
-                 * the seed is kept by elitism. Its depth limit leaves room to grow
-                 * the seed. */
-                gp_config pc = o->gp;
-                int dd = tree_depth(gr.best.code, gr.best.len) + GP_DEPTH_SLACK;
-                int d0 = pc.max_depth > 0 ? pc.max_depth : gp_default_depth((uint32_t)nprims);
-                pc.max_depth = dd > d0 ? dd : d0;
-                if (o->polish_stagnation &&
-                    (pc.stagnation == 0 || o->polish_stagnation < pc.stagnation))
-                    pc.stagnation = o->polish_stagnation;
-                if (pc.max_time > 0) pc.max_time = fmax(pc.max_time - (gp_now() - t0), 1e-3);
-                gp_result pg;
-                memset(&pg, 0, sizeof pg);
-                if (gp_run(&pc, sc, &gr.best, 1, fn, user, &pg)) {
-                    tree_free(&pg.best);
-                    goto oom;
-                }
-                res->part.polish_generations = pg.generations;
-                if (pg.best.len && pg.fitness > gr.fitness) {
-                    tree_free(&gr.best);
-                    gr.best = pg.best;
-                    gr.fitness = pg.fitness;
-                    grown = 0;  /* a new tree: simplified and grown again below */
-                } else {
-                    tree_free(&pg.best);
-                }
-                gr.generations += pg.generations;
-            }
-        }
-        if (!done) {
-            tree_free(&gr.best);
-            if (gp_run(&o->gp, sc, NULL, 0, fn, user, &gr)) goto oom;
-        }
-        if (!gr.best.len && !residual) {
-            set_err(err, "the run stopped before any tree was scored");
-            goto out;
-        }
-        res->generations = gr.generations;
-        res->stop = gr.stop;
-        res->fitness = gr.fitness;
-        if (tree_copy(&res->tree, &gr.best)) goto oom;
-        if (o->simplify && res->tree.len && !grown &&
-            simplify_tree(&res->tree, o->gp.setops, sc, ev, &res->fitness))
-            goto oom;
-        /* Pieces of two or three primitives at the root (a subtracted pocket, an
-         * added block) that neither the GA nor the one-primitive hill climb found;
-         * only on the final tree, since one pass tries every pair of primitives. */
-        if (o->simplify && res->tree.len && !grown &&
-            simplify_grow_pieces(&res->tree, o->gp.setops, sc, ev, &res->fitness))
-            goto oom;
-    }
-
-    /* Material no point supports, trimmed; not with --residual, whose base model is a
-     * leaf known at the cloud's points only. */
-    if (o->simplify && o->support && !residual && sc && res->tree.len &&
-        support_run(o, cloud, prims, nprims, valid, nv, sc, ev, res))
-        goto oom;
-
-    if (residual) {
-        /* Join on a sample of every point, with the base model as leaf nprims. */
-        size_t mj = o->sample && o->sample < nv ? o->sample : nv;
-        draw_sample(valid, nv, mj, o->gp.seed ^ 0xa5a5a5a5a5a5a5a5u, samp, tmp);
-        jc = build_cache(prims, nprims, all, (uint32_t)nprims + 1, cloud->x, cloud->y,
-                         cloud->z, nrm, o->base_f, o->base_g, samp, mj, o->gp.setops,
-                         res->eps_d, res->alpha, ls * log((double)(mj > 1 ? mj : 2)), 0);
-        if (!jc) goto oom;
-        gp_tree joined = { NULL, 0, 0 };
-        if (join_base(o, &res->tree, (uint32_t)nprims, jc, ev, &joined, &res->fitness)) {
-            tree_free(&joined);
-            goto oom;
-        }
-        tree_free(&res->tree);
-        res->tree = joined;
-        res->nsample = mj;
-    }
-
-    /* Statistics on every valid point, over the leaves of the tree only. */
-    if (evolve_stats(o, cloud, prims, nprims, res)) goto oom;
-
-    /* The @box extent: the grown oriented box's axis-aligned hull. */
-    {
-        double mg = EVOLVE_CLIP_MARGIN * res->diag;
-        for (int d = 0; d < 3; d++) {
-            double r = 0;
-            for (int a = 0; a < 3; a++) r += (res->obb.h[a] + 2 * mg) * fabs(res->obb.ax[a][d]);
-            res->box[d] = res->obb.c[d] - r;
-            res->box[d + 3] = res->obb.c[d] + r;
-        }
-    }
-    res->seconds = gp_now() - t0;
-    rc = 0;
-    goto out;
-oom:
-    set_err(err, "out of memory");
-out:
+    run_ctx c;
+    memset(&c, 0, sizeof c);
+    c.o = o;
+    c.cloud = cloud;
+    c.prims = prims;
+    c.nprims = nprims;
+    c.fn = fn;
+    c.user = user;
+    c.res = res;
+    c.err = err;
+    c.t0 = gp_now();
+    c.residual = o->base_f != NULL;
+    if (run_check(&c)) return -1;
+    int rc = run_stages(&c);
     if (rc) tree_free(&res->tree);
-    tree_free(&gr.best);
-    frep_free(valid);
-    frep_free(pool);
-    frep_free(tmp);
-    frep_free(nrm);
-    frep_free(samp);
-    frep_free(all);
-    frep_free(boxes);
-    gp_cache_free(sc);
-    gp_cache_free(jc);
-    gp_eval_free(ev);
+    tree_free(&c.gr.best);
+    frep_free(c.valid);
+    frep_free(c.pool);
+    frep_free(c.tmp);
+    frep_free(c.nrm);
+    frep_free(c.samp);
+    frep_free(c.all);
+    frep_free(c.boxes);
+    gp_cache_free(c.sc);
+    gp_eval_free(c.ev);
     return rc;
 }
 
