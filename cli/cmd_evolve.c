@@ -374,7 +374,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     frep_program *base_prog = NULL;
     char *base_src = NULL;
     double *base_f = NULL, *base_g = NULL;
-    uint8_t *mask = NULL;
+    uint8_t *mask = NULL, *base_ok = NULL;
     frep_cloud *sub = NULL;
     char note[256] = "";
     trace_buf trace = { NULL, 0, 0, 0 };
@@ -418,8 +418,9 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         base_f = malloc(N * sizeof *base_f);
         base_g = malloc(3 * N * sizeof *base_g);
         mask = malloc(N);
-        if (!base_f || !base_g || !mask ||
-            residual_eval(&base, cloud, eo.gp.threads, base_f, base_g, &nbad)) {
+        base_ok = malloc(N);
+        if (!base_f || !base_g || !mask || !base_ok ||
+            residual_eval(&base, cloud, eo.gp.threads, base_f, base_g, base_ok, &nbad)) {
             fprintf(stderr, "frep evolve: out of memory\n");
             goto done;
         }
@@ -428,6 +429,7 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
                             "unexplained)\n", residual_path, nbad);
         eo.base_f = base_f;
         eo.base_g = base_g;
+        eo.base_ok = base_ok;
         if (evolve_residual_points(&eo, cloud, mask, &nres)) {
             fprintf(stderr, "frep evolve: out of memory\n");
             goto done;
@@ -587,6 +589,7 @@ done:
     free(base_f);
     free(base_g);
     free(mask);
+    free(base_ok);
     cloud_free(sub);
     cloud_free(cloud);
     free(err);

@@ -55,15 +55,18 @@ static int cmp_double_asc(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-/* Cache of prims[use[0..k)] at the points pts[0..m) (indices into x/y/z/nrm). */
-/* Leaf number nprims (use[j] == nprims) is the base model of --residual, whose values
- * and gradients at every cloud point are bf[i], bg[3i+c] (NULL otherwise). */
-static gp_cache *build_cache(const prim *prims, size_t nprims, const uint32_t *use,
-                             uint32_t k, const double *x, const double *y, const double *z,
-                             const double *nrm, const double *bf, const double *bg,
-                             const size_t *pts, size_t m, gp_setops s, double eps_d,
-                             double alpha, double lambda, int stats_only)
+/* Cache of prims[use[0..k)] at the points pts[0..m) (indices into x/y/z/nrm), under
+ * o's set operations. Leaf number nprims (use[j] == nprims) is the base model of
+ * --residual (o->base_f, o->base_g, o->base_ok). */
+static gp_cache *build_cache(const evolve_options *o, const prim *prims, size_t nprims,
+                             const uint32_t *use, uint32_t k, const double *x,
+                             const double *y, const double *z, const double *nrm,
+                             const size_t *pts, size_t m, double eps_d, double alpha,
+                             double lambda, int stats_only)
 {
+    const double *bf = o->base_f, *bg = o->base_g;
+    const uint8_t *bok = o->base_ok;
+    gp_setops s = o->gp.setops;
     double *px = frep_malloc((m ? m : 1) * sizeof *px), *py = frep_malloc((m ? m : 1) * sizeof *py);
     double *pz = frep_malloc((m ? m : 1) * sizeof *pz), *pn = frep_malloc(3 * (m ? m : 1) * sizeof *pn);
     double *v = frep_malloc((size_t)(k ? k : 1) * (m ? m : 1) * sizeof *v);
@@ -92,8 +95,9 @@ static gp_cache *build_cache(const prim *prims, size_t nprims, const uint32_t *u
         }
         for (size_t i = 0; i < m; i++) {
             size_t q = pts[i];
-            v[j * m + i] = bf[q];
-            for (size_t d = 0; d < 3; d++) g[(3 * j + d) * m + i] = bg[3 * q + d];
+            int ok = !bok || bok[q];
+            v[j * m + i] = ok ? bf[q] : EVOLVE_BASE_OUTSIDE;
+            for (size_t d = 0; d < 3; d++) g[(3 * j + d) * m + i] = ok ? bg[3 * q + d] : 0;
         }
     }
     c = stats_only ? gp_cache_new_stats(m, k, s, v, g, pn, eps_d, alpha, lambda)
@@ -234,7 +238,8 @@ static int support_run(const evolve_options *o, const frep_cloud *cloud, const p
     int bad = support_trim(&res->tree, o->gp.setops, pc, ev, &g, eg, &res->support);
     tree_renumber(&res->tree, used, nu, 1);
     if (bad) goto out;
-    if (res->support.trims) res->fitness = gp_fitness(sc, ev, res->tree.code, res->tree.len);
+    if (res->support.trims && gp_fitness(sc, ev, res->tree.code, res->tree.len, &res->fitness))
+        goto out;
     rc = 0;
 out:
     frep_free(used);
@@ -253,12 +258,15 @@ out:
     return rc;
 }
 
-/* Points the base model explains poorly: |f|/|grad f| >= eps_d, or a normal more than
- * alpha away from -grad f (a zero gradient explains nothing). */
-static int base_poor(const double *bf, const double *bg, const double *nrm, size_t i,
-                     double eps_d, double cos_alpha)
+/* Points the base model (o->base_f, o->base_g) explains poorly: not evaluable there,
+ * |f|/|grad f| >= eps_d, or a normal more than alpha away from -grad f (a zero gradient
+ * explains nothing). */
+static int base_poor(const evolve_options *o, const double *nrm, size_t i, double eps_d,
+                     double cos_alpha)
 {
-    const double *g = bg + 3 * i, *n = nrm + 3 * i;
+    const double *bf = o->base_f;
+    if (o->base_ok && !o->base_ok[i]) return 1;
+    const double *g = o->base_g + 3 * i, *n = nrm + 3 * i;
     double gl = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
     if (!(gl > 0)) return 1;
     if (!(fabs(bf[i]) / gl < eps_d)) return 1;
@@ -318,7 +326,7 @@ int evolve_residual_points(const evolve_options *o, const frep_cloud *cloud, uin
     size_t k = 0;
     for (size_t q = 0; q < nv; q++) {
         size_t i = valid[q];
-        if (o->base_f && base_poor(o->base_f, o->base_g, nrm, i, eps_d, ca)) {
+        if (o->base_f && base_poor(o, nrm, i, eps_d, ca)) {
             mask[i] = 1;
             k++;
         }
@@ -386,9 +394,8 @@ int evolve_stats(const evolve_options *o, const frep_cloud *cloud, const prim *p
     for (uint32_t pc = 0; pc < local.len; pc++)
         if (local.code[pc].op == FREP_OP_PRIM) local.code[pc].arg = map[local.code[pc].arg];
     double ls = o->lambda_scale > 0 ? o->lambda_scale : 1.0;
-    fc = build_cache(prims, nprims, used, k, cloud->x, cloud->y, cloud->z, nrm, o->base_f,
-                     o->base_g, valid, nv, o->gp.setops, res->eps_d, res->alpha,
-                     ls * log((double)(nv > 1 ? nv : 2)), 1);
+    fc = build_cache(o, prims, nprims, used, k, cloud->x, cloud->y, cloud->z, nrm, valid, nv,
+                     res->eps_d, res->alpha, ls * log((double)(nv > 1 ? nv : 2)), 1);
     if (!fc || gp_tree_stats(fc, ev, local.code, local.len, &res->stats)) goto out;
     rc = 0;
 out:
@@ -438,12 +445,12 @@ static int join_base(const evolve_options *o, const gp_tree *t, uint32_t nprims,
                 /* The simplifier dropped the base: keep the join as built. */
                 tree_free(&cand);
                 cand = keep;
-                fit = gp_fitness(c, ev, cand.code, cand.len);
+                if (gp_fitness(c, ev, cand.code, cand.len, &fit)) goto out;
             } else {
                 tree_free(&keep);
             }
-        } else {
-            fit = gp_fitness(c, ev, cand.code, cand.len);
+        } else if (gp_fitness(c, ev, cand.code, cand.len, &fit)) {
+            goto out;
         }
         if (fit > best) {
             best = fit;
@@ -585,7 +592,7 @@ static int stage_pool(run_ctx *c)
     if (c->residual) {
         double ca = cos(res->alpha);
         for (size_t q = 0; q < c->nv; q++)
-            if (base_poor(o->base_f, o->base_g, c->nrm, c->valid[q], res->eps_d, ca))
+            if (base_poor(o, c->nrm, c->valid[q], res->eps_d, ca))
                 c->pool[c->np++] = c->valid[q];
         res->residual = 1;
         res->nresidual = c->np;
@@ -607,10 +614,9 @@ static int stage_sample_cache(run_ctx *c)
     evolve_result *res = c->res;
     draw_sample(c->pool, c->np, c->m, o->gp.seed ^ 0x5a5a5a5a5a5a5a5au, c->samp, c->tmp);
     res->nsample = c->m;
-    c->sc = build_cache(c->prims, c->nprims, c->all, (uint32_t)c->nprims, c->cloud->x,
-                        c->cloud->y, c->cloud->z, c->nrm, NULL, NULL, c->samp, c->m,
-                        o->gp.setops, res->eps_d, res->alpha,
-                        c->ls * log((double)(c->m > 1 ? c->m : 2)), 0);
+    c->sc = build_cache(o, c->prims, c->nprims, c->all, (uint32_t)c->nprims, c->cloud->x,
+                        c->cloud->y, c->cloud->z, c->nrm, c->samp, c->m, res->eps_d,
+                        res->alpha, c->ls * log((double)(c->m > 1 ? c->m : 2)), 0);
     return c->sc ? 0 : run_oom(c);
 }
 
@@ -821,10 +827,10 @@ static int stage_join(run_ctx *c)
     if (!c->residual) return 0;
     size_t mj = o->sample && o->sample < c->nv ? o->sample : c->nv;
     draw_sample(c->valid, c->nv, mj, o->gp.seed ^ 0xa5a5a5a5a5a5a5a5u, c->samp, c->tmp);
-    gp_cache *jc = build_cache(c->prims, c->nprims, c->all, (uint32_t)c->nprims + 1,
-                               c->cloud->x, c->cloud->y, c->cloud->z, c->nrm, o->base_f,
-                               o->base_g, c->samp, mj, o->gp.setops, res->eps_d, res->alpha,
-                               c->ls * log((double)(mj > 1 ? mj : 2)), 0);
+    gp_cache *jc = build_cache(o, c->prims, c->nprims, c->all, (uint32_t)c->nprims + 1,
+                               c->cloud->x, c->cloud->y, c->cloud->z, c->nrm, c->samp, mj,
+                               res->eps_d, res->alpha, c->ls * log((double)(mj > 1 ? mj : 2)),
+                               0);
     if (!jc) return run_oom(c);
     gp_tree joined = { NULL, 0, 0 };
     int bad = join_base(o, &res->tree, (uint32_t)c->nprims, jc, c->ev, &joined, &res->fitness);

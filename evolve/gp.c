@@ -124,6 +124,7 @@ static int score_population(const gp_cache *c, indiv *pop, uint32_t n, memo_entr
         }
     }
     long ntl = (long)nt;
+    int failed = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
     for (long k = 0; k < ntl; k++) {
         int tid = 0;
@@ -131,13 +132,20 @@ static int score_population(const gp_cache *c, indiv *pop, uint32_t n, memo_entr
         tid = omp_get_thread_num();
 #endif
         indiv *p = &pop[todo[k]];
-        double f = gp_fitness(c, ev[tid], p->t.code, p->t.len);
-        if (isnan(f)) {
-            /* NaN only from allocation failure or NaN data: rank it last. */
-            f = -HUGE_VAL;
+        double f = -HUGE_VAL;
+        if (gp_fitness(c, ev[tid], p->t.code, p->t.len, &f)) {
+#pragma omp atomic write
+            failed = 1;
         }
+        /* NaN data (a primitive NaN at a point): the tree ranks last. */
+        if (isnan(f)) f = -HUGE_VAL;
         p->fitness = f;
         p->scored = 1;
+    }
+    if (failed) {
+        frep_free(todo);
+        frep_free(hs);
+        return -1;
     }
     for (uint32_t k = 0; k < nt; k++) {
         uint32_t i = todo[k];

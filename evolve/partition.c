@@ -450,7 +450,8 @@ int part_merge_pair(const gp_tree *a, const gp_tree *b, gp_setops s, const gp_ca
     double bf = -HUGE_VAL;
     for (int k = 0; k < nc; k++) {
         if (simplify_rules(&cand[k], s)) goto out;
-        double f = gp_fitness(c, e, cand[k].code, cand[k].len);
+        double f;
+        if (gp_fitness(c, e, cand[k].code, cand[k].len, &f)) goto out;
         if (best < 0 || f > bf) {
             best = k;
             bf = f;
@@ -502,31 +503,33 @@ static uint32_t low_bit(uint32_t x)
 }
 
 /* Fitness of the tree of `leaves` (1: a tree of the forest; 2: two trees and op) of
- * expanded length tl: from e's tape of the forest when it has values, else in full.
- * floor as in gp_fitness_replaced. */
-static double exh_fitness(const gp_cache *c, gp_eval *e, const gp_tree *forest,
-                          const uint32_t *ends, int nl, uint8_t op, uint32_t tl,
-                          gp_tree *scratch, double floor)
+ * expanded length tl, in *fit: from e's tape of the forest when it has values, else in
+ * full. floor as in gp_fitness_replaced. 0 or -1 (allocation). */
+static int exh_fitness(const gp_cache *c, gp_eval *e, const gp_tree *forest,
+                       const uint32_t *ends, int nl, uint8_t op, uint32_t tl,
+                       gp_tree *scratch, double floor, double *fit)
 {
     scratch->len = 0;
     if (gp_tape_valued(c, e)) {
         for (int q = 0; q < nl; q++) {
             frep_insn lf = gp_tape_leaf(c, ends[q]);
-            if (tree_push(scratch, (frep_opcode)lf.op, lf.arg)) return NAN;
+            if (tree_push(scratch, (frep_opcode)lf.op, lf.arg)) return -1;
         }
-        if (nl == 2 && tree_push(scratch, (frep_opcode)op, 0)) return NAN;
-        double pen = c->lambda * (double)tl;
-        return gp_score_taped(c, e, scratch->code, scratch->len, floor + pen) - pen;
+        if (nl == 2 && tree_push(scratch, (frep_opcode)op, 0)) return -1;
+        double pen = c->lambda * (double)tl, sc;
+        if (gp_score_taped(c, e, scratch->code, scratch->len, floor + pen, &sc)) return -1;
+        *fit = sc - pen;
+        return 0;
     }
     for (int q = 0; q < nl; q++) {
         uint32_t s0 = tree_subtree_start(forest->code, ends[q]);
         uint32_t n = ends[q] - s0 + 1;
-        if (tree_reserve(scratch, scratch->len + n + 1)) return NAN;
+        if (tree_reserve(scratch, scratch->len + n + 1)) return -1;
         memcpy(scratch->code + scratch->len, forest->code + s0, n * sizeof *scratch->code);
         scratch->len += n;
     }
-    if (nl == 2 && tree_push(scratch, (frep_opcode)op, 0)) return NAN;
-    return gp_fitness(c, e, scratch->code, scratch->len);
+    if (nl == 2 && tree_push(scratch, (frep_opcode)op, 0)) return -1;
+    return gp_fitness(c, e, scratch->code, scratch->len, fit);
 }
 
 int part_exhaustive(gp_setops s, const gp_cache *c, gp_eval *e, gp_tree *t)
@@ -598,9 +601,10 @@ int part_exhaustive(gp_setops s, const gp_cache *c, gp_eval *e, gp_tree *t)
             uint32_t tl = 2 * size - 1;
             for (uint32_t q = 0; q < count[S] || (k == 1 && q == 0); q++) {
                 uint32_t end = off[S] + q * tl + tl - 1;
-                double f = exh_fitness(c, e, &forest, &end, 1, 0, tl, &scratch,
-                                       have ? bf : -HUGE_VAL);
-                if (isnan(f)) goto out;  /* allocation failure */
+                double f;
+                if (exh_fitness(c, e, &forest, &end, 1, 0, tl, &scratch,
+                                have ? bf : -HUGE_VAL, &f))
+                    goto out;
                 if (!have || f > bf) {
                     bf = f;
                     have = 1;
@@ -621,8 +625,9 @@ int part_exhaustive(gp_setops s, const gp_cache *c, gp_eval *e, gp_tree *t)
                         uint32_t ea = off[A] + ia * la + la - 1, eb = off[B] + ib * lb + lb - 1;
                         uint32_t ends[2] = { w == 3 ? eb : ea, w == 3 ? ea : eb };
                         uint8_t op = w == 0 ? o.uni : w == 1 ? o.inter : o.sub;
-                        double f = exh_fitness(c, e, &forest, ends, 2, op, tl, &scratch, bf);
-                        if (isnan(f)) goto out;
+                        double f;
+                        if (exh_fitness(c, e, &forest, ends, 2, op, tl, &scratch, bf, &f))
+                            goto out;
                         if (f > bf) {
                             bf = f;
                             best[0] = ends[0];

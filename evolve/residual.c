@@ -18,8 +18,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Value given to points where the base model cannot be evaluated: far outside. */
-#define RESIDUAL_BAD_VALUE (-1e30)
 /* Points per call of the evaluator (bounds the temporary arrays). */
 #define RESIDUAL_CHUNK 65536
 
@@ -218,7 +216,7 @@ out:
 }
 
 int residual_eval(const evolve_base *b, const frep_cloud *c, int threads, double *f,
-                  double *g, size_t *nbad)
+                  double *g, uint8_t *ok, size_t *nbad)
 {
     size_t n = c->n, bad = 0;
     size_t ch = n < RESIDUAL_CHUNK ? (n ? n : 1) : RESIDUAL_CHUNK;
@@ -235,8 +233,9 @@ int residual_eval(const evolve_base *b, const frep_cloud *c, int threads, double
             goto out;
         for (size_t k = 0; k < m; k++) {
             size_t i = i0 + k;
-            if (!isfinite(f[i]) || !isfinite(gx[k]) || !isfinite(gy[k]) || !isfinite(gz[k])) {
-                f[i] = RESIDUAL_BAD_VALUE;
+            ok[i] = isfinite(f[i]) && isfinite(gx[k]) && isfinite(gy[k]) && isfinite(gz[k]);
+            if (!ok[i]) {
+                f[i] = 0;
                 g[3 * i] = g[3 * i + 1] = g[3 * i + 2] = 0;
                 bad++;
                 continue;

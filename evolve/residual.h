@@ -39,11 +39,12 @@ int residual_prepare(const char *file, const char *src, size_t len, const char *
                      frep_program *prog, evolve_base *b, char **err);
 void residual_free(evolve_base *b);
 
-/* Values f[i] and gradients g[3i+c] of the base model at every cloud point. Points
- * where it cannot be evaluated (runtime error, non-finite value) get f = -1e30 and a
- * zero gradient: far outside, explaining nothing. *nbad (may be NULL) counts them.
+/* Values f[i] and gradients g[3i+c] of the base model at every cloud point, and ok[i]:
+ * 1 where it could be evaluated, 0 where it cannot (runtime error, non-finite value;
+ * f and g are then 0, and evolve treats the point as one the base leaves unexplained,
+ * see evolve_options.base_ok). *nbad (may be NULL) counts the latter.
  * Returns 0, or -1 when out of memory. */
 int residual_eval(const evolve_base *b, const frep_cloud *c, int threads, double *f,
-                  double *g, size_t *nbad);
+                  double *g, uint8_t *ok, size_t *nbad);
 
 #endif

@@ -198,7 +198,8 @@ int simplify_rules(gp_tree *t, gp_setops s)
 static int try_replace(gp_tree *t, gp_tree *trial, uint32_t st, uint32_t end,
                        const gp_tree *cand, const gp_cache *c, gp_eval *e, double *fit)
 {
-    double f = gp_fitness_replaced(c, e, st, end, cand->code, cand->len, *fit);
+    double f;
+    if (gp_fitness_replaced(c, e, st, end, cand->code, cand->len, *fit, &f)) return -1;
     if (!(f >= *fit)) return 0;
     if (gp_tape_expand(c, e, cand->code, cand->len, trial) ||
         tree_splice(t, st, end, trial->code, trial->len) ||
@@ -302,7 +303,9 @@ static int grow_root(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
             if (leaf1(trial, c, t->len - 1) || tree_push(trial, FREP_OP_PRIM, j) ||
                 tree_push(trial, (frep_opcode)ops[w], 0))
                 return -1;
-            double f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len, bf);
+            double f;
+            if (gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len, bf, &f))
+                return -1;
             if (f > bf) {
                 bf = f;
                 best_j = j;
@@ -373,7 +376,8 @@ static int simplify_order(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e
 {
     if (simplify_rules(t, s)) return -1;
     gp_opset o = gp_opset_of(s);
-    double fit = gp_fitness(c, e, t->code, t->len);
+    double fit;
+    if (gp_fitness(c, e, t->code, t->len, &fit)) return -1;
     gp_tree trial = { NULL, 0, 0 }, cand = { NULL, 0, 0 };
     int rc = -1;
     if (reduce(t, &trial, &cand, s, &o, c, e, &fit, leaves_first)) goto out;
@@ -382,7 +386,7 @@ static int simplify_order(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e
         if (g < 0) goto out;
         if (g == 0) break;
         if (simplify_rules(t, s)) goto out;
-        fit = gp_fitness(c, e, t->code, t->len);
+        if (gp_fitness(c, e, t->code, t->len, &fit)) goto out;
         if (reduce(t, &trial, &cand, s, &o, c, e, &fit, leaves_first)) goto out;
     }
     rc = 0;
@@ -557,8 +561,8 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
                     if (build_piece(trial, &root, 1, &p)) { rc = -1; goto out; }
                     /* Below the beam's last piece a piece is neither kept nor best. */
                     double fl = nb == SIMPLIFY_PIECE_BEAM ? beam[nb - 1].f : -HUGE_VAL;
-                    p.f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len,
-                                              fl);
+                    if (gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len,
+                                            fl, &p.f)) { rc = -1; goto out; }
                     if (p.f > best.f) { best = p; found = 1; }
                     beam_insert(beam, &nb, &p);
                 }
@@ -571,8 +575,8 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
                 p.c = cc;
                 p.third = q == 0 ? o->inter : q == 1 ? o->sub : o->uni;
                 if (build_piece(trial, &root, 1, &p)) { rc = -1; goto out; }
-                p.f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len,
-                                          best.f);
+                if (gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len,
+                                        best.f, &p.f)) { rc = -1; goto out; }
                 if (p.f > best.f) { best = p; found = 1; }
             }
         }
@@ -619,7 +623,9 @@ static int inner_range(const gp_tree *t, const uint8_t *use, const uint8_t ops[3
                 if (leaf1(cand, c, end) || tree_push(cand, FREP_OP_PRIM, j) ||
                     tree_push(cand, (frep_opcode)ops[w], 0))
                     return -1;
-                double f = gp_fitness_replaced(c, ev, st, end, cand->code, cand->len, *bf);
+                double f;
+                if (gp_fitness_replaced(c, ev, st, end, cand->code, cand->len, *bf, &f))
+                    return -1;
                 if (f > *bf) {
                     *bf = f;
                     *best = ((uint64_t)end * k + j) * 3 + (uint64_t)w;
@@ -912,7 +918,11 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
                     rc = -1;
                     goto out;
                 }
-                double f = gp_fitness_replaced(c, e, st, end, sub.code, sub.len, bf);
+                double f;
+                if (gp_fitness_replaced(c, e, st, end, sub.code, sub.len, bf, &f)) {
+                    rc = -1;
+                    goto out;
+                }
                 if (f > bf) {
                     bf = f;
                     best_end = end;
@@ -1101,7 +1111,8 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
     if (!t->len) return 0;
     gp_opset o = gp_opset_of(s);
     gp_tree trial = { NULL, 0, 0 };
-    double fit = gp_fitness(c, e, t->code, t->len);
+    double fit;
+    if (gp_fitness(c, e, t->code, t->len, &fit)) return -1;
     int rc = -1;
     for (int round = 0; round < SIMPLIFY_MAX_INNER; round++) {
         int g = grow_inner(t, &trial, &o, c, e, &fit);
@@ -1129,7 +1140,7 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
         if (g < 0) goto out;
         if (g == 0) break;
         if (simplify_rules(t, s)) goto out;
-        fit = gp_fitness(c, e, t->code, t->len);
+        if (gp_fitness(c, e, t->code, t->len, &fit)) goto out;
     }
     rc = 0;
     if (fitness) *fitness = fit;
