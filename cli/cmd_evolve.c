@@ -134,7 +134,6 @@ typedef struct progress_ctx {
     int tty, quiet;
     double last;
     trace_buf *trace;        /* NULL without --trace */
-    gp_report report;        /* filled by gp_run before each call (gp.h) */
     double t0;               /* gp_now() when evolve_run started */
     clock_t c0;              /* clock() then */
     int polish;              /* 1 once the merge of a partitioned run was reported */
@@ -152,8 +151,8 @@ static int progress(void *user, const gp_progress *p)
             trace_add(c->trace, "%u %.4f %.4f nan %u - merge\n", p->generation, wall, cpu,
                       p->best_len);
         } else {
-            double share = c->report.npoints
-                               ? 100.0 * (double)c->report.explained / (double)c->report.npoints
+            double share = p->npoints
+                               ? 100.0 * (double)p->explained / (double)p->npoints
                                : 0.0;
             const char *ph = p->phase == GP_PHASE_MERGED ? "merged"
                              : p->phase == GP_PHASE_GROWN ? "grown"
@@ -177,8 +176,8 @@ static int progress(void *user, const gp_progress *p)
         fflush(stderr);
     }
     /* --stop-share: a GA phase ends once its best tree explains enough points. */
-    if (c->stop_share > 0 && p->phase == GP_PHASE_GA && c->report.npoints &&
-        100.0 * (double)c->report.explained >= c->stop_share * (double)c->report.npoints)
+    if (c->stop_share > 0 && p->phase == GP_PHASE_GA && p->npoints &&
+        100.0 * (double)p->explained >= c->stop_share * (double)p->npoints)
         return 1;
     return evolve_interrupted != 0;
 }
@@ -503,10 +502,10 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     pc.quiet = quiet;
     pc.last = -1;
     pc.stop_share = stop_share;
-    if (stop_share > 0) eo.gp.report = &pc.report;
+    if (stop_share > 0) eo.gp.report_explained = 1;
     if (trace_path) {
         pc.trace = &trace;
-        eo.gp.report = &pc.report;
+        eo.gp.report_explained = 1;
         trace_add(&trace, "# frep evolve trace, seed %llu\n", (unsigned long long)eo.gp.seed);
         trace_add(&trace, "# columns: generation, wall and CPU (process) seconds since the "
                           "start of the run, best fitness, tree size,\n");

@@ -728,13 +728,10 @@ static int stage_grow_merged(run_ctx *c)
         return run_oom(c);
     c->grown = 1;
     if (c->fn) {
-        gp_stats st;
-        if (o->gp.report && gp_tree_stats(c->sc, c->ev, gr->best.code, gr->best.len, &st) == 0) {
-            o->gp.report->explained = st.explained;
-            o->gp.report->npoints = c->sc->n;
-        }
         gp_progress gpr = { gr->generations, gr->fitness, gr->best.len, gp_now() - c->t0,
-                            GP_PHASE_GROWN };
+                            GP_PHASE_GROWN, 0, 0 };
+        if (o->gp.report_explained && gp_progress_explained(c->sc, c->ev, &gr->best, &gpr))
+            return run_oom(c);
         c->fn(c->user, &gpr);
     }
     return 0;

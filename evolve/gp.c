@@ -48,6 +48,15 @@ double gp_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+int gp_progress_explained(const gp_cache *c, gp_eval *e, const gp_tree *t, gp_progress *p)
+{
+    gp_stats st;
+    if (gp_tree_stats(c, e, t->code, t->len, &st)) return -1;
+    p->explained = st.explained;
+    p->npoints = c->n;
+    return 0;
+}
+
 typedef struct memo_entry {
     uint64_t hash;
     double fitness;
@@ -224,8 +233,10 @@ int gp_run(const gp_config *cfg, const gp_cache *c, const gp_tree *seeds, uint32
             best_fit = b->fitness;
             since = 0;
             gp_stats st;
-            if (fn && cfg->report && gp_tree_stats(c, ev[0], b->t.code, b->t.len, &st) == 0)
+            if (fn && cfg->report_explained) {
+                if (gp_tree_stats(c, ev[0], b->t.code, b->t.len, &st)) goto out;
                 best_expl = st.explained;
+            }
         } else {
             since++;
         }
@@ -234,10 +245,10 @@ int gp_run(const gp_config *cfg, const gp_cache *c, const gp_tree *seeds, uint32
         res->generations = gen + 1;
         double el = gp_now() - t0;
         if (fn) {
-            gp_progress pr = { gen + 1, b->fitness, b->t.len, el, GP_PHASE_GA };
-            if (cfg->report) {
-                cfg->report->explained = best_expl;
-                cfg->report->npoints = c->n;
+            gp_progress pr = { gen + 1, b->fitness, b->t.len, el, GP_PHASE_GA, 0, 0 };
+            if (cfg->report_explained) {
+                pr.explained = best_expl;
+                pr.npoints = c->n;
             }
             if (fn(user, &pr)) { res->stop = GP_STOP_USER; break; }
         }

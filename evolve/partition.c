@@ -919,7 +919,7 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
         live--;
         if (fn) {
             gp_progress pr = { info->generations, NAN, pc[bi].t.len, gp_now() - t0,
-                                GP_PHASE_MERGE };
+                               GP_PHASE_MERGE, 0, 0 };
             if (fn(user, &pr)) break;
         }
     }
@@ -933,13 +933,10 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
     res->stop = GP_STOP_GENERATIONS;
     info->partitioned = 1;
     if (fn) {
-        gp_stats st;
-        if (cfg->report && gp_tree_stats(c, ev[0], res->best.code, res->best.len, &st) == 0) {
-            cfg->report->explained = st.explained;
-            cfg->report->npoints = c->n;
-        }
         gp_progress pr = { info->generations, fit, res->best.len, gp_now() - t0,
-                           GP_PHASE_MERGED };
+                           GP_PHASE_MERGED, 0, 0 };
+        if (cfg->report_explained && gp_progress_explained(c, ev[0], &res->best, &pr))
+            goto out;
         fn(user, &pr);  /* a stop request reaches the polish's first report */
     }
 fallback:
