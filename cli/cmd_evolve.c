@@ -361,6 +361,8 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
 
     int rc = CLI_FAIL;
     char *err = NULL;
+    frep_error fe;
+    frep_error_init(&fe);
     prim *prims = NULL;
     size_t nprims = 0;
     evolve_result res;
@@ -401,8 +403,8 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
         base_prog = cli_compile_file(residual_path, NULL, NULL, 0, -1, &base_src);
         if (!base_prog) goto done;
         if (residual_prepare(residual_path, base_src, strlen(base_src), NULL, base_prog, &base,
-                             &err)) {
-            fprintf(stderr, "frep evolve: %s\n", err ? err : "cannot use the model");
+                             &fe)) {
+            fprintf(stderr, "frep evolve: %s\n", fe.msg[0] ? fe.msg : "cannot use the model");
             goto done;
         }
         if (have_setops && eo.gp.setops != base.setops) {
@@ -517,11 +519,11 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     pc.t0 = gp_now();
     pc.c0 = clock();
     void (*old)(int) = signal(SIGINT, on_sigint);
-    int r = evolve_run(&eo, cloud, prims, nprims, progress, &pc, &res, &err);
+    int r = evolve_run(&eo, cloud, prims, nprims, progress, &pc, &res, &fe);
     signal(SIGINT, old == SIG_ERR ? SIG_DFL : old);
     if (pc.tty && !quiet) fputc('\n', stderr);
     if (r) {
-        fprintf(stderr, "frep evolve: %s: %s\n", cloud_path, err ? err : "failed");
+        fprintf(stderr, "frep evolve: %s: %s\n", cloud_path, fe.msg[0] ? fe.msg : "failed");
         goto done;
     }
     if (evolve_interrupted && !quiet)
@@ -537,11 +539,9 @@ static int evolve_main(int argc, char **argv, const char *cmdline)
     if (refit && !evolve_interrupted) {
         evolve_refit_info ri;
         if (evolve_refit(&eo, cloud, prims, nprims, residual_path ? &base : NULL, &res, &ri,
-                         &err)) {
+                         &fe)) {
             fprintf(stderr, "frep evolve: --refit: %s (the model keeps the parameters as "
-                            "segmented)\n", err ? err : "failed");
-            free(err);
-            err = NULL;
+                            "segmented)\n", fe.msg[0] ? fe.msg : "failed");
         } else if (ri.nparams) {
             snprintf(note, sizeof note,
                      "refit: %zu parameters, RMS distance %.6g -> %.6g, max %.6g -> %.6g, %.2f s",

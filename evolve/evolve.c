@@ -4,7 +4,7 @@
  */
 #include "config.h"
 #include "alloc.h"
-#include "util.h"
+#include "err.h"
 
 #include "evolve.h"
 #include "residual.h"
@@ -39,9 +39,6 @@ void evolve_result_free(evolve_result *r)
     tree_free(&r->tree);
     memset(r, 0, sizeof *r);
 }
-
-/* A malloc'ed message for the caller (runtime/util.h), when it asked for one. */
-#define set_err(err, ...) do { if (err) *(err) = frep_strdupf(__VA_ARGS__); } while (0)
 
 static int cmp_size(const void *a, const void *b)
 {
@@ -467,7 +464,7 @@ out:
 /* ---- the driver: the steps of doc/evolve.md ("Method") as stages over run_ctx ---- */
 
 /* One evolve_run: its inputs, the points and caches the stages build, and the GA's
- * best tree before it becomes res->tree. Stages return 0, or -1 with *err set. */
+ * best tree before it becomes res->tree. Stages return 0, or -1 with err set. */
 typedef struct run_ctx {
     const evolve_options *o;
     const frep_cloud *cloud;
@@ -476,7 +473,7 @@ typedef struct run_ctx {
     gp_progress_fn fn;
     void *user;
     evolve_result *res;
-    char **err;
+    frep_error *err;
     double t0;               /* gp_now() when the run started */
     int residual;            /* --residual: o->base_f and o->base_g are set */
     size_t *valid, nv;       /* the valid points (valid_points), cloud indices */
@@ -497,26 +494,23 @@ typedef struct run_ctx {
 
 static int run_oom(run_ctx *c)
 {
-    set_err(c->err, "out of memory");
-    return -1;
+    return frep_error_nomem(c->err);
 }
 
 /* The inputs refused before any work: no primitives, too many, no normals. */
 static int run_check(run_ctx *c)
 {
     if (c->nprims == 0 && !c->residual) {
-        set_err(c->err, "no primitives to combine (segmentation found none; try -p or "
-                        "different segment settings)");
-        return -1;
+        return frep_error_set(c->err, FREP_EINPUT,
+                              "no primitives to combine (segmentation found none; try -p "
+                              "or different segment settings)");
     }
     if (c->nprims >= PART_MAX_PRIMS) {
-        set_err(c->err, "%zu primitives: at most %u are supported", c->nprims,
-                PART_MAX_PRIMS - 1);
-        return -1;
+        return frep_error_set(c->err, FREP_ELIMIT, "%zu primitives: at most %u are supported",
+                              c->nprims, PART_MAX_PRIMS - 1);
     }
     if (!c->cloud->has_normals) {
-        set_err(c->err, "the cloud has no normals");
-        return -1;
+        return frep_error_set(c->err, FREP_EINPUT, "the cloud has no normals");
     }
     return 0;
 }
@@ -546,12 +540,12 @@ static int stage_points(run_ctx *c)
     res->npoints = c->nv;
     res->dropped = c->cloud->n - c->nv;
     if (c->nv == 0) {
-        set_err(c->err, "no point with finite coordinates and a normal");
-        return -1;
+        return frep_error_set(c->err, FREP_EINPUT,
+                              "no point with finite coordinates and a normal");
     }
     if (!(res->diag > 0)) {
-        set_err(c->err, "all %zu points coincide: nothing to fit", c->nv);
-        return -1;
+        return frep_error_set(c->err, FREP_EINPUT, "all %zu points coincide: nothing to fit",
+                              c->nv);
     }
     res->eps_d = (o->eps_rel > 0 ? o->eps_rel : EVOLVE_DEFAULT_EPS_REL) * res->diag;
     res->alpha = (o->alpha_deg > 0 && !(o->alpha_auto && !c->residual)
@@ -790,8 +784,7 @@ static int stage_simplify(run_ctx *c)
     const evolve_options *o = c->o;
     evolve_result *res = c->res;
     if (!c->gr.best.len && !c->residual) {
-        set_err(c->err, "the run stopped before any tree was scored");
-        return -1;
+        return frep_error_set(c->err, FREP_ECANCEL, "the run stopped before any tree was scored");
     }
     res->generations = c->gr.generations;
     res->stop = c->gr.stop;
@@ -884,10 +877,9 @@ static int run_stages(run_ctx *c)
 
 int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
                size_t nprims, gp_progress_fn fn, void *user, evolve_result *res,
-               char **err)
+               frep_error *err)
 {
     memset(res, 0, sizeof *res);
-    if (err) *err = NULL;
     run_ctx c;
     memset(&c, 0, sizeof c);
     c.o = o;

@@ -13,6 +13,7 @@
 #include <stdio.h>
 
 #include "cloud.h"
+#include "err.h"
 #include "fitness.h"
 #include "gp.h"
 #include "partition.h"
@@ -100,13 +101,14 @@ typedef struct evolve_result {
     support_info support;    /* the support trims (all 0 when not run) */
 } evolve_result;
 
-/* Run. The cloud must have normals. Returns 0, or -1 with *err (malloc'ed message,
- * frep_free()) for bad input (no primitives, no valid point) or out of memory. fn (may be
- * NULL) gets the progress and may stop the run; the best tree so far is then kept.
- * Free the result with evolve_result_free(). */
+/* Run. The cloud must have normals. Returns 0, or -1 with err (may be NULL) set: bad
+ * input (FREP_EINPUT: no primitives, no valid point; FREP_ELIMIT: too many primitives),
+ * a run stopped before any tree was scored (FREP_ECANCEL), out of memory (FREP_ENOMEM).
+ * fn (may be NULL) gets the progress and may stop the run; the best tree so far is
+ * then kept. Free the result with evolve_result_free(). */
 int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
                size_t nprims, gp_progress_fn fn, void *user, evolve_result *res,
-               char **err);
+               frep_error *err);
 void evolve_result_free(evolve_result *r);
 
 /* Recompute r->stats of r->tree on every valid point (after the primitives changed,

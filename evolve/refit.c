@@ -6,7 +6,7 @@
 #define _POSIX_C_SOURCE 200809L /* open_memstream */
 #include "config.h"
 #include "alloc.h"
-#include "util.h"
+#include "err.h"
 
 #include "refit.h"
 
@@ -30,8 +30,6 @@
 /* Parameters of a primitive in frep's call order (prim_write_call). */
 #define REFIT_MAX_PRIM_PARAMS 8
 
-/* A malloc'ed message for the caller (runtime/util.h), when it asked for one. */
-#define set_err(err, ...) do { if (err) *(err) = frep_strdupf(__VA_ARGS__); } while (0)
 
 /* The call arguments of q (after x) into v; returns their number. */
 static int prim_params(const prim *q, double v[REFIT_MAX_PRIM_PARAMS])
@@ -158,10 +156,9 @@ static void keep_diag(void *user, const frep_diag *d)
 
 int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
                  size_t nprims, const evolve_base *base, evolve_result *res,
-                 evolve_refit_info *info, char **err)
+                 evolve_refit_info *info, frep_error *err)
 {
     memset(info, 0, sizeof *info);
-    if (err) *err = NULL;
     double t0 = gp_now();
     int rc = -1;
     uint8_t *used = frep_calloc(nprims + 1, 1);
@@ -176,7 +173,8 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
         if (res->tree.code[pc].op == FREP_OP_PRIM && res->tree.code[pc].arg <= nprims)
             used[res->tree.code[pc].arg] = 1;
     if (used[nprims] && !base) {
-        set_err(err, "internal error: the tree uses a base model that was not given");
+        frep_error_set(err, FREP_EINTERNAL,
+                       "internal error: the tree uses a base model that was not given");
         goto out;
     }
 
@@ -214,7 +212,8 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     dk.msg[0] = '\0';
     prog = frep_compile("(refit)", src, slen, &co, keep_diag, &dk);
     if (!prog) {
-        set_err(err, "internal error: the refit model does not compile: %s", dk.msg);
+        frep_error_set(err, FREP_EINTERNAL, "internal error: the refit model does not compile: %s",
+                       dk.msg);
         goto out;
     }
     /* Program parameters: the qJ_K (refined) and others (the a[] array: held). */
@@ -246,7 +245,8 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     }
     if (n < REFIT_MIN_POINTS_PER_PARAM * np) {
         frep_free(fidx);
-        set_err(err, "%zu points cannot determine the %zu parameters of the tree", n, np);
+        frep_error_set(err, FREP_EINPUT,
+                       "%zu points cannot determine the %zu parameters of the tree", n, np);
         goto out;
     }
 
@@ -311,7 +311,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
         fit_program_model_free(&fm);
         if (bad) {
             frep_free(fidx);
-            set_err(err, "the tree cannot be evaluated at the points");
+            frep_error_set(err, FREP_EINPUT, "the tree cannot be evaluated at the points");
             goto out;
         }
         if (pass) break;
@@ -339,7 +339,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
             fit_program_model_free(&fm);
             if (r) {
                 frep_free(fidx);
-                    set_err(err, "refit: %s", msg);
+                frep_error_set(err, FREP_EINPUT, "refit: %s", msg);
                 goto out;
             }
             for (size_t k = 0; k < nf; k++) all[gidx[k]] = x[k];
@@ -361,7 +361,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     rc = 0;
     goto out;
 oom:
-    set_err(err, "out of memory");
+    frep_error_nomem(err);
 out:
     if (rc && saved) memcpy(prims, saved, nprims * sizeof *prims);
     info->seconds = gp_now() - t0;

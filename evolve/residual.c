@@ -4,7 +4,7 @@
  */
 #include "config.h"
 #include "alloc.h"
-#include "util.h"
+#include "err.h"
 
 #include "residual.h"
 
@@ -20,9 +20,6 @@
 
 /* Points per call of the evaluator (bounds the temporary arrays). */
 #define RESIDUAL_CHUNK 65536
-
-/* A malloc'ed message for the caller (runtime/util.h), when it asked for one. */
-#define set_err(err, ...) do { if (err) *(err) = frep_strdupf(__VA_ARGS__); } while (0)
 
 void residual_free(evolve_base *b)
 {
@@ -102,13 +99,6 @@ static char *rename_ident(const char *src, size_t len, size_t start, const char 
     return out;
 }
 
-static char *dup_str(const char *s)
-{
-    char *d = frep_malloc(strlen(s) + 1);
-    if (d) strcpy(d, s);
-    return d;
-}
-
 /* Diagnostics of the second parse are those the caller saw when compiling: drop them. */
 static void quiet_diag(void *user, const frep_diag *d)
 {
@@ -117,10 +107,9 @@ static void quiet_diag(void *user, const frep_diag *d)
 }
 
 int residual_prepare(const char *file, const char *src, size_t len, const char *model,
-                     frep_program *prog, evolve_base *b, char **err)
+                     frep_program *prog, evolve_base *b, frep_error *err)
 {
     memset(b, 0, sizeof *b);
-    if (err) *err = NULL;
     b->prog = prog;
     arena A;
     arena_init(&A);
@@ -129,7 +118,7 @@ int residual_prepare(const char *file, const char *src, size_t len, const char *
     memset(&af, 0, sizeof af);
     int rc = -1;
     if (ast_parse(&A, file, src, len, &ds, &af) || af.nmodels == 0) {
-        set_err(err, "%s: cannot parse the model", file);
+        frep_error_at(err, FREP_EINPUT, file, 0, 0, "cannot parse the model");
         goto out;
     }
     /* The model frep_compile chose: the named one, else my_model, else the last. */
@@ -142,7 +131,7 @@ int residual_prepare(const char *file, const char *src, size_t len, const char *
         }
     }
     if (model && !name_eq(m->name, strlen(m->name), model)) {
-        set_err(err, "%s: no model named '%s'", file, model);
+        frep_error_at(err, FREP_EINPUT, file, 0, 0, "no model named '%s'", model);
         goto out;
     }
     b->setops = GP_SETOPS_RFUNC; /* HyperFun's default */
@@ -152,8 +141,9 @@ int residual_prepare(const char *file, const char *src, size_t len, const char *
         if (strncmp(p->text, "minmax", 6) == 0) b->setops = GP_SETOPS_MINMAX;
         else if (strncmp(p->text, "rfunc", 5) == 0) b->setops = GP_SETOPS_RFUNC;
         else {
-            set_err(err, "%s:%u: the residual of a model with '@setops %s' cannot be "
-                         "evolved (minmax or rfunc only)", file, p->loc.line, p->text);
+            frep_error_at(err, FREP_EINPUT, file, (long)p->loc.line, 0,
+                          "the residual of a model with '@setops %s' cannot be evolved "
+                          "(minmax or rfunc only)", p->text);
             goto out;
         }
     }
@@ -188,7 +178,7 @@ int residual_prepare(const char *file, const char *src, size_t len, const char *
     } else {
         b->text = text;
     }
-    b->name = dup_str(newname);
+    b->name = frep_strdup(newname);
     /* Header and call: the joined model passes its arrays on unchanged. */
     char hdr[256], call[256 + 64];
     if (m->nparams == 3)
@@ -198,17 +188,17 @@ int residual_prepare(const char *file, const char *src, size_t len, const char *
         snprintf(hdr, sizeof hdr, "x[%u], a[%u]", m->params[0].size, m->params[1].size);
     snprintf(call, sizeof call, "%s(x, a%s)", newname, m->nparams == 3 ? ", s" : "");
     if (m->params[0].size < 3) {
-        set_err(err, "%s: model '%s' takes x[%u]: a residual needs 3D points", file, m->name,
-                m->params[0].size);
+        frep_error_at(err, FREP_EINPUT, file, 0, 0, "model '%s' takes x[%u]: a residual needs 3D points",
+                      m->name, m->params[0].size);
         goto out;
     }
-    b->header = dup_str(hdr);
-    b->call = dup_str(call);
+    b->header = frep_strdup(hdr);
+    b->call = frep_strdup(call);
     if (!b->name || !b->header || !b->call) goto oom;
     rc = 0;
     goto out;
 oom:
-    set_err(err, "out of memory");
+    frep_error_nomem(err);
 out:
     arena_free(&A);
     if (rc) residual_free(b);

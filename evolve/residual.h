@@ -13,6 +13,7 @@
 #include <stdint.h>
 
 #include "cloud.h"
+#include "err.h"
 #include "frep.h"
 #include "tree.h"
 
@@ -33,10 +34,11 @@ typedef struct evolve_base {
 
 /* Prepare the base model from its source (it must compile: prog is its program, with
  * `model` the chosen model's name or NULL for the default choice). Returns 0, or -1 with
- * *err (malloc'ed; frep_free()): parse failure, R-alpha set operations, out of memory.
- * Free with residual_free(). */
+ * err (may be NULL) set: parse failure, R-alpha set operations, a model not in 3D
+ * ("file:line: what", FREP_EINPUT), out of memory (FREP_ENOMEM). Free with
+ * residual_free(). */
 int residual_prepare(const char *file, const char *src, size_t len, const char *model,
-                     frep_program *prog, evolve_base *b, char **err);
+                     frep_program *prog, evolve_base *b, frep_error *err);
 void residual_free(evolve_base *b);
 
 /* Values f[i] and gradients g[3i+c] of the base model at every cloud point, and ok[i]:
