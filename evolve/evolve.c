@@ -4,6 +4,7 @@
  */
 #include "config.h"
 #include "alloc.h"
+#include "buf.h"
 #include "err.h"
 
 #include "evolve.h"
@@ -912,22 +913,11 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
 
 static double pct(size_t a, size_t b) { return b ? 100.0 * (double)a / (double)b : 0.0; }
 
-int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_t nprims,
-                       const evolve_meta *m)
+/* The header comments: the run, its figures, the notes; the @setops and @box pragmas. */
+static void write_header(FILE *f, const evolve_result *r, size_t nprims, uint32_t k,
+                         const evolve_meta *m, const char *so)
 {
     const gp_tree *t = &r->tree;
-    const evolve_base *base = m->base;
-    uint8_t *seen = frep_calloc(nprims + 1, 1);
-    if (!seen) return -1;
-    uint32_t k = 0;
-    for (uint32_t pc = 0; pc < t->len; pc++)
-        if (t->code[pc].op == FREP_OP_PRIM && t->code[pc].arg < nprims && !seen[t->code[pc].arg]) {
-            seen[t->code[pc].arg] = 1;
-            k++;
-        }
-    int uses_base = base && tree_uses(t, (uint32_t)nprims);
-    const char *mname = base ? "my_model" : "evolved";
-    const char *so = m->setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax";
     fprintf(f, "-- Construction tree discovered by frep evolve from %s\n",
             m->cloud ? m->cloud : "a point cloud");
     if (m->command) fprintf(f, "-- command: %s\n", m->command);
@@ -944,10 +934,10 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
             pct(r->stats.within_eps, r->npoints), r->npoints, r->eps_d,
             pct(r->stats.normals_ok, r->npoints), r->alpha * 180 / EV_PI,
             pct(r->stats.explained, r->npoints));
-    if (base)
+    if (m->base)
         fprintf(f, "-- residual of model '%s': it explained %.2f%% of the points; the tree was "
                    "evolved on the %zu it explained poorly and joined to it (p%zu)\n",
-                base->name, pct(r->npoints - r->nresidual, r->npoints), r->nresidual,
+                m->base->name, pct(r->npoints - r->nresidual, r->npoints), r->nresidual,
                 nprims + 1);
     if (r->support.trims)
         fprintf(f, "-- %u trim%s of material no point supports (unsupported grid edges %zu -> "
@@ -958,18 +948,28 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
     fprintf(f, "-- @setops %s\n", so);
     fprintf(f, "-- @box %.9g %.9g %.9g %.9g %.9g %.9g\n\n", r->box[0], r->box[1], r->box[2],
             r->box[3], r->box[4], r->box[5]);
-    if (base) {
-        fprintf(f, "-- ---- the model given with --residual (its annotations disarmed) ----\n");
-        fputs(base->text, f);
-        size_t bl = strlen(base->text);
-        if (bl && base->text[bl - 1] != '\n') fputc('\n', f);
-        fprintf(f, "-- ---- end of the model given with --residual ----\n\n");
-        fprintf(f, "%s(%s)\n{\n", mname, base->header);
-    } else {
-        fprintf(f, "%s(x[3], a[1])\n{\n", mname);
-    }
-    fprintf(f, "    -- primitives, named after their position in the input list\n");
+}
 
+/* The --residual model's source, then the model's header. */
+static void write_model_head(FILE *f, const evolve_base *base, const char *mname)
+{
+    if (!base) {
+        fprintf(f, "%s(x[3], a[1])\n{\n", mname);
+        return;
+    }
+    fprintf(f, "-- ---- the model given with --residual (its annotations disarmed) ----\n");
+    fputs(base->text, f);
+    size_t bl = strlen(base->text);
+    if (bl && base->text[bl - 1] != '\n') fputc('\n', f);
+    fprintf(f, "-- ---- end of the model given with --residual ----\n\n");
+    fprintf(f, "%s(%s)\n{\n", mname, base->header);
+}
+
+/* The used primitives pN (N their input position) and the base model's leaf. */
+static void write_prims(FILE *f, const evolve_result *r, const prim *prims, size_t nprims,
+                        const uint8_t *seen, const evolve_base *base)
+{
+    fprintf(f, "    -- primitives, named after their position in the input list\n");
     for (size_t j = 0; j < nprims; j++) {
         if (!seen[j]) continue;
         fprintf(f, "    p%zu = ", j + 1);
@@ -979,12 +979,14 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
         else if (prims[j].support) fprintf(f, ", %zu inliers", prims[j].support);
         fputc('\n', f);
     }
-    if (uses_base) fprintf(f, "    p%zu = %s;  -- the model given with --residual\n", nprims + 1,
-                           base->call);
-    fprintf(f, "    -- the construction tree: | union, & intersection, \\ subtraction, ~ complement\n");
-    fprintf(f, "    tree = ");
-    tree_print(f, t->code, t->len, "p");
-    fprintf(f, ";\n");
+    if (base && tree_uses(&r->tree, (uint32_t)nprims))
+        fprintf(f, "    p%zu = %s;  -- the model given with --residual\n", nprims + 1,
+                base->call);
+}
+
+/* The six planes b1..b6 of the grown oriented box and the clipped model. */
+static void write_clip(FILE *f, const evolve_result *r, const char *mname)
+{
     fprintf(f, "    -- clipped by the oriented bounding box of the cloud (grown by %g of the diagonal)\n",
             EVOLVE_CLIP_MARGIN);
     double mg = EVOLVE_CLIP_MARGIN * r->diag;
@@ -1004,7 +1006,36 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
             fprintf(f, ";\n");
         }
     fprintf(f, "    %s = tree & (((b1 & b2) & (b3 & b4)) & (b5 & b6));\n}\n", mname);
+}
+
+int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_t nprims,
+                       const evolve_meta *m)
+{
+    const gp_tree *t = &r->tree;
+    frep_buf tb = FREP_BUF_INIT;
+    tree_print(&tb, t->code, t->len, "p");
+    char *tree = buf_finish(&tb, NULL);
+    uint8_t *seen = frep_calloc(nprims + 1, 1);
+    if (!seen || !tree) {
+        frep_free(seen);
+        frep_free(tree);
+        return -1;
+    }
+    uint32_t k = 0;
+    for (uint32_t pc = 0; pc < t->len; pc++)
+        if (t->code[pc].op == FREP_OP_PRIM && t->code[pc].arg < nprims && !seen[t->code[pc].arg]) {
+            seen[t->code[pc].arg] = 1;
+            k++;
+        }
+    const char *mname = m->base ? "my_model" : "evolved";
+    write_header(f, r, nprims, k, m, m->setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax");
+    write_model_head(f, m->base, mname);
+    write_prims(f, r, prims, nprims, seen, m->base);
+    fprintf(f, "    -- the construction tree: | union, & intersection, \\ subtraction, ~ complement\n");
+    fprintf(f, "    tree = %s;\n", tree);
+    write_clip(f, r, mname);
     frep_free(seen);
+    frep_free(tree);
     return ferror(f) ? -1 : 0;
 }
 

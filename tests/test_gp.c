@@ -13,6 +13,7 @@
 #include <omp.h>
 #endif
 
+#include "alloc.h"
 #include "fitness.h"
 #include "gp.h"
 #include "partition.h"
@@ -187,12 +188,11 @@ static void parse_tree(gp_tree *t, const char *postfix, gp_setops so)
 static char *print_str(const gp_tree *t)
 {
     static char buf[4096];  /* test-only scratch; the library has no such state */
-    FILE *f = tmpfile();
-    tree_print(f, t->code, t->len, "p");
-    rewind(f);
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    buf[n] = 0;
-    fclose(f);
+    frep_buf b = FREP_BUF_INIT;
+    tree_print(&b, t->code, t->len, "p");
+    char *s = buf_finish(&b, NULL);
+    snprintf(buf, sizeof buf, "%s", s ? s : "");
+    frep_free(s);
     return buf;
 }
 
