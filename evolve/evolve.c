@@ -114,145 +114,219 @@ out:
  * unsupported edges at a fraction of the kd-tree's cost. */
 #define EVOLVE_SUPPORT_MAX_POINTS 20000
 
+/* One support_run: the grid over the clipping box and what its stages build. */
+typedef struct support_ctx {
+    const evolve_options *o;
+    const frep_cloud *cloud;
+    const prim *prims;
+    size_t nprims;
+    const size_t *valid;     /* the valid points (cloud indices) */
+    size_t nv;
+    const gp_cache *sc;      /* the sample's cache of every primitive */
+    gp_eval *ev;
+    evolve_result *res;
+    support_grid g;
+    double H[3];             /* half sides of the grown clipping box */
+    double h;                /* cell side */
+    double q0[3];            /* node (0, 0, 0) in the box's frame */
+    size_t ng;               /* nodes */
+    double *gx, *gy, *gz;    /* node positions */
+    double *clip, *dist;     /* support_grid.clip and .dist */
+    double *cx, *cy, *cz;    /* the cloud points of the kd-tree */
+    size_t m;                /* their number */
+    kd_tree *kd;
+    uint32_t *used, nu;      /* the tree's primitives */
+    gp_cache *gc;            /* their values at the nodes */
+    gp_cache *pc;            /* the sample's cache of them */
+    gp_eval *eg;             /* evaluator on the grid */
+} support_ctx;
+
+/* The grid's frame: cubic cells, SUPPORT_GRID_CELLS along the box's longest side, and
+ * one node beyond each face. 1 when there is no grid to build (an empty box). */
+static int support_frame(support_ctx *c)
+{
+    const gp_obb *b = &c->res->obb;
+    double hmax = 0, mg = EVOLVE_CLIP_MARGIN * c->res->diag;
+    for (int d = 0; d < 3; d++) {
+        c->H[d] = b->h[d] + mg;
+        if (c->H[d] > hmax) hmax = c->H[d];
+    }
+    c->h = 2 * hmax / SUPPORT_GRID_CELLS;
+    if (!(c->h > 0) || c->nv == 0) return 1;
+    c->ng = 1;
+    for (int d = 0; d < 3; d++) {
+        /* One node beyond the box on each side: the clip closes every part. */
+        c->g.dims[d] = (size_t)ceil(2 * c->H[d] / c->h) + 3;
+        c->ng *= c->g.dims[d];
+    }
+    /* Node (0, 0, 0) in the box's frame, and the steps along its axes. */
+    for (int d = 0; d < 3; d++) c->q0[d] = -0.5 * (double)(c->g.dims[d] - 1) * c->h;
+    for (int k = 0; k < 3; k++) {
+        c->g.o[k] = b->c[k];
+        for (int d = 0; d < 3; d++) {
+            c->g.o[k] += c->q0[d] * b->ax[d][k];
+            c->g.u[d][k] = c->h * b->ax[d][k];
+        }
+    }
+    return 0;
+}
+
+/* The nodes' positions and how deep each lies inside the clipping box. */
+static int support_nodes(support_ctx *c)
+{
+    const gp_obb *b = &c->res->obb;
+    size_t ng = c->ng;
+    c->gx = frep_malloc(ng * sizeof *c->gx);
+    c->gy = frep_malloc(ng * sizeof *c->gy);
+    c->gz = frep_malloc(ng * sizeof *c->gz);
+    c->clip = frep_malloc(ng * sizeof *c->clip);
+    c->dist = frep_malloc(ng * sizeof *c->dist);
+    if (!c->gx || !c->gy || !c->gz || !c->clip || !c->dist) return -1;
+    for (size_t i = 0, a = 0; i < c->g.dims[0]; i++)
+        for (size_t j = 0; j < c->g.dims[1]; j++)
+            for (size_t k = 0; k < c->g.dims[2]; k++, a++) {
+                const size_t ijk[3] = { i, j, k };
+                double q[3], p[3] = { b->c[0], b->c[1], b->c[2] }, in = HUGE_VAL;
+                for (int d = 0; d < 3; d++) {
+                    q[d] = c->q0[d] + (double)ijk[d] * c->h;
+                    if (c->H[d] - fabs(q[d]) < in) in = c->H[d] - fabs(q[d]);
+                    for (int e = 0; e < 3; e++) p[e] += q[d] * b->ax[d][e];
+                }
+                c->gx[a] = p[0];
+                c->gy[a] = p[1];
+                c->gz[a] = p[2];
+                c->clip[a] = in;
+            }
+    return 0;
+}
+
+/* The kd-tree of the valid points (a regular subset beyond the limit); the node
+ * distances to it are computed on demand (NAN until then). */
+static int support_cloud(support_ctx *c)
+{
+    size_t nv = c->nv;
+    size_t stride = (nv + EVOLVE_SUPPORT_MAX_POINTS - 1) / EVOLVE_SUPPORT_MAX_POINTS, m = 0;
+    c->cx = frep_malloc((nv / stride + 1) * sizeof *c->cx);
+    c->cy = frep_malloc((nv / stride + 1) * sizeof *c->cy);
+    c->cz = frep_malloc((nv / stride + 1) * sizeof *c->cz);
+    if (!c->cx || !c->cy || !c->cz) return -1;
+    for (size_t q = 0; q < nv; q += stride, m++) {
+        c->cx[m] = c->cloud->x[c->valid[q]];
+        c->cy[m] = c->cloud->y[c->valid[q]];
+        c->cz[m] = c->cloud->z[c->valid[q]];
+    }
+    c->m = m;
+    if (!(c->kd = kd_build(m, c->cx, c->cy, c->cz))) return -1;
+    for (size_t a = 0; a < c->ng; a++) c->dist[a] = NAN;
+    return 0;
+}
+
+/* tau: two cells (a crossing lies within a cell of the surface it samples) and two
+ * point spacings (the median distance between neighbours, of up to 1,000 points). */
+static int support_tau(support_ctx *c)
+{
+    size_t m = c->m, ns = m < 1000 ? m : 1000, sst = m / (ns ? ns : 1), cnt = 0;
+    double *sp = frep_malloc((ns ? ns : 1) * sizeof *sp);
+    if (!sp) return -1;
+    for (size_t q = 0; q < ns; q++) {
+        size_t r = q * sst;
+        double p[3] = { c->cx[r], c->cy[r], c->cz[r] }, d2[2];
+        uint32_t nb[2];
+        if (kd_knn(c->kd, p, 2, nb, d2) == 2) sp[cnt++] = sqrt(d2[1]);
+    }
+    qsort(sp, cnt, sizeof *sp, cmp_double_asc);
+    double spacing = cnt ? sp[cnt / 2] : 0;
+    frep_free(sp);
+    c->g.tau = 2 * c->h + 2 * spacing;
+    return 0;
+}
+
+/* The caches of the tree's primitives only (the trims bound its parts by their own
+ * faces, and the grid's memory grows with the tree, not with a long primitive list):
+ * values at the nodes (no normals to score), and the sample's. */
+static int support_caches(support_ctx *c)
+{
+    size_t ng = c->ng;
+    c->nu = tree_used_prims(&c->res->tree, (uint32_t)c->nprims, &c->used);
+    if (!c->used) return -1;
+    double *v = frep_malloc((size_t)c->nu * ng * sizeof *v);
+    double *gg = frep_malloc(3 * (size_t)c->nu * ng * sizeof *gg);
+    if (v && gg) {
+        long kl = (long)c->nu;
+#pragma omp parallel for schedule(dynamic, 1)
+        for (long jl = 0; jl < kl; jl++) {
+            size_t j = (size_t)jl;
+            prim_eval_many(&c->prims[c->used[j]], ng, c->gx, c->gy, c->gz, v + j * ng,
+                           gg + 3 * j * ng, gg + (3 * j + 1) * ng, gg + (3 * j + 2) * ng);
+        }
+    }
+    c->gc = gp_cache_values(ng, c->nu, c->o->gp.setops, v, gg);
+    const gp_cache *sc = c->sc;
+    size_t *all_pts = frep_malloc((sc->n ? sc->n : 1) * sizeof *all_pts);
+    if (all_pts) {
+        for (size_t i = 0; i < sc->n; i++) all_pts[i] = i;
+        c->pc = gp_cache_subset(sc, all_pts, sc->n, c->used, c->nu, sc->lambda);
+    }
+    frep_free(all_pts);
+    if (!c->gc || !c->pc || !(c->eg = gp_eval_new())) return -1;
+    return 0;
+}
+
+/* The trims on the tree renumbered to the caches' primitives, and its new fitness. */
+static int support_trims(support_ctx *c)
+{
+    evolve_result *res = c->res;
+    c->g.c = c->gc;
+    c->g.clip = c->clip;
+    c->g.cloud = c->kd;
+    c->g.dist = c->dist;
+    tree_renumber(&res->tree, c->used, c->nu, 0);
+    int bad = support_trim(&res->tree, c->o->gp.setops, c->pc, c->ev, &c->g, c->eg,
+                           &res->support);
+    tree_renumber(&res->tree, c->used, c->nu, 1);
+    if (bad) return -1;
+    if (res->support.trims &&
+        gp_fitness(c->sc, c->ev, res->tree.code, res->tree.len, &res->fitness))
+        return -1;
+    return 0;
+}
+
 /* The support trims (support.h) of res->tree: the grid over the clipping box, its
- * distances to the cloud's valid points and the primitives at its nodes. 0 or -1. */
+ * distances to the cloud's valid points and the primitives at its nodes. 0 or -1
+ * (allocation). */
 static int support_run(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
                        size_t nprims, const size_t *valid, size_t nv,
                        const gp_cache *sc, gp_eval *ev, evolve_result *res)
 {
-    const gp_obb *b = &res->obb;
-    double H[3], hmax = 0, mg = EVOLVE_CLIP_MARGIN * res->diag;
-    for (int d = 0; d < 3; d++) {
-        H[d] = b->h[d] + mg;
-        if (H[d] > hmax) hmax = H[d];
-    }
-    double h = 2 * hmax / SUPPORT_GRID_CELLS;
-    if (!(h > 0) || nv == 0) return 0;
-    support_grid g;
-    memset(&g, 0, sizeof g);
-    size_t ng = 1;
-    for (int d = 0; d < 3; d++) {
-        /* One node beyond the box on each side: the clip closes every part. */
-        g.dims[d] = (size_t)ceil(2 * H[d] / h) + 3;
-        ng *= g.dims[d];
-    }
-    /* Node (0, 0, 0) in the box's frame, and the steps along its axes. */
-    double q0[3];
-    for (int d = 0; d < 3; d++) q0[d] = -0.5 * (double)(g.dims[d] - 1) * h;
-    for (int c = 0; c < 3; c++) {
-        g.o[c] = b->c[c];
-        for (int d = 0; d < 3; d++) {
-            g.o[c] += q0[d] * b->ax[d][c];
-            g.u[d][c] = h * b->ax[d][c];
-        }
-    }
-    double *gx = frep_malloc(ng * sizeof *gx), *gy = frep_malloc(ng * sizeof *gy);
-    double *gz = frep_malloc(ng * sizeof *gz);
-    double *clip = frep_malloc(ng * sizeof *clip), *dist = frep_malloc(ng * sizeof *dist);
-    double *cx = NULL, *cy = NULL, *cz = NULL;
-    kd_tree *kd = NULL;
-    gp_cache *gc = NULL, *pc = NULL;
-    gp_eval *eg = NULL;
-    uint32_t *used = NULL, nu = 0;
-    int rc = -1;
-    if (!gx || !gy || !gz || !clip || !dist) goto out;
-    for (size_t i = 0, a = 0; i < g.dims[0]; i++)
-        for (size_t j = 0; j < g.dims[1]; j++)
-            for (size_t k = 0; k < g.dims[2]; k++, a++) {
-                const size_t ijk[3] = { i, j, k };
-                double q[3], p[3] = { b->c[0], b->c[1], b->c[2] }, in = HUGE_VAL;
-                for (int d = 0; d < 3; d++) {
-                    q[d] = q0[d] + (double)ijk[d] * h;
-                    if (H[d] - fabs(q[d]) < in) in = H[d] - fabs(q[d]);
-                    for (int c = 0; c < 3; c++) p[c] += q[d] * b->ax[d][c];
-                }
-                gx[a] = p[0];
-                gy[a] = p[1];
-                gz[a] = p[2];
-                clip[a] = in;
-            }
-    /* The distances, to the valid points (a regular subset beyond the limit). */
-    size_t stride = (nv + EVOLVE_SUPPORT_MAX_POINTS - 1) / EVOLVE_SUPPORT_MAX_POINTS, m = 0;
-    cx = frep_malloc((nv / stride + 1) * sizeof *cx);
-    cy = frep_malloc((nv / stride + 1) * sizeof *cy);
-    cz = frep_malloc((nv / stride + 1) * sizeof *cz);
-    if (!cx || !cy || !cz) goto out;
-    for (size_t q = 0; q < nv; q += stride, m++) {
-        cx[m] = cloud->x[valid[q]];
-        cy[m] = cloud->y[valid[q]];
-        cz[m] = cloud->z[valid[q]];
-    }
-    if (!(kd = kd_build(m, cx, cy, cz))) goto out;
-    for (size_t a = 0; a < ng; a++) dist[a] = NAN;
-    /* tau: two cells (a crossing lies within a cell of the surface it samples) and two
-     * point spacings (the median distance between neighbours, of up to 1,000 points). */
-    {
-        size_t ns = m < 1000 ? m : 1000, sst = m / (ns ? ns : 1), cnt = 0;
-        double *sp = frep_malloc((ns ? ns : 1) * sizeof *sp);
-        if (!sp) goto out;
-        for (size_t q = 0; q < ns; q++) {
-            size_t r = q * sst;
-            double p[3] = { cx[r], cy[r], cz[r] }, d2[2];
-            uint32_t nb[2];
-            if (kd_knn(kd, p, 2, nb, d2) == 2) sp[cnt++] = sqrt(d2[1]);
-        }
-        qsort(sp, cnt, sizeof *sp, cmp_double_asc);
-        double spacing = cnt ? sp[cnt / 2] : 0;
-        frep_free(sp);
-        g.tau = 2 * h + 2 * spacing;
-    }
-    /* Only the tree's primitives (the trims bound its parts by their own faces): the
-     * grid's memory grows with the tree, not with a long primitive list. */
-    nu = tree_used_prims(&res->tree, (uint32_t)nprims, &used);
-    if (!used) goto out;
-    {
-        /* The primitives at the nodes: values only (no normals to score). */
-        double *v = frep_malloc((size_t)nu * ng * sizeof *v), *gg = frep_malloc(3 * (size_t)nu * ng * sizeof *gg);
-        if (v && gg) {
-            long kl = (long)nu;
-#pragma omp parallel for schedule(dynamic, 1)
-            for (long jl = 0; jl < kl; jl++) {
-                size_t j = (size_t)jl;
-                prim_eval_many(&prims[used[j]], ng, gx, gy, gz, v + j * ng, gg + 3 * j * ng,
-                               gg + (3 * j + 1) * ng, gg + (3 * j + 2) * ng);
-            }
-        }
-        gc = gp_cache_values(ng, nu, o->gp.setops, v, gg);
-    }
-    {
-        size_t *all_pts = frep_malloc((sc->n ? sc->n : 1) * sizeof *all_pts);
-        if (all_pts) {
-            for (size_t i = 0; i < sc->n; i++) all_pts[i] = i;
-            pc = gp_cache_subset(sc, all_pts, sc->n, used, nu, sc->lambda);
-        }
-        frep_free(all_pts);
-    }
-    if (!gc || !pc || !(eg = gp_eval_new())) goto out;
-    g.c = gc;
-    g.clip = clip;
-    g.cloud = kd;
-    g.dist = dist;
-    tree_renumber(&res->tree, used, nu, 0);
-    int bad = support_trim(&res->tree, o->gp.setops, pc, ev, &g, eg, &res->support);
-    tree_renumber(&res->tree, used, nu, 1);
-    if (bad) goto out;
-    if (res->support.trims && gp_fitness(sc, ev, res->tree.code, res->tree.len, &res->fitness))
-        goto out;
-    rc = 0;
-out:
-    frep_free(used);
-    gp_cache_free(pc);
-    frep_free(gx);
-    frep_free(gy);
-    frep_free(gz);
-    frep_free(clip);
-    frep_free(dist);
-    frep_free(cx);
-    frep_free(cy);
-    frep_free(cz);
-    kd_free(kd);
-    gp_cache_free(gc);
-    gp_eval_free(eg);
+    support_ctx c;
+    memset(&c, 0, sizeof c);
+    c.o = o;
+    c.cloud = cloud;
+    c.prims = prims;
+    c.nprims = nprims;
+    c.valid = valid;
+    c.nv = nv;
+    c.sc = sc;
+    c.ev = ev;
+    c.res = res;
+    if (support_frame(&c)) return 0;
+    int rc = support_nodes(&c) || support_cloud(&c) || support_tau(&c) ||
+                     support_caches(&c) || support_trims(&c)
+                 ? -1
+                 : 0;
+    frep_free(c.used);
+    gp_cache_free(c.pc);
+    frep_free(c.gx);
+    frep_free(c.gy);
+    frep_free(c.gz);
+    frep_free(c.clip);
+    frep_free(c.dist);
+    frep_free(c.cx);
+    frep_free(c.cy);
+    frep_free(c.cz);
+    kd_free(c.kd);
+    gp_cache_free(c.gc);
+    gp_eval_free(c.eg);
     return rc;
 }
 
