@@ -807,13 +807,7 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
     uint32_t nq = cl.count;
     part_piece *pc = frep_calloc(nq, sizeof *pc);
     uint32_t *gens = frep_calloc(nq, sizeof *gens);
-    int nthreads = cfg->threads;
-#ifdef _OPENMP
-    if (nthreads <= 0) nthreads = omp_get_max_threads();
-#else
-    nthreads = 1;
-#endif
-    if (nthreads < 1) nthreads = 1;
+    int nthreads = gp_threads(cfg->threads);
     gp_eval **ev = frep_calloc((size_t)nthreads, sizeof *ev);
     int rc = -1, failed = 0;
     if (!pc || !gens || !ev) goto out;

@@ -5,6 +5,7 @@
 #include "config.h"
 
 #include "alloc.h"
+#include "gp.h"
 #include "simplify.h"
 
 #include <math.h>
@@ -653,7 +654,7 @@ static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     int nt = 1;
 #ifdef _OPENMP
     if (!omp_in_parallel() && (uint64_t)t->len * (uint64_t)nu * 3 >= SIMPLIFY_PAR_MIN)
-        nt = omp_get_max_threads();
+        nt = gp_threads(0);
 #endif
     if (nt <= 1) {
         if (record(t, c, e, NULL) || inner_range(t, use, ops, c, e, 0, t->len, trial, &bf, &best)) {
