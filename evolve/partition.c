@@ -776,119 +776,162 @@ static uint32_t point_owners(const gp_cache *c, size_t i, uint8_t *own)
     return k;
 }
 
-int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const double *y,
-             const double *z, const gp_obb *boxes, double margin, gp_progress_fn fn,
-             void *user, gp_result *res, part_info *info)
-{
-    memset(info, 0, sizeof *info);
-    memset(res, 0, sizeof *res);
-    res->fitness = -HUGE_VAL;
-    double t0 = gp_now();
-    gp_graph g;
+/* One part_run: the cliques, one piece per clique, the evaluators. */
+typedef struct part_ctx {
+    const gp_config *cfg;
+    const gp_cache *c;
+    const double *x, *y, *z;  /* the cache's points */
+    const gp_obb *boxes;
+    double margin;
+    gp_progress_fn fn;
+    void *user;
+    gp_result *res;
+    part_info *info;
+    double t0;                /* gp_now() at the start */
     gp_cliques cl;
-    memset(&cl, 0, sizeof cl);
-    if (part_overlap_graph(boxes, c->nprims, margin, &g)) return -1;
+    uint32_t nq;              /* cliques */
+    part_piece *pc;           /* pc[q]: clique q's points, primitives and tree */
+    uint32_t *gens;           /* GA generations per clique */
+    int nthreads;
+    gp_eval **ev;             /* one per thread */
+    uint32_t live;            /* pieces left to merge (pc[0..live)) */
+} part_ctx;
+
+/* Overlap graph of the proxies and its maximal cliques. 1: not worth partitioning
+ * (too many cliques, or one). */
+static int part_find_cliques(part_ctx *s)
+{
+    part_info *info = s->info;
+    gp_graph g;
+    if (part_overlap_graph(s->boxes, s->c->nprims, s->margin, &g)) return -1;
     for (uint32_t i = 0; i < g.n; i++)
         for (uint32_t j = i + 1; j < g.n; j++) info->nedges += (uint32_t)part_graph_has(&g, i, j);
-    int cr = part_cliques(&g, PART_MAX_CLIQUES, &cl);
+    int cr = part_cliques(&g, PART_MAX_CLIQUES, &s->cl);
     part_graph_free(&g);
-    if (cr < 0) return -1;
-    if (cr > 0) return 0;  /* too many cliques: unpartitioned GA */
-    info->ncliques = cl.count;
-    for (uint32_t q = 0; q < cl.count; q++) {
-        uint32_t k = cl.start[q + 1] - cl.start[q];
+    if (cr) return cr;  /* -1, or 1: too many cliques (unpartitioned GA) */
+    info->ncliques = s->cl.count;
+    for (uint32_t q = 0; q < s->cl.count; q++) {
+        uint32_t k = s->cl.start[q + 1] - s->cl.start[q];
         if (k > info->largest) info->largest = k;
     }
-    if (cl.count <= 1) {
-        part_cliques_free(&cl);
-        return 0;
+    s->nq = s->cl.count;
+    return s->cl.count <= 1;
+}
+
+/* The pieces and one evaluator per thread. */
+static int part_alloc(part_ctx *s)
+{
+    s->pc = frep_calloc(s->nq, sizeof *s->pc);
+    s->gens = frep_calloc(s->nq, sizeof *s->gens);
+    s->nthreads = gp_threads(s->cfg->threads);
+    s->ev = frep_calloc((size_t)s->nthreads, sizeof *s->ev);
+    if (!s->pc || !s->gens || !s->ev) return -1;
+    for (int i = 0; i < s->nthreads; i++)
+        if (!(s->ev[i] = gp_eval_new())) return -1;
+    return 0;
+}
+
+/* Point i in pass 0 (bestcnt[i]: the most member boxes of an eligible clique holding
+ * it) or pass 1 (i joins the eligible cliques that hold it that often). own: scratch,
+ * all 0 on entry and exit. */
+static int part_assign_point(part_ctx *s, size_t i, int pass, uint8_t *own, uint32_t *bestcnt)
+{
+    const gp_cache *c = s->c;
+    const gp_cliques *cl = &s->cl;
+    double p[3] = { s->x[i], s->y[i], s->z[i] };
+    uint32_t nown = point_owners(c, i, own);
+    int failed = 0;
+    for (uint32_t q = 0; q < s->nq; q++) {
+        const uint32_t *mem = cl->members + cl->start[q];
+        uint32_t k = cl->start[q + 1] - cl->start[q], cnt = 0, has_owner = 0;
+        for (uint32_t m = 0; m < k; m++) {
+            cnt += (uint32_t)part_obb_contains(&s->boxes[mem[m]], p, s->margin);
+            has_owner |= own[mem[m]];
+        }
+        if (nown && !has_owner) continue;
+        if (pass == 0) {
+            if (cnt > bestcnt[i]) bestcnt[i] = cnt;
+            continue;
+        }
+        part_piece *pq = &s->pc[q];
+        if (cnt > 0 && (nown == 0 || cnt == bestcnt[i])) {
+            if (!pq->pts) {
+                pq->pts = frep_malloc((c->n ? c->n : 1) * sizeof *pq->pts);
+                if (!pq->pts) failed = 1;
+            }
+            if (pq->pts) pq->pts[pq->npts++] = i;
+        }
     }
+    for (uint32_t j = 0; j < c->nprims; j++) own[j] = 0;
+    return failed ? -1 : 0;
+}
 
-    uint32_t nq = cl.count;
-    part_piece *pc = frep_calloc(nq, sizeof *pc);
-    uint32_t *gens = frep_calloc(nq, sizeof *gens);
-    int nthreads = gp_threads(cfg->threads);
-    gp_eval **ev = frep_calloc((size_t)nthreads, sizeof *ev);
-    int rc = -1, failed = 0;
-    if (!pc || !gens || !ev) goto out;
-    for (int i = 0; i < nthreads; i++)
-        if (!(ev[i] = gp_eval_new())) goto out;
-
-    /* Points of each clique: inside the grown box of one of its members. A point that
-     * a primitive explains (its owners) goes only to the cliques holding an owner whose
-     * members' boxes contain it most often: a plane shared by several parts brings
-     * each part's face to that part's clique, not to every clique of the plane (where
-     * the clique's correct tree cannot explain it and the GA is pushed to wrong ones). */
+/* Points of each clique: inside the grown box of one of its members. A point that a
+ * primitive explains (its owners) goes only to the cliques holding an owner whose
+ * members' boxes contain it most often: a plane shared by several parts brings each
+ * part's face to that part's clique, not to every clique of the plane (where the
+ * clique's correct tree cannot explain it and the GA is pushed to wrong ones). Then
+ * each piece's primitives, the clique's members. */
+static int part_assign_points(part_ctx *s)
+{
+    const gp_cache *c = s->c;
     uint8_t *owner = frep_calloc(c->nprims ? c->nprims : 1, 1);
     uint32_t *bestcnt = frep_calloc(c->n ? c->n : 1, sizeof *bestcnt);
-    if (!owner || !bestcnt) {
-        frep_free(owner);
-        frep_free(bestcnt);
-        goto out;
-    }
-    for (int pass = 0; pass < 2; pass++)
-        for (size_t i = 0; i < c->n; i++) {
-            double p[3] = { x[i], y[i], z[i] };
-            uint32_t nown = point_owners(c, i, owner);
-            for (uint32_t q = 0; q < nq; q++) {
-                const uint32_t *mem = cl.members + cl.start[q];
-                uint32_t k = cl.start[q + 1] - cl.start[q], cnt = 0, has_owner = 0;
-                for (uint32_t m = 0; m < k; m++) {
-                    cnt += (uint32_t)part_obb_contains(&boxes[mem[m]], p, margin);
-                    has_owner |= owner[mem[m]];
-                }
-                if (nown && !has_owner) continue;
-                if (pass == 0) {
-                    if (cnt > bestcnt[i]) bestcnt[i] = cnt;
-                    continue;
-                }
-                if (cnt > 0 && (nown == 0 || cnt == bestcnt[i])) {
-                    if (!pc[q].pts) {
-                        pc[q].pts = frep_malloc((c->n ? c->n : 1) * sizeof *pc[q].pts);
-                        if (!pc[q].pts) failed = 1;
-                    }
-                    if (pc[q].pts) pc[q].pts[pc[q].npts++] = i;
-                }
-            }
-            for (uint32_t j = 0; j < c->nprims; j++) owner[j] = 0;
-        }
+    int failed = !owner || !bestcnt;
+    for (int pass = 0; pass < 2 && owner && bestcnt; pass++)
+        for (size_t i = 0; i < c->n; i++)
+            if (part_assign_point(s, i, pass, owner, bestcnt)) failed = 1;
     frep_free(owner);
     frep_free(bestcnt);
-    if (failed) goto out;
-    for (uint32_t q = 0; q < nq; q++) {
-        const uint32_t *mem = cl.members + cl.start[q];
-        uint32_t k = cl.start[q + 1] - cl.start[q];
-        pc[q].prims = frep_malloc((size_t)k * sizeof *pc[q].prims);
-        if (!pc[q].prims) goto out;
-        memcpy(pc[q].prims, mem, (size_t)k * sizeof *mem);
-        pc[q].nprims = k;
+    if (failed) return -1;
+    for (uint32_t q = 0; q < s->nq; q++) {
+        const uint32_t *mem = s->cl.members + s->cl.start[q];
+        uint32_t k = s->cl.start[q + 1] - s->cl.start[q];
+        s->pc[q].prims = frep_malloc((size_t)k * sizeof *s->pc[q].prims);
+        if (!s->pc[q].prims) return -1;
+        memcpy(s->pc[q].prims, mem, (size_t)k * sizeof *mem);
+        s->pc[q].nprims = k;
     }
+    return 0;
+}
 
-    long nql = (long)nq;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
+/* A tree per clique (solve_clique), cliques in parallel, each seeded from the run's
+ * seed and its number; a clique without points is dropped. */
+static int part_solve(part_ctx *s)
+{
+    int failed = 0;
+    long nql = (long)s->nq;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(s->nthreads)
     for (long ql = 0; ql < nql; ql++) {
         uint32_t q = (uint32_t)ql;
         int tid = 0;
 #ifdef _OPENMP
         tid = omp_get_thread_num();
 #endif
-        if (pc[q].npts == 0) continue;  /* explains no point: dropped */
-        if (solve_clique(cfg, c, pc[q].prims, pc[q].nprims, pc[q].pts, pc[q].npts,
-                         mix_seed(cfg->seed, q), ev[tid], &pc[q].t, &gens[q])) {
+        part_piece *pq = &s->pc[q];
+        if (pq->npts == 0) continue;  /* explains no point: dropped */
+        if (solve_clique(s->cfg, s->c, pq->prims, pq->nprims, pq->pts, pq->npts,
+                         mix_seed(s->cfg->seed, q), s->ev[tid], &pq->t, &s->gens[q])) {
 #pragma omp atomic write
             failed = 1;
         }
     }
-    if (failed) goto out;
-    for (uint32_t q = 0; q < nq; q++) info->generations += gens[q];
+    if (failed) return -1;
+    for (uint32_t q = 0; q < s->nq; q++) s->info->generations += s->gens[q];
+    return 0;
+}
 
-    /* Merge: repeatedly the two pieces sharing the most primitives (ties: first). */
+/* The pieces with a tree moved to the front (s->live of them), their primitives those
+ * the tree uses. */
+static int part_compact(part_ctx *s)
+{
+    part_piece *pc = s->pc;
     uint32_t live = 0;
-    for (uint32_t q = 0; q < nq; q++) {
+    for (uint32_t q = 0; q < s->nq; q++) {
         if (pc[q].t.len) {
             frep_free(pc[q].prims);
-            pc[q].nprims = tree_used_prims(&pc[q].t, c->nprims, &pc[q].prims);
-            if (!pc[q].prims) goto out;
+            pc[q].nprims = tree_used_prims(&pc[q].t, s->c->nprims, &pc[q].prims);
+            if (!pc[q].prims) return -1;
             if (live != q) {
                 pc[live] = pc[q];
                 memset(&pc[q], 0, sizeof pc[q]);
@@ -898,51 +941,98 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
             piece_free(&pc[q]);
         }
     }
-    if (live == 0) goto fallback;
-    while (live > 1) {
-        uint32_t bi = 0, bj = 1, bs = 0;
+    s->live = live;
+    return 0;
+}
+
+/* Merge: repeatedly the two pieces sharing the most primitives (ties: first), with a
+ * report after each merge (a stop request ends the merging). */
+static int part_merge_all(part_ctx *s)
+{
+    part_piece *pc = s->pc;
+    while (s->live > 1) {
+        uint32_t live = s->live, bi = 0, bj = 1, bs = 0;
         for (uint32_t i = 0; i < live; i++)
             for (uint32_t j = i + 1; j < live; j++) {
-                uint32_t s = shared_count(&pc[i], &pc[j]);
-                if (s > bs) { bs = s; bi = i; bj = j; }
+                uint32_t sh = shared_count(&pc[i], &pc[j]);
+                if (sh > bs) { bs = sh; bi = i; bj = j; }
             }
-        if (merge_pieces(cfg, c, ev[0], &pc[bi], &pc[bj])) goto out;
+        if (merge_pieces(s->cfg, s->c, s->ev[0], &pc[bi], &pc[bj])) return -1;
         piece_free(&pc[bj]);
         memmove(&pc[bj], &pc[bj + 1], (size_t)(live - bj - 1) * sizeof *pc);
         memset(&pc[live - 1], 0, sizeof *pc);
-        live--;
-        if (fn) {
-            gp_progress pr = { info->generations, NAN, pc[bi].t.len, gp_now() - t0,
+        s->live--;
+        if (s->fn) {
+            gp_progress pr = { s->info->generations, NAN, pc[bi].t.len, gp_now() - s->t0,
                                GP_PHASE_MERGE, 0, 0 };
-            if (fn(user, &pr)) break;
+            if (s->fn(s->user, &pr)) break;
         }
     }
-    /* The merged tree over the whole cache. */
+    return 0;
+}
+
+/* The merged tree simplified over the whole cache (both orders), and its report. */
+static int part_final(part_ctx *s)
+{
+    gp_result *res = s->res;
     double fit;
-    if (tree_copy(&res->best, &pc[0].t) ||
-        simplify_tree_both(&res->best, cfg->setops, c, ev[0], &fit))
-        goto out;
+    if (tree_copy(&res->best, &s->pc[0].t) ||
+        simplify_tree_both(&res->best, s->cfg->setops, s->c, s->ev[0], &fit))
+        return -1;
     res->fitness = fit;
-    res->generations = info->generations;
+    res->generations = s->info->generations;
     res->stop = GP_STOP_GENERATIONS;
-    info->partitioned = 1;
-    if (fn) {
-        gp_progress pr = { info->generations, fit, res->best.len, gp_now() - t0,
+    s->info->partitioned = 1;
+    if (s->fn) {
+        gp_progress pr = { s->info->generations, fit, res->best.len, gp_now() - s->t0,
                            GP_PHASE_MERGED, 0, 0 };
-        if (cfg->report_explained && gp_progress_explained(c, ev[0], &res->best, &pr))
-            goto out;
-        fn(user, &pr);  /* a stop request reaches the polish's first report */
+        if (s->cfg->report_explained && gp_progress_explained(s->c, s->ev[0], &res->best, &pr))
+            return -1;
+        s->fn(s->user, &pr);  /* a stop request reaches the polish's first report */
     }
-fallback:
-    rc = 0;
-out:
-    if (pc)
-        for (uint32_t q = 0; q < nq; q++) piece_free(&pc[q]);
-    frep_free(pc);
-    frep_free(gens);
-    if (ev)
-        for (int i = 0; i < nthreads; i++) gp_eval_free(ev[i]);
-    frep_free(ev);
-    part_cliques_free(&cl);
+    return 0;
+}
+
+/* The steps after the cliques: points per clique, a tree per clique, the merge, the
+ * merged tree. */
+static int part_stages(part_ctx *s)
+{
+    if (part_alloc(s) || part_assign_points(s) || part_solve(s) || part_compact(s)) return -1;
+    if (s->live == 0) return 0;  /* no clique tree: the unpartitioned GA */
+    if (part_merge_all(s)) return -1;
+    return part_final(s);
+}
+
+int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const double *y,
+             const double *z, const gp_obb *boxes, double margin, gp_progress_fn fn,
+             void *user, gp_result *res, part_info *info)
+{
+    memset(info, 0, sizeof *info);
+    memset(res, 0, sizeof *res);
+    res->fitness = -HUGE_VAL;
+    part_ctx s;
+    memset(&s, 0, sizeof s);
+    s.cfg = cfg;
+    s.c = c;
+    s.x = x;
+    s.y = y;
+    s.z = z;
+    s.boxes = boxes;
+    s.margin = margin;
+    s.fn = fn;
+    s.user = user;
+    s.res = res;
+    s.info = info;
+    s.t0 = gp_now();
+    int r = part_find_cliques(&s);
+    int rc = r < 0 ? -1 : r > 0 ? 0 : part_stages(&s);
+    if (s.pc)
+        for (uint32_t q = 0; q < s.nq; q++) piece_free(&s.pc[q]);
+    frep_free(s.pc);
+    frep_free(s.gens);
+    if (s.ev)
+        for (int i = 0; i < s.nthreads; i++) gp_eval_free(s.ev[i]);
+    frep_free(s.ev);
+    part_cliques_free(&s.cl);
     return rc;
 }
