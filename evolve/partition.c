@@ -532,126 +532,163 @@ static int exh_fitness(const gp_cache *c, gp_eval *e, const gp_tree *forest,
     return gp_fitness(c, e, scratch->code, scratch->len, fit);
 }
 
+/* One part_exhaustive: the forest of the trees over every proper subset S of the
+ * clique (each 2|S| - 1 instructions, subsets by size so that each comes after its
+ * parts: off[S] is the first one's pc, count[S] their number) and the best tree so
+ * far (best_nl trees of the forest, joined by best_op when two). */
+typedef struct exh_state {
+    const gp_cache *c;
+    gp_eval *e;
+    gp_opset o;
+    uint32_t k, full;        /* clique size; the full set's bits */
+    uint32_t off[1u << PART_EXHAUSTIVE_MAX], count[1u << PART_EXHAUSTIVE_MAX];
+    gp_tree forest, scratch;
+    double bf;               /* best fitness (valid when have) */
+    int have;
+    uint32_t best[2], best_nl;
+    uint8_t best_op;
+} exh_state;
+
+/* Append to the forest the trees over S from its splits S = A + B (A holding S's
+ * lowest member, each split once): a | b, a & b, a \ b, b \ a for every tree a over A
+ * and b over B. */
+static int exh_grow_set(exh_state *x, uint32_t S)
+{
+    gp_tree *f = &x->forest;
+    uint32_t low = S & (0u - S);
+    for (uint32_t A = (S - 1) & S; A; A = (A - 1) & S) {
+        if (!(A & low)) continue;
+        uint32_t B = S ^ A;
+        uint32_t la = 2 * popcount64(A) - 1, lb = 2 * popcount64(B) - 1;
+        for (uint32_t ia = 0; ia < x->count[A]; ia++)
+            for (uint32_t ib = 0; ib < x->count[B]; ib++)
+                for (int w = 0; w < 4; w++) {
+                    uint32_t a0 = x->off[A] + ia * la, b0 = x->off[B] + ib * lb;
+                    uint32_t p = w == 3 ? b0 : a0, lp = w == 3 ? lb : la;  /* b \ a */
+                    uint32_t q = w == 3 ? a0 : b0, lq = w == 3 ? la : lb;
+                    uint8_t op = w == 0 ? x->o.uni : w == 1 ? x->o.inter : x->o.sub;
+                    if (tree_reserve(f, f->len + lp + lq + 1)) return -1;
+                    /* Copied from the forest itself: index, not pointer. */
+                    memmove(f->code + f->len, f->code + p, lp * sizeof *f->code);
+                    memmove(f->code + f->len + lp, f->code + q, lq * sizeof *f->code);
+                    f->len += lp + lq;
+                    if (tree_push(f, (frep_opcode)op, 0)) return -1;
+                    x->count[S]++;
+                }
+    }
+    return 0;
+}
+
+/* The forest of every proper subset (the single leaf for a clique of one), and its
+ * tape. */
+static int exh_forest(exh_state *x)
+{
+    for (uint32_t size = 1; size < x->k; size++)
+        for (uint32_t S = 1; S < x->full; S++) {
+            if (popcount64(S) != size) continue;
+            x->off[S] = x->forest.len;
+            if (size == 1) {
+                if (tree_push(&x->forest, FREP_OP_PRIM, low_bit(S))) return -1;
+                x->count[S] = 1;
+            } else if (exh_grow_set(x, S)) {
+                return -1;
+            }
+        }
+    if (x->k == 1 && tree_push(&x->forest, FREP_OP_PRIM, 0)) return -1;
+    return gp_tape_record(x->c, x->e, x->forest.code, x->forest.len, NULL);
+}
+
+/* The fittest tree of the forest, subsets by size (ties: the first, so the
+ * shortest). */
+static int exh_best_single(exh_state *x)
+{
+    uint32_t k = x->k, nsets = 1u << k;
+    for (uint32_t size = 1; size < k || (k == 1 && size == 1); size++)
+        for (uint32_t S = 1; S < nsets; S++) {
+            if (popcount64(S) != size || (S == x->full && k > 1)) continue;
+            uint32_t tl = 2 * size - 1;
+            for (uint32_t q = 0; q < x->count[S] || (k == 1 && q == 0); q++) {
+                uint32_t end = x->off[S] + q * tl + tl - 1;
+                double f;
+                if (exh_fitness(x->c, x->e, &x->forest, &end, 1, 0, tl, &x->scratch,
+                                x->have ? x->bf : -HUGE_VAL, &f))
+                    return -1;
+                if (!x->have || f > x->bf) {
+                    x->bf = f;
+                    x->have = 1;
+                    x->best[0] = end;
+                    x->best_nl = 1;
+                }
+            }
+        }
+    return 0;
+}
+
+/* The trees over all k primitives, two trees of the forest and an operation each,
+ * scored from the forest's tape; kept when fitter. */
+static int exh_best_full(exh_state *x)
+{
+    uint32_t tl = 2 * x->k - 1, low = 1, full = x->full;
+    for (uint32_t A = (full - 1) & full; A; A = (A - 1) & full) {
+        if (!(A & low)) continue;
+        uint32_t B = full ^ A;
+        uint32_t la = 2 * popcount64(A) - 1, lb = 2 * popcount64(B) - 1;
+        for (uint32_t ia = 0; ia < x->count[A]; ia++)
+            for (uint32_t ib = 0; ib < x->count[B]; ib++)
+                for (int w = 0; w < 4; w++) {
+                    uint32_t ea = x->off[A] + ia * la + la - 1, eb = x->off[B] + ib * lb + lb - 1;
+                    uint32_t ends[2] = { w == 3 ? eb : ea, w == 3 ? ea : eb };
+                    uint8_t op = w == 0 ? x->o.uni : w == 1 ? x->o.inter : x->o.sub;
+                    double f;
+                    if (exh_fitness(x->c, x->e, &x->forest, ends, 2, op, tl, &x->scratch,
+                                    x->bf, &f))
+                        return -1;
+                    if (f > x->bf) {
+                        x->bf = f;
+                        x->best[0] = ends[0];
+                        x->best[1] = ends[1];
+                        x->best_nl = 2;
+                        x->best_op = op;
+                    }
+                }
+    }
+    return 0;
+}
+
+/* The winner, expanded from the forest into t. */
+static int exh_expand(const exh_state *x, gp_tree *t)
+{
+    t->len = 0;
+    for (uint32_t q = 0; q < x->best_nl; q++) {
+        uint32_t s0 = tree_subtree_start(x->forest.code, x->best[q]);
+        uint32_t n = x->best[q] - s0 + 1;
+        if (tree_reserve(t, t->len + n + 1)) return -1;
+        memcpy(t->code + t->len, x->forest.code + s0, n * sizeof *t->code);
+        t->len += n;
+    }
+    if (x->best_nl == 2 && tree_push(t, (frep_opcode)x->best_op, 0)) return -1;
+    return 0;
+}
+
 int part_exhaustive(gp_setops s, const gp_cache *c, gp_eval *e, gp_tree *t)
 {
     uint32_t k = c->nprims;
     if (k == 0 || k > PART_EXHAUSTIVE_MAX) return -1;
-    gp_opset o = gp_opset_of(s);
-    uint32_t nsets = 1u << k, full = nsets - 1;
-    /* The trees over every proper subset S, one after the other in the forest (each
-     * 2|S| - 1 instructions, subsets by size so that each comes after its parts):
-     * off[S] is the first one's pc, count[S] their number. A tree over all k is
-     * split into two trees of the forest, scored from the forest's tape as two tape
-     * leaves and the operation. */
-    uint32_t off[1u << PART_EXHAUSTIVE_MAX], count[1u << PART_EXHAUSTIVE_MAX];
-    memset(off, 0, sizeof off);
-    memset(count, 0, sizeof count);
-    gp_tree forest = { NULL, 0, 0 }, scratch = { NULL, 0, 0 };
-    int rc = -1;
-    for (uint32_t size = 1; size < k; size++)
-        for (uint32_t S = 1; S < full; S++) {
-            if (popcount64(S) != size) continue;
-            off[S] = forest.len;
-            if (size == 1) {
-                if (tree_push(&forest, FREP_OP_PRIM, low_bit(S))) goto out;
-                count[S] = 1;
-                continue;
-            }
-            /* Splits S = A + B with A holding S's lowest member (each once). */
-            uint32_t low = S & (0u - S);
-            for (uint32_t A = (S - 1) & S; A; A = (A - 1) & S) {
-                if (!(A & low)) continue;
-                uint32_t B = S ^ A;
-                uint32_t la = 2 * popcount64(A) - 1, lb = 2 * popcount64(B) - 1;
-                for (uint32_t ia = 0; ia < count[A]; ia++)
-                    for (uint32_t ib = 0; ib < count[B]; ib++)
-                        for (int w = 0; w < 4; w++) {
-                            uint32_t x = off[A] + ia * la, lx = la;
-                            uint32_t y = off[B] + ib * lb, ly = lb;
-                            if (w == 3) {  /* b \ a */
-                                x = off[B] + ib * lb;
-                                lx = lb;
-                                y = off[A] + ia * la;
-                                ly = la;
-                            }
-                            uint8_t op = w == 0 ? o.uni : w == 1 ? o.inter : o.sub;
-                            if (tree_reserve(&forest, forest.len + lx + ly + 1)) goto out;
-                            /* Copied from the forest itself: index, not pointer. */
-                            memmove(forest.code + forest.len, forest.code + x,
-                                    lx * sizeof *forest.code);
-                            memmove(forest.code + forest.len + lx, forest.code + y,
-                                    ly * sizeof *forest.code);
-                            forest.len += lx + ly;
-                            if (tree_push(&forest, (frep_opcode)op, 0)) goto out;
-                            count[S]++;
-                        }
-            }
-        }
-    if (k == 1 && tree_push(&forest, FREP_OP_PRIM, 0)) goto out;
-    if (gp_tape_record(c, e, forest.code, forest.len, NULL)) goto out;
-
-    double bf = -HUGE_VAL;
-    int have = 0;
-    uint32_t best[2] = { 0, 0 }, best_nl = 0;
-    uint8_t best_op = 0;
-    /* Subsets by size (ties: the first, so the shortest). */
-    for (uint32_t size = 1; size < k || (k == 1 && size == 1); size++)
-        for (uint32_t S = 1; S < nsets; S++) {
-            if (popcount64(S) != size || (S == full && k > 1)) continue;
-            uint32_t tl = 2 * size - 1;
-            for (uint32_t q = 0; q < count[S] || (k == 1 && q == 0); q++) {
-                uint32_t end = off[S] + q * tl + tl - 1;
-                double f;
-                if (exh_fitness(c, e, &forest, &end, 1, 0, tl, &scratch,
-                                have ? bf : -HUGE_VAL, &f))
-                    goto out;
-                if (!have || f > bf) {
-                    bf = f;
-                    have = 1;
-                    best[0] = end;
-                    best_nl = 1;
-                }
-            }
-        }
-    if (k > 1) {
-        uint32_t tl = 2 * k - 1, low = 1;
-        for (uint32_t A = (full - 1) & full; A; A = (A - 1) & full) {
-            if (!(A & low)) continue;
-            uint32_t B = full ^ A;
-            uint32_t la = 2 * popcount64(A) - 1, lb = 2 * popcount64(B) - 1;
-            for (uint32_t ia = 0; ia < count[A]; ia++)
-                for (uint32_t ib = 0; ib < count[B]; ib++)
-                    for (int w = 0; w < 4; w++) {
-                        uint32_t ea = off[A] + ia * la + la - 1, eb = off[B] + ib * lb + lb - 1;
-                        uint32_t ends[2] = { w == 3 ? eb : ea, w == 3 ? ea : eb };
-                        uint8_t op = w == 0 ? o.uni : w == 1 ? o.inter : o.sub;
-                        double f;
-                        if (exh_fitness(c, e, &forest, ends, 2, op, tl, &scratch, bf, &f))
-                            goto out;
-                        if (f > bf) {
-                            bf = f;
-                            best[0] = ends[0];
-                            best[1] = ends[1];
-                            best_nl = 2;
-                            best_op = op;
-                        }
-                    }
-        }
-    }
-    /* The winner, expanded from the forest. */
-    t->len = 0;
-    for (uint32_t q = 0; q < best_nl; q++) {
-        uint32_t s0 = tree_subtree_start(forest.code, best[q]);
-        uint32_t n = best[q] - s0 + 1;
-        if (tree_reserve(t, t->len + n + 1)) goto out;
-        memcpy(t->code + t->len, forest.code + s0, n * sizeof *t->code);
-        t->len += n;
-    }
-    if (best_nl == 2 && tree_push(t, (frep_opcode)best_op, 0)) goto out;
-    rc = 0;
-out:
-    tree_free(&forest);
-    tree_free(&scratch);
+    exh_state st;
+    memset(&st, 0, sizeof st);
+    exh_state *x = &st;
+    x->c = c;
+    x->e = e;
+    x->o = gp_opset_of(s);
+    x->k = k;
+    x->full = (1u << k) - 1;
+    x->bf = -HUGE_VAL;
+    int rc = exh_forest(x) || exh_best_single(x) || (k > 1 && exh_best_full(x)) ||
+                     exh_expand(x, t)
+                 ? -1
+                 : 0;
+    tree_free(&x->forest);
+    tree_free(&x->scratch);
     return rc;
 }
 
