@@ -127,7 +127,7 @@ static double point_term(const gp_cache *c, double f, double gx, double gy, doub
     }
     double d = f / c->eps_d;
     double gn = sqrt(gx * gx + gy * gy + gz * gz);
-    double theta = 3.14159265358979323846; /* no gradient: the worst angle */
+    double theta = GP_PI; /* no gradient: the worst angle */
     if (gn > 0) {
         double cs = -(gx * nrm[0] + gy * nrm[1] + gz * nrm[2]) / gn;
         if (cs > 1) cs = 1;
@@ -252,7 +252,7 @@ int gp_cache_noise(const gp_cache *c, gp_noise *out)
         frep_free(ang);
         return -1;
     }
-    double cmax = cos(GP_NOISE_MAX_DEG * 3.14159265358979323846 / 180);
+    double cmax = cos(GP_NOISE_MAX_DEG * GP_PI / 180);
     size_t k = 0;
     for (size_t i = 0; i < n; i++) {
         const double *q = c->nrm + 3 * i;
@@ -272,7 +272,7 @@ int gp_cache_noise(const gp_cache *c, gp_noise *out)
         }
         if (best < HUGE_VAL) {
             dist[k] = best;
-            ang[k++] = acos(bcos) * 180 / 3.14159265358979323846;
+            ang[k++] = acos(bcos) * 180 / GP_PI;
         }
     }
     out->inliers = k;
