@@ -804,6 +804,168 @@ static int build_pocket(gp_tree *sub, const frep_insn *code, uint32_t st, uint32
     return tree_push(sub, (frep_opcode)(form == 0 ? o->inter : o->uni), 0);
 }
 
+/* One grow_pocket round: the candidate faces, which pairs of them can bound one
+ * pocket or boss, and the best variant so far. */
+typedef struct pocket_state {
+    const gp_cache *c;
+    gp_eval *e;
+    const gp_opset *o;
+    uint8_t *use, *neg;      /* per primitive: useful; used complemented (useful_prims_oriented) */
+    double *cnt;             /* per primitive: missed points it explains */
+    uint8_t *ok;             /* per point: the tree explains it */
+    uint32_t cand[SIMPLIFY_POCKET_CANDS];
+    int nc;                  /* candidates */
+    /* fits[form][a][b]: most missed points of face a lie where literal b allows the
+     * piece's boundary (form 0, pocket: L_b <= eps_d; form 1, boss: L_b >= -eps_d). */
+    uint8_t fits[2][SIMPLIFY_POCKET_CANDS][SIMPLIFY_POCKET_CANDS];
+    double pn[SIMPLIFY_POCKET_CANDS][3];   /* outward normals of the plane candidates */
+    uint8_t isplane[SIMPLIFY_POCKET_CANDS];
+    double bf;               /* best fitness (the tree's to start with) */
+    uint32_t best_end, best_lits[SIMPLIFY_BOSS_MAX];
+    int best_m, best_form;   /* best_m 0: nothing better found */
+    gp_tree sub;             /* scratch: a replacement */
+} pocket_state;
+
+/* The candidates: useful primitives by decreasing count (ties: lower index). */
+static void pocket_candidates(pocket_state *ps)
+{
+    uint32_t k = ps->c->nprims, *cand = ps->cand;
+    int nc = 0;
+    for (uint32_t j = 0; j < k; j++) {
+        if (!ps->use[j]) continue;
+        int full = nc == SIMPLIFY_POCKET_CANDS;
+        if (full && !(ps->cnt[j] > ps->cnt[cand[nc - 1]])) continue;
+        int q = full ? nc - 1 : nc++;
+        while (q > 0 && ps->cnt[j] > ps->cnt[cand[q - 1]]) {
+            cand[q] = cand[q - 1];
+            q--;
+        }
+        cand[q] = j;
+    }
+    ps->nc = nc;
+}
+
+/* fits[.][a][.] for candidate a, from its missed inliers. */
+static void pocket_fits_of(pocket_state *ps, int a)
+{
+    const gp_cache *c = ps->c;
+    double ca = cos(c->alpha);
+    uint32_t ja = ps->cand[a];
+    const double *va = c->v + (size_t)ja * c->n;
+    const double *gx = c->g + 3 * (size_t)ja * c->n, *gy = gx + c->n, *gz = gy + c->n;
+    double na = 0, in[2][SIMPLIFY_POCKET_CANDS];
+    memset(in, 0, sizeof in);
+    for (size_t i = 0; i < c->n; i++) {
+        if (ps->ok[i] || !(fabs(va[i]) < c->eps_d)) continue;
+        double gl = sqrt(gx[i] * gx[i] + gy[i] * gy[i] + gz[i] * gz[i]);
+        if (!(gl > 0)) continue;
+        const double *nn = c->nrm + 3 * i;
+        if (!(fabs(gx[i] * nn[0] + gy[i] * nn[1] + gz[i] * nn[2]) / gl > ca)) continue;
+        na += 1;
+        for (int b = 0; b < ps->nc; b++) {
+            double lb = c->v[(size_t)ps->cand[b] * c->n + i];
+            if (ps->neg[ps->cand[b]]) lb = -lb;
+            if (lb < c->eps_d) in[0][b] += 1;
+            if (lb > -c->eps_d) in[1][b] += 1;
+        }
+    }
+    for (int form = 0; form < 2; form++)
+        for (int b = 0; b < ps->nc; b++) ps->fits[form][a][b] = 2 * in[form][b] > na;
+}
+
+/* Which candidates can be faces of one pocket or boss (the pairs test prunes most
+ * subsets before any tree is scored: a tree of 100 nodes and 154 subsets would
+ * otherwise cost 30,000 fitness evaluations per round), and the outward normals of the
+ * plane candidates as literals (f >= 0 inside: -grad p points out). */
+static int pocket_faces(pocket_state *ps, const gp_tree *t)
+{
+    const gp_cache *c = ps->c;
+    ps->ok = frep_malloc(c->n ? c->n : 1);
+    if (!ps->ok || gp_explained(c, ps->e, t->code, t->len, ps->ok)) return -1;
+    for (int a = 0; a < ps->nc; a++) pocket_fits_of(ps, a);
+    for (int a = 0; a < ps->nc; a++) {
+        double g[3] = { 0, 0, 0 };
+        ps->isplane[a] = (uint8_t)cache_plane(c, ps->cand[a], g);
+        double sg = ps->neg[ps->cand[a]] ? 1.0 : -1.0;
+        for (int d = 0; d < 3; d++) ps->pn[a][d] = sg * g[d];
+    }
+    return 0;
+}
+
+/* The literals of the candidates in mask (lits[0..*m)), and in form_ok which forms
+ * they may build: 2 to SIMPLIFY_POCKET_MAX faces for a pocket, 4 to SIMPLIFY_BOSS_MAX
+ * planes bounding a finite region for a boss, every pair fitting. 0: neither. */
+static int pocket_subset(const pocket_state *ps, unsigned mask, uint32_t *lits, int *m_out,
+                         int form_ok[2])
+{
+    int idx[SIMPLIFY_BOSS_MAX];
+    double bn[SIMPLIFY_BOSS_MAX][3];
+    int m = 0, planes = 1;
+    for (int q = 0; q < ps->nc; q++)
+        if (mask >> q & 1u) {
+            if (m == SIMPLIFY_BOSS_MAX) { m = SIMPLIFY_BOSS_MAX + 1; break; }
+            idx[m] = q;
+            planes &= ps->isplane[q];
+            memcpy(bn[m], ps->pn[q], sizeof bn[m]);
+            lits[m++] = ps->cand[q];
+        }
+    *m_out = m;
+    if (m < 2 || m > SIMPLIFY_BOSS_MAX) return 0;
+    form_ok[0] = m <= SIMPLIFY_POCKET_MAX;
+    form_ok[1] = planes && m >= 4;
+    for (int form = 0; form < 2; form++)
+        for (int a = 0; a < m; a++)
+            for (int b = 0; b < m; b++)
+                if (a != b && !ps->fits[form][idx[a]][idx[b]]) form_ok[form] = 0;
+    if (form_ok[1] && !planes_bounded((const double (*)[3])bn, m)) form_ok[1] = 0;
+    return form_ok[0] || form_ok[1];
+}
+
+/* The pieces over lits in the allowed forms below every subtree of t (taped), the
+ * fittest kept. */
+static int pocket_try(pocket_state *ps, const gp_tree *t, const uint32_t *lits, int m,
+                      const int form_ok[2])
+{
+    for (uint32_t end = 0; end < t->len; end++) {
+        uint32_t st = tree_subtree_start(t->code, end);
+        frep_insn lf = gp_tape_leaf(ps->c, end);
+        for (int form = 0; form < 2; form++) {
+            if (!form_ok[form]) continue;
+            double f;
+            if (build_pocket(&ps->sub, &lf, 0, 0, lits, ps->neg, m, form, ps->o) ||
+                gp_fitness_replaced(ps->c, ps->e, st, end, ps->sub.code, ps->sub.len, ps->bf,
+                                    &f))
+                return -1;
+            if (f > ps->bf) {
+                ps->bf = f;
+                ps->best_end = end;
+                ps->best_m = m;
+                ps->best_form = form;
+                memcpy(ps->best_lits, lits, (size_t)m * sizeof *lits);
+            }
+        }
+    }
+    return 0;
+}
+
+/* The round's search: candidates, faces, every subset (as bit masks over the
+ * candidates) below every subtree. 1: a better variant found, 0: none. */
+static int pocket_search(pocket_state *ps, gp_tree *t)
+{
+    long nu = useful_prims_oriented(t, ps->c, ps->e, ps->use, ps->cnt, ps->neg);
+    if (nu < 0) return -1;
+    if (nu < 2) return 0;
+    pocket_candidates(ps);
+    if (pocket_faces(ps, t) || record(t, ps->c, ps->e, NULL)) return -1;
+    for (unsigned mask = 0; mask < (1u << ps->nc); mask++) {
+        uint32_t lits[SIMPLIFY_BOSS_MAX];
+        int m, form_ok[2];
+        if (pocket_subset(ps, mask, lits, &m, form_ok) && pocket_try(ps, t, lits, m, form_ok))
+            return -1;
+    }
+    return ps->best_m != 0;
+}
+
 /* One round: the best pocket of 2 to SIMPLIFY_POCKET_MAX primitives cut from
  * any subtree S (a box cut from one part of a union: its faces intersected there, not
  * at the root where they would cut every part), or boss of 4 to SIMPLIFY_BOSS_MAX
@@ -816,139 +978,29 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
 {
     uint32_t k = c->nprims;
     if (k < 2) return 0;
-    uint8_t *use = frep_malloc(k), *neg = frep_malloc(k), *ok = NULL;
-    double *cnt = frep_malloc(k * sizeof *cnt);
-    gp_tree sub = { NULL, 0, 0 };
-    int rc = -1;
-    if (!use || !neg || !cnt) goto out;
-    long nu = useful_prims_oriented(t, c, e, use, cnt, neg);
-    if (nu < 0) goto out;
-    rc = 0;
-    if (nu < 2) goto out;
-    /* The candidates: useful primitives by decreasing count (ties: lower index). */
-    uint32_t cand[SIMPLIFY_POCKET_CANDS];
-    int nc = 0;
-    for (uint32_t j = 0; j < k; j++) {
-        if (!use[j]) continue;
-        int full = nc == SIMPLIFY_POCKET_CANDS;
-        if (full && !(cnt[j] > cnt[cand[nc - 1]])) continue;
-        int q = full ? nc - 1 : nc++;
-        while (q > 0 && cnt[j] > cnt[cand[q - 1]]) {
-            cand[q] = cand[q - 1];
-            q--;
-        }
-        cand[q] = j;
-    }
-    /* Which candidates can be faces of one pocket (form 0) or boss (form 1): the missed
-     * points of face a lie on the boundary of the piece only where every other literal
-     * L_b is <= 0 (pocket: inside the removed region) or >= 0 (boss), up to eps_d.
-     * fits[form][a][b]: most of a's missed points do. The pairs test prunes most
-     * subsets before any tree is scored (a tree of 100 nodes and 154 subsets would
-     * otherwise cost 30,000 fitness evaluations per round). */
-    uint8_t fits[2][SIMPLIFY_POCKET_CANDS][SIMPLIFY_POCKET_CANDS];
-    ok = frep_malloc(c->n ? c->n : 1);
-    if (!ok || gp_explained(c, e, t->code, t->len, ok)) { rc = -1; goto out; }
-    {
-        double ca = cos(c->alpha);
-        for (int a = 0; a < nc; a++) {
-            uint32_t ja = cand[a];
-            const double *va = c->v + (size_t)ja * c->n;
-            const double *gx = c->g + 3 * (size_t)ja * c->n, *gy = gx + c->n, *gz = gy + c->n;
-            double na = 0, in[2][SIMPLIFY_POCKET_CANDS];
-            memset(in, 0, sizeof in);
-            for (size_t i = 0; i < c->n; i++) {
-                if (ok[i] || !(fabs(va[i]) < c->eps_d)) continue;
-                double gl = sqrt(gx[i] * gx[i] + gy[i] * gy[i] + gz[i] * gz[i]);
-                if (!(gl > 0)) continue;
-                const double *nn = c->nrm + 3 * i;
-                if (!(fabs(gx[i] * nn[0] + gy[i] * nn[1] + gz[i] * nn[2]) / gl > ca)) continue;
-                na += 1;
-                for (int b = 0; b < nc; b++) {
-                    double lb = c->v[(size_t)cand[b] * c->n + i];
-                    if (neg[cand[b]]) lb = -lb;
-                    if (lb < c->eps_d) in[0][b] += 1;
-                    if (lb > -c->eps_d) in[1][b] += 1;
-                }
-            }
-            for (int form = 0; form < 2; form++)
-                for (int b = 0; b < nc; b++) fits[form][a][b] = 2 * in[form][b] > na;
-        }
-    }
-    /* Outward normals of the candidates that are planes, as literals (a boss). */
-    double pn[SIMPLIFY_POCKET_CANDS][3];
-    uint8_t isplane[SIMPLIFY_POCKET_CANDS];
-    for (int a = 0; a < nc; a++) {
-        double g[3] = { 0, 0, 0 };
-        isplane[a] = (uint8_t)cache_plane(c, cand[a], g);
-        double sg = neg[cand[a]] ? 1.0 : -1.0;  /* f >= 0 inside: -grad p points out */
-        for (int d = 0; d < 3; d++) pn[a][d] = sg * g[d];
-    }
-    double bf = *fit;
-    uint32_t best_end = 0, best_lits[SIMPLIFY_BOSS_MAX] = { 0 };
-    int best_m = 0, best_form = 0;
-    if (record(t, c, e, NULL)) { rc = -1; goto out; }
-    /* Subsets as bit masks over the candidates: 2 to SIMPLIFY_POCKET_MAX members for
-     * pockets, 4 to SIMPLIFY_BOSS_MAX planes for bosses. */
-    for (unsigned mask = 0; mask < (1u << nc); mask++) {
-        uint32_t lits[SIMPLIFY_BOSS_MAX];
-        int idx[SIMPLIFY_BOSS_MAX];
-        double bn[SIMPLIFY_BOSS_MAX][3];
-        int m = 0, planes = 1;
-        for (int q = 0; q < nc; q++)
-            if (mask >> q & 1u) {
-                if (m == SIMPLIFY_BOSS_MAX) { m = SIMPLIFY_BOSS_MAX + 1; break; }
-                idx[m] = q;
-                planes &= isplane[q];
-                memcpy(bn[m], pn[q], sizeof bn[m]);
-                lits[m++] = cand[q];
-            }
-        if (m < 2 || m > SIMPLIFY_BOSS_MAX) continue;
-        int form_ok[2] = { m <= SIMPLIFY_POCKET_MAX, planes && m >= 4 };
-        for (int form = 0; form < 2; form++)
-            for (int a = 0; a < m; a++)
-                for (int b = 0; b < m; b++)
-                    if (a != b && !fits[form][idx[a]][idx[b]]) form_ok[form] = 0;
-        if (form_ok[1] && !planes_bounded((const double (*)[3])bn, m)) form_ok[1] = 0;
-        if (!form_ok[0] && !form_ok[1]) continue;
-        for (uint32_t end = 0; end < t->len; end++) {
-            uint32_t st = tree_subtree_start(t->code, end);
-            frep_insn lf = gp_tape_leaf(c, end);
-            for (int form = 0; form < 2; form++) {
-                if (!form_ok[form]) continue;
-                if (build_pocket(&sub, &lf, 0, 0, lits, neg, m, form, o)) {
-                    rc = -1;
-                    goto out;
-                }
-                double f;
-                if (gp_fitness_replaced(c, e, st, end, sub.code, sub.len, bf, &f)) {
-                    rc = -1;
-                    goto out;
-                }
-                if (f > bf) {
-                    bf = f;
-                    best_end = end;
-                    best_m = m;
-                    best_form = form;
-                    memcpy(best_lits, lits, sizeof lits);
-                }
-            }
-        }
-    }
-    if (!best_m) goto out;
-    {
-        uint32_t st = tree_subtree_start(t->code, best_end);
-        rc = build_pocket(&sub, t->code, st, best_end, best_lits, neg, best_m, best_form, o)
+    pocket_state ps;
+    memset(&ps, 0, sizeof ps);
+    ps.c = c;
+    ps.e = e;
+    ps.o = o;
+    ps.bf = *fit;
+    ps.use = frep_malloc(k);
+    ps.neg = frep_malloc(k);
+    ps.cnt = frep_malloc(k * sizeof *ps.cnt);
+    int rc = !ps.use || !ps.neg || !ps.cnt ? -1 : pocket_search(&ps, t);
+    if (rc > 0) {
+        uint32_t st = tree_subtree_start(t->code, ps.best_end);
+        rc = build_pocket(&ps.sub, t->code, st, ps.best_end, ps.best_lits, ps.neg, ps.best_m,
+                          ps.best_form, o)
                  ? -1
-                 : commit_splice(t, trial, best_end, &sub);
-        if (rc <= 0) goto out;
+                 : commit_splice(t, trial, ps.best_end, &ps.sub);
+        if (rc > 0) *fit = ps.bf;
     }
-    *fit = bf;
-out:
-    tree_free(&sub);
-    frep_free(use);
-    frep_free(neg);
-    frep_free(cnt);
-    frep_free(ok);
+    tree_free(&ps.sub);
+    frep_free(ps.use);
+    frep_free(ps.neg);
+    frep_free(ps.cnt);
+    frep_free(ps.ok);
     return rc;
 }
 
