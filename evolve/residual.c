@@ -106,6 +106,106 @@ static void quiet_diag(void *user, const frep_diag *d)
     (void)d;
 }
 
+/* The model frep_compile chose: the named one, else my_model, else the last. NULL
+ * (err set) when the named one is missing. */
+static const ast_model *residual_model(const ast_file *af, const char *file,
+                                       const char *model, frep_error *err)
+{
+    const ast_model *m = &af->models[af->nmodels - 1];
+    for (uint32_t k = 0; k < af->nmodels; k++) {
+        const char *nm = af->models[k].name;
+        if (model ? name_eq(nm, strlen(nm), model) : name_eq(nm, strlen(nm), "my_model")) {
+            m = &af->models[k];
+            break;
+        }
+    }
+    if (model && !name_eq(m->name, strlen(m->name), model)) {
+        frep_error_at(err, FREP_EINPUT, file, 0, 0, "no model named '%s'", model);
+        return NULL;
+    }
+    return m;
+}
+
+/* The file's set operations (HyperFun's R-functions when it says nothing); R-alpha
+ * and others are refused. */
+static int residual_setops(const ast_file *af, const char *file, evolve_base *b,
+                           frep_error *err)
+{
+    b->setops = GP_SETOPS_RFUNC; /* HyperFun's default */
+    for (uint32_t k = 0; k < af->npragmas; k++) {
+        const ast_pragma *p = &af->pragmas[k];
+        if (strcmp(p->word, "setops") != 0) continue;
+        if (strncmp(p->text, "minmax", 6) == 0) b->setops = GP_SETOPS_MINMAX;
+        else if (strncmp(p->text, "rfunc", 5) == 0) b->setops = GP_SETOPS_RFUNC;
+        else
+            return frep_error_at(err, FREP_EINPUT, file, (long)p->loc.line, 0,
+                                 "the residual of a model with '@setops %s' cannot be evolved "
+                                 "(minmax or rfunc only)",
+                                 p->text);
+    }
+    return 0;
+}
+
+/* Its name in the output: my_model is reserved for the joined model, so it becomes
+ * RESIDUAL_BASE_NAME, with a digit while that is taken. */
+static void residual_name(const ast_file *af, const ast_model *m, char *newname, size_t cap)
+{
+    snprintf(newname, cap, "%s", m->name);
+    if (!name_eq(m->name, strlen(m->name), "my_model")) return;
+    for (int k = 1;; k++) {
+        if (k == 1) snprintf(newname, cap, "%s", RESIDUAL_BASE_NAME);
+        else snprintf(newname, cap, "%s%d", RESIDUAL_BASE_NAME, k);
+        int taken = 0;
+        for (uint32_t q = 0; q < af->nmodels; q++)
+            if (name_eq(af->models[q].name, strlen(af->models[q].name), newname)) taken = 1;
+        if (!taken) return;
+    }
+}
+
+/* The source with every pragma disarmed (the output's own @setops/@box come first, and
+ * the base's @free parameters stay fixed: a refit changes the new primitives only),
+ * and the model renamed when its name changed. 0 or -1 (memory). */
+static int residual_text(const char *src, size_t len, const ast_file *af, const ast_model *m,
+                         const char *newname, evolve_base *b)
+{
+    char *text = frep_malloc(len + 1);
+    if (!text) return -1;
+    memcpy(text, src, len);
+    text[len] = '\0';
+    for (uint32_t k = 0; k < af->npragmas; k++) {
+        uint32_t at = af->pragmas[k].loc.off;
+        if (at < len && text[at] == '@') text[at] = ' ';
+    }
+    if (strcmp(newname, m->name) == 0) {
+        b->text = text;
+        return 0;
+    }
+    b->text = rename_ident(text, len, m->loc.off, m->name, newname);
+    frep_free(text);
+    return b->text ? 0 : -1;
+}
+
+/* The joined model's header and its call of the base: the arrays passed on unchanged.
+ * A model of fewer than 3 coordinates is refused. */
+static int residual_signature(const ast_model *m, const char *newname, const char *file,
+                              evolve_base *b, frep_error *err)
+{
+    char hdr[256], call[256 + 64];
+    if (m->nparams == 3)
+        snprintf(hdr, sizeof hdr, "x[%u], a[%u], s[%u]", m->params[0].size,
+                 m->params[1].size, m->params[2].size);
+    else
+        snprintf(hdr, sizeof hdr, "x[%u], a[%u]", m->params[0].size, m->params[1].size);
+    snprintf(call, sizeof call, "%s(x, a%s)", newname, m->nparams == 3 ? ", s" : "");
+    if (m->params[0].size < 3)
+        return frep_error_at(err, FREP_EINPUT, file, 0, 0,
+                             "model '%s' takes x[%u]: a residual needs 3D points", m->name,
+                             m->params[0].size);
+    b->header = frep_strdup(hdr);
+    b->call = frep_strdup(call);
+    return 0;
+}
+
 int residual_prepare(const char *file, const char *src, size_t len, const char *model,
                      frep_program *prog, evolve_base *b, frep_error *err)
 {
@@ -117,89 +217,17 @@ int residual_prepare(const char *file, const char *src, size_t len, const char *
     ast_file af;
     memset(&af, 0, sizeof af);
     int rc = -1;
+    const ast_model *m = NULL;
+    char newname[64];
     if (ast_parse(&A, file, src, len, &ds, &af) || af.nmodels == 0) {
         frep_error_at(err, FREP_EINPUT, file, 0, 0, "cannot parse the model");
-        goto out;
+    } else if ((m = residual_model(&af, file, model, err)) && !residual_setops(&af, file, b, err)) {
+        residual_name(&af, m, newname, sizeof newname);
+        if (residual_text(src, len, &af, m, newname, b) || !(b->name = frep_strdup(newname)))
+            frep_error_nomem(err);
+        else if (!residual_signature(m, newname, file, b, err))
+            rc = b->header && b->call ? 0 : frep_error_nomem(err);
     }
-    /* The model frep_compile chose: the named one, else my_model, else the last. */
-    const ast_model *m = &af.models[af.nmodels - 1];
-    for (uint32_t k = 0; k < af.nmodels; k++) {
-        const char *nm = af.models[k].name;
-        if (model ? name_eq(nm, strlen(nm), model) : name_eq(nm, strlen(nm), "my_model")) {
-            m = &af.models[k];
-            break;
-        }
-    }
-    if (model && !name_eq(m->name, strlen(m->name), model)) {
-        frep_error_at(err, FREP_EINPUT, file, 0, 0, "no model named '%s'", model);
-        goto out;
-    }
-    b->setops = GP_SETOPS_RFUNC; /* HyperFun's default */
-    for (uint32_t k = 0; k < af.npragmas; k++) {
-        const ast_pragma *p = &af.pragmas[k];
-        if (strcmp(p->word, "setops") != 0) continue;
-        if (strncmp(p->text, "minmax", 6) == 0) b->setops = GP_SETOPS_MINMAX;
-        else if (strncmp(p->text, "rfunc", 5) == 0) b->setops = GP_SETOPS_RFUNC;
-        else {
-            frep_error_at(err, FREP_EINPUT, file, (long)p->loc.line, 0,
-                          "the residual of a model with '@setops %s' cannot be evolved "
-                          "(minmax or rfunc only)", p->text);
-            goto out;
-        }
-    }
-
-    /* Its name in the output: my_model is reserved for the joined model. */
-    char newname[64];
-    snprintf(newname, sizeof newname, "%s", m->name);
-    if (name_eq(m->name, strlen(m->name), "my_model")) {
-        for (int k = 1;; k++) {
-            if (k == 1) snprintf(newname, sizeof newname, "%s", RESIDUAL_BASE_NAME);
-            else snprintf(newname, sizeof newname, "%s%d", RESIDUAL_BASE_NAME, k);
-            int taken = 0;
-            for (uint32_t q = 0; q < af.nmodels; q++)
-                if (name_eq(af.models[q].name, strlen(af.models[q].name), newname)) taken = 1;
-            if (!taken) break;
-        }
-    }
-    /* Disarm every pragma of the base: the output's own @setops/@box come first, and the
-     * base's @free parameters stay fixed (a refit changes the new primitives only). */
-    char *text = frep_malloc(len + 1);
-    if (!text) goto oom;
-    memcpy(text, src, len);
-    text[len] = '\0';
-    for (uint32_t k = 0; k < af.npragmas; k++) {
-        uint32_t at = af.pragmas[k].loc.off;
-        if (at < len && text[at] == '@') text[at] = ' ';
-    }
-    if (strcmp(newname, m->name) != 0) {
-        b->text = rename_ident(text, len, m->loc.off, m->name, newname);
-        frep_free(text);
-        if (!b->text) goto oom;
-    } else {
-        b->text = text;
-    }
-    b->name = frep_strdup(newname);
-    /* Header and call: the joined model passes its arrays on unchanged. */
-    char hdr[256], call[256 + 64];
-    if (m->nparams == 3)
-        snprintf(hdr, sizeof hdr, "x[%u], a[%u], s[%u]", m->params[0].size,
-                 m->params[1].size, m->params[2].size);
-    else
-        snprintf(hdr, sizeof hdr, "x[%u], a[%u]", m->params[0].size, m->params[1].size);
-    snprintf(call, sizeof call, "%s(x, a%s)", newname, m->nparams == 3 ? ", s" : "");
-    if (m->params[0].size < 3) {
-        frep_error_at(err, FREP_EINPUT, file, 0, 0, "model '%s' takes x[%u]: a residual needs 3D points",
-                      m->name, m->params[0].size);
-        goto out;
-    }
-    b->header = frep_strdup(hdr);
-    b->call = frep_strdup(call);
-    if (!b->name || !b->header || !b->call) goto oom;
-    rc = 0;
-    goto out;
-oom:
-    frep_error_nomem(err);
-out:
     arena_free(&A);
     if (rc) residual_free(b);
     return rc;
