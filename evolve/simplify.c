@@ -52,98 +52,105 @@ static int simp_flip(int r) { return r == SIMP_FULL ? SIMP_EMPTY : r == SIMP_EMP
 /* Copy the subtree ending at `end` to the end of out, simplified. Returns SIMP_TREE,
  * SIMP_FULL or SIMP_EMPTY (nothing pushed), -1 on allocation failure. Recursion depth
  * is the tree depth (<= GP_MAX_TREE_DEPTH). */
-static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opset *o)
+static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opset *o);
+
+/* ~a with a simplified at out's end: ~~a -> a; the complement of a constant set. */
+static int simp_neg(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opset *o)
 {
-    const frep_insn *in = &code[end];
-    int k = tree_nin(in);
-    if (k == 0) return tree_push(out, FREP_OP_PRIM, in->arg);
-    if (k == 1) {
-        int r = simp(code, end - 1, out, o);
-        if (r != SIMP_TREE) return r < 0 ? r : simp_flip(r);
-        if (out->code[out->len - 1].op == o->neg) {  /* ~~a = a */
-            out->len--;
-            return SIMP_TREE;
-        }
-        return tree_push(out, (frep_opcode)o->neg, 0);
+    int r = simp(code, end - 1, out, o);
+    if (r != SIMP_TREE) return r < 0 ? r : simp_flip(r);
+    if (out->code[out->len - 1].op == o->neg) {  /* ~~a = a */
+        out->len--;
+        return SIMP_TREE;
     }
-    uint32_t l0, l1, r0;
-    tree_operands(code, end, &l0, &l1, &r0);
-    (void)l0;
-    (void)r0;
-    uint32_t ls = out->len;
-    int rl = simp(code, l1, out, o);
-    if (rl < 0) return -1;
-    uint32_t rs = out->len;
-    int rr = simp(code, end - 1, out, o);
-    if (rr < 0) return -1;
-    uint8_t op = in->op;
-    if (rl != SIMP_TREE || rr != SIMP_TREE) {
-        /* One side is a degenerate set: the result is a constant set or one operand. */
-        int keep_left = 0, keep_right = 0, result = SIMP_TREE;
-        if (op == o->uni) {
-            if (rl == SIMP_FULL || rr == SIMP_FULL) result = SIMP_FULL;
-            else if (rl == SIMP_EMPTY) keep_right = 1;
-            else keep_left = 1;
-        } else if (op == o->inter) {
-            if (rl == SIMP_EMPTY || rr == SIMP_EMPTY) result = SIMP_EMPTY;
-            else if (rl == SIMP_FULL) keep_right = 1;
-            else keep_left = 1;
-        } else {  /* a \ b */
-            if (rl == SIMP_EMPTY || rr == SIMP_FULL) result = SIMP_EMPTY;
-            else if (rr == SIMP_EMPTY) keep_left = 1;
-            else {  /* all \ b = ~b */
-                keep_right = 1;
-                if (out->code[out->len - 1].op == o->neg) out->len--;
-                else if (tree_push(out, (frep_opcode)o->neg, 0)) return -1;
-            }
+    return tree_push(out, (frep_opcode)o->neg, 0);
+}
+
+/* a op b where a (result rl, from ls) or b (rr) is a degenerate set: the result is a
+ * constant set or one operand. */
+static int simp_constant_operand(gp_tree *out, uint32_t ls, int rl, int rr, uint8_t op,
+                                 const gp_opset *o)
+{
+    int keep_left = 0, keep_right = 0, result = SIMP_TREE;
+    if (op == o->uni) {
+        if (rl == SIMP_FULL || rr == SIMP_FULL) result = SIMP_FULL;
+        else if (rl == SIMP_EMPTY) keep_right = 1;
+        else keep_left = 1;
+    } else if (op == o->inter) {
+        if (rl == SIMP_EMPTY || rr == SIMP_EMPTY) result = SIMP_EMPTY;
+        else if (rl == SIMP_FULL) keep_right = 1;
+        else keep_left = 1;
+    } else {  /* a \ b */
+        if (rl == SIMP_EMPTY || rr == SIMP_FULL) result = SIMP_EMPTY;
+        else if (rr == SIMP_EMPTY) keep_left = 1;
+        else {  /* all \ b = ~b */
+            keep_right = 1;
+            if (out->code[out->len - 1].op == o->neg) out->len--;
+            else if (tree_push(out, (frep_opcode)o->neg, 0)) return -1;
         }
-        if (keep_left) return rl;        /* the right side pushed nothing */
-        if (keep_right) return rr;       /* the left side pushed nothing */
-        out->len = ls;
-        return result;
     }
-    int negate = 0;
+    if (keep_left) return rl;        /* the right side pushed nothing */
+    if (keep_right) return rr;       /* the left side pushed nothing */
+    out->len = ls;
+    return result;
+}
+
+/* The complement rules on the operands out[ls..rs) and out[rs..len) of *op, until none
+ * applies: De Morgan, a \ ~b -> a & b, a & ~b -> a \ b, ~a & b -> b & ~a,
+ * ~a \ b -> ~(a | b); *negate toggles for each complement moved above *op. */
+static int simp_complements(gp_tree *out, uint32_t ls, uint32_t *rs, uint8_t *op,
+                            int *negate, const gp_opset *o)
+{
     for (;;) {
-        int lneg = out->code[rs - 1].op == o->neg, rneg = out->code[out->len - 1].op == o->neg;
-        if ((op == o->uni || op == o->inter) && lneg && rneg) {
+        int lneg = out->code[*rs - 1].op == o->neg, rneg = out->code[out->len - 1].op == o->neg;
+        if ((*op == o->uni || *op == o->inter) && lneg && rneg) {
             /* De Morgan: ~a | ~b = ~(a & b), ~a & ~b = ~(a | b) (exact for R0 too). */
             out->len--;
-            remove_at(out, rs - 1);
-            rs--;
-            op = op == o->uni ? o->inter : o->uni;
-            negate ^= 1;
-        } else if (op == o->sub && rneg) {  /* a \ ~b = a & b */
+            remove_at(out, *rs - 1);
+            (*rs)--;
+            *op = *op == o->uni ? o->inter : o->uni;
+            *negate ^= 1;
+        } else if (*op == o->sub && rneg) {  /* a \ ~b = a & b */
             out->len--;
-            op = o->inter;
-        } else if (op == o->inter && rneg) {  /* a & ~b = a \ b */
+            *op = o->inter;
+        } else if (*op == o->inter && rneg) {  /* a & ~b = a \ b */
             out->len--;
-            op = o->sub;
-        } else if (op == o->inter && lneg) {  /* ~a & b = b & ~a */
-            if (swap_tail(out, ls, rs)) return -1;
-            rs = ls + (out->len - rs);
-        } else if (op == o->sub && lneg) {  /* ~a \ b = ~a & ~b = ~(a | b) */
-            remove_at(out, rs - 1);
-            rs--;
-            op = o->uni;
-            negate ^= 1;
+            *op = o->sub;
+        } else if (*op == o->inter && lneg) {  /* ~a & b = b & ~a */
+            if (swap_tail(out, ls, *rs)) return -1;
+            *rs = ls + (out->len - *rs);
+        } else if (*op == o->sub && lneg) {  /* ~a \ b = ~a & ~b = ~(a | b) */
+            remove_at(out, *rs - 1);
+            (*rs)--;
+            *op = o->uni;
+            *negate ^= 1;
         } else {
-            break;
+            return 0;
         }
     }
-    /* Regularization (see SIMP_FULL): a \ a is empty; a | ~a is everything. */
-    int degenerate = SIMP_TREE;
+}
+
+/* Regularization (see SIMP_FULL): a \ a is empty; a | ~a is everything. SIMP_TREE
+ * when neither. */
+static int simp_degenerate(const gp_tree *out, uint32_t ls, uint32_t rs, uint8_t op,
+                           const gp_opset *o)
+{
     if (op == o->sub && tree_compare(out->code, rs - 1, out->code, out->len - 1) == 0)
-        degenerate = SIMP_EMPTY;
-    else if (op == o->uni && out->code[out->len - 1].op == o->neg && out->len - 1 > rs &&
-             tree_compare(out->code, rs - 1, out->code, out->len - 2) == 0)
-        degenerate = SIMP_FULL;
-    else if (op == o->uni && out->code[rs - 1].op == o->neg && rs - 1 > ls &&
-             tree_compare(out->code, rs - 2, out->code, out->len - 1) == 0)
-        degenerate = SIMP_FULL;
-    if (degenerate != SIMP_TREE) {
-        out->len = ls;
-        return negate ? simp_flip(degenerate) : degenerate;
-    }
+        return SIMP_EMPTY;
+    if (op == o->uni && out->code[out->len - 1].op == o->neg && out->len - 1 > rs &&
+        tree_compare(out->code, rs - 1, out->code, out->len - 2) == 0)
+        return SIMP_FULL;
+    if (op == o->uni && out->code[rs - 1].op == o->neg && rs - 1 > ls &&
+        tree_compare(out->code, rs - 2, out->code, out->len - 1) == 0)
+        return SIMP_FULL;
+    return SIMP_TREE;
+}
+
+/* The node: commutative operands in canonical order, a | a = a & a = a, and the
+ * complement moved above it. */
+static int simp_emit(gp_tree *out, uint32_t ls, uint32_t rs, uint8_t op, int negate,
+                     const gp_opset *o)
+{
     int emit = 1;
     if (op == o->uni || op == o->inter) {
         int c = tree_compare(out->code, rs - 1, out->code, out->len - 1);
@@ -160,6 +167,34 @@ static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opse
         else if (tree_push(out, (frep_opcode)o->neg, 0)) return -1;
     }
     return SIMP_TREE;
+}
+
+static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opset *o)
+{
+    const frep_insn *in = &code[end];
+    int k = tree_nin(in);
+    if (k == 0) return tree_push(out, FREP_OP_PRIM, in->arg);
+    if (k == 1) return simp_neg(code, end, out, o);
+    uint32_t l0, l1, r0;
+    tree_operands(code, end, &l0, &l1, &r0);
+    (void)l0;
+    (void)r0;
+    uint32_t ls = out->len;
+    int rl = simp(code, l1, out, o);
+    if (rl < 0) return -1;
+    uint32_t rs = out->len;
+    int rr = simp(code, end - 1, out, o);
+    if (rr < 0) return -1;
+    uint8_t op = in->op;
+    if (rl != SIMP_TREE || rr != SIMP_TREE) return simp_constant_operand(out, ls, rl, rr, op, o);
+    int negate = 0;
+    if (simp_complements(out, ls, &rs, &op, &negate, o)) return -1;
+    int degenerate = simp_degenerate(out, ls, rs, op, o);
+    if (degenerate != SIMP_TREE) {
+        out->len = ls;
+        return negate ? simp_flip(degenerate) : degenerate;
+    }
+    return simp_emit(out, ls, rs, op, negate, o);
 }
 
 int simplify_rules(gp_tree *t, gp_setops s)
