@@ -632,12 +632,6 @@ out:
  * every useful primitive). */
 #define SIMPLIFY_MAX_INNER 16
 
-/* One round: the best S & p, S \ p or S | p replacing a subtree S of t, over every
- * subtree and every primitive p that explains points t misses (useful_prims), when it
- * raises the fitness. A face missing from one part of a union (a subtracted box short
- * of two of its faces, so that it cuts away a whole quadrant) cannot be added at the
- * root, where it would cut every other part too. Returns 1 when t changed, 0 when
- * not, -1 on allocation failure. */
 /* Candidates (subtree end x useful primitive x operation) of one inner-growth round
  * above which the round runs in parallel (each thread records its own tape of t). */
 #define SIMPLIFY_PAR_MIN 512
@@ -672,6 +666,75 @@ static int inner_range(const gp_tree *t, const uint8_t *use, const uint8_t ops[3
     return 0;
 }
 
+/* inner_range over the subtree ends of t split between nt threads (each with its own
+ * evaluator and tape); the best of the threads is the first in the sequential order
+ * among the fittest, as in one thread. 0 or -1. */
+static int inner_parallel(const gp_tree *t, const uint8_t *use, const uint8_t ops[3],
+                          const gp_cache *c, int nt, double fit, double *bf, uint64_t *best)
+{
+    double *tbf = frep_malloc((size_t)nt * sizeof *tbf);
+    uint64_t *tbest = frep_malloc((size_t)nt * sizeof *tbest);
+    if (!tbf || !tbest) {
+        frep_free(tbf);
+        frep_free(tbest);
+        return -1;
+    }
+    int failed = 0;
+    uint32_t len = t->len;
+#pragma omp parallel num_threads(nt) reduction(| : failed)
+    {
+        int id = 0, n = 1;
+#ifdef _OPENMP
+        id = omp_get_thread_num();
+        n = omp_get_num_threads();
+#endif
+        gp_eval *ev = gp_eval_new();
+        gp_tree cand = { NULL, 0, 0 };
+        tbf[id] = fit;
+        tbest[id] = UINT64_MAX;
+        uint32_t e0 = (uint32_t)((uint64_t)len * (uint64_t)id / (uint64_t)n);
+        uint32_t e1 = (uint32_t)((uint64_t)len * (uint64_t)(id + 1) / (uint64_t)n);
+        if (!ev || record(t, c, ev, NULL) ||
+            inner_range(t, use, ops, c, ev, e0, e1, &cand, &tbf[id], &tbest[id]))
+            failed = 1;
+        tree_free(&cand);
+        gp_eval_free(ev);
+        if (id == 0) nt = n;
+    }
+    for (int q = 0; q < nt && !failed; q++)
+        if (tbest[q] != UINT64_MAX && (tbf[q] > *bf || (tbf[q] == *bf && tbest[q] < *best))) {
+            *bf = tbf[q];
+            *best = tbest[q];
+        }
+    frep_free(tbf);
+    frep_free(tbest);
+    return failed ? -1 : 0;
+}
+
+/* The insertion best = (end * k + j) * 3 + w: the subtree ending at `end` joined with
+ * primitive j by ops[w]. As commit_splice: 1 when kept, 0 when not, -1. */
+static int inner_apply(gp_tree *t, gp_tree *trial, const uint8_t ops[3], uint32_t k,
+                       uint64_t best)
+{
+    uint32_t best_end = (uint32_t)(best / 3 / k), best_j = (uint32_t)(best / 3 % k);
+    int best_w = (int)(best % 3);
+    uint32_t st = tree_subtree_start(t->code, best_end);
+    gp_tree sub = { NULL, 0, 0 };
+    int rc = tree_set(&sub, t->code + st, best_end - st + 1) ||
+                     tree_push(&sub, FREP_OP_PRIM, best_j) ||
+                     tree_push(&sub, (frep_opcode)ops[best_w], 0)
+                 ? -1
+                 : commit_splice(t, trial, best_end, &sub);
+    tree_free(&sub);
+    return rc;
+}
+
+/* One round: the best S & p, S \ p or S | p replacing a subtree S of t, over every
+ * subtree and every primitive p that explains points t misses (useful_prims), when it
+ * raises the fitness. A face missing from one part of a union (a subtracted box short
+ * of two of its faces, so that it cuts away a whole quadrant) cannot be added at the
+ * root, where it would cut every other part too. Returns 1 when t changed, 0 when
+ * not, -1 on allocation failure. */
 static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
                       gp_eval *e, double *fit)
 {
@@ -691,71 +754,15 @@ static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     if (!omp_in_parallel() && (uint64_t)t->len * (uint64_t)nu * 3 >= SIMPLIFY_PAR_MIN)
         nt = gp_threads(0);
 #endif
-    if (nt <= 1) {
-        if (record(t, c, e, NULL) || inner_range(t, use, ops, c, e, 0, t->len, trial, &bf, &best)) {
-            rc = -1;
-            goto out;
-        }
-    } else {
-        /* Each thread takes whole subtree ends; the best of the threads is the first
-         * in the sequential order among the fittest, as in one thread. */
-        double *tbf = frep_malloc((size_t)nt * sizeof *tbf);
-        uint64_t *tbest = frep_malloc((size_t)nt * sizeof *tbest);
-        if (!tbf || !tbest) {
-            frep_free(tbf);
-            frep_free(tbest);
-            rc = -1;
-            goto out;
-        }
-        int failed = 0;
-        uint32_t len = t->len;
-#pragma omp parallel num_threads(nt) reduction(| : failed)
-        {
-            int id = 0, n = 1;
-#ifdef _OPENMP
-            id = omp_get_thread_num();
-            n = omp_get_num_threads();
-#endif
-            gp_eval *ev = gp_eval_new();
-            gp_tree cand = { NULL, 0, 0 };
-            tbf[id] = *fit;
-            tbest[id] = UINT64_MAX;
-            uint32_t e0 = (uint32_t)((uint64_t)len * (uint64_t)id / (uint64_t)n);
-            uint32_t e1 = (uint32_t)((uint64_t)len * (uint64_t)(id + 1) / (uint64_t)n);
-            if (!ev || record(t, c, ev, NULL) ||
-                inner_range(t, use, ops, c, ev, e0, e1, &cand, &tbf[id], &tbest[id]))
-                failed = 1;
-            tree_free(&cand);
-            gp_eval_free(ev);
-            if (id == 0) nt = n;
-        }
-        for (int q = 0; q < nt && !failed; q++)
-            if (tbest[q] != UINT64_MAX && (tbf[q] > bf || (tbf[q] == bf && tbest[q] < best))) {
-                bf = tbf[q];
-                best = tbest[q];
-            }
-        frep_free(tbf);
-        frep_free(tbest);
-        if (failed) {
-            rc = -1;
-            goto out;
-        }
+    if (nt <= 1 ? record(t, c, e, NULL) ||
+                      inner_range(t, use, ops, c, e, 0, t->len, trial, &bf, &best)
+                : inner_parallel(t, use, ops, c, nt, *fit, &bf, &best)) {
+        rc = -1;
+        goto out;
     }
     if (best == UINT64_MAX) goto out;
-    {
-        uint32_t best_end = (uint32_t)(best / 3 / k), best_j = (uint32_t)(best / 3 % k);
-        int best_w = (int)(best % 3);
-        uint32_t st = tree_subtree_start(t->code, best_end);
-        gp_tree sub = { NULL, 0, 0 };
-        rc = tree_set(&sub, t->code + st, best_end - st + 1) ||
-                     tree_push(&sub, FREP_OP_PRIM, best_j) ||
-                     tree_push(&sub, (frep_opcode)ops[best_w], 0)
-                 ? -1
-                 : commit_splice(t, trial, best_end, &sub);
-        tree_free(&sub);
-        if (rc <= 0) goto out;
-    }
-    *fit = bf;
+    rc = inner_apply(t, trial, ops, k, best);
+    if (rc > 0) *fit = bf;
 out:
     frep_free(use);
     return rc;
