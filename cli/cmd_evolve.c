@@ -46,7 +46,6 @@ typedef struct progress_ctx {
     int tty, quiet;
     double last;
     frep_buf *trace;         /* NULL without --trace */
-    gp_report report;        /* filled by gp_run before each call (gp.h) */
     double t0;               /* gp_now() when evolve_run started */
     clock_t c0;              /* clock() then */
     int polish;              /* 1 once the merge of a partitioned run was reported */
@@ -64,8 +63,8 @@ static int progress(void *user, const gp_progress *p)
             buf_printf(c->trace, "%u %.4f %.4f nan %u - merge\n", p->generation, wall, cpu,
                       p->best_len);
         } else {
-            double share = c->report.npoints
-                               ? 100.0 * (double)c->report.explained / (double)c->report.npoints
+            double share = p->npoints
+                               ? 100.0 * (double)p->explained / (double)p->npoints
                                : 0.0;
             const char *ph = p->phase == GP_PHASE_MERGED ? "merged"
                              : p->phase == GP_PHASE_GROWN ? "grown"
@@ -89,8 +88,8 @@ static int progress(void *user, const gp_progress *p)
         fflush(stderr);
     }
     /* --stop-share: a GA phase ends once its best tree explains enough points. */
-    if (c->stop_share > 0 && p->phase == GP_PHASE_GA && c->report.npoints &&
-        100.0 * (double)c->report.explained >= c->stop_share * (double)c->report.npoints)
+    if (c->stop_share > 0 && p->phase == GP_PHASE_GA && p->npoints &&
+        100.0 * (double)p->explained >= c->stop_share * (double)p->npoints)
         return 1;
     return cli_interrupted();
 }
@@ -149,13 +148,12 @@ typedef struct evolve_cmd {
     frep_program *base_prog;
     char *base_src;
     double *base_f, *base_g;
-    uint8_t *mask;
+    uint8_t *mask, *base_ok;     /* base_ok: where the --residual model can be evaluated */
     progress_ctx pc;
     frep_buf trace;
     evolve_result res;
     char note[256];             /* --refit's figures for the model's comments */
-    char *err;
-    frep_error ferr;            /* of the cloud, primitive-list and segmentation calls */
+    frep_error ferr;            /* of the library calls */
 } evolve_cmd;
 
 static int parse_setops(const char *arg, void *dest, char *why, size_t whylen)
@@ -330,9 +328,10 @@ static int stage_residual(evolve_cmd *e)
     evolve_options *eo = &e->eo;
     e->base_prog = cli_compile_file(e->residual_path, NULL, NULL, 0, -1, &e->base_src);
     if (!e->base_prog) return CLI_FAIL;
+    frep_error_init(&e->ferr);
     if (residual_prepare(e->residual_path, e->base_src, strlen(e->base_src), NULL, e->base_prog,
-                         &e->base, &e->err)) {
-        fprintf(stderr, "frep evolve: %s\n", e->err ? e->err : "cannot use the model");
+                         &e->base, &e->ferr)) {
+        fprintf(stderr, "frep evolve: %s\n", e->ferr.msg[0] ? e->ferr.msg : "cannot use the model");
         return CLI_FAIL;
     }
     if (e->have_setops && eo->gp.setops != e->base.setops) {
@@ -346,14 +345,17 @@ static int stage_residual(evolve_cmd *e)
     e->base_f = malloc(N * sizeof *e->base_f);
     e->base_g = malloc(3 * N * sizeof *e->base_g);
     e->mask = malloc(N);
-    if (!e->base_f || !e->base_g || !e->mask ||
-        residual_eval(&e->base, e->cloud, eo->gp.threads, e->base_f, e->base_g, &nbad))
+    e->base_ok = malloc(N);
+    if (!e->base_f || !e->base_g || !e->mask || !e->base_ok ||
+        residual_eval(&e->base, e->cloud, eo->gp.threads, e->base_f, e->base_g, e->base_ok,
+                      &nbad))
         return out_of_memory();
     if (nbad && !e->quiet)
         fprintf(stderr, "frep evolve: %s cannot be evaluated at %zu points (treated as "
                         "unexplained)\n", e->residual_path, nbad);
     eo->base_f = e->base_f;
     eo->base_g = e->base_g;
+    eo->base_ok = e->base_ok;
     if (evolve_residual_points(eo, e->cloud, e->mask, &nres)) return out_of_memory();
     if (!e->quiet)
         fprintf(stderr, "frep evolve: %s explains %zu of %zu points; evolving for the %zu others\n",
@@ -443,20 +445,22 @@ static int stage_evolve(evolve_cmd *e)
     pc->quiet = e->quiet;
     pc->last = -1;
     pc->stop_share = e->stop_share;
-    if (e->stop_share > 0) e->eo.gp.report = &pc->report;
+    if (e->stop_share > 0) e->eo.gp.report_explained = 1;
     if (e->trace_path) {
         pc->trace = &e->trace;
-        e->eo.gp.report = &pc->report;
+        e->eo.gp.report_explained = 1;
         trace_header(&e->trace, e->eo.gp.seed);
     }
     pc->t0 = gp_now();
     pc->c0 = clock();
     cli_sigint_catch();
-    int r = evolve_run(&e->eo, e->cloud, e->prims, e->nprims, progress, pc, &e->res, &e->err);
+    frep_error_init(&e->ferr);
+    int r = evolve_run(&e->eo, e->cloud, e->prims, e->nprims, progress, pc, &e->res, &e->ferr);
     cli_sigint_restore();
     if (pc->tty && !e->quiet) fputc('\n', stderr);
     if (r) {
-        fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path, e->err ? e->err : "failed");
+        fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path,
+                e->ferr.msg[0] ? e->ferr.msg : "failed");
         return CLI_FAIL;
     }
     if (cli_interrupted() && !e->quiet)
@@ -469,12 +473,11 @@ static int stage_evolve(evolve_cmd *e)
 static void stage_refit(evolve_cmd *e)
 {
     evolve_refit_info ri;
+    frep_error_init(&e->ferr);
     if (evolve_refit(&e->eo, e->cloud, e->prims, e->nprims, e->residual_path ? &e->base : NULL,
-                     &e->res, &ri, &e->err)) {
+                     &e->res, &ri, &e->ferr)) {
         fprintf(stderr, "frep evolve: --refit: %s (the model keeps the parameters as "
-                        "segmented)\n", e->err ? e->err : "failed");
-        free(e->err);
-        e->err = NULL;
+                        "segmented)\n", e->ferr.msg[0] ? e->ferr.msg : "failed");
     } else if (ri.nparams) {
         snprintf(e->note, sizeof e->note,
                  "refit: %zu parameters, RMS distance %.6g -> %.6g, max %.6g -> %.6g, %.2f s",
@@ -535,9 +538,9 @@ static void evolve_cmd_free(evolve_cmd *e)
     free(e->base_f);
     free(e->base_g);
     free(e->mask);
+    free(e->base_ok);
     cloud_free(e->sub);
     cloud_free(e->cloud);
-    free(e->err);
 }
 
 /* cloud -> [residual] -> primitives -> GA -> [refit] -> files -> summary */

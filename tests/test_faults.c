@@ -69,13 +69,6 @@ static void set_msg(fault_out *o, const char *m)
     if (m && !o->msg[0]) snprintf(o->msg, sizeof o->msg, "%s", m);
 }
 
-/* Take a message the library allocated (char **err convention). */
-static void take_msg(fault_out *o, char *m)
-{
-    set_msg(o, m);
-    frep_free(m);
-}
-
 /* Diagnostic callback: the first error's message. */
 static void on_diag(void *user, const frep_diag *d)
 {
@@ -712,9 +705,10 @@ static int run_evolve(const fixture *fx, fault_out *o, int partition)
     evolve_options eo;
     evolve_opts(&eo, partition);
     evolve_result res;
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     if (evolve_run(&eo, fx->cloud, fx->prims, fx->nprims, NULL, NULL, &res, &err)) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     int rc = write_evolved(fx, o, &res, fx->prims, &eo);
@@ -735,11 +729,12 @@ static int case_refit(const fixture *fx, fault_out *o)
     prim pr[MAX_PRIMS];
     memcpy(pr, fx->prims, fx->nprims * sizeof *pr);
     evolve_refit_info ri;
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     int rc = tree_copy(&res.tree, &fx->evolved.tree);
     if (rc) set_msg(o, "out of memory");
     if (!rc && (rc = evolve_refit(&eo, fx->cloud, pr, fx->nprims, NULL, &res, &ri, &err)))
-        take_msg(o, err);
+        set_msg(o, err.msg);
     if (!rc) rc = write_evolved(fx, o, &res, pr, &eo);
     evolve_result_free(&res);
     return rc;
@@ -791,8 +786,7 @@ typedef struct fault_case {
 
 enum {
     MSG_NONE,        /* a status only */
-    MSG_GIVEN,       /* a message in a caller's buffer or through a callback */
-    MSG_ALLOCATED    /* a message the library allocates (char **err) */
+    MSG_GIVEN        /* a message in a frep_error or through a callback */
 };
 
 static const fault_case cases[] = {
@@ -810,30 +804,30 @@ static const fault_case cases[] = {
       "an allocation failure of the tape pruner (vm_pruner_new, through the field's "
       "focus) is absorbed: the mesh is made unpruned and differs (mesh/mesh.c)" },
     { "mesh_validate", case_mesh_validate, MSG_NONE, NULL },
-    { "meshio", case_meshio, MSG_ALLOCATED, NULL },
-    { "meshio_read", case_meshio_read, MSG_ALLOCATED, NULL },
-    { "cloud", case_cloud, MSG_ALLOCATED, NULL },
-    { "cloud_read", case_cloud_read, MSG_ALLOCATED, NULL },
+    { "meshio", case_meshio, MSG_GIVEN, NULL },
+    { "meshio_read", case_meshio_read, MSG_GIVEN, NULL },
+    { "cloud", case_cloud, MSG_GIVEN, NULL },
+    { "cloud_read", case_cloud_read, MSG_GIVEN, NULL },
     { "sample_model", case_sample_model, MSG_GIVEN,
       "as polygonize: vm_pruner_new failing gives another mesh, so other points" },
     { "sample_mesh", case_sample_mesh, MSG_GIVEN, NULL },
     { "normals", case_normals, MSG_NONE, NULL },
     { "kdtree", case_kdtree, MSG_NONE, NULL },
-    { "segment", case_segment, MSG_ALLOCATED,
+    { "segment", case_segment, MSG_GIVEN,
       "out of memory absorbed as in-band values: median_spacing gives 0 when kd_build "
       "fails, ransac_detect's helpers give no candidate (segment/)" },
-    { "prims", case_prims, MSG_ALLOCATED, NULL },
+    { "prims", case_prims, MSG_GIVEN, NULL },
     { "fit", case_fit, MSG_GIVEN,
       "out of memory in the optimizers is FIT_FAILED, absorbed by the annealing, and "
       "in evaluation 'cannot be evaluated' (fit/optim.c, fit/fit.c)" },
     { "writeback", case_writeback, MSG_NONE, NULL },
-    { "evolve", case_evolve, MSG_ALLOCATED,
+    { "evolve", case_evolve, MSG_GIVEN,
       "gp_score returns NaN on out of memory and the GA ranks the tree as bad "
       "(evolve/fitness.c, gp.c)" },
-    { "evolve_partition", case_evolve_part, MSG_ALLOCATED,
+    { "evolve_partition", case_evolve_part, MSG_GIVEN,
       "as evolve, and tree_reserve failing in the merge moves of partition.c is "
       "skipped (gp_fitness_replaced)" },
-    { "refit", case_refit, MSG_ALLOCATED,
+    { "refit", case_refit, MSG_GIVEN,
       "evolve_refit reports out of memory as 'the tree cannot be evaluated at the "
       "points' or without a message (evolve/refit.c, fit/objective.c)" },
     { "render", case_render, MSG_NONE, NULL },
@@ -866,9 +860,6 @@ static const char *judge(const fault_case *c, int rc0, const fault_out *o0, int 
     if (rc == rc0 && o->digest == o0->digest && strcmp(o->msg, o0->msg) == 0) return NULL;
     if (rc == 0) return "success with another result";
     if (!hit) return "failure without an injected failure";
-    /* A message allocated for the caller (char **err) is missing when its own
-     * allocation is the one that failed. */
-    if (c->has_msg == MSG_ALLOCATED && !o->msg[0] && fault_failed_in("frep_strdupf")) return NULL;
     if (c->has_msg && !strstr(o->msg, "out of memory")) return "message is not \"out of memory\"";
     return NULL;
 }
@@ -978,15 +969,15 @@ static int fixture_init(fixture *fx)
     frep_error_init(&err);
     int rc = sample_field(&fld, &so, &fx->cloud, &err);
     mesh_field_program_free(&fld);
-    char *e = NULL;
     if (rc) return diag("fixture cloud: %s", err.msg), -1;
     frep_error fe;
     if (fitfile_parse("cube.fit", cube_fit, strlen(cube_fit), &fx->prims, &fx->nprims, &fe))
         return diag("fixture primitives: %s", fe.msg), -1;
     evolve_options eo;
     evolve_opts(&eo, 0);
+    frep_error_init(&fe);
     if (fx->nprims > MAX_PRIMS ||
-        evolve_run(&eo, fx->cloud, fx->prims, fx->nprims, NULL, NULL, &fx->evolved, &e))
+        evolve_run(&eo, fx->cloud, fx->prims, fx->nprims, NULL, NULL, &fx->evolved, &fe))
         return -1;
     snprintf(fx->tmpdir, sizeof fx->tmpdir, "%s/frep-faults.XXXXXX",
              getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp");
