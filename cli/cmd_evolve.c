@@ -12,6 +12,7 @@
 #include "residual.h"
 #include "segment.h"
 #include "buf.h"
+#include "util.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -428,7 +429,7 @@ static void trace_header(frep_buf *t, uint64_t seed)
 /* The automatic alpha and the noise estimate behind it. */
 static void report_alpha(const evolve_result *res)
 {
-    double deg = res->alpha * 180 / 3.14159265358979323846;
+    double deg = res->alpha * 180 / FREP_PI;
     fprintf(stderr, "frep evolve: alpha %g degrees (automatic: %s; position spread %.3g eps, "
                     "normal deviation median %.2g, 90th percentile %.2g degrees over %zu "
                     "inliers; --alpha overrides)\n",

@@ -8,13 +8,11 @@
 #include "linalg.h"
 #include "partition.h"
 #include "simplify.h"
+#include "threads.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 /* ---- oriented boxes ----------------------------------------------------------- */
 
@@ -832,7 +830,7 @@ static int part_alloc(part_ctx *s)
 {
     s->pc = frep_calloc(s->nq, sizeof *s->pc);
     s->gens = frep_calloc(s->nq, sizeof *s->gens);
-    s->nthreads = gp_threads(s->cfg->threads);
+    s->nthreads = frep_threads(s->cfg->threads);
     s->ev = frep_calloc((size_t)s->nthreads, sizeof *s->ev);
     if (!s->pc || !s->gens || !s->ev) return -1;
     for (int i = 0; i < s->nthreads; i++)
@@ -913,10 +911,7 @@ static int part_solve(part_ctx *s)
 #pragma omp parallel for schedule(dynamic, 1) num_threads(s->nthreads)
     for (long ql = 0; ql < nql; ql++) {
         uint32_t q = (uint32_t)ql;
-        int tid = 0;
-#ifdef _OPENMP
-        tid = omp_get_thread_num();
-#endif
+        int tid = frep_thread_num();
         part_piece *pq = &s->pc[q];
         if (pq->npts == 0) continue;  /* explains no point: dropped */
         if (solve_clique(s->cfg, s->c, pq->prims, pq->nprims, pq->pts, pq->npts,

@@ -12,14 +12,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 #include "alloc.h"
 #include "rng.h"
 #include "normals.h"
 #include "ransac.h"
+#include "threads.h"
+#include "util.h"
 
 /* Octree depth for localized sampling: 10 levels = cells of 1/1024 of the box side,
  * finer than any useful sampling neighbourhood. */
@@ -65,13 +63,9 @@
 #define BITMAP_MAX_CELLS_AXIS (1u << 20)
 /* Cone half-angles outside [CONE_MIN_ANGLE, pi/2 - CONE_MIN_ANGLE] are degenerate
  * (a cylinder or a plane describes the data better). */
-#define CONE_MIN_ANGLE (2.0 * M_PI / 180.0)
+#define CONE_MIN_ANGLE (2.0 * FREP_PI / 180.0)
 /* Curved primitives with radii above this many box diagonals are planes in disguise. */
 #define MAX_RADIUS_DIAGONALS 2.0
-
-#ifndef M_PI
-#define M_PI 3.14159265358979323846
-#endif
 
 /* ---- small vector and random helpers --------------------------------------- */
 
@@ -324,7 +318,7 @@ static int make_cone(const sample *s, prim *q)
     if (dot(a, d[0]) < 0) for (int k = 0; k < 3; k++) a[k] = -a[k];
     double ang = 0;
     for (int i = 0; i < 3; i++) ang += acos(fmin(1.0, fmax(-1.0, dot(a, d[i])))) / 3.0;
-    if (ang < CONE_MIN_ANGLE || ang > M_PI / 2 - CONE_MIN_ANGLE) return -1;
+    if (ang < CONE_MIN_ANGLE || ang > FREP_PI / 2 - CONE_MIN_ANGLE) return -1;
     q->type = PRIM_CONE;
     memcpy(q->p, apex, sizeof apex);
     memcpy(q->a, a, sizeof a);
@@ -510,7 +504,7 @@ static void domain_coords(const prim *q, const frep_cloud *c, const uint32_t *id
             normalize(v);
             u = q->r * atan2(dot(v, e2), dot(v, e1));
             w = q->r * acos(fmin(1, fmax(-1, dot(v, ax))));
-            D->period[0] = 2 * M_PI * q->r;
+            D->period[0] = 2 * FREP_PI * q->r;
             break;
         }
         case PRIM_CYLINDER:
@@ -523,16 +517,16 @@ static void domain_coords(const prim *q, const frep_cloud *c, const uint32_t *id
             if (q->type == PRIM_CYLINDER) {
                 u = q->r * ang;
                 w = h;
-                D->period[0] = 2 * M_PI * q->r;
+                D->period[0] = 2 * FREP_PI * q->r;
             } else if (q->type == PRIM_CONE) {
                 u = mean_rho * ang;
                 w = sqrt(h * h + rho * rho);
-                D->period[0] = 2 * M_PI * mean_rho;
+                D->period[0] = 2 * FREP_PI * mean_rho;
             } else {
                 u = q->R * ang;
                 w = q->r * atan2(h, rho - q->R);
-                D->period[0] = 2 * M_PI * q->R;
-                D->period[1] = 2 * M_PI * q->r;
+                D->period[0] = 2 * FREP_PI * q->R;
+                D->period[1] = 2 * FREP_PI * q->r;
             }
             break;
         }
@@ -729,7 +723,7 @@ static int unpack(prim *q, const double *v)
         return q->r > 0 && q->R > 0 ? 0 : -1;
     }
     q->r = v[6];
-    if (q->type == PRIM_CONE) return q->r > 0 && q->r < M_PI / 2 ? 0 : -1;
+    if (q->type == PRIM_CONE) return q->r > 0 && q->r < FREP_PI / 2 ? 0 : -1;
     return q->r > 0 ? 0 : -1;
 }
 
@@ -1023,7 +1017,7 @@ static void score_next(det *d, cand *cs, const int *which, size_t nw)
     }
     (void)work;
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 4) if (work >= PAR_MIN_WORK) num_threads(cfg->nthreads > 0 ? cfg->nthreads : omp_get_max_threads())
+#pragma omp parallel for schedule(dynamic, 4) if (work >= PAR_MIN_WORK) num_threads(frep_threads(cfg->nthreads))
 #endif
     for (long w = 0; w < lw; w++) {
         cand *k = &cs[which[w]];
@@ -1138,7 +1132,7 @@ static int verify(const prim *q, const sample *s, int nv, double eps, double cos
  * degrees (directions, cone angles)? */
 static int shapes_close(const prim *a, const prim *b, double tol, double deg)
 {
-    double cmin = cos(deg * M_PI / 180.0), dp[3];
+    double cmin = cos(deg * FREP_PI / 180.0), dp[3];
     sub(a->p, b->p, dp);
     switch (a->type) {
     case PRIM_PLANE:
@@ -1151,7 +1145,7 @@ static int shapes_close(const prim *a, const prim *b, double tol, double deg)
         return fabs(dot(a->a, b->a)) > cmin && norm(w) < tol && fabs(a->r - b->r) < tol;
     }
     case PRIM_CONE:
-        return norm(dp) < tol && dot(a->a, b->a) > cmin && fabs(a->r - b->r) < deg * M_PI / 180.0;
+        return norm(dp) < tol && dot(a->a, b->a) > cmin && fabs(a->r - b->r) < deg * FREP_PI / 180.0;
     case PRIM_TORUS:
         return norm(dp) < tol && fabs(dot(a->a, b->a)) > cmin && fabs(a->r - b->r) < tol &&
                fabs(a->R - b->R) < tol;
@@ -1210,7 +1204,7 @@ static size_t gather_inliers(det *d, const prim *q, unsigned char *flag, uint32_
     kern kn;
     kern_init(&kn, q, d->band, cfg->cos_normal);
 #ifdef _OPENMP
-#pragma omp parallel for schedule(static, 4096) if (d->n >= PAR_MIN_WORK) num_threads(cfg->nthreads > 0 ? cfg->nthreads : omp_get_max_threads())
+#pragma omp parallel for schedule(static, 4096) if (d->n >= PAR_MIN_WORK) num_threads(frep_threads(cfg->nthreads))
 #endif
     for (long li = 0; li < ln; li++) {
         size_t i = (size_t)li;
@@ -1523,7 +1517,7 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
     double med0 = median_abs(q, c, inl, m), band0 = d->band;
     /* Exact already (clean data): nothing to separate. */
     if (!(med0 > MODE_EXACT * d->cfg->epsilon)) return m;
-    double cosm = cos(MODE_NORMAL_DEG * M_PI / 180.0);
+    double cosm = cos(MODE_NORMAL_DEG * FREP_PI / 180.0);
     size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS;
     double *tv = frep_malloc(2 * m * sizeof *tv);
     uint32_t *slab = frep_malloc(m * sizeof *slab);
@@ -1736,7 +1730,7 @@ static double median_normal_dev(const prim *q, const frep_cloud *c, const uint32
     size_t k = n < MODE_VOTERS ? n : MODE_VOTERS;
     if (k == 0) return 0;
     double *r = frep_malloc(k * sizeof *r);
-    if (!r) return M_PI;
+    if (!r) return FREP_PI;
     for (size_t j = 0; j < k; j++) {
         size_t i = idx[(size_t)((double)j * (double)n / (double)k)];
         double p[3], g[3], nv[3];
@@ -2106,7 +2100,7 @@ static int tight_small_shape(const run *r, const prim *q, size_t m)
     return !(q->type == PRIM_CONE || q->type == PRIM_TORUS ||
              (q->type != PRIM_PLANE && !(q->r >= SMALL_RADIUS * eps)) ||
              !(median_abs(q, c, r->inl, m) <= SMALL_TIGHT * eps) ||
-             !(median_normal_dev(q, c, r->inl, m) <= SMALL_NORMAL_DEG * M_PI / 180.0) ||
+             !(median_normal_dev(q, c, r->inl, m) <= SMALL_NORMAL_DEG * FREP_PI / 180.0) ||
              !(patch_width(c, r->inl, m) >= SMALL_WIDTH * eps));
 }
 

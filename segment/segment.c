@@ -18,10 +18,6 @@
 #include "segment.h"
 #include "util.h"
 
-#ifndef M_PI
-#define M_PI 3.14159265358979323846
-#endif
-
 /* Points whose nearest-neighbour distance estimates the sampling density. */
 #define SPACING_SAMPLES 2000
 /* Most points in the spacing estimate's tree (see median_spacing). */
@@ -206,7 +202,7 @@ void segment_fit_obb(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n
 
 static int plane_dup(const prim *list, size_t n, const double nrm[3], double d, double eps)
 {
-    double cmin = cos(SEGMENT_DUP_PLANE_DEG * M_PI / 180.0);
+    double cmin = cos(SEGMENT_DUP_PLANE_DEG * FREP_PI / 180.0);
     for (size_t i = 0; i < n; i++) {
         if (list[i].type != PRIM_PLANE) continue;
         double c = nrm[0] * list[i].p[0] + nrm[1] * list[i].p[1] + nrm[2] * list[i].p[2];
@@ -320,7 +316,7 @@ static void detect_config(const segment_config *cfg, const segment_result *res,
 {
     memset(rc, 0, sizeof *rc);
     rc->epsilon = res->epsilon;
-    rc->cos_normal = cos(res->normal_deg * M_PI / 180.0);
+    rc->cos_normal = cos(res->normal_deg * FREP_PI / 180.0);
     rc->cluster = res->cluster;
     rc->min_points = res->min_points;
     rc->min_points_small = res->min_points_small;
