@@ -9,6 +9,7 @@
 #include "partition.h"
 #include "simplify.h"
 #include "threads.h"
+#include "vec3.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -63,11 +64,6 @@ void part_obb_of_points(const double *x, const double *y, const double *z,
     b->valid = 1;
 }
 
-static double dot3(const double *a, const double *b)
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
 int part_obb_overlap(const gp_obb *a, const gp_obb *b, double margin)
 {
     if (!a->valid || !b->valid) return 1;
@@ -84,17 +80,17 @@ int part_obb_overlap(const gp_obb *a, const gp_obb *b, double margin)
             double c[3] = { u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
                             u[0] * w[1] - u[1] * w[0] };
             /* Parallel axes give no new separating direction. */
-            if (dot3(c, c) < 1e-12) continue;
+            if (vec3_dot(c, c) < 1e-12) continue;
             memcpy(axes[na++], c, sizeof c);
         }
     for (int k = 0; k < na; k++) {
         const double *L = axes[k];
         double ra = 0, rb = 0;
         for (int q = 0; q < 3; q++) {
-            ra += (a->h[q] + margin) * fabs(dot3(a->ax[q], L));
-            rb += (b->h[q] + margin) * fabs(dot3(b->ax[q], L));
+            ra += (a->h[q] + margin) * fabs(vec3_dot(a->ax[q], L));
+            rb += (b->h[q] + margin) * fabs(vec3_dot(b->ax[q], L));
         }
-        if (fabs(dot3(d, L)) > ra + rb) return 0;
+        if (fabs(vec3_dot(d, L)) > ra + rb) return 0;
     }
     return 1;
 }
@@ -104,7 +100,7 @@ int part_obb_contains(const gp_obb *b, const double p[3], double margin)
     if (!b->valid) return 0;
     double d[3] = { p[0] - b->c[0], p[1] - b->c[1], p[2] - b->c[2] };
     for (int a = 0; a < 3; a++)
-        if (fabs(dot3(d, b->ax[a])) > b->h[a] + margin) return 0;
+        if (fabs(vec3_dot(d, b->ax[a])) > b->h[a] + margin) return 0;
     return 1;
 }
 

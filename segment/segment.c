@@ -17,6 +17,7 @@
 #include "ransac.h"
 #include "segment.h"
 #include "util.h"
+#include "vec3.h"
 
 /* Points whose nearest-neighbour distance estimates the sampling density. */
 #define SPACING_SAMPLES 2000
@@ -497,7 +498,7 @@ static int hf_const(const ast_node *a, double *v)
 
 static int unit3(double a[3])
 {
-    double l = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    double l = vec3_len(a);
     if (!(l > 0)) return -1;
     for (int k = 0; k < 3; k++) a[k] /= l;
     return 0;
