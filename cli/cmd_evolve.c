@@ -141,7 +141,7 @@ typedef struct evolve_cmd {
     const char *cloud_path, *cmdline;
     frep_cloud *cloud;
     frep_cloud *sub;            /* --residual without -p: the points to segment */
-    prim *prims;                /* from -p (free()) or seg.prims */
+    prim *prims;                /* from -p (frep_free()) or seg.prims */
     size_t nprims;
     segment_result seg;
     int have_seg;
@@ -531,7 +531,7 @@ static void evolve_cmd_free(evolve_cmd *e)
 {
     buf_free(&e->trace);
     if (e->have_seg) segment_result_free(&e->seg);
-    else free(e->prims);
+    else frep_free(e->prims);
     evolve_result_free(&e->res);
     residual_free(&e->base);
     frep_program_free(e->base_prog);
