@@ -24,7 +24,7 @@ static void any_perp(const double a[3], double u[3])
     t[k] = 1.0;
     double d = vec3_dot(t, a);
     for (int i = 0; i < 3; i++) u[i] = t[i] - d * a[i];
-    double l = sqrt(vec3_dot(u, u));
+    double l = vec3_len(u);
     for (int i = 0; i < 3; i++) u[i] /= l;
 }
 
@@ -38,7 +38,7 @@ double prim_eval(const prim *q, const double x[3], double g[3])
         return f;
     case PRIM_SPHERE: {
         for (int i = 0; i < 3; i++) v[i] = x[i] - q->p[i];
-        double l = sqrt(vec3_dot(v, v));
+        double l = vec3_len(v);
         f = q->r - l;
         if (g) {
             if (l > PRIM_TINY) for (int i = 0; i < 3; i++) g[i] = -v[i] / l;
@@ -53,7 +53,7 @@ double prim_eval(const prim *q, const double x[3], double g[3])
         double h = vec3_dot(v, q->a);
         double w[3];
         for (int i = 0; i < 3; i++) w[i] = v[i] - h * q->a[i];
-        double rho = sqrt(vec3_dot(w, w));
+        double rho = vec3_len(w);
         double e[3]; /* unit radial direction */
         if (rho > PRIM_TINY) for (int i = 0; i < 3; i++) e[i] = w[i] / rho;
         else any_perp(q->a, e);

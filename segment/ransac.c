@@ -145,7 +145,7 @@ static inline int kern_test(const kern *k, const double x[3], const double nv[3]
     double v[3];
     vec3_sub(x, k->p, v);
     if (k->t == PRIM_SPHERE) {
-        double l = sqrt(vec3_dot(v, v));
+        double l = vec3_len(v);
         return fabs(k->r - l) <= k->eps && l > 0 && fabs(vec3_dot(v, nv)) >= k->cosn * l;
     }
     double h = vec3_dot(v, k->a), rho2 = vec3_dot(v, v) - h * h;
