@@ -12,6 +12,7 @@
 #include "residual.h"
 #include "segment.h"
 #include "buf.h"
+#include "util.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -140,7 +141,7 @@ typedef struct evolve_cmd {
     const char *cloud_path, *cmdline;
     frep_cloud *cloud;
     frep_cloud *sub;            /* --residual without -p: the points to segment */
-    prim *prims;                /* from -p (free()) or seg.prims */
+    prim *prims;                /* from -p (frep_free()) or seg.prims */
     size_t nprims;
     segment_result seg;
     int have_seg;
@@ -428,7 +429,7 @@ static void trace_header(frep_buf *t, uint64_t seed)
 /* The automatic alpha and the noise estimate behind it. */
 static void report_alpha(const evolve_result *res)
 {
-    double deg = res->alpha * 180 / 3.14159265358979323846;
+    double deg = res->alpha * 180 / FREP_PI;
     fprintf(stderr, "frep evolve: alpha %g degrees (automatic: %s; position spread %.3g eps, "
                     "normal deviation median %.2g, 90th percentile %.2g degrees over %zu "
                     "inliers; --alpha overrides)\n",
@@ -530,7 +531,7 @@ static void evolve_cmd_free(evolve_cmd *e)
 {
     buf_free(&e->trace);
     if (e->have_seg) segment_result_free(&e->seg);
-    else free(e->prims);
+    else frep_free(e->prims);
     evolve_result_free(&e->res);
     residual_free(&e->base);
     frep_program_free(e->base_prog);

@@ -543,7 +543,7 @@ static void fit_cmd_free(fit_cmd *f)
 {
     if (f->fm.user != NULL) fit_program_model_free(&f->fm);
     cloud_free(f->cloud);
-    free(f->text);
+    frep_free(f->text);
     free(f->output);
     free(f->rows);
     free(f->idx);

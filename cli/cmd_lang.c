@@ -95,7 +95,7 @@ int cmd_print(int argc, char **argv)
         char *out = ast_print(&f);
         if (out) {
             fputs(out, stdout);
-            free(out);
+            frep_free(out);
             status = CLI_OK;
         }
     }
@@ -123,6 +123,6 @@ int cmd_dis(int argc, char **argv)
     frep_program_free(p);
     if (!s) return CLI_FAIL;
     fputs(s, stdout);
-    free(s);
+    frep_free(s);
     return CLI_OK;
 }

@@ -10,6 +10,7 @@
 #include "evolve.h"
 #include "residual.h"
 #include "simplify.h"
+#include "util.h"
 #include "kdtree.h"
 
 #include <math.h>
@@ -391,7 +392,7 @@ int evolve_residual_points(const evolve_options *o, const frep_cloud *cloud, uin
     double lo[3], hi[3], diag;
     size_t nv = valid_points(cloud, valid, nrm, lo, hi, &diag);
     double eps_d = (o->eps_rel > 0 ? o->eps_rel : EVOLVE_DEFAULT_EPS_REL) * diag;
-    double ca = cos((o->alpha_deg > 0 ? o->alpha_deg : EVOLVE_DEFAULT_ALPHA_DEG) * GP_PI / 180);
+    double ca = cos((o->alpha_deg > 0 ? o->alpha_deg : EVOLVE_DEFAULT_ALPHA_DEG) * FREP_PI / 180);
     memset(mask, 0, N);
     size_t k = 0;
     for (size_t q = 0; q < nv; q++) {
@@ -624,7 +625,7 @@ static int stage_points(run_ctx *c)
     res->alpha = (o->alpha_deg > 0 && !(o->alpha_auto && !c->residual)
                       ? o->alpha_deg
                       : EVOLVE_DEFAULT_ALPHA_DEG) *
-                 GP_PI / 180;
+                 FREP_PI / 180;
     return 0;
 }
 
@@ -698,7 +699,7 @@ static int stage_auto_alpha(run_ctx *c)
     res->alpha_auto = 1;
     if (res->noise.sigma_d > EVOLVE_NOISY_SIGMA || res->noise.median_deg > EVOLVE_NOISY_DEG ||
         res->noise.p90_deg > EVOLVE_FACETED_P90_DEG) {
-        res->alpha = EVOLVE_NOISY_ALPHA_DEG * GP_PI / 180;
+        res->alpha = EVOLVE_NOISY_ALPHA_DEG * FREP_PI / 180;
         if (gp_cache_set_alpha(c->sc, res->alpha)) return run_oom(c);
     }
     return 0;
@@ -1004,7 +1005,7 @@ static void write_header(FILE *f, const evolve_result *r, size_t nprims, uint32_
     fprintf(f, "-- %.2f%% of %zu points within epsilon %.6g of the surface, %.2f%% with "
                "normals within %.3g degrees, %.2f%% both\n",
             pct(r->stats.within_eps, r->npoints), r->npoints, r->eps_d,
-            pct(r->stats.normals_ok, r->npoints), r->alpha * 180 / GP_PI,
+            pct(r->stats.normals_ok, r->npoints), r->alpha * 180 / FREP_PI,
             pct(r->stats.explained, r->npoints));
     if (m->base)
         fprintf(f, "-- residual of model '%s': it explained %.2f%% of the points; the tree was "

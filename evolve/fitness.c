@@ -12,6 +12,7 @@
 
 #include "alloc.h"
 #include "fitness.h"
+#include "util.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -127,7 +128,7 @@ static double point_term(const gp_cache *c, double f, double gx, double gy, doub
     }
     double d = f / c->eps_d;
     double gn = sqrt(gx * gx + gy * gy + gz * gz);
-    double theta = GP_PI; /* no gradient: the worst angle */
+    double theta = FREP_PI; /* no gradient: the worst angle */
     if (gn > 0) {
         double cs = -(gx * nrm[0] + gy * nrm[1] + gz * nrm[2]) / gn;
         if (cs > 1) cs = 1;
@@ -252,7 +253,7 @@ int gp_cache_noise(const gp_cache *c, gp_noise *out)
         frep_free(ang);
         return -1;
     }
-    double cmax = cos(GP_NOISE_MAX_DEG * GP_PI / 180);
+    double cmax = cos(GP_NOISE_MAX_DEG * FREP_PI / 180);
     size_t k = 0;
     for (size_t i = 0; i < n; i++) {
         const double *q = c->nrm + 3 * i;
@@ -272,7 +273,7 @@ int gp_cache_noise(const gp_cache *c, gp_noise *out)
         }
         if (best < HUGE_VAL) {
             dist[k] = best;
-            ang[k++] = acos(bcos) * 180 / GP_PI;
+            ang[k++] = acos(bcos) * 180 / FREP_PI;
         }
     }
     out->inliers = k;

@@ -13,9 +13,6 @@
 
 #include "tree.h"
 
-/* pi, for the angle tolerances (degrees in the options, radians in the caches). */
-#define GP_PI 3.14159265358979323846
-
 /* Points scored per block: the evaluation stack (value, gradient, active primitive)
  * of a deep tree stays in the L2 cache. */
 #define GP_FIT_BLOCK 256

@@ -6,14 +6,12 @@
 
 #include "alloc.h"
 #include "gp.h"
+#include "threads.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 void gp_config_init(gp_config *c)
 {
@@ -136,10 +134,7 @@ static int score_population(const gp_cache *c, indiv *pop, uint32_t n, memo_entr
     int failed = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
     for (long k = 0; k < ntl; k++) {
-        int tid = 0;
-#ifdef _OPENMP
-        tid = omp_get_thread_num();
-#endif
+        int tid = frep_thread_num();
         indiv *p = &pop[todo[k]];
         double f = -HUGE_VAL;
         if (gp_fitness(c, ev[tid], p->t.code, p->t.len, &f)) {
@@ -182,16 +177,6 @@ static void best_indices(const indiv *pop, uint32_t n, uint32_t e, uint32_t *out
     }
 }
 
-int gp_threads(int requested)
-{
-    int n = requested;
-#ifdef _OPENMP
-    if (n <= 0) n = omp_get_max_threads();
-#else
-    n = 1;
-#endif
-    return n < 1 ? 1 : n;
-}
 
 /* One gp_run: the limits, the two generations, the memo and the evaluators. */
 typedef struct gp_state {
@@ -223,7 +208,7 @@ static int gp_setup(gp_state *s)
     s->K = cfg->tournament ? cfg->tournament : 1;
     s->D = cfg->max_depth > 0 ? cfg->max_depth : gp_default_depth(s->c->nprims);
     if (s->D > GP_MAX_TREE_DEPTH) s->D = GP_MAX_TREE_DEPTH;
-    s->nthreads = gp_threads(cfg->threads);
+    s->nthreads = frep_threads(cfg->threads);
     gp_rng_seed(&s->rng, cfg->seed);
     s->pop = frep_calloc(s->P, sizeof *s->pop);
     s->next = frep_calloc(s->P, sizeof *s->next);

@@ -100,10 +100,6 @@ typedef struct gp_result {
 int gp_run(const gp_config *cfg, const gp_cache *c, const gp_tree *seeds, uint32_t nseeds,
            gp_progress_fn fn, void *user, gp_result *res);
 
-/* Threads for a parallel loop: requested when > 0, else OpenMP's default; 1 without
- * OpenMP. */
-int gp_threads(int requested);
-
 /* Seconds on a monotonic-enough clock (for progress and --max-time). */
 double gp_now(void);
 

@@ -8,13 +8,12 @@
 #include "linalg.h"
 #include "partition.h"
 #include "simplify.h"
+#include "threads.h"
+#include "vec3.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 /* ---- oriented boxes ----------------------------------------------------------- */
 
@@ -65,11 +64,6 @@ void part_obb_of_points(const double *x, const double *y, const double *z,
     b->valid = 1;
 }
 
-static double dot3(const double *a, const double *b)
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
 int part_obb_overlap(const gp_obb *a, const gp_obb *b, double margin)
 {
     if (!a->valid || !b->valid) return 1;
@@ -86,17 +80,17 @@ int part_obb_overlap(const gp_obb *a, const gp_obb *b, double margin)
             double c[3] = { u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
                             u[0] * w[1] - u[1] * w[0] };
             /* Parallel axes give no new separating direction. */
-            if (dot3(c, c) < 1e-12) continue;
+            if (vec3_dot(c, c) < 1e-12) continue;
             memcpy(axes[na++], c, sizeof c);
         }
     for (int k = 0; k < na; k++) {
         const double *L = axes[k];
         double ra = 0, rb = 0;
         for (int q = 0; q < 3; q++) {
-            ra += (a->h[q] + margin) * fabs(dot3(a->ax[q], L));
-            rb += (b->h[q] + margin) * fabs(dot3(b->ax[q], L));
+            ra += (a->h[q] + margin) * fabs(vec3_dot(a->ax[q], L));
+            rb += (b->h[q] + margin) * fabs(vec3_dot(b->ax[q], L));
         }
-        if (fabs(dot3(d, L)) > ra + rb) return 0;
+        if (fabs(vec3_dot(d, L)) > ra + rb) return 0;
     }
     return 1;
 }
@@ -106,7 +100,7 @@ int part_obb_contains(const gp_obb *b, const double p[3], double margin)
     if (!b->valid) return 0;
     double d[3] = { p[0] - b->c[0], p[1] - b->c[1], p[2] - b->c[2] };
     for (int a = 0; a < 3; a++)
-        if (fabs(dot3(d, b->ax[a])) > b->h[a] + margin) return 0;
+        if (fabs(vec3_dot(d, b->ax[a])) > b->h[a] + margin) return 0;
     return 1;
 }
 
@@ -832,7 +826,7 @@ static int part_alloc(part_ctx *s)
 {
     s->pc = frep_calloc(s->nq, sizeof *s->pc);
     s->gens = frep_calloc(s->nq, sizeof *s->gens);
-    s->nthreads = gp_threads(s->cfg->threads);
+    s->nthreads = frep_threads(s->cfg->threads);
     s->ev = frep_calloc((size_t)s->nthreads, sizeof *s->ev);
     if (!s->pc || !s->gens || !s->ev) return -1;
     for (int i = 0; i < s->nthreads; i++)
@@ -913,10 +907,7 @@ static int part_solve(part_ctx *s)
 #pragma omp parallel for schedule(dynamic, 1) num_threads(s->nthreads)
     for (long ql = 0; ql < nql; ql++) {
         uint32_t q = (uint32_t)ql;
-        int tid = 0;
-#ifdef _OPENMP
-        tid = omp_get_thread_num();
-#endif
+        int tid = frep_thread_num();
         part_piece *pq = &s->pc[q];
         if (pq->npts == 0) continue;  /* explains no point: dropped */
         if (solve_clique(s->cfg, s->c, pq->prims, pq->nprims, pq->pts, pq->npts,

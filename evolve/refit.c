@@ -11,6 +11,7 @@
 #include "refit.h"
 
 #include "fit.h"
+#include "vec3.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -58,7 +59,7 @@ static int prim_params(const prim *q, double v[REFIT_MAX_PRIM_PARAMS])
 
 static void unit(double *a)
 {
-    double l = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    double l = vec3_len(a);
     if (l > 0)
         for (int c = 0; c < 3; c++) a[c] /= l;
 }

@@ -7,6 +7,7 @@
 #include "alloc.h"
 #include "gp.h"
 #include "simplify.h"
+#include "threads.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -683,11 +684,7 @@ static int inner_parallel(const gp_tree *t, const uint8_t *use, const uint8_t op
     uint32_t len = t->len;
 #pragma omp parallel num_threads(nt) reduction(| : failed)
     {
-        int id = 0, n = 1;
-#ifdef _OPENMP
-        id = omp_get_thread_num();
-        n = omp_get_num_threads();
-#endif
+        int id = frep_thread_num(), n = frep_team_size();
         gp_eval *ev = gp_eval_new();
         gp_tree cand = { NULL, 0, 0 };
         tbf[id] = fit;
@@ -752,7 +749,7 @@ static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     int nt = 1;
 #ifdef _OPENMP
     if (!omp_in_parallel() && (uint64_t)t->len * (uint64_t)nu * 3 >= SIMPLIFY_PAR_MIN)
-        nt = gp_threads(0);
+        nt = frep_threads(0);
 #endif
     if (nt <= 1 ? record(t, c, e, NULL) ||
                       inner_range(t, use, ops, c, e, 0, t->len, trial, &bf, &best)

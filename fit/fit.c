@@ -6,6 +6,7 @@
  */
 #include "alloc.h"
 #include "fit.h"
+#include "util.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -198,7 +199,7 @@ typedef struct fit_run_ctx {
     fit_objective *obj;         /* all points, the local phase's objective */
     fit_objective *sub;         /* the annealing's: a subset, another kind or obj itself */
     fit_control ctl;            /* evaluations, time and interrupt of all phases */
-    double t0;                  /* fit_now() at the start */
+    double t0;                  /* frep_now_seconds() at the start */
     double f0;                  /* objective at the start values */
     double x[FIT_MAX_PARAMS];   /* the result so far */
     fit_status st;              /* of the last phase */
@@ -415,7 +416,7 @@ static void finish(fit_run_ctx *R, double *params, fit_result *res)
     res->status = R->st;
     res->sa_iterations = R->sa_iterations;
     res->local_iterations = R->local_iterations;
-    res->seconds = fit_now() - R->t0;
+    res->seconds = frep_now_seconds() - R->t0;
 }
 
 int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const double *hi,
@@ -423,7 +424,7 @@ int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const d
 {
     memset(res, 0, sizeof *res);
     fit_run_ctx R = {.cfg = cfg, .model = m, .pts = pts, .m = m->nparams, .lo = lo,
-                     .hi = hi, .start = params, .t0 = fit_now(), .st = FIT_CONVERGED};
+                     .hi = hi, .start = params, .t0 = frep_now_seconds(), .st = FIT_CONVERGED};
     R.global = cfg->method == FIT_METHOD_SAQN || cfg->method == FIT_METHOD_SA;
     if (check_arguments(&R, err) != 0) return -1;
     if (make_objectives(&R, err) != 0) {

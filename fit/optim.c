@@ -7,33 +7,15 @@
 
 #include "alloc.h"
 #include "optim.h"
+#include "util.h"
 
 #include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
-/* pi, spelled out: M_PI is not part of C11. */
-#define FIT_PI 3.14159265358979323846
-
-/* ---- random numbers ------------------------------------------------------ */
-
-double fit_rng_normal(frep_rng *r)
-{
-    /* 1 - u lies in (0, 1], so the logarithm is finite. */
-    double u = 1.0 - frep_rng_unit(r), v = frep_rng_unit(r);
-    return sqrt(-2.0 * log(u)) * cos(2.0 * FIT_PI * v);
-}
 
 /* ---- budget ------------------------------------------------------------------ */
-
-double fit_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 void fit_control_init(fit_control *c)
 {
@@ -48,14 +30,14 @@ int fit_control_stop(const fit_control *c)
     if (c->interrupt != NULL && *c->interrupt) return 1;
     if (c->max_evals > 0 && c->evals >= c->max_evals) return 1;
     /* The clock is read at most once per call; callers check once per iteration. */
-    if (c->deadline > 0 && fit_now() >= c->deadline) return 1;
+    if (c->deadline > 0 && frep_now_seconds() >= c->deadline) return 1;
     return 0;
 }
 
 static void report(fit_control *c, fit_phase ph, double t, double best, int force)
 {
     if (c == NULL || c->progress == NULL) return;
-    double now = fit_now();
+    double now = frep_now_seconds();
     if (!force && now - c->last_progress < c->progress_interval) return;
     c->last_progress = now;
     c->progress(c->progress_user, ph, t, best);
@@ -716,7 +698,7 @@ static void visit_init(visit_consts *v, double qv)
     v->f3 = exp((2.0 - qv) * log(2.0) / (qv - 1.0));
     v->f5 = 1.0 / (qv - 1.0) - 0.5;
     double d1 = 2.0 - v->f5;
-    v->f6 = FIT_PI * (1.0 - v->f5) / sin(FIT_PI * (1.0 - v->f5)) / exp(lgamma(d1));
+    v->f6 = FREP_PI * (1.0 - v->f5) / sin(FREP_PI * (1.0 - v->f5)) / exp(lgamma(d1));
 }
 
 /* Width of the distribution at temperature t. */
@@ -724,14 +706,14 @@ static double visit_sigma(const visit_consts *v, double t)
 {
     double qv = v->qv;
     double f1 = exp(log(t) / (qv - 1.0));
-    double f4 = sqrt(FIT_PI) * f1 * v->f2 / (v->f3 * (3.0 - qv));
+    double f4 = sqrt(FREP_PI) * f1 * v->f2 / (v->f3 * (3.0 - qv));
     return exp(-(qv - 1.0) * log(v->f6 / f4) / (3.0 - qv));
 }
 
 static double visit_draw(const visit_consts *v, double sigma, frep_rng *r)
 {
-    double a = sigma * fit_rng_normal(r);
-    double b = fabs(fit_rng_normal(r));
+    double a = sigma * frep_rng_normal(r);
+    double b = fabs(frep_rng_normal(r));
     double den = exp((v->qv - 1.0) * log(b) / (3.0 - v->qv));
     double s = a / den;
     if (!isfinite(s) || fabs(s) > SA_TAIL_LIMIT) s = copysign(SA_TAIL_LIMIT, a) * frep_rng_unit(r);

@@ -25,16 +25,12 @@ typedef double (*fit_fn)(void *user, const double *x, double *grad);
  * caller accumulates them over residuals so the Jacobian itself is never stored. */
 typedef double (*fit_lsq_fn)(void *user, const double *x, double *jtj, double *jtr);
 
-/* Random numbers: the shared generator (runtime/rng.h), and its standard normal
- * draw for the annealing's visiting distribution (Box-Muller, one value per call). */
-double fit_rng_normal(frep_rng *r);
-
 /* Phases, for progress reports. */
 typedef enum fit_phase { FIT_PHASE_SA, FIT_PHASE_QN, FIT_PHASE_LM } fit_phase;
 
 /* Budget and reporting shared by every phase of one fit. The optimizers count every
  * objective evaluation in `evals` and stop (status FIT_STOPPED) when `max_evals`
- * (0: no limit) or the wall-clock `deadline` (seconds of fit_now(); 0: none) is reached,
+ * (0: no limit) or the wall-clock `deadline` (seconds of frep_now_seconds(); 0: none) is reached,
  * or when *interrupt becomes non-zero (Ctrl-C), or a phase ran out of memory. */
 typedef struct fit_control {
     long evals;
@@ -54,8 +50,6 @@ typedef struct fit_control {
 } fit_control;
 
 void fit_control_init(fit_control *c);
-/* Monotonic wall clock in seconds. */
-double fit_now(void);
 /* Non-zero when the budget is spent or an interrupt arrived. */
 int fit_control_stop(const fit_control *c);
 

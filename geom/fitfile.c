@@ -10,17 +10,10 @@
 #include "alloc.h"
 #include "fitfile.h"
 #include "util.h"
+#include "vec3.h"
 
 /* Most numbers on one line (a torus has 8); one more detects trailing junk. */
 #define FIT_MAX_NUMS 9
-
-static int unit(double v[3])
-{
-    double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    if (!(l > 0) || !isfinite(l)) return -1;
-    for (int k = 0; k < 3; k++) v[k] /= l;
-    return 0;
-}
 
 /* The type named by a line's first word and the numbers it takes; -1 for none. */
 static int type_of(const char *word, prim_type *t, int *want)
@@ -69,7 +62,7 @@ static int prim_of(prim *q, const double *x)
     case PRIM_PLANE: {
         double nn[3] = {x[0], x[1], x[2]};
         double l0 = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
-        int bad = unit(nn);
+        int bad = vec3_normalize(nn);
         memcpy(q->p, nn, sizeof nn);
         q->r = bad ? 0 : x[3] / l0;
         return bad;
@@ -89,7 +82,7 @@ static int prim_of(prim *q, const double *x)
         } else {
             q->r = x[6];
         }
-        return unit(q->a);
+        return vec3_normalize(q->a);
     case PRIM__COUNT:
         break;
     }

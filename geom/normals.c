@@ -11,14 +11,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 #include "alloc.h"
 #include "kdtree.h"
 #include "linalg.h"
 #include "normals.h"
+#include "threads.h"
 
 /* Jacobi sweeps for a 3x3 symmetric matrix: converges quadratically, 50 sweeps is far
  * beyond what double precision needs, and bounds the loop. */
@@ -155,7 +152,7 @@ static int pca_normals(frep_cloud *c, size_t k, int nthreads, uint32_t *nb)
     if (!t) return -1;
     long ln = (long)c->n;
 #ifdef _OPENMP
-#pragma omp parallel for schedule(static, 1024) num_threads(nthreads > 0 ? nthreads : omp_get_max_threads())
+#pragma omp parallel for schedule(static, 1024) num_threads(frep_threads(nthreads))
 #else
     (void)nthreads;
 #endif

@@ -12,14 +12,13 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 #include "alloc.h"
 #include "rng.h"
 #include "normals.h"
 #include "ransac.h"
+#include "threads.h"
+#include "util.h"
+#include "vec3.h"
 
 /* Octree depth for localized sampling: 10 levels = cells of 1/1024 of the box side,
  * finer than any useful sampling neighbourhood. */
@@ -65,45 +64,20 @@
 #define BITMAP_MAX_CELLS_AXIS (1u << 20)
 /* Cone half-angles outside [CONE_MIN_ANGLE, pi/2 - CONE_MIN_ANGLE] are degenerate
  * (a cylinder or a plane describes the data better). */
-#define CONE_MIN_ANGLE (2.0 * M_PI / 180.0)
+#define CONE_MIN_ANGLE (2.0 * FREP_PI / 180.0)
 /* Curved primitives with radii above this many box diagonals are planes in disguise. */
 #define MAX_RADIUS_DIAGONALS 2.0
 
-#ifndef M_PI
-#define M_PI 3.14159265358979323846
-#endif
-
 /* ---- small vector and random helpers --------------------------------------- */
-
-static double dot(const double a[3], const double b[3])
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
-static void cross(const double a[3], const double b[3], double c[3])
-{
-    c[0] = a[1] * b[2] - a[2] * b[1];
-    c[1] = a[2] * b[0] - a[0] * b[2];
-    c[2] = a[0] * b[1] - a[1] * b[0];
-}
-
-static double norm(const double a[3]) { return sqrt(dot(a, a)); }
 
 static int normalize(double a[3])
 {
-    double l = norm(a);
+    double l = vec3_len(a);
     if (!(l > 1e-300) || !isfinite(l)) return -1;
     a[0] /= l;
     a[1] /= l;
     a[2] /= l;
     return 0;
-}
-
-static void sub(const double a[3], const double b[3], double c[3])
-{
-    c[0] = a[0] - b[0];
-    c[1] = a[1] - b[1];
-    c[2] = a[2] - b[2];
 }
 
 /* The shared generator (runtime/rng.h) under this file's short names. */
@@ -136,7 +110,7 @@ static int compatible(const prim *q, const frep_cloud *c, size_t i, double eps, 
     point(c, i, p);
     double f = prim_eval(q, p, g);
     if (!(fabs(f) <= eps)) return 0;
-    double gl = norm(g);
+    double gl = vec3_len(g);
     double d = c->nx[i] * g[0] + c->ny[i] * g[1] + c->nz[i] * g[2];
     return fabs(d) >= cosn * gl && gl > 0;
 }
@@ -165,19 +139,19 @@ static void kern_init(kern *k, const prim *q, double eps, double cosn)
 static inline int kern_test(const kern *k, const double x[3], const double nv[3])
 {
     if (k->t == PRIM_PLANE) {
-        double f = k->r - dot(k->p, x);
-        return fabs(f) <= k->eps && fabs(dot(k->p, nv)) >= k->cosn;
+        double f = k->r - vec3_dot(k->p, x);
+        return fabs(f) <= k->eps && fabs(vec3_dot(k->p, nv)) >= k->cosn;
     }
     double v[3];
-    sub(x, k->p, v);
+    vec3_sub(x, k->p, v);
     if (k->t == PRIM_SPHERE) {
-        double l = sqrt(dot(v, v));
-        return fabs(k->r - l) <= k->eps && l > 0 && fabs(dot(v, nv)) >= k->cosn * l;
+        double l = vec3_len(v);
+        return fabs(k->r - l) <= k->eps && l > 0 && fabs(vec3_dot(v, nv)) >= k->cosn * l;
     }
-    double h = dot(v, k->a), rho2 = dot(v, v) - h * h;
+    double h = vec3_dot(v, k->a), rho2 = vec3_dot(v, v) - h * h;
     double rho = sqrt(rho2 > 0 ? rho2 : 0);
     if (!(rho > 0)) return 0;
-    double an = dot(k->a, nv), wn = dot(v, nv) - h * an; /* w = v - h a, the radial part */
+    double an = vec3_dot(k->a, nv), wn = vec3_dot(v, nv) - h * an; /* w = v - h a, the radial part */
     switch (k->t) {
     case PRIM_CYLINDER:
         return fabs(k->r - rho) <= k->eps && fabs(wn) >= k->cosn * rho;
@@ -201,8 +175,8 @@ static int line_closest(const double p1[3], const double d1[3], const double p2[
                         const double d2[3], double m[3])
 {
     double w[3];
-    sub(p1, p2, w);
-    double a = dot(d1, d1), b = dot(d1, d2), cc = dot(d2, d2), d = dot(d1, w), e = dot(d2, w);
+    vec3_sub(p1, p2, w);
+    double a = vec3_dot(d1, d1), b = vec3_dot(d1, d2), cc = vec3_dot(d2, d2), d = vec3_dot(d1, w), e = vec3_dot(d2, w);
     double den = a * cc - b * b;
     if (!(fabs(den) > 1e-9 * a * cc)) return -1;
     double t = (b * e - cc * d) / den, s = (a * e - b * d) / den;
@@ -215,20 +189,20 @@ static int circle3(const double a3[3], const double b3[3], const double c3[3], d
                    double nrm[3], double *rad)
 {
     double a[3], b[3], axb[3];
-    sub(a3, c3, a);
-    sub(b3, c3, b);
-    cross(a, b, axb);
-    double l2 = dot(axb, axb);
-    if (!(l2 > 1e-24 * dot(a, a) * dot(b, b)) || l2 == 0) return -1;
+    vec3_sub(a3, c3, a);
+    vec3_sub(b3, c3, b);
+    vec3_cross(a, b, axb);
+    double l2 = vec3_dot(axb, axb);
+    if (!(l2 > 1e-24 * vec3_dot(a, a) * vec3_dot(b, b)) || l2 == 0) return -1;
     double t[3], u[3];
-    for (int k = 0; k < 3; k++) t[k] = dot(a, a) * b[k] - dot(b, b) * a[k];
-    cross(t, axb, u);
+    for (int k = 0; k < 3; k++) t[k] = vec3_dot(a, a) * b[k] - vec3_dot(b, b) * a[k];
+    vec3_cross(t, axb, u);
     for (int k = 0; k < 3; k++) ctr[k] = c3[k] + u[k] / (2.0 * l2);
     for (int k = 0; k < 3; k++) nrm[k] = axb[k];
     normalize(nrm);
     double d[3];
-    sub(a3, ctr, d);
-    *rad = norm(d);
+    vec3_sub(a3, ctr, d);
+    *rad = vec3_len(d);
     return 0;
 }
 
@@ -257,14 +231,14 @@ typedef struct sample {
 static int make_plane(const sample *s, prim *q)
 {
     double u[3], v[3], n[3];
-    sub(s->p[1], s->p[0], u);
-    sub(s->p[2], s->p[0], v);
-    cross(u, v, n);
+    vec3_sub(s->p[1], s->p[0], u);
+    vec3_sub(s->p[2], s->p[0], v);
+    vec3_cross(u, v, n);
     if (normalize(n)) return -1;
-    if (dot(n, s->n[0]) < 0) for (int k = 0; k < 3; k++) n[k] = -n[k];
+    if (vec3_dot(n, s->n[0]) < 0) for (int k = 0; k < 3; k++) n[k] = -n[k];
     q->type = PRIM_PLANE;
     memcpy(q->p, n, sizeof n);
-    q->r = dot(n, s->p[0]);
+    q->r = vec3_dot(n, s->p[0]);
     return 0;
 }
 
@@ -273,19 +247,19 @@ static int make_sphere(const sample *s, prim *q)
     double c[3];
     if (line_closest(s->p[0], s->n[0], s->p[1], s->n[1], c)) return -1;
     double d0[3], d1[3];
-    sub(s->p[0], c, d0);
-    sub(s->p[1], c, d1);
+    vec3_sub(s->p[0], c, d0);
+    vec3_sub(s->p[1], c, d1);
     q->type = PRIM_SPHERE;
     memcpy(q->p, c, sizeof c);
-    q->r = 0.5 * (norm(d0) + norm(d1));
+    q->r = 0.5 * (vec3_len(d0) + vec3_len(d1));
     return 0;
 }
 
 static int make_cylinder(const sample *s, prim *q)
 {
     double a[3];
-    cross(s->n[0], s->n[1], a);
-    if (norm(a) < 1e-2 || normalize(a)) return -1;
+    vec3_cross(s->n[0], s->n[1], a);
+    if (vec3_len(a) < 1e-2 || normalize(a)) return -1;
     double c[3];
     if (line_closest(s->p[0], s->n[0], s->p[1], s->n[1], c)) return -1;
     q->type = PRIM_CYLINDER;
@@ -294,10 +268,10 @@ static int make_cylinder(const sample *s, prim *q)
     double r = 0;
     for (int i = 0; i < 2; i++) {
         double v[3], w[3];
-        sub(s->p[i], c, v);
-        double h = dot(v, a);
+        vec3_sub(s->p[i], c, v);
+        double h = vec3_dot(v, a);
         for (int k = 0; k < 3; k++) w[k] = v[k] - h * a[k];
-        r += 0.5 * norm(w);
+        r += 0.5 * vec3_len(w);
     }
     q->r = r;
     return 0;
@@ -308,23 +282,23 @@ static int make_cone(const sample *s, prim *q)
     double m[3][3], b[3], apex[3];
     for (int i = 0; i < 3; i++) {
         for (int k = 0; k < 3; k++) m[i][k] = s->n[i][k];
-        b[i] = dot(s->n[i], s->p[i]);
+        b[i] = vec3_dot(s->n[i], s->p[i]);
     }
     if (solve3(m, b, apex)) return -1;
     double d[3][3];
     for (int i = 0; i < 3; i++) {
-        sub(s->p[i], apex, d[i]);
+        vec3_sub(s->p[i], apex, d[i]);
         if (normalize(d[i])) return -1;
     }
     double u[3], v[3], a[3];
-    sub(d[1], d[0], u);
-    sub(d[2], d[0], v);
-    cross(u, v, a);
+    vec3_sub(d[1], d[0], u);
+    vec3_sub(d[2], d[0], v);
+    vec3_cross(u, v, a);
     if (normalize(a)) return -1;
-    if (dot(a, d[0]) < 0) for (int k = 0; k < 3; k++) a[k] = -a[k];
+    if (vec3_dot(a, d[0]) < 0) for (int k = 0; k < 3; k++) a[k] = -a[k];
     double ang = 0;
-    for (int i = 0; i < 3; i++) ang += acos(fmin(1.0, fmax(-1.0, dot(a, d[i])))) / 3.0;
-    if (ang < CONE_MIN_ANGLE || ang > M_PI / 2 - CONE_MIN_ANGLE) return -1;
+    for (int i = 0; i < 3; i++) ang += acos(fmin(1.0, fmax(-1.0, vec3_dot(a, d[i])))) / 3.0;
+    if (ang < CONE_MIN_ANGLE || ang > FREP_PI / 2 - CONE_MIN_ANGLE) return -1;
     q->type = PRIM_CONE;
     memcpy(q->p, apex, sizeof apex);
     memcpy(q->a, a, sizeof a);
@@ -339,11 +313,11 @@ static double torus_det(const sample *s, double r)
     double c[4][3], u[3], v[3], w[3], x[3];
     for (int i = 0; i < 4; i++)
         for (int k = 0; k < 3; k++) c[i][k] = s->p[i][k] - r * s->n[i][k];
-    sub(c[1], c[0], u);
-    sub(c[2], c[0], v);
-    sub(c[3], c[0], w);
-    cross(v, w, x);
-    return dot(u, x);
+    vec3_sub(c[1], c[0], u);
+    vec3_sub(c[2], c[0], v);
+    vec3_sub(c[3], c[0], w);
+    vec3_cross(v, w, x);
+    return vec3_dot(u, x);
 }
 
 /* Subdivisions of the minor-radius interval searched for roots of torus_det. */
@@ -369,8 +343,8 @@ static int make_torus(const sample *s, prim *q, double rmax, double eps)
             if (fabs(r) > eps && !circle3(c[0], c[1], c[2], ctr, ax, &R)) {
                 /* The fourth tube centre must lie on the same circle. */
                 double v[3];
-                sub(c[3], ctr, v);
-                double h = dot(v, ax), rho2 = dot(v, v) - h * h;
+                vec3_sub(c[3], ctr, v);
+                double h = vec3_dot(v, ax), rho2 = vec3_dot(v, v) - h * h;
                 double rho = sqrt(fmax(0.0, rho2));
                 if (fabs(h) < eps && fabs(rho - R) < eps && R > fabs(r) * 0.05) {
                     q->type = PRIM_TORUS;
@@ -453,10 +427,10 @@ static void basis(const double a[3], double u[3], double v[3])
 {
     double t[3] = {1, 0, 0};
     if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
-    double d = dot(t, a);
+    double d = vec3_dot(t, a);
     for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
     normalize(u);
-    cross(a, u, v);
+    vec3_cross(a, u, v);
 }
 
 /* The parameter domain of q, flattened: point i of the patch at (uv[2i], uv[2i+1]),
@@ -476,9 +450,9 @@ static double cone_mean_rho(const prim *q, const frep_cloud *c, const uint32_t *
     for (size_t i = 0; i < n; i++) {
         double p[3], v[3];
         point(c, idx[i], p);
-        sub(p, q->p, v);
-        double h = dot(v, q->a);
-        mean_rho += sqrt(fmax(0, dot(v, v) - h * h)) / (double)n;
+        vec3_sub(p, q->p, v);
+        double h = vec3_dot(v, q->a);
+        mean_rho += sqrt(fmax(0, vec3_dot(v, v) - h * h)) / (double)n;
     }
     return mean_rho;
 }
@@ -502,37 +476,37 @@ static void domain_coords(const prim *q, const frep_cloud *c, const uint32_t *id
         double u = 0, w = 0;
         switch (q->type) {
         case PRIM_PLANE:
-            u = dot(p, e1);
-            w = dot(p, e2);
+            u = vec3_dot(p, e1);
+            w = vec3_dot(p, e2);
             break;
         case PRIM_SPHERE: {
-            sub(p, q->p, v);
+            vec3_sub(p, q->p, v);
             normalize(v);
-            u = q->r * atan2(dot(v, e2), dot(v, e1));
-            w = q->r * acos(fmin(1, fmax(-1, dot(v, ax))));
-            D->period[0] = 2 * M_PI * q->r;
+            u = q->r * atan2(vec3_dot(v, e2), vec3_dot(v, e1));
+            w = q->r * acos(fmin(1, fmax(-1, vec3_dot(v, ax))));
+            D->period[0] = 2 * FREP_PI * q->r;
             break;
         }
         case PRIM_CYLINDER:
         case PRIM_CONE:
         case PRIM_TORUS: {
-            sub(p, q->p, v);
-            double h = dot(v, q->a);
-            double ang = atan2(dot(v, e2), dot(v, e1));
-            double rho = sqrt(fmax(0, dot(v, v) - h * h));
+            vec3_sub(p, q->p, v);
+            double h = vec3_dot(v, q->a);
+            double ang = atan2(vec3_dot(v, e2), vec3_dot(v, e1));
+            double rho = sqrt(fmax(0, vec3_dot(v, v) - h * h));
             if (q->type == PRIM_CYLINDER) {
                 u = q->r * ang;
                 w = h;
-                D->period[0] = 2 * M_PI * q->r;
+                D->period[0] = 2 * FREP_PI * q->r;
             } else if (q->type == PRIM_CONE) {
                 u = mean_rho * ang;
                 w = sqrt(h * h + rho * rho);
-                D->period[0] = 2 * M_PI * mean_rho;
+                D->period[0] = 2 * FREP_PI * mean_rho;
             } else {
                 u = q->R * ang;
                 w = q->r * atan2(h, rho - q->R);
-                D->period[0] = 2 * M_PI * q->R;
-                D->period[1] = 2 * M_PI * q->r;
+                D->period[0] = 2 * FREP_PI * q->R;
+                D->period[1] = 2 * FREP_PI * q->r;
             }
             break;
         }
@@ -729,7 +703,7 @@ static int unpack(prim *q, const double *v)
         return q->r > 0 && q->R > 0 ? 0 : -1;
     }
     q->r = v[6];
-    if (q->type == PRIM_CONE) return q->r > 0 && q->r < M_PI / 2 ? 0 : -1;
+    if (q->type == PRIM_CONE) return q->r > 0 && q->r < FREP_PI / 2 ? 0 : -1;
     return q->r > 0 ? 0 : -1;
 }
 
@@ -800,11 +774,11 @@ static int refit_plane(prim *q, const frep_cloud *c, const uint32_t *idx, size_t
             sn[1] += c->ny[idx[j]];
             sn[2] += c->nz[idx[j]];
         }
-        if (fabs(dot(sn, nrm)) > 1e-9 * (double)n) memcpy(ref, sn, sizeof ref);
+        if (fabs(vec3_dot(sn, nrm)) > 1e-9 * (double)n) memcpy(ref, sn, sizeof ref);
     }
-    if (dot(nrm, ref) < 0) for (int k = 0; k < 3; k++) nrm[k] = -nrm[k];
+    if (vec3_dot(nrm, ref) < 0) for (int k = 0; k < 3; k++) nrm[k] = -nrm[k];
     memcpy(q->p, nrm, sizeof nrm);
-    q->r = dot(nrm, mean);
+    q->r = vec3_dot(nrm, mean);
     return 0;
 }
 
@@ -1023,7 +997,7 @@ static void score_next(det *d, cand *cs, const int *which, size_t nw)
     }
     (void)work;
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 4) if (work >= PAR_MIN_WORK) num_threads(cfg->nthreads > 0 ? cfg->nthreads : omp_get_max_threads())
+#pragma omp parallel for schedule(dynamic, 4) if (work >= PAR_MIN_WORK) num_threads(frep_threads(cfg->nthreads))
 #endif
     for (long w = 0; w < lw; w++) {
         cand *k = &cs[which[w]];
@@ -1128,8 +1102,8 @@ static int verify(const prim *q, const sample *s, int nv, double eps, double cos
         double g[3];
         double f = prim_eval(q, s->p[k], g);
         if (!(fabs(f) <= eps)) return 0;
-        double gl = norm(g);
-        if (!(gl > 0) || fabs(dot(g, s->n[k])) < cosn * gl) return 0;
+        double gl = vec3_len(g);
+        if (!(gl > 0) || fabs(vec3_dot(g, s->n[k])) < cosn * gl) return 0;
     }
     return 1;
 }
@@ -1138,22 +1112,22 @@ static int verify(const prim *q, const sample *s, int nv, double eps, double cos
  * degrees (directions, cone angles)? */
 static int shapes_close(const prim *a, const prim *b, double tol, double deg)
 {
-    double cmin = cos(deg * M_PI / 180.0), dp[3];
-    sub(a->p, b->p, dp);
+    double cmin = cos(deg * FREP_PI / 180.0), dp[3];
+    vec3_sub(a->p, b->p, dp);
     switch (a->type) {
     case PRIM_PLANE:
-        return dot(a->p, b->p) > cmin && fabs(a->r - b->r) < tol;
+        return vec3_dot(a->p, b->p) > cmin && fabs(a->r - b->r) < tol;
     case PRIM_SPHERE:
-        return norm(dp) < tol && fabs(a->r - b->r) < tol;
+        return vec3_len(dp) < tol && fabs(a->r - b->r) < tol;
     case PRIM_CYLINDER: {
-        double h = dot(dp, b->a), w[3];
+        double h = vec3_dot(dp, b->a), w[3];
         for (int k = 0; k < 3; k++) w[k] = dp[k] - h * b->a[k];
-        return fabs(dot(a->a, b->a)) > cmin && norm(w) < tol && fabs(a->r - b->r) < tol;
+        return fabs(vec3_dot(a->a, b->a)) > cmin && vec3_len(w) < tol && fabs(a->r - b->r) < tol;
     }
     case PRIM_CONE:
-        return norm(dp) < tol && dot(a->a, b->a) > cmin && fabs(a->r - b->r) < deg * M_PI / 180.0;
+        return vec3_len(dp) < tol && vec3_dot(a->a, b->a) > cmin && fabs(a->r - b->r) < deg * FREP_PI / 180.0;
     case PRIM_TORUS:
-        return norm(dp) < tol && fabs(dot(a->a, b->a)) > cmin && fabs(a->r - b->r) < tol &&
+        return vec3_len(dp) < tol && fabs(vec3_dot(a->a, b->a)) > cmin && fabs(a->r - b->r) < tol &&
                fabs(a->R - b->R) < tol;
     case PRIM__COUNT:
         break;
@@ -1210,7 +1184,7 @@ static size_t gather_inliers(det *d, const prim *q, unsigned char *flag, uint32_
     kern kn;
     kern_init(&kn, q, d->band, cfg->cos_normal);
 #ifdef _OPENMP
-#pragma omp parallel for schedule(static, 4096) if (d->n >= PAR_MIN_WORK) num_threads(cfg->nthreads > 0 ? cfg->nthreads : omp_get_max_threads())
+#pragma omp parallel for schedule(static, 4096) if (d->n >= PAR_MIN_WORK) num_threads(frep_threads(cfg->nthreads))
 #endif
     for (long li = 0; li < ln; li++) {
         size_t i = (size_t)li;
@@ -1441,7 +1415,7 @@ static size_t dominant_normal(const frep_cloud *c, const uint32_t *inl, size_t m
         for (size_t v = 0; v < nv; v++) {
             double nk[3];
             normal(c, inl[(size_t)((double)v * (double)m / (double)nv)], nk);
-            cnt += fabs(dot(nj, nk)) >= cosm;
+            cnt += fabs(vec3_dot(nj, nk)) >= cosm;
         }
         if (cnt > best_cnt) {
             best_cnt = cnt;
@@ -1461,7 +1435,7 @@ static size_t dominant_group(const frep_cloud *c, const uint32_t *inl, size_t m,
     for (size_t j = 0; j < m; j++) {
         double nj[3];
         normal(c, inl[j], nj);
-        double cs = dot(nj, nc);
+        double cs = vec3_dot(nj, nc);
         if (fabs(cs) < cosm) continue;
         for (int k = 0; k < 3; k++) ns[k] += cs < 0 ? -nj[k] : nj[k];
         tv[2 * nt + 1] = (double)inl[j];
@@ -1478,7 +1452,7 @@ static size_t densest_slab(const frep_cloud *c, double *tv, size_t nt, const dou
     for (size_t j = 0; j < nt; j++) {
         double x[3];
         point(c, (size_t)tv[2 * j + 1], x);
-        tv[2 * j] = dot(ns, x);
+        tv[2 * j] = vec3_dot(ns, x);
     }
     qsort(tv, nt, 2 * sizeof *tv, cmp_mode_t);
     size_t lo = 0, blo = 0, bhi = 0;
@@ -1523,7 +1497,7 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
     double med0 = median_abs(q, c, inl, m), band0 = d->band;
     /* Exact already (clean data): nothing to separate. */
     if (!(med0 > MODE_EXACT * d->cfg->epsilon)) return m;
-    double cosm = cos(MODE_NORMAL_DEG * M_PI / 180.0);
+    double cosm = cos(MODE_NORMAL_DEG * FREP_PI / 180.0);
     size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS;
     double *tv = frep_malloc(2 * m * sizeof *tv);
     uint32_t *slab = frep_malloc(m * sizeof *slab);
@@ -1736,14 +1710,14 @@ static double median_normal_dev(const prim *q, const frep_cloud *c, const uint32
     size_t k = n < MODE_VOTERS ? n : MODE_VOTERS;
     if (k == 0) return 0;
     double *r = frep_malloc(k * sizeof *r);
-    if (!r) return M_PI;
+    if (!r) return FREP_PI;
     for (size_t j = 0; j < k; j++) {
         size_t i = idx[(size_t)((double)j * (double)n / (double)k)];
         double p[3], g[3], nv[3];
         point(c, i, p);
         normal(c, i, nv);
         prim_eval(q, p, g);
-        double gl = norm(g), cs = gl > 0 ? fabs(dot(g, nv)) / gl : 0;
+        double gl = vec3_len(g), cs = gl > 0 ? fabs(vec3_dot(g, nv)) / gl : 0;
         r[j] = acos(fmin(1, cs));
     }
     qsort(r, k, sizeof *r, cmp_abs_double);
@@ -2106,7 +2080,7 @@ static int tight_small_shape(const run *r, const prim *q, size_t m)
     return !(q->type == PRIM_CONE || q->type == PRIM_TORUS ||
              (q->type != PRIM_PLANE && !(q->r >= SMALL_RADIUS * eps)) ||
              !(median_abs(q, c, r->inl, m) <= SMALL_TIGHT * eps) ||
-             !(median_normal_dev(q, c, r->inl, m) <= SMALL_NORMAL_DEG * M_PI / 180.0) ||
+             !(median_normal_dev(q, c, r->inl, m) <= SMALL_NORMAL_DEG * FREP_PI / 180.0) ||
              !(patch_width(c, r->inl, m) >= SMALL_WIDTH * eps));
 }
 

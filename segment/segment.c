@@ -17,10 +17,7 @@
 #include "ransac.h"
 #include "segment.h"
 #include "util.h"
-
-#ifndef M_PI
-#define M_PI 3.14159265358979323846
-#endif
+#include "vec3.h"
 
 /* Points whose nearest-neighbour distance estimates the sampling density. */
 #define SPACING_SAMPLES 2000
@@ -206,7 +203,7 @@ void segment_fit_obb(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n
 
 static int plane_dup(const prim *list, size_t n, const double nrm[3], double d, double eps)
 {
-    double cmin = cos(SEGMENT_DUP_PLANE_DEG * M_PI / 180.0);
+    double cmin = cos(SEGMENT_DUP_PLANE_DEG * FREP_PI / 180.0);
     for (size_t i = 0; i < n; i++) {
         if (list[i].type != PRIM_PLANE) continue;
         double c = nrm[0] * list[i].p[0] + nrm[1] * list[i].p[1] + nrm[2] * list[i].p[2];
@@ -320,7 +317,7 @@ static void detect_config(const segment_config *cfg, const segment_result *res,
 {
     memset(rc, 0, sizeof *rc);
     rc->epsilon = res->epsilon;
-    rc->cos_normal = cos(res->normal_deg * M_PI / 180.0);
+    rc->cos_normal = cos(res->normal_deg * FREP_PI / 180.0);
     rc->cluster = res->cluster;
     rc->min_points = res->min_points;
     rc->min_points_small = res->min_points_small;
@@ -501,7 +498,7 @@ static int hf_const(const ast_node *a, double *v)
 
 static int unit3(double a[3])
 {
-    double l = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    double l = vec3_len(a);
     if (!(l > 0)) return -1;
     for (int k = 0; k < 3; k++) a[k] /= l;
     return 0;

@@ -368,7 +368,7 @@ static void test_normals(const double *px, const double *py, const double *pz, s
         double ct = 1 - frep_rng_unit(&r) * (1 - cos(cap)), st = sqrt(1 - ct * ct);
         double ph = 2 * 3.14159265358979 * frep_rng_unit(&r);
         double n[3] = {st * cos(ph), st * sin(ph), ct};
-        double rad = sp_truth[3] + 0.02 * fit_rng_normal(&r);
+        double rad = sp_truth[3] + 0.02 * frep_rng_normal(&r);
         sx[i] = sp_truth[0] + rad * n[0], nx[i] = n[0];
         sy[i] = sp_truth[1] + rad * n[1], ny[i] = n[1];
         sz[i] = sp_truth[2] + rad * n[2], nz[i] = n[2];
@@ -425,9 +425,9 @@ static void test_noise(const double *set1, const double *lo, const double *hi)
             y[i] = box[1] + (box[4] - box[1]) * frep_rng_unit(&r);
             z[i] = box[2] + (box[5] - box[2]) * frep_rng_unit(&r);
         } else {
-            x[i] += sigma * fit_rng_normal(&r);
-            y[i] += sigma * fit_rng_normal(&r);
-            z[i] += sigma * fit_rng_normal(&r);
+            x[i] += sigma * frep_rng_normal(&r);
+            y[i] += sigma * frep_rng_normal(&r);
+            z[i] += sigma * frep_rng_normal(&r);
         }
     }
     fit_model model = {NP, NULL, NULL, NULL, part_eval};

@@ -1,6 +1,7 @@
 /* test_linalg.c - unit tests of runtime/linalg.c, the symmetric 3x3 eigen solver of
  * the shared base: A V = V diag(w) and V orthonormal on random symmetric matrices at
- * several scales, ascending order, and the degenerate cases (zero, diagonal, repeated).
+ * several scales, ascending order, and the degenerate cases (zero, diagonal, repeated);
+ * then the 3-vector helpers (runtime/vec3.h) and the thread counts (runtime/threads.h).
  */
 #include <float.h>
 #include <math.h>
@@ -8,6 +9,8 @@
 #include "linalg.h"
 #include "rng.h"
 #include "tap.h"
+#include "threads.h"
+#include "vec3.h"
 
 /* Random matrices per scale: enough to meet near-repeated eigenvalues. */
 #define RANDOM_MATRICES 200
@@ -98,10 +101,41 @@ static void test_degenerate(void)
     ok(e > 0 && e < 1e-5 && o < 1e-14, "one sweep: close, not exact (%.3g)", e);
 }
 
+/* Products, length, difference and both unit-vector rules, on exact values. */
+static void test_vec3(void)
+{
+    const double a[3] = {1, 2, 3}, b[3] = {4, -5, 6};
+    double c[3], d[3];
+    ok(vec3_dot(a, b) == 12, "vec3_dot");
+    vec3_cross(a, b, c);
+    ok(c[0] == 27 && c[1] == 6 && c[2] == -13, "vec3_cross");
+    ok(vec3_dot(c, a) == 0 && vec3_dot(c, b) == 0, "vec3_cross: orthogonal to both");
+    vec3_sub(b, a, d);
+    ok(d[0] == 3 && d[1] == -7 && d[2] == 3, "vec3_sub: b - a");
+    double v[3] = {3, 0, 4};
+    ok(vec3_len(v) == 5, "vec3_len");
+    ok(vec3_normalize(v) == 0 && v[0] == 0.6 && v[1] == 0 && v[2] == 0.8, "vec3_normalize");
+    double z[3] = {0, 0, 0}, inf[3] = {INFINITY, 0, 0};
+    ok(vec3_normalize(z) == -1 && z[0] == 0, "vec3_normalize: zero fails, unchanged");
+    ok(vec3_normalize(inf) == -1 && inf[0] == INFINITY, "vec3_normalize: infinite fails");
+    vec3_unit(inf);
+    ok(inf[0] == 0 && inf[1] == 0 && inf[2] == 0, "vec3_unit: no direction gives 0");
+}
+
+/* A request is honoured; 0 or less means the default, never below one thread. */
+static void test_threads(void)
+{
+    ok(frep_threads(3) == 3 || frep_threads(3) == 1, "frep_threads: a request (1 without OpenMP)");
+    ok(frep_threads(0) >= 1 && frep_threads(-2) == frep_threads(0), "frep_threads: the default");
+    ok(frep_thread_num() == 0 && frep_team_size() == 1, "outside a parallel region: thread 0 of 1");
+}
+
 int main(void)
 {
     test_random();
     test_sorted();
     test_degenerate();
+    test_vec3();
+    test_threads();
     return done_testing();
 }

@@ -219,7 +219,7 @@ int main(void)
         for (int i = 0; i < 100000; i++) {
             double u = frep_rng_unit(&a);
             umin = fmin(umin, u), umax = fmax(umax, u);
-            double z = fit_rng_normal(&a);
+            double z = frep_rng_normal(&a);
             s += z, s2 += z * z;
         }
         ok(umin >= 0 && umax < 1 && umin < 1e-3 && umax > 0.999, "rng: uniform in [0, 1)");
