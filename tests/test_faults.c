@@ -847,8 +847,8 @@ static const fault_case cases[] = {
     { "normals", case_normals, MSG_NONE, NULL },
     { "kdtree", case_kdtree, MSG_NONE, NULL },
     { "segment", case_segment, MSG_GIVEN,
-      "out of memory absorbed as in-band values: median_spacing gives 0 when kd_build "
-      "fails, ransac_detect's helpers give no candidate (segment/)" },
+      "out of memory absorbed as in-band values: ransac_detect's helpers give no "
+      "candidate (segment/ransac.c)" },
     { "prims", case_prims, MSG_GIVEN, NULL },
     { "fit", case_fit, MSG_GIVEN,
       "out of memory in the optimizers is FIT_FAILED, absorbed by the annealing, and "
