@@ -42,6 +42,22 @@ static int name_eq(const char *a, size_t na, const char *b)
 static int is_id0(int c) { return isalpha(c) || c == '_'; }
 static int is_id(int c) { return isalnum(c) || c == '_'; }
 
+/* At least need bytes at *out (of *cap), grown to twice plus extra; -1 when out of
+ * memory (*out is then freed). */
+static int text_room(char **out, size_t *cap, size_t need, size_t extra)
+{
+    if (need <= *cap) return 0;
+    *cap = 2 * *cap + extra;
+    char *t = frep_realloc(*out, *cap);
+    if (!t) {
+        frep_free(*out);
+        *out = NULL;
+        return -1;
+    }
+    *out = t;
+    return 0;
+}
+
 /* Copy of src with every identifier token equal to `from` (case-insensitive, as names
  * are) at or after offset `start` replaced by `to`; comments and numbers are skipped.
  * Renaming from the chosen model's header on catches its result variable and the calls
@@ -65,15 +81,7 @@ static char *rename_ident(const char *src, size_t len, size_t start, const char 
         } else if (is_id0((unsigned char)src[i])) {
             while (j < len && is_id((unsigned char)src[j])) j++;
             if (i >= start && name_eq(src + i, j - i, from)) {
-                if (n + tl + (len - j) + 1 > cap) {
-                    cap = 2 * cap + tl;
-                    char *t = frep_realloc(out, cap);
-                    if (!t) {
-                        frep_free(out);
-                        return NULL;
-                    }
-                    out = t;
-                }
+                if (text_room(&out, &cap, n + tl + (len - j) + 1, tl)) return NULL;
                 memcpy(out + n, to, tl);
                 n += tl;
                 i = j;
@@ -82,15 +90,7 @@ static char *rename_ident(const char *src, size_t len, size_t start, const char 
         } else {
             j = i + 1;
         }
-        if (n + (j - i) + 1 > cap) {
-            cap = 2 * cap + (j - i);
-            char *t = frep_realloc(out, cap);
-            if (!t) {
-                frep_free(out);
-                return NULL;
-            }
-            out = t;
-        }
+        if (text_room(&out, &cap, n + (j - i) + 1, j - i)) return NULL;
         memcpy(out + n, src + i, j - i);
         n += j - i;
         i = j;
@@ -220,7 +220,8 @@ int residual_prepare(const char *file, const char *src, size_t len, const char *
     const ast_model *m = NULL;
     char newname[64];
     if (ast_parse(&A, file, src, len, &ds, &af) || af.nmodels == 0) {
-        frep_error_at(err, FREP_EINPUT, file, 0, 0, "cannot parse the model");
+        if (A.failed || ds.nomem) frep_error_nomem(err);
+        else frep_error_at(err, FREP_EINPUT, file, 0, 0, "cannot parse the model");
     } else if ((m = residual_model(&af, file, model, err)) && !residual_setops(&af, file, b, err)) {
         residual_name(&af, m, newname, sizeof newname);
         if (residual_text(src, len, &af, m, newname, b) || !(b->name = frep_strdup(newname)))

@@ -723,22 +723,35 @@ static void pr_set_operations(vm_pruner *r, const pr_flow *f)
     }
 }
 
-vm_pruner *vm_pruner_new(const frep_program *p)
+int vm_pruner_create(const frep_program *p, vm_pruner **out)
 {
     pr_flow f;
     vm_pruner *r;
-    if (!pr_supported(p)) return NULL;
+    *out = NULL;
+    if (!pr_supported(p)) return 0;
     memset(&f, 0, sizeof f);
     r = pr_alloc(p);
-    if (!r || pr_flow_alloc(&f, p->ncode, p->nslots) < 0 || pr_forward(r, &f) < 0) {
+    if (!r || pr_flow_alloc(&f, p->ncode, p->nslots) < 0) {
         pr_flow_free(&f);
         vm_pruner_free(r);
-        return NULL;
+        return -1;
+    }
+    if (pr_forward(r, &f) < 0) {
+        pr_flow_free(&f);
+        vm_pruner_free(r);
+        return 0;
     }
     pr_backward(r, &f);
     pr_set_operations(r, &f);
     pr_flow_free(&f);
-    return r;
+    *out = r;
+    return 0;
+}
+
+vm_pruner *vm_pruner_new(const frep_program *p)
+{
+    vm_pruner *r;
+    return vm_pruner_create(p, &r) == 0 ? r : NULL;
 }
 
 /* May the code [from, to) be dropped? */

@@ -57,12 +57,12 @@ static int cmp_double(const void *a, const void *b)
 /* The median distance to the nearest other position over SPACING_SAMPLES evenly
  * spaced points of tree t (of nt points, every stride-th of c), scaled back by
  * sqrt(stride): on a surface the spacing goes as one over the square root of the
- * density. 0 when out of memory. */
+ * density. -1 when out of memory. */
 static double sampled_spacing(const frep_cloud *c, const kd_tree *t, size_t nt, size_t stride)
 {
     size_t m = nt < SPACING_SAMPLES ? nt : SPACING_SAMPLES;
     double *d = frep_malloc(m * sizeof *d);
-    if (!d) return 0;
+    if (!d) return -1;
     size_t got = 0;
     for (size_t j = 0; j < m; j++) {
         size_t i = (size_t)((double)j * (double)nt / (double)m) * stride;
@@ -85,8 +85,9 @@ static double sampled_spacing(const frep_cloud *c, const kd_tree *t, size_t nt, 
     return med;
 }
 
-/* Median distance to the nearest other point over an evenly spaced sample. Large
- * clouds use a tree of every stride-th point only (SPACING_TREE_MAX of them). */
+/* Median distance to the nearest other point over an evenly spaced sample, -1 when
+ * out of memory. Large clouds use a tree of every stride-th point only
+ * (SPACING_TREE_MAX of them). */
 static double median_spacing(const frep_cloud *c)
 {
     size_t stride = c->n > SPACING_TREE_MAX ? (c->n + SPACING_TREE_MAX - 1) / SPACING_TREE_MAX : 1;
@@ -108,7 +109,7 @@ static double median_spacing(const frep_cloud *c)
     } else {
         t = kd_build(c->n, c->x, c->y, c->z);
     }
-    double med = t ? sampled_spacing(c, t, nt, stride) : 0;
+    double med = t ? sampled_spacing(c, t, nt, stride) : -1;
     kd_free(t);
     frep_free(sx);
     frep_free(sy);
@@ -273,9 +274,9 @@ static void ransac_progress(void *user, size_t remaining, size_t total, size_t n
 }
 
 /* The settings the run uses, as reported in res: the configured ones, or defaults
- * scaled to the cloud (its diagonal, point spacing and count). */
-static void scaled_defaults(const frep_cloud *c, const segment_config *cfg, double diag,
-                            segment_result *res)
+ * scaled to the cloud (its diagonal, point spacing and count); -1 when out of memory. */
+static int scaled_defaults(const frep_cloud *c, const segment_config *cfg, double diag,
+                           segment_result *res, frep_error *err)
 {
     res->diagonal = diag;
     res->epsilon = cfg->epsilon > 0 ? cfg->epsilon : SEGMENT_DEFAULT_EPSILON * diag;
@@ -283,6 +284,7 @@ static void scaled_defaults(const frep_cloud *c, const segment_config *cfg, doub
         res->cluster = cfg->cluster;
     } else {
         double sp = median_spacing(c);
+        if (sp < 0) return frep_error_nomem(err);
         res->cluster = fmax(SEGMENT_DEFAULT_CLUSTER * diag, SEGMENT_CLUSTER_SPACINGS * sp);
     }
     res->normal_deg = cfg->normal_deg > 0 ? cfg->normal_deg : SEGMENT_DEFAULT_NORMAL_DEG;
@@ -295,6 +297,7 @@ static void scaled_defaults(const frep_cloud *c, const segment_config *cfg, doub
     if (ms < SEGMENT_MIN_POINTS_FLOOR) ms = SEGMENT_MIN_POINTS_FLOOR;
     if (cfg->min_points_small) ms = cfg->min_points_small;
     res->min_points_small = ms < res->min_points ? ms : res->min_points;
+    return 0;
 }
 
 /* Normals: those of the file, normalized, unless there are none or some are zero;
@@ -368,7 +371,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, f
     if (!(diag > 0))
         return frep_error_set(err, FREP_EINPUT,
                               "all %zu points are the same point: nothing to segment", c->n);
-    scaled_defaults(c, cfg, diag, res);
+    if (scaled_defaults(c, cfg, diag, res, err)) return -1;
     if (ensure_normals(c, cfg, res, err)) return -1;
     ransac_config rc;
     detect_config(cfg, res, &rc);

@@ -30,6 +30,7 @@
 #include "sample.h"
 #include "segment.h"
 #include "tap.h"
+#include "util.h"
 #include "writeback.h"
 
 #include <stdint.h>
@@ -719,6 +720,30 @@ static int run_evolve(const fixture *fx, fault_out *o, int partition)
 static int case_evolve(const fixture *fx, fault_out *o) { return run_evolve(fx, o, 0); }
 static int case_evolve_part(const fixture *fx, fault_out *o) { return run_evolve(fx, o, 1); }
 
+/* The --residual base: the cube's my_model renamed (longer: the text grows) and its
+ * values at the cloud. */
+static int case_residual(const fixture *fx, fault_out *o)
+{
+    evolve_base b;
+    frep_error err;
+    frep_error_init(&err);
+    if (residual_prepare("cube.hf", cube_src, strlen(cube_src), NULL, fx->cube, &b, &err)) {
+        set_msg(o, err.msg);
+        return -1;
+    }
+    digest_bytes(o, b.text, strlen(b.text));
+    digest_bytes(o, b.call, strlen(b.call));
+    const frep_cloud *c = fx->cloud;
+    double f[CLOUD_POINTS], g[3 * CLOUD_POINTS];
+    uint8_t okp[CLOUD_POINTS];
+    size_t nbad = 0;
+    int rc = c->n <= CLOUD_POINTS ? residual_eval(&b, c, 1, f, g, okp, &nbad) : -1;
+    if (rc) set_msg(o, "out of memory");
+    else digest_doubles(o, f, c->n);
+    residual_free(&b);
+    return rc ? -1 : 0;
+}
+
 /* evolve_refit on a copy of the fixture's evolve result. */
 static int case_refit(const fixture *fx, fault_out *o)
 {
@@ -756,6 +781,17 @@ static int case_render(const fixture *fx, fault_out *o)
     mem_out mo;
     if (!mem_open(&mo)) return -1;
     return mem_close(&mo, o, png_write_rgb(mo.f, rgb, W, H));
+}
+
+/* A formatted copy (runtime/util.h). */
+static int case_strdupf(const fixture *fx, fault_out *o)
+{
+    (void)fx;
+    char *s = frep_strdupf("%s:%d: %g", "m.hf", 3, 0.25);
+    if (!s) return -1;
+    digest_bytes(o, s, strlen(s));
+    frep_free(s);
+    return 0;
 }
 
 /* The shared growable buffer, grown past its first block. */
@@ -800,22 +836,19 @@ static const fault_case cases[] = {
     { "interval", case_interval, MSG_NONE, NULL },
     { "prune", case_prune, MSG_NONE, NULL },
     { "grid", case_grid, MSG_NONE, NULL },
-    { "polygonize", case_polygonize, MSG_GIVEN,
-      "an allocation failure of the tape pruner (vm_pruner_new, through the field's "
-      "focus) is absorbed: the mesh is made unpruned and differs (mesh/mesh.c)" },
+    { "polygonize", case_polygonize, MSG_GIVEN, NULL },
     { "mesh_validate", case_mesh_validate, MSG_NONE, NULL },
     { "meshio", case_meshio, MSG_GIVEN, NULL },
     { "meshio_read", case_meshio_read, MSG_GIVEN, NULL },
     { "cloud", case_cloud, MSG_GIVEN, NULL },
     { "cloud_read", case_cloud_read, MSG_GIVEN, NULL },
-    { "sample_model", case_sample_model, MSG_GIVEN,
-      "as polygonize: vm_pruner_new failing gives another mesh, so other points" },
+    { "sample_model", case_sample_model, MSG_GIVEN, NULL },
     { "sample_mesh", case_sample_mesh, MSG_GIVEN, NULL },
     { "normals", case_normals, MSG_NONE, NULL },
     { "kdtree", case_kdtree, MSG_NONE, NULL },
     { "segment", case_segment, MSG_GIVEN,
-      "out of memory absorbed as in-band values: median_spacing gives 0 when kd_build "
-      "fails, ransac_detect's helpers give no candidate (segment/)" },
+      "out of memory absorbed as in-band values: ransac_detect's helpers give no "
+      "candidate (segment/ransac.c)" },
     { "prims", case_prims, MSG_GIVEN, NULL },
     { "fit", case_fit, MSG_GIVEN,
       "out of memory in the optimizers is FIT_FAILED, absorbed by the annealing, and "
@@ -827,11 +860,13 @@ static const fault_case cases[] = {
     { "evolve_partition", case_evolve_part, MSG_GIVEN,
       "as evolve, and tree_reserve failing in the merge moves of partition.c is "
       "skipped (gp_fitness_replaced)" },
+    { "residual", case_residual, MSG_GIVEN, NULL },
     { "refit", case_refit, MSG_GIVEN,
       "evolve_refit reports out of memory as 'the tree cannot be evaluated at the "
       "points' or without a message (evolve/refit.c, fit/objective.c)" },
     { "render", case_render, MSG_NONE, NULL },
     { "buf", case_buf, MSG_NONE, NULL },
+    { "strdupf", case_strdupf, MSG_NONE, NULL },
 };
 
 /* Injected failures reported in detail per case; the others are only counted. */

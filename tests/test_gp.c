@@ -523,6 +523,12 @@ static void test_cliques(void)
     is_int(part_cliques(&g, 3, &cl), 1, "clique limit reported");
     free(g.adj);
 
+    /* No vertices: no cliques, and a start array of one entry all the same. */
+    gp_graph e = { 0, 0, NULL };
+    is_int(part_cliques(&e, 100, &cl), 0, "cliques of the empty graph enumerated");
+    ok(cl.count == 0 && cl.start && cl.start[0] == 0, "the empty graph has no clique");
+    part_cliques_free(&cl);
+
     /* K_40 minus a perfect matching has 2^20 maximal cliques: the limit stops it. */
     gp_graph h = { 40, 1, calloc(40, sizeof(uint64_t)) };
     for (uint32_t i = 0; i < 40; i++)

@@ -472,6 +472,17 @@ static void test_determinism(void)
     ok(n == 8 && list[7].type == PRIM_CYLINDER && list[7].r == 1.0 && list[7].separating,
        "torus: separating cylinder with the major radius");
     free(list);
+
+    /* Two tori apart along x: 10 additions (their y and z planes coincide), more than
+     * the list's first size holds. */
+    prim t2 = t;
+    t2.p[0] = t2.obb_c[0] = 5;
+    list = malloc(2 * sizeof *list);
+    list[0] = t;
+    list[1] = t2;
+    n = segment_add_separating(&list, 2, 1e-3);
+    is_int(n, 12, "two tori: 8 planes and 2 cylinders added");
+    free(list);
 }
 
 /* Readable output: numbers rounded relative to the scale, never by more than half a
@@ -766,6 +777,31 @@ static void test_grow_inner(void)
     free(nrm);
 }
 
+/* Three boxes apart on the diagonal: 18 planes, more than the detector's first
+ * primitive array holds. A box of over 100000 points: the spacing estimate then uses a
+ * tree of every other point only. */
+static void test_large(void)
+{
+    trng r = {13};
+    frep_cloud *c = cloud_new(1);
+    prim truth[18];
+    for (int b = 0; b < 3; b++) {
+        double lo = 3.0 * b - 1, hi = lo + 2;
+        sample_box(c, &r, lo, hi, 400);
+        for (int f = 0; f < 6; f++) {
+            double n[3] = {0, 0, 0};
+            n[f / 2] = f % 2 ? 1 : -1;
+            truth[6 * b + f] = mk(PRIM_PLANE, n[0], n[1], n[2], 0, 0, 0, f % 2 ? hi : -lo, 0);
+        }
+    }
+    check_found("three boxes", c, truth, 18, 0.01, 1.0, 1, 0);
+    cloud_free(c);
+    c = cloud_new(1);
+    sample_box(c, &r, -1, 1, 16700);
+    check_found("large box", c, truth, 6, 0.01, 1.0, 1, 0);
+    cloud_free(c);
+}
+
 int main(void)
 {
     test_kdtree();
@@ -775,5 +811,6 @@ int main(void)
     test_determinism();
     test_shapes();
     test_grow_inner();
+    test_large();
     return done_testing();
 }
