@@ -45,8 +45,10 @@ static const cli_opt mesh_opts[] = {
     CLI_OPT_THREADS(mesh_cmd, mc.nthreads, "OpenMP threads (default: all cores); the mesh is the same"),
     { 0, "check", NULL, CLI_OPT_SET, OFF(check),
       .help = "verify the mesh (closed, 2-manifold at edges and vertices,\n"
-              "oriented, no degenerate triangles), print the counts and the\n"
-              "enclosed volume; fail if not" },
+              "oriented, no degenerate triangles), print the counts, the\n"
+              "enclosed volume, the self-intersecting triangle pairs and\n"
+              "the vertices farther than 0.1 cell from the surface; fail\n"
+              "if not closed, manifold and oriented" },
     CLI_OPT_QUIET(mesh_cmd, quiet, "no summary line"),
     { 'v', "verbose", NULL, CLI_OPT_SET, OFF(verbose),
       .help = "also print the work done: octree nodes (interval tests),\n"
@@ -80,19 +82,47 @@ static int write_mesh_cb(FILE *f, void *user)
     return meshio_write(f, &c->m, c->fmt, c->ascii);
 }
 
-/* --check: the mesh is closed, manifold, oriented, without degenerate triangles. */
+/* The vertices' distances from the model's surface, for --check. */
+static int vertex_distance(mesh_cmd *c, mesh_distance *d)
+{
+    mesh_field f;
+    if (mesh_field_program(&f, c->mc.p, NULL) != 0) {
+        fprintf(stderr, "frep mesh: out of memory checking the mesh\n");
+        return CLI_FAIL;
+    }
+    mesh_options o;
+    mesh_options_init(&o);
+    memcpy(o.box, c->mc.box, sizeof o.box);
+    o.grid = c->mc.grid;
+    o.iso = c->mc.iso;
+    frep_error err;
+    frep_error_init(&err);
+    int rc = mesh_surface_distance(&f, &o, &c->m, MESH_SURFACE_TOL, d, &err);
+    mesh_field_program_free(&f);
+    if (rc != 0) fprintf(stderr, "frep mesh: %s\n", err.msg);
+    return rc != 0 ? CLI_FAIL : CLI_OK;
+}
+
+/* --check: the mesh is closed, manifold, oriented, without degenerate triangles; the
+ * self-intersecting pairs and the vertices farther than MESH_SURFACE_TOL cells from
+ * the surface are counted. */
 static int stage_check(mesh_cmd *c)
 {
     mesh_check mk;
+    mesh_distance md;
     if (mesh_validate(&c->m, &mk) != 0) {
         fprintf(stderr, "frep mesh: out of memory checking the mesh\n");
         return CLI_FAIL;
     }
+    if (vertex_distance(c, &md) != CLI_OK) return CLI_FAIL;
     fprintf(c->summary, "check: open edges %zu, non-manifold edges %zu, flipped edges %zu, "
                         "non-manifold vertices %zu, unused vertices %zu, degenerate "
                         "triangles %zu, non-finite coordinates %zu, volume %.9g, area %.9g\n",
             mk.open_edges, mk.nonmanifold_edges, mk.flipped_edges, mk.nonmanifold_verts,
             mk.unused_verts, mk.degenerate, mk.nonfinite, mk.volume, mk.area);
+    fprintf(c->summary, "check: self-intersecting triangle pairs %zu, vertices farther than %g "
+                        "cell from the surface %zu (largest %.3g cell)\n",
+            mk.self_intersections, MESH_SURFACE_TOL, md.far, md.max_dist);
     if (mk.open_edges || mk.nonmanifold_edges || mk.flipped_edges || mk.nonmanifold_verts ||
         mk.unused_verts || mk.degenerate || mk.nonfinite || !(mk.volume > 0))
         return CLI_FAIL;
