@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """bench_open3d.py - cross-check of frep's meshes with Open3D (make bench-open3d).
 
-Meshes each model with `frep mesh --check` (OFF, full precision) and loads the file in
+Meshes each model with `frep mesh --check-intersections` (OFF, full precision) and loads the file in
 Open3D (Debian's python3-open3d): is_watertight(), is_self_intersecting() and
 get_volume() against frep's own volume.  Open3D tests every pair of triangles that
 share no vertex (quadratic in the triangles), so grids stay small.
@@ -28,7 +28,7 @@ with tempfile.TemporaryDirectory() as tmp:
     out = os.path.join(tmp, "m.off")
     for g in grids:
         for m in models:
-            r = subprocess.run([frep, "mesh", m, "-g", str(g), "-o", out, "--check", "-q", "-t", "1"],
+            r = subprocess.run([frep, "mesh", m, "-g", str(g), "-o", out, "--check-intersections", "-q", "-t", "1"],
                                capture_output=True, text=True)
             vol = re.search(r"volume ([-0-9.e+]+)", r.stdout)
             pairs = re.search(r"self-intersecting triangle pairs (\d+)", r.stdout)

@@ -31,9 +31,10 @@ typedef struct mesh_check {
     size_t open_edges, nonmanifold_edges, flipped_edges, degenerate, nonfinite;
     double volume, area;     /* signed enclosed volume (positive when outward) */
     size_t nonmanifold_verts, unused_verts;
-    size_t self_intersections;   /* intersecting triangle pairs */
+    size_t self_intersections;   /* intersecting triangle pairs: 0 from mesh_validate,
+                                    counted by mesh_self_intersections (slower) */
 } mesh_check;
-/* 0, or -1 when out of memory. */
+/* Every count but the self-intersections. 0, or -1 when out of memory. */
 int mesh_validate(const frep_mesh *m, mesh_check *c);
 
 /* The intersecting pairs of triangles of m (as in mesh_check) into *pairs; when

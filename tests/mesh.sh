@@ -43,7 +43,7 @@ for hf in "$M"/*.hf; do
       "$FREP" mesh "$hf" -b 1.2 -g $g -o "$T/m.stl" --check -q
   done
 done
-# No self-intersecting triangle pairs (mesh_validate's exact test, every pair, also
+# No self-intersecting triangle pairs (--check-intersections: the exact test, every pair, also
 # those sharing a vertex or an edge) on the examples, the test models and the sharp CSG
 # suite (bores meeting at an angle, a thin slot, near-touching blocks, a thin wall):
 # before quad_diagonal's facing rule, csg.hf at -g 64 had 80 pairs.  Vertices within
@@ -54,7 +54,7 @@ for hf in "$E"/*.hf "$M"/*.hf "$M"/sharp/*.hf; do
   for g in 32 64 128; do
     n=$((n + 1))
     # shellcheck disable=SC2086
-    "$FREP" mesh "$hf" $b -g $g -o "$T/m.stl" --check -q >"$T/out" 2>"$T/err"
+    "$FREP" mesh "$hf" $b -g $g -o "$T/m.stl" --check-intersections -q >"$T/out" 2>"$T/err"
     pairs=$(sed -n 's/^check: self-intersecting triangle pairs \([0-9]*\),.*/\1/p' "$T/out")
     dist=$(sed -n 's/.*(largest \(.*\) cell)$/\1/p' "$T/out")
     if [ "$pairs" = 0 ]; then echo "ok $n - $(basename "$hf") -g $g: no self-intersecting triangles (vertex distance up to $dist cell)"
