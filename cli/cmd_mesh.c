@@ -22,7 +22,7 @@ static const char mesh_usage[] =
 typedef struct mesh_cmd {
     mesh_cli mc;
     const char *out;
-    int ascii, quiet, check, verbose;
+    int ascii, quiet, check, check_self, verbose;
     meshio_format fmt;
     frep_mesh m;
     mesh_stats st;
@@ -47,6 +47,11 @@ static const cli_opt mesh_opts[] = {
       .help = "verify the mesh (closed, 2-manifold at edges and vertices,\n"
               "oriented, no degenerate triangles), print the counts and the\n"
               "enclosed volume; fail if not" },
+    { 0, "check-intersections", NULL, CLI_OPT_SET, OFF(check_self),
+      .help = "--check, and also count the self-intersecting triangle\n"
+              "pairs (exact predicates; slower: seconds per 10^5\n"
+              "triangles) and the vertices farther than 0.1 cell from\n"
+              "the surface" },
     CLI_OPT_QUIET(mesh_cmd, quiet, "no summary line"),
     { 'v', "verbose", NULL, CLI_OPT_SET, OFF(verbose),
       .help = "also print the work done: octree nodes (interval tests),\n"
@@ -80,6 +85,44 @@ static int write_mesh_cb(FILE *f, void *user)
     return meshio_write(f, &c->m, c->fmt, c->ascii);
 }
 
+/* The vertices' distances from the model's surface, for --check. */
+static int vertex_distance(mesh_cmd *c, mesh_distance *d)
+{
+    mesh_field f;
+    if (mesh_field_program(&f, c->mc.p, NULL) != 0) {
+        fprintf(stderr, "frep mesh: out of memory checking the mesh\n");
+        return CLI_FAIL;
+    }
+    mesh_options o;
+    mesh_options_init(&o);
+    memcpy(o.box, c->mc.box, sizeof o.box);
+    o.grid = c->mc.grid;
+    o.iso = c->mc.iso;
+    frep_error err;
+    frep_error_init(&err);
+    int rc = mesh_surface_distance(&f, &o, &c->m, MESH_SURFACE_TOL, d, &err);
+    mesh_field_program_free(&f);
+    if (rc != 0) fprintf(stderr, "frep mesh: %s\n", err.msg);
+    return rc != 0 ? CLI_FAIL : CLI_OK;
+}
+
+/* --check-intersections: the self-intersecting pairs and the vertices farther than
+ * MESH_SURFACE_TOL cells from the surface. */
+static int stage_check_self(mesh_cmd *c)
+{
+    size_t pairs = 0;
+    mesh_distance md;
+    if (mesh_self_intersections(&c->m, &pairs, NULL) != 0) {
+        fprintf(stderr, "frep mesh: out of memory checking the mesh\n");
+        return CLI_FAIL;
+    }
+    if (vertex_distance(c, &md) != CLI_OK) return CLI_FAIL;
+    fprintf(c->summary, "check: self-intersecting triangle pairs %zu, vertices farther than %g "
+                        "cell from the surface %zu (largest %.3g cell)\n",
+            pairs, MESH_SURFACE_TOL, md.far, md.max_dist);
+    return CLI_OK;
+}
+
 /* --check: the mesh is closed, manifold, oriented, without degenerate triangles. */
 static int stage_check(mesh_cmd *c)
 {
@@ -93,6 +136,7 @@ static int stage_check(mesh_cmd *c)
                         "triangles %zu, non-finite coordinates %zu, volume %.9g, area %.9g\n",
             mk.open_edges, mk.nonmanifold_edges, mk.flipped_edges, mk.nonmanifold_verts,
             mk.unused_verts, mk.degenerate, mk.nonfinite, mk.volume, mk.area);
+    if (c->check_self && stage_check_self(c) != CLI_OK) return CLI_FAIL;
     if (mk.open_edges || mk.nonmanifold_edges || mk.flipped_edges || mk.nonmanifold_verts ||
         mk.unused_verts || mk.degenerate || mk.nonfinite || !(mk.volume > 0))
         return CLI_FAIL;
@@ -113,7 +157,7 @@ static int stage_report(mesh_cmd *c)
                             "gradients, %zu cells with several components, %zu face vertices\n",
                 c->st.octree_nodes, c->st.blocks, c->st.blocks_total, c->st.eval_points,
                 c->st.grad_points, c->st.cells_split, c->st.face_vertices);
-    return c->check ? stage_check(c) : CLI_OK;
+    return c->check || c->check_self ? stage_check(c) : CLI_OK;
 }
 
 /* compile -> polygonize -> write -> report */

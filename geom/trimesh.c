@@ -1,9 +1,11 @@
 /* trimesh.c - the indexed triangle mesh every mesh stage shares: release and the
- * invariant checks of `frep mesh --check` and the tests (closed, 2-manifold, oriented).
- * Made by mesh/mesh.c (polygonization) and geom/meshio.c (mesh files).
+ * invariant checks of `frep mesh --check` and the tests (closed, 2-manifold, oriented,
+ * free of self-intersections).  Made by mesh/mesh.c (polygonization) and geom/meshio.c
+ * (mesh files); the pair test is geom/tritri.c.
  */
 #include "alloc.h"
 #include "trimesh.h"
+#include "tritri.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -127,5 +129,195 @@ int mesh_validate(const frep_mesh *m, mesh_check *c)
         i = j;
     }
     frep_free(E);
-    return check_fans(m, c);
+    return check_fans(m, c) != 0 ? -1 : 0;
+}
+
+/* ---- self-intersections ----------------------------------------------------------- */
+
+/* The grid's cell is this many times the mean largest side of the triangles' boxes:
+ * a triangle then covers one to eight cells, a cell holds a few triangles. */
+#define SELFINT_CELL_SCALE 1.5
+/* Cells per axis at most: keys pack three 21-bit coordinates. */
+#define SELFINT_MAX_DIM ((1 << 21) - 1)
+/* Grid entries per triangle at most (a few huge triangles in a file mesh): past it
+ * the cells are made twice as large. */
+#define SELFINT_MAX_ENTRIES_PER_TRI 27
+
+/* The uniform grid: cells of side s from lo, entries (cell key, triangle) grouped by
+ * a hash of the key in buckets; a bucket may hold several cells. */
+typedef struct tgrid {
+    const frep_mesh *m;
+    double lo[3], s;
+    size_t nent, nbuckets;   /* nbuckets: a power of two */
+    size_t *start;           /* bucket b's entries: start[b] .. start[b + 1] - 1 */
+    uint64_t *key;
+    uint32_t *tri;
+} tgrid;
+
+static void tri_box(const frep_mesh *m, size_t t, double bmin[3], double bmax[3])
+{
+    const uint32_t *v = &m->tri[3 * t];
+    for (int k = 0; k < 3; k++) {
+        double a = m->v[3 * v[0] + k], b = m->v[3 * v[1] + k], c = m->v[3 * v[2] + k];
+        bmin[k] = fmin(a, fmin(b, c));
+        bmax[k] = fmax(a, fmax(b, c));
+    }
+}
+
+static uint64_t cell_of(const tgrid *G, const double p[3], int k)
+{
+    double q = floor((p[k] - G->lo[k]) / G->s);
+    return q < 0 ? 0 : (q > SELFINT_MAX_DIM ? SELFINT_MAX_DIM : (uint64_t)q);
+}
+
+static uint64_t cell_key(uint64_t i, uint64_t j, uint64_t k) { return i | (j << 21) | (k << 42); }
+
+static size_t key_bucket(const tgrid *G, uint64_t key)
+{
+    key *= 0x9E3779B97F4A7C15ull;   /* Fibonacci hashing */
+    return (size_t)(key >> 32) & (G->nbuckets - 1);
+}
+
+/* Call fn(G, key, t, arg) for every cell triangle t's box covers. */
+static void tri_cells(tgrid *G, size_t t, void (*fn)(tgrid *, uint64_t, size_t, void *), void *arg)
+{
+    double bmin[3], bmax[3];
+    tri_box(G->m, t, bmin, bmax);
+    uint64_t c0[3], c1[3];
+    for (int k = 0; k < 3; k++) {
+        c0[k] = cell_of(G, bmin, k);
+        c1[k] = cell_of(G, bmax, k);
+    }
+    for (uint64_t z = c0[2]; z <= c1[2]; z++)
+        for (uint64_t y = c0[1]; y <= c1[1]; y++)
+            for (uint64_t x = c0[0]; x <= c1[0]; x++) fn(G, cell_key(x, y, z), t, arg);
+}
+
+static void count_entry(tgrid *G, uint64_t key, size_t t, void *arg)
+{
+    (void)t;
+    (void)arg;
+    if (G->start) G->start[key_bucket(G, key) + 1]++;
+    else G->nent++;
+}
+
+static void put_entry(tgrid *G, uint64_t key, size_t t, void *arg)
+{
+    (void)arg;
+    size_t at = G->start[key_bucket(G, key)]++;
+    G->key[at] = key;
+    G->tri[at] = (uint32_t)t;
+}
+
+/* The grid's origin and cell side: SELFINT_CELL_SCALE times the mean box side, at
+ * most SELFINT_MAX_DIM cells per axis, at most SELFINT_MAX_ENTRIES_PER_TRI entries a
+ * triangle on average.  Counts the entries. */
+static void tgrid_size(tgrid *G)
+{
+    const frep_mesh *m = G->m;
+    double hi[3], ext = 0;
+    for (int k = 0; k < 3; k++) G->lo[k] = hi[k] = m->v[3 * m->tri[0] + k];
+    for (size_t t = 0; t < m->ntris; t++) {
+        double bmin[3], bmax[3], e = 0;
+        tri_box(m, t, bmin, bmax);
+        for (int k = 0; k < 3; k++) {
+            G->lo[k] = fmin(G->lo[k], bmin[k]);
+            hi[k] = fmax(hi[k], bmax[k]);
+            e = fmax(e, bmax[k] - bmin[k]);
+        }
+        ext += e;
+    }
+    G->s = SELFINT_CELL_SCALE * ext / (double)m->ntris;
+    for (int k = 0; k < 3; k++) G->s = fmax(G->s, (hi[k] - G->lo[k]) / (SELFINT_MAX_DIM - 1));
+    if (!(G->s > 0)) G->s = 1;
+    for (;;) {
+        G->nent = 0;
+        for (size_t t = 0; t < m->ntris; t++) tri_cells(G, t, count_entry, NULL);
+        if (G->nent <= SELFINT_MAX_ENTRIES_PER_TRI * m->ntris) break;
+        G->s *= 2;
+    }
+}
+
+/* Entries bucketed by a counting sort on the hash of their keys. */
+static int tgrid_fill(tgrid *G)
+{
+    G->nbuckets = 1;
+    while (G->nbuckets < G->nent) G->nbuckets *= 2;
+    G->start = frep_calloc(G->nbuckets + 1, sizeof *G->start);
+    G->key = frep_malloc(G->nent * sizeof *G->key);
+    G->tri = frep_malloc(G->nent * sizeof *G->tri);
+    if (!G->start || !G->key || !G->tri) return -1;
+    for (size_t t = 0; t < G->m->ntris; t++) tri_cells(G, t, count_entry, NULL);
+    for (size_t b = 0; b < G->nbuckets; b++) G->start[b + 1] += G->start[b];
+    for (size_t t = 0; t < G->m->ntris; t++) tri_cells(G, t, put_entry, NULL);
+    /* put_entry moved each start[b] to the end of bucket b, the start of b + 1 */
+    for (size_t b = G->nbuckets; b > 0; b--) G->start[b] = G->start[b - 1];
+    G->start[0] = 0;
+    return 0;
+}
+
+/* Triangles s and t intersect beyond their common vertices (found by index and put
+ * first, in the same order). */
+static int tri_pair(const frep_mesh *m, uint32_t s, uint32_t t)
+{
+    const uint32_t *a = &m->tri[3 * (size_t)s], *b = &m->tri[3 * (size_t)t];
+    int pa[3], pb[3], n = 0, usedb[3] = { 0, 0, 0 }, useda[3] = { 0, 0, 0 };
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            if (a[i] == b[j] && !usedb[j] && !useda[i]) {
+                pa[n] = i;
+                pb[n++] = j;
+                useda[i] = usedb[j] = 1;
+            }
+    int na = n, nb = n;
+    for (int i = 0; i < 3; i++) {
+        if (!useda[i]) pa[na++] = i;
+        if (!usedb[i]) pb[nb++] = i;
+    }
+    const double *p[3], *q[3];
+    for (int i = 0; i < 3; i++) {
+        p[i] = &m->v[3 * (size_t)a[pa[i]]];
+        q[i] = &m->v[3 * (size_t)b[pb[i]]];
+    }
+    return tri_tri_intersect(p, q, n);
+}
+
+/* Entries e and f of one bucket hold the same cell, which is where the boxes of their
+ * triangles overlap first (so each pair is tested in one cell only). */
+static int pair_here(const tgrid *G, size_t e, size_t f)
+{
+    if (G->key[e] != G->key[f] || G->tri[e] == G->tri[f]) return 0;
+    double amin[3], amax[3], bmin[3], bmax[3], c[3];
+    tri_box(G->m, G->tri[e], amin, amax);
+    tri_box(G->m, G->tri[f], bmin, bmax);
+    for (int k = 0; k < 3; k++) {
+        if (amax[k] < bmin[k] || bmax[k] < amin[k]) return 0;
+        c[k] = fmax(amin[k], bmin[k]);
+    }
+    return cell_key(cell_of(G, c, 0), cell_of(G, c, 1), cell_of(G, c, 2)) == G->key[e];
+}
+
+int mesh_self_intersections(const frep_mesh *m, size_t *pairs, uint32_t first[2])
+{
+    *pairs = 0;
+    if (m->ntris < 2) return 0;
+    tgrid G = { .m = m };
+    tgrid_size(&G);
+    int rc = tgrid_fill(&G);
+    for (size_t b = 0; rc == 0 && b < G.nbuckets; b++)
+        for (size_t e = G.start[b]; e < G.start[b + 1]; e++)
+            for (size_t f = e + 1; f < G.start[b + 1]; f++) {
+                if (!pair_here(&G, e, f) || !tri_pair(m, G.tri[e], G.tri[f])) continue;
+                uint32_t s = G.tri[e] < G.tri[f] ? G.tri[e] : G.tri[f];
+                uint32_t t = G.tri[e] ^ G.tri[f] ^ s;
+                if (first && (*pairs == 0 || s < first[0] || (s == first[0] && t < first[1]))) {
+                    first[0] = s;
+                    first[1] = t;
+                }
+                (*pairs)++;
+            }
+    frep_free(G.start);
+    frep_free(G.key);
+    frep_free(G.tri);
+    return rc;
 }

@@ -24,12 +24,23 @@ void mesh_free(frep_mesh *m);
  * flips), of triangles with (near) zero area and of non-finite coordinates, and of
  * non-manifold vertices: vertices whose triangles do not form one closed fan (two
  * cones touching at a point, or a fan left open).  Vertices no triangle uses are
- * counted apart (unused). */
+ * counted apart (unused).  Self-intersections: pairs of triangles that share a point
+ * other than their common vertices and edge (exact predicates, geom/tritri.c; pairs
+ * sharing a vertex or an edge are tested too: a fold onto a neighbour counts). */
 typedef struct mesh_check {
     size_t open_edges, nonmanifold_edges, flipped_edges, degenerate, nonfinite;
     double volume, area;     /* signed enclosed volume (positive when outward) */
     size_t nonmanifold_verts, unused_verts;
+    size_t self_intersections;   /* intersecting triangle pairs: 0 from mesh_validate,
+                                    counted by mesh_self_intersections (slower) */
 } mesh_check;
+/* Every count but the self-intersections. 0, or -1 when out of memory. */
 int mesh_validate(const frep_mesh *m, mesh_check *c);
+
+/* The intersecting pairs of triangles of m (as in mesh_check) into *pairs; when
+ * first is not NULL, the first such pair found (lower triangle first) into
+ * first[0..1].  A uniform grid over the triangles' boxes keeps it near linear in the
+ * number of triangles.  0, or -1 when out of memory. */
+int mesh_self_intersections(const frep_mesh *m, size_t *pairs, uint32_t first[2]);
 
 #endif

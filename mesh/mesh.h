@@ -90,4 +90,23 @@ typedef struct mesh_stats {
 int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
                     mesh_stats *stats, frep_error *e);
 
+/* --check's bound on mesh_distance.max_dist, in cells: dual contouring places a
+ * vertex on the surface's tangent planes, so only a misplaced vertex is this far. */
+#define MESH_SURFACE_TOL 0.1
+
+/* The vertices' distances |f - iso| / |grad f| from the surface, in cells (the
+ * smallest side of a grid cell of o's box and grid). */
+typedef struct mesh_distance {
+    double max_dist;         /* the largest distance */
+    size_t worst;            /* a vertex that far */
+    size_t far;              /* vertices farther than the tolerance */
+    size_t capped;           /* vertices on the box's faces (caps), not measured */
+    size_t skipped;          /* vertices where f or grad f is NaN, not measured */
+} mesh_distance;
+
+/* Measure m (made from f with options o) against tolerance tol (cells).  Returns 0,
+ * or -1 with *e set (out of memory, a failing field). */
+int mesh_surface_distance(const mesh_field *f, const mesh_options *o, const frep_mesh *m,
+                          double tol, mesh_distance *r, frep_error *e);
+
 #endif

@@ -268,11 +268,27 @@ static int quad_polygon(quad_ctx *c, const int L[3], const equad *E, uint32_t po
     return nmid;
 }
 
+/* Triangle a, b, c faces the quad's way: its normal's component along the edge's
+ * axis ax has the sign out (+1: the edge's outside end is its upper end).  The
+ * vertices lie in the four cells around the edge, so seen along the edge they lie
+ * in four quadrants in ring order; a triangle facing the other way folds over its
+ * neighbour (a sharp crease can put three feature vertices of one quad on a convex
+ * curve, and the chord between two of them behind the third). */
+static int tri_faces(const double *a, const double *b, const double *c, int ax, int out)
+{
+    double u[3], w[3], n[3];
+    vec3_sub(b, a, u);
+    vec3_sub(c, a, w);
+    vec3_cross(u, w, n);
+    return n[ax] * out > 0;
+}
+
 /* Split along v0-v2 (1) or v1-v3 (0)?  The diagonal joining two feature vertices (QEF
  * rank >= 2) when only one does, since it lies on the sharp edge; otherwise the one
  * whose midpoint is closer to the surface by the Hermite estimate; never a split
- * making a zero-area triangle. */
-static int quad_diagonal(const qcorner q[4])
+ * making a zero-area triangle, nor one with a triangle facing backwards (along the
+ * edge's axis ax, outside direction out) when the other split has none. */
+static int quad_diagonal(const qcorner q[4], int ax, int out)
 {
     int f02 = q[0].rank >= 2 && q[2].rank >= 2;
     int f13 = q[1].rank >= 2 && q[3].rank >= 2;
@@ -292,6 +308,11 @@ static int quad_diagonal(const qcorner q[4])
     double amax = fmax(a02, a13);
     if (use02 && a02 <= QUAD_MIN_AREA * amax) use02 = 0;
     else if (!use02 && a13 <= QUAD_MIN_AREA * amax) use02 = 1;
+    int ok02 = tri_faces(q[0].pos, q[1].pos, q[2].pos, ax, out) &&
+               tri_faces(q[0].pos, q[2].pos, q[3].pos, ax, out) && a02 > QUAD_MIN_AREA * amax;
+    int ok13 = tri_faces(q[0].pos, q[1].pos, q[3].pos, ax, out) &&
+               tri_faces(q[1].pos, q[2].pos, q[3].pos, ax, out) && a13 > QUAD_MIN_AREA * amax;
+    if (ok02 != ok13) use02 = ok02;
     return use02;
 }
 
@@ -303,7 +324,7 @@ static int quad_split(quad_ctx *c, equad *E, int flip)
         uint32_t t = v[1]; v[1] = v[3]; v[3] = t;
         qcorner tq = E->q[1]; E->q[1] = E->q[3]; E->q[3] = tq;
     }
-    int use02 = quad_diagonal(E->q);
+    int use02 = quad_diagonal(E->q, E->a, E->in0 ? 1 : -1);
     if (c->nt + 2 > c->cap && grow_tris(c) != 0) return -1;
     uint32_t *t = &c->tri[3 * c->nt];
     c->nt += 2;

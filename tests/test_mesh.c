@@ -585,6 +585,88 @@ static void test_validate_pinch(void)
     ok(c.nonmanifold_verts == 0 && c.unused_verts == 3, "one tetrahedron: manifold, 3 unused vertices");
 }
 
+/* Intersecting pairs of m by testing every pair of triangles whose boxes overlap. */
+static size_t brute_pairs(const frep_mesh *m)
+{
+    size_t n = 0;
+    for (size_t s = 0; s < m->ntris; s++)
+        for (size_t t = s + 1; t < m->ntris; t++) {
+            uint32_t tri[6];
+            memcpy(tri, &m->tri[3 * s], 3 * sizeof *tri);
+            memcpy(tri + 3, &m->tri[3 * t], 3 * sizeof *tri);
+            frep_mesh two = { m->nverts, 2, m->v, NULL, tri };
+            size_t k;
+            mesh_self_intersections(&two, &k, NULL);
+            n += k;
+        }
+    return n;
+}
+
+/* The self-intersection test: pairs sharing nothing, a vertex or an edge, coplanar or
+ * not, touching or crossing; and the grid against all pairs on a mesh. */
+static void test_self_intersections(void)
+{
+    static const struct {
+        double v[18];
+        uint32_t t[6];
+        int want;
+        const char *what;
+    } cases[] = {
+        { { 0, 0, 0, 1, 0, 0, 0, 1, 0, .2, .2, -1, .2, .2, 1, 3, 3, 0 }, { 0, 1, 2, 3, 4, 5 }, 1,
+          "a triangle piercing another" },
+        { { 0, 0, 0, 1, 0, 0, 0, 1, 0, 2, 2, -1, 2, 2, 1, 3, 3, 0 }, { 0, 1, 2, 3, 4, 5 }, 0,
+          "two triangles apart" },
+        { { 0, 0, 0, 1, 0, 0, 0, 1, 0, .5, .5, 0, 5, 0, 1, 0, 5, 1 }, { 0, 1, 2, 3, 4, 5 }, 1,
+          "a vertex touching another triangle's edge" },
+        { { 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0 }, { 0, 1, 2, 1, 0, 3 }, 0,
+          "sharing an edge, at a right angle" },
+        { { 0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 0, 0, 0, 0, 0, 0 }, { 0, 1, 2, 1, 0, 3 }, 1,
+          "sharing an edge, folded flat onto each other" },
+        { { 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 0, 0, 0, 0 }, { 0, 1, 2, 1, 0, 3 }, 0,
+          "sharing an edge, flat, side by side" },
+        { { 0, 0, 0, 1, 0, 0, 0, 1, 0, -1, 0, 0, 0, -1, 0, 0, 0, 0 }, { 0, 1, 2, 0, 3, 4 }, 0,
+          "sharing a vertex, flat, apart" },
+        { { 0, 0, 0, 1, 0, 0, 0, 1, 0, .3, .3, -1, .3, .3, 1, 0, 0, 0 }, { 0, 1, 2, 0, 3, 4 }, 1,
+          "sharing a vertex, the opposite edge through the other" },
+        { { 0, 0, 0, 1, 0, 0, 0, 1, 0, .5, .2, 0, .2, .5, 0, 0, 0, 0 }, { 0, 1, 2, 0, 3, 4 }, 1,
+          "sharing a vertex, flat, one inside the other" },
+        { { 0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 1, -1, -1, 1, 0, 0, 0 }, { 0, 1, 2, 0, 3, 4 }, 0,
+          "sharing a vertex, the other above" },
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        frep_mesh m = { 6, 2, (double *)cases[i].v, NULL, (uint32_t *)cases[i].t };
+        size_t n;
+        mesh_self_intersections(&m, &n, NULL);
+        is_int((long)n, cases[i].want, "self-intersection: %s", cases[i].what);
+    }
+    /* near-coplanar: a vertex 1e-17 below a far-off plane (the filter cannot decide) */
+    double v[18] = { 1e6, 1e6, 0, 1e6 + 1, 1e6, 0, 1e6, 1e6 + 1, 0,
+                     1e6 + .2, 1e6 + .2, -1e-17, 1e6 + .2, 1e6 + .3, -1, 1e6 + 3, 1e6 + 3, -1 };
+    uint32_t t[6] = { 0, 1, 2, 3, 4, 5 };
+    frep_mesh m = { 6, 2, v, NULL, t };
+    size_t n;
+    mesh_self_intersections(&m, &n, NULL);
+    is_int((long)n, 0, "self-intersection: exact for a vertex just below a plane far out");
+    v[11] = 0;
+    mesh_self_intersections(&m, &n, NULL);
+    is_int((long)n, 1, "... and touching when on it");
+
+    tfield tf;
+    memset(&tf, 0, sizeof tf);
+    tf.kind = F_CSG;
+    memcpy(tf.b, test_block, sizeof tf.b);
+    const double box[6] = { -1.5, -1.5, -1.5, 1.5, 1.5, 1.5 };
+    frep_mesh cm;
+    mesh_stats st;
+    if (run_mesh(&tf, box, 23, 1, &cm, &st) == 0) {
+        size_t g;
+        mesh_self_intersections(&cm, &g, NULL);
+        size_t b = brute_pairs(&cm);
+        ok(g == b, "self-intersections: the grid finds the %zu pairs of the all-pairs test (%zu)", b, g);
+        mesh_free(&cm);
+    }
+}
+
 /* One sheet crossing a cell face twice on both sides (tunnels of the gyroid thinner
  * than a cell): before face vertices, four quads shared a mesh edge on these grids. */
 static void test_mesh_tunnels(void)
@@ -991,6 +1073,7 @@ int main(void)
     test_mesh_shapes();
     test_mesh_threads();
     test_validate_pinch();
+    test_self_intersections();
     test_mesh_tunnels();
     test_mesh_bad();
     test_mesh_nomem();
