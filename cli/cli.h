@@ -26,6 +26,7 @@ int cmd_render(int argc, char **argv); /* cli/cmd_render.c */
 int cmd_evolve(int argc, char **argv); /* cli/cmd_evolve.c */
 int cmd_segment(int argc, char **argv); /* cli/cmd_segment.c */
 int cmd_fit(int argc, char **argv);    /* cli/cmd_fit.c */
+int cmd_view(int argc, char **argv);   /* cli/cmd_view.c */
 
 /* Model -> mesh steps shared by frep mesh, sample and render (cli/model.c): the model
  * options (-m -a -b -g --iso -t --setops, table entries below), compile, polygonize. */
