@@ -10,6 +10,7 @@
 #include <stddef.h>
 #include <stdio.h>
 
+#include "buf.h"
 #include "frep.h"
 #include "opt.h"
 
@@ -40,6 +41,7 @@ typedef struct mesh_cli {
     char *src;
     size_t srclen;
     frep_runtime_error err;  /* runtime errors of every evaluation so far */
+    frep_buf *diag;          /* may be NULL; else compiler messages are copied here */
 } mesh_cli;
 void mesh_cli_init(mesh_cli *c);
 void mesh_cli_free(mesh_cli *c);
@@ -109,6 +111,7 @@ typedef struct cli_diag_ctx {
      * warnings each time, and each is printed once. Freed by cli_diag_done(). */
     char **seen;
     size_t nseen;
+    frep_buf *copy;  /* may be NULL; else every message printed is appended here too */
 } cli_diag_ctx;
 void cli_print_diag(void *user, const frep_diag *d);
 void cli_diag_done(cli_diag_ctx *c);
@@ -117,6 +120,9 @@ void cli_diag_done(cli_diag_ctx *c);
  * returns the program and (if src != NULL) hands over the source text (free()). */
 frep_program *cli_compile_file(const char *path, const char *model, const double *a,
                                size_t na, int setops, char **src);
+/* The same, with a copy of the messages appended to diag (may be NULL). */
+frep_program *cli_compile_file_diag(const char *path, const char *model, const double *a,
+                                    size_t na, int setops, char **src, frep_buf *diag);
 
 /* Write a file atomically: data goes to a temporary in the same directory, which is
  * renamed over `path` when `fn` succeeds. fn returns 0 on success. */

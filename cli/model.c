@@ -58,7 +58,7 @@ static void warning_diag(void *user, const frep_diag *d)
 void mesh_cli_report_errors(mesh_cli *c)
 {
     if (c->err.count == 0 || !c->p) return;
-    cli_diag_ctx dc = { c->src, c->srclen, 0, 0, NULL, 0 };
+    cli_diag_ctx dc = { c->src, c->srclen, 0, 0, NULL, 0, NULL };
     frep_report_runtime_error(c->p, &c->err, warning_diag, &dc);
     cli_diag_done(&dc);
     memset(&c->err, 0, sizeof c->err);
@@ -77,7 +77,7 @@ static void progress_cb(void *user, double frac)
 int mesh_cli_compile(mesh_cli *c, const char *path)
 {
     c->path = path;
-    c->p = cli_compile_file(path, c->model, c->a.v, c->a.n, c->setops, &c->src);
+    c->p = cli_compile_file_diag(path, c->model, c->a.v, c->a.n, c->setops, &c->src, c->diag);
     if (!c->p) return CLI_FAIL;
     c->srclen = c->src ? strlen(c->src) : 0;
     if (!c->has_box && !frep_program_box(c->p, c->box)) {
