@@ -82,8 +82,8 @@ static const cli_opt view_opts[] = {
     { 0, "timeout", "S", CLI_OPT_DOUBLE, OFF(timeout), .lo = 0, .hi = INFINITY,
       .what = "seconds", .help = "stop the watch server after S seconds (default 0: at Ctrl-C)" },
     { 0, "scale", "D", CLI_OPT_DOUBLE, OFF(scale), .lo = 0, .hi = INFINITY, .open_lo = 1,
-      .what = "a distance", .help = "distance drawn red (default: from the data, the 95th\n"
-                                    "percentile rounded up to 1, 2 or 5 x 10^k)" },
+      .what = "a distance", .help = "point distance drawn red (default: from the data, the\n"
+                                    "95th percentile rounded up to 1, 2 or 5 x 10^k)" },
     CLI_OPT_MODEL(view_cmd, mc.model, "the model (default: my_model, else the last one)"),
     CLI_OPT_PARAMS(view_cmd, mc.a, "values of the model's a[] array"),
     CLI_OPT_BOX(view_cmd, mc.box, "HyperFun's -b (default: the model's '-- @box', else 10)"),
@@ -158,10 +158,12 @@ static int stage_points(view_cmd *c, view_build *b)
     mesh_cli_add_errors(&c->mc, &re);
     mesh_cli_report_errors(&c->mc);
     if (view_vertex_distances(&b->m, cl->n, cl->x, cl->y, cl->z, b->vdist, &e) != 0 ||
-        view_auto_scale(b->pdist, cl->n, VIEW_FALLBACK_SCALE, &b->pscale, &e) != 0 ||
-        view_auto_scale(b->vdist, b->m.nverts, VIEW_FALLBACK_SCALE, &b->vscale, &e) != 0)
+        view_auto_scale(b->pdist, cl->n, VIEW_POINTS_QUANTILE, VIEW_POINTS_FACTOR,
+                        VIEW_FALLBACK_SCALE, &b->pscale, &e) != 0 ||
+        view_auto_scale(b->vdist, b->m.nverts, VIEW_SURFACE_QUANTILE, VIEW_SURFACE_FACTOR,
+                        VIEW_FALLBACK_SCALE, &b->vscale, &e) != 0)
         goto fail;
-    if (c->scale > 0) b->pscale = b->vscale = c->scale;
+    if (c->scale > 0) b->pscale = c->scale;
     return CLI_OK;
 fail:
     fprintf(stderr, "frep view: %s: %s\n", c->points, e.msg);

@@ -742,9 +742,9 @@ static int case_render(const fixture *fx, fault_out *o)
 {
     enum { W = 24, H = 16 };
     uint8_t rgb[3 * W * H];
-    render_options ro = { W, H, "iso", { -2, -2, -2, 2, 2, 2 } };
+    render_options ro = { W, H, "iso", { -2, -2, -2, 2, 2, 2 }, NULL, 0, 0, { { 0 } } };
     const frep_cloud *c = fx->cloud;
-    render_points rp = { c->n, c->x, c->y, c->z, NULL, 1 };
+    render_points rp = { c->n, c->x, c->y, c->z, NULL, 1, 0 };
     frep_error err;
     frep_error_init(&err);
     if (render_mesh(&fx->mesh, &rp, &ro, rgb, &err)) {

@@ -166,7 +166,8 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-int view_auto_scale(const double *d, size_t n, double fallback, double *scale, frep_error *e)
+int view_auto_scale(const double *d, size_t n, double q, double factor, double fallback,
+                    double *scale, frep_error *e)
 {
     double *a = frep_reallocarray(NULL, n ? n : 1, sizeof *a);
     if (!a) return frep_error_nomem(e);
@@ -176,8 +177,8 @@ int view_auto_scale(const double *d, size_t n, double fallback, double *scale, f
     double v = 0;
     if (k > 0) {
         qsort(a, k, sizeof *a, cmp_double);
-        v = a[(size_t)(VIEW_SCALE_QUANTILE * (double)(k - 1))];
-        if (!(v > 0)) v = a[k - 1];
+        v = factor * a[(size_t)(q * (double)(k - 1))];
+        if (!(v > 0)) v = factor * a[k - 1];
     }
     frep_free(a);
     *scale = v > 0 ? view_nice_ceil(v) : fallback;

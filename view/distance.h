@@ -36,13 +36,22 @@ int view_vertex_distances(const frep_mesh *m, size_t n, const double *x, const d
 int view_mesh_distances(const frep_mesh *m, size_t n, const double *x, const double *y,
                         const double *z, double *d, frep_error *e);
 
-/* The distance a colour scale maps to its top, chosen from the data: the
- * VIEW_SCALE_QUANTILE quantile of the finite |d[i]|, rounded up to 1, 2 or 5 times a
- * power of ten, so most values spread over the scale and the worst few saturate.
+/* The distance a colour scale maps to its top, chosen from the data: factor times
+ * the q quantile of the finite |d[i]|, rounded up to 1, 2 or 5 times a power of ten.
  * fallback is returned when no value is finite and positive.  Returns 0 with *scale
  * set, or -1 with *e set (out of memory). */
-#define VIEW_SCALE_QUANTILE 0.95
-int view_auto_scale(const double *d, size_t n, double fallback, double *scale, frep_error *e);
+int view_auto_scale(const double *d, size_t n, double q, double factor, double fallback,
+                    double *scale, frep_error *e);
+/* The points' scale: their 95th percentile, so most distances spread over the colours
+ * and the worst few saturate. */
+#define VIEW_POINTS_QUANTILE 0.95
+#define VIEW_POINTS_FACTOR 1.0
+/* The surface's scale: four times its median distance to the cloud.  A well-sampled
+ * surface is within about the point spacing of a point everywhere (the median is
+ * near half of it), so only regions without points over several spacings, material
+ * the cloud does not show, reach red. */
+#define VIEW_SURFACE_QUANTILE 0.5
+#define VIEW_SURFACE_FACTOR 4.0
 
 /* v rounded up to 1, 2 or 5 times a power of ten (v > 0 and finite; else v). */
 double view_nice_ceil(double v);
