@@ -29,6 +29,19 @@ int cmd_segment(int argc, char **argv); /* cli/cmd_segment.c */
 int cmd_fit(int argc, char **argv);    /* cli/cmd_fit.c */
 int cmd_view(int argc, char **argv);   /* cli/cmd_view.c */
 
+/* --view of frep fit and frep evolve (cli/cmd_view.c): the page of frep view (grid
+ * 128, the model's '-- @box') of the model text write_model writes, called name,
+ * with the cloud; the summary line unless quiet. Returns CLI_OK or CLI_FAIL. */
+typedef struct cli_view_job {
+    const char *sub, *out, *name, *model, *cloud;
+    int (*write_model)(FILE *f, void *user);
+    void *user;
+    const double *a;        /* values of a[] (NULL: the model's own) */
+    size_t na;
+    int nthreads, quiet;
+} cli_view_job;
+int cli_view_result(const cli_view_job *j);
+
 /* Model -> mesh steps shared by frep mesh, sample and render (cli/model.c): the model
  * options (-m -a -b -g --iso -t --setops, table entries below), compile, polygonize. */
 typedef struct mesh_cli {
@@ -42,6 +55,7 @@ typedef struct mesh_cli {
     size_t srclen;
     frep_runtime_error err;  /* runtime errors of every evaluation so far */
     frep_buf *diag;          /* may be NULL; else compiler messages are copied here */
+    const char *text;        /* may be NULL; else the model's text (path names it) */
 } mesh_cli;
 void mesh_cli_init(mesh_cli *c);
 void mesh_cli_free(mesh_cli *c);
@@ -123,6 +137,10 @@ frep_program *cli_compile_file(const char *path, const char *model, const double
 /* The same, with a copy of the messages appended to diag (may be NULL). */
 frep_program *cli_compile_file_diag(const char *path, const char *model, const double *a,
                                     size_t na, int setops, char **src, frep_buf *diag);
+/* The same for a text already in memory, called path in messages. */
+frep_program *cli_compile_text(const char *path, const char *text, size_t len,
+                               const char *model, const double *a, size_t na, int setops,
+                               frep_buf *diag);
 
 /* Write a file atomically: data goes to a temporary in the same directory, which is
  * renamed over `path` when `fn` succeeds. fn returns 0 on success. */

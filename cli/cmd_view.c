@@ -39,6 +39,8 @@ static const char view_usage[] =
  * for a new version every 200 ms; a save shows within about 0.3 s plus meshing). */
 #define VIEW_WATCH_POLL_MS 100
 #define VIEW_DEFAULT_PORT "8018"
+/* Grid of the page of frep fit --view and frep evolve --view: frep view's default. */
+#define VIEW_DEFAULT_GRID 128
 
 /* What one build of the page holds: the mesh, the cloud and their distances, the
  * parameters of the program the mesh was made of. */
@@ -59,6 +61,7 @@ typedef struct view_cmd {
     const char *in, *out, *points;
     double scale;            /* --scale: 0 chooses it from the data */
     int quiet, watch, port;
+    FILE *summary;           /* where the summary line goes (NULL: stdout) */
     double timeout;          /* --watch: stop after this many seconds (0: at Ctrl-C) */
     view_build b;            /* the last good build */
     char *text;              /* --watch: the model's text as last read */
@@ -238,9 +241,10 @@ static void report(const view_cmd *c)
     long size = -1;
     if (f && fseek(f, 0, SEEK_END) == 0) size = ftell(f);
     if (f) fclose(f);
-    printf("%s: %.2f MB, %zu triangles", c->out, (double)size / 1e6, c->b.m.ntris);
-    if (c->b.cl) printf(", %zu points (colour scale %g)", c->b.cl->n, c->b.pscale);
-    printf("\n");
+    FILE *o = c->summary ? c->summary : stdout;
+    fprintf(o, "%s: %.2f MB, %zu triangles", c->out, (double)size / 1e6, c->b.m.ntris);
+    if (c->b.cl) fprintf(o, ", %zu points (colour scale %g)", c->b.cl->n, c->b.pscale);
+    fprintf(o, "\n");
 }
 
 /* build -> write -> report */
@@ -251,6 +255,49 @@ static int view_once(view_cmd *c)
     if (cli_write_atomic(c->out, write_page_cb, c) != 0) return CLI_FAIL;
     if (!c->quiet) report(c);
     return CLI_OK;
+}
+
+/* The model text a writer callback makes, in memory (free()); NULL when it fails. */
+static char *model_text(const cli_view_job *j)
+{
+    char *text = NULL;
+    size_t len = 0;
+    FILE *m = open_memstream(&text, &len);
+    if (!m) return NULL;
+    int rc = j->write_model(m, j->user);
+    if (fclose(m) != 0 || rc != 0) {
+        free(text);
+        return NULL;
+    }
+    return text;
+}
+
+int cli_view_result(const cli_view_job *j)
+{
+    view_cmd c;
+    memset(&c, 0, sizeof c);
+    mesh_cli_init(&c.mc);
+    c.mc.grid = VIEW_DEFAULT_GRID;
+    c.mc.nthreads = j->nthreads;
+    c.mc.model = j->model;
+    c.in = j->name ? j->name : "(standard output)";
+    c.summary = j->name ? stdout : stderr;
+    c.out = j->out;
+    c.points = j->cloud;
+    c.quiet = j->quiet;
+    char *text = model_text(j);
+    c.mc.text = text;
+    if (j->a && j->na) {
+        c.mc.a.v = malloc(j->na * sizeof *c.mc.a.v);
+        if (c.mc.a.v) memcpy(c.mc.a.v, j->a, j->na * sizeof *c.mc.a.v);
+        c.mc.a.n = c.mc.a.v ? j->na : 0;
+    }
+    int rc = text ? view_once(&c) : CLI_FAIL;
+    if (!text) fprintf(stderr, "frep %s: cannot write the model for --view\n", j->sub);
+    build_free(&c.b);
+    mesh_cli_free(&c.mc);
+    free(text);
+    return rc;
 }
 
 /* ---- --watch ---------------------------------------------------------------- */

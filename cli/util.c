@@ -107,6 +107,16 @@ frep_program *cli_compile_file_diag(const char *path, const char *model, const d
     size_t len = 0;
     char *text = cli_read_file(path, &len);
     if (!text) return NULL;
+    frep_program *p = cli_compile_text(path, text, len, model, a, na, setops, diag);
+    if (src && p) *src = text;
+    else free(text);
+    return p;
+}
+
+frep_program *cli_compile_text(const char *path, const char *text, size_t len,
+                               const char *model, const double *a, size_t na, int setops,
+                               frep_buf *diag)
+{
     frep_compile_options o;
     frep_compile_options_init(&o);
     o.model = model;
@@ -116,8 +126,6 @@ frep_program *cli_compile_file_diag(const char *path, const char *model, const d
     cli_diag_ctx dc = { text, len, 0, 0, NULL, 0, diag };
     frep_program *p = frep_compile(path, text, len, &o, cli_print_diag, &dc);
     cli_diag_done(&dc);
-    if (src && p) *src = text;
-    else free(text);
     return p;
 }
 
