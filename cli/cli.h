@@ -75,6 +75,21 @@ void mesh_cli_report_errors(mesh_cli *c);
 int cli_is_mesh_path(const char *path);
 int cli_read_mesh(const char *sub, const char *path, struct frep_mesh *m);
 
+/* A cloud and its distances, for frep render and frep view (cli/model.c): each
+ * point's signed distance to the surface (> 0 inside; the model's |f|/|grad f|, or
+ * the mesh's nearest triangle when mc->p is NULL), each vertex's distance to the
+ * cloud, and their colour scales chosen from the data (view/distance.h; 0 when no
+ * distance is finite and positive). */
+typedef struct cli_cloud_dist {
+    struct frep_cloud *cl;
+    double *pdist, *vdist;
+    double pscale, vscale;
+} cli_cloud_dist;
+/* Read the cloud at path and measure; prints why it cannot ("frep SUB: ..."). */
+int cli_cloud_distances(const char *sub, const char *path, mesh_cli *mc,
+                        const struct frep_mesh *m, cli_cloud_dist *d);
+void cli_cloud_dist_free(cli_cloud_dist *d);
+
 /* Option table entries shared by several subcommands: one parser each for the model
  * options, the thread count, the seed and -q. T is the context type, f its field. */
 #define CLI_OPT_MODEL(T, f, h) \

@@ -7,7 +7,6 @@
 
 #include "cli.h"
 #include "cloud.h"
-#include "distance.h"
 #include "mesh.h"
 #include "png.h"
 #include "render.h"
@@ -42,10 +41,8 @@ typedef struct render_cmd {
     frep_mesh m;
     mesh_stats st;
     double bbox[6];          /* the framed region: the mesh and the points */
-    frep_cloud *cl;          /* --points */
-    double *dist;            /* signed distances of the points (> 0 inside) */
-    double *vdist;           /* distances of the vertices to the cloud */
-    double dmean, dmax, vscale;
+    cli_cloud_dist cd;       /* --points and its distances */
+    double dmean, dmax;
     size_t inside, deep;     /* points inside the solid, and deeper than the slack */
     char note[96];
     render_points rp;
@@ -133,14 +130,14 @@ static int stage_mesh(render_cmd *c)
  * framed box grows to hold the points. */
 static void point_stats(render_cmd *c)
 {
-    const frep_cloud *cl = c->cl;
+    const frep_cloud *cl = c->cd.cl;
     for (size_t i = 0; i < cl->n; i++) {
-        double d = fabs(c->dist[i]);
+        double d = fabs(c->cd.pdist[i]);
         if (isfinite(d)) {
             c->dmean += d / (double)cl->n;
             c->dmax = fmax(c->dmax, d);
         }
-        c->inside += c->dist[i] > 0;
+        c->inside += c->cd.pdist[i] > 0;
         c->bbox[0] = fmin(c->bbox[0], cl->x[i]);
         c->bbox[3] = fmax(c->bbox[3], cl->x[i]);
         c->bbox[1] = fmin(c->bbox[1], cl->y[i]);
@@ -150,67 +147,25 @@ static void point_stats(render_cmd *c)
     }
 }
 
-/* The box diagonal of the picture. */
-static double bbox_diagonal(const double *b)
-{
-    return sqrt((b[3] - b[0]) * (b[3] - b[0]) + (b[4] - b[1]) * (b[4] - b[1]) +
-                (b[5] - b[2]) * (b[5] - b[2]));
-}
-
-/* Signed distances of the points to the model (|f - iso|/|grad f|) or to the mesh. */
-static int measure_points(render_cmd *c, frep_error *e)
-{
-    const frep_cloud *cl = c->cl;
-    if (!c->mc.p) return view_mesh_distances(&c->m, cl->n, cl->x, cl->y, cl->z, c->dist, e);
-    frep_runtime_error re;
-    memset(&re, 0, sizeof re);
-    if (view_point_distances(c->mc.p, c->mc.iso, cl->n, cl->x, cl->y, cl->z, c->mc.nthreads,
-                             c->dist, &re, e) != 0)
-        return -1;
-    mesh_cli_add_errors(&c->mc, &re);
-    mesh_cli_report_errors(&c->mc);
-    return 0;
-}
-
-/* --points: read the cloud, measure its distances to the surface and the surface's to
- * it, choose the colour scales. */
+/* --points: the cloud and its distances (cli/model.c), the framed box grown to hold
+ * it, the scales (--scale, else from the data, else a share of the box), the points
+ * inside. */
 static int stage_points(render_cmd *c)
 {
-    char *msg = NULL;
-    c->cl = cloud_read(c->points, &msg);
-    if (!c->cl) {
-        fprintf(stderr, "%s\n", msg ? msg : "frep render: cannot read the cloud");
-        free(msg);
-        return CLI_FAIL;
-    }
-    const frep_cloud *cl = c->cl;
-    c->dist = malloc((cl->n + 1) * sizeof *c->dist);
-    c->vdist = malloc((c->m.nverts + 1) * sizeof *c->vdist);
-    frep_error e;
-    frep_error_init(&e);
-    if (!c->dist || !c->vdist) {
-        fprintf(stderr, "frep render: out of memory\n");
-        return CLI_FAIL;
-    }
-    if (measure_points(c, &e) != 0) {
-        fprintf(stderr, "frep render: %s\n", e.code == FREP_ENOMEM ? e.msg : "evaluation failed");
-        return CLI_FAIL;
-    }
+    if (cli_cloud_distances("render", c->points, &c->mc, &c->m, &c->cd) != CLI_OK) return CLI_FAIL;
     point_stats(c);
-    double diag = bbox_diagonal(c->bbox), pscale;
-    if (view_auto_scale(c->dist, cl->n, VIEW_POINTS_QUANTILE, VIEW_POINTS_FACTOR,
-                        RENDER_FALLBACK_FRACTION * diag, &pscale, &e) != 0 ||
-        view_vertex_distances(&c->m, cl->n, cl->x, cl->y, cl->z, c->vdist, &e) != 0 ||
-        view_auto_scale(c->vdist, c->m.nverts, VIEW_SURFACE_QUANTILE,
-                        VIEW_SURFACE_FACTOR, RENDER_FALLBACK_FRACTION * diag, &c->vscale, &e) != 0) {
-        fprintf(stderr, "frep render: %s\n", e.msg);
-        return CLI_FAIL;
-    }
-    if (c->scale > 0) pscale = c->scale;
-    for (size_t i = 0; i < cl->n; i++) c->deep += c->dist[i] > RENDER_POINT_DEPTH_SLACK * diag;
+    const double *b = c->bbox;
+    double diag = sqrt((b[3] - b[0]) * (b[3] - b[0]) + (b[4] - b[1]) * (b[4] - b[1]) +
+                       (b[5] - b[2]) * (b[5] - b[2]));
+    cli_cloud_dist *d = &c->cd;
+    if (!(d->pscale > 0)) d->pscale = RENDER_FALLBACK_FRACTION * diag;
+    if (!(d->vscale > 0)) d->vscale = RENDER_FALLBACK_FRACTION * diag;
+    if (c->scale > 0) d->pscale = c->scale;
+    for (size_t i = 0; i < d->cl->n; i++)
+        c->deep += d->pdist[i] > RENDER_POINT_DEPTH_SLACK * diag;
     snprintf(c->note, sizeof c->note, "%zu of %zu points inside the solid, %zu as rings",
-             c->inside, cl->n, c->deep);
-    c->rp = (render_points){ cl->n, cl->x, cl->y, cl->z, c->dist, pscale, 1 };
+             c->inside, d->cl->n, c->deep);
+    c->rp = (render_points){ d->cl->n, d->cl->x, d->cl->y, d->cl->z, d->pdist, d->pscale, 1 };
     return CLI_OK;
 }
 
@@ -221,10 +176,10 @@ static void set_legends(const render_cmd *c, render_options *ro)
     ro->legends[ro->nlegends++] = (render_legend){ "points: distance to the surface", c->rp.vmax,
                                                    "model units", c->note };
     if (c->plain) return;
-    ro->vertex_value = c->vdist;
-    ro->vertex_vmax = c->vscale;
+    ro->vertex_value = c->cd.vdist;
+    ro->vertex_vmax = c->cd.vscale;
     ro->legends[ro->nlegends++] = (render_legend){ "surface: distance to the nearest point",
-                                                   c->vscale, "model units", NULL };
+                                                   c->cd.vscale, "model units", NULL };
 }
 
 /* Rasterize the mesh (and the points) into c->rgb. */
@@ -259,7 +214,7 @@ static void stage_report(const render_cmd *c)
     printf("%s: %dx%d, %s view of %zu triangles", c->out, c->size[0], c->size[1], c->view,
            c->m.ntris);
     if (c->points)
-        printf(", %zu points (distance to the surface: mean %.3g, max %.3g)", c->cl->n, c->dmean,
+        printf(", %zu points (distance to the surface: mean %.3g, max %.3g)", c->cd.cl->n, c->dmean,
                c->dmax);
     printf("\n");
 }
@@ -283,9 +238,7 @@ int cmd_render(int argc, char **argv)
     int rc = stage_options(&c, argc, argv);
     if (rc == CLI_GO_ON) rc = render_steps(&c);
     mesh_free(&c.m);
-    cloud_free(c.cl);
-    free(c.dist);
-    free(c.vdist);
+    cli_cloud_dist_free(&c.cd);
     free(c.rgb);
     mesh_cli_free(&c.mc);
     return rc;

@@ -7,7 +7,6 @@
 
 #include "cli.h"
 #include "cloud.h"
-#include "distance.h"
 #include "mesh.h"
 #include "page.h"
 #include "serve.h"
@@ -47,9 +46,7 @@ static const char view_usage[] =
 typedef struct view_build {
     frep_mesh m;
     mesh_stats st;
-    frep_cloud *cl;
-    double *pdist, *vdist;   /* signed point distances, vertex distances */
-    double pscale, vscale;
+    cli_cloud_dist cd;       /* --points and its distances */
     size_t np;
     char **pnames;
     double *pvalues;
@@ -131,54 +128,20 @@ static int stage_params(view_cmd *c, view_build *b)
     return CLI_FAIL;
 }
 
-/* --points: the cloud, each point's signed distance to the surface (the model's
- * |f|/|grad f|, or the mesh's nearest triangle), each vertex's distance to the cloud,
- * and the two colour scales. */
+/* --points: the cloud and its distances (cli/model.c); --scale. */
 static int stage_points(view_cmd *c, view_build *b)
 {
-    char *msg = NULL;
-    b->cl = cloud_read(c->points, &msg);
-    if (!b->cl) {
-        fprintf(stderr, "%s\n", msg ? msg : "frep view: cannot read the cloud");
-        free(msg);
-        return CLI_FAIL;
-    }
-    const frep_cloud *cl = b->cl;
-    b->pdist = malloc((cl->n + 1) * sizeof *b->pdist);
-    b->vdist = malloc((b->m.nverts + 1) * sizeof *b->vdist);
-    frep_error e;
-    frep_error_init(&e);
-    if (!b->pdist || !b->vdist) {
-        frep_error_nomem(&e);
-        goto fail;
-    }
-    frep_runtime_error re;
-    memset(&re, 0, sizeof re);
-    int rc = c->mc.p ? view_point_distances(c->mc.p, c->mc.iso, cl->n, cl->x, cl->y, cl->z,
-                                            c->mc.nthreads, b->pdist, &re, &e)
-                     : view_mesh_distances(&b->m, cl->n, cl->x, cl->y, cl->z, b->pdist, &e);
-    if (rc != 0) goto fail;
-    mesh_cli_add_errors(&c->mc, &re);
-    mesh_cli_report_errors(&c->mc);
-    if (view_vertex_distances(&b->m, cl->n, cl->x, cl->y, cl->z, b->vdist, &e) != 0 ||
-        view_auto_scale(b->pdist, cl->n, VIEW_POINTS_QUANTILE, VIEW_POINTS_FACTOR,
-                        VIEW_FALLBACK_SCALE, &b->pscale, &e) != 0 ||
-        view_auto_scale(b->vdist, b->m.nverts, VIEW_SURFACE_QUANTILE, VIEW_SURFACE_FACTOR,
-                        VIEW_FALLBACK_SCALE, &b->vscale, &e) != 0)
-        goto fail;
-    if (c->scale > 0) b->pscale = c->scale;
+    if (cli_cloud_distances("view", c->points, &c->mc, &b->m, &b->cd) != CLI_OK) return CLI_FAIL;
+    if (!(b->cd.pscale > 0)) b->cd.pscale = VIEW_FALLBACK_SCALE;
+    if (!(b->cd.vscale > 0)) b->cd.vscale = VIEW_FALLBACK_SCALE;
+    if (c->scale > 0) b->cd.pscale = c->scale;
     return CLI_OK;
-fail:
-    fprintf(stderr, "frep view: %s: %s\n", c->points, e.msg);
-    return CLI_FAIL;
 }
 
 static void build_free(view_build *b)
 {
     mesh_free(&b->m);
-    cloud_free(b->cl);
-    free(b->pdist);
-    free(b->vdist);
+    cli_cloud_dist_free(&b->cd);
     for (size_t i = 0; b->pnames && i < b->np; i++) free(b->pnames[i]);
     free(b->pnames);
     free(b->pvalues);
@@ -210,15 +173,15 @@ static void make_scene(const view_cmd *c, view_scene *s)
     s->info = b->info;
     s->diag = c->diag.len ? c->diag.s : NULL;
     s->version = c->version;
-    if (b->cl) {
-        s->npoints = b->cl->n;
-        s->px = b->cl->x;
-        s->py = b->cl->y;
-        s->pz = b->cl->z;
-        s->pdist = b->pdist;
-        s->pscale = b->pscale;
-        s->vdist = b->vdist;
-        s->vscale = b->vscale;
+    if (b->cd.cl) {
+        s->npoints = b->cd.cl->n;
+        s->px = b->cd.cl->x;
+        s->py = b->cd.cl->y;
+        s->pz = b->cd.cl->z;
+        s->pdist = b->cd.pdist;
+        s->pscale = b->cd.pscale;
+        s->vdist = b->cd.vdist;
+        s->vscale = b->cd.vscale;
     }
 }
 
@@ -243,7 +206,7 @@ static void report(const view_cmd *c)
     if (f) fclose(f);
     FILE *o = c->summary ? c->summary : stdout;
     fprintf(o, "%s: %.2f MB, %zu triangles", c->out, (double)size / 1e6, c->b.m.ntris);
-    if (c->b.cl) fprintf(o, ", %zu points (colour scale %g)", c->b.cl->n, c->b.pscale);
+    if (c->b.cd.cl) fprintf(o, ", %zu points (colour scale %g)", c->b.cd.cl->n, c->b.cd.pscale);
     fprintf(o, "\n");
 }
 
