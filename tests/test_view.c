@@ -103,12 +103,12 @@ static size_t unbase64(const char *s, size_t n, unsigned char *out)
 static void test_page(void)
 {
     frep_mesh m = { 4, 4, tet_v, NULL, tet_t };
-    double px[1] = { 0.25 }, py[1] = { 0.5 }, pz[1] = { -0.125 }, pd[1] = { 0.5 };
+    double px[2] = { 0.25, 1.25 }, py[2] = { 0.5, 0.5 }, pz[2] = { -0.125, 1 }, pd[2] = { 0.5, -1 };
     view_scene s;
     memset(&s, 0, sizeof s);
     s.name = "t\"</script>.hf";
     s.mesh = &m;
-    s.npoints = 1;
+    s.npoints = 2;
     s.px = px;
     s.py = py;
     s.pz = pz;
@@ -124,16 +124,25 @@ static void test_page(void)
     ok(strstr(j, "\"name\":\"t\\\"\\u003c/script\\u003e.hf\"") != NULL, "names escaped for <script>");
     ok(strstr(j, "\"source\":\"a\\nb\"") != NULL, "newlines escaped");
     ok(strstr(j, "\"nv\":4,\"nt\":4") != NULL, "mesh counts");
-    const char *pos = strstr(j, "\"points\":{\"n\":1,\"pos\":\"");
-    ok(pos != NULL, "points");
+    const char *pos = strstr(j, "\"points\":{\"n\":2,\"lo\":[0.25,0.5,-0.125],\"hi\":[1.25,0.5,1],\"pos\":\"");
+    ok(pos != NULL, "points with their bounds");
     if (pos) {
-        pos += strlen("\"points\":{\"n\":1,\"pos\":\"");
+        pos = strstr(pos, "\"pos\":\"") + 7;
         unsigned char raw[16];
         size_t n = unbase64(pos, (size_t)(strchr(pos, '"') - pos), raw);
-        float f[3];
-        memcpy(f, raw, sizeof f);
-        ok(n == 12 && f[0] == 0.25f && f[1] == 0.5f && f[2] == -0.125f,
-           "positions as base64 little-endian Float32");
+        static const unsigned char want[12] = { 0, 0, 0, 0, 0, 0, 255, 255, 0, 0, 255, 255 };
+        ok(n == 12 && memcmp(raw, want, 12) == 0,
+           "positions as little-endian Uint16 fractions of the bounds");
+    }
+    const char *idx = strstr(j, "\"idx\":\"");
+    ok(idx != NULL, "triangle corners");
+    if (idx) {
+        idx += 7;
+        unsigned char raw[16];
+        size_t n = unbase64(idx, (size_t)(strchr(idx, '"') - idx), raw);
+        /* corners 0 2 1 0 1 3 0 3 2 1 2 3: differences 0 +2 -1 -1 +1 +2 -3 +3 -1 -1 +1 +1 */
+        static const unsigned char want[12] = { 0, 4, 1, 1, 2, 4, 5, 6, 1, 1, 2, 2 };
+        ok(n == 12 && memcmp(raw, want, 12) == 0, "corners as zigzag varint differences");
     }
     frep_free(j);
     frep_error e;

@@ -1,5 +1,11 @@
 /* page.c - the self-contained HTML page of page.h: the JSON of a scene (base64 typed
  * arrays, escaped strings) spliced into the viewer template at its placeholder.
+ *
+ * Compact arrays: positions are 16-bit fractions of the box they span (1/65535 of it,
+ * far below a pixel and below the polygonizer's grid), triangle corners the zigzag
+ * LEB128 varints of their differences (neighbouring triangles share vertices, so most
+ * take one or two bytes), normals one signed byte a component.  About 10 bytes a
+ * triangle instead of 20 for Float32 and Uint32.
  */
 #include "config.h"
 
@@ -55,6 +61,68 @@ static void b64_end(b64 *s)
     if (s->npend) b64_flush3(s);
 }
 
+static void b64_u16(b64 *s, unsigned v)
+{
+    b64_byte(s, (unsigned char)v);
+    b64_byte(s, (unsigned char)(v >> 8));
+}
+
+/* Corner c after corner prev: zigzag, then LEB128 (7 bits a byte, low first). */
+static void b64_delta(b64 *s, uint32_t prev, uint32_t c)
+{
+    int64_t d = (int64_t)c - (int64_t)prev;
+    uint64_t z = d >= 0 ? (uint64_t)d << 1 : (((uint64_t)(-d)) << 1) - 1;
+    do {
+        unsigned char byte = (unsigned char)(z & 127);
+        z >>= 7;
+        b64_byte(s, (unsigned char)(byte | (z ? 128 : 0)));
+    } while (z);
+}
+
+/* The bounds of n points (three arrays, or interleaved xyz when y is NULL). */
+static void bounds(size_t n, const double *x, const double *y, const double *z, double lo[3],
+                   double hi[3])
+{
+    for (int k = 0; k < 3; k++) {
+        lo[k] = INFINITY;
+        hi[k] = -INFINITY;
+    }
+    for (size_t i = 0; i < n; i++) {
+        double p[3] = { y ? x[i] : x[3 * i], y ? y[i] : x[3 * i + 1], y ? z[i] : x[3 * i + 2] };
+        for (int k = 0; k < 3; k++)
+            if (isfinite(p[k])) {
+                lo[k] = fmin(lo[k], p[k]);
+                hi[k] = fmax(hi[k], p[k]);
+            }
+    }
+    for (int k = 0; k < 3; k++)
+        if (!(lo[k] <= hi[k])) lo[k] = hi[k] = 0;
+}
+
+/* v as a 16-bit fraction of [lo, hi]. */
+static unsigned quantize(double v, double lo, double hi)
+{
+    double t = hi > lo ? (v - lo) / (hi - lo) : 0;
+    t = isfinite(t) ? fmax(0, fmin(1, t)) : 0;
+    return (unsigned)lrint(65535 * t);
+}
+
+/* "lo":[..],"hi":[..],"pos":"<base64 Uint16 x y z ...>" of n points. */
+static void q16_xyz(frep_buf *b, size_t n, const double *x, const double *y, const double *z)
+{
+    double lo[3], hi[3];
+    bounds(n, x, y, z, lo, hi);
+    buf_printf(b, "\"lo\":[%.9g,%.9g,%.9g],\"hi\":[%.9g,%.9g,%.9g],\"pos\":\"", lo[0], lo[1],
+               lo[2], hi[0], hi[1], hi[2]);
+    b64 s = { b, { 0 }, 0 };
+    for (size_t i = 0; i < n; i++) {
+        double p[3] = { y ? x[i] : x[3 * i], y ? y[i] : x[3 * i + 1], y ? z[i] : x[3 * i + 2] };
+        for (int k = 0; k < 3; k++) b64_u16(&s, quantize(p[k], lo[k], hi[k]));
+    }
+    b64_end(&s);
+    buf_putc(b, '"');
+}
+
 /* A JSON string, safe inside a <script> element ('<' escaped). */
 static void json_str(frep_buf *b, const char *s)
 {
@@ -81,30 +149,23 @@ static void json_num(frep_buf *b, double v)
     else buf_puts(b, "null");
 }
 
-/* n values of xyz arrays (or one interleaved array when y is NULL) as Float32. */
-static void f32_xyz(frep_buf *b, size_t n, const double *x, const double *y, const double *z)
+/* n values as base64 Float32. */
+static void f32_array(frep_buf *b, size_t n, const double *x)
 {
     b64 s = { b, { 0 }, 0 };
     buf_putc(b, '"');
-    for (size_t i = 0; i < n; i++) {
-        if (y) {
-            b64_f32(&s, x[i]);
-            b64_f32(&s, y[i]);
-            b64_f32(&s, z[i]);
-        } else b64_f32(&s, x[i]);
-    }
+    for (size_t i = 0; i < n; i++) b64_f32(&s, x[i]);
     b64_end(&s);
     buf_putc(b, '"');
 }
 
-/* The mesh: bounds, Float32 positions, Int8 normals, Uint32 corners. */
+/* The mesh: 16-bit positions in its bounds, Int8 normals, varint corner deltas. */
 static void json_mesh(frep_buf *b, const frep_mesh *m)
 {
-    buf_printf(b, "{\"nv\":%zu,\"nt\":%zu,\"pos\":\"", m->nverts, m->ntris);
+    buf_printf(b, "{\"nv\":%zu,\"nt\":%zu,", m->nverts, m->ntris);
+    q16_xyz(b, m->nverts, m->v, NULL, NULL);
     b64 s = { b, { 0 }, 0 };
-    for (size_t i = 0; i < 3 * m->nverts; i++) b64_f32(&s, m->v[i]);
-    b64_end(&s);
-    buf_puts(b, "\",\"nrm\":");
+    buf_puts(b, ",\"nrm\":");
     if (m->n) {
         buf_putc(b, '"');
         for (size_t i = 0; i < 3 * m->nverts; i++) {
@@ -116,19 +177,19 @@ static void json_mesh(frep_buf *b, const frep_mesh *m)
         buf_putc(b, '"');
     } else buf_puts(b, "null");
     buf_puts(b, ",\"idx\":\"");
-    for (size_t i = 0; i < 3 * m->ntris; i++) b64_u32(&s, m->tri[i]);
+    for (size_t i = 0; i < 3 * m->ntris; i++) b64_delta(&s, i ? m->tri[i - 1] : 0, m->tri[i]);
     b64_end(&s);
     buf_puts(b, "\"}");
 }
 
 static void json_points(frep_buf *b, const view_scene *s)
 {
-    buf_printf(b, "{\"n\":%zu,\"pos\":", s->npoints);
-    f32_xyz(b, s->npoints, s->px, s->py, s->pz);
+    buf_printf(b, "{\"n\":%zu,", s->npoints);
+    q16_xyz(b, s->npoints, s->px, s->py, s->pz);
     buf_puts(b, ",\"d\":");
     if (s->pdist) {
         /* Float32 keeps +-inf (no gradient) as it is; the viewer saturates it. */
-        f32_xyz(b, s->npoints, s->pdist, NULL, NULL);
+        f32_array(b, s->npoints, s->pdist);
     } else buf_puts(b, "null");
     buf_puts(b, ",\"scale\":");
     json_num(b, s->pscale);
@@ -161,7 +222,7 @@ void view_scene_json(frep_buf *b, const view_scene *s)
     buf_puts(b, ",\"vdist\":");
     if (s->mesh && s->mesh->ntris && s->vdist) {
         buf_puts(b, "{\"d\":");
-        f32_xyz(b, s->mesh->nverts, s->vdist, NULL, NULL);
+        f32_array(b, s->mesh->nverts, s->vdist);
         buf_puts(b, ",\"scale\":");
         json_num(b, s->vscale);
         buf_putc(b, '}');

@@ -36,8 +36,9 @@ typedef struct view_scene {
 /* The viewer (view/viewer.html, generated into view_template.c by the build). */
 extern const char view_template[];
 
-/* Append the scene as one JSON object: arrays as base64 of little-endian Float32
- * (positions, distances), Int8 (normals times 127) and Uint32 (triangle corners). */
+/* Append the scene as one JSON object: arrays in base64, positions as little-endian
+ * Uint16 fractions of their bounds ("lo", "hi"), distances as Float32, normals as Int8
+ * (times 127), triangle corners as zigzag LEB128 varints of their differences. */
 void view_scene_json(frep_buf *b, const view_scene *s);
 
 /* The page: the template with the scene inlined; watch != 0 makes it ask the server
