@@ -5,13 +5,14 @@
 
 #include "cli.h"
 #include "prune.h"
+#include "threads.h"
+#include "util.h"
 
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #define EVAL_MAX_GRID 4096 /* grid points per axis: 4096^3 evaluations is hours already */
 
@@ -34,13 +35,6 @@ static void print_num(FILE *f, double v)
     if (isnan(v)) fputs("nan", f);
     else if (isinf(v)) fputs(v > 0 ? "inf" : "-inf", f);
     else fprintf(f, "%.17g", v);
-}
-
-static double now_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 typedef struct point_buf {
@@ -176,17 +170,17 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
     prune_grid_stats_init(&st);
     double insns = 0;
     frep_runtime_error all = { 0 };
-    double t0 = now_seconds(), eval_time = 0;
+    double t0 = frep_now_seconds(), eval_time = 0;
     for (long k0 = 0; k0 < N; k0 += PRUNE_TILE) {
         long nk = N - k0 < PRUNE_TILE ? N - k0 : PRUNE_TILE;
         frep_runtime_error e;
-        double t1 = now_seconds();
+        double t1 = frep_now_seconds();
         if (prune_eval_grid_summary(p, N, box, k0, nk, prune, nthreads, NULL, &st, &e,
                                     &insns) != 0) {
             fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
             return CLI_FAIL;
         }
-        eval_time += now_seconds() - t1;
+        eval_time += frep_now_seconds() - t1;
         if (e.count && (all.count == 0 || e.pc < all.pc)) {
             uint64_t c = all.count;
             all = e;
@@ -197,10 +191,10 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
     }
     uint64_t inside = st.inside, nans = st.nans;
     double vmin = st.min, vmax = st.max, sum = st.sum;
-    double total_time = now_seconds() - t0;
+    double total_time = frep_now_seconds() - t0;
     double npts = (double)N * (double)N * (double)N;
     double vol = (box[3] - box[0]) * (box[4] - box[1]) * (box[5] - box[2]);
-    int threads = cli_threads(nthreads);
+    int threads = frep_threads(nthreads);
     printf("grid      %ld^3 = %.0f points over [%g,%g]x[%g,%g]x[%g,%g]\n", N, npts, box[0],
            box[3], box[1], box[4], box[2], box[5]);
     printf("inside    %llu (%.6f of the points, f >= 0)\n", (unsigned long long)inside,

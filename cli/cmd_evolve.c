@@ -12,6 +12,7 @@
 #include "residual.h"
 #include "segment.h"
 #include "buf.h"
+#include "util.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -46,7 +47,6 @@ typedef struct progress_ctx {
     int tty, quiet;
     double last;
     frep_buf *trace;         /* NULL without --trace */
-    gp_report report;        /* filled by gp_run before each call (gp.h) */
     double t0;               /* gp_now() when evolve_run started */
     clock_t c0;              /* clock() then */
     int polish;              /* 1 once the merge of a partitioned run was reported */
@@ -64,8 +64,8 @@ static int progress(void *user, const gp_progress *p)
             buf_printf(c->trace, "%u %.4f %.4f nan %u - merge\n", p->generation, wall, cpu,
                       p->best_len);
         } else {
-            double share = c->report.npoints
-                               ? 100.0 * (double)c->report.explained / (double)c->report.npoints
+            double share = p->npoints
+                               ? 100.0 * (double)p->explained / (double)p->npoints
                                : 0.0;
             const char *ph = p->phase == GP_PHASE_MERGED ? "merged"
                              : p->phase == GP_PHASE_GROWN ? "grown"
@@ -89,8 +89,8 @@ static int progress(void *user, const gp_progress *p)
         fflush(stderr);
     }
     /* --stop-share: a GA phase ends once its best tree explains enough points. */
-    if (c->stop_share > 0 && p->phase == GP_PHASE_GA && c->report.npoints &&
-        100.0 * (double)c->report.explained >= c->stop_share * (double)c->report.npoints)
+    if (c->stop_share > 0 && p->phase == GP_PHASE_GA && p->npoints &&
+        100.0 * (double)p->explained >= c->stop_share * (double)p->npoints)
         return 1;
     return cli_interrupted();
 }
@@ -141,7 +141,7 @@ typedef struct evolve_cmd {
     const char *cloud_path, *cmdline;
     frep_cloud *cloud;
     frep_cloud *sub;            /* --residual without -p: the points to segment */
-    prim *prims;                /* from -p (free()) or seg.prims */
+    prim *prims;                /* from -p (frep_free()) or seg.prims */
     size_t nprims;
     segment_result seg;
     int have_seg;
@@ -149,12 +149,12 @@ typedef struct evolve_cmd {
     frep_program *base_prog;
     char *base_src;
     double *base_f, *base_g;
-    uint8_t *mask;
+    uint8_t *mask, *base_ok;     /* base_ok: where the --residual model can be evaluated */
     progress_ctx pc;
     frep_buf trace;
     evolve_result res;
     char note[256];             /* --refit's figures for the model's comments */
-    char *err;
+    frep_error ferr;            /* of the library calls */
 } evolve_cmd;
 
 static int parse_setops(const char *arg, void *dest, char *why, size_t whylen)
@@ -288,9 +288,9 @@ static int ensure_normals(evolve_cmd *e)
 /* The cloud read; normals are needed before the GA, and before the residual is known. */
 static int stage_cloud(evolve_cmd *e)
 {
-    e->cloud = cloud_read(e->cloud_path, &e->err);
+    e->cloud = cloud_read(e->cloud_path, &e->ferr);
     if (!e->cloud) {
-        fprintf(stderr, "frep evolve: %s\n", e->err ? e->err : "cannot read the cloud");
+        fprintf(stderr, "frep evolve: %s\n", e->ferr.msg[0] ? e->ferr.msg : "cannot read the cloud");
         return CLI_FAIL;
     }
     if (!e->quiet) fprintf(stderr, "frep evolve: %zu points, seed %llu\n", e->cloud->n,
@@ -331,9 +331,10 @@ static int stage_residual(evolve_cmd *e)
     evolve_options *eo = &e->eo;
     e->base_prog = cli_compile_file(e->residual_path, NULL, NULL, 0, -1, &e->base_src);
     if (!e->base_prog) return CLI_FAIL;
+    frep_error_init(&e->ferr);
     if (residual_prepare(e->residual_path, e->base_src, strlen(e->base_src), NULL, e->base_prog,
-                         &e->base, &e->err)) {
-        fprintf(stderr, "frep evolve: %s\n", e->err ? e->err : "cannot use the model");
+                         &e->base, &e->ferr)) {
+        fprintf(stderr, "frep evolve: %s\n", e->ferr.msg[0] ? e->ferr.msg : "cannot use the model");
         return CLI_FAIL;
     }
     if (e->have_setops && eo->gp.setops != e->base.setops) {
@@ -347,14 +348,17 @@ static int stage_residual(evolve_cmd *e)
     e->base_f = malloc(N * sizeof *e->base_f);
     e->base_g = malloc(3 * N * sizeof *e->base_g);
     e->mask = malloc(N);
-    if (!e->base_f || !e->base_g || !e->mask ||
-        residual_eval(&e->base, e->cloud, eo->gp.threads, e->base_f, e->base_g, &nbad))
+    e->base_ok = malloc(N);
+    if (!e->base_f || !e->base_g || !e->mask || !e->base_ok ||
+        residual_eval(&e->base, e->cloud, eo->gp.threads, e->base_f, e->base_g, e->base_ok,
+                      &nbad))
         return out_of_memory();
     if (nbad && !e->quiet)
         fprintf(stderr, "frep evolve: %s cannot be evaluated at %zu points (treated as "
                         "unexplained)\n", e->residual_path, nbad);
     eo->base_f = e->base_f;
     eo->base_g = e->base_g;
+    eo->base_ok = e->base_ok;
     if (evolve_residual_points(eo, e->cloud, e->mask, &nres)) return out_of_memory();
     if (!e->quiet)
         fprintf(stderr, "frep evolve: %s explains %zu of %zu points; evolving for the %zu others\n",
@@ -369,18 +373,16 @@ static int segment_prims(evolve_cmd *e)
     segment_config_init(&sc);
     sc.seed = e->eo.gp.seed;
     sc.nthreads = e->eo.gp.threads;
-    if (segment_run(e->sub ? e->sub : e->cloud, &sc, &e->seg, &e->err)) {
+    if (segment_run(e->sub ? e->sub : e->cloud, &sc, &e->seg, &e->ferr)) {
         if (!e->residual_path) {
             fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path,
-                    e->err ? e->err : "segmentation failed");
+                    e->ferr.msg[0] ? e->ferr.msg : "segmentation failed");
             return CLI_FAIL;
         }
         /* Too few residual points to segment: the result is the base model. */
         if (!e->quiet)
             fprintf(stderr, "frep evolve: the residual points give no primitive (%s)\n",
-                    e->err ? e->err : "segmentation failed");
-        free(e->err);
-        e->err = NULL;
+                    e->ferr.msg[0] ? e->ferr.msg : "segmentation failed");
         return CLI_OK;
     }
     e->have_seg = 1;
@@ -398,8 +400,8 @@ static int stage_prims(evolve_cmd *e)
 {
     int rc = CLI_OK;
     if (e->prims_path) {
-        if (segment_read_prims(e->prims_path, &e->prims, &e->nprims, &e->err)) {
-            fprintf(stderr, "frep evolve: %s\n", e->err ? e->err : "cannot read the primitives");
+        if (segment_read_prims(e->prims_path, &e->prims, &e->nprims, &e->ferr)) {
+            fprintf(stderr, "frep evolve: %s\n", e->ferr.msg[0] ? e->ferr.msg : "cannot read the primitives");
             return CLI_FAIL;
         }
         rc = ensure_normals(e);
@@ -429,7 +431,7 @@ static void trace_header(frep_buf *t, uint64_t seed)
 /* The automatic alpha and the noise estimate behind it. */
 static void report_alpha(const evolve_result *res)
 {
-    double deg = res->alpha * 180 / 3.14159265358979323846;
+    double deg = res->alpha * 180 / FREP_PI;
     fprintf(stderr, "frep evolve: alpha %g degrees (automatic: %s; position spread %.3g eps, "
                     "normal deviation median %.2g, 90th percentile %.2g degrees over %zu "
                     "inliers; --alpha overrides)\n",
@@ -446,20 +448,22 @@ static int stage_evolve(evolve_cmd *e)
     pc->quiet = e->quiet;
     pc->last = -1;
     pc->stop_share = e->stop_share;
-    if (e->stop_share > 0) e->eo.gp.report = &pc->report;
+    if (e->stop_share > 0) e->eo.gp.report_explained = 1;
     if (e->trace_path) {
         pc->trace = &e->trace;
-        e->eo.gp.report = &pc->report;
+        e->eo.gp.report_explained = 1;
         trace_header(&e->trace, e->eo.gp.seed);
     }
     pc->t0 = gp_now();
     pc->c0 = clock();
     cli_sigint_catch();
-    int r = evolve_run(&e->eo, e->cloud, e->prims, e->nprims, progress, pc, &e->res, &e->err);
+    frep_error_init(&e->ferr);
+    int r = evolve_run(&e->eo, e->cloud, e->prims, e->nprims, progress, pc, &e->res, &e->ferr);
     cli_sigint_restore();
     if (pc->tty && !e->quiet) fputc('\n', stderr);
     if (r) {
-        fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path, e->err ? e->err : "failed");
+        fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path,
+                e->ferr.msg[0] ? e->ferr.msg : "failed");
         return CLI_FAIL;
     }
     if (cli_interrupted() && !e->quiet)
@@ -472,12 +476,11 @@ static int stage_evolve(evolve_cmd *e)
 static void stage_refit(evolve_cmd *e)
 {
     evolve_refit_info ri;
+    frep_error_init(&e->ferr);
     if (evolve_refit(&e->eo, e->cloud, e->prims, e->nprims, e->residual_path ? &e->base : NULL,
-                     &e->res, &ri, &e->err)) {
+                     &e->res, &ri, &e->ferr)) {
         fprintf(stderr, "frep evolve: --refit: %s (the model keeps the parameters as "
-                        "segmented)\n", e->err ? e->err : "failed");
-        free(e->err);
-        e->err = NULL;
+                        "segmented)\n", e->ferr.msg[0] ? e->ferr.msg : "failed");
     } else if (ri.nparams) {
         snprintf(e->note, sizeof e->note,
                  "refit: %zu parameters, RMS distance %.6g -> %.6g, max %.6g -> %.6g, %.2f s",
@@ -533,7 +536,7 @@ static void evolve_cmd_free(evolve_cmd *e)
 {
     buf_free(&e->trace);
     if (e->have_seg) segment_result_free(&e->seg);
-    else free(e->prims);
+    else frep_free(e->prims);
     evolve_result_free(&e->res);
     residual_free(&e->base);
     frep_program_free(e->base_prog);
@@ -541,9 +544,9 @@ static void evolve_cmd_free(evolve_cmd *e)
     free(e->base_f);
     free(e->base_g);
     free(e->mask);
+    free(e->base_ok);
     cloud_free(e->sub);
     cloud_free(e->cloud);
-    free(e->err);
 }
 
 /* cloud -> [residual] -> primitives -> GA -> [refit] -> files -> summary */

@@ -374,11 +374,10 @@ static int point_finite(const frep_cloud *c, size_t i)
  * diagonal sets the default loss scale. */
 static int stage_cloud(fit_cmd *f)
 {
-    char *cerr = NULL;
+    frep_error cerr;
     f->cloud = cloud_read(f->cloud_path, &cerr);
     if (f->cloud == NULL) {
-        fprintf(stderr, "%s\n", cerr ? cerr : "frep fit: cannot read the cloud");
-        free(cerr);
+        fprintf(stderr, "%s\n", cerr.msg[0] ? cerr.msg : "frep fit: cannot read the cloud");
         return CLI_FAIL;
     }
     frep_cloud *c = f->cloud;
@@ -436,12 +435,13 @@ static int stage_fit(fit_cmd *f)
     int tty = isatty(STDERR_FILENO) && !f->quiet;
     if (tty) f->cfg.progress = progress;
     f->cfg.interrupt = cli_sigint_catch();
-    char err[256];
-    int frc = fit_run(&f->fm, &f->pts, f->lo, f->hi, f->x0, &f->cfg, &f->res, err, sizeof err);
+    frep_error err;
+    frep_error_init(&err);
+    int frc = fit_run(&f->fm, &f->pts, f->lo, f->hi, f->x0, &f->cfg, &f->res, &err);
     cli_sigint_restore();
     if (tty) fputs("\r\033[K", stderr);
     if (frc != 0) {
-        fprintf(stderr, "%s: error: %s\n", f->tmpl, err);
+        fprintf(stderr, "%s: error: %s\n", f->tmpl, err.msg);
         return CLI_FAIL;
     }
     f->interrupted = cli_interrupted();
@@ -555,7 +555,7 @@ static void fit_cmd_free(fit_cmd *f)
 {
     if (f->fm.user != NULL) fit_program_model_free(&f->fm);
     cloud_free(f->cloud);
-    free(f->text);
+    frep_free(f->text);
     free(f->output);
     free(f->rows);
     free(f->idx);

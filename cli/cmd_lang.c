@@ -86,7 +86,7 @@ int cmd_print(int argc, char **argv)
     int rc = lang_input(&print_spec, argc, argv, &c, 1);
     if (rc != CLI_GO_ON) return rc;
     cli_diag_ctx dc = { c.src, c.len, 0, 0, NULL, 0, NULL };
-    diag_sink ds = { cli_print_diag, &dc, c.file, 0, 0 };
+    diag_sink ds = { cli_print_diag, &dc, c.file, 0, 0, NULL, 0 };
     arena A;
     arena_init(&A);
     ast_file f;
@@ -95,7 +95,7 @@ int cmd_print(int argc, char **argv)
         char *out = ast_print(&f);
         if (out) {
             fputs(out, stdout);
-            free(out);
+            frep_free(out);
             status = CLI_OK;
         }
     }
@@ -123,6 +123,6 @@ int cmd_dis(int argc, char **argv)
     frep_program_free(p);
     if (!s) return CLI_FAIL;
     fputs(s, stdout);
-    free(s);
+    frep_free(s);
     return CLI_OK;
 }

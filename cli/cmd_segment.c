@@ -8,6 +8,7 @@
 #include "cloud.h"
 #include "fitfile.h"
 #include "segment.h"
+#include "util.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -27,13 +28,6 @@ static const char segment_usage[] =
     "cylinder for each torus. Prints a summary table; with -o writes a frep model listing\n"
     "each primitive (.hf) or the plain .fit list of the reference GP implementation.\n\n";
 
-static double now_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 typedef struct progress_state {
     double last;
     int shown;
@@ -42,7 +36,7 @@ typedef struct progress_state {
 static void progress(void *user, const char *stage, size_t done, size_t total, size_t nprims)
 {
     progress_state *p = user;
-    double t = now_seconds();
+    double t = frep_now_seconds();
     if (t - p->last < SEGMENT_PROGRESS_INTERVAL) return;
     p->last = t;
     p->shown = 1;
@@ -142,7 +136,7 @@ static void print_params(const prim *q, double diag)
         if (q->type == PRIM_CYLINDER)
             printf(" r=%s", num(b[6], q->r, qp));
         else if (q->type == PRIM_CONE)
-            printf(" angle=%s deg", num(b[6], q->r * 180.0 / 3.14159265358979323846, 1e-4));
+            printf(" angle=%s deg", num(b[6], q->r * 180.0 / FREP_PI, 1e-4));
         else
             printf(" R=%s r=%s", num(b[6], q->R, qp), num(b[7], q->r, qp));
         break;
@@ -218,11 +212,10 @@ static int stage_options(segment_cmd *s, int argc, char **argv)
 /* RANSAC over the cloud, with progress on a terminal; Ctrl-C keeps what was found. */
 static int stage_segment(segment_cmd *s)
 {
-    char *err = NULL;
+    frep_error err;
     s->c = cloud_read(s->in, &err);
     if (!s->c) {
-        fprintf(stderr, "frep segment: %s\n", err ? err : "cannot read the cloud");
-        free(err);
+        fprintf(stderr, "frep segment: %s\n", err.msg[0] ? err.msg : "cannot read the cloud");
         return CLI_FAIL;
     }
     s->had_normals = s->c->has_normals;
@@ -232,14 +225,13 @@ static int stage_segment(segment_cmd *s)
         s->cfg.user = &ps;
     }
     s->cfg.interrupt = cli_sigint_catch();
-    double t0 = now_seconds();
+    double t0 = frep_now_seconds();
     int rc = segment_run(s->c, &s->cfg, &s->r, &err);
-    s->elapsed = now_seconds() - t0;
+    s->elapsed = frep_now_seconds() - t0;
     cli_sigint_restore();
     if (ps.shown) fputs("\r\033[K", stderr);
     if (rc) {
-        fprintf(stderr, "%s: error: %s\n", s->in, err ? err : "segmentation failed");
-        free(err);
+        fprintf(stderr, "%s: error: %s\n", s->in, err.msg[0] ? err.msg : "segmentation failed");
         return CLI_FAIL;
     }
     if (s->r.interrupted) fprintf(stderr, "frep segment: interrupted; writing what was found\n");

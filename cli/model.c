@@ -159,11 +159,10 @@ int cli_is_mesh_path(const char *path)
 
 int cli_read_mesh(const char *sub, const char *path, frep_mesh *m)
 {
-    char *msg = NULL;
+    frep_error msg;
     if (meshio_read(path, m, &msg) == 0) return CLI_OK;
-    if (msg) fprintf(stderr, "%s\n", msg);
+    if (msg.msg[0]) fprintf(stderr, "%s\n", msg.msg);
     else fprintf(stderr, "frep %s: cannot read the mesh\n", sub);
-    free(msg);
     return CLI_FAIL;
 }
 
@@ -190,13 +189,12 @@ static int measure(mesh_cli *mc, const frep_mesh *m, cli_cloud_dist *d, frep_err
 int cli_cloud_distances(const char *sub, const char *path, mesh_cli *mc, const frep_mesh *m,
                         cli_cloud_dist *d)
 {
-    char *msg = NULL;
+    frep_error msg;
     memset(d, 0, sizeof *d);
     d->cl = cloud_read(path, &msg);
     if (!d->cl) {
-        if (msg) fprintf(stderr, "%s\n", msg);
+        if (msg.msg[0]) fprintf(stderr, "%s\n", msg.msg);
         else fprintf(stderr, "frep %s: cannot read the cloud\n", sub);
-        free(msg);
         return CLI_FAIL;
     }
     d->pdist = malloc((d->cl->n + 1) * sizeof *d->pdist);

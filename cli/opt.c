@@ -12,10 +12,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 /* getopt_long's value of a long-only option: past every char, so never a short name. */
 #define CLI_LONG_ONLY_BASE 256
 /* Room for a reason of a value parser ("the box has no extent along x: [..]"). */
@@ -106,16 +102,6 @@ int cli_opt_setops(const char *arg, void *dest, char *why, size_t whylen)
     else if (strcmp(arg, "minmax") == 0) *setops = FREP_SETOPS_MINMAX;
     else return -1;
     return 0;
-}
-
-int cli_threads(int requested)
-{
-#ifdef _OPENMP
-    return requested > 0 ? requested : omp_get_max_threads();
-#else
-    (void)requested;
-    return 1;
-#endif
 }
 
 /* The largest value a numeric destination holds. */

@@ -94,7 +94,4 @@ void cli_opt_help(const cli_opt_spec *spec, FILE *f);
 int cli_opt_box(const char *arg, void *dest, char *why, size_t whylen);     /* double[6] */
 int cli_opt_setops(const char *arg, void *dest, char *why, size_t whylen);  /* int */
 
-/* The thread count a loop given `requested` threads (0: OpenMP's default) runs on. */
-int cli_threads(int requested);
-
 #endif

@@ -68,7 +68,7 @@ void cli_print_diag(void *user, const frep_diag *d)
     if (c) {
         for (size_t i = 0; i < c->nseen; i++)
             if (strcmp(c->seen[i], s) == 0) {
-                free(s);
+                frep_free(s);
                 return;
             }
         if (d->severity == FREP_ERROR) c->errors++;
@@ -84,12 +84,12 @@ void cli_print_diag(void *user, const frep_diag *d)
             return;
         }
     }
-    free(s);
+    frep_free(s);
 }
 
 void cli_diag_done(cli_diag_ctx *c)
 {
-    for (size_t i = 0; i < c->nseen; i++) free(c->seen[i]);
+    for (size_t i = 0; i < c->nseen; i++) frep_free(c->seen[i]);
     free(c->seen);
     c->seen = NULL;
     c->nseen = 0;

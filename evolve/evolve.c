@@ -4,19 +4,19 @@
  */
 #include "config.h"
 #include "alloc.h"
-#include "util.h"
+#include "buf.h"
+#include "err.h"
 
 #include "evolve.h"
 #include "residual.h"
 #include "simplify.h"
+#include "util.h"
 #include "kdtree.h"
 
 #include <math.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
-
-#define EV_PI 3.14159265358979323846
 
 void evolve_options_init(evolve_options *o)
 {
@@ -40,9 +40,6 @@ void evolve_result_free(evolve_result *r)
     memset(r, 0, sizeof *r);
 }
 
-/* A malloc'ed message for the caller (runtime/util.h), when it asked for one. */
-#define set_err(err, ...) do { if (err) *(err) = frep_strdupf(__VA_ARGS__); } while (0)
-
 static int cmp_size(const void *a, const void *b)
 {
     size_t x = *(const size_t *)a, y = *(const size_t *)b;
@@ -55,15 +52,18 @@ static int cmp_double_asc(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-/* Cache of prims[use[0..k)] at the points pts[0..m) (indices into x/y/z/nrm). */
-/* Leaf number nprims (use[j] == nprims) is the base model of --residual, whose values
- * and gradients at every cloud point are bf[i], bg[3i+c] (NULL otherwise). */
-static gp_cache *build_cache(const prim *prims, size_t nprims, const uint32_t *use,
-                             uint32_t k, const double *x, const double *y, const double *z,
-                             const double *nrm, const double *bf, const double *bg,
-                             const size_t *pts, size_t m, gp_setops s, double eps_d,
-                             double alpha, double lambda, int stats_only)
+/* Cache of prims[use[0..k)] at the points pts[0..m) (indices into x/y/z/nrm), under
+ * o's set operations. Leaf number nprims (use[j] == nprims) is the base model of
+ * --residual (o->base_f, o->base_g, o->base_ok). */
+static gp_cache *build_cache(const evolve_options *o, const prim *prims, size_t nprims,
+                             const uint32_t *use, uint32_t k, const double *x,
+                             const double *y, const double *z, const double *nrm,
+                             const size_t *pts, size_t m, double eps_d, double alpha,
+                             double lambda, int stats_only)
 {
+    const double *bf = o->base_f, *bg = o->base_g;
+    const uint8_t *bok = o->base_ok;
+    gp_setops s = o->gp.setops;
     double *px = frep_malloc((m ? m : 1) * sizeof *px), *py = frep_malloc((m ? m : 1) * sizeof *py);
     double *pz = frep_malloc((m ? m : 1) * sizeof *pz), *pn = frep_malloc(3 * (m ? m : 1) * sizeof *pn);
     double *v = frep_malloc((size_t)(k ? k : 1) * (m ? m : 1) * sizeof *v);
@@ -92,8 +92,9 @@ static gp_cache *build_cache(const prim *prims, size_t nprims, const uint32_t *u
         }
         for (size_t i = 0; i < m; i++) {
             size_t q = pts[i];
-            v[j * m + i] = bf[q];
-            for (size_t d = 0; d < 3; d++) g[(3 * j + d) * m + i] = bg[3 * q + d];
+            int ok = !bok || bok[q];
+            v[j * m + i] = ok ? bf[q] : EVOLVE_BASE_OUTSIDE;
+            for (size_t d = 0; d < 3; d++) g[(3 * j + d) * m + i] = ok ? bg[3 * q + d] : 0;
         }
     }
     c = stats_only ? gp_cache_new_stats(m, k, s, v, g, pn, eps_d, alpha, lambda)
@@ -112,153 +113,231 @@ out:
  * unsupported edges at a fraction of the kd-tree's cost. */
 #define EVOLVE_SUPPORT_MAX_POINTS 20000
 
+/* One support_run: the grid over the clipping box and what its stages build. */
+typedef struct support_ctx {
+    const evolve_options *o;
+    const frep_cloud *cloud;
+    const prim *prims;
+    size_t nprims;
+    const size_t *valid;     /* the valid points (cloud indices) */
+    size_t nv;
+    const gp_cache *sc;      /* the sample's cache of every primitive */
+    gp_eval *ev;
+    evolve_result *res;
+    support_grid g;
+    double H[3];             /* half sides of the grown clipping box */
+    double h;                /* cell side */
+    double q0[3];            /* node (0, 0, 0) in the box's frame */
+    size_t ng;               /* nodes */
+    double *gx, *gy, *gz;    /* node positions */
+    double *clip, *dist;     /* support_grid.clip and .dist */
+    double *cx, *cy, *cz;    /* the cloud points of the kd-tree */
+    size_t m;                /* their number */
+    kd_tree *kd;
+    uint32_t *used, nu;      /* the tree's primitives */
+    gp_cache *gc;            /* their values at the nodes */
+    gp_cache *pc;            /* the sample's cache of them */
+    gp_eval *eg;             /* evaluator on the grid */
+} support_ctx;
+
+/* The grid's frame: cubic cells, SUPPORT_GRID_CELLS along the box's longest side, and
+ * one node beyond each face. 1 when there is no grid to build (an empty box). */
+static int support_frame(support_ctx *c)
+{
+    const gp_obb *b = &c->res->obb;
+    double hmax = 0, mg = EVOLVE_CLIP_MARGIN * c->res->diag;
+    for (int d = 0; d < 3; d++) {
+        c->H[d] = b->h[d] + mg;
+        if (c->H[d] > hmax) hmax = c->H[d];
+    }
+    c->h = 2 * hmax / SUPPORT_GRID_CELLS;
+    if (!(c->h > 0) || c->nv == 0) return 1;
+    c->ng = 1;
+    for (int d = 0; d < 3; d++) {
+        /* One node beyond the box on each side: the clip closes every part. */
+        c->g.dims[d] = (size_t)ceil(2 * c->H[d] / c->h) + 3;
+        c->ng *= c->g.dims[d];
+    }
+    /* Node (0, 0, 0) in the box's frame, and the steps along its axes. */
+    for (int d = 0; d < 3; d++) c->q0[d] = -0.5 * (double)(c->g.dims[d] - 1) * c->h;
+    for (int k = 0; k < 3; k++) {
+        c->g.o[k] = b->c[k];
+        for (int d = 0; d < 3; d++) {
+            c->g.o[k] += c->q0[d] * b->ax[d][k];
+            c->g.u[d][k] = c->h * b->ax[d][k];
+        }
+    }
+    return 0;
+}
+
+/* The nodes' positions and how deep each lies inside the clipping box. */
+static int support_nodes(support_ctx *c)
+{
+    const gp_obb *b = &c->res->obb;
+    size_t ng = c->ng;
+    c->gx = frep_malloc(ng * sizeof *c->gx);
+    c->gy = frep_malloc(ng * sizeof *c->gy);
+    c->gz = frep_malloc(ng * sizeof *c->gz);
+    c->clip = frep_malloc(ng * sizeof *c->clip);
+    c->dist = frep_malloc(ng * sizeof *c->dist);
+    if (!c->gx || !c->gy || !c->gz || !c->clip || !c->dist) return -1;
+    for (size_t i = 0, a = 0; i < c->g.dims[0]; i++)
+        for (size_t j = 0; j < c->g.dims[1]; j++)
+            for (size_t k = 0; k < c->g.dims[2]; k++, a++) {
+                const size_t ijk[3] = { i, j, k };
+                double q[3], p[3] = { b->c[0], b->c[1], b->c[2] }, in = HUGE_VAL;
+                for (int d = 0; d < 3; d++) {
+                    q[d] = c->q0[d] + (double)ijk[d] * c->h;
+                    if (c->H[d] - fabs(q[d]) < in) in = c->H[d] - fabs(q[d]);
+                    for (int e = 0; e < 3; e++) p[e] += q[d] * b->ax[d][e];
+                }
+                c->gx[a] = p[0];
+                c->gy[a] = p[1];
+                c->gz[a] = p[2];
+                c->clip[a] = in;
+            }
+    return 0;
+}
+
+/* The kd-tree of the valid points (a regular subset beyond the limit); the node
+ * distances to it are computed on demand (NAN until then). */
+static int support_cloud(support_ctx *c)
+{
+    size_t nv = c->nv;
+    size_t stride = (nv + EVOLVE_SUPPORT_MAX_POINTS - 1) / EVOLVE_SUPPORT_MAX_POINTS, m = 0;
+    c->cx = frep_malloc((nv / stride + 1) * sizeof *c->cx);
+    c->cy = frep_malloc((nv / stride + 1) * sizeof *c->cy);
+    c->cz = frep_malloc((nv / stride + 1) * sizeof *c->cz);
+    if (!c->cx || !c->cy || !c->cz) return -1;
+    for (size_t q = 0; q < nv; q += stride, m++) {
+        c->cx[m] = c->cloud->x[c->valid[q]];
+        c->cy[m] = c->cloud->y[c->valid[q]];
+        c->cz[m] = c->cloud->z[c->valid[q]];
+    }
+    c->m = m;
+    if (!(c->kd = kd_build(m, c->cx, c->cy, c->cz))) return -1;
+    for (size_t a = 0; a < c->ng; a++) c->dist[a] = NAN;
+    return 0;
+}
+
+/* tau: two cells (a crossing lies within a cell of the surface it samples) and two
+ * point spacings (the median distance between neighbours, of up to 1,000 points). */
+static int support_tau(support_ctx *c)
+{
+    size_t m = c->m, ns = m < 1000 ? m : 1000, sst = m / (ns ? ns : 1), cnt = 0;
+    double *sp = frep_malloc((ns ? ns : 1) * sizeof *sp);
+    if (!sp) return -1;
+    for (size_t q = 0; q < ns; q++) {
+        size_t r = q * sst;
+        double p[3] = { c->cx[r], c->cy[r], c->cz[r] }, d2[2];
+        uint32_t nb[2];
+        if (kd_knn(c->kd, p, 2, nb, d2) == 2) sp[cnt++] = sqrt(d2[1]);
+    }
+    qsort(sp, cnt, sizeof *sp, cmp_double_asc);
+    double spacing = cnt ? sp[cnt / 2] : 0;
+    frep_free(sp);
+    c->g.tau = 2 * c->h + 2 * spacing;
+    return 0;
+}
+
+/* The caches of the tree's primitives only (the trims bound its parts by their own
+ * faces, and the grid's memory grows with the tree, not with a long primitive list):
+ * values at the nodes (no normals to score), and the sample's. */
+static int support_caches(support_ctx *c)
+{
+    size_t ng = c->ng;
+    c->nu = tree_used_prims(&c->res->tree, (uint32_t)c->nprims, &c->used);
+    if (!c->used) return -1;
+    double *v = frep_malloc((size_t)c->nu * ng * sizeof *v);
+    double *gg = frep_malloc(3 * (size_t)c->nu * ng * sizeof *gg);
+    if (v && gg) {
+        long kl = (long)c->nu;
+#pragma omp parallel for schedule(dynamic, 1)
+        for (long jl = 0; jl < kl; jl++) {
+            size_t j = (size_t)jl;
+            prim_eval_many(&c->prims[c->used[j]], ng, c->gx, c->gy, c->gz, v + j * ng,
+                           gg + 3 * j * ng, gg + (3 * j + 1) * ng, gg + (3 * j + 2) * ng);
+        }
+    }
+    c->gc = gp_cache_values(ng, c->nu, c->o->gp.setops, v, gg);
+    const gp_cache *sc = c->sc;
+    size_t *all_pts = frep_malloc((sc->n ? sc->n : 1) * sizeof *all_pts);
+    if (all_pts) {
+        for (size_t i = 0; i < sc->n; i++) all_pts[i] = i;
+        c->pc = gp_cache_subset(sc, all_pts, sc->n, c->used, c->nu, sc->lambda);
+    }
+    frep_free(all_pts);
+    if (!c->gc || !c->pc || !(c->eg = gp_eval_new())) return -1;
+    return 0;
+}
+
+/* The trims on the tree renumbered to the caches' primitives, and its new fitness. */
+static int support_trims(support_ctx *c)
+{
+    evolve_result *res = c->res;
+    c->g.c = c->gc;
+    c->g.clip = c->clip;
+    c->g.cloud = c->kd;
+    c->g.dist = c->dist;
+    tree_renumber(&res->tree, c->used, c->nu, 0);
+    int bad = support_trim(&res->tree, c->o->gp.setops, c->pc, c->ev, &c->g, c->eg,
+                           &res->support);
+    tree_renumber(&res->tree, c->used, c->nu, 1);
+    if (bad) return -1;
+    if (res->support.trims &&
+        gp_fitness(c->sc, c->ev, res->tree.code, res->tree.len, &res->fitness))
+        return -1;
+    return 0;
+}
+
 /* The support trims (support.h) of res->tree: the grid over the clipping box, its
- * distances to the cloud's valid points and the primitives at its nodes. 0 or -1. */
+ * distances to the cloud's valid points and the primitives at its nodes. 0 or -1
+ * (allocation). */
 static int support_run(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
                        size_t nprims, const size_t *valid, size_t nv,
                        const gp_cache *sc, gp_eval *ev, evolve_result *res)
 {
-    const gp_obb *b = &res->obb;
-    double H[3], hmax = 0, mg = EVOLVE_CLIP_MARGIN * res->diag;
-    for (int d = 0; d < 3; d++) {
-        H[d] = b->h[d] + mg;
-        if (H[d] > hmax) hmax = H[d];
-    }
-    double h = 2 * hmax / SUPPORT_GRID_CELLS;
-    if (!(h > 0) || nv == 0) return 0;
-    support_grid g;
-    memset(&g, 0, sizeof g);
-    size_t ng = 1;
-    for (int d = 0; d < 3; d++) {
-        /* One node beyond the box on each side: the clip closes every part. */
-        g.dims[d] = (size_t)ceil(2 * H[d] / h) + 3;
-        ng *= g.dims[d];
-    }
-    /* Node (0, 0, 0) in the box's frame, and the steps along its axes. */
-    double q0[3];
-    for (int d = 0; d < 3; d++) q0[d] = -0.5 * (double)(g.dims[d] - 1) * h;
-    for (int c = 0; c < 3; c++) {
-        g.o[c] = b->c[c];
-        for (int d = 0; d < 3; d++) {
-            g.o[c] += q0[d] * b->ax[d][c];
-            g.u[d][c] = h * b->ax[d][c];
-        }
-    }
-    double *gx = frep_malloc(ng * sizeof *gx), *gy = frep_malloc(ng * sizeof *gy);
-    double *gz = frep_malloc(ng * sizeof *gz);
-    double *clip = frep_malloc(ng * sizeof *clip), *dist = frep_malloc(ng * sizeof *dist);
-    double *cx = NULL, *cy = NULL, *cz = NULL;
-    kd_tree *kd = NULL;
-    gp_cache *gc = NULL, *pc = NULL;
-    gp_eval *eg = NULL;
-    uint32_t *used = NULL, nu = 0;
-    int rc = -1;
-    if (!gx || !gy || !gz || !clip || !dist) goto out;
-    for (size_t i = 0, a = 0; i < g.dims[0]; i++)
-        for (size_t j = 0; j < g.dims[1]; j++)
-            for (size_t k = 0; k < g.dims[2]; k++, a++) {
-                const size_t ijk[3] = { i, j, k };
-                double q[3], p[3] = { b->c[0], b->c[1], b->c[2] }, in = HUGE_VAL;
-                for (int d = 0; d < 3; d++) {
-                    q[d] = q0[d] + (double)ijk[d] * h;
-                    if (H[d] - fabs(q[d]) < in) in = H[d] - fabs(q[d]);
-                    for (int c = 0; c < 3; c++) p[c] += q[d] * b->ax[d][c];
-                }
-                gx[a] = p[0];
-                gy[a] = p[1];
-                gz[a] = p[2];
-                clip[a] = in;
-            }
-    /* The distances, to the valid points (a regular subset beyond the limit). */
-    size_t stride = (nv + EVOLVE_SUPPORT_MAX_POINTS - 1) / EVOLVE_SUPPORT_MAX_POINTS, m = 0;
-    cx = frep_malloc((nv / stride + 1) * sizeof *cx);
-    cy = frep_malloc((nv / stride + 1) * sizeof *cy);
-    cz = frep_malloc((nv / stride + 1) * sizeof *cz);
-    if (!cx || !cy || !cz) goto out;
-    for (size_t q = 0; q < nv; q += stride, m++) {
-        cx[m] = cloud->x[valid[q]];
-        cy[m] = cloud->y[valid[q]];
-        cz[m] = cloud->z[valid[q]];
-    }
-    if (!(kd = kd_build(m, cx, cy, cz))) goto out;
-    for (size_t a = 0; a < ng; a++) dist[a] = NAN;
-    /* tau: two cells (a crossing lies within a cell of the surface it samples) and two
-     * point spacings (the median distance between neighbours, of up to 1,000 points). */
-    {
-        size_t ns = m < 1000 ? m : 1000, sst = m / (ns ? ns : 1), cnt = 0;
-        double *sp = frep_malloc((ns ? ns : 1) * sizeof *sp);
-        if (!sp) goto out;
-        for (size_t q = 0; q < ns; q++) {
-            size_t r = q * sst;
-            double p[3] = { cx[r], cy[r], cz[r] }, d2[2];
-            uint32_t nb[2];
-            if (kd_knn(kd, p, 2, nb, d2) == 2) sp[cnt++] = sqrt(d2[1]);
-        }
-        qsort(sp, cnt, sizeof *sp, cmp_double_asc);
-        double spacing = cnt ? sp[cnt / 2] : 0;
-        frep_free(sp);
-        g.tau = 2 * h + 2 * spacing;
-    }
-    /* Only the tree's primitives (the trims bound its parts by their own faces): the
-     * grid's memory grows with the tree, not with a long primitive list. */
-    nu = tree_used_prims(&res->tree, (uint32_t)nprims, &used);
-    if (!used) goto out;
-    {
-        /* The primitives at the nodes: values only (no normals to score). */
-        double *v = frep_malloc((size_t)nu * ng * sizeof *v), *gg = frep_malloc(3 * (size_t)nu * ng * sizeof *gg);
-        if (v && gg) {
-            long kl = (long)nu;
-#pragma omp parallel for schedule(dynamic, 1)
-            for (long jl = 0; jl < kl; jl++) {
-                size_t j = (size_t)jl;
-                prim_eval_many(&prims[used[j]], ng, gx, gy, gz, v + j * ng, gg + 3 * j * ng,
-                               gg + (3 * j + 1) * ng, gg + (3 * j + 2) * ng);
-            }
-        }
-        gc = gp_cache_values(ng, nu, o->gp.setops, v, gg);
-    }
-    {
-        size_t *all_pts = frep_malloc((sc->n ? sc->n : 1) * sizeof *all_pts);
-        if (all_pts) {
-            for (size_t i = 0; i < sc->n; i++) all_pts[i] = i;
-            pc = gp_cache_subset(sc, all_pts, sc->n, used, nu, sc->lambda);
-        }
-        frep_free(all_pts);
-    }
-    if (!gc || !pc || !(eg = gp_eval_new())) goto out;
-    g.c = gc;
-    g.clip = clip;
-    g.cloud = kd;
-    g.dist = dist;
-    tree_renumber(&res->tree, used, nu, 0);
-    int bad = support_trim(&res->tree, o->gp.setops, pc, ev, &g, eg, &res->support);
-    tree_renumber(&res->tree, used, nu, 1);
-    if (bad) goto out;
-    if (res->support.trims) res->fitness = gp_fitness(sc, ev, res->tree.code, res->tree.len);
-    rc = 0;
-out:
-    frep_free(used);
-    gp_cache_free(pc);
-    frep_free(gx);
-    frep_free(gy);
-    frep_free(gz);
-    frep_free(clip);
-    frep_free(dist);
-    frep_free(cx);
-    frep_free(cy);
-    frep_free(cz);
-    kd_free(kd);
-    gp_cache_free(gc);
-    gp_eval_free(eg);
+    support_ctx c;
+    memset(&c, 0, sizeof c);
+    c.o = o;
+    c.cloud = cloud;
+    c.prims = prims;
+    c.nprims = nprims;
+    c.valid = valid;
+    c.nv = nv;
+    c.sc = sc;
+    c.ev = ev;
+    c.res = res;
+    if (support_frame(&c)) return 0;
+    int rc = support_nodes(&c) || support_cloud(&c) || support_tau(&c) ||
+                     support_caches(&c) || support_trims(&c)
+                 ? -1
+                 : 0;
+    frep_free(c.used);
+    gp_cache_free(c.pc);
+    frep_free(c.gx);
+    frep_free(c.gy);
+    frep_free(c.gz);
+    frep_free(c.clip);
+    frep_free(c.dist);
+    frep_free(c.cx);
+    frep_free(c.cy);
+    frep_free(c.cz);
+    kd_free(c.kd);
+    gp_cache_free(c.gc);
+    gp_eval_free(c.eg);
     return rc;
 }
 
-/* Points the base model explains poorly: |f|/|grad f| >= eps_d, or a normal more than
- * alpha away from -grad f (a zero gradient explains nothing). */
-static int base_poor(const double *bf, const double *bg, const double *nrm, size_t i,
-                     double eps_d, double cos_alpha)
+/* Points the base model (o->base_f, o->base_g) explains poorly: not evaluable there,
+ * |f|/|grad f| >= eps_d, or a normal more than alpha away from -grad f (a zero gradient
+ * explains nothing). */
+static int base_poor(const evolve_options *o, const double *nrm, size_t i, double eps_d,
+                     double cos_alpha)
 {
-    const double *g = bg + 3 * i, *n = nrm + 3 * i;
+    const double *bf = o->base_f;
+    if (o->base_ok && !o->base_ok[i]) return 1;
+    const double *g = o->base_g + 3 * i, *n = nrm + 3 * i;
     double gl = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
     if (!(gl > 0)) return 1;
     if (!(fabs(bf[i]) / gl < eps_d)) return 1;
@@ -313,12 +392,12 @@ int evolve_residual_points(const evolve_options *o, const frep_cloud *cloud, uin
     double lo[3], hi[3], diag;
     size_t nv = valid_points(cloud, valid, nrm, lo, hi, &diag);
     double eps_d = (o->eps_rel > 0 ? o->eps_rel : EVOLVE_DEFAULT_EPS_REL) * diag;
-    double ca = cos((o->alpha_deg > 0 ? o->alpha_deg : EVOLVE_DEFAULT_ALPHA_DEG) * EV_PI / 180);
+    double ca = cos((o->alpha_deg > 0 ? o->alpha_deg : EVOLVE_DEFAULT_ALPHA_DEG) * FREP_PI / 180);
     memset(mask, 0, N);
     size_t k = 0;
     for (size_t q = 0; q < nv; q++) {
         size_t i = valid[q];
-        if (o->base_f && base_poor(o->base_f, o->base_g, nrm, i, eps_d, ca)) {
+        if (o->base_f && base_poor(o, nrm, i, eps_d, ca)) {
             mask[i] = 1;
             k++;
         }
@@ -386,9 +465,8 @@ int evolve_stats(const evolve_options *o, const frep_cloud *cloud, const prim *p
     for (uint32_t pc = 0; pc < local.len; pc++)
         if (local.code[pc].op == FREP_OP_PRIM) local.code[pc].arg = map[local.code[pc].arg];
     double ls = o->lambda_scale > 0 ? o->lambda_scale : 1.0;
-    fc = build_cache(prims, nprims, used, k, cloud->x, cloud->y, cloud->z, nrm, o->base_f,
-                     o->base_g, valid, nv, o->gp.setops, res->eps_d, res->alpha,
-                     ls * log((double)(nv > 1 ? nv : 2)), 1);
+    fc = build_cache(o, prims, nprims, used, k, cloud->x, cloud->y, cloud->z, nrm, valid, nv,
+                     res->eps_d, res->alpha, ls * log((double)(nv > 1 ? nv : 2)), 1);
     if (!fc || gp_tree_stats(fc, ev, local.code, local.len, &res->stats)) goto out;
     rc = 0;
 out:
@@ -438,12 +516,12 @@ static int join_base(const evolve_options *o, const gp_tree *t, uint32_t nprims,
                 /* The simplifier dropped the base: keep the join as built. */
                 tree_free(&cand);
                 cand = keep;
-                fit = gp_fitness(c, ev, cand.code, cand.len);
+                if (gp_fitness(c, ev, cand.code, cand.len, &fit)) goto out;
             } else {
                 tree_free(&keep);
             }
-        } else {
-            fit = gp_fitness(c, ev, cand.code, cand.len);
+        } else if (gp_fitness(c, ev, cand.code, cand.len, &fit)) {
+            goto out;
         }
         if (fit > best) {
             best = fit;
@@ -457,311 +535,450 @@ out:
     return rc;
 }
 
-int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
-               size_t nprims, gp_progress_fn fn, void *user, evolve_result *res,
-               char **err)
-{
-    memset(res, 0, sizeof *res);
-    if (err) *err = NULL;
-    double t0 = gp_now();
-    int residual = o->base_f != NULL;
-    if (nprims == 0 && !residual) {
-        set_err(err, "no primitives to combine (segmentation found none; try -p or "
-                     "different segment settings)");
-        return -1;
-    }
-    if (nprims >= PART_MAX_PRIMS) {
-        set_err(err, "%zu primitives: at most %u are supported", nprims, PART_MAX_PRIMS - 1);
-        return -1;
-    }
-    if (!cloud->has_normals) {
-        set_err(err, "the cloud has no normals");
-        return -1;
-    }
-    size_t N = cloud->n;
-    int rc = -1;
-    size_t *valid = frep_malloc((N ? N : 1) * sizeof *valid);
-    size_t *pool = frep_malloc((N ? N : 1) * sizeof *pool);
-    size_t *tmp = frep_malloc((N ? N : 1) * sizeof *tmp);
-    double *nrm = frep_malloc(3 * (N ? N : 1) * sizeof *nrm);
-    size_t *samp = NULL;
-    uint32_t *all = frep_malloc((nprims + 1) * sizeof *all);
-    gp_cache *sc = NULL, *jc = NULL;
-    gp_eval *ev = gp_eval_new();
-    gp_obb *boxes = NULL;
-    gp_result gr;
-    memset(&gr, 0, sizeof gr);
-    if (!valid || !pool || !tmp || !nrm || !all || !ev) goto oom;
-    for (uint32_t j = 0; j <= nprims; j++) all[j] = j;
+/* ---- the driver: the steps of doc/evolve.md ("Method") as stages over run_ctx ---- */
 
-    double lo[3], hi[3];
-    size_t nv = valid_points(cloud, valid, nrm, lo, hi, &res->diag);
-    res->npoints = nv;
-    res->dropped = N - nv;
-    if (nv == 0) {
-        set_err(err, "no point with finite coordinates and a normal");
-        goto out;
+/* One evolve_run: its inputs, the points and caches the stages build, and the GA's
+ * best tree before it becomes res->tree. Stages return 0, or -1 with err set. */
+typedef struct run_ctx {
+    const evolve_options *o;
+    const frep_cloud *cloud;
+    const prim *prims;
+    size_t nprims;
+    gp_progress_fn fn;
+    void *user;
+    evolve_result *res;
+    frep_error *err;
+    double t0;               /* gp_now() when the run started */
+    int residual;            /* --residual: o->base_f and o->base_g are set */
+    size_t *valid, nv;       /* the valid points (valid_points), cloud indices */
+    double *nrm;             /* their unit normals, nrm[3i+c] by cloud index */
+    double lo[3], hi[3];     /* their axis-aligned extent */
+    size_t *pool, np;        /* the GA's points: the valid ones, or the base's poor ones */
+    size_t *samp, m;         /* the scored sample of the pool (samp holds nv entries) */
+    size_t *tmp;             /* scratch of draw_sample */
+    uint32_t *all;           /* all[j] = j for every leaf j <= nprims */
+    double ls;               /* lambda scale: lambda = ls * ln(points) */
+    gp_cache *sc;            /* the sample's cache of every primitive; NULL: no GA */
+    gp_eval *ev;
+    gp_obb *boxes;           /* proxies, one per primitive */
+    gp_result gr;            /* the GA's (or the merge's) best tree */
+    int partitioned;         /* part_run partitioned the primitives */
+    int grown;               /* gr.best is simplified and grown already */
+} run_ctx;
+
+static int run_oom(run_ctx *c)
+{
+    return frep_error_nomem(c->err);
+}
+
+/* The inputs refused before any work: no primitives, too many, no normals. */
+static int run_check(run_ctx *c)
+{
+    if (c->nprims == 0 && !c->residual) {
+        return frep_error_set(c->err, FREP_EINPUT,
+                              "no primitives to combine (segmentation found none; try -p "
+                              "or different segment settings)");
+    }
+    if (c->nprims >= PART_MAX_PRIMS) {
+        return frep_error_set(c->err, FREP_ELIMIT, "%zu primitives: at most %u are supported",
+                              c->nprims, PART_MAX_PRIMS - 1);
+    }
+    if (!c->cloud->has_normals) {
+        return frep_error_set(c->err, FREP_EINPUT, "the cloud has no normals");
+    }
+    return 0;
+}
+
+/* The arrays sized by the cloud and the leaf list, and the evaluator of the stages. */
+static int run_alloc(run_ctx *c)
+{
+    size_t N = c->cloud->n;
+    c->valid = frep_malloc((N ? N : 1) * sizeof *c->valid);
+    c->pool = frep_malloc((N ? N : 1) * sizeof *c->pool);
+    c->tmp = frep_malloc((N ? N : 1) * sizeof *c->tmp);
+    c->nrm = frep_malloc(3 * (N ? N : 1) * sizeof *c->nrm);
+    c->all = frep_malloc((c->nprims + 1) * sizeof *c->all);
+    c->ev = gp_eval_new();
+    if (!c->valid || !c->pool || !c->tmp || !c->nrm || !c->all || !c->ev) return run_oom(c);
+    for (uint32_t j = 0; j <= c->nprims; j++) c->all[j] = j;
+    return 0;
+}
+
+/* Valid points (finite, with a normal), the diagonal, and the tolerances eps_d and
+ * alpha (the automatic alpha starts from the default). */
+static int stage_points(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    evolve_result *res = c->res;
+    c->nv = valid_points(c->cloud, c->valid, c->nrm, c->lo, c->hi, &res->diag);
+    res->npoints = c->nv;
+    res->dropped = c->cloud->n - c->nv;
+    if (c->nv == 0) {
+        return frep_error_set(c->err, FREP_EINPUT,
+                              "no point with finite coordinates and a normal");
     }
     if (!(res->diag > 0)) {
-        set_err(err, "all %zu points coincide: nothing to fit", nv);
-        goto out;
+        return frep_error_set(c->err, FREP_EINPUT, "all %zu points coincide: nothing to fit",
+                              c->nv);
     }
     res->eps_d = (o->eps_rel > 0 ? o->eps_rel : EVOLVE_DEFAULT_EPS_REL) * res->diag;
-    res->alpha = (o->alpha_deg > 0 && !(o->alpha_auto && !residual) ? o->alpha_deg
-                                                                    : EVOLVE_DEFAULT_ALPHA_DEG) *
-                 EV_PI / 180;
-    /* Clipping box: the principal-axes box, or the axis-aligned one when smaller (PCA
-     * axes are arbitrary for symmetric shapes such as a cube). */
-    part_obb_of_points(cloud->x, cloud->y, cloud->z, valid, nv, &res->obb);
-    {
-        double va = 1, vo = 1;
-        for (int d = 0; d < 3; d++) {
-            va *= hi[d] - lo[d] + 1e-12 * res->diag;
-            vo *= 2 * res->obb.h[d] + 1e-12 * res->diag;
-        }
-        if (va <= vo * (1 + 1e-9)) {
-            memset(res->obb.ax, 0, sizeof res->obb.ax);
-            for (int d = 0; d < 3; d++) {
-                res->obb.ax[d][d] = 1;
-                res->obb.c[d] = 0.5 * (lo[d] + hi[d]);
-                res->obb.h[d] = 0.5 * (hi[d] - lo[d]);
-            }
-        }
-    }
+    res->alpha = (o->alpha_deg > 0 && !(o->alpha_auto && !c->residual)
+                      ? o->alpha_deg
+                      : EVOLVE_DEFAULT_ALPHA_DEG) *
+                 FREP_PI / 180;
+    return 0;
+}
 
-    /* The GA's pool: every valid point, or with --residual those the base model
-     * explains poorly. */
-    size_t np = 0;
-    if (residual) {
-        double ca = cos(res->alpha);
-        for (size_t q = 0; q < nv; q++)
-            if (base_poor(o->base_f, o->base_g, nrm, valid[q], res->eps_d, ca))
-                pool[np++] = valid[q];
-        res->residual = 1;
-        res->nresidual = np;
-    } else {
-        memcpy(pool, valid, nv * sizeof *pool);
-        np = nv;
+/* Clipping box: the principal-axes box, or the axis-aligned one when smaller (PCA axes
+ * are arbitrary for symmetric shapes such as a cube). */
+static void stage_clip_box(run_ctx *c)
+{
+    evolve_result *res = c->res;
+    part_obb_of_points(c->cloud->x, c->cloud->y, c->cloud->z, c->valid, c->nv, &res->obb);
+    double va = 1, vo = 1;
+    for (int d = 0; d < 3; d++) {
+        va *= c->hi[d] - c->lo[d] + 1e-12 * res->diag;
+        vo *= 2 * res->obb.h[d] + 1e-12 * res->diag;
     }
-    size_t m = o->sample && o->sample < np ? o->sample : np;
-    samp = frep_malloc((nv ? nv : 1) * sizeof *samp);
-    if (!samp) goto oom;
-    double ls = o->lambda_scale > 0 ? o->lambda_scale : 1.0;
+    if (va <= vo * (1 + 1e-9)) {
+        memset(res->obb.ax, 0, sizeof res->obb.ax);
+        for (int d = 0; d < 3; d++) {
+            res->obb.ax[d][d] = 1;
+            res->obb.c[d] = 0.5 * (c->lo[d] + c->hi[d]);
+            res->obb.h[d] = 0.5 * (c->hi[d] - c->lo[d]);
+        }
+    }
+}
+
+/* The GA's pool: every valid point, or with --residual those the base model explains
+ * poorly; the sample size m drawn from it. */
+static int stage_pool(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    evolve_result *res = c->res;
+    c->np = 0;
+    if (c->residual) {
+        double ca = cos(res->alpha);
+        for (size_t q = 0; q < c->nv; q++)
+            if (base_poor(o, c->nrm, c->valid[q], res->eps_d, ca))
+                c->pool[c->np++] = c->valid[q];
+        res->residual = 1;
+        res->nresidual = c->np;
+    } else {
+        memcpy(c->pool, c->valid, c->nv * sizeof *c->pool);
+        c->np = c->nv;
+    }
+    c->m = o->sample && o->sample < c->np ? o->sample : c->np;
+    c->samp = frep_malloc((c->nv ? c->nv : 1) * sizeof *c->samp);
+    if (!c->samp) return run_oom(c);
+    c->ls = o->lambda_scale > 0 ? o->lambda_scale : 1.0;
+    return 0;
+}
+
+/* The seeded sample the GA scores, and its cache of every primitive. */
+static int stage_sample_cache(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    evolve_result *res = c->res;
+    draw_sample(c->pool, c->np, c->m, o->gp.seed ^ 0x5a5a5a5a5a5a5a5au, c->samp, c->tmp);
+    res->nsample = c->m;
+    c->sc = build_cache(o, c->prims, c->nprims, c->all, (uint32_t)c->nprims, c->cloud->x,
+                        c->cloud->y, c->cloud->z, c->nrm, c->samp, c->m, res->eps_d,
+                        res->alpha, c->ls * log((double)(c->m > 1 ? c->m : 2)), 0);
+    return c->sc ? 0 : run_oom(c);
+}
+
+/* Automatic alpha: 35 degrees when the sample is noisy or faceted against the
+ * primitives (evolve.h). With --residual the pool was chosen with alpha_deg already,
+ * so it stays. */
+static int stage_auto_alpha(run_ctx *c)
+{
+    evolve_result *res = c->res;
+    if (!c->o->alpha_auto || c->residual) return 0;
+    if (gp_cache_noise(c->sc, &res->noise)) return run_oom(c);
+    res->alpha_auto = 1;
+    if (res->noise.sigma_d > EVOLVE_NOISY_SIGMA || res->noise.median_deg > EVOLVE_NOISY_DEG ||
+        res->noise.p90_deg > EVOLVE_FACETED_P90_DEG) {
+        res->alpha = EVOLVE_NOISY_ALPHA_DEG * FREP_PI / 180;
+        if (gp_cache_set_alpha(c->sc, res->alpha)) return run_oom(c);
+    }
+    return 0;
+}
+
+/* The sample points (cloud indices) primitive j explains alone, as itself or as a
+ * complement, into idx; their count. */
+static size_t proxy_points(const run_ctx *c, uint32_t j, size_t *idx)
+{
+    const gp_cache *sc = c->sc;
+    size_t m = c->m, nk = 0;
+    double ca = cos(c->res->alpha);
+    for (size_t i = 0; i < m; i++) {
+        double f = sc->v[(size_t)j * m + i];
+        double g[3] = { sc->g[(3 * (size_t)j) * m + i], sc->g[(3 * (size_t)j + 1) * m + i],
+                        sc->g[(3 * (size_t)j + 2) * m + i] };
+        double gl = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+        const double *nn = sc->nrm + 3 * i;
+        if (fabs(f) < c->res->eps_d && gl > 0 &&
+            fabs(g[0] * nn[0] + g[1] * nn[1] + g[2] * nn[2]) / gl > ca)
+            idx[nk++] = c->samp[i];
+    }
+    return nk;
+}
+
+/* Proxies of the partitioning: the primitive's own box, else the box of the sample
+ * points it explains alone. Primitives explaining no point get none and overlap
+ * everything. */
+static int stage_proxies(run_ctx *c)
+{
+    c->boxes = frep_calloc(c->nprims, sizeof *c->boxes);
+    size_t *idx = frep_malloc(c->m * sizeof *idx);
+    if (!c->boxes || !idx) {
+        frep_free(idx);
+        return run_oom(c);
+    }
+    for (uint32_t j = 0; j < c->nprims; j++) {
+        const prim *q = &c->prims[j];
+        gp_obb *b = &c->boxes[j];
+        if (q->has_obb) {
+            memcpy(b->c, q->obb_c, sizeof b->c);
+            memcpy(b->ax, q->obb_axes, sizeof b->ax);
+            memcpy(b->h, q->obb_half, sizeof b->h);
+            b->valid = 1;
+            continue;
+        }
+        size_t nk = proxy_points(c, j, idx);
+        part_obb_of_points(c->cloud->x, c->cloud->y, c->cloud->z, idx, nk, b);
+    }
+    frep_free(idx);
+    return 0;
+}
+
+/* The partitioned GA (partition.c): cliques of overlapping proxies, a tree per clique,
+ * the trees merged; it falls back (c->partitioned 0) when partitioning is useless. */
+static int stage_partition(run_ctx *c)
+{
+    size_t m = c->m;
+    /* part_run needs the sample's coordinates. */
+    double *xs = frep_malloc(m * sizeof *xs), *ys = frep_malloc(m * sizeof *ys);
+    double *zs = frep_malloc(m * sizeof *zs);
+    if (!xs || !ys || !zs) {
+        frep_free(xs);
+        frep_free(ys);
+        frep_free(zs);
+        return run_oom(c);
+    }
+    for (size_t i = 0; i < m; i++) {
+        xs[i] = c->cloud->x[c->samp[i]];
+        ys[i] = c->cloud->y[c->samp[i]];
+        zs[i] = c->cloud->z[c->samp[i]];
+    }
+    int pr = part_run(&c->o->gp, c->sc, xs, ys, zs, c->boxes,
+                      EVOLVE_PROXY_MARGIN * c->res->eps_d, c->fn, c->user, &c->gr,
+                      &c->res->part);
+    frep_free(xs);
+    frep_free(ys);
+    frep_free(zs);
+    if (pr) return run_oom(c);
+    c->partitioned = c->res->part.partitioned;
+    c->res->partitioned = c->partitioned;
+    return 0;
+}
+
+/* The merged tree grown as the final tree is (stage_simplify): pieces the merge lost
+ * (a pocket whose clique trees disagreed) come back here, before the polish, which
+ * then starts from them. */
+static int stage_grow_merged(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    gp_result *gr = &c->gr;
+    if (!c->partitioned || !o->simplify || !gr->best.len) return 0;
+    if (simplify_grow_pieces(&gr->best, o->gp.setops, c->sc, c->ev, &gr->fitness))
+        return run_oom(c);
+    c->grown = 1;
+    if (c->fn) {
+        gp_progress gpr = { gr->generations, gr->fitness, gr->best.len, gp_now() - c->t0,
+                            GP_PHASE_GROWN, 0, 0 };
+        if (o->gp.report_explained && gp_progress_explained(c->sc, c->ev, &gr->best, &gpr))
+            return run_oom(c);
+        c->fn(c->user, &gpr);
+    }
+    return 0;
+}
+
+/* Polish: a GA over all primitives seeded with the merged tree. The merge is greedy
+ * and the clique trees see only their points; the seeded GA repairs what that misses
+ * (a part a clique got wrong, a subtraction the merge placed too low) and never does
+ * worse, since the seed is kept by elitism. Its depth limit leaves room to grow the
+ * seed. */
+static int stage_polish(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    gp_result *gr = &c->gr;
+    if (!c->partitioned || !o->polish || !gr->best.len) return 0;
+    gp_config pc = o->gp;
+    int dd = tree_depth(gr->best.code, gr->best.len) + GP_DEPTH_SLACK;
+    int d0 = pc.max_depth > 0 ? pc.max_depth : gp_default_depth((uint32_t)c->nprims);
+    pc.max_depth = dd > d0 ? dd : d0;
+    if (o->polish_stagnation && (pc.stagnation == 0 || o->polish_stagnation < pc.stagnation))
+        pc.stagnation = o->polish_stagnation;
+    if (pc.max_time > 0) pc.max_time = fmax(pc.max_time - (gp_now() - c->t0), 1e-3);
+    gp_result pg;
+    memset(&pg, 0, sizeof pg);
+    if (gp_run(&pc, c->sc, &gr->best, 1, c->fn, c->user, &pg)) {
+        tree_free(&pg.best);
+        return run_oom(c);
+    }
+    c->res->part.polish_generations = pg.generations;
+    if (pg.best.len && pg.fitness > gr->fitness) {
+        tree_free(&gr->best);
+        gr->best = pg.best;
+        gr->fitness = pg.fitness;
+        c->grown = 0;  /* a new tree: simplified and grown again */
+    } else {
+        tree_free(&pg.best);
+    }
+    gr->generations += pg.generations;
+    return 0;
+}
+
+/* The GA over all primitives (gp.c), when the run is not partitioned. */
+static int stage_ga(run_ctx *c)
+{
+    tree_free(&c->gr.best);
+    if (gp_run(&c->o->gp, c->sc, NULL, 0, c->fn, c->user, &c->gr)) return run_oom(c);
+    return 0;
+}
+
+/* The GA's tree becomes the result, simplified and then grown by pieces of two or
+ * three primitives at the root (a subtracted pocket, an added block) that neither the
+ * GA nor the one-primitive hill climb found; only on the final tree, since one pass
+ * tries every pair of primitives. */
+static int stage_simplify(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    evolve_result *res = c->res;
+    if (!c->gr.best.len && !c->residual) {
+        return frep_error_set(c->err, FREP_ECANCEL, "the run stopped before any tree was scored");
+    }
+    res->generations = c->gr.generations;
+    res->stop = c->gr.stop;
+    res->fitness = c->gr.fitness;
+    if (tree_copy(&res->tree, &c->gr.best)) return run_oom(c);
+    if (!o->simplify || !res->tree.len || c->grown) return 0;
+    if (simplify_tree(&res->tree, o->gp.setops, c->sc, c->ev, &res->fitness) ||
+        simplify_grow_pieces(&res->tree, o->gp.setops, c->sc, c->ev, &res->fitness))
+        return run_oom(c);
+    return 0;
+}
+
+/* Material no point supports, trimmed; not with --residual, whose base model is a leaf
+ * known at the cloud's points only. */
+static int stage_support(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    if (!o->simplify || !o->support || c->residual || !c->sc || !c->res->tree.len) return 0;
+    if (support_run(o, c->cloud, c->prims, c->nprims, c->valid, c->nv, c->sc, c->ev, c->res))
+        return run_oom(c);
+    return 0;
+}
+
+/* --residual: the tree joined to the base model (leaf nprims), on a sample of every
+ * point. */
+static int stage_join(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    evolve_result *res = c->res;
+    if (!c->residual) return 0;
+    size_t mj = o->sample && o->sample < c->nv ? o->sample : c->nv;
+    draw_sample(c->valid, c->nv, mj, o->gp.seed ^ 0xa5a5a5a5a5a5a5a5u, c->samp, c->tmp);
+    gp_cache *jc = build_cache(o, c->prims, c->nprims, c->all, (uint32_t)c->nprims + 1,
+                               c->cloud->x, c->cloud->y, c->cloud->z, c->nrm, c->samp, mj,
+                               res->eps_d, res->alpha, c->ls * log((double)(mj > 1 ? mj : 2)),
+                               0);
+    if (!jc) return run_oom(c);
+    gp_tree joined = { NULL, 0, 0 };
+    int bad = join_base(o, &res->tree, (uint32_t)c->nprims, jc, c->ev, &joined, &res->fitness);
+    gp_cache_free(jc);
+    if (bad) {
+        tree_free(&joined);
+        return run_oom(c);
+    }
+    tree_free(&res->tree);
+    res->tree = joined;
+    res->nsample = mj;
+    return 0;
+}
+
+/* The @box extent: the grown oriented box's axis-aligned hull. */
+static void stage_box_extent(evolve_result *res)
+{
+    double mg = EVOLVE_CLIP_MARGIN * res->diag;
+    for (int d = 0; d < 3; d++) {
+        double r = 0;
+        for (int a = 0; a < 3; a++) r += (res->obb.h[a] + 2 * mg) * fabs(res->obb.ax[a][d]);
+        res->box[d] = res->obb.c[d] - r;
+        res->box[d + 3] = res->obb.c[d] + r;
+    }
+}
+
+/* The pipeline of doc/evolve.md: points and tolerances, clipping box, sample and its
+ * cache, alpha, proxies, partitioned GA (merge, growth, polish) or plain GA,
+ * simplification and growth, support trims, the --residual join, statistics on every
+ * point. */
+static int run_stages(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    if (run_alloc(c) || stage_points(c)) return -1;
+    stage_clip_box(c);
+    if (stage_pool(c)) return -1;
     /* With --residual and fewer residual points than a tree could use, or no
      * primitive, there is nothing to evolve: the result is the base model. */
-    int evolve_tree = nprims > 0 && m > 0;
-    if (evolve_tree) {
-        draw_sample(pool, np, m, o->gp.seed ^ 0x5a5a5a5a5a5a5a5au, samp, tmp);
-        res->nsample = m;
-        sc = build_cache(prims, nprims, all, (uint32_t)nprims, cloud->x, cloud->y, cloud->z,
-                         nrm, NULL, NULL, samp, m, o->gp.setops, res->eps_d, res->alpha,
-                         ls * log((double)(m > 1 ? m : 2)), 0);
-        if (!sc) goto oom;
-        /* Automatic alpha: 35 degrees when the sample is noisy or faceted against the
-         * primitives (evolve.h). With --residual the pool was chosen with alpha_deg
-         * already, so it stays. */
-        if (o->alpha_auto && !residual) {
-            if (gp_cache_noise(sc, &res->noise)) goto oom;
-            res->alpha_auto = 1;
-            if (res->noise.sigma_d > EVOLVE_NOISY_SIGMA ||
-                res->noise.median_deg > EVOLVE_NOISY_DEG ||
-                res->noise.p90_deg > EVOLVE_FACETED_P90_DEG) {
-                res->alpha = EVOLVE_NOISY_ALPHA_DEG * EV_PI / 180;
-                if (gp_cache_set_alpha(sc, res->alpha)) goto oom;
-            }
-        }
+    if (c->nprims > 0 && c->m > 0) {
+        if (stage_sample_cache(c) || stage_auto_alpha(c) || stage_proxies(c)) return -1;
+        if (o->partition && c->nprims > 1 &&
+            (stage_partition(c) || stage_grow_merged(c) || stage_polish(c)))
+            return -1;
+        if (!c->partitioned && stage_ga(c)) return -1;
+        if (stage_simplify(c)) return -1;
     }
-
-    if (evolve_tree) {
-        /* Proxies: the primitive's own box, else the box of the sample points it
-         * explains alone. Primitives explaining no point get none and overlap
-         * everything. */
-        boxes = frep_calloc(nprims, sizeof *boxes);
-        size_t *idx = frep_malloc(m * sizeof *idx);
-        if (!boxes || !idx) {
-            frep_free(idx);
-            goto oom;
-        }
-        for (uint32_t j = 0; j < nprims; j++) {
-            const prim *q = &prims[j];
-            if (q->has_obb) {
-                gp_obb *b = &boxes[j];
-                memcpy(b->c, q->obb_c, sizeof b->c);
-                memcpy(b->ax, q->obb_axes, sizeof b->ax);
-                memcpy(b->h, q->obb_half, sizeof b->h);
-                b->valid = 1;
-                continue;
-            }
-            size_t nk = 0;
-            for (size_t i = 0; i < m; i++) {
-                double f = sc->v[(size_t)j * m + i];
-                double g[3] = { sc->g[(3 * (size_t)j) * m + i],
-                                sc->g[(3 * (size_t)j + 1) * m + i],
-                                sc->g[(3 * (size_t)j + 2) * m + i] };
-                double gl = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
-                const double *nn = sc->nrm + 3 * i;
-                if (fabs(f) < res->eps_d && gl > 0 &&
-                    fabs(g[0] * nn[0] + g[1] * nn[1] + g[2] * nn[2]) / gl > cos(res->alpha))
-                    idx[nk++] = samp[i];
-            }
-            part_obb_of_points(cloud->x, cloud->y, cloud->z, idx, nk, &boxes[j]);
-        }
-        frep_free(idx);
-
-        int done = 0, grown = 0;  /* grown: gr.best is simplified and grown already */
-        if (o->partition && nprims > 1) {
-            /* part_run needs the sample's coordinates. */
-            double *xs = frep_malloc(m * sizeof *xs), *ys = frep_malloc(m * sizeof *ys);
-            double *zs = frep_malloc(m * sizeof *zs);
-            if (!xs || !ys || !zs) {
-                frep_free(xs);
-                frep_free(ys);
-                frep_free(zs);
-                goto oom;
-            }
-            for (size_t i = 0; i < m; i++) {
-                xs[i] = cloud->x[samp[i]];
-                ys[i] = cloud->y[samp[i]];
-                zs[i] = cloud->z[samp[i]];
-            }
-            int pr = part_run(&o->gp, sc, xs, ys, zs, boxes, EVOLVE_PROXY_MARGIN * res->eps_d,
-                              fn, user, &gr, &res->part);
-            frep_free(xs);
-            frep_free(ys);
-            frep_free(zs);
-            if (pr) goto oom;
-            done = res->part.partitioned;
-            res->partitioned = done;
-            /* The merged tree grown as the final tree is (below): pieces the merge
-             * lost (a pocket whose clique trees disagreed) come back here, before the
-             * polish, which then starts from them. */
-            if (done && o->simplify && gr.best.len) {
-                if (simplify_grow_pieces(&gr.best, o->gp.setops, sc, ev, &gr.fitness))
-                    goto oom;
-                grown = 1;
-                if (fn) {
-                    gp_stats st;
-                    if (o->gp.report &&
-                        gp_tree_stats(sc, ev, gr.best.code, gr.best.len, &st) == 0) {
-                        o->gp.report->explained = st.explained;
-                        o->gp.report->npoints = sc->n;
-                    }
-                    gp_progress gpr = { gr.generations, gr.fitness, gr.best.len,
-                                        gp_now() - t0, GP_PHASE_GROWN };
-                    fn(user, &gpr);
-                }
-            }
-            if (done && o->polish && gr.best.len) {
-                /* Polish: a GA over all primitives seeded with the merged tree. The
-                 * merge is greedy and the clique trees see only their points; the
-                 * seeded GA repairs what that misses (a part a clique got wrong, a
-                 * subtraction the merge placed too low) and never does worse, since
-                 * the seed is kept by elitism. Its depth limit leaves room to grow
-                 * the seed. */
-                gp_config pc = o->gp;
-                int dd = tree_depth(gr.best.code, gr.best.len) + GP_DEPTH_SLACK;
-                int d0 = pc.max_depth > 0 ? pc.max_depth : gp_default_depth((uint32_t)nprims);
-                pc.max_depth = dd > d0 ? dd : d0;
-                if (o->polish_stagnation &&
-                    (pc.stagnation == 0 || o->polish_stagnation < pc.stagnation))
-                    pc.stagnation = o->polish_stagnation;
-                if (pc.max_time > 0) pc.max_time = fmax(pc.max_time - (gp_now() - t0), 1e-3);
-                gp_result pg;
-                memset(&pg, 0, sizeof pg);
-                if (gp_run(&pc, sc, &gr.best, 1, fn, user, &pg)) {
-                    tree_free(&pg.best);
-                    goto oom;
-                }
-                res->part.polish_generations = pg.generations;
-                if (pg.best.len && pg.fitness > gr.fitness) {
-                    tree_free(&gr.best);
-                    gr.best = pg.best;
-                    gr.fitness = pg.fitness;
-                    grown = 0;  /* a new tree: simplified and grown again below */
-                } else {
-                    tree_free(&pg.best);
-                }
-                gr.generations += pg.generations;
-            }
-        }
-        if (!done) {
-            tree_free(&gr.best);
-            if (gp_run(&o->gp, sc, NULL, 0, fn, user, &gr)) goto oom;
-        }
-        if (!gr.best.len && !residual) {
-            set_err(err, "the run stopped before any tree was scored");
-            goto out;
-        }
-        res->generations = gr.generations;
-        res->stop = gr.stop;
-        res->fitness = gr.fitness;
-        if (tree_copy(&res->tree, &gr.best)) goto oom;
-        if (o->simplify && res->tree.len && !grown &&
-            simplify_tree(&res->tree, o->gp.setops, sc, ev, &res->fitness))
-            goto oom;
-        /* Pieces of two or three primitives at the root (a subtracted pocket, an
-         * added block) that neither the GA nor the one-primitive hill climb found;
-         * only on the final tree, since one pass tries every pair of primitives. */
-        if (o->simplify && res->tree.len && !grown &&
-            simplify_grow_pieces(&res->tree, o->gp.setops, sc, ev, &res->fitness))
-            goto oom;
-    }
-
-    /* Material no point supports, trimmed; not with --residual, whose base model is a
-     * leaf known at the cloud's points only. */
-    if (o->simplify && o->support && !residual && sc && res->tree.len &&
-        support_run(o, cloud, prims, nprims, valid, nv, sc, ev, res))
-        goto oom;
-
-    if (residual) {
-        /* Join on a sample of every point, with the base model as leaf nprims. */
-        size_t mj = o->sample && o->sample < nv ? o->sample : nv;
-        draw_sample(valid, nv, mj, o->gp.seed ^ 0xa5a5a5a5a5a5a5a5u, samp, tmp);
-        jc = build_cache(prims, nprims, all, (uint32_t)nprims + 1, cloud->x, cloud->y,
-                         cloud->z, nrm, o->base_f, o->base_g, samp, mj, o->gp.setops,
-                         res->eps_d, res->alpha, ls * log((double)(mj > 1 ? mj : 2)), 0);
-        if (!jc) goto oom;
-        gp_tree joined = { NULL, 0, 0 };
-        if (join_base(o, &res->tree, (uint32_t)nprims, jc, ev, &joined, &res->fitness)) {
-            tree_free(&joined);
-            goto oom;
-        }
-        tree_free(&res->tree);
-        res->tree = joined;
-        res->nsample = mj;
-    }
-
+    if (stage_support(c) || stage_join(c)) return -1;
     /* Statistics on every valid point, over the leaves of the tree only. */
-    if (evolve_stats(o, cloud, prims, nprims, res)) goto oom;
+    if (evolve_stats(o, c->cloud, c->prims, c->nprims, c->res)) return run_oom(c);
+    stage_box_extent(c->res);
+    c->res->seconds = gp_now() - c->t0;
+    return 0;
+}
 
-    /* The @box extent: the grown oriented box's axis-aligned hull. */
-    {
-        double mg = EVOLVE_CLIP_MARGIN * res->diag;
-        for (int d = 0; d < 3; d++) {
-            double r = 0;
-            for (int a = 0; a < 3; a++) r += (res->obb.h[a] + 2 * mg) * fabs(res->obb.ax[a][d]);
-            res->box[d] = res->obb.c[d] - r;
-            res->box[d + 3] = res->obb.c[d] + r;
-        }
-    }
-    res->seconds = gp_now() - t0;
-    rc = 0;
-    goto out;
-oom:
-    set_err(err, "out of memory");
-out:
+int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
+               size_t nprims, gp_progress_fn fn, void *user, evolve_result *res,
+               frep_error *err)
+{
+    memset(res, 0, sizeof *res);
+    run_ctx c;
+    memset(&c, 0, sizeof c);
+    c.o = o;
+    c.cloud = cloud;
+    c.prims = prims;
+    c.nprims = nprims;
+    c.fn = fn;
+    c.user = user;
+    c.res = res;
+    c.err = err;
+    c.t0 = gp_now();
+    c.residual = o->base_f != NULL;
+    if (run_check(&c)) return -1;
+    int rc = run_stages(&c);
     if (rc) tree_free(&res->tree);
-    tree_free(&gr.best);
-    frep_free(valid);
-    frep_free(pool);
-    frep_free(tmp);
-    frep_free(nrm);
-    frep_free(samp);
-    frep_free(all);
-    frep_free(boxes);
-    gp_cache_free(sc);
-    gp_cache_free(jc);
-    gp_eval_free(ev);
+    tree_free(&c.gr.best);
+    frep_free(c.valid);
+    frep_free(c.pool);
+    frep_free(c.tmp);
+    frep_free(c.nrm);
+    frep_free(c.samp);
+    frep_free(c.all);
+    frep_free(c.boxes);
+    gp_cache_free(c.sc);
+    gp_eval_free(c.ev);
     return rc;
 }
 
@@ -769,22 +986,11 @@ out:
 
 static double pct(size_t a, size_t b) { return b ? 100.0 * (double)a / (double)b : 0.0; }
 
-int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_t nprims,
-                       const evolve_meta *m)
+/* The header comments: the run, its figures, the notes; the @setops and @box pragmas. */
+static void write_header(FILE *f, const evolve_result *r, size_t nprims, uint32_t k,
+                         const evolve_meta *m, const char *so)
 {
     const gp_tree *t = &r->tree;
-    const evolve_base *base = m->base;
-    uint8_t *seen = frep_calloc(nprims + 1, 1);
-    if (!seen) return -1;
-    uint32_t k = 0;
-    for (uint32_t pc = 0; pc < t->len; pc++)
-        if (t->code[pc].op == FREP_OP_PRIM && t->code[pc].arg < nprims && !seen[t->code[pc].arg]) {
-            seen[t->code[pc].arg] = 1;
-            k++;
-        }
-    int uses_base = base && tree_uses(t, (uint32_t)nprims);
-    const char *mname = base ? "my_model" : "evolved";
-    const char *so = m->setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax";
     fprintf(f, "-- Construction tree discovered by frep evolve from %s\n",
             m->cloud ? m->cloud : "a point cloud");
     if (m->command) fprintf(f, "-- command: %s\n", m->command);
@@ -799,12 +1005,12 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
     fprintf(f, "-- %.2f%% of %zu points within epsilon %.6g of the surface, %.2f%% with "
                "normals within %.3g degrees, %.2f%% both\n",
             pct(r->stats.within_eps, r->npoints), r->npoints, r->eps_d,
-            pct(r->stats.normals_ok, r->npoints), r->alpha * 180 / EV_PI,
+            pct(r->stats.normals_ok, r->npoints), r->alpha * 180 / FREP_PI,
             pct(r->stats.explained, r->npoints));
-    if (base)
+    if (m->base)
         fprintf(f, "-- residual of model '%s': it explained %.2f%% of the points; the tree was "
                    "evolved on the %zu it explained poorly and joined to it (p%zu)\n",
-                base->name, pct(r->npoints - r->nresidual, r->npoints), r->nresidual,
+                m->base->name, pct(r->npoints - r->nresidual, r->npoints), r->nresidual,
                 nprims + 1);
     if (r->support.trims)
         fprintf(f, "-- %u trim%s of material no point supports (unsupported grid edges %zu -> "
@@ -815,18 +1021,28 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
     fprintf(f, "-- @setops %s\n", so);
     fprintf(f, "-- @box %.9g %.9g %.9g %.9g %.9g %.9g\n\n", r->box[0], r->box[1], r->box[2],
             r->box[3], r->box[4], r->box[5]);
-    if (base) {
-        fprintf(f, "-- ---- the model given with --residual (its annotations disarmed) ----\n");
-        fputs(base->text, f);
-        size_t bl = strlen(base->text);
-        if (bl && base->text[bl - 1] != '\n') fputc('\n', f);
-        fprintf(f, "-- ---- end of the model given with --residual ----\n\n");
-        fprintf(f, "%s(%s)\n{\n", mname, base->header);
-    } else {
-        fprintf(f, "%s(x[3], a[1])\n{\n", mname);
-    }
-    fprintf(f, "    -- primitives, named after their position in the input list\n");
+}
 
+/* The --residual model's source, then the model's header. */
+static void write_model_head(FILE *f, const evolve_base *base, const char *mname)
+{
+    if (!base) {
+        fprintf(f, "%s(x[3], a[1])\n{\n", mname);
+        return;
+    }
+    fprintf(f, "-- ---- the model given with --residual (its annotations disarmed) ----\n");
+    fputs(base->text, f);
+    size_t bl = strlen(base->text);
+    if (bl && base->text[bl - 1] != '\n') fputc('\n', f);
+    fprintf(f, "-- ---- end of the model given with --residual ----\n\n");
+    fprintf(f, "%s(%s)\n{\n", mname, base->header);
+}
+
+/* The used primitives pN (N their input position) and the base model's leaf. */
+static void write_prims(FILE *f, const evolve_result *r, const prim *prims, size_t nprims,
+                        const uint8_t *seen, const evolve_base *base)
+{
+    fprintf(f, "    -- primitives, named after their position in the input list\n");
     for (size_t j = 0; j < nprims; j++) {
         if (!seen[j]) continue;
         fprintf(f, "    p%zu = ", j + 1);
@@ -836,12 +1052,14 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
         else if (prims[j].support) fprintf(f, ", %zu inliers", prims[j].support);
         fputc('\n', f);
     }
-    if (uses_base) fprintf(f, "    p%zu = %s;  -- the model given with --residual\n", nprims + 1,
-                           base->call);
-    fprintf(f, "    -- the construction tree: | union, & intersection, \\ subtraction, ~ complement\n");
-    fprintf(f, "    tree = ");
-    tree_print(f, t->code, t->len, "p");
-    fprintf(f, ";\n");
+    if (base && tree_uses(&r->tree, (uint32_t)nprims))
+        fprintf(f, "    p%zu = %s;  -- the model given with --residual\n", nprims + 1,
+                base->call);
+}
+
+/* The six planes b1..b6 of the grown oriented box and the clipped model. */
+static void write_clip(FILE *f, const evolve_result *r, const char *mname)
+{
     fprintf(f, "    -- clipped by the oriented bounding box of the cloud (grown by %g of the diagonal)\n",
             EVOLVE_CLIP_MARGIN);
     double mg = EVOLVE_CLIP_MARGIN * r->diag;
@@ -861,7 +1079,36 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
             fprintf(f, ";\n");
         }
     fprintf(f, "    %s = tree & (((b1 & b2) & (b3 & b4)) & (b5 & b6));\n}\n", mname);
+}
+
+int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_t nprims,
+                       const evolve_meta *m)
+{
+    const gp_tree *t = &r->tree;
+    frep_buf tb = FREP_BUF_INIT;
+    tree_print(&tb, t->code, t->len, "p");
+    char *tree = buf_finish(&tb, NULL);
+    uint8_t *seen = frep_calloc(nprims + 1, 1);
+    if (!seen || !tree) {
+        frep_free(seen);
+        frep_free(tree);
+        return -1;
+    }
+    uint32_t k = 0;
+    for (uint32_t pc = 0; pc < t->len; pc++)
+        if (t->code[pc].op == FREP_OP_PRIM && t->code[pc].arg < nprims && !seen[t->code[pc].arg]) {
+            seen[t->code[pc].arg] = 1;
+            k++;
+        }
+    const char *mname = m->base ? "my_model" : "evolved";
+    write_header(f, r, nprims, k, m, m->setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax");
+    write_model_head(f, m->base, mname);
+    write_prims(f, r, prims, nprims, seen, m->base);
+    fprintf(f, "    -- the construction tree: | union, & intersection, \\ subtraction, ~ complement\n");
+    fprintf(f, "    tree = %s;\n", tree);
+    write_clip(f, r, mname);
     frep_free(seen);
+    frep_free(tree);
     return ferror(f) ? -1 : 0;
 }
 

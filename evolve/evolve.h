@@ -13,6 +13,7 @@
 #include <stdio.h>
 
 #include "cloud.h"
+#include "err.h"
 #include "fitness.h"
 #include "gp.h"
 #include "partition.h"
@@ -46,6 +47,9 @@
 #define EVOLVE_POLISH_STAGNATION 15
 /* Proxy boxes are grown by this many eps_d so that faces meeting at an edge overlap. */
 #define EVOLVE_PROXY_MARGIN 2.0
+/* The base model's value (--residual) where it cannot be evaluated: far outside, so
+ * that the leaf explains nothing there and is not inside any part of the joined tree. */
+#define EVOLVE_BASE_OUTSIDE (-1e30)
 /* The clipping box is the cloud's oriented box grown by this fraction of the diagonal,
  * far enough not to cut the surface. */
 #define EVOLVE_CLIP_MARGIN 0.02
@@ -64,10 +68,13 @@ typedef struct evolve_options {
     uint32_t polish_stagnation; /* its stagnation limit (min with gp.stagnation) */
     int support;             /* 1: trim material no point supports (support.h) */
     /* --residual: the base model's value bf[i] and gradient bg[3i+c] at every cloud
-     * point (residual.h), NULL otherwise. The GA then runs on the points the base
-     * explains poorly, and its tree is joined to the base, which is leaf number nprims
-     * of the result's tree. */
+     * point, and base_ok[i] = 1 where it could be evaluated (residual_eval), NULL
+     * otherwise. The GA then runs on the points the base explains poorly (and those it
+     * cannot evaluate), and its tree is joined to the base, which is leaf number nprims
+     * of the result's tree; where the base cannot be evaluated the leaf's value is
+     * EVOLVE_BASE_OUTSIDE with a zero gradient. */
     const double *base_f, *base_g;
+    const uint8_t *base_ok;
 } evolve_options;
 
 void evolve_options_init(evolve_options *o);
@@ -94,13 +101,14 @@ typedef struct evolve_result {
     support_info support;    /* the support trims (all 0 when not run) */
 } evolve_result;
 
-/* Run. The cloud must have normals. Returns 0, or -1 with *err (malloc'ed message,
- * frep_free()) for bad input (no primitives, no valid point) or out of memory. fn (may be
- * NULL) gets the progress and may stop the run; the best tree so far is then kept.
- * Free the result with evolve_result_free(). */
+/* Run. The cloud must have normals. Returns 0, or -1 with err (may be NULL) set: bad
+ * input (FREP_EINPUT: no primitives, no valid point; FREP_ELIMIT: too many primitives),
+ * a run stopped before any tree was scored (FREP_ECANCEL), out of memory (FREP_ENOMEM).
+ * fn (may be NULL) gets the progress and may stop the run; the best tree so far is
+ * then kept. Free the result with evolve_result_free(). */
 int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *prims,
                size_t nprims, gp_progress_fn fn, void *user, evolve_result *res,
-               char **err);
+               frep_error *err);
 void evolve_result_free(evolve_result *r);
 
 /* Recompute r->stats of r->tree on every valid point (after the primitives changed,

@@ -12,6 +12,7 @@
 
 #include "alloc.h"
 #include "fitness.h"
+#include "util.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -127,7 +128,7 @@ static double point_term(const gp_cache *c, double f, double gx, double gy, doub
     }
     double d = f / c->eps_d;
     double gn = sqrt(gx * gx + gy * gy + gz * gz);
-    double theta = 3.14159265358979323846; /* no gradient: the worst angle */
+    double theta = FREP_PI; /* no gradient: the worst angle */
     if (gn > 0) {
         double cs = -(gx * nrm[0] + gy * nrm[1] + gz * nrm[2]) / gn;
         if (cs > 1) cs = 1;
@@ -252,7 +253,7 @@ int gp_cache_noise(const gp_cache *c, gp_noise *out)
         frep_free(ang);
         return -1;
     }
-    double cmax = cos(GP_NOISE_MAX_DEG * 3.14159265358979323846 / 180);
+    double cmax = cos(GP_NOISE_MAX_DEG * FREP_PI / 180);
     size_t k = 0;
     for (size_t i = 0; i < n; i++) {
         const double *q = c->nrm + 3 * i;
@@ -272,7 +273,7 @@ int gp_cache_noise(const gp_cache *c, gp_noise *out)
         }
         if (best < HUGE_VAL) {
             dist[k] = best;
-            ang[k++] = acos(bcos) * 180 / 3.14159265358979323846;
+            ang[k++] = acos(bcos) * 180 / FREP_PI;
         }
     }
     out->inliers = k;
@@ -692,14 +693,15 @@ static void eval_full(const gp_cache *c, gp_eval *e, const frep_insn *code, uint
     }
 }
 
-/* The score of code, whose tape leaves refer to tp; the stack entries of every node go
- * to rec when it is not NULL. -HUGE_VAL as soon as gp_cache.tail shows the score
- * below floor (-HUGE_VAL: never). */
-static double score_code(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
-                         const gp_tape *tp, gp_tape *rec, double floor)
+/* The score of code, whose tape leaves refer to tp, in *out; the stack entries of every
+ * node go to rec when it is not NULL. *out is -HUGE_VAL as soon as gp_cache.tail shows
+ * the score below floor (-HUGE_VAL: never). 0, or -1 on allocation failure or misuse
+ * (an empty tree; a min/max cache without score tables). */
+static int score_code(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                      const gp_tape *tp, gp_tape *rec, double floor, double *out)
 {
-    if (!len || eval_reserve(e, max_stack(code, len))) return NAN;
-    if (c->setops == GP_SETOPS_MINMAX && !c->score && !c->values_only) return NAN;
+    if (!len || eval_reserve(e, max_stack(code, len))) return -1;
+    if (c->setops == GP_SETOPS_MINMAX && !c->score && !c->values_only) return -1;
     /* The bound is summed in another order than the score: a margin far above the
      * rounding keeps every decision exact. */
     const double *tail = floor > -HUGE_VAL ? c->tail : NULL;
@@ -712,6 +714,7 @@ static double score_code(const gp_cache *c, gp_eval *e, const frep_insn *code, u
             if (c->setops == GP_SETOPS_MINMAX) eval_minmax(c, e, code, len, i0, m, tp, rec);
             else eval_rfunc(c, e, code, len, i0, m, tp, rec);
         }
+        *out = 0;
         return 0;
     }
     const size_t B = GP_FIT_BLOCK;
@@ -749,19 +752,27 @@ static double score_code(const gp_cache *c, gp_eval *e, const frep_insn *code, u
             }
         }
         total += part;
-        if (tail && total + tail[(i0 + m + B - 1) / B] < floor) return -HUGE_VAL;
+        if (tail && total + tail[(i0 + m + B - 1) / B] < floor) {
+            *out = -HUGE_VAL;
+            return 0;
+        }
     }
-    return total;
+    *out = total;
+    return 0;
 }
 
-double gp_score(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len)
+int gp_score(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len, double *score)
 {
-    return score_code(c, e, code, len, NULL, NULL, -HUGE_VAL);
+    return score_code(c, e, code, len, NULL, NULL, -HUGE_VAL, score);
 }
 
-double gp_fitness(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len)
+int gp_fitness(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+               double *fitness)
 {
-    return gp_score(c, e, code, len) - c->lambda * (double)len;
+    double sc;
+    if (gp_score(c, e, code, len, &sc)) return -1;
+    *fitness = sc - c->lambda * (double)len;
+    return 0;
 }
 
 static int per_point(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
@@ -897,19 +908,19 @@ int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_
     /* Beyond GP_TAPE_MAX_BYTES only the code is kept: replacements are scored in full. */
     int valued = cells <= gp_tape_max_cells(c->setops);
     if (valued && tape_reserve(tp, c, cells, wcells)) return -1;
-    double sc = score_code(c, e, code, len, NULL, valued ? tp : NULL, -HUGE_VAL);
-    if (isnan(sc)) return -1;
+    double sc;
+    if (score_code(c, e, code, len, NULL, valued ? tp : NULL, -HUGE_VAL, &sc)) return -1;
     tp->valued = valued;
     tp->c = c;
     if (score) *score = sc;
     return 0;
 }
 
-double gp_score_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
-                      double floor)
+int gp_score_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                   double floor, double *score)
 {
-    if (e->tape.c != c || !e->tape.valued) return NAN;
-    return score_code(c, e, code, len, &e->tape, NULL, floor);
+    if (e->tape.c != c || !e->tape.valued) return -1;
+    return score_code(c, e, code, len, &e->tape, NULL, floor, score);
 }
 
 int gp_tape_valued(const gp_cache *c, const gp_eval *e)
@@ -997,14 +1008,15 @@ static int build_path(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
     return rc ? -1 : 0;
 }
 
-double gp_fitness_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
-                           const frep_insn *sub, uint32_t nsub, double floor)
+int gp_fitness_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
+                        const frep_insn *sub, uint32_t nsub, double floor, double *fitness)
 {
     gp_tape *tp = &e->tape;
-    if (build_path(c, e, st, end, sub, nsub)) return NAN;
-    double pen = c->lambda * (double)replaced_len(c, tp, st, end, sub, nsub);
-    double sc = score_code(c, e, tp->path.code, tp->path.len, tp, NULL, floor + pen);
-    return sc - pen;
+    if (build_path(c, e, st, end, sub, nsub)) return -1;
+    double pen = c->lambda * (double)replaced_len(c, tp, st, end, sub, nsub), sc;
+    if (score_code(c, e, tp->path.code, tp->path.len, tp, NULL, floor + pen, &sc)) return -1;
+    *fitness = sc - pen;
+    return 0;
 }
 
 int gp_values_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,

@@ -122,13 +122,15 @@ typedef struct gp_eval gp_eval;
 gp_eval *gp_eval_new(void);
 void gp_eval_free(gp_eval *e);
 
-/* Raw score sum_i exp(-d_i^2) + exp(-theta_i^2) of a tree (no size penalty), where a
- * point with |f| < eps_d across which the field does not change sign (crossing test)
- * scores 0. NaN on
- * allocation failure. Deterministic: the same tree gives the same bits on any thread. */
-double gp_score(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len);
-/* Fitness (eq. 7): score - lambda * len. */
-double gp_fitness(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len);
+/* Raw score sum_i exp(-d_i^2) + exp(-theta_i^2) of a tree (no size penalty) in *score,
+ * where a point with |f| < eps_d across which the field does not change sign (crossing
+ * test) scores 0. Deterministic: the same tree gives the same bits on any thread (NaN
+ * only when the primitives are NaN at a point). 0, or -1 on allocation failure or
+ * misuse (an empty tree; a min/max cache of gp_cache_new_stats). */
+int gp_score(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len, double *score);
+/* Fitness (eq. 7): score - lambda * len, in *fitness. 0 or -1, as gp_score. */
+int gp_fitness(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+               double *fitness);
 
 /* How well a tree explains the points. */
 typedef struct gp_stats {
@@ -172,25 +174,25 @@ size_t gp_tape_max_cells(gp_setops s);
  * the tape is then empty). */
 int gp_tape_record(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                    double *score);
-/* Score (no size penalty) of code whose tape leaves refer to e's tape. The tape may
- * have been recorded from a forest (several trees one after the other: their nodes are
- * all recorded). NaN when the tape holds no values for c (gp_tape_valued). floor: as
- * in gp_fitness_replaced, on the score. */
-double gp_score_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
-                      double floor);
+/* Score (no size penalty) of code whose tape leaves refer to e's tape, in *score. The
+ * tape may have been recorded from a forest (several trees one after the other: their
+ * nodes are all recorded). floor: as in gp_fitness_replaced, on the score. 0, or -1 on
+ * allocation failure or when the tape holds no values for c (gp_tape_valued). */
+int gp_score_taped(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                   double floor, double *score);
 /* 1 when e's tape holds node values recorded on c. */
 int gp_tape_valued(const gp_cache *c, const gp_eval *e);
 /* The leaf standing for the recorded tree's subtree ending at node. */
 frep_insn gp_tape_leaf(const gp_cache *c, uint32_t node);
 /* Fitness (eq. 7, the size penalty on the expanded length) of the recorded tree with
- * its subtree [st, end] replaced by sub[0..nsub). NaN on allocation failure or when
- * nothing is recorded on c.
+ * its subtree [st, end] replaced by sub[0..nsub), in *fitness. 0, or -1 on allocation
+ * failure or when nothing is recorded on c.
  * floor: searches keep a variant only when it beats a fitness (the best so far, the
  * tree's own); a variant that cannot reach floor is left as soon as gp_cache.tail
- * shows it and -HUGE_VAL is returned. Every fitness at or above floor
- * is exact, so the searches choose as with full scores. -HUGE_VAL: always exact. */
-double gp_fitness_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
-                           const frep_insn *sub, uint32_t nsub, double floor);
+ * shows it and *fitness is -HUGE_VAL (a bound, below floor). Every fitness at or above
+ * floor is exact, so the searches choose as with full scores. -HUGE_VAL: always exact. */
+int gp_fitness_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
+                        const frep_insn *sub, uint32_t nsub, double floor, double *fitness);
 /* The tree's value at every point of c (out[0..c->n)) with the subtree [st, end] of
  * the recorded tree replaced by sub, as gp_tree_values. 0 or -1. */
 int gp_values_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,

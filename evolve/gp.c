@@ -6,14 +6,12 @@
 
 #include "alloc.h"
 #include "gp.h"
+#include "threads.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 void gp_config_init(gp_config *c)
 {
@@ -46,6 +44,15 @@ double gp_now(void)
     struct timespec ts;
     timespec_get(&ts, TIME_UTC);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+int gp_progress_explained(const gp_cache *c, gp_eval *e, const gp_tree *t, gp_progress *p)
+{
+    gp_stats st;
+    if (gp_tree_stats(c, e, t->code, t->len, &st)) return -1;
+    p->explained = st.explained;
+    p->npoints = c->n;
+    return 0;
 }
 
 typedef struct memo_entry {
@@ -124,20 +131,25 @@ static int score_population(const gp_cache *c, indiv *pop, uint32_t n, memo_entr
         }
     }
     long ntl = (long)nt;
+    int failed = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
     for (long k = 0; k < ntl; k++) {
-        int tid = 0;
-#ifdef _OPENMP
-        tid = omp_get_thread_num();
-#endif
+        int tid = frep_thread_num();
         indiv *p = &pop[todo[k]];
-        double f = gp_fitness(c, ev[tid], p->t.code, p->t.len);
-        if (isnan(f)) {
-            /* NaN only from allocation failure or NaN data: rank it last. */
-            f = -HUGE_VAL;
+        double f = -HUGE_VAL;
+        if (gp_fitness(c, ev[tid], p->t.code, p->t.len, &f)) {
+#pragma omp atomic write
+            failed = 1;
         }
+        /* NaN data (a primitive NaN at a point): the tree ranks last. */
+        if (isnan(f)) f = -HUGE_VAL;
         p->fitness = f;
         p->scored = 1;
+    }
+    if (failed) {
+        frep_free(todo);
+        frep_free(hs);
+        return -1;
     }
     for (uint32_t k = 0; k < nt; k++) {
         uint32_t i = todo[k];
@@ -165,125 +177,199 @@ static void best_indices(const indiv *pop, uint32_t n, uint32_t e, uint32_t *out
     }
 }
 
+
+/* One gp_run: the limits, the two generations, the memo and the evaluators. */
+typedef struct gp_state {
+    const gp_config *cfg;
+    const gp_cache *c;
+    gp_progress_fn fn;
+    void *user;
+    gp_result *res;
+    double t0;               /* gp_now() at the start */
+    uint32_t P, E, K;        /* population, elite, tournament size */
+    int D;                   /* maximum depth */
+    int nthreads;
+    gp_rng rng;              /* every random choice, made serially */
+    indiv *pop, *next;       /* this generation and the one being bred */
+    memo_entry *memo;
+    gp_eval **ev;            /* one per thread */
+    uint32_t *elite;         /* indices of the E best of pop, best first */
+    double best_fit;         /* the best fitness so far */
+    uint32_t since;          /* generations without improvement */
+    size_t best_expl;        /* points the best tree explains (report_explained) */
+} gp_state;
+
+/* The limits from the config, the arrays, one evaluator per thread. */
+static int gp_setup(gp_state *s)
+{
+    const gp_config *cfg = s->cfg;
+    s->P = cfg->population ? cfg->population : 1;
+    s->E = cfg->elite < s->P ? cfg->elite : s->P;
+    s->K = cfg->tournament ? cfg->tournament : 1;
+    s->D = cfg->max_depth > 0 ? cfg->max_depth : gp_default_depth(s->c->nprims);
+    if (s->D > GP_MAX_TREE_DEPTH) s->D = GP_MAX_TREE_DEPTH;
+    s->nthreads = frep_threads(cfg->threads);
+    gp_rng_seed(&s->rng, cfg->seed);
+    s->pop = frep_calloc(s->P, sizeof *s->pop);
+    s->next = frep_calloc(s->P, sizeof *s->next);
+    s->memo = frep_calloc((size_t)1 << GP_MEMO_BITS, sizeof *s->memo);
+    s->ev = frep_calloc((size_t)s->nthreads, sizeof *s->ev);
+    s->elite = frep_calloc(s->E ? s->E : 1, sizeof *s->elite);
+    if (!s->pop || !s->next || !s->memo || !s->ev || !s->elite) return -1;
+    for (int i = 0; i < s->nthreads; i++)
+        if (!(s->ev[i] = gp_eval_new())) return -1;
+    return 0;
+}
+
+/* The first population: the seeds that fit the depth limit, then random trees. */
+static int gp_first_population(gp_state *s, const gp_tree *seeds, uint32_t nseeds)
+{
+    const gp_config *cfg = s->cfg;
+    for (uint32_t i = 0; i < s->P; i++) {
+        if (i < nseeds && seeds[i].len &&
+            tree_depth(seeds[i].code, seeds[i].len) <= GP_MAX_TREE_DEPTH) {
+            if (tree_copy(&s->pop[i].t, &seeds[i])) return -1;
+        } else if (tree_grow(&s->pop[i].t, &s->rng, cfg->setops, s->c->nprims, s->D,
+                             cfg->p_subtree)) {
+            return -1;
+        }
+    }
+    return 0;
+}
+
+/* The elite of the scored generation; the best tree so far into res. */
+static int gp_track_best(gp_state *s, uint32_t gen)
+{
+    best_indices(s->pop, s->P, s->E ? s->E : 1, s->elite);
+    const indiv *b = &s->pop[s->elite[0]];
+    if (b->fitness > s->best_fit) {
+        s->best_fit = b->fitness;
+        s->since = 0;
+        gp_stats st;
+        if (s->fn && s->cfg->report_explained) {
+            if (gp_tree_stats(s->c, s->ev[0], b->t.code, b->t.len, &st)) return -1;
+            s->best_expl = st.explained;
+        }
+    } else {
+        s->since++;
+    }
+    if (tree_copy(&s->res->best, &b->t)) return -1;
+    s->res->fitness = b->fitness;
+    s->res->generations = gen + 1;
+    return 0;
+}
+
+/* The progress report and the stopping rules, in this order; 1: stop (res->stop set). */
+static int gp_stop_now(gp_state *s, uint32_t gen)
+{
+    const gp_config *cfg = s->cfg;
+    const indiv *b = &s->pop[s->elite[0]];
+    double el = gp_now() - s->t0;
+    if (s->fn) {
+        gp_progress pr = { gen + 1, b->fitness, b->t.len, el, GP_PHASE_GA, 0, 0 };
+        if (cfg->report_explained) {
+            pr.explained = s->best_expl;
+            pr.npoints = s->c->n;
+        }
+        if (s->fn(s->user, &pr)) { s->res->stop = GP_STOP_USER; return 1; }
+    }
+    if (gen + 1 >= cfg->generations) { s->res->stop = GP_STOP_GENERATIONS; return 1; }
+    if (cfg->stagnation && s->since >= cfg->stagnation) { s->res->stop = GP_STOP_STAGNATION; return 1; }
+    if (cfg->max_time > 0 && el >= cfg->max_time) { s->res->stop = GP_STOP_TIME; return 1; }
+    return 0;
+}
+
+/* Child i of the next generation: crossover, mutation or reproduction of tournament
+ * winners (a cancelled crossover and a reproduction keep the parent's fitness). */
+static int gp_breed_one(gp_state *s, uint32_t i)
+{
+    const gp_config *cfg = s->cfg;
+    indiv *pop = s->pop;
+    uint32_t p1 = tournament(pop, s->P, s->K, &s->rng);
+    double u = gp_rng_unif(&s->rng);
+    indiv *ch = &s->next[i];
+    ch->scored = 0;
+    if (u < cfg->p_crossover) {
+        uint32_t p2 = tournament(pop, s->P, s->K, &s->rng);
+        int r = tree_crossover(&ch->t, &pop[p1].t, &pop[p2].t, &s->rng, s->D);
+        if (r < 0) return -1;
+        if (r == 0) {  /* cancelled: the child is its parent, fitness known */
+            ch->fitness = pop[p1].fitness;
+            ch->scored = 1;
+        }
+    } else if (u < cfg->p_crossover + cfg->p_mutation) {
+        if (tree_copy(&ch->t, &pop[p1].t) ||
+            tree_mutate(&ch->t, &s->rng, cfg->setops, s->c->nprims, s->D, cfg->p_subtree))
+            return -1;
+    } else {
+        if (tree_copy(&ch->t, &pop[p1].t)) return -1;
+        ch->fitness = pop[p1].fitness;
+        ch->scored = 1;
+    }
+    return 0;
+}
+
+/* The next generation: the elite copied, the rest bred; it becomes pop. */
+static int gp_next_generation(gp_state *s)
+{
+    for (uint32_t k = 0; k < s->E; k++) {
+        if (tree_copy(&s->next[k].t, &s->pop[s->elite[k]].t)) return -1;
+        s->next[k].fitness = s->pop[s->elite[k]].fitness;
+        s->next[k].scored = 1;
+    }
+    for (uint32_t i = s->E; i < s->P; i++)
+        if (gp_breed_one(s, i)) return -1;
+    indiv *tmp = s->pop;
+    s->pop = s->next;
+    s->next = tmp;
+    return 0;
+}
+
+static void gp_state_free(gp_state *s)
+{
+    if (s->pop)
+        for (uint32_t i = 0; i < s->P; i++) tree_free(&s->pop[i].t);
+    if (s->next)
+        for (uint32_t i = 0; i < s->P; i++) tree_free(&s->next[i].t);
+    if (s->memo)
+        for (size_t i = 0; i < ((size_t)1 << GP_MEMO_BITS); i++) frep_free(s->memo[i].code);
+    if (s->ev)
+        for (int i = 0; i < s->nthreads; i++) gp_eval_free(s->ev[i]);
+    frep_free(s->pop);
+    frep_free(s->next);
+    frep_free(s->memo);
+    frep_free(s->ev);
+    frep_free(s->elite);
+}
+
 int gp_run(const gp_config *cfg, const gp_cache *c, const gp_tree *seeds, uint32_t nseeds,
            gp_progress_fn fn, void *user, gp_result *res)
 {
     memset(res, 0, sizeof *res);
     res->fitness = -HUGE_VAL;
     if (!c || c->nprims == 0 || c->n == 0) return -1;
-    double t0 = gp_now();
-    uint32_t P = cfg->population ? cfg->population : 1;
-    uint32_t E = cfg->elite < P ? cfg->elite : P;
-    uint32_t K = cfg->tournament ? cfg->tournament : 1;
-    int D = cfg->max_depth > 0 ? cfg->max_depth : gp_default_depth(c->nprims);
-    if (D > GP_MAX_TREE_DEPTH) D = GP_MAX_TREE_DEPTH;
-    int nthreads = cfg->threads;
-#ifdef _OPENMP
-    if (nthreads <= 0) nthreads = omp_get_max_threads();
-#else
-    nthreads = 1;
-#endif
-    if (nthreads < 1) nthreads = 1;
-
-    gp_rng rng;
-    gp_rng_seed(&rng, cfg->seed);
-    indiv *pop = frep_calloc(P, sizeof *pop), *next = frep_calloc(P, sizeof *next);
-    memo_entry *memo = frep_calloc((size_t)1 << GP_MEMO_BITS, sizeof *memo);
-    gp_eval **ev = frep_calloc((size_t)nthreads, sizeof *ev);
-    uint32_t *elite = frep_calloc(E ? E : 1, sizeof *elite);
+    gp_state s;
+    memset(&s, 0, sizeof s);
+    s.cfg = cfg;
+    s.c = c;
+    s.fn = fn;
+    s.user = user;
+    s.res = res;
+    s.t0 = gp_now();
+    s.best_fit = -HUGE_VAL;
     int rc = -1;
-    if (!pop || !next || !memo || !ev || !elite) goto out;
-    for (int i = 0; i < nthreads; i++)
-        if (!(ev[i] = gp_eval_new())) goto out;
-
-    for (uint32_t i = 0; i < P; i++) {
-        if (i < nseeds && seeds[i].len && tree_depth(seeds[i].code, seeds[i].len) <= GP_MAX_TREE_DEPTH) {
-            if (tree_copy(&pop[i].t, &seeds[i])) goto out;
-        } else if (tree_grow(&pop[i].t, &rng, cfg->setops, c->nprims, D, cfg->p_subtree)) {
-            goto out;
-        }
-    }
-
-    double best_fit = -HUGE_VAL;
-    uint32_t since = 0, gen = 0;
-    size_t best_expl = 0;
+    if (gp_setup(&s) || gp_first_population(&s, seeds, nseeds)) goto out;
     res->stop = GP_STOP_GENERATIONS;
-    for (gen = 0;; gen++) {
-        if (score_population(c, pop, P, memo, ev, nthreads)) goto out;
-        best_indices(pop, P, E ? E : 1, elite);
-        const indiv *b = &pop[elite[0]];
-        if (b->fitness > best_fit) {
-            best_fit = b->fitness;
-            since = 0;
-            gp_stats st;
-            if (fn && cfg->report && gp_tree_stats(c, ev[0], b->t.code, b->t.len, &st) == 0)
-                best_expl = st.explained;
-        } else {
-            since++;
-        }
-        if (tree_copy(&res->best, &b->t)) goto out;
-        res->fitness = b->fitness;
-        res->generations = gen + 1;
-        double el = gp_now() - t0;
-        if (fn) {
-            gp_progress pr = { gen + 1, b->fitness, b->t.len, el, GP_PHASE_GA };
-            if (cfg->report) {
-                cfg->report->explained = best_expl;
-                cfg->report->npoints = c->n;
-            }
-            if (fn(user, &pr)) { res->stop = GP_STOP_USER; break; }
-        }
-        if (gen + 1 >= cfg->generations) { res->stop = GP_STOP_GENERATIONS; break; }
-        if (cfg->stagnation && since >= cfg->stagnation) { res->stop = GP_STOP_STAGNATION; break; }
-        if (cfg->max_time > 0 && el >= cfg->max_time) { res->stop = GP_STOP_TIME; break; }
-
-        /* Next generation. */
-        for (uint32_t k = 0; k < E; k++) {
-            if (tree_copy(&next[k].t, &pop[elite[k]].t)) goto out;
-            next[k].fitness = pop[elite[k]].fitness;
-            next[k].scored = 1;
-        }
-        for (uint32_t i = E; i < P; i++) {
-            uint32_t p1 = tournament(pop, P, K, &rng);
-            double u = gp_rng_unif(&rng);
-            indiv *ch = &next[i];
-            ch->scored = 0;
-            if (u < cfg->p_crossover) {
-                uint32_t p2 = tournament(pop, P, K, &rng);
-                int r = tree_crossover(&ch->t, &pop[p1].t, &pop[p2].t, &rng, D);
-                if (r < 0) goto out;
-                if (r == 0) {  /* cancelled: the child is its parent, fitness known */
-                    ch->fitness = pop[p1].fitness;
-                    ch->scored = 1;
-                }
-            } else if (u < cfg->p_crossover + cfg->p_mutation) {
-                if (tree_copy(&ch->t, &pop[p1].t) ||
-                    tree_mutate(&ch->t, &rng, cfg->setops, c->nprims, D, cfg->p_subtree))
-                    goto out;
-            } else {
-                if (tree_copy(&ch->t, &pop[p1].t)) goto out;
-                ch->fitness = pop[p1].fitness;
-                ch->scored = 1;
-            }
-        }
-        indiv *tmp = pop;
-        pop = next;
-        next = tmp;
+    /* The generational loop: score, keep the best, report and stop, breed. */
+    for (uint32_t gen = 0;; gen++) {
+        if (score_population(c, s.pop, s.P, s.memo, s.ev, s.nthreads) ||
+            gp_track_best(&s, gen))
+            goto out;
+        if (gp_stop_now(&s, gen)) break;
+        if (gp_next_generation(&s)) goto out;
     }
     rc = 0;
 out:
-    if (pop)
-        for (uint32_t i = 0; i < P; i++) tree_free(&pop[i].t);
-    if (next)
-        for (uint32_t i = 0; i < P; i++) tree_free(&next[i].t);
-    if (memo)
-        for (size_t i = 0; i < ((size_t)1 << GP_MEMO_BITS); i++) frep_free(memo[i].code);
-    if (ev)
-        for (int i = 0; i < nthreads; i++) gp_eval_free(ev[i]);
-    frep_free(pop);
-    frep_free(next);
-    frep_free(memo);
-    frep_free(ev);
-    frep_free(elite);
+    gp_state_free(&s);
     return rc;
 }

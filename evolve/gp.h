@@ -30,8 +30,6 @@
  * its parents) is not scored again. */
 #define GP_MEMO_BITS 14
 
-struct gp_report;
-
 typedef struct gp_config {
     uint32_t population;
     int max_depth;          /* 0: gp_default_depth(nprims) */
@@ -46,10 +44,10 @@ typedef struct gp_config {
     int threads;            /* <= 0: OpenMP's default */
     double max_time;        /* seconds; <= 0: no limit */
     gp_setops setops;
-    /* NULL, or where gp_run stores, before each progress callback, how well the best
-     * tree explains the scored points (recomputed when the best fitness changes; only
-     * runs with a callback report, so the clique GAs of partition.c never do). */
-    struct gp_report *report;
+    /* 1: the progress reports carry how well the best tree explains the scored points
+     * (gp_progress.explained; one gp_tree_stats each time the best fitness changes).
+     * Only runs with a callback report, so the clique GAs of partition.c never do. */
+    int report_explained;
 } gp_config;
 
 void gp_config_init(gp_config *c);
@@ -65,18 +63,19 @@ typedef enum gp_phase {
 
 typedef struct gp_progress {
     uint32_t generation;
-    double best_fitness;
+    double best_fitness;    /* NaN in GP_PHASE_MERGE: a partial tree has none */
     uint32_t best_len;
     double elapsed;         /* seconds since gp_run (part_run) started */
     gp_phase phase;
+    /* With gp_config.report_explained (for --trace and --stop-share): the points of
+     * the scored set the best tree explains (gp_tree_stats), out of npoints; also in
+     * the reports of the merged and grown trees. 0 and 0 otherwise, and in
+     * GP_PHASE_MERGE. */
+    size_t explained, npoints;
 } gp_progress;
 
-/* What gp_run reports besides gp_progress (for --trace): the points of the scored set
- * the best tree explains (gp_tree_stats), out of npoints; filled too before the
- * reports of the merged and grown trees. */
-typedef struct gp_report {
-    size_t explained, npoints;
-} gp_report;
+/* p->explained and p->npoints for the tree t on c. 0, or -1 (allocation). */
+int gp_progress_explained(const gp_cache *c, gp_eval *e, const gp_tree *t, gp_progress *p);
 
 /* Called after each generation; a nonzero return stops the run (Ctrl-C). */
 typedef int (*gp_progress_fn)(void *user, const gp_progress *p);

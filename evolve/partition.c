@@ -5,50 +5,21 @@
 #include "config.h"
 
 #include "alloc.h"
+#include "linalg.h"
 #include "partition.h"
 #include "simplify.h"
+#include "threads.h"
+#include "vec3.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 /* ---- oriented boxes ----------------------------------------------------------- */
 
-/* Eigenvectors of a symmetric 3x3 matrix by cyclic Jacobi rotations (columns of v). */
-static void jacobi3(double a[3][3], double v[3][3])
-{
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) v[i][j] = i == j;
-    for (int sweep = 0; sweep < 50; sweep++) {
-        double off = fabs(a[0][1]) + fabs(a[0][2]) + fabs(a[1][2]);
-        if (off < 1e-300) break;
-        for (int p = 0; p < 2; p++)
-            for (int q = p + 1; q < 3; q++) {
-                if (fabs(a[p][q]) < 1e-300) continue;
-                double th = (a[q][q] - a[p][p]) / (2 * a[p][q]);
-                double t = (th >= 0 ? 1.0 : -1.0) / (fabs(th) + sqrt(th * th + 1));
-                double cs = 1 / sqrt(t * t + 1), sn = t * cs;
-                for (int k = 0; k < 3; k++) {
-                    double akp = a[k][p], akq = a[k][q];
-                    a[k][p] = cs * akp - sn * akq;
-                    a[k][q] = sn * akp + cs * akq;
-                }
-                for (int k = 0; k < 3; k++) {
-                    double apk = a[p][k], aqk = a[q][k];
-                    a[p][k] = cs * apk - sn * aqk;
-                    a[q][k] = sn * apk + cs * aqk;
-                }
-                for (int k = 0; k < 3; k++) {
-                    double vkp = v[k][p], vkq = v[k][q];
-                    v[k][p] = cs * vkp - sn * vkq;
-                    v[k][q] = sn * vkp + cs * vkq;
-                }
-            }
-    }
-}
+/* Box axes: the covariance's eigenvectors, iterated to full convergence whatever the
+ * points' scale (off-diagonal sum below 1e-300); 50 sweeps bound the loop. */
+static const linalg_jacobi_stop obb_stop = {50, 1e-300, 0, 1e-300};
 
 void part_obb_of_points(const double *x, const double *y, const double *z,
                         const size_t *idx, size_t m, gp_obb *b)
@@ -70,8 +41,8 @@ void part_obb_of_points(const double *x, const double *y, const double *z,
         for (int r = 0; r < 3; r++)
             for (int s = 0; s < 3; s++) cov[r][s] += d[r] * d[s];
     }
-    double v[3][3];
-    jacobi3(cov, v);
+    double v[3][3], w[3];
+    linalg_sym3_jacobi((const double(*)[3])cov, &obb_stop, w, v);
     for (int a = 0; a < 3; a++)
         for (int q = 0; q < 3; q++) b->ax[a][q] = v[q][a];
     double lo[3] = { HUGE_VAL, HUGE_VAL, HUGE_VAL }, hi[3] = { -HUGE_VAL, -HUGE_VAL, -HUGE_VAL };
@@ -93,11 +64,6 @@ void part_obb_of_points(const double *x, const double *y, const double *z,
     b->valid = 1;
 }
 
-static double dot3(const double *a, const double *b)
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
 int part_obb_overlap(const gp_obb *a, const gp_obb *b, double margin)
 {
     if (!a->valid || !b->valid) return 1;
@@ -114,17 +80,17 @@ int part_obb_overlap(const gp_obb *a, const gp_obb *b, double margin)
             double c[3] = { u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
                             u[0] * w[1] - u[1] * w[0] };
             /* Parallel axes give no new separating direction. */
-            if (dot3(c, c) < 1e-12) continue;
+            if (vec3_dot(c, c) < 1e-12) continue;
             memcpy(axes[na++], c, sizeof c);
         }
     for (int k = 0; k < na; k++) {
         const double *L = axes[k];
         double ra = 0, rb = 0;
         for (int q = 0; q < 3; q++) {
-            ra += (a->h[q] + margin) * fabs(dot3(a->ax[q], L));
-            rb += (b->h[q] + margin) * fabs(dot3(b->ax[q], L));
+            ra += (a->h[q] + margin) * fabs(vec3_dot(a->ax[q], L));
+            rb += (b->h[q] + margin) * fabs(vec3_dot(b->ax[q], L));
         }
-        if (fabs(dot3(d, L)) > ra + rb) return 0;
+        if (fabs(vec3_dot(d, L)) > ra + rb) return 0;
     }
     return 1;
 }
@@ -134,7 +100,7 @@ int part_obb_contains(const gp_obb *b, const double p[3], double margin)
     if (!b->valid) return 0;
     double d[3] = { p[0] - b->c[0], p[1] - b->c[1], p[2] - b->c[2] };
     for (int a = 0; a < 3; a++)
-        if (fabs(dot3(d, b->ax[a])) > b->h[a] + margin) return 0;
+        if (fabs(vec3_dot(d, b->ax[a])) > b->h[a] + margin) return 0;
     return 1;
 }
 
@@ -450,7 +416,8 @@ int part_merge_pair(const gp_tree *a, const gp_tree *b, gp_setops s, const gp_ca
     double bf = -HUGE_VAL;
     for (int k = 0; k < nc; k++) {
         if (simplify_rules(&cand[k], s)) goto out;
-        double f = gp_fitness(c, e, cand[k].code, cand[k].len);
+        double f;
+        if (gp_fitness(c, e, cand[k].code, cand[k].len, &f)) goto out;
         if (best < 0 || f > bf) {
             best = k;
             bf = f;
@@ -502,151 +469,192 @@ static uint32_t low_bit(uint32_t x)
 }
 
 /* Fitness of the tree of `leaves` (1: a tree of the forest; 2: two trees and op) of
- * expanded length tl: from e's tape of the forest when it has values, else in full.
- * floor as in gp_fitness_replaced. */
-static double exh_fitness(const gp_cache *c, gp_eval *e, const gp_tree *forest,
-                          const uint32_t *ends, int nl, uint8_t op, uint32_t tl,
-                          gp_tree *scratch, double floor)
+ * expanded length tl, in *fit: from e's tape of the forest when it has values, else in
+ * full. floor as in gp_fitness_replaced. 0 or -1 (allocation). */
+static int exh_fitness(const gp_cache *c, gp_eval *e, const gp_tree *forest,
+                       const uint32_t *ends, int nl, uint8_t op, uint32_t tl,
+                       gp_tree *scratch, double floor, double *fit)
 {
     scratch->len = 0;
     if (gp_tape_valued(c, e)) {
         for (int q = 0; q < nl; q++) {
             frep_insn lf = gp_tape_leaf(c, ends[q]);
-            if (tree_push(scratch, (frep_opcode)lf.op, lf.arg)) return NAN;
+            if (tree_push(scratch, (frep_opcode)lf.op, lf.arg)) return -1;
         }
-        if (nl == 2 && tree_push(scratch, (frep_opcode)op, 0)) return NAN;
-        double pen = c->lambda * (double)tl;
-        return gp_score_taped(c, e, scratch->code, scratch->len, floor + pen) - pen;
+        if (nl == 2 && tree_push(scratch, (frep_opcode)op, 0)) return -1;
+        double pen = c->lambda * (double)tl, sc;
+        if (gp_score_taped(c, e, scratch->code, scratch->len, floor + pen, &sc)) return -1;
+        *fit = sc - pen;
+        return 0;
     }
     for (int q = 0; q < nl; q++) {
         uint32_t s0 = tree_subtree_start(forest->code, ends[q]);
         uint32_t n = ends[q] - s0 + 1;
-        if (tree_reserve(scratch, scratch->len + n + 1)) return NAN;
+        if (tree_reserve(scratch, scratch->len + n + 1)) return -1;
         memcpy(scratch->code + scratch->len, forest->code + s0, n * sizeof *scratch->code);
         scratch->len += n;
     }
-    if (nl == 2 && tree_push(scratch, (frep_opcode)op, 0)) return NAN;
-    return gp_fitness(c, e, scratch->code, scratch->len);
+    if (nl == 2 && tree_push(scratch, (frep_opcode)op, 0)) return -1;
+    return gp_fitness(c, e, scratch->code, scratch->len, fit);
+}
+
+/* One part_exhaustive: the forest of the trees over every proper subset S of the
+ * clique (each 2|S| - 1 instructions, subsets by size so that each comes after its
+ * parts: off[S] is the first one's pc, count[S] their number) and the best tree so
+ * far (best_nl trees of the forest, joined by best_op when two). */
+typedef struct exh_state {
+    const gp_cache *c;
+    gp_eval *e;
+    gp_opset o;
+    uint32_t k, full;        /* clique size; the full set's bits */
+    uint32_t off[1u << PART_EXHAUSTIVE_MAX], count[1u << PART_EXHAUSTIVE_MAX];
+    gp_tree forest, scratch;
+    double bf;               /* best fitness (valid when have) */
+    int have;
+    uint32_t best[2], best_nl;
+    uint8_t best_op;
+} exh_state;
+
+/* Append to the forest the trees over S from its splits S = A + B (A holding S's
+ * lowest member, each split once): a | b, a & b, a \ b, b \ a for every tree a over A
+ * and b over B. */
+static int exh_grow_set(exh_state *x, uint32_t S)
+{
+    gp_tree *f = &x->forest;
+    uint32_t low = S & (0u - S);
+    for (uint32_t A = (S - 1) & S; A; A = (A - 1) & S) {
+        if (!(A & low)) continue;
+        uint32_t B = S ^ A;
+        uint32_t la = 2 * popcount64(A) - 1, lb = 2 * popcount64(B) - 1;
+        for (uint32_t ia = 0; ia < x->count[A]; ia++)
+            for (uint32_t ib = 0; ib < x->count[B]; ib++)
+                for (int w = 0; w < 4; w++) {
+                    uint32_t a0 = x->off[A] + ia * la, b0 = x->off[B] + ib * lb;
+                    uint32_t p = w == 3 ? b0 : a0, lp = w == 3 ? lb : la;  /* b \ a */
+                    uint32_t q = w == 3 ? a0 : b0, lq = w == 3 ? la : lb;
+                    uint8_t op = w == 0 ? x->o.uni : w == 1 ? x->o.inter : x->o.sub;
+                    if (tree_reserve(f, f->len + lp + lq + 1)) return -1;
+                    /* Copied from the forest itself: index, not pointer. */
+                    memmove(f->code + f->len, f->code + p, lp * sizeof *f->code);
+                    memmove(f->code + f->len + lp, f->code + q, lq * sizeof *f->code);
+                    f->len += lp + lq;
+                    if (tree_push(f, (frep_opcode)op, 0)) return -1;
+                    x->count[S]++;
+                }
+    }
+    return 0;
+}
+
+/* The forest of every proper subset (the single leaf for a clique of one), and its
+ * tape. */
+static int exh_forest(exh_state *x)
+{
+    for (uint32_t size = 1; size < x->k; size++)
+        for (uint32_t S = 1; S < x->full; S++) {
+            if (popcount64(S) != size) continue;
+            x->off[S] = x->forest.len;
+            if (size == 1) {
+                if (tree_push(&x->forest, FREP_OP_PRIM, low_bit(S))) return -1;
+                x->count[S] = 1;
+            } else if (exh_grow_set(x, S)) {
+                return -1;
+            }
+        }
+    if (x->k == 1 && tree_push(&x->forest, FREP_OP_PRIM, 0)) return -1;
+    return gp_tape_record(x->c, x->e, x->forest.code, x->forest.len, NULL);
+}
+
+/* The fittest tree of the forest, subsets by size (ties: the first, so the
+ * shortest). */
+static int exh_best_single(exh_state *x)
+{
+    uint32_t k = x->k, nsets = 1u << k;
+    for (uint32_t size = 1; size < k || (k == 1 && size == 1); size++)
+        for (uint32_t S = 1; S < nsets; S++) {
+            if (popcount64(S) != size || (S == x->full && k > 1)) continue;
+            uint32_t tl = 2 * size - 1;
+            for (uint32_t q = 0; q < x->count[S] || (k == 1 && q == 0); q++) {
+                uint32_t end = x->off[S] + q * tl + tl - 1;
+                double f;
+                if (exh_fitness(x->c, x->e, &x->forest, &end, 1, 0, tl, &x->scratch,
+                                x->have ? x->bf : -HUGE_VAL, &f))
+                    return -1;
+                if (!x->have || f > x->bf) {
+                    x->bf = f;
+                    x->have = 1;
+                    x->best[0] = end;
+                    x->best_nl = 1;
+                }
+            }
+        }
+    return 0;
+}
+
+/* The trees over all k primitives, two trees of the forest and an operation each,
+ * scored from the forest's tape; kept when fitter. */
+static int exh_best_full(exh_state *x)
+{
+    uint32_t tl = 2 * x->k - 1, low = 1, full = x->full;
+    for (uint32_t A = (full - 1) & full; A; A = (A - 1) & full) {
+        if (!(A & low)) continue;
+        uint32_t B = full ^ A;
+        uint32_t la = 2 * popcount64(A) - 1, lb = 2 * popcount64(B) - 1;
+        for (uint32_t ia = 0; ia < x->count[A]; ia++)
+            for (uint32_t ib = 0; ib < x->count[B]; ib++)
+                for (int w = 0; w < 4; w++) {
+                    uint32_t ea = x->off[A] + ia * la + la - 1, eb = x->off[B] + ib * lb + lb - 1;
+                    uint32_t ends[2] = { w == 3 ? eb : ea, w == 3 ? ea : eb };
+                    uint8_t op = w == 0 ? x->o.uni : w == 1 ? x->o.inter : x->o.sub;
+                    double f;
+                    if (exh_fitness(x->c, x->e, &x->forest, ends, 2, op, tl, &x->scratch,
+                                    x->bf, &f))
+                        return -1;
+                    if (f > x->bf) {
+                        x->bf = f;
+                        x->best[0] = ends[0];
+                        x->best[1] = ends[1];
+                        x->best_nl = 2;
+                        x->best_op = op;
+                    }
+                }
+    }
+    return 0;
+}
+
+/* The winner, expanded from the forest into t. */
+static int exh_expand(const exh_state *x, gp_tree *t)
+{
+    t->len = 0;
+    for (uint32_t q = 0; q < x->best_nl; q++) {
+        uint32_t s0 = tree_subtree_start(x->forest.code, x->best[q]);
+        uint32_t n = x->best[q] - s0 + 1;
+        if (tree_reserve(t, t->len + n + 1)) return -1;
+        memcpy(t->code + t->len, x->forest.code + s0, n * sizeof *t->code);
+        t->len += n;
+    }
+    if (x->best_nl == 2 && tree_push(t, (frep_opcode)x->best_op, 0)) return -1;
+    return 0;
 }
 
 int part_exhaustive(gp_setops s, const gp_cache *c, gp_eval *e, gp_tree *t)
 {
     uint32_t k = c->nprims;
     if (k == 0 || k > PART_EXHAUSTIVE_MAX) return -1;
-    gp_opset o = gp_opset_of(s);
-    uint32_t nsets = 1u << k, full = nsets - 1;
-    /* The trees over every proper subset S, one after the other in the forest (each
-     * 2|S| - 1 instructions, subsets by size so that each comes after its parts):
-     * off[S] is the first one's pc, count[S] their number. A tree over all k is
-     * split into two trees of the forest, scored from the forest's tape as two tape
-     * leaves and the operation. */
-    uint32_t off[1u << PART_EXHAUSTIVE_MAX], count[1u << PART_EXHAUSTIVE_MAX];
-    memset(off, 0, sizeof off);
-    memset(count, 0, sizeof count);
-    gp_tree forest = { NULL, 0, 0 }, scratch = { NULL, 0, 0 };
-    int rc = -1;
-    for (uint32_t size = 1; size < k; size++)
-        for (uint32_t S = 1; S < full; S++) {
-            if (popcount64(S) != size) continue;
-            off[S] = forest.len;
-            if (size == 1) {
-                if (tree_push(&forest, FREP_OP_PRIM, low_bit(S))) goto out;
-                count[S] = 1;
-                continue;
-            }
-            /* Splits S = A + B with A holding S's lowest member (each once). */
-            uint32_t low = S & (0u - S);
-            for (uint32_t A = (S - 1) & S; A; A = (A - 1) & S) {
-                if (!(A & low)) continue;
-                uint32_t B = S ^ A;
-                uint32_t la = 2 * popcount64(A) - 1, lb = 2 * popcount64(B) - 1;
-                for (uint32_t ia = 0; ia < count[A]; ia++)
-                    for (uint32_t ib = 0; ib < count[B]; ib++)
-                        for (int w = 0; w < 4; w++) {
-                            uint32_t x = off[A] + ia * la, lx = la;
-                            uint32_t y = off[B] + ib * lb, ly = lb;
-                            if (w == 3) {  /* b \ a */
-                                x = off[B] + ib * lb;
-                                lx = lb;
-                                y = off[A] + ia * la;
-                                ly = la;
-                            }
-                            uint8_t op = w == 0 ? o.uni : w == 1 ? o.inter : o.sub;
-                            if (tree_reserve(&forest, forest.len + lx + ly + 1)) goto out;
-                            /* Copied from the forest itself: index, not pointer. */
-                            memmove(forest.code + forest.len, forest.code + x,
-                                    lx * sizeof *forest.code);
-                            memmove(forest.code + forest.len + lx, forest.code + y,
-                                    ly * sizeof *forest.code);
-                            forest.len += lx + ly;
-                            if (tree_push(&forest, (frep_opcode)op, 0)) goto out;
-                            count[S]++;
-                        }
-            }
-        }
-    if (k == 1 && tree_push(&forest, FREP_OP_PRIM, 0)) goto out;
-    if (gp_tape_record(c, e, forest.code, forest.len, NULL)) goto out;
-
-    double bf = -HUGE_VAL;
-    int have = 0;
-    uint32_t best[2] = { 0, 0 }, best_nl = 0;
-    uint8_t best_op = 0;
-    /* Subsets by size (ties: the first, so the shortest). */
-    for (uint32_t size = 1; size < k || (k == 1 && size == 1); size++)
-        for (uint32_t S = 1; S < nsets; S++) {
-            if (popcount64(S) != size || (S == full && k > 1)) continue;
-            uint32_t tl = 2 * size - 1;
-            for (uint32_t q = 0; q < count[S] || (k == 1 && q == 0); q++) {
-                uint32_t end = off[S] + q * tl + tl - 1;
-                double f = exh_fitness(c, e, &forest, &end, 1, 0, tl, &scratch,
-                                       have ? bf : -HUGE_VAL);
-                if (isnan(f)) goto out;  /* allocation failure */
-                if (!have || f > bf) {
-                    bf = f;
-                    have = 1;
-                    best[0] = end;
-                    best_nl = 1;
-                }
-            }
-        }
-    if (k > 1) {
-        uint32_t tl = 2 * k - 1, low = 1;
-        for (uint32_t A = (full - 1) & full; A; A = (A - 1) & full) {
-            if (!(A & low)) continue;
-            uint32_t B = full ^ A;
-            uint32_t la = 2 * popcount64(A) - 1, lb = 2 * popcount64(B) - 1;
-            for (uint32_t ia = 0; ia < count[A]; ia++)
-                for (uint32_t ib = 0; ib < count[B]; ib++)
-                    for (int w = 0; w < 4; w++) {
-                        uint32_t ea = off[A] + ia * la + la - 1, eb = off[B] + ib * lb + lb - 1;
-                        uint32_t ends[2] = { w == 3 ? eb : ea, w == 3 ? ea : eb };
-                        uint8_t op = w == 0 ? o.uni : w == 1 ? o.inter : o.sub;
-                        double f = exh_fitness(c, e, &forest, ends, 2, op, tl, &scratch, bf);
-                        if (isnan(f)) goto out;
-                        if (f > bf) {
-                            bf = f;
-                            best[0] = ends[0];
-                            best[1] = ends[1];
-                            best_nl = 2;
-                            best_op = op;
-                        }
-                    }
-        }
-    }
-    /* The winner, expanded from the forest. */
-    t->len = 0;
-    for (uint32_t q = 0; q < best_nl; q++) {
-        uint32_t s0 = tree_subtree_start(forest.code, best[q]);
-        uint32_t n = best[q] - s0 + 1;
-        if (tree_reserve(t, t->len + n + 1)) goto out;
-        memcpy(t->code + t->len, forest.code + s0, n * sizeof *t->code);
-        t->len += n;
-    }
-    if (best_nl == 2 && tree_push(t, (frep_opcode)best_op, 0)) goto out;
-    rc = 0;
-out:
-    tree_free(&forest);
-    tree_free(&scratch);
+    exh_state st;
+    memset(&st, 0, sizeof st);
+    exh_state *x = &st;
+    x->c = c;
+    x->e = e;
+    x->o = gp_opset_of(s);
+    x->k = k;
+    x->full = (1u << k) - 1;
+    x->bf = -HUGE_VAL;
+    int rc = exh_forest(x) || exh_best_single(x) || (k > 1 && exh_best_full(x)) ||
+                     exh_expand(x, t)
+                 ? -1
+                 : 0;
+    tree_free(&x->forest);
+    tree_free(&x->scratch);
     return rc;
 }
 
@@ -771,125 +779,159 @@ static uint32_t point_owners(const gp_cache *c, size_t i, uint8_t *own)
     return k;
 }
 
-int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const double *y,
-             const double *z, const gp_obb *boxes, double margin, gp_progress_fn fn,
-             void *user, gp_result *res, part_info *info)
-{
-    memset(info, 0, sizeof *info);
-    memset(res, 0, sizeof *res);
-    res->fitness = -HUGE_VAL;
-    double t0 = gp_now();
-    gp_graph g;
+/* One part_run: the cliques, one piece per clique, the evaluators. */
+typedef struct part_ctx {
+    const gp_config *cfg;
+    const gp_cache *c;
+    const double *x, *y, *z;  /* the cache's points */
+    const gp_obb *boxes;
+    double margin;
+    gp_progress_fn fn;
+    void *user;
+    gp_result *res;
+    part_info *info;
+    double t0;                /* gp_now() at the start */
     gp_cliques cl;
-    memset(&cl, 0, sizeof cl);
-    if (part_overlap_graph(boxes, c->nprims, margin, &g)) return -1;
+    uint32_t nq;              /* cliques */
+    part_piece *pc;           /* pc[q]: clique q's points, primitives and tree */
+    uint32_t *gens;           /* GA generations per clique */
+    int nthreads;
+    gp_eval **ev;             /* one per thread */
+    uint32_t live;            /* pieces left to merge (pc[0..live)) */
+} part_ctx;
+
+/* Overlap graph of the proxies and its maximal cliques. 1: not worth partitioning
+ * (too many cliques, or one). */
+static int part_find_cliques(part_ctx *s)
+{
+    part_info *info = s->info;
+    gp_graph g;
+    if (part_overlap_graph(s->boxes, s->c->nprims, s->margin, &g)) return -1;
     for (uint32_t i = 0; i < g.n; i++)
         for (uint32_t j = i + 1; j < g.n; j++) info->nedges += (uint32_t)part_graph_has(&g, i, j);
-    int cr = part_cliques(&g, PART_MAX_CLIQUES, &cl);
+    int cr = part_cliques(&g, PART_MAX_CLIQUES, &s->cl);
     part_graph_free(&g);
-    if (cr < 0) return -1;
-    if (cr > 0) return 0;  /* too many cliques: unpartitioned GA */
-    info->ncliques = cl.count;
-    for (uint32_t q = 0; q < cl.count; q++) {
-        uint32_t k = cl.start[q + 1] - cl.start[q];
+    if (cr) return cr;  /* -1, or 1: too many cliques (unpartitioned GA) */
+    info->ncliques = s->cl.count;
+    for (uint32_t q = 0; q < s->cl.count; q++) {
+        uint32_t k = s->cl.start[q + 1] - s->cl.start[q];
         if (k > info->largest) info->largest = k;
     }
-    if (cl.count <= 1) {
-        part_cliques_free(&cl);
-        return 0;
+    s->nq = s->cl.count;
+    return s->cl.count <= 1;
+}
+
+/* The pieces and one evaluator per thread. */
+static int part_alloc(part_ctx *s)
+{
+    s->pc = frep_calloc(s->nq, sizeof *s->pc);
+    s->gens = frep_calloc(s->nq, sizeof *s->gens);
+    s->nthreads = frep_threads(s->cfg->threads);
+    s->ev = frep_calloc((size_t)s->nthreads, sizeof *s->ev);
+    if (!s->pc || !s->gens || !s->ev) return -1;
+    for (int i = 0; i < s->nthreads; i++)
+        if (!(s->ev[i] = gp_eval_new())) return -1;
+    return 0;
+}
+
+/* Point i in pass 0 (bestcnt[i]: the most member boxes of an eligible clique holding
+ * it) or pass 1 (i joins the eligible cliques that hold it that often). own: scratch,
+ * all 0 on entry and exit. */
+static int part_assign_point(part_ctx *s, size_t i, int pass, uint8_t *own, uint32_t *bestcnt)
+{
+    const gp_cache *c = s->c;
+    const gp_cliques *cl = &s->cl;
+    double p[3] = { s->x[i], s->y[i], s->z[i] };
+    uint32_t nown = point_owners(c, i, own);
+    int failed = 0;
+    for (uint32_t q = 0; q < s->nq; q++) {
+        const uint32_t *mem = cl->members + cl->start[q];
+        uint32_t k = cl->start[q + 1] - cl->start[q], cnt = 0, has_owner = 0;
+        for (uint32_t m = 0; m < k; m++) {
+            cnt += (uint32_t)part_obb_contains(&s->boxes[mem[m]], p, s->margin);
+            has_owner |= own[mem[m]];
+        }
+        if (nown && !has_owner) continue;
+        if (pass == 0) {
+            if (cnt > bestcnt[i]) bestcnt[i] = cnt;
+            continue;
+        }
+        part_piece *pq = &s->pc[q];
+        if (cnt > 0 && (nown == 0 || cnt == bestcnt[i])) {
+            if (!pq->pts) {
+                pq->pts = frep_malloc((c->n ? c->n : 1) * sizeof *pq->pts);
+                if (!pq->pts) failed = 1;
+            }
+            if (pq->pts) pq->pts[pq->npts++] = i;
+        }
     }
+    for (uint32_t j = 0; j < c->nprims; j++) own[j] = 0;
+    return failed ? -1 : 0;
+}
 
-    uint32_t nq = cl.count;
-    part_piece *pc = frep_calloc(nq, sizeof *pc);
-    uint32_t *gens = frep_calloc(nq, sizeof *gens);
-    int nthreads = cfg->threads;
-#ifdef _OPENMP
-    if (nthreads <= 0) nthreads = omp_get_max_threads();
-#else
-    nthreads = 1;
-#endif
-    if (nthreads < 1) nthreads = 1;
-    gp_eval **ev = frep_calloc((size_t)nthreads, sizeof *ev);
-    int rc = -1, failed = 0;
-    if (!pc || !gens || !ev) goto out;
-    for (int i = 0; i < nthreads; i++)
-        if (!(ev[i] = gp_eval_new())) goto out;
-
-    /* Points of each clique: inside the grown box of one of its members. A point that
-     * a primitive explains (its owners) goes only to the cliques holding an owner whose
-     * members' boxes contain it most often: a plane shared by several parts brings
-     * each part's face to that part's clique, not to every clique of the plane (where
-     * the clique's correct tree cannot explain it and the GA is pushed to wrong ones). */
+/* Points of each clique: inside the grown box of one of its members. A point that a
+ * primitive explains (its owners) goes only to the cliques holding an owner whose
+ * members' boxes contain it most often: a plane shared by several parts brings each
+ * part's face to that part's clique, not to every clique of the plane (where the
+ * clique's correct tree cannot explain it and the GA is pushed to wrong ones). Then
+ * each piece's primitives, the clique's members. */
+static int part_assign_points(part_ctx *s)
+{
+    const gp_cache *c = s->c;
     uint8_t *owner = frep_calloc(c->nprims ? c->nprims : 1, 1);
     uint32_t *bestcnt = frep_calloc(c->n ? c->n : 1, sizeof *bestcnt);
-    if (!owner || !bestcnt) {
-        frep_free(owner);
-        frep_free(bestcnt);
-        goto out;
-    }
-    for (int pass = 0; pass < 2; pass++)
-        for (size_t i = 0; i < c->n; i++) {
-            double p[3] = { x[i], y[i], z[i] };
-            uint32_t nown = point_owners(c, i, owner);
-            for (uint32_t q = 0; q < nq; q++) {
-                const uint32_t *mem = cl.members + cl.start[q];
-                uint32_t k = cl.start[q + 1] - cl.start[q], cnt = 0, has_owner = 0;
-                for (uint32_t m = 0; m < k; m++) {
-                    cnt += (uint32_t)part_obb_contains(&boxes[mem[m]], p, margin);
-                    has_owner |= owner[mem[m]];
-                }
-                if (nown && !has_owner) continue;
-                if (pass == 0) {
-                    if (cnt > bestcnt[i]) bestcnt[i] = cnt;
-                    continue;
-                }
-                if (cnt > 0 && (nown == 0 || cnt == bestcnt[i])) {
-                    if (!pc[q].pts) {
-                        pc[q].pts = frep_malloc((c->n ? c->n : 1) * sizeof *pc[q].pts);
-                        if (!pc[q].pts) failed = 1;
-                    }
-                    if (pc[q].pts) pc[q].pts[pc[q].npts++] = i;
-                }
-            }
-            for (uint32_t j = 0; j < c->nprims; j++) owner[j] = 0;
-        }
+    int failed = !owner || !bestcnt;
+    for (int pass = 0; pass < 2 && owner && bestcnt; pass++)
+        for (size_t i = 0; i < c->n; i++)
+            if (part_assign_point(s, i, pass, owner, bestcnt)) failed = 1;
     frep_free(owner);
     frep_free(bestcnt);
-    if (failed) goto out;
-    for (uint32_t q = 0; q < nq; q++) {
-        const uint32_t *mem = cl.members + cl.start[q];
-        uint32_t k = cl.start[q + 1] - cl.start[q];
-        pc[q].prims = frep_malloc((size_t)k * sizeof *pc[q].prims);
-        if (!pc[q].prims) goto out;
-        memcpy(pc[q].prims, mem, (size_t)k * sizeof *mem);
-        pc[q].nprims = k;
+    if (failed) return -1;
+    for (uint32_t q = 0; q < s->nq; q++) {
+        const uint32_t *mem = s->cl.members + s->cl.start[q];
+        uint32_t k = s->cl.start[q + 1] - s->cl.start[q];
+        s->pc[q].prims = frep_malloc((size_t)k * sizeof *s->pc[q].prims);
+        if (!s->pc[q].prims) return -1;
+        memcpy(s->pc[q].prims, mem, (size_t)k * sizeof *mem);
+        s->pc[q].nprims = k;
     }
+    return 0;
+}
 
-    long nql = (long)nq;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
+/* A tree per clique (solve_clique), cliques in parallel, each seeded from the run's
+ * seed and its number; a clique without points is dropped. */
+static int part_solve(part_ctx *s)
+{
+    int failed = 0;
+    long nql = (long)s->nq;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(s->nthreads)
     for (long ql = 0; ql < nql; ql++) {
         uint32_t q = (uint32_t)ql;
-        int tid = 0;
-#ifdef _OPENMP
-        tid = omp_get_thread_num();
-#endif
-        if (pc[q].npts == 0) continue;  /* explains no point: dropped */
-        if (solve_clique(cfg, c, pc[q].prims, pc[q].nprims, pc[q].pts, pc[q].npts,
-                         mix_seed(cfg->seed, q), ev[tid], &pc[q].t, &gens[q])) {
+        int tid = frep_thread_num();
+        part_piece *pq = &s->pc[q];
+        if (pq->npts == 0) continue;  /* explains no point: dropped */
+        if (solve_clique(s->cfg, s->c, pq->prims, pq->nprims, pq->pts, pq->npts,
+                         mix_seed(s->cfg->seed, q), s->ev[tid], &pq->t, &s->gens[q])) {
 #pragma omp atomic write
             failed = 1;
         }
     }
-    if (failed) goto out;
-    for (uint32_t q = 0; q < nq; q++) info->generations += gens[q];
+    if (failed) return -1;
+    for (uint32_t q = 0; q < s->nq; q++) s->info->generations += s->gens[q];
+    return 0;
+}
 
-    /* Merge: repeatedly the two pieces sharing the most primitives (ties: first). */
+/* The pieces with a tree moved to the front (s->live of them), their primitives those
+ * the tree uses. */
+static int part_compact(part_ctx *s)
+{
+    part_piece *pc = s->pc;
     uint32_t live = 0;
-    for (uint32_t q = 0; q < nq; q++) {
+    for (uint32_t q = 0; q < s->nq; q++) {
         if (pc[q].t.len) {
             frep_free(pc[q].prims);
-            pc[q].nprims = tree_used_prims(&pc[q].t, c->nprims, &pc[q].prims);
-            if (!pc[q].prims) goto out;
+            pc[q].nprims = tree_used_prims(&pc[q].t, s->c->nprims, &pc[q].prims);
+            if (!pc[q].prims) return -1;
             if (live != q) {
                 pc[live] = pc[q];
                 memset(&pc[q], 0, sizeof pc[q]);
@@ -899,54 +941,98 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
             piece_free(&pc[q]);
         }
     }
-    if (live == 0) goto fallback;
-    while (live > 1) {
-        uint32_t bi = 0, bj = 1, bs = 0;
+    s->live = live;
+    return 0;
+}
+
+/* Merge: repeatedly the two pieces sharing the most primitives (ties: first), with a
+ * report after each merge (a stop request ends the merging). */
+static int part_merge_all(part_ctx *s)
+{
+    part_piece *pc = s->pc;
+    while (s->live > 1) {
+        uint32_t live = s->live, bi = 0, bj = 1, bs = 0;
         for (uint32_t i = 0; i < live; i++)
             for (uint32_t j = i + 1; j < live; j++) {
-                uint32_t s = shared_count(&pc[i], &pc[j]);
-                if (s > bs) { bs = s; bi = i; bj = j; }
+                uint32_t sh = shared_count(&pc[i], &pc[j]);
+                if (sh > bs) { bs = sh; bi = i; bj = j; }
             }
-        if (merge_pieces(cfg, c, ev[0], &pc[bi], &pc[bj])) goto out;
+        if (merge_pieces(s->cfg, s->c, s->ev[0], &pc[bi], &pc[bj])) return -1;
         piece_free(&pc[bj]);
         memmove(&pc[bj], &pc[bj + 1], (size_t)(live - bj - 1) * sizeof *pc);
         memset(&pc[live - 1], 0, sizeof *pc);
-        live--;
-        if (fn) {
-            gp_progress pr = { info->generations, NAN, pc[bi].t.len, gp_now() - t0,
-                                GP_PHASE_MERGE };
-            if (fn(user, &pr)) break;
+        s->live--;
+        if (s->fn) {
+            gp_progress pr = { s->info->generations, NAN, pc[bi].t.len, gp_now() - s->t0,
+                               GP_PHASE_MERGE, 0, 0 };
+            if (s->fn(s->user, &pr)) break;
         }
     }
-    /* The merged tree over the whole cache. */
+    return 0;
+}
+
+/* The merged tree simplified over the whole cache (both orders), and its report. */
+static int part_final(part_ctx *s)
+{
+    gp_result *res = s->res;
     double fit;
-    if (tree_copy(&res->best, &pc[0].t) ||
-        simplify_tree_both(&res->best, cfg->setops, c, ev[0], &fit))
-        goto out;
+    if (tree_copy(&res->best, &s->pc[0].t) ||
+        simplify_tree_both(&res->best, s->cfg->setops, s->c, s->ev[0], &fit))
+        return -1;
     res->fitness = fit;
-    res->generations = info->generations;
+    res->generations = s->info->generations;
     res->stop = GP_STOP_GENERATIONS;
-    info->partitioned = 1;
-    if (fn) {
-        gp_stats st;
-        if (cfg->report && gp_tree_stats(c, ev[0], res->best.code, res->best.len, &st) == 0) {
-            cfg->report->explained = st.explained;
-            cfg->report->npoints = c->n;
-        }
-        gp_progress pr = { info->generations, fit, res->best.len, gp_now() - t0,
-                           GP_PHASE_MERGED };
-        fn(user, &pr);  /* a stop request reaches the polish's first report */
+    s->info->partitioned = 1;
+    if (s->fn) {
+        gp_progress pr = { s->info->generations, fit, res->best.len, gp_now() - s->t0,
+                           GP_PHASE_MERGED, 0, 0 };
+        if (s->cfg->report_explained && gp_progress_explained(s->c, s->ev[0], &res->best, &pr))
+            return -1;
+        s->fn(s->user, &pr);  /* a stop request reaches the polish's first report */
     }
-fallback:
-    rc = 0;
-out:
-    if (pc)
-        for (uint32_t q = 0; q < nq; q++) piece_free(&pc[q]);
-    frep_free(pc);
-    frep_free(gens);
-    if (ev)
-        for (int i = 0; i < nthreads; i++) gp_eval_free(ev[i]);
-    frep_free(ev);
-    part_cliques_free(&cl);
+    return 0;
+}
+
+/* The steps after the cliques: points per clique, a tree per clique, the merge, the
+ * merged tree. */
+static int part_stages(part_ctx *s)
+{
+    if (part_alloc(s) || part_assign_points(s) || part_solve(s) || part_compact(s)) return -1;
+    if (s->live == 0) return 0;  /* no clique tree: the unpartitioned GA */
+    if (part_merge_all(s)) return -1;
+    return part_final(s);
+}
+
+int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const double *y,
+             const double *z, const gp_obb *boxes, double margin, gp_progress_fn fn,
+             void *user, gp_result *res, part_info *info)
+{
+    memset(info, 0, sizeof *info);
+    memset(res, 0, sizeof *res);
+    res->fitness = -HUGE_VAL;
+    part_ctx s;
+    memset(&s, 0, sizeof s);
+    s.cfg = cfg;
+    s.c = c;
+    s.x = x;
+    s.y = y;
+    s.z = z;
+    s.boxes = boxes;
+    s.margin = margin;
+    s.fn = fn;
+    s.user = user;
+    s.res = res;
+    s.info = info;
+    s.t0 = gp_now();
+    int r = part_find_cliques(&s);
+    int rc = r < 0 ? -1 : r > 0 ? 0 : part_stages(&s);
+    if (s.pc)
+        for (uint32_t q = 0; q < s.nq; q++) piece_free(&s.pc[q]);
+    frep_free(s.pc);
+    frep_free(s.gens);
+    if (s.ev)
+        for (int i = 0; i < s.nthreads; i++) gp_eval_free(s.ev[i]);
+    frep_free(s.ev);
+    part_cliques_free(&s.cl);
     return rc;
 }

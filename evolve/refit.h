@@ -29,10 +29,10 @@ typedef struct evolve_refit_info {
 /* Refine prims[j] for every j used by res->tree (the others are untouched; base, for
  * --residual, stays fixed), then recompute res->stats. The tree's normalised
  * directions (plane normals, axes) are normalised again afterwards. Returns 0, or -1
- * with *err (malloc'ed; frep_free()): too few points, the optimizer failed, out of memory;
- * prims are then unchanged. */
+ * with err (may be NULL) set: too few points or the optimizer failed (FREP_EINPUT),
+ * out of memory (FREP_ENOMEM); prims are then unchanged. */
 int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
                  size_t nprims, const evolve_base *base, evolve_result *res,
-                 evolve_refit_info *info, char **err);
+                 evolve_refit_info *info, frep_error *err);
 
 #endif

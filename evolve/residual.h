@@ -13,6 +13,7 @@
 #include <stdint.h>
 
 #include "cloud.h"
+#include "err.h"
 #include "frep.h"
 #include "tree.h"
 
@@ -33,17 +34,19 @@ typedef struct evolve_base {
 
 /* Prepare the base model from its source (it must compile: prog is its program, with
  * `model` the chosen model's name or NULL for the default choice). Returns 0, or -1 with
- * *err (malloc'ed; frep_free()): parse failure, R-alpha set operations, out of memory.
- * Free with residual_free(). */
+ * err (may be NULL) set: parse failure, R-alpha set operations, a model not in 3D
+ * ("file:line: what", FREP_EINPUT), out of memory (FREP_ENOMEM). Free with
+ * residual_free(). */
 int residual_prepare(const char *file, const char *src, size_t len, const char *model,
-                     frep_program *prog, evolve_base *b, char **err);
+                     frep_program *prog, evolve_base *b, frep_error *err);
 void residual_free(evolve_base *b);
 
-/* Values f[i] and gradients g[3i+c] of the base model at every cloud point. Points
- * where it cannot be evaluated (runtime error, non-finite value) get f = -1e30 and a
- * zero gradient: far outside, explaining nothing. *nbad (may be NULL) counts them.
+/* Values f[i] and gradients g[3i+c] of the base model at every cloud point, and ok[i]:
+ * 1 where it could be evaluated, 0 where it cannot (runtime error, non-finite value;
+ * f and g are then 0, and evolve treats the point as one the base leaves unexplained,
+ * see evolve_options.base_ok). *nbad (may be NULL) counts the latter.
  * Returns 0, or -1 when out of memory. */
 int residual_eval(const evolve_base *b, const frep_cloud *c, int threads, double *f,
-                  double *g, size_t *nbad);
+                  double *g, uint8_t *ok, size_t *nbad);
 
 #endif

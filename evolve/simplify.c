@@ -5,7 +5,9 @@
 #include "config.h"
 
 #include "alloc.h"
+#include "gp.h"
 #include "simplify.h"
+#include "threads.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -51,98 +53,105 @@ static int simp_flip(int r) { return r == SIMP_FULL ? SIMP_EMPTY : r == SIMP_EMP
 /* Copy the subtree ending at `end` to the end of out, simplified. Returns SIMP_TREE,
  * SIMP_FULL or SIMP_EMPTY (nothing pushed), -1 on allocation failure. Recursion depth
  * is the tree depth (<= GP_MAX_TREE_DEPTH). */
-static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opset *o)
+static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opset *o);
+
+/* ~a with a simplified at out's end: ~~a -> a; the complement of a constant set. */
+static int simp_neg(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opset *o)
 {
-    const frep_insn *in = &code[end];
-    int k = tree_nin(in);
-    if (k == 0) return tree_push(out, FREP_OP_PRIM, in->arg);
-    if (k == 1) {
-        int r = simp(code, end - 1, out, o);
-        if (r != SIMP_TREE) return r < 0 ? r : simp_flip(r);
-        if (out->code[out->len - 1].op == o->neg) {  /* ~~a = a */
-            out->len--;
-            return SIMP_TREE;
-        }
-        return tree_push(out, (frep_opcode)o->neg, 0);
+    int r = simp(code, end - 1, out, o);
+    if (r != SIMP_TREE) return r < 0 ? r : simp_flip(r);
+    if (out->code[out->len - 1].op == o->neg) {  /* ~~a = a */
+        out->len--;
+        return SIMP_TREE;
     }
-    uint32_t l0, l1, r0;
-    tree_operands(code, end, &l0, &l1, &r0);
-    (void)l0;
-    (void)r0;
-    uint32_t ls = out->len;
-    int rl = simp(code, l1, out, o);
-    if (rl < 0) return -1;
-    uint32_t rs = out->len;
-    int rr = simp(code, end - 1, out, o);
-    if (rr < 0) return -1;
-    uint8_t op = in->op;
-    if (rl != SIMP_TREE || rr != SIMP_TREE) {
-        /* One side is a degenerate set: the result is a constant set or one operand. */
-        int keep_left = 0, keep_right = 0, result = SIMP_TREE;
-        if (op == o->uni) {
-            if (rl == SIMP_FULL || rr == SIMP_FULL) result = SIMP_FULL;
-            else if (rl == SIMP_EMPTY) keep_right = 1;
-            else keep_left = 1;
-        } else if (op == o->inter) {
-            if (rl == SIMP_EMPTY || rr == SIMP_EMPTY) result = SIMP_EMPTY;
-            else if (rl == SIMP_FULL) keep_right = 1;
-            else keep_left = 1;
-        } else {  /* a \ b */
-            if (rl == SIMP_EMPTY || rr == SIMP_FULL) result = SIMP_EMPTY;
-            else if (rr == SIMP_EMPTY) keep_left = 1;
-            else {  /* all \ b = ~b */
-                keep_right = 1;
-                if (out->code[out->len - 1].op == o->neg) out->len--;
-                else if (tree_push(out, (frep_opcode)o->neg, 0)) return -1;
-            }
+    return tree_push(out, (frep_opcode)o->neg, 0);
+}
+
+/* a op b where a (result rl, from ls) or b (rr) is a degenerate set: the result is a
+ * constant set or one operand. */
+static int simp_constant_operand(gp_tree *out, uint32_t ls, int rl, int rr, uint8_t op,
+                                 const gp_opset *o)
+{
+    int keep_left = 0, keep_right = 0, result = SIMP_TREE;
+    if (op == o->uni) {
+        if (rl == SIMP_FULL || rr == SIMP_FULL) result = SIMP_FULL;
+        else if (rl == SIMP_EMPTY) keep_right = 1;
+        else keep_left = 1;
+    } else if (op == o->inter) {
+        if (rl == SIMP_EMPTY || rr == SIMP_EMPTY) result = SIMP_EMPTY;
+        else if (rl == SIMP_FULL) keep_right = 1;
+        else keep_left = 1;
+    } else {  /* a \ b */
+        if (rl == SIMP_EMPTY || rr == SIMP_FULL) result = SIMP_EMPTY;
+        else if (rr == SIMP_EMPTY) keep_left = 1;
+        else {  /* all \ b = ~b */
+            keep_right = 1;
+            if (out->code[out->len - 1].op == o->neg) out->len--;
+            else if (tree_push(out, (frep_opcode)o->neg, 0)) return -1;
         }
-        if (keep_left) return rl;        /* the right side pushed nothing */
-        if (keep_right) return rr;       /* the left side pushed nothing */
-        out->len = ls;
-        return result;
     }
-    int negate = 0;
+    if (keep_left) return rl;        /* the right side pushed nothing */
+    if (keep_right) return rr;       /* the left side pushed nothing */
+    out->len = ls;
+    return result;
+}
+
+/* The complement rules on the operands out[ls..rs) and out[rs..len) of *op, until none
+ * applies: De Morgan, a \ ~b -> a & b, a & ~b -> a \ b, ~a & b -> b & ~a,
+ * ~a \ b -> ~(a | b); *negate toggles for each complement moved above *op. */
+static int simp_complements(gp_tree *out, uint32_t ls, uint32_t *rs, uint8_t *op,
+                            int *negate, const gp_opset *o)
+{
     for (;;) {
-        int lneg = out->code[rs - 1].op == o->neg, rneg = out->code[out->len - 1].op == o->neg;
-        if ((op == o->uni || op == o->inter) && lneg && rneg) {
+        int lneg = out->code[*rs - 1].op == o->neg, rneg = out->code[out->len - 1].op == o->neg;
+        if ((*op == o->uni || *op == o->inter) && lneg && rneg) {
             /* De Morgan: ~a | ~b = ~(a & b), ~a & ~b = ~(a | b) (exact for R0 too). */
             out->len--;
-            remove_at(out, rs - 1);
-            rs--;
-            op = op == o->uni ? o->inter : o->uni;
-            negate ^= 1;
-        } else if (op == o->sub && rneg) {  /* a \ ~b = a & b */
+            remove_at(out, *rs - 1);
+            (*rs)--;
+            *op = *op == o->uni ? o->inter : o->uni;
+            *negate ^= 1;
+        } else if (*op == o->sub && rneg) {  /* a \ ~b = a & b */
             out->len--;
-            op = o->inter;
-        } else if (op == o->inter && rneg) {  /* a & ~b = a \ b */
+            *op = o->inter;
+        } else if (*op == o->inter && rneg) {  /* a & ~b = a \ b */
             out->len--;
-            op = o->sub;
-        } else if (op == o->inter && lneg) {  /* ~a & b = b & ~a */
-            if (swap_tail(out, ls, rs)) return -1;
-            rs = ls + (out->len - rs);
-        } else if (op == o->sub && lneg) {  /* ~a \ b = ~a & ~b = ~(a | b) */
-            remove_at(out, rs - 1);
-            rs--;
-            op = o->uni;
-            negate ^= 1;
+            *op = o->sub;
+        } else if (*op == o->inter && lneg) {  /* ~a & b = b & ~a */
+            if (swap_tail(out, ls, *rs)) return -1;
+            *rs = ls + (out->len - *rs);
+        } else if (*op == o->sub && lneg) {  /* ~a \ b = ~a & ~b = ~(a | b) */
+            remove_at(out, *rs - 1);
+            (*rs)--;
+            *op = o->uni;
+            *negate ^= 1;
         } else {
-            break;
+            return 0;
         }
     }
-    /* Regularization (see SIMP_FULL): a \ a is empty; a | ~a is everything. */
-    int degenerate = SIMP_TREE;
+}
+
+/* Regularization (see SIMP_FULL): a \ a is empty; a | ~a is everything. SIMP_TREE
+ * when neither. */
+static int simp_degenerate(const gp_tree *out, uint32_t ls, uint32_t rs, uint8_t op,
+                           const gp_opset *o)
+{
     if (op == o->sub && tree_compare(out->code, rs - 1, out->code, out->len - 1) == 0)
-        degenerate = SIMP_EMPTY;
-    else if (op == o->uni && out->code[out->len - 1].op == o->neg && out->len - 1 > rs &&
-             tree_compare(out->code, rs - 1, out->code, out->len - 2) == 0)
-        degenerate = SIMP_FULL;
-    else if (op == o->uni && out->code[rs - 1].op == o->neg && rs - 1 > ls &&
-             tree_compare(out->code, rs - 2, out->code, out->len - 1) == 0)
-        degenerate = SIMP_FULL;
-    if (degenerate != SIMP_TREE) {
-        out->len = ls;
-        return negate ? simp_flip(degenerate) : degenerate;
-    }
+        return SIMP_EMPTY;
+    if (op == o->uni && out->code[out->len - 1].op == o->neg && out->len - 1 > rs &&
+        tree_compare(out->code, rs - 1, out->code, out->len - 2) == 0)
+        return SIMP_FULL;
+    if (op == o->uni && out->code[rs - 1].op == o->neg && rs - 1 > ls &&
+        tree_compare(out->code, rs - 2, out->code, out->len - 1) == 0)
+        return SIMP_FULL;
+    return SIMP_TREE;
+}
+
+/* The node: commutative operands in canonical order, a | a = a & a = a, and the
+ * complement moved above it. */
+static int simp_emit(gp_tree *out, uint32_t ls, uint32_t rs, uint8_t op, int negate,
+                     const gp_opset *o)
+{
     int emit = 1;
     if (op == o->uni || op == o->inter) {
         int c = tree_compare(out->code, rs - 1, out->code, out->len - 1);
@@ -159,6 +168,34 @@ static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opse
         else if (tree_push(out, (frep_opcode)o->neg, 0)) return -1;
     }
     return SIMP_TREE;
+}
+
+static int simp(const frep_insn *code, uint32_t end, gp_tree *out, const gp_opset *o)
+{
+    const frep_insn *in = &code[end];
+    int k = tree_nin(in);
+    if (k == 0) return tree_push(out, FREP_OP_PRIM, in->arg);
+    if (k == 1) return simp_neg(code, end, out, o);
+    uint32_t l0, l1, r0;
+    tree_operands(code, end, &l0, &l1, &r0);
+    (void)l0;
+    (void)r0;
+    uint32_t ls = out->len;
+    int rl = simp(code, l1, out, o);
+    if (rl < 0) return -1;
+    uint32_t rs = out->len;
+    int rr = simp(code, end - 1, out, o);
+    if (rr < 0) return -1;
+    uint8_t op = in->op;
+    if (rl != SIMP_TREE || rr != SIMP_TREE) return simp_constant_operand(out, ls, rl, rr, op, o);
+    int negate = 0;
+    if (simp_complements(out, ls, &rs, &op, &negate, o)) return -1;
+    int degenerate = simp_degenerate(out, ls, rs, op, o);
+    if (degenerate != SIMP_TREE) {
+        out->len = ls;
+        return negate ? simp_flip(degenerate) : degenerate;
+    }
+    return simp_emit(out, ls, rs, op, negate, o);
 }
 
 int simplify_rules(gp_tree *t, gp_setops s)
@@ -198,7 +235,8 @@ int simplify_rules(gp_tree *t, gp_setops s)
 static int try_replace(gp_tree *t, gp_tree *trial, uint32_t st, uint32_t end,
                        const gp_tree *cand, const gp_cache *c, gp_eval *e, double *fit)
 {
-    double f = gp_fitness_replaced(c, e, st, end, cand->code, cand->len, *fit);
+    double f;
+    if (gp_fitness_replaced(c, e, st, end, cand->code, cand->len, *fit, &f)) return -1;
     if (!(f >= *fit)) return 0;
     if (gp_tape_expand(c, e, cand->code, cand->len, trial) ||
         tree_splice(t, st, end, trial->code, trial->len) ||
@@ -302,7 +340,9 @@ static int grow_root(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
             if (leaf1(trial, c, t->len - 1) || tree_push(trial, FREP_OP_PRIM, j) ||
                 tree_push(trial, (frep_opcode)ops[w], 0))
                 return -1;
-            double f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len, bf);
+            double f;
+            if (gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len, bf, &f))
+                return -1;
             if (f > bf) {
                 bf = f;
                 best_j = j;
@@ -373,7 +413,8 @@ static int simplify_order(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e
 {
     if (simplify_rules(t, s)) return -1;
     gp_opset o = gp_opset_of(s);
-    double fit = gp_fitness(c, e, t->code, t->len);
+    double fit;
+    if (gp_fitness(c, e, t->code, t->len, &fit)) return -1;
     gp_tree trial = { NULL, 0, 0 }, cand = { NULL, 0, 0 };
     int rc = -1;
     if (reduce(t, &trial, &cand, s, &o, c, e, &fit, leaves_first)) goto out;
@@ -382,7 +423,7 @@ static int simplify_order(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e
         if (g < 0) goto out;
         if (g == 0) break;
         if (simplify_rules(t, s)) goto out;
-        fit = gp_fitness(c, e, t->code, t->len);
+        if (gp_fitness(c, e, t->code, t->len, &fit)) goto out;
         if (reduce(t, &trial, &cand, s, &o, c, e, &fit, leaves_first)) goto out;
     }
     rc = 0;
@@ -557,8 +598,8 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
                     if (build_piece(trial, &root, 1, &p)) { rc = -1; goto out; }
                     /* Below the beam's last piece a piece is neither kept nor best. */
                     double fl = nb == SIMPLIFY_PIECE_BEAM ? beam[nb - 1].f : -HUGE_VAL;
-                    p.f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len,
-                                              fl);
+                    if (gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len,
+                                            fl, &p.f)) { rc = -1; goto out; }
                     if (p.f > best.f) { best = p; found = 1; }
                     beam_insert(beam, &nb, &p);
                 }
@@ -571,8 +612,8 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
                 p.c = cc;
                 p.third = q == 0 ? o->inter : q == 1 ? o->sub : o->uni;
                 if (build_piece(trial, &root, 1, &p)) { rc = -1; goto out; }
-                p.f = gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len,
-                                          best.f);
+                if (gp_fitness_replaced(c, e, 0, t->len - 1, trial->code, trial->len,
+                                        best.f, &p.f)) { rc = -1; goto out; }
                 if (p.f > best.f) { best = p; found = 1; }
             }
         }
@@ -592,12 +633,6 @@ out:
  * every useful primitive). */
 #define SIMPLIFY_MAX_INNER 16
 
-/* One round: the best S & p, S \ p or S | p replacing a subtree S of t, over every
- * subtree and every primitive p that explains points t misses (useful_prims), when it
- * raises the fitness. A face missing from one part of a union (a subtracted box short
- * of two of its faces, so that it cuts away a whole quadrant) cannot be added at the
- * root, where it would cut every other part too. Returns 1 when t changed, 0 when
- * not, -1 on allocation failure. */
 /* Candidates (subtree end x useful primitive x operation) of one inner-growth round
  * above which the round runs in parallel (each thread records its own tape of t). */
 #define SIMPLIFY_PAR_MIN 512
@@ -619,7 +654,9 @@ static int inner_range(const gp_tree *t, const uint8_t *use, const uint8_t ops[3
                 if (leaf1(cand, c, end) || tree_push(cand, FREP_OP_PRIM, j) ||
                     tree_push(cand, (frep_opcode)ops[w], 0))
                     return -1;
-                double f = gp_fitness_replaced(c, ev, st, end, cand->code, cand->len, *bf);
+                double f;
+                if (gp_fitness_replaced(c, ev, st, end, cand->code, cand->len, *bf, &f))
+                    return -1;
                 if (f > *bf) {
                     *bf = f;
                     *best = ((uint64_t)end * k + j) * 3 + (uint64_t)w;
@@ -630,6 +667,71 @@ static int inner_range(const gp_tree *t, const uint8_t *use, const uint8_t ops[3
     return 0;
 }
 
+/* inner_range over the subtree ends of t split between nt threads (each with its own
+ * evaluator and tape); the best of the threads is the first in the sequential order
+ * among the fittest, as in one thread. 0 or -1. */
+static int inner_parallel(const gp_tree *t, const uint8_t *use, const uint8_t ops[3],
+                          const gp_cache *c, int nt, double fit, double *bf, uint64_t *best)
+{
+    double *tbf = frep_malloc((size_t)nt * sizeof *tbf);
+    uint64_t *tbest = frep_malloc((size_t)nt * sizeof *tbest);
+    if (!tbf || !tbest) {
+        frep_free(tbf);
+        frep_free(tbest);
+        return -1;
+    }
+    int failed = 0;
+    uint32_t len = t->len;
+#pragma omp parallel num_threads(nt) reduction(| : failed)
+    {
+        int id = frep_thread_num(), n = frep_team_size();
+        gp_eval *ev = gp_eval_new();
+        gp_tree cand = { NULL, 0, 0 };
+        tbf[id] = fit;
+        tbest[id] = UINT64_MAX;
+        uint32_t e0 = (uint32_t)((uint64_t)len * (uint64_t)id / (uint64_t)n);
+        uint32_t e1 = (uint32_t)((uint64_t)len * (uint64_t)(id + 1) / (uint64_t)n);
+        if (!ev || record(t, c, ev, NULL) ||
+            inner_range(t, use, ops, c, ev, e0, e1, &cand, &tbf[id], &tbest[id]))
+            failed = 1;
+        tree_free(&cand);
+        gp_eval_free(ev);
+        if (id == 0) nt = n;
+    }
+    for (int q = 0; q < nt && !failed; q++)
+        if (tbest[q] != UINT64_MAX && (tbf[q] > *bf || (tbf[q] == *bf && tbest[q] < *best))) {
+            *bf = tbf[q];
+            *best = tbest[q];
+        }
+    frep_free(tbf);
+    frep_free(tbest);
+    return failed ? -1 : 0;
+}
+
+/* The insertion best = (end * k + j) * 3 + w: the subtree ending at `end` joined with
+ * primitive j by ops[w]. As commit_splice: 1 when kept, 0 when not, -1. */
+static int inner_apply(gp_tree *t, gp_tree *trial, const uint8_t ops[3], uint32_t k,
+                       uint64_t best)
+{
+    uint32_t best_end = (uint32_t)(best / 3 / k), best_j = (uint32_t)(best / 3 % k);
+    int best_w = (int)(best % 3);
+    uint32_t st = tree_subtree_start(t->code, best_end);
+    gp_tree sub = { NULL, 0, 0 };
+    int rc = tree_set(&sub, t->code + st, best_end - st + 1) ||
+                     tree_push(&sub, FREP_OP_PRIM, best_j) ||
+                     tree_push(&sub, (frep_opcode)ops[best_w], 0)
+                 ? -1
+                 : commit_splice(t, trial, best_end, &sub);
+    tree_free(&sub);
+    return rc;
+}
+
+/* One round: the best S & p, S \ p or S | p replacing a subtree S of t, over every
+ * subtree and every primitive p that explains points t misses (useful_prims), when it
+ * raises the fitness. A face missing from one part of a union (a subtracted box short
+ * of two of its faces, so that it cuts away a whole quadrant) cannot be added at the
+ * root, where it would cut every other part too. Returns 1 when t changed, 0 when
+ * not, -1 on allocation failure. */
 static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
                       gp_eval *e, double *fit)
 {
@@ -647,73 +749,17 @@ static int grow_inner(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     int nt = 1;
 #ifdef _OPENMP
     if (!omp_in_parallel() && (uint64_t)t->len * (uint64_t)nu * 3 >= SIMPLIFY_PAR_MIN)
-        nt = omp_get_max_threads();
+        nt = frep_threads(0);
 #endif
-    if (nt <= 1) {
-        if (record(t, c, e, NULL) || inner_range(t, use, ops, c, e, 0, t->len, trial, &bf, &best)) {
-            rc = -1;
-            goto out;
-        }
-    } else {
-        /* Each thread takes whole subtree ends; the best of the threads is the first
-         * in the sequential order among the fittest, as in one thread. */
-        double *tbf = frep_malloc((size_t)nt * sizeof *tbf);
-        uint64_t *tbest = frep_malloc((size_t)nt * sizeof *tbest);
-        if (!tbf || !tbest) {
-            frep_free(tbf);
-            frep_free(tbest);
-            rc = -1;
-            goto out;
-        }
-        int failed = 0;
-        uint32_t len = t->len;
-#pragma omp parallel num_threads(nt) reduction(| : failed)
-        {
-            int id = 0, n = 1;
-#ifdef _OPENMP
-            id = omp_get_thread_num();
-            n = omp_get_num_threads();
-#endif
-            gp_eval *ev = gp_eval_new();
-            gp_tree cand = { NULL, 0, 0 };
-            tbf[id] = *fit;
-            tbest[id] = UINT64_MAX;
-            uint32_t e0 = (uint32_t)((uint64_t)len * (uint64_t)id / (uint64_t)n);
-            uint32_t e1 = (uint32_t)((uint64_t)len * (uint64_t)(id + 1) / (uint64_t)n);
-            if (!ev || record(t, c, ev, NULL) ||
-                inner_range(t, use, ops, c, ev, e0, e1, &cand, &tbf[id], &tbest[id]))
-                failed = 1;
-            tree_free(&cand);
-            gp_eval_free(ev);
-            if (id == 0) nt = n;
-        }
-        for (int q = 0; q < nt && !failed; q++)
-            if (tbest[q] != UINT64_MAX && (tbf[q] > bf || (tbf[q] == bf && tbest[q] < best))) {
-                bf = tbf[q];
-                best = tbest[q];
-            }
-        frep_free(tbf);
-        frep_free(tbest);
-        if (failed) {
-            rc = -1;
-            goto out;
-        }
+    if (nt <= 1 ? record(t, c, e, NULL) ||
+                      inner_range(t, use, ops, c, e, 0, t->len, trial, &bf, &best)
+                : inner_parallel(t, use, ops, c, nt, *fit, &bf, &best)) {
+        rc = -1;
+        goto out;
     }
     if (best == UINT64_MAX) goto out;
-    {
-        uint32_t best_end = (uint32_t)(best / 3 / k), best_j = (uint32_t)(best / 3 % k);
-        int best_w = (int)(best % 3);
-        uint32_t st = tree_subtree_start(t->code, best_end);
-        gp_tree sub = { NULL, 0, 0 };
-        rc = tree_set(&sub, t->code + st, best_end - st + 1) ||
-                     tree_push(&sub, FREP_OP_PRIM, best_j) ||
-                     tree_push(&sub, (frep_opcode)ops[best_w], 0)
-                 ? -1
-                 : commit_splice(t, trial, best_end, &sub);
-        tree_free(&sub);
-        if (rc <= 0) goto out;
-    }
-    *fit = bf;
+    rc = inner_apply(t, trial, ops, k, best);
+    if (rc > 0) *fit = bf;
 out:
     frep_free(use);
     return rc;
@@ -797,6 +843,168 @@ static int build_pocket(gp_tree *sub, const frep_insn *code, uint32_t st, uint32
     return tree_push(sub, (frep_opcode)(form == 0 ? o->inter : o->uni), 0);
 }
 
+/* One grow_pocket round: the candidate faces, which pairs of them can bound one
+ * pocket or boss, and the best variant so far. */
+typedef struct pocket_state {
+    const gp_cache *c;
+    gp_eval *e;
+    const gp_opset *o;
+    uint8_t *use, *neg;      /* per primitive: useful; used complemented (useful_prims_oriented) */
+    double *cnt;             /* per primitive: missed points it explains */
+    uint8_t *ok;             /* per point: the tree explains it */
+    uint32_t cand[SIMPLIFY_POCKET_CANDS];
+    int nc;                  /* candidates */
+    /* fits[form][a][b]: most missed points of face a lie where literal b allows the
+     * piece's boundary (form 0, pocket: L_b <= eps_d; form 1, boss: L_b >= -eps_d). */
+    uint8_t fits[2][SIMPLIFY_POCKET_CANDS][SIMPLIFY_POCKET_CANDS];
+    double pn[SIMPLIFY_POCKET_CANDS][3];   /* outward normals of the plane candidates */
+    uint8_t isplane[SIMPLIFY_POCKET_CANDS];
+    double bf;               /* best fitness (the tree's to start with) */
+    uint32_t best_end, best_lits[SIMPLIFY_BOSS_MAX];
+    int best_m, best_form;   /* best_m 0: nothing better found */
+    gp_tree sub;             /* scratch: a replacement */
+} pocket_state;
+
+/* The candidates: useful primitives by decreasing count (ties: lower index). */
+static void pocket_candidates(pocket_state *ps)
+{
+    uint32_t k = ps->c->nprims, *cand = ps->cand;
+    int nc = 0;
+    for (uint32_t j = 0; j < k; j++) {
+        if (!ps->use[j]) continue;
+        int full = nc == SIMPLIFY_POCKET_CANDS;
+        if (full && !(ps->cnt[j] > ps->cnt[cand[nc - 1]])) continue;
+        int q = full ? nc - 1 : nc++;
+        while (q > 0 && ps->cnt[j] > ps->cnt[cand[q - 1]]) {
+            cand[q] = cand[q - 1];
+            q--;
+        }
+        cand[q] = j;
+    }
+    ps->nc = nc;
+}
+
+/* fits[.][a][.] for candidate a, from its missed inliers. */
+static void pocket_fits_of(pocket_state *ps, int a)
+{
+    const gp_cache *c = ps->c;
+    double ca = cos(c->alpha);
+    uint32_t ja = ps->cand[a];
+    const double *va = c->v + (size_t)ja * c->n;
+    const double *gx = c->g + 3 * (size_t)ja * c->n, *gy = gx + c->n, *gz = gy + c->n;
+    double na = 0, in[2][SIMPLIFY_POCKET_CANDS];
+    memset(in, 0, sizeof in);
+    for (size_t i = 0; i < c->n; i++) {
+        if (ps->ok[i] || !(fabs(va[i]) < c->eps_d)) continue;
+        double gl = sqrt(gx[i] * gx[i] + gy[i] * gy[i] + gz[i] * gz[i]);
+        if (!(gl > 0)) continue;
+        const double *nn = c->nrm + 3 * i;
+        if (!(fabs(gx[i] * nn[0] + gy[i] * nn[1] + gz[i] * nn[2]) / gl > ca)) continue;
+        na += 1;
+        for (int b = 0; b < ps->nc; b++) {
+            double lb = c->v[(size_t)ps->cand[b] * c->n + i];
+            if (ps->neg[ps->cand[b]]) lb = -lb;
+            if (lb < c->eps_d) in[0][b] += 1;
+            if (lb > -c->eps_d) in[1][b] += 1;
+        }
+    }
+    for (int form = 0; form < 2; form++)
+        for (int b = 0; b < ps->nc; b++) ps->fits[form][a][b] = 2 * in[form][b] > na;
+}
+
+/* Which candidates can be faces of one pocket or boss (the pairs test prunes most
+ * subsets before any tree is scored: a tree of 100 nodes and 154 subsets would
+ * otherwise cost 30,000 fitness evaluations per round), and the outward normals of the
+ * plane candidates as literals (f >= 0 inside: -grad p points out). */
+static int pocket_faces(pocket_state *ps, const gp_tree *t)
+{
+    const gp_cache *c = ps->c;
+    ps->ok = frep_malloc(c->n ? c->n : 1);
+    if (!ps->ok || gp_explained(c, ps->e, t->code, t->len, ps->ok)) return -1;
+    for (int a = 0; a < ps->nc; a++) pocket_fits_of(ps, a);
+    for (int a = 0; a < ps->nc; a++) {
+        double g[3] = { 0, 0, 0 };
+        ps->isplane[a] = (uint8_t)cache_plane(c, ps->cand[a], g);
+        double sg = ps->neg[ps->cand[a]] ? 1.0 : -1.0;
+        for (int d = 0; d < 3; d++) ps->pn[a][d] = sg * g[d];
+    }
+    return 0;
+}
+
+/* The literals of the candidates in mask (lits[0..*m)), and in form_ok which forms
+ * they may build: 2 to SIMPLIFY_POCKET_MAX faces for a pocket, 4 to SIMPLIFY_BOSS_MAX
+ * planes bounding a finite region for a boss, every pair fitting. 0: neither. */
+static int pocket_subset(const pocket_state *ps, unsigned mask, uint32_t *lits, int *m_out,
+                         int form_ok[2])
+{
+    int idx[SIMPLIFY_BOSS_MAX];
+    double bn[SIMPLIFY_BOSS_MAX][3];
+    int m = 0, planes = 1;
+    for (int q = 0; q < ps->nc; q++)
+        if (mask >> q & 1u) {
+            if (m == SIMPLIFY_BOSS_MAX) { m = SIMPLIFY_BOSS_MAX + 1; break; }
+            idx[m] = q;
+            planes &= ps->isplane[q];
+            memcpy(bn[m], ps->pn[q], sizeof bn[m]);
+            lits[m++] = ps->cand[q];
+        }
+    *m_out = m;
+    if (m < 2 || m > SIMPLIFY_BOSS_MAX) return 0;
+    form_ok[0] = m <= SIMPLIFY_POCKET_MAX;
+    form_ok[1] = planes && m >= 4;
+    for (int form = 0; form < 2; form++)
+        for (int a = 0; a < m; a++)
+            for (int b = 0; b < m; b++)
+                if (a != b && !ps->fits[form][idx[a]][idx[b]]) form_ok[form] = 0;
+    if (form_ok[1] && !planes_bounded((const double (*)[3])bn, m)) form_ok[1] = 0;
+    return form_ok[0] || form_ok[1];
+}
+
+/* The pieces over lits in the allowed forms below every subtree of t (taped), the
+ * fittest kept. */
+static int pocket_try(pocket_state *ps, const gp_tree *t, const uint32_t *lits, int m,
+                      const int form_ok[2])
+{
+    for (uint32_t end = 0; end < t->len; end++) {
+        uint32_t st = tree_subtree_start(t->code, end);
+        frep_insn lf = gp_tape_leaf(ps->c, end);
+        for (int form = 0; form < 2; form++) {
+            if (!form_ok[form]) continue;
+            double f;
+            if (build_pocket(&ps->sub, &lf, 0, 0, lits, ps->neg, m, form, ps->o) ||
+                gp_fitness_replaced(ps->c, ps->e, st, end, ps->sub.code, ps->sub.len, ps->bf,
+                                    &f))
+                return -1;
+            if (f > ps->bf) {
+                ps->bf = f;
+                ps->best_end = end;
+                ps->best_m = m;
+                ps->best_form = form;
+                memcpy(ps->best_lits, lits, (size_t)m * sizeof *lits);
+            }
+        }
+    }
+    return 0;
+}
+
+/* The round's search: candidates, faces, every subset (as bit masks over the
+ * candidates) below every subtree. 1: a better variant found, 0: none. */
+static int pocket_search(pocket_state *ps, gp_tree *t)
+{
+    long nu = useful_prims_oriented(t, ps->c, ps->e, ps->use, ps->cnt, ps->neg);
+    if (nu < 0) return -1;
+    if (nu < 2) return 0;
+    pocket_candidates(ps);
+    if (pocket_faces(ps, t) || record(t, ps->c, ps->e, NULL)) return -1;
+    for (unsigned mask = 0; mask < (1u << ps->nc); mask++) {
+        uint32_t lits[SIMPLIFY_BOSS_MAX];
+        int m, form_ok[2];
+        if (pocket_subset(ps, mask, lits, &m, form_ok) && pocket_try(ps, t, lits, m, form_ok))
+            return -1;
+    }
+    return ps->best_m != 0;
+}
+
 /* One round: the best pocket of 2 to SIMPLIFY_POCKET_MAX primitives cut from
  * any subtree S (a box cut from one part of a union: its faces intersected there, not
  * at the root where they would cut every part), or boss of 4 to SIMPLIFY_BOSS_MAX
@@ -809,135 +1017,29 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
 {
     uint32_t k = c->nprims;
     if (k < 2) return 0;
-    uint8_t *use = frep_malloc(k), *neg = frep_malloc(k), *ok = NULL;
-    double *cnt = frep_malloc(k * sizeof *cnt);
-    gp_tree sub = { NULL, 0, 0 };
-    int rc = -1;
-    if (!use || !neg || !cnt) goto out;
-    long nu = useful_prims_oriented(t, c, e, use, cnt, neg);
-    if (nu < 0) goto out;
-    rc = 0;
-    if (nu < 2) goto out;
-    /* The candidates: useful primitives by decreasing count (ties: lower index). */
-    uint32_t cand[SIMPLIFY_POCKET_CANDS];
-    int nc = 0;
-    for (uint32_t j = 0; j < k; j++) {
-        if (!use[j]) continue;
-        int full = nc == SIMPLIFY_POCKET_CANDS;
-        if (full && !(cnt[j] > cnt[cand[nc - 1]])) continue;
-        int q = full ? nc - 1 : nc++;
-        while (q > 0 && cnt[j] > cnt[cand[q - 1]]) {
-            cand[q] = cand[q - 1];
-            q--;
-        }
-        cand[q] = j;
-    }
-    /* Which candidates can be faces of one pocket (form 0) or boss (form 1): the missed
-     * points of face a lie on the boundary of the piece only where every other literal
-     * L_b is <= 0 (pocket: inside the removed region) or >= 0 (boss), up to eps_d.
-     * fits[form][a][b]: most of a's missed points do. The pairs test prunes most
-     * subsets before any tree is scored (a tree of 100 nodes and 154 subsets would
-     * otherwise cost 30,000 fitness evaluations per round). */
-    uint8_t fits[2][SIMPLIFY_POCKET_CANDS][SIMPLIFY_POCKET_CANDS];
-    ok = frep_malloc(c->n ? c->n : 1);
-    if (!ok || gp_explained(c, e, t->code, t->len, ok)) { rc = -1; goto out; }
-    {
-        double ca = cos(c->alpha);
-        for (int a = 0; a < nc; a++) {
-            uint32_t ja = cand[a];
-            const double *va = c->v + (size_t)ja * c->n;
-            const double *gx = c->g + 3 * (size_t)ja * c->n, *gy = gx + c->n, *gz = gy + c->n;
-            double na = 0, in[2][SIMPLIFY_POCKET_CANDS];
-            memset(in, 0, sizeof in);
-            for (size_t i = 0; i < c->n; i++) {
-                if (ok[i] || !(fabs(va[i]) < c->eps_d)) continue;
-                double gl = sqrt(gx[i] * gx[i] + gy[i] * gy[i] + gz[i] * gz[i]);
-                if (!(gl > 0)) continue;
-                const double *nn = c->nrm + 3 * i;
-                if (!(fabs(gx[i] * nn[0] + gy[i] * nn[1] + gz[i] * nn[2]) / gl > ca)) continue;
-                na += 1;
-                for (int b = 0; b < nc; b++) {
-                    double lb = c->v[(size_t)cand[b] * c->n + i];
-                    if (neg[cand[b]]) lb = -lb;
-                    if (lb < c->eps_d) in[0][b] += 1;
-                    if (lb > -c->eps_d) in[1][b] += 1;
-                }
-            }
-            for (int form = 0; form < 2; form++)
-                for (int b = 0; b < nc; b++) fits[form][a][b] = 2 * in[form][b] > na;
-        }
-    }
-    /* Outward normals of the candidates that are planes, as literals (a boss). */
-    double pn[SIMPLIFY_POCKET_CANDS][3];
-    uint8_t isplane[SIMPLIFY_POCKET_CANDS];
-    for (int a = 0; a < nc; a++) {
-        double g[3] = { 0, 0, 0 };
-        isplane[a] = (uint8_t)cache_plane(c, cand[a], g);
-        double sg = neg[cand[a]] ? 1.0 : -1.0;  /* f >= 0 inside: -grad p points out */
-        for (int d = 0; d < 3; d++) pn[a][d] = sg * g[d];
-    }
-    double bf = *fit;
-    uint32_t best_end = 0, best_lits[SIMPLIFY_BOSS_MAX] = { 0 };
-    int best_m = 0, best_form = 0;
-    if (record(t, c, e, NULL)) { rc = -1; goto out; }
-    /* Subsets as bit masks over the candidates: 2 to SIMPLIFY_POCKET_MAX members for
-     * pockets, 4 to SIMPLIFY_BOSS_MAX planes for bosses. */
-    for (unsigned mask = 0; mask < (1u << nc); mask++) {
-        uint32_t lits[SIMPLIFY_BOSS_MAX];
-        int idx[SIMPLIFY_BOSS_MAX];
-        double bn[SIMPLIFY_BOSS_MAX][3];
-        int m = 0, planes = 1;
-        for (int q = 0; q < nc; q++)
-            if (mask >> q & 1u) {
-                if (m == SIMPLIFY_BOSS_MAX) { m = SIMPLIFY_BOSS_MAX + 1; break; }
-                idx[m] = q;
-                planes &= isplane[q];
-                memcpy(bn[m], pn[q], sizeof bn[m]);
-                lits[m++] = cand[q];
-            }
-        if (m < 2 || m > SIMPLIFY_BOSS_MAX) continue;
-        int form_ok[2] = { m <= SIMPLIFY_POCKET_MAX, planes && m >= 4 };
-        for (int form = 0; form < 2; form++)
-            for (int a = 0; a < m; a++)
-                for (int b = 0; b < m; b++)
-                    if (a != b && !fits[form][idx[a]][idx[b]]) form_ok[form] = 0;
-        if (form_ok[1] && !planes_bounded((const double (*)[3])bn, m)) form_ok[1] = 0;
-        if (!form_ok[0] && !form_ok[1]) continue;
-        for (uint32_t end = 0; end < t->len; end++) {
-            uint32_t st = tree_subtree_start(t->code, end);
-            frep_insn lf = gp_tape_leaf(c, end);
-            for (int form = 0; form < 2; form++) {
-                if (!form_ok[form]) continue;
-                if (build_pocket(&sub, &lf, 0, 0, lits, neg, m, form, o)) {
-                    rc = -1;
-                    goto out;
-                }
-                double f = gp_fitness_replaced(c, e, st, end, sub.code, sub.len, bf);
-                if (f > bf) {
-                    bf = f;
-                    best_end = end;
-                    best_m = m;
-                    best_form = form;
-                    memcpy(best_lits, lits, sizeof lits);
-                }
-            }
-        }
-    }
-    if (!best_m) goto out;
-    {
-        uint32_t st = tree_subtree_start(t->code, best_end);
-        rc = build_pocket(&sub, t->code, st, best_end, best_lits, neg, best_m, best_form, o)
+    pocket_state ps;
+    memset(&ps, 0, sizeof ps);
+    ps.c = c;
+    ps.e = e;
+    ps.o = o;
+    ps.bf = *fit;
+    ps.use = frep_malloc(k);
+    ps.neg = frep_malloc(k);
+    ps.cnt = frep_malloc(k * sizeof *ps.cnt);
+    int rc = !ps.use || !ps.neg || !ps.cnt ? -1 : pocket_search(&ps, t);
+    if (rc > 0) {
+        uint32_t st = tree_subtree_start(t->code, ps.best_end);
+        rc = build_pocket(&ps.sub, t->code, st, ps.best_end, ps.best_lits, ps.neg, ps.best_m,
+                          ps.best_form, o)
                  ? -1
-                 : commit_splice(t, trial, best_end, &sub);
-        if (rc <= 0) goto out;
+                 : commit_splice(t, trial, ps.best_end, &ps.sub);
+        if (rc > 0) *fit = ps.bf;
     }
-    *fit = bf;
-out:
-    tree_free(&sub);
-    frep_free(use);
-    frep_free(neg);
-    frep_free(cnt);
-    frep_free(ok);
+    tree_free(&ps.sub);
+    frep_free(ps.use);
+    frep_free(ps.neg);
+    frep_free(ps.cnt);
+    frep_free(ps.ok);
     return rc;
 }
 
@@ -1101,7 +1203,8 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
     if (!t->len) return 0;
     gp_opset o = gp_opset_of(s);
     gp_tree trial = { NULL, 0, 0 };
-    double fit = gp_fitness(c, e, t->code, t->len);
+    double fit;
+    if (gp_fitness(c, e, t->code, t->len, &fit)) return -1;
     int rc = -1;
     for (int round = 0; round < SIMPLIFY_MAX_INNER; round++) {
         int g = grow_inner(t, &trial, &o, c, e, &fit);
@@ -1129,7 +1232,7 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
         if (g < 0) goto out;
         if (g == 0) break;
         if (simplify_rules(t, s)) goto out;
-        fit = gp_fitness(c, e, t->code, t->len);
+        if (gp_fitness(c, e, t->code, t->len, &fit)) goto out;
     }
     rc = 0;
     if (fitness) *fitness = fit;

@@ -104,116 +104,189 @@ static void cuts(const support_grid *g, const edge_list *l, uint32_t j, int cut[
     }
 }
 
+/* One support_trim: the grid's values of the tree (v) and of a variant (w), the
+ * points the tree explains, and the best trim of the round. */
+typedef struct trim_state {
+    gp_tree *t;
+    gp_setops s;
+    gp_opset o;
+    const gp_cache *pc;      /* the scored sample */
+    gp_eval *e;
+    support_grid *g;
+    gp_eval *eg;             /* evaluator on the grid */
+    double *v, *w;           /* per node: the tree's value; a variant's */
+    uint8_t *ok, *oks;       /* per point: the tree explains it; the operand S does */
+    uint8_t *pol;            /* per node of t: adds material (simplify_polarity) */
+    edge_list el;            /* the tree's unsupported edges */
+    gp_tree sub;             /* scratch: a trim's replacement */
+    gp_stats st0;            /* the tree's statistics on the sample */
+    size_t u;                /* its unsupported edges */
+    size_t best_u, best_in, best_own;
+    double best_score;
+    uint32_t best_end, best_j;
+    int best_neg;            /* -1: no candidate yet */
+} trim_state;
+
+/* The round's view of the tree: its unsupported edges, polarity, explained points and
+ * statistics, and its tapes on the sample and on the grid. */
+static int trim_round_start(trim_state *ts)
+{
+    gp_tree *t = ts->t;
+    ts->el.n = 0;
+    each_unsupported(ts->g, ts->v, push_edge, &ts->el);
+    uint8_t *np = frep_realloc(ts->pol, t->len);
+    if (!np) return -1;
+    ts->pol = np;
+    simplify_polarity(t, ts->s, ts->pol);
+    if (gp_explained(ts->pc, ts->e, t->code, t->len, ts->ok) ||
+        gp_tree_stats(ts->pc, ts->e, t->code, t->len, &ts->st0) ||
+        gp_tape_record(ts->pc, ts->e, t->code, t->len, NULL) ||
+        gp_tape_record(ts->g->c, ts->eg, t->code, t->len, NULL))
+        return -1;
+    ts->best_u = ts->u;
+    ts->best_in = ts->best_own = 0;
+    ts->best_score = 0;
+    ts->best_end = ts->best_j = 0;
+    ts->best_neg = -1;
+    return 0;
+}
+
+/* The trim S & L (S the subtree [st, end], L = p_j or ~p_j), kept as the best when no
+ * point is lost (the score may drop by a node's worth: points at the new face's edge
+ * change their nearest primitive) and it leaves the fewest unsupported edges; among
+ * equals the trim that removes the least material, of the solid and then of S itself
+ * (a face of the part, not a plane that empties S where the rest of the solid covers
+ * it), then the best score. */
+static int trim_candidate(trim_state *ts, uint32_t st, uint32_t end, const frep_insn *lf,
+                          uint32_t j, int neg)
+{
+    const gp_cache *pc = ts->pc;
+    support_grid *g = ts->g;
+    if (simplify_trim_code(&ts->sub, lf, 1, j, neg, &ts->o)) return -1;
+    gp_stats stt;
+    if (gp_stats_replaced(pc, ts->e, st, end, ts->sub.code, ts->sub.len, &stt)) return -1;
+    if (stt.explained < ts->st0.explained || stt.score < ts->st0.score - pc->lambda) return 0;
+    if (gp_values_replaced(g->c, ts->eg, st, end, ts->sub.code, ts->sub.len, ts->w)) return -1;
+    size_t uu = support_count(g, ts->w), in = inside(g, ts->w);
+    if (uu > ts->best_u || (uu == ts->best_u && ts->best_neg >= 0 && in < ts->best_in)) return 0;
+    if (gp_values_taped(g->c, ts->eg, ts->sub.code, ts->sub.len, ts->w)) return -1;
+    size_t own = inside(g, ts->w);
+    if (uu < ts->best_u || ts->best_neg < 0 || in > ts->best_in || own > ts->best_own ||
+        (own == ts->best_own && stt.score > ts->best_score)) {
+        ts->best_u = uu;
+        ts->best_in = in;
+        ts->best_own = own;
+        ts->best_score = stt.score;
+        ts->best_end = end;
+        ts->best_j = j;
+        ts->best_neg = neg;
+    }
+    return 0;
+}
+
+/* Every trim of the operand ending at `end` of the union whose other operand ends at
+ * `other`: the literals that keep the points S explains alone (and the tree too) and
+ * cut material at an unsupported edge. */
+static int trim_operand(trim_state *ts, uint32_t end, uint32_t other)
+{
+    const gp_tree *t = ts->t;
+    uint32_t st = tree_subtree_start(t->code, end);
+    if (gp_explained(ts->pc, ts->e, t->code + st, end - st + 1, ts->oks)) return -1;
+    frep_insn lf = gp_tape_leaf(ts->pc, end);
+    for (uint32_t j = 0; j < ts->pc->nprims; j++) {
+        int can[2];
+        cuts(ts->g, &ts->el, j, can);
+        simplify_trim_keeps(t, other, ts->pc, j, ts->ok, ts->oks, can);
+        for (int neg = 0; neg < 2; neg++)
+            if (can[neg] && trim_candidate(ts, st, end, &lf, j, neg)) return -1;
+    }
+    return 0;
+}
+
+/* The best trim of the round over both operands of every union that adds material. */
+static int trim_search(trim_state *ts)
+{
+    const gp_tree *t = ts->t;
+    for (uint32_t un = 0; un < t->len; un++) {
+        if (tree_nin(&t->code[un]) != 2 || t->code[un].op != ts->o.uni || !ts->pol[un]) continue;
+        uint32_t l0, l1, r0;
+        tree_operands(t->code, un, &l0, &l1, &r0);
+        if (trim_operand(ts, l1, un - 1) || trim_operand(ts, un - 1, l1)) return -1;
+    }
+    return 0;
+}
+
+/* The best trim applied (the exact rules after it) and the unsupported edges counted
+ * again. 1: not applied, since the tree would grow too deep. */
+static int trim_apply(trim_state *ts, support_info *info)
+{
+    gp_tree *t = ts->t;
+    uint32_t st = tree_subtree_start(t->code, ts->best_end);
+    if (simplify_trim_code(&ts->sub, t->code + st, ts->best_end - st + 1, ts->best_j,
+                           ts->best_neg, &ts->o))
+        return -1;
+    gp_tree keep = { NULL, 0, 0 };
+    if (tree_copy(&keep, t) || tree_splice(t, st, ts->best_end, ts->sub.code, ts->sub.len)) {
+        tree_free(&keep);
+        return -1;
+    }
+    if (tree_depth(t->code, t->len) > GP_MAX_TREE_DEPTH) {
+        int bad = tree_copy(t, &keep);
+        tree_free(&keep);
+        return bad ? -1 : 1;
+    }
+    tree_free(&keep);
+    if (simplify_rules(t, ts->s) || gp_tree_values(ts->g->c, ts->eg, t->code, t->len, ts->v))
+        return -1;
+    ts->u = support_count(ts->g, ts->v);
+    info->trims++;
+    return 0;
+}
+
+/* Rounds of trims while the best removes at least SUPPORT_MIN_GAIN unsupported edges. */
+static int trim_rounds(trim_state *ts, support_info *info)
+{
+    if (gp_tree_values(ts->g->c, ts->eg, ts->t->code, ts->t->len, ts->v)) return -1;
+    ts->u = support_count(ts->g, ts->v);
+    info->before = info->after = ts->u;
+    for (uint32_t round = 0; round < SUPPORT_MAX_TRIMS && ts->u >= SUPPORT_MIN_GAIN; round++) {
+        if (trim_round_start(ts) || trim_search(ts)) return -1;
+        if (ts->best_neg < 0 || ts->best_u + SUPPORT_MIN_GAIN > ts->u) break;
+        int r = trim_apply(ts, info);
+        if (r < 0) return -1;
+        if (r > 0) break;
+    }
+    info->after = ts->u;
+    return 0;
+}
+
 int support_trim(gp_tree *t, gp_setops s, const gp_cache *pc, gp_eval *e,
                  support_grid *g, gp_eval *eg, support_info *info)
 {
     memset(info, 0, sizeof *info);
     if (!t->len) return 0;
-    gp_opset o = gp_opset_of(s);
     size_t ng = g->c->n, n = pc->n;
-    uint32_t k = pc->nprims;
-    double *v = frep_malloc((ng ? ng : 1) * sizeof *v), *w = frep_malloc((ng ? ng : 1) * sizeof *w);
-    uint8_t *ok = frep_malloc(n ? n : 1), *oks = frep_malloc(n ? n : 1), *pol = NULL;
-    edge_list el = { frep_malloc(6 * (ng ? ng : 1) * sizeof *el.ab), 0 };
-    gp_tree sub = { NULL, 0, 0 };
-    int rc = -1;
-    if (!v || !w || !ok || !oks || !el.ab) goto out;
-    if (gp_tree_values(g->c, eg, t->code, t->len, v)) goto out;
-    size_t u = support_count(g, v);
-    info->before = info->after = u;
-    for (uint32_t round = 0; round < SUPPORT_MAX_TRIMS && u >= SUPPORT_MIN_GAIN; round++) {
-        el.n = 0;
-        each_unsupported(g, v, push_edge, &el);
-        uint8_t *np = frep_realloc(pol, t->len);
-        if (!np) goto out;
-        pol = np;
-        simplify_polarity(t, s, pol);
-        gp_stats st0;
-        if (gp_explained(pc, e, t->code, t->len, ok) ||
-            gp_tree_stats(pc, e, t->code, t->len, &st0) ||
-            gp_tape_record(pc, e, t->code, t->len, NULL) ||
-            gp_tape_record(g->c, eg, t->code, t->len, NULL))
-            goto out;
-        size_t best_u = u, best_in = 0, best_own = 0;
-        double best_score = 0;
-        uint32_t best_end = 0, best_j = 0;
-        int best_neg = -1;
-        for (uint32_t un = 0; un < t->len; un++) {
-            if (tree_nin(&t->code[un]) != 2 || t->code[un].op != o.uni || !pol[un]) continue;
-            uint32_t l0, l1, r0;
-            tree_operands(t->code, un, &l0, &l1, &r0);
-            const uint32_t ends[2] = { l1, un - 1 };
-            for (int side = 0; side < 2; side++) {
-                uint32_t end = ends[side], st = tree_subtree_start(t->code, end);
-                /* The points S explains alone that the tree explains too: L keeps them. */
-                if (gp_explained(pc, e, t->code + st, end - st + 1, oks)) goto out;
-                frep_insn lf = gp_tape_leaf(pc, end);
-                for (uint32_t j = 0; j < k; j++) {
-                    int can[2];
-                    cuts(g, &el, j, can);
-                    simplify_trim_keeps(t, ends[1 - side], pc, j, ok, oks, can);
-                    for (int neg = 0; neg < 2; neg++) {
-                        if (!can[neg]) continue;
-                        if (simplify_trim_code(&sub, &lf, 1, j, neg, &o)) goto out;
-                        gp_stats stt;
-                        if (gp_stats_replaced(pc, e, st, end, sub.code, sub.len, &stt)) goto out;
-                        /* No point lost; the score may drop by a node's worth (points
-                         * at the new face's edge change their nearest primitive). */
-                        if (stt.explained < st0.explained || stt.score < st0.score - pc->lambda)
-                            continue;
-                        if (gp_values_replaced(g->c, eg, st, end, sub.code, sub.len, w)) goto out;
-                        /* The fewest unsupported edges; among equals the trim that
-                         * removes the least material, of the solid and then of S
-                         * itself (a face of the part, not a plane that empties S where
-                         * the rest of the solid covers it), then the best score. */
-                        size_t uu = support_count(g, w), in = inside(g, w);
-                        if (uu > best_u || (uu == best_u && best_neg >= 0 && in < best_in))
-                            continue;
-                        if (gp_values_taped(g->c, eg, sub.code, sub.len, w)) goto out;
-                        size_t own = inside(g, w);
-                        if (uu < best_u || best_neg < 0 || in > best_in || own > best_own ||
-                            (own == best_own && stt.score > best_score)) {
-                            best_u = uu;
-                            best_in = in;
-                            best_own = own;
-                            best_score = stt.score;
-                            best_end = end;
-                            best_j = j;
-                            best_neg = neg;
-                        }
-                    }
-                }
-            }
-        }
-        if (best_neg < 0 || best_u + SUPPORT_MIN_GAIN > u) break;
-        uint32_t st = tree_subtree_start(t->code, best_end);
-        if (simplify_trim_code(&sub, t->code + st, best_end - st + 1, best_j, best_neg, &o))
-            goto out;
-        gp_tree keep = { NULL, 0, 0 };
-        if (tree_copy(&keep, t) || tree_splice(t, st, best_end, sub.code, sub.len)) {
-            tree_free(&keep);
-            goto out;
-        }
-        if (tree_depth(t->code, t->len) > GP_MAX_TREE_DEPTH) {
-            int bad = tree_copy(t, &keep);
-            tree_free(&keep);
-            if (bad) goto out;
-            break;
-        }
-        tree_free(&keep);
-        if (simplify_rules(t, s) || gp_tree_values(g->c, eg, t->code, t->len, v)) goto out;
-        u = support_count(g, v);
-        info->trims++;
-    }
-    info->after = u;
-    rc = 0;
-out:
-    frep_free(v);
-    frep_free(w);
-    frep_free(ok);
-    frep_free(oks);
-    frep_free(pol);
-    frep_free(el.ab);
-    tree_free(&sub);
+    trim_state ts;
+    memset(&ts, 0, sizeof ts);
+    ts.t = t;
+    ts.s = s;
+    ts.o = gp_opset_of(s);
+    ts.pc = pc;
+    ts.e = e;
+    ts.g = g;
+    ts.eg = eg;
+    ts.v = frep_malloc((ng ? ng : 1) * sizeof *ts.v);
+    ts.w = frep_malloc((ng ? ng : 1) * sizeof *ts.w);
+    ts.ok = frep_malloc(n ? n : 1);
+    ts.oks = frep_malloc(n ? n : 1);
+    ts.el.ab = frep_malloc(6 * (ng ? ng : 1) * sizeof *ts.el.ab);
+    int rc = !ts.v || !ts.w || !ts.ok || !ts.oks || !ts.el.ab ? -1 : trim_rounds(&ts, info);
+    frep_free(ts.v);
+    frep_free(ts.w);
+    frep_free(ts.ok);
+    frep_free(ts.oks);
+    frep_free(ts.pol);
+    frep_free(ts.el.ab);
+    tree_free(&ts.sub);
     return rc;
 }

@@ -5,6 +5,7 @@
 #include "config.h"
 
 #include "alloc.h"
+#include "buf.h"
 #include "tree.h"
 
 #include <stdlib.h>
@@ -314,32 +315,32 @@ static char op_char(uint8_t op)
     }
 }
 
-static void print_rec(FILE *f, const frep_insn *code, uint32_t end, const char *prefix,
+static void print_rec(frep_buf *b, const frep_insn *code, uint32_t end, const char *prefix,
                       int top)
 {
     const frep_insn *in = &code[end];
     int k = tree_nin(in);
     if (k == 0) {
-        fprintf(f, "%s%u", prefix, in->arg + 1);
+        buf_printf(b, "%s%u", prefix, in->arg + 1);
     } else if (k == 1) {
-        fputc('~', f);
-        print_rec(f, code, end - 1, prefix, 0);
+        buf_putc(b, '~');
+        print_rec(b, code, end - 1, prefix, 0);
     } else {
         uint32_t l0, l1, r0;
         tree_operands(code, end, &l0, &l1, &r0);
         (void)l0;
-        if (!top) fputc('(', f);
-        print_rec(f, code, l1, prefix, 0);
-        fprintf(f, " %c ", op_char(in->op));
-        print_rec(f, code, end - 1, prefix, 0);
-        if (!top) fputc(')', f);
+        if (!top) buf_putc(b, '(');
+        print_rec(b, code, l1, prefix, 0);
+        buf_printf(b, " %c ", op_char(in->op));
+        print_rec(b, code, end - 1, prefix, 0);
+        if (!top) buf_putc(b, ')');
     }
 }
 
-void tree_print(FILE *f, const frep_insn *code, uint32_t len, const char *prefix)
+void tree_print(frep_buf *b, const frep_insn *code, uint32_t len, const char *prefix)
 {
     if (!len) return;
-    print_rec(f, code, len - 1, prefix, 1);
+    print_rec(b, code, len - 1, prefix, 1);
 }
 
 void tree_print_dot(FILE *f, const frep_insn *code, uint32_t len,

@@ -13,6 +13,8 @@
 #include "rng.h"
 #include <stdio.h>
 
+#include "buf.h"
+
 #include "program.h"
 
 /* Deepest tree any tree operation accepts: recursion (printing, comparison) is bounded
@@ -96,9 +98,10 @@ int tree_compare(const frep_insn *a, uint32_t ea, const frep_insn *b, uint32_t e
 /* 64-bit hash of a code range. */
 uint64_t tree_hash(const frep_insn *code, uint32_t len);
 
-/* Print infix with primitive names `prefix`1.. (p1 | p2) & ~p3. The operators are
- * those of the language: | & \ ~ (their meaning set by the model's setops). */
-void tree_print(FILE *f, const frep_insn *code, uint32_t len, const char *prefix);
+/* Append the tree infix to b with primitive names `prefix`1.. (p1 | p2) & ~p3. The
+ * operators are those of the language: | & \ ~ (their meaning set by the model's
+ * setops). A failed allocation marks b failed (buf.h). */
+void tree_print(frep_buf *b, const frep_insn *code, uint32_t len, const char *prefix);
 /* Graphviz digraph of the tree; names[j] labels primitive j (NULL: pJ). */
 void tree_print_dot(FILE *f, const frep_insn *code, uint32_t len,
                     const char *const *names);

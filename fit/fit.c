@@ -6,10 +6,9 @@
  */
 #include "alloc.h"
 #include "fit.h"
+#include "util.h"
 
 #include <math.h>
-#include <stdarg.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -176,29 +175,35 @@ void fit_program_model_free(fit_model *m)
     m->user = NULL;
 }
 
-/* ---- phases ------------------------------------------------------------------------ */
+/* ---- the driver ---------------------------------------------------------------------- */
 
-static void set_err(char *err, size_t len, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 3, 4)))
-#endif
-    ;
-static void set_err(char *err, size_t len, const char *fmt, ...)
-{
-    if (err == NULL || len == 0) return;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err, len, fmt, ap);
-    va_end(ap);
-}
+/* The annealing's generator is seeded with cfg->seed xor this salt, so that its stream
+ * is not the one that drew the annealing's point subset (seeded with cfg->seed). */
+#define FIT_SA_SEED_SALT 0x5a17ca1edULL
+/* Reweighting rounds of the geometric kind stop once no parameter moved by more than
+ * this relative to the largest one: the frozen weights have reached their fixed point. */
+#define FIT_REWEIGHT_XTOL 1e-9
+/* Reweighting rounds of the searches inside the annealing: two refreezes are enough to
+ * rank a basin; the local phase settles it. */
+#define FIT_SA_LOCAL_ROUNDS 2
 
+/* One fit: its settings, objectives and budget, and the state the stages pass on. */
 typedef struct fit_run_ctx {
     const fit_config *cfg;
-    fit_objective *obj;         /* all points */
-    fit_objective *sub;         /* the annealing's subset (may be obj itself) */
-    size_t m;
+    const fit_model *model;
+    const fit_points *pts;
+    size_t m;                   /* parameters */
     const double *lo, *hi;
-    fit_control *ctl;
+    const double *start;        /* the caller's start values (m) */
+    int global;                 /* the method has an annealing phase */
+    fit_objective *obj;         /* all points, the local phase's objective */
+    fit_objective *sub;         /* the annealing's: a subset, another kind or obj itself */
+    fit_control ctl;            /* evaluations, time and interrupt of all phases */
+    double t0;                  /* frep_now_seconds() at the start */
+    double f0;                  /* objective at the start values */
+    double x[FIT_MAX_PARAMS];   /* the result so far */
+    fit_status st;              /* of the last phase */
+    long sa_iterations;
     int local_iterations;
 } fit_run_ctx;
 
@@ -220,17 +225,17 @@ static fit_status local_phase(fit_run_ctx *R, fit_objective *o, double *x, doubl
         if (geo && fit_objective_freeze(o, x) != 0) break;
         int it = 0;
         if (cfg->method == FIT_METHOD_LM)
-            st = fit_lm(fit_objective_lsq, o, R->m, x, R->lo, R->hi, &lm, R->ctl, fx, &it);
+            st = fit_lm(fit_objective_lsq, o, R->m, x, R->lo, R->hi, &lm, &R->ctl, fx, &it);
         else
-            st = fit_bfgs(fit_objective_value, o, R->m, x, R->lo, R->hi, &qn, R->ctl, fx, &it);
+            st = fit_bfgs(fit_objective_value, o, R->m, x, R->lo, R->hi, &qn, &R->ctl, fx, &it);
         R->local_iterations += it;
-        if (st == FIT_FAILED || st == FIT_STOPPED) break;
+        if (st == FIT_FAILED || st == FIT_STOPPED || st == FIT_NOMEM) break;
         double change = 0, scale = 0;
         for (size_t j = 0; j < R->m; j++) {
             change = fmax(change, fabs(x[j] - prev[j]));
             scale = fmax(scale, fabs(x[j]));
         }
-        if (change <= 1e-9 * (1 + scale)) break;
+        if (change <= FIT_REWEIGHT_XTOL * (1 + scale)) break;
     }
     if (geo) {
         fit_objective_unfreeze(o);
@@ -243,159 +248,194 @@ static fit_status local_phase(fit_run_ctx *R, fit_objective *o, double *x, doubl
 static int sa_local(void *user, double *x, double *fx)
 {
     fit_run_ctx *R = user;
-    fit_status st = local_phase(R, R->sub, x, fx, R->cfg->sa_local_iter, 2);
-    return st == FIT_FAILED || !isfinite(*fx) ? -1 : 0;
+    fit_status st = local_phase(R, R->sub, x, fx, R->cfg->sa_local_iter, FIT_SA_LOCAL_ROUNDS);
+    return st == FIT_FAILED || st == FIT_NOMEM || !isfinite(*fx) ? -1 : 0;
+}
+
+/* Refuse what cannot be fitted before any work: no or too many parameters, fewer points
+ * than parameters, start values that are not finite or outside their bounds, and
+ * infinite bounds for the annealing, which searches the whole box. */
+static int check_arguments(const fit_run_ctx *R, frep_error *err)
+{
+    const size_t np = R->m;
+    const double *lo = R->lo, *hi = R->hi, *p = R->start;
+    if (np == 0) return frep_error_set(err, FREP_EINPUT, "the template has no free parameters");
+    if (np > FIT_MAX_PARAMS)
+        return frep_error_set(err, FREP_ELIMIT, "%zu free parameters; at most %d are supported",
+                              np, FIT_MAX_PARAMS);
+    if (R->pts->n < np)
+        return frep_error_set(err, FREP_EINPUT, "%zu points cannot determine %zu parameters",
+                              R->pts->n, np);
+    for (size_t j = 0; j < np; j++) {
+        if (!isfinite(p[j]))
+            return frep_error_set(err, FREP_EINPUT, "parameter %zu has no finite start value",
+                                  j + 1);
+        if ((lo && p[j] < lo[j]) || (hi && p[j] > hi[j]))
+            return frep_error_set(err, FREP_EINPUT,
+                                  "parameter %zu starts at %g, outside its bounds [%g, %g]",
+                                  j + 1, p[j], lo[j], hi[j]);
+        if (R->global && (lo == NULL || hi == NULL || !isfinite(lo[j]) || !isfinite(hi[j])))
+            return frep_error_set(err, FREP_EINPUT,
+                                  "parameter %zu has no finite bounds, which --method %s needs",
+                                  j + 1, fit_method_name(R->cfg->method));
+    }
+    return 0;
+}
+
+/* The objectives: the local phase's on all points, and the annealing's (its own kind
+ * when --global-objective differs, on a random subset of cfg->sa_points). */
+static int make_objectives(fit_run_ctx *R, frep_error *err)
+{
+    const fit_config *cfg = R->cfg;
+    R->obj = R->sub = fit_objective_new(R->model, R->pts, &cfg->obj);
+    if (R->obj == NULL) return frep_error_nomem(err);
+    if (!R->global) return 0;
+    fit_objective *gobj = R->obj;
+    if (cfg->global_kind != cfg->obj.kind) {
+        fit_objective_config gc = cfg->obj;
+        gc.kind = cfg->global_kind;
+        gobj = R->sub = fit_objective_new(R->model, R->pts, &gc);
+        if (gobj == NULL) {
+            R->sub = R->obj;
+            return frep_error_nomem(err);
+        }
+    }
+    if (cfg->sa_points > 0 && cfg->sa_points < R->pts->n) {
+        R->sub = fit_objective_subset(gobj, cfg->sa_points, cfg->seed);
+        if (gobj != R->obj) fit_objective_free(gobj);
+        if (R->sub == NULL) {
+            R->sub = R->obj;
+            return frep_error_nomem(err);
+        }
+    }
+    return 0;
+}
+
+static void free_objectives(fit_run_ctx *R)
+{
+    if (R->sub != R->obj) fit_objective_free(R->sub);
+    fit_objective_free(R->obj);
+}
+
+/* The budget every phase shares: evaluations, wall clock, Ctrl-C, progress reports. */
+static void start_control(fit_run_ctx *R)
+{
+    const fit_config *cfg = R->cfg;
+    fit_control_init(&R->ctl);
+    R->ctl.max_evals = cfg->max_evals;
+    R->ctl.deadline = cfg->max_time > 0 ? R->t0 + cfg->max_time : 0;
+    R->ctl.interrupt = cfg->interrupt;
+    R->ctl.progress = cfg->progress;
+    R->ctl.progress_user = cfg->progress_user;
+}
+
+/* The objective at the start values: what the result must not be worse than. Without an
+ * annealing there is nowhere else to start, so it must be finite. */
+static int evaluate_start(fit_run_ctx *R, frep_error *err)
+{
+    memcpy(R->x, R->start, R->m * sizeof *R->x);
+    R->f0 = fit_objective_value(R->obj, R->x, NULL);
+    R->ctl.evals++;
+    if (!isfinite(R->f0) && !R->global)
+        return frep_error_set(err, FREP_EINPUT, "the model cannot be evaluated at the start "
+                                                "values (a runtime error or a non-finite value)");
+    return 0;
+}
+
+/* Global phase (doc/fit.md, step 1): the annealing chains. With a local phase the chains
+ * run one at a time and each chain's best is polished on all points with the local
+ * objective before the best is chosen: on noisy clouds the annealing's objective
+ * (algebraic, on a subset) can rank a wrong basin below the right one, the final
+ * objective (geometric, all points) tells them apart far better. Without one (--method
+ * sa), fit_sa runs all chains itself. */
+static int global_phase(fit_run_ctx *R, frep_error *err)
+{
+    const size_t np = R->m;
+    frep_rng rng;
+    frep_rng_seed(&rng, R->cfg->seed ^ FIT_SA_SEED_SALT);
+    fit_sa_options so = R->cfg->sa;
+    if (R->cfg->sa_local) {
+        so.local = sa_local;
+        so.local_user = R;
+    }
+    long chains = so.chains > 0 ? so.chains : 1;
+    int polish = R->cfg->method != FIT_METHOD_SA;
+    if (polish) so.chains = 1;
+    else chains = 1;
+    double xs[FIT_MAX_PARAMS], fx = HUGE_VAL, fbest = HUGE_VAL;
+    for (long k = 0; k < chains; k++) {
+        /* Chains after the first start at a random point (fit_sa picks one for a start
+         * outside the box). */
+        memcpy(xs, R->start, np * sizeof *xs);
+        if (k > 0) xs[0] = HUGE_VAL;
+        long its = 0;
+        R->st = fit_sa(fit_objective_value, R->sub, np, xs, R->lo, R->hi, &so, &rng, &R->ctl,
+                       &fx, &its);
+        R->sa_iterations += its;
+        if (R->st == FIT_NOMEM || R->ctl.out_of_memory) return frep_error_nomem(err);
+        if (R->st == FIT_FAILED) {
+            if (k > 0) break;
+            return frep_error_set(err, FREP_EINPUT, "the model cannot be evaluated anywhere "
+                                  "the annealing looked (runtime errors or non-finite values)");
+        }
+        if (polish && R->st != FIT_STOPPED)
+            R->st = local_phase(R, R->obj, xs, &fx, 0, R->cfg->reweight_rounds);
+        fx = fit_objective_value(R->obj, xs, NULL);     /* comparable across chains */
+        R->ctl.evals++;
+        if (fx < fbest || k == 0) {
+            fbest = fx;
+            memcpy(R->x, xs, np * sizeof *R->x);
+        }
+        if (R->st == FIT_STOPPED) break;
+    }
+    return 0;
+}
+
+/* Local phase alone (--method qn or lm, doc/fit.md step 3) from the start values. */
+static int local_only(fit_run_ctx *R)
+{
+    double fx = HUGE_VAL;
+    R->st = local_phase(R, R->obj, R->x, &fx, 0, R->cfg->reweight_rounds);
+    return 0;
+}
+
+/* The result: never worse than the start, with its distances, counts and time. */
+static void finish(fit_run_ctx *R, double *params, fit_result *res)
+{
+    const size_t np = R->m;
+    double fx = fit_objective_value(R->obj, R->x, NULL);
+    if (!(fx <= R->f0)) {
+        memcpy(R->x, R->start, np * sizeof *R->x);
+        fx = R->f0;
+    }
+    memcpy(params, R->x, np * sizeof *params);
+    res->objective = fx;
+    if (fit_objective_distances(R->obj, R->x, &res->rms, &res->max_dist) != 0)
+        res->rms = res->max_dist = NAN;
+    res->evals = R->ctl.evals;
+    res->status = R->st;
+    res->sa_iterations = R->sa_iterations;
+    res->local_iterations = R->local_iterations;
+    res->seconds = frep_now_seconds() - R->t0;
 }
 
 int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const double *hi,
-            double *params, const fit_config *cfg, fit_result *res, char *err, size_t errlen)
+            double *params, const fit_config *cfg, fit_result *res, frep_error *err)
 {
-    const size_t np = m->nparams;
     memset(res, 0, sizeof *res);
-    double t0 = fit_now();
-    if (np == 0) {
-        set_err(err, errlen, "the template has no free parameters");
+    fit_run_ctx R = {.cfg = cfg, .model = m, .pts = pts, .m = m->nparams, .lo = lo,
+                     .hi = hi, .start = params, .t0 = frep_now_seconds(), .st = FIT_CONVERGED};
+    R.global = cfg->method == FIT_METHOD_SAQN || cfg->method == FIT_METHOD_SA;
+    if (check_arguments(&R, err) != 0) return -1;
+    if (make_objectives(&R, err) != 0) {
+        free_objectives(&R);
         return -1;
     }
-    if (np > FIT_MAX_PARAMS) {
-        set_err(err, errlen, "%zu free parameters; at most %d are supported", np, FIT_MAX_PARAMS);
-        return -1;
-    }
-    if (pts->n < np) {
-        set_err(err, errlen, "%zu points cannot determine %zu parameters", pts->n, np);
-        return -1;
-    }
-    int global = cfg->method == FIT_METHOD_SAQN || cfg->method == FIT_METHOD_SA;
-    for (size_t j = 0; j < np; j++) {
-        if (!isfinite(params[j])) {
-            set_err(err, errlen, "parameter %zu has no finite start value", j + 1);
-            return -1;
-        }
-        if ((lo && params[j] < lo[j]) || (hi && params[j] > hi[j])) {
-            set_err(err, errlen, "parameter %zu starts at %g, outside its bounds [%g, %g]",
-                    j + 1, params[j], lo[j], hi[j]);
-            return -1;
-        }
-        if (global && (lo == NULL || hi == NULL || !isfinite(lo[j]) || !isfinite(hi[j]))) {
-            set_err(err, errlen, "parameter %zu has no finite bounds, which --method %s needs",
-                    j + 1, fit_method_name(cfg->method));
-            return -1;
-        }
-    }
-
-    fit_objective *obj = fit_objective_new(m, pts, &cfg->obj);
-    if (obj == NULL) {
-        set_err(err, errlen, "out of memory");
-        return -1;
-    }
-    fit_objective *sub = obj, *gobj = obj;
-    if (global && cfg->global_kind != cfg->obj.kind) {
-        fit_objective_config gc = cfg->obj;
-        gc.kind = cfg->global_kind;
-        gobj = fit_objective_new(m, pts, &gc);
-        if (gobj == NULL) {
-            fit_objective_free(obj);
-            set_err(err, errlen, "out of memory");
-            return -1;
-        }
-        sub = gobj;
-    }
-    if (global && cfg->sa_points > 0 && cfg->sa_points < pts->n) {
-        sub = fit_objective_subset(gobj, cfg->sa_points, cfg->seed);
-        if (gobj != obj) fit_objective_free(gobj);
-        gobj = NULL;
-        if (sub == NULL) {
-            fit_objective_free(obj);
-            set_err(err, errlen, "out of memory");
-            return -1;
-        }
-    }
-    fit_control ctl;
-    fit_control_init(&ctl);
-    ctl.max_evals = cfg->max_evals;
-    ctl.deadline = cfg->max_time > 0 ? t0 + cfg->max_time : 0;
-    ctl.interrupt = cfg->interrupt;
-    ctl.progress = cfg->progress;
-    ctl.progress_user = cfg->progress_user;
-
-    fit_run_ctx R = {cfg, obj, sub, np, lo, hi, &ctl, 0};
-    double x[FIT_MAX_PARAMS], fx = HUGE_VAL;
-    memcpy(x, params, np * sizeof *x);
-    fit_status st = FIT_CONVERGED;
-
-    double f0 = fit_objective_value(obj, x, NULL);
-    ctl.evals++;
-    if (!isfinite(f0) && !global) {
-        fit_objective_free(sub != obj ? sub : NULL);
-        fit_objective_free(obj);
-        set_err(err, errlen, "the model cannot be evaluated at the start values "
-                             "(a runtime error or a non-finite value)");
-        return -1;
-    }
-    if (global) {
-        fit_rng rng;
-        fit_rng_seed(&rng, cfg->seed ^ 0x5a17ca1edULL);
-        fit_sa_options so = cfg->sa;
-        if (cfg->sa_local) {
-            so.local = sa_local;
-            so.local_user = &R;
-        }
-        /* With a local phase the chains run one at a time and each chain's best is
-         * polished on all points with the local objective before the best is chosen:
-         * on noisy clouds the annealing's objective (algebraic, on a subset) can rank a
-         * wrong basin below the right one, the final objective (geometric, all points)
-         * tells them apart far better. */
-        long chains = so.chains > 0 ? so.chains : 1;
-        int polish = cfg->method != FIT_METHOD_SA;
-        if (polish) so.chains = 1;
-        else chains = 1;
-        double xs[FIT_MAX_PARAMS], best[FIT_MAX_PARAMS], fbest = HUGE_VAL;
-        for (long k = 0; k < chains; k++) {
-            /* Chains after the first start at a random point (fit_sa picks one for a
-             * start outside the box). */
-            memcpy(xs, params, np * sizeof *xs);
-            if (k > 0) xs[0] = HUGE_VAL;
-            long its = 0;
-            st = fit_sa(fit_objective_value, sub, np, xs, lo, hi, &so, &rng, &ctl, &fx, &its);
-            res->sa_iterations += its;
-            if (st == FIT_FAILED) {
-                if (k > 0) break;
-                fit_objective_free(sub != obj ? sub : NULL);
-                fit_objective_free(obj);
-                set_err(err, errlen, "the model cannot be evaluated anywhere the annealing "
-                                     "looked (runtime errors or non-finite values)");
-                return -1;
-            }
-            if (polish && st != FIT_STOPPED)
-                st = local_phase(&R, obj, xs, &fx, 0, cfg->reweight_rounds);
-            fx = fit_objective_value(obj, xs, NULL);    /* comparable across chains */
-            ctl.evals++;
-            if (fx < fbest || k == 0) {
-                fbest = fx;
-                memcpy(best, xs, np * sizeof *best);
-            }
-            if (st == FIT_STOPPED) break;
-        }
-        memcpy(x, best, np * sizeof *x);
-        fx = fbest;
-    } else {
-        st = local_phase(&R, obj, x, &fx, 0, cfg->reweight_rounds);
-    }
-    fx = fit_objective_value(obj, x, NULL);
-    /* Never hand back something worse than the start. */
-    if (!(fx <= f0)) {
-        memcpy(x, params, np * sizeof *x);
-        fx = f0;
-    }
-    memcpy(params, x, np * sizeof *x);
-    res->objective = fx;
-    if (fit_objective_distances(obj, x, &res->rms, &res->max_dist) != 0)
-        res->rms = res->max_dist = NAN;
-    res->evals = ctl.evals;
-    res->status = st;
-    res->local_iterations = R.local_iterations;
-    res->seconds = fit_now() - t0;
-    if (sub != obj) fit_objective_free(sub);
-    fit_objective_free(obj);
-    return 0;
+    start_control(&R);
+    int rc = evaluate_start(&R, err);
+    if (rc == 0) rc = R.global ? global_phase(&R, err) : local_only(&R);
+    if (rc == 0 && R.ctl.out_of_memory) rc = frep_error_nomem(err);
+    if (rc == 0) finish(&R, params, res);
+    free_objectives(&R);
+    return rc;
 }

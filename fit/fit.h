@@ -10,6 +10,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "err.h"
 #include "frep.h"
 #include "objective.h"
 #include "optim.h"
@@ -71,10 +72,11 @@ typedef struct fit_result {
 /* Fit model m to the points: params holds the start on entry (m->nparams values) and
  * the best parameters found on return, also after an interrupt or a spent budget.
  * lo/hi: bounds (entries may be infinite; the annealing methods need finite ones).
- * Returns 0, or -1 with a message in err[errlen] (params then unchanged). */
+ * Returns 0, or -1 with err set (params then unchanged): FREP_EINPUT for arguments
+ * or a model that cannot be fitted, FREP_ELIMIT for more than FIT_MAX_PARAMS
+ * parameters, FREP_ENOMEM ("out of memory"). */
 int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const double *hi,
-            double *params, const fit_config *cfg, fit_result *res, char *err,
-            size_t errlen);
+            double *params, const fit_config *cfg, fit_result *res, frep_error *err);
 
 /* Adapter from a compiled program to a fit_model: the fitted parameters are the
  * program parameters listed in idx (nfree of them); the others keep the values in

@@ -13,11 +13,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 #include "optim.h"
+#include "threads.h"
 
 /* Gradient norms below this count as zero: the first-order distance is then undefined
  * and the point gets this norm instead (a huge but finite residual). */
@@ -109,13 +106,7 @@ static int setup(fit_objective *o)
     o->slot = 2 + m + m * m;
     o->partial = frep_malloc((o->nblocks ? o->nblocks : 1) * o->slot * sizeof *o->partial);
     o->w = frep_malloc((o->n ? o->n : 1) * sizeof *o->w);
-    int nt = o->cfg.nthreads;
-#ifdef _OPENMP
-    if (nt <= 0) nt = omp_get_max_threads();
-#else
-    nt = 1;
-#endif
-    if (nt < 1) nt = 1;
+    int nt = frep_threads(o->cfg.nthreads);
     o->nthreads = nt;
     o->ws = frep_calloc((size_t)nt, sizeof *o->ws);
     if (o->partial == NULL || o->w == NULL || o->ws == NULL) return -1;
@@ -177,11 +168,11 @@ fit_objective *fit_objective_subset(const fit_objective *src, size_t count, uint
         return NULL;
     }
     /* Partial Fisher-Yates shuffle: the first `count` indices are a uniform sample. */
-    fit_rng r;
-    fit_rng_seed(&r, seed);
+    frep_rng r;
+    frep_rng_seed(&r, seed);
     for (size_t i = 0; i < n; i++) idx[i] = i;
     for (size_t i = 0; i < count; i++) {
-        size_t j = i + (size_t)(fit_rng_uniform(&r) * (double)(n - i));
+        size_t j = i + (size_t)(frep_rng_unit(&r) * (double)(n - i));
         if (j >= n) j = n - 1;
         size_t t = idx[i];
         idx[i] = idx[j];
@@ -379,7 +370,7 @@ static int run_pass(fit_objective *o, const double *p, pass_mode mode)
     int nt = want < o->nthreads ? (int)(want > 1 ? want : 1) : o->nthreads;
 #pragma omp parallel num_threads(nt) reduction(| : failed)
     {
-        fit_ws *w = &o->ws[omp_get_thread_num()];
+        fit_ws *w = &o->ws[frep_thread_num()];
 #pragma omp for schedule(static)
         for (long b = 0; b < nb; b++)
             if (run_block(o, w, (size_t)b, p, mode) != 0) failed |= 1;

@@ -7,68 +7,15 @@
 
 #include "alloc.h"
 #include "optim.h"
+#include "util.h"
 
 #include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
-/* pi, spelled out: FIT_PI is not part of C11. */
-#define FIT_PI 3.14159265358979323846
-
-/* ---- random numbers ------------------------------------------------------ */
-
-static uint64_t splitmix64(uint64_t *state)
-{
-    uint64_t z = (*state += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
-
-void fit_rng_seed(fit_rng *r, uint64_t seed)
-{
-    uint64_t st = seed;
-    for (int i = 0; i < 4; i++) r->s[i] = splitmix64(&st);
-}
-
-static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-
-uint64_t fit_rng_next(fit_rng *r)
-{
-    uint64_t *s = r->s;
-    uint64_t result = rotl(s[1] * 5, 7) * 9;
-    uint64_t t = s[1] << 17;
-    s[2] ^= s[0];
-    s[3] ^= s[1];
-    s[1] ^= s[2];
-    s[0] ^= s[3];
-    s[2] ^= t;
-    s[3] = rotl(s[3], 45);
-    return result;
-}
-
-double fit_rng_uniform(fit_rng *r)
-{
-    return (double)(fit_rng_next(r) >> 11) * 0x1.0p-53;
-}
-
-double fit_rng_normal(fit_rng *r)
-{
-    /* 1 - u lies in (0, 1], so the logarithm is finite. */
-    double u = 1.0 - fit_rng_uniform(r), v = fit_rng_uniform(r);
-    return sqrt(-2.0 * log(u)) * cos(2.0 * FIT_PI * v);
-}
 
 /* ---- budget ------------------------------------------------------------------ */
-
-double fit_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 void fit_control_init(fit_control *c)
 {
@@ -79,17 +26,18 @@ void fit_control_init(fit_control *c)
 int fit_control_stop(const fit_control *c)
 {
     if (c == NULL) return 0;
+    if (c->out_of_memory) return 1;
     if (c->interrupt != NULL && *c->interrupt) return 1;
     if (c->max_evals > 0 && c->evals >= c->max_evals) return 1;
     /* The clock is read at most once per call; callers check once per iteration. */
-    if (c->deadline > 0 && fit_now() >= c->deadline) return 1;
+    if (c->deadline > 0 && frep_now_seconds() >= c->deadline) return 1;
     return 0;
 }
 
 static void report(fit_control *c, fit_phase ph, double t, double best, int force)
 {
     if (c == NULL || c->progress == NULL) return;
-    double now = fit_now();
+    double now = frep_now_seconds();
     if (!force && now - c->last_progress < c->progress_interval) return;
     c->last_progress = now;
     c->progress(c->progress_user, ph, t, best);
@@ -109,8 +57,16 @@ const char *fit_status_name(fit_status s)
     case FIT_MAXITER: return "iteration limit";
     case FIT_STOPPED: return "stopped";
     case FIT_FAILED: return "failed";
+    case FIT_NOMEM: return "out of memory";
     }
     return "?";
+}
+
+/* A phase's work arrays could not be allocated: every phase sharing c stops. */
+static fit_status out_of_memory(fit_control *c)
+{
+    if (c != NULL) c->out_of_memory = 1;
+    return FIT_NOMEM;
 }
 
 static double lo_of(const double *lo, size_t i) { return lo != NULL ? lo[i] : -HUGE_VAL; }
@@ -185,78 +141,123 @@ static double cubic_min(double a, double fa, double da, double b, double fb, dou
     return b - (b - a) * (db + d2 - d1) / den;
 }
 
-/* Strong-Wolfe line search (Nocedal & Wright, algorithms 3.5 and 3.6) on [0, amax].
- * Returns the accepted step (> 0) with its value in *fa and the point/gradient in
- * xout/gout, or 0 when no step decreased f. */
-static double line_search(ls_ctx *L, double f0, double dphi0, double a1, double amax,
-                          double *fa, double *xout, double *gout)
-{
-    size_t n = L->n;
-    double a_prev = 0, f_prev = f0, d_prev = dphi0;
-    double a = fmin(a1, amax);
-    double best_a = 0, best_f = f0;
-    double alo = 0, flo = f0, dlo = dphi0, ahi = 0, fhi = 0, dhi = 0;
-    double f_acc = f0;
-    int zoom = 0;
+/* Strong-Wolfe line search (Nocedal & Wright, algorithms 3.5 and 3.6) on [0, amax]: a
+ * bracketing phase with growing steps, then a zoom into the bracket it found. */
+typedef struct ls_search {
+    double f0, dphi0;           /* phi(0), phi'(0) < 0 */
+    double best_a, best_f;      /* lowest trial with sufficient decrease (0, f0: none) */
+    double *xout, *gout;        /* its point and gradient */
+    double alo, flo, dlo;       /* the bracket of the zoom: the end with the lower value */
+    double ahi, fhi, dhi;       /* and the other end */
+} ls_search;
 
-    for (int i = 0; i < LS_MAX_BRACKET && !zoom; i++) {
+typedef enum ls_outcome {
+    LS_ACCEPT,      /* the last trial satisfies the strong Wolfe conditions or hit amax */
+    LS_ZOOM,        /* a bracket containing acceptable steps was found */
+    LS_GIVE_UP      /* trial limit, no feasible step or the budget: keep the best trial */
+} ls_outcome;
+
+/* Remember the trial (a, f) at L->xt when it decreases f sufficiently and is the lowest. */
+static void ls_keep(const ls_ctx *L, ls_search *S, double a, double f)
+{
+    if (f <= S->f0 + LS_C1 * a * S->dphi0 && f < S->best_f) {
+        S->best_a = a, S->best_f = f;
+        memcpy(S->xout, L->xt, L->n * sizeof *S->xout);
+        memcpy(S->gout, L->gt, L->n * sizeof *S->gout);
+    }
+}
+
+static void ls_set_bracket(ls_search *S, double alo, double flo, double dlo, double ahi,
+                           double fhi, double dhi)
+{
+    S->alo = alo, S->flo = flo, S->dlo = dlo, S->ahi = ahi, S->fhi = fhi, S->dhi = dhi;
+}
+
+/* Algorithm 3.5: try a, 4a, 16a, ... up to amax until a trial is acceptable (its step and
+ * value in *a_acc, *f_acc) or brackets a minimum; halve back from infeasible trials. */
+static ls_outcome ls_bracket(ls_ctx *L, ls_search *S, double a, double amax, double *a_acc,
+                             double *f_acc)
+{
+    double a_prev = 0, f_prev = S->f0, d_prev = S->dphi0;
+    for (int i = 0; i < LS_MAX_BRACKET; i++) {
         double da;
         double f = ls_eval(L, a, &da);
         if (f == HUGE_VAL) {            /* infeasible: shrink toward the last good step */
             amax = a;
             a = 0.5 * (a_prev + a);
-            if (a - a_prev <= DBL_EPSILON * fmax(1, a)) break;
+            if (a - a_prev <= DBL_EPSILON * fmax(1, a)) return LS_GIVE_UP;
             continue;
         }
-        if (f <= f0 + LS_C1 * a * dphi0 && f < best_f) {
-            best_a = a, best_f = f;
-            memcpy(xout, L->xt, n * sizeof *xout);
-            memcpy(gout, L->gt, n * sizeof *gout);
+        ls_keep(L, S, a, f);
+        if (f > S->f0 + LS_C1 * a * S->dphi0 || (i > 0 && f >= f_prev)) {
+            ls_set_bracket(S, a_prev, f_prev, d_prev, a, f, da);
+            return LS_ZOOM;
         }
-        if (f > f0 + LS_C1 * a * dphi0 || (i > 0 && f >= f_prev)) {
-            alo = a_prev, flo = f_prev, dlo = d_prev, ahi = a, fhi = f, dhi = da;
-            zoom = 1;
-            break;
+        if (fabs(da) <= -LS_C2 * S->dphi0) {
+            *a_acc = a, *f_acc = f;
+            return LS_ACCEPT;
         }
-        if (fabs(da) <= -LS_C2 * dphi0) { f_acc = f; goto accept; }
         if (da >= 0) {
-            alo = a, flo = f, dlo = da, ahi = a_prev, fhi = f_prev, dhi = d_prev;
-            zoom = 1;
-            break;
+            ls_set_bracket(S, a, f, da, a_prev, f_prev, d_prev);
+            return LS_ZOOM;
         }
-        if (a >= amax) { f_acc = f; goto accept; }  /* a bound stops the step */
-        if (fit_control_stop(L->c)) break;
+        if (a >= amax) {                /* a bound stops the step */
+            *a_acc = a, *f_acc = f;
+            return LS_ACCEPT;
+        }
+        if (fit_control_stop(L->c)) return LS_GIVE_UP;
         a_prev = a, f_prev = f, d_prev = da;
         a = fmin(4 * a, amax);
     }
-    for (int i = 0; zoom && i < LS_MAX_ZOOM; i++) {
-        double lo = fmin(alo, ahi), hi = fmax(alo, ahi), w = hi - lo;
-        if (w <= DBL_EPSILON * fmax(1, hi)) break;
-        double aj = cubic_min(alo, flo, dlo, ahi, fhi, dhi);
-        if (!(aj >= lo + 0.1 * w && aj <= hi - 0.1 * w)) aj = 0.5 * (alo + ahi);
+    return LS_GIVE_UP;
+}
+
+/* Algorithm 3.6: narrow the bracket by cubic interpolation (bisection when the cubic's
+ * minimizer is not well inside) until a trial satisfies the curvature condition; the
+ * best trial is in S. */
+static void ls_zoom(ls_ctx *L, ls_search *S)
+{
+    for (int i = 0; i < LS_MAX_ZOOM; i++) {
+        double lo = fmin(S->alo, S->ahi), hi = fmax(S->alo, S->ahi), w = hi - lo;
+        if (w <= DBL_EPSILON * fmax(1, hi)) return;
+        double aj = cubic_min(S->alo, S->flo, S->dlo, S->ahi, S->fhi, S->dhi);
+        if (!(aj >= lo + 0.1 * w && aj <= hi - 0.1 * w)) aj = 0.5 * (S->alo + S->ahi);
         double dj;
         double f = ls_eval(L, aj, &dj);
-        if (f <= f0 + LS_C1 * aj * dphi0 && f < best_f) {
-            best_a = aj, best_f = f;
-            memcpy(xout, L->xt, n * sizeof *xout);
-            memcpy(gout, L->gt, n * sizeof *gout);
-        }
-        if (f > f0 + LS_C1 * aj * dphi0 || f >= flo) {
-            ahi = aj, fhi = f, dhi = dj;
+        ls_keep(L, S, aj, f);
+        if (f > S->f0 + LS_C1 * aj * S->dphi0 || f >= S->flo) {
+            S->ahi = aj, S->fhi = f, S->dhi = dj;
         } else {
-            if (fabs(dj) <= -LS_C2 * dphi0) break;  /* best_* holds this point */
-            if (dj * (ahi - alo) >= 0) ahi = alo, fhi = flo, dhi = dlo;
-            alo = aj, flo = f, dlo = dj;
+            if (fabs(dj) <= -LS_C2 * S->dphi0) return;     /* S->best_* holds this point */
+            if (dj * (S->ahi - S->alo) >= 0) S->ahi = S->alo, S->fhi = S->flo, S->dhi = S->dlo;
+            S->alo = aj, S->flo = f, S->dlo = dj;
         }
-        if (fit_control_stop(L->c)) break;
+        if (fit_control_stop(L->c)) return;
     }
-    *fa = best_f;
-    return best_a;
-accept:
-    memcpy(xout, L->xt, n * sizeof *xout);
-    memcpy(gout, L->gt, n * sizeof *gout);
-    *fa = f_acc;
-    return a;
+}
+
+/* The line search from phi(0) = f0 with slope dphi0 < 0 and first trial a1. Returns the
+ * accepted step (> 0) with its value in *fa and the point/gradient in xout/gout, or 0
+ * when no step decreased f. */
+static double line_search(ls_ctx *L, double f0, double dphi0, double a1, double amax,
+                          double *fa, double *xout, double *gout)
+{
+    ls_search S = {f0, dphi0, 0, f0, xout, gout, 0, f0, dphi0, 0, 0, 0};
+    double a = 0, f = f0;
+    switch (ls_bracket(L, &S, fmin(a1, amax), amax, &a, &f)) {
+    case LS_ACCEPT:
+        memcpy(xout, L->xt, L->n * sizeof *xout);
+        memcpy(gout, L->gt, L->n * sizeof *gout);
+        *fa = f;
+        return a;
+    case LS_ZOOM:
+        ls_zoom(L, &S);
+        break;
+    case LS_GIVE_UP:
+        break;
+    }
+    *fa = S.best_f;
+    return S.best_a;
 }
 
 /* Gradient with the components of held variables (at a bound, gradient pointing out of
@@ -276,6 +277,157 @@ static void set_identity(size_t n, double *H, double scale)
     for (size_t i = 0; i < n; i++) H[i * n + i] = scale;
 }
 
+/* The BFGS update is skipped unless s . y exceeds this times |s| |y|: with less
+ * curvature along the step the update would lose positive definiteness to rounding. */
+#define BFGS_MIN_CURVATURE 1e-12
+
+/* State of one BFGS search. */
+typedef struct bfgs_ctx {
+    size_t n;
+    double *x;
+    const double *lo, *hi;
+    const fit_qn_options *opt;
+    fit_control *c;
+    ls_ctx L;
+    double *H;                  /* inverse Hessian approximation (n x n) */
+    double *g, *pg, *d;         /* gradient, projected gradient, direction (then the step) */
+    double *xn, *gn, *Hy;       /* line search result; H y of the update */
+    double f;
+    int fresh;                  /* H is a (scaled) identity: no curvature information yet */
+    int small;                  /* consecutive iterations with a tiny decrease */
+} bfgs_ctx;
+
+/* Direction d = -H pg (components held by a bound zeroed); steepest descent, with H reset,
+ * when that is not a descent direction. Returns the slope g . d. */
+static double bfgs_direction(bfgs_ctx *B)
+{
+    const size_t n = B->n;
+    const double *H = B->H, *pg = B->pg, *g = B->g;
+    double *d = B->d;
+    for (size_t i = 0; i < n; i++) {
+        double s = 0;
+        for (size_t j = 0; j < n; j++) s -= H[i * n + j] * pg[j];
+        d[i] = pg[i] == 0 && g[i] != 0 ? 0 : s;
+    }
+    double dphi0 = dot(n, g, d);
+    if (!(dphi0 < 0)) {             /* not a descent direction: steepest descent */
+        set_identity(n, B->H, 1);
+        B->fresh = 1;
+        for (size_t i = 0; i < n; i++) d[i] = -pg[i];
+        dphi0 = dot(n, g, d);
+    }
+    return dphi0;
+}
+
+/* Longest step along d inside the box (0 when there is none); a component already at
+ * its bound and moving outwards was zeroed by bfgs_direction. */
+static double max_step(size_t n, const double *x, const double *d, const double *lo,
+                       const double *hi)
+{
+    double amax = HUGE_VAL;
+    for (size_t i = 0; i < n; i++) {
+        if (d[i] < 0 && isfinite(lo_of(lo, i)))
+            amax = fmin(amax, (lo_of(lo, i) - x[i]) / d[i]);
+        else if (d[i] > 0 && isfinite(hi_of(hi, i)))
+            amax = fmin(amax, (hi_of(hi, i) - x[i]) / d[i]);
+    }
+    return amax > 0 ? amax : 0;
+}
+
+/* BFGS update of the inverse Hessian with step s and gradient change y (Nocedal & Wright
+ * (6.17)), H first scaled by s.y / y.y (6.20) when it holds no curvature yet. */
+static void bfgs_update(bfgs_ctx *B, const double *s, const double *y)
+{
+    const size_t n = B->n;
+    double *H = B->H, *Hy = B->Hy;
+    double sy = dot(n, s, y), yy = dot(n, y, y);
+    if (!(sy > BFGS_MIN_CURVATURE * sqrt(dot(n, s, s) * yy))) return;
+    if (B->fresh) {
+        set_identity(n, H, sy / yy);
+        B->fresh = 0;
+    }
+    double rho = 1 / sy;
+    for (size_t i = 0; i < n; i++) {
+        double t = 0;
+        for (size_t j = 0; j < n; j++) t += H[i * n + j] * y[j];
+        Hy[i] = t;
+    }
+    double yHy = dot(n, y, Hy);
+    for (size_t i = 0; i < n; i++)
+        for (size_t j = 0; j < n; j++)
+            H[i * n + j] += rho * ((1 + rho * yHy) * s[i] * s[j] - (Hy[i] * s[j] + s[i] * Hy[j]));
+}
+
+/* Move to the line search's point (value fnew), update H, and test convergence: a tiny
+ * step, or a tiny relative decrease twice in a row. Returns 1 when the search ends. */
+static int bfgs_step(bfgs_ctx *B, double fnew, fit_status *st)
+{
+    const size_t n = B->n;
+    double *x = B->x, *g = B->g, *s = B->d;     /* d is not needed after the line search */
+    double *y = B->L.gt;                        /* nor the trial gradient */
+    double smax = 0, xmax = 0;
+    for (size_t i = 0; i < n; i++) {
+        s[i] = B->xn[i] - x[i];
+        smax = fmax(smax, fabs(s[i]));
+        xmax = fmax(xmax, fabs(x[i]));
+    }
+    double df = B->f - fnew;
+    memcpy(x, B->xn, n * sizeof *x);
+    for (size_t i = 0; i < n; i++) {
+        double yi = B->gn[i] - g[i];
+        g[i] = B->gn[i];
+        y[i] = yi;
+    }
+    B->f = fnew;
+    bfgs_update(B, s, y);
+    if (smax <= B->opt->xtol * (1 + xmax)) {
+        *st = FIT_CONVERGED;
+        return 1;
+    }
+    if (!(df <= B->opt->ftol * fmax(fabs(B->f), DBL_MIN))) {
+        B->small = 0;
+        return 0;
+    }
+    if (++B->small < 2) return 0;
+    *st = FIT_CONVERGED;
+    return 1;
+}
+
+/* One iteration: projected gradient test, direction, line search, step. Returns 1 when
+ * the search ends, with its status in *st. */
+static int bfgs_iteration(bfgs_ctx *B, fit_status *st)
+{
+    const size_t n = B->n;
+    report(B->c, FIT_PHASE_QN, 0, B->f, 0);
+    if (fit_control_stop(B->c)) {
+        *st = FIT_STOPPED;
+        return 1;
+    }
+    project_grad(n, B->x, B->g, B->lo, B->hi, B->pg);
+    if (norm_inf(n, B->pg) <= B->opt->gtol) {
+        *st = FIT_CONVERGED;
+        return 1;
+    }
+    double dphi0 = bfgs_direction(B);
+    double amax = max_step(n, B->x, B->d, B->lo, B->hi);
+    /* Without curvature information the first trial step moves at most one unit. */
+    double a1 = B->fresh ? fmin(1.0, 1.0 / norm_inf(n, B->d)) : 1.0;
+    double fnew;
+    double a = amax > 0 ? line_search(&B->L, B->f, dphi0, a1, amax, &fnew, B->xn, B->gn) : 0;
+    if (a != 0) return bfgs_step(B, fnew, st);
+    if (fit_control_stop(B->c)) {
+        *st = FIT_STOPPED;
+        return 1;
+    }
+    if (!B->fresh) {                /* stale curvature: retry along -g */
+        set_identity(n, B->H, 1);
+        B->fresh = 1;
+        return 0;
+    }
+    *st = FIT_CONVERGED;            /* no decrease along steepest descent either */
+    return 1;
+}
+
 fit_status fit_bfgs(fit_fn fn, void *user, size_t n, double *x, const double *lo,
                     const double *hi, const fit_qn_options *opt, fit_control *c, double *fx,
                     int *iterations)
@@ -285,124 +437,28 @@ fit_status fit_bfgs(fit_fn fn, void *user, size_t n, double *x, const double *lo
     if (iterations) *iterations = 0;
     if (n == 0 || n > FIT_MAX_PARAMS) return FIT_FAILED;
     double *mem = frep_malloc((n * n + 8 * n) * sizeof *mem);
-    if (mem == NULL) return FIT_FAILED;
-    double *H = mem, *g = H + n * n, *pg = g + n, *d = pg + n, *xn = d + n, *gn = xn + n;
-    double *xt = gn + n, *gt = xt + n, *Hy = gt + n;
+    if (mem == NULL) return out_of_memory(c);
+    bfgs_ctx B = {.n = n, .x = x, .lo = lo, .hi = hi, .opt = opt, .c = c, .H = mem, .fresh = 1};
+    B.g = B.H + n * n, B.pg = B.g + n, B.d = B.pg + n, B.xn = B.d + n, B.gn = B.xn + n;
+    double *xt = B.gn + n, *gt = xt + n;
+    B.Hy = gt + n;
+    B.L = (ls_ctx){fn, user, n, x, B.d, lo, hi, xt, gt, c};
 
     for (size_t i = 0; i < n; i++) x[i] = clampd(x[i], lo_of(lo, i), hi_of(hi, i));
-    double f = call(fn, user, x, g, c);
-    if (f == HUGE_VAL) {
+    B.f = call(fn, user, x, B.g, c);
+    if (B.f == HUGE_VAL) {
         frep_free(mem);
-        *fx = f;
+        *fx = B.f;
         return FIT_FAILED;
     }
-    ls_ctx L = {fn, user, n, x, d, lo, hi, xt, gt, c};
     fit_status st = FIT_MAXITER;
-    int fresh = 1;      /* H is a (scaled) identity: no curvature information yet */
-    int small = 0;      /* consecutive iterations with a tiny decrease */
-    set_identity(n, H, 1);
+    set_identity(n, B.H, 1);
     int it;
-    for (it = 0; it < opt->max_iter; it++) {
-        report(c, FIT_PHASE_QN, 0, f, 0);
-        if (fit_control_stop(c)) {
-            st = FIT_STOPPED;
-            break;
-        }
-        project_grad(n, x, g, lo, hi, pg);
-        double gmax = norm_inf(n, pg);
-        if (gmax <= opt->gtol) {
-            st = FIT_CONVERGED;
-            break;
-        }
-        for (size_t i = 0; i < n; i++) {
-            double s = 0;
-            for (size_t j = 0; j < n; j++) s -= H[i * n + j] * pg[j];
-            d[i] = pg[i] == 0 && g[i] != 0 ? 0 : s;
-        }
-        double dphi0 = dot(n, g, d);
-        if (!(dphi0 < 0)) {             /* not a descent direction: steepest descent */
-            set_identity(n, H, 1);
-            fresh = 1;
-            for (size_t i = 0; i < n; i++) d[i] = -pg[i];
-            dphi0 = dot(n, g, d);
-        }
-        /* Longest step inside the box; a component already at its bound and moving
-         * outwards was zeroed above. */
-        double amax = HUGE_VAL;
-        for (size_t i = 0; i < n; i++) {
-            if (d[i] < 0 && isfinite(lo_of(lo, i)))
-                amax = fmin(amax, (lo_of(lo, i) - x[i]) / d[i]);
-            else if (d[i] > 0 && isfinite(hi_of(hi, i)))
-                amax = fmin(amax, (hi_of(hi, i) - x[i]) / d[i]);
-        }
-        if (!(amax > 0)) amax = 0;
-        /* Without curvature information the first trial step moves at most one unit. */
-        double a1 = fresh ? fmin(1.0, 1.0 / norm_inf(n, d)) : 1.0;
-        double fnew;
-        double a = amax > 0 ? line_search(&L, f, dphi0, a1, amax, &fnew, xn, gn) : 0;
-        if (a == 0) {
-            if (fit_control_stop(c)) {
-                st = FIT_STOPPED;
-                break;
-            }
-            if (!fresh) {               /* stale curvature: retry along -g */
-                set_identity(n, H, 1);
-                fresh = 1;
-                continue;
-            }
-            st = FIT_CONVERGED;         /* no decrease along steepest descent either */
-            break;
-        }
-        double *s = d, *y = Hy;         /* reuse: d is not needed after the line search */
-        double smax = 0, xmax = 0;
-        for (size_t i = 0; i < n; i++) {
-            s[i] = xn[i] - x[i];
-            smax = fmax(smax, fabs(s[i]));
-            xmax = fmax(xmax, fabs(x[i]));
-        }
-        double df = f - fnew;
-        memcpy(x, xn, n * sizeof *x);
-        for (size_t i = 0; i < n; i++) {
-            double yi = gn[i] - g[i];
-            g[i] = gn[i];
-            gt[i] = yi;                 /* y, kept in gt (free after the line search) */
-        }
-        y = gt;
-        f = fnew;
-        double sy = dot(n, s, y), yy = dot(n, y, y);
-        if (sy > 1e-12 * sqrt(dot(n, s, s) * yy)) {
-            if (fresh) {                /* Nocedal & Wright (6.20): scale before the update */
-                set_identity(n, H, sy / yy);
-                fresh = 0;
-            }
-            double rho = 1 / sy;
-            for (size_t i = 0; i < n; i++) {
-                double t = 0;
-                for (size_t j = 0; j < n; j++) t += H[i * n + j] * y[j];
-                Hy[i] = t;
-            }
-            double yHy = dot(n, y, Hy);
-            for (size_t i = 0; i < n; i++)
-                for (size_t j = 0; j < n; j++)
-                    H[i * n + j] += rho * ((1 + rho * yHy) * s[i] * s[j] -
-                                           (Hy[i] * s[j] + s[i] * Hy[j]));
-        }
-        if (smax <= opt->xtol * (1 + xmax)) {
-            st = FIT_CONVERGED;
-            break;
-        }
-        if (df <= opt->ftol * fmax(fabs(f), DBL_MIN)) {
-            if (++small >= 2) {
-                st = FIT_CONVERGED;
-                break;
-            }
-        } else {
-            small = 0;
-        }
-    }
+    for (it = 0; it < opt->max_iter; it++)
+        if (bfgs_iteration(&B, &st)) break;
     if (iterations) *iterations = it;
-    *fx = f;
-    report(c, FIT_PHASE_QN, 0, f, 1);
+    *fx = B.f;
+    report(c, FIT_PHASE_QN, 0, B.f, 1);
     frep_free(mem);
     return st;
 }
@@ -450,6 +506,113 @@ static int cholesky_solve(size_t n, double *A, double *b)
  * LM_LAMBDA_MAX steps are too short to matter, so the search has stalled. */
 #define LM_LAMBDA_MIN 1e-15
 #define LM_LAMBDA_MAX 1e16
+/* First damping: a step close to Gauss-Newton, the usual start (Marquardt 1963). */
+#define LM_LAMBDA_START 1e-3
+/* Marquardt's scaling damps each parameter by its diagonal entry of J^T J; a parameter
+ * the residuals ignore (entry 0) gets this fraction of the largest entry instead. */
+#define LM_DIAG_FLOOR 1e-12
+/* After a rejected step the search ends only when the step was this much below xtol:
+ * the larger damping of the next try shrinks the step again by itself. */
+#define LM_REJECT_XTOL 1e-3
+
+/* State of one Levenberg-Marquardt search: the current point's normal equations A = J^T J
+ * and b = J^T r, and the trial's (An, bn). */
+typedef struct lm_ctx {
+    fit_lsq_fn fn;
+    void *user;
+    size_t n;
+    double *x;
+    const double *lo, *hi;
+    const fit_lm_options *opt;
+    fit_control *c;
+    double *A, *An, *M, *b, *bn, *delta, *xn;
+    double cost, lambda;
+    int it;                     /* iterations; an accepted step that converges counts */
+} lm_ctx;
+
+/* The gradient test on J^T r, ignoring parameters held at a bound; the largest diagonal
+ * entry of J^T J goes to *dmax. Returns 1 when the gradient vanishes. */
+static int lm_gradient_small(const lm_ctx *L, double *dmax)
+{
+    const size_t n = L->n;
+    double gmax = 0;
+    *dmax = 0;
+    for (size_t i = 0; i < n; i++) {
+        const double bi = L->b[i], xi = L->x[i];
+        int held = (xi <= lo_of(L->lo, i) && bi < 0) || (xi >= hi_of(L->hi, i) && bi > 0);
+        if (!held) gmax = fmax(gmax, fabs(bi));
+        *dmax = fmax(*dmax, L->A[i * n + i]);
+    }
+    return gmax <= L->opt->gtol;
+}
+
+/* The damped step: solve (A + lambda diag(A)) delta = -b. Returns 0, or -1 when the
+ * damped matrix is not positive definite. */
+static int lm_solve(lm_ctx *L, double dmax)
+{
+    const size_t n = L->n;
+    memcpy(L->M, L->A, n * n * sizeof *L->M);
+    for (size_t i = 0; i < n; i++) {
+        double dii = fmax(L->A[i * n + i], LM_DIAG_FLOOR * fmax(dmax, DBL_MIN));
+        L->M[i * n + i] += L->lambda * dii;
+        L->delta[i] = -L->b[i];
+    }
+    return cholesky_solve(n, L->M, L->delta);
+}
+
+/* Try x + delta (clipped to the bounds): accept it and lower the damping when the cost
+ * decreased, else raise the damping. Returns 1 when the search ends (converged). */
+static int lm_try_step(lm_ctx *L)
+{
+    const size_t n = L->n;
+    const fit_lm_options *opt = L->opt;
+    double smax = 0, xmax = 0;
+    for (size_t i = 0; i < n; i++) {
+        L->xn[i] = clampd(L->x[i] + L->delta[i], lo_of(L->lo, i), hi_of(L->hi, i));
+        smax = fmax(smax, fabs(L->xn[i] - L->x[i]));
+        xmax = fmax(xmax, fabs(L->x[i]));
+    }
+    if (L->c) L->c->evals++;
+    double cn = L->fn(L->user, L->xn, L->An, L->bn);
+    if (!(isfinite(cn) && cn < L->cost)) {
+        L->lambda *= 10;
+        return L->lambda > LM_LAMBDA_MAX || smax <= opt->xtol * (1 + xmax) * LM_REJECT_XTOL;
+    }
+    double dc = L->cost - cn;
+    memcpy(L->x, L->xn, n * sizeof *L->x);
+    memcpy(L->A, L->An, n * n * sizeof *L->A);
+    memcpy(L->b, L->bn, n * sizeof *L->b);
+    L->cost = cn;
+    L->lambda = fmax(L->lambda / 10, LM_LAMBDA_MIN);
+    if (dc <= opt->ftol * L->cost || smax <= opt->xtol * (1 + xmax)) {
+        L->it++;
+        return 1;
+    }
+    return 0;
+}
+
+/* One iteration: gradient test, damped step, trial. Returns 1 when the search ends, with
+ * its status in *st. */
+static int lm_iteration(lm_ctx *L, fit_status *st)
+{
+    report(L->c, FIT_PHASE_LM, L->lambda, L->cost, 0);
+    if (fit_control_stop(L->c)) {
+        *st = FIT_STOPPED;
+        return 1;
+    }
+    double dmax;
+    int end;
+    if (lm_gradient_small(L, &dmax)) {
+        end = 1;
+    } else if (lm_solve(L, dmax) != 0) {
+        L->lambda *= 10;            /* not positive definite: damp more */
+        end = L->lambda > LM_LAMBDA_MAX;
+    } else {
+        end = lm_try_step(L);
+    }
+    if (end) *st = FIT_CONVERGED;
+    return end;
+}
 
 fit_status fit_lm(fit_lsq_fn fn, void *user, size_t n, double *x, const double *lo,
                   const double *hi, const fit_lm_options *opt, fit_control *c, double *fx,
@@ -460,83 +623,26 @@ fit_status fit_lm(fit_lsq_fn fn, void *user, size_t n, double *x, const double *
     if (iterations) *iterations = 0;
     if (n == 0 || n > FIT_MAX_PARAMS) return FIT_FAILED;
     double *mem = frep_malloc((3 * n * n + 4 * n) * sizeof *mem);
-    if (mem == NULL) return FIT_FAILED;
-    double *A = mem, *An = A + n * n, *M = An + n * n, *b = M + n * n, *bn = b + n;
-    double *delta = bn + n, *xn = delta + n;
+    if (mem == NULL) return out_of_memory(c);
+    lm_ctx L = {.fn = fn, .user = user, .n = n, .x = x, .lo = lo, .hi = hi, .opt = opt,
+                .c = c, .A = mem, .lambda = LM_LAMBDA_START};
+    L.An = L.A + n * n, L.M = L.An + n * n, L.b = L.M + n * n, L.bn = L.b + n;
+    L.delta = L.bn + n, L.xn = L.delta + n;
 
     for (size_t i = 0; i < n; i++) x[i] = clampd(x[i], lo_of(lo, i), hi_of(hi, i));
     if (c) c->evals++;
-    double cost = fn(user, x, A, b);
-    if (!isfinite(cost)) {
+    L.cost = fn(user, x, L.A, L.b);
+    if (!isfinite(L.cost)) {
         frep_free(mem);
         *fx = HUGE_VAL;
         return FIT_FAILED;
     }
-    double lambda = 1e-3;
     fit_status st = FIT_MAXITER;
-    int it;
-    for (it = 0; it < opt->max_iter; it++) {
-        report(c, FIT_PHASE_LM, lambda, cost, 0);
-        if (fit_control_stop(c)) {
-            st = FIT_STOPPED;
-            break;
-        }
-        double gmax = 0, dmax = 0;
-        for (size_t i = 0; i < n; i++) {
-            int held = (x[i] <= lo_of(lo, i) && b[i] < 0) || (x[i] >= hi_of(hi, i) && b[i] > 0);
-            if (!held) gmax = fmax(gmax, fabs(b[i]));
-            dmax = fmax(dmax, A[i * n + i]);
-        }
-        if (gmax <= opt->gtol) {
-            st = FIT_CONVERGED;
-            break;
-        }
-        memcpy(M, A, n * n * sizeof *M);
-        for (size_t i = 0; i < n; i++) {
-            /* Marquardt scaling; a parameter the residuals ignore gets a floor. */
-            double dii = fmax(A[i * n + i], 1e-12 * fmax(dmax, DBL_MIN));
-            M[i * n + i] += lambda * dii;
-            delta[i] = -b[i];
-        }
-        if (cholesky_solve(n, M, delta) != 0) {
-            lambda *= 10;
-            if (lambda > LM_LAMBDA_MAX) {
-                st = FIT_CONVERGED;
-                break;
-            }
-            continue;
-        }
-        double smax = 0, xmax = 0;
-        for (size_t i = 0; i < n; i++) {
-            xn[i] = clampd(x[i] + delta[i], lo_of(lo, i), hi_of(hi, i));
-            smax = fmax(smax, fabs(xn[i] - x[i]));
-            xmax = fmax(xmax, fabs(x[i]));
-        }
-        if (c) c->evals++;
-        double cn = fn(user, xn, An, bn);
-        if (isfinite(cn) && cn < cost) {
-            double dc = cost - cn;
-            memcpy(x, xn, n * sizeof *x);
-            memcpy(A, An, n * n * sizeof *A);
-            memcpy(b, bn, n * sizeof *b);
-            cost = cn;
-            lambda = fmax(lambda / 10, LM_LAMBDA_MIN);
-            if (dc <= opt->ftol * cost || smax <= opt->xtol * (1 + xmax)) {
-                st = FIT_CONVERGED;
-                it++;
-                break;
-            }
-        } else {
-            lambda *= 10;
-            if (lambda > LM_LAMBDA_MAX || smax <= opt->xtol * (1 + xmax) * 1e-3) {
-                st = FIT_CONVERGED;
-                break;
-            }
-        }
-    }
-    if (iterations) *iterations = it;
-    *fx = cost;
-    report(c, FIT_PHASE_LM, 0, cost, 1);
+    for (L.it = 0; L.it < opt->max_iter; L.it++)
+        if (lm_iteration(&L, &st)) break;
+    if (iterations) *iterations = L.it;
+    *fx = L.cost;
+    report(c, FIT_PHASE_LM, 0, L.cost, 1);
     frep_free(mem);
     return st;
 }
@@ -592,7 +698,7 @@ static void visit_init(visit_consts *v, double qv)
     v->f3 = exp((2.0 - qv) * log(2.0) / (qv - 1.0));
     v->f5 = 1.0 / (qv - 1.0) - 0.5;
     double d1 = 2.0 - v->f5;
-    v->f6 = FIT_PI * (1.0 - v->f5) / sin(FIT_PI * (1.0 - v->f5)) / exp(lgamma(d1));
+    v->f6 = FREP_PI * (1.0 - v->f5) / sin(FREP_PI * (1.0 - v->f5)) / exp(lgamma(d1));
 }
 
 /* Width of the distribution at temperature t. */
@@ -600,17 +706,17 @@ static double visit_sigma(const visit_consts *v, double t)
 {
     double qv = v->qv;
     double f1 = exp(log(t) / (qv - 1.0));
-    double f4 = sqrt(FIT_PI) * f1 * v->f2 / (v->f3 * (3.0 - qv));
+    double f4 = sqrt(FREP_PI) * f1 * v->f2 / (v->f3 * (3.0 - qv));
     return exp(-(qv - 1.0) * log(v->f6 / f4) / (3.0 - qv));
 }
 
-static double visit_draw(const visit_consts *v, double sigma, fit_rng *r)
+static double visit_draw(const visit_consts *v, double sigma, frep_rng *r)
 {
-    double a = sigma * fit_rng_normal(r);
-    double b = fabs(fit_rng_normal(r));
+    double a = sigma * frep_rng_normal(r);
+    double b = fabs(frep_rng_normal(r));
     double den = exp((v->qv - 1.0) * log(b) / (3.0 - v->qv));
     double s = a / den;
-    if (!isfinite(s) || fabs(s) > SA_TAIL_LIMIT) s = copysign(SA_TAIL_LIMIT, a) * fit_rng_uniform(r);
+    if (!isfinite(s) || fabs(s) > SA_TAIL_LIMIT) s = copysign(SA_TAIL_LIMIT, a) * frep_rng_unit(r);
     return s;
 }
 
@@ -624,193 +730,255 @@ static double wrap(double v, double lo, double hi)
     return r < hi ? r : lo;
 }
 
-static void random_point(size_t n, double *x, const double *lo, const double *hi, fit_rng *r)
+static void random_point(size_t n, double *x, const double *lo, const double *hi, frep_rng *r)
 {
-    for (size_t i = 0; i < n; i++) x[i] = lo[i] + (hi[i] - lo[i]) * fit_rng_uniform(r);
+    for (size_t i = 0; i < n; i++) x[i] = lo[i] + (hi[i] - lo[i]) * frep_rng_unit(r);
 }
+
+/* One run of fit_sa: the problem, the settings and the best point of all chains. */
+typedef struct sa_ctx {
+    fit_fn fn;
+    void *user;
+    size_t n;
+    const double *lo, *hi;
+    const fit_sa_options *opt;
+    frep_rng *rng;
+    fit_control *c;
+    visit_consts vc;
+    double t1;                  /* 2^(qv-1) - 1, the numerator of the cooling schedule */
+    double *trial;              /* scratch point */
+    double *best, ebest;        /* best of all chains */
+    long total;                 /* iterations of all chains */
+} sa_ctx;
 
 /* State of one annealing chain. */
 typedef struct sa_chain {
     double *cur, *best;     /* current point, the chain's best */
     double e, ebest;
+    double emark;           /* the chain's best when it last improved by rel_improve */
+    long step;              /* iterations since the schedule (re)started */
+    long last_gain;         /* iteration of that improvement */
+    long quiet;             /* iterations in a row without a new best */
 } sa_chain;
+
+static double sa_call(sa_ctx *S, const double *x) { return call(S->fn, S->user, x, NULL, S->c); }
 
 /* Start a chain at x (when `from_x`) or at a random point with a finite objective, and
  * polish it first: a start near the answer then is the answer, and the chain only has
  * to beat it. Returns 0, or -1 when no finite objective was found. */
-static int sa_chain_start(sa_chain *ch, fit_fn fn, void *user, size_t n, const double *x,
-                          int from_x, const double *lo, const double *hi,
-                          const fit_sa_options *opt, fit_rng *rng, fit_control *c,
-                          double *trial)
+static int sa_chain_start(sa_ctx *S, sa_chain *ch, const double *x, int from_x)
 {
+    const size_t n = S->n;
+    const fit_sa_options *opt = S->opt;
     if (from_x) memcpy(ch->cur, x, n * sizeof *ch->cur);
-    else random_point(n, ch->cur, lo, hi, rng);
-    double e = call(fn, user, ch->cur, NULL, c);
-    for (int k = 0; e == HUGE_VAL && k < SA_MAX_START_TRIES && !fit_control_stop(c); k++) {
-        random_point(n, ch->cur, lo, hi, rng);
-        e = call(fn, user, ch->cur, NULL, c);
+    else random_point(n, ch->cur, S->lo, S->hi, S->rng);
+    double e = sa_call(S, ch->cur);
+    for (int k = 0; e == HUGE_VAL && k < SA_MAX_START_TRIES && !fit_control_stop(S->c); k++) {
+        random_point(n, ch->cur, S->lo, S->hi, S->rng);
+        e = sa_call(S, ch->cur);
     }
     if (e == HUGE_VAL) return -1;
-    if (opt->local != NULL && !fit_control_stop(c)) {
-        memcpy(trial, ch->cur, n * sizeof *trial);
+    if (opt->local != NULL && !fit_control_stop(S->c)) {
+        memcpy(S->trial, ch->cur, n * sizeof *S->trial);
         double el;
-        if (opt->local(opt->local_user, trial, &el) == 0 && el < e) {
-            memcpy(ch->cur, trial, n * sizeof *ch->cur);
+        if (opt->local(opt->local_user, S->trial, &el) == 0 && el < e) {
+            memcpy(ch->cur, S->trial, n * sizeof *ch->cur);
             e = el;
         }
     }
     memcpy(ch->best, ch->cur, n * sizeof *ch->best);
     ch->e = ch->ebest = e;
+    ch->emark = ch->ebest;
+    ch->step = ch->last_gain = ch->quiet = 0;
     return 0;
 }
 
+/* Temperature of the schedule T0 (2^(qv-1) - 1) / ((step+2)^(qv-1) - 1). Once it has
+ * fallen below restart_ratio T0 the schedule starts again from T0 at a random point with
+ * a finite objective (the chain stays where it is when none is found). */
+static double sa_temperature(sa_ctx *S, sa_chain *ch)
+{
+    const fit_sa_options *opt = S->opt;
+    double t2 = exp((opt->qv - 1.0) * log((double)ch->step + 2.0)) - 1.0;
+    double temp = opt->t0 * S->t1 / t2;
+    if (temp >= opt->t0 * opt->restart_ratio) return temp;
+    ch->step = 0;
+    double er = HUGE_VAL;
+    for (int k = 0; er == HUGE_VAL && k < SA_MAX_START_TRIES; k++) {
+        random_point(S->n, S->trial, S->lo, S->hi, S->rng);
+        er = sa_call(S, S->trial);
+    }
+    if (er < HUGE_VAL) {
+        memcpy(ch->cur, S->trial, S->n * sizeof *ch->cur);
+        ch->e = er;
+    }
+    return opt->t0;
+}
+
+/* Generalized Metropolis rule (acceptance parameter qa): a worse trial et > e is taken
+ * with probability [1 - (1 - qa) (et - e) / tstep]^(1 / (1 - qa)). */
+static int sa_accept(sa_ctx *S, double e, double et, double tstep)
+{
+    if (et < e) return 1;
+    const double qa = S->opt->qa;
+    double pq = 1.0 - (1.0 - qa) * (et - e) / tstep;
+    double p = pq <= 0 ? 0 : exp(log(pq) / (1.0 - qa));
+    return frep_rng_unit(S->rng) <= p && et < HUGE_VAL;
+}
+
+/* One iteration at temperature temp: n moves of all coordinates, then n moves of one
+ * coordinate, each drawn from the visiting distribution and wrapped into the box.
+ * Returns 1 when the chain's best improved. */
+static int sa_sweep(sa_ctx *S, sa_chain *ch, double temp)
+{
+    const size_t n = S->n;
+    const double *lo = S->lo, *hi = S->hi;
+    double *trial = S->trial, *cur = ch->cur;
+    double tstep = temp / (double)(ch->step + 1);
+    double sigma = visit_sigma(&S->vc, temp);
+    int found = 0;
+    for (size_t j = 0; j < 2 * n; j++) {
+        memcpy(trial, cur, n * sizeof *trial);
+        if (j < n) {
+            for (size_t i = 0; i < n; i++)
+                trial[i] = wrap(cur[i] + visit_draw(&S->vc, sigma, S->rng), lo[i], hi[i]);
+        } else {
+            size_t i = j - n;
+            trial[i] = wrap(cur[i] + visit_draw(&S->vc, sigma, S->rng), lo[i], hi[i]);
+        }
+        double et = sa_call(S, trial);
+        if (!sa_accept(S, ch->e, et, tstep)) continue;
+        memcpy(cur, trial, n * sizeof *cur);
+        ch->e = et;
+        if (ch->e < ch->ebest) {
+            ch->ebest = ch->e;
+            memcpy(ch->best, cur, n * sizeof *ch->best);
+            found = 1;
+        }
+    }
+    return found;
+}
+
+/* The stall limit of the chain now: bound_stall_iter while its best lies on a bound
+ * (probably a primitive switched off rather than placed), else stall_iter. */
+static long sa_stall_limit(const sa_ctx *S, const sa_chain *ch)
+{
+    int suspect = on_bound(S->n, ch->best, S->lo, S->hi);
+    return suspect && S->opt->bound_stall_iter > 0 ? S->opt->bound_stall_iter
+                                                   : S->opt->stall_iter;
+}
+
+/* Dual annealing's local search: from the new best after an iteration that found one,
+ * or from the current point after local_period quiet iterations (a probe of the basin
+ * the chain is in). A better result becomes the chain's best and current point. */
+static void sa_polish(sa_ctx *S, sa_chain *ch, int found)
+{
+    const size_t n = S->n;
+    const fit_sa_options *opt = S->opt;
+    int probe = opt->local_period > 0 && ch->quiet >= opt->local_period;
+    if (!(found || probe) || opt->local == NULL || fit_control_stop(S->c)) return;
+    memcpy(S->trial, found ? ch->best : ch->cur, n * sizeof *S->trial);
+    ch->quiet = 0;
+    double el;
+    if (opt->local(opt->local_user, S->trial, &el) == 0 && el < ch->ebest) {
+        ch->ebest = ch->e = el;
+        memcpy(ch->best, S->trial, n * sizeof *ch->best);
+        memcpy(ch->cur, S->trial, n * sizeof *ch->cur);
+    }
+}
+
+/* Run one chain until it stalls (FIT_CONVERGED), reaches max_iter (FIT_MAXITER), the
+ * best of all chains reaches the threshold (FIT_CONVERGED) or the budget is spent
+ * (FIT_STOPPED); *stop_all is set in the last two cases, which end the other chains
+ * too. */
+static fit_status sa_chain_run(sa_ctx *S, sa_chain *ch, int *stop_all)
+{
+    const fit_sa_options *opt = S->opt;
+    for (long it = 0; it < opt->max_iter; it++) {
+        double temp = sa_temperature(S, ch);
+        int found = sa_sweep(S, ch, temp);
+        ch->quiet = found ? 0 : ch->quiet + 1;
+        long stall = sa_stall_limit(S, ch);
+        sa_polish(S, ch, found);
+        if (ch->ebest < S->ebest) {
+            S->ebest = ch->ebest;
+            memcpy(S->best, ch->best, S->n * sizeof *S->best);
+        }
+        ch->step++;
+        S->total++;
+        report(S->c, FIT_PHASE_SA, temp, S->ebest, 0);
+        if (ch->ebest < ch->emark - opt->rel_improve * fabs(ch->emark) || ch->ebest == 0) {
+            ch->emark = ch->ebest;
+            ch->last_gain = it;
+        }
+        if (S->ebest <= opt->threshold) {
+            *stop_all = 1;
+            return FIT_CONVERGED;
+        }
+        if (stall > 0 && it - ch->last_gain >= stall) return FIT_CONVERGED;
+        if (fit_control_stop(S->c)) {
+            *stop_all = 1;
+            return FIT_STOPPED;
+        }
+    }
+    return FIT_MAXITER;
+}
+
+/* Arguments the annealing cannot work with: no or too many parameters, a box that is
+ * not finite and non-empty in every coordinate, shape parameters out of range. */
+static int sa_bad_arguments(size_t n, const double *lo, const double *hi,
+                            const fit_sa_options *opt)
+{
+    if (n == 0 || n > FIT_MAX_PARAMS || lo == NULL || hi == NULL) return 1;
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(lo[i]) || !isfinite(hi[i]) || !(lo[i] < hi[i])) return 1;
+    return !(opt->qv > 1 && opt->qv < 3) || !(opt->qa < 1) || !(opt->t0 > 0);
+}
+
 fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
-                  const double *hi, const fit_sa_options *opt, fit_rng *rng, fit_control *c,
+                  const double *hi, const fit_sa_options *opt, frep_rng *rng, fit_control *c,
                   double *fx, long *iterations)
 {
     fit_sa_options defaults;
     if (opt == NULL) fit_sa_options_init(&defaults), opt = &defaults;
     if (iterations) *iterations = 0;
     *fx = HUGE_VAL;
-    if (n == 0 || n > FIT_MAX_PARAMS || lo == NULL || hi == NULL) return FIT_FAILED;
-    for (size_t i = 0; i < n; i++)
-        if (!isfinite(lo[i]) || !isfinite(hi[i]) || !(lo[i] < hi[i])) return FIT_FAILED;
-    if (!(opt->qv > 1 && opt->qv < 3) || !(opt->qa < 1) || !(opt->t0 > 0)) return FIT_FAILED;
-
+    if (sa_bad_arguments(n, lo, hi, opt)) return FIT_FAILED;
     double *mem = frep_malloc(4 * n * sizeof *mem);
-    if (mem == NULL) return FIT_FAILED;
-    double *trial = mem, *best = trial + n;
-    sa_chain ch = {best + n, best + 2 * n, HUGE_VAL, HUGE_VAL};
-    visit_consts vc;
-    visit_init(&vc, opt->qv);
+    if (mem == NULL) return out_of_memory(c);
+    sa_ctx S = {.fn = fn, .user = user, .n = n, .lo = lo, .hi = hi, .opt = opt, .rng = rng,
+                .c = c, .trial = mem, .best = mem + n, .ebest = HUGE_VAL};
+    S.t1 = exp((opt->qv - 1.0) * log(2.0)) - 1.0;
+    visit_init(&S.vc, opt->qv);
+    sa_chain ch = {.cur = mem + 2 * n, .best = mem + 3 * n, .e = HUGE_VAL, .ebest = HUGE_VAL};
 
     int inside = 1;
     for (size_t i = 0; i < n; i++) inside &= x[i] >= lo[i] && x[i] <= hi[i];
-    double ebest = HUGE_VAL;
-    const double t1 = exp((opt->qv - 1.0) * log(2.0)) - 1.0;
     const long nchains = opt->chains > 0 ? opt->chains : 1;
-    long total = 0;
     fit_status st = FIT_MAXITER;
-    int stopped = 0;
-
-    for (long chain = 0; chain < nchains && !stopped; chain++) {
+    int stop_all = 0;
+    for (long chain = 0; chain < nchains && !stop_all; chain++) {
         if (chain > 0 && fit_control_stop(c)) {
             st = FIT_STOPPED;
             break;
         }
-        if (sa_chain_start(&ch, fn, user, n, x, chain == 0 && inside, lo, hi, opt, rng, c,
-                           trial) != 0) {
+        if (sa_chain_start(&S, &ch, x, chain == 0 && inside) != 0) {
             if (chain == 0) {
                 frep_free(mem);
                 return FIT_FAILED;
             }
             break;
         }
-        if (ch.ebest < ebest) {
-            ebest = ch.ebest;
-            memcpy(best, ch.best, n * sizeof *best);
+        if (ch.ebest < S.ebest) {
+            S.ebest = ch.ebest;
+            memcpy(S.best, ch.best, n * sizeof *S.best);
         }
-        double e = ch.e, emark = ch.ebest;
-        double *cur = ch.cur;
-        long step = 0, last_gain = 0, quiet = 0, it;
-        st = FIT_MAXITER;
-        for (it = 0; it < opt->max_iter; it++, total++) {
-            double t2 = exp((opt->qv - 1.0) * log((double)step + 2.0)) - 1.0;
-            double temp = opt->t0 * t1 / t2;
-            if (temp < opt->t0 * opt->restart_ratio) {     /* cold: restart elsewhere */
-                step = 0;
-                temp = opt->t0;
-                double er = HUGE_VAL;
-                for (int k = 0; er == HUGE_VAL && k < SA_MAX_START_TRIES; k++) {
-                    random_point(n, trial, lo, hi, rng);
-                    er = call(fn, user, trial, NULL, c);
-                }
-                if (er < HUGE_VAL) {
-                    memcpy(cur, trial, n * sizeof *cur);
-                    e = er;
-                }
-            }
-            double tstep = temp / (double)(step + 1);
-            double sigma = visit_sigma(&vc, temp);
-            /* One iteration: n moves of all coordinates, then n moves of one coordinate. */
-            int found = 0;
-            for (size_t j = 0; j < 2 * n; j++) {
-                memcpy(trial, cur, n * sizeof *trial);
-                if (j < n) {
-                    for (size_t i = 0; i < n; i++)
-                        trial[i] = wrap(cur[i] + visit_draw(&vc, sigma, rng), lo[i], hi[i]);
-                } else {
-                    size_t i = j - n;
-                    trial[i] = wrap(cur[i] + visit_draw(&vc, sigma, rng), lo[i], hi[i]);
-                }
-                double et = call(fn, user, trial, NULL, c);
-                int accept;
-                if (et < e) {
-                    accept = 1;
-                } else {
-                    double pq = 1.0 - (1.0 - opt->qa) * (et - e) / tstep;
-                    double p = pq <= 0 ? 0 : exp(log(pq) / (1.0 - opt->qa));
-                    accept = fit_rng_uniform(rng) <= p && et < HUGE_VAL;
-                }
-                if (accept) {
-                    memcpy(cur, trial, n * sizeof *cur);
-                    e = et;
-                    if (e < ch.ebest) {
-                        ch.ebest = e;
-                        memcpy(ch.best, cur, n * sizeof *ch.best);
-                        found = 1;
-                    }
-                }
-            }
-            quiet = found ? 0 : quiet + 1;
-            int suspect = on_bound(n, ch.best, lo, hi);
-            long period = opt->local_period;
-            long stall = suspect && opt->bound_stall_iter > 0 ? opt->bound_stall_iter
-                                                              : opt->stall_iter;
-            int probe = period > 0 && quiet >= period;
-            if ((found || probe) && opt->local != NULL && !fit_control_stop(c)) {
-                memcpy(trial, found ? ch.best : cur, n * sizeof *trial);
-                quiet = 0;
-                double el;
-                if (opt->local(opt->local_user, trial, &el) == 0 && el < ch.ebest) {
-                    ch.ebest = e = el;
-                    memcpy(ch.best, trial, n * sizeof *ch.best);
-                    memcpy(cur, trial, n * sizeof *cur);
-                }
-            }
-            if (ch.ebest < ebest) {
-                ebest = ch.ebest;
-                memcpy(best, ch.best, n * sizeof *best);
-            }
-            step++;
-            report(c, FIT_PHASE_SA, temp, ebest, 0);
-            if (ch.ebest < emark - opt->rel_improve * fabs(emark) || ch.ebest == 0) {
-                emark = ch.ebest;
-                last_gain = it;
-            }
-            if (ebest <= opt->threshold) {
-                st = FIT_CONVERGED;
-                stopped = 1;
-                it++, total++;
-                break;
-            }
-            if (stall > 0 && it - last_gain >= stall) {
-                st = FIT_CONVERGED;
-                it++, total++;
-                break;
-            }
-            if (fit_control_stop(c)) {
-                st = FIT_STOPPED;
-                stopped = 1;
-                it++, total++;
-                break;
-            }
-        }
+        st = sa_chain_run(&S, &ch, &stop_all);
     }
-    if (iterations) *iterations = total;
-    memcpy(x, best, n * sizeof *x);
-    *fx = ebest;
-    report(c, FIT_PHASE_SA, 0, ebest, 1);
+    if (iterations) *iterations = S.total;
+    memcpy(x, S.best, n * sizeof *x);
+    *fx = S.ebest;
+    report(c, FIT_PHASE_SA, 0, S.ebest, 1);
     frep_free(mem);
     return st;
 }

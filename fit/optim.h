@@ -10,6 +10,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "rng.h"
+
 /* Most parameters the optimizers handle: bounds the n*n matrices they keep on the heap
  * and the work per iteration (templates have a handful to a few dozen parameters). */
 #define FIT_MAX_PARAMS 256
@@ -23,24 +25,13 @@ typedef double (*fit_fn)(void *user, const double *x, double *grad);
  * caller accumulates them over residuals so the Jacobian itself is never stored. */
 typedef double (*fit_lsq_fn)(void *user, const double *x, double *jtj, double *jtr);
 
-/* Random numbers: xoshiro256** seeded through splitmix64, so a 64-bit seed gives the
- * same stream on every platform. */
-typedef struct fit_rng {
-    uint64_t s[4];
-} fit_rng;
-
-void fit_rng_seed(fit_rng *r, uint64_t seed);
-uint64_t fit_rng_next(fit_rng *r);
-double fit_rng_uniform(fit_rng *r);     /* [0, 1) with 53 random bits */
-double fit_rng_normal(fit_rng *r);      /* standard normal (Box-Muller, one value) */
-
 /* Phases, for progress reports. */
 typedef enum fit_phase { FIT_PHASE_SA, FIT_PHASE_QN, FIT_PHASE_LM } fit_phase;
 
 /* Budget and reporting shared by every phase of one fit. The optimizers count every
  * objective evaluation in `evals` and stop (status FIT_STOPPED) when `max_evals`
- * (0: no limit) or the wall-clock `deadline` (seconds of fit_now(); 0: none) is reached,
- * or when *interrupt becomes non-zero (Ctrl-C). */
+ * (0: no limit) or the wall-clock `deadline` (seconds of frep_now_seconds(); 0: none) is reached,
+ * or when *interrupt becomes non-zero (Ctrl-C), or a phase ran out of memory. */
 typedef struct fit_control {
     long evals;
     long max_evals;
@@ -52,11 +43,13 @@ typedef struct fit_control {
     void *progress_user;
     double progress_interval;
     double last_progress;
+    /* Set by a phase whose work arrays could not be allocated (it returns FIT_NOMEM):
+     * every phase sharing this control then stops, the searches inside the annealing
+     * included, and the caller reports "out of memory". */
+    int out_of_memory;
 } fit_control;
 
 void fit_control_init(fit_control *c);
-/* Monotonic wall clock in seconds. */
-double fit_now(void);
 /* Non-zero when the budget is spent or an interrupt arrived. */
 int fit_control_stop(const fit_control *c);
 
@@ -64,7 +57,8 @@ typedef enum fit_status {
     FIT_CONVERGED = 0,  /* a convergence test passed */
     FIT_MAXITER,        /* iteration limit of the phase */
     FIT_STOPPED,        /* budget spent or interrupted: x is the best point seen */
-    FIT_FAILED          /* no finite objective at the start, or out of memory */
+    FIT_FAILED,         /* no finite objective at the start, or invalid arguments */
+    FIT_NOMEM           /* out of memory (fit_control.out_of_memory is set too) */
 } fit_status;
 
 const char *fit_status_name(fit_status s);
@@ -152,7 +146,7 @@ void fit_sa_options_init(fit_sa_options *o);
  * local searches). x holds the start on entry (may be outside: then a random start) and
  * the best point of all chains on return; *iterations counts all chains'. */
 fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
-                  const double *hi, const fit_sa_options *o, fit_rng *rng, fit_control *c,
+                  const double *hi, const fit_sa_options *o, frep_rng *rng, fit_control *c,
                   double *fx, long *iterations);
 
 #endif

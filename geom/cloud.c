@@ -2,7 +2,7 @@
  *
  * The input side of fit/segment/evolve and the output side of `frep sample`.  Readers
  * take the whole file into memory and parse it, reporting the first problem as
- * "file:line: what" in a malloc'ed string; the library never prints.
+ * "file:line: what" in a frep_error; the library never prints.
  */
 #include <ctype.h>
 #include <errno.h>
@@ -14,10 +14,10 @@
 
 #include "alloc.h"
 #include "cloud.h"
+#include "file.h"
+#include "ply.h"
 #include "util.h"
 
-/* Bytes read from a stream at a time while slurping a file or standard input. */
-#define CLOUD_READ_CHUNK ((size_t)1 << 20)
 /* Longest PLY header line and most header lines we parse: real headers are a few
  * dozen short lines; more is a corrupt or hostile file. */
 #define PLY_MAX_LINE 1024
@@ -25,8 +25,6 @@
 #define PLY_MAX_ELEMENTS 64
 /* Longest list in a PLY element we skip (a face with more vertices is corrupt). */
 #define PLY_MAX_LIST 1000000u
-
-#define SET_ERR(...) do { if (err && !*err) *err = frep_strdupf(__VA_ARGS__); } while (0)
 
 /* ---- storage ------------------------------------------------------------- */
 
@@ -172,7 +170,31 @@ static const char *parse_number(const char *s, const char *end, double *v)
     return s + k;
 }
 
-static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, char **err)
+/* The numbers of one line [q, eol) (up to '#'): the first 7 into v, the count into
+ * *nv. Returns -1 with err set on a word that is not a number. */
+static int xyz_numbers(const char *name, size_t line, const char *q, const char *eol,
+                       double v[7], int *nv, frep_error *err)
+{
+    *nv = 0;
+    for (;;) {
+        while (q < eol && is_sep(*q)) q++;
+        if (q >= eol || *q == '#') return 0;
+        double t;
+        const char *qe = parse_number(q, eol, &t);
+        if (!qe) {
+            int tl = 0;
+            while (q + tl < eol && !is_sep(q[tl]) && tl < 40) tl++;
+            return frep_error_set(err, FREP_EINPUT, "%s:%zu: '%.*s' is not a number", name, line,
+                                  tl, q);
+        }
+        if (*nv < 7) v[*nv] = t;
+        (*nv)++;
+        q = qe;
+    }
+}
+
+/* An .xyz cloud: 3 or 6 finite numbers a data line, the same count on every one. */
+static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, frep_error *err)
 {
     frep_cloud *c = NULL;
     const char *p = data, *end = data + len;
@@ -184,53 +206,40 @@ static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, cha
         const char *eol = memchr(p, '\n', (size_t)(end - p));
         if (!eol) eol = end;
         double v[7];
-        int nv = 0;
-        const char *q = p;
-        for (;;) {
-            while (q < eol && is_sep(*q)) q++;
-            if (q >= eol || *q == '#') break;
-            double t;
-            const char *qe = parse_number(q, eol, &t);
-            if (!qe) {
-                int tl = 0;
-                while (q + tl < eol && !is_sep(q[tl]) && tl < 40) tl++;
-                SET_ERR("%s:%zu: '%.*s' is not a number", name, line, tl, q);
-                goto fail;
-            }
-            if (nv < 7) v[nv] = t;
-            nv++;
-            q = qe;
-        }
+        int nv;
+        if (xyz_numbers(name, line, p, eol, v, &nv, err)) goto fail;
         p = eol < end ? eol + 1 : end;
         if (nv == 0) continue;
         if (nv != 3 && nv != 6) {
-            SET_ERR("%s:%zu: expected 3 or 6 numbers, got %d", name, line, nv);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 3 or 6 numbers, got %d", name,
+                           line, nv);
             goto fail;
         }
         if (ncols == 0) {
             ncols = nv;
             first_line = line;
             c = cloud_new(nv == 6);
-            if (!c) { SET_ERR("%s: out of memory", name); goto fail; }
+            if (!c) { frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name); goto fail; }
         } else if (nv != ncols) {
-            SET_ERR("%s:%zu: expected %d numbers as on line %zu, got %d", name, line, ncols,
-                    first_line, nv);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected %d numbers as on line %zu, got %d",
+                           name, line, ncols, first_line, nv);
             goto fail;
         }
         for (int k = 0; k < nv; k++) {
             if (!isfinite(v[k])) {
-                SET_ERR("%s:%zu: number %d is not finite", name, line, k + 1);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: number %d is not finite", name, line,
+                               k + 1);
                 goto fail;
             }
         }
         if (cloud_push(c, v, nv == 6 ? v + 3 : NULL)) {
-            SET_ERR("%s:%zu: out of memory (or more than %zu points)", name, line,
-                    (size_t)CLOUD_MAX_POINTS);
+            frep_error_set(err, FREP_ENOMEM, "%s:%zu: out of memory (or more than %zu points)",
+                           name, line, (size_t)CLOUD_MAX_POINTS);
             goto fail;
         }
     }
     if (!c) {
-        SET_ERR("%s: no points", name);
+        frep_error_set(err, FREP_EINPUT, "%s: no points", name);
         return NULL;
     }
     return c;
@@ -240,8 +249,6 @@ fail:
 }
 
 /* ---- PLY ----------------------------------------------------------------- */
-
-typedef enum ply_format { PLY_ASCII, PLY_BIN_LE, PLY_BIN_BE } ply_format;
 
 typedef struct ply_prop {
     frep_ply_type type;       /* scalar type, or item type of a list */
@@ -256,6 +263,16 @@ typedef struct ply_element {
     ply_prop props[PLY_MAX_PROPS];
 } ply_element;
 
+/* A PLY cloud being read: the header as parsed so far (line: the last header line). */
+typedef struct cloud_ply {
+    const char *name;
+    frep_error *err;
+    ply_element *el;
+    size_t nel, line;
+    ply_format fmt;
+    int have_format, have_vertex;
+} cloud_ply;
+
 /* Split a header line into at most 4 words; returns the word count. */
 static int split_words(char *s, char **w, int maxw)
 {
@@ -268,6 +285,152 @@ static int split_words(char *s, char **w, int maxw)
         while (*s && !isspace((unsigned char)*s)) s++;
     }
     return n;
+}
+
+/* format TYPE VERSION */
+static int header_format(cloud_ply *h, char **w, int nw)
+{
+    if (nw != 3)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: expected 'format TYPE VERSION'",
+                              h->name, h->line);
+    if (ply_format_of(w[1], &h->fmt))
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: unknown PLY format '%s'", h->name,
+                              h->line, w[1]);
+    h->have_format = 1;
+    return 0;
+}
+
+/* element NAME COUNT (the first element named vertex holds the points) */
+static int header_element(cloud_ply *h, char **w, int nw)
+{
+    if (nw != 3)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: expected 'element NAME COUNT'",
+                              h->name, h->line);
+    if (h->nel == PLY_MAX_ELEMENTS)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: too many elements", h->name, h->line);
+    char *e;
+    errno = 0;
+    unsigned long long cnt = strtoull(w[2], &e, 10);
+    if (*e != '\0' || w[2][0] == '-' || errno)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: bad element count '%s'", h->name,
+                              h->line, w[2]);
+    ply_element *E = &h->el[h->nel++];
+    E->is_vertex = strcmp(w[1], "vertex") == 0 && !h->have_vertex;
+    if (E->is_vertex) {
+        h->have_vertex = 1;
+        if (cnt > CLOUD_MAX_POINTS)
+            return frep_error_set(h->err, FREP_EINPUT,
+                                  "%s:%zu: %llu vertices is more than the limit of %zu", h->name,
+                                  h->line, cnt, (size_t)CLOUD_MAX_POINTS);
+    }
+    E->count = (size_t)cnt;
+    return 0;
+}
+
+/* property TYPE NAME | property list COUNT-TYPE TYPE NAME (roles: x y z nx ny nz) */
+static int header_property(cloud_ply *h, char **w, int nw)
+{
+    if (h->nel == 0)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: property before any element",
+                              h->name, h->line);
+    ply_element *E = &h->el[h->nel - 1];
+    if (E->nprops == PLY_MAX_PROPS)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: too many properties", h->name,
+                              h->line);
+    ply_prop *P = &E->props[E->nprops];
+    P->role = -1;
+    P->count_type = FREP_PLY_NONE;
+    if (nw >= 2 && strcmp(w[1], "list") == 0) {
+        if (nw != 5)
+            return frep_error_set(h->err, FREP_EINPUT,
+                                  "%s:%zu: expected 'property list COUNT-TYPE TYPE NAME'",
+                                  h->name, h->line);
+        P->count_type = frep_ply_type_of(w[2]);
+        P->type = frep_ply_type_of(w[3]);
+        if (P->count_type == FREP_PLY_NONE || P->type == FREP_PLY_NONE ||
+            P->count_type == FREP_PLY_F32 || P->count_type == FREP_PLY_F64)
+            return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: bad list types '%s %s'",
+                                  h->name, h->line, w[2], w[3]);
+    } else {
+        if (nw != 3)
+            return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: expected 'property TYPE NAME'",
+                                  h->name, h->line);
+        P->type = frep_ply_type_of(w[1]);
+        if (P->type == FREP_PLY_NONE)
+            return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: unknown property type '%s'",
+                                  h->name, h->line, w[1]);
+        if (E->is_vertex) {
+            static const char *const roles[6] = {"x", "y", "z", "nx", "ny", "nz"};
+            for (int r = 0; r < 6; r++)
+                if (strcmp(w[2], roles[r]) == 0) P->role = r;
+        }
+    }
+    E->nprops++;
+    return 0;
+}
+
+/* One header line after the first (words w[0..nw)): 1 at end_header, 0 otherwise, -1
+ * on an error. */
+static int header_line(cloud_ply *h, char **w, int nw)
+{
+    if (nw == 0) return 0;
+    if (strcmp(w[0], "comment") == 0 || strcmp(w[0], "obj_info") == 0) return 0;
+    if (strcmp(w[0], "format") == 0) return header_format(h, w, nw);
+    if (strcmp(w[0], "element") == 0) return header_element(h, w, nw);
+    if (strcmp(w[0], "property") == 0) return header_property(h, w, nw);
+    if (strcmp(w[0], "end_header") == 0) return 1;
+    return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: unknown header keyword '%s'", h->name,
+                          h->line, w[0]);
+}
+
+/* The header, line by line up to end_header; *body is the data after it. */
+static int read_header(cloud_ply *h, const char *data, size_t len, const char **body)
+{
+    const char *p = data, *end = data + len;
+    char buf[PLY_MAX_LINE];
+    int ended = 0;
+    while (p < end && !ended) {
+        h->line++;
+        const char *eol = memchr(p, '\n', (size_t)(end - p));
+        if (!eol) break;
+        size_t l = (size_t)(eol - p);
+        if (l >= sizeof buf)
+            return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: header line too long", h->name,
+                                  h->line);
+        memcpy(buf, p, l);
+        buf[l] = '\0';
+        p = eol + 1;
+        char *w[5];
+        int nw = split_words(buf, w, 4);
+        if (h->line == 1) {
+            if (nw != 1 || strcmp(w[0], "ply") != 0)
+                return frep_error_set(h->err, FREP_EINPUT,
+                                      "%s:1: not a PLY file (first line is not 'ply')", h->name);
+            continue;
+        }
+        ended = header_line(h, w, nw);
+        if (ended < 0) return -1;
+    }
+    const char *what = !ended ? "header ends without end_header"
+                       : !h->have_format ? "header has no format line"
+                       : !h->have_vertex ? "no vertex element" : NULL;
+    if (what) return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: %s", h->name, h->line, what);
+    *body = p;
+    return 0;
+}
+
+/* Which of x y z nx ny nz the vertex element has (of duplicates, the first counts). */
+static void vertex_roles(cloud_ply *h, int has_role[6])
+{
+    for (size_t e = 0; e < h->nel; e++) {
+        if (!h->el[e].is_vertex) continue;
+        for (size_t k = 0; k < h->el[e].nprops; k++) {
+            int r = h->el[e].props[k].role;
+            if (r < 0) continue;
+            if (has_role[r]) h->el[e].props[k].role = -1;
+            else has_role[r] = 1;
+        }
+    }
 }
 
 /* Cursor over the ASCII body: whitespace separated tokens with line tracking. */
@@ -297,248 +460,140 @@ static int ascii_next(ascii_cursor *a, double *v)
     return 0;
 }
 
-static frep_cloud *parse_ply(const char *name, const char *data, size_t len, char **err)
+/* The body: ASCII tokens or binary values, in the header's format. */
+typedef struct ply_body {
+    ply_format fmt;
+    ascii_cursor ac;
+    const unsigned char *bp, *bend;
+} ply_body;
+
+/* The next value, of type t in a binary body; -1 when the data end or are bad. */
+static int next_value(ply_body *b, frep_ply_type t, double *v)
 {
-    ply_element *el = frep_calloc(PLY_MAX_ELEMENTS, sizeof *el);
-    frep_cloud *c = NULL;
-    if (!el) { SET_ERR("%s: out of memory", name); return NULL; }
-    size_t nel = 0, line = 0;
-    ply_format fmt = PLY_ASCII;
-    int have_format = 0, have_vertex = 0, ended = 0;
-    const char *p = data, *end = data + len;
-    char buf[PLY_MAX_LINE];
-    while (p < end && !ended) {
-        line++;
-        const char *eol = memchr(p, '\n', (size_t)(end - p));
-        if (!eol) { SET_ERR("%s:%zu: header ends without end_header", name, line); goto fail; }
-        size_t l = (size_t)(eol - p);
-        if (l >= sizeof buf) { SET_ERR("%s:%zu: header line too long", name, line); goto fail; }
-        memcpy(buf, p, l);
-        buf[l] = '\0';
-        p = eol + 1;
-        char *w[5];
-        int nw = split_words(buf, w, 4);
-        if (line == 1) {
-            if (nw != 1 || strcmp(w[0], "ply") != 0) {
-                SET_ERR("%s:1: not a PLY file (first line is not 'ply')", name);
-                goto fail;
-            }
-            continue;
-        }
-        if (nw == 0) continue;
-        if (strcmp(w[0], "comment") == 0 || strcmp(w[0], "obj_info") == 0) continue;
-        if (strcmp(w[0], "format") == 0) {
-            if (nw != 3) { SET_ERR("%s:%zu: expected 'format TYPE VERSION'", name, line); goto fail; }
-            if (strcmp(w[1], "ascii") == 0) fmt = PLY_ASCII;
-            else if (strcmp(w[1], "binary_little_endian") == 0) fmt = PLY_BIN_LE;
-            else if (strcmp(w[1], "binary_big_endian") == 0) fmt = PLY_BIN_BE;
-            else { SET_ERR("%s:%zu: unknown PLY format '%s'", name, line, w[1]); goto fail; }
-            have_format = 1;
-        } else if (strcmp(w[0], "element") == 0) {
-            if (nw != 3) { SET_ERR("%s:%zu: expected 'element NAME COUNT'", name, line); goto fail; }
-            if (nel == PLY_MAX_ELEMENTS) { SET_ERR("%s:%zu: too many elements", name, line); goto fail; }
-            char *e;
-            errno = 0;
-            unsigned long long cnt = strtoull(w[2], &e, 10);
-            if (*e != '\0' || w[2][0] == '-' || errno) {
-                SET_ERR("%s:%zu: bad element count '%s'", name, line, w[2]);
-                goto fail;
-            }
-            ply_element *E = &el[nel++];
-            E->is_vertex = strcmp(w[1], "vertex") == 0 && !have_vertex;
-            if (E->is_vertex) {
-                have_vertex = 1;
-                if (cnt > CLOUD_MAX_POINTS) {
-                    SET_ERR("%s:%zu: %llu vertices is more than the limit of %zu", name, line,
-                            cnt, (size_t)CLOUD_MAX_POINTS);
-                    goto fail;
-                }
-            }
-            E->count = (size_t)cnt;
-        } else if (strcmp(w[0], "property") == 0) {
-            if (nel == 0) { SET_ERR("%s:%zu: property before any element", name, line); goto fail; }
-            ply_element *E = &el[nel - 1];
-            if (E->nprops == PLY_MAX_PROPS) { SET_ERR("%s:%zu: too many properties", name, line); goto fail; }
-            ply_prop *P = &E->props[E->nprops];
-            P->role = -1;
-            P->count_type = FREP_PLY_NONE;
-            const char *pname;
-            if (nw >= 2 && strcmp(w[1], "list") == 0) {
-                if (nw != 5) { SET_ERR("%s:%zu: expected 'property list COUNT-TYPE TYPE NAME'", name, line); goto fail; }
-                P->count_type = frep_ply_type_of(w[2]);
-                P->type = frep_ply_type_of(w[3]);
-                if (P->count_type == FREP_PLY_NONE || P->type == FREP_PLY_NONE ||
-                    P->count_type == FREP_PLY_F32 || P->count_type == FREP_PLY_F64) {
-                    SET_ERR("%s:%zu: bad list types '%s %s'", name, line, w[2], w[3]);
-                    goto fail;
-                }
-                pname = w[4];
-            } else {
-                if (nw != 3) { SET_ERR("%s:%zu: expected 'property TYPE NAME'", name, line); goto fail; }
-                P->type = frep_ply_type_of(w[1]);
-                if (P->type == FREP_PLY_NONE) { SET_ERR("%s:%zu: unknown property type '%s'", name, line, w[1]); goto fail; }
-                pname = w[2];
-                if (E->is_vertex) {
-                    static const char *const roles[6] = {"x", "y", "z", "nx", "ny", "nz"};
-                    for (int r = 0; r < 6; r++)
-                        if (strcmp(pname, roles[r]) == 0) P->role = r;
-                }
-            }
-            (void)pname;
-            E->nprops++;
-        } else if (strcmp(w[0], "end_header") == 0) {
-            ended = 1;
-        } else {
-            SET_ERR("%s:%zu: unknown header keyword '%s'", name, line, w[0]);
-            goto fail;
-        }
-    }
-    if (!ended) { SET_ERR("%s:%zu: header ends without end_header", name, line); goto fail; }
-    if (!have_format) { SET_ERR("%s:%zu: header has no format line", name, line); goto fail; }
-    if (!have_vertex) { SET_ERR("%s:%zu: no vertex element", name, line); goto fail; }
+    if (b->fmt == PLY_ASCII) return ascii_next(&b->ac, v) ? -1 : 0;
+    return ply_binary_value(&b->bp, b->bend, t, b->fmt, v);
+}
 
-    /* Which vertex properties are present. */
-    int has_role[6] = {0};
-    for (size_t e = 0; e < nel; e++) {
-        if (!el[e].is_vertex) continue;
-        for (size_t k = 0; k < el[e].nprops; k++) {
-            int r = el[e].props[k].role;
-            if (r < 0) continue;
-            if (has_role[r]) el[e].props[k].role = -1; /* duplicate: keep the first */
-            else has_role[r] = 1;
+/* One item of E: every property (lists skipped), the roles' values into v; -1 when
+ * the data end or are bad. */
+static int read_item(ply_body *b, const ply_element *E, double v[6])
+{
+    for (size_t k = 0; k < E->nprops; k++) {
+        const ply_prop *P = &E->props[k];
+        size_t nitems = 1;
+        if (P->count_type != FREP_PLY_NONE) {
+            double cnt;
+            if (next_value(b, P->count_type, &cnt)) return -1;
+            if (!(cnt >= 0) || cnt > PLY_MAX_LIST || cnt != floor(cnt)) return -1;
+            nitems = (size_t)cnt;
+        }
+        for (size_t j = 0; j < nitems; j++) {
+            double t;
+            if (next_value(b, P->type, &t)) return -1;
+            if (P->role >= 0) v[P->role] = t;
         }
     }
-    if (!has_role[0] || !has_role[1] || !has_role[2]) {
-        SET_ERR("%s: vertex element lacks x, y or z", name);
-        goto fail;
-    }
-    int normals = has_role[3] && has_role[4] && has_role[5];
-    c = cloud_new(normals);
-    if (!c) { SET_ERR("%s: out of memory", name); goto fail; }
+    return 0;
+}
 
-    ascii_cursor ac = {p, end, line + 1};
-    const unsigned char *bp = (const unsigned char *)p, *bend = (const unsigned char *)end;
-    int big = fmt == PLY_BIN_BE;
-    for (size_t e = 0; e < nel; e++) {
-        ply_element *E = &el[e];
-        if (E->is_vertex && cloud_reserve(c, E->count)) {
-            SET_ERR("%s: out of memory for %zu vertices", name, E->count);
-            goto fail;
-        }
+/* The message for item i of E, which read_item could not read. */
+static int item_error(const cloud_ply *h, const ply_body *b, const ply_element *E, size_t i)
+{
+    const char *what = E->is_vertex ? "vertex" : "element item";
+    if (b->fmt != PLY_ASCII)
+        return frep_error_set(h->err, FREP_EINPUT,
+                              "%s: binary data ends or is corrupt in %s %zu of %zu", h->name,
+                              what, i, E->count);
+    if (b->ac.p >= b->ac.end)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: data ends in %s %zu of %zu",
+                              h->name, b->ac.line, what, i, E->count);
+    return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: bad number in %s %zu", h->name,
+                          b->ac.line, what, i);
+}
+
+/* The items of every element in order; the vertices go into c. */
+static int read_body(const cloud_ply *h, ply_body *b, frep_cloud *c)
+{
+    for (size_t e = 0; e < h->nel; e++) {
+        const ply_element *E = &h->el[e];
+        if (E->is_vertex && cloud_reserve(c, E->count))
+            return frep_error_set(h->err, FREP_ENOMEM, "%s: out of memory for %zu vertices",
+                                  h->name, E->count);
         for (size_t i = 0; i < E->count; i++) {
             double v[6] = {0, 0, 0, 0, 0, 0};
-            size_t item_line = ac.line;
-            for (size_t k = 0; k < E->nprops; k++) {
-                const ply_prop *P = &E->props[k];
-                size_t nitems = 1;
-                if (P->count_type != FREP_PLY_NONE) {
-                    double cnt;
-                    if (fmt == PLY_ASCII) {
-                        int rc = ascii_next(&ac, &cnt);
-                        if (rc) goto data_error;
-                    } else {
-                        size_t sz = frep_ply_type_size(P->count_type);
-                        if ((size_t)(bend - bp) < sz) goto data_error;
-                        cnt = frep_ply_decode(bp, P->count_type, big);
-                        bp += sz;
-                    }
-                    if (!(cnt >= 0) || cnt > PLY_MAX_LIST || cnt != floor(cnt)) goto data_error;
-                    nitems = (size_t)cnt;
-                }
-                for (size_t j = 0; j < nitems; j++) {
-                    double t;
-                    if (fmt == PLY_ASCII) {
-                        if (ascii_next(&ac, &t)) goto data_error;
-                    } else {
-                        size_t sz = frep_ply_type_size(P->type);
-                        if ((size_t)(bend - bp) < sz) goto data_error;
-                        t = frep_ply_decode(bp, P->type, big);
-                        bp += sz;
-                    }
-                    if (P->role >= 0) v[P->role] = t;
-                }
-            }
+            size_t item_line = b->ac.line;
+            if (read_item(b, E, v)) return item_error(h, b, E, i);
             if (!E->is_vertex) continue;
             for (int r = 0; r < 6; r++) {
-                if (!isfinite(v[r])) {
-                    if (fmt == PLY_ASCII)
-                        SET_ERR("%s:%zu: vertex %zu has a non-finite value", name, item_line, i);
-                    else
-                        SET_ERR("%s: vertex %zu has a non-finite value", name, i);
-                    goto fail;
-                }
+                if (isfinite(v[r])) continue;
+                if (b->fmt == PLY_ASCII)
+                    return frep_error_set(h->err, FREP_EINPUT,
+                                          "%s:%zu: vertex %zu has a non-finite value", h->name,
+                                          item_line, i);
+                return frep_error_set(h->err, FREP_EINPUT, "%s: vertex %zu has a non-finite value",
+                                      h->name, i);
             }
             cloud_push(c, v, v + 3); /* cannot fail: reserved */
-            continue;
-        data_error:
-            if (fmt == PLY_ASCII) {
-                if (ac.p >= ac.end)
-                    SET_ERR("%s:%zu: data ends in %s %zu of %zu", name, ac.line,
-                            E->is_vertex ? "vertex" : "element item", i, E->count);
-                else
-                    SET_ERR("%s:%zu: bad number in %s %zu", name, ac.line,
-                            E->is_vertex ? "vertex" : "element item", i);
-            } else {
-                SET_ERR("%s: binary data ends or is corrupt in %s %zu of %zu", name,
-                        E->is_vertex ? "vertex" : "element item", i, E->count);
-            }
-            goto fail;
         }
     }
-    frep_free(el);
+    return 0;
+}
+
+/* A PLY cloud: the header, the vertex roles, then the body. */
+static frep_cloud *parse_ply(const char *name, const char *data, size_t len, frep_error *err)
+{
+    cloud_ply h = {name, err, NULL, 0, 0, PLY_ASCII, 0, 0};
+    h.el = frep_calloc(PLY_MAX_ELEMENTS, sizeof *h.el);
+    if (!h.el) {
+        frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
+        return NULL;
+    }
+    frep_cloud *c = NULL;
+    const char *p = NULL, *end = data + len;
+    int has_role[6] = {0};
+    if (read_header(&h, data, len, &p)) goto fail;
+    vertex_roles(&h, has_role);
+    if (!has_role[0] || !has_role[1] || !has_role[2]) {
+        frep_error_set(err, FREP_EINPUT, "%s: vertex element lacks x, y or z", name);
+        goto fail;
+    }
+    c = cloud_new(has_role[3] && has_role[4] && has_role[5]);
+    if (!c) {
+        frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
+        goto fail;
+    }
+    ply_body b = {h.fmt, {p, end, h.line + 1}, (const unsigned char *)p,
+                  (const unsigned char *)end};
+    if (read_body(&h, &b, c)) goto fail;
+    frep_free(h.el);
     return c;
 fail:
-    frep_free(el);
+    frep_free(h.el);
     cloud_free(c);
     return NULL;
 }
 
-frep_cloud *cloud_parse(const char *name, const char *data, size_t len, char **err)
+frep_cloud *cloud_parse(const char *name, const char *data, size_t len, frep_error *err)
 {
-    if (err) *err = NULL;
+    frep_error_init(err);
     if (len >= 4 && memcmp(data, "ply", 3) == 0 && (data[3] == '\n' || data[3] == '\r'))
         return parse_ply(name, data, len, err);
     return parse_xyz(name, data, len, err);
 }
 
-frep_cloud *cloud_read(const char *path, char **err)
+frep_cloud *cloud_read(const char *path, frep_error *err)
 {
-    if (err) *err = NULL;
-    int is_stdin = strcmp(path, "-") == 0;
-    FILE *f = is_stdin ? stdin : fopen(path, "rb");
-    if (!f) {
-        SET_ERR("cannot read %s: %s", path, strerror(errno));
+    frep_error_init(err);
+    frep_file f;
+    frep_error fe;
+    frep_error_init(&fe);
+    if (frep_file_read(&f, path, FREP_FILE_MAX_BYTES, FREP_FILE_STDIN, &fe)) {
+        frep_error_set(err, fe.code, "cannot read %s: %s", path, fe.msg);
         return NULL;
     }
-    char *buf = NULL;
-    size_t len = 0, cap = 0;
-    for (;;) {
-        if (cap - len < CLOUD_READ_CHUNK) {
-            size_t ncap = cap ? 2 * cap : CLOUD_READ_CHUNK;
-            char *nb = frep_realloc(buf, ncap);
-            if (!nb) {
-                SET_ERR("cannot read %s: out of memory", path);
-                goto fail;
-            }
-            buf = nb;
-            cap = ncap;
-        }
-        size_t got = fread(buf + len, 1, cap - len, f);
-        len += got;
-        if (got == 0) break;
-    }
-    if (ferror(f)) {
-        SET_ERR("cannot read %s: %s", path, strerror(errno));
-        goto fail;
-    }
-    if (!is_stdin) fclose(f);
-    frep_cloud *c = cloud_parse(is_stdin ? "<stdin>" : path, buf, len, err);
-    frep_free(buf);
+    frep_cloud *c = cloud_parse(strcmp(path, "-") == 0 ? "<stdin>" : path, f.data, f.len, err);
+    frep_free(f.data);
     return c;
-fail:
-    if (!is_stdin) fclose(f);
-    frep_free(buf);
-    return NULL;
 }
 
 /* ---- writers ------------------------------------------------------------- */

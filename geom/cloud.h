@@ -10,6 +10,8 @@
 #include <stddef.h>
 #include <stdio.h>
 
+#include "err.h"
+
 /* A point cloud. x, y, z hold n values each; nx, ny, nz are NULL unless has_normals,
  * then they hold n values too (not necessarily unit length: readers keep what the file
  * says). cap is the allocated length of every array. Free with cloud_free(). */
@@ -37,11 +39,11 @@ int cloud_push(frep_cloud *c, const double p[3], const double nrm[3]);
 int cloud_add_normals(frep_cloud *c);
 
 /* Read a cloud from `path` ("-": standard input). The format is PLY when the data
- * start with "ply\n" (or "ply\r\n"), else .xyz text. Returns NULL on failure and sets
- * *err (if err != NULL) to a malloc'ed message "path:line: what" (frep_free() it). */
-frep_cloud *cloud_read(const char *path, char **err);
+ * start with "ply\n" (or "ply\r\n"), else .xyz text. Returns NULL on failure with err
+ * (reset on entry; may be NULL) holding "path:line: what". */
+frep_cloud *cloud_read(const char *path, frep_error *err);
 /* Parse a cloud from memory; `name` is used in messages. Same conventions. */
-frep_cloud *cloud_parse(const char *name, const char *data, size_t len, char **err);
+frep_cloud *cloud_parse(const char *name, const char *data, size_t len, frep_error *err);
 
 /* Writers: .xyz with 3 or 6 columns (%.17g; 6 when the cloud has normals), and PLY
  * binary little endian with double properties x y z [nx ny nz]. Return 0, or -1 on a

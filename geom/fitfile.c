@@ -10,24 +10,118 @@
 #include "alloc.h"
 #include "fitfile.h"
 #include "util.h"
+#include "vec3.h"
 
 /* Most numbers on one line (a torus has 8); one more detects trailing junk. */
 #define FIT_MAX_NUMS 9
 
-static int unit(double v[3])
+/* The type named by a line's first word and the numbers it takes; -1 for none. */
+static int type_of(const char *word, prim_type *t, int *want)
 {
-    double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    if (!(l > 0) || !isfinite(l)) return -1;
-    for (int k = 0; k < 3; k++) v[k] /= l;
+    static const struct { const char *word; prim_type t; int n; } types[] = {
+        {"plane", PRIM_PLANE, 4}, {"sphere", PRIM_SPHERE, 4}, {"cylinder", PRIM_CYLINDER, 7},
+        {"cone", PRIM_CONE, 7}, {"torus", PRIM_TORUS, 8},
+    };
+    for (size_t k = 0; k < sizeof types / sizeof *types; k++)
+        if (strcmp(word, types[k].word) == 0) {
+            *t = types[k].t;
+            *want = types[k].n;
+            return 0;
+        }
+    return -1;
+}
+
+/* The blank-separated finite numbers of s into x (at most FIT_MAX_NUMS kept); the count,
+ * or -1 with err set. */
+static int read_numbers(const char *name, size_t line, const char *s, double *x,
+                        frep_error *err)
+{
+    int got = 0;
+    for (;;) {
+        while (*s == ' ' || *s == '\t' || *s == '\r') s++;
+        if (!*s) return got;
+        char *e;
+        double t = strtod(s, &e);
+        if (e == s || (*e && *e != ' ' && *e != '\t' && *e != '\r'))
+            return frep_error_set(err, FREP_EINPUT, "%s:%zu: '%.20s' is not a number", name,
+                                  line, s);
+        if (!isfinite(t))
+            return frep_error_set(err, FREP_EINPUT, "%s:%zu: number %d is not finite", name,
+                                  line, got + 1);
+        if (got < FIT_MAX_NUMS) x[got] = t;
+        got++;
+        s = e;
+    }
+}
+
+/* The primitive of type q->type from its numbers x in the file's order (direction
+ * before point; minor radius before major); -1 for a zero-length normal or axis. */
+static int prim_of(prim *q, const double *x)
+{
+    switch (q->type) {
+    case PRIM_PLANE: {
+        double nn[3] = {x[0], x[1], x[2]};
+        double l0 = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
+        int bad = vec3_normalize(nn);
+        memcpy(q->p, nn, sizeof nn);
+        q->r = bad ? 0 : x[3] / l0;
+        return bad;
+    }
+    case PRIM_SPHERE:
+        memcpy(q->p, x, 3 * sizeof(double));
+        q->r = x[3];
+        return 0;
+    case PRIM_CYLINDER:
+    case PRIM_CONE:
+    case PRIM_TORUS:
+        memcpy(q->a, x, 3 * sizeof(double));
+        memcpy(q->p, x + 3, 3 * sizeof(double));
+        if (q->type == PRIM_TORUS) {
+            q->r = x[6];
+            q->R = x[7];
+        } else {
+            q->r = x[6];
+        }
+        return vec3_normalize(q->a);
+    case PRIM__COUNT:
+        break;
+    }
+    return 0;
+}
+
+/* One non-blank, non-comment line s: its primitive into q; -1 with err set. */
+static int parse_line(const char *name, size_t line, const char *s, prim *q, frep_error *err)
+{
+    char word[32];
+    size_t wl = 0;
+    while (s[wl] && s[wl] != ' ' && s[wl] != '\t' && s[wl] != '\r' && wl < sizeof word - 1) {
+        word[wl] = s[wl];
+        wl++;
+    }
+    word[wl] = '\0';
+    memset(q, 0, sizeof *q);
+    int want;
+    if (type_of(word, &q->type, &want))
+        return frep_error_set(err, FREP_EINPUT, "%s:%zu: unknown primitive type '%s'", name,
+                              line, word);
+    double x[FIT_MAX_NUMS];
+    int got = read_numbers(name, line, s + wl, x, err);
+    if (got < 0) return -1;
+    if (got != want)
+        return frep_error_set(err, FREP_EINPUT, "%s:%zu: expected %d numbers after '%s', got %d",
+                              name, line, want, word, got);
+    if (prim_of(q, x))
+        return frep_error_set(err, FREP_EINPUT, "%s:%zu: zero-length %s", name, line,
+                              q->type == PRIM_PLANE ? "normal" : "axis");
     return 0;
 }
 
 int fitfile_parse(const char *name, const char *text, size_t len, prim **out, size_t *n,
-                  char **err)
+                  frep_error *err)
 {
     *out = NULL;
     *n = 0;
-    if (err) *err = NULL;
+    frep_error_init(err);
     size_t cap = 0, cnt = 0, line = 0;
     prim *v = NULL;
     const char *p = text, *end = text + len;
@@ -40,7 +134,7 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
         const char *lp = p;
         p = eol < end ? eol + 1 : end;
         if (l >= sizeof buf) {
-            if (err) *err = frep_strdupf("%s:%zu: line too long", name, line);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: line too long", name, line);
             goto fail;
         }
         memcpy(buf, lp, l);
@@ -48,90 +142,13 @@ int fitfile_parse(const char *name, const char *text, size_t len, prim **out, si
         char *s = buf;
         while (*s == ' ' || *s == '\t' || *s == '\r') s++;
         if (*s == '\0' || *s == '#') continue;
-        char word[32];
-        size_t wl = 0;
-        while (s[wl] && s[wl] != ' ' && s[wl] != '\t' && s[wl] != '\r' && wl < sizeof word - 1) {
-            word[wl] = s[wl];
-            wl++;
-        }
-        word[wl] = '\0';
-        s += wl;
         prim q;
-        memset(&q, 0, sizeof q);
-        int want;
-        if (strcmp(word, "plane") == 0) q.type = PRIM_PLANE, want = 4;
-        else if (strcmp(word, "sphere") == 0) q.type = PRIM_SPHERE, want = 4;
-        else if (strcmp(word, "cylinder") == 0) q.type = PRIM_CYLINDER, want = 7;
-        else if (strcmp(word, "cone") == 0) q.type = PRIM_CONE, want = 7;
-        else if (strcmp(word, "torus") == 0) q.type = PRIM_TORUS, want = 8;
-        else {
-            if (err) *err = frep_strdupf("%s:%zu: unknown primitive type '%s'", name, line, word);
-            goto fail;
-        }
-        double x[FIT_MAX_NUMS];
-        int got = 0;
-        for (;;) {
-            while (*s == ' ' || *s == '\t' || *s == '\r') s++;
-            if (!*s) break;
-            char *e;
-            double t = strtod(s, &e);
-            if (e == s || (*e && *e != ' ' && *e != '\t' && *e != '\r')) {
-                if (err) *err = frep_strdupf("%s:%zu: '%.20s' is not a number", name, line, s);
-                goto fail;
-            }
-            if (!isfinite(t)) {
-                if (err) *err = frep_strdupf("%s:%zu: number %d is not finite", name, line, got + 1);
-                goto fail;
-            }
-            if (got < FIT_MAX_NUMS) x[got] = t;
-            got++;
-            s = e;
-        }
-        if (got != want) {
-            if (err) *err = frep_strdupf("%s:%zu: expected %d numbers after '%s', got %d", name, line,
-                                        want, word, got);
-            goto fail;
-        }
-        int bad = 0;
-        switch (q.type) {
-        case PRIM_PLANE: {
-            double nn[3] = {x[0], x[1], x[2]};
-            double l0 = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
-            bad = unit(nn);
-            memcpy(q.p, nn, sizeof nn);
-            q.r = bad ? 0 : x[3] / l0;
-            break;
-        }
-        case PRIM_SPHERE:
-            memcpy(q.p, x, 3 * sizeof(double));
-            q.r = x[3];
-            break;
-        case PRIM_CYLINDER:
-        case PRIM_CONE:
-        case PRIM_TORUS:
-            memcpy(q.a, x, 3 * sizeof(double));
-            memcpy(q.p, x + 3, 3 * sizeof(double));
-            bad = unit(q.a);
-            if (q.type == PRIM_TORUS) {
-                q.r = x[6];
-                q.R = x[7];
-            } else {
-                q.r = x[6];
-            }
-            break;
-        case PRIM__COUNT:
-            break;
-        }
-        if (bad) {
-            if (err) *err = frep_strdupf("%s:%zu: zero-length %s", name, line,
-                                        q.type == PRIM_PLANE ? "normal" : "axis");
-            goto fail;
-        }
+        if (parse_line(name, line, s, &q, err)) goto fail;
         if (cnt == cap) {
             size_t nc = cap ? 2 * cap : 16;
             prim *nv = frep_realloc(v, nc * sizeof *nv);
             if (!nv) {
-                if (err) *err = frep_strdupf("%s: out of memory", name);
+                frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
                 goto fail;
             }
             v = nv;

@@ -10,13 +10,16 @@
 #include <stddef.h>
 #include <stdio.h>
 
+#include "err.h"
+
 #include "prim.h"
 
 /* Parse a .fit list from memory (`name` for messages). Blank lines and lines starting
  * with '#' are skipped. Axes and plane normals are normalized. On success returns 0 and
- * a malloc'ed array in *out (frep_free()); else -1 and *err = "name:line: what" (frep_free()). */
+ * a malloc'ed array in *out (frep_free()); else -1 with err (reset on entry; may be
+ * NULL) holding "name:line: what". */
 int fitfile_parse(const char *name, const char *text, size_t len, prim **out, size_t *n,
-                  char **err);
+                  frep_error *err);
 /* Write the list (%.17g). Returns 0 or -1 on a write error. */
 int fitfile_write(FILE *f, const prim *p, size_t n);
 

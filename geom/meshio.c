@@ -7,7 +7,9 @@
 #include "config.h"
 
 #include "alloc.h"
+#include "file.h"
 #include "meshio.h"
+#include "ply.h"
 #include "util.h"
 
 #include <ctype.h>
@@ -17,14 +19,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Bytes read at a time while slurping a mesh file. */
-#define MESHIO_READ_CHUNK ((size_t)1 << 20)
 /* PLY header limits: real headers are a few short lines. */
 #define MESHIO_PLY_MAX_PROPS 64
 #define MESHIO_PLY_MAX_ELEMENTS 16
 #define MESHIO_MAX_POLY 1024 /* vertices of one polygon: more is a corrupt file */
-
-#define SET_ERR(...) do { if (err && !*err) *err = frep_strdupf(__VA_ARGS__); } while (0)
 
 meshio_format meshio_format_for_path(const char *path)
 {
@@ -302,34 +300,34 @@ static int num(const char **s, const char *e, double *v)
     return 0;
 }
 
-static int parse_off(const char *name, const char *data, size_t len, mbuild *b, char **err)
+static int parse_off(const char *name, const char *data, size_t len, mbuild *b, frep_error *err)
 {
     tcur c = { data, data + len, 0 };
     const char *s, *e;
     if (!next_line(&c, &s, &e, '#') || e - s < 3 || strncmp(s, "OFF", 3) != 0) {
-        SET_ERR("%s:%zu: expected 'OFF' header", name, c.line ? c.line : 1);
+        frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 'OFF' header", name, c.line ? c.line : 1);
         return -1;
     }
     s += 3;
     double nv, nf, ne;
     if (s >= e && !next_line(&c, &s, &e, '#')) {
-        SET_ERR("%s:%zu: missing vertex and face counts", name, c.line);
+        frep_error_set(err, FREP_EINPUT, "%s:%zu: missing vertex and face counts", name, c.line);
         return -1;
     }
     if (num(&s, e, &nv) || num(&s, e, &nf) || num(&s, e, &ne) || nv < 0 || nf < 0 ||
         nv > (double)MESHIO_MAX_ELEMENTS || nf > (double)MESHIO_MAX_ELEMENTS ||
         nv != floor(nv) || nf != floor(nf)) {
-        SET_ERR("%s:%zu: expected three counts 'vertices faces edges'", name, c.line);
+        frep_error_set(err, FREP_EINPUT, "%s:%zu: expected three counts 'vertices faces edges'", name, c.line);
         return -1;
     }
     for (size_t i = 0; i < (size_t)nv; i++) {
         double p[3];
         if (!next_line(&c, &s, &e, '#')) {
-            SET_ERR("%s:%zu: file ends after %zu of %zu vertices", name, c.line, i, (size_t)nv);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: file ends after %zu of %zu vertices", name, c.line, i, (size_t)nv);
             return -1;
         }
         if (num(&s, e, &p[0]) || num(&s, e, &p[1]) || num(&s, e, &p[2])) {
-            SET_ERR("%s:%zu: expected 3 coordinates", name, c.line);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 3 coordinates", name, c.line);
             return -1;
         }
         if (add_vertex(b, p[0], p[1], p[2])) goto oom;
@@ -338,17 +336,17 @@ static int parse_off(const char *name, const char *data, size_t len, mbuild *b, 
     for (size_t i = 0; i < (size_t)nf; i++) {
         double k;
         if (!next_line(&c, &s, &e, '#')) {
-            SET_ERR("%s:%zu: file ends after %zu of %zu faces", name, c.line, i, (size_t)nf);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: file ends after %zu of %zu faces", name, c.line, i, (size_t)nf);
             return -1;
         }
         if (num(&s, e, &k) || k < 3 || k > MESHIO_MAX_POLY || k != floor(k)) {
-            SET_ERR("%s:%zu: expected a vertex count 3..%d", name, c.line, MESHIO_MAX_POLY);
+            frep_error_set(err, FREP_EINPUT, "%s:%zu: expected a vertex count 3..%d", name, c.line, MESHIO_MAX_POLY);
             return -1;
         }
         for (size_t j = 0; j < (size_t)k; j++) {
             double v;
             if (num(&s, e, &v) || v < 0 || v >= nv || v != floor(v)) {
-                SET_ERR("%s:%zu: vertex index %zu of the face is missing or out of range 0..%zu",
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: vertex index %zu of the face is missing or out of range 0..%zu",
                         name, c.line, j + 1, (size_t)nv - (nv > 0));
                 return -1;
             }
@@ -358,11 +356,11 @@ static int parse_off(const char *name, const char *data, size_t len, mbuild *b, 
     }
     return 0;
 oom:
-    SET_ERR("%s: out of memory", name);
+    frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
     return -1;
 }
 
-static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, char **err)
+static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, frep_error *err)
 {
     tcur c = { data, data + len, 0 };
     const char *s, *e;
@@ -372,7 +370,7 @@ static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, 
             double p[3];
             s += 2;
             if (num(&s, e, &p[0]) || num(&s, e, &p[1]) || num(&s, e, &p[2])) {
-                SET_ERR("%s:%zu: expected 'v x y z'", name, c.line);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 'v x y z'", name, c.line);
                 return -1;
             }
             if (add_vertex(b, p[0], p[1], p[2])) goto oom;
@@ -386,18 +384,18 @@ static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, 
                 errno = 0;
                 long v = strtol(s, &endp, 10);
                 if (endp == s) {
-                    SET_ERR("%s:%zu: expected vertex indices after 'f'", name, c.line);
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: expected vertex indices after 'f'", name, c.line);
                     return -1;
                 }
                 /* 1-based; negative indices count back from the last vertex */
                 long ix = v > 0 ? v - 1 : (long)b->m->nverts + v;
                 if (v == 0 || ix < 0 || (size_t)ix >= b->m->nverts) {
-                    SET_ERR("%s:%zu: vertex index %ld out of range (1..%zu so far)", name, c.line,
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: vertex index %ld out of range (1..%zu so far)", name, c.line,
                             v, b->m->nverts);
                     return -1;
                 }
                 if (k >= MESHIO_MAX_POLY) {
-                    SET_ERR("%s:%zu: polygon with more than %d vertices", name, c.line,
+                    frep_error_set(err, FREP_EINPUT, "%s:%zu: polygon with more than %d vertices", name, c.line,
                             MESHIO_MAX_POLY);
                     return -1;
                 }
@@ -406,7 +404,7 @@ static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, 
                 while (s < e && !isspace((unsigned char)*s)) s++; /* skip /vt/vn */
             }
             if (k < 3) {
-                SET_ERR("%s:%zu: a face needs at least 3 vertices", name, c.line);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: a face needs at least 3 vertices", name, c.line);
                 return -1;
             }
             if (add_poly(b, idx, k)) goto oom;
@@ -415,7 +413,7 @@ static int parse_obj(const char *name, const char *data, size_t len, mbuild *b, 
     }
     return 0;
 oom:
-    SET_ERR("%s: out of memory", name);
+    frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
     return -1;
 }
 
@@ -433,7 +431,7 @@ static uint32_t get_u32(const unsigned char *p)
     return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
 }
 
-static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, char **err)
+static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, frep_error *err)
 {
     const unsigned char *u = (const unsigned char *)data;
     /* Binary when the size matches the triangle count (some binary files start with
@@ -442,7 +440,7 @@ static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, 
         uint32_t n = get_u32(u + 80);
         if ((uint64_t)84 + 50ull * n == len) {
             if (n > MESHIO_MAX_ELEMENTS / 3) {
-                SET_ERR("%s: too many triangles (%u)", name, n);
+                frep_error_set(err, FREP_EINPUT, "%s: too many triangles (%u)", name, n);
                 return -1;
             }
             for (uint32_t t = 0; t < n; t++) {
@@ -460,7 +458,7 @@ static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, 
     tcur c = { data, data + len, 0 };
     const char *s, *e;
     if (!next_line(&c, &s, &e, '\0') || e - s < 5 || strncmp(s, "solid", 5) != 0) {
-        SET_ERR("%s: neither binary STL (size does not match the triangle count) nor ASCII "
+        frep_error_set(err, FREP_EINPUT, "%s: neither binary STL (size does not match the triangle count) nor ASCII "
                 "STL (no 'solid')", name);
         return -1;
     }
@@ -470,14 +468,14 @@ static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, 
             double p[3];
             s += 6;
             if (num(&s, e, &p[0]) || num(&s, e, &p[1]) || num(&s, e, &p[2])) {
-                SET_ERR("%s:%zu: expected 'vertex x y z'", name, c.line);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: expected 'vertex x y z'", name, c.line);
                 return -1;
             }
             if (add_vertex(b, p[0], p[1], p[2])) goto oom;
             nv++;
         } else if (e - s >= 7 && strncmp(s, "endloop", 7) == 0) {
             if (nv < 3) {
-                SET_ERR("%s:%zu: a facet needs at least 3 vertices", name, c.line);
+                frep_error_set(err, FREP_EINPUT, "%s:%zu: a facet needs at least 3 vertices", name, c.line);
                 return -1;
             }
             uint32_t base = (uint32_t)(b->m->nverts - (size_t)nv);
@@ -488,7 +486,7 @@ static int parse_stl(const char *name, const char *data, size_t len, mbuild *b, 
     }
     return 0;
 oom:
-    SET_ERR("%s: out of memory", name);
+    frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
     return -1;
 }
 
@@ -513,173 +511,213 @@ typedef struct prec {
     size_t nlist;
 } prec;
 
-static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, char **err)
+/* A PLY mesh being read: the header, then the body (one record a line in ASCII). */
+typedef struct mesh_ply {
+    const char *name;
+    frep_error *err;
+    tcur c;                  /* the lines; in a binary file the data start at c.p */
+    pelem *el;
+    int nel;
+    int have_format;
+    ply_format fmt;
+    const char *s, *e;       /* ASCII: the rest of the current record's line */
+    const unsigned char *bp, *bend; /* binary: the data left */
+    size_t nverts_decl;      /* vertices of the last vertex element (face indices) */
+} mesh_ply;
+
+/* format TYPE ... */
+static int ply_header_format(mesh_ply *h, char w[4][64])
 {
-    tcur c = { data, data + len, 0 };
-    const char *s, *e;
-    int fmt = -1; /* 0 ascii, 1 binary LE, 2 binary BE */
-    pelem *el = frep_calloc(MESHIO_PLY_MAX_ELEMENTS, sizeof *el);
-    prec *rec = frep_malloc(sizeof *rec);
-    int nel = 0, status = -1;
-    if (!el || !rec) goto oom;
-    if (!next_line(&c, &s, &e, '\0') || e - s != 3 || strncmp(s, "ply", 3) != 0) {
-        SET_ERR("%s:1: expected 'ply'", name);
-        goto done;
+    if (ply_format_of(w[1], &h->fmt))
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: unknown PLY format '%s'", h->name,
+                              h->c.line, w[1]);
+    h->have_format = 1;
+    return 0;
+}
+
+/* element NAME COUNT ... */
+static int ply_header_element(mesh_ply *h, char w[4][64])
+{
+    char *endp;
+    double cnt = strtod(w[2], &endp);
+    if (h->nel >= MESHIO_PLY_MAX_ELEMENTS || *endp || cnt < 0 ||
+        cnt > (double)MESHIO_MAX_ELEMENTS || cnt != floor(cnt))
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: bad or too many elements", h->name,
+                              h->c.line);
+    snprintf(h->el[h->nel].name, sizeof h->el[h->nel].name, "%.31s", w[1]);
+    h->el[h->nel].count = (size_t)cnt;
+    h->nel++;
+    return 0;
+}
+
+/* property TYPE NAME ... | property list COUNT-TYPE TYPE NAME ... (line: the whole) */
+static int ply_header_property(mesh_ply *h, char w[4][64], int nw, const char *line)
+{
+    pelem *E = &h->el[h->nel - 1];
+    if (E->nprops >= MESHIO_PLY_MAX_PROPS)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: too many properties", h->name,
+                              h->c.line);
+    pprop *P = &E->props[E->nprops++];
+    if (strcmp(w[1], "list") == 0) {
+        if (nw < 4 || (P->count_type = frep_ply_type_of(w[2])) == FREP_PLY_NONE ||
+            (P->type = frep_ply_type_of(w[3])) == FREP_PLY_NONE)
+            return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: bad list property", h->name,
+                                  h->c.line);
+        char nm[64] = "";
+        sscanf(line, "%*s %*s %*s %*s %63s", nm);
+        snprintf(P->name, sizeof P->name, "%.31s", nm);
+        return 0;
     }
+    if ((P->type = frep_ply_type_of(w[1])) == FREP_PLY_NONE)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: unknown property type '%s'",
+                              h->name, h->c.line, w[1]);
+    P->count_type = FREP_PLY_NONE;
+    snprintf(P->name, sizeof P->name, "%.31s", w[2]);
+    return 0;
+}
+
+/* The header after 'ply', up to end_header (lines cut at 255 characters, the first
+ * four words read). */
+static int ply_read_header(mesh_ply *h)
+{
+    const char *s, *e;
     for (;;) {
-        if (!next_line(&c, &s, &e, '\0')) {
-            SET_ERR("%s:%zu: header without end_header", name, c.line);
-            goto done;
-        }
+        if (!next_line(&h->c, &s, &e, '\0'))
+            return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: header without end_header",
+                                  h->name, h->c.line);
         char line[256], w[4][64];
         size_t n = (size_t)(e - s) < sizeof line - 1 ? (size_t)(e - s) : sizeof line - 1;
         memcpy(line, s, n);
         line[n] = '\0';
         int nw = sscanf(line, "%63s %63s %63s %63s", w[0], w[1], w[2], w[3]);
+        int rc = 0;
         if (nw < 1) continue;
         if (strcmp(w[0], "end_header") == 0) break;
         if (strcmp(w[0], "comment") == 0 || strcmp(w[0], "obj_info") == 0) continue;
-        if (strcmp(w[0], "format") == 0 && nw >= 2) {
-            fmt = strcmp(w[1], "ascii") == 0 ? 0 : strcmp(w[1], "binary_little_endian") == 0 ? 1 :
-                  strcmp(w[1], "binary_big_endian") == 0 ? 2 : -1;
-            if (fmt < 0) {
-                SET_ERR("%s:%zu: unknown PLY format '%s'", name, c.line, w[1]);
-                goto done;
-            }
-        } else if (strcmp(w[0], "element") == 0 && nw >= 3) {
-            char *endp;
-            double cnt = strtod(w[2], &endp);
-            if (nel >= MESHIO_PLY_MAX_ELEMENTS || *endp || cnt < 0 ||
-                cnt > (double)MESHIO_MAX_ELEMENTS || cnt != floor(cnt)) {
-                SET_ERR("%s:%zu: bad or too many elements", name, c.line);
-                goto done;
-            }
-            snprintf(el[nel].name, sizeof el[nel].name, "%.31s", w[1]);
-            el[nel].count = (size_t)cnt;
-            nel++;
-        } else if (strcmp(w[0], "property") == 0 && nw >= 3 && nel > 0) {
-            pelem *E = &el[nel - 1];
-            if (E->nprops >= MESHIO_PLY_MAX_PROPS) {
-                SET_ERR("%s:%zu: too many properties", name, c.line);
-                goto done;
-            }
-            pprop *P = &E->props[E->nprops++];
-            if (strcmp(w[1], "list") == 0) {
-                if (nw < 4 || (P->count_type = frep_ply_type_of(w[2])) == FREP_PLY_NONE ||
-                    (P->type = frep_ply_type_of(w[3])) == FREP_PLY_NONE) {
-                    SET_ERR("%s:%zu: bad list property", name, c.line);
-                    goto done;
-                }
-                char nm[64] = "";
-                sscanf(line, "%*s %*s %*s %*s %63s", nm);
-                snprintf(P->name, sizeof P->name, "%.31s", nm);
-            } else {
-                if ((P->type = frep_ply_type_of(w[1])) == FREP_PLY_NONE) {
-                    SET_ERR("%s:%zu: unknown property type '%s'", name, c.line, w[1]);
-                    goto done;
-                }
-                P->count_type = FREP_PLY_NONE;
-                snprintf(P->name, sizeof P->name, "%.31s", w[2]);
-            }
-        } else {
-            SET_ERR("%s:%zu: unexpected header line", name, c.line);
-            goto done;
-        }
+        if (strcmp(w[0], "format") == 0 && nw >= 2) rc = ply_header_format(h, w);
+        else if (strcmp(w[0], "element") == 0 && nw >= 3) rc = ply_header_element(h, w);
+        else if (strcmp(w[0], "property") == 0 && nw >= 3 && h->nel > 0)
+            rc = ply_header_property(h, w, nw, line);
+        else
+            rc = frep_error_set(h->err, FREP_EINPUT, "%s:%zu: unexpected header line", h->name,
+                                h->c.line);
+        if (rc) return -1;
     }
-    if (fmt < 0) {
-        SET_ERR("%s: PLY header without a format line", name);
-        goto done;
-    }
-    size_t nverts_decl = 0;
-    const unsigned char *bp = (const unsigned char *)c.p, *bend = (const unsigned char *)c.end;
-    for (int ei = 0; ei < nel; ei++) {
-        pelem *E = &el[ei];
-        int isv = strcmp(E->name, "vertex") == 0, isf = strcmp(E->name, "face") == 0;
-        int ix = -1, iy = -1, iz = -1;
-        for (int k = 0; k < E->nprops; k++) {
-            if (strcmp(E->props[k].name, "x") == 0) ix = k;
-            if (strcmp(E->props[k].name, "y") == 0) iy = k;
-            if (strcmp(E->props[k].name, "z") == 0) iz = k;
+    if (!h->have_format)
+        return frep_error_set(h->err, FREP_EINPUT, "%s: PLY header without a format line",
+                              h->name);
+    return 0;
+}
+
+/* The next value of the record, of type t in a binary file; -1 when it is missing. */
+static int ply_value(mesh_ply *h, frep_ply_type t, double *v)
+{
+    if (h->fmt == PLY_ASCII) return num(&h->s, h->e, v);
+    return ply_binary_value(&h->bp, h->bend, t, h->fmt, v);
+}
+
+/* The short-record message (the data end inside a record). */
+static int ply_short_record(const mesh_ply *h)
+{
+    if (h->fmt == PLY_ASCII)
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: too few values in a record",
+                              h->name, h->c.line);
+    return frep_error_set(h->err, FREP_EINPUT, "%s: file ends inside the data", h->name);
+}
+
+/* One record of E into rec: scalars by property, the first list's vertex indices
+ * (checked against the vertices declared so far). */
+static int ply_read_record(mesh_ply *h, const pelem *E, prec *rec)
+{
+    rec->nlist = 0;
+    int got_list = 0;
+    if (h->fmt == PLY_ASCII && !next_line(&h->c, &h->s, &h->e, '\0'))
+        return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: file ends inside element '%s'",
+                              h->name, h->c.line, E->name);
+    for (int k = 0; k < E->nprops; k++) {
+        const pprop *P = &E->props[k];
+        size_t cnt = 1;
+        if (P->count_type != FREP_PLY_NONE) {
+            double cv;
+            if (ply_value(h, P->count_type, &cv)) return ply_short_record(h);
+            if (!(cv >= 0 && cv <= MESHIO_MAX_POLY))
+                return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: list of %g items in element '%s'",
+                                      h->name, h->c.line, cv, E->name);
+            cnt = (size_t)cv;
         }
-        if (isv && (ix < 0 || iy < 0 || iz < 0)) {
-            SET_ERR("%s: the vertex element lacks x, y or z", name);
-            goto done;
-        }
-        if (isv) nverts_decl = E->count;
-        for (size_t r = 0; r < E->count; r++) {
-            rec->nlist = 0;
-            int got_list = 0;
-            if (fmt == 0) {
-                if (!next_line(&c, &s, &e, '\0')) {
-                    SET_ERR("%s:%zu: file ends inside element '%s'", name, c.line, E->name);
-                    goto done;
-                }
+        for (size_t j = 0; j < cnt; j++) {
+            double v;
+            if (ply_value(h, P->type, &v)) return ply_short_record(h);
+            if (P->count_type == FREP_PLY_NONE) {
+                rec->v[k] = v;
+            } else if (!got_list) {
+                if (!(v >= 0 && v < (double)h->nverts_decl))
+                    return frep_error_set(h->err, FREP_EINPUT, "%s:%zu: vertex index %g out of range",
+                                          h->name, h->c.line, v);
+                rec->list[rec->nlist++] = (uint32_t)v;
             }
-            for (int k = 0; k < E->nprops; k++) {
-                const pprop *P = &E->props[k];
-                size_t cnt = 1;
-                if (P->count_type != FREP_PLY_NONE) {
-                    double cv;
-                    if (fmt == 0) {
-                        if (num(&s, e, &cv)) goto short_rec;
-                    } else {
-                        size_t sz = frep_ply_type_size(P->count_type);
-                        if ((size_t)(bend - bp) < sz) goto short_rec;
-                        cv = frep_ply_decode(bp, P->count_type, fmt == 2);
-                        bp += sz;
-                    }
-                    if (!(cv >= 0 && cv <= MESHIO_MAX_POLY)) {
-                        SET_ERR("%s:%zu: list of %g items in element '%s'", name, c.line, cv,
-                                E->name);
-                        goto done;
-                    }
-                    cnt = (size_t)cv;
-                }
-                for (size_t j = 0; j < cnt; j++) {
-                    double v;
-                    if (fmt == 0) {
-                        if (num(&s, e, &v)) goto short_rec;
-                    } else {
-                        size_t sz = frep_ply_type_size(P->type);
-                        if ((size_t)(bend - bp) < sz) goto short_rec;
-                        v = frep_ply_decode(bp, P->type, fmt == 2);
-                        bp += sz;
-                    }
-                    if (P->count_type == FREP_PLY_NONE) {
-                        rec->v[k] = v;
-                    } else if (!got_list) {
-                        if (!(v >= 0 && v < (double)nverts_decl)) {
-                            SET_ERR("%s:%zu: vertex index %g out of range", name, c.line, v);
-                            goto done;
-                        }
-                        rec->list[rec->nlist++] = (uint32_t)v;
-                    }
-                }
-                if (P->count_type != FREP_PLY_NONE) got_list = 1;
-            }
-            if (isv && add_vertex(b, rec->v[ix], rec->v[iy], rec->v[iz])) goto oom;
-            if (isf && rec->nlist >= 3 && add_poly(b, rec->list, rec->nlist)) goto oom;
         }
+        if (P->count_type != FREP_PLY_NONE) got_list = 1;
     }
-    status = 0;
-    goto done;
-short_rec:
-    SET_ERR(fmt == 0 ? "%s:%zu: too few values in a record" : "%s: file ends inside the data",
-            name, c.line);
-    goto done;
-oom:
-    SET_ERR("%s: out of memory", name);
-done:
-    frep_free(el);
+    return 0;
+}
+
+/* The records of element E: vertices (x, y, z) and faces (fans) go into b. */
+static int ply_read_element(mesh_ply *h, const pelem *E, prec *rec, mbuild *b)
+{
+    int isv = strcmp(E->name, "vertex") == 0, isf = strcmp(E->name, "face") == 0;
+    int ix = -1, iy = -1, iz = -1;
+    for (int k = 0; k < E->nprops; k++) {
+        if (strcmp(E->props[k].name, "x") == 0) ix = k;
+        if (strcmp(E->props[k].name, "y") == 0) iy = k;
+        if (strcmp(E->props[k].name, "z") == 0) iz = k;
+    }
+    if (isv && (ix < 0 || iy < 0 || iz < 0))
+        return frep_error_set(h->err, FREP_EINPUT, "%s: the vertex element lacks x, y or z",
+                              h->name);
+    if (isv) h->nverts_decl = E->count;
+    for (size_t r = 0; r < E->count; r++) {
+        if (ply_read_record(h, E, rec)) return -1;
+        if ((isv && add_vertex(b, rec->v[ix], rec->v[iy], rec->v[iz])) ||
+            (isf && rec->nlist >= 3 && add_poly(b, rec->list, rec->nlist)))
+            return frep_error_set(h->err, FREP_ENOMEM, "%s: out of memory", h->name);
+    }
+    return 0;
+}
+
+/* A PLY mesh: 'ply', the header, then every element's records. */
+static int parse_ply(const char *name, const char *data, size_t len, mbuild *b, frep_error *err)
+{
+    mesh_ply h;
+    memset(&h, 0, sizeof h);
+    h.name = name;
+    h.err = err;
+    h.c = (tcur){ data, data + len, 0 };
+    h.el = frep_calloc(MESHIO_PLY_MAX_ELEMENTS, sizeof *h.el);
+    prec *rec = frep_malloc(sizeof *rec);
+    int status = -1;
+    const char *s, *e;
+    if (!h.el || !rec) {
+        frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
+    } else if (!next_line(&h.c, &s, &e, '\0') || e - s != 3 || strncmp(s, "ply", 3) != 0) {
+        frep_error_set(err, FREP_EINPUT, "%s:1: expected 'ply'", name);
+    } else if (ply_read_header(&h) == 0) {
+        h.bp = (const unsigned char *)h.c.p;
+        h.bend = (const unsigned char *)h.c.end;
+        status = 0;
+        for (int ei = 0; ei < h.nel && status == 0; ei++)
+            status = ply_read_element(&h, &h.el[ei], rec, b);
+    }
+    frep_free(h.el);
     frep_free(rec);
     return status;
 }
 
 int meshio_parse(const char *name, const char *data, size_t len, meshio_format fmt,
-                 frep_mesh *m, char **err)
+                 frep_mesh *m, frep_error *err)
 {
     memset(m, 0, sizeof *m);
-    if (err) *err = NULL;
+    frep_error_init(err);
     if (fmt == MESHIO_UNKNOWN) {
         if (len >= 3 && strncmp(data, "ply", 3) == 0) fmt = MESHIO_PLY;
         else if (len >= 3 && strncmp(data, "OFF", 3) == 0) fmt = MESHIO_OFF;
@@ -695,50 +733,31 @@ int meshio_parse(const char *name, const char *data, size_t len, meshio_format f
     case MESHIO_UNKNOWN: break;
     }
     if (rc == 0 && m->ntris == 0) {
-        SET_ERR("%s: the mesh has no triangles", name);
+        frep_error_set(err, FREP_EINPUT, "%s: the mesh has no triangles", name);
         rc = -1;
     }
     for (size_t i = 0; rc == 0 && i < 3 * m->nverts; i++)
         if (!isfinite(m->v[i])) {
-            SET_ERR("%s: vertex %zu has a non-finite coordinate", name, i / 3 + 1);
+            frep_error_set(err, FREP_EINPUT, "%s: vertex %zu has a non-finite coordinate", name, i / 3 + 1);
             rc = -1;
         }
     if (rc != 0) mesh_free(m);
     return rc;
 }
 
-int meshio_read(const char *path, frep_mesh *m, char **err)
+int meshio_read(const char *path, frep_mesh *m, frep_error *err)
 {
     memset(m, 0, sizeof *m);
-    if (err) *err = NULL;
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        SET_ERR("%s: cannot open: %s", path, strerror(errno));
+    frep_error_init(err);
+    frep_file f;
+    frep_error fe;
+    frep_error_init(&fe);
+    if (frep_file_read(&f, path, FREP_FILE_MAX_BYTES, 0, &fe)) {
+        if (f.open_failed) frep_error_set(err, FREP_EINPUT, "%s: cannot open: %s", path, fe.msg);
+        else frep_error_set(err, FREP_EINPUT, "%s: %s", path, fe.code == FREP_EIO ? "read error" : fe.msg);
         return -1;
     }
-    size_t cap = MESHIO_READ_CHUNK, n = 0;
-    char *buf = frep_malloc(cap);
-    while (buf) {
-        size_t got = fread(buf + n, 1, cap - n, f);
-        n += got;
-        if (n < cap) break;
-        char *nb = frep_realloc(buf, 2 * cap);
-        if (!nb) {
-            frep_free(buf);
-            buf = NULL;
-            break;
-        }
-        buf = nb;
-        cap *= 2;
-    }
-    int rd_err = ferror(f);
-    fclose(f);
-    if (!buf || rd_err) {
-        frep_free(buf);
-        SET_ERR("%s: %s", path, rd_err ? "read error" : "out of memory");
-        return -1;
-    }
-    int rc = meshio_parse(path, buf, n, meshio_format_for_path(path), m, err);
-    frep_free(buf);
+    int rc = meshio_parse(path, f.data, f.len, meshio_format_for_path(path), m, err);
+    frep_free(f.data);
     return rc;
 }

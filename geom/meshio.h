@@ -7,6 +7,7 @@
 
 #include <stdio.h>
 
+#include "err.h"
 #include "trimesh.h"
 
 typedef enum meshio_format {
@@ -32,11 +33,11 @@ int meshio_write(FILE *f, const frep_mesh *m, meshio_format fmt, int ascii);
 /* Read a triangle mesh (polygons are split into fans). The format comes from the
  * extension, or the content for STL (ASCII or binary) and PLY (ascii, binary little
  * and big endian). Returns 0 and fills *m (free with mesh_free; m->n is NULL), or -1
- * with a malloc'ed message "path:line: what" in *err (frep_free() it). */
-int meshio_read(const char *path, frep_mesh *m, char **err);
+ * with err (reset on entry; may be NULL) holding "path:line: what". */
+int meshio_read(const char *path, frep_mesh *m, frep_error *err);
 /* The same from memory; `name` names the data in messages, fmt may be MESHIO_UNKNOWN
  * (then guessed from the content). */
 int meshio_parse(const char *name, const char *data, size_t len, meshio_format fmt,
-                 frep_mesh *m, char **err);
+                 frep_mesh *m, frep_error *err);
 
 #endif

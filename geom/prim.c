@@ -9,11 +9,7 @@
 #include <string.h>
 
 #include "prim.h"
-
-static double dot3(const double a[3], const double b[3])
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
+#include "vec3.h"
 
 /* Below this length a radial vector has no direction: the gradient there is chosen
  * perpendicular to the axis so it stays finite (the surface is not smooth there). */
@@ -26,9 +22,9 @@ static void any_perp(const double a[3], double u[3])
     int k = fabs(a[0]) < fabs(a[1]) ? (fabs(a[0]) < fabs(a[2]) ? 0 : 2)
                                     : (fabs(a[1]) < fabs(a[2]) ? 1 : 2);
     t[k] = 1.0;
-    double d = dot3(t, a);
+    double d = vec3_dot(t, a);
     for (int i = 0; i < 3; i++) u[i] = t[i] - d * a[i];
-    double l = sqrt(dot3(u, u));
+    double l = vec3_len(u);
     for (int i = 0; i < 3; i++) u[i] /= l;
 }
 
@@ -37,12 +33,12 @@ double prim_eval(const prim *q, const double x[3], double g[3])
     double v[3], f = 0.0;
     switch (q->type) {
     case PRIM_PLANE:
-        f = q->r - dot3(q->p, x);
+        f = q->r - vec3_dot(q->p, x);
         if (g) for (int i = 0; i < 3; i++) g[i] = -q->p[i];
         return f;
     case PRIM_SPHERE: {
         for (int i = 0; i < 3; i++) v[i] = x[i] - q->p[i];
-        double l = sqrt(dot3(v, v));
+        double l = vec3_len(v);
         f = q->r - l;
         if (g) {
             if (l > PRIM_TINY) for (int i = 0; i < 3; i++) g[i] = -v[i] / l;
@@ -54,10 +50,10 @@ double prim_eval(const prim *q, const double x[3], double g[3])
     case PRIM_CONE:
     case PRIM_TORUS: {
         for (int i = 0; i < 3; i++) v[i] = x[i] - q->p[i];
-        double h = dot3(v, q->a);
+        double h = vec3_dot(v, q->a);
         double w[3];
         for (int i = 0; i < 3; i++) w[i] = v[i] - h * q->a[i];
-        double rho = sqrt(dot3(w, w));
+        double rho = vec3_len(w);
         double e[3]; /* unit radial direction */
         if (rho > PRIM_TINY) for (int i = 0; i < 3; i++) e[i] = w[i] / rho;
         else any_perp(q->a, e);

@@ -131,12 +131,17 @@ typedef struct ast_file {
     uint32_t npragmas;
 } ast_file;
 
-/* Diagnostics sink of a compile session: counts errors, forwards to the user. */
+/* Diagnostics sink of a compile session: counts errors, forwards to the user.
+ * Once memory has run out (diag_nomem, or the session arena A has failed), one
+ * "out of memory" error is reported and every later diagnostic is only counted: it
+ * may be a consequence of the lost allocation, not of the source. */
 typedef struct diag_sink {
     frep_diag_fn fn;
     void *user;
     const char *file;
     unsigned errors, warnings;
+    const arena *A;        /* the session arena, or NULL */
+    int nomem;             /* "out of memory" was reported */
 } diag_sink;
 
 void diag_report(diag_sink *d, frep_severity sev, ast_loc loc, uint32_t len,
@@ -145,6 +150,9 @@ void diag_report(diag_sink *d, frep_severity sev, ast_loc loc, uint32_t len,
     __attribute__((format(printf, 5, 6)))
 #endif
     ;
+
+/* Report "out of memory" (an error without position), once per session. */
+void diag_nomem(diag_sink *d);
 
 /* Parse a whole file into `out` (arena-owned). Returns 0 on success, -1 after
  * reporting the first syntax error (one error, no cascade). Implemented in parse.y. */

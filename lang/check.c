@@ -260,104 +260,198 @@ static void ck_index(checker *c, const ast_node *n, const ck_array *arr, const a
     (void)n;
 }
 
+/* call -> NAME '(' args ')' where NAME is an earlier model: every argument an array
+ * at least as large as the model's parameter. */
+static void ck_call_model(checker *c, const ast_node *n, const ast_model *m)
+{
+    uint32_t i;
+    if (n->list.n != m->nparams) {
+        char a[160], b[64];
+        (void)snprintf(a, sizeof a, "model '%s' takes %u array arguments", m->name,
+                       (unsigned)m->nparams);
+        (void)snprintf(b, sizeof b, "%u", (unsigned)n->list.n);
+        ck_error(c, n->op_loc, "%s, %s given", a, b, NULL);
+    }
+    for (i = 0; i < n->list.n; i++) {
+        const ast_node *arg = n->list.v[i];
+        const ck_array *arr = arg->kind == AST_VAR ? ck_array_find(c, arg->key) : NULL;
+        if (!arr) {
+            char a[200];
+            (void)snprintf(a, sizeof a, "argument %u of model '%s'", (unsigned)i + 1,
+                           m->name);
+            ck_error(c, arg->loc, "%s must be an array", a, NULL, NULL);
+            if (arg->kind != AST_VAR) ck_expr(c, arg, 0);
+            continue;
+        }
+        if (i < m->nparams && arr->size < m->params[i].size) {
+            char a[200], b[200];
+            (void)snprintf(a, sizeof a, "array '%s' has %u elements", arr->name,
+                           (unsigned)arr->size);
+            (void)snprintf(b, sizeof b, "model '%s' needs %u for '%s'", m->name,
+                           (unsigned)m->params[i].size, m->params[i].name);
+            ck_error(c, arg->loc, "%s; %s", a, b, NULL);
+        }
+    }
+}
+
+/* call -> NAME '(' args ')' where NAME is neither a library function nor an earlier
+ * model: the model itself, a later one, or unknown (with a suggestion). */
+static void ck_call_unknown(checker *c, const ast_node *n)
+{
+    int later = check_find_model(c->f, n->key, c->f->nmodels);
+    uint32_t i;
+    if (later >= 0 && (uint32_t)later == c->model)
+        ck_error(c, n->op_loc, "model '%s' cannot call itself", n->name, NULL, NULL);
+    else if (later >= 0)
+        ck_error(c, n->op_loc,
+                 "model '%s' is defined later in the file; a model can only call "
+                 "models defined before it%s", n->name, "", NULL);
+    else
+        ck_error(c, n->op_loc, "unknown function '%s'%s", n->name, "",
+                 ck_suggest(c, n->name, SUGG_FUNCS));
+    for (i = 0; i < n->list.n; i++)
+        if (n->list.v[i]->kind != AST_VAR) ck_expr(c, n->list.v[i], 0);
+}
+
+/* Argument i of library function fn, of kind `kind` (lib.h letters): a number, or an
+ * array of at least the size the function needs. */
+static void ck_lib_arg(checker *c, const lib_fn *fn, uint32_t i, char kind,
+                       const ast_node *arg)
+{
+    char what[200];
+    (void)snprintf(what, sizeof what, "argument %u of '%s'", (unsigned)i + 1, fn->name);
+    if (kind == 's') {
+        if (arg->kind == AST_VAR && ck_array_find(c, arg->key) &&
+            !strmap_get(&c->vars, arg->key))
+            ck_error(c, arg->loc, "%s must be a number, but '%s' is an array", what,
+                     arg->name, NULL);
+        else
+            ck_expr(c, arg, 0);
+        return;
+    }
+    const ck_array *arr = arg->kind == AST_VAR ? ck_array_find(c, arg->key) : NULL;
+    uint32_t need = kind == 'a' ? (i < 12 ? fn->sizes[i] : 0) : kind == 'v' ? 1 : 3;
+    if (!arr) {
+        if (arg->kind == AST_VAR && !strmap_get(&c->vars, arg->key))
+            ck_error(c, arg->loc, "%s must be an array; unknown array '%s'", what,
+                     arg->name, ck_suggest(c, arg->name, SUGG_ARRAYS));
+        else
+            ck_error(c, arg->loc, "%s must be an array%s", what, "", NULL);
+        if (arg->kind != AST_VAR) ck_expr(c, arg, 0);
+    } else if (arr->size < need) {
+        char b[200];
+        (void)snprintf(b, sizeof b, "at least %u elements, '%s' has %u",
+                       (unsigned)need, arr->name, (unsigned)arr->size);
+        ck_error(c, arg->loc, "%s must have %s", what, b, NULL);
+    }
+}
+
+/* call -> NAME '(' args ')' where NAME is a library function: its arity, then each
+ * argument's kind. */
+static void ck_call_lib(checker *c, const ast_node *n, const lib_fn *fn)
+{
+    uint32_t min, i;
+    int var;
+    (void)check_lib_kind(fn->args, 0, &min, &var);
+    if (n->list.n < min || (!var && n->list.n > min)) {
+        char a[200], b[64];
+        (void)snprintf(a, sizeof a, "'%s' takes %s%u argument%s", fn->name,
+                       var ? "at least " : "", (unsigned)min, min == 1 ? "" : "s");
+        (void)snprintf(b, sizeof b, "%u", (unsigned)n->list.n);
+        ck_error(c, n->op_loc, "%s, %s given", a, b, NULL);
+    }
+    for (i = 0; i < n->list.n; i++) {
+        char kind = check_lib_kind(fn->args, i, NULL, NULL);
+        if (kind == 0) ck_expr(c, n->list.v[i], 0);
+        else ck_lib_arg(c, fn, i, kind, n->list.v[i]);
+    }
+}
+
+/* call -> NAME '(' args ')': an earlier model first, then the library. */
 static void ck_call(checker *c, const ast_node *n)
 {
     int mi = check_find_model(c->f, n->key, c->model);
-    uint32_t i;
+    const lib_fn *fn;
     if (mi >= 0) {
-        const ast_model *m = &c->f->models[mi];
-        if (n->list.n != m->nparams) {
-            char a[160], b[64];
-            (void)snprintf(a, sizeof a, "model '%s' takes %u array arguments", m->name,
-                           (unsigned)m->nparams);
-            (void)snprintf(b, sizeof b, "%u", (unsigned)n->list.n);
-            ck_error(c, n->op_loc, "%s, %s given", a, b, NULL);
-        }
-        for (i = 0; i < n->list.n; i++) {
-            const ast_node *arg = n->list.v[i];
-            const ck_array *arr = arg->kind == AST_VAR ? ck_array_find(c, arg->key) : NULL;
-            if (!arr) {
-                char a[200];
-                (void)snprintf(a, sizeof a, "argument %u of model '%s'", (unsigned)i + 1,
-                               m->name);
-                ck_error(c, arg->loc, "%s must be an array", a, NULL, NULL);
-                if (arg->kind != AST_VAR) ck_expr(c, arg, 0);
-                continue;
-            }
-            if (i < m->nparams && arr->size < m->params[i].size) {
-                char a[200], b[200];
-                (void)snprintf(a, sizeof a, "array '%s' has %u elements", arr->name,
-                               (unsigned)arr->size);
-                (void)snprintf(b, sizeof b, "model '%s' needs %u for '%s'", m->name,
-                               (unsigned)m->params[i].size, m->params[i].name);
-                ck_error(c, arg->loc, "%s; %s", a, b, NULL);
-            }
-        }
+        ck_call_model(c, n, &c->f->models[mi]);
         return;
     }
-    {
-        const lib_fn *fn = lib_lookup(n->name);
-        uint32_t min;
-        int var;
-        if (!fn) {
-            int later = check_find_model(c->f, n->key, c->f->nmodels);
-            if (later >= 0 && (uint32_t)later == c->model)
-                ck_error(c, n->op_loc, "model '%s' cannot call itself", n->name, NULL, NULL);
-            else if (later >= 0)
-                ck_error(c, n->op_loc,
-                         "model '%s' is defined later in the file; a model can only call "
-                         "models defined before it%s", n->name, "", NULL);
-            else
-                ck_error(c, n->op_loc, "unknown function '%s'%s", n->name, "",
-                         ck_suggest(c, n->name, SUGG_FUNCS));
-            for (i = 0; i < n->list.n; i++)
-                if (n->list.v[i]->kind != AST_VAR) ck_expr(c, n->list.v[i], 0);
-            return;
-        }
-        (void)check_lib_kind(fn->args, 0, &min, &var);
-        if (n->list.n < min || (!var && n->list.n > min)) {
-            char a[200], b[64];
-            (void)snprintf(a, sizeof a, "'%s' takes %s%u argument%s", fn->name,
-                           var ? "at least " : "", (unsigned)min, min == 1 ? "" : "s");
-            (void)snprintf(b, sizeof b, "%u", (unsigned)n->list.n);
-            ck_error(c, n->op_loc, "%s, %s given", a, b, NULL);
-        }
-        for (i = 0; i < n->list.n; i++) {
-            const ast_node *arg = n->list.v[i];
-            char kind = check_lib_kind(fn->args, i, NULL, NULL);
-            char what[200];
-            (void)snprintf(what, sizeof what, "argument %u of '%s'", (unsigned)i + 1, fn->name);
-            if (kind == 0) {
-                ck_expr(c, arg, 0);
-                continue;
-            }
-            if (kind == 's') {
-                if (arg->kind == AST_VAR && ck_array_find(c, arg->key) &&
-                    !strmap_get(&c->vars, arg->key))
-                    ck_error(c, arg->loc, "%s must be a number, but '%s' is an array", what,
-                             arg->name, NULL);
-                else
-                    ck_expr(c, arg, 0);
-            } else {
-                const ck_array *arr = arg->kind == AST_VAR ? ck_array_find(c, arg->key) : NULL;
-                uint32_t need = kind == 'a' ? (i < 12 ? fn->sizes[i] : 0) :
-                                kind == 'v' ? 1 : 3;
-                if (!arr) {
-                    if (arg->kind == AST_VAR && !strmap_get(&c->vars, arg->key))
-                        ck_error(c, arg->loc, "%s must be an array; unknown array '%s'", what,
-                                 arg->name, ck_suggest(c, arg->name, SUGG_ARRAYS));
-                    else
-                        ck_error(c, arg->loc, "%s must be an array%s", what, "", NULL);
-                    if (arg->kind != AST_VAR) ck_expr(c, arg, 0);
-                } else if (arr->size < need) {
-                    char b[200];
-                    (void)snprintf(b, sizeof b, "at least %u elements, '%s' has %u",
-                                   (unsigned)need, arr->name, (unsigned)arr->size);
-                    ck_error(c, arg->loc, "%s must have %s", what, b, NULL);
-                }
-            }
-        }
+    fn = lib_lookup(n->name);
+    if (fn) ck_call_lib(c, n, fn);
+    else ck_call_unknown(c, n);
+}
+
+/* A value where a condition belongs. */
+static void ck_not_condition(checker *c, const ast_node *n)
+{
+    ck_error(c, n->loc, "a condition must be a comparison (=, /=, <, <=, >, >=) "
+             "or 'and', 'or', 'not' of comparisons", NULL, NULL, NULL);
+}
+
+/* expr -> VAR: a scalar assigned before this point. */
+static void ck_var(checker *c, const ast_node *n)
+{
+    if (strmap_get(&c->vars, n->key)) return;
+    if (ck_array_find(c, n->key))
+        ck_error(c, n->loc, "array '%s' used as a number; index it ('%s[1]') or pass "
+                 "it to a function", n->name, n->name, NULL);
+    else if (strmap_get(&c->later, n->key))
+        ck_error(c, n->loc, "variable '%s' is used before it is assigned", n->name,
+                 NULL, NULL);
+    else
+        ck_error(c, n->loc, "unknown variable '%s'%s", n->name, "",
+                 ck_suggest(c, n->name, SUGG_VARS | SUGG_ARRAYS));
+}
+
+/* expr -> VAR '[' expr ']': a declared array, a constant index in range. */
+static void ck_element(checker *c, const ast_node *n)
+{
+    const ck_array *arr = ck_array_find(c, n->key);
+    if (!arr) {
+        if (strmap_get(&c->vars, n->key))
+            ck_error(c, n->op_loc, "'%s' is a number, not an array", n->name, NULL, NULL);
+        else
+            ck_error(c, n->op_loc, "unknown array '%s'%s", n->name, "",
+                     ck_suggest(c, n->name, SUGG_ARRAYS));
     }
+    ck_index(c, n, arr, n->a);
+}
+
+/* unary -> '-' expr | NOT expr: 'not' only in a condition, and of a condition. */
+static void ck_unary(checker *c, const ast_node *n, int cond)
+{
+    if (is_not(n->op)) {
+        if (!cond)
+            ck_error(c, n->op_loc, "'not' is only allowed in an if or while condition",
+                     NULL, NULL, NULL);
+        ck_expr(c, n->a, 1);
+        return;
+    }
+    if (cond) ck_not_condition(c, n);
+    ck_expr(c, n->a, 0);
+}
+
+/* binary -> expr OP expr: 'and'/'or' join conditions, comparisons compare values,
+ * both only in a condition; anything else is a value. */
+static void ck_binary(checker *c, const ast_node *n, int cond)
+{
+    if (is_logic(n->op)) {
+        if (!cond)
+            ck_error(c, n->op_loc, "'%s' is only allowed in an if or while condition",
+                     n->op == AST_OP_AND ? "and" : "or", NULL, NULL);
+        ck_expr(c, n->a, 1);
+        ck_expr(c, n->b, 1);
+        return;
+    }
+    if (is_cmp(n->op)) {
+        if (!cond)
+            ck_error(c, n->op_loc, "comparison '%s' is only allowed in an if or while "
+                     "condition", ast_op_name(n->op), NULL, NULL);
+    } else if (cond) {
+        ck_not_condition(c, n);
+    }
+    ck_expr(c, n->a, 0);
+    ck_expr(c, n->b, 0);
 }
 
 /* expr -> NUM | VAR | VAR '[' expr ']' | CALL | unary | binary.  cond: the expression
@@ -367,73 +461,26 @@ static void ck_expr(checker *c, const ast_node *n, int cond)
     if (!n) return;
     if (cond && (n->kind == AST_NUM || n->kind == AST_VAR || n->kind == AST_INDEX ||
                  n->kind == AST_CALL)) {
-        ck_error(c, n->loc, "a condition must be a comparison (=, /=, <, <=, >, >=) "
-                 "or 'and', 'or', 'not' of comparisons", NULL, NULL, NULL);
+        ck_not_condition(c, n);
         cond = 0;
     }
     switch (n->kind) {
     case AST_NUM:
         break;
     case AST_VAR:
-        if (strmap_get(&c->vars, n->key)) break;
-        if (ck_array_find(c, n->key))
-            ck_error(c, n->loc, "array '%s' used as a number; index it ('%s[1]') or pass "
-                     "it to a function", n->name, n->name, NULL);
-        else if (strmap_get(&c->later, n->key))
-            ck_error(c, n->loc, "variable '%s' is used before it is assigned", n->name,
-                     NULL, NULL);
-        else
-            ck_error(c, n->loc, "unknown variable '%s'%s", n->name, "",
-                     ck_suggest(c, n->name, SUGG_VARS | SUGG_ARRAYS));
+        ck_var(c, n);
         break;
-    case AST_INDEX: {
-        const ck_array *arr = ck_array_find(c, n->key);
-        if (!arr) {
-            if (strmap_get(&c->vars, n->key))
-                ck_error(c, n->op_loc, "'%s' is a number, not an array", n->name, NULL, NULL);
-            else
-                ck_error(c, n->op_loc, "unknown array '%s'%s", n->name, "",
-                         ck_suggest(c, n->name, SUGG_ARRAYS));
-        }
-        ck_index(c, n, arr, n->a);
+    case AST_INDEX:
+        ck_element(c, n);
         break;
-    }
     case AST_CALL:
         ck_call(c, n);
         break;
     case AST_UNARY:
-        if (is_not(n->op)) {
-            if (!cond)
-                ck_error(c, n->op_loc, "'not' is only allowed in an if or while condition",
-                         NULL, NULL, NULL);
-            ck_expr(c, n->a, 1);
-        } else {
-            if (cond)
-                ck_error(c, n->loc, "a condition must be a comparison (=, /=, <, <=, >, >=) "
-                         "or 'and', 'or', 'not' of comparisons", NULL, NULL, NULL);
-            ck_expr(c, n->a, 0);
-        }
+        ck_unary(c, n, cond);
         break;
     case AST_BINARY:
-        if (is_logic(n->op)) {
-            if (!cond)
-                ck_error(c, n->op_loc, "'%s' is only allowed in an if or while condition",
-                         n->op == AST_OP_AND ? "and" : "or", NULL, NULL);
-            ck_expr(c, n->a, 1);
-            ck_expr(c, n->b, 1);
-        } else if (is_cmp(n->op)) {
-            if (!cond)
-                ck_error(c, n->op_loc, "comparison '%s' is only allowed in an if or while "
-                         "condition", ast_op_name(n->op), NULL, NULL);
-            ck_expr(c, n->a, 0);
-            ck_expr(c, n->b, 0);
-        } else {
-            if (cond)
-                ck_error(c, n->loc, "a condition must be a comparison (=, /=, <, <=, >, >=) "
-                         "or 'and', 'or', 'not' of comparisons", NULL, NULL, NULL);
-            ck_expr(c, n->a, 0);
-            ck_expr(c, n->b, 0);
-        }
+        ck_binary(c, n, cond);
         break;
     case AST_ASSIGN: case AST_ASSIGN_INDEX: case AST_ASSIGN_ARRAY: case AST_IF:
     case AST_WHILE:
@@ -589,42 +636,85 @@ static int is_top_stmt(const ast_list *l, const ast_node *n, uint32_t *index)
     return 0;
 }
 
-static void ck_free_pragma(checker *c, const ast_pragma *p, check_info *out)
+/* The statement a pragma at byte offset off annotates: the last one ending before it
+ * on the same line, in any model (*m receives the model), or NULL. */
+static const ast_node *pragma_stmt(const ast_file *f, uint32_t off, const ast_model **m)
 {
-    const ast_file *f = c->f;
     const ast_node *st = NULL;
-    const ast_model *m = NULL;
-    uint32_t mi, idx = 0, j;
-    double v = 0;
-    check_free *fr;
-    const char *why = NULL;
+    uint32_t mi, o;
     for (mi = 0; mi < f->nmodels; mi++) {
-        const ast_node *s = stmt_before(f, &f->models[mi].body, p->loc.off, NULL);
+        const ast_node *s = stmt_before(f, &f->models[mi].body, off, NULL);
         if (s && (!st || s->loc.end > st->loc.end)) {
             st = s;
-            m = &f->models[mi];
+            *m = &f->models[mi];
         }
     }
-    if (st) {
-        uint32_t o;
-        for (o = st->loc.end; o < p->loc.off && o < f->len; o++)
-            if (f->src[o] == '\n') {
-                st = NULL;
-                break;
-            }
+    if (!st) return NULL;
+    for (o = st->loc.end; o < off && o < f->len; o++)
+        if (f->src[o] == '\n') return NULL;
+    return st;
+}
+
+/* Why statement st of model m cannot carry '@free' (NULL: it can; *v receives the
+ * literal's value). */
+static const char *free_refusal(const ast_node *st, const ast_model *m, double *v)
+{
+    uint32_t idx = 0, j;
+    if (!st || st->kind != AST_ASSIGN || !ck_literal(st->a, v))
+        return "'@free' must follow a statement 'name = NUMBER;' on the same line";
+    if (!is_top_stmt(&m->body, st, &idx))
+        return "'@free' parameters must be assigned outside if and while";
+    for (j = 0; j < idx; j++)
+        if (m->body.v[j]->kind == AST_ASSIGN && strcmp(m->body.v[j]->key, st->key) == 0)
+            return "'@free' must mark the first assignment of its variable";
+    if (strcmp(st->key, m->key) == 0) return "the model's result cannot be a '@free' parameter";
+    return NULL;
+}
+
+/* free_text -> '' | '[' NUMBER ',' NUMBER ']': the bounds into fr. Returns 0, -1 after
+ * reporting empty bounds, or 1 when the text is malformed. */
+static int free_bounds(checker *c, const ast_pragma *p, check_free *fr)
+{
+    const char *t = skip_ws(p->text ? p->text : "");
+    char *e;
+    double lo, hi;
+    if (*t == '\0') return 0;
+    if (*t != '[') return 1;
+    t = skip_ws(t + 1);
+    lo = strtod(t, &e);
+    if (e == t) return 1;
+    t = skip_ws(e);
+    if (*t != ',') return 1;
+    t = skip_ws(t + 1);
+    hi = strtod(t, &e);
+    if (e == t) return 1;
+    t = skip_ws(e);
+    if (*t != ']' || *skip_ws(t + 1) != '\0') return 1;
+    if (!(lo <= hi)) {
+        diag_report(c->d, FREP_ERROR, p->loc, 5, "'@free' bounds [%g, %g] are empty (lo > hi)",
+                    lo, hi);
+        return -1;
     }
-    if (!st || st->kind != AST_ASSIGN || !ck_literal(st->a, &v))
-        why = "'@free' must follow a statement 'name = NUMBER;' on the same line";
-    else if (!is_top_stmt(&m->body, st, &idx))
-        why = "'@free' parameters must be assigned outside if and while";
-    else {
-        for (j = 0; j < idx; j++)
-            if (m->body.v[j]->kind == AST_ASSIGN && strcmp(m->body.v[j]->key, st->key) == 0)
-                break;
-        if (j < idx) why = "'@free' must mark the first assignment of its variable";
-        else if (strcmp(st->key, m->key) == 0)
-            why = "the model's result cannot be a '@free' parameter";
-    }
+    if (!(fr->value >= lo && fr->value <= hi))
+        diag_report(c->d, FREP_WARNING, p->loc, 5,
+                    "initial value %g of '%s' is outside its bounds [%g, %g]", fr->value,
+                    fr->name, lo, hi);
+    fr->lo = lo;
+    fr->hi = hi;
+    fr->has_bounds = 1;
+    return 0;
+}
+
+/* pragma -> '@free' free_text after `name = NUMBER;`: a named free parameter. */
+static void ck_free_pragma(checker *c, const ast_pragma *p, check_info *out)
+{
+    const ast_model *m = NULL;
+    const ast_node *st = pragma_stmt(c->f, p->loc.off, &m);
+    double v = 0;
+    const char *why = free_refusal(st, m, &v);
+    check_free *fr;
+    uint32_t j;
+    int rc;
     if (why) {
         diag_report(c->d, FREP_ERROR, p->loc, 5, "%s", why);
         return;
@@ -637,108 +727,90 @@ static void ck_free_pragma(checker *c, const ast_pragma *p, check_info *out)
     fr->lo = -INFINITY;
     fr->hi = INFINITY;
     fr->lit = st->a->loc;
-    {
-        const char *t = skip_ws(p->text ? p->text : "");
-        if (*t == '[') {
-            char *e;
-            double lo, hi;
-            t = skip_ws(t + 1);
-            lo = strtod(t, &e);
-            if (e == t) goto bad;
-            t = skip_ws(e);
-            if (*t != ',') goto bad;
-            t = skip_ws(t + 1);
-            hi = strtod(t, &e);
-            if (e == t) goto bad;
-            t = skip_ws(e);
-            if (*t != ']' || *skip_ws(t + 1) != '\0') goto bad;
-            if (!(lo <= hi)) {
-                diag_report(c->d, FREP_ERROR, p->loc, 5,
-                            "'@free' bounds [%g, %g] are empty (lo > hi)", lo, hi);
-                return;
-            }
-            if (!(v >= lo && v <= hi))
-                diag_report(c->d, FREP_WARNING, p->loc, 5,
-                            "initial value %g of '%s' is outside its bounds [%g, %g]", v,
-                            st->name, lo, hi);
-            fr->lo = lo;
-            fr->hi = hi;
-            fr->has_bounds = 1;
-        } else if (*t != '\0') {
-            goto bad;
-        }
-    }
+    rc = free_bounds(c, p, fr);
+    if (rc > 0)
+        diag_report(c->d, FREP_ERROR, p->loc, 5,
+                    "malformed '@free': expected nothing or '[lo, hi]' after it");
+    if (rc != 0) return;
     for (j = 0; j < out->nfree; j++)
         if (out->frees[j].stmt == st) return; /* two pragmas on one line: one parameter */
     out->nfree++;
-    return;
-bad:
-    diag_report(c->d, FREP_ERROR, p->loc, 5,
-                "malformed '@free': expected nothing or '[lo, hi]' after it");
+}
+
+/* pragma -> '@setops' ('rfunc' | 'minmax' | 'ralpha' ALPHA), before the first model. */
+static void ck_setops_pragma(checker *c, const ast_pragma *p, check_info *out)
+{
+    const ast_file *f = c->f;
+    const char *t = skip_ws(p->text ? p->text : "");
+    uint32_t wlen = (uint32_t)strlen(p->word) + 1;
+    uint32_t first_model = f->nmodels ? f->models[0].loc.off : UINT32_MAX;
+    char *e;
+    if (p->loc.off > first_model) {
+        diag_report(c->d, FREP_ERROR, p->loc, wlen,
+                    "'@setops' must come before the first model");
+        return;
+    }
+    if (strncmp(t, "rfunc", 5) == 0 && *skip_ws(t + 5) == '\0') {
+        out->setops = FREP_SETOPS_RFUNC;
+    } else if (strncmp(t, "minmax", 6) == 0 && *skip_ws(t + 6) == '\0') {
+        out->setops = FREP_SETOPS_MINMAX;
+    } else if (strncmp(t, "ralpha", 6) == 0 && (t[6] == ' ' || t[6] == '\t')) {
+        double a = strtod(t + 6, &e);
+        if (e == t + 6 || *skip_ws(e) != '\0' || !(a >= -1 && a <= 1)) {
+            diag_report(c->d, FREP_ERROR, p->loc, wlen,
+                        "'@setops ralpha' needs one ALPHA in [-1, 1]");
+            return;
+        }
+        out->setops = FREP_SETOPS_RALPHA;
+        out->alpha = a;
+    } else {
+        diag_report(c->d, FREP_ERROR, p->loc, wlen,
+                    "'@setops' expects 'rfunc', 'minmax' or 'ralpha ALPHA'");
+        return;
+    }
+    out->has_setops = 1;
+}
+
+/* pragma -> '@box' X0 Y0 Z0 X1 Y1 Z1 (commas optional), a non-empty box. */
+static void ck_box_pragma(checker *c, const ast_pragma *p, check_info *out)
+{
+    const char *s = skip_ws(p->text ? p->text : "");
+    double b[6];
+    int k;
+    for (k = 0; k < 6; k++) {
+        char *e;
+        b[k] = strtod(s, &e);
+        if (e == s) break;
+        s = skip_ws(e);
+        if (*s == ',') s = skip_ws(s + 1);
+    }
+    if (k < 6 || *s != '\0' || !(b[0] < b[3] && b[1] < b[4] && b[2] < b[5])) {
+        diag_report(c->d, FREP_ERROR, p->loc, (uint32_t)strlen(p->word) + 1,
+                    "'@box' expects six numbers x0 y0 z0 x1 y1 z1 with x0 < x1, "
+                    "y0 < y1, z0 < z1");
+        return;
+    }
+    memcpy(out->box, b, sizeof b);
+    out->has_box = 1;
 }
 
 static void ck_pragmas(checker *c, check_info *out)
 {
     const ast_file *f = c->f;
     uint32_t i;
-    uint32_t first_model = f->nmodels ? f->models[0].loc.off : UINT32_MAX;
     out->frees = arena_alloc(c->A, (f->npragmas + 1) * sizeof *out->frees);
     if (!out->frees) return;
     for (i = 0; i < f->npragmas; i++) {
         const ast_pragma *p = &f->pragmas[i];
-        const char *t = skip_ws(p->text ? p->text : "");
-        uint32_t wlen = (uint32_t)strlen(p->word) + 1;
-        if (strcmp(p->word, "free") == 0) {
+        if (strcmp(p->word, "free") == 0)
             ck_free_pragma(c, p, out);
-        } else if (strcmp(p->word, "setops") == 0) {
-            char *e;
-            if (p->loc.off > first_model) {
-                diag_report(c->d, FREP_ERROR, p->loc, wlen,
-                            "'@setops' must come before the first model");
-                continue;
-            }
-            if (strncmp(t, "rfunc", 5) == 0 && *skip_ws(t + 5) == '\0') {
-                out->setops = FREP_SETOPS_RFUNC;
-            } else if (strncmp(t, "minmax", 6) == 0 && *skip_ws(t + 6) == '\0') {
-                out->setops = FREP_SETOPS_MINMAX;
-            } else if (strncmp(t, "ralpha", 6) == 0 && (t[6] == ' ' || t[6] == '\t')) {
-                double a = strtod(t + 6, &e);
-                if (e == t + 6 || *skip_ws(e) != '\0' || !(a >= -1 && a <= 1)) {
-                    diag_report(c->d, FREP_ERROR, p->loc, wlen,
-                                "'@setops ralpha' needs one ALPHA in [-1, 1]");
-                    continue;
-                }
-                out->setops = FREP_SETOPS_RALPHA;
-                out->alpha = a;
-            } else {
-                diag_report(c->d, FREP_ERROR, p->loc, wlen,
-                            "'@setops' expects 'rfunc', 'minmax' or 'ralpha ALPHA'");
-                continue;
-            }
-            out->has_setops = 1;
-        } else if (strcmp(p->word, "box") == 0) {
-            double b[6];
-            int k;
-            const char *s = t;
-            for (k = 0; k < 6; k++) {
-                char *e;
-                b[k] = strtod(s, &e);
-                if (e == s) break;
-                s = skip_ws(e);
-                if (*s == ',') s = skip_ws(s + 1);
-            }
-            if (k < 6 || *s != '\0' || !(b[0] < b[3] && b[1] < b[4] && b[2] < b[5])) {
-                diag_report(c->d, FREP_ERROR, p->loc, wlen,
-                            "'@box' expects six numbers x0 y0 z0 x1 y1 z1 with x0 < x1, "
-                            "y0 < y1, z0 < z1");
-                continue;
-            }
-            memcpy(out->box, b, sizeof b);
-            out->has_box = 1;
-        } else {
-            diag_report(c->d, FREP_WARNING, p->loc, wlen,
+        else if (strcmp(p->word, "setops") == 0)
+            ck_setops_pragma(c, p, out);
+        else if (strcmp(p->word, "box") == 0)
+            ck_box_pragma(c, p, out);
+        else
+            diag_report(c->d, FREP_WARNING, p->loc, (uint32_t)strlen(p->word) + 1,
                         "unknown pragma '@%s' ignored (known: @free, @setops, @box)", p->word);
-        }
     }
 }
 
@@ -754,5 +826,6 @@ unsigned check_file(arena *A, const ast_file *f, diag_sink *d, check_info *out)
     c.d = d;
     for (i = 0; i < f->nmodels; i++) ck_model(&c, i);
     ck_pragmas(&c, out);
+    if (A->failed) diag_nomem(d); /* the checks above may have been cut short */
     return d->errors - before;
 }

@@ -29,14 +29,6 @@ void frep_compile_options_init(frep_compile_options *o)
     o->optimize = 1;
 }
 
-static char *dup_str(const char *s)
-{
-    size_t n = strlen(s);
-    char *p = frep_malloc(n + 1);
-    if (p) memcpy(p, s, n + 1);
-    return p;
-}
-
 static int lower_key_eq(const char *key, const char *name)
 {
     /* Model names are case-insensitive, like every identifier. */
@@ -74,7 +66,7 @@ static int fill_params(frep_program *p, const lowered *lo, const frep_compile_op
         frep_param_info *pi = &p->params[i];
         char buf[32];
         (void)snprintf(buf, sizeof buf, "a[%u]", (unsigned)i + 1);
-        pi->name = dup_str(buf);
+        pi->name = frep_strdup(buf);
         if (!pi->name) return -1;
         pi->value = o->a && i < o->na ? o->a[i] : 0.0;
         pi->lo = -INFINITY;
@@ -83,7 +75,7 @@ static int fill_params(frep_program *p, const lowered *lo, const frep_compile_op
     for (i = 0; i < lo->nnamed; i++) {
         const check_free *fr = lo->named[i].fr;
         frep_param_info *pi = &p->params[lo->na + i];
-        pi->name = dup_str(fr->name);
+        pi->name = frep_strdup(fr->name);
         if (!pi->name) return -1;
         pi->value = fr->value;
         pi->lo = fr->lo;
@@ -98,83 +90,146 @@ static int fill_params(frep_program *p, const lowered *lo, const frep_compile_op
     return 0;
 }
 
-frep_program *frep_compile(const char *file, const char *text, size_t len,
-                           const frep_compile_options *opt, frep_diag_fn diag, void *user)
-{
-    frep_compile_options defaults;
+/* One compile session: the stages below run in order over it. */
+typedef struct session {
+    const frep_compile_options *opt;
     arena A;
     diag_sink d;
     ast_file f;
     check_info ci;
-    lowered lo;
-    lower_options lopt;
+    uint32_t model;         /* index of the model compiled (stage_pick) */
     ir g;
-    frep_program *p = NULL;
-    int mi;
-    ast_loc none;
+    lowered lo;
+    frep_program *p;
+} session;
 
-    if (!opt) {
-        frep_compile_options_init(&defaults);
-        opt = &defaults;
+static const ast_loc no_loc = { 0, 0, 0, 0 };
+
+/* Parse the source into the session's tree; a file without models is an error. */
+static int stage_parse(session *s, const char *file, const char *text, size_t len)
+{
+    if (ast_parse(&s->A, file, text, len, &s->d, &s->f) != 0 || s->d.errors) return -1;
+    if (s->f.nmodels == 0) {
+        diag_report(&s->d, FREP_ERROR, no_loc, 0, "no model in the file");
+        return -1;
     }
-    memset(&d, 0, sizeof d);
-    memset(&none, 0, sizeof none);
-    d.fn = diag;
-    d.user = user;
-    d.file = file;
-    arena_init(&A);
-    if (ast_parse(&A, file, text, len, &d, &f) != 0 || d.errors) goto done;
-    if (f.nmodels == 0) {
-        diag_report(&d, FREP_ERROR, none, 0, "no model in the file");
-        goto done;
-    }
-    if (check_file(&A, &f, &d, &ci) != 0 || d.errors) goto done;
-    mi = pick_model(&f, opt->model);
+    return 0;
+}
+
+/* Semantic checks of every model and pragma (lang/check.c). */
+static int stage_check(session *s)
+{
+    return check_file(&s->A, &s->f, &s->d, &s->ci) != 0 || s->d.errors ? -1 : 0;
+}
+
+/* Which model to compile: options->model, else "my_model", else the last. */
+static int stage_pick(session *s)
+{
+    int mi = pick_model(&s->f, s->opt->model);
     if (mi < 0) {
-        diag_report(&d, FREP_ERROR, none, 0, "no model named '%s' in the file", opt->model);
-        goto done;
+        diag_report(&s->d, FREP_ERROR, no_loc, 0, "no model named '%s' in the file",
+                    s->opt->model);
+        return -1;
     }
+    s->model = (uint32_t)mi;
+    return 0;
+}
+
+/* Lower the model to IR with the set operations in force: the file's @setops unless
+ * the options override it (lang/lower.c). */
+static int stage_lower(session *s)
+{
+    const frep_compile_options *opt = s->opt;
+    const ast_model *m = &s->f.models[s->model];
+    lower_options lopt;
     memset(&lopt, 0, sizeof lopt);
     lopt.a = opt->a;
     lopt.na = opt->na;
-    lopt.setops = ci.has_setops ? ci.setops : FREP_SETOPS_RFUNC;
-    lopt.alpha = ci.has_setops ? ci.alpha : 0;
+    lopt.setops = s->ci.has_setops ? s->ci.setops : FREP_SETOPS_RFUNC;
+    lopt.alpha = s->ci.has_setops ? s->ci.alpha : 0;
     if (opt->setops_override >= 0) {
         lopt.setops = opt->setops_override;
         lopt.alpha = opt->alpha;
     }
-    ir_init(&g, &A, opt->optimize);
-    if (lower_model(&A, &f, (uint32_t)mi, &ci, &lopt, &g, &d, &lo) != 0) goto done;
-    if (opt->a && opt->na > lo.na)
-        diag_report(&d, FREP_WARNING, f.models[mi].loc, 1,
+    ir_init(&s->g, &s->A, opt->optimize);
+    if (lower_model(&s->A, &s->f, s->model, &s->ci, &lopt, &s->g, &s->d, &s->lo) != 0)
+        return -1;
+    if (opt->a && opt->na > s->lo.na)
+        diag_report(&s->d, FREP_WARNING, m->loc, 1,
                     "%zu values given for a[], but model '%s' declares a[%u]; the rest are "
-                    "ignored", opt->na, f.models[mi].name, (unsigned)lo.na);
-    p = prog_new();
-    if (!p) goto oom;
-    if (fill_params(p, &lo, opt) < 0) goto oom;
-    p->model = dup_str(f.models[mi].name);
-    if (file) p->file = dup_str(file);
-    if (!p->model || (file && !p->file)) goto oom;
-    if (ci.has_box) {
-        memcpy(p->box, ci.box, sizeof p->box);
+                    "ignored", opt->na, m->name, (unsigned)s->lo.na);
+    return 0;
+}
+
+/* The program's header: parameters, model and file names, the @box. */
+static int stage_program(session *s, const char *file)
+{
+    const ast_model *m = &s->f.models[s->model];
+    frep_program *p = prog_new();
+    s->p = p;
+    if (!p || fill_params(p, &s->lo, s->opt) < 0) goto nomem;
+    p->model = frep_strdup(m->name);
+    if (file) p->file = frep_strdup(file);
+    if (!p->model || (file && !p->file)) goto nomem;
+    if (s->ci.has_box) {
+        memcpy(p->box, s->ci.box, sizeof p->box);
         p->has_box = 1;
     }
-    if (emit_program(&g, &lo, p) != 0) {
-        diag_report(&d, FREP_ERROR, f.models[mi].loc, 1,
-                    "model '%s' is too large to compile (out of memory, or more than %u "
-                    "slots or a stack deeper than %u)", f.models[mi].name,
-                    (unsigned)FREP_MAX_SLOTS, (unsigned)FREP_MAX_STACK);
-        frep_program_free(p);
-        p = NULL;
+    return 0;
+nomem:
+    diag_nomem(&s->d);
+    return -1;
+}
+
+/* Schedule the IR into bytecode (lang/emit.c); each failure has its own message. */
+static int stage_emit(session *s)
+{
+    const ast_model *m = &s->f.models[s->model];
+    switch (emit_program(&s->g, &s->lo, s->p)) {
+    case EMIT_OK:
+        return 0;
+    case EMIT_NOMEM:
+        diag_nomem(&s->d);
+        break;
+    case EMIT_SLOTS:
+        diag_report(&s->d, FREP_ERROR, m->loc, 1, "model '%s' is too large to compile "
+                    "(more than %u slots)", m->name, (unsigned)FREP_MAX_SLOTS);
+        break;
+    case EMIT_STACK:
+        diag_report(&s->d, FREP_ERROR, m->loc, 1, "model '%s' is too large to compile "
+                    "(a stack deeper than %u)", m->name, (unsigned)FREP_MAX_STACK);
+        break;
+    case EMIT_BUG:
+        diag_report(&s->d, FREP_ERROR, m->loc, 1, "internal error: the bytecode of model "
+                    "'%s' could not be scheduled", m->name);
+        break;
     }
-    goto done;
-oom:
-    diag_report(&d, FREP_ERROR, none, 0, "out of memory");
-    frep_program_free(p);
-    p = NULL;
-done:
-    arena_free(&A);
-    return p;
+    return -1;
+}
+
+frep_program *frep_compile(const char *file, const char *text, size_t len,
+                           const frep_compile_options *opt, frep_diag_fn diag, void *user)
+{
+    frep_compile_options defaults;
+    session s;
+    if (!opt) {
+        frep_compile_options_init(&defaults);
+        opt = &defaults;
+    }
+    memset(&s, 0, sizeof s);
+    s.opt = opt;
+    arena_init(&s.A);
+    s.d.fn = diag;
+    s.d.user = user;
+    s.d.file = file;
+    s.d.A = &s.A;
+    if (stage_parse(&s, file, text, len) < 0 || stage_check(&s) < 0 || stage_pick(&s) < 0 ||
+        stage_lower(&s) < 0 || stage_program(&s, file) < 0 || stage_emit(&s) < 0) {
+        frep_program_free(s.p);
+        s.p = NULL;
+    }
+    arena_free(&s.A);
+    return s.p;
 }
 
 char **frep_list_models(const char *file, const char *text, size_t len, size_t *count,
@@ -189,13 +244,14 @@ char **frep_list_models(const char *file, const char *text, size_t len, size_t *
     d.fn = diag;
     d.user = user;
     d.file = file;
+    d.A = &A;
     *count = 0;
     arena_init(&A);
     if (ast_parse(&A, file, text, len, &d, &f) == 0 && !d.errors) {
         v = frep_calloc(f.nmodels + 1, sizeof *v);
         if (v) {
             for (i = 0; i < f.nmodels; i++) {
-                v[i] = dup_str(f.models[i].name);
+                v[i] = frep_strdup(f.models[i].name);
                 if (!v[i]) {
                     frep_free_strings(v, i);
                     v = NULL;
@@ -204,7 +260,7 @@ char **frep_list_models(const char *file, const char *text, size_t len, size_t *
             }
             if (v) *count = f.nmodels;
         }
-        if (!v) diag_report(&d, FREP_ERROR, (ast_loc){ 0, 0, 0, 0 }, 0, "out of memory");
+        if (!v) diag_nomem(&d);
     }
     arena_free(&A);
     return v;

@@ -45,7 +45,8 @@ typedef struct em {
     uint32_t *freet;    /* free temporaries */
     uint32_t nfree;
     uint32_t next_temp;
-    int failed;
+    long depth, max_depth; /* stack depth after the code so far, and its maximum */
+    emit_status failed;  /* EMIT_OK until something fails; then nothing more is emitted */
 } em;
 
 static void use_bank(em *E, int i)
@@ -99,7 +100,16 @@ static uint32_t put(em *E, frep_opcode op, uint32_t arg, double k, uint8_t flags
                     frep_srcpos pos)
 {
     uint32_t pc = prog_emit(E->p, op, arg, k, flags, pos);
-    if (pc == UINT32_MAX) E->failed = 1;
+    if (pc == UINT32_MAX) {
+        /* prog_emit fails when memory runs out (its cap of UINT32_MAX / 4
+         * instructions is 28 GB of code) */
+        if (!E->failed) E->failed = EMIT_NOMEM;
+        return pc;
+    }
+    /* The code is emitted in execution order and every statement leaves the stack
+     * as it found it, so this running count is the depth prog_finish will find. */
+    E->depth += op_pushes(op) - insn_nin(&E->p->code[pc]);
+    if (E->depth > E->max_depth) E->max_depth = E->depth;
     return pc;
 }
 
@@ -107,7 +117,7 @@ static uint32_t temp_alloc(em *E)
 {
     if (E->nfree) return E->freet[--E->nfree];
     if (E->next_temp >= FREP_MAX_SLOTS) {
-        E->failed = 1;
+        if (!E->failed) E->failed = EMIT_SLOTS;
         return 0;
     }
     return E->next_temp++;
@@ -268,7 +278,7 @@ static void emit_use(em *E, ir_ref r)
         return;
     }
     if (E->mreg[r] != E->region || !E->mat[r]) {
-        E->failed = 1; /* hoisting guarantees this never happens */
+        if (!E->failed) E->failed = EMIT_BUG; /* hoisting guarantees this never happens */
         return;
     }
     put(E, FREP_OP_LOAD, E->mat[r] - 1, 0, 0, node_pos(n)); /* the value it reloads */
@@ -349,74 +359,90 @@ static uint32_t stmt_roots(const lstmt *s, ir_ref *out)
 
 static void emit_block(em *E, const lblock *b);
 
+/* LS_STORE: the values on the stack, then the stores in reverse; more than
+ * FREP_EMIT_MAX_PARALLEL values go through temporaries, so that every value is
+ * computed before any slot changes. */
+static void emit_store(em *E, const lstmt *s, frep_srcpos pos)
+{
+    uint32_t i, *t;
+    if (s->n <= FREP_EMIT_MAX_PARALLEL) {
+        for (i = 0; i < s->n; i++) emit_root(E, s->vals[i]);
+        for (i = s->n; i-- > 0;) put(E, FREP_OP_STORE, s->slots[i], 0, 0, pos);
+        return;
+    }
+    t = frep_malloc(s->n * sizeof *t);
+    if (!t) {
+        E->failed = EMIT_NOMEM;
+        return;
+    }
+    for (i = 0; i < s->n; i++) {
+        emit_root(E, s->vals[i]);
+        t[i] = temp_alloc(E);
+        put(E, FREP_OP_STORE, t[i], 0, 0, pos);
+    }
+    for (i = 0; i < s->n; i++) {
+        put(E, FREP_OP_LOAD, t[i], 0, 0, pos);
+        put(E, FREP_OP_STORE, s->slots[i], 0, 0, pos);
+        temp_free(E, t[i]);
+    }
+    frep_free(t);
+}
+
+/* LS_IF: cond JZ(else) body [JMP(end)] else: body2 end: */
+static void emit_if(em *E, const lstmt *s, frep_srcpos pos)
+{
+    uint32_t jz, jmp = UINT32_MAX;
+    emit_root(E, s->cond);
+    jz = put(E, FREP_OP_JZ, 0, 0, 0, pos);
+    emit_block(E, &s->body);
+    if (s->body2.n) jmp = put(E, FREP_OP_JMP, 0, 0, 0, pos);
+    if (E->failed) return;
+    E->p->code[jz].arg = E->p->ncode;
+    emit_block(E, &s->body2);
+    if (E->failed) return;
+    if (jmp != UINT32_MAX) E->p->code[jmp].arg = E->p->ncode;
+}
+
+/* LS_WHILE: top: pre cond JZ(end) body JMP(top) end:  (cond in a region of its own,
+ * as it runs after pre on every iteration) */
+static void emit_while(em *E, const lstmt *s, frep_srcpos pos)
+{
+    uint32_t top = E->p->ncode, jz, region = E->region;
+    bank *saved = E->b;
+    ir_ref r = s->cond;
+    emit_block(E, &s->pre);
+    use_bank(E, 1);
+    begin_region(E, &r, 1);
+    emit_root(E, r);
+    jz = put(E, FREP_OP_JZ, 0, 0, 0, pos);
+    emit_block(E, &s->body);
+    put(E, FREP_OP_JMP, top, 0, 0, pos);
+    use_bank(E, saved == &E->banks[0] ? 0 : 1);
+    E->region = region;
+    if (E->failed) return;
+    E->p->code[jz].arg = E->p->ncode;
+}
+
 /* Emit statement s whose region (roots) has been counted already. */
 static void emit_stmt(em *E, const lstmt *s)
 {
     frep_srcpos pos = stmt_pos(s);
-    uint32_t i;
     if (E->failed) return;
     switch (s->kind) {
     case LS_STORE:
-        if (s->n <= FREP_EMIT_MAX_PARALLEL) {
-            for (i = 0; i < s->n; i++) emit_root(E, s->vals[i]);
-            for (i = s->n; i-- > 0;) put(E, FREP_OP_STORE, s->slots[i], 0, 0, pos);
-        } else {
-            /* Through temporaries: every value is computed before any slot changes. */
-            uint32_t *t = frep_malloc(s->n * sizeof *t);
-            if (!t) {
-                E->failed = 1;
-                return;
-            }
-            for (i = 0; i < s->n; i++) {
-                emit_root(E, s->vals[i]);
-                t[i] = temp_alloc(E);
-                put(E, FREP_OP_STORE, t[i], 0, 0, pos);
-            }
-            for (i = 0; i < s->n; i++) {
-                put(E, FREP_OP_LOAD, t[i], 0, 0, pos);
-                put(E, FREP_OP_STORE, s->slots[i], 0, 0, pos);
-                temp_free(E, t[i]);
-            }
-            frep_free(t);
-        }
+        emit_store(E, s, pos);
         break;
     case LS_STOREI:
         emit_root(E, s->value);
         emit_root(E, s->index);
         put(E, FREP_OP_STOREI, s->base, (double)s->size, 0, pos);
         break;
-    case LS_IF: {
-        uint32_t jz, jmp = UINT32_MAX;
-        emit_root(E, s->cond);
-        jz = put(E, FREP_OP_JZ, 0, 0, 0, pos);
-        emit_block(E, &s->body);
-        if (s->body2.n) jmp = put(E, FREP_OP_JMP, 0, 0, 0, pos);
-        if (E->failed) return;
-        E->p->code[jz].arg = E->p->ncode;
-        emit_block(E, &s->body2);
-        if (E->failed) return;
-        if (jmp != UINT32_MAX) E->p->code[jmp].arg = E->p->ncode;
+    case LS_IF:
+        emit_if(E, s, pos);
         break;
-    }
-    case LS_WHILE: {
-        uint32_t top = E->p->ncode, jz, region = E->region;
-        bank *saved = E->b;
-        emit_block(E, &s->pre);
-        {
-            ir_ref r = s->cond;
-            use_bank(E, 1);
-            begin_region(E, &r, 1);
-            emit_root(E, r);
-        }
-        jz = put(E, FREP_OP_JZ, 0, 0, 0, pos);
-        emit_block(E, &s->body);
-        put(E, FREP_OP_JMP, top, 0, 0, pos);
-        use_bank(E, saved == &E->banks[0] ? 0 : 1);
-        E->region = region;
-        if (E->failed) return;
-        E->p->code[jz].arg = E->p->ncode;
+    case LS_WHILE:
+        emit_while(E, s, pos);
         break;
-    }
     }
 }
 
@@ -430,7 +456,7 @@ static void emit_block(em *E, const lblock *b)
         ir_ref *roots = frep_malloc((s->n + 2) * sizeof *roots);
         uint32_t nr;
         if (!roots) {
-            E->failed = 1;
+            E->failed = EMIT_NOMEM;
             return;
         }
         nr = stmt_roots(s, roots);
@@ -444,24 +470,12 @@ static void emit_block(em *E, const lblock *b)
     E->region = region;
 }
 
-int emit_program(const ir *g, const lowered *lo, frep_program *p)
+/* The per-node arrays of both banks and the DFS scratch, for nn nodes. */
+static int em_alloc(em *E, uint32_t nn)
 {
-    em E;
-    uint32_t nn = g->n + 1, nroots = 0, i;
-    ir_ref *roots;
-    int rc = -1;
-    memset(&E, 0, sizeof E);
-    E.g = g;
-    E.lo = lo;
-    E.p = p;
-    E.next_temp = lo->nslots;
-    for (i = 0; i < lo->top.n; i++) {
-        const lstmt *s = lo->top.v[i];
-        nroots += s->kind == LS_STORE ? s->n : 2;
-    }
-    roots = frep_malloc((nroots + 1) * sizeof *roots);
+    uint32_t i;
     for (i = 0; i < 2; i++) {
-        bank *b = &E.banks[i];
+        bank *b = &E->banks[i];
         b->ureg = frep_calloc(nn, sizeof *b->ureg);
         b->uses = frep_calloc(nn, sizeof *b->uses);
         b->need = frep_calloc(nn, sizeof *b->need);
@@ -472,34 +486,20 @@ int emit_program(const ir *g, const lowered *lo, frep_program *p)
         b->rem = frep_calloc(nn, sizeof *b->rem);
         if (!b->ureg || !b->uses || !b->need || !b->height || !b->forced || !b->mat ||
             !b->mreg || !b->rem)
-            E.failed = 1;
+            return -1;
     }
-    use_bank(&E, 0);
-    E.vis = frep_calloc(nn, sizeof *E.vis);
-    E.stk = frep_malloc(2 * nn * sizeof *E.stk);
-    E.post = frep_malloc(nn * sizeof *E.post);
-    E.freet = frep_malloc((g->n + lo->nslots + 1) * sizeof *E.freet);
-    if (roots && !E.failed && E.vis && E.stk && E.post && E.freet) {
-        uint32_t n = 0;
-        for (i = 0; i < lo->top.n; i++) n += stmt_roots(lo->top.v[i], roots + n);
-        roots[n++] = lo->root;
-        begin_region(&E, roots, n);
-        {
-            uint32_t top_region = E.region;
-            for (i = 0; i < lo->top.n && !E.failed; i++) {
-                use_bank(&E, 0);
-                E.region = top_region;
-                emit_stmt(&E, lo->top.v[i]);
-            }
-            use_bank(&E, 0);
-            E.region = top_region;
-        }
-        emit_root(&E, lo->root);
-        if (!E.failed && prog_finish(p) == 0) rc = 0;
-    }
-    frep_free(roots);
+    E->vis = frep_calloc(nn, sizeof *E->vis);
+    E->stk = frep_malloc(2 * nn * sizeof *E->stk);
+    E->post = frep_malloc(nn * sizeof *E->post);
+    E->freet = frep_malloc((E->g->n + E->lo->nslots + 1) * sizeof *E->freet);
+    return E->vis && E->stk && E->post && E->freet ? 0 : -1;
+}
+
+static void em_release(em *E)
+{
+    uint32_t i;
     for (i = 0; i < 2; i++) {
-        bank *b = &E.banks[i];
+        bank *b = &E->banks[i];
         frep_free(b->ureg);
         frep_free(b->uses);
         frep_free(b->need);
@@ -509,9 +509,58 @@ int emit_program(const ir *g, const lowered *lo, frep_program *p)
         frep_free(b->mreg);
         frep_free(b->rem);
     }
-    frep_free(E.vis);
-    frep_free(E.stk);
-    frep_free(E.post);
-    frep_free(E.freet);
-    return rc;
+    frep_free(E->vis);
+    frep_free(E->stk);
+    frep_free(E->post);
+    frep_free(E->freet);
+}
+
+/* program -> top-level statements, then the root: one region, counted at once so a
+ * node shared between statements is computed once. */
+static void emit_top(em *E)
+{
+    const lowered *lo = E->lo;
+    uint32_t nroots = 0, n = 0, i, top_region;
+    ir_ref *roots;
+    for (i = 0; i < lo->top.n; i++) {
+        const lstmt *s = lo->top.v[i];
+        nroots += s->kind == LS_STORE ? s->n : 2;
+    }
+    roots = frep_malloc((nroots + 1) * sizeof *roots);
+    if (!roots) {
+        E->failed = EMIT_NOMEM;
+        return;
+    }
+    for (i = 0; i < lo->top.n; i++) n += stmt_roots(lo->top.v[i], roots + n);
+    roots[n++] = lo->root;
+    use_bank(E, 0);
+    begin_region(E, roots, n);
+    frep_free(roots);
+    top_region = E->region;
+    for (i = 0; i < lo->top.n && !E->failed; i++) {
+        use_bank(E, 0);
+        E->region = top_region;
+        emit_stmt(E, lo->top.v[i]);
+    }
+    use_bank(E, 0);
+    E->region = top_region;
+    emit_root(E, lo->root);
+}
+
+emit_status emit_program(const ir *g, const lowered *lo, frep_program *p)
+{
+    em E;
+    memset(&E, 0, sizeof E);
+    E.g = g;
+    E.lo = lo;
+    E.p = p;
+    E.next_temp = lo->nslots;
+    if (em_alloc(&E, g->n + 1) < 0) E.failed = EMIT_NOMEM;
+    if (!E.failed) emit_top(&E);
+    /* prog_finish fails on code built here only when memory runs out or the stack
+     * is too deep (the code is valid by construction); put() counted the depth. */
+    if (!E.failed && prog_finish(p) != 0)
+        E.failed = E.max_depth > FREP_MAX_STACK ? EMIT_STACK : EMIT_NOMEM;
+    em_release(&E);
+    return E.failed;
 }

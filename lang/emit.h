@@ -17,8 +17,17 @@
  * stack (a large array assigned inside a loop). */
 #define FREP_EMIT_MAX_PARALLEL 16u
 
+/* What emit_program met: the compiler reports each differently. */
+typedef enum emit_status {
+    EMIT_OK = 0,
+    EMIT_NOMEM,          /* an allocation failed */
+    EMIT_SLOTS,          /* more than FREP_MAX_SLOTS variable and temporary slots */
+    EMIT_STACK,          /* a stack deeper than FREP_MAX_STACK */
+    EMIT_BUG             /* an invariant of the emitter failed */
+} emit_status;
+
 /* Append the code of `lo` to p (p->nparams must already be set) and prog_finish()
- * it. Returns 0, or -1 when out of memory or over a limit (slots, stack). */
-int emit_program(const ir *g, const lowered *lo, frep_program *p);
+ * it. Returns EMIT_OK, or why it failed. */
+emit_status emit_program(const ir *g, const lowered *lo, frep_program *p);
 
 #endif

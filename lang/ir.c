@@ -91,7 +91,8 @@ static int ir_rehash(ir *g, uint32_t nb)
     return 0;
 }
 
-/* Find or append node t. On failure (memory, node limit) returns 0 with g->failed set;
+/* Find or append node t. On failure (memory, node limit) returns 0 with g->failed set
+ * to the reason;
  * node 0 always exists then (or the caller sees failed before using refs). */
 static ir_ref ir_intern(ir *g, ir_node t)
 {
@@ -106,14 +107,14 @@ static ir_ref ir_intern(ir *g, ir_node t)
             if (ir_same(&g->nodes[i], &t)) return i;
     }
     if (g->n >= FREP_IR_MAX_NODES) {
-        g->failed = 1;
+        g->failed = IR_TOO_LARGE;
         return 0;
     }
     if (g->n == g->cap) {
         uint32_t ncap = g->cap ? 2 * g->cap : IR_INITIAL_CAP;
         ir_node *nn = arena_grow(g->A, g->nodes, g->n, ncap, sizeof *nn);
         if (!nn) {
-            g->failed = 1;
+            g->failed = IR_NOMEM;
             return 0;
         }
         g->nodes = nn;
@@ -127,7 +128,7 @@ static ir_ref ir_intern(ir *g, ir_node t)
     if (g->optimize) {
         if (!g->buckets || g->n > 2 * g->nbuckets) {
             if (ir_rehash(g, g->buckets ? 2 * g->nbuckets : IR_INITIAL_BUCKETS) < 0) {
-                g->failed = 1;
+                g->failed = IR_NOMEM;
                 return 0;
             }
         } else {

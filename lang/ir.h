@@ -29,6 +29,13 @@ typedef struct ir_node {
     uint32_t hnext;      /* hash chain */
 } ir_node;
 
+/* Why building the IR stopped: the caller reports the two differently. */
+typedef enum ir_failure {
+    IR_OK = 0,
+    IR_NOMEM,            /* an allocation failed */
+    IR_TOO_LARGE         /* over FREP_IR_MAX_NODES */
+} ir_failure;
+
 typedef struct ir {
     arena *A;
     ir_node *nodes;
@@ -38,7 +45,7 @@ typedef struct ir {
     int optimize;        /* fold constants and share identical nodes */
     int quiet;           /* new nodes get quiet = 1 (inside an if converted to select) */
     uint32_t line, col, len; /* position given to new nodes (ir_set_pos) */
-    int failed;          /* out of memory or over FREP_IR_MAX_NODES */
+    ir_failure failed;   /* set once a node could not be built; later builds do nothing */
     /* Called when constant folding meets a domain error (e.g. sqrt(-1)): the node is
      * left for the runtime to report; this gives the compiler a warning. May be NULL.
      * Never called for quiet nodes (their branch may not be taken). */

@@ -11,6 +11,7 @@
 #include <stddef.h>
 
 #include "lib_impl.h"
+#include "util.h"
 
 /* Newton steps of hfDEllipsoid, as the reference: each step is frozen once the
  * residual is below LIB_DELLIPSOID_TOL, so more steps never change a converged value. */
@@ -481,7 +482,7 @@ LIB_EXPANDER(hf_conv_arc)
         !need_size(c, &a[4], 3 * N, "hfConvArc", "axis") ||
         !need_size(c, &a[5], N, "hfConvArc", "angle"))
         return IR_NONE;
-    const double rd = 3.14159265358979323846 / 180.0;
+    const double rd = FREP_PI / 180.0;
     lv3 x = lv3_at(a[0].elems, 0);
     ir_ref f = K(0.0);
     int quiet = g->quiet;

@@ -603,11 +603,63 @@ static frep_opcode cmp_op(int op)
     }
 }
 
+/* expr -> VAR '[' expr ']': the cell, or a LOADI when the index depends on the point. */
+static ir_ref lw_element(lw *L, scope *sc, const ast_node *n)
+{
+    ir_ref dyn;
+    uint32_t c = lw_cellref(L, sc, n, &dyn);
+    if (c == UINT32_MAX) return nan_ref(L);
+    if (dyn != IR_NONE) {
+        uint32_t si = c & ~DYN_FLAG, base;
+        if (sc->syms[si].is_attr) return ir_const(L->g, 0);
+        base = dyn_base(L, sc, si, 0, n->loc);
+        set_pos(L, n->op_loc);
+        return ir_loadi(L->g, base, sc->syms[si].size, dyn);
+    }
+    return cell_value(L, sc, c);
+}
+
+/* expr -> CALL: an earlier model (inlined) or a library function (expanded). */
+static ir_ref lw_call(lw *L, scope *sc, const ast_node *n)
+{
+    int mi = check_find_model(L->f, n->key, (uint32_t)(sc->m - L->f->models));
+    const lib_fn *fn;
+    if (mi >= 0) return lw_call_model(L, sc, n, (uint32_t)mi);
+    fn = lib_lookup(n->name);
+    if (!fn) return nan_ref(L);
+    return lw_call_lib(L, sc, n, fn);
+}
+
+/* binary -> expr OP expr: arithmetic, the set operations of the @setops in force,
+ * comparisons and logic. */
+static ir_ref lw_binary(lw *L, scope *sc, const ast_node *n)
+{
+    ir *g = L->g;
+    ir_ref a = lw_expr(L, sc, n->a);
+    ir_ref b = lw_expr(L, sc, n->b);
+    set_pos(L, n->op_loc);
+    switch (n->op) {
+    case '+': return ir_add(g, a, b);
+    case '-': return ir_sub(g, a, b);
+    case '*': return ir_mul(g, a, b);
+    case '/': return ir_div(g, a, b);
+    case '^': return lw_pow(L, a, b);
+    case '|': return lib_union(&L->lc, a, b);
+    case '&': case '@': return lib_intersection(&L->lc, a, b);
+    case '\\': return lib_subtraction(&L->lc, a, b);
+    default: {
+        frep_opcode op = cmp_op(n->op);
+        if (op == FREP_OP__COUNT) return nan_ref(L);
+        return ir_op2(g, op, a, b);
+    }
+    }
+}
+
 /* expr -> NUM | VAR | VAR[expr] | CALL | unary | binary (see lang/parse.y) */
 static ir_ref lw_expr(lw *L, scope *sc, const ast_node *n)
 {
     ir *g = L->g;
-    ir_ref a, b;
+    ir_ref a;
     if (L->dead || L->abort || !n) return nan_ref(L);
     switch (n->kind) {
     case AST_NUM:
@@ -617,51 +669,17 @@ static ir_ref lw_expr(lw *L, scope *sc, const ast_node *n)
         if (!y || y->is_array) return nan_ref(L);
         return cell_value(L, sc, y->first);
     }
-    case AST_INDEX: {
-        ir_ref dyn;
-        uint32_t c = lw_cellref(L, sc, n, &dyn);
-        if (c == UINT32_MAX) return nan_ref(L);
-        if (dyn != IR_NONE) {
-            uint32_t si = c & ~DYN_FLAG, base;
-            if (sc->syms[si].is_attr) return ir_const(g, 0);
-            base = dyn_base(L, sc, si, 0, n->loc);
-            set_pos(L, n->op_loc);
-            return ir_loadi(g, base, sc->syms[si].size, dyn);
-        }
-        return cell_value(L, sc, c);
-    }
-    case AST_CALL: {
-        int mi = check_find_model(L->f, n->key, (uint32_t)(sc->m - L->f->models));
-        const lib_fn *fn;
-        if (mi >= 0) return lw_call_model(L, sc, n, (uint32_t)mi);
-        fn = lib_lookup(n->name);
-        if (!fn) return nan_ref(L);
-        return lw_call_lib(L, sc, n, fn);
-    }
+    case AST_INDEX:
+        return lw_element(L, sc, n);
+    case AST_CALL:
+        return lw_call(L, sc, n);
     case AST_UNARY:
         a = lw_expr(L, sc, n->a);
         set_pos(L, n->op_loc);
         if (n->op == AST_OP_NOT) return ir_op1(g, FREP_OP_NOT, a);
         return ir_neg(g, a);
     case AST_BINARY:
-        a = lw_expr(L, sc, n->a);
-        b = lw_expr(L, sc, n->b);
-        set_pos(L, n->op_loc);
-        switch (n->op) {
-        case '+': return ir_add(g, a, b);
-        case '-': return ir_sub(g, a, b);
-        case '*': return ir_mul(g, a, b);
-        case '/': return ir_div(g, a, b);
-        case '^': return lw_pow(L, a, b);
-        case '|': return lib_union(&L->lc, a, b);
-        case '&': case '@': return lib_intersection(&L->lc, a, b);
-        case '\\': return lib_subtraction(&L->lc, a, b);
-        default: {
-            frep_opcode op = cmp_op(n->op);
-            if (op == FREP_OP__COUNT) return nan_ref(L);
-            return ir_op2(g, op, a, b);
-        }
-        }
+        return lw_binary(L, sc, n);
     case AST_ASSIGN: case AST_ASSIGN_INDEX: case AST_ASSIGN_ARRAY: case AST_IF:
     case AST_WHILE:
         break;
@@ -719,6 +737,67 @@ static ir_ref named_param(lw *L, const check_free *fr)
 static void lw_if(lw *L, scope *sc, const ast_node *n);
 static void lw_while(lw *L, scope *sc, const ast_node *n);
 
+/* stmt -> NAME '=' expr ';' (a '@free' literal becomes its PARAM). */
+static void lw_assign(lw *L, scope *sc, const ast_node *n)
+{
+    const sym *y = scope_sym(sc, n->key);
+    const check_free *fr = free_param(L, n);
+    ir_ref v = fr ? named_param(L, fr) : lw_expr(L, sc, n->a);
+    uint32_t c;
+    if (!y || L->abort) return;
+    c = y->first;
+    set_pos(L, n->op_loc);
+    assign_cells(L, sc, &c, &v, 1, n->loc);
+}
+
+/* stmt -> NAME '[' expr ']' '=' expr ';': a cell, or a STOREI when the index depends
+ * on the point. */
+static void lw_assign_element(lw *L, scope *sc, const ast_node *n)
+{
+    ir_ref dyn, v;
+    uint32_t c = lw_cellref(L, sc, n, &dyn), si, base;
+    lstmt *s;
+    if (c == UINT32_MAX) return;
+    v = lw_expr(L, sc, n->b);
+    if (L->abort || L->dead) return;
+    set_pos(L, n->op_loc);
+    if (dyn == IR_NONE) {
+        assign_cells(L, sc, &c, &v, 1, n->loc);
+        return;
+    }
+    si = c & ~DYN_FLAG;
+    if (sc->syms[si].is_attr) return;
+    base = dyn_base(L, sc, si, 1, n->loc);
+    if (L->dead) return;
+    s = stmt_new(L, LS_STOREI);
+    if (!s) return;
+    s->base = base;
+    s->size = sc->syms[si].size;
+    s->index = dyn;
+    s->value = v;
+}
+
+/* stmt -> NAME '=' '[' expr {',' expr} ']' ';': a parallel assignment. */
+static void lw_assign_list(lw *L, scope *sc, const ast_node *n)
+{
+    const sym *y = scope_sym(sc, n->key);
+    uint32_t i, *cells;
+    ir_ref *vals;
+    if (!y) return;
+    cells = arena_alloc(L->A, (n->list.n + 1) * sizeof *cells);
+    vals = arena_alloc(L->A, (n->list.n + 1) * sizeof *vals);
+    if (!cells || !vals) return;
+    for (i = 0; i < n->list.n && i < y->size; i++) {
+        cells[i] = y->first + i;
+        vals[i] = lw_expr(L, sc, n->list.v[i]);
+    }
+    if (L->abort || L->dead) return;
+    set_pos(L, n->op_loc);
+    assign_cells(L, sc, cells, vals, i, n->loc);
+}
+
+/* stmt -> assignment | if_stmt | while_stmt | expr ';', within the step limit; a
+ * failed IR build stops lowering (out of memory, or over FREP_IR_MAX_NODES). */
 static void lw_stmt(lw *L, scope *sc, const ast_node *n)
 {
     if (L->dead || L->abort) return;
@@ -728,58 +807,15 @@ static void lw_stmt(lw *L, scope *sc, const ast_node *n)
         return;
     }
     switch (n->kind) {
-    case AST_ASSIGN: {
-        const sym *y = scope_sym(sc, n->key);
-        const check_free *fr = free_param(L, n);
-        ir_ref v = fr ? named_param(L, fr) : lw_expr(L, sc, n->a);
-        uint32_t c;
-        if (!y || L->abort) return;
-        c = y->first;
-        set_pos(L, n->op_loc);
-        assign_cells(L, sc, &c, &v, 1, n->loc);
+    case AST_ASSIGN:
+        lw_assign(L, sc, n);
         break;
-    }
-    case AST_ASSIGN_INDEX: {
-        ir_ref dyn, v;
-        uint32_t c = lw_cellref(L, sc, n, &dyn);
-        if (c == UINT32_MAX) return;
-        v = lw_expr(L, sc, n->b);
-        if (L->abort || L->dead) return;
-        set_pos(L, n->op_loc);
-        if (dyn != IR_NONE) {
-            uint32_t si = c & ~DYN_FLAG, base;
-            lstmt *s;
-            if (sc->syms[si].is_attr) return;
-            base = dyn_base(L, sc, si, 1, n->loc);
-            if (L->dead) return;
-            s = stmt_new(L, LS_STOREI);
-            if (!s) return;
-            s->base = base;
-            s->size = sc->syms[si].size;
-            s->index = dyn;
-            s->value = v;
-            return;
-        }
-        assign_cells(L, sc, &c, &v, 1, n->loc);
+    case AST_ASSIGN_INDEX:
+        lw_assign_element(L, sc, n);
         break;
-    }
-    case AST_ASSIGN_ARRAY: {
-        const sym *y = scope_sym(sc, n->key);
-        uint32_t i, *cells;
-        ir_ref *vals;
-        if (!y) return;
-        cells = arena_alloc(L->A, (n->list.n + 1) * sizeof *cells);
-        vals = arena_alloc(L->A, (n->list.n + 1) * sizeof *vals);
-        if (!cells || !vals) return;
-        for (i = 0; i < n->list.n && i < y->size; i++) {
-            cells[i] = y->first + i;
-            vals[i] = lw_expr(L, sc, n->list.v[i]);
-        }
-        if (L->abort || L->dead) return;
-        set_pos(L, n->op_loc);
-        assign_cells(L, sc, cells, vals, i, n->loc);
+    case AST_ASSIGN_ARRAY:
+        lw_assign_list(L, sc, n);
         break;
-    }
     case AST_IF:
         lw_if(L, sc, n);
         break;
@@ -791,7 +827,9 @@ static void lw_stmt(lw *L, scope *sc, const ast_node *n)
         (void)lw_expr(L, sc, n);
         break;
     }
-    if (L->g->failed)
+    if (L->A->failed || L->g->failed == IR_NOMEM)
+        L->dead = 1; /* reported as out of memory by lower_model */
+    else if (L->g->failed == IR_TOO_LARGE)
         lw_fatal(L, n->loc, "model too large: more than %u IR nodes",
                  (unsigned)FREP_IR_MAX_NODES);
 }
@@ -802,55 +840,48 @@ static void lw_stmts(lw *L, scope *sc, const ast_list *l)
     for (i = 0; i < l->n && !L->dead && !L->abort; i++) lw_stmt(L, sc, l->v[i]);
 }
 
-/* if_stmt -> IF cond THEN stmts [ELSE stmts] ENDIF */
-static void lw_if(lw *L, scope *sc, const ast_node *n)
+/* if_stmt at depth 0 with a point-dependent cond: both branches lowered
+ * speculatively (quiet nodes) and every cell they change merged with SELECT.
+ * Returns 0 when done, -1 when a branch needs real control flow (cells restored). */
+static int lw_if_select(lw *L, scope *sc, const ast_node *n, ir_ref cond)
 {
-    ir_ref cond = lw_expr(L, sc, n->a);
-    double c;
+    size_t bytes = sc->ncells * sizeof(ir_ref);
+    ir_ref *before = arena_alloc(L->A, bytes + sizeof(ir_ref));
+    ir_ref *then_v = arena_alloc(L->A, bytes + sizeof(ir_ref));
+    int quiet = L->g->quiet;
+    uint32_t i;
+    if (!before || !then_v) return 0;
+    memcpy(before, sc->vals, bytes);
+    L->trial++;
+    L->g->quiet = 1;
+    lw_stmts(L, sc, &n->body);
+    memcpy(then_v, sc->vals, bytes);
+    memcpy(sc->vals, before, bytes);
+    if (!L->abort) lw_stmts(L, sc, &n->body2);
+    L->g->quiet = quiet;
+    L->trial--;
+    if (L->dead) return 0;
+    if (!L->abort) {
+        set_pos(L, n->a->loc);
+        for (i = 0; i < sc->ncells; i++) {
+            ir_ref t = then_v[i], e = sc->vals[i];
+            if (t == e) continue;
+            sc->vals[i] = ir_select(L->g, cond,
+                                    t == IR_NONE ? ir_const(L->g, 0) : t,
+                                    e == IR_NONE ? ir_const(L->g, 0) : e);
+        }
+        return 0;
+    }
+    memcpy(sc->vals, before, bytes);
+    return -1;
+}
+
+/* if_stmt as real control flow: the cells it may write spilled to slots, an LS_IF
+ * with both bodies inside. */
+static void lw_if_branch(lw *L, scope *sc, const ast_node *n, ir_ref cond)
+{
     lblock *saved;
     lstmt *s;
-    if (L->abort || L->dead) return;
-    if (ir_is_const(L->g, cond, &c)) {
-        lw_stmts(L, sc, c != 0 ? &n->body : &n->body2);
-        return;
-    }
-    if (L->depth == 0) {
-        /* Try both branches speculatively and merge with SELECT. */
-        size_t bytes = sc->ncells * sizeof(ir_ref);
-        ir_ref *before = arena_alloc(L->A, bytes + sizeof(ir_ref));
-        ir_ref *then_v = arena_alloc(L->A, bytes + sizeof(ir_ref));
-        int quiet = L->g->quiet;
-        uint32_t i;
-        if (!before || !then_v) return;
-        memcpy(before, sc->vals, bytes);
-        L->trial++;
-        L->g->quiet = 1;
-        lw_stmts(L, sc, &n->body);
-        memcpy(then_v, sc->vals, bytes);
-        memcpy(sc->vals, before, bytes);
-        if (!L->abort) lw_stmts(L, sc, &n->body2);
-        L->g->quiet = quiet;
-        L->trial--;
-        if (L->dead) return;
-        if (!L->abort) {
-            set_pos(L, n->a->loc);
-            for (i = 0; i < sc->ncells; i++) {
-                ir_ref t = then_v[i], e = sc->vals[i];
-                if (t == e) continue;
-                sc->vals[i] = ir_select(L->g, cond,
-                                        t == IR_NONE ? ir_const(L->g, 0) : t,
-                                        e == IR_NONE ? ir_const(L->g, 0) : e);
-            }
-            return;
-        }
-        memcpy(sc->vals, before, bytes);
-        if (L->trial) return; /* the enclosing trial fails too */
-        L->abort = 0;
-    } else if (L->trial) {
-        L->abort = 1;
-        return;
-    }
-    /* Real control flow. */
     enter_construct(L, sc, n);
     if (L->dead) return;
     set_pos(L, n->a->loc);
@@ -864,6 +895,28 @@ static void lw_if(lw *L, scope *sc, const ast_node *n)
     lw_stmts(L, sc, &n->body2);
     L->cur = saved;
     L->depth--;
+}
+
+/* if_stmt -> IF cond THEN stmts [ELSE stmts] ENDIF: the taken branch when cond folds,
+ * else SELECTs when both branches are straight-line, else real control flow. */
+static void lw_if(lw *L, scope *sc, const ast_node *n)
+{
+    ir_ref cond = lw_expr(L, sc, n->a);
+    double c;
+    if (L->abort || L->dead) return;
+    if (ir_is_const(L->g, cond, &c)) {
+        lw_stmts(L, sc, c != 0 ? &n->body : &n->body2);
+        return;
+    }
+    if (L->depth == 0) {
+        if (lw_if_select(L, sc, n, cond) == 0) return;
+        if (L->trial) return; /* the enclosing trial fails too */
+        L->abort = 0;
+    } else if (L->trial) {
+        L->abort = 1;
+        return;
+    }
+    lw_if_branch(L, sc, n, cond);
 }
 
 /* while_stmt -> WHILE cond LOOP stmts ENDLOOP */
@@ -934,10 +987,16 @@ int lower_model(arena *A, const ast_file *f, uint32_t mi, const check_info *ci,
     L.lc.alpha = o->alpha;
     strmap_init(&L.seen, A);
     L.named = arena_alloc(A, (ci->nfree + 1) * sizeof *L.named);
-    if (!L.named) return -1;
+    if (!L.named) {
+        diag_nomem(d);
+        return -1;
+    }
     g->warn = ir_warn_cb;
     g->warn_user = &L;
-    if (scope_init(&L, &sc, m) < 0) return -1;
+    if (scope_init(&L, &sc, m) < 0) {
+        diag_nomem(d);
+        return -1;
+    }
     /* x: the point (elements past the third read 0); a: parameters; s: attributes. */
     for (j = 0; j < sc.syms[0].size; j++)
         sc.vals[sc.syms[0].first + j] = j < 3 ? ir_leaf(g, FREP_OP_X, j) : ir_const(g, 0);
@@ -956,8 +1015,8 @@ int lower_model(arena *A, const ast_file *f, uint32_t mi, const check_info *ci,
     out->nnamed = L.nnamed;
     out->has_s = m->nparams == 3;
     (void)o->a;
-    if (A->failed) {
-        diag_report(d, FREP_ERROR, m->loc, 1, "out of memory while compiling '%s'", m->name);
+    if (A->failed || g->failed == IR_NOMEM) {
+        diag_nomem(d);
         return -1;
     }
     return L.dead || d->errors != errors0 ? -1 : 0;

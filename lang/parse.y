@@ -489,103 +489,114 @@ static ast_loc after_prev(const lex_state *L)
     return p;
 }
 
-static int yyreport_syntax_error(const yypcontext_t *ctx, lex_state *L)
-{
-    if (L->error) return 0;
-    yysymbol_kind_t tok = yypcontext_token(ctx);
-    ast_loc at = *yypcontext_location(ctx);
+/* What a syntax error is reported from: the lookahead, the tokens that would fit,
+ * and where the message goes. */
+typedef struct syntax_ctx {
+    lex_state *L;
+    yysymbol_kind_t tok;       /* the lookahead */
+    ast_loc at;                /* its position */
     yysymbol_kind_t exp[YYNTOKENS];
-    int nexp = yypcontext_expected_tokens(ctx, exp, YYNTOKENS);
-    if (nexp < 0) nexp = 0;
-    int has[YYNTOKENS] = { 0 };
-    for (int i = 0; i < nexp; i++) has[exp[i]] = 1;
-    int eof = tok == YYSYMBOL_YYEOF;
-    const char *eof_note = eof ? " (reached end of file)" : "";
-    ast_loc where = eof && L->prev_tok ? after_prev(L) : at;
-    uint32_t len = eof ? 1 : span(at);
-    char found[96];
-    describe_found(L, tok, at, found, sizeof found);
+    int nexp;
+    int has[YYNTOKENS];        /* has[k]: token k would fit */
+    int eof;
+    const char *eof_note;
+    ast_loc where;             /* where the message points: after the previous token at
+                                  end of file, else the lookahead */
+    uint32_t len;
+    char found[96];            /* the lookahead, described */
+    const lex_open *open;      /* innermost open bracket or block, not the lookahead */
+    int want_open;             /* the lookahead closes this kind ('(' '[' '{' 'w' 'i'), or 0 */
+} syntax_ctx;
 
-    /* the innermost open bracket or block, not counting the lookahead itself */
-    const lex_open *open = NULL;
-    for (uint32_t i = L->nopen; i-- > 0;)
-        if (L->open[i].loc.off != at.off || eof) { open = &L->open[i]; break; }
+/* 0. a closer with nothing to close (unless it is a typo for the closer of the
+ * innermost bracket). */
+static int se_unmatched_closer(syntax_ctx *e)
+{
+    lex_state *L = e->L;
+    int found_open = 0;
+    if (!e->want_open) return 0;
+    for (uint32_t i = 0; i < L->nopen; i++) found_open |= L->open[i].kind == e->want_open;
+    const lex_open *in = L->nopen ? &L->open[L->nopen - 1] : NULL;
+    if (in && ((in->kind == '(' && e->has[YYSYMBOL_T_RPAREN]) ||
+               (in->kind == '[' && e->has[YYSYMBOL_T_RBRACK])))
+        found_open = 1;
+    if (found_open) return 0;
+    static const char *const opener_name[] = { "(", "[", "{", "while", "if" };
+    int w = e->want_open;
+    const char *o = opener_name[w == '(' ? 0 : w == '[' ? 1 : w == '{' ? 2 : w == 'w' ? 3 : 4];
+    lex_error(L, e->at, e->len, "unexpected %s without a matching '%s'", e->found, o);
+    return 1;
+}
 
-    /* 0. a closer with nothing to close */
-    int want_open = tok == YYSYMBOL_T_RPAREN ? '(' : tok == YYSYMBOL_T_RBRACK ? '['
-                  : tok == YYSYMBOL_T_RBRACE ? '{' : tok == YYSYMBOL_T_ENDLOOP ? 'w'
-                  : tok == YYSYMBOL_T_ENDIF || tok == YYSYMBOL_T_ELSE ? 'i' : 0;
-    if (want_open) {
-        int found_open = 0;
-        for (uint32_t i = 0; i < L->nopen; i++) found_open |= L->open[i].kind == want_open;
-        /* ...unless it is a typo for the closer of the innermost bracket */
-        const lex_open *in = L->nopen ? &L->open[L->nopen - 1] : NULL;
-        if (in && ((in->kind == '(' && has[YYSYMBOL_T_RPAREN]) ||
-                   (in->kind == '[' && has[YYSYMBOL_T_RBRACK])))
-            found_open = 1;
-        if (!found_open) {
-            static const char *const opener_name[] = { "(", "[", "{", "while", "if" };
-            const char *o = opener_name[want_open == '(' ? 0 : want_open == '[' ? 1
-                                        : want_open == '{' ? 2 : want_open == 'w' ? 3 : 4];
-            lex_error(L, at, len, "unexpected %s without a matching '%s'", found, o);
-            return 0;
-        }
-    }
-    /* 1. a closer is possible here: name what it would close (for a block, only when
-     * what came instead could be a wrong closer) */
+/* 1. a closer is possible here: name what it would close (for a block, only when what
+ * came instead could be a wrong closer); 4. also at the end of the file. */
+static int se_unclosed(syntax_ctx *e, int at_eof_only)
+{
     yysymbol_kind_t ck;
     const char *on, *cn;
-    int closer_like = eof || want_open || tok == YYSYMBOL_T_SEMI || tok == YYSYMBOL_T_COMMA;
-    if (open && closer_of(open->kind, &ck, &on, &cn) && has[ck] &&
-        (closer_like || open->kind == '(' || open->kind == '[')) {
-        lex_error(L, where, len, "expected '%s' to close '%s' at %u:%u%s", cn, on,
-                  (unsigned)open->loc.line, (unsigned)open->loc.col, eof_note);
+    int closer_like = e->eof || e->want_open || e->tok == YYSYMBOL_T_SEMI ||
+                      e->tok == YYSYMBOL_T_COMMA;
+    if (!e->open || !closer_of(e->open->kind, &ck, &on, &cn)) return 0;
+    if (at_eof_only ? !e->eof
+                    : !(e->has[ck] && (closer_like || e->open->kind == '(' ||
+                                       e->open->kind == '[')))
         return 0;
-    }
-    /* 2. then/loop after a condition */
-    if (has[YYSYMBOL_T_THEN] || has[YYSYMBOL_T_LOOP]) {
-        const char *kw = has[YYSYMBOL_T_THEN] ? "then" : "loop";
-        const char *st = has[YYSYMBOL_T_THEN] ? "if" : "while";
-        lex_error(L, where, len, "expected '%s' after the condition of '%s', found %s",
-                  kw, st, found);
-        return 0;
-    }
-    /* 3. a missing ';' belongs right after the previous token */
-    if (has[YYSYMBOL_T_SEMI] && L->prev_tok) {
-        ast_loc p = after_prev(L);
-        if (L->prev_tok == T_ENDIF || L->prev_tok == T_ENDLOOP)
-            lex_error(L, p, 1, "expected ';' after '%s'",
-                      L->prev_tok == T_ENDIF ? "endif" : "endloop");
-        else if (L->in_decl)
-            lex_error(L, p, 1, "expected ',' or ';' in array declaration, found %s",
-                      found);
-        else
-            lex_error(L, p, 1, "expected ';' after assignment, found %s", found);
-        return 0;
-    }
-    /* 4. still inside a bracket or block at the end of the file */
-    if (eof && open && closer_of(open->kind, &ck, &on, &cn)) {
-        lex_error(L, where, len, "expected '%s' to close '%s' at %u:%u%s", cn, on,
-                  (unsigned)open->loc.line, (unsigned)open->loc.col, eof_note);
-        return 0;
-    }
-    /* 5. between models */
-    if (has[YYSYMBOL_T_IDENT] && !open && nexp <= 2) {
-        if (eof && L->nmodels == 0 && !L->prev_tok)
-            lex_error(L, (ast_loc){ 0, 0, 0, 0 }, 0, "no model in the file: expected a "
-                      "model such as 'my_model(x[3], a[1]) { ... }'");
-        else
-            lex_error(L, where, len, "expected a model such as "
-                      "'my_model(x[3], a[1]) { ... }', found %s", found);
-        return 0;
-    }
-    /* 6. a list of what would fit, grouped so that it stays short */
+    lex_error(e->L, e->where, e->len, "expected '%s' to close '%s' at %u:%u%s", cn, on,
+              (unsigned)e->open->loc.line, (unsigned)e->open->loc.col, e->eof_note);
+    return 1;
+}
+
+/* 2. then/loop after a condition. */
+static int se_then_loop(syntax_ctx *e)
+{
+    if (!e->has[YYSYMBOL_T_THEN] && !e->has[YYSYMBOL_T_LOOP]) return 0;
+    const char *kw = e->has[YYSYMBOL_T_THEN] ? "then" : "loop";
+    const char *st = e->has[YYSYMBOL_T_THEN] ? "if" : "while";
+    lex_error(e->L, e->where, e->len, "expected '%s' after the condition of '%s', found %s",
+              kw, st, e->found);
+    return 1;
+}
+
+/* 3. a missing ';' belongs right after the previous token. */
+static int se_semicolon(syntax_ctx *e)
+{
+    lex_state *L = e->L;
+    if (!e->has[YYSYMBOL_T_SEMI] || !L->prev_tok) return 0;
+    ast_loc p = after_prev(L);
+    if (L->prev_tok == T_ENDIF || L->prev_tok == T_ENDLOOP)
+        lex_error(L, p, 1, "expected ';' after '%s'",
+                  L->prev_tok == T_ENDIF ? "endif" : "endloop");
+    else if (L->in_decl)
+        lex_error(L, p, 1, "expected ',' or ';' in array declaration, found %s", e->found);
+    else
+        lex_error(L, p, 1, "expected ';' after assignment, found %s", e->found);
+    return 1;
+}
+
+/* 5. between models. */
+static int se_between_models(syntax_ctx *e)
+{
+    lex_state *L = e->L;
+    if (!e->has[YYSYMBOL_T_IDENT] || e->open || e->nexp > 2) return 0;
+    if (e->eof && L->nmodels == 0 && !L->prev_tok)
+        lex_error(L, (ast_loc){ 0, 0, 0, 0 }, 0, "no model in the file: expected a "
+                  "model such as 'my_model(x[3], a[1]) { ... }'");
+    else
+        lex_error(L, e->where, e->len, "expected a model such as "
+                  "'my_model(x[3], a[1]) { ... }', found %s", e->found);
+    return 1;
+}
+
+/* 6. a list of what would fit, grouped so that it stays short. */
+static void se_expected_list(syntax_ctx *e)
+{
     const char *names[8];
-    int nn = 0, expr_done = 0, nbin = 0, stmt = has[YYSYMBOL_T_IF] && has[YYSYMBOL_T_WHILE];
-    for (int i = 0; i < nexp; i++) nbin += is_binary(exp[i]);
-    for (int i = 0; i < nexp && nn < 8; i++) {
-        yysymbol_kind_t k = exp[i];
-        if (has[YYSYMBOL_T_NUM] && is_expr_start(k)) {
+    int nn = 0, expr_done = 0, nbin = 0;
+    int stmt = e->has[YYSYMBOL_T_IF] && e->has[YYSYMBOL_T_WHILE];
+    for (int i = 0; i < e->nexp; i++) nbin += is_binary(e->exp[i]);
+    for (int i = 0; i < e->nexp && nn < 8; i++) {
+        yysymbol_kind_t k = e->exp[i];
+        if (e->has[YYSYMBOL_T_NUM] && is_expr_start(k)) {
             if (!expr_done) names[nn++] = "an expression";
             expr_done = 1;
         } else if (nbin > 3 && is_binary(k)) {
@@ -601,8 +612,8 @@ static int yyreport_syntax_error(const yypcontext_t *ctx, lex_state *L)
         }
     }
     if (nn == 0 || nn > 4) {
-        lex_error(L, where, len, "unexpected %s", found);
-        return 0;
+        lex_error(e->L, e->where, e->len, "unexpected %s", e->found);
+        return;
     }
     char list[256];
     size_t used = 0;
@@ -616,7 +627,36 @@ static int yyreport_syntax_error(const yypcontext_t *ctx, lex_state *L)
         if (w < 0 || (size_t)w >= sizeof list - used) break;
         used += (size_t)w;
     }
-    lex_error(L, where, len, "expected %s, found %s", list, found);
+    lex_error(e->L, e->where, e->len, "expected %s, found %s", list, e->found);
+}
+
+/* The one message of a syntax error: the first of the steps below that applies. */
+static int yyreport_syntax_error(const yypcontext_t *ctx, lex_state *L)
+{
+    if (L->error) return 0;
+    syntax_ctx e;
+    memset(&e, 0, sizeof e);
+    e.L = L;
+    e.tok = yypcontext_token(ctx);
+    e.at = *yypcontext_location(ctx);
+    e.nexp = yypcontext_expected_tokens(ctx, e.exp, YYNTOKENS);
+    if (e.nexp < 0) e.nexp = 0;
+    for (int i = 0; i < e.nexp; i++) e.has[e.exp[i]] = 1;
+    e.eof = e.tok == YYSYMBOL_YYEOF;
+    e.eof_note = e.eof ? " (reached end of file)" : "";
+    e.where = e.eof && L->prev_tok ? after_prev(L) : e.at;
+    e.len = e.eof ? 1 : span(e.at);
+    describe_found(L, e.tok, e.at, e.found, sizeof e.found);
+    for (uint32_t i = L->nopen; i-- > 0;)
+        if (L->open[i].loc.off != e.at.off || e.eof) { e.open = &L->open[i]; break; }
+    yysymbol_kind_t t = e.tok;
+    e.want_open = t == YYSYMBOL_T_RPAREN ? '(' : t == YYSYMBOL_T_RBRACK ? '['
+                : t == YYSYMBOL_T_RBRACE ? '{' : t == YYSYMBOL_T_ENDLOOP ? 'w'
+                : t == YYSYMBOL_T_ENDIF || t == YYSYMBOL_T_ELSE ? 'i' : 0;
+    if (se_unmatched_closer(&e) || se_unclosed(&e, 0) || se_then_loop(&e) ||
+        se_semicolon(&e) || se_unclosed(&e, 1) || se_between_models(&e))
+        return 0;
+    se_expected_list(&e);
     return 0;
 }
 
@@ -630,6 +670,7 @@ int ast_parse(arena *A, const char *filename, const char *src, size_t len, diag_
     out->src = src;
     out->len = len;
     if (d && !d->file) d->file = filename;
+    if (d && !d->A) d->A = A;
     lex_state *L = arena_alloc(A, sizeof *L);
     if (!L) {
         diag_report(d, FREP_ERROR, (ast_loc){ 0, 0, 0, 0 }, 0, "out of memory");

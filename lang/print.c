@@ -9,15 +9,14 @@
  */
 #include "alloc.h"
 #include "ast.h"
+#include "buf.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 typedef struct printer {
-    char *s;
-    size_t n, cap;
-    int failed;
+    frep_buf out;
     const ast_file *f;
     uint32_t next_pragma;   /* first annotation not printed yet */
     uint32_t line_end_line; /* source line where the current output line's construct
@@ -25,23 +24,7 @@ typedef struct printer {
     int indent;             /* of the current block, in levels */
 } printer;
 
-static void put(printer *p, const char *s, size_t n)
-{
-    if (p->failed) return;
-    if (p->n + n + 1 > p->cap) {
-        size_t cap = p->cap ? p->cap : 1024;
-        while (cap < p->n + n + 1) cap *= 2;
-        char *q = frep_realloc(p->s, cap);
-        if (!q) { p->failed = 1; return; }
-        p->s = q;
-        p->cap = cap;
-    }
-    memcpy(p->s + p->n, s, n);
-    p->n += n;
-    p->s[p->n] = '\0';
-}
-
-static void puts_(printer *p, const char *s) { put(p, s, strlen(s)); }
+static void puts_(printer *p, const char *s) { buf_puts(&p->out, s); }
 
 static void pad(printer *p, int levels)
 {
@@ -235,6 +218,47 @@ static uint32_t line_of(const ast_file *f, uint32_t off, uint32_t from_line,
 
 static void stmts(printer *p, const ast_list *l);
 
+/* if_stmt -> 'if' expr 'then' stmts ['else' stmts] 'endif;' */
+static void if_stmt(printer *p, const ast_node *s)
+{
+    begin_line(p, s->loc.off);
+    puts_(p, "if ");
+    expr(p, s->a);
+    puts_(p, " then");
+    end_line(p, s->op_loc.line);
+    p->indent++;
+    stmts(p, &s->body);
+    p->indent--;
+    if (s->body2.n) {
+        begin_line(p, s->else_loc.off);
+        puts_(p, "else");
+        end_line(p, s->else_loc.line);
+        p->indent++;
+        stmts(p, &s->body2);
+        p->indent--;
+    }
+    begin_line(p, s->close_loc.off);
+    puts_(p, "endif;");
+    end_line(p, s->close_loc.line);
+}
+
+/* while_stmt -> 'while' expr 'loop' stmts 'endloop;' */
+static void while_stmt(printer *p, const ast_node *s)
+{
+    begin_line(p, s->loc.off);
+    puts_(p, "while ");
+    expr(p, s->a);
+    puts_(p, " loop");
+    end_line(p, s->op_loc.line);
+    p->indent++;
+    stmts(p, &s->body);
+    p->indent--;
+    begin_line(p, s->close_loc.off);
+    puts_(p, "endloop;");
+    end_line(p, s->close_loc.line);
+}
+
+/* stmt -> assignment ';' | if_stmt | while_stmt, each on lines of its own */
 static void stmt(printer *p, const ast_node *s)
 {
     switch (s->kind) {
@@ -262,38 +286,10 @@ static void stmt(printer *p, const ast_node *s)
         puts_(p, "];");
         break;
     case AST_IF:
-        begin_line(p, s->loc.off);
-        puts_(p, "if ");
-        expr(p, s->a);
-        puts_(p, " then");
-        end_line(p, s->op_loc.line);
-        p->indent++;
-        stmts(p, &s->body);
-        p->indent--;
-        if (s->body2.n) {
-            begin_line(p, s->else_loc.off);
-            puts_(p, "else");
-            end_line(p, s->else_loc.line);
-            p->indent++;
-            stmts(p, &s->body2);
-            p->indent--;
-        }
-        begin_line(p, s->close_loc.off);
-        puts_(p, "endif;");
-        end_line(p, s->close_loc.line);
+        if_stmt(p, s);
         return;
     case AST_WHILE:
-        begin_line(p, s->loc.off);
-        puts_(p, "while ");
-        expr(p, s->a);
-        puts_(p, " loop");
-        end_line(p, s->op_loc.line);
-        p->indent++;
-        stmts(p, &s->body);
-        p->indent--;
-        begin_line(p, s->close_loc.off);
-        puts_(p, "endloop;");
-        end_line(p, s->close_loc.line);
+        while_stmt(p, s);
         return;
     case AST_NUM: case AST_VAR: case AST_INDEX: case AST_CALL: case AST_UNARY:
     case AST_BINARY:
@@ -358,9 +354,6 @@ char *ast_print(const ast_file *f)
         end_line(&p, m->end_loc.line);
     }
     flush(&p, UINT32_MAX);
-    if (p.failed || !p.s) {
-        frep_free(p.s);
-        return NULL;
-    }
-    return p.s;
+    if (!p.out.s) return NULL; /* nothing printed */
+    return buf_finish(&p.out, NULL);
 }

@@ -73,7 +73,10 @@ static void *prog_thread_new(void *ctx)
         prog_thread_free(ctx, t);
         return NULL;
     }
-    t->pr = vm_pruner_new(pf->p);
+    if (vm_pruner_create(pf->p, &t->pr) != 0) {
+        prog_thread_free(ctx, t);
+        return NULL;
+    }
     if (t->pr) {
         size_t n = pf->p->ncode;
         t->sub = *pf->p;
@@ -81,9 +84,8 @@ static void *prog_thread_new(void *ctx)
         t->sub.pos = frep_malloc(n * sizeof *t->sub.pos);
         t->orig = frep_malloc(n * sizeof *t->orig);
         if (!t->sub.code || !t->sub.pos || !t->orig) {
-            /* pruning is an optimization: go without it */
-            vm_pruner_free(t->pr);
-            t->pr = NULL;
+            prog_thread_free(ctx, t);
+            return NULL;
         }
     }
     return t;

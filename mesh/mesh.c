@@ -22,6 +22,7 @@
 #include "config.h"
 
 #include "alloc.h"
+#include "linalg.h"
 #include "mesh_internal.h"
 #include "vec3.h"
 
@@ -164,40 +165,9 @@ void mesh_cell_table_build(cell_table *t)
 
 /* ---- small linear algebra: symmetric 3x3 eigen decomposition (cyclic Jacobi) ------ */
 
-static void eig3(const double A0[3][3], double w[3], double V[3][3])
-{
-    double A[3][3];
-    memcpy(A, A0, sizeof A);
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) V[i][j] = i == j;
-    for (int sweep = 0; sweep < 24; sweep++) {
-        double off = fabs(A[0][1]) + fabs(A[0][2]) + fabs(A[1][2]);
-        if (off < 1e-30) break;
-        for (int p = 0; p < 2; p++)
-            for (int q = p + 1; q < 3; q++) {
-                if (fabs(A[p][q]) < 1e-300) continue;
-                double th = (A[q][q] - A[p][p]) / (2 * A[p][q]);
-                double tt = (th >= 0 ? 1.0 : -1.0) / (fabs(th) + sqrt(th * th + 1));
-                double c = 1 / sqrt(tt * tt + 1), s = tt * c;
-                for (int k = 0; k < 3; k++) {
-                    double akp = A[k][p], akq = A[k][q];
-                    A[k][p] = c * akp - s * akq;
-                    A[k][q] = s * akp + c * akq;
-                }
-                for (int k = 0; k < 3; k++) {
-                    double apk = A[p][k], aqk = A[q][k];
-                    A[p][k] = c * apk - s * aqk;
-                    A[q][k] = s * apk + c * aqk;
-                }
-                for (int k = 0; k < 3; k++) {
-                    double vkp = V[k][p], vkq = V[k][q];
-                    V[k][p] = c * vkp - s * vkq;
-                    V[k][q] = s * vkp + c * vkq;
-                }
-            }
-    }
-    for (int i = 0; i < 3; i++) w[i] = A[i][i];
-}
+/* The QEF matrix is a sum of n n^T over unit normals, entries of order 1 or more: an
+ * off-diagonal sum below 1e-30 is far below rounding; 24 sweeps bound the loop. */
+static const linalg_jacobi_stop qef_stop = {24, 1e-30, 0, 1e-300};
 
 /* Minimize sum (n_i . (x - p_i))^2 near the mass point, inside [lo, hi]. Returns the
  * rank used: 1 on a flat patch, 2 on an edge, 3 at a corner (0: the mass point). */
@@ -251,7 +221,7 @@ static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
         }
     }
     double w[3], V[3][3];
-    eig3((const double(*)[3])A, w, V);
+    linalg_sym3_jacobi((const double(*)[3])A, &qef_stop, w, V);
     int ord[3] = { 0, 1, 2 };
     for (int i = 0; i < 3; i++)
         for (int j = i + 1; j < 3; j++)

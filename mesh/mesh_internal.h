@@ -13,10 +13,7 @@
 
 #include "err.h"
 #include "mesh.h"
-
-#ifdef _OPENMP
-#include <omp.h>
-#endif
+#include "threads.h"
 
 /* Cells per block edge: 9^3 corner evaluations per call amortize the evaluator's
  * per-call cost, while blocks stay small enough to follow the surface. */
@@ -126,27 +123,5 @@ int mesh_block_contour(const mesher *M, mwork *W, void *ts, mblock *B);
 void mesh_resolve_faces(mesher *M);
 /* The triangles of the quads block B owns into B->tri. 0, or -1 when out of memory. */
 int mesh_block_quads(mesher *M, mblock *B);
-
-/* ---- threads ---------------------------------------------------------------------- */
-
-/* The threads of a run asking for n (<= 0: OpenMP's default). */
-static inline int mesh_thread_count(int n)
-{
-#ifdef _OPENMP
-    return n > 0 ? n : omp_get_max_threads();
-#else
-    (void)n;
-    return 1;
-#endif
-}
-
-static inline int mesh_thread_num(void)
-{
-#ifdef _OPENMP
-    return omp_get_thread_num();
-#else
-    return 0;
-#endif
-}
 
 #endif

@@ -118,7 +118,7 @@ static int node_keep(const mesher *M, const onode *nd)
     node_box(M, nd, box, &pad);
     if (!M->f->interval) return 1;
     double lo = -INFINITY, hi = INFINITY;
-    if (M->f->interval(M->f->ctx, M->ts[mesh_thread_num()], box, &lo, &hi) != 0) return 1;
+    if (M->f->interval(M->f->ctx, M->ts[frep_thread_num()], box, &lo, &hi) != 0) return 1;
     if (hi < M->o->iso) return 0;
     return !(lo >= M->o->iso && !pad);
 }

@@ -63,7 +63,7 @@ static int mesher_init(mesher *M, const mesh_field *f, const mesh_options *o, me
     M->G = o->grid + 2;
     M->nb = (M->G + MESH_BLOCK - 1) / MESH_BLOCK;
     for (int c = 0; c < 3; c++) M->h[c] = (o->box[c + 3] - o->box[c]) / o->grid;
-    M->nthreads = mesh_thread_count(o->nthreads);
+    M->nthreads = frep_threads(o->nthreads);
     st->blocks_total = (size_t)M->nb * (size_t)M->nb * (size_t)M->nb;
     M->ts = frep_calloc((size_t)M->nthreads, sizeof *M->ts);
     M->works = frep_calloc((size_t)M->nthreads, sizeof *M->works);
@@ -103,7 +103,7 @@ static int contour_round(mesher *M, size_t first, size_t *done, frep_error *e)
     mblock **todo = M->blocks + first;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(M->nthreads)
     for (long i = 0; i < n; i++) {
-        int t = mesh_thread_num();
+        int t = frep_thread_num();
         int rc = mesh_block_contour(M, M->works[t], M->ts[t], todo[i]);
         if (rc == FREP_ENOMEM) {
 #pragma omp atomic write
@@ -195,7 +195,7 @@ static int make_quads(mesher *M, frep_error *e)
     int failed = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(M->nthreads)
     for (long i = 0; i < n; i++) {
-        int t = mesh_thread_num();
+        int t = frep_thread_num();
         if (mesh_block_quads(M, M->blocks[i]) != 0) {
 #pragma omp atomic write
             failed = 1;

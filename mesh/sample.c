@@ -31,13 +31,6 @@ void sample_options_init(sample_options *o)
     o->mesh.grid = 0; /* chosen from the point count unless set */
 }
 
-/* A standard normal deviate (Box-Muller, one of the pair). */
-static double rng_gauss(frep_rng *r)
-{
-    double u = frep_rng_unit(r), v = frep_rng_unit(r);
-    return sqrt(-2 * log(1 - u)) * cos(2 * FREP_PI * v);
-}
-
 /* cum[t]: the area of m's triangles 0..t; returns the total. */
 static double triangle_areas(const frep_mesh *m, double *cum)
 {
@@ -111,15 +104,15 @@ static void perturb(const sample_options *o, const double box[6], frep_rng *r, f
     double sigma = o->noise_absolute ? o->noise : o->noise * diag;
     if (sigma > 0)
         for (size_t i = 0; i < nsurf; i++) {
-            c->x[i] += sigma * rng_gauss(r);
-            c->y[i] += sigma * rng_gauss(r);
-            c->z[i] += sigma * rng_gauss(r);
+            c->x[i] += sigma * frep_rng_normal(r);
+            c->y[i] += sigma * frep_rng_normal(r);
+            c->z[i] += sigma * frep_rng_normal(r);
         }
     for (size_t i = nsurf; i < c->n; i++) {
         c->x[i] = box[0] + dx * frep_rng_unit(r);
         c->y[i] = box[1] + dy * frep_rng_unit(r);
         c->z[i] = box[2] + dz * frep_rng_unit(r);
-        double nv[3] = { rng_gauss(r), rng_gauss(r), rng_gauss(r) };
+        double nv[3] = { frep_rng_normal(r), frep_rng_normal(r), frep_rng_normal(r) };
         double l = vec3_len(nv);
         c->nx[i] = l > 0 ? nv[0] / l : 1;
         c->ny[i] = l > 0 ? nv[1] / l : 0;
@@ -275,7 +268,7 @@ static int project(const mesh_field *f, const mesh_options *mo, frep_cloud *c, s
     for (int k = 0; k < 3; k++) cell = fmax(cell, (mo->box[k + 3] - mo->box[k]) / mo->grid);
     long nb = (long)((nsurf + SAMPLE_BATCH - 1) / SAMPLE_BATCH);
     int nomem = 0, bad = 0;
-    int nthreads = mesh_thread_count(mo->nthreads);
+    int nthreads = frep_threads(mo->nthreads);
     (void)nthreads; /* serial build: the pragma below is ignored */
 #pragma omp parallel num_threads(nthreads)
     {

@@ -9,12 +9,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #include "alloc.h"
 #include "opsem.h"
+#include "threads.h"
 #include "vm_internal.h"
 
 /* ---- scratch and errors ------------------------------------------------------------ */
@@ -202,7 +200,7 @@ static int par_run(const par_job *j, int nthreads, frep_runtime_error *err)
     if (nblocks == 0) return 0;
 #ifdef _OPENMP
     {
-        int nt = nthreads > 0 ? nthreads : omp_get_max_threads(), t;
+        int nt = frep_threads(nthreads), t;
         vm_errstate *errs;
         if (nt < 1) nt = 1;
         if ((size_t)nt > nblocks) nt = (int)nblocks;
@@ -210,7 +208,7 @@ static int par_run(const par_job *j, int nthreads, frep_runtime_error *err)
         if (!errs) return -1;
 #pragma omp parallel num_threads(nt) reduction(| : failed)
         {
-            int tid = omp_get_thread_num(), nteam = omp_get_num_threads();
+            int tid = frep_thread_num(), nteam = frep_team_size();
             /* Contiguous ranges of blocks in thread order, like schedule(static):
              * merging the threads' errors in order equals the serial block order. */
             size_t b0 = nblocks * (size_t)tid / (size_t)nteam;

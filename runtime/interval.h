@@ -49,6 +49,9 @@ int vm_eval_interval(const frep_program *p, vm_iscratch *s, const double box[6],
  * A pruner has mutable scratch: one per thread. Returns 0, or -1 as vm_eval_interval. */
 typedef struct vm_pruner vm_pruner;
 vm_pruner *vm_pruner_new(const frep_program *p);
+/* As vm_pruner_new, telling the cases apart: 0 with *out the pruner or NULL (the
+ * program cannot be pruned), -1 on allocation failure. */
+int vm_pruner_create(const frep_program *p, vm_pruner **out);
 void vm_pruner_free(vm_pruner *r);
 int vm_prune(vm_pruner *r, vm_iscratch *s, const double box[6], const double *params,
              frep_insn *code, frep_srcpos *pos, uint32_t *orig, uint32_t *ncode, ival *out,

@@ -14,10 +14,8 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
+#include "threads.h"
 #include "vm_internal.h"
 
 #define PR_NONE UINT32_MAX
@@ -787,7 +785,7 @@ static int grid_run(const grid_job *g, long nsuper, int nthreads, vm_errstate *t
     int failed = 0;
     double insns = 0;
 #ifdef _OPENMP
-    int nt = nthreads > 0 ? nthreads : omp_get_max_threads();
+    int nt = frep_threads(nthreads);
 #pragma omp parallel num_threads(nt) reduction(+ : insns)
 #else
     (void)nthreads;

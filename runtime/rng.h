@@ -6,7 +6,10 @@
 #ifndef FREP_RNG_H
 #define FREP_RNG_H
 
+#include <math.h>
 #include <stdint.h>
+
+#include "util.h"
 
 typedef struct frep_rng {
     uint64_t s[4];
@@ -44,6 +47,14 @@ static inline uint64_t frep_rng_next(frep_rng *r)
 static inline double frep_rng_unit(frep_rng *r)
 {
     return (double)(frep_rng_next(r) >> 11) * 0x1.0p-53;
+}
+
+/* A standard normal deviate (Box-Muller, the cosine one of the pair): two uniform
+ * draws, u first; 1 - u lies in (0, 1], so the logarithm is finite. */
+static inline double frep_rng_normal(frep_rng *r)
+{
+    double u = 1.0 - frep_rng_unit(r), v = frep_rng_unit(r);
+    return sqrt(-2.0 * log(u)) * cos(2.0 * FREP_PI * v);
 }
 
 #endif

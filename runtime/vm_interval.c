@@ -10,14 +10,15 @@
 #include "alloc.h"
 #include "interval.h"
 #include "opsem.h"
+#include "util.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define IV_PI 3.14159265358979323846
-#define IV_HALF_PI 1.57079632679489661923
-#define IV_TWO_PI 6.28318530717958647692
+/* pi/2 and 2 pi: scaling by two is exact, so these are the doubles nearest the reals. */
+#define IV_HALF_PI (FREP_PI / 2)
+#define IV_TWO_PI (2 * FREP_PI)
 
 struct vm_iscratch {
     uint32_t nstack, nslots;
@@ -144,14 +145,14 @@ static ival iv_cos(ival a)
     double c1 = opsem_cos(a.lo), c2 = opsem_cos(a.hi);
     ival r = iv(fmin(c1, c2) - IV_TRIG_SLACK, fmax(c1, c2) + IV_TRIG_SLACK);
     if (iv_has_phase(a, 0)) r.hi = 1;
-    if (iv_has_phase(a, IV_PI)) r.lo = -1;
+    if (iv_has_phase(a, FREP_PI)) r.lo = -1;
     r = iv_round(r);
     return iv(fmax(r.lo, -1), fmin(r.hi, 1));
 }
 
 static ival iv_tan(ival a)
 {
-    if (!isfinite(a.lo) || !isfinite(a.hi) || a.hi - a.lo >= IV_PI) return iv_entire();
+    if (!isfinite(a.lo) || !isfinite(a.hi) || a.hi - a.lo >= FREP_PI) return iv_entire();
     /* tan is increasing between its poles pi/2 + n pi. */
     if (iv_has_phase(a, IV_HALF_PI) || iv_has_phase(a, -IV_HALF_PI)) return iv_entire();
     return iv_round(iv(tan(a.lo), tan(a.hi)));
@@ -225,7 +226,7 @@ static ival iv_atan2(ival y, ival x)
         double c3 = atan2(y.hi, x.lo), c4 = atan2(y.hi, x.hi);
         return iv_round(iv(min4(c1, c2, c3, c4), max4(c1, c2, c3, c4)));
     }
-    return iv_round(iv(-IV_PI, IV_PI));
+    return iv_round(iv(-FREP_PI, FREP_PI));
 }
 
 /* R-functions are nondecreasing in each argument (d/da = 1 +- a/sqrt(a^2+b^2) >= 0),
@@ -722,22 +723,35 @@ static void pr_set_operations(vm_pruner *r, const pr_flow *f)
     }
 }
 
-vm_pruner *vm_pruner_new(const frep_program *p)
+int vm_pruner_create(const frep_program *p, vm_pruner **out)
 {
     pr_flow f;
     vm_pruner *r;
-    if (!pr_supported(p)) return NULL;
+    *out = NULL;
+    if (!pr_supported(p)) return 0;
     memset(&f, 0, sizeof f);
     r = pr_alloc(p);
-    if (!r || pr_flow_alloc(&f, p->ncode, p->nslots) < 0 || pr_forward(r, &f) < 0) {
+    if (!r || pr_flow_alloc(&f, p->ncode, p->nslots) < 0) {
         pr_flow_free(&f);
         vm_pruner_free(r);
-        return NULL;
+        return -1;
+    }
+    if (pr_forward(r, &f) < 0) {
+        pr_flow_free(&f);
+        vm_pruner_free(r);
+        return 0;
     }
     pr_backward(r, &f);
     pr_set_operations(r, &f);
     pr_flow_free(&f);
-    return r;
+    *out = r;
+    return 0;
+}
+
+vm_pruner *vm_pruner_new(const frep_program *p)
+{
+    vm_pruner *r;
+    return vm_pruner_create(p, &r) == 0 ? r : NULL;
 }
 
 /* May the code [from, to) be dropped? */

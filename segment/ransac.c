@@ -12,14 +12,13 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 #include "alloc.h"
 #include "rng.h"
 #include "normals.h"
 #include "ransac.h"
+#include "threads.h"
+#include "util.h"
+#include "vec3.h"
 
 /* Octree depth for localized sampling: 10 levels = cells of 1/1024 of the box side,
  * finer than any useful sampling neighbourhood. */
@@ -65,53 +64,20 @@
 #define BITMAP_MAX_CELLS_AXIS (1u << 20)
 /* Cone half-angles outside [CONE_MIN_ANGLE, pi/2 - CONE_MIN_ANGLE] are degenerate
  * (a cylinder or a plane describes the data better). */
-#define CONE_MIN_ANGLE (2.0 * M_PI / 180.0)
+#define CONE_MIN_ANGLE (2.0 * FREP_PI / 180.0)
 /* Curved primitives with radii above this many box diagonals are planes in disguise. */
 #define MAX_RADIUS_DIAGONALS 2.0
 
-#ifndef M_PI
-#define M_PI 3.14159265358979323846
-#endif
-
 /* ---- small vector and random helpers --------------------------------------- */
-
-static char *dupstr(const char *s)
-{
-    size_t l = strlen(s) + 1;
-    char *d = frep_malloc(l);
-    if (d) memcpy(d, s, l);
-    return d;
-}
-
-static double dot(const double a[3], const double b[3])
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
-static void cross(const double a[3], const double b[3], double c[3])
-{
-    c[0] = a[1] * b[2] - a[2] * b[1];
-    c[1] = a[2] * b[0] - a[0] * b[2];
-    c[2] = a[0] * b[1] - a[1] * b[0];
-}
-
-static double norm(const double a[3]) { return sqrt(dot(a, a)); }
 
 static int normalize(double a[3])
 {
-    double l = norm(a);
+    double l = vec3_len(a);
     if (!(l > 1e-300) || !isfinite(l)) return -1;
     a[0] /= l;
     a[1] /= l;
     a[2] /= l;
     return 0;
-}
-
-static void sub(const double a[3], const double b[3], double c[3])
-{
-    c[0] = a[0] - b[0];
-    c[1] = a[1] - b[1];
-    c[2] = a[2] - b[2];
 }
 
 /* The shared generator (runtime/rng.h) under this file's short names. */
@@ -144,7 +110,7 @@ static int compatible(const prim *q, const frep_cloud *c, size_t i, double eps, 
     point(c, i, p);
     double f = prim_eval(q, p, g);
     if (!(fabs(f) <= eps)) return 0;
-    double gl = norm(g);
+    double gl = vec3_len(g);
     double d = c->nx[i] * g[0] + c->ny[i] * g[1] + c->nz[i] * g[2];
     return fabs(d) >= cosn * gl && gl > 0;
 }
@@ -173,19 +139,19 @@ static void kern_init(kern *k, const prim *q, double eps, double cosn)
 static inline int kern_test(const kern *k, const double x[3], const double nv[3])
 {
     if (k->t == PRIM_PLANE) {
-        double f = k->r - dot(k->p, x);
-        return fabs(f) <= k->eps && fabs(dot(k->p, nv)) >= k->cosn;
+        double f = k->r - vec3_dot(k->p, x);
+        return fabs(f) <= k->eps && fabs(vec3_dot(k->p, nv)) >= k->cosn;
     }
     double v[3];
-    sub(x, k->p, v);
+    vec3_sub(x, k->p, v);
     if (k->t == PRIM_SPHERE) {
-        double l = sqrt(dot(v, v));
-        return fabs(k->r - l) <= k->eps && l > 0 && fabs(dot(v, nv)) >= k->cosn * l;
+        double l = vec3_len(v);
+        return fabs(k->r - l) <= k->eps && l > 0 && fabs(vec3_dot(v, nv)) >= k->cosn * l;
     }
-    double h = dot(v, k->a), rho2 = dot(v, v) - h * h;
+    double h = vec3_dot(v, k->a), rho2 = vec3_dot(v, v) - h * h;
     double rho = sqrt(rho2 > 0 ? rho2 : 0);
     if (!(rho > 0)) return 0;
-    double an = dot(k->a, nv), wn = dot(v, nv) - h * an; /* w = v - h a, the radial part */
+    double an = vec3_dot(k->a, nv), wn = vec3_dot(v, nv) - h * an; /* w = v - h a, the radial part */
     switch (k->t) {
     case PRIM_CYLINDER:
         return fabs(k->r - rho) <= k->eps && fabs(wn) >= k->cosn * rho;
@@ -209,8 +175,8 @@ static int line_closest(const double p1[3], const double d1[3], const double p2[
                         const double d2[3], double m[3])
 {
     double w[3];
-    sub(p1, p2, w);
-    double a = dot(d1, d1), b = dot(d1, d2), cc = dot(d2, d2), d = dot(d1, w), e = dot(d2, w);
+    vec3_sub(p1, p2, w);
+    double a = vec3_dot(d1, d1), b = vec3_dot(d1, d2), cc = vec3_dot(d2, d2), d = vec3_dot(d1, w), e = vec3_dot(d2, w);
     double den = a * cc - b * b;
     if (!(fabs(den) > 1e-9 * a * cc)) return -1;
     double t = (b * e - cc * d) / den, s = (a * e - b * d) / den;
@@ -223,20 +189,20 @@ static int circle3(const double a3[3], const double b3[3], const double c3[3], d
                    double nrm[3], double *rad)
 {
     double a[3], b[3], axb[3];
-    sub(a3, c3, a);
-    sub(b3, c3, b);
-    cross(a, b, axb);
-    double l2 = dot(axb, axb);
-    if (!(l2 > 1e-24 * dot(a, a) * dot(b, b)) || l2 == 0) return -1;
+    vec3_sub(a3, c3, a);
+    vec3_sub(b3, c3, b);
+    vec3_cross(a, b, axb);
+    double l2 = vec3_dot(axb, axb);
+    if (!(l2 > 1e-24 * vec3_dot(a, a) * vec3_dot(b, b)) || l2 == 0) return -1;
     double t[3], u[3];
-    for (int k = 0; k < 3; k++) t[k] = dot(a, a) * b[k] - dot(b, b) * a[k];
-    cross(t, axb, u);
+    for (int k = 0; k < 3; k++) t[k] = vec3_dot(a, a) * b[k] - vec3_dot(b, b) * a[k];
+    vec3_cross(t, axb, u);
     for (int k = 0; k < 3; k++) ctr[k] = c3[k] + u[k] / (2.0 * l2);
     for (int k = 0; k < 3; k++) nrm[k] = axb[k];
     normalize(nrm);
     double d[3];
-    sub(a3, ctr, d);
-    *rad = norm(d);
+    vec3_sub(a3, ctr, d);
+    *rad = vec3_len(d);
     return 0;
 }
 
@@ -265,14 +231,14 @@ typedef struct sample {
 static int make_plane(const sample *s, prim *q)
 {
     double u[3], v[3], n[3];
-    sub(s->p[1], s->p[0], u);
-    sub(s->p[2], s->p[0], v);
-    cross(u, v, n);
+    vec3_sub(s->p[1], s->p[0], u);
+    vec3_sub(s->p[2], s->p[0], v);
+    vec3_cross(u, v, n);
     if (normalize(n)) return -1;
-    if (dot(n, s->n[0]) < 0) for (int k = 0; k < 3; k++) n[k] = -n[k];
+    if (vec3_dot(n, s->n[0]) < 0) for (int k = 0; k < 3; k++) n[k] = -n[k];
     q->type = PRIM_PLANE;
     memcpy(q->p, n, sizeof n);
-    q->r = dot(n, s->p[0]);
+    q->r = vec3_dot(n, s->p[0]);
     return 0;
 }
 
@@ -281,19 +247,19 @@ static int make_sphere(const sample *s, prim *q)
     double c[3];
     if (line_closest(s->p[0], s->n[0], s->p[1], s->n[1], c)) return -1;
     double d0[3], d1[3];
-    sub(s->p[0], c, d0);
-    sub(s->p[1], c, d1);
+    vec3_sub(s->p[0], c, d0);
+    vec3_sub(s->p[1], c, d1);
     q->type = PRIM_SPHERE;
     memcpy(q->p, c, sizeof c);
-    q->r = 0.5 * (norm(d0) + norm(d1));
+    q->r = 0.5 * (vec3_len(d0) + vec3_len(d1));
     return 0;
 }
 
 static int make_cylinder(const sample *s, prim *q)
 {
     double a[3];
-    cross(s->n[0], s->n[1], a);
-    if (norm(a) < 1e-2 || normalize(a)) return -1;
+    vec3_cross(s->n[0], s->n[1], a);
+    if (vec3_len(a) < 1e-2 || normalize(a)) return -1;
     double c[3];
     if (line_closest(s->p[0], s->n[0], s->p[1], s->n[1], c)) return -1;
     q->type = PRIM_CYLINDER;
@@ -302,10 +268,10 @@ static int make_cylinder(const sample *s, prim *q)
     double r = 0;
     for (int i = 0; i < 2; i++) {
         double v[3], w[3];
-        sub(s->p[i], c, v);
-        double h = dot(v, a);
+        vec3_sub(s->p[i], c, v);
+        double h = vec3_dot(v, a);
         for (int k = 0; k < 3; k++) w[k] = v[k] - h * a[k];
-        r += 0.5 * norm(w);
+        r += 0.5 * vec3_len(w);
     }
     q->r = r;
     return 0;
@@ -316,23 +282,23 @@ static int make_cone(const sample *s, prim *q)
     double m[3][3], b[3], apex[3];
     for (int i = 0; i < 3; i++) {
         for (int k = 0; k < 3; k++) m[i][k] = s->n[i][k];
-        b[i] = dot(s->n[i], s->p[i]);
+        b[i] = vec3_dot(s->n[i], s->p[i]);
     }
     if (solve3(m, b, apex)) return -1;
     double d[3][3];
     for (int i = 0; i < 3; i++) {
-        sub(s->p[i], apex, d[i]);
+        vec3_sub(s->p[i], apex, d[i]);
         if (normalize(d[i])) return -1;
     }
     double u[3], v[3], a[3];
-    sub(d[1], d[0], u);
-    sub(d[2], d[0], v);
-    cross(u, v, a);
+    vec3_sub(d[1], d[0], u);
+    vec3_sub(d[2], d[0], v);
+    vec3_cross(u, v, a);
     if (normalize(a)) return -1;
-    if (dot(a, d[0]) < 0) for (int k = 0; k < 3; k++) a[k] = -a[k];
+    if (vec3_dot(a, d[0]) < 0) for (int k = 0; k < 3; k++) a[k] = -a[k];
     double ang = 0;
-    for (int i = 0; i < 3; i++) ang += acos(fmin(1.0, fmax(-1.0, dot(a, d[i])))) / 3.0;
-    if (ang < CONE_MIN_ANGLE || ang > M_PI / 2 - CONE_MIN_ANGLE) return -1;
+    for (int i = 0; i < 3; i++) ang += acos(fmin(1.0, fmax(-1.0, vec3_dot(a, d[i])))) / 3.0;
+    if (ang < CONE_MIN_ANGLE || ang > FREP_PI / 2 - CONE_MIN_ANGLE) return -1;
     q->type = PRIM_CONE;
     memcpy(q->p, apex, sizeof apex);
     memcpy(q->a, a, sizeof a);
@@ -347,11 +313,11 @@ static double torus_det(const sample *s, double r)
     double c[4][3], u[3], v[3], w[3], x[3];
     for (int i = 0; i < 4; i++)
         for (int k = 0; k < 3; k++) c[i][k] = s->p[i][k] - r * s->n[i][k];
-    sub(c[1], c[0], u);
-    sub(c[2], c[0], v);
-    sub(c[3], c[0], w);
-    cross(v, w, x);
-    return dot(u, x);
+    vec3_sub(c[1], c[0], u);
+    vec3_sub(c[2], c[0], v);
+    vec3_sub(c[3], c[0], w);
+    vec3_cross(v, w, x);
+    return vec3_dot(u, x);
 }
 
 /* Subdivisions of the minor-radius interval searched for roots of torus_det. */
@@ -377,8 +343,8 @@ static int make_torus(const sample *s, prim *q, double rmax, double eps)
             if (fabs(r) > eps && !circle3(c[0], c[1], c[2], ctr, ax, &R)) {
                 /* The fourth tube centre must lie on the same circle. */
                 double v[3];
-                sub(c[3], ctr, v);
-                double h = dot(v, ax), rho2 = dot(v, v) - h * h;
+                vec3_sub(c[3], ctr, v);
+                double h = vec3_dot(v, ax), rho2 = vec3_dot(v, v) - h * h;
                 double rho = sqrt(fmax(0.0, rho2));
                 if (fabs(h) < eps && fabs(rho - R) < eps && R > fabs(r) * 0.05) {
                     q->type = PRIM_TORUS;
@@ -461,131 +427,145 @@ static void basis(const double a[3], double u[3], double v[3])
 {
     double t[3] = {1, 0, 0};
     if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
-    double d = dot(t, a);
+    double d = vec3_dot(t, a);
     for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
     normalize(u);
-    cross(a, u, v);
+    vec3_cross(a, u, v);
 }
 
-/* Keep only the inliers (idx[0..n)) in the largest 8-connected patch of a bitmap with
- * cells of size beta over the parameter domain of q. Returns the new count. */
-static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *idx, size_t n,
-                                double beta)
+/* The parameter domain of q, flattened: point i of the patch at (uv[2i], uv[2i+1]),
+ * lengths along the surface; period[k] > 0 for an axis that wraps around. */
+typedef struct pdomain {
+    double *uv;
+    double period[2];
+    double lo[2];          /* the bitmap's corner */
+    double cell[2];        /* its cell sizes */
+    uint64_t ncell[2];     /* its cells per axis */
+} pdomain;
+
+/* Mean distance from a cone's axis over the inliers: the radius its angle is scaled by. */
+static double cone_mean_rho(const prim *q, const frep_cloud *c, const uint32_t *idx, size_t n)
 {
-    if (n == 0) return 0;
-    double *uv = frep_malloc(2 * n * sizeof *uv);
-    cellpt *cp = frep_malloc(n * sizeof *cp);
-    uint32_t *par = NULL, *cnt = NULL;
-    if (!uv || !cp) goto oom;
+    double mean_rho = 0;
+    for (size_t i = 0; i < n; i++) {
+        double p[3], v[3];
+        point(c, idx[i], p);
+        vec3_sub(p, q->p, v);
+        double h = vec3_dot(v, q->a);
+        mean_rho += sqrt(fmax(0, vec3_dot(v, v) - h * h)) / (double)n;
+    }
+    return mean_rho;
+}
+
+/* The domain coordinates of every inlier (see doc/segment.md, extraction): in-plane
+ * axes; longitude and colatitude times r; angle times r (or the cone's mean radius,
+ * or R) with height, slant distance or the tube angle times r. */
+static void domain_coords(const prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
+                          pdomain *D)
+{
     double e1[3], e2[3];
     const double *ax = q->type == PRIM_PLANE ? q->p : q->a;
     double zaxis[3] = {0, 0, 1};
     if (q->type == PRIM_SPHERE) ax = zaxis;
     basis(ax, e1, e2);
-    double period[2] = {0, 0}; /* 0: not periodic */
-    double mean_rho = 0;
-    if (q->type == PRIM_CONE) {
-        for (size_t i = 0; i < n; i++) {
-            double p[3], v[3];
-            point(c, idx[i], p);
-            sub(p, q->p, v);
-            double h = dot(v, q->a);
-            mean_rho += sqrt(fmax(0, dot(v, v) - h * h)) / (double)n;
-        }
-    }
+    D->period[0] = D->period[1] = 0;
+    double mean_rho = q->type == PRIM_CONE ? cone_mean_rho(q, c, idx, n) : 0;
     for (size_t i = 0; i < n; i++) {
         double p[3], v[3];
         point(c, idx[i], p);
         double u = 0, w = 0;
         switch (q->type) {
         case PRIM_PLANE:
-            u = dot(p, e1);
-            w = dot(p, e2);
+            u = vec3_dot(p, e1);
+            w = vec3_dot(p, e2);
             break;
         case PRIM_SPHERE: {
-            sub(p, q->p, v);
+            vec3_sub(p, q->p, v);
             normalize(v);
-            u = q->r * atan2(dot(v, e2), dot(v, e1));
-            w = q->r * acos(fmin(1, fmax(-1, dot(v, ax))));
-            period[0] = 2 * M_PI * q->r;
+            u = q->r * atan2(vec3_dot(v, e2), vec3_dot(v, e1));
+            w = q->r * acos(fmin(1, fmax(-1, vec3_dot(v, ax))));
+            D->period[0] = 2 * FREP_PI * q->r;
             break;
         }
         case PRIM_CYLINDER:
         case PRIM_CONE:
         case PRIM_TORUS: {
-            sub(p, q->p, v);
-            double h = dot(v, q->a);
-            double ang = atan2(dot(v, e2), dot(v, e1));
-            double rho = sqrt(fmax(0, dot(v, v) - h * h));
+            vec3_sub(p, q->p, v);
+            double h = vec3_dot(v, q->a);
+            double ang = atan2(vec3_dot(v, e2), vec3_dot(v, e1));
+            double rho = sqrt(fmax(0, vec3_dot(v, v) - h * h));
             if (q->type == PRIM_CYLINDER) {
                 u = q->r * ang;
                 w = h;
-                period[0] = 2 * M_PI * q->r;
+                D->period[0] = 2 * FREP_PI * q->r;
             } else if (q->type == PRIM_CONE) {
                 u = mean_rho * ang;
                 w = sqrt(h * h + rho * rho);
-                period[0] = 2 * M_PI * mean_rho;
+                D->period[0] = 2 * FREP_PI * mean_rho;
             } else {
                 u = q->R * ang;
                 w = q->r * atan2(h, rho - q->R);
-                period[0] = 2 * M_PI * q->R;
-                period[1] = 2 * M_PI * q->r;
+                D->period[0] = 2 * FREP_PI * q->R;
+                D->period[1] = 2 * FREP_PI * q->r;
             }
             break;
         }
         case PRIM__COUNT:
             break;
         }
-        uv[2 * i] = u;
-        uv[2 * i + 1] = w;
+        D->uv[2 * i] = u;
+        D->uv[2 * i + 1] = w;
     }
-    double lo[2] = {DBL_MAX, DBL_MAX}, hi[2] = {-DBL_MAX, -DBL_MAX};
+}
+
+/* The bitmap over the coordinates: cells of beta (larger when an axis would need more
+ * than BITMAP_MAX_CELLS_AXIS); a periodic axis wraps onto whole cells of ext / ncell. */
+static void domain_grid(pdomain *D, size_t n, double beta)
+{
+    double hi[2] = {-DBL_MAX, -DBL_MAX};
+    D->lo[0] = D->lo[1] = DBL_MAX;
     for (size_t i = 0; i < n; i++)
         for (int k = 0; k < 2; k++) {
-            if (uv[2 * i + k] < lo[k]) lo[k] = uv[2 * i + k];
-            if (uv[2 * i + k] > hi[k]) hi[k] = uv[2 * i + k];
+            if (D->uv[2 * i + k] < D->lo[k]) D->lo[k] = D->uv[2 * i + k];
+            if (D->uv[2 * i + k] > hi[k]) hi[k] = D->uv[2 * i + k];
         }
-    uint64_t ncell[2];
+    double ext[2];
     for (int k = 0; k < 2; k++) {
-        double ext = period[k] > 0 ? period[k] : hi[k] - lo[k];
-        if (period[k] > 0) lo[k] = -0.5 * period[k] * (k == 0 ? 1 : 1);
-        if (ext / beta > BITMAP_MAX_CELLS_AXIS - 1) beta = ext / (BITMAP_MAX_CELLS_AXIS - 1);
+        ext[k] = D->period[k] > 0 ? D->period[k] : hi[k] - D->lo[k];
+        if (D->period[k] > 0) D->lo[k] = -0.5 * D->period[k];
+        if (ext[k] / beta > BITMAP_MAX_CELLS_AXIS - 1) beta = ext[k] / (BITMAP_MAX_CELLS_AXIS - 1);
     }
+    for (int k = 0; k < 2; k++) D->ncell[k] = (uint64_t)floor(ext[k] / beta) + 1;
     for (int k = 0; k < 2; k++) {
-        double ext = period[k] > 0 ? period[k] : hi[k] - lo[k];
-        ncell[k] = (uint64_t)floor(ext / beta) + 1;
-        /* A periodic axis must wrap onto whole cells: cells of ext / ncell. */
+        D->cell[k] = D->period[k] > 0 ? ext[k] / (double)D->ncell[k] : beta;
+        if (!(D->cell[k] > 0)) D->cell[k] = 1;
     }
-    double cell[2];
-    for (int k = 0; k < 2; k++) {
-        double ext = period[k] > 0 ? period[k] : hi[k] - lo[k];
-        cell[k] = period[k] > 0 ? ext / (double)ncell[k] : beta;
-        if (!(cell[k] > 0)) cell[k] = 1;
-    }
+}
+
+/* The bitmap cell of every point, sorted by cell (then by point). */
+static void domain_cells(const pdomain *D, size_t n, cellpt *cp)
+{
     for (size_t i = 0; i < n; i++) {
         uint64_t ci[2];
         for (int k = 0; k < 2; k++) {
-            double t = floor((uv[2 * i + k] - lo[k]) / cell[k]);
+            double t = floor((D->uv[2 * i + k] - D->lo[k]) / D->cell[k]);
             if (!(t >= 0)) t = 0;
             ci[k] = (uint64_t)t;
-            if (ci[k] >= ncell[k]) ci[k] = period[k] > 0 ? ci[k] % ncell[k] : ncell[k] - 1;
+            if (ci[k] >= D->ncell[k])
+                ci[k] = D->period[k] > 0 ? ci[k] % D->ncell[k] : D->ncell[k] - 1;
         }
-        cp[i].cell = ci[0] * ncell[1] + ci[1];
+        cp[i].cell = ci[0] * D->ncell[1] + ci[1];
         cp[i].pt = (uint32_t)i;
     }
     if (sort_cellpt(cp, n)) qsort(cp, n, sizeof *cp, cmp_cellpt);
-    /* Unique cells: cell j spans cp[start[j]..]; union-find over cells. */
-    size_t ncells = 0;
-    uint32_t *start = frep_malloc((n + 1) * sizeof *start);
-    par = frep_malloc(n * sizeof *par);
-    cnt = frep_calloc(n, sizeof *cnt);
-    if (!start || !par || !cnt) {
-        frep_free(start);
-        goto oom;
-    }
-    for (size_t i = 0; i < n; i++)
-        if (i == 0 || cp[i].cell != cp[i - 1].cell) start[ncells++] = (uint32_t)i;
-    start[ncells] = (uint32_t)n;
+}
+
+/* Union-find over the occupied cells (cell j spans cp[start[j] .. start[j + 1])): each
+ * cell joins its 8 neighbours, across the seam of a periodic axis. */
+static void join_neighbours(const pdomain *D, const cellpt *cp, const uint32_t *start,
+                            size_t ncells, uint32_t *par)
+{
+    const uint64_t *ncell = D->ncell;
     for (size_t j = 0; j < ncells; j++) par[j] = (uint32_t)j;
     for (size_t j = 0; j < ncells; j++) {
         uint64_t id = cp[start[j]].cell, cu = id / ncell[1], cv = id % ncell[1];
@@ -594,11 +574,11 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
                 if (!du && !dv) continue;
                 int64_t nu = (int64_t)cu + du, nv = (int64_t)cv + dv;
                 if (nu < 0 || nu >= (int64_t)ncell[0]) {
-                    if (period[0] <= 0) continue;
+                    if (D->period[0] <= 0) continue;
                     nu = (nu + (int64_t)ncell[0]) % (int64_t)ncell[0];
                 }
                 if (nv < 0 || nv >= (int64_t)ncell[1]) {
-                    if (period[1] <= 0) continue;
+                    if (D->period[1] <= 0) continue;
                     nv = (nv + (int64_t)ncell[1]) % (int64_t)ncell[1];
                 }
                 uint64_t nid = (uint64_t)nu * ncell[1] + (uint64_t)nv;
@@ -615,35 +595,58 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
                 }
             }
     }
+}
+
+/* The component of most points (the first of equals); keep[pt] marks its points. */
+static void mark_largest(const cellpt *cp, const uint32_t *start, size_t ncells,
+                         uint32_t *par, uint32_t *cnt, unsigned char *keep)
+{
     for (size_t j = 0; j < ncells; j++) cnt[uf_find(par, (uint32_t)j)] += start[j + 1] - start[j];
     uint32_t best = 0;
     for (size_t j = 1; j < ncells; j++)
         if (cnt[j] > cnt[best]) best = (uint32_t)j;
-    /* Keep the inliers of the best component, in their original order. */
-    unsigned char *keep = frep_calloc(n, 1);
-    if (!keep) {
-        frep_free(start);
-        goto oom;
-    }
     for (size_t j = 0; j < ncells; j++)
         if (uf_find(par, (uint32_t)j) == best)
             for (uint32_t i = start[j]; i < start[j + 1]; i++) keep[cp[i].pt] = 1;
-    size_t m = 0;
-    for (size_t i = 0; i < n; i++)
-        if (keep[i]) idx[m++] = idx[i];
-    frep_free(keep);
+}
+
+/* Keep only the inliers (idx[0..n)) in the largest 8-connected patch of a bitmap with
+ * cells of size beta over the parameter domain of q. Returns the new count (n, all
+ * kept, when out of memory). */
+static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *idx, size_t n,
+                                double beta)
+{
+    if (n == 0) return 0;
+    pdomain D;
+    D.uv = frep_malloc(2 * n * sizeof *D.uv);
+    cellpt *cp = frep_malloc(n * sizeof *cp);
+    uint32_t *start = frep_malloc((n + 1) * sizeof *start);
+    uint32_t *par = frep_malloc(n * sizeof *par);
+    uint32_t *cnt = frep_calloc(n, sizeof *cnt);
+    unsigned char *keep = frep_calloc(n, 1);
+    size_t m = n; /* out of memory: keep everything rather than fail */
+    if (D.uv && cp && start && par && cnt && keep) {
+        domain_coords(q, c, idx, n, &D);
+        domain_grid(&D, n, beta);
+        domain_cells(&D, n, cp);
+        size_t ncells = 0;
+        for (size_t i = 0; i < n; i++)
+            if (i == 0 || cp[i].cell != cp[i - 1].cell) start[ncells++] = (uint32_t)i;
+        start[ncells] = (uint32_t)n;
+        join_neighbours(&D, cp, start, ncells, par);
+        mark_largest(cp, start, ncells, par, cnt, keep);
+        /* The inliers of the best component, in their original order. */
+        m = 0;
+        for (size_t i = 0; i < n; i++)
+            if (keep[i]) idx[m++] = idx[i];
+    }
+    frep_free(D.uv);
+    frep_free(cp);
     frep_free(start);
-    frep_free(uv);
-    frep_free(cp);
     frep_free(par);
     frep_free(cnt);
+    frep_free(keep);
     return m;
-oom:
-    frep_free(uv);
-    frep_free(cp);
-    frep_free(par);
-    frep_free(cnt);
-    return n; /* out of memory: keep everything rather than fail */
 }
 
 /* ---- least-squares refit ----------------------------------------------------- */
@@ -700,7 +703,7 @@ static int unpack(prim *q, const double *v)
         return q->r > 0 && q->R > 0 ? 0 : -1;
     }
     q->r = v[6];
-    if (q->type == PRIM_CONE) return q->r > 0 && q->r < M_PI / 2 ? 0 : -1;
+    if (q->type == PRIM_CONE) return q->r > 0 && q->r < FREP_PI / 2 ? 0 : -1;
     return q->r > 0 ? 0 : -1;
 }
 
@@ -746,68 +749,82 @@ static double cost_of(const prim *q, const double *px, size_t n)
     return s;
 }
 
-/* The least-squares fit of q to the m points px (3 coordinates each); idx[0..n) are
- * the inliers, whose normals orient a plane. */
-static int refit_points(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
-                        const double *px, size_t m)
+/* The least-squares plane through the m points px: the covariance's smallest-eigenvalue
+ * eigenvector, oriented as the inliers' (idx[0..n)) summed normals when they have a
+ * clear direction (a plane that replaces a curved shape has none of its own), else as
+ * q was. */
+static int refit_plane(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
+                       const double *px, size_t m)
 {
-    int rc = -1;
-    if (q->type == PRIM_PLANE) {
-        double mean[3] = {0, 0, 0}, cov[9] = {0};
-        for (size_t j = 0; j < m; j++)
-            for (int k = 0; k < 3; k++) mean[k] += px[3 * j + k] / (double)m;
-        for (size_t j = 0; j < m; j++)
-            for (int a = 0; a < 3; a++)
-                for (int b = 0; b < 3; b++)
-                    cov[3 * a + b] += (px[3 * j + a] - mean[a]) * (px[3 * j + b] - mean[b]);
-        double ev[3], vec[9];
-        normals_sym3_eig(cov, ev, vec);
-        double nrm[3] = {vec[0], vec[1], vec[2]};
-        /* Outward by the inliers' own normals when there are any (a plane that
-         * replaces a curved shape has no orientation of its own), else as before. */
-        double ref[3] = {q->p[0], q->p[1], q->p[2]};
-        if (c->has_normals) {
-            double sn[3] = {0, 0, 0};
-            for (size_t j = 0; j < n; j++) {
-                sn[0] += c->nx[idx[j]];
-                sn[1] += c->ny[idx[j]];
-                sn[2] += c->nz[idx[j]];
-            }
-            if (fabs(dot(sn, nrm)) > 1e-9 * (double)n) memcpy(ref, sn, sizeof ref);
+    double mean[3] = {0, 0, 0}, cov[9] = {0};
+    for (size_t j = 0; j < m; j++)
+        for (int k = 0; k < 3; k++) mean[k] += px[3 * j + k] / (double)m;
+    for (size_t j = 0; j < m; j++)
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++)
+                cov[3 * a + b] += (px[3 * j + a] - mean[a]) * (px[3 * j + b] - mean[b]);
+    double ev[3], vec[9];
+    normals_sym3_eig(cov, ev, vec);
+    double nrm[3] = {vec[0], vec[1], vec[2]};
+    double ref[3] = {q->p[0], q->p[1], q->p[2]};
+    if (c->has_normals) {
+        double sn[3] = {0, 0, 0};
+        for (size_t j = 0; j < n; j++) {
+            sn[0] += c->nx[idx[j]];
+            sn[1] += c->ny[idx[j]];
+            sn[2] += c->nz[idx[j]];
         }
-        if (dot(nrm, ref) < 0) for (int k = 0; k < 3; k++) nrm[k] = -nrm[k];
-        memcpy(q->p, nrm, sizeof nrm);
-        q->r = dot(nrm, mean);
-        return 0;
+        if (fabs(vec3_dot(sn, nrm)) > 1e-9 * (double)n) memcpy(ref, sn, sizeof ref);
     }
+    if (vec3_dot(nrm, ref) < 0) for (int k = 0; k < 3; k++) nrm[k] = -nrm[k];
+    memcpy(q->p, nrm, sizeof nrm);
+    q->r = vec3_dot(nrm, mean);
+    return 0;
+}
+
+/* J^T J and J^T f of the np parameters v of q over the m points px, with
+ * forward-difference Jacobians (steps 1e-7 of each parameter's size; positions count
+ * the points' extent, scale). */
+static void lm_normal_equations(const prim *q, const double *v, int np, const double *px,
+                                size_t m, double scale, double *JtJ, double *Jtr)
+{
+    double h[8], vt[8];
+    prim tq[8];
+    memset(JtJ, 0, 64 * sizeof *JtJ);
+    memset(Jtr, 0, 8 * sizeof *Jtr);
+    for (int k = 0; k < np; k++) {
+        h[k] = 1e-7 * (fabs(v[k]) + (k < 3 ? scale : 1.0));
+        memcpy(vt, v, sizeof vt);
+        vt[k] += h[k];
+        tq[k] = *q;
+        unpack(&tq[k], vt);
+    }
+    for (size_t j = 0; j < m; j++) {
+        double f = prim_eval(q, px + 3 * j, NULL), J[8];
+        for (int k = 0; k < np; k++) J[k] = (prim_eval(&tq[k], px + 3 * j, NULL) - f) / h[k];
+        for (int a = 0; a < np; a++) {
+            Jtr[a] += J[a] * f;
+            for (int b = 0; b < np; b++) JtJ[a * np + b] += J[a] * J[b];
+        }
+    }
+}
+
+/* The Levenberg-Marquardt fit of q's parameters to the m points px (Euclidean
+ * distance): damping from 1e-3, times 10 after a failed step, a tenth after a good one. */
+static int refit_lm(prim *q, const double *px, size_t m)
+{
     int np = npar(q->type);
     double v[8], vt[8], JtJ[64], Jtr[8], A[64], step[8];
     pack(q, v);
     double scale = 0;
-    for (size_t j = 0; j < m; j++) scale = fmax(scale, fabs(px[3 * j]) + fabs(px[3 * j + 1]) + fabs(px[3 * j + 2]));
+    for (size_t j = 0; j < m; j++)
+        scale = fmax(scale, fabs(px[3 * j]) + fabs(px[3 * j + 1]) + fabs(px[3 * j + 2]));
     scale = fmax(scale, 1e-12);
     double cost = cost_of(q, px, m), lambda = 1e-3;
     prim t = *q;
+    int rc = -1;
     for (int it = 0; it < LM_MAX_ITER; it++) {
-        memset(JtJ, 0, sizeof JtJ);
-        memset(Jtr, 0, sizeof Jtr);
-        double h[8];
-        prim tq[8];
-        for (int k = 0; k < np; k++) {
-            h[k] = 1e-7 * (fabs(v[k]) + (k < 3 ? scale : 1.0));
-            memcpy(vt, v, sizeof vt);
-            vt[k] += h[k];
-            tq[k] = *q;
-            unpack(&tq[k], vt);
-        }
-        for (size_t j = 0; j < m; j++) {
-            double f = prim_eval(q, px + 3 * j, NULL), J[8];
-            for (int k = 0; k < np; k++) J[k] = (prim_eval(&tq[k], px + 3 * j, NULL) - f) / h[k];
-            for (int a = 0; a < np; a++) {
-                Jtr[a] += J[a] * f;
-                for (int b = 0; b < np; b++) JtJ[a * np + b] += J[a] * J[b];
-            }
-        }
+        lm_normal_equations(q, v, np, px, m, scale, JtJ, Jtr);
         int improved = 0;
         for (int tries = 0; tries < LM_TRIES && !improved; tries++) {
             memcpy(A, JtJ, sizeof A);
@@ -838,6 +855,15 @@ static int refit_points(prim *q, const frep_cloud *c, const uint32_t *idx, size_
         if (!improved) break;
     }
     return rc == 0 || cost >= 0 ? 0 : -1;
+}
+
+/* The least-squares fit of q to the m points px (3 coordinates each); idx[0..n) are
+ * the inliers, whose normals orient a plane. */
+static int refit_points(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
+                        const double *px, size_t m)
+{
+    if (q->type == PRIM_PLANE) return refit_plane(q, c, idx, n, px, m);
+    return refit_lm(q, px, m);
 }
 
 /* Points farther than TRIM_SIGMAS robust standard deviations (1.4826 median |f|)
@@ -971,7 +997,7 @@ static void score_next(det *d, cand *cs, const int *which, size_t nw)
     }
     (void)work;
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 4) if (work >= PAR_MIN_WORK) num_threads(cfg->nthreads > 0 ? cfg->nthreads : omp_get_max_threads())
+#pragma omp parallel for schedule(dynamic, 4) if (work >= PAR_MIN_WORK) num_threads(frep_threads(cfg->nthreads))
 #endif
     for (long w = 0; w < lw; w++) {
         cand *k = &cs[which[w]];
@@ -1076,10 +1102,37 @@ static int verify(const prim *q, const sample *s, int nv, double eps, double cos
         double g[3];
         double f = prim_eval(q, s->p[k], g);
         if (!(fabs(f) <= eps)) return 0;
-        double gl = norm(g);
-        if (!(gl > 0) || fabs(dot(g, s->n[k])) < cosn * gl) return 0;
+        double gl = vec3_len(g);
+        if (!(gl > 0) || fabs(vec3_dot(g, s->n[k])) < cosn * gl) return 0;
     }
     return 1;
+}
+
+/* Do a and b, of one type, have parameters within tol (positions, radii) and deg
+ * degrees (directions, cone angles)? */
+static int shapes_close(const prim *a, const prim *b, double tol, double deg)
+{
+    double cmin = cos(deg * FREP_PI / 180.0), dp[3];
+    vec3_sub(a->p, b->p, dp);
+    switch (a->type) {
+    case PRIM_PLANE:
+        return vec3_dot(a->p, b->p) > cmin && fabs(a->r - b->r) < tol;
+    case PRIM_SPHERE:
+        return vec3_len(dp) < tol && fabs(a->r - b->r) < tol;
+    case PRIM_CYLINDER: {
+        double h = vec3_dot(dp, b->a), w[3];
+        for (int k = 0; k < 3; k++) w[k] = dp[k] - h * b->a[k];
+        return fabs(vec3_dot(a->a, b->a)) > cmin && vec3_len(w) < tol && fabs(a->r - b->r) < tol;
+    }
+    case PRIM_CONE:
+        return vec3_len(dp) < tol && vec3_dot(a->a, b->a) > cmin && fabs(a->r - b->r) < deg * FREP_PI / 180.0;
+    case PRIM_TORUS:
+        return vec3_len(dp) < tol && fabs(vec3_dot(a->a, b->a)) > cmin && fabs(a->r - b->r) < tol &&
+               fabs(a->R - b->R) < tol;
+    case PRIM__COUNT:
+        break;
+    }
+    return 0;
 }
 
 /* Same shape within the tolerances (epsilon in position, DUP_DEG in direction)? A
@@ -1087,29 +1140,7 @@ static int verify(const prim *q, const sample *s, int nv, double eps, double cos
 #define DUP_DEG 2.0
 static int same_shape(const prim *a, const prim *b, double eps)
 {
-    if (a->type != b->type) return 0;
-    double cmin = cos(DUP_DEG * M_PI / 180.0), dp[3];
-    sub(a->p, b->p, dp);
-    switch (a->type) {
-    case PRIM_PLANE:
-        return dot(a->p, b->p) > cmin && fabs(a->r - b->r) < eps;
-    case PRIM_SPHERE:
-        return norm(dp) < eps && fabs(a->r - b->r) < eps;
-    case PRIM_CYLINDER: {
-        double h = dot(dp, b->a), w[3];
-        for (int k = 0; k < 3; k++) w[k] = dp[k] - h * b->a[k];
-        return fabs(dot(a->a, b->a)) > cmin && norm(w) < eps && fabs(a->r - b->r) < eps;
-    }
-    case PRIM_CONE:
-        return norm(dp) < eps && dot(a->a, b->a) > cmin &&
-               fabs(a->r - b->r) < DUP_DEG * M_PI / 180.0;
-    case PRIM_TORUS:
-        return norm(dp) < eps && fabs(dot(a->a, b->a)) > cmin && fabs(a->r - b->r) < eps &&
-               fabs(a->R - b->R) < eps;
-    case PRIM__COUNT:
-        break;
-    }
-    return 0;
+    return a->type == b->type && shapes_close(a, b, eps, DUP_DEG);
 }
 
 static int sane(const prim *q, double rmax)
@@ -1153,7 +1184,7 @@ static size_t gather_inliers(det *d, const prim *q, unsigned char *flag, uint32_
     kern kn;
     kern_init(&kn, q, d->band, cfg->cos_normal);
 #ifdef _OPENMP
-#pragma omp parallel for schedule(static, 4096) if (d->n >= PAR_MIN_WORK) num_threads(cfg->nthreads > 0 ? cfg->nthreads : omp_get_max_threads())
+#pragma omp parallel for schedule(static, 4096) if (d->n >= PAR_MIN_WORK) num_threads(frep_threads(cfg->nthreads))
 #endif
     for (long li = 0; li < ln; li++) {
         size_t i = (size_t)li;
@@ -1249,15 +1280,7 @@ static size_t prefer_simpler(det *d, prim *q, size_t m, unsigned char *flag, uin
         p->type = PRIM_CYLINDER;
         memcpy(p->p, q->p, sizeof q->p);
         memcpy(p->a, q->a, sizeof q->a);
-        double rho = 0;
-        for (size_t j = 0; j < m; j++) {
-            double x[3], v[3];
-            point(c, inl[j], x);
-            sub(x, q->p, v);
-            double h = dot(v, q->a);
-            rho += sqrt(fmax(0, dot(v, v) - h * h)) / (double)m;
-        }
-        p->r = rho;
+        p->r = cone_mean_rho(q, c, inl, m);
     }
     uint32_t *keep = frep_malloc(m * sizeof *keep);
     if (!keep) return m;
@@ -1376,6 +1399,94 @@ static int cmp_mode_t(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* The dominant normal among q's m inliers: the centre (of MODE_CENTRES evenly spaced
+ * ones) with the most of MODE_VOTERS voters within MODE_NORMAL_DEG; its inlier index,
+ * with its vote count in *count. */
+static size_t dominant_normal(const frep_cloud *c, const uint32_t *inl, size_t m, double cosm,
+                              size_t *count)
+{
+    size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS, ncen = m < MODE_CENTRES ? m : MODE_CENTRES;
+    size_t best_cnt = 0, best_j = 0;
+    for (size_t k = 0; k < ncen; k++) {
+        size_t j = (size_t)((double)k * (double)m / (double)ncen);
+        double nj[3];
+        normal(c, inl[j], nj);
+        size_t cnt = 0;
+        for (size_t v = 0; v < nv; v++) {
+            double nk[3];
+            normal(c, inl[(size_t)((double)v * (double)m / (double)nv)], nk);
+            cnt += fabs(vec3_dot(nj, nk)) >= cosm;
+        }
+        if (cnt > best_cnt) {
+            best_cnt = cnt;
+            best_j = j;
+        }
+    }
+    *count = best_cnt;
+    return best_j;
+}
+
+/* The inliers whose normal is within MODE_NORMAL_DEG of nc (either way): their indices
+ * into tv[2 j + 1], their summed normal (oriented as nc) into ns. Returns the count. */
+static size_t dominant_group(const frep_cloud *c, const uint32_t *inl, size_t m,
+                             const double nc[3], double cosm, double ns[3], double *tv)
+{
+    size_t nt = 0;
+    for (size_t j = 0; j < m; j++) {
+        double nj[3];
+        normal(c, inl[j], nj);
+        double cs = vec3_dot(nj, nc);
+        if (fabs(cs) < cosm) continue;
+        for (int k = 0; k < 3; k++) ns[k] += cs < 0 ? -nj[k] : nj[k];
+        tv[2 * nt + 1] = (double)inl[j];
+        nt++;
+    }
+    return nt;
+}
+
+/* The densest slab, w wide, of the group's offsets along unit ns: its points into
+ * slab (returns their count) and the plane through its middle point into alt. */
+static size_t densest_slab(const frep_cloud *c, double *tv, size_t nt, const double ns[3],
+                           double w, uint32_t *slab, prim *alt)
+{
+    for (size_t j = 0; j < nt; j++) {
+        double x[3];
+        point(c, (size_t)tv[2 * j + 1], x);
+        tv[2 * j] = vec3_dot(ns, x);
+    }
+    qsort(tv, nt, 2 * sizeof *tv, cmp_mode_t);
+    size_t lo = 0, blo = 0, bhi = 0;
+    for (size_t hi = 0; hi < nt; hi++) {
+        while (tv[2 * hi] - tv[2 * lo] > w) lo++;
+        if (hi - lo > bhi - blo) {
+            blo = lo;
+            bhi = hi;
+        }
+    }
+    size_t ns_pts = 0;
+    for (size_t j = blo; j <= bhi; j++) slab[ns_pts++] = (uint32_t)tv[2 * j + 1];
+    memset(alt, 0, sizeof *alt);
+    alt->type = PRIM_PLANE;
+    memcpy(alt->p, ns, 3 * sizeof *ns);
+    alt->r = tv[2 * ((blo + bhi) / 2)];
+    return ns_pts;
+}
+
+/* The plane alt refitted on the slab, extracted as a fresh shape (at epsilon, then at
+ * its own measured noise: q's band may have been widened by the mixture itself): its
+ * support (inliers in inl) when its median distance is below MODE_GAIN med0, else 0. */
+static size_t try_face(det *d, prim *alt, const uint32_t *slab, size_t ns_pts, size_t min_pts,
+                       double med0, unsigned char *flag, uint32_t *inl)
+{
+    if (ns_pts < 3 || ransac_refit(alt, d->c, slab, ns_pts, REFIT_MAX_POINTS) != 0) return 0;
+    d->band = d->cfg->epsilon;
+    double nb = noise_band(d, alt, flag);
+    if (nb > d->band * NOISE_BAND_GROWTH) d->band = nb;
+    size_t ma = support_of(d, alt, flag, inl);
+    double meda = ma >= min_pts ? median_abs(alt, d->c, inl, ma) : -1;
+    return meda >= 0 && meda < MODE_GAIN * med0 ? ma : 0;
+}
+
 static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned char *flag,
                          uint32_t *inl)
 {
@@ -1386,8 +1497,8 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
     double med0 = median_abs(q, c, inl, m), band0 = d->band;
     /* Exact already (clean data): nothing to separate. */
     if (!(med0 > MODE_EXACT * d->cfg->epsilon)) return m;
-    double cosm = cos(MODE_NORMAL_DEG * M_PI / 180.0);
-    size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS, ncen = m < MODE_CENTRES ? m : MODE_CENTRES;
+    double cosm = cos(MODE_NORMAL_DEG * FREP_PI / 180.0);
+    size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS;
     double *tv = frep_malloc(2 * m * sizeof *tv);
     uint32_t *slab = frep_malloc(m * sizeof *slab);
     if (!tv || !slab) {
@@ -1395,84 +1506,24 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
         frep_free(slab);
         return m;
     }
-    size_t best_cnt = 0, best_j = 0;
-    for (size_t k = 0; k < ncen; k++) {
-        size_t j = (size_t)((double)k * (double)m / (double)ncen);
-        double nj[3];
-        normal(c, inl[j], nj);
-        size_t cnt = 0;
-        for (size_t v = 0; v < nv; v++) {
-            double nk[3];
-            normal(c, inl[(size_t)((double)v * (double)m / (double)nv)], nk);
-            cnt += fabs(dot(nj, nk)) >= cosm;
-        }
-        if (cnt > best_cnt) {
-            best_cnt = cnt;
-            best_j = j;
-        }
-    }
-    size_t m_out = m;
+    size_t best_cnt, best_j = dominant_normal(c, inl, m, cosm, &best_cnt);
     double nc[3], ns[3] = {0, 0, 0};
     normal(c, inl[best_j], nc);
-    size_t nt = 0;
-    if (q->type == PRIM_PLANE || (double)best_cnt >= MODE_FLAT * (double)nv) {
-        for (size_t j = 0; j < m; j++) {
-            double nj[3];
-            normal(c, inl[j], nj);
-            double cs = dot(nj, nc);
-            if (fabs(cs) < cosm) continue;
-            for (int k = 0; k < 3; k++) ns[k] += cs < 0 ? -nj[k] : nj[k];
-            tv[2 * nt + 1] = (double)inl[j];
-            nt++;
-        }
-    }
+    size_t nt = 0, ma = 0;
+    if (q->type == PRIM_PLANE || (double)best_cnt >= MODE_FLAT * (double)nv)
+        nt = dominant_group(c, inl, m, nc, cosm, ns, tv);
     if (nt >= RANSAC_MIN_CLOUD && normalize(ns) == 0) {
-        /* Offsets along the mean normal of the dominant group; densest slab. */
-        for (size_t j = 0; j < nt; j++) {
-            double x[3];
-            point(c, (size_t)tv[2 * j + 1], x);
-            tv[2 * j] = dot(ns, x);
-        }
-        qsort(tv, nt, 2 * sizeof *tv, cmp_mode_t);
-        double w = MODE_SLAB * band0;
-        size_t lo = 0, blo = 0, bhi = 0;
-        for (size_t hi = 0; hi < nt; hi++) {
-            while (tv[2 * hi] - tv[2 * lo] > w) lo++;
-            if (hi - lo > bhi - blo) {
-                blo = lo;
-                bhi = hi;
-            }
-        }
-        size_t ns_pts = 0;
-        for (size_t j = blo; j <= bhi; j++) slab[ns_pts++] = (uint32_t)tv[2 * j + 1];
         prim alt;
-        memset(&alt, 0, sizeof alt);
-        alt.type = PRIM_PLANE;
-        memcpy(alt.p, ns, sizeof ns);
-        alt.r = tv[2 * ((blo + bhi) / 2)];
-        if (ns_pts >= 3 && ransac_refit(&alt, c, slab, ns_pts, REFIT_MAX_POINTS) == 0) {
-            /* Extracted as a fresh shape: at epsilon, then at its own measured noise
-             * (q's band may have been widened by the mixture itself). */
-            d->band = d->cfg->epsilon;
-            double nb = noise_band(d, &alt, flag);
-            if (nb > d->band * NOISE_BAND_GROWTH) d->band = nb;
-            size_t ma = support_of(d, &alt, flag, inl);
-            double meda = ma >= min_pts ? median_abs(&alt, c, inl, ma) : -1;
-            if (meda >= 0 && meda < MODE_GAIN * med0) {
-                *q = alt;
-                m_out = ma;
-                frep_free(tv);
-                frep_free(slab);
-                return m_out;
-            }
-        }
+        size_t ns_pts = densest_slab(c, tv, nt, ns, MODE_SLAB * band0, slab, &alt);
+        ma = try_face(d, &alt, slab, ns_pts, min_pts, med0, flag, inl);
+        if (ma > 0) *q = alt;
     }
-    /* Keep q: its inliers back. */
-    d->band = band0;
-    m_out = support_of(d, q, flag, inl);
     frep_free(tv);
     frep_free(slab);
-    return m_out;
+    if (ma > 0) return ma;
+    /* Keep q: its inliers back. */
+    d->band = band0;
+    return support_of(d, q, flag, inl);
 }
 
 /* A primitive is redundant when at least MERGE_FRACTION of its inliers are inliers of
@@ -1496,26 +1547,112 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
 #define MERGE_DEG 10.0
 static int near_same(const prim *a, const prim *b, double tol)
 {
-    double cmin = cos(MERGE_DEG * M_PI / 180.0), dp[3];
-    sub(a->p, b->p, dp);
-    switch (a->type) {
-    case PRIM_PLANE:
-        return dot(a->p, b->p) > cmin && fabs(a->r - b->r) < tol;
-    case PRIM_SPHERE:
-        return norm(dp) < tol && fabs(a->r - b->r) < tol;
-    case PRIM_CYLINDER: {
-        double h = dot(dp, b->a), w[3];
-        for (int k = 0; k < 3; k++) w[k] = dp[k] - h * b->a[k];
-        return fabs(dot(a->a, b->a)) > cmin && norm(w) < tol && fabs(a->r - b->r) < tol;
+    return shapes_close(a, b, tol, MERGE_DEG);
+}
+
+/* The inliers of each primitive, contiguous: those of j are order[start[j] ..
+ * start[j + 1]) (a counting sort by label). */
+static void inliers_by_label(const ransac_result *res, size_t n, size_t *start, uint32_t *order)
+{
+    size_t np = res->nprims;
+    for (size_t i = 0; i < n; i++)
+        if (res->label[i] >= 0) start[res->label[i] + 1]++;
+    for (size_t j = 0; j < np; j++) start[j + 1] += start[j];
+    for (size_t i = 0; i < n; i++)
+        if (res->label[i] >= 0) order[start[res->label[i]]++] = (uint32_t)i;
+    for (size_t j = np; j > 0; j--) start[j] = start[j - 1];
+    start[0] = 0;
+}
+
+/* The merge state of one pass: the inliers by label and a scratch list. */
+typedef struct merger {
+    det *d;
+    ransac_result *res;
+    double *bands;
+    size_t *start;
+    uint32_t *order;
+    uint32_t *buf;       /* the union: Q's inliers, then P's */
+} merger;
+
+/* Does primitive pi fold into the larger qi (see MERGE_FRACTION)? Then *q2 is the
+ * shape of the union (buf[0 .. mu)) and *refitted says whether it was refitted. */
+static int mergeable(merger *g, size_t pi, size_t qi, prim *q2, int *refitted)
+{
+    det *d = g->d;
+    const frep_cloud *c = d->c;
+    const prim *P = &g->res->prims[pi], *Q = &g->res->prims[qi];
+    size_t mp = g->start[pi + 1] - g->start[pi], mq = g->start[qi + 1] - g->start[qi];
+    double band = MERGE_BAND_SLACK * fmax(g->bands[qi], g->bands[pi]);
+    size_t hit = 0, mu = mp + mq;
+    for (size_t j = g->start[pi]; j < g->start[pi + 1]; j++)
+        hit += compatible(Q, c, g->order[j], band, d->cfg->cos_normal) != 0;
+    memcpy(g->buf, g->order + g->start[qi], mq * sizeof *g->buf);
+    memcpy(g->buf + mq, g->order + g->start[pi], mp * sizeof *g->buf);
+    *q2 = *Q;
+    *refitted = ransac_refit(q2, c, g->buf, mu, REFIT_MAX_POINTS) == 0 && sane(q2, d->rmax);
+    if ((double)hit < MERGE_FRACTION * (double)mp) {
+        /* Two pieces of one shape fitted apart (a noisy torus split into inner and
+         * outer halves): one shape of the same type explains both once refitted on the
+         * union. */
+        if (P->type != Q->type || !*refitted || !near_same(P, Q, MERGE_NEAR * band)) return 0;
+        size_t hu = 0;
+        for (size_t j = 0; j < mu; j++)
+            hu += compatible(q2, c, g->buf[j], band, d->cfg->cos_normal) != 0;
+        if ((double)hu < MERGE_FRACTION * (double)mu) return 0;
     }
-    case PRIM_CONE:
-        return norm(dp) < tol && dot(a->a, b->a) > cmin &&
-               fabs(a->r - b->r) < MERGE_DEG * M_PI / 180.0;
-    case PRIM_TORUS:
-        return norm(dp) < tol && fabs(dot(a->a, b->a)) > cmin && fabs(a->r - b->r) < tol &&
-               fabs(a->R - b->R) < tol;
-    case PRIM__COUNT:
-        break;
+    /* The union must be about as tight as its parts: two walls of a thin shell, 2
+     * epsilon apart, are both within the slack band of the plane between them, which
+     * explains neither. */
+    if (*refitted && rms_of(q2, c, g->buf, mu) > MERGE_RMS_GROWTH * fmax(P->rms, Q->rms) +
+                                                   MERGE_RMS_SLACK * d->cfg->epsilon)
+        return 0;
+    /* Touching: one patch in Q's parameter domain. */
+    size_t kept = largest_component(*refitted ? q2 : Q, c, g->buf, mu,
+                                    fmax(d->cfg->cluster, band));
+    return (double)kept >= MERGE_CONNECTED * (double)mu;
+}
+
+/* Fold pi into qi: qi becomes q2 (when refitted) with the union's support and RMS, the
+ * labels of pi move to qi, and pi leaves the list (later ones shift, labels follow). */
+static void fold(merger *g, size_t pi, size_t qi, const prim *q2, int refitted)
+{
+    ransac_result *res = g->res;
+    const frep_cloud *c = g->d->c;
+    size_t np = res->nprims, n = c->n;
+    size_t mp = g->start[pi + 1] - g->start[pi], mq = g->start[qi + 1] - g->start[qi];
+    size_t mu = mp + mq;
+    memcpy(g->buf, g->order + g->start[qi], mq * sizeof *g->buf);
+    memcpy(g->buf + mq, g->order + g->start[pi], mp * sizeof *g->buf);
+    if (refitted) res->prims[qi] = *q2;
+    res->prims[qi].support = mu;
+    res->prims[qi].rms = rms_of(&res->prims[qi], c, g->buf, mu);
+    for (size_t j = g->start[pi]; j < g->start[pi + 1]; j++)
+        res->label[g->order[j]] = (int32_t)qi;
+    for (size_t k = pi; k + 1 < np; k++) {
+        res->prims[k] = res->prims[k + 1];
+        g->bands[k] = g->bands[k + 1];
+    }
+    for (size_t i = 0; i < n; i++)
+        if (res->label[i] > (int32_t)pi) res->label[i]--;
+    res->nprims--;
+}
+
+/* One pass: the first pair (pi into a larger qi) that merges is folded. Returns 1 when
+ * one was. */
+static int merge_pass(merger *g)
+{
+    size_t np = g->res->nprims;
+    for (size_t pi = 0; pi < np; pi++) {
+        size_t mp = g->start[pi + 1] - g->start[pi];
+        for (size_t qi = 0; qi < np; qi++) {
+            size_t mq = g->start[qi + 1] - g->start[qi];
+            if (qi == pi || mq < mp || (mq == mp && qi > pi)) continue;
+            prim q2;
+            int refitted;
+            if (!mergeable(g, pi, qi, &q2, &refitted)) continue;
+            fold(g, pi, qi, &q2, refitted);
+            return 1;
+        }
     }
     return 0;
 }
@@ -1525,85 +1662,19 @@ static int near_same(const prim *a, const prim *b, double tol)
  * fold removes a primitive, so the loop ends. Out of memory: nothing is merged. */
 static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t *buf)
 {
-    const frep_cloud *c = d->c;
-    size_t n = c->n;
+    size_t n = d->c->n;
     for (int changed = 1; changed && res->nprims > 1;) {
-        changed = 0;
-        size_t np = res->nprims;
-        /* Inliers of each primitive, contiguous (counting sort by label). */
-        size_t *start = frep_calloc(np + 1, sizeof *start);
-        uint32_t *order = frep_malloc((n + 1) * sizeof *order);
-        if (!start || !order) {
-            frep_free(start);
-            frep_free(order);
+        merger g = {d, res, bands, frep_calloc(res->nprims + 1, sizeof(size_t)),
+                    frep_malloc((n + 1) * sizeof(uint32_t)), buf};
+        if (!g.start || !g.order) {
+            frep_free(g.start);
+            frep_free(g.order);
             return;
         }
-        for (size_t i = 0; i < n; i++)
-            if (res->label[i] >= 0) start[res->label[i] + 1]++;
-        for (size_t j = 0; j < np; j++) start[j + 1] += start[j];
-        for (size_t i = 0; i < n; i++)
-            if (res->label[i] >= 0) order[start[res->label[i]]++] = (uint32_t)i;
-        for (size_t j = np; j > 0; j--) start[j] = start[j - 1];
-        start[0] = 0;
-        for (size_t pi = 0; pi < np && !changed; pi++) {
-            size_t mp = start[pi + 1] - start[pi];
-            for (size_t qi = 0; qi < np && !changed; qi++) {
-                const prim *Q = &res->prims[qi];
-                size_t mq = start[qi + 1] - start[qi];
-                if (qi == pi || mq < mp || (mq == mp && qi > pi)) continue;
-                double band = MERGE_BAND_SLACK * fmax(bands[qi], bands[pi]);
-                size_t hit = 0, mu = mp + mq;
-                for (size_t j = start[pi]; j < start[pi + 1]; j++)
-                    hit += compatible(Q, c, order[j], band, d->cfg->cos_normal) != 0;
-                memcpy(buf, order + start[qi], mq * sizeof *buf);
-                memcpy(buf + mq, order + start[pi], mp * sizeof *buf);
-                prim q2 = *Q;
-                int refitted = ransac_refit(&q2, c, buf, mu, REFIT_MAX_POINTS) == 0 &&
-                               sane(&q2, d->rmax);
-                if ((double)hit < MERGE_FRACTION * (double)mp) {
-                    /* Two pieces of one shape fitted apart (a noisy torus split into
-                     * inner and outer halves): one shape of the same type explains
-                     * both once refitted on the union. */
-                    if (res->prims[pi].type != Q->type || !refitted ||
-                        !near_same(&res->prims[pi], Q, MERGE_NEAR * band))
-                        continue;
-                    size_t hu = 0;
-                    for (size_t j = 0; j < mu; j++)
-                        hu += compatible(&q2, c, buf[j], band, d->cfg->cos_normal) != 0;
-                    if ((double)hu < MERGE_FRACTION * (double)mu) continue;
-                }
-                /* The union must be about as tight as its parts: two walls of a thin
-                 * shell, 2 epsilon apart, are both within the slack band of the plane
-                 * between them, which explains neither. */
-                if (refitted && rms_of(&q2, c, buf, mu) >
-                                    MERGE_RMS_GROWTH * fmax(res->prims[pi].rms, Q->rms) +
-                                        MERGE_RMS_SLACK * d->cfg->epsilon)
-                    continue;
-                /* Touching: one patch in Q's parameter domain. */
-                size_t kept = largest_component(refitted ? &q2 : Q, c, buf, mu,
-                                                fmax(d->cfg->cluster, band));
-                if ((double)kept < MERGE_CONNECTED * (double)mu) continue;
-                memcpy(buf, order + start[qi], mq * sizeof *buf);
-                memcpy(buf + mq, order + start[pi], mp * sizeof *buf);
-                if (refitted) res->prims[qi] = q2;
-                Q = &res->prims[qi];
-                res->prims[qi].support = mu;
-                res->prims[qi].rms = rms_of(Q, c, buf, mu);
-                for (size_t j = start[pi]; j < start[pi + 1]; j++)
-                    res->label[order[j]] = (int32_t)qi;
-                /* Remove pi, shifting the later ones (labels follow). */
-                for (size_t k = pi; k + 1 < np; k++) {
-                    res->prims[k] = res->prims[k + 1];
-                    bands[k] = bands[k + 1];
-                }
-                for (size_t i = 0; i < n; i++)
-                    if (res->label[i] > (int32_t)pi) res->label[i]--;
-                res->nprims--;
-                changed = 1;
-            }
-        }
-        frep_free(start);
-        frep_free(order);
+        inliers_by_label(res, n, g.start, g.order);
+        changed = merge_pass(&g);
+        frep_free(g.start);
+        frep_free(g.order);
     }
 }
 
@@ -1639,14 +1710,14 @@ static double median_normal_dev(const prim *q, const frep_cloud *c, const uint32
     size_t k = n < MODE_VOTERS ? n : MODE_VOTERS;
     if (k == 0) return 0;
     double *r = frep_malloc(k * sizeof *r);
-    if (!r) return M_PI;
+    if (!r) return FREP_PI;
     for (size_t j = 0; j < k; j++) {
         size_t i = idx[(size_t)((double)j * (double)n / (double)k)];
         double p[3], g[3], nv[3];
         point(c, i, p);
         normal(c, i, nv);
         prim_eval(q, p, g);
-        double gl = norm(g), cs = gl > 0 ? fabs(dot(g, nv)) / gl : 0;
+        double gl = vec3_len(g), cs = gl > 0 ? fabs(vec3_dot(g, nv)) / gl : 0;
         r[j] = acos(fmin(1, cs));
     }
     qsort(r, k, sizeof *r, cmp_abs_double);
@@ -1676,70 +1747,99 @@ static double patch_width(const frep_cloud *c, const uint32_t *idx, size_t n)
     return sqrt(12.0 * fmax(0, ev[1]));
 }
 
-static int next_phase(det *d, cand *pool, size_t npool, int *which, int *phase,
-                      size_t *min_pts, size_t small_pts, size_t *draws_since)
+/* ---- the driver ------------------------------------------------------------------ */
+
+/* One detection run (ransac_detect): the point structures, the candidate pool, the
+ * result being built and the counters of the stopping rules. */
+typedef struct run {
+    det d;
+    rng rng;              /* the seeded generator: subsets, then every sample */
+    ransac_result *res;
+    double *bands;        /* extraction band of each primitive of res (for the merge) */
+    size_t cap_prims;     /* room in res->prims and bands */
+    cand *pool;           /* candidates alive, at most MAX_POOL */
+    size_t npool;
+    int *which;           /* scratch: pool indices to score */
+    uint32_t *inl;        /* inliers of the shape being extracted */
+    unsigned char *flag;  /* scratch: per point, inlier of that shape */
+    size_t ntypes;        /* types detected (at least 1) */
+    size_t min_pts;       /* smallest support of the current phase */
+    size_t small_pts;     /* smallest support of the second phase */
+    int phase;            /* 0: shapes of min_points; 1: small shapes */
+    size_t draws_since;   /* minimal samples drawn since the last extraction */
+    double log_fail;      /* log(1 - probability): the acceptance threshold */
+} run;
+
+/* Free what run_alloc and build_octree allocated (not the result). */
+static void run_free(run *r)
 {
-    if (*phase != 0 || small_pts >= *min_pts) return 0;
-    *phase = 1;
-    *min_pts = small_pts;
-    *draws_since = 0;
-    /* Candidates whose patch was too small were kept scored zero (so as not to be
-     * drawn again): a small shape may be among them, so every candidate is rescored. */
-    for (size_t j = 0; j < npool; j++) {
-        pool[j].nsub = 0;
-        pool[j].score = pool[j].seen = 0;
-        which[j] = (int)j;
-    }
-    score_next(d, pool, which, npool);
-    return 1;
+    det *d = &r->d;
+    frep_free(r->bands);
+    frep_free(d->alive);
+    frep_free(d->shuf);
+    frep_free(d->spts);
+    frep_free(d->salive);
+    frep_free(d->tmp);
+    frep_free(d->morton_idx);
+    frep_free(d->morton);
+    frep_free(d->alive_list);
+    frep_free(r->pool);
+    frep_free(r->which);
+    frep_free(r->inl);
+    frep_free(r->flag);
 }
 
-int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *res,
-                  char **err)
+/* The buffers of a run and of its result, every point alive and unlabelled; 0, or -1
+ * with err set (out of memory, or a cloud without normals). */
+static int run_alloc(run *r, const frep_cloud *c, const ransac_config *cfg,
+                     ransac_result *res, frep_error *err)
 {
-    memset(res, 0, sizeof *res);
-    if (err) *err = NULL;
-    det d;
-    memset(&d, 0, sizeof d);
-    d.c = c;
-    d.cfg = cfg;
-    d.n = c->n;
+    det *d = &r->d;
     size_t n = c->n;
-    size_t cap_prims = 16;
-    double *bands = frep_malloc(cap_prims * sizeof *bands); /* extraction band per primitive */
-    cand *pool = NULL;
-    int *which = NULL;
-    uint32_t *inl = NULL;
-    unsigned char *flag = NULL;
-    mkey *mk = NULL;
+    memset(r, 0, sizeof *r);
+    d->c = c;
+    d->cfg = cfg;
+    d->n = n;
+    r->res = res;
+    r->cap_prims = 16;
+    r->bands = frep_malloc(r->cap_prims * sizeof *r->bands);
     res->label = frep_malloc((n ? n : 1) * sizeof *res->label);
-    res->prims = frep_malloc(cap_prims * sizeof *res->prims);
-    d.alive = frep_malloc(n + 1);
-    d.shuf = frep_malloc((n + 1) * sizeof *d.shuf);
-    d.spts = frep_malloc((6 * n + 6) * sizeof *d.spts);
-    d.salive = frep_malloc(n + 1);
-    d.tmp = frep_malloc((n + 1) * sizeof *d.tmp);
-    d.morton_idx = frep_malloc((n + 1) * sizeof *d.morton_idx);
-    d.morton = frep_malloc((2 * n + 2) * sizeof *d.morton);
-    d.alive_list = frep_malloc((n + 1) * sizeof *d.alive_list);
-    pool = frep_malloc(MAX_POOL * sizeof *pool);
-    which = frep_malloc(MAX_POOL * sizeof *which);
-    inl = frep_malloc((n + 1) * sizeof *inl);
-    flag = frep_malloc(n + 1);
-    mk = frep_malloc((n + 1) * sizeof *mk);
-    if (!bands || !d.tmp || !d.spts || !d.salive || !res->label || !res->prims || !d.alive || !d.shuf || !d.morton_idx || !d.morton ||
-        !d.alive_list || !pool || !which || !inl || !flag || !mk || !c->has_normals) {
-        if (err) *err = dupstr(c->has_normals ? "out of memory" : "the cloud has no normals");
-        goto fail;
+    res->prims = frep_malloc(r->cap_prims * sizeof *res->prims);
+    d->alive = frep_malloc(n + 1);
+    d->shuf = frep_malloc((n + 1) * sizeof *d->shuf);
+    d->spts = frep_malloc((6 * n + 6) * sizeof *d->spts);
+    d->salive = frep_malloc(n + 1);
+    d->tmp = frep_malloc((n + 1) * sizeof *d->tmp);
+    d->morton_idx = frep_malloc((n + 1) * sizeof *d->morton_idx);
+    d->morton = frep_malloc((2 * n + 2) * sizeof *d->morton);
+    d->alive_list = frep_malloc((n + 1) * sizeof *d->alive_list);
+    r->pool = frep_malloc(MAX_POOL * sizeof *r->pool);
+    r->which = frep_malloc(MAX_POOL * sizeof *r->which);
+    r->inl = frep_malloc((n + 1) * sizeof *r->inl);
+    r->flag = frep_malloc(n + 1);
+    if (!r->bands || !d->tmp || !d->spts || !d->salive || !res->label || !res->prims ||
+        !d->alive || !d->shuf || !d->morton_idx || !d->morton || !d->alive_list || !r->pool ||
+        !r->which || !r->inl || !r->flag || !c->has_normals) {
+        if (!c->has_normals) return frep_error_set(err, FREP_EINPUT, "the cloud has no normals");
+        return frep_error_nomem(err);
     }
     for (size_t i = 0; i < n; i++) {
         res->label[i] = -1;
-        d.alive[i] = 1;
+        d->alive[i] = 1;
     }
-    d.rmax = MAX_RADIUS_DIAGONALS * fmax(cloud_diagonal(c), 1e-300);
-    rng r;
-    rng_seed(&r, cfg->seed);
-    /* Octree as Morton order over the bounding cube. */
+    d->rmax = MAX_RADIUS_DIAGONALS * fmax(cloud_diagonal(c), 1e-300);
+    return 0;
+}
+
+/* The octree as Morton order over the bounding cube: d->morton holds the sorted codes,
+ * then (from n + 1) each point's code by index; d->morton_idx the points in that order.
+ * Returns -1 when out of memory. */
+static int build_octree(det *d)
+{
+    const frep_cloud *c = d->c;
+    size_t n = d->n;
+    mkey *mk = frep_malloc((n + 1) * sizeof *mk);
+    if (!mk) return -1;
     double lo[3], hi[3];
     cloud_bbox(c, lo, hi);
     double side = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
@@ -1760,24 +1860,31 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
     }
     qsort(mk, n, sizeof *mk, cmp_mkey);
     for (size_t j = 0; j < n; j++) {
-        d.morton[j] = mk[j].code;
-        d.morton_idx[j] = mk[j].i;
-        d.morton[n + 1 + mk[j].i] = mk[j].code;
+        d->morton[j] = mk[j].code;
+        d->morton_idx[j] = mk[j].i;
+        d->morton[n + 1 + mk[j].i] = mk[j].code;
     }
-    d.morton[n] = 0;
+    d->morton[n] = 0;
     frep_free(mk);
-    mk = NULL;
-    /* Scoring subsets: a seeded permutation cut into doubling blocks. */
-    for (size_t i = 0; i < n; i++) d.shuf[i] = (uint32_t)i;
+    return 0;
+}
+
+/* Scoring subsets: a seeded permutation of the points (with their normals copied in
+ * that order, so that scoring streams through memory) cut into doubling blocks. */
+static void build_subsets(det *d, rng *r)
+{
+    const frep_cloud *c = d->c;
+    size_t n = d->n;
+    for (size_t i = 0; i < n; i++) d->shuf[i] = (uint32_t)i;
     for (size_t i = n; i > 1; i--) {
-        size_t j = rng_below(&r, i);
-        uint32_t t = d.shuf[i - 1];
-        d.shuf[i - 1] = d.shuf[j];
-        d.shuf[j] = t;
+        size_t j = rng_below(r, i);
+        uint32_t t = d->shuf[i - 1];
+        d->shuf[i - 1] = d->shuf[j];
+        d->shuf[j] = t;
     }
     for (size_t j = 0; j < n; j++) {
-        uint32_t i = d.shuf[j];
-        double *sp = d.spts + 6 * j;
+        uint32_t i = d->shuf[j];
+        double *sp = d->spts + 6 * j;
         sp[0] = c->x[i];
         sp[1] = c->y[i];
         sp[2] = c->z[i];
@@ -1785,244 +1892,338 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         sp[4] = c->ny[i];
         sp[5] = c->nz[i];
     }
-    d.sub_start[0] = 0;
+    d->sub_start[0] = 0;
     size_t sz = SUBSET_FIRST;
-    d.nsub = 0;
-    while (d.sub_start[d.nsub] < n && d.nsub < MAX_SUBSETS) {
-        size_t e = d.sub_start[d.nsub] + sz;
-        if (e > n || d.nsub == MAX_SUBSETS - 1) e = n;
-        d.sub_start[++d.nsub] = e;
+    d->nsub = 0;
+    while (d->sub_start[d->nsub] < n && d->nsub < MAX_SUBSETS) {
+        size_t e = d->sub_start[d->nsub] + sz;
+        if (e > n || d->nsub == MAX_SUBSETS - 1) e = n;
+        d->sub_start[++d->nsub] = e;
         sz *= 2;
     }
-    recount_subsets(&d);
+    recount_subsets(d);
+}
 
-    size_t npool = 0, draws_since = 0, ntypes = 0;
-    for (int ty = 0; ty < PRIM__COUNT; ty++) ntypes += (cfg->types >> ty) & 1u;
-    if (ntypes == 0) ntypes = 1;
-    size_t min_pts = cfg->min_points < 3 ? 3 : cfg->min_points;
-    size_t small_pts = cfg->min_points_small < 3 ? 3 : cfg->min_points_small;
-    if (cfg->min_points_small == 0) small_pts = min_pts;
-    int phase = 0;
-    double log_fail = log(fmax(1e-12, 1.0 - cfg->probability));
+/* The thresholds of both phases and of the acceptance test, from the configuration. */
+static void init_phases(run *r)
+{
+    const ransac_config *cfg = r->d.cfg;
+    r->ntypes = 0;
+    for (int ty = 0; ty < PRIM__COUNT; ty++) r->ntypes += (cfg->types >> ty) & 1u;
+    if (r->ntypes == 0) r->ntypes = 1;
+    r->min_pts = cfg->min_points < 3 ? 3 : cfg->min_points;
+    r->small_pts = cfg->min_points_small < 3 ? 3 : cfg->min_points_small;
+    if (cfg->min_points_small == 0) r->small_pts = r->min_pts;
+    r->phase = 0;
+    r->log_fail = log(fmax(1e-12, 1.0 - cfg->probability));
+}
+
+/* Every candidate of the pool scored afresh from its first subset (the live points
+ * have changed). */
+static void rescore_all(run *r)
+{
+    for (size_t j = 0; j < r->npool; j++) {
+        r->pool[j].nsub = 0;
+        r->pool[j].score = r->pool[j].seen = 0;
+        r->which[j] = (int)j;
+    }
+    score_next(&r->d, r->pool, r->which, r->npool);
+}
+
+/* Second phase (see SMALL_TIGHT): once no shape of min_points is left, detection goes
+ * on down to small_pts. Returns 1 when the phase began (detection goes on), 0 when
+ * there is none (detection is over). */
+static int next_phase(run *r)
+{
+    if (r->phase != 0 || r->small_pts >= r->min_pts) return 0;
+    r->phase = 1;
+    r->min_pts = r->small_pts;
+    r->draws_since = 0;
+    /* Candidates whose patch was too small were kept scored zero (so as not to be
+     * drawn again): a small shape may be among them, so every candidate is rescored. */
+    rescore_all(r);
+    return 1;
+}
+
+/* The candidate of type ty from sample s; -1 when degenerate, implausible or not an
+ * inlier shape of its own sample points. */
+static int make_candidate(const run *r, const sample *s, prim_type ty, prim *q)
+{
+    const ransac_config *cfg = r->d.cfg;
+    memset(q, 0, sizeof *q);
+    int bad;
+    switch (ty) {
+    case PRIM_PLANE: bad = make_plane(s, q); break;
+    case PRIM_SPHERE: bad = make_sphere(s, q); break;
+    case PRIM_CYLINDER: bad = make_cylinder(s, q); break;
+    case PRIM_CONE: bad = make_cone(s, q); break;
+    case PRIM_TORUS: bad = make_torus(s, q, r->d.rmax, cfg->epsilon); break;
+    case PRIM__COUNT: default: bad = 1; break;
+    }
+    if (bad || !sane(q, r->d.rmax) ||
+        !verify(q, s, verify_count(q->type), cfg->epsilon, cfg->cos_normal))
+        return -1;
+    return 0;
+}
+
+/* Pool candidate q from a sample at the given level, unless the pool holds the same
+ * shape; a full pool drops its weakest candidate first (*first_new, the first new
+ * candidate of the round, follows the slot that moves). */
+static void pool_add(run *r, const prim *q, int level, size_t *first_new)
+{
+    for (size_t j = 0; j < r->npool; j++)
+        if (same_shape(q, &r->pool[j].q, r->d.cfg->epsilon)) return;
+    if (r->npool == MAX_POOL) {
+        size_t w = 0;
+        for (size_t j = 1; j < r->npool; j++)
+            if (r->pool[j].est < r->pool[w].est) w = j;
+        r->pool[w] = r->pool[--r->npool];
+        if (*first_new > r->npool) *first_new = r->npool;
+    }
+    cand *k = &r->pool[r->npool++];
+    memset(k, 0, sizeof *k);
+    k->q = *q;
+    k->level = level;
+    k->ksample = verify_count(q->type);
+}
+
+/* A round of DRAWS_PER_ROUND minimal samples, each giving one candidate per type;
+ * the new candidates are scored on their first subset. */
+static void draw_round(run *r)
+{
+    size_t first_new = r->npool;
+    for (int t = 0; t < DRAWS_PER_ROUND; t++) {
+        sample s;
+        int level = draw_sample(&r->d, &r->rng, &s);
+        r->draws_since++;
+        r->res->draws++;
+        if (level < 0) continue;
+        for (int ty = 0; ty < PRIM__COUNT; ty++) {
+            prim q;
+            if (!(r->d.cfg->types & (1u << ty)) || make_candidate(r, &s, (prim_type)ty, &q))
+                continue;
+            pool_add(r, &q, level, &first_new);
+        }
+    }
+    size_t nw = 0;
+    for (size_t j = first_new; j < r->npool; j++)
+        if (r->pool[j].nsub == 0) r->which[nw++] = (int)j;
+    score_next(&r->d, r->pool, r->which, nw);
+}
+
+/* Into r->which: the best candidate (unless scored on every subset) and the
+ * REFINE_TOP rivals of highest upper bound that still overlap it, so that
+ * near-duplicates of one shape are not all scored on every point. Returns the count. */
+static size_t pick_leaders(run *r, size_t best)
+{
+    const cand *pool = r->pool;
+    int *which = r->which;
+    int nsub = r->d.nsub;
+    size_t nw = 0;
+    if (pool[best].nsub < nsub) which[nw++] = (int)best;
+    size_t base = nw;
+    for (size_t j = 0; j < r->npool; j++) {
+        if (j == best || pool[j].nsub >= nsub || pool[j].hi < pool[best].lo) continue;
+        size_t pos = nw;
+        if (nw - base == REFINE_TOP) {
+            if (pool[j].hi <= pool[which[nw - 1]].hi) continue;
+            pos = nw - 1;
+        } else {
+            nw++;
+        }
+        while (pos > base && pool[which[pos - 1]].hi < pool[j].hi) {
+            which[pos] = which[pos - 1];
+            pos--;
+        }
+        which[pos] = (int)j;
+    }
+    return nw;
+}
+
+/* Refine the leaders until the best one's interval separates from the rest; returns
+ * the best candidate, SIZE_MAX when the pool is empty. */
+static size_t refine_leaders(run *r)
+{
+    size_t best = SIZE_MAX;
+    for (int rounds = 0; rounds <= MAX_SUBSETS && r->npool > 0; rounds++) {
+        best = 0;
+        for (size_t j = 1; j < r->npool; j++)
+            if (cmp_cand_est(&r->pool[j], &r->pool[best]) < 0) best = j;
+        size_t nw = pick_leaders(r, best);
+        if (nw == 0) break;
+        score_next(&r->d, r->pool, r->which, nw);
+    }
+    return best;
+}
+
+/* Would a shape of the phase's minimum size have been found by now? */
+static int min_shape_missed(const run *r)
+{
+    double pm = fmin(p_draw((double)r->min_pts, (double)r->d.nalive, 3), 0.999999);
+    return (double)r->draws_since * log1p(-pm) < r->log_fail;
+}
+
+/* The acceptance test: b is large enough, and the chance of having missed a better
+ * candidate, (1 - P(n))^s, is below 1 - probability. */
+static int accepted(const run *r, const cand *b)
+{
+    double pd = fmin(p_draw(b->est, (double)r->d.nalive, b->ksample), 0.999999);
+    return b->est >= (double)r->min_pts && (double)r->draws_since * log1p(-pd) < r->log_fail;
+}
+
+/* Is small shape q (second phase) with its m inliers tight (see SMALL_TIGHT and the
+ * limits after it)? */
+static int tight_small_shape(const run *r, const prim *q, size_t m)
+{
+    double eps = r->d.cfg->epsilon;
+    const frep_cloud *c = r->d.c;
+    return !(q->type == PRIM_CONE || q->type == PRIM_TORUS ||
+             (q->type != PRIM_PLANE && !(q->r >= SMALL_RADIUS * eps)) ||
+             !(median_abs(q, c, r->inl, m) <= SMALL_TIGHT * eps) ||
+             !(median_normal_dev(q, c, r->inl, m) <= SMALL_NORMAL_DEG * FREP_PI / 180.0) ||
+             !(patch_width(c, r->inl, m) >= SMALL_WIDTH * eps));
+}
+
+/* Extract the accepted shape q: inliers, largest patch, refit, again with the refined
+ * shape, the band widened to the measured noise (refit_with_band); a face of mixed
+ * faces (face_modes); a simpler shape when it explains as much. Returns the support
+ * (inliers in r->inl), 0 when a small shape is not tight. */
+static size_t extract(run *r, prim *q)
+{
+    det *d = &r->d;
+    size_t m = refit_with_band(d, q, r->min_pts, r->flag, r->inl);
+    m = face_modes(d, q, m, r->min_pts, r->flag, r->inl);
+    if (m >= r->min_pts) {
+        prim_type before = q->type;
+        m = prefer_simpler(d, q, m, r->flag, r->inl);
+        /* A simpler shape measures its own noise: the band of a large cylinder
+         * standing in for a plane is wider than the plane's. */
+        if (q->type != before) {
+            m = refit_with_band(d, q, r->min_pts, r->flag, r->inl);
+            m = face_modes(d, q, m, r->min_pts, r->flag, r->inl);
+        }
+    }
+    m = support_of(d, q, r->flag, r->inl);
+    if (r->phase == 1 && m >= r->min_pts && !tight_small_shape(r, q, m)) m = 0;
+    return m;
+}
+
+/* The estimate of b was optimistic: keep it, scored zero, so that duplicates of it
+ * are not drawn again. */
+static void keep_rejected(const det *d, cand *b)
+{
+    b->nsub = d->nsub;
+    b->score = 0;
+    b->seen = 1;
+    update_estimate(d, b);
+}
+
+/* Append q with its m inliers (r->inl) to the result: the points leave the live set
+ * and the level that sampled q gains their count. Returns -1 when out of memory. */
+static int record_prim(run *r, prim *q, size_t m, int level)
+{
+    det *d = &r->d;
+    ransac_result *res = r->res;
+    if (res->nprims == r->cap_prims) {
+        prim *np = frep_realloc(res->prims, 2 * r->cap_prims * sizeof *np);
+        if (!np) return -1;
+        res->prims = np;
+        double *nb = frep_realloc(r->bands, 2 * r->cap_prims * sizeof *nb);
+        if (!nb) return -1;
+        r->bands = nb;
+        r->cap_prims *= 2;
+    }
+    r->bands[res->nprims] = d->band;
+    q->support = m;
+    q->rms = rms_of(q, d->c, r->inl, m);
+    q->separating = 0;
+    for (size_t j = 0; j < m; j++) {
+        d->alive[r->inl[j]] = 0;
+        res->label[r->inl[j]] = (int32_t)res->nprims;
+    }
+    res->prims[res->nprims++] = *q;
+    d->level_score[level] += (double)m;
+    recount_subsets(d);
+    return 0;
+}
+
+/* After an extraction: old candidates were scored on points now removed, so all are
+ * rescored from scratch, and those that lost their support are dropped. */
+static void prune_pool(run *r)
+{
+    rescore_all(r);
+    size_t keep = 0;
+    for (size_t j = 0; j < r->npool; j++)
+        if (r->pool[j].hi >= (double)r->min_pts) r->pool[keep++] = r->pool[j];
+    r->npool = keep;
+    r->draws_since = r->npool / r->ntypes;
+}
+
+static void report(const run *r)
+{
+    const ransac_config *cfg = r->d.cfg;
+    if (cfg->progress) cfg->progress(cfg->user, r->d.nalive, r->d.n, r->res->nprims);
+}
+
+/* One step of detection: a round of samples, the leaders refined, and the best
+ * candidate extracted when it passes the acceptance test. Returns 1 to go on, 0 when
+ * detection is over, -1 when out of memory. */
+static int detect_step(run *r)
+{
+    det *d = &r->d;
+    if (d->nalive < r->min_pts || d->nalive < RANSAC_MIN_CLOUD) return next_phase(r);
+    draw_round(r);
+    size_t best = refine_leaders(r);
+    report(r);
+    if (best == SIZE_MAX)
+        return min_shape_missed(r) || r->draws_since > RANSAC_MAX_DRAWS ? next_phase(r) : 1;
+    cand *b = &r->pool[best];
+    if (!accepted(r, b)) {
+        int over = (b->est < (double)r->min_pts && min_shape_missed(r)) ||
+                   r->draws_since > RANSAC_MAX_DRAWS;
+        return over ? next_phase(r) : 1;
+    }
+    prim q = b->q;
+    size_t m = extract(r, &q);
+    if (m < r->min_pts) {
+        keep_rejected(d, b);
+        return 1;
+    }
+    int level = b->level;
+    r->pool[best] = r->pool[--r->npool];
+    if (record_prim(r, &q, m, level)) return -1;
+    prune_pool(r);
+    report(r);
+    return 1;
+}
+
+int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *res,
+                  frep_error *err)
+{
+    memset(res, 0, sizeof *res);
+    frep_error_init(err);
+    run r;
+    if (run_alloc(&r, c, cfg, res, err)) goto fail;
+    rng_seed(&r.rng, cfg->seed);
+    if (build_octree(&r.d)) goto oom;
+    build_subsets(&r.d, &r.rng);
+    init_phases(&r);
     for (;;) {
         if (cfg->interrupt && *cfg->interrupt) {
             res->interrupted = 1;
             break;
         }
-        if (d.nalive < min_pts || d.nalive < RANSAC_MIN_CLOUD) {
-            if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since))
-                continue;
-            break;
-        }
-        /* Draw a round of minimal samples; each gives one candidate per type. */
-        size_t first_new = npool;
-        for (int t = 0; t < DRAWS_PER_ROUND; t++) {
-            sample s;
-            int level = draw_sample(&d, &r, &s);
-            draws_since++;
-            res->draws++;
-            if (level < 0) continue;
-            for (int ty = 0; ty < PRIM__COUNT; ty++) {
-                if (!(cfg->types & (1u << ty))) continue;
-                prim q;
-                memset(&q, 0, sizeof q);
-                int bad;
-                switch ((prim_type)ty) {
-                case PRIM_PLANE: bad = make_plane(&s, &q); break;
-                case PRIM_SPHERE: bad = make_sphere(&s, &q); break;
-                case PRIM_CYLINDER: bad = make_cylinder(&s, &q); break;
-                case PRIM_CONE: bad = make_cone(&s, &q); break;
-                case PRIM_TORUS: bad = make_torus(&s, &q, d.rmax, cfg->epsilon); break;
-                case PRIM__COUNT: default: bad = 1; break;
-                }
-                if (bad || !sane(&q, d.rmax) ||
-                    !verify(&q, &s, verify_count(q.type), cfg->epsilon, cfg->cos_normal))
-                    continue;
-                int dup = 0;
-                for (size_t j = 0; j < npool && !dup; j++)
-                    dup = same_shape(&q, &pool[j].q, cfg->epsilon);
-                if (dup) continue;
-                if (npool == MAX_POOL) {
-                    /* Drop the weakest candidate to make room. */
-                    size_t w = 0;
-                    for (size_t j = 1; j < npool; j++)
-                        if (pool[j].est < pool[w].est) w = j;
-                    pool[w] = pool[--npool];
-                    if (first_new > npool) first_new = npool;
-                }
-                cand *k = &pool[npool++];
-                memset(k, 0, sizeof *k);
-                k->q = q;
-                k->level = level;
-                k->ksample = verify_count(q.type);
-            }
-        }
-        size_t nw = 0;
-        for (size_t j = first_new; j < npool; j++)
-            if (pool[j].nsub == 0) which[nw++] = (int)j;
-        score_next(&d, pool, which, nw);
-        /* Refine the leaders until the best one's interval separates from the rest. */
-        size_t best = SIZE_MAX;
-        for (int rounds = 0; rounds <= MAX_SUBSETS && npool > 0; rounds++) {
-            best = 0;
-            for (size_t j = 1; j < npool; j++)
-                if (cmp_cand_est(&pool[j], &pool[best]) < 0) best = j;
-            /* The best and the REFINE_TOP rivals of highest upper bound that still
-             * overlap it: near-duplicates of one shape would otherwise all be scored
-             * on every point. */
-            nw = 0;
-            if (pool[best].nsub < d.nsub) which[nw++] = (int)best;
-            size_t base = nw;
-            for (size_t j = 0; j < npool; j++) {
-                if (j == best || pool[j].nsub >= d.nsub || pool[j].hi < pool[best].lo) continue;
-                size_t pos = nw;
-                if (nw - base == REFINE_TOP) {
-                    if (pool[j].hi <= pool[which[nw - 1]].hi) continue;
-                    pos = nw - 1;
-                } else {
-                    nw++;
-                }
-                while (pos > base && pool[which[pos - 1]].hi < pool[j].hi) {
-                    which[pos] = which[pos - 1];
-                    pos--;
-                }
-                which[pos] = (int)j;
-            }
-            if (nw == 0) break;
-            score_next(&d, pool, which, nw);
-        }
-        if (cfg->progress) cfg->progress(cfg->user, d.nalive, n, res->nprims);
-        if (best == SIZE_MAX) {
-            if ((double)draws_since * log1p(-fmin(p_draw((double)min_pts, (double)d.nalive, 3), 0.999999)) < log_fail ||
-                draws_since > RANSAC_MAX_DRAWS) {
-                if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since))
-                    continue;
-                break;
-            }
-            continue;
-        }
-        cand *b = &pool[best];
-        double pd = fmin(p_draw(b->est, (double)d.nalive, b->ksample), 0.999999);
-        int accept = b->est >= (double)min_pts &&
-                     (double)draws_since * log1p(-pd) < log_fail;
-        if (!accept) {
-            double pm = fmin(p_draw((double)min_pts, (double)d.nalive, 3), 0.999999);
-            if ((b->est < (double)min_pts && (double)draws_since * log1p(-pm) < log_fail) ||
-                draws_since > RANSAC_MAX_DRAWS) {
-                /* A shape of the minimum size would have been found by now. */
-                if (next_phase(&d, pool, npool, which, &phase, &min_pts, small_pts, &draws_since))
-                    continue;
-                break;
-            }
-            continue;
-        }
-        /* Extract: inliers, largest patch, refit, again with the refined shape; then
-         * widen the band to the measured noise and refit on the wider patch. */
-        prim q = b->q;
-        size_t m = refit_with_band(&d, &q, min_pts, flag, inl);
-        m = face_modes(&d, &q, m, min_pts, flag, inl);
-        if (m >= min_pts) {
-            prim_type before = q.type;
-            m = prefer_simpler(&d, &q, m, flag, inl);
-            /* A simpler shape measures its own noise: the band of a large cylinder
-             * standing in for a plane is wider than the plane's. */
-            if (q.type != before) {
-                m = refit_with_band(&d, &q, min_pts, flag, inl);
-                m = face_modes(&d, &q, m, min_pts, flag, inl);
-            }
-        }
-        m = support_of(&d, &q, flag, inl);
-        int lvl = b->level;
-        /* Small shapes must be tight (see SMALL_TIGHT). */
-        if (phase == 1 && m >= min_pts &&
-            (q.type == PRIM_CONE || q.type == PRIM_TORUS ||
-             (q.type != PRIM_PLANE && !(q.r >= SMALL_RADIUS * cfg->epsilon)) ||
-             !(median_abs(&q, c, inl, m) <= SMALL_TIGHT * cfg->epsilon) ||
-             !(median_normal_dev(&q, c, inl, m) <= SMALL_NORMAL_DEG * M_PI / 180.0) ||
-             !(patch_width(c, inl, m) >= SMALL_WIDTH * cfg->epsilon)))
-            m = 0;
-        if (m < min_pts) {
-            /* The estimate was optimistic. Keep the candidate, scored zero, so that
-             * duplicates of it are not drawn again, and keep drawing. */
-            b->nsub = d.nsub;
-            b->score = 0;
-            b->seen = 1;
-            update_estimate(&d, b);
-            continue;
-        }
-        pool[best] = pool[--npool];
-        if (res->nprims == cap_prims) {
-            prim *np = frep_realloc(res->prims, 2 * cap_prims * sizeof *np);
-            if (!np) {
-                if (err) *err = dupstr("out of memory");
-                goto fail;
-            }
-            res->prims = np;
-            double *nb = frep_realloc(bands, 2 * cap_prims * sizeof *nb);
-            if (!nb) {
-                if (err) *err = dupstr("out of memory");
-                goto fail;
-            }
-            bands = nb;
-            cap_prims *= 2;
-        }
-        bands[res->nprims] = d.band;
-        q.support = m;
-        q.rms = rms_of(&q, c, inl, m);
-        q.separating = 0;
-        for (size_t j = 0; j < m; j++) {
-            d.alive[inl[j]] = 0;
-            res->label[inl[j]] = (int32_t)res->nprims;
-        }
-        res->prims[res->nprims++] = q;
-        d.level_score[lvl] += (double)m;
-        recount_subsets(&d);
-        /* Old candidates were scored on points now removed: rescore from scratch. */
-        for (size_t j = 0; j < npool; j++) {
-            pool[j].nsub = 0;
-            pool[j].score = pool[j].seen = 0;
-        }
-        nw = 0;
-        for (size_t j = 0; j < npool; j++) which[nw++] = (int)j;
-        score_next(&d, pool, which, nw);
-        /* Drop candidates that lost their support. */
-        size_t keep = 0;
-        for (size_t j = 0; j < npool; j++)
-            if (pool[j].hi >= (double)min_pts) pool[keep++] = pool[j];
-        npool = keep;
-        draws_since = npool / ntypes;
-        if (cfg->progress) cfg->progress(cfg->user, d.nalive, n, res->nprims);
+        int go = detect_step(&r);
+        if (go < 0) goto oom;
+        if (go == 0) break;
     }
-    if (!res->interrupted) merge_redundant(&d, res, bands, inl);
-    frep_free(bands);
-    frep_free(d.alive);
-    frep_free(d.shuf);
-    frep_free(d.spts);
-    frep_free(d.salive);
-    frep_free(d.tmp);
-    frep_free(d.morton_idx);
-    frep_free(d.morton);
-    frep_free(d.alive_list);
-    frep_free(pool);
-    frep_free(which);
-    frep_free(inl);
-    frep_free(flag);
+    if (!res->interrupted) merge_redundant(&r.d, res, r.bands, r.inl);
+    run_free(&r);
     return 0;
+oom:
+    frep_error_nomem(err);
 fail:
-    frep_free(bands);
-    frep_free(d.alive);
-    frep_free(d.shuf);
-    frep_free(d.spts);
-    frep_free(d.salive);
-    frep_free(d.tmp);
-    frep_free(d.morton_idx);
-    frep_free(d.morton);
-    frep_free(d.alive_list);
-    frep_free(pool);
-    frep_free(which);
-    frep_free(inl);
-    frep_free(flag);
-    frep_free(mk);
+    run_free(&r);
     ransac_result_free(res);
     return -1;
 }

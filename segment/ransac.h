@@ -49,10 +49,11 @@ typedef struct ransac_result {
 } ransac_result;
 
 /* Detect primitives in c, which must have unit normals (zero normals are never
- * inliers). Returns 0, or -1 with *err set (malloc'ed message) when out of memory.
+ * inliers). Returns 0, or -1 with err set (reset on entry; may be NULL) when out of
+ * memory or when c has no normals.
  * Free the result with ransac_result_free(). */
 int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *res,
-                  char **err);
+                  frep_error *err);
 void ransac_result_free(ransac_result *r);
 
 /* Least-squares refit of q to the given points (Euclidean distance; planes by PCA,

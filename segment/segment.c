@@ -9,16 +9,15 @@
 #include <string.h>
 
 #include "alloc.h"
+#include "ast.h"
+#include "file.h"
 #include "fitfile.h"
 #include "kdtree.h"
 #include "normals.h"
 #include "ransac.h"
 #include "segment.h"
 #include "util.h"
-
-#ifndef M_PI
-#define M_PI 3.14159265358979323846
-#endif
+#include "vec3.h"
 
 /* Points whose nearest-neighbour distance estimates the sampling density. */
 #define SPACING_SAMPLES 2000
@@ -26,6 +25,9 @@
 #define SPACING_TREE_MAX 100000
 /* Neighbours searched for the nearest distinct position (a point may be repeated). */
 #define SPACING_K 16
+/* Largest primitive list read: 256 MiB is millions of primitives, far more than a
+ * segmentation finds or a construction tree combines. */
+#define SEGMENT_PRIMS_MAX_BYTES ((size_t)1 << 28)
 /* Longest line of a .hf primitive list we parse. */
 #define HF_MAX_LINE 4096
 
@@ -52,50 +54,15 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* Median distance to the nearest other point over an evenly spaced sample. Large
- * clouds use a tree of every k-th point only (SPACING_TREE_MAX of them), and the
- * spacing is scaled back by sqrt(k): on a surface the spacing goes as one over the
- * square root of the density. */
-static double median_spacing(const frep_cloud *c)
+/* The median distance to the nearest other position over SPACING_SAMPLES evenly
+ * spaced points of tree t (of nt points, every stride-th of c), scaled back by
+ * sqrt(stride): on a surface the spacing goes as one over the square root of the
+ * density. -1 when out of memory. */
+static double sampled_spacing(const frep_cloud *c, const kd_tree *t, size_t nt, size_t stride)
 {
-    size_t stride = c->n > SPACING_TREE_MAX ? (c->n + SPACING_TREE_MAX - 1) / SPACING_TREE_MAX : 1;
-    size_t nt = (c->n + stride - 1) / stride;
-    double *sx = NULL, *sy = NULL, *sz = NULL;
-    kd_tree *t;
-    if (stride > 1) {
-        sx = frep_malloc(nt * sizeof *sx);
-        sy = frep_malloc(nt * sizeof *sy);
-        sz = frep_malloc(nt * sizeof *sz);
-        if (!sx || !sy || !sz) {
-            frep_free(sx);
-            frep_free(sy);
-            frep_free(sz);
-            return 0;
-        }
-        for (size_t j = 0; j < nt; j++) {
-            sx[j] = c->x[j * stride];
-            sy[j] = c->y[j * stride];
-            sz[j] = c->z[j * stride];
-        }
-        t = kd_build(nt, sx, sy, sz);
-    } else {
-        t = kd_build(c->n, c->x, c->y, c->z);
-    }
-    if (!t) {
-        frep_free(sx);
-        frep_free(sy);
-        frep_free(sz);
-        return 0;
-    }
     size_t m = nt < SPACING_SAMPLES ? nt : SPACING_SAMPLES;
     double *d = frep_malloc(m * sizeof *d);
-    if (!d) {
-        kd_free(t);
-        frep_free(sx);
-        frep_free(sy);
-        frep_free(sz);
-        return 0;
-    }
+    if (!d) return -1;
     size_t got = 0;
     for (size_t j = 0; j < m; j++) {
         size_t i = (size_t)((double)j * (double)nt / (double)m) * stride;
@@ -115,6 +82,34 @@ static double median_spacing(const frep_cloud *c)
         med = d[got / 2] / sqrt((double)stride);
     }
     frep_free(d);
+    return med;
+}
+
+/* Median distance to the nearest other point over an evenly spaced sample, -1 when
+ * out of memory. Large clouds use a tree of every stride-th point only
+ * (SPACING_TREE_MAX of them). */
+static double median_spacing(const frep_cloud *c)
+{
+    size_t stride = c->n > SPACING_TREE_MAX ? (c->n + SPACING_TREE_MAX - 1) / SPACING_TREE_MAX : 1;
+    size_t nt = (c->n + stride - 1) / stride;
+    double *sx = NULL, *sy = NULL, *sz = NULL;
+    kd_tree *t = NULL;
+    if (stride > 1) {
+        sx = frep_malloc(nt * sizeof *sx);
+        sy = frep_malloc(nt * sizeof *sy);
+        sz = frep_malloc(nt * sizeof *sz);
+        if (sx && sy && sz) {
+            for (size_t j = 0; j < nt; j++) {
+                sx[j] = c->x[j * stride];
+                sy[j] = c->y[j * stride];
+                sz[j] = c->z[j * stride];
+            }
+            t = kd_build(nt, sx, sy, sz);
+        }
+    } else {
+        t = kd_build(c->n, c->x, c->y, c->z);
+    }
+    double med = t ? sampled_spacing(c, t, nt, stride) : -1;
     kd_free(t);
     frep_free(sx);
     frep_free(sy);
@@ -135,9 +130,49 @@ static void dot_basis(const double a[3], double u[3], double v[3])
     v[2] = a[0] * u[1] - a[1] * u[0];
 }
 
+/* Box axes with ax[0] = fixed (the primitive's normal or axis): the other two by PCA
+ * in the perpendicular plane (the angle of its principal direction). */
+static void axes_around(const double fixed[3], const frep_cloud *c, const uint32_t *idx,
+                        size_t n, const double mean[3], double ax[3][3])
+{
+    double u[3], v[3];
+    dot_basis(fixed, u, v);
+    double suu = 0, suv = 0, svv = 0;
+    for (size_t j = 0; j < n; j++) {
+        double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1], c->z[idx[j]] - mean[2]};
+        double pu = w[0] * u[0] + w[1] * u[1] + w[2] * u[2];
+        double pv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
+        suu += pu * pu;
+        suv += pu * pv;
+        svv += pv * pv;
+    }
+    double th = 0.5 * atan2(2 * suv, suu - svv), cs = cos(th), sn = sin(th);
+    for (int k = 0; k < 3; k++) {
+        ax[0][k] = fixed[k];
+        ax[1][k] = cs * u[k] + sn * v[k];
+        ax[2][k] = -sn * u[k] + cs * v[k];
+    }
+}
+
+/* Box axes by full PCA (spheres), largest variance first. */
+static void axes_pca(const frep_cloud *c, const uint32_t *idx, size_t n, const double mean[3],
+                     double ax[3][3])
+{
+    double cov[9] = {0};
+    for (size_t j = 0; j < n; j++) {
+        double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1], c->z[idx[j]] - mean[2]};
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++) cov[3 * a + b] += w[a] * w[b];
+    }
+    double ev[3], vec[9];
+    normals_sym3_eig(cov, ev, vec);
+    for (int a = 0; a < 3; a++)
+        for (int k = 0; k < 3; k++) ax[a][k] = vec[3 * (2 - a) + k];
+}
+
 void segment_fit_obb(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n)
 {
-    double mean[3] = {0, 0, 0}, cov[9] = {0}, ax[3][3];
+    double mean[3] = {0, 0, 0}, ax[3][3];
     q->has_obb = 0;
     if (n == 0) return;
     for (size_t j = 0; j < n; j++) {
@@ -145,41 +180,9 @@ void segment_fit_obb(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n
         mean[1] += c->y[idx[j]] / (double)n;
         mean[2] += c->z[idx[j]] / (double)n;
     }
-    const double *fixed = NULL;
-    if (q->type == PRIM_PLANE) fixed = q->p;
-    else if (q->type != PRIM_SPHERE) fixed = q->a;
-    if (fixed) {
-        /* One axis is given; PCA within the perpendicular plane for the others. */
-        double u[3], v[3];
-        dot_basis(fixed, u, v);
-        double suu = 0, suv = 0, svv = 0;
-        for (size_t j = 0; j < n; j++) {
-            double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1],
-                           c->z[idx[j]] - mean[2]};
-            double pu = w[0] * u[0] + w[1] * u[1] + w[2] * u[2];
-            double pv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
-            suu += pu * pu;
-            suv += pu * pv;
-            svv += pv * pv;
-        }
-        double th = 0.5 * atan2(2 * suv, suu - svv), cs = cos(th), sn = sin(th);
-        for (int k = 0; k < 3; k++) {
-            ax[0][k] = fixed[k];
-            ax[1][k] = cs * u[k] + sn * v[k];
-            ax[2][k] = -sn * u[k] + cs * v[k];
-        }
-    } else {
-        for (size_t j = 0; j < n; j++) {
-            double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1],
-                           c->z[idx[j]] - mean[2]};
-            for (int a = 0; a < 3; a++)
-                for (int b = 0; b < 3; b++) cov[3 * a + b] += w[a] * w[b];
-        }
-        double ev[3], vec[9];
-        normals_sym3_eig(cov, ev, vec);
-        for (int a = 0; a < 3; a++)
-            for (int k = 0; k < 3; k++) ax[a][k] = vec[3 * (2 - a) + k];
-    }
+    if (q->type == PRIM_PLANE) axes_around(q->p, c, idx, n, mean, ax);
+    else if (q->type != PRIM_SPHERE) axes_around(q->a, c, idx, n, mean, ax);
+    else axes_pca(c, idx, n, mean, ax);
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t j = 0; j < n; j++) {
         double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1], c->z[idx[j]] - mean[2]};
@@ -201,7 +204,7 @@ void segment_fit_obb(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n
 
 static int plane_dup(const prim *list, size_t n, const double nrm[3], double d, double eps)
 {
-    double cmin = cos(SEGMENT_DUP_PLANE_DEG * M_PI / 180.0);
+    double cmin = cos(SEGMENT_DUP_PLANE_DEG * FREP_PI / 180.0);
     for (size_t i = 0; i < n; i++) {
         if (list[i].type != PRIM_PLANE) continue;
         double c = nrm[0] * list[i].p[0] + nrm[1] * list[i].p[1] + nrm[2] * list[i].p[2];
@@ -270,26 +273,18 @@ static void ransac_progress(void *user, size_t remaining, size_t total, size_t n
     cfg->progress(cfg->user, "detect", total - remaining, total, nprims);
 }
 
-int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, char **err)
+/* The settings the run uses, as reported in res: the configured ones, or defaults
+ * scaled to the cloud (its diagonal, point spacing and count); -1 when out of memory. */
+static int scaled_defaults(const frep_cloud *c, const segment_config *cfg, double diag,
+                           segment_result *res, frep_error *err)
 {
-    memset(res, 0, sizeof *res);
-    if (err) *err = NULL;
-    if (c->n < RANSAC_MIN_CLOUD) {
-        if (err) *err = frep_strdupf("too few points: %zu (segmentation needs at least %d)", c->n,
-                                     RANSAC_MIN_CLOUD);
-        return -1;
-    }
-    double diag = cloud_diagonal(c);
-    if (!(diag > 0)) {
-        if (err) *err = frep_strdupf("all %zu points are the same point: nothing to segment", c->n);
-        return -1;
-    }
     res->diagonal = diag;
     res->epsilon = cfg->epsilon > 0 ? cfg->epsilon : SEGMENT_DEFAULT_EPSILON * diag;
     if (cfg->cluster > 0) {
         res->cluster = cfg->cluster;
     } else {
         double sp = median_spacing(c);
+        if (sp < 0) return frep_error_nomem(err);
         res->cluster = fmax(SEGMENT_DEFAULT_CLUSTER * diag, SEGMENT_CLUSTER_SPACINGS * sp);
     }
     res->normal_deg = cfg->normal_deg > 0 ? cfg->normal_deg : SEGMENT_DEFAULT_NORMAL_DEG;
@@ -302,80 +297,101 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, c
     if (ms < SEGMENT_MIN_POINTS_FLOOR) ms = SEGMENT_MIN_POINTS_FLOOR;
     if (cfg->min_points_small) ms = cfg->min_points_small;
     res->min_points_small = ms < res->min_points ? ms : res->min_points;
+    return 0;
+}
 
+/* Normals: those of the file, normalized, unless there are none or some are zero;
+ * then all are estimated. */
+static int ensure_normals(frep_cloud *c, const segment_config *cfg, segment_result *res,
+                          frep_error *err)
+{
     if (c->has_normals) res->zero_normals = cloud_normalize_normals(c);
-    if (!c->has_normals || res->zero_normals > 0) {
-        if (cfg->progress) cfg->progress(cfg->user, "normals", 0, c->n, 0);
-        if (normals_estimate(c, cfg->knn, cfg->nthreads)) {
-            if (err) *err = frep_strdupf("out of memory estimating normals");
-            return -1;
-        }
-        res->normals_estimated = 1;
-    }
+    if (c->has_normals && res->zero_normals == 0) return 0;
+    if (cfg->progress) cfg->progress(cfg->user, "normals", 0, c->n, 0);
+    if (normals_estimate(c, cfg->knn, cfg->nthreads))
+        return frep_error_set(err, FREP_ENOMEM, "out of memory estimating normals");
+    res->normals_estimated = 1;
+    return 0;
+}
 
-    ransac_config rc;
-    memset(&rc, 0, sizeof rc);
-    rc.epsilon = res->epsilon;
-    rc.cos_normal = cos(res->normal_deg * M_PI / 180.0);
-    rc.cluster = res->cluster;
-    rc.min_points = res->min_points;
-    rc.min_points_small = res->min_points_small;
-    rc.probability = res->probability;
-    rc.types = cfg->types ? cfg->types : (1u << PRIM__COUNT) - 1;
-    rc.seed = cfg->seed;
-    rc.nthreads = cfg->nthreads;
-    rc.interrupt = cfg->interrupt;
+/* The detection settings from the run's. */
+static void detect_config(const segment_config *cfg, const segment_result *res,
+                          ransac_config *rc)
+{
+    memset(rc, 0, sizeof *rc);
+    rc->epsilon = res->epsilon;
+    rc->cos_normal = cos(res->normal_deg * FREP_PI / 180.0);
+    rc->cluster = res->cluster;
+    rc->min_points = res->min_points;
+    rc->min_points_small = res->min_points_small;
+    rc->probability = res->probability;
+    rc->types = cfg->types ? cfg->types : (1u << PRIM__COUNT) - 1;
+    rc->seed = cfg->seed;
+    rc->nthreads = cfg->nthreads;
+    rc->interrupt = cfg->interrupt;
     if (cfg->progress) {
-        rc.progress = ransac_progress;
-        rc.user = (void *)(uintptr_t)cfg;
+        rc->progress = ransac_progress;
+        rc->user = (void *)(uintptr_t)cfg;
     }
+}
+
+/* The oriented box of every fitted primitive from its inliers (by label, a counting
+ * sort). Returns -1 when out of memory. */
+static int fit_boxes(const frep_cloud *c, prim *prims, size_t np, const int32_t *label)
+{
+    size_t *start = frep_calloc(np + 2, sizeof *start);
+    uint32_t *order = frep_malloc(c->n * sizeof *order);
+    size_t *fill = frep_calloc(np + 1, sizeof *fill);
+    int rc = -1;
+    if (start && order && fill) {
+        for (size_t i = 0; i < c->n; i++)
+            if (label[i] >= 0) start[label[i] + 1]++;
+        for (size_t j = 0; j < np; j++) start[j + 1] += start[j];
+        for (size_t i = 0; i < c->n; i++)
+            if (label[i] >= 0) order[start[label[i]] + fill[label[i]]++] = (uint32_t)i;
+        for (size_t j = 0; j < np; j++)
+            segment_fit_obb(&prims[j], c, order + start[j], start[j + 1] - start[j]);
+        rc = 0;
+    }
+    frep_free(fill);
+    frep_free(start);
+    frep_free(order);
+    return rc;
+}
+
+int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, frep_error *err)
+{
+    memset(res, 0, sizeof *res);
+    frep_error_init(err);
+    if (c->n < RANSAC_MIN_CLOUD)
+        return frep_error_set(err, FREP_EINPUT,
+                              "too few points: %zu (segmentation needs at least %d)", c->n,
+                              RANSAC_MIN_CLOUD);
+    double diag = cloud_diagonal(c);
+    if (!(diag > 0))
+        return frep_error_set(err, FREP_EINPUT,
+                              "all %zu points are the same point: nothing to segment", c->n);
+    if (scaled_defaults(c, cfg, diag, res, err)) return -1;
+    if (ensure_normals(c, cfg, res, err)) return -1;
+    ransac_config rc;
+    detect_config(cfg, res, &rc);
     ransac_result rr;
     if (ransac_detect(c, &rc, &rr, err)) return -1;
     res->draws = rr.draws;
     res->interrupted = rr.interrupted;
     res->label = rr.label;
-    res->nfitted = rr.nprims;
-    for (size_t i = 0; i < c->n; i++) res->unassigned += rr.label[i] < 0;
-
-    /* Boxes of every fitted primitive from its inliers (counting sort by label). */
-    size_t *start = frep_calloc(rr.nprims + 2, sizeof *start);
-    uint32_t *order = frep_malloc(c->n * sizeof *order);
-    if (!start || !order) {
-        frep_free(start);
-        frep_free(order);
-        ransac_result_free(&rr);
-        res->label = NULL;
-        if (err) *err = frep_strdupf("out of memory");
-        return -1;
-    }
-    for (size_t i = 0; i < c->n; i++)
-        if (rr.label[i] >= 0) start[rr.label[i] + 1]++;
-    for (size_t j = 0; j < rr.nprims; j++) start[j + 1] += start[j];
-    size_t *fill = frep_calloc(rr.nprims + 1, sizeof *fill);
-    if (!fill) {
-        frep_free(start);
-        frep_free(order);
-        ransac_result_free(&rr);
-        res->label = NULL;
-        if (err) *err = frep_strdupf("out of memory");
-        return -1;
-    }
-    for (size_t i = 0; i < c->n; i++)
-        if (rr.label[i] >= 0) order[start[rr.label[i]] + fill[rr.label[i]]++] = (uint32_t)i;
-    for (size_t j = 0; j < rr.nprims; j++)
-        segment_fit_obb(&rr.prims[j], c, order + start[j], start[j + 1] - start[j]);
-    frep_free(fill);
-    frep_free(start);
-    frep_free(order);
-
     res->prims = rr.prims;
-    res->nprims = rr.nprims;
+    res->nprims = res->nfitted = rr.nprims;
+    for (size_t i = 0; i < c->n; i++) res->unassigned += rr.label[i] < 0;
+    if (fit_boxes(c, res->prims, res->nprims, res->label)) {
+        segment_result_free(res);
+        return frep_error_nomem(err);
+    }
     if (cfg->separating) {
         size_t nn = segment_add_separating(&res->prims, res->nprims, res->epsilon);
         if (nn == (size_t)-1) {
-            if (err) *err = frep_strdupf("out of memory");
             segment_result_free(res);
-            return -1;
+            return frep_error_nomem(err);
         }
         res->nprims = nn;
     }
@@ -436,6 +452,154 @@ int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header, doubl
     return ferror(f) ? -1 : 0;
 }
 
+/* ---- reading .hf primitive lists through the front end ----------------------------
+ * The model is parsed by lang/ (ast_parse), so a list is any valid HyperFun file: the
+ * primitives are its assignments `name = frX(x, c1, c2, ...)` with constant arguments,
+ * in file order. The comments segment_write_hf adds (support, rms, "separating", the
+ * "--   obb" box line after a call) are read from the source lines of those calls. */
+
+typedef struct hf_call {
+    const char *key;   /* lower-case name, as the front end keys calls */
+    const char *name;  /* as written, for messages */
+    prim_type type;
+    int nargs;         /* constants after x */
+} hf_call;
+
+static const hf_call hf_calls[] = {
+    {"frplane", "frPlane", PRIM_PLANE, 4},       {"frsphere", "frSphere", PRIM_SPHERE, 4},
+    {"frcylinder", "frCylinder", PRIM_CYLINDER, 7}, {"frcone", "frCone", PRIM_CONE, 7},
+    {"frtorus", "frTorus", PRIM_TORUS, 8},
+};
+
+/* One reading of a list: the primitives found so far with the source line of each and
+ * the offset where its call ends (its comment follows). */
+typedef struct hf_reader {
+    const char *name, *src;
+    size_t len;
+    frep_error *err;
+    prim *v;
+    uint32_t *line;
+    uint32_t *end;
+    size_t n, cap;
+} hf_reader;
+
+/* The front end's first error, as "file:line:col: message". */
+static void hf_diag(void *user, const frep_diag *d)
+{
+    if (d->severity == FREP_ERROR)
+        frep_error_at(user, FREP_EINPUT, d->file, d->line, (int)d->col, "%s", d->message);
+}
+
+/* A constant argument: a number or a negated number. Returns -1 for anything else. */
+static int hf_const(const ast_node *a, double *v)
+{
+    if (a->kind == AST_NUM) *v = a->num;
+    else if (a->kind == AST_UNARY && a->op == '-' && a->a->kind == AST_NUM) *v = -a->a->num;
+    else return -1;
+    return isfinite(*v) ? 0 : -1;
+}
+
+static int unit3(double a[3])
+{
+    double l = vec3_len(a);
+    if (!(l > 0)) return -1;
+    for (int k = 0; k < 3; k++) a[k] /= l;
+    return 0;
+}
+
+/* The primitive of call k with constants a: axes and plane normals made unit (a
+ * plane's offset with its normal). Returns -1 for a zero-length one. */
+static int hf_prim_of(const hf_call *k, const double *a, prim *q)
+{
+    memset(q, 0, sizeof *q);
+    q->type = k->type;
+    memcpy(q->p, a, 3 * sizeof(double));
+    if (q->type == PRIM_PLANE || q->type == PRIM_SPHERE) {
+        q->r = a[3];
+        if (q->type != PRIM_PLANE) return 0;
+        double l0 = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        if (unit3(q->p)) return -1;
+        q->r /= l0;
+        return 0;
+    }
+    memcpy(q->a, a + 3, 3 * sizeof(double));
+    if (q->type == PRIM_TORUS) {
+        q->R = a[6];
+        q->r = a[7];
+    } else {
+        q->r = a[6];
+    }
+    return unit3(q->a);
+}
+
+/* The primitive of an assignment's value, if it is a primitive call: 1 when found, 0
+ * when the value is something else, -1 (error set) when the call is malformed. */
+static int hf_call_prim(hf_reader *r, const ast_node *call, prim *q)
+{
+    const hf_call *k = NULL;
+    for (size_t j = 0; j < sizeof hf_calls / sizeof *hf_calls && call->kind == AST_CALL; j++)
+        if (strcmp(call->key, hf_calls[j].key) == 0) k = &hf_calls[j];
+    if (!k) return 0;
+    const ast_loc *at = &call->op_loc;
+    const ast_node *x = call->list.n > 0 ? call->list.v[0] : NULL;
+    if (!x || x->kind != AST_VAR || strcmp(x->key, "x") != 0)
+        return frep_error_at(r->err, FREP_EINPUT, r->name, x ? x->loc.line : at->line,
+                             (int)(x ? x->loc.col : at->col),
+                             "expected 'x' as the first argument of %s()", k->name);
+    if (call->list.n - 1 != (uint32_t)k->nargs)
+        return frep_error_at(r->err, FREP_EINPUT, r->name, at->line, (int)at->col,
+                             "%s needs %d numbers after x, got %u", k->name, k->nargs,
+                             call->list.n - 1);
+    double a[9];
+    for (int j = 0; j < k->nargs; j++) {
+        const ast_node *arg = call->list.v[j + 1];
+        if (hf_const(arg, &a[j]))
+            return frep_error_at(r->err, FREP_EINPUT, r->name, arg->loc.line, (int)arg->loc.col,
+                                 "arguments of %s() must be numbers", k->name);
+    }
+    if (hf_prim_of(k, a, q))
+        return frep_error_at(r->err, FREP_EINPUT, r->name, at->line, (int)at->col,
+                             "zero-length %s", k->type == PRIM_PLANE ? "normal" : "axis");
+    return 1;
+}
+
+/* Append q, called at the given span, to the list; -1 when out of memory. */
+static int hf_push(hf_reader *r, const prim *q, const ast_loc *loc)
+{
+    if (r->n == r->cap) {
+        size_t cap = r->cap ? 2 * r->cap : 16;
+        prim *nv = frep_realloc(r->v, cap * sizeof *nv);
+        if (nv) r->v = nv;
+        uint32_t *nl = nv ? frep_realloc(r->line, cap * sizeof *nl) : NULL;
+        if (nl) r->line = nl;
+        uint32_t *ne = nl ? frep_realloc(r->end, cap * sizeof *ne) : NULL;
+        if (!ne) return frep_error_set(r->err, FREP_ENOMEM, "%s: out of memory", r->name);
+        r->end = ne;
+        r->cap = cap;
+    }
+    r->v[r->n] = *q;
+    r->line[r->n] = loc->line;
+    r->end[r->n] = loc->end;
+    r->n++;
+    return 0;
+}
+
+/* The primitives of every model's top-level assignments, in file order. */
+static int hf_collect(hf_reader *r, const ast_file *f)
+{
+    for (uint32_t m = 0; m < f->nmodels; m++) {
+        const ast_list *body = &f->models[m].body;
+        for (uint32_t i = 0; i < body->n; i++) {
+            const ast_node *st = body->v[i];
+            if (st->kind != AST_ASSIGN || !st->a) continue;
+            prim q;
+            int got = hf_call_prim(r, st->a, &q);
+            if (got < 0 || (got > 0 && hf_push(r, &q, &st->a->loc))) return -1;
+        }
+    }
+    return 0;
+}
+
 /* Parse up to max comma/blank separated numbers from s; returns the count (max + 1 if
  * more) or -1 on a non-number. */
 static int parse_nums(const char *s, const char *end, double *v, int max)
@@ -462,195 +626,126 @@ static int parse_nums(const char *s, const char *end, double *v, int max)
     }
 }
 
-static int unit3(double a[3])
+/* The comment after a call: "N points", "rms R" or "separating". */
+static void hf_comment(prim *q, const char *cm)
 {
-    double l = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-    if (!(l > 0)) return -1;
-    for (int k = 0; k < 3; k++) a[k] /= l;
+    q->separating = strstr(cm, "separating") != NULL;
+    const char *pts = strstr(cm, " points");
+    if (pts) {
+        const char *b = pts;
+        while (b > cm && isdigit((unsigned char)b[-1])) b--;
+        q->support = (size_t)strtoull(b, NULL, 10);
+    }
+    const char *rms = strstr(cm, "rms ");
+    if (rms) q->rms = strtod(rms + 4, NULL);
+}
+
+/* A "--   obb" line: centre, three axes and half sizes of the primitive before it. */
+static int hf_obb(hf_reader *r, prim *q, const char *s, size_t ln)
+{
+    double b[15];
+    if (parse_nums(s + 8, s + strlen(s), b, 15) != 15)
+        return frep_error_set(r->err, FREP_EINPUT, "%s:%zu: expected 15 numbers after 'obb'",
+                              r->name, ln);
+    memcpy(q->obb_c, b, 3 * sizeof(double));
+    for (int a = 0; a < 3; a++) memcpy(q->obb_axes[a], b + 3 + 3 * a, 3 * sizeof(double));
+    memcpy(q->obb_half, b + 12, 3 * sizeof(double));
+    q->has_obb = 1;
+    return 0;
+}
+
+/* The comments segment_write_hf puts on and after each call's line, line by line:
+ * the current primitive is the last one called on or before the line. */
+static int hf_metadata(hf_reader *r)
+{
+    const char *p = r->src, *end = r->src + r->len;
+    size_t j = 0;
+    for (size_t ln = 1; p < end; ln++) {
+        const char *eol = memchr(p, '\n', (size_t)(end - p));
+        if (!eol) eol = end;
+        const char *lp = p;
+        p = eol < end ? eol + 1 : end;
+        while (j < r->n && r->line[j] <= ln) j++;
+        if (j == 0) continue;
+        prim *q = &r->v[j - 1];
+        int on_call = r->line[j - 1] == ln;
+        /* On the call's line only what follows the call is a comment. */
+        const char *from = on_call ? r->src + r->end[j - 1] : lp;
+        if (from > eol) from = eol;
+        size_t l = (size_t)(eol - from);
+        if (l >= HF_MAX_LINE)
+            return frep_error_set(r->err, FREP_EINPUT, "%s:%zu: line too long", r->name, ln);
+        char buf[HF_MAX_LINE];
+        memcpy(buf, from, l);
+        buf[l] = '\0';
+        char *s = buf;
+        while (isspace((unsigned char)*s)) s++;
+        if (!on_call && strncmp(s, "--   obb", 8) == 0) {
+            if (hf_obb(r, q, s, ln)) return -1;
+        } else if (on_call) {
+            char *cm = strstr(s, "--");
+            if (cm) hf_comment(q, cm + 2);
+        }
+    }
     return 0;
 }
 
 static int parse_hf(const char *name, const char *text, size_t len, prim **out, size_t *n,
-                    char **err)
+                    frep_error *err)
 {
-    static const struct { const char *fn; prim_type t; int nargs; } calls[] = {
-        {"frPlane(", PRIM_PLANE, 4}, {"frSphere(", PRIM_SPHERE, 4},
-        {"frCylinder(", PRIM_CYLINDER, 7}, {"frCone(", PRIM_CONE, 7},
-        {"frTorus(", PRIM_TORUS, 8},
-    };
-    prim *v = NULL;
-    size_t cnt = 0, cap = 0, line = 0;
-    const char *p = text, *end = text + len;
-    while (p < end) {
-        line++;
-        const char *eol = memchr(p, '\n', (size_t)(end - p));
-        if (!eol) eol = end;
-        const char *lp = p;
-        size_t l = (size_t)(eol - p);
-        p = eol < end ? eol + 1 : end;
-        if (l >= HF_MAX_LINE) {
-            if (err) *err = frep_strdupf("%s:%zu: line too long", name, line);
-            goto fail;
-        }
-        char buf[HF_MAX_LINE];
-        memcpy(buf, lp, l);
-        buf[l] = '\0';
-        char *s = buf;
-        while (isspace((unsigned char)*s)) s++;
-        if (strncmp(s, "--   obb", 8) == 0 && cnt > 0) {
-            double b[15];
-            if (parse_nums(s + 8, s + strlen(s), b, 15) != 15) {
-                if (err) *err = frep_strdupf("%s:%zu: expected 15 numbers after 'obb'", name, line);
-                goto fail;
-            }
-            prim *q = &v[cnt - 1];
-            memcpy(q->obb_c, b, 3 * sizeof(double));
-            for (int a = 0; a < 3; a++) memcpy(q->obb_axes[a], b + 3 + 3 * a, 3 * sizeof(double));
-            memcpy(q->obb_half, b + 12, 3 * sizeof(double));
-            q->has_obb = 1;
-            continue;
-        }
-        if (strncmp(s, "--", 2) == 0) continue;
-        char *comment = strstr(s, "--");
-        if (comment) *comment = '\0';
-        for (size_t k = 0; k < sizeof calls / sizeof calls[0]; k++) {
-            char *c = strstr(s, calls[k].fn);
-            if (!c) continue;
-            char *args = c + strlen(calls[k].fn);
-            char *close = strchr(args, ')');
-            if (!close) {
-                if (err) *err = frep_strdupf("%s:%zu: expected ')' to close '%.*s'", name, line,
-                                             (int)strlen(calls[k].fn), calls[k].fn);
-                goto fail;
-            }
-            while (isspace((unsigned char)*args)) args++;
-            if (*args != 'x') {
-                if (err) *err = frep_strdupf("%s:%zu: expected 'x' as the first argument of %.*s)",
-                                             name, line, (int)strlen(calls[k].fn), calls[k].fn);
-                goto fail;
-            }
-            args++;
-            double a[9];
-            int got = parse_nums(args, close, a, calls[k].nargs);
-            if (got != calls[k].nargs) {
-                if (err) {
-                    if (got < 0)
-                        *err = frep_strdupf("%s:%zu: arguments of %.*s) must be numbers", name, line,
-                                            (int)strlen(calls[k].fn), calls[k].fn);
-                    else
-                        *err = frep_strdupf("%s:%zu: %.*s needs %d numbers after x, got %d", name,
-                                            line, (int)strlen(calls[k].fn) - 1, calls[k].fn,
-                                            calls[k].nargs, got);
-                }
-                goto fail;
-            }
-            prim q;
-            memset(&q, 0, sizeof q);
-            q.type = calls[k].t;
-            memcpy(q.p, a, 3 * sizeof(double));
-            int bad = 0;
-            if (q.type == PRIM_PLANE || q.type == PRIM_SPHERE) {
-                q.r = a[3];
-                if (q.type == PRIM_PLANE) {
-                    double l0 = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-                    bad = unit3(q.p);
-                    if (!bad) q.r /= l0;
-                }
-            } else {
-                memcpy(q.a, a + 3, 3 * sizeof(double));
-                bad = unit3(q.a);
-                if (q.type == PRIM_TORUS) {
-                    q.R = a[6];
-                    q.r = a[7];
-                } else {
-                    q.r = a[6];
-                }
-            }
-            if (bad) {
-                if (err) *err = frep_strdupf("%s:%zu: zero-length %s", name, line,
-                                             q.type == PRIM_PLANE ? "normal" : "axis");
-                goto fail;
-            }
-            if (comment) {
-                const char *cm = comment + 2;
-                q.separating = strstr(cm, "separating") != NULL;
-                const char *pts = strstr(cm, " points");
-                if (pts) {
-                    const char *b = pts;
-                    while (b > cm && isdigit((unsigned char)b[-1])) b--;
-                    q.support = (size_t)strtoull(b, NULL, 10);
-                }
-                const char *rms = strstr(cm, "rms ");
-                if (rms) q.rms = strtod(rms + 4, NULL);
-            }
-            if (cnt == cap) {
-                cap = cap ? 2 * cap : 16;
-                prim *nv = frep_realloc(v, cap * sizeof *nv);
-                if (!nv) {
-                    if (err) *err = frep_strdupf("%s: out of memory", name);
-                    goto fail;
-                }
-                v = nv;
-            }
-            v[cnt++] = q;
-            break;
-        }
+    hf_reader r = {name, text, len, err, NULL, NULL, NULL, 0, 0};
+    arena A;
+    arena_init(&A);
+    diag_sink ds = {hf_diag, err, name, 0, 0, &A, 0};
+    ast_file f;
+    memset(&f, 0, sizeof f);
+    int rc = -1;
+    if (ast_parse(&A, name, text, len, &ds, &f) || ds.errors) {
+        if (A.failed) frep_error_nomem(err);
+        frep_error_set(err, FREP_EINPUT, "%s: cannot parse the primitive list", name);
+    } else if (hf_collect(&r, &f) == 0 && hf_metadata(&r) == 0) {
+        if (r.n == 0)
+            frep_error_set(err, FREP_EINPUT,
+                           "%s: no frPlane/frSphere/frCylinder/frCone/frTorus calls", name);
+        else rc = 0;
     }
-    if (cnt == 0) {
-        if (err) *err = frep_strdupf("%s: no frPlane/frSphere/frCylinder/frCone/frTorus calls", name);
-        goto fail;
+    arena_free(&A);
+    frep_free(r.line);
+    frep_free(r.end);
+    if (rc) {
+        frep_free(r.v);
+        return -1;
     }
-    *out = v;
-    *n = cnt;
+    *out = r.v;
+    *n = r.n;
     return 0;
-fail:
-    frep_free(v);
-    return -1;
 }
 
 int segment_parse_prims(const char *name, const char *text, size_t len, int is_fit,
-                        prim **out, size_t *n, char **err)
+                        prim **out, size_t *n, frep_error *err)
 {
-    if (err) *err = NULL;
+    frep_error_init(err);
     *out = NULL;
     *n = 0;
     if (is_fit) return fitfile_parse(name, text, len, out, n, err);
     return parse_hf(name, text, len, out, n, err);
 }
 
-int segment_read_prims(const char *path, prim **out, size_t *n, char **err)
+int segment_read_prims(const char *path, prim **out, size_t *n, frep_error *err)
 {
-    if (err) *err = NULL;
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        if (err) *err = frep_strdupf("cannot read %s: %s", path, strerror(errno));
-        return -1;
-    }
-    size_t cap = 1 << 16, len = 0;
-    char *buf = frep_malloc(cap);
-    while (buf) {
-        size_t got = fread(buf + len, 1, cap - len, f);
-        len += got;
-        if (len < cap) break;
-        char *nb = frep_realloc(buf, cap * 2);
-        if (!nb) {
-            frep_free(buf);
-            buf = NULL;
-            break;
-        }
-        buf = nb;
-        cap *= 2;
-    }
-    int rd_err = ferror(f);
-    fclose(f);
-    if (!buf || rd_err) {
-        frep_free(buf);
-        if (err) *err = frep_strdupf("cannot read %s", path);
+    frep_error_init(err);
+    frep_file f;
+    frep_error fe;
+    frep_error_init(&fe);
+    if (frep_file_read(&f, path, SEGMENT_PRIMS_MAX_BYTES, 0, &fe)) {
+        if (f.open_failed || fe.code == FREP_ELIMIT)
+            return frep_error_set(err, fe.code, "cannot read %s: %s", path, fe.msg);
+        return frep_error_set(err, fe.code, "cannot read %s", path);
         return -1;
     }
     size_t pl = strlen(path);
     int is_fit = pl >= 4 && strcmp(path + pl - 4, ".fit") == 0;
-    int rc = segment_parse_prims(path, buf, len, is_fit, out, n, err);
-    frep_free(buf);
+    int rc = segment_parse_prims(path, f.data, f.len, is_fit, out, n, err);
+    frep_free(f.data);
     return rc;
 }

@@ -66,9 +66,9 @@ typedef struct segment_result {
 } segment_result;
 
 /* Segment c (normals are added or replaced when missing or zero). Returns 0, or -1
- * with *err (malloc'ed, frep_free()) for bad input (too few points, all points equal) or
- * out of memory. Free the result with segment_result_free(). */
-int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, char **err);
+ * with err set (reset on entry; may be NULL) for bad input (too few points, all points
+ * equal) or out of memory. Free the result with segment_result_free(). */
+int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, frep_error *err);
 void segment_result_free(segment_result *r);
 
 /* Oriented bounding box of the points idx[0..n) into q->obb_* (for axial types the
@@ -87,10 +87,10 @@ int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header, doubl
 
 /* Read primitives from a .hf file written by segment_write_hf (the frX(...) calls and
  * their comments) or from a .fit list (by extension ".fit"). Returns 0 with a malloc'ed
- * array, or -1 and *err = "path:line: what" (frep_free()). */
-int segment_read_prims(const char *path, prim **out, size_t *n, char **err);
+ * array, or -1 with err (reset on entry; may be NULL) holding "path:line: what". */
+int segment_read_prims(const char *path, prim **out, size_t *n, frep_error *err);
 /* The same from memory; is_fit selects the format. */
 int segment_parse_prims(const char *name, const char *text, size_t len, int is_fit,
-                        prim **out, size_t *n, char **err);
+                        prim **out, size_t *n, frep_error *err);
 
 #endif

@@ -300,6 +300,14 @@ report $st "--refit moves the perturbed faces back onto the points"
 sed -n 's/^-- refit: .*RMS distance \([0-9.e+-]*\) -> \([0-9.e+-]*\),.*/\1 \2/p' "$tmp/rf.hf" >"$tmp/rms"
 awk 'NF == 2 && $1 > 0.005 && $2 < $1 / 100 {ok = 1} END {exit ok ? 0 : 1}' "$tmp/rms"
 report $? "--refit: the RMS distance falls a hundredfold or more"
+# A cloud of more points than refit fits at once: it fits a seeded subset of them.
+"$FREP" sample "$tmp/cube.hf" -n 5000 --seed 2 -o "$tmp/cube5k.xyz" -q 2>"$tmp/err" &&
+    "$FREP" evolve "$tmp/cube5k.xyz" -p "$tmp/pert.fit" --refit -o "$tmp/rf5k.hf" --seed 1 -q \
+        2>"$tmp/err" &&
+    sed -n 's/^-- refit: .*RMS distance \([0-9.e+-]*\) -> \([0-9.e+-]*\),.*/\1 \2/p' \
+        "$tmp/rf5k.hf" >"$tmp/rms" &&
+    awk 'NF == 2 && $1 > 0.005 && $2 < $1 / 100 {ok = 1} END {exit ok ? 0 : 1}' "$tmp/rms"
+report $? "--refit of a large cloud (a subset fitted): the RMS distance falls"
 
 echo "1..$n"
 exit $failed

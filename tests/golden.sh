@@ -3,7 +3,10 @@
 # `frep check NAME.hf` from the file's directory and compare its standard error with
 # NAME.err (whole diagnostics: message, source line, caret) or, without NAME.err,
 # expect a clean check; where NAME.print exists, compare `frep print NAME.hf` with it;
-# for every tests/dis/NAME.hf compare `frep dis NAME.hf` with NAME.dis.
+# for every tests/dis/NAME.hf compare `frep dis NAME.hf` with NAME.dis; and check
+# that every message of lang/check.c appears in some NAME.err.  Areas: syntax
+# (lexer, parser), names, calls, arrays, conditions, pragmas (lang/check.c),
+# lowering and limits (lang/lower.c, library expansions).
 # Prints TAP.  Needs FREP (the frep binary) and srcdir (the source tree).
 # To refresh an expectation after a deliberate change: run the same command in the
 # file's directory and review the difference before committing it.
@@ -99,6 +102,24 @@ for hf in "$srcdir"/tests/dis/*.hf; do
         sed 's/^/# /' "$tmp/err"
     fi
 done
+
+# Every message of the checker is pinned by a golden: each string literal of
+# lang/check.c that holds a space (the messages and the parts they are built from)
+# must have its longest piece between printf directives in some tests/lang .err.
+grep -o '"[^"]*"' "$srcdir/lang/check.c" | grep ' ' | sed 's/^"//; s/"$//' |
+while IFS= read -r lit; do
+    piece=$(printf '%s\n' "$lit" | sed 's/%[a-z]*/\
+/g' | awk '{ if (length($0) > length(best)) best = $0 } END { print best }')
+    if ! cat "$srcdir"/tests/lang/*/*.err | grep -qF -e "$piece"; then
+        echo "$lit"
+    fi
+done >"$tmp/unpinned"
+if [ -s "$tmp/unpinned" ]; then
+    report 1 "every message of lang/check.c has a golden"
+    sed 's/^/# no golden shows: /' "$tmp/unpinned"
+else
+    report 0 "every message of lang/check.c has a golden"
+fi
 
 echo "1..$n"
 exit $failed

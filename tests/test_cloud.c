@@ -1,14 +1,19 @@
 /* test_cloud.c - unit tests of geom/cloud.c: .xyz and PLY readers (every format,
- * malformed input with its message), writers and their round trip, bounding box.
+ * malformed input with its message), writers and their round trip, bounding box; and
+ * of the whole-file reader they use (runtime/file.c).
  */
+#include <errno.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
+#include "alloc.h"
 #include "cloud.h"
+#include "file.h"
 #include "tap.h"
 
-static frep_cloud *parse(const char *s, char **err)
+static frep_cloud *parse(const char *s, frep_error *err)
 {
     return cloud_parse("t.xyz", s, strlen(s), err);
 }
@@ -16,17 +21,16 @@ static frep_cloud *parse(const char *s, char **err)
 /* The parser must fail with exactly this message. */
 static void expect_error(const char *data, size_t len, const char *want, const char *what)
 {
-    char *err = NULL;
+    frep_error err;
     frep_cloud *c = cloud_parse("t.xyz", data, len, &err);
     ok(c == NULL, "%s: rejected", what);
-    is_str(err ? err : "(none)", want, "%s: message", what);
+    is_str(err.msg[0] ? err.msg : "(none)", want, "%s: message", what);
     cloud_free(c);
-    free(err);
 }
 
 static void test_xyz(void)
 {
-    char *err = NULL;
+    frep_error err;
     frep_cloud *c = parse("# header\n1 2 3\n\n  4\t5 6  # trailing\r\n-1e-3,0.5,7\n", &err);
     ok(c != NULL, "xyz with comments, blank lines, tabs, commas, CRLF");
     if (c) {
@@ -70,9 +74,9 @@ static void test_ply_ascii(void)
         "property float nx\nproperty float ny\nproperty float nz\n"
         "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
         "1 2 3 255 0 0 1\n4 5 6 0 1 0 0\n3 0 1 1\n";
-    char *err = NULL;
+    frep_error err;
     frep_cloud *c = cloud_parse("t.ply", s, strlen(s), &err);
-    ok(c != NULL, "ascii PLY with colour and faces: %s", err ? err : "ok");
+    ok(c != NULL, "ascii PLY with colour and faces: %s", err.msg[0] ? err.msg : "ok");
     if (c) {
         is_int(c->n, 2, "2 vertices");
         ok(c->has_normals, "normals");
@@ -81,40 +85,29 @@ static void test_ply_ascii(void)
         is_double(c->nx[1], 1, 0, "nx of vertex 1");
     }
     cloud_free(c);
-    free(err);
 
     /* Header errors name the line. */
     const char *h1 = "ply\nformat ascii 1.0\nelement vertex 1\nproperty flot x\nend_header\n";
-    err = NULL;
     c = cloud_parse("t.ply", h1, strlen(h1), &err);
     ok(!c, "unknown type rejected");
-    is_str(err ? err : "", "t.ply:4: unknown property type 'flot'", "message with line");
-    free(err);
+    is_str(err.msg[0] ? err.msg : "", "t.ply:4: unknown property type 'flot'", "message with line");
     const char *h2 = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
                      "property float y\nend_header\n1 2\n";
-    err = NULL;
     c = cloud_parse("t.ply", h2, strlen(h2), &err);
     ok(!c, "missing z rejected");
-    is_str(err ? err : "", "t.ply: vertex element lacks x, y or z", "message");
-    free(err);
+    is_str(err.msg[0] ? err.msg : "", "t.ply: vertex element lacks x, y or z", "message");
     const char *h3 = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
                      "property float y\nproperty float z\nend_header\n1 2 3\n4 5 6\n";
-    err = NULL;
     c = cloud_parse("t.ply", h3, strlen(h3), &err);
     ok(!c, "truncated data rejected");
-    is_str(err ? err : "", "t.ply:10: data ends in vertex 2 of 3", "message");
-    free(err);
+    is_str(err.msg[0] ? err.msg : "", "t.ply:10: data ends in vertex 2 of 3", "message");
     const char *h4 = "ply\nformat ascii 1.0\nelement vertex 1\n";
-    err = NULL;
     c = cloud_parse("t.ply", h4, strlen(h4), &err);
     ok(!c, "header without end rejected");
-    is_str(err ? err : "", "t.ply:3: header ends without end_header", "message");
-    free(err);
+    is_str(err.msg[0] ? err.msg : "", "t.ply:3: header ends without end_header", "message");
     const char *h5 = "ply\nformat ascii 1.0\nelement vertex 99999999999\nend_header\n";
-    err = NULL;
     c = cloud_parse("t.ply", h5, strlen(h5), &err);
     ok(!c, "absurd vertex count rejected before allocating");
-    free(err);
 }
 
 /* Binary PLY built by hand: float x y z, a uchar we skip, double nz (no nx/ny: no
@@ -145,9 +138,9 @@ static void test_ply_binary(int big)
         double nz = 3.0;
         n += put(buf + n, &nz, 8, big);
     }
-    char *err = NULL;
+    frep_error err;
     frep_cloud *c = cloud_parse("b.ply", (const char *)buf, n, &err);
-    ok(c != NULL, "binary %s PLY: %s", big ? "big" : "little", err ? err : "ok");
+    ok(c != NULL, "binary %s PLY: %s", big ? "big" : "little", err.msg[0] ? err.msg : "ok");
     if (c) {
         is_int(c->n, 2, "2 vertices");
         ok(!c->has_normals, "partial normals ignored");
@@ -156,13 +149,10 @@ static void test_ply_binary(int big)
         is_double(c->z[1], 0.25, 0, "z");
     }
     cloud_free(c);
-    free(err);
-    err = NULL;
     c = cloud_parse("b.ply", (const char *)buf, n - 3, &err);
     ok(!c, "truncated binary rejected");
-    is_str(err ? err : "", "b.ply: binary data ends or is corrupt in vertex 1 of 2",
+    is_str(err.msg[0] ? err.msg : "", "b.ply: binary data ends or is corrupt in vertex 1 of 2",
            "truncation message");
-    free(err);
 }
 
 static void test_roundtrip(int ply)
@@ -183,7 +173,7 @@ static void test_roundtrip(int ply)
     char *data = malloc((size_t)len);
     size_t got = fread(data, 1, (size_t)len, f);
     fclose(f);
-    char *err = NULL;
+    frep_error err;
     frep_cloud *d = cloud_parse("rt", data, got, &err);
     ok(d && d->n == 100 && d->has_normals, "%s read back", ply ? "PLY" : "xyz");
     int same = d != NULL;
@@ -194,7 +184,6 @@ static void test_roundtrip(int ply)
     cloud_free(d);
     cloud_free(c);
     free(data);
-    free(err);
 }
 
 static void test_bbox(void)
@@ -213,8 +202,75 @@ static void test_bbox(void)
     cloud_free(c);
 }
 
+/* A fresh file in TMPDIR (or /tmp) holding len bytes of data; its path in path. */
+static int temp_file(char *path, size_t size, const char *data, size_t len)
+{
+    const char *dir = getenv("TMPDIR");
+    snprintf(path, size, "%s/frep_test_file_XXXXXX", dir && *dir ? dir : "/tmp");
+    int fd = mkstemp(path);
+    if (fd < 0) return -1;
+    ssize_t w = write(fd, data, len);
+    close(fd);
+    return w == (ssize_t)len ? 0 : -1;
+}
+
+static void test_file_read(void)
+{
+    char path[512];
+    const char text[] = "1 2 3\n4 5 6\n";
+    size_t tl = sizeof text - 1;
+    if (!ok(temp_file(path, sizeof path, text, tl) == 0, "file: temporary file")) return;
+    frep_file f;
+    frep_error e;
+    frep_error_init(&e);
+    ok(frep_file_read(&f, path, FREP_FILE_MAX_BYTES, 0, &e) == 0 && f.len == tl &&
+           memcmp(f.data, text, tl) == 0 && f.data[tl] == '\0',
+       "file: whole file read, NUL-ended");
+    frep_free(f.data);
+    ok(frep_file_read(&f, path, tl, 0, &e) == 0 && f.len == tl, "file: exactly the limit");
+    frep_free(f.data);
+    ok(frep_file_read(&f, path, tl - 1, 0, &e) == -1 && e.code == FREP_ELIMIT && !f.data,
+       "file: over the limit rejected");
+    char want[64];
+    snprintf(want, sizeof want, "larger than %zu bytes", tl - 1);
+    is_str(e.msg, want, "file: limit message");
+    frep_cloud *c = NULL;
+    frep_error err;
+    c = cloud_read(path, &err);
+    ok(c && c->n == 2, "file: cloud_read reads the cloud");
+    cloud_free(c);
+    unlink(path);
+
+    frep_error_init(&e);
+    ok(frep_file_read(&f, path, FREP_FILE_MAX_BYTES, 0, &e) == -1 && f.open_failed &&
+           e.code == FREP_EIO,
+       "file: missing file fails to open");
+    is_str(e.msg, strerror(ENOENT), "file: errno's reason");
+    c = cloud_read(path, &err);
+    char want2[600];
+    snprintf(want2, sizeof want2, "cannot read %s: %s", path, strerror(ENOENT));
+    ok(!c, "file: cloud_read of a missing file fails");
+    is_str(err.msg[0] ? err.msg : "", want2, "file: cloud_read message");
+
+    frep_error_init(&e);
+    const char *dir = getenv("TMPDIR");
+    ok(frep_file_read(&f, dir && *dir ? dir : "/tmp", FREP_FILE_MAX_BYTES, 0, &e) == -1 &&
+           !f.open_failed && e.code == FREP_EIO,
+       "file: a directory opens but cannot be read");
+
+    if (temp_file(path, sizeof path, "", 0) == 0) {
+        frep_error_init(&e);
+        ok(frep_file_read(&f, path, FREP_FILE_MAX_BYTES, 0, &e) == 0 && f.len == 0 && f.data &&
+               f.data[0] == '\0',
+           "file: empty file gives an empty string");
+        frep_free(f.data);
+        unlink(path);
+    }
+}
+
 int main(void)
 {
+    test_file_read();
     test_xyz();
     test_ply_ascii();
     test_ply_binary(0);

@@ -1,6 +1,7 @@
 /* test_compile.c - tests of the compiler (lang/check.c, ir.c, lower.c, emit.c,
  * compile.c): diagnostics with positions, folding and CSE in instruction counts,
- * control flow evaluated at points on both sides, loops, free parameters, limits.
+ * control flow evaluated at points on both sides, loops, free parameters, limits,
+ * and allocation failures (reported as "out of memory", never as something else).
  */
 #include <math.h>
 #include <stdio.h>
@@ -533,6 +534,146 @@ static void test_limits(void)
     free(src);
 }
 
+/* ---- out of memory ----------------------------------------------------------- */
+
+/* An allocator hook that fails allocation number `fail_at` (0-based) and every one
+ * after it, counting allocations and resizes; frees always succeed. */
+typedef struct failing {
+    long count, fail_at;
+} failing;
+
+static void *failing_alloc(void *user, void *p, size_t n)
+{
+    failing *f = user;
+    if (n == 0) {
+        free(p);
+        return NULL;
+    }
+    if (f->count++ >= f->fail_at) return NULL;
+    return p ? realloc(p, n) : malloc(n);
+}
+
+/* Every stage meets an allocation failure for some N: then the compile fails with
+ * exactly one error, and it says "out of memory" (never "too large" or a bogus
+ * error about the source); with enough memory the same source compiles. */
+static void test_out_of_memory(void)
+{
+    const char *src =
+        "-- @setops rfunc\n"
+        "-- @box -2 -2 -2 2 2 2\n"
+        "base(x[3], a[1]) { base = 1 - x[1]*x[1] - x[2]*x[2] - x[3]*x[3]; }\n"
+        "m(x[3], a[2]) {\n"
+        "  array t[3], c[3];\n"
+        "  r = 0.75;  -- @free [0.1, 2]\n"
+        "  t = [1, 2, 3]; c = [0, 0, 0];\n"
+        "  k = 1;\n"
+        "  while k < x[1] loop k = k + 1; endloop;\n"
+        "  t[k] = t[k] * x[2];\n"
+        "  if x[3] > 0 then s = hfSphere(x, c, r); else s = base(x, a); endif;\n"
+        "  v = abs(x[1]) + 1; n = 0;\n"
+        "  while v > 0.1 loop v = v / 2; n = n + 1; endloop;\n"
+        "  m = s | (t[1] + t[2] + t[3] - n) & a[2];\n"
+        "}\n";
+    /* and a long model, so that the arena takes new chunks in every stage */
+    char *big = malloc(200000);
+    size_t len = 0;
+    failing f;
+    long n, failures = 0, bad = 0;
+    int compiled = 0, i;
+    len += (size_t)sprintf(big + len, "%s", src);
+    len += (size_t)sprintf(big + len, "long(x[3], a[2]) {\n  v0 = x[1];\n");
+    for (i = 1; i < 3000; i++)
+        len += (size_t)sprintf(big + len, "  v%d = v%d * x[%d] + %d;\n", i, i - 1, i % 3 + 1, i);
+    len += (size_t)sprintf(big + len, "  long = v2999 - m(x, a);\n}\n");
+    frep_set_allocator(failing_alloc, &f);
+    for (n = 0; n < 20000 && !compiled; n++) {
+        diags D;
+        frep_program *p;
+        f.count = 0;
+        f.fail_at = n;
+        memset(&D, 0, sizeof D);
+        p = frep_compile("t.hf", big, len, NULL, collect, &D);
+        if (p) {
+            compiled = D.errors == 0;
+            frep_program_free(p);
+            continue;
+        }
+        failures++;
+        if (D.errors != 1 || strcmp(D.msg[0], "out of memory") != 0) {
+            if (bad++ == 0) {
+                diag("allocation %ld failing:", n);
+                dump(&D);
+            }
+        }
+    }
+    frep_set_allocator(NULL, NULL);
+    free(big);
+    ok(compiled, "the source compiles once allocation %ld succeeds", n - 1);
+    ok(failures > 10 && bad == 0,
+       "each of %ld earlier failures is reported as one error 'out of memory' (%ld not)",
+       failures, bad);
+
+    {
+        size_t count = 99;
+        char **names;
+        int reported = 0;
+        diags D;
+        for (n = 0; n < 1000; n++) {
+            memset(&D, 0, sizeof D);
+            f.count = 0;
+            f.fail_at = n;
+            frep_set_allocator(failing_alloc, &f);
+            names = frep_list_models("t.hf", src, strlen(src), &count, collect, &D);
+            frep_set_allocator(NULL, NULL);
+            if (names) break;
+            if (D.errors == 1 && strcmp(D.msg[0], "out of memory") == 0) reported++;
+        }
+        ok(names && count == 2 && reported == n,
+           "frep_list_models: %d of %ld failures reported as out of memory", reported, n);
+        frep_free_strings(names, count);
+    }
+
+    /* The two string builders (runtime/buf.h): NULL when memory runs out, else the
+     * whole text. */
+    {
+        frep_diag d = { FREP_ERROR, "t.hf", 4, 8, 3, "some message" };
+        char *want = frep_diag_format(&d, src, strlen(src)), *got = NULL;
+        int same = 1;
+        for (n = 0; !got; n++) {
+            f.count = 0;
+            f.fail_at = n;
+            frep_set_allocator(failing_alloc, &f);
+            got = frep_diag_format(&d, src, strlen(src));
+            frep_set_allocator(NULL, NULL);
+            if (got && strcmp(got, want) != 0) same = 0;
+        }
+        ok(want && same, "frep_diag_format: NULL for %ld failures, then the text", n - 1);
+        frep_free(want);
+        frep_free(got);
+    }
+    {
+        arena A;
+        ast_file af;
+        char *want, *got = NULL;
+        int same = 1;
+        arena_init(&A);
+        ok(ast_parse(&A, "t.hf", src, strlen(src), NULL, &af) == 0, "source parses");
+        want = ast_print(&af);
+        for (n = 0; !got; n++) {
+            f.count = 0;
+            f.fail_at = n;
+            frep_set_allocator(failing_alloc, &f);
+            got = ast_print(&af);
+            frep_set_allocator(NULL, NULL);
+            if (got && strcmp(got, want) != 0) same = 0;
+        }
+        ok(want && same, "ast_print: NULL for %ld failures, then the text", n - 1);
+        frep_free(want);
+        frep_free(got);
+        arena_free(&A);
+    }
+}
+
 int main(void)
 {
     test_basic();
@@ -542,5 +683,6 @@ int main(void)
     test_params();
     test_models();
     test_limits();
+    test_out_of_memory();
     return done_testing();
 }

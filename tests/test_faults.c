@@ -30,6 +30,7 @@
 #include "sample.h"
 #include "segment.h"
 #include "tap.h"
+#include "util.h"
 #include "writeback.h"
 
 #include <stdint.h>
@@ -67,13 +68,6 @@ static void digest_size(fault_out *o, size_t v) { digest_bytes(o, &v, sizeof v);
 static void set_msg(fault_out *o, const char *m)
 {
     if (m && !o->msg[0]) snprintf(o->msg, sizeof o->msg, "%s", m);
-}
-
-/* Take a message the library allocated (char **err convention). */
-static void take_msg(fault_out *o, char *m)
-{
-    set_msg(o, m);
-    frep_free(m);
 }
 
 /* Diagnostic callback: the first error's message. */
@@ -389,12 +383,13 @@ static int case_meshio(const fixture *fx, fault_out *o)
         int rc = meshio_write(mo.f, &fx->mesh, fm[k].fmt, fm[k].ascii);
         if (fclose(mo.f)) rc = -1;
         frep_mesh m;
-        char *err = NULL;
+        frep_error err;
+    frep_error_init(&err);
         meshio_format guess = k == 1 ? MESHIO_UNKNOWN : fm[k].fmt;   /* STL by content */
         if (!rc) rc = meshio_parse("m", mo.buf, mo.len, guess, &m, &err);
         free(mo.buf);
         if (rc) {
-            take_msg(o, err);
+            set_msg(o, err.msg);
             return -1;
         }
         digest_size(o, m.ntris);
@@ -410,9 +405,10 @@ static int case_meshio_read(const fixture *fx, fault_out *o)
     char path[128];
     snprintf(path, sizeof path, "%s/m.off", fx->tmpdir);
     frep_mesh m;
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     if (meshio_read(path, &m, &err)) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_doubles(o, m.v, 3 * m.nverts);
@@ -426,10 +422,11 @@ static const char cloud_xyz[] =
 /* .xyz and PLY (written by cloud_write_ply) parsed; both writers. */
 static int case_cloud(const fixture *fx, fault_out *o)
 {
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     frep_cloud *c = cloud_parse("c.xyz", cloud_xyz, strlen(cloud_xyz), &err);
     if (!c) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_size(o, c->n);
@@ -441,7 +438,7 @@ static int case_cloud(const fixture *fx, fault_out *o)
     c = rc ? NULL : cloud_parse("c.ply", mo.buf, mo.len, &err);
     free(mo.buf);
     if (!c) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_doubles(o, c->x, c->n);
@@ -456,10 +453,11 @@ static int case_cloud_read(const fixture *fx, fault_out *o)
 {
     char path[128];
     snprintf(path, sizeof path, "%s/c.xyz", fx->tmpdir);
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     frep_cloud *c = cloud_read(path, &err);
     if (!c) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_doubles(o, c->x, c->n);
@@ -575,11 +573,12 @@ static int case_segment(const fixture *fx, fault_out *o)
     cfg.nthreads = 1;
     cfg.probability = SEGMENT_PROBABILITY;
     segment_result res;
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     int rc = segment_run(c, &cfg, &res, &err);
     cloud_free(c);
     if (rc) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_size(o, res.nprims);
@@ -600,9 +599,10 @@ static int case_prims(const fixture *fx, fault_out *o)
 {
     prim *p = NULL;
     size_t n = 0;
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     if (fitfile_parse("c.fit", cube_fit, strlen(cube_fit), &p, &n, &err)) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     frep_free(p);
@@ -613,7 +613,7 @@ static int case_prims(const fixture *fx, fault_out *o)
     if (!rc) rc = segment_parse_prims("c.hf", mo.buf, mo.len, 0, &p, &n, &err);
     free(mo.buf);
     if (rc) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_bytes(o, p, n * sizeof *p);
@@ -649,11 +649,12 @@ static int case_fit(const fixture *fx, fault_out *o)
     cfg.sa_points = 50;
     cfg.obj.nthreads = 1;
     fit_result res;
-    char err[256] = "";
-    int rc = fit_run(&m, &pts, lo, hi, q, &cfg, &res, err, sizeof err);
+    frep_error err;
+    frep_error_init(&err);
+    int rc = fit_run(&m, &pts, lo, hi, q, &cfg, &res, &err);
     fit_program_model_free(&m);
     if (rc) {
-        set_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     digest_doubles(o, q, 2);
@@ -705,9 +706,10 @@ static int run_evolve(const fixture *fx, fault_out *o, int partition)
     evolve_options eo;
     evolve_opts(&eo, partition);
     evolve_result res;
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     if (evolve_run(&eo, fx->cloud, fx->prims, fx->nprims, NULL, NULL, &res, &err)) {
-        take_msg(o, err);
+        set_msg(o, err.msg);
         return -1;
     }
     int rc = write_evolved(fx, o, &res, fx->prims, &eo);
@@ -717,6 +719,30 @@ static int run_evolve(const fixture *fx, fault_out *o, int partition)
 
 static int case_evolve(const fixture *fx, fault_out *o) { return run_evolve(fx, o, 0); }
 static int case_evolve_part(const fixture *fx, fault_out *o) { return run_evolve(fx, o, 1); }
+
+/* The --residual base: the cube's my_model renamed (longer: the text grows) and its
+ * values at the cloud. */
+static int case_residual(const fixture *fx, fault_out *o)
+{
+    evolve_base b;
+    frep_error err;
+    frep_error_init(&err);
+    if (residual_prepare("cube.hf", cube_src, strlen(cube_src), NULL, fx->cube, &b, &err)) {
+        set_msg(o, err.msg);
+        return -1;
+    }
+    digest_bytes(o, b.text, strlen(b.text));
+    digest_bytes(o, b.call, strlen(b.call));
+    const frep_cloud *c = fx->cloud;
+    double f[CLOUD_POINTS], g[3 * CLOUD_POINTS];
+    uint8_t okp[CLOUD_POINTS];
+    size_t nbad = 0;
+    int rc = c->n <= CLOUD_POINTS ? residual_eval(&b, c, 1, f, g, okp, &nbad) : -1;
+    if (rc) set_msg(o, "out of memory");
+    else digest_doubles(o, f, c->n);
+    residual_free(&b);
+    return rc ? -1 : 0;
+}
 
 /* evolve_refit on a copy of the fixture's evolve result. */
 static int case_refit(const fixture *fx, fault_out *o)
@@ -728,11 +754,12 @@ static int case_refit(const fixture *fx, fault_out *o)
     prim pr[MAX_PRIMS];
     memcpy(pr, fx->prims, fx->nprims * sizeof *pr);
     evolve_refit_info ri;
-    char *err = NULL;
+    frep_error err;
+    frep_error_init(&err);
     int rc = tree_copy(&res.tree, &fx->evolved.tree);
     if (rc) set_msg(o, "out of memory");
     if (!rc && (rc = evolve_refit(&eo, fx->cloud, pr, fx->nprims, NULL, &res, &ri, &err)))
-        take_msg(o, err);
+        set_msg(o, err.msg);
     if (!rc) rc = write_evolved(fx, o, &res, pr, &eo);
     evolve_result_free(&res);
     return rc;
@@ -754,6 +781,17 @@ static int case_render(const fixture *fx, fault_out *o)
     mem_out mo;
     if (!mem_open(&mo)) return -1;
     return mem_close(&mo, o, png_write_rgb(mo.f, rgb, W, H));
+}
+
+/* A formatted copy (runtime/util.h). */
+static int case_strdupf(const fixture *fx, fault_out *o)
+{
+    (void)fx;
+    char *s = frep_strdupf("%s:%d: %g", "m.hf", 3, 0.25);
+    if (!s) return -1;
+    digest_bytes(o, s, strlen(s));
+    frep_free(s);
+    return 0;
 }
 
 /* The shared growable buffer, grown past its first block. */
@@ -784,8 +822,7 @@ typedef struct fault_case {
 
 enum {
     MSG_NONE,        /* a status only */
-    MSG_GIVEN,       /* a message in a caller's buffer or through a callback */
-    MSG_ALLOCATED    /* a message the library allocates (char **err) */
+    MSG_GIVEN        /* a message in a frep_error or through a callback */
 };
 
 static const fault_case cases[] = {
@@ -799,38 +836,37 @@ static const fault_case cases[] = {
     { "interval", case_interval, MSG_NONE, NULL },
     { "prune", case_prune, MSG_NONE, NULL },
     { "grid", case_grid, MSG_NONE, NULL },
-    { "polygonize", case_polygonize, MSG_GIVEN,
-      "an allocation failure of the tape pruner (vm_pruner_new, through the field's "
-      "focus) is absorbed: the mesh is made unpruned and differs (mesh/mesh.c)" },
+    { "polygonize", case_polygonize, MSG_GIVEN, NULL },
     { "mesh_validate", case_mesh_validate, MSG_NONE, NULL },
-    { "meshio", case_meshio, MSG_ALLOCATED, NULL },
-    { "meshio_read", case_meshio_read, MSG_ALLOCATED, NULL },
-    { "cloud", case_cloud, MSG_ALLOCATED, NULL },
-    { "cloud_read", case_cloud_read, MSG_ALLOCATED, NULL },
-    { "sample_model", case_sample_model, MSG_GIVEN,
-      "as polygonize: vm_pruner_new failing gives another mesh, so other points" },
+    { "meshio", case_meshio, MSG_GIVEN, NULL },
+    { "meshio_read", case_meshio_read, MSG_GIVEN, NULL },
+    { "cloud", case_cloud, MSG_GIVEN, NULL },
+    { "cloud_read", case_cloud_read, MSG_GIVEN, NULL },
+    { "sample_model", case_sample_model, MSG_GIVEN, NULL },
     { "sample_mesh", case_sample_mesh, MSG_GIVEN, NULL },
     { "normals", case_normals, MSG_NONE, NULL },
     { "kdtree", case_kdtree, MSG_NONE, NULL },
-    { "segment", case_segment, MSG_ALLOCATED,
-      "out of memory absorbed as in-band values: median_spacing gives 0 when kd_build "
-      "fails, ransac_detect's helpers give no candidate (segment/)" },
-    { "prims", case_prims, MSG_ALLOCATED, NULL },
+    { "segment", case_segment, MSG_GIVEN,
+      "out of memory absorbed as in-band values: ransac_detect's helpers give no "
+      "candidate (segment/ransac.c)" },
+    { "prims", case_prims, MSG_GIVEN, NULL },
     { "fit", case_fit, MSG_GIVEN,
       "out of memory in the optimizers is FIT_FAILED, absorbed by the annealing, and "
       "in evaluation 'cannot be evaluated' (fit/optim.c, fit/fit.c)" },
     { "writeback", case_writeback, MSG_NONE, NULL },
-    { "evolve", case_evolve, MSG_ALLOCATED,
+    { "evolve", case_evolve, MSG_GIVEN,
       "gp_score returns NaN on out of memory and the GA ranks the tree as bad "
       "(evolve/fitness.c, gp.c)" },
-    { "evolve_partition", case_evolve_part, MSG_ALLOCATED,
+    { "evolve_partition", case_evolve_part, MSG_GIVEN,
       "as evolve, and tree_reserve failing in the merge moves of partition.c is "
       "skipped (gp_fitness_replaced)" },
-    { "refit", case_refit, MSG_ALLOCATED,
+    { "residual", case_residual, MSG_GIVEN, NULL },
+    { "refit", case_refit, MSG_GIVEN,
       "evolve_refit reports out of memory as 'the tree cannot be evaluated at the "
       "points' or without a message (evolve/refit.c, fit/objective.c)" },
     { "render", case_render, MSG_NONE, NULL },
     { "buf", case_buf, MSG_NONE, NULL },
+    { "strdupf", case_strdupf, MSG_NONE, NULL },
 };
 
 /* Injected failures reported in detail per case; the others are only counted. */
@@ -859,9 +895,6 @@ static const char *judge(const fault_case *c, int rc0, const fault_out *o0, int 
     if (rc == rc0 && o->digest == o0->digest && strcmp(o->msg, o0->msg) == 0) return NULL;
     if (rc == 0) return "success with another result";
     if (!hit) return "failure without an injected failure";
-    /* A message allocated for the caller (char **err) is missing when its own
-     * allocation is the one that failed. */
-    if (c->has_msg == MSG_ALLOCATED && !o->msg[0] && fault_failed_in("frep_strdupf")) return NULL;
     if (c->has_msg && !strstr(o->msg, "out of memory")) return "message is not \"out of memory\"";
     return NULL;
 }
@@ -971,14 +1004,15 @@ static int fixture_init(fixture *fx)
     frep_error_init(&err);
     int rc = sample_field(&fld, &so, &fx->cloud, &err);
     mesh_field_program_free(&fld);
-    char *e = NULL;
     if (rc) return diag("fixture cloud: %s", err.msg), -1;
-    if (fitfile_parse("cube.fit", cube_fit, strlen(cube_fit), &fx->prims, &fx->nprims, &e))
-        return -1;
+    frep_error fe;
+    if (fitfile_parse("cube.fit", cube_fit, strlen(cube_fit), &fx->prims, &fx->nprims, &fe))
+        return diag("fixture primitives: %s", fe.msg), -1;
     evolve_options eo;
     evolve_opts(&eo, 0);
+    frep_error_init(&fe);
     if (fx->nprims > MAX_PRIMS ||
-        evolve_run(&eo, fx->cloud, fx->prims, fx->nprims, NULL, NULL, &fx->evolved, &e))
+        evolve_run(&eo, fx->cloud, fx->prims, fx->nprims, NULL, NULL, &fx->evolved, &fe))
         return -1;
     snprintf(fx->tmpdir, sizeof fx->tmpdir, "%s/frep-faults.XXXXXX",
              getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp");

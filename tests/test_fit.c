@@ -182,8 +182,8 @@ static const double truth[NP] = {-4, -2, -1, 8, 4, 2, -2, 0, 1, 2.2, 0.3, 0.6};
  * hole walls, by rejection from area-weighted candidates. */
 static size_t sample_part(size_t n, double *x, double *y, double *z, uint64_t seed)
 {
-    fit_rng r;
-    fit_rng_seed(&r, seed);
+    frep_rng r;
+    frep_rng_seed(&r, seed);
     const double *t = truth;
     double lx = t[3], ly = t[4], lz = t[5];
     double area[5] = {2 * lx * ly, 2 * lx * lz, 2 * ly * lz, 2 * 3.14159265 * t[8] * lz,
@@ -192,8 +192,8 @@ static size_t sample_part(size_t n, double *x, double *y, double *z, uint64_t se
     for (int k = 0; k < 5; k++) total += area[k];
     size_t got = 0;
     while (got < n) {
-        double u = fit_rng_uniform(&r) * total, a = fit_rng_uniform(&r), b = fit_rng_uniform(&r);
-        int side = fit_rng_uniform(&r) < 0.5;
+        double u = frep_rng_unit(&r) * total, a = frep_rng_unit(&r), b = frep_rng_unit(&r);
+        int side = frep_rng_unit(&r) < 0.5;
         double px, py, pz;
         int k = 0;
         while (k < 4 && u > area[k]) u -= area[k++];
@@ -360,15 +360,15 @@ static void test_normals(const double *px, const double *py, const double *pz, s
     static const double sp_truth[4] = {0.3, -0.2, 0.1, 2};
     double *a = malloc(6 * NS * sizeof *a);
     double *sx = a, *sy = a + NS, *sz = a + 2 * NS, *nx = a + 3 * NS, *ny = a + 4 * NS, *nz = a + 5 * NS;
-    fit_rng r;
-    fit_rng_seed(&r, 11);
+    frep_rng r;
+    frep_rng_seed(&r, 11);
     const double cap = 25 * 3.14159265358979 / 180;
     for (size_t i = 0; i < NS; i++) {
         /* Uniform on the cap: cos(theta) uniform in [cos(cap), 1]. */
-        double ct = 1 - fit_rng_uniform(&r) * (1 - cos(cap)), st = sqrt(1 - ct * ct);
-        double ph = 2 * 3.14159265358979 * fit_rng_uniform(&r);
+        double ct = 1 - frep_rng_unit(&r) * (1 - cos(cap)), st = sqrt(1 - ct * ct);
+        double ph = 2 * 3.14159265358979 * frep_rng_unit(&r);
         double n[3] = {st * cos(ph), st * sin(ph), ct};
-        double rad = sp_truth[3] + 0.02 * fit_rng_normal(&r);
+        double rad = sp_truth[3] + 0.02 * frep_rng_normal(&r);
         sx[i] = sp_truth[0] + rad * n[0], nx[i] = n[0];
         sy[i] = sp_truth[1] + rad * n[1], ny[i] = n[1];
         sz[i] = sp_truth[2] + rad * n[2], nz[i] = n[2];
@@ -384,14 +384,15 @@ static void test_normals(const double *px, const double *py, const double *pz, s
         cfg.obj.normals_weight = w ? 100 : 0;
         double q[4] = {0, 0, -1, 3};
         fit_result res;
-        char err[200];
+        frep_error err;
         if (w) {
             fit_objective *o = fit_objective_new(&sm, &sp, &cfg.obj);
             double worst = grad_check(o, q, 4);
             ok(worst < 1e-6, "sphere + normal term: gradient matches differences (%g)", worst);
             fit_objective_free(o);
         }
-        int rc = fit_run(&sm, &sp, lo, hi, q, &cfg, &res, err, sizeof err);
+        frep_error_init(&err);
+        int rc = fit_run(&sm, &sp, lo, hi, q, &cfg, &res, &err);
         double e = 0;
         for (int j = 0; j < 4; j++) e = fmax(e, fabs(q[j] - sp_truth[j]));
         err_w[w] = rc == 0 ? e : HUGE_VAL;
@@ -416,17 +417,17 @@ static void test_noise(const double *set1, const double *lo, const double *hi)
     sample_part(NN, x, y, z, 21);
     const double dg = sqrt(truth[3] * truth[3] + truth[4] * truth[4] + truth[5] * truth[5]);
     const double sigma = 0.01 * dg, box[6] = {-5, -3, -2, 5, 3, 2};
-    fit_rng r;
-    fit_rng_seed(&r, 22);
+    frep_rng r;
+    frep_rng_seed(&r, 22);
     for (size_t i = 0; i < NN; i++) {
-        if (fit_rng_uniform(&r) < 0.05) {
-            x[i] = box[0] + (box[3] - box[0]) * fit_rng_uniform(&r);
-            y[i] = box[1] + (box[4] - box[1]) * fit_rng_uniform(&r);
-            z[i] = box[2] + (box[5] - box[2]) * fit_rng_uniform(&r);
+        if (frep_rng_unit(&r) < 0.05) {
+            x[i] = box[0] + (box[3] - box[0]) * frep_rng_unit(&r);
+            y[i] = box[1] + (box[4] - box[1]) * frep_rng_unit(&r);
+            z[i] = box[2] + (box[5] - box[2]) * frep_rng_unit(&r);
         } else {
-            x[i] += sigma * fit_rng_normal(&r);
-            y[i] += sigma * fit_rng_normal(&r);
-            z[i] += sigma * fit_rng_normal(&r);
+            x[i] += sigma * frep_rng_normal(&r);
+            y[i] += sigma * frep_rng_normal(&r);
+            z[i] += sigma * frep_rng_normal(&r);
         }
     }
     fit_model model = {NP, NULL, NULL, NULL, part_eval};
@@ -442,8 +443,9 @@ static void test_noise(const double *set1, const double *lo, const double *hi)
         double p[NP];
         memcpy(p, set1, sizeof p);
         fit_result res;
-        char err[200];
-        int rc = fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+        frep_error err;
+        frep_error_init(&err);
+        int rc = fit_run(&model, &pts, lo, hi, p, &cfg, &res, &err);
         e[robust] = rc == 0 ? rel_error(p) : HUGE_VAL;
         diag("noise 1%% + 5%% outliers, set1, %s: error %.3g of the diagonal, %ld evals",
              robust ? "geometric cauchy" : "algebraic l2 (the default)", e[robust], res.evals);
@@ -494,17 +496,7 @@ int main(void)
             fit_objective *o2 = fit_objective_new(&model, &pts, &c2);
             if (kind) fit_objective_freeze(o2, p);
             fit_objective_value(o2, p, g);
-            double worst = 0;
-            for (int j = 0; j < NP; j++) {
-                double q[NP];
-                memcpy(q, p, sizeof q);
-                double h = 1e-6;
-                q[j] = p[j] + h;
-                double fp = fit_objective_value(o2, q, NULL);
-                q[j] = p[j] - h;
-                double fm = fit_objective_value(o2, q, NULL);
-                worst = fmax(worst, fabs((fp - fm) / (2 * h) - g[j]) / fmax(1e-3, fabs(g[j])));
-            }
+            double worst = grad_check(o2, p, NP);
             ok(worst < 1e-5, "%s objective gradient matches differences (rel. error %g)",
                kind ? "geometric (frozen weights, cauchy)" : "algebraic (huber)", worst);
             /* The LM normal equations agree with the gradient: J^T W r = dE/dp / 2. */
@@ -539,19 +531,21 @@ int main(void)
     fit_config cfg;
     fit_config_init(&cfg);
     fit_result res;
-    char err[200];
+    frep_error err;
     double p[NP];
 
     test_noise(set1, lo, hi);
 
     cfg.method = FIT_METHOD_QN;
     memcpy(p, set1, sizeof p);
-    fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+    frep_error_init(&err);
+    fit_run(&model, &pts, lo, hi, p, &cfg, &res, &err);
     ok(rel_error(p) < 1e-6, "qn from set1 reaches the truth (error %.2g of the diagonal, %.3f s, %ld evals)",
        rel_error(p), res.seconds, res.evals);
 
     memcpy(p, set2, sizeof p);
-    fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+    frep_error_init(&err);
+    fit_run(&model, &pts, lo, hi, p, &cfg, &res, &err);
     ok(rel_error(p) > 1e-2, "qn from set2 stops in a wrong local minimum (error %.2g, objective %.3g)",
        rel_error(p), res.objective);
 
@@ -578,7 +572,8 @@ int main(void)
     for (int seed = 1; seed <= nseeds; seed++) {
         cfg.seed = (uint64_t)seed;
         memcpy(p, set2, sizeof p);
-        fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+        frep_error_init(&err);
+        fit_run(&model, &pts, lo, hi, p, &cfg, &res, &err);
         hits += rel_error(p) < 1e-3;
         diag("seed %d: error %.2g of the diagonal, %.3f s, %ld evals, %ld sa iterations",
              seed, rel_error(p), res.seconds, res.evals, res.sa_iterations);
@@ -590,17 +585,20 @@ int main(void)
     cfg.seed = 2;
     cfg.obj.nthreads = 1;
     memcpy(q1, set2, sizeof q1);
-    fit_run(&model, &pts, lo, hi, q1, &cfg, &res, err, sizeof err);
+    frep_error_init(&err);
+    fit_run(&model, &pts, lo, hi, q1, &cfg, &res, &err);
     cfg.obj.nthreads = 2;
     memcpy(q2, set2, sizeof q2);
-    fit_run(&model, &pts, lo, hi, q2, &cfg, &res, err, sizeof err);
+    frep_error_init(&err);
+    fit_run(&model, &pts, lo, hi, q2, &cfg, &res, &err);
     ok(memcmp(q1, q2, sizeof q1) == 0, "fit_run: same seed, same result at 1 and 2 threads");
 
     /* An evaluation budget stops the search and still returns a point no worse than the
      * start. */
     cfg.max_evals = 50;
     memcpy(p, set2, sizeof p);
-    fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err);
+    frep_error_init(&err);
+    fit_run(&model, &pts, lo, hi, p, &cfg, &res, &err);
     ok(res.status == FIT_STOPPED && res.evals <= 50 + 40, "max-evals stops the fit (%ld evals, %s)",
        res.evals, fit_status_name(res.status));
     cfg.max_evals = 0;
@@ -608,11 +606,13 @@ int main(void)
     /* Bad input. */
     fit_points few = {5, px, py, pz, NULL, NULL, NULL};
     memcpy(p, set2, sizeof p);
-    ok(fit_run(&model, &few, lo, hi, p, &cfg, &res, err, sizeof err) == -1 && strstr(err, "points"),
-       "too few points refused: %s", err);
+    frep_error_init(&err);
+    ok(fit_run(&model, &few, lo, hi, p, &cfg, &res, &err) == -1 && err.code == FREP_EINPUT &&
+       strstr(err.msg, "points"), "too few points refused: %s", err.msg);
     p[3] = 30;
-    ok(fit_run(&model, &pts, lo, hi, p, &cfg, &res, err, sizeof err) == -1 && strstr(err, "outside"),
-       "start outside the bounds refused: %s", err);
+    frep_error_init(&err);
+    ok(fit_run(&model, &pts, lo, hi, p, &cfg, &res, &err) == -1 && err.code == FREP_EINPUT &&
+       strstr(err.msg, "outside"), "start outside the bounds refused: %s", err.msg);
 
     free(px);
     return done_testing();

@@ -13,6 +13,7 @@
 #include <omp.h>
 #endif
 
+#include "alloc.h"
 #include "fitness.h"
 #include "gp.h"
 #include "partition.h"
@@ -20,6 +21,27 @@
 #include "support.h"
 #include "tap.h"
 #include "tree.h"
+
+/* The value of gp_score, gp_fitness and gp_fitness_replaced; NaN when the call fails,
+ * so that a comparison with it fails the test. */
+static double score_of(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len)
+{
+    double v;
+    return gp_score(c, e, code, len, &v) ? NAN : v;
+}
+
+static double fit_of(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len)
+{
+    double v;
+    return gp_fitness(c, e, code, len, &v) ? NAN : v;
+}
+
+static double fit_replaced_of(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
+                              const frep_insn *sub, uint32_t nsub, double floor)
+{
+    double v;
+    return gp_fitness_replaced(c, e, st, end, sub, nsub, floor, &v) ? NAN : v;
+}
 
 /* ---- analytic scenes ------------------------------------------------------------ */
 
@@ -166,12 +188,11 @@ static void parse_tree(gp_tree *t, const char *postfix, gp_setops so)
 static char *print_str(const gp_tree *t)
 {
     static char buf[4096];  /* test-only scratch; the library has no such state */
-    FILE *f = tmpfile();
-    tree_print(f, t->code, t->len, "p");
-    rewind(f);
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    buf[n] = 0;
-    fclose(f);
+    frep_buf b = FREP_BUF_INIT;
+    tree_print(&b, t->code, t->len, "p");
+    char *s = buf_finish(&b, NULL);
+    snprintf(buf, sizeof buf, "%s", s ? s : "");
+    frep_free(s);
     return buf;
 }
 
@@ -293,9 +314,9 @@ static void test_rules_exact(void)
         for (size_t k = 0; k < nex; k++) {
             gp_tree t = { NULL, 0, 0 };
             parse_tree(&t, exprs[k], (gp_setops)so);
-            double a = gp_score(c, e, t.code, t.len);
+            double a = score_of(c, e, t.code, t.len);
             simplify_rules(&t, (gp_setops)so);
-            double b = gp_score(c, e, t.code, t.len);
+            double b = score_of(c, e, t.code, t.len);
             if (fabs(a - b) > 1e-9 * fabs(a)) {
                 same = 0;
                 diag("%s: %.17g vs %.17g", exprs[k], a, b);
@@ -329,7 +350,7 @@ static void test_fitness(void)
          * positive... except on edges), normals agree to within alpha. */
         if (so == 0) {
             is_double(st.score, 2.0 * (double)s.n, 1e-3 * (double)s.n, "cube scores 2 per point (minmax)");
-            is_double(gp_score(c, e, t.code, t.len), st.score, 1e-2, "tabulated score agrees with direct");
+            is_double(score_of(c, e, t.code, t.len), st.score, 1e-2, "tabulated score agrees with direct");
             is_int(st.explained, s.n, "every point explained");
         } else {
             ok(st.within_eps == s.n, "rfunc cube: zero set through all points (%zu/%zu)",
@@ -337,7 +358,7 @@ static void test_fitness(void)
         }
         is_double(st.fitness, st.score - log((double)s.n) * 11, 1e-9, "lambda = ln N per node");
         parse_tree(&t, "12&34&&5&", (gp_setops)so);
-        ok(gp_fitness(c, e, t.code, t.len) < st.fitness, "a missing face lowers the fitness");
+        ok(fit_of(c, e, t.code, t.len) < st.fitness, "a missing face lowers the fitness");
         tree_free(&t);
         gp_eval_free(e);
         gp_cache_free(c);
@@ -501,6 +522,12 @@ static void test_cliques(void)
     part_cliques_free(&cl);
     is_int(part_cliques(&g, 3, &cl), 1, "clique limit reported");
     free(g.adj);
+
+    /* No vertices: no cliques, and a start array of one entry all the same. */
+    gp_graph e = { 0, 0, NULL };
+    is_int(part_cliques(&e, 100, &cl), 0, "cliques of the empty graph enumerated");
+    ok(cl.count == 0 && cl.start && cl.start[0] == 0, "the empty graph has no clique");
+    part_cliques_free(&cl);
 
     /* K_40 minus a perfect matching has 2^20 maximal cliques: the limit stops it. */
     gp_graph h = { 40, 1, calloc(40, sizeof(uint64_t)) };
@@ -870,11 +897,11 @@ static void test_sheet(void)
     is_int(sheet_points(&s, &sheet, patch, c->eps_d), s.n - patch,
            "cube | (p7 \\ p7): every patch point is on a sheet");
     c->crossing = 0;
-    double f0c = gp_fitness(c, e, cube.code, cube.len), f0s = gp_fitness(c, e, sheet.code, sheet.len);
+    double f0c = fit_of(c, e, cube.code, cube.len), f0s = fit_of(c, e, sheet.code, sheet.len);
     gp_stats st0;
     gp_tree_stats(c, e, sheet.code, sheet.len, &st0);
     c->crossing = 1;
-    double f1c = gp_fitness(c, e, cube.code, cube.len), f1s = gp_fitness(c, e, sheet.code, sheet.len);
+    double f1c = fit_of(c, e, cube.code, cube.len), f1s = fit_of(c, e, sheet.code, sheet.len);
     gp_stats st1;
     gp_tree_stats(c, e, sheet.code, sheet.len, &st1);
     ok(f0s > f0c, "plain eq. 7 prefers the sheet: %.1f > %.1f", f0s, f0c);
@@ -939,7 +966,7 @@ static void test_tape(void)
             tree_grow(&t, &r, (gp_setops)so, c->nprims, 6, 0.8);
             double sc;
             if (gp_tape_record(c, e, t.code, t.len, &sc) ||
-                sc != gp_score(c, e, t.code, t.len)) {
+                sc != score_of(c, e, t.code, t.len)) {
                 same = 0;
                 break;
             }
@@ -960,13 +987,13 @@ static void test_tape(void)
                 gp_tape_expand(c, e, sub.code, sub.len, &exp);
                 tree_copy(&full, &t);
                 tree_splice(&full, st, end, exp.code, exp.len);
-                double f1 = gp_fitness_replaced(c, e, st, end, sub.code, sub.len, -HUGE_VAL);
-                double f2 = gp_fitness(c, e, full.code, full.len);
+                double f1 = fit_replaced_of(c, e, st, end, sub.code, sub.len, -HUGE_VAL);
+                double f2 = fit_of(c, e, full.code, full.len);
                 same &= f1 == f2;
                 const double dfl[5] = { -40, -0.5, 0, 0.5, 40 };
                 for (int d = 0; d < 5; d++) {
                     double fl = f2 + dfl[d];
-                    double f3 = gp_fitness_replaced(c, e, st, end, sub.code, sub.len, fl);
+                    double f3 = fit_replaced_of(c, e, st, end, sub.code, sub.len, fl);
                     floors &= f2 >= fl ? f3 == f2 : f3 < fl;
                     cut += f3 == -HUGE_VAL;
                 }
@@ -1005,9 +1032,9 @@ static void test_tape(void)
         uint32_t st = tree_subtree_start(t.code, end);
         tree_copy(&full, &t);
         tree_splice(&full, st, end, sub.code, sub.len);
-        ok(rec == 0 && sc == gp_score(c, e, t.code, t.len) &&
-           gp_fitness_replaced(c, e, st, end, sub.code, sub.len, -HUGE_VAL) ==
-               gp_fitness(c, e, full.code, full.len),
+        ok(rec == 0 && sc == score_of(c, e, t.code, t.len) &&
+           fit_replaced_of(c, e, st, end, sub.code, sub.len, -HUGE_VAL) ==
+               fit_of(c, e, full.code, full.len),
            "%s: a tree of %u nodes (beyond the tape) scored in full", so ? "rfunc" : "minmax",
            t.len);
         tree_free(&t);
@@ -1060,7 +1087,7 @@ static void test_cache_subset(void)
     gp_eval *e = gp_eval_new();
     gp_tree tr = { NULL, 0, 0 };
     parse_tree(&tr, "23&1\\", GP_SETOPS_MINMAX);
-    ok(gp_fitness(sc, e, tr.code, tr.len) == gp_fitness(bc, e, tr.code, tr.len),
+    ok(fit_of(sc, e, tr.code, tr.len) == fit_of(bc, e, tr.code, tr.len),
        "subset cache scores a tree as a cache built from its points");
     tree_free(&tr);
     gp_eval_free(e);
@@ -1072,7 +1099,7 @@ static void test_cache_subset(void)
 }
 
 /* gp_cache_new_stats: without the score tables, the statistics of random trees are
- * those of the full cache, for both families, and scoring on it is refused (NaN). */
+ * those of the full cache, for both families, and scoring on it is refused (-1). */
 static void test_cache_stats(void)
 {
     scene s;
@@ -1104,8 +1131,9 @@ static void test_cache_stats(void)
                     a.normals_ok == b.normals_ok;
             trees++;
         }
-        double f = st ? gp_fitness(st, e, t.code, t.len) : 0;
-        ok(same && (so ? !isnan(f) : isnan(f)),
+        double f = 0;
+        int refused = st ? gp_fitness(st, e, t.code, t.len, &f) != 0 : 0;
+        ok(same && (so ? !refused : refused),
            "%s: a cache without score tables gives the same statistics (%d trees)%s",
            so ? "rfunc" : "minmax", trees, so ? "" : ", and no score");
         tree_free(&t);
@@ -1162,8 +1190,8 @@ static void test_exhaustive(void)
        st.explained, s.n);
     gp_result gr;
     run_gp(c, 3, 1, &gr);
-    ok(gp_fitness(c, e, t.code, t.len) >= gr.fitness, "exhaustive fitness %.1f >= the GA's %.1f",
-       gp_fitness(c, e, t.code, t.len), gr.fitness);
+    ok(fit_of(c, e, t.code, t.len) >= gr.fitness, "exhaustive fitness %.1f >= the GA's %.1f",
+       fit_of(c, e, t.code, t.len), gr.fitness);
     part_exhaustive(GP_SETOPS_MINMAX, c, e, &t2);
     ok(t2.len == t.len && memcmp(t.code, t2.code, t.len * sizeof *t.code) == 0,
        "exhaustive search is deterministic");
@@ -1219,7 +1247,7 @@ static void test_boss(void)
     gp_eval *e = gp_eval_new();
     gp_tree t = { NULL, 0, 0 };
     parse_tree(&t, "12&34&&56&&", GP_SETOPS_MINMAX);  /* the cube alone */
-    double f0 = gp_fitness(c, e, t.code, t.len), f1 = 0;
+    double f0 = fit_of(c, e, t.code, t.len), f1 = 0;
     is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1), 0, "growth runs");
     gp_stats st;
     gp_tree_stats(c, e, t.code, t.len, &st);

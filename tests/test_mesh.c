@@ -715,15 +715,14 @@ static void test_meshio(void)
         size_t got = fread(buf, 1, (size_t)len, f);
         fclose(f);
         frep_mesh r;
-        char *err = NULL;
+        frep_error err;
         int rd = meshio_parse("mem", buf, got, fm[i].f, &r, &err);
         mesh_check c1;
         memset(&c1, 0, sizeof c1);
         if (rd == 0) mesh_validate(&r, &c1);
         ok(wr == 0 && rd == 0 && r.ntris == m.ntris && fabs(c1.volume - c0.volume) < 1e-5 * fabs(c0.volume),
            "%s: written and read back (%zu triangles, volume %.6f vs %.6f)%s%s", fm[i].name,
-           rd == 0 ? r.ntris : 0, c1.volume, c0.volume, err ? ": " : "", err ? err : "");
-        free(err);
+           rd == 0 ? r.ntris : 0, c1.volume, c0.volume, err.msg[0] ? ": " : "", err.msg[0] ? err.msg : "");
         free(buf);
         if (rd == 0) mesh_free(&r);
     }
@@ -738,11 +737,10 @@ static void test_meshio(void)
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         frep_mesh r;
-        char *err = NULL;
+        frep_error err;
         int rd = meshio_parse("mem", bad[i].text, strlen(bad[i].text), bad[i].f, &r, &err);
-        ok(rd != 0 && err && strncmp(err, bad[i].want, strlen(bad[i].want)) == 0,
-           "bad mesh file: '%s'", err ? err : "(no message)");
-        free(err);
+        ok(rd != 0 && err.msg[0] && strncmp(err.msg, bad[i].want, strlen(bad[i].want)) == 0,
+           "bad mesh file: '%s'", err.msg[0] ? err.msg : "(no message)");
     }
 }
 

@@ -157,8 +157,8 @@ static double grad_error(fit_fn fn, void *user, size_t n, const double *x)
 static double hybrid(fit_fn fn, void *user, size_t n, double *x, const double *lo,
                      const double *hi, uint64_t seed, long *evals)
 {
-    fit_rng rng;
-    fit_rng_seed(&rng, seed);
+    frep_rng rng;
+    frep_rng_seed(&rng, seed);
     fit_control c;
     fit_control_init(&c);
     fit_sa_options so;
@@ -183,24 +183,43 @@ static int local_bfgs(void *user, double *x, double *fx)
 {
     local_ctx *L = user;
     fit_status s = fit_bfgs(L->fn, L->user, L->n, x, L->lo, L->hi, NULL, L->c, fx, NULL);
-    return s == FIT_FAILED ? -1 : 0;
+    return s == FIT_FAILED || s == FIT_NOMEM ? -1 : 0;
+}
+
+/* fit_sa with BFGS from every new best (dual annealing, as frep fit runs it) on
+ * Shekel-10 in [0, 10]^4 from (1, 1, 1, 1), with the options so (the local search is set
+ * here) and a generator seeded with seed. x gets the best point, *its (may be NULL) the
+ * iterations; returns the best value. */
+static double shekel_dual(fit_sa_options *so, uint64_t seed, double x[4], long *its)
+{
+    double lo[4] = {0, 0, 0, 0}, hi[4] = {10, 10, 10, 10}, f;
+    for (int j = 0; j < 4; j++) x[j] = 1;
+    frep_rng rng;
+    frep_rng_seed(&rng, seed);
+    fit_control c;
+    fit_control_init(&c);
+    local_ctx L = {shekel, NULL, 4, lo, hi, &c};
+    so->local = local_bfgs;
+    so->local_user = &L;
+    fit_sa(shekel, NULL, 4, x, lo, hi, so, &rng, &c, &f, its);
+    return f;
 }
 
 int main(void)
 {
     /* RNG: deterministic, uniform in [0, 1), normal with the right moments. */
     {
-        fit_rng a, b;
-        fit_rng_seed(&a, 42);
-        fit_rng_seed(&b, 42);
+        frep_rng a, b;
+        frep_rng_seed(&a, 42);
+        frep_rng_seed(&b, 42);
         int same = 1;
-        for (int i = 0; i < 100; i++) same &= fit_rng_next(&a) == fit_rng_next(&b);
+        for (int i = 0; i < 100; i++) same &= frep_rng_next(&a) == frep_rng_next(&b);
         ok(same, "rng: the same seed gives the same stream");
         double s = 0, s2 = 0, umin = 1, umax = 0;
         for (int i = 0; i < 100000; i++) {
-            double u = fit_rng_uniform(&a);
+            double u = frep_rng_unit(&a);
             umin = fmin(umin, u), umax = fmax(umax, u);
-            double z = fit_rng_normal(&a);
+            double z = frep_rng_normal(&a);
             s += z, s2 += z * z;
         }
         ok(umin >= 0 && umax < 1 && umin < 1e-3 && umax > 0.999, "rng: uniform in [0, 1)");
@@ -322,17 +341,10 @@ int main(void)
         int hits = 0;
         double worst = 0;
         for (uint64_t seed = 1; seed <= 10; seed++) {
-            double lo[4] = {0, 0, 0, 0}, hi[4] = {10, 10, 10, 10}, x[4] = {1, 1, 1, 1}, f;
-            fit_rng rng;
-            fit_rng_seed(&rng, seed);
-            fit_control c;
-            fit_control_init(&c);
-            local_ctx L = {shekel, NULL, 4, lo, hi, &c};
+            double x[4];
             fit_sa_options so;
             fit_sa_options_init(&so);
-            so.local = local_bfgs;
-            so.local_user = &L;
-            fit_sa(shekel, NULL, 4, x, lo, hi, &so, &rng, &c, &f, NULL);
+            double f = shekel_dual(&so, seed, x, NULL);
             if (f < -10.536) {
                 hits++;
                 for (int j = 0; j < 4; j++) worst = fmax(worst, fabs(x[j] - 4));
@@ -345,20 +357,13 @@ int main(void)
         long its1 = 0, its3 = 0;
         for (uint64_t seed = 1; seed <= 10; seed++) {
             for (int chains = 1; chains <= 3; chains += 2) {
-                double lo[4] = {0, 0, 0, 0}, hi[4] = {10, 10, 10, 10}, x[4] = {1, 1, 1, 1}, f;
-                fit_rng rng;
-                fit_rng_seed(&rng, seed);
-                fit_control c;
-                fit_control_init(&c);
-                local_ctx L = {shekel, NULL, 4, lo, hi, &c};
+                double x[4];
                 fit_sa_options so;
                 fit_sa_options_init(&so);
-                so.local = local_bfgs;
-                so.local_user = &L;
                 so.local_period = 2;
                 so.chains = chains;
                 long its = 0;
-                fit_sa(shekel, NULL, 4, x, lo, hi, &so, &rng, &c, &f, &its);
+                double f = shekel_dual(&so, seed, x, &its);
                 if (chains == 3) hits3 += f < -10.536, its3 += its;
                 else its1 += its;
             }
@@ -387,8 +392,8 @@ int main(void)
     /* SA rejects unusable bounds. */
     {
         double lo[1] = {1}, hi[1] = {1}, x[1] = {1}, f;
-        fit_rng r;
-        fit_rng_seed(&r, 1);
+        frep_rng r;
+        frep_rng_seed(&r, 1);
         size_t n = 1;
         is_int(fit_sa(rastrigin, &n, 1, x, lo, hi, NULL, &r, NULL, &f, NULL), FIT_FAILED,
                "sa refuses an empty box");

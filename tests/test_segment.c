@@ -237,10 +237,9 @@ static void check_found(const char *what, frep_cloud *c, const prim *truth, size
     cfg.seed = 7;
     cfg.types = types;
     segment_result res;
-    char *err = NULL;
+    frep_error err;
     int rc = segment_run(c, &cfg, &res, &err);
-    ok(rc == 0, "%s: segmentation runs%s%s", what, err ? ": " : "", err ? err : "");
-    free(err);
+    ok(rc == 0, "%s: segmentation runs%s%s", what, err.msg[0] ? ": " : "", err.msg[0] ? err.msg : "");
     if (rc) return;
     for (size_t i = 0; i < nt; i++) {
         int found = 0;
@@ -473,6 +472,17 @@ static void test_determinism(void)
     ok(n == 8 && list[7].type == PRIM_CYLINDER && list[7].r == 1.0 && list[7].separating,
        "torus: separating cylinder with the major radius");
     free(list);
+
+    /* Two tori apart along x: 10 additions (their y and z planes coincide), more than
+     * the list's first size holds. */
+    prim t2 = t;
+    t2.p[0] = t2.obb_c[0] = 5;
+    list = malloc(2 * sizeof *list);
+    list[0] = t;
+    list[1] = t2;
+    n = segment_add_separating(&list, 2, 1e-3);
+    is_int(n, 12, "two tori: 8 planes and 2 cylinders added");
+    free(list);
 }
 
 /* Readable output: numbers rounded relative to the scale, never by more than half a
@@ -541,9 +551,9 @@ static void test_files(void)
                       "torus 1 0 0 0 0 0 0.1 2\n";
     prim *p = NULL;
     size_t n = 0;
-    char *err = NULL;
+    frep_error err;
     int rc = fitfile_parse("t.fit", fit, strlen(fit), &p, &n, &err);
-    ok(rc == 0 && n == 5, ".fit parsed: %s", err ? err : "ok");
+    ok(rc == 0 && n == 5, ".fit parsed: %s", err.msg[0] ? err.msg : "ok");
     if (rc == 0 && n == 5) {
         is_double(p[0].r, 0.5, 1e-15, "plane normal normalized with its offset");
         is_double(p[2].p[2], 3, 0, "cylinder: point after axis");
@@ -580,7 +590,7 @@ static void test_files(void)
         got = fread(buf, 1, (size_t)len, f);
         fclose(f);
         rc = segment_parse_prims("t.hf", buf, got, 0, &q, &m, &err);
-        ok(rc == 0 && m == n, ".hf read back: %s", err ? err : "ok");
+        ok(rc == 0 && m == n, ".hf read back: %s", err.msg[0] ? err.msg : "ok");
         int same = rc == 0 && m == n;
         for (size_t i = 0; same && i < n; i++)
             same = q[i].type == p[i].type && q[i].r == p[i].r && q[i].R == p[i].R &&
@@ -593,7 +603,6 @@ static void test_files(void)
         free(buf);
     }
     free(p);
-    free(err);
 
     test_rounding();
 
@@ -605,20 +614,47 @@ static void test_files(void)
         {"sphere 1 2 nan 4\n", "t.fit:1: number 3 is not finite"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
-        err = NULL;
         p = NULL;
         rc = fitfile_parse("t.fit", bad[i][0], strlen(bad[i][0]), &p, &n, &err);
         ok(rc == -1, "bad .fit %zu rejected", i + 1);
-        is_str(err ? err : "", bad[i][1], "message");
-        free(err);
+        is_str(err.msg[0] ? err.msg : "", bad[i][1], "message");
         free(p);
     }
     const char *hf = "m(x[3], a[1])\n{\n  p1 = frCylinder(x, 1, 2, 3, 0, 0, 1);\n}\n";
-    err = NULL;
     rc = segment_parse_prims("t.hf", hf, strlen(hf), 0, &p, &n, &err);
     ok(rc == -1, "short frCylinder call rejected");
-    is_str(err ? err : "", "t.hf:3: frCylinder needs 7 numbers after x, got 6", "message");
-    free(err);
+    is_str(err.msg[0] ? err.msg : "", "t.hf:3:8: frCylinder needs 7 numbers after x, got 6", "message");
+    /* Lists go through the front end: positions of what is not a primitive list. */
+    const char *bad_hf[][2] = {
+        {"m(x[3], a[1])\n{\n  p1 = frSphere(x, 0, 0, a[0], 1);\n  m = p1;\n}\n",
+         "t.hf:3:26: arguments of frSphere() must be numbers"},
+        {"m(x[3], a[1])\n{\n  p1 = frPlane(a, 0, 0, 1, 0);\n  m = p1;\n}\n",
+         "t.hf:3:16: expected 'x' as the first argument of frPlane()"},
+        {"m(x[3], a[1])\n{\n  p1 = frPlane(x, 0, 0, 0, 1);\n  m = p1;\n}\n",
+         "t.hf:3:8: zero-length normal"},
+        {"m(x[3], a[1])\n{\n  p1 = hfSphere(x, 0, 0, 0, 1);\n  m = p1;\n}\n",
+         "t.hf: no frPlane/frSphere/frCylinder/frCone/frTorus calls"},
+    };
+    for (size_t i = 0; i < sizeof bad_hf / sizeof bad_hf[0]; i++) {
+        p = NULL;
+        rc = segment_parse_prims("t.hf", bad_hf[i][0], strlen(bad_hf[i][0]), 0, &p, &n, &err);
+        ok(rc == -1, "bad .hf %zu rejected", i + 1);
+        is_str(err.msg[0] ? err.msg : "", bad_hf[i][1], "message");
+        free(p);
+    }
+    const char *syntax = "m(x[3], a[1])\n{\n  p1 = frPlane(x, 0, 0, 1, 0)\n  m = p1;\n}\n";
+    rc = segment_parse_prims("t.hf", syntax, strlen(syntax), 0, &p, &n, &err);
+    ok(rc == -1 && strncmp(err.msg, "t.hf:3:30: expected ';'", 23) == 0,
+       "syntax error reported by the front end with line and column: %s", err.msg);
+    /* Negative constants, primitives inside any model, comments after the call. */
+    const char *two = "m1(x[3], a[1])\n{\n  s = frSphere(x, -1, 0, 0, 2);  -- sphere: 7 points, rms 0.5\n"
+                      "  m1 = s;\n}\nm2(x[3], a[1])\n{\n  t = frPlane(x, 0, -2, 0, 1);  -- separating plane\n"
+                      "  m2 = t;\n}\n";
+    rc = segment_parse_prims("t.hf", two, strlen(two), 0, &p, &n, &err);
+    ok(rc == 0 && n == 2 && p[0].p[0] == -1 && p[0].support == 7 && p[0].rms == 0.5 &&
+           !p[0].separating && p[1].separating && p[1].p[1] == -1 && p[1].r == 0.5,
+       "two models: negative constants, comments read%s%s", err.msg[0] ? ": " : "", err.msg);
+    free(p);
 }
 
 static void test_bad_input(void)
@@ -626,18 +662,15 @@ static void test_bad_input(void)
     segment_config cfg;
     segment_config_init(&cfg);
     segment_result res;
-    char *err = NULL;
+    frep_error err;
     frep_cloud *c = cloud_new(0);
     double p[3] = {1, 2, 3};
     for (int i = 0; i < 5; i++) cloud_push(c, p, NULL);
     ok(segment_run(c, &cfg, &res, &err) == -1, "5 points rejected");
-    is_str(err ? err : "", "too few points: 5 (segmentation needs at least 8)", "message");
-    free(err);
+    is_str(err.msg[0] ? err.msg : "", "too few points: 5 (segmentation needs at least 8)", "message");
     for (int i = 0; i < 1000; i++) cloud_push(c, p, NULL);
-    err = NULL;
     ok(segment_run(c, &cfg, &res, &err) == -1, "one point repeated rejected");
-    is_str(err ? err : "", "all 1005 points are the same point: nothing to segment", "message");
-    free(err);
+    is_str(err.msg[0] ? err.msg : "", "all 1005 points are the same point: nothing to segment", "message");
     cloud_free(c);
 
     /* All points on one plane, every point twice, zero normals: one plane found. */
@@ -648,9 +681,8 @@ static void test_bad_input(void)
         cloud_push(c, q, zero);
         cloud_push(c, q, zero);
     }
-    err = NULL;
     int rc = segment_run(c, &cfg, &res, &err);
-    ok(rc == 0, "planar cloud with duplicates and zero normals: %s", err ? err : "ok");
+    ok(rc == 0, "planar cloud with duplicates and zero normals: %s", err.msg[0] ? err.msg : "ok");
     if (rc == 0) {
         ok(res.normals_estimated && res.zero_normals == c->n, "zero normals detected and replaced");
         is_int(res.nfitted, 1, "exactly one primitive");
@@ -660,7 +692,6 @@ static void test_bad_input(void)
         is_int(res.unassigned, 0, "every point assigned");
         segment_result_free(&res);
     }
-    free(err);
     cloud_free(c);
 }
 
@@ -746,6 +777,31 @@ static void test_grow_inner(void)
     free(nrm);
 }
 
+/* Three boxes apart on the diagonal: 18 planes, more than the detector's first
+ * primitive array holds. A box of over 100000 points: the spacing estimate then uses a
+ * tree of every other point only. */
+static void test_large(void)
+{
+    trng r = {13};
+    frep_cloud *c = cloud_new(1);
+    prim truth[18];
+    for (int b = 0; b < 3; b++) {
+        double lo = 3.0 * b - 1, hi = lo + 2;
+        sample_box(c, &r, lo, hi, 400);
+        for (int f = 0; f < 6; f++) {
+            double n[3] = {0, 0, 0};
+            n[f / 2] = f % 2 ? 1 : -1;
+            truth[6 * b + f] = mk(PRIM_PLANE, n[0], n[1], n[2], 0, 0, 0, f % 2 ? hi : -lo, 0);
+        }
+    }
+    check_found("three boxes", c, truth, 18, 0.01, 1.0, 1, 0);
+    cloud_free(c);
+    c = cloud_new(1);
+    sample_box(c, &r, -1, 1, 16700);
+    check_found("large box", c, truth, 6, 0.01, 1.0, 1, 0);
+    cloud_free(c);
+}
+
 int main(void)
 {
     test_kdtree();
@@ -755,5 +811,6 @@ int main(void)
     test_determinism();
     test_shapes();
     test_grow_inner();
+    test_large();
     return done_testing();
 }

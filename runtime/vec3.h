@@ -1,6 +1,6 @@
-/* vec3.h - the 3-vector arithmetic of the mesh folder (polygonizer, sampler, renderer):
- * dot and cross products, length, and the unit vector that stays 0 where there is no
- * direction.  Inline and exact as written, so every caller rounds the same way.
+/* vec3.h - the 3-vector arithmetic of the library (meshing, primitives, RANSAC, GP
+ * partitioning): dot and cross products, length, difference and unit vectors.  Inline
+ * and exact as written, so every caller rounds the same way.
  */
 #ifndef FREP_VEC3_H
 #define FREP_VEC3_H
@@ -36,6 +36,15 @@ static inline void vec3_unit(double v[3])
     } else {
         v[0] = v[1] = v[2] = 0;
     }
+}
+
+/* v / |v| and 0, or -1 with v unchanged when |v| is 0 or not finite. */
+static inline int vec3_normalize(double v[3])
+{
+    double l = vec3_len(v);
+    if (!(l > 0) || !isfinite(l)) return -1;
+    for (int i = 0; i < 3; i++) v[i] /= l;
+    return 0;
 }
 
 #endif
