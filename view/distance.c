@@ -23,7 +23,7 @@ int view_point_distances(const frep_program *p, double iso, size_t n, const doub
                                 re ? re : &local);
     if (rc != 0) {
         frep_free(g);
-        return frep_error_set(e, FREP_EINPUT, "evaluation failed");
+        return frep_error_nomem(e); /* a compiled program fails only to allocate */
     }
     for (size_t i = 0; i < n; i++) {
         double gx = g[i], gy = g[n + i], gz = g[2 * n + i];

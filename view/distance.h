@@ -14,8 +14,8 @@
 /* Signed distance estimate of each point to the surface f = iso, first-order:
  * d = (f - iso) / |grad f|, positive inside (f > iso), +-INFINITY where the gradient
  * vanishes off the surface (0 on it).  d holds n values.  Runtime domain errors of the
- * model go to *re (may be NULL); returns 0, or -1 with *e set (FREP_ENOMEM, or
- * FREP_EINPUT when the evaluation fails). */
+ * model go to *re (may be NULL); returns 0, or -1 with *e set (FREP_ENOMEM: the
+ * evaluators fail only to allocate). */
 int view_point_distances(const frep_program *p, double iso, size_t n, const double *x,
                          const double *y, const double *z, int nthreads, double *d,
                          frep_runtime_error *re, frep_error *e);
