@@ -13,6 +13,8 @@ for pair in gcc:gcc make:make autoreconf:autoconf automake:automake libtoolize:l
     cmd=${pair%%:*}; pkg=${pair#*:}
     command -v "$cmd" >/dev/null 2>&1 || need="$need $pkg"
 done
+# libraries: zlib for the PNG pictures of frep render
+pkg-config --exists zlib 2>/dev/null || [ -f /usr/include/zlib.h ] || need="$need zlib1g-dev"
 if [ -n "$need" ]; then
     echo "setup: installing$need"
     if [ "$(id -u)" -ne 0 ]; then echo "setup: run as root to install$need" >&2; exit 1; fi

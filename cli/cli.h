@@ -10,6 +10,7 @@
 #include <stddef.h>
 #include <stdio.h>
 
+#include "buf.h"
 #include "frep.h"
 #include "opt.h"
 
@@ -26,6 +27,20 @@ int cmd_render(int argc, char **argv); /* cli/cmd_render.c */
 int cmd_evolve(int argc, char **argv); /* cli/cmd_evolve.c */
 int cmd_segment(int argc, char **argv); /* cli/cmd_segment.c */
 int cmd_fit(int argc, char **argv);    /* cli/cmd_fit.c */
+int cmd_view(int argc, char **argv);   /* cli/cmd_view.c */
+
+/* --view of frep fit and frep evolve (cli/cmd_view.c): the page of frep view (grid
+ * 128, the model's '-- @box') of the model text write_model writes, called name,
+ * with the cloud; the summary line unless quiet. Returns CLI_OK or CLI_FAIL. */
+typedef struct cli_view_job {
+    const char *sub, *out, *name, *model, *cloud;
+    int (*write_model)(FILE *f, void *user);
+    void *user;
+    const double *a;        /* values of a[] (NULL: the model's own) */
+    size_t na;
+    int nthreads, quiet;
+} cli_view_job;
+int cli_view_result(const cli_view_job *j);
 
 /* Model -> mesh steps shared by frep mesh, sample and render (cli/model.c): the model
  * options (-m -a -b -g --iso -t --setops, table entries below), compile, polygonize. */
@@ -39,6 +54,8 @@ typedef struct mesh_cli {
     char *src;
     size_t srclen;
     frep_runtime_error err;  /* runtime errors of every evaluation so far */
+    frep_buf *diag;          /* may be NULL; else compiler messages are copied here */
+    const char *text;        /* may be NULL; else the model's text (path names it) */
 } mesh_cli;
 void mesh_cli_init(mesh_cli *c);
 void mesh_cli_free(mesh_cli *c);
@@ -57,6 +74,21 @@ void mesh_cli_report_errors(mesh_cli *c);
  * one, printing why it cannot; returns CLI_OK or CLI_FAIL. */
 int cli_is_mesh_path(const char *path);
 int cli_read_mesh(const char *sub, const char *path, struct frep_mesh *m);
+
+/* A cloud and its distances, for frep render and frep view (cli/model.c): each
+ * point's signed distance to the surface (> 0 inside; the model's |f|/|grad f|, or
+ * the mesh's nearest triangle when mc->p is NULL), each vertex's distance to the
+ * cloud, and their colour scales chosen from the data (view/distance.h; 0 when no
+ * distance is finite and positive). */
+typedef struct cli_cloud_dist {
+    struct frep_cloud *cl;
+    double *pdist, *vdist;
+    double pscale, vscale;
+} cli_cloud_dist;
+/* Read the cloud at path and measure; prints why it cannot ("frep SUB: ..."). */
+int cli_cloud_distances(const char *sub, const char *path, mesh_cli *mc,
+                        const struct frep_mesh *m, cli_cloud_dist *d);
+void cli_cloud_dist_free(cli_cloud_dist *d);
 
 /* Option table entries shared by several subcommands: one parser each for the model
  * options, the thread count, the seed and -q. T is the context type, f its field. */
@@ -108,6 +140,7 @@ typedef struct cli_diag_ctx {
      * warnings each time, and each is printed once. Freed by cli_diag_done(). */
     char **seen;
     size_t nseen;
+    frep_buf *copy;  /* may be NULL; else every message printed is appended here too */
 } cli_diag_ctx;
 void cli_print_diag(void *user, const frep_diag *d);
 void cli_diag_done(cli_diag_ctx *c);
@@ -116,6 +149,13 @@ void cli_diag_done(cli_diag_ctx *c);
  * returns the program and (if src != NULL) hands over the source text (free()). */
 frep_program *cli_compile_file(const char *path, const char *model, const double *a,
                                size_t na, int setops, char **src);
+/* The same, with a copy of the messages appended to diag (may be NULL). */
+frep_program *cli_compile_file_diag(const char *path, const char *model, const double *a,
+                                    size_t na, int setops, char **src, frep_buf *diag);
+/* The same for a text already in memory, called path in messages. */
+frep_program *cli_compile_text(const char *path, const char *text, size_t len,
+                               const char *model, const double *a, size_t na, int setops,
+                               frep_buf *diag);
 
 /* Write a file atomically: data goes to a temporary in the same directory, which is
  * renamed over `path` when `fn` succeeds. fn returns 0 on success. */

@@ -112,7 +112,7 @@ static void report_errors(const frep_program *p, const frep_runtime_error *e,
                           const char *src, size_t len)
 {
     if (e->count == 0) return;
-    cli_diag_ctx dc = { src, len, 0, 0, NULL, 0 };
+    cli_diag_ctx dc = { src, len, 0, 0, NULL, 0, NULL };
     frep_report_runtime_error(p, e, cli_print_diag, &dc);
     cli_diag_done(&dc);
 }

@@ -135,7 +135,7 @@ static char *join_args(int argc, char **argv)
 /* Every step's inputs and results, from the options to the summary. */
 typedef struct evolve_cmd {
     evolve_options eo;
-    const char *prims_path, *out, *dot, *residual_path, *trace_path;
+    const char *prims_path, *out, *dot, *residual_path, *trace_path, *view;
     double stop_share;          /* --stop-share, percent; 0: none */
     int refit, quiet, have_setops;
     const char *cloud_path, *cmdline;
@@ -219,6 +219,8 @@ static const cli_opt evolve_opts[] = {
       .help = "points the GA scores (default 4096; 0: all)" },
     { 0, "no-simplify", NULL, CLI_OPT_CLEAR, OFF(eo.simplify), .help = "keep the tree as evolved" },
     { 0, "dot", "FILE", CLI_OPT_STRING, OFF(dot), .help = "also write the tree for Graphviz" },
+    { 0, "view", "HTML", CLI_OPT_STRING, OFF(view),
+      .help = "also write the page of the model and the cloud (frep view)" },
     { 0, "trace", "FILE", CLI_OPT_STRING, OFF(trace_path),
       .help = "write one line per generation: generation, wall and CPU\n"
               "seconds since the start, best fitness, tree size, % of the\n"
@@ -501,6 +503,9 @@ static int stage_write(evolve_cmd *e)
     write_ctx w = { &e->res, e->prims, e->nprims, &meta };
     if (cli_write_atomic(e->out, write_model_cb, &w)) return CLI_FAIL;
     if (e->dot && cli_write_atomic(e->dot, write_dot_cb, &w)) return CLI_FAIL;
+    cli_view_job vj = { "evolve", e->view, strcmp(e->out, "-") ? e->out : NULL, NULL,
+                        e->cloud_path, write_model_cb, &w, NULL, 0, e->eo.gp.threads, e->quiet };
+    if (e->view && cli_view_result(&vj) != CLI_OK) return CLI_FAIL;
     if (!e->trace_path) return CLI_OK;
     const evolve_result *res = &e->res;
     buf_printf(&e->trace, "# end: %.4f s wall, %.4f s CPU, %u nodes, %.3f%% of %zu points "

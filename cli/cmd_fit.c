@@ -187,7 +187,7 @@ static size_t parse_bounds(const char *s, double **lo, double **hi)
 /* Every step's inputs and results, from the options to the report. */
 typedef struct fit_cmd {
     fit_config cfg;
-    const char *out, *model, *json, *bounds;
+    const char *out, *model, *json, *bounds, *view;
     cli_list a;
     double loss_scale;         /* --loss-scale; <= 0: 0.01 x the cloud's diagonal */
     int in_place, quiet;
@@ -257,6 +257,8 @@ static const cli_opt fit_opts[] = {
     { 0, "sa-threshold", "V", CLI_OPT_DOUBLE, OFF(cfg.sa.threshold), .lo = 0, .hi = INFINITY,
       .help = "leave the annealing once the objective is <= V" },
     { 0, "json", "FILE", CLI_OPT_STRING, OFF(json), .help = "also write the report as JSON" },
+    { 0, "view", "HTML", CLI_OPT_STRING, OFF(view),
+      .help = "also write the page of the fitted model and the cloud\n(frep view)" },
     CLI_OPT_THREADS(fit_cmd, cfg.obj.nthreads, "OpenMP threads (results do not depend on it)"),
     { 'a', "params", "LIST", CLI_OPT_LIST, OFF(a), .help = "start values of a[] (v1,v2,...)" },
     { 0, "bounds", "LIST", CLI_OPT_STRING, OFF(bounds), .help = "bounds of a[]: lo1:hi1,lo2:hi2,..." },
@@ -520,8 +522,17 @@ static void stage_report(const fit_cmd *f)
     printf("wrote %s\n", f->output);
 }
 
+/* --view: the page of the fitted template (a[] templates with the fitted -a). */
+static int stage_view(const fit_cmd *f)
+{
+    text_out to = { f->text, strlen(f->text) };
+    cli_view_job j = { "fit", f->view, f->output, f->model, f->cloud_path, write_text, &to,
+                       f->nnamed == 0 ? f->x0 : NULL, f->nfree, f->cfg.obj.nthreads, f->quiet };
+    return cli_view_result(&j);
+}
+
 /* template -> parameters -> cloud -> search box -> fit -> fitted template -> JSON ->
- * report; 130 after Ctrl-C. */
+ * report -> [page]; 130 after Ctrl-C. */
 static int fit_steps(fit_cmd *f)
 {
     int rc = stage_template(f);
@@ -536,6 +547,7 @@ static int fit_steps(fit_cmd *f)
                        &f->cfg, &f->res, f->diagonal, f->interrupted };
     if (f->json != NULL && cli_write_atomic(f->json, write_json, &rep) != 0) rc = CLI_FAIL;
     if (!f->quiet) stage_report(f);
+    if (rc == CLI_OK && f->view) rc = stage_view(f);
     return f->interrupted && rc == CLI_OK ? 130 : rc;
 }
 

@@ -67,7 +67,7 @@ int cmd_check(int argc, char **argv)
     lang_cmd c = { 0 };
     int rc = lang_input(&check_spec, argc, argv, &c, 1);
     if (rc != CLI_GO_ON) return rc;
-    cli_diag_ctx dc = { c.src, c.len, 0, 0, NULL, 0 };
+    cli_diag_ctx dc = { c.src, c.len, 0, 0, NULL, 0, NULL };
     rc = check_models(&c, &dc);
     cli_diag_done(&dc);
     free(c.src);
@@ -85,7 +85,7 @@ int cmd_print(int argc, char **argv)
     lang_cmd c = { 0 };
     int rc = lang_input(&print_spec, argc, argv, &c, 1);
     if (rc != CLI_GO_ON) return rc;
-    cli_diag_ctx dc = { c.src, c.len, 0, 0, NULL, 0 };
+    cli_diag_ctx dc = { c.src, c.len, 0, 0, NULL, 0, NULL };
     diag_sink ds = { cli_print_diag, &dc, c.file, 0, 0, NULL, 0 };
     arena A;
     arena_init(&A);

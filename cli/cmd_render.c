@@ -1,6 +1,7 @@
 /* cmd_render.c - frep render: a shaded PNG picture of a model (polygonized by
  * mesh/mesh.c, rasterized by mesh/render.c, encoded by mesh/png.c), optionally
- * with a point cloud drawn over it, coloured by its distance to the surface.
+ * with a point cloud drawn over it, coloured by its distance to the surface, and the
+ * surface coloured by its distance to the cloud (view/distance.c), with legends.
  */
 #include "config.h"
 
@@ -13,8 +14,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Distance (as a fraction of the framed box diagonal) drawn fully red by --points. */
-#define RENDER_FAR_FRACTION 0.02
+/* Colour scale when no distance is finite and positive: as a fraction of the framed
+ * box diagonal. */
+#define RENDER_FALLBACK_FRACTION 0.02
 #define RENDER_STR_(x) #x
 #define RENDER_STR(x) RENDER_STR_(x)
 
@@ -23,20 +25,26 @@ static const char render_usage[] =
     "       frep render MESH.(off|obj|stl|ply) -o VIEW.png [options]\n\n"
     "Draw a shaded picture of a model (polygonized as by frep mesh) or of a mesh file.\n"
     "With --points, the points of a cloud are drawn over it, coloured by their distance\n"
-    "|f|/|grad f| to the model's surface: blue on the surface, red at 2% of the picture's\n"
-    "box diagonal or farther.\n\n";
+    "|f|/|grad f| to the model's surface (to the nearest triangle for a mesh file): blue\n"
+    "on the surface, red at the scale or farther; the scale is chosen from the data (the\n"
+    "95th percentile rounded up to 1, 2 or 5 x 10^k) unless --scale gives it. Points\n"
+    "inside the solid by more than 1% of the box diagonal are drawn through the surface\n"
+    "as rings. The surface is coloured by its distance to the nearest point (material the\n"
+    "cloud does not show) unless --plain. Legends give the scales in model units.\n\n";
 
 typedef struct render_cmd {
     mesh_cli mc;
     const char *in, *out, *view, *points;
     int size[2];             /* width, height */
-    int quiet;
+    int quiet, plain;
+    double scale;            /* --scale; 0: from the data */
     frep_mesh m;
     mesh_stats st;
     double bbox[6];          /* the framed region: the mesh and the points */
-    frep_cloud *cl;          /* --points */
-    double *dist;            /* distances of the points, then room for their gradients */
+    cli_cloud_dist cd;       /* --points and its distances */
     double dmean, dmax;
+    size_t inside, deep;     /* points inside the solid, and deeper than the slack */
+    char note[96];
     render_points rp;
     uint8_t *rgb;
 } render_cmd;
@@ -68,6 +76,10 @@ static const cli_opt render_opts[] = {
       .expect = "one of " RENDER_VIEWS, .help = RENDER_VIEWS " (default iso)" },
     { 0, "points", "CLOUD", CLI_OPT_STRING, OFF(points),
       .help = "overlay a point cloud (.xyz or .ply)" },
+    { 0, "scale", "D", CLI_OPT_DOUBLE, OFF(scale), .lo = 0, .hi = INFINITY, .open_lo = 1,
+      .what = "a distance", .help = "point distance drawn red (default: from the data)" },
+    { 0, "plain", NULL, CLI_OPT_SET, OFF(plain),
+      .help = "do not colour the surface by its distance to the cloud" },
     CLI_OPT_MODEL(render_cmd, mc.model, "the model (default: my_model, else the last one)"),
     CLI_OPT_PARAMS(render_cmd, mc.a, "values of the model's a[] array"),
     CLI_OPT_BOX(render_cmd, mc.box, "HyperFun's -b (default: the model's '-- @box', else 10)"),
@@ -98,10 +110,6 @@ static int stage_mesh(render_cmd *c)
 {
     if (cli_is_mesh_path(c->in)) {
         if (cli_read_mesh("render", c->in, &c->m) != CLI_OK) return CLI_FAIL;
-        if (c->points) {
-            fprintf(stderr, "frep render: --points needs a model (FILE.hf) to measure distances\n");
-            return CLI_USAGE;
-        }
     } else {
         if (mesh_cli_compile(&c->mc, c->in) != CLI_OK) return CLI_FAIL;
         if (mesh_cli_polygonize(&c->mc, "render", &c->m, &c->st) != CLI_OK) return CLI_FAIL;
@@ -118,19 +126,18 @@ static int stage_mesh(render_cmd *c)
     return CLI_OK;
 }
 
-/* Distance |f - iso|/|grad f| of each point (infinite where the gradient vanishes); the
+/* The mean and largest finite |distance| for the summary, the points inside; the
  * framed box grows to hold the points. */
-static void point_distances(render_cmd *c, const double *g)
+static void point_stats(render_cmd *c)
 {
-    const frep_cloud *cl = c->cl;
+    const frep_cloud *cl = c->cd.cl;
     for (size_t i = 0; i < cl->n; i++) {
-        double gx = g[i], gy = g[cl->n + i], gz = g[2 * cl->n + i];
-        double gl = sqrt(gx * gx + gy * gy + gz * gz);
-        c->dist[i] = gl > 0 ? fabs(c->dist[i] - c->mc.iso) / gl : INFINITY;
-        if (isfinite(c->dist[i])) {
-            c->dmean += c->dist[i] / (double)cl->n;
-            c->dmax = fmax(c->dmax, c->dist[i]);
+        double d = fabs(c->cd.pdist[i]);
+        if (isfinite(d)) {
+            c->dmean += d / (double)cl->n;
+            c->dmax = fmax(c->dmax, d);
         }
+        c->inside += c->cd.pdist[i] > 0;
         c->bbox[0] = fmin(c->bbox[0], cl->x[i]);
         c->bbox[3] = fmax(c->bbox[3], cl->x[i]);
         c->bbox[1] = fmin(c->bbox[1], cl->y[i]);
@@ -140,36 +147,39 @@ static void point_distances(render_cmd *c, const double *g)
     }
 }
 
-/* --points: read the cloud, measure its distances to the surface, scale the colours. */
+/* --points: the cloud and its distances (cli/model.c), the framed box grown to hold
+ * it, the scales (--scale, else from the data, else a share of the box), the points
+ * inside. */
 static int stage_points(render_cmd *c)
 {
-    frep_error msg;
-    c->cl = cloud_read(c->points, &msg);
-    if (!c->cl) {
-        fprintf(stderr, "%s\n", msg.msg[0] ? msg.msg : "frep render: cannot read the cloud");
-        return CLI_FAIL;
-    }
-    const frep_cloud *cl = c->cl;
-    c->dist = malloc((cl->n + 1) * 4 * sizeof *c->dist);
-    if (!c->dist) {
-        fprintf(stderr, "frep render: out of memory\n");
-        return CLI_FAIL;
-    }
-    double *g = c->dist + cl->n;
-    frep_runtime_error e;
-    if (frep_eval_grad_par(c->mc.p, cl->n, cl->x, cl->y, cl->z, NULL, c->dist, g, g + cl->n,
-                           g + 2 * cl->n, c->mc.nthreads, &e) != 0) {
-        fprintf(stderr, "frep render: evaluation failed\n");
-        return CLI_FAIL;
-    }
-    mesh_cli_add_errors(&c->mc, &e);
-    mesh_cli_report_errors(&c->mc);
-    point_distances(c, g);
+    if (cli_cloud_distances("render", c->points, &c->mc, &c->m, &c->cd) != CLI_OK) return CLI_FAIL;
+    point_stats(c);
     const double *b = c->bbox;
     double diag = sqrt((b[3] - b[0]) * (b[3] - b[0]) + (b[4] - b[1]) * (b[4] - b[1]) +
                        (b[5] - b[2]) * (b[5] - b[2]));
-    c->rp = (render_points){ cl->n, cl->x, cl->y, cl->z, c->dist, RENDER_FAR_FRACTION * diag };
+    cli_cloud_dist *d = &c->cd;
+    if (!(d->pscale > 0)) d->pscale = RENDER_FALLBACK_FRACTION * diag;
+    if (!(d->vscale > 0)) d->vscale = RENDER_FALLBACK_FRACTION * diag;
+    if (c->scale > 0) d->pscale = c->scale;
+    for (size_t i = 0; i < d->cl->n; i++)
+        c->deep += d->pdist[i] > RENDER_POINT_DEPTH_SLACK * diag;
+    snprintf(c->note, sizeof c->note, "%zu of %zu points inside the solid, %zu as rings",
+             c->inside, d->cl->n, c->deep);
+    c->rp = (render_points){ d->cl->n, d->cl->x, d->cl->y, d->cl->z, d->pdist, d->pscale, 1 };
     return CLI_OK;
+}
+
+/* The colour legends: the points' distances, the surface's. */
+static void set_legends(const render_cmd *c, render_options *ro)
+{
+    if (!c->points) return;
+    ro->legends[ro->nlegends++] = (render_legend){ "points: distance to the surface", c->rp.vmax,
+                                                   "model units", c->note };
+    if (c->plain) return;
+    ro->vertex_value = c->cd.vdist;
+    ro->vertex_vmax = c->cd.vscale;
+    ro->legends[ro->nlegends++] = (render_legend){ "surface: distance to the nearest point",
+                                                   c->cd.vscale, "model units", NULL };
 }
 
 /* Rasterize the mesh (and the points) into c->rgb. */
@@ -181,8 +191,9 @@ static int stage_draw(render_cmd *c)
         fprintf(stderr, "frep render: out of memory for a %dx%d picture\n", W, H);
         return CLI_FAIL;
     }
-    render_options ro = { W, H, c->view, { 0 } };
+    render_options ro = { W, H, c->view, { 0 }, NULL, 0, 0, { { 0 } } };
     memcpy(ro.bbox, c->bbox, sizeof c->bbox);
+    set_legends(c, &ro);
     frep_error err;
     frep_error_init(&err);
     if (render_mesh(&c->m, c->points ? &c->rp : NULL, &ro, c->rgb, &err) != 0) {
@@ -203,7 +214,7 @@ static void stage_report(const render_cmd *c)
     printf("%s: %dx%d, %s view of %zu triangles", c->out, c->size[0], c->size[1], c->view,
            c->m.ntris);
     if (c->points)
-        printf(", %zu points (distance to the surface: mean %.3g, max %.3g)", c->cl->n, c->dmean,
+        printf(", %zu points (distance to the surface: mean %.3g, max %.3g)", c->cd.cl->n, c->dmean,
                c->dmax);
     printf("\n");
 }
@@ -227,8 +238,7 @@ int cmd_render(int argc, char **argv)
     int rc = stage_options(&c, argc, argv);
     if (rc == CLI_GO_ON) rc = render_steps(&c);
     mesh_free(&c.m);
-    cloud_free(c.cl);
-    free(c.dist);
+    cli_cloud_dist_free(&c.cd);
     free(c.rgb);
     mesh_cli_free(&c.mc);
     return rc;

@@ -1,10 +1,13 @@
-/* model.c - the model -> mesh steps that frep mesh, sample and render share: their model
- * options, compiling with the default box, polygonizing with progress and the
- * messages about the result, runtime errors reported once as warnings; mesh input.
+/* model.c - the model -> mesh steps that frep mesh, sample, render and view share: their
+ * model options, compiling with the default box, polygonizing with progress and the
+ * messages about the result, runtime errors reported once as warnings; mesh input; a
+ * cloud's distances to the model and the model's to the cloud.
  */
 #include "config.h"
 
 #include "cli.h"
+#include "cloud.h"
+#include "distance.h"
 #include "mesh.h"
 #include "meshio.h"
 
@@ -58,7 +61,7 @@ static void warning_diag(void *user, const frep_diag *d)
 void mesh_cli_report_errors(mesh_cli *c)
 {
     if (c->err.count == 0 || !c->p) return;
-    cli_diag_ctx dc = { c->src, c->srclen, 0, 0, NULL, 0 };
+    cli_diag_ctx dc = { c->src, c->srclen, 0, 0, NULL, 0, NULL };
     frep_report_runtime_error(c->p, &c->err, warning_diag, &dc);
     cli_diag_done(&dc);
     memset(&c->err, 0, sizeof c->err);
@@ -77,7 +80,12 @@ static void progress_cb(void *user, double frac)
 int mesh_cli_compile(mesh_cli *c, const char *path)
 {
     c->path = path;
-    c->p = cli_compile_file(path, c->model, c->a.v, c->a.n, c->setops, &c->src);
+    if (c->text) {
+        c->p = cli_compile_text(path, c->text, strlen(c->text), c->model, c->a.v, c->a.n,
+                                c->setops, c->diag);
+        c->src = c->p ? strdup(c->text) : NULL;
+    } else
+        c->p = cli_compile_file_diag(path, c->model, c->a.v, c->a.n, c->setops, &c->src, c->diag);
     if (!c->p) return CLI_FAIL;
     c->srclen = c->src ? strlen(c->src) : 0;
     if (!c->has_box && !frep_program_box(c->p, c->box)) {
@@ -156,4 +164,53 @@ int cli_read_mesh(const char *sub, const char *path, frep_mesh *m)
     if (msg.msg[0]) fprintf(stderr, "%s\n", msg.msg);
     else fprintf(stderr, "frep %s: cannot read the mesh\n", sub);
     return CLI_FAIL;
+}
+
+/* The signed distances of the points and the vertices', and both scales. */
+static int measure(mesh_cli *mc, const frep_mesh *m, cli_cloud_dist *d, frep_error *e)
+{
+    const frep_cloud *cl = d->cl;
+    frep_runtime_error re;
+    memset(&re, 0, sizeof re);
+    int rc = mc->p ? view_point_distances(mc->p, mc->iso, cl->n, cl->x, cl->y, cl->z,
+                                          mc->nthreads, d->pdist, &re, e)
+                   : view_mesh_distances(m, cl->n, cl->x, cl->y, cl->z, d->pdist, e);
+    if (rc != 0) return -1;
+    mesh_cli_add_errors(mc, &re);
+    mesh_cli_report_errors(mc);
+    if (view_vertex_distances(m, cl->n, cl->x, cl->y, cl->z, d->vdist, e) != 0 ||
+        view_auto_scale(d->pdist, cl->n, VIEW_POINTS_QUANTILE, VIEW_POINTS_FACTOR, 0,
+                        &d->pscale, e) != 0)
+        return -1;
+    return view_auto_scale(d->vdist, m->nverts, VIEW_SURFACE_QUANTILE, VIEW_SURFACE_FACTOR, 0,
+                           &d->vscale, e);
+}
+
+int cli_cloud_distances(const char *sub, const char *path, mesh_cli *mc, const frep_mesh *m,
+                        cli_cloud_dist *d)
+{
+    frep_error msg;
+    memset(d, 0, sizeof *d);
+    d->cl = cloud_read(path, &msg);
+    if (!d->cl) {
+        if (msg.msg[0]) fprintf(stderr, "%s\n", msg.msg);
+        else fprintf(stderr, "frep %s: cannot read the cloud\n", sub);
+        return CLI_FAIL;
+    }
+    d->pdist = malloc((d->cl->n + 1) * sizeof *d->pdist);
+    d->vdist = malloc((m->nverts + 1) * sizeof *d->vdist);
+    frep_error e;
+    frep_error_init(&e);
+    if (!d->pdist || !d->vdist) frep_error_nomem(&e);
+    else if (measure(mc, m, d, &e) == 0) return CLI_OK;
+    fprintf(stderr, "frep %s: %s\n", sub, e.msg);
+    return CLI_FAIL;
+}
+
+void cli_cloud_dist_free(cli_cloud_dist *d)
+{
+    cloud_free(d->cl);
+    free(d->pdist);
+    free(d->vdist);
+    memset(d, 0, sizeof *d);
 }

@@ -75,6 +75,7 @@ void cli_print_diag(void *user, const frep_diag *d)
         else if (d->severity == FREP_WARNING) c->warnings++;
     }
     fputs(s, stderr);
+    if (c && c->copy) buf_puts(c->copy, s);
     if (c && c->nseen < CLI_MAX_SEEN_DIAGS) {
         char **ns = realloc(c->seen, (c->nseen + 1) * sizeof *ns);
         if (ns) {
@@ -97,20 +98,34 @@ void cli_diag_done(cli_diag_ctx *c)
 frep_program *cli_compile_file(const char *path, const char *model, const double *a,
                                size_t na, int setops, char **src)
 {
+    return cli_compile_file_diag(path, model, a, na, setops, src, NULL);
+}
+
+frep_program *cli_compile_file_diag(const char *path, const char *model, const double *a,
+                                    size_t na, int setops, char **src, frep_buf *diag)
+{
     size_t len = 0;
     char *text = cli_read_file(path, &len);
     if (!text) return NULL;
+    frep_program *p = cli_compile_text(path, text, len, model, a, na, setops, diag);
+    if (src && p) *src = text;
+    else free(text);
+    return p;
+}
+
+frep_program *cli_compile_text(const char *path, const char *text, size_t len,
+                               const char *model, const double *a, size_t na, int setops,
+                               frep_buf *diag)
+{
     frep_compile_options o;
     frep_compile_options_init(&o);
     o.model = model;
     o.a = a;
     o.na = na;
     if (setops >= 0) o.setops_override = setops;
-    cli_diag_ctx dc = { text, len, 0, 0, NULL, 0 };
+    cli_diag_ctx dc = { text, len, 0, 0, NULL, 0, diag };
     frep_program *p = frep_compile(path, text, len, &o, cli_print_diag, &dc);
     cli_diag_done(&dc);
-    if (src && p) *src = text;
-    else free(text);
     return p;
 }
 

@@ -1,6 +1,6 @@
-/* png.c - the minimal PNG encoder of png.h: a signature, IHDR, IDAT chunks holding a
- * zlib stream of stored (uncompressed) deflate blocks, and IEND.
- * Used by mesh/render.c through `frep render`.
+/* png.c - the PNG encoder of png.h: a signature, IHDR, IDAT chunks holding the zlib
+ * stream of the filtered rows, and IEND.  Used by mesh/render.c through `frep render`.
+ * zlib allocates through frep's allocator, so its failures are out of memory too.
  */
 #include "config.h"
 
@@ -9,11 +9,12 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include <zlib.h>
 
-/* Largest stored deflate block (its length field is 16 bits). */
-#define PNG_STORED_MAX 65535u
-/* Bytes per IDAT chunk: any size works; a few stored blocks per chunk. */
-#define PNG_IDAT_BYTES (4u * (PNG_STORED_MAX + 5u))
+/* Bytes of deflate output per IDAT chunk: any size works. */
+#define PNG_IDAT_BYTES (1u << 18)
+/* The PNG filter types tried on each row (None, Sub, Up, Average, Paeth). */
+#define PNG_FILTERS 5
 
 uint32_t png_crc32(uint32_t crc, const uint8_t *p, size_t n)
 {
@@ -47,9 +48,107 @@ static void chunk(FILE *f, const char *type, const uint8_t *data, uint32_t n)
     fwrite(tail, 1, 4, f);
 }
 
+static unsigned char paeth(int a, int b, int c)
+{
+    int p = a + b - c, pa = abs(p - a), pb = abs(p - b), pc = abs(p - c);
+    return (unsigned char)(pa <= pb && pa <= pc ? a : pb <= pc ? b : c);
+}
+
+/* Row cur (n bytes, the row above prev, NULL for the first) filtered with type t into
+ * out; returns the sum of the filtered bytes as signed values, the usual estimate of
+ * how well the row compresses. */
+static unsigned long filter_row(int t, const uint8_t *cur, const uint8_t *prev, size_t n,
+                                uint8_t *out)
+{
+    unsigned long cost = 0;
+    for (size_t i = 0; i < n; i++) {
+        int a = i >= 3 ? cur[i - 3] : 0, b = prev ? prev[i] : 0, c = prev && i >= 3 ? prev[i - 3] : 0;
+        int pred = t == 1 ? a : t == 2 ? b : t == 3 ? (a + b) / 2 : t == 4 ? paeth(a, b, c) : 0;
+        out[i] = (uint8_t)(cur[i] - pred);
+        cost += out[i] < 128 ? out[i] : 256u - out[i];
+    }
+    return cost;
+}
+
+/* The filtered image: per row, the filter byte and the row with the cheapest filter. */
+static uint8_t *filter_image(const uint8_t *rgb, int w, int h, size_t *len)
+{
+    size_t n = 3 * (size_t)w, row = n + 1;
+    uint8_t *raw = frep_malloc(row * (size_t)h), *tmp = frep_malloc(n);
+    if (!raw || !tmp) {
+        frep_free(raw);
+        frep_free(tmp);
+        return NULL;
+    }
+    for (int y = 0; y < h; y++) {
+        const uint8_t *cur = rgb + n * (size_t)y, *prev = y ? cur - n : NULL;
+        uint8_t *out = raw + row * (size_t)y;
+        unsigned long best = (unsigned long)-1;
+        for (int t = 0; t < PNG_FILTERS; t++) {
+            unsigned long cost = filter_row(t, cur, prev, n, tmp);
+            if (cost < best) {
+                best = cost;
+                out[0] = (uint8_t)t;
+                memcpy(out + 1, tmp, n);
+            }
+        }
+    }
+    frep_free(tmp);
+    *len = row * (size_t)h;
+    return raw;
+}
+
+static voidpf z_alloc(voidpf opaque, uInt items, uInt size)
+{
+    (void)opaque;
+    return frep_reallocarray(NULL, items, size);
+}
+
+static void z_free(voidpf opaque, voidpf p)
+{
+    (void)opaque;
+    frep_free(p);
+}
+
+/* The zlib stream of n bytes, written as IDAT chunks. Returns 0 or -1. */
+static int write_idat(FILE *f, const uint8_t *raw, size_t n)
+{
+    z_stream z;
+    memset(&z, 0, sizeof z);
+    z.zalloc = z_alloc;
+    z.zfree = z_free;
+    uint8_t *out = frep_malloc(PNG_IDAT_BYTES);
+    if (!out || deflateInit(&z, Z_DEFAULT_COMPRESSION) != Z_OK) {
+        frep_free(out);
+        return -1;
+    }
+    int rc = 0, zr = Z_OK;
+    size_t pos = 0;
+    while (zr != Z_STREAM_END && rc == 0) {
+        if (z.avail_in == 0 && pos < n) {
+            uInt take = n - pos > (1u << 30) ? 1u << 30 : (uInt)(n - pos);
+            z.next_in = (Bytef *)(uintptr_t)(raw + pos);
+            z.avail_in = take;
+            pos += take;
+        }
+        z.next_out = out;
+        z.avail_out = PNG_IDAT_BYTES;
+        zr = deflate(&z, pos == n ? Z_FINISH : Z_NO_FLUSH);
+        if (zr != Z_OK && zr != Z_STREAM_END && zr != Z_BUF_ERROR) rc = -1;
+        uint32_t got = PNG_IDAT_BYTES - z.avail_out;
+        if (got) chunk(f, "IDAT", out, got);
+    }
+    deflateEnd(&z);
+    frep_free(out);
+    return rc;
+}
+
 int png_write_rgb(FILE *f, const uint8_t *rgb, int w, int h)
 {
     if (w < 1 || h < 1 || w > PNG_MAX_SIDE || h > PNG_MAX_SIDE) return -1;
+    size_t n;
+    uint8_t *raw = filter_image(rgb, w, h, &n);
+    if (!raw) return -1;
     static const uint8_t sig[8] = { 137, 80, 78, 71, 13, 10, 26, 10 };
     fwrite(sig, 1, 8, f);
     uint8_t ihdr[13];
@@ -59,50 +158,9 @@ int png_write_rgb(FILE *f, const uint8_t *rgb, int w, int h)
     ihdr[9] = 2;  /* colour type: RGB */
     ihdr[10] = ihdr[11] = ihdr[12] = 0;
     chunk(f, "IHDR", ihdr, 13);
-
-    /* raw scanlines: filter byte 0, then the row */
-    size_t row = 1 + 3 * (size_t)w, raw_n = row * (size_t)h;
-    uint8_t *raw = frep_malloc(raw_n);
-    if (!raw) return -1;
-    for (int y = 0; y < h; y++) {
-        raw[row * (size_t)y] = 0;
-        memcpy(raw + row * (size_t)y + 1, rgb + 3 * (size_t)w * (size_t)y, 3 * (size_t)w);
-    }
-    /* zlib stream: header, stored blocks, Adler-32 */
-    size_t nblocks = (raw_n + PNG_STORED_MAX - 1) / PNG_STORED_MAX;
-    size_t z_n = 2 + raw_n + 5 * nblocks + 4;
-    uint8_t *z = frep_malloc(z_n);
-    if (!z) {
-        frep_free(raw);
-        return -1;
-    }
-    size_t o = 0;
-    z[o++] = 0x78; /* deflate, 32K window */
-    z[o++] = 0x01; /* no preset dictionary, check bits make 0x7801 % 31 == 0 */
-    uint32_t a = 1, b = 0;
-    for (size_t pos = 0; pos < raw_n;) {
-        size_t n = raw_n - pos < PNG_STORED_MAX ? raw_n - pos : PNG_STORED_MAX;
-        z[o++] = pos + n == raw_n ? 1 : 0; /* BFINAL, BTYPE = 00 (stored) */
-        z[o++] = (uint8_t)n;
-        z[o++] = (uint8_t)(n >> 8);
-        z[o++] = (uint8_t)~n;
-        z[o++] = (uint8_t)(~n >> 8);
-        memcpy(z + o, raw + pos, n);
-        for (size_t i = 0; i < n; i++) {
-            a = (a + raw[pos + i]) % 65521u;
-            b = (b + a) % 65521u;
-        }
-        o += n;
-        pos += n;
-    }
-    be32(z + o, (b << 16) | a);
-    o += 4;
-    for (size_t pos = 0; pos < o; pos += PNG_IDAT_BYTES) {
-        size_t n = o - pos < PNG_IDAT_BYTES ? o - pos : PNG_IDAT_BYTES;
-        chunk(f, "IDAT", z + pos, (uint32_t)n);
-    }
-    chunk(f, "IEND", NULL, 0);
+    int rc = write_idat(f, raw, n);
     frep_free(raw);
-    frep_free(z);
+    if (rc != 0) return -1;
+    chunk(f, "IEND", NULL, 0);
     return ferror(f) ? -1 : 0;
 }

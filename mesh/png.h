@@ -1,6 +1,5 @@
-/* png.h - a minimal PNG encoder (8-bit RGB, zlib stored blocks, CRC-32, Adler-32),
- * so `frep render` needs no image library.  Output is larger than a compressing
- * encoder's but every PNG reader accepts it.
+/* png.h - the PNG encoder of `frep render` (8-bit RGB, each row filtered with the PNG
+ * filter that suits it best, deflated by zlib, CRC-32).
  */
 #ifndef FREP_PNG_H
 #define FREP_PNG_H
@@ -13,7 +12,7 @@
 #define PNG_MAX_SIDE 16384
 
 /* Write a w x h RGB image (rgb: 3 bytes per pixel, rows top to bottom). Returns 0, or
- * -1 on a write error or bad size. */
+ * -1 on a write error, a bad size or out of memory. */
 int png_write_rgb(FILE *f, const uint8_t *rgb, int w, int h);
 
 /* CRC-32 (ISO 3309, as used by PNG) of n bytes, continuing from crc (start with 0). */

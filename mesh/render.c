@@ -5,15 +5,18 @@
  * interpolated from the mesh's vertex normals (the face normal where a vertex normal
  * disagrees with it by more than 30 degrees, and where the mesh has none).  Cloud
  * points are drawn as small depth-tested discs on top, coloured blue (on the surface)
- * to red (far from it).
+ * to red (far from it); points deep inside the solid as rings through it.  Legends
+ * (mesh/font.c) go to the bottom-right corner.
  */
 #include "config.h"
 
 #include "alloc.h"
+#include "font.h"
 #include "render.h"
 #include "vec3.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 /* Disc radius of an overlay point, in pixels per 1000 pixels of image height. */
@@ -24,9 +27,6 @@
  * edge, and interpolating them makes edges look jagged; the face normal keeps them
  * crisp while smooth surfaces keep their smooth shading. */
 #define RENDER_CREASE_COS 0.866
-/* Depth slack for overlay points, as a fraction of the framed box's diagonal: points on
- * the surface must not be hidden by it. */
-#define RENDER_POINT_DEPTH_SLACK 0.01
 /* Smallest disc radius of an overlay point, in pixels: smaller discs vanish. */
 #define RENDER_POINT_MIN_RADIUS 1.2
 /* The framed box's projection fills this fraction of the image's half-size. */
@@ -99,6 +99,8 @@ typedef struct raster {
     double diag;              /* the framed box's diagonal */
     double *zbuf;             /* w * h depths, INFINITY: nothing drawn */
     uint8_t *rgb;
+    const double *vval;       /* per-vertex colour values (NULL: the plain surface) */
+    double vmax;
 } raster;
 
 /* The empty picture: a light vertical gradient, nothing in depth. */
@@ -161,6 +163,7 @@ static void lights_init(raster *R)
 typedef struct stri {
     double sx[3], sy[3], sd[3];
     const double *N[3];
+    double val[3];            /* the corners' colour values (when R->vval) */
     double area;              /* twice the signed screen area */
 } stri;
 
@@ -187,6 +190,7 @@ static void shade_pixel(raster *R, const stri *T, int x, int y)
     double diff = fmax(0, vec3_dot(n, R->light));
     double spec = pow(fmax(0, vec3_dot(n, R->half)), RENDER_SHININESS);
     double base[3] = { 0.62, 0.70, 0.82 };
+    if (R->vval) render_colour((b0 * T->val[0] + b1 * T->val[1] + b2 * T->val[2]) / R->vmax, base);
     uint8_t *c = &R->rgb[3 * pi];
     for (int i = 0; i < 3; i++)
         c[i] = to_byte(base[i] * (RENDER_AMBIENT + RENDER_DIFFUSE * diff) + RENDER_SPECULAR * spec);
@@ -208,6 +212,7 @@ static void draw_triangle(raster *R, const frep_mesh *m, size_t t)
     for (int k = 0; k < 3; k++) {
         project(&R->cam, P[k], &T.sx[k], &T.sy[k], &T.sd[k]);
         T.N[k] = m->n ? &m->n[3 * m->tri[3 * t + k]] : fn;
+        T.val[k] = R->vval ? R->vval[m->tri[3 * t + k]] : 0;
         if (!(vec3_dot(T.N[k], fn) >= RENDER_CREASE_COS)) T.N[k] = fn;
     }
     const double *sx = T.sx, *sy = T.sy;
@@ -223,16 +228,19 @@ static void draw_triangle(raster *R, const frep_mesh *m, size_t t)
         for (int x = x0; x <= x1; x++) shade_pixel(R, &T, x, y);
 }
 
-/* The colour of value t in [0, 1]: blue -> green -> red. */
-static void value_colour(double t, double col[3])
+void render_colour(double t, double col[3])
 {
+    if (!(t >= 0)) t = t < 0 ? 0 : 1;
+    if (t > 1) t = 1;
     col[0] = t < 0.5 ? 0.1 : 2 * (t - 0.5) + 0.1 * (1 - t);
     col[1] = t < 0.5 ? 0.3 + 1.2 * t : 1.8 * (1 - t);
     col[2] = t < 0.5 ? 0.9 * (1 - 2 * t) + 0.1 : 0.05;
 }
 
-/* Overlay point i as a disc of radius r pixels, depth-tested with slack. */
-static void draw_point(raster *R, const render_points *pts, size_t i, double r, double slack)
+/* Overlay point i as a disc of radius r pixels, depth-tested with slack; or, as a
+ * ring (inner half left out, dark rim) drawn through the surface, when ring. */
+static void draw_point(raster *R, const render_points *pts, size_t i, double r, double slack,
+                       int ring)
 {
     int W = R->cam.w, H = R->cam.h, ir = (int)ceil(r);
     double p[3] = { pts->x[i], pts->y[i], pts->z[i] }, sx, sy, d;
@@ -240,27 +248,120 @@ static void draw_point(raster *R, const render_points *pts, size_t i, double r, 
     double t = pts->value && pts->vmax > 0 ? fabs(pts->value[i]) / pts->vmax : 0;
     if (!(t <= 1)) t = 1;
     double col[3];
-    value_colour(t, col);
+    render_colour(t, col);
     for (int dy = -ir; dy <= ir; dy++)
         for (int dx = -ir; dx <= ir; dx++) {
             int x = (int)floor(sx) + dx, y = (int)floor(sy) + dy;
             if (x < 0 || y < 0 || x >= W || y >= H) continue;
-            double ddx = x + 0.5 - sx, ddy = y + 0.5 - sy;
-            if (ddx * ddx + ddy * ddy > r * r) continue;
+            double ddx = x + 0.5 - sx, ddy = y + 0.5 - sy, q = ddx * ddx + ddy * ddy;
+            if (q > r * r || (ring && q < 0.2 * r * r)) continue;
             size_t pi = (size_t)y * W + x;
-            if (d > R->zbuf[pi] + slack) continue;
+            if (!ring && d > R->zbuf[pi] + slack) continue;
             uint8_t *c = &R->rgb[3 * pi];
-            for (int k = 0; k < 3; k++) c[k] = to_byte(col[k]);
+            int rim = ring && q > 0.6 * r * r;
+            for (int k = 0; k < 3; k++) c[k] = to_byte(rim ? 0 : col[k]);
         }
 }
 
-/* The overlay: every point on top of the surface, coloured by its value. */
+/* Is point i inside the solid by more than the depth slack? */
+static int deep_inside(const render_points *pts, size_t i, double slack)
+{
+    return pts->value_signed && pts->value && pts->value[i] > slack;
+}
+
+/* The overlay: every point on top of the surface, coloured by its value; then the
+ * points deep inside as larger rings over everything. */
 static void draw_points(raster *R, const render_points *pts)
 {
     double r = RENDER_POINT_RADIUS * R->cam.h / 1000.0;
     if (r < RENDER_POINT_MIN_RADIUS) r = RENDER_POINT_MIN_RADIUS;
     double slack = RENDER_POINT_DEPTH_SLACK * R->diag;
-    for (size_t i = 0; i < pts->n; i++) draw_point(R, pts, i, r, slack);
+    for (size_t i = 0; i < pts->n; i++)
+        if (!deep_inside(pts, i, slack)) draw_point(R, pts, i, r, slack, 0);
+    for (size_t i = 0; i < pts->n; i++)
+        if (deep_inside(pts, i, slack)) draw_point(R, pts, i, 1.6 * r + 1, slack, 1);
+}
+
+/* Legend layout, in font pixels (scaled with the picture): the colour bar's size, the
+ * padding, the gap between lines. */
+#define LEGEND_BAR_W 150
+#define LEGEND_BAR_H 8
+#define LEGEND_PAD 4
+#define LEGEND_GAP 3
+/* Ticks under the bar: 0, 1/2, the top of the scale. */
+#define LEGEND_TICKS 3
+
+/* A blend of the rectangle [x0, x1) x [y0, y1) towards white, clipped. */
+static void veil(raster *R, int x0, int y0, int x1, int y1)
+{
+    for (int y = y0 < 0 ? 0 : y0; y < y1 && y < R->cam.h; y++)
+        for (int x = x0 < 0 ? 0 : x0; x < x1 && x < R->cam.w; x++) {
+            uint8_t *c = &R->rgb[3 * ((size_t)y * R->cam.w + x)];
+            for (int k = 0; k < 3; k++) c[k] = (uint8_t)(c[k] / 8 + 255 * 7 / 8);
+        }
+}
+
+/* One legend with its top-left corner at (x, y), k pixels per font pixel: title, the
+ * bar, tick values, the note.  Returns its height. */
+static int draw_legend(raster *R, const render_legend *L, int x, int y, int k)
+{
+    static const uint8_t ink[3] = { 30, 30, 40 };
+    int W = R->cam.w, H = R->cam.h, line = (FONT_H + LEGEND_GAP) * k, y0 = y;
+    char s[160];
+    snprintf(s, sizeof s, "%s (%s)", L->title, L->units ? L->units : "model units");
+    font_draw(R->rgb, W, H, x, y, k, s, ink);
+    y += line;
+    for (int bx = 0; bx < LEGEND_BAR_W * k; bx++) {
+        double col[3];
+        render_colour((double)bx / (LEGEND_BAR_W * k - 1), col);
+        for (int by = 0; by < LEGEND_BAR_H * k; by++) {
+            int px = x + bx, py = y + by;
+            if (px < 0 || py < 0 || px >= W || py >= H) continue;
+            uint8_t *c = &R->rgb[3 * ((size_t)py * W + px)];
+            for (int j = 0; j < 3; j++) c[j] = to_byte(col[j]);
+        }
+    }
+    y += (LEGEND_BAR_H + LEGEND_GAP) * k;
+    for (int i = 0; i < LEGEND_TICKS; i++) {
+        double v = L->vmax * i / (LEGEND_TICKS - 1);
+        snprintf(s, sizeof s, i == LEGEND_TICKS - 1 ? ">=%.3g" : "%.3g", v);
+        int tx = x + (LEGEND_BAR_W * k - 1) * i / (LEGEND_TICKS - 1) -
+                 font_width(s, k) * i / (LEGEND_TICKS - 1);
+        font_draw(R->rgb, W, H, tx, y, k, s, ink);
+    }
+    y += line;
+    if (L->note) {
+        font_draw(R->rgb, W, H, x, y, k, L->note, ink);
+        y += line;
+    }
+    return y - y0;
+}
+
+/* Width of a legend's widest line, in pixels. */
+static int legend_width(const render_legend *L, int k)
+{
+    char s[160];
+    snprintf(s, sizeof s, "%s (%s)", L->title, L->units ? L->units : "model units");
+    int w = font_width(s, k);
+    if (L->note && font_width(L->note, k) > w) w = font_width(L->note, k);
+    return w > LEGEND_BAR_W * k ? w : LEGEND_BAR_W * k;
+}
+
+/* The legends stacked in the bottom-right corner on a light veil. */
+static void draw_legends(raster *R, const render_options *o)
+{
+    int k = R->cam.h >= 900 ? R->cam.h / 450 : 1, w = 0, h = 0;
+    int line = (FONT_H + LEGEND_GAP) * k;
+    for (int i = 0; i < o->nlegends; i++) {
+        const render_legend *L = &o->legends[i];
+        int lw = legend_width(L, k);
+        if (lw > w) w = lw;
+        h += 2 * line + (LEGEND_BAR_H + LEGEND_GAP) * k + (L->note ? line : 0) + LEGEND_PAD * k;
+    }
+    int x = R->cam.w - w - 2 * LEGEND_PAD * k, y = R->cam.h - h - 2 * LEGEND_PAD * k;
+    veil(R, x - LEGEND_PAD * k, y - LEGEND_PAD * k, R->cam.w - LEGEND_PAD * k, R->cam.h - LEGEND_PAD * k);
+    for (int i = 0; i < o->nlegends; i++)
+        y += draw_legend(R, &o->legends[i], x, y, k) + LEGEND_PAD * k;
 }
 
 int render_mesh(const frep_mesh *m, const render_points *pts, const render_options *o,
@@ -275,11 +376,14 @@ int render_mesh(const frep_mesh *m, const render_points *pts, const render_optio
     R.rgb = rgb;
     R.zbuf = frep_malloc((size_t)o->width * (size_t)o->height * sizeof *R.zbuf);
     if (!R.zbuf) return frep_error_nomem(e);
+    R.vval = o->vertex_value && o->vertex_vmax > 0 ? o->vertex_value : NULL;
+    R.vmax = o->vertex_vmax;
     camera_init(&R, vd, o);
     clear_picture(&R);
     lights_init(&R);
     for (size_t t = 0; t < m->ntris; t++) draw_triangle(&R, m, t);
     if (pts) draw_points(&R, pts);
+    if (o->nlegends > 0) draw_legends(&R, o);
     frep_free(R.zbuf);
     return 0;
 }

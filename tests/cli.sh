@@ -31,8 +31,8 @@ usage() {
 }
 
 subs=$("$FREP" --help | awk '/^Subcommands:/ { on = 1; next } on && /^  [a-z]/ { print $1 }')
-[ "$(echo $subs)" = "check eval print dis mesh sample fit render segment evolve" ]
-report $? "frep --help lists the ten subcommands"
+[ "$(echo $subs)" = "check eval print dis mesh sample fit render view segment evolve" ]
+report $? "frep --help lists the eleven subcommands"
 
 for s in $subs; do
     "$FREP" "$s" --help >"$tmp/help" 2>"$tmp/err"
@@ -67,7 +67,7 @@ usage "frep eval: option '-m' needs a value" eval "$M" -m
 usage "frep mesh: -g: expected grid cells per axis in 1..2048, got '0'" mesh "$M" -g 0 -o "$tmp/x.stl"
 usage "frep mesh: --grid: expected grid cells per axis in 1..2048, got '4096' (the mesh would not fit in memory)" \
     mesh "$M" --grid 4096 -o "$tmp/x.stl"
-for s in mesh sample render eval fit segment evolve; do
+for s in mesh sample render view eval fit segment evolve; do
     usage "frep $s: -t: expected an integer in 1..1024, got '0'" $s "$M" -t 0
     usage "frep $s: --threads: expected an integer in 1..1024, got '2.5'" $s "$M" --threads 2.5
 done

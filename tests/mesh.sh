@@ -100,6 +100,8 @@ t "sample prints the seed" sh -c "'$FREP' sample '$M/block_minus_ball.hf' -b 1 -
 t "sample writes 1000 lines of 6 numbers" sh -c "test \$(wc -l < '$T/c.xyz') -eq 1000 && awk 'NF != 6 { exit 1 }' '$T/c.xyz'"
 t "render with points" "$FREP" render "$M/block_minus_ball.hf" -b 1 -g 32 --size 64x48 --view top --points "$T/c.xyz" -o "$T/v.png"
 t "render writes a PNG" sh -c "head -c 8 '$T/v.png' | od -An -c | grep -q 'P   N   G'"
+t "render a mesh file with points" sh -c "'$FREP' mesh '$M/block_minus_ball.hf' -b 1 -g 24 -o '$T/v.off' -q && '$FREP' render '$T/v.off' --size 64x48 --points '$T/c.xyz' -o '$T/vm.png' --scale 0.01 | grep -q '1000 points'"
+t "render compresses: a 1000x1000 picture under 200 kB" sh -c "'$FREP' render '$M/block_minus_ball.hf' -b 1 -g 32 --size 1000x1000 -o '$T/big.png' -q && test \$(wc -c < '$T/big.png') -lt 200000"
 f "empty model" "empty in the box" "$FREP" mesh "$M/block_minus_ball.hf" -b 5,6 -o "$T/e.stl"
 f "full model" "fills all of" "$FREP" mesh "$M/block_minus_ball.hf" -b 0.1 -o "$T/e.stl"
 f "huge -g" "1..2048" "$FREP" mesh "$M/block_minus_ball.hf" -g 99999 -o "$T/e.stl"

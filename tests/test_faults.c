@@ -22,6 +22,8 @@
 #include "mesh.h"
 #include "meshio.h"
 #include "normals.h"
+#include "distance.h"
+#include "page.h"
 #include "png.h"
 #include "prune.h"
 #include "refit.h"
@@ -769,9 +771,9 @@ static int case_render(const fixture *fx, fault_out *o)
 {
     enum { W = 24, H = 16 };
     uint8_t rgb[3 * W * H];
-    render_options ro = { W, H, "iso", { -2, -2, -2, 2, 2, 2 } };
+    render_options ro = { W, H, "iso", { -2, -2, -2, 2, 2, 2 }, NULL, 0, 0, { { 0 } } };
     const frep_cloud *c = fx->cloud;
-    render_points rp = { c->n, c->x, c->y, c->z, NULL, 1 };
+    render_points rp = { c->n, c->x, c->y, c->z, NULL, 1, 0 };
     frep_error err;
     frep_error_init(&err);
     if (render_mesh(&fx->mesh, &rp, &ro, rgb, &err)) {
@@ -806,6 +808,55 @@ static int case_buf(const fixture *fx, fault_out *o)
     if (!str) return -1;
     digest_bytes(o, str, len);
     frep_free(str);
+    return 0;
+}
+
+/* frep view's distances: the model's to the cloud's points, the mesh's, the vertices'
+ * to the cloud, and the scale chosen from them. */
+static int case_view_distances(const fixture *fx, fault_out *o)
+{
+    const frep_cloud *c = fx->cloud;
+    const frep_mesh *m = &fx->mesh;
+    double *d = malloc((c->n + m->nverts) * sizeof *d), s = 0;
+    if (!d) return -1;
+    frep_error e;
+    frep_error_init(&e);
+    int rc = view_point_distances(fx->prog, 0, c->n, c->x, c->y, c->z, 1, d, NULL, &e);
+    if (!rc) rc = view_auto_scale(d, c->n, VIEW_POINTS_QUANTILE, 1, 0, &s, &e);
+    if (!rc) digest_doubles(o, d, c->n), digest_doubles(o, &s, 1);
+    if (!rc) rc = view_mesh_distances(m, c->n, c->x, c->y, c->z, d, &e);
+    if (!rc) rc = view_vertex_distances(m, c->n, c->x, c->y, c->z, d + c->n, &e);
+    if (!rc) digest_doubles(o, d, c->n + m->nverts);
+    if (rc) set_msg(o, e.msg);
+    free(d);
+    return rc;
+}
+
+/* frep view's page of the fixture mesh and cloud. */
+static int case_view_page(const fixture *fx, fault_out *o)
+{
+    const frep_cloud *c = fx->cloud;
+    view_scene sc;
+    memset(&sc, 0, sizeof sc);
+    sc.name = "fixture.hf";
+    sc.mesh = &fx->mesh;
+    sc.npoints = c->n;
+    sc.px = c->x;
+    sc.py = c->y;
+    sc.pz = c->z;
+    sc.pdist = c->x;
+    sc.pscale = 1;
+    sc.source = "my_model(x[3], a[1]) { my_model = 1; }";
+    frep_error e;
+    frep_error_init(&e);
+    size_t len;
+    char *page = view_page(&sc, 0, &len, &e);
+    if (!page) {
+        set_msg(o, e.msg);
+        return -1;
+    }
+    digest_bytes(o, page, len);
+    frep_free(page);
     return 0;
 }
 
@@ -865,6 +916,8 @@ static const fault_case cases[] = {
       "evolve_refit reports out of memory as 'the tree cannot be evaluated at the "
       "points' or without a message (evolve/refit.c, fit/objective.c)" },
     { "render", case_render, MSG_NONE, NULL },
+    { "view_distances", case_view_distances, MSG_GIVEN, NULL },
+    { "view_page", case_view_page, MSG_GIVEN, NULL },
     { "buf", case_buf, MSG_NONE, NULL },
     { "strdupf", case_strdupf, MSG_NONE, NULL },
 };

@@ -1,0 +1,417 @@
+/* cmd_view.c - frep view: the page of a model (polygonized as by frep mesh, through
+ * cli/model.c, or a mesh file) and of a cloud with its distances (view/distance.c),
+ * written by view/page.c as one self-contained HTML file with a WebGL viewer; with
+ * --watch served on 127.0.0.1 (view/serve.c) and rebuilt on every save.
+ */
+#include "config.h"
+
+#include "cli.h"
+#include "cloud.h"
+#include "mesh.h"
+#include "page.h"
+#include "serve.h"
+
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+/* Colour scale when no distance is finite and positive (a cloud exactly on the
+ * surface): any positive value draws every point blue. */
+#define VIEW_FALLBACK_SCALE 1.0
+
+static const char view_usage[] =
+    "usage: frep view FILE.hf [--points CLOUD] [-o VIEW.html] [options]\n"
+    "       frep view MESH.(off|obj|stl|ply) [--points CLOUD] [-o VIEW.html]\n\n"
+    "Write one self-contained HTML page (it opens from disk: no server, no network) that\n"
+    "draws the model, polygonized as by frep mesh, in WebGL: orbit (left drag), pan\n"
+    "(right or shift drag), zoom (wheel), standard views, a section plane, wireframe.\n"
+    "With --points the cloud is drawn too, each point coloured by its distance\n"
+    "|f|/|grad f| to the surface, points inside the solid drawn through it as rings,\n"
+    "and the surface can be coloured by its distance to the nearest point (material the\n"
+    "cloud does not show). The model's text and parameters are beside the picture.\n\n"
+    "With --watch the page is served on http://127.0.0.1:PORT/ instead, and the model\n"
+    "is meshed again on every save of it (or of the cloud); the open page follows, and\n"
+    "shows compile errors with their file:line:col. Ctrl-C stops the server.\n\n";
+
+/* --watch: how often the files are checked for a save, in milliseconds (the page asks
+ * for a new version every 200 ms; a save shows within about 0.3 s plus meshing). */
+#define VIEW_WATCH_POLL_MS 100
+#define VIEW_DEFAULT_PORT "8018"
+/* Grid of the page of frep fit --view and frep evolve --view: frep view's default. */
+#define VIEW_DEFAULT_GRID 128
+
+/* What one build of the page holds: the mesh, the cloud and their distances, the
+ * parameters of the program the mesh was made of. */
+typedef struct view_build {
+    frep_mesh m;
+    mesh_stats st;
+    cli_cloud_dist cd;       /* --points and its distances */
+    size_t np;
+    char **pnames;
+    double *pvalues;
+    char info[160];
+} view_build;
+
+typedef struct view_cmd {
+    mesh_cli mc;
+    const char *in, *out, *points;
+    double scale;            /* --scale: 0 chooses it from the data */
+    int quiet, watch, port;
+    FILE *summary;           /* where the summary line goes (NULL: stdout) */
+    double timeout;          /* --watch: stop after this many seconds (0: at Ctrl-C) */
+    view_build b;            /* the last good build */
+    char *text;              /* --watch: the model's text as last read */
+    frep_buf diag;           /* --watch: messages of the last build */
+    unsigned version;
+    char vtext[16];          /* --watch: the version as the server sends it */
+    char *page, *json;       /* --watch: what the server sends */
+    size_t page_len, json_len;
+    char stamp[2][64];       /* --watch: mtime and size of the model and the cloud */
+} view_cmd;
+
+#define OFF(f) offsetof(view_cmd, f)
+static const cli_opt view_opts[] = {
+    { 'o', "output", "HTML", CLI_OPT_STRING, OFF(out), .def = "view.html",
+      .help = "the page to write (default view.html)" },
+    { 0, "points", "CLOUD", CLI_OPT_STRING, OFF(points), .help = "a point cloud (.xyz or .ply)" },
+    { 'w', "watch", NULL, CLI_OPT_SET, OFF(watch),
+      .help = "serve the page on 127.0.0.1 and rebuild it on every save" },
+    { 0, "port", "N", CLI_OPT_INT, OFF(port), .lo = 0, .hi = 65535, .def = VIEW_DEFAULT_PORT,
+      .help = "the port of the watch server (default " VIEW_DEFAULT_PORT "; 0: any free)" },
+    { 0, "timeout", "S", CLI_OPT_DOUBLE, OFF(timeout), .lo = 0, .hi = INFINITY,
+      .what = "seconds", .help = "stop the watch server after S seconds (default 0: at Ctrl-C)" },
+    { 0, "scale", "D", CLI_OPT_DOUBLE, OFF(scale), .lo = 0, .hi = INFINITY, .open_lo = 1,
+      .what = "a distance", .help = "point distance drawn red (default: from the data, the\n"
+                                    "95th percentile rounded up to 1, 2 or 5 x 10^k)" },
+    CLI_OPT_MODEL(view_cmd, mc.model, "the model (default: my_model, else the last one)"),
+    CLI_OPT_PARAMS(view_cmd, mc.a, "values of the model's a[] array"),
+    CLI_OPT_BOX(view_cmd, mc.box, "HyperFun's -b (default: the model's '-- @box', else 10)"),
+    CLI_OPT_GRID(view_cmd, mc.grid, "128", "grid cells per axis of the mesh (default 128)"),
+    CLI_OPT_ISO(view_cmd, mc.iso, "draw f = V"),
+    CLI_OPT_SETOPS(view_cmd, mc.setops, "override the file's set operations: rfunc, minmax"),
+    CLI_OPT_THREADS(view_cmd, mc.nthreads, "OpenMP threads"),
+    CLI_OPT_QUIET(view_cmd, quiet, "no summary line"),
+};
+#undef OFF
+static const cli_opt_spec view_spec = { "view", view_usage, view_opts,
+                                        sizeof view_opts / sizeof view_opts[0], 22 };
+
+/* The model's mesh: a mesh file as it is, or the model compiled and polygonized. */
+static int stage_mesh(view_cmd *c, view_build *b)
+{
+    if (cli_is_mesh_path(c->in)) return cli_read_mesh("view", c->in, &b->m);
+    if (mesh_cli_compile(&c->mc, c->in) != CLI_OK) return CLI_FAIL;
+    if (mesh_cli_polygonize(&c->mc, "view", &b->m, &b->st) != CLI_OK) return CLI_FAIL;
+    snprintf(b->info, sizeof b->info, "grid %d, box [%g,%g]x[%g,%g]x[%g,%g], meshed in %.2f s",
+             c->mc.grid, c->mc.box[0], c->mc.box[3], c->mc.box[1], c->mc.box[4], c->mc.box[2],
+             c->mc.box[5], b->st.seconds);
+    return CLI_OK;
+}
+
+/* The free parameters of the model, for the side panel (copied: the program is
+ * replaced by the next build). */
+static int stage_params(view_cmd *c, view_build *b)
+{
+    if (!c->mc.p) return CLI_OK;
+    b->np = frep_program_nparams(c->mc.p);
+    b->pnames = calloc(b->np + 1, sizeof *b->pnames);
+    b->pvalues = calloc(b->np + 1, sizeof *b->pvalues);
+    int ok = b->pnames && b->pvalues;
+    for (size_t i = 0; ok && i < b->np; i++) {
+        b->pnames[i] = strdup(frep_program_param_name(c->mc.p, i));
+        b->pvalues[i] = frep_program_param_value(c->mc.p, i);
+        ok = b->pnames[i] != NULL;
+    }
+    if (ok) return CLI_OK;
+    fprintf(stderr, "frep view: out of memory\n");
+    return CLI_FAIL;
+}
+
+/* --points: the cloud and its distances (cli/model.c); --scale. */
+static int stage_points(view_cmd *c, view_build *b)
+{
+    if (cli_cloud_distances("view", c->points, &c->mc, &b->m, &b->cd) != CLI_OK) return CLI_FAIL;
+    if (!(b->cd.pscale > 0)) b->cd.pscale = VIEW_FALLBACK_SCALE;
+    if (!(b->cd.vscale > 0)) b->cd.vscale = VIEW_FALLBACK_SCALE;
+    if (c->scale > 0) b->cd.pscale = c->scale;
+    return CLI_OK;
+}
+
+static void build_free(view_build *b)
+{
+    mesh_free(&b->m);
+    cli_cloud_dist_free(&b->cd);
+    for (size_t i = 0; b->pnames && i < b->np; i++) free(b->pnames[i]);
+    free(b->pnames);
+    free(b->pvalues);
+    memset(b, 0, sizeof *b);
+}
+
+/* mesh -> parameters -> [points]: a new build into *b (released on failure). */
+static int build(view_cmd *c, view_build *b)
+{
+    memset(b, 0, sizeof *b);
+    int rc = stage_mesh(c, b);
+    if (rc == CLI_OK) rc = stage_params(c, b);
+    if (rc == CLI_OK && c->points) rc = stage_points(c, b);
+    if (rc != CLI_OK) build_free(b);
+    return rc;
+}
+
+/* The scene of the page: the last good build, the current text and messages. */
+static void make_scene(const view_cmd *c, view_scene *s)
+{
+    const view_build *b = &c->b;
+    memset(s, 0, sizeof *s);
+    s->name = c->in;
+    s->mesh = &b->m;
+    s->source = c->text ? c->text : c->mc.src;
+    s->nparams = b->np;
+    s->pnames = (const char *const *)b->pnames;
+    s->pvalues = b->pvalues;
+    s->info = b->info;
+    s->diag = c->diag.len ? c->diag.s : NULL;
+    s->version = c->version;
+    if (b->cd.cl) {
+        s->npoints = b->cd.cl->n;
+        s->px = b->cd.cl->x;
+        s->py = b->cd.cl->y;
+        s->pz = b->cd.cl->z;
+        s->pdist = b->cd.pdist;
+        s->pscale = b->cd.pscale;
+        s->vdist = b->cd.vdist;
+        s->vscale = b->cd.vscale;
+    }
+}
+
+static int write_page_cb(FILE *f, void *user)
+{
+    const view_cmd *c = user;
+    view_scene s;
+    make_scene(c, &s);
+    frep_error e;
+    frep_error_init(&e);
+    if (view_write_page(f, &s, &e) == 0) return 0;
+    fprintf(stderr, "frep view: %s\n", e.msg);
+    return -1;
+}
+
+/* The summary line: the page, its size, what it holds. */
+static void report(const view_cmd *c)
+{
+    FILE *f = fopen(c->out, "rb");
+    long size = -1;
+    if (f && fseek(f, 0, SEEK_END) == 0) size = ftell(f);
+    if (f) fclose(f);
+    FILE *o = c->summary ? c->summary : stdout;
+    fprintf(o, "%s: %.2f MB, %zu triangles", c->out, (double)size / 1e6, c->b.m.ntris);
+    if (c->b.cd.cl) fprintf(o, ", %zu points (colour scale %g)", c->b.cd.cl->n, c->b.cd.pscale);
+    fprintf(o, "\n");
+}
+
+/* build -> write -> report */
+static int view_once(view_cmd *c)
+{
+    int rc = build(c, &c->b);
+    if (rc != CLI_OK) return rc;
+    if (cli_write_atomic(c->out, write_page_cb, c) != 0) return CLI_FAIL;
+    if (!c->quiet) report(c);
+    return CLI_OK;
+}
+
+/* The model text a writer callback makes, in memory (free()); NULL when it fails. */
+static char *model_text(const cli_view_job *j)
+{
+    char *text = NULL;
+    size_t len = 0;
+    FILE *m = open_memstream(&text, &len);
+    if (!m) return NULL;
+    int rc = j->write_model(m, j->user);
+    if (fclose(m) != 0 || rc != 0) {
+        free(text);
+        return NULL;
+    }
+    return text;
+}
+
+int cli_view_result(const cli_view_job *j)
+{
+    view_cmd c;
+    memset(&c, 0, sizeof c);
+    mesh_cli_init(&c.mc);
+    c.mc.grid = VIEW_DEFAULT_GRID;
+    c.mc.nthreads = j->nthreads;
+    c.mc.model = j->model;
+    c.in = j->name ? j->name : "(standard output)";
+    c.summary = j->name ? stdout : stderr;
+    c.out = j->out;
+    c.points = j->cloud;
+    c.quiet = j->quiet;
+    char *text = model_text(j);
+    c.mc.text = text;
+    if (j->a && j->na) {
+        c.mc.a.v = malloc(j->na * sizeof *c.mc.a.v);
+        if (c.mc.a.v) memcpy(c.mc.a.v, j->a, j->na * sizeof *c.mc.a.v);
+        c.mc.a.n = c.mc.a.v ? j->na : 0;
+    }
+    int rc = text ? view_once(&c) : CLI_FAIL;
+    if (!text) fprintf(stderr, "frep %s: cannot write the model for --view\n", j->sub);
+    build_free(&c.b);
+    mesh_cli_free(&c.mc);
+    free(text);
+    return rc;
+}
+
+/* ---- --watch ---------------------------------------------------------------- */
+
+/* "mtime size" of a file ("" when it cannot be read): a save changes it. */
+static void file_stamp(const char *path, char out[64])
+{
+    struct stat st;
+    out[0] = '\0';
+    if (path && stat(path, &st) == 0)
+        snprintf(out, 64, "%lld.%09ld %lld", (long long)st.st_mtim.tv_sec,
+                 (long)st.st_mtim.tv_nsec, (long long)st.st_size);
+}
+
+/* The page and the scene JSON the server sends, for the current version. */
+static int render_replies(view_cmd *c)
+{
+    view_scene s;
+    make_scene(c, &s);
+    frep_free(c->page);
+    frep_free(c->json);
+    frep_error e;
+    frep_error_init(&e);
+    c->page = view_page(&s, 1, &c->page_len, &e);
+    snprintf(c->vtext, sizeof c->vtext, "%u", c->version);
+    frep_buf j = FREP_BUF_INIT;
+    view_scene_json(&j, &s);
+    c->json = buf_finish(&j, &c->json_len);
+    if (c->page && c->json) return CLI_OK;
+    fprintf(stderr, "frep view: out of memory\n");
+    return CLI_FAIL;
+}
+
+/* A new version: read the text, build; on failure keep the last good build and show
+ * the messages in the page. */
+static int rebuild(view_cmd *c)
+{
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    file_stamp(c->in, c->stamp[0]);
+    file_stamp(c->points, c->stamp[1]);
+    buf_free(&c->diag);
+    c->diag = (frep_buf)FREP_BUF_INIT;
+    free(c->text);
+    c->text = cli_is_mesh_path(c->in) ? NULL : cli_read_file(c->in, NULL);
+    frep_program *old_p = c->mc.p;
+    char *old_src = c->mc.src;
+    c->mc.p = NULL;
+    c->mc.src = NULL;
+    view_build nb;
+    if (build(c, &nb) == CLI_OK) {
+        build_free(&c->b);
+        c->b = nb;
+        if (old_p) frep_program_free(old_p);
+        free(old_src);
+    } else {
+        if (c->mc.p) frep_program_free(c->mc.p);
+        free(c->mc.src);
+        c->mc.p = old_p;
+        c->mc.src = old_src;
+        if (!c->diag.len)
+            buf_printf(&c->diag, "%s: no new mesh (the messages are in the terminal)\n", c->in);
+    }
+    c->version++;
+    int rc = render_replies(c);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    if (!c->quiet)
+        fprintf(stderr, "frep view: version %u of %s (%zu triangles%s), %.2f s\n", c->version,
+                c->in, c->b.m.ntris, c->diag.len ? ", with errors" : "",
+                (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec));
+    return rc;
+}
+
+/* The server's routes: the page, its version, the scene. */
+static void route(void *user, const char *path, view_reply *r)
+{
+    view_cmd *c = user;
+    static const char json_type[] = "application/json";
+    if (strcmp(path, "/") == 0 || strncmp(path, "/?", 2) == 0 || strcmp(path, "/index.html") == 0) {
+        *r = (view_reply){ 200, "text/html; charset=utf-8", c->page, c->page_len };
+    } else if (strcmp(path, "/version") == 0) {
+        *r = (view_reply){ 200, "text/plain", c->vtext, strlen(c->vtext) };
+    } else if (strcmp(path, "/scene.json") == 0) {
+        *r = (view_reply){ 200, json_type, c->json, c->json_len };
+    }
+}
+
+/* Has the model or the cloud been saved since the last build? */
+static int changed(const view_cmd *c)
+{
+    char now[2][64];
+    file_stamp(c->in, now[0]);
+    file_stamp(c->points, now[1]);
+    return strcmp(now[0], c->stamp[0]) != 0 || strcmp(now[1], c->stamp[1]) != 0;
+}
+
+/* Serve until Ctrl-C or --timeout, rebuilding after every save. */
+static int view_watch(view_cmd *c)
+{
+    c->mc.diag = &c->diag;
+    if (rebuild(c) != CLI_OK) return CLI_FAIL;
+    frep_error e;
+    frep_error_init(&e);
+    view_server *srv = view_server_open(c->port, &e);
+    if (!srv) {
+        fprintf(stderr, "frep view: %s\n", e.msg);
+        return CLI_FAIL;
+    }
+    printf("frep view: serving %s on http://127.0.0.1:%d/ (Ctrl-C stops)\n", c->in,
+           view_server_port(srv));
+    fflush(stdout);
+    cli_sigint_catch();
+    struct timespec t0, t;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    int rc = CLI_OK;
+    while (rc == CLI_OK && !cli_interrupted()) {
+        view_server_step(srv, VIEW_WATCH_POLL_MS, route, c);
+        clock_gettime(CLOCK_MONOTONIC, &t);
+        if (c->timeout > 0 && (double)(t.tv_sec - t0.tv_sec) + 1e-9 * (double)(t.tv_nsec - t0.tv_nsec) >= c->timeout)
+            break;
+        if (changed(c)) rc = rebuild(c);
+    }
+    cli_sigint_restore();
+    view_server_close(srv);
+    if (!c->quiet) fprintf(stderr, "frep view: stopped\n");
+    return rc;
+}
+
+/* Options -> one model or mesh file. */
+static int stage_options(view_cmd *c, int argc, char **argv)
+{
+    cli_args args;
+    int rc = mesh_cli_parse(&view_spec, argc, argv, c, offsetof(view_cmd, mc), &args);
+    if (rc != CLI_GO_ON) return rc;
+    if (args.n != 1) return cli_usage_error("view", "expected one input: FILE.hf or a mesh file");
+    c->in = args.v[0];
+    return CLI_GO_ON;
+}
+
+int cmd_view(int argc, char **argv)
+{
+    view_cmd c;
+    memset(&c, 0, sizeof c);
+    mesh_cli_init(&c.mc);
+    int rc = stage_options(&c, argc, argv);
+    if (rc == CLI_GO_ON) rc = c.watch ? view_watch(&c) : view_once(&c);
+    build_free(&c.b);
+    free(c.text);
+    buf_free(&c.diag);
+    frep_free(c.page);
+    frep_free(c.json);
+    mesh_cli_free(&c.mc);
+    return rc;
+}

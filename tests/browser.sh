@@ -1,0 +1,84 @@
+#!/bin/sh
+# browser.sh - frep view's page in a real browser (headless Chromium, its software
+# WebGL, driven by tests/cdp.py over the DevTools protocol): loaded from disk and from
+# the --watch server, screenshots checked by tests/view_png.py (the model drawn where
+# the mesh projects, the legend's colour bar), a save changing the open page's picture
+# within seconds, a syntax error shown with its file:line:col.  Skipped, saying why,
+# without chromium or python3 (TAP output).
+: "${FREP:=./frep}" "${srcdir:=.}"
+CHROMIUM=$(command -v chromium || command -v chromium-browser || command -v google-chrome || true)
+if [ -z "$CHROMIUM" ]; then echo "1..0 # SKIP chromium is not installed (apt-get install chromium)"; exit 0; fi
+if ! command -v python3 >/dev/null 2>&1; then echo "1..0 # SKIP python3 is not installed (the screenshot checks)"; exit 0; fi
+T=${TMPDIR:-/tmp}/frep-browser-test.$$
+mkdir -p "$T" || exit 1
+pid=
+trap '[ -n "$pid" ] && kill "$pid" 2>/dev/null; rm -rf "$T"' EXIT
+n=0
+fails=0
+report() { # report STATUS DESCRIPTION
+  n=$((n + 1))
+  if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; fails=$((fails + 1)); fi
+}
+# The window and the page's side panel (view/viewer.html, #side).
+SIZE=1000x700 SIDE=330
+READY='until:document.body.getAttribute("data-ready"):30000'
+cdp() { timeout 180 python3 "$srcdir/tests/cdp.py" "$CHROMIUM" $SIZE "$@" 2>>"$T/cdp.log"; }
+png() { python3 "$srcdir/tests/view_png.py" "$@"; }
+
+printf 'my_model(x[3], a[1])\n{\n    my_model = frSphere(x, 0, 0, 0, 1.1);\n}\n' >"$T/big.hf"
+printf 'my_model(x[3], a[1])\n{\n    my_model = frSphere(x, 0, 0, 0, 1);\n}\n' >"$T/unit.hf"
+"$FREP" sample "$T/unit.hf" -b 2 -n 3000 --seed 1 -o "$T/unit.xyz" >/dev/null 2>&1
+"$FREP" view "$T/big.hf" -b 2 -g 64 --points "$T/unit.xyz" -o "$T/big.html" -q
+
+# from disk
+cdp "file://$T/big.html" "$READY" shot:"$T/disk.png" 'eval:document.getElementById("legend").textContent' \
+  'eval:(document.getElementById("source").textContent + document.getElementById("params").textContent).replace(/\n/g, " ")' \
+  >"$T/disk.out"
+png drawn "$T/disk.png" $SIDE >"$T/out"
+report $? "from disk: the model is drawn and the legend's bar is there ($(cat "$T/out"))"
+sed -n 1p "$T/disk.out" | grep -q '3000 of 3000 points inside the solid, 3000 deeper than'
+report $? "from disk: the legend says every point is inside the too-large sphere"
+sed -n 2p "$T/disk.out" | grep -q 'frSphere(x, 0, 0, 0, 1.1).*a\[1\]'
+report $? "from disk: the source and the parameters are beside the picture"
+cdp "file://$T/big.html?bench=30" 'until:document.body.getAttribute("data-frame-ms"):60000' \
+  'eval:document.body.getAttribute("data-frame-ms")' >"$T/bench.out"
+report $? "a frame time is measured: $(cat "$T/bench.out") ms a frame (software WebGL, $(wc -c <"$T/big.html") bytes)"
+
+# from the --watch server: load, save a new model, then a syntax error
+cp "$T/big.hf" "$T/w.hf"
+"$FREP" view --watch "$T/w.hf" -b 2 -g 64 --points "$T/unit.xyz" --port 0 --timeout 170 -q \
+  >"$T/wout" 2>"$T/werr" &
+pid=$!
+i=0
+while [ $i -lt 100 ] && ! grep -q serving "$T/wout" 2>/dev/null; do sleep 0.1; i=$((i + 1)); done
+url=$(sed -n 's|.*\(http://127.0.0.1:[0-9]*/\).*|\1|p' "$T/wout")
+two='my_model = frSphere(x, 0.6, 0, 0, 0.5) | frSphere(x, -0.6, 0, 0, 0.5);'
+bad='my_model = frSphere(x 0, 0, 0, 0.8);'
+cdp "$url" "$READY" shot:"$T/served.png" \
+  "run:printf 'my_model(x[3], a[1])\\n{\\n    $two\\n}\\n' > '$T/w.hf'" mark \
+  'until:document.body.getAttribute("data-version") >= 2:10000' \
+  'since:document.body.getAttribute("data-updated")' shot:"$T/edited.png" \
+  'eval:document.getElementById("diag").hidden' \
+  "run:printf 'my_model(x[3], a[1])\\n{\\n    $bad\\n}\\n' > '$T/w.hf'" \
+  'until:!document.getElementById("diag").hidden:10000' \
+  'eval:document.getElementById("diagtext").textContent' >"$T/watch.out"
+st=$?
+png drawn "$T/served.png" $SIDE >"$T/out"
+report $? "from the server: the model is drawn ($(cat "$T/out"))"
+png diff "$T/served.png" "$T/edited.png" >"$T/out"
+report $? "a save changes the open page's picture ($(cat "$T/out"))"
+ms=$(sed -n 1p "$T/watch.out")
+[ "$ms" -lt 3000 ] 2>/dev/null
+report $? "the new picture is drawn ${ms:-?} ms after the save"
+[ "$(sed -n 2p "$T/watch.out")" = True ]
+report $? "... and the new model compiled (no messages shown)"
+[ $st = 0 ] && sed -n 3p "$T/watch.out" | grep -q "w.hf:3:[0-9]*: error: "
+report $? "a syntax error is shown in the page with its file:line:col: $(sed -n 3p "$T/watch.out")"
+
+kill -INT "$pid"
+wait "$pid"
+report $? "the server stops at Ctrl-C"
+pid=
+[ -s "$T/cdp.log" ] && sed 's/^/# /' "$T/cdp.log"
+echo "1..$n"
+[ $fails = 0 ]

@@ -1,0 +1,91 @@
+#!/bin/sh
+# view.sh - script tests of frep view: the page from a model, a mesh file and with a
+# cloud; --watch serving on loopback, rebuilding after a save, stopping by itself
+# (--timeout) and at Ctrl-C; frep fit --view (TAP output).  The HTTP checks use curl
+# and are skipped without it; tests/browser.sh loads the page in Chromium.
+: "${FREP:=./frep}" "${srcdir:=.}"
+T=${TMPDIR:-/tmp}/frep-view-test.$$
+mkdir -p "$T" || exit 1
+pid=
+trap '[ -n "$pid" ] && kill "$pid" 2>/dev/null; rm -rf "$T"' EXIT
+n=0
+fails=0
+report() { # report STATUS DESCRIPTION
+  n=$((n + 1))
+  if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; fails=$((fails + 1)); fi
+}
+skip() { n=$((n + 1)); echo "ok $n - $1 # SKIP $2"; }
+M="$srcdir/tests/models"
+
+"$FREP" sample "$M/block_minus_ball.hf" -b 1 -n 2000 --seed 3 -o "$T/c.xyz" >/dev/null 2>&1
+"$FREP" view "$M/block_minus_ball.hf" -b 1 -g 32 --points "$T/c.xyz" -o "$T/p.html" >"$T/out" 2>"$T/err"
+report $? "frep view writes a page"
+grep -q "^$T/p.html: [0-9.]* MB, [0-9]* triangles, 2000 points (colour scale " "$T/out"
+report $? "the summary line: size, triangles, points, scale"
+head -c 15 "$T/p.html" | grep -q '<!DOCTYPE html>' && grep -q 'var FREP_SCENE = {"version":0' "$T/p.html"
+report $? "the page holds the viewer and the scene"
+! grep -q 'src="http\|href="http\|/\*@FREP_SCENE@\*/' "$T/p.html"
+report $? "no network resource, no placeholder left"
+"$FREP" mesh "$M/block_minus_ball.hf" -b 1 -g 24 -o "$T/m.off" -q &&
+  "$FREP" view "$T/m.off" --points "$T/c.xyz" -o "$T/m.html" -q && grep -q '"source":null' "$T/m.html"
+report $? "a mesh file as the model, with points"
+"$FREP" view "$M/block_minus_ball.hf" -b 1 -g 32 --points "$T/nope.xyz" -o "$T/x.html" 2>"$T/err"
+[ $? = 1 ] && [ ! -f "$T/x.html" ]
+report $? "a missing cloud fails and writes nothing"
+
+# --watch
+cp "$M/block_minus_ball.hf" "$T/w.hf"
+"$FREP" view --watch "$T/w.hf" -b 1 -g 24 --port 0 --timeout 1 >"$T/out" 2>"$T/err"
+st=$?
+[ $st = 0 ] && grep -q '^frep view: serving .* on http://127.0.0.1:[0-9]*/' "$T/out" && grep -q 'stopped' "$T/err"
+report $? "--watch --timeout 1 serves on 127.0.0.1 and stops by itself (exit $st)"
+
+"$FREP" view --watch "$T/w.hf" -b 1 -g 24 --port 0 --timeout 20 >"$T/wout" 2>"$T/werr" &
+pid=$!
+i=0
+while [ $i -lt 100 ] && ! grep -q serving "$T/wout" 2>/dev/null; do sleep 0.1; i=$((i + 1)); done
+port=$(sed -n 's|.*http://127.0.0.1:\([0-9]*\)/.*|\1|p' "$T/wout")
+[ -n "$port" ]
+report $? "the watch server tells its port"
+if command -v curl >/dev/null 2>&1 && [ -n "$port" ]; then
+  v1=$(curl -s "http://127.0.0.1:$port/version")
+  curl -s "http://127.0.0.1:$port/" | head -c 15 | grep -q '<!DOCTYPE html>'
+  report $? "GET / is the page"
+  sleep 0.05
+  printf 'my_model(x[3], a[1])\n{\n    my_model = frSphere(x, 0, 0, 0, 0.5);\n}\n' >"$T/w.hf"
+  i=0; v2=$v1
+  while [ $i -lt 50 ] && [ "$v2" = "$v1" ]; do sleep 0.1; v2=$(curl -s "http://127.0.0.1:$port/version"); i=$((i + 1)); done
+  [ "$v2" -gt "$v1" ] 2>/dev/null
+  report $? "a save makes a new version ($v1 -> $v2 in about $((i * 100)) ms)"
+  printf 'my_model(x[3], a[1])\n{\n    my_model = frSphere(x 0, 0, 0, 0.5);\n}\n' >"$T/w.hf"
+  i=0; d=
+  while [ $i -lt 50 ] && ! echo "$d" | grep -q '"diag":"'; do sleep 0.1; d=$(curl -s "http://127.0.0.1:$port/scene.json"); i=$((i + 1)); done
+  echo "$d" | grep -q '"diag":"[^"]*w.hf:3:[0-9]*: error: ' && echo "$d" | grep -q '"mesh":{"nv"'
+  report $? "a syntax error: its file:line:col in the scene, the last good mesh kept"
+  curl -s -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/nothing" | grep -q 404
+  report $? "unknown paths are 404"
+else
+  for d in "GET / is the page" "a save makes a new version" "a syntax error is shown" "404"; do
+    skip "$d" "curl is not installed"
+  done
+fi
+kill -INT "$pid"
+wait "$pid"
+st=$?
+pid=
+[ $st = 0 ] && grep -q 'stopped' "$T/werr"
+report $? "Ctrl-C stops the server cleanly (exit $st)"
+
+"$FREP" view --watch "$T/w.hf" --port 99999 -o "$T/x.html" 2>"$T/err"
+[ $? = 2 ] && grep -q 'port' "$T/err"
+report $? "a port beyond 65535 is a usage error"
+
+# frep fit --view
+E="$srcdir/examples/fit"
+"$FREP" sample "$E/part_truth.hf" -n 1500 --seed 5 -o "$T/f.xyz" >/dev/null 2>&1
+"$FREP" fit "$E/part.hf" "$T/f.xyz" --seed 2 --max-evals 200 -o "$T/f.hf" --view "$T/f.html" -q 2>"$T/err"
+grep -q '"name":"'"$T"'/f.hf"' "$T/f.html" 2>/dev/null && grep -q '"points":{"n":1500' "$T/f.html"
+report $? "frep fit --view writes the page of the fitted template with the cloud"
+
+echo "1..$n"
+[ $fails = 0 ]
