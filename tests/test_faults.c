@@ -691,16 +691,22 @@ static void evolve_opts(evolve_options *eo, int partition)
     eo->sample = 200;
 }
 
-/* The model and the Graphviz drawing of an evolve result. */
+/* The model and the Graphviz drawing of an evolve result, without the run's time (it
+ * differs from run to run; the result must not). The writers give a status only; on a
+ * memory stream a failure is out of memory. */
 static int write_evolved(const fixture *fx, fault_out *o, const evolve_result *r,
                          const prim *pr, const evolve_options *eo)
 {
     mem_out mo;
     if (!mem_open(&mo)) return -1;
     evolve_meta meta = { "test", "cube.xyz", 5, eo->gp.setops, NULL, NULL };
-    int rc = evolve_write_model(mo.f, r, pr, fx->nprims, &meta);
-    if (!rc) rc = evolve_write_dot(mo.f, r, pr, fx->nprims);
-    return mem_close(&mo, o, rc);
+    evolve_result timeless = *r;
+    timeless.seconds = 0;
+    int rc = evolve_write_model(mo.f, &timeless, pr, fx->nprims, &meta);
+    if (!rc) rc = evolve_write_dot(mo.f, &timeless, pr, fx->nprims);
+    rc = mem_close(&mo, o, rc);
+    if (rc) set_msg(o, "out of memory");
+    return rc;
 }
 
 static int run_evolve(const fixture *fx, fault_out *o, int partition)
@@ -903,12 +909,8 @@ static const fault_case cases[] = {
       "out of memory in the optimizers is FIT_FAILED, absorbed by the annealing, and "
       "in evaluation 'cannot be evaluated' (fit/optim.c, fit/fit.c)" },
     { "writeback", case_writeback, MSG_NONE, NULL },
-    { "evolve", case_evolve, MSG_GIVEN,
-      "gp_score returns NaN on out of memory and the GA ranks the tree as bad "
-      "(evolve/fitness.c, gp.c)" },
-    { "evolve_partition", case_evolve_part, MSG_GIVEN,
-      "as evolve, and tree_reserve failing in the merge moves of partition.c is "
-      "skipped (gp_fitness_replaced)" },
+    { "evolve", case_evolve, MSG_GIVEN, NULL },
+    { "evolve_partition", case_evolve_part, MSG_GIVEN, NULL },
     { "residual", case_residual, MSG_GIVEN, NULL },
     { "refit", case_refit, MSG_GIVEN,
       "evolve_refit reports out of memory as 'the tree cannot be evaluated at the "
