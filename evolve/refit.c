@@ -329,11 +329,12 @@ static int refit_distances(refit_ctx *c, int after)
     if (fit_program_model(c->prog, c->fidx, 1, c->all, &fm)) return frep_error_nomem(c->err);
     fit_objective *ob = fit_objective_new(&fm, &c->pts, &c->cfg.obj);
     double x[1] = { c->all[c->fidx[0]] };
-    int bad = !ob || fit_objective_distances(ob, x, after ? &info->rms_after : &info->rms_before,
-                                             after ? &info->max_after : &info->max_before);
+    int rc = !ob ? -1 : fit_objective_distances(ob, x, after ? &info->rms_after : &info->rms_before,
+                                                after ? &info->max_after : &info->max_before);
     fit_objective_free(ob);
     fit_program_model_free(&fm);
-    if (bad)
+    if (rc < 0) return frep_error_nomem(c->err);
+    if (rc > 0)
         return frep_error_set(c->err, FREP_EINPUT, "the tree cannot be evaluated at the points");
     return 0;
 }
