@@ -11,6 +11,7 @@
 #include "refit.h"
 
 #include "fit.h"
+#include "util.h"
 #include "vec3.h"
 
 #include <math.h>
@@ -416,7 +417,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
                  evolve_refit_info *info, frep_error *err)
 {
     memset(info, 0, sizeof *info);
-    double t0 = gp_now();
+    double t0 = frep_now_seconds();
     refit_ctx c;
     memset(&c, 0, sizeof c);
     c.o = o;
@@ -429,7 +430,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     c.err = err;
     int rc = refit_stages(&c);
     if (rc && c.saved) memcpy(prims, c.saved, nprims * sizeof *prims);
-    info->seconds = gp_now() - t0;
+    info->seconds = frep_now_seconds() - t0;
     frep_program_free(c.prog);
     frep_free(c.src);
     frep_free(c.used);
