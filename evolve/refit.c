@@ -58,13 +58,6 @@ static int prim_params(const prim *q, double v[REFIT_MAX_PRIM_PARAMS])
     return n;
 }
 
-static void unit(double *a)
-{
-    double l = vec3_len(a);
-    if (l > 0)
-        for (int c = 0; c < 3; c++) a[c] /= l;
-}
-
 /* Back from call arguments; directions normalised as the frep functions do. */
 static void prim_set_params(prim *q, const double *v)
 {
@@ -74,7 +67,7 @@ static void prim_set_params(prim *q, const double *v)
     case PRIM_PLANE:
         /* frPlane is d - n.x / |n|: normalising n keeps the function. */
         q->r = v[n++];
-        unit(q->p);
+        vec3_normalize(q->p);
         break;
     case PRIM_SPHERE:
         q->r = fabs(v[n++]);
@@ -83,13 +76,13 @@ static void prim_set_params(prim *q, const double *v)
     case PRIM_CONE:
         for (int c = 0; c < 3; c++) q->a[c] = v[n++];
         q->r = v[n++];
-        unit(q->a);
+        vec3_normalize(q->a);
         break;
     case PRIM_TORUS:
         for (int c = 0; c < 3; c++) q->a[c] = v[n++];
         q->R = v[n++];
         q->r = v[n++];
-        unit(q->a);
+        vec3_normalize(q->a);
         break;
     case PRIM__COUNT:
         break;

@@ -27,18 +27,11 @@ static inline void vec3_sub(const double b[3], const double a[3], double d[3])
     for (int i = 0; i < 3; i++) d[i] = b[i] - a[i];
 }
 
-/* v / |v|, or 0 when |v| is 0 or not finite (no usable direction). */
-static inline void vec3_unit(double v[3])
-{
-    double l = vec3_len(v);
-    if (l > 0 && isfinite(l)) {
-        for (int i = 0; i < 3; i++) v[i] /= l;
-    } else {
-        v[0] = v[1] = v[2] = 0;
-    }
-}
-
-/* v / |v| and 0, or -1 with v unchanged when |v| is 0 or not finite. */
+/* The one normalization of the library: v / |v| and 0 when |v| = sqrt(v . v) is
+ * positive and finite; else -1 with v unchanged: |v| is 0 (v is zero, or so short that
+ * v . v underflows: every component below about 1e-162), infinite (v . v overflows) or
+ * NaN. Such a v has no usable direction; a caller that wants something else then (the
+ * zero vector, a fallback direction, an error) does it where it calls. */
 static inline int vec3_normalize(double v[3])
 {
     double l = vec3_len(v);

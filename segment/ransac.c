@@ -70,16 +70,6 @@
 
 /* ---- small vector and random helpers --------------------------------------- */
 
-static int normalize(double a[3])
-{
-    double l = vec3_len(a);
-    if (!(l > 1e-300) || !isfinite(l)) return -1;
-    a[0] /= l;
-    a[1] /= l;
-    a[2] /= l;
-    return 0;
-}
-
 /* The shared generator (runtime/rng.h) under this file's short names. */
 typedef frep_rng rng;
 static void rng_seed(rng *r, uint64_t seed) { frep_rng_seed(r, seed); }
@@ -199,7 +189,7 @@ static int circle3(const double a3[3], const double b3[3], const double c3[3], d
     vec3_cross(t, axb, u);
     for (int k = 0; k < 3; k++) ctr[k] = c3[k] + u[k] / (2.0 * l2);
     for (int k = 0; k < 3; k++) nrm[k] = axb[k];
-    normalize(nrm);
+    vec3_normalize(nrm);
     double d[3];
     vec3_sub(a3, ctr, d);
     *rad = vec3_len(d);
@@ -234,7 +224,7 @@ static int make_plane(const sample *s, prim *q)
     vec3_sub(s->p[1], s->p[0], u);
     vec3_sub(s->p[2], s->p[0], v);
     vec3_cross(u, v, n);
-    if (normalize(n)) return -1;
+    if (vec3_normalize(n)) return -1;
     if (vec3_dot(n, s->n[0]) < 0) for (int k = 0; k < 3; k++) n[k] = -n[k];
     q->type = PRIM_PLANE;
     memcpy(q->p, n, sizeof n);
@@ -259,7 +249,7 @@ static int make_cylinder(const sample *s, prim *q)
 {
     double a[3];
     vec3_cross(s->n[0], s->n[1], a);
-    if (vec3_len(a) < 1e-2 || normalize(a)) return -1;
+    if (vec3_len(a) < 1e-2 || vec3_normalize(a)) return -1;
     double c[3];
     if (line_closest(s->p[0], s->n[0], s->p[1], s->n[1], c)) return -1;
     q->type = PRIM_CYLINDER;
@@ -288,13 +278,13 @@ static int make_cone(const sample *s, prim *q)
     double d[3][3];
     for (int i = 0; i < 3; i++) {
         vec3_sub(s->p[i], apex, d[i]);
-        if (normalize(d[i])) return -1;
+        if (vec3_normalize(d[i])) return -1;
     }
     double u[3], v[3], a[3];
     vec3_sub(d[1], d[0], u);
     vec3_sub(d[2], d[0], v);
     vec3_cross(u, v, a);
-    if (normalize(a)) return -1;
+    if (vec3_normalize(a)) return -1;
     if (vec3_dot(a, d[0]) < 0) for (int k = 0; k < 3; k++) a[k] = -a[k];
     double ang = 0;
     for (int i = 0; i < 3; i++) ang += acos(fmin(1.0, fmax(-1.0, vec3_dot(a, d[i])))) / 3.0;
@@ -429,7 +419,7 @@ static void basis(const double a[3], double u[3], double v[3])
     if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
     double d = vec3_dot(t, a);
     for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
-    normalize(u);
+    vec3_normalize(u);
     vec3_cross(a, u, v);
 }
 
@@ -481,7 +471,7 @@ static void domain_coords(const prim *q, const frep_cloud *c, const uint32_t *id
             break;
         case PRIM_SPHERE: {
             vec3_sub(p, q->p, v);
-            normalize(v);
+            vec3_normalize(v);
             u = q->r * atan2(vec3_dot(v, e2), vec3_dot(v, e1));
             w = q->r * acos(fmin(1, fmax(-1, vec3_dot(v, ax))));
             D->period[0] = 2 * FREP_PI * q->r;
@@ -698,7 +688,7 @@ static int unpack(prim *q, const double *v)
         return q->r > 0 ? 0 : -1;
     }
     double a[3] = {v[3], v[4], v[5]};
-    if (normalize(a)) return -1;
+    if (vec3_normalize(a)) return -1;
     memcpy(q->a, a, sizeof a);
     if (q->type == PRIM_TORUS) {
         q->R = v[6];
@@ -1558,7 +1548,7 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
     size_t nt = 0, ma = 0;
     if (q->type == PRIM_PLANE || (double)best_cnt >= MODE_FLAT * (double)nv)
         nt = dominant_group(c, inl, m, nc, cosm, ns, tv);
-    if (nt >= RANSAC_MIN_CLOUD && normalize(ns) == 0) {
+    if (nt >= RANSAC_MIN_CLOUD && vec3_normalize(ns) == 0) {
         prim alt;
         size_t ns_pts = densest_slab(c, tv, nt, ns, MODE_SLAB * band0, slab, &alt);
         ma = try_face(d, &alt, slab, ns_pts, min_pts, med0, flag, inl);

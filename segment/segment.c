@@ -499,14 +499,6 @@ static int hf_const(const ast_node *a, double *v)
     return isfinite(*v) ? 0 : -1;
 }
 
-static int unit3(double a[3])
-{
-    double l = vec3_len(a);
-    if (!(l > 0)) return -1;
-    for (int k = 0; k < 3; k++) a[k] /= l;
-    return 0;
-}
-
 /* The primitive of call k with constants a: axes and plane normals made unit (a
  * plane's offset with its normal). Returns -1 for a zero-length one. */
 static int hf_prim_of(const hf_call *k, const double *a, prim *q)
@@ -518,7 +510,7 @@ static int hf_prim_of(const hf_call *k, const double *a, prim *q)
         q->r = a[3];
         if (q->type != PRIM_PLANE) return 0;
         double l0 = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-        if (unit3(q->p)) return -1;
+        if (vec3_normalize(q->p)) return -1;
         q->r /= l0;
         return 0;
     }
@@ -529,7 +521,7 @@ static int hf_prim_of(const hf_call *k, const double *a, prim *q)
     } else {
         q->r = a[6];
     }
-    return unit3(q->a);
+    return vec3_normalize(q->a);
 }
 
 /* The primitive of an assignment's value, if it is a primitive call: 1 when found, 0
