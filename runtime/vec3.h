@@ -40,4 +40,16 @@ static inline int vec3_normalize(double v[3])
     return 0;
 }
 
+/* Unit u and v completing unit a to a right-handed frame (a, u, v): u is the x axis
+ * (the y axis when a is within about 53 degrees of x) made orthogonal to a. */
+static inline void vec3_basis(const double a[3], double u[3], double v[3])
+{
+    double t[3] = {1, 0, 0};
+    if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
+    double d = vec3_dot(t, a);
+    for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
+    vec3_normalize(u);
+    vec3_cross(a, u, v);
+}
+
 #endif

@@ -412,17 +412,6 @@ static uint32_t uf_find(uint32_t *par, uint32_t i)
     return i;
 }
 
-/* Orthonormal u, v completing unit a. */
-static void basis(const double a[3], double u[3], double v[3])
-{
-    double t[3] = {1, 0, 0};
-    if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
-    double d = vec3_dot(t, a);
-    for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
-    vec3_normalize(u);
-    vec3_cross(a, u, v);
-}
-
 /* The parameter domain of q, flattened: point i of the patch at (uv[2i], uv[2i+1]),
  * lengths along the surface; period[k] > 0 for an axis that wraps around. */
 typedef struct pdomain {
@@ -457,7 +446,7 @@ static void domain_coords(const prim *q, const frep_cloud *c, const uint32_t *id
     const double *ax = q->type == PRIM_PLANE ? q->p : q->a;
     double zaxis[3] = {0, 0, 1};
     if (q->type == PRIM_SPHERE) ax = zaxis;
-    basis(ax, e1, e2);
+    vec3_basis(ax, e1, e2);
     D->period[0] = D->period[1] = 0;
     double mean_rho = q->type == PRIM_CONE ? cone_mean_rho(q, c, idx, n) : 0;
     for (size_t i = 0; i < n; i++) {

@@ -118,26 +118,13 @@ static int median_spacing(const frep_cloud *c, double *med)
     return rc;
 }
 
-static void dot_basis(const double a[3], double u[3], double v[3])
-{
-    double t[3] = {1, 0, 0};
-    if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
-    double d = t[0] * a[0] + t[1] * a[1] + t[2] * a[2];
-    for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
-    double l = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-    for (int k = 0; k < 3; k++) u[k] /= l;
-    v[0] = a[1] * u[2] - a[2] * u[1];
-    v[1] = a[2] * u[0] - a[0] * u[2];
-    v[2] = a[0] * u[1] - a[1] * u[0];
-}
-
 /* Box axes with ax[0] = fixed (the primitive's normal or axis): the other two by PCA
  * in the perpendicular plane (the angle of its principal direction). */
 static void axes_around(const double fixed[3], const frep_cloud *c, const uint32_t *idx,
                         size_t n, const double mean[3], double ax[3][3])
 {
     double u[3], v[3];
-    dot_basis(fixed, u, v);
+    vec3_basis(fixed, u, v);
     double suu = 0, suv = 0, svv = 0;
     for (size_t j = 0; j < n; j++) {
         double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1], c->z[idx[j]] - mean[2]};

@@ -16,6 +16,7 @@
 #include "segment.h"
 #include "simplify.h"
 #include "tap.h"
+#include "vec3.h"
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -40,19 +41,6 @@ static double gauss(trng *r)
 {
     double u = uni(r), v = uni(r);
     return sqrt(-2.0 * log(u + 1e-300)) * cos(2 * M_PI * v);
-}
-
-static void frame(const double a[3], double u[3], double v[3])
-{
-    double t[3] = {1, 0, 0};
-    if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
-    double d = t[0] * a[0] + t[1] * a[1] + t[2] * a[2];
-    for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
-    double l = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-    for (int k = 0; k < 3; k++) u[k] /= l;
-    v[0] = a[1] * u[2] - a[2] * u[1];
-    v[1] = a[2] * u[0] - a[0] * u[2];
-    v[2] = a[0] * u[1] - a[1] * u[0];
 }
 
 static void add(frep_cloud *c, const double p[3], const double n[3])
@@ -93,7 +81,7 @@ static void sample_cylinder(frep_cloud *c, trng *r, const double base[3], const 
                             double rad, double h, size_t nside, size_t ncap)
 {
     double u[3], v[3];
-    frame(a, u, v);
+    vec3_basis(a, u, v);
     for (size_t i = 0; i < nside; i++) {
         double t = 2 * M_PI * uni(r), z = h * uni(r), p[3], n[3];
         for (int k = 0; k < 3; k++) {
@@ -118,7 +106,7 @@ static void sample_cone(frep_cloud *c, trng *r, const double apex[3], const doub
                         double ang, double h0, double h1, size_t nside, size_t ncap)
 {
     double u[3], v[3];
-    frame(a, u, v);
+    vec3_basis(a, u, v);
     for (size_t i = 0; i < nside; i++) {
         double h = sqrt(h0 * h0 + uni(r) * (h1 * h1 - h0 * h0)), t = 2 * M_PI * uni(r);
         double rho = h * tan(ang), p[3], n[3];
@@ -140,7 +128,7 @@ static void sample_torus(frep_cloud *c, trng *r, const double ctr[3], const doub
                          double R, double rr, size_t n)
 {
     double u[3], v[3];
-    frame(a, u, v);
+    vec3_basis(a, u, v);
     for (size_t i = 0; i < n;) {
         double t = 2 * M_PI * uni(r), s = 2 * M_PI * uni(r);
         /* Area element (R + r cos s): rejection sampling. */
