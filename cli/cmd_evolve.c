@@ -47,7 +47,7 @@ typedef struct progress_ctx {
     int tty, quiet;
     double last;
     frep_buf *trace;         /* NULL without --trace */
-    double t0;               /* gp_now() when evolve_run started */
+    double t0;               /* frep_now_seconds() when evolve_run started */
     clock_t c0;              /* clock() then */
     int polish;              /* 1 once the merge of a partitioned run was reported */
     double stop_share;       /* --stop-share: percent; 0: none */
@@ -57,7 +57,7 @@ static int progress(void *user, const gp_progress *p)
 {
     progress_ctx *c = user;
     if (c->trace) {
-        double wall = gp_now() - c->t0;
+        double wall = frep_now_seconds() - c->t0;
         double cpu = (double)(clock() - c->c0) / CLOCKS_PER_SEC;
         if (p->phase == GP_PHASE_MERGE) {
             c->polish = 1;
@@ -454,7 +454,7 @@ static int stage_evolve(evolve_cmd *e)
         e->eo.gp.report_explained = 1;
         trace_header(&e->trace, e->eo.gp.seed);
     }
-    pc->t0 = gp_now();
+    pc->t0 = frep_now_seconds();
     pc->c0 = clock();
     cli_sigint_catch();
     frep_error_init(&e->ferr);
@@ -510,7 +510,8 @@ static int stage_write(evolve_cmd *e)
     const evolve_result *res = &e->res;
     buf_printf(&e->trace, "# end: %.4f s wall, %.4f s CPU, %u nodes, %.3f%% of %zu points "
                           "explained (every point, after simplification)%s\n",
-               gp_now() - e->pc.t0, (double)(clock() - e->pc.c0) / CLOCKS_PER_SEC, res->tree.len,
+               frep_now_seconds() - e->pc.t0, (double)(clock() - e->pc.c0) / CLOCKS_PER_SEC,
+               res->tree.len,
                percent(res->stats.explained, res->npoints), res->npoints,
                e->trace.failed ? "; out of memory: lines missing" : "");
     return cli_write_atomic(e->trace_path, write_trace_cb, &e->trace) ? CLI_FAIL : CLI_OK;

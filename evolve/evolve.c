@@ -548,7 +548,7 @@ typedef struct run_ctx {
     void *user;
     evolve_result *res;
     frep_error *err;
-    double t0;               /* gp_now() when the run started */
+    double t0;               /* frep_now_seconds() when the run started */
     int residual;            /* --residual: o->base_f and o->base_g are set */
     size_t *valid, nv;       /* the valid points (valid_points), cloud indices */
     double *nrm;             /* their unit normals, nrm[3i+c] by cloud index */
@@ -796,7 +796,7 @@ static int stage_grow_merged(run_ctx *c)
         return run_oom(c);
     c->grown = 1;
     if (c->fn) {
-        gp_progress gpr = { gr->generations, gr->fitness, gr->best.len, gp_now() - c->t0,
+        gp_progress gpr = { gr->generations, gr->fitness, gr->best.len, frep_now_seconds() - c->t0,
                             GP_PHASE_GROWN, 0, 0 };
         if (o->gp.report_explained && gp_progress_explained(c->sc, c->ev, &gr->best, &gpr))
             return run_oom(c);
@@ -821,7 +821,7 @@ static int stage_polish(run_ctx *c)
     pc.max_depth = dd > d0 ? dd : d0;
     if (o->polish_stagnation && (pc.stagnation == 0 || o->polish_stagnation < pc.stagnation))
         pc.stagnation = o->polish_stagnation;
-    if (pc.max_time > 0) pc.max_time = fmax(pc.max_time - (gp_now() - c->t0), 1e-3);
+    if (pc.max_time > 0) pc.max_time = fmax(pc.max_time - (frep_now_seconds() - c->t0), 1e-3);
     gp_result pg;
     memset(&pg, 0, sizeof pg);
     if (gp_run(&pc, c->sc, &gr->best, 1, c->fn, c->user, &pg)) {
@@ -945,7 +945,7 @@ static int run_stages(run_ctx *c)
     /* Statistics on every valid point, over the leaves of the tree only. */
     if (evolve_stats(o, c->cloud, c->prims, c->nprims, c->res)) return run_oom(c);
     stage_box_extent(c->res);
-    c->res->seconds = gp_now() - c->t0;
+    c->res->seconds = frep_now_seconds() - c->t0;
     return 0;
 }
 
@@ -964,7 +964,7 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
     c.user = user;
     c.res = res;
     c.err = err;
-    c.t0 = gp_now();
+    c.t0 = frep_now_seconds();
     c.residual = o->base_f != NULL;
     if (run_check(&c)) return -1;
     int rc = run_stages(&c);

@@ -7,11 +7,11 @@
 #include "alloc.h"
 #include "gp.h"
 #include "threads.h"
+#include "util.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 void gp_config_init(gp_config *c)
 {
@@ -37,13 +37,6 @@ int gp_default_depth(uint32_t nprims)
     while ((1u << (d - 1)) < nprims && d < 31) d++;  /* leaves of a balanced tree */
     d += GP_DEPTH_SLACK;
     return d > GP_MAX_TREE_DEPTH ? GP_MAX_TREE_DEPTH : d;
-}
-
-double gp_now(void)
-{
-    struct timespec ts;
-    timespec_get(&ts, TIME_UTC);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 int gp_progress_explained(const gp_cache *c, gp_eval *e, const gp_tree *t, gp_progress *p)
@@ -185,7 +178,7 @@ typedef struct gp_state {
     gp_progress_fn fn;
     void *user;
     gp_result *res;
-    double t0;               /* gp_now() at the start */
+    double t0;               /* frep_now_seconds() at the start */
     uint32_t P, E, K;        /* population, elite, tournament size */
     int D;                   /* maximum depth */
     int nthreads;
@@ -264,7 +257,7 @@ static int gp_stop_now(gp_state *s, uint32_t gen)
 {
     const gp_config *cfg = s->cfg;
     const indiv *b = &s->pop[s->elite[0]];
-    double el = gp_now() - s->t0;
+    double el = frep_now_seconds() - s->t0;
     if (s->fn) {
         gp_progress pr = { gen + 1, b->fitness, b->t.len, el, GP_PHASE_GA, 0, 0 };
         if (cfg->report_explained) {
@@ -355,7 +348,7 @@ int gp_run(const gp_config *cfg, const gp_cache *c, const gp_tree *seeds, uint32
     s.fn = fn;
     s.user = user;
     s.res = res;
-    s.t0 = gp_now();
+    s.t0 = frep_now_seconds();
     s.best_fit = -HUGE_VAL;
     int rc = -1;
     if (gp_setup(&s) || gp_first_population(&s, seeds, nseeds)) goto out;

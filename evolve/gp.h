@@ -100,7 +100,4 @@ typedef struct gp_result {
 int gp_run(const gp_config *cfg, const gp_cache *c, const gp_tree *seeds, uint32_t nseeds,
            gp_progress_fn fn, void *user, gp_result *res);
 
-/* Seconds on a monotonic-enough clock (for progress and --max-time). */
-double gp_now(void);
-
 #endif

@@ -9,6 +9,7 @@
 #include "partition.h"
 #include "simplify.h"
 #include "threads.h"
+#include "util.h"
 #include "vec3.h"
 
 #include <math.h>
@@ -790,7 +791,7 @@ typedef struct part_ctx {
     void *user;
     gp_result *res;
     part_info *info;
-    double t0;                /* gp_now() at the start */
+    double t0;                /* frep_now_seconds() at the start */
     gp_cliques cl;
     uint32_t nq;              /* cliques */
     part_piece *pc;           /* pc[q]: clique q's points, primitives and tree */
@@ -963,7 +964,7 @@ static int part_merge_all(part_ctx *s)
         memset(&pc[live - 1], 0, sizeof *pc);
         s->live--;
         if (s->fn) {
-            gp_progress pr = { s->info->generations, NAN, pc[bi].t.len, gp_now() - s->t0,
+            gp_progress pr = { s->info->generations, NAN, pc[bi].t.len, frep_now_seconds() - s->t0,
                                GP_PHASE_MERGE, 0, 0 };
             if (s->fn(s->user, &pr)) break;
         }
@@ -984,7 +985,7 @@ static int part_final(part_ctx *s)
     res->stop = GP_STOP_GENERATIONS;
     s->info->partitioned = 1;
     if (s->fn) {
-        gp_progress pr = { s->info->generations, fit, res->best.len, gp_now() - s->t0,
+        gp_progress pr = { s->info->generations, fit, res->best.len, frep_now_seconds() - s->t0,
                            GP_PHASE_MERGED, 0, 0 };
         if (s->cfg->report_explained && gp_progress_explained(s->c, s->ev[0], &res->best, &pr))
             return -1;
@@ -1023,7 +1024,7 @@ int part_run(const gp_config *cfg, const gp_cache *c, const double *x, const dou
     s.user = user;
     s.res = res;
     s.info = info;
-    s.t0 = gp_now();
+    s.t0 = frep_now_seconds();
     int r = part_find_cliques(&s);
     int rc = r < 0 ? -1 : r > 0 ? 0 : part_stages(&s);
     if (s.pc)

@@ -11,6 +11,7 @@
 #include "refit.h"
 
 #include "fit.h"
+#include "util.h"
 #include "vec3.h"
 
 #include <math.h>
@@ -57,13 +58,6 @@ static int prim_params(const prim *q, double v[REFIT_MAX_PRIM_PARAMS])
     return n;
 }
 
-static void unit(double *a)
-{
-    double l = vec3_len(a);
-    if (l > 0)
-        for (int c = 0; c < 3; c++) a[c] /= l;
-}
-
 /* Back from call arguments; directions normalised as the frep functions do. */
 static void prim_set_params(prim *q, const double *v)
 {
@@ -73,7 +67,7 @@ static void prim_set_params(prim *q, const double *v)
     case PRIM_PLANE:
         /* frPlane is d - n.x / |n|: normalising n keeps the function. */
         q->r = v[n++];
-        unit(q->p);
+        vec3_normalize(q->p);
         break;
     case PRIM_SPHERE:
         q->r = fabs(v[n++]);
@@ -82,13 +76,13 @@ static void prim_set_params(prim *q, const double *v)
     case PRIM_CONE:
         for (int c = 0; c < 3; c++) q->a[c] = v[n++];
         q->r = v[n++];
-        unit(q->a);
+        vec3_normalize(q->a);
         break;
     case PRIM_TORUS:
         for (int c = 0; c < 3; c++) q->a[c] = v[n++];
         q->R = v[n++];
         q->r = v[n++];
-        unit(q->a);
+        vec3_normalize(q->a);
         break;
     case PRIM__COUNT:
         break;
@@ -329,11 +323,12 @@ static int refit_distances(refit_ctx *c, int after)
     if (fit_program_model(c->prog, c->fidx, 1, c->all, &fm)) return frep_error_nomem(c->err);
     fit_objective *ob = fit_objective_new(&fm, &c->pts, &c->cfg.obj);
     double x[1] = { c->all[c->fidx[0]] };
-    int bad = !ob || fit_objective_distances(ob, x, after ? &info->rms_after : &info->rms_before,
-                                             after ? &info->max_after : &info->max_before);
+    int rc = !ob ? -1 : fit_objective_distances(ob, x, after ? &info->rms_after : &info->rms_before,
+                                                after ? &info->max_after : &info->max_before);
     fit_objective_free(ob);
     fit_program_model_free(&fm);
-    if (bad)
+    if (rc < 0) return frep_error_nomem(c->err);
+    if (rc > 0)
         return frep_error_set(c->err, FREP_EINPUT, "the tree cannot be evaluated at the points");
     return 0;
 }
@@ -415,7 +410,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
                  evolve_refit_info *info, frep_error *err)
 {
     memset(info, 0, sizeof *info);
-    double t0 = gp_now();
+    double t0 = frep_now_seconds();
     refit_ctx c;
     memset(&c, 0, sizeof c);
     c.o = o;
@@ -428,7 +423,7 @@ int evolve_refit(const evolve_options *o, const frep_cloud *cloud, prim *prims,
     c.err = err;
     int rc = refit_stages(&c);
     if (rc && c.saved) memcpy(prims, c.saved, nprims * sizeof *prims);
-    info->seconds = gp_now() - t0;
+    info->seconds = frep_now_seconds() - t0;
     frep_program_free(c.prog);
     frep_free(c.src);
     frep_free(c.used);

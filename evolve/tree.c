@@ -117,16 +117,13 @@ void tree_operands(const frep_insn *code, uint32_t end, uint32_t *l0, uint32_t *
     *l0 = tree_subtree_start(code, rs - 1);
 }
 
-void tree_levels(const frep_insn *code, uint32_t len, uint16_t *lev)
+int tree_levels(const frep_insn *code, uint32_t len, uint16_t *lev)
 {
     /* Reversed postfix is a preorder (right operand first): a stack of the levels of
      * the nodes still to visit assigns each node its level. */
-    if (!len) return;
+    if (!len) return 0;
     uint16_t *st = frep_malloc((size_t)len * sizeof *st);
-    if (!st) {
-        for (uint32_t i = 0; i < len; i++) lev[i] = 1;
-        return;
-    }
+    if (!st) return -1;
     uint32_t sp = 0;
     st[sp++] = 1;
     for (uint32_t pc = len; pc-- > 0;) {
@@ -136,14 +133,16 @@ void tree_levels(const frep_insn *code, uint32_t len, uint16_t *lev)
         for (int i = 0; i < k && sp < len; i++) st[sp++] = (uint16_t)(l + 1);
     }
     frep_free(st);
+    return 0;
 }
 
 int tree_depth(const frep_insn *code, uint32_t len)
 {
-    /* Postfix evaluation of heights. */
-    if (!len) return 0;
-    int *st = frep_malloc((size_t)len * sizeof *st);
-    if (!st) return GP_MAX_TREE_DEPTH + 1;
+    /* Postfix evaluation of heights. The stack of a tree never holds more entries than
+     * its depth (each entry below the top waits for a distinct ancestor of the top), so
+     * GP_MAX_TREE_DEPTH + 1 of them decide every depth up to the limit: no allocation
+     * that could fail. */
+    int st[GP_MAX_TREE_DEPTH + 1];
     uint32_t sp = 0;
     for (uint32_t pc = 0; pc < len; pc++) {
         int k = tree_nin(&code[pc]), h = 0;
@@ -151,11 +150,11 @@ int tree_depth(const frep_insn *code, uint32_t len)
             int c = st[--sp];
             if (c > h) h = c;
         }
+        if (h >= GP_MAX_TREE_DEPTH + 1 || sp == GP_MAX_TREE_DEPTH + 1)
+            return GP_MAX_TREE_DEPTH + 1;
         st[sp++] = h + 1;
     }
-    int d = sp ? st[sp - 1] : 0;
-    frep_free(st);
-    return d;
+    return sp ? st[sp - 1] : 0;
 }
 
 int tree_valid(const frep_insn *code, uint32_t len, uint32_t nprims, gp_setops s)
@@ -256,8 +255,10 @@ int tree_mutate(gp_tree *t, gp_rng *r, gp_setops s, uint32_t nprims, int max_dep
     uint32_t e = gp_rng_below(r, t->len);
     uint32_t st = tree_subtree_start(t->code, e);
     uint16_t *lev = frep_malloc((size_t)t->len * sizeof *lev);
-    if (!lev) return -1;
-    tree_levels(t->code, t->len, lev);
+    if (!lev || tree_levels(t->code, t->len, lev)) {
+        frep_free(lev);
+        return -1;
+    }
     int room = max_depth - lev[e] + 1;
     frep_free(lev);
     gp_tree sub = { NULL, 0, 0 };

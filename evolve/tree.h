@@ -65,10 +65,11 @@ uint32_t tree_subtree_start(const frep_insn *code, uint32_t end);
 /* Operand ranges of the binary node at `end`: left [*l0, *l1], right [*r0, end-1]. */
 void tree_operands(const frep_insn *code, uint32_t end, uint32_t *l0, uint32_t *l1,
                    uint32_t *r0);
-/* Depth of the tree (a leaf has depth 1); 0 for an empty tree. */
+/* Depth of the tree (a leaf has depth 1), GP_MAX_TREE_DEPTH + 1 for any deeper one;
+ * 0 for an empty tree. */
 int tree_depth(const frep_insn *code, uint32_t len);
-/* Level of each node (root 1) into lev[len]. */
-void tree_levels(const frep_insn *code, uint32_t len, uint16_t *lev);
+/* Level of each node (root 1) into lev[len]; 0, or -1 when out of memory. */
+int tree_levels(const frep_insn *code, uint32_t len, uint16_t *lev);
 /* 1 when the code is a well-formed GP tree over nprims primitives of family s. */
 int tree_valid(const frep_insn *code, uint32_t len, uint32_t nprims, gp_setops s);
 /* Number of distinct primitives used. */

@@ -327,6 +327,9 @@ static void start_control(fit_run_ctx *R)
     R->ctl.interrupt = cfg->interrupt;
     R->ctl.progress = cfg->progress;
     R->ctl.progress_user = cfg->progress_user;
+    /* Out of memory in an evaluation stops every phase, as in a phase's own arrays. */
+    fit_objective_watch_nomem(R->obj, &R->ctl.out_of_memory);
+    fit_objective_watch_nomem(R->sub, &R->ctl.out_of_memory);
 }
 
 /* The objective at the start values: what the result must not be worse than. Without an
@@ -336,6 +339,7 @@ static int evaluate_start(fit_run_ctx *R, frep_error *err)
     memcpy(R->x, R->start, R->m * sizeof *R->x);
     R->f0 = fit_objective_value(R->obj, R->x, NULL);
     R->ctl.evals++;
+    if (R->ctl.out_of_memory) return frep_error_nomem(err);
     if (!isfinite(R->f0) && !R->global)
         return frep_error_set(err, FREP_EINPUT, "the model cannot be evaluated at the start "
                                                 "values (a runtime error or a non-finite value)");
@@ -399,24 +403,28 @@ static int local_only(fit_run_ctx *R)
     return 0;
 }
 
-/* The result: never worse than the start, with its distances, counts and time. */
-static void finish(fit_run_ctx *R, double *params, fit_result *res)
+/* The result: never worse than the start, with its distances, counts and time; 0, or
+ * -1 with err set when out of memory. */
+static int finish(fit_run_ctx *R, double *params, fit_result *res, frep_error *err)
 {
     const size_t np = R->m;
     double fx = fit_objective_value(R->obj, R->x, NULL);
+    if (R->ctl.out_of_memory) return frep_error_nomem(err);
     if (!(fx <= R->f0)) {
         memcpy(R->x, R->start, np * sizeof *R->x);
         fx = R->f0;
     }
+    int dist = fit_objective_distances(R->obj, R->x, &res->rms, &res->max_dist);
+    if (dist < 0) return frep_error_nomem(err);
+    if (dist > 0) res->rms = res->max_dist = NAN;
     memcpy(params, R->x, np * sizeof *params);
     res->objective = fx;
-    if (fit_objective_distances(R->obj, R->x, &res->rms, &res->max_dist) != 0)
-        res->rms = res->max_dist = NAN;
     res->evals = R->ctl.evals;
     res->status = R->st;
     res->sa_iterations = R->sa_iterations;
     res->local_iterations = R->local_iterations;
     res->seconds = frep_now_seconds() - R->t0;
+    return 0;
 }
 
 int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const double *hi,
@@ -435,7 +443,7 @@ int fit_run(const fit_model *m, const fit_points *pts, const double *lo, const d
     int rc = evaluate_start(&R, err);
     if (rc == 0) rc = R.global ? global_phase(&R, err) : local_only(&R);
     if (rc == 0 && R.ctl.out_of_memory) rc = frep_error_nomem(err);
-    if (rc == 0) finish(&R, params, res);
+    if (rc == 0) rc = finish(&R, params, res, err);
     free_objectives(&R);
     return rc;
 }

@@ -52,6 +52,7 @@ struct fit_objective {
     double *partial;        /* nblocks * slot */
     int nthreads;
     fit_ws *ws;             /* nthreads workspaces */
+    int *nomem;             /* set when a pass runs out of memory; may be NULL */
 };
 
 void fit_objective_config_init(fit_objective_config *c)
@@ -360,7 +361,8 @@ static int run_block(fit_objective *o, fit_ws *w, size_t b, const double *p, pas
     return 0;
 }
 
-/* Run every block; returns 0, or -1 when some block failed. */
+/* Run every block; returns 0, or -1 when some block ran out of memory (recorded in
+ * o->nomem once the threads have joined). */
 static int run_pass(fit_objective *o, const double *p, pass_mode mode)
 {
     const long nb = (long)o->nblocks;
@@ -379,8 +381,11 @@ static int run_pass(fit_objective *o, const double *p, pass_mode mode)
     for (long b = 0; b < nb; b++)
         if (run_block(o, &o->ws[0], (size_t)b, p, mode) != 0) failed |= 1;
 #endif
+    if (failed && o->nomem != NULL) *o->nomem = 1;
     return failed ? -1 : 0;
 }
+
+void fit_objective_watch_nomem(fit_objective *o, int *flag) { o->nomem = flag; }
 
 /* Add the block slots in block order into sum[slot]. */
 static void reduce(const fit_objective *o, double *sum, size_t len)
@@ -446,7 +451,8 @@ void fit_objective_unfreeze(fit_objective *o) { o->frozen = 0; }
 
 int fit_objective_distances(fit_objective *o, const double *p, double *rms, double *max)
 {
-    if (o->n == 0 || run_pass(o, p, PASS_DIST) != 0) return -1;
+    if (o->n == 0) return 1;
+    if (run_pass(o, p, PASS_DIST) != 0) return -1;
     double ss = 0, mx = 0;
     for (size_t b = 0; b < o->nblocks; b++) {
         const double *s = o->partial + b * o->slot;
@@ -455,5 +461,5 @@ int fit_objective_distances(fit_objective *o, const double *p, double *rms, doub
     }
     *rms = sqrt(ss / (double)o->n);
     *max = mx;
-    return isfinite(*rms) ? 0 : -1;
+    return isfinite(*rms) ? 0 : 1;
 }

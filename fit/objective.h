@@ -16,7 +16,7 @@
 /* The model being fitted, seen through callbacks (fit/fit.c adapts a frep_program; the
  * tests plug in C functions). eval() gets n <= FIT_BLOCK points and writes f[n]; when
  * g != NULL the spatial gradient g[c*n + i] (c = 0, 1, 2 for x, y, z); when dp != NULL
- * the parameter derivatives dp[j*n + i]. Returns 0, or -1 when it cannot evaluate.
+ * the parameter derivatives dp[j*n + i]. Returns 0, or -1 when out of memory.
  * Each thread has its own scratch from scratch_new (may be NULL: no scratch). */
 typedef struct fit_model {
     size_t nparams;
@@ -75,7 +75,8 @@ void fit_objective_free(fit_objective *o);
  * term's gradient is the analytic chain rule with the mixed second derivatives
  * d2f/dx dp taken as one central difference in space of the analytic df/dp (error
  * O(h^2), h = 1e-6 of the cloud's diagonal). Signature of fit_fn: `user` is the
- * fit_objective. Returns NaN when the model cannot be evaluated or gives NaN. */
+ * fit_objective. Returns NaN when the model gives NaN, or when it ran out of memory
+ * (fit_objective_watch_nomem). */
 double fit_objective_value(void *user, const double *p, double *grad);
 
 /* Gauss-Newton form for Levenberg-Marquardt (fit_lsq_fn): cost (1/2N) sum rho(r_i) and
@@ -83,15 +84,21 @@ double fit_objective_value(void *user, const double *p, double *grad);
  * The normal term is not included. */
 double fit_objective_lsq(void *user, const double *p, double *jtj, double *jtr);
 
-/* Geometric kind: fix the weights 1/|grad f(x_i)| at p (returns 0, or -1 when the
- * model cannot be evaluated); unfreeze to use the true f/|grad f| again. No effect on the
- * algebraic kind. */
+/* Geometric kind: fix the weights 1/|grad f(x_i)| at p (returns 0, or -1 when out of
+ * memory); unfreeze to use the true f/|grad f| again. No effect on the algebraic kind. */
 int fit_objective_freeze(fit_objective *o, const double *p);
 void fit_objective_unfreeze(fit_objective *o);
 
 /* RMS and maximum of the first-order distance |f|/|grad f| of the points at p. Returns
- * 0, or -1 when the model cannot be evaluated. */
+ * 0; 1 when they are not finite (the model gives NaN or infinite values), or -1 when out
+ * of memory. */
 int fit_objective_distances(fit_objective *o, const double *p, double *rms, double *max);
+
+/* Where o records running out of memory (the model's eval failed in a pass over the
+ * points, perhaps on another thread): *flag is set to 1, besides the NaN or -1 the call
+ * returns. fit_run passes its fit_control.out_of_memory, so that every phase stops and
+ * the fit fails with out of memory. NULL: nowhere (the default). */
+void fit_objective_watch_nomem(fit_objective *o, int *flag);
 
 size_t fit_objective_npoints(const fit_objective *o);
 fit_objective_kind fit_objective_kind_of(const fit_objective *o);

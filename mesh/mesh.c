@@ -631,14 +631,13 @@ static void crossing_refine(mwork *W, int r, double iso)
     }
     /* inside is f >= iso, so the gradient points inward */
     double n[3] = { -W->gx[r], -W->gy[r], -W->gz[r] };
-    vec3_unit(n);
-    if (n[0] == 0 && n[1] == 0 && n[2] == 0) {
+    if (vec3_normalize(n)) {
         /* no usable gradient: the edge direction, from inside to outside */
         double s = W->g0[r] >= 0 ? 1.0 : -1.0;
         n[0] = s * W->dx[r];
         n[1] = s * W->dy[r];
         n[2] = s * W->dz[r];
-        vec3_unit(n);
+        if (vec3_normalize(n)) n[0] = n[1] = n[2] = 0;
     }
     W->nx[id] = n[0];
     W->ny[id] = n[1];
@@ -698,7 +697,7 @@ static size_t face_candidates(mwork *W, int cs, int dup, int i, int j, int k, si
             W->sx[q] = p[0] / np;
             W->sy[q] = p[1] / np;
             W->sz[q] = p[2] / np;
-            vec3_unit(n);
+            vec3_normalize(n);  /* unit or zero normals: a zero sum stays zero */
             W->snx[q] = n[0];
             W->sny[q] = n[1];
             W->snz[q] = n[2];
@@ -744,7 +743,7 @@ static void component_vertex(block_ctx *c, int cs, int cyc, const int L[3],
     W->vx[nv] = x[0];
     W->vy[nv] = x[1];
     W->vz[nv] = x[2];
-    vec3_unit(sn);
+    vec3_normalize(sn);  /* unit or zero normals: a zero sum stays zero */
     W->fnx[nv] = sn[0];
     W->fny[nv] = sn[1];
     W->fnz[nv] = sn[2];
@@ -838,8 +837,7 @@ static void store_vertex(block_ctx *c, size_t v)
     B->vfg[4 * v + 3] = W->vgz[v];
     double n[3] = { -W->vgx[v], -W->vgy[v], -W->vgz[v] };
     const double fn[3] = { W->fnx[v], W->fny[v], W->fnz[v] };
-    vec3_unit(n);
-    if ((n[0] == 0 && n[1] == 0 && n[2] == 0) || vec3_dot(n, fn) < 0) memcpy(n, fn, sizeof n);
+    if (vec3_normalize(n) || vec3_dot(n, fn) < 0) memcpy(n, fn, sizeof n);
     memcpy(&B->vnrm[3 * v], n, sizeof n);
 }
 

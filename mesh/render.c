@@ -62,14 +62,6 @@ static const view_def *find_view(const char *name)
 
 int render_view_ok(const char *view) { return find_view(view) != NULL; }
 
-/* v / |v|, left as it is when |v| is not positive. */
-static void normalize(double v[3])
-{
-    double l = vec3_len(v);
-    if (l > 0)
-        for (int i = 0; i < 3; i++) v[i] /= l;
-}
-
 typedef struct camera {
     double right[3], up[3], fwd[3], centre[3];
     double scale;   /* pixels per model unit */
@@ -127,13 +119,13 @@ static void camera_init(raster *R, const view_def *vd, const render_options *o)
     cam->w = o->width;
     cam->h = o->height;
     for (int i = 0; i < 3; i++) back[i] = vd->from[i];
-    normalize(back);
+    vec3_normalize(back);
     for (int i = 0; i < 3; i++) cam->fwd[i] = -back[i];
     double upv[3] = { vd->up[0], vd->up[1], vd->up[2] };
     vec3_cross(cam->fwd, upv, cam->right);
-    normalize(cam->right);
+    vec3_normalize(cam->right);
     vec3_cross(cam->right, cam->fwd, cam->up);
-    normalize(cam->up);
+    vec3_normalize(cam->up);
     for (int i = 0; i < 3; i++) cam->centre[i] = 0.5 * (o->bbox[i] + o->bbox[i + 3]);
     double ex = 0, ey = 0;
     for (int k = 0; k < 8; k++) {
@@ -154,9 +146,9 @@ static void lights_init(raster *R)
 {
     for (int i = 0; i < 3; i++)
         R->light[i] = R->back[i] + 0.5 * R->cam.up[i] - 0.4 * R->cam.right[i];
-    normalize(R->light);
+    vec3_normalize(R->light);
     for (int i = 0; i < 3; i++) R->half[i] = R->light[i] + R->back[i];
-    normalize(R->half);
+    vec3_normalize(R->half);
 }
 
 /* One triangle in screen space: corners, depths, the normals to interpolate. */
@@ -184,7 +176,7 @@ static void shade_pixel(raster *R, const stri *T, int x, int y)
     R->zbuf[pi] = d;
     double n[3];
     for (int i = 0; i < 3; i++) n[i] = b0 * T->N[0][i] + b1 * T->N[1][i] + b2 * T->N[2][i];
-    normalize(n);
+    vec3_normalize(n);
     if (vec3_dot(n, R->back) < 0)
         for (int i = 0; i < 3; i++) n[i] = -n[i];
     double diff = fmax(0, vec3_dot(n, R->light));
@@ -208,7 +200,7 @@ static void draw_triangle(raster *R, const frep_mesh *m, size_t t)
     vec3_sub(P[1], P[0], u);
     vec3_sub(P[2], P[0], w);
     vec3_cross(u, w, fn);
-    normalize(fn);
+    vec3_normalize(fn);
     for (int k = 0; k < 3; k++) {
         project(&R->cam, P[k], &T.sx[k], &T.sy[k], &T.sd[k]);
         T.N[k] = m->n ? &m->n[3 * m->tri[3 * t + k]] : fn;

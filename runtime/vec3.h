@@ -27,24 +27,29 @@ static inline void vec3_sub(const double b[3], const double a[3], double d[3])
     for (int i = 0; i < 3; i++) d[i] = b[i] - a[i];
 }
 
-/* v / |v|, or 0 when |v| is 0 or not finite (no usable direction). */
-static inline void vec3_unit(double v[3])
-{
-    double l = vec3_len(v);
-    if (l > 0 && isfinite(l)) {
-        for (int i = 0; i < 3; i++) v[i] /= l;
-    } else {
-        v[0] = v[1] = v[2] = 0;
-    }
-}
-
-/* v / |v| and 0, or -1 with v unchanged when |v| is 0 or not finite. */
+/* The one normalization of the library: v / |v| and 0 when |v| = sqrt(v . v) is
+ * positive and finite; else -1 with v unchanged: |v| is 0 (v is zero, or so short that
+ * v . v underflows: every component below about 1e-162), infinite (v . v overflows) or
+ * NaN. Such a v has no usable direction; a caller that wants something else then (the
+ * zero vector, a fallback direction, an error) does it where it calls. */
 static inline int vec3_normalize(double v[3])
 {
     double l = vec3_len(v);
     if (!(l > 0) || !isfinite(l)) return -1;
     for (int i = 0; i < 3; i++) v[i] /= l;
     return 0;
+}
+
+/* Unit u and v completing unit a to a right-handed frame (a, u, v): u is the x axis
+ * (the y axis when a is within about 53 degrees of x) made orthogonal to a. */
+static inline void vec3_basis(const double a[3], double u[3], double v[3])
+{
+    double t[3] = {1, 0, 0};
+    if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
+    double d = vec3_dot(t, a);
+    for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
+    vec3_normalize(u);
+    vec3_cross(a, u, v);
 }
 
 #endif

@@ -70,16 +70,6 @@
 
 /* ---- small vector and random helpers --------------------------------------- */
 
-static int normalize(double a[3])
-{
-    double l = vec3_len(a);
-    if (!(l > 1e-300) || !isfinite(l)) return -1;
-    a[0] /= l;
-    a[1] /= l;
-    a[2] /= l;
-    return 0;
-}
-
 /* The shared generator (runtime/rng.h) under this file's short names. */
 typedef frep_rng rng;
 static void rng_seed(rng *r, uint64_t seed) { frep_rng_seed(r, seed); }
@@ -199,7 +189,7 @@ static int circle3(const double a3[3], const double b3[3], const double c3[3], d
     vec3_cross(t, axb, u);
     for (int k = 0; k < 3; k++) ctr[k] = c3[k] + u[k] / (2.0 * l2);
     for (int k = 0; k < 3; k++) nrm[k] = axb[k];
-    normalize(nrm);
+    vec3_normalize(nrm);
     double d[3];
     vec3_sub(a3, ctr, d);
     *rad = vec3_len(d);
@@ -234,7 +224,7 @@ static int make_plane(const sample *s, prim *q)
     vec3_sub(s->p[1], s->p[0], u);
     vec3_sub(s->p[2], s->p[0], v);
     vec3_cross(u, v, n);
-    if (normalize(n)) return -1;
+    if (vec3_normalize(n)) return -1;
     if (vec3_dot(n, s->n[0]) < 0) for (int k = 0; k < 3; k++) n[k] = -n[k];
     q->type = PRIM_PLANE;
     memcpy(q->p, n, sizeof n);
@@ -259,7 +249,7 @@ static int make_cylinder(const sample *s, prim *q)
 {
     double a[3];
     vec3_cross(s->n[0], s->n[1], a);
-    if (vec3_len(a) < 1e-2 || normalize(a)) return -1;
+    if (vec3_len(a) < 1e-2 || vec3_normalize(a)) return -1;
     double c[3];
     if (line_closest(s->p[0], s->n[0], s->p[1], s->n[1], c)) return -1;
     q->type = PRIM_CYLINDER;
@@ -288,13 +278,13 @@ static int make_cone(const sample *s, prim *q)
     double d[3][3];
     for (int i = 0; i < 3; i++) {
         vec3_sub(s->p[i], apex, d[i]);
-        if (normalize(d[i])) return -1;
+        if (vec3_normalize(d[i])) return -1;
     }
     double u[3], v[3], a[3];
     vec3_sub(d[1], d[0], u);
     vec3_sub(d[2], d[0], v);
     vec3_cross(u, v, a);
-    if (normalize(a)) return -1;
+    if (vec3_normalize(a)) return -1;
     if (vec3_dot(a, d[0]) < 0) for (int k = 0; k < 3; k++) a[k] = -a[k];
     double ang = 0;
     for (int i = 0; i < 3; i++) ang += acos(fmin(1.0, fmax(-1.0, vec3_dot(a, d[i])))) / 3.0;
@@ -422,17 +412,6 @@ static uint32_t uf_find(uint32_t *par, uint32_t i)
     return i;
 }
 
-/* Orthonormal u, v completing unit a. */
-static void basis(const double a[3], double u[3], double v[3])
-{
-    double t[3] = {1, 0, 0};
-    if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
-    double d = vec3_dot(t, a);
-    for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
-    normalize(u);
-    vec3_cross(a, u, v);
-}
-
 /* The parameter domain of q, flattened: point i of the patch at (uv[2i], uv[2i+1]),
  * lengths along the surface; period[k] > 0 for an axis that wraps around. */
 typedef struct pdomain {
@@ -467,7 +446,7 @@ static void domain_coords(const prim *q, const frep_cloud *c, const uint32_t *id
     const double *ax = q->type == PRIM_PLANE ? q->p : q->a;
     double zaxis[3] = {0, 0, 1};
     if (q->type == PRIM_SPHERE) ax = zaxis;
-    basis(ax, e1, e2);
+    vec3_basis(ax, e1, e2);
     D->period[0] = D->period[1] = 0;
     double mean_rho = q->type == PRIM_CONE ? cone_mean_rho(q, c, idx, n) : 0;
     for (size_t i = 0; i < n; i++) {
@@ -481,7 +460,7 @@ static void domain_coords(const prim *q, const frep_cloud *c, const uint32_t *id
             break;
         case PRIM_SPHERE: {
             vec3_sub(p, q->p, v);
-            normalize(v);
+            vec3_normalize(v);
             u = q->r * atan2(vec3_dot(v, e2), vec3_dot(v, e1));
             w = q->r * acos(fmin(1, fmax(-1, vec3_dot(v, ax))));
             D->period[0] = 2 * FREP_PI * q->r;
@@ -611,11 +590,12 @@ static void mark_largest(const cellpt *cp, const uint32_t *start, size_t ncells,
 }
 
 /* Keep only the inliers (idx[0..n)) in the largest 8-connected patch of a bitmap with
- * cells of size beta over the parameter domain of q. Returns the new count (n, all
- * kept, when out of memory). */
-static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *idx, size_t n,
-                                double beta)
+ * cells of size beta over the parameter domain of q; their count into *kept. Returns 0,
+ * or -1 when out of memory (idx unchanged, *kept = n). */
+static int largest_component(const prim *q, const frep_cloud *c, uint32_t *idx, size_t n,
+                             double beta, size_t *kept)
 {
+    *kept = n;
     if (n == 0) return 0;
     pdomain D;
     D.uv = frep_malloc(2 * n * sizeof *D.uv);
@@ -624,7 +604,7 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
     uint32_t *par = frep_malloc(n * sizeof *par);
     uint32_t *cnt = frep_calloc(n, sizeof *cnt);
     unsigned char *keep = frep_calloc(n, 1);
-    size_t m = n; /* out of memory: keep everything rather than fail */
+    int rc = -1;
     if (D.uv && cp && start && par && cnt && keep) {
         domain_coords(q, c, idx, n, &D);
         domain_grid(&D, n, beta);
@@ -636,9 +616,11 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
         join_neighbours(&D, cp, start, ncells, par);
         mark_largest(cp, start, ncells, par, cnt, keep);
         /* The inliers of the best component, in their original order. */
-        m = 0;
+        size_t m = 0;
         for (size_t i = 0; i < n; i++)
             if (keep[i]) idx[m++] = idx[i];
+        *kept = m;
+        rc = 0;
     }
     frep_free(D.uv);
     frep_free(cp);
@@ -646,7 +628,7 @@ static size_t largest_component(const prim *q, const frep_cloud *c, uint32_t *id
     frep_free(par);
     frep_free(cnt);
     frep_free(keep);
-    return m;
+    return rc;
 }
 
 /* ---- least-squares refit ----------------------------------------------------- */
@@ -695,7 +677,7 @@ static int unpack(prim *q, const double *v)
         return q->r > 0 ? 0 : -1;
     }
     double a[3] = {v[3], v[4], v[5]};
-    if (normalize(a)) return -1;
+    if (vec3_normalize(a)) return -1;
     memcpy(q->a, a, sizeof a);
     if (q->type == PRIM_TORUS) {
         q->R = v[6];
@@ -877,7 +859,7 @@ static int refit_points(prim *q, const frep_cloud *c, const uint32_t *idx, size_
 int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
                  size_t max_points)
 {
-    if (n < 3) return -1;
+    if (n < 3) return 1;
     if (max_points == 0 || max_points > n) max_points = n;
     size_t m = max_points;
     double *px = frep_malloc(3 * m * sizeof *px), *res = frep_malloc(2 * m * sizeof *res);
@@ -891,7 +873,7 @@ int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
         point(c, i, px + 3 * j);
     }
     prim t = *q;
-    int rc = refit_points(&t, c, idx, n, px, m);
+    int rc = refit_points(&t, c, idx, n, px, m) ? 1 : 0;
     if (rc == 0) {
         *q = t;
         double *sorted = res + m;
@@ -947,6 +929,11 @@ typedef struct det {
     double rmax;
     double band;             /* inlier distance of the current extraction (>= epsilon) */
     uint32_t *tmp;           /* scratch index list of n entries */
+    /* Set by a helper of the extraction or the merge whose scratch could not be
+     * allocated: the value it returns is then meaningless (but safe to use), and the
+     * driver fails the run with out of memory after the step (detect_step,
+     * ransac_detect). */
+    int nomem;
 } det;
 
 static uint64_t spread3(uint64_t v)
@@ -1199,9 +1186,20 @@ static size_t gather_inliers(det *d, const prim *q, unsigned char *flag, uint32_
 
 static size_t support_of(det *d, const prim *q, unsigned char *flag, uint32_t *inl)
 {
-    size_t m = gather_inliers(d, q, flag, inl);
+    size_t m = gather_inliers(d, q, flag, inl), kept;
     /* A wider band spreads a patch as much in the parameter domain. */
-    return largest_component(q, d->c, inl, m, fmax(d->cfg->cluster, d->band));
+    if (largest_component(q, d->c, inl, m, fmax(d->cfg->cluster, d->band), &kept))
+        d->nomem = 1;
+    return kept;
+}
+
+/* ransac_refit of q on the n points idx within a run: 0 when q was refitted; out of
+ * memory sets d->nomem. */
+static int refit(det *d, prim *q, const uint32_t *idx, size_t n)
+{
+    int rc = ransac_refit(q, d->c, idx, n, REFIT_MAX_POINTS);
+    if (rc < 0) d->nomem = 1;
+    return rc;
 }
 
 /* Noise-adaptive extraction band. With Gaussian noise of about epsilon, a band of
@@ -1223,7 +1221,10 @@ static double noise_band(det *d, const prim *q, unsigned char *flag)
     d->band = saved;
     if (m < RANSAC_MIN_CLOUD) return eps;
     double *r = frep_malloc(m * sizeof *r);
-    if (!r) return eps;
+    if (!r) {
+        d->nomem = 1;
+        return eps;
+    }
     for (size_t j = 0; j < m; j++) {
         double p[3];
         point(d->c, tmp[j], p);
@@ -1283,13 +1284,16 @@ static size_t prefer_simpler(det *d, prim *q, size_t m, unsigned char *flag, uin
         p->r = cone_mean_rho(q, c, inl, m);
     }
     uint32_t *keep = frep_malloc(m * sizeof *keep);
-    if (!keep) return m;
+    if (!keep) {
+        d->nomem = 1;
+        return m;
+    }
     memcpy(keep, inl, m * sizeof *keep);
     size_t best_m = m;
     prim best = *q;
     for (int k = 0; k < nalt; k++) {
         prim t = alt[k];
-        if (ransac_refit(&t, c, keep, m, REFIT_MAX_POINTS) || !sane(&t, d->rmax)) continue;
+        if (refit(d, &t, keep, m) || !sane(&t, d->rmax)) continue;
         size_t mt = support_of(d, &t, flag, inl);
         if ((double)mt >= SIMPLER_KEEP * (double)m && (best.type == q->type || mt > best_m)) {
             best = t;
@@ -1316,8 +1320,7 @@ static size_t refit_with_band(det *d, prim *q, size_t min_pts, unsigned char *fl
     size_t m = support_of(d, q, flag, inl);
     for (int pass = 0; pass < NOISE_PASSES; pass++) {
         prim q2 = *q;
-        if (m >= min_pts && ransac_refit(&q2, d->c, inl, m, REFIT_MAX_POINTS) == 0 &&
-            sane(&q2, d->rmax)) {
+        if (m >= min_pts && refit(d, &q2, inl, m) == 0 && sane(&q2, d->rmax)) {
             size_t m2 = support_of(d, &q2, flag, inl);
             if ((double)m2 >= REFIT_ACCEPT * (double)m) {
                 *q = q2;
@@ -1347,24 +1350,44 @@ static double rms_of(const prim *q, const frep_cloud *c, const uint32_t *idx, si
     return n ? sqrt(s / (double)n) : 0;
 }
 
-/* Median |f| of q over (an evenly spaced subset of at most MODE_VOTERS of) the points
- * idx[0..n); -1 when out of memory. */
+/* A measure of q at cloud point i, whose median median_over takes. */
+typedef double (*point_measure)(const prim *q, const frep_cloud *c, size_t i);
+
+/* The median of fn over (an evenly spaced subset of at most MODE_VOTERS of) the points
+ * idx[0..n) into *med (0 when n is 0). Returns 0, or -1 when out of memory (d->nomem
+ * set). */
 #define MODE_VOTERS 4096
-static double median_abs(const prim *q, const frep_cloud *c, const uint32_t *idx, size_t n)
+static int median_over(det *d, const prim *q, const uint32_t *idx, size_t n,
+                       point_measure fn, double *med)
 {
     size_t k = n < MODE_VOTERS ? n : MODE_VOTERS;
+    *med = 0;
     if (k == 0) return 0;
     double *r = frep_malloc(k * sizeof *r);
-    if (!r) return -1;
-    for (size_t j = 0; j < k; j++) {
-        double p[3];
-        point(c, idx[(size_t)((double)j * (double)n / (double)k)], p);
-        r[j] = fabs(prim_eval(q, p, NULL));
+    if (!r) {
+        d->nomem = 1;
+        return -1;
     }
+    for (size_t j = 0; j < k; j++)
+        r[j] = fn(q, d->c, idx[(size_t)((double)j * (double)n / (double)k)]);
     qsort(r, k, sizeof *r, cmp_abs_double);
-    double med = r[k / 2];
+    *med = r[k / 2];
     frep_free(r);
-    return med;
+    return 0;
+}
+
+/* |f| of q at point i. */
+static double abs_value(const prim *q, const frep_cloud *c, size_t i)
+{
+    double p[3];
+    point(c, i, p);
+    return fabs(prim_eval(q, p, NULL));
+}
+
+/* Median |f| of q over the points idx[0..n) (median_over). */
+static int median_abs(det *d, const prim *q, const uint32_t *idx, size_t n, double *med)
+{
+    return median_over(d, q, idx, n, abs_value, med);
 }
 
 /* Shapes across faces. A plane's band (epsilon, or wider on noisy data) and normal
@@ -1478,13 +1501,14 @@ static size_t densest_slab(const frep_cloud *c, double *tv, size_t nt, const dou
 static size_t try_face(det *d, prim *alt, const uint32_t *slab, size_t ns_pts, size_t min_pts,
                        double med0, unsigned char *flag, uint32_t *inl)
 {
-    if (ns_pts < 3 || ransac_refit(alt, d->c, slab, ns_pts, REFIT_MAX_POINTS) != 0) return 0;
+    if (ns_pts < 3 || refit(d, alt, slab, ns_pts) != 0) return 0;
     d->band = d->cfg->epsilon;
     double nb = noise_band(d, alt, flag);
     if (nb > d->band * NOISE_BAND_GROWTH) d->band = nb;
     size_t ma = support_of(d, alt, flag, inl);
-    double meda = ma >= min_pts ? median_abs(alt, d->c, inl, ma) : -1;
-    return meda >= 0 && meda < MODE_GAIN * med0 ? ma : 0;
+    double meda;
+    if (ma < min_pts || median_abs(d, alt, inl, ma, &meda)) return 0;
+    return meda < MODE_GAIN * med0 ? ma : 0;
 }
 
 static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned char *flag,
@@ -1494,9 +1518,9 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
     if (m < min_pts || m < RANSAC_MIN_CLOUD || !c->has_normals ||
         !(d->cfg->types & (1u << PRIM_PLANE)))
         return m;
-    double med0 = median_abs(q, c, inl, m), band0 = d->band;
+    double med0, band0 = d->band;
     /* Exact already (clean data): nothing to separate. */
-    if (!(med0 > MODE_EXACT * d->cfg->epsilon)) return m;
+    if (median_abs(d, q, inl, m, &med0) || !(med0 > MODE_EXACT * d->cfg->epsilon)) return m;
     double cosm = cos(MODE_NORMAL_DEG * FREP_PI / 180.0);
     size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS;
     double *tv = frep_malloc(2 * m * sizeof *tv);
@@ -1504,6 +1528,7 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
     if (!tv || !slab) {
         frep_free(tv);
         frep_free(slab);
+        d->nomem = 1;
         return m;
     }
     size_t best_cnt, best_j = dominant_normal(c, inl, m, cosm, &best_cnt);
@@ -1512,7 +1537,7 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
     size_t nt = 0, ma = 0;
     if (q->type == PRIM_PLANE || (double)best_cnt >= MODE_FLAT * (double)nv)
         nt = dominant_group(c, inl, m, nc, cosm, ns, tv);
-    if (nt >= RANSAC_MIN_CLOUD && normalize(ns) == 0) {
+    if (nt >= RANSAC_MIN_CLOUD && vec3_normalize(ns) == 0) {
         prim alt;
         size_t ns_pts = densest_slab(c, tv, nt, ns, MODE_SLAB * band0, slab, &alt);
         ma = try_face(d, &alt, slab, ns_pts, min_pts, med0, flag, inl);
@@ -1589,7 +1614,7 @@ static int mergeable(merger *g, size_t pi, size_t qi, prim *q2, int *refitted)
     memcpy(g->buf, g->order + g->start[qi], mq * sizeof *g->buf);
     memcpy(g->buf + mq, g->order + g->start[pi], mp * sizeof *g->buf);
     *q2 = *Q;
-    *refitted = ransac_refit(q2, c, g->buf, mu, REFIT_MAX_POINTS) == 0 && sane(q2, d->rmax);
+    *refitted = refit(d, q2, g->buf, mu) == 0 && sane(q2, d->rmax);
     if ((double)hit < MERGE_FRACTION * (double)mp) {
         /* Two pieces of one shape fitted apart (a noisy torus split into inner and
          * outer halves): one shape of the same type explains both once refitted on the
@@ -1607,8 +1632,12 @@ static int mergeable(merger *g, size_t pi, size_t qi, prim *q2, int *refitted)
                                                    MERGE_RMS_SLACK * d->cfg->epsilon)
         return 0;
     /* Touching: one patch in Q's parameter domain. */
-    size_t kept = largest_component(*refitted ? q2 : Q, c, g->buf, mu,
-                                    fmax(d->cfg->cluster, band));
+    size_t kept;
+    if (largest_component(*refitted ? q2 : Q, c, g->buf, mu, fmax(d->cfg->cluster, band),
+                          &kept)) {
+        d->nomem = 1;
+        return 0;
+    }
     return (double)kept >= MERGE_CONNECTED * (double)mu;
 }
 
@@ -1649,7 +1678,10 @@ static int merge_pass(merger *g)
             if (qi == pi || mq < mp || (mq == mp && qi > pi)) continue;
             prim q2;
             int refitted;
-            if (!mergeable(g, pi, qi, &q2, &refitted)) continue;
+            if (!mergeable(g, pi, qi, &q2, &refitted)) {
+                if (g->d->nomem) return 0;
+                continue;
+            }
             fold(g, pi, qi, &q2, refitted);
             return 1;
         }
@@ -1659,7 +1691,7 @@ static int merge_pass(merger *g)
 
 /* Fold redundant primitives into the ones that explain their points: labels move,
  * the larger primitive is refitted on the union, and the list is compacted. Every
- * fold removes a primitive, so the loop ends. Out of memory: nothing is merged. */
+ * fold removes a primitive, so the loop ends. Out of memory sets d->nomem. */
 static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t *buf)
 {
     size_t n = d->c->n;
@@ -1669,6 +1701,7 @@ static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t 
         if (!g.start || !g.order) {
             frep_free(g.start);
             frep_free(g.order);
+            d->nomem = 1;
             return;
         }
         inliers_by_label(res, n, g.start, g.order);
@@ -1704,26 +1737,15 @@ static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t 
  * edge, which a sphere through the edge's circle fits within the normal threshold,
  * turn across the strip. */
 #define SMALL_NORMAL_DEG 5.0
-static double median_normal_dev(const prim *q, const frep_cloud *c, const uint32_t *idx,
-                                size_t n)
+/* The angle between point i's normal and q's gradient there (pi/2 without one). */
+static double normal_angle(const prim *q, const frep_cloud *c, size_t i)
 {
-    size_t k = n < MODE_VOTERS ? n : MODE_VOTERS;
-    if (k == 0) return 0;
-    double *r = frep_malloc(k * sizeof *r);
-    if (!r) return FREP_PI;
-    for (size_t j = 0; j < k; j++) {
-        size_t i = idx[(size_t)((double)j * (double)n / (double)k)];
-        double p[3], g[3], nv[3];
-        point(c, i, p);
-        normal(c, i, nv);
-        prim_eval(q, p, g);
-        double gl = vec3_len(g), cs = gl > 0 ? fabs(vec3_dot(g, nv)) / gl : 0;
-        r[j] = acos(fmin(1, cs));
-    }
-    qsort(r, k, sizeof *r, cmp_abs_double);
-    double med = r[k / 2];
-    frep_free(r);
-    return med;
+    double p[3], g[3], nv[3];
+    point(c, i, p);
+    normal(c, i, nv);
+    prim_eval(q, p, g);
+    double gl = vec3_len(g), cs = gl > 0 ? fabs(vec3_dot(g, nv)) / gl : 0;
+    return acos(fmin(1, cs));
 }
 
 static double patch_width(const frep_cloud *c, const uint32_t *idx, size_t n)
@@ -2072,15 +2094,16 @@ static int accepted(const run *r, const cand *b)
 }
 
 /* Is small shape q (second phase) with its m inliers tight (see SMALL_TIGHT and the
- * limits after it)? */
-static int tight_small_shape(const run *r, const prim *q, size_t m)
+ * limits after it)? Out of memory: no (r->d.nomem set). */
+static int tight_small_shape(run *r, const prim *q, size_t m)
 {
-    double eps = r->d.cfg->epsilon;
+    double eps = r->d.cfg->epsilon, med, dev;
     const frep_cloud *c = r->d.c;
     return !(q->type == PRIM_CONE || q->type == PRIM_TORUS ||
              (q->type != PRIM_PLANE && !(q->r >= SMALL_RADIUS * eps)) ||
-             !(median_abs(q, c, r->inl, m) <= SMALL_TIGHT * eps) ||
-             !(median_normal_dev(q, c, r->inl, m) <= SMALL_NORMAL_DEG * FREP_PI / 180.0) ||
+             median_abs(&r->d, q, r->inl, m, &med) || !(med <= SMALL_TIGHT * eps) ||
+             median_over(&r->d, q, r->inl, m, normal_angle, &dev) ||
+             !(dev <= SMALL_NORMAL_DEG * FREP_PI / 180.0) ||
              !(patch_width(c, r->inl, m) >= SMALL_WIDTH * eps));
 }
 
@@ -2185,6 +2208,7 @@ static int detect_step(run *r)
     }
     prim q = b->q;
     size_t m = extract(r, &q);
+    if (d->nomem) return -1;
     if (m < r->min_pts) {
         keep_rejected(d, b);
         return 1;
@@ -2218,6 +2242,7 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         if (go == 0) break;
     }
     if (!res->interrupted) merge_redundant(&r.d, res, r.bands, r.inl);
+    if (r.d.nomem) goto oom;
     run_free(&r);
     return 0;
 oom:

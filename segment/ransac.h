@@ -58,7 +58,8 @@ void ransac_result_free(ransac_result *r);
 
 /* Least-squares refit of q to the given points (Euclidean distance; planes by PCA,
  * other types by Levenberg-Marquardt), at most max_points of them used (an evenly
- * spaced subset). Returns 0, or -1 when the fit degenerated (q unchanged). */
+ * spaced subset). Returns 0; 1 when the fit degenerated (fewer than 3 points, a
+ * singular system), or -1 when out of memory, q unchanged in both cases. */
 int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
                  size_t max_points);
 

@@ -56,9 +56,10 @@ static int cmp_double(const void *a, const void *b)
 
 /* The median distance to the nearest other position over SPACING_SAMPLES evenly
  * spaced points of tree t (of nt points, every stride-th of c), scaled back by
- * sqrt(stride): on a surface the spacing goes as one over the square root of the
- * density. -1 when out of memory. */
-static double sampled_spacing(const frep_cloud *c, const kd_tree *t, size_t nt, size_t stride)
+ * sqrt(stride), into *med: on a surface the spacing goes as one over the square root
+ * of the density. 0, or -1 when out of memory. */
+static int sampled_spacing(const frep_cloud *c, const kd_tree *t, size_t nt, size_t stride,
+                           double *med)
 {
     size_t m = nt < SPACING_SAMPLES ? nt : SPACING_SAMPLES;
     double *d = frep_malloc(m * sizeof *d);
@@ -76,19 +77,19 @@ static double sampled_spacing(const frep_cloud *c, const kd_tree *t, size_t nt, 
                 break;
             }
     }
-    double med = 0;
+    *med = 0;
     if (got) {
         qsort(d, got, sizeof *d, cmp_double);
-        med = d[got / 2] / sqrt((double)stride);
+        *med = d[got / 2] / sqrt((double)stride);
     }
     frep_free(d);
-    return med;
+    return 0;
 }
 
-/* Median distance to the nearest other point over an evenly spaced sample, -1 when
- * out of memory. Large clouds use a tree of every stride-th point only
+/* Median distance to the nearest other point over an evenly spaced sample into *med;
+ * 0, or -1 when out of memory. Large clouds use a tree of every stride-th point only
  * (SPACING_TREE_MAX of them). */
-static double median_spacing(const frep_cloud *c)
+static int median_spacing(const frep_cloud *c, double *med)
 {
     size_t stride = c->n > SPACING_TREE_MAX ? (c->n + SPACING_TREE_MAX - 1) / SPACING_TREE_MAX : 1;
     size_t nt = (c->n + stride - 1) / stride;
@@ -109,25 +110,12 @@ static double median_spacing(const frep_cloud *c)
     } else {
         t = kd_build(c->n, c->x, c->y, c->z);
     }
-    double med = t ? sampled_spacing(c, t, nt, stride) : -1;
+    int rc = t ? sampled_spacing(c, t, nt, stride, med) : -1;
     kd_free(t);
     frep_free(sx);
     frep_free(sy);
     frep_free(sz);
-    return med;
-}
-
-static void dot_basis(const double a[3], double u[3], double v[3])
-{
-    double t[3] = {1, 0, 0};
-    if (fabs(a[0]) > 0.6) t[0] = 0, t[1] = 1;
-    double d = t[0] * a[0] + t[1] * a[1] + t[2] * a[2];
-    for (int k = 0; k < 3; k++) u[k] = t[k] - d * a[k];
-    double l = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-    for (int k = 0; k < 3; k++) u[k] /= l;
-    v[0] = a[1] * u[2] - a[2] * u[1];
-    v[1] = a[2] * u[0] - a[0] * u[2];
-    v[2] = a[0] * u[1] - a[1] * u[0];
+    return rc;
 }
 
 /* Box axes with ax[0] = fixed (the primitive's normal or axis): the other two by PCA
@@ -136,7 +124,7 @@ static void axes_around(const double fixed[3], const frep_cloud *c, const uint32
                         size_t n, const double mean[3], double ax[3][3])
 {
     double u[3], v[3];
-    dot_basis(fixed, u, v);
+    vec3_basis(fixed, u, v);
     double suu = 0, suv = 0, svv = 0;
     for (size_t j = 0; j < n; j++) {
         double w[3] = {c->x[idx[j]] - mean[0], c->y[idx[j]] - mean[1], c->z[idx[j]] - mean[2]};
@@ -214,11 +202,11 @@ static int plane_dup(const prim *list, size_t n, const double nrm[3], double d, 
     return 0;
 }
 
-size_t segment_add_separating(prim **prims, size_t n, double eps)
+int segment_add_separating(prim **prims, size_t *count, double eps)
 {
-    size_t cap = n + 8, cnt = n;
+    size_t n = *count, cap = n + 8, cnt = n;
     prim *v = frep_realloc(*prims, cap * sizeof *v);
-    if (!v) return (size_t)-1;
+    if (!v) return -1;
     for (size_t i = 0; i < n; i++) {
         prim q = v[i];
         if (q.type == PRIM_PLANE || q.separating || !q.has_obb) continue;
@@ -254,7 +242,7 @@ size_t segment_add_separating(prim **prims, size_t n, double eps)
                     prim *nv = frep_realloc(v, cap * sizeof *nv);
                     if (!nv) {
                         *prims = v;
-                        return (size_t)-1;
+                        return -1;
                     }
                     v = nv;
                 }
@@ -263,7 +251,8 @@ size_t segment_add_separating(prim **prims, size_t n, double eps)
         }
     }
     *prims = v;
-    return cnt;
+    *count = cnt;
+    return 0;
 }
 
 /* Adapts the detector's progress reports to segment_config's. */
@@ -283,8 +272,8 @@ static int scaled_defaults(const frep_cloud *c, const segment_config *cfg, doubl
     if (cfg->cluster > 0) {
         res->cluster = cfg->cluster;
     } else {
-        double sp = median_spacing(c);
-        if (sp < 0) return frep_error_nomem(err);
+        double sp;
+        if (median_spacing(c, &sp)) return frep_error_nomem(err);
         res->cluster = fmax(SEGMENT_DEFAULT_CLUSTER * diag, SEGMENT_CLUSTER_SPACINGS * sp);
     }
     res->normal_deg = cfg->normal_deg > 0 ? cfg->normal_deg : SEGMENT_DEFAULT_NORMAL_DEG;
@@ -388,12 +377,10 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, f
         return frep_error_nomem(err);
     }
     if (cfg->separating) {
-        size_t nn = segment_add_separating(&res->prims, res->nprims, res->epsilon);
-        if (nn == (size_t)-1) {
+        if (segment_add_separating(&res->prims, &res->nprims, res->epsilon)) {
             segment_result_free(res);
             return frep_error_nomem(err);
         }
-        res->nprims = nn;
     }
     return 0;
 }
@@ -499,14 +486,6 @@ static int hf_const(const ast_node *a, double *v)
     return isfinite(*v) ? 0 : -1;
 }
 
-static int unit3(double a[3])
-{
-    double l = vec3_len(a);
-    if (!(l > 0)) return -1;
-    for (int k = 0; k < 3; k++) a[k] /= l;
-    return 0;
-}
-
 /* The primitive of call k with constants a: axes and plane normals made unit (a
  * plane's offset with its normal). Returns -1 for a zero-length one. */
 static int hf_prim_of(const hf_call *k, const double *a, prim *q)
@@ -518,7 +497,7 @@ static int hf_prim_of(const hf_call *k, const double *a, prim *q)
         q->r = a[3];
         if (q->type != PRIM_PLANE) return 0;
         double l0 = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-        if (unit3(q->p)) return -1;
+        if (vec3_normalize(q->p)) return -1;
         q->r /= l0;
         return 0;
     }
@@ -529,7 +508,7 @@ static int hf_prim_of(const hf_call *k, const double *a, prim *q)
     } else {
         q->r = a[6];
     }
-    return unit3(q->a);
+    return vec3_normalize(q->a);
 }
 
 /* The primitive of an assignment's value, if it is a primitive call: 1 when found, 0

@@ -74,10 +74,10 @@ void segment_result_free(segment_result *r);
 /* Oriented bounding box of the points idx[0..n) into q->obb_* (for axial types the
  * primitive's axis is one box axis). */
 void segment_fit_obb(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n);
-/* Algorithm 2: append separating primitives for prims[0..n) to *prims (realloc'ed);
- * eps is the duplicate offset tolerance. Returns the new count, or (size_t)-1 when
- * out of memory. */
-size_t segment_add_separating(prim **prims, size_t n, double eps);
+/* Algorithm 2: append separating primitives for the *n primitives of *prims (realloc'ed)
+ * and set *n to the new count; eps is the duplicate offset tolerance. Returns 0, or -1
+ * when out of memory (*prims still holds at least its *n primitives, *n unchanged). */
+int segment_add_separating(prim **prims, size_t *n, double eps);
 
 /* Write primitives as a frep model "primitives(x[3], a[1])" with one named call per
  * primitive; `header` (may be NULL) is written as comment lines first. Numbers are

@@ -118,8 +118,13 @@ static void test_vec3(void)
     double z[3] = {0, 0, 0}, inf[3] = {INFINITY, 0, 0};
     ok(vec3_normalize(z) == -1 && z[0] == 0, "vec3_normalize: zero fails, unchanged");
     ok(vec3_normalize(inf) == -1 && inf[0] == INFINITY, "vec3_normalize: infinite fails");
-    vec3_unit(inf);
-    ok(inf[0] == 0 && inf[1] == 0 && inf[2] == 0, "vec3_unit: no direction gives 0");
+    double big[3] = {1e200, 0, 1e200}, tiny[3] = {1e-170, 0, 0}, small[3] = {0, 3e-150, 4e-150};
+    double nan3[3] = {NAN, 1, 0};
+    ok(vec3_normalize(big) == -1 && big[0] == 1e200, "vec3_normalize: |v| overflows, fails");
+    ok(vec3_normalize(tiny) == -1 && tiny[0] == 1e-170, "vec3_normalize: v.v underflows, fails");
+    ok(vec3_normalize(small) == 0 && fabs(small[1] - 0.6) < 1e-15 && fabs(small[2] - 0.8) < 1e-15,
+       "vec3_normalize: short but representable");
+    ok(vec3_normalize(nan3) == -1 && isnan(nan3[0]) && nan3[1] == 1, "vec3_normalize: NaN fails");
 }
 
 /* A request is honoured; 0 or less means the default, never below one thread. */
