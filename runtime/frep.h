@@ -1,8 +1,9 @@
 /* frep.h - public interface of libfrep: compile HyperFun models to bytecode, evaluate
  * them over blocks of points and over boxes, and do the jobs of the frep command from
  * a program: read and write point clouds, polygonize into indexed triangle meshes and
- * write and check them, sample surfaces.  doc/api.md is the guide; every function
- * declared here, and nothing else, is exported from libfrep.so.
+ * write and check them, sample surfaces, segment clouds into primitives.  doc/api.md
+ * is the guide; every function declared here, and nothing else, is exported from
+ * libfrep.so.
  *
  * Rules of use:
  *  - A frep_program is immutable after frep_compile() and may be shared by threads.
@@ -345,6 +346,56 @@ frep_cloud *frep_sample(const frep_program *p, const frep_sample_options *o,
  * noise and outliers relative to the mesh's bounding box). */
 frep_cloud *frep_sample_mesh(const frep_mesh *m, const frep_sample_options *o,
                              frep_diag_fn diag, void *user);
+
+/* ---- segmentation (frep segment) ---- */
+
+/* Primitive types, as bits of frep_segment_options.types. */
+typedef enum frep_prim_type {
+    FREP_PRIM_PLANE, FREP_PRIM_SPHERE, FREP_PRIM_CYLINDER, FREP_PRIM_CONE, FREP_PRIM_TORUS
+} frep_prim_type;
+
+typedef struct frep_segment_options {
+    double epsilon;        /* inlier distance; <= 0: 1% of the cloud's diagonal */
+    double cluster;        /* connectivity cell; <= 0: the default (doc/segment.md) */
+    double normal_deg;     /* normal deviation allowed, degrees; <= 0: 25 */
+    size_t min_points;     /* smallest support; 0: 1% of the points (at least 10) */
+    size_t min_points_small; /* second phase's; 0: 0.25%; (size_t)-1: no second phase */
+    double probability;    /* of missing no shape; <= 0: 0.99 */
+    unsigned types;        /* 1u << FREP_PRIM_* bits; 0: all */
+    uint64_t seed;         /* the same seed gives the same result at any thread count (1) */
+    int nthreads;          /* <= 0: OpenMP's default */
+    size_t knn;            /* neighbours for normal estimation; 0: the default */
+    int separating;        /* add the separating primitives (1) */
+    /* Called from the calling thread as detection goes (may be NULL): the stage
+     * ("normals", "detect"), points assigned of total, primitives so far. */
+    void (*progress)(void *user, const char *stage, size_t done, size_t total, size_t nprims);
+    /* Polled at every step (may be NULL): nonzero stops detection, and the result
+     * holds what was found (frep_segmentation_interrupted() is then 1). */
+    int (*cancel)(void *user);
+    void *user;            /* for progress and cancel */
+} frep_segment_options;
+void frep_segment_options_init(frep_segment_options *o);
+
+/* The primitives found in a cloud: fitted ones first, then separating ones. */
+typedef struct frep_segmentation frep_segmentation;
+
+/* Efficient RANSAC over c, as `frep segment` (doc/segment.md).  c's normals are
+ * estimated (and stored in c) when it has none or zero ones.  Free the result with
+ * frep_segmentation_free(). */
+frep_segmentation *frep_segment(frep_cloud *c, const frep_segment_options *o,
+                                frep_diag_fn diag, void *user);
+void frep_segmentation_free(frep_segmentation *s);
+size_t frep_segmentation_nprims(const frep_segmentation *s);     /* all primitives */
+size_t frep_segmentation_nfitted(const frep_segmentation *s);    /* fitted ones */
+size_t frep_segmentation_unassigned(const frep_segmentation *s); /* points in none */
+int frep_segmentation_interrupted(const frep_segmentation *s);
+/* Per point of the cloud (its size at frep_segment()): the index of its fitted
+ * primitive, or -1; valid until frep_segmentation_free(). */
+const int32_t *frep_segmentation_labels(const frep_segmentation *s);
+/* Write the primitives as `frep segment -o` does: a .fit list when path ends in
+ * .fit, else a .hf model with `header` (may be NULL) as its comment lines. */
+int frep_segmentation_write(const frep_segmentation *s, const char *path, const char *header,
+                            frep_diag_fn diag, void *user);
 
 #ifdef __cplusplus
 }

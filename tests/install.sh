@@ -35,7 +35,10 @@ t $? "documents and examples installed under share/doc/frep"
 # a C program against the installed library, through pkg-config
 export PKG_CONFIG_PATH="$p/lib/pkgconfig"
 static=; ls "$p"/lib/libfrep.so >/dev/null 2>&1 || static=--static
-${CC:-cc} -o "$tmp/eval" "$s/examples/api/eval.c" $(pkg-config --cflags frep) \
+# compiled with the build's flags: a sanitizer or coverage build's library needs them
+mk() { sed -n "s/^$1 = //p" "$b/Makefile" | head -n 1; }
+san=$(mk SAN_CFLAGS); flags="$(mk CFLAGS) $(mk LDFLAGS) $san"
+${CC:-cc} $flags -o "$tmp/eval" "$s/examples/api/eval.c" $(pkg-config --cflags frep) \
     $(pkg-config --libs $static frep) >"$tmp/log" 2>&1
 rc=$?; [ $rc -eq 0 ] || sed 's/^/# /' "$tmp/log"
 t $rc "examples/api/eval.c builds with pkg-config --cflags --libs frep"
@@ -48,14 +51,14 @@ LD_LIBRARY_PATH="$p/lib" ldd "$tmp/eval" 2>/dev/null | grep -q "libfrep.so.0 => 
 t $? "it loads the installed libfrep.so.0"
 
 # the Python example, finding the library through pkg-config
-if /usr/bin/python3 -c 'import numpy' 2>/dev/null && [ -z "$static" ]; then
+if /usr/bin/python3 -c 'import numpy' 2>/dev/null && [ -z "$static" ] && [ -z "$san" ]; then
     (cd "$tmp" && LD_LIBRARY_PATH="$p/lib" PYTHONPATH="$s/python" PYTHONDONTWRITEBYTECODE=1 \
         /usr/bin/python3 "$s/examples/api/mesh.py" "$s/examples/csg.hf" "$tmp/py.stl" 24) \
         >"$tmp/out" 2>&1 && cmp -s "$tmp/py.stl" "$tmp/cli.stl"
     rc=$?; sed 's/^/# /' "$tmp/out"
     t $rc "examples/api/mesh.py runs against the installed libfrep, same mesh"
 else
-    n=$((n + 1)); echo "ok $n # SKIP no /usr/bin/python3 with numpy, or a static build"
+    n=$((n + 1)); echo "ok $n # SKIP no /usr/bin/python3 with numpy, or a static or sanitizer build"
 fi
 
 env -u MAKEFLAGS -u MFLAGS make -s -C "$b" install prefix=/opt/frep-test DESTDIR="$tmp/stage" >"$tmp/log" 2>&1 &&

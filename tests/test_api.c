@@ -358,6 +358,85 @@ static void test_same_as_command(const char *frep, const char *srcdir)
     ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
 }
 
+
+/* progress and cancel of frep_segment: how often each was called */
+typedef struct seg_calls {
+    int progress, cancel, stop_at;
+} seg_calls;
+
+static void seg_progress(void *user, const char *stage, size_t done, size_t total, size_t nprims)
+{
+    (void)stage, (void)done, (void)total, (void)nprims;
+    ((seg_calls *)user)->progress++;
+}
+
+static int seg_cancel(void *user)
+{
+    seg_calls *c = user;
+    return ++c->cancel >= c->stop_at;
+}
+
+/* frep segment and frep_segment on the same cloud and seed: the same .fit bytes and
+ * labels; a cancel stops detection early with what was found. */
+static void test_segment(const char *frep, const char *srcdir)
+{
+    char model[600], cmd[2048];
+    snprintf(model, sizeof model, "%s/tests/models/segment_box.hf", srcdir);
+    seen s = { 0 };
+    snprintf(cmd, sizeof cmd, "'%s' sample '%s' -n 6000 --seed 5 --noise 0.002 -q -o '%s'", frep,
+             model, tmp("box.xyz"));
+    ok(run(cmd) == 0, "a box cloud from frep sample");
+    snprintf(cmd, sizeof cmd, "'%s' segment '%s' --seed 3 -q -o '%s' --labels '%s'", frep,
+             tmp("box.xyz"), tmp("cli.fit"), tmp("cli.labels"));
+    ok(run(cmd) == 0, "frep segment --seed 3");
+    frep_cloud *c = frep_cloud_read(tmp("box.xyz"), collect, &s);
+    frep_segment_options o;
+    frep_segment_options_init(&o);
+    ok(o.seed == 1 && o.separating == 1 && o.types == 0 && !o.cancel, "segment defaults");
+    o.seed = 3;
+    seg_calls calls = { 0, 0, 1 << 30 };
+    o.progress = seg_progress;
+    o.cancel = seg_cancel;
+    o.user = &calls;
+    frep_segmentation *g = c ? frep_segment(c, &o, collect, &s) : NULL;
+    ok(g && frep_segmentation_nfitted(g) >= 6 && !frep_segmentation_interrupted(g) &&
+           calls.progress > 0 && calls.cancel == calls.progress,
+       "frep_segment: %zu fitted, %zu in all; progress called %d times, cancel polled as often",
+       g ? frep_segmentation_nfitted(g) : 0, g ? frep_segmentation_nprims(g) : 0, calls.progress);
+    ok(g && frep_segmentation_write(g, tmp("api.fit"), NULL, collect, &s) == 0 &&
+           same_file(tmp("cli.fit"), tmp("api.fit")), "the same .fit bytes as frep segment");
+    /* the labels file holds label + 1 per point */
+    FILE *lf = fopen(tmp("cli.labels"), "r");
+    int same = lf && g;
+    const int32_t *lab = g ? frep_segmentation_labels(g) : NULL;
+    for (size_t i = 0; same && i < frep_cloud_size(c); i++) {
+        long v;
+        same = fscanf(lf, "%ld", &v) == 1 && v == (long)lab[i] + 1;
+    }
+    if (lf) fclose(lf);
+    ok(same, "the same labels as frep segment --labels");
+    int w = g ? frep_segmentation_write(g, tmp("api.hf"), "segmented by test_api", collect, &s) : -1;
+    char text[1 << 16];
+    FILE *hf = fopen(tmp("api.hf"), "rb");
+    size_t len = hf ? fread(text, 1, sizeof text, hf) : 0;
+    if (hf) fclose(hf);
+    frep_program *hp = frep_compile("api.hf", text, len, NULL, collect, &s);
+    ok(w == 0 && hp && memmem(text, len, "-- segmented by test_api", 24),
+       "written as a .hf model that compiles, with its header");
+    frep_program_free(hp);
+    frep_segmentation_free(g);
+
+    /* stop at the third poll: interrupted, fewer primitives */
+    calls = (seg_calls){ 0, 0, 3 };
+    g = c ? frep_segment(c, &o, collect, &s) : NULL;
+    ok(g && frep_segmentation_interrupted(g) && calls.cancel == 3 &&
+           frep_segmentation_nfitted(g) < 6, "cancel after 3 polls: interrupted with %zu primitives",
+       g ? frep_segmentation_nfitted(g) : 0);
+    frep_segmentation_free(g);
+    frep_cloud_free(c);
+    ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
+}
+
 int main(void)
 {
     snprintf(tmpdir, sizeof tmpdir, "%s/frep-api.XXXXXX", getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp");
@@ -371,7 +450,10 @@ int main(void)
     test_cloud();
     test_mesh();
     const char *frep = getenv("FREP"), *srcdir = getenv("srcdir");
-    if (frep && srcdir) test_same_as_command(frep, srcdir);
+    if (frep && srcdir) {
+        test_same_as_command(frep, srcdir);
+        test_segment(frep, srcdir);
+    }
     else diag("FREP or srcdir not set: the comparison with the command is skipped");
     char cmd[400];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);

@@ -17,7 +17,7 @@ import warnings
 
 import numpy as np
 
-__all__ = ["FrepError", "Program", "Mesh", "Cloud", "compile", "compile_file",
+__all__ = ["FrepError", "Program", "Mesh", "Cloud", "Segmentation", "compile", "compile_file",
            "read_cloud", "read_mesh", "library_version", "load_library"]
 
 _c_double_p = ctypes.POINTER(ctypes.c_double)
@@ -120,6 +120,22 @@ class _SampleOptions(ctypes.Structure):
                 ("mesh", _MeshOptions)]
 
 
+_SEG_PROGRESS_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t,
+                                    ctypes.c_size_t, ctypes.c_size_t)
+_SEG_CANCEL_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)
+
+
+class _SegmentOptions(ctypes.Structure):
+    _fields_ = [("epsilon", ctypes.c_double), ("cluster", ctypes.c_double),
+                ("normal_deg", ctypes.c_double), ("min_points", ctypes.c_size_t),
+                ("min_points_small", ctypes.c_size_t), ("probability", ctypes.c_double),
+                ("types", ctypes.c_uint), ("seed", ctypes.c_uint64), ("nthreads", ctypes.c_int),
+                ("knn", ctypes.c_size_t), ("separating", ctypes.c_int),
+                ("progress", _SEG_PROGRESS_FN), ("cancel", _SEG_CANCEL_FN),
+                ("user", ctypes.c_void_p)]
+
+
+PRIM_TYPES = ("plane", "sphere", "cylinder", "cone", "torus")
 _MESH_FORMATS = {"auto": 0, "stl": 1, "obj": 2, "ply": 3, "off": 4}
 
 
@@ -174,6 +190,15 @@ def _declare(lib):
         "frep_sample_options_init": (None, [ctypes.POINTER(_SampleOptions)]),
         "frep_sample": (P, [P, ctypes.POINTER(_SampleOptions), _DIAG_FN, P]),
         "frep_sample_mesh": (P, [P, ctypes.POINTER(_SampleOptions), _DIAG_FN, P]),
+        "frep_segment_options_init": (None, [ctypes.POINTER(_SegmentOptions)]),
+        "frep_segment": (P, [P, ctypes.POINTER(_SegmentOptions), _DIAG_FN, P]),
+        "frep_segmentation_free": (None, [P]),
+        "frep_segmentation_nprims": (S, [P]),
+        "frep_segmentation_nfitted": (S, [P]),
+        "frep_segmentation_unassigned": (S, [P]),
+        "frep_segmentation_interrupted": (I, [P]),
+        "frep_segmentation_labels": (ctypes.POINTER(ctypes.c_int32), [P]),
+        "frep_segmentation_write": (I, [P, ctypes.c_char_p, ctypes.c_char_p, _DIAG_FN, P]),
     }
     for name, (res, args) in sig.items():
         fn = getattr(lib, name)
@@ -597,9 +622,13 @@ class Cloud:
         return c
 
     def _set(self, h):
-        lib = _L()
-        self._handle = _Handle(h, lib.frep_cloud_free)
+        self._handle = _Handle(h, _L().frep_cloud_free)
         self._h = h
+        self._set_arrays()
+
+    def _set_arrays(self):
+        lib = _L()
+        h = self._h
         n = lib.frep_cloud_size(h)
         ptrs = [_c_double_p() for _ in range(6)]
         lib.frep_cloud_arrays(h, *[ctypes.byref(p) for p in ptrs])
@@ -617,6 +646,60 @@ class Cloud:
         """.xyz text or .ply binary (by the extension), atomically, as frep sample."""
         d = _Diagnostics()
         if _L().frep_cloud_write(self._h, str(path).encode(), d.fn, None) != 0:
+            d.fail("cannot write %s" % path)
+
+    def segment(self, seed=1, epsilon=0.0, types=None, separating=True, threads=0,
+                progress=None, cancel=None, **kw):
+        """Efficient RANSAC, as frep segment: a Segmentation.  types: names of
+        PRIM_TYPES (None: all); kw: cluster, normal_deg, min_points, min_points_small,
+        probability, knn.  progress(stage, done, total, nprims) and cancel() -> bool are
+        called from this thread as detection goes; cancel returning True stops it with
+        what was found.  Normals are estimated into this cloud when it has none."""
+        lib = _L()
+        o = _SegmentOptions()
+        lib.frep_segment_options_init(ctypes.byref(o))
+        o.seed, o.epsilon, o.separating, o.nthreads = int(seed), float(epsilon), \
+            int(bool(separating)), int(threads)
+        if types is not None:
+            o.types = sum(1 << PRIM_TYPES.index(t) for t in types)
+        for k, v in kw.items():
+            if k not in ("cluster", "normal_deg", "min_points", "min_points_small",
+                         "probability", "knn"):
+                raise TypeError("segment: unknown option %r" % k)
+            setattr(o, k, v)
+        if progress is not None:
+            o.progress = _SEG_PROGRESS_FN(
+                lambda u, st, done, total, n: progress(st.decode(), done, total, n))
+        if cancel is not None:
+            o.cancel = _SEG_CANCEL_FN(lambda u: 1 if cancel() else 0)
+        d = _Diagnostics()
+        h = lib.frep_segment(self._h, ctypes.byref(o), d.fn, None)
+        if not h:
+            d.fail("segmentation failed")
+        if lib.frep_cloud_has_normals(self._h) and self.normals is None:
+            self._set_arrays()
+        return Segmentation(h, lib.frep_cloud_size(self._h))
+
+
+class Segmentation:
+    """The primitives frep segment finds: nprims (fitted first, then separating),
+    nfitted, unassigned, interrupted, labels (per point: its fitted primitive or -1)."""
+
+    def __init__(self, h, npoints):
+        lib = _L()
+        self._handle = _Handle(h, lib.frep_segmentation_free)
+        self._h = h
+        self.nprims = lib.frep_segmentation_nprims(h)
+        self.nfitted = lib.frep_segmentation_nfitted(h)
+        self.unassigned = lib.frep_segmentation_unassigned(h)
+        self.interrupted = bool(lib.frep_segmentation_interrupted(h))
+        self.labels = _view(lib.frep_segmentation_labels(h), (npoints,), np.int32, self._handle)
+
+    def write(self, path, header=None):
+        """A .fit list (path ending in .fit) or a .hf model with header comment lines."""
+        d = _Diagnostics()
+        if _L().frep_segmentation_write(self._h, str(path).encode(),
+                                        header.encode() if header else None, d.fn, None) != 0:
             d.fail("cannot write %s" % path)
 
 

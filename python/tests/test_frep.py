@@ -181,3 +181,30 @@ def test_open3d_helper():
     t = m.to_open3d()
     assert isinstance(t, o3d.geometry.TriangleMesh)
     assert len(t.vertices) == len(m.vertices) and t.is_watertight()
+
+
+def test_segment_same_as_command(tmp_path):
+    need_frep()
+    model = os.path.join(SRCDIR, "tests", "models", "segment_box.hf")
+    xyz = tmp_path / "box.xyz"
+    subprocess.run([FREP, "sample", model, "-n", "5000", "--seed", "4", "-q", "-o", str(xyz)],
+                   check=True)
+    subprocess.run([FREP, "segment", str(xyz), "--seed", "2", "-q", "-o",
+                    str(tmp_path / "cli.fit"), "--labels", str(tmp_path / "cli.labels")],
+                   check=True)
+    calls = []
+    c = frep.read_cloud(xyz)
+    s = c.segment(seed=2, progress=lambda *a: calls.append(a))
+    s.write(tmp_path / "api.fit")
+    assert (tmp_path / "cli.fit").read_bytes() == (tmp_path / "api.fit").read_bytes()
+    want = np.loadtxt(tmp_path / "cli.labels", dtype=np.int64) - 1
+    assert np.array_equal(s.labels, want)
+    assert s.nfitted >= 6 and not s.interrupted and calls and calls[-1][0] == "detect"
+
+
+def test_segment_cancel():
+    model = frep.compile_file(os.path.join(SRCDIR, "tests", "models", "segment_box.hf"))
+    c = model.sample(4000, seed=1)
+    polls = []
+    s = c.segment(seed=1, cancel=lambda: polls.append(1) or len(polls) >= 3)
+    assert s.interrupted and len(polls) == 3 and s.nfitted < 6
