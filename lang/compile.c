@@ -59,6 +59,7 @@ static int fill_params(frep_program *p, const lowered *lo, const frep_compile_op
 {
     uint32_t n = lo->na + lo->nnamed, i;
     p->nparams = n;
+    p->na = lo->na;
     if (n == 0) return 0;
     p->params = frep_calloc(n, sizeof *p->params);
     if (!p->params) return -1;

@@ -1,5 +1,9 @@
-/* frep.h - public interface of libfrep: compile HyperFun models to bytecode and
- * evaluate them over blocks of points.
+/* frep.h - public interface of libfrep: compile HyperFun models to bytecode, evaluate
+ * them over blocks of points and over boxes, and do the jobs of the frep command from
+ * a program: read and write point clouds, polygonize into indexed triangle meshes and
+ * write and check them, sample surfaces, segment clouds into primitives.  doc/api.md
+ * is the guide; every function declared here, and nothing else, is exported from
+ * libfrep.so.
  *
  * Rules of use:
  *  - A frep_program is immutable after frep_compile() and may be shared by threads.
@@ -20,7 +24,20 @@
 extern "C" {
 #endif
 
+/* ---- version ------------------------------------------------------------ */
+
+/* The version this header belongs to (compile time); frep_version() is the version of
+ * the library loaded at run time.  FREP_VERSION_NUMBER is MAJOR * 10000 + MINOR * 100
+ * + PATCH, for #if. */
+#define FREP_VERSION_MAJOR 0
+#define FREP_VERSION_MINOR 1
+#define FREP_VERSION_PATCH 0
 #define FREP_VERSION_STRING "0.1.0"
+#define FREP_VERSION_NUMBER \
+    (FREP_VERSION_MAJOR * 10000 + FREP_VERSION_MINOR * 100 + FREP_VERSION_PATCH)
+
+/* "MAJOR.MINOR.PATCH" of the library loaded (a static string). */
+const char *frep_version(void);
 
 /* ---- memory ------------------------------------------------------------- */
 
@@ -92,7 +109,29 @@ void frep_free_strings(char **v, size_t n);
 
 /* Program queries. */
 size_t frep_program_size(const frep_program *p);         /* instructions */
-size_t frep_program_nparams(const frep_program *p);
+
+/* Free parameters.  The parameter vector that frep_eval* take (`params`) holds
+ * frep_program_nparams() values: first every element of the model's a[] array
+ * (frep_program_na() of them, a[1] at index 0, whether the model reads them or not:
+ * `my_model(x[3], a[1])` has one), then the named `-- @free` parameters in source
+ * order (frep_program_nfree()).  So a model with one `r = 0.5; -- @free` and the
+ * usual a[1] has two: never size the vector by counting the @free lines, ask
+ * frep_program_param_index() where "r" is and frep_program_param_values() for the
+ * whole vector. */
+size_t frep_program_nparams(const frep_program *p);      /* na + nfree */
+size_t frep_program_na(const frep_program *p);           /* elements of a[] */
+size_t frep_program_nfree(const frep_program *p);        /* named @free parameters */
+/* The index in the parameter vector of `name`: a named parameter as written ("r";
+ * case-insensitive like every identifier) or an element of a[] ("a[2]", 1-based as
+ * in the model).  Returns 0 and sets *index, or -1 when the model has no such
+ * parameter. */
+int frep_program_param_index(const frep_program *p, const char *name, size_t *index);
+/* Copy the program's own values (from -a / frep_compile_options.a and the source)
+ * into v[0..nparams-1], a vector to change and pass to frep_eval*.  n is v's length:
+ * returns 0, or -1 (nothing written) when n < frep_program_nparams(p). */
+int frep_program_param_values(const frep_program *p, double *v, size_t n);
+/* Name ("a[2]" or as written), value and bounds of parameter i (an index of the
+ * vector); NULL / NaN / 0 when i is out of range. */
 const char *frep_program_param_name(const frep_program *p, size_t i);
 double frep_program_param_value(const frep_program *p, size_t i);
 /* Bounds (lo, hi) of parameter i; returns 1 when it has bounds, else 0. */
@@ -127,8 +166,9 @@ void frep_report_runtime_error(const frep_program *p, const frep_runtime_error *
                                frep_diag_fn diag, void *user);
 
 /* Evaluate at n points (x[i], y[i], z[i]) with parameter vector `params` (NULL: the
- * program's own values; else frep_program_nparams() values). Any n; internally in
- * blocks. Returns 0, or -1 on allocation failure / bad program. */
+ * program's own values; else frep_program_nparams() values, laid out as described
+ * under "Free parameters" above). Any n; internally in blocks. Returns 0, or -1 on
+ * allocation failure / bad program. */
 int frep_eval(const frep_program *p, frep_scratch *s, size_t n, const double *x,
               const double *y, const double *z, const double *params, double *f);
 
@@ -152,6 +192,210 @@ int frep_eval_par(const frep_program *p, size_t n, const double *x, const double
 int frep_eval_grad_par(const frep_program *p, size_t n, const double *x, const double *y,
                        const double *z, const double *params, double *f, double *gx,
                        double *gy, double *gz, int nthreads, frep_runtime_error *err);
+
+/* Interval evaluation: an enclosure of f over a box.  A frep_interval_scratch is per
+ * thread like frep_scratch (sized for `p` and any program of at most its size); free
+ * with frep_interval_scratch_free(). NULL on allocation failure. */
+typedef struct frep_interval_scratch frep_interval_scratch;
+frep_interval_scratch *frep_interval_scratch_new(const frep_program *p);
+void frep_interval_scratch_free(frep_interval_scratch *s);
+
+/* [*lo, *hi] encloses f(x, y, z) over box = {x0, y0, z0, x1, y1, z1} (HyperFun's
+ * order) with parameters `params` (NULL: the program's own): lo <= f <= hi at every
+ * point of the box where no intermediate value is NaN.  Sound under rounding (one ulp
+ * of widening per operation); [-inf, inf] when it cannot tell (branch conditions
+ * undecided over the box, loops).  Returns 0, or -1 when the scratch is too small
+ * for p. */
+int frep_eval_interval(const frep_program *p, frep_interval_scratch *s, const double box[6],
+                       const double *params, double *lo, double *hi);
+
+/* ---- the jobs of the frep command ---------------------------------------- */
+/* Functions below report why they fail through `diag` (may be NULL) as one
+ * FREP_ERROR diagnostic whose message carries the position ("cloud.xyz:12: expected
+ * 3 or 6 numbers, got 5") and no file/line fields, and return NULL or -1.  Warnings
+ * (runtime domain errors of the model, NaN grid points) come the same way with
+ * FREP_WARNING.  Files are written atomically: to a temporary in the same directory,
+ * renamed over the path when complete.  All may run in several threads at once on
+ * different objects; an object is not modified by any function taking it const. */
+
+/* ---- point clouds ---- */
+
+/* Points with optional normals, structure of arrays. */
+typedef struct frep_cloud frep_cloud;
+
+/* Read .xyz text (3 or 6 numbers a line) or PLY (ascii, binary; recognized by its
+ * "ply" header), "-" for standard input.  Free with frep_cloud_free(). */
+frep_cloud *frep_cloud_read(const char *path, frep_diag_fn diag, void *user);
+/* A cloud of n points copied from x, y, z and, when nx is not NULL, the normals nx,
+ * ny, nz (all three or none).  Free with frep_cloud_free(). */
+frep_cloud *frep_cloud_new(size_t n, const double *x, const double *y, const double *z,
+                           const double *nx, const double *ny, const double *nz,
+                           frep_diag_fn diag, void *user);
+void frep_cloud_free(frep_cloud *c);
+size_t frep_cloud_size(const frep_cloud *c);
+int frep_cloud_has_normals(const frep_cloud *c);
+/* The cloud's own arrays (frep_cloud_size() values each; nx, ny, nz NULL without
+ * normals), valid until frep_cloud_free().  Any pointer argument may be NULL. */
+void frep_cloud_arrays(const frep_cloud *c, const double **x, const double **y,
+                       const double **z, const double **nx, const double **ny,
+                       const double **nz);
+/* Write as `frep sample` does: PLY binary little endian (double x y z [nx ny nz])
+ * when path ends in .ply, else .xyz text with %.17g (6 columns with normals); "-"
+ * writes .xyz to standard output.  Returns 0 or -1. */
+int frep_cloud_write(const frep_cloud *c, const char *path, frep_diag_fn diag, void *user);
+
+/* ---- triangle meshes ---- */
+
+/* An indexed triangle mesh: vertices, optional unit vertex normals, triangles
+ * counter-clockwise seen from outside. */
+typedef struct frep_mesh frep_mesh;
+
+/* Limits of polygonization (the same as the frep command's). */
+#define FREP_MESH_MAX_GRID 2048   /* cells per axis */
+
+typedef struct frep_mesh_options {
+    double box[6];        /* x0, y0, z0, x1, y1, z1; used when has_box */
+    int has_box;          /* 0: the program's `-- @box`, else [-10, 10]^3 (as frep mesh) */
+    int grid;             /* cells per axis of the box, 1..FREP_MESH_MAX_GRID (64) */
+    double iso;           /* the surface f = iso; inside is f >= iso (0) */
+    const double *params; /* parameter vector (NULL: the program's own values) */
+    int nthreads;         /* OpenMP threads, <= 0: the default; results do not depend on it */
+    /* Called from one thread with the fraction done, 0..1 (may be NULL). */
+    void (*progress)(void *user, double fraction);
+    void *progress_user;
+} frep_mesh_options;
+void frep_mesh_options_init(frep_mesh_options *o);
+
+/* What polygonization found and did (for summaries); filled when not NULL. */
+typedef struct frep_mesh_info {
+    double box[6];        /* the box used */
+    int grid;
+    size_t points_nan;    /* grid points where f is NaN, counted as outside */
+    int touches_box;      /* the solid reaches the box: the mesh is closed by caps there */
+    int full;             /* every grid point is inside: the mesh is the box */
+    double seconds;       /* wall time */
+    size_t octree_nodes, blocks, blocks_total, eval_points, grad_points, cells_split,
+        face_vertices;    /* work done, as frep mesh -v prints it */
+} frep_mesh_info;
+
+/* Polygonize f = iso by dual contouring on an interval-pruned octree (doc/mesh.md):
+ * a closed, oriented mesh with normals from the gradient, as `frep mesh` makes it.
+ * An empty mesh (no grid point inside, or info->full) is not an error.  Free with
+ * frep_mesh_free(). */
+frep_mesh *frep_polygonize(const frep_program *p, const frep_mesh_options *o,
+                           frep_mesh_info *info, frep_diag_fn diag, void *user);
+
+/* A mesh copied from nverts vertices v[3 * nverts], normals n (NULL: none) and ntris
+ * triangles tri[3 * ntris] (0-based vertex indices, checked). */
+frep_mesh *frep_mesh_new(size_t nverts, const double *v, const double *n, size_t ntris,
+                         const uint32_t *tri, frep_diag_fn diag, void *user);
+/* Read OFF, OBJ, STL (ascii, binary) or PLY (polygons split into fans). */
+frep_mesh *frep_mesh_read(const char *path, frep_diag_fn diag, void *user);
+void frep_mesh_free(frep_mesh *m);
+size_t frep_mesh_nverts(const frep_mesh *m);
+size_t frep_mesh_ntris(const frep_mesh *m);
+/* The mesh's own arrays, valid until frep_mesh_free(): vertex i is v[3i..3i+2], its
+ * normal n[3i..] (NULL when the mesh has none), triangle t tri[3t..3t+2]. */
+const double *frep_mesh_vertices(const frep_mesh *m);
+const double *frep_mesh_normals(const frep_mesh *m);
+const uint32_t *frep_mesh_triangles(const frep_mesh *m);
+
+typedef enum frep_mesh_format {
+    FREP_MESH_AUTO = 0,   /* from the path's extension (.stl .obj .ply .off) */
+    FREP_MESH_STL,        /* binary, or ascii */
+    FREP_MESH_OBJ,
+    FREP_MESH_PLY,        /* binary little endian, or ascii */
+    FREP_MESH_OFF
+} frep_mesh_format;
+/* Write as `frep mesh` does ("-": standard output, STL unless fmt says).  ascii
+ * selects text STL / PLY.  Returns 0 or -1. */
+int frep_mesh_write(const frep_mesh *m, const char *path, frep_mesh_format fmt, int ascii,
+                    frep_diag_fn diag, void *user);
+
+/* `frep mesh --check`: a mesh is a closed, oriented 2-manifold when every count is 0
+ * and the volume is > 0. */
+typedef struct frep_mesh_check_result {
+    size_t open_edges, nonmanifold_edges, flipped_edges, nonmanifold_verts, unused_verts,
+        degenerate, nonfinite;
+    double volume, area;          /* signed enclosed volume (positive when outward) */
+    size_t self_intersections;    /* counted only when asked (slower) */
+} frep_mesh_check_result;
+/* Returns 0 with *r filled, or -1 (out of memory). */
+int frep_mesh_check(const frep_mesh *m, int self_intersections, frep_mesh_check_result *r,
+                    frep_diag_fn diag, void *user);
+
+/* ---- sampling ---- */
+
+typedef struct frep_sample_options {
+    size_t n;             /* points, outliers included (10000) */
+    uint64_t seed;        /* the same seed gives the same cloud at any thread count (1) */
+    double noise;         /* Gaussian position noise: standard deviation (0) ... */
+    int noise_absolute;   /* ... times the box diagonal (0) or in model units (1) */
+    double outliers;      /* fraction of the n points drawn uniformly in the box (0) */
+    frep_mesh_options mesh; /* the model's box, iso, params, threads; grid 0 (the
+                               default): chosen from n, 32..256, as frep sample */
+} frep_sample_options;
+void frep_sample_options_init(frep_sample_options *o);
+
+/* Points on the surface f = iso with outward unit normals, as `frep sample`:
+ * area-weighted on a fine mesh, projected by Newton steps.  Free with
+ * frep_cloud_free(). */
+frep_cloud *frep_sample(const frep_program *p, const frep_sample_options *o,
+                        frep_diag_fn diag, void *user);
+/* Area-weighted points on a mesh's triangles with the face normals (o->mesh unused;
+ * noise and outliers relative to the mesh's bounding box). */
+frep_cloud *frep_sample_mesh(const frep_mesh *m, const frep_sample_options *o,
+                             frep_diag_fn diag, void *user);
+
+/* ---- segmentation (frep segment) ---- */
+
+/* Primitive types, as bits of frep_segment_options.types. */
+typedef enum frep_prim_type {
+    FREP_PRIM_PLANE, FREP_PRIM_SPHERE, FREP_PRIM_CYLINDER, FREP_PRIM_CONE, FREP_PRIM_TORUS
+} frep_prim_type;
+
+typedef struct frep_segment_options {
+    double epsilon;        /* inlier distance; <= 0: 1% of the cloud's diagonal */
+    double cluster;        /* connectivity cell; <= 0: the default (doc/segment.md) */
+    double normal_deg;     /* normal deviation allowed, degrees; <= 0: 25 */
+    size_t min_points;     /* smallest support; 0: 1% of the points (at least 10) */
+    size_t min_points_small; /* second phase's; 0: 0.25%; (size_t)-1: no second phase */
+    double probability;    /* of missing no shape; <= 0: 0.99 */
+    unsigned types;        /* 1u << FREP_PRIM_* bits; 0: all */
+    uint64_t seed;         /* the same seed gives the same result at any thread count (1) */
+    int nthreads;          /* <= 0: OpenMP's default */
+    size_t knn;            /* neighbours for normal estimation; 0: the default */
+    int separating;        /* add the separating primitives (1) */
+    /* Called from the calling thread as detection goes (may be NULL): the stage
+     * ("normals", "detect"), points assigned of total, primitives so far. */
+    void (*progress)(void *user, const char *stage, size_t done, size_t total, size_t nprims);
+    /* Polled at every step (may be NULL): nonzero stops detection, and the result
+     * holds what was found (frep_segmentation_interrupted() is then 1). */
+    int (*cancel)(void *user);
+    void *user;            /* for progress and cancel */
+} frep_segment_options;
+void frep_segment_options_init(frep_segment_options *o);
+
+/* The primitives found in a cloud: fitted ones first, then separating ones. */
+typedef struct frep_segmentation frep_segmentation;
+
+/* Efficient RANSAC over c, as `frep segment` (doc/segment.md).  c's normals are
+ * estimated (and stored in c) when it has none or zero ones.  Free the result with
+ * frep_segmentation_free(). */
+frep_segmentation *frep_segment(frep_cloud *c, const frep_segment_options *o,
+                                frep_diag_fn diag, void *user);
+void frep_segmentation_free(frep_segmentation *s);
+size_t frep_segmentation_nprims(const frep_segmentation *s);     /* all primitives */
+size_t frep_segmentation_nfitted(const frep_segmentation *s);    /* fitted ones */
+size_t frep_segmentation_unassigned(const frep_segmentation *s); /* points in none */
+int frep_segmentation_interrupted(const frep_segmentation *s);
+/* Per point of the cloud (its size at frep_segment()): the index of its fitted
+ * primitive, or -1; valid until frep_segmentation_free(). */
+const int32_t *frep_segmentation_labels(const frep_segmentation *s);
+/* Write the primitives as `frep segment -o` does: a .fit list when path ends in
+ * .fit, else a .hf model with `header` (may be NULL) as its comment lines. */
+int frep_segmentation_write(const frep_segmentation *s, const char *path, const char *header,
+                            frep_diag_fn diag, void *user);
 
 #ifdef __cplusplus
 }

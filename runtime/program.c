@@ -236,6 +236,51 @@ void frep_program_free(frep_program *p)
 size_t frep_program_size(const frep_program *p) { return p->ncode; }
 size_t frep_program_nparams(const frep_program *p) { return p->nparams; }
 
+size_t frep_program_na(const frep_program *p) { return p->na; }
+size_t frep_program_nfree(const frep_program *p) { return p->nparams - p->na; }
+
+/* Identifiers compare case-insensitively (ASCII), as the front end's. */
+static int name_eq(const char *a, const char *b)
+{
+    for (; *a && *b; a++, b++) {
+        char x = *a >= 'A' && *a <= 'Z' ? (char)(*a - 'A' + 'a') : *a;
+        char y = *b >= 'A' && *b <= 'Z' ? (char)(*b - 'A' + 'a') : *b;
+        if (x != y) return 0;
+    }
+    return *a == *b;
+}
+
+/* "a[K]" with 1 <= K <= na: index K - 1. */
+static int a_index(const frep_program *p, const char *name, size_t *index)
+{
+    if ((name[0] != 'a' && name[0] != 'A') || name[1] != '[' || name[2] < '1' || name[2] > '9')
+        return -1;
+    char *end;
+    unsigned long k = strtoul(name + 2, &end, 10);
+    if (end[0] != ']' || end[1] != 0 || k > p->na) return -1;
+    *index = (size_t)k - 1;
+    return 0;
+}
+
+int frep_program_param_index(const frep_program *p, const char *name, size_t *index)
+{
+    if (!p || !name || !index) return -1;
+    if (a_index(p, name, index) == 0) return 0;
+    for (size_t i = p->na; i < p->nparams && p->params; i++)
+        if (p->params[i].name && name_eq(p->params[i].name, name)) {
+            *index = i;
+            return 0;
+        }
+    return -1;
+}
+
+int frep_program_param_values(const frep_program *p, double *v, size_t n)
+{
+    if (!p || n < p->nparams || (p->nparams && !v)) return -1;
+    for (size_t i = 0; i < p->nparams; i++) v[i] = p->params ? p->params[i].value : 0.0;
+    return 0;
+}
+
 const char *frep_program_param_name(const frep_program *p, size_t i)
 {
     return i < p->nparams && p->params ? p->params[i].name : NULL;

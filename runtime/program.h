@@ -66,6 +66,7 @@ struct frep_program {
     uint32_t max_stack;        /* maximum stack depth reached by the code */
     uint32_t nparams;
     frep_param_info *params;
+    uint32_t na;               /* params[0..na-1] are the elements of a[] (<= nparams) */
     uint32_t nprims;           /* PRIM leaves refer to 0..nprims-1 */
     uint32_t flags;            /* PROG_* */
     char *file;                /* source file name for diagnostics (may be NULL) */

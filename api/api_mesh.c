@@ -1,0 +1,230 @@
+/* api_mesh.c - triangle meshes in the public API: polygonizing a program
+ * (mesh/polygonize.c over the program's field, mesh/field.c), the mesh files
+ * (geom/meshio.c) and the checks (geom/trimesh.c).  frep_mesh is geom/trimesh.h's
+ * mesh, held in its own allocation.
+ */
+#include "config.h"
+
+#include "api.h"
+#include "mesh.h"
+#include "meshio.h"
+#include "trimesh.h"
+
+#include <string.h>
+
+#include "alloc.h"
+
+void frep_mesh_options_init(frep_mesh_options *o)
+{
+    mesh_options mo;
+    mesh_options_init(&mo);
+    memset(o, 0, sizeof *o);
+    memcpy(o->box, mo.box, sizeof o->box);
+    o->grid = 64;     /* frep mesh's -g default */
+    o->iso = mo.iso;
+}
+
+/* The polygonizer's options from the public ones, with the model box resolved. */
+static void to_mesh_options(const frep_program *p, const frep_mesh_options *o, mesh_options *mo)
+{
+    mesh_options_init(mo);
+    api_model_box(p, o, mo->box);
+    mo->grid = o->grid;
+    mo->iso = o->iso;
+    mo->nthreads = o->nthreads;
+    mo->progress = o->progress;
+    mo->progress_user = o->progress_user;
+}
+
+static void fill_info(frep_mesh_info *info, const mesh_options *mo, const mesh_stats *st)
+{
+    if (!info) return;
+    memset(info, 0, sizeof *info);
+    memcpy(info->box, mo->box, sizeof info->box);
+    info->grid = mo->grid;
+    info->points_nan = st->points_nan;
+    info->touches_box = st->touches_box;
+    info->full = st->full;
+    info->seconds = st->seconds;
+    info->octree_nodes = st->octree_nodes;
+    info->blocks = st->blocks;
+    info->blocks_total = st->blocks_total;
+    info->eval_points = st->eval_points;
+    info->grad_points = st->grad_points;
+    info->cells_split = st->cells_split;
+    info->face_vertices = st->face_vertices;
+}
+
+/* A grid with NaN points: they counted as outside. */
+static void nan_warning(const api_diag *d, size_t points_nan)
+{
+    if (!points_nan) return;
+    char msg[160];
+    snprintf(msg, sizeof msg, "the model is NaN (undefined) at %zu grid points; they count as "
+                              "outside", points_nan);
+    api_report(d, FREP_WARNING, msg);
+}
+
+frep_mesh *frep_polygonize(const frep_program *p, const frep_mesh_options *o,
+                           frep_mesh_info *info, frep_diag_fn diag, void *user)
+{
+    api_diag d = { diag, user };
+    frep_error e;
+    frep_error_init(&e);
+    frep_mesh_options def;
+    if (!o) {
+        frep_mesh_options_init(&def);
+        o = &def;
+    }
+    mesh_options mo;
+    to_mesh_options(p, o, &mo);
+    frep_mesh *m = frep_calloc(1, sizeof *m);
+    mesh_field f;
+    if (!m || mesh_field_program(&f, p, o->params) != 0) {
+        frep_free(m);
+        api_fail(&d, &e);
+        return NULL;
+    }
+    mesh_stats st;
+    memset(&st, 0, sizeof st);
+    int rc = mesh_polygonize(&f, &mo, m, &st, &e);
+    frep_runtime_error re;
+    mesh_field_program_errors(&f, &re);
+    mesh_field_program_free(&f);
+    api_runtime_warning(&d, p, &re);
+    if (rc != 0) {
+        frep_mesh_free(m);
+        api_fail(&d, &e);
+        return NULL;
+    }
+    nan_warning(&d, st.points_nan);
+    fill_info(info, &mo, &st);
+    return m;
+}
+
+frep_mesh *frep_mesh_new(size_t nverts, const double *v, const double *n, size_t ntris,
+                         const uint32_t *tri, frep_diag_fn diag, void *user)
+{
+    api_diag d = { diag, user };
+    frep_error e;
+    frep_error_init(&e);
+    if ((nverts && !v) || (ntris && !tri) || nverts > MESHIO_MAX_ELEMENTS ||
+        ntris > MESHIO_MAX_ELEMENTS) {
+        frep_error_set(&e, FREP_EINPUT, "frep_mesh_new: missing arrays or more than %zu "
+                                        "vertices or triangles", (size_t)MESHIO_MAX_ELEMENTS);
+        api_fail(&d, &e);
+        return NULL;
+    }
+    for (size_t i = 0; i < 3 * ntris; i++)
+        if (tri[i] >= nverts) {
+            frep_error_set(&e, FREP_EINPUT, "frep_mesh_new: triangle %zu uses vertex %lu of %zu",
+                           i / 3, (unsigned long)tri[i], nverts);
+            api_fail(&d, &e);
+            return NULL;
+        }
+    frep_mesh *m = frep_calloc(1, sizeof *m);
+    if (m) {
+        m->v = frep_malloc(3 * nverts * sizeof *m->v + 1);
+        m->n = n ? frep_malloc(3 * nverts * sizeof *m->n + 1) : NULL;
+        m->tri = frep_malloc(3 * ntris * sizeof *m->tri + 1);
+    }
+    if (!m || !m->v || (n && !m->n) || !m->tri) {
+        frep_mesh_free(m);
+        api_fail(&d, &e);
+        return NULL;
+    }
+    m->nverts = nverts;
+    m->ntris = ntris;
+    if (nverts) memcpy(m->v, v, 3 * nverts * sizeof *v);
+    if (n && nverts) memcpy(m->n, n, 3 * nverts * sizeof *n);
+    if (ntris) memcpy(m->tri, tri, 3 * ntris * sizeof *tri);
+    return m;
+}
+
+frep_mesh *frep_mesh_read(const char *path, frep_diag_fn diag, void *user)
+{
+    api_diag d = { diag, user };
+    frep_error e;
+    frep_error_init(&e);
+    frep_mesh *m = frep_calloc(1, sizeof *m);
+    if (!m) {
+        api_fail(&d, &e);
+        return NULL;
+    }
+    if (meshio_read(path, m, &e) != 0) {
+        frep_mesh_free(m);
+        api_fail(&d, &e);
+        return NULL;
+    }
+    return m;
+}
+
+void frep_mesh_free(frep_mesh *m)
+{
+    if (!m) return;
+    mesh_free(m);
+    frep_free(m);
+}
+
+size_t frep_mesh_nverts(const frep_mesh *m) { return m->nverts; }
+size_t frep_mesh_ntris(const frep_mesh *m) { return m->ntris; }
+const double *frep_mesh_vertices(const frep_mesh *m) { return m->v; }
+const double *frep_mesh_normals(const frep_mesh *m) { return m->n; }
+const uint32_t *frep_mesh_triangles(const frep_mesh *m) { return m->tri; }
+
+typedef struct mesh_out {
+    const frep_mesh *m;
+    meshio_format fmt;
+    int ascii;
+} mesh_out;
+
+static int write_mesh(FILE *f, void *ctx)
+{
+    const mesh_out *o = ctx;
+    return meshio_write(f, o->m, o->fmt, o->ascii);
+}
+
+int frep_mesh_write(const frep_mesh *m, const char *path, frep_mesh_format fmt, int ascii,
+                    frep_diag_fn diag, void *user)
+{
+    api_diag d = { diag, user };
+    mesh_out o = { m, MESHIO_UNKNOWN, ascii };
+    switch (fmt) {
+    case FREP_MESH_AUTO:
+        o.fmt = path && strcmp(path, "-") == 0 ? MESHIO_STL : meshio_format_for_path(path);
+        break;
+    case FREP_MESH_STL: o.fmt = MESHIO_STL; break;
+    case FREP_MESH_OBJ: o.fmt = MESHIO_OBJ; break;
+    case FREP_MESH_PLY: o.fmt = MESHIO_PLY; break;
+    case FREP_MESH_OFF: o.fmt = MESHIO_OFF; break;
+    }
+    if (o.fmt == MESHIO_UNKNOWN) {
+        frep_error e;
+        frep_error_init(&e);
+        frep_error_set(&e, FREP_EINPUT, "cannot tell the format of '%s': use .stl, .obj, .ply "
+                                        "or .off", path ? path : "(null)");
+        return api_fail(&d, &e);
+    }
+    return api_write_atomic(&d, path, write_mesh, &o);
+}
+
+int frep_mesh_check(const frep_mesh *m, int self_intersections, frep_mesh_check_result *r,
+                    frep_diag_fn diag, void *user)
+{
+    api_diag d = { diag, user };
+    mesh_check c;
+    memset(r, 0, sizeof *r);
+    if (mesh_validate(m, &c) != 0 ||
+        (self_intersections && mesh_self_intersections(m, &r->self_intersections, NULL) != 0))
+        return api_fail(&d, NULL);
+    r->open_edges = c.open_edges;
+    r->nonmanifold_edges = c.nonmanifold_edges;
+    r->flipped_edges = c.flipped_edges;
+    r->nonmanifold_verts = c.nonmanifold_verts;
+    r->unused_verts = c.unused_verts;
+    r->degenerate = c.degenerate;
+    r->nonfinite = c.nonfinite;
+    r->volume = c.volume;
+    r->area = c.area;
+    return 0;
+}

@@ -1,0 +1,136 @@
+/* api_segment.c - segmentation in the public API: segment/segment.c's efficient
+ * RANSAC and separating primitives over a cloud, the .fit / .hf writers.  A cancel
+ * callback is polled where the progress is reported, and raises the flag the
+ * detector checks before each step.
+ */
+#include "config.h"
+
+#include "api.h"
+#include "fitfile.h"
+#include "segment.h"
+
+#include <signal.h>
+#include <string.h>
+
+#include "alloc.h"
+
+_Static_assert(FREP_PRIM_PLANE == (int)PRIM_PLANE && FREP_PRIM_SPHERE == (int)PRIM_SPHERE &&
+                   FREP_PRIM_CYLINDER == (int)PRIM_CYLINDER && FREP_PRIM_CONE == (int)PRIM_CONE &&
+                   FREP_PRIM_TORUS == (int)PRIM_TORUS && PRIM__COUNT == 5,
+               "frep_prim_type follows geom/prim.h's prim_type");
+
+struct frep_segmentation {
+    segment_result r;
+    size_t npoints;
+};
+
+void frep_segment_options_init(frep_segment_options *o)
+{
+    segment_config c;
+    segment_config_init(&c);
+    memset(o, 0, sizeof *o);
+    o->epsilon = c.epsilon;
+    o->cluster = c.cluster;
+    o->normal_deg = c.normal_deg;
+    o->min_points = c.min_points;
+    o->min_points_small = c.min_points_small;
+    o->probability = c.probability;
+    o->types = c.types;
+    o->seed = c.seed;
+    o->nthreads = c.nthreads;
+    o->knn = c.knn;
+    o->separating = c.separating;
+}
+
+/* The caller's progress and cancel, seen by the segmenter as its progress and flag. */
+typedef struct seg_job {
+    const frep_segment_options *o;
+    volatile sig_atomic_t stop;
+} seg_job;
+
+static void seg_progress(void *user, const char *stage, size_t done, size_t total, size_t nprims)
+{
+    seg_job *j = user;
+    if (j->o->progress) j->o->progress(j->o->user, stage, done, total, nprims);
+    if (j->o->cancel && j->o->cancel(j->o->user)) j->stop = 1;
+}
+
+frep_segmentation *frep_segment(frep_cloud *c, const frep_segment_options *o,
+                                frep_diag_fn diag, void *user)
+{
+    api_diag d = { diag, user };
+    frep_error e;
+    frep_error_init(&e);
+    frep_segment_options def;
+    if (!o) {
+        frep_segment_options_init(&def);
+        o = &def;
+    }
+    segment_config cfg;
+    segment_config_init(&cfg);
+    cfg.epsilon = o->epsilon;
+    cfg.cluster = o->cluster;
+    cfg.normal_deg = o->normal_deg;
+    cfg.min_points = o->min_points;
+    cfg.min_points_small = o->min_points_small;
+    cfg.probability = o->probability;
+    cfg.types = o->types;
+    cfg.seed = o->seed;
+    cfg.nthreads = o->nthreads;
+    cfg.knn = o->knn;
+    cfg.separating = o->separating;
+    seg_job job = { o, 0 };
+    if (o->progress || o->cancel) {
+        cfg.progress = seg_progress;
+        cfg.user = &job;
+        cfg.interrupt = &job.stop;
+    }
+    frep_segmentation *s = frep_calloc(1, sizeof *s);
+    if (!s) {
+        api_fail(&d, &e);
+        return NULL;
+    }
+    s->npoints = c->n;
+    if (segment_run(c, &cfg, &s->r, &e) != 0) {
+        frep_segmentation_free(s);
+        api_fail(&d, &e);
+        return NULL;
+    }
+    return s;
+}
+
+void frep_segmentation_free(frep_segmentation *s)
+{
+    if (!s) return;
+    segment_result_free(&s->r);
+    frep_free(s);
+}
+
+size_t frep_segmentation_nprims(const frep_segmentation *s) { return s->r.nprims; }
+size_t frep_segmentation_nfitted(const frep_segmentation *s) { return s->r.nfitted; }
+size_t frep_segmentation_unassigned(const frep_segmentation *s) { return s->r.unassigned; }
+int frep_segmentation_interrupted(const frep_segmentation *s) { return s->r.interrupted; }
+const int32_t *frep_segmentation_labels(const frep_segmentation *s) { return s->r.label; }
+
+typedef struct seg_out {
+    const frep_segmentation *s;
+    const char *header;
+    int fit;
+} seg_out;
+
+static int write_prims(FILE *f, void *ctx)
+{
+    const seg_out *o = ctx;
+    const segment_result *r = &o->s->r;
+    return o->fit ? fitfile_write(f, r->prims, r->nprims)
+                  : segment_write_hf(f, r->prims, r->nprims, o->header, r->diagonal);
+}
+
+int frep_segmentation_write(const frep_segmentation *s, const char *path, const char *header,
+                            frep_diag_fn diag, void *user)
+{
+    api_diag d = { diag, user };
+    size_t n = path ? strlen(path) : 0;
+    seg_out o = { s, header, n >= 4 && strcmp(path + n - 4, ".fit") == 0 };
+    return api_write_atomic(&d, path, write_prims, &o);
+}

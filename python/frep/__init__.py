@@ -1,0 +1,743 @@
+"""frep - Python bindings of libfrep (ctypes over the public C API of frep.h).
+
+Compile HyperFun / frep models, evaluate them on numpy arrays (the arrays' own
+memory is handed to the library: no copies), enclose them over boxes, polygonize
+them into indexed triangle meshes, sample their surfaces, read and write point
+clouds and meshes.  Files written are byte-identical to the frep command's for the
+same options and seed.
+
+The library is found through FREP_LIBRARY (a path), pkg-config's libdir of frep,
+or ctypes.util.find_library("frep").
+"""
+import ctypes
+import ctypes.util
+import os
+import subprocess
+import warnings
+
+import numpy as np
+
+__all__ = ["FrepError", "Program", "Mesh", "Cloud", "Segmentation", "compile", "compile_file",
+           "read_cloud", "read_mesh", "library_version", "load_library"]
+
+_c_double_p = ctypes.POINTER(ctypes.c_double)
+
+
+class FrepError(Exception):
+    """A failure of libfrep; .diagnostics holds the formatted messages."""
+
+    def __init__(self, message, diagnostics=()):
+        super().__init__(message)
+        self.diagnostics = list(diagnostics)
+
+
+# ---- the library ---------------------------------------------------------------
+
+def _candidates():
+    env = os.environ.get("FREP_LIBRARY")
+    if env:
+        yield env
+        return
+    try:
+        libdir = subprocess.run(["pkg-config", "--variable=libdir", "frep"],
+                                capture_output=True, text=True, check=True).stdout.strip()
+        if libdir:
+            for name in ("libfrep.so.0", "libfrep.so", "libfrep.dylib"):
+                path = os.path.join(libdir, name)
+                if os.path.exists(path):
+                    yield path
+    except (OSError, subprocess.CalledProcessError):
+        pass
+    found = ctypes.util.find_library("frep")
+    if found:
+        yield found
+
+
+def load_library():
+    """The loaded libfrep (ctypes.CDLL); raises OSError when none is found."""
+    tried = []
+    for path in _candidates():
+        try:
+            return ctypes.CDLL(path)
+        except OSError as e:
+            tried.append("%s (%s)" % (path, e))
+    raise OSError("libfrep not found: set FREP_LIBRARY to the path of libfrep.so.0, or "
+                  "install frep where pkg-config finds frep.pc" +
+                  ("; tried " + ", ".join(tried) if tried else ""))
+
+
+class _Diag(ctypes.Structure):
+    _fields_ = [("severity", ctypes.c_int), ("file", ctypes.c_char_p),
+                ("line", ctypes.c_uint32), ("col", ctypes.c_uint32),
+                ("len", ctypes.c_uint32), ("message", ctypes.c_char_p)]
+
+
+_DIAG_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.POINTER(_Diag))
+FREP_NOTE, FREP_WARNING, FREP_ERROR = 0, 1, 2
+
+
+class _CompileOptions(ctypes.Structure):
+    _fields_ = [("model", ctypes.c_char_p), ("a", _c_double_p), ("na", ctypes.c_size_t),
+                ("setops_override", ctypes.c_int), ("alpha", ctypes.c_double),
+                ("optimize", ctypes.c_int)]
+
+
+class _RuntimeError(ctypes.Structure):
+    _fields_ = [("count", ctypes.c_uint64), ("pc", ctypes.c_uint32),
+                ("what", ctypes.c_char_p), ("x", ctypes.c_double), ("y", ctypes.c_double),
+                ("z", ctypes.c_double)]
+
+
+_PROGRESS_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_double)
+
+
+class _MeshOptions(ctypes.Structure):
+    _fields_ = [("box", ctypes.c_double * 6), ("has_box", ctypes.c_int), ("grid", ctypes.c_int),
+                ("iso", ctypes.c_double), ("params", _c_double_p), ("nthreads", ctypes.c_int),
+                ("progress", _PROGRESS_FN), ("progress_user", ctypes.c_void_p)]
+
+
+class _MeshInfo(ctypes.Structure):
+    _fields_ = [("box", ctypes.c_double * 6), ("grid", ctypes.c_int),
+                ("points_nan", ctypes.c_size_t), ("touches_box", ctypes.c_int),
+                ("full", ctypes.c_int), ("seconds", ctypes.c_double)] + \
+               [(n, ctypes.c_size_t) for n in ("octree_nodes", "blocks", "blocks_total",
+                                               "eval_points", "grad_points", "cells_split",
+                                               "face_vertices")]
+
+
+class _MeshCheck(ctypes.Structure):
+    _fields_ = [(n, ctypes.c_size_t) for n in ("open_edges", "nonmanifold_edges",
+                                               "flipped_edges", "nonmanifold_verts",
+                                               "unused_verts", "degenerate", "nonfinite")] + \
+               [("volume", ctypes.c_double), ("area", ctypes.c_double),
+                ("self_intersections", ctypes.c_size_t)]
+
+
+class _SampleOptions(ctypes.Structure):
+    _fields_ = [("n", ctypes.c_size_t), ("seed", ctypes.c_uint64), ("noise", ctypes.c_double),
+                ("noise_absolute", ctypes.c_int), ("outliers", ctypes.c_double),
+                ("mesh", _MeshOptions)]
+
+
+_SEG_PROGRESS_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t,
+                                    ctypes.c_size_t, ctypes.c_size_t)
+_SEG_CANCEL_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)
+
+
+class _SegmentOptions(ctypes.Structure):
+    _fields_ = [("epsilon", ctypes.c_double), ("cluster", ctypes.c_double),
+                ("normal_deg", ctypes.c_double), ("min_points", ctypes.c_size_t),
+                ("min_points_small", ctypes.c_size_t), ("probability", ctypes.c_double),
+                ("types", ctypes.c_uint), ("seed", ctypes.c_uint64), ("nthreads", ctypes.c_int),
+                ("knn", ctypes.c_size_t), ("separating", ctypes.c_int),
+                ("progress", _SEG_PROGRESS_FN), ("cancel", _SEG_CANCEL_FN),
+                ("user", ctypes.c_void_p)]
+
+
+PRIM_TYPES = ("plane", "sphere", "cylinder", "cone", "torus")
+_MESH_FORMATS = {"auto": 0, "stl": 1, "obj": 2, "ply": 3, "off": 4}
+
+
+def _declare(lib):
+    P, S, D, I = ctypes.c_void_p, ctypes.c_size_t, ctypes.c_double, ctypes.c_int
+    sig = {
+        "frep_version": (ctypes.c_char_p, []),
+        "frep_free": (None, [P]),
+        "frep_diag_format": (P, [ctypes.POINTER(_Diag), ctypes.c_char_p, S]),
+        "frep_compile_options_init": (None, [ctypes.POINTER(_CompileOptions)]),
+        "frep_compile": (P, [ctypes.c_char_p, ctypes.c_char_p, S,
+                             ctypes.POINTER(_CompileOptions), _DIAG_FN, P]),
+        "frep_program_free": (None, [P]),
+        "frep_program_size": (S, [P]),
+        "frep_program_nparams": (S, [P]),
+        "frep_program_na": (S, [P]),
+        "frep_program_nfree": (S, [P]),
+        "frep_program_param_index": (I, [P, ctypes.c_char_p, ctypes.POINTER(S)]),
+        "frep_program_param_values": (I, [P, P, S]),
+        "frep_program_param_name": (ctypes.c_char_p, [P, S]),
+        "frep_program_param_bounds": (I, [P, S, ctypes.POINTER(D), ctypes.POINTER(D)]),
+        "frep_program_box": (I, [P, ctypes.c_double * 6]),
+        "frep_disassemble": (P, [P]),
+        "frep_eval_par": (I, [P, S, P, P, P, P, P, I, ctypes.POINTER(_RuntimeError)]),
+        "frep_eval_grad_par": (I, [P, S, P, P, P, P, P, P, P, P, I,
+                                   ctypes.POINTER(_RuntimeError)]),
+        "frep_report_runtime_error": (None, [P, ctypes.POINTER(_RuntimeError), _DIAG_FN, P]),
+        "frep_interval_scratch_new": (P, [P]),
+        "frep_interval_scratch_free": (None, [P]),
+        "frep_eval_interval": (I, [P, P, ctypes.c_double * 6, P, ctypes.POINTER(D),
+                                   ctypes.POINTER(D)]),
+        "frep_cloud_read": (P, [ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_cloud_new": (P, [S, P, P, P, P, P, P, _DIAG_FN, P]),
+        "frep_cloud_free": (None, [P]),
+        "frep_cloud_size": (S, [P]),
+        "frep_cloud_has_normals": (I, [P]),
+        "frep_cloud_arrays": (None, [P] + [ctypes.POINTER(_c_double_p)] * 6),
+        "frep_cloud_write": (I, [P, ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_mesh_options_init": (None, [ctypes.POINTER(_MeshOptions)]),
+        "frep_polygonize": (P, [P, ctypes.POINTER(_MeshOptions), ctypes.POINTER(_MeshInfo),
+                                _DIAG_FN, P]),
+        "frep_mesh_new": (P, [S, P, P, S, P, _DIAG_FN, P]),
+        "frep_mesh_read": (P, [ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_mesh_free": (None, [P]),
+        "frep_mesh_nverts": (S, [P]),
+        "frep_mesh_ntris": (S, [P]),
+        "frep_mesh_vertices": (_c_double_p, [P]),
+        "frep_mesh_normals": (_c_double_p, [P]),
+        "frep_mesh_triangles": (ctypes.POINTER(ctypes.c_uint32), [P]),
+        "frep_mesh_write": (I, [P, ctypes.c_char_p, I, I, _DIAG_FN, P]),
+        "frep_mesh_check": (I, [P, I, ctypes.POINTER(_MeshCheck), _DIAG_FN, P]),
+        "frep_sample_options_init": (None, [ctypes.POINTER(_SampleOptions)]),
+        "frep_sample": (P, [P, ctypes.POINTER(_SampleOptions), _DIAG_FN, P]),
+        "frep_sample_mesh": (P, [P, ctypes.POINTER(_SampleOptions), _DIAG_FN, P]),
+        "frep_segment_options_init": (None, [ctypes.POINTER(_SegmentOptions)]),
+        "frep_segment": (P, [P, ctypes.POINTER(_SegmentOptions), _DIAG_FN, P]),
+        "frep_segmentation_free": (None, [P]),
+        "frep_segmentation_nprims": (S, [P]),
+        "frep_segmentation_nfitted": (S, [P]),
+        "frep_segmentation_unassigned": (S, [P]),
+        "frep_segmentation_interrupted": (I, [P]),
+        "frep_segmentation_labels": (ctypes.POINTER(ctypes.c_int32), [P]),
+        "frep_segmentation_write": (I, [P, ctypes.c_char_p, ctypes.c_char_p, _DIAG_FN, P]),
+    }
+    for name, (res, args) in sig.items():
+        fn = getattr(lib, name)
+        fn.restype = res
+        fn.argtypes = args
+    return lib
+
+
+_lib = None
+
+
+def _L():
+    global _lib
+    if _lib is None:
+        _lib = _declare(load_library())
+    return _lib
+
+
+def library_version():
+    """The version of the loaded libfrep, "MAJOR.MINOR.PATCH"."""
+    return _L().frep_version().decode()
+
+
+class _Diagnostics:
+    """Collects the library's diagnostics, formatted as the frep command prints them;
+    warnings go to Python's warnings module."""
+
+    def __init__(self, source=None):
+        self.source = source
+        self.messages = []
+        self.errors = []
+        self.fn = _DIAG_FN(self._on)
+
+    def _on(self, user, d):
+        lib = _L()
+        src = self.source or b""
+        p = lib.frep_diag_format(d, src if self.source else None, len(src))
+        text = ctypes.string_at(p).decode(errors="replace").rstrip("\n") if p else \
+            (d.contents.message or b"").decode(errors="replace")
+        lib.frep_free(p)
+        self.messages.append(text)
+        if d.contents.severity == FREP_ERROR:
+            self.errors.append(text)
+        elif d.contents.severity == FREP_WARNING:
+            warnings.warn(text, RuntimeWarning, stacklevel=3)
+
+    def fail(self, what):
+        msg = what + (": " + "\n".join(self.errors) if self.errors else "")
+        raise FrepError(msg, self.messages)
+
+
+def _f64(a, n=None, name="array"):
+    """a as a contiguous float64 array (no copy when it already is one)."""
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    if a.ndim != 1 or (n is not None and a.shape[0] != n):
+        raise ValueError("%s: expected a 1-D array of %s values" % (name, n if n else "N"))
+    return a
+
+
+def _ptr(a):
+    return ctypes.c_void_p(a.ctypes.data) if a is not None else None
+
+
+class _Handle:
+    """A library object and the function that frees it: what numpy views of its
+    memory keep alive (no reference cycle with the Python wrapper)."""
+
+    def __init__(self, ptr, free):
+        self.ptr = ptr
+        self._free = free
+
+    def __del__(self):
+        if self.ptr:
+            self._free(self.ptr)
+            self.ptr = None
+
+
+# ---- programs ----------------------------------------------------------------------
+
+class Program:
+    """A compiled model: immutable, may be shared by threads."""
+
+    def __init__(self, handle, source, name):
+        self._handle = _Handle(handle, _L().frep_program_free)
+        self._h = handle
+        self.source = source
+        self.name = name
+
+    @property
+    def size(self):
+        """Instructions of the bytecode."""
+        return _L().frep_program_size(self._h)
+
+    @property
+    def nparams(self):
+        """Length of the parameter vector: the elements of a[] then the named @free."""
+        return _L().frep_program_nparams(self._h)
+
+    @property
+    def param_names(self):
+        """Names in vector order: "a[1]", ..., then the @free names."""
+        lib = _L()
+        return [lib.frep_program_param_name(self._h, i).decode() for i in range(self.nparams)]
+
+    def param_index(self, name):
+        """Index in the parameter vector of "r" (a named @free parameter) or "a[2]"."""
+        i = ctypes.c_size_t()
+        if _L().frep_program_param_index(self._h, name.encode(), ctypes.byref(i)) != 0:
+            raise KeyError("the model has no parameter %r (it has %s)" %
+                           (name, ", ".join(self.param_names) or "none"))
+        return i.value
+
+    def param_values(self):
+        """The program's own parameter vector (a new array)."""
+        v = np.zeros(max(self.nparams, 1))
+        _L().frep_program_param_values(self._h, _ptr(v), v.shape[0])
+        return v[:self.nparams]
+
+    @property
+    def params(self):
+        """{name: value} of the program's own parameters."""
+        return dict(zip(self.param_names, self.param_values()))
+
+    def param_bounds(self, name):
+        """(lo, hi) of a parameter, or None without bounds."""
+        lo, hi = ctypes.c_double(), ctypes.c_double()
+        if _L().frep_program_param_bounds(self._h, self.param_index(name), ctypes.byref(lo),
+                                          ctypes.byref(hi)):
+            return lo.value, hi.value
+        return None
+
+    def box(self):
+        """The model's `-- @box` (x0, y0, z0, x1, y1, z1), or None."""
+        b = (ctypes.c_double * 6)()
+        return tuple(b) if _L().frep_program_box(self._h, b) else None
+
+    def disassemble(self):
+        p = _L().frep_disassemble(self._h)
+        try:
+            return ctypes.string_at(p).decode()
+        finally:
+            _L().frep_free(p)
+
+    def _params(self, params):
+        """The parameter vector to pass: None (the program's own), a {name: value}
+        dict applied over the program's values, or a full vector."""
+        if params is None:
+            return None
+        if isinstance(params, dict):
+            v = self.param_values()
+            for k, x in params.items():
+                v[self.param_index(k)] = x
+            return v
+        return _f64(params, self.nparams, "params")
+
+    def _runtime(self, err):
+        if err.count:
+            d = _Diagnostics(self.source)
+            _L().frep_report_runtime_error(self._h, ctypes.byref(err), d.fn, None)
+            for m in d.messages:
+                warnings.warn(m, RuntimeWarning, stacklevel=3)
+
+    def eval(self, x, y=None, z=None, params=None, threads=0, out=None):
+        """f at the points (x[i], y[i], z[i]): three 1-D arrays (used in place when
+        contiguous float64) or one (N, 3) array (its columns are copied).  params: None,
+        {name: value} or the full vector.  Points with runtime domain errors are NaN (a
+        RuntimeWarning says where in the model)."""
+        x, y, z = self._xyz(x, y, z)
+        n = x.shape[0]
+        f = np.empty(n) if out is None else out
+        if f.dtype != np.float64 or f.shape != (n,) or not f.flags.c_contiguous:
+            raise ValueError("out: a contiguous float64 array of %d values" % n)
+        pv = self._params(params)
+        err = _RuntimeError()
+        if _L().frep_eval_par(self._h, n, _ptr(x), _ptr(y), _ptr(z), _ptr(pv), _ptr(f),
+                              threads, ctypes.byref(err)) != 0:
+            raise FrepError("evaluation failed (out of memory)")
+        self._runtime(err)
+        return f
+
+    def grad(self, x, y=None, z=None, params=None, threads=0):
+        """(f, g): values and gradients, g an (N, 3) array (forward-mode AD)."""
+        x, y, z = self._xyz(x, y, z)
+        n = x.shape[0]
+        f = np.empty(n)
+        g = np.empty((3, n))
+        pv = self._params(params)
+        err = _RuntimeError()
+        if _L().frep_eval_grad_par(self._h, n, _ptr(x), _ptr(y), _ptr(z), _ptr(pv), _ptr(f),
+                                   _ptr(g[0]), _ptr(g[1]), _ptr(g[2]), threads,
+                                   ctypes.byref(err)) != 0:
+            raise FrepError("evaluation failed (out of memory)")
+        self._runtime(err)
+        return f, g.T
+
+    @staticmethod
+    def _xyz(x, y, z):
+        if y is None and z is None:
+            pts = np.asarray(x, dtype=np.float64)
+            if pts.ndim != 2 or pts.shape[1] != 3:
+                raise ValueError("points: expected an (N, 3) array, or x, y, z")
+            return (np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]),
+                    np.ascontiguousarray(pts[:, 2]))
+        x = _f64(x, None, "x")
+        return x, _f64(y, x.shape[0], "y"), _f64(z, x.shape[0], "z")
+
+    def interval(self, box, params=None):
+        """(lo, hi) enclosing f over box (x0, y0, z0, x1, y1, z1)."""
+        lib = _L()
+        s = lib.frep_interval_scratch_new(self._h)
+        if not s:
+            raise FrepError("out of memory")
+        try:
+            lo, hi = ctypes.c_double(), ctypes.c_double()
+            pv = self._params(params)
+            b = (ctypes.c_double * 6)(*[float(v) for v in box])
+            if lib.frep_eval_interval(self._h, s, b, _ptr(pv), ctypes.byref(lo),
+                                      ctypes.byref(hi)) != 0:
+                raise FrepError("interval evaluation failed")
+            return lo.value, hi.value
+        finally:
+            lib.frep_interval_scratch_free(s)
+
+    def _mesh_options(self, o, box, grid, iso, params, threads):
+        if box is not None:
+            b = [float(box)] if np.isscalar(box) else [float(v) for v in box]
+            if len(b) == 1:
+                b = [-b[0]] * 3 + [b[0]] * 3
+            if len(b) != 6:
+                raise ValueError("box: a number v ([-v, v]^3) or (x0, y0, z0, x1, y1, z1)")
+            o.box[:] = b
+            o.has_box = 1
+        if grid is not None:
+            o.grid = int(grid)
+        o.iso = float(iso)
+        o.nthreads = int(threads)
+        pv = self._params(params)
+        o.params = ctypes.cast(_ptr(pv), _c_double_p) if pv is not None else None
+        return pv    # kept alive by the caller
+
+    def mesh(self, grid=64, box=None, iso=0.0, params=None, threads=0):
+        """Polygonize f = iso (as frep mesh -g GRID): a Mesh.  box: None (the model's
+        `-- @box`, else [-10, 10]^3), a number v or (x0, y0, z0, x1, y1, z1)."""
+        lib = _L()
+        o = _MeshOptions()
+        lib.frep_mesh_options_init(ctypes.byref(o))
+        keep = self._mesh_options(o, box, grid, iso, params, threads)
+        info = _MeshInfo()
+        d = _Diagnostics(self.source)
+        h = lib.frep_polygonize(self._h, ctypes.byref(o), ctypes.byref(info), d.fn, None)
+        del keep
+        if not h:
+            d.fail("polygonization failed")
+        m = Mesh._own(h)
+        m.info = {k: getattr(info, k) for k, _ in _MeshInfo._fields_ if k != "box"}
+        m.info["box"] = tuple(info.box)
+        return m
+
+    def sample(self, n, seed=1, noise=0.0, noise_absolute=False, outliers=0.0, grid=None,
+               box=None, iso=0.0, params=None, threads=0):
+        """n points on the surface with outward normals (as frep sample): a Cloud.
+        noise: standard deviation, times the box diagonal (or model units with
+        noise_absolute); outliers: fraction of points uniform in the box."""
+        lib = _L()
+        o = _SampleOptions()
+        lib.frep_sample_options_init(ctypes.byref(o))
+        o.n, o.seed, o.noise = int(n), int(seed), float(noise)
+        o.noise_absolute, o.outliers = int(bool(noise_absolute)), float(outliers)
+        keep = self._mesh_options(o.mesh, box, grid, iso, params, threads)
+        d = _Diagnostics(self.source)
+        h = lib.frep_sample(self._h, ctypes.byref(o), d.fn, None)
+        del keep
+        if not h:
+            d.fail("sampling failed")
+        return Cloud._own(h)
+
+
+def compile(text, name="<string>", model=None, a=None, setops=None, optimize=True):
+    """Compile model source text.  model: which model (default my_model, else the last);
+    a: values of a[]; setops: None, "rfunc", "minmax".  Raises FrepError with the
+    compiler's messages."""
+    lib = _L()
+    src = text.encode() if isinstance(text, str) else bytes(text)
+    o = _CompileOptions()
+    lib.frep_compile_options_init(ctypes.byref(o))
+    keep = []
+    if model:
+        o.model = model.encode()
+    if a is not None:
+        av = _f64(a, None, "a")
+        keep.append(av)
+        o.a = ctypes.cast(_ptr(av), _c_double_p)
+        o.na = av.shape[0]
+    if setops is not None:
+        o.setops_override = {"rfunc": 0, "minmax": 1}[setops]
+    o.optimize = int(bool(optimize))
+    d = _Diagnostics(src)
+    h = lib.frep_compile(name.encode(), src, len(src), ctypes.byref(o), d.fn, None)
+    if not h:
+        d.fail("cannot compile %s" % name)
+    return Program(h, src, name)
+
+
+def compile_file(path, **kw):
+    """Compile the model file at path (see compile)."""
+    with open(path, "rb") as f:
+        return compile(f.read(), name=str(path), **kw)
+
+
+# ---- meshes and clouds ---------------------------------------------------------------
+
+class Mesh:
+    """An indexed triangle mesh: vertices (N, 3), normals (N, 3) or None, triangles
+    (M, 3) uint32, counter-clockwise seen from outside.  The arrays are numpy views of
+    the library's memory, valid as long as the Mesh lives."""
+
+    def __init__(self, vertices, triangles, normals=None):
+        v = np.ascontiguousarray(vertices, dtype=np.float64).reshape(-1, 3)
+        t = np.ascontiguousarray(triangles, dtype=np.uint32).reshape(-1, 3)
+        nr = None if normals is None else np.ascontiguousarray(normals, dtype=np.float64)
+        if nr is not None and nr.shape != v.shape:
+            raise ValueError("normals: one per vertex")
+        d = _Diagnostics()
+        h = _L().frep_mesh_new(v.shape[0], _ptr(v), _ptr(nr), t.shape[0], _ptr(t), d.fn, None)
+        if not h:
+            d.fail("cannot make the mesh")
+        self._set(h)
+
+    @classmethod
+    def _own(cls, h):
+        m = cls.__new__(cls)
+        m._set(h)
+        return m
+
+    def _set(self, h):
+        lib = _L()
+        self._handle = _Handle(h, lib.frep_mesh_free)
+        self._h = h
+        self.info = None
+        nv, nt = lib.frep_mesh_nverts(h), lib.frep_mesh_ntris(h)
+        own = self._handle
+        self.vertices = _view(lib.frep_mesh_vertices(h), (nv, 3), np.float64, own)
+        self.triangles = _view(lib.frep_mesh_triangles(h), (nt, 3), np.uint32, own)
+        nrm = lib.frep_mesh_normals(h)
+        self.normals = _view(nrm, (nv, 3), np.float64, own) if nrm else None
+
+    def write(self, path, fmt="auto", ascii=False):
+        """Write STL, OBJ, PLY or OFF (from the extension unless fmt says), atomically."""
+        d = _Diagnostics()
+        if _L().frep_mesh_write(self._h, str(path).encode(), _MESH_FORMATS[fmt], int(ascii),
+                                d.fn, None) != 0:
+            d.fail("cannot write %s" % path)
+
+    def check(self, self_intersections=False):
+        """frep mesh --check's counts as a dict (a closed, oriented 2-manifold: all
+        counts 0 and volume > 0)."""
+        r = _MeshCheck()
+        d = _Diagnostics()
+        if _L().frep_mesh_check(self._h, int(self_intersections), ctypes.byref(r), d.fn,
+                                None) != 0:
+            d.fail("mesh check failed")
+        out = {k: getattr(r, k) for k, _ in _MeshCheck._fields_}
+        if not self_intersections:
+            del out["self_intersections"]
+        return out
+
+    def sample(self, n, seed=1, noise=0.0, noise_absolute=False, outliers=0.0):
+        """n area-weighted points on the triangles with the face normals: a Cloud."""
+        lib = _L()
+        o = _SampleOptions()
+        lib.frep_sample_options_init(ctypes.byref(o))
+        o.n, o.seed, o.noise = int(n), int(seed), float(noise)
+        o.noise_absolute, o.outliers = int(bool(noise_absolute)), float(outliers)
+        d = _Diagnostics()
+        h = lib.frep_sample_mesh(self._h, ctypes.byref(o), d.fn, None)
+        if not h:
+            d.fail("sampling failed")
+        return Cloud._own(h)
+
+    def to_open3d(self):
+        """An open3d.geometry.TriangleMesh (copies), with vertex normals when known."""
+        import open3d as o3d
+        m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(self.vertices.copy()),
+                                      o3d.utility.Vector3iVector(self.triangles.astype(np.int32)))
+        if self.normals is not None:
+            m.vertex_normals = o3d.utility.Vector3dVector(self.normals.copy())
+        return m
+
+    def to_trimesh_kwargs(self):
+        """dict(vertices=..., faces=..., vertex_normals=...) for trimesh.Trimesh(**kw)."""
+        kw = dict(vertices=self.vertices, faces=self.triangles)
+        if self.normals is not None:
+            kw["vertex_normals"] = self.normals
+        return kw
+
+
+class Cloud:
+    """Points with optional normals: x, y, z (and nx, ny, nz) are read-only numpy views
+    of the library's structure-of-arrays cloud; points (N, 3) and normals (N, 3) or
+    None are arrays gathered from them."""
+
+    def __init__(self, points, normals=None):
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        cols = [np.ascontiguousarray(p[:, k]) for k in range(3)]
+        ncols = [None] * 3
+        if normals is not None:
+            nr = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+            if nr.shape != p.shape:
+                raise ValueError("normals: one per point")
+            ncols = [np.ascontiguousarray(nr[:, k]) for k in range(3)]
+        d = _Diagnostics()
+        h = _L().frep_cloud_new(p.shape[0], *[_ptr(c) for c in cols + ncols], d.fn, None)
+        if not h:
+            d.fail("cannot make the cloud")
+        self._set(h)
+
+    @classmethod
+    def _own(cls, h):
+        c = cls.__new__(cls)
+        c._set(h)
+        return c
+
+    def _set(self, h):
+        self._handle = _Handle(h, _L().frep_cloud_free)
+        self._h = h
+        self._set_arrays()
+
+    def _set_arrays(self):
+        lib = _L()
+        h = self._h
+        n = lib.frep_cloud_size(h)
+        ptrs = [_c_double_p() for _ in range(6)]
+        lib.frep_cloud_arrays(h, *[ctypes.byref(p) for p in ptrs])
+        cols = [_view(p, (n,), np.float64, self._handle) if p else None for p in ptrs]
+        self.x, self.y, self.z = cols[:3]
+        self.nx, self.ny, self.nz = cols[3:]
+        self.points = np.stack(cols[:3], axis=1) if n else np.zeros((0, 3))
+        self.normals = (np.stack(cols[3:], axis=1) if n else np.zeros((0, 3))) \
+            if lib.frep_cloud_has_normals(h) else None
+
+    def __len__(self):
+        return self.points.shape[0]
+
+    def write(self, path):
+        """.xyz text or .ply binary (by the extension), atomically, as frep sample."""
+        d = _Diagnostics()
+        if _L().frep_cloud_write(self._h, str(path).encode(), d.fn, None) != 0:
+            d.fail("cannot write %s" % path)
+
+    def segment(self, seed=1, epsilon=0.0, types=None, separating=True, threads=0,
+                progress=None, cancel=None, **kw):
+        """Efficient RANSAC, as frep segment: a Segmentation.  types: names of
+        PRIM_TYPES (None: all); kw: cluster, normal_deg, min_points, min_points_small,
+        probability, knn.  progress(stage, done, total, nprims) and cancel() -> bool are
+        called from this thread as detection goes; cancel returning True stops it with
+        what was found.  Normals are estimated into this cloud when it has none."""
+        lib = _L()
+        o = _SegmentOptions()
+        lib.frep_segment_options_init(ctypes.byref(o))
+        o.seed, o.epsilon, o.separating, o.nthreads = int(seed), float(epsilon), \
+            int(bool(separating)), int(threads)
+        if types is not None:
+            o.types = sum(1 << PRIM_TYPES.index(t) for t in types)
+        for k, v in kw.items():
+            if k not in ("cluster", "normal_deg", "min_points", "min_points_small",
+                         "probability", "knn"):
+                raise TypeError("segment: unknown option %r" % k)
+            setattr(o, k, v)
+        if progress is not None:
+            o.progress = _SEG_PROGRESS_FN(
+                lambda u, st, done, total, n: progress(st.decode(), done, total, n))
+        if cancel is not None:
+            o.cancel = _SEG_CANCEL_FN(lambda u: 1 if cancel() else 0)
+        d = _Diagnostics()
+        h = lib.frep_segment(self._h, ctypes.byref(o), d.fn, None)
+        if not h:
+            d.fail("segmentation failed")
+        if lib.frep_cloud_has_normals(self._h) and self.normals is None:
+            self._set_arrays()
+        return Segmentation(h, lib.frep_cloud_size(self._h))
+
+
+class Segmentation:
+    """The primitives frep segment finds: nprims (fitted first, then separating),
+    nfitted, unassigned, interrupted, labels (per point: its fitted primitive or -1)."""
+
+    def __init__(self, h, npoints):
+        lib = _L()
+        self._handle = _Handle(h, lib.frep_segmentation_free)
+        self._h = h
+        self.nprims = lib.frep_segmentation_nprims(h)
+        self.nfitted = lib.frep_segmentation_nfitted(h)
+        self.unassigned = lib.frep_segmentation_unassigned(h)
+        self.interrupted = bool(lib.frep_segmentation_interrupted(h))
+        self.labels = _view(lib.frep_segmentation_labels(h), (npoints,), np.int32, self._handle)
+
+    def write(self, path, header=None):
+        """A .fit list (path ending in .fit) or a .hf model with header comment lines."""
+        d = _Diagnostics()
+        if _L().frep_segmentation_write(self._h, str(path).encode(),
+                                        header.encode() if header else None, d.fn, None) != 0:
+            d.fail("cannot write %s" % path)
+
+
+def _view(ptr, shape, dtype, owner):
+    """A numpy view of library memory owned by `owner` (kept alive through .base)."""
+    n = int(np.prod(shape))
+    if n == 0:
+        return np.zeros(shape, dtype=dtype)
+    a = np.ctypeslib.as_array(ptr, shape=(n,)).view(dtype).reshape(shape)
+    a.flags.writeable = False
+    return _Owned(a, owner)
+
+
+class _Owned(np.ndarray):
+    """An ndarray view that keeps the Python object owning its memory alive."""
+
+    def __new__(cls, a, owner):
+        obj = a.view(cls)
+        obj._owner = owner
+        return obj
+
+    def __array_finalize__(self, obj):
+        self._owner = getattr(obj, "_owner", None)
+
+
+def read_cloud(path):
+    """Read .xyz or PLY: a Cloud."""
+    d = _Diagnostics()
+    h = _L().frep_cloud_read(str(path).encode(), d.fn, None)
+    if not h:
+        d.fail("cannot read %s" % path)
+    return Cloud._own(h)
+
+
+def read_mesh(path):
+    """Read OFF, OBJ, STL or PLY: a Mesh (normals None)."""
+    d = _Diagnostics()
+    h = _L().frep_mesh_read(str(path).encode(), d.fn, None)
+    if not h:
+        d.fail("cannot read %s" % path)
+    return Mesh._own(h)

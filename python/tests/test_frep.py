@@ -1,0 +1,210 @@
+"""Tests of the Python package frep against libfrep (tests/python.sh runs them from
+make check with FREP_LIBRARY pointing at the build's libfrep.so and FREP at the
+frep command).  Expected values come from numpy formulas or from the frep command's
+own files (byte for byte), not from the package."""
+import os
+import subprocess
+import warnings
+
+import numpy as np
+import pytest
+
+import frep
+
+SRCDIR = os.environ.get("srcdir", os.path.join(os.path.dirname(__file__), "..", ".."))
+FREP = os.environ.get("FREP")
+CSG = os.path.join(SRCDIR, "examples", "csg.hf")
+BALL = "m(x[3], a[1]) { m = 1 - x[1]*x[1] - x[2]*x[2] - x[3]*x[3]; }"
+TORUS = """t(x[3], a[1]) {
+  big = 1.0;  -- @free [0.5, 2]
+  small = 0.3;  -- @free
+  q = sqrt(x[1]*x[1] + x[2]*x[2]) - big;
+  t = small*small - q*q - x[3]*x[3];
+}"""
+
+
+def need_frep():
+    if not FREP:
+        pytest.skip("FREP (the frep command) not set")
+
+
+def test_version():
+    v = frep.library_version()
+    assert len(v.split(".")) == 3 and all(p.isdigit() for p in v.split("."))
+    if FREP:
+        out = subprocess.run([FREP, "--version"], capture_output=True, text=True).stdout
+        assert v in out
+
+
+def test_compile_error_carries_position():
+    with pytest.raises(frep.FrepError) as e:
+        frep.compile("m(x[3], a[1]) {\n  m = hfSphere(x, c, 1);\n}\n", name="bad.hf")
+    assert "bad.hf:2:" in str(e.value)
+    assert any("^" in d for d in e.value.diagnostics)
+
+
+def test_params_by_name():
+    p = frep.compile(TORUS)
+    assert p.nparams == 3                      # a[1], big, small
+    assert p.param_names == ["a[1]", "big", "small"]
+    assert p.param_index("small") == 2 and p.param_index("BIG") == 1
+    assert p.param_index("a[1]") == 0
+    assert p.param_bounds("big") == (0.5, 2.0) and p.param_bounds("small") is None
+    with pytest.raises(KeyError):
+        p.param_index("s")
+    x = np.array([1.0, 1.5, 0.0]); y = np.array([0.0, 0.0, 2.0]); z = np.array([0.0, 0.1, 0.0])
+    for R, r in ((1.0, 0.3), (1.5, 0.2)):
+        want = r * r - (np.hypot(x, y) - R) ** 2 - z ** 2
+        got = p.eval(x, y, z, params={"big": R, "small": r})
+        assert np.allclose(got, want, rtol=0, atol=1e-15)
+    with pytest.raises(ValueError):
+        p.eval(x, y, z, params=[1.0])          # a one-element vector is refused
+
+
+def test_one_free_parameter():
+    p = frep.compile("m(x[3], a[1]) {\n  r = 0.5;  -- @free\n  m = r - x[1];\n}\n")
+    assert p.nparams == 2 and p.param_index("r") == 1
+    assert p.eval([0.25], [0], [0], params={"r": 2.0})[0] == 1.75
+
+
+def test_eval_and_grad_against_numpy():
+    p = frep.compile(TORUS)
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(-2, 2, size=(10000, 3))
+    x, y, z = (np.ascontiguousarray(pts[:, k]) for k in range(3))
+    q = np.hypot(x, y) - 1.0
+    want = 0.09 - q * q - z * z
+    assert np.allclose(p.eval(x, y, z), want, rtol=0, atol=1e-13)
+    assert np.allclose(p.eval(pts), want, rtol=0, atol=1e-13)   # (N, 3) form
+    out = np.empty(len(x))
+    assert p.eval(x, y, z, out=out) is out
+    f, g = p.grad(x, y, z)
+    rho = np.hypot(x, y)
+    want_g = np.stack([-2 * q * x / rho, -2 * q * y / rho, -2 * z], axis=1)
+    assert g.shape == (10000, 3) and np.allclose(g, want_g, rtol=1e-12, atol=1e-12)
+    # results do not depend on the thread count
+    assert np.array_equal(p.eval(x, y, z, threads=1), p.eval(x, y, z, threads=2))
+
+
+def test_runtime_errors_warn_and_give_nan():
+    p = frep.compile("m(x[3], a[1]) {\n  m = sqrt(x[1]);\n}\n", name="s.hf")
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        f = p.eval(np.array([-1.0, 4.0]), np.zeros(2), np.zeros(2))
+    assert np.isnan(f[0]) and f[1] == 2.0
+    assert any("s.hf:2:" in str(m.message) for m in w)
+
+
+def test_interval_encloses():
+    p = frep.compile(BALL)
+    lo, hi = p.interval((0.5, -0.3, 0.2, 1.2, 0.4, 0.9))
+    rng = np.random.default_rng(1)
+    pts = rng.uniform((0.5, -0.3, 0.2), (1.2, 0.4, 0.9), size=(5000, 3))
+    f = p.eval(pts)
+    assert lo <= f.min() and f.max() <= hi and lo < 0 < hi
+    assert p.interval((2, 2, 2, 3, 3, 3))[1] < 0
+
+
+def test_mesh_closed_and_volume():
+    p = frep.compile(BALL)
+    m = p.mesh(grid=32, box=1.5)
+    assert m.vertices.shape[1] == 3 and m.triangles.shape[1] == 3
+    assert m.normals.shape == m.vertices.shape
+    assert m.triangles.max() < len(m.vertices)
+    c = m.check(self_intersections=True)
+    assert all(c[k] == 0 for k in c if k not in ("volume", "area"))
+    assert abs(c["volume"] - 4 / 3 * np.pi) < 0.05
+    # the signed volume again, from the numpy arrays alone (divergence theorem)
+    v = m.vertices[m.triangles]
+    vol = np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum() / 6
+    assert abs(vol - c["volume"]) < 1e-9
+    assert not m.info["touches_box"] and m.info["grid"] == 32
+    # a mesh made from arrays
+    m2 = frep.Mesh(m.vertices, m.triangles)
+    assert np.array_equal(m2.vertices, m.vertices) and m2.normals is None
+
+
+def test_mesh_views_outlive_mesh():
+    v = frep.compile(BALL).mesh(grid=8, box=1.5).vertices
+    assert np.isfinite(v).all() and abs(np.linalg.norm(v, axis=1).mean() - 1) < 0.05
+
+
+@pytest.mark.parametrize("ext,ascii", [("stl", False), ("stl", True), ("obj", False),
+                                       ("ply", False), ("off", False)])
+def test_mesh_file_same_as_command(tmp_path, ext, ascii):
+    need_frep()
+    cli, api = tmp_path / ("cli." + ext), tmp_path / ("api." + ext)
+    subprocess.run([FREP, "mesh", CSG, "-g", "32", "-o", str(cli)] + (["--ascii"] if ascii else []),
+                   check=True, capture_output=True)
+    frep.compile_file(CSG).mesh(grid=32).write(api, ascii=ascii)
+    assert cli.read_bytes() == api.read_bytes()
+
+
+@pytest.mark.parametrize("ext", ["xyz", "ply"])
+def test_sample_same_as_command(tmp_path, ext):
+    need_frep()
+    cli, api = tmp_path / ("cli." + ext), tmp_path / ("api." + ext)
+    subprocess.run([FREP, "sample", CSG, "-n", "1500", "--seed", "11", "--noise", "0.001",
+                    "-o", str(cli)], check=True, capture_output=True)
+    c = frep.compile_file(CSG).sample(1500, seed=11, noise=0.001)
+    c.write(api)
+    assert cli.read_bytes() == api.read_bytes()
+    assert c.points.shape == (1500, 3) and c.normals.shape == (1500, 3)
+
+
+def test_sample_on_surface():
+    p = frep.compile(BALL)
+    c = p.sample(2000, seed=3, box=1.5)
+    r = np.linalg.norm(c.points, axis=1)
+    assert np.abs(r - 1).max() < 1e-6
+    assert np.allclose(c.normals, c.points / r[:, None], atol=1e-6)   # outward unit normals
+    c2 = p.sample(2000, seed=3, box=1.5, threads=1)
+    assert np.array_equal(c.points, c2.points)
+
+
+def test_cloud_roundtrip_and_errors(tmp_path):
+    pts = np.array([[0, 0.1, 1e-300], [1.5, 0.2, 5], [-2, 0.3, 6]])
+    nrm = np.eye(3)
+    for ext in ("xyz", "ply"):
+        frep.Cloud(pts, nrm).write(tmp_path / ("c." + ext))
+        r = frep.read_cloud(tmp_path / ("c." + ext))
+        assert np.array_equal(r.points, pts) and np.array_equal(r.normals, nrm)
+    (tmp_path / "bad.xyz").write_text("0 0 0\n1 2 3 4 5\n")
+    with pytest.raises(frep.FrepError) as e:
+        frep.read_cloud(tmp_path / "bad.xyz")
+    assert "bad.xyz:2:" in str(e.value)
+
+
+def test_open3d_helper():
+    o3d = pytest.importorskip("open3d")
+    m = frep.compile(BALL).mesh(grid=16, box=1.5)
+    t = m.to_open3d()
+    assert isinstance(t, o3d.geometry.TriangleMesh)
+    assert len(t.vertices) == len(m.vertices) and t.is_watertight()
+
+
+def test_segment_same_as_command(tmp_path):
+    need_frep()
+    model = os.path.join(SRCDIR, "tests", "models", "segment_box.hf")
+    xyz = tmp_path / "box.xyz"
+    subprocess.run([FREP, "sample", model, "-n", "5000", "--seed", "4", "-q", "-o", str(xyz)],
+                   check=True)
+    subprocess.run([FREP, "segment", str(xyz), "--seed", "2", "-q", "-o",
+                    str(tmp_path / "cli.fit"), "--labels", str(tmp_path / "cli.labels")],
+                   check=True)
+    calls = []
+    c = frep.read_cloud(xyz)
+    s = c.segment(seed=2, progress=lambda *a: calls.append(a))
+    s.write(tmp_path / "api.fit")
+    assert (tmp_path / "cli.fit").read_bytes() == (tmp_path / "api.fit").read_bytes()
+    want = np.loadtxt(tmp_path / "cli.labels", dtype=np.int64) - 1
+    assert np.array_equal(s.labels, want)
+    assert s.nfitted >= 6 and not s.interrupted and calls and calls[-1][0] == "detect"
+
+
+def test_segment_cancel():
+    model = frep.compile_file(os.path.join(SRCDIR, "tests", "models", "segment_box.hf"))
+    c = model.sample(4000, seed=1)
+    polls = []
+    s = c.segment(seed=1, cancel=lambda: polls.append(1) or len(polls) >= 3)
+    assert s.interrupted and len(polls) == 3 and s.nfitted < 6

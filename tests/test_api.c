@@ -1,0 +1,462 @@
+/* test_api.c - the public API alone (frep.h; linked against the installed library's
+ * libfrep.la, so nothing internal is reachable): the version, free parameters
+ * addressed by name, interval enclosures, clouds, meshes and sampling, errors and
+ * warnings through the callback, and files byte-identical to the frep command's
+ * (run as $FREP) for the same options and seed.
+ */
+#include "config.h"
+
+#include "frep.h"
+#include "tap.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+/* Diagnostics seen: the count per severity and the last message. */
+typedef struct seen {
+    int errors, warnings;
+    char last[1024];
+    int positioned;     /* diagnostics with a source line */
+} seen;
+
+static void collect(void *user, const frep_diag *d)
+{
+    seen *s = user;
+    if (d->severity == FREP_ERROR) s->errors++;
+    if (d->severity == FREP_WARNING) s->warnings++;
+    if (d->line > 0) s->positioned++;
+    snprintf(s->last, sizeof s->last, "%s", d->message);
+}
+
+static frep_program *compile(const char *src, seen *s)
+{
+    return frep_compile("t.hf", src, strlen(src), NULL, collect, s);
+}
+
+static char tmpdir[256];
+
+static const char *tmp(const char *name)
+{
+    static char path[4][512];
+    static int k;
+    k = (k + 1) % 4;
+    snprintf(path[k], sizeof path[k], "%s/%s", tmpdir, name);
+    return path[k];
+}
+
+static void write_text(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "w");
+    if (!f) return;
+    fputs(text, f);
+    fclose(f);
+}
+
+/* Whether two files hold the same bytes (and exist). */
+static int same_file(const char *a, const char *b)
+{
+    FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
+    int same = fa && fb;
+    while (same) {
+        int ca = getc(fa), cb = getc(fb);
+        if (ca != cb) same = 0;
+        if (ca == EOF || cb == EOF) break;
+    }
+    if (fa) fclose(fa);
+    if (fb) fclose(fb);
+    return same;
+}
+
+static void test_version(void)
+{
+    is_str(frep_version(), FREP_VERSION_STRING, "frep_version() is the header's version");
+    is_str(frep_version(), PACKAGE_VERSION, "and the package's");
+    char v[32];
+    snprintf(v, sizeof v, "%d.%d.%d", FREP_VERSION_MAJOR, FREP_VERSION_MINOR, FREP_VERSION_PATCH);
+    is_str(v, FREP_VERSION_STRING, "MAJOR.MINOR.PATCH macros agree with the string");
+    ok(FREP_VERSION_NUMBER == FREP_VERSION_MAJOR * 10000 + FREP_VERSION_MINOR * 100 +
+                                  FREP_VERSION_PATCH, "FREP_VERSION_NUMBER");
+}
+
+/* The issue's case: one `-- @free r` in a model with the usual a[1]. */
+static void test_params(void)
+{
+    seen s = { 0 };
+    frep_program *p = compile("my_model(x[3], a[1]) {\n"
+                              "  r = 0.5;  -- @free [0.1, 3]\n"
+                              "  my_model = r*r - x[1]*x[1] - x[2]*x[2] - x[3]*x[3];\n}\n", &s);
+    ok(p != NULL, "model with one named free parameter compiles");
+    if (!p) return;
+    is_int(frep_program_nparams(p), 2, "the vector holds a[1] and r");
+    is_int(frep_program_na(p), 1, "one element of a[]");
+    is_int(frep_program_nfree(p), 1, "one named parameter");
+    size_t ir = 99, ia = 99, ix = 99;
+    ok(frep_program_param_index(p, "r", &ir) == 0 && ir == 1, "r is at index 1");
+    ok(frep_program_param_index(p, "R", &ix) == 0 && ix == 1, "names are case-insensitive");
+    ok(frep_program_param_index(p, "a[1]", &ia) == 0 && ia == 0, "a[1] is at index 0");
+    ok(frep_program_param_index(p, "a[2]", &ix) != 0, "a[2] is not a parameter (a[1] only)");
+    ok(frep_program_param_index(p, "a[0]", &ix) != 0, "a[0] is not either (1-based)");
+    ok(frep_program_param_index(p, "q", &ix) != 0, "an unknown name fails");
+    double lo, hi;
+    ok(frep_program_param_bounds(p, ir, &lo, &hi) == 1 && lo == 0.1 && hi == 3, "r's bounds");
+    /* exactly nparams doubles on the heap: reading past it is caught by ASan */
+    double one[1] = { 7 };
+    ok(frep_program_param_values(p, one, 1) == -1 && one[0] == 7,
+       "a one-element vector is refused, untouched");
+    double *v = malloc(frep_program_nparams(p) * sizeof *v);
+    ok(v && frep_program_param_values(p, v, frep_program_nparams(p)) == 0 && v[0] == 0 &&
+           v[1] == 0.5, "param_values fills [a[1], r] = [0, 0.5]");
+    if (v) {
+        v[ir] = 2;
+        double x = 0.5, y = 0, z = 0, f = 0;
+        frep_scratch *sc = frep_scratch_new(p);
+        ok(sc && frep_eval(p, sc, 1, &x, &y, &z, v, &f) == 0 && f == 4 - 0.25,
+           "evaluation with r = 2 set by name: f = r^2 - |x|^2");
+        frep_scratch_free(sc);
+    }
+    free(v);
+    frep_program_free(p);
+
+    /* a[] read by the model and a named parameter: a[1], a[2], then r */
+    p = compile("m(x[3], a[2]) {\n  r = 1.5;  -- @free\n  m = r - a[2] * x[1];\n}\n", &s);
+    size_t i2 = 99;
+    ok(p && frep_program_nparams(p) == 3 && frep_program_na(p) == 2 &&
+           frep_program_nfree(p) == 1 && frep_program_param_index(p, "a[2]", &i2) == 0 &&
+           i2 == 1 && frep_program_param_index(p, "r", &ir) == 0 && ir == 2,
+       "m(x[3], a[2]) with r: [a[1], a[2], r]");
+    if (p) {
+        double pv[3] = { 0, 2, 3 }, x = 1, y = 0, z = 0, f = 0;
+        ok(frep_eval_par(p, 1, &x, &y, &z, pv, &f, 1, NULL) == 0 && f == 1,
+           "a[2] = 2 and r = 3 by index: f = r - a[2] x = 1");
+        frep_program_free(p);
+    }
+}
+
+static void test_interval(void)
+{
+    seen s = { 0 };
+    frep_program *p = compile("m(x[3], a[1]) { m = 1 - x[1]*x[1] - x[2]*x[2] - x[3]*x[3]; }", &s);
+    frep_interval_scratch *is = p ? frep_interval_scratch_new(p) : NULL;
+    ok(is != NULL, "interval scratch");
+    if (!is) {
+        frep_program_free(p);
+        return;
+    }
+    double lo = 0, hi = 0;
+    const double far[6] = { 2, 2, 2, 3, 3, 3 };
+    int rc = frep_eval_interval(p, is, far, NULL, &lo, &hi);
+    ok(rc == 0 && hi < 0, "a box away from the unit ball is outside (hi %g < 0)", hi);
+    const double center[6] = { -0.1, -0.1, -0.1, 0.1, 0.1, 0.1 };
+    rc = frep_eval_interval(p, is, center, NULL, &lo, &hi);
+    ok(rc == 0 && lo > 0, "a box at the centre is inside (lo %g > 0)", lo);
+    /* the enclosure holds the point values of a box across the surface */
+    const double across[6] = { 0.5, -0.3, 0.2, 1.2, 0.4, 0.9 };
+    int inside = frep_eval_interval(p, is, across, NULL, &lo, &hi) == 0;
+    frep_scratch *sc = frep_scratch_new(p);
+    for (int i = 0; i < 1000 && sc && inside; i++) {
+        double t = i / 999.0;
+        double x = across[0] + t * (across[3] - across[0]);
+        double y = across[1] + (1 - t) * (across[4] - across[1]);
+        double z = across[2] + (i % 7) / 6.0 * (across[5] - across[2]);
+        double f;
+        if (frep_eval(p, sc, 1, &x, &y, &z, NULL, &f) != 0 || f < lo || f > hi) inside = 0;
+    }
+    ok(inside && lo < 0 && hi > 0, "enclosure [%g, %g] holds 1000 point values", lo, hi);
+    frep_scratch_free(sc);
+    frep_interval_scratch_free(is);
+    frep_program_free(p);
+}
+
+static void test_cloud(void)
+{
+    seen s = { 0 };
+    double x[3] = { 0, 1.5, -2 }, y[3] = { 0.1, 0.2, 0.3 }, z[3] = { 1e-300, 5, 6 };
+    double nx[3] = { 1, 0, 0 }, ny[3] = { 0, 1, 0 }, nz[3] = { 0, 0, 1 };
+    frep_cloud *c = frep_cloud_new(3, x, y, z, nx, ny, nz, collect, &s);
+    ok(c && frep_cloud_size(c) == 3 && frep_cloud_has_normals(c), "cloud of 3 with normals");
+    ok(c && frep_cloud_write(c, tmp("c.xyz"), collect, &s) == 0 &&
+           frep_cloud_write(c, tmp("c.ply"), collect, &s) == 0, "written as .xyz and .ply");
+    const char *names[2] = { "c.xyz", "c.ply" };
+    for (int k = 0; k < 2; k++) {
+        frep_cloud *r = frep_cloud_read(tmp(names[k]), collect, &s);
+        const double *rx, *ry, *rz, *rnx, *rny, *rnz;
+        int same = r && frep_cloud_size(r) == 3 && frep_cloud_has_normals(r);
+        if (same) {
+            frep_cloud_arrays(r, &rx, &ry, &rz, &rnx, &rny, &rnz);
+            for (int i = 0; i < 3; i++)
+                same &= rx[i] == x[i] && ry[i] == y[i] && rz[i] == z[i] && rnx[i] == nx[i] &&
+                        rny[i] == ny[i] && rnz[i] == nz[i];
+        }
+        ok(same, "%s read back exactly", names[k]);
+        frep_cloud_free(r);
+    }
+    frep_cloud_free(c);
+    c = frep_cloud_new(2, x, y, z, NULL, NULL, NULL, collect, &s);
+    const double *pnx = x;
+    if (c) frep_cloud_arrays(c, NULL, NULL, NULL, &pnx, NULL, NULL);
+    ok(c && !frep_cloud_has_normals(c) && pnx == NULL, "a cloud without normals");
+    frep_cloud_free(c);
+    ok(frep_cloud_new(1, x, y, z, nx, NULL, nz, collect, &s) == NULL && s.errors == 1,
+       "normals must come as three arrays (error reported)");
+
+    write_text(tmp("bad.xyz"), "0 0 0\n1 2 3 4 5\n");
+    memset(&s, 0, sizeof s);
+    ok(frep_cloud_read(tmp("bad.xyz"), collect, &s) == NULL && s.errors == 1 &&
+           strstr(s.last, "bad.xyz:2:") != NULL, "a bad line: '%s'", s.last);
+    memset(&s, 0, sizeof s);
+    ok(frep_cloud_read(tmp("none.xyz"), collect, &s) == NULL && s.errors == 1,
+       "a missing file: '%s'", s.last);
+    ok(frep_cloud_read(tmp("none.xyz"), NULL, NULL) == NULL, "no callback: quiet failure");
+}
+
+static void test_mesh(void)
+{
+    seen s = { 0 };
+    frep_program *p = compile("m(x[3], a[1]) { m = 1 - x[1]*x[1] - x[2]*x[2] - x[3]*x[3]; }", &s);
+    if (!p) return;
+    frep_mesh_options o;
+    frep_mesh_options_init(&o);
+    ok(o.grid == 64 && !o.has_box && o.iso == 0 && !o.params, "mesh defaults: grid 64, model box");
+    o.has_box = 1;
+    for (int i = 0; i < 3; i++) o.box[i] = -1.5, o.box[i + 3] = 1.5;
+    o.grid = 24;
+    frep_mesh_info info;
+    frep_mesh *m = frep_polygonize(p, &o, &info, collect, &s);
+    ok(m && frep_mesh_ntris(m) > 100 && frep_mesh_normals(m) && info.grid == 24 &&
+           !info.touches_box && !info.full, "the unit sphere: %zu triangles",
+       m ? frep_mesh_ntris(m) : 0);
+    frep_mesh_check_result r;
+    ok(m && frep_mesh_check(m, 1, &r, collect, &s) == 0 && r.open_edges == 0 &&
+           r.nonmanifold_edges == 0 && r.flipped_edges == 0 && r.nonmanifold_verts == 0 &&
+           r.degenerate == 0 && r.self_intersections == 0, "closed, manifold, oriented");
+    is_double(m ? r.volume : 0, 4.18879, 0.05, "volume near 4/3 pi");
+    /* a copy through frep_mesh_new has the same arrays */
+    if (m) {
+        size_t nv = frep_mesh_nverts(m), nt = frep_mesh_ntris(m);
+        frep_mesh *c = frep_mesh_new(nv, frep_mesh_vertices(m), frep_mesh_normals(m), nt,
+                                     frep_mesh_triangles(m), collect, &s);
+        ok(c && frep_mesh_nverts(c) == nv && frep_mesh_ntris(c) == nt &&
+               memcmp(frep_mesh_vertices(c), frep_mesh_vertices(m), 3 * nv * sizeof(double)) == 0 &&
+               memcmp(frep_mesh_triangles(c), frep_mesh_triangles(m), 3 * nt * 4) == 0,
+           "frep_mesh_new copies");
+        frep_mesh_free(c);
+    }
+    uint32_t badtri[3] = { 0, 1, 3 };
+    double v[9] = { 0, 0, 0, 1, 0, 0, 0, 1, 0 };
+    memset(&s, 0, sizeof s);
+    ok(frep_mesh_new(3, v, NULL, 1, badtri, collect, &s) == NULL && s.errors == 1,
+       "a triangle naming vertex 3 of 3 is refused: '%s'", s.last);
+    memset(&s, 0, sizeof s);
+    ok(m && frep_mesh_write(m, tmp("m.xyz"), FREP_MESH_AUTO, 0, collect, &s) == -1 &&
+           s.errors == 1, "an unknown mesh extension: '%s'", s.last);
+    frep_mesh_free(m);
+
+    /* runtime errors of the model come back as one warning with the source position */
+    frep_program *q = compile("m(x[3], a[1]) {\n  m = sqrt(x[1]) - 0.5;\n}\n", &s);
+    memset(&s, 0, sizeof s);
+    o.grid = 8;
+    m = q ? frep_polygonize(q, &o, &info, collect, &s) : NULL;
+    ok(m && s.warnings == 2 && s.errors == 0 && s.positioned == 1 && strstr(s.last, "NaN"),
+       "sqrt of negatives: a warning at the sqrt's line, one of the NaN count ('%s')", s.last);
+    frep_mesh_free(m);
+    frep_program_free(q);
+    memset(&s, 0, sizeof s);
+    o.grid = FREP_MESH_MAX_GRID + 1;
+    ok(frep_polygonize(p, &o, NULL, collect, &s) == NULL && s.errors == 1,
+       "grid above the limit: '%s'", s.last);
+    frep_program_free(p);
+}
+
+/* Run the frep command; 0 when it exits 0. */
+static int run(const char *cmd)
+{
+    char line[4096];
+    snprintf(line, sizeof line, "%s >/dev/null 2>&1", cmd);
+    return system(line);
+}
+
+/* The command's files and the API's for the same options: byte for byte. */
+static void test_same_as_command(const char *frep, const char *srcdir)
+{
+    char model[600], cmd[2048];
+    snprintf(model, sizeof model, "%s/examples/csg.hf", srcdir);
+    seen s = { 0 };
+    size_t len = 0;
+    char *text = NULL;
+    FILE *f = fopen(model, "rb");
+    if (f) {
+        text = malloc(1 << 16);
+        len = text ? fread(text, 1, 1 << 16, f) : 0;
+        fclose(f);
+    }
+    frep_program *p = text ? frep_compile(model, text, len, NULL, collect, &s) : NULL;
+    free(text);
+    ok(p != NULL, "examples/csg.hf compiles");
+    if (!p) return;
+
+    frep_mesh_options o;
+    frep_mesh_options_init(&o);
+    o.grid = 40;
+    frep_mesh *m = frep_polygonize(p, &o, NULL, collect, &s);
+    static const char *ext[] = { "stl", "obj", "ply", "off" };
+    for (int k = 0; k < 4; k++) {
+        for (int ascii = 0; ascii < 2; ascii++) {
+            if (ascii && (k == 1 || k == 3)) continue;   /* OBJ and OFF are text anyway */
+            char a[64], b[64];
+            snprintf(a, sizeof a, "cli%d.%s", ascii, ext[k]);
+            snprintf(b, sizeof b, "api%d.%s", ascii, ext[k]);
+            snprintf(cmd, sizeof cmd, "'%s' mesh '%s' -g 40 %s -o '%s'", frep, model,
+                     ascii ? "--ascii" : "", tmp(a));
+            int rc = run(cmd);
+            int w = m ? frep_mesh_write(m, tmp(b), FREP_MESH_AUTO, ascii, collect, &s) : -1;
+            ok(rc == 0 && w == 0 && same_file(tmp(a), tmp(b)),
+               "frep mesh -g 40%s -o .%s: the same bytes", ascii ? " --ascii" : "", ext[k]);
+        }
+    }
+
+    frep_sample_options so;
+    frep_sample_options_init(&so);
+    so.n = 2000;
+    so.seed = 42;
+    so.noise = 0.002;
+    so.outliers = 0.05;
+    frep_cloud *c = frep_sample(p, &so, collect, &s);
+    for (int k = 0; k < 2; k++) {
+        const char *e = k ? "ply" : "xyz";
+        char a[64], b[64];
+        snprintf(a, sizeof a, "cli.%s", e);
+        snprintf(b, sizeof b, "api.%s", e);
+        snprintf(cmd, sizeof cmd,
+                 "'%s' sample '%s' -n 2000 --seed 42 --noise 0.002 --outliers 0.05 -o '%s'",
+                 frep, model, tmp(a));
+        int rc = run(cmd);
+        int w = c ? frep_cloud_write(c, tmp(b), collect, &s) : -1;
+        ok(rc == 0 && w == 0 && same_file(tmp(a), tmp(b)),
+           "frep sample -n 2000 --seed 42 --noise --outliers -o .%s: the same bytes", e);
+    }
+    frep_cloud_free(c);
+
+    /* sampling a mesh file */
+    frep_mesh *mr = frep_mesh_read(tmp("cli0.off"), collect, &s);
+    ok(mr && m && frep_mesh_ntris(mr) == frep_mesh_ntris(m), "the .off file read back");
+    so.noise = 0;
+    so.outliers = 0;
+    so.n = 500;
+    so.seed = 9;
+    c = mr ? frep_sample_mesh(mr, &so, collect, &s) : NULL;
+    snprintf(cmd, sizeof cmd, "'%s' sample '%s' -n 500 --seed 9 -o '%s'", frep, tmp("cli0.off"),
+             tmp("clim.xyz"));
+    int rc = run(cmd);
+    ok(rc == 0 && c && frep_cloud_write(c, tmp("apim.xyz"), collect, &s) == 0 &&
+           same_file(tmp("clim.xyz"), tmp("apim.xyz")), "frep sample MESH.off: the same bytes");
+    frep_cloud_free(c);
+    frep_mesh_free(mr);
+    frep_mesh_free(m);
+    frep_program_free(p);
+    ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
+}
+
+
+/* progress and cancel of frep_segment: how often each was called */
+typedef struct seg_calls {
+    int progress, cancel, stop_at;
+} seg_calls;
+
+static void seg_progress(void *user, const char *stage, size_t done, size_t total, size_t nprims)
+{
+    (void)stage, (void)done, (void)total, (void)nprims;
+    ((seg_calls *)user)->progress++;
+}
+
+static int seg_cancel(void *user)
+{
+    seg_calls *c = user;
+    return ++c->cancel >= c->stop_at;
+}
+
+/* frep segment and frep_segment on the same cloud and seed: the same .fit bytes and
+ * labels; a cancel stops detection early with what was found. */
+static void test_segment(const char *frep, const char *srcdir)
+{
+    char model[600], cmd[2048];
+    snprintf(model, sizeof model, "%s/tests/models/segment_box.hf", srcdir);
+    seen s = { 0 };
+    snprintf(cmd, sizeof cmd, "'%s' sample '%s' -n 6000 --seed 5 --noise 0.002 -q -o '%s'", frep,
+             model, tmp("box.xyz"));
+    ok(run(cmd) == 0, "a box cloud from frep sample");
+    snprintf(cmd, sizeof cmd, "'%s' segment '%s' --seed 3 -q -o '%s' --labels '%s'", frep,
+             tmp("box.xyz"), tmp("cli.fit"), tmp("cli.labels"));
+    ok(run(cmd) == 0, "frep segment --seed 3");
+    frep_cloud *c = frep_cloud_read(tmp("box.xyz"), collect, &s);
+    frep_segment_options o;
+    frep_segment_options_init(&o);
+    ok(o.seed == 1 && o.separating == 1 && o.types == 0 && !o.cancel, "segment defaults");
+    o.seed = 3;
+    seg_calls calls = { 0, 0, 1 << 30 };
+    o.progress = seg_progress;
+    o.cancel = seg_cancel;
+    o.user = &calls;
+    frep_segmentation *g = c ? frep_segment(c, &o, collect, &s) : NULL;
+    ok(g && frep_segmentation_nfitted(g) >= 6 && !frep_segmentation_interrupted(g) &&
+           calls.progress > 0 && calls.cancel == calls.progress,
+       "frep_segment: %zu fitted, %zu in all; progress called %d times, cancel polled as often",
+       g ? frep_segmentation_nfitted(g) : 0, g ? frep_segmentation_nprims(g) : 0, calls.progress);
+    ok(g && frep_segmentation_write(g, tmp("api.fit"), NULL, collect, &s) == 0 &&
+           same_file(tmp("cli.fit"), tmp("api.fit")), "the same .fit bytes as frep segment");
+    /* the labels file holds label + 1 per point */
+    FILE *lf = fopen(tmp("cli.labels"), "r");
+    int same = lf && g;
+    const int32_t *lab = g ? frep_segmentation_labels(g) : NULL;
+    for (size_t i = 0; same && i < frep_cloud_size(c); i++) {
+        long v;
+        same = fscanf(lf, "%ld", &v) == 1 && v == (long)lab[i] + 1;
+    }
+    if (lf) fclose(lf);
+    ok(same, "the same labels as frep segment --labels");
+    int w = g ? frep_segmentation_write(g, tmp("api.hf"), "segmented by test_api", collect, &s) : -1;
+    char text[1 << 16];
+    FILE *hf = fopen(tmp("api.hf"), "rb");
+    size_t len = hf ? fread(text, 1, sizeof text, hf) : 0;
+    if (hf) fclose(hf);
+    frep_program *hp = frep_compile("api.hf", text, len, NULL, collect, &s);
+    ok(w == 0 && hp && memmem(text, len, "-- segmented by test_api", 24),
+       "written as a .hf model that compiles, with its header");
+    frep_program_free(hp);
+    frep_segmentation_free(g);
+
+    /* stop at the third poll: interrupted, fewer primitives */
+    calls = (seg_calls){ 0, 0, 3 };
+    g = c ? frep_segment(c, &o, collect, &s) : NULL;
+    ok(g && frep_segmentation_interrupted(g) && calls.cancel == 3 &&
+           frep_segmentation_nfitted(g) < 6, "cancel after 3 polls: interrupted with %zu primitives",
+       g ? frep_segmentation_nfitted(g) : 0);
+    frep_segmentation_free(g);
+    frep_cloud_free(c);
+    ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
+}
+
+int main(void)
+{
+    snprintf(tmpdir, sizeof tmpdir, "%s/frep-api.XXXXXX", getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp");
+    if (!mkdtemp(tmpdir)) {
+        printf("Bail out! cannot make a temporary directory\n");
+        return 1;
+    }
+    test_version();
+    test_params();
+    test_interval();
+    test_cloud();
+    test_mesh();
+    const char *frep = getenv("FREP"), *srcdir = getenv("srcdir");
+    if (frep && srcdir) {
+        test_same_as_command(frep, srcdir);
+        test_segment(frep, srcdir);
+    }
+    else diag("FREP or srcdir not set: the comparison with the command is skipped");
+    char cmd[400];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
+    if (system(cmd) != 0) diag("could not remove %s", tmpdir);
+    return done_testing();
+}
