@@ -416,6 +416,111 @@ void canon_write_call(FILE *f, const canon_prim *c)
     fputc(')', f);
 }
 
+/* A signed number as a term: " + 0.5", " - 0.5" (nothing for 0). */
+static void term(FILE *f, double v, double quantum, const char *what, int *first)
+{
+    char buf[PRIM_NUM_BUF];
+    prim_format_number(buf, fabs(v), quantum);
+    if (strcmp(buf, "0") == 0) return;
+    int one = strcmp(buf, "1") == 0 && what[0];
+    if (*first) fprintf(f, "%s%s%s%s", v < 0 ? "-" : "", one ? "" : buf, one || !what[0] ? "" : "*", what);
+    else fprintf(f, " %c %s%s%s", v < 0 ? '-' : '+', one ? "" : buf, one || !what[0] ? "" : "*", what);
+    *first = 0;
+}
+
+/* (x[k] - p_k), or x[k] when p_k prints as 0. */
+static void coord(FILE *f, int k, double p, double quantum)
+{
+    char buf[PRIM_NUM_BUF];
+    prim_format_number(buf, fabs(p), quantum);
+    if (strcmp(buf, "0") == 0) fprintf(f, "x[%d]", k + 1);
+    else fprintf(f, "(x[%d] %c %s)", k + 1, p < 0 ? '+' : '-', buf);
+}
+
+/* |x - p|^2 and (x - p).u written out. */
+static void len2(FILE *f, const prim *q, double qp)
+{
+    fputc('(', f);
+    for (int k = 0; k < 3; k++) {
+        if (k) fputs(" + ", f);
+        coord(f, k, q->p[k], qp);
+        fputs("^2", f);
+    }
+    fputc(')', f);
+}
+
+static void along(FILE *f, const prim *q, double qp, double qd)
+{
+    int first = 1;
+    fputc('(', f);
+    for (int k = 0; k < 3; k++) {
+        char buf[PRIM_NUM_BUF];
+        prim_format_number(buf, q->a[k], qd);
+        if (strcmp(buf, "0") == 0) continue;
+        if (!first) fputs(" + ", f);
+        coord(f, k, q->p[k], qp);
+        if (strcmp(buf, "1") != 0) fprintf(f, "*%s", buf);
+        first = 0;
+    }
+    fputc(')', f);
+}
+
+void canon_write_hyperfun(FILE *f, const canon_prim *c)
+{
+    const prim *q = &c->q;
+    double qp = c->qpos, qd = c->qdir;
+    char r[PRIM_NUM_BUF], R[PRIM_NUM_BUF];
+    prim_format_number(r, q->r, q->type == PRIM_CONE ? qd : qp);
+    switch (q->type) {
+    case PRIM_PLANE: {
+        /* d - n.x (n made unit as frPlane does) */
+        double l = vec3_len(q->p);
+        int first = 1;
+        term(f, q->r, qp, "", &first);
+        for (int k = 0; k < 3; k++) {
+            char x[8];
+            snprintf(x, sizeof x, "x[%d]", k + 1);
+            term(f, -q->p[k] / l, qd, x, &first);
+        }
+        if (first) fputs("0", f);
+        return;
+    }
+    case PRIM_SPHERE:
+        fprintf(f, "%s^2 - ", r);
+        len2(f, q, qp);
+        return;
+    case PRIM_CYLINDER:
+        fprintf(f, "%s^2 - (", r);
+        len2(f, q, qp);
+        fputs(" - ", f);
+        along(f, q, qp, qd);
+        fputs("^2)", f);
+        return;
+    case PRIM_CONE:
+        fputs("(", f);
+        along(f, q, qp, qd);
+        fprintf(f, "*sin(%s) - sqrt(abs(", r);
+        len2(f, q, qp);
+        fputs(" - ", f);
+        along(f, q, qp, qd);
+        fprintf(f, "^2))*cos(%s))", r);
+        return;
+    case PRIM_TORUS:
+        prim_format_number(R, q->R, qp);
+        fprintf(f, "%s^2 - ((sqrt(abs(", r);
+        len2(f, q, qp);
+        fputs(" - ", f);
+        along(f, q, qp, qd);
+        fprintf(f, "^2)) - %s)^2 + ", R);
+        along(f, q, qp, qd);
+        fputs("^2)", f);
+        return;
+    case PRIM__COUNT:
+        break;
+    }
+    fputs("0", f);
+}
+
 void canon_write_comment(FILE *f, const canon_prim *c)
 {
     const prim *q = &c->q;

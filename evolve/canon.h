@@ -61,6 +61,11 @@ int canon_tree_bounded(const evolve_result *r, const prim *prims, size_t nprims)
 /* The call of a canonical primitive, e.g. "frCylinder(x, 1.2, 0, 0.25, 0, 0, 1, 0.25)". */
 void canon_write_call(FILE *f, const canon_prim *c);
 
+/* The same solid in pure HyperFun: arithmetic of x[1..3] only (planes d - n.x,
+ * spheres and cylinders r^2 - distance^2, cones and tori through sqrt), which the
+ * reference HyperFun tools read; numbers as canon_write_call rounds them. */
+void canon_write_hyperfun(FILE *f, const canon_prim *c);
+
 /* The feature comment: type, size, inliers, what was snapped. */
 void canon_write_comment(FILE *f, const canon_prim *c);
 

@@ -1018,8 +1018,13 @@ static void write_header(FILE *f, const evolve_result *r, uint32_t k,
                 r->support.trims, r->support.trims == 1 ? "" : "s", r->support.before,
                 r->support.after);
     if (m->refit_note) fprintf(f, "-- %s\n", m->refit_note);
-    fprintf(f, "-- frep-only: the general-position primitives fr*() (doc/library.md); `frep "
-               "export` writes\n-- the model as OpenSCAD source\n");
+    if (m->hyperfun)
+        fprintf(f, "-- pure HyperFun (--hyperfun): every primitive is arithmetic of x; the "
+                   "reference tools read\n-- | & \\ as R-functions, which give the same solid\n");
+    else
+        fprintf(f, "-- frep-only: the general-position primitives fr*() (doc/library.md); "
+                   "`frep evolve --hyperfun`\n-- writes pure HyperFun, `frep export` "
+                   "OpenSCAD source\n");
     fprintf(f, "-- @setops %s\n", so);
     fprintf(f, "-- @box %.9g %.9g %.9g %.9g %.9g %.9g\n\n", r->box[0], r->box[1], r->box[2],
             r->box[3], r->box[4], r->box[5]);
@@ -1043,7 +1048,7 @@ static void write_model_head(FILE *f, const evolve_base *base, const char *mname
 /* The used primitives in canonical form, named after their role, a comment each; the
  * base model's leaf. */
 static void write_prims(FILE *f, const canon_prim *c, size_t nprims, const evolve_result *r,
-                        const evolve_base *base)
+                        const evolve_base *base, int hyperfun)
 {
     fprintf(f, "    -- primitives, numbers rounded to what their inliers support (+- the "
                "standard error of a position)\n");
@@ -1056,7 +1061,8 @@ static void write_prims(FILE *f, const canon_prim *c, size_t nprims, const evolv
             first = !(r->tree.code[e].op == FREP_OP_PRIM && r->tree.code[e].arg == j);
         if (!first) continue;
         fprintf(f, "    %s = ", c[j].name);
-        canon_write_call(f, &c[j]);
+        if (hyperfun) canon_write_hyperfun(f, &c[j]);
+        else canon_write_call(f, &c[j]);
         fputc(';', f);
         canon_write_comment(f, &c[j]);
         fputc('\n', f);
@@ -1067,7 +1073,8 @@ static void write_prims(FILE *f, const canon_prim *c, size_t nprims, const evolv
 
 /* The six planes of the grown oriented box and the clipped model, or the tree alone
  * when it is bounded. */
-static void write_clip(FILE *f, const evolve_result *r, const char *mname, int bounded)
+static void write_clip(FILE *f, const evolve_result *r, const char *mname, int bounded,
+                       int hyperfun)
 {
     if (bounded) {
         fprintf(f, "    %s = tree;  -- bounded: no clipping box\n}\n", mname);
@@ -1091,7 +1098,16 @@ static void write_clip(FILE *f, const evolve_result *r, const char *mname, int b
             }
             q.r = d + r->obb.h[a] + mg;
             fprintf(f, "    clip_%d_%s = ", a + 1, side[a][s]);
-            prim_write_call_scaled(f, &q, r->diag);
+            if (hyperfun) {
+                canon_prim cp;
+                memset(&cp, 0, sizeof cp);
+                cp.q = q;
+                cp.qpos = PRIM_POS_QUANTUM * r->diag;
+                cp.qdir = PRIM_DIR_QUANTUM;
+                canon_write_hyperfun(f, &cp);
+            } else {
+                prim_write_call_scaled(f, &q, r->diag);
+            }
             fprintf(f, ";\n");
         }
     fprintf(f, "    clip = clip_1_max & clip_1_min & clip_2_max & clip_2_min & clip_3_max & "
@@ -1122,10 +1138,10 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
     const char *mname = m->base ? "my_model" : "evolved";
     write_header(f, r, k, m, m->setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax");
     write_model_head(f, m->base, mname);
-    write_prims(f, c, nprims, r, m->base);
+    write_prims(f, c, nprims, r, m->base, m->hyperfun);
     fprintf(f, "    -- the construction tree: | union, & intersection, \\ subtraction, ~ complement\n");
     fputs(tree, f);
-    write_clip(f, r, mname, canon_tree_bounded(r, cq, nprims));
+    write_clip(f, r, mname, canon_tree_bounded(r, cq, nprims), m->hyperfun);
     rc = ferror(f) ? -1 : 0;
 done:
     buf_free(&tb);

@@ -134,6 +134,7 @@ typedef struct evolve_meta {
      * within CANON_MAX_SHIFT of the diagonal, evolve/canon.h). */
     const frep_cloud *points;
     int exact;               /* the primitives unchanged, every digit written */
+    int hyperfun;            /* pure HyperFun: primitives as arithmetic of x */
 } evolve_meta;
 
 /* The .hf model: primitives named pN after their input position, the tree with the

@@ -99,6 +99,17 @@ st=$?
 report $st "bore 1 widened to 0.35: volume $v1 -> $v2, the analytic 0.0942 less (5%)"
 [ $st = 0 ] || diff "$tmp/m.hf" "$tmp/m2.hf" | sed 's/^/# /'
 
+# --hyperfun: the same tree in pure HyperFun (no frep extension), the same solid.
+nice "$FREP" evolve "$tmp/plate.xyz" -o "$tmp/h.hf" --seed 1 -q --hyperfun 2>"$tmp/err" &&
+    ! grep -q '= fr[A-Z]' "$tmp/h.hf" && grep -q '^    plane_z_top = 0\.[45][0-9]* - x\[3\];' "$tmp/h.hf" &&
+    grep -q '^    cyl_bore_2 = 0\.25[0-9]*^2 - (' "$tmp/h.hf"
+st=$?
+vh=$(vol "$tmp/h.hf")
+[ $st = 0 ] && awk -v a="$v1" -v b="$vh" 'BEGIN { exit !(b > 0.995 * a && b < 1.005 * a) }'
+st=$?
+report $st "--hyperfun: arithmetic of x only (plane_z_top = 0.5 - x[3]), volume $vh as $v1 (0.5%)"
+[ $st = 0 ] || { show "$tmp/err"; show "$tmp/h.hf"; }
+
 # The export agrees.
 if command -v openscad >/dev/null 2>&1 && /usr/bin/python3 -c 'import numpy, scipy.spatial' 2>/dev/null; then
     "$FREP" export "$tmp/m.hf" -o "$tmp/m.scad" -q --fn 64 &&
