@@ -23,6 +23,7 @@ int cmd_print(int argc, char **argv);
 int cmd_dis(int argc, char **argv);
 int cmd_mesh(int argc, char **argv);   /* cli/cmd_mesh.c */
 int cmd_sample(int argc, char **argv); /* cli/cmd_sample.c */
+int cmd_export(int argc, char **argv); /* cli/cmd_export.c */
 int cmd_render(int argc, char **argv); /* cli/cmd_render.c */
 int cmd_evolve(int argc, char **argv); /* cli/cmd_evolve.c */
 int cmd_segment(int argc, char **argv); /* cli/cmd_segment.c */

@@ -137,7 +137,7 @@ typedef struct evolve_cmd {
     evolve_options eo;
     const char *prims_path, *out, *dot, *residual_path, *trace_path, *view;
     double stop_share;          /* --stop-share, percent; 0: none */
-    int refit, quiet, have_setops;
+    int refit, quiet, have_setops, exact, hyperfun;
     const char *cloud_path, *cmdline;
     frep_cloud *cloud;
     frep_cloud *sub;            /* --residual without -p: the points to segment */
@@ -184,6 +184,14 @@ static const cli_opt evolve_opts[] = {
     { 0, "polish-stagnation", "G", CLI_OPT_U32, OFF(eo.polish_stagnation), .lo = 1, .hi = 1e9,
       .help = "stop the polish after G generations without\n"
               "improvement (default 15; at most --stagnation)" },
+    { 0, "exact-numbers", NULL, CLI_OPT_SET, OFF(exact),
+      .help = "write the fitted primitives as they are: every digit, no\n"
+              "direction snapped, no axis point moved (by default the\n"
+              "numbers are rounded to what the inliers support)" },
+    { 0, "hyperfun", NULL, CLI_OPT_SET, OFF(hyperfun),
+      .help = "write pure HyperFun: each primitive as arithmetic of x\n"
+              "(planes d - n.x, spheres and cylinders r^2 - distance^2),\n"
+              "no frep extension, so the reference HyperFun tools read it" },
     { 0, "no-support", NULL, CLI_OPT_CLEAR, OFF(eo.support),
       .help = "keep material no point supports (by default the final\n"
               "tree is trimmed where its surface runs far from the cloud)" },
@@ -499,7 +507,8 @@ static double percent(size_t k, size_t n)
 static int stage_write(evolve_cmd *e)
 {
     evolve_meta meta = { e->cmdline, e->cloud_path, e->eo.gp.seed, e->eo.gp.setops,
-                         e->residual_path ? &e->base : NULL, e->note[0] ? e->note : NULL };
+                         e->residual_path ? &e->base : NULL, e->note[0] ? e->note : NULL,
+                         e->cloud, e->exact, e->hyperfun };
     write_ctx w = { &e->res, e->prims, e->nprims, &meta };
     if (cli_write_atomic(e->out, write_model_cb, &w)) return CLI_FAIL;
     if (e->dot && cli_write_atomic(e->dot, write_dot_cb, &w)) return CLI_FAIL;

@@ -27,6 +27,7 @@ static const cli_command commands[] = {
     { "view", cmd_view, "write an HTML page that shows a model and a cloud in 3D (WebGL)" },
     { "segment", cmd_segment, "find planes, spheres, cylinders, cones, tori in a point cloud" },
     { "evolve", cmd_evolve, "discover a construction-tree model (.hf) from a point cloud" },
+    { "export", cmd_export, "translate a model into OpenSCAD source (.scad)" },
 };
 
 static void usage(FILE *f)

@@ -7,6 +7,7 @@
 #include "buf.h"
 #include "err.h"
 
+#include "canon.h"
 #include "evolve.h"
 #include "residual.h"
 #include "simplify.h"
@@ -987,7 +988,7 @@ int evolve_run(const evolve_options *o, const frep_cloud *cloud, const prim *pri
 static double pct(size_t a, size_t b) { return b ? 100.0 * (double)a / (double)b : 0.0; }
 
 /* The header comments: the run, its figures, the notes; the @setops and @box pragmas. */
-static void write_header(FILE *f, const evolve_result *r, size_t nprims, uint32_t k,
+static void write_header(FILE *f, const evolve_result *r, uint32_t k,
                          const evolve_meta *m, const char *so)
 {
     const gp_tree *t = &r->tree;
@@ -1009,15 +1010,21 @@ static void write_header(FILE *f, const evolve_result *r, size_t nprims, uint32_
             pct(r->stats.explained, r->npoints));
     if (m->base)
         fprintf(f, "-- residual of model '%s': it explained %.2f%% of the points; the tree was "
-                   "evolved on the %zu it explained poorly and joined to it (p%zu)\n",
-                m->base->name, pct(r->npoints - r->nresidual, r->npoints), r->nresidual,
-                nprims + 1);
+                   "evolved on the %zu it explained poorly and joined to it (base_part)\n",
+                m->base->name, pct(r->npoints - r->nresidual, r->npoints), r->nresidual);
     if (r->support.trims)
         fprintf(f, "-- %u trim%s of material no point supports (unsupported grid edges %zu -> "
                    "%zu; --no-support keeps it)\n",
                 r->support.trims, r->support.trims == 1 ? "" : "s", r->support.before,
                 r->support.after);
     if (m->refit_note) fprintf(f, "-- %s\n", m->refit_note);
+    if (m->hyperfun)
+        fprintf(f, "-- pure HyperFun (--hyperfun): every primitive is arithmetic of x; the "
+                   "reference tools read\n-- | & \\ as R-functions, which give the same solid\n");
+    else
+        fprintf(f, "-- frep-only: the general-position primitives fr*() (doc/library.md); "
+                   "`frep evolve --hyperfun`\n-- writes pure HyperFun, `frep export` "
+                   "OpenSCAD source\n");
     fprintf(f, "-- @setops %s\n", so);
     fprintf(f, "-- @box %.9g %.9g %.9g %.9g %.9g %.9g\n\n", r->box[0], r->box[1], r->box[2],
             r->box[3], r->box[4], r->box[5]);
@@ -1038,31 +1045,47 @@ static void write_model_head(FILE *f, const evolve_base *base, const char *mname
     fprintf(f, "%s(%s)\n{\n", mname, base->header);
 }
 
-/* The used primitives pN (N their input position) and the base model's leaf. */
-static void write_prims(FILE *f, const evolve_result *r, const prim *prims, size_t nprims,
-                        const uint8_t *seen, const evolve_base *base)
+/* The used primitives in canonical form, named after their role, a comment each; the
+ * base model's leaf. */
+static void write_prims(FILE *f, const canon_prim *c, size_t nprims, const evolve_result *r,
+                        const evolve_base *base, int hyperfun)
 {
-    fprintf(f, "    -- primitives, named after their position in the input list\n");
-    for (size_t j = 0; j < nprims; j++) {
-        if (!seen[j]) continue;
-        fprintf(f, "    p%zu = ", j + 1);
-        prim_write_call_scaled(f, &prims[j], r->diag);
-        fprintf(f, ";  -- %s", prim_type_name(prims[j].type));
-        if (prims[j].separating) fprintf(f, ", separating");
-        else if (prims[j].support) fprintf(f, ", %zu inliers", prims[j].support);
+    fprintf(f, "    -- primitives, numbers rounded to what their inliers support (+- the "
+               "standard error of a position)\n");
+    /* In the order the tree first uses them, as they are numbered. */
+    for (uint32_t pc = 0; pc < r->tree.len; pc++) {
+        size_t j = r->tree.code[pc].arg;
+        if (r->tree.code[pc].op != FREP_OP_PRIM || j >= nprims || !c[j].name[0]) continue;
+        int first = 1;
+        for (uint32_t e = 0; e < pc && first; e++)
+            first = !(r->tree.code[e].op == FREP_OP_PRIM && r->tree.code[e].arg == j);
+        if (!first) continue;
+        fprintf(f, "    %s = ", c[j].name);
+        if (hyperfun) canon_write_hyperfun(f, &c[j]);
+        else canon_write_call(f, &c[j]);
+        fputc(';', f);
+        canon_write_comment(f, &c[j]);
         fputc('\n', f);
     }
     if (base && tree_uses(&r->tree, (uint32_t)nprims))
-        fprintf(f, "    p%zu = %s;  -- the model given with --residual\n", nprims + 1,
-                base->call);
+        fprintf(f, "    base_part = %s;  -- the model given with --residual\n", base->call);
 }
 
-/* The six planes b1..b6 of the grown oriented box and the clipped model. */
-static void write_clip(FILE *f, const evolve_result *r, const char *mname)
+/* The six planes of the grown oriented box and the clipped model, or the tree alone
+ * when it is bounded. */
+static void write_clip(FILE *f, const evolve_result *r, const char *mname, int bounded,
+                       int hyperfun)
 {
-    fprintf(f, "    -- clipped by the oriented bounding box of the cloud (grown by %g of the diagonal)\n",
+    if (bounded) {
+        fprintf(f, "    %s = tree;  -- bounded: no clipping box\n}\n", mname);
+        return;
+    }
+    fprintf(f, "    -- The tree is not bounded (or bounded beyond 2 diagonals): it is clipped by the\n"
+               "    -- cloud's oriented box grown by %g of the diagonal. An edit that enlarges the\n"
+               "    -- part must grow the offsets (the last number) of these planes too.\n",
             EVOLVE_CLIP_MARGIN);
     double mg = EVOLVE_CLIP_MARGIN * r->diag;
+    static const char *const side[3][2] = { { "max", "min" }, { "max", "min" }, { "max", "min" } };
     for (int a = 0; a < 3; a++)
         for (int s = 0; s < 2; s++) {
             prim q;
@@ -1074,42 +1097,59 @@ static void write_clip(FILE *f, const evolve_result *r, const char *mname)
                 d += q.p[c] * r->obb.c[c];
             }
             q.r = d + r->obb.h[a] + mg;
-            fprintf(f, "    b%d = ", 2 * a + s + 1);
-            prim_write_call_scaled(f, &q, r->diag);
+            fprintf(f, "    clip_%d_%s = ", a + 1, side[a][s]);
+            if (hyperfun) {
+                canon_prim cp;
+                memset(&cp, 0, sizeof cp);
+                cp.q = q;
+                cp.qpos = PRIM_POS_QUANTUM * r->diag;
+                cp.qdir = PRIM_DIR_QUANTUM;
+                canon_write_hyperfun(f, &cp);
+            } else {
+                prim_write_call_scaled(f, &q, r->diag);
+            }
             fprintf(f, ";\n");
         }
-    fprintf(f, "    %s = tree & (((b1 & b2) & (b3 & b4)) & (b5 & b6));\n}\n", mname);
+    fprintf(f, "    clip = clip_1_max & clip_1_min & clip_2_max & clip_2_min & clip_3_max & "
+               "clip_3_min;\n");
+    fprintf(f, "    %s = tree & clip;\n}\n", mname);
 }
 
 int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_t nprims,
                        const evolve_meta *m)
 {
     const gp_tree *t = &r->tree;
+    canon_prim *c = frep_calloc(nprims + 1, sizeof *c);
+    const char **names = frep_calloc(nprims + 1, sizeof *names);
+    prim *cq = frep_calloc(nprims + 1, sizeof *cq);
     frep_buf tb = FREP_BUF_INIT;
-    tree_print(&tb, t->code, t->len, "p");
-    char *tree = buf_finish(&tb, NULL);
-    uint8_t *seen = frep_calloc(nprims + 1, 1);
-    if (!seen || !tree) {
-        frep_free(seen);
-        frep_free(tree);
-        return -1;
+    char *tree = NULL;
+    int rc = -1;
+    if (!c || !names || !cq || canon_prims(r, prims, nprims, m->points, m->exact, c)) goto done;
+    for (size_t j = 0; j < nprims; j++) {
+        names[j] = c[j].name;
+        cq[j] = c[j].name[0] ? c[j].q : prims[j];
     }
+    names[nprims] = "base_part";
+    canon_write_tree(&tb, t, names, prims, nprims);
+    if (!(tree = buf_finish(&tb, NULL))) goto done;
     uint32_t k = 0;
-    for (uint32_t pc = 0; pc < t->len; pc++)
-        if (t->code[pc].op == FREP_OP_PRIM && t->code[pc].arg < nprims && !seen[t->code[pc].arg]) {
-            seen[t->code[pc].arg] = 1;
-            k++;
-        }
+    for (size_t j = 0; j < nprims; j++) k += c[j].name[0] != 0;
     const char *mname = m->base ? "my_model" : "evolved";
-    write_header(f, r, nprims, k, m, m->setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax");
+    write_header(f, r, k, m, m->setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax");
     write_model_head(f, m->base, mname);
-    write_prims(f, r, prims, nprims, seen, m->base);
+    write_prims(f, c, nprims, r, m->base, m->hyperfun);
     fprintf(f, "    -- the construction tree: | union, & intersection, \\ subtraction, ~ complement\n");
-    fprintf(f, "    tree = %s;\n", tree);
-    write_clip(f, r, mname);
-    frep_free(seen);
+    fputs(tree, f);
+    write_clip(f, r, mname, canon_tree_bounded(r, cq, nprims), m->hyperfun);
+    rc = ferror(f) ? -1 : 0;
+done:
+    buf_free(&tb);
     frep_free(tree);
-    return ferror(f) ? -1 : 0;
+    frep_free(c);
+    frep_free(names);
+    frep_free(cq);
+    return rc;
 }
 
 int evolve_write_dot(FILE *f, const evolve_result *r, const prim *prims, size_t nprims)

@@ -130,6 +130,11 @@ typedef struct evolve_meta {
      * is then called my_model; NULL otherwise. */
     const struct evolve_base *base;
     const char *refit_note;  /* a comment line about --refit (may be NULL) */
+    /* The cloud, for the check of the rounded model (may be NULL: rounding then stays
+     * within CANON_MAX_SHIFT of the diagonal, evolve/canon.h). */
+    const frep_cloud *points;
+    int exact;               /* the primitives unchanged, every digit written */
+    int hyperfun;            /* pure HyperFun: primitives as arithmetic of x */
 } evolve_meta;
 
 /* The .hf model: primitives named pN after their input position, the tree with the

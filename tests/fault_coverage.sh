@@ -3,7 +3,7 @@
 #   sh tests/fault_coverage.sh [SRCDIR [BUILDDIR]]     (make fault-coverage runs it)
 # Builds frep with gcov instrumentation in BUILDDIR (default build-coverage), runs the
 # whole suite there (tests/test_faults makes every allocation fail once), then lists
-# each line of the library (runtime lang geom mesh fit segment evolve, without the
+# each line of the library (runtime lang geom mesh fit segment export evolve, without the
 # allocator runtime/alloc.c itself) that calls frep_malloc, frep_calloc, frep_realloc,
 # frep_reallocarray, frep_strdup, frep_strndup or frep_aligned_alloc and never ran.
 # Prints "reached/total" and fails when any site is left.
@@ -24,7 +24,7 @@ make -s -j"$jobs" check >/dev/null 2>&1 || echo "fault_coverage: make check fail
 # gcov of every library object: lines "count:line:text" under a "Source:" header.
 list=$(mktemp "${TMPDIR:-/tmp}/frep-cov.XXXXXX")
 trap 'rm -f "$list"' EXIT INT TERM
-for dir in runtime lang geom mesh fit segment evolve; do
+for dir in runtime lang geom mesh fit segment export evolve; do
     [ -d "$dir" ] || continue
     for gcno in "$dir"/*.gcno; do
         [ -f "$gcno" ] || continue
@@ -34,7 +34,7 @@ done | awk -v src="$src/" '
     /^ *-: *0:Source:/ { f = $0; sub(/^ *-: *0:Source:/, "", f); sub(/^(\.\.\/)+/, "", f);
                          sub("^" src, "", f); next }
     {
-        if (f !~ /^(runtime|lang|geom|mesh|fit|segment|evolve)\// || f == "runtime/alloc.c") next
+        if (f !~ /^(runtime|lang|geom|mesh|fit|segment|export|evolve)\// || f == "runtime/alloc.c") next
         n = split($0, part, ":")
         if (n < 3) next
         count = part[1]; gsub(/ /, "", count); line = part[2] + 0

@@ -2,13 +2,13 @@
 # tests/layers.sh - the include directions of the library's folders (TAP).
 # Each folder is a layer; a file may include the headers of its own folder and of
 # earlier layers only. Folders of one rank are independent of each other:
-#   runtime (0) <- lang (1) <- geom (2) <- mesh, fit, segment, view (3) <- evolve (4) <- api (5)
-#   <- cli (6)
+#   runtime (0) <- lang (1) <- geom (2) <- mesh, fit, segment, view, export (3) <- evolve (4)
+#   <- api (5) <- cli (6)
 # Headers are included by bare name (Makefile.am puts every folder on the include
 # path), so a header name must also be unique across the folders.
 src=${srcdir:-$(cd "$(dirname "$0")/.." && pwd)}
 cd "$src" || exit 1
-layers="runtime:0 lang:1 geom:2 mesh:3 fit:3 segment:3 view:3 evolve:4 api:5 cli:6"
+layers="runtime:0 lang:1 geom:2 mesh:3 fit:3 segment:3 view:3 export:3 evolve:4 api:5 cli:6"
 
 rank() {
     for l in $layers; do [ "${l%%:*}" = "$1" ] && { echo "${l#*:}"; return; }; done

@@ -30,6 +30,7 @@
 #include "render.h"
 #include "residual.h"
 #include "sample.h"
+#include "scad.h"
 #include "segment.h"
 #include "tap.h"
 #include "util.h"
@@ -642,6 +643,41 @@ static int case_segment(const fixture *fx, fault_out *o)
 }
 
 /* Primitive lists: .fit and .hf text. */
+/* Named sub-expressions, a slab of min/max arithmetic, a complement: every branch of
+ * the export's writer that allocates. */
+static const char export_src[] =
+    "-- @box -2 -2 -2 2 2 2\n"
+    "my_model(x[3], a[1])\n"
+    "{\n"
+    "    array c[3];\n"
+    "    c = [0, 0, 0];\n"
+    "    ball = hfSphere(x, c, 1);\n"
+    "    slab = 0.5 - abs(x[3]);\n"
+    "    holes = hfCylinderZ(x, c, 0.2) | frCylinder(x, 0, 0, 0, 1, 0, 0, 0.2);\n"
+    "    my_model = (ball & slab) \\ holes | ~frSphere(x, 3, 3, 3, 5.5);\n"
+    "}\n";
+
+static int case_export(const fixture *fx, fault_out *o)
+{
+    (void)fx;
+    scad_options so;
+    memset(&so, 0, sizeof so);
+    for (int i = 0; i < 3; i++) {
+        so.box[i] = -2;
+        so.box[i + 3] = 2;
+    }
+    so.fn = SCAD_DEFAULT_FN;
+    frep_error err;
+    char *t = scad_export("e.hf", export_src, strlen(export_src), &so, on_diag, o, &err);
+    if (!t) {
+        set_msg(o, err.msg);
+        return -1;
+    }
+    digest_bytes(o, t, strlen(t));
+    frep_free(t);
+    return 0;
+}
+
 static int case_prims(const fixture *fx, fault_out *o)
 {
     prim *p = NULL;
@@ -951,6 +987,7 @@ static const fault_case cases[] = {
     { "kdtree", case_kdtree, MSG_NONE, NULL },
     { "segment", case_segment, MSG_GIVEN, NULL },
     { "prims", case_prims, MSG_GIVEN, NULL },
+    { "export", case_export, MSG_GIVEN, NULL },
     { "fit", case_fit, MSG_GIVEN, NULL },
     { "writeback", case_writeback, MSG_NONE, NULL },
     { "evolve", case_evolve, MSG_GIVEN, NULL },
