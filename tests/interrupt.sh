@@ -87,19 +87,21 @@ wait_file() {
     done
     return 1
 }
-# cpu_of PID: processor seconds the process has used (also once it is a zombie).
-cpu_of() {
-    awk -v k="$tck" '{ sub(/.*\) /, ""); printf "%.3f", ($12 + $13) / k }' "/proc/$1/stat" 2>/dev/null
-}
 # stop SIG...: send each signal in turn (0.05 s apart) and wait; st is the exit status,
 # lat the seconds from the first signal to the exit, cpu the processor seconds the
-# command used in that time (read while it is a zombie: on a loaded machine the wall
-# time measures the load), alive 1 when the command was still running when signalled
-# (else the test proves nothing).
+# command used in that time (its last reading before it ended, every 10 ms: on a
+# loaded machine the wall time measures the load), alive 1 when the command was still
+# running when signalled (else the test proves nothing).
+stat_of() { # stat_of PID: "STATE CPU-SECONDS" of a process
+    awk -v k="$tck" '{ sub(/.*\) /, ""); printf "%s %.3f", $1, ($12 + $13) / k }' \
+        "/proc/$1/stat" 2>/dev/null
+}
 stop() {
     alive=0
     kill -0 "$pid" 2>/dev/null && alive=1
-    c0=$(cpu_of "$pid")
+    c0=$(stat_of "$pid")
+    c0=${c0#* }
+    c1=$c0
     t0=$(now)
     first=1
     for s in "$@"; do
@@ -107,12 +109,10 @@ stop() {
         first=0
         kill -"$s" "$pid" 2>/dev/null
     done
-    c1=
-    while [ -r "/proc/$pid/stat" ]; do
-        if [ "$(awk '{ sub(/.*\) /, ""); print $1 }' "/proc/$pid/stat" 2>/dev/null)" = Z ]; then
-            c1=$(cpu_of "$pid")
-            break
-        fi
+    while :; do
+        r=$(stat_of "$pid")
+        case $r in "" | Z*) break ;; esac
+        c1=${r#* }
         sleep 0.01
     done
     t1=$(now)
