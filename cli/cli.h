@@ -116,13 +116,29 @@ void cli_cloud_dist_free(cli_cloud_dist *d);
 #define CLI_OPT_QUIET(T, f, h) \
     { 'q', "quiet", NULL, CLI_OPT_SET, offsetof(T, f), .help = h }
 
-/* Ctrl-C: cli_sigint_catch() clears the flag and installs a handler that sets it (the
- * one piece of global mutable state frep allows: a signal handler can reach nothing
- * else); cli_sigint_restore() puts the previous handler back. The library polls the
- * flag through a pointer (fit, segment, evolve configs). */
+/* Signals (cli/util.c, the one signal helper): main() installs one handler for SIGINT,
+ * SIGTERM and SIGHUP (cli_signals_install). Until a command asks for the flag, a signal
+ * ends the process at once with status 128 + signal (130 for Ctrl-C), removing the
+ * temporary file of a write in progress. cli_sigint_catch() makes the first signal only
+ * set the flag, which the library polls through the returned pointer (the `interrupt`
+ * of the segment, gp, mesh and fit configs): the command then keeps or writes the best
+ * result so far and returns cli_interrupt_status(); a second signal still ends the
+ * process at once. cli_sigint_restore() is kept for the callers: polling stays on. */
+#define CLI_MAX_TMP_PATH 4096   /* the temporary's name, kept for the signal handler */
+void cli_signals_install(void);
 volatile sig_atomic_t *cli_sigint_catch(void);
 void cli_sigint_restore(void);
+/* The signal received since the command asked for the flag (0: none). */
 int cli_interrupted(void);
+/* The signal was the command's normal end (frep view --watch stops at Ctrl-C): forget
+ * it, so that the command exits with its own status. */
+void cli_interrupt_handled(void);
+/* Print "frep SUB: interrupted (Ctrl-C): WHAT" and return the exit status, 128 + the
+ * signal (130 for Ctrl-C). */
+int cli_interrupt_status(const char *sub, const char *what);
+/* At exit: flush standard output; a write error there (a full disk, a closed pipe) is
+ * reported as "frep: cannot write standard output: reason". 0 or -1. */
+int cli_stdout_close(void);
 
 /* Exit statuses. */
 #define CLI_OK 0
@@ -159,8 +175,10 @@ frep_program *cli_compile_text(const char *path, const char *text, size_t len,
                                const char *model, const double *a, size_t na, int setops,
                                frep_buf *diag);
 
-/* Write a file atomically: data goes to a temporary in the same directory, which is
- * renamed over `path` when `fn` succeeds. fn returns 0 on success. */
+/* Write a file atomically: data goes to a temporary in the same directory (PATH.tmpPID),
+ * which is renamed over `path` when `fn` succeeds and removed otherwise, also by a
+ * signal. fn returns 0 on success. "-" is standard output. A failure is reported as
+ * "frep: cannot write PATH: reason" (errno's, e.g. "No space left on device"). */
 int cli_write_atomic(const char *path, int (*fn)(FILE *f, void *user), void *user);
 
 /* Usage error: prints "frep SUB: message" and a hint to --help; returns CLI_USAGE. */

@@ -149,7 +149,7 @@ static int eval_points(const frep_program *p, const char *path, int grad, int nt
         putchar('\n');
     }
     report_errors(p, &err, src, srclen);
-    status = fflush(stdout) == 0 ? CLI_OK : CLI_FAIL;
+    status = cli_stdout_close() == 0 ? CLI_OK : CLI_FAIL;
 done:
     free(b.x);
     free(b.y);

@@ -307,6 +307,10 @@ static int stage_cloud(evolve_cmd *e)
         fprintf(stderr, "frep evolve: %s: no points\n", e->cloud_path);
         return CLI_FAIL;
     }
+    if (cloud_check_scale(e->cloud, e->cloud_path, &e->ferr)) {
+        fprintf(stderr, "frep evolve: %s\n", e->ferr.msg);
+        return CLI_FAIL;
+    }
     if (e->prims_path || e->residual_path) return ensure_normals(e);
     return CLI_OK;
 }
@@ -381,6 +385,7 @@ static int segment_prims(evolve_cmd *e)
     segment_config_init(&sc);
     sc.seed = e->eo.gp.seed;
     sc.nthreads = e->eo.gp.threads;
+    sc.interrupt = e->eo.gp.interrupt;
     if (segment_run(e->sub ? e->sub : e->cloud, &sc, &e->seg, &e->ferr)) {
         if (!e->residual_path) {
             fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path,
@@ -474,8 +479,6 @@ static int stage_evolve(evolve_cmd *e)
                 e->ferr.msg[0] ? e->ferr.msg : "failed");
         return CLI_FAIL;
     }
-    if (cli_interrupted() && !e->quiet)
-        fprintf(stderr, "frep evolve: interrupted: writing the best tree so far\n");
     if (e->res.alpha_auto && !e->quiet) report_alpha(&e->res);
     return CLI_OK;
 }
@@ -564,12 +567,18 @@ static int evolve_steps(evolve_cmd *e)
 {
     int rc = stage_cloud(e);
     if (rc == CLI_OK && e->residual_path) rc = stage_residual(e);
+    /* From the segmentation on, Ctrl-C stops the phase running and the best tree so
+     * far is written (gp.h says which steps are skipped). */
+    e->eo.gp.interrupt = cli_sigint_catch();
     if (rc == CLI_OK) rc = stage_prims(e);
     if (rc == CLI_OK) rc = stage_evolve(e);
-    if (rc != CLI_OK) return rc;
+    if (rc != CLI_OK)
+        return cli_interrupted() ? cli_interrupt_status("evolve", "nothing written") : rc;
     if (e->refit && !cli_interrupted()) stage_refit(e);
     rc = stage_write(e);
     if (rc == CLI_OK && !e->quiet) stage_report(e);
+    if (rc == CLI_OK && cli_interrupted())
+        return cli_interrupt_status("evolve", "wrote the best tree so far");
     return rc;
 }
 

@@ -341,8 +341,11 @@ static int stage_check(mesh_cmd *c)
             mk.unused_verts, mk.degenerate, mk.nonfinite, mk.volume, mk.area);
     if (c->check_self && stage_check_self(c) != CLI_OK) return CLI_FAIL;
     if (mk.open_edges || mk.nonmanifold_edges || mk.flipped_edges || mk.nonmanifold_verts ||
-        mk.unused_verts || mk.degenerate || mk.nonfinite || !(mk.volume > 0))
+        mk.unused_verts || mk.degenerate || mk.nonfinite || !(mk.volume > 0)) {
+        /* the mesh is written (to look at), and the failure said in words */
+        fprintf(stderr, "frep mesh: %s fails the check (counts above)\n", c->out);
         return CLI_FAIL;
+    }
     return CLI_OK;
 }
 

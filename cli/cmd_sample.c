@@ -85,10 +85,12 @@ static int stage_options(sample_cmd *c, int argc, char **argv)
 }
 
 /* The sampler's status -> the exit status, with its reason. */
-static int sampled(const sample_cmd *c, int rc, const char *err)
+static int sampled(const sample_cmd *c, int rc, const frep_error *err)
 {
     if (rc == 0) return CLI_OK;
-    fprintf(stderr, "frep sample: %s: %s\n", c->in, err);
+    if (err->code == FREP_ECANCEL)
+        return cli_interrupt_status("sample", "stopped while sampling, nothing written");
+    fprintf(stderr, "frep sample: %s: %s\n", c->in, err->msg);
     return CLI_FAIL;
 }
 
@@ -100,9 +102,10 @@ static int stage_sample_mesh(sample_cmd *c)
     frep_mesh m;
     memset(&m, 0, sizeof m);
     if (cli_read_mesh("sample", c->in, &m) != CLI_OK) return CLI_FAIL;
+    c->so.mesh.interrupt = cli_sigint_catch();
     int rc = sample_mesh(&m, &c->so, &c->cl, &err);
     mesh_free(&m);
-    return sampled(c, rc, err.msg);
+    return sampled(c, rc, &err);
 }
 
 /* Points on the model's surface, through the sampling mesh of the model's box. */
@@ -122,13 +125,14 @@ static int stage_sample_model(sample_cmd *c)
     c->so.mesh.grid = mc->grid;
     c->so.mesh.iso = mc->iso;
     c->so.mesh.nthreads = mc->nthreads;
+    c->so.mesh.interrupt = cli_sigint_catch();
     rc = sample_field(&f, &c->so, &c->cl, &err);
     frep_runtime_error re;
     mesh_field_program_errors(&f, &re);
     mesh_cli_add_errors(mc, &re);
     mesh_field_program_free(&f);
     mesh_cli_report_errors(mc);
-    return sampled(c, rc, err.msg);
+    return sampled(c, rc, &err);
 }
 
 static int write_cloud_cb(FILE *f, void *user)

@@ -234,7 +234,6 @@ static int stage_segment(segment_cmd *s)
         fprintf(stderr, "%s: error: %s\n", s->in, err.msg[0] ? err.msg : "segmentation failed");
         return CLI_FAIL;
     }
-    if (s->r.interrupted) fprintf(stderr, "frep segment: interrupted; writing what was found\n");
     return CLI_OK;
 }
 
@@ -306,7 +305,10 @@ static int segment_steps(segment_cmd *s, int argc, char **argv)
     stage_header(s, argc, argv);
     if (!s->quiet) stage_report(s);
     rc = stage_write(s);
+    int stopped = s->r.interrupted;
     segment_result_free(&s->r);
+    if (rc == CLI_OK && stopped)
+        return cli_interrupt_status("segment", "wrote the primitives found so far");
     return rc;
 }
 

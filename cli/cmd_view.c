@@ -384,6 +384,7 @@ static int view_watch(view_cmd *c)
         if (changed(c)) rc = rebuild(c);
     }
     cli_sigint_restore();
+    cli_interrupt_handled();  /* Ctrl-C is how a watch ends */
     view_server_close(srv);
     if (!c->quiet) fprintf(stderr, "frep view: stopped\n");
     return rc;

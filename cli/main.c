@@ -53,10 +53,20 @@ int main(int argc, char **argv)
     }
     if (strcmp(sub, "--version") == 0 || strcmp(sub, "version") == 0) {
         printf("frep %s\n", FREP_VERSION_STRING);
-        return CLI_OK;
+        return cli_stdout_close() == 0 ? CLI_OK : CLI_FAIL;
     }
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
-        if (strcmp(sub, commands[i].name) == 0) return commands[i].fn(argc - 1, argv + 1);
+        if (strcmp(sub, commands[i].name) == 0) {
+            cli_signals_install();
+            int rc = commands[i].fn(argc - 1, argv + 1);
+            /* output lost to a full disk or a closed pipe is a failure too */
+            if (cli_stdout_close() != 0 && rc == CLI_OK) rc = CLI_FAIL;
+            /* a signal that came after the last poll (during the write) still ends
+             * the command with its status: an interrupted command never exits 0 */
+            if (rc == CLI_OK && cli_interrupted())
+                rc = cli_interrupt_status(sub, "after the output was complete");
+            return rc;
+        }
     fprintf(stderr, "frep: unknown subcommand '%s'\n", sub);
     usage(stderr);
     return CLI_USAGE;

@@ -131,6 +131,7 @@ int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *
     memcpy(o.grid_axes, c->grid_axes, sizeof o.grid_axes);
     o.iso = c->iso;
     o.nthreads = c->nthreads;
+    o.interrupt = cli_sigint_catch();
     int last = -1;
     int tty = isatty(2);
     if (tty) {
@@ -146,6 +147,8 @@ int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *
     mesh_field_program_free(&f);
     mesh_cli_report_errors(c);
     if (tty && last >= 0) fputs("\r                     \r", stderr);
+    if (rc != 0 && err.code == FREP_ECANCEL)
+        return cli_interrupt_status(sub, "stopped while meshing, nothing written");
     if (rc != 0) {
         fprintf(stderr, "frep %s: %s\n", sub, err.msg);
         return CLI_FAIL;

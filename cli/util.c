@@ -13,6 +13,12 @@
 #include <string.h>
 #include <unistd.h>
 
+/* The signal helper's state (below, "The one signal helper"). */
+static volatile sig_atomic_t cli_signal_flag;   /* the signal number, 0 before any */
+static volatile sig_atomic_t cli_signal_polled; /* 1: the first signal only sets the flag */
+static volatile sig_atomic_t cli_tmp_live;      /* 1: cli_tmp_path names a file to remove */
+static char cli_tmp_path[CLI_MAX_TMP_PATH];
+
 #define CLI_MAX_INPUT_BYTES ((size_t)1 << 30) /* refuse to slurp files over 1 GiB */
 
 char *cli_read_file(const char *path, size_t *len)
@@ -129,35 +135,79 @@ frep_program *cli_compile_text(const char *path, const char *text, size_t len,
     return p;
 }
 
+/* 1 once a write error on standard output was reported (said once per process). */
+static int cli_stdout_reported;
+
+/* "frep: cannot write WHAT: reason" with errno's reason when there is one. */
+static void write_failed(const char *what, int err)
+{
+    if (strcmp(what, "standard output") == 0) {
+        if (cli_stdout_reported) return;
+        cli_stdout_reported = 1;
+    }
+    if (err) fprintf(stderr, "frep: cannot write %s: %s\n", what, strerror(err));
+    else fprintf(stderr, "frep: cannot write %s\n", what);
+}
+
 int cli_write_atomic(const char *path, int (*fn)(FILE *f, void *user), void *user)
 {
     if (strcmp(path, "-") == 0) {
+        errno = 0;
         int r = fn(stdout, user);
-        return fflush(stdout) == 0 ? r : -1;
+        int err = errno;
+        if (fflush(stdout) != 0) err = errno;
+        else if (!ferror(stdout) && r == 0) return 0;
+        if (r != -2) write_failed("standard output", err);
+        return -1;
     }
     size_t n = strlen(path);
+    if (n + 32 > sizeof cli_tmp_path) {
+        fprintf(stderr, "frep: cannot write %s: the name is too long\n", path);
+        return -1;
+    }
     char *tmp = malloc(n + 32);
     if (!tmp) return -1;
     snprintf(tmp, n + 32, "%s.tmp%ld", path, (long)getpid());
+    /* published to the signal handler before the file exists */
+    memcpy(cli_tmp_path, tmp, strlen(tmp) + 1);
+    cli_tmp_live = 1;
     FILE *f = fopen(tmp, "wb");
     if (!f) {
-        fprintf(stderr, "frep: cannot write %s: %s\n", path, strerror(errno));
+        cli_tmp_live = 0;
+        write_failed(path, errno);
         free(tmp);
         return -1;
     }
+    errno = 0;
     int r = fn(f, user);
-    if (fflush(f) != 0 || ferror(f)) r = -1;
-    if (fclose(f) != 0) r = -1;
+    int err = r ? errno : 0;
+    if (fflush(f) != 0 || ferror(f)) {
+        if (r == 0 || !err) err = errno;
+        r = r ? r : -1;
+    }
+    if (fclose(f) != 0) {
+        if (r == 0) err = errno;
+        r = r ? r : -1;
+    }
     if (r == 0 && rename(tmp, path) != 0) {
-        fprintf(stderr, "frep: cannot write %s: %s\n", path, strerror(errno));
-        r = -1;
+        write_failed(path, errno);
+        r = -2;
     }
-    if (r != 0) {
-        remove(tmp);
-        if (r != -2) fprintf(stderr, "frep: %s not written\n", path);
-    }
+    if (r != 0) remove(tmp);
+    cli_tmp_live = 0;
+    if (r == -1) write_failed(path, err);
     free(tmp);
     return r == 0 ? 0 : -1;
+}
+
+int cli_stdout_close(void)
+{
+    errno = 0;
+    int bad = ferror(stdout);
+    if (fflush(stdout) != 0) bad = 1;
+    if (!bad) return 0;
+    write_failed("standard output", errno);
+    return -1;
 }
 
 int cli_usage_error(const char *sub, const char *fmt, ...)
@@ -171,34 +221,83 @@ int cli_usage_error(const char *sub, const char *fmt, ...)
     return CLI_USAGE;
 }
 
-/* Set by the SIGINT handler, read by the library through cli_sigint_catch()'s pointer. */
-static volatile sig_atomic_t cli_sigint_flag;
-static struct sigaction cli_sigint_old;
+/* The one signal helper of frep: SIGINT, SIGTERM and SIGHUP.
+ *
+ * Its state is the one piece of global mutable state frep allows (a signal handler can
+ * reach nothing else), all of it sig_atomic_t or written before it is published:
+ * - polled: a command asked for the flag (cli_sigint_catch): the first signal only sets
+ *   the flag, the library stops at its next poll and the command writes what it has;
+ * - otherwise, and at the second signal, the handler removes the temporary file of the
+ *   write in progress (cli_write_atomic) and ends the process at once with 128 + the
+ *   signal (130 for Ctrl-C): an existing output file is never touched.
+ * Only async-signal-safe calls (unlink, write, _exit) are made in the handler. Its
+ * state is declared at the top of the file (cli_write_atomic publishes its temporary). */
 
-static void on_sigint(int sig)
+static void signal_say(const char *s)
 {
-    (void)sig;
-    cli_sigint_flag = 1;
+    ssize_t r = write(STDERR_FILENO, s, strlen(s));
+    (void)r;
+}
+
+static void on_signal(int sig)
+{
+    if (cli_signal_polled && cli_signal_flag == 0) {
+        cli_signal_flag = sig;
+        return;
+    }
+    if (cli_tmp_live) unlink(cli_tmp_path);
+    signal_say(cli_signal_flag ? "\nfrep: interrupted again: stopped at once, nothing written\n"
+                               : "\nfrep: interrupted: stopped, nothing written\n");
+    _exit(128 + sig);
+}
+
+void cli_signals_install(void)
+{
+    static const int sigs[] = { SIGINT, SIGTERM, SIGHUP };
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sa.sa_flags = SA_RESTART;
+    sigemptyset(&sa.sa_mask);
+    for (size_t i = 0; i < sizeof sigs / sizeof sigs[0]; i++) {
+        struct sigaction old;
+        /* SIGHUP ignored by nohup stays ignored (SIGINT is caught even in a
+         * background job of a script, whose shell ignores it: scripts stop frep so) */
+        if (sigs[i] == SIGHUP && sigaction(sigs[i], NULL, &old) == 0 &&
+            old.sa_handler == SIG_IGN)
+            continue;
+        sigaction(sigs[i], &sa, NULL);
+    }
 }
 
 volatile sig_atomic_t *cli_sigint_catch(void)
 {
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_sigint;
-    sa.sa_flags = SA_RESTART;
-    sigemptyset(&sa.sa_mask);
-    cli_sigint_flag = 0;
-    sigaction(SIGINT, &sa, &cli_sigint_old);
-    return &cli_sigint_flag;
+    cli_signal_polled = 1;
+    return &cli_signal_flag;
 }
 
 void cli_sigint_restore(void)
 {
-    sigaction(SIGINT, &cli_sigint_old, NULL);
+    /* The command keeps polling (it writes the best result after a stop); a signal
+     * during that write is the first one still, so it lets the write finish. */
 }
 
 int cli_interrupted(void)
 {
-    return cli_sigint_flag != 0;
+    return cli_signal_flag;
+}
+
+void cli_interrupt_handled(void)
+{
+    cli_signal_flag = 0;
+}
+
+int cli_interrupt_status(const char *sub, const char *what)
+{
+    int sig = cli_signal_flag;
+    fprintf(stderr, "frep %s: interrupted (%s): %s\n", sub,
+            sig == SIGINT ? "Ctrl-C" : sig == SIGTERM ? "SIGTERM" : sig == SIGHUP ? "SIGHUP"
+                                                                              : "signal",
+            what);
+    return 128 + sig;
 }

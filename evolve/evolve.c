@@ -572,6 +572,12 @@ static int run_oom(run_ctx *c)
     return frep_error_nomem(c->err);
 }
 
+/* Ctrl-C: the steps that only improve the tree are skipped (gp.h). */
+static int run_cancelled(const run_ctx *c)
+{
+    return frep_cancelled(c->o->gp.interrupt);
+}
+
 /* The inputs refused before any work: no primitives, too many, no normals. */
 static int run_check(run_ctx *c)
 {
@@ -792,7 +798,7 @@ static int stage_grow_merged(run_ctx *c)
 {
     const evolve_options *o = c->o;
     gp_result *gr = &c->gr;
-    if (!c->partitioned || !o->simplify || !gr->best.len) return 0;
+    if (!c->partitioned || !o->simplify || !gr->best.len || run_cancelled(c)) return 0;
     if (simplify_grow_pieces(&gr->best, o->gp.setops, c->sc, c->ev, &gr->fitness))
         return run_oom(c);
     c->grown = 1;
@@ -815,7 +821,7 @@ static int stage_polish(run_ctx *c)
 {
     const evolve_options *o = c->o;
     gp_result *gr = &c->gr;
-    if (!c->partitioned || !o->polish || !gr->best.len) return 0;
+    if (!c->partitioned || !o->polish || !gr->best.len || run_cancelled(c)) return 0;
     gp_config pc = o->gp;
     int dd = tree_depth(gr->best.code, gr->best.len) + GP_DEPTH_SLACK;
     int d0 = pc.max_depth > 0 ? pc.max_depth : gp_default_depth((uint32_t)c->nprims);
@@ -865,7 +871,7 @@ static int stage_simplify(run_ctx *c)
     res->stop = c->gr.stop;
     res->fitness = c->gr.fitness;
     if (tree_copy(&res->tree, &c->gr.best)) return run_oom(c);
-    if (!o->simplify || !res->tree.len || c->grown) return 0;
+    if (!o->simplify || !res->tree.len || c->grown || run_cancelled(c)) return 0;
     if (simplify_tree(&res->tree, o->gp.setops, c->sc, c->ev, &res->fitness) ||
         simplify_grow_pieces(&res->tree, o->gp.setops, c->sc, c->ev, &res->fitness))
         return run_oom(c);
@@ -877,7 +883,9 @@ static int stage_simplify(run_ctx *c)
 static int stage_support(run_ctx *c)
 {
     const evolve_options *o = c->o;
-    if (!o->simplify || !o->support || c->residual || !c->sc || !c->res->tree.len) return 0;
+    if (!o->simplify || !o->support || c->residual || !c->sc || !c->res->tree.len ||
+        run_cancelled(c))
+        return 0;
     if (support_run(o, c->cloud, c->prims, c->nprims, c->valid, c->nv, c->sc, c->ev, c->res))
         return run_oom(c);
     return 0;

@@ -266,6 +266,7 @@ static int gp_stop_now(gp_state *s, uint32_t gen)
         }
         if (s->fn(s->user, &pr)) { s->res->stop = GP_STOP_USER; return 1; }
     }
+    if (frep_cancelled(cfg->interrupt)) { s->res->stop = GP_STOP_USER; return 1; }
     if (gen + 1 >= cfg->generations) { s->res->stop = GP_STOP_GENERATIONS; return 1; }
     if (cfg->stagnation && s->since >= cfg->stagnation) { s->res->stop = GP_STOP_STAGNATION; return 1; }
     if (cfg->max_time > 0 && el >= cfg->max_time) { s->res->stop = GP_STOP_TIME; return 1; }

@@ -9,8 +9,10 @@
 #ifndef FREP_GP_H
 #define FREP_GP_H
 
+#include <signal.h>
 #include <stdint.h>
 
+#include "cancel.h"
 #include "fitness.h"
 #include "tree.h"
 
@@ -48,6 +50,11 @@ typedef struct gp_config {
      * (gp_progress.explained; one gp_tree_stats each time the best fitness changes).
      * Only runs with a callback report, so the clique GAs of partition.c never do. */
     int report_explained;
+    /* Ctrl-C (cancel.h; may be NULL): every GA, the clique GAs included, stops at its
+     * next generation (GP_STOP_USER, the best tree kept), and evolve_run skips the
+     * steps that only improve a tree (merges, growth, polish, simplification, support
+     * trims, refit). */
+    volatile sig_atomic_t *interrupt;
 } gp_config;
 
 void gp_config_init(gp_config *c);

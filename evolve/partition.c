@@ -911,6 +911,9 @@ static int part_solve(part_ctx *s)
         int tid = frep_thread_num();
         part_piece *pq = &s->pc[q];
         if (pq->npts == 0) continue;  /* explains no point: dropped */
+        /* after Ctrl-C a clique not started yet is dropped; a running one stops at
+         * its next generation with its best tree */
+        if (frep_cancelled(s->cfg->interrupt)) continue;
         if (solve_clique(s->cfg, s->c, pq->prims, pq->nprims, pq->pts, pq->npts,
                          mix_seed(s->cfg->seed, q), s->ev[tid], &pq->t, &s->gens[q])) {
 #pragma omp atomic write
@@ -946,12 +949,32 @@ static int part_compact(part_ctx *s)
     return 0;
 }
 
+/* After Ctrl-C: the pieces left joined by plain unions into piece 0 at once (no search),
+ * so that the tree still covers every clique solved. */
+static int part_union_rest(part_ctx *s)
+{
+    part_piece *pc = s->pc;
+    uint8_t uni = gp_opset_of(s->cfg->setops).uni;
+    gp_tree both = { NULL, 0, 0 };
+    for (uint32_t q = 1; q < s->live; q++) {
+        if (join(&both, &pc[0].t, &pc[q].t, uni) || tree_copy(&pc[0].t, &both)) {
+            tree_free(&both);
+            return -1;
+        }
+        piece_free(&pc[q]);
+    }
+    tree_free(&both);
+    s->live = 1;
+    return 0;
+}
+
 /* Merge: repeatedly the two pieces sharing the most primitives (ties: first), with a
- * report after each merge (a stop request ends the merging). */
+ * report after each merge (a stop request ends the merging); Ctrl-C unites the rest. */
 static int part_merge_all(part_ctx *s)
 {
     part_piece *pc = s->pc;
     while (s->live > 1) {
+        if (frep_cancelled(s->cfg->interrupt)) return part_union_rest(s);
         uint32_t live = s->live, bi = 0, bj = 1, bs = 0;
         for (uint32_t i = 0; i < live; i++)
             for (uint32_t j = i + 1; j < live; j++) {
@@ -966,7 +989,7 @@ static int part_merge_all(part_ctx *s)
         if (s->fn) {
             gp_progress pr = { s->info->generations, NAN, pc[bi].t.len, frep_now_seconds() - s->t0,
                                GP_PHASE_MERGE, 0, 0 };
-            if (s->fn(s->user, &pr)) break;
+            if (s->fn(s->user, &pr)) return part_union_rest(s);
         }
     }
     return 0;
@@ -977,9 +1000,12 @@ static int part_final(part_ctx *s)
 {
     gp_result *res = s->res;
     double fit;
-    if (tree_copy(&res->best, &s->pc[0].t) ||
-        simplify_tree_both(&res->best, s->cfg->setops, s->c, s->ev[0], &fit))
+    if (tree_copy(&res->best, &s->pc[0].t)) return -1;
+    if (frep_cancelled(s->cfg->interrupt)) {  /* Ctrl-C: the tree as merged */
+        if (gp_fitness(s->c, s->ev[0], res->best.code, res->best.len, &fit)) return -1;
+    } else if (simplify_tree_both(&res->best, s->cfg->setops, s->c, s->ev[0], &fit)) {
         return -1;
+    }
     res->fitness = fit;
     res->generations = s->info->generations;
     res->stop = GP_STOP_GENERATIONS;

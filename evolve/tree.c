@@ -203,19 +203,21 @@ int tree_splice(gp_tree *t, uint32_t s0, uint32_t s1, const frep_insn *src, uint
 
 /* ---- random growth and variation ------------------------------------------ */
 
-/* Grow recursively; the recursion depth is bounded by max_depth. */
+/* Grow recursively; the recursion depth is bounded by max_depth, the size by limit
+ * (past it every node still to make is a leaf, so the tree ends within limit + 2 x
+ * depth nodes). */
 static int grow(gp_tree *t, gp_rng *r, const gp_opset *o, uint32_t nprims, int depth_left,
-                double p_sub)
+                double p_sub, uint32_t limit)
 {
-    if (depth_left > 1 && gp_rng_unif(r) < p_sub) {
+    if (depth_left > 1 && gp_rng_unif(r) < p_sub && t->len < limit) {
         /* The four operations of the paper, equally likely. */
         uint32_t w = gp_rng_below(r, 4);
         if (w == 3) {
-            if (grow(t, r, o, nprims, depth_left - 1, p_sub)) return -1;
+            if (grow(t, r, o, nprims, depth_left - 1, p_sub, limit)) return -1;
             return tree_push(t, (frep_opcode)o->neg, 0);
         }
-        if (grow(t, r, o, nprims, depth_left - 1, p_sub)) return -1;
-        if (grow(t, r, o, nprims, depth_left - 1, p_sub)) return -1;
+        if (grow(t, r, o, nprims, depth_left - 1, p_sub, limit)) return -1;
+        if (grow(t, r, o, nprims, depth_left - 1, p_sub, limit)) return -1;
         uint8_t op = w == 0 ? o->uni : w == 1 ? o->inter : o->sub;
         return tree_push(t, (frep_opcode)op, 0);
     }
@@ -228,7 +230,7 @@ int tree_grow(gp_tree *t, gp_rng *r, gp_setops s, uint32_t nprims, int max_depth
     gp_opset o = gp_opset_of(s);
     if (max_depth < 1) max_depth = 1;
     if (max_depth > GP_MAX_TREE_DEPTH) max_depth = GP_MAX_TREE_DEPTH;
-    return grow(t, r, &o, nprims ? nprims : 1, max_depth, p_sub);
+    return grow(t, r, &o, nprims ? nprims : 1, max_depth, p_sub, t->len + GP_MAX_GROW_NODES);
 }
 
 int tree_crossover(gp_tree *child, const gp_tree *a, const gp_tree *b, gp_rng *r,
@@ -237,6 +239,7 @@ int tree_crossover(gp_tree *child, const gp_tree *a, const gp_tree *b, gp_rng *r
     if (tree_copy(child, a)) return -1;
     uint32_t ea = gp_rng_below(r, a->len), eb = gp_rng_below(r, b->len);
     uint32_t sa = tree_subtree_start(a->code, ea), sb = tree_subtree_start(b->code, eb);
+    if ((uint64_t)a->len - (ea - sa + 1) + (eb - sb + 1) > GP_MAX_BRED_LEN) return 0;
     if (tree_splice(child, sa, ea, b->code + sb, eb - sb + 1)) return -1;
     if (tree_depth(child->code, child->len) > max_depth) {
         if (tree_copy(child, a)) return -1;
@@ -262,8 +265,15 @@ int tree_mutate(gp_tree *t, gp_rng *r, gp_setops s, uint32_t nprims, int max_dep
     int room = max_depth - lev[e] + 1;
     frep_free(lev);
     gp_tree sub = { NULL, 0, 0 };
-    if (tree_grow(&sub, r, s, nprims, room < 1 ? 1 : room, p_sub) ||
-        tree_splice(t, st, e, sub.code, sub.len)) {
+    if (tree_grow(&sub, r, s, nprims, room < 1 ? 1 : room, p_sub)) {
+        tree_free(&sub);
+        return -1;
+    }
+    if ((uint64_t)t->len - (e - st + 1) + sub.len > GP_MAX_BRED_LEN) {
+        tree_free(&sub);  /* too long a child: t stays as it was */
+        return 0;
+    }
+    if (tree_splice(t, st, e, sub.code, sub.len)) {
         tree_free(&sub);
         return -1;
     }

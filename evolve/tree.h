@@ -22,6 +22,13 @@
 #define GP_MAX_TREE_DEPTH 1024
 /* Longest tree, so that lengths and pcs fit uint32_t with room to splice two trees. */
 #define GP_MAX_TREE_LEN (1u << 24)
+/* Largest random tree tree_grow makes: a tree of depth D may have 2^D leaves, so at
+ * --max-depth 64 (or p_subtree 1) growth would otherwise never end; past this size
+ * the nodes still to grow are leaves. */
+#define GP_MAX_GROW_NODES (1u << 12)
+/* Longest child of a crossover or mutation: a longer one is cancelled (the parent is
+ * kept), so bloat under a deep --max-depth stops here instead of exhausting memory. */
+#define GP_MAX_BRED_LEN (1u << 16)
 
 /* Set-operation family of the trees. */
 typedef enum gp_setops {
@@ -79,18 +86,21 @@ uint32_t tree_count_prims(const frep_insn *code, uint32_t len, uint32_t nprims);
 int tree_splice(gp_tree *t, uint32_t s0, uint32_t s1, const frep_insn *src, uint32_t n);
 
 /* Append a random tree grown as in Fayolle & Pasko 2016: each node becomes an
- * operation with probability p_sub while the depth allows (max_depth >= 1), else a
- * leaf with a uniformly chosen primitive. */
+ * operation with probability p_sub while the depth allows (max_depth >= 1) and the
+ * tree is shorter than GP_MAX_GROW_NODES, else a leaf with a uniformly chosen
+ * primitive. */
 int tree_grow(gp_tree *t, gp_rng *r, gp_setops s, uint32_t nprims, int max_depth,
               double p_sub);
 
 /* Subtree crossover: child = a with a random subtree replaced by a random subtree of
  * b. Returns 1 when done, 0 when cancelled because the child would be deeper than
- * max_depth (child is then a copy of a), -1 on allocation failure. */
+ * max_depth or longer than GP_MAX_BRED_LEN (child is then a copy of a), -1 on
+ * allocation failure. */
 int tree_crossover(gp_tree *child, const gp_tree *a, const gp_tree *b, gp_rng *r,
                    int max_depth);
 /* Mutation: with probability 1/2 a whole new tree, else a random subtree replaced by
- * a new random one that keeps the depth within max_depth. */
+ * a new random one that keeps the depth within max_depth (t unchanged when the result
+ * would be longer than GP_MAX_BRED_LEN). */
 int tree_mutate(gp_tree *t, gp_rng *r, gp_setops s, uint32_t nprims, int max_depth,
                 double p_sub);
 

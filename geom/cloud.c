@@ -119,8 +119,31 @@ double cloud_diagonal(const frep_cloud *c)
 {
     double lo[3], hi[3];
     cloud_bbox(c, lo, hi);
-    return sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    double d = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                    (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    double m = fmax(fmax(hi[0] - lo[0], hi[1] - lo[1]), hi[2] - lo[2]);
+    if ((d > 0 && isfinite(d)) || !(m > 0) || !isfinite(m)) return d > 0 ? d : m > 0 ? m : 0;
+    /* the squares overflowed (extents near 1e300) or underflowed (near 1e-300) */
+    double s = 0;
+    for (int k = 0; k < 3; k++) s += ((hi[k] - lo[k]) / m) * ((hi[k] - lo[k]) / m);
+    return m * sqrt(s);
+}
+
+int cloud_check_scale(const frep_cloud *c, const char *name, frep_error *err)
+{
+    double lo[3], hi[3], big = 0;
+    cloud_bbox(c, lo, hi);
+    for (int k = 0; k < 3; k++) big = fmax(big, fmax(fabs(lo[k]), fabs(hi[k])));
+    double d = cloud_diagonal(c);
+    if (big > CLOUD_MAX_COORD)
+        return frep_error_set(err, FREP_EINPUT, "%s%scoordinates reach %.3g, beyond %g: "
+                              "rescale the cloud", name ? name : "", name ? ": " : "", big,
+                              CLOUD_MAX_COORD);
+    if (d > 0 && d < CLOUD_MIN_DIAGONAL)
+        return frep_error_set(err, FREP_EINPUT, "%s%sthe cloud spans %.3g, less than %g: "
+                              "rescale the cloud", name ? name : "", name ? ": " : "", d,
+                              CLOUD_MIN_DIAGONAL);
+    return 0;
 }
 
 size_t cloud_normalize_normals(frep_cloud *c)

@@ -55,8 +55,17 @@ int cloud_write_for_path(FILE *f, const frep_cloud *c, const char *path);
 
 /* Axis-aligned bounding box lo[3], hi[3]; zeros for an empty cloud. */
 void cloud_bbox(const frep_cloud *c, double lo[3], double hi[3]);
-/* Length of the bounding box diagonal (0 for an empty cloud or a single point). */
+/* Length of the bounding box diagonal (0 for an empty cloud or a single point),
+ * without overflow or underflow of the squares (inf only when an extent is). */
 double cloud_diagonal(const frep_cloud *c);
+/* The scales the fitters and RANSAC work at (their squared and cubed distances stay
+ * finite and normal): coordinates of magnitude at most CLOUD_MAX_COORD, and a
+ * diagonal, if not 0, of at least CLOUD_MIN_DIAGONAL. */
+#define CLOUD_MAX_COORD 1e50
+#define CLOUD_MIN_DIAGONAL 1e-50
+/* 0, or -1 with err (FREP_EINPUT, "name: ...: rescale the cloud") when c is outside
+ * those scales; name (may be NULL) names the cloud in the message. */
+int cloud_check_scale(const frep_cloud *c, const char *name, frep_error *err);
 /* Normalize the normals to unit length; returns the number of zero-length (or
  * non-finite) normals, which are left as zero vectors. */
 size_t cloud_normalize_normals(frep_cloud *c);

@@ -113,6 +113,9 @@ static int parse_line(const char *name, size_t line, const char *s, prim *q, fre
     if (prim_of(q, x))
         return frep_error_set(err, FREP_EINPUT, "%s:%zu: zero-length %s", name, line,
                               q->type == PRIM_PLANE ? "normal" : "axis");
+    const char *why = prim_degenerate(q);
+    if (why) return frep_error_set(err, FREP_EINPUT, "%s:%zu: degenerate %s: %s", name, line,
+                                   word, why);
     return 0;
 }
 

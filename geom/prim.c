@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "prim.h"
+#include "util.h"
 #include "vec3.h"
 
 /* Below this length a radial vector has no direction: the gradient there is chosen
@@ -96,6 +97,25 @@ void prim_eval_many(const prim *q, size_t n, const double *x, const double *y,
             gz[i] = g[2];
         }
     }
+}
+
+const char *prim_degenerate(const prim *q)
+{
+    for (int k = 0; k < 3; k++)
+        if (!isfinite(q->p[k]) || !isfinite(q->a[k])) return "a parameter is not finite";
+    if (!isfinite(q->r) || !isfinite(q->R)) return "a parameter is not finite";
+    switch (q->type) {
+    case PRIM_PLANE: return NULL;
+    case PRIM_SPHERE:
+    case PRIM_CYLINDER: return q->r > 0 ? NULL : "the radius must be > 0";
+    case PRIM_CONE:
+        return q->r > 0 && q->r < FREP_PI / 2 ? NULL
+                                              : "the half-angle must be in (0, pi/2) radians";
+    case PRIM_TORUS:
+        return q->r > 0 && q->R > 0 ? NULL : "both radii must be > 0";
+    case PRIM__COUNT: break;
+    }
+    return "unknown type";
 }
 
 const char *prim_type_name(prim_type t)

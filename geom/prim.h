@@ -48,6 +48,11 @@ void prim_eval_many(const prim *q, size_t n, const double *x, const double *y,
 
 /* Name of a type as in .fit files and summaries ("plane", "sphere", ...). */
 const char *prim_type_name(prim_type t);
+/* Why q is no surface, or NULL when it is one: a radius (sphere, cylinder, the torus's
+ * two) not > 0, a cone's half-angle outside (0, pi/2) (0 is a line, pi/2 a plane,
+ * beyond that the cone is empty or inverted), a non-finite parameter. The readers of
+ * .fit and .hf lists refuse such primitives with the line. */
+const char *prim_degenerate(const prim *q);
 /* Printed precision of prim_write_call_scaled, relative to the model's size (scale,
  * e.g. the cloud's diagonal) for positions, radii and plane offsets, and absolute for
  * unit-vector components and cone angles (radians). Fitting noise is orders of

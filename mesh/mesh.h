@@ -9,9 +9,11 @@
 #ifndef FREP_MESH_H
 #define FREP_MESH_H
 
+#include <signal.h>
 #include <stddef.h>
 #include <stdint.h>
 
+#include "cancel.h"
 #include "err.h"
 #include "frep.h"
 #include "trimesh.h"
@@ -66,6 +68,9 @@ typedef struct mesh_options {
     /* Called from one thread with the fraction done (0..1); may be NULL. */
     void (*progress)(void *user, double fraction);
     void *progress_user;
+    /* Ctrl-C (cancel.h; may be NULL): polled per octree node and per block; the run
+     * then fails with FREP_ECANCEL (a partial mesh is no result). */
+    volatile sig_atomic_t *interrupt;
 } mesh_options;
 
 void mesh_options_init(mesh_options *o);   /* box [-10,10]^3, grid 30, iso 0 */

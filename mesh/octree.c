@@ -167,8 +167,9 @@ static int level_step(mesher *M, mesh_stats *st, const olevel *cur, olevel *next
     st->octree_nodes += cur->n;
     long n = (long)cur->n;
 #pragma omp parallel for schedule(dynamic, 8) num_threads(M->nthreads)
-    for (long i = 0; i < n; i++) keep[i] = (uint8_t)node_keep(M, &cur->node[i]);
-    int rc = level_split(M, cur, keep, next);
+    for (long i = 0; i < n; i++)
+        keep[i] = frep_cancelled(M->o->interrupt) ? 0 : (uint8_t)node_keep(M, &cur->node[i]);
+    int rc = frep_cancelled(M->o->interrupt) ? 1 : level_split(M, cur, keep, next);
     frep_free(keep);
     return rc;
 }
@@ -188,6 +189,7 @@ int mesh_find_blocks(mesher *M, mesh_stats *st, frep_error *e)
     }
     frep_free(cur.node);
     frep_free(next.node);
+    if (rc > 0) return frep_error_set(e, FREP_ECANCEL, "interrupted");
     if (rc != 0) return frep_error_set(e, FREP_ENOMEM, "out of memory building the octree");
     if (M->nblocks > 1) qsort(M->blocks, M->nblocks, sizeof *M->blocks, mesh_block_cmp);
     return 0;

@@ -110,6 +110,7 @@ static int contour_round(mesher *M, size_t first, size_t *done, frep_error *e)
     mblock **todo = M->blocks + first;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(M->nthreads)
     for (long i = 0; i < n; i++) {
+        if (frep_cancelled(o->interrupt)) continue;
         int t = frep_thread_num();
         int rc = mesh_block_contour(M, M->works[t], M->ts[t], todo[i]);
         if (rc == FREP_ENOMEM) {
@@ -130,6 +131,7 @@ static int contour_round(mesher *M, size_t first, size_t *done, frep_error *e)
         done_blocks++;
     }
     *done = done_blocks;
+    if (frep_cancelled(o->interrupt)) return frep_error_set(e, FREP_ECANCEL, "interrupted");
     if (nomem || bad)
         return frep_error_set(e, nomem ? FREP_ENOMEM : FREP_EINPUT,
                               "out of memory or evaluation failure while meshing");
@@ -202,6 +204,7 @@ static int make_quads(mesher *M, frep_error *e)
     int failed = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(M->nthreads)
     for (long i = 0; i < n; i++) {
+        if (frep_cancelled(o->interrupt)) continue;
         int t = frep_thread_num();
         if (mesh_block_quads(M, M->blocks[i]) != 0) {
 #pragma omp atomic write
@@ -211,6 +214,7 @@ static int make_quads(mesher *M, frep_error *e)
             o->progress(o->progress_user, POLY_CONTOUR_SHARE +
                                               POLY_QUADS_SHARE * (double)i / (double)(n + 1));
     }
+    if (frep_cancelled(o->interrupt)) return frep_error_set(e, FREP_ECANCEL, "interrupted");
     if (failed)
         return frep_error_set(e, FREP_ENOMEM, "out of memory or evaluation failure while meshing");
     return 0;

@@ -21,6 +21,8 @@
 #define SAMPLE_GRID_MIN 32
 #define SAMPLE_GRID_MAX 256
 #define SAMPLE_POINTS_PER_GRID2 6.0
+/* Ctrl-C is polled once per 2^16 points drawn on a mesh (about a millisecond). */
+#define SAMPLE_POLL_MASK 0xffffu
 
 void sample_options_init(sample_options *o)
 {
@@ -31,10 +33,35 @@ void sample_options_init(sample_options *o)
     o->mesh.grid = 0; /* chosen from the point count unless set */
 }
 
-/* cum[t]: the area of m's triangles 0..t; returns the total. */
-static double triangle_areas(const frep_mesh *m, double *cum)
+/* The cross product of b - a and d - a over sc^2 (sc > 0 a length of the mesh's scale):
+ * finite for coordinates near the largest double, where the plain product overflows. */
+static void scaled_cross(const double *a, const double *b, const double *d, double sc,
+                         double n[3])
+{
+    double u[3], w[3];
+    for (int k = 0; k < 3; k++) {
+        u[k] = b[k] / sc - a[k] / sc;
+        w[k] = d[k] / sc - a[k] / sc;
+    }
+    vec3_cross(u, w, n);
+}
+
+/* The largest coordinate magnitude of m (1 when 0 or not finite): the unit of
+ * scaled_cross. */
+static double mesh_scale(const frep_mesh *m)
+{
+    double sc = 0;
+    for (size_t i = 0; i < 3 * m->nverts; i++) sc = fmax(sc, fabs(m->v[i]));
+    return sc > 0 && isfinite(sc) ? sc : 1;
+}
+
+/* cum[t]: the area of m's triangles 0..t; returns the total. Meshes whose areas
+ * overflow (coordinates near 1e300) are measured in units of *unit squared
+ * (*unit = 1 otherwise): draw_point only needs the proportions. */
+static double triangle_areas(const frep_mesh *m, double *cum, double *unit)
 {
     double total = 0;
+    *unit = 1;
     for (size_t t = 0; t < m->ntris; t++) {
         const double *a = &m->v[3 * m->tri[3 * t]], *b = &m->v[3 * m->tri[3 * t + 1]],
                      *d = &m->v[3 * m->tri[3 * t + 2]];
@@ -42,6 +69,16 @@ static double triangle_areas(const frep_mesh *m, double *cum)
         vec3_sub(b, a, u);
         vec3_sub(d, a, w);
         vec3_cross(u, w, n);
+        total += 0.5 * vec3_len(n);
+        cum[t] = total;
+    }
+    if (isfinite(total)) return total;
+    *unit = mesh_scale(m);
+    total = 0;
+    for (size_t t = 0; t < m->ntris; t++) {
+        double n[3];
+        scaled_cross(&m->v[3 * m->tri[3 * t]], &m->v[3 * m->tri[3 * t + 1]],
+                     &m->v[3 * m->tri[3 * t + 2]], *unit, n);
         total += 0.5 * vec3_len(n);
         cum[t] = total;
     }
@@ -67,25 +104,40 @@ static size_t draw_point(const frep_mesh *m, const double *cum, double total, fr
     }
     const double *a = &m->v[3 * m->tri[3 * lo]], *b = &m->v[3 * m->tri[3 * lo + 1]],
                  *d = &m->v[3 * m->tri[3 * lo + 2]];
-    for (int k = 0; k < 3; k++) p[k] = a[k] + s * (b[k] - a[k]) + t * (d[k] - a[k]);
+    for (int k = 0; k < 3; k++) {
+        p[k] = a[k] + s * (b[k] - a[k]) + t * (d[k] - a[k]);
+        /* the edges overflow near the largest double; the convex combination cannot */
+        if (!isfinite(p[k])) p[k] = (1 - s - t) * a[k] + s * b[k] + t * d[k];
+    }
     double u3[3], w3[3];
     vec3_sub(b, a, u3);
     vec3_sub(d, a, w3);
     vec3_cross(u3, w3, nrm);
     double l = vec3_len(nrm);
+    if (!isfinite(l) || (l == 0 && !(vec3_len(u3) == 0 || vec3_len(w3) == 0))) {
+        /* overflow, or underflow of a tiny triangle: the same product, scaled */
+        double sc = fmax(fmax(fabs(a[0]), fabs(a[1])), fabs(a[2]));
+        for (int k = 0; k < 3; k++) sc = fmax(sc, fmax(fabs(b[k]), fabs(d[k])));
+        if (sc > 0) scaled_cross(a, b, d, sc, nrm);
+        l = vec3_len(nrm);
+    }
     for (int k = 0; k < 3; k++) nrm[k] = l > 0 ? nrm[k] / l : 0;
     return lo;
 }
 
 /* Draw n points on m's triangles, area-weighted, into c. */
-static int draw_on_mesh(const frep_mesh *m, frep_rng *r, size_t n, frep_cloud *c, frep_error *e)
+static int draw_on_mesh(const frep_mesh *m, frep_rng *r, size_t n, frep_cloud *c,
+                        volatile sig_atomic_t *cancel, frep_error *e)
 {
     double *cum = frep_malloc((m->ntris + 1) * sizeof *cum);
     if (!cum) return frep_error_nomem(e);
-    double total = triangle_areas(m, cum);
+    double unit;
+    double total = triangle_areas(m, cum, &unit);
     int rc = 0;
     if (!(total > 0)) rc = frep_error_set(e, FREP_EINPUT, "the mesh has zero area");
     for (size_t i = 0; i < n && rc == 0; i++) {
+        if ((i & SAMPLE_POLL_MASK) == 0 && frep_cancelled(cancel))
+            rc = frep_error_set(e, FREP_ECANCEL, "interrupted");
         double p[3], nrm[3];
         draw_point(m, cum, total, r, p, nrm);
         if (cloud_push(c, p, nrm) != 0) rc = frep_error_nomem(e);
@@ -101,6 +153,10 @@ static void perturb(const sample_options *o, const double box[6], frep_rng *r, f
 {
     double dx = box[3] - box[0], dy = box[4] - box[1], dz = box[5] - box[2];
     double diag = sqrt(dx * dx + dy * dy + dz * dz);
+    if (!isfinite(diag)) {  /* a box near the largest double: the same length, scaled */
+        double sc = fmax(fmax(fabs(dx), fabs(dy)), fabs(dz));
+        if (isfinite(sc)) diag = sc * sqrt(pow(dx / sc, 2) + pow(dy / sc, 2) + pow(dz / sc, 2));
+    }
     double sigma = o->noise_absolute ? o->noise : o->noise * diag;
     if (sigma > 0)
         for (size_t i = 0; i < nsurf; i++) {
@@ -109,15 +165,30 @@ static void perturb(const sample_options *o, const double box[6], frep_rng *r, f
             c->z[i] += sigma * frep_rng_normal(r);
         }
     for (size_t i = nsurf; i < c->n; i++) {
-        c->x[i] = box[0] + dx * frep_rng_unit(r);
-        c->y[i] = box[1] + dy * frep_rng_unit(r);
-        c->z[i] = box[2] + dz * frep_rng_unit(r);
+        for (int k = 0; k < 3; k++) {
+            double u = frep_rng_unit(r), v = box[k] + (box[k + 3] - box[k]) * u;
+            if (!isfinite(v)) v = (1 - u) * box[k] + u * box[k + 3];
+            (k == 0 ? c->x : k == 1 ? c->y : c->z)[i] = v;
+        }
         double nv[3] = { frep_rng_normal(r), frep_rng_normal(r), frep_rng_normal(r) };
         double l = vec3_len(nv);
         c->nx[i] = l > 0 ? nv[0] / l : 1;
         c->ny[i] = l > 0 ? nv[1] / l : 0;
         c->nz[i] = l > 0 ? nv[2] / l : 0;
     }
+}
+
+/* No non-finite number leaves the sampler: noise near the largest double (--noise
+ * 1e308) would move points to infinity, which no reader accepts. */
+static int finite_cloud(const sample_options *o, const frep_cloud *c, frep_error *e)
+{
+    for (size_t i = 0; i < c->n; i++)
+        if (!isfinite(c->x[i]) || !isfinite(c->y[i]) || !isfinite(c->z[i]) ||
+            !isfinite(c->nx[i]) || !isfinite(c->ny[i]) || !isfinite(c->nz[i]))
+            return frep_error_set(e, FREP_EINPUT, "point %zu would not be finite (noise %g%s): "
+                                  "use a smaller --noise", i + 1, o->noise,
+                                  o->noise_absolute ? "" : " x the box diagonal");
+    return 0;
 }
 
 /* The outliers' slots after the nsurf surface points of c, then noise and outliers
@@ -130,7 +201,7 @@ static int add_outliers(const sample_options *o, const double box[6], frep_rng *
         if (cloud_push(c, zero, zero)) return frep_error_nomem(e);
     }
     perturb(o, box, r, c, nsurf);
-    return 0;
+    return finite_cloud(o, c, e);
 }
 
 static int check_opts(const sample_options *o, frep_error *e)
@@ -186,7 +257,7 @@ int sample_mesh(const frep_mesh *m, const sample_options *o, frep_cloud **out, f
     frep_rng_seed(&r, o->seed);
     double box[6];
     mesh_bounds(m, box);
-    if (draw_on_mesh(m, &r, nsurf, c, e) != 0 || add_outliers(o, box, &r, c, nsurf, e) != 0) {
+    if (draw_on_mesh(m, &r, nsurf, c, o->mesh.interrupt, e) != 0 || add_outliers(o, box, &r, c, nsurf, e) != 0) {
         cloud_free(c);
         return -1;
     }
@@ -289,7 +360,7 @@ static int project(const mesh_field *f, const mesh_options *mo, frep_cloud *c, s
         }
 #pragma omp for schedule(dynamic, 4)
         for (long b = 0; b < nb; b++) {
-            if (!P.ts || !buf) continue;
+            if (!P.ts || !buf || frep_cancelled(mo->interrupt)) continue;
             size_t i0 = (size_t)b * SAMPLE_BATCH;
             size_t n = nsurf - i0 < SAMPLE_BATCH ? nsurf - i0 : SAMPLE_BATCH;
             if (proj_batch(&P, i0, n) != 0) {
@@ -304,6 +375,7 @@ static int project(const mesh_field *f, const mesh_options *mo, frep_cloud *c, s
             f->thread_free(f->ctx, P.ts);
         }
     }
+    if (frep_cancelled(mo->interrupt)) return frep_error_set(e, FREP_ECANCEL, "interrupted");
     if (nomem || bad)
         return frep_error_set(e, nomem ? FREP_ENOMEM : FREP_EINPUT,
                               "out of memory or evaluation failure while sampling");
@@ -346,7 +418,7 @@ int sample_field(const mesh_field *f, const sample_options *o, frep_cloud **out,
     frep_cloud *c = new_cloud(o);
     frep_rng r;
     frep_rng_seed(&r, o->seed);
-    int rc = c ? draw_on_mesh(&m, &r, nsurf, c, e) : frep_error_nomem(e);
+    int rc = c ? draw_on_mesh(&m, &r, nsurf, c, o->mesh.interrupt, e) : frep_error_nomem(e);
     mesh_free(&m);
     if (rc == 0) rc = project(f, &mo, c, nsurf, e);
     if (rc == 0) rc = add_outliers(o, mo.box, &r, c, nsurf, e);

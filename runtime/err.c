@@ -14,6 +14,25 @@ void frep_error_init(frep_error *e)
     e->msg[0] = '\0';
 }
 
+/* Control bytes of the data echoed in a message (a NUL-free binary file read as text)
+ * would drive the terminal: each becomes "\xNN" (the message is cut at its end if
+ * that makes it longer than it can hold). */
+static void escape_controls(char *msg, size_t cap)
+{
+    char tmp[FREP_ERROR_MSG_MAX];
+    size_t o = 0;
+    int any = 0;
+    for (const unsigned char *p = (const unsigned char *)msg; *p; p++)
+        any |= *p < 0x20 || *p == 0x7f;
+    if (!any) return;
+    for (const unsigned char *p = (const unsigned char *)msg; *p && o + 5 < sizeof tmp; p++) {
+        if (*p < 0x20 || *p == 0x7f) o += (size_t)snprintf(tmp + o, sizeof tmp - o, "\\x%02x", *p);
+        else tmp[o++] = (char)*p;
+    }
+    tmp[o] = '\0';
+    snprintf(msg, cap, "%s", tmp);
+}
+
 static int error_vset(frep_error *e, frep_error_code code, const char *path, long line,
                       int col, const char *fmt, va_list ap)
 {
@@ -25,6 +44,7 @@ static int error_vset(frep_error *e, frep_error_code code, const char *path, lon
     else if (path) k = snprintf(e->msg, sizeof e->msg, "%s: ", path);
     if (k > 0) n = (size_t)k < sizeof e->msg ? (size_t)k : sizeof e->msg - 1;
     if (vsnprintf(e->msg + n, sizeof e->msg - n, fmt, ap) < 0) e->msg[n] = '\0';
+    escape_controls(e->msg, sizeof e->msg);
     e->code = code;
     e->line = line;
     e->col = col;

@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "alloc.h"
+#include "cancel.h"
 #include "rng.h"
 #include "normals.h"
 #include "ransac.h"
@@ -978,6 +979,7 @@ static void score_next(det *d, cand *cs, const int *which, size_t nw)
     const ransac_config *cfg = d->cfg;
     long lw = (long)nw;
     size_t work = 0;
+    if (frep_cancelled(cfg->interrupt)) return;  /* Ctrl-C: the loop stops at its poll */
     for (size_t w = 0; w < nw; w++) {
         const cand *k = &cs[which[w]];
         if (k->nsub < d->nsub) work += d->sub_start[k->nsub + 1] - d->sub_start[k->nsub];
@@ -1168,6 +1170,12 @@ static size_t gather_inliers(det *d, const prim *q, unsigned char *flag, uint32_
     const ransac_config *cfg = d->cfg;
     const frep_cloud *c = d->c;
     long ln = (long)d->n;
+    /* Ctrl-C: no inliers, so an extraction in progress records nothing and the
+     * detection loop stops at its next poll (a pass is ~10 ms per 10^6 points) */
+    if (frep_cancelled(cfg->interrupt)) {
+        memset(flag, 0, d->n);
+        return 0;
+    }
     kern kn;
     kern_init(&kn, q, d->band, cfg->cos_normal);
 #ifdef _OPENMP
@@ -2211,7 +2219,7 @@ static int detect_step(run *r)
     if (d->nomem) return -1;
     if (m < r->min_pts) {
         keep_rejected(d, b);
-        return 1;
+        return r->draws_since > RANSAC_MAX_DRAWS ? next_phase(r) : 1;
     }
     int level = b->level;
     r->pool[best] = r->pool[--r->npool];
@@ -2233,7 +2241,7 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
     build_subsets(&r.d, &r.rng);
     init_phases(&r);
     for (;;) {
-        if (cfg->interrupt && *cfg->interrupt) {
+        if (frep_cancelled(cfg->interrupt)) {
             res->interrupted = 1;
             break;
         }

@@ -19,7 +19,10 @@
  * verification point. */
 #define RANSAC_MIN_CLOUD 8
 /* Candidates drawn without an extraction before giving up: bounds the main loop even
- * when the acceptance test can never pass (probability near 1). */
+ * when the acceptance test can never pass (probability near 1) or every accepted
+ * candidate falls apart into patches smaller than min_points (--cluster 1e-12). Every
+ * step either extracts a shape (at most n / min_points times) or draws, and each
+ * way out of a step without an extraction checks this bound. */
 #define RANSAC_MAX_DRAWS 20000
 
 typedef struct ransac_config {

@@ -360,6 +360,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, f
     if (!(diag > 0))
         return frep_error_set(err, FREP_EINPUT,
                               "all %zu points are the same point: nothing to segment", c->n);
+    if (cloud_check_scale(c, NULL, err)) return -1;
     if (scaled_defaults(c, cfg, diag, res, err)) return -1;
     if (ensure_normals(c, cfg, res, err)) return -1;
     ransac_config rc;
@@ -539,6 +540,10 @@ static int hf_call_prim(hf_reader *r, const ast_node *call, prim *q)
     if (hf_prim_of(k, a, q))
         return frep_error_at(r->err, FREP_EINPUT, r->name, at->line, (int)at->col,
                              "zero-length %s", k->type == PRIM_PLANE ? "normal" : "axis");
+    const char *why = prim_degenerate(q);
+    if (why)
+        return frep_error_at(r->err, FREP_EINPUT, r->name, at->line, (int)at->col,
+                             "degenerate %s(): %s", k->name, why);
     return 1;
 }
 

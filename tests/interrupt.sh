@@ -1,0 +1,347 @@
+#!/bin/sh
+# interrupt.sh - nothing lost, nothing hangs: Ctrl-C (SIGINT), SIGTERM and SIGHUP in
+# each phase of the long commands (segment, evolve's segmentation and GAs, mesh,
+# sample) with the latency measured from the signal to the exit; a second signal
+# aborts at once; the temporary file of a write is removed; write errors (a full
+# disk: /dev/full, a file size limit, a full tmpfs when one can be mounted) are
+# reported with their reason; loops that used to hang end. Prints TAP.
+# Needs FREP (the frep binary) and srcdir (the source tree).
+
+: "${FREP:?FREP must name the frep binary}"
+: "${srcdir:?srcdir must name the source tree}"
+
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-interrupt.XXXXXX") || exit 1
+trap 'rm -rf "$tmp"' EXIT INT TERM
+EX="$srcdir/examples"
+
+# The promise of doc/architecture.md ("Interrupts"): every phase polls the flag at
+# least every 0.1 s of work, so a signal is answered within a second of an idle
+# machine; on a loaded one the limit grows with the load per processor.
+ncpu=$(getconf _NPROCESSORS_ONLN 2>/dev/null || echo 1)
+MAX_LATENCY=$(awk -v l="$(cut -d' ' -f1 /proc/loadavg 2>/dev/null || echo 0)" -v c="$ncpu" \
+    -v m="${INTERRUPT_MAX_LATENCY:-1.0}" 'BEGIN { f = l / c; printf "%.2f", m * (f > 1 ? f : 1) }')
+echo "# latency limit $MAX_LATENCY s (1 s x the load per processor, $ncpu processors)"
+tck=$(getconf CLK_TCK 2>/dev/null || echo 100)
+# A command that does not end this long after its signal is killed (the test fails
+# instead of blocking).
+WATCHDOG_S=120
+
+n=0
+failed=0
+report() { # report STATUS DESCRIPTION
+    n=$((n + 1))
+    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
+}
+now() { date +%s.%N; }
+
+# start CMD...: run in the background (pid in $pid; stdout in $tmp/out, stderr in
+# $tmp/err) under a watchdog that kills it after WATCHDOG_S seconds.
+start() {
+    : >"$tmp/err"
+    "$@" >"$tmp/out" 2>"$tmp/err" &
+    pid=$!
+    (
+        i=0
+        while [ $i -lt $((WATCHDOG_S * 10)) ] && kill -0 "$pid" 2>/dev/null; do
+            sleep 0.1
+            i=$((i + 1))
+        done
+        kill -9 "$pid" 2>/dev/null
+    ) >/dev/null 2>&1 &
+    dog=$!
+}
+# wait_for TEXT [SECONDS]: until TEXT appears on the command's stderr (1: it ended or
+# the time ran out first).
+wait_for() {
+    i=0
+    while [ $i -lt $((${2:-60} * 20)) ]; do
+        grep -q "$1" "$tmp/err" 2>/dev/null && return 0
+        kill -0 "$pid" 2>/dev/null || return 1
+        sleep 0.05
+        i=$((i + 1))
+    done
+    return 1
+}
+# wait_cpu SECONDS: until the command has used SECONDS of processor time (so that it
+# is past its input whatever the load; without /proc, a plain sleep).
+wait_cpu() {
+    if [ ! -r "/proc/$pid/stat" ]; then
+        sleep "$1"
+        return 0
+    fi
+    while kill -0 "$pid" 2>/dev/null; do
+        t=$(awk -v k="$tck" '{ sub(/.*\) /, ""); print ($12 + $13) / k }' "/proc/$pid/stat" 2>/dev/null)
+        awk -v t="${t:-0}" -v s="$1" 'BEGIN { exit !(t >= s) }' && return 0
+        sleep 0.05
+    done
+    return 1
+}
+# wait_file GLOB: until a file matching GLOB exists (1: the command ended first).
+wait_file() {
+    i=0
+    while [ $i -lt 1200 ]; do
+        for f in $1; do [ -e "$f" ] && return 0; done
+        kill -0 "$pid" 2>/dev/null || return 1
+        sleep 0.01
+        i=$((i + 1))
+    done
+    return 1
+}
+# stop SIG...: send each signal in turn (0.05 s apart) and wait; st is the exit status,
+# lat the seconds from the first signal to the exit, cpu the processor seconds the
+# command used in that time (its last reading before it ended, every 10 ms: on a
+# loaded machine the wall time measures the load), alive 1 when the command was still
+# running when signalled (else the test proves nothing).
+stat_of() { # stat_of PID: "STATE CPU-SECONDS" of a process
+    awk -v k="$tck" '{ sub(/.*\) /, ""); printf "%s %.3f", $1, ($12 + $13) / k }' \
+        "/proc/$1/stat" 2>/dev/null
+}
+stop() {
+    alive=0
+    kill -0 "$pid" 2>/dev/null && alive=1
+    c0=$(stat_of "$pid")
+    c0=${c0#* }
+    c1=$c0
+    t0=$(now)
+    first=1
+    for s in "$@"; do
+        [ $first = 1 ] || sleep 0.05
+        first=0
+        kill -"$s" "$pid" 2>/dev/null
+    done
+    while :; do
+        r=$(stat_of "$pid")
+        case $r in "" | Z*) break ;; esac
+        c1=${r#* }
+        sleep 0.01
+    done
+    t1=$(now)
+    wait "$pid"
+    st=$?
+    wait "$dog" 2>/dev/null
+    lat=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }')
+    cpu=$(awk -v a="${c0:-0}" -v b="${c1:-0}" 'BEGIN { printf "%.2f", b - a }')
+    lat="$lat s ($cpu s of processor time)"
+}
+# The latency is within the limit: the processor time under 1 s, the wall time
+# under MAX_LATENCY (1 s x the load per processor).
+fast() {
+    awk -v l="${lat%% *}" -v c="$cpu" -v m="$MAX_LATENCY" \
+        'BEGIN { exit !(l < m && c < 1.0) }'
+}
+no_tmp() { ! ls "$tmp"/*.tmp* >/dev/null 2>&1; }
+
+# ---- inputs ---------------------------------------------------------------------------
+# A cloud whose segmentation takes seconds (200,000 points of the gear; binary PLY,
+# read at once), and a small one with its primitives for the GA phases.
+"$FREP" sample "$EX/gear.hf" -n 200000 --seed 3 -o "$tmp/big.ply" -q || exit 1
+"$FREP" sample "$EX/csg.hf" -n 20000 --seed 3 -o "$tmp/small.xyz" -q || exit 1
+"$FREP" segment "$tmp/small.xyz" --seed 3 -o "$tmp/small.fit" -q >/dev/null || exit 1
+"$FREP" segment "$tmp/small.xyz" --seed 3 -o "$tmp/small.hf" -q >/dev/null || exit 1
+
+# ---- segment ---------------------------------------------------------------------------
+start "$FREP" segment "$tmp/big.ply" --seed 1 -o "$tmp/seg.fit" -q
+wait_cpu 1.5
+stop INT
+[ $alive = 1 ] && [ $st = 130 ] && fast && [ -f "$tmp/seg.fit" ] && no_tmp &&
+    grep -q 'frep segment: interrupted (Ctrl-C): wrote the primitives found so far' "$tmp/err"
+report $? "segment: Ctrl-C during RANSAC: exit $st after $lat, the primitives so far written"
+
+
+# ---- evolve ----------------------------------------------------------------------------
+# its own segmentation (after the cloud is read: "N points, seed S")
+start "$FREP" evolve "$tmp/big.ply" --seed 1 -o "$tmp/ev1.hf"
+wait_for 'points, seed' && wait_cpu 1.5
+stop INT
+[ $alive = 1 ] && [ $st = 130 ] && fast &&
+    grep -q 'frep evolve: interrupted (Ctrl-C)' "$tmp/err" && no_tmp
+report $? "evolve: Ctrl-C during its segmentation: exit $st after $lat"
+if [ -f "$tmp/ev1.hf" ]; then
+    "$FREP" check "$tmp/ev1.hf" 2>/dev/null
+    report $? "... the model written from the primitives found so far compiles"
+else
+    grep -q 'nothing written' "$tmp/err"
+    report $? "... no primitive yet: nothing written, and it says so"
+fi
+
+# the clique GAs of a partitioned run: they would never stop by themselves
+start "$FREP" evolve "$tmp/small.xyz" -p "$tmp/small.fit" --seed 1 --stagnation 1000000 \
+    --generations 1000000000 -o "$tmp/ev2.hf" --trace "$tmp/ev2.trace"
+wait_cpu 2
+stop INT
+[ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev2.hf" 2>/dev/null &&
+    grep -q ', partitioned (' "$tmp/ev2.hf" && grep -q 'wrote the best tree so far' "$tmp/err"
+report $? "evolve: Ctrl-C during the clique GAs: exit $st after $lat, the union of the clique trees written"
+[ -s "$tmp/ev2.trace" ] && no_tmp
+report $? "... with its --trace, no temporary left"
+
+# one GA over all primitives
+start "$FREP" evolve "$tmp/small.xyz" -p "$tmp/small.fit" --seed 1 --no-partition \
+    --stagnation 1000000 --generations 1000000000 -o "$tmp/ev3.hf" --refit
+wait_cpu 2
+stop INT
+[ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev3.hf" 2>/dev/null
+report $? "evolve: Ctrl-C during the GA: exit $st after $lat, the best tree written (no refit)"
+
+# a second Ctrl-C aborts at once: the existing output is untouched, no temporary left
+echo 'kept' >"$tmp/ev4.hf"
+start "$FREP" evolve "$tmp/big.ply" --seed 1 -o "$tmp/ev4.hf"
+wait_for 'points, seed' && wait_cpu 1.5
+stop INT INT
+[ $alive = 1 ] && [ $st = 130 ] && fast && [ "$(cat "$tmp/ev4.hf")" = kept ] && no_tmp
+report $? "evolve: a second Ctrl-C aborts at once: exit $st after $lat, output untouched"
+
+# ---- mesh, sample ------------------------------------------------------------------------
+echo 'kept' >"$tmp/m.stl"
+start "$FREP" mesh "$EX/gear.hf" -g 1024 -o "$tmp/m.stl"
+wait_cpu 1
+stop INT
+[ $alive = 1 ] && [ $st = 130 ] && fast && [ "$(cat "$tmp/m.stl")" = kept ] && no_tmp &&
+    grep -q 'frep mesh: interrupted (Ctrl-C): stopped while meshing, nothing written' "$tmp/err"
+report $? "mesh: Ctrl-C while meshing: exit $st after $lat, the old file kept"
+
+start "$FREP" sample "$EX/gear.hf" -n 1000000 -g 768 --seed 1 -o "$tmp/s.xyz"
+wait_cpu 1
+stop TERM
+[ $alive = 1 ] && [ $st = 143 ] && fast && [ ! -e "$tmp/s.xyz" ] && no_tmp &&
+    grep -q 'frep sample: interrupted (SIGTERM)' "$tmp/err"
+report $? "sample: SIGTERM while sampling: exit $st after $lat, nothing written"
+
+# signals during a write: a first one lets the write finish (the result is complete)
+# and the status says it came; a second one removes the temporary and stops at once
+start "$FREP" sample "$EX/sphere.hf" -n 3000000 --seed 1 -o "$tmp/w1.xyz"
+wait_file "$tmp/w1.xyz.tmp*"
+stop HUP
+[ $alive = 1 ] && [ $st = 129 ] && no_tmp && [ "$(wc -l <"$tmp/w1.xyz")" = 3000000 ]
+report $? "sample: SIGHUP during the write: the file is complete, exit $st"
+
+start "$FREP" sample "$EX/sphere.hf" -n 3000000 --seed 1 -o "$tmp/w2.xyz"
+wait_file "$tmp/w2.xyz.tmp*"
+stop TERM TERM
+[ $alive = 1 ] && [ $st = 143 ] && fast && no_tmp && [ ! -e "$tmp/w2.xyz" ]
+report $? "sample: two SIGTERMs during the write: temporary removed, exit $st after $lat"
+
+# a command that does not poll (eval) stops at once, with the signal's status
+start "$FREP" eval "$EX/gear.hf" --grid 2000
+wait_cpu 0.5
+stop HUP
+[ $alive = 1 ] && [ $st = 129 ] && fast && grep -q 'frep: interrupted' "$tmp/err"
+report $? "eval --grid: SIGHUP stops it at once: exit $st after $lat: $(head -c 300 "$tmp/err")"
+
+# ---- write errors ---------------------------------------------------------------------
+full() { # full DESCRIPTION CMD...: stdout to /dev/full must fail with the reason
+    d=$1
+    shift
+    "$@" >/dev/full 2>"$tmp/ferr"
+    fs=$?
+    [ $fs != 0 ] && grep -q 'No space left on device' "$tmp/ferr"
+    report $? "$d to a full disk: exit $fs, '$(head -n 1 "$tmp/ferr")'"
+}
+if [ -w /dev/full ]; then
+    full "frep print" "$FREP" print "$EX/gear.hf"
+    full "frep dis" "$FREP" dis "$EX/sphere.hf"
+    echo '0 0 0' >"$tmp/p.txt"
+    full "frep eval POINTS" "$FREP" eval "$EX/sphere.hf" "$tmp/p.txt"
+    full "frep eval --grid" "$FREP" eval "$EX/sphere.hf" --grid 8
+    full "frep sample -o -" "$FREP" sample "$EX/sphere.hf" -n 100 -o - -q
+    full "frep mesh -o -" "$FREP" mesh "$EX/sphere.hf" -o - -q
+    full "frep segment's table" "$FREP" segment "$tmp/small.xyz" --seed 1
+else
+    for d in print dis eval eval-grid sample mesh segment; do
+        echo "ok $((n = n + 1)) # SKIP $d: no writable /dev/full"
+    done
+fi
+echo 'kept' >"$tmp/big.stl"
+(
+    trap '' XFSZ
+    ulimit -f 16 && exec "$FREP" mesh "$EX/gear.hf" -o "$tmp/big.stl" -q
+) 2>"$tmp/ferr"
+fs=$?
+[ $fs = 1 ] && grep -q "cannot write $tmp/big.stl: File too large" "$tmp/ferr" &&
+    [ "$(cat "$tmp/big.stl")" = kept ] && no_tmp
+report $? "a file over the size limit: exit $fs, the reason, the old file kept, no temporary"
+mkdir "$tmp/small_fs"
+if mount -t tmpfs -o size=64k tmpfs "$tmp/small_fs" 2>/dev/null; then
+    "$FREP" mesh "$EX/gear.hf" -o "$tmp/small_fs/g.stl" -q 2>"$tmp/ferr"
+    fs=$?
+    [ $fs = 1 ] && grep -q 'No space left on device' "$tmp/ferr" &&
+        [ -z "$(ls "$tmp/small_fs")" ]
+    report $? "a full file system (64 KiB tmpfs): exit $fs, 'No space left on device', nothing left"
+    umount "$tmp/small_fs"
+else
+    echo "ok $((n = n + 1)) # SKIP full tmpfs: cannot mount one (not root)"
+fi
+
+# ---- bounded loops and parameter ranges ---------------------------------------------------
+"$FREP" sample "$EX/csg.hf" -n 3000 --seed 1 -o "$tmp/c3k.xyz" -q
+start "$FREP" segment "$tmp/c3k.xyz" --cluster 1e-12 --seed 1 -q
+wait "$pid"
+st=$?
+wait "$dog" 2>/dev/null
+[ $st = 0 ]
+report $? "segment --cluster 1e-12 ends (RANSAC_MAX_DRAWS bounds the rejected extractions): exit $st"
+for d in 64 1024; do
+    start "$FREP" evolve "$tmp/small.xyz" -p "$tmp/small.fit" --seed 1 --max-depth $d \
+        --generations 5 --population 20 -o "$tmp/deep.hf" -q
+    wait "$pid"
+    st=$?
+    wait "$dog" 2>/dev/null
+    [ $st = 0 ] && ! grep -q 'out of memory' "$tmp/err" && "$FREP" check "$tmp/deep.hf" 2>/dev/null
+    report $? "evolve --max-depth $d (the ends of the range): exit $st, a model"
+done
+
+# ---- scale -------------------------------------------------------------------------------
+awk 'BEGIN { for (i = 0; i < 2000; i++) printf "%.17g %.17g %.17g 0 0 1\n", (i % 45) * 1e300, int(i / 45) * 1e300, 0 }' >"$tmp/huge.xyz"
+"$FREP" segment "$tmp/huge.xyz" --seed 1 -q 2>"$tmp/ferr"
+fs=$?
+[ $fs = 1 ] && grep -q 'coordinates reach .*: rescale the cloud' "$tmp/ferr"
+report $? "segment of a cloud at 1e300: refused clearly (exit $fs): $(cat "$tmp/ferr")"
+awk 'BEGIN { for (i = 0; i < 2000; i++) printf "%.17g %.17g %.17g 0 0 1\n", (i % 45) * 1e-300, int(i / 45) * 1e-300, 0 }' >"$tmp/tiny.xyz"
+"$FREP" segment "$tmp/tiny.xyz" --seed 1 -q 2>"$tmp/ferr"
+fs=$?
+[ $fs = 1 ] && grep -q 'spans .*: rescale the cloud' "$tmp/ferr" && ! grep -q 'same point' "$tmp/ferr"
+report $? "segment of 2,000 distinct points at 1e-300: not 'the same point' (exit $fs): $(cat "$tmp/ferr")"
+cat >"$tmp/huge.off" <<'EOF'
+OFF
+4 4 0
+0 0 0
+1e300 0 0
+0 1e300 0
+0 0 1e300
+3 0 2 1
+3 0 1 3
+3 0 3 2
+3 1 2 3
+EOF
+"$FREP" sample "$tmp/huge.off" -n 1000 --seed 1 -o "$tmp/huge_s.xyz" -q
+fs=$?
+[ $fs = 0 ] && ! grep -qi 'nan\|inf' "$tmp/huge_s.xyz" && [ "$(wc -l <"$tmp/huge_s.xyz")" = 1000 ]
+report $? "sample of a mesh at 1e300: finite points and normals (exit $fs)"
+"$FREP" sample "$EX/sphere.hf" -n 100 --noise 1e308 --seed 1 -o "$tmp/noise.xyz" -q 2>"$tmp/ferr"
+fs=$?
+[ $fs = 1 ] && [ ! -e "$tmp/noise.xyz" ] && grep -q 'would not be finite' "$tmp/ferr"
+report $? "sample --noise 1e308: refused, nothing written (exit $fs)"
+
+# ---- primitive lists -------------------------------------------------------------------
+bad_list() { # bad_list FILE EXPECTED DESCRIPTION
+    "$FREP" evolve "$tmp/small.xyz" -p "$1" --seed 1 -o "$tmp/bad.hf" -q 2>"$tmp/ferr"
+    fs=$?
+    [ $fs = 1 ] && [ ! -e "$tmp/bad.hf" ] && grep -q "$2" "$tmp/ferr"
+    report $? "$3: exit $fs, '$(head -n 1 "$tmp/ferr")'"
+}
+printf 'plane 0 0 1 0\nsphere 0 0 0 -1\n' >"$tmp/neg.fit"
+bad_list "$tmp/neg.fit" 'neg.fit:2: degenerate sphere: the radius must be > 0' "a negative radius in a .fit list"
+printf 'cylinder 0 0 1 0 0 0 0\n' >"$tmp/zero.fit"
+bad_list "$tmp/zero.fit" 'zero.fit:1: degenerate cylinder: the radius must be > 0' "a zero radius in a .fit list"
+for a in 0 1.5707963267948966 3.141592653589793; do
+    printf 'p(x[3], a[1])\n{\n  p1 = frPlane(x, 0, 0, 1, 0);\n  p2 = frCone(x, 0, 0, 0, 0, 0, 1, %s);\n}\n' $a >"$tmp/cone.hf"
+    bad_list "$tmp/cone.hf" 'cone.hf:4:8: degenerate frCone(): the half-angle must be in (0, pi/2)' \
+        "a cone of half-angle $a in a .hf list"
+done
+head -c 700 "$tmp/small.hf" >"$tmp/cut.hf"
+bad_list "$tmp/cut.hf" "cut.hf:[0-9]*:[0-9]*: expected '}' to close '{'" "a .hf list cut off mid-file"
+printf 'sph\033[2Jere 0 0 0 1\n' >"$tmp/ctl.fit"
+bad_list "$tmp/ctl.fit" "unknown primitive type 'sph\\\\x1b\\[2Jere'" "a control byte in a message is escaped"
+
+echo "1..$n"
+[ $failed = 0 ]
