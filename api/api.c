@@ -45,7 +45,9 @@ static void as_warning(void *user, const frep_diag *d)
 
 void api_runtime_warning(const api_diag *d, const frep_program *p, const frep_runtime_error *re)
 {
-    if (d && d->fn && re->count) frep_report_runtime_error(p, re, as_warning, (void *)d);
+    if (!d || !d->fn || !re->count) return;
+    api_diag to = *d;
+    frep_report_runtime_error(p, re, as_warning, &to);
 }
 
 int api_write_atomic(const api_diag *d, const char *path, int (*fn)(FILE *f, void *ctx),
