@@ -10,6 +10,7 @@
 #include "distance.h"
 #include "mesh.h"
 #include "meshio.h"
+#include "program.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -97,6 +98,17 @@ int mesh_cli_compile(mesh_cli *c, const char *path)
     return CLI_OK;
 }
 
+/* Does the model read its a[] array (parameters without a name span)? */
+static int reads_a(const mesh_cli *c)
+{
+    const frep_program *p = c->p;
+    for (uint32_t k = 0; k < p->ncode; k++)
+        if (p->code[k].op == FREP_OP_PARAM && p->code[k].arg < p->nparams &&
+            p->params[p->code[k].arg].end <= p->params[p->code[k].arg].off)
+            return 1;
+    return 0;
+}
+
 /* What the polygonizer found: NaN points, no surface at all, a solid cut by the box. */
 static int check_surface(const mesh_cli *c, const char *sub, frep_mesh *m, const mesh_stats *st)
 {
@@ -105,9 +117,12 @@ static int check_surface(const mesh_cli *c, const char *sub, frep_mesh *m, const
                         "as outside\n", c->path, st->points_nan);
     if (m->ntris == 0 || st->full) {
         fprintf(stderr, "frep %s: %s: the model %s the box [%g,%g]x[%g,%g]x[%g,%g] at grid %d: "
-                        "no surface (check -b and -g)\n", sub, c->path,
+                        "no surface (check -b and -g%s)\n", sub, c->path,
                 st->full ? "fills all of" : "is empty in", c->box[0], c->box[3], c->box[1],
-                c->box[4], c->box[2], c->box[5], c->grid);
+                c->box[4], c->box[2], c->box[5], c->grid, reads_a(c) ? ", and -a" : "");
+        if (reads_a(c) && c->a.n == 0)
+            fprintf(stderr, "frep %s: note: the model reads a[], which no -a gave: its values "
+                            "are those of the file's '-- @params' line, else 0\n", sub);
         mesh_free(m);
         return CLI_FAIL;
     }
