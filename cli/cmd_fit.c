@@ -4,8 +4,6 @@
  */
 #include "config.h"
 
-#include "alloc.h"
-#include "buf.h"
 #include "cli.h"
 #include "cloud.h"
 #include "fit.h"
@@ -365,6 +363,11 @@ static void warn_lookalike_annotations(const char *path, const char *src)
     }
 }
 
+static void ignore_diag(void *user, const frep_diag *d)
+{
+    (void)user, (void)d;
+}
+
 /* The template compiled, its parameter tables allocated, --bounds read. */
 static int stage_template(fit_cmd *f)
 {
@@ -373,10 +376,13 @@ static int stage_template(fit_cmd *f)
     warn_lookalike_annotations(f->tmpl, f->src);
     /* A min/max template is annealed on its R-function compilation: the same parameters
      * and zero set, a smoother field (doc/fit.md). Its diagnostics were printed once. */
-    frep_buf quiet = FREP_BUF_INIT;
-    f->ps = cli_compile_text(f->tmpl, f->src, strlen(f->src), f->model, f->a.v, f->a.n,
-                             FREP_SETOPS_RFUNC, &quiet);
-    buf_free(&quiet);
+    frep_compile_options o;
+    frep_compile_options_init(&o);
+    o.model = f->model;
+    o.a = f->a.v;
+    o.na = f->a.n;
+    o.setops_override = FREP_SETOPS_RFUNC;
+    f->ps = frep_compile(f->tmpl, f->src, strlen(f->src), &o, ignore_diag, NULL);
     if (f->ps != NULL && f->ps->ncode == f->p->ncode && f->ps->nparams == f->p->nparams &&
         memcmp(f->ps->code, f->p->code, f->p->ncode * sizeof *f->p->code) == 0) {
         frep_program_free(f->ps);
@@ -766,6 +772,7 @@ int cmd_fit(int argc, char **argv)
     fit_cmd f;
     memset(&f, 0, sizeof f);
     fit_config_init(&f.cfg);
+    f.cfg.report = 1;
     f.loss_scale = -1;
     int rc = stage_options(&f, argc, argv);
     if (rc == CLI_GO_ON) rc = fit_steps(&f);

@@ -75,7 +75,7 @@ void fit_config_init(fit_config *c)
     fit_qn_options_init(&c->qn);
     fit_lm_options_init(&c->lm);
     c->reweight_rounds = 8;
-    c->report = 1;
+    c->report = 0;
 }
 
 /* ---- the frep_program adapter ------------------------------------------------ */
@@ -238,6 +238,8 @@ static fit_status local_phase(fit_run_ctx *R, fit_objective *o, double *x, doubl
     fit_qn_options qn = cfg->qn;
     fit_lm_options lm = cfg->lm;
     if (max_iter > 0) qn.max_iter = lm.max_iter = max_iter;
+    /* The searches inside the annealing rank basins: a stall ends them. */
+    if (o == R->sub && R->sub != R->obj) qn.max_restarts = 0;
     int geo = fit_objective_kind_of(o) == FIT_OBJ_GEOMETRIC;
     if (!geo) rounds = 1;
     fit_status st = FIT_FAILED;

@@ -68,7 +68,9 @@ typedef struct fit_config {
     volatile sig_atomic_t *interrupt;   /* Ctrl-C flag; may be NULL */
     void (*progress)(void *user, const fit_progress *p);
     void *progress_user;
-    int report;                 /* measure the result: true distances, uncertainties (1) */
+    int report;                 /* measure the result: true distances, uncertainties (0;
+                                   frep fit sets 1: the measures cost a few evaluations
+                                   of every point) */
     /* The annealing's model when not NULL: the same parameters and the same zero set as
      * the fitted model but a smoother field (the R-function compilation of a min/max
      * template, whose kinks and flat regions mislead the global search). The chains'

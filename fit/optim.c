@@ -100,6 +100,7 @@ void fit_qn_options_init(fit_qn_options *o)
     o->gtol = 1e-10;
     o->dtol = 1e-10;
     o->dtol_abs = 1e-12;
+    o->max_restarts = 3;
     o->ftol = 1e-13;
     o->xtol = 1e-12;
 }
@@ -319,20 +320,19 @@ typedef struct bfgs_ctx {
     double f_restart;           /* objective at the last restart from steepest descent */
     int fresh;                  /* H is a (scaled) identity: no curvature information yet */
     int small;                  /* consecutive iterations with a tiny decrease */
-    int restarts;               /* restarts without real progress since (QN_MAX_RESTARTS) */
+    int restarts;               /* restarts without real progress since (max_restarts) */
     int it;                     /* iterations so far */
 } bfgs_ctx;
 
-/* Restarts from steepest descent (H reset) after progress stalled while the optimality
- * test fails; a restart that gains more than QN_RESTART_GAIN relative starts the count
- * again. Beyond the limit the search ends FIT_STALLED. */
 /* The optimality test's second half: no parameter's projected gradient times its scale
  * (its bound range, else 1 + |x|) above this fraction of the objective. A smooth
  * minimum leaves far less; at the edges of R-function templates fitted to exact samples
  * 1e-2 was seen (the objective is not smooth there); at a kink such as |x| it is
  * unbounded. */
 #define QN_SCALED_GTOL 0.1
-#define QN_MAX_RESTARTS 3
+/* Restarts from steepest descent (H reset) after progress stalled while the optimality
+ * test fails: one that gains more than this relative starts the count
+ * (fit_qn_options.max_restarts) again. */
 #define QN_RESTART_GAIN 1e-6
 
 /* The optimality test at the current point: the projected gradient vanishes (inf-norm
@@ -376,7 +376,7 @@ static int bfgs_stalled(bfgs_ctx *B, fit_status *st)
         return 1;
     }
     if (B->f < B->f_restart - QN_RESTART_GAIN * fabs(B->f_restart)) B->restarts = 0;
-    if (B->fresh || ++B->restarts > QN_MAX_RESTARTS) {
+    if (B->fresh || ++B->restarts > B->opt->max_restarts) {
         *st = FIT_STALLED;
         return 1;
     }

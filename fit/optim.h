@@ -89,6 +89,8 @@ typedef struct fit_qn_options {
     double xtol;        /* or when the step's inf-norm <= xtol * (1 + |x|) (1e-12); either
                            restarts from steepest descent, then ends FIT_STALLED unless the
                            optimality tests above pass */
+    int max_restarts;   /* restarts from steepest descent without progress before
+                           FIT_STALLED (3; the searches inside the annealing use 0) */
 } fit_qn_options;
 
 void fit_qn_options_init(fit_qn_options *o);
