@@ -3,7 +3,10 @@
 # al. 2004, section 6.1; examples/fit/part.hf), 10,714 points sampled from the ground
 # truth, fitted from set1 (near the answer) and set2 (all parameters 1) with qn, sa and
 # saqn; then scipy.optimize.dual_annealing (L-BFGS-B local search) on the very same
-# algebraic objective, points and bounds (bench/bench_fit.py), when scipy is installed.
+# objective (sum of f^2), points and bounds, CPU time against CPU time, with
+# L-BFGS-B and dual_annealing also driven by frep's own objective and gradient through
+# the C library (bench/bench_fit.py), when scipy is installed. Then the CAD-style
+# templates of tests/fit_suite.sh over seeds 1-10.
 # Then a real CAD part: bench/mount.hf fitted to points sampled from the InverseCSG
 # "mount" mesh (skipped when ../shared/data/inversecsg is absent; FREP_INVERSECSG=DIR
 # points elsewhere).
@@ -82,14 +85,25 @@ py=
 [ -n "$FIT_BENCH_NO_SCIPY" ] || for cand in python3 /usr/bin/python3; do
     if "$cand" -c 'import scipy.optimize' 2>/dev/null; then py=$cand; break; fi
 done
-if [ -n "$py" ]; then
+lib=${FREP_LIB:-$(dirname "$FREP")/.libs/libfrep.so}
+if [ -n "$py" ] && [ -f "$lib" ]; then
     echo
-    echo "scipy.optimize.dual_annealing on the same objective (algebraic, mean f^2), set2:"
-    "$py" "$SRCDIR/bench/bench_fit.py" "$tmp/part.xyz" $SEEDS
+    echo "frep against scipy, like for like (sum of f^2, CPU seconds, one process), set2:"
+    OMP_NUM_THREADS=1 "$py" "$SRCDIR/bench/bench_fit.py" "$FREP" "$lib" "$SRCDIR" "$tmp/part.xyz" $SEEDS
 else
     echo
-    echo "scipy not installed (python3-scipy): dual_annealing comparison skipped"
+    echo "scipy (python3-scipy) or $lib missing: the scipy comparison is skipped"
 fi
+
+# ---- CAD-style templates (tests/fit_suite.sh): seeds 1-10, clean and noisy clouds ---------
+echo
+echo "CAD-style templates (tests/fit/), seeds 1-10, clean clouds, defaults:"
+FREP="$FREP" srcdir="$SRCDIR" FIT_SUITE_TABLE=1 FIT_SUITE_SEEDS="1 2 3 4 5 6 7 8 9 10" \
+    sh "$SRCDIR/tests/fit_suite.sh" | grep -v '^#'
+echo "the same, noise 0.2% of the diagonal, --objective geometric:"
+FREP="$FREP" srcdir="$SRCDIR" FIT_SUITE_TABLE=1 FIT_SUITE_SEEDS="1 2 3 4 5 6 7 8 9 10" \
+    FIT_SUITE_NOISE=0.002 FIT_SUITE_OPTIONS="--objective geometric" \
+    sh "$SRCDIR/tests/fit_suite.sh" | grep -v '^#'
 
 # ---- a real CAD part: the InverseCSG "mount" ------------------------------------------
 data=${FREP_INVERSECSG:-$SRCDIR/../shared/data/inversecsg}

@@ -10,6 +10,7 @@
 #include "program.h"
 #include "writeback.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
@@ -38,6 +39,8 @@ typedef struct param_row {
     double start, value, lo, hi;
     int has_span;
     uint32_t off, end;
+    double sigma, sens;         /* standard error, sensitivity (fit_result) */
+    int warn;                   /* WARN_* bits */
 } param_row;
 
 typedef struct text_out {
@@ -51,14 +54,18 @@ static int write_text(FILE *f, void *user)
     return fwrite(t->text, 1, t->len, f) == t->len ? 0 : -1;
 }
 
-static void progress(void *user, fit_phase phase, double temp, double best)
+/* One line: phase, chain, iteration, elapsed time and the best objective so far of the
+ * objective being minimized (on the annealing's subset or on all points: each never
+ * goes up). */
+static void progress(void *user, const fit_progress *p)
 {
     (void)user;
     static const char *const names[] = {"annealing", "quasi-Newton", "Levenberg-Marquardt"};
-    if (phase == FIT_PHASE_SA)
-        fprintf(stderr, "\r%-20s T = %-10.4g best = %-12.6g", names[phase], temp, best);
-    else
-        fprintf(stderr, "\r%-20s %14s best = %-12.6g", names[phase], "", best);
+    char chain[48] = "";
+    if (p->nchains > 0) snprintf(chain, sizeof chain, "chain %ld/%ld", p->chain, p->nchains);
+    fprintf(stderr, "\r%-12s %-11s iteration %-5ld %6.1f s  best %-11.5g %s\033[K",
+            names[p->phase], chain, p->iteration, p->elapsed, p->best,
+            p->subset ? "(annealing's points)" : "(all points)");
     fflush(stderr);
 }
 
@@ -95,6 +102,29 @@ static void json_num(FILE *f, double v)
     else fputs("null", f);
 }
 
+/* Warnings about one parameter (bits of param_row.warn). */
+enum {
+    WARN_ON_BOUND = 1,      /* within FIT_ON_BOUND of its range from a bound */
+    WARN_NEAR_BOUND = 2,    /* within FIT_NEAR_BOUND */
+    WARN_NO_EFFECT = 4,     /* the surface does not move with it */
+    WARN_TINY_EFFECT = 8,   /* it moves the surface by less than FIT_TINY_EFFECT */
+    WARN_LOOSE = 16         /* standard error above FIT_LOOSE of its scale */
+};
+/* A fitted value this close to a bound, as a fraction of the range, is on it; this
+ * close, near it. */
+#define FIT_ON_BOUND 1e-6
+#define FIT_NEAR_BOUND 0.01
+/* A parameter whose whole range (or 1 + |value| when unbounded) moves the surface by
+ * less than this fraction of the cloud's diagonal (RMS over the points) barely matters. */
+#define FIT_TINY_EFFECT 1e-6
+/* A standard error above this fraction of the parameter's range (or 1 + |value|) makes
+ * it poorly determined by the points. */
+#define FIT_LOOSE 0.05
+/* Verdict: "good" needs this share of the points within FIT_WITHIN of the diagonal,
+ * "poor" below FIT_VERDICT_POOR. */
+#define FIT_VERDICT_GOOD 0.99
+#define FIT_VERDICT_POOR 0.9
+
 typedef struct report_ctx {
     const char *tmpl, *cloud, *output;
     const param_row *rows;
@@ -103,6 +133,7 @@ typedef struct report_ctx {
     const fit_result *res;
     double diagonal;
     int interrupted;
+    const char *verdict;
 } report_ctx;
 
 static int write_json(FILE *f, void *user)
@@ -130,7 +161,15 @@ static int write_json(FILE *f, void *user)
         json_num(f, r->rows[i].lo);
         fputs(", \"hi\": ", f);
         json_num(f, r->rows[i].hi);
-        fprintf(f, "}%s\n", i + 1 < r->nrows ? "," : "");
+        fputs(", \"sigma\": ", f);
+        json_num(f, r->rows[i].sigma);
+        fputs(", \"sensitivity\": ", f);
+        json_num(f, r->rows[i].sens);
+        fprintf(f, ", \"on_bound\": %s, \"near_bound\": %s, \"no_effect\": %s}%s\n",
+                r->rows[i].warn & WARN_ON_BOUND ? "true" : "false",
+                r->rows[i].warn & WARN_NEAR_BOUND ? "true" : "false",
+                r->rows[i].warn & (WARN_NO_EFFECT | WARN_TINY_EFFECT) ? "true" : "false",
+                i + 1 < r->nrows ? "," : "");
     }
     fputs("  ],\n  \"objective\": ", f);
     json_num(f, r->res->objective);
@@ -138,12 +177,15 @@ static int write_json(FILE *f, void *user)
     json_num(f, r->res->rms);
     fputs(",\n  \"max_distance\": ", f);
     json_num(f, r->res->max_dist);
+    fputs(",\n  \"within_1pct_of_diagonal\": ", f);
+    json_num(f, r->res->within);
     fputs(",\n  \"diagonal\": ", f);
     json_num(f, r->diagonal);
     fprintf(f, ",\n  \"evaluations\": %ld,\n  \"seconds\": %.6f,\n  \"status\": \"%s\",\n"
-               "  \"interrupted\": %s\n}\n",
+               "  \"converged\": %s,\n  \"verdict\": \"%s\",\n  \"interrupted\": %s\n}\n",
             r->res->evals, r->res->seconds,
             r->interrupted ? "interrupted" : fit_status_name(r->res->status),
+            r->res->status == FIT_CONVERGED ? "true" : "false", r->verdict,
             r->interrupted ? "true" : "false");
     return ferror(f) ? -1 : 0;
 }
@@ -193,6 +235,8 @@ typedef struct fit_cmd {
     int in_place, quiet;
     const char *tmpl, *cloud_path;
     frep_program *p;
+    frep_program *ps;          /* its R-function compilation, when it differs (min/max) */
+    fit_model fs;              /* ps as the annealing's model */
     char *src;                 /* the template's text */
     size_t nall, nfree, nnamed; /* parameters: all, fitted, named by '-- @free' */
     param_row *rows;           /* the fitted ones */
@@ -207,6 +251,8 @@ typedef struct fit_cmd {
     fit_result res;
     int interrupted;
     char *text, *output;       /* the fitted template and where it goes */
+    char verdict[192];         /* "good - 99.7% of points within 1% of the diagonal" */
+    int nwarn;                 /* parameter warnings printed */
 } fit_cmd;
 
 static int parse_method(const char *arg, void *dest, char *why, size_t whylen)
@@ -282,11 +328,66 @@ static int stage_options(fit_cmd *f, int argc, char **argv)
     return CLI_GO_ON;
 }
 
+/* Annotations the lexer reads start their comment: `-- @free ...`. Warn about comments
+ * that mention one further on (`-- flange radius @free [1, 5]`), which are plain comments
+ * and free nothing. */
+static void warn_lookalike_annotations(const char *path, const char *src)
+{
+    static const char *const words[] = {"@free", "@params"};
+    unsigned line = 1;
+    for (const char *s = src; *s; line++) {
+        const char *eol = strchr(s, '\n');
+        size_t len = eol ? (size_t)(eol - s) : strlen(s);
+        const char *c = NULL;
+        for (size_t i = 0; i + 1 < len; i++)
+            if (s[i] == '-' && s[i + 1] == '-') { c = s + i + 2; break; }
+        if (c != NULL) {
+            const char *t = c;
+            while (t < s + len && (*t == ' ' || *t == '\t')) t++;
+            for (size_t w = 0; w < sizeof words / sizeof words[0] && *t != '@'; w++) {
+                size_t wl = strlen(words[w]);
+                for (const char *q = t; q + wl <= s + len; q++) {
+                    if (memcmp(q, words[w], wl) != 0 ||
+                        (q + wl < s + len && (isalnum((unsigned char)q[wl]) || q[wl] == '_')))
+                        continue;
+                    fprintf(stderr, "%s:%u: warning: '%s' is not at the start of the comment, "
+                                    "so it is not an annotation; write '-- %s ...' (a "
+                                    "description may follow the bounds)\n",
+                            path, line, words[w], words[w]);
+                    w = sizeof words / sizeof words[0] - 1;
+                    break;
+                }
+            }
+        }
+        s = eol ? eol + 1 : s + len;
+    }
+}
+
+static void ignore_diag(void *user, const frep_diag *d)
+{
+    (void)user, (void)d;
+}
+
 /* The template compiled, its parameter tables allocated, --bounds read. */
 static int stage_template(fit_cmd *f)
 {
     f->p = cli_compile_file(f->tmpl, f->model, f->a.v, f->a.n, -1, &f->src);
     if (f->p == NULL) return CLI_FAIL;
+    warn_lookalike_annotations(f->tmpl, f->src);
+    /* A min/max template is annealed on its R-function compilation: the same parameters
+     * and zero set, a smoother field (doc/fit.md). Its diagnostics were printed once. */
+    frep_compile_options o;
+    frep_compile_options_init(&o);
+    o.model = f->model;
+    o.a = f->a.v;
+    o.na = f->a.n;
+    o.setops_override = FREP_SETOPS_RFUNC;
+    f->ps = frep_compile(f->tmpl, f->src, strlen(f->src), &o, ignore_diag, NULL);
+    if (f->ps != NULL && f->ps->ncode == f->p->ncode && f->ps->nparams == f->p->nparams &&
+        memcmp(f->ps->code, f->p->code, f->p->ncode * sizeof *f->p->code) == 0) {
+        frep_program_free(f->ps);
+        f->ps = NULL;
+    }
     f->nall = frep_program_nparams(f->p);
     for (size_t i = 0; i < f->nall; i++) f->nnamed += f->p->params[i].end > f->p->params[i].off;
     size_t n = f->nall ? f->nall : 1;
@@ -334,7 +435,8 @@ static int stage_params(fit_cmd *f)
         if (!is_free(f, i)) continue;
         param_row *r = &f->rows[f->nfree];
         int named = pi->end > pi->off;
-        *r = (param_row){ pi->name, i, pi->value, pi->value, pi->lo, pi->hi, named, pi->off, pi->end };
+        *r = (param_row){ pi->name, i, pi->value, pi->value, pi->lo, pi->hi, named, pi->off, pi->end,
+                          NAN, NAN, 0 };
         if (!named && f->nb > 0) {
             if (f->nb != f->nall) {
                 fprintf(stderr, "frep fit: --bounds gives %zu ranges; the template's a[] has %zu "
@@ -432,6 +534,13 @@ static int stage_fit(fit_cmd *f)
         fprintf(stderr, "frep fit: out of memory\n");
         return CLI_FAIL;
     }
+    if (f->ps != NULL) {
+        if (fit_program_model(f->ps, f->idx, f->nfree, f->base, &f->fs) != 0) {
+            fprintf(stderr, "frep fit: out of memory\n");
+            return CLI_FAIL;
+        }
+        f->cfg.surrogate = &f->fs;
+    }
     int tty = isatty(STDERR_FILENO) && !f->quiet;
     if (tty) f->cfg.progress = progress;
     f->cfg.interrupt = cli_sigint_catch();
@@ -448,17 +557,22 @@ static int stage_fit(fit_cmd *f)
     return CLI_OK;
 }
 
-/* The "-- fitted: -a v1,v2,..." comment of an a[] template (its text stays as it is). */
+/* The "-- @params v1, v2, ..." annotation of an a[] template: the values of every
+ * element of a[] (the fitted ones and the others as given), which every command uses
+ * when no -a is given, so the fitted file is the fitted shape on its own. */
 static char *fitted_note(const fit_cmd *f)
 {
-    size_t cap = 32 + f->nfree * FIT_NUMBER_MAX, m;
+    size_t cap = 32 + f->nall * (FIT_NUMBER_MAX + 2), m;
     char *note = malloc(cap);
     if (note == NULL) return NULL;
-    m = (size_t)snprintf(note, cap, "-- fitted: -a ");
-    for (size_t j = 0; j < f->nfree; j++) {
+    m = (size_t)snprintf(note, cap, "-- @params");
+    for (size_t i = 0; i < f->nall; i++) {
         char num[FIT_NUMBER_MAX];
-        fit_format_number(num, f->x0[j], f->rows[j].lo, f->rows[j].hi);
-        m += (size_t)snprintf(note + m, cap - m, "%s%s", j ? "," : "", num);
+        double v = f->base[i], lo = -INFINITY, hi = INFINITY;
+        for (size_t j = 0; j < f->nfree; j++)
+            if (f->idx[j] == i) v = f->x0[j], lo = f->rows[j].lo, hi = f->rows[j].hi;
+        fit_format_number(num, v, lo, hi);
+        m += (size_t)snprintf(note + m, cap - m, "%s %s", i ? "," : "", num);
     }
     return note;
 }
@@ -494,6 +608,80 @@ static int stage_writeback(fit_cmd *f)
     return CLI_OK;
 }
 
+/* The warnings of one parameter (WARN_* bits) from its value, bounds, sensitivity and
+ * standard error. */
+static int param_warnings(const param_row *r, double diagonal)
+{
+    int w = 0;
+    double range = r->hi - r->lo;
+    int bounded = isfinite(range) && range > 0;
+    double scale = bounded ? range : 1 + fabs(r->value);
+    if (bounded) {
+        double gap = fmin(r->value - r->lo, r->hi - r->value);
+        if (gap <= FIT_ON_BOUND * range) w |= WARN_ON_BOUND;
+        else if (gap <= FIT_NEAR_BOUND * range) w |= WARN_NEAR_BOUND;
+    }
+    if (r->sens == 0) w |= WARN_NO_EFFECT;
+    else if (r->sens * scale < FIT_TINY_EFFECT * diagonal) w |= WARN_TINY_EFFECT;
+    else if (r->sigma > FIT_LOOSE * scale) w |= WARN_LOOSE;
+    return w;
+}
+
+/* Per-parameter warnings on stderr and the one-line verdict. */
+static void stage_judge(fit_cmd *f)
+{
+    const fit_result *res = &f->res;
+    for (size_t j = 0; j < f->nfree; j++) {
+        param_row *r = &f->rows[j];
+        r->value = f->x0[j];
+        r->sigma = res->have_uncertainty ? res->sigma[j] : NAN;
+        r->sens = res->have_uncertainty ? res->sens[j] : NAN;
+        r->warn = res->have_uncertainty ? param_warnings(r, f->diagonal) : 0;
+        if (r->warn) f->nwarn++;
+        if (f->quiet) continue;
+        const char *nm = r->name;
+        if (r->warn & WARN_ON_BOUND)
+            fprintf(stderr, "frep fit: warning: %s = %.10g is on its bound [%g, %g]: the best "
+                            "value may lie beyond it (widen the bounds) or the feature it "
+                            "sizes is switched off\n", nm, r->value, r->lo, r->hi);
+        if (r->warn & WARN_NEAR_BOUND)
+            fprintf(stderr, "frep fit: warning: %s = %.10g is within 1%% of a bound of [%g, %g]\n",
+                    nm, r->value, r->lo, r->hi);
+        if (r->warn & WARN_NO_EFFECT)
+            fprintf(stderr, "frep fit: warning: the surface does not depend on %s (unused, "
+                            "assigned again after its '@free' line, or its primitive is "
+                            "away from every point): its value is arbitrary\n", nm);
+        if (r->warn & WARN_TINY_EFFECT)
+            fprintf(stderr, "frep fit: warning: %s barely moves the surface (%.3g per unit): "
+                            "its value is arbitrary\n", nm, r->sens);
+        if (r->warn & WARN_LOOSE)
+            fprintf(stderr, "frep fit: warning: %s is poorly determined by the points "
+                            "(standard error %.3g)\n", nm, r->sigma);
+    }
+    const char *word;
+    char why[96] = "";
+    if (!isfinite(res->within)) {
+        word = "unknown";
+        snprintf(why, sizeof why, "the distances could not be measured");
+    } else {
+        word = res->within >= FIT_VERDICT_GOOD ? "good" : res->within >= FIT_VERDICT_POOR
+                                                              ? "doubtful" : "poor";
+        if (f->interrupted || res->status == FIT_STOPPED)
+            snprintf(why, sizeof why, "; stopped before the end");
+        else if (res->status != FIT_CONVERGED)
+            snprintf(why, sizeof why, "; not converged");
+        if (f->nwarn > 0)
+            snprintf(why + strlen(why), sizeof why - strlen(why), "; %d parameter warning%s",
+                     f->nwarn, f->nwarn == 1 ? "" : "s");
+        if (why[0] != '\0' && strcmp(word, "good") == 0) word = "doubtful";
+    }
+    if (isfinite(res->within))
+        snprintf(f->verdict, sizeof f->verdict, "%s - %.1f%% of points within 1%% of the "
+                 "diagonal%s", word, 100 * res->within, why);
+    else
+        snprintf(f->verdict, sizeof f->verdict, "%s - %s", word, why);
+}
+
 /* The report on stdout: settings, a table of the parameters, the result. */
 static void stage_report(const fit_cmd *f)
 {
@@ -510,15 +698,21 @@ static void stage_report(const fit_cmd *f)
                cfg->sa.chains == 1 ? "" : "s",
                cfg->sa_points > 0 && cfg->sa_points < f->pts.n ? cfg->sa_points : f->pts.n,
                cfg->sa.stall_iter);
-    printf("%-12s %16s %18s   %s\n", "parameter", "start", "fitted", "bounds");
-    for (size_t j = 0; j < f->nfree; j++)
-        printf("%-12s %16.10g %18.12g   [%g, %g]\n", f->rows[j].name, f->rows[j].start,
-               f->rows[j].value, f->rows[j].lo, f->rows[j].hi);
+    printf("%-12s %16s %18s %10s   %s\n", "parameter", "start", "fitted", "+-", "bounds");
+    for (size_t j = 0; j < f->nfree; j++) {
+        const param_row *r = &f->rows[j];
+        printf("%-12s %16.10g %18.12g %10.3g   [%g, %g]%s\n", r->name, r->start, r->value,
+               r->sigma, r->lo, r->hi,
+               r->warn & WARN_ON_BOUND ? "  on bound" : r->warn & WARN_NEAR_BOUND ? "  near bound"
+               : r->warn & (WARN_NO_EFFECT | WARN_TINY_EFFECT) ? "  no effect"
+               : r->warn & WARN_LOOSE ? "  loose" : "");
+    }
     printf("objective %.6g\n", res->objective);
-    printf("distance rms %.6g, max %.6g (cloud diagonal %.6g)\n", res->rms, res->max_dist,
-           f->diagonal);
+    printf("distance to the surface: rms %.6g, max %.6g (cloud diagonal %.6g)\n", res->rms,
+           res->max_dist, f->diagonal);
     printf("evaluations %ld, time %.3f s, %s\n", res->evals, res->seconds,
            f->interrupted ? "interrupted: best so far" : fit_status_name(res->status));
+    printf("fit: %s\n", f->verdict);
     printf("wrote %s\n", f->output);
 }
 
@@ -543,8 +737,9 @@ static int fit_steps(fit_cmd *f)
     rc = stage_fit(f);
     if (rc == CLI_OK) rc = stage_writeback(f);
     if (rc != CLI_OK) return rc;
+    stage_judge(f);
     report_ctx rep = { f->tmpl, f->cloud_path, f->output, f->rows, f->nfree, f->cloud->n,
-                       &f->cfg, &f->res, f->diagonal, f->interrupted };
+                       &f->cfg, &f->res, f->diagonal, f->interrupted, f->verdict };
     if (f->json != NULL && cli_write_atomic(f->json, write_json, &rep) != 0) rc = CLI_FAIL;
     if (!f->quiet) stage_report(f);
     if (rc == CLI_OK && f->view) rc = stage_view(f);
@@ -554,6 +749,8 @@ static int fit_steps(fit_cmd *f)
 static void fit_cmd_free(fit_cmd *f)
 {
     if (f->fm.user != NULL) fit_program_model_free(&f->fm);
+    if (f->fs.user != NULL) fit_program_model_free(&f->fs);
+    if (f->ps != NULL) frep_program_free(f->ps);
     cloud_free(f->cloud);
     frep_free(f->text);
     free(f->output);
@@ -575,6 +772,7 @@ int cmd_fit(int argc, char **argv)
     fit_cmd f;
     memset(&f, 0, sizeof f);
     fit_config_init(&f.cfg);
+    f.cfg.report = 1;
     f.loss_scale = -1;
     int rc = stage_options(&f, argc, argv);
     if (rc == CLI_GO_ON) rc = fit_steps(&f);

@@ -10,6 +10,7 @@
 #include "distance.h"
 #include "mesh.h"
 #include "meshio.h"
+#include "program.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -77,6 +78,25 @@ static void progress_cb(void *user, double frac)
     fflush(stderr);
 }
 
+/* Does the model read its a[] array (parameters without a name span)? */
+static int reads_a(const mesh_cli *c)
+{
+    const frep_program *p = c->p;
+    for (uint32_t k = 0; k < p->ncode; k++)
+        if (p->code[k].op == FREP_OP_PARAM && p->code[k].arg < p->nparams &&
+            p->params[p->code[k].arg].end <= p->params[p->code[k].arg].off)
+            return 1;
+    return 0;
+}
+
+/* Are all the a[] elements the model has 0 (no -a, no '-- @params')? */
+static int a_all_zero(const mesh_cli *c)
+{
+    for (size_t i = 0; i < c->p->nparams; i++)
+        if (c->p->params[i].end <= c->p->params[i].off && c->p->params[i].value != 0) return 0;
+    return 1;
+}
+
 int mesh_cli_compile(mesh_cli *c, const char *path)
 {
     c->path = path;
@@ -88,6 +108,9 @@ int mesh_cli_compile(mesh_cli *c, const char *path)
         c->p = cli_compile_file_diag(path, c->model, c->a.v, c->a.n, c->setops, &c->src, c->diag);
     if (!c->p) return CLI_FAIL;
     c->srclen = c->src ? strlen(c->src) : 0;
+    if (c->a.n == 0 && reads_a(c) && a_all_zero(c))
+        fprintf(stderr, "%s: note: the model reads a[], which neither -a nor a '-- @params' line "
+                        "gives values: a[] is all 0\n", path);
     if (!c->has_box && !frep_program_box(c->p, c->box)) {
         for (int i = 0; i < 3; i++) {
             c->box[i] = -MESH_CLI_DEFAULT_BOX;
@@ -105,9 +128,9 @@ static int check_surface(const mesh_cli *c, const char *sub, frep_mesh *m, const
                         "as outside\n", c->path, st->points_nan);
     if (m->ntris == 0 || st->full) {
         fprintf(stderr, "frep %s: %s: the model %s the box [%g,%g]x[%g,%g]x[%g,%g] at grid %d: "
-                        "no surface (check -b and -g)\n", sub, c->path,
+                        "no surface (check -b and -g%s)\n", sub, c->path,
                 st->full ? "fills all of" : "is empty in", c->box[0], c->box[3], c->box[1],
-                c->box[4], c->box[2], c->box[5], c->grid);
+                c->box[4], c->box[2], c->box[5], c->grid, reads_a(c) ? ", and -a" : "");
         mesh_free(m);
         return CLI_FAIL;
     }

@@ -5,6 +5,7 @@
  * Sits between cli/cmd_fit.c and fit/optim.c + fit/objective.c.
  */
 #include "alloc.h"
+#include "measure.h"
 #include "fit.h"
 #include "util.h"
 
@@ -74,6 +75,7 @@ void fit_config_init(fit_config *c)
     fit_qn_options_init(&c->qn);
     fit_lm_options_init(&c->lm);
     c->reweight_rounds = 8;
+    c->report = 0;
 }
 
 /* ---- the frep_program adapter ------------------------------------------------ */
@@ -202,10 +204,28 @@ typedef struct fit_run_ctx {
     double t0;                  /* frep_now_seconds() at the start */
     double f0;                  /* objective at the start values */
     double x[FIT_MAX_PARAMS];   /* the result so far */
-    fit_status st;              /* of the last phase */
+    fit_status st;              /* of the phase that produced x */
     long sa_iterations;
     int local_iterations;
+    /* Progress: the objective being minimized now, the chain, and the lowest values
+     * seen on the subset and on all points (each reported monotone). */
+    const fit_objective *active;
+    long chain, nchains;
+    double best_sub, best_all;
 } fit_run_ctx;
+
+/* fit_control's progress callback -> the caller's, with the chain, the elapsed time and
+ * a best that never goes up. */
+static void on_progress(void *user, fit_phase ph, long it, double temp, double value)
+{
+    (void)temp;
+    fit_run_ctx *R = user;
+    int sub = R->active != NULL && R->active != R->obj;
+    double *b = sub ? &R->best_sub : &R->best_all;
+    if (value < *b) *b = value;
+    fit_progress p = {ph, R->chain, R->nchains, it, *b, sub, frep_now_seconds() - R->t0};
+    R->cfg->progress(R->cfg->progress_user, &p);
+}
 
 /* Local phase on objective o from x: BFGS (or LM), and for the geometric kind rounds of
  * frozen weights until the parameters settle. */
@@ -213,9 +233,13 @@ static fit_status local_phase(fit_run_ctx *R, fit_objective *o, double *x, doubl
                               int max_iter, int rounds)
 {
     const fit_config *cfg = R->cfg;
+    const fit_objective *was = R->active;
+    R->active = o;
     fit_qn_options qn = cfg->qn;
     fit_lm_options lm = cfg->lm;
     if (max_iter > 0) qn.max_iter = lm.max_iter = max_iter;
+    /* The searches inside the annealing rank basins: a stall ends them. */
+    if (o == R->sub && R->sub != R->obj) qn.max_restarts = 0;
     int geo = fit_objective_kind_of(o) == FIT_OBJ_GEOMETRIC;
     if (!geo) rounds = 1;
     fit_status st = FIT_FAILED;
@@ -241,6 +265,7 @@ static fit_status local_phase(fit_run_ctx *R, fit_objective *o, double *x, doubl
         fit_objective_unfreeze(o);
         *fx = fit_objective_value(o, x, NULL);
     }
+    R->active = was;
     return st;
 }
 
@@ -263,6 +288,9 @@ static int check_arguments(const fit_run_ctx *R, frep_error *err)
     if (np > FIT_MAX_PARAMS)
         return frep_error_set(err, FREP_ELIMIT, "%zu free parameters; at most %d are supported",
                               np, FIT_MAX_PARAMS);
+    if (R->cfg->surrogate != NULL && R->cfg->surrogate->nparams != np)
+        return frep_error_set(err, FREP_EINPUT, "the annealing's model has %zu parameters, "
+                              "not %zu", R->cfg->surrogate->nparams, np);
     if (R->pts->n < np)
         return frep_error_set(err, FREP_EINPUT, "%zu points cannot determine %zu parameters",
                               R->pts->n, np);
@@ -291,10 +319,11 @@ static int make_objectives(fit_run_ctx *R, frep_error *err)
     if (R->obj == NULL) return frep_error_nomem(err);
     if (!R->global) return 0;
     fit_objective *gobj = R->obj;
-    if (cfg->global_kind != cfg->obj.kind) {
+    if (cfg->global_kind != cfg->obj.kind || cfg->surrogate != NULL) {
         fit_objective_config gc = cfg->obj;
         gc.kind = cfg->global_kind;
-        gobj = R->sub = fit_objective_new(R->model, R->pts, &gc);
+        gobj = R->sub = fit_objective_new(cfg->surrogate != NULL ? cfg->surrogate : R->model,
+                                          R->pts, &gc);
         if (gobj == NULL) {
             R->sub = R->obj;
             return frep_error_nomem(err);
@@ -325,8 +354,11 @@ static void start_control(fit_run_ctx *R)
     R->ctl.max_evals = cfg->max_evals;
     R->ctl.deadline = cfg->max_time > 0 ? R->t0 + cfg->max_time : 0;
     R->ctl.interrupt = cfg->interrupt;
-    R->ctl.progress = cfg->progress;
-    R->ctl.progress_user = cfg->progress_user;
+    if (cfg->progress != NULL) {
+        R->ctl.progress = on_progress;
+        R->ctl.progress_user = R;
+    }
+    R->best_sub = R->best_all = HUGE_VAL;
     /* Out of memory in an evaluation stops every phase, as in a phase's own arrays. */
     fit_objective_watch_nomem(R->obj, &R->ctl.out_of_memory);
     fit_objective_watch_nomem(R->sub, &R->ctl.out_of_memory);
@@ -367,7 +399,11 @@ static int global_phase(fit_run_ctx *R, frep_error *err)
     if (polish) so.chains = 1;
     else chains = 1;
     double xs[FIT_MAX_PARAMS], fx = HUGE_VAL, fbest = HUGE_VAL;
+    fit_status st_best = FIT_STALLED;
+    R->nchains = polish ? chains : so.chains > 0 ? so.chains : 1;
     for (long k = 0; k < chains; k++) {
+        R->chain = k + 1;
+        R->active = R->sub;
         /* Chains after the first start at a random point (fit_sa picks one for a start
          * outside the box). */
         memcpy(xs, R->start, np * sizeof *xs);
@@ -384,14 +420,18 @@ static int global_phase(fit_run_ctx *R, frep_error *err)
         }
         if (polish && R->st != FIT_STOPPED)
             R->st = local_phase(R, R->obj, xs, &fx, 0, R->cfg->reweight_rounds);
+        else if (R->st != FIT_STOPPED)
+            R->st = FIT_STALLED;                        /* the annealing tests no optimality */
         fx = fit_objective_value(R->obj, xs, NULL);     /* comparable across chains */
         R->ctl.evals++;
         if (fx < fbest || k == 0) {
             fbest = fx;
+            st_best = R->st;
             memcpy(R->x, xs, np * sizeof *R->x);
         }
         if (R->st == FIT_STOPPED) break;
     }
+    if (R->st != FIT_STOPPED) R->st = st_best;
     return 0;
 }
 
@@ -400,6 +440,43 @@ static int local_only(fit_run_ctx *R)
 {
     double fx = HUGE_VAL;
     R->st = local_phase(R, R->obj, R->x, &fx, 0, R->cfg->reweight_rounds);
+    return 0;
+}
+
+/* Diagonal of the points' bounding box. */
+static double points_diagonal(const fit_points *P)
+{
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    for (size_t i = 0; i < P->n; i++) {
+        const double v[3] = {P->x[i], P->y[i], P->z[i]};
+        for (int c = 0; c < 3; c++) lo[c] = fmin(lo[c], v[c]), hi[c] = fmax(hi[c], v[c]);
+    }
+    double d = 0;
+    for (int c = 0; c < 3; c++) d += P->n ? (hi[c] - lo[c]) * (hi[c] - lo[c]) : 0;
+    return sqrt(d);
+}
+
+/* The figures a person judges the fit by: true distances (their RMS, maximum and the
+ * share within FIT_WITHIN of the diagonal) and each parameter's sensitivity and
+ * standard error. Left NaN when the model cannot be evaluated; -1 when memory for the
+ * distances runs out. */
+static int measure(fit_run_ctx *R, fit_result *res)
+{
+    const size_t n = R->pts->n;
+    double diag = res->diagonal > 0 && isfinite(res->diagonal) ? res->diagonal : 1;
+    double *d = frep_malloc((n ? n : 1) * sizeof *d);
+    if (d == NULL) return -1;
+    fit_distance_stats ds;
+    if (fit_distances(R->model, R->x, R->pts, diag, R->cfg->obj.nthreads, d,
+                                   &ds) == 0) {
+        size_t in = 0;
+        for (size_t i = 0; i < n; i++) in += d[i] <= FIT_WITHIN * diag;
+        res->rms = ds.rms, res->max_dist = ds.max;
+        res->within = n ? (double)in / (double)n : 0;
+        res->dist_searched = ds.searched, res->dist_unresolved = ds.unresolved;
+    }
+    frep_free(d);
+    res->have_uncertainty = fit_uncertainty(R->model, R->x, R->pts, res->sens, res->sigma) == 0;
     return 0;
 }
 
@@ -414,11 +491,11 @@ static int finish(fit_run_ctx *R, double *params, fit_result *res, frep_error *e
         memcpy(R->x, R->start, np * sizeof *R->x);
         fx = R->f0;
     }
-    int dist = fit_objective_distances(R->obj, R->x, &res->rms, &res->max_dist);
-    if (dist < 0) return frep_error_nomem(err);
-    if (dist > 0) res->rms = res->max_dist = NAN;
     memcpy(params, R->x, np * sizeof *params);
     res->objective = fx;
+    res->rms = res->max_dist = res->within = NAN;
+    res->diagonal = points_diagonal(R->pts);
+    if (R->cfg->report && measure(R, res) != 0) return frep_error_nomem(err);
     res->evals = R->ctl.evals;
     res->status = R->st;
     res->sa_iterations = R->sa_iterations;

@@ -30,6 +30,19 @@ int fit_objective_parse(const char *s, fit_objective_kind *k);
 const char *fit_loss_name(fit_loss l);
 int fit_loss_parse(const char *s, fit_loss *l);
 
+/* What the progress callback gets, now and then (at most every 0.2 s). */
+typedef struct fit_progress {
+    fit_phase phase;
+    long chain, nchains;        /* the annealing chain being run or polished (from 1);
+                                   0 in a local-only fit */
+    long iteration;             /* of the phase */
+    /* The lowest objective seen so far of the kind being minimized: on the annealing's
+     * subset (subset = 1) or on all points (0). Never goes up for a given kind. */
+    double best;
+    int subset;
+    double elapsed;             /* seconds since the fit started */
+} fit_progress;
+
 /* Every setting of a fit, with its default from fit_config_init(). */
 typedef struct fit_config {
     fit_method method;
@@ -53,20 +66,45 @@ typedef struct fit_config {
     fit_lm_options lm;
     int reweight_rounds;        /* geometric kind: freeze weights and refit, at most (8) */
     volatile sig_atomic_t *interrupt;   /* Ctrl-C flag; may be NULL */
-    void (*progress)(void *user, fit_phase phase, double temperature, double best);
+    void (*progress)(void *user, const fit_progress *p);
     void *progress_user;
+    int report;                 /* measure the result: true distances, uncertainties (0;
+                                   frep fit sets 1: the measures cost a few evaluations
+                                   of every point) */
+    /* The annealing's model when not NULL: the same parameters and the same zero set as
+     * the fitted model but a smoother field (the R-function compilation of a min/max
+     * template, whose kinks and flat regions mislead the global search). The chains'
+     * bests are polished and compared on the fitted model itself. */
+    const fit_model *surrogate;
 } fit_config;
 
 void fit_config_init(fit_config *c);
 
+/* Fraction of the points' diagonal within which a point counts as fitted in the
+ * verdict (fit_result.within). */
+#define FIT_WITHIN 0.01
+
 typedef struct fit_result {
     double objective;           /* final objective on all points */
-    double rms, max_dist;       /* first-order distances |f|/|grad f| at the result */
+    /* True distances of the points to the fitted surface (fit/measure.c; NaN when
+     * cfg.report is 0 or they could not be computed): RMS, maximum, the fraction within
+     * FIT_WITHIN of the diagonal, and how many points needed the sphere search or found
+     * no surface within the diagonal. */
+    double rms, max_dist, within, diagonal;
+    size_t dist_searched, dist_unresolved;
     long evals;                 /* objective evaluations, all phases (subset ones too) */
     double seconds;
-    fit_status status;          /* of the last phase; FIT_STOPPED after an interrupt */
+    /* FIT_CONVERGED only when the local phase that produced the result passed its
+     * optimality test (--method sa has none: FIT_STALLED); FIT_STOPPED after an
+     * interrupt or a spent budget. */
+    fit_status status;
     long sa_iterations;
     int local_iterations;
+    /* Per parameter (cfg.report): sens, the RMS movement of the surface per unit of the
+     * parameter; sigma, its standard error from the Jacobian (infinite when undefined);
+     * see fit_uncertainty(). */
+    double sens[FIT_MAX_PARAMS], sigma[FIT_MAX_PARAMS];
+    int have_uncertainty;
 } fit_result;
 
 /* Fit model m to the points: params holds the start on entry (m->nparams values) and

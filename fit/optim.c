@@ -34,13 +34,13 @@ int fit_control_stop(const fit_control *c)
     return 0;
 }
 
-static void report(fit_control *c, fit_phase ph, double t, double best, int force)
+static void report(fit_control *c, fit_phase ph, long it, double t, double best, int force)
 {
     if (c == NULL || c->progress == NULL) return;
     double now = frep_now_seconds();
     if (!force && now - c->last_progress < c->progress_interval) return;
     c->last_progress = now;
-    c->progress(c->progress_user, ph, t, best);
+    c->progress(c->progress_user, ph, it, t, best);
 }
 
 static double call(fit_fn fn, void *user, const double *x, double *g, fit_control *c)
@@ -58,6 +58,7 @@ const char *fit_status_name(fit_status s)
     case FIT_STOPPED: return "stopped";
     case FIT_FAILED: return "failed";
     case FIT_NOMEM: return "out of memory";
+    case FIT_STALLED: return "not converged (the optimality test does not pass)";
     }
     return "?";
 }
@@ -97,6 +98,9 @@ void fit_qn_options_init(fit_qn_options *o)
 {
     o->max_iter = 500;
     o->gtol = 1e-10;
+    o->dtol = 1e-10;
+    o->dtol_abs = 1e-12;
+    o->max_restarts = 3;
     o->ftol = 1e-13;
     o->xtol = 1e-12;
 }
@@ -114,18 +118,28 @@ typedef struct ls_ctx {
     void *user;
     size_t n;
     const double *x, *d, *lo, *hi;
+    const double *g0;       /* gradient at x */
     double *xt, *gt;        /* trial point and gradient */
+    double lin;             /* g0 . (xt - x): the first-order change to the last trial */
     fit_control *c;
 } ls_ctx;
 
-/* phi(a) = f(x + a d) (projected on the bounds, which only matters at a = amax through
- * rounding); writes phi'(a) = g . d. */
+/* phi(a) = f(P(x + a d)), P the projection on the bounds: past a component's breakpoint
+ * that component stays on its bound and the others go on. Writes the right derivative
+ * phi'(a) = sum of g_i d_i over the components not on their bound, and L->lin. */
 static double ls_eval(ls_ctx *L, double a, double *dphi)
 {
     for (size_t i = 0; i < L->n; i++)
         L->xt[i] = clampd(L->x[i] + a * L->d[i], lo_of(L->lo, i), hi_of(L->hi, i));
     double f = call(L->fn, L->user, L->xt, L->gt, L->c);
-    *dphi = f < HUGE_VAL ? dot(L->n, L->gt, L->d) : 0;
+    double dp = 0, lin = 0;
+    for (size_t i = 0; i < L->n; i++) {
+        double free_i = L->x[i] + a * L->d[i];
+        if (free_i > lo_of(L->lo, i) && free_i < hi_of(L->hi, i)) dp += L->gt[i] * L->d[i];
+        lin += L->g0[i] * (L->xt[i] - L->x[i]);
+    }
+    *dphi = f < HUGE_VAL ? dp : 0;
+    L->lin = lin;
     return f;
 }
 
@@ -160,7 +174,7 @@ typedef enum ls_outcome {
 /* Remember the trial (a, f) at L->xt when it decreases f sufficiently and is the lowest. */
 static void ls_keep(const ls_ctx *L, ls_search *S, double a, double f)
 {
-    if (f <= S->f0 + LS_C1 * a * S->dphi0 && f < S->best_f) {
+    if (f <= S->f0 + LS_C1 * L->lin && f < S->best_f) {
         S->best_a = a, S->best_f = f;
         memcpy(S->xout, L->xt, L->n * sizeof *S->xout);
         memcpy(S->gout, L->gt, L->n * sizeof *S->gout);
@@ -189,7 +203,7 @@ static ls_outcome ls_bracket(ls_ctx *L, ls_search *S, double a, double amax, dou
             continue;
         }
         ls_keep(L, S, a, f);
-        if (f > S->f0 + LS_C1 * a * S->dphi0 || (i > 0 && f >= f_prev)) {
+        if (f > S->f0 + LS_C1 * L->lin || (i > 0 && f >= f_prev)) {
             ls_set_bracket(S, a_prev, f_prev, d_prev, a, f, da);
             return LS_ZOOM;
         }
@@ -225,7 +239,7 @@ static void ls_zoom(ls_ctx *L, ls_search *S)
         double dj;
         double f = ls_eval(L, aj, &dj);
         ls_keep(L, S, aj, f);
-        if (f > S->f0 + LS_C1 * aj * S->dphi0 || f >= S->flo) {
+        if (f > S->f0 + LS_C1 * L->lin || f >= S->flo) {
             S->ahi = aj, S->fhi = f, S->dhi = dj;
         } else {
             if (fabs(dj) <= -LS_C2 * S->dphi0) return;     /* S->best_* holds this point */
@@ -271,6 +285,15 @@ static void project_grad(size_t n, const double *x, const double *g, const doubl
     }
 }
 
+double fit_projected_gradient(size_t n, const double *x, const double *g, const double *lo,
+                              const double *hi, const double *scale, double *pg)
+{
+    project_grad(n, x, g, lo, hi, pg);
+    double m = 0;
+    for (size_t i = 0; i < n; i++) m = fmax(m, fabs(pg[i]) * (scale != NULL ? scale[i] : 1));
+    return m;
+}
+
 static void set_identity(size_t n, double *H, double scale)
 {
     memset(H, 0, n * n * sizeof *H);
@@ -293,9 +316,76 @@ typedef struct bfgs_ctx {
     double *g, *pg, *d;         /* gradient, projected gradient, direction (then the step) */
     double *xn, *gn, *Hy;       /* line search result; H y of the update */
     double f;
+    double floor;               /* dtol_abs times the objective at the start */
+    double f_restart;           /* objective at the last restart from steepest descent */
     int fresh;                  /* H is a (scaled) identity: no curvature information yet */
     int small;                  /* consecutive iterations with a tiny decrease */
+    int restarts;               /* restarts without real progress since (max_restarts) */
+    int it;                     /* iterations so far */
 } bfgs_ctx;
+
+/* The optimality test's second half: no parameter's projected gradient times its scale
+ * (its bound range, else 1 + |x|) above this fraction of the objective. A smooth
+ * minimum leaves far less; at the edges of R-function templates fitted to exact samples
+ * 1e-2 was seen (the objective is not smooth there); at a kink such as |x| it is
+ * unbounded. */
+#define QN_SCALED_GTOL 0.1
+/* Restarts from steepest descent (H reset) after progress stalled while the optimality
+ * test fails: one that gains more than this relative starts the count
+ * (fit_qn_options.max_restarts) again. */
+#define QN_RESTART_GAIN 1e-6
+
+/* The optimality test at the current point: the projected gradient vanishes (inf-norm
+ * <= gtol), or, with curvature information in H, the decrease the quadratic model
+ * predicts, pg.H.pg / 2 over the free variables, is at most dtol (|f| + floor). Leaves
+ * the projected gradient in B->pg. */
+static size_t n_of(const bfgs_ctx *B) { return B->n; }
+
+static int bfgs_optimal(bfgs_ctx *B)
+{
+    const size_t n = B->n;
+    project_grad(n, B->x, B->g, B->lo, B->hi, B->pg);
+    if (norm_inf(n, B->pg) <= B->opt->gtol) return 1;
+    if (B->fresh) return 0;
+    double dec = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (B->pg[i] == 0) continue;
+        double t = 0;
+        for (size_t j = 0; j < n; j++) t += B->H[i * n + j] * B->pg[j];
+        dec += B->pg[i] * t;
+    }
+    if (!(dec >= 0 && 0.5 * dec <= B->opt->dtol * (fabs(B->f) + B->floor))) return 0;
+    /* At a kink BFGS learns a vanishing curvature and the decrement with it: the
+     * gradient itself, times each parameter's scale, must be small against f as well. */
+    double lim = QN_SCALED_GTOL * (fabs(B->f) + B->floor);
+    for (size_t i = 0; i < n; i++) {
+        double w = hi_of(B->hi, i) - lo_of(B->lo, i);
+        if (!isfinite(w)) w = 1 + fabs(B->x[i]);
+        if (fabs(B->pg[i]) * w > lim) return 0;
+    }
+    return 1;
+}
+
+/* Progress stalled (tiny steps or decreases, or no decrease at all): converged when the
+ * optimality test passes, else a restart from steepest descent, else FIT_STALLED.
+ * Returns 1 when the search ends. */
+static int bfgs_stalled(bfgs_ctx *B, fit_status *st)
+{
+    if (bfgs_optimal(B)) {
+        *st = FIT_CONVERGED;
+        return 1;
+    }
+    if (B->f < B->f_restart - QN_RESTART_GAIN * fabs(B->f_restart)) B->restarts = 0;
+    if (B->fresh || ++B->restarts > B->opt->max_restarts) {
+        *st = FIT_STALLED;
+        return 1;
+    }
+    B->f_restart = B->f;
+    B->small = 0;
+    set_identity(n_of(B), B->H, 1);
+    B->fresh = 1;
+    return 0;
+}
 
 /* Direction d = -H pg (components held by a bound zeroed); steepest descent, with H reset,
  * when that is not a descent direction. Returns the slope g . d. */
@@ -319,19 +409,20 @@ static double bfgs_direction(bfgs_ctx *B)
     return dphi0;
 }
 
-/* Longest step along d inside the box (0 when there is none); a component already at
- * its bound and moving outwards was zeroed by bfgs_direction. */
+/* Longest useful step along the projected path P(x + a d): the last breakpoint, after
+ * which no component moves (HUGE_VAL when some component moves freely for ever; 0 when
+ * none moves at all). */
 static double max_step(size_t n, const double *x, const double *d, const double *lo,
                        const double *hi)
 {
-    double amax = HUGE_VAL;
+    double amax = 0;
     for (size_t i = 0; i < n; i++) {
-        if (d[i] < 0 && isfinite(lo_of(lo, i)))
-            amax = fmin(amax, (lo_of(lo, i) - x[i]) / d[i]);
-        else if (d[i] > 0 && isfinite(hi_of(hi, i)))
-            amax = fmin(amax, (hi_of(hi, i) - x[i]) / d[i]);
+        double t = 0;
+        if (d[i] < 0) t = (lo_of(lo, i) - x[i]) / d[i];
+        else if (d[i] > 0) t = (hi_of(hi, i) - x[i]) / d[i];
+        amax = fmax(amax, t);       /* an infinite bound gives HUGE_VAL */
     }
-    return amax > 0 ? amax : 0;
+    return amax;
 }
 
 /* BFGS update of the inverse Hessian with step s and gradient change y (Nocedal & Wright
@@ -380,17 +471,13 @@ static int bfgs_step(bfgs_ctx *B, double fnew, fit_status *st)
     }
     B->f = fnew;
     bfgs_update(B, s, y);
-    if (smax <= B->opt->xtol * (1 + xmax)) {
-        *st = FIT_CONVERGED;
-        return 1;
-    }
+    if (smax <= B->opt->xtol * (1 + xmax)) return bfgs_stalled(B, st);
     if (!(df <= B->opt->ftol * fmax(fabs(B->f), DBL_MIN))) {
         B->small = 0;
         return 0;
     }
     if (++B->small < 2) return 0;
-    *st = FIT_CONVERGED;
-    return 1;
+    return bfgs_stalled(B, st);
 }
 
 /* One iteration: projected gradient test, direction, line search, step. Returns 1 when
@@ -398,11 +485,14 @@ static int bfgs_step(bfgs_ctx *B, double fnew, fit_status *st)
 static int bfgs_iteration(bfgs_ctx *B, fit_status *st)
 {
     const size_t n = B->n;
-    report(B->c, FIT_PHASE_QN, 0, B->f, 0);
+    report(B->c, FIT_PHASE_QN, B->it, 0, B->f, 0);
     if (fit_control_stop(B->c)) {
         *st = FIT_STOPPED;
         return 1;
     }
+    /* Only a vanishing projected gradient ends the search while it makes progress: in
+     * the flat regions of a template (a primitive that explains few points) the
+     * quasi-Newton model predicts little decrease long before the minimum. */
     project_grad(n, B->x, B->g, B->lo, B->hi, B->pg);
     if (norm_inf(n, B->pg) <= B->opt->gtol) {
         *st = FIT_CONVERGED;
@@ -419,13 +509,8 @@ static int bfgs_iteration(bfgs_ctx *B, fit_status *st)
         *st = FIT_STOPPED;
         return 1;
     }
-    if (!B->fresh) {                /* stale curvature: retry along -g */
-        set_identity(n, B->H, 1);
-        B->fresh = 1;
-        return 0;
-    }
-    *st = FIT_CONVERGED;            /* no decrease along steepest descent either */
-    return 1;
+    (void)n;
+    return bfgs_stalled(B, st);     /* no decrease: restart along -pg, or give up */
 }
 
 fit_status fit_bfgs(fit_fn fn, void *user, size_t n, double *x, const double *lo,
@@ -442,7 +527,7 @@ fit_status fit_bfgs(fit_fn fn, void *user, size_t n, double *x, const double *lo
     B.g = B.H + n * n, B.pg = B.g + n, B.d = B.pg + n, B.xn = B.d + n, B.gn = B.xn + n;
     double *xt = B.gn + n, *gt = xt + n;
     B.Hy = gt + n;
-    B.L = (ls_ctx){fn, user, n, x, B.d, lo, hi, xt, gt, c};
+    B.L = (ls_ctx){fn, user, n, x, B.d, lo, hi, B.g, xt, gt, 0, c};
 
     for (size_t i = 0; i < n; i++) x[i] = clampd(x[i], lo_of(lo, i), hi_of(hi, i));
     B.f = call(fn, user, x, B.g, c);
@@ -451,14 +536,16 @@ fit_status fit_bfgs(fit_fn fn, void *user, size_t n, double *x, const double *lo
         *fx = B.f;
         return FIT_FAILED;
     }
+    B.floor = opt->dtol_abs * fabs(B.f);
+    B.f_restart = B.f;
     fit_status st = FIT_MAXITER;
     set_identity(n, B.H, 1);
     int it;
-    for (it = 0; it < opt->max_iter; it++)
+    for (it = 0; it < opt->max_iter; it++, B.it++)
         if (bfgs_iteration(&B, &st)) break;
     if (iterations) *iterations = it;
     *fx = B.f;
-    report(c, FIT_PHASE_QN, 0, B.f, 1);
+    report(c, FIT_PHASE_QN, it, 0, B.f, 1);
     frep_free(mem);
     return st;
 }
@@ -471,6 +558,8 @@ void fit_lm_options_init(fit_lm_options *o)
     o->ftol = 1e-14;
     o->gtol = 1e-14;
     o->xtol = 1e-12;
+    o->dtol = 1e-10;
+    o->dtol_abs = 1e-12;
 }
 
 /* Solve the SPD system A x = b in place by Cholesky (A is overwritten). Returns 0, or -1
@@ -527,8 +616,31 @@ typedef struct lm_ctx {
     fit_control *c;
     double *A, *An, *M, *b, *bn, *delta, *xn;
     double cost, lambda;
+    double floor;               /* dtol_abs times the cost at the start */
     int it;                     /* iterations; an accepted step that converges counts */
 } lm_ctx;
+
+/* The optimality test where the search stopped: the Gauss-Newton step (held variables
+ * left out, a tiny damping where A is singular) predicts a decrease of at most
+ * dtol (cost + floor). */
+static int lm_optimal(lm_ctx *L)
+{
+    const size_t n = L->n;
+    double dmax = 0;
+    for (size_t i = 0; i < n; i++) dmax = fmax(dmax, L->A[i * n + i]);
+    memcpy(L->M, L->A, n * n * sizeof *L->M);
+    for (size_t i = 0; i < n; i++) {
+        const double bi = L->b[i], xi = L->x[i];
+        int held = (xi <= lo_of(L->lo, i) && bi > 0) || (xi >= hi_of(L->hi, i) && bi < 0);
+        L->delta[i] = held ? 0 : -bi;
+        L->M[i * n + i] += LM_DIAG_FLOOR * fmax(dmax, DBL_MIN);
+    }
+    double dec = 0;
+    memcpy(L->xn, L->delta, n * sizeof *L->xn);
+    if (cholesky_solve(n, L->M, L->delta) != 0) return 0;
+    for (size_t i = 0; i < n; i++) dec -= L->xn[i] * L->delta[i];
+    return 0.5 * dec <= L->opt->dtol * (L->cost + L->floor);
+}
 
 /* The gradient test on J^T r, ignoring parameters held at a bound; the largest diagonal
  * entry of J^T J goes to *dmax. Returns 1 when the gradient vanishes. */
@@ -539,7 +651,7 @@ static int lm_gradient_small(const lm_ctx *L, double *dmax)
     *dmax = 0;
     for (size_t i = 0; i < n; i++) {
         const double bi = L->b[i], xi = L->x[i];
-        int held = (xi <= lo_of(L->lo, i) && bi < 0) || (xi >= hi_of(L->hi, i) && bi > 0);
+        int held = (xi <= lo_of(L->lo, i) && bi > 0) || (xi >= hi_of(L->hi, i) && bi < 0);
         if (!held) gmax = fmax(gmax, fabs(bi));
         *dmax = fmax(*dmax, L->A[i * n + i]);
     }
@@ -595,7 +707,7 @@ static int lm_try_step(lm_ctx *L)
  * its status in *st. */
 static int lm_iteration(lm_ctx *L, fit_status *st)
 {
-    report(L->c, FIT_PHASE_LM, L->lambda, L->cost, 0);
+    report(L->c, FIT_PHASE_LM, L->it, 0, L->cost, 0);
     if (fit_control_stop(L->c)) {
         *st = FIT_STOPPED;
         return 1;
@@ -610,7 +722,7 @@ static int lm_iteration(lm_ctx *L, fit_status *st)
     } else {
         end = lm_try_step(L);
     }
-    if (end) *st = FIT_CONVERGED;
+    if (end) *st = lm_gradient_small(L, &dmax) || lm_optimal(L) ? FIT_CONVERGED : FIT_STALLED;
     return end;
 }
 
@@ -637,12 +749,13 @@ fit_status fit_lm(fit_lsq_fn fn, void *user, size_t n, double *x, const double *
         *fx = HUGE_VAL;
         return FIT_FAILED;
     }
+    L.floor = opt->dtol_abs * L.cost;
     fit_status st = FIT_MAXITER;
     for (L.it = 0; L.it < opt->max_iter; L.it++)
         if (lm_iteration(&L, &st)) break;
     if (iterations) *iterations = L.it;
     *fx = L.cost;
-    report(c, FIT_PHASE_LM, 0, L.cost, 1);
+    report(c, FIT_PHASE_LM, L.it, 0, L.cost, 1);
     frep_free(mem);
     return st;
 }
@@ -906,7 +1019,7 @@ static fit_status sa_chain_run(sa_ctx *S, sa_chain *ch, int *stop_all)
         }
         ch->step++;
         S->total++;
-        report(S->c, FIT_PHASE_SA, temp, S->ebest, 0);
+        report(S->c, FIT_PHASE_SA, S->total, temp, S->ebest, 0);
         if (ch->ebest < ch->emark - opt->rel_improve * fabs(ch->emark) || ch->ebest == 0) {
             ch->emark = ch->ebest;
             ch->last_gain = it;
@@ -978,7 +1091,7 @@ fit_status fit_sa(fit_fn fn, void *user, size_t n, double *x, const double *lo,
     if (iterations) *iterations = S.total;
     memcpy(x, S.best, n * sizeof *x);
     *fx = S.ebest;
-    report(c, FIT_PHASE_SA, 0, S.ebest, 1);
+    report(c, FIT_PHASE_SA, S.total, 0, S.ebest, 1);
     frep_free(mem);
     return st;
 }

@@ -38,8 +38,10 @@ typedef struct fit_control {
     double deadline;
     volatile sig_atomic_t *interrupt;   /* may be NULL */
     /* Called now and then (at most every progress_interval seconds) with the phase,
-     * the temperature (SA; 0 otherwise) and the best objective so far. May be NULL. */
-    void (*progress)(void *user, fit_phase phase, double temperature, double best);
+     * its iteration, the temperature (SA; 0 otherwise) and the phase's best objective
+     * (of the objective it minimizes). May be NULL. */
+    void (*progress)(void *user, fit_phase phase, long iteration, double temperature,
+                     double best);
     void *progress_user;
     double progress_interval;
     double last_progress;
@@ -58,27 +60,48 @@ typedef enum fit_status {
     FIT_MAXITER,        /* iteration limit of the phase */
     FIT_STOPPED,        /* budget spent or interrupted: x is the best point seen */
     FIT_FAILED,         /* no finite objective at the start, or invalid arguments */
-    FIT_NOMEM           /* out of memory (fit_control.out_of_memory is set too) */
+    FIT_NOMEM,          /* out of memory (fit_control.out_of_memory is set too) */
+    FIT_STALLED         /* no more progress, but the optimality test does not pass: x is
+                           not known to be a (projected) stationary point */
 } fit_status;
 
 const char *fit_status_name(fit_status s);
+
+/* First-order optimality of a box-constrained minimum: the projected gradient pg of g at
+ * x (components of variables on a bound whose gradient points out of the box are zero),
+ * and its largest component scaled by the parameter's scale (scale may be NULL: 1).
+ * Writes pg (n values) and returns max_i |pg_i| scale_i. */
+double fit_projected_gradient(size_t n, const double *x, const double *g, const double *lo,
+                              const double *hi, const double *scale, double *pg);
 
 /* ---- BFGS ---------------------------------------------------------------- */
 
 typedef struct fit_qn_options {
     int max_iter;       /* iterations (default 500) */
-    double gtol;        /* stop when the projected gradient's inf-norm <= gtol (1e-10) */
-    double ftol;        /* stop when the relative decrease of f is below ftol (1e-13)
-                           for two iterations in a row */
-    double xtol;        /* stop when the step's inf-norm <= xtol * (1 + |x|) (1e-12) */
+    double gtol;        /* converged when the projected gradient's inf-norm <= gtol (1e-10) */
+    /* Converged when the decrease the quasi-Newton model still predicts, half the
+     * decrement pg.H.pg over the free variables, is at most dtol (f + floor), the floor
+     * being dtol_abs times the objective at the start of the search (dtol 1e-10,
+     * dtol_abs 1e-12): a scale-free first-order test. */
+    double dtol, dtol_abs;
+    double ftol;        /* progress is stalling when the relative decrease of f is below
+                           ftol (1e-13) two iterations in a row */
+    double xtol;        /* or when the step's inf-norm <= xtol * (1 + |x|) (1e-12); either
+                           restarts from steepest descent, then ends FIT_STALLED unless the
+                           optimality tests above pass */
+    int max_restarts;   /* restarts from steepest descent without progress before
+                           FIT_STALLED (3; the searches inside the annealing use 0) */
 } fit_qn_options;
 
 void fit_qn_options_init(fit_qn_options *o);
 
 /* Minimize fn from x (n values, within [lo, hi]; lo/hi may be NULL for no bounds, and
- * entries may be infinite). BFGS on the inverse Hessian with a strong-Wolfe line search
- * (c1 = 1e-4, c2 = 0.9); variables at a bound whose gradient points outwards are held
- * (projected active set). On return x holds the best point and *fx its value. */
+ * entries may be infinite). BFGS on the inverse Hessian; variables at a bound whose
+ * gradient points outwards are held (projected active set), the others move along the
+ * projected path P(x + a d), whose breakpoints do not end the step, with a strong-Wolfe
+ * line search (c1 = 1e-4, c2 = 0.9) on it. FIT_CONVERGED only when the optimality test
+ * passes (gtol or dtol); FIT_STALLED when progress stopped before that. On return x holds
+ * the best point and *fx its value. */
 fit_status fit_bfgs(fit_fn fn, void *user, size_t n, double *x, const double *lo,
                     const double *hi, const fit_qn_options *o, fit_control *c, double *fx,
                     int *iterations);
@@ -90,6 +113,10 @@ typedef struct fit_lm_options {
     double ftol;        /* relative cost decrease below which it stops (1e-14) */
     double gtol;        /* inf-norm of J^T r below which it stops (1e-14) */
     double xtol;        /* relative step below which it stops (1e-12) */
+    double dtol, dtol_abs;  /* the optimality test when it stops: converged when the
+                           Gauss-Newton step's predicted decrease b.A^-1.b / 2 is at most
+                           dtol (cost + dtol_abs cost at the start) (1e-10, 1e-12); else
+                           FIT_STALLED */
 } fit_lm_options;
 
 void fit_lm_options_init(fit_lm_options *o);

@@ -108,7 +108,8 @@ static size_t first_code_line(const char *s, size_t len)
 }
 
 /* Bytes of the note that identify an old note line to replace: "-- fitted: -" names
- * the kind of note, the values after it change from fit to fit. */
+ * the kind of note, the values after it change from fit to fit. An annotation note
+ * ("-- @params 1, 2") is identified by its word and the blank after it. */
 #define FIT_NOTE_KEY 12
 
 /* Pass 2: the text of pass 1 copied line by line with the box and note lines put in. */
@@ -209,7 +210,10 @@ char *fit_writeback(const char *src, size_t len, const fit_edit *edits, size_t n
     if (box != NULL) format_box_line(boxline, box);
     wb_lines w = {text, tlen, box != NULL ? boxline : NULL, note, 0, 0, 0, FREP_BUF_INIT};
     w.notekey = note != NULL ? strlen(note) : 0;
-    if (w.notekey > FIT_NOTE_KEY) w.notekey = FIT_NOTE_KEY;
+    if (note != NULL && strncmp(note, "-- @", 4) == 0)
+        w.notekey = 4 + strcspn(note + 4, " ") + (note[4 + strcspn(note + 4, " ")] == ' ');
+    else if (w.notekey > FIT_NOTE_KEY)
+        w.notekey = FIT_NOTE_KEY;
     rewrite_lines(&w, first_code_line(text, tlen));
     frep_free(text);
     return buf_finish(&w.out, outlen);

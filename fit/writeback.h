@@ -28,7 +28,7 @@ void fit_format_number(char buf[FIT_NUMBER_MAX], double v, double lo, double hi)
  * inserted before the first line that is not a comment or blank (box may be NULL: no
  * box change), and `note` (a full comment line without newline, may be NULL) put right
  * after the box line, replacing an earlier line that starts with the same first 12
- * characters. Returns a malloc'ed NUL-terminated string (frep_free()) and its length in
+ * characters (for an annotation note `-- @word ...`: with `-- @word `). Returns a malloc'ed NUL-terminated string (frep_free()) and its length in
  * *outlen, or NULL when a span is invalid or memory runs out. */
 char *fit_writeback(const char *src, size_t len, const fit_edit *edits, size_t n,
                     const double *box, const char *note, size_t *outlen);

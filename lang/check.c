@@ -955,14 +955,16 @@ static const char *free_refusal(const ast_node *st, const ast_model *m, double *
     return NULL;
 }
 
-/* free_text -> '' | '[' NUMBER ',' NUMBER ']': the bounds into fr. Returns 0, -1 after
- * reporting empty bounds, or 1 when the text is malformed. */
+/* free_text -> description? | '[' NUMBER ',' NUMBER ']' description?, a description
+ * being free text that starts with a letter (`-- @free [1, 5] flange radius`): the
+ * bounds into fr. Returns 0, -1 after reporting empty bounds, or 1 when the text is
+ * malformed. */
 static int free_bounds(checker *c, const ast_pragma *p, check_free *fr)
 {
     const char *t = skip_ws(p->text ? p->text : "");
     char *e;
     double lo, hi;
-    if (*t == '\0') return 0;
+    if (*t == '\0' || isalpha((unsigned char)*t)) return 0;
     if (*t != '[') return 1;
     t = skip_ws(t + 1);
     lo = strtod(t, &e);
@@ -973,7 +975,9 @@ static int free_bounds(checker *c, const ast_pragma *p, check_free *fr)
     hi = strtod(t, &e);
     if (e == t) return 1;
     t = skip_ws(e);
-    if (*t != ']' || *skip_ws(t + 1) != '\0') return 1;
+    if (*t != ']') return 1;
+    t = skip_ws(t + 1);
+    if (*t != '\0' && !isalpha((unsigned char)*t)) return 1;
     if (!(lo <= hi)) {
         diag_report(c->d, FREP_ERROR, p->loc, 5, "'@free' bounds [%g, %g] are empty (lo > hi)",
                     lo, hi);
@@ -987,6 +991,60 @@ static int free_bounds(checker *c, const ast_pragma *p, check_free *fr)
     fr->hi = hi;
     fr->has_bounds = 1;
     return 0;
+}
+
+/* A later assignment (at any depth) of the variable of '@free' statement st in list l,
+ * or NULL. */
+static const ast_node *later_assign(const ast_list *l, const ast_node *st)
+{
+    uint32_t i;
+    for (i = 0; i < l->n; i++) {
+        const ast_node *n = l->v[i], *r;
+        if (n != st && n->loc.off > st->loc.off &&
+            (n->kind == AST_ASSIGN || n->kind == AST_ASSIGN_ARRAY) && strcmp(n->key, st->key) == 0)
+            return n;
+        if ((r = later_assign(&n->body, st)) || (r = later_assign(&n->body2, st))) return r;
+    }
+    return NULL;
+}
+
+/* Warn when a '@free' variable is assigned again after its line: the fit then changes a
+ * value the model no longer reads there. */
+static void warn_reassigned(checker *c, const ast_pragma *p, const ast_list *body,
+                            const ast_node *st)
+{
+    const ast_node *n = later_assign(body, st);
+    if (n)
+        diag_report(c->d, FREP_WARNING, p->loc, 5,
+                    "'%s' is assigned again on line %u after its '@free' line; the model "
+                    "reads the later value there", st->name, (unsigned)n->loc.line);
+}
+
+/* pragma -> '@params' NUMBER (','? NUMBER)*: default values of a[] for when no -a is
+ * given (what `frep fit` writes into an a[] template), into out. */
+static void ck_params_pragma(checker *c, const ast_pragma *p, check_info *out)
+{
+    const char *t = skip_ws(p->text ? p->text : "");
+    uint32_t n = 0, cap = 1;
+    const char *q;
+    double *v;
+    for (q = t; *q; q++) cap += *q == ',' || *q == ' ';
+    v = arena_alloc(c->A, cap * sizeof *v);
+    if (!v) return;
+    while (*t != '\0' && n < cap) {
+        char *e;
+        v[n] = strtod(t, &e);
+        if (e == t || !isfinite(v[n])) {
+            diag_report(c->d, FREP_ERROR, p->loc, (uint32_t)strlen(p->word) + 1,
+                        "'@params' expects numbers v1, v2, ... (the values of a[1], a[2], ...)");
+            return;
+        }
+        n++;
+        t = skip_ws(e);
+        if (*t == ',') t = skip_ws(t + 1);
+    }
+    out->avals = v;
+    out->navals = n;
 }
 
 /* pragma -> '@free' free_text after `name = NUMBER;`: a named free parameter. */
@@ -1014,8 +1072,9 @@ static void ck_free_pragma(checker *c, const ast_pragma *p, check_info *out)
     rc = free_bounds(c, p, fr);
     if (rc > 0)
         diag_report(c->d, FREP_ERROR, p->loc, 5,
-                    "malformed '@free': expected nothing or '[lo, hi]' after it");
+                    "malformed '@free': expected '[lo, hi]', a description or nothing after it");
     if (rc != 0) return;
+    warn_reassigned(c, p, &m->body, st);
     for (j = 0; j < out->nfree; j++)
         if (out->frees[j].stmt == st) return; /* two pragmas on one line: one parameter */
     out->nfree++;
@@ -1092,9 +1151,12 @@ static void ck_pragmas(checker *c, check_info *out)
             ck_setops_pragma(c, p, out);
         else if (strcmp(p->word, "box") == 0)
             ck_box_pragma(c, p, out);
+        else if (strcmp(p->word, "params") == 0)
+            ck_params_pragma(c, p, out);
         else
             diag_report(c->d, FREP_WARNING, p->loc, (uint32_t)strlen(p->word) + 1,
-                        "unknown pragma '@%s' ignored (known: @free, @setops, @box)", p->word);
+                        "unknown pragma '@%s' ignored (known: @free, @setops, @box, @params)",
+                        p->word);
     }
 }
 

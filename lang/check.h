@@ -43,6 +43,8 @@ typedef struct check_info {
     double alpha;
     int has_box;
     double box[6];
+    const double *avals;    /* `-- @params`: default values of a[] (NULL: none) */
+    uint32_t navals;
 } check_info;
 
 /* Check the whole file; returns the number of errors reported through d.  strict:

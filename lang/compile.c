@@ -57,8 +57,12 @@ static int pick_model(const ast_file *f, const char *want)
 }
 
 /* frep_program_param_info of every parameter: a[1..na], then the named ones. */
-static int fill_params(frep_program *p, const lowered *lo, const frep_compile_options *o)
+static int fill_params(frep_program *p, const lowered *lo, const frep_compile_options *o,
+                       const check_info *ci)
 {
+    /* a[]: -a when given, else the file's `-- @params`, else zeros. */
+    const double *a = o->a ? o->a : ci->avals;
+    size_t na = o->a ? o->na : ci->navals;
     uint32_t n = lo->na + lo->nnamed, i;
     p->nparams = n;
     p->na = lo->na;
@@ -71,7 +75,7 @@ static int fill_params(frep_program *p, const lowered *lo, const frep_compile_op
         (void)snprintf(buf, sizeof buf, "a[%u]", (unsigned)i + 1);
         pi->name = frep_strdup(buf);
         if (!pi->name) return -1;
-        pi->value = o->a && i < o->na ? o->a[i] : 0.0;
+        pi->value = a && i < na ? a[i] : 0.0;
         pi->lo = -INFINITY;
         pi->hi = INFINITY;
     }
@@ -170,7 +174,7 @@ static int stage_program(session *s, const char *file)
     const ast_model *m = &s->f.models[s->model];
     frep_program *p = prog_new();
     s->p = p;
-    if (!p || fill_params(p, &s->lo, s->opt) < 0) goto nomem;
+    if (!p || fill_params(p, &s->lo, s->opt, &s->ci) < 0) goto nomem;
     p->model = frep_strdup(m->name);
     if (file) p->file = frep_strdup(file);
     if (!p->model || (file && !p->file)) goto nomem;
@@ -231,7 +235,7 @@ static int stage_attrs(session *s)
         lowered lo = s->lo;
         frep_program *a = prog_new();
         p->attrs[k] = a;
-        if (!a || fill_params(a, &s->lo, s->opt) < 0) goto nomem;
+        if (!a || fill_params(a, &s->lo, s->opt, &s->ci) < 0) goto nomem;
         a->model = frep_strdup(p->model);
         if (p->file) a->file = frep_strdup(p->file);
         if (!a->model || (p->file && !a->file)) goto nomem;

@@ -32,6 +32,27 @@ static double rosenbrock(void *user, const double *x, double *g)
 }
 
 /* Six-hump camel: min -1.0316284535 at (0.0898, -0.7126) and (-0.0898, 0.7126). */
+/* sum of (i + 1) (x_i - c_i)^2 with c = (3, -2, 0.5, 7). */
+static double shifted_quadratic(void *user, const double *x, double *g)
+{
+    static const double c[4] = {3, -2, 0.5, 7};
+    size_t n = *(const size_t *)user;
+    double f = 0;
+    for (size_t i = 0; i < n; i++) {
+        f += (double)(i + 1) * (x[i] - c[i]) * (x[i] - c[i]);
+        if (g) g[i] = 2.0 * (double)(i + 1) * (x[i] - c[i]);
+    }
+    return f;
+}
+
+/* |x - 0.3| + y^2: smooth except on the line x = 0.3, where its minimum lies. */
+static double kinked(void *user, const double *v, double *g)
+{
+    (void)user;
+    if (g) g[0] = v[0] >= 0.3 ? 1 : -1, g[1] = 2 * v[1];
+    return fabs(v[0] - 0.3) + v[1] * v[1];
+}
+
 static double camel(void *user, const double *v, double *g)
 {
     (void)user;
@@ -272,6 +293,33 @@ int main(void)
         is_int(st, FIT_CONVERGED, "bfgs with bounds converges");
         is_double(x[0], 0.5, 1e-9, "bfgs: x held on its upper bound");
         is_double(x[1], 0.25, 1e-6, "bfgs: y free at x^2");
+    }
+
+    /* Bounded quasi-Newton: a quadratic whose minimum (3, -2, 0.5, 7) lies outside the
+     * box [0, 1]^4 in three coordinates, started near the far corner: it must end on the
+     * bounds (1, 0, 0.5, 1) with a vanishing projected gradient, however the steps cross
+     * the breakpoints of the projection. */
+    {
+        size_t n = 4;
+        double x[4] = {0.01, 0.99, 0.02, 0.03}, f, lo[4] = {0, 0, 0, 0}, hi[4] = {1, 1, 1, 1};
+        double g[4], pg[4];
+        fit_status st = fit_bfgs(shifted_quadratic, &n, n, x, lo, hi, NULL, NULL, &f, NULL);
+        shifted_quadratic(&n, x, g);
+        double pgn = fit_projected_gradient(n, x, g, lo, hi, NULL, pg);
+        ok(st == FIT_CONVERGED && fabs(x[0] - 1) < 1e-12 && fabs(x[1]) < 1e-12 &&
+           fabs(x[2] - 0.5) < 1e-8 && fabs(x[3] - 1) < 1e-12 && pgn < 1e-8,
+           "bfgs on a box: (%g, %g, %g, %g), %s, projected gradient %g", x[0], x[1], x[2],
+           x[3], fit_status_name(st), pgn);
+    }
+
+    /* A kink is not a stationary point: on |x - 0.3| + y^2 BFGS ends near x = 0.3 where
+     * the gradient is +-1, and must not call that converged. */
+    {
+        size_t n = 2;
+        double x[2] = {1.7, 1}, f;
+        fit_status st = fit_bfgs(kinked, &n, n, x, NULL, NULL, NULL, NULL, &f, NULL);
+        ok(st == FIT_STALLED && fabs(x[0] - 0.3) < 1e-3,
+           "bfgs at a kink: %s at x = %.6g", fit_status_name(st), x[0]);
     }
 
     /* Budget: a limit of 20 evaluations stops BFGS with FIT_STOPPED. */

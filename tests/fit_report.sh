@@ -1,0 +1,130 @@
+#!/bin/sh
+# fit_report.sh - what `frep fit` tells the user, checked against independent figures:
+# the reported maximum distance against the exact distance of the points to the fitted
+# box (closed form), the warnings (parameter on a bound, without effect, assigned again
+# after its '@free' line, look-alike annotations), descriptions after '@free', the
+# verdict line, and `frep mesh`'s hint at -a. Prints TAP. Needs FREP and srcdir.
+
+: "${FREP:?FREP must name the frep binary}"
+: "${srcdir:?srcdir must name the source tree}"
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-fit-report.XXXXXX") || exit 1
+trap 'rm -rf "$tmp"' EXIT INT TERM
+
+n=0
+failed=0
+report() { # report STATUS DESCRIPTION
+    n=$((n + 1))
+    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
+}
+
+# A box with R-function slabs (HyperFun's hfBlock): |grad f| vanishes at its centre and
+# is small near its edges, where |f|/|grad f| overstates distances by far.
+cat > "$tmp/box_truth.hf" <<'HF'
+-- @box -3 -2 -1.5 3 2 1.5
+box_truth(x[3], a[1])
+{
+    array c[3];
+    c = [-2, -1, -0.5];
+    box_truth = hfBlock(x, c, 4, 2, 1);
+}
+HF
+cat > "$tmp/box.hf" <<'HF'
+-- a box template; the last parameter is free but unused
+box(x[3], a[1])
+{
+    array c[3];
+    x0 = -2.1;  -- @free [-3, 0] corner x
+    y0 = -0.9;  -- @free [-3, 0] corner y
+    z0 = -0.5;  -- @free [-3, 0]
+    dx = 3.9;   -- @free [1, 6] length
+    dy = 2.1;   -- @free [1, 6] width
+    dz = 1.1;   -- @free [0.5, 3] height
+    u = 1;      -- @free [0, 2] unused
+    c = [x0, y0, z0];
+    box = hfBlock(x, c, dx, dy, dz);
+}
+HF
+"$FREP" sample "$tmp/box_truth.hf" -n 3000 --outliers 0.05 --seed 3 -o "$tmp/box.xyz" -q
+report $? "sample a box with 5% outliers"
+"$FREP" fit "$tmp/box.hf" "$tmp/box.xyz" --method qn -o "$tmp/boxfit.hf" > "$tmp/box.out" 2> "$tmp/box.err"
+report $? "fit the box"
+# The exact distance of each point to the fitted box, from the fitted values.
+awk '
+FNR == NR { if ($1 ~ /^(x0|y0|z0|dx|dy|dz)$/ && NF >= 4) v[$1] = $3; next }
+{
+    lo[1] = v["x0"]; lo[2] = v["y0"]; lo[3] = v["z0"]
+    hi[1] = lo[1] + v["dx"]; hi[2] = lo[2] + v["dy"]; hi[3] = lo[3] + v["dz"]
+    out = 0; inside = 1e300
+    for (k = 1; k <= 3; k++) {
+        p = $k; e = 0
+        if (p < lo[k]) e = lo[k] - p; else if (p > hi[k]) e = p - hi[k]
+        out += e * e
+        m = p - lo[k]; if (hi[k] - p < m) m = hi[k] - p; if (m < inside) inside = m
+    }
+    d = out > 0 ? sqrt(out) : inside
+    if (d > mx) mx = d
+}
+END { printf "%.9g\n", mx }' "$tmp/box.out" "$tmp/box.xyz" > "$tmp/true_max"
+truemax=$(cat "$tmp/true_max")
+repmax=$(awk '/^distance to the surface/ { v = $NF; sub(/.*max /, "", $0); split($0, a, " "); print a[1] + 0 }' "$tmp/box.out")
+awk -v r="$repmax" -v t="$truemax" 'BEGIN { exit !(t > 0 && r >= t * (1 - 1e-6) && r <= 2 * t) }'
+report $? "reported max distance $repmax within [1, 2] x the exact maximum $truemax"
+firstorder=$("$FREP" eval "$tmp/boxfit.hf" --grad "$tmp/box.xyz" |
+    awk '{ g = sqrt($2 * $2 + $3 * $3 + $4 * $4); d = g > 0 ? ($1 < 0 ? -$1 : $1) / g : 1e300; if (d > m) m = d } END { print m }')
+awk -v f="$firstorder" -v t="$truemax" 'BEGIN { exit !(f > 2 * t) }'
+report $? "(the first-order |f|/|grad f| would report $firstorder: the check above can fail)"
+
+grep -q "warning: the surface does not depend on u" "$tmp/box.err"
+report $? "warning: a free parameter without effect"
+grep -q '^u .* no effect$' "$tmp/box.out"
+report $? "the table marks it"
+grep -Eq '^fit: (poor|doubtful) - [0-9.]+% of points within 1% of the diagonal.*; [0-9]+ parameter warnings?$' "$tmp/box.out"
+report $? "the verdict says poor or doubtful and why: $(grep '^fit:' "$tmp/box.out")"
+grep -q '^dx .*+-' "$tmp/box.out" || grep -q '^parameter .* +- ' "$tmp/box.out"
+report $? "standard errors in the table"
+
+# A bound the truth lies beyond (dz <= 0.8, truth 1): on its bound.
+sed -e 's/dz = 1.1;   -- @free \[0.5, 3\]/dz = 0.7;   -- @free [0.5, 0.8]/' -e '/u = 1;/d' \
+    "$tmp/box.hf" > "$tmp/bound.hf"
+"$FREP" sample "$tmp/box_truth.hf" -n 2000 --seed 4 -o "$tmp/clean.xyz" -q
+"$FREP" fit "$tmp/bound.hf" "$tmp/clean.xyz" --method qn -o "$tmp/o.hf" > "$tmp/b.out" 2> "$tmp/b.err"
+grep -q "warning: dz = 0.8 is on its bound \[0.5, 0.8\]" "$tmp/b.err" && grep -q '^dz .*on bound$' "$tmp/b.out"
+report $? "warning and mark: a parameter on its bound"
+
+# A clean fit: converged, good, no warning.
+sed -e '/u = 1;/d' "$tmp/box.hf" > "$tmp/good.hf"
+"$FREP" fit "$tmp/good.hf" "$tmp/clean.xyz" --method qn -o "$tmp/o.hf" > "$tmp/g.out" 2> "$tmp/g.err"
+grep -q '^fit: good - 100.0% of points within 1% of the diagonal$' "$tmp/g.out" &&
+    grep -q ', converged$' "$tmp/g.out" && ! grep -q warning "$tmp/g.err"
+report $? "a clean fit: $(grep '^fit:' "$tmp/g.out")"
+
+# Assigned again after its '@free' line: a compile warning, and no effect.
+sed -e 's/^    c = \[x0, y0, z0\];/    z0 = -0.5;\n    c = [x0, y0, z0];/' -e '/u = 1;/d' "$tmp/box.hf" > "$tmp/again.hf"
+"$FREP" fit "$tmp/again.hf" "$tmp/clean.xyz" --method qn -o "$tmp/o.hf" > "$tmp/a.out" 2> "$tmp/a.err"
+grep -q "warning: 'z0' is assigned again on line [0-9]* after its '@free' line" "$tmp/a.err" &&
+    grep -q "warning: the surface does not depend on z0" "$tmp/a.err"
+[ "$(grep -c "is assigned again" "$tmp/a.err")" = 1 ]
+report $? "warnings: '@free' variable assigned again (once)"
+
+# A comment that looks like an annotation but is not one.
+sed -e 's/    z0 = -0.5;  -- @free \[-3, 0\]/    z0 = -0.5;  -- corner z @free [-3, 0]/' -e '/u = 1;/d' \
+    "$tmp/box.hf" > "$tmp/look.hf"
+grep -q "corner z @free" "$tmp/look.hf" || echo "# look.hf was not made"
+"$FREP" fit "$tmp/look.hf" "$tmp/clean.xyz" --method qn -o "$tmp/o.hf" > "$tmp/l.out" 2> "$tmp/l.err"
+grep -q "look.hf:7: warning: '@free' is not at the start of the comment" "$tmp/l.err" &&
+    ! grep -q '^z0 ' "$tmp/l.out"
+report $? "warning: '-- corner z @free [...]' is no annotation (and frees nothing)"
+grep -q "warning" "$tmp/g.err"
+[ $? != 0 ]
+report $? "descriptions after '@free [lo, hi]' are accepted without a word"
+
+# frep mesh of an a[] template without -a: empty, with a hint at -a.
+"$FREP" mesh "$srcdir/examples/fit/part_a.hf" -o "$tmp/m.stl" 2> "$tmp/m.err"
+grep -q "part_a.hf: note: the model reads a\[\], which neither -a nor a '-- @params' line gives values" "$tmp/m.err"
+report $? "frep mesh: an a[] model without values says so"
+"$FREP" mesh "$tmp/box_truth.hf" -b 0.1 -o "$tmp/m.stl" 2> "$tmp/m.err"
+[ $? != 0 ] && grep -q "fills all of the box" "$tmp/m.err"
+report $? "frep mesh: a model that fills the box says so" 
+
+echo "1..$n"
+exit $failed
