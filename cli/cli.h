@@ -49,6 +49,7 @@ typedef struct mesh_cli {
     cli_list a;
     double box[6];
     int has_box, grid, nthreads, setops;
+    int grid_axes[3];        /* hfp's -g NX,NY,NZ (frep mesh); 0: grid on every axis */
     double iso;
     frep_program *p;
     char *src;

@@ -7,6 +7,7 @@
 #include "mesh.h"
 #include "meshio.h"
 
+#include <ctype.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -17,17 +18,48 @@ static const char mesh_usage[] =
     "and carries per-vertex normals from the analytic gradient. Where the solid reaches\n"
     "the box, the mesh is closed by caps on the box faces.\n\n"
     "The format comes from OUT's extension: .stl (binary; --ascii for text STL), .obj,\n"
-    ".ply (binary; --ascii for text PLY), .off. OUT '-' writes binary STL to stdout.\n\n";
+    ".ply (binary; --ascii for text PLY), .off, .wrl (VRML 2.0). OUT '-' writes binary\n"
+    "STL to stdout. --color gives the vertices a colour (PLY and VRML).\n\n"
+    "HyperFun hfp's options work too: -stl/-stlb/-wrl FILE (text STL, binary STL, VRML\n"
+    "to FILE), -g NX,NY,NZ (cells per axis), -i V (iso value), -cf R,G,B (face colour: --color),\n"
+    "-x X,Y,Z, -t without a number (time report: the summary line has the time); hfp's\n"
+    "-o names a model (frep: -m NAME). The viewer's -cl, -d, -w and -pov/-cli output are\n"
+    "refused with what to use instead.\n\n";
 
 typedef struct mesh_cmd {
     mesh_cli mc;
     const char *out;
     int ascii, quiet, check, check_self, verbose;
+    int rgb[3];              /* --color; rgb[0] < 0: none */
     meshio_format fmt;
+    meshio_format hfp_fmt;   /* hfp's -stl/-stlb/-wrl chose the format, else UNKNOWN */
+    uint8_t *vrgb;           /* the vertices' colours (--color), else NULL */
+    char grid_arg[16];       /* the largest of hfp's -g NX,NY,NZ, for the table's -g */
     frep_mesh m;
     mesh_stats st;
     FILE *summary;           /* stdout, or stderr when the mesh goes to stdout */
 } mesh_cmd;
+
+/* A colour: "V" (grey V) or "R,G,B", each 0..255 (hfp's -cf / -cl syntax). */
+static int parse_rgb(const char *arg, void *dest, char *why, size_t whylen)
+{
+    int *rgb = dest, v[3], n = 0;
+    const char *p = arg;
+    (void)why;
+    (void)whylen;
+    for (;;) {
+        char *end;
+        long x = strtol(p, &end, 10);
+        if (end == p || x < 0 || x > 255 || n == 3) return -1;
+        v[n++] = (int)x;
+        if (*end == '\0') break;
+        if (*end != ',') return -1;
+        p = end + 1;
+    }
+    if (n != 1 && n != 3) return -1;
+    for (int k = 0; k < 3; k++) rgb[k] = v[n == 1 ? 0 : k];
+    return 0;
+}
 
 #define OFF(f) offsetof(mesh_cmd, f)
 static const cli_opt mesh_opts[] = {
@@ -41,6 +73,10 @@ static const cli_opt mesh_opts[] = {
     CLI_OPT_GRID(mesh_cmd, mc.grid, "64", "grid cells per axis (HyperFun's -g; default 64, at most 2048)"),
     CLI_OPT_ISO(mesh_cmd, mc.iso, "polygonize f = V instead of f = 0 (inside is f >= V)"),
     { 0, "ascii", NULL, CLI_OPT_SET, OFF(ascii), .help = "text STL / text PLY" },
+    { 0, "color", "RGB", CLI_OPT_CUSTOM, OFF(rgb), .parse = parse_rgb,
+      .expect = "V or R,G,B with each in 0..255",
+      .help = "colour every vertex: 'V' (grey) or 'R,G,B', each 0..255;\n"
+              "PLY vertex colours, VRML Color (hfp's -cf)" },
     CLI_OPT_SETOPS(mesh_cmd, mc.setops, "override the file's set operations: rfunc, minmax"),
     CLI_OPT_THREADS(mesh_cmd, mc.nthreads, "OpenMP threads (default: all cores); the mesh is the same"),
     { 0, "check", NULL, CLI_OPT_SET, OFF(check),
@@ -62,27 +98,193 @@ static const cli_opt mesh_opts[] = {
 static const cli_opt_spec mesh_spec = { "mesh", mesh_usage, mesh_opts,
                                         sizeof mesh_opts / sizeof mesh_opts[0], 22 };
 
+/* Does the model file at path define a model called name?  (Its header: the name, then
+ * '(' and 'x', at the start of a line or after '}'; case-insensitive like HyperFun.) */
+static int file_names_model(const char *path, const char *name)
+{
+    size_t len = 0, n = strlen(name);
+    char *text = n ? cli_read_file(path, &len) : NULL;
+    int found = 0;
+    for (size_t i = 0; text && !found && i + n <= len; i++) {
+        if (i > 0 && !isspace((unsigned char)text[i - 1]) && text[i - 1] != '}') continue;
+        size_t k = 0;
+        while (k < n && tolower((unsigned char)text[i + k]) == tolower((unsigned char)name[k])) k++;
+        if (k < n) continue;
+        size_t j = i + n;
+        while (j < len && isspace((unsigned char)text[j])) j++;
+        if (j < len && text[j] == '(') {
+            for (j++; j < len && isspace((unsigned char)text[j]);) j++;
+            found = j < len && (text[j] == 'x' || text[j] == 'X');
+        }
+    }
+    free(text);
+    return found;
+}
+
+/* An unsigned decimal integer (a thread count after -t)? */
+static int is_count(const char *s)
+{
+    if (!*s) return 0;
+    for (; *s; s++)
+        if (!isdigit((unsigned char)*s)) return 0;
+    return 1;
+}
+
+/* hfp's options (HyperFun's polygonizer), so that its command lines work: its
+ * multi-letter single-dash options are rewritten into frep's before the table parses
+ * argv, or refused with what to use instead (they would otherwise read as clusters of
+ * short options, -stl as -s -t -l).  The rewritten argv goes to *out (malloc'ed, free
+ * it; its strings are argv's or static).  Returns CLI_GO_ON or a usage error. */
+static int hfp_options(mesh_cmd *c, int argc, char **argv, char ***out, int *outc)
+{
+    char **v = malloc(((size_t)argc + 1) * sizeof *v);
+    int n = 0;
+    if (!v) {
+        fprintf(stderr, "frep mesh: out of memory\n");
+        return CLI_FAIL;
+    }
+    for (int i = 0; i < argc; i++) {
+        const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
+        int rc = CLI_GO_ON;
+        if (i == 0 || a[0] != '-' || a[1] == '-' || a[1] == '\0') {
+            v[n++] = argv[i];
+            if (strcmp(a, "--") == 0)
+                while (++i < argc) v[n++] = argv[i];
+            continue;
+        }
+        if (!strcmp(a, "-stl") || !strcmp(a, "-stlb") || !strcmp(a, "-wrl")) {
+            if (!val) rc = cli_usage_error("mesh", "hfp's %s needs a file name", a);
+            else if (c->hfp_fmt != MESHIO_UNKNOWN)
+                rc = cli_usage_error("mesh", "%s: the output is already '%s'", a, c->out);
+            else {
+                c->out = val;
+                c->hfp_fmt = a[1] == 'w' ? MESHIO_WRL : MESHIO_STL;
+                if (!strcmp(a, "-stl")) c->ascii = 1;
+                i++;
+                continue;
+            }
+        } else if (!strcmp(a, "-pov") || !strcmp(a, "-cli")) {
+            rc = cli_usage_error("mesh", "hfp's %s output (%s) is not a format frep writes: use "
+                                         "-o FILE.stl, .obj, .ply, .off or .wrl", a,
+                                 a[1] == 'p' ? "POV-Ray mesh" : "CLI slices");
+        } else if (!strcmp(a, "-cf")) {
+            v[n++] = "--color";
+            continue;
+        } else if (!strcmp(a, "-cl")) {
+            rc = cli_usage_error("mesh", "hfp's -cl is the wireframe colour of its viewer; frep "
+                                         "mesh draws nothing (see the mesh with frep view)");
+        } else if (!strcmp(a, "-ct")) {
+            rc = cli_usage_error("mesh", "hfp's -ct (colours from the model's s[] attributes) is "
+                                         "not supported yet; --color R,G,B colours the whole mesh");
+        } else if (!strcmp(a, "-d") || !strcmp(a, "-w")) {
+            rc = cli_usage_error("mesh", "hfp's %s sets its viewer's %s; frep mesh has no viewer "
+                                         "(frep view shows a mesh)", a,
+                                 a[1] == 'd' ? "display mode" : "window size");
+        } else if (!strcmp(a, "-s")) {
+            rc = cli_usage_error("mesh", "hfp's -s (vertex search) is not needed: frep finds "
+                                         "every vertex on the surface by root finding");
+        } else if (!strcmp(a, "-x")) {
+            if (!val) rc = cli_usage_error("mesh", "hfp's -x needs a mapping such as X,Y,Z");
+            else if (strcmp(val, "X,Y,Z") != 0 && strcmp(val, "x,y,z") != 0)
+                rc = cli_usage_error("mesh", "-x %s: frep meshes x[1], x[2], x[3] as x, y, z and "
+                                             "reads x[4..] as 0; other mappings are not supported",
+                                     val);
+            else {
+                i++;
+                continue;
+            }
+        } else if (!strcmp(a, "-i")) {
+            v[n++] = "--iso";
+            continue;
+        } else if ((!strcmp(a, "-g") || !strcmp(a, "--grid")) && val && strchr(val, ',')) {
+            /* hfp's per-axis densities NX,NY,NZ: equal ones are one N */
+            int g[3], k = 0;
+            const char *p = val;
+            while (k < 3) {
+                char *end;
+                long x = strtol(p, &end, 10);
+                if (end == p || x < 1 || x > MESH_MAX_GRID) break;
+                g[k++] = (int)x;
+                if (*end != ',') {
+                    p = end;
+                    break;
+                }
+                p = end + 1;
+            }
+            if (k != 3 || *p)
+                rc = cli_usage_error("mesh", "%s %s: expected N or NX,NY,NZ with each in 1..%d", a,
+                                     val, MESH_MAX_GRID);
+            else {
+                /* the table's -g gets the largest (the summary's figure) */
+                int gmax = g[0] > g[1] ? g[0] : g[1];
+                gmax = gmax > g[2] ? gmax : g[2];
+                int same = g[0] == g[1] && g[1] == g[2];
+                for (int q = 0; q < 3; q++) c->mc.grid_axes[q] = same ? 0 : g[q];
+                snprintf(c->grid_arg, sizeof c->grid_arg, "%d", gmax);
+                v[n++] = argv[i];
+                v[n++] = c->grid_arg;
+                i++;
+                continue;
+            }
+        } else if (!strcmp(a, "-t") && !(val && is_count(val))) {
+            continue; /* hfp's time report: frep's summary line has the time */
+        } else {
+            v[n++] = argv[i];
+            continue;
+        }
+        free(v);
+        return rc;
+    }
+    v[n] = NULL;
+    *out = v;
+    *outc = n;
+    return CLI_GO_ON;
+}
+
 /* Options -> one model file and an output whose extension names a format. */
 static int stage_options(mesh_cmd *c, int argc, char **argv, const char **in)
 {
     cli_args args;
-    int rc = mesh_cli_parse(&mesh_spec, argc, argv, c, offsetof(mesh_cmd, mc), &args);
+    char **v = NULL;
+    int n = 0;
+    int rc = hfp_options(c, argc, argv, &v, &n);
     if (rc != CLI_GO_ON) return rc;
-    if (args.n != 1) return cli_usage_error("mesh", "expected one model file FILE.hf");
-    if (!c->out) return cli_usage_error("mesh", "-o OUT is required (.stl, .obj, .ply or .off)");
-    c->fmt = strcmp(c->out, "-") == 0 ? MESHIO_STL : meshio_format_for_path(c->out);
+    const char *hfp_out = c->out;
+    rc = mesh_cli_parse(&mesh_spec, n, v, c, offsetof(mesh_cmd, mc), &args);
+    if (rc == CLI_GO_ON && hfp_out && c->out != hfp_out)
+        rc = cli_usage_error("mesh", "-o %s: the output is already '%s'", c->out, hfp_out);
+    if (rc == CLI_GO_ON && args.n != 1) rc = cli_usage_error("mesh", "expected one model file FILE.hf");
+    if (rc == CLI_GO_ON) *in = args.v[0];
+    free(v);
+    if (rc != CLI_GO_ON) return rc;
+    if (!c->out) return cli_usage_error("mesh", "-o OUT is required (.stl, .obj, .ply, .off or .wrl)");
+    c->fmt = c->hfp_fmt != MESHIO_UNKNOWN ? c->hfp_fmt
+             : strcmp(c->out, "-") == 0 ? MESHIO_STL : meshio_format_for_path(c->out);
+    if (c->fmt == MESHIO_UNKNOWN && file_names_model(*in, c->out))
+        return cli_usage_error("mesh", "-o %s: frep's -o is the output file; %s is a model in %s: "
+                                       "did you mean -m %s?", c->out, c->out, *in, c->out);
     if (c->fmt == MESHIO_UNKNOWN)
-        return cli_usage_error("mesh", "cannot tell the format of '%s': use .stl, .obj, .ply or .off",
-                               c->out);
+        return cli_usage_error("mesh", "cannot tell the format of '%s': use .stl, .obj, .ply, .off "
+                                       "or .wrl", c->out);
+    if (c->rgb[0] >= 0 && c->fmt != MESHIO_PLY && c->fmt != MESHIO_WRL)
+        return cli_usage_error("mesh", "--color: %s files carry no colours (use .ply or .wrl)",
+                               meshio_format_name(c->fmt));
     c->summary = strcmp(c->out, "-") == 0 ? stderr : stdout;
-    *in = args.v[0];
     return CLI_GO_ON;
+}
+
+/* The colour source of --color: every vertex the same. */
+static void uniform_color(void *user, const double p[3], uint8_t rgb[3])
+{
+    const int *c = user;
+    (void)p;
+    for (int k = 0; k < 3; k++) rgb[k] = (uint8_t)c[k];
 }
 
 static int write_mesh_cb(FILE *f, void *user)
 {
     mesh_cmd *c = user;
-    return meshio_write(f, &c->m, c->fmt, c->ascii);
+    return meshio_write_colored(f, &c->m, c->vrgb, c->fmt, c->ascii);
 }
 
 /* The vertices' distances from the model's surface, for --check. */
@@ -97,6 +299,7 @@ static int vertex_distance(mesh_cmd *c, mesh_distance *d)
     mesh_options_init(&o);
     memcpy(o.box, c->mc.box, sizeof o.box);
     o.grid = c->mc.grid;
+    memcpy(o.grid_axes, c->mc.grid_axes, sizeof o.grid_axes);
     o.iso = c->mc.iso;
     frep_error err;
     frep_error_init(&err);
@@ -147,11 +350,15 @@ static int stage_check(mesh_cmd *c)
 static int stage_report(mesh_cmd *c)
 {
     const mesh_cli *mc = &c->mc;
+    char grid[48];
+    if (mc->grid_axes[0])
+        snprintf(grid, sizeof grid, "%d,%d,%d", mc->grid_axes[0], mc->grid_axes[1], mc->grid_axes[2]);
+    else snprintf(grid, sizeof grid, "%d", mc->grid);
     if (!c->quiet)
         fprintf(c->summary, "%s: %zu vertices, %zu triangles (%s%s), box [%g,%g]x[%g,%g]x[%g,%g], "
-                            "grid %d, %.3f s\n", c->out, c->m.nverts, c->m.ntris,
+                            "grid %s, %.3f s\n", c->out, c->m.nverts, c->m.ntris,
                 c->ascii ? "ASCII " : "", meshio_format_name(c->fmt), mc->box[0], mc->box[3],
-                mc->box[1], mc->box[4], mc->box[2], mc->box[5], mc->grid, c->st.seconds);
+                mc->box[1], mc->box[4], mc->box[2], mc->box[5], grid, c->st.seconds);
     if (c->verbose)
         fprintf(c->summary, "work: %zu octree nodes, %zu of %zu blocks, %zu points evaluated, %zu "
                             "gradients, %zu cells with several components, %zu face vertices\n",
@@ -166,7 +373,14 @@ static int mesh_steps(mesh_cmd *c, const char *in)
     int rc = mesh_cli_compile(&c->mc, in);
     if (rc == CLI_OK) rc = mesh_cli_polygonize(&c->mc, "mesh", &c->m, &c->st);
     if (rc != CLI_OK) return rc;
+    if (c->rgb[0] >= 0 && !(c->vrgb = mesh_colors(&c->m, uniform_color, c->rgb))) {
+        fprintf(stderr, "frep mesh: out of memory colouring the mesh\n");
+        mesh_free(&c->m);
+        return CLI_FAIL;
+    }
     rc = cli_write_atomic(c->out, write_mesh_cb, c) != 0 ? CLI_FAIL : stage_report(c);
+    frep_free(c->vrgb);
+    c->vrgb = NULL;
     mesh_free(&c->m);
     return rc;
 }
@@ -175,6 +389,7 @@ int cmd_mesh(int argc, char **argv)
 {
     mesh_cmd c;
     memset(&c, 0, sizeof c);
+    c.rgb[0] = -1;
     mesh_cli_init(&c.mc);
     const char *in = NULL;
     int rc = stage_options(&c, argc, argv, &in);

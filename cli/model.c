@@ -128,6 +128,7 @@ int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *
     mesh_options_init(&o);
     memcpy(o.box, c->box, sizeof o.box);
     o.grid = c->grid;
+    memcpy(o.grid_axes, c->grid_axes, sizeof o.grid_axes);
     o.iso = c->iso;
     o.nthreads = c->nthreads;
     int last = -1;

@@ -37,6 +37,7 @@ meshio_format meshio_format_for_path(const char *path)
     if (strcmp(ext, "obj") == 0) return MESHIO_OBJ;
     if (strcmp(ext, "ply") == 0) return MESHIO_PLY;
     if (strcmp(ext, "off") == 0) return MESHIO_OFF;
+    if (strcmp(ext, "wrl") == 0) return MESHIO_WRL;
     return MESHIO_UNKNOWN;
 }
 
@@ -47,6 +48,7 @@ const char *meshio_format_name(meshio_format f)
     case MESHIO_OBJ: return "OBJ";
     case MESHIO_PLY: return "PLY";
     case MESHIO_OFF: return "OFF";
+    case MESHIO_WRL: return "VRML";
     case MESHIO_UNKNOWN: break;
     }
     return "unknown";
@@ -144,27 +146,31 @@ static int write_obj(FILE *f, const frep_mesh *m)
     return ferror(f) ? -1 : 0;
 }
 
-static int write_ply(FILE *f, const frep_mesh *m, int ascii)
+static int write_ply(FILE *f, const frep_mesh *m, const uint8_t *rgb, int ascii)
 {
     fprintf(f, "ply\nformat %s 1.0\ncomment written by frep\nelement vertex %zu\n"
                "property float x\nproperty float y\nproperty float z\n",
             ascii ? "ascii" : "binary_little_endian", m->nverts);
     if (m->n) fprintf(f, "property float nx\nproperty float ny\nproperty float nz\n");
+    if (rgb) fprintf(f, "property uchar red\nproperty uchar green\nproperty uchar blue\n");
     fprintf(f, "element face %zu\nproperty list uchar int vertex_indices\nend_header\n", m->ntris);
     int nc = m->n ? 6 : 3;
     for (size_t i = 0; i < m->nverts; i++) {
         double val[6];
+        const uint8_t *c = rgb ? &rgb[3 * i] : NULL;
         for (int k = 0; k < 3; k++) {
             val[k] = m->v[3 * i + k];
             if (m->n) val[3 + k] = m->n[3 * i + k];
         }
         if (ascii) {
             for (int k = 0; k < nc; k++) fprintf(f, k ? " %.9g" : "%.9g", val[k]);
+            if (c) fprintf(f, " %u %u %u", c[0], c[1], c[2]);
             fputc('\n', f);
         } else {
-            unsigned char b[24];
+            unsigned char b[27];
             for (int k = 0; k < nc; k++) put_f32(b + 4 * k, val[k]);
-            fwrite(b, 4, (size_t)nc, f);
+            if (c) memcpy(b + 4 * nc, c, 3);
+            fwrite(b, 1, 4 * (size_t)nc + (c ? 3 : 0), f);
         }
     }
     for (size_t t = 0; t < m->ntris; t++) {
@@ -181,6 +187,42 @@ static int write_ply(FILE *f, const frep_mesh *m, int ascii)
     return ferror(f) ? -1 : 0;
 }
 
+/* VRML 2.0: one Shape whose IndexedFaceSet holds the triangles (counter-clockwise
+ * seen from outside, as frep's meshes are), the vertex normals when present and the
+ * vertex colours (a Color node, colorPerVertex) or a Material's diffuse colour. */
+static int write_wrl(FILE *f, const frep_mesh *m, const uint8_t *rgb)
+{
+    static const int def[3] = { MESHIO_WRL_DEFAULT_RGB };
+    fprintf(f, "#VRML V2.0 utf8\n# written by frep: %zu vertices, %zu triangles\n"
+               "Shape {\n  appearance Appearance {\n    material Material {", m->nverts,
+            m->ntris);
+    if (!rgb)
+        fprintf(f, " diffuseColor %.6g %.6g %.6g", def[0] / 255.0, def[1] / 255.0, def[2] / 255.0);
+    fprintf(f, " }\n  }\n  geometry IndexedFaceSet {\n    solid TRUE\n    ccw TRUE\n"
+               "    coord Coordinate {\n      point [\n");
+    for (size_t i = 0; i < m->nverts; i++)
+        fprintf(f, "        %.9g %.9g %.9g,\n", m->v[3 * i], m->v[3 * i + 1], m->v[3 * i + 2]);
+    fprintf(f, "      ]\n    }\n");
+    if (m->n) {
+        fprintf(f, "    normalPerVertex TRUE\n    normal Normal {\n      vector [\n");
+        for (size_t i = 0; i < m->nverts; i++)
+            fprintf(f, "        %.6g %.6g %.6g,\n", m->n[3 * i], m->n[3 * i + 1], m->n[3 * i + 2]);
+        fprintf(f, "      ]\n    }\n");
+    }
+    if (rgb) {
+        fprintf(f, "    colorPerVertex TRUE\n    color Color {\n      color [\n");
+        for (size_t i = 0; i < m->nverts; i++)
+            fprintf(f, "        %.6g %.6g %.6g,\n", rgb[3 * i] / 255.0, rgb[3 * i + 1] / 255.0,
+                    rgb[3 * i + 2] / 255.0);
+        fprintf(f, "      ]\n    }\n");
+    }
+    fprintf(f, "    coordIndex [\n");
+    for (size_t t = 0; t < m->ntris; t++)
+        fprintf(f, "      %u, %u, %u, -1,\n", m->tri[3 * t], m->tri[3 * t + 1], m->tri[3 * t + 2]);
+    fprintf(f, "    ]\n  }\n}\n");
+    return ferror(f) ? -1 : 0;
+}
+
 static int write_off(FILE *f, const frep_mesh *m)
 {
     fprintf(f, "OFF\n%zu %zu 0\n", m->nverts, m->ntris);
@@ -193,11 +235,18 @@ static int write_off(FILE *f, const frep_mesh *m)
 
 int meshio_write(FILE *f, const frep_mesh *m, meshio_format fmt, int ascii)
 {
+    return meshio_write_colored(f, m, NULL, fmt, ascii);
+}
+
+int meshio_write_colored(FILE *f, const frep_mesh *m, const uint8_t *rgb, meshio_format fmt,
+                         int ascii)
+{
     switch (fmt) {
     case MESHIO_STL: return write_stl(f, m, ascii);
     case MESHIO_OBJ: return write_obj(f, m);
-    case MESHIO_PLY: return write_ply(f, m, ascii);
+    case MESHIO_PLY: return write_ply(f, m, rgb, ascii);
     case MESHIO_OFF: return write_off(f, m);
+    case MESHIO_WRL: return write_wrl(f, m, rgb);
     case MESHIO_UNKNOWN: break;
     }
     return -1;
@@ -730,6 +779,9 @@ int meshio_parse(const char *name, const char *data, size_t len, meshio_format f
     case MESHIO_OBJ: rc = parse_obj(name, data, len, &b, err); break;
     case MESHIO_STL: rc = parse_stl(name, data, len, &b, err); break;
     case MESHIO_PLY: rc = parse_ply(name, data, len, &b, err); break;
+    case MESHIO_WRL:
+        frep_error_set(err, FREP_EINPUT, "%s: VRML files are written, not read", name);
+        break;
     case MESHIO_UNKNOWN: break;
     }
     if (rc == 0 && m->ntris == 0) {

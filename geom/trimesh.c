@@ -20,6 +20,14 @@ void mesh_free(frep_mesh *m)
     memset(m, 0, sizeof *m);
 }
 
+uint8_t *mesh_colors(const frep_mesh *m, mesh_color_fn fn, void *user)
+{
+    uint8_t *rgb = frep_malloc(m->nverts ? 3 * m->nverts : 1);
+    if (!rgb) return NULL;
+    for (size_t i = 0; i < m->nverts; i++) fn(user, &m->v[3 * i], &rgb[3 * i]);
+    return rgb;
+}
+
 /* ---- validation ------------------------------------------------------------------- */
 
 typedef struct dedge {

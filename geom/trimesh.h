@@ -19,6 +19,13 @@ typedef struct frep_mesh {
 
 void mesh_free(frep_mesh *m);
 
+/* A vertex colour from its position (what `frep mesh` asks of a colour source). */
+typedef void (*mesh_color_fn)(void *user, const double p[3], uint8_t rgb[3]);
+/* Every vertex's colour from fn: 3 bytes (red, green, blue) a vertex, in vertex order,
+ * for meshio_write_colored().  Returns the array (free with frep_free) or NULL when
+ * out of memory. */
+uint8_t *mesh_colors(const frep_mesh *m, mesh_color_fn fn, void *user);
+
 /* Checks used by the tests and `frep mesh --check`: counts of edges not shared by
  * exactly two triangles, of edges used twice in the same direction (orientation
  * flips), of triangles with (near) zero area and of non-finite coordinates, and of

@@ -26,7 +26,8 @@ typedef struct dist_run {
 static int on_cap(const dist_run *d, const double *p)
 {
     for (int k = 0; k < 3; k++) {
-        double h = (d->o->box[k + 3] - d->o->box[k]) / d->o->grid, s = DIST_CAP_SLACK * h;
+        double h = (d->o->box[k + 3] - d->o->box[k]) / mesh_options_cells(d->o, k);
+        double s = DIST_CAP_SLACK * h;
         if (p[k] <= d->o->box[k] + s || p[k] >= d->o->box[k + 3] - s) return 1;
     }
     return 0;
@@ -53,7 +54,8 @@ int mesh_surface_distance(const mesh_field *f, const mesh_options *o, const frep
 {
     memset(r, 0, sizeof *r);
     dist_run d = { .o = o, .tol = tol, .r = r, .cell = INFINITY };
-    for (int k = 0; k < 3; k++) d.cell = fmin(d.cell, (o->box[k + 3] - o->box[k]) / o->grid);
+    for (int k = 0; k < 3; k++)
+        d.cell = fmin(d.cell, (o->box[k + 3] - o->box[k]) / mesh_options_cells(o, k));
     void *ts = f->thread_new(f->ctx);
     if (!ts) return frep_error_nomem(e);
     double x[DIST_BATCH], y[DIST_BATCH], z[DIST_BATCH], fv[DIST_BATCH];

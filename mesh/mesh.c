@@ -323,13 +323,9 @@ static int corner_index(int i, int j, int k)
 }
 
 /* World coordinate of padded corner index P along axis c. */
-static double corner_coord(const mesher *M, int c, long P)
-{
-    if (P - 1 == M->g) return M->o->box[c + 3];
-    return M->o->box[c] + (double)(P - 1) * M->h[c];
-}
+static double corner_coord(const mesher *M, int c, long P) { return mesh_coord(M, c, P); }
 
-static int corner_is_real(const mesher *M, long P) { return P >= 1 && P <= M->G - 1; }
+static int corner_is_real(const mesher *M, int c, long P) { return P >= 1 && P <= M->G[c] - 1; }
 
 /* A field callback's status as the block's: FREP_EINPUT when it failed. */
 static int field_status(int rc) { return rc != 0 ? FREP_EINPUT : 0; }
@@ -356,8 +352,8 @@ static int block_focus(block_ctx *c)
     if (!c->focused) return 0;
     for (int k = 0; k < 3; k++) {
         double slack = MESH_FOCUS_SLACK * M->h[k];
-        c->bb[k] = M->o->box[k] + (double)(c->base[k] - 1) * M->h[k] - slack;
-        c->bb[k + 3] = M->o->box[k] + (double)(c->base[k] + MESH_BLOCK - 1) * M->h[k] + slack;
+        c->bb[k] = mesh_coord(M, k, c->base[k]) - slack;
+        c->bb[k + 3] = mesh_coord(M, k, (long)c->base[k] + MESH_BLOCK) + slack;
     }
     return field_status(c->f->focus(c->f->ctx, c->ts, c->bb, &c->sign_tol));
 }
@@ -369,7 +365,7 @@ static void corner_grid(block_ctx *c)
     for (int k = 0; k < 3; k++)
         for (int q = 0; q <= MESH_BLOCK; q++) {
             c->cc[k][q] = corner_coord(c->M, k, c->base[k] + q);
-            c->creal[k][q] = corner_is_real(c->M, c->base[k] + q);
+            c->creal[k][q] = corner_is_real(c->M, k, c->base[k] + q);
         }
 }
 
@@ -758,7 +754,7 @@ static void cell_components(block_ctx *c, const int L[3])
     int i = L[0], j = L[1], k = L[2];
     int cell = mesh_cell_index(i, j, k);
     B->vbase[cell] = MESH_NO_VERTEX;
-    if (c->base[0] + i >= M->G || c->base[1] + j >= M->G || c->base[2] + k >= M->G) {
+    if (c->base[0] + i >= M->G[0] || c->base[1] + j >= M->G[1] || c->base[2] + k >= M->G[2]) {
         B->cs[cell] = 0;
         return;
     }

@@ -59,6 +59,8 @@ void mesh_field_program_errors(const mesh_field *f, frep_runtime_error *e);
 typedef struct mesh_options {
     double box[6];      /* x0, y0, z0, x1, y1, z1 */
     int grid;           /* cells per axis (1..MESH_MAX_GRID) */
+    int grid_axes[3];   /* cells along x, y, z, each 1..MESH_MAX_GRID (HyperFun's
+                           -g NX,NY,NZ); 0: grid */
     double iso;         /* surface level: inside where f >= iso */
     int nthreads;       /* <= 0: OpenMP's default */
     /* Called from one thread with the fraction done (0..1); may be NULL. */
@@ -67,6 +69,11 @@ typedef struct mesh_options {
 } mesh_options;
 
 void mesh_options_init(mesh_options *o);   /* box [-10,10]^3, grid 30, iso 0 */
+/* The cells along axis c (0..2): grid_axes[c], or grid when that is 0. */
+static inline int mesh_options_cells(const mesh_options *o, int c)
+{
+    return o->grid_axes[c] > 0 ? o->grid_axes[c] : o->grid;
+}
 
 /* What happened, for the summary line and the tests. */
 typedef struct mesh_stats {

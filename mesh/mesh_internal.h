@@ -14,6 +14,7 @@
 #include "err.h"
 #include "mesh.h"
 #include "threads.h"
+#include "util.h"
 
 /* Cells per block edge: 9^3 corner evaluations per call amortize the evaluator's
  * per-call cost, while blocks stay small enough to follow the surface. */
@@ -84,10 +85,11 @@ typedef struct mesher {
     const mesh_field *f;
     const mesh_options *o;
     cell_table table;
-    int g;                    /* cells per axis of the box */
-    int G;                    /* padded cells per axis: g + 2 */
-    int nb;                   /* blocks per axis */
-    double h[3];
+    int g[3];                 /* cells along each axis of the box */
+    int G[3];                 /* padded cells along each axis: g + 2 */
+    int nb[3];                /* blocks along each axis */
+    int nbk;                  /* the largest nb: the stride of block keys */
+    double h[3];              /* cell size per axis (tolerances; corners: mesh_coord) */
     int nthreads;
     void **ts;                /* per-thread field state */
     mwork **works;            /* per-thread block buffers */
@@ -95,6 +97,13 @@ typedef struct mesher {
     size_t nblocks, capblocks;
     size_t bytes;
 } mesher;
+
+/* World coordinate of padded corner index P along axis c: grid point P - 1 of the
+ * box's g cells (frep_grid_coord, the end points exact; P = 0 and G extrapolate). */
+static inline double mesh_coord(const mesher *M, int c, long P)
+{
+    return frep_grid_coord(M->o->box[c], M->o->box[c + 3], P - 1, M->g[c]);
+}
 
 /* ---- the stages (each file's header says more) ------------------------------------ */
 

@@ -21,7 +21,7 @@
 
 uint64_t mesh_block_key(const mesher *M, long bx, long by, long bz)
 {
-    return ((uint64_t)bz * (uint64_t)M->nb + (uint64_t)by) * (uint64_t)M->nb + (uint64_t)bx;
+    return ((uint64_t)bz * (uint64_t)M->nbk + (uint64_t)by) * (uint64_t)M->nbk + (uint64_t)bx;
 }
 
 /* The block with this key among the first n (sorted) blocks, or NULL. */
@@ -102,10 +102,10 @@ static void node_box(const mesher *M, const onode *nd, double box[6], int *pad)
     *pad = 0;
     for (int c = 0; c < 3; c++) {
         c1[c] = c0[c] + (long)nd->s * MESH_BLOCK;
-        if (c1[c] > M->G) c1[c] = M->G;
-        if (c0[c] == 0 || c1[c] == M->G) *pad = 1;
-        box[c] = M->o->box[c] + (double)(c0[c] - 1) * M->h[c];
-        box[c + 3] = M->o->box[c] + (double)(c1[c] - 1) * M->h[c];
+        if (c1[c] > M->G[c]) c1[c] = M->G[c];
+        if (c0[c] == 0 || c1[c] == M->G[c]) *pad = 1;
+        box[c] = mesh_coord(M, c, c0[c]);
+        box[c + 3] = mesh_coord(M, c, c1[c]);
     }
 }
 
@@ -152,7 +152,7 @@ static int level_split(mesher *M, const olevel *cur, const uint8_t *keep, olevel
         for (int c = 0; c < 8; c++) {
             onode ch = { nd->x + (c & 1) * hs, nd->y + ((c >> 1) & 1) * hs,
                          nd->z + ((c >> 2) & 1) * hs, hs };
-            if (ch.x >= M->nb || ch.y >= M->nb || ch.z >= M->nb) continue;
+            if (ch.x >= M->nb[0] || ch.y >= M->nb[1] || ch.z >= M->nb[2]) continue;
             if (level_push(next, ch) != 0) return -1;
         }
     }
@@ -176,7 +176,7 @@ static int level_step(mesher *M, mesh_stats *st, const olevel *cur, olevel *next
 int mesh_find_blocks(mesher *M, mesh_stats *st, frep_error *e)
 {
     int S = 1;
-    while (S < M->nb) S *= 2;
+    while (S < M->nbk) S *= 2;
     olevel cur = { NULL, 0, 0 }, next = { NULL, 0, 0 };
     onode root = { 0, 0, 0, S };
     int rc = level_push(&cur, root);
@@ -215,7 +215,7 @@ int mesh_add_needed_blocks(mesher *M, size_t first, size_t old)
             if (!(B->need & (1u << bit))) continue;
             long nx = B->b[0] + bit % 3 - 1, ny = B->b[1] + (bit / 3) % 3 - 1,
                  nz = B->b[2] + bit / 9 - 1;
-            if (nx < 0 || ny < 0 || nz < 0 || nx >= M->nb || ny >= M->nb || nz >= M->nb)
+            if (nx < 0 || ny < 0 || nz < 0 || nx >= M->nb[0] || ny >= M->nb[1] || nz >= M->nb[2])
                 continue;
             if (!block_missing(M, old, mesh_block_key(M, nx, ny, nz))) continue;
             if (mesh_block_add(M, nx, ny, nz) != 0) return -1;

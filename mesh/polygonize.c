@@ -40,9 +40,12 @@ void mesh_options_init(mesh_options *o)
  * iso level. */
 static int check_options(const mesh_options *o, frep_error *e)
 {
-    if (o->grid < 1 || o->grid > MESH_MAX_GRID)
-        return frep_error_set(e, FREP_EINPUT, "grid of %d cells per axis is outside 1..%d",
-                              o->grid, MESH_MAX_GRID);
+    for (int c = 0; c < 3; c++) {
+        int g = mesh_options_cells(o, c);
+        if (g < 1 || g > MESH_MAX_GRID)
+            return frep_error_set(e, FREP_EINPUT, "grid of %d cells along %c is outside 1..%d", g,
+                                  "xyz"[c], MESH_MAX_GRID);
+    }
     for (int c = 0; c < 3; c++) {
         if (!isfinite(o->box[c]) || !isfinite(o->box[c + 3]) || !(o->box[c + 3] > o->box[c]))
             return frep_error_set(e, FREP_EINPUT, "empty or invalid box: %c from %g to %g",
@@ -59,12 +62,16 @@ static int mesher_init(mesher *M, const mesh_field *f, const mesh_options *o, me
     M->f = f;
     M->o = o;
     mesh_cell_table_build(&M->table);
-    M->g = o->grid;
-    M->G = o->grid + 2;
-    M->nb = (M->G + MESH_BLOCK - 1) / MESH_BLOCK;
-    for (int c = 0; c < 3; c++) M->h[c] = (o->box[c + 3] - o->box[c]) / o->grid;
+    M->nbk = 0;
+    for (int c = 0; c < 3; c++) {
+        M->g[c] = mesh_options_cells(o, c);
+        M->G[c] = M->g[c] + 2;
+        M->nb[c] = (M->G[c] + MESH_BLOCK - 1) / MESH_BLOCK;
+        if (M->nb[c] > M->nbk) M->nbk = M->nb[c];
+        M->h[c] = (o->box[c + 3] - o->box[c]) / M->g[c];
+    }
     M->nthreads = frep_threads(o->nthreads);
-    st->blocks_total = (size_t)M->nb * (size_t)M->nb * (size_t)M->nb;
+    st->blocks_total = (size_t)M->nb[0] * (size_t)M->nb[1] * (size_t)M->nb[2];
     M->ts = frep_calloc((size_t)M->nthreads, sizeof *M->ts);
     M->works = frep_calloc((size_t)M->nthreads, sizeof *M->works);
     if (!M->ts || !M->works) return -1;

@@ -23,7 +23,7 @@
  * when the block was not processed. */
 static mblock *cell_block(const mesher *M, const long C[3], int *cell)
 {
-    if (C[0] < 0 || C[1] < 0 || C[2] < 0 || C[0] >= M->G || C[1] >= M->G || C[2] >= M->G)
+    if (C[0] < 0 || C[1] < 0 || C[2] < 0 || C[0] >= M->G[0] || C[1] >= M->G[1] || C[2] >= M->G[2])
         return NULL;
     mblock *B = mesh_block_find(M, mesh_block_key(M, C[0] / MESH_BLOCK, C[1] / MESH_BLOCK,
                                                   C[2] / MESH_BLOCK));
@@ -86,7 +86,7 @@ static void nbhood_init(const mesher *M, mblock *B, nbhood *h)
 
 static mblock *cell_block_nb(const mesher *M, const nbhood *h, const long C[3], int *cell)
 {
-    if (C[0] < 0 || C[1] < 0 || C[2] < 0 || C[0] >= M->G || C[1] >= M->G || C[2] >= M->G)
+    if (C[0] < 0 || C[1] < 0 || C[2] < 0 || C[0] >= M->G[0] || C[1] >= M->G[1] || C[2] >= M->G[2])
         return NULL;
     long d[3];
     for (int c = 0; c < 3; c++) {

@@ -265,7 +265,8 @@ static int project(const mesh_field *f, const mesh_options *mo, frep_cloud *c, s
                    frep_error *e)
 {
     double cell = 0;
-    for (int k = 0; k < 3; k++) cell = fmax(cell, (mo->box[k + 3] - mo->box[k]) / mo->grid);
+    for (int k = 0; k < 3; k++)
+        cell = fmax(cell, (mo->box[k + 3] - mo->box[k]) / mesh_options_cells(mo, k));
     long nb = (long)((nsurf + SAMPLE_BATCH - 1) / SAMPLE_BATCH);
     int nomem = 0, bad = 0;
     int nthreads = frep_threads(mo->nthreads);

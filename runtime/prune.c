@@ -16,6 +16,7 @@
 #include <string.h>
 
 #include "threads.h"
+#include "util.h"
 #include "vm_internal.h"
 
 #define PR_NONE UINT32_MAX
@@ -602,7 +603,7 @@ typedef struct grid_job {
     const frep_program *p;
     const prune_plan *pl;
     long n, k0, nk, ntx;
-    const double *c[3];      /* the grid's coordinates per axis: lo + step * i */
+    const double *c[3];      /* the grid's coordinates per axis: frep_grid_coord */
     double *f;               /* the values, or NULL */
     prune_grid_stats *tst;   /* per-tile summaries, or NULL */
 } grid_job;
@@ -761,7 +762,7 @@ int prune_eval_grid_planes(const frep_program *p, long n, const double box[6], l
     return prune_eval_grid_summary(p, n, box, k0, nk, prune, nthreads, f, NULL, err, insns);
 }
 
-/* The grid's coordinates per axis, lo + step * i, into g->c (one allocation, returned
+/* The grid's coordinates per axis, lo + (hi - lo) i / (n - 1), into g->c (one allocation, returned
  * for frep_free; NULL when out of memory). */
 static double *grid_coords(grid_job *g, const double box[6])
 {
@@ -769,8 +770,8 @@ static double *grid_coords(grid_job *g, const double box[6])
     double *coord = frep_malloc(n * 3 * sizeof *coord);
     if (!coord) return NULL;
     for (int c = 0; c < 3; c++) {
-        double step = (box[c + 3] - box[c]) / (double)(g->n - 1);
-        for (long i = 0; i < g->n; i++) coord[(size_t)c * n + (size_t)i] = box[c] + step * (double)i;
+        for (long i = 0; i < g->n; i++)
+            coord[(size_t)c * n + (size_t)i] = frep_grid_coord(box[c], box[c + 3], i, g->n - 1);
         g->c[c] = coord + (size_t)c * n;
     }
     return coord;

@@ -34,6 +34,17 @@ double frep_ply_decode(const unsigned char *p, frep_ply_type t, int big_endian);
 /* Seconds on a monotonic clock (differences are wall time, immune to clock changes). */
 double frep_now_seconds(void);
 
+/* Coordinate i of the grid of n cells from lo to hi (points i = 0..n; eval --grid,
+ * the polygonizer and so sampling lay their grids with it): lo + (hi - lo) i / n, the
+ * formula HyperFun's and libfive's grids use, with both end points exact (i = n gives
+ * hi itself, which lo + (hi - lo) need not round to).  i outside 0..n extrapolates (the
+ * polygonizer's padding cells). */
+static inline double frep_grid_coord(double lo, double hi, long i, long n)
+{
+    if (i == n) return hi;
+    return lo + (hi - lo) * (double)i / (double)n;
+}
+
 /* pi to more digits than a double holds (C11 has no M_PI). */
 #define FREP_PI 3.14159265358979323846
 

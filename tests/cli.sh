@@ -87,6 +87,69 @@ usage "frep evolve: --generations: expected an integer in 1..1000000000, got '1e
 usage "frep render: --size: expected WxH with sides 1..16384, got '0x3'" render "$M" --size 0x3 -o "$tmp/x.png"
 usage "frep check: unknown option '-m'" check -m x "$M"
 
+# hfp's options (HyperFun's polygonizer): translated, or refused naming what to use.
+B="-b 1 -g 8 -q"
+usage "frep mesh: -o my_model: frep's -o is the output file; my_model is a model in $M: did you mean -m my_model?" \
+    mesh "$M" -o my_model
+usage "frep mesh: hfp's -cl is the wireframe colour of its viewer; frep mesh draws nothing (see the mesh with frep view)" \
+    mesh "$M" -cl 255,0,0 -stl "$tmp/x.stl"
+usage "frep mesh: hfp's -pov output (POV-Ray mesh) is not a format frep writes: use -o FILE.stl, .obj, .ply, .off or .wrl" \
+    mesh "$M" -pov "$tmp/x.pov"
+usage "frep mesh: hfp's -stl needs a file name" mesh "$M" -stl
+usage "frep mesh: -x X,Z,Y: frep meshes x[1], x[2], x[3] as x, y, z and reads x[4..] as 0; other mappings are not supported" \
+    mesh "$M" -x X,Z,Y -o "$tmp/x.stl"
+usage "frep mesh: hfp's -d sets its viewer's display mode; frep mesh has no viewer (frep view shows a mesh)" \
+    mesh "$M" -d 5 -o "$tmp/x.stl"
+usage "frep mesh: -o $tmp/y.stl: the output is already '$tmp/x.stl'" mesh "$M" -stl "$tmp/x.stl" -o "$tmp/y.stl"
+usage "frep mesh: --color: expected V or R,G,B with each in 0..255, got '255,0'" mesh "$M" -cf 255,0 -o "$tmp/x.ply"
+usage "frep mesh: --color: expected V or R,G,B with each in 0..255, got '256'" mesh "$M" --color 256 -o "$tmp/x.ply"
+usage "frep mesh: --color: STL files carry no colours (use .ply or .wrl)" mesh "$M" --color 9 -o "$tmp/x.stl"
+"$FREP" mesh "$M" $B -stl "$tmp/a.stl" && head -c 5 "$tmp/a.stl" | grep -q '^solid'
+report $? "frep mesh -stl FILE writes text STL to FILE"
+"$FREP" mesh "$M" $B -stlb "$tmp/b.stl" && ! head -c 5 "$tmp/b.stl" | grep -q '^solid' &&
+    [ "$(wc -c < "$tmp/b.stl")" -gt 84 ]
+report $? "frep mesh -stlb FILE writes binary STL to FILE"
+"$FREP" mesh "$M" $B -wrl "$tmp/c.wrl" && head -n 1 "$tmp/c.wrl" | grep -q '^#VRML V2.0 utf8$' &&
+    grep -q 'IndexedFaceSet' "$tmp/c.wrl" && grep -q 'diffuseColor 0.196078 0.784314 0.313725' "$tmp/c.wrl"
+report $? "frep mesh -wrl FILE writes VRML 2.0 with hfp's default face colour"
+"$FREP" mesh "$M" $B -o "$tmp/c2.wrl" && cmp -s "$tmp/c.wrl" "$tmp/c2.wrl"
+report $? "frep mesh -o FILE.wrl is -wrl FILE"
+# the VRML faces are the OFF faces, the points the OFF points (same mesh, same order)
+"$FREP" mesh "$M" $B -o "$tmp/c.off" &&
+    awk 'NR > 2 && NF == 4 { print $2 ", " $3 ", " $4 ", -1," }' "$tmp/c.off" > "$tmp/off.f" &&
+    awk '/coordIndex/ { on = 1; next } on && /\]/ { on = 0 } on { $1 = $1; print }' "$tmp/c.wrl" > "$tmp/wrl.f" &&
+    [ -s "$tmp/off.f" ] && cmp -s "$tmp/off.f" "$tmp/wrl.f"
+report $? "frep mesh -wrl: coordIndex lists the mesh's triangles"
+"$FREP" mesh "$M" $B -cf 255,16,0 --ascii -o "$tmp/d.ply" &&
+    grep -q '^property uchar red$' "$tmp/d.ply" &&
+    awk '/^end_header/ { on = 1; next } on && NF == 9 { n++; if ($7 != 255 || $8 != 16 || $9 != 0) bad = 1 }
+         END { exit !(n > 0 && !bad) }' "$tmp/d.ply"
+report $? "frep mesh -cf 255,16,0 colours every PLY vertex"
+"$FREP" mesh "$M" $B --color 51 -o "$tmp/e.wrl" && grep -q 'colorPerVertex TRUE' "$tmp/e.wrl" &&
+    ! grep -q diffuseColor "$tmp/e.wrl" && grep -q '^        0.2 0.2 0.2,$' "$tmp/e.wrl"
+report $? "frep mesh --color 51 gives the VRML vertices grey 0.2"
+"$FREP" mesh "$M" -b 1 -g 8 -t -x X,Y,Z -i 0.01 -o "$tmp/f.stl" > "$tmp/out" &&
+    "$FREP" mesh "$M" -b 1 -g 8 --iso 0.01 -o "$tmp/g.stl" > /dev/null && cmp -s "$tmp/f.stl" "$tmp/g.stl" &&
+    grep -q 's$' "$tmp/out"
+report $? "hfp's -t (time report), -x X,Y,Z and -i V are accepted; -i is --iso"
+# hfp's per-axis grid: a unit cube in -b 1 -g 4,4,8 (cells 0.5 x 0.5 x 0.25) is meshed
+# closed, and its face vertices sit at the cells' centres (to 1e-3; edges a 1e-4 cell
+# outside): x and y in {+-0.25, +-0.5},
+# z in {+-0.125, +-0.375, +-0.5}.
+printf 'my_model(x[3], a[1])\n{\n  my_model = min(min(0.5 - abs(x[1]), 0.5 - abs(x[2])), 0.5 - abs(x[3]));\n}\n' \
+    > "$tmp/cube.hf"
+"$FREP" mesh "$tmp/cube.hf" -b 1 -g 4,4,8 --check -o "$tmp/h.off" > "$tmp/out" &&
+    grep -q ', grid 4,4,8, ' "$tmp/out" &&
+    [ "$(awk 'NR > 2 && NF == 3 { printf "%.3f\n", $1 }' "$tmp/h.off" | sort -u | tr '\n' ' ')" = \
+      "-0.250 -0.500 0.250 0.500 " ] &&
+    [ "$(awk 'NR > 2 && NF == 3 { printf "%.3f\n", $3 }' "$tmp/h.off" | sort -u | tr '\n' ' ')" = \
+      "-0.125 -0.375 -0.500 0.125 0.375 0.500 " ]
+report $? "frep mesh -g 4,4,8: a closed cube, cells of 0.5 along x and y and 0.25 along z"
+"$FREP" mesh "$tmp/cube.hf" -b 1 -g 4,4,4 -q -o "$tmp/i.off" && "$FREP" mesh "$tmp/cube.hf" -b 1 -g 4 -q -o "$tmp/j.off" &&
+    cmp -s "$tmp/i.off" "$tmp/j.off" && ! cmp -s "$tmp/h.off" "$tmp/i.off"
+report $? "frep mesh -g 4,4,4 is -g 4; -g 4,4,8 differs"
+usage "frep mesh: -g 4,4: expected N or NX,NY,NZ with each in 1..2048" mesh "$M" -g 4,4 -o "$tmp/x.stl"
+
 # The man page: made by make from the help texts, every subcommand and option in it.
 man="$builddir/doc/frep.1"
 [ -s "$man" ] && head -n 1 "$man" | grep -q '^\.TH FREP 1 '

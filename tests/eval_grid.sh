@@ -44,6 +44,21 @@ vol=$(sed -n 's/^volume *\([0-9.e+-]*\) .*/\1/p' "$T/sphere")
 t "sphere volume estimate $vol is 6.807 within 1.5%" \
   awk -v v="$vol" 'BEGIN { exit !(v > 6.8066 * 0.985 && v < 6.8066 * 1.015) }'
 
+# The grid's coordinates are lo + (hi - lo) i/(N - 1), end points exact: planes at grid
+# coordinates.  At --grid 193 -b 1.6, x_i = -1.6 + 3.2 i/192 is -0.9 at i = 42 and 0.9 at
+# i = 150 (exact rationals), so x + 0.9 >= 0 holds for i = 42..192 (151 of the 193
+# values) and 0.9 - y >= 0 for i = 0..150 (151): 151 x 193^2 = 5624599 points inside
+# each.  (lo + step i puts x_42 at -0.9000000000000001: 150 x 193^2.)
+printf 'my_model(x[3], a[1])\n{\n  my_model = x[1] + 0.9;\n}\n' > "$T/px.hf"
+printf 'my_model(x[3], a[1])\n{\n  my_model = 0.9 - x[2];\n}\n' > "$T/py.hf"
+printf 'my_model(x[3], a[1])\n{\n  my_model = x[3] - 1.6;\n}\n' > "$T/pz.hf"
+for p in px py; do
+  "$FREP" eval "$T/$p.hf" --grid 193 -b 1.6 > "$T/$p.out"
+  t "plane $p at a grid coordinate: 151 x 193^2 = 5624599 inside" grep -q '^inside    5624599 ' "$T/$p.out"
+done
+"$FREP" eval "$T/pz.hf" --grid 193 -b 1.6 > "$T/pz.out"
+t "plane z = 1.6 at the upper end point: one layer, 193^2 = 37249 inside" grep -q '^inside    37249 ' "$T/pz.out"
+
 # Domain errors: the same count and position with and without pruning.
 cat > "$T/err.hf" <<'HF'
 my_model(x[3], a[1])

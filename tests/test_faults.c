@@ -401,6 +401,51 @@ static int case_meshio(const fixture *fx, fault_out *o)
     return 0;
 }
 
+/* A colour from the position (for case_colors). */
+static void side_color(void *user, const double p[3], uint8_t rgb[3])
+{
+    (void)user;
+    rgb[0] = p[0] > 0 ? 200 : 50;
+    rgb[1] = 100;
+    rgb[2] = p[2] > 0 ? 10 : 20;
+}
+
+/* Vertex colours (mesh_colors) into coloured PLY and VRML, the PLY read back. */
+static int case_colors(const fixture *fx, fault_out *o)
+{
+    uint8_t *rgb = mesh_colors(&fx->mesh, side_color, NULL);
+    if (!rgb) {
+        set_msg(o, "out of memory");
+        return -1;
+    }
+    int rc = 0;
+    for (int k = 0; k < 2 && !rc; k++) {
+        mem_out mo;
+        if (!mem_open(&mo)) {
+            frep_free(rgb);
+            return -1;
+        }
+        rc = meshio_write_colored(mo.f, &fx->mesh, rgb, k ? MESHIO_WRL : MESHIO_PLY, 0);
+        if (fclose(mo.f)) rc = -1;
+        frep_mesh m;
+        frep_error err;
+        frep_error_init(&err);
+        if (!rc && k == 0) {
+            rc = meshio_parse("m", mo.buf, mo.len, MESHIO_PLY, &m, &err);
+            if (rc) set_msg(o, err.msg);
+            else {
+                digest_size(o, m.ntris);
+                mesh_free(&m);
+            }
+        }
+        digest_size(o, mo.len);
+        free(mo.buf);
+    }
+    digest_size(o, rgb[0]);
+    frep_free(rgb);
+    return rc;
+}
+
 /* meshio_read from a file. */
 static int case_meshio_read(const fixture *fx, fault_out *o)
 {
@@ -896,6 +941,7 @@ static const fault_case cases[] = {
     { "polygonize", case_polygonize, MSG_GIVEN, NULL },
     { "mesh_validate", case_mesh_validate, MSG_NONE, NULL },
     { "meshio", case_meshio, MSG_GIVEN, NULL },
+    { "colors", case_colors, MSG_GIVEN, NULL },
     { "meshio_read", case_meshio_read, MSG_GIVEN, NULL },
     { "cloud", case_cloud, MSG_GIVEN, NULL },
     { "cloud_read", case_cloud_read, MSG_GIVEN, NULL },
