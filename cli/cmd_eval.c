@@ -19,7 +19,7 @@
 static const char eval_usage[] =
     "usage: frep eval FILE.hf [--model NAME] [-a v1,v2,...] [--grad] [POINTS]\n"
     "       frep eval FILE.hf --grid N [-b BOX] [--no-prune] [--model NAME] [-a v1,...]\n\n"
-    "Evaluate a model. Without --model: my_model if the file has one, else its last model.\n\n"
+    "Evaluate a model. Without --model: my_model if the file has one, else its first model.\n\n"
     "Point mode reads points from POINTS (or standard input), one a line: the first\n"
     "three numbers of each line (further columns, e.g. normals, are ignored; blank lines\n"
     "and lines starting with # are skipped). It prints one line per point: the value,\n"

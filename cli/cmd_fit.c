@@ -228,7 +228,7 @@ static int parse_loss(const char *arg, void *dest, char *why, size_t whylen)
 static const cli_opt fit_opts[] = {
     { 'o', "output", "FILE", CLI_OPT_STRING, OFF(out), .help = "write the fitted template here" },
     { 0, "in-place", NULL, CLI_OPT_SET, OFF(in_place), .help = "overwrite TEMPLATE.hf itself" },
-    CLI_OPT_MODEL(fit_cmd, model, "the model to fit (default: my_model, else the last one)"),
+    CLI_OPT_MODEL(fit_cmd, model, "the model to fit (default: my_model, else the first one)"),
     { 0, "method", "M", CLI_OPT_CUSTOM, OFF(cfg.method), .parse = parse_method,
       .expect = "saqn, qn, sa or lm",
       .help = "saqn (annealing, then quasi-Newton; default), qn, sa, lm" },

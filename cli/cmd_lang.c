@@ -18,6 +18,7 @@ typedef struct lang_cmd {
     const char *file;
     char *src;               /* the file's text (free()) */
     size_t len;
+    int strict;              /* check: HyperFun's rejections are errors */
 } lang_cmd;
 
 static const cli_opt dis_opts[] = {
@@ -36,12 +37,18 @@ static int lang_input(const cli_opt_spec *spec, int argc, char **argv, lang_cmd 
     return CLI_GO_ON;
 }
 
+static const cli_opt check_opts[] = {
+    { 0, "strict", NULL, CLI_OPT_SET, offsetof(lang_cmd, strict),
+      .help = "what the reference HyperFun interpreter rejects is an error, not a\n"
+              "warning 'not HyperFun: ...' (doc/language.md)" },
+};
+
 static const cli_opt_spec check_spec = { "check",
-    "usage: frep check FILE.hf\n\n"
+    "usage: frep check [--strict] FILE.hf\n\n"
     "Parse and check every model of FILE.hf and report every problem found, as\n"
     "file:line:col: error: message, with the source line and a caret.\n"
     "Exit status: 0 when the file has no errors (warnings allowed), 1 otherwise.\n",
-    NULL, 0, 0 };
+    check_opts, sizeof check_opts / sizeof check_opts[0], 0 };
 
 /* Compile every model of the file: each reports its own problems. */
 static int check_models(const lang_cmd *c, cli_diag_ctx *dc)
@@ -51,6 +58,7 @@ static int check_models(const lang_cmd *c, cli_diag_ctx *dc)
     if (!models) return CLI_FAIL;
     frep_compile_options o;
     frep_compile_options_init(&o);
+    o.strict = c->strict;
     int bad = 0;
     for (size_t i = 0; i < nmodels; i++) {
         o.model = models[i];
@@ -109,7 +117,7 @@ static const cli_opt_spec dis_spec = { "dis",
     "usage: frep dis [--model NAME] FILE.hf\n\n"
     "Compile a model of FILE.hf and print its bytecode: one instruction a line\n"
     "with its operands and source position (see doc/architecture.md).\n"
-    "Without --model: my_model if present, else the last model of the file.\n",
+    "Without --model: my_model if present, else the first model of the file.\n",
     dis_opts, sizeof dis_opts / sizeof dis_opts[0], 0 };
 
 int cmd_dis(int argc, char **argv)

@@ -80,7 +80,7 @@ static const cli_opt render_opts[] = {
       .what = "a distance", .help = "point distance drawn red (default: from the data)" },
     { 0, "plain", NULL, CLI_OPT_SET, OFF(plain),
       .help = "do not colour the surface by its distance to the cloud" },
-    CLI_OPT_MODEL(render_cmd, mc.model, "the model (default: my_model, else the last one)"),
+    CLI_OPT_MODEL(render_cmd, mc.model, "the model (default: my_model, else the first one)"),
     CLI_OPT_PARAMS(render_cmd, mc.a, "values of the model's a[] array"),
     CLI_OPT_BOX(render_cmd, mc.box, "HyperFun's -b (default: the model's '-- @box', else 10)"),
     CLI_OPT_GRID(render_cmd, mc.grid, "128", "grid cells per axis of the mesh (default 128)"),

@@ -58,7 +58,7 @@ static const cli_opt sample_opts[] = {
     { 0, "outliers", "F", CLI_OPT_DOUBLE, OFF(so.outliers), .lo = 0, .hi = 1, .what = "a fraction",
       .help = "fraction F of the N points drawn uniformly in the box" },
     CLI_OPT_SEED(sample_cmd, so.seed, "random seed (default: from the clock; always printed)"),
-    CLI_OPT_MODEL(sample_cmd, mc.model, "the model (default: my_model, else the last one)"),
+    CLI_OPT_MODEL(sample_cmd, mc.model, "the model (default: my_model, else the first one)"),
     CLI_OPT_PARAMS(sample_cmd, mc.a, "values of the model's a[] array"),
     CLI_OPT_BOX(sample_cmd, mc.box, "HyperFun's -b (default: the model's '-- @box', else 10)"),
     CLI_OPT_GRID(sample_cmd, mc.grid, NULL, "grid of the sampling mesh (default: from N, 32..256)"),

@@ -84,7 +84,7 @@ static const cli_opt view_opts[] = {
     { 0, "scale", "D", CLI_OPT_DOUBLE, OFF(scale), .lo = 0, .hi = INFINITY, .open_lo = 1,
       .what = "a distance", .help = "point distance drawn red (default: from the data, the\n"
                                     "95th percentile rounded up to 1, 2 or 5 x 10^k)" },
-    CLI_OPT_MODEL(view_cmd, mc.model, "the model (default: my_model, else the last one)"),
+    CLI_OPT_MODEL(view_cmd, mc.model, "the model (default: my_model, else the first one)"),
     CLI_OPT_PARAMS(view_cmd, mc.a, "values of the model's a[] array"),
     CLI_OPT_BOX(view_cmd, mc.box, "HyperFun's -b (default: the model's '-- @box', else 10)"),
     CLI_OPT_GRID(view_cmd, mc.grid, "128", "grid cells per axis of the mesh (default 128)"),

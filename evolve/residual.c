@@ -106,12 +106,12 @@ static void quiet_diag(void *user, const frep_diag *d)
     (void)d;
 }
 
-/* The model frep_compile chose: the named one, else my_model, else the last. NULL
+/* The model frep_compile chose: the named one, else my_model, else the first. NULL
  * (err set) when the named one is missing. */
 static const ast_model *residual_model(const ast_file *af, const char *file,
                                        const char *model, frep_error *err)
 {
-    const ast_model *m = &af->models[af->nmodels - 1];
+    const ast_model *m = &af->models[0];
     for (uint32_t k = 0; k < af->nmodels; k++) {
         const char *nm = af->models[k].name;
         if (model ? name_eq(nm, strlen(nm), model) : name_eq(nm, strlen(nm), "my_model")) {

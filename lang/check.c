@@ -161,7 +161,11 @@ typedef struct checker {
     ck_array *arr;
     uint32_t narr;
     strmap vars;             /* scalars assigned so far (textual order) */
-    strmap later;            /* scalars assigned anywhere in the model */
+    strmap later;            /* scalars assigned anywhere in the model -> their index */
+    uint32_t nscalars;       /* entries of later */
+    uint8_t *must, *may;     /* by scalar index: assigned on every / on some path to
+                                the statement being checked (ck_flow_*) */
+    int strict;              /* extensions are errors (ck_ext) */
     const char **varnames;   /* for suggestions */
     uint32_t nvarnames, capvarnames;
 } checker;
@@ -195,6 +199,42 @@ static void ck_add_var(checker *c, const ast_node *n)
         c->capvarnames = ncap;
     }
     c->varnames[c->nvarnames++] = n->name;
+}
+
+/* A construct frep accepts and the reference interpreter rejects.  EXT_WARN: a
+ * warning that names it (constructs that are likely slips: x assigned, a short
+ * list, the model's value assigned early), an error with --strict.  EXT_STRICT:
+ * frep's deliberate, documented extensions (its own functions, expressions in
+ * lists, ...), which frep itself writes: reported only with --strict, as errors
+ * (doc/language.md, section What HyperFun rejects). */
+enum { EXT_WARN, EXT_STRICT };
+
+static void ck_ext(checker *c, int tier, ast_loc loc, const char *what)
+{
+    if (tier == EXT_STRICT && !c->strict) return;
+    diag_report(c->d, c->strict ? FREP_ERROR : FREP_WARNING, loc, loc_len(loc),
+                "not HyperFun: %s; will not run in the reference interpreter", what);
+}
+
+/* ck_ext with a name (or a number) in the description. */
+static void ck_ext_fmt(checker *c, int tier, ast_loc loc, const char *fmt, const char *a,
+                       const char *b)
+{
+    char what[640];
+    (void)snprintf(what, sizeof what, fmt, a ? a : "", b ? b : "");
+    ck_ext(c, tier, loc, what);
+}
+
+/* A name HyperFun's scanner cannot read as a new variable or array: one starting
+ * with '_' (its names start with a letter), or a reserved word of it (x, a, s are
+ * the tokens of the three parameter arrays, xor a keyword no rule uses). */
+static void ck_name(checker *c, ast_loc loc, const char *name, const char *key)
+{
+    if (name[0] == '_')
+        ck_ext_fmt(c, EXT_STRICT, loc, "the name '%s' starts with '_'%s", name, "");
+    else if (strcmp(key, "x") == 0 || strcmp(key, "a") == 0 || strcmp(key, "s") == 0 ||
+             strcmp(key, "xor") == 0)
+        ck_ext_fmt(c, EXT_STRICT, loc, "'%s' is a reserved word of HyperFun%s", name, "");
 }
 
 /* Suggestions: which kinds of names are candidates. */
@@ -241,7 +281,7 @@ static int ck_literal(const ast_node *n, double *v)
     return 0;
 }
 
-static void ck_expr(checker *c, const ast_node *n, int cond);
+static void ck_expr(checker *c, const ast_node *n, int where);
 
 static void ck_index(checker *c, const ast_node *n, const ck_array *arr, const ast_node *idx)
 {
@@ -290,6 +330,13 @@ static void ck_call_model(checker *c, const ast_node *n, const ast_model *m)
             (void)snprintf(b, sizeof b, "model '%s' needs %u for '%s'", m->name,
                            (unsigned)m->params[i].size, m->params[i].name);
             ck_error(c, arg->loc, "%s; %s", a, b, NULL);
+        } else if (i < m->nparams && arr->size > m->params[i].size) {
+            /* I_EXTERN_CALL's parser (int_parse_N.c) wants the sizes equal */
+            char a[200], b[200];
+            (void)snprintf(a, sizeof a, "'%s' of %u elements", arr->name, (unsigned)arr->size);
+            (void)snprintf(b, sizeof b, "'%s[%u]' of model '%s'", m->params[i].name,
+                           (unsigned)m->params[i].size, m->name);
+            ck_ext_fmt(c, EXT_STRICT, arg->loc, "passing %s for %s, a smaller array", a, b);
         }
     }
 }
@@ -330,7 +377,7 @@ static void ck_lib_arg(checker *c, const lib_fn *fn, uint32_t i, char kind,
         return;
     }
     const ck_array *arr = arg->kind == AST_VAR ? ck_array_find(c, arg->key) : NULL;
-    uint32_t need = kind == 'a' ? (i < 12 ? fn->sizes[i] : 0) : kind == 'v' ? 1 : 3;
+    uint32_t need = kind == 'a' ? (i < 12 ? fn->sizes[i] : 0) : kind == 'v' || kind == 'w' ? 1 : 3;
     if (!arr) {
         if (arg->kind == AST_VAR && !strmap_get(&c->vars, arg->key))
             ck_error(c, arg->loc, "%s must be an array; unknown array '%s'", what,
@@ -352,6 +399,9 @@ static void ck_call_lib(checker *c, const ast_node *n, const lib_fn *fn)
 {
     uint32_t min, i;
     int var;
+    if (lib_frep_only(fn))
+        ck_ext_fmt(c, EXT_STRICT, n->op_loc, "'%s' is a function of frep's own library%s",
+                   fn->name, "");
     (void)check_lib_kind(fn->args, 0, &min, &var);
     if (n->list.n < min || (!var && n->list.n > min)) {
         char a[200], b[64];
@@ -381,6 +431,11 @@ static void ck_call(checker *c, const ast_node *n)
     else ck_call_unknown(c, n);
 }
 
+/* Where an expression stands: a value (arithmetic), an if/while condition, or the
+ * operand of a construct already reported as misplaced, where nothing more is said
+ * about conditions (one error per mistake, not a cascade). */
+enum { CK_VALUE = 0, CK_COND = 1, CK_ANY = 2 };
+
 /* A value where a condition belongs. */
 static void ck_not_condition(checker *c, const ast_node *n)
 {
@@ -388,10 +443,27 @@ static void ck_not_condition(checker *c, const ast_node *n)
              "or 'and', 'or', 'not' of comparisons", NULL, NULL, NULL);
 }
 
-/* expr -> VAR: a scalar assigned before this point. */
+/* expr -> VAR: a scalar assigned before this point, on every path to it.  The
+ * reference interpreter stops with its Not_Initialized error where a variable is
+ * read before a value reached it (int_calc.c); frep would read 0, so a read that no
+ * assignment reaches is an error and one that only some paths reach a warning. */
 static void ck_var(checker *c, const ast_node *n)
 {
-    if (strmap_get(&c->vars, n->key)) return;
+    const uint32_t *vi;
+    if (strmap_get(&c->vars, n->key)) {
+        vi = strmap_get(&c->later, n->key);
+        if (!vi || !c->may || !c->must) return;
+        if (!c->may[*vi])
+            ck_error(c, n->loc, "variable '%s' is not assigned on any path to this use "
+                     "(it is assigned only in a branch that does not lead here)", n->name,
+                     NULL, NULL);
+        else if (!c->must[*vi])
+            diag_report(c->d, FREP_WARNING, n->loc, loc_len(n->loc),
+                        "variable '%s' may be used before it is assigned: some paths to "
+                        "this use do not assign it (frep reads 0 there, the reference "
+                        "interpreter stops with an error)", n->name);
+        return;
+    }
     if (ck_array_find(c, n->key))
         ck_error(c, n->loc, "array '%s' used as a number; index it ('%s[1]') or pass "
                  "it to a function", n->name, n->name, NULL);
@@ -417,55 +489,126 @@ static void ck_element(checker *c, const ast_node *n)
     ck_index(c, n, arr, n->a);
 }
 
+/* The operands' context: CK_ANY stays CK_ANY; otherwise `inner`. */
+static int ck_inner(int where, int inner)
+{
+    return where == CK_ANY ? CK_ANY : inner;
+}
+
 /* unary -> '-' expr | NOT expr: 'not' only in a condition, and of a condition. */
-static void ck_unary(checker *c, const ast_node *n, int cond)
+static void ck_unary(checker *c, const ast_node *n, int where)
 {
     if (is_not(n->op)) {
-        if (!cond)
+        if (where == CK_VALUE) {
             ck_error(c, n->op_loc, "'not' is only allowed in an if or while condition",
                      NULL, NULL, NULL);
-        ck_expr(c, n->a, 1);
+            where = CK_ANY;
+        }
+        ck_expr(c, n->a, ck_inner(where, CK_COND));
         return;
     }
-    if (cond) ck_not_condition(c, n);
-    ck_expr(c, n->a, 0);
+    if (where == CK_COND) {
+        ck_not_condition(c, n);
+        where = CK_ANY;
+    }
+    ck_expr(c, n->a, ck_inner(where, CK_VALUE));
+}
+
+static int is_truth(const ast_node *n)
+{
+    return (n->kind == AST_BINARY && (is_cmp(n->op) || is_logic(n->op))) ||
+           (n->kind == AST_UNARY && is_not(n->op));
+}
+
+/* cmp -> expr CMP expr in a condition, where an operand may itself be a comparison
+ * (or and/or/not): `-1 <= x[1] < 0.5`.  The reference interpreter's HF_For_Compare
+ * (int_parse_N.c) reads comparisons left to right, each giving 1 or 0, so this is
+ * `(-1 <= x[1]) < 0.5`: the truth value compared with 0.5, not a range test.  frep
+ * computes the same and says so. */
+static void ck_compare_operand(checker *c, const ast_node *n, const ast_node *opnd)
+{
+    if (!is_truth(opnd)) {
+        ck_expr(c, opnd, CK_VALUE);
+        return;
+    }
+    char hint[96] = "";
+    if (opnd == n->a && is_cmp(opnd->op))
+        (void)snprintf(hint, sizeof hint, "; for a range test write 'a %s b and b %s c'",
+                       ast_op_name(opnd->op), ast_op_name(n->op));
+    diag_report(c->d, FREP_WARNING, n->op_loc, loc_len(n->op_loc),
+                "'%s' compares the truth value (1 or 0) of '%s' with a number, as "
+                "HyperFun does%s", ast_op_name(n->op), ast_op_name(opnd->op), hint);
+    ck_expr(c, opnd, CK_COND);
 }
 
 /* binary -> expr OP expr: 'and'/'or' join conditions, comparisons compare values,
  * both only in a condition; anything else is a value. */
-static void ck_binary(checker *c, const ast_node *n, int cond)
+static void ck_binary(checker *c, const ast_node *n, int where)
 {
     if (is_logic(n->op)) {
-        if (!cond)
+        if (where == CK_VALUE) {
             ck_error(c, n->op_loc, "'%s' is only allowed in an if or while condition",
                      n->op == AST_OP_AND ? "and" : "or", NULL, NULL);
-        ck_expr(c, n->a, 1);
-        ck_expr(c, n->b, 1);
+            where = CK_ANY;
+        }
+        ck_expr(c, n->a, ck_inner(where, CK_COND));
+        ck_expr(c, n->b, ck_inner(where, CK_COND));
         return;
     }
     if (is_cmp(n->op)) {
-        if (!cond)
+        if (where == CK_VALUE) {
             ck_error(c, n->op_loc, "comparison '%s' is only allowed in an if or while "
                      "condition", ast_op_name(n->op), NULL, NULL);
-    } else if (cond) {
+            where = CK_ANY;
+        }
+        if (where == CK_COND) {
+            ck_compare_operand(c, n, n->a);
+            ck_compare_operand(c, n, n->b);
+            return;
+        }
+    } else if (where == CK_COND) {
         ck_not_condition(c, n);
+        where = CK_ANY;
     }
-    ck_expr(c, n->a, 0);
-    ck_expr(c, n->b, 0);
+    ck_expr(c, n->a, ck_inner(where, CK_VALUE));
+    ck_expr(c, n->b, ck_inner(where, CK_VALUE));
 }
 
-/* expr -> NUM | VAR | VAR '[' expr ']' | CALL | unary | binary.  cond: the expression
- * is (part of) an if/while condition, where comparisons and logic belong. */
-static void ck_expr(checker *c, const ast_node *n, int cond)
+/* NUM as HyperFun's scanner reads it (int_scanner.c): no leading zero before
+ * another digit (007), no exponent that starts with 0 (1e05). */
+static void ck_number(checker *c, const ast_node *n)
+{
+    const char *t = c->f->src + n->loc.off, *end = c->f->src + n->loc.end, *e;
+    char text[64];
+    if (n->loc.end <= n->loc.off || n->loc.end > c->f->len) return;
+    for (e = t; e < end && *e != 'e' && *e != 'E'; e++) {}
+    if (e < end) {
+        e++;
+        if (e < end && (*e == '+' || *e == '-')) e++;
+    }
+    if (!((t + 1 < end && t[0] == '0' && t[1] >= '0' && t[1] <= '9') ||
+          (e < end && *e == '0' && e > t && (e[-1] == 'e' || e[-1] == 'E' || e[-1] == '+' ||
+                                              e[-1] == '-'))))
+        return;
+    (void)snprintf(text, sizeof text, "%.*s", (int)(end - t < 60 ? end - t : 60), t);
+    ck_ext_fmt(c, EXT_STRICT, n->loc, "the number '%s' has a leading zero in its digits or its "
+               "exponent%s", text, "");
+}
+
+/* expr -> NUM | VAR | VAR '[' expr ']' | CALL | unary | binary.  where: CK_VALUE,
+ * CK_COND (part of an if/while condition, where comparisons and logic belong) or
+ * CK_ANY (below a misplaced construct already reported). */
+static void ck_expr(checker *c, const ast_node *n, int where)
 {
     if (!n) return;
-    if (cond && (n->kind == AST_NUM || n->kind == AST_VAR || n->kind == AST_INDEX ||
-                 n->kind == AST_CALL)) {
+    if (where == CK_COND && (n->kind == AST_NUM || n->kind == AST_VAR ||
+                             n->kind == AST_INDEX || n->kind == AST_CALL)) {
         ck_not_condition(c, n);
-        cond = 0;
+        where = CK_ANY;
     }
     switch (n->kind) {
     case AST_NUM:
+        ck_number(c, n);
         break;
     case AST_VAR:
         ck_var(c, n);
@@ -477,10 +620,10 @@ static void ck_expr(checker *c, const ast_node *n, int cond)
         ck_call(c, n);
         break;
     case AST_UNARY:
-        ck_unary(c, n, cond);
+        ck_unary(c, n, where);
         break;
     case AST_BINARY:
-        ck_binary(c, n, cond);
+        ck_binary(c, n, where);
         break;
     case AST_ASSIGN: case AST_ASSIGN_INDEX: case AST_ASSIGN_ARRAY: case AST_IF:
     case AST_WHILE:
@@ -490,24 +633,147 @@ static void ck_expr(checker *c, const ast_node *n, int cond)
 
 static void ck_stmts(checker *c, const ast_list *l);
 
+/* ---- definite assignment: the must/may sets through if and while --------------- */
+
+static void ck_flow_assign(checker *c, const char *key)
+{
+    const uint32_t *vi = strmap_get(&c->later, key);
+    if (!vi || !c->must || !c->may) return;
+    c->must[*vi] = c->may[*vi] = 1;
+}
+
+/* A copy of a set (NULL when out of memory: the flow checks then stop). */
+static uint8_t *ck_flow_copy(checker *c, const uint8_t *v)
+{
+    uint8_t *r;
+    if (!v) return NULL;
+    r = arena_alloc(c->A, c->nscalars + 1);
+    if (r) memcpy(r, v, c->nscalars);
+    return r;
+}
+
+/* Every scalar some statement of l assigns, into set (may-assigned by a loop body). */
+static void ck_flow_assigned(checker *c, const ast_list *l, uint8_t *set)
+{
+    uint32_t i;
+    for (i = 0; i < l->n; i++) {
+        const ast_node *n = l->v[i];
+        const uint32_t *vi = n->kind == AST_ASSIGN ? strmap_get(&c->later, n->key) : NULL;
+        if (vi) set[*vi] = 1;
+        ck_flow_assigned(c, &n->body, set);
+        ck_flow_assigned(c, &n->body2, set);
+    }
+}
+
+/* if_stmt: each branch from the state before it; after it, assigned on every path
+ * when both branches assign, on some path when either does. */
+static void ck_if(checker *c, const ast_node *n)
+{
+    uint8_t *must0, *may0, *must1, *may1;
+    uint32_t i;
+    ck_expr(c, n->a, CK_COND);
+    must0 = ck_flow_copy(c, c->must);
+    may0 = ck_flow_copy(c, c->may);
+    ck_stmts(c, &n->body);
+    must1 = ck_flow_copy(c, c->must);
+    may1 = ck_flow_copy(c, c->may);
+    if (!must0 || !may0 || !must1 || !may1) {
+        c->must = c->may = NULL;
+        ck_stmts(c, &n->body2);
+        return;
+    }
+    memcpy(c->must, must0, c->nscalars);
+    memcpy(c->may, may0, c->nscalars);
+    ck_stmts(c, &n->body2);
+    for (i = 0; i < c->nscalars; i++) {
+        c->must[i] = c->must[i] & must1[i];
+        c->may[i] = c->may[i] | may1[i];
+    }
+}
+
+/* while_stmt: the body may run any number of times, so what it assigns may reach
+ * the condition and the body itself; after the loop only what held before is sure. */
+static void ck_while(checker *c, const ast_node *n)
+{
+    uint8_t *must0 = ck_flow_copy(c, c->must);
+    if (c->may) ck_flow_assigned(c, &n->body, c->may);
+    ck_expr(c, n->a, CK_COND);
+    ck_stmts(c, &n->body);
+    if (must0 && c->must) memcpy(c->must, must0, c->nscalars);
+}
+
+/* ---- statements ------------------------------------------------------------------ */
+
+/* The model's value assigned: HyperFun's grammar has it only as the last statement
+ * of the body (HF_Get_Body_Def in int_parse_N.c: the operators stop at the model's
+ * name, then 'name = expr ;' and '}' must follow). */
+static void ck_result_assign(checker *c, const ast_node *n)
+{
+    const ast_model *m = &c->f->models[c->model];
+    if (strcmp(n->key, m->key) != 0) return;
+    if (m->body.n > 0 && m->body.v[m->body.n - 1] == n) return;
+    ck_ext_fmt(c, EXT_WARN, n->op_loc, "the model's value '%s' is assigned by a statement other "
+               "than the model's last%s", n->name, "");
+}
+
+/* x and a are the point and the parameters: HyperFun has no statement that assigns
+ * them (a statement starting with x or a is a syntax error there); the space
+ * transformations of the library change x through their argument instead. */
+static void ck_param_assign(checker *c, const ast_node *n)
+{
+    const ast_model *m = &c->f->models[c->model];
+    if (m->nparams >= 1 && strcmp(n->key, m->params[0].key) == 0)
+        ck_ext_fmt(c, EXT_WARN, n->op_loc, "assigning to '%s', the point array of the model%s",
+                   n->name, "");
+    else if (m->nparams >= 2 && strcmp(n->key, m->params[1].key) == 0)
+        ck_ext_fmt(c, EXT_WARN, n->op_loc, "assigning to '%s', the parameter array of the model%s",
+                   n->name, "");
+}
+
+/* array_assign -> NAME '=' '[' list ']': HyperFun wants exactly one signed number
+ * literal per element (HF_Get_Whole_Array_Assign_Operator). */
+static void ck_list_literal(checker *c, const ast_node *n, const ck_array *arr)
+{
+    uint32_t i;
+    double v;
+    if (n->list.n < arr->size) {
+        char a[64], b[200];
+        (void)snprintf(a, sizeof a, "%u", (unsigned)n->list.n);
+        (void)snprintf(b, sizeof b, "'%s' of %u elements", arr->name, (unsigned)arr->size);
+        ck_ext_fmt(c, EXT_WARN, n->loc, "a list of %s values for %s (the rest would be 0)", a, b);
+    }
+    for (i = 0; i < n->list.n; i++)
+        if (!ck_literal(n->list.v[i], &v)) {
+            ck_ext(c, EXT_STRICT, n->list.v[i]->loc, "an element of a list [...] that is not a "
+                   "signed number");
+            break;
+        }
+}
+
 static void ck_stmt(checker *c, const ast_node *n)
 {
     switch (n->kind) {
     case AST_ASSIGN:
-        ck_expr(c, n->a, 0);
-        if (ck_array_find(c, n->key))
+        ck_expr(c, n->a, CK_VALUE);
+        if (ck_array_find(c, n->key)) {
             ck_error(c, n->op_loc, "cannot assign a number to array '%s'; assign its "
                      "elements or a list [...]", n->name, NULL, NULL);
-        else
+        } else {
+            if (!strmap_get(&c->vars, n->key)) ck_name(c, n->op_loc, n->name, n->key);
             ck_add_var(c, n);
+            ck_flow_assign(c, n->key);
+            ck_result_assign(c, n);
+        }
         break;
     case AST_ASSIGN_INDEX: {
         const ck_array *arr = ck_array_find(c, n->key);
         if (!arr)
             ck_error(c, n->op_loc, "'%s' is not a declared array%s", n->name, "",
                      strmap_get(&c->vars, n->key) ? NULL : ck_suggest(c, n->name, SUGG_ARRAYS));
+        else
+            ck_param_assign(c, n);
         ck_index(c, n, arr, n->a);
-        ck_expr(c, n->b, 0);
+        ck_expr(c, n->b, CK_VALUE);
         break;
     }
     case AST_ASSIGN_ARRAY: {
@@ -522,22 +788,22 @@ static void ck_stmt(checker *c, const ast_node *n)
                            (unsigned)arr->size);
             (void)snprintf(b, sizeof b, "%u", (unsigned)n->list.n);
             ck_error(c, n->loc, "%s, but %s values are assigned", a, b, NULL);
+        } else {
+            ck_param_assign(c, n);
+            ck_list_literal(c, n, arr);
         }
-        for (i = 0; i < n->list.n; i++) ck_expr(c, n->list.v[i], 0);
+        for (i = 0; i < n->list.n; i++) ck_expr(c, n->list.v[i], CK_VALUE);
         break;
     }
     case AST_IF:
-        ck_expr(c, n->a, 1);
-        ck_stmts(c, &n->body);
-        ck_stmts(c, &n->body2);
+        ck_if(c, n);
         break;
     case AST_WHILE:
-        ck_expr(c, n->a, 1);
-        ck_stmts(c, &n->body);
+        ck_while(c, n);
         break;
     case AST_NUM: case AST_VAR: case AST_INDEX: case AST_CALL: case AST_UNARY:
     case AST_BINARY:
-        ck_expr(c, n, 0);
+        ck_expr(c, n, CK_VALUE);
         break;
     }
 }
@@ -548,13 +814,15 @@ static void ck_stmts(checker *c, const ast_list *l)
     for (i = 0; i < l->n; i++) ck_stmt(c, l->v[i]);
 }
 
-/* Scalars assigned anywhere (for "used before it is assigned"). */
+/* Scalars assigned anywhere (for "used before it is assigned"), each numbered for
+ * the must/may sets. */
 static void ck_collect(checker *c, const ast_list *l)
 {
     uint32_t i;
     for (i = 0; i < l->n; i++) {
         const ast_node *n = l->v[i];
-        if (n->kind == AST_ASSIGN) (void)strmap_put(&c->later, n->key, 1);
+        if (n->kind == AST_ASSIGN && !strmap_get(&c->later, n->key))
+            (void)strmap_put(&c->later, n->key, c->nscalars++);
         ck_collect(c, &n->body);
         ck_collect(c, &n->body2);
     }
@@ -590,12 +858,28 @@ static void ck_model(checker *c, uint32_t mi)
     if (!c->arr) return;
     if (check_find_model(c->f, m->key, mi) >= 0)
         ck_error(c, m->loc, "model '%s' is already defined", m->name, NULL, NULL);
-    for (i = 0; i < m->nparams; i++) ck_declare(c, &m->params[i]);
-    for (i = 0; i < m->narrays; i++) ck_declare(c, &m->arrays[i]);
+    if (m->name[0] == '_') ck_name(c, m->loc, m->name, m->key);
+    for (i = 0; i < m->nparams; i++) {
+        static const char *const hf_param[3] = { "x", "a", "s" };
+        ck_declare(c, &m->params[i]);
+        if (strcmp(m->params[i].key, hf_param[i]) != 0)
+            ck_ext_fmt(c, EXT_STRICT, m->params[i].loc, "the parameter array '%s' where HyperFun "
+                       "requires the name '%s'", m->params[i].name, hf_param[i]);
+    }
+    for (i = 0; i < m->narrays; i++) {
+        ck_declare(c, &m->arrays[i]);
+        ck_name(c, m->arrays[i].loc, m->arrays[i].name, m->arrays[i].key);
+    }
     if (ck_array_find(c, m->key))
         ck_error(c, m->loc, "the result '%s' of a model cannot be an array", m->name, NULL,
                  NULL);
+    c->nscalars = 0;
     ck_collect(c, &m->body);
+    c->must = arena_alloc(c->A, c->nscalars + 1);
+    c->may = arena_alloc(c->A, c->nscalars + 1);
+    if (c->must) memset(c->must, 0, c->nscalars + 1);
+    if (c->may) memset(c->may, 0, c->nscalars + 1);
+    if (!c->must || !c->may) c->must = c->may = NULL;
     ck_stmts(c, &m->body);
     if (!strmap_get(&c->later, m->key))
         ck_error(c, m->loc, "model '%s' never assigns its result; add '%s = ...;'", m->name,
@@ -814,7 +1098,7 @@ static void ck_pragmas(checker *c, check_info *out)
     }
 }
 
-unsigned check_file(arena *A, const ast_file *f, diag_sink *d, check_info *out)
+unsigned check_file(arena *A, const ast_file *f, int strict, diag_sink *d, check_info *out)
 {
     checker c;
     unsigned before = d->errors;
@@ -824,6 +1108,7 @@ unsigned check_file(arena *A, const ast_file *f, diag_sink *d, check_info *out)
     c.A = A;
     c.f = f;
     c.d = d;
+    c.strict = strict;
     for (i = 0; i < f->nmodels; i++) ck_model(&c, i);
     ck_pragmas(&c, out);
     if (A->failed) diag_nomem(d); /* the checks above may have been cut short */

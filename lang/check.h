@@ -45,8 +45,10 @@ typedef struct check_info {
     double box[6];
 } check_info;
 
-/* Check the whole file; returns the number of errors reported through d. */
-unsigned check_file(arena *A, const ast_file *f, diag_sink *d, check_info *out);
+/* Check the whole file; returns the number of errors reported through d.  strict:
+ * what the reference interpreter rejects and frep accepts is an error, not a
+ * warning. */
+unsigned check_file(arena *A, const ast_file *f, int strict, diag_sink *d, check_info *out);
 
 /* Index of the model named key defined before model `before` (all models when
  * before == f->nmodels), or -1. */

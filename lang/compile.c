@@ -27,6 +27,7 @@ void frep_compile_options_init(frep_compile_options *o)
     o->setops_override = -1;
     o->alpha = 0;
     o->optimize = 1;
+    o->strict = 0;
 }
 
 static int lower_key_eq(const char *key, const char *name)
@@ -40,7 +41,8 @@ static int lower_key_eq(const char *key, const char *name)
     return *key == *name;
 }
 
-/* Which model to compile: options->model, else "my_model", else the last. */
+/* Which model to compile: options->model, else "my_model", else the first, as the
+ * reference interpreter and hfp do (they evaluate the first body of the file). */
 static int pick_model(const ast_file *f, const char *want)
 {
     uint32_t i;
@@ -51,7 +53,7 @@ static int pick_model(const ast_file *f, const char *want)
     }
     for (i = 0; i < f->nmodels; i++)
         if (strcmp(f->models[i].key, "my_model") == 0) return (int)i;
-    return f->nmodels ? (int)f->nmodels - 1 : -1;
+    return f->nmodels ? 0 : -1;
 }
 
 /* frep_program_param_info of every parameter: a[1..na], then the named ones. */
@@ -120,10 +122,10 @@ static int stage_parse(session *s, const char *file, const char *text, size_t le
 /* Semantic checks of every model and pragma (lang/check.c). */
 static int stage_check(session *s)
 {
-    return check_file(&s->A, &s->f, &s->d, &s->ci) != 0 || s->d.errors ? -1 : 0;
+    return check_file(&s->A, &s->f, s->opt->strict, &s->d, &s->ci) != 0 || s->d.errors ? -1 : 0;
 }
 
-/* Which model to compile: options->model, else "my_model", else the last. */
+/* Which model to compile: options->model, else "my_model", else the first. */
 static int stage_pick(session *s)
 {
     int mi = pick_model(&s->f, s->opt->model);
@@ -182,11 +184,12 @@ nomem:
     return -1;
 }
 
-/* Schedule the IR into bytecode (lang/emit.c); each failure has its own message. */
-static int stage_emit(session *s)
+/* Schedule the IR with root `lo->root` into p (lang/emit.c); each failure has its
+ * own message. */
+static int emit_root(session *s, const lowered *lo, frep_program *p)
 {
     const ast_model *m = &s->f.models[s->model];
-    switch (emit_program(&s->g, &s->lo, s->p)) {
+    switch (emit_program(&s->g, lo, p)) {
     case EMIT_OK:
         return 0;
     case EMIT_NOMEM:
@@ -208,6 +211,39 @@ static int stage_emit(session *s)
     return -1;
 }
 
+/* The model's value: the program itself. */
+static int stage_emit(session *s)
+{
+    return emit_root(s, &s->lo, s->p);
+}
+
+/* Its attributes: one program per element of s[], from the same IR and statements
+ * with that element's final value as the root (frep_eval_attrs_par). */
+static int stage_attrs(session *s)
+{
+    frep_program *p = s->p;
+    uint32_t k;
+    if (!s->lo.has_s || s->lo.nattrs == 0) return 0;
+    p->attrs = frep_calloc(s->lo.nattrs, sizeof *p->attrs);
+    if (!p->attrs || !s->lo.attrs) goto nomem;
+    p->nattrs = s->lo.nattrs;
+    for (k = 0; k < s->lo.nattrs; k++) {
+        lowered lo = s->lo;
+        frep_program *a = prog_new();
+        p->attrs[k] = a;
+        if (!a || fill_params(a, &s->lo, s->opt) < 0) goto nomem;
+        a->model = frep_strdup(p->model);
+        if (p->file) a->file = frep_strdup(p->file);
+        if (!a->model || (p->file && !a->file)) goto nomem;
+        lo.root = s->lo.attrs[k];
+        if (emit_root(s, &lo, a) < 0) return -1;
+    }
+    return 0;
+nomem:
+    diag_nomem(&s->d);
+    return -1;
+}
+
 frep_program *frep_compile(const char *file, const char *text, size_t len,
                            const frep_compile_options *opt, frep_diag_fn diag, void *user)
 {
@@ -225,7 +261,8 @@ frep_program *frep_compile(const char *file, const char *text, size_t len,
     s.d.file = file;
     s.d.A = &s.A;
     if (stage_parse(&s, file, text, len) < 0 || stage_check(&s) < 0 || stage_pick(&s) < 0 ||
-        stage_lower(&s) < 0 || stage_program(&s, file) < 0 || stage_emit(&s) < 0) {
+        stage_lower(&s) < 0 || stage_program(&s, file) < 0 || stage_emit(&s) < 0 ||
+        stage_attrs(&s) < 0) {
         frep_program_free(s.p);
         s.p = NULL;
     }

@@ -47,10 +47,28 @@ LIB_UNARY(bi_ceil, CEIL)
 LIB_UNARY(bi_floor, FLOOR)
 LIB_UNARY(bi_int, INT)
 LIB_UNARY(bi_frac, FRAC)
-LIB_BINARY(bi_mod, MOD)
 LIB_BINARY(bi_max, MAX)
 LIB_BINARY(bi_min, MIN)
 LIB_BINARY(bi_atan2, ATAN2)
+
+/* HF_round of the reference interpreter (int_parse_N.c of HyperFun): c = ceil(d),
+ * then c - 1 when c - d > 0.5, else c; halves round up (2.5 -> 3, -2.5 -> -2). */
+static ir_ref hf_round(ir *g, ir_ref d)
+{
+    ir_ref c = ir_op1(g, FREP_OP_CEIL, d);
+    ir_ref down = ir_op2(g, FREP_OP_GT, ir_sub(g, c, d), ir_k(g, 0.5));
+    return ir_select(g, down, ir_sub(g, c, ir_k(g, 1.0)), c);
+}
+
+/* mod(a, b) as the reference computes it (FUNC_mod in int_calc.c of HyperFun):
+ * fmod(HF_round(a), HF_round(b)), so both arguments are first rounded to whole
+ * numbers (mod(2.7, 2) = fmod(3, 2) = 1), the result has the sign of a, and a b that
+ * rounds to 0 is the MOD opcode's domain error (the reference returns fmod's NaN). */
+static ir_ref bi_mod(lib_ctx *c, lib_arg *a, uint32_t n)
+{
+    (void)n;
+    return ir_op2(c->g, FREP_OP_MOD, hf_round(c->g, a[0].s), hf_round(c->g, a[1].s));
+}
 
 /* ---- set operations of the operators | & \ ---------------------------------- */
 
@@ -130,7 +148,8 @@ static const lib_fn lib_table[] = {
     { "floor", "s", { 0 }, bi_floor, "largest integer <= the argument" },
     { "int", "s", { 0 }, bi_int, "the argument truncated toward zero" },
     { "frac", "s", { 0 }, bi_frac, "fractional part: a - int(a)" },
-    { "mod", "ss", { 0 }, bi_mod, "remainder of a / b with the sign of a (fmod)" },
+    { "mod", "ss", { 0 }, bi_mod,
+      "remainder of round(a) / round(b) with the sign of a (error when round(b) = 0)" },
     { "max", "ss", { 0 }, bi_max, "larger of two values" },
     { "min", "ss", { 0 }, bi_min, "smaller of two values" },
     { "atan2", "ss", { 0 }, bi_atan2, "angle of the point (b, a): atan2(a, b)" },
@@ -198,8 +217,33 @@ static const lib_fn lib_table[] = {
     { "hfDSub", "ssss", { 0 }, hf_dsub, "distance-preserving subtraction (SARDF)" },
     { "hfDBlendUni", "sss", { 0 }, hf_dblend_uni, "distance blending union of radius r" },
     { "hfDBlendInt", "sss", { 0 }, hf_dblend_int, "distance blending intersection of radius r" },
+    { "hfSawtooth", "ssss", { 0 }, hf_sawtooth, "sawtooth wave: Fourier sum of n - 1 sines" },
+    /* HyperFun attribute library (lib_attr.c): 'w' arrays are written */
+    { "hfA_SetColor", "swsss", { 0 }, hfa_set_color, "s[1..3] = r, g, b where f >= 0" },
+    { "hfA_SetAttributes", "swv", { 0 }, hfa_set_attributes, "s = s1 where f >= 0" },
+    { "hfA_Union", "sswvvs", { 0 }, hfa_union, "attributes of a union, by operator" },
+    { "hfA_Lerp", "wvvsss", { 0 }, hfa_lerp, "s = linear mix of s1 and s2" },
+    { "hfA_Cerp", "wvvsss", { 0 }, hfa_cerp, "s = cubic mix of s1 and s2" },
+    { "hfA_Clamp", "sss", { 0 }, hfa_clamp, "f clamped to [lo, hi]" },
+    { "hfA_Floor", "s", { 0 }, hfa_floor, "f truncated toward zero" },
+    { "hfA_Pulse", "sss", { 0 }, hfa_pulse, "1 where q <= f <= p, else 0" },
+    { "hfA_Step", "ss", { 0 }, hfa_step, "0 where f < e, else 1" },
+    { "hfA_SmoothStep", "sss", { 0 }, hfa_smooth_step, "smooth step from lo to hi" },
+    { "hfA_Modulo", "ss", { 0 }, hfa_modulo, "v modulo m, in [0, m)" },
+    { "hfA_Wave", "ssss", { 0 }, hfa_wave, "sine wave between c1 and c2" },
+    { "hfA_RGBToHSV", "vw", { 0 }, hfa_rgb_to_hsv, "hsv = the RGB colour rgb in HSV" },
+    { "hfA_HSVToRGB", "vw", { 0 }, hfa_hsv_to_rgb, "rgb = the HSV colour hsv in RGB" },
+    { "hfA_CheckerBoard", "vvvvvv", { 0 }, hfa_unsupported, "(not implemented)" },
+    { "hfA_Crackles", "vvsvv", { 0 }, hfa_unsupported, "(not implemented)" },
+    { "hfA_Circles", "vvvv", { 0 }, hfa_unsupported, "(not implemented)" },
+    { "hfA_NoiseG", "vss", { 0 }, hfa_unsupported, "(not implemented)" },
+    { "hfA_NoiseP", "v", { 0 }, hfa_unsupported, "(not implemented)" },
+    { "hfA_Turbulence", "vs", { 0 }, hfa_unsupported, "(not implemented)" },
+    { "hfA_LookUpTable", "svvv", { 0 }, hfa_unsupported, "(not implemented)" },
+    { "hfA_SmoothLookUpTable", "svvv", { 0 }, hfa_unsupported, "(not implemented)" },
+    { "hfA_Spline", "vvsss", { 0 }, hfa_unsupported, "(not implemented)" },
 
-    /* frep extensions: explicit set operations */
+    /* frep extensions (from here to the end: lib_frep_only): explicit set operations */
     { "rUnion", "ss", { 0 }, ext_r_union, "R0 union f + g + sqrt(f^2 + g^2)" },
     { "rIntersection", "ss", { 0 }, ext_r_intersection, "R0 intersection" },
     { "rSubtraction", "ss", { 0 }, ext_r_subtraction, "R0 subtraction" },
@@ -244,6 +288,15 @@ const lib_fn *lib_lookup(const char *name)
     for (uint32_t i = 0; i < LIB_COUNT; ++i)
         if (name_eq(lib_table[i].name, name)) return &lib_table[i];
     return NULL;
+}
+
+int lib_frep_only(const lib_fn *fn)
+{
+    static const char first_ext[] = "rUnion";
+    uint32_t i;
+    for (i = 0; i < LIB_COUNT; ++i)
+        if (name_eq(lib_table[i].name, first_ext)) break;
+    return fn >= lib_table + i && fn < lib_table + LIB_COUNT;
 }
 
 const lib_fn *lib_all(uint32_t *count)

@@ -17,6 +17,7 @@
  *   'x'  array of at least 3 elements (a point), read only
  *   'm'  array of at least 3 elements modified in place (space transformations)
  *   'v'  array of any size (its size is passed in lib_arg.n)
+ *   'w'  array of any size written in place (attributes: the s[] of hfA_* functions)
  * A trailing '*' in args repeats the last kind (variadic).
  */
 typedef struct lib_arg {
@@ -49,6 +50,8 @@ typedef struct lib_fn {
 const lib_fn *lib_lookup(const char *name);
 /* All functions, for did-you-mean suggestions and the documentation test. */
 const lib_fn *lib_all(uint32_t *count);
+/* 1 when fn is one of frep's own functions (lib_ext.c), unknown to HyperFun. */
+int lib_frep_only(const lib_fn *fn);
 
 /* The operators | & \ under the given semantics (used by lower.c and by lib.c). */
 ir_ref lib_union(lib_ctx *c, ir_ref a, ir_ref b);

@@ -1,5 +1,5 @@
 /* lib_impl.h - private helpers of the function library (lang/lib.c, lang/lib_hf.c,
- * lang/lib_ext.c): 3-vectors of IR refs, guarded square roots, and the expanders
+ * lang/lib_ext.c, lang/lib_attr.c): 3-vectors of IR refs, guarded square roots, and the expanders
  * that lib.c lists in its table.  Not used outside those three files.
  */
 #ifndef FREP_LIB_IMPL_H
@@ -140,6 +140,24 @@ LIB_EXPANDER(hf_dint);
 LIB_EXPANDER(hf_dsub);
 LIB_EXPANDER(hf_dblend_uni);
 LIB_EXPANDER(hf_dblend_int);
+
+/* lib_attr.c: the attribute library (hfA_*) and hfSawtooth */
+LIB_EXPANDER(hf_sawtooth);
+LIB_EXPANDER(hfa_set_color);
+LIB_EXPANDER(hfa_set_attributes);
+LIB_EXPANDER(hfa_union);
+LIB_EXPANDER(hfa_lerp);
+LIB_EXPANDER(hfa_cerp);
+LIB_EXPANDER(hfa_clamp);
+LIB_EXPANDER(hfa_floor);
+LIB_EXPANDER(hfa_pulse);
+LIB_EXPANDER(hfa_step);
+LIB_EXPANDER(hfa_smooth_step);
+LIB_EXPANDER(hfa_modulo);
+LIB_EXPANDER(hfa_wave);
+LIB_EXPANDER(hfa_rgb_to_hsv);
+LIB_EXPANDER(hfa_hsv_to_rgb);
+LIB_EXPANDER(hfa_unsupported);
 
 /* lib_ext.c: frep's extensions */
 LIB_EXPANDER(ext_r_union);

@@ -16,7 +16,8 @@
  *    written only by their own construct, so an IR node built outside a construct
  *    stays valid forever; inside, each statement is emitted on its own.
  * Array arguments of model calls are passed by value, as the reference interpreter
- * does (it copies x and a into the callee's frame and never copies them back).
+ * does (it copies x and a into the callee's frame and never copies them back); the
+ * third, s[] (attributes), is copied back, as there.
  */
 #include "lower.h"
 
@@ -33,12 +34,16 @@
  * exactly as the reference interpreter's loop evaluates them. */
 #define FREP_POW_CHAIN_MAX 64
 
+/* Tolerance of '=' and '/=': the reference interpreter's EPS (int_global.c of
+ * HyperFun), so `a = b` is |a - b| < 1e-6 and `a /= b` is |a - b| >= 1e-6
+ * (FUNC_bool_equal, FUNC_bool_not_equal in int_calc.c). */
+#define HF_EPS 1e-6
+
 #define NO_SLOT UINT32_MAX
 
 typedef struct sym {
     uint32_t first, size;   /* cells [first, first + size) */
     int is_array;
-    int is_attr;            /* an s[] attribute array: writes ignored, reads 0 */
 } sym;
 
 typedef struct scope {
@@ -232,31 +237,27 @@ static void ensure_slots(lw *L, scope *sc, uint32_t si, ast_loc at)
 }
 
 /* Assign values to cells (a parallel assignment: values were computed from the old
- * cells). Attribute arrays ignore writes. */
+ * cells). */
 static void assign_cells(lw *L, scope *sc, const uint32_t *cells, const ir_ref *vals,
                          uint32_t n, ast_loc at)
 {
     uint32_t i, k = 0, *slots;
     ir_ref *v;
     if (L->depth == 0) {
-        for (i = 0; i < n; i++)
-            if (!sc->syms[sc->cell_sym[cells[i]]].is_attr) sc->vals[cells[i]] = vals[i];
+        for (i = 0; i < n; i++) sc->vals[cells[i]] = vals[i];
         return;
     }
     slots = arena_alloc(L->A, (n + 1) * sizeof *slots);
     v = arena_alloc(L->A, (n + 1) * sizeof *v);
     if (!slots || !v) return;
     for (i = 0; i < n; i++) {
-        if (sc->syms[sc->cell_sym[cells[i]]].is_attr) continue;
         ensure_slots(L, sc, sc->cell_sym[cells[i]], at);
         if (L->dead) return;
         slots[k] = sc->slot[cells[i]];
         v[k++] = vals[i];
     }
     emit_stores(L, slots, v, k);
-    for (i = 0; i < n; i++)
-        if (!sc->syms[sc->cell_sym[cells[i]]].is_attr)
-            sc->vals[cells[i]] = ir_leaf(L->g, FREP_OP_LOAD, sc->slot[cells[i]]);
+    for (i = 0; i < n; i++) sc->vals[cells[i]] = ir_leaf(L->g, FREP_OP_LOAD, sc->slot[cells[i]]);
 }
 
 /* ---- scopes ------------------------------------------------------------------------ */
@@ -278,7 +279,6 @@ static uint32_t scope_add(lw *L, scope *sc, const char *key, int is_array, uint3
     y->first = sc->ncells;
     y->size = size;
     y->is_array = is_array;
-    y->is_attr = 0;
     sc->ncells += size;
     (void)strmap_put(&sc->names, key, sc->nsyms);
     return sc->nsyms++;
@@ -304,7 +304,6 @@ static int scope_init(lw *L, scope *sc, const ast_model *m)
     sc->m = m;
     strmap_init(&sc->names, L->A);
     for (i = 0; i < m->nparams; i++) (void)scope_add(L, sc, m->params[i].key, 1, m->params[i].size, &cap);
-    if (m->nparams == 3) sc->syms[2].is_attr = 1;
     for (i = 0; i < m->narrays; i++) (void)scope_add(L, sc, m->arrays[i].key, 1, m->arrays[i].size, &cap);
     (void)scope_add(L, sc, m->key, 0, 1, &cap);
     scope_scalars(L, sc, &m->body, &cap);
@@ -356,8 +355,12 @@ static void ps_expr(scope *sc, const ast_node *n, uint8_t *mark)
     case AST_CALL: {
         const lib_fn *fn = lib_lookup(n->name);
         for (i = 0; i < n->list.n; i++) {
-            if (fn && n->list.v[i]->kind == AST_VAR &&
-                check_lib_kind(fn->args, i, NULL, NULL) == 'm')
+            char kind = fn ? check_lib_kind(fn->args, i, NULL, NULL) : 0;
+            if (n->list.v[i]->kind == AST_VAR && (kind == 'm' || kind == 'w'))
+                ps_mark(sc, n->list.v[i]->key, mark);
+            /* a model's s[] comes back to the third argument (copy_back_attrs);
+             * marked for any three-argument call, which is only more careful */
+            if (i == 2 && n->list.n == 3 && n->list.v[i]->kind == AST_VAR)
                 ps_mark(sc, n->list.v[i]->key, mark);
             ps_expr(sc, n->list.v[i], mark);
         }
@@ -420,7 +423,7 @@ static void enter_construct(lw *L, scope *sc, const ast_node *n)
     ps_stmts(sc, &n->body, mark);
     ps_stmts(sc, &n->body2, mark);
     for (i = 0; i < sc->nsyms; i++)
-        if (mark[i] && !sc->syms[i].is_attr && sc->slot[sc->syms[i].first] == NO_SLOT)
+        if (mark[i] && sc->slot[sc->syms[i].first] == NO_SLOT)
             nslot += sc->syms[i].size;
     /* One parallel store for all spilled cells. */
     slots = arena_alloc(L->A, (nslot + 1) * sizeof *slots);
@@ -429,7 +432,7 @@ static void enter_construct(lw *L, scope *sc, const ast_node *n)
     for (i = 0; i < sc->nsyms; i++) {
         sym *y = &sc->syms[i];
         uint32_t base, j;
-        if (!mark[i] || y->is_attr || sc->slot[y->first] != NO_SLOT) continue;
+        if (!mark[i] || sc->slot[y->first] != NO_SLOT) continue;
         base = slot_alloc(L, y->size, n->loc);
         if (L->dead) return;
         for (j = 0; j < y->size; j++) {
@@ -572,10 +575,11 @@ static ir_ref lw_call_lib(lw *L, scope *sc, const ast_node *n, const lib_fn *fn)
     r = fn->expand(&L->lc, args, n->list.n);
     L->call = saved;
     if (r == IR_NONE) r = nan_ref(L);
-    /* 'm' arguments were transformed in place: write the new elements back. */
+    /* 'm' and 'w' arguments were changed in place: write the new elements back. */
     for (i = 0; i < n->list.n; i++) {
         const ast_node *a = n->list.v[i];
-        if (check_lib_kind(fn->args, i, NULL, NULL) == 'm') {
+        char kind = check_lib_kind(fn->args, i, NULL, NULL);
+        if (kind == 'm' || kind == 'w') {
             const sym *y = scope_sym(sc, a->key);
             uint32_t *cells, j;
             if (!y) continue;
@@ -611,7 +615,6 @@ static ir_ref lw_element(lw *L, scope *sc, const ast_node *n)
     if (c == UINT32_MAX) return nan_ref(L);
     if (dyn != IR_NONE) {
         uint32_t si = c & ~DYN_FLAG, base;
-        if (sc->syms[si].is_attr) return ir_const(L->g, 0);
         base = dyn_base(L, sc, si, 0, n->loc);
         set_pos(L, n->op_loc);
         return ir_loadi(L->g, base, sc->syms[si].size, dyn);
@@ -631,7 +634,7 @@ static ir_ref lw_call(lw *L, scope *sc, const ast_node *n)
 }
 
 /* binary -> expr OP expr: arithmetic, the set operations of the @setops in force,
- * comparisons and logic. */
+ * comparisons (with the reference's tolerance for = and /=) and logic. */
 static ir_ref lw_binary(lw *L, scope *sc, const ast_node *n)
 {
     ir *g = L->g;
@@ -647,6 +650,10 @@ static ir_ref lw_binary(lw *L, scope *sc, const ast_node *n)
     case '|': return lib_union(&L->lc, a, b);
     case '&': case '@': return lib_intersection(&L->lc, a, b);
     case '\\': return lib_subtraction(&L->lc, a, b);
+    case AST_OP_EQ:
+        return ir_op2(g, FREP_OP_LT, ir_op1(g, FREP_OP_ABS, ir_sub(g, a, b)), ir_k(g, HF_EPS));
+    case AST_OP_NE:
+        return ir_op2(g, FREP_OP_GE, ir_op1(g, FREP_OP_ABS, ir_sub(g, a, b)), ir_k(g, HF_EPS));
     default: {
         frep_opcode op = cmp_op(n->op);
         if (op == FREP_OP__COUNT) return nan_ref(L);
@@ -687,6 +694,29 @@ static ir_ref lw_expr(lw *L, scope *sc, const ast_node *n)
     return nan_ref(L);
 }
 
+/* The callee's s[] comes back to the caller's third argument: the reference
+ * interpreter copies that array in and, after the call, out again (I_EXTERN_CALL in
+ * int_calc.c: "s[] of a called function ... will be available in the caller with the
+ * modified values"), so the attributes a model sets survive in the models that call
+ * it.  x and a are not copied back. */
+static void copy_back_attrs(lw *L, scope *sc, const scope *callee, const ast_node *n)
+{
+    const sym *y = scope_sym(sc, n->list.v[2]->key);
+    const sym *p = &callee->syms[2];
+    uint32_t j, k, *cells;
+    ir_ref *vals;
+    if (!y || !y->is_array) return;
+    k = p->size < y->size ? p->size : y->size;
+    cells = arena_alloc(L->A, (k + 1) * sizeof *cells);
+    vals = arena_alloc(L->A, (k + 1) * sizeof *vals);
+    if (!cells || !vals) return;
+    for (j = 0; j < k; j++) {
+        cells[j] = y->first + j;
+        vals[j] = cell_value(L, callee, p->first + j);
+    }
+    assign_cells(L, sc, cells, vals, k, n->op_loc);
+}
+
 static ir_ref lw_call_model(lw *L, scope *sc, const ast_node *n, uint32_t mi)
 {
     const ast_model *m = &L->f->models[mi];
@@ -711,6 +741,7 @@ static ir_ref lw_call_model(lw *L, scope *sc, const ast_node *n, uint32_t mi)
     lw_stmts(L, &callee, &m->body);
     L->inline_depth--;
     r = cell_value(L, &callee, callee.result);
+    if (m->nparams == 3 && n->list.n == 3) copy_back_attrs(L, sc, &callee, n);
     return r;
 }
 
@@ -766,7 +797,6 @@ static void lw_assign_element(lw *L, scope *sc, const ast_node *n)
         return;
     }
     si = c & ~DYN_FLAG;
-    if (sc->syms[si].is_attr) return;
     base = dyn_base(L, sc, si, 1, n->loc);
     if (L->dead) return;
     s = stmt_new(L, LS_STOREI);
@@ -1014,6 +1044,14 @@ int lower_model(arena *A, const ast_file *f, uint32_t mi, const check_info *ci,
     out->named = L.named;
     out->nnamed = L.nnamed;
     out->has_s = m->nparams == 3;
+    if (out->has_s) {
+        /* The attributes as the model leaves them (doc/language.md, "Attributes"). */
+        out->nattrs = sc.syms[2].size;
+        out->attrs = arena_alloc(A, (out->nattrs + 1) * sizeof *out->attrs);
+        if (out->attrs)
+            for (j = 0; j < out->nattrs; j++)
+                out->attrs[j] = cell_value(&L, &sc, sc.syms[2].first + j);
+    }
     (void)o->a;
     if (A->failed || g->failed == IR_NOMEM) {
         diag_nomem(d);

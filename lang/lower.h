@@ -69,6 +69,8 @@ typedef struct lowered {
     lower_param *named;     /* PARAM na + j */
     uint32_t nnamed;
     int has_s;
+    ir_ref *attrs;          /* has_s: the model's s[1..nattrs] at its end */
+    uint32_t nattrs;
 } lowered;
 
 typedef struct lower_options {

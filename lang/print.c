@@ -90,7 +90,22 @@ static void begin_line(printer *p, uint32_t off)
  * construct ends (annotations on it follow on this output line). */
 static void end_line(printer *p, uint32_t end_line) { p->line_end_line = end_line; }
 
-/* Shortest of %.15g, %.16g, %.17g that reads back as the same double. */
+/* The exponent of a %g number without leading zeros ("2.5e-08" -> "2.5e-8"): the
+ * reference interpreter's scanner (int_scanner.c of HyperFun) rejects an exponent
+ * that starts with 0.  The mantissa needs no change: %g never writes a leading zero
+ * before another digit ("0.5", never "05"), which that scanner rejects too. */
+static void strip_exponent_zeros(char *buf)
+{
+    char *e = strchr(buf, 'e'), *d, *z;
+    if (!e) return;
+    d = e + 1;
+    if (*d == '+' || *d == '-') d++;
+    for (z = d; z[0] == '0' && z[1] != '\0'; z++) {}
+    memmove(d, z, strlen(z) + 1);
+}
+
+/* Shortest of %.15g, %.16g, %.17g that reads back as the same double, in a form
+ * the reference interpreter reads too. */
 static void put_num(printer *p, double v)
 {
     char buf[40];
@@ -101,6 +116,7 @@ static void put_num(printer *p, double v)
     /* strtod and snprintf agree on the locale's decimal point; source needs '.' */
     for (char *c = buf; *c; c++)
         if (*c == ',') *c = '.';
+    strip_exponent_zeros(buf);
     puts_(p, buf);
 }
 

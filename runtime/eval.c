@@ -254,3 +254,31 @@ int frep_eval_grad_par(const frep_program *p, size_t n, const double *x, const d
     par_job j = {p, n, x, y, z, params, f, gx, gy, gz};
     return par_run(&j, nthreads, err);
 }
+
+size_t frep_program_nattrs(const frep_program *p) { return p->nattrs; }
+
+/* Each attribute is a program of its own (compiled from the same lowered model with
+ * s[k+1] as its root): evaluate it into a column, then interleave the columns. */
+int frep_eval_attrs_par(const frep_program *p, size_t n, const double *x, const double *y,
+                        const double *z, const double *params, double *s, int nthreads,
+                        frep_runtime_error *err)
+{
+    size_t K = p->nattrs, k, i;
+    double *col;
+    if (err) memset(err, 0, sizeof *err);
+    if (K == 0 || n == 0) return 0;
+    if (n > SIZE_MAX / sizeof *col) return -1;
+    col = frep_malloc(n * sizeof *col);
+    if (!col) return -1;
+    for (k = 0; k < K; k++) {
+        frep_runtime_error e;
+        if (frep_eval_par(p->attrs[k], n, x, y, z, params, col, nthreads, &e) != 0) {
+            frep_free(col);
+            return -1;
+        }
+        if (err && e.count > 0 && err->count == 0) *err = e;
+        for (i = 0; i < n; i++) s[i * K + k] = col[i];
+    }
+    frep_free(col);
+    return 0;
+}

@@ -82,12 +82,14 @@ typedef enum frep_setops {
 } frep_setops;
 
 typedef struct frep_compile_options {
-    const char *model;      /* model to compile; NULL: "my_model" if present, else last */
+    const char *model;      /* model to compile; NULL: "my_model" if present, else first */
     const double *a;        /* values of the a[] array (may be NULL: zeros) */
     size_t na;
     int setops_override;    /* -1: as the file says; else a frep_setops value */
     double alpha;           /* for FREP_SETOPS_RALPHA when overriding */
     int optimize;           /* constant folding + CSE (1, the default) or none (0) */
+    int strict;             /* 1: what the reference interpreter rejects and frep
+                               accepts (warnings "not HyperFun: ...") is an error */
 } frep_compile_options;
 
 void frep_compile_options_init(frep_compile_options *o);
@@ -192,6 +194,24 @@ int frep_eval_par(const frep_program *p, size_t n, const double *x, const double
 int frep_eval_grad_par(const frep_program *p, size_t n, const double *x, const double *y,
                        const double *z, const double *params, double *f, double *gx,
                        double *gy, double *gz, int nthreads, frep_runtime_error *err);
+
+/* ---- attributes ---------------------------------------------------------
+ * A model declared `name(x[3], a[M], s[K])` has K attributes: the values of its
+ * s[] array (HyperFun's attributes: colours set with hfA_SetColor and the like) as
+ * the model leaves them, after computing its value at the point.  s[] starts at 0,
+ * statements write it, and a model called as `m(x, a, s)` hands its s[] back to the
+ * caller (doc/language.md, "Attributes"). */
+
+/* K, the size of the compiled model's s[]; 0 when it declares none. */
+size_t frep_program_nattrs(const frep_program *p);
+
+/* Attributes at n points: s[i * K + k] is s[k+1] at point i (K = nattrs, s holds
+ * n * K values).  params, nthreads and err as frep_eval_par; a domain error in the
+ * attribute computation gives NaN and is counted in err like a value's. Returns 0
+ * (also when K is 0: nothing written), or -1 on allocation failure. */
+int frep_eval_attrs_par(const frep_program *p, size_t n, const double *x, const double *y,
+                        const double *z, const double *params, double *s, int nthreads,
+                        frep_runtime_error *err);
 
 /* Interval evaluation: an enclosure of f over a box.  A frep_interval_scratch is per
  * thread like frep_scratch (sized for `p` and any program of at most its size); free

@@ -228,6 +228,8 @@ void frep_program_free(frep_program *p)
     frep_free(p->pos);
     frep_free(p->file);
     frep_free(p->model);
+    for (i = 0; i < p->nattrs && p->attrs; i++) frep_program_free(p->attrs[i]);
+    frep_free(p->attrs);
     frep_free(p);
 }
 

@@ -73,6 +73,9 @@ struct frep_program {
     char *model;               /* model name */
     double box[6];             /* extent from an `-- @box` pragma; valid when has_box */
     int has_box;
+    uint32_t nattrs;           /* size of the model's s[] attribute array; 0: none */
+    struct frep_program **attrs; /* nattrs programs, attrs[k] computes s[k+1]: same
+                                    parameters, no attributes of their own */
     uint32_t cap;              /* allocated entries of code and pos (prog_emit's) */
 };
 

@@ -2,7 +2,8 @@
 # golden.sh - golden language tests: for every tests/lang/AREA/NAME.hf, run
 # `frep check NAME.hf` from the file's directory and compare its standard error with
 # NAME.err (whole diagnostics: message, source line, caret) or, without NAME.err,
-# expect a clean check; where NAME.print exists, compare `frep print NAME.hf` with it;
+# expect a clean check; where NAME.strict.err exists, compare `frep check --strict`
+# with it (and expect failure); where NAME.print exists, compare `frep print NAME.hf` with it;
 # for every tests/dis/NAME.hf compare `frep dis NAME.hf` with NAME.dis; and check
 # that every message of lang/check.c appears in some NAME.err.  Areas: syntax
 # (lexer, parser), names, calls, arrays, conditions, pragmas (lang/check.c),
@@ -65,6 +66,18 @@ for hf in "$srcdir"/tests/lang/*/*.hf; do
         show_diff "$expected" "$tmp/err"
     fi
 
+    # frep check --strict: what HyperFun rejects is an error
+    if [ -f "$dir/$name.strict.err" ]; then
+        (cd "$dir" && "$FREP" check --strict "$name.hf" >/dev/null 2>"$tmp/err")
+        status=$?
+        if cmp -s "$dir/$name.strict.err" "$tmp/err" && [ "$status" -eq 1 ]; then
+            report 0 "$area/$name: check --strict"
+        else
+            report 1 "$area/$name: check --strict (exit status $status)"
+            show_diff "$dir/$name.strict.err" "$tmp/err"
+        fi
+    fi
+
     # frep print: the canonical source
     if [ -f "$dir/$name.print" ]; then
         (cd "$dir" && "$FREP" print "$name.hf" >"$tmp/out" 2>/dev/null)
@@ -100,6 +113,34 @@ for hf in "$srcdir"/tests/dis/*.hf; do
         report 1 "dis/$name: disassembly (exit status $status)"
         show_diff "$dir/$name.dis" "$tmp/dis"
         sed 's/^/# /' "$tmp/err"
+    fi
+done
+
+# frep print writes what reads back unchanged: for every model that compiles (the
+# goldens above, the disassembly goldens and the examples), compile the printed source
+# and compare its disassembly with the original's, position comments and the file
+# name aside.  The disassembly writes every constant with %.17g, so equal listings
+# mean equal doubles; and no printed number has an exponent starting with 0, which
+# the reference interpreter's scanner rejects (int_scanner.c of HyperFun).
+strip_dis() { sed 's/;.*$//; s/[[:space:]]*$//' "$1"; }
+for hf in "$srcdir"/tests/lang/*/*.hf "$srcdir"/tests/dis/*.hf "$srcdir"/examples/*.hf \
+          "$srcdir"/examples/*/*.hf; do
+    [ -e "$hf" ] || continue
+    dir=$(dirname "$hf")
+    name=$(basename "$hf" .hf)
+    (cd "$dir" && "$FREP" dis "$name.hf" >"$tmp/dis1" 2>/dev/null) || continue
+    (cd "$dir" && "$FREP" print "$name.hf" >"$tmp/printed.hf" 2>/dev/null)
+    (cd "$tmp" && "$FREP" dis printed.hf >"$tmp/dis2" 2>/dev/null)
+    strip_dis "$tmp/dis1" >"$tmp/dis1s"
+    strip_dis "$tmp/dis2" >"$tmp/dis2s"
+    rel=${hf#"$srcdir"/}
+    if cmp -s "$tmp/dis1s" "$tmp/dis2s" &&
+       ! grep -v -e '^[[:space:]]*--' "$tmp/printed.hf" | grep -Eq '[0-9.][eE][-+]?0[0-9]'; then
+        report 0 "$rel: printed source compiles to the same program"
+    else
+        report 1 "$rel: printed source compiles to the same program"
+        diff -u "$tmp/dis1s" "$tmp/dis2s" | sed 's/^/# /'
+        grep -En '[0-9.][eE][-+]?0[0-9]' "$tmp/printed.hf" | sed 's/^/# exponent: /'
     fi
 done
 

@@ -435,17 +435,20 @@ static void test_models(void)
     o.model = "nope";
     p = compile_opt(src, &D, &o);
     ok(!p && find_diag(&D, "no model named 'nope'") >= 0, "unknown --model");
+    /* The reference interpreter and hfp evaluate the first body of a file. */
     p = compile("a1(x[3], a[1]) { a1 = 1; }\nb1(x[3], a[1]) { b1 = 2; }", &D);
-    ok(p && eval1(p, 0, 0, 0) == 2, "without my_model: the last model");
+    ok(p && eval1(p, 0, 0, 0) == 1, "without my_model: the first model");
     frep_program_free(p);
     names = frep_list_models("t.hf", src, strlen(src), &n, collect, &D);
     ok(names && n == 3 && strcmp(names[0], "shift") == 0 && strcmp(names[2], "last") == 0,
        "frep_list_models");
     frep_free_strings(names, n);
 
-    /* x[4..] read 0; s[] writes are ignored and reads give 0. */
-    p = compile("m(x[4], a[1], s[2]) {\n  s[1] = 5;\n  m = x[4] + s[1] + x[1];\n}", &D);
-    ok(p && eval1(p, 2, 0, 0) == 2, "x[4] and s[] read 0");
+    /* x[4..] read 0; s[] starts at 0 and reads back what was written (int_calc.c of
+     * HyperFun keeps s[] in the frame like any array). */
+    p = compile("m(x[4], a[1], s[2]) {\n  t = s[1];\n  s[1] = 5;\n  m = x[4] + s[1] + x[1] + t;\n}",
+                &D);
+    ok(p && eval1(p, 2, 0, 0) == 7, "x[4] reads 0, s[1] reads what was written");
     frep_program_free(p);
 
     /* Set-operation semantics: pragma and override. */
@@ -467,9 +470,123 @@ static void test_models(void)
     frep_program_free(p);
 }
 
+/* Attributes of n points of the line (t, 0, 0): s[i * K + k]. */
+static int attrs_at(const frep_program *p, size_t n, const double *t, double *s)
+{
+    double y[8] = { 0 }, z[8] = { 0 };
+    frep_runtime_error e;
+    return frep_eval_attrs_par(p, n, t, y, z, NULL, s, 1, &e);
+}
+
+/* Behaviour of the reference HyperFun interpreter (src/interpreter_lib of HyperFun:
+ * int_calc.c, int_parse_N.c, int_global.c; src/hflibrary_lib for hfSawtooth and
+ * hfA_*); every expected value is worked out by hand from that source. */
+static void test_hyperfun(void)
+{
+    diags D;
+    frep_program *p;
+    double t[4] = { 1, -1, 0.5, 2 }, s[12];
+
+    /* mod: fmod(HF_round(a), HF_round(b)), halves rounded up. */
+    p = compile("m(x[3], a[1]) { m = mod(2.7, 2) * 1000 + mod(-7, 3) * 100 + "
+                "mod(7.2, -3) * 10 + mod(-2.5, 2) + mod(x[1], 2.5); }", &D);
+    /* 1000 - 100 + 10 + (-0) + fmod(round(x), 3) */
+    if (p) is_double(eval1(p, 1.5, 0, 0), 910 + 2, 0, "mod rounds its arguments");
+    if (p) is_double(eval1(p, -1.5, 0, 0), 910 - 1, 0, "... -1.5 rounds to -1");
+    frep_program_free(p);
+    p = compile("m(x[3], a[1]) { m = mod(5, x[1]); }", &D);
+    if (p) ok(isnan(eval1(p, 0.4, 0, 0)), "mod by a divisor that rounds to 0: NaN");
+    if (p) is_double(eval1(p, 0.6, 0, 0), 0, 0, "... 0.6 rounds to 1");
+    frep_program_free(p);
+
+    /* Chained comparisons: ((-1 <= x) < 0.5), the truth value compared. */
+    p = compile("m(x[3], a[1]) {\n  r = 0;\n  if -1 <= x[1] < 0.5 then r = 1; endif;\n  m = r;\n}",
+                &D);
+    ok(p && find_diag(&D, "compares the truth value") >= 0, "chained comparison: a warning");
+    if (p) ok(eval1(p, 0, 0, 0) == 0 && eval1(p, -2, 0, 0) == 1,
+              "... true only where -1 <= x[1] is false");
+    frep_program_free(p);
+
+    /* '=' and '/=' within EPS = 1e-6. */
+    p = compile("m(x[3], a[1]) {\n  r = 0;\n  if x[1] = 1 then r = 1; endif;\n"
+                "  if x[1] /= 1 then r = r + 10; endif;\n  m = r;\n}", &D);
+    if (p) ok(eval1(p, 1 + 1e-7, 0, 0) == 1 && eval1(p, 1 + 2e-6, 0, 0) == 10 &&
+              eval1(p, 1, 0, 0) == 1, "'=' and '/=' with the reference's tolerance 1e-6");
+    frep_program_free(p);
+
+    /* Attributes: s[] carried out of the evaluation. */
+    p = compile("m(x[3], a[1], s[3]) {\n  d = hfA_SetColor(x[1], s, 0.25, 0.5, x[1]);\n"
+                "  m = d;\n}", &D);
+    ok(p && frep_program_nattrs(p) == 3, "three attributes");
+    if (p && attrs_at(p, 2, t, s) == 0)
+        ok(s[0] == 0.25 && s[1] == 0.5 && s[2] == 1 && s[3] == 0 && s[4] == 0 && s[5] == 0,
+           "hfA_SetColor sets s[] where f >= 0 only");
+    frep_program_free(p);
+    p = compile("c(x[3], a[1], s[2]) {\n  s[2] = x[1] * 3;\n  c = 1;\n}\n"
+                "m(x[3], a[1], s[2]) {\n  v = c(x, a, s);\n  m = s[2] + v;\n}", &D);
+    if (p) {
+        frep_compile_options o;
+        frep_program *q;
+        frep_compile_options_init(&o);
+        o.model = "m";
+        q = compile_opt("c(x[3], a[1], s[2]) {\n  s[2] = x[1] * 3;\n  c = 1;\n}\n"
+                        "m(x[3], a[1], s[2]) {\n  v = c(x, a, s);\n  m = s[2] + v;\n}", &D, &o);
+        ok(q && eval1(q, 2, 0, 0) == 7, "a called model's s[] comes back to the caller");
+        if (q && attrs_at(q, 1, t, s) == 0) ok(s[0] == 0 && s[1] == 3, "... and out");
+        frep_program_free(q);
+    }
+    frep_program_free(p);
+    p = compile("m(x[3], a[1]) { m = 1; }", &D);
+    ok(p && frep_program_nattrs(p) == 0 && attrs_at(p, 2, t, s) == 0, "no s[]: no attributes");
+    frep_program_free(p);
+
+    /* HSV <-> RGB, hfA_Union, hfA_Lerp. */
+    p = compile("m(x[3], a[1], s[3]) {\n  array h[3], c1[3], c2[3];\n  h = [240, 1, 1];\n"
+                "  d = hfA_HSVToRGB(h, s);\n  m = d;\n}", &D);
+    if (p && attrs_at(p, 1, t, s) == 0)
+        ok(s[0] == 0 && s[1] == 0 && s[2] == 1, "hfA_HSVToRGB(240, 1, 1) is blue");
+    frep_program_free(p);
+    p = compile("m(x[3], a[1], s[3]) {\n  array c[3];\n  c = [0, 0, 0.5];\n"
+                "  d = hfA_RGBToHSV(c, s);\n  m = d;\n}", &D);
+    if (p && attrs_at(p, 1, t, s) == 0)
+        ok(s[0] == 240 && s[1] == 1 && s[2] == 0.5, "hfA_RGBToHSV(0, 0, 0.5)");
+    frep_program_free(p);
+    p = compile("m(x[3], a[1], s[1]) {\n  array c1[1], c2[1];\n  c1 = [3];\n  c2 = [5];\n"
+                "  u = hfA_Union(x[1], -x[1] - 1, s, c1, c2, 4);\n  m = u;\n}", &D);
+    /* t = 1: f1 = 1, f2 = -2 -> s = c1; t = -1: f1 = -1, f2 = 0 -> s = c2;
+     * t = -0.5: f1 = f2 = -0.5, u = -1 + sqrt(0.5) < 0 -> unchanged (0) */
+    {
+        double tt[3] = { 1, -1, -0.5 };
+        if (p && attrs_at(p, 3, tt, s) == 0)
+            ok(s[0] == 3 && s[1] == 5 && s[2] == 0, "hfA_Union picks the attributes");
+        if (p) is_double(eval1(p, 1, 0, 0), -1 + sqrt(5.0), 1e-15, "... its value is R0 union");
+    }
+    frep_program_free(p);
+    p = compile("m(x[3], a[1], s[2]) {\n  array c1[2], c2[2];\n  c1 = [0, 10];\n  c2 = [4, 20];\n"
+                "  f = hfA_Lerp(s, c1, c2, x[1], 0, 2);\n  m = f;\n}", &D);
+    if (p && attrs_at(p, 4, t, s) == 0)
+        ok(s[0] == 2 && s[1] == 15 && s[2] == 0 && s[3] == 10 && s[4] == 1 &&
+           s[5] == 12.5 && s[6] == 4 && s[7] == 20, "hfA_Lerp");
+    frep_program_free(p);
+
+    /* hfSawtooth(t, n, a, f) = (0.5 - sum_{k<n} sin(2 pi k f t) / k) * 2 / (a pi). */
+    p = compile("m(x[3], a[1]) { m = hfSawtooth(x[1], 3, 2, 1) + hfSawtooth(x[1], 1, 1, 1); }", &D);
+    if (p) {
+        double tv = 0.125, pi = 3.14159265358979323846;
+        double want = (0.5 - sin(2 * pi * tv) - sin(4 * pi * tv) / 2) * (2 / (2 * pi));
+        is_double(eval1(p, tv, 0, 0), want, 1e-15, "hfSawtooth");
+    }
+    frep_program_free(p);
+    expect_error("m(x[3], a[1]) { m = hfSawtooth(x[1], x[2], 1, 1); }",
+                 "the number of terms n must be a constant", 1, 21, "hfSawtooth: n constant");
+    expect_error("m(x[3], a[1], s[3]) { m = hfA_NoiseG(s, 1, 2); }",
+                 "not implemented in frep", 1, 27, "hfA_NoiseG: known, not implemented");
+}
+
 static void test_limits(void)
 {
     diags D;
+    frep_compile_options o;
     frep_program *p;
     char *src = malloc(200000);
     size_t len = 0;
@@ -478,7 +595,9 @@ static void test_limits(void)
     len += (size_t)sprintf(src + len, "m0(x[3], a[1]) { m0 = x[1]; }\n");
     for (i = 1; i < 70; i++)
         len += (size_t)sprintf(src + len, "m%d(x[3], a[1]) { m%d = m%d(x, a) + 1; }\n", i, i, i - 1);
-    p = compile(src, &D);
+    frep_compile_options_init(&o);
+    o.model = "m69"; /* the last: the default is the first, as in the reference */
+    p = compile_opt(src, &D, &o);
     ok(!p && find_diag(&D, "model calls nested more than 64 deep") >= 0,
        "FREP_MAX_INLINE_DEPTH");
     frep_program_free(p);
@@ -489,7 +608,8 @@ static void test_limits(void)
     for (i = 1; i < 22; i++)
         len += (size_t)sprintf(src + len, "m%d(x[3], a[1]) { m%d = m%d(x, a) + m%d(x, a); }\n",
                                i, i, i - 1, i - 1);
-    p = compile(src, &D);
+    o.model = "m21";
+    p = compile_opt(src, &D, &o);
     ok(!p && find_diag(&D, "model too large: more than 1048576 statements") >= 0,
        "FREP_MAX_LOWER_STEPS");
     frep_program_free(p);
@@ -682,6 +802,7 @@ int main(void)
     test_control();
     test_params();
     test_models();
+    test_hyperfun();
     test_limits();
     test_out_of_memory();
     return done_testing();

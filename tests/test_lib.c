@@ -57,7 +57,14 @@ REF(r_ceil, ceil(p[0] * 3))
 REF(r_floor, floor(p[1] * 3))
 REF(r_int, trunc(p[2] * 3))
 REF(r_frac, p[0] * 3 - trunc(p[0] * 3))
-REF(r_mod, fmod(p[0] * 5, 0.7))
+/* HF_round of the reference interpreter (int_parse_N.c of HyperFun). */
+static double hf_round(double d)
+{
+    double c = ceil(d);
+    return c - d > 0.5 ? c - 1 : c;
+}
+/* the reference's mod: fmod of the rounded arguments (int_calc.c, FUNC_mod) */
+REF(r_mod, fmod(hf_round(p[0] * 20), hf_round(3.4)))
 REF(r_max, p[0] > p[1] ? p[0] : p[1])
 REF(r_min, p[0] < p[1] ? p[0] : p[1])
 REF(r_atan2, atan2(p[0], p[1]))
@@ -766,7 +773,7 @@ static const tcase cases[] = {
     C1("floor", "m = floor(x[2]*3);", r_floor),
     C1("int", "m = int(x[3]*3);", r_int),
     C1("frac", "m = frac(x[1]*3);", r_frac),
-    C1("mod", "m = mod(x[1]*5, 0.7);", r_mod),
+    C1("mod", "m = mod(x[1]*20, 3.4);", r_mod),
     C1("max", "m = max(x[1], x[2]);", r_max),
     C1("min", "m = min(x[1], x[2]);", r_min),
     C1("atan2", "m = atan2(x[1], x[2]);", r_atan2),
