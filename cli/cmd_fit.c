@@ -190,7 +190,7 @@ typedef struct fit_cmd {
     const char *out, *model, *json, *bounds, *view;
     cli_list a;
     double loss_scale;         /* --loss-scale; <= 0: 0.01 x the cloud's diagonal */
-    int in_place, quiet;
+    int in_place, quiet, strict;
     const char *tmpl, *cloud_path;
     frep_program *p;
     char *src;                 /* the template's text */
@@ -229,6 +229,7 @@ static const cli_opt fit_opts[] = {
     { 'o', "output", "FILE", CLI_OPT_STRING, OFF(out), .help = "write the fitted template here" },
     { 0, "in-place", NULL, CLI_OPT_SET, OFF(in_place), .help = "overwrite TEMPLATE.hf itself" },
     CLI_OPT_MODEL(fit_cmd, model, "the model to fit (default: my_model, else the first one)"),
+    CLI_OPT_STRICT(fit_cmd, strict),
     { 0, "method", "M", CLI_OPT_CUSTOM, OFF(cfg.method), .parse = parse_method,
       .expect = "saqn, qn, sa or lm",
       .help = "saqn (annealing, then quasi-Newton; default), qn, sa, lm" },
@@ -285,7 +286,7 @@ static int stage_options(fit_cmd *f, int argc, char **argv)
 /* The template compiled, its parameter tables allocated, --bounds read. */
 static int stage_template(fit_cmd *f)
 {
-    f->p = cli_compile_file(f->tmpl, f->model, f->a.v, f->a.n, -1, &f->src);
+    f->p = cli_compile_file(f->tmpl, f->model, f->a.v, f->a.n, -1, f->strict, &f->src);
     if (f->p == NULL) return CLI_FAIL;
     f->nall = frep_program_nparams(f->p);
     for (size_t i = 0; i < f->nall; i++) f->nnamed += f->p->params[i].end > f->p->params[i].off;
