@@ -171,6 +171,41 @@ report $? "frep mesh: a model without s[] gets no colours"
 "$FREP" mesh "$M" $B --color model -o "$tmp/s6.ply" 2>"$tmp/err"
 [ $? = 1 ] && grep -q 'has 0 attributes; colours need s\[1..3\]' "$tmp/err" && [ ! -e "$tmp/s6.ply" ]
 report $? "frep mesh --color model without s[1..3]: an error, no file"
+
+# --strict on every command that compiles a model: frep's own rUnion is accepted
+# without it (the command works) and an error "not HyperFun" with it (exit 1, no output).
+cat > "$tmp/ext.hf" <<'EOF2'
+my_model(x[3], a[1]) {
+  r = 0.8;  -- @free [0.1, 1.5]
+  my_model = rUnion(r*r - x[1]*x[1] - x[2]*x[2] - x[3]*x[3], -1);
+}
+EOF2
+"$FREP" sample "$tmp/ext.hf" -b 1 -n 200 --seed 1 -q -o "$tmp/ext.xyz" 2>/dev/null
+report $? "frep sample of a model with frep's rUnion works without --strict"
+strict() { # strict NAME OUT ARGS...: works without --strict, fails with it, OUT not written
+    name=$1 out=$2; shift 2
+    rm -f "$out"
+    "$FREP" "$@" >/dev/null 2>"$tmp/err" && rm -f "$out" && ! "$FREP" "$@" --strict >"$tmp/out" 2>"$tmp/err"
+    st=$?
+    [ $st = 0 ] && grep -q "error: not HyperFun: 'rUnion'" "$tmp/err" && [ ! -e "$out" ] &&
+        { [ "$out" = "$tmp/out" ] || [ ! -s "$tmp/out" ]; }
+    r=$?
+    [ $r = 0 ] || sed 's/^/# /' "$tmp/err"
+    report $r "frep $name --strict: HyperFun's rejections are errors"
+}
+echo "0 0 0" > "$tmp/pt"
+strict eval "$tmp/none" eval "$tmp/ext.hf" "$tmp/pt"
+strict mesh "$tmp/st.stl" mesh "$tmp/ext.hf" -b 1 -g 8 -q -o "$tmp/st.stl"
+strict sample "$tmp/st.xyz" sample "$tmp/ext.hf" -b 1 -n 50 --seed 1 -q -o "$tmp/st.xyz"
+strict render "$tmp/st.png" render "$tmp/ext.hf" -b 1 -g 16 --size 16x16 -q -o "$tmp/st.png"
+strict view "$tmp/st.html" view "$tmp/ext.hf" -b 1 -g 8 -q -o "$tmp/st.html"
+strict fit "$tmp/st.hf" fit "$tmp/ext.hf" "$tmp/ext.xyz" --seed 1 -q -o "$tmp/st.hf"
+strict dis "$tmp/none" dis "$tmp/ext.hf"
+strict check "$tmp/none" check "$tmp/ext.hf"
+"$FREP" print "$tmp/ext.hf" > "$tmp/out" 2>"$tmp/err" && grep -q rUnion "$tmp/out" &&
+    ! "$FREP" print --strict "$tmp/ext.hf" > "$tmp/out" 2>"$tmp/err" && [ ! -s "$tmp/out" ] &&
+    grep -q "error: not HyperFun: 'rUnion'" "$tmp/err"
+report $? "frep print --strict: checks first, prints nothing on errors"
 "$FREP" mesh "$M" -b 1 -g 8 -t -x X,Y,Z -i 0.01 -o "$tmp/f.stl" > "$tmp/out" &&
     "$FREP" mesh "$M" -b 1 -g 8 --iso 0.01 -o "$tmp/g.stl" > /dev/null && cmp -s "$tmp/f.stl" "$tmp/g.stl" &&
     grep -q 's$' "$tmp/out"
