@@ -27,9 +27,8 @@ static const char mesh_usage[] =
     "HyperFun hfp's options work too: -stl/-stlb/-wrl FILE (text STL, binary STL, VRML\n"
     "to FILE), -g NX,NY,NZ (cells per axis), -i V (iso value), -cf R,G,B (face colour: --color),\n"
     "-ct (colours from s[1..3]: --color model), -x X,Y,Z, -t without a number (time\n"
-    "report: the summary line has the time); hfp's\n"
-    "-o names a model (frep: -m NAME). The viewer's -cl, -d, -w and -pov/-cli output are\n"
-    "refused with what to use instead.\n\n";
+    "report: the summary line has the time); hfp's -o names a model (frep: -m NAME).\n"
+    "The viewer's -cl, -d, -w and -pov/-cli output are refused with what to use instead.\n\n";
 
 /* Where the vertices' colours come from (--color). */
 typedef enum {
