@@ -50,6 +50,7 @@ typedef struct mesh_cli {
     cli_list a;
     double box[6];
     int has_box, grid, nthreads, setops;
+    int strict;              /* --strict: HyperFun's rejections are errors */
     int grid_axes[3];        /* hfp's -g NX,NY,NZ (frep mesh); 0: grid on every axis */
     double iso;
     frep_program *p;
@@ -113,6 +114,10 @@ void cli_cloud_dist_free(cli_cloud_dist *d);
     { 't', "threads", "N", CLI_OPT_INT, offsetof(T, f), .lo = 1, .hi = CLI_MAX_THREADS, .help = h }
 #define CLI_OPT_SEED(T, f, h) \
     { 0, "seed", "S", CLI_OPT_SEED, offsetof(T, f), .help = h }
+#define CLI_OPT_STRICT(T, f) \
+    { 0, "strict", NULL, CLI_OPT_SET, offsetof(T, f), \
+      .help = "what the reference HyperFun interpreter rejects is an error, not a\n" \
+              "warning 'not HyperFun: ...' (doc/language.md)" }
 #define CLI_OPT_QUIET(T, f, h) \
     { 'q', "quiet", NULL, CLI_OPT_SET, offsetof(T, f), .help = h }
 
@@ -163,17 +168,19 @@ typedef struct cli_diag_ctx {
 void cli_print_diag(void *user, const frep_diag *d);
 void cli_diag_done(cli_diag_ctx *c);
 
-/* Compile FILE (reading it) with the common options; prints diagnostics. On success
+/* Compile FILE (reading it) with the common options (setops: -1 or a frep_setops value;
+ * strict: --strict, frep_compile_options.strict); prints diagnostics. On success
  * returns the program and (if src != NULL) hands over the source text (free()). */
 frep_program *cli_compile_file(const char *path, const char *model, const double *a,
-                               size_t na, int setops, char **src);
+                               size_t na, int setops, int strict, char **src);
 /* The same, with a copy of the messages appended to diag (may be NULL). */
 frep_program *cli_compile_file_diag(const char *path, const char *model, const double *a,
-                                    size_t na, int setops, char **src, frep_buf *diag);
+                                    size_t na, int setops, int strict, char **src,
+                                    frep_buf *diag);
 /* The same for a text already in memory, called path in messages. */
 frep_program *cli_compile_text(const char *path, const char *text, size_t len,
                                const char *model, const double *a, size_t na, int setops,
-                               frep_buf *diag);
+                               int strict, frep_buf *diag);
 
 /* Write a file atomically: data goes to a temporary in the same directory (PATH.tmpPID),
  * which is renamed over `path` when `fn` succeeds and removed otherwise, also by a

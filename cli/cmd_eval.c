@@ -214,7 +214,7 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
 typedef struct eval_cmd {
     const char *model, *boxarg;
     cli_list a;
-    int grad, setops, nthreads, prune;
+    int grad, setops, nthreads, prune, strict;
     long grid;                /* points per axis; 0: point mode */
     const char *file, *points;
     double box[6];
@@ -237,6 +237,7 @@ static const cli_opt eval_opts[] = {
     { 0, "no-prune", NULL, CLI_OPT_CLEAR, OFF(prune),
       .help = "grid mode: evaluate every tile with the whole program" },
     CLI_OPT_SETOPS(eval_cmd, setops, "override the file's set operations: rfunc, minmax"),
+    CLI_OPT_STRICT(eval_cmd, strict),
     CLI_OPT_THREADS(eval_cmd, nthreads, "OpenMP threads (default: all cores)"),
 };
 #undef OFF
@@ -264,7 +265,8 @@ static int stage_options(eval_cmd *c, int argc, char **argv)
 /* Compile, then evaluate on the grid or at the points. */
 static int eval_run(eval_cmd *c)
 {
-    c->p = cli_compile_file(c->file, c->model, c->a.v, c->a.n, c->setops, &c->src);
+    c->p = cli_compile_file(c->file, c->model, c->a.v, c->a.n, c->setops, c->strict,
+                            &c->src);
     if (!c->p) return CLI_FAIL;
     if (c->grid && !c->boxarg) frep_program_box(c->p, c->box);
     size_t srclen = c->src ? strlen(c->src) : 0;

@@ -341,7 +341,7 @@ static int residual_cloud(evolve_cmd *e, size_t nres)
 static int stage_residual(evolve_cmd *e)
 {
     evolve_options *eo = &e->eo;
-    e->base_prog = cli_compile_file(e->residual_path, NULL, NULL, 0, -1, &e->base_src);
+    e->base_prog = cli_compile_file(e->residual_path, NULL, NULL, 0, -1, 0, &e->base_src);
     if (!e->base_prog) return CLI_FAIL;
     frep_error_init(&e->ferr);
     if (residual_prepare(e->residual_path, e->base_src, strlen(e->base_src), NULL, e->base_prog,

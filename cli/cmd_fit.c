@@ -232,7 +232,7 @@ typedef struct fit_cmd {
     const char *out, *model, *json, *bounds, *view;
     cli_list a;
     double loss_scale;         /* --loss-scale; <= 0: 0.01 x the cloud's diagonal */
-    int in_place, quiet;
+    int in_place, quiet, strict;
     const char *tmpl, *cloud_path;
     frep_program *p;
     frep_program *ps;          /* its R-function compilation, when it differs (min/max) */
@@ -275,6 +275,7 @@ static const cli_opt fit_opts[] = {
     { 'o', "output", "FILE", CLI_OPT_STRING, OFF(out), .help = "write the fitted template here" },
     { 0, "in-place", NULL, CLI_OPT_SET, OFF(in_place), .help = "overwrite TEMPLATE.hf itself" },
     CLI_OPT_MODEL(fit_cmd, model, "the model to fit (default: my_model, else the first one)"),
+    CLI_OPT_STRICT(fit_cmd, strict),
     { 0, "method", "M", CLI_OPT_CUSTOM, OFF(cfg.method), .parse = parse_method,
       .expect = "saqn, qn, sa or lm",
       .help = "saqn (annealing, then quasi-Newton; default), qn, sa, lm" },
@@ -371,7 +372,7 @@ static void ignore_diag(void *user, const frep_diag *d)
 /* The template compiled, its parameter tables allocated, --bounds read. */
 static int stage_template(fit_cmd *f)
 {
-    f->p = cli_compile_file(f->tmpl, f->model, f->a.v, f->a.n, -1, &f->src);
+    f->p = cli_compile_file(f->tmpl, f->model, f->a.v, f->a.n, -1, f->strict, &f->src);
     if (f->p == NULL) return CLI_FAIL;
     warn_lookalike_annotations(f->tmpl, f->src);
     /* A min/max template is annealed on its R-function compilation: the same parameters

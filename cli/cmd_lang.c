@@ -11,6 +11,7 @@
 
 #include "arena.h"
 #include "ast.h"
+#include "check.h"
 
 /* The input of every language subcommand: one model file (and for dis a model name). */
 typedef struct lang_cmd {
@@ -18,11 +19,12 @@ typedef struct lang_cmd {
     const char *file;
     char *src;               /* the file's text (free()) */
     size_t len;
-    int strict;              /* check: HyperFun's rejections are errors */
+    int strict;              /* --strict: HyperFun's rejections are errors */
 } lang_cmd;
 
 static const cli_opt dis_opts[] = {
     CLI_OPT_MODEL(lang_cmd, model, NULL),
+    CLI_OPT_STRICT(lang_cmd, strict),
 };
 
 /* Options -> the one model file, read. Returns CLI_GO_ON or an exit status. */
@@ -38,9 +40,7 @@ static int lang_input(const cli_opt_spec *spec, int argc, char **argv, lang_cmd 
 }
 
 static const cli_opt check_opts[] = {
-    { 0, "strict", NULL, CLI_OPT_SET, offsetof(lang_cmd, strict),
-      .help = "what the reference HyperFun interpreter rejects is an error, not a\n"
-              "warning 'not HyperFun: ...' (doc/language.md)" },
+    CLI_OPT_STRICT(lang_cmd, strict),
 };
 
 static const cli_opt_spec check_spec = { "check",
@@ -82,11 +82,17 @@ int cmd_check(int argc, char **argv)
     return rc;
 }
 
+static const cli_opt print_opts[] = {
+    CLI_OPT_STRICT(lang_cmd, strict),
+};
+
 static const cli_opt_spec print_spec = { "print",
-    "usage: frep print FILE.hf\n\n"
+    "usage: frep print [--strict] FILE.hf\n\n"
     "Print the canonical source of FILE.hf: the same program (parsing the output\n"
-    "again gives the same tree), laid out uniformly, with annotations kept.\n",
-    NULL, 0, 0 };
+    "again gives the same tree), laid out uniformly, with annotations kept.\n"
+    "--strict: check the file as frep check --strict does first, print nothing\n"
+    "if it has errors.\n",
+    print_opts, sizeof print_opts / sizeof print_opts[0], 0 };
 
 int cmd_print(int argc, char **argv)
 {
@@ -100,7 +106,13 @@ int cmd_print(int argc, char **argv)
     ast_file f;
     int status = CLI_FAIL;
     if (ast_parse(&A, c.file, c.src, c.len, &ds, &f) == 0) {
+        /* printed before checking: the check annotates the tree */
         char *out = ast_print(&f);
+        check_info ci;
+        if (out && c.strict && (check_file(&A, &f, 1, &ds, &ci) != 0 || ds.errors)) {
+            frep_free(out);
+            out = NULL;
+        }
         if (out) {
             fputs(out, stdout);
             frep_free(out);
@@ -114,7 +126,7 @@ int cmd_print(int argc, char **argv)
 }
 
 static const cli_opt_spec dis_spec = { "dis",
-    "usage: frep dis [--model NAME] FILE.hf\n\n"
+    "usage: frep dis [--model NAME] [--strict] FILE.hf\n\n"
     "Compile a model of FILE.hf and print its bytecode: one instruction a line\n"
     "with its operands and source position (see doc/architecture.md).\n"
     "Without --model: my_model if present, else the first model of the file.\n",
@@ -125,7 +137,7 @@ int cmd_dis(int argc, char **argv)
     lang_cmd c = { 0 };
     int rc = lang_input(&dis_spec, argc, argv, &c, 0);
     if (rc != CLI_GO_ON) return rc;
-    frep_program *p = cli_compile_file(c.file, c.model, NULL, 0, -1, NULL);
+    frep_program *p = cli_compile_file(c.file, c.model, NULL, 0, -1, c.strict, NULL);
     if (!p) return CLI_FAIL;
     char *s = frep_disassemble(p);
     frep_program_free(p);

@@ -3,11 +3,13 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "cli.h"
 #include "mesh.h"
 #include "meshio.h"
 
 #include <ctype.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -19,34 +21,55 @@ static const char mesh_usage[] =
     "the box, the mesh is closed by caps on the box faces.\n\n"
     "The format comes from OUT's extension: .stl (binary; --ascii for text STL), .obj,\n"
     ".ply (binary; --ascii for text PLY), .off, .wrl (VRML 2.0). OUT '-' writes binary\n"
-    "STL to stdout. --color gives the vertices a colour (PLY and VRML).\n\n"
+    "STL to stdout. PLY and VRML get vertex colours: the model's own when it declares\n"
+    "s[] with at least 3 attributes (s[1..3] = red, green, blue in [0,1]), else none;\n"
+    "--color sets one colour for all, --color none turns them off.\n\n"
     "HyperFun hfp's options work too: -stl/-stlb/-wrl FILE (text STL, binary STL, VRML\n"
     "to FILE), -g NX,NY,NZ (cells per axis), -i V (iso value), -cf R,G,B (face colour: --color),\n"
-    "-x X,Y,Z, -t without a number (time report: the summary line has the time); hfp's\n"
-    "-o names a model (frep: -m NAME). The viewer's -cl, -d, -w and -pov/-cli output are\n"
-    "refused with what to use instead.\n\n";
+    "-ct (colours from s[1..3]: --color model), -x X,Y,Z, -t without a number (time\n"
+    "report: the summary line has the time); hfp's -o names a model (frep: -m NAME).\n"
+    "The viewer's -cl, -d, -w and -pov/-cli output are refused with what to use instead.\n\n";
+
+/* Where the vertices' colours come from (--color). */
+typedef enum {
+    COLOR_AUTO,    /* the model's s[1..3] when it has them and the format carries colours */
+    COLOR_NONE,    /* --color none */
+    COLOR_MODEL,   /* --color model, hfp's -ct: s[1..3], an error without them */
+    COLOR_UNIFORM  /* --color V or R,G,B */
+} color_source;
+
+typedef struct mesh_color {
+    color_source src;
+    int rgb[3];              /* COLOR_UNIFORM's colour */
+} mesh_color;
 
 typedef struct mesh_cmd {
     mesh_cli mc;
     const char *out;
     int ascii, quiet, check, check_self, verbose;
-    int rgb[3];              /* --color; rgb[0] < 0: none */
+    mesh_color color;        /* --color */
     meshio_format fmt;
     meshio_format hfp_fmt;   /* hfp's -stl/-stlb/-wrl chose the format, else UNKNOWN */
-    uint8_t *vrgb;           /* the vertices' colours (--color), else NULL */
+    uint8_t *vrgb;           /* the vertices' colours, else NULL */
     char grid_arg[16];       /* the largest of hfp's -g NX,NY,NZ, for the table's -g */
     frep_mesh m;
     mesh_stats st;
     FILE *summary;           /* stdout, or stderr when the mesh goes to stdout */
 } mesh_cmd;
 
-/* A colour: "V" (grey V) or "R,G,B", each 0..255 (hfp's -cf / -cl syntax). */
-static int parse_rgb(const char *arg, void *dest, char *why, size_t whylen)
+/* A colour source: "model", "none", or "V" (grey V) or "R,G,B", each 0..255 (hfp's
+ * -cf / -cl syntax). */
+static int parse_color(const char *arg, void *dest, char *why, size_t whylen)
 {
-    int *rgb = dest, v[3], n = 0;
+    mesh_color *mcol = dest;
+    int *rgb = mcol->rgb, v[3], n = 0;
     const char *p = arg;
     (void)why;
     (void)whylen;
+    if (!strcmp(arg, "model") || !strcmp(arg, "none")) {
+        mcol->src = arg[0] == 'm' ? COLOR_MODEL : COLOR_NONE;
+        return 0;
+    }
     for (;;) {
         char *end;
         long x = strtol(p, &end, 10);
@@ -58,6 +81,7 @@ static int parse_rgb(const char *arg, void *dest, char *why, size_t whylen)
     }
     if (n != 1 && n != 3) return -1;
     for (int k = 0; k < 3; k++) rgb[k] = v[n == 1 ? 0 : k];
+    mcol->src = COLOR_UNIFORM;
     return 0;
 }
 
@@ -73,11 +97,13 @@ static const cli_opt mesh_opts[] = {
     CLI_OPT_GRID(mesh_cmd, mc.grid, "64", "grid cells per axis (HyperFun's -g; default 64, at most 2048)"),
     CLI_OPT_ISO(mesh_cmd, mc.iso, "polygonize f = V instead of f = 0 (inside is f >= V)"),
     { 0, "ascii", NULL, CLI_OPT_SET, OFF(ascii), .help = "text STL / text PLY" },
-    { 0, "color", "RGB", CLI_OPT_CUSTOM, OFF(rgb), .parse = parse_rgb,
-      .expect = "V or R,G,B with each in 0..255",
-      .help = "colour every vertex: 'V' (grey) or 'R,G,B', each 0..255;\n"
-              "PLY vertex colours, VRML Color (hfp's -cf)" },
+    { 0, "color", "RGB", CLI_OPT_CUSTOM, OFF(color), .parse = parse_color,
+      .expect = "model, none, V or R,G,B with each in 0..255",
+      .help = "the vertex colours (PLY, VRML Color): 'V' (grey) or 'R,G,B',\n"
+              "each 0..255, for all (hfp's -cf); 'model': s[1..3] (hfp's\n"
+              "-ct); 'none'. Default: 'model' if the model has s[1..3]" },
     CLI_OPT_SETOPS(mesh_cmd, mc.setops, "override the file's set operations: rfunc, minmax"),
+    CLI_OPT_STRICT(mesh_cmd, mc.strict),
     CLI_OPT_THREADS(mesh_cmd, mc.nthreads, "OpenMP threads (default: all cores); the mesh is the same"),
     { 0, "check", NULL, CLI_OPT_SET, OFF(check),
       .help = "verify the mesh (closed, 2-manifold at edges and vertices,\n"
@@ -174,8 +200,8 @@ static int hfp_options(mesh_cmd *c, int argc, char **argv, char ***out, int *out
             rc = cli_usage_error("mesh", "hfp's -cl is the wireframe colour of its viewer; frep "
                                          "mesh draws nothing (see the mesh with frep view)");
         } else if (!strcmp(a, "-ct")) {
-            rc = cli_usage_error("mesh", "hfp's -ct (colours from the model's s[] attributes) is "
-                                         "not supported yet; --color R,G,B colours the whole mesh");
+            v[n++] = "--color=model";
+            continue;
         } else if (!strcmp(a, "-d") || !strcmp(a, "-w")) {
             rc = cli_usage_error("mesh", "hfp's %s sets its viewer's %s; frep mesh has no viewer "
                                          "(frep view shows a mesh)", a,
@@ -266,9 +292,11 @@ static int stage_options(mesh_cmd *c, int argc, char **argv, const char **in)
     if (c->fmt == MESHIO_UNKNOWN)
         return cli_usage_error("mesh", "cannot tell the format of '%s': use .stl, .obj, .ply, .off "
                                        "or .wrl", c->out);
-    if (c->rgb[0] >= 0 && c->fmt != MESHIO_PLY && c->fmt != MESHIO_WRL)
+    int colored = c->fmt == MESHIO_PLY || c->fmt == MESHIO_WRL;
+    if ((c->color.src == COLOR_UNIFORM || c->color.src == COLOR_MODEL) && !colored)
         return cli_usage_error("mesh", "--color: %s files carry no colours (use .ply or .wrl)",
                                meshio_format_name(c->fmt));
+    if (c->color.src == COLOR_AUTO && !colored) c->color.src = COLOR_NONE;
     c->summary = strcmp(c->out, "-") == 0 ? stderr : stdout;
     return CLI_GO_ON;
 }
@@ -279,6 +307,91 @@ static void uniform_color(void *user, const double p[3], uint8_t rgb[3])
     const int *c = user;
     (void)p;
     for (int k = 0; k < 3; k++) rgb[k] = (uint8_t)c[k];
+}
+
+/* A colour channel from an attribute: [0,1] -> 0..255, clamped; NaN (a domain error,
+ * reported as a warning) is 0. */
+static uint8_t channel(double v)
+{
+    if (!(v > 0)) return 0;
+    if (v >= 1) return 255;
+    return (uint8_t)(v * 255 + 0.5);
+}
+
+/* Where the model's colours are evaluated: the surface point near the vertex (one
+ * Newton step along the gradient: a vertex may be a tenth of a cell off a curved
+ * surface), then this fraction of the smallest cell inside it.  hfA_SetColor's "where
+ * f >= 0" fails at about half of the points exactly on the surface (f = 0 to
+ * rounding); a thousandth of a cell moves a colour by far less than 1/255 for any
+ * colour that changes by less than its full range over a cell. */
+#define MESH_COLOR_INSET 1e-3
+/* A Newton step longer than this many cells (a flat spot of f) is not taken. */
+#define MESH_COLOR_MAX_STEP 1.0
+
+/* The points the colours are evaluated at (MESH_COLOR_INSET), into xyz (3 n: all x,
+ * all y, all z), from f and its gradient at the vertices (g: 4 n scratch). */
+static int color_points(mesh_cmd *c, double *xyz, double *g)
+{
+    size_t n = c->m.nverts;
+    double cell = HUGE_VAL;
+    for (int q = 0; q < 3; q++) {
+        int gr = c->mc.grid_axes[q] ? c->mc.grid_axes[q] : c->mc.grid;
+        double h = (c->mc.box[q + 3] - c->mc.box[q]) / gr;
+        cell = h < cell ? h : cell;
+    }
+    for (size_t i = 0; i < n; i++)
+        for (int q = 0; q < 3; q++) xyz[q * n + i] = c->m.v[3 * i + q];
+    frep_runtime_error re;
+    memset(&re, 0, sizeof re);
+    if (frep_eval_grad_par(c->mc.p, n, xyz, xyz + n, xyz + 2 * n, NULL, g, g + n, g + 2 * n,
+                           g + 3 * n, c->mc.nthreads, &re) != 0)
+        return -1;
+    mesh_cli_add_errors(&c->mc, &re);
+    for (size_t i = 0; i < n; i++) {
+        double d[3] = { g[n + i], g[2 * n + i], g[3 * n + i] };
+        double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = sqrt(len2);
+        if (!(len > 0) || !isfinite(len2) || !isfinite(g[i])) continue;
+        double t = (c->mc.iso - g[i]) / len; /* signed distance to f = iso, along d/len */
+        if (!(fabs(t) <= MESH_COLOR_MAX_STEP * cell)) t = 0;
+        t += MESH_COLOR_INSET * cell;          /* inside: f grows along the gradient */
+        for (int q = 0; q < 3; q++) xyz[q * n + i] += t * d[q] / len;
+    }
+    return 0;
+}
+
+/* The model's colours: s[1..3] at every vertex (hfp's convention: red, green, blue in
+ * [0,1]), evaluated a hair inside the surface (color_points).  AUTO without three
+ * attributes: no colours. */
+static int model_colors(mesh_cmd *c)
+{
+    const frep_program *p = c->mc.p;
+    size_t k = frep_program_nattrs(p), n = c->m.nverts;
+    if (k < 3) {
+        if (c->color.src == COLOR_AUTO) return CLI_OK;
+        fprintf(stderr, "frep mesh: --color model: %s has %zu attributes; colours need s[1..3] "
+                        "(declare the model as name(x[3], a[M], s[3]))\n", c->mc.path, k);
+        return CLI_FAIL;
+    }
+    double *xyz = frep_calloc(n, 3 * sizeof *xyz), *s = frep_calloc(n, k * sizeof *s);
+    double *g = frep_calloc(n, 4 * sizeof *g);
+    c->vrgb = frep_calloc(n, 3);
+    int rc = xyz && s && g && c->vrgb && color_points(c, xyz, g) == 0 ? CLI_OK : CLI_FAIL;
+    if (rc == CLI_OK) {
+        frep_runtime_error re;
+        memset(&re, 0, sizeof re);
+        if (frep_eval_attrs_par(p, n, xyz, xyz + n, xyz + 2 * n, NULL, s, c->mc.nthreads, &re) != 0)
+            rc = CLI_FAIL;
+        mesh_cli_add_errors(&c->mc, &re);
+        mesh_cli_report_errors(&c->mc);
+    }
+    if (rc == CLI_OK)
+        for (size_t i = 0; i < n; i++)
+            for (int q = 0; q < 3; q++) c->vrgb[3 * i + q] = channel(s[i * k + q]);
+    else fprintf(stderr, "frep mesh: out of memory colouring the mesh\n");
+    frep_free(xyz);
+    frep_free(g);
+    frep_free(s);
+    return rc;
 }
 
 static int write_mesh_cb(FILE *f, void *user)
@@ -376,10 +489,16 @@ static int mesh_steps(mesh_cmd *c, const char *in)
     int rc = mesh_cli_compile(&c->mc, in);
     if (rc == CLI_OK) rc = mesh_cli_polygonize(&c->mc, "mesh", &c->m, &c->st);
     if (rc != CLI_OK) return rc;
-    if (c->rgb[0] >= 0 && !(c->vrgb = mesh_colors(&c->m, uniform_color, c->rgb))) {
+    if (c->color.src == COLOR_UNIFORM &&
+        !(c->vrgb = mesh_colors(&c->m, uniform_color, c->color.rgb))) {
         fprintf(stderr, "frep mesh: out of memory colouring the mesh\n");
+        rc = CLI_FAIL;
+    } else if (c->color.src == COLOR_AUTO || c->color.src == COLOR_MODEL)
+        rc = model_colors(c);
+    if (rc != CLI_OK) {
+        frep_free(c->vrgb);
         mesh_free(&c->m);
-        return CLI_FAIL;
+        return rc;
     }
     rc = cli_write_atomic(c->out, write_mesh_cb, c) != 0 ? CLI_FAIL : stage_report(c);
     frep_free(c->vrgb);
@@ -392,7 +511,6 @@ int cmd_mesh(int argc, char **argv)
 {
     mesh_cmd c;
     memset(&c, 0, sizeof c);
-    c.rgb[0] = -1;
     mesh_cli_init(&c.mc);
     const char *in = NULL;
     int rc = stage_options(&c, argc, argv, &in);

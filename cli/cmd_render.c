@@ -86,6 +86,7 @@ static const cli_opt render_opts[] = {
     CLI_OPT_GRID(render_cmd, mc.grid, "128", "grid cells per axis of the mesh (default 128)"),
     CLI_OPT_ISO(render_cmd, mc.iso, "draw f = V"),
     CLI_OPT_SETOPS(render_cmd, mc.setops, "override the file's set operations: rfunc, minmax"),
+    CLI_OPT_STRICT(render_cmd, mc.strict),
     CLI_OPT_THREADS(render_cmd, mc.nthreads, "OpenMP threads"),
     CLI_OPT_QUIET(render_cmd, quiet, "no summary line"),
 };

@@ -64,6 +64,7 @@ static const cli_opt sample_opts[] = {
     CLI_OPT_GRID(sample_cmd, mc.grid, NULL, "grid of the sampling mesh (default: from N, 32..256)"),
     CLI_OPT_ISO(sample_cmd, mc.iso, "sample f = V"),
     CLI_OPT_SETOPS(sample_cmd, mc.setops, "override the file's set operations: rfunc, minmax"),
+    CLI_OPT_STRICT(sample_cmd, mc.strict),
     CLI_OPT_THREADS(sample_cmd, mc.nthreads, "OpenMP threads"),
     CLI_OPT_QUIET(sample_cmd, quiet, "no summary line"),
 };

@@ -90,6 +90,7 @@ static const cli_opt view_opts[] = {
     CLI_OPT_GRID(view_cmd, mc.grid, "128", "grid cells per axis of the mesh (default 128)"),
     CLI_OPT_ISO(view_cmd, mc.iso, "draw f = V"),
     CLI_OPT_SETOPS(view_cmd, mc.setops, "override the file's set operations: rfunc, minmax"),
+    CLI_OPT_STRICT(view_cmd, mc.strict),
     CLI_OPT_THREADS(view_cmd, mc.nthreads, "OpenMP threads"),
     CLI_OPT_QUIET(view_cmd, quiet, "no summary line"),
 };

@@ -102,10 +102,11 @@ int mesh_cli_compile(mesh_cli *c, const char *path)
     c->path = path;
     if (c->text) {
         c->p = cli_compile_text(path, c->text, strlen(c->text), c->model, c->a.v, c->a.n,
-                                c->setops, c->diag);
+                                c->setops, c->strict, c->diag);
         c->src = c->p ? strdup(c->text) : NULL;
     } else
-        c->p = cli_compile_file_diag(path, c->model, c->a.v, c->a.n, c->setops, &c->src, c->diag);
+        c->p = cli_compile_file_diag(path, c->model, c->a.v, c->a.n, c->setops, c->strict, &c->src,
+                                     c->diag);
     if (!c->p) return CLI_FAIL;
     c->srclen = c->src ? strlen(c->src) : 0;
     if (c->a.n == 0 && reads_a(c) && a_all_zero(c))

@@ -102,18 +102,19 @@ void cli_diag_done(cli_diag_ctx *c)
 }
 
 frep_program *cli_compile_file(const char *path, const char *model, const double *a,
-                               size_t na, int setops, char **src)
+                               size_t na, int setops, int strict, char **src)
 {
-    return cli_compile_file_diag(path, model, a, na, setops, src, NULL);
+    return cli_compile_file_diag(path, model, a, na, setops, strict, src, NULL);
 }
 
 frep_program *cli_compile_file_diag(const char *path, const char *model, const double *a,
-                                    size_t na, int setops, char **src, frep_buf *diag)
+                                    size_t na, int setops, int strict, char **src,
+                                    frep_buf *diag)
 {
     size_t len = 0;
     char *text = cli_read_file(path, &len);
     if (!text) return NULL;
-    frep_program *p = cli_compile_text(path, text, len, model, a, na, setops, diag);
+    frep_program *p = cli_compile_text(path, text, len, model, a, na, setops, strict, diag);
     if (src && p) *src = text;
     else free(text);
     return p;
@@ -121,7 +122,7 @@ frep_program *cli_compile_file_diag(const char *path, const char *model, const d
 
 frep_program *cli_compile_text(const char *path, const char *text, size_t len,
                                const char *model, const double *a, size_t na, int setops,
-                               frep_buf *diag)
+                               int strict, frep_buf *diag)
 {
     frep_compile_options o;
     frep_compile_options_init(&o);
@@ -129,6 +130,7 @@ frep_program *cli_compile_text(const char *path, const char *text, size_t len,
     o.a = a;
     o.na = na;
     if (setops >= 0) o.setops_override = setops;
+    o.strict = strict;
     cli_diag_ctx dc = { text, len, 0, 0, NULL, 0, diag };
     frep_program *p = frep_compile(path, text, len, &o, cli_print_diag, &dc);
     cli_diag_done(&dc);

@@ -101,8 +101,9 @@ usage "frep mesh: -x X,Z,Y: frep meshes x[1], x[2], x[3] as x, y, z and reads x[
 usage "frep mesh: hfp's -d sets its viewer's display mode; frep mesh has no viewer (frep view shows a mesh)" \
     mesh "$M" -d 5 -o "$tmp/x.stl"
 usage "frep mesh: -o $tmp/y.stl: the output is already '$tmp/x.stl'" mesh "$M" -stl "$tmp/x.stl" -o "$tmp/y.stl"
-usage "frep mesh: --color: expected V or R,G,B with each in 0..255, got '255,0'" mesh "$M" -cf 255,0 -o "$tmp/x.ply"
-usage "frep mesh: --color: expected V or R,G,B with each in 0..255, got '256'" mesh "$M" --color 256 -o "$tmp/x.ply"
+usage "frep mesh: --color: expected model, none, V or R,G,B with each in 0..255, got '255,0'" mesh "$M" -cf 255,0 -o "$tmp/x.ply"
+usage "frep mesh: --color: expected model, none, V or R,G,B with each in 0..255, got '256'" mesh "$M" --color 256 -o "$tmp/x.ply"
+usage "frep mesh: --color: STL files carry no colours (use .ply or .wrl)" mesh "$M" -ct -o "$tmp/x.stl"
 usage "frep mesh: --color: STL files carry no colours (use .ply or .wrl)" mesh "$M" --color 9 -o "$tmp/x.stl"
 "$FREP" mesh "$M" $B -stl "$tmp/a.stl" && head -c 5 "$tmp/a.stl" | grep -q '^solid'
 report $? "frep mesh -stl FILE writes text STL to FILE"
@@ -128,6 +129,83 @@ report $? "frep mesh -cf 255,16,0 colours every PLY vertex"
 "$FREP" mesh "$M" $B --color 51 -o "$tmp/e.wrl" && grep -q 'colorPerVertex TRUE' "$tmp/e.wrl" &&
     ! grep -q diffuseColor "$tmp/e.wrl" && grep -q '^        0.2 0.2 0.2,$' "$tmp/e.wrl"
 report $? "frep mesh --color 51 gives the VRML vertices grey 0.2"
+# The model's own colours (s[1..3] of color_sphere.hf, hfA_SetColor where f >= 0):
+# every vertex's against the formulas at the sphere point nearest it, within one
+# count (the colours are taken a thousandth of a cell inside the surface); the
+# clamping below 0 and above 1 must show.
+C="${srcdir:-.}/tests/models/color_sphere.hf"
+colors_ok() { # colors_ok FILE.ply: every vertex coloured as color_sphere.hf says
+    awk -v R=0.8 '
+        function cl(v) { return v < 0 ? 0 : v > 1 ? 255 : int(v * 255 + 0.5) }
+        function ad(a, b) { return a > b ? a - b : b - a }
+        /^element vertex/ { nv = $3 }
+        body && nv > 0 {
+            nv--; n++
+            k = R / sqrt($1 * $1 + $2 * $2 + $3 * $3); x = $1 * k; y = $2 * k; z = $3 * k
+            if (ad($7, cl((x + 1) / 2)) > 1 || ad($8, cl(y * y)) > 1 || ad($9, cl(1.5 * z)) > 1) bad++
+            if ($9 == 0) lo++
+            if ($9 == 255) hi++
+        }
+        /^end_header/ { body = 1 }
+        END { if (bad) print "# " bad " of " n " vertices coloured wrong"
+              exit !(n > 100 && !bad && lo > 0 && hi > 0) }' "$1"
+}
+"$FREP" mesh "$C" -b 1 -g 16 -q --ascii -o "$tmp/s.ply" && colors_ok "$tmp/s.ply"
+report $? "frep mesh: PLY vertex colours from the model's s[1..3] (hfA_SetColor), clamped"
+"$FREP" mesh "$C" -b 1 -g 23 -q --ascii -ct -o "$tmp/s2.ply" && colors_ok "$tmp/s2.ply"
+report $? "frep mesh -ct (--color model): the same at another grid"
+"$FREP" mesh "$C" -b 1 -g 16 -q --ascii --color 255,16,0 -o "$tmp/s3.ply" &&
+    awk '/^end_header/ { on = 1; next } on && NF == 9 { n++; if ($7 != 255 || $8 != 16 || $9 != 0) bad = 1 }
+         END { exit !(n > 0 && !bad) }' "$tmp/s3.ply"
+report $? "frep mesh --color R,G,B overrides the model's colours"
+"$FREP" mesh "$C" -b 1 -g 16 -q --ascii --color none -o "$tmp/s4.ply" &&
+    ! grep -q 'property uchar red' "$tmp/s4.ply"
+report $? "frep mesh --color none: no colours"
+"$FREP" mesh "$C" -b 1 -g 16 -q -o "$tmp/s.wrl" && grep -q 'colorPerVertex TRUE' "$tmp/s.wrl" &&
+    ! grep -q diffuseColor "$tmp/s.wrl"
+report $? "frep mesh: VRML Color from the model's s[1..3]"
+"$FREP" mesh "$C" -b 1 -g 16 -q -o "$tmp/s.stl"
+report $? "frep mesh: a model with colours still writes STL (no colours)"
+"$FREP" mesh "$M" $B --ascii -o "$tmp/s5.ply" && ! grep -q 'property uchar red' "$tmp/s5.ply"
+report $? "frep mesh: a model without s[] gets no colours"
+"$FREP" mesh "$M" $B --color model -o "$tmp/s6.ply" 2>"$tmp/err"
+[ $? = 1 ] && grep -q 'has 0 attributes; colours need s\[1..3\]' "$tmp/err" && [ ! -e "$tmp/s6.ply" ]
+report $? "frep mesh --color model without s[1..3]: an error, no file"
+
+# --strict on every command that compiles a model: frep's own rUnion is accepted
+# without it (the command works) and an error "not HyperFun" with it (exit 1, no output).
+cat > "$tmp/ext.hf" <<'EOF2'
+my_model(x[3], a[1]) {
+  r = 0.8;  -- @free [0.1, 1.5]
+  my_model = rUnion(r*r - x[1]*x[1] - x[2]*x[2] - x[3]*x[3], -1);
+}
+EOF2
+"$FREP" sample "$tmp/ext.hf" -b 1 -n 200 --seed 1 -q -o "$tmp/ext.xyz" 2>/dev/null
+report $? "frep sample of a model with frep's rUnion works without --strict"
+strict() { # strict NAME OUT ARGS...: works without --strict, fails with it, OUT not written
+    name=$1 out=$2; shift 2
+    rm -f "$out"
+    "$FREP" "$@" >/dev/null 2>"$tmp/err" && rm -f "$out" && ! "$FREP" "$@" --strict >"$tmp/out" 2>"$tmp/err"
+    st=$?
+    [ $st = 0 ] && grep -q "error: not HyperFun: 'rUnion'" "$tmp/err" && [ ! -e "$out" ] &&
+        { [ "$out" = "$tmp/out" ] || [ ! -s "$tmp/out" ]; }
+    r=$?
+    [ $r = 0 ] || sed 's/^/# /' "$tmp/err"
+    report $r "frep $name --strict: HyperFun's rejections are errors"
+}
+echo "0 0 0" > "$tmp/pt"
+strict eval "$tmp/none" eval "$tmp/ext.hf" "$tmp/pt"
+strict mesh "$tmp/st.stl" mesh "$tmp/ext.hf" -b 1 -g 8 -q -o "$tmp/st.stl"
+strict sample "$tmp/st.xyz" sample "$tmp/ext.hf" -b 1 -n 50 --seed 1 -q -o "$tmp/st.xyz"
+strict render "$tmp/st.png" render "$tmp/ext.hf" -b 1 -g 16 --size 16x16 -q -o "$tmp/st.png"
+strict view "$tmp/st.html" view "$tmp/ext.hf" -b 1 -g 8 -q -o "$tmp/st.html"
+strict fit "$tmp/st.hf" fit "$tmp/ext.hf" "$tmp/ext.xyz" --seed 1 -q -o "$tmp/st.hf"
+strict dis "$tmp/none" dis "$tmp/ext.hf"
+strict check "$tmp/none" check "$tmp/ext.hf"
+"$FREP" print "$tmp/ext.hf" > "$tmp/out" 2>"$tmp/err" && grep -q rUnion "$tmp/out" &&
+    ! "$FREP" print --strict "$tmp/ext.hf" > "$tmp/out" 2>"$tmp/err" && [ ! -s "$tmp/out" ] &&
+    grep -q "error: not HyperFun: 'rUnion'" "$tmp/err"
+report $? "frep print --strict: checks first, prints nothing on errors"
 "$FREP" mesh "$M" -b 1 -g 8 -t -x X,Y,Z -i 0.01 -o "$tmp/f.stl" > "$tmp/out" &&
     "$FREP" mesh "$M" -b 1 -g 8 --iso 0.01 -o "$tmp/g.stl" > /dev/null && cmp -s "$tmp/f.stl" "$tmp/g.stl" &&
     grep -q 's$' "$tmp/out"
