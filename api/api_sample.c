@@ -22,11 +22,16 @@ void frep_sample_options_init(frep_sample_options *o)
     o->mesh.grid = so.mesh.grid;   /* 0: from the point count */
 }
 
-/* The sampler's options from the public ones; the box resolved for program p (NULL:
- * a mesh, whose bounding box the sampler takes itself). */
+/* The sampler's options from the public ones (NULL: the defaults); the box resolved
+ * for program p (NULL: a mesh, whose bounding box the sampler takes itself). */
 static void to_sample_options(const frep_program *p, const frep_sample_options *o,
                               sample_options *so)
 {
+    frep_sample_options def;
+    if (!o) {
+        frep_sample_options_init(&def);
+        o = &def;
+    }
     sample_options_init(so);
     so->n = o->n;
     so->seed = o->seed;
@@ -47,15 +52,10 @@ frep_cloud *frep_sample(const frep_program *p, const frep_sample_options *o,
     api_diag d = { diag, user };
     frep_error e;
     frep_error_init(&e);
-    frep_sample_options def;
-    if (!o) {
-        frep_sample_options_init(&def);
-        o = &def;
-    }
     sample_options so;
     to_sample_options(p, o, &so);
     mesh_field f;
-    if (mesh_field_program(&f, p, o->mesh.params) != 0) {
+    if (mesh_field_program(&f, p, o ? o->mesh.params : NULL) != 0) {
         api_fail(&d, &e);
         return NULL;
     }
@@ -78,11 +78,6 @@ frep_cloud *frep_sample_mesh(const frep_mesh *m, const frep_sample_options *o,
     api_diag d = { diag, user };
     frep_error e;
     frep_error_init(&e);
-    frep_sample_options def;
-    if (!o) {
-        frep_sample_options_init(&def);
-        o = &def;
-    }
     sample_options so;
     to_sample_options(NULL, o, &so);
     frep_cloud *c = NULL;

@@ -358,8 +358,8 @@ typedef struct frep_sample_options {
 void frep_sample_options_init(frep_sample_options *o);
 
 /* Points on the surface f = iso with outward unit normals, as `frep sample`:
- * area-weighted on a fine mesh, projected by Newton steps.  Free with
- * frep_cloud_free(). */
+ * area-weighted on a fine mesh, projected by Newton steps; o NULL: the defaults.
+ * Free with frep_cloud_free(). */
 frep_cloud *frep_sample(const frep_program *p, const frep_sample_options *o,
                         frep_diag_fn diag, void *user);
 /* Area-weighted points on a mesh's triangles with the face normals (o->mesh unused;

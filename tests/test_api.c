@@ -338,6 +338,15 @@ static void test_same_as_command(const char *frep, const char *srcdir)
     }
     frep_cloud_free(c);
 
+    /* NULL options: the defaults (10000 points, seed 1), as frep sample with them */
+    c = frep_sample(p, NULL, collect, &s);
+    snprintf(cmd, sizeof cmd, "'%s' sample '%s' -n 10000 --seed 1 -o '%s'", frep, model,
+             tmp("clid.xyz"));
+    ok(run(cmd) == 0 && c && frep_cloud_write(c, tmp("apid.xyz"), collect, &s) == 0 &&
+           same_file(tmp("clid.xyz"), tmp("apid.xyz")),
+       "frep_sample with NULL options: the defaults of frep sample");
+    frep_cloud_free(c);
+
     /* sampling a mesh file */
     frep_mesh *mr = frep_mesh_read(tmp("cli0.off"), collect, &s);
     ok(mr && m && frep_mesh_ntris(mr) == frep_mesh_ntris(m), "the .off file read back");

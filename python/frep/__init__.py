@@ -276,6 +276,23 @@ class _Handle:
             self.ptr = None
 
 
+class _Wrapper:
+    """The Python side of one library object that a subclass's _set(h) takes over:
+    from a fresh handle (_adopt, failing with the diagnostics when it is NULL) or from
+    one a library call returned (_own)."""
+
+    @classmethod
+    def _own(cls, h):
+        obj = cls.__new__(cls)
+        obj._set(h)
+        return obj
+
+    def _adopt(self, h, diagnostics, what):
+        if not h:
+            diagnostics.fail(what)
+        self._set(h)
+
+
 # ---- programs ----------------------------------------------------------------------
 
 class Program:
@@ -510,7 +527,7 @@ def compile_file(path, **kw):
 
 # ---- meshes and clouds ---------------------------------------------------------------
 
-class Mesh:
+class Mesh(_Wrapper):
     """An indexed triangle mesh: vertices (N, 3), normals (N, 3) or None, triangles
     (M, 3) uint32, counter-clockwise seen from outside.  The arrays are numpy views of
     the library's memory, valid as long as the Mesh lives."""
@@ -523,15 +540,7 @@ class Mesh:
             raise ValueError("normals: one per vertex")
         d = _Diagnostics()
         h = _L().frep_mesh_new(v.shape[0], _ptr(v), _ptr(nr), t.shape[0], _ptr(t), d.fn, None)
-        if not h:
-            d.fail("cannot make the mesh")
-        self._set(h)
-
-    @classmethod
-    def _own(cls, h):
-        m = cls.__new__(cls)
-        m._set(h)
-        return m
+        self._adopt(h, d, "cannot make the mesh")
 
     def _set(self, h):
         lib = _L()
@@ -595,7 +604,7 @@ class Mesh:
         return kw
 
 
-class Cloud:
+class Cloud(_Wrapper):
     """Points with optional normals: x, y, z (and nx, ny, nz) are read-only numpy views
     of the library's structure-of-arrays cloud; points (N, 3) and normals (N, 3) or
     None are arrays gathered from them."""
@@ -611,15 +620,7 @@ class Cloud:
             ncols = [np.ascontiguousarray(nr[:, k]) for k in range(3)]
         d = _Diagnostics()
         h = _L().frep_cloud_new(p.shape[0], *[_ptr(c) for c in cols + ncols], d.fn, None)
-        if not h:
-            d.fail("cannot make the cloud")
-        self._set(h)
-
-    @classmethod
-    def _own(cls, h):
-        c = cls.__new__(cls)
-        c._set(h)
-        return c
+        self._adopt(h, d, "cannot make the cloud")
 
     def _set(self, h):
         self._handle = _Handle(h, _L().frep_cloud_free)
