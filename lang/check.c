@@ -225,16 +225,22 @@ static void ck_ext_fmt(checker *c, int tier, ast_loc loc, const char *fmt, const
     ck_ext(c, tier, loc, what);
 }
 
-/* A name HyperFun's scanner cannot read as a new variable or array: one starting
- * with '_' (its names start with a letter), or a reserved word of it (x, a, s are
- * the tokens of the three parameter arrays, xor a keyword no rule uses). */
+/* A name HyperFun's scanner cannot read as a new model, variable or array: one
+ * starting with '_' (its names start with a letter), a reserved word of it (x, a, s
+ * are the tokens of the three parameter arrays, xor a keyword no rule uses), or the
+ * name of one of its functions (the scanner makes that a function token, which
+ * neither a model header nor a statement may start with). */
 static void ck_name(checker *c, ast_loc loc, const char *name, const char *key)
 {
+    const lib_fn *fn;
     if (name[0] == '_')
         ck_ext_fmt(c, EXT_STRICT, loc, "the name '%s' starts with '_'%s", name, "");
     else if (strcmp(key, "x") == 0 || strcmp(key, "a") == 0 || strcmp(key, "s") == 0 ||
              strcmp(key, "xor") == 0)
         ck_ext_fmt(c, EXT_STRICT, loc, "'%s' is a reserved word of HyperFun%s", name, "");
+    else if ((fn = lib_lookup(name)) != NULL && !lib_frep_only(fn))
+        ck_ext_fmt(c, EXT_STRICT, loc, "the name '%s' is the name of HyperFun's function "
+                   "'%s'", name, fn->name);
 }
 
 /* Suggestions: which kinds of names are candidates. */
@@ -267,6 +273,19 @@ static int is_cmp(int op)
 static int is_logic(int op) { return op == AST_OP_AND || op == AST_OP_OR; }
 static int is_not(int op) { return op == AST_OP_NOT; }
 
+/* Does a condition operand start with a parenthesized part that an arithmetic
+ * operator continues, as in `(x[1] - 1) * 2 > 0`?  HyperFun's HF_For_Bool reads a
+ * '(' at the start of an operand as a parenthesized condition and then expects a
+ * comparison, 'and', 'or' or 'then', so it rejects the operator after ')'. */
+static int ck_paren_start(const ast_node *opnd)
+{
+    const ast_node *n = opnd;
+    if (opnd->parens) return 0;
+    while (n->kind == AST_BINARY && !n->parens && !is_cmp(n->op) && !is_logic(n->op))
+        n = n->a;
+    return n != opnd && n->parens;
+}
+
 /* A literal number, possibly negated: its value in *v. */
 static int ck_literal(const ast_node *n, double *v)
 {
@@ -288,8 +307,8 @@ static void ck_index(checker *c, const ast_node *n, const ck_array *arr, const a
     double v;
     ck_expr(c, idx, 0);
     if (arr && ck_literal(idx, &v)) {
-        /* Truncated toward zero, as the VM's LOADI does (opsem_bad_index). */
-        double r = trunc(v);
+        /* Rounded to the nearest whole number, halves up, as the reference does. */
+        double r = lib_hf_round_k(v);
         if (!(r >= 1 && r <= (double)arr->size)) {
             char a[64], b[160];
             (void)snprintf(a, sizeof a, "%g", v);
@@ -402,6 +421,12 @@ static void ck_call_lib(checker *c, const ast_node *n, const lib_fn *fn)
     if (lib_frep_only(fn))
         ck_ext_fmt(c, EXT_STRICT, n->op_loc, "'%s' is a function of frep's own library%s",
                    fn->name, "");
+    /* The reference's sign() gives 1 for every argument (FUNC_sign in int_calc.c sets
+     * -1 for a negative one and then overwrites it); frep keeps the sign and says so. */
+    if (strcmp(fn->name, "sign") == 0)
+        diag_report(c->d, FREP_WARNING, n->op_loc, loc_len(n->op_loc),
+                    "'sign' gives -1, 0 or 1; the HyperFun reference interpreter returns 1 "
+                    "for every argument, so this file evaluates differently there");
     (void)check_lib_kind(fn->args, 0, &min, &var);
     if (n->list.n < min || (!var && n->list.n > min)) {
         char a[200], b[64];
@@ -436,11 +461,23 @@ static void ck_call(checker *c, const ast_node *n)
  * about conditions (one error per mistake, not a cascade). */
 enum { CK_VALUE = 0, CK_COND = 1, CK_ANY = 2 };
 
-/* A value where a condition belongs. */
+/* A value where a condition belongs: HyperFun accepts it (HF_For_Bool reads an
+ * expression) and takes it as true where |value| >= 1e-6, as frep does (lower.c,
+ * lw_cond); a warning, because a comparison was usually meant. */
+static void ck_paren_operand(checker *c, const ast_node *opnd)
+{
+    if (ck_paren_start(opnd))
+        ck_ext(c, EXT_STRICT, opnd->loc, "a condition operand that starts with '(' and "
+               "goes on after ')' (HyperFun reads the parentheses there as a whole "
+               "condition)");
+}
+
 static void ck_not_condition(checker *c, const ast_node *n)
 {
-    ck_error(c, n->loc, "a condition must be a comparison (=, /=, <, <=, >, >=) "
-             "or 'and', 'or', 'not' of comparisons", NULL, NULL, NULL);
+    ck_paren_operand(c, n);
+    diag_report(c->d, FREP_WARNING, n->loc, loc_len(n->loc),
+                "a number used as a condition: true where it is not 0 (|value| >= 1e-6, "
+                "as in HyperFun); write a comparison such as '... /= 0' to say so");
 }
 
 /* expr -> VAR: a scalar assigned before this point, on every path to it.  The
@@ -509,7 +546,7 @@ static void ck_unary(checker *c, const ast_node *n, int where)
     }
     if (where == CK_COND) {
         ck_not_condition(c, n);
-        where = CK_ANY;
+        where = CK_VALUE;
     }
     ck_expr(c, n->a, ck_inner(where, CK_VALUE));
 }
@@ -528,6 +565,7 @@ static int is_truth(const ast_node *n)
 static void ck_compare_operand(checker *c, const ast_node *n, const ast_node *opnd)
 {
     if (!is_truth(opnd)) {
+        ck_paren_operand(c, opnd);
         ck_expr(c, opnd, CK_VALUE);
         return;
     }
@@ -568,7 +606,7 @@ static void ck_binary(checker *c, const ast_node *n, int where)
         }
     } else if (where == CK_COND) {
         ck_not_condition(c, n);
-        where = CK_ANY;
+        where = CK_VALUE;
     }
     ck_expr(c, n->a, ck_inner(where, CK_VALUE));
     ck_expr(c, n->b, ck_inner(where, CK_VALUE));
@@ -604,7 +642,7 @@ static void ck_expr(checker *c, const ast_node *n, int where)
     if (where == CK_COND && (n->kind == AST_NUM || n->kind == AST_VAR ||
                              n->kind == AST_INDEX || n->kind == AST_CALL)) {
         ck_not_condition(c, n);
-        where = CK_ANY;
+        where = CK_VALUE;
     }
     switch (n->kind) {
     case AST_NUM:
@@ -759,7 +797,10 @@ static void ck_stmt(checker *c, const ast_node *n)
             ck_error(c, n->op_loc, "cannot assign a number to array '%s'; assign its "
                      "elements or a list [...]", n->name, NULL, NULL);
         } else {
-            if (!strmap_get(&c->vars, n->key)) ck_name(c, n->op_loc, n->name, n->key);
+            /* (the model's own name was checked with its header) */
+            if (!strmap_get(&c->vars, n->key) &&
+                strcmp(n->key, c->f->models[c->model].key) != 0)
+                ck_name(c, n->op_loc, n->name, n->key);
             ck_add_var(c, n);
             ck_flow_assign(c, n->key);
             ck_result_assign(c, n);
@@ -858,7 +899,7 @@ static void ck_model(checker *c, uint32_t mi)
     if (!c->arr) return;
     if (check_find_model(c->f, m->key, mi) >= 0)
         ck_error(c, m->loc, "model '%s' is already defined", m->name, NULL, NULL);
-    if (m->name[0] == '_') ck_name(c, m->loc, m->name, m->key);
+    ck_name(c, m->loc, m->name, m->key);
     for (i = 0; i < m->nparams; i++) {
         static const char *const hf_param[3] = { "x", "a", "s" };
         ck_declare(c, &m->params[i]);

@@ -6,6 +6,7 @@
  * derivatives, intervals, constant folding and CSE apply to library code too.
  * doc/library.md documents every entry with its defining formula.
  */
+#include <math.h>
 #include <stddef.h>
 
 #include "lib_impl.h"
@@ -51,9 +52,13 @@ LIB_BINARY(bi_max, MAX)
 LIB_BINARY(bi_min, MIN)
 LIB_BINARY(bi_atan2, ATAN2)
 
-/* HF_round of the reference interpreter (int_parse_N.c of HyperFun): c = ceil(d),
- * then c - 1 when c - d > 0.5, else c; halves round up (2.5 -> 3, -2.5 -> -2). */
-static ir_ref hf_round(ir *g, ir_ref d)
+double lib_hf_round_k(double d)
+{
+    double c = ceil(d);
+    return c - d > 0.5 ? c - 1 : c;
+}
+
+ir_ref lib_hf_round(ir *g, ir_ref d)
 {
     ir_ref c = ir_op1(g, FREP_OP_CEIL, d);
     ir_ref down = ir_op2(g, FREP_OP_GT, ir_sub(g, c, d), ir_k(g, 0.5));
@@ -67,7 +72,17 @@ static ir_ref hf_round(ir *g, ir_ref d)
 static ir_ref bi_mod(lib_ctx *c, lib_arg *a, uint32_t n)
 {
     (void)n;
-    return ir_op2(c->g, FREP_OP_MOD, hf_round(c->g, a[0].s), hf_round(c->g, a[1].s));
+    return ir_op2(c->g, FREP_OP_MOD, lib_hf_round(c->g, a[0].s), lib_hf_round(c->g, a[1].s));
+}
+
+/* A function of the reference's library that frep knows by name and argument kinds
+ * but does not implement (doc/library.md says why): a call is an error. */
+static ir_ref hf_unsupported(lib_ctx *c, lib_arg *a, uint32_t n)
+{
+    (void)a;
+    (void)n;
+    return c->error(c, "this HyperFun library function is not implemented in frep "
+                       "(doc/library.md)");
 }
 
 /* ---- set operations of the operators | & \ ---------------------------------- */
@@ -218,6 +233,7 @@ static const lib_fn lib_table[] = {
     { "hfDBlendUni", "sss", { 0 }, hf_dblend_uni, "distance blending union of radius r" },
     { "hfDBlendInt", "sss", { 0 }, hf_dblend_int, "distance blending intersection of radius r" },
     { "hfSawtooth", "ssss", { 0 }, hf_sawtooth, "sawtooth wave: Fourier sum of n - 1 sines" },
+    { "hfBezierVolume", "xsssvv", { 0 }, hf_unsupported, "(not implemented)" },
     /* HyperFun attribute library (lib_attr.c): 'w' arrays are written */
     { "hfA_SetColor", "swsss", { 0 }, hfa_set_color, "s[1..3] = r, g, b where f >= 0" },
     { "hfA_SetAttributes", "swv", { 0 }, hfa_set_attributes, "s = s1 where f >= 0" },

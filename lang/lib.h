@@ -58,4 +58,11 @@ ir_ref lib_union(lib_ctx *c, ir_ref a, ir_ref b);
 ir_ref lib_intersection(lib_ctx *c, ir_ref a, ir_ref b);
 ir_ref lib_subtraction(lib_ctx *c, ir_ref a, ir_ref b);
 
+/* HF_round of the reference interpreter (int_parse_N.c of HyperFun), which turns
+ * every number it uses as a whole number (array indices, mod's operands) into one:
+ * c = ceil(d), then c - 1 when c - d > 0.5, else c, so halves round up (2.5 -> 3,
+ * -2.5 -> -2, 0.5 -> 1).  lib_hf_round_k computes it, lib_hf_round builds it in IR. */
+double lib_hf_round_k(double d);
+ir_ref lib_hf_round(ir *g, ir_ref d);
+
 #endif

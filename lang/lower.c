@@ -502,6 +502,16 @@ static uint32_t dyn_base(lw *L, scope *sc, uint32_t si, int write, ast_loc at)
 /* Resolve name[idx]: a cell (returned, *dyn = IR_NONE) or a dynamic index (*dyn = the
  * index node, returns the symbol index | 0x80000000). UINT32_MAX on error. */
 #define DYN_FLAG 0x80000000u
+
+/* Is IR node r a whole number (or NaN) whatever the point, so that rounding it as an
+ * index changes nothing?  The results of CEIL, FLOOR and INT. */
+static int index_is_whole(const ir *g, ir_ref r)
+{
+    frep_opcode op;
+    if (r >= g->n) return 0;
+    op = (frep_opcode)g->nodes[r].op;
+    return op == FREP_OP_CEIL || op == FREP_OP_FLOOR || op == FREP_OP_INT;
+}
 static uint32_t lw_cellref(lw *L, scope *sc, const ast_node *n, ir_ref *dyn)
 {
     const uint32_t *si = strmap_get(&sc->names, n->key);
@@ -511,8 +521,10 @@ static uint32_t lw_cellref(lw *L, scope *sc, const ast_node *n, ir_ref *dyn)
     *dyn = IR_NONE;
     if (!si || !sc->syms[*si].is_array) return UINT32_MAX;
     y = &sc->syms[*si];
+    /* The reference rounds an index to the nearest whole number (lib_hf_round), so
+     * LOADI/STOREI, which truncate, get it rounded already. */
     if (ir_is_const(L->g, idx, &v)) {
-        double r = trunc(v);
+        double r = lib_hf_round_k(v);
         if (!(r >= 1 && r <= (double)y->size)) {
             if (!L->g->quiet)
                 lw_report(L, FREP_ERROR, n->a->loc, "index %g is out of range for array '%s' "
@@ -525,7 +537,8 @@ static uint32_t lw_cellref(lw *L, scope *sc, const ast_node *n, ir_ref *dyn)
         L->abort = 1;
         return UINT32_MAX;
     }
-    *dyn = idx;
+    set_pos(L, n->a->loc);
+    *dyn = index_is_whole(L->g, idx) ? idx : lib_hf_round(L->g, idx);
     return *si | DYN_FLAG;
 }
 
@@ -635,11 +648,14 @@ static ir_ref lw_call(lw *L, scope *sc, const ast_node *n)
 
 /* binary -> expr OP expr: arithmetic, the set operations of the @setops in force,
  * comparisons (with the reference's tolerance for = and /=) and logic. */
+static ir_ref lw_cond(lw *L, scope *sc, const ast_node *n);
+
 static ir_ref lw_binary(lw *L, scope *sc, const ast_node *n)
 {
     ir *g = L->g;
-    ir_ref a = lw_expr(L, sc, n->a);
-    ir_ref b = lw_expr(L, sc, n->b);
+    const int logic = n->op == AST_OP_AND || n->op == AST_OP_OR;
+    ir_ref a = logic ? lw_cond(L, sc, n->a) : lw_expr(L, sc, n->a);
+    ir_ref b = logic ? lw_cond(L, sc, n->b) : lw_expr(L, sc, n->b);
     set_pos(L, n->op_loc);
     switch (n->op) {
     case '+': return ir_add(g, a, b);
@@ -681,7 +697,7 @@ static ir_ref lw_expr(lw *L, scope *sc, const ast_node *n)
     case AST_CALL:
         return lw_call(L, sc, n);
     case AST_UNARY:
-        a = lw_expr(L, sc, n->a);
+        a = n->op == AST_OP_NOT ? lw_cond(L, sc, n->a) : lw_expr(L, sc, n->a);
         set_pos(L, n->op_loc);
         if (n->op == AST_OP_NOT) return ir_op1(g, FREP_OP_NOT, a);
         return ir_neg(g, a);
@@ -692,6 +708,22 @@ static ir_ref lw_expr(lw *L, scope *sc, const ast_node *n)
         break;
     }
     return nan_ref(L);
+}
+
+/* cond -> a condition of if/while, an operand of and/or/not: a comparison, and/or/not
+ * as they are; any other value v holds where |v| >= 1e-6, as the reference tests
+ * conditions (CODE_if and FUNC_bool_* in int_calc.c compare with EPS). */
+static ir_ref lw_cond(lw *L, scope *sc, const ast_node *n)
+{
+    ir *g = L->g;
+    ir_ref v;
+    if (n && ((n->kind == AST_BINARY && cmp_op(n->op) != FREP_OP__COUNT) ||
+              (n->kind == AST_UNARY && n->op == AST_OP_NOT)))
+        return lw_expr(L, sc, n);
+    v = lw_expr(L, sc, n);
+    if (L->dead || L->abort || !n) return v;
+    set_pos(L, n->loc);
+    return ir_op2(g, FREP_OP_GE, ir_op1(g, FREP_OP_ABS, v), ir_k(g, HF_EPS));
 }
 
 /* The callee's s[] comes back to the caller's third argument: the reference
@@ -931,7 +963,7 @@ static void lw_if_branch(lw *L, scope *sc, const ast_node *n, ir_ref cond)
  * else SELECTs when both branches are straight-line, else real control flow. */
 static void lw_if(lw *L, scope *sc, const ast_node *n)
 {
-    ir_ref cond = lw_expr(L, sc, n->a);
+    ir_ref cond = lw_cond(L, sc, n->a);
     double c;
     if (L->abort || L->dead) return;
     if (ir_is_const(L->g, cond, &c)) {
@@ -959,7 +991,7 @@ static void lw_while(lw *L, scope *sc, const ast_node *n)
         ir_ref cond;
         double c;
         if (L->dead || L->abort) return;
-        cond = lw_expr(L, sc, n->a);
+        cond = lw_cond(L, sc, n->a);
         if (L->dead || L->abort) return;
         if (!ir_is_const(L->g, cond, &c)) break;
         if (c == 0) return;
@@ -987,7 +1019,7 @@ static void lw_while(lw *L, scope *sc, const ast_node *n)
     if (!s) return;
     saved = L->cur;
     L->cur = &s->pre;
-    s->cond = lw_expr(L, sc, n->a);
+    s->cond = lw_cond(L, sc, n->a);
     L->cur = &s->body;
     lw_stmts(L, sc, &n->body);
     L->cur = saved;

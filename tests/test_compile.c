@@ -151,8 +151,6 @@ static void test_checks(void)
                  "array argument too small");
     expect_error("m(x[3], a[1]) { m = x[1] < 2; }", "comparison '<' is only allowed in an if or "
                  "while condition", 1, 26, "comparison outside a condition");
-    expect_error("m(x[3], a[1]) {\n  if x[1] then m = 1; else m = 2; endif;\n}",
-                 "a condition must be a comparison", 2, 6, "condition without comparison");
     expect_error("m(x[3], a[1]) {\n  array c[2];\n  c = 3;\n  m = 1;\n}",
                  "cannot assign a number to array 'c'", 3, 3, "number assigned to an array");
     expect_error("m(x[3], a[1]) {\n  array c[2], c[3];\n  m = 1;\n}",
@@ -499,12 +497,49 @@ static void test_hyperfun(void)
     if (p) is_double(eval1(p, 0.6, 0, 0), 0, 0, "... 0.6 rounds to 1");
     frep_program_free(p);
 
+    /* Array indices: HF_round, halves up (int_calc.c of HyperFun rounds the index of
+     * every element read and written): 1.5 -> 2, 2.4999 -> 2, 0.5 -> 1, 2.5 -> 3. */
+    p = compile("m(x[3], a[1]) {\n  array v[3];\n  v = [10, 20, 30];\n"
+                "  m = v[1.5] + 100 * v[2.4999] + 1000 * v[0.5];\n}", &D);
+    if (p) is_double(eval1(p, 0, 0, 0), 20 + 2000 + 10000, 0, "constant indices are rounded");
+    frep_program_free(p);
+    /* A point-dependent index (a real loop keeps k unknown to the compiler). */
+    p = compile("m(x[3], a[1]) {\n  array v[3];\n  v = [10, 20, 30];\n  k = 0;\n"
+                "  while k < x[1] loop k = k + 0.5; endloop;\n  r = v[k];\n  v[k] = -r;\n"
+                "  m = v[1] + v[2] + v[3] + 0 * r;\n}", &D);
+    ok(p && count_op(p, FREP_OP_LOADI) >= 1 && count_op(p, FREP_OP_STOREI) == 1,
+       "rounded dynamic index: LOADI/STOREI");
+    if (p) {
+        /* x = 0.5: k = 0.5 -> element 1; 1.5 -> 2; 2.5 -> 3; 0.4: k = 0.5; 3: k = 3;
+         * 3.5: k = 3.5 -> 4, out of range (NaN) */
+        double xs[6] = { 0.5, 1.5, 2.5, 0.4, 3, 3.5 }, zs[6] = { 0 }, f[6];
+        eval_n(p, 6, xs, zs, zs, NULL, f);
+        ok(f[0] == 40 && f[1] == 20 && f[2] == 0 && f[3] == 40 && f[4] == 0 && isnan(f[5]),
+           "point-dependent indices are rounded, halves up");
+    }
+    frep_program_free(p);
+
     /* Chained comparisons: ((-1 <= x) < 0.5), the truth value compared. */
     p = compile("m(x[3], a[1]) {\n  r = 0;\n  if -1 <= x[1] < 0.5 then r = 1; endif;\n  m = r;\n}",
                 &D);
     ok(p && find_diag(&D, "compares the truth value") >= 0, "chained comparison: a warning");
     if (p) ok(eval1(p, 0, 0, 0) == 0 && eval1(p, -2, 0, 0) == 1,
               "... true only where -1 <= x[1] is false");
+    frep_program_free(p);
+
+    /* A number as a condition, or as an operand of and/or/not: true where |v| >= 1e-6
+     * (CODE_if, FUNC_bool_and/or/not of int_calc.c), with a warning. */
+    p = compile("m(x[3], a[1]) {\n  r = 0;\n  if x[1] then r = 1; endif;\n"
+                "  if not x[1] then r = r + 10; endif;\n"
+                "  if x[1] and x[2] - 1 then r = r + 100; endif;\n  m = r;\n}", &D);
+    ok(p && find_diag(&D, "a number used as a condition") >= 0,
+       "a number as a condition: accepted with a warning");
+    /* (x, y): (2e-6, 0): x true, y - 1 = -1 true -> 101; (5e-7, 0): x false -> 10;
+     * (1, 1 + 5e-7): |y - 1| < 1e-6 false -> 1 */
+    if (p) ok(eval1(p, 2e-6, 0, 0) == 101 && eval1(p, -2e-6, 0, 0) == 101 &&
+              eval1(p, 5e-7, 0, 0) == 10 && eval1(p, 0, 0, 0) == 10 &&
+              eval1(p, 1, 2, 0) == 101 && eval1(p, 1, 1 + 5e-7, 0) == 1,
+              "... true where |value| >= 1e-6, for if, not and 'and'");
     frep_program_free(p);
 
     /* '=' and '/=' within EPS = 1e-6. */

@@ -8,7 +8,8 @@ primitives, as published with the R package 'hyperfun').  Where the reference is
 it is followed, not corrected:
 
   * a file with no my_model evaluates its FIRST model;
-  * the body returns at the first executed assignment to the model's name;
+  * the assignment to the model's name is the body's last statement (anything else
+    is a syntax error there);
   * + - & | \\ @ share the lowest precedence, * / the next, ^ binds tightest of the
     binary operators and is left-associative; unary + - ~ apply to one operand only
     (-x^2 is (-x)^2);
@@ -16,7 +17,9 @@ it is followed, not corrected:
   * and, or, =, /=, not compare against EPS = 1e-6; a condition holds when |v| >= EPS;
   * x / y is an error when |y| < EPS; x ^ y follows the reference's integer loop
     (y within EPS above an integer) or exp(y log x) (x < 0: error);
-  * mod(a, b) = fmod(round(a), round(b)) with round half up; sign() is always 1;
+  * mod(a, b) = fmod(round(a), round(b)) with round half up; sign() is always 1
+    (SIGN_BUG; off, it is -1, 0 or 1 as in frep); array indices are rounded the same
+    way (HF_round: 1.5 -> 2, 2.5 -> 3);
   * & | \\ are the R-functions with ALPHA = 0 (a + b -+ sqrt(a^2 + b^2));
   * numbers are scanned digit by digit as the reference does (a leading 0 followed by
     a digit, or an exponent starting with 0, is a syntax error), including its bug
@@ -41,6 +44,7 @@ ALPHA = 0.0
 SENTINEL = -1111111111111.0   # what library primitives return for bad arguments
 MAX_LOOP = 1000000            # while iterations before giving up on a point
 EXPONENT_BUG = True           # read 1e-16 as the reference does (as 1e-4)
+SIGN_BUG = True               # sign() gives 1 for every argument, as the reference does
 
 
 class Reject(Exception):
@@ -403,8 +407,13 @@ class Parser:
         self.m = m
         m.body = self.statements(("}",))
         self.expect("op", "}")
-        if not self.returns(m.body):
+        # HF_Get_Body_Def: the statements stop at the model's name, and then
+        # 'name = expr ;' '}' must follow: the assignment is the body's last statement.
+        rets = [k for k, st in enumerate(m.body) if st[0] == "return"]
+        if not rets:
             raise Reject("model %s never assigns its name" % name)
+        if rets != [len(m.body) - 1]:
+            raise Reject("the assignment to %s is not the model's last statement" % name)
         self.models[name] = m
         self.order.append(name)
 
@@ -808,7 +817,10 @@ def builtin(name, v):
             raise RuntimeErr("argument must be in range -1.0 .. +1.0")
         return math.asin(a) if name == "asin" else math.acos(a)
     if name == "sign":
-        return 1.0
+        # FUNC_sign in int_calc.c sets -1.0 for a negative argument, then 1.0 anyway.
+        if SIGN_BUG:
+            return 1.0
+        return -1.0 if a < 0.0 else (1.0 if a > 0.0 else 0.0)
     if name == "int":
         return float(math.trunc(a)) if math.isfinite(a) else a
     if name == "frac":

@@ -7,9 +7,10 @@ evaluated at 64 fixed points by hfref.py, which follows the reference interprete
 and by `frep eval`.  A file conforms when every value agrees: both NaN (frep's NaN
 where the reference raises a runtime error), or |frep - ref| <= 1e-9 max(1, |ref|).
 Files the reference rejects, and files calling a library function hfref.py lacks,
-are listed but not counted.  A file that differs only because the reference misreads
-negative exponents of two or more digits (1e-16 as 1e-4, hfref.EXPONENT_BUG), which
-frep deliberately does not copy, is counted apart as a documented deviation.
+are listed but not counted.  A file that differs only by a bug of the reference that
+frep deliberately does not copy is counted apart as a documented deviation: its
+scanner misreads negative exponents of two or more digits (1e-16 as 1e-4,
+hfref.EXPONENT_BUG), and its sign() returns 1 for every argument (hfref.SIGN_BUG).
 
   run.py --frep PATH [--tap] [--dir DIR]...
 
@@ -75,7 +76,13 @@ SELF = [
     ("m = x[1] \\ x[2];", (1, 2, 0), -1 - math.sqrt(5)),
     ("m = sqrt(x[1]);", (-1, 0, 0), math.nan),
     ("array v[2]; v[1] = 3; m = v[2];", (0, 0, 0), math.nan),
-    ("m = 1; m = 2;", (0, 0, 0), 1.0),               # the body returns at once
+    # indices are HF_round-ed: halves up (0.5 -> 1, 1.5 -> 2, 2.5 -> 3: out of range)
+    ("array v[2]; v = [3, 4]; m = v[1.5];", (0, 0, 0), 4.0),
+    ("array v[2]; v = [3, 4]; m = v[0.5];", (0, 0, 0), 3.0),
+    ("array v[2]; v = [3, 4]; m = v[1.4999];", (0, 0, 0), 3.0),
+    ("array v[2]; v = [3, 4]; m = v[2.5];", (0, 0, 0), math.nan),
+    ("array v[2]; v = [3, 4]; m = v[0.4999];", (0, 0, 0), math.nan),
+    ("array v[2]; v = [3, 4]; v[x[1]] = 7; m = v[2];", (1.5, 0, 0), 7.0),
 ]
 
 
@@ -96,7 +103,10 @@ def self_checks():
                       ("m(x[3], a[1]) { m = 1e05; }", "an exponent starting with 0"),
                       ("m(x[3], a[1]) { x[1] = 2; m = 1; }", "an assignment to x[]"),
                       ("m(x[3], a[1]) { array c[3]; c = [0, 0]; m = 1; }",
-                       "an array literal shorter than its array")):
+                       "an array literal shorter than its array"),
+                      ("m(x[3], a[1]) { m = 1; m = 2; }", "the model's value assigned twice"),
+                      ("m(x[3], a[1]) { m = 1; t = 2; }",
+                       "a statement after the model's value")):
         try:
             hfref.load(text)
             out.append(("hfref: rejects %s" % why, "accepted"))
@@ -117,11 +127,12 @@ def read_xfail(path):
     return marks
 
 
-def reference(path, pts, exponent_bug=True):
-    """('ok', values) | ('reject', why) | ('unsupported', why)."""
+def reference(path, pts, bugs=True):
+    """('ok', values) | ('reject', why) | ('unsupported', why); bugs=False: without
+    the reference's bugs frep does not copy (EXPONENT_BUG, SIGN_BUG)."""
     with open(path, "rb") as fh:
         text = fh.read().decode("latin-1").replace("\r\n", "\n")
-    hfref.EXPONENT_BUG = exponent_bug
+    hfref.EXPONENT_BUG = hfref.SIGN_BUG = bugs
     try:
         model = hfref.load(text)
         return "ok", [hfref.value_at(model, p) for p in pts]
@@ -130,7 +141,7 @@ def reference(path, pts, exponent_bug=True):
     except hfref.Unsupported as e:
         return "unsupported", str(e)
     finally:
-        hfref.EXPONENT_BUG = True
+        hfref.EXPONENT_BUG = hfref.SIGN_BUG = True
 
 
 def frep_values(frep, path, ptsfile):
@@ -231,12 +242,13 @@ def main(argv):
             diff = ("frep rejects it: " + err) if fv is None else compare(fv, rv, pts)
             deviation = False
             if diff is not None and fv is not None:
-                kind2, rv2 = reference(path, pts, exponent_bug=False)
+                kind2, rv2 = reference(path, pts, bugs=False)
                 deviation = kind2 == "ok" and compare(fv, rv2, pts) is None
             if deviation:
                 deviations += 1
                 diff = None
-                name_note = " (differs only by the reference's exponent bug: 1e-16 read as 1e-4)"
+                name_note = (" (differs only by a bug of the reference: 1e-16 read as 1e-4, "
+                             "or sign() always 1)")
             else:
                 name_note = ""
             if diff is None and not deviation:
@@ -257,7 +269,7 @@ def main(argv):
     finally:
         os.unlink(ptsfile)
     summary = ("%d of %d files evaluate as the reference, %d more differ only by the "
-               "reference's exponent bug (%d more rejected by the reference, %d calling "
+               "reference's bugs (%d more rejected by the reference, %d calling "
                "functions hfref.py lacks)"
                % (same, counted, deviations, len(rejected), len(unsupported)))
     if tap:
