@@ -73,6 +73,12 @@ int mesh_cli_polygonize(mesh_cli *c, const char *sub, struct frep_mesh *m, struc
  * position of the first failing operation) with mesh_cli_report_errors(). */
 void mesh_cli_add_errors(mesh_cli *c, const frep_runtime_error *e);
 void mesh_cli_report_errors(mesh_cli *c);
+/* The model's colours at the vertices of m, hfp's convention: s[1..3] red, green,
+ * blue in [0,1] (0..255 in *rgb, 3 a vertex, frep_free), evaluated a hair inside
+ * the surface.  *rgb is NULL when the model has fewer than 3 attributes.  Returns
+ * CLI_OK, or CLI_FAIL (out of memory, printed as "frep SUB: ..."). */
+int mesh_cli_vertex_colors(mesh_cli *mc, const char *sub, const struct frep_mesh *m,
+                           uint8_t **rgb);
 /* Is PATH a mesh file (by its extension) rather than a model? cli_read_mesh() reads
  * one, printing why it cannot; returns CLI_OK or CLI_FAIL. */
 int cli_is_mesh_path(const char *path);
@@ -91,6 +97,9 @@ typedef struct cli_cloud_dist {
 /* Read the cloud at path and measure; prints why it cannot ("frep SUB: ..."). */
 int cli_cloud_distances(const char *sub, const char *path, mesh_cli *mc,
                         const struct frep_mesh *m, cli_cloud_dist *d);
+/* The same for the cloud already in d->cl (kept; the distances are allocated). */
+int cli_cloud_measure(const char *sub, mesh_cli *mc, const struct frep_mesh *m,
+                      cli_cloud_dist *d);
 void cli_cloud_dist_free(cli_cloud_dist *d);
 
 /* Option table entries shared by several subcommands: one parser each for the model

@@ -309,89 +309,18 @@ static void uniform_color(void *user, const double p[3], uint8_t rgb[3])
     for (int k = 0; k < 3; k++) rgb[k] = (uint8_t)c[k];
 }
 
-/* A colour channel from an attribute: [0,1] -> 0..255, clamped; NaN (a domain error,
- * reported as a warning) is 0. */
-static uint8_t channel(double v)
-{
-    if (!(v > 0)) return 0;
-    if (v >= 1) return 255;
-    return (uint8_t)(v * 255 + 0.5);
-}
-
-/* Where the model's colours are evaluated: the surface point near the vertex (one
- * Newton step along the gradient: a vertex may be a tenth of a cell off a curved
- * surface), then this fraction of the smallest cell inside it.  hfA_SetColor's "where
- * f >= 0" fails at about half of the points exactly on the surface (f = 0 to
- * rounding); a thousandth of a cell moves a colour by far less than 1/255 for any
- * colour that changes by less than its full range over a cell. */
-#define MESH_COLOR_INSET 1e-3
-/* A Newton step longer than this many cells (a flat spot of f) is not taken. */
-#define MESH_COLOR_MAX_STEP 1.0
-
-/* The points the colours are evaluated at (MESH_COLOR_INSET), into xyz (3 n: all x,
- * all y, all z), from f and its gradient at the vertices (g: 4 n scratch). */
-static int color_points(mesh_cmd *c, double *xyz, double *g)
-{
-    size_t n = c->m.nverts;
-    double cell = HUGE_VAL;
-    for (int q = 0; q < 3; q++) {
-        int gr = c->mc.grid_axes[q] ? c->mc.grid_axes[q] : c->mc.grid;
-        double h = (c->mc.box[q + 3] - c->mc.box[q]) / gr;
-        cell = h < cell ? h : cell;
-    }
-    for (size_t i = 0; i < n; i++)
-        for (int q = 0; q < 3; q++) xyz[q * n + i] = c->m.v[3 * i + q];
-    frep_runtime_error re;
-    memset(&re, 0, sizeof re);
-    if (frep_eval_grad_par(c->mc.p, n, xyz, xyz + n, xyz + 2 * n, NULL, g, g + n, g + 2 * n,
-                           g + 3 * n, c->mc.nthreads, &re) != 0)
-        return -1;
-    mesh_cli_add_errors(&c->mc, &re);
-    for (size_t i = 0; i < n; i++) {
-        double d[3] = { g[n + i], g[2 * n + i], g[3 * n + i] };
-        double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = sqrt(len2);
-        if (!(len > 0) || !isfinite(len2) || !isfinite(g[i])) continue;
-        double t = (c->mc.iso - g[i]) / len; /* signed distance to f = iso, along d/len */
-        if (!(fabs(t) <= MESH_COLOR_MAX_STEP * cell)) t = 0;
-        t += MESH_COLOR_INSET * cell;          /* inside: f grows along the gradient */
-        for (int q = 0; q < 3; q++) xyz[q * n + i] += t * d[q] / len;
-    }
-    return 0;
-}
-
-/* The model's colours: s[1..3] at every vertex (hfp's convention: red, green, blue in
- * [0,1]), evaluated a hair inside the surface (color_points).  AUTO without three
+/* The model's colours: s[1..3] at every vertex (cli/model.c).  AUTO without three
  * attributes: no colours. */
 static int model_colors(mesh_cmd *c)
 {
-    const frep_program *p = c->mc.p;
-    size_t k = frep_program_nattrs(p), n = c->m.nverts;
+    size_t k = frep_program_nattrs(c->mc.p);
     if (k < 3) {
         if (c->color.src == COLOR_AUTO) return CLI_OK;
         fprintf(stderr, "frep mesh: --color model: %s has %zu attributes; colours need s[1..3] "
                         "(declare the model as name(x[3], a[M], s[3]))\n", c->mc.path, k);
         return CLI_FAIL;
     }
-    double *xyz = frep_calloc(n, 3 * sizeof *xyz), *s = frep_calloc(n, k * sizeof *s);
-    double *g = frep_calloc(n, 4 * sizeof *g);
-    c->vrgb = frep_calloc(n, 3);
-    int rc = xyz && s && g && c->vrgb && color_points(c, xyz, g) == 0 ? CLI_OK : CLI_FAIL;
-    if (rc == CLI_OK) {
-        frep_runtime_error re;
-        memset(&re, 0, sizeof re);
-        if (frep_eval_attrs_par(p, n, xyz, xyz + n, xyz + 2 * n, NULL, s, c->mc.nthreads, &re) != 0)
-            rc = CLI_FAIL;
-        mesh_cli_add_errors(&c->mc, &re);
-        mesh_cli_report_errors(&c->mc);
-    }
-    if (rc == CLI_OK)
-        for (size_t i = 0; i < n; i++)
-            for (int q = 0; q < 3; q++) c->vrgb[3 * i + q] = channel(s[i * k + q]);
-    else fprintf(stderr, "frep mesh: out of memory colouring the mesh\n");
-    frep_free(xyz);
-    frep_free(g);
-    frep_free(s);
-    return rc;
+    return mesh_cli_vertex_colors(&c->mc, "mesh", &c->m, &c->vrgb);
 }
 
 static int write_mesh_cb(FILE *f, void *user)

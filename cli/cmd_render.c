@@ -5,6 +5,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "cli.h"
 #include "cloud.h"
 #include "mesh.h"
@@ -30,7 +31,9 @@ static const char render_usage[] =
     "95th percentile rounded up to 1, 2 or 5 x 10^k) unless --scale gives it. Points\n"
     "inside the solid by more than 1% of the box diagonal are drawn through the surface\n"
     "as rings. The surface is coloured by its distance to the nearest point (material the\n"
-    "cloud does not show) unless --plain. Legends give the scales in model units.\n\n";
+    "cloud does not show) unless --plain. Legends give the scales in model units.\n"
+    "A model with colours (s[1..3], e.g. hfA_SetColor) is drawn in them, unless the\n"
+    "surface is coloured by its distance to a cloud.\n\n";
 
 typedef struct render_cmd {
     mesh_cli mc;
@@ -46,6 +49,7 @@ typedef struct render_cmd {
     size_t inside, deep;     /* points inside the solid, and deeper than the slack */
     char note[96];
     render_points rp;
+    uint8_t *vrgb;           /* the model's colours at the vertices, else NULL */
     uint8_t *rgb;
 } render_cmd;
 
@@ -114,6 +118,7 @@ static int stage_mesh(render_cmd *c)
     } else {
         if (mesh_cli_compile(&c->mc, c->in) != CLI_OK) return CLI_FAIL;
         if (mesh_cli_polygonize(&c->mc, "render", &c->m, &c->st) != CLI_OK) return CLI_FAIL;
+        if (mesh_cli_vertex_colors(&c->mc, "render", &c->m, &c->vrgb) != CLI_OK) return CLI_FAIL;
     }
     for (int k = 0; k < 3; k++) {
         c->bbox[k] = INFINITY;
@@ -192,7 +197,7 @@ static int stage_draw(render_cmd *c)
         fprintf(stderr, "frep render: out of memory for a %dx%d picture\n", W, H);
         return CLI_FAIL;
     }
-    render_options ro = { W, H, c->view, { 0 }, NULL, 0, 0, { { 0 } } };
+    render_options ro = { .width = W, .height = H, .view = c->view, .vertex_rgb = c->vrgb };
     memcpy(ro.bbox, c->bbox, sizeof c->bbox);
     set_legends(c, &ro);
     frep_error err;
@@ -241,6 +246,7 @@ int cmd_render(int argc, char **argv)
     mesh_free(&c.m);
     cli_cloud_dist_free(&c.cd);
     free(c.rgb);
+    frep_free(c.vrgb);
     mesh_cli_free(&c.mc);
     return rc;
 }

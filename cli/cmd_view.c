@@ -5,6 +5,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "cli.h"
 #include "cloud.h"
 #include "mesh.h"
@@ -47,6 +48,7 @@ typedef struct view_build {
     frep_mesh m;
     mesh_stats st;
     cli_cloud_dist cd;       /* --points and its distances */
+    uint8_t *vrgb;           /* the model's colours at the vertices, else NULL */
     size_t np;
     char **pnames;
     double *pvalues;
@@ -62,7 +64,9 @@ typedef struct view_cmd {
     double timeout;          /* --watch: stop after this many seconds (0: at Ctrl-C) */
     view_build b;            /* the last good build */
     char *text;              /* --watch: the model's text as last read */
-    frep_buf diag;           /* --watch: messages of the last build */
+    frep_buf diag;           /* messages of the last build of the mesh */
+    frep_buf cdiag;          /* --watch: messages of the last reading of the cloud */
+    int failed;              /* --watch: the last build failed (its mesh is an older one) */
     unsigned version;
     char vtext[16];          /* --watch: the version as the server sends it */
     char *page, *json;       /* --watch: what the server sends */
@@ -129,10 +133,20 @@ static int stage_params(view_cmd *c, view_build *b)
     return CLI_FAIL;
 }
 
-/* --points: the cloud and its distances (cli/model.c); --scale. */
+/* The model's colours, s[1..3] at the vertices (cli/model.c), when it has them. */
+static int stage_colors(view_cmd *c, view_build *b)
+{
+    if (!c->mc.p) return CLI_OK;
+    return mesh_cli_vertex_colors(&c->mc, "view", &b->m, &b->vrgb);
+}
+
+/* --points: the cloud (read, or b->cd.cl as it is: --watch keeps a cloud that was not
+ * saved again) and its distances (cli/model.c); --scale. */
 static int stage_points(view_cmd *c, view_build *b)
 {
-    if (cli_cloud_distances("view", c->points, &c->mc, &b->m, &b->cd) != CLI_OK) return CLI_FAIL;
+    int rc = b->cd.cl ? cli_cloud_measure("view", &c->mc, &b->m, &b->cd)
+                      : cli_cloud_distances("view", c->points, &c->mc, &b->m, &b->cd);
+    if (rc != CLI_OK) return CLI_FAIL;
     if (!(b->cd.pscale > 0)) b->cd.pscale = VIEW_FALLBACK_SCALE;
     if (!(b->cd.vscale > 0)) b->cd.vscale = VIEW_FALLBACK_SCALE;
     if (c->scale > 0) b->cd.pscale = c->scale;
@@ -143,20 +157,28 @@ static void build_free(view_build *b)
 {
     mesh_free(&b->m);
     cli_cloud_dist_free(&b->cd);
+    frep_free(b->vrgb);
     for (size_t i = 0; b->pnames && i < b->np; i++) free(b->pnames[i]);
     free(b->pnames);
     free(b->pvalues);
     memset(b, 0, sizeof *b);
 }
 
-/* mesh -> parameters -> [points]: a new build into *b (released on failure). */
-static int build(view_cmd *c, view_build *b)
+/* mesh -> parameters -> colours -> [points]: a new build into *b (released on
+ * failure).  cloud: a cloud already read, used instead of reading --points (it stays
+ * the caller's when the build fails), or NULL. */
+static int build(view_cmd *c, view_build *b, frep_cloud *cloud)
 {
     memset(b, 0, sizeof *b);
     int rc = stage_mesh(c, b);
     if (rc == CLI_OK) rc = stage_params(c, b);
+    if (rc == CLI_OK) rc = stage_colors(c, b);
+    b->cd.cl = cloud;
     if (rc == CLI_OK && c->points) rc = stage_points(c, b);
-    if (rc != CLI_OK) build_free(b);
+    if (rc != CLI_OK) {
+        if (b->cd.cl == cloud) b->cd.cl = NULL;
+        build_free(b);
+    }
     return rc;
 }
 
@@ -173,6 +195,9 @@ static void make_scene(const view_cmd *c, view_scene *s)
     s->pvalues = b->pvalues;
     s->info = b->info;
     s->diag = c->diag.len ? c->diag.s : NULL;
+    s->cdiag = c->cdiag.len ? c->cdiag.s : NULL;
+    s->failed = c->failed;
+    s->vrgb = b->vrgb;
     s->version = c->version;
     if (b->cd.cl) {
         s->npoints = b->cd.cl->n;
@@ -214,7 +239,8 @@ static void report(const view_cmd *c)
 /* build -> write -> report */
 static int view_once(view_cmd *c)
 {
-    int rc = build(c, &c->b);
+    c->mc.diag = &c->diag;
+    int rc = build(c, &c->b, NULL);
     if (rc != CLI_OK) return rc;
     if (cli_write_atomic(c->out, write_page_cb, c) != 0) return CLI_FAIL;
     if (!c->quiet) report(c);
@@ -259,6 +285,7 @@ int cli_view_result(const cli_view_job *j)
     int rc = text ? view_once(&c) : CLI_FAIL;
     if (!text) fprintf(stderr, "frep %s: cannot write the model for --view\n", j->sub);
     build_free(&c.b);
+    buf_free(&c.diag);
     mesh_cli_free(&c.mc);
     free(text);
     return rc;
@@ -295,16 +322,17 @@ static int render_replies(view_cmd *c)
     return CLI_FAIL;
 }
 
-/* A new version: read the text, build; on failure keep the last good build and show
- * the messages in the page. */
-static int rebuild(view_cmd *c)
+/* A new build of the mesh after a save of the model (and the first): read the text,
+ * build with the cloud as it is unless it was saved too; on failure keep the last good
+ * build and show the messages in the page.  Returns what was done, for the log. */
+static const char *rebuild_model(view_cmd *c, int cloud_saved)
 {
-    struct timespec t0, t1;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
-    file_stamp(c->in, c->stamp[0]);
-    file_stamp(c->points, c->stamp[1]);
     buf_free(&c->diag);
     c->diag = (frep_buf)FREP_BUF_INIT;
+    if (cloud_saved) {
+        buf_free(&c->cdiag);
+        c->cdiag = (frep_buf)FREP_BUF_INIT;
+    }
     free(c->text);
     c->text = cli_is_mesh_path(c->in) ? NULL : cli_read_file(c->in, NULL);
     frep_program *old_p = c->mc.p;
@@ -312,25 +340,73 @@ static int rebuild(view_cmd *c)
     c->mc.p = NULL;
     c->mc.src = NULL;
     view_build nb;
-    if (build(c, &nb) == CLI_OK) {
+    frep_cloud *keep = cloud_saved ? NULL : c->b.cd.cl;
+    c->mc.diag = &c->diag;
+    if (build(c, &nb, keep) == CLI_OK) {
+        if (keep) c->b.cd.cl = NULL;  /* now nb's */
         build_free(&c->b);
         c->b = nb;
         if (old_p) frep_program_free(old_p);
         free(old_src);
-    } else {
-        if (c->mc.p) frep_program_free(c->mc.p);
-        free(c->mc.src);
-        c->mc.p = old_p;
-        c->mc.src = old_src;
-        if (!c->diag.len)
-            buf_printf(&c->diag, "%s: no new mesh (the messages are in the terminal)\n", c->in);
+        c->failed = 0;
+        return keep ? "model meshed again, cloud kept" : "model meshed, cloud read";
     }
+    if (c->mc.p) frep_program_free(c->mc.p);
+    free(c->mc.src);
+    c->mc.p = old_p;
+    c->mc.src = old_src;
+    c->failed = 1;
+    if (!c->diag.len)
+        buf_printf(&c->diag, "%s: no new mesh (the messages are in the terminal)\n", c->in);
+    return "the model failed, last good mesh kept";
+}
+
+/* After a save of the cloud alone: read it, measure it against the mesh as it is. */
+static const char *rebuild_cloud(view_cmd *c)
+{
+    buf_free(&c->cdiag);
+    c->cdiag = (frep_buf)FREP_BUF_INIT;
+    c->mc.diag = &c->cdiag;
+    cli_cloud_dist cd;
+    int rc = cli_cloud_distances("view", c->points, &c->mc, &c->b.m, &cd);
+    c->mc.diag = &c->diag;
+    if (rc != CLI_OK) {
+        cli_cloud_dist_free(&cd);
+        return "the cloud failed, last good cloud kept";
+    }
+    cli_cloud_dist_free(&c->b.cd);
+    c->b.cd = cd;
+    view_build *b = &c->b;
+    if (!(b->cd.pscale > 0)) b->cd.pscale = VIEW_FALLBACK_SCALE;
+    if (!(b->cd.vscale > 0)) b->cd.vscale = VIEW_FALLBACK_SCALE;
+    if (c->scale > 0) b->cd.pscale = c->scale;
+    return "cloud read again, mesh kept";
+}
+
+/* A new version after a save: only what depends on the files saved is done again (a
+ * save of the cloud measures the new cloud against the mesh as it is; a save of the
+ * model meshes it again and measures the cloud as it is).  The first version does
+ * everything. */
+static int rebuild(view_cmd *c)
+{
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    char now[2][64];
+    file_stamp(c->in, now[0]);
+    file_stamp(c->points, now[1]);
+    int first = c->version == 0;
+    int model_saved = first || strcmp(now[0], c->stamp[0]) != 0;
+    int cloud_saved = first || strcmp(now[1], c->stamp[1]) != 0;
+    memcpy(c->stamp, now, sizeof now);
+    const char *what;
+    if (model_saved || c->failed || !c->b.cd.cl) what = rebuild_model(c, cloud_saved);
+    else what = rebuild_cloud(c);
     c->version++;
     int rc = render_replies(c);
     clock_gettime(CLOCK_MONOTONIC, &t1);
     if (!c->quiet)
-        fprintf(stderr, "frep view: version %u of %s (%zu triangles%s), %.2f s\n", c->version,
-                c->in, c->b.m.ntris, c->diag.len ? ", with errors" : "",
+        fprintf(stderr, "frep view: version %u of %s: %s (%zu triangles%s), %.2f s\n", c->version,
+                c->in, what, c->b.m.ntris, c->failed ? ", with errors" : "",
                 (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec));
     return rc;
 }
@@ -361,7 +437,6 @@ static int changed(const view_cmd *c)
 /* Serve until Ctrl-C or --timeout, rebuilding after every save. */
 static int view_watch(view_cmd *c)
 {
-    c->mc.diag = &c->diag;
     if (rebuild(c) != CLI_OK) return CLI_FAIL;
     frep_error e;
     frep_error_init(&e);
@@ -412,6 +487,7 @@ int cmd_view(int argc, char **argv)
     build_free(&c.b);
     free(c.text);
     buf_free(&c.diag);
+    buf_free(&c.cdiag);
     frep_free(c.page);
     frep_free(c.json);
     mesh_cli_free(&c.mc);

@@ -5,6 +5,7 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "cli.h"
 #include "cloud.h"
 #include "distance.h"
@@ -12,6 +13,8 @@
 #include "meshio.h"
 #include "program.h"
 
+#include <math.h>
+#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -62,10 +65,26 @@ static void warning_diag(void *user, const frep_diag *d)
 void mesh_cli_report_errors(mesh_cli *c)
 {
     if (c->err.count == 0 || !c->p) return;
-    cli_diag_ctx dc = { c->src, c->srclen, 0, 0, NULL, 0, NULL };
+    cli_diag_ctx dc = { c->src, c->srclen, 0, 0, NULL, 0, c->diag };
     frep_report_runtime_error(c->p, &c->err, warning_diag, &dc);
     cli_diag_done(&dc);
     memset(&c->err, 0, sizeof c->err);
+}
+
+/* A message about the model to standard error, and to c->diag when it is set (frep
+ * view shows it in the page). */
+static void model_note(mesh_cli *c, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+    if (!c->diag) return;
+    va_start(ap, fmt);
+    char line[512];
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    buf_puts(c->diag, line);
 }
 
 static void progress_cb(void *user, double frac)
@@ -110,8 +129,8 @@ int mesh_cli_compile(mesh_cli *c, const char *path)
     if (!c->p) return CLI_FAIL;
     c->srclen = c->src ? strlen(c->src) : 0;
     if (c->a.n == 0 && reads_a(c) && a_all_zero(c))
-        fprintf(stderr, "%s: note: the model reads a[], which neither -a nor a '-- @params' line "
-                        "gives values: a[] is all 0\n", path);
+        model_note(c, "%s: note: the model reads a[], which neither -a nor a '-- @params' line "
+                      "gives values: a[] is all 0\n", path);
     if (!c->has_box && !frep_program_box(c->p, c->box)) {
         for (int i = 0; i < 3; i++) {
             c->box[i] = -MESH_CLI_DEFAULT_BOX;
@@ -122,22 +141,22 @@ int mesh_cli_compile(mesh_cli *c, const char *path)
 }
 
 /* What the polygonizer found: NaN points, no surface at all, a solid cut by the box. */
-static int check_surface(const mesh_cli *c, const char *sub, frep_mesh *m, const mesh_stats *st)
+static int check_surface(mesh_cli *c, const char *sub, frep_mesh *m, const mesh_stats *st)
 {
     if (st->points_nan)
-        fprintf(stderr, "%s: warning: the model is NaN (undefined) at %zu grid points; they count "
-                        "as outside\n", c->path, st->points_nan);
+        model_note(c, "%s: warning: the model is NaN (undefined) at %zu grid points; they count "
+                      "as outside\n", c->path, st->points_nan);
     if (m->ntris == 0 || st->full) {
-        fprintf(stderr, "frep %s: %s: the model %s the box [%g,%g]x[%g,%g]x[%g,%g] at grid %d: "
-                        "no surface (check -b and -g%s)\n", sub, c->path,
+        model_note(c, "frep %s: %s: the model %s the box [%g,%g]x[%g,%g]x[%g,%g] at grid %d: "
+                      "no surface (check -b and -g%s)\n", sub, c->path,
                 st->full ? "fills all of" : "is empty in", c->box[0], c->box[3], c->box[1],
                 c->box[4], c->box[2], c->box[5], c->grid, reads_a(c) ? ", and -a" : "");
         mesh_free(m);
         return CLI_FAIL;
     }
     if (st->touches_box)
-        fprintf(stderr, "%s: note: the solid reaches the box; the mesh is closed by caps on the "
-                        "box faces (a larger -b shows all of it)\n", c->path);
+        model_note(c, "%s: note: the solid reaches the box; the mesh is closed by caps on the "
+                      "box faces (a larger -b shows all of it)\n", c->path);
     return CLI_OK;
 }
 
@@ -214,6 +233,18 @@ static int measure(mesh_cli *mc, const frep_mesh *m, cli_cloud_dist *d, frep_err
                            &d->vscale, e);
 }
 
+int cli_cloud_measure(const char *sub, mesh_cli *mc, const frep_mesh *m, cli_cloud_dist *d)
+{
+    d->pdist = malloc((d->cl->n + 1) * sizeof *d->pdist);
+    d->vdist = malloc((m->nverts + 1) * sizeof *d->vdist);
+    frep_error e;
+    frep_error_init(&e);
+    if (!d->pdist || !d->vdist) frep_error_nomem(&e);
+    else if (measure(mc, m, d, &e) == 0) return CLI_OK;
+    model_note(mc, "frep %s: %s\n", sub, e.msg);
+    return CLI_FAIL;
+}
+
 int cli_cloud_distances(const char *sub, const char *path, mesh_cli *mc, const frep_mesh *m,
                         cli_cloud_dist *d)
 {
@@ -221,18 +252,11 @@ int cli_cloud_distances(const char *sub, const char *path, mesh_cli *mc, const f
     memset(d, 0, sizeof *d);
     d->cl = cloud_read(path, &msg);
     if (!d->cl) {
-        if (msg.msg[0]) fprintf(stderr, "%s\n", msg.msg);
-        else fprintf(stderr, "frep %s: cannot read the cloud\n", sub);
+        if (msg.msg[0]) model_note(mc, "%s\n", msg.msg);
+        else model_note(mc, "frep %s: cannot read the cloud\n", sub);
         return CLI_FAIL;
     }
-    d->pdist = malloc((d->cl->n + 1) * sizeof *d->pdist);
-    d->vdist = malloc((m->nverts + 1) * sizeof *d->vdist);
-    frep_error e;
-    frep_error_init(&e);
-    if (!d->pdist || !d->vdist) frep_error_nomem(&e);
-    else if (measure(mc, m, d, &e) == 0) return CLI_OK;
-    fprintf(stderr, "frep %s: %s\n", sub, e.msg);
-    return CLI_FAIL;
+    return cli_cloud_measure(sub, mc, m, d);
 }
 
 void cli_cloud_dist_free(cli_cloud_dist *d)
@@ -241,4 +265,86 @@ void cli_cloud_dist_free(cli_cloud_dist *d)
     free(d->pdist);
     free(d->vdist);
     memset(d, 0, sizeof *d);
+}
+
+/* A colour channel from an attribute: [0,1] -> 0..255, clamped; NaN (a domain error,
+ * reported as a warning) is 0. */
+static uint8_t channel(double v)
+{
+    if (!(v > 0)) return 0;
+    if (v >= 1) return 255;
+    return (uint8_t)(v * 255 + 0.5);
+}
+
+/* Where the model's colours are evaluated: the surface point near the vertex (one
+ * Newton step along the gradient: a vertex may be a tenth of a cell off a curved
+ * surface), then this fraction of the smallest cell inside it.  hfA_SetColor's "where
+ * f >= 0" fails at about half of the points exactly on the surface (f = 0 to
+ * rounding); a thousandth of a cell moves a colour by far less than 1/255 for any
+ * colour that changes by less than its full range over a cell. */
+#define MESH_COLOR_INSET 1e-3
+/* A Newton step longer than this many cells (a flat spot of f) is not taken. */
+#define MESH_COLOR_MAX_STEP 1.0
+
+/* The points the colours are evaluated at (MESH_COLOR_INSET), into xyz (3 n: all x,
+ * all y, all z), from f and its gradient at the vertices of m (g: 4 n scratch). */
+static int color_points(mesh_cli *mc, const frep_mesh *m, double *xyz, double *g)
+{
+    size_t n = m->nverts;
+    double cell = HUGE_VAL;
+    for (int q = 0; q < 3; q++) {
+        int gr = mc->grid_axes[q] ? mc->grid_axes[q] : mc->grid;
+        double h = (mc->box[q + 3] - mc->box[q]) / gr;
+        cell = h < cell ? h : cell;
+    }
+    for (size_t i = 0; i < n; i++)
+        for (int q = 0; q < 3; q++) xyz[q * n + i] = m->v[3 * i + q];
+    frep_runtime_error re;
+    memset(&re, 0, sizeof re);
+    if (frep_eval_grad_par(mc->p, n, xyz, xyz + n, xyz + 2 * n, NULL, g, g + n, g + 2 * n,
+                           g + 3 * n, mc->nthreads, &re) != 0)
+        return -1;
+    mesh_cli_add_errors(mc, &re);
+    for (size_t i = 0; i < n; i++) {
+        double d[3] = { g[n + i], g[2 * n + i], g[3 * n + i] };
+        double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = sqrt(len2);
+        if (!(len > 0) || !isfinite(len2) || !isfinite(g[i])) continue;
+        double t = (mc->iso - g[i]) / len; /* signed distance to f = iso, along d/len */
+        if (!(fabs(t) <= MESH_COLOR_MAX_STEP * cell)) t = 0;
+        t += MESH_COLOR_INSET * cell;          /* inside: f grows along the gradient */
+        for (int q = 0; q < 3; q++) xyz[q * n + i] += t * d[q] / len;
+    }
+    return 0;
+}
+
+int mesh_cli_vertex_colors(mesh_cli *mc, const char *sub, const frep_mesh *m, uint8_t **rgb)
+{
+    const frep_program *p = mc->p;
+    size_t k = frep_program_nattrs(p), n = m->nverts;
+    *rgb = NULL;
+    if (k < 3) return CLI_OK;
+    double *xyz = frep_calloc(n, 3 * sizeof *xyz), *s = frep_calloc(n, k * sizeof *s);
+    double *g = frep_calloc(n, 4 * sizeof *g);
+    uint8_t *out = frep_calloc(n, 3);
+    int rc = xyz && s && g && out && color_points(mc, m, xyz, g) == 0 ? CLI_OK : CLI_FAIL;
+    if (rc == CLI_OK) {
+        frep_runtime_error re;
+        memset(&re, 0, sizeof re);
+        if (frep_eval_attrs_par(p, n, xyz, xyz + n, xyz + 2 * n, NULL, s, mc->nthreads, &re) != 0)
+            rc = CLI_FAIL;
+        mesh_cli_add_errors(mc, &re);
+        mesh_cli_report_errors(mc);
+    }
+    if (rc == CLI_OK) {
+        for (size_t i = 0; i < n; i++)
+            for (int q = 0; q < 3; q++) out[3 * i + q] = channel(s[i * k + q]);
+        *rgb = out;
+    } else {
+        fprintf(stderr, "frep %s: out of memory colouring the mesh\n", sub);
+        frep_free(out);
+    }
+    frep_free(xyz);
+    frep_free(g);
+    frep_free(s);
+    return rc;
 }

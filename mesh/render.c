@@ -93,6 +93,7 @@ typedef struct raster {
     uint8_t *rgb;
     const double *vval;       /* per-vertex colour values (NULL: the plain surface) */
     double vmax;
+    const uint8_t *vrgb;      /* per-vertex colours (NULL: none; vval wins) */
 } raster;
 
 /* The empty picture: a light vertical gradient, nothing in depth. */
@@ -156,6 +157,7 @@ typedef struct stri {
     double sx[3], sy[3], sd[3];
     const double *N[3];
     double val[3];            /* the corners' colour values (when R->vval) */
+    double col[3][3];         /* the corners' colours (when R->vrgb) */
     double area;              /* twice the signed screen area */
 } stri;
 
@@ -183,6 +185,8 @@ static void shade_pixel(raster *R, const stri *T, int x, int y)
     double spec = pow(fmax(0, vec3_dot(n, R->half)), RENDER_SHININESS);
     double base[3] = { 0.62, 0.70, 0.82 };
     if (R->vval) render_colour((b0 * T->val[0] + b1 * T->val[1] + b2 * T->val[2]) / R->vmax, base);
+    else if (R->vrgb)
+        for (int i = 0; i < 3; i++) base[i] = b0 * T->col[0][i] + b1 * T->col[1][i] + b2 * T->col[2][i];
     uint8_t *c = &R->rgb[3 * pi];
     for (int i = 0; i < 3; i++)
         c[i] = to_byte(base[i] * (RENDER_AMBIENT + RENDER_DIFFUSE * diff) + RENDER_SPECULAR * spec);
@@ -205,6 +209,8 @@ static void draw_triangle(raster *R, const frep_mesh *m, size_t t)
         project(&R->cam, P[k], &T.sx[k], &T.sy[k], &T.sd[k]);
         T.N[k] = m->n ? &m->n[3 * m->tri[3 * t + k]] : fn;
         T.val[k] = R->vval ? R->vval[m->tri[3 * t + k]] : 0;
+        for (int i = 0; i < 3; i++)
+            T.col[k][i] = R->vrgb ? R->vrgb[3 * (size_t)m->tri[3 * t + k] + i] / 255.0 : 0;
         if (!(vec3_dot(T.N[k], fn) >= RENDER_CREASE_COS)) T.N[k] = fn;
     }
     const double *sx = T.sx, *sy = T.sy;
@@ -370,6 +376,7 @@ int render_mesh(const frep_mesh *m, const render_points *pts, const render_optio
     if (!R.zbuf) return frep_error_nomem(e);
     R.vval = o->vertex_value && o->vertex_vmax > 0 ? o->vertex_value : NULL;
     R.vmax = o->vertex_vmax;
+    R.vrgb = o->vertex_rgb;
     camera_init(&R, vd, o);
     clear_picture(&R);
     lights_init(&R);

@@ -42,6 +42,9 @@ typedef struct render_options {
     double vertex_vmax;    /* ... mapped to the top of the colour scale (> 0) */
     int nlegends;
     render_legend legends[RENDER_MAX_LEGENDS];
+    const uint8_t *vertex_rgb; /* may be NULL; else, without vertex_value, the surface's
+                              colours: red, green, blue 0..255 a vertex (the model's
+                              s[1..3]), interpolated over the triangles */
 } render_options;
 
 /* The colour scale of the points, the surface and the legends, value t in [0, 1]:

@@ -44,6 +44,36 @@ cdp "file://$T/big.html?bench=30" 'until:document.body.getAttribute("data-frame-
   'eval:document.body.getAttribute("data-frame-ms")' >"$T/bench.out"
 report $? "a frame time is measured: $(cat "$T/bench.out") ms a frame (software WebGL, $(wc -c <"$T/big.html") bytes)"
 
+# level of detail: while the mouse drags, coarse copies are drawn (small thresholds make
+# this small scene have them); full detail again once the mouse is released
+C=665,350
+cdp "file://$T/big.html?lodtris=2000&lodpoints=500" "$READY" 'eval:document.body.getAttribute("data-drawn")' \
+  press:$C move:675,355 move:690,360 wait:100 'eval:document.body.getAttribute("data-drawn")' \
+  release:690,360 'until:document.body.getAttribute("data-drawn") == document.body.getAttribute("data-full"):5000' \
+  'eval:document.body.getAttribute("data-drawn")' >"$T/lod.out" 2>&1
+full=$(sed -n 1p "$T/lod.out") moving=$(sed -n 2p "$T/lod.out") after=$(sed -n 3p "$T/lod.out")
+[ -n "$full" ] && [ "$full" = "$after" ] && [ "${moving%% *}" -lt "${full%% *}" ] 2>/dev/null &&
+  [ "${moving##* }" -lt "${full##* }" ] 2>/dev/null && [ "${moving##* }" -le 500 ]
+report $? "while dragging a coarse copy is drawn ($moving triangles and points, of $full), then all of it ($after)"
+
+# the model's colours (s[1..3]): a red and a green sphere
+printf 'my_model(x[3], a[1], s[3])\n{\n    f1 = frSphere(x, -0.6, 0, 0, 0.5);\n    f2 = frSphere(x, 0.6, 0, 0, 0.5);\n    c1 = hfA_SetColor(f1, s, 1, 0, 0);\n    c2 = hfA_SetColor(f2, s, 0, 1, 0);\n    my_model = f1 | f2;\n}\n' >"$T/rg.hf"
+"$FREP" view "$T/rg.hf" -b 1.2 -g 48 -o "$T/rg.html" -q
+cdp "file://$T/rg.html" "$READY" shot:"$T/rg.png" 'eval:document.getElementById("surface").value' >"$T/rg.out"
+png colours "$T/rg.png" $SIDE red green >"$T/out" && [ "$(cat "$T/rg.out")" = 3 ]
+report $? "a model's colours are drawn: $(cat "$T/out")"
+
+# a warning of the compiler shown in the page (the build did not fail)
+printf 'my_model(x[3], a[1])\n{\n    x[1] = x[1];\n    my_model = frSphere(x, 0, 0, 0, 0.5);\n}\n' >"$T/warn.hf"
+"$FREP" view "$T/warn.hf" -b 1 -g 32 -o "$T/warn.html" -q 2>/dev/null
+cdp "file://$T/warn.html" "$READY" shot:"$T/warn.png" 'eval:document.getElementById("diag").hidden' \
+  'eval:document.getElementById("diag").textContent.replace(/\n/g, " ")' >"$T/warn.out"
+[ "$(sed -n 1p "$T/warn.out")" = False ] && sed -n 2p "$T/warn.out" | grep -q "^Messages about the model:.*warn.hf:3:[0-9]*: warning: "
+report $? "a compiler warning is shown in the page: $(sed -n 2p "$T/warn.out")"
+png colours "$T/warn.png" $SIDE red >"$T/out"
+[ $? = 1 ]
+report $? "a model without colours has no red surface ($(cat "$T/out"))"
+
 # from the --watch server: load, save a new model, then a syntax error
 cp "$T/big.hf" "$T/w.hf"
 "$FREP" view --watch "$T/w.hf" -b 2 -g 64 --points "$T/unit.xyz" --port 0 --timeout 170 -q \

@@ -6,6 +6,7 @@
 #   until:JS-EXPRESSION:MS (poll until truthy or fail)   eval:JS-EXPRESSION (print it)
 #   mark (remember the time)   since:JS-EXPRESSION (print the expression's number, in
 #   milliseconds since the epoch, minus the marked time)
+#   press:X,Y  move:X,Y  release:X,Y (the left mouse button, in CSS pixels)
 # Exit status 0 when every action succeeded.
 import base64, json, os, re, socket, struct, subprocess, sys, tempfile, time, urllib.request
 
@@ -103,6 +104,11 @@ def main():
                 open(arg, 'wb').write(base64.b64decode(data))
             elif kind == 'run':
                 subprocess.run(arg, shell=True, check=True)
+            elif kind in ('press', 'move', 'release'):
+                x, y = (float(v) for v in arg.split(','))
+                ws.call('Input.dispatchMouseEvent', x=x, y=y, button='left',
+                        type={'press': 'mousePressed', 'move': 'mouseMoved', 'release': 'mouseReleased'}[kind],
+                        buttons=0 if kind == 'release' else 1, clickCount=1 if kind != 'move' else 0)
             elif kind == 'mark':
                 mark = time.time()
             elif kind == 'until':

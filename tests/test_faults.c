@@ -858,7 +858,7 @@ static int case_render(const fixture *fx, fault_out *o)
 {
     enum { W = 24, H = 16 };
     uint8_t rgb[3 * W * H];
-    render_options ro = { W, H, "iso", { -2, -2, -2, 2, 2, 2 }, NULL, 0, 0, { { 0 } } };
+    render_options ro = { W, H, "iso", { -2, -2, -2, 2, 2, 2 }, NULL, 0, 0, { { 0 } }, NULL };
     const frep_cloud *c = fx->cloud;
     render_points rp = { c->n, c->x, c->y, c->z, NULL, 1, 0 };
     frep_error err;

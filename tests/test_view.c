@@ -100,6 +100,22 @@ static size_t unbase64(const char *s, size_t n, unsigned char *out)
     return o;
 }
 
+/* IEEE 754 binary16 encodings (the standard's examples: 1 = 0x3c00, the largest
+ * finite 65504 = 0x7bff, the smallest normal 2^-14 = 0x0400, 0.1 rounds to 0x2e66). */
+static void test_half(void)
+{
+    ok(view_half(1.0) == 0x3c00 && view_half(-2.0) == 0xc000, "half: 1 and -2");
+    ok(view_half(0.1) == 0x2e66, "half: 0.1 rounded to nearest: %04x", view_half(0.1));
+    ok(view_half(65504) == 0x7bff && view_half(65519) == 0x7bff && view_half(65520) == 0x7c00,
+       "half: the largest finite value, and infinity from 65520 up");
+    ok(view_half(INFINITY) == 0x7c00 && view_half(-INFINITY) == 0xfc00 && (view_half(NAN) & 0x7fff) > 0x7c00,
+       "half: infinities and NaN");
+    ok(view_half(ldexp(1, -14)) == 0x0400 && view_half(ldexp(3, -24)) == 0x0003,
+       "half: the smallest normal, a subnormal");
+    ok(view_half(1e-12) == 0x0001 && view_half(-1e-12) == 0x8001 && view_half(0.0) == 0,
+       "half: a tiny non-zero value keeps its sign, zero stays zero");
+}
+
 static void test_page(void)
 {
     frep_mesh m = { 4, 4, tet_v, NULL, tet_t };
@@ -115,6 +131,10 @@ static void test_page(void)
     s.pdist = pd;
     s.pscale = 0.5;
     s.source = "a\nb";
+    static const unsigned char rgb[12] = { 255, 0, 0, 0, 255, 0, 0, 0, 255, 10, 20, 30 };
+    s.vrgb = rgb;
+    s.diag = "w.hf:1:2: warning: x\n";
+    s.cdiag = "c.xyz:3: y\n";
     frep_buf b = FREP_BUF_INIT;
     view_scene_json(&b, &s);
     size_t len;
@@ -133,6 +153,16 @@ static void test_page(void)
         static const unsigned char want[12] = { 0, 0, 0, 0, 0, 0, 255, 255, 0, 0, 255, 255 };
         ok(n == 12 && memcmp(raw, want, 12) == 0,
            "positions as little-endian Uint16 fractions of the bounds");
+    }
+    ok(strstr(j, "\"diag\":\"w.hf:1:2: warning: x\\nc.xyz:3: y\\n\",\"failed\":false") != NULL,
+       "the model's messages, then the cloud's; the build did not fail");
+    const char *col = strstr(j, "\"rgb\":\"");
+    ok(col != NULL, "vertex colours");
+    if (col) {
+        col += 7;
+        unsigned char raw[16];
+        size_t n = unbase64(col, (size_t)(strchr(col, '"') - col), raw);
+        ok(n == 12 && memcmp(raw, rgb, 12) == 0, "colours as Uint8 red, green, blue a vertex");
     }
     const char *idx = strstr(j, "\"idx\":\"");
     ok(idx != NULL, "triangle corners");
@@ -234,6 +264,7 @@ int main(void)
     test_scale();
     test_point_distances();
     test_mesh_distances();
+    test_half();
     test_page();
     test_server();
     return done_testing();

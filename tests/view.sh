@@ -33,6 +33,38 @@ report $? "a mesh file as the model, with points"
 [ $? = 1 ] && [ ! -f "$T/x.html" ]
 report $? "a missing cloud fails and writes nothing"
 
+# messages of the polygonizer and the compiler in the page, not only in the terminal
+printf 'my_model(x[3], a[1])\n{\n    my_model = frSphere(x, 0, 0, 0, 1.2);\n}\n' >"$T/big.hf"
+"$FREP" view "$T/big.hf" -b 1 -g 16 -o "$T/big.html" -q 2>"$T/err"
+grep -q '"diag":"[^"]*big.hf: note: the solid reaches the box' "$T/big.html" &&
+  grep -q '"failed":false' "$T/big.html" && grep -q 'the solid reaches the box' "$T/err"
+report $? "the polygonizer's note is in the page (and on standard error), the build not failed"
+printf 'my_model(x[3], a[1])\n{\n    x[1] = x[1];\n    my_model = frSphere(x, 0, 0, 0, 0.5);\n}\n' >"$T/warn.hf"
+"$FREP" view "$T/warn.hf" -b 1 -g 16 -o "$T/warn.html" -q 2>"$T/err"
+grep -q '"diag":"[^"]*warn.hf:3:[0-9]*: warning: ' "$T/warn.html" && grep -q 'warn.hf:3:[0-9]*: warning: ' "$T/err"
+report $? "the compiler's warning is in the page with its file:line:col: $(sed -n 1p "$T/err")"
+
+# the model's colours (s[1..3]) as vertex colours; none without attributes
+"$FREP" view "$M/color_sphere.hf" -b 1 -g 16 -o "$T/col.html" -q &&
+  grep -q '"rgb":"[A-Za-z0-9+/=]\{8,\}"' "$T/col.html" && grep -q '"rgb":null' "$T/p.html"
+report $? "a model with s[1..3] gets vertex colours in the page, one without gets none"
+
+# frep render draws the model's colours: a red and a green sphere give red and green
+# pixels (tests/view_png.py), the plain sphere none
+printf 'my_model(x[3], a[1], s[3])\n{\n    f1 = frSphere(x, -0.6, 0, 0, 0.5);\n    f2 = frSphere(x, 0.6, 0, 0, 0.5);\n    c1 = hfA_SetColor(f1, s, 1, 0, 0);\n    c2 = hfA_SetColor(f2, s, 0, 1, 0);\n    my_model = f1 | f2;\n}\n' >"$T/rg.hf"
+if command -v python3 >/dev/null 2>&1; then
+  "$FREP" render "$T/rg.hf" -b 1.2 -g 32 --size 400x300 -o "$T/rg.png" -q &&
+    python3 "$srcdir/tests/view_png.py" colours "$T/rg.png" 0 red green >"$T/out"
+  report $? "frep render draws a model's colours: $(cat "$T/out")"
+  "$FREP" render "$T/big.hf" -b 1.5 -g 32 --size 400x300 -o "$T/plain.png" -q
+  python3 "$srcdir/tests/view_png.py" colours "$T/plain.png" 0 red >"$T/out"
+  [ $? = 1 ]
+  report $? "... and a model without colours has no red pixels ($(cat "$T/out"))"
+else
+  skip "frep render draws a model's colours" "python3 is not installed"
+  skip "a model without colours has no red pixels" "python3 is not installed"
+fi
+
 # --watch
 cp "$M/block_minus_ball.hf" "$T/w.hf"
 "$FREP" view --watch "$T/w.hf" -b 1 -g 24 --port 0 --timeout 1 >"$T/out" 2>"$T/err"
@@ -75,6 +107,32 @@ st=$?
 pid=
 [ $st = 0 ] && grep -q 'stopped' "$T/werr"
 report $? "Ctrl-C stops the server cleanly (exit $st)"
+
+# --watch with a cloud: a save of the cloud does not mesh again, a save of the model
+# does not read the cloud again (the log line of each version says what was done)
+cp "$M/block_minus_ball.hf" "$T/w.hf"
+cp "$T/c.xyz" "$T/wc.xyz"
+"$FREP" view --watch "$T/w.hf" -b 1 -g 24 --points "$T/wc.xyz" --port 0 --timeout 20 \
+  >"$T/wout" 2>"$T/werr" &
+pid=$!
+wait_log() { # wait_log N: until the log has version N
+  i=0
+  while [ $i -lt 100 ] && ! grep -q "version $1 of" "$T/werr"; do sleep 0.1; i=$((i + 1)); done
+}
+wait_log 1
+sleep 0.05
+head -n 1000 "$T/c.xyz" >"$T/wc.xyz"
+wait_log 2
+grep -q 'version 2 of .*: cloud read again, mesh kept' "$T/werr"
+report $? "a save of the cloud measures it against the mesh as it is: $(grep 'version 2' "$T/werr")"
+sleep 0.05
+printf 'my_model(x[3], a[1])\n{\n    my_model = frSphere(x, 0, 0, 0, 0.5);\n}\n' >"$T/w.hf"
+wait_log 3
+grep -q 'version 3 of .*: model meshed again, cloud kept' "$T/werr"
+report $? "a save of the model meshes it again, the cloud kept: $(grep 'version 3' "$T/werr")"
+kill -INT "$pid"
+wait "$pid"
+pid=
 
 "$FREP" view --watch "$T/w.hf" --port 99999 -o "$T/x.html" 2>"$T/err"
 [ $? = 2 ] && grep -q 'port' "$T/err"

@@ -4,6 +4,9 @@
 #   view_png.py drawn SHOT.png SIDE   the model is drawn at the centre of the canvas (right
 #                                     of a SIDE-pixel panel) and the legend's bar is there
 #   view_png.py diff A.png B.png      the share of pixels that differ, for "it changed"
+#   view_png.py colours SHOT.png X0 CHANNEL... at least 1% of the pixels right of x = X0
+#                                     are of each CHANNEL (red, green, blue): that
+#                                     channel at least 100 and twice each other one
 import struct
 import sys
 import zlib
@@ -105,7 +108,30 @@ def diff(a_path, b_path):
     return d > 0.02 * n
 
 
+CHANNELS = {'red': 0, 'green': 1, 'blue': 2}
+
+
+def colours(path, x0, names):
+    """Shaded surfaces of a pure colour keep its channel dominant (light only scales
+    it; the highlight adds white to few pixels): count the pixels of each."""
+    img = read(path)
+    w, h = img[0], img[1]
+    n, count = 0, {c: 0 for c in names}
+    for y in range(0, h, 2):
+        for x in range(x0, w, 2):
+            n += 1
+            p = px(img, x, y)
+            for c in names:
+                k = CHANNELS[c]
+                if p[k] >= 100 and all(2 * p[j] <= p[k] for j in range(3) if j != k):
+                    count[c] += 1
+    print(', '.join('%s %.1f%%' % (c, 100.0 * count[c] / n) for c in names))
+    return all(count[c] >= 0.01 * n for c in names)
+
+
 if __name__ == '__main__':
+    if sys.argv[1] == 'colours':
+        sys.exit(0 if colours(sys.argv[2], int(sys.argv[3]), sys.argv[4:]) else 1)
     if sys.argv[1] == 'drawn':
         sys.exit(0 if drawn(sys.argv[2], int(sys.argv[3])) else 1)
     sys.exit(0 if diff(sys.argv[2], sys.argv[3]) else 1)

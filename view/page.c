@@ -43,17 +43,29 @@ static void b64_byte(b64 *s, unsigned char c)
     if (s->npend == 3) b64_flush3(s);
 }
 
-static void b64_u32(b64 *s, uint32_t v)
+/* v as an IEEE half (binary16: sign, 5 exponent bits, 10 fraction bits), rounded to
+ * nearest; beyond 65504 +-infinity, NaN a NaN.  A value too small for a half keeps
+ * its sign as the smallest one (+-2^-24): the viewer counts the points inside the
+ * solid by d > 0. */
+uint16_t view_half(double v)
 {
-    for (int k = 0; k < 4; k++) b64_byte(s, (unsigned char)(v >> (8 * k)));
-}
-
-static void b64_f32(b64 *s, double v)
-{
-    float f = (float)v;
-    uint32_t u;
-    memcpy(&u, &f, sizeof u);
-    b64_u32(s, u);
+    uint16_t sign = signbit(v) ? 0x8000 : 0;
+    double a = fabs(v);
+    if (isnan(v)) return 0x7e00;
+    if (a == 0) return sign;
+    if (!(a < 65520)) return sign | 0x7c00;  /* 65520 and up round to infinity */
+    int ex;
+    double m = frexp(a, &ex);                 /* a = m 2^ex, m in [0.5, 1) */
+    if (ex < -13) {                           /* below 2^-14: a subnormal, 2^-24 steps */
+        long q = lrint(a * 16777216.0);       /* a / 2^-24 */
+        return (uint16_t)(sign | (q > 0 ? q : 1));
+    }
+    long q = lrint(m * 2048.0);               /* 11 significant bits, 1024..2048 */
+    if (q == 2048) {
+        q = 1024;
+        ex++;
+    }
+    return (uint16_t)(sign | ((unsigned)(ex + 14) << 10) | (unsigned)(q - 1024));
 }
 
 static void b64_end(b64 *s)
@@ -123,14 +135,9 @@ static void q16_xyz(frep_buf *b, size_t n, const double *x, const double *y, con
     buf_putc(b, '"');
 }
 
-/* A JSON string, safe inside a <script> element ('<' escaped). */
-static void json_str(frep_buf *b, const char *s)
+/* The characters of s in a JSON string, safe inside a <script> element ('<' escaped). */
+static void json_chars(frep_buf *b, const char *s)
 {
-    if (!s) {
-        buf_puts(b, "null");
-        return;
-    }
-    buf_putc(b, '"');
     for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
         if (*p == '"' || *p == '\\') {
             buf_putc(b, '\\');
@@ -139,7 +146,24 @@ static void json_str(frep_buf *b, const char *s)
         else if (*p < 0x20 || *p == '<' || *p == '>' || *p == '&') buf_printf(b, "\\u%04x", *p);
         else buf_putc(b, (char)*p);
     }
+}
+
+/* A JSON string of s then t (either may be NULL; both NULL: null). */
+static void json_str2(frep_buf *b, const char *s, const char *t)
+{
+    if (!s && !t) {
+        buf_puts(b, "null");
+        return;
+    }
     buf_putc(b, '"');
+    if (s) json_chars(b, s);
+    if (t) json_chars(b, t);
+    buf_putc(b, '"');
+}
+
+static void json_str(frep_buf *b, const char *s)
+{
+    json_str2(b, s, NULL);
 }
 
 /* A number JSON can hold: non-finite values become null. */
@@ -149,18 +173,20 @@ static void json_num(frep_buf *b, double v)
     else buf_puts(b, "null");
 }
 
-/* n values as base64 Float32. */
-static void f32_array(frep_buf *b, size_t n, const double *x)
+/* n values as base64 little-endian halves (view_half): colours and counts need no
+ * more than its three significant digits. */
+static void f16_array(frep_buf *b, size_t n, const double *x)
 {
     b64 s = { b, { 0 }, 0 };
     buf_putc(b, '"');
-    for (size_t i = 0; i < n; i++) b64_f32(&s, x[i]);
+    for (size_t i = 0; i < n; i++) b64_u16(&s, view_half(x[i]));
     b64_end(&s);
     buf_putc(b, '"');
 }
 
-/* The mesh: 16-bit positions in its bounds, Int8 normals, varint corner deltas. */
-static void json_mesh(frep_buf *b, const frep_mesh *m)
+/* The mesh: 16-bit positions in its bounds, Int8 normals, Uint8 colours (rgb: NULL
+ * for none), varint corner deltas. */
+static void json_mesh(frep_buf *b, const frep_mesh *m, const unsigned char *rgb)
 {
     buf_printf(b, "{\"nv\":%zu,\"nt\":%zu,", m->nverts, m->ntris);
     q16_xyz(b, m->nverts, m->v, NULL, NULL);
@@ -176,6 +202,13 @@ static void json_mesh(frep_buf *b, const frep_mesh *m)
         b64_end(&s);
         buf_putc(b, '"');
     } else buf_puts(b, "null");
+    buf_puts(b, ",\"rgb\":");
+    if (rgb) {
+        buf_putc(b, '"');
+        for (size_t i = 0; i < 3 * m->nverts; i++) b64_byte(&s, rgb[i]);
+        b64_end(&s);
+        buf_putc(b, '"');
+    } else buf_puts(b, "null");
     buf_puts(b, ",\"idx\":\"");
     for (size_t i = 0; i < 3 * m->ntris; i++) b64_delta(&s, i ? m->tri[i - 1] : 0, m->tri[i]);
     b64_end(&s);
@@ -188,8 +221,8 @@ static void json_points(frep_buf *b, const view_scene *s)
     q16_xyz(b, s->npoints, s->px, s->py, s->pz);
     buf_puts(b, ",\"d\":");
     if (s->pdist) {
-        /* Float32 keeps +-inf (no gradient) as it is; the viewer saturates it. */
-        f32_array(b, s->npoints, s->pdist);
+        /* a half keeps +-inf (no gradient) as it is; the viewer saturates it */
+        f16_array(b, s->npoints, s->pdist);
     } else buf_puts(b, "null");
     buf_puts(b, ",\"scale\":");
     json_num(b, s->pscale);
@@ -207,7 +240,8 @@ void view_scene_json(frep_buf *b, const view_scene *s)
     buf_puts(b, ",\"source\":");
     json_str(b, s->source);
     buf_puts(b, ",\"diag\":");
-    json_str(b, s->diag);
+    json_str2(b, s->diag, s->cdiag);
+    buf_printf(b, ",\"failed\":%s", s->failed ? "true" : "false");
     buf_puts(b, ",\"params\":[");
     for (size_t i = 0; i < s->nparams; i++) {
         buf_puts(b, i ? ",[" : "[");
@@ -217,12 +251,12 @@ void view_scene_json(frep_buf *b, const view_scene *s)
         buf_putc(b, ']');
     }
     buf_puts(b, "],\"mesh\":");
-    if (s->mesh && s->mesh->ntris) json_mesh(b, s->mesh);
+    if (s->mesh && s->mesh->ntris) json_mesh(b, s->mesh, s->vrgb);
     else buf_puts(b, "null");
     buf_puts(b, ",\"vdist\":");
     if (s->mesh && s->mesh->ntris && s->vdist) {
         buf_puts(b, "{\"d\":");
-        f32_array(b, s->mesh->nverts, s->vdist);
+        f16_array(b, s->mesh->nverts, s->vdist);
         buf_puts(b, ",\"scale\":");
         json_num(b, s->vscale);
         buf_putc(b, '}');
