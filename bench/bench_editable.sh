@@ -3,8 +3,8 @@
 # against the ground truth's (doc/benchmarks.md, "Editable models").
 #
 # For each model of ../shared/data/inversecsg with a ground-truth program (csg.scad):
-# frep sample (POINTS points of the mesh) -> frep segment -> frep evolve (seed 1, at
-# most MAXT s) and the count of solids the written model states (`-- N solids: ...`:
+# frep sample (POINTS points of the mesh) -> frep evolve (segmenting first, so that the
+# primitives carry their inlier figures and are rounded to them; seed 1, at most MAXT s) and the count of solids the written model states (`-- N solids: ...`:
 # boxes, cylinders, spheres, cones, tori and the half-spaces left over each count 1)
 # against the program's cube/cylinder/sphere calls; also the tree's primitives (what
 # each surface as one solid gives) and the tree's size.
@@ -39,9 +39,8 @@ for name in $models; do
     [ -f "$mesh" ] || mesh="$d/csg_high_res.off"
     gts=$(grep -o -E '\b(cube|cylinder|sphere)\s*\(' "$d/csg.scad" | wc -l)
     if ! { "$FREP" sample "$mesh" -n "$PTS" --seed "$SEED" -o "$tmp/r.xyz" -q &&
-           "$FREP" segment "$tmp/r.xyz" -o "$tmp/r.fit" --seed "$SEED" -q &&
-           "$FREP" evolve "$tmp/r.xyz" -p "$tmp/r.fit" -o "$tmp/r.hf" --seed "$SEED" \
-               --max-time "$MAXT" -q; } 2>"$tmp/err"; then
+           "$FREP" evolve "$tmp/r.xyz" -o "$tmp/r.hf" --seed "$SEED" --max-time "$MAXT" -q; } \
+           2>"$tmp/err"; then
         echo "| $name | $gts | failed: $(head -c 80 "$tmp/err" | tr '\n|' '  ') | | | | | | |"
         continue
     fi

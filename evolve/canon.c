@@ -581,7 +581,7 @@ typedef struct ft_node {
     uint32_t face[6];
     uint8_t fneg[6];
     double qpos, qdir, sigma;   /* FT_BOX: printing quanta, the faces' standard error */
-    char name[40];              /* FT_BOX, FT_CAPPED; AND and OR with a statement */
+    char name[48];              /* FT_BOX, FT_CAPPED (a primitive's name + "_capped") */
 } ft_node;
 
 typedef struct ft {
@@ -772,7 +772,7 @@ static int opposite(const double a[3], const double b[3], double tol)
  * rounded as they print.  Returns the node, or FT_NONE. */
 static uint32_t ft_box(ft *F, uint32_t and, const uint32_t p[3][2])
 {
-    double n[3][2][3], d[3][2], u[3][3];
+    double n[3][2][3] = { { { 0 } } }, d[3][2] = { { 0 } }, u[3][3];
     for (int k = 0; k < 3; k++)
         for (int s = 0; s < 2; s++) ft_plane(F, F->v[and].t[p[k][s]], n[k][s], &d[k][s]);
     for (int k = 0; k < 3; k++)
@@ -885,7 +885,25 @@ typedef struct ft_check {
     double limit;              /* largest mean distance the model may reach */
     double tol;                /* angle within which planes pair, radians */
     uint32_t root;
+    /* The solid before the rewrite: its values ref[i] at the points g[3i..3i+2] of a
+     * grid over the cloud's box (NULL: no grid); a rewrite must keep every sign
+     * where |ref| > gtol. */
+    const double *g, *ref;
+    size_t ng;
+    double gtol;
 } ft_check;
+
+/* Whether the tree still explains the cloud (mean distance within the limit) and keeps
+ * the solid's sign at the grid points (without the cloud: always). */
+static int ft_keeps(const ft *F, const ft_check *ck)
+{
+    if (!ck->cloud) return 1;
+    for (size_t i = 0; i < ck->ng; i++) {
+        if (fabs(ck->ref[i]) <= ck->gtol) continue;
+        if ((ft_eval(F, ck->root, &ck->g[3 * i]) > 0) != (ck->ref[i] > 0)) return 0;
+    }
+    return ft_mean(F, ck->root, ck->cloud, ck->stride) <= ck->limit;
+}
 
 /* Boxes and capped cylinders in intersection node `and`. */
 static void ft_solids(ft *F, uint32_t and, const ft_check *ck)
@@ -925,7 +943,7 @@ static void ft_solids(ft *F, uint32_t and, const ft_check *ck)
             for (uint32_t c = b + 1; c < np && !nrm; c++) {
                 uint32_t pr[3][2] = { { pairs[a][0], pairs[a][1] }, { pairs[b][0], pairs[b][1] },
                                       { pairs[c][0], pairs[c][1] } };
-                double m[3][3], dmy;
+                double m[3][3] = { { 0 } }, dmy;
                 for (int k = 0; k < 3; k++) ft_plane(F, F->v[and].t[pr[k][0]], m[k], &dmy);
                 if (fabs(vec3_dot(m[0], m[1])) > sin(ck->tol) || fabs(vec3_dot(m[0], m[2])) > sin(ck->tol) ||
                     fabs(vec3_dot(m[1], m[2])) > sin(ck->tol))
@@ -943,7 +961,7 @@ static void ft_solids(ft *F, uint32_t and, const ft_check *ck)
                     F->v[and].t[pr[k / 2][k % 2]].node = box;
                     F->v[and].t[pr[k / 2][k % 2]].neg = 0;
                 }
-                int keep = !ck->cloud || ft_mean(F, ck->root, ck->cloud, ck->stride) <= ck->limit;
+                int keep = ft_keeps(F, ck);
                 if (!keep) {
                     for (int k = 0; k < 6; k++) F->v[and].t[pr[k / 2][k % 2]] = saved[k];
                     continue;
@@ -960,7 +978,7 @@ static void ft_solids(ft *F, uint32_t and, const ft_check *ck)
         const prim *cy = &F->q[lv->leaf];
         for (uint32_t a = 0; a < np; a++) {
             if (paired[pairs[a][0]] != 1) continue;
-            double m[3], dmy;
+            double m[3] = { 0, 0, 0 }, dmy;
             ft_plane(F, F->v[and].t[pairs[a][0]], m, &dmy);
             if (fabs(vec3_dot(m, cy->a)) < cos(CANON_CAP_TILT)) continue;
             uint32_t cp = ft_new(F, FT_CAPPED);
@@ -1086,6 +1104,11 @@ static int fw_bores(const fw *w, const ft_node *v)
  * operands or removes several; else one expression. */
 static void fw_root(fw *w, uint32_t root)
 {
+    /* An operation of one operand is that operand. */
+    while ((w->F->v[root].kind == FT_AND || w->F->v[root].kind == FT_OR) && w->F->v[root].n == 1 &&
+           !w->F->v[root].t[0].neg && (w->F->v[w->F->v[root].t[0].node].kind == FT_AND ||
+                                       w->F->v[w->F->v[root].t[0].node].kind == FT_OR))
+        root = w->F->v[root].t[0].node;
     const ft_node *v = &w->F->v[root];
     fw_stmts(w, root, 0, 1);
     uint32_t pos = 0, negs = 0;
@@ -1232,13 +1255,106 @@ static void write_feature(FILE *f, const ft *F, const ft_node *v, const char *co
     fputc('\n', f);
 }
 
+/* Whether node i (an intersection) has a box among its operands with leaf j a face. */
+static int ft_box_uses(const ft *F, uint32_t i, uint32_t j)
+{
+    const ft_node *v = &F->v[i];
+    for (uint32_t k = 0; k < v->n; k++) {
+        const ft_node *b = &F->v[v->t[k].node];
+        if (b->kind != FT_BOX) continue;
+        for (int f = 0; f < 6; f++)
+            if (b->face[f] == j) return 1;
+    }
+    return 0;
+}
+
+/* Planes of intersection `and` that complete a box in an intersection C under one of its
+ * unions: A & (B | C) = A & (B | (A' & C)) for A' among A's operands, exactly; then
+ * each plane the box took leaves A when the solid stays (ft_keeps). */
+static void ft_push(ft *F, uint32_t and, const ft_check *ck)
+{
+    for (uint32_t k = 0; k < F->v[and].n && !F->failed; k++) {
+        ft_term o = F->v[and].t[k];
+        if (o.neg || F->v[o.node].kind != FT_OR) continue;
+        for (uint32_t m = 0; m < F->v[o.node].n && !F->failed; m++) {
+            ft_term ct = F->v[o.node].t[m];
+            if (ct.neg || F->v[ct.node].kind != FT_AND) continue;
+            uint32_t C = ct.node, n0 = F->v[C].n, added = 0;
+            double nn[3], dd;
+            for (uint32_t a = 0; a < F->v[and].n; a++)
+                if (ft_plane(F, F->v[and].t[a], nn, &dd)) {
+                    ft_add(F, C, F->v[and].t[a].node, F->v[and].t[a].neg);
+                    added++;
+                }
+            if (!added || F->failed) {
+                F->v[C].n = n0;
+                continue;
+            }
+            ft_term *saved = frep_malloc(F->v[C].n * sizeof *saved);
+            if (!saved) {
+                F->failed = 1;
+                return;
+            }
+            uint32_t ns = F->v[C].n;
+            memcpy(saved, F->v[C].t, ns * sizeof *saved);
+            ft_solids(F, C, ck);
+            /* The planes the box did not take go again (they were copies). */
+            int took = 0;
+            uint32_t w = 0;
+            for (uint32_t a = 0; a < F->v[C].n; a++) {
+                ft_term t = F->v[C].t[a];
+                int copy = 0;
+                for (uint32_t b = n0; b < ns; b++)
+                    if (saved[b].node == t.node && saved[b].neg == t.neg) copy = 1;
+                int orig = 0;
+                for (uint32_t b = 0; b < n0; b++)
+                    if (saved[b].node == t.node && saved[b].neg == t.neg) orig = 1;
+                if (copy && !orig) continue;
+                F->v[C].t[w++] = t;
+            }
+            F->v[C].n = w;
+            for (uint32_t a = 0; a < F->v[and].n; a++) {
+                ft_term t = F->v[and].t[a];
+                if (F->v[t.node].kind == FT_LEAF && ft_box_uses(F, C, F->v[t.node].leaf)) took = 1;
+            }
+            if (!took) {
+                memcpy(F->v[C].t, saved, n0 * sizeof *saved);
+                F->v[C].n = n0;
+            } else {
+                /* Planes the box took leave the outer intersection if the solid stays. */
+                for (uint32_t a = 0; a < F->v[and].n;) {
+                    ft_term t = F->v[and].t[a];
+                    if (!ft_plane(F, t, nn, &dd) || !ft_box_uses(F, C, F->v[t.node].leaf)) {
+                        a++;
+                        continue;
+                    }
+                    uint32_t idx = a;
+                    ft_node *v = &F->v[and];
+                    memmove(&v->t[a], &v->t[a + 1], (v->n - a - 1) * sizeof *v->t);
+                    v->n--;
+                    if (!ft_keeps(F, ck)) {
+                        memmove(&v->t[idx + 1], &v->t[idx], (v->n - idx) * sizeof *v->t);
+                        v->t[idx] = t;
+                        v->n++;
+                        a++;
+                    }
+                }
+            }
+            frep_free(saved);
+        }
+    }
+}
+
 static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
 {
     ft_node *v = &F->v[i];
     if (v->kind != FT_AND && v->kind != FT_OR) return;
     uint32_t n = v->n;
     for (uint32_t k = 0; k < n; k++) apply_solids(F, F->v[i].t[k].node, ck);
-    if (F->v[i].kind == FT_AND) ft_solids(F, i, ck);
+    if (F->v[i].kind == FT_AND) {
+        ft_solids(F, i, ck);
+        if (ck->cloud) ft_push(F, i, ck);
+    }
 }
 
 int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const canon_prim *c,
@@ -1256,6 +1372,7 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
     unsigned *uses = NULL;
     uint32_t *order = NULL;
     uint8_t *seen = NULL, *pol = NULL;
+    double *grid = NULL, *ref = NULL;
     fw w;
     memset(&w, 0, sizeof w);
     int rc = -1;
@@ -1276,6 +1393,27 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
         ck.stride = cloud->n > CANON_CHECK_POINTS ? cloud->n / CANON_CHECK_POINTS : 1;
         ck.limit = mean_dist(r, prims, nprims, cloud, ck.stride) + CANON_MAX_CHANGE * r->diag;
         ck.tol = 2 * CANON_MAX_SNAP;
+        grid = frep_malloc(3 * CANON_GRID * CANON_GRID * CANON_GRID * sizeof *grid);
+        ref = frep_malloc(CANON_GRID * CANON_GRID * CANON_GRID * sizeof *ref);
+        if (!grid || !ref) goto done;
+        /* Cell centres of the cloud's oriented box grown by 10%. */
+        size_t ng = 0;
+        for (int a = 0; a < CANON_GRID; a++)
+            for (int b = 0; b < CANON_GRID; b++)
+                for (int e = 0; e < CANON_GRID; e++, ng++) {
+                    double s3[3] = { a, b, e };
+                    for (int w = 0; w < 3; w++) {
+                        double x = r->obb.c[w];
+                        for (int k = 0; k < 3; k++)
+                            x += r->obb.ax[k][w] * 1.1 * r->obb.h[k] * (2 * (s3[k] + 0.5) / CANON_GRID - 1);
+                        grid[3 * ng + w] = x;
+                    }
+                    ref[ng] = ft_eval(&F, root, &grid[3 * ng]);
+                }
+        ck.g = grid;
+        ck.ref = ref;
+        ck.ng = ng;
+        ck.gtol = CANON_GRID_TOL * r->diag;
     }
     if (!exact) apply_solids(&F, root, &ck);
     if (F.failed) goto done;
@@ -1350,5 +1488,7 @@ done:
     frep_free(seen);
     frep_free(pol);
     frep_free(w.stmt);
+    frep_free(grid);
+    frep_free(ref);
     return rc;
 }

@@ -85,6 +85,13 @@ void canon_write_comment(FILE *f, const canon_prim *c);
  * diagonal over the exact tree's mean distance) keeps its planes; without the cloud or
  * with exact, only exact boxes are formed (exact: none).  base_call: the --residual
  * base model's call (NULL: none).  Returns 0, or -1 (memory, write error). */
+/* A rewrite keeps the solid: at the CANON_GRID^3 cell centres of the cloud's oriented
+ * box grown by 10%, the sign of the tree stays wherever the tree before it is farther
+ * than CANON_GRID_TOL of the diagonal from 0 (the rounding of a box's numbers moves a
+ * face by its quantum, below CANON_MAX_SHIFT). */
+#define CANON_GRID 20
+#define CANON_GRID_TOL 1e-3
+
 int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const canon_prim *c,
                      size_t nprims, const frep_cloud *cloud, int exact, int hyperfun,
                      const char *base_call);
