@@ -982,7 +982,10 @@ static void ft_solids(ft *F, uint32_t and, const ft_check *ck)
             ft_plane(F, F->v[and].t[pairs[a][0]], m, &dmy);
             if (fabs(vec3_dot(m, cy->a)) < cos(CANON_CAP_TILT)) continue;
             uint32_t cp = ft_new(F, FT_CAPPED);
-            if (cp == FT_NONE) goto done;
+            if (cp == FT_NONE) {
+                frep_free(rm);
+                goto done;
+            }
             ft_node *cv = &F->v[cp];
             cv->face[0] = F->v[t.node].leaf;
             for (int s = 0; s < 2; s++) {
