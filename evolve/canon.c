@@ -555,157 +555,943 @@ void canon_write_comment(FILE *f, const canon_prim *c)
     if (c->snapped) fputs(", direction snapped", f);
 }
 
-/* ---- the tree ------------------------------------------------------------------------ */
+/* ---- features: the tree as solids ---------------------------------------------------- */
 
-typedef struct tw {
-    frep_buf *b;
-    const frep_insn *code;
-    const char *const *names;
-    const prim *prims;
+/* The tree is read as n-ary intersections (with complemented operands: a \ b is
+ * a & ~b) and unions; in each intersection, three pairs of opposite parallel planes on
+ * orthogonal axes become a box, a cylinder and a pair of opposite planes across its
+ * axis a capped cylinder.  min/max and R-functions have the same sign, so regrouping
+ * the operands keeps the solid. */
+
+typedef enum ft_kind { FT_LEAF, FT_BOX, FT_CAPPED, FT_AND, FT_OR } ft_kind;
+
+typedef struct ft_term {
+    uint32_t node;
+    uint8_t neg;          /* complemented (a subtrahend of an intersection) */
+} ft_term;
+
+typedef struct ft_node {
+    ft_kind kind;
+    uint32_t leaf;        /* FT_LEAF: the primitive (nprims: the --residual base) */
+    ft_term *t;           /* FT_AND, FT_OR: the operands */
+    uint32_t n, cap;
+    /* FT_BOX: frBox's numbers as printed (centre, half sizes, rotations about x, y, z),
+     * its faces (leaf, complemented); FT_CAPPED: face[0] the cylinder, face[1..2]. */
+    double c[3], h[3], rot[3];
+    uint32_t face[6];
+    uint8_t fneg[6];
+    double qpos, qdir, sigma;   /* FT_BOX: printing quanta, the faces' standard error */
+    char name[48];              /* FT_BOX, FT_CAPPED (a primitive's name + "_capped") */
+} ft_node;
+
+typedef struct ft {
+    ft_node *v;
+    uint32_t n, cap;
+    int failed;
+    const canon_prim *c;  /* per primitive: its canonical form */
+    prim *q;              /* per primitive: what the written call evaluates */
     size_t nprims;
-    char (*part)[16];     /* per pc: the sub-expression's name, "" when inline */
-} tw;
+} ft;
 
+#define FT_NONE UINT32_MAX
 
-static void expr(tw *w, uint32_t end, int top, int paren);
-
-/* The operands of a chain of one associative operator, flat: a & b & c. */
-static void chain(tw *w, uint32_t end, char op, int first)
+static uint32_t ft_new(ft *F, ft_kind k)
 {
-    const frep_insn *in = &w->code[end];
-    if (tree_nin(in) == 2 && op_char(in->op) == op && (first || !w->part[end][0])) {
-        uint32_t l0, l1, r0;
-        tree_operands(w->code, end, &l0, &l1, &r0);
-        chain(w, l1, op, 0);
-        buf_printf(w->b, " %c ", op);
-        chain(w, end - 1, op, 0);
-        return;
-    }
-    expr(w, end, 0, 1);
-}
-
-static void expr(tw *w, uint32_t end, int top, int paren)
-{
-    const frep_insn *in = &w->code[end];
-    if (!top && w->part[end][0]) {
-        buf_puts(w->b, w->part[end]);
-        return;
-    }
-    int k = tree_nin(in);
-    if (k == 0) {
-        buf_puts(w->b, w->names[in->arg]);
-        return;
-    }
-    if (k == 1) {
-        buf_putc(w->b, '~');
-        expr(w, end - 1, 0, 1);
-        return;
-    }
-    char op = op_char(in->op);
-    if (paren && !top) buf_putc(w->b, '(');
-    if (op == '\\') {
-        uint32_t l0, l1, r0;
-        tree_operands(w->code, end, &l0, &l1, &r0);
-        /* Left to right, as the language groups: a \ b \ c needs no parentheses. */
-        const frep_insn *li = &w->code[l1];
-        int lsub = tree_nin(li) == 2 && op_char(li->op) == '\\' && !w->part[l1][0];
-        expr(w, l1, lsub, !lsub);
-        buf_puts(w->b, " \\ ");
-        expr(w, end - 1, 0, 1);
-    } else {
-        chain(w, end, op, 1);
-    }
-    if (paren && !top) buf_putc(w->b, ')');
-}
-
-static uint32_t nodes(const frep_insn *code, uint32_t end)
-{
-    return end - tree_subtree_start(code, end) + 1;
-}
-
-/* An intersection of planes only, with at least 4 of them. */
-static int plane_block(const tw *w, uint32_t end)
-{
-    uint32_t s = tree_subtree_start(w->code, end), planes = 0;
-    for (uint32_t pc = s; pc <= end; pc++) {
-        const frep_insn *in = &w->code[pc];
-        if (in->op == FREP_OP_PRIM) {
-            if (in->arg >= w->nprims || w->prims[in->arg].type != PRIM_PLANE) return 0;
-            planes++;
-        } else if (!(tree_nin(in) == 2 && op_char(in->op) == '&')) {
-            return 0;
+    if (F->failed) return FT_NONE;
+    if (F->n == F->cap) {
+        uint32_t cap = F->cap ? 2 * F->cap : 32;
+        ft_node *nv = frep_realloc(F->v, cap * sizeof *nv);
+        if (!nv) {
+            F->failed = 1;
+            return FT_NONE;
         }
+        F->v = nv;
+        F->cap = cap;
     }
-    return planes >= 4;
+    memset(&F->v[F->n], 0, sizeof F->v[F->n]);
+    F->v[F->n].kind = k;
+    return F->n++;
 }
 
-/* parent[pc] of every node (the root: len), right[pc] when it is a right operand. */
-static void parents(const frep_insn *code, uint32_t end, uint32_t *parent, uint8_t *right)
+static void ft_add(ft *F, uint32_t parent, uint32_t node, int neg)
 {
-    int k = tree_nin(&code[end]);
+    if (F->failed || node == FT_NONE) return;
+    ft_node *p = &F->v[parent];
+    if (p->n == p->cap) {
+        uint32_t cap = p->cap ? 2 * p->cap : 4;
+        ft_term *nt = frep_realloc(p->t, cap * sizeof *nt);
+        if (!nt) {
+            F->failed = 1;
+            return;
+        }
+        p->t = nt;
+        p->cap = cap;
+    }
+    p->t[p->n].node = node;
+    p->t[p->n++].neg = (uint8_t)neg;
+}
+
+static uint32_t ft_build(ft *F, const frep_insn *code, uint32_t end);
+
+/* The operands of the subtree at end (complemented when neg) into parent, an
+ * intersection (pop '&') or union ('|'), flat where the operator allows:
+ * a & (b \ c) = a & b & ~c, a & ~(b | c) = a & ~b & ~c, and their duals. */
+static void ft_flat(ft *F, const frep_insn *code, uint32_t end, int neg, uint32_t parent, char pop)
+{
+    const frep_insn *in = &code[end];
+    int k = tree_nin(in);
     if (k == 1) {
-        parent[end - 1] = end;
-        right[end - 1] = 1;
-        parents(code, end - 1, parent, right);
-    } else if (k == 2) {
+        ft_flat(F, code, end - 1, !neg, parent, pop);
+        return;
+    }
+    if (k == 2) {
         uint32_t l0, l1, r0;
         tree_operands(code, end, &l0, &l1, &r0);
-        parent[l1] = end;
-        parent[end - 1] = end;
-        right[end - 1] = 1;
-        parents(code, l1, parent, right);
-        parents(code, end - 1, parent, right);
+        char op = op_char(in->op);
+        char same = pop, dual = pop == '&' ? '|' : '&';
+        if (!neg && op == same) {
+            ft_flat(F, code, l1, 0, parent, pop);
+            ft_flat(F, code, end - 1, 0, parent, pop);
+            return;
+        }
+        if (neg && op == dual) {
+            ft_flat(F, code, l1, 1, parent, pop);
+            ft_flat(F, code, end - 1, 1, parent, pop);
+            return;
+        }
+        if (op == '\\' && neg == (pop == '|')) {
+            /* & of a \ b: a, ~b; | of ~(a \ b): ~a, b */
+            ft_flat(F, code, l1, neg, parent, pop);
+            ft_flat(F, code, end - 1, !neg, parent, pop);
+            return;
+        }
+    }
+    ft_add(F, parent, ft_build(F, code, end), neg);
+}
+
+static uint32_t ft_build(ft *F, const frep_insn *code, uint32_t end)
+{
+    const frep_insn *in = &code[end];
+    int k = tree_nin(in);
+    if (k == 0) {
+        uint32_t l = ft_new(F, FT_LEAF);
+        if (l != FT_NONE) F->v[l].leaf = in->arg;
+        return l;
+    }
+    char op = k == 1 ? '&' : op_char(in->op);
+    uint32_t n = ft_new(F, op == '|' ? FT_OR : FT_AND);
+    if (n != FT_NONE) ft_flat(F, code, end, 0, n, op == '|' ? '|' : '&');
+    return n;
+}
+
+static void ft_free(ft *F)
+{
+    for (uint32_t i = 0; i < F->n; i++) frep_free(F->v[i].t);
+    frep_free(F->v);
+}
+
+/* The plane of a term as a half-space n.x <= d (complemented: the other side), or 0
+ * when the term is no plane leaf. */
+static int ft_plane(const ft *F, ft_term t, double n[3], double *d)
+{
+    const ft_node *v = &F->v[t.node];
+    if (v->kind != FT_LEAF || v->leaf >= F->nprims || F->q[v->leaf].type != PRIM_PLANE)
+        return 0;
+    const prim *q = &F->q[v->leaf];
+    double s = t.neg ? -1 : 1;
+    for (int k = 0; k < 3; k++) n[k] = s * q->p[k];
+    *d = s * q->r;
+    return 1;
+}
+
+/* frBox's value (lang/lib_ext.c) for centre c, half sizes h, frame columns R[.][k]. */
+static double box_value(const double c[3], const double h[3], const double R[3][3], const double *x)
+{
+    double e[3], out = 0, in = -INFINITY;
+    for (int k = 0; k < 3; k++) {
+        double q = 0;
+        for (int w = 0; w < 3; w++) q += R[w][k] * (x[w] - c[w]);
+        e[k] = fabs(q) - h[k];
+        out += e[k] > 0 ? e[k] * e[k] : 0;
+        in = fmax(in, e[k]);
+    }
+    return -(sqrt(out) + fmin(in, 0));
+}
+
+/* Rz(rz) Ry(ry) Rx(rx), the frame of frBox's rotations. */
+static void box_frame(const double rot[3], double R[3][3])
+{
+    double cx = cos(rot[0]), sx = sin(rot[0]), cy = cos(rot[1]), sy = sin(rot[1]);
+    double cz = cos(rot[2]), sz = sin(rot[2]);
+    R[0][0] = cz * cy;  R[0][1] = cz * sy * sx - sz * cx;  R[0][2] = cz * sy * cx + sz * sx;
+    R[1][0] = sz * cy;  R[1][1] = sz * sy * sx + cz * cx;  R[1][2] = sz * sy * cx - cz * sx;
+    R[2][0] = -sy;      R[2][1] = cy * sx;                 R[2][2] = cy * cx;
+}
+
+static double ft_eval(const ft *F, uint32_t i, const double *x)
+{
+    const ft_node *v = &F->v[i];
+    switch (v->kind) {
+    case FT_LEAF: return v->leaf < F->nprims ? prim_eval(&F->q[v->leaf], x, NULL) : 1;
+    case FT_BOX: {
+        double R[3][3];
+        box_frame(v->rot, R);
+        return box_value(v->c, v->h, R, x);
+    }
+    case FT_CAPPED: {
+        double f = prim_eval(&F->q[v->face[0]], x, NULL);
+        for (int k = 1; k < 3; k++) {
+            double g = prim_eval(&F->q[v->face[k]], x, NULL);
+            f = fmin(f, v->fneg[k] ? -g : g);
+        }
+        return f;
+    }
+    case FT_AND:
+    case FT_OR: {
+        double f = v->kind == FT_AND ? INFINITY : -INFINITY;
+        for (uint32_t k = 0; k < v->n; k++) {
+            double g = ft_eval(F, v->t[k].node, x);
+            if (v->t[k].neg) g = -g;
+            f = v->kind == FT_AND ? fmin(f, g) : fmax(f, g);
+        }
+        return f;
+    }
+    }
+    return 1;
+}
+
+/* Two planes bound a slab across u: opposite normals within tol of each other. */
+static int opposite(const double a[3], const double b[3], double tol)
+{
+    return vec3_dot(a, b) <= -cos(tol);
+}
+
+/* The box of the pairs p[k] = (plus, minus term index) of intersection node `and`:
+ * an orthonormal frame from the pairs' normals, each face's offset along its axis,
+ * the axes ordered and signed so that an axis-aligned box has no rotation; numbers
+ * rounded as they print.  Returns the node, or FT_NONE. */
+static uint32_t ft_box(ft *F, uint32_t and, const uint32_t p[3][2])
+{
+    double n[3][2][3] = { { { 0 } } }, d[3][2] = { { 0 } }, u[3][3];
+    for (int k = 0; k < 3; k++)
+        for (int s = 0; s < 2; s++) ft_plane(F, F->v[and].t[p[k][s]], n[k][s], &d[k][s]);
+    for (int k = 0; k < 3; k++)
+        for (int w = 0; w < 3; w++) u[k][w] = n[k][0][w] - n[k][1][w];
+    vec3_normalize(u[0]);
+    double t = vec3_dot(u[1], u[0]);
+    for (int w = 0; w < 3; w++) u[1][w] -= t * u[0][w];
+    if (vec3_normalize(u[1])) return FT_NONE;
+    double w2[3];
+    vec3_cross(u[0], u[1], w2);
+    if (vec3_dot(w2, u[2]) < 0)
+        for (int w = 0; w < 3; w++) w2[w] = -w2[w];
+    memcpy(u[2], w2, sizeof w2);
+    /* Faces at u_k . x = s+ and s-: offset over the cosine to the axis. */
+    double cw[3] = { 0, 0, 0 }, h[3];
+    for (int k = 0; k < 3; k++) {
+        double sp = d[k][0] / vec3_dot(n[k][0], u[k]);
+        double sm = -d[k][1] / -vec3_dot(n[k][1], u[k]);
+        h[k] = (sp - sm) / 2;
+        if (!(h[k] > 0)) return FT_NONE;
+        for (int w = 0; w < 3; w++) cw[w] += (sp + sm) / 2 * u[k][w];
+    }
+    /* Box axis k goes to the world axis it is nearest, pointing its way. */
+    int used[3] = { 0, 0, 0 }, perm[3];
+    double R[3][3], hh[3];
+    for (int w = 0; w < 3; w++) {
+        int best = -1;
+        for (int k = 0; k < 3; k++)
+            if (!used[k] && (best < 0 || fabs(u[k][w]) > fabs(u[best][w]))) best = k;
+        used[best] = 1;
+        perm[w] = best;
+    }
+    for (int w = 0; w < 3; w++) {
+        int k = perm[w];
+        double s = u[k][w] < 0 ? -1 : 1;
+        for (int r = 0; r < 3; r++) R[r][w] = s * u[k][r];
+        hh[w] = h[k];
+    }
+    double det = R[0][0] * (R[1][1] * R[2][2] - R[1][2] * R[2][1]) -
+                 R[0][1] * (R[1][0] * R[2][2] - R[1][2] * R[2][0]) +
+                 R[0][2] * (R[1][0] * R[2][1] - R[1][1] * R[2][0]);
+    if (det < 0) {
+        int m = 0;
+        for (int w = 1; w < 3; w++)
+            if (fabs(R[w][w]) < fabs(R[m][m])) m = w;
+        for (int r = 0; r < 3; r++) R[r][m] = -R[r][m];
+    }
+    uint32_t b = ft_new(F, FT_BOX);
+    if (b == FT_NONE) return FT_NONE;
+    ft_node *v = &F->v[b];
+    v->rot[1] = asin(fmax(-1, fmin(1, -R[2][0])));
+    v->rot[0] = atan2(R[2][1], R[2][2]);
+    v->rot[2] = atan2(R[1][0], R[0][0]);
+    v->qpos = INFINITY;
+    v->qdir = INFINITY;
+    for (int k = 0; k < 3; k++)
+        for (int s = 0; s < 2; s++) {
+            ft_term tm = F->v[and].t[p[k][s]];
+            uint32_t j = F->v[tm.node].leaf;
+            v->face[2 * k + s] = j;
+            v->fneg[2 * k + s] = tm.neg;
+            v->qpos = fmin(v->qpos, F->c[j].qpos);
+            v->qdir = fmin(v->qdir, F->c[j].qdir);
+            if (F->c[j].sigma > 0 && (v->sigma == 0 || F->c[j].sigma < v->sigma))
+                v->sigma = F->c[j].sigma;
+        }
+    for (int k = 0; k < 3; k++) {
+        char buf[PRIM_NUM_BUF];
+        prim_format_number(buf, cw[k], v->qpos);
+        v->c[k] = strtod(buf, NULL);
+        prim_format_number(buf, hh[k], v->qpos);
+        v->h[k] = strtod(buf, NULL);
+        prim_format_number(buf, v->rot[k], v->qdir);
+        v->rot[k] = strtod(buf, NULL);
+    }
+    return b;
+}
+
+static double ft_mean(const ft *F, uint32_t root, const frep_cloud *cl, size_t stride)
+{
+    double s = 0;
+    size_t m = 0;
+    for (size_t i = 0; i < cl->n; i += stride, m++) {
+        double x[3] = { cl->x[i], cl->y[i], cl->z[i] };
+        s += fabs(ft_eval(F, root, x));
+    }
+    return m ? s / (double)m : 0;
+}
+
+/* Remove operands idx[0..k) of node `and` (in any order). */
+static void ft_remove(ft *F, uint32_t and, uint32_t *idx, int k)
+{
+    ft_node *v = &F->v[and];
+    uint8_t *gone = frep_calloc(v->n, 1);
+    if (!gone) {
+        F->failed = 1;
+        return;
+    }
+    for (int i = 0; i < k; i++) gone[idx[i]] = 1;
+    uint32_t o = 0;
+    for (uint32_t i = 0; i < v->n; i++)
+        if (!gone[i]) v->t[o++] = v->t[i];
+    v->n = o;
+    frep_free(gone);
+}
+
+typedef struct ft_check {
+    const frep_cloud *cloud;   /* NULL: only exact boxes */
+    size_t stride;
+    double limit;              /* largest mean distance the model may reach */
+    double tol;                /* angle within which planes pair, radians */
+    uint32_t root;
+    /* The solid before the rewrite: its values ref[i] at the points g[3i..3i+2] of a
+     * grid over the cloud's box (NULL: no grid); a rewrite must keep every sign
+     * where |ref| > gtol. */
+    const double *g, *ref;
+    size_t ng;
+    double gtol;
+} ft_check;
+
+/* Whether the tree still explains the cloud (mean distance within the limit) and keeps
+ * the solid's sign at the grid points (without the cloud: always). */
+static int ft_keeps(const ft *F, const ft_check *ck)
+{
+    if (!ck->cloud) return 1;
+    for (size_t i = 0; i < ck->ng; i++) {
+        if (fabs(ck->ref[i]) <= ck->gtol) continue;
+        if ((ft_eval(F, ck->root, &ck->g[3 * i]) > 0) != (ck->ref[i] > 0)) return 0;
+    }
+    return ft_mean(F, ck->root, ck->cloud, ck->stride) <= ck->limit;
+}
+
+/* Boxes and capped cylinders in intersection node `and`. */
+static void ft_solids(ft *F, uint32_t and, const ft_check *ck)
+{
+    ft_node *v = &F->v[and];
+    uint32_t n = v->n;
+    if (n < 3) return;
+    uint32_t (*pairs)[2] = frep_malloc(n * sizeof *pairs);
+    uint8_t *paired = frep_calloc(n, 1);
+    if (!pairs || !paired) {
+        F->failed = 1;
+        goto done;
+    }
+    double nn[2][3], dd[2];
+    uint32_t np = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        if (paired[i] || !ft_plane(F, v->t[i], nn[0], &dd[0])) continue;
+        for (uint32_t j = i + 1; j < n; j++) {
+            if (paired[j] || !ft_plane(F, v->t[j], nn[1], &dd[1])) continue;
+            if (opposite(nn[0], nn[1], ck->tol) && dd[0] + dd[1] > 0) {
+                pairs[np][0] = i;
+                pairs[np++][1] = j;
+                paired[i] = paired[j] = 1;
+                break;
+            }
+        }
+    }
+    uint32_t *rm = frep_malloc(n * sizeof *rm);
+    int nrm = 0;
+    if (!rm) {
+        F->failed = 1;
+        goto done;
+    }
+    /* A box: three pairs on orthogonal axes. */
+    for (uint32_t a = 0; a < np && !nrm; a++)
+        for (uint32_t b = a + 1; b < np && !nrm; b++)
+            for (uint32_t c = b + 1; c < np && !nrm; c++) {
+                uint32_t pr[3][2] = { { pairs[a][0], pairs[a][1] }, { pairs[b][0], pairs[b][1] },
+                                      { pairs[c][0], pairs[c][1] } };
+                double m[3][3] = { { 0 } }, dmy;
+                for (int k = 0; k < 3; k++) ft_plane(F, F->v[and].t[pr[k][0]], m[k], &dmy);
+                if (fabs(vec3_dot(m[0], m[1])) > sin(ck->tol) || fabs(vec3_dot(m[0], m[2])) > sin(ck->tol) ||
+                    fabs(vec3_dot(m[1], m[2])) > sin(ck->tol))
+                    continue;
+                uint32_t box = ft_box(F, and, pr);
+                if (box == FT_NONE) continue;
+                /* Try it in place of the first face; keep it when the model still
+                 * explains the points (without them: only a box its faces give
+                 * exactly, the rounding of its numbers aside). */
+                ft_term saved[6];
+                for (int k = 0; k < 6; k++) saved[k] = F->v[and].t[pr[k / 2][k % 2]];
+                F->v[and].t[pr[0][0]].node = box;
+                F->v[and].t[pr[0][0]].neg = 0;
+                for (int k = 1; k < 6; k++) {
+                    F->v[and].t[pr[k / 2][k % 2]].node = box;
+                    F->v[and].t[pr[k / 2][k % 2]].neg = 0;
+                }
+                int keep = ft_keeps(F, ck);
+                if (!keep) {
+                    for (int k = 0; k < 6; k++) F->v[and].t[pr[k / 2][k % 2]] = saved[k];
+                    continue;
+                }
+                for (int k = 1; k < 6; k++) rm[nrm++] = pr[k / 2][k % 2];
+                for (int k = 0; k < 3; k++) paired[pr[k][0]] = paired[pr[k][1]] = 2;
+            }
+    /* A capped cylinder: a cylinder and a pair of planes across its axis. */
+    for (uint32_t i = 0; i < n; i++) {
+        ft_term t = F->v[and].t[i];
+        const ft_node *lv = &F->v[t.node];
+        if (t.neg || lv->kind != FT_LEAF || lv->leaf >= F->nprims || F->q[lv->leaf].type != PRIM_CYLINDER)
+            continue;
+        const prim *cy = &F->q[lv->leaf];
+        for (uint32_t a = 0; a < np; a++) {
+            if (paired[pairs[a][0]] != 1) continue;
+            double m[3] = { 0, 0, 0 }, dmy;
+            ft_plane(F, F->v[and].t[pairs[a][0]], m, &dmy);
+            if (fabs(vec3_dot(m, cy->a)) < cos(CANON_CAP_TILT)) continue;
+            uint32_t cp = ft_new(F, FT_CAPPED);
+            if (cp == FT_NONE) {
+                frep_free(rm);
+                goto done;
+            }
+            ft_node *cv = &F->v[cp];
+            cv->face[0] = F->v[t.node].leaf;
+            for (int s = 0; s < 2; s++) {
+                ft_term ct = F->v[and].t[pairs[a][s]];
+                cv->face[1 + s] = F->v[ct.node].leaf;
+                cv->fneg[1 + s] = ct.neg;
+                rm[nrm++] = pairs[a][s];
+                paired[pairs[a][s]] = 2;
+            }
+            F->v[and].t[i].node = cp;
+            break;
+        }
+    }
+    if (nrm) ft_remove(F, and, rm, nrm);
+    frep_free(rm);
+done:
+    frep_free(pairs);
+    frep_free(paired);
+}
+
+/* ---- writing the features and the tree ----------------------------------------------- */
+
+typedef struct fw {
+    FILE *f;
+    ft *F;
+    const char *const *names;   /* per leaf, base_part last */
+    int large;                  /* statements for sub-expressions */
+    unsigned nparts, ncuts;
+    char (*stmt)[16];           /* per node: its statement's name, "" inline */
+} fw;
+
+static void fw_expr(fw *w, uint32_t i, int top);
+
+static void fw_term(fw *w, ft_term t, int first_neg)
+{
+    if (t.neg && first_neg) fputc('~', w->f);
+    fw_expr(w, t.node, 0);
+}
+
+static void fw_expr(fw *w, uint32_t i, int top)
+{
+    const ft_node *v = &w->F->v[i];
+    if (v->kind == FT_LEAF) {
+        fputs(w->names[v->leaf], w->f);
+        return;
+    }
+    if (v->kind == FT_BOX || v->kind == FT_CAPPED) {
+        fputs(v->name, w->f);
+        return;
+    }
+    if (!top && w->stmt[i][0]) {
+        fputs(w->stmt[i], w->f);
+        return;
+    }
+    int paren = !top && v->n > 1;
+    if (paren) fputc('(', w->f);
+    if (v->kind == FT_OR) {
+        for (uint32_t k = 0; k < v->n; k++) {
+            if (k) fputs(" | ", w->f);
+            fw_term(w, v->t[k], 1);
+        }
+    } else {
+        int first = 1;
+        for (uint32_t k = 0; k < v->n; k++)
+            if (!v->t[k].neg) {
+                if (!first) fputs(" & ", w->f);
+                fw_term(w, v->t[k], 0);
+                first = 0;
+            }
+        for (uint32_t k = 0; k < v->n; k++)
+            if (v->t[k].neg) {
+                if (!first) fputs(" \\ ", w->f);
+                fw_term(w, v->t[k], first);
+                first = 0;
+            }
+    }
+    if (paren) fputc(')', w->f);
+}
+
+static int fw_has_op(const ft *F, uint32_t i)
+{
+    const ft_node *v = &F->v[i];
+    for (uint32_t k = 0; k < v->n; k++) {
+        ft_kind kk = F->v[v->t[k].node].kind;
+        if (kk == FT_AND || kk == FT_OR) return 1;
+    }
+    return 0;
+}
+
+/* Statements of the sub-expressions under node i, dependencies first: in a large tree
+ * every operation of 3 operands or more, or over another operation. */
+static void fw_stmts(fw *w, uint32_t i, int neg, int root)
+{
+    const ft_node *v = &w->F->v[i];
+    if (v->kind != FT_AND && v->kind != FT_OR) return;
+    for (uint32_t k = 0; k < v->n; k++) fw_stmts(w, v->t[k].node, v->t[k].neg, 0);
+    if (root || !w->large || v->n < 2 || (v->n < 3 && !fw_has_op(w->F, i))) return;
+    if (neg) snprintf(w->stmt[i], sizeof w->stmt[i], "cut_%u", ++w->ncuts);
+    else snprintf(w->stmt[i], sizeof w->stmt[i], "part_%u", ++w->nparts);
+    fprintf(w->f, "    %s = ", w->stmt[i]);
+    fw_expr(w, i, 1);
+    fputs(";\n", w->f);
+}
+
+/* Whether every operand of node i a subtraction removes is a cylinder (a bore). */
+static int fw_bores(const fw *w, const ft_node *v)
+{
+    for (uint32_t k = 0; k < v->n; k++) {
+        if (!v->t[k].neg) continue;
+        const ft_node *c = &w->F->v[v->t[k].node];
+        int cyl = c->kind == FT_CAPPED ||
+                  (c->kind == FT_LEAF && c->leaf < w->F->nprims && w->F->q[c->leaf].type == PRIM_CYLINDER);
+        if (!cyl) return 0;
+    }
+    return 1;
+}
+
+/* The root: `tree = body \ bores;` when it removes material from a body of several
+ * operands or removes several; else one expression. */
+static void fw_root(fw *w, uint32_t root)
+{
+    /* An operation of one operand is that operand. */
+    while ((w->F->v[root].kind == FT_AND || w->F->v[root].kind == FT_OR) && w->F->v[root].n == 1 &&
+           !w->F->v[root].t[0].neg && (w->F->v[w->F->v[root].t[0].node].kind == FT_AND ||
+                                       w->F->v[w->F->v[root].t[0].node].kind == FT_OR))
+        root = w->F->v[root].t[0].node;
+    const ft_node *v = &w->F->v[root];
+    fw_stmts(w, root, 0, 1);
+    uint32_t pos = 0, negs = 0;
+    for (uint32_t k = 0; v->kind == FT_AND && k < v->n; k++) {
+        if (v->t[k].neg) negs++;
+        else pos++;
+    }
+    if (!(v->kind == FT_AND && negs && pos && pos + negs >= 3)) {
+        fputs("    tree = ", w->f);
+        fw_expr(w, root, 1);
+        fputs(";\n", w->f);
+        return;
+    }
+    const char *cut = fw_bores(w, v) ? "bores" : "cuts";
+    if (pos > 1) {
+        fputs("    body =", w->f);
+        for (uint32_t k = 0, first = 1; k < v->n; k++)
+            if (!v->t[k].neg) {
+                fputs(first ? " " : " & ", w->f);
+                fw_expr(w, v->t[k].node, 0);
+                first = 0;
+            }
+        fputs(";\n", w->f);
+    }
+    if (negs > 1) {
+        fprintf(w->f, "    %s =", cut);
+        for (uint32_t k = 0, first = 1; k < v->n; k++)
+            if (v->t[k].neg) {
+                fputs(first ? " " : " | ", w->f);
+                fw_expr(w, v->t[k].node, 0);
+                first = 0;
+            }
+        fputs(";\n", w->f);
+    }
+    fputs("    tree = ", w->f);
+    if (pos > 1) fputs("body", w->f);
+    else
+        for (uint32_t k = 0; k < v->n; k++)
+            if (!v->t[k].neg) fw_expr(w, v->t[k].node, 0);
+    fputs(" \\ ", w->f);
+    if (negs > 1) fputs(cut, w->f);
+    else
+        for (uint32_t k = 0; k < v->n; k++)
+            if (v->t[k].neg) fw_expr(w, v->t[k].node, 0);
+    fputs(";\n", w->f);
+}
+
+/* Leaves and features reachable from node i: leaf use counts, features in order of
+ * appearance (order[*no]), their polarity. */
+static void fw_walk(const ft *F, uint32_t i, int neg, unsigned *uses, uint32_t *order, uint32_t *no,
+                    uint8_t *seen, uint8_t *pol)
+{
+    const ft_node *v = &F->v[i];
+    if (v->kind == FT_LEAF) {
+        uses[v->leaf]++;
+        return;
+    }
+    if (v->kind == FT_BOX || v->kind == FT_CAPPED) {
+        if (!seen[i]) order[(*no)++] = i;
+        seen[i] = 1;
+        pol[i] |= neg ? 2 : 1;
+        return;
+    }
+    for (uint32_t k = 0; k < v->n; k++)
+        fw_walk(F, v->t[k].node, neg ^ v->t[k].neg, uses, order, no, seen, pol);
+}
+
+/* A plane of a feature as written: complemented faces flipped (the same numbers). */
+static canon_prim face_of(const ft *F, uint32_t j, int neg)
+{
+    canon_prim c = F->c[j];
+    if (neg) {
+        for (int k = 0; k < 3; k++) c.q.p[k] = -c.q.p[k] + 0.0;
+        c.q.r = -c.q.r + 0.0;
+    }
+    return c;
+}
+
+static void write_feature(FILE *f, const ft *F, const ft_node *v, const char *const *names, int hyperfun)
+{
+    char a[PRIM_NUM_BUF], b[PRIM_NUM_BUF], c[PRIM_NUM_BUF];
+    fprintf(f, "    %s = ", v->name);
+    size_t inl = 0;
+    if (v->kind == FT_BOX) {
+        for (int k = 0; k < 6; k++) inl += F->c[v->face[k]].q.support;
+        if (hyperfun) {
+            for (int k = 0; k < 6; k++) {
+                canon_prim p = face_of(F, v->face[k], v->fneg[k]);
+                fputs(k ? " & (" : "(", f);
+                canon_write_hyperfun(f, &p);
+                fputc(')', f);
+            }
+        } else {
+            fputs("frBox(x", f);
+            for (int k = 0; k < 9; k++) {
+                double val = k < 3 ? v->c[k] : k < 6 ? v->h[k - 3] : v->rot[k - 6];
+                prim_format_number(a, val, k < 6 ? v->qpos : v->qdir);
+                fprintf(f, ", %s", a);
+            }
+            fputc(')', f);
+        }
+        prim_format_number(a, 2 * v->h[0], v->qpos);
+        prim_format_number(b, 2 * v->h[1], v->qpos);
+        prim_format_number(c, 2 * v->h[2], v->qpos);
+        fprintf(f, ";  -- box %s x %s x %s (centre, half sizes, rotations about x, y, z in radians), "
+                   "faces", a, b, c);
+        for (int k = 0; k < 6; k++) fprintf(f, "%s %s", k ? "," : "", names[v->face[k]]);
+        if (inl) fprintf(f, ", %zu inliers", inl);
+        if (v->sigma > 0) {
+            prim_format_number(a, v->sigma, v->sigma / 10);
+            fprintf(f, ", +-%s", a);
+        }
+        fputc('\n', f);
+        return;
+    }
+    const canon_prim *cy = &F->c[v->face[0]];
+    if (hyperfun) canon_write_hyperfun(f, cy);
+    else canon_write_call(f, cy);
+    double len = 0;
+    for (int k = 1; k < 3; k++) {
+        canon_prim p = face_of(F, v->face[k], v->fneg[k]);
+        fputs(" & ", f);
+        if (hyperfun) {
+            fputc('(', f);
+            canon_write_hyperfun(f, &p);
+            fputc(')', f);
+        } else {
+            canon_write_call(f, &p);
+        }
+        len += p.q.r;
+        inl += p.q.support;
+    }
+    inl += cy->q.support;
+    prim_format_number(a, cy->q.r, cy->qpos);
+    prim_format_number(b, len, cy->qpos);
+    fprintf(f, ";  -- capped cylinder, radius %s, length %s, caps %s and %s", a, b,
+            names[v->face[1]], names[v->face[2]]);
+    if (cy->polarity == 2) fputs(", removed", f);
+    if (inl) fprintf(f, ", %zu inliers", inl);
+    if (cy->sigma > 0) {
+        prim_format_number(a, cy->sigma, cy->sigma / 10);
+        fprintf(f, ", +-%s", a);
+    }
+    fputc('\n', f);
+}
+
+/* Whether node i (an intersection) has a box among its operands with leaf j a face. */
+static int ft_box_uses(const ft *F, uint32_t i, uint32_t j)
+{
+    const ft_node *v = &F->v[i];
+    for (uint32_t k = 0; k < v->n; k++) {
+        const ft_node *b = &F->v[v->t[k].node];
+        if (b->kind != FT_BOX) continue;
+        for (int f = 0; f < 6; f++)
+            if (b->face[f] == j) return 1;
+    }
+    return 0;
+}
+
+/* Planes of intersection `and` that complete a box in an intersection C under one of its
+ * unions: A & (B | C) = A & (B | (A' & C)) for A' among A's operands, exactly; then
+ * each plane the box took leaves A when the solid stays (ft_keeps). */
+static void ft_push(ft *F, uint32_t and, const ft_check *ck)
+{
+    for (uint32_t k = 0; k < F->v[and].n && !F->failed; k++) {
+        ft_term o = F->v[and].t[k];
+        if (o.neg || F->v[o.node].kind != FT_OR) continue;
+        for (uint32_t m = 0; m < F->v[o.node].n && !F->failed; m++) {
+            ft_term ct = F->v[o.node].t[m];
+            if (ct.neg || F->v[ct.node].kind != FT_AND) continue;
+            uint32_t C = ct.node, n0 = F->v[C].n, added = 0;
+            double nn[3], dd;
+            for (uint32_t a = 0; a < F->v[and].n; a++)
+                if (ft_plane(F, F->v[and].t[a], nn, &dd)) {
+                    ft_add(F, C, F->v[and].t[a].node, F->v[and].t[a].neg);
+                    added++;
+                }
+            if (!added || F->failed) {
+                F->v[C].n = n0;
+                continue;
+            }
+            ft_term *saved = frep_malloc(F->v[C].n * sizeof *saved);
+            if (!saved) {
+                F->failed = 1;
+                return;
+            }
+            uint32_t ns = F->v[C].n;
+            memcpy(saved, F->v[C].t, ns * sizeof *saved);
+            ft_solids(F, C, ck);
+            /* The planes the box did not take go again (they were copies). */
+            int took = 0;
+            uint32_t w = 0;
+            for (uint32_t a = 0; a < F->v[C].n; a++) {
+                ft_term t = F->v[C].t[a];
+                int copy = 0;
+                for (uint32_t b = n0; b < ns; b++)
+                    if (saved[b].node == t.node && saved[b].neg == t.neg) copy = 1;
+                int orig = 0;
+                for (uint32_t b = 0; b < n0; b++)
+                    if (saved[b].node == t.node && saved[b].neg == t.neg) orig = 1;
+                if (copy && !orig) continue;
+                F->v[C].t[w++] = t;
+            }
+            F->v[C].n = w;
+            for (uint32_t a = 0; a < F->v[and].n; a++) {
+                ft_term t = F->v[and].t[a];
+                if (F->v[t.node].kind == FT_LEAF && ft_box_uses(F, C, F->v[t.node].leaf)) took = 1;
+            }
+            if (!took) {
+                memcpy(F->v[C].t, saved, n0 * sizeof *saved);
+                F->v[C].n = n0;
+            } else {
+                /* Planes the box took leave the outer intersection if the solid stays. */
+                for (uint32_t a = 0; a < F->v[and].n;) {
+                    ft_term t = F->v[and].t[a];
+                    if (!ft_plane(F, t, nn, &dd) || !ft_box_uses(F, C, F->v[t.node].leaf)) {
+                        a++;
+                        continue;
+                    }
+                    uint32_t idx = a;
+                    ft_node *v = &F->v[and];
+                    memmove(&v->t[a], &v->t[a + 1], (v->n - a - 1) * sizeof *v->t);
+                    v->n--;
+                    if (!ft_keeps(F, ck)) {
+                        memmove(&v->t[idx + 1], &v->t[idx], (v->n - idx) * sizeof *v->t);
+                        v->t[idx] = t;
+                        v->n++;
+                        a++;
+                    }
+                }
+            }
+            frep_free(saved);
+        }
     }
 }
 
-/* Name the sub-expressions, bottom-up (post-order is pc order), and write them. */
-static void parts(tw *w, uint32_t len)
+static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
 {
-    uint32_t *parent = frep_calloc(len, sizeof *parent);
-    uint8_t *right = frep_calloc(len, 1);
-    if (!parent || !right) {
-        w->b->failed = 1;
-        frep_free(parent);
-        frep_free(right);
-        return;
+    ft_node *v = &F->v[i];
+    if (v->kind != FT_AND && v->kind != FT_OR) return;
+    uint32_t n = v->n;
+    for (uint32_t k = 0; k < n; k++) apply_solids(F, F->v[i].t[k].node, ck);
+    if (F->v[i].kind == FT_AND) {
+        ft_solids(F, i, ck);
+        if (ck->cloud) ft_push(F, i, ck);
     }
-    parent[len - 1] = len;
-    parents(w->code, len - 1, parent, right);
-    unsigned nb = 0, nc = 0, np = 0;
-    for (uint32_t pc = 0; pc + 1 < len; pc++) {
-        const frep_insn *in = &w->code[pc];
-        if (tree_nin(in) != 2 || nodes(w->code, pc) < 5) continue;
-        const frep_insn *pi = &w->code[parent[pc]];
-        char op = op_char(in->op), pop = tree_nin(pi) == 2 ? op_char(pi->op) : '~';
-        int cut = pop == '~' || (pop == '\\' && right[pc]);
-        /* Inside a chain of its own operator it stays flat, unless a block. */
-        int flat = pop == op && op != '\\';
-        int block = plane_block(w, pc);
-        if (flat && (!block || plane_block(w, parent[pc]))) continue;
-        if (block) snprintf(w->part[pc], sizeof w->part[pc], "block_%u", ++nb);
-        else if (cut) snprintf(w->part[pc], sizeof w->part[pc], "cut_%u", ++nc);
-        else snprintf(w->part[pc], sizeof w->part[pc], "part_%u", ++np);
-        buf_printf(w->b, "    %s = ", w->part[pc]);
-        expr(w, pc, 1, 0);
-        buf_puts(w->b, ";\n");
-    }
-    frep_free(parent);
-    frep_free(right);
 }
 
-void canon_write_tree(frep_buf *b, const gp_tree *t, const char *const *names, const prim *prims,
-                      size_t nprims)
+int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const canon_prim *c,
+                     size_t nprims, const frep_cloud *cloud, int exact, int hyperfun,
+                     const char *base_call)
 {
-    if (!t->len) return;
-    tw w = { b, t->code, names, prims, nprims, NULL };
-    w.part = frep_calloc(t->len, sizeof *w.part);
-    if (!w.part) {
-        b->failed = 1;
-        return;
+    const gp_tree *t = &r->tree;
+    if (!t->len) return 0;
+    ft F;
+    memset(&F, 0, sizeof F);
+    F.c = c;
+    F.nprims = nprims;
+    F.q = frep_calloc(nprims + 1, sizeof *F.q);
+    const char **names = frep_calloc(nprims + 1, sizeof *names);
+    unsigned *uses = NULL;
+    uint32_t *order = NULL;
+    uint8_t *seen = NULL, *pol = NULL;
+    double *grid = NULL, *ref = NULL;
+    fw w;
+    memset(&w, 0, sizeof w);
+    int rc = -1;
+    if (!F.q || !names) goto done;
+    for (size_t j = 0; j < nprims; j++) {
+        F.q[j] = c[j].name[0] ? evaluated(&c[j]) : prims[j];
+        names[j] = c[j].name;
     }
-    if (t->len > 11) parts(&w, t->len);
-    buf_puts(b, "    tree = ");
-    expr(&w, t->len - 1, 1, 0);
-    buf_puts(b, ";\n");
-    frep_free(w.part);
+    names[nprims] = "base_part";
+    uint32_t root = ft_build(&F, t->code, t->len - 1);
+    if (F.failed) goto done;
+    ft_check ck;
+    memset(&ck, 0, sizeof ck);
+    ck.root = root;
+    ck.tol = 1e-9;
+    if (cloud && cloud->n && !exact) {
+        ck.cloud = cloud;
+        ck.stride = cloud->n > CANON_CHECK_POINTS ? cloud->n / CANON_CHECK_POINTS : 1;
+        ck.limit = mean_dist(r, prims, nprims, cloud, ck.stride) + CANON_MAX_CHANGE * r->diag;
+        ck.tol = 2 * CANON_MAX_SNAP;
+        grid = frep_malloc(3 * CANON_GRID * CANON_GRID * CANON_GRID * sizeof *grid);
+        ref = frep_malloc(CANON_GRID * CANON_GRID * CANON_GRID * sizeof *ref);
+        if (!grid || !ref) goto done;
+        /* Cell centres of the cloud's oriented box grown by 10%. */
+        size_t ng = 0;
+        for (int a = 0; a < CANON_GRID; a++)
+            for (int b = 0; b < CANON_GRID; b++)
+                for (int e = 0; e < CANON_GRID; e++, ng++) {
+                    double s3[3] = { a, b, e };
+                    for (int w = 0; w < 3; w++) {
+                        double x = r->obb.c[w];
+                        for (int k = 0; k < 3; k++)
+                            x += r->obb.ax[k][w] * 1.1 * r->obb.h[k] * (2 * (s3[k] + 0.5) / CANON_GRID - 1);
+                        grid[3 * ng + w] = x;
+                    }
+                    ref[ng] = ft_eval(&F, root, &grid[3 * ng]);
+                }
+        ck.g = grid;
+        ck.ref = ref;
+        ck.ng = ng;
+        ck.gtol = CANON_GRID_TOL * r->diag;
+    }
+    if (!exact) apply_solids(&F, root, &ck);
+    if (F.failed) goto done;
+    uses = frep_calloc(nprims + 1, sizeof *uses);
+    order = frep_calloc(F.n, sizeof *order);
+    seen = frep_calloc(F.n, 1);
+    pol = frep_calloc(F.n, 1);
+    w.stmt = frep_calloc(F.n, sizeof *w.stmt);
+    if (!uses || !order || !seen || !pol || !w.stmt) goto done;
+    uint32_t no = 0;
+    fw_walk(&F, root, 0, uses, order, &no, seen, pol);
+    /* Names and the count of solids. */
+    unsigned nbox = 0, ncap = 0, kinds[PRIM__COUNT + 1] = { 0 };
+    for (uint32_t k = 0; k < no; k++) {
+        ft_node *v = &F.v[order[k]];
+        if (v->kind == FT_BOX) {
+            snprintf(v->name, sizeof v->name, pol[order[k]] == 2 ? "box_cut_%u" : "box_%u", ++nbox);
+        } else {
+            ncap++;
+            snprintf(v->name, sizeof v->name, "%s%s", c[v->face[0]].name, uses[v->face[0]] ? "_capped" : "");
+        }
+    }
+    for (size_t j = 0; j < nprims; j++)
+        if (uses[j]) kinds[prims[j].type]++;
+    unsigned solids = nbox + ncap;
+    for (int k = 0; k < PRIM__COUNT; k++) solids += kinds[k];
+    fprintf(f, "    -- %u solids: %u box%s, %u cylinder%s (%u capped), %u sphere%s, %u cone%s, "
+               "%u tor%s, %u half-space%s\n",
+            solids, nbox, nbox == 1 ? "" : "es", ncap + kinds[PRIM_CYLINDER],
+            ncap + kinds[PRIM_CYLINDER] == 1 ? "" : "s", ncap, kinds[PRIM_SPHERE],
+            kinds[PRIM_SPHERE] == 1 ? "" : "s", kinds[PRIM_CONE], kinds[PRIM_CONE] == 1 ? "" : "s",
+            kinds[PRIM_TORUS], kinds[PRIM_TORUS] == 1 ? "us" : "i", kinds[PRIM_PLANE],
+            kinds[PRIM_PLANE] == 1 ? "" : "s");
+    /* The primitives the tree still names, in the order it first uses them. */
+    int head = 0;
+    for (uint32_t pc = 0; pc < t->len; pc++) {
+        size_t j = t->code[pc].arg;
+        if (t->code[pc].op != FREP_OP_PRIM || j >= nprims || !uses[j] || !c[j].name[0]) continue;
+        int first = 1;
+        for (uint32_t e = 0; e < pc && first; e++)
+            first = !(t->code[e].op == FREP_OP_PRIM && t->code[e].arg == j);
+        if (!first) continue;
+        if (!head++)
+            fprintf(f, "    -- primitives, numbers rounded to what their inliers support (+- the "
+                       "standard error of a position)\n");
+        fprintf(f, "    %s = ", c[j].name);
+        if (hyperfun) canon_write_hyperfun(f, &c[j]);
+        else canon_write_call(f, &c[j]);
+        fputc(';', f);
+        canon_write_comment(f, &c[j]);
+        fputc('\n', f);
+    }
+    if (base_call && uses[nprims])
+        fprintf(f, "    base_part = %s;  -- the model given with --residual\n", base_call);
+    if (no)
+        fprintf(f, "    -- solids of the fitted faces (numbers rounded as their faces'; a face "
+                   "moves with the box's centre and half size)\n");
+    for (uint32_t k = 0; k < no; k++) write_feature(f, &F, &F.v[order[k]], names, hyperfun);
+    fprintf(f, "    -- the construction tree: | union, & intersection, \\ subtraction, ~ complement\n");
+    w.f = f;
+    w.F = &F;
+    w.names = names;
+    w.large = t->len > 11;
+    fw_root(&w, root);
+    rc = ferror(f) ? -1 : 0;
+done:
+    ft_free(&F);
+    frep_free(F.q);
+    frep_free(names);
+    frep_free(uses);
+    frep_free(order);
+    frep_free(seen);
+    frep_free(pol);
+    frep_free(w.stmt);
+    frep_free(grid);
+    frep_free(ref);
+    return rc;
 }

@@ -69,11 +69,31 @@ void canon_write_hyperfun(FILE *f, const canon_prim *c);
 /* The feature comment: type, size, inliers, what was snapped. */
 void canon_write_comment(FILE *f, const canon_prim *c);
 
-/* The tree as statements: sub-expressions of 5 nodes or more (in trees over 11 nodes)
- * as `block_N` (an intersection of 4 or more planes), `cut_N` (subtracted) or `part_N`,
- * then `tree = ...;`, chains of one operator flat.  names[j] names leaf j.  Indented
- * by four spaces, one statement a line. */
-void canon_write_tree(frep_buf *b, const gp_tree *t, const char *const *names, const prim *prims,
-                      size_t nprims);
+/* Cap planes of a capped cylinder: normals within this angle of its axis (radians, 3
+ * degrees).  The caps are written as they are, so the grouping never changes the solid. */
+#define CANON_CAP_TILT 0.052
+
+/* The model's statements after its header: a comment counting the solids, the
+ * primitives the tree names (canonical form c, a comment each), the solids their faces
+ * form (an intersection's three pairs of opposite parallel planes on orthogonal axes as
+ * frBox, a cylinder with a pair of opposite planes across its axis as a capped
+ * cylinder), then the tree as statements ending in `tree = ...;`: the root's removed
+ * operands as `bores` (or `cuts`) under `body`, in trees over 11 nodes every
+ * sub-expression of 3 operands or more as `part_N` (`cut_N` when removed).  A box whose
+ * faces are not exactly orthogonal pairs (within 2 CANON_MAX_SNAP) or whose rounded
+ * numbers would move the model from the cloud (more than CANON_MAX_CHANGE of the
+ * diagonal over the exact tree's mean distance) keeps its planes; without the cloud or
+ * with exact, only exact boxes are formed (exact: none).  base_call: the --residual
+ * base model's call (NULL: none).  Returns 0, or -1 (memory, write error). */
+/* A rewrite keeps the solid: at the CANON_GRID^3 cell centres of the cloud's oriented
+ * box grown by 10%, the sign of the tree stays wherever the tree before it is farther
+ * than CANON_GRID_TOL of the diagonal from 0 (the rounding of a box's numbers moves a
+ * face by its quantum, below CANON_MAX_SHIFT). */
+#define CANON_GRID 20
+#define CANON_GRID_TOL 1e-3
+
+int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const canon_prim *c,
+                     size_t nprims, const frep_cloud *cloud, int exact, int hyperfun,
+                     const char *base_call);
 
 #endif

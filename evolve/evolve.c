@@ -1053,32 +1053,6 @@ static void write_model_head(FILE *f, const evolve_base *base, const char *mname
     fprintf(f, "%s(%s)\n{\n", mname, base->header);
 }
 
-/* The used primitives in canonical form, named after their role, a comment each; the
- * base model's leaf. */
-static void write_prims(FILE *f, const canon_prim *c, size_t nprims, const evolve_result *r,
-                        const evolve_base *base, int hyperfun)
-{
-    fprintf(f, "    -- primitives, numbers rounded to what their inliers support (+- the "
-               "standard error of a position)\n");
-    /* In the order the tree first uses them, as they are numbered. */
-    for (uint32_t pc = 0; pc < r->tree.len; pc++) {
-        size_t j = r->tree.code[pc].arg;
-        if (r->tree.code[pc].op != FREP_OP_PRIM || j >= nprims || !c[j].name[0]) continue;
-        int first = 1;
-        for (uint32_t e = 0; e < pc && first; e++)
-            first = !(r->tree.code[e].op == FREP_OP_PRIM && r->tree.code[e].arg == j);
-        if (!first) continue;
-        fprintf(f, "    %s = ", c[j].name);
-        if (hyperfun) canon_write_hyperfun(f, &c[j]);
-        else canon_write_call(f, &c[j]);
-        fputc(';', f);
-        canon_write_comment(f, &c[j]);
-        fputc('\n', f);
-    }
-    if (base && tree_uses(&r->tree, (uint32_t)nprims))
-        fprintf(f, "    base_part = %s;  -- the model given with --residual\n", base->call);
-}
-
 /* The six planes of the grown oriented box and the clipped model, or the tree alone
  * when it is bounded. */
 static void write_clip(FILE *f, const evolve_result *r, const char *mname, int bounded,
@@ -1126,36 +1100,25 @@ static void write_clip(FILE *f, const evolve_result *r, const char *mname, int b
 int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_t nprims,
                        const evolve_meta *m)
 {
-    const gp_tree *t = &r->tree;
     canon_prim *c = frep_calloc(nprims + 1, sizeof *c);
-    const char **names = frep_calloc(nprims + 1, sizeof *names);
     prim *cq = frep_calloc(nprims + 1, sizeof *cq);
-    frep_buf tb = FREP_BUF_INIT;
-    char *tree = NULL;
     int rc = -1;
-    if (!c || !names || !cq || canon_prims(r, prims, nprims, m->points, m->exact, c)) goto done;
-    for (size_t j = 0; j < nprims; j++) {
-        names[j] = c[j].name;
-        cq[j] = c[j].name[0] ? c[j].q : prims[j];
-    }
-    names[nprims] = "base_part";
-    canon_write_tree(&tb, t, names, prims, nprims);
-    if (!(tree = buf_finish(&tb, NULL))) goto done;
+    if (!c || !cq || canon_prims(r, prims, nprims, m->points, m->exact, c)) goto done;
     uint32_t k = 0;
-    for (size_t j = 0; j < nprims; j++) k += c[j].name[0] != 0;
+    for (size_t j = 0; j < nprims; j++) {
+        cq[j] = c[j].name[0] ? c[j].q : prims[j];
+        k += c[j].name[0] != 0;
+    }
     const char *mname = m->base ? "my_model" : "evolved";
     write_header(f, r, k, m, m->setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax");
     write_model_head(f, m->base, mname);
-    write_prims(f, c, nprims, r, m->base, m->hyperfun);
-    fprintf(f, "    -- the construction tree: | union, & intersection, \\ subtraction, ~ complement\n");
-    fputs(tree, f);
+    if (canon_write_body(f, r, prims, c, nprims, m->points, m->exact, m->hyperfun,
+                         m->base ? m->base->call : NULL))
+        goto done;
     write_clip(f, r, mname, canon_tree_bounded(r, cq, nprims), m->hyperfun);
     rc = ferror(f) ? -1 : 0;
 done:
-    buf_free(&tb);
-    frep_free(tree);
     frep_free(c);
-    frep_free(names);
     frep_free(cq);
     return rc;
 }
