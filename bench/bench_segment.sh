@@ -39,3 +39,23 @@ if [ -d "$DATA" ] && command -v python3 >/dev/null 2>&1; then
 else
     echo "== $DATA or python3 not found: real-data benchmark skipped"
 fi
+
+# The anchor: CGAL's Efficient RANSAC (libcgal-dev, header-only; bench/cgal_ransac.cpp,
+# compiled here and never linked into frep) at its defaults and with InverseCSG's tuned
+# settings, against frep's defaults on the same clean clouds, seeds 1-3, with one
+# scoring (bench_segment_anchor.py). Skipped without CGAL, a C++ compiler, Debian's
+# python3 or the data.
+PY=/usr/bin/python3
+[ -x "$PY" ] || PY=python3
+if [ -d "$DATA" ] && command -v "$PY" >/dev/null 2>&1; then
+    CGAL=-
+    CXX=${CXX:-c++}
+    if [ -f /usr/include/CGAL/Shape_detection/Efficient_RANSAC.h ] && command -v "$CXX" >/dev/null 2>&1 &&
+       "$CXX" -O2 -DNDEBUG -std=c++17 "$SRC/bench/cgal_ransac.cpp" -o "$T/cgal_ransac" -lgmp -lmpfr 2> "$T/cgal.err"; then
+        CGAL=$T/cgal_ransac
+    else
+        echo "== CGAL (libcgal-dev) or a C++ compiler not found: frep's column only"
+    fi
+    echo "== frep segment vs CGAL Efficient RANSAC, clean 50000-point clouds, seeds 1-3"
+    "$PY" "$SRC/bench/bench_segment_anchor.py" "$FREP" "$DATA" "$CGAL" 50000 1,2,3
+fi

@@ -165,8 +165,8 @@ static const cli_opt segment_opts[] = {
     { 0, "types", "LIST", CLI_OPT_CUSTOM, OFF(cfg.types), .parse = parse_types,
       .help = "among plane,sphere,cylinder,cone,torus (default: all)" },
     { 0, "epsilon", "E", CLI_OPT_DOUBLE, OFF(cfg.epsilon), .lo = 0, .hi = INFINITY, .open_lo = 1,
-      .help = "inlier distance (default 1% of the box diagonal; 'abs'\n"
-              "suffix not needed: E is in model units)" },
+      .help = "inlier distance in model units (default 5 x the measured\n"
+              "noise, within 0.2%..1% of the box diagonal)" },
     { 0, "cluster", "D", CLI_OPT_DOUBLE, OFF(cfg.cluster), .lo = 0, .hi = INFINITY, .open_lo = 1,
       .help = "connectivity cell size (default: 1% of the diagonal, at\n"
               "least 3 median point spacings)" },

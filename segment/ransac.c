@@ -893,6 +893,17 @@ int ransac_refit(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n,
         if (kept < m && kept >= 3 && (double)kept >= TRIM_KEEP_MIN * (double)m &&
             refit_points(&t, c, idx, n, px, kept) == 0)
             *q = t;
+        /* A cylinder's point is free along its axis (LM may leave it hundreds of units
+         * away): the foot of the points' centroid, so that it lies by the patch. */
+        if (q->type == PRIM_CYLINDER) {
+            double h = 0;
+            for (size_t j = 0; j < m; j++) {
+                double v[3];
+                vec3_sub(px + 3 * j, q->p, v);
+                h += vec3_dot(v, q->a) / (double)m;
+            }
+            for (int k = 0; k < 3; k++) q->p[k] += h * q->a[k];
+        }
     }
     frep_free(px);
     frep_free(res);
@@ -1272,6 +1283,14 @@ static double noise_band(det *d, const prim *q, unsigned char *flag)
  * near-flat cone fits a plane's points too. inl holds q's m inliers on entry; returns
  * the support of the (possibly replaced) q; inl is then stale. */
 #define SIMPLER_KEEP 0.95 /* the simpler shape must keep this fraction of the support */
+/* ... and fit it about as tightly: an RMS distance of at most SIMPLER_RMS_GROWTH times
+ * q's plus SIMPLER_RMS_SLACK epsilon. A plane across the middle of a small fillet holds
+ * as many points within epsilon as the fillet's cylinder (the faces beside it took the
+ * rest of the arc), but with the arc's sagitta as its RMS where the cylinder has ~0;
+ * a large sphere standing in for a plane has the plane's RMS (the noise). */
+#define SIMPLER_RMS_GROWTH 1.5
+#define SIMPLER_RMS_SLACK 0.1
+static double rms_of(const prim *q, const frep_cloud *c, const uint32_t *idx, size_t n);
 static size_t prefer_simpler(det *d, prim *q, size_t m, unsigned char *flag, uint32_t *inl)
 {
     const frep_cloud *c = d->c;
@@ -1299,11 +1318,14 @@ static size_t prefer_simpler(det *d, prim *q, size_t m, unsigned char *flag, uin
     memcpy(keep, inl, m * sizeof *keep);
     size_t best_m = m;
     prim best = *q;
+    double rms_q = rms_of(q, c, keep, m);
     for (int k = 0; k < nalt; k++) {
         prim t = alt[k];
         if (refit(d, &t, keep, m) || !sane(&t, d->rmax)) continue;
         size_t mt = support_of(d, &t, flag, inl);
-        if ((double)mt >= SIMPLER_KEEP * (double)m && (best.type == q->type || mt > best_m)) {
+        if ((double)mt >= SIMPLER_KEEP * (double)m &&
+            rms_of(&t, c, inl, mt) <= SIMPLER_RMS_GROWTH * rms_q + SIMPLER_RMS_SLACK * d->cfg->epsilon &&
+            (best.type == q->type || mt > best_m)) {
             best = t;
             best_m = mt;
         }

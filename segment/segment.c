@@ -118,6 +118,57 @@ static int median_spacing(const frep_cloud *c, double *med)
     return rc;
 }
 
+/* Points whose neighbourhood measures the noise (evenly spaced over the cloud). */
+#define NOISE_SAMPLES 2000
+/* Neighbours of each: enough for a stable plane fit, few enough that the curvature of
+ * small features adds little. */
+#define NOISE_K 16
+
+/* The noise of the cloud into *sigma: the median over NOISE_SAMPLES evenly spaced
+ * points of the RMS distance of their NOISE_K nearest neighbours from the plane fitted
+ * to them (the square root of the neighbourhood covariance's smallest eigenvalue). On
+ * a clean sample of flat faces this is 0; on noisy data about the noise's standard
+ * deviation; curvature and edges add to it only where they dominate most points. 0, or
+ * -1 when out of memory. */
+static int noise_sigma(const frep_cloud *c, double *sigma)
+{
+    *sigma = 0;
+    size_t k = c->n < NOISE_K ? c->n : NOISE_K, m = c->n < NOISE_SAMPLES ? c->n : NOISE_SAMPLES;
+    if (k < 4 || m == 0) return 0;
+    kd_tree *t = kd_build(c->n, c->x, c->y, c->z);
+    double *r = frep_malloc(m * sizeof *r);
+    if (!t || !r) {
+        kd_free(t);
+        frep_free(r);
+        return -1;
+    }
+    for (size_t j = 0; j < m; j++) {
+        size_t i = (size_t)((double)j * (double)c->n / (double)m);
+        double q[3] = {c->x[i], c->y[i], c->z[i]}, d2[NOISE_K], mean[3] = {0, 0, 0};
+        double cov[9] = {0}, ev[3], vec[9];
+        uint32_t idx[NOISE_K];
+        size_t got = kd_knn(t, q, k, idx, d2);
+        for (size_t e = 0; e < got; e++) {
+            mean[0] += c->x[idx[e]] / (double)got;
+            mean[1] += c->y[idx[e]] / (double)got;
+            mean[2] += c->z[idx[e]] / (double)got;
+        }
+        for (size_t e = 0; e < got; e++) {
+            double v[3] = {c->x[idx[e]] - mean[0], c->y[idx[e]] - mean[1],
+                           c->z[idx[e]] - mean[2]};
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++) cov[3 * a + b] += v[a] * v[b] / (double)got;
+        }
+        normals_sym3_eig(cov, ev, vec);
+        r[j] = sqrt(fmax(0, fmin(ev[0], fmin(ev[1], ev[2]))));
+    }
+    qsort(r, m, sizeof *r, cmp_double);
+    *sigma = r[m / 2];
+    kd_free(t);
+    frep_free(r);
+    return 0;
+}
+
 /* Box axes with ax[0] = fixed (the primitive's normal or axis): the other two by PCA
  * in the perpendicular plane (the angle of its principal direction). */
 static void axes_around(const double fixed[3], const frep_cloud *c, const uint32_t *idx,
@@ -268,7 +319,14 @@ static int scaled_defaults(const frep_cloud *c, const segment_config *cfg, doubl
                            segment_result *res, frep_error *err)
 {
     res->diagonal = diag;
-    res->epsilon = cfg->epsilon > 0 ? cfg->epsilon : SEGMENT_DEFAULT_EPSILON * diag;
+    if (cfg->epsilon > 0) {
+        res->epsilon = cfg->epsilon;
+    } else {
+        if (noise_sigma(c, &res->noise)) return frep_error_nomem(err);
+        res->epsilon = fmin(SEGMENT_DEFAULT_EPSILON * diag,
+                            fmax(SEGMENT_DEFAULT_EPSILON_MIN * diag,
+                                 SEGMENT_EPSILON_SIGMAS * res->noise));
+    }
     if (cfg->cluster > 0) {
         res->cluster = cfg->cluster;
     } else {
@@ -348,6 +406,27 @@ static int fit_boxes(const frep_cloud *c, prim *prims, size_t np, const int32_t 
     return rc;
 }
 
+/* No shape at all: an error that says why when it can. An epsilon below the noise
+ * leaves every candidate's support in pieces; the measured noise gives the epsilon
+ * the defaults would use. Frees res; returns -1 with err set. */
+static int nothing_found(const frep_cloud *c, segment_result *res, frep_error *err)
+{
+    double sigma = res->noise, eps = res->epsilon;
+    size_t mp = res->min_points;
+    int rc = res->noise > 0 || noise_sigma(c, &sigma) == 0;
+    segment_result_free(res);
+    if (!rc) return frep_error_nomem(err);
+    if (SEGMENT_EPSILON_SIGMAS * sigma > eps)
+        return frep_error_set(err, FREP_EINPUT,
+                              "no primitive found: epsilon %g is below the noise of the "
+                              "cloud (about %g): try --epsilon %.3g or more",
+                              eps, sigma, SEGMENT_EPSILON_SIGMAS * sigma);
+    return frep_error_set(err, FREP_EINPUT,
+                          "no primitive of at least %zu points found within epsilon %g "
+                          "(noise about %g): try a larger --epsilon or a smaller --min-points",
+                          mp, eps, sigma);
+}
+
 int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, frep_error *err)
 {
     memset(res, 0, sizeof *res);
@@ -373,6 +452,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, f
     res->prims = rr.prims;
     res->nprims = res->nfitted = rr.nprims;
     for (size_t i = 0; i < c->n; i++) res->unassigned += rr.label[i] < 0;
+    if (res->nfitted == 0 && !res->interrupted) return nothing_found(c, res, err);
     if (fit_boxes(c, res->prims, res->nprims, res->label)) {
         segment_result_free(res);
         return frep_error_nomem(err);

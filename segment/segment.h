@@ -15,7 +15,14 @@
 #include "prim.h"
 
 /* Defaults, as fractions of the bounding-box diagonal or of the point count. */
-#define SEGMENT_DEFAULT_EPSILON 0.01      /* inlier distance: 1% of the diagonal */
+/* Inlier distance: SEGMENT_EPSILON_SIGMAS times the cloud's measured noise (segment.c,
+ * noise_sigma), between SEGMENT_DEFAULT_EPSILON_MIN (clean samples: tight enough that a
+ * cylinder does not take the rim of the sphere it meets, nor a cone a dome) and
+ * SEGMENT_DEFAULT_EPSILON of the diagonal (noisier clouds: the extraction band widens
+ * to the noise measured on each shape, segment/ransac.c). */
+#define SEGMENT_DEFAULT_EPSILON 0.01
+#define SEGMENT_DEFAULT_EPSILON_MIN 0.002
+#define SEGMENT_EPSILON_SIGMAS 5.0
 #define SEGMENT_DEFAULT_CLUSTER 0.01      /* connectivity cell: 1% of the diagonal ... */
 #define SEGMENT_CLUSTER_SPACINGS 3.0      /* ... but at least 3 median point spacings */
 #define SEGMENT_DEFAULT_NORMAL_DEG 25.0
@@ -55,6 +62,7 @@ typedef struct segment_result {
     int32_t *label;        /* per point: index of its fitted primitive or -1 (frep_free()) */
     size_t unassigned;
     double diagonal;       /* of the cloud's bounding box: the scale of the output */
+    double noise;          /* measured noise (segment.c, noise_sigma; 0 when --epsilon given) */
     /* The values actually used (defaults resolved). */
     double epsilon, cluster, normal_deg, probability;
     size_t min_points;

@@ -197,6 +197,58 @@ done
 [ "$(grep -c . "$tmp/boss1.fit")" = 6 ]
 report $? "boss, --min-points-small 0: only the plate's 6 faces ($(grep -c . "$tmp/boss1.fit"))"
 
+# Right types where another type fits nearly as well, and small curved surfaces, clean,
+# at the default settings (tests/models/segment_{dome,stacked,fillet}.hf; truths from
+# the model sources: axes and centres as written there, planes outward):
+#  dome:    a hemisphere on a cylinder of its radius: a sphere, not a cone or a torus
+#           over the dome's rings, and one cylinder for the wall;
+#  stacked: two coaxial disks of radii 0.8 and 0.45: two cylinders, not a sphere or a
+#           torus through both rims, and the three planes;
+#  fillet:  a block with a fillet of radius 0.08 (1.8% of the surface) and a
+#           counterbore (hole r 0.12, recess r 0.22 with its floor, 1.2-4%).
+truth_more() {
+    case $1 in
+    dome) printf '%s\n' "cylinder 0 0 1 0 0 0 0.5" "sphere 0 0 0.2 0.5" "plane 0 0 -1 0.6" ;;
+    stacked) printf '%s\n' "cylinder 0 0 1 0 0 0 0.8" "cylinder 0 0 1 0 0 0 0.45" \
+                 "plane 0 0 -1 0" "plane 0 0 1 0.25" "plane 0 0 1 0.55" ;;
+    fillet) printf '%s\n' "plane -1 0 0 1" "plane 0 1 0 0.6" "plane 0 -1 0 0.6" "plane 0 0 -1 0" \
+                "plane 1 0 0 1" "plane 0 0 1 0.6" "cylinder 0 1 0 0.92 0 0.52 0.08" \
+                "cylinder 0 0 1 -0.4 0 0 0.12" "cylinder 0 0 1 -0.4 0 0 0.22" "plane 0 0 1 0.45" ;;
+    esac
+}
+for model in dome stacked fillet; do
+    truth_more $model > "$tmp/$model.truth"
+    want=$(wc -l < "$tmp/$model.truth")
+    "$FREP" sample "$M/segment_$model.hf" -n $NPTS --seed "$SEED" -o "$tmp/$model.xyz" -q
+    "$FREP" segment "$tmp/$model.xyz" --seed 1 --no-separating -q -o "$tmp/$model.fit" \
+        2> "$tmp/err"
+    report $? "$model, clean: frep segment runs"
+    set -- $(compare "$tmp/$model.truth" "$tmp/$model.fit" $TOL_POS_CLEAN $TOL_DEG_CLEAN \
+             2> "$tmp/cmp")
+    sed 's/^/# /' "$tmp/cmp"
+    [ "$1" = "$want" ]
+    report $? "$model, clean: all $want surfaces with their types ($1 found)"
+    [ "$2" = 0 ]
+    report $? "$model, clean: no other type or duplicate ($2 spurious: $(awk '{ print $1 }' \
+        "$tmp/$model.fit" | sort | uniq -c | tr -s ' \n' ' '))"
+done
+
+# The default epsilon follows the measured noise: tight on the clean sphere (0.2% of
+# the diagonal), 1% on the noisy one (where the band widens to the noise per shape).
+eps_of() { "$FREP" segment "$1" --seed 1 --no-separating | awk '/^  epsilon/ { sub(/,/, "", $2); print $2 }'; }
+e_clean=$(eps_of "$tmp/sphere-clean.xyz")
+e_noisy=$(eps_of "$tmp/sphere-noisy.xyz")
+awk -v a="$e_clean" -v b="$e_noisy" 'BEGIN { exit !(a > 0 && b >= 4 * a) }'
+report $? "default epsilon from the noise: clean $e_clean, noisy $e_noisy"
+# An epsilon far below the noise finds nothing: an error that says so and suggests
+# an epsilon, no output file.
+"$FREP" segment "$tmp/sphere-noisy.xyz" --seed 1 --epsilon 1e-5 -q -o "$tmp/none.fit" \
+    2> "$tmp/err"
+st=$?
+[ $st = 1 ] && grep -q "below the noise" "$tmp/err" && grep -q -- "try --epsilon" "$tmp/err" &&
+    [ ! -e "$tmp/none.fit" ]
+report $? "epsilon below the noise: exit $st, explained ($(head -c 160 "$tmp/err"))"
+
 # Normals estimated by frep (PCA and propagation) instead of the sampler's: the clean
 # box and cylinder without their normal columns.
 for model in box cylinder; do
