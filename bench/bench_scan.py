@@ -23,7 +23,7 @@ density (kept with probability falling 20-fold along x, 0.5% noise).
 
 usage: bench_scan.py FREP DATA_DIR [--points N] [--seeds 1,2,3] [--generations G]
                      [--models a,b,...] [--conditions clean,n0.5,n1,onesided,uneven]
-                     [--normals-only] [--threads T]
+                     [--normals-only] [--threads T] [--max-time S]
 Needs /usr/bin/python3 with numpy and scipy; prints a clear message and exits 0 when the
 data are absent.
 """
@@ -168,11 +168,13 @@ def surfaces(frep, cloud, prim_path, mesh, seed, tmp, threads):
     return '%d/%d+%d' % (len(ti), len(truth), len(found) - len(fj))
 
 
-def evolve_run(frep, cloud, mesh, seed, gens, tmp, threads):
+def evolve_run(frep, cloud, mesh, seed, gens, tmp, threads, max_time):
     hf, off = os.path.join(tmp, 'm.hf'), os.path.join(tmp, 'm.off')
     t0 = time.time()
     r = subprocess.run([frep, 'evolve', cloud, '-o', hf, '--seed', str(seed), '--generations',
-                        str(gens), '-q', '-t', str(threads)], capture_output=True, text=True)
+                        str(gens), '-q', '-t', str(threads)] +
+                       (['--max-time', str(max_time)] if max_time > 0 else []),
+                       capture_output=True, text=True)
     dt = time.time() - t0
     if r.returncode != 0:
         return None, dt, r.stderr.strip().splitlines()[-1:] or ['failed']
@@ -194,6 +196,8 @@ def main():
     ap.add_argument('--conditions', default=','.join(CONDITIONS))
     ap.add_argument('--normals-only', action='store_true')
     ap.add_argument('--threads', type=int, default=2)
+    ap.add_argument('--max-time', type=float, default=0,
+                    help='also bound each frep evolve run (seconds; 0: only the generations)')
     a = ap.parse_args()
     if not os.path.isdir(a.data):
         print('bench_scan: %s not found: skipped (it holds the InverseCSG meshes)' % a.data)
@@ -235,7 +239,7 @@ def main():
                         sys.stdout.flush()
                         continue
                     res, dt, why = evolve_run(a.frep, cloud, mesh, seed, a.generations, tmp,
-                                              a.threads)
+                                              a.threads, a.max_time)
                     surf = surfaces(a.frep, cloud, os.path.join(d, 'surface_primitives.prim'),
                                     mesh, seed, tmp, a.threads)
                     if res is None:
