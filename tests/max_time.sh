@@ -13,10 +13,15 @@ trap 'rm -rf "$tmp"' EXIT INT TERM
 M="$srcdir/tests/models"
 
 # The bound asked for, and the allowance: 10% (issue 13's target) plus 1.5 s for
-# starting the process and reading the cloud (before the clock of --max-time starts:
-# it runs from the parsing of the options) on a loaded machine.
+# starting the process, reading the cloud (about 0.5 s of processor time for these
+# 150,000 points) and the unpolled steps after the stop, on an idle machine; on a
+# loaded one the allowance grows with the load per processor, as the latency limit of
+# tests/interrupt.sh does (the command then gets a fraction of a processor).
 T=2
-SLACK=1.5
+ncpu=$(getconf _NPROCESSORS_ONLN 2>/dev/null || echo 1)
+SLACK=$(awk -v l="$(cut -d' ' -f1 /proc/loadavg 2>/dev/null || echo 0)" -v c="$ncpu" \
+    'BEGIN { f = l / c; printf "%.2f", 1.5 * (f > 1 ? f : 1) }')
+echo "# allowance $SLACK s (1.5 s x the load per processor, $ncpu processors)"
 NPTS=150000
 
 n=0
