@@ -447,7 +447,9 @@ static int stage_prims(evolve_cmd *e)
         }
         rc = ensure_normals(e);
     } else if (!e->residual_path || e->sub->n > 0) {
-        rc = segment_prims(e);
+        /* --knn auto: the normals are estimated here, segment_run's default is fixed. */
+        if (!e->sub && !e->cloud->has_normals && e->knn == 0) rc = ensure_normals(e);
+        if (rc == CLI_OK) rc = segment_prims(e);
     }
     if (rc == CLI_OK && e->nprims == 0 && !e->residual_path && e->cut) {
         fprintf(stderr, "frep evolve: --max-time %g s reached during segmentation before any "

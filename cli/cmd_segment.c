@@ -154,6 +154,7 @@ typedef struct segment_cmd {
     int quiet;
     frep_cloud *c;
     int had_normals;           /* the file had normals (before segment_run) */
+    int auto_normals;          /* normals estimated here (--knn auto) */
     segment_result r;
     double elapsed;
     char header[2048];         /* of the .hf output: the command line and every setting */
@@ -226,6 +227,19 @@ static int stage_segment(segment_cmd *s)
     }
     s->had_normals = s->c->has_normals;
     if (cli_check_cloud("segment", s->in, s->c, 0) != CLI_OK) return CLI_FAIL;
+    /* --knn auto (the default): the command estimates the normals itself, the library's
+     * default being a fixed NORMALS_DEFAULT_K. */
+    if (!s->c->has_normals && s->cfg.knn == 0) {
+        normals_config nc;
+        normals_config_init(&nc);
+        nc.nthreads = s->cfg.nthreads;
+        nc.interrupt = cli_sigint_catch();
+        if (normals_run(s->c, &nc, NULL) < 0) {
+            fprintf(stderr, "frep segment: out of memory estimating normals\n");
+            return CLI_FAIL;
+        }
+        s->auto_normals = 1;
+    }
     progress_state ps = {0, 0};
     if (isatty(2) && !s->quiet) {
         s->cfg.progress = progress;
@@ -267,7 +281,7 @@ static void stage_report(const segment_cmd *s)
 {
     const segment_result *r = &s->r;
     printf("frep segment: %s: %zu points, normals %s, seed %llu\n", s->in, s->c->n,
-           r->normals_estimated ? (s->had_normals ? "re-estimated (zero-length ones in the file)"
+           s->auto_normals ? "estimated" : r->normals_estimated ? (s->had_normals ? "re-estimated (zero-length ones in the file)"
                                                   : "estimated")
                                 : "from the file",
            (unsigned long long)s->cfg.seed);

@@ -384,7 +384,7 @@ typedef struct frep_segment_options {
     unsigned types;        /* 1u << FREP_PRIM_* bits; 0: all */
     uint64_t seed;         /* the same seed gives the same result at any thread count (1) */
     int nthreads;          /* <= 0: OpenMP's default */
-    size_t knn;            /* neighbours for normal estimation; 0: chosen from the data */
+    size_t knn;            /* neighbours for normal estimation; 0: the default */
     int separating;        /* add the separating primitives (1) */
     /* Called from the calling thread as detection goes (may be NULL): the stage
      * ("normals", "detect"), points assigned of total, primitives so far. */

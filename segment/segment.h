@@ -40,7 +40,7 @@ typedef struct segment_config {
     unsigned types;        /* bit (1u << prim_type); 0: all */
     uint64_t seed;
     int nthreads;
-    size_t knn;            /* neighbours for normals; 0: chosen from the data */
+    size_t knn;            /* neighbours for normals; 0: NORMALS_DEFAULT_K */
     int separating;        /* add separating primitives (default 1) */
     void (*progress)(void *user, const char *stage, size_t done, size_t total, size_t nprims);
     void *user;
