@@ -147,6 +147,27 @@ int cli_interrupted(void);
 /* The signal was the command's normal end (frep view --watch stops at Ctrl-C): forget
  * it, so that the command exits with its own status. */
 void cli_interrupt_handled(void);
+/* --max-time of frep segment and frep evolve: after `seconds` (> 0) of wall time from
+ * now, SIGALRM sets the flag cli_sigint_catch() returns, so that the library stops as
+ * at Ctrl-C, but cli_interrupted() stays 0: the command writes its result and exits
+ * as usual.  cli_deadline_passed() tells whether it fired.  Arm returns 0 or -1. */
+int cli_deadline_arm(double seconds);
+int cli_deadline_passed(void);
+/* --knn K|auto (frep normals, segment, evolve): K in 3..KD_MAX_K into a size_t, 0 for
+ * auto (neighbourhood size chosen from the data; cli/cmd_normals.c). */
+int cli_opt_knn(const char *arg, void *dest, char *why, size_t whylen);
+#define CLI_OPT_KNN(T, f) \
+    { 0, "knn", "K|auto", CLI_OPT_CUSTOM, offsetof(T, f), .parse = cli_opt_knn, \
+      .expect = "a neighbour count 3..256 or auto", \
+      .help = "neighbours for normal estimation when the cloud has none\n" \
+              "(default auto: from the noise and spacing of the cloud)" }
+int cmd_normals(int argc, char **argv); /* cli/cmd_normals.c */
+/* Bad input shared by frep normals, segment and evolve (cli/cmd_normals.c): a cloud out
+ * of scale, with fewer than 3 points, all the same or on one line, all on one plane
+ * (when need_solid), or with normals that are all zero; prints "frep SUB: PATH: why"
+ * and returns CLI_FAIL, else CLI_OK. */
+struct frep_cloud;
+int cli_check_cloud(const char *sub, const char *path, const struct frep_cloud *c, int need_solid);
 /* Print "frep SUB: interrupted (Ctrl-C): WHAT" and return the exit status, 128 + the
  * signal (130 for Ctrl-C). */
 int cli_interrupt_status(const char *sub, const char *what);

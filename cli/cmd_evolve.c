@@ -155,6 +155,9 @@ typedef struct evolve_cmd {
     evolve_result res;
     char note[256];             /* --refit's figures for the model's comments */
     frep_error ferr;            /* of the library calls */
+    size_t knn;                 /* --knn: neighbours for normals; 0: from the data */
+    double max_time, t_start;   /* --max-time (0: none) and when the command started */
+    const char *cut;            /* the step --max-time cut short; NULL: none */
 } evolve_cmd;
 
 static int parse_setops(const char *arg, void *dest, char *why, size_t whylen)
@@ -214,8 +217,10 @@ static const cli_opt evolve_opts[] = {
       .help = "probability of an operation node when growing (default 0.7)" },
     { 0, "max-depth", "D", CLI_OPT_INT, OFF(eo.gp.max_depth), .lo = 1, .hi = GP_MAX_TREE_DEPTH,
       .help = "maximum tree depth (default: ceil(log2 primitives) + 3)" },
-    { 0, "max-time", "T", CLI_OPT_DOUBLE, OFF(eo.gp.max_time), .lo = 0, .hi = 1e9,
-      .help = "stop after T seconds" },
+    { 0, "max-time", "T", CLI_OPT_DOUBLE, OFF(max_time), .lo = 0, .hi = 1e9,
+      .help = "stop after T seconds of wall time in all (normals,\n"
+              "segmentation, GA) and write the best tree so far" },
+    CLI_OPT_KNN(evolve_cmd, knn),
     { 0, "epsilon", "E", CLI_OPT_DOUBLE, OFF(eo.eps_rel), .lo = 1e-9, .hi = 1,
       .help = "distance tolerance as a fraction of the diagonal (default 0.01)" },
     { 0, "alpha", "DEG", CLI_OPT_DOUBLE, OFF(eo.alpha_deg), .lo = 0.01, .hi = 180,
@@ -265,6 +270,9 @@ static int stage_options(evolve_cmd *e, int argc, char **argv)
     if (rc != CLI_GO_ON) return rc;
     if (args.n != 1) return cli_usage_error("evolve", args.n < 1 ? "missing CLOUD" : "one CLOUD expected");
     e->cloud_path = args.v[0];
+    e->t_start = frep_now_seconds();
+    if (e->max_time > 0 && cli_deadline_arm(e->max_time))
+        return cli_usage_error("evolve", "--max-time: cannot set a timer");
     evolve_options *eo = &e->eo;
     if (eo->gp.p_crossover + eo->gp.p_mutation > 1)
         return cli_usage_error("evolve", "--crossover + --mutation must not exceed 1");
@@ -285,11 +293,27 @@ static int ensure_normals(evolve_cmd *e)
 {
     frep_cloud *c = e->cloud;
     if (c->has_normals && cloud_normalize_normals(c) != c->n) return CLI_OK;
-    if (!e->quiet) fprintf(stderr, "frep evolve: the cloud has no normals: estimating them\n");
-    if (normals_estimate(c, 0, e->eo.gp.threads)) {
-        fprintf(stderr, "frep evolve: cannot estimate normals\n");
+    normals_config nc;
+    normals_config_init(&nc);
+    nc.knn = e->knn;
+    nc.nthreads = e->eo.gp.threads;
+    nc.interrupt = cli_sigint_catch();
+    normals_info info;
+    int rc = normals_run(c, &nc, &info);
+    if (rc < 0) {
+        fprintf(stderr, "frep evolve: out of memory estimating normals\n");
         return CLI_FAIL;
     }
+    if (rc > 0) {
+        if (cli_deadline_passed())
+            fprintf(stderr, "frep evolve: --max-time %g s reached while estimating normals: "
+                            "no model, nothing written\n", e->max_time);
+        return CLI_FAIL;
+    }
+    if (!e->quiet)
+        fprintf(stderr, "frep evolve: the cloud has no normals: estimated them (%zu neighbours%s, "
+                        "noise %.3g, spacing %.3g)\n", info.knn, e->knn ? "" : ", auto",
+                info.noise, info.spacing);
     return CLI_OK;
 }
 
@@ -311,6 +335,7 @@ static int stage_cloud(evolve_cmd *e)
         fprintf(stderr, "frep evolve: %s\n", e->ferr.msg);
         return CLI_FAIL;
     }
+    if (cli_check_cloud("evolve", e->cloud_path, e->cloud, 1) != CLI_OK) return CLI_FAIL;
     if (e->prims_path || e->residual_path) return ensure_normals(e);
     return CLI_OK;
 }
@@ -386,7 +411,10 @@ static int segment_prims(evolve_cmd *e)
     sc.seed = e->eo.gp.seed;
     sc.nthreads = e->eo.gp.threads;
     sc.interrupt = e->eo.gp.interrupt;
-    if (segment_run(e->sub ? e->sub : e->cloud, &sc, &e->seg, &e->ferr)) {
+    sc.knn = e->knn;
+    int failed = segment_run(e->sub ? e->sub : e->cloud, &sc, &e->seg, &e->ferr);
+    if (cli_deadline_passed()) e->cut = "segmentation";
+    if (failed) {
         if (!e->residual_path) {
             fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path,
                     e->ferr.msg[0] ? e->ferr.msg : "segmentation failed");
@@ -419,7 +447,14 @@ static int stage_prims(evolve_cmd *e)
         }
         rc = ensure_normals(e);
     } else if (!e->residual_path || e->sub->n > 0) {
-        rc = segment_prims(e);
+        /* --knn auto: the normals are estimated here, segment_run's default is fixed. */
+        if (!e->sub && !e->cloud->has_normals && e->knn == 0) rc = ensure_normals(e);
+        if (rc == CLI_OK) rc = segment_prims(e);
+    }
+    if (rc == CLI_OK && e->nprims == 0 && !e->residual_path && e->cut) {
+        fprintf(stderr, "frep evolve: --max-time %g s reached during segmentation before any "
+                        "primitive was found: nothing written\n", e->max_time);
+        return CLI_FAIL;
     }
     if (rc == CLI_OK && e->nprims == 0 && !e->residual_path) {
         fprintf(stderr, "frep evolve: no primitives to combine%s\n",
@@ -469,9 +504,14 @@ static int stage_evolve(evolve_cmd *e)
     }
     pc->t0 = frep_now_seconds();
     pc->c0 = clock();
+    /* --max-time bounds the whole command: the GA gets what is left. */
+    if (e->max_time > 0) e->eo.gp.max_time = fmax(e->max_time - (pc->t0 - e->t_start), 1e-3);
     cli_sigint_catch();
     frep_error_init(&e->ferr);
     int r = evolve_run(&e->eo, e->cloud, e->prims, e->nprims, progress, pc, &e->res, &e->ferr);
+    if (!e->cut && (cli_deadline_passed() ||
+                    (e->max_time > 0 && frep_now_seconds() - e->t_start >= e->max_time)))
+        e->cut = "the GA";
     cli_sigint_restore();
     if (pc->tty && !e->quiet) fputc('\n', stderr);
     if (r) {
@@ -574,7 +614,12 @@ static int evolve_steps(evolve_cmd *e)
     if (rc == CLI_OK) rc = stage_evolve(e);
     if (rc != CLI_OK)
         return cli_interrupted() ? cli_interrupt_status("evolve", "nothing written") : rc;
-    if (e->refit && !cli_interrupted()) stage_refit(e);
+    if (e->refit && !cli_interrupted() && !e->cut) stage_refit(e);
+    if (e->cut && !e->quiet)
+        fprintf(stderr, "frep evolve: --max-time %g s reached during %s: %s\n", e->max_time,
+                e->cut, strcmp(e->cut, "segmentation") == 0
+                            ? "evolved from the primitives found so far, with no time left for the GA"
+                            : "wrote the best tree so far");
     rc = stage_write(e);
     if (rc == CLI_OK && !e->quiet) stage_report(e);
     if (rc == CLI_OK && cli_interrupted())

@@ -7,6 +7,7 @@
 #include "cli.h"
 #include "cloud.h"
 #include "fitfile.h"
+#include "normals.h"
 #include "segment.h"
 #include "util.h"
 
@@ -149,9 +150,11 @@ typedef struct segment_cmd {
     segment_config cfg;
     const char *in, *out, *labels;
     size_t min_small;          /* --min-points-small as given */
+    double max_time;           /* --max-time: seconds; 0: none */
     int quiet;
     frep_cloud *c;
     int had_normals;           /* the file had normals (before segment_run) */
+    int auto_normals;          /* normals estimated here (--knn auto) */
     segment_result r;
     double elapsed;
     char header[2048];         /* of the .hf output: the command line and every setting */
@@ -180,8 +183,10 @@ static const cli_opt segment_opts[] = {
               "points, at least 10; 0: no second phase)" },
     { 0, "probability", "P", CLI_OPT_DOUBLE, OFF(cfg.probability), .lo = 0.01, .hi = 0.999999,
       .help = "confidence of not having missed a better shape (0.99)" },
-    { 0, "knn", "K", CLI_OPT_SIZE, OFF(cfg.knn), .lo = 3, .hi = 256,
-      .help = "neighbours for normal estimation (12)" },
+    CLI_OPT_KNN(segment_cmd, cfg.knn),
+    { 0, "max-time", "T", CLI_OPT_DOUBLE, OFF(max_time), .lo = 0, .hi = 1e9,
+      .help = "stop after T seconds of wall time in all (reading, normals,\n"
+              "detection) and write the primitives found so far" },
     { 0, "no-separating", NULL, CLI_OPT_CLEAR, OFF(cfg.separating),
       .help = "do not add separating primitives" },
     CLI_OPT_SEED(segment_cmd, cfg.seed, "random seed (default: from the clock; always printed)"),
@@ -206,6 +211,8 @@ static int stage_options(segment_cmd *s, int argc, char **argv)
     if (!cli_opt_given(&segment_spec, &args, "seed"))
         s->cfg.seed = (uint64_t)time(NULL) ^ ((uint64_t)getpid() << 32);
     s->in = args.v[0];
+    if (s->max_time > 0 && cli_deadline_arm(s->max_time))
+        return cli_usage_error("segment", "--max-time: cannot set a timer");
     return CLI_GO_ON;
 }
 
@@ -219,6 +226,20 @@ static int stage_segment(segment_cmd *s)
         return CLI_FAIL;
     }
     s->had_normals = s->c->has_normals;
+    if (cli_check_cloud("segment", s->in, s->c, 0) != CLI_OK) return CLI_FAIL;
+    /* --knn auto (the default): the command estimates the normals itself, the library's
+     * default being a fixed NORMALS_DEFAULT_K. */
+    if (!s->c->has_normals && s->cfg.knn == 0) {
+        normals_config nc;
+        normals_config_init(&nc);
+        nc.nthreads = s->cfg.nthreads;
+        nc.interrupt = cli_sigint_catch();
+        if (normals_run(s->c, &nc, NULL) < 0) {
+            fprintf(stderr, "frep segment: out of memory estimating normals\n");
+            return CLI_FAIL;
+        }
+        s->auto_normals = 1;
+    }
     progress_state ps = {0, 0};
     if (isatty(2) && !s->quiet) {
         s->cfg.progress = progress;
@@ -260,7 +281,7 @@ static void stage_report(const segment_cmd *s)
 {
     const segment_result *r = &s->r;
     printf("frep segment: %s: %zu points, normals %s, seed %llu\n", s->in, s->c->n,
-           r->normals_estimated ? (s->had_normals ? "re-estimated (zero-length ones in the file)"
+           s->auto_normals ? "estimated" : r->normals_estimated ? (s->had_normals ? "re-estimated (zero-length ones in the file)"
                                                   : "estimated")
                                 : "from the file",
            (unsigned long long)s->cfg.seed);
@@ -305,7 +326,11 @@ static int segment_steps(segment_cmd *s, int argc, char **argv)
     stage_header(s, argc, argv);
     if (!s->quiet) stage_report(s);
     rc = stage_write(s);
-    int stopped = s->r.interrupted;
+    int stopped = s->r.interrupted && !cli_deadline_passed();
+    if (s->r.interrupted && cli_deadline_passed())
+        fprintf(stderr, "frep segment: --max-time %g s reached: detection cut short after %zu "
+                        "primitives%s\n", s->max_time, s->r.nfitted,
+                s->r.normals_estimated && s->r.nfitted == 0 ? " (normal estimation may be unfinished)" : "");
     segment_result_free(&s->r);
     if (rc == CLI_OK && stopped)
         return cli_interrupt_status("segment", "wrote the primitives found so far");

@@ -25,6 +25,7 @@ static const cli_command commands[] = {
     { "fit", cmd_fit, "fit a template's free parameters to a point cloud (SA + quasi-Newton)" },
     { "render", cmd_render, "draw a shaded PNG picture of a model, optionally with a cloud" },
     { "view", cmd_view, "write an HTML page that shows a model and a cloud in 3D (WebGL)" },
+    { "normals", cmd_normals, "estimate the normals of a point cloud (robust, oriented outward)" },
     { "segment", cmd_segment, "find planes, spheres, cylinders, cones, tori in a point cloud" },
     { "evolve", cmd_evolve, "discover a construction-tree model (.hf) from a point cloud" },
     { "export", cmd_export, "translate a model into OpenSCAD source (.scad)" },

@@ -11,12 +11,15 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/time.h>
 #include <unistd.h>
 
 /* The signal helper's state (below, "The one signal helper"). */
 static volatile sig_atomic_t cli_signal_flag;   /* the signal number, 0 before any */
 static volatile sig_atomic_t cli_signal_polled; /* 1: the first signal only sets the flag */
 static volatile sig_atomic_t cli_tmp_live;      /* 1: cli_tmp_path names a file to remove */
+static volatile sig_atomic_t cli_stop_flag;     /* 1: stop: a polled signal or the deadline */
+static volatile sig_atomic_t cli_deadline_hit;  /* 1: the deadline (SIGALRM) passed */
 static char cli_tmp_path[CLI_MAX_TMP_PATH];
 
 #define CLI_MAX_INPUT_BYTES ((size_t)1 << 30) /* refuse to slurp files over 1 GiB */
@@ -245,6 +248,7 @@ static void on_signal(int sig)
 {
     if (cli_signal_polled && cli_signal_flag == 0) {
         cli_signal_flag = sig;
+        cli_stop_flag = 1;
         return;
     }
     if (cli_tmp_live) unlink(cli_tmp_path);
@@ -275,7 +279,36 @@ void cli_signals_install(void)
 volatile sig_atomic_t *cli_sigint_catch(void)
 {
     cli_signal_polled = 1;
-    return &cli_signal_flag;
+    return &cli_stop_flag;
+}
+
+static void on_alarm(int sig)
+{
+    (void)sig;
+    cli_deadline_hit = 1;
+    cli_stop_flag = 1;
+}
+
+int cli_deadline_arm(double seconds)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_alarm;
+    sa.sa_flags = SA_RESTART;
+    sigemptyset(&sa.sa_mask);
+    if (sigaction(SIGALRM, &sa, NULL)) return -1;
+    struct itimerval it;
+    memset(&it, 0, sizeof it);
+    double whole = floor(seconds);
+    it.it_value.tv_sec = (time_t)whole;
+    it.it_value.tv_usec = (suseconds_t)((seconds - whole) * 1e6);
+    if (it.it_value.tv_sec == 0 && it.it_value.tv_usec == 0) it.it_value.tv_usec = 1;
+    return setitimer(ITIMER_REAL, &it, NULL);
+}
+
+int cli_deadline_passed(void)
+{
+    return cli_deadline_hit;
 }
 
 void cli_sigint_restore(void)
@@ -292,6 +325,7 @@ int cli_interrupted(void)
 void cli_interrupt_handled(void)
 {
     cli_signal_flag = 0;
+    cli_stop_flag = cli_deadline_hit;
 }
 
 int cli_interrupt_status(const char *sub, const char *what)

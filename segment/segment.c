@@ -355,7 +355,8 @@ static int ensure_normals(frep_cloud *c, const segment_config *cfg, segment_resu
     if (c->has_normals) res->zero_normals = cloud_normalize_normals(c);
     if (c->has_normals && res->zero_normals == 0) return 0;
     if (cfg->progress) cfg->progress(cfg->user, "normals", 0, c->n, 0);
-    if (normals_estimate(c, cfg->knn, cfg->nthreads))
+    normals_config nc = {cfg->knn ? cfg->knn : NORMALS_DEFAULT_K, cfg->nthreads, cfg->interrupt};
+    if (normals_run(c, &nc, NULL) < 0)
         return frep_error_set(err, FREP_ENOMEM, "out of memory estimating normals");
     res->normals_estimated = 1;
     return 0;

@@ -31,8 +31,8 @@ usage() {
 }
 
 subs=$("$FREP" --help | awk '/^Subcommands:/ { on = 1; next } on && /^  [a-z]/ { print $1 }')
-[ "$(echo $subs)" = "check eval print dis mesh sample fit render view segment evolve export" ]
-report $? "frep --help lists the twelve subcommands"
+[ "$(echo $subs)" = "check eval print dis mesh sample fit render view normals segment evolve export" ]
+report $? "frep --help lists the thirteen subcommands"
 
 for s in $subs; do
     "$FREP" "$s" --help >"$tmp/help" 2>"$tmp/err"
