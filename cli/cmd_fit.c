@@ -676,16 +676,17 @@ static void stage_judge(fit_cmd *f)
         word = "unknown";
         snprintf(why, sizeof why, "the distances could not be measured");
     } else {
-        /* Judged on the inliers, within the noise when it exceeds FIT_WITHIN: points
-         * taken for outliers are reported, not held against the fit, unless they are
-         * more than FIT_VERDICT_OUTLIERS of the cloud. */
+        /* Judged on the inliers: points taken for outliers are reported, not held
+         * against the fit, unless they are more than FIT_VERDICT_OUTLIERS of the cloud.
+         * Noise above FIT_WITHIN is reported and makes the fit doubtful: from the
+         * distances alone it cannot be told apart from a fit that is off. */
         double share = isfinite(res->within_inliers) ? res->within_inliers : res->within;
         word = share >= FIT_VERDICT_GOOD ? "good" : share >= FIT_VERDICT_POOR
                                                         ? "doubtful" : "poor";
         double n = (double)f->cloud->n;
         if (isfinite(res->noise) && 3 * res->noise > FIT_WITHIN * f->diagonal)
             snprintf(noise, sizeof noise, "; noise %.3g (%.2g%% of the diagonal), %.1f%% of "
-                     "the inliers within 3 sigma", res->noise, 100 * res->noise / f->diagonal,
+                     "the inliers within 1%%", res->noise, 100 * res->noise / f->diagonal,
                      100 * share);
         if (res->outliers > 0)
             snprintf(noise + strlen(noise), sizeof noise - strlen(noise),

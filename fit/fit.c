@@ -625,7 +625,7 @@ static void noise_and_outliers(double *d, size_t n, double diag, fit_result *res
     if (n == 0) return;
     double sigma = 1.4826 * median(d, n);
     double cut = fmax(FIT_OUTLIER_SIGMAS * sigma, FIT_WITHIN * diag);
-    double tol = fmax(3 * sigma, FIT_WITHIN * diag);
+    double tol = FIT_WITHIN * diag;
     size_t in = 0, near = 0;
     for (size_t i = 0; i < n; i++) {
         if (!(d[i] <= cut)) continue;
@@ -658,7 +658,11 @@ static int measure(fit_run_ctx *R, fit_result *res)
         res->dist_searched = ds.searched, res->dist_unresolved = ds.unresolved;
     }
     frep_free(d);
-    res->have_uncertainty = fit_uncertainty(R->model, R->x, R->pts, res->sens, res->sigma) == 0;
+    /* A robust fit's outliers would swamp s^2: they are left out. */
+    double cut = R->geo != NULL && isfinite(res->noise)
+                     ? fmax(FIT_OUTLIER_SIGMAS * res->noise, FIT_WITHIN * diag) : HUGE_VAL;
+    res->have_uncertainty = fit_uncertainty(R->model, R->x, R->pts, cut, res->sens,
+                                            res->sigma) == 0;
     return 0;
 }
 
@@ -679,7 +683,7 @@ static int finish(fit_run_ctx *R, double *params, fit_result *res, frep_error *e
     }
     memcpy(params, R->x, np * sizeof *params);
     res->objective = fx;
-    res->rms = res->max_dist = res->within = NAN;
+    res->rms = res->max_dist = res->within = res->noise = res->within_inliers = NAN;
     res->diagonal = points_diagonal(R->pts);
     if (R->cfg->report && measure(R, res) != 0) return frep_error_nomem(err);
     res->evals = R->ctl.evals;

@@ -125,7 +125,8 @@ typedef struct fit_result {
     /* The noise and outliers of the result (cfg.report): noise, the robust standard
      * deviation of the distances (1.4826 x their median); outliers, the points beyond
      * FIT_OUTLIER_SIGMAS x noise and FIT_WITHIN of the diagonal; within_inliers, the share
-     * of the other points within max(FIT_WITHIN x diagonal, 3 x noise). */
+     * of the other points within FIT_WITHIN of the diagonal (noise larger than that is
+     * not told apart from a poor fit). */
     double noise, within_inliers;
     size_t outliers;
     long evals;                 /* objective evaluations, all phases (subset ones too) */
