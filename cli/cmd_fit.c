@@ -65,7 +65,8 @@ static void progress(void *user, const fit_progress *p)
     if (p->nchains > 0) snprintf(chain, sizeof chain, "chain %ld/%ld", p->chain, p->nchains);
     fprintf(stderr, "\r%-12s %-11s iteration %-5ld %6.1f s  best %-11.5g %s\033[K",
             names[p->phase], chain, p->iteration, p->elapsed, p->best,
-            p->subset ? "(annealing's points)" : "(all points)");
+            p->subset == 1 ? "(annealing's points)" : p->subset == 2 ? "(robust, all points)"
+                                                                  : "(all points)");
     fflush(stderr);
 }
 

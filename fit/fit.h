@@ -37,7 +37,8 @@ typedef struct fit_progress {
                                    0 in a local-only fit */
     long iteration;             /* of the phase */
     /* The lowest objective seen so far of the kind being minimized: on the annealing's
-     * subset (subset = 1) or on all points (0). Never goes up for a given kind. */
+     * subset (subset = 1), on all points (0), or the robust refinement's (2; its scale
+     * changes between rounds). Never goes up for a given kind. */
     double best;
     int subset;
     double elapsed;             /* seconds since the fit started */
