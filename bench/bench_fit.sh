@@ -6,7 +6,7 @@
 # objective (sum of f^2), points and bounds, CPU time against CPU time, with
 # L-BFGS-B and dual_annealing also driven by frep's own objective and gradient through
 # the C library (bench/bench_fit.py), when scipy is installed. Then the CAD-style
-# templates of tests/fit_suite.sh over seeds 1-10.
+# templates of tests/fit_suite.sh over seeds 1-10 (clean, 0.2% and 1% noise, 5% outliers).
 # Then a real CAD part: bench/mount.hf fitted to points sampled from the InverseCSG
 # "mount" mesh (skipped when ../shared/data/inversecsg is absent; FREP_INVERSECSG=DIR
 # points elsewhere).
@@ -103,6 +103,15 @@ FREP="$FREP" srcdir="$SRCDIR" FIT_SUITE_TABLE=1 FIT_SUITE_SEEDS="1 2 3 4 5 6 7 8
 echo "the same, noise 0.2% of the diagonal, --objective geometric:"
 FREP="$FREP" srcdir="$SRCDIR" FIT_SUITE_TABLE=1 FIT_SUITE_SEEDS="1 2 3 4 5 6 7 8 9 10" \
     FIT_SUITE_NOISE=0.002 FIT_SUITE_OPTIONS="--objective geometric" \
+    sh "$SRCDIR/tests/fit_suite.sh" | grep -v '^#'
+echo "the same, noise 1% of the diagonal, defaults (robust refinement):"
+FREP="$FREP" srcdir="$SRCDIR" FIT_SUITE_TABLE=1 FIT_SUITE_SEEDS="1 2 3 4 5 6 7 8 9 10" \
+    FIT_SUITE_NOISE=0.01 sh "$SRCDIR/tests/fit_suite.sh" | grep -v '^#'
+echo "the same, 5% outliers, defaults, and with --sa-loss geman:"
+FREP="$FREP" srcdir="$SRCDIR" FIT_SUITE_TABLE=1 FIT_SUITE_SEEDS="1 2 3 4 5 6 7 8 9 10" \
+    FIT_SUITE_OUTLIERS="--outliers 0.05" sh "$SRCDIR/tests/fit_suite.sh" | grep -v '^#'
+FREP="$FREP" srcdir="$SRCDIR" FIT_SUITE_TABLE=1 FIT_SUITE_SEEDS="1 2 3 4 5 6 7 8 9 10" \
+    FIT_SUITE_OUTLIERS="--outliers 0.05" FIT_SUITE_OPTIONS="--sa-loss geman" \
     sh "$SRCDIR/tests/fit_suite.sh" | grep -v '^#'
 
 # ---- a real CAD part: the InverseCSG "mount" ------------------------------------------

@@ -65,7 +65,8 @@ static void progress(void *user, const fit_progress *p)
     if (p->nchains > 0) snprintf(chain, sizeof chain, "chain %ld/%ld", p->chain, p->nchains);
     fprintf(stderr, "\r%-12s %-11s iteration %-5ld %6.1f s  best %-11.5g %s\033[K",
             names[p->phase], chain, p->iteration, p->elapsed, p->best,
-            p->subset ? "(annealing's points)" : "(all points)");
+            p->subset == 1 ? "(annealing's points)" : p->subset == 2 ? "(robust, all points)"
+                                                                  : "(all points)");
     fflush(stderr);
 }
 
@@ -124,6 +125,9 @@ enum {
  * "poor" below FIT_VERDICT_POOR. */
 #define FIT_VERDICT_GOOD 0.99
 #define FIT_VERDICT_POOR 0.9
+/* More points than this share taken for outliers make the fit poor whatever the rest:
+ * the "outliers" are then more likely a part of the shape the model misses. */
+#define FIT_VERDICT_OUTLIERS 0.25
 
 typedef struct report_ctx {
     const char *tmpl, *cloud, *output;
@@ -181,6 +185,9 @@ static int write_json(FILE *f, void *user)
     json_num(f, r->res->within);
     fputs(",\n  \"diagonal\": ", f);
     json_num(f, r->diagonal);
+    fputs(",\n  \"noise\": ", f);
+    json_num(f, r->res->noise);
+    fprintf(f, ",\n  \"outliers\": %zu", r->res->outliers);
     fprintf(f, ",\n  \"evaluations\": %ld,\n  \"seconds\": %.6f,\n  \"status\": \"%s\",\n"
                "  \"converged\": %s,\n  \"verdict\": \"%s\",\n  \"interrupted\": %s\n}\n",
             r->res->evals, r->res->seconds,
@@ -232,7 +239,7 @@ typedef struct fit_cmd {
     const char *out, *model, *json, *bounds, *view;
     cli_list a;
     double loss_scale;         /* --loss-scale; <= 0: 0.01 x the cloud's diagonal */
-    int in_place, quiet, strict;
+    int in_place, quiet, strict, no_robust;
     const char *tmpl, *cloud_path;
     frep_program *p;
     frep_program *ps;          /* its R-function compilation, when it differs (min/max) */
@@ -251,7 +258,7 @@ typedef struct fit_cmd {
     fit_result res;
     int interrupted;
     char *text, *output;       /* the fitted template and where it goes */
-    char verdict[192];         /* "good - 99.7% of points within 1% of the diagonal" */
+    char verdict[320];         /* "good - 99.7% of points within 1% of the diagonal" */
     int nwarn;                 /* parameter warnings printed */
 } fit_cmd;
 
@@ -285,9 +292,14 @@ static const cli_opt fit_opts[] = {
     { 0, "global-objective", "K", CLI_OPT_CUSTOM, OFF(cfg.global_kind), .parse = parse_objective,
       .expect = "algebraic or geometric", .help = "the annealing's: algebraic (default) or geometric" },
     { 0, "loss", "L", CLI_OPT_CUSTOM, OFF(cfg.obj.loss), .parse = parse_loss,
-      .expect = "l2, huber or cauchy", .help = "l2 (default), huber or cauchy (robust to outliers)" },
+      .expect = "l2, huber, cauchy or geman", .help = "l2 (default), huber, cauchy or geman (robust to outliers)" },
     { 0, "loss-scale", "S", CLI_OPT_DOUBLE, OFF(loss_scale), .lo = 0, .hi = INFINITY, .open_lo = 1,
       .help = "scale of the robust losses (default 0.01 x cloud diagonal)" },
+    { 0, "sa-loss", "L", CLI_OPT_CUSTOM, OFF(cfg.sa_loss), .parse = parse_loss,
+      .expect = "l2, huber, cauchy or geman",
+      .help = "the annealing's loss (l2; geman for outliers), scale 1% of\nthe diagonal in function units" },
+    { 0, "no-robust", NULL, CLI_OPT_SET, OFF(no_robust),
+      .help = "skip the robust refinement (geometric distances, Cauchy loss,\nscale from the residuals) that follows the local phase" },
     { 0, "normals-weight", "W", CLI_OPT_DOUBLE, OFF(cfg.obj.normals_weight), .lo = 0, .hi = INFINITY,
       .help = "weight of the normal-agreement term (cloud with normals)" },
     CLI_OPT_SEED(fit_cmd, cfg.seed, "random seed (default 1)"),
@@ -660,13 +672,28 @@ static void stage_judge(fit_cmd *f)
                             "(standard error %.3g)\n", nm, r->sigma);
     }
     const char *word;
-    char why[96] = "";
+    char why[96] = "", noise[160] = "";
     if (!isfinite(res->within)) {
         word = "unknown";
         snprintf(why, sizeof why, "the distances could not be measured");
     } else {
-        word = res->within >= FIT_VERDICT_GOOD ? "good" : res->within >= FIT_VERDICT_POOR
-                                                              ? "doubtful" : "poor";
+        /* Judged on the inliers: points taken for outliers are reported, not held
+         * against the fit, unless they are more than FIT_VERDICT_OUTLIERS of the cloud.
+         * Noise above FIT_WITHIN is reported and makes the fit doubtful: from the
+         * distances alone it cannot be told apart from a fit that is off. */
+        double share = isfinite(res->within_inliers) ? res->within_inliers : res->within;
+        word = share >= FIT_VERDICT_GOOD ? "good" : share >= FIT_VERDICT_POOR
+                                                        ? "doubtful" : "poor";
+        double n = (double)f->cloud->n;
+        if (isfinite(res->noise) && 3 * res->noise > FIT_WITHIN * f->diagonal)
+            snprintf(noise, sizeof noise, "; noise %.3g (%.2g%% of the diagonal), %.1f%% of "
+                     "the inliers within 1%%", res->noise, 100 * res->noise / f->diagonal,
+                     100 * share);
+        if (res->outliers > 0)
+            snprintf(noise + strlen(noise), sizeof noise - strlen(noise),
+                     "; %zu points (%.1f%%) taken for outliers", res->outliers,
+                     100 * (double)res->outliers / n);
+        if ((double)res->outliers > FIT_VERDICT_OUTLIERS * n) word = "poor";
         if (f->interrupted || res->status == FIT_STOPPED)
             snprintf(why, sizeof why, "; stopped before the end");
         else if (res->status != FIT_CONVERGED)
@@ -678,7 +705,7 @@ static void stage_judge(fit_cmd *f)
     }
     if (isfinite(res->within))
         snprintf(f->verdict, sizeof f->verdict, "%s - %.1f%% of points within 1%% of the "
-                 "diagonal%s", word, 100 * res->within, why);
+                 "diagonal%s%s", word, 100 * res->within, noise, why);
     else
         snprintf(f->verdict, sizeof f->verdict, "%s - %s", word, why);
 }
@@ -776,6 +803,7 @@ int cmd_fit(int argc, char **argv)
     f.cfg.report = 1;
     f.loss_scale = -1;
     int rc = stage_options(&f, argc, argv);
+    if (f.no_robust) f.cfg.robust = 0;
     if (rc == CLI_GO_ON) rc = fit_steps(&f);
     fit_cmd_free(&f);
     return rc;

@@ -17,7 +17,7 @@
 
 static const char *const method_names[] = {"saqn", "qn", "sa", "lm"};
 static const char *const objective_names[] = {"algebraic", "geometric"};
-static const char *const loss_names[] = {"l2", "huber", "cauchy"};
+static const char *const loss_names[] = {"l2", "huber", "cauchy", "geman"};
 
 const char *fit_method_name(fit_method m) { return method_names[m]; }
 const char *fit_objective_name(fit_objective_kind k) { return objective_names[k]; }
@@ -48,7 +48,7 @@ int fit_objective_parse(const char *s, fit_objective_kind *k)
 
 int fit_loss_parse(const char *s, fit_loss *l)
 {
-    int i = lookup(loss_names, 3, s);
+    int i = lookup(loss_names, 4, s);
     if (i < 0) return -1;
     *l = (fit_loss)i;
     return 0;
@@ -76,6 +76,7 @@ void fit_config_init(fit_config *c)
     fit_lm_options_init(&c->lm);
     c->reweight_rounds = 8;
     c->report = 0;
+    c->robust = 1;
 }
 
 /* ---- the frep_program adapter ------------------------------------------------ */
@@ -179,6 +180,8 @@ void fit_program_model_free(fit_model *m)
 
 /* ---- the driver ---------------------------------------------------------------------- */
 
+static double points_diagonal(const fit_points *P);
+
 /* The annealing's generator is seeded with cfg->seed xor this salt, so that its stream
  * is not the one that drew the annealing's point subset (seeded with cfg->seed). */
 #define FIT_SA_SEED_SALT 0x5a17ca1edULL
@@ -200,6 +203,11 @@ typedef struct fit_run_ctx {
     int global;                 /* the method has an annealing phase */
     fit_objective *obj;         /* all points, the local phase's objective */
     fit_objective *sub;         /* the annealing's: a subset, another kind or obj itself */
+    /* The robust refinement's (cfg.robust and a local phase; else NULL): geometric, all
+     * points, Cauchy at the scale last set; rbuf holds 2n doubles for its residuals. */
+    fit_objective *geo;
+    double *rbuf;
+    double diag;                /* the points' diagonal */
     fit_control ctl;            /* evaluations, time and interrupt of all phases */
     double t0;                  /* frep_now_seconds() at the start */
     double f0;                  /* objective at the start values */
@@ -211,7 +219,7 @@ typedef struct fit_run_ctx {
      * seen on the subset and on all points (each reported monotone). */
     const fit_objective *active;
     long chain, nchains;
-    double best_sub, best_all;
+    double best_sub, best_all, best_geo;
 } fit_run_ctx;
 
 /* fit_control's progress callback -> the caller's, with the chain, the elapsed time and
@@ -220,8 +228,9 @@ static void on_progress(void *user, fit_phase ph, long it, double temp, double v
 {
     (void)temp;
     fit_run_ctx *R = user;
-    int sub = R->active != NULL && R->active != R->obj;
-    double *b = sub ? &R->best_sub : &R->best_all;
+    int sub = R->active == R->geo && R->geo != NULL ? 2
+              : R->active != NULL && R->active != R->obj;
+    double *b = sub == 2 ? &R->best_geo : sub ? &R->best_sub : &R->best_all;
     if (value < *b) *b = value;
     fit_progress p = {ph, R->chain, R->nchains, it, *b, sub, frep_now_seconds() - R->t0};
     R->cfg->progress(R->cfg->progress_user, &p);
@@ -277,6 +286,67 @@ static int sa_local(void *user, double *x, double *fx)
     return st == FIT_FAILED || st == FIT_NOMEM || !isfinite(*fx) ? -1 : 0;
 }
 
+static int cmp_double(const void *a, const void *b)
+{
+    double u = *(const double *)a, v = *(const double *)b;
+    return (u > v) - (u < v);
+}
+
+/* Median of v[n] (sorted in place); n > 0. */
+static double median(double *v, size_t n)
+{
+    qsort(v, n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* The Cauchy scale of the robust refinement at x: FIT_CAUCHY_C robust standard
+ * deviations of the first-order distances (1.4826 x their median), at least
+ * FIT_ROBUST_FLOOR of the diagonal. Returns it, or NaN when the distances cannot be
+ * computed. */
+static double robust_scale(fit_run_ctx *R, const double *x)
+{
+    size_t n = R->pts->n;
+    if (fit_objective_residuals(R->geo, x, R->rbuf) < 0) return NAN;
+    R->ctl.evals++;
+    size_t k = 0;
+    for (size_t i = 0; i < n; i++)
+        if (isfinite(R->rbuf[i])) R->rbuf[k++] = R->rbuf[i];
+    if (k == 0) return NAN;
+    double sigma = 1.4826 * median(R->rbuf, k);
+    return fmax(FIT_CAUCHY_C * sigma, FIT_ROBUST_FLOOR * R->diag);
+}
+
+/* Robust refinement from x (cfg.robust): rounds of scale estimation and a local phase on
+ * the geometric Cauchy objective, until the scale settles. *scale gets the last scale,
+ * *fx the objective at x at that scale. x is left alone when the distances cannot be
+ * computed there. */
+static fit_status robust_refine(fit_run_ctx *R, double *x, double *fx, double *scale,
+                                fit_status st)
+{
+    double s = HUGE_VAL;
+    for (int round = 0; round < FIT_ROBUST_ROUNDS; round++) {
+        if (fit_control_stop(&R->ctl)) return FIT_STOPPED;
+        double ns = robust_scale(R, x);
+        if (!isfinite(ns)) break;
+        int settled = fabs(ns - s) <= FIT_ROBUST_SETTLE * ns;
+        s = ns;
+        if (settled) break;
+        fit_objective_set_loss(R->geo, FIT_LOSS_CAUCHY, s);
+        double y[FIT_MAX_PARAMS], fy = HUGE_VAL;
+        memcpy(y, x, R->m * sizeof *y);
+        fit_status rs = local_phase(R, R->geo, y, &fy, 0, R->cfg->reweight_rounds);
+        if (rs == FIT_FAILED || rs == FIT_NOMEM || !isfinite(fy)) break;
+        memcpy(x, y, R->m * sizeof *x);
+        st = rs;
+        if (rs == FIT_STOPPED) break;
+    }
+    *scale = s;
+    if (isfinite(s)) fit_objective_set_loss(R->geo, FIT_LOSS_CAUCHY, s);
+    *fx = fit_objective_value(R->geo, x, NULL);
+    R->ctl.evals++;
+    return st;
+}
+
 /* Refuse what cannot be fitted before any work: no or too many parameters, fewer points
  * than parameters, start values that are not finite or outside their bounds, and
  * infinite bounds for the annealing, which searches the whole box. */
@@ -317,6 +387,17 @@ static int make_objectives(fit_run_ctx *R, frep_error *err)
     const fit_config *cfg = R->cfg;
     R->obj = R->sub = fit_objective_new(R->model, R->pts, &cfg->obj);
     if (R->obj == NULL) return frep_error_nomem(err);
+    R->diag = points_diagonal(R->pts);
+    if (!(R->diag > 0) || !isfinite(R->diag)) R->diag = 1;
+    if (cfg->robust && cfg->method != FIT_METHOD_SA) {
+        fit_objective_config gc = cfg->obj;
+        gc.kind = FIT_OBJ_GEOMETRIC;
+        gc.loss = FIT_LOSS_CAUCHY;
+        gc.loss_scale = FIT_ROBUST_FLOOR * R->diag;
+        R->geo = fit_objective_new(R->model, R->pts, &gc);
+        R->rbuf = frep_malloc((R->pts->n ? R->pts->n : 1) * sizeof *R->rbuf);
+        if (R->geo == NULL || R->rbuf == NULL) return frep_error_nomem(err);
+    }
     if (!R->global) return 0;
     fit_objective *gobj = R->obj;
     if (cfg->global_kind != cfg->obj.kind || cfg->surrogate != NULL) {
@@ -337,11 +418,34 @@ static int make_objectives(fit_run_ctx *R, frep_error *err)
             return frep_error_nomem(err);
         }
     }
+    if (R->geo != NULL && cfg->global_kind == FIT_OBJ_ALGEBRAIC && R->sub == R->obj) {
+        /* The annealing's loss is changed below: it needs its own objective. */
+        fit_objective_config gc = cfg->obj;
+        gc.kind = cfg->global_kind;
+        R->sub = fit_objective_new(R->model, R->pts, &gc);
+        if (R->sub == NULL) {
+            R->sub = R->obj;
+            return frep_error_nomem(err);
+        }
+    }
+    if (R->geo != NULL && cfg->sa_loss != FIT_LOSS_L2 && cfg->obj.loss == FIT_LOSS_L2) {
+        size_t n = fit_objective_npoints(R->sub);
+        double *g = frep_malloc((n ? n : 1) * sizeof *g);
+        if (g == NULL) return frep_error_nomem(err);
+        double s = FIT_SA_CAUCHY * R->diag;
+        if (cfg->global_kind == FIT_OBJ_ALGEBRAIC &&
+            fit_objective_grad_norms(R->sub, R->start, g) == 0 && n > 0)
+            s *= median(g, n);
+        frep_free(g);
+        if (isfinite(s) && s > 0) fit_objective_set_loss(R->sub, cfg->sa_loss, s);
+    }
     return 0;
 }
 
 static void free_objectives(fit_run_ctx *R)
 {
+    fit_objective_free(R->geo);
+    frep_free(R->rbuf);
     if (R->sub != R->obj) fit_objective_free(R->sub);
     fit_objective_free(R->obj);
 }
@@ -358,7 +462,8 @@ static void start_control(fit_run_ctx *R)
         R->ctl.progress = on_progress;
         R->ctl.progress_user = R;
     }
-    R->best_sub = R->best_all = HUGE_VAL;
+    R->best_sub = R->best_all = R->best_geo = HUGE_VAL;
+    if (R->geo != NULL) fit_objective_watch_nomem(R->geo, &R->ctl.out_of_memory);
     /* Out of memory in an evaluation stops every phase, as in a phase's own arrays. */
     fit_objective_watch_nomem(R->obj, &R->ctl.out_of_memory);
     fit_objective_watch_nomem(R->sub, &R->ctl.out_of_memory);
@@ -401,6 +506,21 @@ static int global_phase(fit_run_ctx *R, frep_error *err)
     double xs[FIT_MAX_PARAMS], fx = HUGE_VAL, fbest = HUGE_VAL;
     fit_status st_best = FIT_STALLED;
     R->nchains = polish ? chains : so.chains > 0 ? so.chains : 1;
+    /* Robust: each chain's refined point, scale and status, compared after the last. */
+    int robust = polish && R->geo != NULL;
+    double *keep = NULL, *scales = NULL;
+    fit_status *kst = NULL;
+    long kept = 0;
+    if (robust) {
+        keep = frep_malloc((size_t)chains * (np + 1) * sizeof *keep);
+        kst = frep_malloc((size_t)chains * sizeof *kst);
+        if (keep == NULL || kst == NULL) {
+            frep_free(keep);
+            frep_free(kst);
+            return frep_error_nomem(err);
+        }
+        scales = keep + (size_t)chains * np;
+    }
     for (long k = 0; k < chains; k++) {
         R->chain = k + 1;
         R->active = R->sub;
@@ -412,11 +532,28 @@ static int global_phase(fit_run_ctx *R, frep_error *err)
         R->st = fit_sa(fit_objective_value, R->sub, np, xs, R->lo, R->hi, &so, &rng, &R->ctl,
                        &fx, &its);
         R->sa_iterations += its;
-        if (R->st == FIT_NOMEM || R->ctl.out_of_memory) return frep_error_nomem(err);
+        if (R->st == FIT_NOMEM || R->ctl.out_of_memory) {
+            frep_free(keep);
+            frep_free(kst);
+            return frep_error_nomem(err);
+        }
         if (R->st == FIT_FAILED) {
             if (k > 0) break;
+            frep_free(keep);
+            frep_free(kst);
             return frep_error_set(err, FREP_EINPUT, "the model cannot be evaluated anywhere "
                                   "the annealing looked (runtime errors or non-finite values)");
+        }
+        if (robust) {
+            /* The chain's best is polished on the subset already; the robust
+             * refinement takes it from there on all points. */
+            double sc = NAN;
+            if (R->st != FIT_STOPPED) R->st = robust_refine(R, xs, &fx, &sc, FIT_STALLED);
+            memcpy(keep + (size_t)kept * np, xs, np * sizeof *xs);
+            scales[kept] = sc;
+            kst[kept++] = R->st;
+            if (R->st == FIT_STOPPED) break;
+            continue;
         }
         if (polish && R->st != FIT_STOPPED)
             R->st = local_phase(R, R->obj, xs, &fx, 0, R->cfg->reweight_rounds);
@@ -431,6 +568,26 @@ static int global_phase(fit_run_ctx *R, frep_error *err)
         }
         if (R->st == FIT_STOPPED) break;
     }
+    if (robust && kept > 0) {
+        /* Compare the chains on the Cauchy loss at the smallest scale: the right basin
+         * has the smallest residuals, and at its scale a wrong one pays for the points
+         * it misses. */
+        double s = HUGE_VAL;
+        for (long k = 0; k < kept; k++)
+            if (isfinite(scales[k])) s = fmin(s, scales[k]);
+        if (isfinite(s)) fit_objective_set_loss(R->geo, FIT_LOSS_CAUCHY, s);
+        for (long k = 0; k < kept; k++) {
+            double v = fit_objective_value(R->geo, keep + (size_t)k * np, NULL);
+            R->ctl.evals++;
+            if (v < fbest || k == 0) {
+                fbest = v;
+                st_best = kst[k];
+                memcpy(R->x, keep + (size_t)k * np, np * sizeof *R->x);
+            }
+        }
+    }
+    frep_free(keep);
+    frep_free(kst);
     if (R->st != FIT_STOPPED) R->st = st_best;
     return 0;
 }
@@ -440,6 +597,10 @@ static int local_only(fit_run_ctx *R)
 {
     double fx = HUGE_VAL;
     R->st = local_phase(R, R->obj, R->x, &fx, 0, R->cfg->reweight_rounds);
+    if (R->geo != NULL && R->st != FIT_STOPPED && R->st != FIT_FAILED && R->st != FIT_NOMEM) {
+        double sc;
+        R->st = robust_refine(R, R->x, &fx, &sc, R->st);
+    }
     return 0;
 }
 
@@ -454,6 +615,26 @@ static double points_diagonal(const fit_points *P)
     double d = 0;
     for (int c = 0; c < 3; c++) d += P->n ? (hi[c] - lo[c]) * (hi[c] - lo[c]) : 0;
     return sqrt(d);
+}
+
+/* res->noise, outliers and within_inliers from the distances d[n] (reordered). */
+static void noise_and_outliers(double *d, size_t n, double diag, fit_result *res)
+{
+    res->noise = res->within_inliers = NAN;
+    res->outliers = 0;
+    if (n == 0) return;
+    double sigma = 1.4826 * median(d, n);
+    double cut = fmax(FIT_OUTLIER_SIGMAS * sigma, FIT_WITHIN * diag);
+    double tol = FIT_WITHIN * diag;
+    size_t in = 0, near = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (!(d[i] <= cut)) continue;
+        in++;
+        near += d[i] <= tol;
+    }
+    res->noise = sigma;
+    res->outliers = n - in;
+    res->within_inliers = in ? (double)near / (double)in : 0;
 }
 
 /* The figures a person judges the fit by: true distances (their RMS, maximum and the
@@ -473,10 +654,15 @@ static int measure(fit_run_ctx *R, fit_result *res)
         for (size_t i = 0; i < n; i++) in += d[i] <= FIT_WITHIN * diag;
         res->rms = ds.rms, res->max_dist = ds.max;
         res->within = n ? (double)in / (double)n : 0;
+        noise_and_outliers(d, n, diag, res);
         res->dist_searched = ds.searched, res->dist_unresolved = ds.unresolved;
     }
     frep_free(d);
-    res->have_uncertainty = fit_uncertainty(R->model, R->x, R->pts, res->sens, res->sigma) == 0;
+    /* A robust fit's outliers would swamp s^2: they are left out. */
+    double cut = R->geo != NULL && isfinite(res->noise)
+                     ? fmax(FIT_OUTLIER_SIGMAS * res->noise, FIT_WITHIN * diag) : HUGE_VAL;
+    res->have_uncertainty = fit_uncertainty(R->model, R->x, R->pts, cut, res->sens,
+                                            res->sigma) == 0;
     return 0;
 }
 
@@ -485,7 +671,11 @@ static int measure(fit_run_ctx *R, fit_result *res)
 static int finish(fit_run_ctx *R, double *params, fit_result *res, frep_error *err)
 {
     const size_t np = R->m;
-    double fx = fit_objective_value(R->obj, R->x, NULL);
+    /* Robust: compared on the robust loss at its last scale, the one the result
+     * minimizes (least squares would prefer a start that fits the outliers better). */
+    fit_objective *judge = R->geo != NULL ? R->geo : R->obj;
+    double fx = fit_objective_value(judge, R->x, NULL);
+    if (judge != R->obj) R->f0 = fit_objective_value(judge, R->start, NULL);
     if (R->ctl.out_of_memory) return frep_error_nomem(err);
     if (!(fx <= R->f0)) {
         memcpy(R->x, R->start, np * sizeof *R->x);
@@ -493,7 +683,7 @@ static int finish(fit_run_ctx *R, double *params, fit_result *res, frep_error *e
     }
     memcpy(params, R->x, np * sizeof *params);
     res->objective = fx;
-    res->rms = res->max_dist = res->within = NAN;
+    res->rms = res->max_dist = res->within = res->noise = res->within_inliers = NAN;
     res->diagonal = points_diagonal(R->pts);
     if (R->cfg->report && measure(R, res) != 0) return frep_error_nomem(err);
     res->evals = R->ctl.evals;

@@ -37,7 +37,8 @@ typedef struct fit_progress {
                                    0 in a local-only fit */
     long iteration;             /* of the phase */
     /* The lowest objective seen so far of the kind being minimized: on the annealing's
-     * subset (subset = 1) or on all points (0). Never goes up for a given kind. */
+     * subset (subset = 1), on all points (0), or the robust refinement's (2; its scale
+     * changes between rounds). Never goes up for a given kind. */
     double best;
     int subset;
     double elapsed;             /* seconds since the fit started */
@@ -76,6 +77,16 @@ typedef struct fit_config {
      * template, whose kinks and flat regions mislead the global search). The chains'
      * bests are polished and compared on the fitted model itself. */
     const fit_model *surrogate;
+    /* Robust refinement (1, the default; 0: the objective as configured, alone): the
+     * result of the local phase, each annealing chain's after its polish, is refined on
+     * the geometric distances with a Cauchy loss whose scale comes from the residuals
+     * (FIT_CAUCHY_C x 1.4826 x their median, at least FIT_ROBUST_FLOOR of the diagonal,
+     * re-estimated each round), and the chains are compared on that loss at the
+     * smallest of their scales: noise then costs no bias and outliers no basin. */
+    int robust;
+    /* With robust: the annealing's loss (l2 by default; geman for clouds with outliers),
+     * its scale from FIT_SA_CAUCHY below. */
+    fit_loss sa_loss;
 } fit_config;
 
 void fit_config_init(fit_config *c);
@@ -83,6 +94,26 @@ void fit_config_init(fit_config *c);
 /* Fraction of the points' diagonal within which a point counts as fitted in the
  * verdict (fit_result.within). */
 #define FIT_WITHIN 0.01
+/* The robust refinement's Cauchy scale in units of the residuals' robust standard
+ * deviation (1.4826 x their median): 2.385 gives 95% efficiency on Gaussian noise. */
+#define FIT_CAUCHY_C 2.385
+/* Least Cauchy scale, relative to the diagonal: on a clean cloud the residuals vanish
+ * at the truth and the loss is then least squares. */
+#define FIT_ROBUST_FLOOR 1e-4
+/* Rounds of the robust refinement (scale, then fit): it stops earlier once the scale
+ * changed by less than FIT_ROBUST_SETTLE relative. */
+#define FIT_ROBUST_ROUNDS 3
+#define FIT_ROBUST_SETTLE 0.1
+/* A point counts as an outlier of the result when its distance to the surface exceeds
+ * both FIT_OUTLIER_SIGMAS robust standard deviations of the distances and
+ * FIT_WITHIN of the diagonal. */
+#define FIT_OUTLIER_SIGMAS 4
+/* With cfg.robust the annealing's objective (algebraic by default) takes a bounded
+ * Geman-McClure loss, of scale FIT_SA_CAUCHY of the diagonal converted to function
+ * units by the median |grad f| of its points at the start: with least squares 5% of
+ * outliers spread over the box pull a plate out to its bounds, and even Cauchy's
+ * logarithmic tail lets quadratic primitives (r^2 - x^2 - y^2) grow over outliers. */
+#define FIT_SA_CAUCHY 0.01
 
 typedef struct fit_result {
     double objective;           /* final objective on all points */
@@ -92,6 +123,13 @@ typedef struct fit_result {
      * no surface within the diagonal. */
     double rms, max_dist, within, diagonal;
     size_t dist_searched, dist_unresolved;
+    /* The noise and outliers of the result (cfg.report): noise, the robust standard
+     * deviation of the distances (1.4826 x their median); outliers, the points beyond
+     * FIT_OUTLIER_SIGMAS x noise and FIT_WITHIN of the diagonal; within_inliers, the share
+     * of the other points within FIT_WITHIN of the diagonal (noise larger than that is
+     * not told apart from a poor fit). */
+    double noise, within_inliers;
+    size_t outliers;
     long evals;                 /* objective evaluations, all phases (subset ones too) */
     double seconds;
     /* FIT_CONVERGED only when the local phase that produced the result passed its

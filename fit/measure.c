@@ -293,7 +293,7 @@ static int inverse_diagonal(size_t n, double *A, double *diag, double *e)
 }
 
 int fit_uncertainty(const fit_model *m, const double *params, const fit_points *pts,
-                    double *sens, double *sigma)
+                    double cut, double *sens, double *sigma)
 {
     const size_t n = pts->n, np = m->nparams;
     for (size_t j = 0; j < np; j++) sens[j] = 0, sigma[j] = HUGE_VAL;
@@ -328,7 +328,7 @@ int fit_uncertainty(const fit_model *m, const double *params, const fit_points *
             goto out;
         for (size_t i = 0; i < k; i++) {
             double w = gn[i0 + i];
-            if (!(w > floor) || !isfinite(f[i])) continue;
+            if (!(w > floor) || !isfinite(f[i]) || !(fabs(f[i]) / w <= cut)) continue;
             used++;
             rr += (f[i] / w) * (f[i] / w);
             for (size_t a = 0; a < np; a++) {

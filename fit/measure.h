@@ -38,8 +38,9 @@ int fit_distances(const fit_model *m, const double *params, const fit_points *pt
  * movement of the surface per unit of parameter j; sigma[j] = sqrt(s^2 (J^T J)^-1_jj),
  * s^2 = sum r_i^2 / (N - n) (infinite for a parameter the distances do not depend on,
  * or when J^T J is singular). Points with |grad f| below 1e-8 of the median are left
- * out. Returns 0, or -1 when the model cannot be evaluated or memory runs out. */
+ * out, and so are points with |r_i| > cut (the outliers of a robust fit; HUGE_VAL: none).
+ * Returns 0, or -1 when the model cannot be evaluated or memory runs out. */
 int fit_uncertainty(const fit_model *m, const double *params, const fit_points *pts,
-                    double *sens, double *sigma);
+                    double cut, double *sens, double *sigma);
 
 #endif

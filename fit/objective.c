@@ -53,6 +53,7 @@ struct fit_objective {
     int nthreads;
     fit_ws *ws;             /* nthreads workspaces */
     int *nomem;             /* set when a pass runs out of memory; may be NULL */
+    double *resid;          /* where PASS_RESID writes (n); valid during that pass only */
 };
 
 void fit_objective_config_init(fit_objective_config *c)
@@ -207,7 +208,9 @@ typedef enum pass_mode {
     PASS_GRAD,      /* and slot[1..m] = its gradient */
     PASS_LSQ,       /* slot[0] = sum rho, slot[1..m] = J^T W r, then J^T W J */
     PASS_DIST,      /* slot[0] = sum d^2, slot[1] = max d (first-order distance) */
-    PASS_FREEZE     /* store 1/|grad f| in o->w */
+    PASS_FREEZE,    /* store 1/|grad f| in o->w */
+    PASS_RESID,     /* store |f|/|grad f| in o->resid */
+    PASS_GNORM      /* store |grad f| in o->resid */
 } pass_mode;
 
 /* rho(r) and the IRLS weight omega = rho'(r) / (2 r) (1 at r = 0). */
@@ -226,6 +229,11 @@ static double loss(fit_loss kind, double s, double r, double *omega)
         double q = r * r / (s * s);
         *omega = 1 / (1 + q);
         return s * s * log1p(q);
+    }
+    case FIT_LOSS_GEMAN: {
+        double q = 1 / (1 + r * r / (s * s));
+        *omega = q * q;
+        return r * r * q;
     }
     case FIT_LOSS_L2:
         break;
@@ -310,7 +318,8 @@ static int run_block(fit_objective *o, fit_ws *w, size_t b, const double *p, pas
     const int normals = o->cfg.normals_weight > 0 && o->nx != NULL &&
                         (mode == PASS_VALUE || mode == PASS_GRAD);
     const int need_g = (geo && !o->frozen) || normals || mode == PASS_DIST ||
-                       mode == PASS_FREEZE;
+                       mode == PASS_FREEZE || mode == PASS_RESID ||
+                       mode == PASS_GNORM;
     const int need_dp = mode == PASS_GRAD || mode == PASS_LSQ;
     const double *x = o->x + i0, *y = o->y + i0, *z = o->z + i0;
 
@@ -327,6 +336,10 @@ static int run_block(fit_objective *o, fit_ws *w, size_t b, const double *p, pas
         }
         if (mode == PASS_FREEZE) {
             o->w[i0 + i] = 1 / gl;
+            continue;
+        }
+        if (mode == PASS_RESID || mode == PASS_GNORM) {
+            o->resid[i0 + i] = mode == PASS_RESID ? fabs(f) / gl : gl;
             continue;
         }
         if (mode == PASS_DIST) {
@@ -448,6 +461,33 @@ int fit_objective_freeze(fit_objective *o, const double *p)
 }
 
 void fit_objective_unfreeze(fit_objective *o) { o->frozen = 0; }
+
+void fit_objective_set_loss(fit_objective *o, fit_loss loss, double scale)
+{
+    o->cfg.loss = loss;
+    o->cfg.loss_scale = scale;
+}
+
+static int per_point(fit_objective *o, const double *p, double *r, pass_mode mode)
+{
+    o->resid = r;
+    int rc = run_pass(o, p, mode);
+    o->resid = NULL;
+    if (rc != 0) return -1;
+    for (size_t i = 0; i < o->n; i++)
+        if (!isfinite(r[i])) return 1;
+    return 0;
+}
+
+int fit_objective_residuals(fit_objective *o, const double *p, double *r)
+{
+    return per_point(o, p, r, PASS_RESID);
+}
+
+int fit_objective_grad_norms(fit_objective *o, const double *p, double *r)
+{
+    return per_point(o, p, r, PASS_GNORM);
+}
 
 int fit_objective_distances(fit_objective *o, const double *p, double *rms, double *max)
 {

@@ -43,7 +43,9 @@ typedef enum fit_objective_kind {
 typedef enum fit_loss {
     FIT_LOSS_L2,        /* r^2 */
     FIT_LOSS_HUBER,     /* r^2 inside [-s, s], 2 s |r| - s^2 outside */
-    FIT_LOSS_CAUCHY     /* s^2 log(1 + r^2 / s^2) */
+    FIT_LOSS_CAUCHY,    /* s^2 log(1 + r^2 / s^2) */
+    FIT_LOSS_GEMAN      /* Geman-McClure, s^2 r^2 / (s^2 + r^2): bounded by s^2, so a far
+                           point costs the same wherever the surface is */
 } fit_loss;
 
 typedef struct fit_objective_config {
@@ -88,6 +90,16 @@ double fit_objective_lsq(void *user, const double *p, double *jtj, double *jtr);
  * memory); unfreeze to use the true f/|grad f| again. No effect on the algebraic kind. */
 int fit_objective_freeze(fit_objective *o, const double *p);
 void fit_objective_unfreeze(fit_objective *o);
+
+/* Change the loss and its scale (residual units) of o: fit_run's robust refinement
+ * re-estimates the scale from the residuals between rounds. */
+void fit_objective_set_loss(fit_objective *o, fit_loss loss, double scale);
+
+/* The first-order distance |f|/|grad f| of each point at p, in r[n] (n = its point
+ * count). Returns 0; 1 when some are not finite; -1 when out of memory. */
+int fit_objective_residuals(fit_objective *o, const double *p, double *r);
+/* |grad f| at each point (at least 1e-300), the same way. */
+int fit_objective_grad_norms(fit_objective *o, const double *p, double *r);
 
 /* RMS and maximum of the first-order distance |f|/|grad f| of the points at p. Returns
  * 0; 1 when they are not finite (the model gives NaN or infinite values), or -1 when out

@@ -98,6 +98,28 @@ grep -q '^fit: good - 100.0% of points within 1% of the diagonal$' "$tmp/g.out" 
     grep -q ', converged$' "$tmp/g.out" && ! grep -q warning "$tmp/g.err"
 report $? "a clean fit: $(grep '^fit:' "$tmp/g.out")"
 
+# 100 outliers of our own inside the box, at least 0.4 from every face (the clean points
+# are on the surface): the robust refinement recovers the box (least squares is pulled
+# 0.02 off) and the verdict counts exactly those 100 as outliers, leaving them out of
+# the standard errors.
+{ awk '{ print $1, $2, $3 }' "$tmp/clean.xyz"
+  awk 'BEGIN { for (i = 0; i < 100; i++) printf "%.6f %.6f %.6f\n", -1.5 + 3 * ((i * 7) % 100) / 100,
+               -0.5 + ((i * 13) % 100) / 100, -0.1 + 0.2 * ((i * 37) % 100) / 100 }'
+} > "$tmp/mixed.xyz"
+"$FREP" fit "$tmp/good.hf" "$tmp/mixed.xyz" --method qn -o "$tmp/o.hf" > "$tmp/r.out" 2> "$tmp/r.err"
+grep -q '^fit: good - [0-9.]*% of points within 1% of the diagonal; 100 points (4.8%) taken for outliers$' "$tmp/r.out"
+report $? "outliers counted in the verdict: $(grep '^fit:' "$tmp/r.out")"
+rerr() { awk 'BEGIN { split("-2 -1 -0.5 4 2 1", t, " "); split("x0 y0 z0 dx dy dz", k, " ") }
+    { for (i = 1; i <= 6; i++) if ($1 == k[i]) { e = $3 - t[i]; if (e < 0) e = -e; if (e > m) m = e } }
+    END { print m + 0 }' "$1"; }
+e=$(rerr "$tmp/r.out")
+awk -v e="$e" 'BEGIN { exit !(e < 1e-3) }' && ! grep -q 'loose' "$tmp/r.out"
+report $? "robust fit through outliers: error $e < 1e-3, no parameter loose"
+"$FREP" fit "$tmp/good.hf" "$tmp/mixed.xyz" --method qn --no-robust -o "$tmp/o.hf" > "$tmp/n.out" 2>&1
+e=$(rerr "$tmp/n.out")
+awk -v e="$e" 'BEGIN { exit !(e > 1e-2) }'
+report $? "(least squares, --no-robust: error $e > 1e-2, so the test above can fail)"
+
 # Assigned again after its '@free' line: a compile warning, and no effect.
 sed -e 's/^    c = \[x0, y0, z0\];/    z0 = -0.5;\n    c = [x0, y0, z0];/' -e '/u = 1;/d' "$tmp/box.hf" > "$tmp/again.hf"
 "$FREP" fit "$tmp/again.hf" "$tmp/clean.xyz" --method qn -o "$tmp/o.hf" > "$tmp/a.out" 2> "$tmp/a.err"

@@ -333,7 +333,7 @@ static void test_measure(void)
         x[i] = p[0] + (x[i] - p[0]) * s, y[i] = p[1] + (y[i] - p[1]) * s, z[i] = p[2] + (z[i] - p[2]) * s;
     }
     x[0] = p[0] + 2, y[0] = p[1], z[0] = p[2];
-    rc = fit_uncertainty(&m, p, &pts, sens, sigma);
+    rc = fit_uncertainty(&m, p, &pts, HUGE_VAL, sens, sigma);
     /* On the surface dr/dp = (2 d / |grad f|) = unit directions for the centre, 1 for
      * the radius: sensitivity of the radius is 1, of each centre coordinate 1/sqrt 3. */
     ok(rc == 0 && fabs(sens[3] - 1) < 1e-9 && fabs(sens[0] - 1 / sqrt(3.0)) < 0.05 &&
