@@ -47,26 +47,24 @@ static void two_prod(double a, double b, double *x, double *y)
     *y = fma(a, b, -*x);
 }
 
-/* h = e + b (Shewchuk's GROW-EXPANSION, zero components dropped); h may not be e. */
-static void exp_grow(const expansion *e, double b, expansion *h)
-{
-    double q = b, hh;
-    h->n = 0;
-    for (int i = 0; i < e->n; i++) {
-        two_sum(q, e->c[i], &q, &hh);
-        if (hh != 0) h->c[h->n++] = hh;
-    }
-    if (q != 0 || h->n == 0) h->c[h->n++] = q;
-}
-
-/* e += f, by growing e with each component of f. */
+/* e += f (e and f of at least one component each; Shewchuk's FAST-EXPANSION-SUM, zero components dropped): one merge of the
+ * two component lists by magnitude, then a single pass of two_sum. */
 static void exp_add(expansion *e, const expansion *f)
 {
-    expansion t;
-    for (int j = 0; j < f->n; j++) {
-        exp_grow(e, f->c[j], &t);
-        *e = t;
+    double g[2 * EXP_MAX];
+    int n = 0, i = 0, j = 0;
+    if (e->n + f->n == 0) return;
+    while (i < e->n && j < f->n)
+        g[n++] = fabs(f->c[j]) < fabs(e->c[i]) ? f->c[j++] : e->c[i++];
+    while (i < e->n) g[n++] = e->c[i++];
+    while (j < f->n) g[n++] = f->c[j++];
+    double q = g[0], hh;
+    e->n = 0;
+    for (int k = 1; k < n; k++) {
+        two_sum(q, g[k], &q, &hh);
+        if (hh != 0) e->c[e->n++] = hh;
     }
+    if (q != 0 || e->n == 0) e->c[e->n++] = q;
 }
 
 /* h = e * b (SCALE-EXPANSION, zero components dropped). */
@@ -110,6 +108,11 @@ static void exp_diff(double a, double b, expansion *h)
 {
     double x, y;
     two_diff(a, b, &x, &y);
+    if (y == 0) {
+        h->n = 1;
+        h->c[0] = x;
+        return;
+    }
     h->n = 2;
     h->c[0] = y;
     h->c[1] = x;
@@ -156,6 +159,23 @@ int tri_orient3d(const double *a, const double *b, const double *c, const double
                   fabs(bdx) * (fabs(cdy * adz) + fabs(cdz * ady)) +
                   fabs(cdx) * (fabs(ady * bdz) + fabs(adz * bdy));
     if (fabs(det) > ORIENT3D_FILTER * perm) return (det > 0) - (det < 0);
+    /* four points with one coordinate equal lie in a plane normal to that axis (the
+     * flat faces of CSG solids, where most undecided cases come from) */
+    for (int k = 0; k < 3; k++)
+        if (a[k] == d[k] && b[k] == d[k] && c[k] == d[k]) return 0;
+    /* ... or in two lines parallel to an axis (the walls of extrusions, whose vertices
+     * stand in columns), or three of them on one such line */
+    const double *p[4] = { a, b, c, d };
+    for (int k = 0; k < 3; k++) {
+        int i = (k + 1) % 3, j = (k + 2) % 3;
+        int same[4][4];
+        for (int u = 0; u < 4; u++)
+            for (int w = u + 1; w < 4; w++) same[u][w] = p[u][i] == p[w][i] && p[u][j] == p[w][j];
+        if ((same[0][1] && same[2][3]) || (same[0][2] && same[1][3]) || (same[0][3] && same[1][2]) ||
+            (same[0][1] && same[0][2]) || (same[0][1] && same[0][3]) || (same[0][2] && same[0][3]) ||
+            (same[1][2] && same[1][3]))
+            return 0;
+    }
     return orient3d_exact(a, b, c, d);
 }
 
@@ -165,6 +185,11 @@ static int orient2d(const double *a, const double *b, const double *c, int i, in
     double acx = a[i] - c[i], acy = a[j] - c[j], bcx = b[i] - c[i], bcy = b[j] - c[j];
     double det = acx * bcy - acy * bcx, perm = fabs(acx * bcy) + fabs(acy * bcx);
     if (fabs(det) > ORIENT2D_FILTER * perm) return (det > 0) - (det < 0);
+    /* on a line parallel to an axis, or two of the points the same */
+    if ((a[i] == c[i] && b[i] == c[i]) || (a[j] == c[j] && b[j] == c[j]) ||
+        (a[i] == c[i] && a[j] == c[j]) || (b[i] == c[i] && b[j] == c[j]) ||
+        (a[i] == b[i] && a[j] == b[j]))
+        return 0;
     expansion ax, ay, bx, by, h;
     exp_diff(a[i], c[i], &ax);
     exp_diff(a[j], c[j], &ay);
@@ -244,6 +269,16 @@ static int seg_tri(const double *p, const double *q, const double *a, const doub
     return !((s1 > 0 || s2 > 0 || s3 > 0) && (s1 < 0 || s2 < 0 || s3 < 0));
 }
 
+/* Vertices first..2 of q lie strictly on one side of the plane of p. */
+static int plane_side(const double *const p[3], const double *const q[3], int first)
+{
+    int s = tri_orient3d(p[0], p[1], p[2], q[first]);
+    if (s == 0) return 0;
+    for (int i = first + 1; i < 3; i++)
+        if (tri_orient3d(p[0], p[1], p[2], q[i]) != s) return 0;
+    return 1;
+}
+
 int tri_tri_intersect(const double *const p[3], const double *const q[3], int nshared)
 {
     if (nshared >= 3) return 1;
@@ -256,6 +291,11 @@ int tri_tri_intersect(const double *const p[3], const double *const q[3], int ns
         int s = orient2d(p[0], p[1], p[2], i, j);
         return s != 0 && orient2d(p[0], p[1], q[2], i, j) == s;
     }
+    /* the cheap rejection first (filtered orientations, exact only near a plane):
+     * one triangle strictly on one side of the other's plane, apart from the shared
+     * vertex, meets it at most there */
+    if (nshared == 0 && (plane_side(p, q, 0) || plane_side(q, p, 0))) return 0;
+    if (nshared == 1 && (plane_side(p, q, 1) || plane_side(q, p, 1))) return 0;
     if (nshared == 1)
         return seg_tri(p[1], p[2], q[0], q[1], q[2]) || seg_tri(q[1], q[2], p[0], p[1], p[2]);
     for (int e = 0; e < 3; e++) {

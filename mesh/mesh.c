@@ -53,6 +53,16 @@
 /* The field's box of a block reaches this fraction of a cell beyond the block's
  * corners, so that rounding cannot put a corner outside it. */
 #define MESH_FOCUS_SLACK 1e-9
+/* A cell vertex farther than this fraction of a cell from the surface (|f - iso| /
+ * |grad f|, the grid scaled to unit cubes) after the QEF is projected onto it
+ * (project_vertices): Newton steps along the gradient, at most MESH_PROJECT_STEPS of
+ * them (one batch of gradients each), each kept only when it brings the vertex
+ * closer.  The steps stay MESH_PROJECT_MARGIN of a cell inside the cell's faces:
+ * projected to the faces, vertices of neighbouring cells folded quads over each other
+ * (tests/models/segment_cone.hf at -g 32, examples/twist.hf at -g 128). */
+#define MESH_PROJECT_TOL 0.1
+#define MESH_PROJECT_STEPS 4
+#define MESH_PROJECT_MARGIN 0.05
 
 /* ---- cell topology table (the layout is in mesh_internal.h) ----------------------- */
 
@@ -276,6 +286,12 @@ struct mwork {
     double vf[MESH_BLOCK_VMAX], vgx[MESH_BLOCK_VMAX], vgy[MESH_BLOCK_VMAX],
         vgz[MESH_BLOCK_VMAX];
     uint8_t vrank[MESH_BLOCK_VMAX];
+    uint16_t vcell[MESH_BLOCK_VMAX]; /* the cell of each cell vertex */
+    /* projection batch: vertex, candidate position, its value and gradient */
+    int32_t jid[MESH_BLOCK_VMAX];
+    double jx[MESH_BLOCK_VMAX], jy[MESH_BLOCK_VMAX], jz[MESH_BLOCK_VMAX];
+    double jf[MESH_BLOCK_VMAX], jgx[MESH_BLOCK_VMAX], jgy[MESH_BLOCK_VMAX],
+        jgz[MESH_BLOCK_VMAX];
     /* face candidates: keys and their two vertices (position, mean crossing normal) */
     uint16_t fkey[3 * MESH_BLOCK_CELLS];
     double sx[6 * MESH_BLOCK_CELLS], sy[6 * MESH_BLOCK_CELLS], sz[6 * MESH_BLOCK_CELLS];
@@ -736,6 +752,7 @@ static void component_vertex(block_ctx *c, int cs, int cyc, const int L[3],
     }
     size_t nv = c->nv++;
     W->vrank[nv] = (uint8_t)rank;
+    W->vcell[nv] = (uint16_t)mesh_cell_index(L[0], L[1], L[2]);
     W->vx[nv] = x[0];
     W->vy[nv] = x[1];
     W->vz[nv] = x[2];
@@ -837,6 +854,104 @@ static void store_vertex(block_ctx *c, size_t v)
     memcpy(&B->vnrm[3 * v], n, sizeof n);
 }
 
+/* The box of cell vertex v's cell, shrunk by margin (a fraction of the cell); 0 when
+ * the vertex is not to be projected: its cell is in the padding layer (its vertices
+ * may lie on a box cap, off the surface), has several components, or has a corner
+ * exactly on the level. */
+static int vertex_cell_box(const block_ctx *c, size_t v, double margin, double lo[3],
+                           double hi[3])
+{
+    int cell = c->W->vcell[v];
+    if (c->M->table.ncycles[c->B->cs[cell]] > 1) return 0;
+    const int L[3] = { cell % MESH_BLOCK, (cell / MESH_BLOCK) % MESH_BLOCK,
+                       cell / (MESH_BLOCK * MESH_BLOCK) };
+    /* a corner exactly on the level: a sheet along the cell's faces, shared with the
+     * neighbours, which projection would fold over them */
+    for (int k = 0; k < 8; k++)
+        if (c->W->cf[corner_index(L[0] + (k & 1), L[1] + ((k >> 1) & 1), L[2] + (k >> 2))] == c->iso)
+            return 0;
+    for (int q = 0; q < 3; q++) {
+        long C = c->base[q] + L[q];
+        if (C == 0 || C + 1 >= c->M->G[q]) return 0;
+        double a = corner_coord(c->M, q, C), b = corner_coord(c->M, q, C + 1);
+        double s = margin * (b - a);
+        lo[q] = a + s;
+        hi[q] = b - s;
+    }
+    return 1;
+}
+
+/* |f - iso| / |grad f| of a point in cells (the grid scaled to unit cubes, as
+ * mesh_surface_distance measures); NaN when the gradient says nothing. */
+static double surface_distance(const mesher *M, double f, double gx, double gy, double gz)
+{
+    gx *= M->h[0];
+    gy *= M->h[1];
+    gz *= M->h[2];
+    double gl = sqrt(gx * gx + gy * gy + gz * gz);
+    return gl > 0 && isfinite(gl) ? fabs(f) / gl : NAN;
+}
+
+/* The cell vertices farther than MESH_PROJECT_TOL cells from the surface (the QEF's
+ * solution off a curved sheet, or the mass point where the solution left the cell)
+ * go to the surface by Newton steps x - (f - iso) grad f / |grad f|^2, clamped to
+ * their cell less MESH_PROJECT_MARGIN, each kept only when it brings the vertex
+ * closer and reaches a sheet facing the way of the component's crossings.  Sharp
+ * features stay: a corner or edge solution of the QEF is on the surface already. */
+static int project_vertices(block_ctx *c)
+{
+    mwork *W = c->W;
+    const mesher *M = c->M;
+    double tol = MESH_PROJECT_TOL;
+    int n = 0;
+    if (M->o->no_projection) return 0;
+    for (size_t v = 0; v < c->nv; v++) {
+        double d = surface_distance(M, W->vf[v] - c->iso, W->vgx[v], W->vgy[v], W->vgz[v]);
+        if (d > tol) W->jid[n++] = (int32_t)v;
+    }
+    for (int step = 0; step < MESH_PROJECT_STEPS && n > 0; step++) {
+        int m = 0;
+        for (int q = 0; q < n; q++) {
+            size_t v = (size_t)W->jid[q];
+            double lo[3], hi[3];
+            if (!vertex_cell_box(c, v, MESH_PROJECT_MARGIN, lo, hi)) continue;
+            double g[3] = { W->vgx[v], W->vgy[v], W->vgz[v] };
+            double t = (W->vf[v] - c->iso) / vec3_dot(g, g);
+            double x[3] = { W->vx[v] - t * g[0], W->vy[v] - t * g[1], W->vz[v] - t * g[2] };
+            for (int k = 0; k < 3; k++) x[k] = fmin(fmax(x[k], lo[k]), hi[k]);
+            W->jid[m] = (int32_t)v;
+            W->jx[m] = x[0];
+            W->jy[m] = x[1];
+            W->jz[m] = x[2];
+            m++;
+        }
+        if (m == 0) break;
+        if (c->f->grad(c->f->ctx, c->ts, (size_t)m, W->jx, W->jy, W->jz, W->jf, W->jgx, W->jgy,
+                       W->jgz) != 0)
+            return FREP_EINPUT;
+        W->grad_points += (size_t)m;
+        n = 0;
+        for (int q = 0; q < m; q++) {
+            size_t v = (size_t)W->jid[q];
+            double d0 = surface_distance(M, W->vf[v] - c->iso, W->vgx[v], W->vgy[v], W->vgz[v]);
+            double d1 = surface_distance(M, W->jf[q] - c->iso, W->jgx[q], W->jgy[q], W->jgz[q]);
+            /* the surface reached must face the way of the component's crossings (not
+             * another sheet in the cell, as of a part a hair's breadth away) */
+            double fd = -(W->jgx[q] * W->fnx[v] + W->jgy[q] * W->fny[v] + W->jgz[q] * W->fnz[v]);
+            if (!(d1 < d0) || !(fd > 0)) continue;
+            W->vx[v] = W->jx[q];
+            W->vy[v] = W->jy[q];
+            W->vz[v] = W->jz[q];
+            W->vf[v] = W->jf[q];
+            W->vgx[v] = W->jgx[q];
+            W->vgy[v] = W->jgy[q];
+            W->vgz[v] = W->jgz[q];
+            if (d1 > tol) W->jid[n++] = (int32_t)v;
+        }
+    }
+    return 0;
+}
+
 /* 5. Every vertex's value and gradient, in one batch, and the block's vertex arrays. */
 static int block_vertices(block_ctx *c)
 {
@@ -854,6 +969,7 @@ static int block_vertices(block_ctx *c)
     if (c->f->grad(c->f->ctx, c->ts, nall, W->vx, W->vy, W->vz, W->vf, W->vgx, W->vgy, W->vgz) != 0)
         return FREP_EINPUT;
     W->grad_points += nall;
+    if ((rc = project_vertices(c)) != 0) return rc;
     for (size_t v = 0; v < nall; v++) store_vertex(c, v);
     return 0;
 }

@@ -71,6 +71,9 @@ typedef struct mesh_options {
     /* Ctrl-C (cancel.h; may be NULL): polled per octree node and per block; the run
      * then fails with FREP_ECANCEL (a partial mesh is no result). */
     volatile sig_atomic_t *interrupt;
+    /* 1: leave the vertices where the QEF put them, without projecting those farther
+     * than 0.1 cell onto the surface (the sampler projects its own points). */
+    int no_projection;
 } mesh_options;
 
 void mesh_options_init(mesh_options *o);   /* box [-10,10]^3, grid 30, iso 0 */
@@ -106,8 +109,10 @@ int mesh_polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *out,
  * vertex on the surface's tangent planes, so only a misplaced vertex is this far. */
 #define MESH_SURFACE_TOL 0.1
 
-/* The vertices' distances |f - iso| / |grad f| from the surface, in cells (the
- * smallest side of a grid cell of o's box and grid). */
+/* The vertices' distances from the surface, in cells (o's box and grid scaled so that
+ * a cell is a unit cube): |f - iso| / |grad f|, or where that exceeds the
+ * tolerance, the smaller radius at which a search around the vertex reaches the other
+ * side of the level (mesh/distance.c). */
 typedef struct mesh_distance {
     double max_dist;         /* the largest distance */
     size_t worst;            /* a vertex that far */

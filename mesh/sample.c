@@ -387,6 +387,8 @@ static int project(const mesh_field *f, const mesh_options *mo, frep_cloud *c, s
 static mesh_options sample_mesh_options(const sample_options *o)
 {
     mesh_options mo = o->mesh;
+    /* the points are projected onto the surface: the mesh's vertices need not be */
+    mo.no_projection = 1;
     if (mo.grid <= 0) {
         double g = sqrt((double)o->n / SAMPLE_POINTS_PER_GRID2);
         mo.grid = g < SAMPLE_GRID_MIN ? SAMPLE_GRID_MIN : (g > SAMPLE_GRID_MAX ? SAMPLE_GRID_MAX : (int)g);

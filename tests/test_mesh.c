@@ -481,6 +481,26 @@ static void test_mesh_shapes(void)
             if ((p[0] * n[0] + p[1] * n[1] + p[2] * n[2]) / r < 0.99) badn++;
         }
         ok(badn == 0, "sphere: vertex normals are the outward analytic normals (%zu off)", badn);
+        /* the distance check: the mesh's vertices within 0.1 cell; a vertex pushed 0.3
+         * cell out along its radius is found, at a distance between 0.25 and 0.35 cell
+         * (the first-order estimate of this field, |r^2 - 1| / 2r, and the search ladder) */
+        mesh_field f = make_field(&t, 1);
+        mesh_options o;
+        mesh_options_init(&o);
+        memcpy(o.box, box, sizeof o.box);
+        o.grid = 48;
+        mesh_distance md;
+        frep_error err;
+        frep_error_init(&err);
+        int rc = mesh_surface_distance(&f, &o, &m, MESH_SURFACE_TOL, &md, &err);
+        ok(rc == 0 && md.far == 0 && md.max_dist < MESH_SURFACE_TOL,
+           "sphere: no vertex farther than %g cell (largest %.3g)", MESH_SURFACE_TOL, md.max_dist);
+        double *p = &m.v[0], r = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+        for (int k = 0; k < 3; k++) p[k] *= (1 + 0.3 * cell) / r;
+        rc = mesh_surface_distance(&f, &o, &m, MESH_SURFACE_TOL, &md, &err);
+        ok(rc == 0 && md.far == 1 && md.worst == 0 && md.max_dist > 0.25 && md.max_dist < 0.35,
+           "sphere: the vertex moved 0.3 cell out is the one far vertex (%zu, at %.3g cell)",
+           md.far, md.max_dist);
         mesh_free(&m);
     } else {
         ok(0, "sphere meshed");
