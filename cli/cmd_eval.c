@@ -159,10 +159,10 @@ done:
     return status;
 }
 
-/* Grid mode: planes are evaluated PRUNE_TILE at a time, tile by tile with a pruned
- * program per tile (runtime/prune.c), each block summarized as soon as it is computed
- * (no buffer of values), the partial sums added in tile order, so every figure but the
- * time is the same with or without pruning and at any thread count. */
+/* Grid mode: the grid is evaluated in slabs of PRUNE_TILE planes, tile by tile with a
+ * pruned program per tile (runtime/prune.c), each block summarized as soon as it is
+ * computed (no buffer of values), the partial sums added in tile order, so every figure
+ * but the time is the same with or without pruning and at any thread count. */
 static int eval_grid(const frep_program *p, long N, const double box[6], int nthreads,
                      int prune, const char *src, size_t srclen)
 {
@@ -170,25 +170,12 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
     prune_grid_stats_init(&st);
     double insns = 0;
     frep_runtime_error all = { 0 };
-    double t0 = frep_now_seconds(), eval_time = 0;
-    for (long k0 = 0; k0 < N; k0 += PRUNE_TILE) {
-        long nk = N - k0 < PRUNE_TILE ? N - k0 : PRUNE_TILE;
-        frep_runtime_error e;
-        double t1 = frep_now_seconds();
-        if (prune_eval_grid_summary(p, N, box, k0, nk, prune, nthreads, NULL, &st, &e,
-                                    &insns) != 0) {
-            fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
-            return CLI_FAIL;
-        }
-        eval_time += frep_now_seconds() - t1;
-        if (e.count && (all.count == 0 || e.pc < all.pc)) {
-            uint64_t c = all.count;
-            all = e;
-            all.count += c;
-        } else {
-            all.count += e.count;
-        }
+    double t0 = frep_now_seconds();
+    if (prune_eval_grid_whole(p, N, box, prune, nthreads, &st, &all, &insns) != 0) {
+        fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
+        return CLI_FAIL;
     }
+    double eval_time = frep_now_seconds() - t0;
     uint64_t inside = st.inside, nans = st.nans;
     double vmin = st.min, vmax = st.max, sum = st.sum;
     double total_time = frep_now_seconds() - t0;
