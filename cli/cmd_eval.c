@@ -171,7 +171,8 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
     double insns = 0;
     frep_runtime_error all = { 0 };
     double t0 = frep_now_seconds();
-    if (prune_eval_grid_whole(p, N, box, prune, nthreads, &st, &all, &insns) != 0) {
+    int threads = 1;
+    if (prune_eval_grid_whole(p, N, box, prune, nthreads, &st, &all, &insns, &threads) != 0) {
         fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
         return CLI_FAIL;
     }
@@ -181,7 +182,6 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
     double total_time = frep_now_seconds() - t0;
     double npts = (double)N * (double)N * (double)N;
     double vol = (box[3] - box[0]) * (box[4] - box[1]) * (box[5] - box[2]);
-    int threads = frep_threads(nthreads);
     printf("grid      %ld^3 = %.0f points over [%g,%g]x[%g,%g]x[%g,%g]\n", N, npts, box[0],
            box[3], box[1], box[4], box[2], box[5]);
     printf("inside    %llu (%.6f of the points, f >= 0)\n", (unsigned long long)inside,

@@ -815,15 +815,18 @@ static int grid_threads(const grid_job *g, long u0, long u1, int nthreads)
  * before the region's single closing barrier.  The instructions x points evaluated
  * are added to *cost.  Returns -1 if a worker could not be set up or a tile failed
  * (out of memory). */
-static int grid_run(const grid_job *g, long u0, long u1, int nthreads, double *cost)
+static int grid_run(const grid_job *g, long u0, long u1, int nthreads, double *cost,
+                    int *used)
 {
     int failed = 0;
     double insns = 0;
 #ifdef _OPENMP
     int nt = grid_threads(g, u0, u1, nthreads);
+    if (nt > *used) *used = nt;
 #pragma omp parallel num_threads(nt) reduction(+ : insns) if (nt > 1)
 #else
     (void)nthreads;
+    *used = 1;
 #endif
     {
         grid_worker w;
@@ -871,8 +874,10 @@ static void grid_add_stats(prune_grid_stats *stats, const prune_grid_stats *tst,
  * thread count or the runs' size. */
 static int grid_eval(const frep_program *p, long n, const double box[6], long k0, long k1,
                      long nk, int prune, int nthreads, int sized, double *f,
-                     prune_grid_stats *stats, frep_runtime_error *err, double *insns)
+                     prune_grid_stats *stats, frep_runtime_error *err, double *insns,
+                     int *threads_used)
 {
+    int used = 1;
     grid_job g;
     memset(&g, 0, sizeof g);
     g.sized = sized;
@@ -907,7 +912,7 @@ static int grid_eval(const frep_program *p, long n, const double box[6], long k0
         long s1 = s0 + run_slabs < nslabs ? s0 + run_slabs : nslabs;
         long ntiles = (s1 - s0) * slab_tiles;
         g.tbase = s0 * slab_tiles;
-        rc = grid_run(&g, s0 * slab_supers, s1 * slab_supers, nthreads, &cost);
+        rc = grid_run(&g, s0 * slab_supers, s1 * slab_supers, nthreads, &cost, &used);
         for (long t = 0; t < ntiles; t++) vm_err_merge(&all, &g.terr[t]);
         if (stats && rc == 0) grid_add_stats(stats, g.tst, ntiles);
     }
@@ -918,6 +923,7 @@ static int grid_eval(const frep_program *p, long n, const double box[6], long k0
     if (rc < 0) return -1;
     if (err) vm_err_to_public(&all, err);
     if (insns) *insns += cost;
+    if (threads_used) *threads_used = used;
     return 0;
 }
 
@@ -925,13 +931,14 @@ int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], 
                             long nk, int prune, int nthreads, double *f,
                             prune_grid_stats *stats, frep_runtime_error *err, double *insns)
 {
-    return grid_eval(p, n, box, k0, k0 + nk, nk, prune, nthreads, 0, f, stats, err, insns);
+    return grid_eval(p, n, box, k0, k0 + nk, nk, prune, nthreads, 0, f, stats, err, insns,
+                     NULL);
 }
 
 int prune_eval_grid_whole(const frep_program *p, long n, const double box[6], int prune,
                           int nthreads, prune_grid_stats *stats, frep_runtime_error *err,
-                          double *insns)
+                          double *insns, int *threads_used)
 {
     return grid_eval(p, n, box, 0, n, PRUNE_TILE, prune, nthreads, 1, NULL, stats, err,
-                     insns);
+                     insns, threads_used);
 }

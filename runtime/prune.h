@@ -105,9 +105,9 @@ int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], 
  * *stats, *err merged the same way, but in few parallel regions (PRUNE_RUN_TILES), each
  * a work queue of super-tiles, and with one thread when the job is small
  * (frep_threads_for): so the threads neither wait at barriers between slabs nor cost
- * more than they gain. */
+ * more than they gain.  *threads_used (may be NULL) receives the threads it ran on. */
 int prune_eval_grid_whole(const frep_program *p, long n, const double box[6], int prune,
                           int nthreads, prune_grid_stats *stats, frep_runtime_error *err,
-                          double *insns);
+                          double *insns, int *threads_used);
 
 #endif

@@ -21,12 +21,12 @@ static inline int frep_threads(int requested)
 }
 
 /* Smallest job given more than one thread, in node-evaluations (instructions x
- * points): 1e6 take ~0.25 ms on one core at 4e9 node-evaluations/s, while starting a
- * parallel region and waking its threads costs 10-50 us, so a smaller job cannot
- * gain much and on a busy machine (threads descheduled, waiting at the region's end)
- * can lose (tests/test_vm.c checks the rule; doc/benchmarks.md, "Threads", has the
- * measurements). */
-#define FREP_PAR_MIN_WORK 1e6
+ * points): 4e6 take ~1 ms on one core at 4e9 node-evaluations/s, while starting a
+ * parallel region and waking its threads costs 10-100 us (creating them, the first
+ * time, more), so a smaller job cannot gain much, and on a busy machine, where the
+ * region's end waits for a thread that has no core yet, it loses (tests/test_vm.c
+ * checks the rule; doc/benchmarks.md, "Threads that never make a job slower"). */
+#define FREP_PAR_MIN_WORK 4e6
 
 /* The threads for a job of `work` node-evaluations split into `units` independent
  * pieces, asking for `requested` (<= 0: OpenMP's default): 1 below FREP_PAR_MIN_WORK,

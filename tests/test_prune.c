@@ -12,6 +12,7 @@
 #include "program.h"
 #include "prune.h"
 #include "tap.h"
+#include "threads.h"
 #include "vm.h"
 
 static const frep_srcpos nopos = {0, 0, 0};
@@ -362,8 +363,9 @@ static void test_hand_case(void)
 /* prune_eval_grid_whole (frep eval --grid: few parallel regions, threads by job size)
  * gives exactly the figures of the slab-by-slab summary on one thread, at any thread
  * count, with and without pruning.  GW^3 points make every job big enough for two
- * threads (FREP_PAR_MIN_WORK) and span several slabs and super-tiles. */
-enum { GW = 75 };
+ * threads (FREP_PAR_MIN_WORK: random programs have more than 6 instructions) and
+ * span several slabs and super-tiles. */
+enum { GW = 81 }; /* odd, over [-1, 1] in x for the risky programs: x hits -0.5, 0, 0.5 */
 
 static int stats_equal(const prune_grid_stats *a, const prune_grid_stats *b)
 {
@@ -380,13 +382,14 @@ static int errors_equal(const frep_runtime_error *a, const frep_runtime_error *b
 
 static void test_whole_grid(void)
 {
-    int nprog = 8, same_all = 1, with_errors = 0;
+    int nprog = 8, same_all = 1, with_errors = 0, big = 1;
     for (int t = 0; t < nprog; t++) {
         frep_program *p = random_program(3 + t % 4, t % 2 == 1);
         if (!p) {
             ok(0, "random program %d assembles", t);
             continue;
         }
+        big &= (double)p->ncode * GW * GW * GW >= FREP_PAR_MIN_WORK;
         double h = t % 2 ? 1 : 1.2;
         double box[6] = { -h, -h, -0.7 * h, h, h, 0.7 * h };
         for (int prune = 0; prune < 2; prune++) {
@@ -410,7 +413,7 @@ static void test_whole_grid(void)
             static const int threads[3] = { 1, 2, 0 };
             for (int k = 0; k < 3; k++) {
                 prune_grid_stats_init(&sw[k]);
-                r |= prune_eval_grid_whole(p, GW, box, prune, threads[k], &sw[k], &ew[k], &cw[k]);
+                r |= prune_eval_grid_whole(p, GW, box, prune, threads[k], &sw[k], &ew[k], &cw[k], NULL);
                 if (!stats_equal(&s1, &sw[k]) || !errors_equal(&e1, &ew[k]) || cw[k] != c1) {
                     diag("program %d, prune %d, %d threads: whole grid %llu %.17g, slabs "
                          "%llu %.17g", t, prune, threads[k], (unsigned long long)sw[k].inside,
@@ -426,6 +429,7 @@ static void test_whole_grid(void)
     ok(same_all, "whole-grid summaries and errors equal the slab-by-slab ones at 1, 2 and "
                  "the default threads (%d programs, %d^3 points)", nprog, GW);
     ok(with_errors > 0, "some of them raise domain errors (%d runs)", with_errors);
+    ok(big, "each of them is big enough for two threads (FREP_PAR_MIN_WORK)");
 }
 
 int main(void)

@@ -846,8 +846,9 @@ static void test_thread_sizing(void)
 
 static void test_threads(void)
 {
-    /* big enough for 2 threads (FREP_PAR_MIN_WORK) with the 5-instruction program */
-    enum { N = 200003 };
+    /* big enough for 2 threads (FREP_PAR_MIN_WORK) with both programs (19 and 20
+     * instructions) */
+    enum { N = 250007 };
     static double x[N], y[N], z[N], f1[N], f2[N], g1[3 * N], g2[3 * N];
     frep_program *p = mixed_program();
     frep_runtime_error e1, e2;
@@ -877,7 +878,13 @@ static void test_threads(void)
     emit(p, FREP_OP_X, 1, 0, 0);
     emit(p, FREP_OP_SQRT, 0, 0, 0);
     emit(p, FREP_OP_ADD, 0, 0, 0);
+    for (i = 0; i < 5; i++) { /* + z^2 five times: 20 instructions, no more errors */
+        emit(p, FREP_OP_X, 2, 0, 0);
+        emit(p, FREP_OP_SQUARE, 0, 0, 0);
+        emit(p, FREP_OP_ADD, 0, 0, 0);
+    }
     p = finish(p);
+    ok(p->ncode * (double)N >= FREP_PAR_MIN_WORK, "the error program is big enough for threads");
     frep_eval_par(p, N, x, y, z, NULL, f1, 1, &e1);
     frep_eval_par(p, N, x, y, z, NULL, f2, 2, &e2);
     ok(e1.count == e2.count && e1.pc == e2.pc && same(e1.x, e2.x) && same(e1.y, e2.y) &&
