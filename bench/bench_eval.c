@@ -145,6 +145,49 @@ static double time_eval(const frep_program *p, pts *q, int mode, int runs, int n
     return t[runs / 2];
 }
 
+/* ---- the machine's store-bound ceiling ----------------------------------------------
+ * The VM writes every instruction's 256 results to an L1-resident lane buffer, so a
+ * core cannot evaluate more nodes per second than it can store doubles: one vector
+ * store per cycle.  The ceiling is measured, not assumed: a "program" of additions
+ * over CEIL_BUFS rotating 256-lane buffers (the VM's operator loops without the
+ * dispatch), compiled for AVX2 and the baseline as the VM is (no FMA), timed in CPU
+ * time; node-evaluations/s = additions x lanes / s. */
+#define CEIL_BUFS 8
+#define CEIL_LANES 256
+#define CEIL_STEPS 400000 /* additions of 256 lanes per run: ~0.01-0.02 s */
+
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define BENCH_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define BENCH_CLONES
+#endif
+
+static void ceil_add(double *restrict r, const double *restrict a, const double *restrict b)
+    BENCH_CLONES;
+static void ceil_add(double *restrict r, const double *restrict a, const double *restrict b)
+{
+    for (int i = 0; i < CEIL_LANES; i++) r[i] = a[i] + b[i];
+}
+
+/* Node-evaluations per second of the store-bound kernel, median of `runs`. */
+static double store_ceiling(int runs)
+{
+    static double buf[CEIL_BUFS][CEIL_LANES];
+    double t[BENCH_MAX_RUNS];
+    for (int k = 0; k < CEIL_BUFS; k++)
+        for (int i = 0; i < CEIL_LANES; i++) buf[k][i] = 1e-9 * (k + i);
+    for (int r = 0; r < runs; r++) {
+        double t0 = clock_s(CLOCK_PROCESS_CPUTIME_ID);
+        for (long s = 0; s < CEIL_STEPS; s++)
+            ceil_add(buf[(s + 2) % CEIL_BUFS], buf[s % CEIL_BUFS], buf[(s + 1) % CEIL_BUFS]);
+        t[r] = clock_s(CLOCK_PROCESS_CPUTIME_ID) - t0;
+    }
+    volatile double sink = buf[0][0];
+    (void)sink;
+    qsort(t, (size_t)runs, sizeof *t, cmp_double);
+    return (double)CEIL_STEPS * CEIL_LANES / t[runs / 2];
+}
+
 int main(int argc, char **argv)
 {
     const int sizes[2] = {90, 720}; /* primitives: ~1,000 and ~8,000 nodes */
@@ -193,8 +236,11 @@ int main(int argc, char **argv)
     }
     printf("# 1 core: serial frep_eval*, CPU time; all: frep_eval*_par on %d threads, wall time\n",
            ncores);
-    printf("%-10s %6s %-10s %14s %14s %14s\n", "model", "nodes", "mode", "1 core Mnode/s",
-           "all Mnode/s", "1 core Mpts/s");
+    double ceiling = store_ceiling(runs);
+    printf("# store-bound ceiling (one 256-lane double store per node): %.0f Mnode/s per core,"
+           " %.0f on %d cores\n", ceiling * 1e-6, ceiling * 1e-6 * ncores, ncores);
+    printf("%-10s %6s %-10s %14s %14s %14s %9s\n", "model", "nodes", "mode", "1 core Mnode/s",
+           "all Mnode/s", "1 core Mpts/s", "ceiling");
     for (m = 0; m < 2; m++) {
         char *src = gen_model(sizes[m]);
         char name[32];
@@ -212,12 +258,12 @@ int main(int argc, char **argv)
         tvn = time_eval(p, &q, 2, runs, ncores);
         tg1 = time_eval(p, &q, 1, runs, 1);
         tgn = time_eval(p, &q, 3, runs, ncores);
-        printf("%-10s %6.0f %-10s %14.0f %14.0f %14.2f\n", name, nodes, "values",
+        printf("%-10s %6.0f %-10s %14.0f %14.0f %14.2f %8.0f%%\n", name, nodes, "values",
                nodes * (double)q.n / tv1 * 1e-6, nodes * (double)q.n / tvn * 1e-6,
-               (double)q.n / tv1 * 1e-6);
-        printf("%-10s %6.0f %-10s %14.0f %14.0f %14.2f\n", name, nodes, "value+grad",
+               (double)q.n / tv1 * 1e-6, 100 * nodes * (double)q.n / tv1 / ceiling);
+        printf("%-10s %6.0f %-10s %14.0f %14.0f %14.2f %8.0f%%\n", name, nodes, "value+grad",
                nodes * (double)q.n / tg1 * 1e-6, nodes * (double)q.n / tgn * 1e-6,
-               (double)q.n / tg1 * 1e-6);
+               (double)q.n / tg1 * 1e-6, 100 * nodes * (double)q.n / tg1 / ceiling);
         fflush(stdout);
         frep_program_free(p);
     }

@@ -2,7 +2,8 @@
 # bench_grid.sh - grid evaluation throughput of frep eval --grid (make bench-eval-grid),
 # the work of the libfive / HyperFun comparison in issue 2: a 193^3 grid over
 # [-1.6,1.6]^3 on bench/eval_{sphere,csg,gear,gear_minmax}.hf, 1 and 2 threads, with
-# and without interval tape pruning.  Each line: medians of 5 runs of the whole
+# and without interval tape pruning, then a small grid (49^3) at 1 and 2 threads: two
+# threads must not cost more than one on it (FREP_PAR_MIN_WORK).  Each line: medians of 5 runs of the whole
 # command's CPU time (user + system, /usr/bin/time) and wall time, and of frep's own
 # evaluation time; points/s from the CPU time, which a shared machine inflates least.
 # Usage: bench_grid.sh FREP [SRCDIR]
@@ -17,16 +18,17 @@ echo "# $(nproc 2>/dev/null || echo '?') cores, load average: $(cut -d' ' -f1-3 
 # median of the numbers on standard input
 median() { sort -n | awk '{ v[NR] = $1 } END { if (NR % 2) print v[(NR + 1) / 2]; else print (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
 
-# run MODEL THREADS [--no-prune]
+# run MODEL THREADS [--no-prune]   (grid N points per axis, 193 unless set)
 run() {
   model=$1; t=$2; shift 2
+  n=${GRID_N:-$N}
   : > "$OUT"
   for i in $(seq $RUNS); do
     if [ -x /usr/bin/time ]; then
-      /usr/bin/time -f "%e %U %S" -o "$OUT.t" "$FREP" eval "$model" --grid $N -b 1.6 -t "$t" "$@" > "$OUT.s" || return 1
+      /usr/bin/time -f "%e %U %S" -o "$OUT.t" "$FREP" eval "$model" --grid $n -b 1.6 -t "$t" "$@" > "$OUT.s" || return 1
     else
       s0=$(date +%s.%N)
-      "$FREP" eval "$model" --grid $N -b 1.6 -t "$t" "$@" > "$OUT.s" || return 1
+      "$FREP" eval "$model" --grid $n -b 1.6 -t "$t" "$@" > "$OUT.s" || return 1
       echo "$s0 $(date +%s.%N)" | awk '{ print $2 - $1, "nan", 0 }' > "$OUT.t"
     fi
     echo "$(cat "$OUT.t") $(sed -n 's/^time *\([0-9.]*\) s evaluating.*/\1/p' "$OUT.s")" >> "$OUT"
@@ -35,9 +37,9 @@ run() {
   cpu=$(awk '{ print $2 + $3 }' "$OUT" | median)
   ev=$(awk '{ print $4 }' "$OUT" | median)
   per=$(sed -n 's/^program .*, \([0-9.]*\) evaluated per point.*/\1/p' "$OUT.s")
-  printf '%-22s -t %s %-10s  cpu %6.3f s  wall %6.3f s  eval %6.3f s  %7.1f M points/s (cpu)  %6.1f insns/point\n' \
-    "$(basename "$model")" "$t" "${1:-pruned}" "$cpu" "$wall" "$ev" \
-    "$(echo "$cpu" | awk -v n=$N '{ print n * n * n / $1 * 1e-6 }')" "$per"
+  printf '%-22s %4s^3 -t %s %-10s  cpu %6.3f s  wall %6.3f s  eval %6.3f s  %7.1f M points/s (cpu)  %6.1f insns/point\n' \
+    "$(basename "$model")" "$n" "$t" "${1:-pruned}" "$cpu" "$wall" "$ev" \
+    "$(echo "$cpu" | awk -v n=$n '{ print n * n * n / $1 * 1e-6 }')" "$per"
 }
 
 for m in eval_sphere eval_csg eval_gear eval_gear_minmax; do
@@ -48,3 +50,4 @@ for m in eval_sphere eval_csg eval_gear eval_gear_minmax; do
     run "$f" "$t"
   done
 done
+for t in 1 2; do GRID_N=49 run "$SRCDIR/bench/eval_sphere.hf" "$t"; done

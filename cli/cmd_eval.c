@@ -159,10 +159,10 @@ done:
     return status;
 }
 
-/* Grid mode: planes are evaluated PRUNE_TILE at a time, tile by tile with a pruned
- * program per tile (runtime/prune.c), each block summarized as soon as it is computed
- * (no buffer of values), the partial sums added in tile order, so every figure but the
- * time is the same with or without pruning and at any thread count. */
+/* Grid mode: the grid is evaluated in slabs of PRUNE_TILE planes, tile by tile with a
+ * pruned program per tile (runtime/prune.c), each block summarized as soon as it is
+ * computed (no buffer of values), the partial sums added in tile order, so every figure
+ * but the time is the same with or without pruning and at any thread count. */
 static int eval_grid(const frep_program *p, long N, const double box[6], int nthreads,
                      int prune, const char *src, size_t srclen)
 {
@@ -170,31 +170,18 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
     prune_grid_stats_init(&st);
     double insns = 0;
     frep_runtime_error all = { 0 };
-    double t0 = frep_now_seconds(), eval_time = 0;
-    for (long k0 = 0; k0 < N; k0 += PRUNE_TILE) {
-        long nk = N - k0 < PRUNE_TILE ? N - k0 : PRUNE_TILE;
-        frep_runtime_error e;
-        double t1 = frep_now_seconds();
-        if (prune_eval_grid_summary(p, N, box, k0, nk, prune, nthreads, NULL, &st, &e,
-                                    &insns) != 0) {
-            fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
-            return CLI_FAIL;
-        }
-        eval_time += frep_now_seconds() - t1;
-        if (e.count && (all.count == 0 || e.pc < all.pc)) {
-            uint64_t c = all.count;
-            all = e;
-            all.count += c;
-        } else {
-            all.count += e.count;
-        }
+    double t0 = frep_now_seconds();
+    int threads = 1;
+    if (prune_eval_grid_whole(p, N, box, prune, nthreads, &st, &all, &insns, &threads) != 0) {
+        fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
+        return CLI_FAIL;
     }
+    double eval_time = frep_now_seconds() - t0;
     uint64_t inside = st.inside, nans = st.nans;
     double vmin = st.min, vmax = st.max, sum = st.sum;
     double total_time = frep_now_seconds() - t0;
     double npts = (double)N * (double)N * (double)N;
     double vol = (box[3] - box[0]) * (box[4] - box[1]) * (box[5] - box[2]);
-    int threads = frep_threads(nthreads);
     printf("grid      %ld^3 = %.0f points over [%g,%g]x[%g,%g]x[%g,%g]\n", N, npts, box[0],
            box[3], box[1], box[4], box[2], box[5]);
     printf("inside    %llu (%.6f of the points, f >= 0)\n", (unsigned long long)inside,

@@ -2,7 +2,9 @@
  * and frep_eval* over any number of points.
  *
  * Splits the points into blocks of FREP_BLOCK for the evaluators of runtime/vm*.c;
- * the _par variants spread the blocks over OpenMP threads, one scratch per thread.
+ * the _par variants spread the blocks over OpenMP threads, one scratch per thread, in
+ * one parallel region with no barrier inside it, and on one thread when the job is
+ * smaller than FREP_PAR_MIN_WORK (threads.h).
  * Results are per point, so they do not depend on the thread count; runtime errors
  * are merged in block order (lowest pc wins, counts add), so they do not either.
  */
@@ -189,6 +191,11 @@ static int par_blocks(const par_job *j, vm_scratch *s, size_t b0, size_t b1)
     return 0;
 }
 
+/* Blocks per work unit of a parallel evaluation (4096 points): the threads take units
+ * as they finish them, so a thread slowed down (descheduled on a busy machine) delays
+ * the job by at most one unit, not by its share of the job. */
+#define PAR_UNIT_BLOCKS 16
+
 static int par_run(const par_job *j, int nthreads, frep_runtime_error *err)
 {
     size_t nblocks = (j->n + FREP_BLOCK - 1) / FREP_BLOCK;
@@ -200,29 +207,27 @@ static int par_run(const par_job *j, int nthreads, frep_runtime_error *err)
     if (nblocks == 0) return 0;
 #ifdef _OPENMP
     {
-        int nt = frep_threads(nthreads), t;
-        vm_errstate *errs;
-        if (nt < 1) nt = 1;
-        if ((size_t)nt > nblocks) nt = (int)nblocks;
-        errs = frep_calloc((size_t)nt, sizeof *errs);
+        size_t nunits = (nblocks + PAR_UNIT_BLOCKS - 1) / PAR_UNIT_BLOCKS, u;
+        int nt = frep_threads_for(nthreads, (double)j->n * (double)j->p->ncode, nunits);
+        /* each unit's errors apart, merged in unit order: the serial block order */
+        vm_errstate *errs = frep_calloc(nunits, sizeof *errs);
         if (!errs) return -1;
-#pragma omp parallel num_threads(nt) reduction(| : failed)
+#pragma omp parallel num_threads(nt) reduction(| : failed) if (nt > 1)
         {
-            int tid = frep_thread_num(), nteam = frep_team_size();
-            /* Contiguous ranges of blocks in thread order, like schedule(static):
-             * merging the threads' errors in order equals the serial block order. */
-            size_t b0 = nblocks * (size_t)tid / (size_t)nteam;
-            size_t b1 = nblocks * (size_t)(tid + 1) / (size_t)nteam;
             vm_scratch *s = vm_scratch_new(j->p);
-            if (!s) {
-                failed = 1;
-            } else {
+            if (!s) failed = 1;
+#pragma omp for schedule(dynamic, 1) nowait
+            for (size_t k = 0; k < nunits; k++) {
+                size_t b0 = k * PAR_UNIT_BLOCKS;
+                size_t b1 = b0 + PAR_UNIT_BLOCKS < nblocks ? b0 + PAR_UNIT_BLOCKS : nblocks;
+                if (!s) continue;
+                memset(&s->total, 0, sizeof s->total);
                 if (par_blocks(j, s, b0, b1) < 0) failed = 1;
-                errs[tid] = s->total;
-                vm_scratch_free(s);
+                errs[k] = s->total;
             }
+            vm_scratch_free(s);
         }
-        for (t = 0; t < nt; t++) vm_err_merge(&total, &errs[t]);
+        for (u = 0; u < nunits; u++) vm_err_merge(&total, &errs[u]);
         frep_free(errs);
     }
 #else

@@ -562,7 +562,7 @@ typedef struct grid_worker {
     prune_state *sp;         /* its super-tile's */
     double *x, *y, *z, *f;   /* one block of points */
     double *zp;              /* z of each plane of the slab over a block (see below) */
-    int zp_ready;
+    long zp_k0;              /* first plane zp holds; -1: none */
     uint32_t *idx;           /* their offsets in the caller's f */
 } grid_worker;
 
@@ -582,6 +582,7 @@ static void worker_free(grid_worker *w)
 static int worker_init(grid_worker *w, const frep_program *p, const prune_plan *pl)
 {
     memset(w, 0, sizeof *w);
+    w->zp_k0 = -1;
     w->s = vm_scratch_new(p);
     w->st = pl ? prune_state_new(pl) : NULL;
     w->sp = pl ? prune_state_new(pl) : NULL;
@@ -602,10 +603,17 @@ static int worker_init(grid_worker *w, const frep_program *p, const prune_plan *
 typedef struct grid_job {
     const frep_program *p;
     const prune_plan *pl;
-    long n, k0, nk, ntx;
+    /* planes [k0, k1) in slabs of nk planes from k0 (the last one may be thinner); each
+     * slab is cut into ntx x ntx tiles, in super-tiles of PRUNE_SUPER x PRUNE_SUPER */
+    long n, k0, k1, nk, ntx, nsx;
     const double *c[3];      /* the grid's coordinates per axis: frep_grid_coord */
-    double *f;               /* the values, or NULL */
-    prune_grid_stats *tst;   /* per-tile summaries, or NULL */
+    double *f;               /* the values ((k - k0) * n + j) * n + i, or NULL */
+    /* Tiles are numbered slab by slab, row by row: t = (slab * ntx + ty) * ntx + tx.
+     * The per-tile results of the current run of tiles [tbase, tbase + count). */
+    long tbase;
+    vm_errstate *terr;       /* terr[t - tbase] */
+    prune_grid_stats *tst;   /* tst[t - tbase], or NULL: no summary */
+    int sized;               /* threads chosen by the job's size (grid_threads) */
 } grid_job;
 
 /* Evaluate nb points gathered in w, scatter rows back to f (row r of w's block has
@@ -632,16 +640,23 @@ typedef struct tile_span {
     long i0, i1, j0, j1, k0, k1;
 } tile_span;
 
+/* The planes [k0, k1) of slab s. */
+static void slab_planes(const grid_job *g, long s, long *k0, long *k1)
+{
+    *k0 = g->k0 + s * g->nk;
+    *k1 = *k0 + g->nk < g->k1 ? *k0 + g->nk : g->k1;
+}
+
 static tile_span tile_span_of(const grid_job *g, long t)
 {
     tile_span ts;
-    long tx = t % g->ntx, ty = t / g->ntx;
+    long per = g->ntx * g->ntx, r = t % per;
+    long tx = r % g->ntx, ty = r / g->ntx;
     ts.i0 = tx * PRUNE_TILE;
     ts.j0 = ty * PRUNE_TILE;
     ts.i1 = ts.i0 + PRUNE_TILE < g->n ? ts.i0 + PRUNE_TILE : g->n;
     ts.j1 = ts.j0 + PRUNE_TILE < g->n ? ts.j0 + PRUNE_TILE : g->n;
-    ts.k0 = g->k0;
-    ts.k1 = g->k0 + g->nk;
+    slab_planes(g, t / per, &ts.k0, &ts.k1);
     return ts;
 }
 
@@ -649,7 +664,7 @@ static tile_span tile_span_of(const grid_job *g, long t)
 static uint32_t tile_row_offset(const grid_job *g, const tile_span *ts, long j, long k)
 {
     size_t nn = (size_t)g->n;
-    return (uint32_t)(((size_t)(k - ts->k0) * nn + (size_t)j) * nn + (size_t)ts->i0);
+    return (uint32_t)(((size_t)(k - g->k0) * nn + (size_t)j) * nn + (size_t)ts->i0);
 }
 
 /* A whole tile: each block is one plane of it, so y is the same in every block (written
@@ -661,11 +676,11 @@ static int grid_tile_planes(const grid_job *g, grid_worker *w, const frep_progra
     size_t row = (size_t)(ts->i1 - ts->i0);
     for (long j = ts->j0; j < ts->j1; j++)
         for (size_t i = 0; i < row; i++) w->y[(size_t)(j - ts->j0) * row + i] = g->c[1][j];
-    if (!w->zp_ready) {
-        for (long k = 0; k < g->nk; k++)
+    if (w->zp_k0 != ts->k0) {
+        for (long k = ts->k0; k < ts->k1; k++)
             for (size_t i = 0; i < FREP_BLOCK; i++)
-                w->zp[(size_t)k * FREP_BLOCK + i] = g->c[2][g->k0 + k];
-        w->zp_ready = 1;
+                w->zp[(size_t)(k - ts->k0) * FREP_BLOCK + i] = g->c[2][k];
+        w->zp_k0 = ts->k0;
     }
     for (long k = ts->k0; k < ts->k1; k++) {
         if (g->f)
@@ -704,8 +719,8 @@ static int grid_tile_rows(const grid_job *g, grid_worker *w, const frep_program 
 }
 
 /* Evaluate tile t (rows of up to PRUNE_TILE points, PRUNE_TILE^2 rows); its errors
- * (original pcs) go to *err, its cost to *insns. */
-static int grid_tile(const grid_job *g, grid_worker *w, long t, vm_errstate *err, double *insns)
+ * (original pcs) and summary go to the job's per-tile arrays, its cost to *insns. */
+static int grid_tile(const grid_job *g, grid_worker *w, long t, double *insns)
 {
     tile_span ts = tile_span_of(g, t);
     const frep_program *q = g->p;
@@ -716,7 +731,7 @@ static int grid_tile(const grid_job *g, grid_worker *w, long t, vm_errstate *err
         q = prune_for_subbox(g->pl, w->st, w->sp, box, NULL, NULL);
     }
     memset(&w->s->total, 0, sizeof w->s->total);
-    prune_grid_stats *tst = g->tst ? &g->tst[t] : NULL;
+    prune_grid_stats *tst = g->tst ? &g->tst[t - g->tbase] : NULL;
     if (tst) prune_grid_stats_init(tst);
     size_t row = (size_t)(ts.i1 - ts.i0);
     /* x repeats the tile's row in every block: written once per tile */
@@ -726,31 +741,34 @@ static int grid_tile(const grid_job *g, grid_worker *w, long t, vm_errstate *err
     int rc = whole ? grid_tile_planes(g, w, q, &ts, tst, insns)
                    : grid_tile_rows(g, w, q, &ts, tst, insns);
     if (rc < 0) return -1;
+    vm_errstate *err = &g->terr[t - g->tbase];
     *err = w->s->total;
     if (err->count && g->pl) err->pc = prune_orig_pc(w->st, err->pc);
     return 0;
 }
 
-/* Evaluate super-tile u: prune for its box, then each of its tiles from there. */
-static int grid_super(const grid_job *g, grid_worker *w, long u, vm_errstate *terr,
-                      double *insns)
+/* Evaluate super-tile u (numbered slab by slab): prune for its box, then each of its
+ * tiles from there. */
+static int grid_super(const grid_job *g, grid_worker *w, long u, double *insns)
 {
-    long nsx = (g->ntx + PRUNE_SUPER - 1) / PRUNE_SUPER;
-    long sx = u % nsx, sy = u / nsx;
+    long per = g->nsx * g->nsx, slab = u / per, r = u % per;
+    long sx = r % g->nsx, sy = r / g->nsx;
     long tx0 = sx * PRUNE_SUPER, ty0 = sy * PRUNE_SUPER;
     long tx1 = tx0 + PRUNE_SUPER < g->ntx ? tx0 + PRUNE_SUPER : g->ntx;
     long ty1 = ty0 + PRUNE_SUPER < g->ntx ? ty0 + PRUNE_SUPER : g->ntx;
     if (g->pl) {
         long i1 = tx1 * PRUNE_TILE < g->n ? tx1 * PRUNE_TILE : g->n;
         long j1 = ty1 * PRUNE_TILE < g->n ? ty1 * PRUNE_TILE : g->n;
-        double box[6] = { g->c[0][tx0 * PRUNE_TILE], g->c[1][ty0 * PRUNE_TILE], g->c[2][g->k0],
-                          g->c[0][i1 - 1], g->c[1][j1 - 1], g->c[2][g->k0 + g->nk - 1] };
+        long k0, k1;
+        slab_planes(g, slab, &k0, &k1);
+        double box[6] = { g->c[0][tx0 * PRUNE_TILE], g->c[1][ty0 * PRUNE_TILE], g->c[2][k0],
+                          g->c[0][i1 - 1], g->c[1][j1 - 1], g->c[2][k1 - 1] };
         prune_for_box(g->pl, w->sp, box, NULL, NULL);
     }
     for (long ty = ty0; ty < ty1; ty++)
         for (long tx = tx0; tx < tx1; tx++) {
-            long t = ty * g->ntx + tx;
-            if (grid_tile(g, w, t, &terr[t], insns) < 0) return -1;
+            long t = (slab * g->ntx + ty) * g->ntx + tx;
+            if (grid_tile(g, w, t, insns) < 0) return -1;
         }
     return 0;
 }
@@ -777,19 +795,38 @@ static double *grid_coords(grid_job *g, const double box[6])
     return coord;
 }
 
-/* Evaluate every super-tile over the threads, each tile's errors into terr[t]; the
- * instructions x points evaluated are added to *cost.  Returns -1 if a worker could not
- * be set up or a tile failed (out of memory). */
-static int grid_run(const grid_job *g, long nsuper, int nthreads, vm_errstate *terr,
-                    double *cost)
+/* The threads for super-tiles [u0, u1) of the job: with g->sized, frep_threads_for
+ * its work, the points times the program's length (pruning only shortens it); else
+ * frep_threads(nthreads), at most one per super-tile. */
+static int grid_threads(const grid_job *g, long u0, long u1, int nthreads)
+{
+    if (!g->sized) {
+        int nt = frep_threads(nthreads);
+        return (long)nt > u1 - u0 ? (int)(u1 - u0) : nt;
+    }
+    long per = g->nsx * g->nsx;
+    double slabs = (double)(u1 - u0) / (double)per;
+    double pts = slabs * (double)g->nk * (double)g->n * (double)g->n;
+    return frep_threads_for(nthreads, pts * (double)g->p->ncode, (size_t)(u1 - u0));
+}
+
+/* Evaluate super-tiles [u0, u1) in one parallel region: the threads take super-tiles
+ * one at a time as they finish (dynamic schedule), so no thread waits for another
+ * before the region's single closing barrier.  The instructions x points evaluated
+ * are added to *cost.  Returns -1 if a worker could not be set up or a tile failed
+ * (out of memory). */
+static int grid_run(const grid_job *g, long u0, long u1, int nthreads, double *cost,
+                    int *used)
 {
     int failed = 0;
     double insns = 0;
 #ifdef _OPENMP
-    int nt = frep_threads(nthreads);
-#pragma omp parallel num_threads(nt) reduction(+ : insns)
+    int nt = grid_threads(g, u0, u1, nthreads);
+    if (nt > *used) *used = nt;
+#pragma omp parallel num_threads(nt) reduction(+ : insns) if (nt > 1)
 #else
     (void)nthreads;
+    *used = 1;
 #endif
     {
         grid_worker w;
@@ -801,10 +838,10 @@ static int grid_run(const grid_job *g, long nsuper, int nthreads, vm_errstate *t
             failed = 1;
         }
 #ifdef _OPENMP
-#pragma omp for schedule(dynamic, 1)
+#pragma omp for schedule(dynamic, 1) nowait
 #endif
-        for (long u = 0; u < nsuper; u++) {
-            if (ok && grid_super(g, &w, u, terr, &insns) < 0) {
+        for (long u = u0; u < u1; u++) {
+            if (ok && grid_super(g, &w, u, &insns) < 0) {
 #ifdef _OPENMP
 #pragma omp atomic write
 #endif
@@ -831,45 +868,77 @@ static void grid_add_stats(prune_grid_stats *stats, const prune_grid_stats *tst,
     }
 }
 
-int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], long k0,
-                            long nk, int prune, int nthreads, double *f,
-                            prune_grid_stats *stats, frep_runtime_error *err, double *insns)
+/* Planes [k0, k1) in slabs of nk planes: the slabs' super-tiles in runs of at most
+ * PRUNE_RUN_TILES tiles (whole slabs), each run one parallel region; the per-tile
+ * results merged in tile order after each run, so the figures do not depend on the
+ * thread count or the runs' size. */
+static int grid_eval(const frep_program *p, long n, const double box[6], long k0, long k1,
+                     long nk, int prune, int nthreads, int sized, double *f,
+                     prune_grid_stats *stats, frep_runtime_error *err, double *insns,
+                     int *threads_used)
 {
+    int used = 1;
     grid_job g;
     memset(&g, 0, sizeof g);
+    g.sized = sized;
     g.p = p;
     g.n = n;
     g.k0 = k0;
+    g.k1 = k1;
     g.nk = nk;
     g.f = f;
+    if (err) memset(err, 0, sizeof *err);
+    if (k1 <= k0) return 0;
+    /* the flat index of a point in f is a uint32_t: plenty for a slab of planes */
+    if (f && (double)n * (double)n * (double)(k1 - k0) > 4294967295.0) return -1;
     double *coord = grid_coords(&g, box);
     if (!coord) return -1;
-    /* the flat index of a point in f is a uint32_t: plenty for a slab of planes */
-    if (f && (double)n * (double)n * (double)nk > 4294967295.0) {
-        frep_free(coord);
-        return -1;
-    }
     prune_plan *pl = prune ? prune_plan_new(p) : NULL;
     g.pl = pl;
     g.ntx = (n + PRUNE_TILE - 1) / PRUNE_TILE;
-    long ntiles = g.ntx * g.ntx;
-    long nsuper = (g.ntx + PRUNE_SUPER - 1) / PRUNE_SUPER;
-    nsuper *= nsuper;
-    vm_errstate *terr = frep_calloc((size_t)ntiles, sizeof *terr);
-    g.tst = stats ? frep_malloc((size_t)ntiles * sizeof *g.tst) : NULL;
+    g.nsx = (g.ntx + PRUNE_SUPER - 1) / PRUNE_SUPER;
+    long slab_tiles = g.ntx * g.ntx, slab_supers = g.nsx * g.nsx;
+    long nslabs = (k1 - k0 + nk - 1) / nk;
+    long run_slabs = PRUNE_RUN_TILES / slab_tiles;
+    if (run_slabs < 1) run_slabs = 1;
+    if (run_slabs > nslabs) run_slabs = nslabs;
+    g.terr = frep_calloc((size_t)(run_slabs * slab_tiles), sizeof *g.terr);
+    g.tst = stats ? frep_malloc((size_t)(run_slabs * slab_tiles) * sizeof *g.tst) : NULL;
     double cost = 0;
-    int rc = !terr || (stats && !g.tst) ? -1 : grid_run(&g, nsuper, nthreads, terr, &cost);
     vm_errstate all;
     memset(&all, 0, sizeof all);
-    if (terr)
-        for (long t = 0; t < ntiles; t++) vm_err_merge(&all, &terr[t]);
-    if (stats && rc == 0) grid_add_stats(stats, g.tst, ntiles);
-    frep_free(terr);
+    int rc = !g.terr || (stats && !g.tst) ? -1 : 0;
+    for (long s0 = 0; s0 < nslabs && rc == 0; s0 += run_slabs) {
+        long s1 = s0 + run_slabs < nslabs ? s0 + run_slabs : nslabs;
+        long ntiles = (s1 - s0) * slab_tiles;
+        g.tbase = s0 * slab_tiles;
+        rc = grid_run(&g, s0 * slab_supers, s1 * slab_supers, nthreads, &cost, &used);
+        for (long t = 0; t < ntiles; t++) vm_err_merge(&all, &g.terr[t]);
+        if (stats && rc == 0) grid_add_stats(stats, g.tst, ntiles);
+    }
+    frep_free(g.terr);
     frep_free(g.tst);
     frep_free(coord);
     prune_plan_free(pl);
     if (rc < 0) return -1;
     if (err) vm_err_to_public(&all, err);
     if (insns) *insns += cost;
+    if (threads_used) *threads_used = used;
     return 0;
+}
+
+int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], long k0,
+                            long nk, int prune, int nthreads, double *f,
+                            prune_grid_stats *stats, frep_runtime_error *err, double *insns)
+{
+    return grid_eval(p, n, box, k0, k0 + nk, nk, prune, nthreads, 0, f, stats, err, insns,
+                     NULL);
+}
+
+int prune_eval_grid_whole(const frep_program *p, long n, const double box[6], int prune,
+                          int nthreads, prune_grid_stats *stats, frep_runtime_error *err,
+                          double *insns, int *threads_used)
+{
+    return grid_eval(p, n, box, 0, n, PRUNE_TILE, prune, nthreads, 1, NULL, stats, err,
+                     insns, threads_used);
 }

@@ -25,6 +25,12 @@
  * tiles analyses only what the super-tile's program kept (two-level, as fidget). */
 #define PRUNE_SUPER 4
 
+/* Most tiles evaluated in one parallel region by the grid evaluator (whole slabs of
+ * PRUNE_TILE planes; at least one slab): their per-tile errors and summaries (80 bytes
+ * each) are kept until the region ends, so this bounds that memory (5 MB) while a
+ * 1024^3 grid's 4096 tiles per slab still run 16 slabs per region. */
+#define PRUNE_RUN_TILES 65536
+
 /* Largest magnitude of an interval bound trusted by the pruner: below it no operation
  * of two bounded operands (sum, product of one with a bounded constant, the squares
  * of an R-function) overflows to infinity, so inf - inf or 0 * inf, and thus NaN,
@@ -93,5 +99,15 @@ void prune_grid_stats_init(prune_grid_stats *s);
 int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], long k0,
                             long nk, int prune, int nthreads, double *f,
                             prune_grid_stats *stats, frep_runtime_error *err, double *insns);
+
+/* The whole N x N x N grid's summary: the same figures as prune_eval_grid_summary
+ * called for the slabs of PRUNE_TILE planes k0 = 0, PRUNE_TILE, ... in order into one
+ * *stats, *err merged the same way, but in few parallel regions (PRUNE_RUN_TILES), each
+ * a work queue of super-tiles, and with one thread when the job is small
+ * (frep_threads_for): so the threads neither wait at barriers between slabs nor cost
+ * more than they gain.  *threads_used (may be NULL) receives the threads it ran on. */
+int prune_eval_grid_whole(const frep_program *p, long n, const double box[6], int prune,
+                          int nthreads, prune_grid_stats *stats, frep_runtime_error *err,
+                          double *insns, int *threads_used);
 
 #endif

@@ -20,6 +20,25 @@ static inline int frep_threads(int requested)
 #endif
 }
 
+/* Smallest job given more than one thread, in node-evaluations (instructions x
+ * points): 4e6 take ~1 ms on one core at 4e9 node-evaluations/s, while starting a
+ * parallel region and waking its threads costs 10-100 us (creating them, the first
+ * time, more), so a smaller job cannot gain much, and on a busy machine, where the
+ * region's end waits for a thread that has no core yet, it loses (tests/test_vm.c
+ * checks the rule; doc/benchmarks.md, "Threads that never make a job slower"). */
+#define FREP_PAR_MIN_WORK 4e6
+
+/* The threads for a job of `work` node-evaluations split into `units` independent
+ * pieces, asking for `requested` (<= 0: OpenMP's default): 1 below FREP_PAR_MIN_WORK,
+ * never more than the units, else frep_threads(requested). */
+static inline int frep_threads_for(int requested, double work, size_t units)
+{
+    int nt = frep_threads(requested);
+    if (work < FREP_PAR_MIN_WORK || units < 2) return 1;
+    if ((size_t)nt > units) nt = (int)units;
+    return nt;
+}
+
 /* The calling thread's number in its team (0 outside a parallel region). */
 static inline int frep_thread_num(void)
 {

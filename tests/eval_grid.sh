@@ -59,6 +59,11 @@ done
 "$FREP" eval "$T/pz.hf" --grid 193 -b 1.6 > "$T/pz.out"
 t "plane z = 1.6 at the upper end point: one layer, 193^2 = 37249 inside" grep -q '^inside    37249 ' "$T/pz.out"
 
+# Threads sized by the job (FREP_PAR_MIN_WORK = 4e6 node-evaluations): the sphere's
+# 9 instructions at 9^3 points are ~6600, so -t 2 runs on one thread.
+"$FREP" eval "$B/eval_sphere.hf" --grid 9 -b 1.6 -t 2 > "$T/tiny.out"
+t "a tiny grid runs on one thread even with -t 2" grep -q ' on 1 thread$' "$T/tiny.out"
+
 # Domain errors: the same count and position with and without pruning.
 cat > "$T/err.hf" <<'HF'
 my_model(x[3], a[1])

@@ -12,6 +12,7 @@
 #include "program.h"
 #include "prune.h"
 #include "tap.h"
+#include "threads.h"
 #include "vm.h"
 
 static const frep_srcpos nopos = {0, 0, 0};
@@ -359,10 +360,83 @@ static void test_hand_case(void)
     frep_program_free(p);
 }
 
+/* prune_eval_grid_whole (frep eval --grid: few parallel regions, threads by job size)
+ * gives exactly the figures of the slab-by-slab summary on one thread, at any thread
+ * count, with and without pruning.  GW^3 points make every job big enough for two
+ * threads (FREP_PAR_MIN_WORK: random programs have more than 6 instructions) and
+ * span several slabs and super-tiles. */
+enum { GW = 81 }; /* odd, over [-1, 1] in x for the risky programs: x hits -0.5, 0, 0.5 */
+
+static int stats_equal(const prune_grid_stats *a, const prune_grid_stats *b)
+{
+    return a->inside == b->inside && a->nans == b->nans && same(a->min, b->min) &&
+           same(a->max, b->max) && same(a->sum, b->sum);
+}
+
+static int errors_equal(const frep_runtime_error *a, const frep_runtime_error *b)
+{
+    return a->count == b->count &&
+           (a->count == 0 || (a->pc == b->pc && same(a->x, b->x) && same(a->y, b->y) &&
+                              same(a->z, b->z)));
+}
+
+static void test_whole_grid(void)
+{
+    int nprog = 8, same_all = 1, with_errors = 0, big = 1;
+    for (int t = 0; t < nprog; t++) {
+        frep_program *p = random_program(3 + t % 4, t % 2 == 1);
+        if (!p) {
+            ok(0, "random program %d assembles", t);
+            continue;
+        }
+        big &= (double)p->ncode * GW * GW * GW >= FREP_PAR_MIN_WORK;
+        double h = t % 2 ? 1 : 1.2;
+        double box[6] = { -h, -h, -0.7 * h, h, h, 0.7 * h };
+        for (int prune = 0; prune < 2; prune++) {
+            prune_grid_stats s1, sw[3];
+            frep_runtime_error e1 = { 0 }, ew[3];
+            double c1 = 0, cw[3] = { 0, 0, 0 };
+            int r = 0;
+            prune_grid_stats_init(&s1);
+            for (long k0 = 0; k0 < GW; k0 += PRUNE_TILE) {
+                long nk = GW - k0 < PRUNE_TILE ? GW - k0 : PRUNE_TILE;
+                frep_runtime_error e;
+                r |= prune_eval_grid_summary(p, GW, box, k0, nk, prune, 1, NULL, &s1, &e, &c1);
+                if (e.count && (e1.count == 0 || e.pc < e1.pc)) {
+                    uint64_t c = e1.count;
+                    e1 = e;
+                    e1.count += c;
+                } else {
+                    e1.count += e.count;
+                }
+            }
+            static const int threads[3] = { 1, 2, 0 };
+            for (int k = 0; k < 3; k++) {
+                prune_grid_stats_init(&sw[k]);
+                r |= prune_eval_grid_whole(p, GW, box, prune, threads[k], &sw[k], &ew[k], &cw[k], NULL);
+                if (!stats_equal(&s1, &sw[k]) || !errors_equal(&e1, &ew[k]) || cw[k] != c1) {
+                    diag("program %d, prune %d, %d threads: whole grid %llu %.17g, slabs "
+                         "%llu %.17g", t, prune, threads[k], (unsigned long long)sw[k].inside,
+                         sw[k].sum, (unsigned long long)s1.inside, s1.sum);
+                    same_all = 0;
+                }
+            }
+            if (r) same_all = 0;
+            with_errors += e1.count > 0;
+        }
+        frep_program_free(p);
+    }
+    ok(same_all, "whole-grid summaries and errors equal the slab-by-slab ones at 1, 2 and "
+                 "the default threads (%d programs, %d^3 points)", nprog, GW);
+    ok(with_errors > 0, "some of them raise domain errors (%d runs)", with_errors);
+    ok(big, "each of them is big enough for two threads (FREP_PAR_MIN_WORK)");
+}
+
 int main(void)
 {
     test_hand_case();
     test_random_grids();
     test_random_boxes();
+    test_whole_grid();
     return done_testing();
 }

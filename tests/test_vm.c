@@ -12,6 +12,7 @@
 #include "opsem.h"
 #include "program.h"
 #include "tap.h"
+#include "threads.h"
 #include "vm.h"
 
 #define NB FREP_BLOCK
@@ -828,9 +829,26 @@ static void test_program(void)
 
 /* ---- (6) thread count does not change anything --------------------------------------- */
 
+/* The thread count of a job follows its size (threads.h): one thread below
+ * FREP_PAR_MIN_WORK node-evaluations or for one unit of work, at most one per unit. */
+static void test_thread_sizing(void)
+{
+    int nt = frep_threads(2);
+    ok(frep_threads_for(2, FREP_PAR_MIN_WORK * 0.99, 1000) == 1,
+       "a job under FREP_PAR_MIN_WORK gets one thread");
+    ok(frep_threads_for(0, 1000, 1000) == 1, "a tiny job gets one thread by default too");
+    ok(frep_threads_for(2, FREP_PAR_MIN_WORK * 100, 1) == 1, "one unit of work: one thread");
+    ok(frep_threads_for(2, FREP_PAR_MIN_WORK, 1000) == nt,
+       "a job of FREP_PAR_MIN_WORK gets the threads asked for (%d)", nt);
+    ok(frep_threads_for(8, FREP_PAR_MIN_WORK * 100, 3) == (frep_threads(8) < 3 ? frep_threads(8) : 3),
+       "never more threads than units of work");
+}
+
 static void test_threads(void)
 {
-    enum { N = 10007 };
+    /* big enough for 2 threads (FREP_PAR_MIN_WORK) with both programs (19 and 20
+     * instructions) */
+    enum { N = 250007 };
     static double x[N], y[N], z[N], f1[N], f2[N], g1[3 * N], g2[3 * N];
     frep_program *p = mixed_program();
     frep_runtime_error e1, e2;
@@ -860,7 +878,13 @@ static void test_threads(void)
     emit(p, FREP_OP_X, 1, 0, 0);
     emit(p, FREP_OP_SQRT, 0, 0, 0);
     emit(p, FREP_OP_ADD, 0, 0, 0);
+    for (i = 0; i < 5; i++) { /* + z^2 five times: 20 instructions, no more errors */
+        emit(p, FREP_OP_X, 2, 0, 0);
+        emit(p, FREP_OP_SQUARE, 0, 0, 0);
+        emit(p, FREP_OP_ADD, 0, 0, 0);
+    }
     p = finish(p);
+    ok(p->ncode * (double)N >= FREP_PAR_MIN_WORK, "the error program is big enough for threads");
     frep_eval_par(p, N, x, y, z, NULL, f1, 1, &e1);
     frep_eval_par(p, N, x, y, z, NULL, f2, 2, &e2);
     ok(e1.count == e2.count && e1.pc == e2.pc && same(e1.x, e2.x) && same(e1.y, e2.y) &&
@@ -1068,6 +1092,7 @@ int main(void)
     test_branches();
     test_slots();
     test_domain_errors();
+    test_thread_sizing();
     test_threads();
     test_public_api();
     return done_testing();
