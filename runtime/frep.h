@@ -375,7 +375,8 @@ typedef enum frep_prim_type {
 } frep_prim_type;
 
 typedef struct frep_segment_options {
-    double epsilon;        /* inlier distance; <= 0: 1% of the cloud's diagonal */
+    double epsilon;        /* inlier distance; <= 0: 5x the measured noise, within
+                              0.2-1% of the cloud's diagonal (doc/segment.md) */
     double cluster;        /* connectivity cell; <= 0: the default (doc/segment.md) */
     double normal_deg;     /* normal deviation allowed, degrees; <= 0: 25 */
     size_t min_points;     /* smallest support; 0: 1% of the points (at least 10) */
