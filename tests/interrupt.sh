@@ -36,9 +36,18 @@ now() { date +%s.%N; }
 
 # start CMD...: run in the background (pid in $pid; stdout in $tmp/out, stderr in
 # $tmp/err) under a watchdog that kills it after WATCHDOG_S seconds.
+# Under nohup (or a runner that ignores SIGHUP) frep keeps an ignored SIGHUP ignored, on
+# purpose; the commands started here get the default back so that the SIGHUP cases test
+# frep's handler and not the caller's environment.
+if env --default-signal=HUP true 2>/dev/null; then
+    hup_default="env --default-signal=HUP"
+else
+    hup_default=""
+fi
+
 start() {
     : >"$tmp/err"
-    "$@" >"$tmp/out" 2>"$tmp/err" &
+    $hup_default "$@" >"$tmp/out" 2>"$tmp/err" &
     pid=$!
     (
         i=0
