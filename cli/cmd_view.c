@@ -38,6 +38,10 @@ static const char view_usage[] =
 /* --watch: how often the files are checked for a save, in milliseconds (the page asks
  * for a new version every 200 ms; a save shows within about 0.3 s plus meshing). */
 #define VIEW_WATCH_POLL_MS 100
+/* A save is acted on once the files' stamps stay the same this long: a cloud or model
+ * still being written (truncated, then filled) is not read half-way. */
+#define VIEW_WATCH_SETTLE_MS 100
+#define VIEW_WATCH_SETTLE_MAX 50   /* at most this many settle steps (5 s), then rebuild */
 #define VIEW_DEFAULT_PORT "8018"
 /* Grid of the page of frep fit --view and frep evolve --view: frep view's default. */
 #define VIEW_DEFAULT_GRID 128
@@ -434,6 +438,30 @@ static int changed(const view_cmd *c)
     return strcmp(now[0], c->stamp[0]) != 0 || strcmp(now[1], c->stamp[1]) != 0;
 }
 
+/* Wait, serving, until the stamps of the model and the cloud have stayed the same for
+ * VIEW_WATCH_SETTLE_MS (at most VIEW_WATCH_SETTLE_MAX such waits). */
+static void settle(view_cmd *c, view_server *srv)
+{
+    char before[2][64], after[2][64];
+    file_stamp(c->in, before[0]);
+    file_stamp(c->points, before[1]);
+    struct timespec since, t;
+    clock_gettime(CLOCK_MONOTONIC, &since);
+    for (int i = 0; i < VIEW_WATCH_SETTLE_MAX * 10 && !cli_interrupted(); i++) {
+        view_server_step(srv, VIEW_WATCH_SETTLE_MS / 10, route, c);
+        file_stamp(c->in, after[0]);
+        file_stamp(c->points, after[1]);
+        clock_gettime(CLOCK_MONOTONIC, &t);
+        if (strcmp(before[0], after[0]) != 0 || strcmp(before[1], after[1]) != 0) {
+            memcpy(before, after, sizeof before);
+            since = t;
+        } else if ((double)(t.tv_sec - since.tv_sec) * 1e3 +
+                       1e-6 * (double)(t.tv_nsec - since.tv_nsec) >= VIEW_WATCH_SETTLE_MS) {
+            return;
+        }
+    }
+}
+
 /* Serve until Ctrl-C or --timeout, rebuilding after every save. */
 static int view_watch(view_cmd *c)
 {
@@ -457,7 +485,10 @@ static int view_watch(view_cmd *c)
         clock_gettime(CLOCK_MONOTONIC, &t);
         if (c->timeout > 0 && (double)(t.tv_sec - t0.tv_sec) + 1e-9 * (double)(t.tv_nsec - t0.tv_nsec) >= c->timeout)
             break;
-        if (changed(c)) rc = rebuild(c);
+        if (changed(c)) {
+            settle(c, srv);
+            rc = rebuild(c);
+        }
     }
     cli_sigint_restore();
     cli_interrupt_handled();  /* Ctrl-C is how a watch ends */
