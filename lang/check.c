@@ -482,8 +482,9 @@ static void ck_not_condition(checker *c, const ast_node *n)
 
 /* expr -> VAR: a scalar assigned before this point, on every path to it.  The
  * reference interpreter stops with its Not_Initialized error where a variable is
- * read before a value reached it (int_calc.c); frep would read 0, so a read that no
- * assignment reaches is an error and one that only some paths reach a warning. */
+ * read before a value reached it (int_calc.c); frep gives NaN there (lower.c,
+ * cell_value), so a read that no assignment reaches is an error and one that only
+ * some paths reach a warning. */
 static void ck_var(checker *c, const ast_node *n)
 {
     const uint32_t *vi;
@@ -497,8 +498,8 @@ static void ck_var(checker *c, const ast_node *n)
         else if (!c->must[*vi])
             diag_report(c->d, FREP_WARNING, n->loc, loc_len(n->loc),
                         "variable '%s' may be used before it is assigned: some paths to "
-                        "this use do not assign it (frep reads 0 there, the reference "
-                        "interpreter stops with an error)", n->name);
+                        "this use do not assign it (frep gives NaN there, where the "
+                        "reference interpreter stops with an error)", n->name);
         return;
     }
     if (ck_array_find(c, n->key))

@@ -542,6 +542,22 @@ static void test_hyperfun(void)
               "... true where |value| >= 1e-6, for if, not and 'and'");
     frep_program_free(p);
 
+    /* A read no assignment reached on the point's path: the reference stops with "Not
+     * initialized variable" / "Unassigned identificator" (int_calc.c); frep gives NaN.
+     * The elements a short list leaves are 0 (a warning). */
+    p = compile("m(x[3], a[1]) {\n  array c[3], d[3];\n  c[1] = 5;\n  d = [7];\n"
+                "  if x[1] > 0 then y = 1; endif;\n"
+                "  m = y + 10 * c[1] + 100 * d[1] + 1000 * d[3] + 0 * c[x[2]];\n}", &D);
+    ok(p && find_diag(&D, "may be used before it is assigned") >= 0,
+       "a variable assigned on some paths: a warning");
+    if (p) {
+        double xs[3] = { 1, -1, 1 }, ys[3] = { 1, 1, 2 }, zs[3] = { 0 }, f[3];
+        eval_n(p, 3, xs, ys, zs, NULL, f);
+        ok(f[0] == 751 && isnan(f[1]) && isnan(f[2]),
+           "unassigned variable or element read: NaN (short list: 0)");
+    }
+    frep_program_free(p);
+
     /* '=' and '/=' within EPS = 1e-6. */
     p = compile("m(x[3], a[1]) {\n  r = 0;\n  if x[1] = 1 then r = 1; endif;\n"
                 "  if x[1] /= 1 then r = r + 10; endif;\n  m = r;\n}", &D);
