@@ -216,6 +216,17 @@ static void ck_ext(checker *c, int tier, ast_loc loc, const char *what)
                 "not HyperFun: %s; will not run in the reference interpreter", what);
 }
 
+/* A construct the reference accepts with a meaning that surprises (a rounded array
+ * size, an array declared twice): frep gives it that meaning and warns; an error with
+ * --strict.  fmt takes two %s. */
+static void ck_surprise(checker *c, ast_loc loc, const char *fmt, const char *a,
+                        const char *b)
+{
+    char what[640];
+    (void)snprintf(what, sizeof what, fmt, a ? a : "", b ? b : "");
+    diag_report(c->d, c->strict ? FREP_ERROR : FREP_WARNING, loc, loc_len(loc), "%s", what);
+}
+
 /* ck_ext with a name (or a number) in the description. */
 static void ck_ext_fmt(checker *c, int tier, ast_loc loc, const char *fmt, const char *a,
                        const char *b)
@@ -570,10 +581,16 @@ static void ck_compare_operand(checker *c, const ast_node *n, const ast_node *op
         ck_expr(c, opnd, CK_VALUE);
         return;
     }
-    char hint[96] = "";
+    char hint[160] = "";
     if (opnd == n->a && is_cmp(opnd->op))
         (void)snprintf(hint, sizeof hint, "; for a range test write 'a %s b and b %s c'",
                        ast_op_name(opnd->op), ast_op_name(n->op));
+    else if (opnd == n->a && opnd->kind == AST_UNARY && !opnd->parens)
+        /* `not a > b`: 'not' takes the next operand, as in the reference's
+         * HF_For_Bool, so this is `(not a) > b` */
+        (void)snprintf(hint, sizeof hint, ": 'not' applies to the operand after it only, "
+                       "so this is '(not a) %s b'; for the negation write 'not (a %s b)'",
+                       ast_op_name(n->op), ast_op_name(n->op));
     diag_report(c->d, FREP_WARNING, n->op_loc, loc_len(n->op_loc),
                 "'%s' compares the truth value (1 or 0) of '%s' with a number, as "
                 "HyperFun does%s", ast_op_name(n->op), ast_op_name(opnd->op), hint);
@@ -870,11 +887,27 @@ static void ck_collect(checker *c, const ast_list *l)
     }
 }
 
-static void ck_declare(checker *c, const ast_array_decl *d)
+static void ck_declare(checker *c, const ast_array_decl *d, int local)
 {
-    if (ck_array_find(c, d->key)) {
+    const ck_array *old = ck_array_find(c, d->key);
+    if (old && (!local || old < c->arr + c->f->models[c->model].nparams)) {
         ck_error(c, d->loc, "array '%s' is already declared", d->name, NULL, NULL);
         return;
+    }
+    if (old) {
+        /* HF_Find_In_Name_Array (int_array.c) finds the first declaration of a name. */
+        char sz[32];
+        (void)snprintf(sz, sizeof sz, "%u", (unsigned)old->size);
+        ck_surprise(c, d->loc, "array '%s' is declared again; HyperFun uses its first "
+                    "declaration (size %s) and ignores this one", d->name, sz);
+        return;
+    }
+    if (d->written != d->size) {
+        char w[40], sz[32];
+        (void)snprintf(w, sizeof w, "%.17g", d->written);
+        (void)snprintf(sz, sizeof sz, "%u", (unsigned)d->size);
+        ck_surprise(c, d->size_loc, "array size %s is rounded to %s, as HyperFun does "
+                    "(halves up); write the whole number", w, sz);
     }
     if (d->size == 0) ck_error(c, d->loc, "array '%s' must have at least one element",
                                d->name, NULL, NULL);
@@ -903,13 +936,13 @@ static void ck_model(checker *c, uint32_t mi)
     ck_name(c, m->loc, m->name, m->key);
     for (i = 0; i < m->nparams; i++) {
         static const char *const hf_param[3] = { "x", "a", "s" };
-        ck_declare(c, &m->params[i]);
+        ck_declare(c, &m->params[i], 0);
         if (strcmp(m->params[i].key, hf_param[i]) != 0)
             ck_ext_fmt(c, EXT_STRICT, m->params[i].loc, "the parameter array '%s' where HyperFun "
                        "requires the name '%s'", m->params[i].name, hf_param[i]);
     }
     for (i = 0; i < m->narrays; i++) {
-        ck_declare(c, &m->arrays[i]);
+        ck_declare(c, &m->arrays[i], 1);
         ck_name(c, m->arrays[i].loc, m->arrays[i].name, m->arrays[i].key);
     }
     if (ck_array_find(c, m->key))

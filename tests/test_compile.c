@@ -153,8 +153,13 @@ static void test_checks(void)
                  "while condition", 1, 26, "comparison outside a condition");
     expect_error("m(x[3], a[1]) {\n  array c[2];\n  c = 3;\n  m = 1;\n}",
                  "cannot assign a number to array 'c'", 3, 3, "number assigned to an array");
-    expect_error("m(x[3], a[1]) {\n  array c[2], c[3];\n  m = 1;\n}",
-                 "array 'c' is already declared", 2, 15, "duplicate array");
+    expect_error("m(x[3], a[1]) {\n  array c[2], a[3];\n  m = 1;\n}",
+                 "array 'a' is already declared", 2, 15, "an array named like a parameter");
+    /* An array declared twice: the first declaration counts, as in the reference
+     * (HF_Find_In_Name_Array finds the first), so c has 2 elements. */
+    expect_error("m(x[3], a[1]) {\n  array c[2], c[3];\n  c[3] = 1;\n  m = 1;\n}",
+                 "index 3 is out of range for array 'c' of size 2", 3, 5,
+                 "duplicate array: the first declaration counts");
     expect_error("m(x[3], a[1]) {\n  array c[2];\n  c = [1, 2, 3];\n  m = 1;\n}",
                  "array 'c' has 2 elements, but 3 values are assigned", 3, 3,
                  "array literal too long");
@@ -334,6 +339,18 @@ static void test_control(void)
         double x2[3] = { 1, 2.5, 9 };
         eval_n(p, 3, x2, zero, zero, NULL, f);
         ok(f[0] == 9 && f[1] == 29 && isnan(f[2]), "dynamic index values, NaN out of range");
+    }
+    frep_program_free(p);
+
+    /* A write out of the array: the reference stops ("Index out of range"), frep's value
+     * is NaN, though the result does not read the array. */
+    p = compile("m(x[3], a[1]) {\n  array c[2];\n  c[x[1]] = 1;\n  m = x[2] + 5;\n}", &D);
+    ok(p && count_op(p, FREP_OP_STOREI) == 1, "a point-dependent write: STOREI");
+    if (p) {
+        double x2[4] = { 1, 2, 3, 0 }, y2[4] = { 1, 2, 3, 4 };
+        eval_n(p, 4, x2, y2, zero, NULL, f);
+        ok(f[0] == 6 && f[1] == 7 && isnan(f[2]) && isnan(f[3]),
+           "a write out of range: NaN at that point");
     }
     frep_program_free(p);
 
