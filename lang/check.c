@@ -78,6 +78,48 @@ int strmap_put(strmap *m, const char *key, uint32_t val)
 
 /* ---- helpers ------------------------------------------------------------------------ */
 
+static int is_s(const ast_node *n) { return n->key && strcmp(n->key, "s") == 0; }
+
+static const ast_node *s_use(const ast_node *n);
+
+static const ast_node *s_use_list(const ast_list *l)
+{
+    const ast_node *u = NULL;
+    for (uint32_t i = 0; i < l->n && !u; i++) u = s_use(l->v[i]);
+    return u;
+}
+
+/* The first use of s as an array in n: s[i], s[i] = v, s = [...], a bare s. */
+static const ast_node *s_use(const ast_node *n)
+{
+    const ast_node *u;
+    if (!n) return NULL;
+    if ((n->kind == AST_INDEX || n->kind == AST_ASSIGN_INDEX ||
+         n->kind == AST_ASSIGN_ARRAY || n->kind == AST_VAR) && is_s(n))
+        return n;
+    if ((u = s_use(n->a)) || (u = s_use(n->b)) || (u = s_use_list(&n->list)) ||
+        (u = s_use_list(&n->body)))
+        return u;
+    return s_use_list(&n->body2);
+}
+
+static int s_assigned(const ast_list *l)
+{
+    for (uint32_t i = 0; i < l->n; i++)
+        if ((l->v[i]->kind == AST_ASSIGN && is_s(l->v[i])) || s_assigned(&l->v[i]->body) ||
+            s_assigned(&l->v[i]->body2))
+            return 1;
+    return 0;
+}
+
+const ast_node *check_implicit_s(const ast_model *m)
+{
+    if (m->nparams != 2 || s_assigned(&m->body)) return NULL;
+    for (uint32_t i = 0; i < m->narrays; i++)
+        if (strcmp(m->arrays[i].key, "s") == 0) return NULL;
+    return s_use_list(&m->body);
+}
+
 int check_find_model(const ast_file *f, const char *key, uint32_t before)
 {
     uint32_t i;
@@ -944,6 +986,17 @@ static void ck_model(checker *c, uint32_t mi)
     for (i = 0; i < m->narrays; i++) {
         ck_declare(c, &m->arrays[i], 1);
         ck_name(c, m->arrays[i].loc, m->arrays[i].name, m->arrays[i].key);
+    }
+    const ast_node *su = check_implicit_s(m);
+    if (su && !ck_array_find(c, "s")) {
+        ck_surprise(c, su->loc, "model '%s' uses 's' without declaring it; HyperFun "
+                    "acts as if it declared s[1] (starting at 0 here, no attribute "
+                    "output): declare it, %s(x[...], a[...], s[1])", m->name, m->name);
+        c->arr[c->narr].name = "s";
+        c->arr[c->narr].key = "s";
+        c->arr[c->narr].size = 1;
+        (void)strmap_put(&c->arrays, "s", c->narr);
+        c->narr++;
     }
     if (ck_array_find(c, m->key))
         ck_error(c, m->loc, "the result '%s' of a model cannot be an array", m->name, NULL,

@@ -310,6 +310,9 @@ static int scope_init(lw *L, scope *sc, const ast_model *m)
     for (i = 0; i < m->nparams; i++) (void)scope_add(L, sc, m->params[i].key, 1, m->params[i].size, &cap);
     for (i = 0; i < m->narrays; i++) (void)scope_add(L, sc, m->arrays[i].key, 1, m->arrays[i].size, &cap);
     (void)scope_add(L, sc, m->key, 0, 1, &cap);
+    /* s used and not declared: a local s[1] starting at 0 (check_implicit_s) */
+    int implicit_s = check_implicit_s(m) != NULL && !strmap_get(&sc->names, "s");
+    uint32_t s_sym = implicit_s ? scope_add(L, sc, "s", 1, 1, &cap) : 0;
     scope_scalars(L, sc, &m->body, &cap);
     sc->vals = arena_alloc(L->A, (sc->ncells + 1) * sizeof *sc->vals);
     sc->slot = arena_alloc(L->A, (sc->ncells + 1) * sizeof *sc->slot);
@@ -319,6 +322,7 @@ static int scope_init(lw *L, scope *sc, const ast_model *m)
         sc->vals[i] = IR_NONE;
         sc->slot[i] = NO_SLOT;
     }
+    if (implicit_s) sc->vals[sc->syms[s_sym].first] = ir_const(L->g, 0);
     for (i = 0; i < sc->nsyms; i++) {
         uint32_t j;
         for (j = 0; j < sc->syms[i].size; j++) sc->cell_sym[sc->syms[i].first + j] = i;
