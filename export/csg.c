@@ -203,8 +203,11 @@ static int scope_init(cx *c, scope *s, uint32_t mi, int top)
             if (!y->e[j]) return -1;
         }
     }
-    for (uint32_t i = 0; i < m->narrays; i++)
+    for (uint32_t i = 0; i < m->narrays; i++) {
+        /* An array declared twice: the first declaration counts (lang/check.c). */
+        if (strmap_get(&s->names, m->arrays[i].key)) continue;
         if (!scope_add(c, s, m->arrays[i].key, m->arrays[i].name, m->arrays[i].size)) return -1;
+    }
     return 0;
 }
 

@@ -97,8 +97,10 @@ struct ast_node {
 
 typedef struct ast_array_decl {
     const char *name, *key;
-    uint32_t size;
+    uint32_t size;      /* the size written, rounded as the reference does (HF_round) */
+    double written;     /* the size as written (2.6 in `c[2.6]`) */
     ast_loc loc;
+    ast_loc size_loc;   /* the size's number */
 } ast_array_decl;
 
 /* A model: name(x[N], a[M] [, s[K]]) { array decls; statements } */

@@ -78,6 +78,48 @@ int strmap_put(strmap *m, const char *key, uint32_t val)
 
 /* ---- helpers ------------------------------------------------------------------------ */
 
+static int is_s(const ast_node *n) { return n->key && strcmp(n->key, "s") == 0; }
+
+static const ast_node *s_use(const ast_node *n);
+
+static const ast_node *s_use_list(const ast_list *l)
+{
+    const ast_node *u = NULL;
+    for (uint32_t i = 0; i < l->n && !u; i++) u = s_use(l->v[i]);
+    return u;
+}
+
+/* The first use of s as an array in n: s[i], s[i] = v, s = [...], a bare s. */
+static const ast_node *s_use(const ast_node *n)
+{
+    const ast_node *u;
+    if (!n) return NULL;
+    if ((n->kind == AST_INDEX || n->kind == AST_ASSIGN_INDEX ||
+         n->kind == AST_ASSIGN_ARRAY || n->kind == AST_VAR) && is_s(n))
+        return n;
+    if ((u = s_use(n->a)) || (u = s_use(n->b)) || (u = s_use_list(&n->list)) ||
+        (u = s_use_list(&n->body)))
+        return u;
+    return s_use_list(&n->body2);
+}
+
+static int s_assigned(const ast_list *l)
+{
+    for (uint32_t i = 0; i < l->n; i++)
+        if ((l->v[i]->kind == AST_ASSIGN && is_s(l->v[i])) || s_assigned(&l->v[i]->body) ||
+            s_assigned(&l->v[i]->body2))
+            return 1;
+    return 0;
+}
+
+const ast_node *check_implicit_s(const ast_model *m)
+{
+    if (m->nparams != 2 || s_assigned(&m->body)) return NULL;
+    for (uint32_t i = 0; i < m->narrays; i++)
+        if (strcmp(m->arrays[i].key, "s") == 0) return NULL;
+    return s_use_list(&m->body);
+}
+
 int check_find_model(const ast_file *f, const char *key, uint32_t before)
 {
     uint32_t i;
@@ -214,6 +256,17 @@ static void ck_ext(checker *c, int tier, ast_loc loc, const char *what)
     if (tier == EXT_STRICT && !c->strict) return;
     diag_report(c->d, c->strict ? FREP_ERROR : FREP_WARNING, loc, loc_len(loc),
                 "not HyperFun: %s; will not run in the reference interpreter", what);
+}
+
+/* A construct the reference accepts with a meaning that surprises (a rounded array
+ * size, an array declared twice): frep gives it that meaning and warns; an error with
+ * --strict.  fmt takes two %s. */
+static void ck_surprise(checker *c, ast_loc loc, const char *fmt, const char *a,
+                        const char *b)
+{
+    char what[640];
+    (void)snprintf(what, sizeof what, fmt, a ? a : "", b ? b : "");
+    diag_report(c->d, c->strict ? FREP_ERROR : FREP_WARNING, loc, loc_len(loc), "%s", what);
 }
 
 /* ck_ext with a name (or a number) in the description. */
@@ -482,8 +535,9 @@ static void ck_not_condition(checker *c, const ast_node *n)
 
 /* expr -> VAR: a scalar assigned before this point, on every path to it.  The
  * reference interpreter stops with its Not_Initialized error where a variable is
- * read before a value reached it (int_calc.c); frep would read 0, so a read that no
- * assignment reaches is an error and one that only some paths reach a warning. */
+ * read before a value reached it (int_calc.c); frep gives NaN there (lower.c,
+ * cell_value), so a read that no assignment reaches is an error and one that only
+ * some paths reach a warning. */
 static void ck_var(checker *c, const ast_node *n)
 {
     const uint32_t *vi;
@@ -497,8 +551,8 @@ static void ck_var(checker *c, const ast_node *n)
         else if (!c->must[*vi])
             diag_report(c->d, FREP_WARNING, n->loc, loc_len(n->loc),
                         "variable '%s' may be used before it is assigned: some paths to "
-                        "this use do not assign it (frep reads 0 there, the reference "
-                        "interpreter stops with an error)", n->name);
+                        "this use do not assign it (frep gives NaN there, where the "
+                        "reference interpreter stops with an error)", n->name);
         return;
     }
     if (ck_array_find(c, n->key))
@@ -569,10 +623,16 @@ static void ck_compare_operand(checker *c, const ast_node *n, const ast_node *op
         ck_expr(c, opnd, CK_VALUE);
         return;
     }
-    char hint[96] = "";
+    char hint[160] = "";
     if (opnd == n->a && is_cmp(opnd->op))
         (void)snprintf(hint, sizeof hint, "; for a range test write 'a %s b and b %s c'",
                        ast_op_name(opnd->op), ast_op_name(n->op));
+    else if (opnd == n->a && opnd->kind == AST_UNARY && !opnd->parens)
+        /* `not a > b`: 'not' takes the next operand, as in the reference's
+         * HF_For_Bool, so this is `(not a) > b` */
+        (void)snprintf(hint, sizeof hint, ": 'not' applies to the operand after it only, "
+                       "so this is '(not a) %s b'; for the negation write 'not (a %s b)'",
+                       ast_op_name(n->op), ast_op_name(n->op));
     diag_report(c->d, FREP_WARNING, n->op_loc, loc_len(n->op_loc),
                 "'%s' compares the truth value (1 or 0) of '%s' with a number, as "
                 "HyperFun does%s", ast_op_name(n->op), ast_op_name(opnd->op), hint);
@@ -869,11 +929,27 @@ static void ck_collect(checker *c, const ast_list *l)
     }
 }
 
-static void ck_declare(checker *c, const ast_array_decl *d)
+static void ck_declare(checker *c, const ast_array_decl *d, int local)
 {
-    if (ck_array_find(c, d->key)) {
+    const ck_array *old = ck_array_find(c, d->key);
+    if (old && (!local || old < c->arr + c->f->models[c->model].nparams)) {
         ck_error(c, d->loc, "array '%s' is already declared", d->name, NULL, NULL);
         return;
+    }
+    if (old) {
+        /* HF_Find_In_Name_Array (int_array.c) finds the first declaration of a name. */
+        char sz[32];
+        (void)snprintf(sz, sizeof sz, "%u", (unsigned)old->size);
+        ck_surprise(c, d->loc, "array '%s' is declared again; HyperFun uses its first "
+                    "declaration (size %s) and ignores this one", d->name, sz);
+        return;
+    }
+    if (d->written != d->size) {
+        char w[40], sz[32];
+        (void)snprintf(w, sizeof w, "%.17g", d->written);
+        (void)snprintf(sz, sizeof sz, "%u", (unsigned)d->size);
+        ck_surprise(c, d->size_loc, "array size %s is rounded to %s, as HyperFun does "
+                    "(halves up); write the whole number", w, sz);
     }
     if (d->size == 0) ck_error(c, d->loc, "array '%s' must have at least one element",
                                d->name, NULL, NULL);
@@ -902,14 +978,25 @@ static void ck_model(checker *c, uint32_t mi)
     ck_name(c, m->loc, m->name, m->key);
     for (i = 0; i < m->nparams; i++) {
         static const char *const hf_param[3] = { "x", "a", "s" };
-        ck_declare(c, &m->params[i]);
+        ck_declare(c, &m->params[i], 0);
         if (strcmp(m->params[i].key, hf_param[i]) != 0)
             ck_ext_fmt(c, EXT_STRICT, m->params[i].loc, "the parameter array '%s' where HyperFun "
                        "requires the name '%s'", m->params[i].name, hf_param[i]);
     }
     for (i = 0; i < m->narrays; i++) {
-        ck_declare(c, &m->arrays[i]);
+        ck_declare(c, &m->arrays[i], 1);
         ck_name(c, m->arrays[i].loc, m->arrays[i].name, m->arrays[i].key);
+    }
+    const ast_node *su = check_implicit_s(m);
+    if (su && !ck_array_find(c, "s")) {
+        ck_surprise(c, su->loc, "model '%s' uses 's' without declaring it; HyperFun "
+                    "acts as if it declared s[1] (starting at 0 here, no attribute "
+                    "output): declare it, %s(x[...], a[...], s[1])", m->name, m->name);
+        c->arr[c->narr].name = "s";
+        c->arr[c->narr].key = "s";
+        c->arr[c->narr].size = 1;
+        (void)strmap_put(&c->arrays, "s", c->narr);
+        c->narr++;
     }
     if (ck_array_find(c, m->key))
         ck_error(c, m->loc, "the result '%s' of a model cannot be an array", m->name, NULL,

@@ -52,6 +52,12 @@ typedef struct check_info {
  * warning. */
 unsigned check_file(arena *A, const ast_file *f, int strict, diag_sink *d, check_info *out);
 
+/* A model that declares no s[] array (two parameter arrays, no local array or
+ * variable named s) but uses `s` as an array: the first such use, else NULL.  The
+ * reference then acts as if the model declared s[1] (HF_Get_X_A in int_parse_N.c);
+ * frep does the same (a local array s[1] starting at 0) with a warning. */
+const ast_node *check_implicit_s(const ast_model *m);
+
 /* Index of the model named key defined before model `before` (all models when
  * before == f->nmodels), or -1. */
 int check_find_model(const ast_file *f, const char *key, uint32_t before);

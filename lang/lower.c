@@ -193,9 +193,13 @@ static uint32_t slot_alloc(lw *L, uint32_t n, ast_loc at)
     return base;
 }
 
+/* The value of cell c; NaN for a cell no assignment has reached: the reference
+ * interpreter stops with "Not initialized variable" (or "Unassigned identificator",
+ * "Some items of array are unassigned") at such a read, and frep's value for a
+ * runtime error of the reference is NaN.  (x, a and s are always assigned.) */
 static ir_ref cell_value(lw *L, const scope *sc, uint32_t c)
 {
-    return sc->vals[c] == IR_NONE ? ir_const(L->g, 0) : sc->vals[c];
+    return sc->vals[c] == IR_NONE ? ir_const(L->g, NAN) : sc->vals[c];
 }
 
 /* A store of n (slot, value) pairs, all values computed before any store. */
@@ -306,6 +310,9 @@ static int scope_init(lw *L, scope *sc, const ast_model *m)
     for (i = 0; i < m->nparams; i++) (void)scope_add(L, sc, m->params[i].key, 1, m->params[i].size, &cap);
     for (i = 0; i < m->narrays; i++) (void)scope_add(L, sc, m->arrays[i].key, 1, m->arrays[i].size, &cap);
     (void)scope_add(L, sc, m->key, 0, 1, &cap);
+    /* s used and not declared: a local s[1] starting at 0 (check_implicit_s) */
+    int implicit_s = check_implicit_s(m) != NULL && !strmap_get(&sc->names, "s");
+    uint32_t s_sym = implicit_s ? scope_add(L, sc, "s", 1, 1, &cap) : 0;
     scope_scalars(L, sc, &m->body, &cap);
     sc->vals = arena_alloc(L->A, (sc->ncells + 1) * sizeof *sc->vals);
     sc->slot = arena_alloc(L->A, (sc->ncells + 1) * sizeof *sc->slot);
@@ -315,6 +322,7 @@ static int scope_init(lw *L, scope *sc, const ast_model *m)
         sc->vals[i] = IR_NONE;
         sc->slot[i] = NO_SLOT;
     }
+    if (implicit_s) sc->vals[sc->syms[s_sym].first] = ir_const(L->g, 0);
     for (i = 0; i < sc->nsyms; i++) {
         uint32_t j;
         for (j = 0; j < sc->syms[i].size; j++) sc->cell_sym[sc->syms[i].first + j] = i;
@@ -853,6 +861,20 @@ static void lw_assign_list(lw *L, scope *sc, const ast_node *n)
         cells[i] = y->first + i;
         vals[i] = lw_expr(L, sc, n->list.v[i]);
     }
+    /* A shorter list (a warning: HyperFun rejects it) sets the rest to 0. */
+    if (i < y->size) {
+        uint32_t *c2 = arena_alloc(L->A, y->size * sizeof *c2);
+        ir_ref *v2 = arena_alloc(L->A, y->size * sizeof *v2);
+        if (!c2 || !v2) return;
+        memcpy(c2, cells, i * sizeof *c2);
+        memcpy(v2, vals, i * sizeof *v2);
+        for (; i < y->size; i++) {
+            c2[i] = y->first + i;
+            v2[i] = ir_const(L->g, 0);
+        }
+        cells = c2;
+        vals = v2;
+    }
     if (L->abort || L->dead) return;
     set_pos(L, n->op_loc);
     assign_cells(L, sc, cells, vals, i, n->loc);
@@ -929,8 +951,8 @@ static int lw_if_select(lw *L, scope *sc, const ast_node *n, ir_ref cond)
             ir_ref t = then_v[i], e = sc->vals[i];
             if (t == e) continue;
             sc->vals[i] = ir_select(L->g, cond,
-                                    t == IR_NONE ? ir_const(L->g, 0) : t,
-                                    e == IR_NONE ? ir_const(L->g, 0) : e);
+                                    t == IR_NONE ? ir_const(L->g, NAN) : t,
+                                    e == IR_NONE ? ir_const(L->g, NAN) : e);
         }
         return 0;
     }

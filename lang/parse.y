@@ -95,11 +95,13 @@ static int model_statement(lex_state *L, ast_node *stmt);
 %token T_COMMA "," T_SEMI ";"
 
 /* Lowest first.  As in the reference: 'and' and 'or' share one level (left to
- * right); + - and the set operators | & \ @ share one level; ^ groups left to right;
- * the prefix operators - + ~ bind tighter than ^, so -a^2 is (-a)^2. */
+ * right); 'not' takes the next operand of a comparison, so `not a > b` is
+ * `(not a) > b` (HF_For_Bool in int_parse_N.c); + - and the set operators | & \ @
+ * share one level; ^ groups left to right; the prefix operators - + ~ bind tighter
+ * than ^, so -a^2 is (-a)^2. */
 %left T_OR T_AND
-%precedence T_NOT
 %left T_EQ T_NE T_LT T_LE T_GT T_GE
+%precedence T_NOT
 %left T_PLUS T_MINUS T_BAR T_AMP T_BSLASH T_AT
 %left T_STAR T_SLASH
 %left T_CARET
@@ -334,14 +336,12 @@ static int push(lex_state *L, ast_list *l, ast_node *n, ast_loc loc, uint32_t li
     return 0;
 }
 
-/* Array sizes are number literals holding whole numbers in [min, FREP_MAX_ARRAY].
- * (The reference rounds fractional sizes silently; frep says so instead.) */
+/* Array sizes are number literals, rounded to the nearest whole number, halves up, as
+ * the reference does (HF_round in int_parse_N.c; lang/check.c warns when that
+ * changed the number), then in [min, FREP_MAX_ARRAY]. */
 static int array_size(lex_state *L, ast_loc loc, double v, uint32_t min, uint32_t *size)
 {
-    if (v != floor(v)) {
-        lex_error(L, loc, span(loc), "array size must be a whole number");
-        return -1;
-    }
+    if (v <= FREP_MAX_ARRAY) v = ceil(v) - v > 0.5 ? ceil(v) - 1 : ceil(v);
     if (v < min) {
         lex_error(L, loc, span(loc), "array size must be at least %u", min);
         return -1;
@@ -389,6 +389,8 @@ static int start_model(lex_state *L, ast_loc loc, const char *name, const char *
         d->name = p->name;
         d->key = p->key;
         d->loc = p->loc;
+        d->written = p->num;
+        d->size_loc = p->op_loc;
         /* x[0] or a[0] is accepted as in the reference: a model may use no parameter */
         if (array_size(L, p->op_loc, p->num, 0, &d->size)) return -1;
     }
@@ -411,7 +413,9 @@ static int add_array(lex_state *L, ast_loc loc, const char *name, const char *ke
     d->name = name;
     d->key = key;
     d->size = n;
+    d->written = size;
     d->loc = loc;
+    d->size_loc = size_loc;
     return 0;
 }
 

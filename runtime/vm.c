@@ -141,6 +141,7 @@ void vm_scratch_free(vm_scratch *s)
 void vm_err_begin(vm_scratch *s, size_t n)
 {
     s->blk.count = 0;
+    s->nan_lanes = 0;
     memset(s->errlane, 0, n);
 }
 
@@ -158,6 +159,26 @@ void vm_err_lane(vm_scratch *s, uint32_t pc, size_t i, const vm_inputs *in)
         s->blk.x = in->x[i];
         s->blk.y = in->y[i];
         s->blk.z = in->z[i];
+    }
+}
+
+void vm_err_lane_nan(vm_scratch *s, uint32_t pc, size_t i, const vm_inputs *in)
+{
+    vm_err_lane(s, pc, i, in);
+    s->errlane[i] |= VM_LANE_NAN;
+    s->nan_lanes = 1;
+}
+
+void vm_nan_lanes(const vm_scratch *s, size_t n, double *out, double *dout, uint32_t T,
+                  size_t dstride)
+{
+    uint32_t c;
+    size_t i;
+    if (!s->nan_lanes) return;
+    for (i = 0; i < n; i++) {
+        if (!(s->errlane[i] & VM_LANE_NAN)) continue;
+        out[i] = NAN;
+        for (c = 0; c < T; c++) dout[c * dstride + i] = NAN;
     }
 }
 
@@ -371,7 +392,8 @@ static void vm_loadi(vm_scratch *s, const vm_inputs *in, const frep_insn *in_, u
 }
 
 /* STOREI: store the value at level L into element arg+i-1, i the index at L+1 (both
- * popped).  Each lane reads its value and index before it writes its own lane of one
+ * popped); an index out of range is an error that makes the lane's result NaN (the
+ * reference interpreter stops there).  Each lane reads its value and index before it writes its own lane of one
  * slot, so V or I being a slot of the array is harmless; only older stack entries
  * need unaliasing. */
 static void vm_storei(vm_scratch *s, const vm_inputs *in, const frep_insn *in_, uint32_t pc,
@@ -390,7 +412,7 @@ static void vm_storei(vm_scratch *s, const vm_inputs *in, const frep_insn *in_, 
     for (i = 0; i < n; i++) {
         double ix = I[i];
         if (opsem_bad_index(ix, k)) {
-            if (!(in_->flags & INSN_QUIET)) vm_err_lane(s, pc, i, in);
+            if (!(in_->flags & INSN_QUIET)) vm_err_lane_nan(s, pc, i, in);
         } else {
             s->slotbuf[in_->arg + (uint32_t)ix - 1][i] = V[i];
         }
@@ -578,6 +600,7 @@ static int vm_run(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
     }
     if (d != 1) return -1;
     memcpy(out, s->sp[0], n * sizeof *out);
+    vm_nan_lanes(s, n, out, NULL, 0, 0);
     vm_err_commit(s, n);
     return 0;
 }

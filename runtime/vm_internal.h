@@ -65,7 +65,9 @@ struct vm_scratch {
     double *trig[VM_TRIG_CACHE]; /* FREP_BLOCK lanes each: the sine/cosine cache */
     const double **primp;      /* per-lane PRIM pointers of a divergent rerun */
     const double **primg;      /* same for prim gradients */
-    unsigned char *errlane;    /* per lane: raised an error in the current run */
+    unsigned char *errlane;    /* per lane: raised an error in the current run (bit 1),
+                                * its value must end NaN (VM_LANE_NAN) */
+    int nan_lanes;             /* some lane of the current run has VM_LANE_NAN */
 
     vm_errstate blk;           /* errors of the current run */
     vm_errstate total;         /* errors since the last reset */
@@ -88,6 +90,14 @@ void vm_broadcast_params(const frep_program *p, vm_scratch *s, const vm_inputs *
 void vm_err_begin(vm_scratch *s, size_t n);
 /* Lane i raised an error at pc. */
 void vm_err_lane(vm_scratch *s, uint32_t pc, size_t i, const vm_inputs *in);
+/* Lane i raised an error at pc after which no value is defined (a store out of the
+ * array: the reference interpreter stops there): its result, and its tangents, are NaN
+ * whatever comes next (vm_nan_lanes at the end of the run). */
+#define VM_LANE_NAN 2u
+void vm_err_lane_nan(vm_scratch *s, uint32_t pc, size_t i, const vm_inputs *in);
+/* Set out[i] (and dout[c * dstride + i], c < T) to NaN for the run's VM_LANE_NAN lanes. */
+void vm_nan_lanes(const vm_scratch *s, size_t n, double *out, double *dout, uint32_t T,
+                  size_t dstride);
 /* Record the domain errors of instruction pc (opcode op) over n lanes: the lanes where
  * opsem_is_bad(op, a, b), with a = A[i] (A NULL: the immediate ka), b likewise. */
 void vm_record_errors(vm_scratch *s, const vm_inputs *in, uint32_t pc, frep_opcode op,

@@ -375,18 +375,20 @@ ival ival_op(frep_opcode op, const ival *v, double k)
 }
 
 /* The 1-based slot range an index interval may select in an array of size k;
- * returns 0 when no valid index is possible. */
+ * returns 0 when the interval holds an index out of range (opsem_bad_index): the
+ * point evaluators give NaN there (a LOADI's value, a STOREI's whole result), so no
+ * enclosure, and no sign, can be claimed for the box. */
 static int iv_index_range(ival i, double k, uint32_t *first, uint32_t *last)
 {
-    double lo = trunc(fmax(i.lo, 1)), hi = trunc(fmin(i.hi, k));
-    if (!(lo <= hi)) return 0;
+    double lo = trunc(i.lo), hi = trunc(i.hi);
+    if (opsem_bad_index(i.lo, k) || opsem_bad_index(i.hi, k)) return 0;
     *first = (uint32_t)lo - 1;
     *last = (uint32_t)hi - 1;
     return 1;
 }
 
 /* LOADI over the index interval *idx (replaced by the hull of every element it may
- * select); 0 when no valid index is possible or the array leaves the slots. */
+ * select); 0 when an index may be out of range or the array leaves the slots. */
 static int iv_loadi(const frep_program *p, const vm_iscratch *s, const frep_insn *in,
                     ival *idx)
 {

@@ -305,7 +305,7 @@ static void tan_loadi(vm_scratch *s, vm_tanstate *t, const vm_inputs *in,
 }
 
 /* STOREI: store the value at level L into element arg+i-1, i the index at L+1 (both
- * popped).  Each lane reads its value and index before it writes its own lane of one
+ * popped); an index out of range makes the lane's result NaN, as vm.c.  Each lane reads its value and index before it writes its own lane of one
  * slot, so only older stack entries need unaliasing (as vm.c). */
 static void tan_storei(vm_scratch *s, vm_tanstate *t, const vm_inputs *in,
                        const frep_insn *in_, uint32_t pc, uint32_t L, size_t n)
@@ -334,7 +334,7 @@ static void tan_storei(vm_scratch *s, vm_tanstate *t, const vm_inputs *in,
     for (i = 0; i < n; i++) {
         double ix = I[i];
         if (opsem_bad_index(ix, k)) {
-            if (!(in_->flags & INSN_QUIET)) vm_err_lane(s, pc, i, in);
+            if (!(in_->flags & INSN_QUIET)) vm_err_lane_nan(s, pc, i, in);
         } else {
             uint32_t slot = in_->arg + (uint32_t)ix - 1;
             double *sb = set_val(t->slotset[slot]);
@@ -578,6 +578,7 @@ static void tan_result(vm_scratch *s, const vm_tanstate *t, size_t n, double *ou
         if (tc) memcpy(dout + c * dstride, tc, n * sizeof(double));
         else memset(dout + c * dstride, 0, n * sizeof(double));
     }
+    vm_nan_lanes(s, n, out, dout, t->T, dstride);
     vm_err_commit(s, n);
 }
 

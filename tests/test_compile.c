@@ -153,8 +153,13 @@ static void test_checks(void)
                  "while condition", 1, 26, "comparison outside a condition");
     expect_error("m(x[3], a[1]) {\n  array c[2];\n  c = 3;\n  m = 1;\n}",
                  "cannot assign a number to array 'c'", 3, 3, "number assigned to an array");
-    expect_error("m(x[3], a[1]) {\n  array c[2], c[3];\n  m = 1;\n}",
-                 "array 'c' is already declared", 2, 15, "duplicate array");
+    expect_error("m(x[3], a[1]) {\n  array c[2], a[3];\n  m = 1;\n}",
+                 "array 'a' is already declared", 2, 15, "an array named like a parameter");
+    /* An array declared twice: the first declaration counts, as in the reference
+     * (HF_Find_In_Name_Array finds the first), so c has 2 elements. */
+    expect_error("m(x[3], a[1]) {\n  array c[2], c[3];\n  c[3] = 1;\n  m = 1;\n}",
+                 "index 3 is out of range for array 'c' of size 2", 3, 5,
+                 "duplicate array: the first declaration counts");
     expect_error("m(x[3], a[1]) {\n  array c[2];\n  c = [1, 2, 3];\n  m = 1;\n}",
                  "array 'c' has 2 elements, but 3 values are assigned", 3, 3,
                  "array literal too long");
@@ -334,6 +339,18 @@ static void test_control(void)
         double x2[3] = { 1, 2.5, 9 };
         eval_n(p, 3, x2, zero, zero, NULL, f);
         ok(f[0] == 9 && f[1] == 29 && isnan(f[2]), "dynamic index values, NaN out of range");
+    }
+    frep_program_free(p);
+
+    /* A write out of the array: the reference stops ("Index out of range"), frep's value
+     * is NaN, though the result does not read the array. */
+    p = compile("m(x[3], a[1]) {\n  array c[2];\n  c[x[1]] = 1;\n  m = x[2] + 5;\n}", &D);
+    ok(p && count_op(p, FREP_OP_STOREI) == 1, "a point-dependent write: STOREI");
+    if (p) {
+        double x2[4] = { 1, 2, 3, 0 }, y2[4] = { 1, 2, 3, 4 };
+        eval_n(p, 4, x2, y2, zero, NULL, f);
+        ok(f[0] == 6 && f[1] == 7 && isnan(f[2]) && isnan(f[3]),
+           "a write out of range: NaN at that point");
     }
     frep_program_free(p);
 
@@ -540,6 +557,22 @@ static void test_hyperfun(void)
               eval1(p, 5e-7, 0, 0) == 10 && eval1(p, 0, 0, 0) == 10 &&
               eval1(p, 1, 2, 0) == 101 && eval1(p, 1, 1 + 5e-7, 0) == 1,
               "... true where |value| >= 1e-6, for if, not and 'and'");
+    frep_program_free(p);
+
+    /* A read no assignment reached on the point's path: the reference stops with "Not
+     * initialized variable" / "Unassigned identificator" (int_calc.c); frep gives NaN.
+     * The elements a short list leaves are 0 (a warning). */
+    p = compile("m(x[3], a[1]) {\n  array c[3], d[3];\n  c[1] = 5;\n  d = [7];\n"
+                "  if x[1] > 0 then y = 1; endif;\n"
+                "  m = y + 10 * c[1] + 100 * d[1] + 1000 * d[3] + 0 * c[x[2]];\n}", &D);
+    ok(p && find_diag(&D, "may be used before it is assigned") >= 0,
+       "a variable assigned on some paths: a warning");
+    if (p) {
+        double xs[3] = { 1, -1, 1 }, ys[3] = { 1, 1, 2 }, zs[3] = { 0 }, f[3];
+        eval_n(p, 3, xs, ys, zs, NULL, f);
+        ok(f[0] == 751 && isnan(f[1]) && isnan(f[2]),
+           "unassigned variable or element read: NaN (short list: 0)");
+    }
     frep_program_free(p);
 
     /* '=' and '/=' within EPS = 1e-6. */

@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "interval.h"
 #include "opsem.h"
 #include "program.h"
 #include "tap.h"
@@ -708,6 +709,82 @@ static void test_slots(void)
     ok(f[0] == 0 && f[1] == 0 && isnan(f[2]) && isnan(f[3]) && isnan(f[4]),
        "LOADI out of range (3, 0.5, -4 in an array of 2) gives NaN");
     ok(e.count == 3 && e.pc == 2 && e.x == 3, "index errors: 3 points, first at the STOREI");
+    frep_program_free(p);
+
+    /* A store out of the array makes the point's value NaN even when the result does
+     * not read the array (the reference interpreter stops at it): c[x] = 0 with c[2],
+     * f = y + 1 (1 at every point, gradient 0). */
+    p = prog_new();
+    emit(p, FREP_OP_CONST, 0, 0, 0);
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_STOREI, 0, 2, 0);
+    emit(p, FREP_OP_X, 1, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 1, INSN_KB);
+    p = finish(p);
+    frep_scratch_reset_errors((frep_scratch *)s);
+    vm_eval_block(p, s, &in, 5, f);
+    frep_scratch_errors((frep_scratch *)s, &e);
+    ok(f[0] == 1 && f[1] == 1 && isnan(f[2]) && isnan(f[3]) && isnan(f[4]) &&
+       e.count == 3 && e.pc == 2, "STOREI out of range: NaN at those points, with the error");
+    vm_eval_block_tangent(p, s, &in, 5, VM_SEED_XYZ, ft, g);
+    okv = ft[0] == 1 && ft[1] == 1;
+    for (i = 0; i < 3; i++) /* d/dx, d/dy, d/dz of y + 1 */
+        okv &= g[i * 5] == (i == 1) && g[i * 5 + 1] == (i == 1);
+    for (i = 2; i < 5; i++)
+        okv &= isnan(ft[i]) && isnan(g[i]) && isnan(g[5 + i]) && isnan(g[10 + i]);
+    ok(okv, "... and in the tangent evaluator: value and gradient NaN there");
+    /* One lane at a time (a divergent block's rerun) gives the same. */
+    okv = 1;
+    for (i = 0; i < 5; i++) {
+        double xi = x[i], yi = y[i], zi = z[i], fi;
+        vm_inputs li = inputs(&xi, &yi, &zi, NULL);
+        vm_eval_block(p, s, &li, 1, &fi);
+        okv &= same(fi, f[i]);
+    }
+    ok(okv, "... one point at a time as in a block");
+    {
+        /* Interval: no enclosure is claimed over a box where an index may be out of
+         * range (the value there is NaN, neither inside nor outside). */
+        vm_iscratch *is = vm_iscratch_new(p);
+        const double in_box[6] = { 1, 0, 0, 2.4, 1, 1 }, out_box[6] = { 1, 0, 0, 3, 1, 1 };
+        const double low_box[6] = { 0.5, 0, 0, 2, 1, 1 };
+        ival r1 = { 0, 0 }, r2 = { 0, 0 }, r3 = { 0, 0 };
+        ok(is && vm_eval_interval(p, is, in_box, NULL, &r1) == 0 && r1.lo >= 1 - 1e-9 &&
+           r1.hi <= 2 + 1e-9, "interval: indices in range, the enclosure of y + 1");
+        ok(is && vm_eval_interval(p, is, out_box, NULL, &r2) == 0 && r2.lo == -INFINITY &&
+           r2.hi == INFINITY && vm_eval_interval(p, is, low_box, NULL, &r3) == 0 &&
+           r3.lo == -INFINITY && r3.hi == INFINITY,
+           "interval: an index that may be out of range (above, below): [-inf, inf]");
+        vm_iscratch_free(is);
+    }
+    /* Quiet (a speculative branch the point may not take): no NaN, no error. */
+    p->code[2].flags |= INSN_QUIET;
+    frep_scratch_reset_errors((frep_scratch *)s);
+    vm_eval_block(p, s, &in, 5, f);
+    frep_scratch_errors((frep_scratch *)s, &e);
+    okv = e.count == 0;
+    for (i = 0; i < 5; i++) okv &= f[i] == 1;
+    ok(okv, "a quiet STOREI out of range changes nothing");
+    frep_program_free(p);
+
+    /* LOADI over an index interval partly out of range: no enclosure either. */
+    p = prog_new();
+    emit(p, FREP_OP_CONST, 0, 7, 0);
+    emit(p, FREP_OP_CONST, 0, 1, 0);
+    emit(p, FREP_OP_STOREI, 0, 2, 0);
+    emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_LOADI, 0, 2, 0);
+    p = finish(p);
+    {
+        vm_iscratch *is = vm_iscratch_new(p);
+        const double in_box[6] = { 1, 0, 0, 1.4, 1, 1 }, out_box[6] = { 0.5, 0, 0, 1.4, 1, 1 };
+        ival r1 = { 0, 0 }, r2 = { 0, 0 };
+        ok(is && vm_eval_interval(p, is, in_box, NULL, &r1) == 0 && r1.lo <= 7 && r1.hi >= 7 &&
+           r1.hi < 8, "interval LOADI: c[1] over [1, 1.4]");
+        ok(is && vm_eval_interval(p, is, out_box, NULL, &r2) == 0 && r2.lo == -INFINITY &&
+           r2.hi == INFINITY, "interval LOADI: an index that may be 0.5: [-inf, inf]");
+        vm_iscratch_free(is);
+    }
     frep_program_free(p);
     vm_scratch_free(s);
 }

@@ -422,10 +422,12 @@ class Parser:
         return any(s[0] == "return" for s in stmts)
 
     def array_size(self):
+        # HF_Get_Array_Decl / HF_Get_X_A: the size is HF_round(number), at least 1
         tok = self.expect("num")
-        if tok[1] < 1:
+        size = hf_round(tok[1])
+        if size < 1:
             self.fail("array size must be greater zero")
-        return int(tok[1])
+        return size
 
     def statements(self, enders):
         out = []
@@ -447,7 +449,9 @@ class Parser:
                 if name in KEYWORDS or name in ("x", "a", "s"):
                     self.fail("identifier expected")
                 self.expect("op", "[")
-                m.arrays[name] = self.array_size()
+                size = self.array_size()
+                # declared twice: HF_Find_In_Name_Array finds the first declaration
+                m.arrays.setdefault(name, size)
                 self.expect("op", "]")
                 if self.at("op", ","):
                     self.next()
