@@ -944,7 +944,9 @@ static int run_stages(run_ctx *c)
      * primitive, there is nothing to evolve: the result is the base model. */
     if (c->nprims > 0 && c->m > 0) {
         if (stage_sample_cache(c) || stage_auto_alpha(c) || stage_proxies(c)) return -1;
-        if (o->partition && c->nprims > 1 &&
+        /* After Ctrl-C the partitioned GA would stop at once, but only after assigning
+         * every sample point to its cliques: the plain GA gives the tree sooner. */
+        if (o->partition && c->nprims > 1 && !run_cancelled(c) &&
             (stage_partition(c) || stage_grow_merged(c) || stage_polish(c)))
             return -1;
         if (!c->partitioned && stage_ga(c)) return -1;
