@@ -1405,11 +1405,11 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
             for (int b = 0; b < CANON_GRID; b++)
                 for (int e = 0; e < CANON_GRID; e++, ng++) {
                     double s3[3] = { a, b, e };
-                    for (int w = 0; w < 3; w++) {
-                        double x = r->obb.c[w];
+                    for (int d = 0; d < 3; d++) {
+                        double x = r->obb.c[d];
                         for (int k = 0; k < 3; k++)
-                            x += r->obb.ax[k][w] * 1.1 * r->obb.h[k] * (2 * (s3[k] + 0.5) / CANON_GRID - 1);
-                        grid[3 * ng + w] = x;
+                            x += r->obb.ax[k][d] * 1.1 * r->obb.h[k] * (2 * (s3[k] + 0.5) / CANON_GRID - 1);
+                        grid[3 * ng + d] = x;
                     }
                     ref[ng] = ft_eval(&F, root, &grid[3 * ng]);
                 }

@@ -825,6 +825,7 @@ static int grid_run(const grid_job *g, long u0, long u1, int nthreads, double *c
     if (nt > *used) *used = nt;
 #pragma omp parallel num_threads(nt) reduction(+ : insns) if (nt > 1)
 #else
+    (void)grid_threads;
     (void)nthreads;
     *used = 1;
 #endif
