@@ -368,52 +368,7 @@ int canon_prims(const evolve_result *r, const prim *prims, size_t nprims,
 
 void canon_write_call(FILE *f, const canon_prim *c)
 {
-    const prim *q = &c->q;
-    double v[8], qu[8];
-    int n = 0;
-    const char *name = "frPlane";
-    double qp = c->qpos, qd = c->qdir;
-    switch (q->type) {
-    case PRIM_PLANE:
-    case PRIM_SPHERE:
-        name = q->type == PRIM_PLANE ? "frPlane" : "frSphere";
-        for (int k = 0; k < 3; k++) {
-            v[n] = q->p[k];
-            qu[n++] = q->type == PRIM_PLANE ? qd : qp;
-        }
-        v[n] = q->r;
-        qu[n++] = qp;
-        break;
-    case PRIM_CYLINDER:
-    case PRIM_CONE:
-    case PRIM_TORUS:
-        name = q->type == PRIM_CYLINDER ? "frCylinder" : q->type == PRIM_CONE ? "frCone" : "frTorus";
-        for (int k = 0; k < 3; k++) {
-            v[n] = q->p[k];
-            qu[n++] = qp;
-        }
-        for (int k = 0; k < 3; k++) {
-            v[n] = q->a[k];
-            qu[n++] = qd;
-        }
-        if (q->type == PRIM_TORUS) {
-            v[n] = q->R;
-            qu[n++] = qp;
-        }
-        v[n] = q->r;
-        qu[n++] = q->type == PRIM_CONE ? qd : qp;
-        break;
-    case PRIM__COUNT:
-        fputs("0", f);
-        return;
-    }
-    fprintf(f, "%s(x", name);
-    for (int k = 0; k < n; k++) {
-        char buf[PRIM_NUM_BUF];
-        prim_format_number(buf, v[k], qu[k]);
-        fprintf(f, ", %s", buf);
-    }
-    fputc(')', f);
+    prim_write_call_quanta(f, &c->q, c->qpos, c->qdir);
 }
 
 /* A signed number as a term: " + 0.5", " - 0.5" (nothing for 0). */

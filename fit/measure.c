@@ -13,6 +13,7 @@
  * upper bound of the true distance.
  */
 #include "alloc.h"
+#include "linalg.h"
 #include "measure.h"
 
 #include <math.h>
@@ -263,30 +264,10 @@ static int cmp_double(const void *a, const void *b)
  * Cholesky factor) into diag; -1 when A is not positive definite. */
 static int inverse_diagonal(size_t n, double *A, double *diag, double *e)
 {
-    for (size_t j = 0; j < n; j++) {
-        double s = A[j * n + j];
-        for (size_t k = 0; k < j; k++) s -= A[j * n + k] * A[j * n + k];
-        if (!(s > 0)) return -1;
-        double l = sqrt(s);
-        A[j * n + j] = l;
-        for (size_t i = j + 1; i < n; i++) {
-            double t = A[i * n + j];
-            for (size_t k = 0; k < j; k++) t -= A[i * n + k] * A[j * n + k];
-            A[i * n + j] = t / l;
-        }
-    }
+    if (linalg_cholesky(n, A) != 0) return -1;
     for (size_t c = 0; c < n; c++) {
         for (size_t i = 0; i < n; i++) e[i] = i == c;
-        for (size_t i = 0; i < n; i++) {
-            double t = e[i];
-            for (size_t k = 0; k < i; k++) t -= A[i * n + k] * e[k];
-            e[i] = t / A[i * n + i];
-        }
-        for (size_t i = n; i-- > 0;) {
-            double t = e[i];
-            for (size_t k = i + 1; k < n; k++) t -= A[k * n + i] * e[k];
-            e[i] = t / A[i * n + i];
-        }
+        linalg_cholesky_solve(n, A, e);
         diag[c] = e[c];
     }
     return 0;

@@ -6,6 +6,7 @@
 #define _POSIX_C_SOURCE 200809L
 
 #include "alloc.h"
+#include "linalg.h"
 #include "optim.h"
 #include "util.h"
 
@@ -562,32 +563,12 @@ void fit_lm_options_init(fit_lm_options *o)
     o->dtol_abs = 1e-12;
 }
 
-/* Solve the SPD system A x = b in place by Cholesky (A is overwritten). Returns 0, or -1
- * when A is not positive definite. */
+/* Solve the SPD system A x = b in place by Cholesky (A is overwritten, b becomes x).
+ * Returns 0, or -1 when A is not positive definite. */
 static int cholesky_solve(size_t n, double *A, double *b)
 {
-    for (size_t j = 0; j < n; j++) {
-        double s = A[j * n + j];
-        for (size_t k = 0; k < j; k++) s -= A[j * n + k] * A[j * n + k];
-        if (!(s > 0)) return -1;
-        double l = sqrt(s);
-        A[j * n + j] = l;
-        for (size_t i = j + 1; i < n; i++) {
-            double t = A[i * n + j];
-            for (size_t k = 0; k < j; k++) t -= A[i * n + k] * A[j * n + k];
-            A[i * n + j] = t / l;
-        }
-    }
-    for (size_t i = 0; i < n; i++) {
-        double t = b[i];
-        for (size_t k = 0; k < i; k++) t -= A[i * n + k] * b[k];
-        b[i] = t / A[i * n + i];
-    }
-    for (size_t i = n; i-- > 0;) {
-        double t = b[i];
-        for (size_t k = i + 1; k < n; k++) t -= A[k * n + i] * b[k];
-        b[i] = t / A[i * n + i];
-    }
+    if (linalg_cholesky(n, A) != 0) return -1;
+    linalg_cholesky_solve(n, A, b);
     return 0;
 }
 

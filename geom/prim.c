@@ -150,10 +150,8 @@ void prim_format_number(char *buf, double v, double quantum)
     if (strcmp(buf, "-0") == 0) strcpy(buf, "0");
 }
 
-void prim_write_call_scaled(FILE *f, const prim *q, double scale)
+void prim_write_call_quanta(FILE *f, const prim *q, double qp, double qd)
 {
-    int exact = !(scale > 0) || !isfinite(scale);
-    double qp = exact ? 0 : PRIM_POS_QUANTUM * scale, qd = exact ? 0 : PRIM_DIR_QUANTUM;
     /* Each argument after x with its quantum, in the call's order. */
     double v[8], qu[8];
     int n = 0;
@@ -200,6 +198,13 @@ void prim_write_call_scaled(FILE *f, const prim *q, double scale)
         fprintf(f, ", %s", buf);
     }
     fputc(')', f);
+}
+
+void prim_write_call_scaled(FILE *f, const prim *q, double scale)
+{
+    int exact = !(scale > 0) || !isfinite(scale);
+    prim_write_call_quanta(f, q, exact ? 0 : PRIM_POS_QUANTUM * scale,
+                           exact ? 0 : PRIM_DIR_QUANTUM);
 }
 
 void prim_write_call(FILE *f, const prim *q)

@@ -68,6 +68,9 @@ void prim_write_call(FILE *f, const prim *q);
  * PRIM_DIR_QUANTUM for directions and angles), in the fewest significant digits.
  * scale <= 0 (or not finite) means exact output, as prim_write_call. */
 void prim_write_call_scaled(FILE *f, const prim *q, double scale);
+/* The same with the quanta given: qpos for positions and lengths, qdir for directions
+ * and angles (0: exact). */
+void prim_write_call_quanta(FILE *f, const prim *q, double qpos, double qdir);
 /* Format v into buf (at least PRIM_NUM_BUF bytes) with the fewest significant digits
  * that stay within quantum / 2 of v ("0" when |v| is below that); quantum <= 0: the
  * shortest form that reads back exactly. */

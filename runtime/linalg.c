@@ -68,3 +68,34 @@ void linalg_sym3_eig(const double m[9], const linalg_jacobi_stop *stop, double e
         for (int i = 0; i < 3; i++) vec[3 * k + i] = v[i][order[k]];
     }
 }
+
+int linalg_cholesky(size_t n, double *A)
+{
+    for (size_t j = 0; j < n; j++) {
+        double s = A[j * n + j];
+        for (size_t k = 0; k < j; k++) s -= A[j * n + k] * A[j * n + k];
+        if (!(s > 0)) return -1;
+        double l = sqrt(s);
+        A[j * n + j] = l;
+        for (size_t i = j + 1; i < n; i++) {
+            double t = A[i * n + j];
+            for (size_t k = 0; k < j; k++) t -= A[i * n + k] * A[j * n + k];
+            A[i * n + j] = t / l;
+        }
+    }
+    return 0;
+}
+
+void linalg_cholesky_solve(size_t n, const double *L, double *b)
+{
+    for (size_t i = 0; i < n; i++) {
+        double t = b[i];
+        for (size_t k = 0; k < i; k++) t -= L[i * n + k] * b[k];
+        b[i] = t / L[i * n + i];
+    }
+    for (size_t i = n; i-- > 0;) {
+        double t = b[i];
+        for (size_t k = i + 1; k < n; k++) t -= L[k * n + i] * b[k];
+        b[i] = t / L[i * n + i];
+    }
+}

@@ -1,7 +1,10 @@
 /* linalg.h - small dense linear algebra of the shared base: the symmetric 3x3 eigen
  * decomposition (cyclic Jacobi) behind PCA normals and patches (geom/, segment/),
- * the dual-contouring QEF (mesh/) and oriented boxes (evolve/).
+ * the dual-contouring QEF (mesh/) and oriented boxes (evolve/); the Cholesky
+ * factorization and solves behind the fit's Levenberg-Marquardt steps and its
+ * standard errors (fit/).
  */
+#include <stddef.h>
 #ifndef FREP_LINALG_H
 #define FREP_LINALG_H
 
@@ -23,5 +26,13 @@ void linalg_sym3_jacobi(const double a[3][3], const linalg_jacobi_stop *stop, do
  * with ev ascending and eigenvector k in vec[3k .. 3k + 2]. */
 void linalg_sym3_eig(const double m[9], const linalg_jacobi_stop *stop, double ev[3],
                      double vec[9]);
+
+/* Cholesky factorization of the symmetric positive definite n x n row-major A in place:
+ * its lower triangle becomes L with A = L L^T (the upper triangle is left as it was).
+ * Returns 0, or -1 when A is not positive definite (A then partly overwritten). */
+int linalg_cholesky(size_t n, double *A);
+
+/* Solve L L^T x = b in place (b becomes x) with L from linalg_cholesky. */
+void linalg_cholesky_solve(size_t n, const double *L, double *b);
 
 #endif

@@ -11,12 +11,7 @@
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-cli.XXXXXX") || exit 1
 trap 'rm -rf "$tmp"' EXIT INT TERM
 
-n=0
-failed=0
-report() { # report STATUS DESCRIPTION
-    n=$((n + 1))
-    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
-}
+. "$(dirname "$0")/tap.sh"
 # usage WANT-STDERR-LINE ARGS...: exit status 2, the message, then the hint to --help
 usage() {
     want=$1; shift
@@ -245,5 +240,4 @@ if command -v groff >/dev/null 2>&1; then
     report $? "doc/frep.1 formats without warnings"
 fi
 
-echo "1..$n"
-exit $failed
+tap_done

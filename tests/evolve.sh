@@ -10,12 +10,7 @@
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-evolve.XXXXXX") || exit 1
 trap 'rm -rf "$tmp"' EXIT INT TERM
 
-n=0
-failed=0
-report() { # report STATUS DESCRIPTION
-    n=$((n + 1))
-    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
-}
+. "$(dirname "$0")/tap.sh"
 show() { sed 's/^/# /' "$1"; }
 
 # The unit cube [-1,1]^3 as six half-spaces (inside >= 0).
@@ -311,5 +306,4 @@ report $? "--refit: the RMS distance falls a hundredfold or more"
     awk 'NF == 2 && $1 > 0.005 && $2 < $1 / 100 {ok = 1} END {exit ok ? 0 : 1}' "$tmp/rms"
 report $? "--refit of a large cloud (a subset fitted): the RMS distance falls"
 
-echo "1..$n"
-exit $failed
+tap_done

@@ -13,12 +13,7 @@ src=${srcdir:-$(cd "$(dirname "$0")/.." && pwd)}
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-evmodel.XXXXXX") || exit 1
 trap 'rm -rf "$tmp"' EXIT INT TERM
 
-n=0
-failed=0
-report() { # report STATUS DESCRIPTION
-    n=$((n + 1))
-    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
-}
+. "$(dirname "$0")/tap.sh"
 skip() { n=$((n + 1)); echo "ok $n # SKIP $1"; }
 show() { sed 's/^/# /' "$1"; }
 
@@ -178,5 +173,4 @@ else
     skip "OpenSCAD or /usr/bin/python3 with numpy and scipy not installed"
 fi
 
-echo "1..$n"
-exit $failed
+tap_done

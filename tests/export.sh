@@ -14,12 +14,7 @@ src=${srcdir:-$(cd "$(dirname "$0")/.." && pwd)}
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-export.XXXXXX") || exit 1
 trap 'rm -rf "$tmp"' EXIT INT TERM
 
-n=0
-failed=0
-report() { # report STATUS DESCRIPTION
-    n=$((n + 1))
-    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
-}
+. "$(dirname "$0")/tap.sh"
 skip() { n=$((n + 1)); echo "ok $n # SKIP $1"; }
 show() { sed 's/^/# /' "$1"; }
 
@@ -181,5 +176,4 @@ else
     report 1 "evolve the plate"; show "$tmp/err"
 fi
 
-echo "1..$n"
-exit $failed
+tap_done

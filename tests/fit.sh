@@ -12,12 +12,7 @@ tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-fit.XXXXXX") || exit 1
 trap 'rm -rf "$tmp"' EXIT INT TERM
 ex="$srcdir/examples/fit"
 
-n=0
-failed=0
-report() { # report STATUS DESCRIPTION
-    n=$((n + 1))
-    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
-}
+. "$(dirname "$0")/tap.sh"
 
 # Largest parameter error of a report (stdout of frep fit) against the ground truth of
 # examples/fit/part_truth.hf, relative to the box diagonal; the two holes may come out in
@@ -171,5 +166,4 @@ report $? "no output file after failures"
 test $? -eq 2
 report $? "a bad option is a usage error (exit 2)"
 
-echo "1..$n"
-exit $failed
+tap_done

@@ -10,12 +10,7 @@
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-fit-report.XXXXXX") || exit 1
 trap 'rm -rf "$tmp"' EXIT INT TERM
 
-n=0
-failed=0
-report() { # report STATUS DESCRIPTION
-    n=$((n + 1))
-    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
-}
+. "$(dirname "$0")/tap.sh"
 
 # A box with R-function slabs (HyperFun's hfBlock): |grad f| vanishes at its centre and
 # is small near its edges, where |f|/|grad f| overstates distances by far.
@@ -119,6 +114,12 @@ report $? "robust fit through outliers: error $e < 1e-3, no parameter loose"
 e=$(rerr "$tmp/n.out")
 awk -v e="$e" 'BEGIN { exit !(e > 1e-2) }'
 report $? "(least squares, --no-robust: error $e > 1e-2, so the test above can fail)"
+# The annealing on a bounded loss (--sa-loss cauchy, its scale from the cloud's size)
+# before the robust local phase: through the same outliers it ends at the box too.
+"$FREP" fit "$tmp/good.hf" "$tmp/mixed.xyz" --sa-loss cauchy --seed 2 -o "$tmp/o.hf" > "$tmp/s.out" 2>&1
+e=$(rerr "$tmp/s.out")
+awk -v e="$e" 'BEGIN { exit !(e < 1e-3) }' && grep -q ', seed 2$' "$tmp/s.out"
+report $? "annealing on a Cauchy loss, then the robust refinement: error $e < 1e-3"
 
 # Assigned again after its '@free' line: a compile warning, and no effect.
 sed -e 's/^    c = \[x0, y0, z0\];/    z0 = -0.5;\n    c = [x0, y0, z0];/' -e '/u = 1;/d' "$tmp/box.hf" > "$tmp/again.hf"
@@ -148,5 +149,4 @@ report $? "frep mesh: an a[] model without values says so"
 [ $? != 0 ] && grep -q "fills all of the box" "$tmp/m.err"
 report $? "frep mesh: a model that fills the box says so" 
 
-echo "1..$n"
-exit $failed
+tap_done

@@ -19,12 +19,7 @@ dir="$srcdir/tests/fit"
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-fit-suite.XXXXXX") || exit 1
 trap 'rm -rf "$tmp"' EXIT INT TERM
 
-n=0
-failed=0
-report() { # report STATUS DESCRIPTION
-    n=$((n + 1))
-    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
-}
+. "$(dirname "$0")/tap.sh"
 
 # truth_of TEMPLATE -> the truth file (bushing_minmax -> bushing_truth)
 truth_of() { echo "$dir/${1%%_*}_truth.hf"; }

@@ -26,12 +26,7 @@ tck=$(getconf CLK_TCK 2>/dev/null || echo 100)
 # instead of blocking).
 WATCHDOG_S=120
 
-n=0
-failed=0
-report() { # report STATUS DESCRIPTION
-    n=$((n + 1))
-    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
-}
+. "$(dirname "$0")/tap.sh"
 now() { date +%s.%N; }
 
 # start CMD...: run in the background (pid in $pid; stdout in $tmp/out, stderr in

@@ -24,12 +24,7 @@ SLACK=$(awk -v l="$(cut -d' ' -f1 /proc/loadavg 2>/dev/null || echo 0)" -v c="$n
 echo "# allowance $SLACK s (1.5 s x the load per processor, $ncpu processors)"
 NPTS=150000
 
-n=0
-failed=0
-report() { # report STATUS DESCRIPTION
-    n=$((n + 1))
-    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
-}
+. "$(dirname "$0")/tap.sh"
 
 now() { date +%s.%N; }
 
@@ -55,5 +50,4 @@ done
 [ -f "$tmp/out.fit" ]
 report $? "segment: the primitives found so far are written"
 
-echo "1..$n"
-exit $failed
+tap_done

@@ -36,12 +36,7 @@ MAX_INWARD=0.02
 # for the plate (0.0055: its wall of 0.04 is then 7 deviations thick; at 0.5% the two
 # sides' points overlap and no estimate can tell them apart).
 
-n=0
-failed=0
-report() { # report STATUS DESCRIPTION
-    n=$((n + 1))
-    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
-}
+. "$(dirname "$0")/tap.sh"
 
 # measure TRUTH.xyz EST.xyz: "median_deg inward_share worst_face_inward_share"; faces
 # are the groups of points with the same true normal (to 3 decimals; the cylinder's
@@ -156,5 +151,4 @@ report $? "normals: a tilted plane's normals are its normal, consistently orient
     [ "$(grep -c '^plane' "$tmp/out.fit")" = 1 ]
 report $? "segment: one plane in a coplanar cloud"
 
-echo "1..$n"
-exit $failed
+tap_done

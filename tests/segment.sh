@@ -25,12 +25,7 @@ TOL_DEG_CLEAN=0.5
 TOL_POS_NOISY=0.03
 TOL_DEG_NOISY=2.5
 
-n=0
-failed=0
-report() { # report STATUS DESCRIPTION
-    n=$((n + 1))
-    if [ "$1" = 0 ]; then echo "ok $n - $2"; else echo "not ok $n - $2"; failed=1; fi
-}
+. "$(dirname "$0")/tap.sh"
 
 # The ground truth of each model in the .fit format of frep segment, derived from the
 # model sources by hand: unit vectors are the models' vectors divided by their length,
@@ -285,5 +280,4 @@ set -- $(compare "$tmp/box-clean.fit" "$tmp/box-hf.fit" 1e-6 0.01 2> "$tmp/cmp")
 [ "$1" = 6 ] && [ "$2" = 0 ]
 report $? "box .hf: rounded planes within 1e-6 of the exact fit ($1 of 6)"
 
-echo "1..$n"
-exit $failed
+tap_done

@@ -14,7 +14,10 @@
 #endif
 
 #include "alloc.h"
+#include "cloud.h"
+#include "evolve.h"
 #include "fitness.h"
+#include "frep.h"
 #include "gp.h"
 #include "partition.h"
 #include "simplify.h"
@@ -1512,6 +1515,115 @@ static void test_support(void)
     scene_free(&s);
 }
 
+
+/* The step of a stair: a 2 x 2 x 1 slab with a 1 x 2 x 1 block on its left half, as
+ * the GA may write it, A & (B | (C1 & C2)) with A five planes of the slab and block
+ * (x = -1, x = 1, y = -1, y = 1, z = -1), B the slab's top z <= 0, C the block's
+ * right side x <= 0 and its top z <= 1. The model writer finds the block's box across
+ * the union (A's planes complete C to a box); whatever it writes must be the same
+ * solid: checked by compiling the written model and comparing its sign with the
+ * step's at a grid of points away from the surface. */
+static double step_value(const double p[3])
+{
+    double slab = fmin(fmin(1 - fabs(p[0]), 1 - fabs(p[1])), fmin(p[2] + 1, -p[2]));
+    double block = fmin(fmin(-p[0], p[0] + 1), fmin(1 - fabs(p[1]), fmin(p[2] + 1, 1 - p[2])));
+    return fmax(slab, block);
+}
+
+static void ignore_diag(void *user, const frep_diag *d)
+{
+    (void)user;
+    (void)d;
+}
+
+static void test_box_across_union(void)
+{
+    static const struct { int axis; double sign, d; } pl[8] = {
+        { 0, -1, 1 }, { 0, 1, 1 }, { 1, -1, 1 }, { 1, 1, 1 }, { 2, -1, 1 },  /* A */
+        { 2, 1, 0 },                                                         /* B */
+        { 0, 1, 0 }, { 2, 1, 1 },                                            /* C */
+    };
+    prim prims[8];
+    memset(prims, 0, sizeof prims);
+    for (int j = 0; j < 8; j++) {
+        prims[j].type = PRIM_PLANE;
+        prims[j].p[pl[j].axis] = pl[j].sign;
+        prims[j].r = pl[j].d;
+    }
+    /* Points on the step's surface with outward normals: a grid over its bounding box
+     * projected to the nearest face, kept where that face is on the surface. */
+    frep_cloud *cloud = cloud_new(1);
+    for (int i = 0; i <= 20 && cloud; i++)
+        for (int j = 0; j <= 20; j++)
+            for (int k = 0; k <= 20; k++) {
+                double p[3] = { -1 + 0.1 * i, -1 + 0.1 * j, -1 + 0.1 * k };
+                int on = i == 0 || i == 20 || j == 0 || j == 20 || k == 0 || k == 20 ||
+                         (k == 10 && i >= 10) || (i == 10 && k >= 10);
+                double v = step_value(p);
+                if (!on || fabs(v) > 1e-12) continue;
+                double e = 1e-6, n[3];
+                for (int c = 0; c < 3; c++) {
+                    double q[3] = { p[0], p[1], p[2] };
+                    q[c] += e;
+                    double vp = step_value(q);
+                    q[c] -= 2 * e;
+                    n[c] = (step_value(q) - vp) / (2 * e);
+                }
+                double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+                if (!(l > 0.5)) continue;
+                for (int c = 0; c < 3; c++) n[c] /= l;
+                if (cloud_push(cloud, p, n)) {
+                    cloud_free(cloud);
+                    cloud = NULL;
+                }
+            }
+    ok(cloud && cloud->n > 1000, "step: %zu points on its faces", cloud ? cloud->n : 0);
+    if (!cloud) return;
+
+    evolve_result r;
+    memset(&r, 0, sizeof r);
+    parse_tree(&r.tree, "12&3&4&5&678&|&", GP_SETOPS_MINMAX);
+    r.npoints = cloud->n;
+    r.diag = sqrt(4 + 4 + 4);
+    part_obb_of_points(cloud->x, cloud->y, cloud->z, NULL, cloud->n, &r.obb);
+    double box[6] = { -1.1, -1.1, -1.1, 1.1, 1.1, 1.1 };
+    memcpy(r.box, box, sizeof box);
+    evolve_meta meta = { "test", "step.xyz", 1, GP_SETOPS_MINMAX, NULL, NULL, cloud, 0, 0 };
+    char *text = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
+    int rc = f ? evolve_write_model(f, &r, prims, 8, &meta) : -1;
+    if (f) fclose(f);
+    ok(rc == 0 && text && strstr(text, "frBox(x,") != NULL,
+       "step: the block is written as a box found across the union");
+    if (rc || !text || !strstr(text, "frBox(x,")) diag("%s", text ? text : "(no text)");
+
+    frep_compile_options opt;
+    frep_compile_options_init(&opt);
+    frep_program *prog = text ? frep_compile("step.hf", text, len, &opt, ignore_diag, NULL) : NULL;
+    frep_scratch *sc = prog ? frep_scratch_new(prog) : NULL;
+    size_t same = 0, total = 0;
+    for (int i = 0; sc && i < 24; i++)
+        for (int j = 0; j < 24; j++)
+            for (int k = 0; k < 24; k++) {
+                double p[3] = { -1.2 + 2.4 * (i + 0.5) / 24, -1.2 + 2.4 * (j + 0.5) / 24,
+                                -1.2 + 2.4 * (k + 0.5) / 24 }, v;
+                double want = step_value(p);
+                if (fabs(want) < 0.02) continue;
+                if (frep_eval(prog, sc, 1, &p[0], &p[1], &p[2], NULL, &v)) continue;
+                total++;
+                same += (v >= 0) == (want >= 0);
+            }
+    ok(prog && total > 10000 && same == total,
+       "step: the written model is the step (%zu of %zu grid points on the right side)", same,
+       total);
+    frep_scratch_free(sc);
+    frep_program_free(prog);
+    free(text);
+    tree_free(&r.tree);
+    cloud_free(cloud);
+}
+
 int main(void)
 {
     test_tree_ops();
@@ -1535,5 +1647,6 @@ int main(void)
     test_simplify_both();
     test_support();
     test_cache_stats();
+    test_box_across_union();
     return done_testing();
 }
