@@ -27,7 +27,9 @@ measure() {
   size=$(wc -c <"$2")
   l1=$(load)
   ready=$(cdp "file://$2" "$READY" 'since:document.body.getAttribute("data-ready-at")' \
-    'eval:document.body.getAttribute("data-load-ms")' 'eval:document.body.getAttribute("data-full")')
+    'eval:document.body.getAttribute("data-load-ms")' 'eval:document.body.getAttribute("data-full")' \
+    'until:document.body.getAttribute("data-full-at"):600000' 'since:document.body.getAttribute("data-full-at")' \
+    'eval:document.body.getAttribute("data-start-ms")' 'eval:document.body.getAttribute("data-first")')
   l2=$(load)
   full=$(cdp "file://$2?bench=5" "$FRAMES" 'eval:document.body.getAttribute("data-frame-ms")')
   l3=$(load)
@@ -42,10 +44,11 @@ measure() {
   da=$(drag "" "$2"); l6=$(load)
   set -- "$1" $ready
   printf '%s: %d triangles, %d points; page %.2f MB\n' "$1" "$4" "$5" "$(echo "$size" | awk '{ print $1 / 1e6 }')"
-  printf '  first picture %d ms after opening (decode and upload %s ms) [load %s]\n' "$2" "$3" "$l2"
+  printf '  first picture %d ms after opening (%s triangles, %s points; script started at %s ms, decode and upload %s ms), full detail at %s ms [load %s]\n' \
+    "$2" "$8" "$9" "$7" "$3" "$6" "$l2"
   printf '  frame in full detail %s ms (median of 5 orbit frames) [load %s]\n' "$full" "$l3"
-  printf '  frame while dragging, median of 20 moves: half resolution %s [load %s]\n' "$d2" "$l4"
-  printf '    full resolution %s [load %s]\n' "$d1" "$l5"
+  printf '  frame while dragging, median of 20 moves: buffer fixed at 1/2 (?lodres=2) %s [load %s]\n' "$d2" "$l4"
+  printf '    buffer fixed at 1/1 (?lodres=1) %s [load %s]\n' "$d1" "$l5"
   printf '    adaptive (default) %s [load %s]\n' "$da" "$l6"
 }
 

@@ -72,13 +72,19 @@ report $? "the picture after the drag is the full-detail one ($(cat "$T/out"))"
 [ -n "$first" ] && [ "${first%% *}" -lt "${full%% *}" ] 2>/dev/null
 report $? "the first picture is the coarse copy ($first triangles and points), then the full one ($full)"
 # ?lodms=1: every moving frame takes longer than 1 ms, so the reduction doubles to its
-# largest, a quarter of the width and height
-cdp "file://$T/big.html?lodms=1" "$READY" 'eval:document.body.getAttribute("data-buffer")' drag:$C,5,2,8 \
-  'eval:document.body.getAttribute("data-buffer")' release:705,366 >"$T/adapt.out" 2>&1
-fbuf=$(sed -n 1p "$T/adapt.out") mbuf=$(sed -n 3p "$T/adapt.out")
+# largest, a quarter of the width and height, and then the copies of ?lodlow=1000
+# triangles and ?lodlowpoints=300 points are drawn
+cdp "file://$T/big.html?lodms=1&lodlow=1000&lodlowpoints=300" "$READY" 'eval:document.body.getAttribute("data-buffer")' \
+  'eval:document.body.getAttribute("data-full")' drag:$C,5,2,8 'eval:document.body.getAttribute("data-buffer")' \
+  'eval:document.body.getAttribute("data-drawn")' release:705,366 >"$T/adapt.out" 2>&1
+fbuf=$(sed -n 1p "$T/adapt.out") full=$(sed -n 2p "$T/adapt.out") mbuf=$(sed -n 4p "$T/adapt.out")
+moving=$(sed -n 5p "$T/adapt.out")
 fw=${fbuf%% *} mw=${mbuf%% *}
 [ -n "$mbuf" ] && [ $((4 * mw - fw)) -ge -2 ] 2>/dev/null && [ $((4 * mw - fw)) -le 2 ]
 report $? "slow moving frames shrink the drawing buffer to a quarter ($mbuf pixels, of $fbuf)"
+[ -n "$moving" ] && [ "${moving%% *}" -le 1500 ] 2>/dev/null && [ "${moving##* }" -eq 300 ] 2>/dev/null &&
+  [ "$full" = "11676 3000" ]
+report $? "... and then draw the coarser copies ($moving triangles and points, of $full)"
 
 # the model's colours (s[1..3]): a red and a green sphere
 printf 'my_model(x[3], a[1], s[3])\n{\n    f1 = frSphere(x, -0.6, 0, 0, 0.5);\n    f2 = frSphere(x, 0.6, 0, 0, 0.5);\n    c1 = hfA_SetColor(f1, s, 1, 0, 0);\n    c2 = hfA_SetColor(f2, s, 0, 1, 0);\n    my_model = f1 | f2;\n}\n' >"$T/rg.hf"
