@@ -22,6 +22,7 @@ report() { # report STATUS DESCRIPTION
 # The window and the page's side panel (view/viewer.html, #side).
 SIZE=1000x700 SIDE=330
 READY='until:document.body.getAttribute("data-ready"):30000'
+FULL='until:document.body.getAttribute("data-full-at"):30000'
 cdp() { timeout 180 python3 "$srcdir/tests/cdp.py" "$CHROMIUM" $SIZE "$@" 2>>"$T/cdp.log"; }
 png() { python3 "$srcdir/tests/view_png.py" "$@"; }
 
@@ -45,16 +46,45 @@ cdp "file://$T/big.html?bench=30" 'until:document.body.getAttribute("data-frame-
 report $? "a frame time is measured: $(cat "$T/bench.out") ms a frame (software WebGL, $(wc -c <"$T/big.html") bytes)"
 
 # level of detail: while the mouse drags, coarse copies are drawn (small thresholds make
-# this small scene have them); full detail again once the mouse is released
+# this small scene have them) into a drawing buffer of half the canvas's width and
+# height (?lodres=2); full detail at full resolution again once the mouse is released,
+# the same picture as a full frame drawn afresh at that camera
 C=665,350
-cdp "file://$T/big.html?lodtris=2000&lodpoints=500" "$READY" 'eval:document.body.getAttribute("data-drawn")' \
-  press:$C move:675,355 move:690,360 wait:100 'eval:document.body.getAttribute("data-drawn")' \
-  release:690,360 'until:document.body.getAttribute("data-drawn") == document.body.getAttribute("data-full"):5000' \
-  'eval:document.body.getAttribute("data-drawn")' >"$T/lod.out" 2>&1
-full=$(sed -n 1p "$T/lod.out") moving=$(sed -n 2p "$T/lod.out") after=$(sed -n 3p "$T/lod.out")
+cdp "file://$T/big.html?lodtris=2000&lodpoints=500&lodres=2" "$READY" "$FULL" 'eval:document.body.getAttribute("data-first")' \
+  'eval:document.body.getAttribute("data-drawn")' \
+  'eval:document.body.getAttribute("data-buffer")' drag:$C,5,2,4 \
+  'eval:document.body.getAttribute("data-drawn")' 'eval:document.body.getAttribute("data-buffer")' \
+  release:685,358 'until:document.body.getAttribute("data-drawn") == document.body.getAttribute("data-full"):5000' \
+  'eval:document.body.getAttribute("data-drawn")' 'eval:document.body.getAttribute("data-buffer")' \
+  wait:300 shot:"$T/settled.png" 'eval:frepDebug.full()' wait:300 shot:"$T/full.png" >"$T/lod.out" 2>&1
+first=$(sed -n 1p "$T/lod.out") full=$(sed -n 2p "$T/lod.out") fbuf=$(sed -n 3p "$T/lod.out")
+dragms=$(sed -n 4p "$T/lod.out") moving=$(sed -n 5p "$T/lod.out") mbuf=$(sed -n 6p "$T/lod.out")
+after=$(sed -n 7p "$T/lod.out") abuf=$(sed -n 8p "$T/lod.out")
 [ -n "$full" ] && [ "$full" = "$after" ] && [ "${moving%% *}" -lt "${full%% *}" ] 2>/dev/null &&
   [ "${moving##* }" -lt "${full##* }" ] 2>/dev/null && [ "${moving##* }" -le 500 ]
 report $? "while dragging a coarse copy is drawn ($moving triangles and points, of $full), then all of it ($after)"
+fw=${fbuf%% *} fh=${fbuf##* } mw=${mbuf%% *} mh=${mbuf##* }
+[ -n "$fbuf" ] && [ "$fbuf" = "$abuf" ] && [ $((2 * mw - fw)) -ge -1 ] 2>/dev/null && [ $((2 * mw - fw)) -le 1 ] &&
+  [ $((2 * mh - fh)) -ge -1 ] && [ $((2 * mh - fh)) -le 1 ]
+report $? "while dragging the drawing buffer is halved ($mbuf pixels, of $fbuf), then full again ($abuf); a move drawn in ${dragms%% *} ms"
+png same "$T/settled.png" "$T/full.png" >"$T/out"
+report $? "the picture after the drag is the full-detail one ($(cat "$T/out"))"
+[ -n "$first" ] && [ "${first%% *}" -lt "${full%% *}" ] 2>/dev/null
+report $? "the first picture is the coarse copy ($first triangles and points), then the full one ($full)"
+# ?lodms=1: every moving frame takes longer than 1 ms, so the reduction doubles to its
+# largest, a quarter of the width and height, and then the copies of ?lodlow=1000
+# triangles and ?lodlowpoints=300 points are drawn
+cdp "file://$T/big.html?lodms=1&lodlow=1000&lodlowpoints=300" "$READY" 'eval:document.body.getAttribute("data-buffer")' \
+  'eval:document.body.getAttribute("data-full")' drag:$C,5,2,8 'eval:document.body.getAttribute("data-buffer")' \
+  'eval:document.body.getAttribute("data-drawn")' release:705,366 >"$T/adapt.out" 2>&1
+fbuf=$(sed -n 1p "$T/adapt.out") full=$(sed -n 2p "$T/adapt.out") mbuf=$(sed -n 4p "$T/adapt.out")
+moving=$(sed -n 5p "$T/adapt.out")
+fw=${fbuf%% *} mw=${mbuf%% *}
+[ -n "$mbuf" ] && [ $((4 * mw - fw)) -ge -2 ] 2>/dev/null && [ $((4 * mw - fw)) -le 2 ]
+report $? "slow moving frames shrink the drawing buffer to a quarter ($mbuf pixels, of $fbuf)"
+[ -n "$moving" ] && [ "${moving%% *}" -le 1500 ] 2>/dev/null && [ "${moving##* }" -eq 300 ] 2>/dev/null &&
+  [ "$full" = "11676 3000" ]
+report $? "... and then draw the coarser copies ($moving triangles and points, of $full)"
 
 # the model's colours (s[1..3]): a red and a green sphere
 printf 'my_model(x[3], a[1], s[3])\n{\n    f1 = frSphere(x, -0.6, 0, 0, 0.5);\n    f2 = frSphere(x, 0.6, 0, 0, 0.5);\n    c1 = hfA_SetColor(f1, s, 1, 0, 0);\n    c2 = hfA_SetColor(f2, s, 0, 1, 0);\n    my_model = f1 | f2;\n}\n' >"$T/rg.hf"

@@ -7,6 +7,9 @@
 #   mark (remember the time)   since:JS-EXPRESSION (print the expression's number, in
 #   milliseconds since the epoch, minus the marked time)
 #   press:X,Y  move:X,Y  release:X,Y (the left mouse button, in CSS pixels)
+#   drag:X,Y,DX,DY,N (press at X,Y and move N times by DX,DY, each move waiting for the
+#   page's next picture through its hook frepDebug.after(n): print the median and the
+#   largest time from a move to its picture, in ms, then the list; the button stays down)
 # Exit status 0 when every action succeeded.
 import base64, json, os, re, socket, struct, subprocess, sys, tempfile, time, urllib.request
 
@@ -109,6 +112,21 @@ def main():
                 ws.call('Input.dispatchMouseEvent', x=x, y=y, button='left',
                         type={'press': 'mousePressed', 'move': 'mouseMoved', 'release': 'mouseReleased'}[kind],
                         buttons=0 if kind == 'release' else 1, clickCount=1 if kind != 'move' else 0)
+            elif kind == 'drag':
+                x, y, dx, dy, n = (float(v) for v in arg.split(','))
+                ws.call('Input.dispatchMouseEvent', x=x, y=y, button='left', type='mousePressed',
+                        buttons=1, clickCount=1)
+                times = []
+                for i in range(1, int(n) + 1):
+                    n0 = evaluate(ws, 'frepDebug.frames')
+                    t1 = time.time()
+                    ws.call('Input.dispatchMouseEvent', x=x + i * dx, y=y + i * dy, button='left',
+                            type='mouseMoved', buttons=1)
+                    ws.call('Runtime.evaluate', expression='frepDebug.after(%d)' % n0,
+                            awaitPromise=True, returnByValue=True)
+                    times.append((time.time() - t1) * 1000)
+                s = sorted(times)
+                print('%.0f %.0f %s' % (s[len(s) // 2], s[-1], ','.join('%.0f' % t for t in times)))
             elif kind == 'mark':
                 mark = time.time()
             elif kind == 'until':

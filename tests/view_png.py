@@ -4,6 +4,7 @@
 #   view_png.py drawn SHOT.png SIDE   the model is drawn at the centre of the canvas (right
 #                                     of a SIDE-pixel panel) and the legend's bar is there
 #   view_png.py diff A.png B.png      the share of pixels that differ, for "it changed"
+#   view_png.py same A.png B.png      every pixel equal, for "the same picture"
 #   view_png.py colours SHOT.png X0 CHANNEL... at least 1% of the pixels right of x = X0
 #                                     are of each CHANNEL (red, green, blue): that
 #                                     channel at least 100 and twice each other one
@@ -108,6 +109,16 @@ def diff(a_path, b_path):
     return d > 0.02 * n
 
 
+def same(a_path, b_path):
+    a, b = read(a_path), read(b_path)
+    if a[:2] != b[:2]:
+        print('sizes differ')
+        return False
+    d = sum(px(a, x, y) != px(b, x, y) for y in range(a[1]) for x in range(a[0]))
+    print('%d pixels differ' % d)
+    return d == 0
+
+
 CHANNELS = {'red': 0, 'green': 1, 'blue': 2}
 
 
@@ -134,4 +145,6 @@ if __name__ == '__main__':
         sys.exit(0 if colours(sys.argv[2], int(sys.argv[3]), sys.argv[4:]) else 1)
     if sys.argv[1] == 'drawn':
         sys.exit(0 if drawn(sys.argv[2], int(sys.argv[3])) else 1)
+    if sys.argv[1] == 'same':
+        sys.exit(0 if same(sys.argv[2], sys.argv[3]) else 1)
     sys.exit(0 if diff(sys.argv[2], sys.argv[3]) else 1)
