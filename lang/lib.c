@@ -75,16 +75,6 @@ static ir_ref bi_mod(lib_ctx *c, lib_arg *a, uint32_t n)
     return ir_op2(c->g, FREP_OP_MOD, lib_hf_round(c->g, a[0].s), lib_hf_round(c->g, a[1].s));
 }
 
-/* A function of the reference's library that frep knows by name and argument kinds
- * but does not implement (doc/library.md says why): a call is an error. */
-static ir_ref hf_unsupported(lib_ctx *c, lib_arg *a, uint32_t n)
-{
-    (void)a;
-    (void)n;
-    return c->error(c, "this HyperFun library function is not implemented in frep "
-                       "(doc/library.md)");
-}
-
 /* ---- set operations of the operators | & \ ---------------------------------- */
 
 ir_ref lib_ralpha(lib_ctx *c, ir_ref f, ir_ref g2, ir_ref alpha, int uni)
@@ -233,7 +223,7 @@ static const lib_fn lib_table[] = {
     { "hfDBlendUni", "sss", { 0 }, hf_dblend_uni, "distance blending union of radius r" },
     { "hfDBlendInt", "sss", { 0 }, hf_dblend_int, "distance blending intersection of radius r" },
     { "hfSawtooth", "ssss", { 0 }, hf_sawtooth, "sawtooth wave: Fourier sum of n - 1 sines" },
-    { "hfBezierVolume", "xsssvv", { 0 }, hf_unsupported, "(not implemented)" },
+    { "hfBezierVolume", "xsssvv", { 0 }, hf_bezier_volume, "Bezier volume clipped to a box" },
     /* HyperFun attribute library (lib_attr.c): 'w' arrays are written */
     { "hfA_SetColor", "swsss", { 0 }, hfa_set_color, "s[1..3] = r, g, b where f >= 0" },
     { "hfA_SetAttributes", "swv", { 0 }, hfa_set_attributes, "s = s1 where f >= 0" },
@@ -249,15 +239,15 @@ static const lib_fn lib_table[] = {
     { "hfA_Wave", "ssss", { 0 }, hfa_wave, "sine wave between c1 and c2" },
     { "hfA_RGBToHSV", "vw", { 0 }, hfa_rgb_to_hsv, "hsv = the RGB colour rgb in HSV" },
     { "hfA_HSVToRGB", "vw", { 0 }, hfa_hsv_to_rgb, "rgb = the HSV colour hsv in RGB" },
-    { "hfA_CheckerBoard", "vvvvvv", { 0 }, hfa_unsupported, "(not implemented)" },
-    { "hfA_Crackles", "vvsvv", { 0 }, hfa_unsupported, "(not implemented)" },
-    { "hfA_Circles", "vvvv", { 0 }, hfa_unsupported, "(not implemented)" },
-    { "hfA_NoiseG", "vss", { 0 }, hfa_unsupported, "(not implemented)" },
+    { "hfA_CheckerBoard", "xvvwvv", { 0 }, hfa_checkerboard, "out = in_block or in_gap by cell" },
+    { "hfA_Crackles", "xwswv", { 0 }, hfa_crackles, "out = table row by a crackle pattern" },
+    { "hfA_Circles", "xwwv", { 0 }, hfa_circles, "out = table row by concentric circles" },
+    { "hfA_NoiseG", "xss", { 0 }, hfa_noise_g, "Gardner noise in [0, 1]" },
     { "hfA_NoiseP", "v", { 0 }, hfa_unsupported, "(not implemented)" },
     { "hfA_Turbulence", "vs", { 0 }, hfa_unsupported, "(not implemented)" },
-    { "hfA_LookUpTable", "svvv", { 0 }, hfa_unsupported, "(not implemented)" },
-    { "hfA_SmoothLookUpTable", "svvv", { 0 }, hfa_unsupported, "(not implemented)" },
-    { "hfA_Spline", "vvsss", { 0 }, hfa_unsupported, "(not implemented)" },
+    { "hfA_LookUpTable", "swvv", { 0 }, hfa_lookup_table, "out = table row by t" },
+    { "hfA_SmoothLookUpTable", "swvv", { 0 }, hfa_smooth_lookup_table, "out = mixed table rows by t" },
+    { "hfA_Spline", "wvsss", { 0 }, hfa_spline, "s = Catmull-Rom spline through knots" },
 
     /* frep extensions (from here to the end: lib_frep_only): explicit set operations */
     { "rUnion", "ss", { 0 }, ext_r_union, "R0 union f + g + sqrt(f^2 + g^2)" },
