@@ -620,6 +620,20 @@ static void test_hyperfun(void)
     if (p) is_double(eval1(p, 1.5, 0, 0), 910 + 2, 0, "mod rounds its arguments");
     if (p) is_double(eval1(p, -1.5, 0, 0), 910 - 1, 0, "... -1.5 rounds to -1");
     frep_program_free(p);
+    /* a / b: the reference's FUNC_binary_divide stops with "Division by zero" where
+     * |b| < EPS = 1e-6, not only at 0 (found by prospero.hf of FRep-Designer-Bench,
+     * whose t263 / t269 divides by 7.7e-302): NaN there, plain division elsewhere. */
+    p = compile("m(x[3], a[1]) { m = x[1] / x[2] + x[1] / 1e-7 * 0; }", &D);
+    if (p) ok(isnan(eval1(p, 1, 0, 0)), "division by a constant below EPS: NaN");
+    frep_program_free(p);
+    p = compile("m(x[3], a[1]) { m = x[1] / x[2]; }", &D);
+    if (p) {
+        ok(isnan(eval1(p, 1, 9.9e-7, 0)) && isnan(eval1(p, 1, -1e-300, 0)),
+           "division by |b| < 1e-6: NaN, the reference's runtime error");
+        is_double(eval1(p, 1, 1e-6, 0), 1e6, 1e-9, "... |b| = 1e-6 divides");
+        is_double(eval1(p, 3, -2, 0), -1.5, 0, "... ordinary division");
+    }
+    frep_program_free(p);
     p = compile("m(x[3], a[1]) { m = mod(5, x[1]); }", &D);
     if (p) ok(isnan(eval1(p, 0.4, 0, 0)), "mod by a divisor that rounds to 0: NaN");
     if (p) is_double(eval1(p, 0.6, 0, 0), 0, 0, "... 0.6 rounds to 1");
