@@ -35,7 +35,16 @@ LIB_UNARY(bi_log, LOG)
 LIB_UNARY(bi_logd, LOGD)
 LIB_UNARY(bi_sin, SIN)
 LIB_UNARY(bi_cos, COS)
-LIB_UNARY(bi_tan, TAN)
+/* tan(a) as the reference's FUNC_tan (int_calc.c): its runtime error "Tan argument
+ * error" where |cos(a)| < EPS = 1e-6, so NaN there. */
+static ir_ref bi_tan(lib_ctx *c, lib_arg *a, uint32_t n)
+{
+    ir *g = c->g;
+    ir_ref near_pole = ir_op2(g, FREP_OP_LT, ir_op1(g, FREP_OP_ABS, ir_op1(g, FREP_OP_COS, a[0].s)),
+                              ir_k(g, 1e-6));
+    (void)n;
+    return ir_select(g, near_pole, ir_k(g, NAN), ir_op1(g, FREP_OP_TAN, a[0].s));
+}
 LIB_UNARY(bi_asin, ASIN)
 LIB_UNARY(bi_acos, ACOS)
 LIB_UNARY(bi_atan, ATAN)
@@ -140,7 +149,7 @@ static const lib_fn lib_table[] = {
     { "logd", "s", { 0 }, bi_logd, "decimal logarithm (error for an argument <= 0)" },
     { "sin", "s", { 0 }, bi_sin, "sine (radians)" },
     { "cos", "s", { 0 }, bi_cos, "cosine (radians)" },
-    { "tan", "s", { 0 }, bi_tan, "tangent (radians)" },
+    { "tan", "s", { 0 }, bi_tan, "tangent (radians; NaN where |cos| < 1e-6)" },
     { "asin", "s", { 0 }, bi_asin, "arc sine (error outside [-1, 1])" },
     { "acos", "s", { 0 }, bi_acos, "arc cosine (error outside [-1, 1])" },
     { "atan", "s", { 0 }, bi_atan, "arc tangent" },

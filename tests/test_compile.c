@@ -634,6 +634,14 @@ static void test_hyperfun(void)
         is_double(eval1(p, 3, -2, 0), -1.5, 0, "... ordinary division");
     }
     frep_program_free(p);
+    /* tan: the reference's FUNC_tan errors where |cos(a)| < EPS */
+    p = compile("m(x[3], a[1]) { m = tan(x[1]); }", &D);
+    if (p) {
+        ok(isnan(eval1(p, 1.5707963, 0, 0)), "tan where |cos| < 1e-6: NaN");
+        is_double(eval1(p, 1, 0, 0), tan(1.0), 1e-15, "... tan(1)");
+        is_double(eval1(p, 1.5707, 0, 0), tan(1.5707), 1e-9, "... |cos| = 9.6e-5 computes");
+    }
+    frep_program_free(p);
     p = compile("m(x[3], a[1]) { m = mod(5, x[1]); }", &D);
     if (p) ok(isnan(eval1(p, 0.4, 0, 0)), "mod by a divisor that rounds to 0: NaN");
     if (p) is_double(eval1(p, 0.6, 0, 0), 0, 0, "... 0.6 rounds to 1");
