@@ -35,7 +35,16 @@ LIB_UNARY(bi_log, LOG)
 LIB_UNARY(bi_logd, LOGD)
 LIB_UNARY(bi_sin, SIN)
 LIB_UNARY(bi_cos, COS)
-LIB_UNARY(bi_tan, TAN)
+/* tan(a) as the reference's FUNC_tan (int_calc.c): its runtime error "Tan argument
+ * error" where |cos(a)| < EPS = 1e-6, so NaN there. */
+static ir_ref bi_tan(lib_ctx *c, lib_arg *a, uint32_t n)
+{
+    ir *g = c->g;
+    ir_ref near_pole = ir_op2(g, FREP_OP_LT, ir_op1(g, FREP_OP_ABS, ir_op1(g, FREP_OP_COS, a[0].s)),
+                              ir_k(g, 1e-6));
+    (void)n;
+    return ir_select(g, near_pole, ir_k(g, NAN), ir_op1(g, FREP_OP_TAN, a[0].s));
+}
 LIB_UNARY(bi_asin, ASIN)
 LIB_UNARY(bi_acos, ACOS)
 LIB_UNARY(bi_atan, ATAN)
@@ -73,16 +82,6 @@ static ir_ref bi_mod(lib_ctx *c, lib_arg *a, uint32_t n)
 {
     (void)n;
     return ir_op2(c->g, FREP_OP_MOD, lib_hf_round(c->g, a[0].s), lib_hf_round(c->g, a[1].s));
-}
-
-/* A function of the reference's library that frep knows by name and argument kinds
- * but does not implement (doc/library.md says why): a call is an error. */
-static ir_ref hf_unsupported(lib_ctx *c, lib_arg *a, uint32_t n)
-{
-    (void)a;
-    (void)n;
-    return c->error(c, "this HyperFun library function is not implemented in frep "
-                       "(doc/library.md)");
 }
 
 /* ---- set operations of the operators | & \ ---------------------------------- */
@@ -150,7 +149,7 @@ static const lib_fn lib_table[] = {
     { "logd", "s", { 0 }, bi_logd, "decimal logarithm (error for an argument <= 0)" },
     { "sin", "s", { 0 }, bi_sin, "sine (radians)" },
     { "cos", "s", { 0 }, bi_cos, "cosine (radians)" },
-    { "tan", "s", { 0 }, bi_tan, "tangent (radians)" },
+    { "tan", "s", { 0 }, bi_tan, "tangent (radians; NaN where |cos| < 1e-6)" },
     { "asin", "s", { 0 }, bi_asin, "arc sine (error outside [-1, 1])" },
     { "acos", "s", { 0 }, bi_acos, "arc cosine (error outside [-1, 1])" },
     { "atan", "s", { 0 }, bi_atan, "arc tangent" },
@@ -233,7 +232,7 @@ static const lib_fn lib_table[] = {
     { "hfDBlendUni", "sss", { 0 }, hf_dblend_uni, "distance blending union of radius r" },
     { "hfDBlendInt", "sss", { 0 }, hf_dblend_int, "distance blending intersection of radius r" },
     { "hfSawtooth", "ssss", { 0 }, hf_sawtooth, "sawtooth wave: Fourier sum of n - 1 sines" },
-    { "hfBezierVolume", "xsssvv", { 0 }, hf_unsupported, "(not implemented)" },
+    { "hfBezierVolume", "xsssvv", { 0 }, hf_bezier_volume, "Bezier volume clipped to a box" },
     /* HyperFun attribute library (lib_attr.c): 'w' arrays are written */
     { "hfA_SetColor", "swsss", { 0 }, hfa_set_color, "s[1..3] = r, g, b where f >= 0" },
     { "hfA_SetAttributes", "swv", { 0 }, hfa_set_attributes, "s = s1 where f >= 0" },
@@ -249,15 +248,15 @@ static const lib_fn lib_table[] = {
     { "hfA_Wave", "ssss", { 0 }, hfa_wave, "sine wave between c1 and c2" },
     { "hfA_RGBToHSV", "vw", { 0 }, hfa_rgb_to_hsv, "hsv = the RGB colour rgb in HSV" },
     { "hfA_HSVToRGB", "vw", { 0 }, hfa_hsv_to_rgb, "rgb = the HSV colour hsv in RGB" },
-    { "hfA_CheckerBoard", "vvvvvv", { 0 }, hfa_unsupported, "(not implemented)" },
-    { "hfA_Crackles", "vvsvv", { 0 }, hfa_unsupported, "(not implemented)" },
-    { "hfA_Circles", "vvvv", { 0 }, hfa_unsupported, "(not implemented)" },
-    { "hfA_NoiseG", "vss", { 0 }, hfa_unsupported, "(not implemented)" },
+    { "hfA_CheckerBoard", "xvvwvv", { 0 }, hfa_checkerboard, "out = in_block or in_gap by cell" },
+    { "hfA_Crackles", "xwswv", { 0 }, hfa_crackles, "out = table row by a crackle pattern" },
+    { "hfA_Circles", "xwwv", { 0 }, hfa_circles, "out = table row by concentric circles" },
+    { "hfA_NoiseG", "xss", { 0 }, hfa_noise_g, "Gardner noise in [0, 1]" },
     { "hfA_NoiseP", "v", { 0 }, hfa_unsupported, "(not implemented)" },
     { "hfA_Turbulence", "vs", { 0 }, hfa_unsupported, "(not implemented)" },
-    { "hfA_LookUpTable", "svvv", { 0 }, hfa_unsupported, "(not implemented)" },
-    { "hfA_SmoothLookUpTable", "svvv", { 0 }, hfa_unsupported, "(not implemented)" },
-    { "hfA_Spline", "vvsss", { 0 }, hfa_unsupported, "(not implemented)" },
+    { "hfA_LookUpTable", "swvv", { 0 }, hfa_lookup_table, "out = table row by t" },
+    { "hfA_SmoothLookUpTable", "swvv", { 0 }, hfa_smooth_lookup_table, "out = mixed table rows by t" },
+    { "hfA_Spline", "wvsss", { 0 }, hfa_spline, "s = Catmull-Rom spline through knots" },
 
     /* frep extensions (from here to the end: lib_frep_only): explicit set operations */
     { "rUnion", "ss", { 0 }, ext_r_union, "R0 union f + g + sqrt(f^2 + g^2)" },

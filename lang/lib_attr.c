@@ -270,14 +270,324 @@ LIB_EXPANDER(hfa_hsv_to_rgb)
     return k_(c, 1.0);
 }
 
-/* The reference's noise and pattern attributes (Perlin noise tables, look-up tables,
- * splines) are known by name but not reproduced: a call is an error saying so. */
+/* ---- patterns, look-up tables, splines (hfA_NoiseG.c, hfA_Crackles.c,
+ * hfA_Circles.c, hfA_CheckerBoard.c, hfA_LookUpTable.c, hfA_SmoothLookUpTable.c,
+ * hfA_spline.c and pattern.h of HyperFun) ------------------------------------- */
+
+static ir_ref nan_(lib_ctx *c) { return k_(c, NAN); }
+static ir_ref and_(lib_ctx *c, ir_ref a, ir_ref b) { return ir_op2(c->g, FREP_OP_AND, a, b); }
+
+/* The Gardner series of pattern.h, normalised to [0, 1]: with a2 the frequency,
+ * S = prod over (u, w) in ((x, z), (y, x), (z, y)) of
+ *     sin(a2 u) + sin(a2 u / 1.35 + phase sin(a2 w)) / 1.17,
+ * then (S - cmin) / (cmax - cmin) with cmax = -cmin = (2.17 / 1.17)^3. */
+static ir_ref gardner(lib_ctx *c, const ir_ref x[3], ir_ref phase, ir_ref freq)
+{
+    ir *g = c->g;
+    ir_ref ax[3], sn[3], prod = IR_NONE;
+    double cc = 2.17 / 1.17, cmin = pow(-cc, 3), cmax = -cmin;
+    int i;
+    for (i = 0; i < 3; i++) {
+        ax[i] = ir_mul(g, freq, x[i]);
+        sn[i] = ir_op1(g, FREP_OP_SIN, ax[i]);
+    }
+    for (i = 0; i < 3; i++) {
+        /* x pairs with sin(a2 z), y with sin(a2 x), z with sin(a2 y) */
+        ir_ref other = sn[(i + 2) % 3];
+        ir_ref inner = ir_add(g, ir_div(g, ax[i], k_(c, 1.35)), ir_mul(g, phase, other));
+        ir_ref ser = ir_add(g, sn[i], ir_mul(g, k_(c, 1.0 / 1.17), ir_op1(g, FREP_OP_SIN, inner)));
+        prod = prod == IR_NONE ? ser : ir_mul(g, prod, ser);
+    }
+    return ir_div(g, ir_sub(g, prod, k_(c, cmin)), k_(c, cmax - cmin));
+}
+
+/* hfA_NoiseG(x, freq, phase): the normalised Gardner series at x. */
+LIB_EXPANDER(hfa_noise_g)
+{
+    ir_ref x[3] = { a[0].elems[0], a[0].elems[1], a[0].elems[2] };
+    (void)n;
+    return gardner(c, x, a[2].s, a[1].s);
+}
+
+/* The table step shared by hfA_Circles and hfA_Crackles: the attribute array `attr`
+ * first gets attr[nmap + 1] = 1.1 (the reference writes that element, 0-based
+ * color[n_prob], before reading; nothing when the array is shorter), then out takes
+ * row i of attr (out's size dim elements from dim*i) where map[i] <= v < map[i + 1],
+ * i < nmap - 1: the first such row when `first`, else the last; out is unchanged
+ * where none holds. */
+static int table_rows(lib_ctx *c, ir_ref v, lib_arg *out, lib_arg *attr, const lib_arg *map,
+                      int first, const char *fn)
+{
+    uint32_t dim = out->n, nmap = map->n, rows = nmap > 1 ? nmap - 1 : 0, i, j;
+    if (!attr_size(c, attr, dim * rows, fn, "attributes")) return 0;
+    if (nmap < attr->n) attr->elems[nmap] = k_(c, 1.1);
+    for (j = 0; j < dim; j++) {
+        ir_ref r = out->elems[j];
+        for (i = 0; i < rows; i++) {
+            uint32_t row = first ? rows - 1 - i : i;
+            ir_ref in = and_(c, ge(c, v, map->elems[row]), lt(c, v, map->elems[row + 1]));
+            r = sel(c, in, attr->elems[dim * row + j], r);
+        }
+        out->elems[j] = r;
+    }
+    return 1;
+}
+
+/* hfA_Circles(x, out, attr, map) (hfA_Circles.c, ConcentriqueCircle of pattern.h):
+ * v = fmod(|x|, 1), then the table step (first matching row); value 1. */
+LIB_EXPANDER(hfa_circles)
+{
+    ir *g = c->g;
+    ir_ref r2 = ir_add(g, ir_add(g, ir_sq(g, a[0].elems[0]), ir_sq(g, a[0].elems[1])),
+                       ir_sq(g, a[0].elems[2]));
+    ir_ref v = ir_op2(g, FREP_OP_MOD, ir_sqrt(g, r2), k_(c, 1.0));
+    (void)n;
+    if (!table_rows(c, v, &a[1], &a[2], &a[3], 1, "hfA_Circles")) return IR_NONE;
+    return k_(c, 1.0);
+}
+
+/* hfA_Crackles(x, out, freq, attr, map) (hfA_Crackles.c, Crackles and cycle of
+ * pattern.h): phase = (|x1| + |x2| + |x3|) / 3; three Gardner values mapped to
+ * [-1, 1], of (x1, x1, x3), (x2, x2, x1), (x3, x3, x2); their sum s; then
+ * v = (1 + sin(2 pi i / 1000)) / 2 with i = int(frac_floor(s) * 1000); then the table
+ * step (the last matching row: the reference does not stop at the first); value 1. */
+LIB_EXPANDER(hfa_crackles)
+{
+    ir *g = c->g;
+    ir_ref *x = a[0].elems, freq = a[2].s, sum = IR_NONE, v, i1000;
+    ir_ref phase = ir_div(g, ir_add(g, ir_add(g, ir_op1(g, FREP_OP_ABS, x[0]),
+                                              ir_op1(g, FREP_OP_ABS, x[1])),
+                                    ir_op1(g, FREP_OP_ABS, x[2])), k_(c, 3.0));
+    int k;
+    (void)n;
+    for (k = 0; k < 3; k++) {
+        ir_ref p[3] = { x[k], x[k], x[(k + 2) % 3] };
+        ir_ref nz = ir_add(g, k_(c, -1.0), ir_mul(g, gardner(c, p, phase, freq), k_(c, 2.0)));
+        sum = sum == IR_NONE ? nz : ir_add(g, sum, nz);
+    }
+    i1000 = ir_op1(g, FREP_OP_INT, ir_mul(g, ir_sub(g, sum, ir_op1(g, FREP_OP_FLOOR, sum)),
+                                          k_(c, 1000.0)));
+    v = ir_div(g, ir_add(g, k_(c, 1.0),
+                         ir_op1(g, FREP_OP_SIN, ir_div(g, ir_mul(g, ir_mul(g, i1000, k_(c, 2.0)),
+                                                                 k_(c, M_PI)),
+                                                       k_(c, 1000.0)))),
+               k_(c, 2.0));
+    if (!table_rows(c, v, &a[1], &a[3], &a[4], 0, "hfA_Crackles")) return IR_NONE;
+    return k_(c, 1.0);
+}
+
+/* hfA_CheckerBoard(x, block, gap, out, in_block, in_gap) (hfA_CheckerBoard.c): per
+ * axis p = block + gap, lo = p floor(x / p), hi = lo + block; where lo < x < hi on all
+ * three axes out = in_block, else in_gap (their sizes must agree, else out is left
+ * alone; out is written up to that size); value 1. */
+LIB_EXPANDER(hfa_checkerboard)
+{
+    ir *g = c->g;
+    ir_ref inside = IR_NONE;
+    uint32_t i, dim = a[4].n;
+    (void)n;
+    if (!attr_size(c, &a[1], 3, "hfA_CheckerBoard", "block") ||
+        !attr_size(c, &a[2], 3, "hfA_CheckerBoard", "gap"))
+        return IR_NONE;
+    if (a[4].n != a[5].n) return k_(c, 1.0);
+    if (!attr_size(c, &a[3], dim, "hfA_CheckerBoard", "out")) return IR_NONE;
+    for (i = 0; i < 3; i++) {
+        ir_ref x = a[0].elems[i], period = ir_add(g, a[2].elems[i], a[1].elems[i]);
+        ir_ref lo = ir_mul(g, period, ir_op1(g, FREP_OP_FLOOR, ir_div(g, x, period)));
+        ir_ref hi = ir_add(g, lo, a[1].elems[i]);
+        ir_ref in = and_(c, gt(c, x, lo), lt(c, x, hi));
+        inside = inside == IR_NONE ? in : and_(c, inside, in);
+    }
+    for (i = 0; i < dim; i++) a[3].elems[i] = sel(c, inside, a[4].elems[i], a[5].elems[i]);
+    return k_(c, 1.0);
+}
+
+/* hfA_LookUpTable / hfA_SmoothLookUpTable(t, out, table, entries)
+ * (hfA_LookUpTable.c, hfA_SmoothLookUpTable.c): with m entries e and rows of out's
+ * size in table: the first i < m - 1 with e[i] <= t < e[i + 1] gives row i (smooth:
+ * row i mixed with row i + 1 by l = (t - e[i]) / (e[i + 1] - e[i])); otherwise, and
+ * also where t is below the first entry (the reference's first-row case there is
+ * overwritten by its "none found" case), the last row; value 1. */
+static ir_ref lookup(lib_ctx *c, lib_arg *a, int smooth, const char *fn)
+{
+    ir *g = c->g;
+    ir_ref t = a[0].s, *e = a[3].elems;
+    uint32_t dim = a[1].n, m = a[3].n, i, j;
+    if (!attr_size(c, &a[2], dim * m, fn, "table")) return IR_NONE;
+    for (j = 0; j < dim; j++) {
+        ir_ref r = a[2].elems[dim * (m - 1) + j];
+        for (i = m - 1; i-- > 0;) {
+            ir_ref in = and_(c, ge(c, t, e[i]), lt(c, t, e[i + 1]));
+            ir_ref row = a[2].elems[dim * i + j];
+            if (smooth) {
+                ir_ref l = ir_div(g, ir_sub(g, t, e[i]), ir_sub(g, e[i + 1], e[i]));
+                row = ir_add(g, ir_mul(g, ir_sub(g, k_(c, 1.0), l), row),
+                             ir_mul(g, l, a[2].elems[dim * (i + 1) + j]));
+            }
+            r = sel(c, in, row, r);
+        }
+        a[1].elems[j] = sel(c, lt(c, t, e[0]), a[2].elems[dim * (m - 1) + j], r);
+    }
+    return k_(c, 1.0);
+}
+LIB_EXPANDER(hfa_lookup_table) { (void)n; return lookup(c, a, 0, "hfA_LookUpTable"); }
+LIB_EXPANDER(hfa_smooth_lookup_table)
+{
+    (void)n;
+    return lookup(c, a, 1, "hfA_SmoothLookUpTable");
+}
+
+/* hfA_Spline(s, knots, x, xmin, xmax) (hfA_spline.c): a Catmull-Rom spline through
+ * K = size(knots) / size(s) control rows of size(s) values.  u = (x - xmin) /
+ * (xmax - xmin); s = row 1 where u < 0, row K where u > 1; else with spans = K - 3,
+ * v = u spans, span = int(v) (spans - 3 where that is >= spans, as the reference
+ * does at u = 1), w = v - span, and rows P0..P3 from row span + 1:
+ * s = ((c3 w + c2) w + c1) w + c0 with c3 = -P0/2 + 3P1/2 - 3P2/2 + P3/2,
+ * c2 = P0 - 5P1/2 + 2P2 - P3/2, c1 = -P0/2 + P2/2, c0 = P1.  A span outside the rows
+ * (fewer than 4 rows, or fewer than 6 at u = 1) reads outside the reference's array:
+ * NaN here.  Value 1. */
+static ir_ref catmull_rom(lib_ctx *c, const lib_arg *knots, uint32_t dim, uint32_t i,
+                          long span, ir_ref w)
+{
+    ir *g = c->g;
+    static const double cr[4][4] = { { -0.5, 1.5, -1.5, 0.5 }, { 1.0, -2.5, 2.0, -0.5 },
+                                     { -0.5, 0.0, 0.5, 0.0 }, { 0.0, 1.0, 0.0, 0.0 } };
+    ir_ref coef[4], r;
+    int row, k;
+    for (row = 0; row < 4; row++) {
+        ir_ref sum = IR_NONE;
+        for (k = 0; k < 4; k++) {
+            ir_ref term = ir_mul(g, k_(c, cr[row][k]), knots->elems[(uint32_t)(span + k) * dim + i]);
+            sum = sum == IR_NONE ? term : ir_add(g, sum, term);
+        }
+        coef[row] = sum;
+    }
+    r = ir_add(g, ir_mul(g, ir_add(g, ir_mul(g, ir_add(g, ir_mul(g, coef[0], w), coef[1]), w),
+                                   coef[2]), w), coef[3]);
+    return r;
+}
+
+LIB_EXPANDER(hfa_spline)
+{
+    ir *g = c->g;
+    uint32_t dim = a[0].n, rows = dim ? a[1].n / dim : 0, i;
+    long spans = (long)rows - 3, sp;
+    ir_ref u, v, span, below, above;
+    (void)n;
+    if (rows == 0)
+        return c->error(c, "hfA_Spline: array 'knots' needs at least %u elements, it has %u",
+                        (unsigned)dim, (unsigned)a[1].n);
+    u = ir_div(g, ir_sub(g, a[2].s, a[3].s), ir_sub(g, a[4].s, a[3].s));
+    below = lt(c, u, k_(c, 0.0));
+    above = gt(c, u, k_(c, 1.0));
+    v = ir_mul(g, u, k_(c, (double)spans));
+    span = ir_op1(g, FREP_OP_INT, v);
+    for (i = 0; i < dim; i++) {
+        ir_ref r = nan_(c);
+        if (spans >= 3) {
+            long last = spans - 3;
+            r = sel(c, ge(c, span, k_(c, (double)spans)),
+                    catmull_rom(c, &a[1], dim, i, last, ir_sub(g, v, k_(c, (double)last))), r);
+        }
+        for (sp = 0; sp < spans; sp++)
+            r = sel(c, ir_op2(g, FREP_OP_EQ, span, k_(c, (double)sp)),
+                    catmull_rom(c, &a[1], dim, i, sp, ir_sub(g, v, k_(c, (double)sp))), r);
+        a[0].elems[i] = sel(c, below, a[1].elems[i],
+                            sel(c, above, a[1].elems[(rows - 1) * dim + i], r));
+    }
+    return k_(c, 1.0);
+}
+
+/* hfBezierVolume(x, l, m, n, bbox, w) (hfBezierVolume.c, Bezier.c): with the box
+ * bbox = (xmin, ymin, zmin, xmax, ymax, zmax) and u, v, t the point's coordinates
+ * mapped to [0, 1] by it (u from x1, v from x3, t from x2: the reference's order),
+ * B = sum_{i<l, j<m, k<n} b(i, l-1, u) b(j, m-1, v) b(k, n-1, t) w[i m n + j n + k]
+ * with the Bernstein polynomial b(i, d, s) = C(d, i) (1 - s)^(d - i) s^i, clipped by
+ * the box: R_int(R_int(R_int(X, Y), Z), B), X = (xmax - x1)(x1 - xmin) and so on,
+ * R_int(p, q) = p + q - sqrt(p^2 + q^2).  l, m, n are truncated and must be
+ * constants (each term is a node); the reference's binomial table stops at degree
+ * 20, so each is at most 21.  An x of other than 3 elements gives the reference's
+ * -1111111111111. */
+#define FREP_BEZIER_MAX_ORDER 21
+
+static ir_ref r_int(ir *g, ir_ref p, ir_ref q)
+{
+    return ir_sub(g, ir_add(g, p, q), ir_sqrt(g, ir_add(g, ir_sq(g, p), ir_sq(g, q))));
+}
+
+/* (b(0, d, s), ..., b(d, d, s)) into out[0..d]. */
+static void bernstein(lib_ctx *c, long d, ir_ref s, ir_ref *out)
+{
+    ir *g = c->g;
+    ir_ref one_s = ir_sub(g, k_(c, 1.0), s);
+    long i, k;
+    for (i = 0; i <= d; i++) {
+        double binom = 1;
+        ir_ref r;
+        for (k = 1; k <= i; k++) binom = binom * (double)(d - i + k) / (double)k;
+        r = k_(c, binom);
+        for (k = 0; k < d - i; k++) r = ir_mul(g, r, one_s);
+        for (k = 0; k < i; k++) r = ir_mul(g, r, s);
+        out[i] = r;
+    }
+}
+
+LIB_EXPANDER(hf_bezier_volume)
+{
+    ir *g = c->g;
+    static const char *const names[3] = { "l", "m", "n" };
+    long ord[3];
+    ir_ref *x = a[0].elems, *box = a[4].elems, *w = a[5].elems, par[3], cube, sum;
+    ir_ref bas[3][FREP_BEZIER_MAX_ORDER];
+    int k;
+    long i, j, q;
+    (void)n;
+    for (k = 0; k < 3; k++) {
+        double d;
+        if (!ir_is_const(g, a[1 + k].s, &d))
+            return c->error(c, "hfBezierVolume: the order %s must be a constant", names[k]);
+        if (!(fabs(d) < FREP_BEZIER_MAX_ORDER + 1))
+            return c->error(c, "hfBezierVolume: order %s = %g, at most %d (the reference's "
+                               "binomial table ends at degree 20)", names[k], d,
+                            FREP_BEZIER_MAX_ORDER);
+        ord[k] = (long)d;
+        if (ord[k] < 0) ord[k] = 0;
+    }
+    if (!attr_size(c, &a[4], 6, "hfBezierVolume", "bbox") ||
+        !attr_size(c, &a[5], (uint32_t)(ord[0] * ord[1] * ord[2]), "hfBezierVolume", "w"))
+        return IR_NONE;
+    if (a[0].n != 3) return k_(c, -1111111111111.0);
+    /* u from x1, v from x3 (order m), t from x2 (order n) */
+    for (k = 0; k < 3; k++)
+        par[k] = ir_div(g, ir_sub(g, x[k], box[k]), ir_sub(g, box[3 + k], box[k]));
+    if (ord[0] > 0) bernstein(c, ord[0] - 1, par[0], bas[0]);
+    if (ord[1] > 0) bernstein(c, ord[1] - 1, par[2], bas[1]);
+    if (ord[2] > 0) bernstein(c, ord[2] - 1, par[1], bas[2]);
+    sum = k_(c, 0.0);
+    for (i = 0; i < ord[0]; i++)
+        for (j = 0; j < ord[1]; j++)
+            for (q = 0; q < ord[2]; q++)
+                sum = ir_add(g, sum,
+                             ir_mul(g, ir_mul(g, ir_mul(g, bas[0][i], bas[1][j]), bas[2][q]),
+                                    w[i * ord[1] * ord[2] + j * ord[2] + q]));
+    cube = IR_NONE;
+    for (k = 0; k < 3; k++) {
+        ir_ref side = ir_mul(g, ir_sub(g, box[3 + k], x[k]), ir_sub(g, x[k], box[k]));
+        cube = cube == IR_NONE ? side : r_int(g, cube, side);
+    }
+    return r_int(g, cube, sum);
+}
+
+/* hfA_NoiseP and hfA_Turbulence (hfA_noisep.c, hfA_turbulence.c) evaluate Perlin
+ * noise whose gradient and permutation tables perlin.h fills from rand() after
+ * srand(time(NULL)): the reference's values change from run to run, so there are
+ * none to reproduce; a call is an error saying so. */
 LIB_EXPANDER(hfa_unsupported)
 {
     (void)a;
     (void)n;
-    return c->error(c, "this HyperFun attribute function is not implemented in frep "
-                       "(frep implements hfA_SetColor, hfA_SetAttributes, hfA_Union, "
-                       "hfA_Lerp, hfA_Cerp, hfA_Wave, hfA_RGBToHSV, hfA_HSVToRGB and the "
-                       "toolbox functions)");
+    return c->error(c, "this HyperFun attribute function is not implemented in frep: "
+                       "the reference's Perlin noise tables are filled from rand() seeded "
+                       "with the time, so its values differ from run to run "
+                       "(doc/library.md)");
 }

@@ -157,6 +157,14 @@ LIB_EXPANDER(hfa_modulo);
 LIB_EXPANDER(hfa_wave);
 LIB_EXPANDER(hfa_rgb_to_hsv);
 LIB_EXPANDER(hfa_hsv_to_rgb);
+LIB_EXPANDER(hfa_noise_g);
+LIB_EXPANDER(hfa_circles);
+LIB_EXPANDER(hfa_crackles);
+LIB_EXPANDER(hfa_checkerboard);
+LIB_EXPANDER(hfa_lookup_table);
+LIB_EXPANDER(hfa_smooth_lookup_table);
+LIB_EXPANDER(hfa_spline);
+LIB_EXPANDER(hf_bezier_volume);
 LIB_EXPANDER(hfa_unsupported);
 
 /* lib_ext.c: frep's extensions */

@@ -565,6 +565,20 @@ static ir_ref lw_pow(lw *L, ir_ref a, ir_ref b)
     return ir_op2(g, FREP_OP_POW, a, b);
 }
 
+/* a / b as the reference divides (FUNC_binary_divide in int_calc.c of HyperFun): a
+ * divisor with |b| < EPS is its runtime error "Division by zero", so NaN here (as
+ * for the other errors of the reference).  A constant divisor of at least EPS needs
+ * no test; a constant 0 keeps the DIV opcode's own domain error. */
+static ir_ref lw_div(lw *L, ir_ref a, ir_ref b)
+{
+    ir *g = L->g;
+    double k;
+    if (ir_is_const(g, b, &k) && (fabs(k) >= HF_EPS || k == 0))
+        return ir_div(g, a, b);
+    return ir_select(g, ir_op2(g, FREP_OP_LT, ir_op1(g, FREP_OP_ABS, b), ir_k(g, HF_EPS)),
+                     nan_ref(L), ir_div(g, a, b));
+}
+
 static ir_ref lw_call_model(lw *L, scope *sc, const ast_node *n, uint32_t mi);
 
 static ir_ref lw_call_lib(lw *L, scope *sc, const ast_node *n, const lib_fn *fn)
@@ -669,7 +683,7 @@ static ir_ref lw_binary(lw *L, scope *sc, const ast_node *n)
     case '+': return ir_add(g, a, b);
     case '-': return ir_sub(g, a, b);
     case '*': return ir_mul(g, a, b);
-    case '/': return ir_div(g, a, b);
+    case '/': return lw_div(L, a, b);
     case '^': return lw_pow(L, a, b);
     case '|': return lib_union(&L->lc, a, b);
     case '&': case '@': return lib_intersection(&L->lc, a, b);

@@ -304,7 +304,179 @@ def hf_noiseg(x, amp, freq, phase):
     return (amp * sx + sx2) * (amp * sy + sy2) * (amp * sz + sz2)
 
 
+# The attribute library's deterministic functions (hfA_noiseg.c, hfA_Circles.c,
+# hfA_Crackles.c, hfA_CheckerBoard.c, hfA_LookUpTable.c, hfA_SmoothLookUpTable.c,
+# hfA_spline.c, pattern.h) and hfBezierVolume (hfBezierVolume.c, Bezier.c).  Arrays
+# are written in place as the C code writes through its pointers; reads past an
+# array's end (undefined in C) raise Unsupported.
+
+def _gardner01(xt, yt, zt, phase, a2):
+    """Noise() of pattern.h (a1 = 1), normalised to [0, 1]."""
+    a2x, a2y, a2z = a2 * xt, a2 * yt, a2 * zt
+    sx, sy, sz = math.sin(a2x), math.sin(a2y), math.sin(a2z)
+    a1d = 1.0 / 1.17
+    serx = sx + a1d * math.sin(a2x / 1.35 + phase * sz)
+    sery = sy + a1d * math.sin(a2y / 1.35 + phase * sx)
+    serz = sz + a1d * math.sin(a2z / 1.35 + phase * sy)
+    c = 2.17 / 1.17
+    cmin = (-c) ** 3
+    return (serx * sery * serz - cmin) / (-cmin - cmin)
+
+
+def _at(arr, k):
+    if not 0 <= k < len(arr):
+        raise Unsupported("a read past the end of an array (undefined in the reference)")
+    return arr[k]
+
+
+def hfa_noiseg(x, freq, phase):
+    return _gardner01(x[0], x[1], x[2], phase, freq)
+
+
+def _table(noise, rgb, color, prob, stop_at_first):
+    n_prob = len(prob)
+    if n_prob < len(color):
+        color[n_prob] = 1.1
+    for i in range(n_prob - 1):
+        if prob[i] <= noise < prob[i + 1]:
+            for j in range(len(rgb)):
+                rgb[j] = _at(color, len(rgb) * i + j)
+            if stop_at_first:
+                break
+
+
+def hfa_circles(x, rgb, color, prob):
+    noise = math.fmod(math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]), 1.0)
+    _table(noise, rgb, color, prob, True)
+    return 1.0
+
+
+def hfa_crackles(x, rgb, freq, color, prob):
+    xt, yt, zt = x[0], x[1], x[2]
+    phase = (abs(xt) + abs(yt) + abs(zt)) / 3.0
+    total = (-1 + _gardner01(xt, xt, zt, phase, freq) * 2.0) + \
+        (-1 + _gardner01(yt, yt, xt, phase, freq) * 2.0) + \
+        (-1 + _gardner01(zt, zt, yt, phase, freq) * 2.0)
+    i = int((total - math.floor(total)) * 1000.0)
+    noise = (1.0 + math.sin(i * 2.0 * math.pi / 1000.0)) / 2.0
+    _table(noise, rgb, color, prob, False)
+    return 1.0
+
+
+def hfa_checkerboard(x, cube, d, c, c_cube, c_space):
+    lmin, lmax = [], []
+    for i in range(3):
+        delta = math.floor(x[i] / (d[i] + cube[i]))
+        lmin.append((d[i] + cube[i]) * delta)
+        lmax.append(lmin[i] + cube[i])
+    if len(c_cube) == len(c_space):
+        inside = all(lmin[i] < x[i] < lmax[i] for i in range(3))
+        for i in range(len(c_cube)):
+            if i >= len(c):
+                raise Unsupported("a write past the end of an array")
+            c[i] = c_cube[i] if inside else c_space[i]
+    return 1.0
+
+
+def _lookup(t, output, colormap, entry, smooth):
+    dim1, n = len(output), len(entry)
+    filled = False
+    if t < entry[0]:
+        for j in range(dim1):
+            output[j] = _at(colormap, j)
+    else:
+        for i in range(n - 1):
+            if entry[i] <= t < entry[i + 1]:
+                filled = True
+                lam = (t - entry[i]) / (entry[i + 1] - entry[i])
+                for j in range(dim1):
+                    if smooth:
+                        output[j] = (1 - lam) * _at(colormap, dim1 * i + j) + \
+                            lam * _at(colormap, dim1 * (i + 1) + j)
+                    else:
+                        output[j] = _at(colormap, dim1 * i + j)
+                break
+    if not filled:
+        for j in range(dim1):
+            output[j] = _at(colormap, dim1 * (n - 1) + j)
+    return 1.0
+
+
+def hfa_lookuptable(t, output, colormap, entry):
+    return _lookup(t, output, colormap, entry, False)
+
+
+def hfa_smoothlookuptable(t, output, colormap, entry):
+    return _lookup(t, output, colormap, entry, True)
+
+
+CATMULL_ROM = ((-0.5, 1.5, -1.5, 0.5), (1.0, -2.5, 2.0, -0.5),
+               (-0.5, 0.0, 0.5, 0.0), (0.0, 1.0, 0.0, 0.0))
+
+
+def hfa_spline(s, knot, x, xmin, xmax):
+    n = len(s)
+    size = len(knot) // n
+    x = (x - xmin) / (xmax - xmin)
+    if x < 0.0:
+        for i in range(n):
+            s[i] = knot[i]
+    elif x > 1.0:
+        for i in range(n):
+            s[i] = _at(knot, (size - 1) * n + i)
+    else:
+        nspans = size - 3
+        x = x * nspans
+        span = int(x)
+        if span >= nspans:
+            span = nspans - 3
+        x -= span
+        for i in range(n):
+            c3, c2, c1, c0 = (sum(row[k] * _at(knot, (span + k) * n + i) for k in range(4))
+                              if span >= 0 else _at(knot, -1) for row in CATMULL_ROM)
+            s[i] = ((c3 * x + c2) * x + c1) * x + c0
+    return 1.0
+
+
+def _r_int(p, q):
+    return p + q - math.sqrt(p * p + q * q)
+
+
+def hf_beziervolume(x, l, m, n, bbox, w):
+    l, m, n = int(l), int(m), int(n)
+    if max(l, m, n) > 21:
+        raise Unsupported("hfBezierVolume of order above 21 (past the reference's table)")
+    if len(x) != 3:
+        return SENTINEL
+    xt = (x[0] - bbox[0]) / (bbox[3] - bbox[0])
+    yt = (x[1] - bbox[1]) / (bbox[4] - bbox[1])
+    zt = (x[2] - bbox[2]) / (bbox[5] - bbox[2])
+
+    def bern(i, d, t):
+        return math.comb(d, i) * (1.0 - t) ** (d - i) * t ** i
+    bu = [bern(i, l - 1, xt) for i in range(l)]
+    bv = [bern(j, m - 1, zt) for j in range(m)]
+    bw = [bern(k, n - 1, yt) for k in range(n)]
+    b = 0.0
+    for i in range(l):
+        for j in range(m):
+            for k in range(n):
+                b = b + bu[i] * bv[j] * bw[k] * _at(w, i * m * n + j * n + k)
+    xc = (bbox[3] - x[0]) * (x[0] - bbox[0])
+    yc = (bbox[4] - x[1]) * (x[1] - bbox[1])
+    zc = (bbox[5] - x[2]) * (x[2] - bbox[2])
+    return _r_int(_r_int(_r_int(xc, yc), zc), b)
+
+
 LIBRARY = {
+    "hfa_noiseg": ("arr", hfa_noiseg),
+    "hfa_circles": ("aaaa", hfa_circles),
+    "hfa_crackles": ("aaraa", hfa_crackles),
+    "hfa_checkerboard": ("aaaaaa", hfa_checkerboard),
+    "hfa_lookuptable": ("raaa", hfa_lookuptable),
+    "hfa_smoothlookuptable": ("raaa", hfa_smoothlookuptable),
+    "hfa_spline": ("aarrr", hfa_spline),
+    "hfbeziervolume": ("arrraa", hf_beziervolume),
     "hfsphere": ("aar", hf_sphere),
     "hfellipsoid": ("aarrr", hf_ellipsoid),
     "hfblock": ("aarrr", hf_block),

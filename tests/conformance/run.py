@@ -83,6 +83,16 @@ SELF = [
     ("array v[2]; v = [3, 4]; m = v[2.5];", (0, 0, 0), math.nan),
     ("array v[2]; v = [3, 4]; m = v[0.4999];", (0, 0, 0), math.nan),
     ("array v[2]; v = [3, 4]; v[x[1]] = 7; m = v[2];", (1.5, 0, 0), 7.0),
+    # library functions whose values are worked out by hand from their C sources:
+    # Catmull-Rom through the squares reproduces (1 + 2u)^2; below the first entry
+    # the look-up table ends with its last row; order-2 Bezier volume = trilinear
+    # 4u + 2v + t with v from x[3], clipped: R_int(R_int(R_int(.25, .16), .09), 2.4)
+    ("array k[5], o[1]; k = [0, 1, 4, 9, 16]; o = [0]; d = hfA_Spline(o, k, x[1], 0, 1);"
+     " m = o[1];", (0.25, 0, 0), 2.25),
+    ("array e[3], t[3], o[1]; e = [0, 1, 2]; t = [10, 20, 30]; o = [0];"
+     " d = hfA_LookUpTable(x[1], o, t, e); m = o[1];", (-1, 0, 0), 30.0),
+    ("array b[6], w[8]; b = [0, 0, 0, 1, 1, 1]; w = [0, 1, 2, 3, 4, 5, 6, 7];"
+     " m = hfBezierVolume(x, 2, 2, 2, b, w);", (0.5, 0.2, 0.1), 0.057864077245282974),
 ]
 
 
