@@ -179,7 +179,7 @@ static const cli_opt segment_opts[] = {
       .help = "smallest support of a primitive (default 1% of the points,\n"
               "at least 10)" },
     { 0, "min-points-small", "M", CLI_OPT_SIZE, OFF(min_small), .lo = 0, .hi = 4e9,
-      .help = "then tight shapes down to M points (default 0.25% of the\n"
+      .help = "then tight shapes down to M points (default 0.04% of the\n"
               "points, at least 10; 0: no second phase)" },
     { 0, "probability", "P", CLI_OPT_DOUBLE, OFF(cfg.probability), .lo = 0.01, .hi = 0.999999,
       .help = "confidence of not having missed a better shape (0.99)" },

@@ -43,7 +43,9 @@ typedef struct normals_info {
  * with Gaussian weights in distance and reweighted by the residuals (iteratively
  * reweighted PCA), so points across a sharp edge lose their say.  Orientation: Prim's
  * tree over the NORMALS_ORIENT_K-nearest graph, edges weighted against normals that
- * disagree and against links along the normal (across a thin wall); then each
+ * disagree and against links along the normal (across a thin wall), or on a clean
+ * cloud against a normal far from its neighbour's reflected in the plane between
+ * them (thin wedges: geom/normals.c, reflected); then each
  * connected part is turned so that its normals point away from the cloud's centre on
  * the whole (sum of (p - centre).n > 0: outward for a closed surface by the divergence
  * theorem).  info may be NULL.  Returns 0; 1 when interrupted (info->interrupted, the

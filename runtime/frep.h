@@ -380,7 +380,7 @@ typedef struct frep_segment_options {
     double cluster;        /* connectivity cell; <= 0: the default (doc/segment.md) */
     double normal_deg;     /* normal deviation allowed, degrees; <= 0: 25 */
     size_t min_points;     /* smallest support; 0: 1% of the points (at least 10) */
-    size_t min_points_small; /* second phase's; 0: 0.25%; (size_t)-1: no second phase */
+    size_t min_points_small; /* second phase's; 0: 0.04%; (size_t)-1: no second phase */
     double probability;    /* of missing no shape; <= 0: 0.99 */
     unsigned types;        /* 1u << FREP_PRIM_* bits; 0: all */
     uint64_t seed;         /* the same seed gives the same result at any thread count (1) */

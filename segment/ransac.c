@@ -1583,9 +1583,10 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
 
 /* A primitive is redundant when at least MERGE_FRACTION of its inliers are inliers of
  * a larger one (at MERGE_BAND_SLACK times that one's band) and the two patches touch
- * in the larger one's parameter domain. That is a facetted cylinder split in two, the
- * outer rim of a noisy torus taken by a sphere, or a torus made of the leftovers
- * around a facetted sphere. */
+ * in the larger one's parameter domain, or are one surface apart (the same shape
+ * within the band). That is a facetted cylinder split in two, the outer rim of a noisy
+ * torus taken by a sphere, a torus made of the leftovers around a facetted sphere, or
+ * a face split in two by a part standing on it. */
 #define MERGE_FRACTION 0.8
 #define MERGE_BAND_SLACK 1.5
 /* The union of the two patches must be one connected patch up to this fraction. */
@@ -1668,7 +1669,10 @@ static int mergeable(merger *g, size_t pi, size_t qi, prim *q2, int *refitted)
         d->nomem = 1;
         return 0;
     }
-    return (double)kept >= MERGE_CONNECTED * (double)mu;
+    if ((double)kept >= MERGE_CONNECTED * (double)mu) return 1;
+    /* Apart, but one surface: the same shape within the band (a face split in two by a
+     * part standing on it, a bore interrupted by a slot). The tree needs it once. */
+    return P->type == Q->type && *refitted && same_shape(P, Q, band) && same_shape(q2, Q, band);
 }
 
 /* Fold pi into qi: qi becomes q2 (when refitted) with the union's support and RMS, the

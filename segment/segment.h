@@ -28,9 +28,9 @@
 #define SEGMENT_DEFAULT_NORMAL_DEG 25.0
 #define SEGMENT_DEFAULT_MIN_FRACTION 0.01 /* smallest support: 1% of the points ... */
 #define SEGMENT_MIN_POINTS_FLOOR 10       /* ... and never fewer than this */
-/* Second detection phase (segment/ransac.c, SMALL_TIGHT): tight shapes down to 0.25% of
+/* Second detection phase (segment/ransac.c, SMALL_TIGHT): tight shapes down to 0.04% of
  * the points, so that the small faces of a part (under 1% of its area) are found. */
-#define SEGMENT_DEFAULT_SMALL_FRACTION 0.0025
+#define SEGMENT_DEFAULT_SMALL_FRACTION 0.0004
 #define SEGMENT_NO_SMALL ((size_t)-1)     /* min_points_small: no second phase */
 #define SEGMENT_DEFAULT_PROBABILITY 0.99
 /* Separating planes closer than this angle (and epsilon in offset) to an existing plane

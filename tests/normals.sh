@@ -1,9 +1,10 @@
 #!/bin/sh
 # normals.sh - `frep normals` on clouds whose true normals are known (frep sample of a
 # box and a capped cylinder in general position, tests/models/segment_*.hf, and a thin
-# plate, tests/models/normals_plate.hf), clean and with Gaussian noise; then the bad
-# input of frep normals, segment and evolve: too few points, all the same, on one
-# line, on one plane, NaN coordinates, normals all zero. Prints TAP.
+# plate and a 30-degree knife edge, tests/normals_{plate,wedge}.hf), clean and with
+# Gaussian noise; then the bad input of frep normals, segment and evolve: too few
+# points, all the same, on one line, on one plane, NaN coordinates, normals all zero.
+# Prints TAP.
 # Needs FREP (the frep binary) and srcdir (the source tree).
 
 : "${FREP:?FREP must name the frep binary}"
@@ -64,12 +65,17 @@ measure() {
     echo "$med $(cut -d ' ' -f 2,3 "$tmp/m")"
 }
 
-model_path() { # the plate is kept apart from tests/models (tests/mesh.sh meshes those)
-    if [ "$1" = normals_plate ]; then echo "$srcdir/tests/normals_plate.hf"; else echo "$M/$1.hf"; fi
+model_path() { # the plate and the wedge are kept apart from tests/models (tests/mesh.sh
+    # meshes those)
+    case $1 in normals_*) echo "$srcdir/tests/$1.hf" ;; *) echo "$M/$1.hf" ;; esac
 }
-for model in segment_box segment_cylinder normals_plate; do
+# The wedge (tests/normals_wedge.hf): a knife edge of 30 degrees, whose faces' normals
+# are 150 degrees apart; the plain sign of n1.n2 across it turned a face inside out
+# (35% of the clean points inward); noise 0.2% as for the plate (the knife edge is
+# thinner than the noise over its first 0.02).
+for model in segment_box segment_cylinder normals_plate normals_wedge; do
     noisy=0.005
-    [ $model = normals_plate ] && noisy=0.002
+    case $model in normals_*) noisy=0.002 ;; esac
     for noise in 0 $noisy; do
         name="$model, noise $noise"
         if ! "$FREP" sample "$(model_path $model)" -n $NPTS --seed 3 --noise $noise -o "$tmp/t.xyz" -q; then

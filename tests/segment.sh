@@ -200,7 +200,10 @@ report $? "boss, --min-points-small 0: only the plate's 6 faces ($(grep -c . "$t
 #  stacked: two coaxial disks of radii 0.8 and 0.45: two cylinders, not a sphere or a
 #           torus through both rims, and the three planes;
 #  fillet:  a block with a fillet of radius 0.08 (1.8% of the surface) and a
-#           counterbore (hole r 0.12, recess r 0.22 with its floor, 1.2-4%).
+#           counterbore (hole r 0.12, recess r 0.22 with its floor, 1.2-4%);
+#  steps:   a block with a ridge across its top (the top face in two apart patches:
+#           one plane, not two) and a cube of side 0.1 standing on it whose four
+#           sides hold 0.15% of the surface each (30-40 of the 20,000 points).
 truth_more() {
     case $1 in
     dome) printf '%s\n' "cylinder 0 0 1 0 0 0 0.5" "sphere 0 0 0.2 0.5" "plane 0 0 -1 0.6" ;;
@@ -209,12 +212,18 @@ truth_more() {
     fillet) printf '%s\n' "plane -1 0 0 1" "plane 0 1 0 0.6" "plane 0 -1 0 0.6" "plane 0 0 -1 0" \
                 "plane 1 0 0 1" "plane 0 0 1 0.6" "cylinder 0 1 0 0.92 0 0.52 0.08" \
                 "cylinder 0 0 1 -0.4 0 0 0.12" "cylinder 0 0 1 -0.4 0 0 0.22" "plane 0 0 1 0.45" ;;
+    steps) printf '%s\n' "plane -1 0 0 1" "plane 1 0 0 1" "plane 0 1 0 0.6" "plane 0 -1 0 0.6" \
+               "plane 0 0 -1 0" "plane 0 0 1 0.3" "plane -1 0 0 -0.4" "plane 1 0 0 0.5" \
+               "plane 0 0 1 0.4" "plane -1 0 0 0.55" "plane 1 0 0 -0.45" "plane 0 1 0 0.05" \
+               "plane 0 -1 0 0.05" ;;
     esac
 }
-for model in dome stacked fillet; do
+for model in dome stacked fillet steps; do
     truth_more $model > "$tmp/$model.truth"
     want=$(wc -l < "$tmp/$model.truth")
-    "$FREP" sample "$M/segment_$model.hf" -n $NPTS --seed "$SEED" -o "$tmp/$model.xyz" -q
+    src="$M/segment_$model.hf"
+    [ $model = steps ] && src="$srcdir/tests/segment_steps.hf"
+    "$FREP" sample "$src" -n $NPTS --seed "$SEED" -o "$tmp/$model.xyz" -q
     "$FREP" segment "$tmp/$model.xyz" --seed 1 --no-separating -q -o "$tmp/$model.fit" \
         2> "$tmp/err"
     report $? "$model, clean: frep segment runs"
