@@ -51,6 +51,7 @@ typedef struct mesh_cli {
     double box[6];
     int has_box, grid, nthreads, setops;
     int strict;              /* --strict: HyperFun's rejections are errors */
+    size_t max_work;         /* --max-work (frep mesh, sample); 0: the default */
     int grid_axes[3];        /* hfp's -g NX,NY,NZ (frep mesh); 0: grid on every axis */
     double iso;
     frep_program *p;
@@ -211,6 +212,24 @@ frep_program *cli_compile_file_diag(const char *path, const char *model, const d
 frep_program *cli_compile_text(const char *path, const char *text, size_t len,
                                const char *model, const double *a, size_t na, int setops,
                                int strict, frep_buf *diag);
+
+/* The work budget of the commands that evaluate a model (runtime/frep.h,
+ * frep_program_set_work_limit): the loop iterations of all its evaluations together,
+ * counted per point.  cli_compile_text gives every model CLI_DEFAULT_MAX_WORK; eval,
+ * mesh, sample and fit take --max-work N (cli_work_limit sets it when given, N > 0).
+ * A model without loops never spends any.  cli_work_check says when the evaluations
+ * went over it ("frep SUB: PATH: the model's loops ran over the work budget ...") and
+ * returns CLI_FAIL; else CLI_OK. */
+/* 10^9: about 6 s of one processor for the simplest loop (1.7 x 10^8 iterations per
+ * second), room for a 100-iteration loop at 10^7 points (a mesh at grid 512) */
+#define CLI_DEFAULT_MAX_WORK 1000000000ull
+#define CLI_OPT_MAX_WORK(T, f) \
+    { 0, "max-work", "N", CLI_OPT_SIZE, offsetof(T, f), .lo = 1, .hi = 9e15, \
+      .what = "a number of loop iterations", \
+      .help = "work budget: at most N loop iterations of the model in all\n" \
+              "(summed over the points; default 1e9)" }
+int cli_work_limit(frep_program *p, size_t max_work);
+int cli_work_check(const char *sub, const char *path, const frep_program *p);
 
 /* Write a file atomically: data goes to a temporary in the same directory (PATH.tmpPID),
  * which is renamed over `path` when `fn` succeeds and removed otherwise, also by a

@@ -139,6 +139,11 @@ static int eval_points(const frep_program *p, const char *path, int grad, int nt
         fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
         goto done;
     }
+    if (frep_program_work_spent(p)) {
+        report_errors(p, &err, src, srclen);
+        cli_work_check("eval", NULL, p);
+        goto done;
+    }
     for (size_t i = 0; i < n; i++) {
         print_num(stdout, f[i]);
         if (grad)
@@ -176,6 +181,10 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
         fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
         return CLI_FAIL;
     }
+    if (frep_program_work_spent(p)) {
+        report_errors(p, &all, src, srclen);
+        return cli_work_check("eval", NULL, p);
+    }
     double eval_time = frep_now_seconds() - t0;
     uint64_t inside = st.inside, nans = st.nans;
     double vmin = st.min, vmax = st.max, sum = st.sum;
@@ -203,6 +212,7 @@ typedef struct eval_cmd {
     cli_list a;
     int grad, setops, nthreads, prune, strict;
     long grid;                /* points per axis; 0: point mode */
+    size_t max_work;          /* --max-work; 0: the default */
     const char *file, *points;
     double box[6];
     frep_program *p;
@@ -220,6 +230,7 @@ static const cli_opt eval_opts[] = {
       .help = "also print the gradient (forward-mode differentiation)" },
     { 0, "grid", "N", CLI_OPT_LONG, OFF(grid), .lo = 2, .hi = EVAL_MAX_GRID,
       .help = "grid mode with N points per axis (2..4096)" },
+    CLI_OPT_MAX_WORK(eval_cmd, max_work),
     CLI_OPT_MODEL(eval_cmd, model, "the model to evaluate"),
     { 0, "no-prune", NULL, CLI_OPT_CLEAR, OFF(prune),
       .help = "grid mode: evaluate every tile with the whole program" },
@@ -254,7 +265,7 @@ static int eval_run(eval_cmd *c)
 {
     c->p = cli_compile_file(c->file, c->model, c->a.v, c->a.n, c->setops, c->strict,
                             &c->src);
-    if (!c->p) return CLI_FAIL;
+    if (!c->p || cli_work_limit(c->p, c->max_work) != CLI_OK) return CLI_FAIL;
     if (c->grid && !c->boxarg) frep_program_box(c->p, c->box);
     size_t srclen = c->src ? strlen(c->src) : 0;
     return c->grid ? eval_grid(c->p, c->grid, c->box, c->nthreads, c->prune, c->src, srclen)

@@ -240,6 +240,7 @@ typedef struct fit_cmd {
     cli_list a;
     double loss_scale;         /* --loss-scale; <= 0: 0.01 x the cloud's diagonal */
     int in_place, quiet, strict, no_robust;
+    size_t max_work;           /* --max-work; 0: the default */
     const char *tmpl, *cloud_path;
     frep_program *p;
     frep_program *ps;          /* its R-function compilation, when it differs (min/max) */
@@ -307,6 +308,7 @@ static const cli_opt fit_opts[] = {
       .help = "stop after T seconds and keep the best so far" },
     { 0, "max-evals", "N", CLI_OPT_LONG, OFF(cfg.max_evals), .lo = 1, .hi = INFINITY,
       .help = "stop after N objective evaluations" },
+    CLI_OPT_MAX_WORK(fit_cmd, max_work),
     { 0, "sa-points", "N", CLI_OPT_SIZE, OFF(cfg.sa_points), .lo = 0, .hi = INFINITY,
       .help = "points the annealing uses (default 1024; 0: all)" },
     { 0, "sa-stall", "N", CLI_OPT_LONG, OFF(cfg.sa.stall_iter), .lo = 1, .hi = INFINITY,
@@ -385,7 +387,7 @@ static void ignore_diag(void *user, const frep_diag *d)
 static int stage_template(fit_cmd *f)
 {
     f->p = cli_compile_file(f->tmpl, f->model, f->a.v, f->a.n, -1, f->strict, &f->src);
-    if (f->p == NULL) return CLI_FAIL;
+    if (f->p == NULL || cli_work_limit(f->p, f->max_work) != CLI_OK) return CLI_FAIL;
     warn_lookalike_annotations(f->tmpl, f->src);
     /* A min/max template is annealed on its R-function compilation: the same parameters
      * and zero set, a smoother field (doc/fit.md). Its diagnostics were printed once. */
@@ -401,6 +403,10 @@ static int stage_template(fit_cmd *f)
         frep_program_free(f->ps);
         f->ps = NULL;
     }
+    /* the annealing's program has a budget of its own, as large */
+    if (f->ps != NULL &&
+        cli_work_limit(f->ps, f->max_work ? f->max_work : CLI_DEFAULT_MAX_WORK) != CLI_OK)
+        return CLI_FAIL;
     f->nall = frep_program_nparams(f->p);
     for (size_t i = 0; i < f->nall; i++) f->nnamed += f->p->params[i].end > f->p->params[i].off;
     size_t n = f->nall ? f->nall : 1;
@@ -562,6 +568,9 @@ static int stage_fit(fit_cmd *f)
     int frc = fit_run(&f->fm, &f->pts, f->lo, f->hi, f->x0, &f->cfg, &f->res, &err);
     cli_sigint_restore();
     if (tty) fputs("\r\033[K", stderr);
+    if (cli_work_check("fit", f->tmpl, f->p) != CLI_OK ||
+        (f->ps && cli_work_check("fit", f->tmpl, f->ps) != CLI_OK))
+        return CLI_FAIL;
     if (frc != 0) {
         fprintf(stderr, "%s: error: %s\n", f->tmpl, err.msg);
         return CLI_FAIL;

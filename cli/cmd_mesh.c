@@ -88,6 +88,7 @@ static int parse_color(const char *arg, void *dest, char *why, size_t whylen)
 #define OFF(f) offsetof(mesh_cmd, f)
 static const cli_opt mesh_opts[] = {
     { 'o', "output", "OUT", CLI_OPT_STRING, OFF(out), .help = "the mesh file to write (required)" },
+    CLI_OPT_MAX_WORK(mesh_cmd, mc.max_work),
     CLI_OPT_MODEL(mesh_cmd, mc.model, "the model to mesh (default: my_model, else the first one)"),
     CLI_OPT_PARAMS(mesh_cmd, mc.a, "values of the model's a[] array, comma separated"),
     CLI_OPT_BOX(mesh_cmd, mc.box,

@@ -58,6 +58,7 @@ static const cli_opt sample_opts[] = {
     { 0, "outliers", "F", CLI_OPT_DOUBLE, OFF(so.outliers), .lo = 0, .hi = 1, .what = "a fraction",
       .help = "fraction F of the N points drawn uniformly in the box" },
     CLI_OPT_SEED(sample_cmd, so.seed, "random seed (default: from the clock; always printed)"),
+    CLI_OPT_MAX_WORK(sample_cmd, mc.max_work),
     CLI_OPT_MODEL(sample_cmd, mc.model, "the model (default: my_model, else the first one)"),
     CLI_OPT_PARAMS(sample_cmd, mc.a, "values of the model's a[] array"),
     CLI_OPT_BOX(sample_cmd, mc.box, "HyperFun's -b (default: the model's '-- @box', else 10)"),
@@ -133,6 +134,8 @@ static int stage_sample_model(sample_cmd *c)
     mesh_cli_add_errors(mc, &re);
     mesh_field_program_free(&f);
     mesh_cli_report_errors(mc);
+    if (frep_program_work_spent(mc->p) && !cli_interrupted())
+        return cli_work_check("sample", c->in, mc->p);
     return sampled(c, rc, &err);
 }
 

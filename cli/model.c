@@ -126,7 +126,7 @@ int mesh_cli_compile(mesh_cli *c, const char *path)
     } else
         c->p = cli_compile_file_diag(path, c->model, c->a.v, c->a.n, c->setops, c->strict, &c->src,
                                      c->diag);
-    if (!c->p) return CLI_FAIL;
+    if (!c->p || cli_work_limit(c->p, c->max_work) != CLI_OK) return CLI_FAIL;
     c->srclen = c->src ? strlen(c->src) : 0;
     if (c->a.n == 0 && reads_a(c) && a_all_zero(c))
         model_note(c, "%s: note: the model reads a[], which neither -a nor a '-- @params' line "
@@ -192,6 +192,10 @@ int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *
     if (tty && last >= 0) fputs("\r                     \r", stderr);
     if (rc != 0 && err.code == FREP_ECANCEL)
         return cli_interrupt_status(sub, "stopped while meshing, nothing written");
+    if (frep_program_work_spent(c->p)) {
+        if (rc == 0) mesh_free(m);
+        return cli_work_check(sub, c->path, c->p);
+    }
     if (rc != 0) {
         fprintf(stderr, "frep %s: %s\n", sub, err.msg);
         return CLI_FAIL;

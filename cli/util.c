@@ -137,7 +137,31 @@ frep_program *cli_compile_text(const char *path, const char *text, size_t len,
     cli_diag_ctx dc = { text, len, 0, 0, NULL, 0, diag };
     frep_program *p = frep_compile(path, text, len, &o, cli_print_diag, &dc);
     cli_diag_done(&dc);
+    if (p && frep_program_set_work_limit(p, CLI_DEFAULT_MAX_WORK) != 0) {
+        fprintf(stderr, "frep: out of memory\n");
+        frep_program_free(p);
+        return NULL;
+    }
     return p;
+}
+
+int cli_work_limit(frep_program *p, size_t max_work)
+{
+    if (max_work == 0 || frep_program_set_work_limit(p, max_work) == 0) return CLI_OK;
+    fprintf(stderr, "frep: out of memory\n");
+    return CLI_FAIL;
+}
+
+int cli_work_check(const char *sub, const char *path, const frep_program *p)
+{
+    if (!frep_program_work_spent(p)) return CLI_OK;
+    fprintf(stderr,
+            "frep %s: %s%sthe model's loops ran over the work budget of %llu iterations "
+            "(summed over the points): evaluation stopped, nothing written; --max-work N "
+            "raises it\n",
+            sub, path ? path : "", path ? ": " : "",
+            (unsigned long long)frep_program_work_limit(p));
+    return CLI_FAIL;
 }
 
 /* 1 once a write error on standard output was reported (said once per process). */

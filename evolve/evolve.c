@@ -429,6 +429,11 @@ static void draw_sample(const size_t *pool, size_t np, size_t m, uint64_t seed, 
     memcpy(out, tmp, m * sizeof *out);
 }
 
+/* Points per part of the final statistics (evolve_stats): a whole number of
+ * GP_FIT_BLOCKs, so the sums are those of one cache of every point; 16384 points of a
+ * 20-leaf tree take about 12 MB (36 bytes per point and leaf, 72 per point). */
+#define EVOLVE_STATS_POINTS (64 * GP_FIT_BLOCK)
+
 /* 1 when the tree uses leaf j. */
 static int tree_uses(const gp_tree *t, uint32_t j)
 {
@@ -466,9 +471,22 @@ int evolve_stats(const evolve_options *o, const frep_cloud *cloud, const prim *p
     for (uint32_t pc = 0; pc < local.len; pc++)
         if (local.code[pc].op == FREP_OP_PRIM) local.code[pc].arg = map[local.code[pc].arg];
     double ls = o->lambda_scale > 0 ? o->lambda_scale : 1.0;
-    fc = build_cache(o, prims, nprims, used, k, cloud->x, cloud->y, cloud->z, nrm, valid, nv,
-                     res->eps_d, res->alpha, ls * log((double)(nv > 1 ? nv : 2)), 1);
-    if (!fc || gp_tree_stats(fc, ev, local.code, local.len, &res->stats)) goto out;
+    double lambda = ls * log((double)(nv > 1 ? nv : 2));
+    /* By parts of EVOLVE_STATS_POINTS points, each its own cache: the numbers of one
+     * cache of every point (gp_tree_stats_add), in memory that does not grow with the
+     * cloud. */
+    gp_stats acc;
+    memset(&acc, 0, sizeof acc);
+    for (size_t q0 = 0; q0 < nv || q0 == 0; q0 += EVOLVE_STATS_POINTS) {
+        size_t m = nv - q0 < EVOLVE_STATS_POINTS ? nv - q0 : EVOLVE_STATS_POINTS;
+        fc = build_cache(o, prims, nprims, used, k, cloud->x, cloud->y, cloud->z, nrm,
+                         valid + q0, m, res->eps_d, res->alpha, lambda, 1);
+        if (!fc || gp_tree_stats_add(fc, ev, local.code, local.len, &acc)) goto out;
+        gp_cache_free(fc);
+        fc = NULL;
+        if (nv == 0) break;
+    }
+    res->stats = acc;
     rc = 0;
 out:
     tree_free(&local);

@@ -776,11 +776,12 @@ int gp_fitness(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t le
 }
 
 static int per_point(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
-                     const gp_tape *tp, gp_stats *st, uint8_t *ok)
+                     const gp_tape *tp, gp_stats *st, uint8_t *ok, int add)
 {
     if (!len || c->values_only || eval_reserve(e, max_stack(code, len))) return -1;
     gp_stats s;
-    memset(&s, 0, sizeof s);
+    if (add) s = *st;
+    else memset(&s, 0, sizeof s);
     const size_t B = GP_FIT_BLOCK;
     uint64_t okw[GP_FIT_WORDS];
     for (size_t i0 = 0; i0 < c->n; i0 += B) {
@@ -814,7 +815,13 @@ static int per_point(const gp_cache *c, gp_eval *e, const frep_insn *code, uint3
 int gp_tree_stats(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                   gp_stats *st)
 {
-    return per_point(c, e, code, len, NULL, st, NULL);
+    return per_point(c, e, code, len, NULL, st, NULL, 0);
+}
+
+int gp_tree_stats_add(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                      gp_stats *acc)
+{
+    return per_point(c, e, code, len, NULL, acc, NULL, 1);
 }
 
 static int values_code(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
@@ -838,7 +845,7 @@ int gp_tree_values(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_
 int gp_explained(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                  uint8_t *ok)
 {
-    return per_point(c, e, code, len, NULL, NULL, ok);
+    return per_point(c, e, code, len, NULL, NULL, ok, 0);
 }
 
 /* ---- tapes ------------------------------------------------------------------ */
@@ -1044,7 +1051,7 @@ int gp_stats_replaced(const gp_cache *c, gp_eval *e, uint32_t st, uint32_t end,
 {
     gp_tape *tp = &e->tape;
     if (build_path(c, e, st, end, sub, nsub)) return -1;
-    if (per_point(c, e, tp->path.code, tp->path.len, tp, st_out, NULL)) return -1;
+    if (per_point(c, e, tp->path.code, tp->path.len, tp, st_out, NULL, 0)) return -1;
     st_out->fitness = st_out->score - c->lambda * (double)replaced_len(c, tp, st, end, sub, nsub);
     return 0;
 }

@@ -142,6 +142,12 @@ typedef struct gp_stats {
 } gp_stats;
 int gp_tree_stats(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
                   gp_stats *st);
+/* The same over c's points added to *acc (score and counts; fitness is acc's score less
+ * c's lambda x len): a cloud scored by parts whose sizes are multiples of GP_FIT_BLOCK
+ * gets the very numbers of one cache of all its points (the blocks are summed in the
+ * same order). */
+int gp_tree_stats_add(const gp_cache *c, gp_eval *e, const frep_insn *code, uint32_t len,
+                      gp_stats *acc);
 /* Per point: 1 when explained (within eps and normal agrees). ok[n]. */
 /* The tree's value at every point of c: out[0..c->n) (min/max: the value of the active
  * primitive, as scored). 0 or -1 (allocation). */

@@ -141,6 +141,21 @@ int frep_program_param_bounds(const frep_program *p, size_t i, double *lo, doubl
 /* Model extent from an `-- @box` pragma; returns 1 and fills box[6] when known. */
 int frep_program_box(const frep_program *p, double box[6]);
 
+/* The work budget: from now on, evaluations of p (its attribute programs included) may
+ * run at most `limit` loop iterations in all, counted per point (a loop run 1000 times
+ * at each of 1000 points counts 10^6; an iteration of the interval evaluator a mesher
+ * uses on a box counts 64), whatever the thread count.  Past it, every
+ * evaluation of a program with loops gives NaN with the runtime error "loop work over
+ * the budget" (programs without loops still evaluate).  limit 0: no budget (the
+ * default).  Setting a limit starts the count again at 0.  Returns 0, or -1 out of
+ * memory.  Not while p is being evaluated. */
+int frep_program_set_work_limit(frep_program *p, uint64_t limit);
+/* The limit set (0: none), and the loop iterations counted since it was set. */
+uint64_t frep_program_work_limit(const frep_program *p);
+uint64_t frep_program_work_used(const frep_program *p);
+/* 1 when the evaluations so far went over the budget (their results are NaN), else 0. */
+int frep_program_work_spent(const frep_program *p);
+
 /* Write the disassembly to a malloc'ed string; frep_free() it. */
 char *frep_disassemble(const frep_program *p);
 

@@ -230,7 +230,57 @@ void frep_program_free(frep_program *p)
     frep_free(p->model);
     for (i = 0; i < p->nattrs && p->attrs; i++) frep_program_free(p->attrs[i]);
     frep_free(p->attrs);
+    if (p->owns_work) frep_free(p->work);
     frep_free(p);
+}
+
+/* ---- the work budget ------------------------------------------------------------ */
+
+int prog_work_spent(const frep_work *w)
+{
+    return w && atomic_load_explicit(&w->used, memory_order_relaxed) > w->limit;
+}
+
+int frep_program_set_work_limit(frep_program *p, uint64_t limit)
+{
+    uint32_t i;
+    if (!p) return -1;
+    if (limit == 0) {
+        if (p->owns_work) frep_free(p->work);
+        p->work = NULL;
+        p->owns_work = 0;
+    } else {
+        if (!p->owns_work) {
+            frep_work *w = frep_malloc(sizeof *w);
+            if (!w) return -1;
+            p->work = w;
+            p->owns_work = 1;
+        }
+        p->work->limit = limit;
+        atomic_init(&p->work->used, 0);
+    }
+    for (i = 0; i < p->nattrs && p->attrs; i++) {
+        frep_program *a = p->attrs[i];
+        if (a->owns_work) frep_free(a->work);
+        a->work = p->work;
+        a->owns_work = 0;
+    }
+    return 0;
+}
+
+uint64_t frep_program_work_limit(const frep_program *p)
+{
+    return p && p->work ? p->work->limit : 0;
+}
+
+uint64_t frep_program_work_used(const frep_program *p)
+{
+    return p && p->work ? atomic_load_explicit(&p->work->used, memory_order_relaxed) : 0;
+}
+
+int frep_program_work_spent(const frep_program *p)
+{
+    return p && prog_work_spent(p->work);
 }
 
 /* ---- queries ------------------------------------------------------------------ */

@@ -141,6 +141,7 @@ void vm_scratch_free(vm_scratch *s)
 void vm_err_begin(vm_scratch *s, size_t n)
 {
     s->blk.count = 0;
+    s->work_over = 0;
     s->nan_lanes = 0;
     memset(s->errlane, 0, n);
 }
@@ -252,7 +253,34 @@ void vm_runaway(vm_scratch *s, const vm_inputs *in, uint32_t pc, size_t n, doubl
         out[i] = NAN;
         vm_err_lane(s, pc, i, in);
     }
+    if (s->work_over && s->blk.pc == pc) s->blk.what = VM_WORK_WHAT;
+    s->work_over = 0;
     vm_err_commit(s, n);
+}
+
+/* ---- the work budget ---------------------------------------------------------------- */
+
+int vm_work_flush(vm_scratch *s, frep_work *w)
+{
+    uint64_t add = s->work_pending;
+    s->work_pending = 0;
+    if (!w) return 0;
+    if (add) atomic_fetch_add_explicit(&w->used, add, memory_order_relaxed);
+    if (!prog_work_spent(w)) return 0;
+    s->work_over = 1;
+    return 1;
+}
+
+void vm_work_refuse(const frep_program *p, vm_scratch *s, const vm_inputs *in, size_t n,
+                    double *out)
+{
+    uint32_t pc = 0;
+    while (pc < p->ncode && !(p->code[pc].op == FREP_OP_JMP && p->code[pc].arg <= pc)) pc++;
+    if (pc == p->ncode) pc = 0;
+    s->cur = p;
+    vm_err_begin(s, n);
+    s->work_over = 1;
+    vm_runaway(s, in, pc, n, out);
 }
 
 #define VM_RESTRICT restrict
@@ -653,12 +681,16 @@ int vm_eval_block(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
     if (n == 0) return 0;
     if (n > FREP_BLOCK || vm_scratch_fit(s, p) < 0) return -1;
     if ((p->flags & PROG_HAS_PRIMS) && !in->prim_v) return -1;
+    if (p->work && (p->flags & PROG_HAS_BRANCHES) && prog_work_spent(p->work)) {
+        vm_work_refuse(p, s, in, n, out);
+        return 0;
+    }
     vm_broadcast_params(p, s, in, n);
     rc = vm_run(p, s, in, n, out, n > 1);
-    if (rc != 1) return rc;
-    for (i = 0; i < n; i++) {
+    for (i = 0; rc == 1 && i < n; i++) {
         vm_inputs li = vm_lane_inputs(p, s, in, i);
-        if (vm_run(p, s, &li, 1, out + i, 0) < 0) return -1;
+        if (vm_run(p, s, &li, 1, out + i, 0) < 0) rc = -1;
     }
-    return 0;
+    vm_work_flush(s, p->work);
+    return rc < 0 ? -1 : 0;
 }

@@ -77,7 +77,32 @@ struct vm_scratch {
      * derivatives (as a fitter does) never reallocates. */
     vm_tanstate *tan[2];
     const frep_program *cur;   /* program of the current run (error messages) */
+
+    /* The work budget (program.h): loop iterations counted by this scratch and not yet
+     * added to the program's `used` (at most VM_WORK_BATCH - 1 between blocks: none),
+     * and whether the current run stopped because the budget is spent. */
+    uint64_t work_pending;
+    int work_over;
 };
+
+/* The runtime error of evaluations past the budget (frep_runtime_error.what). */
+#define VM_WORK_WHAT "loop iterations over the work budget"
+
+/* Add the pending iterations to w (may be NULL); 1 when the budget is spent (and
+ * s->work_over set), else 0. */
+int vm_work_flush(vm_scratch *s, frep_work *w);
+/* Count n iterations (one backward jump of n lanes) of program p; 1 when the budget is
+ * spent. */
+static inline int vm_work_spend(vm_scratch *s, const frep_program *p, size_t n)
+{
+    if (!p->work) return 0;
+    s->work_pending += n;
+    return s->work_pending >= VM_WORK_BATCH && vm_work_flush(s, p->work);
+}
+/* A block of a program with loops whose budget is spent: every lane NaN, with the
+ * budget's error at its first backward jump. */
+void vm_work_refuse(const frep_program *p, vm_scratch *s, const vm_inputs *in, size_t n,
+                    double *out);
 
 /* Make s big enough for p. Returns 0 or -1 on allocation failure. */
 int vm_scratch_fit(vm_scratch *s, const frep_program *p);
@@ -129,7 +154,8 @@ static inline const double *vm_axis(const vm_inputs *in, uint32_t a)
  * condition is zero in every lane jumps, nonzero in every lane falls through, and
  * mixed lanes make the run give up (1) so that the caller reruns the block one lane at
  * a time, which is exact for point-dependent if/while.  A backward JMP counts a loop
- * iteration; past FREP_MAX_LOOP_ITERATIONS the run ends with NaN and an error. */
+ * iteration; past FREP_MAX_LOOP_ITERATIONS, or when the program's work budget is
+ * spent, the run ends with NaN and an error. */
 typedef enum vm_branch { VM_FALL, VM_JUMP, VM_DIVERGE } vm_branch;
 
 static inline vm_branch vm_jz(const double *C, size_t n)
@@ -145,7 +171,8 @@ static inline vm_branch vm_jz(const double *C, size_t n)
  * diverge) is a bug: -1, as for an unusable program. */
 #define VM_CASE_JMP(RUNAWAY)                                                       \
     case FREP_OP_JMP:                                                              \
-        if (in_->arg <= pc && ++loops > FREP_MAX_LOOP_ITERATIONS) {                \
+        if (in_->arg <= pc &&                                                      \
+            (++loops > FREP_MAX_LOOP_ITERATIONS || vm_work_spend(s, p, n))) {      \
             RUNAWAY;                                                               \
             return 0;                                                              \
         }                                                                          \

@@ -22,6 +22,7 @@
 
 struct vm_iscratch {
     uint32_t nstack, nslots;
+    long loops;              /* backward jumps of the current run */
     ival *stack;
     ival *slots;
 };
@@ -442,15 +443,14 @@ static int iv_operator(ival *st, uint32_t *sp, const frep_insn *in)
  * each instruction pushes.  The stack effects are checked as it runs (a program the
  * point evaluators reject gives [-inf, inf] here); ival_op holds the interval rule of
  * each operator. */
-static int interval_run(const frep_program *p, vm_iscratch *s, const double box[6],
-                        const double *params, ival *out, ival *trace)
+static int interval_body(const frep_program *p, vm_iscratch *s, const double box[6],
+                         const double *params, ival *out, ival *trace)
 {
     *out = iv_entire();
     if (p->max_stack + 1 > s->nstack || p->nslots + 1 > s->nslots) return -1;
     if (p->flags & PROG_HAS_PRIMS) return 0;
     ival *st = s->stack;
     uint32_t sp = 0;
-    long loops = 0;
     for (uint32_t i = 0; i < p->nslots; i++) s->slots[i] = iv(0, 0);
     for (uint32_t pc = 0; pc < p->ncode;) {
         const frep_insn *in = &p->code[pc];
@@ -475,7 +475,15 @@ static int interval_run(const frep_program *p, vm_iscratch *s, const double box[
             s->slots[in->arg] = st[--sp];
             break;
         case FREP_OP_JMP:
-            IV_UNKNOWN_UNLESS(!(in->arg <= pc && ++loops > FREP_MAX_LOOP_ITERATIONS));
+            if (in->arg <= pc) {
+                IV_UNKNOWN_UNLESS(++s->loops <= FREP_MAX_LOOP_ITERATIONS);
+                /* the work budget, in batches as the point evaluators count */
+                if (p->work && s->loops % (VM_WORK_BATCH / VM_WORK_BOX) == 0) {
+                    atomic_fetch_add_explicit(&p->work->used, VM_WORK_BATCH,
+                                              memory_order_relaxed);
+                    IV_UNKNOWN_UNLESS(!prog_work_spent(p->work));
+                }
+            }
             next = in->arg;
             break;
         case FREP_OP_JZ:
@@ -514,6 +522,23 @@ static int interval_run(const frep_program *p, vm_iscratch *s, const double box[
     }
     if (sp >= 1) *out = iv_fix(st[sp - 1]);
     return 0;
+}
+
+/* interval_body, its loop iterations counted in p's work budget (VM_WORK_BOX each);
+ * once the budget is spent, a program with loops gives [-inf, inf]. */
+static int interval_run(const frep_program *p, vm_iscratch *s, const double box[6],
+                        const double *params, ival *out, ival *trace)
+{
+    if (p->work && (p->flags & PROG_HAS_BRANCHES) && prog_work_spent(p->work)) {
+        *out = iv_entire();
+        return 0;
+    }
+    s->loops = 0;
+    int rc = interval_body(p, s, box, params, out, trace);
+    uint64_t rest = (uint64_t)(s->loops % (VM_WORK_BATCH / VM_WORK_BOX));
+    if (p->work && rest)
+        atomic_fetch_add_explicit(&p->work->used, rest * VM_WORK_BOX, memory_order_relaxed);
+    return rc;
 }
 
 int vm_eval_interval(const frep_program *p, vm_iscratch *s, const double box[6],

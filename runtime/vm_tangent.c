@@ -698,13 +698,18 @@ int vm_eval_block_tangent(const frep_program *p, vm_scratch *s, const vm_inputs 
     if ((p->flags & PROG_HAS_PRIMS) &&
         (!in->prim_v || (seed == VM_SEED_XYZ && !in->prim_g)))
         return -1;
+    if (p->work && (p->flags & PROG_HAS_BRANCHES) && prog_work_spent(p->work)) {
+        for (i = 0; i < (size_t)T * n; i++) dout[i] = NAN;
+        vm_work_refuse(p, s, in, n, out);
+        return 0;
+    }
     vm_broadcast_params(p, s, in, n);
     rc = tan_run(p, s, in, n, seed, out, dout, n, n > 1);
-    if (rc != 1) return rc;
     /* Divergent branches: one lane at a time (see vm_internal.h). */
-    for (i = 0; i < n; i++) {
+    for (i = 0; rc == 1 && i < n; i++) {
         vm_inputs li = vm_lane_inputs(p, s, in, i);
-        if (tan_run(p, s, &li, 1, seed, out + i, dout + i, n, 0) < 0) return -1;
+        if (tan_run(p, s, &li, 1, seed, out + i, dout + i, n, 0) < 0) rc = -1;
     }
-    return 0;
+    vm_work_flush(s, p->work);
+    return rc < 0 ? -1 : 0;
 }

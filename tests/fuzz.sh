@@ -4,7 +4,7 @@
 # (from the source tree, after a build from git so that lang/lex.c and lang/parse.c
 # exist).  Targets (default: all):
 #   compile    tests/fuzz_compile.c: the front end and compiler, seeded from the
-#              examples and the golden tests
+#              examples, the golden tests and tests/fuzz/compile/ (inputs it found)
 #   cloud      tests/fuzz_readers.c: point clouds (.xyz text and PLY)
 #   mesh_off, mesh_stl, mesh_obj, mesh_ply: triangle mesh files
 #   fit        the .fit primitive list;  prims_hf: the .hf primitive list
@@ -50,7 +50,8 @@ for t in $targets; do
     mkdir -p "$dir/corpus"
     if [ "$t" = compile ]; then
         # the seeds: every model of the tree but the limit tests (slow on purpose)
-        for f in examples/*.hf examples/*/*.hf tests/lang/*/*.hf tests/dis/*.hf; do
+        for f in examples/*.hf examples/*/*.hf tests/lang/*/*.hf tests/dis/*.hf \
+            tests/fuzz/compile/*.hf; do
             [ -e "$f" ] || continue
             case $f in tests/lang/limits/*) continue ;; esac
             cp "$f" "$dir/corpus/$(echo "$f" | tr / _)"

@@ -14,6 +14,9 @@ static void ignore_diag(void *user, const frep_diag *d)
     (void)d;
 }
 
+/* Loop iterations of one input's evaluations in all (frep_program_set_work_limit). */
+#define FUZZ_MAX_WORK 100000
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
@@ -22,7 +25,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     frep_compile_options_init(&o);
     frep_program *p = frep_compile("fuzz.hf", (const char *)data, size, &o, ignore_diag, NULL);
     if (!p) return 0;
-    /* Two points: a runaway loop costs FREP_MAX_LOOP_ITERATIONS per point. */
+    /* Two points, and a work budget as every frep command has: a runaway loop stops
+     * after FUZZ_MAX_WORK iterations in all instead of FREP_MAX_LOOP_ITERATIONS per
+     * point and evaluation (tests/fuzz/compile/runaway_gear.hf, a gear whose loop
+     * never ends, took 86 s under the sanitizers on a loaded machine). */
+    if (frep_program_set_work_limit(p, FUZZ_MAX_WORK) != 0) {
+        frep_program_free(p);
+        return 0;
+    }
     double x[2] = { 0.5, -1e6 }, y[2] = { 0.25, 1e6 }, z[2] = { 1e-9, 0 };
     double f[2], gx[2], gy[2], gz[2];
     frep_scratch *s = frep_scratch_new(p);

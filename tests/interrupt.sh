@@ -4,7 +4,8 @@
 # sample) with the latency measured from the signal to the exit; a second signal
 # aborts at once; the temporary file of a write is removed; write errors (a full
 # disk: /dev/full, a file size limit, a full tmpfs when one can be mounted) are
-# reported with their reason; loops that used to hang end. Prints TAP.
+# reported with their reason; loops that used to hang end; the evaluation work budget
+# (--max-work) stops long model loops with a clear error. Prints TAP.
 # Needs FREP (the frep binary) and srcdir (the source tree).
 
 : "${FREP:?FREP must name the frep binary}"
@@ -293,6 +294,51 @@ for d in 64 1024; do
     [ $st = 0 ] && ! grep -q 'out of memory' "$tmp/err" && "$FREP" check "$tmp/deep.hf" 2>/dev/null
     report $? "evolve --max-depth $d (the ends of the range): exit $st, a model"
 done
+
+# ---- the work budget of evaluation (--max-work) ---------------------------------------------
+# A loop of 10^6 iterations at every point (too long to unroll: it runs at evaluation
+# time): at the default mesh grid that was minutes of work; the budget (10^9 loop
+# iterations summed over the points, CLI_DEFAULT_MAX_WORK) stops it with a clear error.
+printf '%s\n' 'my_model(x[3], a[1])' '{' '  i = 0;' '  while i < 1000000 loop' \
+    '    i = i + 1;' '  endloop;' \
+    '  my_model = a[1] - sqrt(x[1]*x[1] + x[2]*x[2] + x[3]*x[3]) + 0 * i;' '}' >"$tmp/loop.hf"
+budget() { # budget SUB CMD...: exit 1 with the budget's message (and but for fit, the
+    # runtime error at the loop), no temporary
+    b_sub=$1
+    shift
+    start "$@"
+    wait "$pid"
+    fs=$?
+    wait "$dog" 2>/dev/null
+    [ $fs = 1 ] &&
+        grep -q "frep $b_sub: .*the model's loops ran over the work budget of [0-9]* iterations" "$tmp/err" &&
+        { [ "$b_sub" = fit ] || grep -q 'loop.hf:4:9: .*loop iterations over the work budget' "$tmp/err"; } &&
+        no_tmp
+}
+echo '0 0 0' >"$tmp/p0.txt"
+budget eval "$FREP" eval "$tmp/loop.hf" "$tmp/p0.txt" --max-work 100000 && [ ! -s "$tmp/out" ]
+report $? "eval POINTS --max-work 1e5 on a 10^6-iteration loop: exit $fs, no value printed"
+budget eval "$FREP" eval "$tmp/loop.hf" --grid 8 --max-work 100000 && ! grep -q '^inside' "$tmp/out"
+report $? "eval --grid --max-work 1e5: exit $fs, no summary"
+echo 'kept' >"$tmp/budget.stl"
+t0=$(now)
+budget mesh "$FREP" mesh "$tmp/loop.hf" -a 1 -o "$tmp/budget.stl" && [ "$(cat "$tmp/budget.stl")" = kept ]
+report $? "mesh at the default grid and budget: exit $fs after $(awk -v a="$t0" -v b="$(now)" 'BEGIN { printf "%.1f", b - a }') s, the old file kept: $(tail -n 1 "$tmp/err")"
+budget sample "$FREP" sample "$tmp/loop.hf" -a 1 -n 100 --seed 1 -o "$tmp/budget.xyz" --max-work 1000000 &&
+    [ ! -e "$tmp/budget.xyz" ]
+report $? "sample --max-work 1e6: exit $fs, nothing written"
+"$FREP" sample "$EX/sphere.hf" -n 300 --seed 1 -o "$tmp/sph.xyz" -q
+budget fit "$FREP" fit "$tmp/loop.hf" "$tmp/sph.xyz" -a 0.5 -o "$tmp/budget_fit.hf" --max-work 1000000 -q &&
+    [ ! -e "$tmp/budget_fit.hf" ]
+report $? "fit --max-work 1e6: exit $fs, nothing written"
+"$FREP" eval "$tmp/loop.hf" "$tmp/p0.txt" -a 1 --max-work 1000000 >"$tmp/out" 2>"$tmp/err"
+fs=$?
+[ $fs = 0 ] && [ "$(cat "$tmp/out")" = 1 ]
+report $? "eval within --max-work 1e6 (10^6 iterations): exit $fs, the value $(cat "$tmp/out")"
+"$FREP" eval "$tmp/loop.hf" "$tmp/p0.txt" --max-work 0 >/dev/null 2>"$tmp/err"
+fs=$?
+[ $fs = 2 ] && grep -q 'max-work' "$tmp/err"
+report $? "--max-work 0 is refused as a usage error (exit $fs)"
 
 # ---- scale -------------------------------------------------------------------------------
 awk 'BEGIN { for (i = 0; i < 2000; i++) printf "%.17g %.17g %.17g 0 0 1\n", (i % 45) * 1e300, int(i / 45) * 1e300, 0 }' >"$tmp/huge.xyz"

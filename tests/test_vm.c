@@ -1031,6 +1031,124 @@ static void test_public_api(void)
     frep_program_free(p);
 }
 
+/* ---- the work budget (frep_program_set_work_limit) ----------------------------------- */
+
+/* i = 0; while i < K loop i = i + 1; endloop; result i + x (K = the bound: a constant
+ * when kconst, else x itself, so each point loops ceil(x) times); *jmp: the backward
+ * jump's pc. */
+static frep_program *count_program(int kconst, double K, uint32_t *jmp)
+{
+    frep_program *p = prog_new();
+    uint32_t top, jz;
+    emit(p, FREP_OP_CONST, 0, 0, 0);
+    emit(p, FREP_OP_STORE, 0, 0, 0);
+    top = p->ncode;
+    emit(p, FREP_OP_LOAD, 0, 0, 0);
+    if (kconst) emit(p, FREP_OP_CONST, 0, K, 0);
+    else emit(p, FREP_OP_X, 0, 0, 0);
+    emit(p, FREP_OP_LT, 0, 0, 0);
+    jz = p->ncode;
+    emit(p, FREP_OP_JZ, 0, 0, 0);
+    emit(p, FREP_OP_LOAD, 0, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 1, INSN_KB);
+    emit(p, FREP_OP_STORE, 0, 0, 0);
+    *jmp = p->ncode;
+    emit(p, FREP_OP_JMP, top, 0, 0);
+    p->code[jz].arg = p->ncode;
+    emit(p, FREP_OP_LOAD, 0, 0, 0);
+    emit(p, FREP_OP_X, 1, 0, 0);
+    emit(p, FREP_OP_ADD, 0, 0, 0);
+    return finish(p);
+}
+
+static void test_work_budget(void)
+{
+    /* enough points for two threads (FREP_PAR_MIN_WORK) */
+    enum { N = 400000 };
+    static double x[N], y[N], z[N], f[N], gx[N], gy[N], gz[N];
+    frep_runtime_error e, e2;
+    uint32_t jmp;
+    size_t i;
+    frep_program *p = count_program(0, 0, &jmp);
+    if (!p) return;
+    ok(frep_program_work_limit(p) == 0 && frep_program_work_used(p) == 0 &&
+           !frep_program_work_spent(p),
+       "a program has no work budget until one is set");
+    /* every point loops 3 times: 3N iterations in all, counted exactly (no divergence) */
+    for (i = 0; i < N; i++) {
+        x[i] = 3;
+        y[i] = urand(-1, 1);
+        z[i] = 0;
+    }
+    ok(frep_program_set_work_limit(p, 10ull * N) == 0 && frep_program_work_limit(p) == 10ull * N,
+       "set a budget of 10 iterations per point");
+    ok(frep_eval_par(p, N, x, y, z, NULL, f, 2, &e) == 0 && e.count == 0 &&
+           frep_program_work_used(p) == 3ull * N && !frep_program_work_spent(p) &&
+           f[N - 1] == 3 + y[N - 1],
+       "within the budget: the values, no error, 3 iterations counted per point");
+    /* ceil(x) iterations with x in [0, 4): the count does not depend on the threads */
+    for (i = 0; i < N; i++) x[i] = urand(0, 4);
+    frep_program_set_work_limit(p, 100ull * N);
+    ok(frep_program_work_used(p) == 0, "setting the limit again starts the count at 0");
+    frep_eval_par(p, N, x, y, z, NULL, f, 1, &e);
+    uint64_t u1 = frep_program_work_used(p);
+    frep_program_set_work_limit(p, 100ull * N);
+    frep_eval_par(p, N, x, y, z, NULL, f, 2, &e);
+    uint64_t u2 = frep_program_work_used(p);
+    uint64_t least = 0;
+    for (i = 0; i < N; i++) least += (uint64_t)ceil(x[i]);
+    ok(u1 == u2 && u1 >= least && u1 < 2 * least + N,
+       "1 and 2 threads count the same work (%llu; %llu iterations at least)",
+       (unsigned long long)u1, (unsigned long long)least);
+    /* over the budget: NaN with the budget's error at the loop's jump, at any thread count */
+    for (int t = 1; t <= 2; t++) {
+        frep_program_set_work_limit(p, (uint64_t)N);
+        frep_eval_par(p, N, x, y, z, NULL, f, t, &e);
+        size_t nans = 0;
+        for (i = 0; i < N; i++) nans += isnan(f[i]) != 0;
+        ok(frep_program_work_spent(p) && e.count > 0 && e.count == nans && e.pc == jmp &&
+               e.what && strstr(e.what, "work budget") != NULL,
+           "%d thread%s: over the budget, %zu points NaN with the error '%s' at the jump", t,
+           t == 1 ? "" : "s", nans, e.what ? e.what : "");
+    }
+    frep_eval_par(p, 1, x, y, z, NULL, f, 1, &e2);
+    ok(isnan(f[0]) && e2.count == 1 && e2.pc == jmp,
+       "once spent, the next evaluation is NaN at once, with the error");
+    ok(frep_eval_grad_par(p, 3, x, y, z, NULL, f, gx, gy, gz, 1, &e2) == 0 && isnan(f[2]) &&
+           isnan(gx[0]) && isnan(gz[2]) && e2.count == 3,
+       "the gradient evaluator refuses too: values and gradients NaN");
+    frep_program_set_work_limit(p, 0);
+    ok(frep_program_work_limit(p) == 0 && !frep_program_work_spent(p) &&
+           frep_eval_par(p, 1, x, y, z, NULL, f, 1, &e2) == 0 && e2.count == 0 &&
+           f[0] == ceil(x[0]) + y[0],
+       "limit 0 removes the budget: the program evaluates again");
+    frep_program_free(p);
+
+    /* the interval evaluator: a constant 1000-iteration loop */
+    p = count_program(1, 1000, &jmp);
+    vm_iscratch *is = vm_iscratch_new(p);
+    double box[6] = { 0, 0, 0, 1, 1, 1 };
+    ival r;
+    frep_program_set_work_limit(p, 1500 * VM_WORK_BOX);
+    vm_eval_interval(p, is, box, NULL, &r);
+    /* (the widened bounds of i leave the exit undecided at i = 1000: [-inf, inf]) */
+    ok(frep_program_work_used(p) == 1000 * VM_WORK_BOX,
+       "interval evaluation counts a box's 1000 iterations as VM_WORK_BOX points' (%llu)",
+       (unsigned long long)frep_program_work_used(p));
+    vm_eval_interval(p, is, box, NULL, &r);
+    ok(frep_program_work_spent(p) && isinf(r.lo) && isinf(r.hi),
+       "over the budget, interval evaluation gives [-inf, inf]");
+    vm_iscratch_free(is);
+    /* a program without loops never spends, and evaluates past a spent budget */
+    frep_program_free(p);
+    p = mixed_program();
+    frep_program_set_work_limit(p, 1);
+    ok(frep_eval_par(p, 100, x, y, z, NULL, f, 1, &e) == 0 && !isnan(f[0]) &&
+           frep_program_work_used(p) == 0,
+       "a program without loops spends nothing");
+    frep_program_free(p);
+}
+
 /* ---- sin and cos: opsem.h's own, against libm ---------------------------------- */
 
 /* |a - b| in ulps of b. */
@@ -1172,5 +1290,6 @@ int main(void)
     test_thread_sizing();
     test_threads();
     test_public_api();
+    test_work_budget();
     return done_testing();
 }
