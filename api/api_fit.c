@@ -558,16 +558,21 @@ const char *frep_fit_text(const frep_fit *f, size_t *len)
     return f->text;
 }
 
+typedef struct text_ctx {
+    const frep_fit *f;
+} text_ctx;
+
 static int write_text(FILE *out, void *ctx)
 {
-    const frep_fit *f = ctx;
+    const frep_fit *f = ((const text_ctx *)ctx)->f;
     return fwrite(f->text, 1, f->textlen, out) == f->textlen ? 0 : -1;
 }
 
 int frep_fit_write(const frep_fit *f, const char *path, frep_diag_fn diag, void *user)
 {
     api_diag d = { diag, user };
-    return api_write_atomic(&d, path, write_text, (void *)f);
+    text_ctx t = { f };
+    return api_write_atomic(&d, path, write_text, &t);
 }
 
 static void json_str(FILE *f, const char *s)

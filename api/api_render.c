@@ -192,9 +192,13 @@ const uint8_t *frep_image_pixels(const frep_image *img, int *width, int *height)
     return img->rgb;
 }
 
+typedef struct png_ctx {
+    const frep_image *img;
+} png_ctx;
+
 static int write_png(FILE *f, void *ctx)
 {
-    const frep_image *img = ctx;
+    const frep_image *img = ((const png_ctx *)ctx)->img;
     return png_write_rgb(f, img->rgb, img->width, img->height);
 }
 
@@ -202,5 +206,6 @@ int frep_image_write_png(const frep_image *img, const char *path, frep_diag_fn d
                          void *user)
 {
     api_diag d = { diag, user };
-    return api_write_atomic(&d, path, write_png, (void *)img);
+    png_ctx c = { img };
+    return api_write_atomic(&d, path, write_png, &c);
 }
