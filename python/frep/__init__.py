@@ -19,7 +19,7 @@ import numpy as np
 
 __all__ = ["FrepError", "Program", "Mesh", "Cloud", "Segmentation", "Fit", "compile",
            "compile_file", "read_cloud", "read_mesh", "fit", "fit_file", "read_prims",
-           "Evolution", "library_version",
+           "Evolution", "Image", "library_version",
            "load_library"]
 
 _c_double_p = ctypes.POINTER(ctypes.c_double)
@@ -220,6 +220,21 @@ class _EvolveInfo(ctypes.Structure):
                 ("refit_rms_after", ctypes.c_double)]
 
 
+class _RenderOptions(ctypes.Structure):
+    _fields_ = [("width", ctypes.c_int), ("height", ctypes.c_int), ("view", ctypes.c_char_p),
+                ("points", ctypes.c_void_p), ("scale", ctypes.c_double),
+                ("plain", ctypes.c_int), ("program", ctypes.c_void_p),
+                ("iso", ctypes.c_double), ("nthreads", ctypes.c_int),
+                ("vertex_rgb", ctypes.c_void_p)]
+
+
+class _RenderInfo(ctypes.Structure):
+    _fields_ = [("ntris", ctypes.c_size_t), ("npoints", ctypes.c_size_t),
+                ("mean_dist", ctypes.c_double), ("max_dist", ctypes.c_double),
+                ("inside", ctypes.c_size_t), ("rings", ctypes.c_size_t),
+                ("point_scale", ctypes.c_double), ("surface_scale", ctypes.c_double)]
+
+
 PRIM_TYPES = ("plane", "sphere", "cylinder", "cone", "torus")
 _MESH_FORMATS = {"auto": 0, "stl": 1, "obj": 2, "ply": 3, "off": 4}
 
@@ -306,6 +321,13 @@ def _declare(lib):
         "frep_evolution_write": (I, [P, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p,
                                      I, I, _DIAG_FN, P]),
         "frep_evolution_write_dot": (I, [P, ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_render_options_init": (None, [ctypes.POINTER(_RenderOptions)]),
+        "frep_render": (P, [P, ctypes.POINTER(_RenderOptions), ctypes.POINTER(_RenderInfo),
+                            _DIAG_FN, P]),
+        "frep_image_free": (None, [P]),
+        "frep_image_pixels": (ctypes.POINTER(ctypes.c_uint8),
+                              [P, ctypes.POINTER(I), ctypes.POINTER(I)]),
+        "frep_image_write_png": (I, [P, ctypes.c_char_p, _DIAG_FN, P]),
     }
     for name, (res, args) in sig.items():
         fn = getattr(lib, name)
@@ -702,6 +724,36 @@ class Mesh(_Wrapper):
             d.fail("sampling failed")
         return Cloud._own(h)
 
+    def render(self, width=800, height=600, view="iso", points=None, program=None,
+               scale=0.0, plain=False, iso=0.0, threads=0, colors=None):
+        """A shaded picture, as frep render: an Image.  points: a Cloud drawn over the
+        surface, coloured by its distance to program's surface f = iso (a Program) or,
+        without one, to this mesh's triangles; the surface coloured by its distance to
+        the points unless plain; scale: the distance drawn red (0: from the data).
+        colors: (nverts, 3) uint8 vertex colours."""
+        lib = _L()
+        o = _RenderOptions()
+        lib.frep_render_options_init(ctypes.byref(o))
+        o.width, o.height, o.view = int(width), int(height), view.encode()
+        o.scale, o.plain, o.iso, o.nthreads = float(scale), int(bool(plain)), float(iso), \
+            int(threads)
+        if points is not None:
+            o.points = points._h
+        if program is not None:
+            o.program = program._h
+        rgb = None
+        if colors is not None:
+            rgb = np.ascontiguousarray(colors, dtype=np.uint8).reshape(-1, 3)
+            if rgb.shape[0] != self.vertices.shape[0]:
+                raise ValueError("colors: one (r, g, b) per vertex")
+            o.vertex_rgb = rgb.ctypes.data
+        info = _RenderInfo()
+        d = _Diagnostics()
+        h = lib.frep_render(self._h, ctypes.byref(o), ctypes.byref(info), d.fn, None)
+        if not h:
+            d.fail("cannot render")
+        return Image(h, {k: getattr(info, k) for k, _ in _RenderInfo._fields_})
+
     def to_open3d(self):
         """An open3d.geometry.TriangleMesh (copies), with vertex normals when known."""
         import open3d as o3d
@@ -1055,4 +1107,25 @@ class Evolution:
         """Write the tree for Graphviz (frep evolve --dot)."""
         d = _Diagnostics()
         if _L().frep_evolution_write_dot(self._h, str(path).encode(), d.fn, None) != 0:
+            d.fail("cannot write %s" % path)
+
+
+class Image:
+    """A picture of Mesh.render: pixels, a (height, width, 3) uint8 view of the
+    library's memory; info, what it shows (ntris, npoints, mean_dist, max_dist,
+    inside, rings, point_scale, surface_scale)."""
+
+    def __init__(self, h, info):
+        lib = _L()
+        self._handle = _Handle(h, lib.frep_image_free)
+        self._h = h
+        self.info = info
+        w, ht = ctypes.c_int(), ctypes.c_int()
+        px = lib.frep_image_pixels(h, ctypes.byref(w), ctypes.byref(ht))
+        self.pixels = _view(px, (ht.value, w.value, 3), np.uint8, self._handle)
+
+    def write_png(self, path):
+        """Write as PNG (as frep render -o), atomically."""
+        d = _Diagnostics()
+        if _L().frep_image_write_png(self._h, str(path).encode(), d.fn, None) != 0:
             d.fail("cannot write %s" % path)

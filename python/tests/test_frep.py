@@ -306,3 +306,23 @@ def test_evolve_cancel():
     e = c.evolve(s, partition=False, stagnation=10 ** 6, generations=10 ** 6,
                  cancel=lambda: polls.append(1) or len(polls) >= 4)
     assert e.interrupted and len(polls) == 4 and e.generations <= 5 and e.tree_size > 0
+
+
+def test_render_same_as_command(tmp_path):
+    p = frep.compile_file(CSG)
+    m = p.mesh(grid=32)
+    c = p.sample(500, seed=2, noise=0.01)
+    img = m.render(96, 64, points=c, program=p)
+    assert img.pixels.shape == (64, 96, 3) and img.pixels.dtype == np.uint8
+    assert img.info["npoints"] == 500 and img.info["ntris"] == len(m.triangles)
+    assert img.pixels.std() > 0                       # not a blank picture
+    if FREP:
+        c.write(tmp_path / "c.xyz")
+        subprocess.run([FREP, "render", CSG, "-g", "32", "--size", "96x64", "--points",
+                        str(tmp_path / "c.xyz"), "-q", "-o", str(tmp_path / "cli.png")],
+                       check=True)
+        c2 = frep.read_cloud(tmp_path / "c.xyz")
+        m.render(96, 64, points=c2, program=p).write_png(tmp_path / "api.png")
+        assert (tmp_path / "cli.png").read_bytes() == (tmp_path / "api.png").read_bytes()
+    with pytest.raises(frep.FrepError):
+        m.render(view="upside")
