@@ -1,9 +1,9 @@
 /* frep.h - public interface of libfrep: compile HyperFun models to bytecode, evaluate
  * them over blocks of points and over boxes, and do the jobs of the frep command from
  * a program: read and write point clouds, polygonize into indexed triangle meshes and
- * write and check them, sample surfaces, segment clouds into primitives.  doc/api.md
- * is the guide; every function declared here, and nothing else, is exported from
- * libfrep.so.
+ * write and check them, sample surfaces, segment clouds into primitives, fit templates
+ * to clouds, draw pictures, evolve construction trees.  doc/api.md is the guide;
+ * every function declared here, and nothing else, is exported from libfrep.so.
  *
  * Rules of use:
  *  - A frep_program is immutable after frep_compile() and may be shared by threads.
@@ -13,6 +13,10 @@
  *    strings and arrays the library hands over are released with frep_free().
  *  - The allocator hook (frep_set_allocator) is the only process-wide state: set it
  *    before any other call, from one thread.
+ *  - Progress and cancel callbacks of the long jobs (segment, fit, evolve) are called
+ *    from the thread that called the job, never from the library's worker threads; a
+ *    cancel keeps the best result so far.  Results (frep_fit, frep_evolution,
+ *    frep_image, ...) are immutable once returned and may be read by several threads.
  */
 #ifndef FREP_H
 #define FREP_H
