@@ -9,6 +9,7 @@
 
 #include "err.h"
 #include "frep.h"
+#include "segment.h"
 
 /* The box of a program without `-- @box` when the options give none: HyperFun's
  * default, as the frep command's. */
@@ -36,5 +37,12 @@ int api_write_atomic(const api_diag *d, const char *path, int (*fn)(FILE *f, voi
 /* The model box of options o for program p: o's when given, else the program's
  * `-- @box`, else [-API_DEFAULT_BOX, API_DEFAULT_BOX]^3. */
 void api_model_box(const frep_program *p, const frep_mesh_options *o, double box[6]);
+
+/* A segmentation (api/api_segment.c), whose primitives frep_evolve() reads: segment/'s
+ * result; npoints, the cloud's size (0 for primitives read from a file: no labels). */
+struct frep_segmentation {
+    segment_result r;
+    size_t npoints;
+};
 
 #endif

@@ -19,11 +19,6 @@ _Static_assert(FREP_PRIM_PLANE == (int)PRIM_PLANE && FREP_PRIM_SPHERE == (int)PR
                    FREP_PRIM_TORUS == (int)PRIM_TORUS && PRIM__COUNT == 5,
                "frep_prim_type follows geom/prim.h's prim_type");
 
-struct frep_segmentation {
-    segment_result r;
-    size_t npoints;
-};
-
 void frep_segment_options_init(frep_segment_options *o)
 {
     segment_config c;
@@ -124,6 +119,25 @@ static int write_prims(FILE *f, void *ctx)
     const segment_result *r = &o->s->r;
     return o->fit ? fitfile_write(f, r->prims, r->nprims)
                   : segment_write_hf(f, r->prims, r->nprims, o->header, r->diagonal);
+}
+
+frep_segmentation *frep_segmentation_read(const char *path, frep_diag_fn diag, void *user)
+{
+    api_diag d = { diag, user };
+    frep_error e;
+    frep_error_init(&e);
+    frep_segmentation *s = frep_calloc(1, sizeof *s);
+    if (!s) {
+        api_fail(&d, &e);
+        return NULL;
+    }
+    if (segment_read_prims(path, &s->r.prims, &s->r.nprims, &e) != 0) {
+        frep_segmentation_free(s);
+        api_fail(&d, &e);
+        return NULL;
+    }
+    for (size_t i = 0; i < s->r.nprims; i++) s->r.nfitted += !s->r.prims[i].separating;
+    return s;
 }
 
 int frep_segmentation_write(const frep_segmentation *s, const char *path, const char *header,

@@ -1,9 +1,9 @@
 /* frep.h - public interface of libfrep: compile HyperFun models to bytecode, evaluate
  * them over blocks of points and over boxes, and do the jobs of the frep command from
  * a program: read and write point clouds, polygonize into indexed triangle meshes and
- * write and check them, sample surfaces, segment clouds into primitives.  doc/api.md
- * is the guide; every function declared here, and nothing else, is exported from
- * libfrep.so.
+ * write and check them, sample surfaces, segment clouds into primitives, fit templates
+ * to clouds, draw pictures, evolve construction trees.  doc/api.md is the guide;
+ * every function declared here, and nothing else, is exported from libfrep.so.
  *
  * Rules of use:
  *  - A frep_program is immutable after frep_compile() and may be shared by threads.
@@ -13,6 +13,10 @@
  *    strings and arrays the library hands over are released with frep_free().
  *  - The allocator hook (frep_set_allocator) is the only process-wide state: set it
  *    before any other call, from one thread.
+ *  - Progress and cancel callbacks of the long jobs (segment, fit, evolve) are called
+ *    from the thread that called the job, never from the library's worker threads; a
+ *    cancel keeps the best result so far.  Results (frep_fit, frep_evolution,
+ *    frep_image, ...) are immutable once returned and may be read by several threads.
  */
 #ifndef FREP_H
 #define FREP_H
@@ -432,6 +436,269 @@ const int32_t *frep_segmentation_labels(const frep_segmentation *s);
  * .fit, else a .hf model with `header` (may be NULL) as its comment lines. */
 int frep_segmentation_write(const frep_segmentation *s, const char *path, const char *header,
                             frep_diag_fn diag, void *user);
+
+/* ---- fitting (frep fit) ---- */
+
+typedef enum frep_fit_method {
+    FREP_FIT_SAQN,        /* simulated annealing, then quasi-Newton (the default) */
+    FREP_FIT_QN,          /* quasi-Newton from the start values */
+    FREP_FIT_SA,          /* annealing only */
+    FREP_FIT_LM           /* Levenberg-Marquardt from the start values */
+} frep_fit_method;
+typedef enum frep_fit_objective {
+    FREP_FIT_ALGEBRAIC,   /* residual f(x_i) */
+    FREP_FIT_GEOMETRIC    /* residual f / |grad f| */
+} frep_fit_objective;
+typedef enum frep_fit_loss {
+    FREP_FIT_L2, FREP_FIT_HUBER, FREP_FIT_CAUCHY, FREP_FIT_GEMAN
+} frep_fit_loss;
+
+/* What the progress callback gets, at most every 0.2 s. */
+typedef struct frep_fit_progress {
+    int phase;            /* 0 annealing, 1 quasi-Newton, 2 Levenberg-Marquardt */
+    long chain, nchains;  /* annealing chain (from 1); 0 in a local-only fit */
+    long iteration;       /* of the phase */
+    double best;          /* lowest objective so far of the kind being minimized */
+    int subset;           /* best is on: 0 all points, 1 the annealing's subset, 2 the
+                             robust refinement's loss */
+    double elapsed;       /* seconds since the fit started */
+} frep_fit_progress;
+
+/* Every setting of `frep fit` (doc/fit.md), defaults from frep_fit_options_init(). */
+typedef struct frep_fit_options {
+    frep_fit_method method;          /* FREP_FIT_SAQN */
+    frep_fit_objective objective;    /* local phase's: FREP_FIT_ALGEBRAIC */
+    frep_fit_objective global_objective; /* the annealing's: FREP_FIT_ALGEBRAIC */
+    frep_fit_loss loss;              /* FREP_FIT_L2 */
+    double loss_scale;               /* <= 0: 1% of the cloud's diagonal */
+    frep_fit_loss sa_loss;           /* the annealing's loss with robust (FREP_FIT_L2) */
+    int robust;                      /* robust refinement after the local phase (1) */
+    double normals_weight;           /* normal-agreement term; > 0 needs normals (0) */
+    uint64_t seed;                   /* same seed, same result at any thread count (1) */
+    double max_time;                 /* seconds; 0: no limit */
+    long max_evals;                  /* objective evaluations; 0: no limit */
+    uint64_t max_work;               /* loop iterations of the template's evaluations,
+                                        summed over the points (frep_program_set_work_limit);
+                                        0: no budget */
+    size_t sa_points;                /* points the annealing uses (1024; 0: all) */
+    long sa_stall, sa_chains;        /* annealing stall iterations (15), chains (2) */
+    double sa_threshold;             /* leave the annealing at this objective (-inf) */
+    int nthreads;                    /* <= 0: OpenMP's default */
+    /* Bounds of a[] for a template without `-- @free` (nbounds == its a[] size, or 0:
+     * none); a template with @free parameters carries its own bounds. */
+    const double *lo, *hi;
+    size_t nbounds;
+    /* Called from the calling thread (may be NULL). */
+    void (*progress)(void *user, const frep_fit_progress *p);
+    /* Polled with the progress (at most every 0.2 s; may be NULL): nonzero stops the
+     * fit, which keeps the best parameters so far (frep_fit_info.interrupted). */
+    int (*cancel)(void *user);
+    void *user;                      /* for progress and cancel */
+} frep_fit_options;
+void frep_fit_options_init(frep_fit_options *o);
+
+/* A finished fit: the fitted parameters, the measures and the fitted template. */
+typedef struct frep_fit frep_fit;
+
+/* Fit the free parameters of the template `text` (len bytes, called `file` in
+ * messages, compiled with copt, NULL: the defaults) to the points of c, as `frep fit`:
+ * the `-- @free` parameters when there are any, else the elements of a[] that the
+ * model reads (started from copt->a).  c's normals are scaled to unit length in place.
+ * Notes (an unbounded parameter's search range) and the parameters' warnings
+ * (frep_fit_param.warnings) come through diag as FREP_NOTE / FREP_WARNING; compiler
+ * diagnostics carry the file and position.  Free with frep_fit_free(). */
+frep_fit *frep_fit_template(const char *file, const char *text, size_t len,
+                            const frep_compile_options *copt, frep_cloud *c,
+                            const frep_fit_options *o, frep_diag_fn diag, void *user);
+void frep_fit_free(frep_fit *f);
+
+/* Warnings about a fitted parameter, bits of frep_fit_param.warnings. */
+#define FREP_FIT_ON_BOUND 1      /* within 1e-6 of its range from a bound */
+#define FREP_FIT_NEAR_BOUND 2    /* within 1% of its range from a bound */
+#define FREP_FIT_NO_EFFECT 4     /* the surface does not move with it */
+#define FREP_FIT_TINY_EFFECT 8   /* its whole range moves the surface by < 1e-6 diagonal */
+#define FREP_FIT_LOOSE 16        /* standard error above 5% of its range */
+
+typedef struct frep_fit_param {
+    const char *name;     /* "r" or "a[2]", valid until frep_fit_free() */
+    size_t index;         /* in the program's parameter vector */
+    double start, value, lo, hi;
+    double sigma;         /* standard error (NaN when unknown) */
+    double sensitivity;   /* RMS surface movement per unit (NaN when unknown) */
+    unsigned warnings;    /* FREP_FIT_* bits */
+} frep_fit_param;
+
+typedef struct frep_fit_info {
+    size_t npoints, nparams;       /* points of the cloud, fitted parameters */
+    double objective;              /* final objective on all points */
+    double rms, max_dist;          /* true distances of the points to the surface */
+    double within;                 /* share of points within 1% of the diagonal */
+    double within_inliers;         /* the same among the points not taken for outliers */
+    double diagonal, noise;        /* the cloud's diagonal; robust sigma of the distances */
+    size_t outliers;
+    long evals;                    /* objective evaluations */
+    double seconds;                /* wall time (the one field that differs run to run) */
+    int converged;                 /* the local phase passed its optimality test */
+    int interrupted;               /* stopped by the cancel callback */
+    const char *status;            /* "converged", "stopped", ... or "interrupted" */
+    const char *verdict;           /* "good - 99.7% of points within 1% of the diagonal" */
+} frep_fit_info;
+
+size_t frep_fit_nparams(const frep_fit *f);
+/* Parameter j < frep_fit_nparams(f); returns 0, or -1 when j is out of range. */
+int frep_fit_get_param(const frep_fit *f, size_t j, frep_fit_param *p);
+void frep_fit_get_info(const frep_fit *f, frep_fit_info *info);
+/* The whole parameter vector of the template with the fitted values in place
+ * (frep_program_nparams() of its program, as frep_eval* take it): returns 0, or -1
+ * (nothing written) when n is smaller. */
+int frep_fit_values(const frep_fit *f, double *v, size_t n);
+size_t frep_fit_nvalues(const frep_fit *f);
+/* The fitted template: the text with the fitted values in place of the old ones,
+ * comments and layout kept, a `-- @box` around the cloud and, for an a[] template, a
+ * `-- @params` line; valid until frep_fit_free(), *len its length (may be NULL). */
+const char *frep_fit_text(const frep_fit *f, size_t *len);
+/* Write the fitted template (as `frep fit -o path` does). Returns 0 or -1. */
+int frep_fit_write(const frep_fit *f, const char *path, frep_diag_fn diag, void *user);
+/* Write the report as `frep fit --json` does; template, cloud and output are the
+ * names it quotes (may be NULL: ""). Returns 0 or -1. */
+int frep_fit_write_json(const frep_fit *f, const char *path, const char *template_name,
+                        const char *cloud_name, const char *output_name,
+                        frep_diag_fn diag, void *user);
+
+/* ---- pictures (frep render) ---- */
+
+/* Limits of a picture (the PNG writer's). */
+#define FREP_RENDER_MAX_SIDE 16384   /* pixels per side */
+
+typedef struct frep_render_options {
+    int width, height;          /* pixels, 1..FREP_RENDER_MAX_SIDE (800 x 600) */
+    const char *view;           /* iso, front, back, top, bottom, left, right, side ("iso") */
+    /* A cloud drawn over the surface (may be NULL), each point coloured by its
+     * distance to the surface: blue on it, red at `scale` or farther. */
+    const frep_cloud *points;
+    double scale;               /* <= 0: from the data (95th percentile, rounded up) */
+    int plain;                  /* 1: do not colour the surface by its distance to the
+                                   points (0) */
+    /* The model the mesh comes from (may be NULL): the points' distances are then
+     * |f - iso| / |grad f| (with the program's own parameters), else the distance to
+     * the mesh's nearest triangle. */
+    const frep_program *program;
+    double iso;                 /* the surface f = iso (0) */
+    int nthreads;               /* <= 0: OpenMP's default */
+    /* Colours of the surface, red, green, blue 0..255 a vertex (frep_mesh_nverts()
+     * x 3 bytes; may be NULL: grey), used when it is not coloured by distance. */
+    const uint8_t *vertex_rgb;
+} frep_render_options;
+void frep_render_options_init(frep_render_options *o);
+
+/* What a picture shows, for summaries; filled when not NULL. */
+typedef struct frep_render_info {
+    size_t ntris;               /* triangles drawn */
+    size_t npoints;             /* points drawn */
+    double mean_dist, max_dist; /* the points' finite |distance| to the surface */
+    size_t inside, rings;       /* points inside the solid; as deep as drawn as rings */
+    double point_scale, surface_scale; /* the colour scales used (0 without points) */
+} frep_render_info;
+
+/* An RGB picture: 3 bytes a pixel, rows from the top. */
+typedef struct frep_image frep_image;
+
+/* Draw m shaded, framed on it and the points, as `frep render` does (legends for the
+ * distances).  Free with frep_image_free(). */
+frep_image *frep_render(const frep_mesh *m, const frep_render_options *o,
+                        frep_render_info *info, frep_diag_fn diag, void *user);
+void frep_image_free(frep_image *img);
+/* The pixels (width * height * 3 bytes), valid until frep_image_free(). */
+const uint8_t *frep_image_pixels(const frep_image *img, int *width, int *height);
+/* Write as PNG. Returns 0 or -1. */
+int frep_image_write_png(const frep_image *img, const char *path, frep_diag_fn diag,
+                         void *user);
+
+/* ---- construction trees (frep evolve) ---- */
+
+typedef struct frep_evolve_progress {
+    int phase;               /* 0 a GA generation, 1 clique trees being merged, 2 the
+                                merged tree, 3 the merged tree grown */
+    uint32_t generation;
+    double best_fitness;     /* NaN while merging */
+    uint32_t tree_size;      /* nodes of the best tree */
+    size_t explained, npoints; /* scored points the best tree explains (with
+                                report_explained; else 0 and 0) */
+    double elapsed;          /* seconds since the GA started */
+} frep_evolve_progress;
+
+/* Every setting of `frep evolve` (doc/evolve.md), defaults from
+ * frep_evolve_options_init(). */
+typedef struct frep_evolve_options {
+    uint64_t seed;           /* the same seed, the same tree at any thread count (1) */
+    int nthreads;            /* <= 0: OpenMP's default */
+    frep_setops setops;      /* FREP_SETOPS_MINMAX (the default) or FREP_SETOPS_RFUNC */
+    uint32_t generations, stagnation, population, tournament, elite;
+    double crossover, mutation, subtree_prob;
+    int max_depth;           /* 0: ceil(log2 primitives) + 3 */
+    double max_time;         /* seconds of the GA; 0: no limit */
+    int partition;           /* partition the primitives' overlap graph (1) */
+    int polish;              /* after partitioning, a GA over all primitives (1) */
+    uint32_t polish_stagnation;
+    int simplify;            /* simplify the tree (1) */
+    int support;             /* trim material no point supports (1) */
+    size_t sample;           /* points the GA scores (4096; 0: all) */
+    double epsilon;          /* distance tolerance, fraction of the diagonal (0.01) */
+    double alpha_deg;        /* normal tolerance in degrees; <= 0: automatic */
+    double lambda_scale;     /* size penalty per node, times ln(N) (1) */
+    size_t knn;              /* neighbours for estimating normals; 0: from the data */
+    int refit;               /* refine the tree's primitives together afterwards (0) */
+    int report_explained;    /* fill frep_evolve_progress.explained (costs time) (0) */
+    /* Called from the calling thread after each generation and merge (may be NULL). */
+    void (*progress)(void *user, const frep_evolve_progress *p);
+    /* Polled with the progress (may be NULL): nonzero stops the run, which keeps the
+     * best tree so far and skips the steps that only improve it.  The GAs over the
+     * cliques of a partitioned run report no progress: a cancel there takes effect
+     * at the next merge. */
+    int (*cancel)(void *user);
+    void *user;              /* for progress and cancel */
+} frep_evolve_options;
+void frep_evolve_options_init(frep_evolve_options *o);
+
+/* An evolved construction tree over its primitives. */
+typedef struct frep_evolution frep_evolution;
+
+/* Primitives read from a .fit list or a .hf model written by frep segment (frep
+ * evolve -p).  Free with frep_segmentation_free(); it has no labels (NULL). */
+frep_segmentation *frep_segmentation_read(const char *path, frep_diag_fn diag, void *user);
+
+/* Discover a construction tree of primitives whose zero set fits c, as `frep evolve`:
+ * the primitives of prims (may be NULL: c is segmented with frep segment's defaults,
+ * o's seed, threads and knn).  c's normals are estimated (stored in c) when it has
+ * none.  c must outlive the result (writing the model checks it against the points).
+ * Free with frep_evolution_free(). */
+frep_evolution *frep_evolve(frep_cloud *c, const frep_segmentation *prims,
+                            const frep_evolve_options *o, frep_diag_fn diag, void *user);
+void frep_evolution_free(frep_evolution *e);
+
+typedef struct frep_evolve_info {
+    uint32_t tree_size;      /* nodes */
+    size_t nprims;           /* primitives the tree may use */
+    size_t npoints, dropped; /* valid points; points without finite coordinates/normal */
+    size_t explained, within_eps, normals_ok; /* of npoints */
+    double fitness;          /* on the scored sample */
+    uint32_t generations;
+    double seconds;
+    double alpha_deg;        /* the normal tolerance used */
+    int alpha_auto;          /* it was chosen from the noise */
+    int partitioned, interrupted;
+    double refit_rms_before, refit_rms_after; /* with refit (NaN otherwise) */
+} frep_evolve_info;
+void frep_evolution_get_info(const frep_evolution *e, frep_evolve_info *info);
+
+/* Write the model as `frep evolve -o` does; `command` and `cloud_name` go into its
+ * comments (may be NULL), exact and hyperfun as --exact-numbers and --hyperfun. */
+int frep_evolution_write(const frep_evolution *e, const char *path, const char *command,
+                         const char *cloud_name, int exact, int hyperfun,
+                         frep_diag_fn diag, void *user);
+/* Write the tree for Graphviz (frep evolve --dot). */
+int frep_evolution_write_dot(const frep_evolution *e, const char *path, frep_diag_fn diag,
+                             void *user);
 
 #ifdef __cplusplus
 }

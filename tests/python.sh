@@ -16,7 +16,11 @@ if [ -n "$(sed -n 's/^SAN_CFLAGS = *//p' "$b/Makefile" 2>/dev/null)" ]; then
     echo "1..0 # SKIP a sanitizer build's libfrep.so cannot be loaded into python3"; exit 0
 fi
 echo "1..1"
-out=$(cd "${TMPDIR:-/tmp}" && FREP_LIBRARY="$so" PYTHONPATH="$s/python" PYTHONDONTWRITEBYTECODE=1 \
+# From an empty directory: python -m puts the working directory first on sys.path, and
+# a stray module in /tmp (a bisect.py) would shadow the standard library's.
+work=$(mktemp -d "${TMPDIR:-/tmp}/frep-py.XXXXXX") || exit 1
+trap 'rm -rf "$work"' EXIT INT TERM
+out=$(cd "$work" && FREP_LIBRARY="$so" PYTHONPATH="$s/python" PYTHONDONTWRITEBYTECODE=1 \
       srcdir="$s" "$py" -m pytest -q -p no:cacheprovider "$s/python/tests" 2>&1)
 rc=$?
 echo "$out" | sed 's/^/# /'

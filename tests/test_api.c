@@ -9,6 +9,7 @@
 #include "frep.h"
 #include "tap.h"
 
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -446,6 +447,387 @@ static void test_segment(const char *frep, const char *srcdir)
     ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
 }
 
+/* progress and cancel of frep_fit_template: how often each was called */
+typedef struct fit_calls {
+    int progress, cancel, stop_at;
+} fit_calls;
+
+static void fit_progress(void *user, const frep_fit_progress *p)
+{
+    (void)p;
+    ((fit_calls *)user)->progress++;
+}
+
+static int fit_cancel(void *user)
+{
+    fit_calls *c = user;
+    return ++c->cancel >= c->stop_at;
+}
+
+/* Read a whole (small) file; NULL when it cannot. */
+static char *slurp(const char *path, size_t *len)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    char *t = malloc(1 << 16);
+    *len = t ? fread(t, 1, (1 << 16) - 1, f) : 0;
+    if (t) t[*len] = '\0';
+    fclose(f);
+    return t;
+}
+
+/* frep fit and frep_fit_template on the same template, cloud and seed: the same fitted
+ * template bytes, the same JSON report but for its "seconds"; the truth recovered;
+ * the a[] form; a cancel keeps the best so far; bad input reported. */
+static void test_fit(const char *frep)
+{
+    static const char tmpl[] =
+        "-- a sphere of unknown centre and radius\n"
+        "my_model(x[3], a[1]) {\n"
+        "  cx = 0;     -- @free [-1, 1]\n"
+        "  r = 1;      -- @free [0.2, 3]\n"
+        "  my_model = r*r - (x[1]-cx)*(x[1]-cx) - x[2]*x[2] - x[3]*x[3];\n}\n";
+    static const char truth[] =
+        "my_model(x[3], a[1]) {\n"
+        "  my_model = 1.44 - (x[1]-0.3)*(x[1]-0.3) - x[2]*x[2] - x[3]*x[3];\n}\n"
+        "-- @box -2 -2 -2 2 2 2\n";
+    write_text(tmp("sphere.hf"), tmpl);
+    write_text(tmp("truth.hf"), truth);
+    seen s = { 0 };
+    char cmd[2048];
+    snprintf(cmd, sizeof cmd, "'%s' sample '%s' -n 1500 --seed 4 --noise 0.001 -q -o '%s'",
+             frep, tmp("truth.hf"), tmp("sphere.xyz"));
+    ok(run(cmd) == 0, "a sphere cloud from frep sample");
+    snprintf(cmd, sizeof cmd, "'%s' fit '%s' '%s' --seed 7 -q -o '%s' --json '%s'", frep,
+             tmp("sphere.hf"), tmp("sphere.xyz"), tmp("cli.fitted.hf"), tmp("cli.json"));
+    ok(run(cmd) == 0, "frep fit --seed 7");
+
+    frep_fit_options o;
+    frep_fit_options_init(&o);
+    ok(o.seed == 1 && o.method == FREP_FIT_SAQN && o.robust == 1 && o.sa_chains == 2 &&
+           o.sa_points == 1024 && !o.cancel && !o.progress, "fit defaults");
+    o.seed = 7;
+    fit_calls calls = { 0, 0, 1 << 30 };
+    o.progress = fit_progress;
+    o.cancel = fit_cancel;
+    o.user = &calls;
+    frep_cloud *c = frep_cloud_read(tmp("sphere.xyz"), collect, &s);
+    frep_fit *f = c ? frep_fit_template(tmp("sphere.hf"), tmpl, strlen(tmpl), NULL, c, &o,
+                                        collect, &s) : NULL;
+    ok(f != NULL, "frep_fit_template runs");
+    if (f) {
+        frep_fit_info in;
+        frep_fit_get_info(f, &in);
+        frep_fit_param pc, pr;
+        ok(frep_fit_nparams(f) == 2 && frep_fit_get_param(f, 0, &pc) == 0 &&
+               frep_fit_get_param(f, 1, &pr) == 0 && frep_fit_get_param(f, 2, &pr) == -1 &&
+               frep_fit_get_param(f, 1, &pr) == 0,
+           "two fitted parameters, the third out of range");
+        ok(strcmp(pc.name, "cx") == 0 && strcmp(pr.name, "r") == 0 && pr.index == 2 &&
+               pc.start == 0 && pr.start == 1 && pr.lo == 0.2 && pr.hi == 3,
+           "named with their start and bounds (r at index 2 after a[1] and cx)");
+        ok(fabs(pc.value - 0.3) < 0.005 && fabs(pr.value - 1.2) < 0.005,
+           "the truth recovered: cx %.5f (0.3), r %.5f (1.2)", pc.value, pr.value);
+        /* the noise: 0.001 of the box's diagonal 4 sqrt(3), 0.0069 */
+        ok(in.npoints == 1500 && in.nparams == 2 && in.converged && !in.interrupted &&
+               strncmp(in.verdict, "good", 4) == 0 && in.rms > 0.5 * 0.0069 &&
+               in.rms < 1.5 * 0.0069,
+           "info: converged, rms %g, verdict '%s'", in.rms, in.verdict);
+        ok(calls.progress > 0 && calls.cancel == calls.progress,
+           "progress called %d times, cancel polled as often", calls.progress);
+        double v[3] = { 9, 9, 9 };
+        ok(frep_fit_nvalues(f) == 3 && frep_fit_values(f, v, 2) == -1 && v[0] == 9 &&
+               frep_fit_values(f, v, 3) == 0 && v[1] == pc.value && v[2] == pr.value,
+           "the whole parameter vector with the fitted values");
+        ok(frep_fit_write(f, tmp("api.fitted.hf"), collect, &s) == 0 &&
+               same_file(tmp("cli.fitted.hf"), tmp("api.fitted.hf")),
+           "the same fitted template bytes as frep fit");
+        size_t tl = 0;
+        const char *t = frep_fit_text(f, &tl);
+        ok(t && tl == strlen(t) && strstr(t, "-- @box ") && strstr(t, "-- @free [0.2, 3]"),
+           "frep_fit_text: the fitted template, annotations kept, a @box line");
+        ok(frep_fit_write_json(f, tmp("api.json"), tmp("sphere.hf"), tmp("sphere.xyz"),
+                               tmp("cli.fitted.hf"), collect, &s) == 0, "JSON report written");
+        /* the same report but for the wall time */
+        size_t la = 0, lb = 0;
+        char *ja = slurp(tmp("cli.json"), &la), *jb = slurp(tmp("api.json"), &lb);
+        int same = ja && jb;
+        for (char *x = ja, *y = jb; same && x && y;) {
+            char *ex = strchr(x, '\n'), *ey = strchr(y, '\n');
+            size_t nx = ex ? (size_t)(ex - x) : strlen(x), ny = ey ? (size_t)(ey - y) : strlen(y);
+            if (!strstr(x, "\"seconds\"") || (ex && strstr(x, "\"seconds\"") > ex))
+                same = nx == ny && memcmp(x, y, nx) == 0;
+            x = ex ? ex + 1 : NULL;
+            y = ey ? ey + 1 : NULL;
+            if (!x != !y) same = 0;
+        }
+        ok(same && la > 100, "the same JSON report as frep fit --json (but \"seconds\")");
+        free(ja);
+        free(jb);
+    }
+    frep_fit_free(f);
+
+    /* a cancel at the first poll: interrupted, the best so far kept */
+    calls = (fit_calls){ 0, 0, 1 };
+    f = c ? frep_fit_template(tmp("sphere.hf"), tmpl, strlen(tmpl), NULL, c, &o, collect, &s)
+          : NULL;
+    frep_fit_info in = { 0 };
+    if (f) frep_fit_get_info(f, &in);
+    ok(f && in.interrupted && calls.cancel >= 1 && strcmp(in.status, "interrupted") == 0 &&
+           strstr(in.verdict, "stopped before the end"),
+       "cancelled: interrupted, a result (%s)", f ? in.verdict : "none");
+    frep_fit_free(f);
+
+    /* the a[] form, started from copt.a, with bounds */
+    static const char atmpl[] =
+        "my_model(x[3], a[2]) {\n"
+        "  my_model = a[2]*a[2] - (x[1]-a[1])*(x[1]-a[1]) - x[2]*x[2] - x[3]*x[3];\n}\n";
+    frep_compile_options co;
+    frep_compile_options_init(&co);
+    double a0[2] = { 0, 1 }, lo[2] = { -1, 0.2 }, hi[2] = { 1, 3 };
+    co.a = a0;
+    co.na = 2;
+    frep_fit_options_init(&o);
+    o.method = FREP_FIT_QN;
+    o.lo = lo;
+    o.hi = hi;
+    o.nbounds = 2;
+    f = c ? frep_fit_template("a.hf", atmpl, strlen(atmpl), &co, c, &o, collect, &s) : NULL;
+    double v[2] = { 0, 0 };
+    ok(f && frep_fit_values(f, v, 2) == 0 && fabs(v[0] - 0.3) < 0.005 &&
+           fabs(v[1] - 1.2) < 0.005 && strstr(frep_fit_text(f, NULL), "-- @params "),
+       "a[] template by quasi-Newton: a = %.5f, %.5f and a '-- @params' line", v[0], v[1]);
+    frep_fit_free(f);
+    ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
+
+    /* errors through the callback, NULL back */
+    static const char none[] = "my_model(x[3], a[1]) {\n  my_model = 1 - x[1]*x[1];\n}\n";
+    seen e = { 0 };
+    f = c ? frep_fit_template("none.hf", none, strlen(none), NULL, c, NULL, collect, &e) : NULL;
+    ok(!f && e.errors == 1 && strstr(e.last, "no free parameters"),
+       "no free parameters: an error (%s)", e.last);
+    e = (seen){ 0 };
+    f = frep_fit_template("bad.hf", "my_model(x[3] {", 15, NULL, c, NULL, collect, &e);
+    ok(!f && e.errors >= 1 && e.positioned >= 1, "a syntax error with its position (%s)", e.last);
+    double px[5] = { 0, 1, 0, 0, 1 }, py[5] = { 0, 0, 1, 0, 1 }, pz[5] = { 0, 0, 0, 1, 1 };
+    frep_cloud *small = frep_cloud_new(5, px, py, pz, NULL, NULL, NULL, collect, &e);
+    e = (seen){ 0 };
+    f = small ? frep_fit_template("s.hf", tmpl, strlen(tmpl), NULL, small, NULL, collect, &e)
+              : NULL;
+    ok(!f && e.errors == 1 && strstr(e.last, "too few"), "5 points: too few (%s)", e.last);
+    frep_cloud_free(small);
+    frep_cloud_free(c);
+}
+
+/* frep render and frep_render on the same mesh and cloud: the same PNG bytes, with
+ * and without points, for a model and for a mesh file; bad options reported. */
+static void test_render(const char *frep, const char *srcdir)
+{
+    char model[600], cmd[2048];
+    snprintf(model, sizeof model, "%s/examples/csg.hf", srcdir);
+    seen s = { 0 };
+    size_t len = 0;
+    char *text = slurp(model, &len);
+    frep_program *p = text ? frep_compile(model, text, len, NULL, collect, &s) : NULL;
+    free(text);
+    frep_mesh_options mo;
+    frep_mesh_options_init(&mo);
+    mo.grid = 32;
+    frep_mesh *m = p ? frep_polygonize(p, &mo, NULL, collect, &s) : NULL;
+    ok(m != NULL, "examples/csg.hf polygonized at grid 32");
+    if (!m) {
+        frep_program_free(p);
+        return;
+    }
+    snprintf(cmd, sizeof cmd, "'%s' sample '%s' -n 800 --seed 2 --noise 0.01 -q -o '%s'", frep,
+             model, tmp("csg.xyz"));
+    ok(run(cmd) == 0, "a cloud from frep sample");
+    frep_cloud *c = frep_cloud_read(tmp("csg.xyz"), collect, &s);
+
+    frep_render_options o;
+    frep_render_options_init(&o);
+    ok(o.width == 800 && o.height == 600 && strcmp(o.view, "iso") == 0 && !o.points,
+       "render defaults: 800x600, iso");
+    o.width = 96;
+    o.height = 64;
+    o.view = "top";
+    snprintf(cmd, sizeof cmd, "'%s' render '%s' -g 32 --size 96x64 --view top -q -o '%s'", frep,
+             model, tmp("cli0.png"));
+    int rc = run(cmd);
+    frep_render_info in;
+    frep_image *img = frep_render(m, &o, &in, collect, &s);
+    int w = 0, h = 0;
+    const uint8_t *px = img ? frep_image_pixels(img, &w, &h) : NULL;
+    ok(img && px && w == 96 && h == 64 && in.ntris == frep_mesh_ntris(m) && in.npoints == 0,
+       "frep_render: a 96x64 picture of %zu triangles", in.ntris);
+    ok(rc == 0 && img && frep_image_write_png(img, tmp("api0.png"), collect, &s) == 0 &&
+           same_file(tmp("cli0.png"), tmp("api0.png")),
+       "frep render -g 32 --size 96x64 --view top: the same PNG bytes");
+    frep_image_free(img);
+
+    /* with the cloud, measured against the model */
+    o.points = c;
+    o.program = p;
+    o.view = "iso";
+    snprintf(cmd, sizeof cmd, "'%s' render '%s' -g 32 --size 96x64 --points '%s' -q -o '%s'",
+             frep, model, tmp("csg.xyz"), tmp("cli1.png"));
+    rc = run(cmd);
+    img = c ? frep_render(m, &o, &in, collect, &s) : NULL;
+    ok(img && in.npoints == 800 && in.mean_dist > 0 && in.max_dist > in.mean_dist &&
+           in.point_scale > 0 && in.surface_scale > 0,
+       "with 800 points: mean distance %.3g, max %.3g", in.mean_dist, in.max_dist);
+    ok(rc == 0 && img && frep_image_write_png(img, tmp("api1.png"), collect, &s) == 0 &&
+           same_file(tmp("cli1.png"), tmp("api1.png")),
+       "frep render --points: the same PNG bytes");
+    frep_image_free(img);
+
+    /* a mesh file, the points measured against its triangles, --plain --scale */
+    frep_mesh_write(m, tmp("csg.off"), FREP_MESH_AUTO, 0, collect, &s);
+    frep_mesh *mr = frep_mesh_read(tmp("csg.off"), collect, &s);
+    o.program = NULL;
+    o.plain = 1;
+    o.scale = 0.05;
+    snprintf(cmd, sizeof cmd,
+             "'%s' render '%s' --size 96x64 --points '%s' --plain --scale 0.05 -q -o '%s'", frep,
+             tmp("csg.off"), tmp("csg.xyz"), tmp("cli2.png"));
+    rc = run(cmd);
+    img = mr && c ? frep_render(mr, &o, &in, collect, &s) : NULL;
+    ok(rc == 0 && img && in.point_scale == 0.05 && in.surface_scale == 0 &&
+           frep_image_write_png(img, tmp("api2.png"), collect, &s) == 0 &&
+           same_file(tmp("cli2.png"), tmp("api2.png")),
+       "frep render MESH.off --points --plain --scale: the same PNG bytes");
+    frep_image_free(img);
+    ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
+
+    seen e = { 0 };
+    o.view = "upside";
+    ok(!frep_render(m, &o, NULL, collect, &e) && e.errors == 1 && strstr(e.last, "upside"),
+       "an unknown view: an error (%s)", e.last);
+    o.view = "iso";
+    o.width = FREP_RENDER_MAX_SIDE + 1;
+    e = (seen){ 0 };
+    ok(!frep_render(m, &o, NULL, collect, &e) && e.errors == 1,
+       "a side over FREP_RENDER_MAX_SIDE: an error (%s)", e.last);
+    frep_mesh_free(mr);
+    frep_cloud_free(c);
+    frep_mesh_free(m);
+    frep_program_free(p);
+}
+
+/* Whether two text files hold the same lines but those containing `except`. */
+static int same_but(const char *a, const char *b, const char *except)
+{
+    size_t la = 0, lb = 0;
+    char *ta = slurp(a, &la), *tb = slurp(b, &lb);
+    int same = ta && tb;
+    char *x = ta, *y = tb;
+    while (same && x && y) {
+        char *ex = strchr(x, '\n'), *ey = strchr(y, '\n');
+        if (ex) *ex = '\0';
+        if (ey) *ey = '\0';
+        if (!(strstr(x, except) && strstr(y, except))) same = strcmp(x, y) == 0;
+        x = ex ? ex + 1 : NULL;
+        y = ey ? ey + 1 : NULL;
+        if (!x != !y) same = 0;
+    }
+    free(ta);
+    free(tb);
+    return same && la > 0;
+}
+
+typedef struct evolve_calls {
+    int progress, cancel, stop_at;
+    uint32_t last_generation;
+} evolve_calls;
+
+static void evolve_progress(void *user, const frep_evolve_progress *p)
+{
+    evolve_calls *c = user;
+    c->progress++;
+    c->last_generation = p->generation;
+}
+
+static int evolve_cancel(void *user)
+{
+    evolve_calls *c = user;
+    return ++c->cancel >= c->stop_at;
+}
+
+/* frep evolve and frep_evolve on the same cloud, primitives and seed: the same model
+ * but for the line with the run's seconds; a cancel keeps the best tree so far. */
+static void test_evolve(const char *frep, const char *srcdir)
+{
+    char model[600], cmd[3072], line[2048];
+    snprintf(model, sizeof model, "%s/tests/models/segment_box.hf", srcdir);
+    seen s = { 0 };
+    snprintf(cmd, sizeof cmd, "'%s' sample '%s' -n 3000 --seed 6 -q -o '%s'", frep, model,
+             tmp("ev.xyz"));
+    ok(run(cmd) == 0, "a box cloud with normals from frep sample");
+    snprintf(cmd, sizeof cmd, "'%s' segment '%s' --seed 2 -q -o '%s'", frep, tmp("ev.xyz"),
+             tmp("ev.fit"));
+    ok(run(cmd) == 0, "its primitives from frep segment");
+    /* the command line as frep evolve records it in the model */
+    snprintf(line, sizeof line, "evolve %s -p %s --seed 3 --population 60 --generations 40 "
+             "-q -o %s", tmp("ev.xyz"), tmp("ev.fit"), tmp("cli.ev.hf"));
+    snprintf(cmd, sizeof cmd, "'%s' %s", frep, line);
+    ok(run(cmd) == 0, "frep evolve -p --seed 3");
+    char command[2100];
+    snprintf(command, sizeof command, "frep %s", line);
+
+    frep_evolve_options o;
+    frep_evolve_options_init(&o);
+    ok(o.seed == 1 && o.setops == FREP_SETOPS_MINMAX && o.partition == 1 && o.population == 150 &&
+           o.alpha_deg == 0 && !o.cancel, "evolve defaults: seed 1, minmax, partitioned, "
+           "population 150, automatic alpha");
+    o.seed = 3;
+    o.population = 60;
+    o.generations = 40;
+    evolve_calls calls = { 0, 0, 1 << 30, 0 };
+    o.progress = evolve_progress;
+    o.cancel = evolve_cancel;
+    o.user = &calls;
+    frep_cloud *c = frep_cloud_read(tmp("ev.xyz"), collect, &s);
+    frep_segmentation *pr = frep_segmentation_read(tmp("ev.fit"), collect, &s);
+    ok(pr && frep_segmentation_nprims(pr) >= 6 && !frep_segmentation_labels(pr),
+       "frep_segmentation_read: %zu primitives, no labels", pr ? frep_segmentation_nprims(pr) : 0);
+    frep_evolution *e = c && pr ? frep_evolve(c, pr, &o, collect, &s) : NULL;
+    frep_evolve_info in = { 0 };
+    if (e) frep_evolution_get_info(e, &in);
+    ok(e && in.tree_size >= 11 && in.npoints == 3000 && in.explained > 2900 && !in.interrupted,
+       "frep_evolve: a tree of %u nodes explains %zu of %zu points", in.tree_size, in.explained,
+       in.npoints);
+    ok(calls.progress > 0 && calls.cancel == calls.progress,
+       "progress called %d times, cancel polled as often", calls.progress);
+    ok(e && frep_evolution_write(e, tmp("api.ev.hf"), command, tmp("ev.xyz"), 0, 0, collect,
+                                 &s) == 0 &&
+           same_but(tmp("cli.ev.hf"), tmp("api.ev.hf"), " generations, "),
+       "the same model as frep evolve (but the run's seconds)");
+    ok(e && frep_evolution_write_dot(e, tmp("api.dot"), collect, &s) == 0,
+       "the tree for Graphviz written");
+    frep_evolution_free(e);
+
+    /* no partition, cancelled at the fifth poll: the best tree of 5 generations */
+    o.partition = 0;
+    o.stagnation = 1000000;
+    o.generations = 1000000;
+    calls = (evolve_calls){ 0, 0, 5, 0 };
+    e = c && pr ? frep_evolve(c, pr, &o, collect, &s) : NULL;
+    if (e) frep_evolution_get_info(e, &in);
+    ok(e && in.interrupted && calls.cancel == 5 && in.generations <= 6 && in.tree_size > 0,
+       "cancelled at the fifth poll: %u generations, a tree of %u nodes",
+       e ? in.generations : 0, e ? in.tree_size : 0);
+    ok(e && frep_evolution_write(e, tmp("cut.hf"), NULL, NULL, 0, 0, collect, &s) == 0,
+       "its model written");
+    frep_evolution_free(e);
+    frep_segmentation_free(pr);
+    ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
+
+    seen er = { 0 };
+    ok(!frep_segmentation_read(tmp("nothing.fit"), collect, &er) && er.errors == 1,
+       "a missing primitive list: an error (%s)", er.last);
+    frep_cloud_free(c);
+}
+
 int main(void)
 {
     snprintf(tmpdir, sizeof tmpdir, "%s/frep-api.XXXXXX", getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp");
@@ -462,6 +844,9 @@ int main(void)
     if (frep && srcdir) {
         test_same_as_command(frep, srcdir);
         test_segment(frep, srcdir);
+        test_fit(frep);
+        test_render(frep, srcdir);
+        test_evolve(frep, srcdir);
     }
     else diag("FREP or srcdir not set: the comparison with the command is skipped");
     char cmd[400];

@@ -17,8 +17,10 @@ import warnings
 
 import numpy as np
 
-__all__ = ["FrepError", "Program", "Mesh", "Cloud", "Segmentation", "compile", "compile_file",
-           "read_cloud", "read_mesh", "library_version", "load_library"]
+__all__ = ["FrepError", "Program", "Mesh", "Cloud", "Segmentation", "Fit", "compile",
+           "compile_file", "read_cloud", "read_mesh", "fit", "fit_file", "read_prims",
+           "Evolution", "Image", "library_version",
+           "load_library"]
 
 _c_double_p = ctypes.POINTER(ctypes.c_double)
 
@@ -79,7 +81,7 @@ FREP_NOTE, FREP_WARNING, FREP_ERROR = 0, 1, 2
 class _CompileOptions(ctypes.Structure):
     _fields_ = [("model", ctypes.c_char_p), ("a", _c_double_p), ("na", ctypes.c_size_t),
                 ("setops_override", ctypes.c_int), ("alpha", ctypes.c_double),
-                ("optimize", ctypes.c_int)]
+                ("optimize", ctypes.c_int), ("strict", ctypes.c_int)]
 
 
 class _RuntimeError(ctypes.Structure):
@@ -133,6 +135,105 @@ class _SegmentOptions(ctypes.Structure):
                 ("knn", ctypes.c_size_t), ("separating", ctypes.c_int),
                 ("progress", _SEG_PROGRESS_FN), ("cancel", _SEG_CANCEL_FN),
                 ("user", ctypes.c_void_p)]
+
+
+class _FitProgress(ctypes.Structure):
+    _fields_ = [("phase", ctypes.c_int), ("chain", ctypes.c_long), ("nchains", ctypes.c_long),
+                ("iteration", ctypes.c_long), ("best", ctypes.c_double),
+                ("subset", ctypes.c_int), ("elapsed", ctypes.c_double)]
+
+
+_FIT_PROGRESS_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.POINTER(_FitProgress))
+
+
+class _FitOptions(ctypes.Structure):
+    _fields_ = [("method", ctypes.c_int), ("objective", ctypes.c_int),
+                ("global_objective", ctypes.c_int), ("loss", ctypes.c_int),
+                ("loss_scale", ctypes.c_double), ("sa_loss", ctypes.c_int),
+                ("robust", ctypes.c_int), ("normals_weight", ctypes.c_double),
+                ("seed", ctypes.c_uint64), ("max_time", ctypes.c_double),
+                ("max_evals", ctypes.c_long), ("max_work", ctypes.c_uint64),
+                ("sa_points", ctypes.c_size_t),
+                ("sa_stall", ctypes.c_long), ("sa_chains", ctypes.c_long),
+                ("sa_threshold", ctypes.c_double), ("nthreads", ctypes.c_int),
+                ("lo", _c_double_p), ("hi", _c_double_p), ("nbounds", ctypes.c_size_t),
+                ("progress", _FIT_PROGRESS_FN), ("cancel", _SEG_CANCEL_FN),
+                ("user", ctypes.c_void_p)]
+
+
+class _FitParam(ctypes.Structure):
+    _fields_ = [("name", ctypes.c_char_p), ("index", ctypes.c_size_t)] + \
+               [(n, ctypes.c_double) for n in ("start", "value", "lo", "hi", "sigma",
+                                               "sensitivity")] + \
+               [("warnings", ctypes.c_uint)]
+
+
+class _FitInfo(ctypes.Structure):
+    _fields_ = [("npoints", ctypes.c_size_t), ("nparams", ctypes.c_size_t)] + \
+               [(n, ctypes.c_double) for n in ("objective", "rms", "max_dist", "within",
+                                               "within_inliers", "diagonal", "noise")] + \
+               [("outliers", ctypes.c_size_t), ("evals", ctypes.c_long),
+                ("seconds", ctypes.c_double), ("converged", ctypes.c_int),
+                ("interrupted", ctypes.c_int), ("status", ctypes.c_char_p),
+                ("verdict", ctypes.c_char_p)]
+
+
+FIT_METHODS = ("saqn", "qn", "sa", "lm")
+FIT_OBJECTIVES = ("algebraic", "geometric")
+FIT_LOSSES = ("l2", "huber", "cauchy", "geman")
+FIT_WARNINGS = ("on_bound", "near_bound", "no_effect", "tiny_effect", "loose")
+
+
+class _EvolveProgress(ctypes.Structure):
+    _fields_ = [("phase", ctypes.c_int), ("generation", ctypes.c_uint32),
+                ("best_fitness", ctypes.c_double), ("tree_size", ctypes.c_uint32),
+                ("explained", ctypes.c_size_t), ("npoints", ctypes.c_size_t),
+                ("elapsed", ctypes.c_double)]
+
+
+_EVOLVE_PROGRESS_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.POINTER(_EvolveProgress))
+
+
+class _EvolveOptions(ctypes.Structure):
+    _fields_ = [("seed", ctypes.c_uint64), ("nthreads", ctypes.c_int), ("setops", ctypes.c_int)] + \
+               [(n, ctypes.c_uint32) for n in ("generations", "stagnation", "population",
+                                               "tournament", "elite")] + \
+               [(n, ctypes.c_double) for n in ("crossover", "mutation", "subtree_prob")] + \
+               [("max_depth", ctypes.c_int), ("max_time", ctypes.c_double),
+                ("partition", ctypes.c_int), ("polish", ctypes.c_int),
+                ("polish_stagnation", ctypes.c_uint32), ("simplify", ctypes.c_int),
+                ("support", ctypes.c_int), ("sample", ctypes.c_size_t),
+                ("epsilon", ctypes.c_double), ("alpha_deg", ctypes.c_double),
+                ("lambda_scale", ctypes.c_double), ("knn", ctypes.c_size_t),
+                ("refit", ctypes.c_int), ("report_explained", ctypes.c_int),
+                ("progress", _EVOLVE_PROGRESS_FN), ("cancel", _SEG_CANCEL_FN),
+                ("user", ctypes.c_void_p)]
+
+
+class _EvolveInfo(ctypes.Structure):
+    _fields_ = [("tree_size", ctypes.c_uint32)] + \
+               [(n, ctypes.c_size_t) for n in ("nprims", "npoints", "dropped", "explained",
+                                               "within_eps", "normals_ok")] + \
+               [("fitness", ctypes.c_double), ("generations", ctypes.c_uint32),
+                ("seconds", ctypes.c_double), ("alpha_deg", ctypes.c_double),
+                ("alpha_auto", ctypes.c_int), ("partitioned", ctypes.c_int),
+                ("interrupted", ctypes.c_int), ("refit_rms_before", ctypes.c_double),
+                ("refit_rms_after", ctypes.c_double)]
+
+
+class _RenderOptions(ctypes.Structure):
+    _fields_ = [("width", ctypes.c_int), ("height", ctypes.c_int), ("view", ctypes.c_char_p),
+                ("points", ctypes.c_void_p), ("scale", ctypes.c_double),
+                ("plain", ctypes.c_int), ("program", ctypes.c_void_p),
+                ("iso", ctypes.c_double), ("nthreads", ctypes.c_int),
+                ("vertex_rgb", ctypes.c_void_p)]
+
+
+class _RenderInfo(ctypes.Structure):
+    _fields_ = [("ntris", ctypes.c_size_t), ("npoints", ctypes.c_size_t),
+                ("mean_dist", ctypes.c_double), ("max_dist", ctypes.c_double),
+                ("inside", ctypes.c_size_t), ("rings", ctypes.c_size_t),
+                ("point_scale", ctypes.c_double), ("surface_scale", ctypes.c_double)]
 
 
 PRIM_TYPES = ("plane", "sphere", "cylinder", "cone", "torus")
@@ -199,6 +300,35 @@ def _declare(lib):
         "frep_segmentation_interrupted": (I, [P]),
         "frep_segmentation_labels": (ctypes.POINTER(ctypes.c_int32), [P]),
         "frep_segmentation_write": (I, [P, ctypes.c_char_p, ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_fit_options_init": (None, [ctypes.POINTER(_FitOptions)]),
+        "frep_fit_template": (P, [ctypes.c_char_p, ctypes.c_char_p, S,
+                                  ctypes.POINTER(_CompileOptions), P,
+                                  ctypes.POINTER(_FitOptions), _DIAG_FN, P]),
+        "frep_fit_free": (None, [P]),
+        "frep_fit_nparams": (S, [P]),
+        "frep_fit_nvalues": (S, [P]),
+        "frep_fit_get_param": (I, [P, S, ctypes.POINTER(_FitParam)]),
+        "frep_fit_get_info": (None, [P, ctypes.POINTER(_FitInfo)]),
+        "frep_fit_values": (I, [P, P, S]),
+        "frep_fit_text": (ctypes.c_char_p, [P, ctypes.POINTER(S)]),
+        "frep_fit_write": (I, [P, ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_fit_write_json": (I, [P, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p,
+                                    ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_evolve_options_init": (None, [ctypes.POINTER(_EvolveOptions)]),
+        "frep_segmentation_read": (P, [ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_evolve": (P, [P, P, ctypes.POINTER(_EvolveOptions), _DIAG_FN, P]),
+        "frep_evolution_free": (None, [P]),
+        "frep_evolution_get_info": (None, [P, ctypes.POINTER(_EvolveInfo)]),
+        "frep_evolution_write": (I, [P, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p,
+                                     I, I, _DIAG_FN, P]),
+        "frep_evolution_write_dot": (I, [P, ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_render_options_init": (None, [ctypes.POINTER(_RenderOptions)]),
+        "frep_render": (P, [P, ctypes.POINTER(_RenderOptions), ctypes.POINTER(_RenderInfo),
+                            _DIAG_FN, P]),
+        "frep_image_free": (None, [P]),
+        "frep_image_pixels": (ctypes.POINTER(ctypes.c_uint8),
+                              [P, ctypes.POINTER(I), ctypes.POINTER(I)]),
+        "frep_image_write_png": (I, [P, ctypes.c_char_p, _DIAG_FN, P]),
     }
     for name, (res, args) in sig.items():
         fn = getattr(lib, name)
@@ -493,14 +623,10 @@ class Program:
         return Cloud._own(h)
 
 
-def compile(text, name="<string>", model=None, a=None, setops=None, optimize=True):
-    """Compile model source text.  model: which model (default my_model, else the last);
-    a: values of a[]; setops: None, "rfunc", "minmax".  Raises FrepError with the
-    compiler's messages."""
-    lib = _L()
-    src = text.encode() if isinstance(text, str) else bytes(text)
+def _compile_options(model=None, a=None, setops=None, optimize=True, strict=False):
+    """frep_compile_options and the arrays it points to (keep them alive)."""
     o = _CompileOptions()
-    lib.frep_compile_options_init(ctypes.byref(o))
+    _L().frep_compile_options_init(ctypes.byref(o))
     keep = []
     if model:
         o.model = model.encode()
@@ -512,6 +638,18 @@ def compile(text, name="<string>", model=None, a=None, setops=None, optimize=Tru
     if setops is not None:
         o.setops_override = {"rfunc": 0, "minmax": 1}[setops]
     o.optimize = int(bool(optimize))
+    o.strict = int(bool(strict))
+    return o, keep
+
+
+def compile(text, name="<string>", model=None, a=None, setops=None, optimize=True,
+            strict=False):
+    """Compile model source text.  model: which model (default my_model, else the last);
+    a: values of a[]; setops: None, "rfunc", "minmax"; strict: what the reference
+    HyperFun rejects is an error.  Raises FrepError with the compiler's messages."""
+    lib = _L()
+    src = text.encode() if isinstance(text, str) else bytes(text)
+    o, keep = _compile_options(model, a, setops, optimize, strict)
     d = _Diagnostics(src)
     h = lib.frep_compile(name.encode(), src, len(src), ctypes.byref(o), d.fn, None)
     if not h:
@@ -586,6 +724,36 @@ class Mesh(_Wrapper):
         if not h:
             d.fail("sampling failed")
         return Cloud._own(h)
+
+    def render(self, width=800, height=600, view="iso", points=None, program=None,
+               scale=0.0, plain=False, iso=0.0, threads=0, colors=None):
+        """A shaded picture, as frep render: an Image.  points: a Cloud drawn over the
+        surface, coloured by its distance to program's surface f = iso (a Program) or,
+        without one, to this mesh's triangles; the surface coloured by its distance to
+        the points unless plain; scale: the distance drawn red (0: from the data).
+        colors: (nverts, 3) uint8 vertex colours."""
+        lib = _L()
+        o = _RenderOptions()
+        lib.frep_render_options_init(ctypes.byref(o))
+        o.width, o.height, o.view = int(width), int(height), view.encode()
+        o.scale, o.plain, o.iso, o.nthreads = float(scale), int(bool(plain)), float(iso), \
+            int(threads)
+        if points is not None:
+            o.points = points._h
+        if program is not None:
+            o.program = program._h
+        rgb = None
+        if colors is not None:
+            rgb = np.ascontiguousarray(colors, dtype=np.uint8).reshape(-1, 3)
+            if rgb.shape[0] != self.vertices.shape[0]:
+                raise ValueError("colors: one (r, g, b) per vertex")
+            o.vertex_rgb = rgb.ctypes.data
+        info = _RenderInfo()
+        d = _Diagnostics()
+        h = lib.frep_render(self._h, ctypes.byref(o), ctypes.byref(info), d.fn, None)
+        if not h:
+            d.fail("cannot render")
+        return Image(h, {k: getattr(info, k) for k, _ in _RenderInfo._fields_})
 
     def to_open3d(self):
         """An open3d.geometry.TriangleMesh (copies), with vertex normals when known."""
@@ -681,6 +849,43 @@ class Cloud(_Wrapper):
             self._set_arrays()
         return Segmentation(h, lib.frep_cloud_size(self._h))
 
+    def evolve(self, prims=None, progress=None, cancel=None, **options):
+        """A construction tree of primitives fitting this cloud, as frep evolve: an
+        Evolution.  prims: a Segmentation (Cloud.segment, read_prims) or None (the cloud
+        is segmented with frep segment's defaults).  options: seed (1), threads, setops
+        ("minmax" or "rfunc"), generations, stagnation, population, tournament, elite,
+        crossover, mutation, subtree_prob, max_depth, max_time, partition, polish,
+        polish_stagnation, simplify, support, sample, epsilon, alpha_deg (0: automatic),
+        lambda_scale, knn, refit, report_explained.  progress(dict) and cancel() -> bool
+        are called from this thread after each generation; cancel returning True stops
+        the run with the best tree so far.  Normals are estimated into this cloud when
+        it has none."""
+        lib = _L()
+        o = _EvolveOptions()
+        lib.frep_evolve_options_init(ctypes.byref(o))
+        fields = {k for k, _ in _EvolveOptions._fields_} - {"progress", "cancel", "user"}
+        for k, v in options.items():
+            if k == "threads":
+                k = "nthreads"
+            elif k == "setops":
+                v = {"rfunc": 0, "minmax": 1}[v]
+            elif k not in fields:
+                raise TypeError("evolve: unknown option %r" % k)
+            setattr(o, k, v)
+        if progress is not None:
+            o.progress = _EVOLVE_PROGRESS_FN(lambda u, p: progress(
+                {k: getattr(p.contents, k) for k, _ in _EvolveProgress._fields_}))
+        if cancel is not None:
+            o.cancel = _SEG_CANCEL_FN(lambda u: 1 if cancel() else 0)
+        d = _Diagnostics()
+        h = lib.frep_evolve(self._h, prims._h if prims is not None else None, ctypes.byref(o),
+                            d.fn, None)
+        if not h:
+            d.fail("evolution failed")
+        if lib.frep_cloud_has_normals(self._h) and self.normals is None:
+            self._set_arrays()
+        return Evolution(h, self)
+
 
 class Segmentation:
     """The primitives frep segment finds: nprims (fitted first, then separating),
@@ -742,3 +947,186 @@ def read_mesh(path):
     if not h:
         d.fail("cannot read %s" % path)
     return Mesh._own(h)
+
+
+# ---- fitting -------------------------------------------------------------------------
+
+class Fit:
+    """A finished fit (frep fit): parameters, a list of dicts (name, index, start,
+    value, lo, hi, sigma, sensitivity, warnings: names of FIT_WARNINGS); values, the
+    template's whole parameter vector with the fitted values (as Program.eval takes
+    it); params, {name: fitted value}; text, the fitted template; and the measures:
+    npoints, objective, rms, max_dist, within, within_inliers, diagonal, noise,
+    outliers, evals, seconds, converged, interrupted, status, verdict."""
+
+    def __init__(self, h, name):
+        lib = _L()
+        self._handle = _Handle(h, lib.frep_fit_free)
+        self._h = h
+        self.name = name
+        self.parameters = []
+        for j in range(lib.frep_fit_nparams(h)):
+            r = _FitParam()
+            lib.frep_fit_get_param(h, j, ctypes.byref(r))
+            self.parameters.append(dict(
+                name=r.name.decode(), index=r.index, start=r.start, value=r.value, lo=r.lo,
+                hi=r.hi, sigma=r.sigma, sensitivity=r.sensitivity,
+                warnings=[w for k, w in enumerate(FIT_WARNINGS) if r.warnings & (1 << k)]))
+        self.params = {p["name"]: p["value"] for p in self.parameters}
+        n = lib.frep_fit_nvalues(h)
+        self.values = np.zeros(n)
+        lib.frep_fit_values(h, _ptr(self.values), n)
+        ln = ctypes.c_size_t()
+        t = lib.frep_fit_text(h, ctypes.byref(ln))
+        self.text = ctypes.string_at(t, ln.value).decode(errors="replace")
+        info = _FitInfo()
+        lib.frep_fit_get_info(h, ctypes.byref(info))
+        for k, _ in _FitInfo._fields_:
+            v = getattr(info, k)
+            setattr(self, k, v.decode() if isinstance(v, bytes) else v)
+        self.converged, self.interrupted = bool(self.converged), bool(self.interrupted)
+
+    def write(self, path):
+        """Write the fitted template (as frep fit -o path), atomically."""
+        d = _Diagnostics()
+        if _L().frep_fit_write(self._h, str(path).encode(), d.fn, None) != 0:
+            d.fail("cannot write %s" % path)
+
+    def write_json(self, path, template_name=None, cloud_name=None, output_name=None):
+        """Write the report as frep fit --json does, quoting the names given."""
+        d = _Diagnostics()
+        enc = [str(x).encode() if x is not None else None
+               for x in (template_name, cloud_name, output_name)]
+        if _L().frep_fit_write_json(self._h, str(path).encode(), *enc, d.fn, None) != 0:
+            d.fail("cannot write %s" % path)
+
+    def program(self, **kw):
+        """The fitted template compiled (keyword arguments as compile's)."""
+        return compile(self.text, name=self.name, **kw)
+
+
+def fit(template, cloud, name="<string>", model=None, a=None, strict=False, bounds=None,
+        progress=None, cancel=None, **options):
+    """Fit the free parameters of the template source text to a Cloud (or an (N, 3)
+    array of points), as frep fit: the '-- @free' parameters, else the elements of a[]
+    the model reads, started from `a` and bounded by `bounds` (a list of (lo, hi), one
+    per element of a[]).  options: seed (1), method (FIT_METHODS, "saqn"), objective
+    and global_objective (FIT_OBJECTIVES), loss and sa_loss (FIT_LOSSES), loss_scale,
+    robust, normals_weight, max_time, max_evals, sa_points, sa_stall, sa_chains,
+    sa_threshold, threads.  progress(dict) and cancel() -> bool are called from this
+    thread (at most every 0.2 s); cancel returning True stops the fit with the best
+    parameters so far.  Returns a Fit; raises FrepError with the messages."""
+    lib = _L()
+    if not isinstance(cloud, Cloud):
+        cloud = Cloud(cloud)
+    src = template.encode() if isinstance(template, str) else bytes(template)
+    co, keep = _compile_options(model, a, None, True, strict)
+    o = _FitOptions()
+    lib.frep_fit_options_init(ctypes.byref(o))
+    names = {"method": FIT_METHODS, "objective": FIT_OBJECTIVES,
+             "global_objective": FIT_OBJECTIVES, "loss": FIT_LOSSES, "sa_loss": FIT_LOSSES}
+    for k, v in options.items():
+        if k in names:
+            if v not in names[k]:
+                raise ValueError("fit: %s must be one of %s" % (k, ", ".join(names[k])))
+            v = names[k].index(v)
+        elif k == "threads":
+            k = "nthreads"
+        elif k == "robust":
+            v = int(bool(v))
+        elif k not in ("seed", "loss_scale", "normals_weight", "max_time", "max_evals",
+                       "sa_points", "sa_stall", "sa_chains", "sa_threshold"):
+            raise TypeError("fit: unknown option %r" % k)
+        setattr(o, k, v)
+    if bounds is not None:
+        b = np.asarray(bounds, dtype=np.float64).reshape(-1, 2)
+        lo, hi = np.ascontiguousarray(b[:, 0]), np.ascontiguousarray(b[:, 1])
+        keep += [lo, hi]
+        o.lo = ctypes.cast(_ptr(lo), _c_double_p)
+        o.hi = ctypes.cast(_ptr(hi), _c_double_p)
+        o.nbounds = b.shape[0]
+    if progress is not None:
+        o.progress = _FIT_PROGRESS_FN(lambda u, p: progress(
+            {k: getattr(p.contents, k) for k, _ in _FitProgress._fields_}))
+    if cancel is not None:
+        o.cancel = _SEG_CANCEL_FN(lambda u: 1 if cancel() else 0)
+    d = _Diagnostics(src)
+    h = lib.frep_fit_template(name.encode(), src, len(src), ctypes.byref(co), cloud._h,
+                              ctypes.byref(o), d.fn, None)
+    if not h:
+        d.fail("cannot fit %s" % name)
+    if lib.frep_cloud_has_normals(cloud._h):
+        cloud._set_arrays()
+    return Fit(h, name)
+
+
+def fit_file(path, cloud, **kw):
+    """Fit the template file at path (see fit)."""
+    with open(path, "rb") as f:
+        return fit(f.read(), cloud, name=kw.pop("name", str(path)), **kw)
+
+
+# ---- construction trees --------------------------------------------------------------
+
+def read_prims(path):
+    """Primitives from a .fit list or a .hf model of frep segment (frep evolve -p): a
+    Segmentation without labels."""
+    d = _Diagnostics()
+    h = _L().frep_segmentation_read(str(path).encode(), d.fn, None)
+    if not h:
+        d.fail("cannot read %s" % path)
+    return Segmentation(h, 0)
+
+
+class Evolution:
+    """An evolved construction tree (Cloud.evolve): tree_size, nprims, npoints,
+    dropped, explained, within_eps, normals_ok, fitness, generations, seconds,
+    alpha_deg, alpha_auto, partitioned, interrupted, refit_rms_before/after."""
+
+    def __init__(self, h, cloud):
+        lib = _L()
+        self._handle = _Handle(h, lib.frep_evolution_free)
+        self._h = h
+        self._cloud = cloud          # the library reads it when writing
+        info = _EvolveInfo()
+        lib.frep_evolution_get_info(h, ctypes.byref(info))
+        for k, _ in _EvolveInfo._fields_:
+            setattr(self, k, getattr(info, k))
+        for k in ("alpha_auto", "partitioned", "interrupted"):
+            setattr(self, k, bool(getattr(self, k)))
+
+    def write(self, path, command=None, cloud_name=None, exact=False, hyperfun=False):
+        """Write the .hf model as frep evolve -o does (command and cloud_name go into its
+        comments; exact, hyperfun as --exact-numbers, --hyperfun)."""
+        d = _Diagnostics()
+        enc = [str(x).encode() if x is not None else None for x in (command, cloud_name)]
+        if _L().frep_evolution_write(self._h, str(path).encode(), *enc, int(bool(exact)),
+                                     int(bool(hyperfun)), d.fn, None) != 0:
+            d.fail("cannot write %s" % path)
+
+    def write_dot(self, path):
+        """Write the tree for Graphviz (frep evolve --dot)."""
+        d = _Diagnostics()
+        if _L().frep_evolution_write_dot(self._h, str(path).encode(), d.fn, None) != 0:
+            d.fail("cannot write %s" % path)
+
+
+class Image:
+    """A picture of Mesh.render: pixels, a (height, width, 3) uint8 view of the
+    library's memory; info, what it shows (ntris, npoints, mean_dist, max_dist,
+    inside, rings, point_scale, surface_scale)."""
+
+    def __init__(self, h, info):
+        lib = _L()
+        self._handle = _Handle(h, lib.frep_image_free)
+        self._h = h
+        self.info = info
+        w, ht = ctypes.c_int(), ctypes.c_int()
+        px = lib.frep_image_pixels(h, ctypes.byref(w), ctypes.byref(ht))
+        self.pixels = _view(px, (ht.value, w.value, 3), np.uint8, self._handle)
+
+    def write_png(self, path):
+        """Write as PNG (as frep render -o), atomically."""
+        d = _Diagnostics()
+        if _L().frep_image_write_png(self._h, str(path).encode(), d.fn, None) != 0:
+            d.fail("cannot write %s" % path)

@@ -208,3 +208,121 @@ def test_segment_cancel():
     polls = []
     s = c.segment(seed=1, cancel=lambda: polls.append(1) or len(polls) >= 3)
     assert s.interrupted and len(polls) == 3 and s.nfitted < 6
+
+
+SPHERE_TEMPLATE = """-- a sphere of unknown centre and radius
+my_model(x[3], a[1]) {
+  cx = 0;     -- @free [-1, 1]
+  r = 1;      -- @free [0.2, 3]
+  my_model = r*r - (x[1]-cx)*(x[1]-cx) - x[2]*x[2] - x[3]*x[3];
+}
+"""
+SPHERE_TRUTH = """my_model(x[3], a[1]) {
+  my_model = 1.44 - (x[1]-0.3)*(x[1]-0.3) - x[2]*x[2] - x[3]*x[3];
+}
+-- @box -2 -2 -2 2 2 2
+"""
+
+
+def test_fit_recovers_and_same_as_command(tmp_path):
+    tmpl = tmp_path / "sphere.hf"
+    tmpl.write_text(SPHERE_TEMPLATE)
+    cloud = frep.compile(SPHERE_TRUTH).sample(1500, seed=4, noise=0.001)
+    xyz = tmp_path / "sphere.xyz"
+    cloud.write(xyz)
+    calls = []
+    f = frep.fit_file(tmpl, frep.read_cloud(xyz), seed=7, progress=calls.append)
+    # the truth: centre 0.3 on x, radius 1.2 (sqrt 1.44)
+    assert abs(f.params["cx"] - 0.3) < 0.005 and abs(f.params["r"] - 1.2) < 0.005
+    assert [p["name"] for p in f.parameters] == ["cx", "r"]
+    assert f.parameters[1]["lo"] == 0.2 and f.parameters[1]["hi"] == 3
+    assert f.converged and not f.interrupted and f.verdict.startswith("good")
+    # the noise: 0.001 of the box diagonal 4 sqrt(3), 0.0069
+    assert f.npoints == 1500 and 0.5 * 0.0069 < f.rms < 1.5 * 0.0069
+    assert calls and {"phase", "best", "elapsed"} <= set(calls[0])
+    # the vector evaluates like the fitted template: f = 0 near the cloud
+    p = frep.compile(SPHERE_TEMPLATE)
+    assert np.allclose(f.values[1:], [f.params["cx"], f.params["r"]])
+    d = p.eval(cloud.x, cloud.y, cloud.z, params=f.values)
+    cx, r = f.params["cx"], f.params["r"]
+    want = r * r - (cloud.x - cx) ** 2 - cloud.y ** 2 - cloud.z ** 2
+    assert np.allclose(d, want, rtol=0, atol=1e-12)
+    assert "-- @box " in f.text and abs(f.program().eval([1.5], [0], [0])[0]) < 0.01
+    if FREP:
+        subprocess.run([FREP, "fit", str(tmpl), str(xyz), "--seed", "7", "-q", "-o",
+                        str(tmp_path / "cli.hf")], check=True)
+        f.write(tmp_path / "api.hf")
+        assert (tmp_path / "cli.hf").read_bytes() == (tmp_path / "api.hf").read_bytes()
+
+
+def test_fit_a_array_and_cancel():
+    cloud = frep.compile(SPHERE_TRUTH).sample(1000, seed=3)
+    tmpl = ("my_model(x[3], a[2]) {\n"
+            "  my_model = a[2]*a[2] - (x[1]-a[1])*(x[1]-a[1]) - x[2]*x[2] - x[3]*x[3];\n}\n")
+    f = frep.fit(tmpl, cloud.points, a=[0, 1], bounds=[(-1, 1), (0.2, 3)], method="qn")
+    assert np.allclose(f.values, [0.3, 1.2], atol=0.005) and "-- @params " in f.text
+    polls = []
+    f = frep.fit(SPHERE_TEMPLATE, cloud, cancel=lambda: polls.append(1) or True)
+    assert f.interrupted and f.status == "interrupted" and len(polls) >= 1
+    with pytest.raises(frep.FrepError) as e:
+        frep.fit("m(x[3], a[1]) { m = 1 - x[1]; }", cloud)
+    assert "no free parameters" in str(e.value)
+    with pytest.raises(ValueError):
+        frep.fit(SPHERE_TEMPLATE, cloud, method="newton")
+
+
+def test_evolve_same_as_command(tmp_path):
+    need_frep()
+    model = os.path.join(SRCDIR, "tests", "models", "segment_box.hf")
+    xyz, fit = tmp_path / "ev.xyz", tmp_path / "ev.fit"
+    subprocess.run([FREP, "sample", model, "-n", "3000", "--seed", "6", "-q", "-o", str(xyz)],
+                   check=True)
+    subprocess.run([FREP, "segment", str(xyz), "--seed", "2", "-q", "-o", str(fit)], check=True)
+    args = ["evolve", str(xyz), "-p", str(fit), "--seed", "3", "--population", "60",
+            "--generations", "40", "-q", "-o", str(tmp_path / "cli.hf")]
+    subprocess.run([FREP] + args, check=True)
+    calls = []
+    prims = frep.read_prims(fit)
+    assert prims.nprims >= 6 and prims.labels.shape == (0,)
+    e = frep.read_cloud(xyz).evolve(prims, seed=3, population=60, generations=40,
+                                    progress=calls.append)
+    assert e.tree_size >= 11 and e.explained > 2900 and not e.interrupted
+    assert calls and {"generation", "best_fitness", "tree_size"} <= set(calls[0])
+    e.write(tmp_path / "api.hf", command="frep " + " ".join(args), cloud_name=str(xyz))
+    cli = (tmp_path / "cli.hf").read_text().splitlines()
+    api = (tmp_path / "api.hf").read_text().splitlines()
+    # the same model but the line with the run's seconds
+    assert len(cli) == len(api) and len(cli) > 10
+    assert [a for a, b in zip(cli, api) if a != b and " generations, " not in a] == []
+    e.write_dot(tmp_path / "api.dot")
+    assert (tmp_path / "api.dot").read_text().startswith("digraph")
+
+
+def test_evolve_cancel():
+    model = frep.compile_file(os.path.join(SRCDIR, "tests", "models", "segment_box.hf"))
+    c = model.sample(2500, seed=1)
+    s = c.segment(seed=1)
+    polls = []
+    e = c.evolve(s, partition=False, stagnation=10 ** 6, generations=10 ** 6,
+                 cancel=lambda: polls.append(1) or len(polls) >= 4)
+    assert e.interrupted and len(polls) == 4 and e.generations <= 5 and e.tree_size > 0
+
+
+def test_render_same_as_command(tmp_path):
+    p = frep.compile_file(CSG)
+    m = p.mesh(grid=32)
+    c = p.sample(500, seed=2, noise=0.01)
+    img = m.render(96, 64, points=c, program=p)
+    assert img.pixels.shape == (64, 96, 3) and img.pixels.dtype == np.uint8
+    assert img.info["npoints"] == 500 and img.info["ntris"] == len(m.triangles)
+    assert img.pixels.std() > 0                       # not a blank picture
+    if FREP:
+        c.write(tmp_path / "c.xyz")
+        subprocess.run([FREP, "render", CSG, "-g", "32", "--size", "96x64", "--points",
+                        str(tmp_path / "c.xyz"), "-q", "-o", str(tmp_path / "cli.png")],
+                       check=True)
+        c2 = frep.read_cloud(tmp_path / "c.xyz")
+        m.render(96, 64, points=c2, program=p).write_png(tmp_path / "api.png")
+        assert (tmp_path / "cli.png").read_bytes() == (tmp_path / "api.png").read_bytes()
+    with pytest.raises(frep.FrepError):
+        m.render(view="upside")
