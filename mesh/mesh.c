@@ -894,9 +894,7 @@ static int vertex_cell_box(const block_ctx *c, size_t v, double margin, double l
                        cell / (MESH_BLOCK * MESH_BLOCK) };
     /* a corner exactly on the level: a sheet along the cell's faces, shared with the
      * neighbours, which projection would fold over them */
-    for (int k = 0; k < 8; k++)
-        if (c->W->cf[corner_index(L[0] + (k & 1), L[1] + ((k >> 1) & 1), L[2] + (k >> 2))] == c->iso)
-            return 0;
+    if (cell_on_level(c, L)) return 0;
     for (int q = 0; q < 3; q++) {
         long C = c->base[q] + L[q];
         if (C == 0 || C + 1 >= c->M->G[q]) return 0;
