@@ -43,6 +43,16 @@
 /* QEF eigenvalues below this fraction of the largest are dropped (truncated
  * pseudo-inverse): near-parallel normals must not throw the vertex out of its cell. */
 #define MESH_QEF_CUTOFF 0.05
+/* A corner solution of the QEF (rank 3) at most this fraction of a cell outside its
+ * cell, in a cell with a corner exactly on the level, is clamped into the cell rather
+ * than given up for a lower rank: a part's corner whose faces lie on grid planes is on
+ * the faces of the cells around it, where rounding puts it on either side, and the
+ * lower rank's mass point was up to 3/4 cell off the surface (tests/models/sharp/near.hf
+ * at -g 32).  Edge solutions (rank 2) are not: clamped the same way, two cells'
+ * vertices met on their common face and folded triangles over each other
+ * (tests/models/segment_box.hf at -g 64, -b 1.2).  Off for the sampler's mesh
+ * (mesh_options.no_projection), which stays as before. */
+#define MESH_QEF_REACH 0.05
 /* Vertices stay this fraction of a cell inside their cell, so that vertices of
  * different cells never coincide (no zero-area triangles). */
 #define MESH_CLAMP 1e-4
@@ -179,10 +189,11 @@ void mesh_cell_table_build(cell_table *t)
  * off-diagonal sum below 1e-30 is far below rounding; 24 sweeps bound the loop. */
 static const linalg_jacobi_stop qef_stop = {24, 1e-30, 0, 1e-300};
 
-/* Minimize sum (n_i . (x - p_i))^2 near the mass point, inside [lo, hi]. Returns the
+/* Minimize sum (n_i . (x - p_i))^2 near the mass point, inside [lo, hi] (a corner
+ * solution up to reach cells outside is clamped in, see MESH_QEF_REACH). Returns the
  * rank used: 1 on a flat patch, 2 on an edge, 3 at a corner (0: the mass point). */
 static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
-                      const double lo[3], const double hi[3], double out[3])
+                      const double lo[3], const double hi[3], double reach, double out[3])
 {
     double m[3] = { 0, 0, 0 };
     for (int i = 0; i < np; i++)
@@ -196,8 +207,12 @@ static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
             for (int c = 0; c < 3; c++) A[r][c] += nrm[i][r] * nrm[i][c];
         }
     }
-    double slack[3];
-    for (int c = 0; c < 3; c++) slack[c] = MESH_CLAMP * (hi[c] - lo[c]);
+    double slack[3], lo_in[3], hi_in[3];
+    for (int c = 0; c < 3; c++) {
+        slack[c] = MESH_CLAMP * (hi[c] - lo[c]);
+        lo_in[c] = lo[c] - reach * (hi[c] - lo[c]);
+        hi_in[c] = hi[c] + reach * (hi[c] - lo[c]);
+    }
     /* Flat patch, the common case: with u the mean normal's direction, the two lower
      * eigenvalues sum to at most sum (1 - (n_i.u)^2) (the trace is sum |n_i|^2) and
      * the largest is at least u'Au; when the first is below MESH_QEF_CUTOFF times the
@@ -248,7 +263,9 @@ static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
         }
         int inside = 1;
         for (int c = 0; c < 3; c++)
-            if (!(x[c] >= lo[c] + slack[c] && x[c] <= hi[c] - slack[c])) inside = 0;
+            if (!(x[c] >= (rank == 3 ? lo_in[c] : lo[c]) + slack[c] &&
+                  x[c] <= (rank == 3 ? hi_in[c] : hi[c]) - slack[c]))
+                inside = 0;
         if (inside || rank == 0) {
             for (int c = 0; c < 3; c++)
                 out[c] = fmin(fmax(x[c], lo[c] + slack[c]), hi[c] - slack[c]);
@@ -719,6 +736,15 @@ static size_t face_candidates(mwork *W, int cs, int dup, int i, int j, int k, si
     return nf;
 }
 
+/* Whether a corner of cell L is exactly on the level. */
+static int cell_on_level(const block_ctx *c, const int L[3])
+{
+    for (int k = 0; k < 8; k++)
+        if (c->W->cf[corner_index(L[0] + (k & 1), L[1] + ((k >> 1) & 1), L[2] + (k >> 2))] == c->iso)
+            return 1;
+    return 0;
+}
+
 /* The vertex of component cyc of cell L (case cs, box [lo, hi]): the QEF minimizer of
  * the component's crossings (the cell's centre when it has none), with the mean of
  * their normals. */
@@ -748,7 +774,8 @@ static void component_vertex(block_ctx *c, int cs, int cyc, const int L[3],
     if (np == 0) {
         for (int k = 0; k < 3; k++) x[k] = 0.5 * (lo[k] + hi[k]);
     } else {
-        rank = qef_solve(np, (const double(*)[3])pts, (const double(*)[3])nrm, lo, hi, x);
+        double reach = c->M->o->no_projection || !cell_on_level(c, L) ? 0 : MESH_QEF_REACH;
+        rank = qef_solve(np, (const double(*)[3])pts, (const double(*)[3])nrm, lo, hi, reach, x);
     }
     size_t nv = c->nv++;
     W->vrank[nv] = (uint8_t)rank;
@@ -867,9 +894,7 @@ static int vertex_cell_box(const block_ctx *c, size_t v, double margin, double l
                        cell / (MESH_BLOCK * MESH_BLOCK) };
     /* a corner exactly on the level: a sheet along the cell's faces, shared with the
      * neighbours, which projection would fold over them */
-    for (int k = 0; k < 8; k++)
-        if (c->W->cf[corner_index(L[0] + (k & 1), L[1] + ((k >> 1) & 1), L[2] + (k >> 2))] == c->iso)
-            return 0;
+    if (cell_on_level(c, L)) return 0;
     for (int q = 0; q < 3; q++) {
         long C = c->base[q] + L[q];
         if (C == 0 || C + 1 >= c->M->G[q]) return 0;
