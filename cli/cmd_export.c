@@ -77,6 +77,7 @@ int cmd_export(int argc, char **argv)
     o.fn = c.fn;
     cli_diag_ctx dc = { c.mc.src, c.mc.srclen, 0, 0, NULL, 0, NULL };
     frep_error err;
+    frep_error_init(&err);
     c.text = scad_export(path, c.mc.src, c.mc.srclen, &o, cli_print_diag, &dc, &err);
     cli_diag_done(&dc);
     int status = CLI_FAIL;

@@ -45,6 +45,7 @@ int cli_opt_knn(const char *arg, void *dest, char *why, size_t whylen)
 int cli_check_cloud(const char *sub, const char *path, const frep_cloud *c, int need_solid)
 {
     frep_error err;
+    frep_error_init(&err);
     int planar = 0;
     if (cloud_check_scale(c, path, &err) || normals_check_cloud(c, path, &planar, &err)) {
         fprintf(stderr, "frep %s: %s\n", sub, err.msg);
@@ -113,6 +114,7 @@ int cmd_normals(int argc, char **argv)
     if (!n.out) return cli_usage_error("normals", "missing -o OUT");
     n.in = args.v[0];
     frep_error err;
+    frep_error_init(&err);
     frep_cloud *c = cloud_read(n.in, &err);
     if (!c) {
         fprintf(stderr, "frep normals: %s\n", err.msg[0] ? err.msg : "cannot read the cloud");

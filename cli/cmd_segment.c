@@ -220,6 +220,7 @@ static int stage_options(segment_cmd *s, int argc, char **argv)
 static int stage_segment(segment_cmd *s)
 {
     frep_error err;
+    frep_error_init(&err);
     s->c = cloud_read(s->in, &err);
     if (!s->c) {
         fprintf(stderr, "frep segment: %s\n", err.msg[0] ? err.msg : "cannot read the cloud");

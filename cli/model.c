@@ -211,6 +211,7 @@ int cli_is_mesh_path(const char *path)
 int cli_read_mesh(const char *sub, const char *path, frep_mesh *m)
 {
     frep_error msg;
+    frep_error_init(&msg);
     if (meshio_read(path, m, &msg) == 0) return CLI_OK;
     if (msg.msg[0]) fprintf(stderr, "%s\n", msg.msg);
     else fprintf(stderr, "frep %s: cannot read the mesh\n", sub);
@@ -253,6 +254,7 @@ int cli_cloud_distances(const char *sub, const char *path, mesh_cli *mc, const f
                         cli_cloud_dist *d)
 {
     frep_error msg;
+    frep_error_init(&msg);
     memset(d, 0, sizeof *d);
     d->cl = cloud_read(path, &msg);
     if (!d->cl) {
