@@ -631,20 +631,16 @@ static int write_json(FILE *f, void *user)
             (unsigned long long)cfg->seed);
     for (size_t i = 0; i < r->nfree; i++) {
         const frep_fit_param *p = &r->rows[i];
+        const struct { const char *key; double v; } num[] = {
+            { "start", p->start }, { "value", p->value }, { "lo", p->lo }, { "hi", p->hi },
+            { "sigma", p->sigma }, { "sensitivity", p->sensitivity },
+        };
         fputs("    {\"name\": ", f);
         json_str(f, p->name);
-        fputs(", \"start\": ", f);
-        json_num(f, p->start);
-        fputs(", \"value\": ", f);
-        json_num(f, p->value);
-        fputs(", \"lo\": ", f);
-        json_num(f, p->lo);
-        fputs(", \"hi\": ", f);
-        json_num(f, p->hi);
-        fputs(", \"sigma\": ", f);
-        json_num(f, p->sigma);
-        fputs(", \"sensitivity\": ", f);
-        json_num(f, p->sensitivity);
+        for (size_t k = 0; k < sizeof num / sizeof num[0]; k++) {
+            fprintf(f, ", \"%s\": ", num[k].key);
+            json_num(f, num[k].v);
+        }
         fprintf(f, ", \"on_bound\": %s, \"near_bound\": %s, \"no_effect\": %s}%s\n",
                 p->warnings & FREP_FIT_ON_BOUND ? "true" : "false",
                 p->warnings & FREP_FIT_NEAR_BOUND ? "true" : "false",
