@@ -16,6 +16,9 @@
 /* Terms of hfSawtooth's sum: each is a sine node of the expansion, so a bound keeps a
  * typo (n = 1e9) from exhausting the IR; far above any use of a sawtooth wave. */
 #define FREP_SAWTOOTH_MAX_TERMS 4096
+/* Terms of hfA_Turbulence's sum (one per octave, each 8 gradients of 3 sines):
+ * freq must be below 2^32. */
+#define FREP_TURBULENCE_MAX_TERMS 32
 
 static ir_ref k_(lib_ctx *c, double v) { return ir_k(c->g, v); }
 static ir_ref sel(lib_ctx *c, ir_ref cond, ir_ref a, ir_ref b) { return ir_select(c->g, cond, a, b); }
@@ -578,16 +581,114 @@ LIB_EXPANDER(hf_bezier_volume)
     return r_int(g, cube, sum);
 }
 
-/* hfA_NoiseP and hfA_Turbulence (hfA_noisep.c, hfA_turbulence.c) evaluate Perlin
- * noise whose gradient and permutation tables perlin.h fills from rand() after
- * srand(time(NULL)): the reference's values change from run to run, so there are
- * none to reproduce; a call is an error saying so. */
-LIB_EXPANDER(hfa_unsupported)
+/* hfA_NoiseP(x) and hfA_Turbulence(x, freq) (hfA_noisep.c, hfA_turbulence.c, perlin.h):
+ * Perlin's gradient noise noise3 as the reference computes it - a unit gradient at
+ * each integer lattice point, the offsets to the cell's 8 corners dotted with their
+ * gradients, blended with the s-curve 3t^2 - 2t^3 along x, then y, then z; 0 at every
+ * lattice point, values within about [-1, 1] - except where its gradients come from.
+ * The reference draws them and a permutation from rand() after srand(time(NULL)), so
+ * its noise differs on every run (and with every C library's rand); frep takes the
+ * gradient at lattice point (i, j, k) from a fixed hash, the fractional part of
+ * 43758.5453 sin(a i + b j + c k) for three (a, b, c), mapped to [-1, 1) and
+ * normalised: the same noise on every run, with no period (the reference's repeats
+ * every 256 cells).  Both are attribute functions: a model's solid does not depend on
+ * them unless the model uses their values. */
+static const double perlin_hash[3][3] = {
+    { 12.9898, 78.233, 37.719 }, { 39.3467, 11.1351, 83.1554 }, { 73.156, 52.235, 9.151 }
+};
+#define PERLIN_HASH_SCALE 43758.5453
+
+static ir_ref fract_(lib_ctx *c, ir_ref v)
 {
-    (void)a;
+    return ir_sub(c->g, v, ir_op1(c->g, FREP_OP_FLOOR, v));
+}
+
+/* The gradient at the lattice point (i, j, k), a unit vector. */
+static lv3 perlin_gradient(lib_ctx *c, const ir_ref ijk[3])
+{
+    ir *g = c->g;
+    ir_ref e[3];
+    lv3 v;
+    int m, d;
+    for (m = 0; m < 3; m++) {
+        ir_ref lin = IR_NONE;
+        for (d = 0; d < 3; d++) {
+            ir_ref t = ir_mul(g, ijk[d], k_(c, perlin_hash[m][d]));
+            lin = lin == IR_NONE ? t : ir_add(g, lin, t);
+        }
+        e[m] = ir_sub(g, ir_mul(g, k_(c, 2.0),
+                                fract_(c, ir_mul(g, ir_op1(g, FREP_OP_SIN, lin),
+                                                 k_(c, PERLIN_HASH_SCALE)))),
+                      k_(c, 1.0));
+    }
+    v = lv3_make(e[0], e[1], e[2]);
+    /* |v| >= 1 unless all three hashes are 1/2 at once: the bound only keeps the
+     * division defined */
+    return lv3_div(g, v, ir_sqrt(g, ir_op2(g, FREP_OP_MAX, lv3_len2(g, v), k_(c, 1e-300))));
+}
+
+static ir_ref lerp_(lib_ctx *c, ir_ref t, ir_ref a, ir_ref b)
+{
+    return ir_add(c->g, a, ir_mul(c->g, t, ir_sub(c->g, b, a)));
+}
+
+/* noise3 at the point p (three refs). */
+static ir_ref perlin3(lib_ctx *c, const ir_ref p[3])
+{
+    ir *g = c->g;
+    ir_ref cell[3], r[3], s[3], val[8];
+    int d, corner;
+    for (d = 0; d < 3; d++) {
+        cell[d] = ir_op1(g, FREP_OP_FLOOR, p[d]);
+        r[d] = ir_sub(g, p[d], cell[d]);
+        s[d] = ir_mul(g, ir_sq(g, r[d]), ir_sub(g, k_(c, 3.0), ir_mul(g, k_(c, 2.0), r[d])));
+    }
+    for (corner = 0; corner < 8; corner++) { /* bit 0: x + 1, bit 1: y + 1, bit 2: z + 1 */
+        ir_ref ijk[3], off[3];
+        for (d = 0; d < 3; d++) {
+            int up = (corner >> d) & 1;
+            ijk[d] = up ? ir_add(g, cell[d], k_(c, 1.0)) : cell[d];
+            off[d] = up ? ir_sub(g, r[d], k_(c, 1.0)) : r[d];
+        }
+        val[corner] = lv3_dot(g, perlin_gradient(c, ijk), lv3_make(off[0], off[1], off[2]));
+    }
+    for (d = 0; d < 3; d++) { /* blend along x, then y, then z */
+        int half = 8 >> (d + 1), i;
+        for (i = 0; i < half; i++) val[i] = lerp_(c, s[d], val[2 * i], val[2 * i + 1]);
+    }
+    return val[0];
+}
+
+/* hfA_NoiseP(x): noise3 at (x[1], x[2], x[3]). */
+LIB_EXPANDER(hfa_noise_p)
+{
     (void)n;
-    return c->error(c, "this HyperFun attribute function is not implemented in frep: "
-                       "the reference's Perlin noise tables are filled from rand() seeded "
-                       "with the time, so its values differ from run to run "
-                       "(doc/library.md)");
+    return perlin3(c, a[0].elems);
+}
+
+/* hfA_Turbulence(x, freq): the sum of |2 noise3(f x) - 1| / f over f = freq, freq/2,
+ * ... while f >= 1 (none when freq < 1: 0).  freq must be a constant, the number of
+ * terms at most FREP_TURBULENCE_MAX_TERMS. */
+LIB_EXPANDER(hfa_turbulence)
+{
+    ir *g = c->g;
+    ir_ref sum = IR_NONE;
+    double f;
+    int terms = 0;
+    (void)n;
+    if (!ir_is_const(g, a[1].s, &f))
+        return c->error(c, "hfA_Turbulence: the frequency freq must be a constant");
+    if (!(f < ldexp(1.0, FREP_TURBULENCE_MAX_TERMS)))
+        return c->error(c, "hfA_Turbulence: freq = %g gives more than %d terms (freq < 2^%d)",
+                        f, FREP_TURBULENCE_MAX_TERMS, FREP_TURBULENCE_MAX_TERMS);
+    for (; f >= 1.0; f /= 2, terms++) {
+        ir_ref p[3], term;
+        int d;
+        for (d = 0; d < 3; d++) p[d] = ir_mul(g, a[0].elems[d], k_(c, f));
+        term = ir_op1(g, FREP_OP_ABS,
+                      ir_sub(g, ir_mul(g, k_(c, 2.0), perlin3(c, p)), k_(c, 1.0)));
+        term = ir_div(g, term, k_(c, f));
+        sum = sum == IR_NONE ? term : ir_add(g, sum, term);
+    }
+    return terms ? sum : k_(c, 0.0);
 }

@@ -165,7 +165,8 @@ LIB_EXPANDER(hfa_lookup_table);
 LIB_EXPANDER(hfa_smooth_lookup_table);
 LIB_EXPANDER(hfa_spline);
 LIB_EXPANDER(hf_bezier_volume);
-LIB_EXPANDER(hfa_unsupported);
+LIB_EXPANDER(hfa_noise_p);
+LIB_EXPANDER(hfa_turbulence);
 
 /* lib_ext.c: frep's extensions */
 LIB_EXPANDER(ext_r_union);

@@ -604,6 +604,109 @@ static void test_hyperfun_tables(void)
                  "must be a constant", 3, 7, "hfBezierVolume: orders constant");
 }
 
+/* hfA_NoiseP and hfA_Turbulence: Perlin's noise3 with gradients from the fixed hash
+ * doc/library.md gives (the reference's come from rand() seeded with the time). */
+static double perlin_hash_component(double i, double j, double k, int m)
+{
+    static const double abc[3][3] = {
+        { 12.9898, 78.233, 37.719 }, { 39.3467, 11.1351, 83.1554 }, { 73.156, 52.235, 9.151 }
+    };
+    double h = 43758.5453 * sin(abc[m][0] * i + abc[m][1] * j + abc[m][2] * k);
+    return 2 * (h - floor(h)) - 1;
+}
+
+static void test_perlin(void)
+{
+    diags D;
+    frep_program *p, *q;
+    static const double lattice[][3] = { { 0, 0, 0 }, { 1, 2, 3 }, { -4, 7, 2 }, { -1, -1, -9 } };
+    double lo = 1, hi = -1, sum = 0, sum2 = 0, worst_jump = 0;
+    int i, same = 1, count = 0;
+    p = compile("m(x[3], a[1]) { m = hfA_NoiseP(x); }", &D);
+    q = compile("m(x[3], a[1], s[1]) { array y[3];\n y = [x[1], x[2], x[3]];\n"
+                " s[1] = hfA_NoiseP(y);\n m = hfA_NoiseP(y); }", &D);
+    if (!p || !q) {
+        ok(0, "hfA_NoiseP compiles");
+        frep_program_free(p);
+        frep_program_free(q);
+        return;
+    }
+    for (i = 0; i < 4; i++) {
+        const double *l = lattice[i];
+        double g[3], len = 0, h = 1e-7, slope[3];
+        int d;
+        is_double(eval1(p, l[0], l[1], l[2]), 0, 0, "hfA_NoiseP: 0 at a lattice point");
+        /* the slope at a lattice point is its gradient: the documented hash, normalised */
+        for (d = 0; d < 3; d++) {
+            g[d] = perlin_hash_component(l[0], l[1], l[2], d);
+            len += g[d] * g[d];
+        }
+        for (d = 0; d < 3; d++) {
+            double e[3] = { l[0], l[1], l[2] };
+            e[d] += h;
+            slope[d] = eval1(p, e[0], e[1], e[2]) / h;
+        }
+        for (d = 0; d < 3; d++)
+            is_double(slope[d], g[d] / sqrt(len), 1e-5, "hfA_NoiseP: the hashed gradient");
+    }
+    /* over a 20^3 grid of [-5, 5]^3 (off the lattice): within [-1, 1], mean ~0, not
+     * flat, continuous (a step of 1e-6 moves it by less than 1e-4), the same in
+     * another model, and s[] gets the same value */
+    for (i = 0; i < 8000; i++) {
+        double x = -5 + 10 * ((i % 20) + 0.37) / 20, y = -5 + 10 * ((i / 20 % 20) + 0.61) / 20;
+        double z = -5 + 10 * ((i / 400) + 0.23) / 20, v = eval1(p, x, y, z);
+        double w = eval1(p, x + 1e-6, y, z);
+        if (fabs(w - v) > worst_jump) worst_jump = fabs(w - v);
+        if (v != eval1(q, x, y, z)) same = 0;
+        lo = v < lo ? v : lo;
+        hi = v > hi ? v : hi;
+        sum += v;
+        sum2 += v * v;
+        count++;
+    }
+    ok(lo > -1 && hi < 1 && lo < -0.3 && hi > 0.3, "hfA_NoiseP within [-1, 1], spread: [%.3f, %.3f]", lo, hi);
+    ok(fabs(sum / count) < 0.02 && sqrt(sum2 / count) > 0.1, "hfA_NoiseP: mean %.4f, rms %.3f",
+       sum / count, sqrt(sum2 / count));
+    ok(worst_jump < 1e-4, "hfA_NoiseP continuous: largest change %.2g over 1e-6", worst_jump);
+    ok(same, "hfA_NoiseP: the same in another model");
+    {
+        double s[1] = { 0 }, t[1] = { 0.3 };
+        if (attrs_at(q, 1, t, s) == 0) is_double(s[0], eval1(p, 0.3, 0, 0), 0, "hfA_NoiseP into s[]");
+    }
+    frep_program_free(p);
+    frep_program_free(q);
+
+    /* hfA_Turbulence(x, 4) = |2n(4x) - 1|/4 + |2n(2x) - 1|/2 + |2n(x) - 1| */
+    p = compile("m(x[3], a[1]) { array p[3], q[3];\n p = [4*x[1], 4*x[2], 4*x[3]];\n"
+                " q = [2*x[1], 2*x[2], 2*x[3]];\n"
+                " m = hfA_Turbulence(x, 4) - (abs(2*hfA_NoiseP(p) - 1)/4 + "
+                "abs(2*hfA_NoiseP(q) - 1)/2 + abs(2*hfA_NoiseP(x) - 1)); }", &D);
+    q = compile("m(x[3], a[1]) { m = hfA_Turbulence(x, 4); }", &D);
+    if (p && q) {
+        double worst = 0, least = 1e9;
+        for (i = 0; i < 200; i++) {
+            double x = sin(i * 1.3) * 3, y = cos(i * 0.7) * 3, z = i * 0.031 - 3;
+            double d = fabs(eval1(p, x, y, z)), t = eval1(q, x, y, z);
+            worst = d > worst ? d : worst;
+            least = t < least ? t : least;
+        }
+        ok(worst < 1e-12, "hfA_Turbulence: the sum of its octaves (largest difference %.2g)", worst);
+        ok(least > 0, "hfA_Turbulence > 0 (least %.3f)", least);
+    } else
+        ok(0, "hfA_Turbulence compiles");
+    frep_program_free(p);
+    frep_program_free(q);
+    p = compile("m(x[3], a[1]) { m = hfA_Turbulence(x, 0.9); }", &D);
+    if (p) is_double(eval1(p, 0.3, 0.2, 0.1), 0, 0, "hfA_Turbulence: no octave below freq 1");
+    frep_program_free(p);
+    expect_error("m(x[3], a[1]) { m = hfA_Turbulence(x, x[1]); }",
+                 "the frequency freq must be a constant", 1, 21, "hfA_Turbulence: freq constant");
+    expect_error("m(x[3], a[1]) { m = hfA_Turbulence(x, 1e10); }",
+                 "more than 32 terms", 1, 21, "hfA_Turbulence: FREP_TURBULENCE_MAX_TERMS");
+    expect_error("m(x[3], a[1], s[2]) { m = hfA_NoiseP(s); }",
+                 "must have at least 3 elements", 1, 38, "hfA_NoiseP: a point of 3 coordinates");
+}
+
 /* Behaviour of the reference HyperFun interpreter (src/interpreter_lib of HyperFun:
  * int_calc.c, int_parse_N.c, int_global.c; src/hflibrary_lib for hfSawtooth and
  * hfA_*); every expected value is worked out by hand from that source. */
@@ -780,10 +883,7 @@ static void test_hyperfun(void)
     frep_program_free(p);
     expect_error("m(x[3], a[1]) { m = hfSawtooth(x[1], x[2], 1, 1); }",
                  "the number of terms n must be a constant", 1, 21, "hfSawtooth: n constant");
-    expect_error("m(x[3], a[1], s[3]) { m = hfA_NoiseP(s); }",
-                 "not implemented in frep", 1, 27, "hfA_NoiseP: known, not implemented");
-    expect_error("m(x[3], a[1], s[3]) { m = hfA_Turbulence(s, 4); }",
-                 "seeded with the time", 1, 27, "hfA_Turbulence: says why");
+    test_perlin();
     test_hyperfun_tables();
 }
 
