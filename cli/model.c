@@ -162,8 +162,15 @@ static int check_surface(mesh_cli *c, const char *sub, frep_mesh *m, const mesh_
 
 int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *st)
 {
+    /* Ctrl-C also stops the model's loops inside a block of points (the pruned copies
+     * of mesh_field_program share the flag) */
+    if (frep_program_set_cancel(c->p, cli_sigint_catch()) != 0) {
+        fprintf(stderr, "frep %s: out of memory\n", sub);
+        return CLI_FAIL;
+    }
     mesh_field f;
     if (mesh_field_program(&f, c->p, NULL) != 0) {
+        frep_program_set_cancel(c->p, NULL);
         fprintf(stderr, "frep %s: out of memory\n", sub);
         return CLI_FAIL;
     }
@@ -188,10 +195,12 @@ int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *
     mesh_field_program_errors(&f, &re);
     mesh_cli_add_errors(c, &re);
     mesh_field_program_free(&f);
-    mesh_cli_report_errors(c);
+    frep_program_set_cancel(c->p, NULL);
     if (tty && last >= 0) fputs("\r                     \r", stderr);
+    /* interrupted: the points a loop was stopped at are no errors of the model */
     if (rc != 0 && err.code == FREP_ECANCEL)
         return cli_interrupt_status(sub, "stopped while meshing, nothing written");
+    mesh_cli_report_errors(c);
     if (frep_program_work_spent(c->p)) {
         if (rc == 0) mesh_free(m);
         return cli_work_check(sub, c->path, c->p);

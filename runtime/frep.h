@@ -21,6 +21,7 @@
 #ifndef FREP_H
 #define FREP_H
 
+#include <signal.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -159,6 +160,13 @@ uint64_t frep_program_work_limit(const frep_program *p);
 uint64_t frep_program_work_used(const frep_program *p);
 /* 1 when the evaluations so far went over the budget (their results are NaN), else 0. */
 int frep_program_work_spent(const frep_program *p);
+/* A cancel flag (Ctrl-C, another thread): once *flag is non-zero, evaluations of p (its
+ * attribute programs and the copies a mesher prunes from it included) stop their loops
+ * within a few thousand iterations, giving NaN with the runtime error "loop stopped:
+ * evaluation cancelled"; programs without loops evaluate as usual.  The caller checks
+ * its flag and drops such results.  NULL: none (the default).  Returns 0, or -1 out of
+ * memory.  Not while p is being evaluated. */
+int frep_program_set_cancel(frep_program *p, volatile sig_atomic_t *flag);
 
 /* Write the disassembly to a malloc'ed string; frep_free() it. */
 char *frep_disassemble(const frep_program *p);

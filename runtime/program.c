@@ -12,6 +12,7 @@
 
 #include "alloc.h"
 #include "buf.h"
+#include "cancel.h"
 #include "program.h"
 
 /* ---- the opcode table, expanded -------------------------------------------- */
@@ -241,23 +242,27 @@ int prog_work_spent(const frep_work *w)
     return w && atomic_load_explicit(&w->used, memory_order_relaxed) > w->limit;
 }
 
-int frep_program_set_work_limit(frep_program *p, uint64_t limit)
+int prog_work_stop(const frep_work *w)
+{
+    return w && (prog_work_spent(w) || frep_cancelled(w->cancel));
+}
+
+/* The limit of a work record that only carries a cancel flag: never spent. */
+#define PROG_NO_LIMIT UINT64_MAX
+
+/* p's own work record (made when p has none), shared with its attribute programs;
+ * NULL out of memory. */
+static frep_work *work_own(frep_program *p)
 {
     uint32_t i;
-    if (!p) return -1;
-    if (limit == 0) {
-        if (p->owns_work) frep_free(p->work);
-        p->work = NULL;
-        p->owns_work = 0;
-    } else {
-        if (!p->owns_work) {
-            frep_work *w = frep_malloc(sizeof *w);
-            if (!w) return -1;
-            p->work = w;
-            p->owns_work = 1;
-        }
-        p->work->limit = limit;
-        atomic_init(&p->work->used, 0);
+    if (!p->owns_work) {
+        frep_work *w = frep_malloc(sizeof *w);
+        if (!w) return NULL;
+        w->limit = PROG_NO_LIMIT;
+        atomic_init(&w->used, 0);
+        w->cancel = NULL;
+        p->work = w;
+        p->owns_work = 1;
     }
     for (i = 0; i < p->nattrs && p->attrs; i++) {
         frep_program *a = p->attrs[i];
@@ -265,12 +270,46 @@ int frep_program_set_work_limit(frep_program *p, uint64_t limit)
         a->work = p->work;
         a->owns_work = 0;
     }
+    return p->work;
+}
+
+/* Drop p's work record when it neither limits nor cancels anything. */
+static void work_drop_if_idle(frep_program *p)
+{
+    uint32_t i;
+    if (!p->owns_work || p->work->limit != PROG_NO_LIMIT || p->work->cancel) return;
+    frep_free(p->work);
+    p->work = NULL;
+    p->owns_work = 0;
+    for (i = 0; i < p->nattrs && p->attrs; i++) p->attrs[i]->work = NULL;
+}
+
+int frep_program_set_work_limit(frep_program *p, uint64_t limit)
+{
+    frep_work *w;
+    if (!p) return -1;
+    if (limit == 0 && !p->owns_work) return 0;
+    if (!(w = work_own(p))) return -1;
+    w->limit = limit ? limit : PROG_NO_LIMIT;
+    atomic_store_explicit(&w->used, 0, memory_order_relaxed);
+    work_drop_if_idle(p);
+    return 0;
+}
+
+int frep_program_set_cancel(frep_program *p, volatile sig_atomic_t *flag)
+{
+    frep_work *w;
+    if (!p) return -1;
+    if (!flag && !p->owns_work) return 0;
+    if (!(w = work_own(p))) return -1;
+    w->cancel = flag;
+    work_drop_if_idle(p);
     return 0;
 }
 
 uint64_t frep_program_work_limit(const frep_program *p)
 {
-    return p && p->work ? p->work->limit : 0;
+    return p && p->work && p->work->limit != PROG_NO_LIMIT ? p->work->limit : 0;
 }
 
 uint64_t frep_program_work_used(const frep_program *p)

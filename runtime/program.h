@@ -14,6 +14,7 @@
 
 #include <stdatomic.h>
 #include <stddef.h>
+#include <signal.h>
 #include <stdint.h>
 
 #include "frep.h"
@@ -66,6 +67,8 @@ typedef struct frep_param_info {
 typedef struct frep_work {
     uint64_t limit;            /* iterations allowed; the budget is spent once used > limit */
     _Atomic uint64_t used;
+    volatile sig_atomic_t *cancel; /* non-NULL and set: loops stop as if spent
+                                      (frep_program_set_cancel) */
 } frep_work;
 
 #define PROG_HAS_BRANCHES 0x01u  /* code contains JMP/JZ */
@@ -105,6 +108,8 @@ struct frep_program {
 
 /* Is w spent (used > limit)?  w may be NULL (no budget). */
 int prog_work_spent(const frep_work *w);
+/* Must loops stop: w spent or its cancel flag set? */
+int prog_work_stop(const frep_work *w);
 
 /* Allocation helpers shared by the compiler and the GP engine. */
 frep_program *prog_new(void);

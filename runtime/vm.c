@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "alloc.h"
+#include "cancel.h"
 #include "opsem.h"
 #include "vm_internal.h"
 
@@ -253,7 +254,8 @@ void vm_runaway(vm_scratch *s, const vm_inputs *in, uint32_t pc, size_t n, doubl
         out[i] = NAN;
         vm_err_lane(s, pc, i, in);
     }
-    if (s->work_over && s->blk.pc == pc) s->blk.what = VM_WORK_WHAT;
+    if (s->work_over && s->blk.pc == pc)
+        s->blk.what = s->work_over == 2 ? VM_CANCEL_WHAT : VM_WORK_WHAT;
     s->work_over = 0;
     vm_err_commit(s, n);
 }
@@ -266,8 +268,9 @@ int vm_work_flush(vm_scratch *s, frep_work *w)
     s->work_pending = 0;
     if (!w) return 0;
     if (add) atomic_fetch_add_explicit(&w->used, add, memory_order_relaxed);
-    if (!prog_work_spent(w)) return 0;
-    s->work_over = 1;
+    if (prog_work_spent(w)) s->work_over = 1;
+    else if (frep_cancelled(w->cancel)) s->work_over = 2;
+    else return 0;
     return 1;
 }
 
@@ -279,7 +282,7 @@ void vm_work_refuse(const frep_program *p, vm_scratch *s, const vm_inputs *in, s
     if (pc == p->ncode) pc = 0;
     s->cur = p;
     vm_err_begin(s, n);
-    s->work_over = 1;
+    s->work_over = prog_work_spent(p->work) ? 1 : 2;
     vm_runaway(s, in, pc, n, out);
 }
 
@@ -681,7 +684,7 @@ int vm_eval_block(const frep_program *p, vm_scratch *s, const vm_inputs *in, siz
     if (n == 0) return 0;
     if (n > FREP_BLOCK || vm_scratch_fit(s, p) < 0) return -1;
     if ((p->flags & PROG_HAS_PRIMS) && !in->prim_v) return -1;
-    if (p->work && (p->flags & PROG_HAS_BRANCHES) && prog_work_spent(p->work)) {
+    if (p->work && (p->flags & PROG_HAS_BRANCHES) && prog_work_stop(p->work)) {
         vm_work_refuse(p, s, in, n, out);
         return 0;
     }

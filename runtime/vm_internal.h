@@ -80,13 +80,16 @@ struct vm_scratch {
 
     /* The work budget (program.h): loop iterations counted by this scratch and not yet
      * added to the program's `used` (at most VM_WORK_BATCH - 1 between blocks: none),
-     * and whether the current run stopped because the budget is spent. */
+     * and why the current run stopped: 0 it did not, 1 the budget is spent, 2 the
+     * cancel flag is set. */
     uint64_t work_pending;
     int work_over;
 };
 
 /* The runtime error of evaluations past the budget (frep_runtime_error.what). */
 #define VM_WORK_WHAT "loop iterations over the work budget"
+/* ... and of evaluations stopped by the cancel flag (frep_program_set_cancel). */
+#define VM_CANCEL_WHAT "loop stopped: evaluation cancelled"
 
 /* Add the pending iterations to w (may be NULL); 1 when the budget is spent (and
  * s->work_over set), else 0. */

@@ -481,7 +481,7 @@ static int interval_body(const frep_program *p, vm_iscratch *s, const double box
                 if (p->work && s->loops % (VM_WORK_BATCH / VM_WORK_BOX) == 0) {
                     atomic_fetch_add_explicit(&p->work->used, VM_WORK_BATCH,
                                               memory_order_relaxed);
-                    IV_UNKNOWN_UNLESS(!prog_work_spent(p->work));
+                    IV_UNKNOWN_UNLESS(!prog_work_stop(p->work));
                 }
             }
             next = in->arg;
@@ -529,7 +529,7 @@ static int interval_body(const frep_program *p, vm_iscratch *s, const double box
 static int interval_run(const frep_program *p, vm_iscratch *s, const double box[6],
                         const double *params, ival *out, ival *trace)
 {
-    if (p->work && (p->flags & PROG_HAS_BRANCHES) && prog_work_spent(p->work)) {
+    if (p->work && (p->flags & PROG_HAS_BRANCHES) && prog_work_stop(p->work)) {
         *out = iv_entire();
         return 0;
     }

@@ -698,7 +698,7 @@ int vm_eval_block_tangent(const frep_program *p, vm_scratch *s, const vm_inputs 
     if ((p->flags & PROG_HAS_PRIMS) &&
         (!in->prim_v || (seed == VM_SEED_XYZ && !in->prim_g)))
         return -1;
-    if (p->work && (p->flags & PROG_HAS_BRANCHES) && prog_work_spent(p->work)) {
+    if (p->work && (p->flags & PROG_HAS_BRANCHES) && prog_work_stop(p->work)) {
         for (i = 0; i < (size_t)T * n; i++) dout[i] = NAN;
         vm_work_refuse(p, s, in, n, out);
         return 0;

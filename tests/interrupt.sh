@@ -377,6 +377,21 @@ fs=$?
 [ $fs = 2 ] && grep -q 'max-work' "$tmp/err"
 report $? "--max-work 0 is refused as a usage error (exit $fs)"
 
+# Ctrl-C inside the model's loops: a block of 256 points of this loop (its bound a
+# parameter, so it is never unrolled) is seconds of work; the loop itself sees the flag
+# (frep_program_set_cancel), not only the blocks (it took 1.5 s before).
+printf '%s\n' 'my_model(x[3], a[1])' '{' '  i = 0;' '  s = 0;' '  while i < 1000000 * a[1] loop' \
+    '    s = s + sin(i * x[1]) * cos(i * x[2]) + sin(i * x[3]) * cos(s) + exp(-i) * sin(s);' \
+    '    i = i + 1;' '  endloop;' '  my_model = a[1] - sqrt(x[1]*x[1] + x[2]*x[2] + x[3]*x[3]) + 0 * s;' \
+    '}' >"$tmp/loopc.hf"
+echo 'kept' >"$tmp/loopc.stl"
+start "$FREP" mesh "$tmp/loopc.hf" -a 1 --max-work 1e15 -o "$tmp/loopc.stl"
+wait_cpu 1
+stop INT
+[ $alive = 1 ] && [ $st = 130 ] && fast && [ "$(cat "$tmp/loopc.stl")" = kept ] && no_tmp &&
+    grep -q 'stopped while meshing, nothing written' "$tmp/err" && ! grep -q 'loop' "$tmp/err"
+report $? "mesh: Ctrl-C inside a model's loop: exit $st after $lat, the old file kept, no loop error reported"
+
 # ---- scale -------------------------------------------------------------------------------
 awk 'BEGIN { for (i = 0; i < 2000; i++) printf "%.17g %.17g %.17g 0 0 1\n", (i % 45) * 1e300, int(i / 45) * 1e300, 0 }' >"$tmp/huge.xyz"
 "$FREP" segment "$tmp/huge.xyz" --seed 1 -q 2>"$tmp/ferr"

@@ -1149,6 +1149,56 @@ static void test_work_budget(void)
     frep_program_free(p);
 }
 
+/* ---- the cancel flag (frep_program_set_cancel) ------------------------------------ */
+
+static void test_cancel_flag(void)
+{
+    enum { N = 3000 };
+    static double x[N], y[N], z[N], f[N];
+    volatile sig_atomic_t flag = 0;
+    frep_runtime_error e;
+    uint32_t jmp;
+    size_t i, nans = 0;
+    frep_program *p = count_program(0, 0, &jmp);
+    if (!p) return;
+    for (i = 0; i < N; i++) x[i] = 3, y[i] = urand(-1, 1), z[i] = 0;
+    ok(frep_program_set_cancel(p, &flag) == 0 && frep_program_work_limit(p) == 0,
+       "a cancel flag alone sets no work budget");
+    ok(frep_eval_par(p, N, x, y, z, NULL, f, 2, &e) == 0 && e.count == 0 && f[N - 1] == 3 + y[N - 1],
+       "flag clear: the loop runs, the values are right");
+    flag = 1;
+    frep_eval_par(p, N, x, y, z, NULL, f, 2, &e);
+    for (i = 0; i < N; i++) nans += isnan(f[i]) != 0;
+    ok(nans == N && e.count == N && e.pc == jmp && e.what && strstr(e.what, "cancelled") &&
+           !frep_program_work_spent(p),
+       "flag set: every point NaN with '%s' at the loop's jump, the budget not spent",
+       e.what ? e.what : "");
+    frep_program_set_work_limit(p, 0);
+    frep_eval_par(p, 1, x, y, z, NULL, f, 1, &e);
+    ok(isnan(f[0]), "removing the budget keeps the flag");
+    ok(frep_program_set_work_limit(p, 10ull * N) == 0 && frep_program_set_cancel(p, NULL) == 0 &&
+           frep_eval_par(p, N, x, y, z, NULL, f, 1, &e) == 0 && e.count == 0 &&
+           frep_program_work_limit(p) == 10ull * N && frep_program_work_used(p) == 3ull * N,
+       "without the flag the budget still counts, and the program evaluates");
+    frep_program_free(p);
+
+    p = count_program(1, 1000, &jmp);
+    vm_iscratch *is = vm_iscratch_new(p);
+    double box[6] = { 0, 0, 0, 1, 1, 1 };
+    ival r;
+    frep_program_set_cancel(p, &flag);
+    vm_eval_interval(p, is, box, NULL, &r);
+    ok(isinf(r.lo) && isinf(r.hi), "flag set: interval evaluation gives [-inf, inf]");
+    vm_iscratch_free(is);
+    frep_program_free(p);
+
+    p = mixed_program();
+    frep_program_set_cancel(p, &flag);
+    ok(frep_eval_par(p, 100, x, y, z, NULL, f, 1, &e) == 0 && e.count == 0 && !isnan(f[0]),
+       "a program without loops evaluates with the flag set");
+    frep_program_free(p);
+}
+
 /* ---- sin and cos: opsem.h's own, against libm ---------------------------------- */
 
 /* |a - b| in ulps of b. */
@@ -1291,5 +1341,6 @@ int main(void)
     test_threads();
     test_public_api();
     test_work_budget();
+    test_cancel_flag();
     return done_testing();
 }
