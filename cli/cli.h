@@ -197,6 +197,9 @@ typedef struct cli_diag_ctx {
     frep_buf *copy;  /* may be NULL; else every message printed is appended here too */
 } cli_diag_ctx;
 void cli_print_diag(void *user, const frep_diag *d);
+/* A library message without a source position, in the commands' own style: "frep SUB:
+ * MESSAGE" for an error, "frep SUB: warning: MESSAGE", "frep SUB: note: MESSAGE". */
+void cli_library_diag(const char *sub, const frep_diag *d);
 void cli_diag_done(cli_diag_ctx *c);
 
 /* Compile FILE (reading it) with the common options (setops: -1 or a frep_setops value;

@@ -258,7 +258,7 @@ static void warn_lookalike_annotations(const char *path, const char *src)
 }
 
 /* The library's messages: the compiler's with their source line; the fit's as
- * "frep fit: warning: ..." (notes and warnings dropped by -q). */
+ * "frep fit: ..." (notes and warnings dropped by -q). */
 static void fit_diag(void *user, const frep_diag *d)
 {
     fit_cmd *f = user;
@@ -267,10 +267,7 @@ static void fit_diag(void *user, const frep_diag *d)
         return;
     }
     if (f->quiet && d->severity != FREP_ERROR) return;
-    char *s = frep_diag_format(d, NULL, 0);
-    fprintf(stderr, "frep fit: %s", s ? s : d->message);
-    if (!s) fputc('\n', stderr);
-    frep_free(s);
+    cli_library_diag("fit", d);
 }
 
 /* The template read, the cloud read, --bounds parsed. */

@@ -105,8 +105,12 @@ static int stage_options(render_cmd *c, int argc, char **argv)
 static void render_diag(void *user, const frep_diag *d)
 {
     (void)user;
+    if (d->file == NULL) {
+        cli_library_diag("render", d);
+        return;
+    }
     char *s = frep_diag_format(d, NULL, 0);
-    fprintf(stderr, "%s%s", d->file ? "" : "frep render: ", s ? s : d->message);
+    fprintf(stderr, "%s", s ? s : d->message);
     if (!s) fputc('\n', stderr);
     frep_free(s);
 }

@@ -66,6 +66,14 @@ char *cli_read_file(const char *path, size_t *len)
 
 #define CLI_MAX_SEEN_DIAGS 4096 /* remembered for de-duplication; later ones just print */
 
+void cli_library_diag(const char *sub, const frep_diag *d)
+{
+    const char *kind = d->severity == FREP_WARNING ? "warning: "
+                       : d->severity == FREP_NOTE  ? "note: "
+                                                   : "";
+    fprintf(stderr, "frep %s: %s%s\n", sub, kind, d->message);
+}
+
 void cli_print_diag(void *user, const frep_diag *d)
 {
     cli_diag_ctx *c = user;

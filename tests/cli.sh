@@ -223,6 +223,18 @@ report $? "frep mesh -g 4,4,8: a closed cube, cells of 0.5 along x and y and 0.2
 report $? "frep mesh -g 4,4,4 is -g 4; -g 4,4,8 differs"
 usage "frep mesh: -g 4,4: expected N or NX,NY,NZ with each in 1..2048" mesh "$M" -g 4,4 -o "$tmp/x.stl"
 
+# A data file that cannot be read: "frep SUB: cannot read FILE: reason", exit 1, the
+# same style whether the command reads it itself or through the library (fit, render).
+for c in "fit $M $tmp/none.xyz -o $tmp/none.hf" "render $M --points $tmp/none.xyz -o $tmp/none.png" \
+         "segment $tmp/none.xyz" "normals $tmp/none.xyz -o $tmp/none.ply"; do
+    sub=${c%% *}
+    # shellcheck disable=SC2086
+    "$FREP" $c >/dev/null 2>"$tmp/err"
+    st=$?
+    [ $st = 1 ] && [ "$(head -n 1 "$tmp/err")" = "frep $sub: cannot read $tmp/none.xyz: No such file or directory" ]
+    report $? "frep $sub with a missing cloud: exit $st, '$(head -n 1 "$tmp/err")'"
+done
+
 # The man page: made by make from the help texts, every subcommand and option in it.
 man="$builddir/doc/frep.1"
 [ -s "$man" ] && head -n 1 "$man" | grep -q '^\.TH FREP 1 '
