@@ -10,6 +10,7 @@
 #include "meshio.h"
 #include "trimesh.h"
 
+#include <math.h>
 #include <string.h>
 
 #include "alloc.h"
@@ -227,4 +228,97 @@ int frep_mesh_check(const frep_mesh *m, int self_intersections, frep_mesh_check_
     r->volume = c.volume;
     r->area = c.area;
     return 0;
+}
+
+/* ---- the model's colours at the vertices ---- */
+
+/* A colour channel from an attribute: [0,1] -> 0..255, clamped; NaN (a domain error)
+ * is 0. */
+static uint8_t channel(double v)
+{
+    if (!(v > 0)) return 0;
+    if (v >= 1) return 255;
+    return (uint8_t)(v * 255 + 0.5);
+}
+
+/* Where the colours are evaluated: the surface point near the vertex (one Newton step
+ * along the gradient: a vertex may be a tenth of a cell off a curved surface), then
+ * this fraction of the cell inside it.  hfA_SetColor's "where f >= 0" fails at about
+ * half of the points exactly on the surface (f = 0 to rounding); a thousandth of a cell
+ * moves a colour by far less than 1/255 for any colour that changes by less than its
+ * full range over a cell. */
+#define MESH_COLOR_INSET 1e-3
+/* A Newton step longer than this many cells (a flat spot of f) is not taken. */
+#define MESH_COLOR_MAX_STEP 1.0
+
+/* Keep the first error (lowest pc) of two evaluations, counting both. */
+static void add_errors(frep_runtime_error *into, const frep_runtime_error *e)
+{
+    if (e->count == 0) return;
+    uint64_t n = into->count;
+    if (n == 0 || e->pc < into->pc) *into = *e;
+    into->count = n + e->count;
+}
+
+/* The points the colours are evaluated at, into xyz (3 n: all x, all y, all z), from
+ * f and its gradient at the vertices of m (g: 4 n scratch). */
+static int color_points(const frep_program *p, const frep_mesh *m, double cell, double iso,
+                        const double *params, int nthreads, double *xyz, double *g,
+                        frep_runtime_error *re)
+{
+    size_t n = m->nverts;
+    for (size_t i = 0; i < n; i++)
+        for (int q = 0; q < 3; q++) xyz[q * n + i] = m->v[3 * i + q];
+    frep_runtime_error e;
+    memset(&e, 0, sizeof e);
+    if (frep_eval_grad_par(p, n, xyz, xyz + n, xyz + 2 * n, params, g, g + n, g + 2 * n,
+                           g + 3 * n, nthreads, &e) != 0)
+        return -1;
+    add_errors(re, &e);
+    for (size_t i = 0; i < n; i++) {
+        double d[3] = { g[n + i], g[2 * n + i], g[3 * n + i] };
+        double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = sqrt(len2);
+        if (!(len > 0) || !isfinite(len2) || !isfinite(g[i])) continue;
+        double t = (iso - g[i]) / len; /* signed distance to f = iso, along d/len */
+        if (!(fabs(t) <= MESH_COLOR_MAX_STEP * cell)) t = 0;
+        t += MESH_COLOR_INSET * cell;  /* inside: f grows along the gradient */
+        for (int q = 0; q < 3; q++) xyz[q * n + i] += t * d[q] / len;
+    }
+    return 0;
+}
+
+int frep_mesh_colors(const frep_program *p, const frep_mesh *m, double cell, double iso,
+                     const double *params, int nthreads, uint8_t **rgb, frep_runtime_error *re)
+{
+    frep_runtime_error all;
+    size_t k = frep_program_nattrs(p), n = m->nverts;
+    memset(&all, 0, sizeof all);
+    *rgb = NULL;
+    if (re) *re = all;
+    if (k < 3 || n == 0) return 0;
+    double *xyz = frep_calloc(n, 3 * sizeof *xyz), *s = frep_calloc(n, k * sizeof *s);
+    double *g = frep_calloc(n, 4 * sizeof *g);
+    uint8_t *out = frep_calloc(n, 3);
+    int rc = xyz && s && g && out &&
+                     color_points(p, m, cell, iso, params, nthreads, xyz, g, &all) == 0
+                 ? 0
+                 : -1;
+    if (rc == 0) {
+        frep_runtime_error e;
+        memset(&e, 0, sizeof e);
+        if (frep_eval_attrs_par(p, n, xyz, xyz + n, xyz + 2 * n, params, s, nthreads, &e) != 0)
+            rc = -1;
+        add_errors(&all, &e);
+    }
+    if (rc == 0) {
+        for (size_t i = 0; i < n; i++)
+            for (int q = 0; q < 3; q++) out[3 * i + q] = channel(s[i * k + q]);
+        *rgb = out;
+    } else
+        frep_free(out);
+    frep_free(xyz);
+    frep_free(g);
+    frep_free(s);
+    if (re) *re = all;
+    return rc;
 }

@@ -282,84 +282,20 @@ void cli_cloud_dist_free(cli_cloud_dist *d)
     memset(d, 0, sizeof *d);
 }
 
-/* A colour channel from an attribute: [0,1] -> 0..255, clamped; NaN (a domain error,
- * reported as a warning) is 0. */
-static uint8_t channel(double v)
+int mesh_cli_vertex_colors(mesh_cli *mc, const char *sub, const frep_mesh *m, uint8_t **rgb)
 {
-    if (!(v > 0)) return 0;
-    if (v >= 1) return 255;
-    return (uint8_t)(v * 255 + 0.5);
-}
-
-/* Where the model's colours are evaluated: the surface point near the vertex (one
- * Newton step along the gradient: a vertex may be a tenth of a cell off a curved
- * surface), then this fraction of the smallest cell inside it.  hfA_SetColor's "where
- * f >= 0" fails at about half of the points exactly on the surface (f = 0 to
- * rounding); a thousandth of a cell moves a colour by far less than 1/255 for any
- * colour that changes by less than its full range over a cell. */
-#define MESH_COLOR_INSET 1e-3
-/* A Newton step longer than this many cells (a flat spot of f) is not taken. */
-#define MESH_COLOR_MAX_STEP 1.0
-
-/* The points the colours are evaluated at (MESH_COLOR_INSET), into xyz (3 n: all x,
- * all y, all z), from f and its gradient at the vertices of m (g: 4 n scratch). */
-static int color_points(mesh_cli *mc, const frep_mesh *m, double *xyz, double *g)
-{
-    size_t n = m->nverts;
     double cell = HUGE_VAL;
     for (int q = 0; q < 3; q++) {
         int gr = mc->grid_axes[q] ? mc->grid_axes[q] : mc->grid;
         double h = (mc->box[q + 3] - mc->box[q]) / gr;
         cell = h < cell ? h : cell;
     }
-    for (size_t i = 0; i < n; i++)
-        for (int q = 0; q < 3; q++) xyz[q * n + i] = m->v[3 * i + q];
     frep_runtime_error re;
     memset(&re, 0, sizeof re);
-    if (frep_eval_grad_par(mc->p, n, xyz, xyz + n, xyz + 2 * n, NULL, g, g + n, g + 2 * n,
-                           g + 3 * n, mc->nthreads, &re) != 0)
-        return -1;
+    int rc = frep_mesh_colors(mc->p, m, cell, mc->iso, NULL, mc->nthreads, rgb, &re);
     mesh_cli_add_errors(mc, &re);
-    for (size_t i = 0; i < n; i++) {
-        double d[3] = { g[n + i], g[2 * n + i], g[3 * n + i] };
-        double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = sqrt(len2);
-        if (!(len > 0) || !isfinite(len2) || !isfinite(g[i])) continue;
-        double t = (mc->iso - g[i]) / len; /* signed distance to f = iso, along d/len */
-        if (!(fabs(t) <= MESH_COLOR_MAX_STEP * cell)) t = 0;
-        t += MESH_COLOR_INSET * cell;          /* inside: f grows along the gradient */
-        for (int q = 0; q < 3; q++) xyz[q * n + i] += t * d[q] / len;
-    }
-    return 0;
-}
-
-int mesh_cli_vertex_colors(mesh_cli *mc, const char *sub, const frep_mesh *m, uint8_t **rgb)
-{
-    const frep_program *p = mc->p;
-    size_t k = frep_program_nattrs(p), n = m->nverts;
-    *rgb = NULL;
-    if (k < 3) return CLI_OK;
-    double *xyz = frep_calloc(n, 3 * sizeof *xyz), *s = frep_calloc(n, k * sizeof *s);
-    double *g = frep_calloc(n, 4 * sizeof *g);
-    uint8_t *out = frep_calloc(n, 3);
-    int rc = xyz && s && g && out && color_points(mc, m, xyz, g) == 0 ? CLI_OK : CLI_FAIL;
-    if (rc == CLI_OK) {
-        frep_runtime_error re;
-        memset(&re, 0, sizeof re);
-        if (frep_eval_attrs_par(p, n, xyz, xyz + n, xyz + 2 * n, NULL, s, mc->nthreads, &re) != 0)
-            rc = CLI_FAIL;
-        mesh_cli_add_errors(mc, &re);
-        mesh_cli_report_errors(mc);
-    }
-    if (rc == CLI_OK) {
-        for (size_t i = 0; i < n; i++)
-            for (int q = 0; q < 3; q++) out[3 * i + q] = channel(s[i * k + q]);
-        *rgb = out;
-    } else {
-        fprintf(stderr, "frep %s: out of memory colouring the mesh\n", sub);
-        frep_free(out);
-    }
-    frep_free(xyz);
-    frep_free(g);
-    frep_free(s);
-    return rc;
+    mesh_cli_report_errors(mc);
+    if (rc == 0) return CLI_OK;
+    fprintf(stderr, "frep %s: out of memory colouring the mesh\n", sub);
+    return CLI_FAIL;
 }

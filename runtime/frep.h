@@ -332,6 +332,17 @@ typedef struct frep_mesh_info {
 frep_mesh *frep_polygonize(const frep_program *p, const frep_mesh_options *o,
                            frep_mesh_info *info, frep_diag_fn diag, void *user);
 
+/* The model's colours at the vertices of m, as `frep mesh` writes them into PLY and
+ * `frep render` draws them: s[1..3] of p (hfA_SetColor, ...) evaluated just inside the
+ * surface near each vertex (one Newton step onto f = iso, at most a cell long, then a
+ * thousandth of a cell inward), each clamped to [0, 1] and scaled to 0..255.  cell: the
+ * mesh's smallest cell side.  On success returns 0 and sets *rgb to 3 bytes a vertex
+ * (frep_free() it), or to NULL when p has fewer than 3 attributes (no colours); -1 out
+ * of memory.  The evaluation's runtime errors go to *re (may be NULL; NaN colours
+ * channel 0). */
+int frep_mesh_colors(const frep_program *p, const frep_mesh *m, double cell, double iso,
+                     const double *params, int nthreads, uint8_t **rgb, frep_runtime_error *re);
+
 /* A mesh copied from nverts vertices v[3 * nverts], normals n (NULL: none) and ntris
  * triangles tri[3 * ntris] (0-based vertex indices, checked). */
 frep_mesh *frep_mesh_new(size_t nverts, const double *v, const double *n, size_t ntris,

@@ -270,6 +270,50 @@ static void test_mesh(void)
     frep_program_free(p);
 }
 
+/* The model's colours at the vertices (frep_mesh_colors): tests/models/color_sphere.hf's
+ * formulas, red (x+1)/2, green y^2, blue 1.5 z clamped to [0, 1], at each vertex (the
+ * vertices are within a fraction of a cell of the surface, where the colours change by
+ * a few 1/255 at most); a model without colours gives none. */
+static void test_mesh_colors(void)
+{
+    seen s = { 0 };
+    frep_program *p = compile("m(x[3], a[1], s[3]) {\n  f = 0.64 - x[1]*x[1] - x[2]*x[2] - x[3]*x[3];\n"
+                              "  d = hfA_SetColor(f, s, (x[1] + 1) / 2, x[2]*x[2], 1.5*x[3]);\n  m = f;\n}\n", &s);
+    frep_program *q = compile("m(x[3], a[1]) { m = 1 - x[1]*x[1] - x[2]*x[2] - x[3]*x[3]; }", &s);
+    if (!p || !q) return;
+    frep_mesh_options o;
+    frep_mesh_options_init(&o);
+    o.has_box = 1;
+    for (int i = 0; i < 3; i++) o.box[i] = -1, o.box[i + 3] = 1;
+    o.grid = 32;
+    frep_mesh *m = frep_polygonize(p, &o, NULL, collect, &s);
+    uint8_t *rgb = (uint8_t *)1;
+    frep_runtime_error re;
+    int worst = 0;
+    ok(m && frep_mesh_colors(p, m, 2.0 / 32, 0, NULL, 2, &rgb, &re) == 0 && rgb && re.count == 0,
+       "frep_mesh_colors: colours for a model with s[1..3]");
+    for (size_t i = 0; m && rgb && i < frep_mesh_nverts(m); i++) {
+        const double *v = frep_mesh_vertices(m) + 3 * i;
+        double want[3] = { (v[0] + 1) / 2, v[1] * v[1], 1.5 * v[2] };
+        for (int k = 0; k < 3; k++) {
+            double w = want[k] < 0 ? 0 : want[k] > 1 ? 255 : want[k] * 255;
+            int d = abs((int)rgb[3 * i + k] - (int)lround(w));
+            worst = d > worst ? d : worst;
+        }
+    }
+    ok(m && rgb && worst <= 4, "... the model's formulas at the vertices (largest difference %d/255)",
+       worst);
+    frep_free(rgb);
+    frep_mesh_free(m);
+    m = frep_polygonize(q, &o, NULL, collect, &s);
+    rgb = (uint8_t *)1;
+    ok(m && frep_mesh_colors(q, m, 2.0 / 32, 0, NULL, 1, &rgb, NULL) == 0 && rgb == NULL,
+       "a model without colours: none, and no error");
+    frep_mesh_free(m);
+    frep_program_free(p);
+    frep_program_free(q);
+}
+
 /* Run the frep command; 0 when it exits 0. */
 static int run(const char *cmd)
 {
@@ -840,6 +884,7 @@ int main(void)
     test_interval();
     test_cloud();
     test_mesh();
+    test_mesh_colors();
     const char *frep = getenv("FREP"), *srcdir = getenv("srcdir");
     if (frep && srcdir) {
         test_same_as_command(frep, srcdir);

@@ -288,6 +288,8 @@ def _declare(lib):
         "frep_mesh_triangles": (ctypes.POINTER(ctypes.c_uint32), [P]),
         "frep_mesh_write": (I, [P, ctypes.c_char_p, I, I, _DIAG_FN, P]),
         "frep_mesh_check": (I, [P, I, ctypes.POINTER(_MeshCheck), _DIAG_FN, P]),
+        "frep_mesh_colors": (I, [P, P, D, D, P, I, ctypes.POINTER(ctypes.POINTER(ctypes.c_uint8)),
+                                 ctypes.POINTER(_RuntimeError)]),
         "frep_sample_options_init": (None, [ctypes.POINTER(_SampleOptions)]),
         "frep_sample": (P, [P, ctypes.POINTER(_SampleOptions), _DIAG_FN, P]),
         "frep_sample_mesh": (P, [P, ctypes.POINTER(_SampleOptions), _DIAG_FN, P]),
@@ -603,6 +605,26 @@ class Program:
         m.info = {k: getattr(info, k) for k, _ in _MeshInfo._fields_ if k != "box"}
         m.info["box"] = tuple(info.box)
         return m
+
+    def colors(self, mesh, cell, iso=0.0, params=None, threads=0):
+        """The model's colours (s[1..3], e.g. hfA_SetColor) at the vertices of mesh, as
+        frep mesh writes them into PLY: an (N, 3) uint8 array, or None when the model has
+        no colours.  cell: the mesh's cell side (the box side / grid)."""
+        lib = _L()
+        rgb = ctypes.POINTER(ctypes.c_uint8)()
+        err = _RuntimeError()
+        pv = self._params(params)
+        if lib.frep_mesh_colors(self._h, mesh._h, float(cell), float(iso), _ptr(pv),
+                                int(threads), ctypes.byref(rgb), ctypes.byref(err)) != 0:
+            raise FrepError("out of memory")
+        self._runtime(err)
+        if not rgb:
+            return None
+        try:
+            n = lib.frep_mesh_nverts(mesh._h)
+            return np.ctypeslib.as_array(rgb, shape=(n, 3)).copy()
+        finally:
+            lib.frep_free(rgb)
 
     def sample(self, n, seed=1, noise=0.0, noise_absolute=False, outliers=0.0, grid=None,
                box=None, iso=0.0, params=None, threads=0):

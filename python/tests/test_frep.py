@@ -326,3 +326,21 @@ def test_render_same_as_command(tmp_path):
         assert (tmp_path / "cli.png").read_bytes() == (tmp_path / "api.png").read_bytes()
     with pytest.raises(frep.FrepError):
         m.render(view="upside")
+
+
+def test_mesh_colors_same_as_command(tmp_path):
+    need_frep()
+    path = os.path.join(SRCDIR, "tests", "models", "color_sphere.hf")
+    cli = tmp_path / "cli.ply"
+    subprocess.run([FREP, "mesh", path, "-b", "1", "-g", "32", "--ascii", "-o", str(cli)],
+                   check=True, capture_output=True)
+    lines = cli.read_text().splitlines()
+    nv = int(next(ln for ln in lines if ln.startswith("element vertex")).split()[2])
+    start = lines.index("end_header") + 1
+    want = np.array([[int(v) for v in ln.split()[6:9]] for ln in lines[start:start + nv]])
+    model = frep.compile_file(path)
+    m = model.mesh(grid=32, box=1)
+    rgb = model.colors(m, cell=2 / 32)
+    assert rgb.shape == (nv, 3) and rgb.dtype == np.uint8
+    assert np.array_equal(rgb, want)
+    assert frep.compile(BALL).colors(frep.compile(BALL).mesh(grid=8, box=1.5), cell=3 / 8) is None
