@@ -5,8 +5,10 @@
  * Sits between cli/cmd_fit.c and fit/optim.c + fit/objective.c.
  */
 #include "alloc.h"
+#include "kdtree.h"
 #include "measure.h"
 #include "fit.h"
+#include "threads.h"
 #include "util.h"
 
 #include <math.h>
@@ -206,6 +208,9 @@ typedef struct fit_run_ctx {
     /* The robust refinement's (cfg.robust and a local phase; else NULL): geometric, all
      * points, Cauchy at the scale last set; rbuf holds 2n doubles for its residuals. */
     fit_objective *geo;
+    /* The same on the annealing's model (cfg.surrogate), when there is one and geo is
+     * made: the chains' bests are refined on it first (polish_chain). */
+    fit_objective *geo_s;
     double *rbuf;
     double diag;                /* the points' diagonal */
     fit_control ctl;            /* evaluations, time and interrupt of all phases */
@@ -303,10 +308,10 @@ static double median(double *v, size_t n)
  * deviations of the first-order distances (1.4826 x their median), at least
  * FIT_ROBUST_FLOOR of the diagonal. Returns it, or NaN when the distances cannot be
  * computed. */
-static double robust_scale(fit_run_ctx *R, const double *x)
+static double robust_scale(fit_run_ctx *R, fit_objective *o, const double *x)
 {
     size_t n = R->pts->n;
-    if (fit_objective_residuals(R->geo, x, R->rbuf) < 0) return NAN;
+    if (fit_objective_residuals(o, x, R->rbuf) < 0) return NAN;
     R->ctl.evals++;
     size_t k = 0;
     for (size_t i = 0; i < n; i++)
@@ -316,34 +321,130 @@ static double robust_scale(fit_run_ctx *R, const double *x)
     return fmax(FIT_CAUCHY_C * sigma, FIT_ROBUST_FLOOR * R->diag);
 }
 
-/* Robust refinement from x (cfg.robust): rounds of scale estimation and a local phase on
- * the geometric Cauchy objective, until the scale settles. *scale gets the last scale,
- * *fx the objective at x at that scale. x is left alone when the distances cannot be
- * computed there. */
-static fit_status robust_refine(fit_run_ctx *R, double *x, double *fx, double *scale,
-                                fit_status st)
+/* Robust refinement from x (cfg.robust) on o (R->geo, or R->geo_s on the annealing's
+ * model): rounds of scale estimation and a local phase on the geometric Cauchy
+ * objective, until the scale settles. *scale gets the last scale, *fx the objective at
+ * x at that scale. x is left alone when the distances cannot be computed there. */
+static fit_status robust_refine(fit_run_ctx *R, fit_objective *o, double *x, double *fx,
+                                double *scale, fit_status st)
 {
     double s = HUGE_VAL;
     for (int round = 0; round < FIT_ROBUST_ROUNDS; round++) {
         if (fit_control_stop(&R->ctl)) return FIT_STOPPED;
-        double ns = robust_scale(R, x);
+        double ns = robust_scale(R, o, x);
         if (!isfinite(ns)) break;
         int settled = fabs(ns - s) <= FIT_ROBUST_SETTLE * ns;
         s = ns;
         if (settled) break;
-        fit_objective_set_loss(R->geo, FIT_LOSS_CAUCHY, s);
+        fit_objective_set_loss(o, FIT_LOSS_CAUCHY, s);
         double y[FIT_MAX_PARAMS], fy = HUGE_VAL;
         memcpy(y, x, R->m * sizeof *y);
-        fit_status rs = local_phase(R, R->geo, y, &fy, 0, R->cfg->reweight_rounds);
+        fit_status rs = local_phase(R, o, y, &fy, 0, R->cfg->reweight_rounds);
         if (rs == FIT_FAILED || rs == FIT_NOMEM || !isfinite(fy)) break;
         memcpy(x, y, R->m * sizeof *x);
         st = rs;
         if (rs == FIT_STOPPED) break;
     }
     *scale = s;
-    if (isfinite(s)) fit_objective_set_loss(R->geo, FIT_LOSS_CAUCHY, s);
-    *fx = fit_objective_value(R->geo, x, NULL);
+    if (isfinite(s)) fit_objective_set_loss(o, FIT_LOSS_CAUCHY, s);
+    *fx = fit_objective_value(o, x, NULL);
     R->ctl.evals++;
+    return st;
+}
+
+/* A chain's best through the robust refinement. With an annealing model (the R-function
+ * compilation of a min/max template) it is refined on that model first: the zero set is
+ * the same, but min/max's first-order distances mislead where min picks the wrong
+ * argument. On hfBlock's quadratic slabs, a point just inside a face of a thin plate
+ * has a smaller slab value across the plate than across the face, so min hands it to
+ * the plate's other faces: it stops pulling its face, which slides out over the noisy
+ * points (the min/max bracket's width, 4.065 for 4 at 0.2% noise, 5 seeds of 5). The
+ * R-function's intersection depends on both arguments and keeps the pull. Then the
+ * template itself is refined from there, and the lower of the two points on the
+ * template's loss (at its last scale) is kept, with the status of the refinement that
+ * produced it. */
+static fit_status refine_pair(fit_run_ctx *R, double *x, double *fx, double *scale)
+{
+    if (R->geo_s == NULL) return robust_refine(R, R->geo, x, fx, scale, FIT_STALLED);
+    double ss;
+    fit_status st = robust_refine(R, R->geo_s, x, fx, &ss, FIT_STALLED);
+    *scale = ss;
+    if (st == FIT_STOPPED) return st;
+    double y[FIT_MAX_PARAMS], fy;
+    memcpy(y, x, R->m * sizeof *y);
+    fit_status sy = robust_refine(R, R->geo, y, &fy, scale, st);
+    if (sy == FIT_STOPPED) return sy;
+    double v = fit_objective_value(R->geo, x, NULL);
+    R->ctl.evals++;
+    if (fy <= v || !isfinite(v)) {
+        memcpy(x, y, R->m * sizeof *x);
+        *fx = fy;
+        return sy;
+    }
+    *fx = v;
+    return st;
+}
+
+/* A chain's refinement can leave a face pushed past every point: no point then depends
+ * on it (in min/max a thin plate's other faces take its points; the bracket's width
+ * went to its bound 6 with 2% outliers, the bushing's flange radius to 4.6 for 3, where
+ * the annealing's algebraic loss barely sees the plate's ends), and no local search
+ * brings it back. Each parameter is tried at FIT_SCAN_POINTS values across its range
+ * on the robust loss, the others held, then as many around the best, FIT_SCAN_LEVELS times
+ * (the loss is flat on the side where the face is beyond its points, so the scan, not
+ * the local search, has to place it); from the best, if better than staying, the pair of
+ * refinements runs again and its result is kept when lower on the loss at the chain's
+ * scale. */
+#define FIT_SCAN_POINTS 16
+/* Levels of the scan: each spans the two cells around the best of the last, so three
+ * levels end at 1/1024 of the range. */
+#define FIT_SCAN_LEVELS 3
+/* The scan's best is refined from only when it lies this fraction of the range or
+ * more from the value (the accuracy the CAD suite asks for). */
+#define FIT_SCAN_MOVE 0.01
+
+static fit_status polish_chain(fit_run_ctx *R, double *x, double *fx, double *scale)
+{
+    fit_status st = refine_pair(R, x, fx, scale);
+    if (st == FIT_STOPPED || !isfinite(*scale) || R->lo == NULL || R->hi == NULL) return st;
+    /* Scanned on the annealing's model when there is one: min/max's loss is flat on
+     * the side where the face is beyond its points (they belong to other faces), the
+     * R-function's still falls toward the face's place. */
+    fit_objective *scan = R->geo_s != NULL ? R->geo_s : R->geo;
+    for (size_t j = 0; j < R->m; j++) {
+        double lo = R->lo[j], hi = R->hi[j], range = hi - lo;
+        if (!(range > 0) || !isfinite(range)) continue;
+        fit_objective_set_loss(R->geo, FIT_LOSS_CAUCHY, *scale);
+        double y[FIT_MAX_PARAMS];
+        memcpy(y, x, R->m * sizeof *y);
+        double here = fit_objective_value(R->geo, x, NULL);
+        double best = fit_objective_value(scan, x, NULL), at = x[j];
+        R->ctl.evals += 2;
+        double a = lo, cell = range / FIT_SCAN_POINTS;
+        for (int level = 0; level < FIT_SCAN_LEVELS; level++) {
+            for (int k = 0; k < FIT_SCAN_POINTS; k++) {
+                y[j] = fmin(hi, fmax(lo, a + (k + 0.5) * cell));
+                double v = fit_objective_value(scan, y, NULL);
+                R->ctl.evals++;
+                if (v < best) best = v, at = y[j];
+            }
+            a = at - cell, cell *= 2.0 / FIT_SCAN_POINTS;
+        }
+        if (!(fabs(at - x[j]) > FIT_SCAN_MOVE * range)) continue;
+        if (fit_control_stop(&R->ctl)) return FIT_STOPPED;
+        y[j] = at;
+        double fy, sy;
+        fit_status ys = refine_pair(R, y, &fy, &sy);
+        if (ys == FIT_STOPPED) return ys;
+        fit_objective_set_loss(R->geo, FIT_LOSS_CAUCHY, *scale);
+        double v = fit_objective_value(R->geo, y, NULL);
+        R->ctl.evals++;
+        if (v < here) {
+            memcpy(x, y, R->m * sizeof *x);
+            *fx = fy, *scale = sy, st = ys;
+        }
+    }
+    if (isfinite(*scale)) fit_objective_set_loss(R->geo, FIT_LOSS_CAUCHY, *scale);
     return st;
 }
 
@@ -380,6 +481,53 @@ static int check_arguments(const fit_run_ctx *R, frep_error *err)
     return 0;
 }
 
+/* The robust annealing leaves out isolated points: those whose FIT_ISOLATION_K-th
+ * nearest neighbour is farther than FIT_ISOLATION_RATIO times the median of that
+ * distance over the cloud. Points of a surface have neighbours at the sampling's
+ * spacing; outliers spread over a volume are far from any. Least squares of the
+ * algebraic field over such outliers is minimized by wrong shapes (a quadratic
+ * cylinder grows over them: on the bushing with 2% outliers the flange radius went to
+ * its bound on 5 seeds of 5), and the local phase cannot bring a face back from beyond
+ * every point. The robust refinement still sees every point. */
+#define FIT_ISOLATION_K 8
+#define FIT_ISOLATION_RATIO 2
+
+/* keep[n] (caller frees): 0 for the isolated points, 1 for the others; *dropped gets
+ * how many were left out. NULL when out of memory. */
+static unsigned char *isolation_mask(const fit_points *P, int nthreads, size_t *dropped)
+{
+    const size_t n = P->n;
+    *dropped = 0;
+    unsigned char *keep = frep_malloc(n ? n : 1);
+    double *dk = frep_malloc((n ? 2 * n : 1) * sizeof *dk);
+    kd_tree *t = n > FIT_ISOLATION_K ? kd_build(n, P->x, P->y, P->z) : NULL;
+    if (keep == NULL || dk == NULL || (n > FIT_ISOLATION_K && t == NULL)) {
+        frep_free(keep);
+        frep_free(dk);
+        kd_free(t);
+        return NULL;
+    }
+    memset(keep, 1, n);
+    if (t != NULL) {
+        int nt = frep_threads(nthreads);
+#pragma omp parallel for num_threads(nt) schedule(static)
+        for (long i = 0; i < (long)n; i++) {
+            uint32_t idx[FIT_ISOLATION_K + 1];
+            double d2[FIT_ISOLATION_K + 1];
+            const double q[3] = {P->x[i], P->y[i], P->z[i]};
+            size_t got = kd_knn(t, q, FIT_ISOLATION_K + 1, idx, d2); /* itself first */
+            dk[i] = sqrt(d2[got - 1]);
+        }
+        memcpy(dk + n, dk, n * sizeof *dk);
+        double cut = FIT_ISOLATION_RATIO * median(dk + n, n);
+        for (size_t i = 0; i < n; i++)
+            if (dk[i] > cut) keep[i] = 0, ++*dropped;
+    }
+    kd_free(t);
+    frep_free(dk);
+    return keep;
+}
+
 /* The objectives: the local phase's on all points, and the annealing's (its own kind
  * when --global-objective differs, on a random subset of cfg->sa_points). */
 static int make_objectives(fit_run_ctx *R, frep_error *err)
@@ -395,6 +543,10 @@ static int make_objectives(fit_run_ctx *R, frep_error *err)
         gc.loss = FIT_LOSS_CAUCHY;
         gc.loss_scale = FIT_ROBUST_FLOOR * R->diag;
         R->geo = fit_objective_new(R->model, R->pts, &gc);
+        if (R->global && cfg->surrogate != NULL) {
+            R->geo_s = fit_objective_new(cfg->surrogate, R->pts, &gc);
+            if (R->geo_s == NULL) return frep_error_nomem(err);
+        }
         R->rbuf = frep_malloc((R->pts->n ? R->pts->n : 1) * sizeof *R->rbuf);
         if (R->geo == NULL || R->rbuf == NULL) return frep_error_nomem(err);
     }
@@ -410,14 +562,28 @@ static int make_objectives(fit_run_ctx *R, frep_error *err)
             return frep_error_nomem(err);
         }
     }
-    if (cfg->sa_points > 0 && cfg->sa_points < R->pts->n) {
-        R->sub = fit_objective_subset(gobj, cfg->sa_points, cfg->seed);
+    unsigned char *keep = NULL;
+    size_t dropped = 0;
+    if (R->geo != NULL) {
+        keep = isolation_mask(R->pts, cfg->obj.nthreads, &dropped);
+        if (keep == NULL) {
+            if (gobj != R->obj) fit_objective_free(gobj);
+            R->sub = R->obj;
+            return frep_error_nomem(err);
+        }
+    }
+    if ((cfg->sa_points > 0 && cfg->sa_points < R->pts->n) || dropped > 0) {
+        size_t count = cfg->sa_points > 0 ? cfg->sa_points : R->pts->n;
+        R->sub = fit_objective_subset(gobj, count, cfg->seed, dropped > 0 ? keep : NULL);
+        frep_free(keep);
+        keep = NULL;
         if (gobj != R->obj) fit_objective_free(gobj);
         if (R->sub == NULL) {
             R->sub = R->obj;
             return frep_error_nomem(err);
         }
     }
+    frep_free(keep);
     if (R->geo != NULL && cfg->global_kind == FIT_OBJ_ALGEBRAIC && R->sub == R->obj) {
         /* The annealing's loss is changed below: it needs its own objective. */
         fit_objective_config gc = cfg->obj;
@@ -445,6 +611,7 @@ static int make_objectives(fit_run_ctx *R, frep_error *err)
 static void free_objectives(fit_run_ctx *R)
 {
     fit_objective_free(R->geo);
+    fit_objective_free(R->geo_s);
     frep_free(R->rbuf);
     if (R->sub != R->obj) fit_objective_free(R->sub);
     fit_objective_free(R->obj);
@@ -464,6 +631,7 @@ static void start_control(fit_run_ctx *R)
     }
     R->best_sub = R->best_all = R->best_geo = HUGE_VAL;
     if (R->geo != NULL) fit_objective_watch_nomem(R->geo, &R->ctl.out_of_memory);
+    if (R->geo_s != NULL) fit_objective_watch_nomem(R->geo_s, &R->ctl.out_of_memory);
     /* Out of memory in an evaluation stops every phase, as in a phase's own arrays. */
     fit_objective_watch_nomem(R->obj, &R->ctl.out_of_memory);
     fit_objective_watch_nomem(R->sub, &R->ctl.out_of_memory);
@@ -548,7 +716,7 @@ static int global_phase(fit_run_ctx *R, frep_error *err)
             /* The chain's best is polished on the subset already; the robust
              * refinement takes it from there on all points. */
             double sc = NAN;
-            if (R->st != FIT_STOPPED) R->st = robust_refine(R, xs, &fx, &sc, FIT_STALLED);
+            if (R->st != FIT_STOPPED) R->st = polish_chain(R, xs, &fx, &sc);
             memcpy(keep + (size_t)kept * np, xs, np * sizeof *xs);
             scales[kept] = sc;
             kst[kept++] = R->st;
@@ -599,7 +767,7 @@ static int local_only(fit_run_ctx *R)
     R->st = local_phase(R, R->obj, R->x, &fx, 0, R->cfg->reweight_rounds);
     if (R->geo != NULL && R->st != FIT_STOPPED && R->st != FIT_FAILED && R->st != FIT_NOMEM) {
         double sc;
-        R->st = robust_refine(R, R->x, &fx, &sc, R->st);
+        R->st = robust_refine(R, R->geo, R->x, &fx, &sc, R->st);
     }
     return 0;
 }
@@ -648,8 +816,11 @@ static int measure(fit_run_ctx *R, fit_result *res)
     double *d = frep_malloc((n ? n : 1) * sizeof *d);
     if (d == NULL) return -1;
     fit_distance_stats ds;
-    if (fit_distances(R->model, R->x, R->pts, diag, R->cfg->obj.nthreads, d,
-                                   &ds) == 0) {
+    /* The annealing's model has the same surface; its R-function field gives first-order
+     * estimates that the projection's acceptance test can trust, where min/max's
+     * overestimate near thin plates (fit/measure.c). */
+    const fit_model *surface = R->cfg->surrogate != NULL ? R->cfg->surrogate : R->model;
+    if (fit_distances(surface, R->x, R->pts, diag, R->cfg->obj.nthreads, d, &ds) == 0) {
         size_t in = 0;
         for (size_t i = 0; i < n; i++) in += d[i] <= FIT_WITHIN * diag;
         res->rms = ds.rms, res->max_dist = ds.max;

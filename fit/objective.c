@@ -150,9 +150,11 @@ fit_objective *fit_objective_new(const fit_model *m, const fit_points *pts,
     return o;
 }
 
-fit_objective *fit_objective_subset(const fit_objective *src, size_t count, uint64_t seed)
+fit_objective *fit_objective_subset(const fit_objective *src, size_t count, uint64_t seed,
+                                    const unsigned char *keep)
 {
-    size_t n = src->n;
+    size_t n = 0;
+    for (size_t i = 0; i < src->n; i++) n += keep == NULL || keep[i];
     if (count > n) count = n;
     fit_objective *o = frep_calloc(1, sizeof *o);
     if (o == NULL) return NULL;
@@ -172,7 +174,8 @@ fit_objective *fit_objective_subset(const fit_objective *src, size_t count, uint
     /* Partial Fisher-Yates shuffle: the first `count` indices are a uniform sample. */
     frep_rng r;
     frep_rng_seed(&r, seed);
-    for (size_t i = 0; i < n; i++) idx[i] = i;
+    for (size_t i = 0, k = 0; i < src->n; i++)
+        if (keep == NULL || keep[i]) idx[k++] = i;
     for (size_t i = 0; i < count; i++) {
         size_t j = i + (size_t)(frep_rng_unit(&r) * (double)(n - i));
         if (j >= n) j = n - 1;

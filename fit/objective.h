@@ -66,9 +66,11 @@ typedef struct fit_objective fit_objective;
 fit_objective *fit_objective_new(const fit_model *m, const fit_points *pts,
                                  const fit_objective_config *cfg);
 /* The same objective on `count` points drawn without replacement from o's points by
- * a generator seeded with `seed` (all of them when count >= their number). The points
- * are copied. NULL when out of memory. */
-fit_objective *fit_objective_subset(const fit_objective *o, size_t count, uint64_t seed);
+ * a generator seeded with `seed` (all of them when count >= their number); with keep
+ * != NULL only from the points i with keep[i] != 0. The points are copied. NULL when
+ * out of memory. */
+fit_objective *fit_objective_subset(const fit_objective *o, size_t count, uint64_t seed,
+                                    const unsigned char *keep);
 void fit_objective_free(fit_objective *o);
 
 /* E(p) = (1/N) sum rho(r_i) + normals_weight (1/N) sum (1 + n_i . grad f / |grad f|).

@@ -731,6 +731,7 @@ static int case_fit(const fixture *fx, fault_out *o)
     cfg.max_evals = 60;
     cfg.sa_points = 50;
     cfg.obj.nthreads = 1;
+    cfg.surrogate = &m;         /* the annealing's model: its robust objective too */
     fit_result res;
     frep_error err;
     frep_error_init(&err);
