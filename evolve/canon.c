@@ -1218,8 +1218,12 @@ static void write_feature(FILE *f, const ft *F, const ft_node *v, const char *co
         prim_format_number(c, 2 * v->h[2], v->qpos);
         fprintf(f, ";  -- box %s x %s x %s (centre, half sizes, rotations about x, y, z in radians), "
                    "faces", a, b, c);
-        for (int k = 0; k < 6; k++)
+        int nfree = 0;
+        for (int k = 0; k < 6; k++) {
             fprintf(f, "%s %s", k ? "," : "", v->face[k] == FT_NONE ? "free" : names[v->face[k]]);
+            nfree += v->face[k] == FT_NONE;
+        }
+        if (nfree) fputs(" (free: no point lies on that face; it is placed beyond the part)", f);
         if (inl) fprintf(f, ", %zu inliers", inl);
         if (v->sigma > 0) {
             prim_format_number(a, v->sigma, v->sigma / 10);

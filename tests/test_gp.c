@@ -1635,6 +1635,7 @@ typedef struct cover_case {
     const char *name, *tree, *want;
     int np;
     double n[16][3], d[16];   /* planes n.x <= d */
+    int cyl;                  /* > 0: primitive cyl - 1 is the bore x^2 + y^2 <= 0.3^2 about (1, 1) */
 } cover_case;
 
 static double cover_tree_value(const cover_case *cc, const gp_tree *t, const double *x)
@@ -1643,7 +1644,9 @@ static double cover_tree_value(const cover_case *cc, const gp_tree *t, const dou
     int sp = 0;
     for (uint32_t pc = 0; pc < t->len; pc++) {
         const frep_insn *in = &t->code[pc];
-        if (in->op == FREP_OP_PRIM) {
+        if (in->op == FREP_OP_PRIM && (int)in->arg == cc->cyl - 1) {
+            st[sp++] = 0.3 - hypot(x[0] - 1, x[1] - 1);
+        } else if (in->op == FREP_OP_PRIM) {
             const double *n = cc->n[in->arg];
             st[sp++] = cc->d[in->arg] - (n[0] * x[0] + n[1] * x[1] + n[2] * x[2]);
         } else if (in->op == FREP_OP_NEG) {
@@ -1664,6 +1667,13 @@ static void test_box_cover_case(cover_case *cc)
         prims[j].type = PRIM_PLANE;
         memcpy(prims[j].p, cc->n[j], sizeof prims[j].p);
         prims[j].r = cc->d[j];
+        if (j == cc->cyl - 1) {
+            double axis[3] = { 0, 0, 1 }, at[3] = { 1, 1, 0 };
+            prims[j].type = PRIM_CYLINDER;
+            memcpy(prims[j].a, axis, sizeof axis);
+            memcpy(prims[j].p, at, sizeof at);
+            prims[j].r = 0.3;
+        }
     }
     evolve_result r;
     memset(&r, 0, sizeof r);
@@ -1754,7 +1764,7 @@ static void test_box_cover_case(cover_case *cc)
 
 static void test_box_cover(void)
 {
-    static cover_case stair = { "stair", "12&3&4&5&6&78|&9a|&", "3 solids: 3 boxes", 10, { { 0 } }, { 0 } };
+    static cover_case stair = { "stair", "12&3&4&5&6&78|&9a|&", "3 solids: 3 boxes", 10, { { 0 } }, { 0 }, 0 };
     /* Turned 30 degrees about z: x' = (c, s, 0), y' = (-s, c, 0). */
     double c = cos(FREP_PI / 6), s = sin(FREP_PI / 6);
     double X[3] = { c, s, 0 }, Y[3] = { -s, c, 0 }, Z[3] = { 0, 0, 1 };
@@ -1769,7 +1779,7 @@ static void test_box_cover(void)
 
     /* The cube [0, 2]^3 less the corner beyond three faces of a cube turned by
      * (10, 20, 30) degrees about x, y, z whose corner sits at (1.4, 1.4, 1.4). */
-    static cover_case corner = { "corner", "12&3&4&5&6&78|9|&", "2 solids: 2 boxes", 9, { { 0 } }, { 0 } };
+    static cover_case corner = { "corner", "12&3&4&5&6&78|9|&", "2 solids: 2 boxes", 9, { { 0 } }, { 0 }, 0 };
     for (int j = 0; j < 6; j++) {
         corner.n[j][j / 2] = j % 2 ? 1 : -1;
         corner.d[j] = j % 2 ? 2 : 0;
@@ -1789,6 +1799,14 @@ static void test_box_cover(void)
         corner.d[6 + j] = d;
     }
     test_box_cover_case(&corner);
+    /* The same less a bore along z: the cover takes the plane operands of the root. */
+    cover_case bored = corner;
+    bored.name = "corner and bore";
+    bored.tree = "12&3&4&5&6&78|9|&a\\";
+    bored.want = "3 solids: 2 boxes, 1 cylinder";
+    bored.np = 10;
+    bored.cyl = 10;
+    test_box_cover_case(&bored);
 }
 
 int main(void)
