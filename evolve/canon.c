@@ -533,8 +533,9 @@ typedef struct ft_node {
     /* FT_BOX: frBox's numbers as printed (centre, half sizes, rotations about x, y, z),
      * its faces (leaf, complemented); FT_CAPPED: face[0] the cylinder, face[1..2]. */
     double c[3], h[3], rot[3];
-    uint32_t face[6];
+    uint32_t face[6];     /* FT_BOX: FT_NONE for a free face (no fitted plane) */
     uint8_t fneg[6];
+    double fpl[6][4];     /* FT_BOX of the cover: each face's outward normal and offset */
     double qpos, qdir, sigma;   /* FT_BOX: printing quanta, the faces' standard error */
     char name[48];              /* FT_BOX, FT_CAPPED (a primitive's name + "_capped") */
 } ft_node;
@@ -721,34 +722,19 @@ static int opposite(const double a[3], const double b[3], double tol)
     return vec3_dot(a, b) <= -cos(tol);
 }
 
-/* The box of the pairs p[k] = (plus, minus term index) of intersection node `and`:
- * an orthonormal frame from the pairs' normals, each face's offset along its axis,
- * the axes ordered and signed so that an axis-aligned box has no rotation; numbers
- * rounded as they print.  Returns the node, or FT_NONE. */
-static uint32_t ft_box(ft *F, uint32_t and, const uint32_t p[3][2])
+/* The box node of axes u (orthonormal rows), faces at u_k . x = lo[k] and hi[k]:
+ * face[2k] the leaf of the hi face, face[2k + 1] the lo one (FT_NONE: a free face, no
+ * fitted plane; fneg: the leaf complemented), the axes ordered and signed so that an
+ * axis-aligned box has no rotation; numbers rounded as they print, to the finest
+ * quantum of its fitted faces.  Returns the node, or FT_NONE. */
+static uint32_t ft_box_node(ft *F, const double u[3][3], const double lo[3], const double hi[3],
+                            const uint32_t face[6], const uint8_t fneg[6])
 {
-    double n[3][2][3] = { { { 0 } } }, d[3][2] = { { 0 } }, u[3][3];
-    for (int k = 0; k < 3; k++)
-        for (int s = 0; s < 2; s++) ft_plane(F, F->v[and].t[p[k][s]], n[k][s], &d[k][s]);
-    for (int k = 0; k < 3; k++)
-        for (int w = 0; w < 3; w++) u[k][w] = n[k][0][w] - n[k][1][w];
-    vec3_normalize(u[0]);
-    double t = vec3_dot(u[1], u[0]);
-    for (int w = 0; w < 3; w++) u[1][w] -= t * u[0][w];
-    if (vec3_normalize(u[1])) return FT_NONE;
-    double w2[3];
-    vec3_cross(u[0], u[1], w2);
-    if (vec3_dot(w2, u[2]) < 0)
-        for (int w = 0; w < 3; w++) w2[w] = -w2[w];
-    memcpy(u[2], w2, sizeof w2);
-    /* Faces at u_k . x = s+ and s-: offset over the cosine to the axis. */
     double cw[3] = { 0, 0, 0 }, h[3];
     for (int k = 0; k < 3; k++) {
-        double sp = d[k][0] / vec3_dot(n[k][0], u[k]);
-        double sm = -d[k][1] / -vec3_dot(n[k][1], u[k]);
-        h[k] = (sp - sm) / 2;
+        h[k] = (hi[k] - lo[k]) / 2;
         if (!(h[k] > 0)) return FT_NONE;
-        for (int w = 0; w < 3; w++) cw[w] += (sp + sm) / 2 * u[k][w];
+        for (int w = 0; w < 3; w++) cw[w] += (hi[k] + lo[k]) / 2 * u[k][w];
     }
     /* Box axis k goes to the world axis it is nearest, pointing its way. */
     int used[3] = { 0, 0, 0 }, perm[3];
@@ -783,17 +769,18 @@ static uint32_t ft_box(ft *F, uint32_t and, const uint32_t p[3][2])
     v->rot[2] = atan2(R[1][0], R[0][0]);
     v->qpos = INFINITY;
     v->qdir = INFINITY;
-    for (int k = 0; k < 3; k++)
-        for (int s = 0; s < 2; s++) {
-            ft_term tm = F->v[and].t[p[k][s]];
-            uint32_t j = F->v[tm.node].leaf;
-            v->face[2 * k + s] = j;
-            v->fneg[2 * k + s] = tm.neg;
-            v->qpos = fmin(v->qpos, F->c[j].qpos);
-            v->qdir = fmin(v->qdir, F->c[j].qdir);
-            if (F->c[j].sigma > 0 && (v->sigma == 0 || F->c[j].sigma < v->sigma))
-                v->sigma = F->c[j].sigma;
-        }
+    for (int k = 0; k < 6; k++) {
+        uint32_t j = face[k];
+        v->face[k] = j;
+        v->fneg[k] = fneg[k];
+        if (j == FT_NONE) continue;
+        v->qpos = fmin(v->qpos, F->c[j].qpos);
+        v->qdir = fmin(v->qdir, F->c[j].qdir);
+        if (F->c[j].sigma > 0 && (v->sigma == 0 || F->c[j].sigma < v->sigma))
+            v->sigma = F->c[j].sigma;
+    }
+    if (!isfinite(v->qpos)) v->qpos = PRIM_POS_QUANTUM;
+    if (!isfinite(v->qdir)) v->qdir = PRIM_DIR_QUANTUM;
     for (int k = 0; k < 3; k++) {
         char buf[PRIM_NUM_BUF];
         prim_format_number(buf, cw[k], v->qpos);
@@ -804,6 +791,41 @@ static uint32_t ft_box(ft *F, uint32_t and, const uint32_t p[3][2])
         v->rot[k] = strtod(buf, NULL);
     }
     return b;
+}
+
+/* The box of the pairs p[k] = (plus, minus term index) of intersection node `and`:
+ * an orthonormal frame from the pairs' normals, each face's offset along its axis.
+ * Returns the node, or FT_NONE. */
+static uint32_t ft_box(ft *F, uint32_t and, const uint32_t p[3][2])
+{
+    double n[3][2][3] = { { { 0 } } }, d[3][2] = { { 0 } }, u[3][3];
+    for (int k = 0; k < 3; k++)
+        for (int s = 0; s < 2; s++) ft_plane(F, F->v[and].t[p[k][s]], n[k][s], &d[k][s]);
+    for (int k = 0; k < 3; k++)
+        for (int w = 0; w < 3; w++) u[k][w] = n[k][0][w] - n[k][1][w];
+    vec3_normalize(u[0]);
+    double t = vec3_dot(u[1], u[0]);
+    for (int w = 0; w < 3; w++) u[1][w] -= t * u[0][w];
+    if (vec3_normalize(u[1])) return FT_NONE;
+    double w2[3];
+    vec3_cross(u[0], u[1], w2);
+    if (vec3_dot(w2, u[2]) < 0)
+        for (int w = 0; w < 3; w++) w2[w] = -w2[w];
+    memcpy(u[2], w2, sizeof w2);
+    /* Faces at u_k . x = s+ and s-: offset over the cosine to the axis. */
+    double lo[3], hi[3];
+    uint32_t face[6];
+    uint8_t fneg[6];
+    for (int k = 0; k < 3; k++) {
+        hi[k] = d[k][0] / vec3_dot(n[k][0], u[k]);
+        lo[k] = -d[k][1] / -vec3_dot(n[k][1], u[k]);
+        for (int s = 0; s < 2; s++) {
+            ft_term tm = F->v[and].t[p[k][s]];
+            face[2 * k + s] = F->v[tm.node].leaf;
+            fneg[2 * k + s] = tm.neg;
+        }
+    }
+    return ft_box_node(F, u, lo, hi, face, fneg);
 }
 
 static double ft_mean(const ft *F, uint32_t root, const frep_cloud *cl, size_t stride)
@@ -850,14 +872,22 @@ typedef struct ft_check {
 
 /* Whether the tree still explains the cloud (mean distance within the limit) and keeps
  * the solid's sign at the grid points (without the cloud: always). */
+/* The grid points (away from the surface) where the tree has another sign than the
+ * solid before the rewrite, counted up to more than `most`. */
+static size_t ft_grid_diffs(const ft *F, const ft_check *ck, size_t most)
+{
+    size_t d = 0;
+    for (size_t i = 0; i < ck->ng && d <= most; i++) {
+        if (fabs(ck->ref[i]) <= ck->gtol) continue;
+        d += (ft_eval(F, ck->root, &ck->g[3 * i]) > 0) != (ck->ref[i] > 0);
+    }
+    return d;
+}
+
 static int ft_keeps(const ft *F, const ft_check *ck)
 {
     if (!ck->cloud) return 1;
-    for (size_t i = 0; i < ck->ng; i++) {
-        if (fabs(ck->ref[i]) <= ck->gtol) continue;
-        if ((ft_eval(F, ck->root, &ck->g[3 * i]) > 0) != (ck->ref[i] > 0)) return 0;
-    }
-    return ft_mean(F, ck->root, ck->cloud, ck->stride) <= ck->limit;
+    return !ft_grid_diffs(F, ck, 0) && ft_mean(F, ck->root, ck->cloud, ck->stride) <= ck->limit;
 }
 
 /* Boxes and capped cylinders in intersection node `and`. */
@@ -1145,16 +1175,31 @@ static canon_prim face_of(const ft *F, uint32_t j, int neg)
     return c;
 }
 
+/* A free face of a box of the cover as a plane, rounded as the box. */
+static canon_prim free_face(const ft_node *v, int k)
+{
+    canon_prim c;
+    memset(&c, 0, sizeof c);
+    c.q.type = PRIM_PLANE;
+    memcpy(c.q.p, v->fpl[k], 3 * sizeof(double));
+    c.q.r = v->fpl[k][3];
+    c.qpos = v->qpos;
+    c.qdir = v->qdir;
+    return c;
+}
+
 static void write_feature(FILE *f, const ft *F, const ft_node *v, const char *const *names, int hyperfun)
 {
     char a[PRIM_NUM_BUF], b[PRIM_NUM_BUF], c[PRIM_NUM_BUF];
     fprintf(f, "    %s = ", v->name);
     size_t inl = 0;
     if (v->kind == FT_BOX) {
-        for (int k = 0; k < 6; k++) inl += F->c[v->face[k]].q.support;
+        for (int k = 0; k < 6; k++)
+            if (v->face[k] != FT_NONE) inl += F->c[v->face[k]].q.support;
         if (hyperfun) {
             for (int k = 0; k < 6; k++) {
-                canon_prim p = face_of(F, v->face[k], v->fneg[k]);
+                canon_prim p = free_face(v, k);
+                if (v->face[k] != FT_NONE) p = face_of(F, v->face[k], v->fneg[k]);
                 fputs(k ? " & (" : "(", f);
                 canon_write_hyperfun(f, &p);
                 fputc(')', f);
@@ -1173,7 +1218,12 @@ static void write_feature(FILE *f, const ft *F, const ft_node *v, const char *co
         prim_format_number(c, 2 * v->h[2], v->qpos);
         fprintf(f, ";  -- box %s x %s x %s (centre, half sizes, rotations about x, y, z in radians), "
                    "faces", a, b, c);
-        for (int k = 0; k < 6; k++) fprintf(f, "%s %s", k ? "," : "", names[v->face[k]]);
+        int nfree = 0;
+        for (int k = 0; k < 6; k++) {
+            fprintf(f, "%s %s", k ? "," : "", v->face[k] == FT_NONE ? "free" : names[v->face[k]]);
+            nfree += v->face[k] == FT_NONE;
+        }
+        if (nfree) fputs(" (free: no point lies on that face; it is placed beyond the part)", f);
         if (inl) fprintf(f, ", %zu inliers", inl);
         if (v->sigma > 0) {
             prim_format_number(a, v->sigma, v->sigma / 10);
@@ -1315,6 +1365,724 @@ static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
     }
 }
 
+/* ---- the box cover: planar parts as unions of boxes ------------------------------------ */
+
+/* A subtree whose leaves are all planes (a stack of cuboids the GA wrote as an
+ * intersection of unions, a box with a corner cut away) is written again as a union of
+ * terms P \ (N1 | N2): P a box whose six faces are planes of the subtree, each N a cut,
+ * a box with faces among those planes or free (placed beyond the part).  The terms come
+ * from a greedy cover of labelled points: the grid of ft_check, the cell centres of each
+ * frame's planes and the cloud's points moved in and out along their normals, each
+ * labelled by the subtree's sign.  The cover replaces the subtree only when it writes
+ * fewer solids and the whole model passes ft_keeps (and stays bounded if it was). */
+
+#define COVER_MAX_PLANES 48    /* distinct planes of a subtree the cover reads */
+#define COVER_MAX_FRAMES 8     /* orthogonal triples of their directions */
+#define COVER_MAX_OFFS 8       /* face positions per axis of a frame, free ends aside */
+#define COVER_NO (COVER_MAX_OFFS + 2)
+#define COVER_MAX_CUTS 2       /* cuts of one term */
+#define COVER_MAX_NEG 256      /* the largest cuts a term's are chosen from */
+#define COVER_MAX_TERMS 24
+/* Outside points a box of the second pass may hold, per inside point (cv_run). */
+#define COVER_SLIVER 0.01
+#define COVER_MAX_BOXES 200000 /* candidate boxes over all frames (work bound) */
+/* Cloud points moved in and out along their normals by this many grid tolerances
+ * (ft_check.gtol), so that they are labelled: thin walls get points on both sides. */
+#define COVER_CLOUD_SHIFT 3
+#define COVER_CLOUD_POINTS 2048
+/* Free faces lie at the cloud's oriented box grown by this factor (ft_check's grid
+ * covers 1.1). */
+#define COVER_FREE_GROWTH 1.25
+
+typedef struct cv_frame {
+    double u[3][3];                      /* orthonormal axes */
+    int n[3];                            /* face positions per axis, free ends included */
+    double of[3][COVER_NO];              /* ascending; of[k][0] and of[k][n-1] free */
+    uint32_t leaf[3][COVER_NO];          /* the plane there (FT_NONE: free) */
+    uint8_t up[3][COVER_NO];             /* the leaf's outward normal is along +u */
+} cv_frame;
+
+typedef struct cv_box {
+    uint8_t f, lo[3], hi[3];             /* frame, face position indices per axis */
+} cv_box;
+
+typedef struct cover {
+    ft *F;
+    const ft_check *ck;
+    uint32_t node;
+    size_t np, nw;                       /* labelled points, 64-bit words of a set */
+    double *x;                           /* 3 np coordinates */
+    uint64_t *in, *out;                  /* the subtree's sign there */
+    cv_frame fr[COVER_MAX_FRAMES];
+    int nf;
+    uint64_t *iv;                        /* per frame, axis, lo, hi: points within */
+    uint64_t *bits, *tmp;                /* scratch sets */
+    uint32_t planes[COVER_MAX_PLANES];
+    int npl;
+    double sliver;                       /* outside points a box may keep, per inside */
+} cover;
+
+static uint64_t *cv_iv(cover *C, int f, int k, int lo, int hi)
+{
+    return &C->iv[((((size_t)f * 3 + (size_t)k) * COVER_NO + (size_t)lo) * COVER_NO + (size_t)hi) * C->nw];
+}
+
+/* The points of box b into set s. */
+static void cv_set(cover *C, cv_box b, uint64_t *s)
+{
+    const uint64_t *a = cv_iv(C, b.f, 0, b.lo[0], b.hi[0]), *c = cv_iv(C, b.f, 1, b.lo[1], b.hi[1]),
+                   *e = cv_iv(C, b.f, 2, b.lo[2], b.hi[2]);
+    for (size_t w = 0; w < C->nw; w++) s[w] = a[w] & c[w] & e[w];
+}
+
+static size_t cv_count(const cover *C, const uint64_t *a, const uint64_t *b)
+{
+    size_t n = 0;
+    for (size_t w = 0; w < C->nw; w++) n += (size_t)__builtin_popcountll(a[w] & b[w]);
+    return n;
+}
+
+/* Whether box a lies within box b (the same frame). */
+static int cv_within(cv_box a, cv_box b)
+{
+    if (a.f != b.f) return 0;
+    for (int k = 0; k < 3; k++)
+        if (a.lo[k] < b.lo[k] || a.hi[k] > b.hi[k]) return 0;
+    return 1;
+}
+
+/* The distinct plane leaves under node i (box faces included) into C->planes; 0 when
+ * a leaf is no plane or there are too many. */
+static int cv_planes(cover *C, uint32_t i)
+{
+    const ft *F = C->F;
+    const ft_node *v = &F->v[i];
+    uint32_t got[6];
+    int ng = 0;
+    switch (v->kind) {
+    case FT_LEAF:
+        if (v->leaf >= F->nprims || F->q[v->leaf].type != PRIM_PLANE) return 0;
+        got[ng++] = v->leaf;
+        break;
+    case FT_BOX:
+        for (int k = 0; k < 6; k++)
+            if (v->face[k] != FT_NONE) got[ng++] = v->face[k];
+        break;
+    case FT_CAPPED: return 0;
+    case FT_AND:
+    case FT_OR:
+        for (uint32_t k = 0; k < v->n; k++)
+            if (!cv_planes(C, v->t[k].node)) return 0;
+        return 1;
+    }
+    for (int g = 0; g < ng; g++) {
+        int seen = 0;
+        for (int k = 0; k < C->npl && !seen; k++) seen = C->planes[k] == got[g];
+        if (seen) continue;
+        if (C->npl == COVER_MAX_PLANES) return 0;
+        C->planes[C->npl++] = got[g];
+    }
+    return 1;
+}
+
+/* Frames: orthogonal triples of the planes' directions; on each axis the planes'
+ * positions, merged within the grid tolerance, and the two free ends. */
+static int cv_frames(cover *C, const evolve_result *r)
+{
+    const ft *F = C->F;
+    double dir[COVER_MAX_PLANES][3];
+    int nd = 0;
+    double ct = cos(C->ck->tol), st = sin(C->ck->tol);
+    for (int k = 0; k < C->npl; k++) {
+        const double *n = F->q[C->planes[k]].p;
+        int seen = 0;
+        for (int e = 0; e < nd && !seen; e++) seen = fabs(vec3_dot(n, dir[e])) >= ct;
+        if (!seen) memcpy(dir[nd++], n, sizeof dir[0]);
+    }
+    C->nf = 0;
+    for (int a = 0; a < nd; a++)
+        for (int b = a + 1; b < nd; b++)
+            for (int c = b + 1; c < nd; c++) {
+                if (fabs(vec3_dot(dir[a], dir[b])) > st || fabs(vec3_dot(dir[a], dir[c])) > st ||
+                    fabs(vec3_dot(dir[b], dir[c])) > st)
+                    continue;
+                if (C->nf == COVER_MAX_FRAMES) return 0;
+                cv_frame *fr = &C->fr[C->nf++];
+                memcpy(fr->u[0], dir[a], sizeof fr->u[0]);
+                memcpy(fr->u[1], dir[b], sizeof fr->u[1]);
+                double t = vec3_dot(fr->u[1], fr->u[0]);
+                for (int w = 0; w < 3; w++) fr->u[1][w] -= t * fr->u[0][w];
+                vec3_normalize(fr->u[1]);
+                vec3_cross(fr->u[0], fr->u[1], fr->u[2]);
+                if (vec3_dot(fr->u[2], dir[c]) < 0)
+                    for (int w = 0; w < 3; w++) fr->u[2][w] = -fr->u[2][w];
+            }
+    double gtol = C->ck->gtol;
+    for (int f = 0; f < C->nf; f++) {
+        cv_frame *fr = &C->fr[f];
+        for (int k = 0; k < 3; k++) {
+            int n = 1;
+            for (int p = 0; p < C->npl; p++) {
+                const prim *q = &F->q[C->planes[p]];
+                double nu = vec3_dot(q->p, fr->u[k]);
+                if (fabs(nu) < ct) continue;
+                double o = q->r / nu;
+                int at = 1;
+                while (at < n && fr->of[k][at] < o) at++;
+                if ((at < n && fr->of[k][at] - o <= gtol) || (at > 1 && o - fr->of[k][at - 1] <= gtol))
+                    continue;
+                if (n - 1 == COVER_MAX_OFFS) return 0;
+                memmove(&fr->of[k][at + 1], &fr->of[k][at], (size_t)(n - at) * sizeof fr->of[k][0]);
+                memmove(&fr->leaf[k][at + 1], &fr->leaf[k][at], (size_t)(n - at) * sizeof fr->leaf[k][0]);
+                memmove(&fr->up[k][at + 1], &fr->up[k][at], (size_t)(n - at) * sizeof fr->up[k][0]);
+                fr->of[k][at] = o;
+                fr->leaf[k][at] = C->planes[p];
+                fr->up[k][at] = nu > 0;
+                n++;
+            }
+            /* The free ends: beyond the grown oriented box of the cloud. */
+            double c = vec3_dot(r->obb.c, fr->u[k]), e = 0;
+            for (int a = 0; a < 3; a++) e += fabs(vec3_dot(r->obb.ax[a], fr->u[k])) * r->obb.h[a];
+            e = COVER_FREE_GROWTH * e + gtol;
+            fr->of[k][0] = fmin(c - e, n > 1 ? fr->of[k][1] - e : c - e);
+            fr->leaf[k][0] = FT_NONE;
+            fr->of[k][n] = fmax(c + e, n > 1 ? fr->of[k][n - 1] + e : c + e);
+            fr->leaf[k][n] = FT_NONE;
+            fr->n[k] = n + 1;
+        }
+    }
+    return C->nf > 0;
+}
+
+static int cv_push(cover *C, size_t *cap, const double *x)
+{
+    double v = ft_eval(C->F, C->node, x);
+    if (fabs(v) <= C->ck->gtol) return 0;
+    if (C->np == *cap) {
+        size_t nc = *cap ? 2 * *cap : 4096;
+        double *nx = frep_realloc(C->x, 3 * nc * sizeof *nx);
+        if (!nx) return -1;
+        C->x = nx;
+        *cap = nc;
+    }
+    memcpy(&C->x[3 * C->np], x, 3 * sizeof *x);
+    C->np++;
+    return v > 0 ? 1 : 2;
+}
+
+/* The labelled points and, per frame, axis and pair of face positions, the set of
+ * points between them. */
+static int cv_points(cover *C)
+{
+    const ft_check *ck = C->ck;
+    size_t cap = 0;
+    uint8_t *lab = NULL;
+    size_t labcap = 0;
+    int rc = -1;
+#define CV_ADD(P)                                                                    \
+    do {                                                                             \
+        int l_ = cv_push(C, &cap, (P));                                              \
+        if (l_ < 0) goto done;                                                       \
+        if (l_) {                                                                    \
+            if (C->np > labcap) {                                                    \
+                size_t nc_ = labcap ? 2 * labcap : 4096;                             \
+                uint8_t *nl_ = frep_realloc(lab, nc_);                               \
+                if (!nl_) goto done;                                                 \
+                lab = nl_;                                                           \
+                labcap = nc_;                                                        \
+            }                                                                        \
+            lab[C->np - 1] = (uint8_t)l_;                                            \
+        }                                                                            \
+    } while (0)
+    for (size_t i = 0; i < ck->ng; i++) CV_ADD(&ck->g[3 * i]);
+    const frep_cloud *cl = ck->cloud;
+    if (cl->has_normals) {
+        size_t stride = cl->n > COVER_CLOUD_POINTS ? cl->n / COVER_CLOUD_POINTS : 1;
+        double h = COVER_CLOUD_SHIFT * ck->gtol;
+        for (size_t i = 0; i < cl->n; i += stride)
+            for (int s = -1; s <= 1; s += 2) {
+                double p[3] = { cl->x[i] + s * h * cl->nx[i], cl->y[i] + s * h * cl->ny[i],
+                                cl->z[i] + s * h * cl->nz[i] };
+                CV_ADD(p);
+            }
+    }
+    for (int f = 0; f < C->nf; f++) {
+        const cv_frame *fr = &C->fr[f];
+        int a[3];
+        for (a[0] = 0; a[0] + 1 < fr->n[0]; a[0]++)
+            for (a[1] = 0; a[1] + 1 < fr->n[1]; a[1]++)
+                for (a[2] = 0; a[2] + 1 < fr->n[2]; a[2]++) {
+                    double p[3] = { 0, 0, 0 };
+                    for (int k = 0; k < 3; k++) {
+                        double m = (fr->of[k][a[k]] + fr->of[k][a[k] + 1]) / 2;
+                        for (int w = 0; w < 3; w++) p[w] += m * fr->u[k][w];
+                    }
+                    CV_ADD(p);
+                }
+    }
+#undef CV_ADD
+    C->nw = (C->np + 63) / 64;
+    size_t nsets = (size_t)C->nf * 3 * COVER_NO * COVER_NO;
+    C->in = frep_calloc(C->nw, sizeof *C->in);
+    C->out = frep_calloc(C->nw, sizeof *C->out);
+    C->bits = frep_calloc(C->nw, sizeof *C->bits);
+    C->tmp = frep_calloc(C->nw, sizeof *C->tmp);
+    C->iv = frep_calloc(nsets * C->nw, sizeof *C->iv);
+    if (!C->np || !C->in || !C->out || !C->bits || !C->tmp || !C->iv) goto done;
+    for (size_t i = 0; i < C->np; i++) {
+        uint64_t m = (uint64_t)1 << (i % 64);
+        if (lab[i] == 1) C->in[i / 64] |= m;
+        else C->out[i / 64] |= m;
+    }
+    for (int f = 0; f < C->nf; f++)
+        for (int k = 0; k < 3; k++) {
+            const cv_frame *fr = &C->fr[f];
+            for (size_t i = 0; i < C->np; i++) {
+                double t = vec3_dot(&C->x[3 * i], fr->u[k]);
+                int lo = 0;
+                while (lo < fr->n[k] && fr->of[k][lo] < t) lo++;
+                /* between positions lo-1 and lo: within every [a, b] with a < lo <= b */
+                for (int s = 0; s < lo; s++)
+                    for (int e = lo; e < fr->n[k]; e++)
+                        cv_iv(C, f, k, s, e)[i / 64] |= (uint64_t)1 << (i % 64);
+            }
+        }
+    rc = 0;
+done:
+    frep_free(lab);
+    return rc;
+}
+
+/* A candidate term: box P, its cuts (indices into the negatives), the inside points it
+ * has; ncut COVER_MAX_CUTS + 1 when no cuts remove P's outside points. */
+typedef struct cv_term {
+    cv_box p;
+    uint8_t ncut;
+    uint16_t cut[COVER_MAX_CUTS];
+    size_t nin;
+} cv_term;
+
+typedef struct cv_neg {
+    cv_box b;
+    size_t nout, span;
+} cv_neg;
+
+static int cv_neg_cmp(const void *pa, const void *pb)
+{
+    const cv_neg *a = pa, *b = pb;
+    if (a->nout != b->nout) return a->nout < b->nout ? 1 : -1;
+    if (a->span != b->span) return a->span < b->span ? 1 : -1;
+    return memcmp(&a->b, &b->b, sizeof a->b);
+}
+
+static int cv_term_cmp(const void *pa, const void *pb)
+{
+    const cv_term *a = pa, *b = pb;
+    double ra = (double)a->nin / (1 + a->ncut), rb = (double)b->nin / (1 + b->ncut);
+    if (ra != rb) return ra < rb ? 1 : -1;
+    return memcmp(&a->p, &b->p, sizeof a->p);
+}
+
+/* The boxes of every frame, faces at fitted planes only or (free) at the free ends
+ * too, into out (at most max); returns their number, or max + 1 when there are more. */
+static size_t cv_list(const cover *C, int free, cv_box *out, size_t max)
+{
+    size_t m = 0;
+    for (int f = 0; f < C->nf; f++) {
+        const cv_frame *fr = &C->fr[f];
+        int a = free ? 0 : 1, z[3];
+        for (int k = 0; k < 3; k++) z[k] = free ? fr->n[k] - 1 : fr->n[k] - 2;
+        cv_box b;
+        b.f = (uint8_t)f;
+        for (int l0 = a; l0 < z[0]; l0++)
+            for (int h0 = l0 + 1; h0 <= z[0]; h0++)
+                for (int l1 = a; l1 < z[1]; l1++)
+                    for (int h1 = l1 + 1; h1 <= z[1]; h1++)
+                        for (int l2 = a; l2 < z[2]; l2++)
+                            for (int h2 = l2 + 1; h2 <= z[2]; h2++) {
+                                if (m == max) return max + 1;
+                                b.lo[0] = (uint8_t)l0, b.hi[0] = (uint8_t)h0;
+                                b.lo[1] = (uint8_t)l1, b.hi[1] = (uint8_t)h1;
+                                b.lo[2] = (uint8_t)l2, b.hi[2] = (uint8_t)h2;
+                                out[m++] = b;
+                            }
+    }
+    return m;
+}
+
+/* The chosen terms: a greedy weighted cover of the inside points (most new points per
+ * box first), then terms whose points the others cover dropped.  Returns the number of
+ * terms (0: the inside points are not all covered, -1: out of memory). */
+static int cv_choose(cover *C, cv_term *t, size_t nt, const cv_neg *neg, cv_term *chosen)
+{
+    uint64_t *cov = frep_calloc(C->nw, sizeof *cov);
+    uint64_t *own = frep_calloc((size_t)COVER_MAX_TERMS * C->nw, sizeof *own);
+    int n = 0, rc = -1;
+    if (!cov || !own) goto done;
+    size_t total = cv_count(C, C->in, C->in), got = 0;
+    while (got < total && n < COVER_MAX_TERMS) {
+        double best = 0;
+        size_t bi = 0;
+        for (size_t i = 0; i < nt; i++) {
+            double cost = 1 + t[i].ncut;
+            if ((double)t[i].nin / cost <= best) break;   /* sorted by this bound */
+            cv_set(C, t[i].p, C->bits);
+            for (int k = 0; k < t[i].ncut; k++) {
+                cv_set(C, neg[t[i].cut[k]].b, C->tmp);
+                for (size_t w = 0; w < C->nw; w++) C->bits[w] &= ~C->tmp[w];
+            }
+            size_t g = 0;
+            for (size_t w = 0; w < C->nw; w++)
+                g += (size_t)__builtin_popcountll(C->bits[w] & C->in[w] & ~cov[w]);
+            if ((double)g / cost > best) {
+                best = (double)g / cost;
+                bi = i;
+            }
+        }
+        if (best <= 0) break;
+        uint64_t *o = &own[(size_t)n * C->nw];
+        cv_set(C, t[bi].p, o);
+        for (int k = 0; k < t[bi].ncut; k++) {
+            cv_set(C, neg[t[bi].cut[k]].b, C->tmp);
+            for (size_t w = 0; w < C->nw; w++) o[w] &= ~C->tmp[w];
+        }
+        for (size_t w = 0; w < C->nw; w++) {
+            o[w] &= C->in[w];
+            cov[w] |= o[w];
+        }
+        got = cv_count(C, cov, C->in);
+        chosen[n++] = t[bi];
+    }
+    rc = 0;
+    if (got < total) goto done;
+    /* Drop, last first, a term whose points the others cover. */
+    for (int i = n - 1; i >= 0; i--) {
+        memset(cov, 0, C->nw * sizeof *cov);
+        for (int j = 0; j < n; j++)
+            if (j != i)
+                for (size_t w = 0; w < C->nw; w++) cov[w] |= own[(size_t)j * C->nw + w];
+        if (cv_count(C, cov, C->in) < total) continue;
+        memmove(&chosen[i], &chosen[i + 1], (size_t)(n - i - 1) * sizeof *chosen);
+        memmove(&own[(size_t)i * C->nw], &own[(size_t)(i + 1) * C->nw],
+                (size_t)(n - i - 1) * C->nw * sizeof *own);
+        n--;
+    }
+    rc = n;
+done:
+    frep_free(cov);
+    frep_free(own);
+    return rc;
+}
+
+/* The node of box b (a positive or a cut): fitted faces as leaves, free ones as the
+ * planes of the free ends. */
+static uint32_t cv_node(cover *C, cv_box b)
+{
+    const cv_frame *fr = &C->fr[b.f];
+    double lo[3], hi[3];
+    uint32_t face[6];
+    uint8_t fneg[6];
+    for (int k = 0; k < 3; k++) {
+        lo[k] = fr->of[k][b.lo[k]];
+        hi[k] = fr->of[k][b.hi[k]];
+        face[2 * k] = fr->leaf[k][b.hi[k]];
+        fneg[2 * k] = !fr->up[k][b.hi[k]];
+        face[2 * k + 1] = fr->leaf[k][b.lo[k]];
+        fneg[2 * k + 1] = fr->up[k][b.lo[k]];
+    }
+    uint32_t n = ft_box_node(C->F, fr->u, lo, hi, face, fneg);
+    if (n == FT_NONE) return n;
+    ft_node *v = &C->F->v[n];
+    for (int k = 0; k < 3; k++) {
+        memcpy(v->fpl[2 * k], fr->u[k], 3 * sizeof(double));
+        v->fpl[2 * k][3] = hi[k];
+        for (int w = 0; w < 3; w++) v->fpl[2 * k + 1][w] = -fr->u[k][w];
+        v->fpl[2 * k + 1][3] = -lo[k];
+    }
+    return n;
+}
+
+/* Solids written for the subtree at i: its distinct leaves and feature nodes. */
+static size_t cv_solids(const ft *F, uint32_t i, uint32_t *seen, size_t *ns)
+{
+    const ft_node *v = &F->v[i];
+    if (v->kind == FT_AND || v->kind == FT_OR) {
+        size_t s = 0;
+        for (uint32_t k = 0; k < v->n; k++) s += cv_solids(F, v->t[k].node, seen, ns);
+        return s;
+    }
+    uint32_t key = v->kind == FT_LEAF ? v->leaf : (uint32_t)F->nprims + 1 + i;
+    for (size_t k = 0; k < *ns; k++)
+        if (seen[k] == key) return 0;
+    seen[(*ns)++] = key;
+    return 1;
+}
+
+/* Fibonacci points on spheres of 2 and 8 diagonals around the cloud, as
+ * canon_tree_bounded samples them: whether node i is outside at all of them. */
+static int ft_bounded(const ft *F, uint32_t i, const evolve_result *r)
+{
+    for (int s = 0; s < 2; s++) {
+        double R = (s ? 8 : 2) * r->diag;
+        for (int k = 0; k < CANON_BOUND_DIRS; k++) {
+            double z = 1 - (2 * k + 1.0) / CANON_BOUND_DIRS, rho = sqrt(1 - z * z);
+            double phi = k * FREP_PI * (3 - sqrt(5.0));
+            double x[3] = { r->obb.c[0] + R * rho * cos(phi), r->obb.c[1] + R * rho * sin(phi),
+                            r->obb.c[2] + R * z };
+            if (ft_eval(F, i, x) >= 0) return 0;
+        }
+    }
+    return 1;
+}
+
+static void cv_free(cover *C)
+{
+    frep_free(C->x);
+    frep_free(C->in);
+    frep_free(C->out);
+    frep_free(C->iv);
+    frep_free(C->bits);
+    frep_free(C->tmp);
+}
+
+/* The terms of the cover of node i: positives with their cuts, sorted by inside points
+ * per solid.  Returns their number (0: none), -1 when out of memory. */
+static long cv_terms(cover *C, cv_term **pt, cv_neg **pn)
+{
+    cv_box *bx = frep_malloc((COVER_MAX_BOXES + 1) * sizeof *bx);
+    uint64_t *coverable = frep_calloc(C->nw, sizeof *coverable);
+    cv_term *t = NULL;
+    cv_neg *neg = NULL;
+    long rc = -1;
+    if (!bx || !coverable) goto done;
+    /* Positives: boxes of fitted faces with inside points. */
+    size_t nb = cv_list(C, 0, bx, COVER_MAX_BOXES), nt = 0;
+    rc = 0;
+    if (nb > COVER_MAX_BOXES) goto done;
+    rc = -1;
+    t = frep_malloc((nb + 1) * sizeof *t);
+    if (!t) goto done;
+    for (size_t i = 0; i < nb; i++) {
+        cv_set(C, bx[i], C->bits);
+        size_t nin = cv_count(C, C->bits, C->in);
+        if (!nin) continue;
+        t[nt].p = bx[i];
+        t[nt].nin = nin;
+        size_t nout = cv_count(C, C->bits, C->out);
+        t[nt].ncut = (double)nout > C->sliver * (double)nin ? COVER_MAX_CUTS + 1 : 0;
+        if (!t[nt].ncut)
+            for (size_t w = 0; w < C->nw; w++) coverable[w] |= C->bits[w] & C->in[w];
+        nt++;
+    }
+    /* Cuts: boxes (free faces allowed) with outside points whose inside points some
+     * positive without outside points can give back; the largest, none within another. */
+    rc = 0;
+    nb = cv_list(C, 1, bx, COVER_MAX_BOXES);
+    if (nb > COVER_MAX_BOXES) goto done;
+    rc = -1;
+    neg = frep_malloc((nb + 1) * sizeof *neg);
+    if (!neg) goto done;
+    size_t nn = 0;
+    for (size_t i = 0; i < nb; i++) {
+        cv_set(C, bx[i], C->bits);
+        int bad = 0;
+        for (size_t w = 0; w < C->nw && !bad; w++) bad = (C->bits[w] & C->in[w] & ~coverable[w]) != 0;
+        size_t no = bad ? 0 : cv_count(C, C->bits, C->out);
+        if (!no) continue;
+        neg[nn].b = bx[i];
+        neg[nn].nout = no;
+        neg[nn].span = 0;
+        for (int k = 0; k < 3; k++) neg[nn].span += (size_t)(bx[i].hi[k] - bx[i].lo[k]);
+        nn++;
+    }
+    qsort(neg, nn, sizeof *neg, cv_neg_cmp);
+    size_t kept = 0;
+    for (size_t i = 0; i < nn && kept < COVER_MAX_NEG; i++) {
+        int in = 0;
+        for (size_t k = 0; k < kept && !in; k++) in = cv_within(neg[i].b, neg[k].b);
+        if (!in) neg[kept++] = neg[i];
+    }
+    /* Each impure positive: the cuts that remove the most of its outside points. */
+    size_t ok = 0;
+    for (size_t i = 0; i < nt; i++) {
+        if (t[i].ncut) {
+            cv_set(C, t[i].p, C->bits);
+            for (size_t w = 0; w < C->nw; w++) C->bits[w] &= C->out[w];
+            int nc = 0;
+            while (nc < COVER_MAX_CUTS && cv_count(C, C->bits, C->bits)) {
+                size_t best = 0, bi = 0;
+                for (size_t k = 0; k < kept; k++) {
+                    cv_set(C, neg[k].b, C->tmp);
+                    size_t g = cv_count(C, C->tmp, C->bits);
+                    if (g > best) best = g, bi = k;
+                }
+                if (!best) break;
+                t[i].cut[nc++] = (uint16_t)bi;
+                cv_set(C, neg[bi].b, C->tmp);
+                for (size_t w = 0; w < C->nw; w++) C->bits[w] &= ~C->tmp[w];
+            }
+            if (cv_count(C, C->bits, C->bits)) continue;
+            t[i].ncut = (uint8_t)nc;
+
+        }
+        t[ok++] = t[i];
+    }
+    qsort(t, ok, sizeof *t, cv_term_cmp);
+    *pt = t;
+    *pn = neg;
+    t = NULL;
+    neg = NULL;
+    rc = (long)ok;
+done:
+    frep_free(bx);
+    frep_free(coverable);
+    frep_free(t);
+    frep_free(neg);
+    return rc;
+}
+
+/* The union of the chosen terms as a new node; each cut one node however many terms
+ * it cuts.  *solids: the boxes written.  Returns the node, FT_NONE (memory). */
+static uint32_t cv_union(cover *C, const cv_term *chosen, int n, const cv_neg *neg, size_t *solids)
+{
+    ft *F = C->F;
+    uint16_t used[COVER_MAX_TERMS * COVER_MAX_CUTS];
+    uint32_t cutnode[COVER_MAX_TERMS * COVER_MAX_CUTS];
+    int nu = 0;
+    for (int k = 0; k < n; k++)
+        for (int c = 0; c < chosen[k].ncut; c++) {
+            int dup = 0;
+            for (int e = 0; e < nu && !dup; e++) dup = used[e] == chosen[k].cut[c];
+            if (!dup) used[nu++] = chosen[k].cut[c];
+        }
+    *solids = (size_t)(n + nu);
+    for (int e = 0; e < nu; e++)
+        if ((cutnode[e] = cv_node(C, neg[used[e]].b)) == FT_NONE) return FT_NONE;
+    uint32_t u = ft_new(F, FT_OR);
+    for (int k = 0; k < n && u != FT_NONE; k++) {
+        uint32_t p = cv_node(C, chosen[k].p), term = p;
+        if (p == FT_NONE) return FT_NONE;
+        if (chosen[k].ncut) {
+            term = ft_new(F, FT_AND);
+            ft_add(F, term, p, 0);
+            for (int c = 0; c < chosen[k].ncut; c++)
+                for (int e = 0; e < nu; e++)
+                    if (used[e] == chosen[k].cut[c]) ft_add(F, term, cutnode[e], 1);
+        }
+        ft_add(F, u, term, 0);
+    }
+    return F->failed ? FT_NONE : u;
+}
+
+/* The cover of node i, in its place when it writes fewer solids and the model keeps
+ * its solid (ft_keeps, and bounded if it was).  A second pass lets a box keep slivers
+ * of the subtree's outside (at most COVER_SLIVER of its inside points): a face the GA
+ * left cutting a corner off another part; that cover is kept only when it differs from
+ * the tree at no more than COVER_SLIVER of the inside grid points and explains the
+ * cloud at least as well (mean distance).  Returns 1 when it replaced node i, 0 when
+ * not, -1 when out of memory. */
+static int cv_run(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
+{
+    cover C;
+    memset(&C, 0, sizeof C);
+    C.F = F;
+    C.ck = ck;
+    C.node = i;
+    cv_term *t = NULL, chosen[COVER_MAX_TERMS];
+    cv_neg *neg = NULL;
+    uint32_t *seen = NULL;
+    int rc = 0;
+    if (!cv_planes(&C, i) || C.npl < 6 || !cv_frames(&C, r)) goto done;
+    rc = -1;
+    seen = frep_malloc((F->n + F->nprims + 2) * sizeof *seen);
+    if (!seen || cv_points(&C)) goto done;
+    size_t ns = 0, before = cv_solids(F, i, seen, &ns), nin = 0;
+    for (size_t g = 0; g < ck->ng; g++) nin += ck->ref[g] > ck->gtol;
+    double mean = ft_mean(F, ck->root, ck->cloud, ck->stride);
+    int bounded = ft_bounded(F, ck->root, r);
+    for (int pass = 0; pass < 2; pass++) {
+        C.sliver = pass ? COVER_SLIVER : 0;
+        frep_free(t);
+        frep_free(neg);
+        t = NULL;
+        neg = NULL;
+        long nt = cv_terms(&C, &t, &neg);
+        if (nt < 0) goto done;
+        int n = nt ? cv_choose(&C, t, (size_t)nt, neg, chosen) : 0;
+        if (n < 0) goto done;
+        if (!n) continue;
+        size_t after;
+        uint32_t u = cv_union(&C, chosen, n, neg, &after);
+        if (u == FT_NONE && F->failed) goto done;
+        if (u == FT_NONE) continue;
+        if (after >= before) continue;
+        ft_node saved = F->v[i];
+        F->v[i] = F->v[u];
+        int keeps = pass ? ft_grid_diffs(F, ck, (size_t)(COVER_SLIVER * (double)nin)) <=
+                               (size_t)(COVER_SLIVER * (double)nin) &&
+                               ft_mean(F, ck->root, ck->cloud, ck->stride) <= mean
+                         : ft_keeps(F, ck);
+        if (keeps && (!bounded || ft_bounded(F, ck->root, r))) {
+            F->v[u] = saved;   /* the old operands stay allocated, unreachable */
+            rc = 1;
+            goto done;
+        }
+        F->v[u] = F->v[i];
+        F->v[i] = saved;
+    }
+    rc = 0;
+done:
+    cv_free(&C);
+    frep_free(t);
+    frep_free(neg);
+    frep_free(seen);
+    return rc;
+}
+
+/* The cover of every subtree of planes, largest first; in an operation of planes and
+ * other solids (a box stack minus a bore), of its operands of planes grouped. */
+static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
+{
+    if (F->v[i].kind != FT_AND && F->v[i].kind != FT_OR) return 0;
+    int rc = cv_run(F, i, ck, r);
+    if (rc) return rc < 0 ? -1 : 0;
+    uint32_t n = F->v[i].n;
+    for (uint32_t k = 0; k < n; k++)
+        if (apply_cover(F, F->v[i].t[k].node, ck, r)) return -1;
+    /* Group the operands that are planes alone. */
+    cover C;
+    uint32_t g = FT_NONE, ng = 0;
+    for (uint32_t k = 0; k < F->v[i].n; k++) {
+        memset(&C, 0, sizeof C);
+        C.F = F;
+        if (!cv_planes(&C, F->v[i].t[k].node)) continue;
+        ng++;
+    }
+    if (ng < 2 || ng == F->v[i].n) return 0;
+    g = ft_new(F, F->v[i].kind);
+    if (g == FT_NONE) return -1;
+    ft_term *saved = frep_malloc(F->v[i].n * sizeof *saved);
+    if (!saved) return -1;
+    uint32_t ns = F->v[i].n, w = 0;
+    memcpy(saved, F->v[i].t, ns * sizeof *saved);
+    for (uint32_t k = 0; k < ns; k++) {
+        memset(&C, 0, sizeof C);
+        C.F = F;
+        if (cv_planes(&C, saved[k].node)) ft_add(F, g, saved[k].node, saved[k].neg);
+        else F->v[i].t[w++] = saved[k];
+    }
+    F->v[i].t[w].node = g;
+    F->v[i].t[w++].neg = 0;
+    F->v[i].n = w;
+    rc = F->failed ? -1 : cv_run(F, g, ck, r);
+    if (rc <= 0) {
+        memcpy(F->v[i].t, saved, ns * sizeof *saved);
+        F->v[i].n = ns;
+    }
+    frep_free(saved);
+    return rc < 0 ? -1 : 0;
+}
+
 int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const canon_prim *c,
                      size_t nprims, const frep_cloud *cloud, int exact, int hyperfun,
                      const char *base_call)
@@ -1374,6 +2142,7 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
         ck.gtol = CANON_GRID_TOL * r->diag;
     }
     if (!exact) apply_solids(&F, root, &ck);
+    if (!F.failed && ck.cloud && apply_cover(&F, root, &ck, r)) F.failed = 1;
     if (F.failed) goto done;
     uses = frep_calloc(nprims + 1, sizeof *uses);
     order = frep_calloc(F.n, sizeof *order);

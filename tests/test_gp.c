@@ -176,11 +176,12 @@ static void scene_boxes(const scene *s, const gp_cache *c, gp_obb *boxes)
 
 static void parse_tree(gp_tree *t, const char *postfix, gp_setops so)
 {
-    /* Postfix words: digits = PRIM (1-based), | & \ ~ operators. */
+    /* Postfix words: digits = PRIM (1-based), a-o = PRIM 10-24, | & \ ~ operators. */
     gp_opset o = gp_opset_of(so);
     t->len = 0;
     for (const char *p = postfix; *p; p++) {
         if (*p >= '1' && *p <= '9') tree_push(t, FREP_OP_PRIM, (uint32_t)(*p - '1'));
+        else if (*p >= 'a' && *p <= 'o') tree_push(t, FREP_OP_PRIM, (uint32_t)(*p - 'a' + 9));
         else if (*p == '|') tree_push(t, (frep_opcode)o.uni, 0);
         else if (*p == '&') tree_push(t, (frep_opcode)o.inter, 0);
         else if (*p == '\\') tree_push(t, (frep_opcode)o.sub, 0);
@@ -1624,6 +1625,190 @@ static void test_box_across_union(void)
     cloud_free(cloud);
 }
 
+/* Solids of planes the writer covers with boxes.  A stair of three steps, turned 30
+ * degrees about z, written as the GA factors it: the bounding box of its planes and
+ * (z <= 1 | x <= 2) & (z <= 2 | x <= 1); and a cube with a corner cut off by three faces
+ * of a turned cube, box & (m1 | m2 | m3).  The written model must be the union of three
+ * boxes (the steps) and a box minus a cut box, and the same solid as the tree at the
+ * grid points away from the surface. */
+typedef struct cover_case {
+    const char *name, *tree, *want;
+    int np;
+    double n[16][3], d[16];   /* planes n.x <= d */
+    int cyl;                  /* > 0: primitive cyl - 1 is the bore x^2 + y^2 <= 0.3^2 about (1, 1) */
+} cover_case;
+
+static double cover_tree_value(const cover_case *cc, const gp_tree *t, const double *x)
+{
+    double st[64];
+    int sp = 0;
+    for (uint32_t pc = 0; pc < t->len; pc++) {
+        const frep_insn *in = &t->code[pc];
+        if (in->op == FREP_OP_PRIM && (int)in->arg == cc->cyl - 1) {
+            st[sp++] = 0.3 - hypot(x[0] - 1, x[1] - 1);
+        } else if (in->op == FREP_OP_PRIM) {
+            const double *n = cc->n[in->arg];
+            st[sp++] = cc->d[in->arg] - (n[0] * x[0] + n[1] * x[1] + n[2] * x[2]);
+        } else if (in->op == FREP_OP_NEG) {
+            st[sp - 1] = -st[sp - 1];
+        } else {
+            double b = st[--sp], a = st[--sp];
+            st[sp++] = in->op == FREP_OP_MAX ? fmax(a, b) : in->op == FREP_OP_MIN ? fmin(a, b) : fmin(a, -b);
+        }
+    }
+    return st[0];
+}
+
+static void test_box_cover_case(cover_case *cc)
+{
+    prim prims[16];
+    memset(prims, 0, sizeof prims);
+    for (int j = 0; j < cc->np; j++) {
+        prims[j].type = PRIM_PLANE;
+        memcpy(prims[j].p, cc->n[j], sizeof prims[j].p);
+        prims[j].r = cc->d[j];
+        if (j == cc->cyl - 1) {
+            double axis[3] = { 0, 0, 1 }, at[3] = { 1, 1, 0 };
+            prims[j].type = PRIM_CYLINDER;
+            memcpy(prims[j].a, axis, sizeof axis);
+            memcpy(prims[j].p, at, sizeof at);
+            prims[j].r = 0.3;
+        }
+    }
+    evolve_result r;
+    memset(&r, 0, sizeof r);
+    parse_tree(&r.tree, cc->tree, GP_SETOPS_MINMAX);
+    /* Points on the surface: random points projected to the zero set, kept where the
+     * gradient is one face's (not across an edge). */
+    frep_cloud *cloud = cloud_new(1);
+    gp_rng rng;
+    gp_rng_seed(&rng, 3);
+    for (int i = 0; i < 60000 && cloud; i++) {
+        double p[3], g[3], e = 1e-6;
+        for (int c = 0; c < 3; c++) p[c] = -0.5 + 4 * gp_rng_unif(&rng);
+        for (int it = 0; it < 6; it++) {
+            double v = cover_tree_value(cc, &r.tree, p), l2 = 0;
+            for (int c = 0; c < 3; c++) {
+                double q[3] = { p[0], p[1], p[2] };
+                q[c] += e;
+                g[c] = (cover_tree_value(cc, &r.tree, q) - v) / e;
+                l2 += g[c] * g[c];
+            }
+            if (!(l2 > 0.25)) break;
+            for (int c = 0; c < 3; c++) p[c] -= v * g[c] / l2;
+        }
+        double v = cover_tree_value(cc, &r.tree, p), l = 0;
+        for (int c = 0; c < 3; c++) {
+            double q[3] = { p[0], p[1], p[2] }, w[3] = { p[0], p[1], p[2] };
+            q[c] += e;
+            w[c] -= e;
+            g[c] = (cover_tree_value(cc, &r.tree, q) - cover_tree_value(cc, &r.tree, w)) / (2 * e);
+            l += g[c] * g[c];
+        }
+        if (fabs(v) > 1e-9 || fabs(sqrt(l) - 1) > 1e-3) continue;
+        double nrm[3] = { -g[0], -g[1], -g[2] };
+        if (cloud_push(cloud, p, nrm)) {
+            cloud_free(cloud);
+            cloud = NULL;
+        }
+    }
+    ok(cloud && cloud->n > 5000, "%s: %zu points on its faces", cc->name, cloud ? cloud->n : 0);
+    if (!cloud) {
+        tree_free(&r.tree);
+        return;
+    }
+    r.npoints = cloud->n;
+    part_obb_of_points(cloud->x, cloud->y, cloud->z, NULL, cloud->n, &r.obb);
+    double lo[3] = { INFINITY, INFINITY, INFINITY }, hi[3] = { -INFINITY, -INFINITY, -INFINITY };
+    for (size_t i = 0; i < cloud->n; i++) {
+        double p[3] = { cloud->x[i], cloud->y[i], cloud->z[i] };
+        for (int c = 0; c < 3; c++) lo[c] = fmin(lo[c], p[c]), hi[c] = fmax(hi[c], p[c]);
+    }
+    r.diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                  (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    for (int c = 0; c < 3; c++) r.box[c] = lo[c] - 0.1, r.box[3 + c] = hi[c] + 0.1;
+    evolve_meta meta = { "test", "cover.xyz", 1, GP_SETOPS_MINMAX, NULL, NULL, cloud, 0, 0 };
+    char *text = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
+    int rc = f ? evolve_write_model(f, &r, prims, (size_t)cc->np, &meta) : -1;
+    if (f) fclose(f);
+    ok(rc == 0 && text && strstr(text, cc->want) != NULL, "%s: written as '%s'", cc->name, cc->want);
+    if (rc || !text || !strstr(text, cc->want)) diag("%s", text ? text : "(no text)");
+
+    frep_compile_options opt;
+    frep_compile_options_init(&opt);
+    frep_program *prog = text ? frep_compile("cover.hf", text, len, &opt, ignore_diag, NULL) : NULL;
+    frep_scratch *sc = prog ? frep_scratch_new(prog) : NULL;
+    size_t same = 0, total = 0;
+    for (int i = 0; sc && i < 30; i++)
+        for (int j = 0; j < 30; j++)
+            for (int k = 0; k < 30; k++) {
+                double p[3] = { -1 + 5.0 * (i + 0.5) / 30, -1 + 5.0 * (j + 0.5) / 30,
+                                -1 + 5.0 * (k + 0.5) / 30 }, v;
+                double want = cover_tree_value(cc, &r.tree, p);
+                if (fabs(want) < 0.02) continue;
+                if (frep_eval(prog, sc, 1, &p[0], &p[1], &p[2], NULL, &v)) continue;
+                total++;
+                same += (v >= 0) == (want >= 0);
+            }
+    ok(prog && total > 20000 && same == total,
+       "%s: the written model is the tree (%zu of %zu grid points on the right side)", cc->name,
+       same, total);
+    frep_scratch_free(sc);
+    frep_program_free(prog);
+    free(text);
+    tree_free(&r.tree);
+    cloud_free(cloud);
+}
+
+static void test_box_cover(void)
+{
+    static cover_case stair = { "stair", "12&3&4&5&6&78|&9a|&", "3 solids: 3 boxes", 10, { { 0 } }, { 0 }, 0 };
+    /* Turned 30 degrees about z: x' = (c, s, 0), y' = (-s, c, 0). */
+    double c = cos(FREP_PI / 6), s = sin(FREP_PI / 6);
+    double X[3] = { c, s, 0 }, Y[3] = { -s, c, 0 }, Z[3] = { 0, 0, 1 };
+    /* x' >= 0, y' >= 0, y' <= 1, z >= 0, x' <= 3, z <= 3, z <= 1, x' <= 2, z <= 2, x' <= 1 */
+    const double *ax[10] = { X, Y, Y, Z, X, Z, Z, X, Z, X };
+    double sg[10] = { -1, -1, 1, -1, 1, 1, 1, 1, 1, 1 }, dd[10] = { 0, 0, 1, 0, 3, 3, 1, 2, 2, 1 };
+    for (int j = 0; j < 10; j++) {
+        for (int k = 0; k < 3; k++) stair.n[j][k] = sg[j] * ax[j][k] + 0.0;
+        stair.d[j] = dd[j];
+    }
+    test_box_cover_case(&stair);
+
+    /* The cube [0, 2]^3 less the corner beyond three faces of a cube turned by
+     * (10, 20, 30) degrees about x, y, z whose corner sits at (1.4, 1.4, 1.4). */
+    static cover_case corner = { "corner", "12&3&4&5&6&78|9|&", "2 solids: 2 boxes", 9, { { 0 } }, { 0 }, 0 };
+    for (int j = 0; j < 6; j++) {
+        corner.n[j][j / 2] = j % 2 ? 1 : -1;
+        corner.d[j] = j % 2 ? 2 : 0;
+    }
+    double rx = 10 * FREP_PI / 180, ry = 20 * FREP_PI / 180, rz = 30 * FREP_PI / 180;
+    double cx = cos(rx), sx = sin(rx), cy = cos(ry), sy = sin(ry), cz = cos(rz), sz = sin(rz);
+    double R[3][3] = { { cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx },
+                       { sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx },
+                       { -sy, cy * sx, cy * cx } };
+    for (int j = 0; j < 3; j++) {
+        /* the cut is u_j . (x - corner) >= 0 for all j: the material is u_j . x <= u_j . corner */
+        double d = 0;
+        for (int k = 0; k < 3; k++) {
+            corner.n[6 + j][k] = R[k][j];
+            d += R[k][j] * 1.4;
+        }
+        corner.d[6 + j] = d;
+    }
+    test_box_cover_case(&corner);
+    /* The same less a bore along z: the cover takes the plane operands of the root. */
+    cover_case bored = corner;
+    bored.name = "corner and bore";
+    bored.tree = "12&3&4&5&6&78|9|&a\\";
+    bored.want = "3 solids: 2 boxes, 1 cylinder";
+    bored.np = 10;
+    bored.cyl = 10;
+    test_box_cover_case(&bored);
+}
+
 int main(void)
 {
     test_tree_ops();
@@ -1648,5 +1833,6 @@ int main(void)
     test_support();
     test_cache_stats();
     test_box_across_union();
+    test_box_cover();
     return done_testing();
 }
