@@ -267,6 +267,14 @@ static int polygonize(mesher *M, mesh_stats *st, frep_mesh *out, frep_error *e)
     if (nverts >= UINT32_MAX)
         return frep_error_set(e, FREP_ELIMIT, "the mesh has more than 2^32 vertices; use a smaller -g");
     if (make_quads(M, e) != 0 || assemble(M, nverts, out, e) != 0) return -1;
+    if (!M->o->no_projection) {
+        int rc = mesh_settle_vertices(M, out, st);
+        if (rc != 0) {
+            mesh_free(out);
+            return rc == FREP_ENOMEM ? frep_error_nomem(e)
+                                     : frep_error_set(e, FREP_EINPUT, "evaluation failure while meshing");
+        }
+    }
     if (M->o->progress) M->o->progress(M->o->progress_user, 1.0);
     return 0;
 }
