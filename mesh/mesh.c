@@ -60,9 +60,6 @@
  * of a cell's 3 low faces when one component crosses that face twice (see
  * face_candidates). */
 #define MESH_BLOCK_VMAX (10 * MESH_BLOCK_CELLS)
-/* The field's box of a block reaches this fraction of a cell beyond the block's
- * corners, so that rounding cannot put a corner outside it. */
-#define MESH_FOCUS_SLACK 1e-9
 /* A cell vertex farther than this fraction of a cell from the surface (|f - iso| /
  * |grad f|, the grid scaled to unit cubes) after the QEF is projected onto it
  * (project_vertices): Newton steps along the gradient, at most MESH_PROJECT_STEPS of
@@ -383,11 +380,7 @@ static int block_focus(block_ctx *c)
     c->sign_tol = 0;
     c->focused = c->f->focus && c->iso == 0;
     if (!c->focused) return 0;
-    for (int k = 0; k < 3; k++) {
-        double slack = MESH_FOCUS_SLACK * M->h[k];
-        c->bb[k] = mesh_coord(M, k, c->base[k]) - slack;
-        c->bb[k + 3] = mesh_coord(M, k, (long)c->base[k] + MESH_BLOCK) + slack;
-    }
+    mesh_block_box(M, c->B, c->bb);
     return field_status(c->f->focus(c->f->ctx, c->ts, c->bb, &c->sign_tol));
 }
 

@@ -106,6 +106,20 @@ static inline double mesh_coord(const mesher *M, int c, long P)
     return frep_grid_coord(M->o->box[c], M->o->box[c + 3], P - 1, M->g[c]);
 }
 
+/* The field's box of a block reaches this fraction of a cell beyond the block's
+ * corners, so that rounding cannot put a corner outside it. */
+#define MESH_FOCUS_SLACK 1e-9
+
+/* The box block B focuses the field on (its cells, MESH_FOCUS_SLACK wider). */
+static inline void mesh_block_box(const mesher *M, const mblock *B, double bb[6])
+{
+    for (int k = 0; k < 3; k++) {
+        double slack = MESH_FOCUS_SLACK * M->h[k];
+        bb[k] = mesh_coord(M, k, (long)B->b[k] * MESH_BLOCK) - slack;
+        bb[k + 3] = mesh_coord(M, k, (long)B->b[k] * MESH_BLOCK + MESH_BLOCK) + slack;
+    }
+}
+
 /* |f - iso| / |grad f| of a point in cells (the grid scaled to unit cubes, as
  * mesh_surface_distance measures); NaN when the gradient says nothing. */
 static inline double mesh_cell_distance(const mesher *M, double f, double gx, double gy, double gz)

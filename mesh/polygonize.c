@@ -5,7 +5,8 @@
  * parallel, blocks with crossings towards unlisted ones bringing them in; the faces
  * crossed twice are confirmed and the quads made (quads.c); the blocks' vertices and
  * triangles are assembled in key order, so the mesh does not depend on the thread
- * count.  The result goes to geom/meshio.c, mesh/sample.c or mesh/render.c.
+ * count; vertices left off the surface are settled onto it (settle.c).  The result
+ * goes to geom/meshio.c, mesh/sample.c or mesh/render.c.
  */
 #include "config.h"
 

@@ -44,6 +44,7 @@
  * may go (position, f - iso, gradient, distance in cells). */
 typedef struct svert {
     uint32_t v;
+    const mblock *B;          /* its block, whose box the field is focused on */
     double lo[3], hi[3];
     double x[3], f, g[3], d;
     double n[3];              /* the vertex normal: the side the surface must face */
@@ -58,9 +59,15 @@ typedef struct settle_run {
     /* one batch: SETTLE_BATCH_PER entries per vertex */
     double *bx, *by, *bz, *bf, *bgx, *bgy, *bgz;
     uint32_t *bid;            /* batch entry -> sv index */
+    size_t eval_points, grad_points;  /* work done, for mesh_stats */
     double *sa, *sb;          /* bisection: 3 per entry, the ends on the vertex's side
                                  and on the other */
 } settle_run;
+
+/* Triangles around one vertex, and around the vertices of its fan, beyond which a
+ * vertex is not moved (a dual-contouring vertex has 4 to 12 or so triangles). */
+#define SETTLE_MAX_FAN 32
+#define SETTLE_MAX_NEAR 256
 
 /* Batch entries per vertex: one per corner of its cell in the bisection. */
 #define SETTLE_BATCH_PER 8
@@ -95,6 +102,7 @@ static int far_vertices(settle_run *r, const frep_mesh *out)
             if (!(d > MESH_SETTLE_TOL)) continue;
             svert s;
             s.v = (uint32_t)(B->vglobal + l);
+            s.B = B;
             if (!vertex_cell(M, &B->vpos[3 * l], s.lo, s.hi)) continue;
             if (n == cap) {
                 size_t nc = cap ? 2 * cap : 64;
@@ -115,14 +123,34 @@ static int far_vertices(settle_run *r, const frep_mesh *out)
     return 0;
 }
 
-/* Gradients at the batch's first m points. */
-static int batch_grad(settle_run *r, size_t m)
+/* Values (grad 0) or values and gradients at the batch's first m points, a run of
+ * entries of one block at a time with the field focused on the block's box (the
+ * pruned program of the blocks' own evaluations: the whole one costs several times
+ * more on CSG parts).  0 or FREP_EINPUT. */
+static int batch_eval(settle_run *r, size_t m, int grad)
 {
     const mesh_field *f = r->M->f;
-    if (m == 0) return 0;
-    return f->grad(f->ctx, r->ts, m, r->bx, r->by, r->bz, r->bf, r->bgx, r->bgy, r->bgz) != 0
-               ? FREP_EINPUT : 0;
+    int focus = f->focus && r->M->o->iso == 0;
+    int rc = 0;
+    for (size_t i = 0, j; i < m && rc == 0; i = j) {
+        const mblock *B = r->sv[r->bid[i]].B;
+        for (j = i + 1; j < m && r->sv[r->bid[j]].B == B; j++) continue;
+        if (focus) {
+            double bb[6];
+            mesh_block_box(r->M, B, bb);
+            if (f->focus(f->ctx, r->ts, bb, NULL) != 0) return FREP_EINPUT;
+        }
+        size_t n = j - i;
+        *(grad ? &r->grad_points : &r->eval_points) += n;
+        rc = grad ? f->grad(f->ctx, r->ts, n, r->bx + i, r->by + i, r->bz + i, r->bf + i,
+                            r->bgx + i, r->bgy + i, r->bgz + i)
+                  : f->eval(f->ctx, r->ts, n, r->bx + i, r->by + i, r->bz + i, r->bf + i);
+    }
+    if (focus && f->focus(f->ctx, r->ts, NULL, NULL) != 0) return FREP_EINPUT;
+    return rc != 0 ? FREP_EINPUT : 0;
 }
+
+static int batch_grad(settle_run *r, size_t m) { return batch_eval(r, m, 1); }
 
 /* Batch entry q as vertex s's target when it is closer to the surface and the surface
  * there faces the vertex's way (not another sheet of the cell). */
@@ -170,7 +198,6 @@ static int newton_targets(settle_run *r)
  * segments' midpoints decide. */
 static int bisect_targets(settle_run *r)
 {
-    const mesh_field *fl = r->M->f;
     double iso = r->M->o->iso;
     size_t m = 0;
     for (size_t k = 0; k < r->n; k++) {
@@ -184,7 +211,8 @@ static int bisect_targets(settle_run *r)
         }
     }
     if (m == 0) return 0;
-    if (fl->eval(fl->ctx, r->ts, m, r->bx, r->by, r->bz, r->bf) != 0) return FREP_EINPUT;
+    int rc = batch_eval(r, m, 0);
+    if (rc) return rc;
     size_t ns = 0;
     for (size_t q = 0; q < m; q++) {
         const svert *s = &r->sv[r->bid[q]];
@@ -203,7 +231,7 @@ static int bisect_targets(settle_run *r)
             r->bz[q] = 0.5 * (r->sa[3 * q + 2] + r->sb[3 * q + 2]);
         }
         if (it == MESH_SETTLE_BISECT) break;
-        if (fl->eval(fl->ctx, r->ts, ns, r->bx, r->by, r->bz, r->bf) != 0) return FREP_EINPUT;
+        if ((rc = batch_eval(r, ns, 0)) != 0) return rc;
         for (size_t q = 0; q < ns; q++) {
             const svert *s = &r->sv[r->bid[q]];
             double *end = (r->bf[q] >= iso) == (s->f >= 0) ? &r->sa[3 * q] : &r->sb[3 * q];
@@ -212,8 +240,7 @@ static int bisect_targets(settle_run *r)
             end[2] = r->bz[q];
         }
     }
-    int rc = batch_grad(r, ns);
-    if (rc) return rc;
+    if ((rc = batch_grad(r, ns)) != 0) return rc;
     /* per vertex, the midpoint nearest to it that is on the surface and faces its way
      * (sa and sb are free now: the best squared distance and entry per vertex) */
     double *best = r->sa, *bestq = r->sb;
@@ -328,7 +355,7 @@ static void tri_normal(const frep_mesh *m, uint32_t t, uint32_t v, const double 
 {
     const double *p[3];
     for (int i = 0; i < 3; i++) {
-        uint32_t w = m->tri[3 * t + i];
+        uint32_t w = m->tri[3 * (size_t)t + (size_t)i];
         p[i] = w == v ? x : &m->v[3 * w];
     }
     double u[3], w[3];
@@ -369,27 +396,76 @@ static int pair_meets(const frep_mesh *m, uint32_t s, uint32_t t, uint32_t v, co
     return tri_tri_intersect(p, q, n);
 }
 
+/* The bounding box of triangle t with vertex v at x. */
+static void tri_box(const frep_mesh *m, uint32_t t, uint32_t v, const double x[3], double b[6])
+{
+    for (int c = 0; c < 3; c++) {
+        b[c] = INFINITY;
+        b[c + 3] = -INFINITY;
+    }
+    for (int i = 0; i < 3; i++) {
+        uint32_t w = m->tri[3 * (size_t)t + (size_t)i];
+        const double *p = w == v ? x : &m->v[3 * (size_t)w];
+        for (int c = 0; c < 3; c++) {
+            b[c] = fmin(b[c], p[c]);
+            b[c + 3] = fmax(b[c + 3], p[c]);
+        }
+    }
+}
+
+static int boxes_meet(const double a[6], const double b[6])
+{
+    for (int c = 0; c < 3; c++)
+        if (a[c] > b[c + 3] || b[c] > a[c + 3]) return 0;
+    return 1;
+}
+
 /* May far vertex k move to its target?  Every triangle of its fan keeps its
  * orientation (cosine of the turn above MESH_SETTLE_TURN) and meets no triangle
- * around its own vertices (the exact test of --check) beyond the vertices they share. */
+ * around the fan's vertices (the exact test of --check) beyond the vertices they
+ * share.  More than SETTLE_MAX_FAN fan or SETTLE_MAX_NEAR nearby triangles: no move. */
 static int move_is_clean(const frep_mesh *m, const fan_index *x, const svert *s, size_t k)
 {
     const uint32_t *fan = &x->list[x->start[k]];
     uint32_t nfan = x->start[k + 1] - x->start[k];
+    if (nfan > SETTLE_MAX_FAN) return 0;
+    double fbox[SETTLE_MAX_FAN][6];
     for (uint32_t i = 0; i < nfan; i++) {
         double n0[3], n1[3];
         tri_normal(m, fan[i], s->v, &m->v[3 * s->v], n0);
         tri_normal(m, fan[i], s->v, s->x, n1);
         if (!(cosine(n0, n1) > MESH_SETTLE_TURN)) return 0;
+        tri_box(m, fan[i], s->v, s->x, fbox[i]);
     }
+    /* the triangles around the fan's other vertices, each once, the fan's own apart */
+    uint32_t near[SETTLE_MAX_NEAR];
+    size_t nnear = 0;
     for (uint32_t i = 0; i < nfan; i++)
         for (int c = 0; c < 3; c++) {
-            uint32_t w = x->map[m->tri[3 * (size_t)fan[i] + c]];
-            for (uint32_t j = x->start[w]; j < x->start[w + 1]; j++)
-                for (uint32_t q = 0; q < nfan; q++)
-                    if (x->list[j] != fan[q] && pair_meets(m, fan[q], x->list[j], s->v, s->x))
-                        return 0;
+            uint32_t w = m->tri[3 * (size_t)fan[i] + (size_t)c];
+            if (w == s->v) continue;
+            uint32_t iw = x->map[w];
+            for (uint32_t j = x->start[iw]; j < x->start[iw + 1]; j++) {
+                uint32_t u = x->list[j], q;
+                for (q = 0; q < nfan && fan[q] != u; q++) continue;
+                if (q < nfan) continue;
+                size_t e;
+                for (e = 0; e < nnear && near[e] != u; e++) continue;
+                if (e < nnear) continue;
+                if (nnear == SETTLE_MAX_NEAR) return 0;
+                near[nnear++] = u;
+            }
         }
+    /* the fan's triangles among themselves (a fold inside the fan) and against those */
+    for (uint32_t i = 0; i < nfan; i++)
+        for (uint32_t q = i + 1; q < nfan; q++)
+            if (pair_meets(m, fan[i], fan[q], s->v, s->x)) return 0;
+    for (size_t e = 0; e < nnear; e++) {
+        double ub[6];
+        tri_box(m, near[e], s->v, s->x, ub);
+        for (uint32_t q = 0; q < nfan; q++)
+            if (boxes_meet(fbox[q], ub) && pair_meets(m, fan[q], near[e], s->v, s->x)) return 0;
+    }
     return 1;
 }
 
@@ -413,8 +489,14 @@ static size_t apply_moves(settle_run *r, frep_mesh *out, const fan_index *x)
 int mesh_settle_vertices(const mesher *M, frep_mesh *out, mesh_stats *st)
 {
     settle_run r = { .M = M, .ts = M->ts[0] };
-    if (far_vertices(&r, out) != 0) return FREP_ENOMEM;
-    if (r.n == 0) return 0;
+    if (far_vertices(&r, out) != 0) {
+        frep_free(r.sv);
+        return FREP_ENOMEM;
+    }
+    if (r.n == 0) {
+        frep_free(r.sv);
+        return 0;
+    }
     size_t cap = SETTLE_BATCH_PER * r.n;
     double *buf = frep_malloc(13 * cap * sizeof *buf);
     r.bid = frep_malloc(cap * sizeof *r.bid);
@@ -436,6 +518,8 @@ int mesh_settle_vertices(const mesher *M, frep_mesh *out, mesh_stats *st)
             rc = build_fans(&r, out, &fx) != 0 ? FREP_ENOMEM : 0;
     }
     if (rc == 0) st->settled = apply_moves(&r, out, &fx);
+    st->eval_points += r.eval_points;
+    st->grad_points += r.grad_points;
     fan_index_free(&fx);
     frep_free(buf);
     frep_free(r.bid);
