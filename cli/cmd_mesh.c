@@ -400,9 +400,10 @@ static int stage_report(mesh_cmd *c)
                 mc->box[1], mc->box[4], mc->box[2], mc->box[5], grid, c->st.seconds);
     if (c->verbose)
         fprintf(c->summary, "work: %zu octree nodes, %zu of %zu blocks, %zu points evaluated, %zu "
-                            "gradients, %zu cells with several components, %zu face vertices\n",
+                            "gradients, %zu cells with several components, %zu face vertices, %zu vertices "
+                            "settled\n",
                 c->st.octree_nodes, c->st.blocks, c->st.blocks_total, c->st.eval_points,
-                c->st.grad_points, c->st.cells_split, c->st.face_vertices);
+                c->st.grad_points, c->st.cells_split, c->st.face_vertices, c->st.settled);
     return c->check ? stage_check(c) : CLI_OK;
 }
 

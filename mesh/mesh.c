@@ -60,9 +60,6 @@
  * of a cell's 3 low faces when one component crosses that face twice (see
  * face_candidates). */
 #define MESH_BLOCK_VMAX (10 * MESH_BLOCK_CELLS)
-/* The field's box of a block reaches this fraction of a cell beyond the block's
- * corners, so that rounding cannot put a corner outside it. */
-#define MESH_FOCUS_SLACK 1e-9
 /* A cell vertex farther than this fraction of a cell from the surface (|f - iso| /
  * |grad f|, the grid scaled to unit cubes) after the QEF is projected onto it
  * (project_vertices): Newton steps along the gradient, at most MESH_PROJECT_STEPS of
@@ -383,11 +380,7 @@ static int block_focus(block_ctx *c)
     c->sign_tol = 0;
     c->focused = c->f->focus && c->iso == 0;
     if (!c->focused) return 0;
-    for (int k = 0; k < 3; k++) {
-        double slack = MESH_FOCUS_SLACK * M->h[k];
-        c->bb[k] = mesh_coord(M, k, c->base[k]) - slack;
-        c->bb[k + 3] = mesh_coord(M, k, (long)c->base[k] + MESH_BLOCK) + slack;
-    }
+    mesh_block_box(M, c->B, c->bb);
     return field_status(c->f->focus(c->f->ctx, c->ts, c->bb, &c->sign_tol));
 }
 
@@ -906,17 +899,6 @@ static int vertex_cell_box(const block_ctx *c, size_t v, double margin, double l
     return 1;
 }
 
-/* |f - iso| / |grad f| of a point in cells (the grid scaled to unit cubes, as
- * mesh_surface_distance measures); NaN when the gradient says nothing. */
-static double surface_distance(const mesher *M, double f, double gx, double gy, double gz)
-{
-    gx *= M->h[0];
-    gy *= M->h[1];
-    gz *= M->h[2];
-    double gl = sqrt(gx * gx + gy * gy + gz * gz);
-    return gl > 0 && isfinite(gl) ? fabs(f) / gl : NAN;
-}
-
 /* The cell vertices farther than MESH_PROJECT_TOL cells from the surface (the QEF's
  * solution off a curved sheet, or the mass point where the solution left the cell)
  * go to the surface by Newton steps x - (f - iso) grad f / |grad f|^2, clamped to
@@ -931,7 +913,7 @@ static int project_vertices(block_ctx *c)
     int n = 0;
     if (M->o->no_projection) return 0;
     for (size_t v = 0; v < c->nv; v++) {
-        double d = surface_distance(M, W->vf[v] - c->iso, W->vgx[v], W->vgy[v], W->vgz[v]);
+        double d = mesh_cell_distance(M, W->vf[v] - c->iso, W->vgx[v], W->vgy[v], W->vgz[v]);
         if (d > tol) W->jid[n++] = (int32_t)v;
     }
     for (int step = 0; step < MESH_PROJECT_STEPS && n > 0; step++) {
@@ -958,8 +940,8 @@ static int project_vertices(block_ctx *c)
         n = 0;
         for (int q = 0; q < m; q++) {
             size_t v = (size_t)W->jid[q];
-            double d0 = surface_distance(M, W->vf[v] - c->iso, W->vgx[v], W->vgy[v], W->vgz[v]);
-            double d1 = surface_distance(M, W->jf[q] - c->iso, W->jgx[q], W->jgy[q], W->jgz[q]);
+            double d0 = mesh_cell_distance(M, W->vf[v] - c->iso, W->vgx[v], W->vgy[v], W->vgz[v]);
+            double d1 = mesh_cell_distance(M, W->jf[q] - c->iso, W->jgx[q], W->jgy[q], W->jgz[q]);
             /* the surface reached must face the way of the component's crossings (not
              * another sheet in the cell, as of a part a hair's breadth away) */
             double fd = -(W->jgx[q] * W->fnx[v] + W->jgy[q] * W->fny[v] + W->jgz[q] * W->fnz[v]);

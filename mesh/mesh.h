@@ -96,6 +96,7 @@ typedef struct mesh_stats {
     size_t grad_points;      /* points evaluated with the gradient */
     double seconds;
     size_t face_vertices;    /* extra vertices on faces crossed twice by one sheet */
+    size_t settled;          /* vertices moved onto the surface after the quads */
 } mesh_stats;
 
 /* Polygonize. Returns 0 with a closed, oriented mesh in *out (possibly empty: no

@@ -8,6 +8,7 @@
 #ifndef FREP_MESH_INTERNAL_H
 #define FREP_MESH_INTERNAL_H
 
+#include <math.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -105,6 +106,31 @@ static inline double mesh_coord(const mesher *M, int c, long P)
     return frep_grid_coord(M->o->box[c], M->o->box[c + 3], P - 1, M->g[c]);
 }
 
+/* The field's box of a block reaches this fraction of a cell beyond the block's
+ * corners, so that rounding cannot put a corner outside it. */
+#define MESH_FOCUS_SLACK 1e-9
+
+/* The box block B focuses the field on (its cells, MESH_FOCUS_SLACK wider). */
+static inline void mesh_block_box(const mesher *M, const mblock *B, double bb[6])
+{
+    for (int k = 0; k < 3; k++) {
+        double slack = MESH_FOCUS_SLACK * M->h[k];
+        bb[k] = mesh_coord(M, k, (long)B->b[k] * MESH_BLOCK) - slack;
+        bb[k + 3] = mesh_coord(M, k, (long)B->b[k] * MESH_BLOCK + MESH_BLOCK) + slack;
+    }
+}
+
+/* |f - iso| / |grad f| of a point in cells (the grid scaled to unit cubes, as
+ * mesh_surface_distance measures); NaN when the gradient says nothing. */
+static inline double mesh_cell_distance(const mesher *M, double f, double gx, double gy, double gz)
+{
+    gx *= M->h[0];
+    gy *= M->h[1];
+    gz *= M->h[2];
+    double gl = sqrt(gx * gx + gy * gy + gz * gz);
+    return gl > 0 && isfinite(gl) ? fabs(f) / gl : NAN;
+}
+
 /* ---- the stages (each file's header says more) ------------------------------------ */
 
 /* octree.c: the sorted list of blocks and the octree that fills it. */
@@ -132,5 +158,10 @@ int mesh_block_contour(const mesher *M, mwork *W, void *ts, mblock *B);
 void mesh_resolve_faces(mesher *M);
 /* The triangles of the quads block B owns into B->tri. 0, or -1 when out of memory. */
 int mesh_block_quads(mesher *M, mblock *B);
+
+/* settle.c: the cell vertices still farther than MESH_SETTLE_TOL cells from the
+ * surface moved onto it where their fan does not fold.  0, FREP_ENOMEM or FREP_EINPUT
+ * (the field failed). */
+int mesh_settle_vertices(const mesher *M, frep_mesh *out, mesh_stats *st);
 
 #endif

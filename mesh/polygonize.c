@@ -5,7 +5,8 @@
  * parallel, blocks with crossings towards unlisted ones bringing them in; the faces
  * crossed twice are confirmed and the quads made (quads.c); the blocks' vertices and
  * triangles are assembled in key order, so the mesh does not depend on the thread
- * count.  The result goes to geom/meshio.c, mesh/sample.c or mesh/render.c.
+ * count; vertices left off the surface are settled onto it (settle.c).  The result
+ * goes to geom/meshio.c, mesh/sample.c or mesh/render.c.
  */
 #include "config.h"
 
@@ -267,6 +268,14 @@ static int polygonize(mesher *M, mesh_stats *st, frep_mesh *out, frep_error *e)
     if (nverts >= UINT32_MAX)
         return frep_error_set(e, FREP_ELIMIT, "the mesh has more than 2^32 vertices; use a smaller -g");
     if (make_quads(M, e) != 0 || assemble(M, nverts, out, e) != 0) return -1;
+    if (!M->o->no_projection) {
+        int rc = mesh_settle_vertices(M, out, st);
+        if (rc != 0) {
+            mesh_free(out);
+            return rc == FREP_ENOMEM ? frep_error_nomem(e)
+                                     : frep_error_set(e, FREP_EINPUT, "evaluation failure while meshing");
+        }
+    }
     if (M->o->progress) M->o->progress(M->o->progress_user, 1.0);
     return 0;
 }
