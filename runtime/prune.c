@@ -17,6 +17,7 @@
 
 #include "threads.h"
 #include "util.h"
+#include "vm_f32.h"
 #include "vm_internal.h"
 
 #define PR_NONE UINT32_MAX
@@ -564,6 +565,8 @@ typedef struct grid_worker {
     double *zp;              /* z of each plane of the slab over a block (see below) */
     long zp_k0;              /* first plane zp holds; -1: none */
     uint32_t *idx;           /* their offsets in the caller's f */
+    vm_f32 *f32;             /* the float evaluator (PRUNE_GRID_SINGLE), else NULL */
+    double e32;              /* the current tile's float error bound; INFINITY: double */
 } grid_worker;
 
 static void worker_free(grid_worker *w)
@@ -577,12 +580,15 @@ static void worker_free(grid_worker *w)
     frep_free(w->zp);
     frep_free(w->f);
     frep_free(w->idx);
+    vm_f32_free(w->f32);
 }
 
-static int worker_init(grid_worker *w, const frep_program *p, const prune_plan *pl)
+static int worker_init(grid_worker *w, const frep_program *p, const prune_plan *pl, int single)
 {
     memset(w, 0, sizeof *w);
     w->zp_k0 = -1;
+    w->e32 = INFINITY;
+    if (single && !(w->f32 = vm_f32_new(p))) return -1;
     w->s = vm_scratch_new(p);
     w->st = pl ? prune_state_new(pl) : NULL;
     w->sp = pl ? prune_state_new(pl) : NULL;
@@ -614,7 +620,40 @@ typedef struct grid_job {
     vm_errstate *terr;       /* terr[t - tbase] */
     prune_grid_stats *tst;   /* tst[t - tbase], or NULL: no summary */
     int sized;               /* threads chosen by the job's size (grid_threads) */
+    int single;              /* PRUNE_GRID_SINGLE and the program runs in float */
 } grid_job;
+
+/* Whether every float value of f[n] is farther than e from 0 (so on double's side). */
+static int f32_certain(const double *f, size_t n, double e)
+{
+    int near = 0;
+    for (size_t i = 0; i < n; i++) near |= !(fabs(f[i]) > e);
+    return !near;
+}
+
+/* The lanes of f[n] within e of 0 (or NaN) again in double: gathered into one short
+ * block, evaluated, scattered back. */
+static int f32_redo(const frep_program *q, vm_scratch *s, const vm_inputs *in, size_t n,
+                    double e, double *f)
+{
+    double x[FREP_BLOCK], y[FREP_BLOCK], z[FREP_BLOCK], v[FREP_BLOCK];
+    uint16_t at[FREP_BLOCK];
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (fabs(f[i]) > e) continue;
+        x[m] = in->x[i];
+        y[m] = in->y[i];
+        z[m] = in->z[i];
+        at[m++] = (uint16_t)i;
+    }
+    vm_inputs g = *in;
+    g.x = x;
+    g.y = y;
+    g.z = z;
+    if (vm_eval_block(q, s, &g, m, v) < 0) return -1;
+    for (size_t k = 0; k < m; k++) f[at[k]] = v[k];
+    return 0;
+}
 
 /* Evaluate nb points gathered in w, scatter rows back to f (row r of w's block has
  * idx[r] as its first offset and `row` points). */
@@ -626,7 +665,15 @@ static int grid_flush(const grid_job *g, grid_worker *w, const frep_program *q, 
     in.x = w->x;
     in.y = w->y;
     in.z = z;
-    if (vm_eval_block(q, w->s, &in, nb, w->f) < 0) return -1;
+    if (w->e32 < INFINITY && vm_f32_eval_block(w->f32, q, w->x, w->y, z, nb, w->f) == 0) {
+        if (tst) tst->single++;
+        if (!f32_certain(w->f, nb, w->e32)) {
+            if (tst) tst->redone++;
+            if (f32_redo(q, w->s, &in, nb, w->e32, w->f) < 0) return -1;
+        }
+    } else if (vm_eval_block(q, w->s, &in, nb, w->f) < 0) {
+        return -1;
+    }
     if (g->f)
         for (size_t b = 0; b < nb; b += row)
             memcpy(g->f + w->idx[b / row], w->f + b, row * sizeof *w->f);
@@ -724,12 +771,11 @@ static int grid_tile(const grid_job *g, grid_worker *w, long t, double *insns)
 {
     tile_span ts = tile_span_of(g, t);
     const frep_program *q = g->p;
-    if (g->pl) {
-        /* the coordinates are monotone in the index, so the corners bound the tile */
-        double box[6] = { g->c[0][ts.i0], g->c[1][ts.j0], g->c[2][ts.k0],
-                          g->c[0][ts.i1 - 1], g->c[1][ts.j1 - 1], g->c[2][ts.k1 - 1] };
-        q = prune_for_subbox(g->pl, w->st, w->sp, box, NULL, NULL);
-    }
+    /* the coordinates are monotone in the index, so the corners bound the tile */
+    double box[6] = { g->c[0][ts.i0], g->c[1][ts.j0], g->c[2][ts.k0],
+                      g->c[0][ts.i1 - 1], g->c[1][ts.j1 - 1], g->c[2][ts.k1 - 1] };
+    if (g->pl) q = prune_for_subbox(g->pl, w->st, w->sp, box, NULL, NULL);
+    w->e32 = g->single && q->ncode >= VM_F32_MIN_CODE ? vm_f32_bound(w->f32, q, box) : INFINITY;
     memset(&w->s->total, 0, sizeof w->s->total);
     prune_grid_stats *tst = g->tst ? &g->tst[t - g->tbase] : NULL;
     if (tst) prune_grid_stats_init(tst);
@@ -831,7 +877,7 @@ static int grid_run(const grid_job *g, long u0, long u1, int nthreads, double *c
 #endif
     {
         grid_worker w;
-        int ok = worker_init(&w, g->p, g->pl) == 0;
+        int ok = worker_init(&w, g->p, g->pl, g->single) == 0;
         if (!ok) {
 #ifdef _OPENMP
 #pragma omp atomic write
@@ -866,6 +912,8 @@ static void grid_add_stats(prune_grid_stats *stats, const prune_grid_stats *tst,
         if (ts->min < stats->min) stats->min = ts->min;
         if (ts->max > stats->max) stats->max = ts->max;
         stats->sum += ts->sum;
+        stats->single += ts->single;
+        stats->redone += ts->redone;
     }
 }
 
@@ -874,7 +922,7 @@ static void grid_add_stats(prune_grid_stats *stats, const prune_grid_stats *tst,
  * results merged in tile order after each run, so the figures do not depend on the
  * thread count or the runs' size. */
 static int grid_eval(const frep_program *p, long n, const double box[6], long k0, long k1,
-                     long nk, int prune, int nthreads, int sized, double *f,
+                     long nk, int prune, int nthreads, int sized, int single, double *f,
                      prune_grid_stats *stats, frep_runtime_error *err, double *insns,
                      int *threads_used)
 {
@@ -882,6 +930,7 @@ static int grid_eval(const frep_program *p, long n, const double box[6], long k0
     grid_job g;
     memset(&g, 0, sizeof g);
     g.sized = sized;
+    g.single = single && vm_f32_supported(p);
     g.p = p;
     g.n = n;
     g.k0 = k0;
@@ -932,7 +981,7 @@ int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], 
                             long nk, int prune, int nthreads, double *f,
                             prune_grid_stats *stats, frep_runtime_error *err, double *insns)
 {
-    return grid_eval(p, n, box, k0, k0 + nk, nk, prune, nthreads, 0, f, stats, err, insns,
+    return grid_eval(p, n, box, k0, k0 + nk, nk, prune, nthreads, 0, 0, f, stats, err, insns,
                      NULL);
 }
 
@@ -940,6 +989,14 @@ int prune_eval_grid_whole(const frep_program *p, long n, const double box[6], in
                           int nthreads, prune_grid_stats *stats, frep_runtime_error *err,
                           double *insns, int *threads_used)
 {
-    return grid_eval(p, n, box, 0, n, PRUNE_TILE, prune, nthreads, 1, NULL, stats, err,
-                     insns, threads_used);
+    return prune_eval_grid_flags(p, n, box, prune, nthreads, 0, stats, err, insns,
+                                 threads_used);
+}
+
+int prune_eval_grid_flags(const frep_program *p, long n, const double box[6], int prune,
+                          int nthreads, unsigned flags, prune_grid_stats *stats,
+                          frep_runtime_error *err, double *insns, int *threads_used)
+{
+    return grid_eval(p, n, box, 0, n, PRUNE_TILE, prune, nthreads, 1,
+                     (flags & PRUNE_GRID_SINGLE) != 0, NULL, stats, err, insns, threads_used);
 }
