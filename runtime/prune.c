@@ -775,6 +775,8 @@ static int grid_tile(const grid_job *g, grid_worker *w, long t, double *insns)
     double box[6] = { g->c[0][ts.i0], g->c[1][ts.j0], g->c[2][ts.k0],
                       g->c[0][ts.i1 - 1], g->c[1][ts.j1 - 1], g->c[2][ts.k1 - 1] };
     if (g->pl) q = prune_for_subbox(g->pl, w->st, w->sp, box, NULL, NULL);
+    /* per tile: a super-tile's bound (64 x 64 x 16 points) is loose enough to send half
+     * the gear's blocks back to double */
     w->e32 = g->single && q->ncode >= VM_F32_MIN_CODE ? vm_f32_bound(w->f32, q, box) : INFINITY;
     memset(&w->s->total, 0, sizeof w->s->total);
     prune_grid_stats *tst = g->tst ? &g->tst[t - g->tbase] : NULL;

@@ -32,6 +32,8 @@ struct vm_f32 {
     float *lv;                 /* cap_stack levels of FREP_BLOCK lanes */
     const float **sp;          /* each level's value: its lanes, an axis or a slot */
     float *slot;               /* cap_slots slots of FREP_BLOCK lanes */
+    unsigned char *stored;     /* per slot: stored in this run (else it reads zeros) */
+    float *zeros;              /* FREP_BLOCK zeros, never written */
     float *xyz;                /* the block's x, y, z in float */
     ival *iv, *ivslot;         /* the bound's interval stack and slots */
     double *e, *eslot;         /* its error stack and slots */
@@ -77,6 +79,8 @@ void vm_f32_free(vm_f32 *s)
     frep_aligned_free(s->lv);
     frep_free(s->sp);
     frep_aligned_free(s->slot);
+    frep_free(s->stored);
+    frep_aligned_free(s->zeros);
     frep_aligned_free(s->xyz);
     frep_free(s->iv);
     frep_free(s->ivslot);
@@ -95,15 +99,18 @@ vm_f32 *vm_f32_new(const frep_program *p)
     s->lv = frep_aligned_alloc(64, s->cap_stack * lanes);
     s->slot = frep_aligned_alloc(64, s->cap_slots * lanes);
     s->xyz = frep_aligned_alloc(64, 3 * lanes);
+    s->stored = frep_malloc(s->cap_slots);
+    s->zeros = frep_aligned_alloc(64, lanes);
     s->sp = frep_malloc(s->cap_stack * sizeof *s->sp);
     s->iv = frep_malloc(s->cap_stack * sizeof *s->iv);
     s->ivslot = frep_malloc(s->cap_slots * sizeof *s->ivslot);
     s->e = frep_malloc(s->cap_stack * sizeof *s->e);
     s->eslot = frep_malloc(s->cap_slots * sizeof *s->eslot);
-    if (!s->lv || !s->sp || !s->slot || !s->xyz || !s->iv || !s->ivslot || !s->e || !s->eslot) {
+    if (!s->lv || !s->sp || !s->slot || !s->stored || !s->zeros || !s->xyz || !s->iv || !s->ivslot || !s->e || !s->eslot) {
         vm_f32_free(s);
         return NULL;
     }
+    memset(s->zeros, 0, lanes);
     return s;
 }
 
@@ -308,6 +315,7 @@ static void f32_store(vm_f32 *s, uint32_t j, uint32_t L, size_t n)
             s->sp[k] = LANES(k);
         }
     memcpy(S, s->sp[L], n * sizeof(float));
+    s->stored[j] = 1;
 }
 
 static int f32_run(vm_f32 *s, const frep_program *p, size_t n) VM_CLONES;
@@ -335,7 +343,7 @@ static int f32_run(vm_f32 *s, const frep_program *p, size_t n)
             if (in->arg > 2) return -1;
             s->sp[d++] = s->xyz + (size_t)in->arg * FREP_BLOCK;
             break;
-        case FREP_OP_LOAD: s->sp[d++] = SLOT(in->arg); break;
+        case FREP_OP_LOAD: s->sp[d++] = s->stored[in->arg] ? SLOT(in->arg) : s->zeros; break;
         case FREP_OP_STORE: d--; f32_store(s, in->arg, d, n); break;
         F32_UNARY(NEG, -a)
         F32_UNARY(ABS, fabsf(a))
@@ -371,7 +379,7 @@ int vm_f32_eval_block(vm_f32 *s, const frep_program *p, const double *x, const d
         s->xyz[FREP_BLOCK + i] = (float)y[i];
         s->xyz[2 * FREP_BLOCK + i] = (float)z[i];
     }
-    memset(s->slot, 0, (size_t)p->nslots * FREP_BLOCK * sizeof(float));
+    memset(s->stored, 0, p->nslots);
     if (f32_run(s, p, n) < 0) return -1;
     for (size_t i = 0; i < n; i++) out[i] = s->lv[i];
     return 0;
