@@ -12,8 +12,15 @@
 #include "prune.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* The grid's threads (grid_run): POSIX threads where OpenMP is (so -pthread is too). */
+#if defined(_OPENMP) && defined(__unix__)
+#define FREP_HAVE_PTHREADS 1
+#include <pthread.h>
+#endif
 
 #include "threads.h"
 #include "util.h"
@@ -858,49 +865,80 @@ static int grid_threads(const grid_job *g, long u0, long u1, int nthreads)
     return frep_threads_for(nthreads, pts * (double)g->p->ncode, (size_t)(u1 - u0));
 }
 
-/* Evaluate super-tiles [u0, u1) in one parallel region: the threads take super-tiles
- * one at a time as they finish (dynamic schedule), so no thread waits for another
- * before the region's single closing barrier.  The instructions x points evaluated
- * are added to *cost.  Returns -1 if a worker could not be set up or a tile failed
- * (out of memory). */
+/* The threads of one run of super-tiles: a shared counter hands out super-tiles one at
+ * a time (the first thread to finish one takes the next), each thread adds up its own
+ * cost.  The threads are plain POSIX threads joined with pthread_join, which sleeps:
+ * with OpenMP's region libgomp spun at the region's end (300,000 rounds unless the
+ * user set OMP_WAIT_POLICY or GOMP_SPINCOUNT, read only at start-up), and on a busy
+ * machine the main thread spun there for the other one's time slice, so two threads
+ * cost up to 1.4x the CPU of one on 10-20 ms grids (doc/benchmarks.md). */
+typedef struct grid_team {
+    const grid_job *g;
+    long u1;
+    _Atomic long next;       /* the next super-tile to take */
+    _Atomic int failed;
+} grid_team;
+
+typedef struct grid_member {
+    grid_team *team;
+    double insns;            /* instructions x points this thread evaluated */
+} grid_member;
+
+static void *grid_member_run(void *arg)
+{
+    grid_member *m = arg;
+    grid_team *tm = m->team;
+    grid_worker w;
+    if (worker_init(&w, tm->g->p, tm->g->pl, tm->g->single) != 0) {
+        atomic_store(&tm->failed, 1);
+        return NULL;
+    }
+    for (;;) {
+        long u = atomic_fetch_add(&tm->next, 1);
+        if (u >= tm->u1) break;
+        if (grid_super(tm->g, &w, u, &m->insns) < 0) atomic_store(&tm->failed, 1);
+    }
+    worker_free(&w);
+    return NULL;
+}
+
+/* Most threads of one grid run (frep_threads caps nothing: -t is the user's). */
+#define GRID_MAX_THREADS 256
+
+/* Evaluate super-tiles [u0, u1) on grid_threads() threads, the calling one included.
+ * The instructions x points evaluated are added to *cost (whole numbers, so the sum
+ * does not depend on the order).  Returns -1 if a worker could not be set up or a tile
+ * failed (out of memory); a thread that cannot be started leaves its share to the
+ * others. */
 static int grid_run(const grid_job *g, long u0, long u1, int nthreads, double *cost,
                     int *used)
 {
-    int failed = 0;
-    double insns = 0;
-#ifdef _OPENMP
     int nt = grid_threads(g, u0, u1, nthreads);
-    if (nt > *used) *used = nt;
-#pragma omp parallel num_threads(nt) reduction(+ : insns) if (nt > 1)
-#else
-    (void)grid_threads;
-    (void)nthreads;
-    *used = 1;
+#ifndef FREP_HAVE_PTHREADS
+    nt = 1;
 #endif
-    {
-        grid_worker w;
-        int ok = worker_init(&w, g->p, g->pl, g->single) == 0;
-        if (!ok) {
-#ifdef _OPENMP
-#pragma omp atomic write
-#endif
-            failed = 1;
-        }
-#ifdef _OPENMP
-#pragma omp for schedule(dynamic, 1) nowait
-#endif
-        for (long u = u0; u < u1; u++) {
-            if (ok && grid_super(g, &w, u, &insns) < 0) {
-#ifdef _OPENMP
-#pragma omp atomic write
-#endif
-                failed = 1;
-            }
-        }
-        if (ok) worker_free(&w);
+    if (nt > GRID_MAX_THREADS) nt = GRID_MAX_THREADS;
+    grid_team tm = { g, u1, u0, 0 };
+    grid_member m[GRID_MAX_THREADS];
+    int started = 1;
+#ifdef FREP_HAVE_PTHREADS
+    pthread_t th[GRID_MAX_THREADS];
+    for (int k = 1; k < nt; k++) {
+        m[k].team = &tm;
+        m[k].insns = 0;
+        if (pthread_create(&th[k], NULL, grid_member_run, &m[k]) != 0) break;
+        started++;
     }
-    *cost += insns;
-    return failed ? -1 : 0;
+#endif
+    m[0].team = &tm;
+    m[0].insns = 0;
+    grid_member_run(&m[0]);
+#ifdef FREP_HAVE_PTHREADS
+    for (int k = 1; k < started; k++) pthread_join(th[k], NULL);
+#endif
+    for (int k = 0; k < started; k++) *cost += m[k].insns;
+    if (started > *used) *used = started;
+    return atomic_load(&tm.failed) ? -1 : 0;
 }
 
 /* Add the tiles' summaries to *stats in tile order: the sum does not depend on which

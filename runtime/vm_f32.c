@@ -41,7 +41,7 @@ struct vm_f32 {
 
 static int f32_op_ok(const frep_insn *in)
 {
-    switch ((frep_opcode)in->op) {
+    switch (in->op) { /* some ops: the rest are unsupported */
     case FREP_OP_X: return in->arg < 3;
     case FREP_OP_CONST: case FREP_OP_PARAM: case FREP_OP_LOAD: case FREP_OP_STORE:
     case FREP_OP_NEG: case FREP_OP_ABS: case FREP_OP_SQRT: case FREP_OP_SQUARE:
@@ -160,7 +160,7 @@ static double f32_op_err(const frep_insn *in, const ival *v, const double *e)
     if (!(mag(aw) <= VM_F32_MAX_MAG) || !(mag(bw) <= VM_F32_MAX_MAG) ||
         !(rm <= VM_F32_MAX_MAG))
         return INFINITY;
-    switch ((frep_opcode)in->op) {
+    switch (in->op) { /* some ops: the rest are unsupported */
     case FREP_OP_NEG: case FREP_OP_ABS: return e[0];
     case FREP_OP_MIN: case FREP_OP_MAX: case FREP_OP_MSUB: return fmax(e[0], e[1]);
     case FREP_OP_ADD: case FREP_OP_SUB: return e[0] + e[1] + RHO * rm + ETA;
@@ -205,7 +205,7 @@ double vm_f32_bound(vm_f32 *s, const frep_program *p, const double box[6])
     }
     for (uint32_t pc = 0; pc < p->ncode; pc++) {
         const frep_insn *in = &p->code[pc];
-        switch ((frep_opcode)in->op) {
+        switch (in->op) { /* some ops: the rest are unsupported */
         case FREP_OP_CONST: f32_leaf(s, d++, (ival){ in->k, in->k }); continue;
         case FREP_OP_X: f32_leaf(s, d++, (ival){ box[in->arg], box[in->arg + 3] }); continue;
         case FREP_OP_PARAM: {
@@ -325,7 +325,7 @@ static int f32_run(vm_f32 *s, const frep_program *p, size_t n)
     size_t i;
     for (uint32_t pc = 0; pc < p->ncode; pc++) {
         const frep_insn *in = &p->code[pc];
-        switch ((frep_opcode)in->op) {
+        switch (in->op) { /* some ops: the rest are unsupported */
         case FREP_OP_CONST: {
             float *R = LANES(d), k = (float)in->k;
             for (i = 0; i < n; i++) R[i] = k;
