@@ -879,10 +879,46 @@ typedef struct grid_team {
     _Atomic int failed;
 } grid_team;
 
+typedef struct grid_spawn grid_spawn;
+
 typedef struct grid_member {
     grid_team *team;
     double insns;            /* instructions x points this thread evaluated */
+    grid_spawn *spawn;       /* the calling thread's: the helpers still to start */
 } grid_member;
+
+/* Most threads of one grid run (frep_threads caps nothing: -t is the user's). */
+#define GRID_MAX_THREADS 256
+
+/* The helper threads of a run and when they start.  A pruned grid's work is known only
+ * as it is done: the unpruned length that frep_threads_for is given overstates the
+ * min/max gear's 34 instructions a point 13x, so the calling thread starts the helpers
+ * once the work left, estimated from the super-tiles it has done, reaches
+ * FREP_PAR_MIN_WORK; a job that never gets there stays on one thread. */
+struct grid_spawn {
+    int want, started;       /* threads wanted and running, the calling one included */
+    long u0;                 /* the run's first super-tile */
+    grid_member *m;          /* m[0] the calling thread's, m[k] helper k's */
+#ifdef FREP_HAVE_PTHREADS
+    pthread_t th[GRID_MAX_THREADS];
+#endif
+};
+
+static void *grid_member_run(void *arg);
+
+static void grid_spawn_helpers(grid_spawn *sp)
+{
+#ifdef FREP_HAVE_PTHREADS
+    for (int k = sp->started; k < sp->want; k++) {
+        sp->m[k].team = sp->m[0].team;
+        sp->m[k].insns = 0;
+        sp->m[k].spawn = NULL;
+        if (pthread_create(&sp->th[k], NULL, grid_member_run, &sp->m[k]) != 0) break;
+        sp->started++;
+    }
+#endif
+    sp->want = sp->started;   /* never tried again */
+}
 
 static void *grid_member_run(void *arg)
 {
@@ -897,15 +933,19 @@ static void *grid_member_run(void *arg)
         long u = atomic_fetch_add(&tm->next, 1);
         if (u >= tm->u1) break;
         if (grid_super(tm->g, &w, u, &m->insns) < 0) atomic_store(&tm->failed, 1);
+        grid_spawn *sp = m->spawn;
+        if (sp && sp->started < sp->want) {
+            /* alone so far: this thread did super-tiles u0..u */
+            double left = m->insns / (double)(u - sp->u0 + 1) * (double)(tm->u1 - u - 1);
+            if (left >= FREP_PAR_MIN_WORK) grid_spawn_helpers(sp);
+        }
     }
     worker_free(&w);
     return NULL;
 }
 
-/* Most threads of one grid run (frep_threads caps nothing: -t is the user's). */
-#define GRID_MAX_THREADS 256
-
-/* Evaluate super-tiles [u0, u1) on grid_threads() threads, the calling one included.
+/* Evaluate super-tiles [u0, u1) on up to grid_threads() threads, the calling one
+ * included (grid_spawn: when).
  * The instructions x points evaluated are added to *cost (whole numbers, so the sum
  * does not depend on the order).  Returns -1 if a worker could not be set up or a tile
  * failed (out of memory); a thread that cannot be started leaves its share to the
@@ -920,24 +960,22 @@ static int grid_run(const grid_job *g, long u0, long u1, int nthreads, double *c
     if (nt > GRID_MAX_THREADS) nt = GRID_MAX_THREADS;
     grid_team tm = { g, u1, u0, 0 };
     grid_member m[GRID_MAX_THREADS];
-    int started = 1;
-#ifdef FREP_HAVE_PTHREADS
-    pthread_t th[GRID_MAX_THREADS];
-    for (int k = 1; k < nt; k++) {
-        m[k].team = &tm;
-        m[k].insns = 0;
-        if (pthread_create(&th[k], NULL, grid_member_run, &m[k]) != 0) break;
-        started++;
-    }
-#endif
+    grid_spawn sp;
+    sp.want = nt;
+    sp.started = 1;
+    sp.u0 = u0;
+    sp.m = m;
     m[0].team = &tm;
     m[0].insns = 0;
+    m[0].spawn = &sp;
+    /* unpruned, or a thread count asked for (not sized): the work is known up front */
+    if (!(g->sized && g->pl)) grid_spawn_helpers(&sp);
     grid_member_run(&m[0]);
 #ifdef FREP_HAVE_PTHREADS
-    for (int k = 1; k < started; k++) pthread_join(th[k], NULL);
+    for (int k = 1; k < sp.started; k++) pthread_join(sp.th[k], NULL);
 #endif
-    for (int k = 0; k < started; k++) *cost += m[k].insns;
-    if (started > *used) *used = started;
+    for (int k = 0; k < sp.started; k++) *cost += m[k].insns;
+    if (sp.started > *used) *used = sp.started;
     return atomic_load(&tm.failed) ? -1 : 0;
 }
 
