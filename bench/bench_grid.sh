@@ -2,7 +2,7 @@
 # bench_grid.sh - grid evaluation throughput of frep eval --grid (make bench-eval-grid),
 # the work of the libfive / HyperFun comparison in issue 2: a 193^3 grid over
 # [-1.6,1.6]^3 on bench/eval_{sphere,csg,gear,gear_minmax}.hf, 1 and 2 threads, with
-# and without interval tape pruning, then a small grid (49^3) at 1 and 2 threads: two
+# and without interval tape pruning, one thread in single precision (--single), then a small grid (49^3) at 1 and 2 threads: two
 # threads must not cost more than one on it (FREP_PAR_MIN_WORK).  Each line: medians of 5 runs of the whole
 # command's CPU time (user + system, /usr/bin/time) and wall time, and of frep's own
 # evaluation time; points/s from the CPU time, which a shared machine inflates least.
@@ -49,5 +49,6 @@ for m in eval_sphere eval_csg eval_gear eval_gear_minmax; do
     run "$f" "$t" --no-prune
     run "$f" "$t"
   done
+  run "$f" 1 --single
 done
 for t in 1 2; do GRID_N=49 run "$SRCDIR/bench/eval_sphere.hf" "$t"; done

@@ -5,6 +5,7 @@
 
 #include "cli.h"
 #include "prune.h"
+#include "vm_f32.h"
 #include "threads.h"
 #include "util.h"
 
@@ -18,7 +19,8 @@
 
 static const char eval_usage[] =
     "usage: frep eval FILE.hf [--model NAME] [-a v1,v2,...] [--grad] [POINTS]\n"
-    "       frep eval FILE.hf --grid N [-b BOX] [--no-prune] [--model NAME] [-a v1,...]\n\n"
+    "       frep eval FILE.hf --grid N [-b BOX] [--no-prune] [--single] [--model NAME]\n"
+    "                 [-a v1,...]\n\n"
     "Evaluate a model. Without --model: my_model if the file has one, else its first model.\n\n"
     "Point mode reads points from POINTS (or standard input), one a line: the first\n"
     "three numbers of each line (further columns, e.g. normals, are ignored; blank lines\n"
@@ -28,7 +30,11 @@ static const char eval_usage[] =
     "and prints the count and fraction of points inside (f >= 0), the estimated volume,\n"
     "min/max/sum of the finite values, the NaN count and the throughput. It evaluates\n"
     "16^3-point tiles, each with a program shortened by interval analysis (min/max set\n"
-    "operations and selects decided over the tile); the values are exactly the same.\n\n";
+    "operations and selects decided over the tile); the values are exactly the same.\n"
+    "With --single (on CPUs with AVX2) the values are computed in single precision\n"
+    "wherever an error bound over the tile can be certified, and every block with a\n"
+    "value within that bound of 0 again in double: the inside and NaN counts and the\n"
+    "errors are double's, min/max/sum within the bound of double's.\n\n";
 
 static void print_num(FILE *f, double v)
 {
@@ -164,20 +170,35 @@ done:
     return status;
 }
 
+/* The precision line of --single: which blocks ran in float, or why none did. */
+static void print_precision(const frep_program *p, unsigned flags, const prune_grid_stats *st)
+{
+    if (!flags)
+        printf("precision double (--single needs a CPU with AVX2)\n");
+    else if (!vm_f32_supported(p))
+        printf("precision double (the program has operations the float path lacks)\n");
+    else
+        printf("precision single: %llu blocks in float, %llu of them again in double "
+               "near the surface\n",
+               (unsigned long long)st->single, (unsigned long long)st->redone);
+}
+
 /* Grid mode: the grid is evaluated in slabs of PRUNE_TILE planes, tile by tile with a
  * pruned program per tile (runtime/prune.c), each block summarized as soon as it is
  * computed (no buffer of values), the partial sums added in tile order, so every figure
  * but the time is the same with or without pruning and at any thread count. */
 static int eval_grid(const frep_program *p, long N, const double box[6], int nthreads,
-                     int prune, const char *src, size_t srclen)
+                     int prune, int single, const char *src, size_t srclen)
 {
+    unsigned flags = single && vm_f32_cpu_ok() ? PRUNE_GRID_SINGLE : 0;
     prune_grid_stats st;
     prune_grid_stats_init(&st);
     double insns = 0;
     frep_runtime_error all = { 0 };
     double t0 = frep_now_seconds();
     int threads = 1;
-    if (prune_eval_grid_whole(p, N, box, prune, nthreads, &st, &all, &insns, &threads) != 0) {
+    if (prune_eval_grid_flags(p, N, box, prune, nthreads, flags, &st, &all, &insns,
+                              &threads) != 0) {
         fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
         return CLI_FAIL;
     }
@@ -203,6 +224,7 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
            eval_time, total_time, npts / eval_time * 1e-6, threads, threads == 1 ? "" : "s");
     printf("program   %zu instructions, %.1f evaluated per point on average (%s)\n",
            frep_program_size(p), insns / npts, prune ? "interval pruning" : "no pruning");
+    if (single) print_precision(p, flags, &st);
     report_errors(p, &all, src, srclen);
     return CLI_OK;
 }
@@ -210,7 +232,7 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
 typedef struct eval_cmd {
     const char *model, *boxarg;
     cli_list a;
-    int grad, setops, nthreads, prune, strict;
+    int grad, setops, nthreads, prune, strict, single;
     long grid;                /* points per axis; 0: point mode */
     size_t max_work;          /* --max-work; 0: the default */
     const char *file, *points;
@@ -234,6 +256,9 @@ static const cli_opt eval_opts[] = {
     CLI_OPT_MODEL(eval_cmd, model, "the model to evaluate"),
     { 0, "no-prune", NULL, CLI_OPT_CLEAR, OFF(prune),
       .help = "grid mode: evaluate every tile with the whole program" },
+    { 0, "single", NULL, CLI_OPT_SET, OFF(single),
+      .help = "grid mode: single precision where certified (AVX2), the\n"
+              "inside count exact" },
     CLI_OPT_SETOPS(eval_cmd, setops, "override the file's set operations: rfunc, minmax"),
     CLI_OPT_STRICT(eval_cmd, strict),
     CLI_OPT_THREADS(eval_cmd, nthreads, "OpenMP threads (default: all cores)"),
@@ -252,6 +277,7 @@ static int stage_options(eval_cmd *c, int argc, char **argv)
     if (c->grid && (args.n == 2 || c->grad))
         return cli_usage_error("eval", "--grid takes no POINTS file and no --grad");
     if (!c->grid && c->boxarg) return cli_usage_error("eval", "-b is only for --grid");
+    if (!c->grid && c->single) return cli_usage_error("eval", "--single is only for --grid");
     char why[256] = "";
     if (c->boxarg && cli_opt_box(c->boxarg, c->box, why, sizeof why) != 0)
         return cli_usage_error("eval", "-b: %s", why);
@@ -268,7 +294,7 @@ static int eval_run(eval_cmd *c)
     if (!c->p || cli_work_limit(c->p, c->max_work) != CLI_OK) return CLI_FAIL;
     if (c->grid && !c->boxarg) frep_program_box(c->p, c->box);
     size_t srclen = c->src ? strlen(c->src) : 0;
-    return c->grid ? eval_grid(c->p, c->grid, c->box, c->nthreads, c->prune, c->src, srclen)
+    return c->grid ? eval_grid(c->p, c->grid, c->box, c->nthreads, c->prune, c->single, c->src, srclen)
                    : eval_points(c->p, c->points, c->grad, c->nthreads, c->src, srclen);
 }
 

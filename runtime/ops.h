@@ -28,6 +28,8 @@
  *                         op_partials [enum] (derivative rule); OPF_DOMAIN ops also
  *                         opsem_bad_<name>(), opsem_is_bad and opsem_error_what
  *   runtime/vm.c          vm_run [enum]: a UNARY/BINARY(_DOM) line
+ *   runtime/vm_f32.c      optional (only some ops): f32_op_ok, f32_op_err, f32_run for
+ *                         the single-precision grid path
  *   runtime/vm_tangent.c  tan_run [enum]: a TAN_UNARY/TAN_BINARY line
  *   runtime/vm_interval.c ival_op [enum] (interval rule), interval_run [enum] (stack
  *                         effect); vm_pruner_new/vm_prune if it is an R-function or

@@ -12,11 +12,19 @@
 #include "prune.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
+/* The grid's threads (grid_run): POSIX threads where OpenMP is (so -pthread is too). */
+#if defined(_OPENMP) && defined(__unix__)
+#define FREP_HAVE_PTHREADS 1
+#include <pthread.h>
+#endif
+
 #include "threads.h"
 #include "util.h"
+#include "vm_f32.h"
 #include "vm_internal.h"
 
 #define PR_NONE UINT32_MAX
@@ -564,6 +572,8 @@ typedef struct grid_worker {
     double *zp;              /* z of each plane of the slab over a block (see below) */
     long zp_k0;              /* first plane zp holds; -1: none */
     uint32_t *idx;           /* their offsets in the caller's f */
+    vm_f32 *f32;             /* the float evaluator (PRUNE_GRID_SINGLE), else NULL */
+    double e32;              /* the current tile's float error bound; INFINITY: double */
 } grid_worker;
 
 static void worker_free(grid_worker *w)
@@ -577,12 +587,15 @@ static void worker_free(grid_worker *w)
     frep_free(w->zp);
     frep_free(w->f);
     frep_free(w->idx);
+    vm_f32_free(w->f32);
 }
 
-static int worker_init(grid_worker *w, const frep_program *p, const prune_plan *pl)
+static int worker_init(grid_worker *w, const frep_program *p, const prune_plan *pl, int single)
 {
     memset(w, 0, sizeof *w);
     w->zp_k0 = -1;
+    w->e32 = INFINITY;
+    if (single && !(w->f32 = vm_f32_new(p))) return -1;
     w->s = vm_scratch_new(p);
     w->st = pl ? prune_state_new(pl) : NULL;
     w->sp = pl ? prune_state_new(pl) : NULL;
@@ -614,7 +627,40 @@ typedef struct grid_job {
     vm_errstate *terr;       /* terr[t - tbase] */
     prune_grid_stats *tst;   /* tst[t - tbase], or NULL: no summary */
     int sized;               /* threads chosen by the job's size (grid_threads) */
+    int single;              /* PRUNE_GRID_SINGLE and the program runs in float */
 } grid_job;
+
+/* Whether every float value of f[n] is farther than e from 0 (so on double's side). */
+static int f32_certain(const double *f, size_t n, double e)
+{
+    int near = 0;
+    for (size_t i = 0; i < n; i++) near |= !(fabs(f[i]) > e);
+    return !near;
+}
+
+/* The lanes of f[n] within e of 0 (or NaN) again in double: gathered into one short
+ * block, evaluated, scattered back. */
+static int f32_redo(const frep_program *q, vm_scratch *s, const vm_inputs *in, size_t n,
+                    double e, double *f)
+{
+    double x[FREP_BLOCK], y[FREP_BLOCK], z[FREP_BLOCK], v[FREP_BLOCK];
+    uint16_t at[FREP_BLOCK];
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (fabs(f[i]) > e) continue;
+        x[m] = in->x[i];
+        y[m] = in->y[i];
+        z[m] = in->z[i];
+        at[m++] = (uint16_t)i;
+    }
+    vm_inputs g = *in;
+    g.x = x;
+    g.y = y;
+    g.z = z;
+    if (vm_eval_block(q, s, &g, m, v) < 0) return -1;
+    for (size_t k = 0; k < m; k++) f[at[k]] = v[k];
+    return 0;
+}
 
 /* Evaluate nb points gathered in w, scatter rows back to f (row r of w's block has
  * idx[r] as its first offset and `row` points). */
@@ -626,7 +672,15 @@ static int grid_flush(const grid_job *g, grid_worker *w, const frep_program *q, 
     in.x = w->x;
     in.y = w->y;
     in.z = z;
-    if (vm_eval_block(q, w->s, &in, nb, w->f) < 0) return -1;
+    if (w->e32 < INFINITY && vm_f32_eval_block(w->f32, q, w->x, w->y, z, nb, w->f) == 0) {
+        if (tst) tst->single++;
+        if (!f32_certain(w->f, nb, w->e32)) {
+            if (tst) tst->redone++;
+            if (f32_redo(q, w->s, &in, nb, w->e32, w->f) < 0) return -1;
+        }
+    } else if (vm_eval_block(q, w->s, &in, nb, w->f) < 0) {
+        return -1;
+    }
     if (g->f)
         for (size_t b = 0; b < nb; b += row)
             memcpy(g->f + w->idx[b / row], w->f + b, row * sizeof *w->f);
@@ -724,12 +778,13 @@ static int grid_tile(const grid_job *g, grid_worker *w, long t, double *insns)
 {
     tile_span ts = tile_span_of(g, t);
     const frep_program *q = g->p;
-    if (g->pl) {
-        /* the coordinates are monotone in the index, so the corners bound the tile */
-        double box[6] = { g->c[0][ts.i0], g->c[1][ts.j0], g->c[2][ts.k0],
-                          g->c[0][ts.i1 - 1], g->c[1][ts.j1 - 1], g->c[2][ts.k1 - 1] };
-        q = prune_for_subbox(g->pl, w->st, w->sp, box, NULL, NULL);
-    }
+    /* the coordinates are monotone in the index, so the corners bound the tile */
+    double box[6] = { g->c[0][ts.i0], g->c[1][ts.j0], g->c[2][ts.k0],
+                      g->c[0][ts.i1 - 1], g->c[1][ts.j1 - 1], g->c[2][ts.k1 - 1] };
+    if (g->pl) q = prune_for_subbox(g->pl, w->st, w->sp, box, NULL, NULL);
+    /* per tile: a super-tile's bound (64 x 64 x 16 points) is loose enough to send half
+     * the gear's blocks back to double */
+    w->e32 = g->single && q->ncode >= VM_F32_MIN_CODE ? vm_f32_bound(w->f32, q, box) : INFINITY;
     memset(&w->s->total, 0, sizeof w->s->total);
     prune_grid_stats *tst = g->tst ? &g->tst[t - g->tbase] : NULL;
     if (tst) prune_grid_stats_init(tst);
@@ -810,49 +865,118 @@ static int grid_threads(const grid_job *g, long u0, long u1, int nthreads)
     return frep_threads_for(nthreads, pts * (double)g->p->ncode, (size_t)(u1 - u0));
 }
 
-/* Evaluate super-tiles [u0, u1) in one parallel region: the threads take super-tiles
- * one at a time as they finish (dynamic schedule), so no thread waits for another
- * before the region's single closing barrier.  The instructions x points evaluated
- * are added to *cost.  Returns -1 if a worker could not be set up or a tile failed
- * (out of memory). */
+/* The threads of one run of super-tiles: a shared counter hands out super-tiles one at
+ * a time (the first thread to finish one takes the next), each thread adds up its own
+ * cost.  The threads are plain POSIX threads joined with pthread_join, which sleeps:
+ * with OpenMP's region libgomp spun at the region's end (300,000 rounds unless the
+ * user set OMP_WAIT_POLICY or GOMP_SPINCOUNT, read only at start-up), and on a busy
+ * machine the main thread spun there for the other one's time slice, so two threads
+ * cost up to 1.4x the CPU of one on 10-20 ms grids (doc/benchmarks.md). */
+typedef struct grid_team {
+    const grid_job *g;
+    long u1;
+    _Atomic long next;       /* the next super-tile to take */
+    _Atomic int failed;
+} grid_team;
+
+typedef struct grid_spawn grid_spawn;
+
+typedef struct grid_member {
+    grid_team *team;
+    double insns;            /* instructions x points this thread evaluated */
+    grid_spawn *spawn;       /* the calling thread's: the helpers still to start */
+} grid_member;
+
+/* Most threads of one grid run (frep_threads caps nothing: -t is the user's). */
+#define GRID_MAX_THREADS 256
+
+/* The helper threads of a run and when they start.  A pruned grid's work is known only
+ * as it is done: the unpruned length that frep_threads_for is given overstates the
+ * min/max gear's 34 instructions a point 13x, so the calling thread starts the helpers
+ * once the work left, estimated from the super-tiles it has done, reaches
+ * FREP_PAR_MIN_WORK; a job that never gets there stays on one thread. */
+struct grid_spawn {
+    int want, started;       /* threads wanted and running, the calling one included */
+    long u0;                 /* the run's first super-tile */
+    grid_member *m;          /* m[0] the calling thread's, m[k] helper k's */
+#ifdef FREP_HAVE_PTHREADS
+    pthread_t th[GRID_MAX_THREADS];
+#endif
+};
+
+static void *grid_member_run(void *arg);
+
+static void grid_spawn_helpers(grid_spawn *sp)
+{
+#ifdef FREP_HAVE_PTHREADS
+    for (int k = sp->started; k < sp->want; k++) {
+        sp->m[k].team = sp->m[0].team;
+        sp->m[k].insns = 0;
+        sp->m[k].spawn = NULL;
+        if (pthread_create(&sp->th[k], NULL, grid_member_run, &sp->m[k]) != 0) break;
+        sp->started++;
+    }
+#endif
+    sp->want = sp->started;   /* never tried again */
+}
+
+static void *grid_member_run(void *arg)
+{
+    grid_member *m = arg;
+    grid_team *tm = m->team;
+    grid_worker w;
+    if (worker_init(&w, tm->g->p, tm->g->pl, tm->g->single) != 0) {
+        atomic_store(&tm->failed, 1);
+        return NULL;
+    }
+    for (;;) {
+        long u = atomic_fetch_add(&tm->next, 1);
+        if (u >= tm->u1) break;
+        if (grid_super(tm->g, &w, u, &m->insns) < 0) atomic_store(&tm->failed, 1);
+        grid_spawn *sp = m->spawn;
+        if (sp && sp->started < sp->want) {
+            /* alone so far: this thread did super-tiles u0..u */
+            double left = m->insns / (double)(u - sp->u0 + 1) * (double)(tm->u1 - u - 1);
+            if (left >= FREP_PAR_MIN_WORK) grid_spawn_helpers(sp);
+        }
+    }
+    worker_free(&w);
+    return NULL;
+}
+
+/* Evaluate super-tiles [u0, u1) on up to grid_threads() threads, the calling one
+ * included (grid_spawn: when).
+ * The instructions x points evaluated are added to *cost (whole numbers, so the sum
+ * does not depend on the order).  Returns -1 if a worker could not be set up or a tile
+ * failed (out of memory); a thread that cannot be started leaves its share to the
+ * others. */
 static int grid_run(const grid_job *g, long u0, long u1, int nthreads, double *cost,
                     int *used)
 {
-    int failed = 0;
-    double insns = 0;
-#ifdef _OPENMP
     int nt = grid_threads(g, u0, u1, nthreads);
-    if (nt > *used) *used = nt;
-#pragma omp parallel num_threads(nt) reduction(+ : insns) if (nt > 1)
-#else
-    (void)grid_threads;
-    (void)nthreads;
-    *used = 1;
+#ifndef FREP_HAVE_PTHREADS
+    nt = 1;
 #endif
-    {
-        grid_worker w;
-        int ok = worker_init(&w, g->p, g->pl) == 0;
-        if (!ok) {
-#ifdef _OPENMP
-#pragma omp atomic write
+    if (nt > GRID_MAX_THREADS) nt = GRID_MAX_THREADS;
+    grid_team tm = { g, u1, u0, 0 };
+    grid_member m[GRID_MAX_THREADS];
+    grid_spawn sp;
+    sp.want = nt;
+    sp.started = 1;
+    sp.u0 = u0;
+    sp.m = m;
+    m[0].team = &tm;
+    m[0].insns = 0;
+    m[0].spawn = &sp;
+    /* unpruned, or a thread count asked for (not sized): the work is known up front */
+    if (!(g->sized && g->pl)) grid_spawn_helpers(&sp);
+    grid_member_run(&m[0]);
+#ifdef FREP_HAVE_PTHREADS
+    for (int k = 1; k < sp.started; k++) pthread_join(sp.th[k], NULL);
 #endif
-            failed = 1;
-        }
-#ifdef _OPENMP
-#pragma omp for schedule(dynamic, 1) nowait
-#endif
-        for (long u = u0; u < u1; u++) {
-            if (ok && grid_super(g, &w, u, &insns) < 0) {
-#ifdef _OPENMP
-#pragma omp atomic write
-#endif
-                failed = 1;
-            }
-        }
-        if (ok) worker_free(&w);
-    }
-    *cost += insns;
-    return failed ? -1 : 0;
+    for (int k = 0; k < sp.started; k++) *cost += m[k].insns;
+    if (sp.started > *used) *used = sp.started;
+    return atomic_load(&tm.failed) ? -1 : 0;
 }
 
 /* Add the tiles' summaries to *stats in tile order: the sum does not depend on which
@@ -866,6 +990,8 @@ static void grid_add_stats(prune_grid_stats *stats, const prune_grid_stats *tst,
         if (ts->min < stats->min) stats->min = ts->min;
         if (ts->max > stats->max) stats->max = ts->max;
         stats->sum += ts->sum;
+        stats->single += ts->single;
+        stats->redone += ts->redone;
     }
 }
 
@@ -874,7 +1000,7 @@ static void grid_add_stats(prune_grid_stats *stats, const prune_grid_stats *tst,
  * results merged in tile order after each run, so the figures do not depend on the
  * thread count or the runs' size. */
 static int grid_eval(const frep_program *p, long n, const double box[6], long k0, long k1,
-                     long nk, int prune, int nthreads, int sized, double *f,
+                     long nk, int prune, int nthreads, int sized, int single, double *f,
                      prune_grid_stats *stats, frep_runtime_error *err, double *insns,
                      int *threads_used)
 {
@@ -882,6 +1008,7 @@ static int grid_eval(const frep_program *p, long n, const double box[6], long k0
     grid_job g;
     memset(&g, 0, sizeof g);
     g.sized = sized;
+    g.single = single && vm_f32_supported(p);
     g.p = p;
     g.n = n;
     g.k0 = k0;
@@ -932,7 +1059,7 @@ int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], 
                             long nk, int prune, int nthreads, double *f,
                             prune_grid_stats *stats, frep_runtime_error *err, double *insns)
 {
-    return grid_eval(p, n, box, k0, k0 + nk, nk, prune, nthreads, 0, f, stats, err, insns,
+    return grid_eval(p, n, box, k0, k0 + nk, nk, prune, nthreads, 0, 0, f, stats, err, insns,
                      NULL);
 }
 
@@ -940,6 +1067,14 @@ int prune_eval_grid_whole(const frep_program *p, long n, const double box[6], in
                           int nthreads, prune_grid_stats *stats, frep_runtime_error *err,
                           double *insns, int *threads_used)
 {
-    return grid_eval(p, n, box, 0, n, PRUNE_TILE, prune, nthreads, 1, NULL, stats, err,
-                     insns, threads_used);
+    return prune_eval_grid_flags(p, n, box, prune, nthreads, 0, stats, err, insns,
+                                 threads_used);
+}
+
+int prune_eval_grid_flags(const frep_program *p, long n, const double box[6], int prune,
+                          int nthreads, unsigned flags, prune_grid_stats *stats,
+                          frep_runtime_error *err, double *insns, int *threads_used)
+{
+    return grid_eval(p, n, box, 0, n, PRUNE_TILE, prune, nthreads, 1,
+                     (flags & PRUNE_GRID_SINGLE) != 0, NULL, stats, err, insns, threads_used);
 }

@@ -87,6 +87,9 @@ typedef struct prune_grid_stats {
     uint64_t inside;        /* values >= 0 */
     uint64_t nans;
     double min, max, sum;
+    /* With PRUNE_GRID_SINGLE: the blocks computed in float, and of them those
+     * re-evaluated in double because some value was within the float error bound of 0 */
+    uint64_t single, redone;
 } prune_grid_stats;
 /* Start value of a summary: nothing seen (min +inf, max -inf). */
 void prune_grid_stats_init(prune_grid_stats *s);
@@ -109,5 +112,16 @@ int prune_eval_grid_summary(const frep_program *p, long n, const double box[6], 
 int prune_eval_grid_whole(const frep_program *p, long n, const double box[6], int prune,
                           int nthreads, prune_grid_stats *stats, frep_runtime_error *err,
                           double *insns, int *threads_used);
+
+/* prune_eval_grid_whole with flags: PRUNE_GRID_SINGLE computes the values in float
+ * (runtime/vm_f32.h) wherever a tile's program is supported, at least VM_F32_MIN_CODE
+ * long, and its error bound finite,
+ * and re-evaluates in double every block with a value within the bound of 0 (or NaN):
+ * the inside and NaN counts and the runtime errors are those of double, min/max/sum
+ * are within the bound of double's.  Without the flag, the same as above. */
+#define PRUNE_GRID_SINGLE 0x1
+int prune_eval_grid_flags(const frep_program *p, long n, const double box[6], int prune,
+                          int nthreads, unsigned flags, prune_grid_stats *stats,
+                          frep_runtime_error *err, double *insns, int *threads_used);
 
 #endif

@@ -2,7 +2,7 @@
 # eval_grid.sh - script tests of frep eval --grid (TAP output): interval tape pruning
 # changes nothing but the time (summaries and runtime errors identical with and without
 # it, at 1 and 2 threads), it does shorten min/max CSG, and the volume estimate of a
-# sphere is right.
+# sphere is right; --single keeps double's counts and errors.
 : "${FREP:=./frep}" "${srcdir:=.}"
 T=${TMPDIR:-/tmp}/frep-grid-test.$$
 mkdir -p "$T" || exit 1
@@ -76,5 +76,26 @@ grid "$T/err.hf" "$T/e1"
 t "runtime error reported" grep -q "sqrt of a negative number" "$T/e0.err"
 t "runtime error count and position identical with pruning" \
   sh -c "sed 's/e\\.g\\..*//' '$T/e0.err' > '$T/e0.m' && sed 's/e\\.g\\..*//' '$T/e1.err' > '$T/e1.m' && cmp '$T/e0.m' '$T/e1.m' && cmp '$T/e0' '$T/e1'"
+
+# --single: the float path (where the CPU has AVX2) gives double's inside and NaN counts
+# and the same error report; min, max and sum agree to about 6 digits.
+inside() { sed -n 's/^inside *\([0-9]*\) .*/\1/p' "$1"; }
+for m in eval_gear eval_gear_minmax eval_csg; do
+  grid "$B/$m.hf" "$T/$m.s" --single -t 2
+  t "$m --single: the inside count is double's ($(inside "$T/$m.s"))" \
+    test "$(inside "$T/$m.s")" = "$(inside "$T/$m.0")"
+  t "$m --single: says which precision ran" grep -q '^precision \(single: [0-9]* blocks\|double (--single needs\)' "$T/$m.s"
+  t "$m --single: min, max and sum within 1e-5 relative" awk '
+    /^values/ { k++; mn[k] = $3; mx[k] = $5; sm[k] = $7 }
+    function off(a, b) { d = a - b; if (d < 0) d = -d; return d > 1e-5 * (1 + (b < 0 ? -b : b)) }
+    END { exit !(k == 2 && !off(mn[1], mn[2]) && !off(mx[1], mx[2]) && !off(sm[1], sm[2])) }' "$T/$m.0" "$T/$m.s"
+done
+grid "$T/err.hf" "$T/e2" --single
+t "--single: the same runtime errors" \
+  sh -c "sed 's/e\\.g\\..*//' '$T/e2.err' > '$T/e2.m' && cmp '$T/e0.m' '$T/e2.m'"
+printf 'my_model(x[3], a[1])\n{\n  my_model = sin(x[1]) - 0.5;\n}\n' > "$T/sin.hf"
+grid "$T/sin.hf" "$T/sin" --single
+t "--single: a program the float path lacks (sin) runs in double and says so" grep -q '^precision double' "$T/sin"
+t "--single needs --grid" sh -c "! '$FREP' eval '$B/eval_sphere.hf' --single < /dev/null 2> '$T/u.err' && grep -q 'only for --grid' '$T/u.err'"
 echo "1..$n"
 [ "$fails" -eq 0 ]

@@ -324,10 +324,17 @@ static int case_grid(const fixture *fx, fault_out *o)
     prune_grid_stats_init(&st);
     int rc = f ? prune_eval_grid_planes(fx->prog, N, box, 3, 2, 1, 1, f, &e, NULL) : -1;
     if (!rc) rc = prune_eval_grid_summary(fx->prog, N, box, 0, N, 1, 1, NULL, &st, &e, NULL);
+    /* single precision: the float evaluator's scratch per thread */
+    prune_grid_stats s32;
+    prune_grid_stats_init(&s32);
+    if (!rc)
+        rc = prune_eval_grid_flags(fx->prog, N, box, 0, 1, PRUNE_GRID_SINGLE, &s32, &e, NULL,
+                                   NULL);
     if (!rc) {
         digest_doubles(o, f, 2 * N * N);
         digest_doubles(o, &st.sum, 1);
         digest_size(o, (size_t)st.inside);
+        digest_size(o, (size_t)s32.inside);
     }
     free(f);
     return rc;
