@@ -3,7 +3,7 @@
 # against the ground truth's (doc/benchmarks.md, "Editable models").
 #
 # For each model of ../shared/data/inversecsg with a ground-truth program (csg.scad):
-# frep sample (POINTS points of the mesh) -> frep evolve (segmenting first, so that the
+# frep sample (POINTS points of the fine mesh, csg_high_res.off) -> frep evolve (segmenting first, so that the
 # primitives carry their inlier figures and are rounded to them; seed 1, at most MAXT s) and the count of solids the written model states (`-- N solids: ...`:
 # boxes, cylinders, spheres, cones, tori and the half-spaces left over each count 1)
 # against the program's cube/cylinder/sphere calls; also the tree's primitives (what
@@ -35,8 +35,10 @@ echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
 : >"$tmp/ratios"
 for name in $models; do
     d="$DATA/$name"
-    mesh="$d/csg_low_res.off"
-    [ -f "$mesh" ] || mesh="$d/csg_high_res.off"
+    # the fine mesh: the coarse one is a 12-sided prism for a cylinder and a 72-vertex
+    # polyhedron for a sphere, whose facets the segmenter rightly finds as planes
+    mesh="$d/csg_high_res.off"
+    [ -f "$mesh" ] || mesh="$d/csg_low_res.off"
     gts=$(grep -o -E '\b(cube|cylinder|sphere)\s*\(' "$d/csg.scad" | wc -l)
     if ! { "$FREP" sample "$mesh" -n "$PTS" --seed "$SEED" -o "$tmp/r.xyz" -q &&
            "$FREP" evolve "$tmp/r.xyz" -o "$tmp/r.hf" --seed "$SEED" --max-time "$MAXT" -q; } \
