@@ -264,9 +264,7 @@ static int tgrid_fill(tgrid *G)
     return 0;
 }
 
-/* Triangles s and t intersect beyond their common vertices (found by index and put
- * first, in the same order). */
-static int tri_pair(const frep_mesh *m, uint32_t s, uint32_t t)
+int mesh_pair_meets(const frep_mesh *m, uint32_t s, uint32_t t, uint32_t v, const double *x)
 {
     const uint32_t *a = &m->tri[3 * (size_t)s], *b = &m->tri[3 * (size_t)t];
     int pa[3], pb[3], n = 0, usedb[3] = { 0, 0, 0 }, useda[3] = { 0, 0, 0 };
@@ -284,10 +282,16 @@ static int tri_pair(const frep_mesh *m, uint32_t s, uint32_t t)
     }
     const double *p[3], *q[3];
     for (int i = 0; i < 3; i++) {
-        p[i] = &m->v[3 * (size_t)a[pa[i]]];
-        q[i] = &m->v[3 * (size_t)b[pb[i]]];
+        p[i] = x && a[pa[i]] == v ? x : &m->v[3 * (size_t)a[pa[i]]];
+        q[i] = x && b[pb[i]] == v ? x : &m->v[3 * (size_t)b[pb[i]]];
     }
     return tri_tri_intersect(p, q, n);
+}
+
+/* Triangles s and t intersect beyond their common vertices. */
+static int tri_pair(const frep_mesh *m, uint32_t s, uint32_t t)
+{
+    return mesh_pair_meets(m, s, t, 0, NULL);
 }
 
 /* Entries e and f of one bucket hold the same cell, which is where the boxes of their

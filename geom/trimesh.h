@@ -44,6 +44,11 @@ typedef struct mesh_check {
 /* Every count but the self-intersections. 0, or -1 when out of memory. */
 int mesh_validate(const frep_mesh *m, mesh_check *c);
 
+/* Do triangles s and t of m meet beyond their common vertices (found by index and put
+ * first, in the same order)?  With x non-NULL, vertex v is taken at x instead (a move
+ * being tried). */
+int mesh_pair_meets(const frep_mesh *m, uint32_t s, uint32_t t, uint32_t v, const double *x);
+
 /* The intersecting pairs of triangles of m (as in mesh_check) into *pairs; when
  * first is not NULL, the first such pair found (lower triangle first) into
  * first[0..1].  A uniform grid over the triangles' boxes keeps it near linear in the

@@ -17,7 +17,7 @@
 
 #include "alloc.h"
 #include "mesh_internal.h"
-#include "tritri.h"
+#include "trimesh.h"
 #include "vec3.h"
 
 #include <math.h>
@@ -370,31 +370,6 @@ static double cosine(const double a[3], const double b[3])
     return la > 0 && lb > 0 ? vec3_dot(a, b) / (la * lb) : -1;
 }
 
-/* Do triangles s and t meet beyond their common vertices (found by index, put first
- * in the same order), with vertex v at x? */
-static int pair_meets(const frep_mesh *m, uint32_t s, uint32_t t, uint32_t v, const double x[3])
-{
-    const uint32_t *a = &m->tri[3 * (size_t)s], *b = &m->tri[3 * (size_t)t];
-    int pa[3], pb[3], n = 0, useda[3] = { 0, 0, 0 }, usedb[3] = { 0, 0, 0 };
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            if (a[i] == b[j] && !useda[i] && !usedb[j]) {
-                pa[n] = i;
-                pb[n++] = j;
-                useda[i] = usedb[j] = 1;
-            }
-    int na = n, nb = n;
-    for (int i = 0; i < 3; i++) {
-        if (!useda[i]) pa[na++] = i;
-        if (!usedb[i]) pb[nb++] = i;
-    }
-    const double *p[3], *q[3];
-    for (int i = 0; i < 3; i++) {
-        p[i] = a[pa[i]] == v ? x : &m->v[3 * (size_t)a[pa[i]]];
-        q[i] = b[pb[i]] == v ? x : &m->v[3 * (size_t)b[pb[i]]];
-    }
-    return tri_tri_intersect(p, q, n);
-}
 
 /* The bounding box of triangle t with vertex v at x. */
 static void tri_box(const frep_mesh *m, uint32_t t, uint32_t v, const double x[3], double b[6])
@@ -459,12 +434,12 @@ static int move_is_clean(const frep_mesh *m, const fan_index *x, const svert *s,
     /* the fan's triangles among themselves (a fold inside the fan) and against those */
     for (uint32_t i = 0; i < nfan; i++)
         for (uint32_t q = i + 1; q < nfan; q++)
-            if (pair_meets(m, fan[i], fan[q], s->v, s->x)) return 0;
+            if (mesh_pair_meets(m, fan[i], fan[q], s->v, s->x)) return 0;
     for (size_t e = 0; e < nnear; e++) {
         double ub[6];
         tri_box(m, near[e], s->v, s->x, ub);
         for (uint32_t q = 0; q < nfan; q++)
-            if (boxes_meet(fbox[q], ub) && pair_meets(m, fan[q], near[e], s->v, s->x)) return 0;
+            if (boxes_meet(fbox[q], ub) && mesh_pair_meets(m, fan[q], near[e], s->v, s->x)) return 0;
     }
     return 1;
 }
