@@ -6,10 +6,21 @@
 
 #include <math.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <string.h>
 
 static int tap_n, tap_failed;
+
+/* A deterministic xorshift step (tests must not depend on the clock): the next value of
+ * *state mapped to [lo, hi).  Each test keeps its own state and seed. */
+static inline double tap_urand(uint64_t *state, double lo, double hi)
+{
+    *state ^= *state << 13;
+    *state ^= *state >> 7;
+    *state ^= *state << 17;
+    return lo + (hi - lo) * (double)(*state >> 11) / 9007199254740992.0;
+}
 
 static void tap_vok(int cond, const char *fmt, va_list ap)
 {

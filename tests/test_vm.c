@@ -24,10 +24,7 @@ static const frep_srcpos nopos = {0, 0, 0};
 static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
 static double urand(double lo, double hi)
 {
-    rng_state ^= rng_state << 13;
-    rng_state ^= rng_state >> 7;
-    rng_state ^= rng_state << 17;
-    return lo + (hi - lo) * (double)(rng_state >> 11) / 9007199254740992.0;
+    return tap_urand(&rng_state, lo, hi);
 }
 
 /* Same bits, or both NaN. */
