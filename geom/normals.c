@@ -418,13 +418,23 @@ static double edge_weight(const orienter *o, uint32_t i, uint32_t q)
 
 /* Orient the component of seed: its normal towards +x, then each point as its tree
  * parent, along the minimum spanning tree.  Returns 1 when interrupted. */
+static int grow_tree(orienter *o);
+
 static int orient_component(orienter *o, uint32_t seed)
 {
-    iheap *h = &o->h;
     double *sm = o->sm;
     if (sm[3 * (size_t)seed] < 0) flip3(sm + 3 * (size_t)seed);
     o->parent[seed] = seed;
-    ih_push_or_decrease(h, seed, 0.0);
+    ih_push_or_decrease(&o->h, seed, 0.0);
+    return grow_tree(o);
+}
+
+/* Prim's tree from the points in the heap (their own parents), each point popped
+ * taking its parent's side.  Returns 1 when interrupted. */
+static int grow_tree(orienter *o)
+{
+    iheap *h = &o->h;
+    double *sm = o->sm;
     while (h->n) {
         if (++o->popped % NORMALS_POLL_POINTS == 0 && frep_cancelled(o->interrupt)) return 1;
         uint32_t i = ih_pop(h);
@@ -481,7 +491,7 @@ static int orient_outward(orienter *o, normals_info *info)
 /* Consistent orientation of sm, component by component, each from its point of largest
  * x, then outward.  Returns 0, 1 when interrupted, -1 when out of memory. */
 static int orient_normals(const frep_cloud *c, double *sm, int reflect, size_t k, const uint32_t *nb,
-                          const normals_config *cfg, normals_info *info)
+                          const unsigned char *fixed, const normals_config *cfg, normals_info *info)
 {
     size_t n = c->n;
     orienter o = {c, sm, reflect, k, nb, NULL, NULL, {NULL, NULL, NULL, 0}, NULL, NULL, NULL, 0, NULL,
@@ -506,9 +516,18 @@ static int orient_normals(const frep_cloud *c, double *sm, int reflect, size_t k
         }
         qsort(o.order, n, sizeof *o.order, cmp_xkey);
         rc = 0;
-        for (size_t s = 0; s < n && rc == 0; s++)
-            if (!o.done[o.order[s].i]) rc = orient_component(&o, o.order[s].i);
-        if (rc == 0) rc = orient_outward(&o, info);
+        if (fixed) {
+            for (size_t i = 0; i < n; i++)
+                if (fixed[i]) {
+                    o.parent[i] = (uint32_t)i;
+                    ih_push_or_decrease(&o.h, (uint32_t)i, 0.0);
+                }
+            rc = grow_tree(&o);
+        } else {
+            for (size_t s = 0; s < n && rc == 0; s++)
+                if (!o.done[o.order[s].i]) rc = orient_component(&o, o.order[s].i);
+            if (rc == 0) rc = orient_outward(&o, info);
+        }
     }
     frep_free(o.h.heap);
     frep_free(o.h.pos);
@@ -519,6 +538,428 @@ static int orient_normals(const frep_cloud *c, double *sm, int reflect, size_t k
     frep_free(o.order);
     frep_free(o.rstart);
     frep_free(o.rev);
+    return rc;
+}
+
+/* ---- Patches and their outside by ray parity --------------------------------------
+ * One spanning tree carries the sign across every edge of a part, and one wrong
+ * crossing turns a whole region inside out: where a face leaves another at a shallow
+ * angle (a crevice of air, as where the cuboid stacks' turned cubes stand on their
+ * plates) the unoriented normals turn by only that angle around the crevice's tip, and
+ * under noise no local rule tells the tip from a gentle bend.  So a global test checks
+ * the tree's result, patch by patch.  Patches: neighbours whose robust normals are
+ * nearly parallel and whose feet lie on each other's plane are joined (most parallel
+ * first, each patch within NORMALS_PATCH_DEG of its mean normal, so that no chain of
+ * small turns leads around a tip or a bend).  Parity: the line through a point's foot
+ * along its normal crosses a closed surface an even number of times besides at the
+ * point, so the crossings on the outward side are even and those on the inward side odd
+ * (a ray-parity test of inside and outside); the surface is the cloud's feet as discs
+ * of radius NORMALS_SPLAT_SPACINGS point spacings on their planes.  A line whose two
+ * counts do not add up to an odd number (a hole between the discs, a line grazing a
+ * face, an open scan whose back is missing) does not vote.  A patch with enough votes
+ * takes the sign they give; the points outside such patches take theirs from them
+ * along a spanning tree, as before. */
+
+/* Largest angle between the robust normals of two neighbours joined into one patch,
+ * and between a patch's mean normal and a patch it absorbs: above the normals' error
+ * at the noise the automatic k allows (2-4 degrees), below the 30 degrees of the
+ * crevices the patches must keep apart. */
+#define NORMALS_PATCH_DEG 12.0
+/* Fewest points of a patch that votes: a patch of a few points is a fragment along
+ * an edge, where the discs of two faces overlap. */
+#define NORMALS_PATCH_MIN 24
+/* Lines cast per patch (points of the patch taken at an even stride): a majority of
+ * 16 outweighs the lines that pass through holes or along faces. */
+#define NORMALS_PATCH_RAYS 16
+/* Votes a patch needs, and the share of them that must agree, to take their sign. */
+#define NORMALS_VOTE_MIN 4
+#define NORMALS_VOTE_SHARE 0.7
+/* Disc radius in point spacings: holes between random points on a surface cover
+ * exp(-0.69 r^2 / s^2) of it, 0.2% at 3 spacings. */
+#define NORMALS_SPLAT_SPACINGS 3.0
+/* Hits along a line farther apart than this many spacings are two crossings (the two
+ * walls of a thin plate, 3 spacings apart in tests/normals.sh, stay two). */
+#define NORMALS_CROSS_GAP 0.5
+/* Grid cells at most (cells are made larger beyond): bounds the grid's memory. */
+#define NORMALS_GRID_MAX_CELLS 4000000
+/* Hits one line may gather; a line with more (along a face) does not vote. */
+#define NORMALS_RAY_MAX_HITS 8192
+/* Lines nearly in a disc's plane (|cos| below this) do not cross it. */
+#define NORMALS_RAY_MIN_COS 0.05
+
+/* Union-find with the parity of each point relative to its parent (1: opposite). */
+typedef struct puf {
+    uint32_t *up, *size;
+    unsigned char *par;
+} puf;
+
+static uint32_t puf_find(puf *u, uint32_t i, int *parity)
+{
+    uint32_t r = i;
+    int p = 0;
+    while (u->up[r] != r) {
+        p ^= u->par[r];
+        r = u->up[r];
+    }
+    uint32_t x = i;
+    int px = p;
+    while (x != r) {
+        uint32_t nx = u->up[x];
+        int pn = px ^ u->par[x];
+        u->up[x] = r;
+        u->par[x] = (unsigned char)px;
+        x = nx;
+        px = pn;
+    }
+    *parity = p;
+    return r;
+}
+
+/* A link between neighbours i and q, |cos| of their normals and its sign. */
+typedef struct plink {
+    double w;
+    uint32_t a, b;
+} plink;
+
+static int cmp_plink(const void *x, const void *y)
+{
+    const plink *p = x, *q = y;
+    double a = fabs(p->w), b = fabs(q->w);
+    if (a != b) return a < b ? 1 : -1;
+    if (p->a != q->a) return p->a < q->a ? -1 : 1;
+    return (p->b > q->b) - (p->b < q->b);
+}
+
+/* The grid of discs: cell (ix, iy, iz) holds the points whose disc's bounding sphere
+ * meets it, in item[start[cell] .. start[cell + 1]). */
+typedef struct dgrid {
+    double lo[3], h, r;
+    size_t dim[3];
+    size_t *start;
+    uint32_t *item;
+} dgrid;
+
+typedef struct voter {
+    const frep_cloud *c;
+    const double *feet;      /* 3 per point */
+    const double *nrm;       /* 3 per point: the robust normals */
+    dgrid g;
+    double gap;
+} voter;
+
+static size_t cell_of(const dgrid *g, const double p[3], int d)
+{
+    double v = floor((p[d] - g->lo[d]) / g->h);
+    if (v < 0) v = 0;
+    if (v > (double)(g->dim[d] - 1)) v = (double)(g->dim[d] - 1);
+    return (size_t)v;
+}
+
+/* Returns -1 when out of memory. */
+static int grid_build(voter *v, double r)
+{
+    const frep_cloud *c = v->c;
+    size_t n = c->n;
+    dgrid *g = &v->g;
+    double hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    g->lo[0] = g->lo[1] = g->lo[2] = INFINITY;
+    for (size_t i = 0; i < n; i++)
+        for (int d = 0; d < 3; d++) {
+            g->lo[d] = fmin(g->lo[d], v->feet[3 * i + d] - r);
+            hi[d] = fmax(hi[d], v->feet[3 * i + d] + r);
+        }
+    g->r = r;
+    g->h = 2 * r;
+    double vol = (hi[0] - g->lo[0]) * (hi[1] - g->lo[1]) * (hi[2] - g->lo[2]);
+    if (vol / (g->h * g->h * g->h) > NORMALS_GRID_MAX_CELLS) g->h = cbrt(vol / NORMALS_GRID_MAX_CELLS);
+    size_t ncell = 1;
+    for (int d = 0; d < 3; d++) {
+        g->dim[d] = (size_t)((hi[d] - g->lo[d]) / g->h) + 1;
+        ncell *= g->dim[d];
+    }
+    g->start = frep_calloc(ncell + 1, sizeof *g->start);
+    if (!g->start) return -1;
+    for (int pass = 0; pass < 2; pass++) {
+        for (size_t i = 0; i < n; i++) {
+            const double *f = v->feet + 3 * i;
+            double a[3] = {f[0] - r, f[1] - r, f[2] - r}, b[3] = {f[0] + r, f[1] + r, f[2] + r};
+            size_t a0 = cell_of(g, a, 0), a1 = cell_of(g, a, 1), a2 = cell_of(g, a, 2);
+            size_t b0 = cell_of(g, b, 0), b1 = cell_of(g, b, 1), b2 = cell_of(g, b, 2);
+            for (size_t x = a0; x <= b0; x++)
+                for (size_t y = a1; y <= b1; y++)
+                    for (size_t z = a2; z <= b2; z++) {
+                        size_t cell = (x * g->dim[1] + y) * g->dim[2] + z;
+                        if (pass == 0) g->start[cell + 1]++;
+                        else g->item[g->start[cell]++] = (uint32_t)i;
+                    }
+        }
+        if (pass == 0) {
+            for (size_t a = 0; a < ncell; a++) g->start[a + 1] += g->start[a];
+            g->item = frep_malloc((g->start[ncell] ? g->start[ncell] : 1) * sizeof *g->item);
+            if (!g->item) return -1;
+        } else {
+            for (size_t a = ncell; a > 0; a--) g->start[a] = g->start[a - 1];
+            g->start[0] = 0;
+        }
+    }
+    return 0;
+}
+
+/* The vote of the line through point i's foot along its normal: +1 when the normal
+ * points outward (its side crossed an even number of times, the other side an odd
+ * number), -1 when inward, 0 when the counts do not add up to odd.  hits: scratch of
+ * NORMALS_RAY_MAX_HITS. */
+static int line_vote(const voter *v, size_t i, double *hits)
+{
+    const dgrid *g = &v->g;
+    const double *o = v->feet + 3 * i, *d = v->nrm + 3 * i;
+    /* The part of the line inside the grid's box. */
+    double t0 = -INFINITY, t1 = INFINITY;
+    for (int a = 0; a < 3; a++) {
+        double lo = g->lo[a], hi = g->lo[a] + (double)g->dim[a] * g->h;
+        if (fabs(d[a]) < 1e-300) continue;
+        double ta = (lo - o[a]) / d[a], tb = (hi - o[a]) / d[a];
+        if (ta > tb) {
+            double s = ta;
+            ta = tb;
+            tb = s;
+        }
+        t0 = fmax(t0, ta);
+        t1 = fmin(t1, tb);
+    }
+    if (!(t0 < t1)) return 0;
+    /* Amanatides-Woo traversal of the cells from t0. */
+    double p[3] = {o[0] + t0 * d[0], o[1] + t0 * d[1], o[2] + t0 * d[2]};
+    size_t cell[3];
+    double tnext[3], tstep[3];
+    int step[3];
+    for (int a = 0; a < 3; a++) {
+        cell[a] = cell_of(g, p, a);
+        step[a] = d[a] > 0 ? 1 : d[a] < 0 ? -1 : 0;
+        if (step[a] == 0) {
+            tnext[a] = tstep[a] = INFINITY;
+            continue;
+        }
+        double edge = g->lo[a] + (double)(cell[a] + (step[a] > 0)) * g->h;
+        tnext[a] = (edge - o[a]) / d[a];
+        tstep[a] = g->h / fabs(d[a]);
+    }
+    size_t nh = 0;
+    double r2 = g->r * g->r;
+    for (;;) {
+        size_t id = (cell[0] * g->dim[1] + cell[1]) * g->dim[2] + cell[2];
+        for (size_t e = g->start[id]; e < g->start[id + 1]; e++) {
+            uint32_t q = g->item[e];
+            const double *fq = v->feet + 3 * (size_t)q, *nq = v->nrm + 3 * (size_t)q;
+            double den = dot3(d, nq);
+            if (fabs(den) < NORMALS_RAY_MIN_COS) continue;
+            double w[3] = {fq[0] - o[0], fq[1] - o[1], fq[2] - o[2]};
+            double t = dot3(w, nq) / den;
+            double x[3] = {o[0] + t * d[0] - fq[0], o[1] + t * d[1] - fq[1], o[2] + t * d[2] - fq[2]};
+            if (dot3(x, x) >= r2) continue;
+            if (nh == NORMALS_RAY_MAX_HITS) return 0;
+            hits[nh++] = t;
+        }
+        int a = tnext[0] < tnext[1] ? (tnext[0] < tnext[2] ? 0 : 2) : (tnext[1] < tnext[2] ? 1 : 2);
+        if (tnext[a] > t1) break;
+        if ((step[a] < 0 && cell[a] == 0) || (step[a] > 0 && cell[a] + 1 >= g->dim[a])) break;
+        cell[a] = step[a] > 0 ? cell[a] + 1 : cell[a] - 1;
+        tnext[a] += tstep[a];
+    }
+    qsort(hits, nh, sizeof *hits, cmp_double);
+    /* Crossings: runs of hits closer than the gap; the one holding t = 0 is the point's
+     * own surface. */
+    size_t below = 0, above = 0;
+    int own = 0;
+    for (size_t e = 0; e < nh;) {
+        size_t f = e + 1;
+        while (f < nh && hits[f] - hits[f - 1] <= v->gap) f++;
+        if (hits[f - 1] < -v->gap * 0.5) below++;
+        else if (hits[e] > v->gap * 0.5) above++;
+        else own = 1;
+        e = f;
+    }
+    if (!own || (above + below) % 2 == 0) return 0;
+    return above % 2 == 0 ? 1 : -1;
+}
+
+/* Patches into u: links between neighbours (nb, ko per point) whose robust normals
+ * (nrm) are within NORMALS_PATCH_DEG and whose feet lie within tol of each other's
+ * plane, strongest first, each join kept within NORMALS_PATCH_DEG of the patch's mean
+ * normal (acc: the sums, at the roots). */
+static void join_patches(const double *feet, const double *nrm, size_t n, size_t ko, const uint32_t *nb,
+                         double tol, puf *u, double *acc, plink *links)
+{
+    size_t m = 0;
+    double cosmax = cos(NORMALS_PATCH_DEG * 3.14159265358979323846 / 180.0);
+    for (size_t i = 0; i < n; i++) {
+        const double *ni = nrm + 3 * i;
+        for (size_t j = 0; j < ko; j++) {
+            uint32_t q = nb[i * ko + j];
+            if (q == i) continue;
+            const double *nq = nrm + 3 * (size_t)q;
+            double d[3] = {feet[3 * (size_t)q] - feet[3 * i], feet[3 * (size_t)q + 1] - feet[3 * i + 1],
+                           feet[3 * (size_t)q + 2] - feet[3 * i + 2]};
+            double dot = dot3(ni, nq);
+            if (fabs(dot) >= cosmax && fabs(dot3(d, ni)) <= tol && fabs(dot3(d, nq)) <= tol)
+                links[m++] = (plink){dot, (uint32_t)i, q};
+        }
+    }
+    qsort(links, m, sizeof *links, cmp_plink);
+    for (size_t e = 0; e < m; e++) {
+        int pa, pb;
+        uint32_t ra = puf_find(u, links[e].a, &pa), rb = puf_find(u, links[e].b, &pb);
+        if (ra == rb) continue;
+        if (u->size[ra] < u->size[rb] || (u->size[ra] == u->size[rb] && ra > rb)) {
+            uint32_t t = ra;
+            ra = rb;
+            rb = t;
+        }
+        int prb = (links[e].w < 0) ^ pa ^ pb;
+        double *x = acc + 3 * (size_t)ra, *y = acc + 3 * (size_t)rb;
+        double lx = sqrt(dot3(x, x)), ly = sqrt(dot3(y, y));
+        if (!(lx > 0 && ly > 0) || fabs(dot3(x, y)) < cosmax * lx * ly) continue;
+        for (int k = 0; k < 3; k++) x[k] += prb ? -y[k] : y[k];
+        u->up[rb] = ra;
+        u->par[rb] = (unsigned char)prb;
+        u->size[ra] += u->size[rb];
+    }
+}
+
+/* Ray-parity check of c's oriented normals (the block comment above); the points of
+ * patches with a clear vote are set into fixed with their voted sign in c.  Returns 0,
+ * 1 when interrupted, -1 when out of memory. */
+static int vote_patches(frep_cloud *c, const double *feet, size_t ko, const uint32_t *nb, double tol,
+                        double spacing, unsigned char *fixed, const normals_config *cfg)
+{
+    size_t n = c->n;
+    voter v = {c, feet, NULL, {{0, 0, 0}, 0, 0, {0, 0, 0}, NULL, NULL}, NORMALS_CROSS_GAP * spacing};
+    puf u = {frep_malloc(n * sizeof *u.up), frep_malloc(n * sizeof *u.size), frep_calloc(n, 1)};
+    double *nrm = frep_malloc(3 * n * sizeof *nrm), *acc = frep_malloc(3 * n * sizeof *acc);
+    plink *links = frep_malloc(n * ko * sizeof *links);
+    size_t *first = frep_calloc(n + 1, sizeof *first);
+    uint32_t *member = frep_malloc(n * sizeof *member), *ray = frep_malloc(n * sizeof *ray);
+    signed char *vote = frep_malloc(n);
+    int rc = -1;
+    if (!(u.up && u.size && u.par && nrm && acc && links && first && member && ray && vote)) goto done;
+    for (size_t i = 0; i < n; i++) {
+        u.up[i] = (uint32_t)i;
+        u.size[i] = 1;
+        nrm[3 * i] = acc[3 * i] = c->nx[i];
+        nrm[3 * i + 1] = acc[3 * i + 1] = c->ny[i];
+        nrm[3 * i + 2] = acc[3 * i + 2] = c->nz[i];
+    }
+    join_patches(feet, nrm, n, ko, nb, tol, &u, acc, links);
+    /* Each patch made consistent (its root's sign); members listed by root. */
+    for (size_t i = 0; i < n; i++) {
+        int p;
+        uint32_t r = puf_find(&u, (uint32_t)i, &p);
+        if (p) flip3(nrm + 3 * i);
+        first[r + 1]++;
+    }
+    for (size_t r = 0; r < n; r++) first[r + 1] += first[r];
+    for (size_t i = 0; i < n; i++) {
+        member[first[u.up[i]]++] = (uint32_t)i;
+    }
+    for (size_t r = n; r > 0; r--) first[r] = first[r - 1];
+    first[0] = 0;
+    /* The lines: NORMALS_PATCH_RAYS points of each large enough patch. */
+    size_t nray = 0;
+    for (size_t r = 0; r < n; r++) {
+        size_t m = first[r + 1] - first[r];
+        if (m < NORMALS_PATCH_MIN) continue;
+        for (size_t s = 0; s < NORMALS_PATCH_RAYS; s++)
+            ray[nray++] = member[first[r] + (2 * s + 1) * m / (2 * NORMALS_PATCH_RAYS)];
+    }
+    v.nrm = nrm;
+    if (grid_build(&v, NORMALS_SPLAT_SPACINGS * spacing)) goto done;
+    int stopped = 0;
+    long lr = (long)nray;
+#ifdef _OPENMP
+#pragma omp parallel num_threads(frep_threads(cfg->nthreads)) reduction(| : stopped)
+#endif
+    {
+        double *hits = frep_malloc(NORMALS_RAY_MAX_HITS * sizeof *hits);
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 16)
+#endif
+        for (long e = 0; e < lr; e++) {
+            if (!hits || frep_cancelled(cfg->interrupt)) {
+                stopped |= hits ? 1 : 2;
+                continue;
+            }
+            vote[e] = (signed char)line_vote(&v, ray[e], hits);
+        }
+        frep_free(hits);
+    }
+    if (stopped & 2) goto done;
+    rc = 1;
+    if (stopped) goto done;
+    /* Each patch's count, then its sign on its points. */
+    for (size_t e = 0; e < nray;) {
+        uint32_t r = u.up[ray[e]];
+        long pro = 0, con = 0;
+        size_t f = e;
+        for (; f < nray && u.up[ray[f]] == r; f++) {
+            pro += vote[f] > 0;
+            con += vote[f] < 0;
+        }
+        e = f;
+        if (pro + con < NORMALS_VOTE_MIN) continue;
+        int sign = (double)pro >= NORMALS_VOTE_SHARE * (double)(pro + con) ? 1
+                 : (double)con >= NORMALS_VOTE_SHARE * (double)(pro + con) ? -1 : 0;
+        if (!sign) continue;
+        for (size_t a = first[r]; a < first[r + 1]; a++) {
+            uint32_t i = member[a];
+            fixed[i] = 1;
+            c->nx[i] = sign * nrm[3 * (size_t)i];
+            c->ny[i] = sign * nrm[3 * (size_t)i + 1];
+            c->nz[i] = sign * nrm[3 * (size_t)i + 2];
+        }
+    }
+    rc = 0;
+done:
+    frep_free(u.up);
+    frep_free(u.size);
+    frep_free(u.par);
+    frep_free(nrm);
+    frep_free(acc);
+    frep_free(links);
+    frep_free(first);
+    frep_free(member);
+    frep_free(ray);
+    frep_free(vote);
+    frep_free(v.g.start);
+    frep_free(v.g.item);
+    return rc;
+}
+
+/* The ray-parity check of the oriented normals of c (vote_patches), then the points
+ * outside voted patches oriented from those inside along a spanning tree with the same
+ * rule as the first pass (sm: scratch of 3 n, then the feet).  Returns 0, 1 when
+ * interrupted, -1 when out of memory. */
+static int check_patches(frep_cloud *c, double *sm, int reflect, size_t ko, const uint32_t *nb, double tol,
+                         double spacing, const normals_config *cfg, normals_info *info)
+{
+    size_t n = c->n;
+    unsigned char *fixed = frep_calloc(n, 1);
+    if (!fixed) return -1;
+    int rc = vote_patches(c, sm + 3 * n, ko, nb, tol, spacing, fixed, cfg);
+    if (rc == 0) {
+        for (size_t i = 0; i < n; i++) {
+            sm[3 * i] = c->nx[i];
+            sm[3 * i + 1] = c->ny[i];
+            sm[3 * i + 2] = c->nz[i];
+        }
+        rc = orient_normals(c, sm, reflect, ko, nb, fixed, cfg, info);
+    }
+    if (rc == 0)
+        for (size_t i = 0; i < n; i++) {
+            c->nx[i] = sm[3 * i];
+            c->ny[i] = sm[3 * i + 1];
+            c->nz[i] = sm[3 * i + 2];
+        }
+    frep_free(fixed);
     return rc;
 }
 
@@ -555,7 +996,7 @@ int normals_run(frep_cloud *c, const normals_config *cfg, normals_info *info)
                 sm[3 * i + 1] = c->ny[i];
                 sm[3 * i + 2] = c->nz[i];
             }
-        if (rc == 0) rc = orient_normals(c, sm, reflect, ko, nb, cfg, info);
+        if (rc == 0) rc = orient_normals(c, sm, reflect, ko, nb, NULL, cfg, info);
         if (rc == 0)
             for (size_t i = 0; i < n; i++) {
                 double v[3] = {c->nx[i], c->ny[i], c->nz[i]};
@@ -565,6 +1006,7 @@ int normals_run(frep_cloud *c, const normals_config *cfg, normals_info *info)
                     c->nz[i] = -v[2];
                 }
             }
+        if (rc == 0) rc = check_patches(c, sm, reflect, ko, nb, 0.5 * scale, info->spacing, cfg, info);
     }
     if (rc == 1) info->interrupted = 1;
     kd_free(t);

@@ -100,10 +100,11 @@ done
 # The crevice (tests/normals_crevice.hf): a block on a plate turned by 30 degrees, whose
 # bottom face leaves the plate's top at 30 degrees; the outward normals of the two faces
 # are 150 degrees apart.  Clean, the reflection rule keeps both outward.  At 0.5% noise
-# (seed 3) the whole block comes out inward (a third of the points): the unoriented
-# normals turn by only 30 degrees around the crevice's tip, so the plain sign carried
-# across it is wrong (the cuboid stacks of ../shared/data/inversecsg keep 19-38%
-# inward for this reason).  A known failure until the orientation handles it.
+# (seed 3) the unoriented normals turn by only 30 degrees around the crevice's tip, the
+# sign carried across it by the spanning tree is wrong and the whole block came out
+# inward (a third of the points); the ray-parity check of each patch (geom/normals.c)
+# must turn it back (the cuboid stacks of ../shared/data/inversecsg kept 19-38% inward
+# for this reason).
 for noise in 0 0.005; do
     name="normals_crevice, noise $noise"
     if ! "$FREP" sample "$(model_path normals_crevice)" -n $NPTS --seed 3 --noise $noise -o "$tmp/t.xyz" -q ||
@@ -114,13 +115,7 @@ for noise in 0 0.005; do
     fi
     set -- $(measure "$tmp/t.xyz" "$tmp/e.xyz")
     awk -v s="$2" -v w="$3" -v b="$MAX_INWARD" 'BEGIN { exit !(s < b && w < 0.5) }'
-    st=$?
-    what="$name: inward share $2 < $MAX_INWARD, worst face $3 < 0.5 (no face flipped)"
-    if [ "$noise" = 0 ]; then
-        report $st "$what"
-    else
-        report_todo $st "$what" "crevices under noise (issue 13)"
-    fi
+    report $? "$name: inward share $2 < $MAX_INWARD, worst face $3 < 0.5 (no face flipped)"
 done
 
 # The same result at any thread count, and an explicit --knn.
