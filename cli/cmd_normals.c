@@ -22,8 +22,10 @@ static const char normals_usage[] =
     "fitted to the K nearest points with Gaussian weights, reweighted by its residuals\n"
     "so that points across a sharp edge lose their say; K chosen from the cloud's noise\n"
     "and spacing unless given. The normals are oriented consistently along a minimum\n"
-    "spanning tree of the neighbour graph, then outward. Writes the points with their\n"
-    "normals (6 columns) and prints the spacing, noise and K used.\n\n";
+    "spanning tree of the neighbour graph, then outward; then each smooth patch is\n"
+    "checked by the parity of the crossings of lines cast along its normals (outward\n"
+    "on a closed surface: even). Writes the points with their normals (6 columns) and\n"
+    "prints the spacing, noise and K used.\n\n";
 
 int cli_opt_knn(const char *arg, void *dest, char *why, size_t whylen)
 {

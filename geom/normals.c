@@ -4,7 +4,9 @@
  * by plane residuals (OpenMP over points; each point is independent, so the result
  * does not depend on the thread count) -> Prim's tree over the nearest-neighbour graph
  * orients the smooth (first-pass) normals -> each robust normal takes the side of its
- * smooth one -> each connected part is turned outward on the whole.
+ * smooth one -> each connected part is turned outward on the whole -> patches checked
+ * by ray parity (lines in parallel, votes summed in a fixed order), the rest oriented
+ * from them.
  */
 #include <float.h>
 #include <math.h>
@@ -655,7 +657,8 @@ static size_t cell_of(const dgrid *g, const double p[3], int d)
     return (size_t)v;
 }
 
-/* Returns -1 when out of memory. */
+/* Returns 0; 1 when the cloud has no extent for discs (r not positive: the spacing of
+ * a cloud of duplicates; or cells beyond double range); -1 when out of memory. */
 static int grid_build(voter *v, double r)
 {
     const frep_cloud *c = v->c;
@@ -672,6 +675,7 @@ static int grid_build(voter *v, double r)
     g->h = 2 * r;
     double vol = (hi[0] - g->lo[0]) * (hi[1] - g->lo[1]) * (hi[2] - g->lo[2]);
     if (vol / (g->h * g->h * g->h) > NORMALS_GRID_MAX_CELLS) g->h = cbrt(vol / NORMALS_GRID_MAX_CELLS);
+    if (!(r > 0 && isfinite(vol) && g->h > 0 && isfinite(g->h))) return 1;
     size_t ncell = 1;
     for (int d = 0; d < 3; d++) {
         g->dim[d] = (size_t)((hi[d] - g->lo[d]) / g->h) + 1;
@@ -872,7 +876,9 @@ static int vote_patches(frep_cloud *c, const double *feet, size_t ko, const uint
             ray[nray++] = member[first[r] + (2 * s + 1) * m / (2 * NORMALS_PATCH_RAYS)];
     }
     v.nrm = nrm;
-    if (grid_build(&v, NORMALS_SPLAT_SPACINGS * spacing)) goto done;
+    int built = grid_build(&v, NORMALS_SPLAT_SPACINGS * spacing);
+    if (built == 1) rc = 0;
+    if (built) goto done;
     int stopped = 0;
     long lr = (long)nray;
 #ifdef _OPENMP

@@ -1,8 +1,9 @@
 /* normals.h - normal estimation for point clouds without normals: a robust weighted
  * plane fit over a neighbourhood whose size is chosen from the cloud's noise, oriented
  * consistently by propagation along a minimum spanning tree of the neighbour graph
- * (Hoppe et al. 1992) and then outward.  First stage of `frep segment`, `frep evolve`
- * and `frep normals` on a cloud without normals.
+ * (Hoppe et al. 1992), then outward, then checked patch by patch by the parity of ray
+ * crossings.  First stage of `frep segment`, `frep evolve` and `frep normals` on a
+ * cloud without normals.
  */
 #ifndef FREP_NORMALS_H
 #define FREP_NORMALS_H
@@ -48,7 +49,12 @@ typedef struct normals_info {
  * them (thin wedges: geom/normals.c, reflected); then each
  * connected part is turned so that its normals point away from the cloud's centre on
  * the whole (sum of (p - centre).n > 0: outward for a closed surface by the divergence
- * theorem).  info may be NULL.  Returns 0; 1 when interrupted (info->interrupted, the
+ * theorem).  Last, the ray-parity check: smooth patches (nearly parallel normals,
+ * coplanar feet) each cast lines along their normals through the cloud taken as discs;
+ * a patch whose lines cross the cloud an odd number of times on their normals' side
+ * and an even number on the other (inward) is turned over, and the points outside
+ * patches with a clear vote take their sign from those inside along a spanning tree
+ * (geom/normals.c, vote_patches).  info may be NULL.  Returns 0; 1 when interrupted (info->interrupted, the
  * normals are then unfinished); -1 when out of memory (c keeps zero normals). */
 int normals_run(frep_cloud *c, const normals_config *cfg, normals_info *info);
 
