@@ -1902,14 +1902,17 @@ static long cv_terms(cover *C, cv_term **pt, cv_neg **pn)
         for (size_t k = 0; k < kept && !in; k++) in = cv_within(neg[i].b, neg[k].b);
         if (!in) neg[kept++] = neg[i];
     }
-    /* Each impure positive: the cuts that remove the most of its outside points. */
+    /* Each impure positive: the cuts that remove the most of its outside points, until
+     * no more of them are left than the pass lets a box keep (C->sliver per inside
+     * point: the GA's slivers a cut of fitted faces cannot take). */
     size_t ok = 0;
     for (size_t i = 0; i < nt; i++) {
         if (t[i].ncut) {
             cv_set(C, t[i].p, C->bits);
             for (size_t w = 0; w < C->nw; w++) C->bits[w] &= C->out[w];
             int nc = 0;
-            while (nc < COVER_MAX_CUTS && cv_count(C, C->bits, C->bits)) {
+            size_t keep = (size_t)(C->sliver * (double)t[i].nin);
+            while (nc < COVER_MAX_CUTS && cv_count(C, C->bits, C->bits) > keep) {
                 size_t best = 0, bi = 0;
                 for (size_t k = 0; k < kept; k++) {
                     cv_set(C, neg[k].b, C->tmp);
@@ -1921,7 +1924,7 @@ static long cv_terms(cover *C, cv_term **pt, cv_neg **pn)
                 cv_set(C, neg[bi].b, C->tmp);
                 for (size_t w = 0; w < C->nw; w++) C->bits[w] &= ~C->tmp[w];
             }
-            if (cv_count(C, C->bits, C->bits)) continue;
+            if (cv_count(C, C->bits, C->bits) > keep) continue;
             t[i].ncut = (uint8_t)nc;
 
         }
@@ -1975,11 +1978,12 @@ static uint32_t cv_union(cover *C, const cv_term *chosen, int n, const cv_neg *n
 }
 
 /* The cover of node i, in its place when it writes fewer solids and the model keeps
- * its solid (ft_keeps, and bounded if it was).  A second pass lets a box keep slivers
- * of the subtree's outside (at most COVER_SLIVER of its inside points): a face the GA
- * left cutting a corner off another part; that cover is kept only when it differs from
- * the tree at no more than COVER_SLIVER of the inside grid points and explains the
- * cloud at least as well (mean distance).  Returns 1 when it replaced node i, 0 when
+ * its solid (ft_keeps, and bounded if it was).  A second pass lets a box, after its
+ * cuts, keep slivers of the subtree's outside (at most COVER_SLIVER of its inside
+ * points): a face the GA left cutting a corner off another part, which the cloud does
+ * not show; that cover is kept only when it differs from the tree at no more than
+ * COVER_SLIVER of the inside grid points and explains the cloud at least as well
+ * (mean distance).  Returns 1 when it replaced node i, 0 when
  * not, -1 when out of memory. */
 static int cv_run(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
 {
