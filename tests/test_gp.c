@@ -1722,6 +1722,25 @@ static void test_box_cover_case(cover_case *cc)
         tree_free(&truth);
         return;
     }
+    /* Each plane's inlier patch, as the segmenter gives it: the box of the points on it. */
+    for (int j = 0; j < cc->np; j++) {
+        if (prims[j].type != PRIM_PLANE) continue;
+        double plo[3] = { INFINITY, INFINITY, INFINITY }, phi[3] = { -INFINITY, -INFINITY, -INFINITY };
+        size_t on = 0;
+        for (size_t i = 0; i < cloud->n; i++) {
+            double p[3] = { cloud->x[i], cloud->y[i], cloud->z[i] };
+            if (fabs(cc->d[j] - (cc->n[j][0] * p[0] + cc->n[j][1] * p[1] + cc->n[j][2] * p[2])) > 1e-7) continue;
+            on++;
+            for (int c = 0; c < 3; c++) plo[c] = fmin(plo[c], p[c]), phi[c] = fmax(phi[c], p[c]);
+        }
+        prims[j].support = on;
+        prims[j].has_obb = on > 0;
+        for (int c = 0; on && c < 3; c++) {
+            prims[j].obb_c[c] = (plo[c] + phi[c]) / 2;
+            prims[j].obb_half[c] = (phi[c] - plo[c]) / 2;
+            prims[j].obb_axes[c][c] = 1;
+        }
+    }
     r.npoints = cloud->n;
     part_obb_of_points(cloud->x, cloud->y, cloud->z, NULL, cloud->n, &r.obb);
     double lo[3] = { INFINITY, INFINITY, INFINITY }, hi[3] = { -INFINITY, -INFINITY, -INFINITY };
@@ -1829,6 +1848,33 @@ static void test_box_cover(void)
         sliver.d[9 + j] = sd[j] * r3;
     }
     test_box_cover_case(&sliver);
+    /* A cube stacked on the cube [0, 2]^3, turned by (5, 10, 15) degrees about x, y, z,
+     * its bottom face hidden inside the lower one (no point on it), written as the GA
+     * does: (lower | the upper's five seen faces) & the lower's sides and bottom.  Its
+     * box takes a buried face where its side faces' points stop. */
+    static cover_case stack = { "stacked", "12&3&4&5&6&78&9&a&b&|1&2&3&4&5&", "2 solids: 2 boxes",
+                                12, { { 0 } }, { 0 }, 0, "12&3&4&5&6&78&9&a&b&c&|" };
+    for (int j = 0; j < 6; j++) {
+        stack.n[j][j / 2] = j % 2 ? 1 : -1;
+        stack.d[j] = j % 2 ? 2 : 0;
+    }
+    rx = 5 * FREP_PI / 180, ry = 10 * FREP_PI / 180, rz = 15 * FREP_PI / 180;
+    cx = cos(rx), sx = sin(rx), cy = cos(ry), sy = sin(ry), cz = cos(rz), sz = sin(rz);
+    double S[3][3] = { { cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx },
+                       { sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx },
+                       { -sy, cy * sx, cy * cx } };
+    double at[3] = { 1, 1, 2 }, slo[3] = { -0.5, -0.5, -0.5 }, shi[3] = { 0.5, 0.5, 0.7 };
+    for (int j = 0; j < 3; j++) {
+        double u = 0;
+        for (int k = 0; k < 3; k++) {
+            stack.n[6 + 2 * j][k] = S[k][j];
+            stack.n[7 + 2 * j][k] = -S[k][j];
+            u += S[k][j] * at[k];
+        }
+        stack.d[6 + 2 * j] = u + shi[j];
+        stack.d[7 + 2 * j] = -(u + slo[j]);
+    }
+    test_box_cover_case(&stack);
 }
 
 int main(void)
