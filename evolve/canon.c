@@ -1380,7 +1380,6 @@ static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
 
 #define COVER_MAX_PLANES 48    /* distinct planes of a subtree the cover reads */
 #define COVER_MAX_FRAMES 8     /* orthogonal triples of their directions */
-#define COVER_MAX_OFFS 8       /* face positions per axis of a frame, free ends aside */
 #define COVER_NO (COVER_MAX_OFFS + 2)
 #define COVER_MAX_CUTS 2       /* cuts of one term */
 #define COVER_MAX_NEG 256      /* the largest cuts a term's are chosen from */

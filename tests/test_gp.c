@@ -15,6 +15,7 @@
 
 #include "alloc.h"
 #include "cloud.h"
+#include "canon.h"
 #include "evolve.h"
 #include "fitness.h"
 #include "frep.h"
@@ -1634,7 +1635,7 @@ static void test_box_across_union(void)
 typedef struct cover_case {
     const char *name, *tree, *want;
     int np;
-    double n[16][3], d[16];   /* planes n.x <= d */
+    double n[24][3], d[24];   /* planes n.x <= d */
     int cyl;                  /* > 0: primitive cyl - 1 is the bore x^2 + y^2 <= 0.3^2 about (1, 1) */
     const char *truth;        /* the solid the cloud samples and the model must be (NULL: tree) */
 } cover_case;
@@ -1662,7 +1663,7 @@ static double cover_tree_value(const cover_case *cc, const gp_tree *t, const dou
 
 static void test_box_cover_case(cover_case *cc)
 {
-    prim prims[16];
+    prim prims[24];
     memset(prims, 0, sizeof prims);
     for (int j = 0; j < cc->np; j++) {
         prims[j].type = PRIM_PLANE;
@@ -1875,6 +1876,37 @@ static void test_box_cover(void)
         stack.d[7 + 2 * j] = -(u + slo[j]);
     }
     test_box_cover_case(&stack);
+    /* Axis-aligned stairs of n steps across [0, 3], as the GA factors them: the box &
+     * (z <= k | x <= n - k) for k = 1..n-1.  With n + 1 face positions on x up to
+     * COVER_MAX_OFFS the cover writes n boxes; with more the limit is hit and the
+     * half-spaces stay, the same solid. */
+    for (int pass = 0; pass < 2; pass++) {
+        int n = pass ? COVER_MAX_OFFS : COVER_MAX_OFFS - 1;
+        static char tree[64], want[32], name[32];
+        cover_case st;
+        memset(&st, 0, sizeof st);
+        double h = 3.0 / n, bn[6][3] = { { -1, 0, 0 }, { 1, 0, 0 }, { 0, -1, 0 }, { 0, 1, 0 },
+                                          { 0, 0, -1 }, { 0, 0, 1 } }, bd[6] = { 0, 3, 0, 1, 0, 3 };
+        for (int j = 0; j < 6; j++) {
+            memcpy(st.n[j], bn[j], sizeof st.n[j]);
+            st.d[j] = bd[j];
+        }
+        char *t = tree;
+        t += sprintf(t, "12&3&4&5&6&");
+        for (int k = 1; k < n; k++) {
+            int a = 6 + 2 * (k - 1), b = a + 1;
+            st.n[a][2] = 1, st.d[a] = k * h;
+            st.n[b][0] = 1, st.d[b] = (n - k) * h;
+            t += sprintf(t, "%c%c|&", a < 9 ? '1' + a : 'a' + a - 9, b < 9 ? '1' + b : 'a' + b - 9);
+        }
+        st.np = 4 + 2 * n;
+        snprintf(name, sizeof name, "stair of %d steps", n);
+        snprintf(want, sizeof want, pass ? "%d half-spaces" : "%d solids: %d boxes", pass ? 2 * (n - 1) : n, n);
+        st.name = name;
+        st.tree = tree;
+        st.want = want;
+        test_box_cover_case(&st);
+    }
 }
 
 int main(void)
