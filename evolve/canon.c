@@ -1223,7 +1223,9 @@ static void write_feature(FILE *f, const ft *F, const ft_node *v, const char *co
             fprintf(f, "%s %s", k ? "," : "", v->face[k] == FT_NONE ? "free" : names[v->face[k]]);
             nfree += v->face[k] == FT_NONE;
         }
-        if (nfree) fputs(" (free: no point lies on that face; it is placed beyond the part)", f);
+        if (nfree)
+            fputs(" (free: no point lies on that face; it is placed beyond the part, or inside "
+                  "another solid where the face is hidden)", f);
         if (inl) fprintf(f, ", %zu inliers", inl);
         if (v->sigma > 0) {
             prim_format_number(a, v->sigma, v->sigma / 10);
@@ -1378,7 +1380,6 @@ static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
 
 #define COVER_MAX_PLANES 48    /* distinct planes of a subtree the cover reads */
 #define COVER_MAX_FRAMES 8     /* orthogonal triples of their directions */
-#define COVER_MAX_OFFS 8       /* face positions per axis of a frame, free ends aside */
 #define COVER_NO (COVER_MAX_OFFS + 2)
 #define COVER_MAX_CUTS 2       /* cuts of one term */
 #define COVER_MAX_NEG 256      /* the largest cuts a term's are chosen from */
@@ -1393,6 +1394,10 @@ static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
 /* Free faces lie at the cloud's oriented box grown by this factor (ft_check's grid
  * covers 1.1). */
 #define COVER_FREE_GROWTH 1.25
+/* A face hidden inside another solid (a cube stacked on another, its bottom buried):
+ * on an axis with one fitted face, a buried position this many grid tolerances past
+ * the far end of the inliers of the frame's other faces (cv_buried). */
+#define COVER_BURIED_DEPTH 10
 
 typedef struct cv_frame {
     double u[3][3];                      /* orthonormal axes */
@@ -1485,8 +1490,34 @@ static int cv_planes(cover *C, uint32_t i)
     return 1;
 }
 
+/* On axis k of frame fr with one fitted face (at index 1, outward along +u when up):
+ * the buried position on the other side, COVER_BURIED_DEPTH grid tolerances past the
+ * inlier patches of the frame's faces across k, where the box's side faces stop being
+ * seen.  Returns 0 when no such face has a patch or the position is not past the face. */
+static int cv_buried(const cover *C, const cv_frame *fr, int k, double *at)
+{
+    const ft *F = C->F;
+    double ct = cos(C->ck->tol), lo = INFINITY, hi = -INFINITY;
+    for (int p = 0; p < C->npl; p++) {
+        const prim *q = &F->q[C->planes[p]];
+        int across = 0;
+        for (int j = 0; j < 3; j++)
+            if (j != k && fabs(vec3_dot(q->p, fr->u[j])) >= ct) across = 1;
+        if (!across || !q->has_obb) continue;
+        double c = vec3_dot(q->obb_c, fr->u[k]), e = 0;
+        for (int a = 0; a < 3; a++) e += fabs(vec3_dot(q->obb_axes[a], fr->u[k])) * q->obb_half[a];
+        lo = fmin(lo, c - e);
+        hi = fmax(hi, c + e);
+    }
+    if (!(lo <= hi)) return 0;
+    double depth = COVER_BURIED_DEPTH * C->ck->gtol, o = fr->of[k][1];
+    *at = fr->up[k][1] ? lo - depth : hi + depth;
+    return fr->up[k][1] ? *at < o - C->ck->gtol : *at > o + C->ck->gtol;
+}
+
 /* Frames: orthogonal triples of the planes' directions; on each axis the planes'
- * positions, merged within the grid tolerance, and the two free ends. */
+ * positions, merged within the grid tolerance, a buried position where one face is
+ * hidden (cv_buried), and the two free ends. */
 static int cv_frames(cover *C, const evolve_result *r)
 {
     const ft *F = C->F;
@@ -1538,6 +1569,19 @@ static int cv_frames(cover *C, const evolve_result *r)
                 fr->of[k][at] = o;
                 fr->leaf[k][at] = C->planes[p];
                 fr->up[k][at] = nu > 0;
+                n++;
+            }
+            double b;
+            if (n == 2 && cv_buried(C, fr, k, &b)) {
+                int at = fr->up[k][1] ? 1 : 2;
+                if (at == 1) {
+                    fr->of[k][2] = fr->of[k][1];
+                    fr->leaf[k][2] = fr->leaf[k][1];
+                    fr->up[k][2] = fr->up[k][1];
+                }
+                fr->of[k][at] = b;
+                fr->leaf[k][at] = FT_NONE;
+                fr->up[k][at] = 0;
                 n++;
             }
             /* The free ends: beyond the grown oriented box of the cloud. */
@@ -1902,14 +1946,17 @@ static long cv_terms(cover *C, cv_term **pt, cv_neg **pn)
         for (size_t k = 0; k < kept && !in; k++) in = cv_within(neg[i].b, neg[k].b);
         if (!in) neg[kept++] = neg[i];
     }
-    /* Each impure positive: the cuts that remove the most of its outside points. */
+    /* Each impure positive: the cuts that remove the most of its outside points, until
+     * no more of them are left than the pass lets a box keep (C->sliver per inside
+     * point: the GA's slivers a cut of fitted faces cannot take). */
     size_t ok = 0;
     for (size_t i = 0; i < nt; i++) {
         if (t[i].ncut) {
             cv_set(C, t[i].p, C->bits);
             for (size_t w = 0; w < C->nw; w++) C->bits[w] &= C->out[w];
             int nc = 0;
-            while (nc < COVER_MAX_CUTS && cv_count(C, C->bits, C->bits)) {
+            size_t keep = (size_t)(C->sliver * (double)t[i].nin);
+            while (nc < COVER_MAX_CUTS && cv_count(C, C->bits, C->bits) > keep) {
                 size_t best = 0, bi = 0;
                 for (size_t k = 0; k < kept; k++) {
                     cv_set(C, neg[k].b, C->tmp);
@@ -1921,7 +1968,7 @@ static long cv_terms(cover *C, cv_term **pt, cv_neg **pn)
                 cv_set(C, neg[bi].b, C->tmp);
                 for (size_t w = 0; w < C->nw; w++) C->bits[w] &= ~C->tmp[w];
             }
-            if (cv_count(C, C->bits, C->bits)) continue;
+            if (cv_count(C, C->bits, C->bits) > keep) continue;
             t[i].ncut = (uint8_t)nc;
 
         }
@@ -1975,11 +2022,12 @@ static uint32_t cv_union(cover *C, const cv_term *chosen, int n, const cv_neg *n
 }
 
 /* The cover of node i, in its place when it writes fewer solids and the model keeps
- * its solid (ft_keeps, and bounded if it was).  A second pass lets a box keep slivers
- * of the subtree's outside (at most COVER_SLIVER of its inside points): a face the GA
- * left cutting a corner off another part; that cover is kept only when it differs from
- * the tree at no more than COVER_SLIVER of the inside grid points and explains the
- * cloud at least as well (mean distance).  Returns 1 when it replaced node i, 0 when
+ * its solid (ft_keeps, and bounded if it was).  A second pass lets a box, after its
+ * cuts, keep slivers of the subtree's outside (at most COVER_SLIVER of its inside
+ * points): a face the GA left cutting a corner off another part, which the cloud does
+ * not show; that cover is kept only when it differs from the tree at no more than
+ * COVER_SLIVER of the inside grid points and explains the cloud at least as well
+ * (mean distance).  Returns 1 when it replaced node i, 0 when
  * not, -1 when out of memory. */
 static int cv_run(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
 {

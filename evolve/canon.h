@@ -92,6 +92,10 @@ void canon_write_comment(FILE *f, const canon_prim *c);
 #define CANON_GRID 20
 #define CANON_GRID_TOL 1e-3
 
+/* Face positions per axis of a frame of the box cover (free ends aside): a planar
+ * subtree with more, a stair of more steps, keeps its half-spaces. */
+#define COVER_MAX_OFFS 8
+
 int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const canon_prim *c,
                      size_t nprims, const frep_cloud *cloud, int exact, int hyperfun,
                      const char *base_call);
