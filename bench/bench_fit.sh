@@ -86,6 +86,14 @@ py=
     if "$cand" -c 'import scipy.optimize' 2>/dev/null; then py=$cand; break; fi
 done
 lib=${FREP_LIB:-$(dirname "$FREP")/.libs/libfrep.so}
+# bench_fit.py reaches the fit module (fit_objective_*), which the installed libfrep.so
+# does not export (libfrep.sym): link an unversioned copy of its convenience archive.
+core="$(dirname "$FREP")/.libs/libfrepcore.a"
+if [ -z "$FREP_LIB" ] && [ -f "$core" ] &&
+    ${CC:-cc} -shared -o "$tmp/libfrep_all.so" -Wl,--whole-archive "$core" \
+        -Wl,--no-whole-archive -lm -fopenmp 2>/dev/null; then
+    lib=$tmp/libfrep_all.so
+fi
 if [ -n "$py" ] && [ -f "$lib" ]; then
     echo
     echo "frep against scipy, like for like (sum of f^2, CPU seconds, one process), set2:"

@@ -657,6 +657,31 @@ static int evaluate_start(fit_run_ctx *R, frep_error *err)
  * (algebraic, on a subset) can rank a wrong basin below the right one, the final
  * objective (geometric, all points) tells them apart far better. Without one (--method
  * sa), fit_sa runs all chains itself. */
+/* Chains added, at most, while every chain so far ends with a parameter on its bound:
+ * in a template that is usually a feature switched off (the bracket's slots shrunk to
+ * their smallest radius and length where the annealing did not find them, 2% outliers,
+ * both brackets, seed 2), which no refinement switches on again; a chain from another
+ * random start can find it. A template whose truth lies on a bound pays the chains. */
+#define FIT_BOUND_CHAINS 2
+/* Relative distance to a bound under which a parameter counts as on it (the report's
+ * warning, api/api_fit.c, uses the same). */
+#define FIT_CHAIN_ON_BOUND 1e-6
+
+static int all_on_bound(const fit_run_ctx *R, const double *keep, long kept)
+{
+    if (R->lo == NULL || R->hi == NULL) return 0;
+    for (long k = 0; k < kept; k++) {
+        const double *x = keep + (size_t)k * R->m;
+        int on = 0;
+        for (size_t j = 0; j < R->m && !on; j++) {
+            double tol = FIT_CHAIN_ON_BOUND * (R->hi[j] - R->lo[j]);
+            on = x[j] <= R->lo[j] + tol || x[j] >= R->hi[j] - tol;
+        }
+        if (!on) return 0;
+    }
+    return 1;
+}
+
 static int global_phase(fit_run_ctx *R, frep_error *err)
 {
     const size_t np = R->m;
@@ -679,17 +704,19 @@ static int global_phase(fit_run_ctx *R, frep_error *err)
     double *keep = NULL, *scales = NULL;
     fit_status *kst = NULL;
     long kept = 0;
+    long limit = chains;                /* grows while every chain ends on a bound */
     if (robust) {
-        keep = frep_malloc((size_t)chains * (np + 1) * sizeof *keep);
-        kst = frep_malloc((size_t)chains * sizeof *kst);
+        long room = chains + FIT_BOUND_CHAINS;
+        keep = frep_malloc((size_t)room * (np + 1) * sizeof *keep);
+        kst = frep_malloc((size_t)room * sizeof *kst);
         if (keep == NULL || kst == NULL) {
             frep_free(keep);
             frep_free(kst);
             return frep_error_nomem(err);
         }
-        scales = keep + (size_t)chains * np;
+        scales = keep + (size_t)room * np;
     }
-    for (long k = 0; k < chains; k++) {
+    for (long k = 0; k < limit; k++) {
         R->chain = k + 1;
         R->active = R->sub;
         /* Chains after the first start at a random point (fit_sa picks one for a start
@@ -721,6 +748,9 @@ static int global_phase(fit_run_ctx *R, frep_error *err)
             scales[kept] = sc;
             kst[kept++] = R->st;
             if (R->st == FIT_STOPPED) break;
+            if (k == limit - 1 && limit < chains + FIT_BOUND_CHAINS &&
+                all_on_bound(R, keep, kept))
+                limit++, R->nchains = limit;
             continue;
         }
         if (polish && R->st != FIT_STOPPED)

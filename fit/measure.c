@@ -5,7 +5,8 @@
  * the gradient vanishes (R-function edges, the flat parts of min/max fields). Here each
  * point is projected by Newton steps along the gradient; the projection is trusted when
  * it lands on the surface (first-order distance of the landing point below 1e-10 of the
- * search radius) at a distance that agrees with the first-order estimate within 1.5x.
+ * search radius) at a distance that agrees with the first-order estimate within 1.5x,
+ * and a sphere of radius 1/sqrt 2 of it shows no sign change.
  * Elsewhere a sphere search brackets the distance: spheres of shrinking radius (by
  * sqrt 2) around the point are sampled in FIT_SPHERE_DIRS directions until none shows a
  * sign change, and the crossings along the directions of the last one that did are found
@@ -29,6 +30,13 @@
 /* The Newton projection is trusted when its distance lies within this factor of the
  * first-order estimate at the point. */
 #define FIT_PROJ_AGREE 1.5
+/* ... and when no surface lies closer than its distance over this factor (a sphere
+ * test), so that a kept projection is within this factor of the true distance. */
+#define FIT_PROJ_VERIFY 1.4142135623730951
+/* Projections shorter than this fraction of the search radius (the diagonal) are kept
+ * without the sphere test: their error is below it, 1/100 of the verdict's threshold,
+ * and most points of a clean cloud lie there (the test costs FIT_SPHERE_DIRS values). */
+#define FIT_PROJ_VERIFY_FLOOR 1e-4
 /* Bisection steps along a direction with a sign change (2^-40 of the radius). */
 #define FIT_BISECT_STEPS 40
 /* Directions of a sign change refined by bisection, at most. */
@@ -200,8 +208,17 @@ static int block_distances(const dist_ctx *C, dist_ws *w, size_t i0, size_t n, d
             double dx = w->y0[i] - p[0], dy = w->y1[i] - p[1], dz = w->y2[i] - p[2];
             dn = sqrt(dx * dx + dy * dy + dz * dz);
             if (dn <= FIT_PROJ_AGREE * w->d1[i] && dn * FIT_PROJ_AGREE >= w->d1[i]) {
-                out[i] = dn;
-                continue;
+                /* The estimate can be off as much as the landing point (near an edge
+                 * of R-function slabs both overstate by 3-5x): kept only when the
+                 * sphere of radius dn / FIT_PROJ_VERIFY shows no crossing. */
+                int c = dn > FIT_PROJ_VERIFY_FLOOR * C->radius
+                            ? sphere_crosses(C, w, p, f0 > 0 ? 1 : -1, dn / FIT_PROJ_VERIFY)
+                            : 0;
+                if (c < 0) { err = 1; break; }
+                if (c == 0) {
+                    out[i] = dn;
+                    continue;
+                }
             }
         }
         int known = dn < C->radius, unres = 0;
