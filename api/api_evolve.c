@@ -60,10 +60,12 @@ void frep_evolve_options_init(frep_evolve_options *o)
     o->lambda_scale = eo.lambda_scale;
 }
 
-/* The caller's progress and cancel, seen by the GA as its progress function and flag. */
+/* The caller's progress and cancel: the GA's progress function, and the run's
+ * gp_cancel (gp.h), whose flag is the caller's cancel_flag or stop. */
 typedef struct evolve_job {
     const frep_evolve_options *o;
     volatile sig_atomic_t stop;
+    gp_cancel cancel;
 } evolve_job;
 
 static int on_progress(void *user, const gp_progress *p)
@@ -74,8 +76,18 @@ static int on_progress(void *user, const gp_progress *p)
                                     p->explained, p->npoints, p->elapsed };
         j->o->progress(j->o->user, &fp);
     }
-    if (j->o->cancel && j->o->cancel(j->o->user)) j->stop = 1;
-    return j->stop != 0;
+    if (j->o->cancel && j->o->cancel(j->o->user)) *j->cancel.flag = 1;
+    /* polled just now: gp_cancelled() waits its interval before the next call */
+    j->cancel.next = frep_now_seconds() + GP_CANCEL_POLL_SECONDS;
+    return *j->cancel.flag != 0;
+}
+
+/* Segmentation's progress: the cancel callback polled (segment_run polls the flag). */
+static void on_segment_progress(void *user, const char *stage, size_t done, size_t total,
+                                size_t nprims)
+{
+    evolve_job *j = user;
+    gp_cancelled(&j->cancel);
 }
 
 static void options_from(const frep_evolve_options *o, evolve_options *eo)
@@ -110,14 +122,14 @@ static void options_from(const frep_evolve_options *o, evolve_options *eo)
 
 /* Normals estimated when the cloud has none (or only zero-length ones). */
 static int ensure_normals(const api_diag *d, frep_cloud *c, const frep_evolve_options *o,
-                          volatile sig_atomic_t *stop)
+                          evolve_job *job)
 {
     if (c->has_normals && cloud_normalize_normals(c) != c->n) return 0;
     normals_config nc;
     normals_config_init(&nc);
     nc.knn = o->knn;
     nc.nthreads = o->nthreads;
-    nc.interrupt = stop;
+    nc.interrupt = job->cancel.flag;  /* the flag only: no callback polled here */
     normals_info info;
     int rc = normals_run(c, &nc, &info);
     if (rc < 0) api_report(d, FREP_ERROR, "out of memory estimating normals");
@@ -143,16 +155,18 @@ static int get_prims(const api_diag *d, frep_cloud *c, const frep_segmentation *
         ev->prims = frep_calloc(ev->nprims ? ev->nprims : 1, sizeof *ev->prims);
         if (!ev->prims) return api_fail(d, &e);
         if (ev->nprims) memcpy(ev->prims, s->r.prims, ev->nprims * sizeof *ev->prims);
-        return ensure_normals(d, c, o, &job->stop);
+        return ensure_normals(d, c, o, job);
     }
     /* knn 0: normals estimated here with the automatic neighbourhood, segment_run's
      * default is fixed */
-    if (!c->has_normals && o->knn == 0 && ensure_normals(d, c, o, &job->stop) != 0) return -1;
+    if (!c->has_normals && o->knn == 0 && ensure_normals(d, c, o, job) != 0) return -1;
     segment_config sc;
     segment_config_init(&sc);
     sc.seed = o->seed;
     sc.nthreads = o->nthreads;
-    sc.interrupt = &job->stop;
+    sc.interrupt = job->cancel.flag;
+    sc.progress = on_segment_progress;
+    sc.user = job;
     sc.knn = o->knn;
     segment_result r;
     memset(&r, 0, sizeof r);
@@ -189,19 +203,20 @@ frep_evolution *frep_evolve(frep_cloud *c, const frep_segmentation *prims,
     ev->cloud = c;
     ev->rms_before = ev->rms_after = NAN;
     options_from(o, &ev->eo);
-    evolve_job job = { o, 0 };
-    ev->eo.gp.interrupt = &job.stop;
+    evolve_job job = { o, 0, { NULL, o->cancel, o->user, 0 } };
+    job.cancel.flag = o->cancel_flag ? o->cancel_flag : &job.stop;
+    ev->eo.gp.cancel = &job.cancel;
     int rc = 0;
     if (!c || c->n == 0) rc = -1, api_report(&d, FREP_ERROR, "no points");
     else if (cloud_check_scale(c, "the cloud", &e)) rc = api_fail(&d, &e);
     if (rc == 0) rc = get_prims(&d, c, prims, o, ev, &job);
     if (rc == 0 && ev->nprims == 0)
-        rc = -1, api_report(&d, FREP_ERROR, job.stop ? "stopped before any primitive was found"
+        rc = -1, api_report(&d, FREP_ERROR, *job.cancel.flag ? "stopped before any primitive was found"
                                                       : "no primitives to combine");
     if (rc == 0 && evolve_run(&ev->eo, c, ev->prims, ev->nprims, on_progress, &job, &ev->res,
                               &e) != 0)
         rc = api_fail(&d, &e);
-    if (rc == 0 && o->refit && !job.stop) {
+    if (rc == 0 && o->refit && !*job.cancel.flag) {
         evolve_refit_info ri;
         frep_error_init(&e);
         if (evolve_refit(&ev->eo, c, ev->prims, ev->nprims, NULL, &ev->res, &ri, &e) != 0) {
@@ -219,8 +234,8 @@ frep_evolution *frep_evolve(frep_cloud *c, const frep_segmentation *prims,
             api_report(&d, FREP_NOTE, ev->note);
         }
     }
-    ev->interrupted = job.stop != 0;
-    ev->eo.gp.interrupt = NULL;
+    ev->interrupted = *job.cancel.flag != 0;
+    ev->eo.gp.cancel = NULL;
     if (rc != 0) {
         frep_evolution_free(ev);
         return NULL;

@@ -56,6 +56,16 @@ typedef struct progress_ctx {
 static int progress(void *user, const gp_progress *p)
 {
     progress_ctx *c = user;
+    if (p->phase == GP_PHASE_CLIQUES || p->phase == GP_PHASE_SIMPLIFY) {
+        /* the start of a phase: no --trace line (it has no new tree) */
+        if (c->tty && !c->quiet) {
+            fprintf(stderr, "\rfrep evolve: %s, %.1f s   ",
+                    p->phase == GP_PHASE_CLIQUES ? "evolving a tree per clique"
+                                                 : "simplifying the tree", p->elapsed);
+            fflush(stderr);
+        }
+        return cli_interrupted();
+    }
     if (c->trace) {
         double wall = frep_now_seconds() - c->t0;
         double cpu = (double)(clock() - c->c0) / CLOCKS_PER_SEC;
@@ -135,6 +145,7 @@ static char *join_args(int argc, char **argv)
 /* Every step's inputs and results, from the options to the summary. */
 typedef struct evolve_cmd {
     evolve_options eo;
+    gp_cancel cancel;           /* Ctrl-C: the flag of the signal handler */
     const char *prims_path, *out, *dot, *residual_path, *trace_path, *view;
     double stop_share;          /* --stop-share, percent; 0: none */
     int refit, quiet, have_setops, exact, hyperfun;
@@ -410,7 +421,7 @@ static int segment_prims(evolve_cmd *e)
     segment_config_init(&sc);
     sc.seed = e->eo.gp.seed;
     sc.nthreads = e->eo.gp.threads;
-    sc.interrupt = e->eo.gp.interrupt;
+    sc.interrupt = e->cancel.flag;
     sc.knn = e->knn;
     int failed = segment_run(e->sub ? e->sub : e->cloud, &sc, &e->seg, &e->ferr);
     if (cli_deadline_passed()) e->cut = "segmentation";
@@ -609,7 +620,8 @@ static int evolve_steps(evolve_cmd *e)
     if (rc == CLI_OK && e->residual_path) rc = stage_residual(e);
     /* From the segmentation on, Ctrl-C stops the phase running and the best tree so
      * far is written (gp.h says which steps are skipped). */
-    e->eo.gp.interrupt = cli_sigint_catch();
+    e->cancel.flag = cli_sigint_catch();
+    e->eo.gp.cancel = &e->cancel;
     if (rc == CLI_OK) rc = stage_prims(e);
     if (rc == CLI_OK) rc = stage_evolve(e);
     if (rc != CLI_OK)

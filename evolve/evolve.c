@@ -527,7 +527,7 @@ static int join_base(const evolve_options *o, const gp_tree *t, uint32_t nprims,
         if (o->simplify) {
             gp_tree keep = { NULL, 0, 0 };
             if (tree_copy(&keep, &cand)) goto out;
-            if (simplify_tree(&cand, o->gp.setops, c, ev, &fit)) {
+            if (simplify_tree(&cand, o->gp.setops, c, ev, &fit, o->gp.cancel)) {
                 tree_free(&keep);
                 goto out;
             }
@@ -593,7 +593,7 @@ static int run_oom(run_ctx *c)
 /* Ctrl-C: the steps that only improve the tree are skipped (gp.h). */
 static int run_cancelled(const run_ctx *c)
 {
-    return frep_cancelled(c->o->gp.interrupt);
+    return gp_cancelled(c->o->gp.cancel);
 }
 
 /* The inputs refused before any work: no primitives, too many, no normals. */
@@ -817,7 +817,7 @@ static int stage_grow_merged(run_ctx *c)
     const evolve_options *o = c->o;
     gp_result *gr = &c->gr;
     if (!c->partitioned || !o->simplify || !gr->best.len || run_cancelled(c)) return 0;
-    if (simplify_grow_pieces(&gr->best, o->gp.setops, c->sc, c->ev, &gr->fitness))
+    if (simplify_grow_pieces(&gr->best, o->gp.setops, c->sc, c->ev, &gr->fitness, o->gp.cancel))
         return run_oom(c);
     c->grown = 1;
     if (c->fn) {
@@ -890,8 +890,14 @@ static int stage_simplify(run_ctx *c)
     res->fitness = c->gr.fitness;
     if (tree_copy(&res->tree, &c->gr.best)) return run_oom(c);
     if (!o->simplify || !res->tree.len || c->grown || run_cancelled(c)) return 0;
-    if (simplify_tree(&res->tree, o->gp.setops, c->sc, c->ev, &res->fitness) ||
-        simplify_grow_pieces(&res->tree, o->gp.setops, c->sc, c->ev, &res->fitness))
+    if (c->fn) {  /* a stop request raises the flag the simplification polls */
+        gp_progress gpr = { res->generations, res->fitness, res->tree.len,
+                            frep_now_seconds() - c->t0, GP_PHASE_SIMPLIFY, 0, 0 };
+        c->fn(c->user, &gpr);
+    }
+    if (simplify_tree(&res->tree, o->gp.setops, c->sc, c->ev, &res->fitness, o->gp.cancel) ||
+        simplify_grow_pieces(&res->tree, o->gp.setops, c->sc, c->ev, &res->fitness,
+                             o->gp.cancel))
         return run_oom(c);
     return 0;
 }

@@ -31,6 +31,31 @@ void gp_config_init(gp_config *c)
     c->setops = GP_SETOPS_MINMAX;
 }
 
+/* The calling thread of the run: thread 0 of every enclosing team (the thread that
+ * starts a parallel region becomes thread 0 of its team). */
+static int gp_on_calling_thread(void)
+{
+#ifdef _OPENMP
+    for (int l = omp_get_level(); l > 0; l--)
+        if (omp_get_ancestor_thread_num(l) != 0) return 0;
+#endif
+    return 1;
+}
+
+int gp_cancelled(gp_cancel *k)
+{
+    if (!k) return 0;
+    if (*k->flag) return 1;
+    if (k->fn && gp_on_calling_thread()) {
+        double t = frep_now_seconds();
+        if (t >= k->next) {
+            k->next = t + GP_CANCEL_POLL_SECONDS;
+            if (k->fn(k->user)) *k->flag = 1;
+        }
+    }
+    return *k->flag != 0;
+}
+
 int gp_default_depth(uint32_t nprims)
 {
     int d = 1;
@@ -266,7 +291,7 @@ static int gp_stop_now(gp_state *s, uint32_t gen)
         }
         if (s->fn(s->user, &pr)) { s->res->stop = GP_STOP_USER; return 1; }
     }
-    if (frep_cancelled(cfg->interrupt)) { s->res->stop = GP_STOP_USER; return 1; }
+    if (gp_cancelled(cfg->cancel)) { s->res->stop = GP_STOP_USER; return 1; }
     if (gen + 1 >= cfg->generations) { s->res->stop = GP_STOP_GENERATIONS; return 1; }
     if (cfg->stagnation && s->since >= cfg->stagnation) { s->res->stop = GP_STOP_STAGNATION; return 1; }
     if (cfg->max_time > 0 && el >= cfg->max_time) { s->res->stop = GP_STOP_TIME; return 1; }

@@ -32,6 +32,26 @@
  * its parents) is not scored again. */
 #define GP_MEMO_BITS 14
 
+/* Polls of the cancel callback on the calling thread are this far apart at least: a
+ * callback into Python costs microseconds, a candidate tree's score tens of them. */
+#define GP_CANCEL_POLL_SECONDS 0.01
+
+/* The one cancel mechanism of a run (runtime/cancel.h): every phase polls
+ * gp_cancelled() at least every FREP_CANCEL_POLL_SECONDS of work, on any thread.  flag
+ * is raised by a signal handler or another thread; fn (the public API's cancel
+ * callback; may be NULL) is called only on the calling thread (thread 0 of every team
+ * of the run), at most every GP_CANCEL_POLL_SECONDS, and raises flag when it says
+ * stop, so that the worker threads see it too. */
+typedef struct gp_cancel {
+    volatile sig_atomic_t *flag;   /* never NULL */
+    int (*fn)(void *user);
+    void *user;
+    double next;                   /* frep_now_seconds() of fn's next call */
+} gp_cancel;
+
+/* Non-zero once the run is cancelled (k may be NULL: never). */
+int gp_cancelled(gp_cancel *k);
+
 typedef struct gp_config {
     uint32_t population;
     int max_depth;          /* 0: gp_default_depth(nprims) */
@@ -50,11 +70,12 @@ typedef struct gp_config {
      * (gp_progress.explained; one gp_tree_stats each time the best fitness changes).
      * Only runs with a callback report, so the clique GAs of partition.c never do. */
     int report_explained;
-    /* Ctrl-C (cancel.h; may be NULL): every GA, the clique GAs included, stops at its
-     * next generation (GP_STOP_USER, the best tree kept), and evolve_run skips the
-     * steps that only improve a tree (merges, growth, polish, simplification, support
-     * trims, refit). */
-    volatile sig_atomic_t *interrupt;
+    /* Ctrl-C or the API's cancel callback (gp_cancel below; may be NULL): every GA,
+     * the clique GAs included, stops at its next generation (GP_STOP_USER, the best
+     * tree kept), the merges and simplifications stop at their next candidate with the
+     * tree so far, and evolve_run skips the steps that only improve a tree (growth,
+     * polish, support trims, refit). */
+    gp_cancel *cancel;
 } gp_config;
 
 void gp_config_init(gp_config *c);
@@ -65,7 +86,9 @@ typedef enum gp_phase {
     GP_PHASE_GA,            /* a generation of a GA (the whole run's, or the polish) */
     GP_PHASE_MERGE,         /* two clique trees merged (best_fitness NaN: a partial tree) */
     GP_PHASE_MERGED,        /* the merged, simplified tree on the whole sample */
-    GP_PHASE_GROWN          /* the merged tree after the growth steps (evolve.c) */
+    GP_PHASE_GROWN,         /* the merged tree after the growth steps (evolve.c) */
+    GP_PHASE_CLIQUES,       /* the clique GAs start (generation 0, no tree: fitness NaN) */
+    GP_PHASE_SIMPLIFY       /* the final tree's simplification starts (the tree before) */
 } gp_phase;
 
 typedef struct gp_progress {

@@ -2,6 +2,8 @@
  * trees (Friedrich, Feld, Phan, Fayolle, WSCG 2018); called by evolve.c before (or
  * instead of) the GA over all primitives.
  */
+#define _POSIX_C_SOURCE 200809L /* nanosleep */
+
 #include "config.h"
 
 #include "alloc.h"
@@ -15,6 +17,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 /* ---- oriented boxes ----------------------------------------------------------- */
 
@@ -399,7 +402,7 @@ static int join(gp_tree *out, const gp_tree *a, const gp_tree *b, uint8_t op)
 }
 
 int part_merge_pair(const gp_tree *a, const gp_tree *b, gp_setops s, const gp_cache *c,
-                    gp_eval *e, gp_tree *out, double *fitness)
+                    gp_eval *e, gp_tree *out, double *fitness, gp_cancel *k)
 {
     gp_opset o = gp_opset_of(s);
     gp_tree cand[4];
@@ -424,7 +427,7 @@ int part_merge_pair(const gp_tree *a, const gp_tree *b, gp_setops s, const gp_ca
             bf = f;
         }
     }
-    if (tree_copy(out, &cand[best]) || simplify_tree_both(out, s, c, e, fitness)) goto out;
+    if (tree_copy(out, &cand[best]) || simplify_tree_both(out, s, c, e, fitness, k)) goto out;
     rc = 0;
 out:
     for (int k = 0; k < 4; k++) tree_free(&cand[k]);
@@ -673,7 +676,7 @@ static int solve_clique(const gp_config *cfg, const gp_cache *c, const uint32_t 
         if (tree_push(t, FREP_OP_PRIM, 0)) goto out;
     } else if (k <= PART_EXHAUSTIVE_MAX) {
         if (part_exhaustive(cfg->setops, sc, e, t)) goto out;
-        if (k > 2 && simplify_tree(t, cfg->setops, sc, e, NULL)) goto out;
+        if (k > 2 && simplify_tree(t, cfg->setops, sc, e, NULL, cfg->cancel)) goto out;
     } else {
         gp_config cc = *cfg;
         cc.threads = 1;
@@ -687,7 +690,7 @@ static int solve_clique(const gp_config *cfg, const gp_cache *c, const uint32_t 
         *gens = r.generations;
         int bad = tree_copy(t, &r.best);
         tree_free(&r.best);
-        if (bad || simplify_tree(t, cfg->setops, sc, e, NULL)) goto out;
+        if (bad || simplify_tree(t, cfg->setops, sc, e, NULL, cfg->cancel)) goto out;
     }
     tree_renumber(t, mem, k, 1);
     rc = 0;
@@ -736,7 +739,7 @@ static int merge_pieces(const gp_config *cfg, const gp_cache *c, gp_eval *e,
     if (!sc || tree_copy(&a, &pi->t) || tree_copy(&b, &pj->t)) goto out;
     tree_renumber(&a, prims, k, 0);
     tree_renumber(&b, prims, k, 0);
-    if (part_merge_pair(&a, &b, cfg->setops, sc, e, &m, NULL)) goto out;
+    if (part_merge_pair(&a, &b, cfg->setops, sc, e, &m, NULL, cfg->cancel)) goto out;
     tree_renumber(&m, prims, k, 1);
     if (tree_copy(&pi->t, &m)) goto out;
     frep_free(pi->pts);
@@ -899,25 +902,60 @@ static int part_assign_points(part_ctx *s)
     return 0;
 }
 
-/* A tree per clique (solve_clique), cliques in parallel, each seeded from the run's
- * seed and its number; a clique without points is dropped. */
+/* How often the calling thread, idle while the last clique GAs run, polls the cancel
+ * callback: well under FREP_CANCEL_POLL_SECONDS, and rare enough to cost nothing. */
+#define PART_CANCEL_WAIT_SECONDS 0.005
+
+static void part_wait(void)
+{
+    struct timespec ts = { 0, (long)(PART_CANCEL_WAIT_SECONDS * 1e9) };
+    nanosleep(&ts, NULL);
+}
+
+/* Clique q's tree (solve_clique); 1 when it failed (memory). After a cancel a clique
+ * not started yet is dropped; a running one stops at its next generation with its
+ * best tree. */
+static int part_solve_one(part_ctx *s, uint32_t q, int tid)
+{
+    part_piece *pq = &s->pc[q];
+    if (pq->npts == 0) return 0;  /* explains no point: dropped */
+    if (gp_cancelled(s->cfg->cancel)) return 0;
+    return solve_clique(s->cfg, s->c, pq->prims, pq->nprims, pq->pts, pq->npts,
+                        mix_seed(s->cfg->seed, q), s->ev[tid], &pq->t, &s->gens[q]) != 0;
+}
+
+/* A tree per clique, cliques in parallel (each taken from a shared counter), each
+ * seeded from the run's seed and its number, so the trees do not depend on the
+ * threads; a clique without points is dropped. The calling thread (thread 0), once
+ * no clique is left to start, keeps polling the cancel callback every
+ * PART_CANCEL_WAIT_SECONDS until the others end, so that a cancel reaches the clique
+ * GAs still running. */
 static int part_solve(part_ctx *s)
 {
     int failed = 0;
-    long nql = (long)s->nq;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(s->nthreads)
-    for (long ql = 0; ql < nql; ql++) {
-        uint32_t q = (uint32_t)ql;
+    uint32_t next = 0, done = 0, nq = s->nq;
+#pragma omp parallel num_threads(s->nthreads)
+    {
         int tid = frep_thread_num();
-        part_piece *pq = &s->pc[q];
-        if (pq->npts == 0) continue;  /* explains no point: dropped */
-        /* after Ctrl-C a clique not started yet is dropped; a running one stops at
-         * its next generation with its best tree */
-        if (frep_cancelled(s->cfg->interrupt)) continue;
-        if (solve_clique(s->cfg, s->c, pq->prims, pq->nprims, pq->pts, pq->npts,
-                         mix_seed(s->cfg->seed, q), s->ev[tid], &pq->t, &s->gens[q])) {
+        for (;;) {
+            uint32_t q;
+#pragma omp atomic capture
+            q = next++;
+            if (q >= nq) break;
+            if (part_solve_one(s, q, tid)) {
 #pragma omp atomic write
-            failed = 1;
+                failed = 1;
+            }
+#pragma omp atomic update
+            done++;
+        }
+        for (;;) {
+            uint32_t d;
+#pragma omp atomic read
+            d = done;
+            if (tid != 0 || d >= nq) break;
+            gp_cancelled(s->cfg->cancel);
+            part_wait();
         }
     }
     if (failed) return -1;
@@ -974,7 +1012,7 @@ static int part_merge_all(part_ctx *s)
 {
     part_piece *pc = s->pc;
     while (s->live > 1) {
-        if (frep_cancelled(s->cfg->interrupt)) return part_union_rest(s);
+        if (gp_cancelled(s->cfg->cancel)) return part_union_rest(s);
         uint32_t live = s->live, bi = 0, bj = 1, bs = 0;
         for (uint32_t i = 0; i < live; i++)
             for (uint32_t j = i + 1; j < live; j++) {
@@ -1001,9 +1039,10 @@ static int part_final(part_ctx *s)
     gp_result *res = s->res;
     double fit;
     if (tree_copy(&res->best, &s->pc[0].t)) return -1;
-    if (frep_cancelled(s->cfg->interrupt)) {  /* Ctrl-C: the tree as merged */
+    if (gp_cancelled(s->cfg->cancel)) {  /* Ctrl-C: the tree as merged */
         if (gp_fitness(s->c, s->ev[0], res->best.code, res->best.len, &fit)) return -1;
-    } else if (simplify_tree_both(&res->best, s->cfg->setops, s->c, s->ev[0], &fit)) {
+    } else if (simplify_tree_both(&res->best, s->cfg->setops, s->c, s->ev[0], &fit,
+                                  s->cfg->cancel)) {
         return -1;
     }
     res->fitness = fit;
@@ -1024,7 +1063,12 @@ static int part_final(part_ctx *s)
  * merged tree. */
 static int part_stages(part_ctx *s)
 {
-    if (part_alloc(s) || part_assign_points(s) || part_solve(s) || part_compact(s)) return -1;
+    if (part_alloc(s) || part_assign_points(s)) return -1;
+    if (s->fn) {  /* a stop request raises the flag the clique GAs poll */
+        gp_progress pr = { 0, NAN, 0, frep_now_seconds() - s->t0, GP_PHASE_CLIQUES, 0, 0 };
+        s->fn(s->user, &pr);
+    }
+    if (part_solve(s) || part_compact(s)) return -1;
     if (s->live == 0) return 0;  /* no clique tree: the unpartitioned GA */
     if (part_merge_all(s)) return -1;
     return part_final(s);

@@ -78,7 +78,7 @@ uint32_t part_largest_common(const gp_tree *a, const gp_tree *b, uint32_t *ea,
  * grafts of one into the other at their largest common subtree (where valid), a | b
  * and a & b; the winner is simplified. Returns 0 or -1. */
 int part_merge_pair(const gp_tree *a, const gp_tree *b, gp_setops s, const gp_cache *c,
-                    gp_eval *e, gp_tree *out, double *fitness);
+                    gp_eval *e, gp_tree *out, double *fitness, gp_cancel *k);
 
 /* The best tree for a clique of at most PART_EXHAUSTIVE_MAX primitives (c's), by
  * trying every tree over a non-empty subset of them that uses each once, with the four

@@ -312,7 +312,8 @@ static void refit_config(refit_ctx *c)
     cfg->seed = c->o->gp.seed;
     cfg->lm.max_iter = REFIT_LM_ITER;
     cfg->reweight_rounds = REFIT_ROUNDS;
-    cfg->interrupt = c->o->gp.interrupt;  /* Ctrl-C keeps the best parameters so far */
+    /* Ctrl-C keeps the best parameters so far; the flag the cancel callback raises */
+    cfg->interrupt = c->o->gp.cancel ? c->o->gp.cancel->flag : NULL;
 }
 
 /* The RMS and maximum distance over every point, with every parameter at its value:
@@ -352,7 +353,7 @@ static size_t refit_group_end(const refit_ctx *c, size_t k0)
 static int refit_groups(refit_ctx *c)
 {
     double x[FIT_MAX_PARAMS];
-    for (size_t k0 = 0; k0 < c->np && !frep_cancelled(c->o->gp.interrupt);) {
+    for (size_t k0 = 0; k0 < c->np && !gp_cancelled(c->o->gp.cancel);) {
         size_t k1 = refit_group_end(c, k0), nf = k1 - k0;
         for (size_t k = 0; k < nf; k++) {
             c->gidx[k] = c->fidx[k0 + k];

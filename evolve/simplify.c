@@ -328,14 +328,15 @@ static long node_moves(gp_tree *t, gp_tree *trial, gp_tree *cand, uint32_t end,
  * it raises the fitness (a GA can stall one primitive short of the solution).
  * Returns 1 when the tree grew, 0 when not, -1 on allocation failure. */
 static int grow_root(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
-                     gp_eval *e, double *fit)
+                     gp_eval *e, double *fit, gp_cancel *k)
 {
     const uint8_t ops[3] = { o->uni, o->inter, o->sub };
     uint32_t best_j = 0;
     int best_w = -1;
     double bf = *fit;
     if (record(t, c, e, NULL)) return -1;
-    for (uint32_t j = 0; j < c->nprims; j++)
+    for (uint32_t j = 0; j < c->nprims; j++) {
+        if (gp_cancelled(k)) return 0;
         for (int w = 0; w < 3; w++) {
             if (leaf1(trial, c, t->len - 1) || tree_push(trial, FREP_OP_PRIM, j) ||
                 tree_push(trial, (frep_opcode)ops[w], 0))
@@ -349,6 +350,7 @@ static int grow_root(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
                 best_w = w;
             }
         }
+    }
     if (best_w < 0) return 0;
     if (tree_push(t, FREP_OP_PRIM, best_j) || tree_push(t, (frep_opcode)ops[best_w], 0))
         return -1;
@@ -372,17 +374,17 @@ static int reduce_at(gp_tree *t, gp_tree *trial, gp_tree *cand, uint32_t end,
 
 /* Removal moves until none applies. */
 static int reduce(gp_tree *t, gp_tree *trial, gp_tree *cand, gp_setops s, const gp_opset *o,
-                  const gp_cache *c, gp_eval *e, double *fit, int leaves_first)
+                  const gp_cache *c, gp_eval *e, double *fit, int leaves_first, gp_cancel *k)
 {
     int changed = 1;
-    while (changed) {
+    while (changed && !gp_cancelled(k)) {
         changed = 0;
         if (record(t, c, e, fit)) return -1;
         uint32_t took = 0;
         if (!leaves_first) {
             /* Root first: removing high nodes saves the most. After a replacement the
              * scan continues at the node that took the place. */
-            for (uint32_t end = t->len; end-- > 0;) {
+            for (uint32_t end = t->len; end-- > 0 && !gp_cancelled(k);) {
                 int r = reduce_at(t, trial, cand, end, o, c, e, fit, &took);
                 if (r < 0) return -1;
                 if (r > 0) {
@@ -394,7 +396,7 @@ static int reduce(gp_tree *t, gp_tree *trial, gp_tree *cand, gp_setops s, const 
             /* Deepest first (postfix order): a part removed before a larger part that
              * only it made redundant (partition.c, merged trees). After a replacement
              * the scan continues after the node that took the place. */
-            for (uint32_t end = 0; end < t->len; end++) {
+            for (uint32_t end = 0; end < t->len && !gp_cancelled(k); end++) {
                 int r = reduce_at(t, trial, cand, end, o, c, e, fit, &took);
                 if (r < 0) return -1;
                 if (r > 0) {
@@ -409,7 +411,7 @@ static int reduce(gp_tree *t, gp_tree *trial, gp_tree *cand, gp_setops s, const 
 }
 
 static int simplify_order(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
-                          double *fitness, int leaves_first)
+                          double *fitness, int leaves_first, gp_cancel *k)
 {
     if (simplify_rules(t, s)) return -1;
     gp_opset o = gp_opset_of(s);
@@ -417,14 +419,14 @@ static int simplify_order(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e
     if (gp_fitness(c, e, t->code, t->len, &fit)) return -1;
     gp_tree trial = { NULL, 0, 0 }, cand = { NULL, 0, 0 };
     int rc = -1;
-    if (reduce(t, &trial, &cand, s, &o, c, e, &fit, leaves_first)) goto out;
-    for (int round = 0; round < SIMPLIFY_MAX_GROWTH; round++) {
-        int g = grow_root(t, &trial, &o, c, e, &fit);
+    if (reduce(t, &trial, &cand, s, &o, c, e, &fit, leaves_first, k)) goto out;
+    for (int round = 0; round < SIMPLIFY_MAX_GROWTH && !gp_cancelled(k); round++) {
+        int g = grow_root(t, &trial, &o, c, e, &fit, k);
         if (g < 0) goto out;
         if (g == 0) break;
         if (simplify_rules(t, s)) goto out;
         if (gp_fitness(c, e, t->code, t->len, &fit)) goto out;
-        if (reduce(t, &trial, &cand, s, &o, c, e, &fit, leaves_first)) goto out;
+        if (reduce(t, &trial, &cand, s, &o, c, e, &fit, leaves_first, k)) goto out;
     }
     rc = 0;
     if (fitness) *fitness = fit;
@@ -434,19 +436,20 @@ out:
     return rc;
 }
 
-int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double *fitness)
+int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double *fitness,
+                  gp_cancel *k)
 {
-    return simplify_order(t, s, c, e, fitness, 0);
+    return simplify_order(t, s, c, e, fitness, 0, k);
 }
 
 int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
-                       double *fitness)
+                       double *fitness, gp_cancel *k)
 {
     gp_tree u = { NULL, 0, 0 };
     double fr = 0, fl = 0;
     int rc = -1;
-    if (tree_copy(&u, t) || simplify_order(t, s, c, e, &fr, 0) ||
-        simplify_order(&u, s, c, e, &fl, 1))
+    if (tree_copy(&u, t) || simplify_order(t, s, c, e, &fr, 0, k) ||
+        simplify_order(&u, s, c, e, &fl, 1, k))
         goto out;
     if (fl > fr || (fl == fr && u.len < t->len)) {
         if (tree_copy(t, &u)) goto out;
@@ -1198,7 +1201,7 @@ out:
 }
 
 int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
-                         double *fitness)
+                         double *fitness, gp_cancel *k)
 {
     if (!t->len) return 0;
     gp_opset o = gp_opset_of(s);
@@ -1206,28 +1209,28 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
     double fit;
     if (gp_fitness(c, e, t->code, t->len, &fit)) return -1;
     int rc = -1;
-    for (int round = 0; round < SIMPLIFY_MAX_INNER; round++) {
+    for (int round = 0; round < SIMPLIFY_MAX_INNER && !gp_cancelled(k); round++) {
         int g = grow_inner(t, &trial, &o, c, e, &fit);
         if (g < 0) goto out;
         if (g == 0) break;
-        if (simplify_tree(t, s, c, e, &fit)) goto out;
+        if (simplify_tree(t, s, c, e, &fit, k)) goto out;
     }
-    for (int round = 0; round < SIMPLIFY_MAX_POCKETS; round++) {
+    for (int round = 0; round < SIMPLIFY_MAX_POCKETS && !gp_cancelled(k); round++) {
         int g = grow_pocket(t, &trial, &o, c, e, &fit);
         if (g < 0) goto out;
         if (g == 0) break;
-        if (simplify_tree(t, s, c, e, &fit)) goto out;
+        if (simplify_tree(t, s, c, e, &fit, k)) goto out;
     }
-    for (int round = 0; round < SIMPLIFY_MAX_PIECES; round++) {
+    for (int round = 0; round < SIMPLIFY_MAX_PIECES && !gp_cancelled(k); round++) {
         int g = grow_piece(t, &trial, &o, c, e, &fit);
         if (g < 0) goto out;
         if (g == 0) break;
         /* The piece may make part of the tree redundant (a face the GA had faked). */
-        if (simplify_tree(t, s, c, e, &fit)) goto out;
+        if (simplify_tree(t, s, c, e, &fit, k)) goto out;
     }
     /* Last: a trim costs two nodes the fitness does not pay for, so the removal moves
      * of simplify_tree would take it out again; only the exact rules follow it. */
-    for (int round = 0; round < SIMPLIFY_MAX_TRIMS; round++) {
+    for (int round = 0; round < SIMPLIFY_MAX_TRIMS && !gp_cancelled(k); round++) {
         int g = grow_trim(t, &trial, &o, c, e);
         if (g < 0) goto out;
         if (g == 0) break;

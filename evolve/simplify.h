@@ -7,7 +7,13 @@
 #define FREP_GP_SIMPLIFY_H
 
 #include "fitness.h"
+#include "gp.h"
 #include "tree.h"
+
+/* Cancellation (k, gp.h; may be NULL): the fitness-guarded searches below poll it
+ * between candidates and, once it is raised, stop with the tree as it stands, every
+ * step taken so far kept (each keeps the fitness from falling), and *fitness its
+ * fitness. */
 
 /* Apply the identities, exact for min/max and for R0 functions alike, until none
  * applies; commutative operands are put in a canonical order, so that equal subtrees
@@ -19,7 +25,8 @@ int simplify_rules(gp_tree *t, gp_setops s);
  * three operations, when the fitness does not decrease; then a hill climb joining one
  * primitive at the root while that raises the fitness, each time followed by the
  * removal moves again. *fitness (may be NULL) receives the final fitness. */
-int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double *fitness);
+int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double *fitness,
+                  gp_cancel *k);
 /* simplify_tree with the removal moves tried from the root down (simplify_tree's
  * order: the largest removals first) and, on a copy, from the leaves up; the fitter
  * result (ties: the shorter, then the first). The greedy removals of one order can
@@ -27,7 +34,7 @@ int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double
  * with a pocket both as its clique trees built it, through (a clique without the
  * pocket's floor) and complete, keeps the complete one only from the leaves up. */
 int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
-                       double *fitness);
+                       double *fitness, gp_cancel *k);
 
 /* After simplify_tree: first, while that raises the fitness (at most 16 times), the
  * best S & p, S \ p or S | p replacing any subtree S, p a primitive explaining points
@@ -51,7 +58,7 @@ int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
  * does not pay for such faces, so only the exact rules follow). *fitness (may be NULL)
  * receives the final fitness. 0 or -1 (allocation). */
 int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
-                         double *fitness);
+                         double *fitness, gp_cancel *k);
 
 /* pol[k] = 1 when node k of t adds material to the solid (an even number of
  * complements and right operands of subtractions above it), 0 when it removes some. */

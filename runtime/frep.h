@@ -637,7 +637,8 @@ int frep_image_write_png(const frep_image *img, const char *path, frep_diag_fn d
 
 typedef struct frep_evolve_progress {
     int phase;               /* 0 a GA generation, 1 clique trees being merged, 2 the
-                                merged tree, 3 the merged tree grown */
+                                merged tree, 3 the merged tree grown, 4 the clique GAs
+                                start, 5 the final tree's simplification starts */
     uint32_t generation;
     double best_fitness;     /* NaN while merging */
     uint32_t tree_size;      /* nodes of the best tree */
@@ -670,12 +671,19 @@ typedef struct frep_evolve_options {
     int report_explained;    /* fill frep_evolve_progress.explained (costs time) (0) */
     /* Called from the calling thread after each generation and merge (may be NULL). */
     void (*progress)(void *user, const frep_evolve_progress *p);
-    /* Polled with the progress (may be NULL): nonzero stops the run, which keeps the
-     * best tree so far and skips the steps that only improve it.  The GAs over the
-     * cliques of a partitioned run report no progress: a cancel there takes effect
-     * at the next merge. */
+    /* Polled on the calling thread with each progress report and, in every phase but
+     * normal estimation, at least every 0.1 s of work (at most every 10 ms; may be
+     * NULL): nonzero stops the run, which keeps the best tree so far (a GA its best
+     * tree, the clique GAs of a partitioned run the union of their trees, a merge or
+     * a simplification the tree as it stands) and skips the steps that only improve
+     * it (frep_evolve_info.interrupted is then 1). */
     int (*cancel)(void *user);
     void *user;              /* for progress and cancel */
+    /* A flag a signal handler or another thread raises to stop the run as cancel does
+     * (may be NULL): every phase polls it, normal estimation included, on every
+     * thread, at least every 0.1 s of work.  When given, a cancel callback saying stop
+     * raises it. */
+    volatile sig_atomic_t *cancel_flag;
 } frep_evolve_options;
 void frep_evolve_options_init(frep_evolve_options *o);
 

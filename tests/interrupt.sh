@@ -1,7 +1,7 @@
 #!/bin/sh
 # interrupt.sh - nothing lost, nothing hangs: Ctrl-C (SIGINT), SIGTERM and SIGHUP in
-# each phase of the long commands (segment, evolve's segmentation and GAs, mesh,
-# sample) with the latency measured from the signal to the exit; a second signal
+# each phase of the long commands (segment, evolve's segmentation, GAs and
+# simplification, mesh, sample) with the latency measured from the signal to the exit; a second signal
 # aborts at once; the temporary file of a write is removed; write errors (a full
 # disk: /dev/full, a file size limit, a full tmpfs when one can be mounted) are
 # reported with their reason; loops that used to hang end; the evaluation work budget
@@ -214,6 +214,22 @@ wait_cpu 2
 stop INT
 [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev3.hf" 2>/dev/null
 report $? "evolve: Ctrl-C during the GA: exit $st after $lat, the best tree written (no refit)"
+
+# the simplification of the final tree: a GA of 5 generations over the gear's 50-odd
+# primitives (segmented from 5,000 points), every point of 20,000 scored (--sample 0),
+# leaves seconds of simplification and growth (about 7 s of processor time against
+# 0.5 s for the GA); it used to poll nothing and ran to its end
+"$FREP" sample "$EX/gear.hf" -n 5000 --seed 3 -o "$tmp/g5.xyz" -q &&
+    "$FREP" segment "$tmp/g5.xyz" --seed 3 -o "$tmp/g5.fit" -q >/dev/null &&
+    "$FREP" sample "$EX/gear.hf" -n 20000 --seed 3 -o "$tmp/g20.xyz" -q || exit 1
+start "$FREP" evolve "$tmp/g20.xyz" -p "$tmp/g5.fit" --seed 1 --no-partition --sample 0 \
+    --generations 5 -o "$tmp/ev5.hf"
+wait_cpu 2.5
+stop INT
+[ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev5.hf" 2>/dev/null &&
+    "$FREP" eval "$tmp/ev5.hf" "$tmp/g20.xyz" >/dev/null 2>&1 &&
+    grep -q 'wrote the best tree so far' "$tmp/err" && no_tmp
+report $? "evolve: Ctrl-C during the simplification: exit $st after $lat, the tree so far written and evaluated"
 
 # a second Ctrl-C aborts at once: the existing output is untouched, no temporary left
 try=0

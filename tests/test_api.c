@@ -782,6 +782,9 @@ static int same_but(const char *a, const char *b, const char *except)
 typedef struct evolve_calls {
     int progress, cancel, stop_at;
     uint32_t last_generation;
+    int phase;               /* of the last report */
+    int stop_phase;          /* >= 0: cancel once a report of this phase came */
+    unsigned seen;           /* 1 << phase of every report */
 } evolve_calls;
 
 static void evolve_progress(void *user, const frep_evolve_progress *p)
@@ -789,12 +792,69 @@ static void evolve_progress(void *user, const frep_evolve_progress *p)
     evolve_calls *c = user;
     c->progress++;
     c->last_generation = p->generation;
+    c->phase = p->phase;
+    c->seen |= 1u << p->phase;
 }
 
 static int evolve_cancel(void *user)
 {
     evolve_calls *c = user;
+    if (c->stop_phase >= 0) return (c->seen >> c->stop_phase) & 1u;
     return ++c->cancel >= c->stop_at;
+}
+
+/* A cancel in each phase of a partitioned run (4 the clique GAs, 1 the merges, 2 the
+ * merged tree, 3 its growth, 5 the final simplification; 0 a GA generation): the
+ * result is kept, marked interrupted, and its model compiles and evaluates. */
+static void test_evolve_cancel_phases(frep_cloud *c, const frep_segmentation *pr)
+{
+    static const int phases[] = { 4, 1, 2, 3, 0, 5 };
+    frep_evolve_options o;
+    frep_evolve_options_init(&o);
+    o.seed = 3;
+    o.population = 60;
+    o.generations = 40;
+    o.progress = evolve_progress;
+    o.cancel = evolve_cancel;
+    for (size_t k = 0; k < sizeof phases / sizeof phases[0]; k++) {
+        seen s = { 0 };
+        evolve_calls calls = { 0, 0, 1 << 30, 0, -1, phases[k], 0 };
+        o.user = &calls;
+        /* phase 5 comes after a GA over all primitives (no partition) */
+        o.partition = phases[k] != 5;
+        frep_evolution *e = frep_evolve(c, pr, &o, collect, &s);
+        frep_evolve_info in = { 0 };
+        if (e) frep_evolution_get_info(e, &in);
+        int compiles = 0;
+        double v = NAN;
+        if (e && frep_evolution_write(e, tmp("phase.hf"), NULL, NULL, 0, 0, collect, &s) == 0) {
+            char *src = NULL;
+            size_t len = 0;
+            FILE *f = fopen(tmp("phase.hf"), "rb");
+            if (f) {
+                src = malloc(1 << 20);
+                if (src) len = fread(src, 1, (1 << 20) - 1, f);
+                fclose(f);
+            }
+            frep_program *p = src ? frep_compile("phase.hf", src, len, NULL, NULL, NULL) : NULL;
+            frep_scratch *sc = p ? frep_scratch_new(p) : NULL;
+            if (sc) {
+                /* at the cloud's first point, on the surface */
+                const double *cx, *cy, *cz;
+                frep_cloud_arrays(c, &cx, &cy, &cz, NULL, NULL, NULL);
+                double x = cx[0], y = cy[0], z = cz[0];
+                compiles = frep_eval(p, sc, 1, &x, &y, &z, NULL, &v) == 0;
+            }
+            frep_scratch_free(sc);
+            frep_program_free(p);
+            free(src);
+        }
+        ok(e && in.interrupted && in.tree_size > 0 && ((calls.seen >> phases[k]) & 1u) &&
+               compiles && isfinite(v),
+           "cancel in phase %d: interrupted %d, a tree of %u nodes, its model evaluates (%g)",
+           phases[k], in.interrupted, in.tree_size, v);
+        frep_evolution_free(e);
+    }
 }
 
 /* frep evolve and frep_evolve on the same cloud, primitives and seed: the same model
@@ -826,7 +886,7 @@ static void test_evolve(const char *frep, const char *srcdir)
     o.seed = 3;
     o.population = 60;
     o.generations = 40;
-    evolve_calls calls = { 0, 0, 1 << 30, 0 };
+    evolve_calls calls = { 0, 0, 1 << 30, 0, -1, -1, 0 };
     o.progress = evolve_progress;
     o.cancel = evolve_cancel;
     o.user = &calls;
@@ -840,8 +900,9 @@ static void test_evolve(const char *frep, const char *srcdir)
     ok(e && in.tree_size >= 11 && in.npoints == 3000 && in.explained > 2900 && !in.interrupted,
        "frep_evolve: a tree of %u nodes explains %zu of %zu points", in.tree_size, in.explained,
        in.npoints);
-    ok(calls.progress > 0 && calls.cancel == calls.progress,
-       "progress called %d times, cancel polled as often", calls.progress);
+    ok(calls.progress > 0 && calls.cancel >= calls.progress,
+       "progress called %d times, cancel polled %d times (with each report, and between)",
+       calls.progress, calls.cancel);
     ok(e && frep_evolution_write(e, tmp("api.ev.hf"), command, tmp("ev.xyz"), 0, 0, collect,
                                  &s) == 0 &&
            same_but(tmp("cli.ev.hf"), tmp("api.ev.hf"), " generations, "),
@@ -854,7 +915,7 @@ static void test_evolve(const char *frep, const char *srcdir)
     o.partition = 0;
     o.stagnation = 1000000;
     o.generations = 1000000;
-    calls = (evolve_calls){ 0, 0, 5, 0 };
+    calls = (evolve_calls){ 0, 0, 5, 0, -1, -1, 0 };
     e = c && pr ? frep_evolve(c, pr, &o, collect, &s) : NULL;
     if (e) frep_evolution_get_info(e, &in);
     ok(e && in.interrupted && calls.cancel == 5 && in.generations <= 6 && in.tree_size > 0,
@@ -863,6 +924,7 @@ static void test_evolve(const char *frep, const char *srcdir)
     ok(e && frep_evolution_write(e, tmp("cut.hf"), NULL, NULL, 0, 0, collect, &s) == 0,
        "its model written");
     frep_evolution_free(e);
+    if (c && pr) test_evolve_cancel_phases(c, pr);
     frep_segmentation_free(pr);
     ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
 

@@ -385,13 +385,13 @@ static void test_cube_gp(void)
     run_gp(c, 42, 2, &r2);
     gp_eval *e = gp_eval_new();
     double fit;
-    simplify_tree(&r1.best, GP_SETOPS_MINMAX, c, e, &fit);
+    simplify_tree(&r1.best, GP_SETOPS_MINMAX, c, e, &fit, NULL);
     gp_stats st;
     gp_tree_stats(c, e, r1.best.code, r1.best.len, &st);
     is_int(r1.best.len, 11, "cube: minimal tree of 11 nodes (%s)", print_str(&r1.best));
     is_int(st.explained, s.n, "cube: all points explained");
     is_int(tree_count_prims(r1.best.code, r1.best.len, 6), 6, "cube uses the 6 planes");
-    simplify_tree(&r2.best, GP_SETOPS_MINMAX, c, e, NULL);
+    simplify_tree(&r2.best, GP_SETOPS_MINMAX, c, e, NULL, NULL);
     ok(r1.best.len == r2.best.len &&
        memcmp(r1.best.code, r2.best.code, r1.best.len * sizeof(frep_insn)) == 0 &&
        r1.generations == r2.generations,
@@ -453,7 +453,7 @@ static void test_block_minus_cylinder(void)
         gp_result res;
         run_gp(c, 1, 2, &res);
         gp_eval *e = gp_eval_new();
-        simplify_tree(&res.best, (gp_setops)so, c, e, NULL);
+        simplify_tree(&res.best, (gp_setops)so, c, e, NULL, NULL);
         gp_stats st;
         gp_tree_stats(c, e, res.best.code, res.best.len, &st);
         is_int(res.best.len, 13, "block minus cylinder (%s): 13 nodes: %s",
@@ -492,7 +492,7 @@ static void test_union_spheres(void)
     gp_result res;
     run_gp(c, 1, 2, &res);
     gp_eval *e = gp_eval_new();
-    simplify_tree(&res.best, GP_SETOPS_MINMAX, c, e, NULL);
+    simplify_tree(&res.best, GP_SETOPS_MINMAX, c, e, NULL, NULL);
     is_str(print_str(&res.best), "p1 | p2", "union of two spheres, distractor dropped");
     tree_free(&res.best);
     gp_eval_free(e);
@@ -617,7 +617,7 @@ static void test_merge(void)
     parse_tree(&a, "12&34&&56&&", GP_SETOPS_MINMAX);
     parse_tree(&b, "72&34&&86&&", GP_SETOPS_MINMAX);
     double fit;
-    ok(part_merge_pair(&a, &b, GP_SETOPS_MINMAX, c, e, &m, &fit) == 0, "merge ran");
+    ok(part_merge_pair(&a, &b, GP_SETOPS_MINMAX, c, e, &m, &fit, NULL) == 0, "merge ran");
     gp_stats st;
     gp_tree_stats(c, e, m.code, m.len, &st);
     ok((double)st.explained > 0.99 * (double)s.n, "merged L-shape explains the points (%zu/%zu): %s",
@@ -668,12 +668,12 @@ static void test_groove_pieces(void)
     gp_tree t = { NULL, 0, 0 };
     parse_tree(&t, "12&34&&56&&", GP_SETOPS_MINMAX);
     double f0 = 0, f1 = 0;
-    simplify_tree(&t, GP_SETOPS_MINMAX, c, e, &f0);
+    simplify_tree(&t, GP_SETOPS_MINMAX, c, e, &f0, NULL);
     gp_stats st;
     gp_tree_stats(c, e, t.code, t.len, &st);
     ok(st.explained < s.n - 600, "the block alone misses the groove (%zu of %zu points): %s",
        st.explained, s.n, print_str(&t));
-    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1), 0, "pieces search runs");
+    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1, NULL), 0, "pieces search runs");
     gp_tree_stats(c, e, t.code, t.len, &st);
     ok(f1 > f0, "fitness rises with the groove: %.1f -> %.1f", f0, f1);
     is_int(t.len, 17, "block minus groove: 11 + 5 + 1 nodes: %s", print_str(&t));
@@ -745,12 +745,12 @@ static void test_tunnel_pocket(void)
         tree_push(&t, code[q] >= 0 ? FREP_OP_PRIM : (frep_opcode)(code[q] == -1 ? o.inter : o.uni),
                   code[q] >= 0 ? (uint32_t)code[q] : 0);
     double f0 = 0, f1 = 0;
-    simplify_tree(&t, GP_SETOPS_MINMAX, c, e, &f0);
+    simplify_tree(&t, GP_SETOPS_MINMAX, c, e, &f0, NULL);
     gp_stats st;
     gp_tree_stats(c, e, t.code, t.len, &st);
     ok(st.explained + 800 <= s.n, "the blocks alone miss the tunnel (%zu of %zu points): %s",
        st.explained, s.n, print_str(&t));
-    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1), 0, "pocket search runs");
+    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1, NULL), 0, "pocket search runs");
     gp_tree_stats(c, e, t.code, t.len, &st);
     ok(f1 > f0, "fitness rises with the tunnel: %.1f -> %.1f", f0, f1);
     is_int(st.explained, s.n, "every point explained (%zu of %zu): %s", st.explained, s.n,
@@ -855,14 +855,14 @@ static void test_trim_part(void)
         tree_push(&t, code[q] >= 0 ? FREP_OP_PRIM : (frep_opcode)(code[q] == -1 ? o.inter : o.uni),
                   code[q] >= 0 ? (uint32_t)code[q] : 0);
     double f0 = 0, f1 = 0;
-    simplify_tree(&t, GP_SETOPS_MINMAX, c, e, &f0);
+    simplify_tree(&t, GP_SETOPS_MINMAX, c, e, &f0, NULL);
     const double beyond[3] = { 3.2, 6, 0.2 }, bar[3] = { 3.2, 3, 0.2 }, cube[3] = { 1, 1, 1 };
     gp_stats st0, st;
     gp_tree_stats(c, e, t.code, t.len, &st0);
     ok(tree_value(&s, &t, beyond) > 0 && st0.explained + 6 <= s.n,
        "simplify_tree leaves the bar unbounded (%zu of %zu points): %s", st0.explained, s.n,
        print_str(&t));
-    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1), 0, "growth and trims run");
+    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1, NULL), 0, "growth and trims run");
     gp_tree_stats(c, e, t.code, t.len, &st);
     is_int(st.explained, s.n, "every point explained (%zu of %zu): %s", st.explained, s.n,
            print_str(&t));
@@ -929,7 +929,7 @@ static void test_sheet(void)
     ok(now.best.len == now2.best.len &&
        memcmp(now.best.code, now2.best.code, now.best.len * sizeof(frep_insn)) == 0,
        "same seed, same tree at 1 and 2 threads");
-    simplify_tree(&now.best, GP_SETOPS_MINMAX, c, e, NULL);
+    simplify_tree(&now.best, GP_SETOPS_MINMAX, c, e, NULL, NULL);
     gp_stats st;
     gp_tree_stats(c, e, now.best.code, now.best.len, &st);
     ok(now.best.len == 11 && st.explained == patch, "simplified: the cube, 11 nodes (%s)",
@@ -1253,7 +1253,7 @@ static void test_boss(void)
     gp_tree t = { NULL, 0, 0 };
     parse_tree(&t, "12&34&&56&&", GP_SETOPS_MINMAX);  /* the cube alone */
     double f0 = fit_of(c, e, t.code, t.len), f1 = 0;
-    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1), 0, "growth runs");
+    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1, NULL), 0, "growth runs");
     gp_stats st;
     gp_tree_stats(c, e, t.code, t.len, &st);
     is_int(st.explained, s.n, "cube and box: every point explained (%zu of %zu): %s",
@@ -1295,9 +1295,9 @@ static void test_grow_threads(void)
         big += t1.len >= 40;
         double f1 = 0, f2 = 0;
         omp_set_num_threads(1);
-        int r1 = simplify_grow_pieces(&t1, GP_SETOPS_MINMAX, c, e, &f1);
+        int r1 = simplify_grow_pieces(&t1, GP_SETOPS_MINMAX, c, e, &f1, NULL);
         omp_set_num_threads(2);
-        int r2 = simplify_grow_pieces(&t2, GP_SETOPS_MINMAX, c, e, &f2);
+        int r2 = simplify_grow_pieces(&t2, GP_SETOPS_MINMAX, c, e, &f2, NULL);
         same &= r1 == 0 && r2 == 0 && f1 == f2 && t1.len == t2.len &&
                 memcmp(t1.code, t2.code, t1.len * sizeof *t1.code) == 0;
         n++;
@@ -1357,8 +1357,8 @@ static void test_simplify_both(void)
     parse_tree(&t1, "12&3&4&6&578&\\&78&9&\\", GP_SETOPS_MINMAX);
     tree_copy(&t2, &t1);
     double f1 = 0, f2 = 0;
-    simplify_tree(&t1, GP_SETOPS_MINMAX, c, e, &f1);
-    simplify_tree_both(&t2, GP_SETOPS_MINMAX, c, e, &f2);
+    simplify_tree(&t1, GP_SETOPS_MINMAX, c, e, &f1, NULL);
+    simplify_tree_both(&t2, GP_SETOPS_MINMAX, c, e, &f2, NULL);
     gp_stats s1, s2;
     gp_tree_stats(c, e, t1.code, t1.len, &s1);
     gp_tree_stats(c, e, t2.code, t2.len, &s2);

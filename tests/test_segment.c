@@ -747,7 +747,7 @@ static void test_grow_inner(void)
         for (size_t i = 0; i < n; i++) before += okp[i];
     ok(c && e && before < n - PER_FACE, "the slab tree explains %zu of %zu points", before, n);
     double fit = 0;
-    int rc = c && e ? simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &fit) : -1;
+    int rc = c && e ? simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &fit, NULL) : -1;
     if (rc == 0 && gp_explained(c, e, t.code, t.len, okp) == 0)
         for (size_t i = 0; i < n; i++) after += okp[i];
     ok(rc == 0 && after >= n - n / 100, "completed: %zu of %zu points explained, %u nodes", after,
