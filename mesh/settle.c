@@ -6,12 +6,14 @@
  * quads over their neighbours' (cells with a corner exactly on the level, cells with
  * several components), and its clamped Newton steps stop on a cell face when the
  * gradient leans out of the cell (the R-functions' gradients near creases).  Here each
- * such vertex gets a target on the surface inside its cell (Newton steps, then a
- * bisection towards the cell's corners on the other side of the level), and moves
- * there only when every triangle of its fan keeps its orientation and stays clear of
- * a fold with the triangles across its outer edges.  Targets are computed per vertex;
- * the moves are decided serially in vertex order, so the mesh does not depend on the
- * thread count.
+ * such vertex (and each face vertex of quads.c) gets targets on the surface inside its
+ * cell (Newton steps, then a bisection towards the cell's corners on the other side of
+ * the level), and moves to the nearest one where every triangle of its fan keeps its
+ * orientation and meets no triangle nearby.  The vertices no target lets move get a
+ * second pass: targets up to half a cell beyond their cell and along 28 directions
+ * around them, and triangles allowed to turn up to a right angle.  Targets are
+ * computed per vertex; the moves are decided serially in vertex order, so the mesh
+ * does not depend on the thread count.
  */
 #include "config.h"
 
@@ -39,6 +41,9 @@
  * old and the new normal), and must not turn towards the triangle across one of its
  * outer edges more than that one's normal already did: no new folds. */
 #define MESH_SETTLE_TURN 0.2
+/* The second pass lets a triangle turn up to a right angle (a sliver along a flat
+ * face turns that much when its far vertex reaches the face), still no flip. */
+#define MESH_SETTLE_TURN_WIDE 0.0
 
 /* A vertex to settle: its index, its cell (less the margin), where it is and where it
  * may go (position, f - iso, gradient, distance in cells). */
@@ -48,7 +53,16 @@ typedef struct svert {
     double lo[3], hi[3];
     double x[3], f, g[3], d;
     double n[3];              /* the vertex normal: the side the surface must face */
+    double x0[3], f0, g0[3], d0;  /* where it is in the mesh */
+    int nc;                   /* targets found, cand[SETTLE_MAX_CANDS * k ..], nearest
+                                 to x0 first */
+    int moved;
 } svert;
+
+/* A target on the surface: position, f - iso, gradient. */
+typedef struct scand {
+    double x[3], f, g[3];
+} scand;
 
 /* A run of the settling: the vertices and one batch of evaluation buffers. */
 typedef struct settle_run {
@@ -62,7 +76,23 @@ typedef struct settle_run {
     size_t eval_points, grad_points;  /* work done, for mesh_stats */
     double *sa, *sb;          /* bisection: 3 per entry, the ends on the vertex's side
                                  and on the other */
+    scand *cand;              /* SETTLE_MAX_CANDS per vertex */
+    double turn;              /* MESH_SETTLE_TURN or, in the second pass, _WIDE */
 } settle_run;
+
+/* A vertex whose targets in its own cell all fail (its surface lies in the next cell,
+ * or every move would fold its fan) looks again this many cells beyond its cell's
+ * faces, trying every target found there, nearest first. */
+#define MESH_SETTLE_REACH 0.5
+/* Targets kept per vertex: the Newton steps' and the bisections' (one per corner). */
+#define SETTLE_MAX_CANDS 16
+/* The look around a vertex in the second pass: the 26 directions to a cube's
+ * neighbours and the two along the gradient (as mesh/distance.c measures), out to
+ * these radii (cells); the first point of each direction across the level is bisected
+ * against the one before it. */
+#define SETTLE_NDIRS 28
+#define SETTLE_NRADII 8
+static const double settle_radii[SETTLE_NRADII] = { 0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.75 };
 
 /* Triangles around one vertex, and around the vertices of its fan, beyond which a
  * vertex is not moved (a dual-contouring vertex has 4 to 12 or so triangles). */
@@ -74,7 +104,8 @@ typedef struct settle_run {
 
 /* The box of the cell holding a vertex at p, less the margin, or 0 when that cell is in
  * the padding layer (on a box cap, not on the surface). */
-static int vertex_cell(const mesher *M, const double p[3], double lo[3], double hi[3])
+static int vertex_cell(const mesher *M, const double p[3], double reach, double lo[3],
+                       double hi[3])
 {
     for (int c = 0; c < 3; c++) {
         double t = (p[c] - M->o->box[c]) / M->h[c];
@@ -82,8 +113,9 @@ static int vertex_cell(const mesher *M, const double p[3], double lo[3], double 
         if (P < 1 || P + 1 >= M->G[c]) return 0;
         double a = mesh_coord(M, c, P), b = mesh_coord(M, c, P + 1);
         if (!(p[c] >= a && p[c] <= b)) return 0;
-        lo[c] = a + MESH_SETTLE_MARGIN * (b - a);
-        hi[c] = b - MESH_SETTLE_MARGIN * (b - a);
+        double s = (MESH_SETTLE_MARGIN - reach) * (b - a);
+        lo[c] = fmax(a + s, mesh_coord(M, c, 1));
+        hi[c] = fmin(b - s, mesh_coord(M, c, M->G[c] - 1));
     }
     return 1;
 }
@@ -96,14 +128,15 @@ static int far_vertices(settle_run *r, const frep_mesh *out)
     size_t n = 0, cap = 0;
     for (size_t b = 0; b < M->nblocks; b++) {
         const mblock *B = M->blocks[b];
-        for (uint32_t l = 0; l < B->nverts; l++) {
+        /* the cell vertices and the face vertices (mesh/quads.c) */
+        for (uint32_t l = 0; l < B->nverts + 2 * B->nfaces; l++) {
             const double *fg = &B->vfg[4 * l];
             double d = mesh_cell_distance(M, fg[0], fg[1], fg[2], fg[3]);
             if (!(d > MESH_SETTLE_TOL)) continue;
             svert s;
             s.v = (uint32_t)(B->vglobal + l);
             s.B = B;
-            if (!vertex_cell(M, &B->vpos[3 * l], s.lo, s.hi)) continue;
+            if (!vertex_cell(M, &B->vpos[3 * l], 0, s.lo, s.hi)) continue;
             if (n == cap) {
                 size_t nc = cap ? 2 * cap : 64;
                 svert *ns = frep_realloc(r->sv, nc * sizeof *ns);
@@ -116,6 +149,12 @@ static int far_vertices(settle_run *r, const frep_mesh *out)
             memcpy(s.g, &fg[1], sizeof s.g);
             s.d = d;
             memcpy(s.n, &out->n[3 * s.v], sizeof s.n);
+            memcpy(s.x0, s.x, sizeof s.x);
+            memcpy(s.g0, s.g, sizeof s.g);
+            s.f0 = s.f;
+            s.d0 = d;
+            s.nc = 0;
+            s.moved = 0;
             r->sv[n++] = s;
         }
     }
@@ -167,6 +206,33 @@ static void take_if_better(settle_run *r, size_t q, svert *s)
     s->d = d;
 }
 
+/* Target (x, f, g) into vertex s's list (index k), kept sorted by the distance from
+ * the vertex; the farthest falls off a full list. */
+static double from_vertex2(const svert *s, const double x[3])
+{
+    double e[3];
+    vec3_sub(x, s->x0, e);
+    return vec3_dot(e, e);
+}
+
+static void add_candidate(settle_run *r, size_t k, const double x[3], double f, const double g[3])
+{
+    svert *s = &r->sv[k];
+    scand *c = &r->cand[SETTLE_MAX_CANDS * k];
+    double d2 = from_vertex2(s, x);
+    int i = s->nc;
+    if (i == SETTLE_MAX_CANDS) {
+        if (!(from_vertex2(s, c[i - 1].x) > d2)) return;
+        i--;
+    } else {
+        s->nc++;
+    }
+    for (; i > 0 && from_vertex2(s, c[i - 1].x) > d2; i--) c[i] = c[i - 1];
+    memcpy(c[i].x, x, sizeof c[i].x);
+    c[i].f = f;
+    memcpy(c[i].g, g, sizeof c[i].g);
+}
+
 /* Newton steps x - (f - iso) grad f / |grad f|^2 clamped to the cell, for the vertices
  * still far. */
 static int newton_targets(settle_run *r)
@@ -176,7 +242,7 @@ static int newton_targets(settle_run *r)
         for (size_t k = 0; k < r->n; k++) {
             svert *s = &r->sv[k];
             double gg = vec3_dot(s->g, s->g);
-            if (!(s->d > MESH_SETTLE_TOL) || !(gg > 0)) continue;
+            if (s->moved || !(s->d > MESH_SETTLE_TOL) || !(gg > 0)) continue;
             double t = s->f / gg, x[3];
             for (int c = 0; c < 3; c++) x[c] = fmin(fmax(s->x[c] - t * s->g[c], s->lo[c]), s->hi[c]);
             r->bx[m] = x[0];
@@ -192,17 +258,53 @@ static int newton_targets(settle_run *r)
     return 0;
 }
 
-/* The closest point to the vertex among those found on the surface: for the vertices
- * still far, the segments from the vertex to the corners of its (shrunk) cell on the
- * other side of the level are bisected (values only), then the gradients at the
- * segments' midpoints decide. */
-static int bisect_targets(settle_run *r)
+/* Bisect the ns segments sa -> sb (sa on the side of the level of vertex bid's
+ * original position), then take the midpoints on the surface that face the vertex's
+ * way as its targets. */
+static int bisect_segments(settle_run *r, size_t ns)
+{
+    double iso = r->M->o->iso;
+    int rc;
+    for (int it = 0; it <= MESH_SETTLE_BISECT; it++) {
+        for (size_t q = 0; q < ns; q++) {
+            r->bx[q] = 0.5 * (r->sa[3 * q] + r->sb[3 * q]);
+            r->by[q] = 0.5 * (r->sa[3 * q + 1] + r->sb[3 * q + 1]);
+            r->bz[q] = 0.5 * (r->sa[3 * q + 2] + r->sb[3 * q + 2]);
+        }
+        if (it == MESH_SETTLE_BISECT) break;
+        if ((rc = batch_eval(r, ns, 0)) != 0) return rc;
+        for (size_t q = 0; q < ns; q++) {
+            const svert *s = &r->sv[r->bid[q]];
+            double *end = (r->bf[q] >= iso) == (s->f0 >= 0) ? &r->sa[3 * q] : &r->sb[3 * q];
+            end[0] = r->bx[q];
+            end[1] = r->by[q];
+            end[2] = r->bz[q];
+        }
+    }
+    if ((rc = batch_grad(r, ns)) != 0) return rc;
+    /* the midpoints on the surface that face the vertex's way are its targets */
+    for (size_t q = 0; q < ns; q++) {
+        uint32_t k = r->bid[q];
+        const svert *s = &r->sv[k];
+        double g[3] = { r->bgx[q], r->bgy[q], r->bgz[q] };
+        double d = mesh_cell_distance(r->M, r->bf[q] - iso, g[0], g[1], g[2]);
+        if (!(d <= MESH_SETTLE_TOL) || !(-vec3_dot(g, s->n) > 0)) continue;
+        double x[3] = { r->bx[q], r->by[q], r->bz[q] };
+        add_candidate(r, k, x, r->bf[q] - iso, g);
+    }
+    return 0;
+}
+
+/* Targets where the segments from the vertex (from Newton's best point) to the
+ * corners of its box on the other side of the level cross it: for the vertices still
+ * far (all: every vertex not moved yet). */
+static int bisect_targets(settle_run *r, int all)
 {
     double iso = r->M->o->iso;
     size_t m = 0;
     for (size_t k = 0; k < r->n; k++) {
         const svert *s = &r->sv[k];
-        if (!(s->d > MESH_SETTLE_TOL)) continue;
+        if (s->moved || (!all && !(s->d > MESH_SETTLE_TOL))) continue;
         for (int c = 0; c < 8; c++) {
             r->bx[m] = (c & 1) ? s->hi[0] : s->lo[0];
             r->by[m] = (c & 2) ? s->hi[1] : s->lo[1];
@@ -216,62 +318,98 @@ static int bisect_targets(settle_run *r)
     size_t ns = 0;
     for (size_t q = 0; q < m; q++) {
         const svert *s = &r->sv[r->bid[q]];
-        if (isnan(r->bf[q]) || (r->bf[q] >= iso) == (s->f >= 0)) continue;
+        if (isnan(r->bf[q]) || (r->bf[q] >= iso) == (s->f0 >= 0)) continue;
         memcpy(&r->sa[3 * ns], s->x, 3 * sizeof *s->x);
         r->sb[3 * ns] = r->bx[q];
         r->sb[3 * ns + 1] = r->by[q];
         r->sb[3 * ns + 2] = r->bz[q];
         r->bid[ns++] = r->bid[q];
     }
-    if (ns == 0) return 0;
-    for (int it = 0; it <= MESH_SETTLE_BISECT; it++) {
-        for (size_t q = 0; q < ns; q++) {
-            r->bx[q] = 0.5 * (r->sa[3 * q] + r->sb[3 * q]);
-            r->by[q] = 0.5 * (r->sa[3 * q + 1] + r->sb[3 * q + 1]);
-            r->bz[q] = 0.5 * (r->sa[3 * q + 2] + r->sb[3 * q + 2]);
-        }
-        if (it == MESH_SETTLE_BISECT) break;
-        if ((rc = batch_eval(r, ns, 0)) != 0) return rc;
-        for (size_t q = 0; q < ns; q++) {
-            const svert *s = &r->sv[r->bid[q]];
-            double *end = (r->bf[q] >= iso) == (s->f >= 0) ? &r->sa[3 * q] : &r->sb[3 * q];
-            end[0] = r->bx[q];
-            end[1] = r->by[q];
-            end[2] = r->bz[q];
-        }
-    }
-    if ((rc = batch_grad(r, ns)) != 0) return rc;
-    /* per vertex, the midpoint nearest to it that is on the surface and faces its way
-     * (sa and sb are free now: the best squared distance and entry per vertex) */
-    double *best = r->sa, *bestq = r->sb;
-    for (size_t k = 0; k < r->n; k++) best[k] = INFINITY;
-    for (size_t q = 0; q < ns; q++) {
-        uint32_t k = r->bid[q];
-        const svert *s = &r->sv[k];
-        double g[3] = { r->bgx[q], r->bgy[q], r->bgz[q] };
-        double d = mesh_cell_distance(r->M, r->bf[q] - iso, g[0], g[1], g[2]);
-        if (!(d <= MESH_SETTLE_TOL) || !(-vec3_dot(g, s->n) > 0)) continue;
-        double e[3] = { r->bx[q] - s->x[0], r->by[q] - s->x[1], r->bz[q] - s->x[2] };
-        double e2 = vec3_dot(e, e);
-        if (e2 < best[k]) {
-            best[k] = e2;
-            bestq[k] = (double)q;
+    return ns ? bisect_segments(r, ns) : 0;
+}
+
+/* The points of the look around vertex s into the batch: SETTLE_NRADII rings of
+ * SETTLE_NDIRS, ring by ring. */
+static size_t look_points(settle_run *r, const svert *s, uint32_t k)
+{
+    const double *h = r->M->h;
+    double gc[3] = { s->g0[0] * h[0], s->g0[1] * h[1], s->g0[2] * h[2] };
+    double gl = vec3_len(gc);
+    size_t m = 0;
+    for (int ri = 0; ri < SETTLE_NRADII; ri++) {
+        double t = settle_radii[ri];
+        for (int q = 0; q < SETTLE_NDIRS; q++) {
+            double dir[3];
+            if (q < 26) {
+                int e = q < 13 ? q : q + 1;   /* 0..26 less the centre, 13 */
+                dir[0] = e % 3 - 1;
+                dir[1] = (e / 3) % 3 - 1;
+                dir[2] = e / 9 - 1;
+                vec3_normalize(dir);
+            } else {
+                double sg = q == 26 ? 1 : -1;
+                for (int c = 0; c < 3; c++) dir[c] = gl > 0 ? sg * gc[c] / gl : 0;
+            }
+            r->bx[m] = s->x0[0] + t * dir[0] * h[0];
+            r->by[m] = s->x0[1] + t * dir[1] * h[1];
+            r->bz[m] = s->x0[2] + t * dir[2] * h[2];
+            r->bid[m++] = k;
         }
     }
+    return m;
+}
+
+/* Targets around each vertex not moved yet: along each direction of the look, the
+ * first point across the level bisected against the one before it (the vertex for
+ * the first ring). */
+static int look_targets(settle_run *r)
+{
+    double iso = r->M->o->iso;
     for (size_t k = 0; k < r->n; k++) {
-        if (!(best[k] < INFINITY)) continue;
-        size_t q = (size_t)bestq[k];
-        svert *s = &r->sv[k];
-        s->x[0] = r->bx[q];
-        s->x[1] = r->by[q];
-        s->x[2] = r->bz[q];
-        s->f = r->bf[q] - iso;
-        s->g[0] = r->bgx[q];
-        s->g[1] = r->bgy[q];
-        s->g[2] = r->bgz[q];
-        s->d = mesh_cell_distance(r->M, s->f, s->g[0], s->g[1], s->g[2]);
+        const svert *s = &r->sv[k];
+        if (s->moved) continue;
+        size_t m = look_points(r, s, (uint32_t)k);
+        int rc = batch_eval(r, m, 0);
+        if (rc) return rc;
+        size_t ns = 0;
+        for (int q = 0; q < SETTLE_NDIRS; q++)
+            for (int ri = 0; ri < SETTLE_NRADII; ri++) {
+                size_t i = (size_t)ri * SETTLE_NDIRS + (size_t)q;
+                if (isnan(r->bf[i])) break;
+                if ((r->bf[i] >= iso) == (s->f0 >= 0)) continue;
+                const double *a = s->x0;
+                double pa[3];
+                if (ri > 0) {
+                    size_t j = i - SETTLE_NDIRS;
+                    pa[0] = r->bx[j];
+                    pa[1] = r->by[j];
+                    pa[2] = r->bz[j];
+                    a = pa;
+                }
+                memcpy(&r->sa[3 * ns], a, 3 * sizeof *a);
+                r->sb[3 * ns] = r->bx[i];
+                r->sb[3 * ns + 1] = r->by[i];
+                r->sb[3 * ns + 2] = r->bz[i];
+                ns++;
+                break;
+            }
+        for (size_t q = 0; q < ns; q++) r->bid[q] = (uint32_t)k;
+        if (ns && (rc = bisect_segments(r, ns)) != 0) return rc;
     }
     return 0;
+}
+
+/* The targets of the vertices not moved yet: Newton's, then (all: for every such
+ * vertex, else only where Newton's steps did not get there) the bisections'. */
+static int find_targets(settle_run *r, int all)
+{
+    int rc = newton_targets(r);
+    if (rc) return rc;
+    for (size_t k = 0; k < r->n; k++) {
+        const svert *s = &r->sv[k];
+        if (!s->moved && s->d <= MESH_SETTLE_TOL) add_candidate(r, k, s->x, s->f, s->g);
+    }
+    return bisect_targets(r, all);
 }
 
 /* ---- the moves -------------------------------------------------------------------- */
@@ -399,7 +537,8 @@ static int boxes_meet(const double a[6], const double b[6])
  * orientation (cosine of the turn above MESH_SETTLE_TURN) and meets no triangle
  * around the fan's vertices (the exact test of --check) beyond the vertices they
  * share.  More than SETTLE_MAX_FAN fan or SETTLE_MAX_NEAR nearby triangles: no move. */
-static int move_is_clean(const frep_mesh *m, const fan_index *x, const svert *s, size_t k)
+static int move_is_clean(const frep_mesh *m, const fan_index *x, const svert *s, size_t k,
+                         const double to[3], double turn)
 {
     const uint32_t *fan = &x->list[x->start[k]];
     uint32_t nfan = x->start[k + 1] - x->start[k];
@@ -408,9 +547,9 @@ static int move_is_clean(const frep_mesh *m, const fan_index *x, const svert *s,
     for (uint32_t i = 0; i < nfan; i++) {
         double n0[3], n1[3];
         tri_normal(m, fan[i], s->v, &m->v[3 * s->v], n0);
-        tri_normal(m, fan[i], s->v, s->x, n1);
-        if (!(cosine(n0, n1) > MESH_SETTLE_TURN)) return 0;
-        tri_box(m, fan[i], s->v, s->x, fbox[i]);
+        tri_normal(m, fan[i], s->v, to, n1);
+        if (!(cosine(n0, n1) > turn)) return 0;
+        tri_box(m, fan[i], s->v, to, fbox[i]);
     }
     /* the triangles around the fan's other vertices, each once, the fan's own apart */
     uint32_t near[SETTLE_MAX_NEAR];
@@ -434,36 +573,59 @@ static int move_is_clean(const frep_mesh *m, const fan_index *x, const svert *s,
     /* the fan's triangles among themselves (a fold inside the fan) and against those */
     for (uint32_t i = 0; i < nfan; i++)
         for (uint32_t q = i + 1; q < nfan; q++)
-            if (mesh_pair_meets(m, fan[i], fan[q], s->v, s->x)) return 0;
+            if (mesh_pair_meets(m, fan[i], fan[q], s->v, to)) return 0;
     for (size_t e = 0; e < nnear; e++) {
         double ub[6];
-        tri_box(m, near[e], s->v, s->x, ub);
+        tri_box(m, near[e], s->v, to, ub);
         for (uint32_t q = 0; q < nfan; q++)
-            if (boxes_meet(fbox[q], ub) && mesh_pair_meets(m, fan[q], near[e], s->v, s->x)) return 0;
+            if (boxes_meet(fbox[q], ub) && mesh_pair_meets(m, fan[q], near[e], s->v, to)) return 0;
     }
     return 1;
 }
 
-/* Move the vertices whose fans allow it, in vertex order; returns how many moved. */
+/* Move each vertex not moved yet to its nearest target its fan allows, in vertex
+ * order; returns how many moved. */
 static size_t apply_moves(settle_run *r, frep_mesh *out, const fan_index *x)
 {
     size_t moved = 0;
     for (size_t k = 0; k < r->n; k++) {
-        const svert *s = &r->sv[k];
-        const double *p = &out->v[3 * s->v];
-        if (s->x[0] == p[0] && s->x[1] == p[1] && s->x[2] == p[2]) continue;
-        if (!move_is_clean(out, x, s, k)) continue;
-        memcpy(&out->v[3 * s->v], s->x, sizeof s->x);
-        double n[3] = { -s->g[0], -s->g[1], -s->g[2] };
+        svert *s = &r->sv[k];
+        if (s->moved) continue;
+        const scand *c = &r->cand[SETTLE_MAX_CANDS * k];
+        int i;
+        for (i = 0; i < s->nc && !move_is_clean(out, x, s, k, c[i].x, r->turn); i++) continue;
+        if (i == s->nc) continue;
+        memcpy(&out->v[3 * s->v], c[i].x, sizeof c[i].x);
+        double n[3] = { -c[i].g[0], -c[i].g[1], -c[i].g[2] };
         if (!vec3_normalize(n)) memcpy(&out->n[3 * s->v], n, sizeof n);
+        s->moved = 1;
         moved++;
     }
     return moved;
 }
 
+/* The vertices left where they were look again MESH_SETTLE_REACH beyond their cell,
+ * from where they are. */
+static void widen(settle_run *r)
+{
+    for (size_t k = 0; k < r->n; k++) {
+        svert *s = &r->sv[k];
+        s->nc = 0;
+        if (s->moved) continue;
+        if (!vertex_cell(r->M, s->x0, MESH_SETTLE_REACH, s->lo, s->hi)) {
+            s->moved = 1;     /* not a candidate any more */
+            continue;
+        }
+        memcpy(s->x, s->x0, sizeof s->x);
+        memcpy(s->g, s->g0, sizeof s->g);
+        s->f = s->f0;
+        s->d = s->d0;
+    }
+}
+
 int mesh_settle_vertices(const mesher *M, frep_mesh *out, mesh_stats *st)
 {
-    settle_run r = { .M = M, .ts = M->ts[0] };
+    settle_run r = { .M = M, .ts = M->ts[0], .turn = MESH_SETTLE_TURN };
     if (far_vertices(&r, out) != 0) {
         frep_free(r.sv);
         return FREP_ENOMEM;
@@ -473,11 +635,13 @@ int mesh_settle_vertices(const mesher *M, frep_mesh *out, mesh_stats *st)
         return 0;
     }
     size_t cap = SETTLE_BATCH_PER * r.n;
+    if (cap < SETTLE_NDIRS * SETTLE_NRADII) cap = SETTLE_NDIRS * SETTLE_NRADII;
     double *buf = frep_malloc(13 * cap * sizeof *buf);
     r.bid = frep_malloc(cap * sizeof *r.bid);
+    r.cand = frep_malloc(SETTLE_MAX_CANDS * r.n * sizeof *r.cand);
     fan_index fx;
     memset(&fx, 0, sizeof fx);
-    int rc = !buf || !r.bid ? FREP_ENOMEM : 0;
+    int rc = !buf || !r.bid || !r.cand ? FREP_ENOMEM : 0;
     if (rc == 0) {
         double *b = buf;
         r.bx = b; b += cap;
@@ -489,15 +653,22 @@ int mesh_settle_vertices(const mesher *M, frep_mesh *out, mesh_stats *st)
         r.bgz = b; b += cap;
         r.sa = b; b += 3 * cap;
         r.sb = b;
-        if ((rc = newton_targets(&r)) == 0 && (rc = bisect_targets(&r)) == 0)
+        if ((rc = find_targets(&r, 0)) == 0)
             rc = build_fans(&r, out, &fx) != 0 ? FREP_ENOMEM : 0;
     }
-    if (rc == 0) st->settled = apply_moves(&r, out, &fx);
+    if (rc == 0) {
+        st->settled = apply_moves(&r, out, &fx);
+        widen(&r);
+        r.turn = MESH_SETTLE_TURN_WIDE;
+        if ((rc = find_targets(&r, 1)) == 0 && (rc = look_targets(&r)) == 0)
+            st->settled += apply_moves(&r, out, &fx);
+    }
     st->eval_points += r.eval_points;
     st->grad_points += r.grad_points;
     fan_index_free(&fx);
     frep_free(buf);
     frep_free(r.bid);
+    frep_free(r.cand);
     frep_free(r.sv);
     return rc;
 }

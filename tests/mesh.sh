@@ -48,32 +48,47 @@ done
 # suite (bores meeting at an angle, a thin slot, near-touching blocks, a thin wall):
 # before quad_diagonal's facing rule, csg.hf at -g 64 had 80 pairs.  And every vertex
 # within 0.1 cell of the surface: before the settling step (mesh/settle.c) gear.hf
-# -g 32 had 21 vertices farther, csg.hf -g 128 432, near.hf -g 64 540, up to 0.75 cell.
-# The runs of far_known still keep a few (doc/mesh.md, "Known limitations"): there the
-# largest distance must stay within half a cell.
-far_known=" bracket.hf:32 near.hf:32 segment_box.hf:64 segment_box.hf:128 holes.hf:64 holes.hf:128 segment_cylinder.hf:128 "
-for hf in "$E"/*.hf "$M"/*.hf "$M"/sharp/*.hf; do
-  case $hf in "$E"/*) b= ;; *) b="-b 1.2" ;; esac
-  for g in 32 64 128; do
+# -g 32 had 21 vertices farther, csg.hf -g 128 432, near.hf -g 64 540, up to 0.75 cell;
+# before its second pass (targets beyond the cell, a look around the vertex, a wider
+# turn) bracket.hf -g 32, near.hf -g 32, holes.hf -g 64 and 128, segment_box.hf -g 64
+# and 128 and segment_cylinder.hf -g 128 kept 17, up to half a cell.
+# mesh_suite GRID RUN...: each RUN is MODEL (the examples in their own box, `-- @box`,
+# the other models in the suite's), MODEL:far (only the distances asserted: see below)
+# or MODEL:own-far (its own box, only the distances).
+mesh_suite() {
+  g=$1; shift
+  for run in "$@"; do
+    hf=${run%%:*}
+    case $run in *:own*|"$E"/*) b= ;; *) b="-b 1.2" ;; esac
     n=$((n + 1))
     # shellcheck disable=SC2086
-    "$FREP" mesh "$hf" $b -g $g -o "$T/m.stl" --check-intersections -q >"$T/out" 2>"$T/err"
+    "$FREP" mesh "$hf" $b -g "$g" -o "$T/m.stl" --check-intersections -q >"$T/out" 2>"$T/err"
     pairs=$(sed -n 's/^check: self-intersecting triangle pairs \([0-9]*\),.*/\1/p' "$T/out")
     far=$(sed -n 's/.*from the surface \([0-9]*\) (largest .*/\1/p' "$T/out")
     dist=$(sed -n 's/.*(largest \(.*\) cell)$/\1/p' "$T/out")
-    name="$(basename "$hf") -g $g"
-    case $far_known in
-      *" $(basename "$hf"):$g "*) near=$(awk -v d="$dist" 'BEGIN { print (d <= 0.5) }') ;;
-      *) near=$([ "$far" = 0 ] && echo 1 || echo 0) ;;
-    esac
-    if [ "$pairs" = 0 ] && [ "$near" = 1 ]; then
-      echo "ok $n - $name: no self-intersecting triangles, $far vertices over 0.1 cell from the surface (largest $dist cell)"
+    name="$(basename "$hf")${b:+ $b} -g $g"
+    case $run in *far) ok=$([ -n "$pairs" ] && [ "$far" = 0 ] && echo 1) ;;
+                 *) ok=$([ "$pairs" = 0 ] && [ "$far" = 0 ] && echo 1) ;; esac
+    if [ "$ok" = 1 ]; then
+      echo "ok $n - $name: $pairs self-intersecting triangle pairs, no vertex over 0.1 cell from the surface (largest $dist cell)"
     else
       echo "not ok $n - $name: $pairs self-intersecting triangle pairs, $far vertices over 0.1 cell from the surface (largest $dist cell)"
       fails=$((fails + 1))
     fi
   done
+}
+for g in 32 64 128; do
+  # shellcheck disable=SC2046
+  mesh_suite $g "$E"/*.hf "$M"/*.hf "$M"/sharp/*.hf
 done
+# At -g 256 the sharp models and the examples with the most settled vertices (holes.hf
+# 16 far vertices and near.hf 29 before the second pass).  Still known, not yet
+# asserted (doc/mesh.md, "Known limitations"): the self-intersecting pairs of
+# segment_cylinder.hf in its own box (12, 6, 20 at -g 32, 64, 128) and at -g 256 of
+# bracket.hf (3), twist.hf and holes.hf (16); there only the distances are asserted.
+mesh_suite 256 "$M/sharp/near.hf" "$E/csg.hf" "$E/gear.hf" \
+  "$M/sharp/holes.hf:far" "$E/bracket.hf:far" "$E/twist.hf:far"
+for g in 32 64 128; do mesh_suite $g "$M/segment_cylinder.hf:own-far"; done
 # A cube whose faces lie on grid planes (every corner of a face cell on the level, where
 # the settling step moves vertices): its 8 corners stay sharp, a vertex within 1% of a
 # cell of each, and no vertex far from the surface, at several grids.
