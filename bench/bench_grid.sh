@@ -12,7 +12,8 @@ SRCDIR=${2:-.}
 RUNS=5
 N=193
 OUT=${TMPDIR:-/tmp}/frep-bench-grid.$$
-trap 'rm -f "$OUT" "$OUT.t" "$OUT.s"' EXIT
+trap 'rm -f "$OUT" "$OUT.t" "$OUT.s" "$OUT.rates"' EXIT
+: > "$OUT.rates"
 echo "# $(nproc 2>/dev/null || echo '?') cores, load average: $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)"
 
 # median of the numbers on standard input
@@ -37,9 +38,10 @@ run() {
   cpu=$(awk '{ print $2 + $3 }' "$OUT" | median)
   ev=$(awk '{ print $4 }' "$OUT" | median)
   per=$(sed -n 's/^program .*, \([0-9.]*\) evaluated per point.*/\1/p' "$OUT.s")
+  rate=$(echo "$cpu" | awk -v n=$n '{ print n * n * n / $1 * 1e-6 }')
   printf '%-22s %4s^3 -t %s %-10s  cpu %6.3f s  wall %6.3f s  eval %6.3f s  %7.1f M points/s (cpu)  %6.1f insns/point\n' \
-    "$(basename "$model")" "$n" "$t" "${1:-pruned}" "$cpu" "$wall" "$ev" \
-    "$(echo "$cpu" | awk -v n=$n '{ print n * n * n / $1 * 1e-6 }')" "$per"
+    "$(basename "$model")" "$n" "$t" "${1:-pruned}" "$cpu" "$wall" "$ev" "$rate" "$per"
+  echo "$(basename "$model" .hf) $n $t ${1:-pruned} $rate" >> "$OUT.rates"
 }
 
 for m in eval_sphere eval_csg eval_gear eval_gear_minmax; do
@@ -52,3 +54,22 @@ for m in eval_sphere eval_csg eval_gear eval_gear_minmax; do
   run "$f" 1 --single
 done
 for t in 1 2; do GRID_N=49 run "$SRCDIR/bench/eval_sphere.hf" "$t"; done
+
+# libfive side by side: libfive is not packaged in Debian (nothing to apt-get install),
+# so its rates are the figures doc/benchmarks.md records ("Grid evaluation": the
+# ArrayEvaluator in float, -O3 -march=native, one core, the same 193^3 grid): 180-410 M
+# points/s on the sphere and the small CSG model, 60 M on the min/max gear, which is
+# also the gear libfive would evaluate for the R-function one (it has no R-functions).
+echo "# libfive: not installable from Debian; its figures from doc/benchmarks.md (one core), frep's measured above"
+echo "# $(nproc 2>/dev/null || echo '?') cores, load average: $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)"
+for row in "eval_sphere 180 410" "eval_csg 180 410" "eval_gear_minmax 60 60" "eval_gear 60 60"; do
+  set -- $row
+  for mode in pruned --single; do
+    r=$(awk -v m="$1" -v mo="$mode" '$1 == m && $2 == 193 && $3 == 1 && $4 == mo { print $5 }' "$OUT.rates")
+    [ -n "$r" ] || continue
+    awk -v m="$1" -v mo="$mode" -v r="$r" -v lo="$2" -v hi="$3" 'BEGIN {
+      printf "%-18s -t 1 %-9s frep %7.1f M points/s   libfive %s M   frep/libfive %.2f-%.2fx  (target 2x)\n",
+        m, mo, r, (lo == hi ? lo : lo "-" hi), r / hi, r / lo }'
+  done
+done
+

@@ -171,6 +171,7 @@ int mesh_field_program(mesh_field *f, const frep_program *p, const double *param
     f->grad = prog_grad;
     f->interval = prog_interval;
     f->focus = prog_focus;
+    f->cost = (double)p->ncode;
     return 0;
 }
 

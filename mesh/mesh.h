@@ -46,7 +46,13 @@ typedef struct mesh_field {
      * sign, the zero set and its normals stay; values closer to 0 are evaluated again
      * after focus(NULL).  Focusing again on the same box must be cheap. */
     int (*focus)(void *ctx, void *ts, const double box[6], double *sign_tol);
+    /* Node-evaluations of one point's value (a program's instructions), which sizes
+     * the thread count of each stage (frep_threads_for); 0: MESH_FIELD_COST. */
+    double cost;
 } mesh_field;
+
+/* The cost assumed for a field that does not say (mesh_field.cost 0): a small model. */
+#define MESH_FIELD_COST 32
 
 /* The field of a compiled program with parameter values `params` (NULL: its own; the
  * array must outlive the field). Returns 0, or -1 when out of memory. Release with

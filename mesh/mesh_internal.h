@@ -99,6 +99,25 @@ typedef struct mesher {
     size_t bytes;
 } mesher;
 
+/* The work of a stage, in point evaluations of the field, sizes its thread count
+ * (frep_threads_for, with the field's cost): an octree node's interval evaluation
+ * counts as MESH_INTERVAL_POINTS points (an interval instruction does about 16 times
+ * the work of one lane of a point block), a contoured block as its corners twice
+ * (values, then gradients and the roots on crossing edges), a block's quads as its
+ * cells (no evaluation: table look-ups). */
+#define MESH_INTERVAL_POINTS 16
+#define MESH_CONTOUR_POINTS (2.0 * MESH_BLOCK_CORNERS)
+#define MESH_QUADS_POINTS (1.0 * MESH_BLOCK_CELLS)
+
+/* The threads for a stage of `units` pieces costing `points` point evaluations in
+ * all: frep_threads_for the run's -t, never more than the run's thread states. */
+static inline int mesh_threads_for(const mesher *M, double points, size_t units)
+{
+    double cost = M->f->cost > 0 ? M->f->cost : MESH_FIELD_COST;
+    int nt = frep_threads_for(M->o->nthreads, points * cost, units);
+    return nt < M->nthreads ? nt : M->nthreads;
+}
+
 /* World coordinate of padded corner index P along axis c: grid point P - 1 of the
  * box's g cells (frep_grid_coord, the end points exact; P = 0 and G extrapolate). */
 static inline double mesh_coord(const mesher *M, int c, long P)

@@ -109,16 +109,16 @@ static void node_box(const mesher *M, const onode *nd, double box[6], int *pad)
     }
 }
 
-/* May node nd hold surface? No when the enclosure is below iso (empty) or at least iso
- * (full) away from the padding. */
-static int node_keep(const mesher *M, const onode *nd)
+/* May node nd hold surface (tested on thread t)? No when the enclosure is below iso
+ * (empty) or at least iso (full) away from the padding. */
+static int node_keep(const mesher *M, int t, const onode *nd)
 {
     double box[6];
     int pad;
     node_box(M, nd, box, &pad);
     if (!M->f->interval) return 1;
     double lo = -INFINITY, hi = INFINITY;
-    if (M->f->interval(M->f->ctx, M->ts[frep_thread_num()], box, &lo, &hi) != 0) return 1;
+    if (M->f->interval(M->f->ctx, M->ts[t], box, &lo, &hi) != 0) return 1;
     if (hi < M->o->iso) return 0;
     return !(lo >= M->o->iso && !pad);
 }
@@ -159,6 +159,24 @@ static int level_split(mesher *M, const olevel *cur, const uint8_t *keep, olevel
     return 0;
 }
 
+/* The nodes of one level tested by the threads of level_step. */
+typedef struct level_job {
+    const mesher *M;
+    const onode *node;
+    uint8_t *keep;
+} level_job;
+
+static void level_chunk(void *ctx, int t, long i0, long i1)
+{
+    level_job *J = ctx;
+    for (long i = i0; i < i1; i++)
+        J->keep[i] = frep_cancelled(J->M->o->interrupt) ? 0
+                                                        : (uint8_t)node_keep(J->M, t, &J->node[i]);
+}
+
+/* Nodes handed to a thread at a time: an interval evaluation is short. */
+#define OCTREE_CHUNK 8
+
 /* Test one level in parallel and make the next one; 0, or -1 when out of memory. */
 static int level_step(mesher *M, mesh_stats *st, const olevel *cur, olevel *next)
 {
@@ -166,9 +184,10 @@ static int level_step(mesher *M, mesh_stats *st, const olevel *cur, olevel *next
     if (!keep) return -1;
     st->octree_nodes += cur->n;
     long n = (long)cur->n;
-#pragma omp parallel for schedule(dynamic, 8) num_threads(M->nthreads)
-    for (long i = 0; i < n; i++)
-        keep[i] = frep_cancelled(M->o->interrupt) ? 0 : (uint8_t)node_keep(M, &cur->node[i]);
+    level_job J = { M, cur->node, keep };
+    size_t chunks = (cur->n + OCTREE_CHUNK - 1) / OCTREE_CHUNK;
+    frep_par_for(mesh_threads_for(M, (double)n * MESH_INTERVAL_POINTS, chunks), n, OCTREE_CHUNK,
+                 level_chunk, &J);
     int rc = frep_cancelled(M->o->interrupt) ? 1 : level_split(M, cur, keep, next);
     frep_free(keep);
     return rc;

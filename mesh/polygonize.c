@@ -15,6 +15,7 @@
 #include "util.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -72,6 +73,7 @@ static int mesher_init(mesher *M, const mesh_field *f, const mesh_options *o, me
         M->h[c] = (o->box[c + 3] - o->box[c]) / M->g[c];
     }
     M->nthreads = frep_threads(o->nthreads);
+    if (M->nthreads > FREP_PAR_MAX_THREADS) M->nthreads = FREP_PAR_MAX_THREADS;
     st->blocks_total = (size_t)M->nb[0] * (size_t)M->nb[1] * (size_t)M->nb[2];
     M->ts = frep_calloc((size_t)M->nthreads, sizeof *M->ts);
     M->works = frep_calloc((size_t)M->nthreads, sizeof *M->works);
@@ -100,41 +102,44 @@ static void mesher_free(mesher *M, mesh_stats *st)
     frep_free(M);
 }
 
+/* One contour round's blocks, shared by its threads. */
+typedef struct contour_job {
+    mesher *M;
+    mblock **todo;
+    size_t total;             /* blocks of the run, for the progress */
+    _Atomic size_t done;      /* blocks contoured so far */
+    _Atomic int nomem, bad;
+} contour_job;
+
+static void contour_chunk(void *ctx, int t, long i0, long i1)
+{
+    contour_job *J = ctx;
+    mesher *M = J->M;
+    const mesh_options *o = M->o;
+    for (long i = i0; i < i1; i++) {
+        if (frep_cancelled(o->interrupt)) continue;
+        int rc = mesh_block_contour(M, M->works[t], M->ts[t], J->todo[i]);
+        if (rc == FREP_ENOMEM) atomic_store(&J->nomem, 1);
+        else if (rc != 0) atomic_store(&J->bad, 1);
+        size_t d = atomic_fetch_add(&J->done, 1);
+        if (t == 0 && o->progress)
+            o->progress(o->progress_user, POLY_CONTOUR_SHARE * (double)d / (double)(J->total + 1));
+    }
+}
+
 /* Contour blocks [first, nblocks) in parallel; *done counts the blocks contoured so
  * far, for the progress. */
 static int contour_round(mesher *M, size_t first, size_t *done, frep_error *e)
 {
     const mesh_options *o = M->o;
     long n = (long)(M->nblocks - first);
-    int nomem = 0, bad = 0;
-    size_t done_blocks = *done;
-    mblock **todo = M->blocks + first;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(M->nthreads)
-    for (long i = 0; i < n; i++) {
-        if (frep_cancelled(o->interrupt)) continue;
-        int t = frep_thread_num();
-        int rc = mesh_block_contour(M, M->works[t], M->ts[t], todo[i]);
-        if (rc == FREP_ENOMEM) {
-#pragma omp atomic write
-            nomem = 1;
-        } else if (rc != 0) {
-#pragma omp atomic write
-            bad = 1;
-        }
-        if (t == 0 && o->progress) {
-            size_t d;
-#pragma omp atomic read
-            d = done_blocks;
-            o->progress(o->progress_user,
-                        POLY_CONTOUR_SHARE * (double)d / (double)(M->nblocks + 1));
-        }
-#pragma omp atomic
-        done_blocks++;
-    }
-    *done = done_blocks;
+    contour_job J = { M, M->blocks + first, M->nblocks, *done, 0, 0 };
+    frep_par_for(mesh_threads_for(M, (double)n * MESH_CONTOUR_POINTS, (size_t)n), n, 1,
+                 contour_chunk, &J);
+    *done = atomic_load(&J.done);
     if (frep_cancelled(o->interrupt)) return frep_error_set(e, FREP_ECANCEL, "interrupted");
-    if (nomem || bad)
-        return frep_error_set(e, nomem ? FREP_ENOMEM : FREP_EINPUT,
+    if (atomic_load(&J.nomem) || atomic_load(&J.bad))
+        return frep_error_set(e, atomic_load(&J.nomem) ? FREP_ENOMEM : FREP_EINPUT,
                               "out of memory or evaluation failure while meshing");
     return 0;
 }
@@ -197,26 +202,37 @@ static size_t number_vertices(mesher *M, mesh_stats *st)
     return nverts;
 }
 
+/* The quads of the blocks, shared by the threads of step 5. */
+typedef struct quads_job {
+    mesher *M;
+    long n;
+    _Atomic int failed;
+} quads_job;
+
+static void quads_chunk(void *ctx, int t, long i0, long i1)
+{
+    quads_job *J = ctx;
+    mesher *M = J->M;
+    const mesh_options *o = M->o;
+    for (long i = i0; i < i1; i++) {
+        if (frep_cancelled(o->interrupt)) continue;
+        if (mesh_block_quads(M, M->blocks[i]) != 0) atomic_store(&J->failed, 1);
+        if (t == 0 && o->progress)
+            o->progress(o->progress_user, POLY_CONTOUR_SHARE +
+                                              POLY_QUADS_SHARE * (double)i / (double)(J->n + 1));
+    }
+}
+
 /* Step 5: every block's quads, in parallel. */
 static int make_quads(mesher *M, frep_error *e)
 {
     const mesh_options *o = M->o;
     long n = (long)M->nblocks;
-    int failed = 0;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(M->nthreads)
-    for (long i = 0; i < n; i++) {
-        if (frep_cancelled(o->interrupt)) continue;
-        int t = frep_thread_num();
-        if (mesh_block_quads(M, M->blocks[i]) != 0) {
-#pragma omp atomic write
-            failed = 1;
-        }
-        if (t == 0 && o->progress)
-            o->progress(o->progress_user, POLY_CONTOUR_SHARE +
-                                              POLY_QUADS_SHARE * (double)i / (double)(n + 1));
-    }
+    quads_job J = { M, n, 0 };
+    frep_par_for(mesh_threads_for(M, (double)n * MESH_QUADS_POINTS, (size_t)n), n, 1,
+                 quads_chunk, &J);
     if (frep_cancelled(o->interrupt)) return frep_error_set(e, FREP_ECANCEL, "interrupted");
-    if (failed)
+    if (atomic_load(&J.failed))
         return frep_error_set(e, FREP_ENOMEM, "out of memory or evaluation failure while meshing");
     return 0;
 }

@@ -12,6 +12,7 @@
 #include "vec3.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <string.h>
 
 /* Points per evaluation batch in the projection: a multiple of FREP_BLOCK. */
@@ -330,6 +331,31 @@ static int proj_batch(proj *P, size_t i0, size_t n)
     return 0;
 }
 
+/* The batches of project(), shared by its threads: P[t] is thread t's. */
+typedef struct proj_job {
+    proj *P;
+    const mesh_options *mo;
+    size_t nsurf;
+    _Atomic int bad;
+} proj_job;
+
+static void proj_chunk(void *ctx, int t, long b0, long b1)
+{
+    proj_job *J = ctx;
+    for (long b = b0; b < b1; b++) {
+        if (frep_cancelled(J->mo->interrupt)) continue;
+        size_t i0 = (size_t)b * SAMPLE_BATCH;
+        size_t n = J->nsurf - i0 < SAMPLE_BATCH ? J->nsurf - i0 : SAMPLE_BATCH;
+        if (proj_batch(&J->P[t], i0, n) != 0) atomic_store(&J->bad, 1);
+    }
+}
+
+/* A point's value and gradient cost this many values (the tangent evaluator carries
+ * three partials with the value): sizes the projection's threads. */
+#define SAMPLE_GRAD_POINTS 4
+/* Batches handed to a thread at a time. */
+#define SAMPLE_CHUNK 4
+
 /* Move the first nsurf points of c onto f = iso, in parallel batches; their normals
  * from the gradient. */
 static int project(const mesh_field *f, const mesh_options *mo, frep_cloud *c, size_t nsurf,
@@ -339,44 +365,29 @@ static int project(const mesh_field *f, const mesh_options *mo, frep_cloud *c, s
     for (int k = 0; k < 3; k++)
         cell = fmax(cell, (mo->box[k + 3] - mo->box[k]) / mesh_options_cells(mo, k));
     long nb = (long)((nsurf + SAMPLE_BATCH - 1) / SAMPLE_BATCH);
-    int nomem = 0, bad = 0;
-    int nthreads = frep_threads(mo->nthreads);
-    (void)nthreads; /* serial build: the pragma below is ignored */
-#pragma omp parallel num_threads(nthreads)
-    {
-        proj P = { f, f->thread_new(f->ctx), c, mo->iso, cell, NULL, NULL, NULL, NULL, NULL, NULL, NULL };
-        double *buf = frep_malloc(7 * SAMPLE_BATCH * sizeof *buf);
-        if (!P.ts || !buf) {
-#pragma omp atomic write
-            nomem = 1;
-        } else {
-            P.x = buf;
-            P.y = P.x + SAMPLE_BATCH;
-            P.z = P.y + SAMPLE_BATCH;
-            P.fv = P.z + SAMPLE_BATCH;
-            P.gx = P.fv + SAMPLE_BATCH;
-            P.gy = P.gx + SAMPLE_BATCH;
-            P.gz = P.gy + SAMPLE_BATCH;
-        }
-#pragma omp for schedule(dynamic, 4)
-        for (long b = 0; b < nb; b++) {
-            if (!P.ts || !buf || frep_cancelled(mo->interrupt)) continue;
-            size_t i0 = (size_t)b * SAMPLE_BATCH;
-            size_t n = nsurf - i0 < SAMPLE_BATCH ? nsurf - i0 : SAMPLE_BATCH;
-            if (proj_batch(&P, i0, n) != 0) {
-#pragma omp atomic write
-                bad = 1;
-            }
-        }
-        frep_free(buf);
-        if (P.ts) {
-            /* thread_free may merge per-thread state (runtime errors) into ctx */
-#pragma omp critical(sample_thread_free)
-            f->thread_free(f->ctx, P.ts);
-        }
+    double cost = f->cost > 0 ? f->cost : MESH_FIELD_COST;
+    double work = (double)nsurf * (SAMPLE_NEWTON_STEPS + 1) * SAMPLE_GRAD_POINTS * cost;
+    int nt = frep_threads_for(mo->nthreads, work, (size_t)(nb + SAMPLE_CHUNK - 1) / SAMPLE_CHUNK);
+    proj *P = frep_calloc((size_t)nt, sizeof *P);
+    double *buf = frep_malloc((size_t)nt * 7 * SAMPLE_BATCH * sizeof *buf);
+    int nomem = !P || !buf;
+    for (int t = 0; t < nt && !nomem; t++) {
+        double *b = buf + (size_t)t * 7 * SAMPLE_BATCH;
+        P[t] = (proj){ f, f->thread_new(f->ctx), c, mo->iso, cell, b, b + SAMPLE_BATCH,
+                       b + 2 * SAMPLE_BATCH, b + 3 * SAMPLE_BATCH, b + 4 * SAMPLE_BATCH,
+                       b + 5 * SAMPLE_BATCH, b + 6 * SAMPLE_BATCH };
+        if (!P[t].ts) nomem = 1;
     }
+    proj_job J = { P, mo, nsurf, 0 };
+    if (!nomem) frep_par_for(nt, nb, SAMPLE_CHUNK, proj_chunk, &J);
+    /* thread_free may merge per-thread state (runtime errors) into ctx: one at a time */
+    if (P)
+        for (int t = 0; t < nt; t++)
+            if (P[t].ts) f->thread_free(f->ctx, P[t].ts);
+    frep_free(buf);
+    frep_free(P);
     if (frep_cancelled(mo->interrupt)) return frep_error_set(e, FREP_ECANCEL, "interrupted");
-    if (nomem || bad)
+    if (nomem || atomic_load(&J.bad))
         return frep_error_set(e, nomem ? FREP_ENOMEM : FREP_EINPUT,
                               "out of memory or evaluation failure while sampling");
     return 0;

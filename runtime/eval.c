@@ -8,6 +8,7 @@
  * Results are per point, so they do not depend on the thread count; runtime errors
  * are merged in block order (lowest pc wins, counts add), so they do not either.
  */
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -196,50 +197,55 @@ static int par_blocks(const par_job *j, vm_scratch *s, size_t b0, size_t b1)
  * the job by at most one unit, not by its share of the job. */
 #define PAR_UNIT_BLOCKS 16
 
+/* A parallel evaluation's units, shared by its threads: s[t] is thread t's scratch,
+ * errs[k] unit k's errors. */
+typedef struct par_team {
+    const par_job *j;
+    size_t nblocks;
+    vm_scratch **s;
+    vm_errstate *errs;
+    _Atomic int failed;
+} par_team;
+
+static void par_chunk(void *ctx, int t, long k0, long k1)
+{
+    par_team *T = ctx;
+    vm_scratch *s = T->s[t];
+    for (long k = k0; k < k1; k++) {
+        size_t b0 = (size_t)k * PAR_UNIT_BLOCKS;
+        size_t b1 = b0 + PAR_UNIT_BLOCKS < T->nblocks ? b0 + PAR_UNIT_BLOCKS : T->nblocks;
+        memset(&s->total, 0, sizeof s->total);
+        if (par_blocks(T->j, s, b0, b1) < 0) atomic_store(&T->failed, 1);
+        T->errs[k] = s->total;
+    }
+}
+
 static int par_run(const par_job *j, int nthreads, frep_runtime_error *err)
 {
     size_t nblocks = (j->n + FREP_BLOCK - 1) / FREP_BLOCK;
     vm_errstate total;
-    int failed = 0;
     memset(&total, 0, sizeof total);
     if (err) memset(err, 0, sizeof *err);
     if (!j->p || !j->p->code || (j->p->flags & PROG_HAS_PRIMS)) return -1;
     if (nblocks == 0) return 0;
-#ifdef _OPENMP
-    {
-        size_t nunits = (nblocks + PAR_UNIT_BLOCKS - 1) / PAR_UNIT_BLOCKS, u;
-        int nt = frep_threads_for(nthreads, (double)j->n * (double)j->p->ncode, nunits);
-        /* each unit's errors apart, merged in unit order: the serial block order */
-        vm_errstate *errs = frep_calloc(nunits, sizeof *errs);
-        if (!errs) return -1;
-#pragma omp parallel num_threads(nt) reduction(| : failed) if (nt > 1)
-        {
-            vm_scratch *s = vm_scratch_new(j->p);
-            if (!s) failed = 1;
-#pragma omp for schedule(dynamic, 1) nowait
-            for (size_t k = 0; k < nunits; k++) {
-                size_t b0 = k * PAR_UNIT_BLOCKS;
-                size_t b1 = b0 + PAR_UNIT_BLOCKS < nblocks ? b0 + PAR_UNIT_BLOCKS : nblocks;
-                if (!s) continue;
-                memset(&s->total, 0, sizeof s->total);
-                if (par_blocks(j, s, b0, b1) < 0) failed = 1;
-                errs[k] = s->total;
-            }
-            vm_scratch_free(s);
-        }
-        for (u = 0; u < nunits; u++) vm_err_merge(&total, &errs[u]);
-        frep_free(errs);
+    size_t nunits = (nblocks + PAR_UNIT_BLOCKS - 1) / PAR_UNIT_BLOCKS, u;
+    int nt = frep_threads_for(nthreads, (double)j->n * (double)j->p->ncode, nunits);
+    if (nt > FREP_PAR_MAX_THREADS) nt = FREP_PAR_MAX_THREADS;
+    /* each unit's errors apart, merged in unit order: the serial block order */
+    par_team T = { j, nblocks, frep_calloc((size_t)nt, sizeof *T.s),
+                   frep_calloc(nunits, sizeof *T.errs), 0 };
+    int failed = !T.s || !T.errs;
+    for (int t = 0; t < nt && !failed; t++)
+        if (!(T.s[t] = vm_scratch_new(j->p))) failed = 1;
+    if (!failed) {
+        frep_par_for(nt, (long)nunits, 1, par_chunk, &T);
+        failed = atomic_load(&T.failed);
+        for (u = 0; u < nunits; u++) vm_err_merge(&total, &T.errs[u]);
     }
-#else
-    {
-        vm_scratch *s = vm_scratch_new(j->p);
-        (void)nthreads;
-        if (!s) return -1;
-        if (par_blocks(j, s, 0, nblocks) < 0) failed = 1;
-        total = s->total;
-        vm_scratch_free(s);
-    }
-#endif
+    if (T.s)
+        for (int t = 0; t < nt; t++) vm_scratch_free(T.s[t]);
+    frep_free(T.s);
+    frep_free(T.errs);
     if (err) vm_err_to_public(&total, err);
     return failed ? -1 : 0;
 }

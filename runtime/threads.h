@@ -1,12 +1,21 @@
-/* threads.h - the thread counts of the library's parallel loops, with the OpenMP
- * conditional in this one place. A build without OpenMP runs every loop on one thread
- * as thread 0 of a team of one.
+/* threads.h - the thread counts of the library's parallel loops and the one pool that
+ * runs them (frep_par_for, runtime/threads.c): POSIX threads joined asleep, units
+ * handed out from a shared counter.  The OpenMP conditional is in this one place: a
+ * build without OpenMP runs every loop on one thread as thread 0 of a team of one.
  */
 #ifndef FREP_THREADS_H
 #define FREP_THREADS_H
 
+#include <stddef.h>
+
 #ifdef _OPENMP
 #include <omp.h>
+#endif
+
+/* The pool's helpers are POSIX threads where OpenMP is (-fopenmp brings -pthread); a
+ * build without OpenMP is serial. */
+#if defined(_OPENMP) && defined(__unix__)
+#define FREP_HAVE_PTHREADS 1
 #endif
 
 /* The threads of a run asking for `requested` (<= 0: OpenMP's default). Always >= 1. */
@@ -39,7 +48,25 @@ static inline int frep_threads_for(int requested, double work, size_t units)
     return nt;
 }
 
-/* The calling thread's number in its team (0 outside a parallel region). */
+/* Most threads of one frep_par_for run (-t is the user's: nothing else caps it). */
+#define FREP_PAR_MAX_THREADS 256
+
+/* One chunk of a parallel loop: items [i0, i1) on thread `thread` (0 .. nt-1; 0 is
+ * the calling thread).  A thread runs its chunks one after the other, so per-thread
+ * state indexed by `thread` needs no lock. */
+typedef void (*frep_par_fn)(void *ctx, int thread, long i0, long i1);
+
+/* Run fn over items [0, n) in chunks of `chunk` items (>= 1) on up to nt threads, the
+ * calling one included: a shared counter hands out the chunks one at a time, the
+ * first thread to finish one takes the next, so a thread descheduled on a busy machine
+ * delays the loop by one chunk.  The helpers are POSIX threads that the calling thread
+ * joins with pthread_join, which sleeps: nothing spins at the loop's end (libgomp's
+ * regions spun there, doc/benchmarks.md).  nt <= 1 (or a serial build) runs fn(ctx, 0,
+ * 0, n) in chunks on the calling thread, creating nothing.  A helper that cannot be
+ * started leaves its share to the others.  Returns the threads that ran (>= 1). */
+int frep_par_for(int nt, long n, long chunk, frep_par_fn fn, void *ctx);
+
+/* The calling thread's number in its OpenMP team (0 outside a parallel region). */
 static inline int frep_thread_num(void)
 {
 #ifdef _OPENMP
@@ -49,7 +76,7 @@ static inline int frep_thread_num(void)
 #endif
 }
 
-/* The number of threads in the calling thread's team (1 outside a parallel region). */
+/* The number of threads in the calling thread's OpenMP team (1 outside a region). */
 static inline int frep_team_size(void)
 {
 #ifdef _OPENMP

@@ -1,8 +1,9 @@
 /* vm_f32.c - the single-precision value evaluator and its error bound (vm_f32.h).
  *
  * The evaluator is a stack of float lane vectors, one buffer per level; every operator
- * is one loop over the block that GCC vectorizes (8 lanes with AVX2, the clone picked
- * at load time as in vm.c; no FMA, so the roundings are the ones the bound counts).
+ * is one loop over the block that GCC vectorizes, compiled for AVX-512 (16 lanes),
+ * AVX2 (8) and the baseline, the copy picked per scratch at run time (vm_f32_set_isa);
+ * no FMA (-ffp-contract=off), so the roundings are the ones the bound counts.
  * Leaves and LOAD copy into their level: simple, and a LOADed value can never change
  * under a later STORE.
  *
@@ -14,6 +15,7 @@
  * ETA for underflow, which a square root can lift to 2^-75).
  */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "alloc.h"
@@ -37,6 +39,7 @@ struct vm_f32 {
     float *xyz;                /* the block's x, y, z in float */
     ival *iv, *ivslot;         /* the bound's interval stack and slots */
     double *e, *eslot;         /* its error stack and slots */
+    int isa;                   /* VM_F32_ISA_*: which compiled f32_run runs */
 };
 
 static int f32_op_ok(const frep_insn *in)
@@ -72,6 +75,47 @@ int vm_f32_cpu_ok(void)
     return 0;
 #endif
 }
+
+/* The ISA-specific copies of the float loops exist on x86-64 with GCC or clang. */
+#if defined(__GNUC__) && defined(__x86_64__) && !defined(FREP_NO_CLONES)
+#define F32_ISA_COPIES 1
+#endif
+
+int vm_f32_isa_ok(int isa)
+{
+    if (isa == VM_F32_ISA_BASE) return 1;
+#ifdef F32_ISA_COPIES
+    __builtin_cpu_init();
+    if (isa == VM_F32_ISA_AVX2) return __builtin_cpu_supports("avx2") != 0;
+    if (isa == VM_F32_ISA_AVX512)
+        return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+               __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq");
+#endif
+    return 0;
+}
+
+int vm_f32_isa_default(void)
+{
+    const char *env = getenv("FREP_F32_ISA");
+    if (env) {
+        int want = strcmp(env, "avx512") == 0 ? VM_F32_ISA_AVX512
+                   : strcmp(env, "avx2") == 0 ? VM_F32_ISA_AVX2
+                   : strcmp(env, "base") == 0 ? VM_F32_ISA_BASE : -1;
+        if (want >= 0 && vm_f32_isa_ok(want)) return want;
+    }
+    if (vm_f32_isa_ok(VM_F32_ISA_AVX512)) return VM_F32_ISA_AVX512;
+    if (vm_f32_isa_ok(VM_F32_ISA_AVX2)) return VM_F32_ISA_AVX2;
+    return VM_F32_ISA_BASE;
+}
+
+int vm_f32_set_isa(vm_f32 *s, int isa)
+{
+    if (!vm_f32_isa_ok(isa)) return -1;
+    s->isa = isa;
+    return 0;
+}
+
+int vm_f32_get_isa(const vm_f32 *s) { return s->isa; }
 
 void vm_f32_free(vm_f32 *s)
 {
@@ -111,6 +155,7 @@ vm_f32 *vm_f32_new(const frep_program *p)
         return NULL;
     }
     memset(s->zeros, 0, lanes);
+    s->isa = vm_f32_isa_default();
     return s;
 }
 
@@ -318,8 +363,9 @@ static void f32_store(vm_f32 *s, uint32_t j, uint32_t L, size_t n)
     s->stored[j] = 1;
 }
 
-static int f32_run(vm_f32 *s, const frep_program *p, size_t n) VM_CLONES;
-static int f32_run(vm_f32 *s, const frep_program *p, size_t n)
+/* The float loops, inlined into one copy per ISA (f32_run_avx512 etc. below). */
+static inline __attribute__((always_inline)) int f32_run_body(vm_f32 *s, const frep_program *p,
+                                                              size_t n)
 {
     uint32_t d = 0;
     size_t i;
@@ -366,6 +412,39 @@ static int f32_run(vm_f32 *s, const frep_program *p, size_t n)
     if (d != 1) return -1;
     if (s->sp[0] != s->lv) memcpy(s->lv, s->sp[0], n * sizeof(float));
     return 0;
+}
+
+#ifdef F32_ISA_COPIES
+/* 512-bit vectors asked for: GCC's tuning for AVX-512 CPUs otherwise stays at 256. */
+#ifdef __clang__
+#define F32_AVX512 "avx512f,avx512vl,avx512bw,avx512dq"
+#else
+#define F32_AVX512 "avx512f,avx512vl,avx512bw,avx512dq,prefer-vector-width=512"
+#endif
+__attribute__((target(F32_AVX512)))
+static int f32_run_avx512(vm_f32 *s, const frep_program *p, size_t n)
+{
+    return f32_run_body(s, p, n);
+}
+
+__attribute__((target("avx2"))) static int f32_run_avx2(vm_f32 *s, const frep_program *p, size_t n)
+{
+    return f32_run_body(s, p, n);
+}
+#endif
+
+static int f32_run_base(vm_f32 *s, const frep_program *p, size_t n)
+{
+    return f32_run_body(s, p, n);
+}
+
+static int f32_run(vm_f32 *s, const frep_program *p, size_t n)
+{
+#ifdef F32_ISA_COPIES
+    if (s->isa == VM_F32_ISA_AVX512) return f32_run_avx512(s, p, n);
+    if (s->isa == VM_F32_ISA_AVX2) return f32_run_avx2(s, p, n);
+#endif
+    return f32_run_base(s, p, n);
 }
 
 int vm_f32_eval_block(vm_f32 *s, const frep_program *p, const double *x, const double *y,

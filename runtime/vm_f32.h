@@ -38,6 +38,24 @@ int vm_f32_supported(const frep_program *p);
  * instruction); callers choose the precision with it, tests may ignore it. */
 int vm_f32_cpu_ok(void);
 
+/* The instruction sets the float loops are compiled for (function-level target
+ * attributes, so the build runs on any x86-64), picked per scratch at run time:
+ * VM_F32_ISA_AVX512 (16 float lanes per instruction; AVX-512 F, VL, BW, DQ), AVX2 (8),
+ * BASE (the build's baseline, 4 with SSE2).  All round alike (no FMA): the values are
+ * the same bit for bit whichever runs. */
+enum { VM_F32_ISA_BASE, VM_F32_ISA_AVX2, VM_F32_ISA_AVX512 };
+
+/* Whether this CPU (and build) can run `isa`. */
+int vm_f32_isa_ok(int isa);
+
+/* The ISA a new scratch uses: the best this CPU runs, unless the environment variable
+ * FREP_F32_ISA (base, avx2 or avx512) asks for one it can (benchmarks compare them). */
+int vm_f32_isa_default(void);
+
+/* Make s run `isa`; 0, or -1 (s unchanged) when vm_f32_isa_ok(isa) is 0. */
+int vm_f32_set_isa(vm_f32 *s, int isa);
+int vm_f32_get_isa(const vm_f32 *s);
+
 /* Per-thread scratch big enough for p (a supported program, or one of its pruned
  * copies, which are never longer). NULL when out of memory. */
 vm_f32 *vm_f32_new(const frep_program *p);

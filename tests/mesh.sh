@@ -146,6 +146,12 @@ done
 t "block minus ball at 1 thread" "$FREP" mesh "$M/block_minus_ball.hf" -b 1 -g 50 -t 1 -o "$T/a.ply" -q
 t "block minus ball at 2 threads" "$FREP" mesh "$M/block_minus_ball.hf" -b 1 -g 50 -t 2 -o "$T/b.ply" -q
 t "the same mesh at 1 and 2 threads" cmp "$T/a.ply" "$T/b.ply"
+# the bench gear at -g 64: stages big enough for 2 threads (mesh_threads_for)
+t "gear -g 64 at 1 thread" "$FREP" mesh "$srcdir/bench/eval_gear.hf" -b 1.6 -g 64 -t 1 -o "$T/a.ply" -q
+t "gear -g 64 at 2 threads" "$FREP" mesh "$srcdir/bench/eval_gear.hf" -b 1.6 -g 64 -t 2 -o "$T/b.ply" -q
+t "gear -g 64 at the default threads" "$FREP" mesh "$srcdir/bench/eval_gear.hf" -b 1.6 -g 64 -o "$T/c.ply" -q
+t "the same gear mesh at 1 and 2 threads" cmp "$T/a.ply" "$T/b.ply"
+t "the same gear mesh at 1 thread and the default" cmp "$T/a.ply" "$T/c.ply"
 # near.hf -g 64 settles hundreds of vertices (mesh/settle.c), decided in vertex order
 t "near.hf -g 64 at 1 thread" "$FREP" mesh "$M/sharp/near.hf" -b 1.2 -g 64 -t 1 -o "$T/a.ply" -q
 t "near.hf -g 64 at 3 threads" "$FREP" mesh "$M/sharp/near.hf" -b 1.2 -g 64 -t 3 -o "$T/b.ply" -q

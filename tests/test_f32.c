@@ -212,6 +212,60 @@ static void test_bound(void)
     ok(differ > 1000, "float and double do differ (%d points)", differ);
 }
 
+/* Every ISA copy of the float loops (vm_f32_set_isa) gives the base copy's values bit
+ * for bit on random programs at random points (no FMA, the same roundings); an ISA the
+ * CPU lacks is refused and its check skipped, saying so. */
+static void test_isa(void)
+{
+    enum { NPROG = 60, NPT = FREP_BLOCK };
+    static double x[NPT], y[NPT], z[NPT], fb[NPT], fi[NPT];
+    static const char *names[] = { "base", "AVX2", "AVX-512" };
+    ok(vm_f32_isa_ok(VM_F32_ISA_BASE), "the base ISA always runs");
+    for (int isa = VM_F32_ISA_AVX2; isa <= VM_F32_ISA_AVX512; isa++) {
+        if (!vm_f32_isa_ok(isa)) {
+            ok(1, "%s float loops: same values as base # SKIP this CPU lacks %s", names[isa],
+               names[isa]);
+            continue;
+        }
+        int same = 1, ran = 0;
+        for (int t = 0; t < NPROG; t++) {
+            frep_program *p = random_program(2 + t % 5);
+            vm_f32 *fs = p ? vm_f32_new(p) : NULL;
+            if (fs) {
+                const double box[6] = { -1.5, -1.5, -1.5, 1.5, 1.5, 1.5 };
+                box_points(box, NPT, x, y, z);
+                int rb = vm_f32_set_isa(fs, VM_F32_ISA_BASE) == 0 &&
+                         vm_f32_eval_block(fs, p, x, y, z, NPT, fb) == 0;
+                int ri = vm_f32_set_isa(fs, isa) == 0 && vm_f32_get_isa(fs) == isa &&
+                         vm_f32_eval_block(fs, p, x, y, z, NPT, fi) == 0;
+                if (!rb || !ri || memcmp(fb, fi, sizeof fb) != 0) same = 0;
+                ran += rb && ri;
+            }
+            vm_f32_free(fs);
+            frep_program_free(p);
+        }
+        ok(same && ran == NPROG, "%s float loops: the base copy's values bit for bit (%d "
+           "programs x %d points)", names[isa], ran, NPT);
+    }
+    frep_program *p = random_program(3);
+    vm_f32 *fs = p ? vm_f32_new(p) : NULL;
+    ok(fs && vm_f32_set_isa(fs, 99) == -1, "an unknown ISA is refused");
+    ok(fs && vm_f32_get_isa(fs) == vm_f32_isa_default(), "a new scratch runs the default ISA");
+    vm_f32_free(fs);
+    /* FREP_F32_ISA picks the default among the ISAs the CPU runs */
+    setenv("FREP_F32_ISA", "base", 1);
+    ok(vm_f32_isa_default() == VM_F32_ISA_BASE, "FREP_F32_ISA=base picks the base copy");
+    setenv("FREP_F32_ISA", "avx2", 1);
+    ok(vm_f32_isa_default() == (vm_f32_isa_ok(VM_F32_ISA_AVX2) ? VM_F32_ISA_AVX2 : VM_F32_ISA_BASE),
+       "FREP_F32_ISA=avx2 picks AVX2 where the CPU has it");
+    unsetenv("FREP_F32_ISA");
+    ok(vm_f32_isa_default() == (vm_f32_isa_ok(VM_F32_ISA_AVX512) ? VM_F32_ISA_AVX512
+                                : vm_f32_isa_ok(VM_F32_ISA_AVX2) ? VM_F32_ISA_AVX2
+                                                                 : VM_F32_ISA_BASE),
+       "by default the best ISA the CPU runs");
+    frep_program_free(p);
+}
+
 /* A program of more than VM_F32_MIN_CODE instructions: the min of 2 - |x|^2, of twelve
  * planes y + 3 + j (never the least: padding) and of x - c.  With c = 0.1 + 1e-12, x and
  * c round to the same float near x = 0.1, where float gives 0 (inside) and double a
@@ -326,6 +380,7 @@ static void test_grid(void)
 int main(void)
 {
     test_bound();
+    test_isa();
     test_grid();
     return done_testing();
 }

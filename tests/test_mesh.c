@@ -11,11 +11,14 @@
 #include "opsem.h"
 #include "program.h"
 #include "tap.h"
+#include "threads.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 /* ---- a small deterministic RNG (xorshift64*) ------------------------------------- */
 
@@ -373,7 +376,7 @@ static void tf_thread_free(void *ctx, void *ts) { (void)ctx; (void)ts; }
 static mesh_field make_field(tfield *t, int with_interval)
 {
     mesh_field f = { t, tf_thread_new, tf_thread_free, tf_eval, tf_grad,
-                     with_interval ? tf_interval : NULL, NULL };
+                     with_interval ? tf_interval : NULL, NULL, 0 };
     return f;
 }
 
@@ -584,6 +587,124 @@ static void test_mesh_threads(void)
        "the same mesh at 1 and 3 threads (%zu triangles)", a.ntris);
     mesh_free(&a);
     mesh_free(&b);
+}
+
+/* A field that counts, per thread state, the points it evaluated, to tell which of a
+ * run's thread states (one per thread) did any work.  With `wait`, thread state 0 (the
+ * calling thread's) evaluates nothing until another state has (or 10 s have passed):
+ * the run then has to use a second thread, however the machine schedules them. */
+#define CF_STATES 8
+typedef struct cstate {
+    struct cfield *cf;
+    int k;
+    _Atomic long points;
+} cstate;
+typedef struct cfield {
+    tfield t;
+    cstate st[CF_STATES];
+    int nst, busy, wait;
+    _Atomic long others;      /* points evaluated by the states k > 0 */
+} cfield;
+
+static void *cf_thread_new(void *ctx)
+{
+    cfield *c = ctx;
+    if (c->nst == CF_STATES) return NULL;
+    cstate *s = &c->st[c->nst];
+    s->cf = c;
+    s->k = c->nst++;
+    atomic_store(&s->points, 0);
+    return s;
+}
+
+static void cf_thread_free(void *ctx, void *ts)
+{
+    cfield *c = ctx;
+    cstate *s = ts;
+    c->busy += atomic_load(&s->points) > 0;
+}
+
+static void cf_count(cstate *s, size_t n)
+{
+    if (s->k > 0) atomic_fetch_add(&s->cf->others, (long)n);
+    else
+        for (int i = 0; i < 10000 && s->cf->wait && atomic_load(&s->cf->others) == 0; i++) {
+            struct timespec ms = { 0, 1000000 };
+            nanosleep(&ms, NULL);
+        }
+    atomic_fetch_add(&s->points, (long)n);
+}
+
+static int cf_eval(void *ctx, void *ts, size_t n, const double *x, const double *y,
+                   const double *z, double *f)
+{
+    cf_count(ts, n);
+    return tf_eval(&((cfield *)ctx)->t, NULL, n, x, y, z, f);
+}
+
+static int cf_grad(void *ctx, void *ts, size_t n, const double *x, const double *y,
+                   const double *z, double *f, double *gx, double *gy, double *gz)
+{
+    cf_count(ts, n);
+    return tf_grad(&((cfield *)ctx)->t, NULL, n, x, y, z, f, gx, gy, gz);
+}
+
+static int cf_interval(void *ctx, void *ts, const double box[6], double *lo, double *hi)
+{
+    (void)ts;
+    return tf_interval(&((cfield *)ctx)->t, NULL, box, lo, hi);
+}
+
+/* Mesh the CSG test shape with the counting field of cost `cost` on `threads` threads
+ * (0: the default); *busy receives the thread states that evaluated points. */
+static int run_counted(double cost, int threads, int wait, int grid, frep_mesh *m, int *busy)
+{
+    const double box[6] = { -1.2, -1.1, -1.3, 1.3, 1.2, 1.1 };
+    cfield c;
+    memset(&c, 0, sizeof c);
+    c.t.kind = F_CSG;
+    memcpy(c.t.b, test_block, sizeof c.t.b);
+    c.wait = wait;
+    mesh_field f = { &c, cf_thread_new, cf_thread_free, cf_eval, cf_grad, cf_interval, NULL, cost };
+    mesh_options o;
+    mesh_options_init(&o);
+    memcpy(o.box, box, sizeof o.box);
+    o.grid = grid;
+    o.nthreads = threads;
+    mesh_stats st;
+    frep_error err;
+    int rc = polygonize(&f, &o, m, &st, &err);
+    *busy = c.busy;
+    return rc;
+}
+
+/* The stages' thread counts follow the work (mesh_threads_for): a costly field runs on
+ * the threads asked for, a cheap small job on one; the mesh is the same either way, at
+ * 1, 2, 3 threads and the default. */
+static void test_mesh_thread_sizing(void)
+{
+    frep_mesh m1, m;
+    int busy = 0;
+    int r1 = run_counted(1e9, 1, 0, 45, &m1, &busy);
+    ok(r1 == 0 && busy == 1, "a costly field at 1 thread: one thread state works (%d)", busy);
+    int threads[3] = { 2, 3, 0 };
+    for (int i = 0; i < 3; i++) {
+        int par = frep_threads(threads[i]) > 1;
+        int r = run_counted(1e9, threads[i], par, 45, &m, &busy);
+        ok(r == 0 && (par ? busy >= 2 : busy == 1),
+           "a costly field at %d threads (0: default): %d thread states work", threads[i], busy);
+        ok(r == 0 && r1 == 0 && m.nverts == m1.nverts && m.ntris == m1.ntris &&
+               memcmp(m.v, m1.v, 3 * m.nverts * sizeof *m.v) == 0 &&
+               memcmp(m.n, m1.n, 3 * m.nverts * sizeof *m.n) == 0 &&
+               memcmp(m.tri, m1.tri, 3 * m.ntris * sizeof *m.tri) == 0,
+           "the same mesh at 1 and %d threads (0: default), byte for byte", threads[i]);
+        if (r == 0) mesh_free(&m);
+    }
+    /* a 12^3 grid of a cheap field: ~30 blocks of 729 corners x 32: under FREP_PAR_MIN_WORK */
+    int r = run_counted(0, 2, 0, 12, &m, &busy);
+    ok(r == 0 && busy == 1, "a small cheap job at 2 threads stays on one (%d states work)", busy);
+    if (r == 0) mesh_free(&m);
+    if (r1 == 0) mesh_free(&m1);
 }
 
 /* The checker itself: two tetrahedra sharing one vertex are closed and every edge has
@@ -1092,6 +1213,7 @@ int main(void)
     test_interval_program();
     test_mesh_shapes();
     test_mesh_threads();
+    test_mesh_thread_sizing();
     test_validate_pinch();
     test_self_intersections();
     test_mesh_tunnels();

@@ -44,7 +44,7 @@ static void e_free(void *ctx, void *ts) { (void)ctx; (void)ts; }
 
 static mesh_field field(ell *e)
 {
-    mesh_field f = { e, e_new, e_free, e_eval, e_grad, NULL, NULL };
+    mesh_field f = { e, e_new, e_free, e_eval, e_grad, NULL, NULL, 0 };
     return f;
 }
 
@@ -82,6 +82,7 @@ int main(void)
 {
     ell sph = { 1, 1, 1 };
     mesh_field f = field(&sph);
+    f.cost = 1e9; /* every stage worth its threads (mesh_threads_for), however small */
     frep_error err;
     frep_cloud *c = NULL, *c2 = NULL;
     sample_options o = opts(20000, 2);
@@ -123,6 +124,14 @@ int main(void)
        memcmp(c->x, c2->x, c->n * sizeof *c->x) == 0 &&
        memcmp(c->nz, c2->nz, c->n * sizeof *c->nz) == 0,
        "the same cloud at 1 and 2 threads");
+    cloud_free(c2);
+    c2 = NULL;
+    sample_options o0 = opts(20000, 0);
+    ok(sample_f(&f, &o0, &c2, &err) == 0 && c && c2 && c2->n == c->n &&
+       memcmp(c->x, c2->x, c->n * sizeof *c->x) == 0 &&
+       memcmp(c->y, c2->y, c->n * sizeof *c->y) == 0 &&
+       memcmp(c->nx, c2->nx, c->n * sizeof *c->nx) == 0,
+       "the same cloud at 2 threads and the default");
     cloud_free(c2);
     c2 = NULL;
 
