@@ -207,7 +207,7 @@ class _EvolveOptions(ctypes.Structure):
                 ("lambda_scale", ctypes.c_double), ("knn", ctypes.c_size_t),
                 ("refit", ctypes.c_int), ("report_explained", ctypes.c_int),
                 ("progress", _EVOLVE_PROGRESS_FN), ("cancel", _SEG_CANCEL_FN),
-                ("user", ctypes.c_void_p)]
+                ("user", ctypes.c_void_p), ("cancel_flag", ctypes.c_void_p)]
 
 
 class _EvolveInfo(ctypes.Structure):
@@ -885,7 +885,7 @@ class Cloud(_Wrapper):
         lib = _L()
         o = _EvolveOptions()
         lib.frep_evolve_options_init(ctypes.byref(o))
-        fields = {k for k, _ in _EvolveOptions._fields_} - {"progress", "cancel", "user"}
+        fields = {k for k, _ in _EvolveOptions._fields_} - {"progress", "cancel", "user", "cancel_flag"}
         for k, v in options.items():
             if k == "threads":
                 k = "nthreads"

@@ -344,3 +344,18 @@ def test_mesh_colors_same_as_command(tmp_path):
     assert rgb.shape == (nv, 3) and rgb.dtype == np.uint8
     assert np.array_equal(rgb, want)
     assert frep.compile(BALL).colors(frep.compile(BALL).mesh(grid=8, box=1.5), cell=3 / 8) is None
+
+
+def test_option_structs_match_the_library():
+    # Each *_options_init memsets the C struct: a Python mirror shorter than the C one
+    # (a field added in frep.h but not here) would see the guard bytes after it cleared.
+    import ctypes
+    lib = frep._L()
+    for name, cls in (("compile", frep._CompileOptions), ("mesh", frep._MeshOptions),
+                      ("sample", frep._SampleOptions), ("segment", frep._SegmentOptions),
+                      ("fit", frep._FitOptions), ("evolve", frep._EvolveOptions),
+                      ("render", frep._RenderOptions)):
+        size = ctypes.sizeof(cls)
+        buf = (ctypes.c_ubyte * (size + 64))(*([0xAB] * (size + 64)))
+        getattr(lib, "frep_%s_options_init" % name)(ctypes.cast(buf, ctypes.POINTER(cls)))
+        assert bytes(buf[size:]) == b"\xab" * 64, name
