@@ -206,20 +206,30 @@ static char op_char(uint8_t op)
 
 /* ---- boundedness ------------------------------------------------------------------- */
 
-/* The tree's sign at x (min/max: R-functions have the same sign); leaves beyond the
- * list (the --residual model) count as everywhere inside, so such trees look unbounded. */
+/* The tree's value at x (min/max: R-functions have the same sign); leaves beyond the
+ * list (the --residual model) count as everywhere inside, so such trees look unbounded.
+ * Postfix on a stack: a valid tree's stack never holds more entries than its depth, at
+ * most GP_MAX_TREE_DEPTH; a deeper tree is also taken as everywhere inside. */
 static double tree_at(const frep_insn *code, uint32_t end, const prim *prims, size_t n,
                       const double *x)
 {
-    const frep_insn *in = &code[end];
-    int k = tree_nin(in);
-    if (k == 0) return in->arg < n ? prim_eval(&prims[in->arg], x, NULL) : 1;
-    if (k == 1) return -tree_at(code, end - 1, prims, n, x);
-    uint32_t l0, l1, r0;
-    tree_operands(code, end, &l0, &l1, &r0);
-    double a = tree_at(code, l1, prims, n, x), b = tree_at(code, end - 1, prims, n, x);
-    char op = op_char(in->op);
-    return op == '|' ? fmax(a, b) : op == '&' ? fmin(a, b) : fmin(a, -b);
+    double st[GP_MAX_TREE_DEPTH + 1];
+    uint32_t sp = 0;
+    for (uint32_t pc = tree_subtree_start(code, end); pc <= end; pc++) {
+        const frep_insn *in = &code[pc];
+        int k = tree_nin(in);
+        if (k == 0) {
+            if (sp == GP_MAX_TREE_DEPTH + 1) return 1;
+            st[sp++] = in->arg < n ? prim_eval(&prims[in->arg], x, NULL) : 1;
+        } else if (k == 1) {
+            st[sp - 1] = -st[sp - 1];
+        } else {
+            double b = st[--sp], a = st[sp - 1];
+            char op = op_char(in->op);
+            st[sp - 1] = op == '|' ? fmax(a, b) : op == '&' ? fmin(a, b) : fmin(a, -b);
+        }
+    }
+    return st[0];
 }
 
 int canon_tree_bounded(const evolve_result *r, const prim *prims, size_t nprims)

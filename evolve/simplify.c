@@ -572,7 +572,7 @@ static int commit_splice(gp_tree *t, gp_tree *trial, uint32_t end, const gp_tree
  * optionally extended by & c, \ c or | c, when it raises the fitness and keeps the
  * depth limit. */
 static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
-                      gp_eval *e, double *fit)
+                      gp_eval *e, double *fit, gp_cancel *cancel)
 {
     uint32_t k = c->nprims;
     if (k < 2) return 0;
@@ -593,6 +593,7 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
     frep_insn root = gp_tape_leaf(c, t->len - 1);
     for (uint32_t a = 0; a < k; a++)
         for (uint32_t b = a + 1; b < k; b++) {
+            if (gp_cancelled(cancel)) goto out;   /* rc 0: the tree stays as it stands */
             if (!use[a] && !use[b]) continue;
             for (int w = 0; w < 3; w++)
                 for (int q = 0; q < 4; q++) {
@@ -609,6 +610,7 @@ static int grow_piece(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_ca
         }
     for (int i = 0; i < nb; i++)
         for (uint32_t cc = 0; cc < k; cc++) {
+            if (gp_cancelled(cancel)) goto out;
             if (cc == beam[i].a || cc == beam[i].b) continue;
             for (int q = 0; q < 3; q++) {
                 piece p = beam[i];
@@ -1116,7 +1118,7 @@ int simplify_trim_code(gp_tree *sub, const frep_insn *head, uint32_t nhead, uint
  * merely lying beyond S's points (which would cut nothing the points show) is not
  * added. 1 when t changed, 0 when not, -1 on allocation failure. */
 static int grow_trim(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cache *c,
-                     gp_eval *e)
+                     gp_eval *e, gp_cancel *cancel)
 {
     uint32_t k = c->nprims;
     size_t n = c->n;
@@ -1165,6 +1167,10 @@ static int grow_trim(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_cac
             if (gp_explained(c, e, t->code + st, end - st + 1, oks)) goto out;
             frep_insn lf = gp_tape_leaf(c, end);
             for (uint32_t j = 0; j < k; j++) {
+                if (gp_cancelled(cancel)) {   /* the tree stays as it stands */
+                    rc = 0;
+                    goto out;
+                }
                 int can[2] = { sup[2 * j], sup[2 * j + 1] };  /* keeps them as p, ~p */
                 simplify_trim_keeps(t, ends[1 - side], c, j, ok, oks, can);
                 for (int ng = 0; ng < 2; ng++) {
@@ -1222,7 +1228,7 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
         if (simplify_tree(t, s, c, e, &fit, k)) goto out;
     }
     for (int round = 0; round < SIMPLIFY_MAX_PIECES && !gp_cancelled(k); round++) {
-        int g = grow_piece(t, &trial, &o, c, e, &fit);
+        int g = grow_piece(t, &trial, &o, c, e, &fit, k);
         if (g < 0) goto out;
         if (g == 0) break;
         /* The piece may make part of the tree redundant (a face the GA had faked). */
@@ -1231,7 +1237,7 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
     /* Last: a trim costs two nodes the fitness does not pay for, so the removal moves
      * of simplify_tree would take it out again; only the exact rules follow it. */
     for (int round = 0; round < SIMPLIFY_MAX_TRIMS && !gp_cancelled(k); round++) {
-        int g = grow_trim(t, &trial, &o, c, e);
+        int g = grow_trim(t, &trial, &o, c, e, k);
         if (g < 0) goto out;
         if (g == 0) break;
         if (simplify_rules(t, s)) goto out;
