@@ -402,7 +402,7 @@ static int join(gp_tree *out, const gp_tree *a, const gp_tree *b, uint8_t op)
 }
 
 int part_merge_pair(const gp_tree *a, const gp_tree *b, gp_setops s, const gp_cache *c,
-                    gp_eval *e, gp_tree *out, double *fitness, gp_cancel *k)
+                    gp_eval *e, gp_tree *out, double *fitness, gp_cancel *cancel)
 {
     gp_opset o = gp_opset_of(s);
     gp_tree cand[4];
@@ -427,7 +427,7 @@ int part_merge_pair(const gp_tree *a, const gp_tree *b, gp_setops s, const gp_ca
             bf = f;
         }
     }
-    if (tree_copy(out, &cand[best]) || simplify_tree_both(out, s, c, e, fitness, k)) goto out;
+    if (tree_copy(out, &cand[best]) || simplify_tree_both(out, s, c, e, fitness, cancel)) goto out;
     rc = 0;
 out:
     for (int k = 0; k < 4; k++) tree_free(&cand[k]);
