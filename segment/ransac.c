@@ -1642,15 +1642,17 @@ static int mergeable(merger *g, size_t pi, size_t qi, prim *q2, int *refitted)
     size_t hit = 0, mu = mp + mq;
     for (size_t j = g->start[pi]; j < g->start[pi + 1]; j++)
         hit += compatible(Q, c, g->order[j], band, d->cfg->cos_normal) != 0;
+    int apart = (double)hit < MERGE_FRACTION * (double)mp;
+    /* Two pieces of one shape fitted apart (a noisy torus split into inner and outer
+     * halves): one shape of the same type explains both once refitted on the union.
+     * Tested before the refit, the cost of a pair. */
+    if (apart && (P->type != Q->type || !near_same(P, Q, MERGE_NEAR * band))) return 0;
     memcpy(g->buf, g->order + g->start[qi], mq * sizeof *g->buf);
     memcpy(g->buf + mq, g->order + g->start[pi], mp * sizeof *g->buf);
     *q2 = *Q;
     *refitted = refit(d, q2, g->buf, mu) == 0 && sane(q2, d->rmax);
-    if ((double)hit < MERGE_FRACTION * (double)mp) {
-        /* Two pieces of one shape fitted apart (a noisy torus split into inner and
-         * outer halves): one shape of the same type explains both once refitted on the
-         * union. */
-        if (P->type != Q->type || !*refitted || !near_same(P, Q, MERGE_NEAR * band)) return 0;
+    if (apart) {
+        if (!*refitted) return 0;
         size_t hu = 0;
         for (size_t j = 0; j < mu; j++)
             hu += compatible(q2, c, g->buf[j], band, d->cfg->cos_normal) != 0;
@@ -1710,6 +1712,7 @@ static int merge_pass(merger *g)
         for (size_t qi = 0; qi < np; qi++) {
             size_t mq = g->start[qi + 1] - g->start[qi];
             if (qi == pi || mq < mp || (mq == mp && qi > pi)) continue;
+            if (frep_cancelled(g->d->cfg->interrupt)) return 0;
             prim q2;
             int refitted;
             if (!mergeable(g, pi, qi, &q2, &refitted)) {
@@ -2276,6 +2279,7 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         if (go == 0) break;
     }
     if (!res->interrupted) merge_redundant(&r.d, res, r.bands, r.inl);
+    if (frep_cancelled(cfg->interrupt)) res->interrupted = 1;  /* the merge cut short */
     if (r.d.nomem) goto oom;
     run_free(&r);
     return 0;
