@@ -11,11 +11,24 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef HAVE_SYS_RESOURCE_H
+#include <sys/resource.h>
+#endif
 
 /* getopt_long's value of a long-only option: past every char, so never a short name. */
 #define CLI_LONG_ONLY_BASE 256
 /* Room for a reason of a value parser ("the box has no extent along x: [..]"). */
 #define CLI_WHY_MAX 256
+/* getopt_long's value of --max-memory, an option of every subcommand (like --help). */
+#define CLI_MAX_MEMORY (CLI_LONG_ONLY_BASE - 1)
+/* The smallest --max-memory: what frep needs to start a command at all (the program's
+ * tables, a thread's buffers); below it every command would fail at once. */
+#define CLI_MIN_MEMORY (16.0 * 1024 * 1024)
+/* --max-memory's help, listed after the subcommand's own options. */
+#define CLI_MAX_MEMORY_HELP                                                              \
+    "cap the memory frep allocates (K, M, G, T: binary\n"                                 \
+    "units; 1.5G); past it the command stops with 'out of\n"                             \
+    "memory' and a non-zero exit, outputs untouched"
 
 void cli_list_free(cli_list *l)
 {
@@ -211,9 +224,58 @@ static int store(const cli_opt *o, const char *arg, void *ctx, char *why, size_t
     return -1;
 }
 
-/* The getopt_long tables of a spec: --help first, then the entries. */
+/* "SIZE[K|M|G|T][i][B]" (binary units) -> bytes; -1 with a reason when malformed. */
+static int parse_memory(const char *arg, double *bytes, char *why, size_t whylen)
+{
+    char *end;
+    errno = 0;
+    double v = strtod(arg, &end);
+    double unit = 1;
+    const char *units = "KMGT";
+    const char *u = *end ? strchr(units, *end & ~0x20) : NULL;
+    if (u) {
+        for (const char *k = units; k <= u; k++) unit *= 1024;
+        end++;
+        if (*end == 'i') end++;
+    }
+    if (*end == 'B' || *end == 'b') end++;
+    if (end == arg || *end || errno == ERANGE || !isfinite(v) || v <= 0) {
+        snprintf(why, whylen, "expected a size (bytes, or with K, M, G, T), got '%s'", arg);
+        return -1;
+    }
+    *bytes = v * unit;
+    if (*bytes < CLI_MIN_MEMORY) {
+        snprintf(why, whylen, "expected at least 16M, got '%s' (too little to run at all)",
+                 arg);
+        return -1;
+    }
+    return 0;
+}
+
+/* --max-memory: the data segment's limit (RLIMIT_DATA: the heap and private anonymous
+ * mappings, what frep allocates, not the program's code or its threads' stacks), so
+ * that an allocation past it fails and the command reports out of memory where
+ * otherwise the system would kill it. */
+static int apply_max_memory(double bytes, char *why, size_t whylen)
+{
+#if defined(HAVE_SYS_RESOURCE_H) && defined(RLIMIT_DATA)
+    struct rlimit rl;
+    if (getrlimit(RLIMIT_DATA, &rl) != 0) rl.rlim_max = RLIM_INFINITY;
+    rlim_t want = bytes >= (double)RLIM_INFINITY ? RLIM_INFINITY : (rlim_t)bytes;
+    if (rl.rlim_max != RLIM_INFINITY && want > rl.rlim_max) want = rl.rlim_max;
+    rl.rlim_cur = want;
+    if (setrlimit(RLIMIT_DATA, &rl) == 0) return 0;
+    snprintf(why, whylen, "cannot set the limit: %s", strerror(errno));
+#else
+    (void)bytes;
+    snprintf(why, whylen, "not supported on this system");
+#endif
+    return -1;
+}
+
+/* The getopt_long tables of a spec: --help and --max-memory first, then the entries. */
 typedef struct getopt_tables {
-    struct option longopts[CLI_MAX_OPTS + 2];
+    struct option longopts[CLI_MAX_OPTS + 3];
     char shortopts[2 * CLI_MAX_OPTS + 4];
 } getopt_tables;
 
@@ -223,6 +285,7 @@ static void build_tables(const cli_opt_spec *spec, getopt_tables *t)
     t->shortopts[s++] = ':'; /* a missing value returns ':', an unknown option '?' */
     t->shortopts[s++] = 'h';
     t->longopts[k++] = (struct option){ "help", no_argument, NULL, 'h' };
+    t->longopts[k++] = (struct option){ "max-memory", required_argument, NULL, CLI_MAX_MEMORY };
     for (size_t i = 0; i < spec->nopts; i++) {
         const cli_opt *o = &spec->opts[i];
         int val = o->short_name ? o->short_name : CLI_LONG_ONLY_BASE + (int)i;
@@ -295,6 +358,13 @@ int cli_opt_parse(const cli_opt_spec *spec, int argc, char **argv, void *ctx, cl
             cli_opt_help(spec, stdout);
             return CLI_OK;
         }
+        if (c == CLI_MAX_MEMORY) {
+            double bytes;
+            if (parse_memory(optarg, &bytes, why, sizeof why) ||
+                apply_max_memory(bytes, why, sizeof why))
+                return cli_usage_error(spec->sub, "--max-memory: %s", why);
+            continue;
+        }
         size_t i = entry_of(spec, c);
         if (c == ':' || c == '?' || i == spec->nopts) {
             typed_option(argv, before, optind, name, sizeof name);
@@ -349,4 +419,8 @@ void cli_opt_help(const cli_opt_spec *spec, FILE *f)
         if (!listed++) fputs("Options:\n", f);
         help_entry(&spec->opts[i], spec->column, f);
     }
+    static const cli_opt max_memory = { .name = "max-memory", .arg = "SIZE",
+                                        .kind = CLI_OPT_CUSTOM, .help = CLI_MAX_MEMORY_HELP };
+    if (!listed) fputs("Options:\n", f);
+    help_entry(&max_memory, spec->column, f);
 }
