@@ -253,9 +253,9 @@ static int parse_memory(const char *arg, double *bytes, char *why, size_t whylen
 }
 
 /* --max-memory: the data segment's limit (RLIMIT_DATA: the heap and private anonymous
- * mappings, what frep allocates, not the program's code or its threads' stacks), so
- * that an allocation past it fails and the command reports out of memory where
- * otherwise the system would kill it. */
+ * mappings: what frep allocates, its worker threads' stacks included, not the
+ * program's code), so that an allocation past it fails and the command reports out of
+ * memory where otherwise the system would kill it. */
 static int apply_max_memory(double bytes, char *why, size_t whylen)
 {
 #if defined(HAVE_SYS_RESOURCE_H) && defined(RLIMIT_DATA)
