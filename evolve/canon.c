@@ -1388,8 +1388,6 @@ static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
  * labelled by the subtree's sign.  The cover replaces the subtree only when it writes
  * fewer solids and the whole model passes ft_keeps (and stays bounded if it was). */
 
-#define COVER_MAX_PLANES 48    /* distinct planes of a subtree the cover reads */
-#define COVER_MAX_FRAMES 8     /* orthogonal triples of their directions */
 #define COVER_NO (COVER_MAX_OFFS + 2)
 #define COVER_MAX_CUTS 2       /* cuts of one term */
 #define COVER_MAX_NEG 256      /* the largest cuts a term's are chosen from */
@@ -2097,8 +2095,40 @@ done:
     return rc;
 }
 
+/* Operands of node i with sel[k] set grouped into a new node of its kind, and that
+ * node covered (cv_run); the operands go back when the cover does not replace it.
+ * Regrouping the operands of an intersection or a union keeps the solid.  Returns 1
+ * when covered, 0 when not, -1 when out of memory. */
+static int cover_group(ft *F, uint32_t i, const uint8_t *sel, const ft_check *ck,
+                       const evolve_result *r)
+{
+    uint32_t g = ft_new(F, F->v[i].kind);
+    if (g == FT_NONE) return -1;
+    uint32_t ns = F->v[i].n, w = 0;
+    ft_term *saved = frep_malloc(ns * sizeof *saved);
+    if (!saved) return -1;
+    memcpy(saved, F->v[i].t, ns * sizeof *saved);
+    for (uint32_t k = 0; k < ns; k++) {
+        if (sel[k]) ft_add(F, g, saved[k].node, saved[k].neg);
+        else F->v[i].t[w++] = saved[k];
+    }
+    F->v[i].t[w].node = g;
+    F->v[i].t[w++].neg = 0;
+    F->v[i].n = w;
+    int rc = F->failed ? -1 : cv_run(F, g, ck, r);
+    if (rc <= 0) {
+        memcpy(F->v[i].t, saved, ns * sizeof *saved);
+        F->v[i].n = ns;
+    }
+    frep_free(saved);
+    return rc;
+}
+
 /* The cover of every subtree of planes, largest first; in an operation of planes and
- * other solids (a box stack minus a bore), of its operands of planes grouped. */
+ * other solids (a box stack minus a bore), of its operands of planes grouped; in an
+ * operation of planes alone that no cover writes whole (one of its solids has a face
+ * direction no fitted plane gives, so that no frame holds it), of all its operands but
+ * one, each left out in turn (up to COVER_MAX_LEAVE_OUT operands). */
 static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
 {
     if (F->v[i].kind != FT_AND && F->v[i].kind != FT_OR) return 0;
@@ -2107,37 +2137,29 @@ static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
     uint32_t n = F->v[i].n;
     for (uint32_t k = 0; k < n; k++)
         if (apply_cover(F, F->v[i].t[k].node, ck, r)) return -1;
-    /* Group the operands that are planes alone. */
+    n = F->v[i].n;
+    uint8_t *sel = frep_calloc(n, 1);
+    if (!sel) return -1;
     cover C;
-    uint32_t g = FT_NONE, ng = 0;
-    for (uint32_t k = 0; k < F->v[i].n; k++) {
+    uint32_t ng = 0;
+    for (uint32_t k = 0; k < n; k++) {
         memset(&C, 0, sizeof C);
         C.F = F;
-        if (!cv_planes(&C, F->v[i].t[k].node)) continue;
-        ng++;
+        sel[k] = (uint8_t)cv_planes(&C, F->v[i].t[k].node);
+        ng += sel[k];
     }
-    if (ng < 2 || ng == F->v[i].n) return 0;
-    g = ft_new(F, F->v[i].kind);
-    if (g == FT_NONE) return -1;
-    ft_term *saved = frep_malloc(F->v[i].n * sizeof *saved);
-    if (!saved) return -1;
-    uint32_t ns = F->v[i].n, w = 0;
-    memcpy(saved, F->v[i].t, ns * sizeof *saved);
-    for (uint32_t k = 0; k < ns; k++) {
-        memset(&C, 0, sizeof C);
-        C.F = F;
-        if (cv_planes(&C, saved[k].node)) ft_add(F, g, saved[k].node, saved[k].neg);
-        else F->v[i].t[w++] = saved[k];
+    rc = 0;
+    if (ng >= 2 && ng < n) {
+        /* Group the operands that are planes alone. */
+        rc = cover_group(F, i, sel, ck, r);
+    } else if (ng == n && n >= 3 && n <= COVER_MAX_LEAVE_OUT) {
+        for (uint32_t k = 0; k < n && rc == 0; k++) {
+            memset(sel, 1, n);
+            sel[k] = 0;
+            rc = cover_group(F, i, sel, ck, r);
+        }
     }
-    F->v[i].t[w].node = g;
-    F->v[i].t[w++].neg = 0;
-    F->v[i].n = w;
-    rc = F->failed ? -1 : cv_run(F, g, ck, r);
-    if (rc <= 0) {
-        memcpy(F->v[i].t, saved, ns * sizeof *saved);
-        F->v[i].n = ns;
-    }
-    frep_free(saved);
+    frep_free(sel);
     return rc < 0 ? -1 : 0;
 }
 

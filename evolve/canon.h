@@ -95,6 +95,15 @@ void canon_write_comment(FILE *f, const canon_prim *c);
 /* Face positions per axis of a frame of the box cover (free ends aside): a planar
  * subtree with more, a stair of more steps, keeps its half-spaces. */
 #define COVER_MAX_OFFS 8
+/* Distinct planes of a subtree the cover reads, and orthogonal triples of their
+ * directions (frames) it searches: a subtree with more keeps its half-spaces (work
+ * bound: the frames' candidate boxes and point sets). */
+#define COVER_MAX_PLANES 48
+#define COVER_MAX_FRAMES 8
+/* An operation of planes alone whose cover fails whole: each of its operands, up to
+ * this many, is left out in turn and the others covered (work bound: a cover search
+ * per operand). */
+#define COVER_MAX_LEAVE_OUT 8
 
 int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const canon_prim *c,
                      size_t nprims, const frep_cloud *cloud, int exact, int hyperfun,

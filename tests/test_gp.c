@@ -177,12 +177,14 @@ static void scene_boxes(const scene *s, const gp_cache *c, gp_obb *boxes)
 
 static void parse_tree(gp_tree *t, const char *postfix, gp_setops so)
 {
-    /* Postfix words: digits = PRIM (1-based), a-o = PRIM 10-24, | & \ ~ operators. */
+    /* Postfix words: digits = PRIM (1-based), a-z = PRIM 10-35, A-Z = PRIM 36-61,
+     * | & \ ~ operators. */
     gp_opset o = gp_opset_of(so);
     t->len = 0;
     for (const char *p = postfix; *p; p++) {
         if (*p >= '1' && *p <= '9') tree_push(t, FREP_OP_PRIM, (uint32_t)(*p - '1'));
-        else if (*p >= 'a' && *p <= 'o') tree_push(t, FREP_OP_PRIM, (uint32_t)(*p - 'a' + 9));
+        else if (*p >= 'a' && *p <= 'z') tree_push(t, FREP_OP_PRIM, (uint32_t)(*p - 'a' + 9));
+        else if (*p >= 'A' && *p <= 'Z') tree_push(t, FREP_OP_PRIM, (uint32_t)(*p - 'A' + 35));
         else if (*p == '|') tree_push(t, (frep_opcode)o.uni, 0);
         else if (*p == '&') tree_push(t, (frep_opcode)o.inter, 0);
         else if (*p == '\\') tree_push(t, (frep_opcode)o.sub, 0);
@@ -1632,10 +1634,11 @@ static void test_box_across_union(void)
  * of a turned cube, box & (m1 | m2 | m3).  The written model must be the union of three
  * boxes (the steps) and a box minus a cut box, and the same solid as the tree at the
  * grid points away from the surface. */
+#define COVER_CASE_PRIMS 61   /* the primitives parse_tree names */
 typedef struct cover_case {
     const char *name, *tree, *want;
     int np;
-    double n[24][3], d[24];   /* planes n.x <= d */
+    double n[COVER_CASE_PRIMS][3], d[COVER_CASE_PRIMS];   /* planes n.x <= d */
     int cyl;                  /* > 0: primitive cyl - 1 is the bore x^2 + y^2 <= 0.3^2 about (1, 1) */
     const char *truth;        /* the solid the cloud samples and the model must be (NULL: tree) */
 } cover_case;
@@ -1663,7 +1666,7 @@ static double cover_tree_value(const cover_case *cc, const gp_tree *t, const dou
 
 static void test_box_cover_case(cover_case *cc)
 {
-    prim prims[24];
+    prim prims[COVER_CASE_PRIMS];
     memset(prims, 0, sizeof prims);
     for (int j = 0; j < cc->np; j++) {
         prims[j].type = PRIM_PLANE;
@@ -1877,11 +1880,14 @@ static void test_box_cover(void)
     }
     test_box_cover_case(&stack);
     /* Axis-aligned stairs of n steps across [0, 3], as the GA factors them: the box &
-     * (z <= k | x <= n - k) for k = 1..n-1.  With n + 1 face positions on x up to
-     * COVER_MAX_OFFS the cover writes n boxes; with more the limit is hit and the
-     * half-spaces stay, the same solid. */
-    for (int pass = 0; pass < 2; pass++) {
-        int n = pass ? COVER_MAX_OFFS : COVER_MAX_OFFS - 1;
+     * (z <= k | x <= n - k) for k = 1..n-1, an intersection of n operands once the box
+     * is formed.  With n + 1 face positions on x up to COVER_MAX_OFFS the cover writes n
+     * boxes; with more the limit is hit for the whole, and the cover of all operands but
+     * one (the first left out whose cover succeeds) writes n - 1 boxes and the two
+     * half-spaces of the union left out; with more than COVER_MAX_LEAVE_OUT operands
+     * that is not tried either and the half-spaces stay.  The same solid every time. */
+    for (int pass = 0; pass < 3; pass++) {
+        int n = pass == 2 ? COVER_MAX_LEAVE_OUT + 1 : pass ? COVER_MAX_OFFS : COVER_MAX_OFFS - 1;
         static char tree[64], want[32], name[32];
         cover_case st;
         memset(&st, 0, sizeof st);
@@ -1901,10 +1907,98 @@ static void test_box_cover(void)
         }
         st.np = 4 + 2 * n;
         snprintf(name, sizeof name, "stair of %d steps", n);
-        snprintf(want, sizeof want, pass ? "%d half-spaces" : "%d solids: %d boxes", pass ? 2 * (n - 1) : n, n);
+        if (pass == 0) snprintf(want, sizeof want, "%d solids: %d boxes", n, n);
+        else if (pass == 1) snprintf(want, sizeof want, "%d solids: %d boxes", n + 1, n - 1);
+        else snprintf(want, sizeof want, "%d half-spaces", 2 * (n - 1));
         st.name = name;
         st.tree = tree;
         st.want = want;
+        test_box_cover_case(&st);
+    }
+}
+
+/* The name parse_tree gives primitive j (0-based). */
+static char prim_char(int j)
+{
+    return (char)(j < 9 ? '1' + j : j < 35 ? 'a' + j - 9 : 'A' + j - 35);
+}
+
+/* The stair of three steps across [0, 3] (box & (z <= 1 | x <= 2) & (z <= 2 | x <= 1))
+ * intersected with nfar planes far from it (10 units from its centre), which leave the
+ * solid as it is but count as planes of the subtree (directions dir[k]).  Returns the
+ * number of planes. */
+static int stair_with_far_planes(cover_case *st, char *tree, int nfar, const double (*dir)[3])
+{
+    double bn[6][3] = { { -1, 0, 0 }, { 1, 0, 0 }, { 0, -1, 0 }, { 0, 1, 0 }, { 0, 0, -1 }, { 0, 0, 1 } };
+    double bd[6] = { 0, 3, 0, 1, 0, 3 }, c[3] = { 1.5, 0.5, 1.5 };
+    memset(st, 0, sizeof *st);
+    for (int j = 0; j < 6; j++) {
+        memcpy(st->n[j], bn[j], sizeof st->n[j]);
+        st->d[j] = bd[j];
+    }
+    st->n[6][2] = 1, st->d[6] = 1;
+    st->n[7][0] = 1, st->d[7] = 2;
+    st->n[8][2] = 1, st->d[8] = 2;
+    st->n[9][0] = 1, st->d[9] = 1;
+    char *t = tree;
+    t += sprintf(t, "12&3&4&5&6&78|&9a|&");
+    for (int k = 0; k < nfar; k++) {
+        int j = 10 + k;
+        memcpy(st->n[j], dir[k], sizeof st->n[j]);
+        st->d[j] = 10 + dir[k][0] * c[0] + dir[k][1] * c[1] + dir[k][2] * c[2];
+        *t++ = prim_char(j);
+        *t++ = '&';
+    }
+    *t = 0;
+    st->np = 10 + nfar;
+    return st->np;
+}
+
+/* The cover's limits (evolve/canon.c): with COVER_MAX_PLANES distinct planes in a
+ * subtree, or COVER_MAX_FRAMES orthogonal triples of their directions, the stair is
+ * still written as three boxes; one more and the cover leaves the subtree as it is (its
+ * half-spaces stay); the written model is the same solid either way. */
+static void test_cover_limits(void)
+{
+    static char tree[2][160], want[2][2][40];
+    static double dir[COVER_CASE_PRIMS][3];
+    for (int pass = 0; pass < 2; pass++) {
+        /* Far planes in directions of a Fibonacci sphere: no two parallel, no three
+         * orthogonal, none along an axis, so that they add planes but no frame. */
+        int nfar = COVER_MAX_PLANES - 10 + pass;
+        for (int k = 0; k < nfar; k++) {
+            double z = 1 - (2 * k + 1.0) / nfar, rho = sqrt(1 - z * z), phi = k * FREP_PI * (3 - sqrt(5.0));
+            dir[k][0] = rho * cos(phi), dir[k][1] = rho * sin(phi), dir[k][2] = z;
+        }
+        cover_case st;
+        int np = stair_with_far_planes(&st, tree[0], nfar, dir);
+        static char name[2][48];
+        snprintf(name[pass], sizeof name[pass], "stair and far planes, %d planes", np);
+        snprintf(want[0][pass], sizeof want[0][pass], pass ? "%d half-spaces" : "3 solids: 3 boxes",
+                 4 + nfar);
+        st.name = name[pass];
+        st.tree = tree[0];
+        st.want = want[0][pass];
+        test_box_cover_case(&st);
+    }
+    for (int pass = 0; pass < 2; pass++) {
+        /* Pairs of far planes turned 10, 20, ... degrees about z: with z, each pair is a
+         * frame of its own besides the stair's. */
+        int nrot = COVER_MAX_FRAMES - 1 + pass;
+        for (int k = 0; k < nrot; k++) {
+            double a = (k + 1) * 10 * FREP_PI / 180;
+            dir[2 * k][0] = cos(a), dir[2 * k][1] = sin(a), dir[2 * k][2] = 0;
+            dir[2 * k + 1][0] = -sin(a), dir[2 * k + 1][1] = cos(a), dir[2 * k + 1][2] = 0;
+        }
+        cover_case st;
+        stair_with_far_planes(&st, tree[1], 2 * nrot, dir);
+        static char name[2][48];
+        snprintf(name[pass], sizeof name[pass], "stair and far planes, %d frames", nrot + 1);
+        snprintf(want[1][pass], sizeof want[1][pass], pass ? "%d half-spaces" : "3 solids: 3 boxes",
+                 4 + 2 * nrot);
+        st.name = name[pass];
+        st.tree = tree[1];
+        st.want = want[1][pass];
         test_box_cover_case(&st);
     }
 }
@@ -1934,5 +2028,6 @@ int main(void)
     test_cache_stats();
     test_box_across_union();
     test_box_cover();
+    test_cover_limits();
     return done_testing();
 }
