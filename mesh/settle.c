@@ -29,6 +29,9 @@
  * below --check's MESH_SURFACE_TOL, so that a vertex the first-order estimate puts a
  * little over it still gets there. */
 #define MESH_SETTLE_TOL 0.08
+/* A vertex already on the surface moved to unfold its fan goes to a point at most
+ * this far from it (cells): it must not leave the surface for --check's tolerance. */
+#define MESH_SETTLE_FOLD_TOL 0.01
 /* Newton steps along the gradient, one batch of gradients each. */
 #define MESH_SETTLE_STEPS 4
 /* Bisection steps between the vertex and a cell corner across the level: 2^-10 of the
@@ -57,6 +60,8 @@ typedef struct svert {
     int nc;                   /* targets found, cand[SETTLE_MAX_CANDS * k ..], nearest
                                  to x0 first */
     int moved;
+    int fold;                 /* on the surface, but a triangle of its fan folds over:
+                                 moved only to unfold it */
 } svert;
 
 /* A target on the surface: position, f - iso, gradient. */
@@ -120,9 +125,20 @@ static int vertex_cell(const mesher *M, const double p[3], double reach, double 
     return 1;
 }
 
+/* Box lo..hi lies in block B's box, where the field focused on B is the model's
+ * (a vertex on a block face may have its cell in the next block). */
+static int inside_block(const mesher *M, const mblock *B, const double lo[3], const double hi[3])
+{
+    double bb[6];
+    mesh_block_box(M, B, bb);
+    for (int c = 0; c < 3; c++)
+        if (!(lo[c] >= bb[c] && hi[c] <= bb[c + 3])) return 0;
+    return 1;
+}
+
 /* The blocks' cell vertices farther than MESH_SETTLE_TOL from the surface into
  * r->sv (NULL when there are none).  0, or -1 when out of memory. */
-static int far_vertices(settle_run *r, const frep_mesh *out)
+static int far_vertices(settle_run *r, const frep_mesh *out, const uint8_t *folded)
 {
     const mesher *M = r->M;
     size_t n = 0, cap = 0;
@@ -132,11 +148,15 @@ static int far_vertices(settle_run *r, const frep_mesh *out)
         for (uint32_t l = 0; l < B->nverts + 2 * B->nfaces; l++) {
             const double *fg = &B->vfg[4 * l];
             double d = mesh_cell_distance(M, fg[0], fg[1], fg[2], fg[3]);
-            if (!(d > MESH_SETTLE_TOL)) continue;
+            uint32_t v = (uint32_t)(B->vglobal + l);
+            int fold = !(d > MESH_SETTLE_TOL);
+            if (fold && !folded[v]) continue;
             svert s;
-            s.v = (uint32_t)(B->vglobal + l);
+            s.v = v;
+            s.fold = fold;
             s.B = B;
             if (!vertex_cell(M, &B->vpos[3 * l], 0, s.lo, s.hi)) continue;
+            if (fold && !inside_block(M, B, s.lo, s.hi)) continue;
             if (n == cap) {
                 size_t nc = cap ? 2 * cap : 64;
                 svert *ns = frep_realloc(r->sv, nc * sizeof *ns);
@@ -288,7 +308,8 @@ static int bisect_segments(settle_run *r, size_t ns)
         const svert *s = &r->sv[k];
         double g[3] = { r->bgx[q], r->bgy[q], r->bgz[q] };
         double d = mesh_cell_distance(r->M, r->bf[q] - iso, g[0], g[1], g[2]);
-        if (!(d <= MESH_SETTLE_TOL) || !(-vec3_dot(g, s->n) > 0)) continue;
+        if (!(d <= (s->fold ? MESH_SETTLE_FOLD_TOL : MESH_SETTLE_TOL)) || !(-vec3_dot(g, s->n) > 0))
+            continue;
         double x[3] = { r->bx[q], r->by[q], r->bz[q] };
         add_candidate(r, k, x, r->bf[q] - iso, g);
     }
@@ -367,7 +388,7 @@ static int look_targets(settle_run *r)
     double iso = r->M->o->iso;
     for (size_t k = 0; k < r->n; k++) {
         const svert *s = &r->sv[k];
-        if (s->moved) continue;
+        if (s->moved || s->fold) continue;
         size_t m = look_points(r, s, (uint32_t)k);
         int rc = batch_eval(r, m, 0);
         if (rc) return rc;
@@ -407,7 +428,7 @@ static int find_targets(settle_run *r, int all)
     if (rc) return rc;
     for (size_t k = 0; k < r->n; k++) {
         const svert *s = &r->sv[k];
-        if (!s->moved && s->d <= MESH_SETTLE_TOL) add_candidate(r, k, s->x, s->f, s->g);
+        if (!s->moved && !s->fold && s->d <= MESH_SETTLE_TOL) add_candidate(r, k, s->x, s->f, s->g);
     }
     return bisect_targets(r, all);
 }
@@ -509,6 +530,30 @@ static double cosine(const double a[3], const double b[3])
 }
 
 
+/* Triangle t (normal n) faces against the normals of its vertices (their sum into
+ * ns): it folds over its neighbours. */
+static int tri_folded(const frep_mesh *m, uint32_t t, const double n[3], double ns[3])
+{
+    ns[0] = ns[1] = ns[2] = 0;
+    for (int i = 0; i < 3; i++) {
+        const double *vn = &m->n[3 * (size_t)m->tri[3 * (size_t)t + (size_t)i]];
+        for (int c = 0; c < 3; c++) ns[c] += vn[c];
+    }
+    return vec3_dot(n, ns) < 0;
+}
+
+/* The vertices of the folded triangles (tri_folded) marked in folded[]. */
+static void mark_folded(const frep_mesh *m, uint8_t *folded)
+{
+    memset(folded, 0, m->nverts);
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        double n[3], ns[3];
+        tri_normal(m, t, UINT32_MAX, NULL, n);
+        if (!tri_folded(m, t, n, ns)) continue;
+        for (int i = 0; i < 3; i++) folded[m->tri[3 * (size_t)t + (size_t)i]] = 1;
+    }
+}
+
 /* The bounding box of triangle t with vertex v at x. */
 static void tri_box(const frep_mesh *m, uint32_t t, uint32_t v, const double x[3], double b[6])
 {
@@ -545,10 +590,12 @@ static int move_is_clean(const frep_mesh *m, const fan_index *x, const svert *s,
     if (nfan > SETTLE_MAX_FAN) return 0;
     double fbox[SETTLE_MAX_FAN][6];
     for (uint32_t i = 0; i < nfan; i++) {
-        double n0[3], n1[3];
+        double n0[3], n1[3], ns[3];
         tri_normal(m, fan[i], s->v, &m->v[3 * s->v], n0);
         tri_normal(m, fan[i], s->v, to, n1);
-        if (!(cosine(n0, n1) > turn)) return 0;
+        /* keeps its orientation, or unfolds */
+        if (!(cosine(n0, n1) > turn) && !(tri_folded(m, fan[i], n0, ns) && vec3_dot(n1, ns) > 0))
+            return 0;
         tri_box(m, fan[i], s->v, to, fbox[i]);
     }
     /* the triangles around the fan's other vertices, each once, the fan's own apart */
@@ -612,7 +659,7 @@ static void widen(settle_run *r)
         svert *s = &r->sv[k];
         s->nc = 0;
         if (s->moved) continue;
-        if (!vertex_cell(r->M, s->x0, MESH_SETTLE_REACH, s->lo, s->hi)) {
+        if (!vertex_cell(r->M, s->x0, s->fold ? 0 : MESH_SETTLE_REACH, s->lo, s->hi)) {
             s->moved = 1;     /* not a candidate any more */
             continue;
         }
@@ -626,7 +673,12 @@ static void widen(settle_run *r)
 int mesh_settle_vertices(const mesher *M, frep_mesh *out, mesh_stats *st)
 {
     settle_run r = { .M = M, .ts = M->ts[0], .turn = MESH_SETTLE_TURN };
-    if (far_vertices(&r, out) != 0) {
+    uint8_t *folded = frep_malloc(out->nverts + 1);
+    if (!folded) return FREP_ENOMEM;
+    mark_folded(out, folded);
+    int frc = far_vertices(&r, out, folded);
+    frep_free(folded);
+    if (frc != 0) {
         frep_free(r.sv);
         return FREP_ENOMEM;
     }
