@@ -471,6 +471,8 @@ void fit_objective_set_loss(fit_objective *o, fit_loss loss, double scale)
     o->cfg.loss_scale = scale;
 }
 
+double fit_objective_loss_scale(const fit_objective *o) { return o->cfg.loss_scale; }
+
 static int per_point(fit_objective *o, const double *p, double *r, pass_mode mode)
 {
     o->resid = r;

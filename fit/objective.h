@@ -96,6 +96,8 @@ void fit_objective_unfreeze(fit_objective *o);
 /* Change the loss and its scale (residual units) of o: fit_run's robust refinement
  * re-estimates the scale from the residuals between rounds. */
 void fit_objective_set_loss(fit_objective *o, fit_loss loss, double scale);
+/* The scale of o's robust loss (residual units). */
+double fit_objective_loss_scale(const fit_objective *o);
 
 /* The first-order distance |f|/|grad f| of each point at p, in r[n] (n = its point
  * count). Returns 0; 1 when some are not finite; -1 when out of memory. */
