@@ -16,12 +16,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The grid's threads (grid_run): POSIX threads where OpenMP is (so -pthread is too). */
-#if defined(_OPENMP) && defined(__unix__)
-#define FREP_HAVE_PTHREADS 1
-#include <pthread.h>
-#endif
-
 #include "threads.h"
 #include "util.h"
 #include "vm_f32.h"
@@ -865,87 +859,46 @@ static int grid_threads(const grid_job *g, long u0, long u1, int nthreads)
     return frep_threads_for(nthreads, pts * (double)g->p->ncode, (size_t)(u1 - u0));
 }
 
-/* The threads of one run of super-tiles: a shared counter hands out super-tiles one at
- * a time (the first thread to finish one takes the next), each thread adds up its own
- * cost.  The threads are plain POSIX threads joined with pthread_join, which sleeps:
- * with OpenMP's region libgomp spun at the region's end (300,000 rounds unless the
- * user set OMP_WAIT_POLICY or GOMP_SPINCOUNT, read only at start-up), and on a busy
- * machine the main thread spun there for the other one's time slice, so two threads
- * cost up to 1.4x the CPU of one on 10-20 ms grids (doc/benchmarks.md). */
+/* One run of super-tiles [u0, u1) on frep_par_for_late: one super-tile a chunk, each
+ * thread with its own tools (set up on its first super-tile) and its own cost. */
 typedef struct grid_team {
     const grid_job *g;
-    long u1;
-    _Atomic long next;       /* the next super-tile to take */
+    long u0;
     _Atomic int failed;
+    double insns[FREP_PAR_MAX_THREADS];      /* instructions x points thread k evaluated */
+    int ready[FREP_PAR_MAX_THREADS];         /* w[k] set up */
+    grid_worker w[FREP_PAR_MAX_THREADS];
 } grid_team;
 
-typedef struct grid_spawn grid_spawn;
-
-typedef struct grid_member {
-    grid_team *team;
-    double insns;            /* instructions x points this thread evaluated */
-    grid_spawn *spawn;       /* the calling thread's: the helpers still to start */
-} grid_member;
-
-/* Most threads of one grid run (frep_threads caps nothing: -t is the user's). */
-#define GRID_MAX_THREADS 256
-
-/* The helper threads of a run and when they start.  A pruned grid's work is known only
- * as it is done: the unpruned length that frep_threads_for is given overstates the
- * min/max gear's 34 instructions a point 13x, so the calling thread starts the helpers
- * once the work left, estimated from the super-tiles it has done, reaches
- * FREP_PAR_MIN_WORK; a job that never gets there stays on one thread. */
-struct grid_spawn {
-    int want, started;       /* threads wanted and running, the calling one included */
-    long u0;                 /* the run's first super-tile */
-    grid_member *m;          /* m[0] the calling thread's, m[k] helper k's */
-#ifdef FREP_HAVE_PTHREADS
-    pthread_t th[GRID_MAX_THREADS];
-#endif
-};
-
-static void *grid_member_run(void *arg);
-
-static void grid_spawn_helpers(grid_spawn *sp)
+static void grid_chunk(void *ctx, int thread, long i0, long i1)
 {
-#ifdef FREP_HAVE_PTHREADS
-    for (int k = sp->started; k < sp->want; k++) {
-        sp->m[k].team = sp->m[0].team;
-        sp->m[k].insns = 0;
-        sp->m[k].spawn = NULL;
-        if (pthread_create(&sp->th[k], NULL, grid_member_run, &sp->m[k]) != 0) break;
-        sp->started++;
+    grid_team *tm = ctx;
+    grid_worker *w = &tm->w[thread];
+    if (!tm->ready[thread]) {
+        if (worker_init(w, tm->g->p, tm->g->pl, tm->g->single) != 0) {
+            atomic_store(&tm->failed, 1);
+            return;
+        }
+        tm->ready[thread] = 1;
     }
-#endif
-    sp->want = sp->started;   /* never tried again */
+    for (long i = i0; i < i1; i++)
+        if (grid_super(tm->g, w, tm->u0 + i, &tm->insns[thread]) < 0)
+            atomic_store(&tm->failed, 1);
 }
 
-static void *grid_member_run(void *arg)
+/* A pruned grid's work is known only as it is done: the unpruned length that
+ * frep_threads_for is given overstates the min/max gear's 34 instructions a point 13x,
+ * so the work left is estimated from the super-tiles the calling thread has done. */
+static double grid_left(void *ctx, long done, long n)
 {
-    grid_member *m = arg;
-    grid_team *tm = m->team;
-    grid_worker w;
-    if (worker_init(&w, tm->g->p, tm->g->pl, tm->g->single) != 0) {
-        atomic_store(&tm->failed, 1);
-        return NULL;
-    }
-    for (;;) {
-        long u = atomic_fetch_add(&tm->next, 1);
-        if (u >= tm->u1) break;
-        if (grid_super(tm->g, &w, u, &m->insns) < 0) atomic_store(&tm->failed, 1);
-        grid_spawn *sp = m->spawn;
-        if (sp && sp->started < sp->want) {
-            /* alone so far: this thread did super-tiles u0..u */
-            double left = m->insns / (double)(u - sp->u0 + 1) * (double)(tm->u1 - u - 1);
-            if (left >= FREP_PAR_MIN_WORK) grid_spawn_helpers(sp);
-        }
-    }
-    worker_free(&w);
-    return NULL;
+    const grid_team *tm = ctx;
+    return tm->insns[0] / (double)done * (double)(n - done);
 }
 
 /* Evaluate super-tiles [u0, u1) on up to grid_threads() threads, the calling one
- * included (grid_spawn: when).
+ * included, on frep_par_for_late (threads.c: joined asleep, nothing spins; helpers
+ * started at once when the work is known up front, unpruned or a thread count asked
+ * for, else once grid_left reaches FREP_PAR_MIN_WORK).
  * The instructions x points evaluated are added to *cost (whole numbers, so the sum
  * does not depend on the order).  Returns -1 if a worker could not be set up or a tile
  * failed (out of memory); a thread that cannot be started leaves its share to the
@@ -953,30 +906,27 @@ static void *grid_member_run(void *arg)
 static int grid_run(const grid_job *g, long u0, long u1, int nthreads, double *cost,
                     int *used)
 {
+    grid_team *tm = frep_malloc(sizeof *tm);
+    if (!tm) return -1;
+    tm->g = g;
+    tm->u0 = u0;
+    atomic_init(&tm->failed, 0);
     int nt = grid_threads(g, u0, u1, nthreads);
-#ifndef FREP_HAVE_PTHREADS
-    nt = 1;
-#endif
-    if (nt > GRID_MAX_THREADS) nt = GRID_MAX_THREADS;
-    grid_team tm = { g, u1, u0, 0 };
-    grid_member m[GRID_MAX_THREADS];
-    grid_spawn sp;
-    sp.want = nt;
-    sp.started = 1;
-    sp.u0 = u0;
-    sp.m = m;
-    m[0].team = &tm;
-    m[0].insns = 0;
-    m[0].spawn = &sp;
-    /* unpruned, or a thread count asked for (not sized): the work is known up front */
-    if (!(g->sized && g->pl)) grid_spawn_helpers(&sp);
-    grid_member_run(&m[0]);
-#ifdef FREP_HAVE_PTHREADS
-    for (int k = 1; k < sp.started; k++) pthread_join(sp.th[k], NULL);
-#endif
-    for (int k = 0; k < sp.started; k++) *cost += m[k].insns;
-    if (sp.started > *used) *used = sp.started;
-    return atomic_load(&tm.failed) ? -1 : 0;
+    if (nt > FREP_PAR_MAX_THREADS) nt = FREP_PAR_MAX_THREADS;
+    for (int k = 0; k < nt; k++) {
+        tm->insns[k] = 0;
+        tm->ready[k] = 0;
+    }
+    int ran = frep_par_for_late(nt, u1 - u0, 1, grid_chunk,
+                                g->sized && g->pl ? grid_left : NULL, tm);
+    for (int k = 0; k < ran; k++) {
+        *cost += tm->insns[k];
+        if (tm->ready[k]) worker_free(&tm->w[k]);
+    }
+    if (ran > *used) *used = ran;
+    int rc = atomic_load(&tm->failed) ? -1 : 0;
+    frep_free(tm);
+    return rc;
 }
 
 /* Add the tiles' summaries to *stats in tile order: the sum does not depend on which

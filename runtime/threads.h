@@ -66,6 +66,17 @@ typedef void (*frep_par_fn)(void *ctx, int thread, long i0, long i1);
  * started leaves its share to the others.  Returns the threads that ran (>= 1). */
 int frep_par_for(int nt, long n, long chunk, frep_par_fn fn, void *ctx);
 
+/* The work left (node-evaluations, a guess) in a loop of n items of which the calling
+ * thread ran [0, done) alone. */
+typedef double (*frep_par_left_fn)(void *ctx, long done, long n);
+
+/* frep_par_for for a job whose work is known only as it is done (a pruned grid): the
+ * calling thread runs chunks alone and starts the helpers once left() says at least
+ * FREP_PAR_MIN_WORK remains, so a job that never gets there stays on one thread.  left
+ * NULL starts them at once (frep_par_for). */
+int frep_par_for_late(int nt, long n, long chunk, frep_par_fn fn, frep_par_left_fn left,
+                      void *ctx);
+
 /* The calling thread's number in its OpenMP team (0 outside a parallel region). */
 static inline int frep_thread_num(void)
 {

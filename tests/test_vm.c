@@ -918,6 +918,54 @@ static void test_thread_sizing(void)
        "never more threads than units of work");
 }
 
+/* A late loop (frep_par_for_late): items run once each; the calling thread runs them
+ * alone until left() reaches FREP_PAR_MIN_WORK, and a loop whose left() never does
+ * stays on one thread. */
+#define LATE_N 64
+typedef struct late_ctx {
+    int runs[LATE_N], thread[LATE_N];
+    long start_at;     /* left() says enough from this many items done on; -1: never */
+} late_ctx;
+
+static void late_fn(void *ctx, int thread, long i0, long i1)
+{
+    late_ctx *c = ctx;
+    for (long i = i0; i < i1; i++) {
+        c->runs[i]++;
+        c->thread[i] = thread;
+    }
+}
+
+static double late_left(void *ctx, long done, long n)
+{
+    const late_ctx *c = ctx;
+    (void)n;
+    return c->start_at >= 0 && done >= c->start_at ? FREP_PAR_MIN_WORK : 0;
+}
+
+static void test_par_for_late(void)
+{
+    for (int pass = 0; pass < 2; pass++) {
+        late_ctx c;
+        memset(&c, 0, sizeof c);
+        c.start_at = pass ? 5 : -1;
+        int ran = frep_par_for_late(2, LATE_N, 1, late_fn, late_left, &c);
+        int once = 1, early = 1;
+        for (int i = 0; i < LATE_N; i++) {
+            once &= c.runs[i] == 1;
+            if (i < (pass ? 5 : LATE_N)) early &= c.thread[i] == 0;
+        }
+        if (pass == 0) {
+            ok(ran == 1 && once && early,
+               "late loop, left() never enough: one thread ran every item once (%d)", ran);
+        } else {
+            ok(ran == frep_threads(2) && once && early,
+               "late loop: items 0..4 on the calling thread alone, then %d threads, every "
+               "item once", ran);
+        }
+    }
+}
+
 static void test_threads(void)
 {
     /* big enough for 2 threads (FREP_PAR_MIN_WORK) with both programs (19 and 20
@@ -1335,6 +1383,7 @@ int main(void)
     test_slots();
     test_domain_errors();
     test_thread_sizing();
+    test_par_for_late();
     test_threads();
     test_public_api();
     test_work_budget();
