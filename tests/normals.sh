@@ -118,6 +118,32 @@ for noise in 0 0.005; do
     report $? "$name: inward share $2 < $MAX_INWARD, worst face $3 < 0.5 (no face flipped)"
 done
 
+# The cup (tests/normals_cup.hf): an open box with walls 0.11 thick, the thin walls of
+# InverseCSG's nine_cuboids (its hollow cube keeps 8-10% of its normals inward at 0.5%
+# noise).  At 0.5% noise (0.014) the walls are 8 noise deviations thick and both sides
+# stay outward; at 1% (0.028, 4 deviations, as nine_cuboids' walls at 0.5%) the
+# neighbourhoods hold both walls and 14-26% of the points come out inward (seeds 1-3;
+# on nine_cuboids most wrong points lie outside the patches the ray-parity check
+# votes on, oriented along the spanning tree): a TODO until fixed.
+for noise in 0.005 0.01; do
+    name="normals_cup, noise $noise"
+    if ! "$FREP" sample "$(model_path normals_cup)" -n $NPTS --seed 3 --noise $noise -o "$tmp/t.xyz" -q ||
+        ! awk '{ print $1, $2, $3 }' "$tmp/t.xyz" > "$tmp/p.xyz" ||
+        ! "$FREP" normals "$tmp/p.xyz" -o "$tmp/e.xyz" -q 2>"$tmp/err"; then
+        report 1 "$name: frep sample or normals: $(cat "$tmp/err")"
+        continue
+    fi
+    set -- $(measure "$tmp/t.xyz" "$tmp/e.xyz")
+    awk -v s="$2" -v w="$3" -v b="$MAX_INWARD" 'BEGIN { exit !(s < b && w < 0.5) }'
+    st=$?
+    what="$name: inward share $2 < $MAX_INWARD, worst face $3 < 0.5 (no wall flipped)"
+    if [ $noise = 0.005 ]; then
+        report $st "$what"
+    else
+        report_todo $st "$what" "walls 4 noise deviations thick (issue 13)"
+    fi
+done
+
 # The same result at any thread count, and an explicit --knn.
 "$FREP" sample "$M/segment_box.hf" -n 5000 --seed 1 --noise 0.005 -o "$tmp/t.xyz" -q
 awk '{ print $1, $2, $3 }' "$tmp/t.xyz" > "$tmp/p.xyz"
