@@ -1,18 +1,13 @@
 /* cmd_evolve.c - frep evolve: from a point cloud (and optionally its primitives) to a
- * readable .hf construction-tree model, by genetic programming (evolve/evolve.c);
- * segments the cloud first (segment/segment.c) when no primitive list is given.
+ * readable .hf construction-tree model, through the public API (frep_evolve(),
+ * api/api_evolve.c, which segments the cloud first when no primitive list is given):
+ * this file reads the options and the files, prints the progress, the notes and the
+ * summary, collects --trace's lines, and maps Ctrl-C and --max-time to the run's
+ * cancel flag.
  */
 #include "config.h"
 
 #include "cli.h"
-#include "cloud.h"
-#include "evolve.h"
-#include "normals.h"
-#include "refit.h"
-#include "residual.h"
-#include "segment.h"
-#include "buf.h"
-#include "util.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -36,92 +31,51 @@ static const char evolve_usage[] =
     "The same seed gives the same model at any thread count (without --max-time).\n"
     "Ctrl-C stops the run and writes the best model so far.\n\n";
 
-static int write_trace_cb(FILE *f, void *user)
+/* Seconds between progress lines on a terminal. */
+#define EVOLVE_PROGRESS_INTERVAL 0.2
+
+static double now_seconds(void)
 {
-    const frep_buf *t = user;
-    if (t->len) fwrite(t->s, 1, t->len, f);
-    return ferror(f) ? -1 : 0;
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-typedef struct progress_ctx {
-    int tty, quiet;
-    double last;
-    frep_buf *trace;         /* NULL without --trace */
-    double t0;               /* frep_now_seconds() when evolve_run started */
-    clock_t c0;              /* clock() then */
-    int polish;              /* 1 once the merge of a partitioned run was reported */
-    double stop_share;       /* --stop-share: percent; 0: none */
-} progress_ctx;
+/* Text in memory (a model, a drawing, the trace), for cli_write_atomic. */
+typedef struct text_out {
+    const char *text;
+    size_t len;
+} text_out;
 
-static int progress(void *user, const gp_progress *p)
+static int write_text(FILE *f, void *user)
 {
-    progress_ctx *c = user;
-    if (p->phase == GP_PHASE_CLIQUES || p->phase == GP_PHASE_SIMPLIFY) {
-        /* the start of a phase: no --trace line (it has no new tree) */
-        if (c->tty && !c->quiet) {
-            fprintf(stderr, "\rfrep evolve: %s, %.1f s   ",
-                    p->phase == GP_PHASE_CLIQUES ? "evolving a tree per clique"
-                                                 : "simplifying the tree", p->elapsed);
-            fflush(stderr);
+    const text_out *t = user;
+    return fwrite(t->text, 1, t->len, f) == t->len ? 0 : -1;
+}
+
+/* --trace's lines, kept until the files are written. */
+typedef struct trace_buf {
+    char *s;
+    size_t len, cap;
+    int failed;              /* out of memory: lines are missing */
+} trace_buf;
+
+static void trace_append(trace_buf *t, const char *line)
+{
+    size_t n = strlen(line);
+    if (t->failed) return;
+    if (t->len + n + 1 > t->cap) {
+        size_t cap = 2 * t->cap + n + 4096;
+        char *s = realloc(t->s, cap);
+        if (!s) {
+            t->failed = 1;
+            return;
         }
-        return cli_interrupted();
+        t->s = s;
+        t->cap = cap;
     }
-    if (c->trace) {
-        double wall = frep_now_seconds() - c->t0;
-        double cpu = (double)(clock() - c->c0) / CLOCKS_PER_SEC;
-        if (p->phase == GP_PHASE_MERGE) {
-            c->polish = 1;
-            buf_printf(c->trace, "%u %.4f %.4f nan %u - merge\n", p->generation, wall, cpu,
-                      p->best_len);
-        } else {
-            double share = p->npoints
-                               ? 100.0 * (double)p->explained / (double)p->npoints
-                               : 0.0;
-            const char *ph = p->phase == GP_PHASE_MERGED ? "merged"
-                             : p->phase == GP_PHASE_GROWN ? "grown"
-                             : c->polish                  ? "polish"
-                                                          : "ga";
-            buf_printf(c->trace, "%u %.4f %.4f %.10g %u %.3f %s\n", p->generation, wall, cpu,
-                      p->best_fitness, p->best_len, share, ph);
-        }
-    }
-    if (c->tty && !c->quiet && (p->elapsed - c->last >= 0.2 || p->generation == 1)) {
-        c->last = p->elapsed;
-        if (p->phase == GP_PHASE_MERGE || p->phase == GP_PHASE_MERGED)
-            fprintf(stderr, "\rfrep evolve: merging clique trees: tree size %u, %.1f s   ",
-                    p->best_len, p->elapsed);
-        else if (p->phase == GP_PHASE_GROWN)
-            fprintf(stderr, "\rfrep evolve: merged tree grown: tree size %u, %.1f s   ",
-                    p->best_len, p->elapsed);
-        else
-            fprintf(stderr, "\rfrep evolve: generation %u, best fitness %.6g, tree size %u, %.1f s   ",
-                    p->generation, p->best_fitness, p->best_len, p->elapsed);
-        fflush(stderr);
-    }
-    /* --stop-share: a GA phase ends once its best tree explains enough points. */
-    if (c->stop_share > 0 && p->phase == GP_PHASE_GA && p->npoints &&
-        100.0 * (double)p->explained >= c->stop_share * (double)p->npoints)
-        return 1;
-    return cli_interrupted();
-}
-
-typedef struct write_ctx {
-    const evolve_result *r;
-    const prim *prims;
-    size_t nprims;
-    const evolve_meta *m;
-} write_ctx;
-
-static int write_model_cb(FILE *f, void *user)
-{
-    write_ctx *w = user;
-    return evolve_write_model(f, w->r, w->prims, w->nprims, w->m);
-}
-
-static int write_dot_cb(FILE *f, void *user)
-{
-    write_ctx *w = user;
-    return evolve_write_dot(f, w->r, w->prims, w->nprims);
+    memcpy(t->s + t->len, line, n + 1);
+    t->len += n;
 }
 
 static char *join_args(int argc, char **argv)
@@ -144,28 +98,25 @@ static char *join_args(int argc, char **argv)
 
 /* Every step's inputs and results, from the options to the summary. */
 typedef struct evolve_cmd {
-    evolve_options eo;
-    gp_cancel cancel;           /* Ctrl-C: the flag of the signal handler */
+    frep_evolve_options o;
     const char *prims_path, *out, *dot, *residual_path, *trace_path, *view;
-    double stop_share;          /* --stop-share, percent; 0: none */
     int refit, quiet, have_setops, exact, hyperfun;
     const char *cloud_path, *cmdline;
     frep_cloud *cloud;
-    frep_cloud *sub;            /* --residual without -p: the points to segment */
-    prim *prims;                /* from -p (frep_free()) or seg.prims */
-    size_t nprims;
-    segment_result seg;
-    int have_seg;
-    evolve_base base;           /* --residual */
-    frep_program *base_prog;
-    char *base_src;
-    double *base_f, *base_g;
-    uint8_t *mask, *base_ok;     /* base_ok: where the --residual model can be evaluated */
-    progress_ctx pc;
-    frep_buf trace;
-    evolve_result res;
-    char note[256];             /* --refit's figures for the model's comments */
-    frep_error ferr;            /* of the library calls */
+    frep_segmentation *prims;   /* -p's (NULL: segmented by frep_evolve) */
+    frep_program *base_prog;    /* --residual's model, */
+    char *base_src;             /* its text */
+    frep_evolve_base *base;
+    frep_evolution *ev;
+    frep_evolve_info info;
+    trace_buf trace;
+    char *model;                /* the model's text */
+    size_t model_len;
+    char error[1024];           /* frep_evolve's error, printed by stage_evolve */
+    /* progress: on a terminal, the last line's time; a line is open (no newline yet) */
+    int tty, line_open;
+    double last;
+    int phase, segmented;       /* the last step started; segmentation was one */
     size_t knn;                 /* --knn: neighbours for normals; 0: from the data */
     double max_time, t_start;   /* --max-time (0: none) and when the command started */
     const char *cut;            /* the step --max-time cut short; NULL: none */
@@ -173,9 +124,10 @@ typedef struct evolve_cmd {
 
 static int parse_setops(const char *arg, void *dest, char *why, size_t whylen)
 {
-    gp_setops *s = dest;
-    if (strcmp(arg, "minmax") == 0) *s = GP_SETOPS_MINMAX;
-    else if (strcmp(arg, "rfunc") == 0) *s = GP_SETOPS_RFUNC;
+    (void)why, (void)whylen;
+    frep_setops *s = dest;
+    if (strcmp(arg, "minmax") == 0) *s = FREP_SETOPS_MINMAX;
+    else if (strcmp(arg, "rfunc") == 0) *s = FREP_SETOPS_RFUNC;
     else return -1;
     return 0;
 }
@@ -186,16 +138,16 @@ static const cli_opt evolve_opts[] = {
       .help = "primitives: a .hf list written by frep segment, or a .fit list" },
     { 'o', "output", "FILE", CLI_OPT_STRING, OFF(out), .def = "-",
       .help = "model to write (default: standard output)" },
-    { 0, "setops", "S", CLI_OPT_CUSTOM, OFF(eo.gp.setops), .parse = parse_setops,
+    { 0, "setops", "S", CLI_OPT_CUSTOM, OFF(o.setops), .parse = parse_setops,
       .expect = "minmax or rfunc", .help = "minmax (default) or rfunc" },
-    { 0, "partition", NULL, CLI_OPT_SET, OFF(eo.partition),
+    { 0, "partition", NULL, CLI_OPT_SET, OFF(o.partition),
       .help = "partition the overlap graph (default)" },
-    { 0, "no-partition", NULL, CLI_OPT_CLEAR, OFF(eo.partition),
+    { 0, "no-partition", NULL, CLI_OPT_CLEAR, OFF(o.partition),
       .help = "one GA over all primitives" },
-    { 0, "no-polish", NULL, CLI_OPT_CLEAR, OFF(eo.polish),
+    { 0, "no-polish", NULL, CLI_OPT_CLEAR, OFF(o.polish),
       .help = "after partitioning, skip the GA over all primitives seeded\n"
               "with the merged tree" },
-    { 0, "polish-stagnation", "G", CLI_OPT_U32, OFF(eo.polish_stagnation), .lo = 1, .hi = 1e9,
+    { 0, "polish-stagnation", "G", CLI_OPT_U32, OFF(o.polish_stagnation), .lo = 1, .hi = 1e9,
       .help = "stop the polish after G generations without\n"
               "improvement (default 15; at most --stagnation)" },
     { 0, "exact-numbers", NULL, CLI_OPT_SET, OFF(exact),
@@ -206,42 +158,42 @@ static const cli_opt evolve_opts[] = {
       .help = "write pure HyperFun: each primitive as arithmetic of x\n"
               "(planes d - n.x, spheres and cylinders r^2 - distance^2),\n"
               "no frep extension, so the reference HyperFun tools read it" },
-    { 0, "no-support", NULL, CLI_OPT_CLEAR, OFF(eo.support),
+    { 0, "no-support", NULL, CLI_OPT_CLEAR, OFF(o.support),
       .help = "keep material no point supports (by default the final\n"
               "tree is trimmed where its surface runs far from the cloud)" },
-    CLI_OPT_SEED(evolve_cmd, eo.gp.seed, "random seed (default: from the clock; always printed)"),
-    { 0, "generations", "G", CLI_OPT_U32, OFF(eo.gp.generations), .lo = 1, .hi = 1e9,
+    CLI_OPT_SEED(evolve_cmd, o.seed, "random seed (default: from the clock; always printed)"),
+    { 0, "generations", "G", CLI_OPT_U32, OFF(o.generations), .lo = 1, .hi = 1e9,
       .help = "generation limit (default 3000)" },
-    { 0, "stagnation", "G", CLI_OPT_U32, OFF(eo.gp.stagnation), .lo = 0, .hi = 1e9,
+    { 0, "stagnation", "G", CLI_OPT_U32, OFF(o.stagnation), .lo = 0, .hi = 1e9,
       .help = "stop after G generations without improvement (default 40)" },
-    { 0, "population", "P", CLI_OPT_U32, OFF(eo.gp.population), .lo = 1, .hi = 1e6,
+    { 0, "population", "P", CLI_OPT_U32, OFF(o.population), .lo = 1, .hi = 1e6,
       .help = "individuals (default 150)" },
-    { 0, "tournament", "K", CLI_OPT_U32, OFF(eo.gp.tournament), .lo = 1, .hi = 1e6,
+    { 0, "tournament", "K", CLI_OPT_U32, OFF(o.tournament), .lo = 1, .hi = 1e6,
       .help = "tournament size (default 4)" },
-    { 0, "crossover", "R", CLI_OPT_DOUBLE, OFF(eo.gp.p_crossover), .lo = 0, .hi = 1,
+    { 0, "crossover", "R", CLI_OPT_DOUBLE, OFF(o.crossover), .lo = 0, .hi = 1,
       .help = "crossover rate (default 0.3)" },
-    { 0, "mutation", "R", CLI_OPT_DOUBLE, OFF(eo.gp.p_mutation), .lo = 0, .hi = 1,
+    { 0, "mutation", "R", CLI_OPT_DOUBLE, OFF(o.mutation), .lo = 0, .hi = 1,
       .help = "mutation rate (default 0.3)" },
-    { 0, "elite", "E", CLI_OPT_U32, OFF(eo.gp.elite), .lo = 0, .hi = 1e6,
+    { 0, "elite", "E", CLI_OPT_U32, OFF(o.elite), .lo = 0, .hi = 1e6,
       .help = "best individuals kept each generation (default 2)" },
-    { 0, "subtree-prob", "R", CLI_OPT_DOUBLE, OFF(eo.gp.p_subtree), .lo = 0, .hi = 1,
+    { 0, "subtree-prob", "R", CLI_OPT_DOUBLE, OFF(o.subtree_prob), .lo = 0, .hi = 1,
       .help = "probability of an operation node when growing (default 0.7)" },
-    { 0, "max-depth", "D", CLI_OPT_INT, OFF(eo.gp.max_depth), .lo = 1, .hi = GP_MAX_TREE_DEPTH,
+    { 0, "max-depth", "D", CLI_OPT_INT, OFF(o.max_depth), .lo = 1, .hi = FREP_EVOLVE_MAX_DEPTH,
       .help = "maximum tree depth (default: ceil(log2 primitives) + 3)" },
     { 0, "max-time", "T", CLI_OPT_DOUBLE, OFF(max_time), .lo = 0, .hi = 1e9,
       .help = "stop after T seconds of wall time in all (normals,\n"
               "segmentation, GA) and write the best tree so far" },
     CLI_OPT_KNN(evolve_cmd, knn),
-    { 0, "epsilon", "E", CLI_OPT_DOUBLE, OFF(eo.eps_rel), .lo = 1e-9, .hi = 1,
+    { 0, "epsilon", "E", CLI_OPT_DOUBLE, OFF(o.epsilon), .lo = 1e-9, .hi = 1,
       .help = "distance tolerance as a fraction of the diagonal (default 0.01)" },
-    { 0, "alpha", "DEG", CLI_OPT_DOUBLE, OFF(eo.alpha_deg), .lo = 0.01, .hi = 180,
+    { 0, "alpha", "DEG", CLI_OPT_DOUBLE, OFF(o.alpha_deg), .lo = 0.01, .hi = 180,
       .help = "normal tolerance in degrees (default: automatic, 35 when the\n"
               "cloud is noisy or faceted against the primitives, else 10)" },
-    { 0, "lambda-scale", "K", CLI_OPT_DOUBLE, OFF(eo.lambda_scale), .lo = 0, .hi = 1e6,
+    { 0, "lambda-scale", "K", CLI_OPT_DOUBLE, OFF(o.lambda_scale), .lo = 0, .hi = 1e6,
       .help = "size penalty K*ln(N) per node (default 1)" },
-    { 0, "sample", "N", CLI_OPT_SIZE, OFF(eo.sample), .lo = 0, .hi = 1e12,
+    { 0, "sample", "N", CLI_OPT_SIZE, OFF(o.sample), .lo = 0, .hi = 1e12,
       .help = "points the GA scores (default 4096; 0: all)" },
-    { 0, "no-simplify", NULL, CLI_OPT_CLEAR, OFF(eo.simplify), .help = "keep the tree as evolved" },
+    { 0, "no-simplify", NULL, CLI_OPT_CLEAR, OFF(o.simplify), .help = "keep the tree as evolved" },
     { 0, "dot", "FILE", CLI_OPT_STRING, OFF(dot), .help = "also write the tree for Graphviz" },
     { 0, "view", "HTML", CLI_OPT_STRING, OFF(view),
       .help = "also write the page of the model and the cloud (frep view)" },
@@ -249,7 +201,7 @@ static const cli_opt evolve_opts[] = {
       .help = "write one line per generation: generation, wall and CPU\n"
               "seconds since the start, best fitness, tree size, % of the\n"
               "scored points the best tree explains, phase" },
-    { 0, "stop-share", "P", CLI_OPT_DOUBLE, OFF(stop_share), .lo = 0, .hi = 100,
+    { 0, "stop-share", "P", CLI_OPT_DOUBLE, OFF(o.stop_share), .lo = 0, .hi = 100,
       .help = "end a GA phase once its best tree explains P% of the scored\n"
               "points (time-to-solution measurements)" },
     { 0, "residual", "MODEL", CLI_OPT_STRING, OFF(residual_path),
@@ -260,20 +212,20 @@ static const cli_opt evolve_opts[] = {
       .help = "refine the parameters of the tree's primitives together on\n"
               "every point (frep fit's Levenberg-Marquardt) and report the\n"
               "RMS distance before and after" },
-    CLI_OPT_THREADS(evolve_cmd, eo.gp.threads, "OpenMP threads"),
+    CLI_OPT_THREADS(evolve_cmd, o.nthreads, "OpenMP threads"),
     CLI_OPT_QUIET(evolve_cmd, quiet, "no progress and no summary"),
 };
 #undef OFF
 static const cli_opt_spec evolve_spec = { "evolve", evolve_usage, evolve_opts,
                                           sizeof evolve_opts / sizeof evolve_opts[0], 24 };
 
-static const char *setops_name(gp_setops s)
+static const char *setops_name(frep_setops s)
 {
-    return s == GP_SETOPS_RFUNC ? "rfunc" : "minmax";
+    return s == FREP_SETOPS_RFUNC ? "rfunc" : "minmax";
 }
 
 /* Options -> one CLOUD; the settings the options imply (seed from the clock, automatic
- * alpha unless --alpha, lambda 0 as no penalty, the OpenMP default from -t). */
+ * alpha unless --alpha, the OpenMP default from -t). */
 static int stage_options(evolve_cmd *e, int argc, char **argv)
 {
     cli_args args;
@@ -281,275 +233,178 @@ static int stage_options(evolve_cmd *e, int argc, char **argv)
     if (rc != CLI_GO_ON) return rc;
     if (args.n != 1) return cli_usage_error("evolve", args.n < 1 ? "missing CLOUD" : "one CLOUD expected");
     e->cloud_path = args.v[0];
-    e->t_start = frep_now_seconds();
+    e->t_start = now_seconds();
     if (e->max_time > 0 && cli_deadline_arm(e->max_time))
         return cli_usage_error("evolve", "--max-time: cannot set a timer");
-    evolve_options *eo = &e->eo;
-    if (eo->gp.p_crossover + eo->gp.p_mutation > 1)
+    frep_evolve_options *o = &e->o;
+    if (o->crossover + o->mutation > 1)
         return cli_usage_error("evolve", "--crossover + --mutation must not exceed 1");
     e->have_setops = cli_opt_given(&evolve_spec, &args, "setops");
-    if (cli_opt_given(&evolve_spec, &args, "alpha")) eo->alpha_auto = 0;
-    if (!cli_opt_given(&evolve_spec, &args, "seed")) eo->gp.seed = (uint64_t)time(NULL);
-    if (eo->lambda_scale == 0) eo->lambda_scale = 1e-12;  /* 0 asks for no penalty */
+    if (!cli_opt_given(&evolve_spec, &args, "alpha")) o->alpha_deg = 0;  /* automatic */
+    if (!cli_opt_given(&evolve_spec, &args, "seed")) o->seed = (uint64_t)time(NULL);
+    o->knn = e->knn;
+    o->refit = e->refit;
 #ifdef _OPENMP
     /* -t also bounds the parallel loops that take no thread count (the primitive
      * caches' tables), so that -t 1 runs on one core. */
-    if (eo->gp.threads > 0) omp_set_num_threads(eo->gp.threads);
+    if (o->nthreads > 0) omp_set_num_threads(o->nthreads);
 #endif
     return CLI_GO_ON;
 }
 
-/* Normals for the GA: estimated when the cloud has none (or only zero-length ones). */
-static int ensure_normals(evolve_cmd *e)
+/* End a progress line on the terminal before another message. */
+static void end_line(evolve_cmd *e)
 {
-    frep_cloud *c = e->cloud;
-    if (c->has_normals && cloud_normalize_normals(c) != c->n) return CLI_OK;
-    normals_config nc;
-    normals_config_init(&nc);
-    nc.knn = e->knn;
-    nc.nthreads = e->eo.gp.threads;
-    nc.interrupt = cli_sigint_catch();
-    normals_info info;
-    int rc = normals_run(c, &nc, &info);
-    if (rc < 0) {
-        fprintf(stderr, "frep evolve: out of memory estimating normals\n");
-        return CLI_FAIL;
-    }
-    if (rc > 0) {
-        if (cli_deadline_passed())
-            fprintf(stderr, "frep evolve: --max-time %g s reached while estimating normals: "
-                            "no model, nothing written\n", e->max_time);
-        return CLI_FAIL;
-    }
-    if (!e->quiet)
-        fprintf(stderr, "frep evolve: the cloud has no normals: estimated them (%zu neighbours%s, "
-                        "noise %.3g, spacing %.3g)\n", info.knn, e->knn ? "" : ", auto",
-                info.noise, info.spacing);
-    return CLI_OK;
+    if (!e->line_open) return;
+    fputc('\n', stderr);
+    e->line_open = 0;
 }
 
-/* The cloud read; normals are needed before the GA, and before the residual is known. */
+/* Messages of the library calls outside the run: "frep evolve: MESSAGE". */
+static void print_diag(void *user, const frep_diag *d)
+{
+    (void)user;
+    fprintf(stderr, "frep evolve: %s\n", d->message);
+}
+
+/* The run's messages: notes unless -q, warnings; the error kept for stage_evolve. */
+static void run_diag(void *user, const frep_diag *d)
+{
+    evolve_cmd *e = user;
+    if (d->severity == FREP_ERROR) {
+        snprintf(e->error, sizeof e->error, "%s", d->message);
+        return;
+    }
+    if (d->severity == FREP_NOTE && e->quiet) return;
+    end_line(e);
+    fprintf(stderr, "frep evolve: %s\n", d->message);
+}
+
+/* The cloud read and checked. */
 static int stage_cloud(evolve_cmd *e)
 {
-    e->cloud = cloud_read(e->cloud_path, &e->ferr);
-    if (!e->cloud) {
-        fprintf(stderr, "frep evolve: %s\n", e->ferr.msg[0] ? e->ferr.msg : "cannot read the cloud");
-        return CLI_FAIL;
-    }
-    if (!e->quiet) fprintf(stderr, "frep evolve: %zu points, seed %llu\n", e->cloud->n,
-                           (unsigned long long)e->eo.gp.seed);
-    if (e->cloud->n == 0) {
+    e->cloud = frep_cloud_read(e->cloud_path, print_diag, e);
+    if (!e->cloud) return CLI_FAIL;
+    size_t n = frep_cloud_size(e->cloud);
+    if (!e->quiet) fprintf(stderr, "frep evolve: %zu points, seed %llu\n", n,
+                           (unsigned long long)e->o.seed);
+    if (n == 0) {
         fprintf(stderr, "frep evolve: %s: no points\n", e->cloud_path);
         return CLI_FAIL;
     }
-    if (cloud_check_scale(e->cloud, e->cloud_path, &e->ferr)) {
-        fprintf(stderr, "frep evolve: %s\n", e->ferr.msg);
-        return CLI_FAIL;
-    }
-    if (cli_check_cloud("evolve", e->cloud_path, e->cloud, 1) != CLI_OK) return CLI_FAIL;
-    if (e->prims_path || e->residual_path) return ensure_normals(e);
-    return CLI_OK;
+    return cli_check_cloud("evolve", e->cloud_path, e->cloud, 1);
 }
 
-static int out_of_memory(void)
+/* --residual: the model compiled and prepared; the tree takes its set operations. */
+static int stage_base(evolve_cmd *e)
 {
-    fprintf(stderr, "frep evolve: out of memory\n");
-    return CLI_FAIL;
-}
-
-/* The points the base model explains poorly, as a cloud to segment. */
-static int residual_cloud(evolve_cmd *e, size_t nres)
-{
-    const frep_cloud *c = e->cloud;
-    e->sub = cloud_new(1);
-    if (!e->sub || cloud_reserve(e->sub, nres ? nres : 1)) return out_of_memory();
-    for (size_t i = 0; i < c->n; i++)
-        if (e->mask[i]) {
-            double p[3] = { c->x[i], c->y[i], c->z[i] };
-            double q[3] = { c->nx[i], c->ny[i], c->nz[i] };
-            cloud_push(e->sub, p, q);
-        }
-    return CLI_OK;
-}
-
-/* --residual: the base model evaluated at every point; the GA runs for the points it
- * explains poorly, which are segmented on their own when no -p is given. */
-static int stage_residual(evolve_cmd *e)
-{
-    evolve_options *eo = &e->eo;
     e->base_prog = cli_compile_file(e->residual_path, NULL, NULL, 0, -1, 0, &e->base_src);
     if (!e->base_prog) return CLI_FAIL;
-    frep_error_init(&e->ferr);
-    if (residual_prepare(e->residual_path, e->base_src, strlen(e->base_src), NULL, e->base_prog,
-                         &e->base, &e->ferr)) {
-        fprintf(stderr, "frep evolve: %s\n", e->ferr.msg[0] ? e->ferr.msg : "cannot use the model");
-        return CLI_FAIL;
-    }
-    if (e->have_setops && eo->gp.setops != e->base.setops) {
+    e->base = frep_evolve_base_new(e->base_prog, e->residual_path, e->base_src,
+                                   strlen(e->base_src), NULL, print_diag, e);
+    if (!e->base) return CLI_FAIL;
+    frep_setops s = frep_evolve_base_setops(e->base);
+    if (e->have_setops && e->o.setops != s) {
         fprintf(stderr, "frep evolve: --setops %s disagrees with %s, which uses %s: the "
                         "joined model has one family\n",
-                setops_name(eo->gp.setops), e->residual_path, setops_name(e->base.setops));
+                setops_name(e->o.setops), e->residual_path, setops_name(s));
         return CLI_FAIL;
     }
-    eo->gp.setops = e->base.setops;
-    size_t N = e->cloud->n, nbad = 0, nres = 0;
-    e->base_f = malloc(N * sizeof *e->base_f);
-    e->base_g = malloc(3 * N * sizeof *e->base_g);
-    e->mask = malloc(N);
-    e->base_ok = malloc(N);
-    if (!e->base_f || !e->base_g || !e->mask || !e->base_ok ||
-        residual_eval(&e->base, e->cloud, eo->gp.threads, e->base_f, e->base_g, e->base_ok,
-                      &nbad))
-        return out_of_memory();
-    if (nbad && !e->quiet)
-        fprintf(stderr, "frep evolve: %s cannot be evaluated at %zu points (treated as "
-                        "unexplained)\n", e->residual_path, nbad);
-    eo->base_f = e->base_f;
-    eo->base_g = e->base_g;
-    eo->base_ok = e->base_ok;
-    if (evolve_residual_points(eo, e->cloud, e->mask, &nres)) return out_of_memory();
-    if (!e->quiet)
-        fprintf(stderr, "frep evolve: %s explains %zu of %zu points; evolving for the %zu others\n",
-                e->residual_path, N - nres, N, nres);
-    return e->prims_path ? CLI_OK : residual_cloud(e, nres);
-}
-
-/* Without -p: segment the cloud (or the residual points) with frep segment's defaults. */
-static int segment_prims(evolve_cmd *e)
-{
-    segment_config sc;
-    segment_config_init(&sc);
-    sc.seed = e->eo.gp.seed;
-    sc.nthreads = e->eo.gp.threads;
-    sc.interrupt = e->cancel.flag;
-    sc.knn = e->knn;
-    int failed = segment_run(e->sub ? e->sub : e->cloud, &sc, &e->seg, &e->ferr);
-    if (cli_deadline_passed()) e->cut = "segmentation";
-    if (failed) {
-        if (!e->residual_path) {
-            fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path,
-                    e->ferr.msg[0] ? e->ferr.msg : "segmentation failed");
-            return CLI_FAIL;
-        }
-        /* Too few residual points to segment: the result is the base model. */
-        if (!e->quiet)
-            fprintf(stderr, "frep evolve: the residual points give no primitive (%s)\n",
-                    e->ferr.msg[0] ? e->ferr.msg : "segmentation failed");
-        return CLI_OK;
-    }
-    e->have_seg = 1;
-    e->prims = e->seg.prims;
-    e->nprims = e->seg.nprims;
-    if (!e->quiet)
-        fprintf(stderr, "frep evolve: segmented%s: %zu primitives (%zu fitted, %zu separating)%s\n",
-                e->sub ? " the residual" : "", e->seg.nprims, e->seg.nfitted,
-                e->seg.nprims - e->seg.nfitted, e->seg.normals_estimated ? ", normals estimated" : "");
+    e->o.base = e->base;
     return CLI_OK;
 }
 
-/* The primitives to combine: -p's list, or found by segmentation. */
-static int stage_prims(evolve_cmd *e)
+/* --trace: the run's lines kept. */
+static void trace_cb(void *user, const char *line)
 {
-    int rc = CLI_OK;
-    if (e->prims_path) {
-        if (segment_read_prims(e->prims_path, &e->prims, &e->nprims, &e->ferr)) {
-            fprintf(stderr, "frep evolve: %s\n", e->ferr.msg[0] ? e->ferr.msg : "cannot read the primitives");
-            return CLI_FAIL;
-        }
-        rc = ensure_normals(e);
-    } else if (!e->residual_path || e->sub->n > 0) {
-        /* --knn auto: the normals are estimated here, segment_run's default is fixed. */
-        if (!e->sub && !e->cloud->has_normals && e->knn == 0) rc = ensure_normals(e);
-        if (rc == CLI_OK) rc = segment_prims(e);
-    }
-    if (rc == CLI_OK && e->nprims == 0 && !e->residual_path && e->cut) {
-        fprintf(stderr, "frep evolve: --max-time %g s reached during segmentation before any "
-                        "primitive was found: nothing written\n", e->max_time);
-        return CLI_FAIL;
-    }
-    if (rc == CLI_OK && e->nprims == 0 && !e->residual_path) {
-        fprintf(stderr, "frep evolve: no primitives to combine%s\n",
-                e->prims_path ? "" : " (segmentation found none; try frep segment with other settings)");
-        return CLI_FAIL;
-    }
-    return rc;
+    evolve_cmd *e = user;
+    trace_append(&e->trace, line);
 }
 
-/* --trace's header lines. */
-static void trace_header(frep_buf *t, uint64_t seed)
+/* One line of progress on a terminal; the step that --max-time cut short. */
+static void progress(void *user, const frep_evolve_progress *p)
 {
-    buf_printf(t, "# frep evolve trace, seed %llu\n", (unsigned long long)seed);
-    buf_printf(t, "# columns: generation, wall and CPU (process) seconds since the "
-                  "start of the run, best fitness, tree size,\n");
-    buf_printf(t, "# %% of the scored points the best tree explains, phase (ga: the "
-                  "GA; merge: merging clique trees;\n");
-    buf_printf(t, "# merged: the merged tree; grown: after the growth steps; polish: "
-                  "the GA seeded with it)\n");
+    evolve_cmd *e = user;
+    if (p->phase >= FREP_EVOLVE_NORMALS) {
+        if (p->phase == FREP_EVOLVE_SEGMENT) e->segmented = 1;
+        if (p->phase == FREP_EVOLVE_SEARCH && e->segmented && cli_deadline_passed())
+            e->cut = "segmentation";
+        e->phase = p->phase;
+        return;
+    }
+    if (!e->tty || e->quiet) return;
+    if (p->phase == FREP_EVOLVE_CLIQUES || p->phase == FREP_EVOLVE_SIMPLIFY) {
+        fprintf(stderr, "\rfrep evolve: %s, %.1f s   ",
+                p->phase == FREP_EVOLVE_CLIQUES ? "evolving a tree per clique"
+                                                : "simplifying the tree", p->elapsed);
+    } else if (p->elapsed - e->last >= EVOLVE_PROGRESS_INTERVAL || p->generation == 1) {
+        e->last = p->elapsed;
+        if (p->phase == FREP_EVOLVE_MERGE || p->phase == FREP_EVOLVE_MERGED)
+            fprintf(stderr, "\rfrep evolve: merging clique trees: tree size %u, %.1f s   ",
+                    p->tree_size, p->elapsed);
+        else if (p->phase == FREP_EVOLVE_GROWN)
+            fprintf(stderr, "\rfrep evolve: merged tree grown: tree size %u, %.1f s   ",
+                    p->tree_size, p->elapsed);
+        else
+            fprintf(stderr, "\rfrep evolve: generation %u, best fitness %.6g, tree size %u, %.1f s   ",
+                    p->generation, p->best_fitness, p->tree_size, p->elapsed);
+    } else {
+        return;
+    }
+    fflush(stderr);
+    e->line_open = 1;
+}
+
+/* Why the run gave no model: --max-time, Ctrl-C (said by the caller) or an error. */
+static void report_failure(const evolve_cmd *e)
+{
+    if (cli_deadline_passed() && e->phase == FREP_EVOLVE_NORMALS)
+        fprintf(stderr, "frep evolve: --max-time %g s reached while estimating normals: "
+                        "no model, nothing written\n", e->max_time);
+    else if (cli_deadline_passed() && e->phase == FREP_EVOLVE_SEGMENT)
+        fprintf(stderr, "frep evolve: --max-time %g s reached during segmentation before any "
+                        "primitive was found: nothing written\n", e->max_time);
+    else if (!cli_interrupted())
+        fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path, e->error[0] ? e->error : "failed");
 }
 
 /* The automatic alpha and the noise estimate behind it. */
-static void report_alpha(const evolve_result *res)
+static void report_alpha(const frep_evolve_info *in)
 {
-    double deg = res->alpha * 180 / FREP_PI;
     fprintf(stderr, "frep evolve: alpha %g degrees (automatic: %s; position spread %.3g eps, "
                     "normal deviation median %.2g, 90th percentile %.2g degrees over %zu "
                     "inliers; --alpha overrides)\n",
-            deg, deg > EVOLVE_DEFAULT_ALPHA_DEG ? "noisy or faceted" : "clean",
-            res->noise.sigma_d, res->noise.median_deg, res->noise.p90_deg, res->noise.inliers);
+            in->alpha_deg, in->noisy ? "noisy or faceted" : "clean", in->noise_spread,
+            in->noise_median_deg, in->noise_p90_deg, in->noise_inliers);
 }
 
-/* The GA (evolve/evolve.c) with progress, --trace and --stop-share; Ctrl-C keeps the
- * best tree so far. */
+/* frep_evolve with progress, --trace and --stop-share; Ctrl-C and --max-time raise
+ * the run's cancel flag, which keeps the best tree so far. */
 static int stage_evolve(evolve_cmd *e)
 {
-    progress_ctx *pc = &e->pc;
-    pc->tty = isatty(2);
-    pc->quiet = e->quiet;
-    pc->last = -1;
-    pc->stop_share = e->stop_share;
-    if (e->stop_share > 0) e->eo.gp.report_explained = 1;
-    if (e->trace_path) {
-        pc->trace = &e->trace;
-        e->eo.gp.report_explained = 1;
-        trace_header(&e->trace, e->eo.gp.seed);
-    }
-    pc->t0 = frep_now_seconds();
-    pc->c0 = clock();
-    /* --max-time bounds the whole command: the GA gets what is left. */
-    if (e->max_time > 0) e->eo.gp.max_time = fmax(e->max_time - (pc->t0 - e->t_start), 1e-3);
-    cli_sigint_catch();
-    frep_error_init(&e->ferr);
-    int r = evolve_run(&e->eo, e->cloud, e->prims, e->nprims, progress, pc, &e->res, &e->ferr);
-    if (!e->cut && (cli_deadline_passed() ||
-                    (e->max_time > 0 && frep_now_seconds() - e->t_start >= e->max_time)))
-        e->cut = "the GA";
+    frep_evolve_options *o = &e->o;
+    e->tty = isatty(2);
+    e->last = -1;
+    e->phase = -1;
+    o->progress = progress;
+    o->user = e;
+    if (e->trace_path) o->trace = trace_cb;
+    /* --max-time bounds the whole command: the run gets what is left. */
+    if (e->max_time > 0) o->max_time = fmax(e->max_time - (now_seconds() - e->t_start), 1e-3);
+    o->cancel_flag = cli_sigint_catch();
+    e->ev = frep_evolve(e->cloud, e->prims, o, run_diag, e);
     cli_sigint_restore();
-    if (pc->tty && !e->quiet) fputc('\n', stderr);
-    if (r) {
-        fprintf(stderr, "frep evolve: %s: %s\n", e->cloud_path,
-                e->ferr.msg[0] ? e->ferr.msg : "failed");
+    end_line(e);
+    if (!e->ev) {
+        report_failure(e);
         return CLI_FAIL;
     }
-    if (e->res.alpha_auto && !e->quiet) report_alpha(&e->res);
+    frep_evolution_get_info(e->ev, &e->info);
+    if (!e->cut && (cli_deadline_passed() ||
+                    (e->max_time > 0 && now_seconds() - e->t_start >= e->max_time)))
+        e->cut = "the GA";
+    if (e->info.alpha_auto && !e->quiet) report_alpha(&e->info);
     return CLI_OK;
-}
-
-/* --refit: the primitives' parameters refined together; a failure keeps them. */
-static void stage_refit(evolve_cmd *e)
-{
-    evolve_refit_info ri;
-    frep_error_init(&e->ferr);
-    if (evolve_refit(&e->eo, e->cloud, e->prims, e->nprims, e->residual_path ? &e->base : NULL,
-                     &e->res, &ri, &e->ferr)) {
-        fprintf(stderr, "frep evolve: --refit: %s (the model keeps the parameters as "
-                        "segmented)\n", e->ferr.msg[0] ? e->ferr.msg : "failed");
-    } else if (ri.nparams) {
-        snprintf(e->note, sizeof e->note,
-                 "refit: %zu parameters, RMS distance %.6g -> %.6g, max %.6g -> %.6g, %.2f s",
-                 ri.nparams, ri.rms_before, ri.rms_after, ri.max_before, ri.max_after,
-                 ri.seconds);
-        if (!e->quiet) fprintf(stderr, "frep evolve: %s\n", e->note);
-    }
 }
 
 static double percent(size_t k, size_t n)
@@ -557,76 +412,72 @@ static double percent(size_t k, size_t n)
     return n ? 100.0 * (double)k / (double)n : 0;
 }
 
-/* The model, --dot and --trace, each atomically. */
+/* The model, --dot, --view and --trace, each atomically. */
 static int stage_write(evolve_cmd *e)
 {
-    evolve_meta meta = { e->cmdline, e->cloud_path, e->eo.gp.seed, e->eo.gp.setops,
-                         e->residual_path ? &e->base : NULL, e->note[0] ? e->note : NULL,
-                         e->cloud, e->exact, e->hyperfun };
-    write_ctx w = { &e->res, e->prims, e->nprims, &meta };
-    if (cli_write_atomic(e->out, write_model_cb, &w)) return CLI_FAIL;
-    if (e->dot && cli_write_atomic(e->dot, write_dot_cb, &w)) return CLI_FAIL;
+    e->model = frep_evolution_model(e->ev, e->cmdline, e->cloud_path, e->exact, e->hyperfun,
+                                    &e->model_len, print_diag, e);
+    if (!e->model) return CLI_FAIL;
+    text_out m = { e->model, e->model_len };
+    if (cli_write_atomic(e->out, write_text, &m)) return CLI_FAIL;
+    if (e->dot) {
+        size_t len = 0;
+        char *dot = frep_evolution_dot(e->ev, &len, print_diag, e);
+        text_out d = { dot, len };
+        int rc = dot ? cli_write_atomic(e->dot, write_text, &d) : -1;
+        frep_free(dot);
+        if (rc) return CLI_FAIL;
+    }
     cli_view_job vj = { "evolve", e->view, strcmp(e->out, "-") ? e->out : NULL, NULL,
-                        e->cloud_path, write_model_cb, &w, NULL, 0, e->eo.gp.threads, e->quiet };
+                        e->cloud_path, write_text, &m, NULL, 0, e->o.nthreads, e->quiet };
     if (e->view && cli_view_result(&vj) != CLI_OK) return CLI_FAIL;
     if (!e->trace_path) return CLI_OK;
-    const evolve_result *res = &e->res;
-    buf_printf(&e->trace, "# end: %.4f s wall, %.4f s CPU, %u nodes, %.3f%% of %zu points "
-                          "explained (every point, after simplification)%s\n",
-               frep_now_seconds() - e->pc.t0, (double)(clock() - e->pc.c0) / CLOCKS_PER_SEC,
-               res->tree.len,
-               percent(res->stats.explained, res->npoints), res->npoints,
-               e->trace.failed ? "; out of memory: lines missing" : "");
-    return cli_write_atomic(e->trace_path, write_trace_cb, &e->trace) ? CLI_FAIL : CLI_OK;
+    if (e->trace.failed)
+        fprintf(stderr, "frep evolve: out of memory: --trace lines missing\n");
+    text_out t = { e->trace.s ? e->trace.s : "", e->trace.len };
+    return cli_write_atomic(e->trace_path, write_text, &t) ? CLI_FAIL : CLI_OK;
 }
 
 /* The summary on stderr. */
 static void stage_report(const evolve_cmd *e)
 {
-    const evolve_result *res = &e->res;
+    const frep_evolve_info *in = &e->info;
     fprintf(stderr,
             "frep evolve: seed %llu: tree of %u nodes, %.2f%% of %zu points explained "
             "(%.2f%% within epsilon, %.2f%% normals), %s, %u generations, %.2f s\n",
-            (unsigned long long)e->eo.gp.seed, res->tree.len,
-            percent(res->stats.explained, res->npoints), res->npoints,
-            percent(res->stats.within_eps, res->npoints), percent(res->stats.normals_ok, res->npoints),
-            res->partitioned ? "partitioned" : "not partitioned", res->generations, res->seconds);
-    if (res->dropped)
+            (unsigned long long)e->o.seed, in->tree_size,
+            percent(in->explained, in->npoints), in->npoints,
+            percent(in->within_eps, in->npoints), percent(in->normals_ok, in->npoints),
+            in->partitioned ? "partitioned" : "not partitioned", in->generations, in->seconds);
+    if (in->dropped)
         fprintf(stderr, "frep evolve: %zu points without finite coordinates or normal ignored\n",
-                res->dropped);
+                in->dropped);
 }
 
 static void evolve_cmd_free(evolve_cmd *e)
 {
-    buf_free(&e->trace);
-    if (e->have_seg) segment_result_free(&e->seg);
-    else frep_free(e->prims);
-    evolve_result_free(&e->res);
-    residual_free(&e->base);
+    free(e->trace.s);
+    frep_free(e->model);
+    frep_evolution_free(e->ev);
+    frep_segmentation_free(e->prims);
+    frep_evolve_base_free(e->base);
     frep_program_free(e->base_prog);
     free(e->base_src);
-    free(e->base_f);
-    free(e->base_g);
-    free(e->mask);
-    free(e->base_ok);
-    cloud_free(e->sub);
-    cloud_free(e->cloud);
+    frep_cloud_free(e->cloud);
 }
 
-/* cloud -> [residual] -> primitives -> GA -> [refit] -> files -> summary */
+/* cloud -> [base] -> [primitives] -> run -> files -> summary */
 static int evolve_steps(evolve_cmd *e)
 {
     int rc = stage_cloud(e);
-    if (rc == CLI_OK && e->residual_path) rc = stage_residual(e);
-    /* From the segmentation on, Ctrl-C stops the phase running and the best tree so
-     * far is written (gp.h says which steps are skipped). */
-    e->cancel.flag = cli_sigint_catch();
-    e->eo.gp.cancel = &e->cancel;
-    if (rc == CLI_OK) rc = stage_prims(e);
+    if (rc == CLI_OK && e->residual_path) rc = stage_base(e);
+    if (rc == CLI_OK && e->prims_path) {
+        e->prims = frep_segmentation_read(e->prims_path, print_diag, e);
+        if (!e->prims) rc = CLI_FAIL;
+    }
     if (rc == CLI_OK) rc = stage_evolve(e);
     if (rc != CLI_OK)
         return cli_interrupted() ? cli_interrupt_status("evolve", "nothing written") : rc;
-    if (e->refit && !cli_interrupted() && !e->cut) stage_refit(e);
     if (e->cut && !e->quiet)
         fprintf(stderr, "frep evolve: --max-time %g s reached during %s: %s\n", e->max_time,
                 e->cut, strcmp(e->cut, "segmentation") == 0
@@ -642,8 +493,11 @@ static int evolve_steps(evolve_cmd *e)
 int cmd_evolve(int argc, char **argv)
 {
     evolve_cmd *e = calloc(1, sizeof *e);
-    if (!e) return out_of_memory();
-    evolve_options_init(&e->eo);
+    if (!e) {
+        fprintf(stderr, "frep evolve: out of memory\n");
+        return CLI_FAIL;
+    }
+    frep_evolve_options_init(&e->o);
     /* getopt_long permutes argv: keep the command line as typed for the model. */
     char *cmdline = join_args(argc, argv);
     e->cmdline = cmdline;

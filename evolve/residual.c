@@ -207,7 +207,7 @@ static int residual_signature(const ast_model *m, const char *newname, const cha
 }
 
 int residual_prepare(const char *file, const char *src, size_t len, const char *model,
-                     frep_program *prog, evolve_base *b, frep_error *err)
+                     const frep_program *prog, evolve_base *b, frep_error *err)
 {
     memset(b, 0, sizeof *b);
     b->prog = prog;

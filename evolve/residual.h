@@ -29,7 +29,7 @@ typedef struct evolve_base {
     char *header;       /* parameter list for the joined model, e.g. "x[3], a[2]" */
     char *call;         /* the call of the base model from the joined one, "base(x, a)" */
     gp_setops setops;   /* the family its file uses (the evolved tree must match) */
-    frep_program *prog; /* compiled from the original source (not owned) */
+    const frep_program *prog; /* compiled from the original source (not owned) */
 } evolve_base;
 
 /* Prepare the base model from its source (it must compile: prog is its program, with
@@ -38,7 +38,7 @@ typedef struct evolve_base {
  * ("file:line: what", FREP_EINPUT), out of memory (FREP_ENOMEM). Free with
  * residual_free(). */
 int residual_prepare(const char *file, const char *src, size_t len, const char *model,
-                     frep_program *prog, evolve_base *b, frep_error *err);
+                     const frep_program *prog, evolve_base *b, frep_error *err);
 void residual_free(evolve_base *b);
 
 /* Values f[i] and gradients g[3i+c] of the base model at every cloud point, and ok[i]:

@@ -635,17 +635,52 @@ int frep_image_write_png(const frep_image *img, const char *path, frep_diag_fn d
 
 /* ---- construction trees (frep evolve) ---- */
 
+/* Limits of a run. */
+#define FREP_EVOLVE_MAX_DEPTH 1024   /* frep_evolve_options.max_depth at most */
+
+/* What a progress report is about (frep_evolve_progress.phase).  Reports of phases
+ * FREP_EVOLVE_CLIQUES and later mark the start of a step: they carry no tree. */
+typedef enum frep_evolve_phase {
+    FREP_EVOLVE_GA,          /* a generation of a GA (the whole run's, or the polish) */
+    FREP_EVOLVE_MERGE,       /* two clique trees merged (best_fitness NaN: a partial tree) */
+    FREP_EVOLVE_MERGED,      /* the merged, simplified tree on the whole sample */
+    FREP_EVOLVE_GROWN,       /* the merged tree after the growth steps */
+    FREP_EVOLVE_CLIQUES,     /* the clique GAs of a partitioned run start */
+    FREP_EVOLVE_SIMPLIFY,    /* the final tree's simplification starts */
+    FREP_EVOLVE_NORMALS,     /* normal estimation starts (a cloud without normals) */
+    FREP_EVOLVE_SEGMENT,     /* segmentation starts (no primitives given) */
+    FREP_EVOLVE_SEARCH       /* the search starts: primitives known, the clock of
+                                elapsed, max_time's GA share and the trace set */
+} frep_evolve_phase;
+
 typedef struct frep_evolve_progress {
-    int phase;               /* 0 a GA generation, 1 clique trees being merged, 2 the
-                                merged tree, 3 the merged tree grown, 4 the clique GAs
-                                start, 5 the final tree's simplification starts */
+    int phase;               /* a frep_evolve_phase */
     uint32_t generation;
-    double best_fitness;     /* NaN while merging */
+    double best_fitness;     /* NaN while merging and in the start reports */
     uint32_t tree_size;      /* nodes of the best tree */
     size_t explained, npoints; /* scored points the best tree explains (with
                                 report_explained; else 0 and 0) */
-    double elapsed;          /* seconds since the GA started */
+    double elapsed;          /* seconds since the search started (0 before) */
 } frep_evolve_progress;
+
+/* A model the evolved tree is joined to (frep evolve --residual MODEL): the tree is
+ * evolved for the points the model explains poorly, with the model as one more leaf,
+ * and the result's model file holds the model's source and the joined model
+ * my_model. */
+typedef struct frep_evolve_base frep_evolve_base;
+
+/* The base from the program p and the text (len bytes) it was compiled from, called
+ * `file` in messages; model: the model compiled (NULL: the default choice, as
+ * frep_compile_options.model).  Its set operations must be min/max or R-functions.
+ * p must outlive the base, and the base every evolution that uses it.  Free with
+ * frep_evolve_base_free(). */
+frep_evolve_base *frep_evolve_base_new(const frep_program *p, const char *file,
+                                       const char *text, size_t len, const char *model,
+                                       frep_diag_fn diag, void *user);
+void frep_evolve_base_free(frep_evolve_base *b);
+/* The set operations of the base's file: the evolved tree uses them whatever
+ * frep_evolve_options.setops says. */
+frep_setops frep_evolve_base_setops(const frep_evolve_base *b);
 
 /* Every setting of `frep evolve` (doc/evolve.md), defaults from
  * frep_evolve_options_init(). */
@@ -655,8 +690,13 @@ typedef struct frep_evolve_options {
     frep_setops setops;      /* FREP_SETOPS_MINMAX (the default) or FREP_SETOPS_RFUNC */
     uint32_t generations, stagnation, population, tournament, elite;
     double crossover, mutation, subtree_prob;
-    int max_depth;           /* 0: ceil(log2 primitives) + 3 */
-    double max_time;         /* seconds of the GA; 0: no limit */
+    int max_depth;           /* 0: ceil(log2 primitives) + 3; at most
+                                FREP_EVOLVE_MAX_DEPTH */
+    /* Seconds of wall time for the whole run from the call (0: no limit): segmentation
+     * stops when it is spent (normal estimation does not), the search gets what is
+     * left, and once it is spent the steps that only improve the tree (refit) are
+     * skipped.  The same seed then gives a result that depends on the machine. */
+    double max_time;
     int partition;           /* partition the primitives' overlap graph (1) */
     int polish;              /* after partitioning, a GA over all primitives (1) */
     uint32_t polish_stagnation;
@@ -669,7 +709,8 @@ typedef struct frep_evolve_options {
     size_t knn;              /* neighbours for estimating normals; 0: from the data */
     int refit;               /* refine the tree's primitives together afterwards (0) */
     int report_explained;    /* fill frep_evolve_progress.explained (costs time) (0) */
-    /* Called from the calling thread after each generation and merge (may be NULL). */
+    /* Called from the calling thread after each generation and merge, and at the
+     * start of the steps (frep_evolve_phase; may be NULL). */
     void (*progress)(void *user, const frep_evolve_progress *p);
     /* Polled on the calling thread with each progress report and, in every phase but
      * normal estimation, at least every 0.1 s of work (at most every 10 ms; may be
@@ -678,12 +719,25 @@ typedef struct frep_evolve_options {
      * a simplification the tree as it stands) and skips the steps that only improve
      * it (frep_evolve_info.interrupted is then 1). */
     int (*cancel)(void *user);
-    void *user;              /* for progress and cancel */
+    void *user;              /* for progress, cancel and trace */
     /* A flag a signal handler or another thread raises to stop the run as cancel does
      * (may be NULL): every phase polls it, normal estimation included, on every
      * thread, at least every 0.1 s of work.  When given, a cancel callback saying stop
      * raises it. */
     volatile sig_atomic_t *cancel_flag;
+    /* The lines of `frep evolve --trace` (may be NULL; implies report_explained), each
+     * with its newline, from the calling thread: four "#" header lines when the search
+     * starts, one line per generation, merge and merged or grown tree ("generation wall
+     * cpu fitness size explained% phase", wall and CPU seconds since the search
+     * started, phase ga, merge, merged, grown or polish), and "# end: ..." when the run
+     * is over (after the refit). */
+    void (*trace)(void *user, const char *line);
+    /* A GA (the whole run's, or the polish) ends once its best tree explains this
+     * percentage of the scored points (time-to-solution measurements; implies
+     * report_explained); 0: never (the default). */
+    double stop_share;
+    /* The model the tree is joined to (may be NULL: none); its setops replace setops. */
+    const frep_evolve_base *base;
 } frep_evolve_options;
 void frep_evolve_options_init(frep_evolve_options *o);
 
@@ -696,16 +750,19 @@ frep_segmentation *frep_segmentation_read(const char *path, frep_diag_fn diag, v
 
 /* Discover a construction tree of primitives whose zero set fits c, as `frep evolve`:
  * the primitives of prims (may be NULL: c is segmented with frep segment's defaults,
- * o's seed, threads and knn).  c's normals are estimated (stored in c) when it has
- * none.  c must outlive the result (writing the model checks it against the points).
- * Free with frep_evolution_free(). */
+ * o's seed, threads and knn; with o->base, only the points the base explains poorly
+ * are, and finding none is no error).  c's normals are estimated (stored in c) when it
+ * has none.  Notes say what was done on the way (normals estimated, primitives
+ * segmented, the base's share of the points, the refit's figures).  c must outlive the
+ * result (writing the model checks it against the points).  Free with
+ * frep_evolution_free(). */
 frep_evolution *frep_evolve(frep_cloud *c, const frep_segmentation *prims,
                             const frep_evolve_options *o, frep_diag_fn diag, void *user);
 void frep_evolution_free(frep_evolution *e);
 
 typedef struct frep_evolve_info {
     uint32_t tree_size;      /* nodes */
-    size_t nprims;           /* primitives the tree may use */
+    size_t nprims;           /* primitives the tree may use (the base not counted) */
     size_t npoints, dropped; /* valid points; points without finite coordinates/normal */
     size_t explained, within_eps, normals_ok; /* of npoints */
     double fitness;          /* on the scored sample */
@@ -715,6 +772,19 @@ typedef struct frep_evolve_info {
     int alpha_auto;          /* it was chosen from the noise */
     int partitioned, interrupted;
     double refit_rms_before, refit_rms_after; /* with refit (NaN otherwise) */
+    /* The refit's other figures (0 and NaN without): parameters refined, largest
+     * distance before and after, seconds. */
+    size_t refit_nparams;
+    double refit_max_before, refit_max_after, refit_seconds;
+    /* The estimate behind an automatic alpha (valid when alpha_auto): the inliers'
+     * robust position spread in epsilons, the median and 90th percentile of their
+     * normals' deviation from the primitives' (degrees), the inliers counted, and
+     * whether they were found noisy or faceted (the wider tolerance). */
+    double noise_spread, noise_median_deg, noise_p90_deg;
+    size_t noise_inliers;
+    int noisy;
+    /* With a base: the points it explains, and those where it cannot be evaluated. */
+    size_t base_explained, base_failed;
 } frep_evolve_info;
 void frep_evolution_get_info(const frep_evolution *e, frep_evolve_info *info);
 
@@ -723,9 +793,16 @@ void frep_evolution_get_info(const frep_evolution *e, frep_evolve_info *info);
 int frep_evolution_write(const frep_evolution *e, const char *path, const char *command,
                          const char *cloud_name, int exact, int hyperfun,
                          frep_diag_fn diag, void *user);
+/* The same model as text (*len its length, may be NULL); frep_free() it.  NULL after
+ * reporting why (out of memory). */
+char *frep_evolution_model(const frep_evolution *e, const char *command,
+                           const char *cloud_name, int exact, int hyperfun, size_t *len,
+                           frep_diag_fn diag, void *user);
 /* Write the tree for Graphviz (frep evolve --dot). */
 int frep_evolution_write_dot(const frep_evolution *e, const char *path, frep_diag_fn diag,
                              void *user);
+/* The same drawing as text, as frep_evolution_model(). */
+char *frep_evolution_dot(const frep_evolution *e, size_t *len, frep_diag_fn diag, void *user);
 
 #ifdef __cplusplus
 }

@@ -785,6 +785,7 @@ typedef struct evolve_calls {
     int phase;               /* of the last report */
     int stop_phase;          /* >= 0: cancel once a report of this phase came */
     unsigned seen;           /* 1 << phase of every report */
+    struct trace_lines *trace; /* on_trace's */
 } evolve_calls;
 
 static void evolve_progress(void *user, const frep_evolve_progress *p)
@@ -818,7 +819,7 @@ static void test_evolve_cancel_phases(frep_cloud *c, const frep_segmentation *pr
     o.cancel = evolve_cancel;
     for (size_t k = 0; k < sizeof phases / sizeof phases[0]; k++) {
         seen s = { 0 };
-        evolve_calls calls = { 0, 0, 1 << 30, 0, -1, phases[k], 0 };
+        evolve_calls calls = { 0, 0, 1 << 30, 0, -1, phases[k], 0, NULL };
         o.user = &calls;
         /* phase 5 comes after a GA over all primitives (no partition) */
         o.partition = phases[k] != 5;
@@ -886,7 +887,7 @@ static void test_evolve(const char *frep, const char *srcdir)
     o.seed = 3;
     o.population = 60;
     o.generations = 40;
-    evolve_calls calls = { 0, 0, 1 << 30, 0, -1, -1, 0 };
+    evolve_calls calls = { 0, 0, 1 << 30, 0, -1, -1, 0, NULL };
     o.progress = evolve_progress;
     o.cancel = evolve_cancel;
     o.user = &calls;
@@ -915,7 +916,7 @@ static void test_evolve(const char *frep, const char *srcdir)
     o.partition = 0;
     o.stagnation = 1000000;
     o.generations = 1000000;
-    calls = (evolve_calls){ 0, 0, 5, 0, -1, -1, 0 };
+    calls = (evolve_calls){ 0, 0, 5, 0, -1, -1, 0, NULL };
     e = c && pr ? frep_evolve(c, pr, &o, collect, &s) : NULL;
     if (e) frep_evolution_get_info(e, &in);
     ok(e && in.interrupted && calls.cancel == 5 && in.generations <= 6 && in.tree_size > 0,
@@ -932,6 +933,192 @@ static void test_evolve(const char *frep, const char *srcdir)
     ok(!frep_segmentation_read(tmp("nothing.fit"), collect, &er) && er.errors == 1,
        "a missing primitive list: an error (%s)", er.last);
     frep_cloud_free(c);
+}
+
+/* Trace lines collected, and a line's fields but the wall and CPU seconds. */
+typedef struct trace_lines {
+    char text[1 << 16];
+    size_t len;
+    int lines;
+} trace_lines;
+
+static void on_trace(void *user, const char *line)
+{
+    trace_lines *t = ((evolve_calls *)user)->trace;
+    size_t n = strlen(line);
+    if (t->len + n < sizeof t->text) {
+        memcpy(t->text + t->len, line, n + 1);
+        t->len += n;
+    }
+    t->lines++;
+}
+
+/* Whether two traces agree but for their times: the same lines, in order, each line
+ * the same with its 2nd and 3rd fields (wall, CPU) and the end line's times dropped. */
+static int same_trace(const char *a, const char *b)
+{
+    char x[4096], y[4096];
+    int same = *a && *b;
+    while (same && *a && *b) {
+        size_t la = strcspn(a, "\n"), lb = strcspn(b, "\n");
+        snprintf(x, sizeof x, "%.*s", (int)la, a);
+        snprintf(y, sizeof y, "%.*s", (int)lb, b);
+        if (strncmp(x, "# end:", 6) == 0 && strncmp(y, "# end:", 6) == 0) {
+            const char *nx = strstr(x, " CPU,"), *ny = strstr(y, " CPU,");
+            same = nx && ny && strcmp(nx, ny) == 0;
+        } else if (x[0] != '#') {
+            char g1[64], g2[64], rest1[512], rest2[512];
+            double w, c;
+            same = sscanf(x, "%63s %lf %lf %511[^\n]", g1, &w, &c, rest1) == 4 &&
+                   sscanf(y, "%63s %lf %lf %511[^\n]", g2, &w, &c, rest2) == 4 &&
+                   strcmp(g1, g2) == 0 && strcmp(rest1, rest2) == 0;
+        } else {
+            same = strcmp(x, y) == 0;
+        }
+        a += la + (a[la] == '\n');
+        b += lb + (b[lb] == '\n');
+    }
+    return same && !*a && !*b;
+}
+
+static const char block_hf[] =
+    "-- @setops minmax\n"
+    "-- @box -1.5 -1.5 -1 1.5 1.5 1\n"
+    "my_model(x[3], a[1])\n{\n"
+    "    my_model = frPlane(x, 1, 0, 0, 1) & frPlane(x, -1, 0, 0, 1) & frPlane(x, 0, 1, 0, 1) &\n"
+    "               frPlane(x, 0, -1, 0, 1) & frPlane(x, 0, 0, 1, 0.5) & frPlane(x, 0, 0, -1, 0.5);\n"
+    "}\n";
+
+/* frep evolve --residual --trace and frep_evolve with a base and a trace callback: the
+ * same model and trace but for the times; the residual points segmented without
+ * primitives; --stop-share; a base refused. */
+static void test_evolve_residual(const char *frep)
+{
+    seen s = { 0 };
+    char cmd[3072], line[2048], command[2100];
+    write_text(tmp("block.hf"), block_hf);
+    write_text(tmp("hole.hf"), "-- @setops minmax\n-- @box -1.5 -1.5 -1 1.5 1.5 1\n"
+               "my_model(x[3], a[1])\n{\n"
+               "    blk = frPlane(x, 1, 0, 0, 1) & frPlane(x, -1, 0, 0, 1) & frPlane(x, 0, 1, 0, 1) &\n"
+               "          frPlane(x, 0, -1, 0, 1) & frPlane(x, 0, 0, 1, 0.5) & frPlane(x, 0, 0, -1, 0.5);\n"
+               "    my_model = blk \\ frCylinder(x, 0.2, 0.1, 0, 0, 0, 1, 0.4);\n}\n");
+    write_text(tmp("hole.fit"), "sphere 3 3 3 1\ncylinder 0 0 1 0.2 0.1 0 0.4\n");
+    snprintf(cmd, sizeof cmd, "'%s' sample '%s' -n 4000 --seed 1 -q -o '%s'", frep,
+             tmp("hole.hf"), tmp("hole.xyz"));
+    ok(run(cmd) == 0, "a block with a hole, sampled");
+    char out[600];   /* tmp() keeps 4 paths at once */
+    snprintf(out, sizeof out, "%s", tmp("cli.r1.hf"));
+    snprintf(line, sizeof line, "evolve %s --residual %s -p %s --seed 1 --trace %s -q -o %s",
+             tmp("hole.xyz"), tmp("block.hf"), tmp("hole.fit"), tmp("cli.trace"), out);
+    snprintf(cmd, sizeof cmd, "'%s' %s", frep, line);
+    ok(run(cmd) == 0, "frep evolve --residual -p --trace");
+    snprintf(command, sizeof command, "frep %s", line);
+
+    frep_program *p = frep_compile(tmp("block.hf"), block_hf, strlen(block_hf), NULL, collect, &s);
+    frep_evolve_base *b = p ? frep_evolve_base_new(p, tmp("block.hf"), block_hf,
+                                                   strlen(block_hf), NULL, collect, &s) : NULL;
+    ok(b && frep_evolve_base_setops(b) == FREP_SETOPS_MINMAX,
+       "frep_evolve_base_new: the block, min/max like its file");
+    frep_cloud *c = frep_cloud_read(tmp("hole.xyz"), collect, &s);
+    frep_segmentation *pr = frep_segmentation_read(tmp("hole.fit"), collect, &s);
+    frep_evolve_options o;
+    frep_evolve_options_init(&o);
+    ok(!o.trace && o.stop_share == 0 && !o.base, "no trace, stop share or base by default");
+    o.seed = 1;
+    o.base = b;
+    o.setops = FREP_SETOPS_RFUNC;      /* the base's replace it */
+    static trace_lines tl;
+    evolve_calls calls = { 0, 0, 1 << 30, 0, -1, -1, 0, &tl };
+    o.progress = evolve_progress;
+    o.trace = on_trace;
+    o.user = &calls;
+    frep_evolution *e = b && c && pr ? frep_evolve(c, pr, &o, collect, &s) : NULL;
+    frep_evolve_info in = { 0 };
+    if (e) frep_evolution_get_info(e, &in);
+    if (!e) diag("frep_evolve: %s", s.last);
+    ok(e && in.base_explained > 3000 && in.base_explained < 4000 && in.base_failed == 0 &&
+           in.explained == 4000,
+       "the base explains %zu of 4000 points, the joined tree %zu", in.base_explained,
+       in.explained);
+    ok(((calls.seen >> FREP_EVOLVE_SEARCH) & 1u) && !((calls.seen >> FREP_EVOLVE_SEGMENT) & 1u) &&
+           !((calls.seen >> FREP_EVOLVE_NORMALS) & 1u),
+       "phases: the search started; no segmentation or normals (given)");
+    size_t len = 0;
+    char *hf = e ? frep_evolution_model(e, command, tmp("hole.xyz"), 0, 0, &len, collect, &s) : NULL;
+    FILE *f = fopen(tmp("api.r1.hf"), "wb");
+    if (f && hf) fwrite(hf, 1, len, f);
+    if (f) fclose(f);
+    ok(hf && len == strlen(hf) && strstr(hf, "base_model(x, a)") &&
+           same_but(tmp("cli.r1.hf"), tmp("api.r1.hf"), " generations, "),
+       "frep_evolution_model: the joined model of frep evolve --residual (but the seconds)");
+    frep_free(hf);
+    size_t cl = 0;
+    char *ct = slurp(tmp("cli.trace"), &cl);
+    ok(ct && tl.lines > 5 && strncmp(tl.text, "# frep evolve trace, seed 1\n", 28) == 0 &&
+           same_trace(ct, tl.text),
+       "the trace callback: %d lines, those of --trace but for the times", tl.lines);
+    free(ct);
+    ct = NULL;
+    char *dot = e ? frep_evolution_dot(e, &len, collect, &s) : NULL;
+    ok(e && dot && frep_evolution_write_dot(e, tmp("r1.dot"), collect, &s) == 0 &&
+           (ct = slurp(tmp("r1.dot"), &cl)) && cl == len && memcmp(ct, dot, len) == 0,
+       "frep_evolution_dot: the text frep_evolution_write_dot writes");
+    free(ct);
+    frep_free(dot);
+    frep_evolution_free(e);
+
+    /* without primitives: the residual points alone are segmented */
+    calls = (evolve_calls){ 0, 0, 1 << 30, 0, -1, -1, 0, NULL };
+    o.trace = NULL;
+    e = b && c ? frep_evolve(c, NULL, &o, collect, &s) : NULL;
+    if (e) frep_evolution_get_info(e, &in);
+    ok(e && ((calls.seen >> FREP_EVOLVE_SEGMENT) & 1u) && in.nprims > 0 && in.explained > 3960,
+       "no primitives: the residual segmented (%zu primitives), %zu of 4000 explained",
+       in.nprims, in.explained);
+    frep_evolution_free(e);
+
+    /* stop_share: the GA ends at the first generation explaining half the points */
+    o.base = NULL;
+    o.partition = 0;
+    o.trace = on_trace;
+    tl.len = 0;
+    tl.lines = 0;
+    tl.text[0] = '\0';
+    calls = (evolve_calls){ 0, 0, 1 << 30, 0, -1, -1, 0, &tl };
+    o.stop_share = 50;
+    write_text(tmp("faces.fit"), "plane 1 0 0 1\nplane -1 0 0 1\nplane 0 1 0 1\n"
+               "plane 0 -1 0 1\nplane 0 0 1 0.5\nplane 0 0 -1 0.5\ncylinder 0 0 1 0.2 0.1 0 0.4\n");
+    frep_segmentation *faces = frep_segmentation_read(tmp("faces.fit"), collect, &s);
+    e = c && faces ? frep_evolve(c, faces, &o, collect, &s) : NULL;
+    frep_segmentation_free(faces);
+    int hits = 0, lines = 0;
+    double last = -1;
+    for (const char *q = tl.text; *q; q += strcspn(q, "\n") + (q[strcspn(q, "\n")] != 0)) {
+        if (*q == '#') continue;
+        double w, cpu, fit, share;
+        unsigned gen, size;
+        if (sscanf(q, "%u %lf %lf %lf %u %lf", &gen, &w, &cpu, &fit, &size, &share) == 6) {
+            lines++;
+            hits += share >= 50;
+            last = share;
+        }
+    }
+    ok(e && lines > 0 && hits == 1 && last >= 50,
+       "stop_share 50: %d generations, the last explains %g%%", lines, last);
+    frep_evolution_free(e);
+
+    seen er = { 0 };
+    static const char flat[] = "my_model(x[2], a[1]) { my_model = 1 - x[1]*x[1]; }\n";
+    frep_program *p2 = frep_compile("flat.hf", flat, strlen(flat), NULL, collect, &er);
+    ok(p2 && !frep_evolve_base_new(p2, "flat.hf", flat, strlen(flat), NULL, collect, &er) &&
+           er.errors == 1 && strstr(er.last, "3D"),
+       "a 2D model is no base: an error (%s)", er.last);
+    frep_program_free(p2);
+    ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
+    frep_segmentation_free(pr);
+    frep_cloud_free(c);
+    frep_evolve_base_free(b);
+    frep_program_free(p);
 }
 
 int main(void)
@@ -954,6 +1141,7 @@ int main(void)
         test_fit(frep);
         test_render(frep, srcdir);
         test_evolve(frep, srcdir);
+        test_evolve_residual(frep);
     }
     else diag("FREP or srcdir not set: the comparison with the command is skipped");
     char cmd[400];

@@ -19,7 +19,7 @@ import numpy as np
 
 __all__ = ["FrepError", "Program", "Mesh", "Cloud", "Segmentation", "Fit", "compile",
            "compile_file", "read_cloud", "read_mesh", "fit", "fit_file", "read_prims",
-           "Evolution", "Image", "library_version",
+           "Evolution", "EvolveBase", "EVOLVE_PHASES", "Image", "library_version",
            "load_library"]
 
 _c_double_p = ctypes.POINTER(ctypes.c_double)
@@ -192,6 +192,9 @@ class _EvolveProgress(ctypes.Structure):
 
 
 _EVOLVE_PROGRESS_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.POINTER(_EvolveProgress))
+_EVOLVE_TRACE_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p)
+EVOLVE_PHASES = ("ga", "merge", "merged", "grown", "cliques", "simplify", "normals",
+                 "segment", "search")
 
 
 class _EvolveOptions(ctypes.Structure):
@@ -207,7 +210,9 @@ class _EvolveOptions(ctypes.Structure):
                 ("lambda_scale", ctypes.c_double), ("knn", ctypes.c_size_t),
                 ("refit", ctypes.c_int), ("report_explained", ctypes.c_int),
                 ("progress", _EVOLVE_PROGRESS_FN), ("cancel", _SEG_CANCEL_FN),
-                ("user", ctypes.c_void_p), ("cancel_flag", ctypes.c_void_p)]
+                ("user", ctypes.c_void_p), ("cancel_flag", ctypes.c_void_p),
+                ("trace", _EVOLVE_TRACE_FN), ("stop_share", ctypes.c_double),
+                ("base", ctypes.c_void_p)]
 
 
 class _EvolveInfo(ctypes.Structure):
@@ -218,7 +223,12 @@ class _EvolveInfo(ctypes.Structure):
                 ("seconds", ctypes.c_double), ("alpha_deg", ctypes.c_double),
                 ("alpha_auto", ctypes.c_int), ("partitioned", ctypes.c_int),
                 ("interrupted", ctypes.c_int), ("refit_rms_before", ctypes.c_double),
-                ("refit_rms_after", ctypes.c_double)]
+                ("refit_rms_after", ctypes.c_double), ("refit_nparams", ctypes.c_size_t)] + \
+               [(n, ctypes.c_double) for n in ("refit_max_before", "refit_max_after",
+                                               "refit_seconds", "noise_spread",
+                                               "noise_median_deg", "noise_p90_deg")] + \
+               [("noise_inliers", ctypes.c_size_t), ("noisy", ctypes.c_int),
+                ("base_explained", ctypes.c_size_t), ("base_failed", ctypes.c_size_t)]
 
 
 class _RenderOptions(ctypes.Structure):
@@ -324,6 +334,13 @@ def _declare(lib):
         "frep_evolution_write": (I, [P, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p,
                                      I, I, _DIAG_FN, P]),
         "frep_evolution_write_dot": (I, [P, ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_evolution_model": (P, [P, ctypes.c_char_p, ctypes.c_char_p, I, I,
+                                     ctypes.POINTER(S), _DIAG_FN, P]),
+        "frep_evolution_dot": (P, [P, ctypes.POINTER(S), _DIAG_FN, P]),
+        "frep_evolve_base_new": (P, [P, ctypes.c_char_p, ctypes.c_char_p, S, ctypes.c_char_p,
+                                     _DIAG_FN, P]),
+        "frep_evolve_base_free": (None, [P]),
+        "frep_evolve_base_setops": (I, [P]),
         "frep_render_options_init": (None, [ctypes.POINTER(_RenderOptions)]),
         "frep_render": (P, [P, ctypes.POINTER(_RenderOptions), ctypes.POINTER(_RenderInfo),
                             _DIAG_FN, P]),
@@ -871,21 +888,25 @@ class Cloud(_Wrapper):
             self._set_arrays()
         return Segmentation(h, lib.frep_cloud_size(self._h))
 
-    def evolve(self, prims=None, progress=None, cancel=None, **options):
+    def evolve(self, prims=None, progress=None, cancel=None, trace=None, base=None,
+               **options):
         """A construction tree of primitives fitting this cloud, as frep evolve: an
         Evolution.  prims: a Segmentation (Cloud.segment, read_prims) or None (the cloud
         is segmented with frep segment's defaults).  options: seed (1), threads, setops
         ("minmax" or "rfunc"), generations, stagnation, population, tournament, elite,
-        crossover, mutation, subtree_prob, max_depth, max_time, partition, polish,
-        polish_stagnation, simplify, support, sample, epsilon, alpha_deg (0: automatic),
-        lambda_scale, knn, refit, report_explained.  progress(dict) and cancel() -> bool
-        are called from this thread after each generation; cancel returning True stops
-        the run with the best tree so far.  Normals are estimated into this cloud when
-        it has none."""
+        crossover, mutation, subtree_prob, max_depth, max_time (the whole run's
+        seconds), partition, polish, polish_stagnation, simplify, support, sample,
+        epsilon, alpha_deg (0: automatic), lambda_scale, knn, refit, report_explained,
+        stop_share (percent).  progress(dict) and cancel() -> bool are called from this
+        thread after each generation (dict["phase"] indexes EVOLVE_PHASES); cancel
+        returning True stops the run with the best tree so far.  trace(line) gets the
+        lines of frep evolve --trace.  base: an EvolveBase the tree is joined to (frep
+        evolve --residual).  Normals are estimated into this cloud when it has none."""
         lib = _L()
         o = _EvolveOptions()
         lib.frep_evolve_options_init(ctypes.byref(o))
-        fields = {k for k, _ in _EvolveOptions._fields_} - {"progress", "cancel", "user", "cancel_flag"}
+        fields = {k for k, _ in _EvolveOptions._fields_} - {"progress", "cancel", "user",
+                                                            "cancel_flag", "trace", "base"}
         for k, v in options.items():
             if k == "threads":
                 k = "nthreads"
@@ -899,6 +920,10 @@ class Cloud(_Wrapper):
                 {k: getattr(p.contents, k) for k, _ in _EvolveProgress._fields_}))
         if cancel is not None:
             o.cancel = _SEG_CANCEL_FN(lambda u: 1 if cancel() else 0)
+        if trace is not None:
+            o.trace = _EVOLVE_TRACE_FN(lambda u, line: trace(line.decode()))
+        if base is not None:
+            o.base = base._h
         d = _Diagnostics()
         h = lib.frep_evolve(self._h, prims._h if prims is not None else None, ctypes.byref(o),
                             d.fn, None)
@@ -906,7 +931,7 @@ class Cloud(_Wrapper):
             d.fail("evolution failed")
         if lib.frep_cloud_has_normals(self._h) and self.normals is None:
             self._set_arrays()
-        return Evolution(h, self)
+        return Evolution(h, self, base)
 
 
 class Segmentation:
@@ -1105,11 +1130,12 @@ class Evolution:
     dropped, explained, within_eps, normals_ok, fitness, generations, seconds,
     alpha_deg, alpha_auto, partitioned, interrupted, refit_rms_before/after."""
 
-    def __init__(self, h, cloud):
+    def __init__(self, h, cloud, base=None):
         lib = _L()
         self._handle = _Handle(h, lib.frep_evolution_free)
         self._h = h
         self._cloud = cloud          # the library reads it when writing
+        self._base = base            # and the base's source
         info = _EvolveInfo()
         lib.frep_evolution_get_info(h, ctypes.byref(info))
         for k, _ in _EvolveInfo._fields_:
@@ -1131,6 +1157,49 @@ class Evolution:
         d = _Diagnostics()
         if _L().frep_evolution_write_dot(self._h, str(path).encode(), d.fn, None) != 0:
             d.fail("cannot write %s" % path)
+
+    def model(self, command=None, cloud_name=None, exact=False, hyperfun=False):
+        """The .hf model write() writes, as a string."""
+        d = _Diagnostics()
+        n = ctypes.c_size_t()
+        enc = [str(x).encode() if x is not None else None for x in (command, cloud_name)]
+        p = _L().frep_evolution_model(self._h, *enc, int(bool(exact)), int(bool(hyperfun)),
+                                      ctypes.byref(n), d.fn, None)
+        return _take_text(p, n, d)
+
+    def dot(self):
+        """The Graphviz drawing write_dot() writes, as a string."""
+        d = _Diagnostics()
+        n = ctypes.c_size_t()
+        return _take_text(_L().frep_evolution_dot(self._h, ctypes.byref(n), d.fn, None), n, d)
+
+
+def _take_text(p, n, d):
+    """A string the library allocated (freed here)."""
+    if not p:
+        d.fail("out of memory")
+    text = ctypes.string_at(p, n.value).decode()
+    _L().frep_free(p)
+    return text
+
+
+class EvolveBase:
+    """A model an evolved tree is joined to (frep evolve --residual MODEL): program, a
+    Program from compile or compile_file (model: the model it compiled, None: the
+    default).  setops: the family the joined tree uses."""
+
+    def __init__(self, program, model=None):
+        lib = _L()
+        d = _Diagnostics(program.source)
+        h = lib.frep_evolve_base_new(program._h, program.name.encode(), program.source,
+                                     len(program.source),
+                                     model.encode() if model else None, d.fn, None)
+        if not h:
+            d.fail("cannot join to %s" % program.name)
+        self._handle = _Handle(h, lib.frep_evolve_base_free)
+        self._h = h
+        self._program = program      # the base reads it
+        self.setops = ("rfunc", "minmax")[lib.frep_evolve_base_setops(h)]
 
 
 class Image:

@@ -308,6 +308,40 @@ def test_evolve_cancel():
     assert e.interrupted and len(polls) == 4 and e.generations <= 5 and e.tree_size > 0
 
 
+BLOCK = """-- @setops minmax
+-- @box -1.5 -1.5 -1 1.5 1.5 1
+my_model(x[3], a[1])
+{
+    my_model = frPlane(x, 1, 0, 0, 1) & frPlane(x, -1, 0, 0, 1) & frPlane(x, 0, 1, 0, 1) &
+               frPlane(x, 0, -1, 0, 1) & frPlane(x, 0, 0, 1, 0.5) & frPlane(x, 0, 0, -1, 0.5);
+}
+"""
+
+
+def test_evolve_residual_trace(tmp_path):
+    # a block with a hole: the block as the base, the hole evolved from the points it
+    # does not explain; the trace's lines as frep evolve --trace writes them
+    hole = frep.compile(BLOCK.replace("my_model = frPlane", "blk = frPlane").replace(
+        "frPlane(x, 0, 0, -1, 0.5);",
+        "frPlane(x, 0, 0, -1, 0.5);\n    my_model = blk \\ frCylinder(x, 0.2, 0.1, 0, 0, 0, 1, 0.4);"))
+    c = hole.sample(3000, seed=1)
+    base = frep.EvolveBase(frep.compile(BLOCK, name="block.hf"))
+    assert base.setops == "minmax"
+    lines, phases = [], set()
+    e = c.evolve(base=base, seed=1, trace=lines.append,
+                 progress=lambda p: phases.add(frep.EVOLVE_PHASES[p["phase"]]))
+    assert 2000 < e.base_explained < 3000 and e.explained > 2950
+    assert {"segment", "search"} <= phases
+    assert lines[0] == "# frep evolve trace, seed 1\n" and lines[-1].startswith("# end:")
+    text = e.model(cloud_name="hole.xyz")
+    assert "base_model(x, a)" in text and "frCylinder" in text
+    e.write(tmp_path / "r.hf", cloud_name="hole.xyz")
+    assert (tmp_path / "r.hf").read_text() == text
+    assert e.dot().startswith("digraph")
+    with pytest.raises(frep.FrepError):
+        frep.EvolveBase(frep.compile("m(x[2], a[1]) { m = 1 - x[1]*x[1]; }"))
+
+
 def test_render_same_as_command(tmp_path):
     p = frep.compile_file(CSG)
     m = p.mesh(grid=32)
