@@ -16,6 +16,7 @@
 
 #include <math.h>
 #include <stdatomic.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -237,7 +238,50 @@ static int make_quads(mesher *M, frep_error *e)
     return 0;
 }
 
-/* The blocks' vertices and triangles, in block order, into out. */
+/* Assembly moves the blocks' arrays into the mesh one kind at a time, each block's
+ * array freed as soon as it is copied, so that at the peak the mesh is held once plus
+ * one array, not twice.  The blocks keep their vfg for settling (settle.c). */
+
+/* A block's double array at byte offset off in mblock (vpos or vnrm). */
+static double **block_array(mblock *B, size_t off) { return (double **)((char *)B + off); }
+
+/* The vpos or vnrm (off) of every block, 3 doubles a vertex, into one new array in
+ * block order.  NULL when out of memory. */
+static double *gather_vertices(const mesher *M, size_t nverts, size_t off)
+{
+    double *all = frep_malloc((3 * nverts + 1) * sizeof *all);
+    if (!all) return NULL;
+    for (size_t i = 0; i < M->nblocks; i++) {
+        mblock *B = M->blocks[i];
+        double **a = block_array(B, off);
+        /* empty blocks may hold NULL arrays: memcpy from NULL is undefined even for 0 */
+        if (B->nverts)
+            memcpy(all + 3 * B->vglobal, *a, 3 * (B->nverts + 2 * (size_t)B->nfaces) * sizeof *all);
+        frep_free(*a);
+        *a = NULL;
+    }
+    return all;
+}
+
+/* The blocks' triangles (ntris in all), in block order, into one new array.  NULL
+ * when out of memory. */
+static uint32_t *gather_triangles(const mesher *M, size_t ntris)
+{
+    uint32_t *all = frep_malloc((3 * ntris + 1) * sizeof *all);
+    if (!all) return NULL;
+    size_t tpos = 0;
+    for (size_t i = 0; i < M->nblocks; i++) {
+        mblock *B = M->blocks[i];
+        if (B->ntri) memcpy(all + 3 * tpos, B->tri, 3 * B->ntri * sizeof *all);
+        tpos += B->ntri;
+        frep_free(B->tri);
+        B->tri = NULL;
+    }
+    return all;
+}
+
+/* The blocks' vertices and triangles, in block order, into out.  The arrays only
+ * the quads read go first, then each kind as it is gathered. */
 static int assemble(const mesher *M, size_t nverts, frep_mesh *out, frep_error *e)
 {
     size_t ntris = 0;
@@ -250,26 +294,29 @@ static int assemble(const mesher *M, size_t nverts, frep_mesh *out, frep_error *
     if (ntris > MESH_MAX_TRIANGLES)
         return frep_error_set(e, FREP_ELIMIT, "the mesh has more than %zu triangles; use a smaller -g",
                               (size_t)MESH_MAX_TRIANGLES);
+    for (size_t i = 0; i < M->nblocks; i++) {
+        mblock *B = M->blocks[i];
+        frep_free(B->cs);
+        frep_free(B->vbase);
+        frep_free(B->fkey);
+        frep_free(B->vrank);
+        B->cs = B->vrank = NULL;
+        B->vbase = B->fkey = NULL;
+    }
+    /* the blocks' arrays are small heap chunks among the vfg kept for settling: freed
+     * ones are not reused by the mesh's large arrays unless handed back */
+    frep_release_free();
     out->nverts = nverts;
     out->ntris = ntris;
-    out->v = frep_malloc((3 * nverts + 1) * sizeof *out->v);
-    out->n = frep_malloc((3 * nverts + 1) * sizeof *out->n);
-    out->tri = frep_malloc((3 * ntris + 1) * sizeof *out->tri);
-    if (!out->v || !out->n || !out->tri) {
+    int ok = (out->tri = gather_triangles(M, ntris)) != NULL;
+    frep_release_free();
+    ok = ok && (out->v = gather_vertices(M, nverts, offsetof(mblock, vpos))) != NULL;
+    frep_release_free();
+    ok = ok && (out->n = gather_vertices(M, nverts, offsetof(mblock, vnrm))) != NULL;
+    frep_release_free();
+    if (!ok) {
         mesh_free(out);
         return frep_error_nomem(e);
-    }
-    size_t tpos = 0;
-    for (size_t i = 0; i < M->nblocks; i++) {
-        const mblock *B = M->blocks[i];
-        /* empty blocks may hold NULL arrays: memcpy from NULL is undefined even for 0 */
-        if (B->nverts) {
-            size_t nall = B->nverts + 2 * (size_t)B->nfaces;
-            memcpy(out->v + 3 * B->vglobal, B->vpos, 3 * nall * sizeof *out->v);
-            memcpy(out->n + 3 * B->vglobal, B->vnrm, 3 * nall * sizeof *out->n);
-        }
-        if (B->ntri) memcpy(out->tri + 3 * tpos, B->tri, 3 * B->ntri * sizeof *out->tri);
-        tpos += B->ntri;
     }
     return 0;
 }

@@ -155,7 +155,8 @@ static int far_vertices(settle_run *r, const frep_mesh *out, const uint8_t *fold
             s.v = v;
             s.fold = fold;
             s.B = B;
-            if (!vertex_cell(M, &B->vpos[3 * l], 0, s.lo, s.hi)) continue;
+            const double *x = &out->v[3 * (size_t)v];
+            if (!vertex_cell(M, x, 0, s.lo, s.hi)) continue;
             if (fold && !inside_block(M, B, s.lo, s.hi)) continue;
             if (n == cap) {
                 size_t nc = cap ? 2 * cap : 64;
@@ -164,7 +165,7 @@ static int far_vertices(settle_run *r, const frep_mesh *out, const uint8_t *fold
                 r->sv = ns;
                 cap = nc;
             }
-            memcpy(s.x, &B->vpos[3 * l], sizeof s.x);
+            memcpy(s.x, x, sizeof s.x);
             s.f = fg[0];
             memcpy(s.g, &fg[1], sizeof s.g);
             s.d = d;

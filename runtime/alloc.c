@@ -3,12 +3,17 @@
  * The hook is the library's only process-wide state: it is installed before any other
  * call (frep.h says so) and only read afterwards, so threads never race on it.
  */
+#include "config.h"
+
 #include "alloc.h"
 #include "frep.h"
 
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef HAVE_MALLOC_TRIM
+#include <malloc.h>
+#endif
 
 static frep_alloc_fn hook_fn;   /* NULL: the C library */
 static void *hook_user;
@@ -53,6 +58,13 @@ void frep_free(void *p)
     if (!p) return;
     if (hook_fn) hook_fn(hook_user, p, 0);
     else free(p);
+}
+
+void frep_release_free(void)
+{
+#ifdef HAVE_MALLOC_TRIM
+    if (!hook_fn) malloc_trim(0);
+#endif
 }
 
 char *frep_strndup(const char *s, size_t n)
