@@ -361,16 +361,18 @@ static int corner_is_real(const mesher *M, int c, long P) { return P >= 1 && P <
 static int field_status(int rc) { return rc != 0 ? FREP_EINPUT : 0; }
 
 /* Regula falsi guess for crossing r from its bracket; bisection when the values
- * cannot be used. */
+ * cannot be used.  The ends' values never have the same sign (0 counts as inside), so
+ * a secant guess outside the bracket is rounding ((t1 g0) / g0 one ulp above t1 when
+ * g1 is 0): it is clamped to the bracket, not replaced by the midpoint, which threw a
+ * root found exactly (a plane's, after one Illinois step) half its bracket away
+ * (examples/bracket.hf at -g 256: a crossing 0.06 cell off the rib's face, a folded
+ * sliver along its 45-degree edge). */
 static double root_guess(const mwork *W, int r)
 {
-    double g0 = W->g0[r], g1 = W->g1[r], t;
-    if (isfinite(g0) && isfinite(g1) && g0 != g1)
-        t = (W->t0[r] * g1 - W->t1[r] * g0) / (g1 - g0);
-    else
-        t = 0.5 * (W->t0[r] + W->t1[r]);
-    if (!(t >= W->t0[r] && t <= W->t1[r])) t = 0.5 * (W->t0[r] + W->t1[r]);
-    return t;
+    double g0 = W->g0[r], g1 = W->g1[r], t0 = W->t0[r], t1 = W->t1[r];
+    if (!(isfinite(g0) && isfinite(g1) && g0 != g1)) return 0.5 * (t0 + t1);
+    double t = (t0 * g1 - t1 * g0) / (g1 - g0);
+    return isnan(t) ? 0.5 * (t0 + t1) : fmin(fmax(t, t0), t1);
 }
 
 /* 0. Specialize the field to the block's box: every evaluation below lies in it. */
