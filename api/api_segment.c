@@ -20,6 +20,7 @@ _Static_assert(FREP_PRIM_PLANE == (int)PRIM_PLANE && FREP_PRIM_SPHERE == (int)PR
                    FREP_PRIM_TORUS == (int)PRIM_TORUS && PRIM__COUNT == 5,
                "frep_prim_type follows geom/prim.h's prim_type");
 _Static_assert(FREP_PRIM_NTYPES == PRIM__COUNT, "one name a type");
+_Static_assert(FREP_SEGMENT_NO_SMALL == SEGMENT_NO_SMALL, "no second phase");
 _Static_assert(FREP_NUMBER_BUF >= PRIM_NUM_BUF, "prim_format_number's buffer");
 
 void frep_segment_options_init(frep_segment_options *o)
@@ -55,14 +56,15 @@ static void seg_progress(void *user, const char *stage, size_t done, size_t tota
     if (j->o->cancel && j->o->cancel(j->o->user)) *j->flag = 1;
 }
 
-/* A cloud without normals gets frep_normals()'s estimate with o's knn (0: from the
- * data), as the frep command gives it; an interrupted estimate leaves the flag raised,
- * so detection stops at once.  Zero normals among given ones are left to segment_run
- * (which re-estimates them all with a fixed neighbourhood). */
+/* A cloud without normals and knn 0 gets frep_normals()'s estimate with the
+ * neighbourhood chosen from the data, as the frep command gives it (segment_run's own
+ * would take a fixed one); an interrupted estimate leaves the flag raised, so
+ * detection stops at once.  With a knn, and for zero normals among given ones,
+ * segment_run estimates them itself (the same estimate, not normalized again). */
 static int auto_normals(seg_job *j, frep_cloud *c, int *estimated)
 {
     *estimated = 0;
-    if (c->has_normals || c->n == 0) return 0;
+    if (c->has_normals || c->n == 0 || j->o->knn) return 0;
     seg_progress(j, "normals", 0, c->n, 0);
     if (api_estimate_normals(c, j->o->knn, j->o->nthreads, j->flag, NULL) < 0) return -1;
     *estimated = 1;

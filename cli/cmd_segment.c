@@ -186,8 +186,9 @@ static int stage_options(segment_cmd *s, int argc, char **argv)
     if (args.n != 1)
         return cli_usage_error("segment", args.n < 1 ? "missing CLOUD file" : "too many arguments");
     if (cli_opt_given(&segment_spec, &args, "min-points-small"))
-        s->o.min_points_small = s->min_small < 1 ? (size_t)-1
-                                                   : s->min_small < 3 ? 3 : s->min_small;
+        s->o.min_points_small = s->min_small < 1   ? FREP_SEGMENT_NO_SMALL
+                                : s->min_small < 3 ? 3
+                                                   : s->min_small;
     if (!cli_opt_given(&segment_spec, &args, "seed"))
         s->o.seed = (uint64_t)time(NULL) ^ ((uint64_t)getpid() << 32);
     s->in = args.v[0];

@@ -464,13 +464,17 @@ typedef enum frep_prim_type {
     FREP_PRIM_PLANE, FREP_PRIM_SPHERE, FREP_PRIM_CYLINDER, FREP_PRIM_CONE, FREP_PRIM_TORUS
 } frep_prim_type;
 
+/* frep_segment_options.min_points_small: no second detection phase. */
+#define FREP_SEGMENT_NO_SMALL ((size_t)-1)
+
 typedef struct frep_segment_options {
     double epsilon;        /* inlier distance; <= 0: 5x the measured noise, within
                               0.2-1% of the cloud's diagonal (doc/segment.md) */
     double cluster;        /* connectivity cell; <= 0: the default (doc/segment.md) */
     double normal_deg;     /* normal deviation allowed, degrees; <= 0: 25 */
     size_t min_points;     /* smallest support; 0: 1% of the points (at least 10) */
-    size_t min_points_small; /* second phase's; 0: 0.04%; (size_t)-1: no second phase */
+    size_t min_points_small; /* second phase's; 0: 0.04%; FREP_SEGMENT_NO_SMALL: no
+                              second phase */
     double probability;    /* of missing no shape; <= 0: 0.99 */
     unsigned types;        /* 1u << FREP_PRIM_* bits; 0: all */
     uint64_t seed;         /* the same seed gives the same result at any thread count (1) */
@@ -495,10 +499,10 @@ void frep_segment_options_init(frep_segment_options *o);
 typedef struct frep_segmentation frep_segmentation;
 
 /* Efficient RANSAC over c, as `frep segment` (doc/segment.md).  c's normals are
- * estimated (and stored in c) when it has none, as frep_normals() does with o's knn,
- * threads and cancel flag (knn 0: from the data), or when some are zero (then with
- * knn, 0: 12 neighbours).  A cancel during the estimate gives a segmentation without
- * primitives, interrupted.  Free the result with frep_segmentation_free(). */
+ * estimated (and stored in c) as frep_normals() does, with o's knn, threads and
+ * cancel flag, when it has none (knn 0: from the data) or when some are zero (then
+ * knn 0 means 12 neighbours).  A cancel during the estimate gives a segmentation
+ * without primitives, interrupted.  Free the result with frep_segmentation_free(). */
 frep_segmentation *frep_segment(frep_cloud *c, const frep_segment_options *o,
                                 frep_diag_fn diag, void *user);
 void frep_segmentation_free(frep_segmentation *s);

@@ -652,6 +652,19 @@ static void test_segment_bare(const char *frep)
     frep_segmentation_free(g);
     frep_cloud_free(c);
 
+    /* a fixed neighbourhood: the segmenter's own estimate, as the command's */
+    snprintf(cmd, sizeof cmd, "'%s' segment '%s' --seed 4 --knn 20 -q -o '%s'", frep,
+             tmp("bare.xyz"), tmp("bare_cli20.fit"));
+    ok(run(cmd) == 0, "frep segment --knn 20 on a cloud without normals");
+    c = frep_cloud_read(tmp("bare.xyz"), collect, &s);
+    o.knn = 20;
+    g = c ? frep_segment(c, &o, collect, &s) : NULL;
+    ok(g && frep_segmentation_write(g, tmp("bare_api20.fit"), NULL, collect, &s) == 0 &&
+           same_file(tmp("bare_cli20.fit"), tmp("bare_api20.fit")),
+       "frep_segment with knn 20: the same .fit bytes as frep segment --knn 20");
+    frep_segmentation_free(g);
+    frep_cloud_free(c);
+
     is_str(frep_prim_type_name(FREP_PRIM_CYLINDER), "cylinder", "frep_prim_type_name");
     ok(frep_prim_type_name(FREP_PRIM_NTYPES) == NULL && frep_prim_type_name(-1) == NULL,
        "frep_prim_type_name: NULL out of range");
