@@ -38,6 +38,12 @@ int api_write_atomic(const api_diag *d, const char *path, int (*fn)(FILE *f, voi
  * `-- @box`, else [-API_DEFAULT_BOX, API_DEFAULT_BOX]^3. */
 void api_model_box(const frep_program *p, const frep_mesh_options *o, double box[6]);
 
+/* geom/normals.c's estimate over c with knn neighbours (0: from the data), polling
+ * flag (may be NULL); info (may be NULL) filled.  Returns as normals_run: 0, 1 when
+ * stopped by the flag, -1 out of memory; reports nothing (api/api_normals.c). */
+int api_estimate_normals(frep_cloud *c, size_t knn, int nthreads, volatile sig_atomic_t *flag,
+                         frep_normals_info *info);
+
 /* A segmentation (api/api_segment.c), whose primitives frep_evolve() reads: segment/'s
  * result; npoints, the cloud's size (0 for primitives read from a file: no labels). */
 struct frep_segmentation {

@@ -10,7 +10,6 @@
 #include "api.h"
 #include "cloud.h"
 #include "evolve.h"
-#include "normals.h"
 #include "refit.h"
 #include "residual.h"
 
@@ -226,13 +225,9 @@ static int ensure_normals(evolve_job *j, frep_cloud *c)
     const frep_evolve_options *o = j->o;
     if (c->has_normals && cloud_normalize_normals(c) != c->n) return 0;
     report_phase(j, FREP_EVOLVE_NORMALS);
-    normals_config nc;
-    normals_config_init(&nc);
-    nc.knn = o->knn;
-    nc.nthreads = o->nthreads;
-    nc.interrupt = j->cancel.flag;  /* the flag only: no callback polled here */
-    normals_info info;
-    int rc = normals_run(c, &nc, &info);
+    frep_normals_info info;
+    /* the flag only: no callback polled here */
+    int rc = api_estimate_normals(c, o->knn, o->nthreads, j->cancel.flag, &info);
     if (rc < 0) api_report(&j->d, FREP_ERROR, "out of memory estimating normals");
     else if (rc > 0) api_report(&j->d, FREP_ERROR, "stopped while estimating normals: no model");
     else {

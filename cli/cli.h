@@ -176,6 +176,9 @@ int cli_interrupt_status(const char *sub, const char *what);
  * reported as "frep: cannot write standard output: reason". 0 or -1. */
 int cli_stdout_close(void);
 
+/* Seconds of a monotonic clock, for the durations the summaries print. */
+double cli_now_seconds(void);
+
 /* Exit statuses. */
 #define CLI_OK 0
 #define CLI_FAIL 1      /* the job failed (errors in the model, bad data) */

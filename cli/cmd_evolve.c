@@ -34,13 +34,6 @@ static const char evolve_usage[] =
 /* Seconds between progress lines on a terminal. */
 #define EVOLVE_PROGRESS_INTERVAL 0.2
 
-static double now_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 /* Text in memory (a model, a drawing, the trace), for cli_write_atomic. */
 typedef struct text_out {
     const char *text;
@@ -233,7 +226,7 @@ static int stage_options(evolve_cmd *e, int argc, char **argv)
     if (rc != CLI_GO_ON) return rc;
     if (args.n != 1) return cli_usage_error("evolve", args.n < 1 ? "missing CLOUD" : "one CLOUD expected");
     e->cloud_path = args.v[0];
-    e->t_start = now_seconds();
+    e->t_start = cli_now_seconds();
     if (e->max_time > 0 && cli_deadline_arm(e->max_time))
         return cli_usage_error("evolve", "--max-time: cannot set a timer");
     frep_evolve_options *o = &e->o;
@@ -390,7 +383,7 @@ static int stage_evolve(evolve_cmd *e)
     o->user = e;
     if (e->trace_path) o->trace = trace_cb;
     /* --max-time bounds the whole command: the run gets what is left. */
-    if (e->max_time > 0) o->max_time = fmax(e->max_time - (now_seconds() - e->t_start), 1e-3);
+    if (e->max_time > 0) o->max_time = fmax(e->max_time - (cli_now_seconds() - e->t_start), 1e-3);
     o->cancel_flag = cli_sigint_catch();
     e->ev = frep_evolve(e->cloud, e->prims, o, run_diag, e);
     cli_sigint_restore();
@@ -401,7 +394,7 @@ static int stage_evolve(evolve_cmd *e)
     }
     frep_evolution_get_info(e->ev, &e->info);
     if (!e->cut && (cli_deadline_passed() ||
-                    (e->max_time > 0 && now_seconds() - e->t_start >= e->max_time)))
+                    (e->max_time > 0 && cli_now_seconds() - e->t_start >= e->max_time)))
         e->cut = "the GA";
     if (e->info.alpha_auto && !e->quiet) report_alpha(&e->info);
     return CLI_OK;

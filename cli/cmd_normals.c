@@ -1,15 +1,12 @@
-/* cmd_normals.c - frep normals: estimate the normals of a point cloud (geom/normals.c),
- * the first stage frep segment and frep evolve run on a cloud without normals, on its
- * own so that the estimate can be looked at and reused.  Also the --knn option parser
- * the three commands share.
+/* cmd_normals.c - frep normals: estimate the normals of a point cloud through the
+ * public API (frep_normals(), api/api_normals.c), the first stage frep segment and frep
+ * evolve run on a cloud without normals, on its own so that the estimate can be looked
+ * at and reused.  Also the --knn option parser and the cloud checks the three commands
+ * share.
  */
 #include "config.h"
 
 #include "cli.h"
-#include "cloud.h"
-#include "kdtree.h"
-#include "normals.h"
-#include "util.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -36,38 +33,49 @@ int cli_opt_knn(const char *arg, void *dest, char *why, size_t whylen)
     }
     char *end;
     long v = strtol(arg, &end, 10);
-    if (end == arg || *end || v < 3 || v > KD_MAX_K) {
-        snprintf(why, whylen, "expected a neighbour count 3..%d or auto, got '%s'", KD_MAX_K, arg);
+    if (end == arg || *end || v < FREP_NORMALS_MIN_KNN || v > FREP_NORMALS_MAX_KNN) {
+        snprintf(why, whylen, "expected a neighbour count %d..%d or auto, got '%s'",
+                 FREP_NORMALS_MIN_KNN, FREP_NORMALS_MAX_KNN, arg);
         return -1;
     }
     *k = (size_t)v;
     return 0;
 }
 
+/* A library message as "frep SUB: message". */
+typedef struct sub_name {
+    const char *sub;
+} sub_name;
+
+static void sub_diag(void *user, const frep_diag *d)
+{
+    const sub_name *s = user;
+    cli_library_diag(s->sub, d);
+}
+
 int cli_check_cloud(const char *sub, const char *path, const frep_cloud *c, int need_solid)
 {
-    frep_error err;
-    frep_error_init(&err);
     int planar = 0;
-    if (cloud_check_scale(c, path, &err) || normals_check_cloud(c, path, &planar, &err)) {
-        fprintf(stderr, "frep %s: %s\n", sub, err.msg);
-        return CLI_FAIL;
-    }
+    sub_name sn = { sub };
+    if (frep_cloud_check(c, path, &planar, sub_diag, &sn)) return CLI_FAIL;
+    size_t n = frep_cloud_size(c);
     if (need_solid && planar) {
         fprintf(stderr, "frep %s: %s: all %zu points lie on one plane: they bound no solid\n",
-                sub, path, c->n);
+                sub, path, n);
         return CLI_FAIL;
     }
-    if (c->has_normals) {
+    const double *nx, *ny, *nz;
+    frep_cloud_arrays(c, NULL, NULL, NULL, &nx, &ny, &nz);
+    if (nx) {
         size_t zero = 0;
-        for (size_t i = 0; i < c->n; i++) {
-            double l = c->nx[i] * c->nx[i] + c->ny[i] * c->ny[i] + c->nz[i] * c->nz[i];
+        for (size_t i = 0; i < n; i++) {
+            double l = nx[i] * nx[i] + ny[i] * ny[i] + nz[i] * nz[i];
             zero += !(l > 0) || !isfinite(l);
         }
-        if (zero == c->n) {
+        if (zero == n) {
             fprintf(stderr, "frep %s: %s: all %zu normals are zero: give the points alone "
                             "(3 columns) to have normals estimated, or see frep normals\n",
-                    sub, path, c->n);
+                    sub, path, n);
             return CLI_FAIL;
         }
     }
@@ -76,7 +84,7 @@ int cli_check_cloud(const char *sub, const char *path, const frep_cloud *c, int 
 
 typedef struct normals_cmd {
     const char *in, *out;
-    normals_config cfg;
+    frep_normals_options o;
     int quiet;
 } normals_cmd;
 
@@ -84,30 +92,43 @@ typedef struct normals_cmd {
 static const cli_opt normals_opts[] = {
     { 'o', "output", "FILE", CLI_OPT_STRING, OFF(out),
       .help = "the cloud with its normals: .ply (binary), else .xyz text" },
-    CLI_OPT_KNN(normals_cmd, cfg.knn),
-    CLI_OPT_THREADS(normals_cmd, cfg.nthreads, "OpenMP threads (the result does not depend on it)"),
+    CLI_OPT_KNN(normals_cmd, o.knn),
+    CLI_OPT_THREADS(normals_cmd, o.nthreads, "OpenMP threads (the result does not depend on it)"),
     CLI_OPT_QUIET(normals_cmd, quiet, "no summary"),
 };
 #undef OFF
 static const cli_opt_spec normals_spec = { "normals", normals_usage, normals_opts,
                                            sizeof normals_opts / sizeof normals_opts[0], 24 };
 
-typedef struct write_ctx {
-    const frep_cloud *c;
-    const char *path;
-} write_ctx;
-
-static int write_cloud_cb(FILE *f, void *user)
+/* read -> check -> estimate (Ctrl-C: nothing written) -> write -> summary */
+static int normals_steps(normals_cmd *n, frep_cloud **cp)
 {
-    const write_ctx *w = user;
-    return cloud_write_for_path(f, w->c, w->path);
+    sub_name sn = { "normals" };
+    frep_cloud *c = *cp = frep_cloud_read(n->in, sub_diag, &sn);
+    if (!c) return CLI_FAIL;
+    /* Normals in the file are replaced: zero ones are no error here. */
+    if (frep_cloud_check(c, n->in, NULL, sub_diag, &sn)) return CLI_FAIL;
+    n->o.cancel_flag = cli_sigint_catch();
+    frep_normals_info info;
+    double t0 = cli_now_seconds();
+    int rc = frep_normals(c, &n->o, &info, sub_diag, &sn);
+    double dt = cli_now_seconds() - t0;
+    if (rc < 0) return CLI_FAIL;
+    if (rc > 0) return cli_interrupt_status("normals", "nothing written");
+    if (frep_cloud_write(c, n->out, sub_diag, &sn)) return CLI_FAIL;
+    if (!n->quiet)
+        fprintf(stderr, "frep normals: %zu points, spacing %.4g, noise %.4g, %zu neighbours%s, "
+                        "%zu connected part%s (%zu turned outward), %.2f s\n",
+                frep_cloud_size(c), info.spacing, info.noise, info.knn, n->o.knn ? "" : " (auto)",
+                info.components, info.components == 1 ? "" : "s", info.flipped, dt);
+    return CLI_OK;
 }
 
 int cmd_normals(int argc, char **argv)
 {
     normals_cmd n;
     memset(&n, 0, sizeof n);
-    normals_config_init(&n.cfg);
+    frep_normals_options_init(&n.o);
     cli_args args;
     int rc = cli_opt_parse(&normals_spec, argc, argv, &n, &args);
     if (rc != CLI_GO_ON) return rc;
@@ -115,40 +136,8 @@ int cmd_normals(int argc, char **argv)
         return cli_usage_error("normals", args.n < 1 ? "missing CLOUD file" : "too many arguments");
     if (!n.out) return cli_usage_error("normals", "missing -o OUT");
     n.in = args.v[0];
-    frep_error err;
-    frep_error_init(&err);
-    frep_cloud *c = cloud_read(n.in, &err);
-    if (!c) {
-        fprintf(stderr, "frep normals: %s\n", err.msg[0] ? err.msg : "cannot read the cloud");
-        return CLI_FAIL;
-    }
-    /* Normals in the file are replaced: zero ones are no error here. */
-    if (cloud_check_scale(c, n.in, &err) || normals_check_cloud(c, n.in, NULL, &err)) {
-        fprintf(stderr, "frep normals: %s\n", err.msg);
-        cloud_free(c);
-        return CLI_FAIL;
-    }
-    n.cfg.interrupt = cli_sigint_catch();
-    normals_info info;
-    double t0 = frep_now_seconds();
-    rc = normals_run(c, &n.cfg, &info);
-    double dt = frep_now_seconds() - t0;
-    if (rc < 0) {
-        fprintf(stderr, "frep normals: out of memory\n");
-        cloud_free(c);
-        return CLI_FAIL;
-    }
-    if (rc > 0) {
-        cloud_free(c);
-        return cli_interrupt_status("normals", "nothing written");
-    }
-    write_ctx w = { c, n.out };
-    rc = cli_write_atomic(n.out, write_cloud_cb, &w) ? CLI_FAIL : CLI_OK;
-    if (rc == CLI_OK && !n.quiet)
-        fprintf(stderr, "frep normals: %zu points, spacing %.4g, noise %.4g, %zu neighbours%s, "
-                        "%zu connected part%s (%zu turned outward), %.2f s\n",
-                c->n, info.spacing, info.noise, info.knn, n.cfg.knn ? "" : " (auto)",
-                info.components, info.components == 1 ? "" : "s", info.flipped, dt);
-    cloud_free(c);
+    frep_cloud *c = NULL;
+    rc = normals_steps(&n, &c);
+    frep_cloud_free(c);
     return rc;
 }

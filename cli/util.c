@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/time.h>
+#include <time.h>
 #include <unistd.h>
 
 /* The signal helper's state (below, "The one signal helper"). */
@@ -368,4 +369,11 @@ int cli_interrupt_status(const char *sub, const char *what)
                                                                               : "signal",
             what);
     return 128 + sig;
+}
+
+double cli_now_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }

@@ -291,6 +291,58 @@ void frep_cloud_arrays(const frep_cloud *c, const double **x, const double **y,
  * writes .xyz to standard output.  Returns 0 or -1. */
 int frep_cloud_write(const frep_cloud *c, const char *path, frep_diag_fn diag, void *user);
 
+/* ---- normals (frep normals) ---- */
+
+/* Neighbourhood sizes of normal estimation: three points span a plane; the k-d tree
+ * answers at most FREP_NORMALS_MAX_KNN nearest points a query. */
+#define FREP_NORMALS_MIN_KNN 3
+#define FREP_NORMALS_MAX_KNN 256
+
+/* The checks the frep command makes of a cloud before estimating normals, segmenting
+ * or evolving: coordinates within the range the geometry is exact in, at least 3
+ * points, not all the same, not all on one line.  name names the cloud in the message
+ * (NULL: "the cloud"): "part.xyz: all 12 points lie on one line".  Returns 0 with
+ * *planar (may be NULL) set to 1 when all the points lie on one plane (they bound no
+ * solid), else 0; or -1 after reporting why. */
+int frep_cloud_check(const frep_cloud *c, const char *name, int *planar,
+                     frep_diag_fn diag, void *user);
+
+/* Settings of `frep normals` (doc/segment.md, "Normals"), defaults from
+ * frep_normals_options_init().  The estimate is deterministic: no seed. */
+typedef struct frep_normals_options {
+    size_t knn;              /* neighbours of each plane fit, FREP_NORMALS_MIN_KNN..
+                                FREP_NORMALS_MAX_KNN; 0: chosen from the cloud's noise
+                                and spacing (the default, frep normals --knn auto) */
+    int nthreads;            /* <= 0: OpenMP's default; the result does not depend on it */
+    /* A flag a signal handler or another thread raises to stop the estimate (may be
+     * NULL): polled on every thread at least every few thousand points. */
+    volatile sig_atomic_t *cancel_flag;
+} frep_normals_options;
+void frep_normals_options_init(frep_normals_options *o);
+
+/* What an estimate found and used; filled when not NULL. */
+typedef struct frep_normals_info {
+    size_t knn;              /* the neighbourhood size used */
+    double spacing;          /* median distance of a point to its nearest other one */
+    double noise;            /* standard deviation of the points off their surface */
+    size_t components;       /* connected parts of the neighbour graph, each oriented */
+    size_t flipped;          /* of those, turned over to face outward */
+    int interrupted;         /* stopped by the cancel flag */
+} frep_normals_info;
+
+/* Estimate unit normals for every point of c in place, as `frep normals` (and frep
+ * segment and frep evolve on a cloud without them): normals c has are replaced, a
+ * cloud without gets them (frep_cloud_has_normals() is 1 afterwards).  Per point a
+ * plane fitted to its knn nearest points with Gaussian weights, reweighted by its
+ * residuals; oriented consistently along a minimum spanning tree of the neighbour
+ * graph, each connected part outward, then checked patch by patch by the parity of
+ * ray crossings.  o NULL: the defaults.  Returns 0; 1 when stopped by
+ * o->cancel_flag (info->interrupted, no diagnostic: c's normals are then unfinished
+ * and must not be used); -1 after reporting why (a cloud frep_cloud_check() refuses,
+ * knn out of range, out of memory: c's normals are then unspecified). */
+int frep_normals(frep_cloud *c, const frep_normals_options *o, frep_normals_info *info,
+                 frep_diag_fn diag, void *user);
+
 /* ---- triangle meshes ---- */
 
 /* An indexed triangle mesh: vertices, optional unit vertex normals, triangles
@@ -412,13 +464,17 @@ typedef enum frep_prim_type {
     FREP_PRIM_PLANE, FREP_PRIM_SPHERE, FREP_PRIM_CYLINDER, FREP_PRIM_CONE, FREP_PRIM_TORUS
 } frep_prim_type;
 
+/* frep_segment_options.min_points_small: no second detection phase. */
+#define FREP_SEGMENT_NO_SMALL ((size_t)-1)
+
 typedef struct frep_segment_options {
     double epsilon;        /* inlier distance; <= 0: 5x the measured noise, within
                               0.2-1% of the cloud's diagonal (doc/segment.md) */
     double cluster;        /* connectivity cell; <= 0: the default (doc/segment.md) */
     double normal_deg;     /* normal deviation allowed, degrees; <= 0: 25 */
     size_t min_points;     /* smallest support; 0: 1% of the points (at least 10) */
-    size_t min_points_small; /* second phase's; 0: 0.04%; (size_t)-1: no second phase */
+    size_t min_points_small; /* second phase's; 0: 0.04%; FREP_SEGMENT_NO_SMALL: no
+                              second phase */
     double probability;    /* of missing no shape; <= 0: 0.99 */
     unsigned types;        /* 1u << FREP_PRIM_* bits; 0: all */
     uint64_t seed;         /* the same seed gives the same result at any thread count (1) */
@@ -432,6 +488,10 @@ typedef struct frep_segment_options {
      * holds what was found (frep_segmentation_interrupted() is then 1). */
     int (*cancel)(void *user);
     void *user;            /* for progress and cancel */
+    /* A flag a signal handler or another thread raises to stop as cancel does (may be
+     * NULL): polled at every step of detection and on every thread of the normal
+     * estimation.  When given, a cancel callback saying stop raises it. */
+    volatile sig_atomic_t *cancel_flag;
 } frep_segment_options;
 void frep_segment_options_init(frep_segment_options *o);
 
@@ -439,8 +499,10 @@ void frep_segment_options_init(frep_segment_options *o);
 typedef struct frep_segmentation frep_segmentation;
 
 /* Efficient RANSAC over c, as `frep segment` (doc/segment.md).  c's normals are
- * estimated (and stored in c) when it has none or zero ones.  Free the result with
- * frep_segmentation_free(). */
+ * estimated (and stored in c) as frep_normals() does, with o's knn, threads and
+ * cancel flag, when it has none (knn 0: from the data) or when some are zero (then
+ * knn 0 means 12 neighbours).  A cancel during the estimate gives a segmentation
+ * without primitives, interrupted.  Free the result with frep_segmentation_free(). */
 frep_segmentation *frep_segment(frep_cloud *c, const frep_segment_options *o,
                                 frep_diag_fn diag, void *user);
 void frep_segmentation_free(frep_segmentation *s);
@@ -448,6 +510,50 @@ size_t frep_segmentation_nprims(const frep_segmentation *s);     /* all primitiv
 size_t frep_segmentation_nfitted(const frep_segmentation *s);    /* fitted ones */
 size_t frep_segmentation_unassigned(const frep_segmentation *s); /* points in none */
 int frep_segmentation_interrupted(const frep_segmentation *s);
+/* The settings a segmentation used (defaults resolved) and what it found. */
+typedef struct frep_segment_info {
+    size_t npoints;          /* of the cloud (0 for primitives read from a file) */
+    size_t nprims, nfitted, unassigned;
+    double diagonal;         /* of the cloud's bounding box: the scale of the output */
+    double noise;            /* measured noise (0 when epsilon was given) */
+    double epsilon, cluster, normal_deg, probability;
+    size_t min_points;
+    size_t min_points_small; /* == min_points: no second phase */
+    int normals_estimated;   /* 1: c's normals were estimated (none, or zero ones) */
+    size_t zero_normals;     /* zero-length normals found in the cloud */
+    size_t draws;            /* candidate shapes drawn */
+    int interrupted;
+} frep_segment_info;
+void frep_segmentation_get_info(const frep_segmentation *s, frep_segment_info *info);
+
+/* Names of the primitive types ("plane", "sphere", "cylinder", "cone", "torus", as in
+ * .fit files and frep segment --types); NULL for a value out of range. */
+#define FREP_PRIM_NTYPES 5
+const char *frep_prim_type_name(int type);
+
+/* A primitive surface, inside where its signed distance is >= 0 (doc/segment.md). */
+typedef struct frep_prim {
+    int type;                /* a frep_prim_type */
+    double p[3];             /* plane: unit outward normal; sphere: centre; cylinder:
+                                a point of the axis; cone: apex; torus: centre */
+    double a[3];             /* cylinder, cone, torus: unit axis (else 0) */
+    double r;                /* plane: offset d (f = d - n.x); sphere, cylinder: radius;
+                                cone: half-angle (radians); torus: minor radius */
+    double R;                /* torus: major radius */
+    int separating;          /* added to separate the others, not fitted */
+    size_t support;          /* inliers (0 for a separating primitive) */
+    double rms;              /* RMS distance of the inliers */
+} frep_prim;
+/* Primitive j < frep_segmentation_nprims(s): returns 0, or -1 when j is out of range. */
+int frep_segmentation_get_prim(const frep_segmentation *s, size_t j, frep_prim *p);
+
+/* v in the fewest significant digits that stay within quantum / 2 of it, as frep
+ * segment's summary and the .hf files print numbers ("0" when |v| is below that;
+ * quantum <= 0: the shortest form that reads back exactly), into buf of size bytes
+ * (FREP_NUMBER_BUF is always enough).  Returns buf. */
+#define FREP_NUMBER_BUF 32
+char *frep_format_number(char *buf, size_t size, double v, double quantum);
+
 /* Per point of the cloud (its size at frep_segment()): the index of its fitted
  * primitive, or -1; valid until frep_segmentation_free(). */
 const int32_t *frep_segmentation_labels(const frep_segmentation *s);

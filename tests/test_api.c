@@ -10,6 +10,7 @@
 #include "tap.h"
 
 #include <math.h>
+#include <signal.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -488,6 +489,192 @@ static void test_segment(const char *frep, const char *srcdir)
        g ? frep_segmentation_nfitted(g) : 0);
     frep_segmentation_free(g);
     frep_cloud_free(c);
+    ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
+}
+
+/* A copy of c without its normals (the points of a scan). */
+static frep_cloud *bare_copy(const frep_cloud *c, seen *s)
+{
+    const double *x, *y, *z;
+    frep_cloud_arrays(c, &x, &y, &z, NULL, NULL, NULL);
+    return frep_cloud_new(frep_cloud_size(c), x, y, z, NULL, NULL, NULL, collect, s);
+}
+
+/* frep normals and frep_normals on the same bare cloud: the same files, automatic and
+ * fixed neighbourhoods; the checks and the knn range refused with a message; a raised
+ * cancel flag stops the estimate. */
+static void test_normals(const char *frep, const char *srcdir)
+{
+    char model[600], cmd[2048];
+    snprintf(model, sizeof model, "%s/tests/models/segment_box.hf", srcdir);
+    seen s = { 0 };
+    snprintf(cmd, sizeof cmd, "'%s' sample '%s' -n 4000 --seed 7 --noise 0.001 -q -o '%s'", frep,
+             model, tmp("nb.xyz"));
+    ok(run(cmd) == 0, "a box cloud from frep sample");
+    frep_cloud *full = frep_cloud_read(tmp("nb.xyz"), collect, &s);
+    frep_cloud *bare = full ? bare_copy(full, &s) : NULL;
+    ok(bare && !frep_cloud_has_normals(bare) &&
+           frep_cloud_write(bare, tmp("bare.xyz"), collect, &s) == 0,
+       "written without normals (3 columns)");
+    frep_normals_options o;
+    frep_normals_options_init(&o);
+    ok(o.knn == 0 && o.nthreads == 0 && !o.cancel_flag, "normals defaults: knn from the data");
+    static const size_t knns[] = { 0, 20 };
+    static const char *outs[] = { "n.xyz", "n.ply" };
+    for (int t = 0; t < 2; t++) {
+        char cli[64], api[64], knn[32] = "";
+        snprintf(cli, sizeof cli, "cli_%s", outs[t]);
+        snprintf(api, sizeof api, "api_%s", outs[t]);
+        if (knns[t]) snprintf(knn, sizeof knn, " --knn %zu", knns[t]);
+        snprintf(cmd, sizeof cmd, "'%s' normals '%s' -q -t 1%s -o '%s'", frep, tmp("bare.xyz"),
+                 knn, tmp(cli));
+        ok(run(cmd) == 0, "frep normals%s -o %s", knn, outs[t]);
+        frep_cloud *c = frep_cloud_read(tmp("bare.xyz"), collect, &s);
+        o.knn = knns[t];
+        o.nthreads = 2;
+        frep_normals_info info;
+        int rc = c ? frep_normals(c, &o, &info, collect, &s) : -1;
+        ok(rc == 0 && frep_cloud_has_normals(c) && info.knn >= FREP_NORMALS_MIN_KNN &&
+               (knns[t] == 0 || info.knn == knns[t]) && info.spacing > 0 &&
+               info.components >= 1 && !info.interrupted,
+           "frep_normals: %zu neighbours, spacing %g, noise %g, %zu part(s)", info.knn,
+           info.spacing, info.noise, info.components);
+        ok(c && frep_cloud_write(c, tmp(api), collect, &s) == 0 && same_file(tmp(cli), tmp(api)),
+           "the same %s bytes as frep normals%s (2 threads against 1)", outs[t], knn);
+        /* against the sampler's exact normals: all outward; within 60 degrees but at
+         * the box's edges, where a neighbourhood spans two faces */
+        const double *nx, *ny, *nz, *fx, *fy, *fz;
+        size_t n = c ? frep_cloud_size(c) : 0, close = 0, inward = 0;
+        if (c) {
+            frep_cloud_arrays(c, NULL, NULL, NULL, &nx, &ny, &nz);
+            frep_cloud_arrays(full, NULL, NULL, NULL, &fx, &fy, &fz);
+            for (size_t i = 0; i < n; i++) {
+                double d = nx[i] * fx[i] + ny[i] * fy[i] + nz[i] * fz[i];
+                close += d > 0.5;
+                inward += !(d > 0);
+            }
+        }
+        ok(n == 4000 && inward == 0 && close > 0.97 * (double)n,
+           "%zu of %zu normals within 60 degrees of the surface's, %zu inward", close, n, inward);
+        frep_cloud_free(c);
+    }
+    ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
+
+    /* refused: knn out of range, a cloud of too few points, points on one line */
+    seen e = { 0 };
+    o.knn = FREP_NORMALS_MIN_KNN - 1;
+    ok(frep_normals(bare, &o, NULL, collect, &e) == -1 && e.errors == 1 &&
+           strstr(e.last, "knn 2") != NULL, "knn 2 refused (%s)", e.last);
+    o.knn = FREP_NORMALS_MAX_KNN + 1;
+    ok(frep_normals(bare, &o, NULL, collect, &e) == -1 && e.errors == 2, "knn %d refused",
+       FREP_NORMALS_MAX_KNN + 1);
+    o.knn = FREP_NORMALS_MAX_KNN;
+    ok(frep_normals(bare, &o, NULL, collect, &e) == 0 && e.errors == 2,
+       "knn %d, the largest, taken", FREP_NORMALS_MAX_KNN);
+    double lx[4] = { 0, 1, 2, 3 }, ly[4] = { 0, 1, 2, 3 }, lz[4] = { 0, 0, 0, 0 };
+    double pz[4] = { 0, 0, 0, 0 }, py[4] = { 0, 1, 0, 1 };
+    frep_cloud *two = frep_cloud_new(2, lx, ly, lz, NULL, NULL, NULL, collect, &e);
+    ok(two && frep_normals(two, NULL, NULL, collect, &e) == -1 &&
+           strcmp(e.last, "the cloud: too few points: 2 (at least 3 needed)") == 0,
+       "2 points refused (%s)", e.last);
+    frep_cloud *line = frep_cloud_new(4, lx, ly, lz, NULL, NULL, NULL, collect, &e);
+    int planar = -1;
+    ok(line && frep_cloud_check(line, "line.xyz", &planar, collect, &e) == -1 &&
+           strcmp(e.last, "line.xyz: all 4 points lie on one line") == 0 && planar == 0,
+       "frep_cloud_check: %s", e.last);
+    frep_cloud *flat = frep_cloud_new(4, lx, py, pz, NULL, NULL, NULL, collect, &e);
+    int errs = e.errors;
+    ok(flat && frep_cloud_check(flat, NULL, &planar, collect, &e) == 0 && planar == 1 &&
+           e.errors == errs, "frep_cloud_check: 4 points on a plane pass, planar");
+    ok(frep_cloud_check(bare, NULL, &planar, collect, &e) == 0 && planar == 0,
+       "frep_cloud_check: the box's points are not planar");
+    frep_cloud_free(two);
+    frep_cloud_free(line);
+    frep_cloud_free(flat);
+
+    /* a flag raised before the call: stopped, no message */
+    volatile sig_atomic_t stop = 1;
+    frep_normals_options_init(&o);
+    o.cancel_flag = &stop;
+    frep_normals_info info;
+    errs = e.errors;
+    ok(frep_normals(bare, &o, &info, collect, &e) == 1 && info.interrupted && e.errors == errs,
+       "a raised cancel flag stops the estimate (returns 1)");
+    frep_cloud_free(bare);
+    frep_cloud_free(full);
+}
+
+/* frep segment on a cloud without normals estimates them as frep normals, and so does
+ * frep_segment; the figures and primitives the summary prints come through the API. */
+static void test_segment_bare(const char *frep)
+{
+    char cmd[2048];
+    seen s = { 0 };
+    snprintf(cmd, sizeof cmd, "'%s' segment '%s' --seed 4 -q -o '%s' --labels '%s'", frep,
+             tmp("bare.xyz"), tmp("bare_cli.fit"), tmp("bare_cli.labels"));
+    ok(run(cmd) == 0, "frep segment on a cloud without normals");
+    frep_cloud *c = frep_cloud_read(tmp("bare.xyz"), collect, &s);
+    frep_segment_options o;
+    frep_segment_options_init(&o);
+    ok(!o.cancel_flag, "no cancel flag by default");
+    o.seed = 4;
+    frep_segmentation *g = c ? frep_segment(c, &o, collect, &s) : NULL;
+    ok(g && frep_cloud_has_normals(c) &&
+           frep_segmentation_write(g, tmp("bare_api.fit"), NULL, collect, &s) == 0 &&
+           same_file(tmp("bare_cli.fit"), tmp("bare_api.fit")),
+       "frep_segment: the same .fit bytes as frep segment, normals estimated into the cloud");
+    frep_segment_info info;
+    if (g) frep_segmentation_get_info(g, &info);
+    ok(g && info.npoints == 4000 && info.nprims == frep_segmentation_nprims(g) &&
+           info.nfitted == frep_segmentation_nfitted(g) && info.normals_estimated &&
+           info.unassigned == frep_segmentation_unassigned(g) && info.epsilon > 0 &&
+           info.diagonal > 0 && !info.interrupted,
+       "frep_segmentation_get_info: %zu points, %zu primitives, epsilon %g", g ? info.npoints : 0,
+       g ? info.nprims : 0, g ? info.epsilon : 0.0);
+    /* primitives: the box's planes first (unit normals), then separating ones */
+    size_t nfit = 0, bad = 0, nsep = 0;
+    for (size_t j = 0; g && j < info.nprims; j++) {
+        frep_prim q;
+        if (frep_segmentation_get_prim(g, j, &q) != 0) bad++;
+        if (q.separating) nsep++;
+        else if (nsep) bad++;   /* a fitted one after a separating one */
+        else {
+            nfit++;
+            double len = sqrt(q.p[0] * q.p[0] + q.p[1] * q.p[1] + q.p[2] * q.p[2]);
+            bad += q.type != FREP_PRIM_PLANE || fabs(len - 1) > 1e-9 || q.support == 0;
+        }
+    }
+    frep_prim q;
+    ok(g && bad == 0 && nfit == info.nfitted && nfit >= 6 &&
+           frep_segmentation_get_prim(g, info.nprims, &q) == -1,
+       "frep_segmentation_get_prim: %zu fitted planes (unit normals) before %zu separating",
+       nfit, nsep);
+    frep_segmentation_free(g);
+    frep_cloud_free(c);
+
+    /* a fixed neighbourhood: the segmenter's own estimate, as the command's */
+    snprintf(cmd, sizeof cmd, "'%s' segment '%s' --seed 4 --knn 20 -q -o '%s'", frep,
+             tmp("bare.xyz"), tmp("bare_cli20.fit"));
+    ok(run(cmd) == 0, "frep segment --knn 20 on a cloud without normals");
+    c = frep_cloud_read(tmp("bare.xyz"), collect, &s);
+    o.knn = 20;
+    g = c ? frep_segment(c, &o, collect, &s) : NULL;
+    ok(g && frep_segmentation_write(g, tmp("bare_api20.fit"), NULL, collect, &s) == 0 &&
+           same_file(tmp("bare_cli20.fit"), tmp("bare_api20.fit")),
+       "frep_segment with knn 20: the same .fit bytes as frep segment --knn 20");
+    frep_segmentation_free(g);
+    frep_cloud_free(c);
+
+    is_str(frep_prim_type_name(FREP_PRIM_CYLINDER), "cylinder", "frep_prim_type_name");
+    ok(frep_prim_type_name(FREP_PRIM_NTYPES) == NULL && frep_prim_type_name(-1) == NULL,
+       "frep_prim_type_name: NULL out of range");
+    char buf[FREP_NUMBER_BUF], small[4];
+    is_str(frep_format_number(buf, sizeof buf, 0.12345678, 1e-3), "0.123",
+           "frep_format_number: within half a quantum");
+    is_str(frep_format_number(buf, sizeof buf, 1e-9, 1e-6), "0", "frep_format_number: 0 below");
+    is_str(frep_format_number(buf, sizeof buf, 0.1, 0), "0.1", "frep_format_number: exact");
+    is_str(frep_format_number(small, sizeof small, 123.456, 0), "123",
+           "frep_format_number: truncated to the buffer");
     ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
 }
 
@@ -1138,6 +1325,8 @@ int main(void)
     if (frep && srcdir) {
         test_same_as_command(frep, srcdir);
         test_segment(frep, srcdir);
+        test_normals(frep, srcdir);
+        test_segment_bare(frep);
         test_fit(frep);
         test_render(frep, srcdir);
         test_evolve(frep, srcdir);

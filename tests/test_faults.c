@@ -597,6 +597,28 @@ static int case_normals(const fixture *fx, fault_out *o)
     return rc;
 }
 
+/* The public entry point (api/api_normals.c): every failure reported as "out of
+ * memory" through the callback. */
+static int case_api_normals(const fixture *fx, fault_out *o)
+{
+    frep_cloud *c = cloud_copy(fx->cloud, 1);
+    if (!c) {
+        set_msg(o, "out of memory");
+        return -1;
+    }
+    frep_normals_options no;
+    frep_normals_options_init(&no);
+    no.nthreads = 1;
+    frep_normals_info info;
+    int rc = frep_normals(c, &no, &info, on_diag, o);
+    if (!rc) {
+        digest_doubles(o, c->nx, c->n);
+        digest_size(o, info.knn);
+    }
+    cloud_free(c);
+    return rc;
+}
+
 static int case_kdtree(const fixture *fx, fault_out *o)
 {
     const frep_cloud *c = fx->cloud;
@@ -992,6 +1014,7 @@ static const fault_case cases[] = {
     { "sample_model", case_sample_model, MSG_GIVEN, NULL },
     { "sample_mesh", case_sample_mesh, MSG_GIVEN, NULL },
     { "normals", case_normals, MSG_NONE, NULL },
+    { "api_normals", case_api_normals, MSG_GIVEN, NULL },
     { "kdtree", case_kdtree, MSG_NONE, NULL },
     { "segment", case_segment, MSG_GIVEN, NULL },
     { "prims", case_prims, MSG_GIVEN, NULL },

@@ -18,7 +18,7 @@ import warnings
 import numpy as np
 
 __all__ = ["FrepError", "Program", "Mesh", "Cloud", "Segmentation", "Fit", "compile",
-           "compile_file", "read_cloud", "read_mesh", "fit", "fit_file", "read_prims",
+           "compile_file", "read_cloud", "read_mesh", "normals", "fit", "fit_file", "read_prims",
            "Evolution", "EvolveBase", "EVOLVE_PHASES", "Image", "library_version",
            "load_library"]
 
@@ -134,7 +134,33 @@ class _SegmentOptions(ctypes.Structure):
                 ("types", ctypes.c_uint), ("seed", ctypes.c_uint64), ("nthreads", ctypes.c_int),
                 ("knn", ctypes.c_size_t), ("separating", ctypes.c_int),
                 ("progress", _SEG_PROGRESS_FN), ("cancel", _SEG_CANCEL_FN),
-                ("user", ctypes.c_void_p)]
+                ("user", ctypes.c_void_p), ("cancel_flag", ctypes.c_void_p)]
+
+
+class _SegmentInfo(ctypes.Structure):
+    _fields_ = [(n, ctypes.c_size_t) for n in ("npoints", "nprims", "nfitted", "unassigned")] + \
+               [(n, ctypes.c_double) for n in ("diagonal", "noise", "epsilon", "cluster",
+                                               "normal_deg", "probability")] + \
+               [("min_points", ctypes.c_size_t), ("min_points_small", ctypes.c_size_t),
+                ("normals_estimated", ctypes.c_int), ("zero_normals", ctypes.c_size_t),
+                ("draws", ctypes.c_size_t), ("interrupted", ctypes.c_int)]
+
+
+class _Prim(ctypes.Structure):
+    _fields_ = [("type", ctypes.c_int), ("p", ctypes.c_double * 3), ("a", ctypes.c_double * 3),
+                ("r", ctypes.c_double), ("R", ctypes.c_double), ("separating", ctypes.c_int),
+                ("support", ctypes.c_size_t), ("rms", ctypes.c_double)]
+
+
+class _NormalsOptions(ctypes.Structure):
+    _fields_ = [("knn", ctypes.c_size_t), ("nthreads", ctypes.c_int),
+                ("cancel_flag", ctypes.c_void_p)]
+
+
+class _NormalsInfo(ctypes.Structure):
+    _fields_ = [("knn", ctypes.c_size_t), ("spacing", ctypes.c_double),
+                ("noise", ctypes.c_double), ("components", ctypes.c_size_t),
+                ("flipped", ctypes.c_size_t), ("interrupted", ctypes.c_int)]
 
 
 class _FitProgress(ctypes.Structure):
@@ -312,6 +338,13 @@ def _declare(lib):
         "frep_segmentation_interrupted": (I, [P]),
         "frep_segmentation_labels": (ctypes.POINTER(ctypes.c_int32), [P]),
         "frep_segmentation_write": (I, [P, ctypes.c_char_p, ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_segmentation_get_info": (None, [P, ctypes.POINTER(_SegmentInfo)]),
+        "frep_segmentation_get_prim": (I, [P, S, ctypes.POINTER(_Prim)]),
+        "frep_prim_type_name": (ctypes.c_char_p, [I]),
+        "frep_cloud_check": (I, [P, ctypes.c_char_p, ctypes.POINTER(I), _DIAG_FN, P]),
+        "frep_normals_options_init": (None, [ctypes.POINTER(_NormalsOptions)]),
+        "frep_normals": (I, [P, ctypes.POINTER(_NormalsOptions), ctypes.POINTER(_NormalsInfo),
+                             _DIAG_FN, P]),
         "frep_fit_options_init": (None, [ctypes.POINTER(_FitOptions)]),
         "frep_fit_template": (P, [ctypes.c_char_p, ctypes.c_char_p, S,
                                   ctypes.POINTER(_CompileOptions), P,
@@ -856,6 +889,23 @@ class Cloud(_Wrapper):
         if _L().frep_cloud_write(self._h, str(path).encode(), d.fn, None) != 0:
             d.fail("cannot write %s" % path)
 
+    def estimate_normals(self, knn=0, threads=0):
+        """Estimate unit normals for every point in place, as frep normals (normals the
+        cloud has are replaced): knn neighbours per plane fit (3..256; 0: chosen from
+        the cloud's noise and spacing).  Returns what was found and used: a dict with
+        knn, spacing, noise, components and flipped (parts turned outward)."""
+        lib = _L()
+        o = _NormalsOptions()
+        lib.frep_normals_options_init(ctypes.byref(o))
+        o.knn, o.nthreads = int(knn), int(threads)
+        info = _NormalsInfo()
+        d = _Diagnostics()
+        rc = lib.frep_normals(self._h, ctypes.byref(o), ctypes.byref(info), d.fn, None)
+        if rc != 0:
+            d.fail("cannot estimate the normals")
+        self._set_arrays()
+        return {k: getattr(info, k) for k, _ in _NormalsInfo._fields_ if k != "interrupted"}
+
     def segment(self, seed=1, epsilon=0.0, types=None, separating=True, threads=0,
                 progress=None, cancel=None, **kw):
         """Efficient RANSAC, as frep segment: a Segmentation.  types: names of
@@ -947,6 +997,26 @@ class Segmentation:
         self.unassigned = lib.frep_segmentation_unassigned(h)
         self.interrupted = bool(lib.frep_segmentation_interrupted(h))
         self.labels = _view(lib.frep_segmentation_labels(h), (npoints,), np.int32, self._handle)
+        info = _SegmentInfo()
+        lib.frep_segmentation_get_info(h, ctypes.byref(info))
+        self.info = {k: getattr(info, k) for k, _ in _SegmentInfo._fields_}
+        self.info["normals_estimated"] = bool(self.info["normals_estimated"])
+        self.info["interrupted"] = bool(self.info["interrupted"])
+
+    def prims(self):
+        """The primitives, fitted first: a list of dicts with type (a name of
+        PRIM_TYPES), p, a (3-tuples), r, R, separating, support and rms, as
+        frep.h's frep_prim describes them."""
+        lib = _L()
+        out = []
+        for j in range(self.nprims):
+            q = _Prim()
+            lib.frep_segmentation_get_prim(self._h, j, ctypes.byref(q))
+            out.append({"type": lib.frep_prim_type_name(q.type).decode(), "p": tuple(q.p),
+                        "a": tuple(q.a), "r": q.r, "R": q.R,
+                        "separating": bool(q.separating), "support": q.support,
+                        "rms": q.rms})
+        return out
 
     def write(self, path, header=None):
         """A .fit list (path ending in .fit) or a .hf model with header comment lines."""
@@ -976,6 +1046,17 @@ class _Owned(np.ndarray):
 
     def __array_finalize__(self, obj):
         self._owner = getattr(obj, "_owner", None)
+
+
+def normals(points, knn=0, threads=0, info=False):
+    """Unit normals of the points ((N, 3) array-like), estimated as frep normals does:
+    an (N, 3) float64 array (a new one; the points are copied into a cloud).  knn:
+    neighbours per plane fit (3..256; 0: chosen from the noise and spacing); with
+    info=True, returns (normals, dict of Cloud.estimate_normals)."""
+    c = Cloud(points)
+    found = c.estimate_normals(knn=knn, threads=threads)
+    n = np.array(c.normals)
+    return (n, found) if info else n
 
 
 def read_cloud(path):

@@ -210,6 +210,59 @@ def test_segment_cancel():
     assert s.interrupted and len(polls) == 3 and s.nfitted < 6
 
 
+def test_normals_same_as_command(tmp_path):
+    need_frep()
+    model = os.path.join(SRCDIR, "tests", "models", "segment_box.hf")
+    full = frep.compile_file(model).sample(3000, seed=6, noise=0.001)
+    bare = tmp_path / "bare.xyz"
+    frep.Cloud(full.points).write(bare)
+    for knn in (0, 20):
+        out = tmp_path / ("cli%d.xyz" % knn)
+        subprocess.run([FREP, "normals", str(bare), "-q", "-o", str(out)] +
+                       (["--knn", str(knn)] if knn else []), check=True)
+        want = np.loadtxt(out)
+        n, info = frep.normals(np.loadtxt(bare), knn=knn, threads=2, info=True)
+        assert n.shape == (3000, 3) and n.dtype == np.float64
+        # the command prints %.17g: exact
+        assert np.array_equal(n, want[:, 3:]) and np.array_equal(np.loadtxt(bare), want[:, :3])
+        assert info["knn"] == (knn or info["knn"]) and info["knn"] >= 3 and info["spacing"] > 0
+    # unit length; against the sampler's exact normals all outward, and within 60
+    # degrees but at the box's edges
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
+    dots = np.sum(n * full.normals, axis=1)
+    assert np.all(dots > 0) and np.mean(dots > 0.5) > 0.97
+
+
+def test_normals_in_place_and_errors():
+    c = frep.Cloud(np.random.default_rng(1).normal(size=(500, 3)))
+    assert c.normals is None
+    info = c.estimate_normals(knn=16)
+    assert info["knn"] == 16 and c.normals.shape == (500, 3)
+    with pytest.raises(frep.FrepError, match="knn 2"):
+        c.estimate_normals(knn=2)
+    with pytest.raises(frep.FrepError, match="one line"):
+        frep.normals([[0, 0, 0], [1, 1, 1], [2, 2, 2], [3, 3, 3]])
+    with pytest.raises(frep.FrepError, match="too few points"):
+        frep.normals([[0, 0, 0], [1, 0, 0]])
+
+
+def test_segmentation_info_and_prims():
+    model = frep.compile_file(os.path.join(SRCDIR, "tests", "models", "segment_box.hf"))
+    bare = frep.Cloud(model.sample(4000, seed=2).points)
+    s = bare.segment(seed=2)
+    assert s.info["normals_estimated"] and bare.normals is not None
+    assert s.info["npoints"] == 4000 and s.info["nprims"] == s.nprims
+    prims = s.prims()
+    assert len(prims) == s.nprims and sum(not q["separating"] for q in prims) == s.nfitted
+    assert all(q["type"] in frep.PRIM_TYPES for q in prims)
+    fitted = [q for q in prims if not q["separating"]]
+    # a primitive's support is the points labelled with it
+    counts = np.bincount(s.labels[s.labels >= 0], minlength=s.nfitted)
+    assert list(counts) == [q["support"] for q in fitted]
+    planes = [q for q in fitted if q["type"] == "plane"]
+    assert all(abs(np.linalg.norm(q["p"]) - 1) < 1e-9 for q in planes)
+
+
 SPHERE_TEMPLATE = """-- a sphere of unknown centre and radius
 my_model(x[3], a[1]) {
   cx = 0;     -- @free [-1, 1]
@@ -388,7 +441,7 @@ def test_option_structs_match_the_library():
     for name, cls in (("compile", frep._CompileOptions), ("mesh", frep._MeshOptions),
                       ("sample", frep._SampleOptions), ("segment", frep._SegmentOptions),
                       ("fit", frep._FitOptions), ("evolve", frep._EvolveOptions),
-                      ("render", frep._RenderOptions)):
+                      ("render", frep._RenderOptions), ("normals", frep._NormalsOptions)):
         size = ctypes.sizeof(cls)
         buf = (ctypes.c_ubyte * (size + 64))(*([0xAB] * (size + 64)))
         getattr(lib, "frep_%s_options_init" % name)(ctypes.cast(buf, ctypes.POINTER(cls)))
