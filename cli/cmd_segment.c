@@ -32,14 +32,17 @@ static const char segment_usage[] =
 typedef struct progress_state {
     double last;
     int shown;
+    const char *stage;   /* the stage last shown (a new one is shown at once) */
 } progress_state;
 
 static void progress(void *user, const char *stage, size_t done, size_t total, size_t nprims)
 {
     progress_state *p = user;
     double t = frep_now_seconds();
-    if (t - p->last < SEGMENT_PROGRESS_INTERVAL) return;
+    if (t - p->last < SEGMENT_PROGRESS_INTERVAL && p->stage && strcmp(stage, p->stage) == 0)
+        return;
     p->last = t;
+    p->stage = stage;
     p->shown = 1;
     fprintf(stderr, "\rfrep segment: %s: %zu/%zu points assigned, %zu primitives   ", stage, done,
             total, nprims);
@@ -241,7 +244,7 @@ static int stage_segment(segment_cmd *s)
         }
         s->auto_normals = 1;
     }
-    progress_state ps = {0, 0};
+    progress_state ps = {0, 0, NULL};
     if (isatty(2) && !s->quiet) {
         s->cfg.progress = progress;
         s->cfg.user = &ps;

@@ -641,6 +641,8 @@ static void start_control(fit_run_ctx *R)
     R->ctl.max_evals = cfg->max_evals;
     R->ctl.deadline = cfg->max_time > 0 ? R->t0 + cfg->max_time : 0;
     R->ctl.interrupt = cfg->interrupt;
+    R->ctl.cancel = cfg->cancel;
+    R->ctl.cancel_user = cfg->progress_user;
     if (cfg->progress != NULL) {
         R->ctl.progress = on_progress;
         R->ctl.progress_user = R;

@@ -649,8 +649,9 @@ typedef enum frep_evolve_phase {
     FREP_EVOLVE_SIMPLIFY,    /* the final tree's simplification starts */
     FREP_EVOLVE_NORMALS,     /* normal estimation starts (a cloud without normals) */
     FREP_EVOLVE_SEGMENT,     /* segmentation starts (no primitives given) */
-    FREP_EVOLVE_SEARCH       /* the search starts: primitives known, the clock of
+    FREP_EVOLVE_SEARCH,      /* the search starts: primitives known, the clock of
                                 elapsed, max_time's GA share and the trace set */
+    FREP_EVOLVE_REFIT        /* the refit of the primitives' parameters starts (refit) */
 } frep_evolve_phase;
 
 typedef struct frep_evolve_progress {
