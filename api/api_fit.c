@@ -423,7 +423,8 @@ static void stage_judge(frep_fit *f)
     char why[96] = "", noise[160] = "";
     if (!isfinite(res->within)) {
         word = "unknown";
-        snprintf(why, sizeof why, "the distances could not be measured");
+        snprintf(why, sizeof why, f->stop ? "interrupted: the distances were not measured"
+                                          : "the distances could not be measured");
     } else {
         /* Judged on the inliers: points taken for outliers are reported, not held
          * against the fit, unless they are more than FIT_VERDICT_OUTLIERS of the cloud.

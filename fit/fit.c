@@ -904,7 +904,10 @@ static int finish(fit_run_ctx *R, double *params, fit_result *res, frep_error *e
     res->objective = fx;
     res->rms = res->max_dist = res->within = res->noise = res->within_inliers = NAN;
     res->diagonal = points_diagonal(R->pts);
-    if (R->cfg->report && measure(R, res) != 0) return frep_error_nomem(err);
+    /* After Ctrl-C the result is kept unmeasured (NaN): the true distances search
+     * around every point, seconds on a large cloud, and poll nothing. */
+    int cancelled = R->ctl.cancelled || (R->ctl.interrupt != NULL && *R->ctl.interrupt);
+    if (R->cfg->report && !cancelled && measure(R, res) != 0) return frep_error_nomem(err);
     res->evals = R->ctl.evals;
     res->status = R->st;
     res->sa_iterations = R->sa_iterations;

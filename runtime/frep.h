@@ -509,8 +509,9 @@ typedef struct frep_fit_options {
     size_t nbounds;
     /* Called from the calling thread (may be NULL). */
     void (*progress)(void *user, const frep_fit_progress *p);
-    /* Polled with the progress (at most every 0.2 s; may be NULL): nonzero stops the
-     * fit, which keeps the best parameters so far (frep_fit_info.interrupted). */
+    /* Polled with the progress and between evaluations (at most every 0.02 s there;
+     * may be NULL): nonzero stops the fit, which keeps the best parameters so far
+     * (frep_fit_info.interrupted), left unmeasured (rms and max NaN). */
     int (*cancel)(void *user);
     void *user;                      /* for progress and cancel */
 } frep_fit_options;

@@ -290,8 +290,9 @@ if start_tty "$FREP" evolve "$tmp/g20.xyz" -p "$tmp/g5.fit" --seed 1 --generatio
 else
     skip_tty "evolve: Ctrl-C during the merge of the clique trees"
 fi
-if start_tty "$FREP" evolve "$tmp/g20.xyz" -p "$tmp/g5.fit" --seed 1 --generations 5 \
-    --no-partition --refit -o "$tmp/ev7.hf"; then
+# (a GA of 20 generations, unsimplified: the refit of its 28 parameters takes seconds)
+if start_tty "$FREP" evolve "$tmp/g20.xyz" -p "$tmp/g5.fit" --seed 1 --generations 20 \
+    --no-partition --no-simplify --refit -o "$tmp/ev7.hf"; then
     wait_for 'refitting the primitives'
     stop INT
     [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev7.hf" 2>/dev/null &&
