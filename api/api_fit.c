@@ -423,7 +423,7 @@ static void stage_judge(frep_fit *f)
     char why[96] = "", noise[160] = "";
     if (!isfinite(res->within)) {
         word = "unknown";
-        snprintf(why, sizeof why, f->stop ? "interrupted: the distances were not measured"
+        snprintf(why, sizeof why, f->stop ? "stopped before the end, the distances not measured"
                                           : "the distances could not be measured");
     } else {
         /* Judged on the inliers: points taken for outliers are reported, not held

@@ -426,7 +426,8 @@ typedef struct frep_segment_options {
     size_t knn;            /* neighbours for normal estimation; 0: the default */
     int separating;        /* add the separating primitives (1) */
     /* Called from the calling thread as detection goes (may be NULL): the stage
-     * ("normals", "detect"), points assigned of total, primitives so far. */
+     * ("normals", "detect", then "merge" per pair of redundant primitives tried),
+     * points assigned of total, primitives so far. */
     void (*progress)(void *user, const char *stage, size_t done, size_t total, size_t nprims);
     /* Polled at every step (may be NULL): nonzero stops detection, and the result
      * holds what was found (frep_segmentation_interrupted() is then 1). */
