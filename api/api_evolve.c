@@ -389,6 +389,8 @@ static void refit(evolve_job *j, const frep_cloud *c, frep_evolution *ev)
     if (!o->refit || *j->cancel.flag ||
         (o->max_time > 0 && frep_now_seconds() - j->start >= o->max_time))
         return;
+    report_phase(j, FREP_EVOLVE_REFIT);
+    if (*j->cancel.flag) return;
     evolve_refit_info ri;
     frep_error e;
     frep_error_init(&e);

@@ -286,6 +286,14 @@ static void on_progress(void *user, const fit_progress *p)
     if (f->o->cancel && f->o->cancel(f->o->user)) f->stop = 1;
 }
 
+/* The caller's cancel, polled between evaluations (fit_config.cancel). */
+static int on_cancel(void *user)
+{
+    frep_fit *f = user;
+    if (f->o->cancel && f->o->cancel(f->o->user)) f->stop = 1;
+    return f->stop != 0;
+}
+
 static int stage_fit(frep_fit *f)
 {
     if (fit_program_model(f->p, f->idx, f->nfree, f->base, &f->fm) != 0)
@@ -298,6 +306,7 @@ static int stage_fit(frep_fit *f)
     if (f->o->progress || f->o->cancel) {
         f->cfg.progress = on_progress;
         f->cfg.progress_user = f;
+        f->cfg.cancel = on_cancel;
         f->cfg.interrupt = &f->stop;
     }
     frep_error err;
@@ -414,7 +423,8 @@ static void stage_judge(frep_fit *f)
     char why[96] = "", noise[160] = "";
     if (!isfinite(res->within)) {
         word = "unknown";
-        snprintf(why, sizeof why, "the distances could not be measured");
+        snprintf(why, sizeof why, f->stop ? "stopped before the end, the distances not measured"
+                                          : "the distances could not be measured");
     } else {
         /* Judged on the inliers: points taken for outliers are reported, not held
          * against the fit, unless they are more than FIT_VERDICT_OUTLIERS of the cloud.

@@ -143,6 +143,10 @@ void cli_cloud_dist_free(cli_cloud_dist *d);
 void cli_signals_install(void);
 volatile sig_atomic_t *cli_sigint_catch(void);
 void cli_sigint_restore(void);
+/* A step that polls no flag follows (frep render's drawing): until the next
+ * cli_sigint_catch(), a signal ends the process at once again, as before any catch
+ * (unless one came already: the command then stops as it planned). */
+void cli_sigint_release(void);
 /* The signal received since the command asked for the flag (0: none). */
 int cli_interrupted(void);
 /* The signal was the command's normal end (frep view --watch stops at Ctrl-C): forget

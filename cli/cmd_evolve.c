@@ -323,6 +323,10 @@ static void progress(void *user, const frep_evolve_progress *p)
         if (p->phase == FREP_EVOLVE_SEARCH && e->segmented && cli_deadline_passed())
             e->cut = "segmentation";
         e->phase = p->phase;
+        if (p->phase != FREP_EVOLVE_REFIT || !e->tty || e->quiet) return;
+        fputs("\rfrep evolve: refitting the primitives   ", stderr);
+        fflush(stderr);
+        e->line_open = 1;
         return;
     }
     if (!e->tty || e->quiet) return;
@@ -408,7 +412,12 @@ static double percent(size_t k, size_t n)
 /* The model, --dot, --view and --trace, each atomically. */
 static int stage_write(evolve_cmd *e)
 {
-    e->model = frep_evolution_model(e->ev, e->cmdline, e->cloud_path, e->exact, e->hyperfun,
+    /* After Ctrl-C the tree is the one so far (the clique trees united as they stand,
+     * thousands of nodes): its numbers are written exact, without the rounding and box
+     * cover whose checks evaluate the tree at every check point (seconds on such a
+     * tree), so that the command ends within the promised second. */
+    int exact = e->exact || cli_interrupted();
+    e->model = frep_evolution_model(e->ev, e->cmdline, e->cloud_path, exact, e->hyperfun,
                                     &e->model_len, print_diag, e);
     if (!e->model) return CLI_FAIL;
     text_out m = { e->model, e->model_len };

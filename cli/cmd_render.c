@@ -162,6 +162,11 @@ static void stage_report(const render_cmd *c)
 static int render_steps(render_cmd *c)
 {
     int rc = stage_mesh(c);
+    /* the drawing polls nothing: from here a signal stops the command at once, the
+     * picture not written (an old one untouched) */
+    cli_sigint_release();
+    if (rc == CLI_OK && cli_interrupted())
+        rc = cli_interrupt_status("render", "stopped before drawing, nothing written");
     if (rc == CLI_OK) rc = stage_draw(c);
     if (rc == CLI_OK && frep_image_write_png(c->img, c->out, render_diag, NULL) != 0)
         rc = CLI_FAIL;

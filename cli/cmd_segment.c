@@ -30,14 +30,17 @@ static const char segment_usage[] =
 typedef struct progress_state {
     double last;
     int shown;
+    const char *stage;   /* the stage last shown (a new one is shown at once) */
 } progress_state;
 
 static void progress(void *user, const char *stage, size_t done, size_t total, size_t nprims)
 {
     progress_state *p = user;
     double t = cli_now_seconds();
-    if (t - p->last < SEGMENT_PROGRESS_INTERVAL) return;
+    if (t - p->last < SEGMENT_PROGRESS_INTERVAL && p->stage && strcmp(stage, p->stage) == 0)
+        return;
     p->last = t;
+    p->stage = stage;
     p->shown = 1;
     fprintf(stderr, "\rfrep segment: %s: %zu/%zu points assigned, %zu primitives   ", stage, done,
             total, nprims);
@@ -216,7 +219,7 @@ static int stage_segment(segment_cmd *s)
     if (!s->c) return CLI_FAIL;
     s->had_normals = frep_cloud_has_normals(s->c);
     if (cli_check_cloud("segment", s->in, s->c, 0) != CLI_OK) return CLI_FAIL;
-    progress_state ps = {0, 0};
+    progress_state ps = {0, 0, NULL};
     if (isatty(2) && !s->quiet) {
         s->o.progress = progress;
         s->o.user = &ps;

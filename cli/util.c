@@ -350,6 +350,11 @@ void cli_sigint_restore(void)
      * during that write is the first one still, so it lets the write finish. */
 }
 
+void cli_sigint_release(void)
+{
+    if (cli_signal_flag == 0) cli_signal_polled = 0;
+}
+
 int cli_interrupted(void)
 {
     return cli_signal_flag;

@@ -641,6 +641,8 @@ static void start_control(fit_run_ctx *R)
     R->ctl.max_evals = cfg->max_evals;
     R->ctl.deadline = cfg->max_time > 0 ? R->t0 + cfg->max_time : 0;
     R->ctl.interrupt = cfg->interrupt;
+    R->ctl.cancel = cfg->cancel;
+    R->ctl.cancel_user = cfg->progress_user;
     if (cfg->progress != NULL) {
         R->ctl.progress = on_progress;
         R->ctl.progress_user = R;
@@ -902,7 +904,10 @@ static int finish(fit_run_ctx *R, double *params, fit_result *res, frep_error *e
     res->objective = fx;
     res->rms = res->max_dist = res->within = res->noise = res->within_inliers = NAN;
     res->diagonal = points_diagonal(R->pts);
-    if (R->cfg->report && measure(R, res) != 0) return frep_error_nomem(err);
+    /* After Ctrl-C the result is kept unmeasured (NaN): the true distances search
+     * around every point, seconds on a large cloud, and poll nothing. */
+    int cancelled = R->ctl.cancelled || (R->ctl.interrupt != NULL && *R->ctl.interrupt);
+    if (R->cfg->report && !cancelled && measure(R, res) != 0) return frep_error_nomem(err);
     res->evals = R->ctl.evals;
     res->status = R->st;
     res->sa_iterations = R->sa_iterations;

@@ -69,6 +69,9 @@ typedef struct fit_config {
     volatile sig_atomic_t *interrupt;   /* Ctrl-C flag; may be NULL */
     void (*progress)(void *user, const fit_progress *p);
     void *progress_user;
+    /* Polled between evaluations (fit_control.cancel), with progress_user; non-zero:
+     * stop with the best so far.  May be NULL. */
+    int (*cancel)(void *user);
     int report;                 /* measure the result: true distances, uncertainties (0;
                                    frep fit sets 1: the measures cost a few evaluations
                                    of every point) */

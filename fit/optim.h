@@ -45,15 +45,26 @@ typedef struct fit_control {
     void *progress_user;
     double progress_interval;
     double last_progress;
+    /* The caller's cancel (a Ctrl-C seen through a callback), polled by
+     * fit_control_stop at most every FIT_CANCEL_POLL_SECONDS, so that it reaches every
+     * evaluation and not only the iterations' progress reports; non-zero: stop.
+     * May be NULL. */
+    int (*cancel)(void *user);
+    void *cancel_user;
+    double next_cancel;
+    int cancelled;
     /* Set by a phase whose work arrays could not be allocated (it returns FIT_NOMEM):
      * every phase sharing this control then stops, the searches inside the annealing
      * included, and the caller reports "out of memory". */
     int out_of_memory;
 } fit_control;
 
+/* How often fit_control_stop calls fit_control.cancel at most: far below the 0.1 s of
+ * work between polls that Ctrl-C latency allows (doc/architecture.md, "Interrupts"). */
+#define FIT_CANCEL_POLL_SECONDS 0.02
 void fit_control_init(fit_control *c);
-/* Non-zero when the budget is spent or an interrupt arrived. */
-int fit_control_stop(const fit_control *c);
+/* Non-zero when the budget is spent or an interrupt arrived (the cancel polled). */
+int fit_control_stop(fit_control *c);
 
 typedef enum fit_status {
     FIT_CONVERGED = 0,  /* a convergence test passed */

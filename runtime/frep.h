@@ -482,7 +482,8 @@ typedef struct frep_segment_options {
     size_t knn;            /* neighbours for normal estimation; 0: the default */
     int separating;        /* add the separating primitives (1) */
     /* Called from the calling thread as detection goes (may be NULL): the stage
-     * ("normals", "detect"), points assigned of total, primitives so far. */
+     * ("normals", "detect", then "merge" per pair of redundant primitives tried),
+     * points assigned of total, primitives so far. */
     void (*progress)(void *user, const char *stage, size_t done, size_t total, size_t nprims);
     /* Polled at every step (may be NULL): nonzero stops detection, and the result
      * holds what was found (frep_segmentation_interrupted() is then 1). */
@@ -615,8 +616,9 @@ typedef struct frep_fit_options {
     size_t nbounds;
     /* Called from the calling thread (may be NULL). */
     void (*progress)(void *user, const frep_fit_progress *p);
-    /* Polled with the progress (at most every 0.2 s; may be NULL): nonzero stops the
-     * fit, which keeps the best parameters so far (frep_fit_info.interrupted). */
+    /* Polled with the progress and between evaluations (at most every 0.02 s there;
+     * may be NULL): nonzero stops the fit, which keeps the best parameters so far
+     * (frep_fit_info.interrupted), left unmeasured (rms and max NaN). */
     int (*cancel)(void *user);
     void *user;                      /* for progress and cancel */
 } frep_fit_options;
@@ -755,8 +757,9 @@ typedef enum frep_evolve_phase {
     FREP_EVOLVE_SIMPLIFY,    /* the final tree's simplification starts */
     FREP_EVOLVE_NORMALS,     /* normal estimation starts (a cloud without normals) */
     FREP_EVOLVE_SEGMENT,     /* segmentation starts (no primitives given) */
-    FREP_EVOLVE_SEARCH       /* the search starts: primitives known, the clock of
+    FREP_EVOLVE_SEARCH,      /* the search starts: primitives known, the clock of
                                 elapsed, max_time's GA share and the trace set */
+    FREP_EVOLVE_REFIT        /* the refit of the primitives' parameters starts (refit) */
 } frep_evolve_phase;
 
 typedef struct frep_evolve_progress {

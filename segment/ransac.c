@@ -1712,7 +1712,10 @@ static int merge_pass(merger *g)
         for (size_t qi = 0; qi < np; qi++) {
             size_t mq = g->start[qi + 1] - g->start[qi];
             if (qi == pi || mq < mp || (mq == mp && qi > pi)) continue;
-            if (frep_cancelled(g->d->cfg->interrupt)) return 0;
+            const ransac_config *cfg = g->d->cfg;
+            if (cfg->progress)
+                cfg->progress(cfg->user, "merge", g->d->nalive, g->d->n, g->res->nprims);
+            if (frep_cancelled(cfg->interrupt)) return 0;
             prim q2;
             int refitted;
             if (!mergeable(g, pi, qi, &q2, &refitted)) {
@@ -2222,7 +2225,7 @@ static void prune_pool(run *r)
 static void report(const run *r)
 {
     const ransac_config *cfg = r->d.cfg;
-    if (cfg->progress) cfg->progress(cfg->user, r->d.nalive, r->d.n, r->res->nprims);
+    if (cfg->progress) cfg->progress(cfg->user, "detect", r->d.nalive, r->d.n, r->res->nprims);
 }
 
 /* One step of detection: a round of samples, the leaders refined, and the best

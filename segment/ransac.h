@@ -37,8 +37,11 @@ typedef struct ransac_config {
     unsigned types;       /* bit (1u << prim_type) for each type to detect */
     uint64_t seed;
     int nthreads;         /* <= 0: OpenMP's default; the result does not depend on it */
-    /* Called after each extraction and now and then while drawing; may be NULL. */
-    void (*progress)(void *user, size_t remaining, size_t total, size_t nprims);
+    /* Called after each extraction and now and then while drawing (stage "detect"),
+     * and per pair tried by the merge of redundant primitives (stage "merge"); may be
+     * NULL.  A caller's cancel callback polled here reaches every phase. */
+    void (*progress)(void *user, const char *stage, size_t remaining, size_t total,
+                     size_t nprims);
     void *user;
     volatile sig_atomic_t *interrupt; /* stop early when it becomes non-zero; may be NULL */
 } ransac_config;

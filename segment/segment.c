@@ -307,10 +307,11 @@ int segment_add_separating(prim **prims, size_t *count, double eps)
 }
 
 /* Adapts the detector's progress reports to segment_config's. */
-static void ransac_progress(void *user, size_t remaining, size_t total, size_t nprims)
+static void ransac_progress(void *user, const char *stage, size_t remaining, size_t total,
+                            size_t nprims)
 {
     const segment_config *cfg = user;
-    cfg->progress(cfg->user, "detect", total - remaining, total, nprims);
+    cfg->progress(cfg->user, stage, total - remaining, total, nprims);
 }
 
 /* The settings the run uses, as reported in res: the configured ones, or defaults

@@ -41,10 +41,7 @@ else
     hup_default=""
 fi
 
-start() {
-    : >"$tmp/err"
-    $hup_default "$@" >"$tmp/out" 2>"$tmp/err" &
-    pid=$!
+watchdog() {
     (
         i=0
         while [ $i -lt $((WATCHDOG_S * 10)) ] && kill -0 "$pid" 2>/dev/null; do
@@ -54,6 +51,44 @@ start() {
         kill -9 "$pid" 2>/dev/null
     ) >/dev/null 2>&1 &
     dog=$!
+}
+start() {
+    : >"$tmp/err"
+    $hup_default "$@" >"$tmp/out" 2>"$tmp/err" &
+    pid=$!
+    spid=
+    watchdog
+}
+# start_tty CMD...: as start, under a pseudo-terminal (script(1)), where the commands
+# show on stderr the phase they are in (their progress line), so that a signal can be
+# sent in a given phase; stdout and stderr both go to $tmp/err. pid is the command's,
+# spid script's (whose status is the command's). 1 (nothing started) without script
+# or /proc.
+have_tty=0
+if script -qefc true /dev/null </dev/null >/dev/null 2>&1 && [ -r /proc/$$/stat ]; then
+    have_tty=1
+fi
+start_tty() {
+    : >"$tmp/err"
+    [ $have_tty = 1 ] || return 1
+    $hup_default script -qefc "exec $*" /dev/null </dev/null >"$tmp/err" 2>&1 &
+    spid=$!
+    pid=
+    i=0
+    while [ -z "$pid" ] && [ $i -lt 1000 ] && kill -0 "$spid" 2>/dev/null; do
+        pid=$(cut -d' ' -f1 "/proc/$spid/task/$spid/children" 2>/dev/null)
+        [ -n "$pid" ] || pid=$(pgrep -P "$spid" 2>/dev/null | head -n 1)
+        [ -n "$pid" ] || sleep 0.01
+        i=$((i + 1))
+    done
+    [ -n "$pid" ] || pid=$spid
+    watchdog
+}
+# skip_tty DESCRIPTION...: the SKIP lines of tests that need start_tty.
+skip_tty() {
+    for d in "$@"; do
+        echo "ok $((n = n + 1)) # SKIP $d: no script(1) or /proc for a pseudo-terminal"
+    done
 }
 # wait_for TEXT [SECONDS]: until TEXT appears on the command's stderr (1: it ended or
 # the time ran out first).
@@ -130,7 +165,7 @@ stop() {
         sleep 0.01
     done
     t1=$(now)
-    wait "$pid"
+    wait "${spid:-$pid}"
     st=$?
     wait "$dog" 2>/dev/null
     lat=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }')
@@ -178,6 +213,18 @@ stop INT
 [ $alive = 1 ] && [ $st = 130 ] && fast && [ -f "$tmp/seg.fit" ] && no_tmp &&
     grep -q 'frep segment: interrupted (Ctrl-C): wrote the primitives found so far' "$tmp/err"
 report $? "segment: Ctrl-C during RANSAC: exit $st after $lat, the primitives so far written"
+
+# the merge of redundant primitives that follows the detection (its progress stage
+# "merge"): it polls per pair of primitives tried
+if start_tty "$FREP" segment "$tmp/big.ply" --seed 1 -o "$tmp/segm.fit"; then
+    wait_for 'segment: merge:'
+    stop INT
+    [ $alive = 1 ] && [ $st = 130 ] && fast && [ -s "$tmp/segm.fit" ] && no_tmp &&
+        grep -q 'frep segment: interrupted (Ctrl-C): wrote the primitives found so far' "$tmp/err"
+    report $? "segment: Ctrl-C during the merge of redundant primitives: exit $st after $lat, the primitives written"
+else
+    skip_tty "segment: Ctrl-C during the merge"
+fi
 
 
 # ---- evolve ----------------------------------------------------------------------------
@@ -231,6 +278,30 @@ stop INT
     grep -q 'wrote the best tree so far' "$tmp/err" && no_tmp
 report $? "evolve: Ctrl-C during the simplification: exit $st after $lat, the tree so far written and evaluated"
 
+# the merge of the clique trees of a partitioned run, and the refit of the primitives
+# after the search (each seen by its progress line)
+if start_tty "$FREP" evolve "$tmp/g20.xyz" -p "$tmp/g5.fit" --seed 1 --generations 5 \
+    -o "$tmp/ev6.hf"; then
+    wait_for 'merging clique trees'
+    stop INT
+    [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev6.hf" 2>/dev/null &&
+        grep -q 'wrote the best tree so far' "$tmp/err" && no_tmp
+    report $? "evolve: Ctrl-C during the merge of the clique trees: exit $st after $lat, the tree so far written"
+else
+    skip_tty "evolve: Ctrl-C during the merge of the clique trees"
+fi
+# (a GA of 20 generations, unsimplified: the refit of its 28 parameters takes seconds)
+if start_tty "$FREP" evolve "$tmp/g20.xyz" -p "$tmp/g5.fit" --seed 1 --generations 20 \
+    --no-partition --no-simplify --refit -o "$tmp/ev7.hf"; then
+    wait_for 'refitting the primitives'
+    stop INT
+    [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev7.hf" 2>/dev/null &&
+        grep -q 'wrote the best tree so far' "$tmp/err" && no_tmp
+    report $? "evolve: Ctrl-C during the refit: exit $st after $lat, the tree written"
+else
+    skip_tty "evolve: Ctrl-C during the refit"
+fi
+
 # a second Ctrl-C aborts at once: the existing output is untouched, no temporary left
 try=0
 while :; do
@@ -259,6 +330,32 @@ stop TERM
 [ $alive = 1 ] && [ $st = 143 ] && fast && [ ! -e "$tmp/s.xyz" ] && no_tmp &&
     grep -q 'frep sample: interrupted (SIGTERM)' "$tmp/err"
 report $? "sample: SIGTERM while sampling: exit $st after $lat, nothing written"
+
+# frep render: the drawing (the distances of 200,000 points to the surface) polls
+# nothing, so a signal ends it at once; the meshing before it polls
+echo 'kept' >"$tmp/r.png"
+start "$FREP" render "$EX/gear.hf" -g 64 --points "$tmp/big.ply" --size 4000x3000 -o "$tmp/r.png"
+wait_cpu 1.5
+stop INT
+[ $alive = 1 ] && [ $st = 130 ] && fast && [ "$(cat "$tmp/r.png")" = kept ] && no_tmp
+report $? "render: Ctrl-C while drawing: exit $st after $lat, the old picture kept"
+
+# frep fit: the annealing, then the quasi-Newton phase (their progress lines), on the
+# test part of doc/fit.md; the best parameters so far are written
+"$FREP" sample "$EX/fit/part_truth.hf" -n 100000 --seed 1 -o "$tmp/part.xyz" -q || exit 1
+for ph in annealing quasi-Newton; do
+    # the annealing with chains that do not end by themselves; quasi-Newton alone
+    case $ph in annealing) m="--sa-chains 1000 --sa-stall 1000000" ;; *) m="--method qn" ;; esac
+    if start_tty "$FREP" fit "$EX/fit/part.hf" "$tmp/part.xyz" $m -o "$tmp/fit_$ph.hf"; then
+        wait_for "$ph  *.*iteration"
+        stop INT
+        [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/fit_$ph.hf" 2>/dev/null &&
+            grep -q 'interrupted: best so far' "$tmp/err" && no_tmp
+        report $? "fit: Ctrl-C during the $ph: exit $st after $lat, the best parameters written"
+    else
+        skip_tty "fit: Ctrl-C during the $ph"
+    fi
+done
 
 # signals during a write: a first one lets the write finish (the result is complete)
 # and the status says it came; a second one removes the temporary and stops at once

@@ -764,8 +764,9 @@ static void test_fit(const char *frep)
                strncmp(in.verdict, "good", 4) == 0 && in.rms > 0.5 * 0.0069 &&
                in.rms < 1.5 * 0.0069,
            "info: converged, rms %g, verdict '%s'", in.rms, in.verdict);
-        ok(calls.progress > 0 && calls.cancel == calls.progress,
-           "progress called %d times, cancel polled as often", calls.progress);
+        ok(calls.progress > 0 && calls.cancel >= calls.progress,
+           "progress called %d times, cancel polled at least as often (%d)", calls.progress,
+           calls.cancel);
         double v[3] = { 9, 9, 9 };
         ok(frep_fit_nvalues(f) == 3 && frep_fit_values(f, v, 2) == -1 && v[0] == 9 &&
                frep_fit_values(f, v, 3) == 0 && v[1] == pc.value && v[2] == pr.value,

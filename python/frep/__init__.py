@@ -220,7 +220,7 @@ class _EvolveProgress(ctypes.Structure):
 _EVOLVE_PROGRESS_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.POINTER(_EvolveProgress))
 _EVOLVE_TRACE_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p)
 EVOLVE_PHASES = ("ga", "merge", "merged", "grown", "cliques", "simplify", "normals",
-                 "segment", "search")
+                 "segment", "search", "refit")
 
 
 class _EvolveOptions(ctypes.Structure):
