@@ -231,6 +231,13 @@ typedef struct fit_run_ctx {
     double best_sub, best_all, best_geo;
 } fit_run_ctx;
 
+/* The caller stopped the run (Ctrl-C, a cancel callback): what is left to do must be
+ * cheap. A budget of evaluations or time ends a run normally. */
+static int interrupted(const fit_run_ctx *R)
+{
+    return R->ctl.cancelled || (R->ctl.interrupt != NULL && *R->ctl.interrupt);
+}
+
 /* fit_control's progress callback -> the caller's, with the chain, the elapsed time and
  * a best that never goes up. */
 static void on_progress(void *user, fit_phase ph, long it, double temp, double value)
@@ -787,14 +794,17 @@ static int global_phase(fit_run_ctx *R, frep_error *err)
     if (robust && kept > 0) {
         /* Compare the chains on the Cauchy loss at the smallest scale: the right basin
          * has the smallest residuals, and at its scale a wrong one pays for the points
-         * it misses. */
+         * it misses. One chain needs no comparison; after Ctrl-C they are compared on
+         * the annealing's subset (all points cost seconds on a large cloud, 2.5 s of
+         * CPU on 100,000 points under a sanitizer, while the user waits). */
+        fit_objective *judge = interrupted(R) ? R->sub : R->geo;
         double s = HUGE_VAL;
         for (long k = 0; k < kept; k++)
             if (isfinite(scales[k])) s = fmin(s, scales[k]);
         if (isfinite(s)) fit_objective_set_loss(R->geo, FIT_LOSS_CAUCHY, s);
         for (long k = 0; k < kept; k++) {
-            double v = fit_objective_value(R->geo, keep + (size_t)k * np, NULL);
-            R->ctl.evals++;
+            double v = kept == 1 ? 0 : fit_objective_value(judge, keep + (size_t)k * np, NULL);
+            R->ctl.evals += kept > 1;
             if (v < fbest || k == 0) {
                 fbest = v;
                 st_best = kst[k];
@@ -891,8 +901,10 @@ static int finish(fit_run_ctx *R, double *params, fit_result *res, frep_error *e
 {
     const size_t np = R->m;
     /* Robust: compared on the robust loss at its last scale, the one the result
-     * minimizes (least squares would prefer a start that fits the outliers better). */
-    fit_objective *judge = R->geo != NULL ? R->geo : R->obj;
+     * minimizes (least squares would prefer a start that fits the outliers better).
+     * After Ctrl-C on the annealing's subset (at most a few thousand points), so that
+     * the answer comes at once whatever the cloud's size. */
+    fit_objective *judge = interrupted(R) ? R->sub : R->geo != NULL ? R->geo : R->obj;
     double fx = fit_objective_value(judge, R->x, NULL);
     if (judge != R->obj) R->f0 = fit_objective_value(judge, R->start, NULL);
     if (R->ctl.out_of_memory) return frep_error_nomem(err);
@@ -906,8 +918,7 @@ static int finish(fit_run_ctx *R, double *params, fit_result *res, frep_error *e
     res->diagonal = points_diagonal(R->pts);
     /* After Ctrl-C the result is kept unmeasured (NaN): the true distances search
      * around every point, seconds on a large cloud, and poll nothing. */
-    int cancelled = R->ctl.cancelled || (R->ctl.interrupt != NULL && *R->ctl.interrupt);
-    if (R->cfg->report && !cancelled && measure(R, res) != 0) return frep_error_nomem(err);
+    if (R->cfg->report && !interrupted(R) && measure(R, res) != 0) return frep_error_nomem(err);
     res->evals = R->ctl.evals;
     res->status = R->st;
     res->sa_iterations = R->sa_iterations;
