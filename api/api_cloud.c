@@ -102,3 +102,8 @@ int frep_cloud_write(const frep_cloud *c, const char *path, frep_diag_fn diag, v
     cloud_out o = { c, path };
     return api_write_atomic(&d, path, write_cloud, &o);
 }
+
+int frep_cloud_write_stream(const frep_cloud *c, FILE *f, const char *name)
+{
+    return cloud_write_for_path(f, c, name ? name : "");
+}

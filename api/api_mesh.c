@@ -10,10 +10,18 @@
 #include "meshio.h"
 #include "trimesh.h"
 
+#include <errno.h>
 #include <math.h>
 #include <string.h>
 
 #include "alloc.h"
+
+_Static_assert(FREP_MESH_AUTO == (int)MESHIO_UNKNOWN && FREP_MESH_STL == (int)MESHIO_STL &&
+                   FREP_MESH_OBJ == (int)MESHIO_OBJ && FREP_MESH_PLY == (int)MESHIO_PLY &&
+                   FREP_MESH_OFF == (int)MESHIO_OFF && FREP_MESH_WRL == (int)MESHIO_WRL,
+               "the public formats are meshio's");
+_Static_assert(FREP_MESH_MAX_GRID == MESH_MAX_GRID, "the polygonizer's limit");
+_Static_assert(FREP_MESH_SURFACE_TOL == MESH_SURFACE_TOL, "frep mesh --check's bound");
 
 void frep_mesh_options_init(frep_mesh_options *o)
 {
@@ -31,10 +39,24 @@ static void to_mesh_options(const frep_program *p, const frep_mesh_options *o, m
     mesh_options_init(mo);
     api_model_box(p, o, mo->box);
     mo->grid = o->grid;
+    memcpy(mo->grid_axes, o->grid_axes, sizeof mo->grid_axes);
     mo->iso = o->iso;
     mo->nthreads = o->nthreads;
     mo->progress = o->progress;
     mo->progress_user = o->progress_user;
+    mo->interrupt = o->cancel_flag;
+}
+
+/* o, or the defaults (in *def) when o is NULL; the polygonizer's options from it. */
+static const frep_mesh_options *setup(const frep_program *p, const frep_mesh_options *o,
+                                      frep_mesh_options *def, mesh_options *mo)
+{
+    if (!o) {
+        frep_mesh_options_init(def);
+        o = def;
+    }
+    to_mesh_options(p, o, mo);
+    return o;
 }
 
 static void fill_info(frep_mesh_info *info, const mesh_options *mo, const mesh_stats *st)
@@ -54,6 +76,7 @@ static void fill_info(frep_mesh_info *info, const mesh_options *mo, const mesh_s
     info->grad_points = st->grad_points;
     info->cells_split = st->cells_split;
     info->face_vertices = st->face_vertices;
+    info->settled = st->settled;
 }
 
 /* A grid with NaN points: they counted as outside. */
@@ -73,12 +96,8 @@ frep_mesh *frep_polygonize(const frep_program *p, const frep_mesh_options *o,
     frep_error e;
     frep_error_init(&e);
     frep_mesh_options def;
-    if (!o) {
-        frep_mesh_options_init(&def);
-        o = &def;
-    }
     mesh_options mo;
-    to_mesh_options(p, o, &mo);
+    o = setup(p, o, &def, &mo);
     frep_mesh *m = frep_calloc(1, sizeof *m);
     mesh_field f;
     if (!m || mesh_field_program(&f, p, o->params) != 0) {
@@ -92,6 +111,15 @@ frep_mesh *frep_polygonize(const frep_program *p, const frep_mesh_options *o,
     frep_runtime_error re;
     mesh_field_program_errors(&f, &re);
     mesh_field_program_free(&f);
+    if (rc != 0 && e.code == FREP_ECANCEL) {
+        /* stopped: the points a loop was stopped at are no errors of the model */
+        frep_mesh_free(m);
+        if (info) {
+            memset(info, 0, sizeof *info);
+            info->interrupted = 1;
+        }
+        return NULL;
+    }
     api_runtime_warning(&d, p, &re);
     if (rc != 0) {
         frep_mesh_free(m);
@@ -189,24 +217,62 @@ int frep_mesh_write(const frep_mesh *m, const char *path, frep_mesh_format fmt, 
                     frep_diag_fn diag, void *user)
 {
     api_diag d = { diag, user };
-    mesh_out o = { m, MESHIO_UNKNOWN, ascii };
-    switch (fmt) {
-    case FREP_MESH_AUTO:
+    mesh_out o = { m, (meshio_format)fmt, ascii };
+    if (fmt == FREP_MESH_AUTO)
         o.fmt = path && strcmp(path, "-") == 0 ? MESHIO_STL : meshio_format_for_path(path);
-        break;
-    case FREP_MESH_STL: o.fmt = MESHIO_STL; break;
-    case FREP_MESH_OBJ: o.fmt = MESHIO_OBJ; break;
-    case FREP_MESH_PLY: o.fmt = MESHIO_PLY; break;
-    case FREP_MESH_OFF: o.fmt = MESHIO_OFF; break;
-    }
-    if (o.fmt == MESHIO_UNKNOWN) {
+    if (o.fmt == MESHIO_UNKNOWN || o.fmt > MESHIO_WRL) {
         frep_error e;
         frep_error_init(&e);
-        frep_error_set(&e, FREP_EINPUT, "cannot tell the format of '%s': use .stl, .obj, .ply "
-                                        "or .off", path ? path : "(null)");
+        frep_error_set(&e, FREP_EINPUT, "cannot tell the format of '%s': use .stl, .obj, .ply, "
+                                        ".off or .wrl", path ? path : "(null)");
         return api_fail(&d, &e);
     }
     return api_write_atomic(&d, path, write_mesh, &o);
+}
+
+frep_mesh_format frep_mesh_format_for_path(const char *path)
+{
+    return path ? (frep_mesh_format)meshio_format_for_path(path) : FREP_MESH_AUTO;
+}
+
+const char *frep_mesh_format_name(frep_mesh_format fmt)
+{
+    return meshio_format_name(fmt <= FREP_MESH_WRL ? (meshio_format)fmt : MESHIO_UNKNOWN);
+}
+
+int frep_mesh_write_stream(const frep_mesh *m, const uint8_t *rgb, FILE *f,
+                           frep_mesh_format fmt, int ascii)
+{
+    if (fmt <= FREP_MESH_AUTO || fmt > FREP_MESH_WRL) {
+        errno = EINVAL;
+        return -1;
+    }
+    return meshio_write_colored(f, m, rgb, (meshio_format)fmt, ascii);
+}
+
+int frep_mesh_surface_distance(const frep_program *p, const frep_mesh_options *o,
+                               const frep_mesh *m, double tol, frep_mesh_distance *r,
+                               frep_diag_fn diag, void *user)
+{
+    api_diag d = { diag, user };
+    frep_error e;
+    frep_error_init(&e);
+    frep_mesh_options def;
+    mesh_options mo;
+    o = setup(p, o, &def, &mo);
+    mesh_field f;
+    if (mesh_field_program(&f, p, o->params) != 0) return api_fail(&d, &e);
+    mesh_distance md;
+    memset(&md, 0, sizeof md);
+    int rc = mesh_surface_distance(&f, &mo, m, tol, &md, &e);
+    mesh_field_program_free(&f);
+    if (rc != 0) return api_fail(&d, &e);
+    r->max_dist = md.max_dist;
+    r->worst = md.worst;
+    r->far = md.far;
+    r->capped = md.capped;
+    r->skipped = md.skipped;
+    return 0;
 }
 
 int frep_mesh_check(const frep_mesh *m, int self_intersections, frep_mesh_check_result *r,

@@ -18,6 +18,7 @@
 #include "alloc.h"
 
 _Static_assert(FREP_RENDER_MAX_SIDE == PNG_MAX_SIDE, "the PNG writer's limit");
+_Static_assert(sizeof FREP_RENDER_VIEWS == sizeof RENDER_VIEWS, "the rasterizer's views");
 
 /* Colour scale when no distance is finite and positive: as a fraction of the framed
  * box diagonal. */
@@ -27,6 +28,11 @@ struct frep_image {
     int width, height;
     uint8_t *rgb;
 };
+
+int frep_render_view_ok(const char *view)
+{
+    return view && render_view_ok(view);
+}
 
 void frep_render_options_init(frep_render_options *o)
 {

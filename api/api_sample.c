@@ -6,6 +6,8 @@
 #include "api.h"
 #include "sample.h"
 
+_Static_assert(FREP_SAMPLE_MAX_POINTS == SAMPLE_MAX_POINTS, "the sampler's limit");
+
 #include <string.h>
 
 void frep_sample_options_init(frep_sample_options *o)
@@ -44,6 +46,14 @@ static void to_sample_options(const frep_program *p, const frep_sample_options *
     so->mesh.nthreads = o->mesh.nthreads;
     so->mesh.progress = o->mesh.progress;
     so->mesh.progress_user = o->mesh.progress_user;
+    so->mesh.interrupt = o->mesh.cancel_flag;
+}
+
+/* The sampler's failure: reported, unless it was stopped by the cancel flag. */
+static frep_cloud *failed(const api_diag *d, const frep_error *e)
+{
+    if (e->code != FREP_ECANCEL) api_fail(d, e);
+    return NULL;
 }
 
 frep_cloud *frep_sample(const frep_program *p, const frep_sample_options *o,
@@ -65,11 +75,7 @@ frep_cloud *frep_sample(const frep_program *p, const frep_sample_options *o,
     mesh_field_program_errors(&f, &re);
     mesh_field_program_free(&f);
     api_runtime_warning(&d, p, &re);
-    if (rc != 0) {
-        api_fail(&d, &e);
-        return NULL;
-    }
-    return c;
+    return rc != 0 ? failed(&d, &e) : c;
 }
 
 frep_cloud *frep_sample_mesh(const frep_mesh *m, const frep_sample_options *o,
@@ -81,9 +87,5 @@ frep_cloud *frep_sample_mesh(const frep_mesh *m, const frep_sample_options *o,
     sample_options so;
     to_sample_options(NULL, o, &so);
     frep_cloud *c = NULL;
-    if (sample_mesh(m, &so, &c, &e) != 0) {
-        api_fail(&d, &e);
-        return NULL;
-    }
-    return c;
+    return sample_mesh(m, &so, &c, &e) != 0 ? failed(&d, &e) : c;
 }

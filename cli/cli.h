@@ -67,6 +67,17 @@ void mesh_cli_free(mesh_cli *c);
 int mesh_cli_parse(const cli_opt_spec *spec, int argc, char **argv, void *ctx, size_t mc,
                    cli_args *args);
 int mesh_cli_compile(mesh_cli *c, const char *path);
+/* The public API's options for c's model: its box (resolved by mesh_cli_compile), grid,
+ * hfp's per-axis grid, iso and threads. */
+void mesh_cli_options(const mesh_cli *c, frep_mesh_options *o);
+/* Polygonize the compiled model (frep_polygonize) with Ctrl-C polled, the progress on
+ * a terminal, and the model's runtime errors, NaN points, work budget and what the
+ * mesher found (no surface: a failure; the box reached: a note) printed as "frep SUB:
+ * ...".  Returns CLI_OK with *m (frep_mesh_free) and *info filled, else the exit
+ * status with *m NULL. */
+int mesh_cli_mesh(mesh_cli *c, const char *sub, frep_mesh **m, frep_mesh_info *info);
+/* The same into geom/trimesh.h's mesh by value and mesh/mesh.h's stats, for frep view
+ * (cli/cmd_view.c) until it runs on the public API. */
 struct frep_mesh;
 struct mesh_stats;
 int mesh_cli_polygonize(mesh_cli *c, const char *sub, struct frep_mesh *m, struct mesh_stats *st);
@@ -80,9 +91,11 @@ void mesh_cli_report_errors(mesh_cli *c);
  * CLI_OK, or CLI_FAIL (out of memory, printed as "frep SUB: ..."). */
 int mesh_cli_vertex_colors(mesh_cli *mc, const char *sub, const struct frep_mesh *m,
                            uint8_t **rgb);
-/* Is PATH a mesh file (by its extension) rather than a model? cli_read_mesh() reads
- * one, printing why it cannot; returns CLI_OK or CLI_FAIL. */
+/* Is PATH a mesh file (by its extension) rather than a model? cli_mesh_read() reads
+ * one (frep_mesh_read), printing why it cannot; NULL then.  cli_read_mesh() is the
+ * same into a mesh by value for frep view, returning CLI_OK or CLI_FAIL. */
 int cli_is_mesh_path(const char *path);
+frep_mesh *cli_mesh_read(const char *path);
 int cli_read_mesh(const char *sub, const char *path, struct frep_mesh *m);
 
 /* A cloud and its distances, for frep render and frep view (cli/model.c): each
@@ -112,7 +125,7 @@ void cli_cloud_dist_free(cli_cloud_dist *d);
 #define CLI_OPT_BOX(T, f, h) \
     { 'b', "box", "BOX", CLI_OPT_CUSTOM, offsetof(T, f), .parse = cli_opt_box, .help = h }
 #define CLI_OPT_GRID(T, f, d, h) \
-    { 'g', "grid", "N", CLI_OPT_INT, offsetof(T, f), .lo = 1, .hi = MESH_MAX_GRID, \
+    { 'g', "grid", "N", CLI_OPT_INT, offsetof(T, f), .lo = 1, .hi = FREP_MESH_MAX_GRID, \
       .what = "grid cells per axis", .above = " (the mesh would not fit in memory)", \
       .def = d, .help = h }
 #define CLI_OPT_ISO(T, f, h) \

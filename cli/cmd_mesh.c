@@ -1,12 +1,11 @@
-/* cmd_mesh.c - frep mesh: polygonize a model (mesh/mesh.c, through the steps of
- * cli/model.c) and write STL, OBJ, PLY or OFF (geom/meshio.c), atomically.
+/* cmd_mesh.c - frep mesh: polygonize a model (frep_polygonize, through the steps of
+ * cli/model.c), colour it and write STL, OBJ, PLY, OFF or VRML atomically
+ * (frep_mesh_write_stream), --check it (frep_mesh_check, frep_mesh_surface_distance):
+ * on the public API alone (frep.h), as tests/layers.sh checks.
  */
 #include "config.h"
 
-#include "alloc.h"
 #include "cli.h"
-#include "mesh.h"
-#include "meshio.h"
 
 #include <ctype.h>
 #include <math.h>
@@ -48,12 +47,13 @@ typedef struct mesh_cmd {
     const char *out;
     int ascii, quiet, check, verbose;
     mesh_color color;        /* --color */
-    meshio_format fmt;
-    meshio_format hfp_fmt;   /* hfp's -stl/-stlb/-wrl chose the format, else UNKNOWN */
+    frep_mesh_format fmt;
+    frep_mesh_format hfp_fmt; /* hfp's -stl/-stlb/-wrl chose the format, else AUTO */
     uint8_t *vrgb;           /* the vertices' colours, else NULL */
+    uint8_t *uniform;        /* --color V or R,G,B's colours (malloc'ed; vrgb points here) */
     char grid_arg[16];       /* the largest of hfp's -g NX,NY,NZ, for the table's -g */
-    frep_mesh m;
-    mesh_stats st;
+    frep_mesh *m;
+    frep_mesh_info mi;
     FILE *summary;           /* stdout, or stderr when the mesh goes to stdout */
 } mesh_cmd;
 
@@ -181,11 +181,11 @@ static int hfp_options(mesh_cmd *c, int argc, char **argv, char ***out, int *out
         }
         if (!strcmp(a, "-stl") || !strcmp(a, "-stlb") || !strcmp(a, "-wrl")) {
             if (!val) rc = cli_usage_error("mesh", "hfp's %s needs a file name", a);
-            else if (c->hfp_fmt != MESHIO_UNKNOWN)
+            else if (c->hfp_fmt != FREP_MESH_AUTO)
                 rc = cli_usage_error("mesh", "%s: the output is already '%s'", a, c->out);
             else {
                 c->out = val;
-                c->hfp_fmt = a[1] == 'w' ? MESHIO_WRL : MESHIO_STL;
+                c->hfp_fmt = a[1] == 'w' ? FREP_MESH_WRL : FREP_MESH_STL;
                 if (!strcmp(a, "-stl")) c->ascii = 1;
                 i++;
                 continue;
@@ -230,7 +230,7 @@ static int hfp_options(mesh_cmd *c, int argc, char **argv, char ***out, int *out
             while (k < 3) {
                 char *end;
                 long x = strtol(p, &end, 10);
-                if (end == p || x < 1 || x > MESH_MAX_GRID) break;
+                if (end == p || x < 1 || x > FREP_MESH_MAX_GRID) break;
                 g[k++] = (int)x;
                 if (*end != ',') {
                     p = end;
@@ -240,7 +240,7 @@ static int hfp_options(mesh_cmd *c, int argc, char **argv, char ***out, int *out
             }
             if (k != 3 || *p)
                 rc = cli_usage_error("mesh", "%s %s: expected N or NX,NY,NZ with each in 1..%d", a,
-                                     val, MESH_MAX_GRID);
+                                     val, FREP_MESH_MAX_GRID);
             else {
                 /* the table's -g gets the largest (the summary's figure) */
                 int gmax = g[0] > g[1] ? g[0] : g[1];
@@ -285,29 +285,35 @@ static int stage_options(mesh_cmd *c, int argc, char **argv, const char **in)
     free(v);
     if (rc != CLI_GO_ON) return rc;
     if (!c->out) return cli_usage_error("mesh", "-o OUT is required (.stl, .obj, .ply, .off or .wrl)");
-    c->fmt = c->hfp_fmt != MESHIO_UNKNOWN ? c->hfp_fmt
-             : strcmp(c->out, "-") == 0 ? MESHIO_STL : meshio_format_for_path(c->out);
-    if (c->fmt == MESHIO_UNKNOWN && file_names_model(*in, c->out))
+    c->fmt = c->hfp_fmt != FREP_MESH_AUTO ? c->hfp_fmt
+             : strcmp(c->out, "-") == 0 ? FREP_MESH_STL : frep_mesh_format_for_path(c->out);
+    if (c->fmt == FREP_MESH_AUTO && file_names_model(*in, c->out))
         return cli_usage_error("mesh", "-o %s: frep's -o is the output file; %s is a model in %s: "
                                        "did you mean -m %s?", c->out, c->out, *in, c->out);
-    if (c->fmt == MESHIO_UNKNOWN)
+    if (c->fmt == FREP_MESH_AUTO)
         return cli_usage_error("mesh", "cannot tell the format of '%s': use .stl, .obj, .ply, .off "
                                        "or .wrl", c->out);
-    int colored = c->fmt == MESHIO_PLY || c->fmt == MESHIO_WRL;
+    int colored = c->fmt == FREP_MESH_PLY || c->fmt == FREP_MESH_WRL;
     if ((c->color.src == COLOR_UNIFORM || c->color.src == COLOR_MODEL) && !colored)
         return cli_usage_error("mesh", "--color: %s files carry no colours (use .ply or .wrl)",
-                               meshio_format_name(c->fmt));
+                               frep_mesh_format_name(c->fmt));
     if (c->color.src == COLOR_AUTO && !colored) c->color.src = COLOR_NONE;
     c->summary = strcmp(c->out, "-") == 0 ? stderr : stdout;
     return CLI_GO_ON;
 }
 
-/* The colour source of --color: every vertex the same. */
-static void uniform_color(void *user, const double p[3], uint8_t rgb[3])
+/* --color V or R,G,B: every vertex the same. */
+static int uniform_colors(mesh_cmd *c)
 {
-    const int *c = user;
-    (void)p;
-    for (int k = 0; k < 3; k++) rgb[k] = (uint8_t)c[k];
+    size_t n = frep_mesh_nverts(c->m);
+    c->vrgb = c->uniform = malloc(3 * n + 1);
+    if (!c->uniform) {
+        fprintf(stderr, "frep mesh: out of memory colouring the mesh\n");
+        return CLI_FAIL;
+    }
+    for (size_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) c->uniform[3 * i + k] = (uint8_t)c->color.rgb[k];
+    return CLI_OK;
 }
 
 /* The model's colours: s[1..3] at every vertex (cli/model.c).  AUTO without three
@@ -321,46 +327,30 @@ static int model_colors(mesh_cmd *c)
                         "(declare the model as name(x[3], a[M], s[3]))\n", c->mc.path, k);
         return CLI_FAIL;
     }
-    return mesh_cli_vertex_colors(&c->mc, "mesh", &c->m, &c->vrgb);
+    return mesh_cli_vertex_colors(&c->mc, "mesh", c->m, &c->vrgb);
 }
 
 static int write_mesh_cb(FILE *f, void *user)
 {
     mesh_cmd *c = user;
-    return meshio_write_colored(f, &c->m, c->vrgb, c->fmt, c->ascii);
+    return frep_mesh_write_stream(c->m, c->vrgb, f, c->fmt, c->ascii);
 }
 
-/* The vertices' distances from the model's surface, for --check. */
-static int vertex_distance(mesh_cmd *c, mesh_distance *d)
+/* The library's message as "frep mesh: ...". */
+static void mesh_diag(void *user, const frep_diag *d)
 {
-    mesh_field f;
-    if (mesh_field_program(&f, c->mc.p, NULL) != 0) {
-        fprintf(stderr, "frep mesh: out of memory checking the mesh\n");
-        return CLI_FAIL;
-    }
-    mesh_options o;
-    mesh_options_init(&o);
-    memcpy(o.box, c->mc.box, sizeof o.box);
-    o.grid = c->mc.grid;
-    memcpy(o.grid_axes, c->mc.grid_axes, sizeof o.grid_axes);
-    o.iso = c->mc.iso;
-    frep_error err;
-    frep_error_init(&err);
-    int rc = mesh_surface_distance(&f, &o, &c->m, MESH_SURFACE_TOL, d, &err);
-    mesh_field_program_free(&f);
-    if (rc != 0) fprintf(stderr, "frep mesh: %s\n", err.msg);
-    return rc != 0 ? CLI_FAIL : CLI_OK;
+    (void)user;
+    cli_library_diag("mesh", d);
 }
 
 /* --check: the mesh is closed, manifold, oriented, without degenerate triangles (else
  * a failure); the self-intersecting triangle pairs and the vertices farther than
- * MESH_SURFACE_TOL cells from the surface are counted. */
+ * FREP_MESH_SURFACE_TOL cells from the surface are counted. */
 static int stage_check(mesh_cmd *c)
 {
-    mesh_check mk;
-    size_t pairs = 0;
-    mesh_distance md;
-    if (mesh_validate(&c->m, &mk) != 0 || mesh_self_intersections(&c->m, &pairs, NULL) != 0) {
+    frep_mesh_check_result mk;
+    frep_mesh_distance md;
+    if (frep_mesh_check(c->m, 1, &mk, NULL, NULL) != 0) {
         fprintf(stderr, "frep mesh: out of memory checking the mesh\n");
         return CLI_FAIL;
     }
@@ -369,10 +359,14 @@ static int stage_check(mesh_cmd *c)
                         "triangles %zu, non-finite coordinates %zu, volume %.9g, area %.9g\n",
             mk.open_edges, mk.nonmanifold_edges, mk.flipped_edges, mk.nonmanifold_verts,
             mk.unused_verts, mk.degenerate, mk.nonfinite, mk.volume, mk.area);
-    if (vertex_distance(c, &md) != CLI_OK) return CLI_FAIL;
+    frep_mesh_options o;
+    mesh_cli_options(&c->mc, &o);
+    if (frep_mesh_surface_distance(c->mc.p, &o, c->m, FREP_MESH_SURFACE_TOL, &md, mesh_diag,
+                                   NULL) != 0)
+        return CLI_FAIL;
     fprintf(c->summary, "check: self-intersecting triangle pairs %zu, vertices farther than %g "
                         "cell from the surface %zu (largest %.3g cell)\n",
-            pairs, MESH_SURFACE_TOL, md.far, md.max_dist);
+            mk.self_intersections, FREP_MESH_SURFACE_TOL, md.far, md.max_dist);
     if (mk.open_edges || mk.nonmanifold_edges || mk.flipped_edges || mk.nonmanifold_verts ||
         mk.unused_verts || mk.degenerate || mk.nonfinite || !(mk.volume > 0)) {
         /* the mesh is written (to look at), and the failure said in words */
@@ -395,39 +389,29 @@ static int stage_report(mesh_cmd *c)
     else snprintf(grid, sizeof grid, "%d", mc->grid);
     if (!c->quiet)
         fprintf(c->summary, "%s: %zu vertices, %zu triangles (%s%s), box [%g,%g]x[%g,%g]x[%g,%g], "
-                            "grid %s, %.3f s\n", c->out, c->m.nverts, c->m.ntris,
-                c->ascii ? "ASCII " : "", meshio_format_name(c->fmt), mc->box[0], mc->box[3],
-                mc->box[1], mc->box[4], mc->box[2], mc->box[5], grid, c->st.seconds);
+                            "grid %s, %.3f s\n", c->out, frep_mesh_nverts(c->m),
+                frep_mesh_ntris(c->m),
+                c->ascii ? "ASCII " : "", frep_mesh_format_name(c->fmt), mc->box[0], mc->box[3],
+                mc->box[1], mc->box[4], mc->box[2], mc->box[5], grid, c->mi.seconds);
     if (c->verbose)
         fprintf(c->summary, "work: %zu octree nodes, %zu of %zu blocks, %zu points evaluated, %zu "
                             "gradients, %zu cells with several components, %zu face vertices, %zu vertices "
                             "settled\n",
-                c->st.octree_nodes, c->st.blocks, c->st.blocks_total, c->st.eval_points,
-                c->st.grad_points, c->st.cells_split, c->st.face_vertices, c->st.settled);
+                c->mi.octree_nodes, c->mi.blocks, c->mi.blocks_total, c->mi.eval_points,
+                c->mi.grad_points, c->mi.cells_split, c->mi.face_vertices, c->mi.settled);
     return c->check ? stage_check(c) : CLI_OK;
 }
 
-/* compile -> polygonize -> write -> report */
+/* compile -> polygonize -> colour -> write -> report */
 static int mesh_steps(mesh_cmd *c, const char *in)
 {
     int rc = mesh_cli_compile(&c->mc, in);
-    if (rc == CLI_OK) rc = mesh_cli_polygonize(&c->mc, "mesh", &c->m, &c->st);
-    if (rc != CLI_OK) return rc;
-    if (c->color.src == COLOR_UNIFORM &&
-        !(c->vrgb = mesh_colors(&c->m, uniform_color, c->color.rgb))) {
-        fprintf(stderr, "frep mesh: out of memory colouring the mesh\n");
-        rc = CLI_FAIL;
-    } else if (c->color.src == COLOR_AUTO || c->color.src == COLOR_MODEL)
+    if (rc == CLI_OK) rc = mesh_cli_mesh(&c->mc, "mesh", &c->m, &c->mi);
+    if (rc == CLI_OK && c->color.src == COLOR_UNIFORM) rc = uniform_colors(c);
+    else if (rc == CLI_OK && (c->color.src == COLOR_AUTO || c->color.src == COLOR_MODEL))
         rc = model_colors(c);
-    if (rc != CLI_OK) {
-        frep_free(c->vrgb);
-        mesh_free(&c->m);
-        return rc;
-    }
-    rc = cli_write_atomic(c->out, write_mesh_cb, c) != 0 ? CLI_FAIL : stage_report(c);
-    frep_free(c->vrgb);
-    c->vrgb = NULL;
-    mesh_free(&c->m);
+    if (rc == CLI_OK)
+        rc = cli_write_atomic(c->out, write_mesh_cb, c) != 0 ? CLI_FAIL : stage_report(c);
     return rc;
 }
 
@@ -439,6 +423,9 @@ int cmd_mesh(int argc, char **argv)
     const char *in = NULL;
     int rc = stage_options(&c, argc, argv, &in);
     if (rc == CLI_GO_ON) rc = mesh_steps(&c, in);
+    if (c.vrgb != c.uniform) frep_free(c.vrgb);
+    free(c.uniform);
+    frep_mesh_free(c.m);
     mesh_cli_free(&c.mc);
     return rc;
 }

@@ -1,14 +1,11 @@
-/* cmd_render.c - frep render: a shaded PNG picture of a model (polygonized by
- * mesh/mesh.c), optionally with a point cloud drawn over it, coloured by its distance
- * to the surface, and the surface coloured by its distance to the cloud, with legends:
- * the picture is the public API's (frep_render(), api/api_render.c).
+/* cmd_render.c - frep render: a shaded PNG picture of a model (polygonized as frep
+ * mesh does, cli/model.c) or of a mesh file, optionally with a point cloud drawn over
+ * it, coloured by its distance to the surface, and the surface coloured by its
+ * distance to the cloud, with legends (frep_render()): on the public API alone.
  */
 #include "config.h"
 
-#include "alloc.h"
 #include "cli.h"
-#include "mesh.h"
-#include "render.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -36,8 +33,8 @@ typedef struct render_cmd {
     int size[2];             /* width, height */
     int quiet, plain;
     double scale;            /* --scale; 0: from the data */
-    frep_mesh m;
-    mesh_stats st;
+    frep_mesh *m;
+    frep_mesh_info mi;
     frep_cloud *cl;          /* --points */
     uint8_t *vrgb;           /* the model's colours at the vertices, else NULL */
     frep_image *img;
@@ -56,7 +53,7 @@ static int parse_size(const char *arg, void *dest, char *why, size_t whylen)
 
 static int parse_view(const char *arg, void *dest, char *why, size_t whylen)
 {
-    if (!render_view_ok(arg)) return -1;
+    if (!frep_render_view_ok(arg)) return -1;
     *(const char **)dest = arg;
     return 0;
 }
@@ -68,7 +65,7 @@ static const cli_opt render_opts[] = {
       .expect = "WxH with sides 1.." RENDER_STR(FREP_RENDER_MAX_SIDE),
       .help = "picture size in pixels (default 800x600)" },
     { 0, "view", "V", CLI_OPT_CUSTOM, OFF(view), .parse = parse_view, .def = "iso",
-      .expect = "one of " RENDER_VIEWS, .help = RENDER_VIEWS " (default iso)" },
+      .expect = "one of " FREP_RENDER_VIEWS, .help = FREP_RENDER_VIEWS " (default iso)" },
     { 0, "points", "CLOUD", CLI_OPT_STRING, OFF(points),
       .help = "overlay a point cloud (.xyz or .ply)" },
     { 0, "scale", "D", CLI_OPT_DOUBLE, OFF(scale), .lo = 0, .hi = INFINITY, .open_lo = 1,
@@ -119,10 +116,10 @@ static void render_diag(void *user, const frep_diag *d)
  * colours). */
 static int stage_mesh(render_cmd *c)
 {
-    if (cli_is_mesh_path(c->in)) return cli_read_mesh("render", c->in, &c->m);
+    if (cli_is_mesh_path(c->in)) return (c->m = cli_mesh_read(c->in)) ? CLI_OK : CLI_FAIL;
     if (mesh_cli_compile(&c->mc, c->in) != CLI_OK) return CLI_FAIL;
-    if (mesh_cli_polygonize(&c->mc, "render", &c->m, &c->st) != CLI_OK) return CLI_FAIL;
-    return mesh_cli_vertex_colors(&c->mc, "render", &c->m, &c->vrgb);
+    if (mesh_cli_mesh(&c->mc, "render", &c->m, &c->mi) != CLI_OK) return CLI_FAIL;
+    return mesh_cli_vertex_colors(&c->mc, "render", c->m, &c->vrgb);
 }
 
 /* The picture (frep_render(): the points' distances, legends, raster). */
@@ -144,7 +141,7 @@ static int stage_draw(render_cmd *c)
         if (!c->cl) return CLI_FAIL;
         o.points = c->cl;
     }
-    c->img = frep_render(&c->m, &o, &c->info, render_diag, NULL);
+    c->img = frep_render(c->m, &o, &c->info, render_diag, NULL);
     return c->img ? CLI_OK : CLI_FAIL;
 }
 
@@ -181,7 +178,7 @@ int cmd_render(int argc, char **argv)
     mesh_cli_init(&c.mc);
     int rc = stage_options(&c, argc, argv);
     if (rc == CLI_GO_ON) rc = render_steps(&c);
-    mesh_free(&c.m);
+    frep_mesh_free(c.m);
     frep_cloud_free(c.cl);
     frep_image_free(c.img);
     frep_free(c.vrgb);

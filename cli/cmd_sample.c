@@ -1,15 +1,14 @@
 /* cmd_sample.c - frep sample: a point cloud with normals from a model's surface (or
- * from a triangle mesh file), with optional noise and outliers (mesh/sample.c),
- * written as .xyz or PLY (geom/cloud.c).
+ * from a triangle mesh file), with optional noise and outliers (frep_sample,
+ * frep_sample_mesh), written as .xyz or PLY (frep_cloud_write_stream): on the public
+ * API alone (frep.h).
  */
 #include "config.h"
 
 #include "cli.h"
-#include "cloud.h"
-#include "mesh.h"
-#include "sample.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -25,7 +24,7 @@ static const char sample_usage[] =
 
 typedef struct sample_cmd {
     mesh_cli mc;
-    sample_options so;
+    frep_sample_options so;
     const char *in, *out;
     int quiet;
     frep_cloud *cl;
@@ -35,7 +34,7 @@ typedef struct sample_cmd {
 /* --noise SIGMA or SIGMAabs (model units). */
 static int parse_noise(const char *arg, void *dest, char *why, size_t whylen)
 {
-    sample_options *so = dest;
+    frep_sample_options *so = dest;
     char *end;
     errno = 0;
     so->noise = strtod(arg, &end);
@@ -46,7 +45,7 @@ static int parse_noise(const char *arg, void *dest, char *why, size_t whylen)
 
 #define OFF(f) offsetof(sample_cmd, f)
 static const cli_opt sample_opts[] = {
-    { 'n', "points", "N", CLI_OPT_SIZE, OFF(so.n), .lo = 1, .hi = (double)SAMPLE_MAX_POINTS,
+    { 'n', "points", "N", CLI_OPT_SIZE, OFF(so.n), .lo = 1, .hi = (double)FREP_SAMPLE_MAX_POINTS,
       .what = "a point count", .help = "number of points, outliers included (required)" },
     { 'o', "output", "CLOUD", CLI_OPT_STRING, OFF(out),
       .help = "file to write (required; '-' for .xyz on stdout)" },
@@ -86,63 +85,69 @@ static int stage_options(sample_cmd *c, int argc, char **argv)
     return CLI_GO_ON;
 }
 
-/* The sampler's status -> the exit status, with its reason. */
-static int sampled(const sample_cmd *c, int rc, const frep_error *err)
+/* What the sampler reports: the model's runtime errors (with their position) at once,
+ * as warnings with the source line; its error kept for sampled(). */
+typedef struct sample_diag {
+    sample_cmd *c;
+    char error[512];
+} sample_diag;
+
+static void sample_diag_cb(void *user, const frep_diag *d)
 {
-    if (rc == 0) return CLI_OK;
-    if (err->code == FREP_ECANCEL)
+    sample_diag *sd = user;
+    if (d->file) {
+        mesh_cli *mc = &sd->c->mc;
+        cli_diag_ctx dc = { mc->src, mc->srclen, 0, 0, NULL, 0, mc->diag };
+        cli_print_diag(&dc, d);
+        cli_diag_done(&dc);
+    } else if (d->severity == FREP_ERROR && !sd->error[0])
+        snprintf(sd->error, sizeof sd->error, "%s", d->message);
+}
+
+/* The sampler's result -> the exit status, with its reason. */
+static int sampled(const sample_cmd *c, const sample_diag *sd)
+{
+    if (c->cl) return CLI_OK;
+    if (cli_interrupted())
         return cli_interrupt_status("sample", "stopped while sampling, nothing written");
-    fprintf(stderr, "frep sample: %s: %s\n", c->in, err->msg);
+    fprintf(stderr, "frep sample: %s: %s\n", c->in, sd->error[0] ? sd->error : "out of memory");
     return CLI_FAIL;
 }
 
 /* Area-weighted points on a mesh file's triangles. */
 static int stage_sample_mesh(sample_cmd *c)
 {
-    frep_error err;
-    frep_error_init(&err);
-    frep_mesh m;
-    memset(&m, 0, sizeof m);
-    if (cli_read_mesh("sample", c->in, &m) != CLI_OK) return CLI_FAIL;
-    c->so.mesh.interrupt = cli_sigint_catch();
-    int rc = sample_mesh(&m, &c->so, &c->cl, &err);
-    mesh_free(&m);
-    return sampled(c, rc, &err);
+    frep_mesh *m = cli_mesh_read(c->in);
+    if (!m) return CLI_FAIL;
+    sample_diag sd = { c, "" };
+    c->so.mesh.cancel_flag = cli_sigint_catch();
+    c->cl = frep_sample_mesh(m, &c->so, sample_diag_cb, &sd);
+    frep_mesh_free(m);
+    return sampled(c, &sd);
 }
 
 /* Points on the model's surface, through the sampling mesh of the model's box. */
 static int stage_sample_model(sample_cmd *c)
 {
-    frep_error err;
-    frep_error_init(&err);
     mesh_cli *mc = &c->mc;
     int rc = mesh_cli_compile(mc, c->in);
     if (rc != CLI_OK) return rc;
-    mesh_field f;
-    if (mesh_field_program(&f, mc->p, NULL) != 0) {
-        fprintf(stderr, "frep sample: out of memory\n");
-        return CLI_FAIL;
-    }
-    memcpy(c->so.mesh.box, mc->box, sizeof mc->box);
-    c->so.mesh.grid = mc->grid;
-    c->so.mesh.iso = mc->iso;
-    c->so.mesh.nthreads = mc->nthreads;
-    c->so.mesh.interrupt = cli_sigint_catch();
-    rc = sample_field(&f, &c->so, &c->cl, &err);
-    frep_runtime_error re;
-    mesh_field_program_errors(&f, &re);
-    mesh_cli_add_errors(mc, &re);
-    mesh_field_program_free(&f);
-    mesh_cli_report_errors(mc);
-    if (frep_program_work_spent(mc->p) && !cli_interrupted())
+    mesh_cli_options(mc, &c->so.mesh); /* grid 0 (no -g): from the point count */
+    c->so.mesh.cancel_flag = cli_sigint_catch();
+    sample_diag sd = { c, "" };
+    c->cl = frep_sample(mc->p, &c->so, sample_diag_cb, &sd);
+    if (frep_program_work_spent(mc->p) && !cli_interrupted()) {
+        frep_cloud_free(c->cl);
+        c->cl = NULL;
         return cli_work_check("sample", c->in, mc->p);
-    return sampled(c, rc, &err);
+    }
+    return sampled(c, &sd);
 }
 
 static int write_cloud_cb(FILE *f, void *user)
 {
     sample_cmd *c = user;
-    return cloud_write_for_path(f, c->cl, c->out);
+    return frep_cloud_write_stream(c->cl, f, c->out);
 }
 
 /* The summary line: on stderr when the cloud goes to stdout. */
@@ -151,7 +156,7 @@ static void stage_report(const sample_cmd *c)
     FILE *sf = strcmp(c->out, "-") == 0 ? stderr : stdout;
     size_t nout = (size_t)floor(c->so.outliers * (double)c->so.n + 0.5);
     fprintf(sf, "%s: %zu points (%zu outliers), noise %g%s, seed %llu, %.2f s cpu\n", c->out,
-            c->cl->n, nout, c->so.noise, c->so.noise_absolute ? " (absolute)" : " x box diagonal",
+            frep_cloud_size(c->cl), nout, c->so.noise, c->so.noise_absolute ? " (absolute)" : " x box diagonal",
             (unsigned long long)c->so.seed, ((double)clock() - c->t0) / CLOCKS_PER_SEC);
 }
 
@@ -170,11 +175,11 @@ int cmd_sample(int argc, char **argv)
     sample_cmd c;
     memset(&c, 0, sizeof c);
     mesh_cli_init(&c.mc);
-    sample_options_init(&c.so);
+    frep_sample_options_init(&c.so);
     c.so.n = 0;
     int rc = stage_options(&c, argc, argv);
     if (rc == CLI_GO_ON) rc = sample_steps(&c);
-    cloud_free(c.cl);
+    frep_cloud_free(c.cl);
     mesh_cli_free(&c.mc);
     return rc;
 }

@@ -1,16 +1,16 @@
 /* model.c - the model -> mesh steps that frep mesh, sample, render and view share: their
- * model options, compiling with the default box, polygonizing with progress and the
- * messages about the result, runtime errors reported once as warnings; mesh input; a
- * cloud's distances to the model and the model's to the cloud.
+ * model options, compiling with the default box, polygonizing (frep_polygonize) with
+ * progress and the messages about the result, runtime errors reported once as
+ * warnings; mesh input (frep_mesh_read); a cloud's distances to the model and the
+ * model's to the cloud.  The internal headers serve frep view (its mesh by value, the
+ * distances) and the a[] note (which reads the bytecode).
  */
 #include "config.h"
 
-#include "alloc.h"
 #include "cli.h"
 #include "cloud.h"
 #include "distance.h"
 #include "mesh.h"
-#include "meshio.h"
 #include "program.h"
 
 #include <math.h>
@@ -140,91 +140,147 @@ int mesh_cli_compile(mesh_cli *c, const char *path)
     return CLI_OK;
 }
 
-/* What the polygonizer found: NaN points, no surface at all, a solid cut by the box. */
-static int check_surface(mesh_cli *c, const char *sub, frep_mesh *m, const mesh_stats *st)
+/* What the polygonizer found: no surface at all, a solid cut by the box. */
+static int check_surface(mesh_cli *c, const char *sub, frep_mesh **m, const frep_mesh_info *info)
 {
-    if (st->points_nan)
-        model_note(c, "%s: warning: the model is NaN (undefined) at %zu grid points; they count "
-                      "as outside\n", c->path, st->points_nan);
-    if (m->ntris == 0 || st->full) {
+    if (frep_mesh_ntris(*m) == 0 || info->full) {
         model_note(c, "frep %s: %s: the model %s the box [%g,%g]x[%g,%g]x[%g,%g] at grid %d: "
                       "no surface (check -b and -g%s)\n", sub, c->path,
-                st->full ? "fills all of" : "is empty in", c->box[0], c->box[3], c->box[1],
+                info->full ? "fills all of" : "is empty in", c->box[0], c->box[3], c->box[1],
                 c->box[4], c->box[2], c->box[5], c->grid, reads_a(c) ? ", and -a" : "");
-        mesh_free(m);
+        frep_mesh_free(*m);
+        *m = NULL;
         return CLI_FAIL;
     }
-    if (st->touches_box)
+    if (info->touches_box)
         model_note(c, "%s: note: the solid reaches the box; the mesh is closed by caps on the "
                       "box faces (a larger -b shows all of it)\n", c->path);
     return CLI_OK;
 }
 
-int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *st)
+void mesh_cli_options(const mesh_cli *c, frep_mesh_options *o)
 {
+    frep_mesh_options_init(o);
+    memcpy(o->box, c->box, sizeof o->box);
+    o->has_box = 1;
+    o->grid = c->grid;
+    memcpy(o->grid_axes, c->grid_axes, sizeof o->grid_axes);
+    o->iso = c->iso;
+    o->nthreads = c->nthreads;
+}
+
+/* What a job of the public API reports during the model's steps: the model's runtime
+ * errors (they carry its position) are printed at once, as warnings with the source
+ * line; the first other warning (NaN grid points) and the error are kept, to be
+ * printed once the work budget is checked (a spent budget explains both). */
+typedef struct job_diag {
+    mesh_cli *c;
+    char warning[256], error[512];
+} job_diag;
+
+static void job_diag_cb(void *user, const frep_diag *d)
+{
+    job_diag *j = user;
+    if (d->file) {
+        mesh_cli *c = j->c;
+        cli_diag_ctx dc = { c->src, c->srclen, 0, 0, NULL, 0, c->diag };
+        cli_print_diag(&dc, d);
+        cli_diag_done(&dc);
+        return;
+    }
+    char *to = d->severity == FREP_ERROR ? j->error : j->warning;
+    size_t size = d->severity == FREP_ERROR ? sizeof j->error : sizeof j->warning;
+    if (!to[0]) snprintf(to, size, "%s", d->message);
+}
+
+int mesh_cli_mesh(mesh_cli *c, const char *sub, frep_mesh **m, frep_mesh_info *info)
+{
+    *m = NULL;
     /* Ctrl-C also stops the model's loops inside a block of points (the pruned copies
-     * of mesh_field_program share the flag) */
+     * the mesher makes share the flag) */
     if (frep_program_set_cancel(c->p, cli_sigint_catch()) != 0) {
         fprintf(stderr, "frep %s: out of memory\n", sub);
         return CLI_FAIL;
     }
-    mesh_field f;
-    if (mesh_field_program(&f, c->p, NULL) != 0) {
-        frep_program_set_cancel(c->p, NULL);
-        fprintf(stderr, "frep %s: out of memory\n", sub);
-        return CLI_FAIL;
-    }
-    mesh_options o;
-    mesh_options_init(&o);
-    memcpy(o.box, c->box, sizeof o.box);
-    o.grid = c->grid;
-    memcpy(o.grid_axes, c->grid_axes, sizeof o.grid_axes);
-    o.iso = c->iso;
-    o.nthreads = c->nthreads;
-    o.interrupt = cli_sigint_catch();
+    frep_mesh_options o;
+    mesh_cli_options(c, &o);
+    o.cancel_flag = cli_sigint_catch();
     int last = -1;
     int tty = isatty(2);
     if (tty) {
         o.progress = progress_cb;
         o.progress_user = &last;
     }
-    frep_error err;
-    frep_error_init(&err);
-    int rc = mesh_polygonize(&f, &o, m, st, &err);
-    frep_runtime_error re;
-    mesh_field_program_errors(&f, &re);
-    mesh_cli_add_errors(c, &re);
-    mesh_field_program_free(&f);
+    job_diag jd = { c, "", "" };
+    *m = frep_polygonize(c->p, &o, info, job_diag_cb, &jd);
     frep_program_set_cancel(c->p, NULL);
     if (tty && last >= 0) fputs("\r                     \r", stderr);
-    /* interrupted: the points a loop was stopped at are no errors of the model */
-    if (rc != 0 && err.code == FREP_ECANCEL)
+    if (!*m && info->interrupted)
         return cli_interrupt_status(sub, "stopped while meshing, nothing written");
-    mesh_cli_report_errors(c);
     if (frep_program_work_spent(c->p)) {
-        if (rc == 0) mesh_free(m);
+        frep_mesh_free(*m);
+        *m = NULL;
         return cli_work_check(sub, c->path, c->p);
     }
-    if (rc != 0) {
-        fprintf(stderr, "frep %s: %s\n", sub, err.msg);
+    if (!*m) {
+        fprintf(stderr, "frep %s: %s\n", sub, jd.error[0] ? jd.error : "out of memory");
         return CLI_FAIL;
     }
-    return check_surface(c, sub, m, st);
+    if (jd.warning[0]) model_note(c, "%s: warning: %s\n", c->path, jd.warning);
+    return check_surface(c, sub, m, info);
+}
+
+int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *st)
+{
+    frep_mesh *h;
+    frep_mesh_info info;
+    memset(m, 0, sizeof *m);
+    memset(st, 0, sizeof *st);
+    int rc = mesh_cli_mesh(c, sub, &h, &info);
+    if (rc != CLI_OK) return rc;
+    /* the handle is geom/trimesh.h's mesh in its own allocation (api/api_mesh.c) */
+    *m = *h;
+    frep_free(h);
+    st->octree_nodes = info.octree_nodes;
+    st->blocks = info.blocks;
+    st->blocks_total = info.blocks_total;
+    st->cells_split = info.cells_split;
+    st->points_nan = info.points_nan;
+    st->touches_box = info.touches_box;
+    st->full = info.full;
+    st->eval_points = info.eval_points;
+    st->grad_points = info.grad_points;
+    st->seconds = info.seconds;
+    st->face_vertices = info.face_vertices;
+    st->settled = info.settled;
+    return CLI_OK;
 }
 
 int cli_is_mesh_path(const char *path)
 {
-    return meshio_format_for_path(path) != MESHIO_UNKNOWN;
+    return frep_mesh_format_for_path(path) != FREP_MESH_AUTO;
+}
+
+/* A mesh file's reader's message as it is (it names the file and line). */
+static void read_diag(void *user, const frep_diag *d)
+{
+    (void)user;
+    fprintf(stderr, "%s\n", d->message);
+}
+
+frep_mesh *cli_mesh_read(const char *path)
+{
+    return frep_mesh_read(path, read_diag, NULL);
 }
 
 int cli_read_mesh(const char *sub, const char *path, frep_mesh *m)
 {
-    frep_error msg;
-    frep_error_init(&msg);
-    if (meshio_read(path, m, &msg) == 0) return CLI_OK;
-    if (msg.msg[0]) fprintf(stderr, "%s\n", msg.msg);
-    else fprintf(stderr, "frep %s: cannot read the mesh\n", sub);
-    return CLI_FAIL;
+    (void)sub;
+    frep_mesh *h = cli_mesh_read(path);
+    if (!h) return CLI_FAIL;
+    *m = *h; /* as in mesh_cli_polygonize */
+    frep_free(h);
+    return CLI_OK;
 }
 
 /* The signed distances of the points and the vertices', and both scales. */

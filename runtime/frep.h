@@ -24,6 +24,7 @@
 #include <signal.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -362,6 +363,15 @@ typedef struct frep_mesh_options {
     /* Called from one thread with the fraction done, 0..1 (may be NULL). */
     void (*progress)(void *user, double fraction);
     void *progress_user;
+    /* What the frep command needs besides (frep mesh, sample and render run on this
+     * API):  cells along x, y, z, each 1..FREP_MESH_MAX_GRID (HyperFun's -g NX,NY,NZ;
+     * 0: grid on every axis, the default). */
+    int grid_axes[3];
+    /* A flag a signal handler or another thread raises to stop the job (may be NULL):
+     * polled on every thread between blocks of points.  A stopped job returns NULL
+     * (frep_polygonize() with info->interrupted set) and reports nothing, not even
+     * the runtime errors of the points it had evaluated. */
+    volatile sig_atomic_t *cancel_flag;
 } frep_mesh_options;
 void frep_mesh_options_init(frep_mesh_options *o);
 
@@ -375,6 +385,8 @@ typedef struct frep_mesh_info {
     double seconds;       /* wall time */
     size_t octree_nodes, blocks, blocks_total, eval_points, grad_points, cells_split,
         face_vertices;    /* work done, as frep mesh -v prints it */
+    size_t settled;       /* vertices moved onto the surface after the quads (-v) */
+    int interrupted;      /* stopped by frep_mesh_options.cancel_flag */
 } frep_mesh_info;
 
 /* Polygonize f = iso by dual contouring on an interval-pruned octree (doc/mesh.md):
@@ -415,7 +427,8 @@ typedef enum frep_mesh_format {
     FREP_MESH_STL,        /* binary, or ascii */
     FREP_MESH_OBJ,
     FREP_MESH_PLY,        /* binary little endian, or ascii */
-    FREP_MESH_OFF
+    FREP_MESH_OFF,
+    FREP_MESH_WRL         /* VRML 2.0 (written only; colours as a Color node) */
 } frep_mesh_format;
 /* Write as `frep mesh` does ("-": standard output, STL unless fmt says).  ascii
  * selects text STL / PLY.  Returns 0 or -1. */
@@ -434,7 +447,47 @@ typedef struct frep_mesh_check_result {
 int frep_mesh_check(const frep_mesh *m, int self_intersections, frep_mesh_check_result *r,
                     frep_diag_fn diag, void *user);
 
+/* -- mesh files and checks of the frep command (frep mesh on this API) -- */
+
+/* The format an output name's extension names (case-insensitive: .stl .obj .ply .off
+ * .wrl); FREP_MESH_AUTO when it names none. */
+frep_mesh_format frep_mesh_format_for_path(const char *path);
+/* "STL", "OBJ", "PLY", "OFF", "VRML" (a static string; "unknown" for FREP_MESH_AUTO). */
+const char *frep_mesh_format_name(frep_mesh_format fmt);
+/* Write m to the open stream f as frep_mesh_write() writes a file (fmt not
+ * FREP_MESH_AUTO), with vertex colours rgb (3 bytes a vertex, as frep_mesh_colors()
+ * gives; NULL: none): PLY gets red, green, blue properties, VRML a Color node; STL,
+ * OBJ and OFF carry none.  For callers that write atomically themselves.  Returns 0,
+ * or -1 on a write error (errno says why; nothing is reported). */
+int frep_mesh_write_stream(const frep_mesh *m, const uint8_t *rgb, FILE *f,
+                           frep_mesh_format fmt, int ascii);
+
+/* The bound of `frep mesh --check` on a vertex's distance from the surface, in cells:
+ * dual contouring puts a vertex on the surface's tangent planes, so only a misplaced
+ * vertex is this far. */
+#define FREP_MESH_SURFACE_TOL 0.1
+/* The vertices' distances from the surface f = iso, in cells (o's box and grid scaled
+ * so that a cell is a unit cube): |f - iso| / |grad f|, or where that exceeds tol, the
+ * smaller radius at which a search around the vertex reaches the other side. */
+typedef struct frep_mesh_distance {
+    double max_dist;      /* the largest distance */
+    size_t worst;         /* a vertex that far */
+    size_t far;           /* vertices farther than tol */
+    size_t capped;        /* vertices on the box's faces (caps), not measured */
+    size_t skipped;       /* vertices where f or grad f is NaN, not measured */
+} frep_mesh_distance;
+/* Measure m, polygonized from p with options o (NULL: the defaults; box, grid,
+ * grid_axes, iso and params are read), against tol cells, as `frep mesh --check`.
+ * Returns 0 with *r filled, or -1 after reporting why (out of memory). */
+int frep_mesh_surface_distance(const frep_program *p, const frep_mesh_options *o,
+                               const frep_mesh *m, double tol, frep_mesh_distance *r,
+                               frep_diag_fn diag, void *user);
+
 /* ---- sampling ---- */
+
+/* The most points a sample holds (frep sample -n): keeps the cloud's arrays far from
+ * SIZE_MAX. */
+#define FREP_SAMPLE_MAX_POINTS ((size_t)1 << 28)
 
 typedef struct frep_sample_options {
     size_t n;             /* points, outliers included (10000) */
@@ -456,6 +509,16 @@ frep_cloud *frep_sample(const frep_program *p, const frep_sample_options *o,
  * noise and outliers relative to the mesh's bounding box). */
 frep_cloud *frep_sample_mesh(const frep_mesh *m, const frep_sample_options *o,
                              frep_diag_fn diag, void *user);
+
+/* -- the frep command's sampling on this API -- */
+/* Both samplers stop when o->mesh.cancel_flag is raised and return NULL without a
+ * diagnostic (runtime errors of the model seen before are still reported). */
+
+/* Write c to the open stream f as frep_cloud_write() writes the file `name` (PLY
+ * when it ends in .ply, else .xyz text), for callers that write atomically
+ * themselves.  Returns 0, or -1 on a write error (errno says why; nothing is
+ * reported). */
+int frep_cloud_write_stream(const frep_cloud *c, FILE *f, const char *name);
 
 /* ---- segmentation (frep segment) ---- */
 
@@ -696,6 +759,12 @@ int frep_fit_write_json(const frep_fit *f, const char *path, const char *templat
 
 /* Limits of a picture (the PNG writer's). */
 #define FREP_RENDER_MAX_SIDE 16384   /* pixels per side */
+
+/* -- the views, for the frep command's option parsing (frep render on this API) -- */
+/* The names frep_render_options.view takes, for messages. */
+#define FREP_RENDER_VIEWS "iso, front, back, top, bottom, left, right, side"
+/* 1 when view is one of FREP_RENDER_VIEWS, else 0. */
+int frep_render_view_ok(const char *view);
 
 typedef struct frep_render_options {
     int width, height;          /* pixels, 1..FREP_RENDER_MAX_SIDE (800 x 600) */

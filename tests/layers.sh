@@ -5,7 +5,8 @@
 #   runtime (0) <- lang (1) <- geom (2) <- mesh, fit, segment, view, export (3) <- evolve (4)
 #   <- api (5) <- cli (6)
 # Headers are included by bare name (Makefile.am puts every folder on the include
-# path), so a header name must also be unique across the folders.
+# path), so a header name must also be unique across the folders.  The subcommands
+# rebuilt on the public API include frep.h (through cli.h) and no library header.
 src=${srcdir:-$(cd "$(dirname "$0")/.." && pwd)}
 cd "$src" || exit 1
 layers="runtime:0 lang:1 geom:2 mesh:3 fit:3 segment:3 view:3 export:3 evolve:4 api:5 cli:6"
@@ -52,5 +53,21 @@ for l in $layers; do
         echo "ok $n - $d (layer $r) includes only earlier layers"
     fi
 done
+
+# The subcommands rebuilt on the public API (issue 20): frep.h through cli.h, no
+# library header of their own.
+api_cmds="cli/cmd_mesh.c cli/cmd_sample.c cli/cmd_render.c cli/cmd_normals.c cli/cmd_segment.c cli/cmd_evolve.c"
+problems=""
+for f in $api_cmds; do
+    for inc in $(sed -n 's/^[[:space:]]*#[[:space:]]*include[[:space:]]*"\([^"]*\)".*/\1/p' "$f"); do
+        case "$inc" in config.h|cli.h|opt.h|frep.h) ;; *) problems="$problems $f:$inc" ;; esac
+    done
+done
+n=$((n + 1))
+if [ -n "$problems" ]; then
+    echo "not ok $n - the commands on the public API include frep.h and cli/ only:$problems"; bad=1
+else
+    echo "ok $n - the commands on the public API include frep.h and cli/ only"
+fi
 echo "1..$n"
 exit $bad

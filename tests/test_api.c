@@ -946,6 +946,166 @@ static void test_render(const char *frep, const char *srcdir)
     frep_program_free(p);
 }
 
+/* Write a mesh with colours through frep_mesh_write_stream, as the command does. */
+static int write_stream(const frep_mesh *m, const uint8_t *rgb, const char *path,
+                        frep_mesh_format fmt, int ascii)
+{
+    FILE *f = fopen(path, "wb");
+    if (!f) return -1;
+    int rc = frep_mesh_write_stream(m, rgb, f, fmt, ascii);
+    return fclose(f) != 0 ? -1 : rc;
+}
+
+/* The first line of the command's standard output holding `key`, into line. */
+static int command_line(const char *cmd, const char *key, char *line, size_t size)
+{
+    FILE *p = popen(cmd, "r");
+    int found = 0;
+    while (p && !found && fgets(line, (int)size, p)) found = strstr(line, key) != NULL;
+    if (p) pclose(p);
+    return found;
+}
+
+static volatile sig_atomic_t stop_flag;
+
+/* What frep mesh, sample and render need of the API beyond polygonizing and writing
+ * (they run on frep.h alone): mesh formats by name, coloured PLY and VRML to a stream,
+ * hfp's per-axis grid, the --check distances and -v's counts, the cancel flag, clouds
+ * to a stream, the views -- each against the command's own output. */
+static void test_mesh_command(const char *frep, const char *srcdir)
+{
+    char model[600], cmd[2048], line[1024];
+    seen s = { 0 };
+
+    ok(frep_mesh_format_for_path("a/b.wrl") == FREP_MESH_WRL &&
+           frep_mesh_format_for_path("B.STL") == FREP_MESH_STL &&
+           frep_mesh_format_for_path("c.ply") == FREP_MESH_PLY &&
+           frep_mesh_format_for_path("c.xyz") == FREP_MESH_AUTO &&
+           frep_mesh_format_for_path(NULL) == FREP_MESH_AUTO,
+       "frep_mesh_format_for_path: by the extension, AUTO for none");
+    ok(strcmp(frep_mesh_format_name(FREP_MESH_WRL), "VRML") == 0 &&
+           strcmp(frep_mesh_format_name(FREP_MESH_OFF), "OFF") == 0 &&
+           strcmp(frep_mesh_format_name(FREP_MESH_AUTO), "unknown") == 0,
+       "frep_mesh_format_name: VRML, OFF, unknown");
+    ok(frep_render_view_ok("top") && frep_render_view_ok("side") && !frep_render_view_ok("upside") &&
+           !frep_render_view_ok(NULL),
+       "frep_render_view_ok: top and side, not upside");
+
+    /* the model's colours into PLY and VRML, as frep mesh -b 1 -g 24 */
+    snprintf(model, sizeof model, "%s/tests/models/color_sphere.hf", srcdir);
+    size_t len = 0;
+    char *text = slurp(model, &len);
+    frep_program *p = text ? frep_compile(model, text, len, NULL, collect, &s) : NULL;
+    free(text);
+    frep_mesh_options o;
+    frep_mesh_options_init(&o);
+    ok(o.grid_axes[0] == 0 && o.grid_axes[1] == 0 && o.grid_axes[2] == 0 && !o.cancel_flag,
+       "mesh defaults: no per-axis grid, no cancel flag");
+    o.has_box = 1;
+    for (int k = 0; k < 3; k++) {
+        o.box[k] = -1;
+        o.box[k + 3] = 1;
+    }
+    o.grid = 24;
+    frep_mesh *m = p ? frep_polygonize(p, &o, NULL, collect, &s) : NULL;
+    uint8_t *rgb = NULL;
+    ok(m && frep_mesh_colors(p, m, 2.0 / 24, 0, NULL, 1, &rgb, NULL) == 0 && rgb,
+       "color_sphere.hf: a mesh with colours");
+    static const char *cext[] = { "ply", "wrl" };
+    for (int k = 0; k < 2; k++) {
+        char a[64], b[64];
+        snprintf(a, sizeof a, "clic.%s", cext[k]);
+        snprintf(b, sizeof b, "apic.%s", cext[k]);
+        snprintf(cmd, sizeof cmd, "'%s' mesh '%s' -b 1 -g 24 -q -o '%s'", frep, model, tmp(a));
+        int rc = run(cmd);
+        ok(rc == 0 && rgb &&
+               write_stream(m, rgb, tmp(b), frep_mesh_format_for_path(b), 0) == 0 &&
+               same_file(tmp(a), tmp(b)),
+           "frep mesh -o .%s with the model's colours: the same bytes", cext[k]);
+    }
+    ok(m && write_stream(m, NULL, tmp("bad.stl"), FREP_MESH_AUTO, 0) == -1,
+       "frep_mesh_write_stream refuses FREP_MESH_AUTO");
+    /* the same VRML through the path writer, without colours: hfp's default material */
+    snprintf(cmd, sizeof cmd, "'%s' mesh '%s' -b 1 -g 24 --color none -q -o '%s'", frep, model,
+             tmp("clin.wrl"));
+    ok(run(cmd) == 0 && m && frep_mesh_write(m, tmp("apin.wrl"), FREP_MESH_AUTO, 0, collect, &s) == 0 &&
+           same_file(tmp("clin.wrl"), tmp("apin.wrl")),
+       "frep_mesh_write .wrl: the bytes of frep mesh --color none");
+    frep_free(rgb);
+    frep_mesh_free(m);
+    frep_program_free(p);
+
+    /* hfp's -g NX,NY,NZ, the --check distances and -v's counts */
+    snprintf(model, sizeof model, "%s/examples/csg.hf", srcdir);
+    text = slurp(model, &len);
+    p = text ? frep_compile(model, text, len, NULL, collect, &s) : NULL;
+    free(text);
+    frep_mesh_options_init(&o);
+    o.grid = 30;
+    o.grid_axes[0] = 20;
+    o.grid_axes[1] = 25;
+    o.grid_axes[2] = 30;
+    frep_mesh_info info;
+    m = p ? frep_polygonize(p, &o, &info, collect, &s) : NULL;
+    snprintf(cmd, sizeof cmd, "'%s' mesh '%s' -g 20,25,30 -q -o '%s'", frep, model, tmp("clig.stl"));
+    int rc = run(cmd);
+    ok(rc == 0 && m && frep_mesh_write(m, tmp("apig.stl"), FREP_MESH_AUTO, 0, collect, &s) == 0 &&
+           same_file(tmp("clig.stl"), tmp("apig.stl")),
+       "grid_axes 20,25,30: the bytes of frep mesh -g 20,25,30");
+    snprintf(cmd, sizeof cmd, "'%s' mesh '%s' -g 20,25,30 -v --check -o '%s'", frep, model,
+             tmp("clig.stl"));
+    char want[256];
+    snprintf(want, sizeof want, "%zu face vertices, %zu vertices settled", info.face_vertices,
+             info.settled);
+    ok(m && command_line(cmd, "work:", line, sizeof line) && strstr(line, want),
+       "info.settled: %zu, as frep mesh -v", info.settled);
+    frep_mesh_distance md;
+    ok(m && frep_mesh_surface_distance(p, &o, m, FREP_MESH_SURFACE_TOL, &md, collect, &s) == 0,
+       "frep_mesh_surface_distance: measured");
+    snprintf(want, sizeof want, "from the surface %zu (largest %.3g cell)", md.far, md.max_dist);
+    ok(m && command_line(cmd, "self-intersecting", line, sizeof line) && strstr(line, want),
+       "frep_mesh_surface_distance: %s, as frep mesh --check", want);
+    /* a tighter tolerance counts more vertices far */
+    frep_mesh_distance tight;
+    memset(&tight, 0, sizeof tight);
+    int trc = m ? frep_mesh_surface_distance(p, &o, m, md.max_dist / 2, &tight, NULL, NULL) : -1;
+    ok(trc == 0 && tight.far > md.far,
+       "half the largest distance as the tolerance: %zu vertices far (%zu at %g)", tight.far,
+       md.far, FREP_MESH_SURFACE_TOL);
+    frep_mesh_free(m);
+
+    /* the cancel flag: NULL, nothing reported */
+    stop_flag = 1;
+    o.cancel_flag = &stop_flag;
+    seen c = { 0 };
+    info.interrupted = 0;
+    ok(p && !frep_polygonize(p, &o, &info, collect, &c) && info.interrupted && c.errors == 0 &&
+           c.warnings == 0,
+       "a raised cancel flag: no mesh, info.interrupted, nothing reported");
+    frep_sample_options so;
+    frep_sample_options_init(&so);
+    so.n = 200;
+    so.mesh.cancel_flag = &stop_flag;
+    ok(p && !frep_sample(p, &so, collect, &c) && c.errors == 0,
+       "frep_sample with a raised cancel flag: no cloud, nothing reported");
+    stop_flag = 0;
+
+    /* a cloud to a stream: the bytes of frep_cloud_write, by the name's extension */
+    frep_cloud *cl = p ? frep_sample(p, &so, collect, &s) : NULL;
+    for (int k = 0; k < 2; k++) {
+        const char *a = k ? "apis.ply" : "apis.xyz", *b = k ? "apit.ply" : "apit.xyz";
+        FILE *f = fopen(tmp(b), "wb");
+        int w = f && cl ? frep_cloud_write_stream(cl, f, b) : -1;
+        if (f && fclose(f) != 0) w = -1;
+        ok(cl && w == 0 && frep_cloud_write(cl, tmp(a), collect, &s) == 0 &&
+               same_file(tmp(a), tmp(b)),
+           "frep_cloud_write_stream %s: the bytes of frep_cloud_write", b);
+    }
+    frep_cloud_free(cl);
+    frep_program_free(p);
+    ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
+}
+
 /* Whether two text files hold the same lines but those containing `except`. */
 static int same_but(const char *a, const char *b, const char *except)
 {
@@ -1330,6 +1490,7 @@ int main(void)
         test_segment_bare(frep);
         test_fit(frep);
         test_render(frep, srcdir);
+        test_mesh_command(frep, srcdir);
         test_evolve(frep, srcdir);
         test_evolve_residual(frep);
     }

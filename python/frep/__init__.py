@@ -96,7 +96,8 @@ _PROGRESS_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_double)
 class _MeshOptions(ctypes.Structure):
     _fields_ = [("box", ctypes.c_double * 6), ("has_box", ctypes.c_int), ("grid", ctypes.c_int),
                 ("iso", ctypes.c_double), ("params", _c_double_p), ("nthreads", ctypes.c_int),
-                ("progress", _PROGRESS_FN), ("progress_user", ctypes.c_void_p)]
+                ("progress", _PROGRESS_FN), ("progress_user", ctypes.c_void_p),
+                ("grid_axes", ctypes.c_int * 3), ("cancel_flag", ctypes.c_void_p)]
 
 
 class _MeshInfo(ctypes.Structure):
@@ -105,7 +106,8 @@ class _MeshInfo(ctypes.Structure):
                 ("full", ctypes.c_int), ("seconds", ctypes.c_double)] + \
                [(n, ctypes.c_size_t) for n in ("octree_nodes", "blocks", "blocks_total",
                                                "eval_points", "grad_points", "cells_split",
-                                               "face_vertices")]
+                                               "face_vertices", "settled")] + \
+               [("interrupted", ctypes.c_int)]
 
 
 class _MeshCheck(ctypes.Structure):
@@ -273,7 +275,7 @@ class _RenderInfo(ctypes.Structure):
 
 
 PRIM_TYPES = ("plane", "sphere", "cylinder", "cone", "torus")
-_MESH_FORMATS = {"auto": 0, "stl": 1, "obj": 2, "ply": 3, "off": 4}
+_MESH_FORMATS = {"auto": 0, "stl": 1, "obj": 2, "ply": 3, "off": 4, "wrl": 5}
 
 
 def _declare(lib):
@@ -765,7 +767,7 @@ class Mesh(_Wrapper):
         self.normals = _view(nrm, (nv, 3), np.float64, own) if nrm else None
 
     def write(self, path, fmt="auto", ascii=False):
-        """Write STL, OBJ, PLY or OFF (from the extension unless fmt says), atomically."""
+        """Write STL, OBJ, PLY, OFF or VRML (from the extension unless fmt says), atomically."""
         d = _Diagnostics()
         if _L().frep_mesh_write(self._h, str(path).encode(), _MESH_FORMATS[fmt], int(ascii),
                                 d.fn, None) != 0:
