@@ -300,9 +300,6 @@ struct mwork {
     double cf[MESH_BLOCK_CORNERS];
     uint8_t cin[MESH_BLOCK_CORNERS];
     uint32_t rows[MESH_BLOCK + 1][MESH_BLOCK + 1];  /* [k][j]: bit i is cin of (i, j, k) */
-    /* bit a: the ambiguous face across axis a whose lowest corner is this one joins its
-     * inside corners (face_decisions) */
-    uint8_t fjoin[MESH_BLOCK_CORNERS];
     int32_t eidx[MESH_BLOCK_EDGES];
     double px[MESH_BLOCK_EDGES], py[MESH_BLOCK_EDGES], pz[MESH_BLOCK_EDGES];
     double nx[MESH_BLOCK_EDGES], ny[MESH_BLOCK_EDGES], nz[MESH_BLOCK_EDGES];
@@ -317,6 +314,9 @@ struct mwork {
     double qx[MESH_BLOCK_EDGES], qy[MESH_BLOCK_EDGES], qz[MESH_BLOCK_EDGES],
         qf[MESH_BLOCK_EDGES], gx[MESH_BLOCK_EDGES], gy[MESH_BLOCK_EDGES],
         gz[MESH_BLOCK_EDGES];
+    /* bit a: the ambiguous face across axis a whose lowest corner is this one joins its
+     * inside corners (face_decisions) */
+    uint8_t fjoin[MESH_BLOCK_CORNERS];
     /* vertices under construction */
     double vx[MESH_BLOCK_VMAX], vy[MESH_BLOCK_VMAX], vz[MESH_BLOCK_VMAX];
     double fnx[MESH_BLOCK_VMAX], fny[MESH_BLOCK_VMAX], fnz[MESH_BLOCK_VMAX];
@@ -366,6 +366,7 @@ typedef struct block_ctx {
     int creal[3][MESH_BLOCK + 1];  /* ... and whether they are real grid points */
     int ncross, nroot;        /* crossing edges; those with both ends real (root found) */
     size_t nv, nf;            /* cell vertices; face candidates */
+    int joined;               /* some face joins its inside corners (W->fjoin is set) */
 } block_ctx;
 
 static const int cstride[3] = { 1, MESH_BLOCK + 1, (MESH_BLOCK + 1) * (MESH_BLOCK + 1) };
@@ -743,7 +744,7 @@ static int face_decisions(block_ctx *c)
 {
     mwork *W = c->W;
     size_t n = 0;
-    memset(W->fjoin, 0, sizeof W->fjoin);
+    c->joined = 0;
     for (int a = 0; a < 3; a++) {
         int o1, o2;
         mesh_edge_other_axes(a, &o1, &o2);
@@ -770,8 +771,12 @@ static int face_decisions(block_ctx *c)
         int rc = recheck_near_level(c, n, W->qx, W->qy, W->qz, W->qf);
         if (rc) return rc;
     }
+    memset(W->fjoin, 0, sizeof W->fjoin);
     for (size_t q = 0; q < n; q++)
-        if (W->qf[q] >= c->iso) W->fjoin[W->act[q] / 3] |= (uint8_t)(1u << (W->act[q] % 3));
+        if (W->qf[q] >= c->iso) {
+            W->fjoin[W->act[q] / 3] |= (uint8_t)(1u << (W->act[q] % 3));
+            c->joined = 1;
+        }
     return 0;
 }
 
@@ -899,7 +904,7 @@ static void cell_components(block_ctx *c, const int L[3])
     int cf = (int)(((rows[k][j] >> i) & 3u) | (((rows[k][j + 1] >> i) & 3u) << 2) |
                    (((rows[k + 1][j] >> i) & 3u) << 4) | (((rows[k + 1][j + 1] >> i) & 3u) << 6));
     const uint8_t *fj = c->W->fjoin;
-    for (int a = 0; a < 3; a++) {
+    for (int a = 0; a < 3 && c->joined; a++) {
         int c0 = corner_index(i, j, k), c1 = c0 + cstride[a];
         cf |= ((fj[c0] >> a) & 1) << (MESH_FACE_SHIFT + 2 * a);
         cf |= ((fj[c1] >> a) & 1) << (MESH_FACE_SHIFT + 2 * a + 1);
