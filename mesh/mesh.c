@@ -7,9 +7,9 @@
  * driven by polygonize.c.
  *
  * Manifoldness: a cell's crossing edges are paired on each face (an ambiguous face,
- * two inside corners on a diagonal, always separates the inside corners), which only
- * depends on the face, so both cells sharing a face agree; following the pairs gives
- * cycles, one vertex each.  Every mesh edge then joins the vertices of two cells across
+ * two inside corners on a diagonal, joins or separates them by the field at its
+ * centre: face_decisions), which only depends on the face, so both cells sharing a
+ * face agree; following the pairs gives cycles, one vertex each.  Every mesh edge then joins the vertices of two cells across
  * one segment of their common face, and every vertex's quads follow its cycle around:
  * one closed fan.  The one exception, a face whose two segments belong to one
  * component on both sides (a tunnel thinner than a cell), would make the same mesh
@@ -110,10 +110,11 @@ static void pair_edges(int partner[12][2], int np[12], int e0, int e1)
     partner[e1][np[e1]++] = e0;
 }
 
-/* Pair the crossing edges of case cs on each face: the two of a simple face; on an
- * ambiguous face (four), the two around each inside corner, so that the inside
- * corners are always separated. */
-static void pair_faces(int cs, const int cross[12], int partner[12][2], int np[12])
+/* Pair the crossing edges of configuration cf (case cf & 255) on each face: the two of
+ * a simple face; on an ambiguous face (four), the two around each inside corner, so
+ * that the inside corners are separated, or, when the face joins them, the two around
+ * each outside corner. */
+static void pair_faces(int cf, const int cross[12], int partner[12][2], int np[12])
 {
     for (int e = 0; e < 12; e++) np[e] = 0;
     for (int a = 0; a < 3; a++)
@@ -121,8 +122,9 @@ static void pair_faces(int cs, const int cross[12], int partner[12][2], int np[1
             int fe[4], nf = face_crossings(cross, a, s, fe);
             if (nf == 2) pair_edges(partner, np, fe[0], fe[1]);
             if (nf != 4) continue;
+            int cut = !mesh_face_joined(cf, a, s);  /* the side of the corners cut off */
             for (int c = 0; c < 8; c++) {
-                if (((c >> a) & 1) != s || !((cs >> c) & 1)) continue;
+                if (((c >> a) & 1) != s || ((cf >> c) & 1) != cut) continue;
                 int pair[2], k = 0;
                 for (int i = 0; i < 4; i++)
                     if (edge_start(fe[i]) == c || edge_end(fe[i]) == c) pair[k++] = fe[i];
@@ -133,16 +135,16 @@ static void pair_faces(int cs, const int cross[12], int partner[12][2], int np[1
 
 /* Follow the pairs from each crossing edge not yet reached: one cycle, one surface
  * component, numbered in order of their first edge.  Returns the number of cycles. */
-static uint8_t trace_cycles(cell_table *t, int cs, const int cross[12],
+static uint8_t trace_cycles(cell_table *t, int cf, const int cross[12],
                             const int partner[12][2], const int np[12])
 {
     uint8_t nc = 0;
-    for (int e = 0; e < 12; e++) t->cycle[cs][e] = 0xFF;
+    for (int e = 0; e < 12; e++) t->cycle[cf][e] = 0xFF;
     for (int e = 0; e < 12; e++) {
-        if (!cross[e] || t->cycle[cs][e] != 0xFF) continue;
+        if (!cross[e] || t->cycle[cf][e] != 0xFF) continue;
         int prev = -1, cur = e;
-        while (cur >= 0 && t->cycle[cs][cur] == 0xFF) {
-            t->cycle[cs][cur] = nc;
+        while (cur >= 0 && t->cycle[cf][cur] == 0xFF) {
+            t->cycle[cf][cur] = nc;
             int next = partner[cur][0] != prev ? partner[cur][0] : partner[cur][1];
             if (np[cur] < 2) next = -1;
             prev = cur;
@@ -153,30 +155,48 @@ static uint8_t trace_cycles(cell_table *t, int cs, const int cross[12],
     return nc;
 }
 
+/* Bit 2a + s: face 2a + s of case cs is ambiguous (its inside corners on a diagonal). */
+static int ambiguous_faces(int cs)
+{
+    int amb = 0;
+    for (int a = 0; a < 3; a++)
+        for (int s = 0; s < 2; s++) {
+            int fc[4], n = 0;
+            for (int c = 0; c < 8; c++)
+                if (((c >> a) & 1) == s) fc[n++] = (cs >> c) & 1;
+            /* fc in corner order: fc[0], fc[3] and fc[1], fc[2] are the diagonals */
+            if (fc[0] == fc[3] && fc[1] == fc[2] && fc[0] != fc[1]) amb |= 1 << (2 * a + s);
+        }
+    return amb;
+}
+
+/* Bit 2a + s: both segments of ambiguous face 2a + s belong to one component. */
+static uint8_t dup_faces(const cell_table *t, int cf, const int cross[12])
+{
+    uint8_t dup = 0;
+    for (int a = 0; a < 3; a++)
+        for (int s = 0; s < 2; s++) {
+            int fe[4], nf = face_crossings(cross, a, s, fe), same = 1;
+            for (int i = 1; i < nf; i++)
+                if (t->cycle[cf][fe[i]] != t->cycle[cf][fe[0]]) same = 0;
+            if (nf == 4 && same) dup |= (uint8_t)(1u << (2 * a + s));
+        }
+    return dup;
+}
+
 void mesh_cell_table_build(cell_table *t)
 {
     for (int cs = 0; cs < 256; cs++) {
-        int partner[12][2], np[12];
-        int cross[12];
+        int cross[12], amb = ambiguous_faces(cs);
         case_crossings(cs, cross);
-        pair_faces(cs, cross, partner, np);
-        uint8_t nc = trace_cycles(t, cs, cross, (const int(*)[2])partner, np);
-        t->ncycles[cs] = nc;
-        t->dupface[cs] = 0;
-        for (int a = 0; a < 3; a++)
-            for (int s = 0; s < 2; s++) {
-                int nf = 0, same = 1, first = -1;
-                for (int e = 0; e < 12; e++) {
-                    if (e / 4 == a || !cross[e]) continue;
-                    int o1, o2;
-                    mesh_edge_other_axes(e / 4, &o1, &o2);
-                    if ((o1 == a ? (e & 1) : ((e >> 1) & 1)) != s) continue;
-                    nf++;
-                    if (first < 0) first = t->cycle[cs][e];
-                    else if (t->cycle[cs][e] != first) same = 0;
-                }
-                if (nf == 4 && same) t->dupface[cs] |= (uint8_t)(1u << (2 * a + s));
-            }
+        /* every subset of the ambiguous faces joined */
+        for (int j = amb;; j = (j - 1) & amb) {
+            int cf = cs | j << MESH_FACE_SHIFT, partner[12][2], np[12];
+            pair_faces(cf, cross, partner, np);
+            t->ncycles[cf] = trace_cycles(t, cf, cross, (const int(*)[2])partner, np);
+            t->dupface[cf] = dup_faces(t, cf, cross);
+            if (j == 0) break;
+        }
     }
 }
 
@@ -294,6 +314,9 @@ struct mwork {
     double qx[MESH_BLOCK_EDGES], qy[MESH_BLOCK_EDGES], qz[MESH_BLOCK_EDGES],
         qf[MESH_BLOCK_EDGES], gx[MESH_BLOCK_EDGES], gy[MESH_BLOCK_EDGES],
         gz[MESH_BLOCK_EDGES];
+    /* bit a: the ambiguous face across axis a whose lowest corner is this one joins its
+     * inside corners (face_decisions) */
+    uint8_t fjoin[MESH_BLOCK_CORNERS];
     /* vertices under construction */
     double vx[MESH_BLOCK_VMAX], vy[MESH_BLOCK_VMAX], vz[MESH_BLOCK_VMAX];
     double fnx[MESH_BLOCK_VMAX], fny[MESH_BLOCK_VMAX], fnz[MESH_BLOCK_VMAX];
@@ -343,6 +366,7 @@ typedef struct block_ctx {
     int creal[3][MESH_BLOCK + 1];  /* ... and whether they are real grid points */
     int ncross, nroot;        /* crossing edges; those with both ends real (root found) */
     size_t nv, nf;            /* cell vertices; face candidates */
+    int joined;               /* some face joins its inside corners (W->fjoin is set) */
 } block_ctx;
 
 static const int cstride[3] = { 1, MESH_BLOCK + 1, (MESH_BLOCK + 1) * (MESH_BLOCK + 1) };
@@ -397,29 +421,30 @@ static void corner_grid(block_ctx *c)
         }
 }
 
-/* Corners are shared with the neighbouring blocks, which prune differently: values of
- * the nreal batch values qf near 0, whose sign rounding may decide, come from the
- * whole program so that all blocks agree. */
-static int corner_recheck(block_ctx *c, size_t nreal)
+/* Corners and face centres are shared with the neighbouring blocks, which prune
+ * differently: of the n batch values f at (x, y, z), those near 0, whose sign rounding
+ * may decide, come from the whole program so that all blocks agree. */
+static int recheck_near_level(block_ctx *c, size_t n, const double *x, const double *y,
+                              const double *z, double *f)
 {
     mwork *W = c->W;
-    const mesh_field *f = c->f;
+    const mesh_field *fl = c->f;
     size_t nz = 0;
-    for (size_t q = 0; q < nreal; q++)
-        if (fabs(W->qf[q]) < c->sign_tol) {
+    for (size_t q = 0; q < n; q++)
+        if (fabs(f[q]) < c->sign_tol) {
             W->rid[nz] = (int32_t)q;
-            W->qx[nz] = W->cx[q];
-            W->qy[nz] = W->cy[q];
-            W->qz[nz] = W->cz[q];
+            W->gx[nz] = x[q];
+            W->gy[nz] = y[q];
+            W->gz[nz] = z[q];
             nz++;
         }
     if (nz == 0) return 0;
-    if (f->focus(f->ctx, c->ts, NULL, NULL) != 0 ||
-        f->eval(f->ctx, c->ts, nz, W->qx, W->qy, W->qz, W->tt) != 0 ||
-        f->focus(f->ctx, c->ts, c->bb, &c->sign_tol) != 0)
+    if (fl->focus(fl->ctx, c->ts, NULL, NULL) != 0 ||
+        fl->eval(fl->ctx, c->ts, nz, W->gx, W->gy, W->gz, W->tt) != 0 ||
+        fl->focus(fl->ctx, c->ts, c->bb, &c->sign_tol) != 0)
         return FREP_EINPUT;
     W->eval_points += nz;
-    for (size_t q = 0; q < nz; q++) W->qf[W->rid[q]] = W->tt[q];
+    for (size_t q = 0; q < nz; q++) f[W->rid[q]] = W->tt[q];
     return 0;
 }
 
@@ -447,7 +472,7 @@ static int corner_values(block_ctx *c)
         return FREP_EINPUT;
     W->eval_points += nreal;
     if (c->focused && c->sign_tol > 0) {
-        int rc = corner_recheck(c, nreal);
+        int rc = recheck_near_level(c, nreal, W->cx, W->cy, W->cz, W->qf);
         if (rc) return rc;
     }
     for (int ci = 0; ci < MESH_BLOCK_CORNERS; ci++) {
@@ -680,8 +705,84 @@ static int crossing_normals(block_ctx *c)
     return 0;
 }
 
+/* Bit i: the face across axis a from corner (i, j, k) of the block is ambiguous, its
+ * inside corners on a diagonal (faces beyond the block's corners excluded). */
+static unsigned ambiguous_row(const mwork *W, int a, int j, int k)
+{
+    const uint32_t(*rows)[MESH_BLOCK + 1] = W->rows;
+    uint32_t r00 = rows[k][j], r10, r01, r11;
+    unsigned mask = (1u << MESH_BLOCK) - 1;
+    if (a == 0) {
+        if (j == MESH_BLOCK || k == MESH_BLOCK) return 0;
+        r10 = rows[k][j + 1];
+        r01 = rows[k + 1][j];
+        r11 = rows[k + 1][j + 1];
+        mask = (1u << (MESH_BLOCK + 1)) - 1;
+    } else {
+        /* x and the face's other axis (y for a == 2, z for a == 1) */
+        if (a == 2 ? j == MESH_BLOCK : k == MESH_BLOCK) return 0;
+        r10 = r00 >> 1;
+        r01 = a == 2 ? rows[k][j + 1] : rows[k + 1][j];
+        r11 = r01 >> 1;
+    }
+    /* corner 00 differs from both neighbours on the face and equals its diagonal */
+    return (r00 ^ r10) & (r00 ^ r01) & ~(r00 ^ r11) & mask;
+}
+
+/* The ambiguous faces' topology, decided by the field at the face's centre: inside
+ * (f >= iso) joins the inside corners across the face, else they are separated.  The
+ * decision depends on the face alone (its centre's coordinates come from the global
+ * grid, values near the level from the whole program), so both cells sharing a face
+ * agree.  A fixed rule (always separating the inside corners) split the surface of a
+ * convex solid wherever its sharp rim crossed a face diagonally: a cell of
+ * tests/models/segment_cone.hf at -b 1.2 -g 256 holding two flat sheets, its cap and
+ * its side, got two components each mixing both sheets' crossings, whose vertices
+ * landed a cell off the surface and folded over the neighbours' (106 self-
+ * intersecting pairs).  The four corners of an ambiguous face are real grid points
+ * (its inside corners are, and they span both of its axes).  Fills W->fjoin. */
+static int face_decisions(block_ctx *c)
+{
+    mwork *W = c->W;
+    size_t n = 0;
+    c->joined = 0;
+    for (int a = 0; a < 3; a++) {
+        int o1, o2;
+        mesh_edge_other_axes(a, &o1, &o2);
+        for (int k = 0; k <= MESH_BLOCK; k++)
+            for (int j = 0; j <= MESH_BLOCK; j++)
+                for (unsigned amb = ambiguous_row(W, a, j, k), i = 0; amb; i++, amb >>= 1) {
+                    if (!(amb & 1)) continue;
+                    const int q[3] = { (int)i, j, k };
+                    double p[3];
+                    p[a] = c->cc[a][q[a]];
+                    p[o1] = 0.5 * (c->cc[o1][q[o1]] + c->cc[o1][q[o1] + 1]);
+                    p[o2] = 0.5 * (c->cc[o2][q[o2]] + c->cc[o2][q[o2] + 1]);
+                    W->act[n] = 3 * corner_index(q[0], q[1], q[2]) + a;
+                    W->qx[n] = p[0];
+                    W->qy[n] = p[1];
+                    W->qz[n] = p[2];
+                    n++;
+                }
+    }
+    if (n == 0) return 0;
+    if (c->f->eval(c->f->ctx, c->ts, n, W->qx, W->qy, W->qz, W->qf) != 0) return FREP_EINPUT;
+    W->eval_points += n;
+    if (c->focused && c->sign_tol > 0) {
+        int rc = recheck_near_level(c, n, W->qx, W->qy, W->qz, W->qf);
+        if (rc) return rc;
+    }
+    memset(W->fjoin, 0, sizeof W->fjoin);
+    for (size_t q = 0; q < n; q++)
+        if (W->qf[q] >= c->iso) {
+            W->fjoin[W->act[q] / 3] |= (uint8_t)(1u << (W->act[q] % 3));
+            c->joined = 1;
+        }
+    return 0;
+}
+
 /* A face that one surface component of a cell crosses twice (two segments, each
- * cutting off one inside corner) would join that component's vertex to the vertex of
+ * cutting off one corner: an inside one, or an outside one where the face joins its
+ * inside corners) would join that component's vertex to the vertex of
  * the cell across the face twice, once per segment: if the component across the face
  * also crosses it twice, four quads share that mesh edge and the mesh is not
  * 2-manifold there (a tunnel thinner than a cell).  Such a face gets one vertex per
@@ -689,9 +790,9 @@ static int crossing_normals(block_ctx *c)
  * take as an extra corner: the two mesh edges become four distinct ones.  Here the
  * candidates: the low faces (s = 0) of cell (i, j, k) that its own component crosses
  * twice; mesh_resolve_faces() keeps those whose other side does so too.  Segment 0 is
- * the one cutting off the inside corner with the lower coordinate along the face's
- * first axis.  Returns the new number of candidates. */
-static size_t face_candidates(mwork *W, int cs, int dup, int i, int j, int k, size_t nf)
+ * the one cutting off the corner with the lower coordinate along the face's first
+ * axis.  Returns the new number of candidates. */
+static size_t face_candidates(mwork *W, int cf, int dup, int i, int j, int k, size_t nf)
 {
     int cell = mesh_cell_index(i, j, k);
     for (int a = 0; a < 3; a++) {
@@ -699,8 +800,9 @@ static size_t face_candidates(mwork *W, int cs, int dup, int i, int j, int k, si
         int ax[2];
         mesh_edge_other_axes(a, &ax[0], &ax[1]);
         W->fkey[nf] = (uint16_t)(3 * cell + a);
+        int cut = !mesh_face_joined(cf, a, 0);  /* the side of the corners cut off */
         for (int c = 0; c < 8; c++) {
-            if (((c >> a) & 1) || !((cs >> c) & 1)) continue;
+            if (((c >> a) & 1) || ((cf >> c) & 1) != cut) continue;
             size_t q = 2 * nf + (size_t)((c >> ax[0]) & 1);
             double p[3] = { 0, 0, 0 }, n[3] = { 0, 0, 0 };
             int np = 0;
@@ -740,17 +842,17 @@ static int cell_on_level(const block_ctx *c, const int L[3])
     return 0;
 }
 
-/* The vertex of component cyc of cell L (case cs, box [lo, hi]): the QEF minimizer of
- * the component's crossings (the cell's centre when it has none), with the mean of
- * their normals. */
-static void component_vertex(block_ctx *c, int cs, int cyc, const int L[3],
+/* The vertex of component cyc of cell L (configuration cf, box [lo, hi]): the QEF
+ * minimizer of the component's crossings (the cell's centre when it has none), with
+ * the mean of their normals. */
+static void component_vertex(block_ctx *c, int cf, int cyc, const int L[3],
                              const double lo[3], const double hi[3])
 {
     mwork *W = c->W;
     double pts[12][3], nrm[12][3], sn[3] = { 0, 0, 0 };
     int np = 0;
     for (int e = 0; e < 12; e++) {
-        if (c->M->table.cycle[cs][e] != cyc) continue;
+        if (c->M->table.cycle[cf][e] != cyc) continue;
         int s0 = edge_start(e);
         int ci = corner_index(L[0] + (s0 & 1), L[1] + ((s0 >> 1) & 1), L[2] + ((s0 >> 2) & 1));
         int id = W->eidx[3 * ci + e / 4];
@@ -784,8 +886,9 @@ static void component_vertex(block_ctx *c, int cs, int cyc, const int L[3],
     W->fnz[nv] = sn[2];
 }
 
-/* Cell L's case (corner c = x + 2y + 4z: two bits from each of four rows), its first
- * vertex and one vertex per component; its face candidates. */
+/* Cell L's configuration (the case, corner c = x + 2y + 4z: two bits from each of
+ * four rows, and its joined faces), its first vertex and one vertex per component;
+ * its face candidates. */
 static void cell_components(block_ctx *c, const int L[3])
 {
     const mesher *M = c->M;
@@ -798,10 +901,16 @@ static void cell_components(block_ctx *c, const int L[3])
         return;
     }
     uint32_t(*rows)[MESH_BLOCK + 1] = c->W->rows;
-    int cs = (int)(((rows[k][j] >> i) & 3u) | (((rows[k][j + 1] >> i) & 3u) << 2) |
+    int cf = (int)(((rows[k][j] >> i) & 3u) | (((rows[k][j + 1] >> i) & 3u) << 2) |
                    (((rows[k + 1][j] >> i) & 3u) << 4) | (((rows[k + 1][j + 1] >> i) & 3u) << 6));
-    B->cs[cell] = (uint8_t)cs;
-    int ncyc = M->table.ncycles[cs];
+    const uint8_t *fj = c->W->fjoin;
+    for (int a = 0; a < 3 && c->joined; a++) {
+        int c0 = corner_index(i, j, k), c1 = c0 + cstride[a];
+        cf |= ((fj[c0] >> a) & 1) << (MESH_FACE_SHIFT + 2 * a);
+        cf |= ((fj[c1] >> a) & 1) << (MESH_FACE_SHIFT + 2 * a + 1);
+    }
+    B->cs[cell] = (uint16_t)cf;
+    int ncyc = M->table.ncycles[cf];
     if (ncyc == 0) return;
     if (ncyc > 1) B->split_cells++;
     B->vbase[cell] = (uint16_t)c->nv;
@@ -810,9 +919,9 @@ static void cell_components(block_ctx *c, const int L[3])
         lo[q] = corner_coord(M, q, c->base[q] + L[q]);
         hi[q] = corner_coord(M, q, c->base[q] + L[q] + 1);
     }
-    for (int cyc = 0; cyc < ncyc; cyc++) component_vertex(c, cs, cyc, L, lo, hi);
-    if (M->table.dupface[cs] & 0x15)
-        c->nf = face_candidates(c->W, cs, M->table.dupface[cs], i, j, k, c->nf);
+    for (int cyc = 0; cyc < ncyc; cyc++) component_vertex(c, cf, cyc, L, lo, hi);
+    if (M->table.dupface[cf] & 0x15)
+        c->nf = face_candidates(c->W, cf, M->table.dupface[cf], i, j, k, c->nf);
 }
 
 /* 4. One vertex per surface component of each cell, and the face candidates. */
@@ -993,6 +1102,7 @@ int mesh_block_contour(const mesher *M, mwork *W, void *ts, mblock *B)
     if ((rc = corner_values(&c)) != 0) return rc;
     find_crossings(&c);
     if ((rc = find_roots(&c)) != 0 || (rc = crossing_normals(&c)) != 0) return rc;
+    if ((rc = face_decisions(&c)) != 0) return rc;
     if ((rc = cell_vertices(&c)) != 0) return rc;
     if (c.nv > 0 && (rc = block_vertices(&c)) != 0) return rc;
     /* 6. the field back to the whole program */

@@ -28,18 +28,34 @@
 /* ---- cell topology table ---------------------------------------------------------
  * Corner i of a cell is at (i & 1, (i >> 1) & 1, (i >> 2) & 1).  Edge e = 4a + u + 2v
  * runs along axis a; u and v are its coordinates along the two other axes (lower
- * axis first). */
+ * axis first).  Face 2a + s is the cell's face across axis a on side s (0 low, 1 high).
+ *
+ * A cell's configuration is its case (bit i: corner i inside) and, in bits 8..13, bit
+ * 8 + 2a + s set when face 2a + s is ambiguous (inside corners on a diagonal) and its
+ * inside corners are joined across it (the field at the face's centre is inside, see
+ * mesh.c); the bit is clear on every face that is not ambiguous, so only those
+ * configurations occur, and only they are filled in. */
+#define MESH_FACE_SHIFT 8
+#define MESH_CONFIGS (256 << 6)
 
 typedef struct cell_table {
-    uint8_t ncycles[256];
-    uint8_t cycle[256][12];   /* component of each crossing edge; 0xFF: no crossing */
-    /* bit 2a + s: face s (0 low, 1 high) across axis a is ambiguous (four crossings,
-     * two segments) and both segments belong to one component of the cell */
-    uint8_t dupface[256];
+    uint8_t ncycles[MESH_CONFIGS];
+    uint8_t cycle[MESH_CONFIGS][12];   /* component of each crossing edge; 0xFF: none */
+    /* bit 2a + s: face s across axis a is ambiguous (four crossings, two segments)
+     * and both segments belong to one component of the cell */
+    uint8_t dupface[MESH_CONFIGS];
 } cell_table;
 
-/* Fill t for the 256 cases of a cell's inside corners (mesh.c). */
+/* Fill t for the configurations that occur (mesh.c). */
 void mesh_cell_table_build(cell_table *t);
+
+/* Whether configuration cf joins the inside corners across face 2a + s (only set on
+ * ambiguous faces): each of the face's two segments then cuts off an outside corner,
+ * else an inside one. */
+static inline int mesh_face_joined(int cf, int a, int s)
+{
+    return (cf >> (MESH_FACE_SHIFT + 2 * a + s)) & 1;
+}
 
 /* The two axes other than a, lower first. */
 static inline void mesh_edge_other_axes(int a, int *o1, int *o2)
@@ -56,7 +72,7 @@ static inline int mesh_cell_index(int i, int j, int k)
 /* ---- a run and its blocks --------------------------------------------------------- */
 
 /* One block of cells. Valid after mesh_block_contour: vertex data and the per-cell
- * case and first-vertex index (cases 0 and 255 have no vertex). */
+ * configuration and first-vertex index (cases 0 and 255 have no vertex). */
 typedef struct mblock {
     uint64_t key;
     int b[3];
@@ -73,7 +89,7 @@ typedef struct mblock {
     double *vpos, *vnrm;      /* 3 * (nverts + 2 nfaces) each */
     double *vfg;              /* 4 * (...): f - iso and the gradient at each vertex */
     uint8_t *vrank;           /* QEF rank (2: on a sharp edge, 3: a corner; 0 on faces) */
-    uint8_t *cs;              /* MESH_BLOCK_CELLS cases */
+    uint16_t *cs;             /* MESH_BLOCK_CELLS configurations (case and joined faces) */
     uint16_t *vbase;          /* MESH_BLOCK_CELLS first vertex or MESH_NO_VERTEX */
     uint32_t *tri;            /* triangles from the quads this block owns (phase 3) */
     size_t ntri;

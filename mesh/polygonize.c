@@ -300,8 +300,8 @@ static int assemble(const mesher *M, size_t nverts, frep_mesh *out, frep_error *
         frep_free(B->vbase);
         frep_free(B->fkey);
         frep_free(B->vrank);
-        B->cs = B->vrank = NULL;
-        B->vbase = B->fkey = NULL;
+        B->cs = B->vbase = B->fkey = NULL;
+        B->vrank = NULL;
     }
     /* the blocks' arrays are small heap chunks among the vfg kept for settling: freed
      * ones are not reused by the mesh's large arrays unless handed back */

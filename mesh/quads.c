@@ -107,7 +107,7 @@ typedef struct qcorner {
 } qcorner;
 
 /* Cell C (global padded index) -> vertex of the component containing edge e, and the
- * cell's case. */
+ * cell's configuration. */
 static int cell_vertex(const mesher *M, const nbhood *h, const long C[3], int e, uint32_t *v,
                        qcorner *q, int *cs)
 {
@@ -162,7 +162,7 @@ typedef struct equad {
     long C[4][3];             /* the cells, counter-clockwise around +a (see ring) */
     uint32_t v[4];            /* their component vertices */
     qcorner q[4];
-    int cs[4];                /* their cases */
+    int cs[4];                /* their configurations (case and joined faces) */
 } equad;
 
 /* (d1, d2) counter-clockwise around +a when (o1, o2, a) is right-handed: cell r is the
@@ -254,8 +254,12 @@ static int quad_polygon(quad_ctx *c, const int L[3], const equad *E, uint32_t po
         if (!((M->table.dupface[E->cs[lo]] >> (2 * ax + 1)) & 1) ||
             !((M->table.dupface[E->cs[hi]] >> (2 * ax)) & 1))
             continue;
+        /* the segment of the edge's end it cuts off: the inside end, or the outside
+         * end where the face joins its inside corners; segments are numbered by that
+         * corner's coordinate along the face's first axis u */
         int a = E->a, u = a < 3 - a - ax ? a : 3 - a - ax;
-        long pin = c->base[u] + L[u] + (u == a ? !E->in0 : 0);
+        int cut_hi = E->in0 == mesh_face_joined(E->cs[hi], ax, 0);
+        long pin = c->base[u] + L[u] + (u == a ? cut_hi : 0);
         int mv = face_vertex(M, &c->nh, E->C[hi], ax, (int)(pin - E->C[hi][u]));
         if (mv < 0) {
             c->B->failed = 1;
