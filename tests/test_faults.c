@@ -340,6 +340,22 @@ static int case_grid(const fixture *fx, fault_out *o)
     return rc;
 }
 
+/* frep_eval_grid: the public summary over the tiled evaluator, float path included. */
+static int case_eval_grid(const fixture *fx, fault_out *o)
+{
+    frep_grid_options go;
+    frep_grid_options_init(&go);
+    go.n = 20;
+    go.nthreads = 1;
+    go.single = 1;
+    frep_grid_summary g;
+    if (frep_eval_grid(fx->prog, &go, &g, on_diag, o) != 0) return -1;
+    digest_doubles(o, &g.sum, 1);
+    digest_size(o, (size_t)g.inside);
+    digest_size(o, (size_t)g.nans);
+    return 0;
+}
+
 static int polygonize(const frep_program *p, int grid, frep_mesh *m, fault_out *o)
 {
     mesh_field fld;
@@ -1004,6 +1020,7 @@ static const fault_case cases[] = {
     { "interval", case_interval, MSG_NONE, NULL },
     { "prune", case_prune, MSG_NONE, NULL },
     { "grid", case_grid, MSG_NONE, NULL },
+    { "eval_grid", case_eval_grid, MSG_GIVEN, NULL },
     { "polygonize", case_polygonize, MSG_GIVEN, NULL },
     { "mesh_validate", case_mesh_validate, MSG_NONE, NULL },
     { "meshio", case_meshio, MSG_GIVEN, NULL },
