@@ -256,9 +256,19 @@ void frep_interval_scratch_free(frep_interval_scratch *s);
 int frep_eval_interval(const frep_program *p, frep_interval_scratch *s, const double box[6],
                        const double *params, double *lo, double *hi);
 
-/* ---- grid summaries (frep eval --grid) -----------------------------------
- * Added for the evaluation command; it reports like the jobs below (errors through
- * `diag` as FREP_ERROR, -1 returned). */
+/* ---- canonical source and grid summaries (frep print, frep eval --grid) -----
+ * Added for the language and evaluation commands; they report like the jobs below
+ * (errors through `diag` as FREP_ERROR, NULL or -1 returned). */
+
+/* The canonical source of `text` (len bytes, read from `file`, a name for messages),
+ * as `frep print` prints it: the same program (parsing it again gives the same tree),
+ * laid out uniformly, annotations kept.  A syntax error is reported with its position
+ * and gives NULL.  strict: check every model of the file first, as
+ * frep_compile_options.strict does (its errors and warnings reported), and give NULL
+ * when it has errors.  Returns a NUL-terminated string, *out_len its length (may be
+ * NULL); frep_free() it.  May run in several threads at once. */
+char *frep_print_source(const char *file, const char *text, size_t len, int strict,
+                        size_t *out_len, frep_diag_fn diag, void *user);
 
 /* Points per axis of a grid summary. */
 #define FREP_GRID_MIN_N 2

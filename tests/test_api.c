@@ -1,6 +1,6 @@
 /* test_api.c - the public API alone (frep.h; linked against the installed library's
  * libfrep.la, so nothing internal is reachable): the version, free parameters
- * addressed by name, interval enclosures, grid summaries, clouds,
+ * addressed by name, interval enclosures, grid summaries, canonical source, clouds,
  * meshes and sampling, errors and warnings through the callback, and files and
  * figures identical to the frep command's (run as $FREP) for the same options and
  * seed.
@@ -1334,6 +1334,52 @@ static char *read_text(const char *path, size_t *len)
     return s;
 }
 
+/* frep_print_source: the text frep print prints, NULL on a syntax error and, with
+ * strict, on what HyperFun rejects. */
+static void test_print_source(const char *frep, const char *srcdir)
+{
+    static const char *models[] = { "csg", "blend", "twist" };
+    char path[600], cmd[2048];
+    for (int k = 0; k < 3; k++) {
+        snprintf(path, sizeof path, "%s/examples/%s.hf", srcdir, models[k]);
+        size_t len = 0, outlen = 0;
+        char *text = read_text(path, &len);
+        seen s = { 0 };
+        char *out = text ? frep_print_source(path, text, len, k == 1, &outlen, collect, &s) : NULL;
+        snprintf(cmd, sizeof cmd, "'%s' print %s '%s' > '%s' 2>/dev/null", frep,
+                 k == 1 ? "--strict" : "", path, tmp("cli_print.hf"));
+        int rc = system(cmd);
+        if (out) write_text(tmp("api_print.hf"), out);
+        ok(rc == 0 && out && outlen == strlen(out) && s.errors == 0 &&
+               same_file(tmp("cli_print.hf"), tmp("api_print.hf")),
+           "frep_print_source%s: the text of frep print%s on examples/%s.hf",
+           k == 1 ? " strict" : "", k == 1 ? " --strict" : "", models[k]);
+        frep_free(out);
+        free(text);
+    }
+
+    static const char syntax[] = "my_model(x[3], a[1])\n{\n    my_model = ;\n}\n";
+    seen s = { 0 };
+    size_t outlen = 7;
+    char *out = frep_print_source("bad.hf", syntax, strlen(syntax), 0, &outlen, collect, &s);
+    ok(!out && outlen == 0 && s.errors == 1 && s.positioned == 1,
+       "frep_print_source: a syntax error is reported with its position, NULL (%s)", s.last);
+
+    /* the value assigned in a branch: frep accepts it, the reference interpreter not */
+    static const char nothf[] = "my_model(x[3], a[1])\n{\n"
+                                "    if x[1] > 0 then my_model = 1; else my_model = 2; endif;\n}\n";
+    seen w = { 0 };
+    out = frep_print_source("w.hf", nothf, strlen(nothf), 0, NULL, collect, &w);
+    ok(out && strstr(out, "my_model = 2") && w.errors == 0,
+       "frep_print_source: not HyperFun, but printed without strict");
+    frep_free(out);
+    seen e = { 0 };
+    out = frep_print_source("w.hf", nothf, strlen(nothf), 1, NULL, collect, &e);
+    ok(!out && e.errors >= 1 && strstr(e.last, "not HyperFun"),
+       "frep_print_source strict: an error, NULL (%s)", e.last);
+    frep_free(out);
+}
+
 /* frep_eval_grid: the figures frep eval --grid prints, the same with or without
  * pruning and at any thread count; its limits. */
 static void test_eval_grid(const char *frep, const char *srcdir)
@@ -1459,6 +1505,7 @@ int main(void)
         test_render(frep, srcdir);
         test_evolve(frep, srcdir);
         test_evolve_residual(frep);
+        test_print_source(frep, srcdir);
         test_eval_grid(frep, srcdir);
     }
     else diag("FREP or srcdir not set: the comparison with the command is skipped");

@@ -210,6 +210,17 @@ static int case_disassemble(const fixture *fx, fault_out *o)
     return 0;
 }
 
+static int case_print_source(const fixture *fx, fault_out *o)
+{
+    (void)fx;
+    size_t n = 0;
+    char *s = frep_print_source("m.hf", model_src, strlen(model_src), 1, &n, on_diag, o);
+    if (!s) return -1;
+    digest_bytes(o, s, n);
+    frep_free(s);
+    return 0;
+}
+
 static int case_diag_format(const fixture *fx, fault_out *o)
 {
     (void)fx;
@@ -1014,6 +1025,7 @@ static const fault_case cases[] = {
     { "compile_error", case_compile_error, MSG_GIVEN, NULL },
     { "list_models", case_list_models, MSG_GIVEN, NULL },
     { "disassemble", case_disassemble, MSG_NONE, NULL },
+    { "print_source", case_print_source, MSG_GIVEN, NULL },
     { "diag_format", case_diag_format, MSG_NONE, NULL },
     { "eval", case_eval, MSG_NONE, NULL },
     { "eval_par", case_eval_par, MSG_NONE, NULL },
