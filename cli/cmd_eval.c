@@ -4,18 +4,12 @@
 #include "config.h"
 
 #include "cli.h"
-#include "prune.h"
-#include "vm_f32.h"
-#include "threads.h"
-#include "util.h"
 
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-
-#define EVAL_MAX_GRID 4096 /* grid points per axis: 4096^3 evaluations is hours already */
 
 static const char eval_usage[] =
     "usage: frep eval FILE.hf [--model NAME] [-a v1,v2,...] [--grad] [POINTS]\n"
@@ -171,45 +165,42 @@ done:
 }
 
 /* The precision line of --single: which blocks ran in float, or why none did. */
-static void print_precision(const frep_program *p, unsigned flags, const prune_grid_stats *st)
+static void print_precision(const frep_grid_summary *s)
 {
-    if (!flags)
-        printf("precision double (--single needs a CPU with AVX2)\n");
-    else if (!vm_f32_supported(p))
-        printf("precision double (the program has operations the float path lacks)\n");
-    else
+    if (s->precision == FREP_GRID_SINGLE)
         printf("precision single: %llu blocks in float, %llu of them again in double "
                "near the surface\n",
-               (unsigned long long)st->single, (unsigned long long)st->redone);
+               (unsigned long long)s->single_blocks, (unsigned long long)s->redone_blocks);
+    else if (s->precision == FREP_GRID_DOUBLE_NO_OPS)
+        printf("precision double (the program has operations the float path lacks)\n");
+    else
+        printf("precision double (--single needs a CPU with AVX2)\n");
 }
 
-/* Grid mode: the grid is evaluated in slabs of PRUNE_TILE planes, tile by tile with a
- * pruned program per tile (runtime/prune.c), each block summarized as soon as it is
- * computed (no buffer of values), the partial sums added in tile order, so every figure
- * but the time is the same with or without pruning and at any thread count. */
-static int eval_grid(const frep_program *p, long N, const double box[6], int nthreads,
-                     int prune, int single, const char *src, size_t srclen)
+/* Grid mode (frep_eval_grid): tile by tile with a pruned program per tile, each block
+ * summarized as soon as it is computed (no buffer of values), the partial sums added
+ * in tile order, so every figure but the time is the same with or without pruning and
+ * at any thread count. */
+static int eval_grid(const frep_program *p, const frep_grid_options *o, const char *src,
+                     size_t srclen)
 {
-    unsigned flags = single && vm_f32_cpu_ok() ? PRUNE_GRID_SINGLE : 0;
-    prune_grid_stats st;
-    prune_grid_stats_init(&st);
-    double insns = 0;
-    frep_runtime_error all = { 0 };
-    double t0 = frep_now_seconds();
-    int threads = 1;
-    if (prune_eval_grid_flags(p, N, box, prune, nthreads, flags, &st, &all, &insns,
-                              &threads) != 0) {
+    frep_grid_summary st;
+    double t0 = cli_now_seconds();
+    if (frep_eval_grid(p, o, &st, NULL, NULL) != 0) {
         fprintf(stderr, "frep: evaluation failed (out of memory?)\n");
         return CLI_FAIL;
     }
     if (frep_program_work_spent(p)) {
-        report_errors(p, &all, src, srclen);
+        report_errors(p, &st.errors, src, srclen);
         return cli_work_check("eval", NULL, p);
     }
-    double eval_time = frep_now_seconds() - t0;
+    double eval_time = cli_now_seconds() - t0;
     uint64_t inside = st.inside, nans = st.nans;
-    double vmin = st.min, vmax = st.max, sum = st.sum;
-    double total_time = frep_now_seconds() - t0;
+    double vmin = st.min, vmax = st.max, sum = st.sum, insns = st.insns;
+    double total_time = cli_now_seconds() - t0;
+    long N = o->n;
+    int threads = st.threads;
+    const double *box = st.box;
     double npts = (double)N * (double)N * (double)N;
     double vol = (box[3] - box[0]) * (box[4] - box[1]) * (box[5] - box[2]);
     printf("grid      %ld^3 = %.0f points over [%g,%g]x[%g,%g]x[%g,%g]\n", N, npts, box[0],
@@ -223,9 +214,9 @@ static int eval_grid(const frep_program *p, long N, const double box[6], int nth
     printf("time      %.3f s evaluating (%.3f s total), %.2f million points/s on %d thread%s\n",
            eval_time, total_time, npts / eval_time * 1e-6, threads, threads == 1 ? "" : "s");
     printf("program   %zu instructions, %.1f evaluated per point on average (%s)\n",
-           frep_program_size(p), insns / npts, prune ? "interval pruning" : "no pruning");
-    if (single) print_precision(p, flags, &st);
-    report_errors(p, &all, src, srclen);
+           frep_program_size(p), insns / npts, o->prune ? "interval pruning" : "no pruning");
+    if (o->single) print_precision(&st);
+    report_errors(p, &st.errors, src, srclen);
     return CLI_OK;
 }
 
@@ -250,7 +241,7 @@ static const cli_opt eval_opts[] = {
               "model's '-- @box' annotation, else 10" },
     { 0, "grad", NULL, CLI_OPT_SET, OFF(grad),
       .help = "also print the gradient (forward-mode differentiation)" },
-    { 0, "grid", "N", CLI_OPT_LONG, OFF(grid), .lo = 2, .hi = EVAL_MAX_GRID,
+    { 0, "grid", "N", CLI_OPT_LONG, OFF(grid), .lo = FREP_GRID_MIN_N, .hi = FREP_GRID_MAX_N,
       .help = "grid mode with N points per axis (2..4096)" },
     CLI_OPT_MAX_WORK(eval_cmd, max_work),
     CLI_OPT_MODEL(eval_cmd, model, "the model to evaluate"),
@@ -292,15 +283,22 @@ static int eval_run(eval_cmd *c)
     c->p = cli_compile_file(c->file, c->model, c->a.v, c->a.n, c->setops, c->strict,
                             &c->src);
     if (!c->p || cli_work_limit(c->p, c->max_work) != CLI_OK) return CLI_FAIL;
-    if (c->grid && !c->boxarg) frep_program_box(c->p, c->box);
     size_t srclen = c->src ? strlen(c->src) : 0;
-    return c->grid ? eval_grid(c->p, c->grid, c->box, c->nthreads, c->prune, c->single, c->src, srclen)
-                   : eval_points(c->p, c->points, c->grad, c->nthreads, c->src, srclen);
+    if (!c->grid) return eval_points(c->p, c->points, c->grad, c->nthreads, c->src, srclen);
+    frep_grid_options o;
+    frep_grid_options_init(&o);
+    o.n = c->grid;
+    o.has_box = c->boxarg != NULL;
+    memcpy(o.box, c->box, sizeof o.box);
+    o.prune = c->prune;
+    o.single = c->single;
+    o.nthreads = c->nthreads;
+    return eval_grid(c->p, &o, c->src, srclen);
 }
 
 int cmd_eval(int argc, char **argv)
 {
-    eval_cmd c = { .setops = -1, .prune = 1, .box = { -10, -10, -10, 10, 10, 10 } };
+    eval_cmd c = { .setops = -1, .prune = 1 };
     int rc = stage_options(&c, argc, argv);
     if (rc == CLI_GO_ON) rc = eval_run(&c);
     frep_program_free(c.p);

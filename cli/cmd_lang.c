@@ -1,6 +1,7 @@
-/* cmd_lang.c - the language subcommands: frep check, frep print, frep dis.
- * check and dis go through the public compiler; print re-prints the parsed tree
- * (lang/print.c), so it shows the file as frep understood it.
+/* cmd_lang.c - the language subcommands: frep check, frep print, frep dis, on the
+ * public API alone: check and dis through the compiler, print through
+ * frep_print_source (the parsed tree re-printed, so it shows the file as frep
+ * understood it).
  */
 #include "config.h"
 
@@ -8,10 +9,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-
-#include "arena.h"
-#include "ast.h"
-#include "check.h"
 
 /* The input of every language subcommand: one model file (and for dis a model name). */
 typedef struct lang_cmd {
@@ -100,26 +97,13 @@ int cmd_print(int argc, char **argv)
     int rc = lang_input(&print_spec, argc, argv, &c, 1);
     if (rc != CLI_GO_ON) return rc;
     cli_diag_ctx dc = { c.src, c.len, 0, 0, NULL, 0, NULL };
-    diag_sink ds = { cli_print_diag, &dc, c.file, 0, 0, NULL, 0 };
-    arena A;
-    arena_init(&A);
-    ast_file f;
     int status = CLI_FAIL;
-    if (ast_parse(&A, c.file, c.src, c.len, &ds, &f) == 0) {
-        /* printed before checking: the check annotates the tree */
-        char *out = ast_print(&f);
-        check_info ci;
-        if (out && c.strict && (check_file(&A, &f, 1, &ds, &ci) != 0 || ds.errors)) {
-            frep_free(out);
-            out = NULL;
-        }
-        if (out) {
-            fputs(out, stdout);
-            frep_free(out);
-            status = CLI_OK;
-        }
+    char *out = frep_print_source(c.file, c.src, c.len, c.strict, NULL, cli_print_diag, &dc);
+    if (out) {
+        fputs(out, stdout);
+        frep_free(out);
+        status = CLI_OK;
     }
-    arena_free(&A);
     free(c.src);
     cli_diag_done(&dc);
     return status;

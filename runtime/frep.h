@@ -257,6 +257,74 @@ void frep_interval_scratch_free(frep_interval_scratch *s);
 int frep_eval_interval(const frep_program *p, frep_interval_scratch *s, const double box[6],
                        const double *params, double *lo, double *hi);
 
+/* ---- canonical source and grid summaries (frep print, frep eval --grid) -----
+ * Added for the language and evaluation commands; they report like the jobs below
+ * (errors through `diag` as FREP_ERROR, NULL or -1 returned). */
+
+/* The canonical source of `text` (len bytes, read from `file`, a name for messages),
+ * as `frep print` prints it: the same program (parsing it again gives the same tree),
+ * laid out uniformly, annotations kept.  A syntax error is reported with its position
+ * and gives NULL.  strict: check every model of the file first, as
+ * frep_compile_options.strict does (its errors and warnings reported), and give NULL
+ * when it has errors.  Returns a NUL-terminated string, *out_len its length (may be
+ * NULL); frep_free() it.  May run in several threads at once. */
+char *frep_print_source(const char *file, const char *text, size_t len, int strict,
+                        size_t *out_len, frep_diag_fn diag, void *user);
+
+/* Points per axis of a grid summary. */
+#define FREP_GRID_MIN_N 2
+#define FREP_GRID_MAX_N 4096        /* 4096^3 evaluations take hours already */
+
+typedef struct frep_grid_options {
+    long n;                 /* points per axis, FREP_GRID_MIN_N..FREP_GRID_MAX_N (64) */
+    int has_box;            /* 1: box below; 0: the program's `-- @box`, else
+                               [-10, 10]^3 (HyperFun's default) */
+    double box[6];          /* x0, y0, z0, x1, y1, z1 */
+    int prune;              /* evaluate each tile with a program shortened by interval
+                               analysis (1); the values are the same either way */
+    int single;             /* single precision where an error bound is certified, on
+                               CPUs with AVX2 (0); inside and NaN counts stay exact */
+    int nthreads;           /* <= 0: OpenMP's default */
+} frep_grid_options;
+void frep_grid_options_init(frep_grid_options *o);
+
+/* The precision a grid was evaluated in (frep_grid_summary.precision). */
+typedef enum frep_grid_precision {
+    FREP_GRID_DOUBLE,          /* single precision not asked for */
+    FREP_GRID_DOUBLE_NO_CPU,   /* asked for; the CPU lacks AVX2 */
+    FREP_GRID_DOUBLE_NO_OPS,   /* asked for; the program has operations the float path
+                                  lacks */
+    FREP_GRID_SINGLE           /* float where certified: single_blocks, redone_blocks */
+} frep_grid_precision;
+
+/* What frep_eval_grid() found: every figure but `threads` the same at any thread
+ * count and with or without pruning (min, max, sum within the float error bound of
+ * double's with FREP_GRID_SINGLE). */
+typedef struct frep_grid_summary {
+    double box[6];             /* the box evaluated */
+    uint64_t points;           /* n^3 */
+    uint64_t inside;           /* values >= 0 */
+    uint64_t nans;             /* NaN values */
+    double min, max;           /* of the values but NaNs (infinities included) */
+    double sum;                /* of the finite values, in a fixed order */
+    double insns;              /* instructions x points evaluated */
+    int threads;               /* threads it ran on */
+    int precision;             /* a frep_grid_precision */
+    uint64_t single_blocks;    /* blocks computed in float ... */
+    uint64_t redone_blocks;    /* ... and of them again in double near the surface */
+    frep_runtime_error errors; /* runtime domain errors (frep_report_runtime_error) */
+} frep_grid_summary;
+
+/* Evaluate p (its own parameters) at the n x n x n points x_i = x0 + (x1 - x0) i /
+ * (n - 1) (likewise y, z) of the box and summarize the values into *s, in tiles of
+ * 16^3 points with no buffer of values, as `frep eval --grid` does.  o NULL: the
+ * defaults.  Runtime errors do not fail it: they are in s->errors (reported by the
+ * caller); a work budget spent shows in frep_program_work_spent().  Returns 0, or -1
+ * after reporting why (bad n, out of memory).  Several threads may evaluate the same
+ * program at once. */
+int frep_eval_grid(const frep_program *p, const frep_grid_options *o, frep_grid_summary *s,
+                   frep_diag_fn diag, void *user);
+
 /* ---- the jobs of the frep command ---------------------------------------- */
 /* Functions below report why they fail through `diag` (may be NULL) as one
  * FREP_ERROR diagnostic whose message carries the position ("cloud.xyz:12: expected

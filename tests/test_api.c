@@ -1,8 +1,9 @@
 /* test_api.c - the public API alone (frep.h; linked against the installed library's
  * libfrep.la, so nothing internal is reachable): the version, free parameters
- * addressed by name, interval enclosures, clouds, meshes and sampling, errors and
- * warnings through the callback, and files byte-identical to the frep command's
- * (run as $FREP) for the same options and seed.
+ * addressed by name, interval enclosures, grid summaries, canonical source, clouds,
+ * meshes and sampling, errors and warnings through the callback, and files and
+ * figures identical to the frep command's (run as $FREP) for the same options and
+ * seed.
  */
 #include "config.h"
 
@@ -1469,6 +1470,178 @@ static void test_evolve_residual(const char *frep)
     frep_program_free(p);
 }
 
+/* A whole file into a malloc'ed NUL-terminated string (NULL when it cannot be read). */
+static char *read_text(const char *path, size_t *len)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    size_t cap = 1 << 16, n = 0;
+    char *s = malloc(cap);
+    while (s) {
+        n += fread(s + n, 1, cap - 1 - n, f);
+        if (n < cap - 1) break;
+        char *t = realloc(s, 2 * cap);
+        if (!t) {
+            free(s);
+            s = NULL;
+        }
+        s = t;
+        cap *= 2;
+    }
+    fclose(f);
+    if (s) s[n] = '\0';
+    if (len) *len = n;
+    return s;
+}
+
+/* frep_print_source: the text frep print prints, NULL on a syntax error and, with
+ * strict, on what HyperFun rejects. */
+static void test_print_source(const char *frep, const char *srcdir)
+{
+    static const char *models[] = { "csg", "blend", "twist" };
+    char path[600], cmd[2048];
+    for (int k = 0; k < 3; k++) {
+        snprintf(path, sizeof path, "%s/examples/%s.hf", srcdir, models[k]);
+        size_t len = 0, outlen = 0;
+        char *text = read_text(path, &len);
+        seen s = { 0 };
+        char *out = text ? frep_print_source(path, text, len, k == 1, &outlen, collect, &s) : NULL;
+        snprintf(cmd, sizeof cmd, "'%s' print %s '%s' > '%s' 2>/dev/null", frep,
+                 k == 1 ? "--strict" : "", path, tmp("cli_print.hf"));
+        int rc = system(cmd);
+        if (out) write_text(tmp("api_print.hf"), out);
+        ok(rc == 0 && out && outlen == strlen(out) && s.errors == 0 &&
+               same_file(tmp("cli_print.hf"), tmp("api_print.hf")),
+           "frep_print_source%s: the text of frep print%s on examples/%s.hf",
+           k == 1 ? " strict" : "", k == 1 ? " --strict" : "", models[k]);
+        frep_free(out);
+        free(text);
+    }
+
+    static const char syntax[] = "my_model(x[3], a[1])\n{\n    my_model = ;\n}\n";
+    seen s = { 0 };
+    size_t outlen = 7;
+    char *out = frep_print_source("bad.hf", syntax, strlen(syntax), 0, &outlen, collect, &s);
+    ok(!out && outlen == 0 && s.errors == 1 && s.positioned == 1,
+       "frep_print_source: a syntax error is reported with its position, NULL (%s)", s.last);
+
+    /* the value assigned in a branch: frep accepts it, the reference interpreter not */
+    static const char nothf[] = "my_model(x[3], a[1])\n{\n"
+                                "    if x[1] > 0 then my_model = 1; else my_model = 2; endif;\n}\n";
+    seen w = { 0 };
+    out = frep_print_source("w.hf", nothf, strlen(nothf), 0, NULL, collect, &w);
+    ok(out && strstr(out, "my_model = 2") && w.errors == 0,
+       "frep_print_source: not HyperFun, but printed without strict");
+    frep_free(out);
+    seen e = { 0 };
+    out = frep_print_source("w.hf", nothf, strlen(nothf), 1, NULL, collect, &e);
+    ok(!out && e.errors >= 1 && strstr(e.last, "not HyperFun"),
+       "frep_print_source strict: an error, NULL (%s)", e.last);
+    frep_free(out);
+}
+
+/* frep_eval_grid: the figures frep eval --grid prints, the same with or without
+ * pruning and at any thread count; its limits. */
+static void test_eval_grid(const char *frep, const char *srcdir)
+{
+    char path[600], cmd[2048], want[256];
+    snprintf(path, sizeof path, "%s/examples/csg.hf", srcdir);
+    size_t len = 0;
+    char *text = read_text(path, &len);
+    seen s = { 0 };
+    frep_program *p = text ? frep_compile(path, text, len, NULL, collect, &s) : NULL;
+    free(text);
+    ok(p != NULL, "examples/csg.hf compiles");
+    if (!p) return;
+
+    frep_grid_options o;
+    frep_grid_options_init(&o);
+    ok(o.n == 64 && o.prune == 1 && o.single == 0 && o.has_box == 0,
+       "frep_grid_options_init: 64 points per axis, pruning, double");
+    o.n = 33;
+    o.nthreads = 2;
+    frep_grid_summary g;
+    int rc = frep_eval_grid(p, &o, &g, collect, &s);
+    snprintf(cmd, sizeof cmd, "'%s' eval --grid 33 -t 2 '%s' > '%s' 2>/dev/null", frep, path,
+             tmp("grid.txt"));
+    int crc = system(cmd);
+    char *got = read_text(tmp("grid.txt"), NULL);
+    int same = rc == 0 && crc == 0 && got != NULL;
+    double npts = (double)g.points;
+    snprintf(want, sizeof want, "grid      33^3 = %.0f points over [%g,%g]x[%g,%g]x[%g,%g]\n",
+             npts, g.box[0], g.box[3], g.box[1], g.box[4], g.box[2], g.box[5]);
+    same = same && strstr(got, want);
+    snprintf(want, sizeof want, "inside    %llu (%.6f of the points, f >= 0)\n",
+             (unsigned long long)g.inside, (double)g.inside / npts);
+    same = same && strstr(got, want);
+    snprintf(want, sizeof want, "values    min %.9g  max %.9g  sum %.9g\n", g.min, g.max, g.sum);
+    same = same && strstr(got, want);
+    snprintf(want, sizeof want, "nan       %llu\n", (unsigned long long)g.nans);
+    same = same && strstr(got, want);
+    snprintf(want, sizeof want, "%.1f evaluated per point on average (interval pruning)",
+             g.insns / npts);
+    same = same && strstr(got, want);
+    ok(same && g.points == 33 * 33 * 33 && g.inside > 0 && g.inside < g.points,
+       "frep_eval_grid: the figures of frep eval --grid 33 (%llu inside)",
+       (unsigned long long)g.inside);
+    free(got);
+
+    frep_grid_summary w;
+    o.prune = 0;
+    o.nthreads = 1;
+    rc = frep_eval_grid(p, &o, &w, collect, &s);
+    ok(rc == 0 && w.inside == g.inside && w.nans == g.nans && w.sum == g.sum &&
+           w.min == g.min && w.max == g.max && w.insns >= g.insns && w.threads == 1,
+       "without pruning on one thread: the same figures, no fewer instructions (%.0f, %.0f)",
+       w.insns, g.insns);
+
+    o.prune = 1;
+    o.single = 1;
+    rc = frep_eval_grid(p, &o, &w, collect, &s);
+    ok(rc == 0 && w.inside == g.inside && w.nans == g.nans && w.precision != FREP_GRID_DOUBLE &&
+           (w.precision == FREP_GRID_SINGLE || (w.single_blocks == 0 && w.redone_blocks == 0)),
+       "single precision: the inside count of double (precision %d, %llu blocks in float)",
+       w.precision, (unsigned long long)w.single_blocks);
+
+    o.single = 0;
+    o.has_box = 1;
+    const double box[6] = { -1, -2, -3, 1, 2, 3 };
+    memcpy(o.box, box, sizeof box);
+    rc = frep_eval_grid(p, &o, &w, collect, &s);
+    ok(rc == 0 && memcmp(w.box, box, sizeof box) == 0 && w.inside != g.inside,
+       "a box of the options is the box evaluated");
+
+    frep_grid_summary d;
+    rc = frep_eval_grid(p, NULL, &d, collect, &s);
+    ok(rc == 0 && d.points == 64 * 64 * 64 && memcmp(d.box, g.box, sizeof box) == 0 &&
+           d.precision == FREP_GRID_DOUBLE,
+       "NULL options: 64^3 points over the model's box");
+    ok(s.errors == 0, "no error reported on the way (%s)", s.errors ? s.last : "");
+
+    long bad[2] = { FREP_GRID_MIN_N - 1, FREP_GRID_MAX_N + 1 };
+    for (int k = 0; k < 2; k++) {
+        seen e = { 0 };
+        frep_grid_options_init(&o);
+        o.n = bad[k];
+        rc = frep_eval_grid(p, &o, &d, collect, &e);
+        ok(rc == -1 && e.errors == 1 && strstr(e.last, "points per axis"),
+           "a grid of %ld points per axis: an error (%s)", bad[k], e.last);
+    }
+    frep_program_free(p);
+
+    /* runtime errors are counted, not reported: the caller reports them */
+    seen r = { 0 };
+    p = compile("my_model(x[3], a[1])\n{\n    my_model = sqrt(x[1]) - 1;\n}\n", &r);
+    frep_grid_options_init(&o);
+    o.n = 8;
+    rc = p ? frep_eval_grid(p, &o, &g, collect, &r) : -1;
+    ok(rc == 0 && g.errors.count == g.nans && g.nans == 4 * 8 * 8 && g.errors.what &&
+           r.errors == 0 && r.warnings == 0,
+       "sqrt of negative x: %llu NaN points, the errors in the summary",
+       (unsigned long long)g.nans);
+    frep_program_free(p);
+}
+
 int main(void)
 {
     snprintf(tmpdir, sizeof tmpdir, "%s/frep-api.XXXXXX", getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp");
@@ -1493,6 +1666,8 @@ int main(void)
         test_mesh_command(frep, srcdir);
         test_evolve(frep, srcdir);
         test_evolve_residual(frep);
+        test_print_source(frep, srcdir);
+        test_eval_grid(frep, srcdir);
     }
     else diag("FREP or srcdir not set: the comparison with the command is skipped");
     char cmd[400];

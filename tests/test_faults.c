@@ -210,6 +210,17 @@ static int case_disassemble(const fixture *fx, fault_out *o)
     return 0;
 }
 
+static int case_print_source(const fixture *fx, fault_out *o)
+{
+    (void)fx;
+    size_t n = 0;
+    char *s = frep_print_source("m.hf", model_src, strlen(model_src), 1, &n, on_diag, o);
+    if (!s) return -1;
+    digest_bytes(o, s, n);
+    frep_free(s);
+    return 0;
+}
+
 static int case_diag_format(const fixture *fx, fault_out *o)
 {
     (void)fx;
@@ -338,6 +349,22 @@ static int case_grid(const fixture *fx, fault_out *o)
     }
     free(f);
     return rc;
+}
+
+/* frep_eval_grid: the public summary over the tiled evaluator, float path included. */
+static int case_eval_grid(const fixture *fx, fault_out *o)
+{
+    frep_grid_options go;
+    frep_grid_options_init(&go);
+    go.n = 20;
+    go.nthreads = 1;
+    go.single = 1;
+    frep_grid_summary g;
+    if (frep_eval_grid(fx->prog, &go, &g, on_diag, o) != 0) return -1;
+    digest_doubles(o, &g.sum, 1);
+    digest_size(o, (size_t)g.inside);
+    digest_size(o, (size_t)g.nans);
+    return 0;
 }
 
 static int polygonize(const frep_program *p, int grid, frep_mesh *m, fault_out *o)
@@ -999,12 +1026,14 @@ static const fault_case cases[] = {
     { "compile_error", case_compile_error, MSG_GIVEN, NULL },
     { "list_models", case_list_models, MSG_GIVEN, NULL },
     { "disassemble", case_disassemble, MSG_NONE, NULL },
+    { "print_source", case_print_source, MSG_GIVEN, NULL },
     { "diag_format", case_diag_format, MSG_NONE, NULL },
     { "eval", case_eval, MSG_NONE, NULL },
     { "eval_par", case_eval_par, MSG_NONE, NULL },
     { "interval", case_interval, MSG_NONE, NULL },
     { "prune", case_prune, MSG_NONE, NULL },
     { "grid", case_grid, MSG_NONE, NULL },
+    { "eval_grid", case_eval_grid, MSG_GIVEN, NULL },
     { "polygonize", case_polygonize, MSG_GIVEN, NULL },
     { "mesh_validate", case_mesh_validate, MSG_NONE, NULL },
     { "meshio", case_meshio, MSG_GIVEN, NULL },

@@ -90,6 +90,25 @@ class _RuntimeError(ctypes.Structure):
                 ("z", ctypes.c_double)]
 
 
+# frep_grid_options and frep_grid_summary (frep eval --grid)
+class _GridOptions(ctypes.Structure):
+    _fields_ = [("n", ctypes.c_long), ("has_box", ctypes.c_int), ("box", ctypes.c_double * 6),
+                ("prune", ctypes.c_int), ("single", ctypes.c_int), ("nthreads", ctypes.c_int)]
+
+
+class _GridSummary(ctypes.Structure):
+    _fields_ = [("box", ctypes.c_double * 6), ("points", ctypes.c_uint64),
+                ("inside", ctypes.c_uint64), ("nans", ctypes.c_uint64),
+                ("min", ctypes.c_double), ("max", ctypes.c_double), ("sum", ctypes.c_double),
+                ("insns", ctypes.c_double), ("threads", ctypes.c_int),
+                ("precision", ctypes.c_int), ("single_blocks", ctypes.c_uint64),
+                ("redone_blocks", ctypes.c_uint64), ("errors", _RuntimeError)]
+
+
+_GRID_PRECISION = ("double", "double (no AVX2)", "double (operations the float path lacks)",
+                   "single")
+
+
 _PROGRESS_FN = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_double)
 
 
@@ -306,6 +325,11 @@ def _declare(lib):
         "frep_interval_scratch_free": (None, [P]),
         "frep_eval_interval": (I, [P, P, ctypes.c_double * 6, P, ctypes.POINTER(D),
                                    ctypes.POINTER(D)]),
+        "frep_grid_options_init": (None, [ctypes.POINTER(_GridOptions)]),
+        "frep_eval_grid": (I, [P, ctypes.POINTER(_GridOptions), ctypes.POINTER(_GridSummary),
+                               _DIAG_FN, P]),
+        "frep_print_source": (P, [ctypes.c_char_p, ctypes.c_char_p, S, I, ctypes.POINTER(S),
+                                  _DIAG_FN, P]),
         "frep_cloud_read": (P, [ctypes.c_char_p, _DIAG_FN, P]),
         "frep_cloud_new": (P, [S, P, P, P, P, P, P, _DIAG_FN, P]),
         "frep_cloud_free": (None, [P]),
@@ -623,6 +647,36 @@ class Program:
         finally:
             lib.frep_interval_scratch_free(s)
 
+    def grid_summary(self, n=64, box=None, prune=True, single=False, threads=0):
+        """The summary of `frep eval --grid n`: the values at n^3 points of the box
+        (default the model's -- @box, else [-10, 10]^3), as a dict: box, points,
+        inside (f >= 0), nans, min, max, sum, insns (instructions x points), threads,
+        precision, single_blocks, redone_blocks, errors (points with runtime errors)."""
+        lib = _L()
+        o = _GridOptions()
+        lib.frep_grid_options_init(ctypes.byref(o))
+        o.n = int(n)
+        if box is not None:
+            b = [float(box)] if np.isscalar(box) else [float(v) for v in box]
+            if len(b) == 1:
+                b = [-b[0]] * 3 + [b[0]] * 3
+            if len(b) != 6:
+                raise ValueError("box: a number v ([-v, v]^3) or (x0, y0, z0, x1, y1, z1)")
+            o.box[:] = b
+            o.has_box = 1
+        o.prune = 1 if prune else 0
+        o.single = 1 if single else 0
+        o.nthreads = int(threads)
+        g = _GridSummary()
+        d = _Diagnostics(self.source)
+        if lib.frep_eval_grid(self._h, ctypes.byref(o), ctypes.byref(g), d.fn, None) != 0:
+            d.fail("cannot evaluate the grid")
+        return {"box": tuple(g.box), "points": g.points, "inside": g.inside, "nans": g.nans,
+                "min": g.min, "max": g.max, "sum": g.sum, "insns": g.insns,
+                "threads": g.threads, "precision": _GRID_PRECISION[g.precision],
+                "single_blocks": g.single_blocks, "redone_blocks": g.redone_blocks,
+                "errors": g.errors.count}
+
     def _mesh_options(self, o, box, grid, iso, params, threads):
         if box is not None:
             b = [float(box)] if np.isscalar(box) else [float(v) for v in box]
@@ -735,6 +789,23 @@ def compile_file(path, **kw):
     """Compile the model file at path (see compile)."""
     with open(path, "rb") as f:
         return compile(f.read(), name=str(path), **kw)
+
+
+def print_source(text, name="<string>", strict=False):
+    """The canonical source of model text, as `frep print` prints it; strict: check
+    every model first (frep print --strict).  Raises FrepError with the messages."""
+    lib = _L()
+    src = text.encode() if isinstance(text, str) else bytes(text)
+    d = _Diagnostics(src)
+    n = ctypes.c_size_t()
+    p = lib.frep_print_source(name.encode(), src, len(src), 1 if strict else 0,
+                              ctypes.byref(n), d.fn, None)
+    if not p:
+        d.fail("cannot print %s" % name)
+    try:
+        return ctypes.string_at(p, n.value).decode()
+    finally:
+        lib.frep_free(p)
 
 
 # ---- meshes and clouds ---------------------------------------------------------------

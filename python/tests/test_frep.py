@@ -105,6 +105,44 @@ def test_interval_encloses():
     assert p.interval((2, 2, 2, 3, 3, 3))[1] < 0
 
 
+
+def test_grid_summary():
+    p = frep.compile(BALL)
+    g = p.grid_summary(n=41, box=1.2, threads=2)
+    # the ball's grid points counted with numpy
+    t = np.linspace(-1.2, 1.2, 41)
+    x, y, z = np.meshgrid(t, t, t, indexing="ij")
+    f = 1 - x * x - y * y - z * z
+    assert g["points"] == 41 ** 3 and g["inside"] == np.count_nonzero(f >= 0)
+    assert g["nans"] == 0 and g["errors"] == 0 and g["box"] == (-1.2,) * 3 + (1.2,) * 3
+    assert g["min"] == pytest.approx(f.min()) and g["max"] == pytest.approx(f.max())
+    assert g["sum"] == pytest.approx(f.sum())
+    assert p.grid_summary(n=41, box=1.2, prune=False, threads=1)["inside"] == g["inside"]
+    with pytest.raises(frep.FrepError):
+        p.grid_summary(n=1)
+    if FREP:
+        out = subprocess.run([FREP, "eval", "--grid", "33", CSG], capture_output=True,
+                             text=True).stdout
+        c = frep.compile_file(CSG).grid_summary(n=33)
+        assert "inside    %d " % c["inside"] in out
+        assert "values    min %.9g  max %.9g  sum %.9g" % (c["min"], c["max"], c["sum"]) in out
+
+
+def test_print_source():
+    with open(CSG) as f:
+        text = f.read()
+    out = frep.print_source(text, name=CSG)
+    # the canonical source is a fixed point and compiles to a program of the same size
+    assert frep.print_source(out) == out
+    assert frep.compile(out).size == frep.compile(text).size
+    if FREP:
+        assert out == subprocess.run([FREP, "print", CSG], capture_output=True,
+                                     text=True).stdout
+    with pytest.raises(frep.FrepError) as e:
+        frep.print_source("m(x[3], a[1]) { m = ; }", name="bad.hf")
+    assert "bad.hf:1:" in str(e.value)
+
+
 def test_mesh_closed_and_volume():
     p = frep.compile(BALL)
     m = p.mesh(grid=32, box=1.5)
