@@ -810,7 +810,8 @@ static int write_evolved(const fixture *fx, fault_out *o, const evolve_result *r
 {
     mem_out mo;
     if (!mem_open(&mo)) return -1;
-    evolve_meta meta = { "test", "cube.xyz", 5, eo->gp.setops, NULL, NULL };
+    evolve_meta meta = { "test", "cube.xyz", 5, eo->gp.setops, NULL, NULL,
+                         NULL, 0, 0, NULL };
     evolve_result timeless = *r;
     timeless.seconds = 0;
     int rc = evolve_write_model(mo.f, &timeless, pr, fx->nprims, &meta);
