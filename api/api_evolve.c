@@ -47,6 +47,8 @@ struct frep_evolution {
     const frep_evolve_base *base; /* the caller's (NULL: none) */
     size_t base_explained, base_failed;
     int interrupted;
+    /* the writers' cancel flag (frep_evolution_set_cancel; NULL: none) */
+    volatile sig_atomic_t *cancel_flag;
     evolve_refit_info refit;   /* nparams 0 without a refit */
     char note[256];            /* the refit's comment line of the model */
 };
@@ -507,6 +509,11 @@ void frep_evolution_get_info(const frep_evolution *e, frep_evolve_info *info)
     };
 }
 
+void frep_evolution_set_cancel(frep_evolution *e, volatile sig_atomic_t *flag)
+{
+    e->cancel_flag = flag;
+}
+
 typedef struct write_ctx {
     const frep_evolution *e;
     const evolve_meta *m;
@@ -530,7 +537,7 @@ static evolve_meta model_meta(const frep_evolution *e, const char *command,
 {
     return (evolve_meta){ command, cloud_name, e->eo.gp.seed, e->eo.gp.setops,
                           e->base ? &e->base->b : NULL, e->note[0] ? e->note : NULL,
-                          e->cloud, exact, hyperfun };
+                          e->cloud, exact, hyperfun, e->cancel_flag };
 }
 
 int frep_evolution_write(const frep_evolution *e, const char *path, const char *command,

@@ -160,6 +160,9 @@ void cli_sigint_restore(void);
  * cli_sigint_catch(), a signal ends the process at once again, as before any catch
  * (unless one came already: the command then stops as it planned). */
 void cli_sigint_release(void);
+/* The flag a polled signal raises and the deadline does not (cli_deadline_arm): for
+ * the steps after the run, which --max-time does not cut (frep evolve's writer). */
+volatile sig_atomic_t *cli_signal_caught(void);
 /* The signal received since the command asked for the flag (0: none). */
 int cli_interrupted(void);
 /* The signal was the command's normal end (frep view --watch stops at Ctrl-C): forget

@@ -415,10 +415,19 @@ static int stage_write(evolve_cmd *e)
     /* After Ctrl-C the tree is the one so far (the clique trees united as they stand,
      * thousands of nodes): its numbers are written exact, without the rounding and box
      * cover whose checks evaluate the tree at every check point (seconds on such a
-     * tree), so that the command ends within the promised second. */
+     * tree), so that the command ends within the promised second.  A Ctrl-C during
+     * those checks (the run's cancel flag, which the writer polls) ends them: the
+     * numbers not yet checked stay as fitted, the solids not yet formed stay. */
     int exact = e->exact || cli_interrupted();
+    if (!exact && e->tty && !e->quiet) {
+        fputs("\rfrep evolve: rounding the numbers and forming solids   ", stderr);
+        fflush(stderr);
+        e->line_open = 1;
+    }
+    frep_evolution_set_cancel(e->ev, cli_signal_caught());
     e->model = frep_evolution_model(e->ev, e->cmdline, e->cloud_path, exact, e->hyperfun,
                                     &e->model_len, print_diag, e);
+    end_line(e);
     if (!e->model) return CLI_FAIL;
     text_out m = { e->model, e->model_len };
     if (cli_write_atomic(e->out, write_text, &m)) return CLI_FAIL;

@@ -355,6 +355,11 @@ void cli_sigint_release(void)
     if (cli_signal_flag == 0) cli_signal_polled = 0;
 }
 
+volatile sig_atomic_t *cli_signal_caught(void)
+{
+    return &cli_signal_flag;
+}
+
 int cli_interrupted(void)
 {
     return cli_signal_flag;

@@ -317,11 +317,23 @@ static double mean_dist(const evolve_result *r, const prim *q, size_t n, const f
     return m ? s / (double)m : 0;
 }
 
+/* Primitive p as fitted, its numbers printed to the quanta of a position and a
+ * direction (its polarity kept). */
+static void keep_fitted(const evolve_result *r, const prim *p, canon_prim *c)
+{
+    int pol = c->polarity;
+    memset(c, 0, sizeof *c);
+    c->q = *p;
+    c->polarity = pol;
+    c->qpos = PRIM_POS_QUANTUM * r->diag;
+    c->qdir = PRIM_DIR_QUANTUM;
+}
+
 /* Per primitive in list order: the aggressive form when the model still explains the
  * points within CANON_MAX_CHANGE of the diagonal (mean distance), else the bounded one
  * when it does, else the exact primitive. */
 static int check(const evolve_result *r, const prim *prims, size_t nprims,
-                 const frep_cloud *cloud, canon_prim *out)
+                 const frep_cloud *cloud, const volatile sig_atomic_t *cancel, canon_prim *out)
 {
     prim *q = frep_malloc(nprims * sizeof *q);
     if (!q) return -1;
@@ -331,6 +343,10 @@ static int check(const evolve_result *r, const prim *prims, size_t nprims,
     double budget = CANON_MAX_CHANGE * r->diag;
     for (size_t j = 0; j < nprims; j++) {
         if (!out[j].polarity) continue;
+        if (cancel && *cancel) {
+            keep_fitted(r, &prims[j], &out[j]);
+            continue;
+        }
         canon_prim a;
         memset(&a, 0, sizeof a);
         a.polarity = out[j].polarity;
@@ -344,19 +360,15 @@ static int check(const evolve_result *r, const prim *prims, size_t nprims,
         q[j] = evaluated(&out[j]);
         if (mean_dist(r, q, nprims, cloud, stride) <= base + budget) continue;
         q[j] = prims[j];
-        int pol = out[j].polarity;
-        memset(&out[j], 0, sizeof out[j]);
-        out[j].q = prims[j];
-        out[j].polarity = pol;
-        out[j].qpos = PRIM_POS_QUANTUM * r->diag;
-        out[j].qdir = PRIM_DIR_QUANTUM;
+        keep_fitted(r, &prims[j], &out[j]);
     }
     frep_free(q);
     return 0;
 }
 
 int canon_prims(const evolve_result *r, const prim *prims, size_t nprims,
-                const frep_cloud *cloud, int exact, canon_prim *out)
+                const frep_cloud *cloud, int exact, const volatile sig_atomic_t *cancel,
+                canon_prim *out)
 {
     memset(out, 0, nprims * sizeof *out);
     const gp_tree *t = &r->tree;
@@ -369,7 +381,8 @@ int canon_prims(const evolve_result *r, const prim *prims, size_t nprims,
             canonical(r, &prims[j], 0, &out[j]);
             round_prim(&out[j]);
         }
-    if (!exact && cloud && cloud->n && nprims && check(r, prims, nprims, cloud, out)) return -1;
+    if (!exact && cloud && cloud->n && nprims && check(r, prims, nprims, cloud, cancel, out))
+        return -1;
     names(t, out, nprims);
     return 0;
 }
@@ -878,6 +891,7 @@ typedef struct ft_check {
     const double *g, *ref;
     size_t ng;
     double gtol;
+    const volatile sig_atomic_t *cancel;   /* raised: every rewrite is refused */
 } ft_check;
 
 /* Whether the tree still explains the cloud (mean distance within the limit) and keeps
@@ -894,9 +908,16 @@ static size_t ft_grid_diffs(const ft *F, const ft_check *ck, size_t most)
     return d;
 }
 
+/* Whether the stop flag is raised (then no rewrite is tried or kept). */
+static int ft_cancelled(const ft_check *ck)
+{
+    return ck->cancel && *ck->cancel;
+}
+
 static int ft_keeps(const ft *F, const ft_check *ck)
 {
     if (!ck->cloud) return 1;
+    if (ft_cancelled(ck)) return 0;
     return !ft_grid_diffs(F, ck, 0) && ft_mean(F, ck->root, ck->cloud, ck->stride) <= ck->limit;
 }
 
@@ -1389,12 +1410,20 @@ static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
  * fewer solids and the whole model passes ft_keeps (and stays bounded if it was). */
 
 #define COVER_NO (COVER_MAX_OFFS + 2)
-#define COVER_MAX_CUTS 2       /* cuts of one term */
 #define COVER_MAX_NEG 256      /* the largest cuts a term's are chosen from */
-#define COVER_MAX_TERMS 24
+_Static_assert(COVER_MAX_NEG <= 65536, "cv_term.cut indices are uint16_t");
 /* Outside points a box of the second pass may hold, per inside point (cv_run). */
 #define COVER_SLIVER 0.01
-#define COVER_MAX_BOXES 200000 /* candidate boxes over all frames (work bound) */
+/* Candidate boxes over all frames: at most COVER_MAX_FRAMES frames, each with at most
+ * COVER_NO face positions per axis (free ends included), so at most C(COVER_NO, 2)
+ * choices of the two faces on each of its three axes.  The other limits bound the
+ * work so (729,000 boxes, the frames' point sets of nw words each), and cv_list needs
+ * no check of its own. */
+#define COVER_PAIRS (COVER_NO * (COVER_NO - 1) / 2)
+#define COVER_MAX_BOXES ((size_t)COVER_MAX_FRAMES * COVER_PAIRS * COVER_PAIRS * COVER_PAIRS)
+_Static_assert(COVER_MAX_BOXES <= 1000000, "the cover's work bound: fewer frames or offsets");
+/* cv_box stores frames and face position indices in bytes. */
+_Static_assert(COVER_MAX_FRAMES <= 256 && COVER_NO <= 256, "cv_box fields are uint8_t");
 /* Cloud points moved in and out along their normals by this many grid tolerances
  * (ft_check.gtol), so that they are labelled: thin walls get points on both sides. */
 #define COVER_CLOUD_SHIFT 3
@@ -1736,8 +1765,8 @@ static int cv_term_cmp(const void *pa, const void *pb)
 }
 
 /* The boxes of every frame, faces at fitted planes only or (free) at the free ends
- * too, into out (at most max); returns their number, or max + 1 when there are more. */
-static size_t cv_list(const cover *C, int free, cv_box *out, size_t max)
+ * too, into out (NULL: counted only); returns their number (at most COVER_MAX_BOXES). */
+static size_t cv_list(const cover *C, int free, cv_box *out)
 {
     size_t m = 0;
     for (int f = 0; f < C->nf; f++) {
@@ -1752,11 +1781,11 @@ static size_t cv_list(const cover *C, int free, cv_box *out, size_t max)
                     for (int h1 = l1 + 1; h1 <= z[1]; h1++)
                         for (int l2 = a; l2 < z[2]; l2++)
                             for (int h2 = l2 + 1; h2 <= z[2]; h2++) {
-                                if (m == max) return max + 1;
                                 b.lo[0] = (uint8_t)l0, b.hi[0] = (uint8_t)h0;
                                 b.lo[1] = (uint8_t)l1, b.hi[1] = (uint8_t)h1;
                                 b.lo[2] = (uint8_t)l2, b.hi[2] = (uint8_t)h2;
-                                out[m++] = b;
+                                if (out) out[m] = b;
+                                m++;
                             }
     }
     return m;
@@ -1901,17 +1930,15 @@ static void cv_free(cover *C)
  * per solid.  Returns their number (0: none), -1 when out of memory. */
 static long cv_terms(cover *C, cv_term **pt, cv_neg **pn)
 {
-    cv_box *bx = frep_malloc((COVER_MAX_BOXES + 1) * sizeof *bx);
+    /* the boxes with free faces include those of fitted faces only */
+    cv_box *bx = frep_malloc((cv_list(C, 1, NULL) + 1) * sizeof *bx);
     uint64_t *coverable = frep_calloc(C->nw, sizeof *coverable);
     cv_term *t = NULL;
     cv_neg *neg = NULL;
     long rc = -1;
     if (!bx || !coverable) goto done;
     /* Positives: boxes of fitted faces with inside points. */
-    size_t nb = cv_list(C, 0, bx, COVER_MAX_BOXES), nt = 0;
-    rc = 0;
-    if (nb > COVER_MAX_BOXES) goto done;
-    rc = -1;
+    size_t nb = cv_list(C, 0, bx), nt = 0;
     t = frep_malloc((nb + 1) * sizeof *t);
     if (!t) goto done;
     for (size_t i = 0; i < nb; i++) {
@@ -1928,10 +1955,7 @@ static long cv_terms(cover *C, cv_term **pt, cv_neg **pn)
     }
     /* Cuts: boxes (free faces allowed) with outside points whose inside points some
      * positive without outside points can give back; the largest, none within another. */
-    rc = 0;
-    nb = cv_list(C, 1, bx, COVER_MAX_BOXES);
-    if (nb > COVER_MAX_BOXES) goto done;
-    rc = -1;
+    nb = cv_list(C, 1, bx);
     neg = frep_malloc((nb + 1) * sizeof *neg);
     if (!neg) goto done;
     size_t nn = 0;
@@ -2048,7 +2072,7 @@ static int cv_run(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
     cv_neg *neg = NULL;
     uint32_t *seen = NULL;
     int rc = 0;
-    if (!cv_planes(&C, i) || C.npl < 6 || !cv_frames(&C, r)) goto done;
+    if (ft_cancelled(ck) || !cv_planes(&C, i) || C.npl < 6 || !cv_frames(&C, r)) goto done;
     rc = -1;
     seen = frep_malloc((F->n + F->nprims + 2) * sizeof *seen);
     if (!seen || cv_points(&C)) goto done;
@@ -2056,7 +2080,7 @@ static int cv_run(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
     for (size_t g = 0; g < ck->ng; g++) nin += ck->ref[g] > ck->gtol;
     double mean = ft_mean(F, ck->root, ck->cloud, ck->stride);
     int bounded = ft_bounded(F, ck->root, r);
-    for (int pass = 0; pass < 2; pass++) {
+    for (int pass = 0; pass < 2 && !ft_cancelled(ck); pass++) {
         C.sliver = pass ? COVER_SLIVER : 0;
         frep_free(t);
         frep_free(neg);
@@ -2074,8 +2098,8 @@ static int cv_run(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
         if (after >= before) continue;
         ft_node saved = F->v[i];
         F->v[i] = F->v[u];
-        int keeps = pass ? ft_grid_diffs(F, ck, (size_t)(COVER_SLIVER * (double)nin)) <=
-                               (size_t)(COVER_SLIVER * (double)nin) &&
+        size_t most = (size_t)(COVER_SLIVER * (double)nin);
+        int keeps = pass ? !ft_cancelled(ck) && ft_grid_diffs(F, ck, most) <= most &&
                                ft_mean(F, ck->root, ck->cloud, ck->stride) <= mean
                          : ft_keeps(F, ck);
         if (keeps && (!bounded || ft_bounded(F, ck->root, r))) {
@@ -2165,7 +2189,7 @@ static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
 
 int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const canon_prim *c,
                      size_t nprims, const frep_cloud *cloud, int exact, int hyperfun,
-                     const char *base_call)
+                     const char *base_call, const volatile sig_atomic_t *cancel)
 {
     const gp_tree *t = &r->tree;
     if (!t->len) return 0;
@@ -2194,6 +2218,7 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
     memset(&ck, 0, sizeof ck);
     ck.root = root;
     ck.tol = 1e-9;
+    ck.cancel = cancel;
     if (cloud && cloud->n && !exact) {
         ck.cloud = cloud;
         ck.stride = cloud->n > CANON_CHECK_POINTS ? cloud->n / CANON_CHECK_POINTS : 1;

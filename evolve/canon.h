@@ -6,6 +6,7 @@
 #ifndef FREP_CANON_H
 #define FREP_CANON_H
 
+#include <signal.h>
 #include <stddef.h>
 #include <stdio.h>
 
@@ -44,10 +45,12 @@ typedef struct canon_prim {
  * (snapped within what its inliers cannot tell, rounded to its standard error) that
  * keeps the model within CANON_MAX_CHANGE of the exact one on the points, else the
  * form bounded by CANON_MAX_SHIFT, else stays exact; without it, the bounded form.
- * exact: every primitive as it is, printed with every digit (names only).
- * Returns 0, or -1 when out of memory. */
+ * exact: every primitive as it is, printed with every digit (names only).  cancel
+ * (may be NULL) raised: the primitives not yet checked keep their fitted parameters,
+ * as those whose rounding fails the check.  Returns 0, or -1 when out of memory. */
 int canon_prims(const evolve_result *r, const prim *prims, size_t nprims,
-                const frep_cloud *cloud, int exact, canon_prim *out);
+                const frep_cloud *cloud, int exact, const volatile sig_atomic_t *cancel,
+                canon_prim *out);
 
 /* Directions sampled by canon_tree_bounded on each of its two spheres. */
 #define CANON_BOUND_DIRS 4096
@@ -84,7 +87,9 @@ void canon_write_comment(FILE *f, const canon_prim *c);
  * numbers would move the model from the cloud (more than CANON_MAX_CHANGE of the
  * diagonal over the exact tree's mean distance) keeps its planes; without the cloud or
  * with exact, only exact boxes are formed (exact: none).  base_call: the --residual
- * base model's call (NULL: none).  Returns 0, or -1 (memory, write error). */
+ * base model's call (NULL: none).  cancel (may be NULL) raised: no further rewrite is
+ * tried (the checks refuse it), the tree as rewritten so far is written.  Returns 0, or
+ * -1 (memory, write error). */
 /* A rewrite keeps the solid: at the CANON_GRID^3 cell centres of the cloud's oriented
  * box grown by 10%, the sign of the tree stays wherever the tree before it is farther
  * than CANON_GRID_TOL of the diagonal from 0 (the rounding of a box's numbers moves a
@@ -104,9 +109,15 @@ void canon_write_comment(FILE *f, const canon_prim *c);
  * this many, is left out in turn and the others covered (work bound: a cover search
  * per operand). */
 #define COVER_MAX_LEAVE_OUT 8
+/* Cuts of one term P \ (N1 | N2): a box whose outside points no two cuts remove is no
+ * term (the cover takes other boxes, or fails); and terms of one cover: a subtree
+ * whose inside no COVER_MAX_TERMS terms cover keeps its half-spaces (work bound: the
+ * greedy cover's rounds, each over every candidate term). */
+#define COVER_MAX_CUTS 2
+#define COVER_MAX_TERMS 24
 
 int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const canon_prim *c,
                      size_t nprims, const frep_cloud *cloud, int exact, int hyperfun,
-                     const char *base_call);
+                     const char *base_call, const volatile sig_atomic_t *cancel);
 
 #endif

@@ -1129,7 +1129,8 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
     canon_prim *c = frep_calloc(nprims + 1, sizeof *c);
     prim *cq = frep_calloc(nprims + 1, sizeof *cq);
     int rc = -1;
-    if (!c || !cq || canon_prims(r, prims, nprims, m->points, m->exact, c)) goto done;
+    if (!c || !cq || canon_prims(r, prims, nprims, m->points, m->exact, m->cancel, c))
+        goto done;
     uint32_t k = 0;
     for (size_t j = 0; j < nprims; j++) {
         cq[j] = c[j].name[0] ? c[j].q : prims[j];
@@ -1139,7 +1140,7 @@ int evolve_write_model(FILE *f, const evolve_result *r, const prim *prims, size_
     write_header(f, r, k, m, m->setops == GP_SETOPS_RFUNC ? "rfunc" : "minmax");
     write_model_head(f, m->base, mname);
     if (canon_write_body(f, r, prims, c, nprims, m->points, m->exact, m->hyperfun,
-                         m->base ? m->base->call : NULL))
+                         m->base ? m->base->call : NULL, m->cancel))
         goto done;
     write_clip(f, r, mname, canon_tree_bounded(r, cq, nprims), m->hyperfun);
     rc = ferror(f) ? -1 : 0;

@@ -135,6 +135,10 @@ typedef struct evolve_meta {
     const frep_cloud *points;
     int exact;               /* the primitives unchanged, every digit written */
     int hyperfun;            /* pure HyperFun: primitives as arithmetic of x */
+    /* A stop flag (may be NULL) polled while the numbers are rounded and checked and
+     * solids formed: once raised, every primitive not yet checked keeps its fitted
+     * parameters and no further rewrite is tried, so the rest is written at once. */
+    const volatile sig_atomic_t *cancel;
 } evolve_meta;
 
 /* The .hf model: primitives named pN after their input position, the tree with the

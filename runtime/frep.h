@@ -1034,6 +1034,13 @@ typedef struct frep_evolve_info {
 } frep_evolve_info;
 void frep_evolution_get_info(const frep_evolution *e, frep_evolve_info *info);
 
+/* A cancel flag (Ctrl-C, another thread) the writers below poll while they round the
+ * model's numbers and form its solids (seconds on large trees): once *flag is non-zero,
+ * the numbers not yet checked are written as fitted and no further solid is formed,
+ * so that the model is written at once (complete and valid).  NULL: none (the
+ * default).  The flag must stay valid while e writes. */
+void frep_evolution_set_cancel(frep_evolution *e, volatile sig_atomic_t *flag);
+
 /* Write the model as `frep evolve -o` does; `command` and `cloud_name` go into its
  * comments (may be NULL), exact and hyperfun as --exact-numbers and --hyperfun. */
 int frep_evolution_write(const frep_evolution *e, const char *path, const char *command,

@@ -1592,7 +1592,7 @@ static void test_box_across_union(void)
     part_obb_of_points(cloud->x, cloud->y, cloud->z, NULL, cloud->n, &r.obb);
     double box[6] = { -1.1, -1.1, -1.1, 1.1, 1.1, 1.1 };
     memcpy(r.box, box, sizeof box);
-    evolve_meta meta = { "test", "step.xyz", 1, GP_SETOPS_MINMAX, NULL, NULL, cloud, 0, 0 };
+    evolve_meta meta = { "test", "step.xyz", 1, GP_SETOPS_MINMAX, NULL, NULL, cloud, 0, 0, NULL };
     char *text = NULL;
     size_t len = 0;
     FILE *f = open_memstream(&text, &len);
@@ -1641,6 +1641,7 @@ typedef struct cover_case {
     double n[COVER_CASE_PRIMS][3], d[COVER_CASE_PRIMS];   /* planes n.x <= d */
     int cyl;                  /* > 0: primitive cyl - 1 is the bore x^2 + y^2 <= 0.3^2 about (1, 1) */
     const char *truth;        /* the solid the cloud samples and the model must be (NULL: tree) */
+    int cancelled;            /* the writer's cancel flag raised before it starts */
 } cover_case;
 
 static double cover_tree_value(const cover_case *cc, const gp_tree *t, const double *x)
@@ -1755,7 +1756,9 @@ static void test_box_cover_case(cover_case *cc)
     r.diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
                   (hi[2] - lo[2]) * (hi[2] - lo[2]));
     for (int c = 0; c < 3; c++) r.box[c] = lo[c] - 0.1, r.box[3 + c] = hi[c] + 0.1;
-    evolve_meta meta = { "test", "cover.xyz", 1, GP_SETOPS_MINMAX, NULL, NULL, cloud, 0, 0 };
+    volatile sig_atomic_t raised = 1;
+    evolve_meta meta = { "test", "cover.xyz", 1, GP_SETOPS_MINMAX, NULL,
+                         NULL, cloud, 0, 0, cc->cancelled ? &raised : NULL };
     char *text = NULL;
     size_t len = 0;
     FILE *f = open_memstream(&text, &len);
@@ -1793,7 +1796,7 @@ static void test_box_cover_case(cover_case *cc)
 
 static void test_box_cover(void)
 {
-    static cover_case stair = { "stair", "12&3&4&5&6&78|&9a|&", "3 solids: 3 boxes", 10, { { 0 } }, { 0 }, 0, NULL };
+    static cover_case stair = { "stair", "12&3&4&5&6&78|&9a|&", "3 solids: 3 boxes", 10, { { 0 } }, { 0 }, 0, NULL, 0 };
     /* Turned 30 degrees about z: x' = (c, s, 0), y' = (-s, c, 0). */
     double c = cos(FREP_PI / 6), s = sin(FREP_PI / 6);
     double X[3] = { c, s, 0 }, Y[3] = { -s, c, 0 }, Z[3] = { 0, 0, 1 };
@@ -1805,10 +1808,17 @@ static void test_box_cover(void)
         stair.d[j] = dd[j];
     }
     test_box_cover_case(&stair);
+    /* Ctrl-C while the model is written (frep_evolution_set_cancel): no rewrite is
+     * tried, the numbers are written as fitted, the half-spaces stay; the same solid. */
+    cover_case stopped = stair;
+    stopped.name = "stair, the writer cancelled";
+    stopped.want = "10 solids: 0 boxes, 0 cylinders (0 capped), 0 spheres, 0 cones, 0 tori, 10 half-spaces";
+    stopped.cancelled = 1;
+    test_box_cover_case(&stopped);
 
     /* The cube [0, 2]^3 less the corner beyond three faces of a cube turned by
      * (10, 20, 30) degrees about x, y, z whose corner sits at (1.4, 1.4, 1.4). */
-    static cover_case corner = { "corner", "12&3&4&5&6&78|9|&", "2 solids: 2 boxes", 9, { { 0 } }, { 0 }, 0, NULL };
+    static cover_case corner = { "corner", "12&3&4&5&6&78|9|&", "2 solids: 2 boxes", 9, { { 0 } }, { 0 }, 0, NULL, 0 };
     for (int j = 0; j < 6; j++) {
         corner.n[j][j / 2] = j % 2 ? 1 : -1;
         corner.d[j] = j % 2 ? 2 : 0;
@@ -1857,7 +1867,7 @@ static void test_box_cover(void)
      * does: (lower | the upper's five seen faces) & the lower's sides and bottom.  Its
      * box takes a buried face where its side faces' points stop. */
     static cover_case stack = { "stacked", "12&3&4&5&6&78&9&a&b&|1&2&3&4&5&", "2 solids: 2 boxes",
-                                12, { { 0 } }, { 0 }, 0, "12&3&4&5&6&78&9&a&b&c&|" };
+                                12, { { 0 } }, { 0 }, 0, "12&3&4&5&6&78&9&a&b&c&|", 0 };
     for (int j = 0; j < 6; j++) {
         stack.n[j][j / 2] = j % 2 ? 1 : -1;
         stack.d[j] = j % 2 ? 2 : 0;
@@ -2003,6 +2013,113 @@ static void test_cover_limits(void)
     }
 }
 
+/* The corner of the cube [0, 2]^3 at (sx, sy, sz) (each 0 or 2) cut off beyond three
+ * faces of a cube turned by (ax, ay, az) degrees about x, y, z whose corner sits 0.6
+ * inside it (x and the primitives j..j+2 as in the corner case): the three planes
+ * into cc from primitive j on, their union (the material left) into t. */
+static char *turned_corner(cover_case *cc, int j, const int *at, const double *deg, char *t)
+{
+    double rx = deg[0] * FREP_PI / 180, ry = deg[1] * FREP_PI / 180, rz = deg[2] * FREP_PI / 180;
+    double cx = cos(rx), sx = sin(rx), cy = cos(ry), sy = sin(ry), cz = cos(rz), sz = sin(rz);
+    double R[3][3] = { { cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx },
+                       { sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx },
+                       { -sy, cy * sx, cy * cx } };
+    double c[3];
+    for (int k = 0; k < 3; k++) c[k] = at[k] ? 1.4 : 0.6;
+    for (int a = 0; a < 3; a++) {
+        /* the cut is sg_a u_a . (x - c) >= 0 for every a, sg_a the corner's side along
+         * the axis nearest u_a: the material is sg_a u_a . x <= sg_a u_a . c */
+        double d = 0, sg = at[a] ? 1 : -1;
+        for (int k = 0; k < 3; k++) {
+            cc->n[j + a][k] = sg * R[k][a] + 0.0;
+            d += cc->n[j + a][k] * c[k];
+        }
+        cc->d[j + a] = d;
+        *t++ = prim_char(j + a);
+        if (a) *t++ = '|';
+    }
+    *t++ = '&';
+    *t = 0;
+    return t;
+}
+
+/* The cover's cut and term limits (evolve/canon.h).  The cube [0, 2]^3 less corners,
+ * each cut off by a cube turned differently (a frame of its own, no positive box of
+ * fitted faces but the cube): with COVER_MAX_CUTS corners the cube less them is one
+ * term (a box and its cuts); with one more the cube is no term, the cover of the
+ * whole fails, and leaving one corner's union out (COVER_MAX_LEAVE_OUT) the others
+ * are covered: the left-out corner's three half-spaces stay.  Then cubes of side 0.5
+ * at 0, 1 and 2 on each axis (27 places, 18 planes), all but some, with a far plane
+ * that leaves the solid as it is: COVER_MAX_TERMS cubes are written as as many boxes
+ * (the far plane dropped: fewer solids), one more and the cover leaves the boxes and
+ * the half-space.  The written model is the same solid every time. */
+#define COVER_COUNT_LINE \
+    "%d solids: %d boxes, 0 cylinders (0 capped), 0 spheres, 0 cones, 0 tori, %d half-space%s"
+static void test_cover_cut_term_limits(void)
+{
+    static char tree[4][512], want[4][96], name[4][48];
+    static const int corners[4][3] = { { 2, 2, 2 }, { 0, 0, 0 }, { 2, 0, 0 }, { 0, 2, 2 } };
+    static const double turns[4][3] = { { 10, 20, 30 }, { 25, 15, 5 }, { 8, 28, 17 }, { 21, 6, 13 } };
+    for (int pass = 0; pass < 2; pass++) {
+        int nc = COVER_MAX_CUTS + pass;
+        cover_case cc;
+        memset(&cc, 0, sizeof cc);
+        for (int j = 0; j < 6; j++) {
+            cc.n[j][j / 2] = j % 2 ? 1 : -1;
+            cc.d[j] = j % 2 ? 2 : 0;
+        }
+        char *t = tree[pass] + sprintf(tree[pass], "12&3&4&5&6&");
+        for (int k = 0; k < nc; k++) {
+            int at[3] = { corners[k][0], corners[k][1], corners[k][2] };
+            t = turned_corner(&cc, 6 + 3 * k, at, turns[k], t);
+        }
+        cc.np = 6 + 3 * nc;
+        snprintf(name[pass], sizeof name[pass], "cube less %d turned corners", nc);
+        if (pass == 0) snprintf(want[pass], sizeof want[pass], COVER_COUNT_LINE, nc + 1, nc + 1, 0, "s");
+        else snprintf(want[pass], sizeof want[pass], COVER_COUNT_LINE, nc + 3, nc, 3, "s");
+        cc.name = name[pass];
+        cc.tree = tree[pass];
+        cc.want = want[pass];
+        test_box_cover_case(&cc);
+    }
+    for (int pass = 0; pass < 2; pass++) {
+        int ncubes = COVER_MAX_TERMS + pass;
+        cover_case cc;
+        memset(&cc, 0, sizeof cc);
+        /* planes 6a + 2k + {0, 1}: the faces x_a >= k and x_a <= k + 0.5 */
+        for (int a = 0; a < 3; a++)
+            for (int k = 0; k < 3; k++) {
+                cc.n[6 * a + 2 * k][a] = -1, cc.d[6 * a + 2 * k] = -k;
+                cc.n[6 * a + 2 * k + 1][a] = 1, cc.d[6 * a + 2 * k + 1] = k + 0.5;
+            }
+        double far[3] = { 1 / sqrt(14.0), 2 / sqrt(14.0), 3 / sqrt(14.0) };
+        memcpy(cc.n[18], far, sizeof far);
+        cc.d[18] = 10 + (far[0] + far[1] + far[2]) * 1.25;
+        cc.np = 19;
+        char *t = tree[2 + pass];
+        for (int q = 0; q < ncubes; q++) {
+            int at[3] = { q % 3, q / 3 % 3, q / 9 };
+            for (int a = 0; a < 3; a++) {
+                *t++ = prim_char(6 * a + 2 * at[a]);
+                if (a) *t++ = '&';
+                *t++ = prim_char(6 * a + 2 * at[a] + 1);
+                *t++ = '&';
+            }
+            if (q) *t++ = '|';
+        }
+        *t++ = prim_char(18);
+        *t++ = '&';
+        *t = 0;
+        snprintf(name[2 + pass], sizeof name[2 + pass], "%d separate cubes and a far plane", ncubes);
+        if (pass == 0) snprintf(want[2 + pass], sizeof want[2 + pass], COVER_COUNT_LINE, ncubes, ncubes, 0, "s");
+        else snprintf(want[2 + pass], sizeof want[2 + pass], COVER_COUNT_LINE, ncubes + 1, ncubes, 1, "");
+        cc.name = name[2 + pass];
+        cc.tree = tree[2 + pass];
+        cc.want = want[2 + pass];
+        test_box_cover_case(&cc);
+    }
+}
+
 int main(void)
 {
     test_tree_ops();
@@ -2029,5 +2146,6 @@ int main(void)
     test_box_across_union();
     test_box_cover();
     test_cover_limits();
+    test_cover_cut_term_limits();
     return done_testing();
 }
