@@ -24,10 +24,10 @@ void fit_control_init(fit_control *c)
     c->progress_interval = 0.2;
 }
 
-int fit_control_stop(fit_control *c)
+int fit_control_cancelled(fit_control *c)
 {
     if (c == NULL) return 0;
-    if (c->out_of_memory || c->cancelled) return 1;
+    if (c->cancelled) return 1;
     if (c->interrupt != NULL && *c->interrupt) return 1;
     if (c->cancel != NULL) {
         double now = frep_now_seconds();
@@ -35,8 +35,14 @@ int fit_control_stop(fit_control *c)
             c->next_cancel = now + FIT_CANCEL_POLL_SECONDS;
             if (c->cancel(c->cancel_user)) c->cancelled = 1;
         }
-        if (c->cancelled) return 1;
     }
+    return c->cancelled;
+}
+
+int fit_control_stop(fit_control *c)
+{
+    if (c == NULL) return 0;
+    if (c->out_of_memory || fit_control_cancelled(c)) return 1;
     if (c->max_evals > 0 && c->evals >= c->max_evals) return 1;
     /* The clock is read at most once per call; callers check once per iteration. */
     if (c->deadline > 0 && frep_now_seconds() >= c->deadline) return 1;

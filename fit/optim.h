@@ -65,6 +65,10 @@ typedef struct fit_control {
 void fit_control_init(fit_control *c);
 /* Non-zero when the budget is spent or an interrupt arrived (the cancel polled). */
 int fit_control_stop(fit_control *c);
+/* The caller stopped the run (the interrupt flag, or the cancel callback polled at most
+ * every FIT_CANCEL_POLL_SECONDS): 1, else 0. Budgets of evaluations or time are not
+ * looked at; fit_control_stop checks this first. */
+int fit_control_cancelled(fit_control *c);
 
 typedef enum fit_status {
     FIT_CONVERGED = 0,  /* a convergence test passed */
