@@ -47,16 +47,30 @@ static void to_mesh_options(const frep_program *p, const frep_mesh_options *o, m
     mo->interrupt = o->cancel_flag;
 }
 
-/* o, or the defaults (in *def) when o is NULL; the polygonizer's options from it. */
-static const frep_mesh_options *setup(const frep_program *p, const frep_mesh_options *o,
-                                      frep_mesh_options *def, mesh_options *mo)
+/* One call of the polygonizer or of its distance check: the caller's diagnostics and
+ * error, the options (the caller's, or the defaults when it gave none) and the model's
+ * field. */
+typedef struct mesh_call {
+    api_diag d;
+    frep_error e;
+    frep_mesh_options def;
+    mesh_options mo;
+    mesh_field f;
+} mesh_call;
+
+/* Fill *c and open the model's field (freed with mesh_field_program_free).  Returns 0,
+ * or -1 with nothing to free. */
+static int mesh_call_open(mesh_call *c, const frep_program *p, const frep_mesh_options *o,
+                          frep_diag_fn diag, void *user)
 {
+    c->d = (api_diag){ diag, user };
+    frep_error_init(&c->e);
     if (!o) {
-        frep_mesh_options_init(def);
-        o = def;
+        frep_mesh_options_init(&c->def);
+        o = &c->def;
     }
-    to_mesh_options(p, o, mo);
-    return o;
+    to_mesh_options(p, o, &c->mo);
+    return mesh_field_program(&c->f, p, o->params);
 }
 
 static void fill_info(frep_mesh_info *info, const mesh_options *mo, const mesh_stats *st)
@@ -92,26 +106,24 @@ static void nan_warning(const api_diag *d, size_t points_nan)
 frep_mesh *frep_polygonize(const frep_program *p, const frep_mesh_options *o,
                            frep_mesh_info *info, frep_diag_fn diag, void *user)
 {
-    api_diag d = { diag, user };
-    frep_error e;
-    frep_error_init(&e);
-    frep_mesh_options def;
-    mesh_options mo;
-    o = setup(p, o, &def, &mo);
+    mesh_call c;
+    if (mesh_call_open(&c, p, o, diag, user) != 0) {
+        api_fail(&c.d, &c.e);
+        return NULL;
+    }
     frep_mesh *m = frep_calloc(1, sizeof *m);
-    mesh_field f;
-    if (!m || mesh_field_program(&f, p, o->params) != 0) {
-        frep_free(m);
-        api_fail(&d, &e);
+    if (!m) {
+        mesh_field_program_free(&c.f);
+        api_fail(&c.d, &c.e);
         return NULL;
     }
     mesh_stats st;
     memset(&st, 0, sizeof st);
-    int rc = mesh_polygonize(&f, &mo, m, &st, &e);
+    int rc = mesh_polygonize(&c.f, &c.mo, m, &st, &c.e);
     frep_runtime_error re;
-    mesh_field_program_errors(&f, &re);
-    mesh_field_program_free(&f);
-    if (rc != 0 && e.code == FREP_ECANCEL) {
+    mesh_field_program_errors(&c.f, &re);
+    mesh_field_program_free(&c.f);
+    if (rc != 0 && c.e.code == FREP_ECANCEL) {
         /* stopped: the points a loop was stopped at are no errors of the model */
         frep_mesh_free(m);
         if (info) {
@@ -120,14 +132,14 @@ frep_mesh *frep_polygonize(const frep_program *p, const frep_mesh_options *o,
         }
         return NULL;
     }
-    api_runtime_warning(&d, p, &re);
+    api_runtime_warning(&c.d, p, &re);
     if (rc != 0) {
         frep_mesh_free(m);
-        api_fail(&d, &e);
+        api_fail(&c.d, &c.e);
         return NULL;
     }
-    nan_warning(&d, st.points_nan);
-    fill_info(info, &mo, &st);
+    nan_warning(&c.d, st.points_nan);
+    fill_info(info, &c.mo, &st);
     return m;
 }
 
@@ -254,19 +266,13 @@ int frep_mesh_surface_distance(const frep_program *p, const frep_mesh_options *o
                                const frep_mesh *m, double tol, frep_mesh_distance *r,
                                frep_diag_fn diag, void *user)
 {
-    api_diag d = { diag, user };
-    frep_error e;
-    frep_error_init(&e);
-    frep_mesh_options def;
-    mesh_options mo;
-    o = setup(p, o, &def, &mo);
-    mesh_field f;
-    if (mesh_field_program(&f, p, o->params) != 0) return api_fail(&d, &e);
+    mesh_call c;
+    if (mesh_call_open(&c, p, o, diag, user) != 0) return api_fail(&c.d, &c.e);
     mesh_distance md;
     memset(&md, 0, sizeof md);
-    int rc = mesh_surface_distance(&f, &mo, m, tol, &md, &e);
-    mesh_field_program_free(&f);
-    if (rc != 0) return api_fail(&d, &e);
+    int rc = mesh_surface_distance(&c.f, &c.mo, m, tol, &md, &c.e);
+    mesh_field_program_free(&c.f);
+    if (rc != 0) return api_fail(&c.d, &c.e);
     r->max_dist = md.max_dist;
     r->worst = md.worst;
     r->far = md.far;

@@ -466,6 +466,17 @@ def _f64(a, n=None, name="array"):
     return a
 
 
+def _box6(box):
+    """A box argument as six numbers: a number v is [-v, v]^3, else
+    (x0, y0, z0, x1, y1, z1)."""
+    b = [float(box)] if np.isscalar(box) else [float(v) for v in box]
+    if len(b) == 1:
+        b = [-b[0]] * 3 + [b[0]] * 3
+    if len(b) != 6:
+        raise ValueError("box: a number v ([-v, v]^3) or (x0, y0, z0, x1, y1, z1)")
+    return b
+
+
 def _ptr(a):
     return ctypes.c_void_p(a.ctypes.data) if a is not None else None
 
@@ -657,12 +668,7 @@ class Program:
         lib.frep_grid_options_init(ctypes.byref(o))
         o.n = int(n)
         if box is not None:
-            b = [float(box)] if np.isscalar(box) else [float(v) for v in box]
-            if len(b) == 1:
-                b = [-b[0]] * 3 + [b[0]] * 3
-            if len(b) != 6:
-                raise ValueError("box: a number v ([-v, v]^3) or (x0, y0, z0, x1, y1, z1)")
-            o.box[:] = b
+            o.box[:] = _box6(box)
             o.has_box = 1
         o.prune = 1 if prune else 0
         o.single = 1 if single else 0
@@ -679,12 +685,7 @@ class Program:
 
     def _mesh_options(self, o, box, grid, iso, params, threads):
         if box is not None:
-            b = [float(box)] if np.isscalar(box) else [float(v) for v in box]
-            if len(b) == 1:
-                b = [-b[0]] * 3 + [b[0]] * 3
-            if len(b) != 6:
-                raise ValueError("box: a number v ([-v, v]^3) or (x0, y0, z0, x1, y1, z1)")
-            o.box[:] = b
+            o.box[:] = _box6(box)
             o.has_box = 1
         if grid is not None:
             o.grid = int(grid)
