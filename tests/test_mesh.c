@@ -748,8 +748,8 @@ static size_t brute_pairs(const frep_mesh *m)
 static void test_self_intersections(void)
 {
     static const struct {
-        double v[18];
-        uint32_t t[6];
+        double cv[18];
+        uint32_t ct[6];
         int want;
         const char *what;
     } cases[] = {
@@ -775,7 +775,11 @@ static void test_self_intersections(void)
           "sharing a vertex, the other above" },
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
-        frep_mesh m = { 6, 2, (double *)cases[i].v, NULL, (uint32_t *)cases[i].t };
+        double cv[18];
+        uint32_t ct[6];
+        memcpy(cv, cases[i].v, sizeof cv);
+        memcpy(ct, cases[i].t, sizeof ct);
+        frep_mesh m = { 6, 2, cv, NULL, ct };
         size_t n;
         mesh_self_intersections(&m, &n, NULL);
         is_int((long)n, cases[i].want, "self-intersection: %s", cases[i].what);
