@@ -76,11 +76,6 @@ void mesh_cli_options(const mesh_cli *c, frep_mesh_options *o);
  * ...".  Returns CLI_OK with *m (frep_mesh_free) and *info filled, else the exit
  * status with *m NULL. */
 int mesh_cli_mesh(mesh_cli *c, const char *sub, frep_mesh **m, frep_mesh_info *info);
-/* The same into geom/trimesh.h's mesh by value and mesh/mesh.h's stats, for frep view
- * (cli/cmd_view.c) until it runs on the public API. */
-struct frep_mesh;
-struct mesh_stats;
-int mesh_cli_polygonize(mesh_cli *c, const char *sub, struct frep_mesh *m, struct mesh_stats *st);
 /* Add runtime errors to c->err; print them (once, as a warning with the source
  * position of the first failing operation) with mesh_cli_report_errors(). */
 void mesh_cli_add_errors(mesh_cli *c, const frep_runtime_error *e);
@@ -92,21 +87,17 @@ void mesh_cli_report_errors(mesh_cli *c);
 int mesh_cli_vertex_colors(mesh_cli *mc, const char *sub, const struct frep_mesh *m,
                            uint8_t **rgb);
 /* Is PATH a mesh file (by its extension) rather than a model? cli_mesh_read() reads
- * one (frep_mesh_read), printing why it cannot; NULL then.  cli_read_mesh() is the
- * same into a mesh by value for frep view, returning CLI_OK or CLI_FAIL. */
+ * one (frep_mesh_read), printing why it cannot; NULL then. */
 int cli_is_mesh_path(const char *path);
 frep_mesh *cli_mesh_read(const char *path);
-int cli_read_mesh(const char *sub, const char *path, struct frep_mesh *m);
 
-/* A cloud and its distances, for frep render and frep view (cli/model.c): each
- * point's signed distance to the surface (> 0 inside; the model's |f|/|grad f|, or
- * the mesh's nearest triangle when mc->p is NULL), each vertex's distance to the
- * cloud, and their colour scales chosen from the data (view/distance.h; 0 when no
- * distance is finite and positive). */
+/* A cloud and its distances, for frep view (cli/model.c): each point's signed
+ * distance to the surface (> 0 inside; the model's |f|/|grad f|, or the mesh's
+ * nearest triangle when mc->p is NULL), each vertex's distance to the cloud, and
+ * their colour scales chosen from the data (frep_cloud_distances). */
 typedef struct cli_cloud_dist {
-    struct frep_cloud *cl;
-    double *pdist, *vdist;
-    double pscale, vscale;
+    frep_cloud *cl;
+    frep_distances d;
 } cli_cloud_dist;
 /* Read the cloud at path and measure; prints why it cannot ("frep SUB: ..."). */
 int cli_cloud_distances(const char *sub, const char *path, mesh_cli *mc,

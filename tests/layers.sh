@@ -54,9 +54,9 @@ for l in $layers; do
     fi
 done
 
-# The subcommands rebuilt on the public API (issue 20): frep.h through cli.h, no
-# library header of their own.
-api_cmds="cli/cmd_mesh.c cli/cmd_sample.c cli/cmd_render.c cli/cmd_normals.c cli/cmd_segment.c cli/cmd_evolve.c"
+# The frep command is rebuilt on the public API (issue 20): every source of cli/
+# includes frep.h through cli.h, and no library header of its own.
+api_cmds=$(ls cli/*.c)
 problems=""
 for f in $api_cmds; do
     for inc in $(sed -n 's/^[[:space:]]*#[[:space:]]*include[[:space:]]*"\([^"]*\)".*/\1/p' "$f"); do
