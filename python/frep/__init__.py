@@ -293,6 +293,18 @@ class _RenderInfo(ctypes.Structure):
                 ("point_scale", ctypes.c_double), ("surface_scale", ctypes.c_double)]
 
 
+class _Distances(ctypes.Structure):
+    _fields_ = [("point", ctypes.POINTER(ctypes.c_double)),
+                ("vertex", ctypes.POINTER(ctypes.c_double)),
+                ("point_scale", ctypes.c_double), ("vertex_scale", ctypes.c_double)]
+
+
+class _ScadOptions(ctypes.Structure):
+    _fields_ = [("model", ctypes.c_char_p), ("a", ctypes.POINTER(ctypes.c_double)),
+                ("na", ctypes.c_size_t), ("box", ctypes.c_double * 6), ("fn", ctypes.c_int),
+                ("title", ctypes.c_char_p)]
+
+
 PRIM_TYPES = ("plane", "sphere", "cylinder", "cone", "torus")
 _MESH_FORMATS = {"auto": 0, "stl": 1, "obj": 2, "ply": 3, "off": 4, "wrl": 5}
 
@@ -407,6 +419,15 @@ def _declare(lib):
         "frep_image_pixels": (ctypes.POINTER(ctypes.c_uint8),
                               [P, ctypes.POINTER(I), ctypes.POINTER(I)]),
         "frep_image_write_png": (I, [P, ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_program_param_used": (I, [P, S]),
+        "frep_cloud_distances": (I, [P, P, P, D, I, ctypes.POINTER(_Distances), _DIAG_FN, P]),
+        "frep_distances_free": (None, [ctypes.POINTER(_Distances)]),
+        "frep_scad_options_init": (None, [ctypes.POINTER(_ScadOptions)]),
+        "frep_export_scad": (P, [ctypes.c_char_p, ctypes.c_char_p, S,
+                                 ctypes.POINTER(_ScadOptions), _DIAG_FN, P]),
+        "frep_fit_method_name": (ctypes.c_char_p, [I]),
+        "frep_fit_objective_name": (ctypes.c_char_p, [I]),
+        "frep_fit_loss_name": (ctypes.c_char_p, [I]),
     }
     for name, (res, args) in sig.items():
         fn = getattr(lib, name)
@@ -554,6 +575,11 @@ class Program:
                                           ctypes.byref(hi)):
             return lo.value, hi.value
         return None
+
+    def param_used(self, name):
+        """Whether the model's code reads parameter `name` (as param_index takes it):
+        an element of a[] the model never reads is False."""
+        return bool(_L().frep_program_param_used(self._h, self.param_index(name)))
 
     def box(self):
         """The model's `-- @box` (x0, y0, z0, x1, y1, z1), or None."""
@@ -789,6 +815,61 @@ def compile_file(path, **kw):
     """Compile the model file at path (see compile)."""
     with open(path, "rb") as f:
         return compile(f.read(), name=str(path), **kw)
+
+
+def export_scad(text, name="<string>", model=None, a=None, box=None, fn=48, title=None):
+    """The model text as OpenSCAD source, as `frep export` writes it: box, the box of
+    an unbounded model (x0, y0, z0, x1, y1, z1), default the model's `-- @box`, else
+    [-10, 10]^3 (as frep export); fn: $fn, 3..1024.  Raises FrepError with the
+    construct that has no OpenSCAD equivalent, at its position."""
+    lib = _L()
+    src = text.encode() if isinstance(text, str) else bytes(text)
+    o = _ScadOptions()
+    lib.frep_scad_options_init(ctypes.byref(o))
+    keep = []
+    if model:
+        o.model = model.encode()
+    if a is not None:
+        av = _f64(a, None, "a")
+        keep.append(av)
+        o.a = ctypes.cast(_ptr(av), _c_double_p)
+        o.na = av.shape[0]
+    if box is None:
+        box = compile(src, name=name, model=model, a=a).box()
+    if box is not None:
+        o.box = (ctypes.c_double * 6)(*[float(v) for v in box])
+    o.fn = int(fn)
+    if title is not None:
+        o.title = title.encode()
+    d = _Diagnostics(src)
+    p = lib.frep_export_scad(name.encode(), src, len(src), ctypes.byref(o), d.fn, None)
+    if not p:
+        d.fail("cannot export %s" % name)
+    try:
+        return ctypes.string_at(p).decode()
+    finally:
+        lib.frep_free(p)
+
+
+def distances(cloud, mesh, program=None, iso=0.0, threads=0):
+    """How far a Cloud is from a surface and the surface from the cloud, as frep view
+    and frep render colour them: a dict with "point" (one signed distance a point, > 0
+    inside: |f - iso|/|grad f| of program, or to mesh's nearest triangle without one),
+    "vertex" (each vertex of mesh to the nearest point) and their colour scales
+    "point_scale", "vertex_scale" (0 when no distance is finite and positive)."""
+    lib = _L()
+    r = _Distances()
+    d = _Diagnostics(program.source if program is not None else None)
+    if lib.frep_cloud_distances(cloud._h, mesh._h, program._h if program is not None else None,
+                                float(iso), int(threads), ctypes.byref(r), d.fn, None) != 0:
+        d.fail("cannot measure the cloud")
+    try:
+        n, nv = len(cloud), mesh.vertices.shape[0]
+        return {"point": np.ctypeslib.as_array(r.point, shape=(n,)).copy(),
+                "vertex": np.ctypeslib.as_array(r.vertex, shape=(nv,)).copy(),
+                "point_scale": r.point_scale, "vertex_scale": r.vertex_scale}
+    finally:
+        lib.frep_distances_free(ctypes.byref(r))
 
 
 def print_source(text, name="<string>", strict=False):
