@@ -10,9 +10,25 @@
 #include <stddef.h>
 #include <stdio.h>
 
-#include "buf.h"
 #include "frep.h"
 #include "opt.h"
+
+/* Messages kept besides printing them (frep view shows them in its page): a growing
+ * NUL-terminated text (cli/util.c).  An append that cannot allocate is dropped; the
+ * messages are on standard error anyway. */
+typedef struct cli_text {
+    char *s;          /* NULL before the first append */
+    size_t len, cap;
+} cli_text;
+#define CLI_TEXT_INIT {NULL, 0, 0}
+void cli_text_puts(cli_text *t, const char *s);
+void cli_text_printf(cli_text *t, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+/* Release and empty t. */
+void cli_text_free(cli_text *t);
 
 /* A subcommand: argv[0] is the subcommand name. Returns the process exit status. */
 typedef int (*cli_cmd_fn)(int argc, char **argv);
@@ -58,7 +74,7 @@ typedef struct mesh_cli {
     char *src;
     size_t srclen;
     frep_runtime_error err;  /* runtime errors of every evaluation so far */
-    frep_buf *diag;          /* may be NULL; else compiler messages are copied here */
+    cli_text *diag;          /* may be NULL; else compiler messages are copied here */
     const char *text;        /* may be NULL; else the model's text (path names it) */
 } mesh_cli;
 void mesh_cli_init(mesh_cli *c);
@@ -208,7 +224,7 @@ typedef struct cli_diag_ctx {
      * warnings each time, and each is printed once. Freed by cli_diag_done(). */
     char **seen;
     size_t nseen;
-    frep_buf *copy;  /* may be NULL; else every message printed is appended here too */
+    cli_text *copy;  /* may be NULL; else every message printed is appended here too */
 } cli_diag_ctx;
 void cli_print_diag(void *user, const frep_diag *d);
 /* A library message without a source position, in the commands' own style: "frep SUB:
@@ -224,11 +240,11 @@ frep_program *cli_compile_file(const char *path, const char *model, const double
 /* The same, with a copy of the messages appended to diag (may be NULL). */
 frep_program *cli_compile_file_diag(const char *path, const char *model, const double *a,
                                     size_t na, int setops, int strict, char **src,
-                                    frep_buf *diag);
+                                    cli_text *diag);
 /* The same for a text already in memory, called path in messages. */
 frep_program *cli_compile_text(const char *path, const char *text, size_t len,
                                const char *model, const double *a, size_t na, int setops,
-                               int strict, frep_buf *diag);
+                               int strict, cli_text *diag);
 
 /* The work budget of the commands that evaluate a model (runtime/frep.h,
  * frep_program_set_work_limit): the loop iterations of all its evaluations together,

@@ -64,8 +64,8 @@ typedef struct view_cmd {
     double timeout;          /* --watch: stop after this many seconds (0: at Ctrl-C) */
     view_build b;            /* the last good build */
     char *text;              /* --watch: the model's text as last read */
-    frep_buf diag;           /* messages of the last build of the mesh */
-    frep_buf cdiag;          /* --watch: messages of the last reading of the cloud */
+    cli_text diag;           /* messages of the last build of the mesh */
+    cli_text cdiag;          /* --watch: messages of the last reading of the cloud */
     int failed;              /* --watch: the last build failed (its mesh is an older one) */
     unsigned version;
     char vtext[16];          /* --watch: the version as the server sends it */
@@ -301,7 +301,7 @@ int cli_view_result(const cli_view_job *j)
     int rc = text ? view_once(&c) : CLI_FAIL;
     if (!text) fprintf(stderr, "frep %s: cannot write the model for --view\n", j->sub);
     build_free(&c.b);
-    buf_free(&c.diag);
+    cli_text_free(&c.diag);
     mesh_cli_free(&c.mc);
     free(text);
     return rc;
@@ -339,11 +339,9 @@ static int render_replies(view_cmd *c)
  * build and show the messages in the page.  Returns what was done, for the log. */
 static const char *rebuild_model(view_cmd *c, int cloud_saved)
 {
-    buf_free(&c->diag);
-    c->diag = (frep_buf)FREP_BUF_INIT;
+    cli_text_free(&c->diag);
     if (cloud_saved) {
-        buf_free(&c->cdiag);
-        c->cdiag = (frep_buf)FREP_BUF_INIT;
+        cli_text_free(&c->cdiag);
     }
     free(c->text);
     c->text = cli_is_mesh_path(c->in) ? NULL : cli_read_file(c->in, NULL);
@@ -369,15 +367,14 @@ static const char *rebuild_model(view_cmd *c, int cloud_saved)
     c->mc.src = old_src;
     c->failed = 1;
     if (!c->diag.len)
-        buf_printf(&c->diag, "%s: no new mesh (the messages are in the terminal)\n", c->in);
+        cli_text_printf(&c->diag, "%s: no new mesh (the messages are in the terminal)\n", c->in);
     return "the model failed, last good mesh kept";
 }
 
 /* After a save of the cloud alone: read it, measure it against the mesh as it is. */
 static const char *rebuild_cloud(view_cmd *c)
 {
-    buf_free(&c->cdiag);
-    c->cdiag = (frep_buf)FREP_BUF_INIT;
+    cli_text_free(&c->cdiag);
     c->mc.diag = &c->cdiag;
     cli_cloud_dist cd;
     int rc = cli_cloud_distances("view", c->points, &c->mc, c->b.m, &cd);
@@ -517,8 +514,8 @@ int cmd_view(int argc, char **argv)
     if (rc == CLI_GO_ON) rc = c.watch ? view_watch(&c) : view_once(&c);
     build_free(&c.b);
     free(c.text);
-    buf_free(&c.diag);
-    buf_free(&c.cdiag);
+    cli_text_free(&c.diag);
+    cli_text_free(&c.cdiag);
     frep_free(c.page);
     frep_free(c.json);
     mesh_cli_free(&c.mc);

@@ -79,7 +79,7 @@ static void model_note(mesh_cli *c, const char *fmt, ...)
     char line[512];
     vsnprintf(line, sizeof line, fmt, ap);
     va_end(ap);
-    buf_puts(c->diag, line);
+    cli_text_puts(c->diag, line);
 }
 
 static void progress_cb(void *user, double frac)
