@@ -8,9 +8,6 @@
 
 #include <string.h>
 
-_Static_assert(FREP_SCAD_DEFAULT_FN == SCAD_DEFAULT_FN && FREP_SCAD_MAX_FN == SCAD_MAX_FN,
-               "frep.h's $fn limits are export/scad.h's");
-
 void frep_scad_options_init(frep_scad_options *o)
 {
     memset(o, 0, sizeof *o);

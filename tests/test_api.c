@@ -890,19 +890,27 @@ static void test_fit(const char *frep)
 
 /* frep render and frep_render on the same mesh and cloud: the same PNG bytes, with
  * and without points, for a model and for a mesh file; bad options reported. */
+/* The model file at path compiled and polygonized at grid (*m NULL when either fails). */
+static frep_program *compile_and_mesh(const char *path, int grid, seen *s, frep_mesh **m)
+{
+    size_t len = 0;
+    char *text = slurp(path, &len);
+    frep_program *p = text ? frep_compile(path, text, len, NULL, collect, s) : NULL;
+    free(text);
+    frep_mesh_options mo;
+    frep_mesh_options_init(&mo);
+    mo.grid = grid;
+    *m = p ? frep_polygonize(p, &mo, NULL, collect, s) : NULL;
+    return p;
+}
+
 static void test_render(const char *frep, const char *srcdir)
 {
     char model[600], cmd[2048];
     snprintf(model, sizeof model, "%s/examples/csg.hf", srcdir);
     seen s = { 0 };
-    size_t len = 0;
-    char *text = slurp(model, &len);
-    frep_program *p = text ? frep_compile(model, text, len, NULL, collect, &s) : NULL;
-    free(text);
-    frep_mesh_options mo;
-    frep_mesh_options_init(&mo);
-    mo.grid = 32;
-    frep_mesh *m = p ? frep_polygonize(p, &mo, NULL, collect, &s) : NULL;
+    frep_mesh *m;
+    frep_program *p = compile_and_mesh(model, 32, &s, &m);
     ok(m != NULL, "examples/csg.hf polygonized at grid 32");
     if (!m) {
         frep_program_free(p);
@@ -1088,14 +1096,8 @@ static void test_view_page(const char *frep, const char *srcdir)
     char model[600], cmd[2048];
     snprintf(model, sizeof model, "%s/examples/csg.hf", srcdir);
     seen s = { 0 };
-    size_t len = 0;
-    char *text = slurp(model, &len);
-    frep_program *p = text ? frep_compile(model, text, len, NULL, collect, &s) : NULL;
-    free(text);
-    frep_mesh_options mo;
-    frep_mesh_options_init(&mo);
-    mo.grid = 24;
-    frep_mesh *m = p ? frep_polygonize(p, &mo, NULL, collect, &s) : NULL;
+    frep_mesh *m;
+    frep_program *p = compile_and_mesh(model, 24, &s, &m);
     snprintf(cmd, sizeof cmd, "'%s' sample '%s' -n 500 --seed 3 --noise 0.01 -q -o '%s'", frep,
              model, tmp("v.xyz"));
     frep_cloud *c = run(cmd) == 0 ? frep_cloud_read(tmp("v.xyz"), collect, &s) : NULL;

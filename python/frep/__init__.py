@@ -777,10 +777,9 @@ class Program:
         return Cloud._own(h)
 
 
-def _compile_options(model=None, a=None, setops=None, optimize=True, strict=False):
-    """frep_compile_options and the arrays it points to (keep them alive)."""
-    o = _CompileOptions()
-    _L().frep_compile_options_init(ctypes.byref(o))
+def _set_model_a(o, model, a):
+    """The model's name and the values of a[] into options o (frep_compile_options,
+    frep_scad_options); returns the arrays to keep alive."""
     keep = []
     if model:
         o.model = model.encode()
@@ -789,6 +788,14 @@ def _compile_options(model=None, a=None, setops=None, optimize=True, strict=Fals
         keep.append(av)
         o.a = ctypes.cast(_ptr(av), _c_double_p)
         o.na = av.shape[0]
+    return keep
+
+
+def _compile_options(model=None, a=None, setops=None, optimize=True, strict=False):
+    """frep_compile_options and the arrays it points to (keep them alive)."""
+    o = _CompileOptions()
+    _L().frep_compile_options_init(ctypes.byref(o))
+    keep = _set_model_a(o, model, a)
     if setops is not None:
         o.setops_override = {"rfunc": 0, "minmax": 1}[setops]
     o.optimize = int(bool(optimize))
@@ -826,14 +833,7 @@ def export_scad(text, name="<string>", model=None, a=None, box=None, fn=48, titl
     src = text.encode() if isinstance(text, str) else bytes(text)
     o = _ScadOptions()
     lib.frep_scad_options_init(ctypes.byref(o))
-    keep = []
-    if model:
-        o.model = model.encode()
-    if a is not None:
-        av = _f64(a, None, "a")
-        keep.append(av)
-        o.a = ctypes.cast(_ptr(av), _c_double_p)
-        o.na = av.shape[0]
+    keep = _set_model_a(o, model, a)
     if box is None:
         box = compile(src, name=name, model=model, a=a).box()
     if box is not None:
