@@ -299,6 +299,18 @@ class _Distances(ctypes.Structure):
                 ("point_scale", ctypes.c_double), ("vertex_scale", ctypes.c_double)]
 
 
+class _ViewScene(ctypes.Structure):
+    _fields_ = [("name", ctypes.c_char_p), ("mesh", ctypes.c_void_p),
+                ("vrgb", ctypes.c_void_p), ("vdist", _c_double_p), ("vscale", ctypes.c_double),
+                ("npoints", ctypes.c_size_t), ("px", _c_double_p), ("py", _c_double_p),
+                ("pz", _c_double_p), ("pdist", _c_double_p), ("pscale", ctypes.c_double),
+                ("source", ctypes.c_char_p), ("nparams", ctypes.c_size_t),
+                ("pnames", ctypes.POINTER(ctypes.c_char_p)), ("pvalues", _c_double_p),
+                ("diag", ctypes.c_char_p), ("cdiag", ctypes.c_char_p), ("failed", ctypes.c_int),
+                ("info", ctypes.c_char_p), ("units", ctypes.c_char_p),
+                ("version", ctypes.c_uint)]
+
+
 class _ScadOptions(ctypes.Structure):
     _fields_ = [("model", ctypes.c_char_p), ("a", ctypes.POINTER(ctypes.c_double)),
                 ("na", ctypes.c_size_t), ("box", ctypes.c_double * 6), ("fn", ctypes.c_int),
@@ -423,6 +435,8 @@ def _declare(lib):
         "frep_cloud_distances": (I, [P, P, P, D, I, ctypes.POINTER(_Distances), _DIAG_FN, P]),
         "frep_distances_free": (None, [ctypes.POINTER(_Distances)]),
         "frep_scad_options_init": (None, [ctypes.POINTER(_ScadOptions)]),
+        "frep_view_scene_init": (None, [ctypes.POINTER(_ViewScene)]),
+        "frep_view_page": (P, [ctypes.POINTER(_ViewScene), I, ctypes.POINTER(S), _DIAG_FN, P]),
         "frep_export_scad": (P, [ctypes.c_char_p, ctypes.c_char_p, S,
                                  ctypes.POINTER(_ScadOptions), _DIAG_FN, P]),
         "frep_fit_method_name": (ctypes.c_char_p, [I]),
@@ -847,6 +861,56 @@ def export_scad(text, name="<string>", model=None, a=None, box=None, fn=48, titl
         d.fail("cannot export %s" % name)
     try:
         return ctypes.string_at(p).decode()
+    finally:
+        lib.frep_free(p)
+
+
+def view_page(mesh, cloud=None, program=None, name="", iso=0.0, scale=0.0, threads=0,
+              colors=None, info=""):
+    """The page of `frep view` as a string: one self-contained HTML file drawing mesh
+    in WebGL, with cloud (a Cloud) coloured by its distances (see distances; to
+    program's surface, else to the mesh), scale the point distance drawn red (0: from
+    the data), program's text and parameters beside it, colors (nverts, 3) uint8 vertex
+    colours.  For a mesh file and a cloud, the bytes frep view writes."""
+    lib = _L()
+    sc = _ViewScene()
+    lib.frep_view_scene_init(ctypes.byref(sc))
+    sc.name = str(name).encode()
+    sc.mesh = mesh._h
+    sc.info = info.encode() if info is not None else None
+    keep = []
+    if cloud is not None:
+        d = distances(cloud, mesh, program, iso, threads)
+        keep += [d["point"], d["vertex"]]
+        sc.npoints = len(cloud)
+        sc.px, sc.py, sc.pz = (ctypes.cast(_ptr(np.ascontiguousarray(a)), _c_double_p)
+                               for a in (cloud.x, cloud.y, cloud.z))
+        sc.pdist = ctypes.cast(_ptr(d["point"]), _c_double_p)
+        sc.vdist = ctypes.cast(_ptr(d["vertex"]), _c_double_p)
+        sc.pscale = scale if scale > 0 else d["point_scale"] if d["point_scale"] > 0 else 1.0
+        sc.vscale = d["vertex_scale"] if d["vertex_scale"] > 0 else 1.0
+    if program is not None:
+        sc.source = program.source
+        names = [n.encode() for n in program.param_names]
+        values = np.ascontiguousarray(program.param_values(), dtype=np.float64)
+        pn = (ctypes.c_char_p * max(len(names), 1))(*names)
+        keep += [names, values, pn]
+        sc.nparams = len(names)
+        sc.pnames = ctypes.cast(pn, ctypes.POINTER(ctypes.c_char_p))
+        sc.pvalues = ctypes.cast(_ptr(values), _c_double_p)
+    if colors is not None:
+        rgb = np.ascontiguousarray(colors, dtype=np.uint8).reshape(-1, 3)
+        if rgb.shape[0] != mesh.vertices.shape[0]:
+            raise ValueError("colors: one (r, g, b) per vertex")
+        keep.append(rgb)
+        sc.vrgb = rgb.ctypes.data
+    n = ctypes.c_size_t()
+    dg = _Diagnostics()
+    p = lib.frep_view_page(ctypes.byref(sc), 0, ctypes.byref(n), dg.fn, None)
+    if not p:
+        dg.fail("cannot make the page")
+    try:
+        return ctypes.string_at(p, n.value).decode()
     finally:
         lib.frep_free(p)
 

@@ -490,6 +490,10 @@ def test_option_structs_match_the_library():
         buf = (ctypes.c_ubyte * (size + 64))(*([0xAB] * (size + 64)))
         getattr(lib, "frep_%s_options_init" % name)(ctypes.cast(buf, ctypes.POINTER(cls)))
         assert bytes(buf[size:]) == b"\xab" * 64, name
+    size = ctypes.sizeof(frep._ViewScene)
+    buf = (ctypes.c_ubyte * (size + 64))(*([0xAB] * (size + 64)))
+    lib.frep_view_scene_init(ctypes.cast(buf, ctypes.POINTER(frep._ViewScene)))
+    assert bytes(buf[size:]) == b"\xab" * 64 and bytes(buf[:size]) == b"\0" * size
 
 
 def test_param_used():
@@ -545,3 +549,22 @@ def test_distances_against_model_and_mesh():
     assert dm["point_scale"] > 0 and dm["vertex_scale"] > 0
     with pytest.raises(frep.FrepError):
         frep.distances(c, frep.Mesh(np.zeros((0, 3)), np.zeros((0, 3))))
+
+
+def test_view_page_same_as_command(tmp_path):
+    p = frep.compile_file(CSG)
+    m = p.mesh(grid=24)
+    c = p.sample(300, seed=4, noise=0.01)
+    page = frep.view_page(m, c, program=p, name="csg.hf")
+    assert page.startswith("<!DOCTYPE html>") or "<html" in page[:200]
+    assert '"points":{"n":300,' in page and '"name":"csg.hf"' in page
+    assert '"source":null' not in page and '"source":"' in page
+    if FREP:
+        m.write(tmp_path / "m.off")
+        c.write(tmp_path / "c.xyz")
+        subprocess.run([FREP, "view", str(tmp_path / "m.off"), "--points",
+                        str(tmp_path / "c.xyz"), "-q", "-o", str(tmp_path / "cli.html")],
+                       check=True)
+        page = frep.view_page(frep.read_mesh(tmp_path / "m.off"),
+                              frep.read_cloud(tmp_path / "c.xyz"), name=str(tmp_path / "m.off"))
+        assert (tmp_path / "cli.html").read_text() == page
