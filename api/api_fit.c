@@ -80,6 +80,48 @@ struct frep_fit {
     int nwarn;                 /* parameters with warnings */
 };
 
+/* ---- names (fit/fit.c's tables, the enums in step by the asserts above) ---- */
+
+const char *frep_fit_method_name(frep_fit_method m)
+{
+    return (unsigned)m <= (unsigned)FREP_FIT_LM ? fit_method_name((fit_method)m) : NULL;
+}
+
+int frep_fit_method_parse(const char *name, frep_fit_method *out)
+{
+    fit_method m;
+    if (!name || fit_method_parse(name, &m) != 0) return -1;
+    *out = (frep_fit_method)m;
+    return 0;
+}
+
+const char *frep_fit_objective_name(frep_fit_objective k)
+{
+    return (unsigned)k <= (unsigned)FREP_FIT_GEOMETRIC
+               ? fit_objective_name((fit_objective_kind)k) : NULL;
+}
+
+int frep_fit_objective_parse(const char *name, frep_fit_objective *out)
+{
+    fit_objective_kind k;
+    if (!name || fit_objective_parse(name, &k) != 0) return -1;
+    *out = (frep_fit_objective)k;
+    return 0;
+}
+
+const char *frep_fit_loss_name(frep_fit_loss l)
+{
+    return (unsigned)l <= (unsigned)FREP_FIT_GEMAN ? fit_loss_name((fit_loss)l) : NULL;
+}
+
+int frep_fit_loss_parse(const char *name, frep_fit_loss *out)
+{
+    fit_loss l;
+    if (!name || fit_loss_parse(name, &l) != 0) return -1;
+    *out = (frep_fit_loss)l;
+    return 0;
+}
+
 void frep_fit_options_init(frep_fit_options *o)
 {
     fit_config c;

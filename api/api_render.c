@@ -54,24 +54,13 @@ static int measure(const api_diag *d, const frep_mesh *m, const frep_render_opti
                    double bbox[6], overlay *ov, frep_render_info *in)
 {
     const frep_cloud *cl = o->points;
-    frep_error e;
-    frep_error_init(&e);
-    ov->pdist = frep_malloc((cl->n + 1) * sizeof *ov->pdist);
-    ov->vdist = frep_malloc((m->nverts + 1) * sizeof *ov->vdist);
-    if (!ov->pdist || !ov->vdist) return api_fail(d, &e);
-    frep_runtime_error re;
-    memset(&re, 0, sizeof re);
-    int rc = o->program ? view_point_distances(o->program, o->iso, cl->n, cl->x, cl->y, cl->z,
-                                               o->nthreads, ov->pdist, &re, &e)
-                        : view_mesh_distances(m, cl->n, cl->x, cl->y, cl->z, ov->pdist, &e);
-    if (rc != 0) return api_fail(d, &e);
-    if (o->program) api_runtime_warning(d, o->program, &re);
-    if (view_vertex_distances(m, cl->n, cl->x, cl->y, cl->z, ov->vdist, &e) != 0 ||
-        view_auto_scale(ov->pdist, cl->n, VIEW_POINTS_QUANTILE, VIEW_POINTS_FACTOR, 0,
-                        &ov->pscale, &e) != 0 ||
-        view_auto_scale(ov->vdist, m->nverts, VIEW_SURFACE_QUANTILE, VIEW_SURFACE_FACTOR, 0,
-                        &ov->vscale, &e) != 0)
-        return api_fail(d, &e);
+    frep_distances dist;
+    if (frep_cloud_distances(cl, m, o->program, o->iso, o->nthreads, &dist, d->fn, d->user) != 0)
+        return -1;
+    ov->pdist = dist.point;
+    ov->vdist = dist.vertex;
+    ov->pscale = dist.point_scale;
+    ov->vscale = dist.vertex_scale;
     for (size_t i = 0; i < cl->n; i++) {
         double a = fabs(ov->pdist[i]);
         if (isfinite(a)) {

@@ -10,9 +10,25 @@
 #include <stddef.h>
 #include <stdio.h>
 
-#include "buf.h"
 #include "frep.h"
 #include "opt.h"
+
+/* Messages kept besides printing them (frep view shows them in its page): a growing
+ * NUL-terminated text (cli/util.c).  An append that cannot allocate is dropped; the
+ * messages are on standard error anyway. */
+typedef struct cli_text {
+    char *s;          /* NULL before the first append */
+    size_t len, cap;
+} cli_text;
+#define CLI_TEXT_INIT {NULL, 0, 0}
+void cli_text_puts(cli_text *t, const char *s);
+void cli_text_printf(cli_text *t, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+/* Release and empty t. */
+void cli_text_free(cli_text *t);
 
 /* A subcommand: argv[0] is the subcommand name. Returns the process exit status. */
 typedef int (*cli_cmd_fn)(int argc, char **argv);
@@ -58,7 +74,7 @@ typedef struct mesh_cli {
     char *src;
     size_t srclen;
     frep_runtime_error err;  /* runtime errors of every evaluation so far */
-    frep_buf *diag;          /* may be NULL; else compiler messages are copied here */
+    cli_text *diag;          /* may be NULL; else compiler messages are copied here */
     const char *text;        /* may be NULL; else the model's text (path names it) */
 } mesh_cli;
 void mesh_cli_init(mesh_cli *c);
@@ -76,11 +92,6 @@ void mesh_cli_options(const mesh_cli *c, frep_mesh_options *o);
  * ...".  Returns CLI_OK with *m (frep_mesh_free) and *info filled, else the exit
  * status with *m NULL. */
 int mesh_cli_mesh(mesh_cli *c, const char *sub, frep_mesh **m, frep_mesh_info *info);
-/* The same into geom/trimesh.h's mesh by value and mesh/mesh.h's stats, for frep view
- * (cli/cmd_view.c) until it runs on the public API. */
-struct frep_mesh;
-struct mesh_stats;
-int mesh_cli_polygonize(mesh_cli *c, const char *sub, struct frep_mesh *m, struct mesh_stats *st);
 /* Add runtime errors to c->err; print them (once, as a warning with the source
  * position of the first failing operation) with mesh_cli_report_errors(). */
 void mesh_cli_add_errors(mesh_cli *c, const frep_runtime_error *e);
@@ -92,21 +103,17 @@ void mesh_cli_report_errors(mesh_cli *c);
 int mesh_cli_vertex_colors(mesh_cli *mc, const char *sub, const struct frep_mesh *m,
                            uint8_t **rgb);
 /* Is PATH a mesh file (by its extension) rather than a model? cli_mesh_read() reads
- * one (frep_mesh_read), printing why it cannot; NULL then.  cli_read_mesh() is the
- * same into a mesh by value for frep view, returning CLI_OK or CLI_FAIL. */
+ * one (frep_mesh_read), printing why it cannot; NULL then. */
 int cli_is_mesh_path(const char *path);
 frep_mesh *cli_mesh_read(const char *path);
-int cli_read_mesh(const char *sub, const char *path, struct frep_mesh *m);
 
-/* A cloud and its distances, for frep render and frep view (cli/model.c): each
- * point's signed distance to the surface (> 0 inside; the model's |f|/|grad f|, or
- * the mesh's nearest triangle when mc->p is NULL), each vertex's distance to the
- * cloud, and their colour scales chosen from the data (view/distance.h; 0 when no
- * distance is finite and positive). */
+/* A cloud and its distances, for frep view (cli/model.c): each point's signed
+ * distance to the surface (> 0 inside; the model's |f|/|grad f|, or the mesh's
+ * nearest triangle when mc->p is NULL), each vertex's distance to the cloud, and
+ * their colour scales chosen from the data (frep_cloud_distances). */
 typedef struct cli_cloud_dist {
-    struct frep_cloud *cl;
-    double *pdist, *vdist;
-    double pscale, vscale;
+    frep_cloud *cl;
+    frep_distances d;
 } cli_cloud_dist;
 /* Read the cloud at path and measure; prints why it cannot ("frep SUB: ..."). */
 int cli_cloud_distances(const char *sub, const char *path, mesh_cli *mc,
@@ -217,7 +224,7 @@ typedef struct cli_diag_ctx {
      * warnings each time, and each is printed once. Freed by cli_diag_done(). */
     char **seen;
     size_t nseen;
-    frep_buf *copy;  /* may be NULL; else every message printed is appended here too */
+    cli_text *copy;  /* may be NULL; else every message printed is appended here too */
 } cli_diag_ctx;
 void cli_print_diag(void *user, const frep_diag *d);
 /* A library message without a source position, in the commands' own style: "frep SUB:
@@ -233,11 +240,11 @@ frep_program *cli_compile_file(const char *path, const char *model, const double
 /* The same, with a copy of the messages appended to diag (may be NULL). */
 frep_program *cli_compile_file_diag(const char *path, const char *model, const double *a,
                                     size_t na, int setops, int strict, char **src,
-                                    frep_buf *diag);
+                                    cli_text *diag);
 /* The same for a text already in memory, called path in messages. */
 frep_program *cli_compile_text(const char *path, const char *text, size_t len,
                                const char *model, const double *a, size_t na, int setops,
-                               int strict, frep_buf *diag);
+                               int strict, cli_text *diag);
 
 /* The work budget of the commands that evaluate a model (runtime/frep.h,
  * frep_program_set_work_limit): the loop iterations of all its evaluations together,

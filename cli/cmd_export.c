@@ -1,11 +1,10 @@
-/* cmd_export.c - frep export: a model as OpenSCAD source (export/scad.c), written
+/* cmd_export.c - frep export: a model as OpenSCAD source (frep_export_scad), written
  * atomically.  The model is compiled first, as frep mesh compiles it, so its errors
  * read the same and the box is the one frep mesh would use.
  */
 #include "config.h"
 
 #include "cli.h"
-#include "scad.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -38,13 +37,27 @@ static const cli_opt export_opts[] = {
     CLI_OPT_BOX(export_cmd, mc.box,
                 "the box of an unbounded model, as frep mesh's -b; default:\n"
                 "the model's '-- @box' annotation, else 10"),
-    { 0, "fn", "N", CLI_OPT_INT, OFF(fn), .lo = 3, .hi = SCAD_MAX_FN, .what = "facets",
+    { 0, "fn", "N", CLI_OPT_INT, OFF(fn), .lo = 3, .hi = FREP_SCAD_MAX_FN, .what = "facets",
       .def = "48", .help = "OpenSCAD's $fn, facets of a full circle (default 48)" },
     CLI_OPT_QUIET(export_cmd, quiet, "no summary line"),
 };
 #undef OFF
 static const cli_opt_spec export_spec = { "export", export_usage, export_opts,
                                           sizeof export_opts / sizeof export_opts[0], 22 };
+
+/* The export's messages: those with a position as the compiler's (with the source
+ * line), the one without (the export failed) kept for "frep export: ...". */
+typedef struct export_diag {
+    cli_diag_ctx dc;
+    char error[512];
+} export_diag;
+
+static void export_diag_cb(void *user, const frep_diag *d)
+{
+    export_diag *x = user;
+    if (d->file) cli_print_diag(&x->dc, d);
+    else if (!x->error[0]) snprintf(x->error, sizeof x->error, "%s", d->message);
+}
 
 static int write_text(FILE *f, void *user)
 {
@@ -57,7 +70,7 @@ int cmd_export(int argc, char **argv)
     export_cmd c;
     memset(&c, 0, sizeof c);
     mesh_cli_init(&c.mc);
-    c.fn = SCAD_DEFAULT_FN;
+    c.fn = FREP_SCAD_DEFAULT_FN;
     cli_args args;
     int rc = mesh_cli_parse(&export_spec, argc, argv, &c, offsetof(export_cmd, mc), &args);
     if (rc != CLI_GO_ON) return rc;
@@ -68,21 +81,19 @@ int cmd_export(int argc, char **argv)
         mesh_cli_free(&c.mc);
         return CLI_FAIL;
     }
-    scad_options o;
-    memset(&o, 0, sizeof o);
+    frep_scad_options o;
+    frep_scad_options_init(&o);
     o.model = c.mc.model;
     o.a = c.mc.a.v;
     o.na = c.mc.a.n;
     memcpy(o.box, c.mc.box, sizeof o.box);
     o.fn = c.fn;
-    cli_diag_ctx dc = { c.mc.src, c.mc.srclen, 0, 0, NULL, 0, NULL };
-    frep_error err;
-    frep_error_init(&err);
-    c.text = scad_export(path, c.mc.src, c.mc.srclen, &o, cli_print_diag, &dc, &err);
-    cli_diag_done(&dc);
+    export_diag xd = { { c.mc.src, c.mc.srclen, 0, 0, NULL, 0, NULL }, "" };
+    c.text = frep_export_scad(path, c.mc.src, c.mc.srclen, &o, export_diag_cb, &xd);
+    cli_diag_done(&xd.dc);
     int status = CLI_FAIL;
     if (!c.text) {
-        fprintf(stderr, "frep export: %s\n", err.msg);
+        fprintf(stderr, "frep export: %s\n", xd.error[0] ? xd.error : "out of memory");
     } else {
         c.len = strlen(c.text);
         if (strcmp(c.out, "-") == 0) {

@@ -7,7 +7,6 @@
 #include "config.h"
 
 #include "cli.h"
-#include "fit.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -133,28 +132,19 @@ typedef struct fit_cmd {
 static int parse_method(const char *arg, void *dest, char *why, size_t whylen)
 {
     (void)why, (void)whylen;
-    fit_method m;
-    if (fit_method_parse(arg, &m) != 0) return -1;
-    *(frep_fit_method *)dest = (frep_fit_method)m;
-    return 0;
+    return frep_fit_method_parse(arg, (frep_fit_method *)dest);
 }
 
 static int parse_objective(const char *arg, void *dest, char *why, size_t whylen)
 {
     (void)why, (void)whylen;
-    fit_objective_kind k;
-    if (fit_objective_parse(arg, &k) != 0) return -1;
-    *(frep_fit_objective *)dest = (frep_fit_objective)k;
-    return 0;
+    return frep_fit_objective_parse(arg, (frep_fit_objective *)dest);
 }
 
 static int parse_loss(const char *arg, void *dest, char *why, size_t whylen)
 {
     (void)why, (void)whylen;
-    fit_loss l;
-    if (fit_loss_parse(arg, &l) != 0) return -1;
-    *(frep_fit_loss *)dest = (frep_fit_loss)l;
-    return 0;
+    return frep_fit_loss_parse(arg, (frep_fit_loss *)dest);
 }
 
 #define OFF(f) offsetof(fit_cmd, f)
@@ -325,11 +315,6 @@ static int stage_write(fit_cmd *f)
     return cli_write_atomic(f->output, write_text, &to) == 0 ? CLI_OK : CLI_FAIL;
 }
 
-static const char *method_name(frep_fit_method m) { return fit_method_name((fit_method)m); }
-static const char *objective_name(frep_fit_objective k)
-{
-    return fit_objective_name((fit_objective_kind)k);
-}
 
 /* The report on stdout: settings, a table of the parameters, the result. */
 static void stage_report(const fit_cmd *f)
@@ -340,8 +325,8 @@ static void stage_report(const fit_cmd *f)
     printf("frep fit: %s <- %s (%zu points%s)\n", f->tmpl, f->cloud_path, in.npoints,
            f->has_normals ? ", with normals" : "");
     printf("method %s, objective %s (annealing: %s), loss %s, seed %llu\n",
-           method_name(o->method), objective_name(o->objective),
-           objective_name(o->global_objective), fit_loss_name((fit_loss)o->loss),
+           frep_fit_method_name(o->method), frep_fit_objective_name(o->objective),
+           frep_fit_objective_name(o->global_objective), frep_fit_loss_name(o->loss),
            (unsigned long long)o->seed);
     if (o->method == FREP_FIT_SAQN || o->method == FREP_FIT_SA)
         printf("annealing: %ld chain%s on %zu points, stall %ld\n", o->sa_chains,

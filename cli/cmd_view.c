@@ -1,16 +1,12 @@
 /* cmd_view.c - frep view: the page of a model (polygonized as by frep mesh, through
- * cli/model.c, or a mesh file) and of a cloud with its distances (view/distance.c),
- * written by view/page.c as one self-contained HTML file with a WebGL viewer; with
- * --watch served on 127.0.0.1 (view/serve.c) and rebuilt on every save.
+ * cli/model.c, or a mesh file) and of a cloud with its distances
+ * (frep_cloud_distances), written by frep_view_write_page() as one self-contained HTML
+ * file with a WebGL viewer; with --watch served on 127.0.0.1 (frep_view_server) and
+ * rebuilt on every save.  On the public API only.
  */
 #include "config.h"
 
-#include "alloc.h"
 #include "cli.h"
-#include "cloud.h"
-#include "mesh.h"
-#include "page.h"
-#include "serve.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -49,8 +45,8 @@ static const char view_usage[] =
 /* What one build of the page holds: the mesh, the cloud and their distances, the
  * parameters of the program the mesh was made of. */
 typedef struct view_build {
-    frep_mesh m;
-    mesh_stats st;
+    frep_mesh *m;            /* NULL until a build succeeds */
+    frep_mesh_info mi;       /* what the mesher did (a model's build) */
     cli_cloud_dist cd;       /* --points and its distances */
     uint8_t *vrgb;           /* the model's colours at the vertices, else NULL */
     size_t np;
@@ -68,8 +64,8 @@ typedef struct view_cmd {
     double timeout;          /* --watch: stop after this many seconds (0: at Ctrl-C) */
     view_build b;            /* the last good build */
     char *text;              /* --watch: the model's text as last read */
-    frep_buf diag;           /* messages of the last build of the mesh */
-    frep_buf cdiag;          /* --watch: messages of the last reading of the cloud */
+    cli_text diag;           /* messages of the last build of the mesh */
+    cli_text cdiag;          /* --watch: messages of the last reading of the cloud */
     int failed;              /* --watch: the last build failed (its mesh is an older one) */
     unsigned version;
     char vtext[16];          /* --watch: the version as the server sends it */
@@ -109,12 +105,12 @@ static const cli_opt_spec view_spec = { "view", view_usage, view_opts,
 /* The model's mesh: a mesh file as it is, or the model compiled and polygonized. */
 static int stage_mesh(view_cmd *c, view_build *b)
 {
-    if (cli_is_mesh_path(c->in)) return cli_read_mesh("view", c->in, &b->m);
+    if (cli_is_mesh_path(c->in)) return (b->m = cli_mesh_read(c->in)) ? CLI_OK : CLI_FAIL;
     if (mesh_cli_compile(&c->mc, c->in) != CLI_OK) return CLI_FAIL;
-    if (mesh_cli_polygonize(&c->mc, "view", &b->m, &b->st) != CLI_OK) return CLI_FAIL;
+    if (mesh_cli_mesh(&c->mc, "view", &b->m, &b->mi) != CLI_OK) return CLI_FAIL;
     snprintf(b->info, sizeof b->info, "grid %d, box [%g,%g]x[%g,%g]x[%g,%g], meshed in %.2f s",
              c->mc.grid, c->mc.box[0], c->mc.box[3], c->mc.box[1], c->mc.box[4], c->mc.box[2],
-             c->mc.box[5], b->st.seconds);
+             c->mc.box[5], b->mi.seconds);
     return CLI_OK;
 }
 
@@ -141,25 +137,38 @@ static int stage_params(view_cmd *c, view_build *b)
 static int stage_colors(view_cmd *c, view_build *b)
 {
     if (!c->mc.p) return CLI_OK;
-    return mesh_cli_vertex_colors(&c->mc, "view", &b->m, &b->vrgb);
+    return mesh_cli_vertex_colors(&c->mc, "view", b->m, &b->vrgb);
+}
+
+/* The colour scales: from the data, VIEW_FALLBACK_SCALE when the data gives none,
+ * --scale for the points when given. */
+static void set_scales(const view_cmd *c, frep_distances *d)
+{
+    if (!(d->point_scale > 0)) d->point_scale = VIEW_FALLBACK_SCALE;
+    if (!(d->vertex_scale > 0)) d->vertex_scale = VIEW_FALLBACK_SCALE;
+    if (c->scale > 0) d->point_scale = c->scale;
+}
+
+/* Triangles of the build's mesh (0 before the first good build). */
+static size_t build_ntris(const view_build *b)
+{
+    return b->m ? frep_mesh_ntris(b->m) : 0;
 }
 
 /* --points: the cloud (read, or b->cd.cl as it is: --watch keeps a cloud that was not
  * saved again) and its distances (cli/model.c); --scale. */
 static int stage_points(view_cmd *c, view_build *b)
 {
-    int rc = b->cd.cl ? cli_cloud_measure("view", &c->mc, &b->m, &b->cd)
-                      : cli_cloud_distances("view", c->points, &c->mc, &b->m, &b->cd);
+    int rc = b->cd.cl ? cli_cloud_measure("view", &c->mc, b->m, &b->cd)
+                      : cli_cloud_distances("view", c->points, &c->mc, b->m, &b->cd);
     if (rc != CLI_OK) return CLI_FAIL;
-    if (!(b->cd.pscale > 0)) b->cd.pscale = VIEW_FALLBACK_SCALE;
-    if (!(b->cd.vscale > 0)) b->cd.vscale = VIEW_FALLBACK_SCALE;
-    if (c->scale > 0) b->cd.pscale = c->scale;
+    set_scales(c, &b->cd.d);
     return CLI_OK;
 }
 
 static void build_free(view_build *b)
 {
-    mesh_free(&b->m);
+    frep_mesh_free(b->m);
     cli_cloud_dist_free(&b->cd);
     frep_free(b->vrgb);
     for (size_t i = 0; b->pnames && i < b->np; i++) free(b->pnames[i]);
@@ -187,12 +196,12 @@ static int build(view_cmd *c, view_build *b, frep_cloud *cloud)
 }
 
 /* The scene of the page: the last good build, the current text and messages. */
-static void make_scene(const view_cmd *c, view_scene *s)
+static void make_scene(const view_cmd *c, frep_view_scene *s)
 {
     const view_build *b = &c->b;
-    memset(s, 0, sizeof *s);
+    frep_view_scene_init(s);
     s->name = c->in;
-    s->mesh = &b->m;
+    s->mesh = b->m;
     s->source = c->text ? c->text : c->mc.src;
     s->nparams = b->np;
     s->pnames = (const char *const *)b->pnames;
@@ -204,27 +213,28 @@ static void make_scene(const view_cmd *c, view_scene *s)
     s->vrgb = b->vrgb;
     s->version = c->version;
     if (b->cd.cl) {
-        s->npoints = b->cd.cl->n;
-        s->px = b->cd.cl->x;
-        s->py = b->cd.cl->y;
-        s->pz = b->cd.cl->z;
-        s->pdist = b->cd.pdist;
-        s->pscale = b->cd.pscale;
-        s->vdist = b->cd.vdist;
-        s->vscale = b->cd.vscale;
+        s->npoints = frep_cloud_size(b->cd.cl);
+        frep_cloud_arrays(b->cd.cl, &s->px, &s->py, &s->pz, NULL, NULL, NULL);
+        s->pdist = b->cd.d.point;
+        s->pscale = b->cd.d.point_scale;
+        s->vdist = b->cd.d.vertex;
+        s->vscale = b->cd.d.vertex_scale;
     }
+}
+
+/* The library's messages without a position, as "frep view: ...". */
+static void view_diag(void *user, const frep_diag *d)
+{
+    (void)user;
+    cli_library_diag("view", d);
 }
 
 static int write_page_cb(FILE *f, void *user)
 {
     const view_cmd *c = user;
-    view_scene s;
+    frep_view_scene s;
     make_scene(c, &s);
-    frep_error e;
-    frep_error_init(&e);
-    if (view_write_page(f, &s, &e) == 0) return 0;
-    fprintf(stderr, "frep view: %s\n", e.msg);
-    return -1;
+    return frep_view_write_page(&s, f, view_diag, NULL);
 }
 
 /* The summary line: the page, its size, what it holds. */
@@ -235,8 +245,10 @@ static void report(const view_cmd *c)
     if (f && fseek(f, 0, SEEK_END) == 0) size = ftell(f);
     if (f) fclose(f);
     FILE *o = c->summary ? c->summary : stdout;
-    fprintf(o, "%s: %.2f MB, %zu triangles", c->out, (double)size / 1e6, c->b.m.ntris);
-    if (c->b.cd.cl) fprintf(o, ", %zu points (colour scale %g)", c->b.cd.cl->n, c->b.cd.pscale);
+    fprintf(o, "%s: %.2f MB, %zu triangles", c->out, (double)size / 1e6, build_ntris(&c->b));
+    if (c->b.cd.cl)
+        fprintf(o, ", %zu points (colour scale %g)", frep_cloud_size(c->b.cd.cl),
+                c->b.cd.d.point_scale);
     fprintf(o, "\n");
 }
 
@@ -289,7 +301,7 @@ int cli_view_result(const cli_view_job *j)
     int rc = text ? view_once(&c) : CLI_FAIL;
     if (!text) fprintf(stderr, "frep %s: cannot write the model for --view\n", j->sub);
     build_free(&c.b);
-    buf_free(&c.diag);
+    cli_text_free(&c.diag);
     mesh_cli_free(&c.mc);
     free(text);
     return rc;
@@ -310,17 +322,13 @@ static void file_stamp(const char *path, char out[64])
 /* The page and the scene JSON the server sends, for the current version. */
 static int render_replies(view_cmd *c)
 {
-    view_scene s;
+    frep_view_scene s;
     make_scene(c, &s);
     frep_free(c->page);
     frep_free(c->json);
-    frep_error e;
-    frep_error_init(&e);
-    c->page = view_page(&s, 1, &c->page_len, &e);
+    c->page = frep_view_page(&s, 1, &c->page_len, NULL, NULL);
     snprintf(c->vtext, sizeof c->vtext, "%u", c->version);
-    frep_buf j = FREP_BUF_INIT;
-    view_scene_json(&j, &s);
-    c->json = buf_finish(&j, &c->json_len);
+    c->json = frep_view_scene_json(&s, &c->json_len, NULL, NULL);
     if (c->page && c->json) return CLI_OK;
     fprintf(stderr, "frep view: out of memory\n");
     return CLI_FAIL;
@@ -331,11 +339,9 @@ static int render_replies(view_cmd *c)
  * build and show the messages in the page.  Returns what was done, for the log. */
 static const char *rebuild_model(view_cmd *c, int cloud_saved)
 {
-    buf_free(&c->diag);
-    c->diag = (frep_buf)FREP_BUF_INIT;
+    cli_text_free(&c->diag);
     if (cloud_saved) {
-        buf_free(&c->cdiag);
-        c->cdiag = (frep_buf)FREP_BUF_INIT;
+        cli_text_free(&c->cdiag);
     }
     free(c->text);
     c->text = cli_is_mesh_path(c->in) ? NULL : cli_read_file(c->in, NULL);
@@ -361,18 +367,17 @@ static const char *rebuild_model(view_cmd *c, int cloud_saved)
     c->mc.src = old_src;
     c->failed = 1;
     if (!c->diag.len)
-        buf_printf(&c->diag, "%s: no new mesh (the messages are in the terminal)\n", c->in);
+        cli_text_printf(&c->diag, "%s: no new mesh (the messages are in the terminal)\n", c->in);
     return "the model failed, last good mesh kept";
 }
 
 /* After a save of the cloud alone: read it, measure it against the mesh as it is. */
 static const char *rebuild_cloud(view_cmd *c)
 {
-    buf_free(&c->cdiag);
-    c->cdiag = (frep_buf)FREP_BUF_INIT;
+    cli_text_free(&c->cdiag);
     c->mc.diag = &c->cdiag;
     cli_cloud_dist cd;
-    int rc = cli_cloud_distances("view", c->points, &c->mc, &c->b.m, &cd);
+    int rc = cli_cloud_distances("view", c->points, &c->mc, c->b.m, &cd);
     c->mc.diag = &c->diag;
     if (rc != CLI_OK) {
         cli_cloud_dist_free(&cd);
@@ -380,10 +385,7 @@ static const char *rebuild_cloud(view_cmd *c)
     }
     cli_cloud_dist_free(&c->b.cd);
     c->b.cd = cd;
-    view_build *b = &c->b;
-    if (!(b->cd.pscale > 0)) b->cd.pscale = VIEW_FALLBACK_SCALE;
-    if (!(b->cd.vscale > 0)) b->cd.vscale = VIEW_FALLBACK_SCALE;
-    if (c->scale > 0) b->cd.pscale = c->scale;
+    set_scales(c, &c->b.cd.d);
     return "cloud read again, mesh kept";
 }
 
@@ -410,22 +412,22 @@ static int rebuild(view_cmd *c)
     clock_gettime(CLOCK_MONOTONIC, &t1);
     if (!c->quiet)
         fprintf(stderr, "frep view: version %u of %s: %s (%zu triangles%s), %.2f s\n", c->version,
-                c->in, what, c->b.m.ntris, c->failed ? ", with errors" : "",
+                c->in, what, build_ntris(&c->b), c->failed ? ", with errors" : "",
                 (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec));
     return rc;
 }
 
 /* The server's routes: the page, its version, the scene. */
-static void route(void *user, const char *path, view_reply *r)
+static void route(void *user, const char *path, frep_view_reply *r)
 {
     view_cmd *c = user;
     static const char json_type[] = "application/json";
     if (strcmp(path, "/") == 0 || strncmp(path, "/?", 2) == 0 || strcmp(path, "/index.html") == 0) {
-        *r = (view_reply){ 200, "text/html; charset=utf-8", c->page, c->page_len };
+        *r = (frep_view_reply){ 200, "text/html; charset=utf-8", c->page, c->page_len };
     } else if (strcmp(path, "/version") == 0) {
-        *r = (view_reply){ 200, "text/plain", c->vtext, strlen(c->vtext) };
+        *r = (frep_view_reply){ 200, "text/plain", c->vtext, strlen(c->vtext) };
     } else if (strcmp(path, "/scene.json") == 0) {
-        *r = (view_reply){ 200, json_type, c->json, c->json_len };
+        *r = (frep_view_reply){ 200, json_type, c->json, c->json_len };
     }
 }
 
@@ -440,7 +442,7 @@ static int changed(const view_cmd *c)
 
 /* Wait, serving, until the stamps of the model and the cloud have stayed the same for
  * VIEW_WATCH_SETTLE_MS (at most VIEW_WATCH_SETTLE_MAX such waits). */
-static void settle(view_cmd *c, view_server *srv)
+static void settle(view_cmd *c, frep_view_server *srv)
 {
     char before[2][64], after[2][64];
     file_stamp(c->in, before[0]);
@@ -448,7 +450,7 @@ static void settle(view_cmd *c, view_server *srv)
     struct timespec since, t;
     clock_gettime(CLOCK_MONOTONIC, &since);
     for (int i = 0; i < VIEW_WATCH_SETTLE_MAX * 10 && !cli_interrupted(); i++) {
-        view_server_step(srv, VIEW_WATCH_SETTLE_MS / 10, route, c);
+        frep_view_server_step(srv, VIEW_WATCH_SETTLE_MS / 10, route, c);
         file_stamp(c->in, after[0]);
         file_stamp(c->points, after[1]);
         clock_gettime(CLOCK_MONOTONIC, &t);
@@ -466,22 +468,17 @@ static void settle(view_cmd *c, view_server *srv)
 static int view_watch(view_cmd *c)
 {
     if (rebuild(c) != CLI_OK) return CLI_FAIL;
-    frep_error e;
-    frep_error_init(&e);
-    view_server *srv = view_server_open(c->port, &e);
-    if (!srv) {
-        fprintf(stderr, "frep view: %s\n", e.msg);
-        return CLI_FAIL;
-    }
+    frep_view_server *srv = frep_view_server_open(c->port, view_diag, NULL);
+    if (!srv) return CLI_FAIL;
     printf("frep view: serving %s on http://127.0.0.1:%d/ (Ctrl-C stops)\n", c->in,
-           view_server_port(srv));
+           frep_view_server_port(srv));
     fflush(stdout);
     cli_sigint_catch();
     struct timespec t0, t;
     clock_gettime(CLOCK_MONOTONIC, &t0);
     int rc = CLI_OK;
     while (rc == CLI_OK && !cli_interrupted()) {
-        view_server_step(srv, VIEW_WATCH_POLL_MS, route, c);
+        frep_view_server_step(srv, VIEW_WATCH_POLL_MS, route, c);
         clock_gettime(CLOCK_MONOTONIC, &t);
         if (c->timeout > 0 && (double)(t.tv_sec - t0.tv_sec) + 1e-9 * (double)(t.tv_nsec - t0.tv_nsec) >= c->timeout)
             break;
@@ -492,7 +489,7 @@ static int view_watch(view_cmd *c)
     }
     cli_sigint_restore();
     cli_interrupt_handled();  /* Ctrl-C is how a watch ends */
-    view_server_close(srv);
+    frep_view_server_close(srv);
     if (!c->quiet) fprintf(stderr, "frep view: stopped\n");
     return rc;
 }
@@ -517,8 +514,8 @@ int cmd_view(int argc, char **argv)
     if (rc == CLI_GO_ON) rc = c.watch ? view_watch(&c) : view_once(&c);
     build_free(&c.b);
     free(c.text);
-    buf_free(&c.diag);
-    buf_free(&c.cdiag);
+    cli_text_free(&c.diag);
+    cli_text_free(&c.cdiag);
     frep_free(c.page);
     frep_free(c.json);
     mesh_cli_free(&c.mc);

@@ -2,16 +2,11 @@
  * model options, compiling with the default box, polygonizing (frep_polygonize) with
  * progress and the messages about the result, runtime errors reported once as
  * warnings; mesh input (frep_mesh_read); a cloud's distances to the model and the
- * model's to the cloud.  The internal headers serve frep view (its mesh by value, the
- * distances) and the a[] note (which reads the bytecode).
+ * model's to the cloud (frep_cloud_distances).  On the public API only.
  */
 #include "config.h"
 
 #include "cli.h"
-#include "cloud.h"
-#include "distance.h"
-#include "mesh.h"
-#include "program.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -84,7 +79,7 @@ static void model_note(mesh_cli *c, const char *fmt, ...)
     char line[512];
     vsnprintf(line, sizeof line, fmt, ap);
     va_end(ap);
-    buf_puts(c->diag, line);
+    cli_text_puts(c->diag, line);
 }
 
 static void progress_cb(void *user, double frac)
@@ -97,22 +92,19 @@ static void progress_cb(void *user, double frac)
     fflush(stderr);
 }
 
-/* Does the model read its a[] array (parameters without a name span)? */
+/* Does the model read its a[] array (parameters without a name)? */
 static int reads_a(const mesh_cli *c)
 {
-    const frep_program *p = c->p;
-    for (uint32_t k = 0; k < p->ncode; k++)
-        if (p->code[k].op == FREP_OP_PARAM && p->code[k].arg < p->nparams &&
-            p->params[p->code[k].arg].end <= p->params[p->code[k].arg].off)
-            return 1;
+    for (size_t i = 0; i < frep_program_na(c->p); i++)
+        if (frep_program_param_used(c->p, i)) return 1;
     return 0;
 }
 
 /* Are all the a[] elements the model has 0 (no -a, no '-- @params')? */
 static int a_all_zero(const mesh_cli *c)
 {
-    for (size_t i = 0; i < c->p->nparams; i++)
-        if (c->p->params[i].end <= c->p->params[i].off && c->p->params[i].value != 0) return 0;
+    for (size_t i = 0; i < frep_program_na(c->p); i++)
+        if (frep_program_param_value(c->p, i) != 0) return 0;
     return 1;
 }
 
@@ -230,32 +222,6 @@ int mesh_cli_mesh(mesh_cli *c, const char *sub, frep_mesh **m, frep_mesh_info *i
     return check_surface(c, sub, m, info);
 }
 
-int mesh_cli_polygonize(mesh_cli *c, const char *sub, frep_mesh *m, mesh_stats *st)
-{
-    frep_mesh *h;
-    frep_mesh_info info;
-    memset(m, 0, sizeof *m);
-    memset(st, 0, sizeof *st);
-    int rc = mesh_cli_mesh(c, sub, &h, &info);
-    if (rc != CLI_OK) return rc;
-    /* the handle is geom/trimesh.h's mesh in its own allocation (api/api_mesh.c) */
-    *m = *h;
-    frep_free(h);
-    st->octree_nodes = info.octree_nodes;
-    st->blocks = info.blocks;
-    st->blocks_total = info.blocks_total;
-    st->cells_split = info.cells_split;
-    st->points_nan = info.points_nan;
-    st->touches_box = info.touches_box;
-    st->full = info.full;
-    st->eval_points = info.eval_points;
-    st->grad_points = info.grad_points;
-    st->seconds = info.seconds;
-    st->face_vertices = info.face_vertices;
-    st->settled = info.settled;
-    return CLI_OK;
-}
-
 int cli_is_mesh_path(const char *path)
 {
     return frep_mesh_format_for_path(path) != FREP_MESH_AUTO;
@@ -273,57 +239,23 @@ frep_mesh *cli_mesh_read(const char *path)
     return frep_mesh_read(path, read_diag, NULL);
 }
 
-int cli_read_mesh(const char *sub, const char *path, frep_mesh *m)
-{
-    (void)sub;
-    frep_mesh *h = cli_mesh_read(path);
-    if (!h) return CLI_FAIL;
-    *m = *h; /* as in mesh_cli_polygonize */
-    frep_free(h);
-    return CLI_OK;
-}
-
-/* The signed distances of the points and the vertices', and both scales. */
-static int measure(mesh_cli *mc, const frep_mesh *m, cli_cloud_dist *d, frep_error *e)
-{
-    const frep_cloud *cl = d->cl;
-    frep_runtime_error re;
-    memset(&re, 0, sizeof re);
-    int rc = mc->p ? view_point_distances(mc->p, mc->iso, cl->n, cl->x, cl->y, cl->z,
-                                          mc->nthreads, d->pdist, &re, e)
-                   : view_mesh_distances(m, cl->n, cl->x, cl->y, cl->z, d->pdist, e);
-    if (rc != 0) return -1;
-    mesh_cli_add_errors(mc, &re);
-    mesh_cli_report_errors(mc);
-    if (view_vertex_distances(m, cl->n, cl->x, cl->y, cl->z, d->vdist, e) != 0 ||
-        view_auto_scale(d->pdist, cl->n, VIEW_POINTS_QUANTILE, VIEW_POINTS_FACTOR, 0,
-                        &d->pscale, e) != 0)
-        return -1;
-    return view_auto_scale(d->vdist, m->nverts, VIEW_SURFACE_QUANTILE, VIEW_SURFACE_FACTOR, 0,
-                           &d->vscale, e);
-}
-
 int cli_cloud_measure(const char *sub, mesh_cli *mc, const frep_mesh *m, cli_cloud_dist *d)
 {
-    d->pdist = malloc((d->cl->n + 1) * sizeof *d->pdist);
-    d->vdist = malloc((m->nverts + 1) * sizeof *d->vdist);
-    frep_error e;
-    frep_error_init(&e);
-    if (!d->pdist || !d->vdist) frep_error_nomem(&e);
-    else if (measure(mc, m, d, &e) == 0) return CLI_OK;
-    model_note(mc, "frep %s: %s\n", sub, e.msg);
+    job_diag jd = { mc, "", "" };
+    if (frep_cloud_distances(d->cl, m, mc->p, mc->iso, mc->nthreads, &d->d, job_diag_cb, &jd) == 0)
+        return CLI_OK;
+    model_note(mc, "frep %s: %s\n", sub, jd.error[0] ? jd.error : "out of memory");
     return CLI_FAIL;
 }
 
 int cli_cloud_distances(const char *sub, const char *path, mesh_cli *mc, const frep_mesh *m,
                         cli_cloud_dist *d)
 {
-    frep_error msg;
-    frep_error_init(&msg);
     memset(d, 0, sizeof *d);
-    d->cl = cloud_read(path, &msg);
+    job_diag jd = { mc, "", "" };
+    d->cl = frep_cloud_read(path, job_diag_cb, &jd);
     if (!d->cl) {
-        if (msg.msg[0]) model_note(mc, "%s\n", msg.msg);
+        if (jd.error[0]) model_note(mc, "%s\n", jd.error);
         else model_note(mc, "frep %s: cannot read the cloud\n", sub);
         return CLI_FAIL;
     }
@@ -332,9 +264,8 @@ int cli_cloud_distances(const char *sub, const char *path, mesh_cli *mc, const f
 
 void cli_cloud_dist_free(cli_cloud_dist *d)
 {
-    cloud_free(d->cl);
-    free(d->pdist);
-    free(d->vdist);
+    frep_cloud_free(d->cl);
+    frep_distances_free(&d->d);
     memset(d, 0, sizeof *d);
 }
 

@@ -93,7 +93,7 @@ void cli_print_diag(void *user, const frep_diag *d)
         else if (d->severity == FREP_WARNING) c->warnings++;
     }
     fputs(s, stderr);
-    if (c && c->copy) buf_puts(c->copy, s);
+    if (c && c->copy) cli_text_puts(c->copy, s);
     if (c && c->nseen < CLI_MAX_SEEN_DIAGS) {
         char **ns = realloc(c->seen, (c->nseen + 1) * sizeof *ns);
         if (ns) {
@@ -103,6 +103,46 @@ void cli_print_diag(void *user, const frep_diag *d)
         }
     }
     frep_free(s);
+}
+
+/* Room for n more bytes and the NUL; 0, or -1 (nothing changed). */
+static int text_reserve(cli_text *t, size_t n)
+{
+    if (t->len + n + 1 <= t->cap) return 0;
+    size_t cap = t->cap ? t->cap : 256;
+    while (cap < t->len + n + 1) cap *= 2;
+    char *s = realloc(t->s, cap);
+    if (!s) return -1;
+    t->s = s;
+    t->cap = cap;
+    return 0;
+}
+
+void cli_text_puts(cli_text *t, const char *s)
+{
+    size_t n = strlen(s);
+    if (text_reserve(t, n) != 0) return;
+    memcpy(t->s + t->len, s, n + 1);
+    t->len += n;
+}
+
+void cli_text_printf(cli_text *t, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    if (n < 0 || text_reserve(t, (size_t)n) != 0) return;
+    va_start(ap, fmt);
+    vsnprintf(t->s + t->len, (size_t)n + 1, fmt, ap);
+    va_end(ap);
+    t->len += (size_t)n;
+}
+
+void cli_text_free(cli_text *t)
+{
+    free(t->s);
+    *t = (cli_text)CLI_TEXT_INIT;
 }
 
 void cli_diag_done(cli_diag_ctx *c)
@@ -121,7 +161,7 @@ frep_program *cli_compile_file(const char *path, const char *model, const double
 
 frep_program *cli_compile_file_diag(const char *path, const char *model, const double *a,
                                     size_t na, int setops, int strict, char **src,
-                                    frep_buf *diag)
+                                    cli_text *diag)
 {
     size_t len = 0;
     char *text = cli_read_file(path, &len);
@@ -134,7 +174,7 @@ frep_program *cli_compile_file_diag(const char *path, const char *model, const d
 
 frep_program *cli_compile_text(const char *path, const char *text, size_t len,
                                const char *model, const double *a, size_t na, int setops,
-                               int strict, frep_buf *diag)
+                               int strict, cli_text *diag)
 {
     frep_compile_options o;
     frep_compile_options_init(&o);

@@ -9,10 +9,9 @@
 #include "err.h"
 #include "frep.h"
 
-/* Facets of a full circle ($fn) when the caller does not choose: the round solids'
- * facets then stay within 0.5% of their radius (1 - cos(pi / 48) = 0.2%). */
-#define SCAD_DEFAULT_FN 48
-#define SCAD_MAX_FN 1024        /* OpenSCAD's meshes grow as $fn^2 for spheres */
+/* $fn by default and at most: frep.h's (the reasons are there). */
+#define SCAD_DEFAULT_FN FREP_SCAD_DEFAULT_FN
+#define SCAD_MAX_FN FREP_SCAD_MAX_FN
 
 typedef struct scad_options {
     const char *model;      /* the model to export; NULL: my_model, else the last */

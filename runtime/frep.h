@@ -144,6 +144,10 @@ const char *frep_program_param_name(const frep_program *p, size_t i);
 double frep_program_param_value(const frep_program *p, size_t i);
 /* Bounds (lo, hi) of parameter i; returns 1 when it has bounds, else 0. */
 int frep_program_param_bounds(const frep_program *p, size_t i, double *lo, double *hi);
+/* 1 when the program's code reads parameter i (an index of the vector), else 0 (also
+ * for i out of range): an element of a[] the model never reads is 0 here, so a caller
+ * can tell whether values of a[] matter (frep mesh's note "the model reads a[]"). */
+int frep_program_param_used(const frep_program *p, size_t i);
 /* Model extent from an `-- @box` pragma; returns 1 and fills box[6] when known. */
 int frep_program_box(const frep_program *p, double box[6]);
 
@@ -709,6 +713,16 @@ typedef enum frep_fit_objective {
 typedef enum frep_fit_loss {
     FREP_FIT_L2, FREP_FIT_HUBER, FREP_FIT_CAUCHY, FREP_FIT_GEMAN
 } frep_fit_loss;
+/* The names `frep fit` spells them with (--method saqn|qn|sa|lm, --objective
+ * algebraic|geometric, --loss l2|huber|cauchy|geman; doc/fit.md): _name gives the
+ * name of a value (a static string; NULL for a value outside the enum), _parse the
+ * value of a name (exact, lower case): 0 with *out set, or -1 (*out untouched). */
+const char *frep_fit_method_name(frep_fit_method m);
+int frep_fit_method_parse(const char *name, frep_fit_method *out);
+const char *frep_fit_objective_name(frep_fit_objective k);
+int frep_fit_objective_parse(const char *name, frep_fit_objective *out);
+const char *frep_fit_loss_name(frep_fit_loss l);
+int frep_fit_loss_parse(const char *name, frep_fit_loss *out);
 
 /* What the progress callback gets, at most every 0.2 s. */
 typedef struct frep_fit_progress {
@@ -877,6 +891,136 @@ const uint8_t *frep_image_pixels(const frep_image *img, int *width, int *height)
 /* Write as PNG. Returns 0 or -1. */
 int frep_image_write_png(const frep_image *img, const char *path, frep_diag_fn diag,
                          void *user);
+
+/* ---- a cloud against a surface (frep view, frep render) ---- */
+
+/* How far a cloud is from a surface and the surface from the cloud: the colours of
+ * frep view's page and frep render's points.  point[i] is the signed distance of
+ * point i to the surface, > 0 inside: with a program, first-order |f - iso|/|grad f|
+ * signed by f - iso (+-infinity where the gradient vanishes off the surface, 0 on
+ * it), with the program's own parameters; without one, the distance to the nearest of
+ * the mesh's triangles near it (a closed mesh file used as the model).  vertex[j] is
+ * the distance of vertex j of the mesh to the nearest point: high where the surface
+ * has no points, material the cloud does not show.  The scales are the distances
+ * the colour scales map to their top, chosen from the data: the points' 95th
+ * percentile of |point|, four times the vertices' median, each rounded up to 1, 2 or
+ * 5 times a power of ten; 0 when no distance is finite and positive. */
+typedef struct frep_distances {
+    double *point;        /* frep_cloud_size() values */
+    double *vertex;       /* frep_mesh_nverts() values */
+    double point_scale, vertex_scale;
+} frep_distances;
+/* Measure cloud c against mesh m (polygonized from p, or NULL for a mesh file) with
+ * nthreads OpenMP threads (<= 0: the default; the results do not depend on it).
+ * Returns 0 with *d filled (free with frep_distances_free()), or -1 with *d empty
+ * after reporting why (out of memory; a cloud with no points; a mesh without
+ * triangles).  The model's runtime errors are reported as one warning with their
+ * source position; those points' distances are NaN.  Safe to call from several
+ * threads on the same program, mesh and cloud. */
+int frep_cloud_distances(const frep_cloud *c, const frep_mesh *m, const frep_program *p,
+                         double iso, int nthreads, frep_distances *d, frep_diag_fn diag,
+                         void *user);
+/* Free the arrays of d and empty it (d may be NULL or empty). */
+void frep_distances_free(frep_distances *d);
+
+/* ---- the page of frep view ---- */
+
+/* What the page shows.  Every pointer may be NULL (that part is left out); the
+ * scene only borrows them. */
+typedef struct frep_view_scene {
+    const char *name;          /* the model's file name: the title */
+    const frep_mesh *mesh;
+    const unsigned char *vrgb; /* frep_mesh_nverts() colours, red green blue 0..255:
+                                  the model's s[1..3] (frep_mesh_colors()) */
+    const double *vdist;       /* frep_mesh_nverts() distances of the surface to the
+                                  cloud (frep_distances.vertex) */
+    double vscale;             /* vdist mapped to the top of its colour scale (> 0) */
+    size_t npoints;
+    const double *px, *py, *pz;
+    const double *pdist;       /* npoints signed distances to the surface, > 0 inside */
+    double pscale;             /* |pdist| mapped to the top of its colour scale (> 0) */
+    const char *source;        /* the model's text */
+    size_t nparams;
+    const char *const *pnames; /* nparams names and values of the free parameters */
+    const double *pvalues;
+    const char *diag;          /* messages of the compiler and the polygonizer (errors
+                                  and warnings), file:line:col first */
+    const char *cdiag;         /* messages about the cloud */
+    int failed;                /* the last build failed: the mesh is an older one */
+    const char *info;          /* one line: what was done (grid, timings) */
+    const char *units;         /* what a distance is measured in ("model units") */
+    unsigned version;          /* a served page reloads when it changes */
+} frep_view_scene;
+/* An empty scene (all NULL and 0). */
+void frep_view_scene_init(frep_view_scene *s);
+/* The page: one self-contained HTML file (the WebGL viewer with the scene inlined)
+ * that opens from disk without a server or network; watch != 0 makes it ask the
+ * server that sent it (frep_view_server) for new versions of /scene.json.  Returns the
+ * text (frep_free() it) with its length in *len (may be NULL), or NULL after
+ * reporting why (out of memory). */
+char *frep_view_page(const frep_view_scene *s, int watch, size_t *len, frep_diag_fn diag,
+                     void *user);
+/* The page written to the open stream f (watch 0), for callers that write atomically
+ * themselves.  Returns 0, or -1 after reporting why (out of memory, a write error). */
+int frep_view_write_page(const frep_view_scene *s, FILE *f, frep_diag_fn diag, void *user);
+/* The scene alone as the JSON object a watching page fetches (/scene.json).  Returns
+ * the text (frep_free() it) with its length in *len (may be NULL), or NULL after
+ * reporting why (out of memory). */
+char *frep_view_scene_json(const frep_view_scene *s, size_t *len, frep_diag_fn diag,
+                           void *user);
+
+/* The loopback HTTP server of frep view --watch: 127.0.0.1 only, one poll(2) loop in
+ * the calling thread, at most 16 clients each answered once (HTTP/1.0).  The caller
+ * routes the path of each GET to a reply; unrouted paths get 404.  One server is used
+ * by one thread at a time. */
+typedef struct frep_view_reply {
+    int status;                /* 200 (or 404: not found) */
+    const char *type;          /* the content type */
+    const char *body;          /* not copied: it must live until the route function is
+                                  called again or the step returns */
+    size_t len;
+} frep_view_reply;
+/* Fill *r for the path of a GET request (query string included); leaving *r as it is
+ * answers 404. */
+typedef void (*frep_view_route_fn)(void *user, const char *path, frep_view_reply *r);
+typedef struct frep_view_server frep_view_server;
+/* Listen on 127.0.0.1:port (0: any free port).  NULL after reporting why (the port is
+ * taken, sockets fail, out of memory).  Close with frep_view_server_close(). */
+frep_view_server *frep_view_server_open(int port, frep_diag_fn diag, void *user);
+/* The port listened on. */
+int frep_view_server_port(const frep_view_server *s);
+/* Wait up to timeout_ms for the network, accept, read, answer the complete requests
+ * through route, drop clients silent for 5 s.  Returns the number of requests
+ * answered, or -1 when a signal interrupted the wait (the caller checks its flag). */
+int frep_view_server_step(frep_view_server *s, int timeout_ms, frep_view_route_fn route,
+                          void *user);
+void frep_view_server_close(frep_view_server *s);   /* NULL is ignored */
+
+/* ---- OpenSCAD source (frep export) ---- */
+
+/* Facets of a full circle ($fn) by default: the round solids' facets then stay within
+ * 0.5% of their radius (1 - cos(pi / 48) = 0.2%). */
+#define FREP_SCAD_DEFAULT_FN 48
+#define FREP_SCAD_MAX_FN 1024     /* OpenSCAD's meshes grow as $fn^2 for spheres */
+typedef struct frep_scad_options {
+    const char *model;     /* the model to export; NULL: my_model, else the last */
+    const double *a;       /* values of a[] (missing: 0) */
+    size_t na;
+    double box[6];         /* the box frep mesh uses (x0 y0 z0 x1 y1 z1): unbounded
+                              solids are cut by it, and it sizes the stand-ins of
+                              infinite solids ([-10, 10]^3) */
+    int fn;                /* $fn, 3..FREP_SCAD_MAX_FN (FREP_SCAD_DEFAULT_FN) */
+    const char *title;     /* a first comment line (NULL: none) */
+} frep_scad_options;
+void frep_scad_options_init(frep_scad_options *o);
+/* The model in src (len bytes; file names it in messages) as OpenSCAD source, as
+ * `frep export` writes it (doc/export.md): constructive solid geometry of standard
+ * solids, each named sub-expression a module.  Errors of the source and the construct
+ * that has no OpenSCAD equivalent are reported at their position (file:line:col),
+ * followed by one error without a position saying the export failed.  Returns the
+ * text (frep_free() it), or NULL.  Reentrant. */
+char *frep_export_scad(const char *file, const char *src, size_t len,
+                       const frep_scad_options *o, frep_diag_fn diag, void *user);
 
 /* ---- construction trees (frep evolve) ---- */
 

@@ -382,6 +382,14 @@ double frep_program_param_value(const frep_program *p, size_t i)
     return i < p->nparams && p->params ? p->params[i].value : NAN;
 }
 
+int frep_program_param_used(const frep_program *p, size_t i)
+{
+    if (!p || i >= p->nparams) return 0;
+    for (uint32_t k = 0; k < p->ncode; k++)
+        if (p->code[k].op == FREP_OP_PARAM && p->code[k].arg == i) return 1;
+    return 0;
+}
+
 int frep_program_param_bounds(const frep_program *p, size_t i, double *lo, double *hi)
 {
     if (i >= p->nparams || !p->params) return 0;

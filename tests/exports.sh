@@ -2,7 +2,9 @@
 # tests/exports.sh - the dynamic symbols libfrep.so exports (TAP): every one starts
 # with frep_, every one is a function frep.h declares, and every function frep.h
 # declares is exported (libfrep.sym, made from the header, is the list; nm -D the
-# truth).  Skipped in a build without the shared library (--disable-shared).
+# truth).  And the frep command (cli/*.o) uses the library only through those
+# functions: it is built on the public API (issue 20).  Skipped in a build without the
+# shared library (--disable-shared).
 b=${builddir:-.}
 so=$(ls "$b"/.libs/libfrep.so.[0-9]* 2>/dev/null | head -n 1)
 if [ -z "$so" ] || ! command -v nm >/dev/null 2>&1; then
@@ -16,7 +18,7 @@ nm -D --defined-only "$so" | awk 'NF >= 3 { print $3 }' | sed 's/@.*//' | LC_ALL
 LC_ALL=C sort -u "$b/libfrep.sym" >"$tmp/declared"
 n=$(wc -l <"$tmp/exported" | tr -d ' ')
 d=$(wc -l <"$tmp/declared" | tr -d ' ')
-echo "1..4"
+echo "1..5"
 echo "# $so exports $n symbols; frep.h declares $d functions"
 bad=$(grep -v '^frep_' "$tmp/exported" | tr '\n' ' ')
 if [ -z "$bad" ]; then echo "ok 1 - every exported symbol starts with frep_"
@@ -31,3 +33,21 @@ else echo "not ok 3 - declared in frep.h but not exported: $missing"; fi
 if [ "$d" -ge 40 ] && grep -qx frep_compile "$tmp/declared" && grep -qx frep_version "$tmp/declared"
 then echo "ok 4 - libfrep.sym lists frep.h's functions ($d)"
 else echo "not ok 4 - libfrep.sym looks wrong ($d names)"; fi
+# the command's objects: what they take from the library is frep.h's functions only
+core=$(ls "$b"/.libs/libfrepcore.a 2>/dev/null | head -n 1)
+objs=$(ls "$b"/cli/*.o 2>/dev/null)
+if [ -z "$core" ] || [ -z "$objs" ]; then
+    echo "ok 5 # SKIP no libfrepcore.a or cli/*.o in this build"
+else
+    nm --defined-only "$core" 2>/dev/null | awk 'NF >= 3 && $2 ~ /[TDBRVW]/ { print $3 }' |
+        LC_ALL=C sort -u >"$tmp/core"
+    nm -u $objs | awk 'NF >= 2 { print $2 }' | LC_ALL=C sort -u >"$tmp/used"
+    LC_ALL=C comm -12 "$tmp/used" "$tmp/core" >"$tmp/taken"
+    internal=$(LC_ALL=C comm -23 "$tmp/taken" "$tmp/declared" | tr '\n' ' ')
+    k=$(wc -l <"$tmp/taken" | tr -d ' ')
+    if [ -z "$internal" ] && [ "$k" -ge 40 ]; then
+        echo "ok 5 - the frep command uses $k functions of the library, all in frep.h"
+    else
+        echo "not ok 5 - the frep command uses the library's internals: $internal ($k in all)"
+    fi
+fi

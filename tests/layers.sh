@@ -5,8 +5,8 @@
 #   runtime (0) <- lang (1) <- geom (2) <- mesh, fit, segment, view, export (3) <- evolve (4)
 #   <- api (5) <- cli (6)
 # Headers are included by bare name (Makefile.am puts every folder on the include
-# path), so a header name must also be unique across the folders.  The subcommands
-# rebuilt on the public API include frep.h (through cli.h) and no library header.
+# path), so a header name must also be unique across the folders.  The
+# frep command (every file of cli/) includes frep.h (through cli.h) and no library header.
 src=${srcdir:-$(cd "$(dirname "$0")/.." && pwd)}
 cd "$src" || exit 1
 layers="runtime:0 lang:1 geom:2 mesh:3 fit:3 segment:3 view:3 export:3 evolve:4 api:5 cli:6"
@@ -54,9 +54,9 @@ for l in $layers; do
     fi
 done
 
-# The subcommands rebuilt on the public API (issue 20): frep.h through cli.h, no
-# library header of their own.
-api_cmds="cli/cmd_mesh.c cli/cmd_sample.c cli/cmd_render.c cli/cmd_normals.c cli/cmd_segment.c cli/cmd_evolve.c"
+# The frep command is rebuilt on the public API (issue 20): every source and header
+# of cli/ includes frep.h (through cli.h) and no library header of its own.
+api_cmds=$(ls cli/*.c cli/*.h)
 problems=""
 for f in $api_cmds; do
     for inc in $(sed -n 's/^[[:space:]]*#[[:space:]]*include[[:space:]]*"\([^"]*\)".*/\1/p' "$f"); do

@@ -17,6 +17,10 @@
 #include <string.h>
 #include <unistd.h>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+
 /* Diagnostics seen: the count per severity and the last message. */
 typedef struct seen {
     int errors, warnings;
@@ -886,19 +890,27 @@ static void test_fit(const char *frep)
 
 /* frep render and frep_render on the same mesh and cloud: the same PNG bytes, with
  * and without points, for a model and for a mesh file; bad options reported. */
+/* The model file at path compiled and polygonized at grid (*m NULL when either fails). */
+static frep_program *compile_and_mesh(const char *path, int grid, seen *s, frep_mesh **m)
+{
+    size_t len = 0;
+    char *text = slurp(path, &len);
+    frep_program *p = text ? frep_compile(path, text, len, NULL, collect, s) : NULL;
+    free(text);
+    frep_mesh_options mo;
+    frep_mesh_options_init(&mo);
+    mo.grid = grid;
+    *m = p ? frep_polygonize(p, &mo, NULL, collect, s) : NULL;
+    return p;
+}
+
 static void test_render(const char *frep, const char *srcdir)
 {
     char model[600], cmd[2048];
     snprintf(model, sizeof model, "%s/examples/csg.hf", srcdir);
     seen s = { 0 };
-    size_t len = 0;
-    char *text = slurp(model, &len);
-    frep_program *p = text ? frep_compile(model, text, len, NULL, collect, &s) : NULL;
-    free(text);
-    frep_mesh_options mo;
-    frep_mesh_options_init(&mo);
-    mo.grid = 32;
-    frep_mesh *m = p ? frep_polygonize(p, &mo, NULL, collect, &s) : NULL;
+    frep_mesh *m;
+    frep_program *p = compile_and_mesh(model, 32, &s, &m);
     ok(m != NULL, "examples/csg.hf polygonized at grid 32");
     if (!m) {
         frep_program_free(p);
@@ -977,6 +989,286 @@ static void test_render(const char *frep, const char *srcdir)
     frep_cloud_free(c);
     frep_mesh_free(m);
     frep_program_free(p);
+}
+
+/* The a[] usage query, the fit names, the OpenSCAD export, a cloud's distances, the
+ * page and the server of frep view (the public API the frep command's view, fit and
+ * export run on). */
+static void test_param_used(void)
+{
+    seen s = { 0 };
+    frep_program *p = compile("m(x[3], a[3]) {\n  r = 1;  -- @free\n  q = 2;  -- @free\n"
+                              "  m = r + a[2] - x[1];\n}\n", &s);
+    ok(p && frep_program_nparams(p) == 5, "a[1..3], r and q: 5 parameters");
+    if (!p) return;
+    ok(!frep_program_param_used(p, 0) && frep_program_param_used(p, 1) &&
+           !frep_program_param_used(p, 2),
+       "of a[1..3] only a[2] is read");
+    ok(frep_program_param_used(p, 3) && !frep_program_param_used(p, 4),
+       "r is read, q is not");
+    ok(!frep_program_param_used(p, 5) && !frep_program_param_used(p, (size_t)-1),
+       "an index out of range is not used");
+    frep_program_free(p);
+}
+
+static void test_fit_names(void)
+{
+    static const char *const methods[] = { "saqn", "qn", "sa", "lm" };
+    static const char *const objectives[] = { "algebraic", "geometric" };
+    static const char *const losses[] = { "l2", "huber", "cauchy", "geman" };
+    int good = 1;
+    for (int i = 0; i < 4; i++) {
+        frep_fit_method m = FREP_FIT_SAQN;
+        good &= frep_fit_method_parse(methods[i], &m) == 0 && (int)m == i &&
+                strcmp(frep_fit_method_name(m), methods[i]) == 0;
+        frep_fit_loss l = FREP_FIT_L2;
+        good &= frep_fit_loss_parse(losses[i], &l) == 0 && (int)l == i &&
+                strcmp(frep_fit_loss_name(l), losses[i]) == 0;
+    }
+    for (int i = 0; i < 2; i++) {
+        frep_fit_objective k = FREP_FIT_ALGEBRAIC;
+        good &= frep_fit_objective_parse(objectives[i], &k) == 0 && (int)k == i &&
+                strcmp(frep_fit_objective_name(k), objectives[i]) == 0;
+    }
+    ok(good, "every method, objective and loss name parses to its value and back");
+    frep_fit_method m = FREP_FIT_LM;
+    frep_fit_objective k = FREP_FIT_GEOMETRIC;
+    frep_fit_loss l = FREP_FIT_GEMAN;
+    ok(frep_fit_method_parse("SAQN", &m) == -1 && frep_fit_method_parse("", &m) == -1 &&
+           frep_fit_method_parse(NULL, &m) == -1 && m == FREP_FIT_LM,
+       "SAQN, '' and NULL are no method; the value is untouched");
+    ok(frep_fit_objective_parse("geom", &k) == -1 && k == FREP_FIT_GEOMETRIC &&
+           frep_fit_loss_parse("L1", &l) == -1 && l == FREP_FIT_GEMAN,
+       "geom is no objective, L1 no loss");
+    ok(!frep_fit_method_name((frep_fit_method)4) && !frep_fit_objective_name((frep_fit_objective)2) &&
+           !frep_fit_loss_name((frep_fit_loss)-1),
+       "a value outside the enums has no name");
+    frep_fit_options o;
+    frep_fit_options_init(&o);
+    ok(strcmp(frep_fit_method_name(o.method), "saqn") == 0 &&
+           strcmp(frep_fit_loss_name(o.loss), "l2") == 0,
+       "the defaults are saqn and l2");
+}
+
+static void test_export_scad(const char *frep, const char *srcdir)
+{
+    char model[600], cmd[2048];
+    snprintf(model, sizeof model, "%s/examples/csg.hf", srcdir);
+    size_t len = 0;
+    char *src = slurp(model, &len);
+    frep_scad_options o;
+    frep_scad_options_init(&o);
+    ok(o.fn == FREP_SCAD_DEFAULT_FN && o.box[0] == -10 && o.box[5] == 10 && !o.model,
+       "export defaults: $fn 48, the box [-10, 10]^3");
+    frep_program *p = src ? frep_compile(model, src, len, NULL, NULL, NULL) : NULL;
+    if (p) frep_program_box(p, o.box);   /* the box frep export uses */
+    seen s = { 0 };
+    char *text = src ? frep_export_scad(model, src, len, &o, collect, &s) : NULL;
+    snprintf(cmd, sizeof cmd, "'%s' export '%s' -q -o '%s'", frep, model, tmp("cli.scad"));
+    int rc = run(cmd);
+    if (text) write_text(tmp("api.scad"), text);
+    ok(text && s.errors == 0 && rc == 0 && same_file(tmp("cli.scad"), tmp("api.scad")),
+       "frep_export_scad: the same text as frep export");
+    ok(text && strstr(text, "module my_model()"), "each named sub-expression a module");
+    frep_free(text);
+    o.fn = 12;
+    text = src ? frep_export_scad(model, src, len, &o, collect, &s) : NULL;
+    ok(text && strstr(text, "$fn = 12"), "$fn 12 is written");
+    frep_free(text);
+    o.fn = 2;
+    s = (seen){ 0 };
+    ok(!frep_export_scad(model, src, len, &o, collect, &s) && s.errors == 1,
+       "$fn 2 is refused: %s", s.last);
+    free(src);
+    frep_program_free(p);
+
+    const char *blend = "my_model(x[3], a[1]) {\n  my_model = x[1]^2 - x[2];\n}\n";
+    frep_scad_options_init(&o);
+    s = (seen){ 0 };
+    text = frep_export_scad("q.hf", blend, strlen(blend), &o, collect, &s);
+    ok(!text && s.errors == 2 && s.positioned == 1 && strstr(s.last, "q.hf"),
+       "x[1]^2: an error at its position, then the failure (%s)", s.last);
+}
+
+/* The page of frep view for a mesh file and a cloud, and what it shows. */
+static void test_view_page(const char *frep, const char *srcdir)
+{
+    char model[600], cmd[2048];
+    snprintf(model, sizeof model, "%s/examples/csg.hf", srcdir);
+    seen s = { 0 };
+    frep_mesh *m;
+    frep_program *p = compile_and_mesh(model, 24, &s, &m);
+    snprintf(cmd, sizeof cmd, "'%s' sample '%s' -n 500 --seed 3 --noise 0.01 -q -o '%s'", frep,
+             model, tmp("v.xyz"));
+    frep_cloud *c = run(cmd) == 0 ? frep_cloud_read(tmp("v.xyz"), collect, &s) : NULL;
+    ok(m && c, "a mesh of examples/csg.hf and a cloud of 500 points");
+    if (!m || !c) {
+        frep_cloud_free(c);
+        frep_mesh_free(m);
+        frep_program_free(p);
+        return;
+    }
+
+    /* distances to the model and to the mesh, and the scales */
+    frep_distances dm, dt;
+    int rm = frep_cloud_distances(c, m, p, 0, 1, &dm, collect, &s);
+    int rt = frep_cloud_distances(c, m, NULL, 0, 2, &dt, collect, &s);
+    ok(rm == 0 && rt == 0 && dm.point && dm.vertex && dt.point && dt.vertex,
+       "frep_cloud_distances against the model and against the mesh");
+    if (rm == 0 && rt == 0) {
+        size_t n = frep_cloud_size(c), close = 0, inside = 0, agree = 0;
+        for (size_t i = 0; i < n; i++) {
+            close += fabs(dm.point[i]) < 0.2;
+            inside += dm.point[i] > 0;
+            agree += fabs(dm.point[i] - dt.point[i]) < 0.05;
+        }
+        ok(close >= n - n / 20 && inside > n / 5 && inside < 4 * n / 5,
+           "noise 1%%: %zu of %zu points within 0.2, %zu inside", close, n, inside);
+        ok(agree > 9 * n / 10, "the model's and the mesh's distances agree (%zu of %zu)", agree, n);
+        size_t nv = frep_mesh_nverts(m), nonneg = 0;
+        for (size_t j = 0; j < nv; j++) nonneg += dm.vertex[j] >= 0 && dm.vertex[j] == dt.vertex[j];
+        ok(nonneg == nv, "the vertices' distances to the cloud: >= 0, the same both ways");
+        double ps = dm.point_scale, m10 = ps;
+        while (m10 >= 10) m10 /= 10;
+        while (m10 < 1) m10 *= 10;
+        ok(ps > 0 && dm.vertex_scale > 0 &&
+               (fabs(m10 - 1) < 1e-9 || fabs(m10 - 2) < 1e-9 || fabs(m10 - 5) < 1e-9),
+           "the scales are positive, 1, 2 or 5 x 10^k (points %g, surface %g)", ps,
+           dm.vertex_scale);
+    }
+
+    /* the page against frep view of the mesh file (no timings in it) */
+    frep_mesh_write(m, tmp("v.off"), FREP_MESH_AUTO, 0, collect, &s);
+    frep_mesh *mr = frep_mesh_read(tmp("v.off"), collect, &s);
+    frep_distances dr;
+    memset(&dr, 0, sizeof dr);
+    int rr = mr ? frep_cloud_distances(c, mr, NULL, 0, 1, &dr, collect, &s) : -1;
+    frep_view_scene sc;
+    frep_view_scene_init(&sc);
+    ok(!sc.name && !sc.mesh && sc.npoints == 0 && !sc.pdist, "an empty scene");
+    char name[512];
+    snprintf(name, sizeof name, "%s", tmp("v.off"));  /* tmp()'s buffers are reused */
+    sc.name = name;
+    sc.info = "";                                     /* frep view's line for a mesh file */
+    sc.mesh = mr;
+    sc.npoints = frep_cloud_size(c);
+    frep_cloud_arrays(c, &sc.px, &sc.py, &sc.pz, NULL, NULL, NULL);
+    sc.pdist = dr.point;
+    sc.pscale = dr.point_scale > 0 ? dr.point_scale : 1;
+    sc.vdist = dr.vertex;
+    sc.vscale = dr.vertex_scale > 0 ? dr.vertex_scale : 1;
+    FILE *f = fopen(tmp("api.html"), "wb");
+    int wr = rr == 0 && f ? frep_view_write_page(&sc, f, collect, &s) : -1;
+    if (f) fclose(f);
+    snprintf(cmd, sizeof cmd, "'%s' view '%s' --points '%s' -q -o '%s'", frep, tmp("v.off"),
+             tmp("v.xyz"), tmp("cli.html"));
+    ok(wr == 0 && run(cmd) == 0 && same_file(tmp("cli.html"), tmp("api.html")),
+       "frep_view_write_page: the same page as frep view MESH --points");
+    size_t plen = 0, jlen = 0;
+    char *page = frep_view_page(&sc, 0, &plen, collect, &s);
+    char *json = frep_view_scene_json(&sc, &jlen, collect, &s);
+    size_t flen = 0;
+    char *file = NULL;
+    f = fopen(tmp("api.html"), "rb");
+    if (f && fseek(f, 0, SEEK_END) == 0 && ftell(f) > 0) {
+        flen = (size_t)ftell(f);
+        rewind(f);
+        file = malloc(flen);
+        if (file && fread(file, 1, flen, f) != flen) flen = 0;
+    }
+    if (f) fclose(f);
+    ok(page && file && plen == flen && memcmp(page, file, plen) == 0,
+       "frep_view_page is the page written (%zu bytes)", plen);
+    ok(json && jlen == strlen(json) && json[0] == '{' && strstr(json, "\"mesh\":{") &&
+           strstr(json, "\"points\":{\"n\":500,") != NULL,
+       "frep_view_scene_json: one object with the mesh (%zu bytes)", jlen);
+    char *wpage = frep_view_page(&sc, 1, NULL, collect, &s);
+    ok(wpage && strcmp(wpage, page) != 0, "a watching page differs (it polls its server)");
+    ok(s.errors == 0, "no error on the way (%s)", s.errors ? s.last : "");
+    frep_free(wpage);
+    free(file);
+    frep_free(json);
+    frep_free(page);
+
+    /* bad input: a mesh without triangles */
+    frep_mesh *empty = frep_mesh_new(0, NULL, NULL, 0, NULL, collect, &s);
+    seen e = { 0 };
+    frep_distances de;
+    ok(empty && frep_cloud_distances(c, empty, NULL, 0, 1, &de, collect, &e) == -1 &&
+           e.errors == 1 && !de.point && !de.vertex,
+       "a mesh without triangles: -1, an error (%s), nothing to free", e.last);
+    frep_distances_free(&de);
+    frep_distances_free(NULL);
+    frep_mesh_free(empty);
+    frep_distances_free(&dr);
+    frep_distances_free(&dm);
+    frep_distances_free(&dt);
+    frep_mesh_free(mr);
+    frep_cloud_free(c);
+    frep_mesh_free(m);
+    frep_program_free(p);
+}
+
+/* The server of frep view --watch: a GET routed, an unrouted one 404, a taken port. */
+static void route_hello(void *user, const char *path, frep_view_reply *r)
+{
+    int *calls = user;
+    ++*calls;
+    if (strcmp(path, "/hello") == 0) *r = (frep_view_reply){ 200, "text/plain", "hi\n", 3 };
+}
+
+/* GET path from the server at port, stepping it until the reply is complete. */
+static int http_get(frep_view_server *srv, int port, const char *path, int *calls, char *out,
+                    size_t size)
+{
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in a;
+    memset(&a, 0, sizeof a);
+    a.sin_family = AF_INET;
+    a.sin_port = htons((uint16_t)port);
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (fd < 0 || connect(fd, (struct sockaddr *)&a, sizeof a) != 0) {
+        if (fd >= 0) close(fd);
+        return -1;
+    }
+    char req[256];
+    int n = snprintf(req, sizeof req, "GET %s HTTP/1.0\r\n\r\n", path);
+    int answered = 0;
+    if (send(fd, req, (size_t)n, 0) == n)
+        for (int i = 0; i < 50 && !answered; i++)
+            answered = frep_view_server_step(srv, 20, route_hello, calls) > 0;
+    size_t got = 0;
+    ssize_t k;
+    while (answered && got + 1 < size && (k = recv(fd, out + got, size - 1 - got, 0)) > 0)
+        got += (size_t)k;
+    out[got] = '\0';
+    close(fd);
+    return answered ? 0 : -1;
+}
+
+static void test_view_server(void)
+{
+    seen s = { 0 };
+    frep_view_server *srv = frep_view_server_open(0, collect, &s);
+    int port = srv ? frep_view_server_port(srv) : 0;
+    ok(srv && port > 0 && s.errors == 0, "a server on 127.0.0.1, port %d", port);
+    if (!srv) return;
+    int calls = 0;
+    ok(frep_view_server_step(srv, 0, route_hello, &calls) == 0 && calls == 0,
+       "a step without clients answers nothing");
+    char reply[512];
+    ok(http_get(srv, port, "/hello", &calls, reply, sizeof reply) == 0 && calls == 1 &&
+           strncmp(reply, "HTTP/1.0 200", 12) == 0 && strstr(reply, "\r\n\r\nhi\n"),
+       "GET /hello: 200 and the routed body");
+    ok(http_get(srv, port, "/nope", &calls, reply, sizeof reply) == 0 && calls == 2 &&
+           strncmp(reply, "HTTP/1.0 404", 12) == 0,
+       "GET /nope: 404 when the route leaves the reply");
+    seen e = { 0 };
+    frep_view_server *two = frep_view_server_open(port, collect, &e);
+    ok(!two && e.errors == 1, "the same port again: NULL and an error (%s)", e.last);
+    frep_view_server_close(two);
+    frep_view_server_close(srv);
+    frep_view_server_close(NULL);
 }
 
 /* Write a mesh with colours through frep_mesh_write_stream, as the command does. */
@@ -1687,6 +1979,9 @@ int main(void)
     test_cloud();
     test_mesh();
     test_mesh_colors();
+    test_param_used();
+    test_fit_names();
+    test_view_server();
     const char *frep = getenv("FREP"), *srcdir = getenv("srcdir");
     if (frep && srcdir) {
         test_same_as_command(frep, srcdir);
@@ -1700,6 +1995,8 @@ int main(void)
         test_evolve_residual(frep);
         test_print_source(frep, srcdir);
         test_eval_grid(frep, srcdir);
+        test_export_scad(frep, srcdir);
+        test_view_page(frep, srcdir);
     }
     else diag("FREP or srcdir not set: the comparison with the command is skipped");
     char cmd[400];

@@ -1005,6 +1005,76 @@ static int case_view_page(const fixture *fx, fault_out *o)
     return 0;
 }
 
+/* The public API of frep view and frep render's distances (api/api_view.c): the
+ * model's and the mesh's distances with their scales. */
+static int case_api_distances(const fixture *fx, fault_out *o)
+{
+    frep_distances d;
+    for (int k = 0; k < 2; k++) {
+        if (frep_cloud_distances(fx->cloud, &fx->mesh, k ? NULL : fx->prog, 0, 1, &d, on_diag,
+                                 o) != 0)
+            return -1;
+        digest_doubles(o, d.point, fx->cloud->n);
+        digest_doubles(o, d.vertex, fx->mesh.nverts);
+        digest_doubles(o, &d.point_scale, 1);
+        frep_distances_free(&d);
+    }
+    return 0;
+}
+
+/* The page, its scene JSON and the page written to a stream, through the public API. */
+static int case_api_view_page(const fixture *fx, fault_out *o)
+{
+    const frep_cloud *c = fx->cloud;
+    frep_view_scene sc;
+    frep_view_scene_init(&sc);
+    sc.name = "fixture.hf";
+    sc.mesh = &fx->mesh;
+    sc.npoints = c->n;
+    sc.px = c->x;
+    sc.py = c->y;
+    sc.pz = c->z;
+    size_t len;
+    char *page = frep_view_page(&sc, 1, &len, on_diag, o);
+    if (!page) return -1;
+    digest_bytes(o, page, len);
+    frep_free(page);
+    char *json = frep_view_scene_json(&sc, &len, on_diag, o);
+    if (!json) return -1;
+    digest_bytes(o, json, len);
+    frep_free(json);
+    mem_out mo;
+    if (!mem_open(&mo)) return -1;
+    return mem_close(&mo, o, frep_view_write_page(&sc, mo.f, on_diag, o));
+}
+
+/* The loopback server of frep view --watch, opened and closed. */
+static int case_api_view_server(const fixture *fx, fault_out *o)
+{
+    (void)fx;
+    frep_view_server *s = frep_view_server_open(0, on_diag, o);
+    if (!s) return -1;
+    frep_view_server_close(s);
+    return 0;
+}
+
+/* frep export through the public API. */
+static int case_api_export(const fixture *fx, fault_out *o)
+{
+    (void)fx;
+    frep_scad_options so;
+    frep_scad_options_init(&so);
+    for (int i = 0; i < 3; i++) {
+        so.box[i] = -2;
+        so.box[i + 3] = 2;
+    }
+    char *t = frep_export_scad("e.hf", export_src, strlen(export_src), &so, on_diag, o);
+    if (!t) return -1;
+    digest_bytes(o, t, strlen(t));
+    frep_free(t);
+    return 0;
+}
+
 /* ---- the driver --------------------------------------------------------------------- */
 
 typedef int (*case_fn)(const fixture *fx, fault_out *o);
@@ -1058,6 +1128,10 @@ static const fault_case cases[] = {
     { "render", case_render, MSG_NONE, NULL },
     { "view_distances", case_view_distances, MSG_GIVEN, NULL },
     { "view_page", case_view_page, MSG_GIVEN, NULL },
+    { "api_distances", case_api_distances, MSG_GIVEN, NULL },
+    { "api_view_page", case_api_view_page, MSG_GIVEN, NULL },
+    { "api_view_server", case_api_view_server, MSG_GIVEN, NULL },
+    { "api_export", case_api_export, MSG_GIVEN, NULL },
     { "buf", case_buf, MSG_NONE, NULL },
     { "strdupf", case_strdupf, MSG_NONE, NULL },
 };

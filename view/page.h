@@ -12,32 +12,11 @@
 
 #include "buf.h"
 #include "err.h"
+#include "frep.h"
 #include "trimesh.h"
 
-/* What the page shows.  Every pointer may be NULL (that part is left out). */
-typedef struct view_scene {
-    const char *name;          /* the model's file name: the title */
-    const frep_mesh *mesh;
-    const unsigned char *vrgb; /* mesh->nverts colours, red green blue 0..255: the
-                                  model's s[1..3] */
-    const double *vdist;       /* mesh->nverts distances of the surface to the cloud */
-    double vscale;             /* vdist mapped to the top of its colour scale (> 0) */
-    size_t npoints;
-    const double *px, *py, *pz;
-    const double *pdist;       /* npoints signed distances to the surface, > 0 inside */
-    double pscale;             /* |pdist| mapped to the top of its colour scale (> 0) */
-    const char *source;        /* the model's text */
-    size_t nparams;
-    const char *const *pnames; /* nparams names and values of the free parameters */
-    const double *pvalues;
-    const char *diag;          /* messages of the compiler and the polygonizer (errors
-                                  and warnings), file:line:col first */
-    const char *cdiag;         /* messages about the cloud */
-    int failed;                /* the last build failed: the mesh is an older one */
-    const char *info;          /* one line: what was done (grid, timings) */
-    const char *units;         /* what a distance is measured in ("model units") */
-    unsigned version;          /* --watch: the page reloads when it changes */
-} view_scene;
+/* What the page shows: the public scene (runtime/frep.h), every pointer may be NULL. */
+typedef frep_view_scene view_scene;
 
 /* The viewer (view/viewer.html, generated into view_template.c by the build). */
 extern const char view_template[];

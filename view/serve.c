@@ -26,7 +26,7 @@ typedef struct view_client {
     char req[VIEW_MAX_REQUEST + 1];
 } view_client;
 
-struct view_server {
+struct frep_view_server {
     int fd, port;
     view_client c[VIEW_MAX_CLIENTS];
 };

@@ -9,6 +9,7 @@
 #include <stddef.h>
 
 #include "err.h"
+#include "frep.h"
 
 /* Limits, each with its reason. */
 #define VIEW_MAX_CLIENTS 16           /* a browser opens a handful of connections; more
@@ -20,19 +21,13 @@
 #define VIEW_SEND_TIMEOUT_S 10        /* a reply not taken in this time is abandoned: the
                                          loop must go on re-meshing */
 
-/* A reply: status 200 or 404, a content type, the body (not copied; it must live
- * until the route function is called again). */
-typedef struct view_reply {
-    int status;
-    const char *type;
-    const char *body;
-    size_t len;
-} view_reply;
+/* A reply and the route function are the public API's (runtime/frep.h): status 200 or
+ * 404, a content type, the body (not copied; it must live until the route function is
+ * called again).  The route fills *r for the path of a GET (query string included). */
+typedef frep_view_reply view_reply;
+typedef frep_view_route_fn view_route_fn;
 
-/* Fill *r for the path of a GET request (query string included). */
-typedef void (*view_route_fn)(void *user, const char *path, view_reply *r);
-
-typedef struct view_server view_server;
+typedef struct frep_view_server view_server;
 
 /* Listen on 127.0.0.1:port (0: any free port).  NULL with *e set when the port is
  * taken or sockets fail (FREP_EIO), or out of memory. */

@@ -293,6 +293,30 @@ class _RenderInfo(ctypes.Structure):
                 ("point_scale", ctypes.c_double), ("surface_scale", ctypes.c_double)]
 
 
+class _Distances(ctypes.Structure):
+    _fields_ = [("point", ctypes.POINTER(ctypes.c_double)),
+                ("vertex", ctypes.POINTER(ctypes.c_double)),
+                ("point_scale", ctypes.c_double), ("vertex_scale", ctypes.c_double)]
+
+
+class _ViewScene(ctypes.Structure):
+    _fields_ = [("name", ctypes.c_char_p), ("mesh", ctypes.c_void_p),
+                ("vrgb", ctypes.c_void_p), ("vdist", _c_double_p), ("vscale", ctypes.c_double),
+                ("npoints", ctypes.c_size_t), ("px", _c_double_p), ("py", _c_double_p),
+                ("pz", _c_double_p), ("pdist", _c_double_p), ("pscale", ctypes.c_double),
+                ("source", ctypes.c_char_p), ("nparams", ctypes.c_size_t),
+                ("pnames", ctypes.POINTER(ctypes.c_char_p)), ("pvalues", _c_double_p),
+                ("diag", ctypes.c_char_p), ("cdiag", ctypes.c_char_p), ("failed", ctypes.c_int),
+                ("info", ctypes.c_char_p), ("units", ctypes.c_char_p),
+                ("version", ctypes.c_uint)]
+
+
+class _ScadOptions(ctypes.Structure):
+    _fields_ = [("model", ctypes.c_char_p), ("a", ctypes.POINTER(ctypes.c_double)),
+                ("na", ctypes.c_size_t), ("box", ctypes.c_double * 6), ("fn", ctypes.c_int),
+                ("title", ctypes.c_char_p)]
+
+
 PRIM_TYPES = ("plane", "sphere", "cylinder", "cone", "torus")
 _MESH_FORMATS = {"auto": 0, "stl": 1, "obj": 2, "ply": 3, "off": 4, "wrl": 5}
 
@@ -407,6 +431,17 @@ def _declare(lib):
         "frep_image_pixels": (ctypes.POINTER(ctypes.c_uint8),
                               [P, ctypes.POINTER(I), ctypes.POINTER(I)]),
         "frep_image_write_png": (I, [P, ctypes.c_char_p, _DIAG_FN, P]),
+        "frep_program_param_used": (I, [P, S]),
+        "frep_cloud_distances": (I, [P, P, P, D, I, ctypes.POINTER(_Distances), _DIAG_FN, P]),
+        "frep_distances_free": (None, [ctypes.POINTER(_Distances)]),
+        "frep_scad_options_init": (None, [ctypes.POINTER(_ScadOptions)]),
+        "frep_view_scene_init": (None, [ctypes.POINTER(_ViewScene)]),
+        "frep_view_page": (P, [ctypes.POINTER(_ViewScene), I, ctypes.POINTER(S), _DIAG_FN, P]),
+        "frep_export_scad": (P, [ctypes.c_char_p, ctypes.c_char_p, S,
+                                 ctypes.POINTER(_ScadOptions), _DIAG_FN, P]),
+        "frep_fit_method_name": (ctypes.c_char_p, [I]),
+        "frep_fit_objective_name": (ctypes.c_char_p, [I]),
+        "frep_fit_loss_name": (ctypes.c_char_p, [I]),
     }
     for name, (res, args) in sig.items():
         fn = getattr(lib, name)
@@ -565,6 +600,11 @@ class Program:
                                           ctypes.byref(hi)):
             return lo.value, hi.value
         return None
+
+    def param_used(self, name):
+        """Whether the model's code reads parameter `name` (as param_index takes it):
+        an element of a[] the model never reads is False."""
+        return bool(_L().frep_program_param_used(self._h, self.param_index(name)))
 
     def box(self):
         """The model's `-- @box` (x0, y0, z0, x1, y1, z1), or None."""
@@ -752,10 +792,9 @@ class Program:
         return Cloud._own(h)
 
 
-def _compile_options(model=None, a=None, setops=None, optimize=True, strict=False):
-    """frep_compile_options and the arrays it points to (keep them alive)."""
-    o = _CompileOptions()
-    _L().frep_compile_options_init(ctypes.byref(o))
+def _set_model_a(o, model, a):
+    """The model's name and the values of a[] into options o (frep_compile_options,
+    frep_scad_options); returns the arrays to keep alive."""
     keep = []
     if model:
         o.model = model.encode()
@@ -764,6 +803,14 @@ def _compile_options(model=None, a=None, setops=None, optimize=True, strict=Fals
         keep.append(av)
         o.a = ctypes.cast(_ptr(av), _c_double_p)
         o.na = av.shape[0]
+    return keep
+
+
+def _compile_options(model=None, a=None, setops=None, optimize=True, strict=False):
+    """frep_compile_options and the arrays it points to (keep them alive)."""
+    o = _CompileOptions()
+    _L().frep_compile_options_init(ctypes.byref(o))
+    keep = _set_model_a(o, model, a)
     if setops is not None:
         o.setops_override = {"rfunc": 0, "minmax": 1}[setops]
     o.optimize = int(bool(optimize))
@@ -790,6 +837,104 @@ def compile_file(path, **kw):
     """Compile the model file at path (see compile)."""
     with open(path, "rb") as f:
         return compile(f.read(), name=str(path), **kw)
+
+
+def export_scad(text, name="<string>", model=None, a=None, box=None, fn=48, title=None):
+    """The model text as OpenSCAD source, as `frep export` writes it: box, the box of
+    an unbounded model (x0, y0, z0, x1, y1, z1), default the model's `-- @box`, else
+    [-10, 10]^3 (as frep export); fn: $fn, 3..1024.  Raises FrepError with the
+    construct that has no OpenSCAD equivalent, at its position."""
+    lib = _L()
+    src = text.encode() if isinstance(text, str) else bytes(text)
+    o = _ScadOptions()
+    lib.frep_scad_options_init(ctypes.byref(o))
+    keep = _set_model_a(o, model, a)
+    if box is None:
+        box = compile(src, name=name, model=model, a=a).box()
+    if box is not None:
+        o.box = (ctypes.c_double * 6)(*[float(v) for v in box])
+    o.fn = int(fn)
+    if title is not None:
+        o.title = title.encode()
+    d = _Diagnostics(src)
+    p = lib.frep_export_scad(name.encode(), src, len(src), ctypes.byref(o), d.fn, None)
+    if not p:
+        d.fail("cannot export %s" % name)
+    try:
+        return ctypes.string_at(p).decode()
+    finally:
+        lib.frep_free(p)
+
+
+def view_page(mesh, cloud=None, program=None, name="", iso=0.0, scale=0.0, threads=0,
+              colors=None, info=""):
+    """The page of `frep view` as a string: one self-contained HTML file drawing mesh
+    in WebGL, with cloud (a Cloud) coloured by its distances (see distances; to
+    program's surface, else to the mesh), scale the point distance drawn red (0: from
+    the data), program's text and parameters beside it, colors (nverts, 3) uint8 vertex
+    colours.  For a mesh file and a cloud, the bytes frep view writes."""
+    lib = _L()
+    sc = _ViewScene()
+    lib.frep_view_scene_init(ctypes.byref(sc))
+    sc.name = str(name).encode()
+    sc.mesh = mesh._h
+    sc.info = info.encode() if info is not None else None
+    keep = []
+    if cloud is not None:
+        d = distances(cloud, mesh, program, iso, threads)
+        keep += [d["point"], d["vertex"]]
+        sc.npoints = len(cloud)
+        sc.px, sc.py, sc.pz = (ctypes.cast(_ptr(np.ascontiguousarray(a)), _c_double_p)
+                               for a in (cloud.x, cloud.y, cloud.z))
+        sc.pdist = ctypes.cast(_ptr(d["point"]), _c_double_p)
+        sc.vdist = ctypes.cast(_ptr(d["vertex"]), _c_double_p)
+        sc.pscale = scale if scale > 0 else d["point_scale"] if d["point_scale"] > 0 else 1.0
+        sc.vscale = d["vertex_scale"] if d["vertex_scale"] > 0 else 1.0
+    if program is not None:
+        sc.source = program.source
+        names = [n.encode() for n in program.param_names]
+        values = np.ascontiguousarray(program.param_values(), dtype=np.float64)
+        pn = (ctypes.c_char_p * max(len(names), 1))(*names)
+        keep += [names, values, pn]
+        sc.nparams = len(names)
+        sc.pnames = ctypes.cast(pn, ctypes.POINTER(ctypes.c_char_p))
+        sc.pvalues = ctypes.cast(_ptr(values), _c_double_p)
+    if colors is not None:
+        rgb = np.ascontiguousarray(colors, dtype=np.uint8).reshape(-1, 3)
+        if rgb.shape[0] != mesh.vertices.shape[0]:
+            raise ValueError("colors: one (r, g, b) per vertex")
+        keep.append(rgb)
+        sc.vrgb = rgb.ctypes.data
+    n = ctypes.c_size_t()
+    dg = _Diagnostics()
+    p = lib.frep_view_page(ctypes.byref(sc), 0, ctypes.byref(n), dg.fn, None)
+    if not p:
+        dg.fail("cannot make the page")
+    try:
+        return ctypes.string_at(p, n.value).decode()
+    finally:
+        lib.frep_free(p)
+
+
+def distances(cloud, mesh, program=None, iso=0.0, threads=0):
+    """How far a Cloud is from a surface and the surface from the cloud, as frep view
+    and frep render colour them: a dict with "point" (one signed distance a point, > 0
+    inside: |f - iso|/|grad f| of program, or to mesh's nearest triangle without one),
+    "vertex" (each vertex of mesh to the nearest point) and their colour scales
+    "point_scale", "vertex_scale" (0 when no distance is finite and positive)."""
+    lib = _L()
+    r = _Distances()
+    d = _Diagnostics(program.source if program is not None else None)
+    if lib.frep_cloud_distances(cloud._h, mesh._h, program._h if program is not None else None,
+                                float(iso), int(threads), ctypes.byref(r), d.fn, None) != 0:
+        d.fail("cannot measure the cloud")
+    try:
+        n, nv = len(cloud), mesh.vertices.shape[0]
+        return {"point": np.ctypeslib.as_array(r.point, shape=(n,)).copy(),
+                "vertex": np.ctypeslib.as_array(r.vertex, shape=(nv,)).copy(),
+                "point_scale": r.point_scale, "vertex_scale": r.vertex_scale}
+    finally:
+        lib.frep_distances_free(ctypes.byref(r))
 
 
 def print_source(text, name="<string>", strict=False):

@@ -484,8 +484,87 @@ def test_option_structs_match_the_library():
     for name, cls in (("compile", frep._CompileOptions), ("mesh", frep._MeshOptions),
                       ("sample", frep._SampleOptions), ("segment", frep._SegmentOptions),
                       ("fit", frep._FitOptions), ("evolve", frep._EvolveOptions),
-                      ("render", frep._RenderOptions), ("normals", frep._NormalsOptions)):
+                      ("render", frep._RenderOptions), ("normals", frep._NormalsOptions),
+                      ("scad", frep._ScadOptions)):
         size = ctypes.sizeof(cls)
         buf = (ctypes.c_ubyte * (size + 64))(*([0xAB] * (size + 64)))
         getattr(lib, "frep_%s_options_init" % name)(ctypes.cast(buf, ctypes.POINTER(cls)))
         assert bytes(buf[size:]) == b"\xab" * 64, name
+    size = ctypes.sizeof(frep._ViewScene)
+    buf = (ctypes.c_ubyte * (size + 64))(*([0xAB] * (size + 64)))
+    lib.frep_view_scene_init(ctypes.cast(buf, ctypes.POINTER(frep._ViewScene)))
+    assert bytes(buf[size:]) == b"\xab" * 64 and bytes(buf[:size]) == b"\0" * size
+
+
+def test_param_used():
+    p = frep.compile("m(x[3], a[3]) {\n  r = 1;  -- @free\n  q = 2;  -- @free\n"
+                     "  m = r + a[2] - x[1];\n}\n")
+    assert [p.param_used(n) for n in ("a[1]", "a[2]", "a[3]", "r", "q")] == \
+        [False, True, False, True, False]
+
+
+def test_fit_names_match_the_library():
+    lib = frep._L()
+    for table, fn in ((frep.FIT_METHODS, lib.frep_fit_method_name),
+                      (frep.FIT_OBJECTIVES, lib.frep_fit_objective_name),
+                      (frep.FIT_LOSSES, lib.frep_fit_loss_name)):
+        assert tuple(fn(i).decode() for i in range(len(table))) == table
+        assert fn(len(table)) is None
+
+
+def test_export_scad_same_as_command(tmp_path):
+    with open(CSG) as f:
+        text = f.read()
+    scad = frep.export_scad(text, name=CSG)
+    assert "module my_model()" in scad and "difference()" in scad
+    assert "$fn = 12;" in frep.export_scad(text, name=CSG, fn=12)
+    if FREP:
+        out = tmp_path / "cli.scad"
+        subprocess.run([FREP, "export", CSG, "-q", "-o", str(out)], check=True)
+        assert out.read_text() == scad
+    with pytest.raises(frep.FrepError) as e:
+        frep.export_scad("m(x[3], a[1]) {\n  m = x[1]^2 - x[2];\n}\n", name="q.hf")
+    assert "q.hf:2:" in str(e.value)
+    with pytest.raises(frep.FrepError):
+        frep.export_scad(text, fn=2)
+
+
+def test_distances_against_model_and_mesh():
+    p = frep.compile_file(CSG)
+    m = p.mesh(grid=32)
+    c = p.sample(400, seed=3, noise=0.005)
+    dm = frep.distances(c, m, program=p)
+    dt = frep.distances(c, m)
+    assert dm["point"].shape == (400,) and dm["vertex"].shape == (len(m.vertices),)
+    # the model's first-order distance against numpy's: f / |grad f|
+    x, y, z = c.points[:, 0], c.points[:, 1], c.points[:, 2]
+    f, g = p.grad(x, y, z)
+    assert np.allclose(dm["point"], f / np.linalg.norm(g, axis=1), rtol=1e-9, atol=1e-12)
+    assert np.median(np.abs(dm["point"] - dt["point"])) < 0.01
+    # each vertex's distance to the nearest point, by brute force
+    v = m.vertices[:50]
+    near = np.sqrt(((v[:, None, :] - c.points[None, :, :]) ** 2).sum(axis=2)).min(axis=1)
+    assert np.allclose(dm["vertex"][:50], near, rtol=1e-12)
+    assert np.array_equal(dm["vertex"], dt["vertex"])
+    assert dm["point_scale"] > 0 and dm["vertex_scale"] > 0
+    with pytest.raises(frep.FrepError):
+        frep.distances(c, frep.Mesh(np.zeros((0, 3)), np.zeros((0, 3))))
+
+
+def test_view_page_same_as_command(tmp_path):
+    p = frep.compile_file(CSG)
+    m = p.mesh(grid=24)
+    c = p.sample(300, seed=4, noise=0.01)
+    page = frep.view_page(m, c, program=p, name="csg.hf")
+    assert page.startswith("<!DOCTYPE html>") or "<html" in page[:200]
+    assert '"points":{"n":300,' in page and '"name":"csg.hf"' in page
+    assert '"source":null' not in page and '"source":"' in page
+    if FREP:
+        m.write(tmp_path / "m.off")
+        c.write(tmp_path / "c.xyz")
+        subprocess.run([FREP, "view", str(tmp_path / "m.off"), "--points",
+                        str(tmp_path / "c.xyz"), "-q", "-o", str(tmp_path / "cli.html")],
+                       check=True)
+        page = frep.view_page(frep.read_mesh(tmp_path / "m.off"),
+                              frep.read_cloud(tmp_path / "c.xyz"), name=str(tmp_path / "m.off"))
+        assert (tmp_path / "cli.html").read_text() == page
