@@ -43,14 +43,16 @@
 /* QEF eigenvalues below this fraction of the largest are dropped (truncated
  * pseudo-inverse): near-parallel normals must not throw the vertex out of its cell. */
 #define MESH_QEF_CUTOFF 0.05
-/* A feature solution of the QEF (rank 2 or 3) in its closed cell, or at most this
- * fraction of a cell outside it in a cell with a corner exactly on the level, is
- * clamped into the cell rather than given up for a lower rank: a part's edge or corner
- * on a grid plane is on the faces of the cells around it, where rounding puts it on
- * either side, and the lower rank's mass point was up to 3/4 cell off the surface
+/* A feature solution of the QEF (rank 2 or 3) in its cell, or at most this fraction
+ * of a cell outside it in a cell with a corner exactly on the level, is clamped into
+ * the cell rather than given up for a lower rank: a part's edge or corner on a grid
+ * plane is on the faces of the cells around it, where rounding puts it on either
+ * side, and the lower rank's mass point was up to 3/4 cell off the surface
  * (tests/models/sharp/near.hf at -g 32, examples/bracket.hf at -g 26 and 104, where
- * x = 1 is a grid plane within rounding).  Off for the sampler's mesh
- * (mesh_options.no_projection), whose feature solutions stay MESH_CLAMP inside. */
+ * x = 1 is a grid plane within rounding).  The cell is half-open, [lo, hi), so that
+ * a crease exactly on a face is kept by one of the two cells, not by both a hair's
+ * breadth apart.  Off for the sampler's mesh (mesh_options.no_projection), whose
+ * feature solutions stay MESH_CLAMP inside. */
 #define MESH_QEF_REACH 0.05
 /* Vertices stay this fraction of a cell inside their cell, so that vertices of
  * different cells never coincide (no zero-area triangles). */
@@ -279,7 +281,7 @@ static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
         }
         int inside = 1;
         for (int c = 0; c < 3; c++)
-            if (!(rank >= 2 ? x[c] >= lo_in[c] && x[c] <= hi_in[c]
+            if (!(rank >= 2 ? x[c] >= lo_in[c] && x[c] < hi_in[c]
                             : x[c] >= lo[c] + slack[c] && x[c] <= hi[c] - slack[c]))
                 inside = 0;
         if (inside || rank == 0) {
