@@ -288,7 +288,8 @@ static int tri_faces(const double *a, const double *b, const double *c, int ax, 
 }
 
 /* Split along v0-v2 (1) or v1-v3 (0)?  The diagonal joining two feature vertices (QEF
- * rank >= 2) when only one does, since it lies on the sharp edge; otherwise the one
+ * rank >= 2) when only one does, since it lies on the sharp edge (with three, the one
+ * ending at the middle one, since the sides hold the edge); otherwise the one
  * whose midpoint is closer to the surface by the Hermite estimate; never a split
  * making a zero-area triangle, nor one with a triangle facing backwards (along the
  * edge's axis ax, outside direction out) when the other split has none. */
@@ -296,6 +297,14 @@ static int quad_diagonal(const qcorner q[4], int ax, int out)
 {
     int f02 = q[0].rank >= 2 && q[2].rank >= 2;
     int f13 = q[1].rank >= 2 && q[3].rank >= 2;
+    /* three feature vertices: the crease runs along the quad's sides through the
+     * middle one, and the chord joining the other two would cut across it, leaving a
+     * sliver that folds (tests/models/segment_box.hf -b 1.2 at -g 27, 50 and 122):
+     * the diagonal ends at the middle one */
+    if ((q[0].rank >= 2) + (q[1].rank >= 2) + (q[2].rank >= 2) + (q[3].rank >= 2) == 3) {
+        f02 = !f02;
+        f13 = !f13;
+    }
     int use02;
     if (f02 != f13) {
         use02 = f02;

@@ -95,6 +95,28 @@ mesh_suite 256 "$M/sharp/near.hf" "$E/csg.hf" "$E/gear.hf" \
 # field (and 16, 18, 42 at -g 54, 102, 120).
 mesh_suite 36 "$M/segment_cone.hf"
 for g in 32 64 128; do mesh_suite $g "$M/segment_cylinder.hf:own"; done
+# Quads with three feature vertices along a crease (mesh/quads.c, quad_diagonal): the
+# diagonal joining the outer two cut across the crease and left a sliver that folded.
+# segment_box.hf had 9, 6 and 6 self-intersecting pairs at -g 27, 50 and 122, csg.hf
+# 6 vertices over 0.1 cell at -g 44 (the settling step could not move them past the
+# slivers), blend.hf 3 pairs at -g 76, twist.hf 12 at -g 78.
+mesh_suite 27 "$M/segment_box.hf"
+mesh_suite 50 "$M/segment_box.hf"
+mesh_suite 122 "$M/segment_box.hf"
+mesh_suite 44 "$E/csg.hf"
+mesh_suite 76 "$E/blend.hf"
+mesh_suite 78 "$E/twist.hf"
+# Sharp edges on grid planes (within rounding: x = 1 at -g 26 and 104 in the
+# bracket's box), where the QEF's edge solution lies on the cell's face (mesh/mesh.c,
+# MESH_QEF_REACH): it was given up for the mass point, half a cell off the surface.
+# bracket.hf had 2, 5, 19 and 34 vertices over 0.1 cell at -g 22, 26, 52 and 78 (19 at
+# -g 104), gear.hf 8 at -g 70, near.hf 1 at -g 40.
+mesh_suite 22 "$E/bracket.hf"
+mesh_suite 26 "$E/bracket.hf"
+mesh_suite 52 "$E/bracket.hf"
+mesh_suite 104 "$E/bracket.hf"
+mesh_suite 70 "$E/gear.hf"
+mesh_suite 40 "$M/sharp/near.hf"
 # A cube whose faces lie on grid planes (every corner of a face cell on the level, where
 # the settling step moves vertices): its 8 corners stay sharp, a vertex within 1% of a
 # cell of each, and no vertex far from the surface, at several grids.
