@@ -1398,6 +1398,12 @@ static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
     }
 }
 
+size_t canon_spread(size_t k, size_t n, size_t most)
+{
+    size_t m = n < most ? n : most;
+    return m ? (size_t)((unsigned long long)k * n / m) : 0;
+}
+
 /* ---- the box cover: planar parts as unions of boxes ------------------------------------ */
 
 /* A subtree whose leaves are all planes (a stack of cuboids the GA wrote as an
@@ -1427,7 +1433,6 @@ _Static_assert(COVER_MAX_FRAMES <= 256 && COVER_NO <= 256, "cv_box fields are ui
 /* Cloud points moved in and out along their normals by this many grid tolerances
  * (ft_check.gtol), so that they are labelled: thin walls get points on both sides. */
 #define COVER_CLOUD_SHIFT 3
-#define COVER_CLOUD_POINTS 2048
 /* Free faces lie at the cloud's oriented box grown by this factor (ft_check's grid
  * covers 1.1). */
 #define COVER_FREE_GROWTH 1.25
@@ -1678,10 +1683,11 @@ static int cv_points(cover *C)
     for (size_t i = 0; i < ck->ng; i++) CV_ADD(&ck->g[3 * i]);
     const frep_cloud *cl = ck->cloud;
     if (cl->has_normals) {
-        size_t stride = cl->n > COVER_CLOUD_POINTS ? cl->n / COVER_CLOUD_POINTS : 1;
+        size_t m = cl->n < COVER_CLOUD_POINTS ? cl->n : COVER_CLOUD_POINTS;
         double h = COVER_CLOUD_SHIFT * ck->gtol;
-        for (size_t i = 0; i < cl->n; i += stride)
+        for (size_t k = 0; k < m; k++)
             for (int s = -1; s <= 1; s += 2) {
+                size_t i = canon_spread(k, cl->n, COVER_CLOUD_POINTS);
                 double p[3] = { cl->x[i] + s * h * cl->nx[i], cl->y[i] + s * h * cl->ny[i],
                                 cl->z[i] + s * h * cl->nz[i] };
                 CV_ADD(p);

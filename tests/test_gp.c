@@ -2120,6 +2120,37 @@ static void test_cover_cut_term_limits(void)
     }
 }
 
+/* The cloud points the cover labels (COVER_CLOUD_POINTS, canon_spread): every point
+ * of a cloud up to the limit, exactly the limit of a larger one (2,049 to 4,095 points
+ * included, which a stride of n / limit used in full), evenly spread: increasing,
+ * from 0, gaps differing by at most one. */
+static void test_cover_cloud_points(void)
+{
+    static const size_t ns[] = { 1, 7, COVER_CLOUD_POINTS - 1, COVER_CLOUD_POINTS,
+                                 COVER_CLOUD_POINTS + 1, 3000, 2 * COVER_CLOUD_POINTS - 1,
+                                 2 * COVER_CLOUD_POINTS, 17757, 1000003 };
+    for (size_t c = 0; c < sizeof ns / sizeof ns[0]; c++) {
+        size_t n = ns[c], m = n < COVER_CLOUD_POINTS ? n : COVER_CLOUD_POINTS, used = 0;
+        size_t gmin = SIZE_MAX, gmax = 0, prev = 0;
+        int okk = canon_spread(0, n, COVER_CLOUD_POINTS) == 0;
+        for (size_t k = 0; k < m; k++) {
+            size_t i = canon_spread(k, n, COVER_CLOUD_POINTS);
+            if (i >= n || (k && i <= prev)) okk = 0;
+            if (k) {
+                gmin = i - prev < gmin ? i - prev : gmin;
+                gmax = i - prev > gmax ? i - prev : gmax;
+            }
+            prev = i;
+            used++;
+        }
+        size_t last = n - 1 - prev;   /* the gap from the last index used to the end */
+        ok(okk && used == (n < COVER_CLOUD_POINTS ? n : (size_t)COVER_CLOUD_POINTS) &&
+               (m < 2 || (gmax - gmin <= 1 && last < gmax + 1)),
+           "cover cloud points: %zu of a cloud of %zu, evenly spread (gaps %zu..%zu)", used, n,
+           m < 2 ? (size_t)0 : gmin, m < 2 ? (size_t)0 : gmax);
+    }
+}
+
 int main(void)
 {
     test_tree_ops();
@@ -2147,5 +2178,6 @@ int main(void)
     test_box_cover();
     test_cover_limits();
     test_cover_cut_term_limits();
+    test_cover_cloud_points();
     return done_testing();
 }
