@@ -1416,7 +1416,6 @@ size_t canon_spread(size_t k, size_t n, size_t most)
  * fewer solids and the whole model passes ft_keeps (and stays bounded if it was). */
 
 #define COVER_NO (COVER_MAX_OFFS + 2)
-#define COVER_MAX_NEG 256      /* the largest cuts a term's are chosen from */
 _Static_assert(COVER_MAX_NEG <= 65536, "cv_term.cut indices are uint16_t");
 /* Outside points a box of the second pass may hold, per inside point (cv_run). */
 #define COVER_SLIVER 0.01

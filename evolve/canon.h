@@ -115,6 +115,10 @@ void canon_write_comment(FILE *f, const canon_prim *c);
  * greedy cover's rounds, each over every candidate term). */
 #define COVER_MAX_CUTS 2
 #define COVER_MAX_TERMS 24
+/* Candidate cuts a box's are chosen from: the best ranked (the impure boxes' outside
+ * points they hold, less inside points), the others not tried (work bound: each
+ * impure box tries each candidate for each of its cuts). */
+#define COVER_MAX_NEG 256
 /* Cloud points the cover labels (moved in and out along their normals): at most this
  * many, evenly spread over the cloud (canon_spread), the same on every run. */
 #define COVER_CLOUD_POINTS 2048

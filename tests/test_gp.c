@@ -2151,6 +2151,58 @@ static void test_cover_cloud_points(void)
     }
 }
 
+/* The cover's cut candidates (COVER_MAX_NEG, canon.h), with a far plane that leaves the
+ * solid as it is, so that a cover of the whole (which drops it: fewer solids) shows
+ * from the written count.  Under the limit: the cube less a turned corner (few
+ * candidates) is covered whole, "2 solids: 2 boxes".  At it: the same and, in the
+ * corner's free cut beyond it, a hollow box (walls of pure boxes, so that thousands of
+ * boxes through them are candidate cuts) whose small cavity's cut ranks past the
+ * limit: the whole is no cover, each part is covered alone and the far plane stays,
+ * "5 solids: 4 boxes ... 1 half-space" (with a limit of 4096 its cut, the 329th, is
+ * kept and the whole is covered: 4 boxes).  The same solid every time. */
+static void test_cover_neg_limit(void)
+{
+    static char tree[2][256], want[2][96], name[2][48];
+    double far[3] = { 1 / sqrt(14.0), 2 / sqrt(14.0), 3 / sqrt(14.0) };
+    for (int pass = 0; pass < 2; pass++) {
+        cover_case cc;
+        memset(&cc, 0, sizeof cc);
+        for (int j = 0; j < 6; j++) {
+            cc.n[j][j / 2] = j % 2 ? 1 : -1;
+            cc.d[j] = j % 2 ? 2 : 0;
+        }
+        static const int at[3] = { 2, 2, 2 };
+        static const double turn[3] = { 10, 20, 30 };
+        char *t = turned_corner(&cc, 6, at, turn, tree[pass] + sprintf(tree[pass], "12&3&4&5&6&"));
+        int j = 9;
+        if (pass) {
+            /* the hollow box [2.3, 3.4] x [1.5, 3.4]^2, its cavity 0.2 x 0.44 x 0.44 */
+            double lo[3] = { 2.3, 1.5, 1.5 }, hi[3] = { 3.4, 3.4, 3.4 };
+            double clo[3] = { 2.75, 2.23, 2.23 }, chi[3] = { 2.95, 2.67, 2.67 };
+            for (int b = 0; b < 2; b++)
+                for (int k = 0; k < 6; k++, j++) {
+                    cc.n[j][k / 2] = k % 2 ? 1 : -1;
+                    cc.d[j] = k % 2 ? (b ? chi : hi)[k / 2] : -(b ? clo : lo)[k / 2];
+                }
+            t += sprintf(t, "ab&c&d&e&f&gh&i&j&k&l&\\|");
+        }
+        memcpy(cc.n[j], far, sizeof far);
+        cc.d[j] = 10 + (far[0] + far[1] + far[2]) * 1.7;
+        *t++ = prim_char(j);
+        *t++ = '&';
+        *t = 0;
+        cc.np = j + 1;
+        snprintf(name[pass], sizeof name[pass], pass ? "cut candidates past COVER_MAX_NEG"
+                                                     : "cut candidates under COVER_MAX_NEG");
+        if (pass) snprintf(want[pass], sizeof want[pass], COVER_COUNT_LINE, 5, 4, 1, "");
+        else snprintf(want[pass], sizeof want[pass], COVER_COUNT_LINE, 2, 2, 0, "s");
+        cc.name = name[pass];
+        cc.tree = tree[pass];
+        cc.want = want[pass];
+        test_box_cover_case(&cc);
+    }
+}
+
 int main(void)
 {
     test_tree_ops();
@@ -2178,6 +2230,7 @@ int main(void)
     test_box_cover();
     test_cover_limits();
     test_cover_cut_term_limits();
+    test_cover_neg_limit();
     test_cover_cloud_points();
     return done_testing();
 }
