@@ -1398,6 +1398,12 @@ static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
     }
 }
 
+size_t canon_spread(size_t k, size_t n, size_t most)
+{
+    size_t m = n < most ? n : most;
+    return m ? (size_t)((unsigned long long)k * n / m) : 0;
+}
+
 /* ---- the box cover: planar parts as unions of boxes ------------------------------------ */
 
 /* A subtree whose leaves are all planes (a stack of cuboids the GA wrote as an
@@ -1410,7 +1416,6 @@ static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
  * fewer solids and the whole model passes ft_keeps (and stays bounded if it was). */
 
 #define COVER_NO (COVER_MAX_OFFS + 2)
-#define COVER_MAX_NEG 256      /* the largest cuts a term's are chosen from */
 _Static_assert(COVER_MAX_NEG <= 65536, "cv_term.cut indices are uint16_t");
 /* Outside points a box of the second pass may hold, per inside point (cv_run). */
 #define COVER_SLIVER 0.01
@@ -1427,7 +1432,6 @@ _Static_assert(COVER_MAX_FRAMES <= 256 && COVER_NO <= 256, "cv_box fields are ui
 /* Cloud points moved in and out along their normals by this many grid tolerances
  * (ft_check.gtol), so that they are labelled: thin walls get points on both sides. */
 #define COVER_CLOUD_SHIFT 3
-#define COVER_CLOUD_POINTS 2048
 /* Free faces lie at the cloud's oriented box grown by this factor (ft_check's grid
  * covers 1.1). */
 #define COVER_FREE_GROWTH 1.25
@@ -1458,7 +1462,7 @@ typedef struct cover {
     cv_frame fr[COVER_MAX_FRAMES];
     int nf;
     uint64_t *iv;                        /* per frame, axis, lo, hi: points within */
-    uint64_t *bits, *tmp;                /* scratch sets */
+    uint64_t *bits, *tmp, *pin;          /* scratch sets (pin: tmp's second half) */
     uint32_t planes[COVER_MAX_PLANES];
     int npl;
     double sliver;                       /* outside points a box may keep, per inside */
@@ -1678,10 +1682,11 @@ static int cv_points(cover *C)
     for (size_t i = 0; i < ck->ng; i++) CV_ADD(&ck->g[3 * i]);
     const frep_cloud *cl = ck->cloud;
     if (cl->has_normals) {
-        size_t stride = cl->n > COVER_CLOUD_POINTS ? cl->n / COVER_CLOUD_POINTS : 1;
+        size_t m = cl->n < COVER_CLOUD_POINTS ? cl->n : COVER_CLOUD_POINTS;
         double h = COVER_CLOUD_SHIFT * ck->gtol;
-        for (size_t i = 0; i < cl->n; i += stride)
+        for (size_t k = 0; k < m; k++)
             for (int s = -1; s <= 1; s += 2) {
+                size_t i = canon_spread(k, cl->n, COVER_CLOUD_POINTS);
                 double p[3] = { cl->x[i] + s * h * cl->nx[i], cl->y[i] + s * h * cl->ny[i],
                                 cl->z[i] + s * h * cl->nz[i] };
                 CV_ADD(p);
@@ -1707,7 +1712,8 @@ static int cv_points(cover *C)
     C->in = frep_calloc(C->nw, sizeof *C->in);
     C->out = frep_calloc(C->nw, sizeof *C->out);
     C->bits = frep_calloc(C->nw, sizeof *C->bits);
-    C->tmp = frep_calloc(C->nw, sizeof *C->tmp);
+    C->tmp = frep_calloc(2 * C->nw, sizeof *C->tmp);
+    C->pin = C->tmp ? C->tmp + C->nw : NULL;
     C->iv = frep_calloc(nsets * C->nw, sizeof *C->iv);
     if (!C->np || !C->in || !C->out || !C->bits || !C->tmp || !C->iv) goto done;
     for (size_t i = 0; i < C->np; i++) {
@@ -1745,13 +1751,15 @@ typedef struct cv_term {
 
 typedef struct cv_neg {
     cv_box b;
-    size_t nout, span;
+    size_t nin, nout, span;              /* inside and outside points it holds */
 } cv_neg;
 
 static int cv_neg_cmp(const void *pa, const void *pb)
 {
     const cv_neg *a = pa, *b = pb;
-    if (a->nout != b->nout) return a->nout < b->nout ? 1 : -1;
+    double sa = (double)a->nout - (double)a->nin, sb = (double)b->nout - (double)b->nin;
+    if (sa != sb) return sa < sb ? 1 : -1;
+    if (a->nin != b->nin) return a->nin > b->nin ? 1 : -1;
     if (a->span != b->span) return a->span < b->span ? 1 : -1;
     return memcmp(&a->b, &b->b, sizeof a->b);
 }
@@ -1932,7 +1940,8 @@ static long cv_terms(cover *C, cv_term **pt, cv_neg **pn)
 {
     /* the boxes with free faces include those of fitted faces only */
     cv_box *bx = frep_malloc((cv_list(C, 1, NULL) + 1) * sizeof *bx);
-    uint64_t *coverable = frep_calloc(C->nw, sizeof *coverable);
+    /* coverable: inside points of pure positives; wanted: outside points of impure ones */
+    uint64_t *coverable = frep_calloc(2 * C->nw, sizeof *coverable), *wanted = coverable + C->nw;
     cv_term *t = NULL;
     cv_neg *neg = NULL;
     long rc = -1;
@@ -1951,10 +1960,15 @@ static long cv_terms(cover *C, cv_term **pt, cv_neg **pn)
         t[nt].ncut = (double)nout > C->sliver * (double)nin ? COVER_MAX_CUTS + 1 : 0;
         if (!t[nt].ncut)
             for (size_t w = 0; w < C->nw; w++) coverable[w] |= C->bits[w] & C->in[w];
+        else
+            for (size_t w = 0; w < C->nw; w++) wanted[w] |= C->bits[w] & C->out[w];
         nt++;
     }
-    /* Cuts: boxes (free faces allowed) with outside points whose inside points some
-     * positive without outside points can give back; the largest, none within another. */
+    /* Cuts: boxes (free faces allowed) holding outside points of impure positives
+     * (wanted) whose inside points some positive without outside points can give back;
+     * those that hold the most wanted points less inside points first, none within
+     * another that holds no more inside points (which removes all it removes, at no
+     * further cost), at most COVER_MAX_NEG. */
     nb = cv_list(C, 1, bx);
     neg = frep_malloc((nb + 1) * sizeof *neg);
     if (!neg) goto done;
@@ -1963,9 +1977,10 @@ static long cv_terms(cover *C, cv_term **pt, cv_neg **pn)
         cv_set(C, bx[i], C->bits);
         int bad = 0;
         for (size_t w = 0; w < C->nw && !bad; w++) bad = (C->bits[w] & C->in[w] & ~coverable[w]) != 0;
-        size_t no = bad ? 0 : cv_count(C, C->bits, C->out);
+        size_t no = bad ? 0 : cv_count(C, C->bits, wanted);
         if (!no) continue;
         neg[nn].b = bx[i];
+        neg[nn].nin = cv_count(C, C->bits, C->in);
         neg[nn].nout = no;
         neg[nn].span = 0;
         for (int k = 0; k < 3; k++) neg[nn].span += (size_t)(bx[i].hi[k] - bx[i].lo[k]);
@@ -1975,10 +1990,12 @@ static long cv_terms(cover *C, cv_term **pt, cv_neg **pn)
     size_t kept = 0;
     for (size_t i = 0; i < nn && kept < COVER_MAX_NEG; i++) {
         int in = 0;
-        for (size_t k = 0; k < kept && !in; k++) in = cv_within(neg[i].b, neg[k].b);
+        for (size_t k = 0; k < kept && !in; k++)
+            in = neg[k].nin == neg[i].nin && cv_within(neg[i].b, neg[k].b);
         if (!in) neg[kept++] = neg[i];
     }
-    /* Each impure positive: the cuts that remove the most of its outside points, until
+    /* Each impure positive: the cuts that remove the most of its outside points (ties:
+     * the fewest of its inside points, which other terms must then give back), until
      * no more of them are left than the pass lets a box keep (C->sliver per inside
      * point: the GA's slivers a cut of fitted faces cannot take). */
     size_t ok = 0;
@@ -1988,12 +2005,16 @@ static long cv_terms(cover *C, cv_term **pt, cv_neg **pn)
             for (size_t w = 0; w < C->nw; w++) C->bits[w] &= C->out[w];
             int nc = 0;
             size_t keep = (size_t)(C->sliver * (double)t[i].nin);
+            cv_set(C, t[i].p, C->tmp);
+            for (size_t w = 0; w < C->nw; w++) C->pin[w] = C->tmp[w] & C->in[w];
             while (nc < COVER_MAX_CUTS && cv_count(C, C->bits, C->bits) > keep) {
-                size_t best = 0, bi = 0;
+                size_t best = 0, bi = 0, lost = 0;
                 for (size_t k = 0; k < kept; k++) {
                     cv_set(C, neg[k].b, C->tmp);
                     size_t g = cv_count(C, C->tmp, C->bits);
-                    if (g > best) best = g, bi = k;
+                    if (g < best || !g) continue;
+                    size_t l = cv_count(C, C->tmp, C->pin);
+                    if (g > best || l < lost) best = g, bi = k, lost = l;
                 }
                 if (!best) break;
                 t[i].cut[nc++] = (uint16_t)bi;
@@ -2148,6 +2169,49 @@ static int cover_group(ft *F, uint32_t i, const uint8_t *sel, const ft_check *ck
     return rc;
 }
 
+/* Intersection i = X & (U1 | ... | Un), X its other operands, written again as
+ * (X & U1) | ... | (X & Un) (min and max distribute exactly), X then dropped from each
+ * term where the model keeps its solid (ft_keeps): an operand the GA put at the root
+ * for one part (a face of one cube of a stack, a no-op elsewhere) goes to that part,
+ * where the cover can read it.  The union taken is the first whose rewrite keeps X in
+ * exactly one term (X written once; where X is needed by no term, it is kept as it
+ * is).  Returns 1 when node i was rewritten, 0 when not. */
+static int ft_distribute(ft *F, uint32_t i, const ft_check *ck)
+{
+    if (F->v[i].kind != FT_AND || F->v[i].n < 2) return 0;
+    for (uint32_t o = 0; o < F->v[i].n && !F->failed && !ft_cancelled(ck); o++) {
+        ft_term ot = F->v[i].t[o];
+        if (ot.neg || F->v[ot.node].kind != FT_OR || F->v[ot.node].n < 2) continue;
+        uint32_t u = ft_new(F, FT_OR), nu = F->v[ot.node].n;
+        for (uint32_t k = 0; k < nu && u != FT_NONE; k++) {
+            uint32_t a = ft_new(F, FT_AND);
+            for (uint32_t m = 0; m < F->v[i].n && a != FT_NONE; m++)
+                if (m != o) ft_add(F, a, F->v[i].t[m].node, F->v[i].t[m].neg);
+            ft_term uk = F->v[ot.node].t[k];
+            ft_add(F, a, uk.node, uk.neg);
+            ft_add(F, u, a, 0);
+        }
+        if (F->failed) return 0;
+        ft_node saved = F->v[i];
+        F->v[i] = F->v[u];
+        F->v[u] = saved;   /* the intersection, unreachable until put back */
+        uint32_t kept = 0;
+        for (uint32_t k = 0; k < nu && kept <= 1; k++) {
+            ft_term a = F->v[i].t[k];
+            F->v[i].t[k] = F->v[ot.node].t[k];
+            if (!ft_keeps(F, ck)) {
+                F->v[i].t[k] = a;
+                kept++;
+            }
+        }
+        if (kept == 1) return 1;
+        saved = F->v[i];
+        F->v[i] = F->v[u];
+        F->v[u] = saved;
+    }
+    return 0;
+}
+
 /* The cover of every subtree of planes, largest first; in an operation of planes and
  * other solids (a box stack minus a bore), of its operands of planes grouped; in an
  * operation of planes alone that no cover writes whole (one of its solids has a face
@@ -2158,6 +2222,8 @@ static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
     if (F->v[i].kind != FT_AND && F->v[i].kind != FT_OR) return 0;
     int rc = cv_run(F, i, ck, r);
     if (rc) return rc < 0 ? -1 : 0;
+    if (ft_distribute(F, i, ck)) return apply_cover(F, i, ck, r);
+    if (F->failed) return -1;
     uint32_t n = F->v[i].n;
     for (uint32_t k = 0; k < n; k++)
         if (apply_cover(F, F->v[i].t[k].node, ck, r)) return -1;

@@ -115,6 +115,17 @@ void canon_write_comment(FILE *f, const canon_prim *c);
  * greedy cover's rounds, each over every candidate term). */
 #define COVER_MAX_CUTS 2
 #define COVER_MAX_TERMS 24
+/* Candidate cuts a box's are chosen from: the best ranked (the impure boxes' outside
+ * points they hold, less inside points), the others not tried (work bound: each
+ * impure box tries each candidate for each of its cuts). */
+#define COVER_MAX_NEG 256
+/* Cloud points the cover labels (moved in and out along their normals): at most this
+ * many, evenly spread over the cloud (canon_spread), the same on every run. */
+#define COVER_CLOUD_POINTS 2048
+
+/* The k-th (k < m = min(n, most)) of m indices evenly spread over 0..n-1: floor(k n / m),
+ * so that a cloud of n points gives exactly m of them, the first one 0. */
+size_t canon_spread(size_t k, size_t n, size_t most);
 
 int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const canon_prim *c,
                      size_t nprims, const frep_cloud *cloud, int exact, int hyperfun,

@@ -2120,6 +2120,89 @@ static void test_cover_cut_term_limits(void)
     }
 }
 
+/* The cloud points the cover labels (COVER_CLOUD_POINTS, canon_spread): every point
+ * of a cloud up to the limit, exactly the limit of a larger one (2,049 to 4,095 points
+ * included, which a stride of n / limit used in full), evenly spread: increasing,
+ * from 0, gaps differing by at most one. */
+static void test_cover_cloud_points(void)
+{
+    static const size_t ns[] = { 1, 7, COVER_CLOUD_POINTS - 1, COVER_CLOUD_POINTS,
+                                 COVER_CLOUD_POINTS + 1, 3000, 2 * COVER_CLOUD_POINTS - 1,
+                                 2 * COVER_CLOUD_POINTS, 17757, 1000003 };
+    for (size_t c = 0; c < sizeof ns / sizeof ns[0]; c++) {
+        size_t n = ns[c], m = n < COVER_CLOUD_POINTS ? n : COVER_CLOUD_POINTS, used = 0;
+        size_t gmin = SIZE_MAX, gmax = 0, prev = 0;
+        int okk = canon_spread(0, n, COVER_CLOUD_POINTS) == 0;
+        for (size_t k = 0; k < m; k++) {
+            size_t i = canon_spread(k, n, COVER_CLOUD_POINTS);
+            if (i >= n || (k && i <= prev)) okk = 0;
+            if (k) {
+                gmin = i - prev < gmin ? i - prev : gmin;
+                gmax = i - prev > gmax ? i - prev : gmax;
+            }
+            prev = i;
+            used++;
+        }
+        size_t last = n - 1 - prev;   /* the gap from the last index used to the end */
+        ok(okk && used == (n < COVER_CLOUD_POINTS ? n : (size_t)COVER_CLOUD_POINTS) &&
+               (m < 2 || (gmax - gmin <= 1 && last < gmax + 1)),
+           "cover cloud points: %zu of a cloud of %zu, evenly spread (gaps %zu..%zu)", used, n,
+           m < 2 ? (size_t)0 : gmin, m < 2 ? (size_t)0 : gmax);
+    }
+}
+
+/* The cover's cut candidates (COVER_MAX_NEG, canon.h), with a far plane that leaves the
+ * solid as it is, so that a cover of the whole (which drops it: fewer solids) shows
+ * from the written count.  Under the limit: the cube less a turned corner (few
+ * candidates) is covered whole, "2 solids: 2 boxes".  At it: the same and, in the
+ * corner's free cut beyond it, a hollow box (walls of pure boxes, so that thousands of
+ * boxes through them are candidate cuts) whose small cavity's cut ranks past the
+ * limit: the whole is no cover, each part is covered alone and the far plane stays,
+ * "5 solids: 4 boxes ... 1 half-space" (with a limit of 4096 its cut, the 329th, is
+ * kept and the whole is covered: 4 boxes).  The same solid every time. */
+static void test_cover_neg_limit(void)
+{
+    static char tree[2][256], want[2][96], name[2][48];
+    double far[3] = { 1 / sqrt(14.0), 2 / sqrt(14.0), 3 / sqrt(14.0) };
+    for (int pass = 0; pass < 2; pass++) {
+        cover_case cc;
+        memset(&cc, 0, sizeof cc);
+        for (int j = 0; j < 6; j++) {
+            cc.n[j][j / 2] = j % 2 ? 1 : -1;
+            cc.d[j] = j % 2 ? 2 : 0;
+        }
+        static const int at[3] = { 2, 2, 2 };
+        static const double turn[3] = { 10, 20, 30 };
+        char *t = turned_corner(&cc, 6, at, turn, tree[pass] + sprintf(tree[pass], "12&3&4&5&6&"));
+        int j = 9;
+        if (pass) {
+            /* the hollow box [2.3, 3.4] x [1.5, 3.4]^2, its cavity 0.2 x 0.44 x 0.44 */
+            double lo[3] = { 2.3, 1.5, 1.5 }, hi[3] = { 3.4, 3.4, 3.4 };
+            double clo[3] = { 2.75, 2.23, 2.23 }, chi[3] = { 2.95, 2.67, 2.67 };
+            for (int b = 0; b < 2; b++)
+                for (int k = 0; k < 6; k++, j++) {
+                    cc.n[j][k / 2] = k % 2 ? 1 : -1;
+                    cc.d[j] = k % 2 ? (b ? chi : hi)[k / 2] : -(b ? clo : lo)[k / 2];
+                }
+            t += sprintf(t, "ab&c&d&e&f&gh&i&j&k&l&\\|");
+        }
+        memcpy(cc.n[j], far, sizeof far);
+        cc.d[j] = 10 + (far[0] + far[1] + far[2]) * 1.7;
+        *t++ = prim_char(j);
+        *t++ = '&';
+        *t = 0;
+        cc.np = j + 1;
+        snprintf(name[pass], sizeof name[pass], pass ? "cut candidates past COVER_MAX_NEG"
+                                                     : "cut candidates under COVER_MAX_NEG");
+        if (pass) snprintf(want[pass], sizeof want[pass], COVER_COUNT_LINE, 5, 4, 1, "");
+        else snprintf(want[pass], sizeof want[pass], COVER_COUNT_LINE, 2, 2, 0, "s");
+        cc.name = name[pass];
+        cc.tree = tree[pass];
+        cc.want = want[pass];
+        test_box_cover_case(&cc);
+    }
+}
+
 int main(void)
 {
     test_tree_ops();
@@ -2147,5 +2230,7 @@ int main(void)
     test_box_cover();
     test_cover_limits();
     test_cover_cut_term_limits();
+    test_cover_neg_limit();
+    test_cover_cloud_points();
     return done_testing();
 }
