@@ -2268,6 +2268,13 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
     frep_error_init(err);
     run r;
     if (run_alloc(&r, c, cfg, res, err)) goto fail;
+    /* A stop during normal estimation skips the octree and the subsets (a second of a
+     * loaded processor on 50,000 points): no shape, every point unassigned. */
+    if (frep_cancelled(cfg->interrupt)) {
+        res->interrupted = 1;
+        run_free(&r);
+        return 0;
+    }
     rng_seed(&r.rng, cfg->seed);
     if (build_octree(&r.d)) goto oom;
     build_subsets(&r.d, &r.rng);

@@ -10,6 +10,7 @@
 
 #include "alloc.h"
 #include "ast.h"
+#include "cancel.h"
 #include "file.h"
 #include "fitfile.h"
 #include "kdtree.h"
@@ -320,10 +321,15 @@ static int scaled_defaults(const frep_cloud *c, const segment_config *cfg, doubl
                            segment_result *res, frep_error *err)
 {
     res->diagonal = diag;
+    /* Stopped already (--max-time or Ctrl-C during normal estimation): detection will
+     * not run, so the noise and the spacing are not measured (two neighbour searches
+     * over the cloud, each a fraction of a second past the deadline); the settings
+     * reported are the diagonal's defaults. */
+    int stopped = frep_cancelled(cfg->interrupt);
     if (cfg->epsilon > 0) {
         res->epsilon = cfg->epsilon;
     } else {
-        if (noise_sigma(c, &res->noise)) return frep_error_nomem(err);
+        if (!stopped && noise_sigma(c, &res->noise)) return frep_error_nomem(err);
         res->epsilon = fmin(SEGMENT_DEFAULT_EPSILON * diag,
                             fmax(SEGMENT_DEFAULT_EPSILON_MIN * diag,
                                  SEGMENT_EPSILON_SIGMAS * res->noise));
@@ -332,7 +338,8 @@ static int scaled_defaults(const frep_cloud *c, const segment_config *cfg, doubl
         res->cluster = cfg->cluster;
     } else {
         double sp;
-        if (median_spacing(c, &sp)) return frep_error_nomem(err);
+        sp = 0;
+        if (!stopped && median_spacing(c, &sp)) return frep_error_nomem(err);
         res->cluster = fmax(SEGMENT_DEFAULT_CLUSTER * diag, SEGMENT_CLUSTER_SPACINGS * sp);
     }
     res->normal_deg = cfg->normal_deg > 0 ? cfg->normal_deg : SEGMENT_DEFAULT_NORMAL_DEG;

@@ -50,4 +50,19 @@ done
 [ -f "$tmp/out.fit" ]
 report $? "segment: the primitives found so far are written"
 
+# A deadline inside the GA (10,000 points with their normals: segmentation takes a
+# fraction of T; one GA without partitioning or stagnation stop never ends by itself):
+# the best tree so far is written as a model, within the same allowance.
+"$FREP" sample "$M/segment_box.hf" -n 10000 --seed 1 --noise 0.005 -o "$tmp/n.xyz" -q || exit 1
+t0=$(now)
+"$FREP" evolve "$tmp/n.xyz" --seed 1 -o "$tmp/ga.hf" --max-time $T --generations 1000000 \
+    --stagnation 0 --no-partition >/dev/null 2>"$tmp/err"
+st=$?
+t1=$(now)
+wall=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.2f", b - a }')
+awk -v w="$wall" -v t=$T -v s=$SLACK 'BEGIN { exit !(w <= 1.1 * t + s) }'
+report $? "evolve, deadline in the GA, --max-time $T: $wall s wall <= 1.1 T + $SLACK s"
+[ $st = 0 ] && grep -q -- "--max-time $T s reached during" "$tmp/err" && grep -q "^evolved(x\[3\]" "$tmp/ga.hf"
+report $? "evolve: the best tree so far written (exit $st): $(grep -- '--max-time' "$tmp/err" | head -n 1)"
+
 tap_done
