@@ -748,8 +748,8 @@ static size_t brute_pairs(const frep_mesh *m)
 static void test_self_intersections(void)
 {
     static const struct {
-        double cv[18];
-        uint32_t ct[6];
+        double v[18];
+        uint32_t t[6];
         int want;
         const char *what;
     } cases[] = {
