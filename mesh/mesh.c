@@ -43,16 +43,15 @@
 /* QEF eigenvalues below this fraction of the largest are dropped (truncated
  * pseudo-inverse): near-parallel normals must not throw the vertex out of its cell. */
 #define MESH_QEF_CUTOFF 0.05
-/* A feature solution of the QEF (rank 2 or 3) in its cell, or at most this fraction
- * of a cell outside it in a cell with a corner exactly on the level, is clamped into
- * the cell rather than given up for a lower rank: a part's edge or corner on a grid
- * plane is on the faces of the cells around it, where rounding puts it on either
- * side, and the lower rank's mass point was up to 3/4 cell off the surface
- * (tests/models/sharp/near.hf at -g 32, examples/bracket.hf at -g 26 and 104, where
- * x = 1 is a grid plane within rounding).  The cell is half-open, [lo, hi), so that
- * a crease exactly on a face is kept by one of the two cells, not by both a hair's
- * breadth apart.  Off for the sampler's mesh (mesh_options.no_projection), whose
- * feature solutions stay MESH_CLAMP inside. */
+/* A corner solution of the QEF (rank 3) at most this fraction of a cell outside its
+ * cell, in a cell with a corner exactly on the level, is clamped into the cell rather
+ * than given up for a lower rank: a part's corner whose faces lie on grid planes is on
+ * the faces of the cells around it, where rounding puts it on either side, and the
+ * lower rank's mass point was up to 3/4 cell off the surface (tests/models/sharp/near.hf
+ * at -g 32).  Edge solutions (rank 2) are not: clamped the same way, two cells'
+ * vertices met on their common face and folded triangles over each other
+ * (tests/models/segment_box.hf at -g 64, -b 1.2).  Off for the sampler's mesh
+ * (mesh_options.no_projection), which stays as before. */
 #define MESH_QEF_REACH 0.05
 /* Vertices stay this fraction of a cell inside their cell, so that vertices of
  * different cells never coincide (no zero-area triangles). */
@@ -207,8 +206,8 @@ void mesh_cell_table_build(cell_table *t)
  * off-diagonal sum below 1e-30 is far below rounding; 24 sweeps bound the loop. */
 static const linalg_jacobi_stop qef_stop = {24, 1e-30, 0, 1e-300};
 
-/* Minimize sum (n_i . (x - p_i))^2 near the mass point, inside [lo, hi] (an edge or
- * corner solution up to reach cells outside is clamped in, see MESH_QEF_REACH). Returns the
+/* Minimize sum (n_i . (x - p_i))^2 near the mass point, inside [lo, hi] (a corner
+ * solution up to reach cells outside is clamped in, see MESH_QEF_REACH). Returns the
  * rank used: 1 on a flat patch, 2 on an edge, 3 at a corner (0: the mass point). */
 static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
                       const double lo[3], const double hi[3], double reach, double out[3])
@@ -281,8 +280,8 @@ static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
         }
         int inside = 1;
         for (int c = 0; c < 3; c++)
-            if (!(rank >= 2 ? x[c] >= lo_in[c] && x[c] < hi_in[c]
-                            : x[c] >= lo[c] + slack[c] && x[c] <= hi[c] - slack[c]))
+            if (!(x[c] >= (rank == 3 ? lo_in[c] : lo[c]) + slack[c] &&
+                  x[c] <= (rank == 3 ? hi_in[c] : hi[c]) - slack[c]))
                 inside = 0;
         if (inside || rank == 0) {
             for (int c = 0; c < 3; c++)
@@ -872,9 +871,7 @@ static void component_vertex(block_ctx *c, int cf, int cyc, const int L[3],
     if (np == 0) {
         for (int k = 0; k < 3; k++) x[k] = 0.5 * (lo[k] + hi[k]);
     } else {
-        /* the sampler's mesh keeps its feature solutions MESH_CLAMP inside the cell */
-        double reach = c->M->o->no_projection ? -MESH_CLAMP
-                       : cell_on_level(c, L) ? MESH_QEF_REACH : 0;
+        double reach = c->M->o->no_projection || !cell_on_level(c, L) ? 0 : MESH_QEF_REACH;
         rank = qef_solve(np, (const double(*)[3])pts, (const double(*)[3])nrm, lo, hi, reach, x);
     }
     size_t nv = c->nv++;
