@@ -191,10 +191,14 @@ typedef struct png_ctx {
     const frep_image *img;
 } png_ctx;
 
+int frep_image_write_png_stream(const frep_image *img, FILE *f)
+{
+    return png_write_rgb(f, img->rgb, img->width, img->height);
+}
+
 static int write_png(FILE *f, void *ctx)
 {
-    const frep_image *img = ((const png_ctx *)ctx)->img;
-    return png_write_rgb(f, img->rgb, img->width, img->height);
+    return frep_image_write_png_stream(((const png_ctx *)ctx)->img, f);
 }
 
 int frep_image_write_png(const frep_image *img, const char *path, frep_diag_fn diag,

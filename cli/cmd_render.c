@@ -155,6 +155,13 @@ static void stage_report(const render_cmd *c)
     printf("\n");
 }
 
+/* The picture's bytes, for cli_write_atomic (whose temporary the signal handler
+ * removes). */
+static int write_png(FILE *f, void *user)
+{
+    return frep_image_write_png_stream(user, f);
+}
+
 /* mesh -> draw (points measured) -> write -> report */
 static int render_steps(render_cmd *c)
 {
@@ -165,8 +172,7 @@ static int render_steps(render_cmd *c)
     if (rc == CLI_OK && cli_interrupted())
         rc = cli_interrupt_status("render", "stopped before drawing, nothing written");
     if (rc == CLI_OK) rc = stage_draw(c);
-    if (rc == CLI_OK && frep_image_write_png(c->img, c->out, render_diag, NULL) != 0)
-        rc = CLI_FAIL;
+    if (rc == CLI_OK && cli_write_atomic(c->out, write_png, c->img) != 0) rc = CLI_FAIL;
     if (rc == CLI_OK && !c->quiet) stage_report(c);
     return rc;
 }

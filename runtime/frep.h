@@ -891,6 +891,10 @@ const uint8_t *frep_image_pixels(const frep_image *img, int *width, int *height)
 /* Write as PNG. Returns 0 or -1. */
 int frep_image_write_png(const frep_image *img, const char *path, frep_diag_fn diag,
                          void *user);
+/* Write img as PNG to the open stream f, as frep_image_write_png() writes a file, for
+ * callers that write atomically themselves.  Returns 0, or -1 on a write error (errno
+ * says why; nothing is reported). */
+int frep_image_write_png_stream(const frep_image *img, FILE *f);
 
 /* ---- a cloud against a surface (frep view, frep render) ---- */
 

@@ -940,6 +940,11 @@ static void test_render(const char *frep, const char *srcdir)
     ok(rc == 0 && img && frep_image_write_png(img, tmp("api0.png"), collect, &s) == 0 &&
            same_file(tmp("cli0.png"), tmp("api0.png")),
        "frep render -g 32 --size 96x64 --view top: the same PNG bytes");
+    FILE *pf = fopen(tmp("api0s.png"), "wb");
+    int wrc = pf && img ? frep_image_write_png_stream(img, pf) : -1;
+    if (pf && fclose(pf) != 0) wrc = -1;
+    ok(wrc == 0 && same_file(tmp("api0.png"), tmp("api0s.png")),
+       "frep_image_write_png_stream: the bytes frep_image_write_png writes");
     frep_image_free(img);
 
     /* with the cloud, measured against the model */
