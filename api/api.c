@@ -7,6 +7,7 @@
 
 #include <errno.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "alloc.h"
@@ -64,7 +65,13 @@ int api_write_atomic(const api_diag *d, const char *path, int (*fn)(FILE *f, voi
         frep_error_set(&e, FREP_EIO, "cannot write to standard output: %s", strerror(errno));
         return api_fail(d, &e);
     }
-    char *tmp = frep_strdupf("%s.tmp%ld", path, (long)getpid());
+    /* An existing output that is no regular file (a device such as /dev/null, a FIFO)
+     * is written in place: a temporary renamed over it would replace the device or the
+     * pipe with a plain file. */
+    struct stat st;
+    int in_place = stat(path, &st) == 0 && !S_ISREG(st.st_mode);
+    char *tmp = in_place ? frep_strdupf("%s", path)
+                         : frep_strdupf("%s.tmp%ld", path, (long)getpid());
     if (!tmp) return api_fail(d, &e);
     FILE *f = fopen(tmp, "wb");
     if (!f) {
@@ -76,9 +83,9 @@ int api_write_atomic(const api_diag *d, const char *path, int (*fn)(FILE *f, voi
     int saved = errno;
     if (fflush(f) != 0 || ferror(f)) rc = -1, saved = errno;
     if (fclose(f) != 0) rc = -1, saved = errno;
-    if (rc == 0 && rename(tmp, path) != 0) rc = -1, saved = errno;
+    if (rc == 0 && !in_place && rename(tmp, path) != 0) rc = -1, saved = errno;
     if (rc != 0) {
-        remove(tmp);
+        if (!in_place) remove(tmp);
         frep_error_set(&e, FREP_EIO, "cannot write %s: %s", path,
                        saved ? strerror(saved) : "write error");
     }

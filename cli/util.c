@@ -11,6 +11,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <sys/time.h>
 #include <time.h>
 #include <unistd.h>
@@ -238,6 +239,11 @@ int cli_write_atomic(const char *path, int (*fn)(FILE *f, void *user), void *use
         if (r != -2) write_failed("standard output", err);
         return -1;
     }
+    /* An existing output that is no regular file (a device such as /dev/null, a FIFO)
+     * is written in place: a temporary renamed over it would replace the device or the
+     * pipe with a plain file. */
+    struct stat st;
+    int in_place = stat(path, &st) == 0 && !S_ISREG(st.st_mode);
     size_t n = strlen(path);
     if (n + 32 > sizeof cli_tmp_path) {
         fprintf(stderr, "frep: cannot write %s: the name is too long\n", path);
@@ -245,10 +251,11 @@ int cli_write_atomic(const char *path, int (*fn)(FILE *f, void *user), void *use
     }
     char *tmp = malloc(n + 32);
     if (!tmp) return -1;
-    snprintf(tmp, n + 32, "%s.tmp%ld", path, (long)getpid());
+    if (in_place) memcpy(tmp, path, n + 1);
+    else snprintf(tmp, n + 32, "%s.tmp%ld", path, (long)getpid());
     /* published to the signal handler before the file exists */
     memcpy(cli_tmp_path, tmp, strlen(tmp) + 1);
-    cli_tmp_live = 1;
+    cli_tmp_live = !in_place;
     FILE *f = fopen(tmp, "wb");
     if (!f) {
         cli_tmp_live = 0;
@@ -267,11 +274,11 @@ int cli_write_atomic(const char *path, int (*fn)(FILE *f, void *user), void *use
         if (r == 0) err = errno;
         r = r ? r : -1;
     }
-    if (r == 0 && rename(tmp, path) != 0) {
+    if (r == 0 && !in_place && rename(tmp, path) != 0) {
         write_failed(path, errno);
         r = -2;
     }
-    if (r != 0) remove(tmp);
+    if (r != 0 && !in_place) remove(tmp);
     cli_tmp_live = 0;
     if (r == -1) write_failed(path, err);
     free(tmp);

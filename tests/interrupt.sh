@@ -415,6 +415,37 @@ else
         echo "ok $((n = n + 1)) # SKIP $d: no writable /dev/full"
     done
 fi
+# An output that is no regular file is written in place: a temporary renamed over it
+# replaced /dev/full (as root) or a FIFO with a plain file.  -o /dev/full fails with the
+# reason and leaves the device a device; -o FIFO sends the data through the pipe.
+dev_full() { # dev_full SUB ARGS...: frep SUB ARGS... -o /dev/full
+    "$FREP" "$@" -o /dev/full 2>"$tmp/ferr"
+    fs=$?
+    [ $fs != 0 ] && grep -q 'No space left on device' "$tmp/ferr" && [ -c /dev/full ]
+    report $? "frep $1 -o /dev/full: exit $fs, the reason, /dev/full still a device"
+}
+if [ -c /dev/full ] && [ -w /dev/full ]; then
+    dev_full sample "$EX/sphere.hf" -n 100 -q
+    dev_full render "$EX/sphere.hf" -g 16 --size 64x48 -q
+    dev_full normals "$tmp/small.xyz" -q
+else
+    for d in sample render normals; do
+        echo "ok $((n = n + 1)) # SKIP $d -o /dev/full: no writable /dev/full"
+    done
+fi
+if mkfifo "$tmp/pipe" 2>/dev/null; then
+    timeout 60 cat "$tmp/pipe" >"$tmp/piped" &
+    rd=$!
+    "$FREP" sample "$EX/sphere.hf" -n 100 --seed 1 -q -o "$tmp/pipe"
+    fs=$?
+    wait $rd
+    "$FREP" sample "$EX/sphere.hf" -n 100 --seed 1 -q -o "$tmp/direct.xyz" &&
+        [ $fs = 0 ] && [ -p "$tmp/pipe" ] && cmp -s "$tmp/piped" "$tmp/direct.xyz"
+    report $? "frep sample -o FIFO: the points through the pipe, the FIFO kept"
+    rm -f "$tmp/pipe"
+else
+    echo "ok $((n = n + 1)) # SKIP sample -o FIFO: no mkfifo"
+fi
 echo 'kept' >"$tmp/big.stl"
 (
     trap '' XFSZ
