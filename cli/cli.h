@@ -269,6 +269,9 @@ int cli_work_check(const char *sub, const char *path, const frep_program *p);
  * signal. fn returns 0 on success. "-" is standard output. A failure is reported as
  * "frep: cannot write PATH: reason" (errno's, e.g. "No space left on device"). */
 int cli_write_atomic(const char *path, int (*fn)(FILE *f, void *user), void *user);
+/* A cloud written atomically to PATH ("-": standard output) in the format its name
+ * says (.ply binary PLY, else .xyz text): cli_write_atomic over frep_cloud_write_stream. */
+int cli_write_cloud(const char *path, const frep_cloud *c);
 
 /* Usage error: prints "frep SUB: message" and a hint to --help; returns CLI_USAGE. */
 int cli_usage_error(const char *sub, const char *fmt, ...)

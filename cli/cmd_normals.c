@@ -100,20 +100,8 @@ static const cli_opt normals_opts[] = {
 static const cli_opt_spec normals_spec = { "normals", normals_usage, normals_opts,
                                            sizeof normals_opts / sizeof normals_opts[0], 24 };
 
-/* read -> check -> estimate (Ctrl-C: nothing written) -> write -> summary */
-/* The cloud with its new normals, for cli_write_atomic (whose temporary the signal
- * handler removes); PLY or .xyz by the output's name. */
-typedef struct cloud_out {
-    const frep_cloud *c;
-    const char *name;
-} cloud_out;
-
-static int write_cloud(FILE *f, void *user)
-{
-    const cloud_out *o = user;
-    return frep_cloud_write_stream(o->c, f, o->name);
-}
-
+/* read -> check -> estimate (Ctrl-C: nothing written) -> write (cli_write_cloud, whose
+ * temporary the signal handler removes; PLY or .xyz by the output's name) -> summary */
 static int normals_steps(normals_cmd *n, frep_cloud **cp)
 {
     sub_name sn = { "normals" };
@@ -128,8 +116,7 @@ static int normals_steps(normals_cmd *n, frep_cloud **cp)
     double dt = cli_now_seconds() - t0;
     if (rc < 0) return CLI_FAIL;
     if (rc > 0) return cli_interrupt_status("normals", "nothing written");
-    cloud_out co = { c, n->out };
-    if (cli_write_atomic(n->out, write_cloud, &co)) return CLI_FAIL;
+    if (cli_write_cloud(n->out, c)) return CLI_FAIL;
     if (!n->quiet)
         fprintf(stderr, "frep normals: %zu points, spacing %.4g, noise %.4g, %zu neighbours%s, "
                         "%zu connected part%s (%zu turned outward), %.2f s\n",

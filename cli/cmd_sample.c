@@ -144,12 +144,6 @@ static int stage_sample_model(sample_cmd *c)
     return sampled(c, &sd);
 }
 
-static int write_cloud_cb(FILE *f, void *user)
-{
-    sample_cmd *c = user;
-    return frep_cloud_write_stream(c->cl, f, c->out);
-}
-
 /* The summary line: on stderr when the cloud goes to stdout. */
 static void stage_report(const sample_cmd *c)
 {
@@ -165,7 +159,7 @@ static int sample_steps(sample_cmd *c)
 {
     c->t0 = (double)clock();
     int rc = cli_is_mesh_path(c->in) ? stage_sample_mesh(c) : stage_sample_model(c);
-    if (rc == CLI_OK) rc = cli_write_atomic(c->out, write_cloud_cb, c) == 0 ? CLI_OK : CLI_FAIL;
+    if (rc == CLI_OK) rc = cli_write_cloud(c->out, c->cl) == 0 ? CLI_OK : CLI_FAIL;
     if (rc == CLI_OK && !c->quiet) stage_report(c);
     return rc;
 }

@@ -285,6 +285,23 @@ int cli_write_atomic(const char *path, int (*fn)(FILE *f, void *user), void *use
     return r == 0 ? 0 : -1;
 }
 
+typedef struct cloud_out {
+    const frep_cloud *c;
+    const char *name;   /* the output's name: its format */
+} cloud_out;
+
+static int write_cloud(FILE *f, void *user)
+{
+    const cloud_out *o = user;
+    return frep_cloud_write_stream(o->c, f, o->name);
+}
+
+int cli_write_cloud(const char *path, const frep_cloud *c)
+{
+    cloud_out co = { c, path };
+    return cli_write_atomic(path, write_cloud, &co);
+}
+
 int cli_stdout_close(void)
 {
     errno = 0;
