@@ -33,6 +33,12 @@ static const char evolve_usage[] =
 
 /* Seconds between progress lines on a terminal. */
 #define EVOLVE_PROGRESS_INTERVAL 0.2
+/* The share of --max-time kept for the writer (rounding the numbers and forming
+ * solids, whose checks evaluate the tree at the check points: 0.03-0.4 s on 20,000-
+ * 200,000 points), at most EVOLVE_WRITE_RESERVE_MAX seconds: the run stops that much
+ * before the deadline, and the writer's checks stop at the deadline itself. */
+#define EVOLVE_WRITE_RESERVE_SHARE 0.05
+#define EVOLVE_WRITE_RESERVE_MAX 5.0
 
 /* Text in memory (a model, a drawing, the trace), for cli_write_atomic. */
 typedef struct text_out {
@@ -387,7 +393,9 @@ static int stage_evolve(evolve_cmd *e)
     o->user = e;
     if (e->trace_path) o->trace = trace_cb;
     /* --max-time bounds the whole command: the run gets what is left. */
-    if (e->max_time > 0) o->max_time = fmax(e->max_time - (cli_now_seconds() - e->t_start), 1e-3);
+    double run_time = e->max_time -
+                      fmin(EVOLVE_WRITE_RESERVE_SHARE * e->max_time, EVOLVE_WRITE_RESERVE_MAX);
+    if (e->max_time > 0) o->max_time = fmax(run_time - (cli_now_seconds() - e->t_start), 1e-3);
     o->cancel_flag = cli_sigint_catch();
     e->ev = frep_evolve(e->cloud, e->prims, o, run_diag, e);
     cli_sigint_restore();
@@ -398,7 +406,7 @@ static int stage_evolve(evolve_cmd *e)
     }
     frep_evolution_get_info(e->ev, &e->info);
     if (!e->cut && (cli_deadline_passed() ||
-                    (e->max_time > 0 && cli_now_seconds() - e->t_start >= e->max_time)))
+                    (e->max_time > 0 && cli_now_seconds() - e->t_start >= run_time)))
         e->cut = "the GA";
     if (e->info.alpha_auto && !e->quiet) report_alpha(&e->info);
     return CLI_OK;
@@ -417,14 +425,16 @@ static int stage_write(evolve_cmd *e)
      * cover whose checks evaluate the tree at every check point (seconds on such a
      * tree), so that the command ends within the promised second.  A Ctrl-C during
      * those checks (the run's cancel flag, which the writer polls) ends them: the
-     * numbers not yet checked stay as fitted, the solids not yet formed stay. */
+     * numbers not yet checked stay as fitted, the solids not yet formed stay.  The
+     * --max-time deadline ends them the same way (the run left them
+     * EVOLVE_WRITE_RESERVE_SHARE of the time). */
     int exact = e->exact || cli_interrupted();
     if (!exact && e->tty && !e->quiet) {
         fputs("\rfrep evolve: rounding the numbers and forming solids   ", stderr);
         fflush(stderr);
         e->line_open = 1;
     }
-    frep_evolution_set_cancel(e->ev, cli_signal_caught());
+    frep_evolution_set_cancel(e->ev, cli_sigint_catch());
     e->model = frep_evolution_model(e->ev, e->cmdline, e->cloud_path, exact, e->hyperfun,
                                     &e->model_len, print_diag, e);
     end_line(e);
