@@ -1,7 +1,8 @@
 #!/bin/sh
 # interrupt.sh - nothing lost, nothing hangs: Ctrl-C (SIGINT), SIGTERM and SIGHUP in
-# each phase of the long commands (segment, evolve's segmentation, GAs and
-# simplification, mesh, sample) with the latency measured from the signal to the exit; a second signal
+# each phase of the long commands (segment, evolve's segmentation, GAs, simplification,
+# merge, refit and writing, normals, mesh, render, sample, fit) with the latency
+# measured from the signal to the exit; a second signal
 # aborts at once; the temporary file of a write is removed; write errors (a full
 # disk: /dev/full, a file size limit, a full tmpfs when one can be mounted) are
 # reported with their reason; loops that used to hang end; the evaluation work budget
@@ -344,6 +345,17 @@ while :; do
 done
 [ $alive = 1 ] && [ $st = 130 ] && fast && [ "$(cat "$tmp/ev4.hf")" = kept ] && no_tmp
 report $? "evolve: a second Ctrl-C aborts at once: exit $st after $lat, output untouched (attempt $try)"
+
+# ---- normals ------------------------------------------------------------------------------
+# frep normals of the 200,000 gear points (their normals are replaced; about 2 s): a
+# partial estimate is no result, so nothing is written and the old file stays.
+echo 'kept' >"$tmp/n.xyz"
+start "$FREP" normals "$tmp/big.ply" -o "$tmp/n.xyz"
+wait_cpu 0.7
+stop INT
+[ $alive = 1 ] && [ $st = 130 ] && fast && [ "$(cat "$tmp/n.xyz")" = kept ] && no_tmp &&
+    grep -q 'frep normals: interrupted (Ctrl-C): nothing written' "$tmp/err"
+report $? "normals: Ctrl-C while estimating: exit $st after $lat, the old file kept"
 
 # ---- mesh, sample ------------------------------------------------------------------------
 echo 'kept' >"$tmp/m.stl"
