@@ -50,11 +50,12 @@ typedef struct normals_info {
  * connected part is turned so that its normals point away from the cloud's centre on
  * the whole (sum of (p - centre).n > 0: outward for a closed surface by the divergence
  * theorem).  Last, the ray-parity check: smooth patches (nearly parallel normals,
- * coplanar feet) each cast lines along their normals through the cloud taken as discs;
- * a patch whose lines cross the cloud an odd number of times on their normals' side
- * and an even number on the other (inward) is turned over, and the points outside
- * patches with a clear vote take their sign from those inside along a spanning tree
- * (geom/normals.c, vote_patches).  info may be NULL.  Returns 0; 1 when interrupted (info->interrupted, the
+ * coplanar feet) each cast lines along their normals through the cloud taken as discs
+ * (a run of hits counts as a crossing when it holds a tenth of the hits at the line's
+ * own point or more); a patch whose lines cross the cloud an odd number of times on
+ * their normals' side and an even number on the other (inward) is turned over, and
+ * the points outside patches with a clear vote take their sign from those inside
+ * along a spanning tree (geom/normals.c, vote_patches).  info may be NULL.  Returns 0; 1 when interrupted (info->interrupted, the
  * normals are then unfinished); -1 when out of memory (c keeps zero normals). */
 int normals_run(frep_cloud *c, const normals_config *cfg, normals_info *info);
 

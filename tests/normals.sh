@@ -121,27 +121,67 @@ done
 # The cup (tests/normals_cup.hf): an open box with walls 0.11 thick, the thin walls of
 # InverseCSG's nine_cuboids (its hollow cube keeps 8-10% of its normals inward at 0.5%
 # noise).  At 0.5% noise (0.014) the walls are 8 noise deviations thick and both sides
-# stay outward; at 1% (0.028, 4 deviations, as nine_cuboids' walls at 0.5%) the
-# neighbourhoods hold both walls and 14-26% of the points come out inward (seeds 1-3;
-# on nine_cuboids most wrong points lie outside the patches the ray-parity check
-# votes on, oriented along the spanning tree): a TODO until fixed.
+# stay outward.  At 1% (0.028, 4 deviations, as nine_cuboids' walls at 0.5%) 2.2% of
+# the points lie past their wall's midpoint, nearer the other sheet, where no estimate
+# from positions can give them their own sheet's normal: the share inward is counted
+# against the sheet nearest each point (cup_inward).  While the ray-parity check
+# (geom/normals.c) counted every run of hits as a crossing, the stray feet inside the
+# walls turned the votes of the inner faces and 5.5-18% came out inward (seeds 1-3), a
+# whole inner wall on seeds 1 and 3; now 5.0-5.5%, every face under 8% inward (a
+# flipped wall puts 35-40% of its face inward).
+CUP_MAX_INWARD=0.08
+CUP_MAX_FACE=0.2
+
+# cup_inward TRUTH.xyz EST.xyz: the share of EST's normals pointing away from the
+# outward normal of the cup's sheet nearest each point (the faces of tests/normals_cup.hf
+# in its own frame: the outer cube of half size 0.5 without the top's opening, the
+# cavity's four sides and floor at 0.39).
+cup_inward() {
+    paste -d ' ' "$1" "$2" | awk '
+    function clamp(v, lo, hi) { return v < lo ? lo : v > hi ? hi : v }
+    # face ax = val, outward along sg times axis ax, the other two axes in [l1, h1] x [l2, h2]
+    function face(ax, val, sg, l1, h1, l2, h2,   o1, o2, d2) {
+        o1 = ax == 0 ? 1 : 0; o2 = ax == 2 ? 1 : 2;
+        d2 = (u[ax] - val) ^ 2 + (u[o1] - clamp(u[o1], l1, h1)) ^ 2 + (u[o2] - clamp(u[o2], l2, h2)) ^ 2;
+        if (d2 < best) { best = d2; bax = ax; bsg = sg }
+    }
+    BEGIN { split("2 2 1 -2 1 2 1 -2 2", R, " "); a = 0.5; b = 0.39 }
+    {
+        for (k = 0; k < 3; k++) u[k] = (R[3 * k + 1] * $1 + R[3 * k + 2] * $2 + R[3 * k + 3] * $3) / 3;
+        best = 1e300;
+        for (k = 0; k < 3; k++) { face(k, -a, -1, -a, a, -a, a); if (k < 2) face(k, a, 1, -a, a, -a, a) }
+        face(2, a, 1, -a, a, b, a); face(2, a, 1, -a, a, -a, -b);
+        face(2, a, 1, b, a, -b, b); face(2, a, 1, -a, -b, -b, b);
+        for (k = 0; k < 2; k++) { face(k, b, -1, -b, b, -b, a); face(k, -b, 1, -b, b, -b, a) }
+        face(2, -b, 1, -b, b, -b, b);
+        dot = bsg * (R[3 * bax + 1] * $10 + R[3 * bax + 2] * $11 + R[3 * bax + 3] * $12);
+        inward += dot < 0;
+    }
+    END { printf "%.6f\n", inward / NR }'
+}
+
 for noise in 0.005 0.01; do
-    name="normals_cup, noise $noise"
-    if ! "$FREP" sample "$(model_path normals_cup)" -n $NPTS --seed 3 --noise $noise -o "$tmp/t.xyz" -q ||
-        ! awk '{ print $1, $2, $3 }' "$tmp/t.xyz" > "$tmp/p.xyz" ||
-        ! "$FREP" normals "$tmp/p.xyz" -o "$tmp/e.xyz" -q 2>"$tmp/err"; then
-        report 1 "$name: frep sample or normals: $(cat "$tmp/err")"
-        continue
-    fi
-    set -- $(measure "$tmp/t.xyz" "$tmp/e.xyz")
-    awk -v s="$2" -v w="$3" -v b="$MAX_INWARD" 'BEGIN { exit !(s < b && w < 0.5) }'
-    st=$?
-    what="$name: inward share $2 < $MAX_INWARD, worst face $3 < 0.5 (no wall flipped)"
-    if [ $noise = 0.005 ]; then
-        report $st "$what"
-    else
-        report_todo $st "$what" "walls 4 noise deviations thick (issue 13)"
-    fi
+    seeds=3
+    [ $noise = 0.01 ] && seeds="1 2 3"
+    for seed in $seeds; do
+        name="normals_cup, noise $noise, seed $seed"
+        if ! "$FREP" sample "$(model_path normals_cup)" -n $NPTS --seed $seed --noise $noise -o "$tmp/t.xyz" -q ||
+            ! awk '{ print $1, $2, $3 }' "$tmp/t.xyz" > "$tmp/p.xyz" ||
+            ! "$FREP" normals "$tmp/p.xyz" -o "$tmp/e.xyz" -q 2>"$tmp/err"; then
+            report 1 "$name: frep sample or normals: $(cat "$tmp/err")"
+            continue
+        fi
+        set -- $(measure "$tmp/t.xyz" "$tmp/e.xyz")
+        if [ $noise = 0.005 ]; then
+            awk -v s="$2" -v w="$3" -v b="$MAX_INWARD" 'BEGIN { exit !(s < b && w < 0.5) }'
+            report $? "$name: inward share $2 < $MAX_INWARD, worst face $3 < 0.5 (no wall flipped)"
+        else
+            near=$(cup_inward "$tmp/t.xyz" "$tmp/e.xyz")
+            awk -v s="$near" -v w="$3" -v b="$CUP_MAX_INWARD" -v f="$CUP_MAX_FACE" \
+                'BEGIN { exit !(s < b && w < f) }'
+            report $? "$name: inward vs the nearest sheet $near < $CUP_MAX_INWARD, worst face $3 < $CUP_MAX_FACE (no wall flipped)"
+        fi
+    done
 done
 
 # The same result at any thread count, and an explicit --knn.
