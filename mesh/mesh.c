@@ -48,11 +48,29 @@
  * than given up for a lower rank: a part's corner whose faces lie on grid planes is on
  * the faces of the cells around it, where rounding puts it on either side, and the
  * lower rank's mass point was up to 3/4 cell off the surface (tests/models/sharp/near.hf
- * at -g 32).  Edge solutions (rank 2) are not: clamped the same way, two cells'
- * vertices met on their common face and folded triangles over each other
- * (tests/models/segment_box.hf at -g 64, -b 1.2).  Off for the sampler's mesh
- * (mesh_options.no_projection), which stays as before. */
+ * at -g 32).  Off for the sampler's mesh (mesh_options.no_projection), which stays as
+ * before.  Other edge and corner solutions outside the cell are clamped only when they
+ * fit (MESH_QEF_FIT): clamped unchecked, two cells' vertices met on their common face
+ * and folded triangles over each other (tests/models/segment_box.hf at -g 64, -b 1.2). */
 #define MESH_QEF_REACH 0.05
+/* An edge or corner solution of the QEF (rank 2 or 3) outside its cell, or within
+ * MESH_CLAMP of its faces, is clamped into the cell and kept, rather than given up for
+ * a lower rank, when the crease is the cell's own: the cell's crossings do not all lie
+ * on one face of the cell, and every crossing's tangent plane passes within this
+ * fraction of a cell of the clamped point.  A sharp edge on a grid plane (within
+ * rounding: examples/bracket.hf's x = 1 at -g 26 and 104) lies on the faces of the
+ * cells beside it, and a crease just past a cell's face leaves it only a sliver of
+ * both faces; the lower rank's mass point was up to half a cell off the surface
+ * (bracket.hf had 2 to 76 vertices over 0.1 cell at -g 22, 26, 52, 78, 104, 130, 149,
+ * 154 and 156, gear.hf 8 at -g 70, near.hf 1 at -g 40), or its fan folded over its
+ * neighbours' (segment_cylinder.hf 6 self-intersecting pairs at -g 54, 134 and 142,
+ * twist.hf 8 at -g 42, segment_box.hf 4 at -g 141).  Crossings all on one face are a
+ * flat face on a grid plane: the edge their normals suggest (the gradient at a kink on
+ * the rim) is the neighbours', and kept here it moved the face vertices of a cube on
+ * grid planes onto its rim (tests/cli.sh, -g 4,4,8).  The tangent planes keep out a
+ * point the crossings of two sheets pull together (tests/models/sharp/near.hf at -g 20:
+ * a block's end on a grid plane beside a wall's edge, 0.31 cell off). */
+#define MESH_QEF_FIT 0.1
 /* Vertices stay this fraction of a cell inside their cell, so that vertices of
  * different cells never coincide (no zero-area triangles). */
 #define MESH_CLAMP 1e-4
@@ -206,11 +224,31 @@ void mesh_cell_table_build(cell_table *t)
  * off-diagonal sum below 1e-30 is far below rounding; 24 sweeps bound the loop. */
 static const linalg_jacobi_stop qef_stop = {24, 1e-30, 0, 1e-300};
 
+/* Whether every crossing's tangent plane passes within MESH_QEF_FIT of a cell of x
+ * (the distance measured on the grid scaled to unit cubes, as --check does). */
+static int qef_fits(int np, const double (*p)[3], const double (*nrm)[3], const double x[3],
+                    const double lo[3], const double hi[3])
+{
+    for (int i = 0; i < np; i++) {
+        double r = 0, s = 0;
+        for (int c = 0; c < 3; c++) {
+            double hn = nrm[i][c] * (hi[c] - lo[c]);
+            r += nrm[i][c] * (x[c] - p[i][c]);
+            s += hn * hn;
+        }
+        if (!(r * r <= MESH_QEF_FIT * MESH_QEF_FIT * s)) return 0;
+    }
+    return 1;
+}
+
 /* Minimize sum (n_i . (x - p_i))^2 near the mass point, inside [lo, hi] (a corner
- * solution up to reach cells outside is clamped in, see MESH_QEF_REACH). Returns the
- * rank used: 1 on a flat patch, 2 on an edge, 3 at a corner (0: the mass point). */
+ * solution up to reach cells outside is clamped in, see MESH_QEF_REACH; with
+ * clamp_fit, any edge or corner solution that still fits the crossings clamped, see
+ * MESH_QEF_FIT). Returns the rank used: 1 on a flat patch, 2 on an edge, 3 at a corner
+ * (0: the mass point). */
 static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
-                      const double lo[3], const double hi[3], double reach, double out[3])
+                      const double lo[3], const double hi[3], double reach, int clamp_fit,
+                      double out[3])
 {
     double m[3] = { 0, 0, 0 };
     for (int i = 0; i < np; i++)
@@ -279,13 +317,16 @@ static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
             for (int c = 0; c < 3; c++) x[c] += coef * V[c][k];
         }
         int inside = 1;
-        for (int c = 0; c < 3; c++)
+        double y[3];  /* x clamped into the cell */
+        for (int c = 0; c < 3; c++) {
             if (!(x[c] >= (rank == 3 ? lo_in[c] : lo[c]) + slack[c] &&
                   x[c] <= (rank == 3 ? hi_in[c] : hi[c]) - slack[c]))
                 inside = 0;
+            y[c] = fmin(fmax(x[c], lo[c] + slack[c]), hi[c] - slack[c]);
+        }
+        if (!inside && clamp_fit && rank >= 2) inside = qef_fits(np, p, nrm, y, lo, hi);
         if (inside || rank == 0) {
-            for (int c = 0; c < 3; c++)
-                out[c] = fmin(fmax(x[c], lo[c] + slack[c]), hi[c] - slack[c]);
+            memcpy(out, y, sizeof y);
             return rank;
         }
     }
@@ -842,6 +883,22 @@ static int cell_on_level(const block_ctx *c, const int L[3])
     return 0;
 }
 
+/* Whether all np crossings lie on one face of the cell [lo, hi] (within MESH_CLAMP of
+ * a cell): the surface in the cell is that face (see MESH_QEF_FIT). */
+static int crossings_on_face(int np, const double (*p)[3], const double lo[3], const double hi[3])
+{
+    for (int c = 0; c < 3; c++) {
+        double tol = MESH_CLAMP * (hi[c] - lo[c]);
+        int nlo = 0, nhi = 0;
+        for (int i = 0; i < np; i++) {
+            nlo += p[i][c] <= lo[c] + tol;
+            nhi += p[i][c] >= hi[c] - tol;
+        }
+        if (nlo == np || nhi == np) return 1;
+    }
+    return 0;
+}
+
 /* The vertex of component cyc of cell L (configuration cf, box [lo, hi]): the QEF
  * minimizer of the component's crossings (the cell's centre when it has none), with
  * the mean of their normals. */
@@ -872,7 +929,11 @@ static void component_vertex(block_ctx *c, int cf, int cyc, const int L[3],
         for (int k = 0; k < 3; k++) x[k] = 0.5 * (lo[k] + hi[k]);
     } else {
         double reach = c->M->o->no_projection || !cell_on_level(c, L) ? 0 : MESH_QEF_REACH;
-        rank = qef_solve(np, (const double(*)[3])pts, (const double(*)[3])nrm, lo, hi, reach, x);
+        /* the sampler's mesh keeps its feature solutions MESH_CLAMP inside the cell */
+        int clamp_fit = !c->M->o->no_projection &&
+                        !crossings_on_face(np, (const double(*)[3])pts, lo, hi);
+        rank = qef_solve(np, (const double(*)[3])pts, (const double(*)[3])nrm, lo, hi, reach,
+                         clamp_fit, x);
     }
     size_t nv = c->nv++;
     W->vrank[nv] = (uint8_t)rank;

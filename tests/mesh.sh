@@ -106,13 +106,28 @@ mesh_suite 122 "$M/segment_box.hf"
 mesh_suite 44 "$E/csg.hf"
 mesh_suite 76 "$E/blend.hf"
 mesh_suite 78 "$E/twist.hf"
-# Still open (issue 17): sharp edges on grid planes (within rounding: x = 1 at -g 26 and
-# 104 in the bracket's box), where the QEF's edge solution lies on the cell's face and
-# is given up for the mass point, half a cell off the surface: bracket.hf has 2, 5, 19
-# and 19 vertices over 0.1 cell at -g 22, 26, 52 and 104, gear.hf 8 at -g 70, near.hf 1
-# at -g 40.  Keeping such solutions fixed these but moved the face vertices of a cube
-# whose faces lie on grid planes onto its edges (tests/cli.sh, -g 4,4,8), so it was
-# taken back.
+# Edge and corner solutions of the QEF clamped into the cell when they still fit every
+# crossing's tangent plane (mesh/mesh.c, MESH_QEF_FIT).  Sharp edges on grid planes
+# (within rounding: x = 1 at -g 26 and 104 in the bracket's box) lie on the cells'
+# faces, and their vertices fell back to the mass point, half a cell off the surface:
+# bracket.hf had 2, 5, 19, 19, 11 and 2 vertices over 0.1 cell at -g 22, 26, 52, 104,
+# 130 and 149, gear.hf 8 at -g 70, near.hf 1 at -g 40.  Creases just past a cell's
+# face: the mass point's fan folded, segment_cylinder.hf had 6 self-intersecting pairs
+# at -g 54, twist.hf 8 at -g 42, segment_box.hf 4 at -g 141.  near.hf at -g 20 is the
+# tangent-plane test: clamped without it, a block's end on a grid plane beside a wall's
+# edge left a vertex 0.31 cell off.
+mesh_suite 22 "$E/bracket.hf"
+mesh_suite 26 "$E/bracket.hf"
+mesh_suite 52 "$E/bracket.hf"
+mesh_suite 104 "$E/bracket.hf"
+mesh_suite 130 "$E/bracket.hf"
+mesh_suite 149 "$E/bracket.hf"
+mesh_suite 70 "$E/gear.hf"
+mesh_suite 40 "$M/sharp/near.hf"
+mesh_suite 20 "$M/sharp/near.hf"
+mesh_suite 54 "$M/segment_cylinder.hf"
+mesh_suite 42 "$E/twist.hf"
+mesh_suite 141 "$M/segment_box.hf"
 # A cube whose faces lie on grid planes (every corner of a face cell on the level, where
 # the settling step moves vertices): its 8 corners stay sharp, a vertex within 1% of a
 # cell of each, and no vertex far from the surface, at several grids.
