@@ -1759,6 +1759,13 @@ static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t 
  * below SMALL_TIGHT epsilon: on clean or mildly noisy data (noise under about 0.3
  * epsilon, facetted meshes) small surfaces are found, on noisy data nothing is added. */
 #define SMALL_TIGHT 0.2
+/* ... or below this many noise deviations when the noise is measured and the epsilon
+ * is capped below SEGMENT_EPSILON_SIGMAS of it (0.5% noise on a part: epsilon 2.5
+ * deviations, so 0.2 epsilon is 0.5 of one, under the 0.67 that the median distance
+ * of a true surface's noisy points has, and the noise measured by segment.c's 16-point
+ * fits is about 0.75 of the true one): the caps of the corner spheres of a frame at
+ * 0.5% noise, what the rails leave of them, fit their points within 1.1-1.4 of it. */
+#define SMALL_TIGHT_SIGMAS 1.5
 /* ... and when the patch is at least SMALL_WIDTH epsilon wide (the width of a uniform
  * strip with the patch's second principal variance, sqrt(12 var)): what is left along
  * a sharp edge once both faces are extracted (where estimated normals turn from one
@@ -1828,6 +1835,7 @@ typedef struct run {
     size_t min_pts;       /* smallest support of the current phase */
     size_t small_pts;     /* smallest support of the second phase */
     int phase;            /* 0: shapes of min_points; 1: small shapes */
+    size_t first_small;   /* index in res->prims of the first small shape */
     size_t draws_since;   /* minimal samples drawn since the last extraction */
     double log_fail;      /* log(1 - probability): the acceptance threshold */
 } run;
@@ -1999,6 +2007,7 @@ static int next_phase(run *r)
 {
     if (r->phase != 0 || r->small_pts >= r->min_pts) return 0;
     r->phase = 1;
+    r->first_small = r->res->nprims;
     r->min_pts = r->small_pts;
     r->draws_since = 0;
     /* Candidates whose patch was too small were kept scored zero (so as not to be
@@ -2133,18 +2142,148 @@ static int accepted(const run *r, const cand *b)
     return b->est >= (double)r->min_pts && (double)r->draws_since * log1p(-pd) < r->log_fail;
 }
 
+/* The sphere q from the normals of its m points idx: the centre nearest (least
+ * squares) to the lines through the points along their normals, the radius the mean
+ * distance to it.  A cap of a few tens of degrees leaves the centre and the radius of a
+ * fit on positions free to trade along the cap's axis; the normals fix the centre.
+ * Returns 0, 1 when degenerate. */
+static int sphere_from_normals(prim *q, const frep_cloud *c, const uint32_t *idx, size_t m)
+{
+    double A[3][3] = {{0}}, b[3] = {0}, ctr[3];
+    for (size_t e = 0; e < m; e++) {
+        double p[3], n[3];
+        point(c, idx[e], p);
+        normal(c, idx[e], n);
+        for (int a = 0; a < 3; a++)
+            for (int k = 0; k < 3; k++) {
+                double pr = (a == k) - n[a] * n[k];
+                A[a][k] += pr;
+                b[a] += pr * p[k];
+            }
+    }
+    if (solve3(A, b, ctr)) return 1;
+    double sr = 0;
+    for (size_t e = 0; e < m; e++) {
+        double p[3];
+        point(c, idx[e], p);
+        sr += sqrt((p[0] - ctr[0]) * (p[0] - ctr[0]) + (p[1] - ctr[1]) * (p[1] - ctr[1]) +
+                   (p[2] - ctr[2]) * (p[2] - ctr[2]));
+    }
+    memcpy(q->p, ctr, sizeof ctr);
+    q->r = sr / (double)m;
+    return !(q->r > 0);
+}
+
 /* Is small shape q (second phase) with its m inliers tight (see SMALL_TIGHT and the
  * limits after it)? Out of memory: no (r->d.nomem set). */
 static int tight_small_shape(run *r, const prim *q, size_t m)
 {
     double eps = r->d.cfg->epsilon, med, dev;
+    double tight = fmax(SMALL_TIGHT * eps, fmin(SMALL_TIGHT_SIGMAS * r->d.cfg->noise, 0.5 * eps));
     const frep_cloud *c = r->d.c;
     return !(q->type == PRIM_CONE || q->type == PRIM_TORUS ||
              (q->type != PRIM_PLANE && !(q->r >= SMALL_RADIUS * eps)) ||
-             median_abs(&r->d, q, r->inl, m, &med) || !(med <= SMALL_TIGHT * eps) ||
+             median_abs(&r->d, q, r->inl, m, &med) || !(med <= tight) ||
              median_over(&r->d, q, r->inl, m, normal_angle, &dev) ||
              !(dev <= SMALL_NORMAL_DEG * FREP_PI / 180.0) ||
              !(patch_width(c, r->inl, m) >= SMALL_WIDTH * eps));
+}
+
+/* ---- Small spheres take back their points -----------------------------------------
+ * A small sphere of the second phase was fitted to what the large shapes left: the
+ * corner sphere of a frame whose rails, infinite cylinders in the extraction, took every
+ * point of the sphere within epsilon and the normal threshold of their surface, leaving
+ * a cap a third of its size, whose fit on positions trades centre for radius along the
+ * cap's axis (radius 0.58-0.91 for a true 0.714 at 0.5% noise).  Each such sphere is
+ * refitted from its points' normals, then takes the points near it that it explains
+ * better than their curved primitive does, in distance and in normal (a plane's points
+ * stay: a sphere grown by the noise reaches past a face it touches), or that nothing
+ * explains, and is refitted from the normals of them all, a few times: the four
+ * spheres of that frame come out with radii 0.688-0.716 and centres within 0.05. */
+#define RECLAIM_PASSES 3
+/* Reach around the shape's inliers (in its radii) where points are considered. */
+#define RECLAIM_REACH 1.0
+/* A refit is kept when its radius stays within this factor of the previous one. */
+#define RECLAIM_RADIUS_FACTOR 1.5
+
+/* |f| / |grad f| of q at point i (infinite where the gradient vanishes). */
+static double distance_to(const prim *q, const frep_cloud *c, size_t i)
+{
+    double p[3], g[3];
+    point(c, i, p);
+    double f = prim_eval(q, p, g), gl = vec3_len(g);
+    return gl > 0 ? fabs(f) / gl : INFINITY;
+}
+
+static void reclaim_one(run *r, size_t j)
+{
+    det *d = &r->d;
+    ransac_result *res = r->res;
+    const frep_cloud *c = d->c;
+    double eps = d->cfg->epsilon, cosn = d->cfg->cos_normal;
+    for (int pass = 0; pass < RECLAIM_PASSES; pass++) {
+        prim *q = &res->prims[j];
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        size_t own = 0;
+        for (size_t i = 0; i < d->n; i++)
+            if (res->label[i] == (int32_t)j) {
+                double p[3];
+                point(c, i, p);
+                for (int a = 0; a < 3; a++) {
+                    lo[a] = fmin(lo[a], p[a]);
+                    hi[a] = fmax(hi[a], p[a]);
+                }
+                own++;
+            }
+        if (own < 3) return;
+        if (pass == 0) {
+            size_t k = 0;
+            for (size_t i = 0; i < d->n; i++)
+                if (res->label[i] == (int32_t)j) r->inl[k++] = (uint32_t)i;
+            prim t = *q;
+            if (sphere_from_normals(&t, c, r->inl, k) == 0 && sane(&t, d->rmax)) *q = t;
+        }
+        double reach = RECLAIM_REACH * q->r + eps;
+        size_t m = 0;
+        for (size_t i = 0; i < d->n; i++) {
+            double p[3];
+            point(c, i, p);
+            int inside = 1;
+            for (int a = 0; a < 3; a++) inside &= p[a] >= lo[a] - reach && p[a] <= hi[a] + reach;
+            if (!inside || !compatible(q, c, i, eps, cosn)) continue;
+            int32_t l = res->label[i];
+            if (l >= 0 && l != (int32_t)j &&
+                (res->prims[l].type == PRIM_PLANE || !(distance_to(q, c, i) < distance_to(&res->prims[l], c, i)) ||
+                 !(normal_angle(q, c, i) < normal_angle(&res->prims[l], c, i))))
+                continue;
+            r->inl[m++] = (uint32_t)i;
+        }
+        prim t = *q;
+        if (m < own || sphere_from_normals(&t, c, r->inl, m) != 0 || !sane(&t, d->rmax) ||
+            !(t.r <= RECLAIM_RADIUS_FACTOR * q->r && t.r * RECLAIM_RADIUS_FACTOR >= q->r))
+            return;
+        /* The refitted shape's inliers among the considered points. */
+        size_t k = 0;
+        for (size_t e = 0; e < m; e++)
+            if (compatible(&t, c, r->inl[e], eps, cosn)) r->inl[k++] = r->inl[e];
+        for (size_t i = 0; i < d->n; i++)
+            if (res->label[i] == (int32_t)j) res->label[i] = -1;
+        for (size_t e = 0; e < k; e++) {
+            int32_t l = res->label[r->inl[e]];
+            if (l >= 0) res->prims[l].support--;
+            res->label[r->inl[e]] = (int32_t)j;
+        }
+        t.support = k;
+        t.rms = rms_of(&t, c, r->inl, k);
+        *q = t;
+    }
+}
+
+static void reclaim_small(run *r)
+{
+    ransac_result *res = r->res;
+    for (size_t j = r->first_small; j < res->nprims; j++)
+        if (res->prims[j].type == PRIM_SPHERE) reclaim_one(r, j);
 }
 
 /* Extract the accepted shape q: inliers, largest patch, refit, again with the refined
@@ -2167,6 +2306,18 @@ static size_t extract(run *r, prim *q)
         }
     }
     m = support_of(d, q, r->flag, r->inl);
+    if (r->phase == 1 && q->type == PRIM_SPHERE && m >= 3) {
+        prim t = *q;
+        if (sphere_from_normals(&t, d->c, r->inl, m) == 0 && sane(&t, d->rmax)) {
+            size_t mt = support_of(d, &t, r->flag, r->inl);
+            if (mt >= m) {
+                *q = t;
+                m = mt;
+            } else {
+                m = support_of(d, q, r->flag, r->inl);
+            }
+        }
+    }
     if (r->phase == 1 && m >= r->min_pts && !tight_small_shape(r, q, m)) m = 0;
     return m;
 }
@@ -2288,6 +2439,7 @@ int ransac_detect(const frep_cloud *c, const ransac_config *cfg, ransac_result *
         if (go < 0) goto oom;
         if (go == 0) break;
     }
+    if (!res->interrupted && r.phase == 1) reclaim_small(&r);
     if (!res->interrupted) merge_redundant(&r.d, res, r.bands, r.inl);
     if (frep_cancelled(cfg->interrupt)) res->interrupted = 1;  /* the merge cut short */
     if (r.d.nomem) goto oom;

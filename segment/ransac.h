@@ -27,6 +27,7 @@
 
 typedef struct ransac_config {
     double epsilon;       /* inlier distance (absolute units) */
+    double noise;         /* the cloud's measured noise (standard deviation; 0: unknown) */
     double cos_normal;    /* cosine of the largest normal deviation of an inlier */
     double cluster;       /* cell size of the connectivity bitmap (absolute units) */
     size_t min_points;    /* smallest support of a primitive */

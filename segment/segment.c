@@ -376,6 +376,7 @@ static void detect_config(const segment_config *cfg, const segment_result *res,
 {
     memset(rc, 0, sizeof *rc);
     rc->epsilon = res->epsilon;
+    rc->noise = res->noise;
     rc->cos_normal = cos(res->normal_deg * FREP_PI / 180.0);
     rc->cluster = res->cluster;
     rc->min_points = res->min_points;
