@@ -524,7 +524,8 @@ void canon_write_comment(FILE *f, const canon_prim *c)
         break;
     }
     if (c->polarity == 2) fputs(", removed", f);
-    if (q->separating) fputs(", separating", f);
+    if (q->constructed) fputs(", separating, constructed: a cylinder's cap at another's axis", f);
+    else if (q->separating) fputs(", separating", f);
     else if (q->support) fprintf(f, ", %zu inliers", q->support);
     if (c->sigma > 0) {
         prim_format_number(a, c->sigma, c->sigma / 10);
@@ -1386,13 +1387,80 @@ static void ft_push(ft *F, uint32_t and, const ft_check *ck)
     }
 }
 
+/* Whether operand `o` of intersection `and` is a union holding a cylinder across a
+ * pair of planes of the intersection (planes across its axis). */
+static int ft_caps_union(const ft *F, uint32_t and, uint32_t o)
+{
+    const ft_node *v = &F->v[and];
+    ft_term ot = v->t[o];
+    if (ot.neg || F->v[ot.node].kind != FT_OR) return 0;
+    const ft_node *u = &F->v[ot.node];
+    for (uint32_t k = 0; k < u->n; k++) {
+        const ft_node *lv = &F->v[u->t[k].node];
+        if (u->t[k].neg || lv->kind != FT_LEAF || lv->leaf >= F->nprims ||
+            F->q[lv->leaf].type != PRIM_CYLINDER)
+            continue;
+        int across = 0;
+        for (uint32_t m = 0; m < v->n; m++) {
+            double nn[3], d;
+            if (m != o && ft_plane(F, v->t[m], nn, &d) &&
+                fabs(vec3_dot(nn, F->q[lv->leaf].a)) >= cos(CANON_CAP_TILT))
+                across++;
+        }
+        if (across >= 2) return 1;
+    }
+    return 0;
+}
+
+/* Intersection `and` of planes and a union holding a cylinder across two of them
+ * (rails between caps, `x1 & x2 & (rail_1 | rail_2 | slab)`), distributed: the union of
+ * each operand intersected with the rest, `(rail_1 & x1 & x2) | ...`, kept when every
+ * term becomes one solid (a capped cylinder, a box).  An identity, so no check; 1 when
+ * the node is now that union. */
+static int ft_distribute_caps(ft *F, uint32_t and, const ft_check *ck)
+{
+    for (uint32_t o = 0; o < F->v[and].n && !F->failed; o++) {
+        if (!ft_caps_union(F, and, o)) continue;
+        uint32_t un = F->v[and].t[o].node, nu = F->v[un].n;
+        uint32_t u = ft_new(F, FT_OR);
+        for (uint32_t k = 0; k < nu && u != FT_NONE; k++) {
+            uint32_t a = ft_new(F, FT_AND);
+            if (a == FT_NONE) break;
+            for (uint32_t m = 0; m < F->v[and].n; m++)
+                if (m != o) ft_add(F, a, F->v[and].t[m].node, F->v[and].t[m].neg);
+            ft_term uk = F->v[un].t[k];
+            if (!uk.neg && F->v[uk.node].kind == FT_AND)
+                for (uint32_t m = 0; m < F->v[uk.node].n; m++)
+                    ft_add(F, a, F->v[uk.node].t[m].node, F->v[uk.node].t[m].neg);
+            else
+                ft_add(F, a, uk.node, uk.neg);
+            ft_add(F, u, a, 0);
+        }
+        if (F->failed) return 0;
+        ft_node saved = F->v[and];
+        F->v[and] = F->v[u];
+        F->v[u] = saved;   /* the intersection, unreachable unless put back */
+        int whole = 1;
+        for (uint32_t k = 0; k < F->v[and].n && whole && !F->failed; k++) {
+            uint32_t a = F->v[and].t[k].node;
+            ft_solids(F, a, ck);
+            whole = F->v[a].n == 1;
+        }
+        if (whole && !F->failed) return 1;
+        saved = F->v[and];
+        F->v[and] = F->v[u];
+        F->v[u] = saved;
+    }
+    return 0;
+}
+
 static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
 {
     ft_node *v = &F->v[i];
     if (v->kind != FT_AND && v->kind != FT_OR) return;
     uint32_t n = v->n;
     for (uint32_t k = 0; k < n; k++) apply_solids(F, F->v[i].t[k].node, ck);
-    if (F->v[i].kind == FT_AND) {
+    if (F->v[i].kind == FT_AND && !ft_distribute_caps(F, i, ck)) {
         ft_solids(F, i, ck);
         if (ck->cloud) ft_push(F, i, ck);
     }

@@ -578,6 +578,8 @@ typedef struct run_ctx {
     uint32_t *all;           /* all[j] = j for every leaf j <= nprims */
     double ls;               /* lambda scale: lambda = ls * ln(points) */
     gp_cache *sc;            /* the sample's cache of every primitive; NULL: no GA */
+    size_t nfull;            /* every primitive; nprims leaves out the trailing constructed
+                                planes until stage_solids */
     gp_eval *ev;
     gp_obb *boxes;           /* proxies, one per primitive */
     gp_result gr;            /* the GA's (or the merge's) best tree */
@@ -830,6 +832,171 @@ static int stage_grow_merged(run_ctx *c)
     return 0;
 }
 
+/* ---- The union of solids the constructed planes close (stage_solids) ------------- */
+
+/* Most candidate solids of the union seed (a sphere, a capped cylinder or a closed slab
+ * each), and most constructed planes they use; a pool with more offers the first ones. */
+#define EVOLVE_SOLIDS_MAX 64
+#define EVOLVE_SOLIDS_CAPS 64
+/* Planes across an axis or a slab: within this angle of perpendicular or parallel. */
+#define EVOLVE_SOLIDS_DEG 2.0
+
+/* A candidate solid: one or two fitted primitives (a slab's two faces) intersected with
+ * the constructed planes of the bits of caps (bit k: cap[k] of the solids list). */
+typedef struct solid {
+    uint32_t core[2];
+    int ncore;
+    uint64_t caps;
+} solid;
+
+typedef struct solids {
+    solid s[EVOLVE_SOLIDS_MAX];
+    int n;
+    uint32_t cap[EVOLVE_SOLIDS_CAPS];
+    int ncap;
+} solids;
+
+/* The constructed planes with |n . u| at least cos (across an axis u) or at most sin
+ * (along a slab's normal u) of EVOLVE_SOLIDS_DEG that hold the point c inside, as bits. */
+static uint64_t solid_caps(const solids *S, const prim *pr, const double u[3],
+                           const double c[3], int across)
+{
+    double rad = EVOLVE_SOLIDS_DEG * FREP_PI / 180.0;
+    uint64_t m = 0;
+    for (int k = 0; k < S->ncap; k++) {
+        const prim *q = &pr[S->cap[k]];
+        double dn = fabs(q->p[0] * u[0] + q->p[1] * u[1] + q->p[2] * u[2]);
+        if (across ? dn < cos(rad) : dn > sin(rad)) continue;
+        if (q->r - (q->p[0] * c[0] + q->p[1] * c[1] + q->p[2] * c[2]) > 0) m |= 1ull << k;
+    }
+    return m;
+}
+
+static int popcount64(uint64_t m)
+{
+    int k = 0;
+    for (; m; m &= m - 1) k++;
+    return k;
+}
+
+/* The candidates: every fitted sphere, every fitted cylinder closed by two or more
+ * constructed planes across its axis, every slab of two opposite fitted planes closed
+ * by two or more constructed planes across it. */
+static void solid_candidates(const prim *pr, size_t np, solids *S)
+{
+    double cn = cos(EVOLVE_SOLIDS_DEG * FREP_PI / 180.0);
+    S->n = S->ncap = 0;
+    for (size_t j = 0; j < np && S->ncap < EVOLVE_SOLIDS_CAPS; j++)
+        if (pr[j].constructed) S->cap[S->ncap++] = (uint32_t)j;
+    for (size_t i = 0; i < np && S->n < EVOLVE_SOLIDS_MAX; i++) {
+        const prim *q = &pr[i];
+        if (q->separating || !q->has_obb) continue;
+        solid *o = &S->s[S->n];
+        o->core[0] = (uint32_t)i;
+        o->ncore = 1;
+        o->caps = 0;
+        if (q->type == PRIM_SPHERE) {
+            S->n++;
+        } else if (q->type == PRIM_CYLINDER) {
+            o->caps = solid_caps(S, pr, q->a, q->obb_c, 1);
+            S->n += popcount64(o->caps) >= 2;
+        } else if (q->type == PRIM_PLANE) {
+            for (size_t j = i + 1; j < np; j++) {
+                const prim *b = &pr[j];
+                if (b->type != PRIM_PLANE || b->separating ||
+                    q->p[0] * b->p[0] + q->p[1] * b->p[1] + q->p[2] * b->p[2] > -cn)
+                    continue;
+                o->core[1] = (uint32_t)j;
+                o->ncore = 2;
+                o->caps = solid_caps(S, pr, q->p, q->obb_c, 0);
+                S->n += popcount64(o->caps) >= 2;
+                break;
+            }
+        }
+    }
+}
+
+static int push_and(gp_tree *t, uint32_t j, int first, gp_opset op)
+{
+    return tree_push(t, FREP_OP_PRIM, j) || (!first && tree_push(t, (frep_opcode)op.inter, 0));
+}
+
+/* The union of the solids with use[k] into *t, each cap set written once: solids are
+ * grouped by their caps, a solid whose caps hold a group's joins it with the rest of
+ * its caps inside, `((slab & y1 & y2) | rail_1 | rail_2) & x1 & x2`. */
+static int solid_union(const solids *S, const uint8_t *use, gp_opset op, gp_tree *t)
+{
+    uint64_t group[EVOLVE_SOLIDS_MAX];
+    int ng = 0, in[EVOLVE_SOLIDS_MAX];
+    t->len = 0;
+    /* Groups: the distinct cap sets, smallest first (a solid joins the first that fits). */
+    for (int pass = 0; pass <= EVOLVE_SOLIDS_CAPS; pass++)
+        for (int k = 0; k < S->n; k++) {
+            if (!use[k] || popcount64(S->s[k].caps) != pass) continue;
+            int g = 0;
+            while (g < ng && ((S->s[k].caps & group[g]) != group[g] ||
+                              (!group[g] && S->s[k].caps)))
+                g++;
+            if (g == ng) group[ng++] = S->s[k].caps;
+            in[k] = g;
+        }
+    int terms = 0;
+    for (int g = 0; g < ng; g++) {
+        int members = 0;
+        for (int k = 0; k < S->n; k++) {
+            if (!use[k] || in[k] != g) continue;
+            const solid *o = &S->s[k];
+            int first = 1;
+            for (int c = 0; c < o->ncore; c++, first = 0)
+                if (push_and(t, o->core[c], first, op)) return -1;
+            for (int c = 0; c < S->ncap; c++)
+                if ((o->caps & ~group[g]) >> c & 1 && push_and(t, S->cap[c], 0, op)) return -1;
+            if (members++ && tree_push(t, (frep_opcode)op.uni, 0)) return -1;
+        }
+        for (int c = 0; c < S->ncap; c++)
+            if (group[g] >> c & 1 && push_and(t, S->cap[c], 0, op)) return -1;
+        if (terms++ && tree_push(t, (frep_opcode)op.uni, 0)) return -1;
+    }
+    return 0;
+}
+
+/* Greedily, the union of candidate solids whose fitness on sc is highest: each round
+ * adds the solid that raises it most, until none does.  Into *u and *fitness (u empty
+ * when there is no candidate). */
+static int solids_seed(run_ctx *c, const gp_cache *sc, gp_tree *u, double *fitness)
+{
+    u->len = 0;
+    solids *S = frep_malloc(sizeof *S);
+    if (!S) return -1;
+    solid_candidates(c->prims, c->nprims, S);
+    gp_opset op = gp_opset_of(c->o->gp.setops);
+    uint8_t use[EVOLVE_SOLIDS_MAX] = { 0 };
+    gp_tree t = { NULL, 0, 0 };
+    double best = -HUGE_VAL;
+    int rc = 0;
+    for (int round = 0; S->ncap && round < S->n && !rc; round++) {
+        int pick = -1;
+        double f;
+        for (int k = 0; k < S->n && !rc; k++) {
+            if (use[k]) continue;
+            use[k] = 1;
+            rc = solid_union(S, use, op, &t) || gp_fitness(sc, c->ev, t.code, t.len, &f);
+            use[k] = 0;
+            if (!rc && f > best) {
+                best = f;
+                pick = k;
+            }
+        }
+        if (pick < 0) break;
+        use[pick] = 1;
+    }
+    if (!rc && best > -HUGE_VAL) rc = solid_union(S, use, op, u);
+    *fitness = best;
+    tree_free(&t);
+    frep_free(S);
+    return rc ? -1 : 0;
+}
+
 /* Polish: a GA over all primitives seeded with the merged tree. The merge is greedy
  * and the clique trees see only their points; the seeded GA repairs what that misses
  * (a part a clique got wrong, a subtraction the merge placed too low) and never does
@@ -863,6 +1030,45 @@ static int stage_polish(run_ctx *c)
         tree_free(&pg.best);
     }
     gr->generations += pg.generations;
+    return 0;
+}
+
+/* The constructed planes (segment_add_constructed) stay out of the GA: they explain no
+ * point, and in the pool they only change the GA's draws.  Here, after the GA, they
+ * come in: the union of solids they close (solids_seed) replaces the GA's tree when it
+ * is fitter, scored on the same sample with every primitive (a frame of rails joined by
+ * corner spheres: the rails' caps lie on the other rails' axes, hidden, and the GA
+ * bounds them by separating planes, mitres at the corners). */
+static int stage_solids(run_ctx *c)
+{
+    const evolve_options *o = c->o;
+    evolve_result *res = c->res;
+    size_t nga = c->nprims;
+    c->nprims = c->nfull;
+    if (nga == c->nfull || !c->gr.best.len || run_cancelled(c)) return 0;
+    gp_cache *all = build_cache(o, c->prims, c->nprims, c->all, (uint32_t)c->nprims,
+                                c->cloud->x, c->cloud->y, c->cloud->z, c->nrm, c->samp, c->m,
+                                res->eps_d, res->alpha,
+                                c->ls * log((double)(c->m > 1 ? c->m : 2)), 0);
+    if (!all) return run_oom(c);
+    gp_tree u = { NULL, 0, 0 };
+    double f = 0;
+    if (solids_seed(c, all, &u, &f)) {
+        tree_free(&u);
+        gp_cache_free(all);
+        return run_oom(c);
+    }
+    if (u.len && f > c->gr.fitness) {
+        gp_cache_free(c->sc);
+        c->sc = all;
+        tree_free(&c->gr.best);
+        c->gr.best = u;
+        c->gr.fitness = f;
+        c->grown = 0;  /* a new tree: simplified and grown */
+    } else {
+        tree_free(&u);
+        gp_cache_free(all);
+    }
     return 0;
 }
 
@@ -962,6 +1168,9 @@ static int run_stages(run_ctx *c)
 {
     const evolve_options *o = c->o;
     if (run_alloc(c) || stage_points(c)) return -1;
+    /* The GA's primitives: all but the constructed planes at the end (stage_solids). */
+    c->nfull = c->nprims;
+    while (!c->residual && c->nprims > 0 && c->prims[c->nprims - 1].constructed) c->nprims--;
     stage_clip_box(c);
     if (stage_pool(c)) return -1;
     /* With --residual and fewer residual points than a tree could use, or no
@@ -974,7 +1183,7 @@ static int run_stages(run_ctx *c)
             (stage_partition(c) || stage_grow_merged(c) || stage_polish(c)))
             return -1;
         if (!c->partitioned && stage_ga(c)) return -1;
-        if (stage_simplify(c)) return -1;
+        if (stage_solids(c) || stage_simplify(c)) return -1;
     }
     if (stage_support(c) || stage_join(c)) return -1;
     /* Statistics on every valid point, over the leaves of the tree only. */

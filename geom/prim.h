@@ -32,6 +32,8 @@ typedef struct prim {
     double r;         /* plane: d; sphere/cylinder/torus minor radius r; cone: angle */
     double R;         /* torus: major radius */
     int separating;   /* added by Algorithm 2 of Fayolle & Pasko 2016, not fitted */
+    int constructed;  /* a separating plane at the cap of a cylinder whose axis meets
+                         another cylinder's axis (segment_add_constructed) */
     size_t support;   /* inlier count (0 for separating primitives) */
     double rms;       /* RMS distance of the inliers */
     /* Bounded proxy: oriented box of the inliers (centre, axes, half sizes); valid when

@@ -307,6 +307,81 @@ int segment_add_separating(prim **prims, size_t *count, double eps)
     return 0;
 }
 
+/* The point of A's axis closest to B's axis into m; the distance between the axes. */
+static double axes_meet(const prim *A, const prim *B, double m[3])
+{
+    double w[3], n[3];
+    for (int k = 0; k < 3; k++) w[k] = B->p[k] - A->p[k];
+    vec3_cross(A->a, B->a, n);
+    double nn = vec3_dot(n, n);
+    /* t along A: (w x b) . n / |n|^2 for lines p + t a and q + s b. */
+    double wb[3];
+    vec3_cross(w, B->a, wb);
+    double t = vec3_dot(wb, n) / nn;
+    for (int k = 0; k < 3; k++) m[k] = A->p[k] + t * A->a[k];
+    return fabs(vec3_dot(w, n)) / sqrt(nn);
+}
+
+/* Half length of cylinder q's inliers along its axis, and the centre's position on it. */
+static double axial_half(const prim *q)
+{
+    double h = 0;
+    for (int k = 0; k < 3; k++) h = fmax(h, fabs(vec3_dot(q->obb_axes[k], q->a)) * q->obb_half[k]);
+    return h;
+}
+
+static int cap_of(const prim *A, const prim *B, double eps, prim *out)
+{
+    if (fabs(vec3_dot(A->a, B->a)) > sin(SEGMENT_MEET_DEG * FREP_PI / 180.0)) return 0;
+    double m[3];
+    if (!(axes_meet(A, B, m) <= eps)) return 0;
+    double dA[3], dB[3];
+    for (int k = 0; k < 3; k++) {
+        dA[k] = m[k] - A->obb_c[k];
+        dB[k] = m[k] - B->obb_c[k];
+    }
+    double tA = vec3_dot(dA, A->a), tB = vec3_dot(dB, B->a);
+    /* Near an end of A (B's radius covers the cap), within B's length. */
+    if (fabs(fabs(tA) - axial_half(A)) > B->r + eps || fabs(tB) > axial_half(B) + A->r + eps)
+        return 0;
+    memset(out, 0, sizeof *out);
+    out->type = PRIM_PLANE;
+    double s = tA >= 0 ? 1 : -1;
+    for (int k = 0; k < 3; k++) out->p[k] = s * A->a[k];
+    out->r = vec3_dot(out->p, m);
+    out->separating = 1;
+    out->constructed = 1;
+    return 1;
+}
+
+int segment_add_constructed(prim **prims, size_t *count, double eps)
+{
+    size_t n = *count, cnt = n, cap = n + 8;
+    prim *v = frep_realloc(*prims, cap * sizeof *v);
+    if (!v) return -1;
+    for (size_t i = 0; i < n; i++)
+        for (size_t j = 0; j < n; j++) {
+            if (i == j || v[i].type != PRIM_CYLINDER || v[j].type != PRIM_CYLINDER ||
+                v[i].separating || v[j].separating || !v[i].has_obb || !v[j].has_obb)
+                continue;
+            prim q;
+            if (!cap_of(&v[i], &v[j], eps, &q) || plane_dup(v, cnt, q.p, q.r, eps)) continue;
+            if (cnt == cap) {
+                prim *nv = frep_realloc(v, 2 * cap * sizeof *nv);
+                if (!nv) {
+                    *prims = v;
+                    return -1;
+                }
+                v = nv;
+                cap *= 2;
+            }
+            v[cnt++] = q;
+        }
+    *prims = v;
+    *count = cnt;
+    return 0;
+}
+
 /* Adapts the detector's progress reports to segment_config's. */
 static void ransac_progress(void *user, const char *stage, size_t remaining, size_t total,
                             size_t nprims)
@@ -468,7 +543,8 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, f
         return frep_error_nomem(err);
     }
     if (cfg->separating) {
-        if (segment_add_separating(&res->prims, &res->nprims, res->epsilon)) {
+        if (segment_add_separating(&res->prims, &res->nprims, res->epsilon) ||
+            segment_add_constructed(&res->prims, &res->nprims, res->epsilon)) {
             segment_result_free(res);
             return frep_error_nomem(err);
         }
@@ -496,7 +572,10 @@ int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header, doubl
         const prim *q = &p[i];
         fprintf(f, "  p%zu = ", i + 1);
         prim_write_call_scaled(f, q, scale);
-        if (q->separating)
+        if (q->constructed)
+            fprintf(f, ";  -- separating %s, constructed: a cylinder's cap at another's axis\n",
+                    prim_type_name(q->type));
+        else if (q->separating)
             fprintf(f, ";  -- separating %s\n", prim_type_name(q->type));
         else
             fprintf(f, ";  -- %s: %zu points, rms %.3g\n", prim_type_name(q->type), q->support,
@@ -704,6 +783,7 @@ static int parse_nums(const char *s, const char *end, double *v, int max)
 static void hf_comment(prim *q, const char *cm)
 {
     q->separating = strstr(cm, "separating") != NULL;
+    q->constructed = strstr(cm, "constructed") != NULL;
     const char *pts = strstr(cm, " points");
     if (pts) {
         const char *b = pts;

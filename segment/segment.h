@@ -36,6 +36,9 @@
 /* Separating planes closer than this angle (and epsilon in offset) to an existing plane
  * are duplicates (Algorithm 2 adds each plane once). */
 #define SEGMENT_DUP_PLANE_DEG 5.0
+/* Two fitted cylinders meet end to end (segment_add_constructed) when their axes are
+ * perpendicular within this angle and pass within epsilon of each other. */
+#define SEGMENT_MEET_DEG 2.0
 
 typedef struct segment_config {
     double epsilon;        /* <= 0: default */
@@ -86,6 +89,13 @@ void segment_fit_obb(prim *q, const frep_cloud *c, const uint32_t *idx, size_t n
  * and set *n to the new count; eps is the duplicate offset tolerance. Returns 0, or -1
  * when out of memory (*prims still holds at least its *n primitives, *n unchanged). */
 int segment_add_separating(prim **prims, size_t *n, double eps);
+/* Append constructed planes (prim.constructed, also separating): where the axis of
+ * fitted cylinder A meets the axis of fitted cylinder B at right angles (within
+ * SEGMENT_MEET_DEG and eps) near an end of A's inliers and within B's, the plane across
+ * A's axis through B's axis, facing out of A: A's cap when B's surface hides it (a
+ * frame of rails joined at the corners), which no point shows.  Duplicates of planes
+ * already listed are skipped.  Returns 0, or -1 when out of memory (as above). */
+int segment_add_constructed(prim **prims, size_t *n, double eps);
 
 /* Write primitives as a frep model "primitives(x[3], a[1])" with one named call per
  * primitive; `header` (may be NULL) is written as comment lines first. Numbers are

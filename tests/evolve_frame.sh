@@ -1,0 +1,82 @@
+#!/bin/sh
+# evolve_frame.sh - a frame of rails joined by corner spheres around a plate (the
+# InverseCSG `base`): the rails' caps and the plate's sides lie on the other rails'
+# axes, inside material, so no point shows them.  frep segment constructs them
+# (segment_add_constructed), frep evolve builds the union of the solids they close
+# (stage_solids) and the writer reads `x1 & x2 & (rail_1 | rail_2 | slab)` as capped
+# cylinders and a box: 9 solids, the program's count, and the truth's volume.
+# Prints TAP. Needs FREP.
+
+: "${FREP:?FREP must name the frep binary}"
+
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-evframe.XXXXXX") || exit 1
+trap 'rm -rf "$tmp"' EXIT INT TERM
+
+. "$(dirname "$0")/tap.sh"
+show() { sed 's/^/# /' "$1"; }
+
+# A 4 x 6 x 1 plate, rails of radius 0.5 on its four edges (capped at the corners),
+# spheres of radius 0.5 at the corners.  Volume: 24 + half of each rail (2.5 pi r^2 x
+# 4... : 2.5 pi / 1) + a quarter of each sphere (pi / 6) = 32.37758.
+cat >"$tmp/frame.hf" <<'EOF'
+-- @setops minmax
+-- @box -3 -4 -1 3 4 1
+my_model(x[3], a[1])
+{
+    array lo[3], c[3];
+    lo = [-2, -3, -0.5];
+    plate = hfBlock(x, lo, 4, 6, 1);
+    c = [0, 3, 0];
+    r1 = hfCylinderX(x, c, 0.5) & (2 - x[1]) & (2 + x[1]);
+    c = [0, -3, 0];
+    r2 = hfCylinderX(x, c, 0.5) & (2 - x[1]) & (2 + x[1]);
+    c = [2, 0, 0];
+    r3 = hfCylinderY(x, c, 0.5) & (3 - x[2]) & (3 + x[2]);
+    c = [-2, 0, 0];
+    r4 = hfCylinderY(x, c, 0.5) & (3 - x[2]) & (3 + x[2]);
+    c = [2, 3, 0];
+    s1 = hfSphere(x, c, 0.5);
+    c = [2, -3, 0];
+    s2 = hfSphere(x, c, 0.5);
+    c = [-2, 3, 0];
+    s3 = hfSphere(x, c, 0.5);
+    c = [-2, -3, 0];
+    s4 = hfSphere(x, c, 0.5);
+    my_model = plate | r1 | r2 | r3 | r4 | s1 | s2 | s3 | s4;
+}
+EOF
+"$FREP" sample "$tmp/frame.hf" -n 6000 --seed 1 -o "$tmp/frame.xyz" -q 2>"$tmp/err"
+st=$?
+report $st "sample the frame"
+[ $st = 0 ] || { show "$tmp/err"; echo "1..$n"; exit 1; }
+
+"$FREP" segment "$tmp/frame.xyz" --seed 1 -o "$tmp/prims.hf" -q 2>"$tmp/err"
+# Each constructed plane as its axis and offset, "+x 2" for x <= 2.
+caps=$(grep 'constructed' "$tmp/prims.hf" | sed 's/.*frPlane(x, \([^)]*\)).*/\1/' |
+    awk -F', ' '{ for (k = 1; k <= 3; k++) if ($k > 0.999 || $k < -0.999)
+                      printf "%s%s %.3f\n", ($k > 0 ? "+" : "-"), substr("xyz", k, 1), $4 }' |
+    sort | tr '\n' ' ')
+[ "$caps" = "+x 2.000 +y 3.000 -x 2.000 -y 3.000 " ]
+report $? "frep segment constructs the 4 caps x = +-2, y = +-3 at the rails' axes ($caps)"
+
+nice "$FREP" evolve "$tmp/frame.xyz" -o "$tmp/m.hf" --seed 1 -q 2>"$tmp/err"
+st=$?
+report $st "evolve the frame"
+[ $st = 0 ] || { show "$tmp/err"; echo "1..$n"; exit 1; }
+
+grep -q '^    -- 9 solids: 1 box, 4 cylinders (4 capped), 4 spheres, 0 cones, 0 tori, 0 half-spaces$' "$tmp/m.hf"
+st=$?
+report $st "written as the program: a box, 4 capped rails, 4 spheres (9 solids)"
+[ $st = 0 ] || show "$tmp/m.hf"
+
+grep -q '^-- 100.00% of 6000 points within epsilon' "$tmp/m.hf" &&
+    grep -Eq '% with normals within 10 degrees, (99\.[5-9][0-9]|100\.00)% both' "$tmp/m.hf"
+report $? "the model explains at least 99.5% of the points ($(grep -o '[0-9.]*% both' "$tmp/m.hf"))"
+
+vol() { "$FREP" mesh "$1" -o "$tmp/v.off" -g 128 --check 2>/dev/null | sed -n 's/.*volume \([0-9.e+-]*\).*/\1/p'; }
+vt=$(vol "$tmp/frame.hf")
+vm=$(vol "$tmp/m.hf")
+awk -v a="$vm" -v t="$vt" 'BEGIN { e = (a - t) / t; if (e < 0) e = -e; exit !(a != "" && e < 0.001) }'
+report $? "mesh volume $vm within 0.1% of the truth's $vt (analytic 32.37758)"
+
+tap_done
