@@ -86,6 +86,30 @@
  * projected to the faces, vertices of neighbouring cells folded quads over each other
  * (tests/models/segment_cone.hf at -g 32, examples/twist.hf at -g 128). */
 #define MESH_PROJECT_TOL 0.1
+/* A vertex the QEF left at the mass point (rank 0: no edge, corner or flat patch of the
+ * crossings fit in the cell) is projected when farther than this, and its Newton steps
+ * go on until it is this near: the mass point of a cell holding two creases beside a
+ * corner outside it is off the surface, and its first steps along the R-function's
+ * gradient, which leans between the planes there, stopped 0.065 cell outside a face,
+ * under MESH_PROJECT_TOL, where its fan met its neighbours'
+ * (tests/models/segment_box.hf at -g 42 and 90, -b 1.2).  Projecting every vertex that
+ * near folded the gyroid's quads (bench/bench_gyroid.hf at -g 53); mass points
+ * projected to 0.02 cell folded segment_box.hf at -g 30. */
+#define MESH_PROJECT_TOL_MASS 0.05
+/* A Newton step of the projection is kept only where the surface reached faces the
+ * way of the component's crossings (their mean normal): another sheet of the cell, as
+ * of a part a hair's breadth away, faces the other way.  When the crossings' normals
+ * all agree (their mean at least MESH_PROJECT_ONE_WAY long: one sheet), the surface
+ * reached may face away from them down to the cosine MESH_PROJECT_FACING, the other
+ * side of a crease: a hole's wall meeting a spherical cap at 111 degrees, its
+ * crossings a hair below the rim all with the wall's normal, left a flat patch's vertex
+ * 0.2 cell above the rim, whose steps reached the cap (examples/csg.hf at -g 117, 16
+ * vertices; tests/models/sharp/near.hf at -g 134, 2 vertices and 6 pairs).  Crossings
+ * of two sheets meeting at an acute wedge keep the strict rule: their vertex projected
+ * onto one of them folded (bench/bench_gyroid.hf in a sphere, -g 128 -b 1.6: 12
+ * self-intersecting pairs instead of 3 vertices 0.3 cell off). */
+#define MESH_PROJECT_FACING (-0.5)
+#define MESH_PROJECT_ONE_WAY 0.95
 #define MESH_PROJECT_STEPS 4
 #define MESH_PROJECT_MARGIN 0.05
 
@@ -364,6 +388,7 @@ struct mwork {
     double vf[MESH_BLOCK_VMAX], vgx[MESH_BLOCK_VMAX], vgy[MESH_BLOCK_VMAX],
         vgz[MESH_BLOCK_VMAX];
     uint8_t vrank[MESH_BLOCK_VMAX];
+    uint8_t vone[MESH_BLOCK_VMAX];   /* crossings' normals agree (MESH_PROJECT_ONE_WAY) */
     uint16_t vcell[MESH_BLOCK_VMAX]; /* the cell of each cell vertex */
     /* projection batch: vertex, candidate position, its value and gradient */
     int32_t jid[MESH_BLOCK_VMAX];
@@ -941,6 +966,7 @@ static void component_vertex(block_ctx *c, int cf, int cyc, const int L[3],
     W->vx[nv] = x[0];
     W->vy[nv] = x[1];
     W->vz[nv] = x[2];
+    W->vone[nv] = np > 0 && vec3_len(sn) >= MESH_PROJECT_ONE_WAY * np;
     vec3_normalize(sn);  /* unit or zero normals: a zero sum stays zero */
     W->fnx[nv] = sn[0];
     W->fny[nv] = sn[1];
@@ -1071,22 +1097,28 @@ static int vertex_cell_box(const block_ctx *c, size_t v, double margin, double l
     return 1;
 }
 
-/* The cell vertices farther than MESH_PROJECT_TOL cells from the surface (the QEF's
+/* How near the surface vertex v is projected (cells): MESH_PROJECT_TOL, or
+ * MESH_PROJECT_TOL_MASS for a mass point. */
+static double project_tol(const mwork *W, size_t v)
+{
+    return W->vrank[v] == 0 ? MESH_PROJECT_TOL_MASS : MESH_PROJECT_TOL;
+}
+
+/* The cell vertices farther than project_tol cells from the surface (the QEF's
  * solution off a curved sheet, or the mass point where the solution left the cell)
  * go to the surface by Newton steps x - (f - iso) grad f / |grad f|^2, clamped to
  * their cell less MESH_PROJECT_MARGIN, each kept only when it brings the vertex
- * closer and reaches a sheet facing the way of the component's crossings.  Sharp
+ * closer and reaches a sheet facing about the way of the component's crossings.  Sharp
  * features stay: a corner or edge solution of the QEF is on the surface already. */
 static int project_vertices(block_ctx *c)
 {
     mwork *W = c->W;
     const mesher *M = c->M;
-    double tol = MESH_PROJECT_TOL;
     int n = 0;
     if (M->o->no_projection) return 0;
     for (size_t v = 0; v < c->nv; v++) {
         double d = mesh_cell_distance(M, W->vf[v] - c->iso, W->vgx[v], W->vgy[v], W->vgz[v]);
-        if (d > tol) W->jid[n++] = (int32_t)v;
+        if (d > project_tol(W, v)) W->jid[n++] = (int32_t)v;
     }
     for (int step = 0; step < MESH_PROJECT_STEPS && n > 0; step++) {
         int m = 0;
@@ -1115,9 +1147,13 @@ static int project_vertices(block_ctx *c)
             double d0 = mesh_cell_distance(M, W->vf[v] - c->iso, W->vgx[v], W->vgy[v], W->vgz[v]);
             double d1 = mesh_cell_distance(M, W->jf[q] - c->iso, W->jgx[q], W->jgy[q], W->jgz[q]);
             /* the surface reached must face the way of the component's crossings (not
-             * another sheet in the cell, as of a part a hair's breadth away) */
+             * another sheet in the cell, as of a part a hair's breadth away), or across
+             * a crease (see MESH_PROJECT_FACING) */
             double fd = -(W->jgx[q] * W->fnx[v] + W->jgy[q] * W->fny[v] + W->jgz[q] * W->fnz[v]);
-            if (!(d1 < d0) || !(fd > 0)) continue;
+            double gl = sqrt(W->jgx[q] * W->jgx[q] + W->jgy[q] * W->jgy[q] + W->jgz[q] * W->jgz[q]);
+            int facing = fd > (W->vone[v] ? MESH_PROJECT_FACING : 0) * gl &&
+                         (W->fnx[v] != 0 || W->fny[v] != 0 || W->fnz[v] != 0);
+            if (!(d1 < d0) || !facing) continue;
             W->vx[v] = W->jx[q];
             W->vy[v] = W->jy[q];
             W->vz[v] = W->jz[q];
@@ -1125,7 +1161,7 @@ static int project_vertices(block_ctx *c)
             W->vgx[v] = W->jgx[q];
             W->vgy[v] = W->jgy[q];
             W->vgz[v] = W->jgz[q];
-            if (d1 > tol) W->jid[n++] = (int32_t)v;
+            if (d1 > project_tol(W, v)) W->jid[n++] = (int32_t)v;
         }
     }
     return 0;

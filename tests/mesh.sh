@@ -128,6 +128,16 @@ mesh_suite 20 "$M/sharp/near.hf"
 mesh_suite 54 "$M/segment_cylinder.hf"
 mesh_suite 42 "$E/twist.hf"
 mesh_suite 141 "$M/segment_box.hf"
+# Mass points (rank 0) projected until 0.05 cell from the surface, not 0.1
+# (mesh/mesh.c, MESH_PROJECT_TOL_MASS): segment_box.hf had 4 self-intersecting pairs at
+# -g 42 and 90, a mass point beside a box corner stopped 0.065 cell outside a face.
+# Projection across a crease for a flat patch (MESH_PROJECT_FACING): csg.hf had 16
+# vertices 0.2 cell above the hole's rim at -g 117, near.hf 2 far vertices and 6
+# self-intersecting pairs at -g 134.
+mesh_suite 42 "$M/segment_box.hf"
+mesh_suite 90 "$M/segment_box.hf"
+mesh_suite 117 "$E/csg.hf"
+mesh_suite 134 "$M/sharp/near.hf"
 # A cube whose faces lie on grid planes (every corner of a face cell on the level, where
 # the settling step moves vertices): its 8 corners stay sharp, a vertex within 1% of a
 # cell of each, and no vertex far from the surface, at several grids.
