@@ -254,6 +254,14 @@ static int plane_dup(const prim *list, size_t n, const double nrm[3], double d, 
     return 0;
 }
 
+/* plane_dup among the fitted (not separating) planes of the list. */
+static int fitted_plane_dup(const prim *list, size_t n, const double nrm[3], double d, double eps)
+{
+    for (size_t i = 0; i < n; i++)
+        if (!list[i].separating && plane_dup(list + i, 1, nrm, d, eps)) return 1;
+    return 0;
+}
+
 int segment_add_separating(prim **prims, size_t *count, double eps)
 {
     size_t n = *count, cap = n + 8, cnt = n;
@@ -365,7 +373,12 @@ int segment_add_constructed(prim **prims, size_t *count, double eps)
                 v[i].separating || v[j].separating || !v[i].has_obb || !v[j].has_obb)
                 continue;
             prim q;
-            if (!cap_of(&v[i], &v[j], eps, &q) || plane_dup(v, cnt, q.p, q.r, eps)) continue;
+            /* A fitted face there is the cap already; another constructed plane too.  A
+             * separating plane there (a face of a corner sphere's box, which ends where
+             * the rails do) is not: the GA's pool and the caps are kept apart. */
+            if (!cap_of(&v[i], &v[j], eps, &q) || fitted_plane_dup(v, n, q.p, q.r, eps) ||
+                plane_dup(v + n, cnt - n, q.p, q.r, eps))
+                continue;
             if (cnt == cap) {
                 prim *nv = frep_realloc(v, 2 * cap * sizeof *nv);
                 if (!nv) {
