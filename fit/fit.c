@@ -695,6 +695,11 @@ static int evaluate_start(fit_run_ctx *R, frep_error *err)
 /* Relative distance to a bound under which a parameter counts as on it (the report's
  * warning, api/api_fit.c, uses the same). */
 #define FIT_CHAIN_ON_BOUND 1e-6
+/* Distance, relative to each parameter's range, under which two chains' bests count as
+ * the same minimum of the annealing's objective (the local searches end there to about
+ * 1e-9 of the range): a later chain stops when it reaches an earlier one's, and takes
+ * over that chain's refined result. */
+#define FIT_CHAIN_AGREE 1e-6
 
 static int all_on_bound(const fit_run_ctx *R, const double *keep, long kept)
 {
@@ -730,13 +735,13 @@ static int global_phase(fit_run_ctx *R, frep_error *err)
     R->nchains = polish ? chains : so.chains > 0 ? so.chains : 1;
     /* Robust: each chain's refined point, scale and status, compared after the last. */
     int robust = polish && R->geo != NULL;
-    double *keep = NULL, *scales = NULL;
+    double *keep = NULL, *scales = NULL, *bests = NULL;
     fit_status *kst = NULL;
     long kept = 0;
     long limit = chains;                /* grows while every chain ends on a bound */
     if (robust) {
         long room = chains + FIT_BOUND_CHAINS;
-        keep = frep_malloc((size_t)room * (np + 1) * sizeof *keep);
+        keep = frep_malloc((size_t)room * (2 * np + 1) * sizeof *keep);
         kst = frep_malloc((size_t)room * sizeof *kst);
         if (keep == NULL || kst == NULL) {
             frep_free(keep);
@@ -744,6 +749,9 @@ static int global_phase(fit_run_ctx *R, frep_error *err)
             return frep_error_nomem(err);
         }
         scales = keep + (size_t)room * np;
+        bests = scales + room;
+        so.agree = bests;
+        so.agree_tol = FIT_CHAIN_AGREE;
     }
     for (long k = 0; k < limit; k++) {
         R->chain = k + 1;
@@ -770,9 +778,18 @@ static int global_phase(fit_run_ctx *R, frep_error *err)
         }
         if (robust) {
             /* The chain's best is polished on the subset already; the robust
-             * refinement takes it from there on all points. */
+             * refinement takes it from there on all points, unless an earlier chain
+             * ended at the same point: its refinement would be repeated. */
             double sc = NAN;
-            if (R->st != FIT_STOPPED) R->st = polish_chain(R, xs, &fx, &sc);
+            long same = R->st == FIT_STOPPED ? -1 : fit_sa_agreeing(&so, np, xs, R->lo, R->hi);
+            memcpy(bests + (size_t)kept * np, xs, np * sizeof *xs);
+            so.nagree = kept + 1;
+            if (same >= 0) {
+                memcpy(xs, keep + (size_t)same * np, np * sizeof *xs);
+                sc = scales[same];
+                R->st = kst[same];
+            } else if (R->st != FIT_STOPPED)
+                R->st = polish_chain(R, xs, &fx, &sc);
             memcpy(keep + (size_t)kept * np, xs, np * sizeof *xs);
             scales[kept] = sc;
             kst[kept++] = R->st;

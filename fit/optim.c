@@ -772,6 +772,21 @@ void fit_sa_options_init(fit_sa_options *o)
     o->local_period = 10;
     o->bound_stall_iter = 0;
     o->chains = 1;
+    o->agree = NULL;
+    o->nagree = 0;
+    o->agree_tol = 0;
+}
+
+long fit_sa_agreeing(const fit_sa_options *o, size_t n, const double *x, const double *lo,
+                     const double *hi)
+{
+    for (long k = 0; o->agree != NULL && k < o->nagree; k++) {
+        const double *a = o->agree + (size_t)k * n;
+        size_t i = 0;
+        while (i < n && fabs(x[i] - a[i]) <= o->agree_tol * (hi[i] - lo[i])) i++;
+        if (i == n) return k;
+    }
+    return -1;
 }
 
 /* Relative distance to a bound under which a coordinate counts as on it (BFGS's
@@ -1003,6 +1018,7 @@ static fit_status sa_chain_run(sa_ctx *S, sa_chain *ch, int *stop_all)
 {
     const fit_sa_options *opt = S->opt;
     for (long it = 0; it < opt->max_iter; it++) {
+        if (fit_sa_agreeing(opt, S->n, ch->best, S->lo, S->hi) >= 0) return FIT_CONVERGED;
         double temp = sa_temperature(S, ch);
         int found = sa_sweep(S, ch, temp);
         ch->quiet = found ? 0 : ch->quiet + 1;

@@ -176,9 +176,21 @@ typedef struct fit_sa_options {
      * A chain lands in a wrong basin with some probability p (a primitive parked where
      * it explains no points); the best of k chains fails only when all do, about p^k. */
     long chains;
+    /* Bests of chains run before (nagree points of n coordinates; NULL: none): a chain
+     * whose best comes within agree_tol of one of them, relative to each coordinate's
+     * range, stops there (FIT_CONVERGED): it has reached that chain's minimum, whose
+     * stall the earlier chain has already waited out. */
+    const double *agree;
+    long nagree;
+    double agree_tol;
 } fit_sa_options;
 
 void fit_sa_options_init(fit_sa_options *o);
+
+/* The index of the first of o->agree that x lies within o->agree_tol of (relative to
+ * each range of [lo, hi]), or -1. */
+long fit_sa_agreeing(const fit_sa_options *o, size_t n, const double *x, const double *lo,
+                     const double *hi);
 
 /* Global minimization of fn within finite bounds [lo, hi] by generalized simulated
  * annealing (Tsallis-Stariolo, as in Xiang et al.'s dual annealing): trial points drawn

@@ -421,6 +421,33 @@ int main(void)
         ok(hits > 0 && worst < 0.01, "shekel-10 minimum near (4, 4, 4, 4) (max error %g)", worst);
     }
     {
+        /* A chain stops once its best reaches a point an earlier chain ended at
+         * (agree, within agree_tol of each range): the same run up to there, without
+         * the stall after it. A point it never reaches changes nothing. */
+        double x0[4], x1[4], x2[4], far[4] = {9, 9, 9, 9};
+        long its0 = 0, its1 = 0, its2 = 0;
+        fit_sa_options so;
+        fit_sa_options_init(&so);
+        so.local_period = 2;
+        double f0 = shekel_dual(&so, 3, x0, &its0);
+        so.agree = x0, so.nagree = 1, so.agree_tol = 1e-6;
+        double f1 = shekel_dual(&so, 3, x1, &its1);
+        so.agree = far;
+        double f2 = shekel_dual(&so, 3, x2, &its2);
+        ok(f0 < -10.536 && f1 == f0 && its1 < its0,
+           "sa: a chain stops at an earlier chain's best (%ld iterations, %ld without)",
+           its1, its0);
+        ok(f2 == f0 && its2 == its0, "sa: a point never reached changes nothing");
+        double lo[2] = {0, -1}, hi[2] = {10, 1}, a[2] = {4, 0};
+        fit_sa_options ag;
+        fit_sa_options_init(&ag);
+        ag.agree = a, ag.nagree = 1, ag.agree_tol = 1e-6;
+        double near[2] = {4 + 0.9e-5, 0 - 1.9e-6}, off[2] = {4, 2.1e-6};
+        ok(fit_sa_agreeing(&ag, 2, near, lo, hi) == 0 &&
+           fit_sa_agreeing(&ag, 2, off, lo, hi) == -1,
+           "sa: agreement is within agree_tol of each coordinate's range");
+    }
+    {
         size_t n = 5;
         double lo[5], hi[5], x[5];
         for (int j = 0; j < 5; j++) lo[j] = -5.12, hi[j] = 5.12, x[j] = 3.3;
