@@ -315,7 +315,8 @@ fi
 # evaluate the tree at the check points (0.1-0.6 s on these 200,000 points) and poll
 # the flag, so the model is written at once with the numbers not yet checked as
 # fitted.  A signal that came after the write (exit 0: the checks ended first) proves
-# nothing: the run is tried again, at most 5 times.
+# nothing: the run is tried again, at most 5 times, and the case is skipped when every
+# attempt missed the writing (the model then written whole, by a normal exit).
 if [ $have_tty = 1 ]; then
     try=0
     while :; do
@@ -326,9 +327,15 @@ if [ $have_tty = 1 ]; then
         try=$((try + 1))
         [ $st = 0 ] && [ $try -lt 5 ] || break
     done
-    [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev8.hf" 2>/dev/null &&
-        grep -q 'wrote the best tree so far' "$tmp/err" && no_tmp
-    report $? "evolve: Ctrl-C while writing the model: exit $st after $lat, the model written (attempt $try)"
+    if [ $st = 0 ] && "$FREP" check "$tmp/ev8.hf" 2>/dev/null; then
+        # Every signal came after the write (a loaded machine: the progress line reaches
+        # the test later than the writing's 0.1-0.6 s): nothing was tested.
+        echo "ok $((n = n + 1)) # SKIP evolve: Ctrl-C while writing the model: the signal came after the write in $try attempts"
+    else
+        [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev8.hf" 2>/dev/null &&
+            grep -q 'wrote the best tree so far' "$tmp/err" && no_tmp
+        report $? "evolve: Ctrl-C while writing the model: exit $st after $lat, the model written (attempt $try)"
+    fi
 else
     skip_tty "evolve: Ctrl-C while writing the model"
 fi
