@@ -364,32 +364,35 @@ static int cap_of(const prim *A, const prim *B, double eps, prim *out)
 
 int segment_add_constructed(prim **prims, size_t *count, double eps)
 {
-    size_t n = *count, cnt = n, cap = n + 8;
-    prim *v = frep_realloc(*prims, cap * sizeof *v);
-    if (!v) return -1;
-    for (size_t i = 0; i < n; i++)
-        for (size_t j = 0; j < n; j++) {
-            if (i == j || v[i].type != PRIM_CYLINDER || v[j].type != PRIM_CYLINDER ||
-                v[i].separating || v[j].separating || !v[i].has_obb || !v[j].has_obb)
-                continue;
-            prim q;
-            /* A fitted face there is the cap already; another constructed plane too.  A
-             * separating plane there (a face of a corner sphere's box, which ends where
-             * the rails do) is not: the GA's pool and the caps are kept apart. */
-            if (!cap_of(&v[i], &v[j], eps, &q) || fitted_plane_dup(v, n, q.p, q.r, eps) ||
-                plane_dup(v + n, cnt - n, q.p, q.r, eps))
-                continue;
-            if (cnt == cap) {
-                prim *nv = frep_realloc(v, 2 * cap * sizeof *nv);
-                if (!nv) {
-                    *prims = v;
-                    return -1;
-                }
-                v = nv;
-                cap *= 2;
-            }
-            v[cnt++] = q;
+    size_t n = *count, cnt = n, most = 0;
+    prim *v = *prims, q;
+    /* Pass 0 counts the pairs that give a cap (room for all, allocated once); pass 1
+     * adds the caps that are not duplicates. */
+    for (int pass = 0; pass < 2; pass++) {
+        if (pass == 1) {
+            if (most == 0) return 0;
+            v = frep_realloc(*prims, (n + most) * sizeof *v);
+            if (!v) return -1;
+            *prims = v;
         }
+        for (size_t i = 0; i < n; i++)
+            for (size_t j = 0; j < n; j++) {
+                if (i == j || v[i].type != PRIM_CYLINDER || v[j].type != PRIM_CYLINDER ||
+                    v[i].separating || v[j].separating || !v[i].has_obb || !v[j].has_obb ||
+                    !cap_of(&v[i], &v[j], eps, &q))
+                    continue;
+                if (pass == 0) {
+                    most++;
+                    continue;
+                }
+                /* A fitted face there is the cap already; another constructed plane too.
+                 * A separating plane there (a face of a corner sphere's box, which ends
+                 * where the rails do) is not: the GA's pool and the caps are kept apart. */
+                if (fitted_plane_dup(v, n, q.p, q.r, eps) || plane_dup(v + n, cnt - n, q.p, q.r, eps))
+                    continue;
+                v[cnt++] = q;
+            }
+    }
     *prims = v;
     *count = cnt;
     return 0;
