@@ -524,7 +524,7 @@ void canon_write_comment(FILE *f, const canon_prim *c)
         break;
     }
     if (c->polarity == 2) fputs(", removed", f);
-    if (q->constructed) fputs(", separating, constructed: a cylinder's cap at another's axis", f);
+    if (q->constructed) fprintf(f, ", separating, constructed: %s", prim_constructed_why(q));
     else if (q->separating) fputs(", separating", f);
     else if (q->support) fprintf(f, ", %zu inliers", q->support);
     if (c->sigma > 0) {

@@ -13,6 +13,7 @@
 #include "simplify.h"
 #include "util.h"
 #include "kdtree.h"
+#include "vec3.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -835,14 +836,22 @@ static int stage_grow_merged(run_ctx *c)
 /* ---- The union of solids the constructed planes close (stage_solids) ------------- */
 
 /* Most candidate solids of the union seed (a sphere, a capped cylinder or a closed slab
- * each), and most constructed planes they use; a pool with more offers the first ones. */
+ * each), most caps they use (a plane and its side) and most directions across a slab;
+ * a pool with more offers the first ones. */
 #define EVOLVE_SOLIDS_MAX 64
 #define EVOLVE_SOLIDS_CAPS 64
+#define EVOLVE_SOLIDS_DIRS 8
 /* Planes across an axis or a slab: within this angle of perpendicular or parallel. */
 #define EVOLVE_SOLIDS_DEG 2.0
+/* A cap closes an end of a solid's inliers when it is the plane nearest that end and
+ * within this share of the inliers' length (plus EVOLVE_SOLIDS_CAP_EPS eps_d, plus the
+ * radius for a cylinder, whose inliers run on into a sphere or a rail it meets). */
+#define EVOLVE_SOLIDS_CAP_REACH 0.25
+#define EVOLVE_SOLIDS_CAP_EPS 4.0
 
 /* A candidate solid: one or two fitted primitives (a slab's two faces) intersected with
- * the constructed planes of the bits of caps (bit k: cap[k] of the solids list). */
+ * the caps of the bits of caps (bit k: cap[k] of the solids list, its complement when
+ * neg[k]). */
 typedef struct solid {
     uint32_t core[2];
     int ncore;
@@ -853,24 +862,9 @@ typedef struct solids {
     solid s[EVOLVE_SOLIDS_MAX];
     int n;
     uint32_t cap[EVOLVE_SOLIDS_CAPS];
+    uint8_t neg[EVOLVE_SOLIDS_CAPS];
     int ncap;
 } solids;
-
-/* The constructed planes with |n . u| at least cos (across an axis u) or at most sin
- * (along a slab's normal u) of EVOLVE_SOLIDS_DEG that hold the point c inside, as bits. */
-static uint64_t solid_caps(const solids *S, const prim *pr, const double u[3],
-                           const double c[3], int across)
-{
-    double rad = EVOLVE_SOLIDS_DEG * FREP_PI / 180.0;
-    uint64_t m = 0;
-    for (int k = 0; k < S->ncap; k++) {
-        const prim *q = &pr[S->cap[k]];
-        double dn = fabs(q->p[0] * u[0] + q->p[1] * u[1] + q->p[2] * u[2]);
-        if (across ? dn < cos(rad) : dn > sin(rad)) continue;
-        if (q->r - (q->p[0] * c[0] + q->p[1] * c[1] + q->p[2] * c[2]) > 0) m |= 1ull << k;
-    }
-    return m;
-}
 
 static int popcount64(uint64_t m)
 {
@@ -879,15 +873,126 @@ static int popcount64(uint64_t m)
     return k;
 }
 
-/* The candidates: every fitted sphere, every fitted cylinder closed by two or more
- * constructed planes across its axis, every slab of two opposite fitted planes closed
- * by two or more constructed planes across it. */
-static void solid_candidates(const prim *pr, size_t np, solids *S)
+/* Planes that may cap a solid: the fitted planes and the constructed ones. */
+static int is_cap_plane(const prim *q)
 {
+    return q->type == PRIM_PLANE && (!q->separating || q->constructed);
+}
+
+/* The bit of cap (j, neg), added to the list when new; -1 when the list is full. */
+static int cap_bit(solids *S, uint32_t j, int neg)
+{
+    for (int k = 0; k < S->ncap; k++)
+        if (S->cap[k] == j && S->neg[k] == neg) return k;
+    if (S->ncap == EVOLVE_SOLIDS_CAPS) return -1;
+    S->cap[S->ncap] = j;
+    S->neg[S->ncap] = (uint8_t)neg;
+    return S->ncap++;
+}
+
+/* The cap of the end t_end (side: +1 the far end along u, -1 the near one) of a solid
+ * whose inliers centre on c: the plane across u nearest that end, beyond c, within
+ * reach; as a bit of S (the plane's side that holds c), or -1 when none. */
+static int end_cap(solids *S, const prim *pr, size_t np, const double u[3], const double c[3],
+                   double t_end, int side, double reach)
+{
+    double cn = cos(EVOLVE_SOLIDS_DEG * FREP_PI / 180.0), tc = vec3_dot(c, u);
+    double best = reach;
+    int pick = -1;
+    for (size_t j = 0; j < np; j++) {
+        const prim *q = &pr[j];
+        double nu = vec3_dot(q->p, u);
+        if (!is_cap_plane(q) || fabs(nu) < cn) continue;
+        double t = tc + (q->r - vec3_dot(q->p, c)) / nu;  /* where u's line through c meets q */
+        if (side * (t - tc) <= 0 || fabs(t - t_end) > best) continue;
+        best = fabs(t - t_end);
+        pick = (int)j;
+    }
+    if (pick < 0) return -1;
+    return cap_bit(S, (uint32_t)pick, pr[pick].r - vec3_dot(pr[pick].p, c) < 0);
+}
+
+/* Both caps of the extent [lo, hi] along u, as bits; 0 when an end has none. */
+static uint64_t both_caps(solids *S, const prim *pr, size_t np, const double u[3],
+                          const double c[3], double lo, double hi, double reach)
+{
+    int a = end_cap(S, pr, np, u, c, lo, -1, reach), b = end_cap(S, pr, np, u, c, hi, 1, reach);
+    return a < 0 || b < 0 ? 0 : 1ull << a | 1ull << b;
+}
+
+/* The extent [*lo, *hi] along v of the points on the faces (planes) f[0..nf): within
+ * eps of one, its normal within alpha of the face's. */
+static void faces_extent(const run_ctx *c, const prim *const *f, int nf, const double v[3],
+                         double *lo, double *hi)
+{
+    const frep_cloud *cl = c->cloud;
+    double eps = c->res->eps_d, ca = cos(c->res->alpha);
+    *lo = HUGE_VAL;
+    *hi = -HUGE_VAL;
+    for (size_t k = 0; k < c->nv; k++) {
+        size_t i = c->valid[k];
+        double x[3] = { cl->x[i], cl->y[i], cl->z[i] };
+        for (int m = 0; m < nf; m++) {
+            if (fabs(vec3_dot(f[m]->p, x) - f[m]->r) > eps || vec3_dot(f[m]->p, c->nrm + 3 * i) < ca)
+                continue;
+            double t = vec3_dot(v, x);
+            *lo = fmin(*lo, t);
+            *hi = fmax(*hi, t);
+        }
+    }
+}
+
+/* Half length of cylinder q's inliers along its axis (its box is aligned to it). */
+static double axial_half(const prim *q)
+{
+    double h = 0;
+    for (int k = 0; k < 3; k++) h = fmax(h, fabs(vec3_dot(q->obb_axes[k], q->a)) * q->obb_half[k]);
+    return h;
+}
+
+/* A slab's caps: along every direction across its faces' normal that a cap plane
+ * gives, the caps of both ends of the faces' points; 0 unless two directions close. */
+static uint64_t slab_caps(solids *S, const run_ctx *c, const prim *A, const prim *B)
+{
+    const prim *pr = c->prims;
+    double sn = sin(EVOLVE_SOLIDS_DEG * FREP_PI / 180.0), cn = cos(EVOLVE_SOLIDS_DEG * FREP_PI / 180.0);
+    double dirs[EVOLVE_SOLIDS_DIRS][3];
+    int nd = 0;
+    for (size_t j = 0; j < c->nprims && nd < EVOLVE_SOLIDS_DIRS; j++) {
+        const prim *q = &pr[j];
+        if (!is_cap_plane(q) || fabs(vec3_dot(q->p, A->p)) > sn) continue;
+        int d = 0;
+        while (d < nd && fabs(vec3_dot(dirs[d], q->p)) < cn) d++;
+        if (d == nd) memcpy(dirs[nd++], q->p, sizeof dirs[0]);
+    }
+    const prim *faces[2] = { A, B };
+    uint64_t m = 0;
+    int closed = 0;
+    for (int d = 0; d < nd; d++) {
+        double lo, hi;
+        faces_extent(c, faces, 2, dirs[d], &lo, &hi);
+        if (!(lo < hi)) continue;
+        double mid = 0.5 * (lo + hi), cc[3];
+        /* the centre: on the faces' mid-plane, at the middle of the extent along d */
+        double t0 = vec3_dot(A->obb_c, dirs[d]);
+        for (int k = 0; k < 3; k++) cc[k] = A->obb_c[k] + (mid - t0) * dirs[d][k];
+        double reach = EVOLVE_SOLIDS_CAP_REACH * (hi - lo) + EVOLVE_SOLIDS_CAP_EPS * c->res->eps_d;
+        uint64_t b = both_caps(S, pr, c->nprims, dirs[d], cc, lo, hi, reach);
+        if (b) closed++;
+        m |= b;
+    }
+    return closed >= 2 ? m : 0;
+}
+
+/* The candidates: every fitted sphere, every fitted cylinder closed at both ends of its
+ * inliers, every slab of two opposite fitted planes closed in two directions across
+ * it (by fitted or constructed planes, either side). */
+static void solid_candidates(const run_ctx *c, solids *S)
+{
+    const prim *pr = c->prims;
+    size_t np = c->nprims;
     double cn = cos(EVOLVE_SOLIDS_DEG * FREP_PI / 180.0);
     S->n = S->ncap = 0;
-    for (size_t j = 0; j < np && S->ncap < EVOLVE_SOLIDS_CAPS; j++)
-        if (pr[j].constructed) S->cap[S->ncap++] = (uint32_t)j;
     for (size_t i = 0; i < np && S->n < EVOLVE_SOLIDS_MAX; i++) {
         const prim *q = &pr[i];
         if (q->separating || !q->has_obb) continue;
@@ -898,33 +1003,38 @@ static void solid_candidates(const prim *pr, size_t np, solids *S)
         if (q->type == PRIM_SPHERE) {
             S->n++;
         } else if (q->type == PRIM_CYLINDER) {
-            o->caps = solid_caps(S, pr, q->a, q->obb_c, 1);
-            S->n += popcount64(o->caps) >= 2;
+            double h = axial_half(q), tc = vec3_dot(q->obb_c, q->a);
+            double reach = EVOLVE_SOLIDS_CAP_REACH * 2 * h + q->r +
+                           EVOLVE_SOLIDS_CAP_EPS * c->res->eps_d;
+            o->caps = both_caps(S, pr, np, q->a, q->obb_c, tc - h, tc + h, reach);
+            S->n += o->caps != 0;
         } else if (q->type == PRIM_PLANE) {
             for (size_t j = i + 1; j < np; j++) {
                 const prim *b = &pr[j];
-                if (b->type != PRIM_PLANE || b->separating ||
-                    q->p[0] * b->p[0] + q->p[1] * b->p[1] + q->p[2] * b->p[2] > -cn)
+                if (b->type != PRIM_PLANE || b->separating || vec3_dot(q->p, b->p) > -cn)
                     continue;
                 o->core[1] = (uint32_t)j;
                 o->ncore = 2;
-                o->caps = solid_caps(S, pr, q->p, q->obb_c, 0);
-                S->n += popcount64(o->caps) >= 2;
+                o->caps = slab_caps(S, c, q, b);
+                S->n += o->caps != 0;
                 break;
             }
         }
     }
 }
 
-static int push_and(gp_tree *t, uint32_t j, int first, gp_opset op)
+static int push_and(gp_tree *t, uint32_t j, int neg, int first, gp_opset op)
 {
-    return tree_push(t, FREP_OP_PRIM, j) || (!first && tree_push(t, (frep_opcode)op.inter, 0));
+    return tree_push(t, FREP_OP_PRIM, j) ||
+           (!first && tree_push(t, (frep_opcode)(neg ? op.sub : op.inter), 0));
 }
 
-/* The union of the solids with use[k] into *t, each cap set written once: solids are
- * grouped by their caps, a solid whose caps hold a group's joins it with the rest of
- * its caps inside, `((slab & y1 & y2) | rail_1 | rail_2) & x1 & x2`. */
-static int solid_union(const solids *S, const uint8_t *use, gp_opset op, gp_tree *t)
+/* The union of the solids with use[k] into *t, each cap set written once, less the
+ * cuts cut[0..ncut): solids are grouped by their caps, a solid whose caps hold a
+ * group's joins it with the rest of its caps inside, `((slab & y1 & y2) | rail_1 |
+ * rail_2) & x1 & x2`. */
+static int solid_union(const solids *S, const uint8_t *use, const uint32_t *cut, int ncut,
+                       gp_opset op, gp_tree *t)
 {
     uint64_t group[EVOLVE_SOLIDS_MAX];
     int ng = 0, in[EVOLVE_SOLIDS_MAX];
@@ -948,39 +1058,58 @@ static int solid_union(const solids *S, const uint8_t *use, gp_opset op, gp_tree
             const solid *o = &S->s[k];
             int first = 1;
             for (int c = 0; c < o->ncore; c++, first = 0)
-                if (push_and(t, o->core[c], first, op)) return -1;
+                if (push_and(t, o->core[c], 0, first, op)) return -1;
             for (int c = 0; c < S->ncap; c++)
-                if ((o->caps & ~group[g]) >> c & 1 && push_and(t, S->cap[c], 0, op)) return -1;
+                if ((o->caps & ~group[g]) >> c & 1 && push_and(t, S->cap[c], S->neg[c], 0, op))
+                    return -1;
             if (members++ && tree_push(t, (frep_opcode)op.uni, 0)) return -1;
         }
         for (int c = 0; c < S->ncap; c++)
-            if (group[g] >> c & 1 && push_and(t, S->cap[c], 0, op)) return -1;
+            if (group[g] >> c & 1 && push_and(t, S->cap[c], S->neg[c], 0, op)) return -1;
         if (terms++ && tree_push(t, (frep_opcode)op.uni, 0)) return -1;
     }
+    for (int k = 0; k < ncut && terms; k++)
+        if (push_and(t, cut[k], 1, 0, op)) return -1;
     return 0;
 }
 
-/* Greedily, the union of candidate solids whose fitness on sc is highest: each round
- * adds the solid that raises it most, until none does.  Into *u and *fitness (u empty
- * when there is no candidate). */
+/* Most cuts (a fitted cylinder, sphere, cone or torus, a bore or a pocket) subtracted
+ * from the union of solids. */
+#define EVOLVE_SOLIDS_CUTS 16
+
+/* Whether fitted primitive j may cut the union: curved and no core of a solid in it. */
+static int may_cut(const solids *S, const uint8_t *use, const prim *pr, uint32_t j)
+{
+    if (pr[j].type == PRIM_PLANE || pr[j].separating) return 0;
+    for (int k = 0; k < S->n; k++)
+        if (use[k] && (S->s[k].core[0] == j || (S->s[k].ncore > 1 && S->s[k].core[1] == j)))
+            return 0;
+    return 1;
+}
+
+/* Greedily, the union of candidate solids whose fitness on sc is highest, less the
+ * cuts that raise it: each round adds the solid (then the cut) that raises it most,
+ * until none does.  Into *u and *fitness (u empty when there is no candidate). */
 static int solids_seed(run_ctx *c, const gp_cache *sc, gp_tree *u, double *fitness)
 {
     u->len = 0;
     solids *S = frep_malloc(sizeof *S);
     if (!S) return -1;
-    solid_candidates(c->prims, c->nprims, S);
+    solid_candidates(c, S);
     gp_opset op = gp_opset_of(c->o->gp.setops);
     uint8_t use[EVOLVE_SOLIDS_MAX] = { 0 };
+    uint32_t cut[EVOLVE_SOLIDS_CUTS];
+    int ncut = 0;
     gp_tree t = { NULL, 0, 0 };
     double best = -HUGE_VAL;
     int rc = 0;
-    for (int round = 0; S->ncap && round < S->n && !rc; round++) {
+    for (int round = 0; round < S->n && !rc; round++) {
         int pick = -1;
         double f;
         for (int k = 0; k < S->n && !rc; k++) {
             if (use[k]) continue;
             use[k] = 1;
-            rc = solid_union(S, use, op, &t) || gp_fitness(sc, c->ev, t.code, t.len, &f);
+            rc = solid_union(S, use, NULL, 0, op, &t) || gp_fitness(sc, c->ev, t.code, t.len, &f);
             use[k] = 0;
             if (!rc && f > best) {
                 best = f;
@@ -990,7 +1119,25 @@ static int solids_seed(run_ctx *c, const gp_cache *sc, gp_tree *u, double *fitne
         if (pick < 0) break;
         use[pick] = 1;
     }
-    if (!rc && best > -HUGE_VAL) rc = solid_union(S, use, op, u);
+    while (best > -HUGE_VAL && ncut < EVOLVE_SOLIDS_CUTS && !rc) {
+        long pick = -1;
+        double f;
+        for (uint32_t j = 0; j < c->nprims && !rc; j++) {
+            int dup = 0;
+            for (int k = 0; k < ncut; k++) dup |= cut[k] == j;
+            if (dup || !may_cut(S, use, c->prims, j)) continue;
+            cut[ncut] = j;
+            rc = solid_union(S, use, cut, ncut + 1, op, &t) ||
+                 gp_fitness(sc, c->ev, t.code, t.len, &f);
+            if (!rc && f > best) {
+                best = f;
+                pick = j;
+            }
+        }
+        if (pick < 0) break;
+        cut[ncut++] = (uint32_t)pick;
+    }
+    if (!rc && best > -HUGE_VAL) rc = solid_union(S, use, cut, ncut, op, u);
     *fitness = best;
     tree_free(&t);
     frep_free(S);

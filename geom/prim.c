@@ -131,6 +131,12 @@ const char *prim_type_name(prim_type t)
     return "?";
 }
 
+const char *prim_constructed_why(const prim *q)
+{
+    return q->constructed == PRIM_CONSTRUCTED_EXTENT ? "a slab's hidden face at its faces' extent"
+                                                     : "a cylinder's cap at another's axis";
+}
+
 void prim_format_number(char *buf, double v, double quantum)
 {
     if (!isfinite(v)) {

@@ -25,6 +25,12 @@ typedef enum prim_type {
     PRIM__COUNT
 } prim_type;
 
+/* Constructed planes (prim.constructed): the cap of a cylinder whose axis meets another
+ * cylinder's axis (segment_add_constructed), or the hidden face of a slab at its faces'
+ * extent (segment_close_slabs). */
+#define PRIM_CONSTRUCTED_MEET 1
+#define PRIM_CONSTRUCTED_EXTENT 2
+
 typedef struct prim {
     prim_type type;
     double p[3];      /* plane: n; sphere: c; cylinder/cone/torus: point/apex/centre */
@@ -32,8 +38,8 @@ typedef struct prim {
     double r;         /* plane: d; sphere/cylinder/torus minor radius r; cone: angle */
     double R;         /* torus: major radius */
     int separating;   /* added by Algorithm 2 of Fayolle & Pasko 2016, not fitted */
-    int constructed;  /* a separating plane at the cap of a cylinder whose axis meets
-                         another cylinder's axis (segment_add_constructed) */
+    int constructed;  /* a separating plane no point shows (0: not constructed):
+                         PRIM_CONSTRUCTED_MEET or PRIM_CONSTRUCTED_EXTENT */
     size_t support;   /* inlier count (0 for separating primitives) */
     double rms;       /* RMS distance of the inliers */
     /* Bounded proxy: oriented box of the inliers (centre, axes, half sizes); valid when
@@ -50,6 +56,9 @@ void prim_eval_many(const prim *q, size_t n, const double *x, const double *y,
 
 /* Name of a type as in .fit files and summaries ("plane", "sphere", ...). */
 const char *prim_type_name(prim_type t);
+/* What a constructed plane q closes, for comments ("a cylinder's cap at another's
+ * axis"); the readers of .hf lists take the kind back from it. */
+const char *prim_constructed_why(const prim *q);
 /* Why q is no surface, or NULL when it is one: a radius (sphere, cylinder, the torus's
  * two) not > 0, a cone's half-angle outside (0, pi/2) (0 is a line, pi/2 a plane,
  * beyond that the cone is empty or inverted), a non-finite parameter. The readers of

@@ -262,6 +262,15 @@ static int fitted_plane_dup(const prim *list, size_t n, const double nrm[3], dou
     return 0;
 }
 
+/* plane_dup among the constructed planes of the list. */
+static int constructed_plane_dup(const prim *list, size_t n, const double nrm[3], double d,
+                                 double eps)
+{
+    for (size_t i = 0; i < n; i++)
+        if (list[i].constructed && plane_dup(list + i, 1, nrm, d, eps)) return 1;
+    return 0;
+}
+
 int segment_add_separating(prim **prims, size_t *count, double eps)
 {
     size_t n = *count, cap = n + 8, cnt = n;
@@ -358,7 +367,7 @@ static int cap_of(const prim *A, const prim *B, double eps, prim *out)
     for (int k = 0; k < 3; k++) out->p[k] = s * A->a[k];
     out->r = vec3_dot(out->p, m);
     out->separating = 1;
-    out->constructed = 1;
+    out->constructed = PRIM_CONSTRUCTED_MEET;
     return 1;
 }
 
@@ -391,6 +400,91 @@ int segment_add_constructed(prim **prims, size_t *count, double eps)
                 if (fitted_plane_dup(v, n, q.p, q.r, eps) || plane_dup(v + n, cnt - n, q.p, q.r, eps))
                     continue;
                 v[cnt++] = q;
+            }
+    }
+    *prims = v;
+    *count = cnt;
+    return 0;
+}
+
+/* ---- Slabs closed at their faces' extent (segment_close_slabs) ------------------ */
+
+/* The extent [*lo, *hi] along v of the inliers of fitted planes i and j (labels). */
+static void slab_extent(const frep_cloud *c, const int32_t *label, size_t i, size_t j,
+                        const double v[3], double *lo, double *hi)
+{
+    *lo = HUGE_VAL;
+    *hi = -HUGE_VAL;
+    for (size_t k = 0; k < c->n; k++) {
+        if (label[k] != (int32_t)i && label[k] != (int32_t)j) continue;
+        double t = v[0] * c->x[k] + v[1] * c->y[k] + v[2] * c->z[k];
+        *lo = fmin(*lo, t);
+        *hi = fmax(*hi, t);
+    }
+}
+
+/* Whether fitted planes i and j face away from each other (a slab's two faces). */
+static int slab_faces(const prim *v, size_t i, size_t j)
+{
+    double cn = cos(SEGMENT_MEET_DEG * FREP_PI / 180.0);
+    return i != j && v[i].type == PRIM_PLANE && v[j].type == PRIM_PLANE && !v[i].separating &&
+           !v[j].separating && v[i].has_obb && v[j].has_obb && vec3_dot(v[i].p, v[j].p) < -cn;
+}
+
+/* The plane that closes slab (i, j) across fitted plane q's normal at the end of the
+ * faces' inliers opposite q, into *out; 0 when q bounds neither end (or is one of the
+ * faces, or not across them). */
+static int slab_close(const frep_cloud *c, const int32_t *label, const prim *v, size_t i,
+                      size_t j, size_t q, double tol, prim *out)
+{
+    const prim *Q = &v[q];
+    if (q == i || q == j || Q->type != PRIM_PLANE || Q->separating ||
+        fabs(vec3_dot(Q->p, v[i].p)) > sin(SEGMENT_MEET_DEG * FREP_PI / 180.0))
+        return 0;
+    double lo, hi;
+    slab_extent(c, label, i, j, Q->p, &lo, &hi);
+    if (!(lo < hi)) return 0;
+    double s;
+    if (fabs(Q->r - hi) <= tol) s = -1;       /* Q at the far end: close the near one */
+    else if (fabs(Q->r - lo) <= tol) s = 1;   /* Q at the near end: close the far one */
+    else return 0;
+    memset(out, 0, sizeof *out);
+    out->type = PRIM_PLANE;
+    for (int k = 0; k < 3; k++) out->p[k] = s * Q->p[k];
+    out->r = s < 0 ? -lo : hi;
+    out->separating = 1;
+    out->constructed = PRIM_CONSTRUCTED_EXTENT;
+    return 1;
+}
+
+int segment_close_slabs(prim **prims, size_t *count, const frep_cloud *c, const int32_t *label,
+                        size_t nfitted, double tol)
+{
+    size_t n = *count, cnt = n, most = 0;
+    prim *v = *prims, q;
+    /* Pass 0 counts the closing planes (room for all, allocated once); pass 1 adds
+     * those that no listed plane, fitted or constructed, stands for already. */
+    for (int pass = 0; pass < 2; pass++) {
+        if (pass == 1) {
+            if (most == 0) return 0;
+            v = frep_realloc(*prims, (n + most) * sizeof *v);
+            if (!v) return -1;
+            *prims = v;
+        }
+        for (size_t i = 0; i < nfitted; i++)
+            for (size_t j = i + 1; j < nfitted; j++) {
+                if (!slab_faces(v, i, j)) continue;
+                for (size_t k = 0; k < nfitted; k++) {
+                    if (!slab_close(c, label, v, i, j, k, tol, &q)) continue;
+                    if (pass == 0) {
+                        most++;
+                        continue;
+                    }
+                    if (fitted_plane_dup(v, n, q.p, q.r, tol) ||
+                        constructed_plane_dup(v, cnt, q.p, q.r, tol))
+                        continue;
+                    v[cnt++] = q;
+                }
             }
     }
     *prims = v;
@@ -560,7 +654,9 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, f
     }
     if (cfg->separating) {
         if (segment_add_separating(&res->prims, &res->nprims, res->epsilon) ||
-            segment_add_constructed(&res->prims, &res->nprims, res->epsilon)) {
+            segment_add_constructed(&res->prims, &res->nprims, res->epsilon) ||
+            segment_close_slabs(&res->prims, &res->nprims, c, res->label, res->nfitted,
+                                res->cluster)) {
             segment_result_free(res);
             return frep_error_nomem(err);
         }
@@ -589,8 +685,8 @@ int segment_write_hf(FILE *f, const prim *p, size_t n, const char *header, doubl
         fprintf(f, "  p%zu = ", i + 1);
         prim_write_call_scaled(f, q, scale);
         if (q->constructed)
-            fprintf(f, ";  -- separating %s, constructed: a cylinder's cap at another's axis\n",
-                    prim_type_name(q->type));
+            fprintf(f, ";  -- separating %s, constructed: %s\n", prim_type_name(q->type),
+                    prim_constructed_why(q));
         else if (q->separating)
             fprintf(f, ";  -- separating %s\n", prim_type_name(q->type));
         else
@@ -799,7 +895,8 @@ static int parse_nums(const char *s, const char *end, double *v, int max)
 static void hf_comment(prim *q, const char *cm)
 {
     q->separating = strstr(cm, "separating") != NULL;
-    q->constructed = strstr(cm, "constructed") != NULL;
+    q->constructed = !strstr(cm, "constructed") ? 0
+                     : strstr(cm, "extent") ? PRIM_CONSTRUCTED_EXTENT : PRIM_CONSTRUCTED_MEET;
     const char *pts = strstr(cm, " points");
     if (pts) {
         const char *b = pts;

@@ -96,6 +96,15 @@ int segment_add_separating(prim **prims, size_t *n, double eps);
  * frame of rails joined at the corners), which no point shows.  Duplicates of planes
  * already listed are skipped.  Returns 0, or -1 when out of memory (as above). */
 int segment_add_constructed(prim **prims, size_t *n, double eps);
+/* Append constructed planes (PRIM_CONSTRUCTED_EXTENT) that close slabs: where two of
+ * the nfitted fitted planes face away from each other (a slab's faces) and a third,
+ * across them, lies within tol of one end of the faces' inliers (by label) along its
+ * normal, the plane across the same normal at the other end, facing out: the slab's
+ * face that other solids hide (a block standing on a plate, its side in a disc).
+ * Skipped where a fitted or constructed plane lies already.  Returns 0, or -1 when out
+ * of memory (as above). */
+int segment_close_slabs(prim **prims, size_t *n, const frep_cloud *c, const int32_t *label,
+                        size_t nfitted, double tol);
 
 /* Write primitives as a frep model "primitives(x[3], a[1])" with one named call per
  * primitive; `header` (may be NULL) is written as comment lines first. Numbers are
