@@ -4,7 +4,9 @@
 # axes, inside material, so no point shows them.  frep segment constructs them
 # (segment_add_constructed), frep evolve builds the union of the solids they close
 # (stage_solids) and the writer reads `x1 & x2 & (rail_1 | rail_2 | slab)` as capped
-# cylinders and a box: 9 solids, the program's count, and the truth's volume.
+# cylinders and a box: 9 solids, the program's count, and the truth's volume.  And a
+# block less a bore beside a disc on a plate, their hidden faces closed by the planes
+# nearest their ends (the mount).
 # Prints TAP. Needs FREP.
 
 : "${FREP:?FREP must name the frep binary}"
@@ -90,5 +92,50 @@ report $? "mesh volume $vm within 0.1% of the truth's $vt (analytic 32.37758)"
 report $? "evolve the frame scanned at 0.5% noise without normals"
 grep -q '^    -- [0-9]* solids: 1 box, 4 cylinders (4 capped), 4 spheres, ' "$tmp/n.hf"
 report $? "scan: the box, the 4 rails capped and the 4 corner spheres ($(grep -o -- '-- [0-9]* solids.*' "$tmp/n.hf"))"
+
+# A block standing on a plate, bored through across its top, beside a disc (the
+# InverseCSG `mount` less its frame): the block's bottom lies in the plate and its side
+# x = 0 in the disc, the disc's bottom in the plate.  frep segment constructs the
+# block's hidden side at its faces' extent (segment_close_slabs); frep evolve caps the
+# block and the disc with the planes nearest their inliers' ends (the plate's top, a
+# side of the disc) and subtracts the bore: 4 solids, the program's (before: 10
+# solids, 7 of them half-spaces).
+cat >"$tmp/mount.hf" <<'EOF'
+-- @setops minmax
+-- @box -3.5 -4.5 -1.5 3.5 4.5 3
+my_model(x[3], a[1])
+{
+    array lo[3], c[3];
+    lo = [-3, -4, -1];
+    plate = hfBlock(x, lo, 6, 8, 1);
+    lo = [0, -1.5, -0.5];
+    block = hfBlock(x, lo, 1.5, 3, 2.8);
+    c = [0, 0, 2];
+    bore = hfCylinderY(x, c, 1);
+    c = [0, 0, 0];
+    disc = hfCylinderZ(x, c, 1.5) & (1 - x[3]) & (x[3] + 0.5);
+    my_model = plate | (block \ bore) | disc;
+}
+EOF
+"$FREP" sample "$tmp/mount.hf" -n 10000 --seed 1 -o "$tmp/mount.xyz" -q 2>"$tmp/err"
+report $? "sample the mount"
+"$FREP" segment "$tmp/mount.xyz" --seed 1 -o "$tmp/mprims.hf" -q 2>"$tmp/err"
+side=$(grep "slab's hidden face" "$tmp/mprims.hf" | sed 's/.*frPlane(x, \([^)]*\)).*/\1/')
+echo "$side" | awk -F', ' 'NF == 4 && $1 == -1 && $2 == 0 && $3 == 0 && -$4 >= 0 && -$4 < 0.5 { ok = 1 }
+                          END { exit !ok }'
+report $? "frep segment constructs the block's hidden side x >= 0..0.5 ($side)"
+nice "$FREP" evolve "$tmp/mount.xyz" -o "$tmp/mm.hf" --seed 1 -q 2>"$tmp/err"
+report $? "evolve the mount"
+grep -q '^    -- 4 solids: 2 boxes, 2 cylinders (1 capped), 0 spheres, 0 cones, 0 tori, 0 half-spaces$' "$tmp/mm.hf" &&
+    grep -Eq '^    part_1 = box_[0-9] \\ cyl_bore_1;$' "$tmp/mm.hf"
+st=$?
+report $st "the mount written as the program: the plate, the block less the bore, the disc (4 solids)"
+[ $st = 0 ] || show "$tmp/mm.hf"
+grep -Eq '% with normals within 10 degrees, (99\.[5-9][0-9]|100\.00)% both' "$tmp/mm.hf"
+report $? "the mount's model explains at least 99.5% of the points ($(grep -o '[0-9.]*% both' "$tmp/mm.hf"))"
+vt=$(vol "$tmp/mount.hf")
+vm=$(vol "$tmp/mm.hf")
+awk -v a="$vm" -v t="$vt" 'BEGIN { e = (a - t) / t; if (e < 0) e = -e; exit !(a != "" && e < 0.005) }'
+report $? "mount: mesh volume $vm within 0.5% of the truth's $vt"
 
 tap_done
