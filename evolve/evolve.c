@@ -1023,17 +1023,27 @@ static void solid_candidates(const run_ctx *c, solids *S)
     }
 }
 
+/* Primitive j into *t, intersected with (neg: subtracted from) what is on the stack
+ * unless first. */
 static int push_and(gp_tree *t, uint32_t j, int neg, int first, gp_opset op)
 {
     return tree_push(t, FREP_OP_PRIM, j) ||
            (!first && tree_push(t, (frep_opcode)(neg ? op.sub : op.inter), 0));
 }
 
+/* A cut: fitted primitive prim whole (solid < 0), or candidate solid `solid` with the
+ * caps of the bits of caps only (a hole open where it runs on into other cuts). */
+typedef struct solid_cut {
+    int solid;
+    uint32_t prim;
+    uint64_t caps;
+} solid_cut;
+
 /* The union of the solids with use[k] into *t, each cap set written once, less the
  * cuts cut[0..ncut): solids are grouped by their caps, a solid whose caps hold a
  * group's joins it with the rest of its caps inside, `((slab & y1 & y2) | rail_1 |
  * rail_2) & x1 & x2`. */
-static int solid_union(const solids *S, const uint8_t *use, const uint32_t *cut, int ncut,
+static int solid_union(const solids *S, const uint8_t *use, const solid_cut *cut, int ncut,
                        gp_opset op, gp_tree *t)
 {
     uint64_t group[EVOLVE_SOLIDS_MAX];
@@ -1068,22 +1078,59 @@ static int solid_union(const solids *S, const uint8_t *use, const uint32_t *cut,
             if (group[g] >> c & 1 && push_and(t, S->cap[c], S->neg[c], 0, op)) return -1;
         if (terms++ && tree_push(t, (frep_opcode)op.uni, 0)) return -1;
     }
-    for (int k = 0; k < ncut && terms; k++)
-        if (push_and(t, cut[k], 1, 0, op)) return -1;
+    for (int k = 0; k < ncut && terms; k++) {
+        if (cut[k].solid < 0) {
+            if (push_and(t, cut[k].prim, 1, 0, op)) return -1;
+            continue;
+        }
+        const solid *o = &S->s[cut[k].solid];
+        for (int c = 0; c < o->ncore; c++)
+            if (push_and(t, o->core[c], 0, c == 0, op)) return -1;
+        for (int c = 0; c < S->ncap; c++)
+            if (cut[k].caps >> c & 1 && push_and(t, S->cap[c], S->neg[c], 0, op)) return -1;
+        if (tree_push(t, (frep_opcode)op.sub, 0)) return -1;
+    }
     return 0;
 }
 
-/* Most cuts (a fitted cylinder, sphere, cone or torus, a bore or a pocket) subtracted
- * from the union of solids. */
+/* Most cuts subtracted from the union of solids: a candidate solid (a capped bore, a
+ * hole with a floor: the cylinder less its floor's plane) or a fitted curved primitive
+ * whole (a bore through everything). */
 #define EVOLVE_SOLIDS_CUTS 16
 
-/* Whether fitted primitive j may cut the union: curved and no core of a solid in it. */
-static int may_cut(const solids *S, const uint8_t *use, const prim *pr, uint32_t j)
+/* The k-th cut that may cut the union into *out, k from 0 on: every fitted curved
+ * primitive whole, every candidate solid not in the union with all its caps and, for a
+ * capped cylinder, with each cap alone.  0 past the last; 1 when *out holds a cut, -1
+ * when k names none to try (a core of a solid in the union, a cut already). */
+static int nth_cut(const solids *S, const uint8_t *use, const prim *pr, size_t np,
+                   const solid_cut *cut, int ncut, size_t k, solid_cut *out)
 {
-    if (pr[j].type == PRIM_PLANE || pr[j].separating) return 0;
-    for (int k = 0; k < S->n; k++)
-        if (use[k] && (S->s[k].core[0] == j || (S->s[k].ncore > 1 && S->s[k].core[1] == j)))
-            return 0;
+    if (k < np) {
+        out->solid = -1;
+        out->prim = (uint32_t)k;
+        out->caps = 0;
+        if (pr[k].type == PRIM_PLANE || pr[k].separating) return -1;
+        for (int m = 0; m < S->n; m++)
+            if (use[m] && (S->s[m].core[0] == k || (S->s[m].ncore > 1 && S->s[m].core[1] == k)))
+                return -1;
+    } else {
+        k -= np;
+        if (k >= 3 * (size_t)S->n) return 0;
+        const solid *o = &S->s[k / 3];
+        out->solid = (int)(k / 3);
+        out->prim = 0;
+        out->caps = o->caps;
+        if (use[k / 3]) return -1;
+        if (k % 3) {  /* one cap of a cylinder's two */
+            if (o->ncore != 1 || pr[o->core[0]].type != PRIM_CYLINDER || popcount64(o->caps) != 2)
+                return -1;
+            uint64_t low = o->caps & (~o->caps + 1);
+            out->caps = k % 3 == 1 ? low : o->caps & ~low;
+        }
+    }
+    for (int m = 0; m < ncut; m++)
+        if (cut[m].solid == out->solid && cut[m].prim == out->prim && cut[m].caps == out->caps)
+            return -1;
     return 1;
 }
 
@@ -1098,7 +1145,7 @@ static int solids_seed(run_ctx *c, const gp_cache *sc, gp_tree *u, double *fitne
     solid_candidates(c, S);
     gp_opset op = gp_opset_of(c->o->gp.setops);
     uint8_t use[EVOLVE_SOLIDS_MAX] = { 0 };
-    uint32_t cut[EVOLVE_SOLIDS_CUTS];
+    solid_cut cut[EVOLVE_SOLIDS_CUTS];
     int ncut = 0;
     gp_tree t = { NULL, 0, 0 };
     double best = -HUGE_VAL;
@@ -1120,22 +1167,22 @@ static int solids_seed(run_ctx *c, const gp_cache *sc, gp_tree *u, double *fitne
         use[pick] = 1;
     }
     while (best > -HUGE_VAL && ncut < EVOLVE_SOLIDS_CUTS && !rc) {
-        long pick = -1;
+        solid_cut pick;
+        int found = 0, more;
         double f;
-        for (uint32_t j = 0; j < c->nprims && !rc; j++) {
-            int dup = 0;
-            for (int k = 0; k < ncut; k++) dup |= cut[k] == j;
-            if (dup || !may_cut(S, use, c->prims, j)) continue;
-            cut[ncut] = j;
+        for (size_t k = 0; !rc && (more = nth_cut(S, use, c->prims, c->nprims, cut, ncut, k,
+                                                  &cut[ncut])) != 0; k++) {
+            if (more < 0) continue;
             rc = solid_union(S, use, cut, ncut + 1, op, &t) ||
                  gp_fitness(sc, c->ev, t.code, t.len, &f);
             if (!rc && f > best) {
                 best = f;
-                pick = j;
+                pick = cut[ncut];
+                found = 1;
             }
         }
-        if (pick < 0) break;
-        cut[ncut++] = (uint32_t)pick;
+        if (!found) break;
+        cut[ncut++] = pick;
     }
     if (!rc && best > -HUGE_VAL) rc = solid_union(S, use, cut, ncut, op, u);
     *fitness = best;

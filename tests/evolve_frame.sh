@@ -93,13 +93,15 @@ report $? "evolve the frame scanned at 0.5% noise without normals"
 grep -q '^    -- [0-9]* solids: 1 box, 4 cylinders (4 capped), 4 spheres, ' "$tmp/n.hf"
 report $? "scan: the box, the 4 rails capped and the 4 corner spheres ($(grep -o -- '-- [0-9]* solids.*' "$tmp/n.hf"))"
 
-# A block standing on a plate, bored through across its top, beside a disc (the
-# InverseCSG `mount` less its frame): the block's bottom lies in the plate and its side
-# x = 0 in the disc, the disc's bottom in the plate.  frep segment constructs the
-# block's hidden side at its faces' extent (segment_close_slabs); frep evolve caps the
-# block and the disc with the planes nearest their inliers' ends (the plate's top, a
-# side of the disc) and subtracts the bore: 4 solids, the program's (before: 10
-# solids, 7 of them half-spaces).
+# A block standing on a plate, bored through across its top, beside a disc, a hole
+# with a floor down through both (the InverseCSG `mount_with_hole` less its frame): the
+# block's bottom lies in the plate and its side x = 0 in the disc, the disc's bottom in
+# the plate.  frep segment constructs the block's hidden side at its faces' extent
+# (segment_close_slabs); frep evolve caps the block and the disc with the planes
+# nearest their inliers' ends (the plate's top, a side of the disc) and subtracts the
+# bore and the hole above its floor: 6 solids for the program's 5, the floor a
+# half-space of its own (before: 8 solids, 3 of them half-spaces, the block less a
+# slab of the disc's top).
 cat >"$tmp/mount.hf" <<'EOF'
 -- @setops minmax
 -- @box -3.5 -4.5 -1.5 3.5 4.5 3
@@ -114,7 +116,8 @@ my_model(x[3], a[1])
     bore = hfCylinderY(x, c, 1);
     c = [0, 0, 0];
     disc = hfCylinderZ(x, c, 1.5) & (1 - x[3]) & (x[3] + 0.5);
-    my_model = plate | (block \ bore) | disc;
+    hole = hfCylinderZ(x, c, 0.8) & (x[3] - 0.3);
+    my_model = plate | ((block \ bore) | disc) \ hole;
 }
 EOF
 "$FREP" sample "$tmp/mount.hf" -n 10000 --seed 1 -o "$tmp/mount.xyz" -q 2>"$tmp/err"
@@ -126,10 +129,11 @@ echo "$side" | awk -F', ' 'NF == 4 && $1 == -1 && $2 == 0 && $3 == 0 && -$4 >= 0
 report $? "frep segment constructs the block's hidden side x >= 0..0.5 ($side)"
 nice "$FREP" evolve "$tmp/mount.xyz" -o "$tmp/mm.hf" --seed 1 -q 2>"$tmp/err"
 report $? "evolve the mount"
-grep -q '^    -- 4 solids: 2 boxes, 2 cylinders (1 capped), 0 spheres, 0 cones, 0 tori, 0 half-spaces$' "$tmp/mm.hf" &&
-    grep -Eq '^    part_1 = box_[0-9] \\ cyl_bore_1;$' "$tmp/mm.hf"
+grep -q '^    -- 6 solids: 2 boxes, 3 cylinders (1 capped), 0 spheres, 0 cones, 0 tori, 1 half-space$' "$tmp/mm.hf" &&
+    grep -Eq '^    cuts = \(cyl_bore_[12] \\ plane_z_[a-z0-9_]*\) \| cyl_bore_[12];$' "$tmp/mm.hf" &&
+    grep -q '^    tree = part_1 \\ cuts;$' "$tmp/mm.hf"
 st=$?
-report $st "the mount written as the program: the plate, the block less the bore, the disc (4 solids)"
+report $st "the mount written as the program: the plate, the block and the disc less the bore and the hole above its floor (6 solids)"
 [ $st = 0 ] || show "$tmp/mm.hf"
 grep -Eq '% with normals within 10 degrees, (99\.[5-9][0-9]|100\.00)% both' "$tmp/mm.hf"
 report $? "the mount's model explains at least 99.5% of the points ($(grep -o '[0-9.]*% both' "$tmp/mm.hf"))"
