@@ -221,7 +221,11 @@ def main():
     summary = {c: [0, 0, []] for c in conds}
     for m in models:
         d = os.path.join(a.data, m)
-        mesh = os.path.join(d, 'csg_low_res.off')
+        # the fine mesh, the design: the coarse one is a 12-sided prism for a cylinder and
+        # a 72-vertex polyhedron for a sphere, facets a scan of the part would not show
+        mesh = os.path.join(d, 'csg_high_res.off')
+        if not os.path.exists(mesh):
+            mesh = os.path.join(d, 'csg_low_res.off')
         for cond in conds:
             for seed in seeds:
                 with tempfile.TemporaryDirectory() as tmp:

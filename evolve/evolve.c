@@ -833,7 +833,7 @@ static int stage_grow_merged(run_ctx *c)
     return 0;
 }
 
-/* ---- The union of solids the constructed planes close (stage_solids) ------------- */
+/* ---- The union of closed solids, less cuts (stage_solids) ------------------------ */
 
 /* Most candidate solids of the union seed (a sphere, a capped cylinder or a closed slab
  * each), most caps they use (a plane and its side) and most directions across a slab;
@@ -1227,12 +1227,13 @@ static int stage_polish(run_ctx *c)
     return 0;
 }
 
-/* The constructed planes (segment_add_constructed) stay out of the GA: they explain no
- * point, and in the pool they only change the GA's draws.  Here, after the GA, they
- * come in: the union of solids they close (solids_seed) replaces the GA's tree when it
- * is fitter, scored on the same sample with every primitive (a frame of rails joined by
- * corner spheres: the rails' caps lie on the other rails' axes, hidden, and the GA
- * bounds them by separating planes, mitres at the corners). */
+/* The constructed planes (segment_add_constructed, segment_close_slabs) stay out of
+ * the GA: they explain no point, and in the pool they only change the GA's draws.
+ * Here, after the GA, they come in: the union of the solids they and the fitted planes
+ * close, less its cuts (solids_seed), replaces the GA's tree when it is fitter, scored
+ * on the same sample with every primitive (a frame of rails joined by corner spheres:
+ * the rails' caps lie on the other rails' axes, hidden, and the GA bounds them by
+ * separating planes, mitres at the corners). */
 static int stage_solids(run_ctx *c)
 {
     const evolve_options *o = c->o;
