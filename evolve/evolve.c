@@ -942,14 +942,6 @@ static void faces_extent(const run_ctx *c, const prim *const *f, int nf, const d
     }
 }
 
-/* Half length of cylinder q's inliers along its axis (its box is aligned to it). */
-static double axial_half(const prim *q)
-{
-    double h = 0;
-    for (int k = 0; k < 3; k++) h = fmax(h, fabs(vec3_dot(q->obb_axes[k], q->a)) * q->obb_half[k]);
-    return h;
-}
-
 /* A slab's caps: along every direction across its faces' normal that a cap plane
  * gives, the caps of both ends of the faces' points; 0 unless two directions close. */
 static uint64_t slab_caps(solids *S, const run_ctx *c, const prim *A, const prim *B)
@@ -1003,7 +995,7 @@ static void solid_candidates(const run_ctx *c, solids *S)
         if (q->type == PRIM_SPHERE) {
             S->n++;
         } else if (q->type == PRIM_CYLINDER) {
-            double h = axial_half(q), tc = vec3_dot(q->obb_c, q->a);
+            double h = prim_axial_half(q), tc = vec3_dot(q->obb_c, q->a);
             double reach = EVOLVE_SOLIDS_CAP_REACH * 2 * h + q->r +
                            EVOLVE_SOLIDS_CAP_EPS * c->res->eps_d;
             o->caps = both_caps(S, pr, np, q->a, q->obb_c, tc - h, tc + h, reach);

@@ -131,6 +131,14 @@ const char *prim_type_name(prim_type t)
     return "?";
 }
 
+double prim_axial_half(const prim *q)
+{
+    double h = 0;
+    for (int k = 0; k < 3; k++)
+        h = fmax(h, fabs(vec3_dot(q->obb_axes[k], q->a)) * q->obb_half[k]);
+    return h;
+}
+
 const char *prim_constructed_why(const prim *q)
 {
     return q->constructed == PRIM_CONSTRUCTED_EXTENT ? "a slab's hidden face at its faces' extent"

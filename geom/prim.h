@@ -56,6 +56,9 @@ void prim_eval_many(const prim *q, size_t n, const double *x, const double *y,
 
 /* Name of a type as in .fit files and summaries ("plane", "sphere", ...). */
 const char *prim_type_name(prim_type t);
+/* Half length of an axial primitive's inliers along its axis (q->a), from its box
+ * (has_obb; one box axis is the primitive's axis). */
+double prim_axial_half(const prim *q);
 /* What a constructed plane q closes, for comments ("a cylinder's cap at another's
  * axis"); the readers of .hf lists take the kind back from it. */
 const char *prim_constructed_why(const prim *q);

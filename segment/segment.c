@@ -339,14 +339,6 @@ static double axes_meet(const prim *A, const prim *B, double m[3])
     return fabs(vec3_dot(w, n)) / sqrt(nn);
 }
 
-/* Half length of cylinder q's inliers along its axis, and the centre's position on it. */
-static double axial_half(const prim *q)
-{
-    double h = 0;
-    for (int k = 0; k < 3; k++) h = fmax(h, fabs(vec3_dot(q->obb_axes[k], q->a)) * q->obb_half[k]);
-    return h;
-}
-
 static int cap_of(const prim *A, const prim *B, double eps, prim *out)
 {
     if (fabs(vec3_dot(A->a, B->a)) > sin(SEGMENT_MEET_DEG * FREP_PI / 180.0)) return 0;
@@ -359,7 +351,7 @@ static int cap_of(const prim *A, const prim *B, double eps, prim *out)
     }
     double tA = vec3_dot(dA, A->a), tB = vec3_dot(dB, B->a);
     /* Near an end of A (B's radius covers the cap), within B's length. */
-    if (fabs(fabs(tA) - axial_half(A)) > B->r + eps || fabs(tB) > axial_half(B) + A->r + eps)
+    if (fabs(fabs(tA) - prim_axial_half(A)) > B->r + eps || fabs(tB) > prim_axial_half(B) + A->r + eps)
         return 0;
     memset(out, 0, sizeof *out);
     out->type = PRIM_PLANE;
