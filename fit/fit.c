@@ -58,6 +58,14 @@ int fit_loss_parse(const char *s, fit_loss *l)
 
 /* ---- configuration ------------------------------------------------------------ */
 
+/* A chain stops after this many probes in a row that end at its best value, to within
+ * FIT_PROBE_TOL of it (fit_sa_options.probe_returns): on the paper's part the first
+ * chain's stall was 7 probes of about 400 evaluations each that all ended at the best
+ * the start's search had found (or at its copy with the holes swapped); 2 in a row
+ * halved the evaluations with the same results on every suite (doc/benchmarks.md). */
+#define FIT_PROBE_RETURNS 2
+#define FIT_PROBE_TOL 1e-6
+
 void fit_config_init(fit_config *c)
 {
     memset(c, 0, sizeof *c);
@@ -74,6 +82,8 @@ void fit_config_init(fit_config *c)
     c->sa.bound_stall_iter = 60;
     c->sa.local_period = 2;
     c->sa.chains = 2;
+    c->sa.probe_returns = FIT_PROBE_RETURNS;
+    c->sa.probe_tol = FIT_PROBE_TOL;
     fit_qn_options_init(&c->qn);
     fit_lm_options_init(&c->lm);
     c->reweight_rounds = 8;
