@@ -61,7 +61,8 @@ typedef struct fit_config {
     int sa_local;               /* BFGS from every new best inside the annealing (1) */
     int sa_local_iter;          /* iteration cap of those inner searches (300) */
     fit_sa_options sa;          /* see optim.h; fit_config_init sets stall_iter 15,
-                                   bound_stall_iter 60, local_period 2, chains 2 */
+                                   bound_stall_iter 60, local_period 2, chains 2,
+                                   probe_returns 2 (probe_tol 1e-6) */
     /* Local phase. */
     fit_qn_options qn;
     fit_lm_options lm;

@@ -771,6 +771,8 @@ void fit_sa_options_init(fit_sa_options *o)
     o->local_user = NULL;
     o->local_period = 10;
     o->bound_stall_iter = 0;
+    o->probe_returns = 0;
+    o->probe_tol = 0;
     o->chains = 1;
     o->agree = NULL;
     o->nagree = 0;
@@ -882,6 +884,7 @@ typedef struct sa_chain {
     long step;              /* iterations since the schedule (re)started */
     long last_gain;         /* iteration of that improvement */
     long quiet;             /* iterations in a row without a new best */
+    long returns;           /* probes in a row since last_gain that ended at the best */
 } sa_chain;
 
 static double sa_call(sa_ctx *S, const double *x) { return call(S->fn, S->user, x, NULL, S->c); }
@@ -912,7 +915,7 @@ static int sa_chain_start(sa_ctx *S, sa_chain *ch, const double *x, int from_x)
     memcpy(ch->best, ch->cur, n * sizeof *ch->best);
     ch->e = ch->ebest = e;
     ch->emark = ch->ebest;
-    ch->step = ch->last_gain = ch->quiet = 0;
+    ch->step = ch->last_gain = ch->quiet = ch->returns = 0;
     return 0;
 }
 
@@ -993,7 +996,9 @@ static long sa_stall_limit(const sa_ctx *S, const sa_chain *ch)
 
 /* Dual annealing's local search: from the new best after an iteration that found one,
  * or from the current point after local_period quiet iterations (a probe of the basin
- * the chain is in). A better result becomes the chain's best and current point. */
+ * the chain is in). A better result becomes the chain's best and current point; a probe
+ * that ends at the best's value (within probe_tol of it, relative) adds to ch->returns,
+ * any other result clears it. */
 static void sa_polish(sa_ctx *S, sa_chain *ch, int found)
 {
     const size_t n = S->n;
@@ -1003,11 +1008,25 @@ static void sa_polish(sa_ctx *S, sa_chain *ch, int found)
     memcpy(S->trial, found ? ch->best : ch->cur, n * sizeof *S->trial);
     ch->quiet = 0;
     double el;
-    if (opt->local(opt->local_user, S->trial, &el) == 0 && el < ch->ebest) {
+    if (opt->local(opt->local_user, S->trial, &el) != 0) return;
+    if (!found) {
+        int back = fabs(el - ch->ebest) <= opt->probe_tol * fabs(ch->ebest);
+        ch->returns = back ? ch->returns + 1 : 0;
+    }
+    if (el < ch->ebest) {
         ch->ebest = ch->e = el;
         memcpy(ch->best, S->trial, n * sizeof *ch->best);
         memcpy(ch->cur, S->trial, n * sizeof *ch->cur);
     }
+}
+
+/* The chain has stalled: stall_limit iterations since its last gain, or probe_returns
+ * probes in a row that ended at a best on no bound. */
+static int sa_stalled(const sa_ctx *S, const sa_chain *ch, long it, long stall)
+{
+    if (stall > 0 && it - ch->last_gain >= stall) return 1;
+    return S->opt->probe_returns > 0 && ch->returns >= S->opt->probe_returns &&
+           !on_bound(S->n, ch->best, S->lo, S->hi);
 }
 
 /* Run one chain until it stalls (FIT_CONVERGED), reaches max_iter (FIT_MAXITER), the
@@ -1034,12 +1053,13 @@ static fit_status sa_chain_run(sa_ctx *S, sa_chain *ch, int *stop_all)
         if (ch->ebest < ch->emark - opt->rel_improve * fabs(ch->emark) || ch->ebest == 0) {
             ch->emark = ch->ebest;
             ch->last_gain = it;
+            ch->returns = 0;
         }
         if (S->ebest <= opt->threshold) {
             *stop_all = 1;
             return FIT_CONVERGED;
         }
-        if (stall > 0 && it - ch->last_gain >= stall) return FIT_CONVERGED;
+        if (sa_stalled(S, ch, it, stall)) return FIT_CONVERGED;
         if (fit_control_stop(S->c)) {
             *stop_all = 1;
             return FIT_STOPPED;

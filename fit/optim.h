@@ -171,6 +171,14 @@ typedef struct fit_sa_options {
      * bound_stall_iter (0: stall_iter), so the search keeps looking for an interior
      * minimum; a true minimum on a bound only costs the extra iterations. */
     long bound_stall_iter;
+    /* A chain whose probes keep returning to its best has stalled: once probe_returns
+     * probes in a row since its last gain ended at its best value (within probe_tol of
+     * it, relative: the same minimum, or a copy of it under a symmetry of the model such
+     * as two holes swapped), and that best lies on no bound, the chain stops as if its
+     * stall limit had passed (0: never). A probe that ends elsewhere starts the count
+     * again. */
+    long probe_returns;
+    double probe_tol;
     /* Independent chains (<= 0: 1): the first starts at x, the others at random points,
      * each runs to its own stall (max_iter is per chain) and the best of all is kept.
      * A chain lands in a wrong basin with some probability p (a primitive parked where

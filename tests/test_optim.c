@@ -438,6 +438,36 @@ int main(void)
            "sa: a chain stops at an earlier chain's best (%ld iterations, %ld without)",
            its1, its0);
         ok(f2 == f0 && its2 == its0, "sa: a point never reached changes nothing");
+        /* A chain whose probes keep ending at its best value stops after
+         * probe_returns of them in a row instead of waiting out its stall. */
+        double x3[4];
+        long its3 = 0;
+        fit_sa_options_init(&so);
+        so.local_period = 2;
+        so.probe_returns = 2, so.probe_tol = 1e-6;
+        double f3 = shekel_dual(&so, 3, x3, &its3);
+        ok(fabs(f3 - f0) <= 1e-9 * fabs(f0) && its3 < its0,
+           "sa: probes that return to the best end the chain (%ld iterations, %ld without)",
+           its3, its0);
+        /* Not when that best lies on a bound: the minimum of sum (i + 1) (x_i - c_i)^2
+         * with c = (3, -2) in [-1, 1]^2 is the corner (1, -1). */
+        long itsb[2];
+        for (int k = 0; k < 2; k++) {
+            size_t nq = 2;
+            double qlo[2] = {-1, -1}, qhi[2] = {1, 1}, q[2] = {0, 0}, fq;
+            frep_rng rng;
+            frep_rng_seed(&rng, 5);
+            fit_control c;
+            fit_control_init(&c);
+            local_ctx L = {shifted_quadratic, &nq, 2, qlo, qhi, &c};
+            fit_sa_options_init(&so);
+            so.local = local_bfgs, so.local_user = &L;
+            so.local_period = 2, so.probe_tol = 1e-6, so.probe_returns = k ? 2 : 0;
+            fit_sa(shifted_quadratic, &nq, 2, q, qlo, qhi, &so, &rng, &c, &fq, &itsb[k]);
+        }
+        ok(itsb[1] == itsb[0] && itsb[0] > so.stall_iter,
+           "sa: a best on a bound waits out the stall (%ld iterations, %ld without returns)",
+           itsb[1], itsb[0]);
         double lo[2] = {0, -1}, hi[2] = {10, 1}, a[2] = {4, 0};
         fit_sa_options ag;
         fit_sa_options_init(&ag);
