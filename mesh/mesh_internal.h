@@ -88,7 +88,8 @@ typedef struct mblock {
     size_t vglobal;           /* index of the first vertex in the whole mesh */
     double *vpos, *vnrm;      /* 3 * (nverts + 2 nfaces) each */
     double *vfg;              /* 4 * (...): f - iso and the gradient at each vertex */
-    uint8_t *vrank;           /* QEF rank (2: on a sharp edge, 3: a corner; 0 on faces) */
+    uint8_t *vrank;           /* QEF rank (2: on a sharp edge, 3: a corner; 0 on faces
+                                 and at mass points), kept for settling */
     uint16_t *cs;             /* MESH_BLOCK_CELLS configurations (case and joined faces) */
     uint16_t *vbase;          /* MESH_BLOCK_CELLS first vertex or MESH_NO_VERTEX */
     uint32_t *tri;            /* triangles from the quads this block owns (phase 3) */

@@ -299,9 +299,7 @@ static int assemble(const mesher *M, size_t nverts, frep_mesh *out, frep_error *
         frep_free(B->cs);
         frep_free(B->vbase);
         frep_free(B->fkey);
-        frep_free(B->vrank);
         B->cs = B->vbase = B->fkey = NULL;
-        B->vrank = NULL;
     }
     /* the blocks' arrays are small heap chunks among the vfg kept for settling: freed
      * ones are not reused by the mesh's large arrays unless handed back */

@@ -11,7 +11,8 @@
  * the level), and moves to the nearest one where every triangle of its fan keeps its
  * orientation and meets no triangle nearby.  The vertices no target lets move get a
  * second pass: targets up to half a cell beyond their cell and along 28 directions
- * around them, and triangles allowed to turn up to a right angle.  Targets are
+ * around them, and triangles allowed to turn up to a right angle; those still left
+ * try the corners of their cell that lie on the level.  Targets are
  * computed per vertex; the moves are decided serially in vertex order, so the mesh
  * does not depend on the thread count.
  */
@@ -29,6 +30,12 @@
  * below --check's MESH_SURFACE_TOL, so that a vertex the first-order estimate puts a
  * little over it still gets there. */
 #define MESH_SETTLE_TOL 0.08
+/* A cell vertex the QEF left at the mass point (rank 0) nearer than MESH_SETTLE_TOL
+ * but farther than this is settled (to targets this near) when its fan meets another
+ * triangle: beside a box's corner such a vertex stopped 0.035-0.05 cell off a face,
+ * where its fan met its neighbours' (tests/models/segment_box.hf at -g 54 and 102,
+ * -b 1.2); settling every such vertex moved some that were clean deeper inside. */
+#define MESH_SETTLE_TOL_MASS 0.02
 /* A vertex already on the surface moved to unfold its fan goes to a point at most
  * this far from it (cells): it must not leave the surface for --check's tolerance. */
 #define MESH_SETTLE_FOLD_TOL 0.01
@@ -62,6 +69,9 @@ typedef struct svert {
     int moved;
     int fold;                 /* on the surface, but a triangle of its fan folds over:
                                  moved only to unfold it */
+    double tol;               /* targets this near the surface (cells) */
+    int tangled;              /* a mass point under MESH_SETTLE_TOL: moved only when
+                                 its fan meets another triangle */
 } svert;
 
 /* A target on the surface: position, f - iso, gradient. */
@@ -136,7 +146,8 @@ static int inside_block(const mesher *M, const mblock *B, const double lo[3], co
     return 1;
 }
 
-/* The blocks' cell vertices farther than MESH_SETTLE_TOL from the surface into
+/* The blocks' cell vertices farther than MESH_SETTLE_TOL from the surface, the mass
+ * points farther than MESH_SETTLE_TOL_MASS and the vertices of folded triangles into
  * r->sv (NULL when there are none).  0, or -1 when out of memory. */
 static int far_vertices(settle_run *r, const frep_mesh *out, const uint8_t *folded)
 {
@@ -149,11 +160,16 @@ static int far_vertices(settle_run *r, const frep_mesh *out, const uint8_t *fold
             const double *fg = &B->vfg[4 * l];
             double d = mesh_cell_distance(M, fg[0], fg[1], fg[2], fg[3]);
             uint32_t v = (uint32_t)(B->vglobal + l);
-            int fold = !(d > MESH_SETTLE_TOL);
+            int tangled = l < B->nverts && B->vrank[l] == 0 && d > MESH_SETTLE_TOL_MASS &&
+                          !(d > MESH_SETTLE_TOL);
+            double tol = tangled ? MESH_SETTLE_TOL_MASS : MESH_SETTLE_TOL;
+            int fold = !(d > tol);
             if (fold && !folded[v]) continue;
             svert s;
             s.v = v;
             s.fold = fold;
+            s.tol = tol;
+            s.tangled = tangled;
             s.B = B;
             const double *x = &out->v[3 * (size_t)v];
             if (!vertex_cell(M, x, 0, s.lo, s.hi)) continue;
@@ -263,7 +279,7 @@ static int newton_targets(settle_run *r)
         for (size_t k = 0; k < r->n; k++) {
             svert *s = &r->sv[k];
             double gg = vec3_dot(s->g, s->g);
-            if (s->moved || !(s->d > MESH_SETTLE_TOL) || !(gg > 0)) continue;
+            if (s->moved || !(s->d > s->tol) || !(gg > 0)) continue;
             double t = s->f / gg, x[3];
             for (int c = 0; c < 3; c++) x[c] = fmin(fmax(s->x[c] - t * s->g[c], s->lo[c]), s->hi[c]);
             r->bx[m] = x[0];
@@ -309,7 +325,7 @@ static int bisect_segments(settle_run *r, size_t ns)
         const svert *s = &r->sv[k];
         double g[3] = { r->bgx[q], r->bgy[q], r->bgz[q] };
         double d = mesh_cell_distance(r->M, r->bf[q] - iso, g[0], g[1], g[2]);
-        if (!(d <= (s->fold ? MESH_SETTLE_FOLD_TOL : MESH_SETTLE_TOL)) || !(-vec3_dot(g, s->n) > 0))
+        if (!(d <= (s->fold ? MESH_SETTLE_FOLD_TOL : s->tol)) || !(-vec3_dot(g, s->n) > 0))
             continue;
         double x[3] = { r->bx[q], r->by[q], r->bz[q] };
         add_candidate(r, k, x, r->bf[q] - iso, g);
@@ -326,7 +342,7 @@ static int bisect_targets(settle_run *r, int all)
     size_t m = 0;
     for (size_t k = 0; k < r->n; k++) {
         const svert *s = &r->sv[k];
-        if (s->moved || (!all && !(s->d > MESH_SETTLE_TOL))) continue;
+        if (s->moved || (!all && !(s->d > s->tol))) continue;
         for (int c = 0; c < 8; c++) {
             r->bx[m] = (c & 1) ? s->hi[0] : s->lo[0];
             r->by[m] = (c & 2) ? s->hi[1] : s->lo[1];
@@ -421,6 +437,63 @@ static int look_targets(settle_run *r)
     return 0;
 }
 
+/* Targets at the corners of each far vertex's cell that lie exactly on the level,
+ * MESH_SETTLE_MARGIN inside the cell, for the vertices both passes left.  Parts whose
+ * faces lie on grid planes leave cells between them whose corners are on the level or
+ * outside: the QEF of the crossings at those corners (the parts' edges, with a kink's
+ * normal) finds a phantom crease off the surface, and no target of Newton's steps or
+ * the bisections lets its fan keep its orientation; a corner on a part's edge does
+ * (tests/models/sharp/near.hf at -g 24, -b 1.2: 4 vertices 0.3 cell off between a
+ * block's edge and the wall's).  A pass of its own: as targets of the second pass,
+ * nearer than those some vertices took there, they left a neighbour taken later
+ * without a move (tests/models/sharp/holes.hf at -g 24: a vertex 2 cells off). */
+static int level_corner_targets(settle_run *r)
+{
+    double iso = r->M->o->iso;
+    size_t m = 0;
+    for (size_t k = 0; k < r->n; k++) {
+        const svert *s = &r->sv[k];
+        double lo[3], hi[3];
+        if (s->moved || s->fold || !vertex_cell(r->M, s->x0, MESH_SETTLE_MARGIN, lo, hi) ||
+            !inside_block(r->M, s->B, lo, hi))
+            continue;
+        for (int c = 0; c < 8; c++) {
+            r->bx[m] = (c & 1) ? hi[0] : lo[0];
+            r->by[m] = (c & 2) ? hi[1] : lo[1];
+            r->bz[m] = (c & 4) ? hi[2] : lo[2];
+            r->bid[m++] = (uint32_t)k;
+        }
+    }
+    if (m == 0) return 0;
+    int rc = batch_eval(r, m, 0);
+    if (rc) return rc;
+    size_t ns = 0;
+    for (size_t q = 0; q < m; q++) {
+        if (r->bf[q] != iso) continue;
+        const svert *s = &r->sv[r->bid[q]];
+        double lo[3], hi[3];
+        vertex_cell(r->M, s->x0, 0, lo, hi);
+        double x[3] = { r->bx[q], r->by[q], r->bz[q] };
+        for (int c = 0; c < 3; c++) x[c] = fmin(fmax(x[c], lo[c]), hi[c]);
+        r->bx[ns] = x[0];
+        r->by[ns] = x[1];
+        r->bz[ns] = x[2];
+        r->bid[ns++] = r->bid[q];
+    }
+    if (ns == 0) return 0;
+    if ((rc = batch_grad(r, ns)) != 0) return rc;
+    for (size_t q = 0; q < ns; q++) {
+        uint32_t k = r->bid[q];
+        const svert *s = &r->sv[k];
+        double g[3] = { r->bgx[q], r->bgy[q], r->bgz[q] };
+        double d = mesh_cell_distance(r->M, r->bf[q] - iso, g[0], g[1], g[2]);
+        if (!(d <= s->tol) || !(-vec3_dot(g, s->n) > 0)) continue;
+        double x[3] = { r->bx[q], r->by[q], r->bz[q] };
+        add_candidate(r, k, x, r->bf[q] - iso, g);
+    }
+    return 0;
+}
+
 /* The targets of the vertices not moved yet: Newton's, then (all: for every such
  * vertex, else only where Newton's steps did not get there) the bisections'. */
 static int find_targets(settle_run *r, int all)
@@ -429,7 +502,7 @@ static int find_targets(settle_run *r, int all)
     if (rc) return rc;
     for (size_t k = 0; k < r->n; k++) {
         const svert *s = &r->sv[k];
-        if (!s->moved && !s->fold && s->d <= MESH_SETTLE_TOL) add_candidate(r, k, s->x, s->f, s->g);
+        if (!s->moved && !s->fold && s->d <= s->tol) add_candidate(r, k, s->x, s->f, s->g);
     }
     return bisect_targets(r, all);
 }
@@ -639,6 +712,10 @@ static size_t apply_moves(settle_run *r, frep_mesh *out, const fan_index *x)
     for (size_t k = 0; k < r->n; k++) {
         svert *s = &r->sv[k];
         if (s->moved) continue;
+        if (s->tangled && move_is_clean(out, x, s, k, &out->v[3 * s->v], r->turn)) {
+            s->moved = 1;
+            continue;
+        }
         const scand *c = &r->cand[SETTLE_MAX_CANDS * k];
         int i;
         for (i = 0; i < s->nc && !move_is_clean(out, x, s, k, c[i].x, r->turn); i++) continue;
@@ -714,6 +791,10 @@ int mesh_settle_vertices(const mesher *M, frep_mesh *out, mesh_stats *st)
         widen(&r);
         r.turn = MESH_SETTLE_TURN_WIDE;
         if ((rc = find_targets(&r, 1)) == 0 && (rc = look_targets(&r)) == 0)
+            st->settled += apply_moves(&r, out, &fx);
+        /* the last pass: the corners on the level of the vertices still left */
+        for (size_t k = 0; k < r.n; k++) r.sv[k].nc = 0;
+        if (rc == 0 && (rc = level_corner_targets(&r)) == 0)
             st->settled += apply_moves(&r, out, &fx);
     }
     st->eval_points += r.eval_points;

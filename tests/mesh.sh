@@ -138,6 +138,15 @@ mesh_suite 42 "$M/segment_box.hf"
 mesh_suite 90 "$M/segment_box.hf"
 mesh_suite 117 "$E/csg.hf"
 mesh_suite 134 "$M/sharp/near.hf"
+# Mass points nearer than the settling threshold settled when their fan meets another
+# triangle (mesh/settle.c, MESH_SETTLE_TOL_MASS): segment_box.hf had 4 and 8 self-
+# intersecting pairs at -g 54 and 102, a mass point beside a box corner 0.035 cell off
+# a face.  Targets at the corners of a cell on the level (mesh/settle.c,
+# level_corner_targets): near.hf had 4 vertices 0.32 cell off at -g 24, a phantom
+# crease between a block's edge and the wall's.
+mesh_suite 54 "$M/segment_box.hf"
+mesh_suite 102 "$M/segment_box.hf"
+mesh_suite 24 "$M/sharp/near.hf"
 # A cube whose faces lie on grid planes (every corner of a face cell on the level, where
 # the settling step moves vertices): its 8 corners stay sharp, a vertex within 1% of a
 # cell of each, and no vertex far from the surface, at several grids.
