@@ -333,6 +333,19 @@ static int bisect_segments(settle_run *r, size_t ns)
     return 0;
 }
 
+/* The 8 corners of the cell [lo, hi] as batch points m.. of far vertex k; the next m. */
+static size_t push_corners(settle_run *r, size_t m, const double lo[3], const double hi[3],
+                           size_t k)
+{
+    for (int c = 0; c < 8; c++) {
+        r->bx[m] = (c & 1) ? hi[0] : lo[0];
+        r->by[m] = (c & 2) ? hi[1] : lo[1];
+        r->bz[m] = (c & 4) ? hi[2] : lo[2];
+        r->bid[m++] = (uint32_t)k;
+    }
+    return m;
+}
+
 /* Targets where the segments from the vertex (from Newton's best point) to the
  * corners of its box on the other side of the level cross it: for the vertices still
  * far (all: every vertex not moved yet). */
@@ -343,12 +356,7 @@ static int bisect_targets(settle_run *r, int all)
     for (size_t k = 0; k < r->n; k++) {
         const svert *s = &r->sv[k];
         if (s->moved || (!all && !(s->d > s->tol))) continue;
-        for (int c = 0; c < 8; c++) {
-            r->bx[m] = (c & 1) ? s->hi[0] : s->lo[0];
-            r->by[m] = (c & 2) ? s->hi[1] : s->lo[1];
-            r->bz[m] = (c & 4) ? s->hi[2] : s->lo[2];
-            r->bid[m++] = (uint32_t)k;
-        }
+        m = push_corners(r, m, s->lo, s->hi, k);
     }
     if (m == 0) return 0;
     int rc = batch_eval(r, m, 0);
@@ -457,12 +465,7 @@ static int level_corner_targets(settle_run *r)
         if (s->moved || s->fold || !vertex_cell(r->M, s->x0, MESH_SETTLE_MARGIN, lo, hi) ||
             !inside_block(r->M, s->B, lo, hi))
             continue;
-        for (int c = 0; c < 8; c++) {
-            r->bx[m] = (c & 1) ? hi[0] : lo[0];
-            r->by[m] = (c & 2) ? hi[1] : lo[1];
-            r->bz[m] = (c & 4) ? hi[2] : lo[2];
-            r->bid[m++] = (uint32_t)k;
-        }
+        m = push_corners(r, m, lo, hi, k);
     }
     if (m == 0) return 0;
     int rc = batch_eval(r, m, 0);
