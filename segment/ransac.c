@@ -1436,7 +1436,7 @@ static int median_abs(det *d, const prim *q, const uint32_t *idx, size_t n, doub
  * of the order of the faces' spacing, a pure plane's of the noise. A curved shape is
  * examined only when the dominant normal holds MODE_FLAT of its inliers: the facets of
  * a facetted cylinder or sphere each hold a few percent. */
-#define MODE_NORMAL_DEG 3.0
+#define MODE_NORMAL_DEG 8.0
 #define MODE_SLAB 0.5
 #define MODE_GAIN 0.5
 #define MODE_FLAT 0.5
@@ -1453,10 +1453,11 @@ static int cmp_mode_t(const void *a, const void *b)
 }
 
 /* The dominant normal among q's m inliers: the centre (of MODE_CENTRES evenly spaced
- * ones) with the most of MODE_VOTERS voters within MODE_NORMAL_DEG; its inlier index,
- * with its vote count in *count. */
+ * ones) with the most of MODE_VOTERS voters within MODE_NORMAL_DEG (voters within it of
+ * skip, when not null, left out: the second mode); its inlier index, with its vote
+ * count in *count. */
 static size_t dominant_normal(const frep_cloud *c, const uint32_t *inl, size_t m, double cosm,
-                              size_t *count)
+                              const double *skip, size_t *count)
 {
     size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS, ncen = m < MODE_CENTRES ? m : MODE_CENTRES;
     size_t best_cnt = 0, best_j = 0;
@@ -1468,7 +1469,7 @@ static size_t dominant_normal(const frep_cloud *c, const uint32_t *inl, size_t m
         for (size_t v = 0; v < nv; v++) {
             double nk[3];
             normal(c, inl[(size_t)((double)v * (double)m / (double)nv)], nk);
-            cnt += fabs(vec3_dot(nj, nk)) >= cosm;
+            cnt += fabs(vec3_dot(nj, nk)) >= cosm && !(skip && fabs(vec3_dot(skip, nk)) >= cosm);
         }
         if (cnt > best_cnt) {
             best_cnt = cnt;
@@ -1525,11 +1526,45 @@ static size_t densest_slab(const frep_cloud *c, double *tv, size_t nt, const dou
     return ns_pts;
 }
 
+/* Under noise, does a curved shape's normals hold two modes (the first, nc, with
+ * best_cnt voters) that together make MODE_FACES of its voters? A cylinder of a
+ * radius like the faces' size, its axis along their edge, lies within the band of two
+ * faces meeting at 30-60 degrees over most of their width; a true cylinder's normals
+ * spread over its arc, a few percent in each mode. */
+#define MODE_FACES 0.7
+static int two_faces(const det *d, const uint32_t *inl, size_t m, double cosm,
+                     const double nc[3], size_t best_cnt)
+{
+    if (!(d->cfg->noise > 0)) return 0;
+    size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS, cnt2;
+    dominant_normal(d->c, inl, m, cosm, nc, &cnt2);
+    return (double)(best_cnt + cnt2) >= MODE_FACES * (double)nv;
+}
+
+/* Does a face with ma inliers of median distance meda replace q (median med0)? When it
+ * halves the median (MODE_GAIN) and has the phase's minimum support. Under noise both
+ * medians are the noise's, and a curved shape that spans a small face and a little of
+ * its neighbours (a cone over a block's top, a cylinder tilted across its side) is as
+ * tight as the face: there the face replaces a curved q when its median is at most
+ * MODE_NOISE_MEDIAN q's and it keeps MODE_FACE_KEEP of the mode_pts inliers whose
+ * normals made it, whatever the phase's minimum (a face just under it loses its
+ * points to any curved shape that reaches past its edges). */
+#define MODE_NOISE_MEDIAN 1.1
+#define MODE_FACE_KEEP 0.8
+static int face_better(const det *d, const prim *q, double mode_pts, size_t ma, size_t min_pts,
+                       double meda, double med0)
+{
+    if (ma >= min_pts && meda < MODE_GAIN * med0) return 1;
+    return q->type != PRIM_PLANE && d->cfg->noise > 0 &&
+           (double)ma >= MODE_FACE_KEEP * mode_pts && meda <= MODE_NOISE_MEDIAN * med0;
+}
+
 /* The plane alt refitted on the slab, extracted as a fresh shape (at epsilon, then at
  * its own measured noise: q's band may have been widened by the mixture itself): its
- * support (inliers in inl) when its median distance is below MODE_GAIN med0, else 0. */
-static size_t try_face(det *d, prim *alt, const uint32_t *slab, size_t ns_pts, size_t min_pts,
-                       double med0, unsigned char *flag, uint32_t *inl)
+ * support (inliers in inl) when it is better than q (face_better), else 0. */
+static size_t try_face(det *d, const prim *q, double mode_pts, prim *alt, const uint32_t *slab,
+                       size_t ns_pts, size_t min_pts, double med0, unsigned char *flag,
+                       uint32_t *inl)
 {
     if (ns_pts < 3 || refit(d, alt, slab, ns_pts) != 0) return 0;
     d->band = d->cfg->epsilon;
@@ -1537,8 +1572,8 @@ static size_t try_face(det *d, prim *alt, const uint32_t *slab, size_t ns_pts, s
     if (nb > d->band * NOISE_BAND_GROWTH) d->band = nb;
     size_t ma = support_of(d, alt, flag, inl);
     double meda;
-    if (ma < min_pts || median_abs(d, alt, inl, ma, &meda)) return 0;
-    return meda < MODE_GAIN * med0 ? ma : 0;
+    if (ma < 3 || median_abs(d, alt, inl, ma, &meda)) return 0;
+    return face_better(d, q, mode_pts, ma, min_pts, meda, med0) ? ma : 0;
 }
 
 static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned char *flag,
@@ -1561,16 +1596,18 @@ static size_t face_modes(det *d, prim *q, size_t m, size_t min_pts, unsigned cha
         d->nomem = 1;
         return m;
     }
-    size_t best_cnt, best_j = dominant_normal(c, inl, m, cosm, &best_cnt);
+    size_t best_cnt, best_j = dominant_normal(c, inl, m, cosm, NULL, &best_cnt);
     double nc[3], ns[3] = {0, 0, 0};
     normal(c, inl[best_j], nc);
     size_t nt = 0, ma = 0;
-    if (q->type == PRIM_PLANE || (double)best_cnt >= MODE_FLAT * (double)nv)
+    if (q->type == PRIM_PLANE || (double)best_cnt >= MODE_FLAT * (double)nv ||
+        two_faces(d, inl, m, cosm, nc, best_cnt))
         nt = dominant_group(c, inl, m, nc, cosm, ns, tv);
     if (nt >= RANSAC_MIN_CLOUD && vec3_normalize(ns) == 0) {
         prim alt;
         size_t ns_pts = densest_slab(c, tv, nt, ns, MODE_SLAB * band0, slab, &alt);
-        ma = try_face(d, &alt, slab, ns_pts, min_pts, med0, flag, inl);
+        ma = try_face(d, q, (double)best_cnt * (double)m / (double)nv, &alt, slab, ns_pts,
+                      min_pts, med0, flag, inl);
         if (ma > 0) *q = alt;
     }
     frep_free(tv);
