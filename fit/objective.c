@@ -288,12 +288,11 @@ static int normal_grad(const fit_objective *o, fit_ws *w, size_t i0, size_t n, c
     return 0;
 }
 
-/* |grad f| at point i of a block of n (floored), when the pass evaluated it, else 1.
- * The select is fmax(|g|, FIT_GRAD_FLOOR) for every |g| >= 0 or NaN, and vectorizes
- * where fmax is a libm call. */
-static double grad_len(const fit_ws *w, size_t n, size_t i, int need_g)
+/* |grad f| at point i of a block of n (floored); the pass evaluated grad f. The
+ * select is fmax(|g|, FIT_GRAD_FLOOR) for every |g| >= 0 or NaN, and vectorizes where
+ * fmax is a libm call. */
+static double grad_len(const fit_ws *w, size_t n, size_t i)
 {
-    if (!need_g) return 1;
     double gx = w->g[i], gy = w->g[n + i], gz = w->g[2 * n + i];
     double gl = sqrt(gx * gx + gy * gy + gz * gz);
     return gl > FIT_GRAD_FLOOR ? gl : FIT_GRAD_FLOOR;
@@ -311,8 +310,7 @@ typedef struct block_terms {
  * inside was a fifth of the paper's part's CPU time); the caller adds rho in point
  * order, so the sums are those of one loop over the points. The Cauchy loss's
  * log1p(r^2 / s^2) is computed a block at a time (fit_log1p_block). */
-static block_terms block_losses(const fit_objective *o, fit_ws *w, size_t i0, size_t n,
-                                int need_g)
+static block_terms block_losses(const fit_objective *o, fit_ws *w, size_t i0, size_t n)
 {
     /* wi: 1 (algebraic) or 1/|grad f|, frozen or current */
     block_terms t = {w->xs, w->xs + FIT_BLOCK, w->xs + 2 * FIT_BLOCK,
@@ -325,8 +323,8 @@ static block_terms block_losses(const fit_objective *o, fit_ws *w, size_t i0, si
         for (size_t i = 0; i < n; i++) wi[i] = 1;
     else if (o->frozen)
         memcpy(wi, o->w + i0, n * sizeof *wi);
-    else
-        for (size_t i = 0; i < n; i++) wi[i] = 1 / grad_len(w, n, i, need_g);
+    else                        /* the pass evaluated grad f (need_g) */
+        for (size_t i = 0; i < n; i++) wi[i] = 1 / grad_len(w, n, i);
     for (size_t i = 0; i < n; i++) r[i] = f[i] * wi[i];
     switch (o->cfg.loss) {
     case FIT_LOSS_HUBER:
@@ -366,7 +364,7 @@ static void block_points(fit_objective *o, fit_ws *w, size_t i0, size_t n, pass_
                          double *out)
 {
     for (size_t i = 0; i < n; i++) {
-        double f = w->f[i], gl = grad_len(w, n, i, 1);
+        double f = w->f[i], gl = grad_len(w, n, i);
         if (mode == PASS_FREEZE) {
             o->w[i0 + i] = 1 / gl;
         } else if (mode == PASS_RESID || mode == PASS_GNORM) {
@@ -402,7 +400,7 @@ static int run_block(fit_objective *o, fit_ws *w, size_t b, const double *p, pas
         block_points(o, w, i0, n, mode, out);
         return 0;
     }
-    const block_terms t = block_losses(o, w, i0, n, need_g);
+    const block_terms t = block_losses(o, w, i0, n);
     double total = 0;
     for (size_t i = 0; i < n; i++) total += t.rho[i];
     out[0] = total;
