@@ -39,8 +39,9 @@ typedef struct fit_ws {
     double *f, *g, *dp;         /* f[B], g[3B], dp[M*B] */
     /* Normal term's gradient: points shifted by +-h along each point's direction v
      * (xs[0..3B) plus, xs[3B..6B) minus), the factor |v|/(2h) per point (vs[B]) and
-     * the parameter derivatives at the minus points (dq[M*B]). Before that a gradient
-     * pass keeps each point's d rho / df in vs. */
+     * the parameter derivatives at the minus points (dq[M*B]). Before that a loss
+     * pass keeps its per-point terms in xs[0..5B) (block_losses) and a gradient pass
+     * each point's d rho / df in vs. */
     double *xs, *vs, *dq;
 } fit_ws;
 
