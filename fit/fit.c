@@ -98,6 +98,7 @@ typedef struct prog_model {
     size_t nall, nfree;
     size_t *idx;                /* nfree program parameter indices */
     double *base;               /* nall values of the held parameters */
+    int all;                    /* idx is 0..nall-1: the free rows of dp are all of them */
 } prog_model;
 
 /* Per-thread state: the evaluator scratch, a full parameter vector and the
@@ -140,7 +141,9 @@ static int prog_eval(void *user, void *sv, size_t n, const double *x, const doub
     prog_scratch *ps = sv;
     const frep_program *p = pm->p;
     for (size_t j = 0; j < pm->nfree; j++) ps->full[pm->idx[j]] = params[j];
-    if (dp != NULL) {
+    if (dp != NULL && pm->all) {
+        if (frep_eval_dparams(p, ps->s, n, x, y, z, ps->full, f, dp) != 0) return -1;
+    } else if (dp != NULL) {
         if (frep_eval_dparams(p, ps->s, n, x, y, z, ps->full, f, ps->dp) != 0) return -1;
         for (size_t j = 0; j < pm->nfree; j++)
             memcpy(dp + j * n, ps->dp + pm->idx[j] * n, n * sizeof *dp);
@@ -172,6 +175,8 @@ int fit_program_model(const frep_program *p, const size_t *idx, size_t nfree,
     }
     memcpy(pm->idx, idx, nfree * sizeof *idx);
     memcpy(pm->base, base, pm->nall * sizeof *base);
+    pm->all = nfree == pm->nall;
+    for (size_t j = 0; j < nfree; j++) pm->all &= idx[j] == j;
     m->nparams = nfree;
     m->user = pm;
     m->scratch_new = prog_scratch_new;

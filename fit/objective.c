@@ -39,8 +39,9 @@ typedef struct fit_ws {
     double *f, *g, *dp;         /* f[B], g[3B], dp[M*B] */
     /* Normal term's gradient: points shifted by +-h along each point's direction v
      * (xs[0..3B) plus, xs[3B..6B) minus), the factor |v|/(2h) per point (vs[B]) and
-     * the parameter derivatives at the minus points (dq[M*B]). Before that a gradient
-     * pass keeps each point's d rho / df in vs. */
+     * the parameter derivatives at the minus points (dq[M*B]). Before that a loss
+     * pass keeps its per-point terms in xs[0..5B) (block_losses) and a gradient pass
+     * each point's d rho / df in vs. */
     double *xs, *vs, *dq;
 } fit_ws;
 
@@ -221,36 +222,6 @@ typedef enum pass_mode {
     PASS_GNORM      /* store |grad f| in o->resid */
 } pass_mode;
 
-/* rho(r) and the IRLS weight omega = rho'(r) / (2 r) (1 at r = 0); l1p is
- * log1p(r^2 / s^2), which the Cauchy loss takes from cauchy_logs. */
-static double loss(fit_loss kind, double s, double r, double l1p, double *omega)
-{
-    double a = fabs(r);
-    switch (kind) {
-    case FIT_LOSS_HUBER:
-        if (a <= s) {
-            *omega = 1;
-            return r * r;
-        }
-        *omega = s / a;
-        return 2 * s * a - s * s;
-    case FIT_LOSS_CAUCHY: {
-        double q = r * r / (s * s);
-        *omega = 1 / (1 + q);
-        return s * s * l1p;
-    }
-    case FIT_LOSS_GEMAN: {
-        double q = 1 / (1 + r * r / (s * s));
-        *omega = q * q;
-        return r * r * q;
-    }
-    case FIT_LOSS_L2:
-        break;
-    }
-    *omega = 1;
-    return r * r;
-}
-
 /* Sum over a block of the normal term 1 + n . grad f / |grad f| for gradients in g. */
 static double normal_term(const fit_objective *o, size_t i0, size_t n, const double *g)
 {
@@ -318,35 +289,94 @@ static int normal_grad(const fit_objective *o, fit_ws *w, size_t i0, size_t n, c
     return 0;
 }
 
-/* dr/df at point i of the block starting at i0: 1 (algebraic) or the weight
- * 1/|grad f|, frozen or current (gl). */
-static double resid_weight(const fit_objective *o, size_t i0, size_t i, double gl)
+/* |grad f| at point i of a block of n (floored); the pass evaluated grad f. The
+ * select is fmax(|g|, FIT_GRAD_FLOOR) for every |g| >= 0 or NaN, and vectorizes where
+ * fmax is a libm call. */
+static double grad_len(const fit_ws *w, size_t n, size_t i)
 {
-    return o->cfg.kind != FIT_OBJ_GEOMETRIC ? 1 : o->frozen ? o->w[i0 + i] : 1 / gl;
-}
-
-/* |grad f| at point i of a block of n (floored), when the pass evaluated it, else 1. */
-static double grad_len(const fit_ws *w, size_t n, size_t i, int need_g)
-{
-    if (!need_g) return 1;
     double gx = w->g[i], gy = w->g[n + i], gz = w->g[2 * n + i];
-    return fmax(sqrt(gx * gx + gy * gy + gz * gz), FIT_GRAD_FLOOR);
+    double gl = sqrt(gx * gx + gy * gy + gz * gz);
+    return gl > FIT_GRAD_FLOOR ? gl : FIT_GRAD_FLOOR;
 }
 
-/* The Cauchy loss's log1p(r^2 / s^2) for the n points of a block, into w->xs[B..2B)
- * (w->xs[0..B) holds the ratios): one vectorized loop instead of a libm call per point,
- * which was 16% of the CPU time of the paper's part. Returns the logarithms. */
-static const double *cauchy_logs(const fit_objective *o, fit_ws *w, size_t i0, size_t n,
-                                 int need_g)
+/* A loss pass's terms per point of a block (PASS_VALUE, PASS_GRAD, PASS_LSQ), each an
+ * array of n in the workspace: wi = dr/df, the residual r = f wi, rho(r) and the IRLS
+ * weight omega = rho'(r) / (2 r) (1 at r = 0). */
+typedef struct block_terms {
+    double *wi, *r, *rho, *omega;
+} block_terms;
+
+/* The terms of the n points of a block in w->xs (free until normal_grad), one loop per
+ * stage and per loss kind so that each vectorizes (a scalar loop with the loss's switch
+ * inside was a fifth of the paper's part's CPU time); the caller adds rho in point
+ * order, so the sums are those of one loop over the points. The Cauchy loss's
+ * log1p(r^2 / s^2) is computed a block at a time (fit_log1p_block). */
+static block_terms block_losses(const fit_objective *o, fit_ws *w, size_t i0, size_t n)
 {
+    /* wi: 1 (algebraic) or 1/|grad f|, frozen or current */
+    block_terms t = {w->xs, w->xs + FIT_BLOCK, w->xs + 2 * FIT_BLOCK,
+                     w->xs + 3 * FIT_BLOCK};
+    double *restrict wi = t.wi, *restrict r = t.r, *restrict rho = t.rho;
+    double *restrict omega = t.omega, *restrict lq = w->xs + 4 * FIT_BLOCK;
+    const double *restrict f = w->f;
     const double s = o->cfg.loss_scale;
-    double *q = w->xs, *lq = w->xs + FIT_BLOCK;
-    for (size_t i = 0; i < n; i++) {
-        double r = w->f[i] * resid_weight(o, i0, i, grad_len(w, n, i, need_g));
-        q[i] = r * r / (s * s);
+    if (o->cfg.kind != FIT_OBJ_GEOMETRIC)
+        for (size_t i = 0; i < n; i++) wi[i] = 1;
+    else if (o->frozen)
+        memcpy(wi, o->w + i0, n * sizeof *wi);
+    else                        /* the pass evaluated grad f (need_g) */
+        for (size_t i = 0; i < n; i++) wi[i] = 1 / grad_len(w, n, i);
+    for (size_t i = 0; i < n; i++) r[i] = f[i] * wi[i];
+    switch (o->cfg.loss) {
+    case FIT_LOSS_HUBER:
+        for (size_t i = 0; i < n; i++) {
+            double a = fabs(r[i]), om = s / a;
+            rho[i] = a <= s ? r[i] * r[i] : 2 * s * a - s * s;
+            omega[i] = a <= s ? 1 : om;
+        }
+        break;
+    case FIT_LOSS_CAUCHY:
+        for (size_t i = 0; i < n; i++) rho[i] = r[i] * r[i] / (s * s);  /* q */
+        fit_log1p_block(n, rho, lq);
+        for (size_t i = 0; i < n; i++) {
+            omega[i] = 1 / (1 + rho[i]);
+            rho[i] = s * s * lq[i];
+        }
+        break;
+    case FIT_LOSS_GEMAN:
+        for (size_t i = 0; i < n; i++) {
+            double q = 1 / (1 + r[i] * r[i] / (s * s));
+            omega[i] = q * q;
+            rho[i] = r[i] * r[i] * q;
+        }
+        break;
+    case FIT_LOSS_L2:
+        for (size_t i = 0; i < n; i++) {
+            omega[i] = 1;
+            rho[i] = r[i] * r[i];
+        }
+        break;
     }
-    fit_log1p_block(n, q, lq);
-    return lq;
+    return t;
+}
+
+/* The per-point passes (PASS_FREEZE, PASS_RESID, PASS_GNORM, PASS_DIST) of a block. */
+static void block_points(fit_objective *o, fit_ws *w, size_t i0, size_t n, pass_mode mode,
+                         double *out)
+{
+    for (size_t i = 0; i < n; i++) {
+        double f = w->f[i], gl = grad_len(w, n, i);
+        if (mode == PASS_FREEZE) {
+            o->w[i0 + i] = 1 / gl;
+        } else if (mode == PASS_RESID || mode == PASS_GNORM) {
+            o->resid[i0 + i] = mode == PASS_RESID ? fabs(f) / gl : gl;
+        } else {
+            double d = fabs(f) / gl;
+            out[0] += d * d;
+            out[1] = fmax(out[1], d);
+            if (isnan(d)) out[1] = NAN;
+        }
+    }
 }
 
 static int run_block(fit_objective *o, fit_ws *w, size_t b, const double *p, pass_mode mode)
@@ -367,34 +397,21 @@ static int run_block(fit_objective *o, fit_ws *w, size_t b, const double *p, pas
     if (o->model.eval(o->model.user, w->scratch, n, x, y, z, p, w->f, need_g ? w->g : NULL,
                       need_dp ? w->dp : NULL) != 0)
         return -1;
-    const double s = o->cfg.loss_scale;
-    const double *lq = o->cfg.loss == FIT_LOSS_CAUCHY &&
-                               (mode == PASS_VALUE || mode == PASS_GRAD || mode == PASS_LSQ)
-                           ? cauchy_logs(o, w, i0, n, need_g) : NULL;
-    for (size_t i = 0; i < n; i++) {
-        double f = w->f[i], gl = grad_len(w, n, i, need_g);
-        if (mode == PASS_FREEZE) {
-            o->w[i0 + i] = 1 / gl;
-            continue;
-        }
-        if (mode == PASS_RESID || mode == PASS_GNORM) {
-            o->resid[i0 + i] = mode == PASS_RESID ? fabs(f) / gl : gl;
-            continue;
-        }
-        if (mode == PASS_DIST) {
-            double d = fabs(f) / gl;
-            out[0] += d * d;
-            out[1] = fmax(out[1], d);
-            if (isnan(d)) out[1] = NAN;
-            continue;
-        }
-        double wi = resid_weight(o, i0, i, gl);
-        double r = f * wi, omega;
-        out[0] += loss(o->cfg.loss, s, r, lq != NULL ? lq[i] : 0, &omega);
-        if (mode == PASS_GRAD) {
-            w->vs[i] = 2 * omega * r * wi;      /* d rho / d f */
-        } else if (mode == PASS_LSQ) {
-            double *jtr = out + 2, *jtj = out + 2 + m;
+    if (mode != PASS_VALUE && mode != PASS_GRAD && mode != PASS_LSQ) {
+        block_points(o, w, i0, n, mode, out);
+        return 0;
+    }
+    const block_terms t = block_losses(o, w, i0, n);
+    double total = 0;
+    for (size_t i = 0; i < n; i++) total += t.rho[i];
+    out[0] = total;
+    if (mode == PASS_GRAD) {
+        for (size_t i = 0; i < n; i++)
+            w->vs[i] = 2 * t.omega[i] * t.r[i] * t.wi[i];      /* d rho / d f */
+    } else if (mode == PASS_LSQ) {
+        double *jtr = out + 2, *jtj = out + 2 + m;
+        for (size_t i = 0; i < n; i++) {
+            double wi = t.wi[i], r = t.r[i], omega = t.omega[i];
             for (size_t j = 0; j < m; j++) {
                 double Jj = wi * w->dp[j * n + i];
                 if (Jj == 0) continue;

@@ -14,6 +14,7 @@
 
 #include "alloc.h"
 #include "cloud.h"
+#include "decimal.h"
 #include "file.h"
 #include "ply.h"
 #include "util.h"
@@ -173,19 +174,21 @@ static int is_sep(char ch)
            ch == '\v';
 }
 
-/* Parse one number starting at s (not past end); returns the end or NULL. strtod needs
- * a NUL-terminated string, so the token is copied (numbers are short). */
+/* Parse one number starting at s (not past end); returns the end or NULL. Short
+ * decimals convert in place (decimal_parse), the bits strtod gives them; strtod needs
+ * a NUL-terminated string, so for the others the token is copied (numbers are short). */
 static const char *parse_number(const char *s, const char *end, double *v)
 {
     char buf[128];
     size_t k = 0;
     while (s + k < end && !is_sep(s[k]) && s[k] != '\n' && s[k] != '#') {
         if (k + 1 >= sizeof buf) return NULL;
-        buf[k] = s[k];
         k++;
     }
-    buf[k] = '\0';
     if (k == 0) return NULL;
+    if (decimal_parse(s, s + k, v)) return s + k;
+    memcpy(buf, s, k);
+    buf[k] = '\0';
     char *e;
     errno = 0;
     *v = strtod(buf, &e);

@@ -116,10 +116,14 @@ int frep_eval(const frep_program *p, frep_scratch *s, size_t n, const double *x,
     return 0;
 }
 
-/* One block of values and gradient into the caller's arrays. */
+/* One block of values and gradient into the caller's arrays; straight into them when
+ * they are the rows of one array (gy = gx + nb, gz = gy + nb), as the evaluator lays
+ * its tangents out. */
 static int grad_block(const frep_program *p, vm_scratch *s, const vm_inputs *in, size_t nb,
                       double *f, double *gx, double *gy, double *gz)
 {
+    if (gy == gx + nb && gz == gy + nb)
+        return vm_eval_block_tangent(p, s, in, nb, VM_SEED_XYZ, f, gx) < 0 ? -1 : 0;
     double d[3 * FREP_BLOCK];
     if (vm_eval_block_tangent(p, s, in, nb, VM_SEED_XYZ, f, d) < 0) return -1;
     memcpy(gx, d, nb * sizeof *d);
@@ -151,6 +155,12 @@ int frep_eval_dparams(const frep_program *p, frep_scratch *s, size_t n, const do
     double *d;
     if (check_args(p, s) < 0) return -1;
     np = p->nparams;
+    /* One block: its tangent rows are dp's rows (stride n), no copy. */
+    if (n <= FREP_BLOCK) {
+        vm_inputs in = block_inputs(x, y, z, params, 0);
+        return vm_eval_block_tangent(p, (vm_scratch *)s, &in, n, VM_SEED_PARAMS, f, dp) < 0
+                   ? -1 : 0;
+    }
     d = frep_malloc((np ? np : 1) * FREP_BLOCK * sizeof *d);
     if (!d) return -1;
     for (off = 0; off < n; off += FREP_BLOCK) {

@@ -1,8 +1,11 @@
 /* test_cloud.c - unit tests of geom/cloud.c: .xyz and PLY readers (every format,
  * malformed input with its message), writers and their round trip, bounding box; and
- * of the whole-file reader they use (runtime/file.c).
+ * of the whole-file reader they use (runtime/file.c); the readers' fast number
+ * conversion (geom/decimal.c) against strtod.
  */
 #include <errno.h>
+#include <float.h>
+#include <stdio.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -10,6 +13,7 @@
 
 #include "alloc.h"
 #include "cloud.h"
+#include "decimal.h"
 #include "file.h"
 #include "tap.h"
 
@@ -64,6 +68,143 @@ static void test_xyz(void)
     expect_error(word, strlen(word), "t.xyz:3: 'x2' is not a number", "word");
     expect_error("# only a comment\n\n", 18, "t.xyz: no points", "empty");
     expect_error("", 0, "t.xyz: no points", "zero bytes");
+}
+
+/* decimal_parse against strtod on one string: 0 when it declines or gives strtod's bits
+ * (NaN never: it declines "nan"), 1 when the bits differ. *fast counts conversions. */
+static int decimal_differs(const char *t, long *fast)
+{
+    double v = 0, want = strtod(t, NULL);
+    if (!decimal_parse(t, t + strlen(t), &v)) return 0;
+    ++*fast;
+    if (memcmp(&v, &want, sizeof v) == 0) return 0;
+    diag("decimal_parse(\"%s\") = %.17g, strtod %.17g", t, v, want);
+    return 1;
+}
+
+/* Random strings of every kind the readers meet: round-trip printing (17 digits) and
+ * shorter ones of random doubles over 60 decades, fixed notation, random digit strings
+ * with the point anywhere and exponents around the exact range, and the neighbours of
+ * ties between two doubles (a midpoint written to 17-19 digits, and 1-2 units away in
+ * the last digit), where rounding twice through a wider format goes wrong. */
+static void random_decimal(uint64_t *st, char *t, size_t size)
+{
+    int kind = (int)tap_urand(st, 0, 5);
+    double mag = pow(10, tap_urand(st, -30, 30)) * (tap_urand(st, 0, 1) < 0.5 ? -1 : 1);
+    double u = tap_urand(st, 0, 1);
+    if (kind == 0) {
+        snprintf(t, size, "%.17g", mag * u);
+    } else if (kind == 1) {
+        snprintf(t, size, "%.*g", (int)tap_urand(st, 1, 20), mag * u);
+    } else if (kind == 2) {
+        snprintf(t, size, "%.*f", (int)tap_urand(st, 0, 13), tap_urand(st, -1e4, 1e4));
+    } else if (kind == 3) {
+        int nd = (int)tap_urand(st, 1, 21), dot = (int)tap_urand(st, 0, nd + 2);
+        size_t k = 0;
+        if (tap_urand(st, 0, 1) < 0.3) t[k++] = tap_urand(st, 0, 1) < 0.5 ? '-' : '+';
+        for (int i = 0; i < nd; i++) {
+            if (i == dot) t[k++] = '.';
+            t[k++] = (char)('0' + (int)tap_urand(st, 0, 10));
+        }
+        if (dot == nd) t[k++] = '.';
+        t[k] = '\0';
+        if (tap_urand(st, 0, 1) < 0.6)
+            snprintf(t + k, size - k, "e%d", (int)tap_urand(st, -35, 35));
+    } else {
+        /* a double d and the tie halfway to the next, 17-19 significant digits */
+        double d = fabs(mag) * (1 + u), next = nextafter(d, INFINITY);
+        long double mid = ((long double)d + (long double)next) / 2;
+        char m[64];
+        snprintf(m, sizeof m, "%.*Le", (int)tap_urand(st, 16, 19), mid);
+        char *e = strchr(m, 'e');
+        if (e && tap_urand(st, 0, 1) < 0.5 && e[-1] >= '2' && e[-1] <= '7')
+            e[-1] = (char)(e[-1] + (tap_urand(st, 0, 1) < 0.5 ? -1 : 1));
+        snprintf(t, size, "%s", m);
+    }
+}
+
+static void test_decimal(void)
+{
+    /* Edge cases: zeros, the ends of the exact ranges, ties and their neighbours, forms
+     * it must leave to strtod. */
+    static const char *const edge[] = {
+        "0", "-0", "+0", "0.0", "-0.0e5", "0e99999", "00000", "1", "-1", "1.", ".5", "-.5",
+        "+.5e1", "0.1", "0.2", "0.3", "1e22", "1e23", "1e-22", "1e-23", "1e27", "1e-27",
+        "1e28", "9007199254740992", "9007199254740993", "9007199254740994",
+        "9007199254740995", "9007199254740993e-5", "18014398509481985",
+        "18014398509481986", "36028797018963971", "9999999999999999999",
+        "10000000000000000000", "18446744073709551615", "4.9406564584124654e-324",
+        "2.2250738585072014e-308", "1.7976931348623157e308", "1.7976931348623159e308",
+        "1e400", "1e-400", "-1.6843108809570762", "4.0000000143067167",
+        "0.4195673980991757", "2.3290669287588697e-17", "123456789012345678e-10",
+        "0.000000000000000000000000000001", "1.00000000000000011102230246251565404",
+        "1.0000000000000002220446049250313", "1.00000000000000033306690738754696",
+        "9.999999999999999e22", "8.98846567431158e307", "1e00000000000000000000000000022",
+        "1e-000000000000000000022", "1E5", "1e+5", "1e-5",
+    };
+    long fast = 0;
+    int bad = 0;
+    for (size_t i = 0; i < sizeof edge / sizeof *edge; i++) bad += decimal_differs(edge[i], &fast);
+    is_int(bad, 0, "decimal_parse gives strtod's bits on %zu edge cases (%ld converted)",
+           sizeof edge / sizeof *edge, fast);
+    static const char *const decline[] = {
+        "", "+", "-", ".", "-.", "e5", ".e5", "1e", "1e+", "1e-", "1..2", "1.2.3", "1e5.5",
+        "1e5e5", "0x10", "0x1p3", "inf", "-inf", "nan", "infinity", "1,5", "1 ", " 1",
+        "1f", "--1", "+-1", "12345678901234567890", "1.2345678901234567890",
+        "1e999999999999999999999", "1e-999999999999999999999", "5e100000", "1e-28",
+    };
+    int took = 0;
+    for (size_t i = 0; i < sizeof decline / sizeof *decline; i++) {
+        double v = 42;
+        const char *t = decline[i];
+        if (decimal_parse(t, t + strlen(t), &v) || v != 42) {
+            diag("decimal_parse took \"%s\"", t);
+            took++;
+        }
+    }
+    is_int(took, 0, "decimal_parse leaves %zu other forms to strtod",
+           sizeof decline / sizeof *decline);
+    double v = 0;
+    ok(decimal_parse("-1.25e-3", "-1.25e-3" + 8, &v) && v == -1.25e-3 &&
+           decimal_parse("0.4195673980991757", "0.4195673980991757" + 18, &v) &&
+           v == 0.4195673980991757 && decimal_parse("-0", "-0" + 2, &v) && signbit(v),
+       "Clinger's path converts short decimals and -0");
+    ok(decimal_parse("12.5xyz", "12.5xyz" + 4, &v) && v == 12.5,
+       "decimal_parse stops at the end it is given");
+
+    /* Random strings. */
+    uint64_t st = 0x9e3779b97f4a7c15ULL;
+    char t[80];
+    const long count = 1000000;
+    fast = 0;
+    bad = 0;
+    for (long i = 0; i < count && bad < 10; i++) {
+        random_decimal(&st, t, sizeof t);
+        bad += decimal_differs(t, &fast);
+    }
+    is_int(bad, 0, "decimal_parse gives strtod's bits on %ld random strings (%ld converted)",
+           count, fast);
+    ok(fast > count / 2, "most random strings take a fast path (%ld of %ld)", fast, count);
+
+    /* Through the reader: a cloud of such numbers holds strtod's values. */
+    size_t cap = 64 * 3 * 600, len = 0;
+    char *text = frep_malloc(cap);
+    double want[3 * 600];
+    for (int i = 0; i < 3 * 600; i++) {
+        random_decimal(&st, t, sizeof t);
+        want[i] = strtod(t, NULL);
+        len += (size_t)snprintf(text + len, cap - len, "%s%s", t, i % 3 == 2 ? "\n" : " ");
+    }
+    frep_error err;
+    frep_cloud *c = cloud_parse("t.xyz", text, len, &err);
+    int same = c != NULL && c->n == 600;
+    for (size_t i = 0; same && i < 600; i++)
+        same = memcmp(&c->x[i], &want[3 * i], 8) == 0 &&
+               memcmp(&c->y[i], &want[3 * i + 1], 8) == 0 &&
+               memcmp(&c->z[i], &want[3 * i + 2], 8) == 0;
+    ok(same, "an .xyz cloud of random numbers reads to strtod's bits");
+    cloud_free(c);
+    frep_free(text);
 }
 
 static void test_ply_ascii(void)
@@ -272,6 +413,7 @@ int main(void)
 {
     test_file_read();
     test_xyz();
+    test_decimal();
     test_ply_ascii();
     test_ply_binary(0);
     test_ply_binary(1);
