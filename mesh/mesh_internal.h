@@ -94,6 +94,7 @@ typedef struct mblock {
     uint16_t *vbase;          /* MESH_BLOCK_CELLS first vertex or MESH_NO_VERTEX */
     uint32_t *tri;            /* triangles from the quads this block owns (phase 3) */
     size_t ntri;
+    size_t tglobal;           /* index of its first triangle in the mesh (assembly) */
     int failed;
 } mblock;
 

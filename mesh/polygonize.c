@@ -240,44 +240,61 @@ static int make_quads(mesher *M, frep_error *e)
 
 /* Assembly moves the blocks' arrays into the mesh one kind at a time, each block's
  * array freed as soon as it is copied, so that at the peak the mesh is held once plus
- * one array, not twice.  The blocks keep their vfg for settling (settle.c). */
+ * one array, not twice.  The blocks keep their vfg for settling (settle.c).  Every
+ * block's place in the mesh is known before the copy (vglobal, tglobal), so the
+ * threads copy the blocks in any order into the mesh's arrays, sized once, and the
+ * mesh does not depend on the thread count. */
+
+/* A copy below this many bytes stays on one thread: ~0.1 ms of copying and page
+ * faults, while starting a helper costs 10-100 us. */
+#define POLY_PAR_MIN_BYTES ((size_t)1 << 20)
+/* Blocks handed to a thread at a time (a block holds ~100 vertices). */
+#define POLY_COPY_CHUNK 16
+
+/* One kind of the blocks' arrays copied into the mesh's, shared by the threads. */
+typedef struct gather_job {
+    const mesher *M;
+    size_t off;               /* offset in mblock of vpos or vnrm; 0: the triangles */
+    void *all;                /* the mesh's array of that kind */
+} gather_job;
 
 /* A block's double array at byte offset off in mblock (vpos or vnrm). */
 static double **block_array(mblock *B, size_t off) { return (double **)((char *)B + off); }
 
-/* The vpos or vnrm (off) of every block, 3 doubles a vertex, into one new array in
- * block order.  NULL when out of memory. */
-static double *gather_vertices(const mesher *M, size_t nverts, size_t off)
+/* Copy blocks [i0, i1)'s arrays of the job's kind to their places and free them. */
+static void gather_chunk(void *ctx, int t, long i0, long i1)
 {
-    double *all = frep_malloc((3 * nverts + 1) * sizeof *all);
-    if (!all) return NULL;
-    for (size_t i = 0; i < M->nblocks; i++) {
-        mblock *B = M->blocks[i];
-        double **a = block_array(B, off);
+    (void)t;
+    gather_job *J = ctx;
+    for (long i = i0; i < i1; i++) {
+        mblock *B = J->M->blocks[i];
+        if (J->off == 0) {
+            uint32_t *all = J->all;
+            if (B->ntri) memcpy(all + 3 * B->tglobal, B->tri, 3 * B->ntri * sizeof *all);
+            frep_free(B->tri);
+            B->tri = NULL;
+            continue;
+        }
+        double *all = J->all, **a = block_array(B, J->off);
         /* empty blocks may hold NULL arrays: memcpy from NULL is undefined even for 0 */
         if (B->nverts)
             memcpy(all + 3 * B->vglobal, *a, 3 * (B->nverts + 2 * (size_t)B->nfaces) * sizeof *all);
         frep_free(*a);
         *a = NULL;
     }
-    return all;
 }
 
-/* The blocks' triangles (ntris in all), in block order, into one new array.  NULL
- * when out of memory. */
-static uint32_t *gather_triangles(const mesher *M, size_t ntris)
+/* The blocks' arrays of one kind (off as in gather_job) into a new array of n
+ * elements of `size` bytes, on as many threads as its size deserves.  NULL when out
+ * of memory. */
+static void *gather(const mesher *M, size_t off, size_t n, size_t size)
 {
-    uint32_t *all = frep_malloc((3 * ntris + 1) * sizeof *all);
-    if (!all) return NULL;
-    size_t tpos = 0;
-    for (size_t i = 0; i < M->nblocks; i++) {
-        mblock *B = M->blocks[i];
-        if (B->ntri) memcpy(all + 3 * tpos, B->tri, 3 * B->ntri * sizeof *all);
-        tpos += B->ntri;
-        frep_free(B->tri);
-        B->tri = NULL;
-    }
-    return all;
+    gather_job J = { M, off, frep_malloc((n + 1) * size) };
+    if (!J.all) return NULL;
+    long nb = (long)M->nblocks;
+    int nt = n * size < POLY_PAR_MIN_BYTES || nb < 2 * POLY_COPY_CHUNK ? 1 : M->nthreads;
+    frep_par_for(nt, nb, POLY_COPY_CHUNK, gather_chunk, &J);
+    return J.all;
 }
 
 /* The blocks' vertices and triangles, in block order, into out.  The arrays only
@@ -287,6 +304,7 @@ static int assemble(const mesher *M, size_t nverts, frep_mesh *out, frep_error *
     size_t ntris = 0;
     int holes = 0;
     for (size_t i = 0; i < M->nblocks; i++) {
+        M->blocks[i]->tglobal = ntris;
         ntris += M->blocks[i]->ntri;
         holes |= M->blocks[i]->failed;
     }
@@ -306,11 +324,11 @@ static int assemble(const mesher *M, size_t nverts, frep_mesh *out, frep_error *
     frep_release_free();
     out->nverts = nverts;
     out->ntris = ntris;
-    int ok = (out->tri = gather_triangles(M, ntris)) != NULL;
+    int ok = (out->tri = gather(M, 0, 3 * ntris, sizeof *out->tri)) != NULL;
     frep_release_free();
-    ok = ok && (out->v = gather_vertices(M, nverts, offsetof(mblock, vpos))) != NULL;
+    ok = ok && (out->v = gather(M, offsetof(mblock, vpos), 3 * nverts, sizeof *out->v)) != NULL;
     frep_release_free();
-    ok = ok && (out->n = gather_vertices(M, nverts, offsetof(mblock, vnrm))) != NULL;
+    ok = ok && (out->n = gather(M, offsetof(mblock, vnrm), 3 * nverts, sizeof *out->n)) != NULL;
     frep_release_free();
     if (!ok) {
         mesh_free(out);

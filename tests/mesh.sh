@@ -214,6 +214,11 @@ t "the same gear mesh at 1 thread and the default" cmp "$T/a.ply" "$T/c.ply"
 t "near.hf -g 64 at 1 thread" "$FREP" mesh "$M/sharp/near.hf" -b 1.2 -g 64 -t 1 -o "$T/a.ply" -q
 t "near.hf -g 64 at 3 threads" "$FREP" mesh "$M/sharp/near.hf" -b 1.2 -g 64 -t 3 -o "$T/b.ply" -q
 t "the same settled mesh at 1 and 3 threads" cmp "$T/a.ply" "$T/b.ply"
+# gyroid -g 72: 130000 triangles, enough for the parallel assembly (its arrays above
+# POLY_PAR_MIN_BYTES, mesh/polygonize.c) and fold check (SETTLE_PAR_MIN_TRIS)
+t "gyroid -g 72 at 1 thread" "$FREP" mesh "$srcdir/bench/bench_gyroid.hf" -b 1.6 -g 72 -t 1 -o "$T/a.stl" -q
+t "gyroid -g 72 at 3 threads" "$FREP" mesh "$srcdir/bench/bench_gyroid.hf" -b 1.6 -g 72 -t 3 -o "$T/b.stl" -q
+t "the same assembled mesh at 1 and 3 threads" cmp "$T/a.stl" "$T/b.stl"
 for ext in stl obj ply off; do
   t "writes .$ext" "$FREP" mesh "$M/block_minus_ball.hf" -b 1 -g 16 -o "$T/m.$ext" -q
   t "samples .$ext" "$FREP" sample "$T/m.$ext" -n 50 -o "$T/s.xyz" --seed 3 -q
