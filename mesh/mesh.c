@@ -48,6 +48,13 @@
  * 0.12 cell from the end and the stop took it, the wall's corner was lost and a
  * vertex left 1.05 cell off the surface (tests/models/sharp/near.hf at -g 55). */
 #define MESH_ROOT_BISECT 8
+/* ... unless the final point is within this many cells of the surface by its own value
+ * and gradient: then a sheet runs along the edge, the point is on the surface for
+ * every later step, and where the root lies along the edge is ill-conditioned.  The
+ * x-edges 0.02 cell above the wall's top face crossing the cylinder that pokes through
+ * it: bisected to the cylinder, their vertices folded (near.hf at -g 83, 8
+ * self-intersecting pairs). */
+#define MESH_ROOT_NEAR 0.1
 /* QEF eigenvalues below this fraction of the largest are dropped (truncated
  * pseudo-inverse): near-parallel normals must not throw the vertex out of its cell. */
 #define MESH_QEF_CUTOFF 0.05
@@ -819,14 +826,16 @@ static int bisect_roots(block_ctx *c, int n)
 
 /* Whether crossing r, stopped by MESH_ROOT_FTOL, lies where the field is flatter than
  * over its bracket: the slope along the edge at the final point has the secant's sign
- * and puts the root more than MESH_ROOT_FTOL of the edge away.  (A slope of the other
+ * and puts the root more than MESH_ROOT_FTOL of the edge away, and the point is more
+ * than MESH_ROOT_NEAR from the surface.  (A slope of the other
  * sign is a ridge between two sheets, as where a sphere cuts the gyroid: the root is
  * past it either way, and bisected there the gyroid's crossings folded its quads,
  * bench/bench_gyroid.hf at -g 24 and 53 in tests/mesh.sh's shifted boxes.) */
-static int root_flat(const mwork *W, int r, double iso)
+static int root_flat(const mesher *M, const mwork *W, int r, double iso)
 {
     double fd = W->gx[r] * W->dx[r] + W->gy[r] * W->dy[r] + W->gz[r] * W->dz[r];
-    return fd * (W->g1[r] - W->g0[r]) > 0 && fabs(W->qf[r] - iso) > MESH_ROOT_FTOL * fabs(fd);
+    return fd * (W->g1[r] - W->g0[r]) > 0 && fabs(W->qf[r] - iso) > MESH_ROOT_FTOL * fabs(fd) &&
+           mesh_cell_distance(M, W->qf[r] - iso, W->gx[r], W->gy[r], W->gz[r]) > MESH_ROOT_NEAR;
 }
 
 /* The gradient at every real crossing, in one batch, refines it and gives its normal;
@@ -840,7 +849,7 @@ static int crossing_normals(block_ctx *c)
     W->grad_points += (size_t)c->nroot;
     int n = 0;
     for (int r = 0; r < c->nroot; r++)
-        if (!crossing_refine(W, r, r, c->iso) && W->side[r] == 3 && root_flat(W, r, c->iso))
+        if (!crossing_refine(W, r, r, c->iso) && W->side[r] == 3 && root_flat(c->M, W, r, c->iso))
             W->act[n++] = r;
     return n > 0 ? bisect_roots(c, n) : 0;
 }

@@ -156,6 +156,10 @@ mesh_suite 24 "$M/sharp/near.hf"
 # tangent plane by 0.135 cell.
 mesh_suite 55 "$M/sharp/near.hf"
 mesh_suite 120 "$M/sharp/near.hf"
+# ... but not the crossings already within 0.1 cell of the surface (MESH_ROOT_NEAR):
+# bisected, the x-edges 0.02 cell above the wall's top face met the cylinder poking
+# through it and near.hf had 8 self-intersecting pairs at -g 83.
+mesh_suite 83 "$M/sharp/near.hf"
 # A cube whose faces lie on grid planes (every corner of a face cell on the level, where
 # the settling step moves vertices): its 8 corners stay sharp, a vertex within 1% of a
 # cell of each, and no vertex far from the surface, at several grids.
