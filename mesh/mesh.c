@@ -1256,9 +1256,11 @@ static int project_vertices(block_ctx *c)
     return 0;
 }
 
-/* The mass points (rank 0) off the surface whose edge or corner solution, clamped
- * into the cell, missed a crossing's tangent plane: the clamped point replaces the
- * mass point when the field puts it within MESH_QEF_FIT of a cell of the surface.
+/* The mass points (rank 0) off the surface, in cells where project_vertices does not
+ * move them (a corner on the level, several components), whose edge or corner
+ * solution, clamped into the cell, missed a crossing's tangent plane: the clamped
+ * point replaces the mass point when the field puts it within MESH_QEF_FIT of a cell
+ * of the surface.
  * The tangent planes stand in for the surface near the crossings; a clamped point
  * where only some of the cell's sheets are (a block's face on a grid plane beside a
  * gap the others end at) misses the planes of the others, yet lies on the surface. */
@@ -1268,9 +1270,11 @@ static int clamped_on_surface(block_ctx *c)
     const mesher *M = c->M;
     int m = 0;
     for (size_t v = 0; v < c->nv; v++) {
+        double lo[3], hi[3];
         if (!W->altrank[v] ||
             mesh_cell_distance(M, W->vf[v] - c->iso, W->vgx[v], W->vgy[v], W->vgz[v]) <=
-                project_tol(W, v))
+                project_tol(W, v) ||
+            vertex_cell_box(c, v, MESH_PROJECT_MARGIN, lo, hi))
             continue;
         W->jid[m] = (int32_t)v;
         W->jx[m] = W->altx[v];
