@@ -40,6 +40,21 @@
  * the gradient at the final point pays for (step 3) then takes a smooth field's
  * crossing to about the square of that. */
 #define MESH_ROOT_FTOL 1e-2
+/* A crossing stopped by MESH_ROOT_FTOL whose Newton step then leaves its bracket, the
+ * field flatter at the final point than over the bracket (root_flat), has no sound
+ * estimate of its error, and is bisected this many more times, to 1/256 of its
+ * bracket.  A wall 0.05 thick: its R-intersection is flat past its end
+ * (the slab's quadratic under 6e-4), the first secant guess landed on the flat side
+ * 0.12 cell from the end and the stop took it, the wall's corner was lost and a
+ * vertex left 1.05 cell off the surface (tests/models/sharp/near.hf at -g 55). */
+#define MESH_ROOT_BISECT 8
+/* ... unless the final point is within this many cells of the surface by its own value
+ * and gradient: then a sheet runs along the edge, the point is on the surface for
+ * every later step, and where the root lies along the edge is ill-conditioned.  The
+ * x-edges 0.02 cell above the wall's top face crossing the cylinder that pokes through
+ * it: bisected to the cylinder, their vertices folded (near.hf at -g 83, 8
+ * self-intersecting pairs). */
+#define MESH_ROOT_NEAR 0.1
 /* QEF eigenvalues below this fraction of the largest are dropped (truncated
  * pseudo-inverse): near-parallel normals must not throw the vertex out of its cell. */
 #define MESH_QEF_CUTOFF 0.05
@@ -69,7 +84,9 @@
  * the rim) is the neighbours', and kept here it moved the face vertices of a cube on
  * grid planes onto its rim (tests/cli.sh, -g 4,4,8).  The tangent planes keep out a
  * point the crossings of two sheets pull together (tests/models/sharp/near.hf at -g 20:
- * a block's end on a grid plane beside a wall's edge, 0.31 cell off). */
+ * a block's end on a grid plane beside a wall's edge, 0.31 cell off).  A clamped point
+ * that misses a plane can still lie on the surface; the field decides for a mass point
+ * left off it (clamped_on_surface), to the same MESH_QEF_FIT. */
 #define MESH_QEF_FIT 0.1
 /* Vertices stay this fraction of a cell inside their cell, so that vertices of
  * different cells never coincide (no zero-area triangles). */
@@ -269,11 +286,13 @@ static int qef_fits(int np, const double (*p)[3], const double (*nrm)[3], const 
  * solution up to reach cells outside is clamped in, see MESH_QEF_REACH; with
  * clamp_fit, any edge or corner solution that still fits the crossings clamped, see
  * MESH_QEF_FIT). Returns the rank used: 1 on a flat patch, 2 on an edge, 3 at a corner
- * (0: the mass point). */
+ * (0: the mass point); alt and alt_rank: the highest-rank solution clamped that did not
+ * fit (alt_rank 0: none), for clamped_on_surface to try against the field. */
 static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
                       const double lo[3], const double hi[3], double reach, int clamp_fit,
-                      double out[3])
+                      double out[3], double alt[3], int *alt_rank)
 {
+    *alt_rank = 0;
     double m[3] = { 0, 0, 0 };
     for (int i = 0; i < np; i++)
         for (int c = 0; c < 3; c++) m[c] += p[i][c] / np;
@@ -348,7 +367,13 @@ static int qef_solve(int np, const double (*p)[3], const double (*nrm)[3],
                 inside = 0;
             y[c] = fmin(fmax(x[c], lo[c] + slack[c]), hi[c] - slack[c]);
         }
-        if (!inside && clamp_fit && rank >= 2) inside = qef_fits(np, p, nrm, y, lo, hi);
+        if (!inside && clamp_fit && rank >= 2) {
+            inside = qef_fits(np, p, nrm, y, lo, hi);
+            if (!inside && *alt_rank == 0) {
+                memcpy(alt, y, sizeof y);
+                *alt_rank = rank;
+            }
+        }
         if (inside || rank == 0) {
             memcpy(out, y, sizeof y);
             return rank;
@@ -374,7 +399,8 @@ struct mwork {
         g1[MESH_BLOCK_EDGES], tt[MESH_BLOCK_EDGES];
     double ax[MESH_BLOCK_EDGES], ay[MESH_BLOCK_EDGES], az[MESH_BLOCK_EDGES];
     double dx[MESH_BLOCK_EDGES], dy[MESH_BLOCK_EDGES], dz[MESH_BLOCK_EDGES];
-    int8_t side[MESH_BLOCK_EDGES];   /* -1, 1: end moved last; 0: none yet; 2: converged */
+    /* -1, 1: end moved last; 0: none yet; 2: converged; 3: stopped by MESH_ROOT_FTOL */
+    int8_t side[MESH_BLOCK_EDGES];
     int32_t act[MESH_BLOCK_EDGES];   /* crossings evaluated in this step */
     double qx[MESH_BLOCK_EDGES], qy[MESH_BLOCK_EDGES], qz[MESH_BLOCK_EDGES],
         qf[MESH_BLOCK_EDGES], gx[MESH_BLOCK_EDGES], gy[MESH_BLOCK_EDGES],
@@ -388,6 +414,10 @@ struct mwork {
     double vf[MESH_BLOCK_VMAX], vgx[MESH_BLOCK_VMAX], vgy[MESH_BLOCK_VMAX],
         vgz[MESH_BLOCK_VMAX];
     uint8_t vrank[MESH_BLOCK_VMAX];
+    /* a mass point's edge or corner solution clamped into the cell that missed a
+     * crossing's tangent plane, and its rank (0: none; see clamped_on_surface) */
+    double altx[MESH_BLOCK_VMAX], alty[MESH_BLOCK_VMAX], altz[MESH_BLOCK_VMAX];
+    uint8_t altrank[MESH_BLOCK_VMAX];
     uint8_t vone[MESH_BLOCK_VMAX];   /* crossings' normals agree (MESH_PROJECT_ONE_WAY) */
     uint16_t vcell[MESH_BLOCK_VMAX]; /* the cell of each cell vertex */
     /* projection batch: vertex, candidate position, its value and gradient */
@@ -663,7 +693,7 @@ static int root_batch(mwork *W, int nroot)
 {
     int na = 0;
     for (int r = 0; r < nroot; r++) {
-        if (W->side[r] == 2) continue;
+        if (W->side[r] >= 2) continue;
         double t = root_guess(W, r);
         if (W->t1[r] - W->t0[r] <= MESH_ROOT_TOL || W->g0[r] == 0 || W->g1[r] == 0) {
             W->side[r] = 2; /* converged: the final guess lands here */
@@ -701,8 +731,18 @@ static void root_update(mwork *W, int na, double iso)
         /* close: by the secant slope over the new bracket, the root is within
          * MESH_ROOT_FTOL of the edge */
         if (fabs(gv) * (W->t1[r] - W->t0[r]) <= MESH_ROOT_FTOL * fabs(W->g1[r] - W->g0[r]))
-            W->side[r] = 2;
+            W->side[r] = 3;
     }
+}
+
+/* Crossing r at parameter t of its edge: its place, and entry q of the batch. */
+static void crossing_place(mwork *W, int r, int q, double t)
+{
+    int id = W->rid[r];
+    W->tt[r] = t;
+    W->px[id] = W->qx[q] = W->ax[r] + t * W->dx[r];
+    W->py[id] = W->qy[q] = W->ay[r] + t * W->dy[r];
+    W->pz[id] = W->qz[q] = W->az[r] + t * W->dz[r];
 }
 
 /* 3. Root finding on the real crossings (Illinois regula falsi, batched: each step
@@ -720,32 +760,26 @@ static int find_roots(block_ctx *c)
         W->eval_points += (size_t)na;
         root_update(W, na, c->iso);
     }
-    for (int r = 0; r < c->nroot; r++) {
-        double t = root_guess(W, r);
-        int id = W->rid[r];
-        W->tt[r] = t;
-        W->px[id] = W->qx[r] = W->ax[r] + t * W->dx[r];
-        W->py[id] = W->qy[r] = W->ay[r] + t * W->dy[r];
-        W->pz[id] = W->qz[r] = W->az[r] + t * W->dz[r];
-    }
+    for (int r = 0; r < c->nroot; r++) crossing_place(W, r, r, root_guess(W, r));
     return 0;
 }
 
-/* Crossing r from its value and gradient (qf, gx, gy, gz): one Newton step along the
- * edge, kept only inside the bracket (a kink of a CSG field may send it anywhere),
- * and the normal. */
-static void crossing_refine(mwork *W, int r, double iso)
+/* Crossing r from its value and gradient at entry q of the batch (qf, gx, gy, gz): one
+ * Newton step along the edge, kept only inside the bracket (a kink of a CSG field may
+ * send it anywhere), and the normal.  Returns whether the step was kept. */
+static int crossing_refine(mwork *W, int r, int q, double iso)
 {
     int id = W->rid[r];
-    double fd = W->gx[r] * W->dx[r] + W->gy[r] * W->dy[r] + W->gz[r] * W->dz[r];
-    double tn = fd != 0 ? W->tt[r] - (W->qf[r] - iso) / fd : NAN;
-    if (tn >= W->t0[r] && tn <= W->t1[r]) {
+    double fd = W->gx[q] * W->dx[r] + W->gy[q] * W->dy[r] + W->gz[q] * W->dz[r];
+    double tn = fd != 0 ? W->tt[r] - (W->qf[q] - iso) / fd : NAN;
+    int kept = tn >= W->t0[r] && tn <= W->t1[r];
+    if (kept) {
         W->px[id] = W->ax[r] + tn * W->dx[r];
         W->py[id] = W->ay[r] + tn * W->dy[r];
         W->pz[id] = W->az[r] + tn * W->dz[r];
     }
     /* inside is f >= iso, so the gradient points inward */
-    double n[3] = { -W->gx[r], -W->gy[r], -W->gz[r] };
+    double n[3] = { -W->gx[q], -W->gy[q], -W->gz[q] };
     if (vec3_normalize(n)) {
         /* no usable gradient: the edge direction, from inside to outside */
         double s = W->g0[r] >= 0 ? 1.0 : -1.0;
@@ -757,9 +791,55 @@ static void crossing_refine(mwork *W, int r, double iso)
     W->nx[id] = n[0];
     W->ny[id] = n[1];
     W->nz[id] = n[2];
+    return kept;
 }
 
-/* The gradient at every real crossing, in one batch, refines it and gives its normal. */
+/* The crossings act[0..n) (stopped by MESH_ROOT_FTOL, their Newton step out of the
+ * bracket): MESH_ROOT_BISECT bisections in batches, the secant guess of the final
+ * bracket, and its gradient for the Newton step and the normal. */
+static int bisect_roots(block_ctx *c, int n)
+{
+    mwork *W = c->W;
+    for (int step = 0; step < MESH_ROOT_BISECT; step++) {
+        for (int q = 0; q < n; q++) {
+            int r = W->act[q];
+            crossing_place(W, r, q, 0.5 * (W->t0[r] + W->t1[r]));
+        }
+        if (c->f->eval(c->f->ctx, c->ts, (size_t)n, W->qx, W->qy, W->qz, W->qf) != 0)
+            return FREP_EINPUT;
+        W->eval_points += (size_t)n;
+        for (int q = 0; q < n; q++) {
+            int r = W->act[q];
+            double gv = W->qf[q] - c->iso;
+            if ((W->qf[q] >= c->iso) == (W->g0[r] >= 0)) { W->t0[r] = W->tt[r]; W->g0[r] = gv; }
+            else { W->t1[r] = W->tt[r]; W->g1[r] = gv; }
+        }
+    }
+    for (int q = 0; q < n; q++) crossing_place(W, W->act[q], q, root_guess(W, W->act[q]));
+    if (c->f->grad(c->f->ctx, c->ts, (size_t)n, W->qx, W->qy, W->qz, W->qf, W->gx, W->gy,
+                   W->gz) != 0)
+        return FREP_EINPUT;
+    W->grad_points += (size_t)n;
+    for (int q = 0; q < n; q++) crossing_refine(W, W->act[q], q, c->iso);
+    return 0;
+}
+
+/* Whether crossing r, stopped by MESH_ROOT_FTOL, lies where the field is flatter than
+ * over its bracket: the slope along the edge at the final point has the secant's sign
+ * and puts the root more than MESH_ROOT_FTOL of the edge away, and the point is more
+ * than MESH_ROOT_NEAR from the surface.  (A slope of the other
+ * sign is a ridge between two sheets, as where a sphere cuts the gyroid: the root is
+ * past it either way, and bisected there the gyroid's crossings folded its quads,
+ * bench/bench_gyroid.hf at -g 24 and 53 in tests/mesh.sh's shifted boxes.) */
+static int root_flat(const mesher *M, const mwork *W, int r, double iso)
+{
+    double fd = W->gx[r] * W->dx[r] + W->gy[r] * W->dy[r] + W->gz[r] * W->dz[r];
+    return fd * (W->g1[r] - W->g0[r]) > 0 && fabs(W->qf[r] - iso) > MESH_ROOT_FTOL * fabs(fd) &&
+           mesh_cell_distance(M, W->qf[r] - iso, W->gx[r], W->gy[r], W->gz[r]) > MESH_ROOT_NEAR;
+}
+
+/* The gradient at every real crossing, in one batch, refines it and gives its normal;
+ * the crossings the slope stopped whose Newton step failed are bisected further. */
 static int crossing_normals(block_ctx *c)
 {
     mwork *W = c->W;
@@ -767,8 +847,11 @@ static int crossing_normals(block_ctx *c)
                                    W->qf, W->gx, W->gy, W->gz) != 0)
         return FREP_EINPUT;
     W->grad_points += (size_t)c->nroot;
-    for (int r = 0; r < c->nroot; r++) crossing_refine(W, r, c->iso);
-    return 0;
+    int n = 0;
+    for (int r = 0; r < c->nroot; r++)
+        if (!crossing_refine(W, r, r, c->iso) && W->side[r] == 3 && root_flat(c->M, W, r, c->iso))
+            W->act[n++] = r;
+    return n > 0 ? bisect_roots(c, n) : 0;
 }
 
 /* Bit i: the face across axis a from corner (i, j, k) of the block is ambiguous, its
@@ -948,8 +1031,8 @@ static void component_vertex(block_ctx *c, int cf, int cyc, const int L[3],
         for (int k = 0; k < 3; k++) sn[k] += nrm[np][k];
         np++;
     }
-    double x[3];
-    int rank = 0;
+    double x[3], alt[3] = { 0, 0, 0 };
+    int rank = 0, alt_rank = 0;
     if (np == 0) {
         for (int k = 0; k < 3; k++) x[k] = 0.5 * (lo[k] + hi[k]);
     } else {
@@ -958,10 +1041,16 @@ static void component_vertex(block_ctx *c, int cf, int cyc, const int L[3],
         int clamp_fit = !c->M->o->no_projection &&
                         !crossings_on_face(np, (const double(*)[3])pts, lo, hi);
         rank = qef_solve(np, (const double(*)[3])pts, (const double(*)[3])nrm, lo, hi, reach,
-                         clamp_fit, x);
+                         clamp_fit, x, alt, &alt_rank);
     }
     size_t nv = c->nv++;
     W->vrank[nv] = (uint8_t)rank;
+    W->altrank[nv] = (uint8_t)(rank == 0 ? alt_rank : 0);
+    if (W->altrank[nv]) {
+        W->altx[nv] = alt[0];
+        W->alty[nv] = alt[1];
+        W->altz[nv] = alt[2];
+    }
     W->vcell[nv] = (uint16_t)mesh_cell_index(L[0], L[1], L[2]);
     W->vx[nv] = x[0];
     W->vy[nv] = x[1];
@@ -1167,6 +1256,53 @@ static int project_vertices(block_ctx *c)
     return 0;
 }
 
+/* The mass points (rank 0) off the surface, in cells where project_vertices does not
+ * move them (a corner on the level, several components), whose edge or corner
+ * solution, clamped into the cell, missed a crossing's tangent plane: the clamped
+ * point replaces the mass point when the field puts it within MESH_QEF_FIT of a cell
+ * of the surface.
+ * The tangent planes stand in for the surface near the crossings; a clamped point
+ * where only some of the cell's sheets are (a block's face on a grid plane beside a
+ * gap the others end at) misses the planes of the others, yet lies on the surface. */
+static int clamped_on_surface(block_ctx *c)
+{
+    mwork *W = c->W;
+    const mesher *M = c->M;
+    int m = 0;
+    for (size_t v = 0; v < c->nv; v++) {
+        double lo[3], hi[3];
+        if (!W->altrank[v] ||
+            mesh_cell_distance(M, W->vf[v] - c->iso, W->vgx[v], W->vgy[v], W->vgz[v]) <=
+                project_tol(W, v) ||
+            vertex_cell_box(c, v, MESH_PROJECT_MARGIN, lo, hi))
+            continue;
+        W->jid[m] = (int32_t)v;
+        W->jx[m] = W->altx[v];
+        W->jy[m] = W->alty[v];
+        W->jz[m] = W->altz[v];
+        m++;
+    }
+    if (m == 0) return 0;
+    if (c->f->grad(c->f->ctx, c->ts, (size_t)m, W->jx, W->jy, W->jz, W->jf, W->jgx, W->jgy,
+                   W->jgz) != 0)
+        return FREP_EINPUT;
+    W->grad_points += (size_t)m;
+    for (int q = 0; q < m; q++) {
+        size_t v = (size_t)W->jid[q];
+        double d = mesh_cell_distance(M, W->jf[q] - c->iso, W->jgx[q], W->jgy[q], W->jgz[q]);
+        if (!(d <= MESH_QEF_FIT)) continue;
+        W->vx[v] = W->jx[q];
+        W->vy[v] = W->jy[q];
+        W->vz[v] = W->jz[q];
+        W->vf[v] = W->jf[q];
+        W->vgx[v] = W->jgx[q];
+        W->vgy[v] = W->jgy[q];
+        W->vgz[v] = W->jgz[q];
+        W->vrank[v] = W->altrank[v];
+    }
+    return 0;
+}
+
 /* 5. Every vertex's value and gradient, in one batch, and the block's vertex arrays. */
 static int block_vertices(block_ctx *c)
 {
@@ -1180,11 +1316,11 @@ static int block_vertices(block_ctx *c)
     B->vfg = frep_malloc(4 * nall * sizeof *B->vfg);
     B->vrank = frep_malloc(nall);
     if (!B->vpos || !B->vnrm || !B->vfg || !B->vrank) return FREP_ENOMEM;
-    memcpy(B->vrank, W->vrank, nall);
     if (c->f->grad(c->f->ctx, c->ts, nall, W->vx, W->vy, W->vz, W->vf, W->vgx, W->vgy, W->vgz) != 0)
         return FREP_EINPUT;
     W->grad_points += nall;
-    if ((rc = project_vertices(c)) != 0) return rc;
+    if ((rc = clamped_on_surface(c)) != 0 || (rc = project_vertices(c)) != 0) return rc;
+    memcpy(B->vrank, W->vrank, nall);
     for (size_t v = 0; v < nall; v++) store_vertex(c, v);
     return 0;
 }

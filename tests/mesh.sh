@@ -147,6 +147,19 @@ mesh_suite 134 "$M/sharp/near.hf"
 mesh_suite 54 "$M/segment_box.hf"
 mesh_suite 102 "$M/segment_box.hf"
 mesh_suite 24 "$M/sharp/near.hf"
+# Crossings the slope stop took where the field is flat past them are bisected further
+# (mesh/mesh.c, MESH_ROOT_BISECT): near.hf had 2 vertices 1.05 cell off at -g 55, the
+# crossing on the x-edge past the thin wall's end 0.12 cell short of it, its corner
+# lost.  A mass point takes its clamped corner solution when the field puts that on the
+# surface (mesh/mesh.c, clamped_on_surface): near.hf had 2 vertices 0.5 cell off at
+# -g 120, the corner on the first block's face beside the gap missed the cylinder's
+# tangent plane by 0.135 cell.
+mesh_suite 55 "$M/sharp/near.hf"
+mesh_suite 120 "$M/sharp/near.hf"
+# ... but not the crossings already within 0.1 cell of the surface (MESH_ROOT_NEAR):
+# bisected, the x-edges 0.02 cell above the wall's top face met the cylinder poking
+# through it and near.hf had 8 self-intersecting pairs at -g 83.
+mesh_suite 83 "$M/sharp/near.hf"
 # A cube whose faces lie on grid planes (every corner of a face cell on the level, where
 # the settling step moves vertices): its 8 corners stay sharp, a vertex within 1% of a
 # cell of each, and no vertex far from the surface, at several grids.
