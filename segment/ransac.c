@@ -1526,6 +1526,17 @@ static size_t densest_slab(const frep_cloud *c, double *tv, size_t nt, const dou
     return ns_pts;
 }
 
+/* A noisy cloud: measured noise at least NOISY_EPSILON_SHARE of epsilon (the default
+ * epsilon is 5 noise deviations, or less where capped; on clean samples it is its
+ * floor, far above the noise). Samples of a facetted mesh (InverseCSG's coarse meshes,
+ * 12-sided prisms) are not noisy: their cylinders' facet normals are 7 degrees off in
+ * the median, and are what the curved shapes there must explain. */
+#define NOISY_EPSILON_SHARE 0.1
+static int noisy(const det *d)
+{
+    return d->cfg->noise >= NOISY_EPSILON_SHARE * d->cfg->epsilon && d->cfg->noise > 0;
+}
+
 /* Under noise, does a curved shape's normals hold two modes (the first, nc, with
  * best_cnt voters) that together make MODE_FACES of its voters? A cylinder of a
  * radius like the faces' size, its axis along their edge, lies within the band of two
@@ -1535,7 +1546,7 @@ static size_t densest_slab(const frep_cloud *c, double *tv, size_t nt, const dou
 static int two_faces(const det *d, const uint32_t *inl, size_t m, double cosm,
                      const double nc[3], size_t best_cnt)
 {
-    if (!(d->cfg->noise > 0)) return 0;
+    if (!noisy(d)) return 0;
     size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS, cnt2;
     dominant_normal(d->c, inl, m, cosm, nc, &cnt2);
     return (double)(best_cnt + cnt2) >= MODE_FACES * (double)nv;
@@ -1555,7 +1566,7 @@ static int face_better(const det *d, const prim *q, double mode_pts, size_t ma, 
                        double meda, double med0)
 {
     if (ma >= min_pts && meda < MODE_GAIN * med0) return 1;
-    return q->type != PRIM_PLANE && d->cfg->noise > 0 &&
+    return q->type != PRIM_PLANE && noisy(d) &&
            (double)ma >= MODE_FACE_KEEP * mode_pts && meda <= MODE_NOISE_MEDIAN * med0;
 }
 
@@ -2238,8 +2249,9 @@ static int tight_small_shape(run *r, const prim *q, size_t m)
  * shape's turn. At 0.5% noise (17 InverseCSG parts, normals estimated) the largest
  * planes gave 2.2-2.8 degrees, the true cylinders, spheres and tori 2.3-4.8, such
  * shapes 4.8-20. The median over all planes instead (4-5 degrees on narrow faces) let
- * 17 spurious shapes through instead of 5. Before a plane is extracted (a part of
- * curved shapes only) the test is not made. A rejected shape is kept scored zero, so
+ * 17 spurious shapes through instead of 5. On clouds that are not noisy
+ * (noisy()), and before a plane is extracted (a part of curved shapes
+ * only), the test is not made. A rejected shape is kept scored zero, so
  * the faces it took are found instead. */
 #define CURVED_NORMAL_RATIO 2.0
 /* ... and at least this many degrees: normals given with the cloud are exact on the
@@ -2248,7 +2260,7 @@ static int tight_small_shape(run *r, const prim *q, size_t m)
 #define CURVED_NORMAL_MIN_DEG 4.0
 static int normals_agree(run *r, const prim *q, size_t m)
 {
-    if (!(r->d.cfg->noise > 0) || (q->type != PRIM_PLANE && r->plane_dev_pts == 0)) return 1;
+    if (!noisy(&r->d) || (q->type != PRIM_PLANE && r->plane_dev_pts == 0)) return 1;
     double dev;
     if (median_over(&r->d, q, r->inl, m, normal_angle, &dev)) return 1;
     if (q->type != PRIM_PLANE)
