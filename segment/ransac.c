@@ -1886,8 +1886,6 @@ typedef struct run {
     size_t first_small;   /* index in res->prims of the first small shape */
     size_t draws_since;   /* minimal samples drawn since the last extraction */
     double log_fail;      /* log(1 - probability): the acceptance threshold */
-    double plane_dev;     /* median normal angle of the largest plane extracted so far */
-    size_t plane_dev_pts; /* its support (0: none yet) */
 } run;
 
 /* Free what run_alloc and build_octree allocated (not the result). */
@@ -2239,39 +2237,6 @@ static int tight_small_shape(run *r, const prim *q, size_t m)
              !(patch_width(c, r->inl, m) >= SMALL_WIDTH * eps));
 }
 
-/* A curved shape of the first phase on a noisy cloud must agree with its points'
- * normals nearly as well as the largest face does: the median angle between them and
- * the shape's at most CURVED_NORMAL_RATIO times that of the largest plane extracted so
- * far (the estimated normals' own error inside a large face). Under noise a cylinder
- * of the faces' size along the edge of two faces, a cone over a block's top and part
- * of its sides, a torus or a sphere across a pocket lie within the band of the faces,
- * as tight as they in distance, but the faces' normals stay the faces' while the
- * shape's turn. At 0.5% noise (17 InverseCSG parts, normals estimated) the largest
- * planes gave 2.2-2.8 degrees, the true cylinders, spheres and tori 2.3-4.8, such
- * shapes 4.8-20. The median over all planes instead (4-5 degrees on narrow faces) let
- * 17 spurious shapes through instead of 5. On clouds that are not noisy
- * (noisy()), and before a plane is extracted (a part of curved shapes
- * only), the test is not made. A rejected shape is kept scored zero, so
- * the faces it took are found instead. */
-#define CURVED_NORMAL_RATIO 2.0
-/* ... and at least this many degrees: normals given with the cloud are exact on the
- * faces, while a shape's normal turns by the noise over its radius (a bore of radius
- * 0.25 at 0.2% noise: 1.7 degrees). */
-#define CURVED_NORMAL_MIN_DEG 4.0
-static int normals_agree(run *r, const prim *q, size_t m)
-{
-    if (!noisy(&r->d) || (q->type != PRIM_PLANE && r->plane_dev_pts == 0)) return 1;
-    double dev;
-    if (median_over(&r->d, q, r->inl, m, normal_angle, &dev)) return 1;
-    if (q->type != PRIM_PLANE)
-        return dev <= fmax(CURVED_NORMAL_RATIO * r->plane_dev, CURVED_NORMAL_MIN_DEG * FREP_PI / 180.0);
-    if (m > r->plane_dev_pts) {
-        r->plane_dev = dev;
-        r->plane_dev_pts = m;
-    }
-    return 1;
-}
-
 /* ---- Small spheres take back their points -----------------------------------------
  * A small sphere of the second phase was fitted to what the large shapes left: the
  * corner sphere of a frame whose rails, infinite cylinders in the extraction, took every
@@ -2402,7 +2367,6 @@ static size_t extract(run *r, prim *q)
         }
     }
     if (r->phase == 1 && m >= r->min_pts && !tight_small_shape(r, q, m)) m = 0;
-    if (r->phase == 0 && m >= r->min_pts && !normals_agree(r, q, m)) m = 0;
     return m;
 }
 
