@@ -1193,6 +1193,19 @@ static double project_tol(const mwork *W, size_t v)
     return W->vrank[v] == 0 ? MESH_PROJECT_TOL_MASS : MESH_PROJECT_TOL;
 }
 
+/* Vertex v moves to sample q of the batch (jx.. jgz): its position, value and
+ * gradient. */
+static void take_sample(mwork *W, size_t v, int q)
+{
+    W->vx[v] = W->jx[q];
+    W->vy[v] = W->jy[q];
+    W->vz[v] = W->jz[q];
+    W->vf[v] = W->jf[q];
+    W->vgx[v] = W->jgx[q];
+    W->vgy[v] = W->jgy[q];
+    W->vgz[v] = W->jgz[q];
+}
+
 /* The cell vertices farther than project_tol cells from the surface (the QEF's
  * solution off a curved sheet, or the mass point where the solution left the cell)
  * go to the surface by Newton steps x - (f - iso) grad f / |grad f|^2, clamped to
@@ -1243,13 +1256,7 @@ static int project_vertices(block_ctx *c)
             int facing = fd > (W->vone[v] ? MESH_PROJECT_FACING : 0) * gl &&
                          (W->fnx[v] != 0 || W->fny[v] != 0 || W->fnz[v] != 0);
             if (!(d1 < d0) || !facing) continue;
-            W->vx[v] = W->jx[q];
-            W->vy[v] = W->jy[q];
-            W->vz[v] = W->jz[q];
-            W->vf[v] = W->jf[q];
-            W->vgx[v] = W->jgx[q];
-            W->vgy[v] = W->jgy[q];
-            W->vgz[v] = W->jgz[q];
+            take_sample(W, v, q);
             if (d1 > project_tol(W, v)) W->jid[n++] = (int32_t)v;
         }
     }
@@ -1291,13 +1298,7 @@ static int clamped_on_surface(block_ctx *c)
         size_t v = (size_t)W->jid[q];
         double d = mesh_cell_distance(M, W->jf[q] - c->iso, W->jgx[q], W->jgy[q], W->jgz[q]);
         if (!(d <= MESH_QEF_FIT)) continue;
-        W->vx[v] = W->jx[q];
-        W->vy[v] = W->jy[q];
-        W->vz[v] = W->jz[q];
-        W->vf[v] = W->jf[q];
-        W->vgx[v] = W->jgx[q];
-        W->vgy[v] = W->jgy[q];
-        W->vgz[v] = W->jgz[q];
+        take_sample(W, v, q);
         W->vrank[v] = W->altrank[v];
     }
     return 0;
