@@ -2,9 +2,11 @@
  *
  * scale (noise, spacing -> k) -> per point: weighted PCA, then iteratively reweighted
  * by plane residuals (OpenMP over points; each point is independent, so the result
- * does not depend on the thread count) -> Prim's tree over the nearest-neighbour graph
- * orients the smooth (first-pass) normals -> each robust normal takes the side of its
- * smooth one -> each connected part is turned outward on the whole -> patches checked
+ * does not depend on the thread count) -> on noisy clouds, each point near an edge
+ * takes the plane of a flatter neighbourhood that passes through it (shift_point) ->
+ * Prim's tree over the nearest-neighbour graph orients the smooth (first-pass)
+ * normals -> each robust normal takes the side of the smooth one where its plane came
+ * from -> each connected part is turned outward on the whole -> patches checked
  * by ray parity (lines in parallel, votes summed in a fixed order), the rest oriented
  * from them.
  */
@@ -273,10 +275,12 @@ typedef struct fit_scratch {
 
 /* The normals of point i: smooth (the Gaussian-weighted fit of its k neighbours) into
  * sm[3i..], robust (reweighted by residuals) into c's normal, with the foot of i on the
- * robust plane into sm[3 (n + i)..] (the point without its noise across the surface);
- * the first ko neighbours into nb[i ko ..] (padded with i). */
+ * robust plane into sm[3 (n + i)..] (the point without its noise across the surface)
+ * and the RMS distance of the neighbours from that plane, weighted in distance only,
+ * into res[i] (a neighbourhood across an edge leaves more than the noise); the first
+ * ko neighbours into nb[i ko ..] (padded with i). */
 static void fit_point(frep_cloud *c, const kd_tree *t, size_t i, size_t k, size_t ko,
-                      double scale, double *sm, uint32_t *nb, fit_scratch *f)
+                      double scale, double *sm, double *res, uint32_t *nb, fit_scratch *f)
 {
     double q[3] = {c->x[i], c->y[i], c->z[i]};
     size_t m = kd_knn(t, q, k, f->idx, f->d2);
@@ -302,6 +306,14 @@ static void fit_point(frep_cloud *c, const kd_tree *t, size_t i, size_t k, size_
             memcpy(mean, m2, sizeof mean);
         }
     }
+    double ss = 0, sw = 0;
+    for (size_t j = 0; j < m; j++) {
+        double r = (c->x[f->idx[j]] - mean[0]) * nrm[0] + (c->y[f->idx[j]] - mean[1]) * nrm[1] +
+                   (c->z[f->idx[j]] - mean[2]) * nrm[2];
+        ss += f->ws[j] * r * r;
+        sw += f->ws[j];
+    }
+    res[i] = sw > 0 ? sqrt(ss / sw) : 0;
     double h = (q[0] - mean[0]) * nrm[0] + (q[1] - mean[1]) * nrm[1] + (q[2] - mean[2]) * nrm[2];
     double *foot = sm + 3 * (c->n + i);
     for (int d = 0; d < 3; d++) foot[d] = q[d] - h * nrm[d];
@@ -314,7 +326,7 @@ static void fit_point(frep_cloud *c, const kd_tree *t, size_t i, size_t k, size_
 /* Every point's normals (parallel: each point is independent).  Returns 1 when
  * interrupted. */
 static int fit_all(frep_cloud *c, const kd_tree *t, size_t k, size_t ko, double scale,
-                   double *sm, uint32_t *nb, const normals_config *cfg)
+                   double *sm, double *res, uint32_t *nb, const normals_config *cfg)
 {
     long ln = (long)c->n;
     int stopped = 0;
@@ -331,9 +343,108 @@ static int fit_all(frep_cloud *c, const kd_tree *t, size_t k, size_t ko, double 
                 stopped = 1;
                 continue;
             }
-            fit_point(c, t, (size_t)li, k, ko, scale, sm, nb, &f);
+            fit_point(c, t, (size_t)li, k, ko, scale, sm, res, nb, &f);
         }
     }
+    return stopped;
+}
+
+/* Shifted neighbourhoods (noisy clouds). A point within a neighbourhood's radius of a
+ * sharp edge fits a plane across both faces, and the reweighting keeps a tilt when the
+ * edge cuts the neighbourhood near its middle: a face one or two radii wide (the end of
+ * a thin slab) has such points all over, and its normals spread 10-45 degrees. A
+ * neighbour farther into the face has a neighbourhood on the face alone, whose plane
+ * passes through the point. So each point takes, among the robust planes of its k
+ * neighbours that pass within tol of it and whose residual res (RMS distance of their
+ * neighbourhood) is below NORMALS_SHIFT_GAIN of its own, the flattest one: its normal,
+ * and the point's foot on it. On a smooth face or a curved surface the residuals are
+ * all alike and nothing moves. Where two such planes more than
+ * NORMALS_SHIFT_AMBIGUOUS_DEG apart pass through the point (within the noise of their
+ * edge), it keeps its own: taking either face there puts a point on the wrong one half
+ * the time, and strips along the edges then fit small cylinders. Reads the robust
+ * normals and feet, writes into out (6 per point: normal, foot) and the point whose
+ * plane it took into from[i] (its side is taken later from that point's smooth
+ * normal: near a crevice's tip the point's own smooth normal lies between two faces
+ * whose normals are 150 degrees apart), in parallel: each point is independent. */
+#define NORMALS_SHIFT_GAIN 0.7
+#define NORMALS_SHIFT_AMBIGUOUS_DEG 20.0
+static void shift_point(const frep_cloud *c, const kd_tree *t, size_t i, size_t k, double tol,
+                        const double *feet, const double *res, double *out, uint32_t *from,
+                        fit_scratch *f)
+{
+    double q[3] = {c->x[i], c->y[i], c->z[i]};
+    size_t m = kd_knn(t, q, k, f->idx, f->d2), best = i;
+    double least = NORMALS_SHIFT_GAIN * res[i];
+    for (size_t j = 0; j < m; j++) {
+        size_t p = f->idx[j];
+        f->w[j] = 0;
+        if (!(res[p] < NORMALS_SHIFT_GAIN * res[i])) continue;
+        const double *fp = feet + 3 * p;
+        double h = (q[0] - fp[0]) * c->nx[p] + (q[1] - fp[1]) * c->ny[p] + (q[2] - fp[2]) * c->nz[p];
+        if (!(fabs(h) <= tol)) continue;
+        f->w[j] = 1;
+        if (res[p] < least) {
+            best = p;
+            least = res[p];
+        }
+    }
+    /* Two faces pass through the point (within the noise of their edge): undecided, the
+     * point keeps its own plane. */
+    double cosa = cos(NORMALS_SHIFT_AMBIGUOUS_DEG * 3.14159265358979323846 / 180.0);
+    for (size_t j = 0; j < m && best != i; j++) {
+        size_t p = f->idx[j];
+        if (f->w[j] > 0 && fabs(c->nx[p] * c->nx[best] + c->ny[p] * c->ny[best] +
+                                c->nz[p] * c->nz[best]) < cosa)
+            best = i;
+    }
+    from[i] = (uint32_t)best;
+    double nrm[3] = {c->nx[best], c->ny[best], c->nz[best]};
+    if (nrm[0] * c->nx[i] + nrm[1] * c->ny[i] + nrm[2] * c->nz[i] < 0)
+        for (int d = 0; d < 3; d++) nrm[d] = -nrm[d];
+    const double *fb = feet + 3 * best;
+    double h = (q[0] - fb[0]) * nrm[0] + (q[1] - fb[1]) * nrm[1] + (q[2] - fb[2]) * nrm[2];
+    double *o = out + 6 * i;
+    for (int d = 0; d < 3; d++) {
+        o[d] = nrm[d];
+        o[3 + d] = q[d] - h * nrm[d];
+    }
+}
+
+/* Every point's shifted plane (shift_point). Returns 1 when interrupted, -1 when out
+ * of memory. */
+static int shift_all(frep_cloud *c, const kd_tree *t, size_t k, double tol, double *feet,
+                     const double *res, uint32_t *from, const normals_config *cfg)
+{
+    size_t n = c->n;
+    double *out = frep_malloc(6 * n * sizeof *out);
+    if (!out) return -1;
+    long ln = (long)n;
+    int stopped = 0;
+#ifdef _OPENMP
+#pragma omp parallel num_threads(frep_threads(cfg->nthreads)) reduction(| : stopped)
+#endif
+    {
+        fit_scratch f;
+#ifdef _OPENMP
+#pragma omp for schedule(static, 256)
+#endif
+        for (long li = 0; li < ln; li++) {
+            if (frep_cancelled(cfg->interrupt)) {
+                stopped = 1;
+                continue;
+            }
+            shift_point(c, t, (size_t)li, k, tol, feet, res, out, from, &f);
+        }
+    }
+    if (!stopped)
+        for (size_t i = 0; i < n; i++) {
+            const double *o = out + 6 * i;
+            c->nx[i] = o[0];
+            c->ny[i] = o[1];
+            c->nz[i] = o[2];
+            memcpy(feet + 3 * i, o + 3, 3 * sizeof *o);
+        }
+    frep_free(out);
     return stopped;
 }
 
@@ -1011,12 +1122,17 @@ int normals_run(frep_cloud *c, const normals_config *cfg, normals_info *info)
     size_t ko = k < NORMALS_ORIENT_K ? k : NORMALS_ORIENT_K;
     double scale = fmax(NORMALS_IRLS_SIGMAS * info->noise, NORMALS_IRLS_MIN_SPACING * info->spacing);
     uint32_t *nb = frep_malloc(n * ko * sizeof *nb);
-    double *sm = frep_malloc(6 * n * sizeof *sm);
+    double *sm = frep_malloc(6 * n * sizeof *sm), *res = frep_malloc(n * sizeof *res);
+    uint32_t *from = frep_malloc(n * sizeof *from);
     int rc = -1;
-    if (nb && sm) {
-        rc = fit_all(c, t, k, ko, scale, sm, nb, cfg);
-        /* Clean: the robust normals are oriented (reflection rule); else the smooth. */
+    if (nb && sm && res && from) {
+        rc = fit_all(c, t, k, ko, scale, sm, res, nb, cfg);
+        /* Clean: the robust normals are oriented (reflection rule); else the smooth.
+         * Clean edges are crisp within the reweighting's scale and the residuals
+         * measure the sampling, not the edges: the planes are shifted under noise only. */
         int reflect = info->noise < NORMALS_REFLECT_MAX_NOISE * info->spacing;
+        for (size_t i = 0; i < n; i++) from[i] = (uint32_t)i;
+        if (rc == 0 && !reflect) rc = shift_all(c, t, k, scale, sm + 3 * n, res, from, cfg);
         if (rc == 0 && reflect)
             for (size_t i = 0; i < n; i++) {
                 sm[3 * i] = c->nx[i];
@@ -1027,7 +1143,7 @@ int normals_run(frep_cloud *c, const normals_config *cfg, normals_info *info)
         if (rc == 0)
             for (size_t i = 0; i < n; i++) {
                 double v[3] = {c->nx[i], c->ny[i], c->nz[i]};
-                if (dot3(v, sm + 3 * i) < 0) {
+                if (dot3(v, sm + 3 * (size_t)from[i]) < 0) {
                     c->nx[i] = -v[0];
                     c->ny[i] = -v[1];
                     c->nz[i] = -v[2];
@@ -1039,6 +1155,8 @@ int normals_run(frep_cloud *c, const normals_config *cfg, normals_info *info)
     kd_free(t);
     frep_free(nb);
     frep_free(sm);
+    frep_free(res);
+    frep_free(from);
     return rc;
 }
 

@@ -42,7 +42,9 @@ typedef struct normals_info {
 /* Estimate unit normals for every point of c (adding normal arrays if needed and
  * overwriting any it had).  Per point: the plane of its k nearest neighbours, fitted
  * with Gaussian weights in distance and reweighted by the residuals (iteratively
- * reweighted PCA), so points across a sharp edge lose their say.  Orientation: Prim's
+ * reweighted PCA), so points across a sharp edge lose their say; on a noisy cloud a
+ * point near an edge then takes the plane of a flatter neighbour's neighbourhood that
+ * passes through it (geom/normals.c, shift_point).  Orientation: Prim's
  * tree over the NORMALS_ORIENT_K-nearest graph, edges weighted against normals that
  * disagree and against links along the normal (across a thin wall), or on a clean
  * cloud against a normal far from its neighbour's reflected in the plane between
