@@ -11,9 +11,6 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef HAVE_MALLOC_TRIM
-#include <malloc.h>
-#endif
 
 static frep_alloc_fn hook_fn;   /* NULL: the C library */
 static void *hook_user;
@@ -58,13 +55,6 @@ void frep_free(void *p)
     if (!p) return;
     if (hook_fn) hook_fn(hook_user, p, 0);
     else free(p);
-}
-
-void frep_release_free(void)
-{
-#ifdef HAVE_MALLOC_TRIM
-    if (!hook_fn) malloc_trim(0);
-#endif
 }
 
 char *frep_strndup(const char *s, size_t n)

@@ -18,10 +18,6 @@ void *frep_reallocarray(void *p, size_t count, size_t size);
  * released with it. */
 void frep_free(void *p);
 char *frep_strdup(const char *s);
-/* Give the free memory in the middle of the C library's heap back to the system
- * (glibc's malloc_trim), after a stage has freed many small blocks that the next one
- * will not reuse; without glibc, or with a hook installed, nothing. */
-void frep_release_free(void);
 char *frep_strndup(const char *s, size_t n);
 /* Memory aligned to `align` (a power of two, at most 4096); release with
  * frep_aligned_free, never with frep_free. */
