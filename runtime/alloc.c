@@ -11,6 +11,10 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(__linux__)
+#include <sys/mman.h>
+#include <unistd.h>
+#endif
 
 static frep_alloc_fn hook_fn;   /* NULL: the C library */
 static void *hook_user;
@@ -55,6 +59,20 @@ void frep_free(void *p)
     if (!p) return;
     if (hook_fn) hook_fn(hook_user, p, 0);
     else free(p);
+}
+
+void frep_prefault(void *p, size_t n)
+{
+#if defined(__linux__) && defined(MADV_POPULATE_WRITE)
+    long page = sysconf(_SC_PAGESIZE);
+    if (page <= 0 || n < FREP_PREFAULT_MIN_BYTES) return;
+    uintptr_t lo = ((uintptr_t)p + (uintptr_t)page - 1) & ~((uintptr_t)page - 1);
+    uintptr_t hi = ((uintptr_t)p + n) & ~((uintptr_t)page - 1);
+    if (hi > lo) (void)madvise((void *)lo, hi - lo, MADV_POPULATE_WRITE);
+#else
+    (void)p;
+    (void)n;
+#endif
 }
 
 char *frep_strndup(const char *s, size_t n)
