@@ -408,6 +408,9 @@ struct mwork {
     /* bit a: the ambiguous face across axis a whose lowest corner is this one joins its
      * inside corners (face_decisions) */
     uint8_t fjoin[MESH_BLOCK_CORNERS];
+    /* configurations and first vertices of the cells, copied into the block when it
+     * has vertices */
+    uint16_t cs[MESH_BLOCK_CELLS], vbase[MESH_BLOCK_CELLS];
     /* vertices under construction */
     double vx[MESH_BLOCK_VMAX], vy[MESH_BLOCK_VMAX], vz[MESH_BLOCK_VMAX];
     double fnx[MESH_BLOCK_VMAX], fny[MESH_BLOCK_VMAX], fnz[MESH_BLOCK_VMAX];
@@ -451,6 +454,7 @@ void mesh_work_free(mwork *W, mesh_stats *st)
 typedef struct block_ctx {
     const mesher *M;
     mwork *W;
+    mmem *mem;                /* the thread's pools, for the block's arrays */
     void *ts;                 /* the thread's field state */
     mblock *B;
     const mesh_field *f;
@@ -1068,12 +1072,12 @@ static void component_vertex(block_ctx *c, int cf, int cyc, const int L[3],
 static void cell_components(block_ctx *c, const int L[3])
 {
     const mesher *M = c->M;
-    mblock *B = c->B;
+    mwork *W = c->W;
     int i = L[0], j = L[1], k = L[2];
     int cell = mesh_cell_index(i, j, k);
-    B->vbase[cell] = MESH_NO_VERTEX;
+    W->vbase[cell] = MESH_NO_VERTEX;
     if (c->base[0] + i >= M->G[0] || c->base[1] + j >= M->G[1] || c->base[2] + k >= M->G[2]) {
-        B->cs[cell] = 0;
+        W->cs[cell] = 0;
         return;
     }
     uint32_t(*rows)[MESH_BLOCK + 1] = c->W->rows;
@@ -1085,11 +1089,11 @@ static void cell_components(block_ctx *c, const int L[3])
         cf |= ((fj[c0] >> a) & 1) << (MESH_FACE_SHIFT + 2 * a);
         cf |= ((fj[c1] >> a) & 1) << (MESH_FACE_SHIFT + 2 * a + 1);
     }
-    B->cs[cell] = (uint16_t)cf;
+    W->cs[cell] = (uint16_t)cf;
     int ncyc = M->table.ncycles[cf];
     if (ncyc == 0) return;
-    if (ncyc > 1) B->split_cells++;
-    B->vbase[cell] = (uint16_t)c->nv;
+    if (ncyc > 1) c->B->split_cells++;
+    W->vbase[cell] = (uint16_t)c->nv;
     double lo[3], hi[3];
     for (int q = 0; q < 3; q++) {
         lo[q] = corner_coord(M, q, c->base[q] + L[q]);
@@ -1105,9 +1109,6 @@ static int cell_vertices(block_ctx *c)
 {
     mblock *B = c->B;
     c->nv = c->nf = 0;
-    B->cs = frep_malloc(MESH_BLOCK_CELLS * sizeof *B->cs);
-    B->vbase = frep_malloc(MESH_BLOCK_CELLS * sizeof *B->vbase);
-    if (!B->cs || !B->vbase) return FREP_ENOMEM;
     for (int k = 0; k < MESH_BLOCK; k++)
         for (int j = 0; j < MESH_BLOCK; j++)
             for (int i = 0; i < MESH_BLOCK; i++) {
@@ -1116,6 +1117,13 @@ static int cell_vertices(block_ctx *c)
             }
     B->nverts = (uint32_t)c->nv;
     B->nfaces = (uint32_t)c->nf;
+    if (c->nv == 0) return 0;
+    mpool *cells = &c->mem->pool[MESH_POOL_CELLS];
+    B->cs = mesh_pool_alloc(cells, MESH_BLOCK_CELLS * sizeof *B->cs);
+    B->vbase = mesh_pool_alloc(cells, MESH_BLOCK_CELLS * sizeof *B->vbase);
+    if (!B->cs || !B->vbase) return FREP_ENOMEM;
+    memcpy(B->cs, c->W->cs, MESH_BLOCK_CELLS * sizeof *B->cs);
+    memcpy(B->vbase, c->W->vbase, MESH_BLOCK_CELLS * sizeof *B->vbase);
     return 0;
 }
 
@@ -1126,7 +1134,7 @@ static int append_face_vertices(block_ctx *c)
     mwork *W = c->W;
     size_t nv = c->nv, nf = c->nf;
     if (nf == 0) return 0;
-    c->B->fkey = frep_malloc(nf * sizeof *c->B->fkey);
+    c->B->fkey = mesh_pool_alloc(&c->mem->pool[MESH_POOL_CELLS], nf * sizeof *c->B->fkey);
     if (!c->B->fkey) return FREP_ENOMEM;
     memcpy(c->B->fkey, W->fkey, nf * sizeof *c->B->fkey);
     for (size_t q = 0; q < 2 * nf; q++) {
@@ -1169,7 +1177,7 @@ static int vertex_cell_box(const block_ctx *c, size_t v, double margin, double l
                            double hi[3])
 {
     int cell = c->W->vcell[v];
-    if (c->M->table.ncycles[c->B->cs[cell]] > 1) return 0;
+    if (c->M->table.ncycles[c->W->cs[cell]] > 1) return 0;
     const int L[3] = { cell % MESH_BLOCK, (cell / MESH_BLOCK) % MESH_BLOCK,
                        cell / (MESH_BLOCK * MESH_BLOCK) };
     /* a corner exactly on the level: a sheet along the cell's faces, shared with the
@@ -1312,10 +1320,11 @@ static int block_vertices(block_ctx *c)
     int rc = append_face_vertices(c);
     if (rc) return rc;
     size_t nall = c->nv + 2 * c->nf;
-    B->vpos = frep_malloc(3 * nall * sizeof *B->vpos);
-    B->vnrm = frep_malloc(3 * nall * sizeof *B->vnrm);
-    B->vfg = frep_malloc(4 * nall * sizeof *B->vfg);
-    B->vrank = frep_malloc(nall);
+    mpool *pool = c->mem->pool;
+    B->vpos = mesh_pool_alloc(&pool[MESH_POOL_POS], 3 * nall * sizeof *B->vpos);
+    B->vnrm = mesh_pool_alloc(&pool[MESH_POOL_NRM], 3 * nall * sizeof *B->vnrm);
+    B->vfg = mesh_pool_alloc(&pool[MESH_POOL_FG], 4 * nall * sizeof *B->vfg);
+    B->vrank = mesh_pool_alloc(&pool[MESH_POOL_FG], nall);
     if (!B->vpos || !B->vnrm || !B->vfg || !B->vrank) return FREP_ENOMEM;
     if (c->f->grad(c->f->ctx, c->ts, nall, W->vx, W->vy, W->vz, W->vf, W->vgx, W->vgy, W->vgz) != 0)
         return FREP_EINPUT;
@@ -1326,9 +1335,9 @@ static int block_vertices(block_ctx *c)
     return 0;
 }
 
-int mesh_block_contour(const mesher *M, mwork *W, void *ts, mblock *B)
+int mesh_block_contour(const mesher *M, mwork *W, mmem *mem, void *ts, mblock *B)
 {
-    block_ctx c = { .M = M, .W = W, .ts = ts, .B = B, .f = M->f, .iso = M->o->iso };
+    block_ctx c = { .M = M, .W = W, .mem = mem, .ts = ts, .B = B, .f = M->f, .iso = M->o->iso };
     for (int k = 0; k < 3; k++) c.base[k] = (long)B->b[k] * MESH_BLOCK;
     int rc = block_focus(&c);
     if (rc) return rc;

@@ -72,7 +72,9 @@ static inline int mesh_cell_index(int i, int j, int k)
 /* ---- a run and its blocks --------------------------------------------------------- */
 
 /* One block of cells. Valid after mesh_block_contour: vertex data and the per-cell
- * configuration and first-vertex index (cases 0 and 255 have no vertex). */
+ * configuration and first-vertex index (cases 0 and 255 have no vertex), all NULL in
+ * a block without vertices.  The arrays are held by the pools of the thread that
+ * made them (mmem). */
 typedef struct mblock {
     uint64_t key;
     int b[3];
@@ -100,6 +102,36 @@ typedef struct mblock {
 
 typedef struct mwork mwork;   /* per-thread buffers of mesh_block_contour (mesh.c) */
 
+/* The blocks' arrays live in per-thread pools, one pool per kind of array, handed out
+ * from slabs of MESH_SLAB_BYTES and freed a kind at a time once assembly has copied
+ * it: a block's arrays cost no call to malloc, and a freed kind goes back to the
+ * heap as whole slabs, which the system gets back (glibc maps chunks this large
+ * on their own) or the next run's slabs reuse, not as thousands of small holes between
+ * the arrays still in use. */
+#define MESH_SLAB_BYTES ((size_t)1 << 20)
+
+enum {
+    MESH_POOL_CELLS,          /* cs, vbase, fkey: until assembly */
+    MESH_POOL_TRI,            /* tri: until its gather */
+    MESH_POOL_POS,            /* vpos: until its gather */
+    MESH_POOL_NRM,            /* vnrm: until its gather */
+    MESH_POOL_FG,             /* vfg, vrank: kept for settling, until the run's end */
+    MESH_POOLS
+};
+
+typedef struct mslab mslab;
+typedef struct mpool {
+    mslab *slabs;             /* the newest first; the others are full */
+} mpool;
+
+/* One thread's pools, and its buffer for the triangles of the block at hand
+ * (quads.c), reused from block to block. */
+typedef struct mmem {
+    mpool pool[MESH_POOLS];
+    uint32_t *tri;
+    size_t tricap;            /* triangles tri holds */
+} mmem;
+
 typedef struct mesher {
     const mesh_field *f;
     const mesh_options *o;
@@ -112,6 +144,7 @@ typedef struct mesher {
     int nthreads;
     void **ts;                /* per-thread field state */
     mwork **works;            /* per-thread block buffers */
+    mmem *mems;               /* per-thread memory of the blocks' arrays */
     mblock **blocks;          /* sorted by key */
     size_t nblocks, capblocks;
     size_t bytes;
@@ -170,11 +203,16 @@ static inline double mesh_cell_distance(const mesher *M, double f, double gx, do
 
 /* ---- the stages (each file's header says more) ------------------------------------ */
 
+/* polygonize.c: n bytes (aligned for any type) from pool p; NULL when out of memory. */
+void *mesh_pool_alloc(mpool *p, size_t n);
+/* Free the pools of one kind on every thread. */
+void mesh_pools_free(const mesher *M, int kind);
+
 /* octree.c: the sorted list of blocks and the octree that fills it. */
 uint64_t mesh_block_key(const mesher *M, long bx, long by, long bz);
 mblock *mesh_block_find(const mesher *M, uint64_t key);   /* NULL: not in the list */
 int mesh_block_cmp(const void *a, const void *b);         /* qsort by key */
-void mesh_block_free(mblock *B);
+void mesh_block_free(mblock *B);   /* the block, not its arrays (held by the pools) */
 /* Append a new empty block at (bx, by, bz); 0, or -1 when out of memory. */
 int mesh_block_add(mesher *M, long bx, long by, long bz);
 /* The blocks the interval test cannot prove empty or full, sorted. */
@@ -189,12 +227,13 @@ mwork *mesh_work_new(void);
 void mesh_work_free(mwork *W, mesh_stats *st);
 /* Evaluate block B's corners, find its crossings and place its cell vertices. Returns 0,
  * FREP_ENOMEM when out of memory or FREP_EINPUT when the field failed. */
-int mesh_block_contour(const mesher *M, mwork *W, void *ts, mblock *B);
+int mesh_block_contour(const mesher *M, mwork *W, mmem *mem, void *ts, mblock *B);
 
 /* quads.c: the faces crossed twice on both sides, then the triangles. */
 void mesh_resolve_faces(mesher *M);
-/* The triangles of the quads block B owns into B->tri. 0, or -1 when out of memory. */
-int mesh_block_quads(mesher *M, mblock *B);
+/* The triangles of the quads block B owns into B->tri, from the thread's mem. 0, or
+ * -1 when out of memory. */
+int mesh_block_quads(mesher *M, mmem *mem, mblock *B);
 
 /* settle.c: the cell vertices still farther than MESH_SETTLE_TOL cells from the
  * surface moved onto it where their fan does not fold.  0, FREP_ENOMEM or FREP_EINPUT

@@ -49,15 +49,6 @@ int mesh_block_cmp(const void *a, const void *b)
 
 void mesh_block_free(mblock *B)
 {
-    if (!B) return;
-    frep_free(B->vpos);
-    frep_free(B->vnrm);
-    frep_free(B->vfg);
-    frep_free(B->vrank);
-    frep_free(B->fkey);
-    frep_free(B->cs);
-    frep_free(B->vbase);
-    frep_free(B->tri);
     frep_free(B);
 }
 

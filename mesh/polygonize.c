@@ -17,6 +17,7 @@
 #include <math.h>
 #include <stdatomic.h>
 #include <stddef.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -58,6 +59,62 @@ static int check_options(const mesh_options *o, frep_error *e)
     return 0;
 }
 
+/* ---- the blocks' memory (mesh_internal.h) ---- */
+
+/* A slab's pages are faulted in POLY_FAULT_STEP bytes at a time ahead of its use
+ * (frep_prefault): one system call instead of 16 page faults, and at most one step
+ * faulted and unused at the end of each pool. */
+#define POLY_FAULT_STEP ((uintptr_t)1 << 16)
+
+struct mslab {
+    mslab *next;
+    size_t used, cap;         /* bytes of data */
+    char *ready;              /* data before it is faulted in */
+    max_align_t data[];
+};
+
+void *mesh_pool_alloc(mpool *p, size_t n)
+{
+    const size_t align = _Alignof(max_align_t);
+    n = (n + align - 1) / align * align;
+    mslab *s = p->slabs;
+    if (!s || s->cap - s->used < n) {
+        size_t cap = MESH_SLAB_BYTES - sizeof *s;
+        if (n > cap) cap = n;
+        s = frep_malloc(sizeof *s + cap);
+        if (!s) return NULL;
+        s->next = p->slabs;
+        s->used = 0;
+        s->cap = cap;
+        s->ready = (char *)s->data;
+        p->slabs = s;
+    }
+    char *a = (char *)s->data + s->used;
+    s->used += n;
+    if (a + n > s->ready) {
+        uintptr_t to = ((uintptr_t)(a + n) + POLY_FAULT_STEP - 1) & ~(POLY_FAULT_STEP - 1);
+        char *end = (char *)s->data + s->cap;
+        if (to > (uintptr_t)end) to = (uintptr_t)end;
+        frep_prefault(s->ready, (size_t)(to - (uintptr_t)s->ready));
+        s->ready = (char *)to;
+    }
+    return a;
+}
+
+static void pool_free(mpool *p)
+{
+    while (p->slabs) {
+        mslab *next = p->slabs->next;
+        frep_free(p->slabs);
+        p->slabs = next;
+    }
+}
+
+void mesh_pools_free(const mesher *M, int kind)
+{
+    for (int t = 0; t < M->nthreads; t++) pool_free(&M->mems[t].pool[kind]);
+}
+
 /* The run's grid (padded by one cell on every side), its blocks per axis, threads,
  * and per-thread field states and buffers.  0, or -1 when out of memory. */
 static int mesher_init(mesher *M, const mesh_field *f, const mesh_options *o, mesh_stats *st)
@@ -78,7 +135,8 @@ static int mesher_init(mesher *M, const mesh_field *f, const mesh_options *o, me
     st->blocks_total = (size_t)M->nb[0] * (size_t)M->nb[1] * (size_t)M->nb[2];
     M->ts = frep_calloc((size_t)M->nthreads, sizeof *M->ts);
     M->works = frep_calloc((size_t)M->nthreads, sizeof *M->works);
-    if (!M->ts || !M->works) return -1;
+    M->mems = frep_calloc((size_t)M->nthreads, sizeof *M->mems);
+    if (!M->ts || !M->works || !M->mems) return -1;
     for (int t = 0; t < M->nthreads; t++) {
         M->ts[t] = f->thread_new(f->ctx);
         M->works[t] = mesh_work_new();
@@ -100,6 +158,11 @@ static void mesher_free(mesher *M, mesh_stats *st)
     if (M->works)
         for (int t = 0; t < M->nthreads; t++) mesh_work_free(M->works[t], st);
     frep_free(M->works);
+    if (M->mems) {
+        for (int kind = 0; kind < MESH_POOLS; kind++) mesh_pools_free(M, kind);
+        for (int t = 0; t < M->nthreads; t++) frep_free(M->mems[t].tri);
+    }
+    frep_free(M->mems);
     frep_free(M);
 }
 
@@ -119,7 +182,7 @@ static void contour_chunk(void *ctx, int t, long i0, long i1)
     const mesh_options *o = M->o;
     for (long i = i0; i < i1; i++) {
         if (frep_cancelled(o->interrupt)) continue;
-        int rc = mesh_block_contour(M, M->works[t], M->ts[t], J->todo[i]);
+        int rc = mesh_block_contour(M, M->works[t], &M->mems[t], M->ts[t], J->todo[i]);
         if (rc == FREP_ENOMEM) atomic_store(&J->nomem, 1);
         else if (rc != 0) atomic_store(&J->bad, 1);
         size_t d = atomic_fetch_add(&J->done, 1);
@@ -217,7 +280,7 @@ static void quads_chunk(void *ctx, int t, long i0, long i1)
     const mesh_options *o = M->o;
     for (long i = i0; i < i1; i++) {
         if (frep_cancelled(o->interrupt)) continue;
-        if (mesh_block_quads(M, M->blocks[i]) != 0) atomic_store(&J->failed, 1);
+        if (mesh_block_quads(M, &M->mems[t], M->blocks[i]) != 0) atomic_store(&J->failed, 1);
         if (t == 0 && o->progress)
             o->progress(o->progress_user, POLY_CONTOUR_SHARE +
                                               POLY_QUADS_SHARE * (double)i / (double)(J->n + 1));
@@ -238,9 +301,9 @@ static int make_quads(mesher *M, frep_error *e)
     return 0;
 }
 
-/* Assembly moves the blocks' arrays into the mesh one kind at a time, each block's
- * array freed as soon as it is copied, so that at the peak the mesh is held once plus
- * one array, not twice.  The blocks keep their vfg for settling (settle.c).  Every
+/* Assembly copies the blocks' arrays into the mesh one kind at a time, each kind's
+ * pools freed as soon as it is copied, so that at the peak the mesh is held once plus
+ * one kind, not twice.  The blocks keep their vfg for settling (settle.c).  Every
  * block's place in the mesh is known before the copy (vglobal, tglobal), so the
  * threads copy the blocks in any order into the mesh's arrays, sized once, and the
  * mesh does not depend on the thread count. */
@@ -254,46 +317,41 @@ static int make_quads(mesher *M, frep_error *e)
 /* One kind of the blocks' arrays copied into the mesh's, shared by the threads. */
 typedef struct gather_job {
     const mesher *M;
-    size_t off;               /* offset in mblock of vpos or vnrm; 0: the triangles */
+    int kind;                 /* MESH_POOL_TRI, _POS or _NRM */
     void *all;                /* the mesh's array of that kind */
 } gather_job;
 
-/* A block's double array at byte offset off in mblock (vpos or vnrm). */
-static double **block_array(mblock *B, size_t off) { return (double **)((char *)B + off); }
-
-/* Copy blocks [i0, i1)'s arrays of the job's kind to their places and free them. */
+/* Copy blocks [i0, i1)'s arrays of the job's kind to their places. */
 static void gather_chunk(void *ctx, int t, long i0, long i1)
 {
     (void)t;
     gather_job *J = ctx;
     for (long i = i0; i < i1; i++) {
         mblock *B = J->M->blocks[i];
-        if (J->off == 0) {
+        if (J->kind == MESH_POOL_TRI) {
             uint32_t *all = J->all;
             if (B->ntri) memcpy(all + 3 * B->tglobal, B->tri, 3 * B->ntri * sizeof *all);
-            frep_free(B->tri);
             B->tri = NULL;
             continue;
         }
-        double *all = J->all, **a = block_array(B, J->off);
-        /* empty blocks may hold NULL arrays: memcpy from NULL is undefined even for 0 */
-        if (B->nverts)
-            memcpy(all + 3 * B->vglobal, *a, 3 * (B->nverts + 2 * (size_t)B->nfaces) * sizeof *all);
-        frep_free(*a);
+        double *all = J->all, **a = J->kind == MESH_POOL_POS ? &B->vpos : &B->vnrm;
+        memcpy(all + 3 * B->vglobal, *a, 3 * (B->nverts + 2 * (size_t)B->nfaces) * sizeof *all);
         *a = NULL;
     }
 }
 
-/* The blocks' arrays of one kind (off as in gather_job) into a new array of n
- * elements of `size` bytes, on as many threads as its size deserves.  NULL when out
- * of memory. */
-static void *gather(const mesher *M, size_t off, size_t n, size_t size)
+/* The blocks' arrays of one kind into a new array of n elements of `size` bytes, on
+ * as many threads as its size deserves; then the kind's pools are freed.  NULL when
+ * out of memory. */
+static void *gather(const mesher *M, int kind, size_t n, size_t size)
 {
-    gather_job J = { M, off, frep_malloc((n + 1) * size) };
+    gather_job J = { M, kind, frep_malloc((n + 1) * size) };
     if (!J.all) return NULL;
+    frep_prefault(J.all, n * size);
     long nb = (long)M->nblocks;
     int nt = n * size < POLY_PAR_MIN_BYTES || nb < 2 * POLY_COPY_CHUNK ? 1 : M->nthreads;
     frep_par_for(nt, nb, POLY_COPY_CHUNK, gather_chunk, &J);
+    mesh_pools_free(M, kind);
     return J.all;
 }
 
@@ -314,22 +372,14 @@ static int assemble(const mesher *M, size_t nverts, frep_mesh *out, frep_error *
                               (size_t)MESH_MAX_TRIANGLES);
     for (size_t i = 0; i < M->nblocks; i++) {
         mblock *B = M->blocks[i];
-        frep_free(B->cs);
-        frep_free(B->vbase);
-        frep_free(B->fkey);
         B->cs = B->vbase = B->fkey = NULL;
     }
-    /* the blocks' arrays are small heap chunks among the vfg kept for settling: freed
-     * ones are not reused by the mesh's large arrays unless handed back */
-    frep_release_free();
+    mesh_pools_free(M, MESH_POOL_CELLS);
     out->nverts = nverts;
     out->ntris = ntris;
-    int ok = (out->tri = gather(M, 0, 3 * ntris, sizeof *out->tri)) != NULL;
-    frep_release_free();
-    ok = ok && (out->v = gather(M, offsetof(mblock, vpos), 3 * nverts, sizeof *out->v)) != NULL;
-    frep_release_free();
-    ok = ok && (out->n = gather(M, offsetof(mblock, vnrm), 3 * nverts, sizeof *out->n)) != NULL;
-    frep_release_free();
+    int ok = (out->tri = gather(M, MESH_POOL_TRI, 3 * ntris, sizeof *out->tri)) != NULL;
+    ok = ok && (out->v = gather(M, MESH_POOL_POS, 3 * nverts, sizeof *out->v)) != NULL;
+    ok = ok && (out->n = gather(M, MESH_POOL_NRM, 3 * nverts, sizeof *out->n)) != NULL;
     if (!ok) {
         mesh_free(out);
         return frep_error_nomem(e);

@@ -387,31 +387,38 @@ static size_t quads_capacity(const mblock *B)
 
 /* Quads of the crossing edges whose owner cell (the cell at the edge's lower corner)
  * lies in block B. */
-int mesh_block_quads(mesher *M, mblock *B)
+int mesh_block_quads(mesher *M, mmem *mem, mblock *B)
 {
-    quad_ctx c = { .M = M, .B = B, .cap = quads_capacity(B) };
+    size_t cap = quads_capacity(B);
     B->ntri = 0;
     B->tri = NULL;
-    if (c.cap == 0) return 0;
-    c.tri = frep_malloc(3 * c.cap * sizeof *c.tri);
-    if (!c.tri) return -1;
+    if (cap == 0) return 0;
+    if (mem->tricap < cap) {
+        uint32_t *t = frep_realloc(mem->tri, 3 * cap * sizeof *t);
+        if (!t) return -1;
+        mem->tri = t;
+        mem->tricap = cap;
+    }
+    quad_ctx c = { .M = M, .B = B, .cap = mem->tricap, .tri = mem->tri };
     nbhood_init(M, B, &c.nh);
     for (int k = 0; k < 3; k++) c.base[k] = (long)B->b[k] * MESH_BLOCK;
-    for (int k = 0; k < MESH_BLOCK; k++)
-        for (int j = 0; j < MESH_BLOCK; j++)
-            for (int i = 0; i < MESH_BLOCK; i++) {
+    int rc = 0;
+    for (int k = 0; k < MESH_BLOCK && rc == 0; k++)
+        for (int j = 0; j < MESH_BLOCK && rc == 0; j++)
+            for (int i = 0; i < MESH_BLOCK && rc == 0; i++) {
                 int cs = B->cs[mesh_cell_index(i, j, k)];
                 if (cs == 0 || cs == 255) continue;
                 const int L[3] = { i, j, k };
-                for (int a = 0; a < 3; a++) {
-                    if ((cs & 1) == ((cs >> (1 << a)) & 1)) continue;
-                    if (edge_quad(&c, L, cs, a) != 0) {
-                        frep_free(c.tri);
-                        return -1;
-                    }
-                }
+                for (int a = 0; a < 3 && rc == 0; a++)
+                    if ((cs & 1) != ((cs >> (1 << a)) & 1)) rc = edge_quad(&c, L, cs, a);
             }
+    /* grow_tris may have moved the buffer */
+    mem->tri = c.tri;
+    mem->tricap = c.cap;
+    if (rc != 0) return -1;
+    B->tri = mesh_pool_alloc(&mem->pool[MESH_POOL_TRI], 3 * c.nt * sizeof *B->tri);
+    if (!B->tri) return -1;
+    memcpy(B->tri, c.tri, 3 * c.nt * sizeof *B->tri);
     B->ntri = c.nt;
-    B->tri = c.tri;
     return 0;
 }

@@ -602,6 +602,7 @@ static int build_fans(const settle_run *r, const frep_mesh *m, fan_index *x)
     x->ids = frep_malloc(m->nverts * sizeof *x->ids);
     x->start = frep_calloc(m->nverts + 1, sizeof *x->start);
     if (!x->map || !x->ids || !x->start) return -1;
+    frep_prefault(x->map, m->nverts * sizeof *x->map);
     memset(x->map, 0xFF, m->nverts * sizeof *x->map);
     for (size_t k = 0; k < r->n; k++) fan_mark(x, r->sv[k].v);
     /* the neighbours: every vertex of a far vertex's triangle */
@@ -617,6 +618,7 @@ static int build_fans(const settle_run *r, const frep_mesh *m, fan_index *x)
     for (size_t i = 0; i < x->nids; i++) x->start[i + 1] += x->start[i];
     x->list = frep_malloc((total + 1) * sizeof *x->list);
     if (!x->list) return -1;
+    frep_prefault(x->list, total * sizeof *x->list);
     /* ids is full only when every vertex was numbered; start + 1 serves as the cursor
      * otherwise, so the cursor is a copy */
     uint32_t *cur = frep_malloc((x->nids + 1) * sizeof *cur);
@@ -683,6 +685,7 @@ static int mark_folded(const mesher *M, const frep_mesh *m, uint8_t *folded)
 {
     fold_job J = { m, frep_malloc(m->ntris + 1) };
     if (!J.tfold) return -1;
+    frep_prefault(J.tfold, m->ntris);
     int nt = m->ntris < SETTLE_PAR_MIN_TRIS ? 1 : M->nthreads;
     frep_par_for(nt, (long)m->ntris, SETTLE_TRI_CHUNK, fold_chunk, &J);
     memset(folded, 0, m->nverts);

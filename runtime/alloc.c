@@ -11,8 +11,9 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef HAVE_MALLOC_TRIM
-#include <malloc.h>
+#if defined(__linux__)
+#include <sys/mman.h>
+#include <unistd.h>
 #endif
 
 static frep_alloc_fn hook_fn;   /* NULL: the C library */
@@ -60,10 +61,17 @@ void frep_free(void *p)
     else free(p);
 }
 
-void frep_release_free(void)
+void frep_prefault(void *p, size_t n)
 {
-#ifdef HAVE_MALLOC_TRIM
-    if (!hook_fn) malloc_trim(0);
+#if defined(__linux__) && defined(MADV_POPULATE_WRITE)
+    long page = sysconf(_SC_PAGESIZE);
+    if (page <= 0 || n < FREP_PREFAULT_MIN_BYTES) return;
+    uintptr_t lo = ((uintptr_t)p + (uintptr_t)page - 1) & ~((uintptr_t)page - 1);
+    uintptr_t hi = ((uintptr_t)p + n) & ~((uintptr_t)page - 1);
+    if (hi > lo) (void)madvise((void *)lo, hi - lo, MADV_POPULATE_WRITE);
+#else
+    (void)p;
+    (void)n;
 #endif
 }
 

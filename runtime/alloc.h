@@ -18,11 +18,13 @@ void *frep_reallocarray(void *p, size_t count, size_t size);
  * released with it. */
 void frep_free(void *p);
 char *frep_strdup(const char *s);
-/* Give the free memory in the middle of the C library's heap back to the system
- * (glibc's malloc_trim), after a stage has freed many small blocks that the next one
- * will not reuse; without glibc, or with a hook installed, nothing. */
-void frep_release_free(void);
 char *frep_strndup(const char *s, size_t n);
+/* Fault in the whole pages of [p, p + n) of a fresh allocation that is about to be
+ * written whole, in one system call instead of one page fault a page (Linux's
+ * MADV_POPULATE_WRITE; a hint: nothing happens where it is missing or fails).  Below
+ * FREP_PREFAULT_MIN_BYTES nothing: a few faults cost less than the call. */
+#define FREP_PREFAULT_MIN_BYTES ((size_t)1 << 14)
+void frep_prefault(void *p, size_t n);
 /* Memory aligned to `align` (a power of two, at most 4096); release with
  * frep_aligned_free, never with frep_free. */
 void *frep_aligned_alloc(size_t align, size_t n);

@@ -5,8 +5,10 @@
  */
 #include "config.h"
 
+#include "alloc.h"
 #include "interval.h"
 #include "mesh.h"
+#include "mesh_internal.h"
 #include "meshio.h"
 #include "opsem.h"
 #include "program.h"
@@ -1210,6 +1212,54 @@ static void test_mesh_nomem(void)
        wrong);
 }
 
+/* The blocks' pools: every allocation aligned, none overlapping another across slab
+ * boundaries, one larger than a slab in a slab of its own; frep_prefault keeps a
+ * buffer's contents, at unaligned ends too. */
+static void test_mesh_pools(void)
+{
+    mmem mem = { 0 };
+    mesher M = { .nthreads = 1, .mems = &mem };
+    enum { N = 3000 };
+    unsigned char *a[N];
+    size_t len[N];
+    int aligned = 1, got = 1;
+    for (int i = 0; i < N; i++) {
+        len[i] = 1 + (size_t)(i * 7919) % 2000;   /* ~3 MB in all: several slabs */
+        a[i] = mesh_pool_alloc(&mem.pool[MESH_POOL_POS], len[i]);
+        got &= a[i] != NULL;
+        if (!a[i]) break;
+        aligned &= (uintptr_t)a[i] % _Alignof(max_align_t) == 0;
+        memset(a[i], i & 0xFF, len[i]);
+    }
+    ok(got && aligned, "pool: %d allocations, aligned for any type", N);
+    int kept = got;
+    for (int i = 0; i < N && kept; i++)
+        for (size_t k = 0; k < len[i]; k++) kept &= a[i][k] == (unsigned char)(i & 0xFF);
+    ok(kept, "pool: no allocation overwrites another");
+    size_t big = MESH_SLAB_BYTES + 12345;
+    unsigned char *b = mesh_pool_alloc(&mem.pool[MESH_POOL_POS], big);
+    unsigned char *c = mesh_pool_alloc(&mem.pool[MESH_POOL_POS], 64);
+    if (b) memset(b, 0xA5, big);
+    if (c) memset(c, 0x5A, 64);
+    ok(b && c && b[0] == 0xA5 && b[big - 1] == 0xA5 && (c + 64 <= b || c >= b + big),
+       "pool: an allocation larger than a slab (%zu bytes)", big);
+    mesh_pools_free(&M, MESH_POOL_POS);
+    ok(mem.pool[MESH_POOL_POS].slabs == NULL, "pool: freed whole");
+
+    size_t n = 5 * FREP_PREFAULT_MIN_BYTES + 333;
+    unsigned char *z = frep_calloc(1, n + 8);
+    int zero = z != NULL;
+    if (z) {
+        frep_prefault(z + 3, n);
+        for (size_t k = 0; k < n + 8; k++) zero &= z[k] == 0;
+        for (size_t k = 0; k < n + 8; k++) z[k] = (unsigned char)(k * 31);
+        frep_prefault(z + 3, n);
+        for (size_t k = 0; k < n + 8; k++) zero &= z[k] == (unsigned char)(k * 31);
+    }
+    ok(zero, "frep_prefault keeps the contents of %zu bytes", n);
+    frep_free(z);
+}
+
 int main(void)
 {
     test_interval_ops();
@@ -1223,6 +1273,7 @@ int main(void)
     test_mesh_tunnels();
     test_mesh_bad();
     test_mesh_nomem();
+    test_mesh_pools();
     test_meshio();
     test_prune_program(-1);
     test_prune_program(FREP_SETOPS_MINMAX);
