@@ -1599,6 +1599,36 @@ static int cv_planes(cover *C, uint32_t i)
     return 1;
 }
 
+/* The extent along u of plane q's inlier patch: of the cloud's points on the plane
+ * (within the grid tolerance) and in its patch's box, the least and the greatest
+ * u . x; the patch box's own extent when none is (a patch box turned against u is
+ * wider along it than the points: a side face cut off by a turned solid below). */
+static void cv_patch_range(const cover *C, const prim *q, const double u[3], double *lo, double *hi)
+{
+    const frep_cloud *cl = C->ck->cloud;
+    double gtol = C->ck->gtol, a = INFINITY, b = -INFINITY;
+    for (size_t i = 0; cl && i < cl->n; i++) {
+        double x[3] = { cl->x[i], cl->y[i], cl->z[i] }, d[3];
+        if (fabs(vec3_dot(q->p, x) - q->r) > gtol) continue;
+        for (int w = 0; w < 3; w++) d[w] = x[w] - q->obb_c[w];
+        int in = 1;
+        for (int e = 0; e < 3 && in; e++) in = fabs(vec3_dot(d, q->obb_axes[e])) <= q->obb_half[e] + gtol;
+        if (!in) continue;
+        double t = vec3_dot(x, u);
+        a = fmin(a, t);
+        b = fmax(b, t);
+    }
+    if (a <= b) {
+        *lo = a;
+        *hi = b;
+        return;
+    }
+    double c = vec3_dot(q->obb_c, u), e = 0;
+    for (int w = 0; w < 3; w++) e += fabs(vec3_dot(q->obb_axes[w], u)) * q->obb_half[w];
+    *lo = c - e;
+    *hi = c + e;
+}
+
 /* On axis k of frame fr with one fitted face (at index 1, outward along +u when up):
  * the buried position on the other side, COVER_BURIED_DEPTH grid tolerances past the
  * inlier patches of the frame's faces across k, where the box's side faces stop being
@@ -1613,10 +1643,10 @@ static int cv_buried(const cover *C, const cv_frame *fr, int k, double *at)
         for (int j = 0; j < 3; j++)
             if (j != k && fabs(vec3_dot(q->p, fr->u[j])) >= ct) across = 1;
         if (!across || !q->has_obb) continue;
-        double c = vec3_dot(q->obb_c, fr->u[k]), e = 0;
-        for (int a = 0; a < 3; a++) e += fabs(vec3_dot(q->obb_axes[a], fr->u[k])) * q->obb_half[a];
-        lo = fmin(lo, c - e);
-        hi = fmax(hi, c + e);
+        double plo, phi;
+        cv_patch_range(C, q, fr->u[k], &plo, &phi);
+        lo = fmin(lo, plo);
+        hi = fmax(hi, phi);
     }
     if (!(lo <= hi)) return 0;
     double depth = COVER_BURIED_DEPTH * C->ck->gtol, o = fr->of[k][1];
@@ -2321,6 +2351,181 @@ static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
     return rc < 0 ? -1 : 0;
 }
 
+/* ---- pockets: unions of planes as boxes cut away -------------------------------------- */
+
+/* An operand of an intersection that is a union of planes, X & (h1 | ... | hn), is X less
+ * the intersection of their complements, X \ (~h1 & ... & ~hn): a pocket or a slot cut
+ * into X.  When the complements bound a box on one frame (at most two of them on each of
+ * three orthogonal directions, opposite ones on the same direction), the pocket is
+ * written as that box, its faces without a plane free (beyond the part, where the cover
+ * puts them, cv_frames); a subtraction of an intersection of planes the same way.  n
+ * half-spaces become one solid; kept when the model keeps its solid (ft_keeps, and
+ * bounded if it was). */
+
+/* The half-spaces of the pocket that operand `o` of intersection `and` cuts away into
+ * n[], d[] (n.x <= d each) and their terms into pt[] (neg: the face complemented);
+ * returns their number, 0 when the operand is no union of planes (or a subtraction of
+ * an intersection of planes) of POCKET_MIN_FACES to 6 operands. */
+static int pocket_faces(const ft *F, ft_term o, double n[6][3], double d[6], ft_term pt[6])
+{
+    const ft_node *v = &F->v[o.node];
+    if (!((v->kind == FT_OR && !o.neg) || (v->kind == FT_AND && o.neg))) return 0;
+    if (v->n < POCKET_MIN_FACES || v->n > 6) return 0;
+    for (uint32_t k = 0; k < v->n; k++) {
+        pt[k] = v->t[k];
+        if (v->kind == FT_OR) pt[k].neg = !pt[k].neg;
+        if (!ft_plane(F, pt[k], n[k], &d[k])) return 0;
+    }
+    return (int)v->n;
+}
+
+/* The box node of the m half-spaces n[], d[] (terms pt[]), free faces beyond the cloud's
+ * box grown by COVER_FREE_GROWTH; FT_NONE when they bound no box on one frame. */
+static uint32_t pocket_box(ft *F, int m, const double n[6][3], const double d[6], const ft_term pt[6],
+                           const ft_check *ck, const evolve_result *r)
+{
+    double u[3][3];
+    int nd = 0, axis[6], side[6];
+    double ct = cos(ck->tol), st = sin(ck->tol);
+    for (int k = 0; k < m; k++) {
+        int a = -1;
+        for (int e = 0; e < nd && a < 0; e++)
+            if (fabs(vec3_dot(n[k], u[e])) >= ct) a = e;
+        if (a < 0) {
+            if (nd == 3) return FT_NONE;
+            for (int e = 0; e < nd; e++)
+                if (fabs(vec3_dot(n[k], u[e])) > st) return FT_NONE;
+            memcpy(u[nd], n[k], sizeof u[nd]);
+            a = nd++;
+        }
+        axis[k] = a;
+        side[k] = vec3_dot(n[k], u[a]) > 0;
+        for (int e = 0; e < k; e++)
+            if (axis[e] == a && side[e] == side[k]) return FT_NONE;
+    }
+    if (nd < 2) return FT_NONE;
+    /* Orthonormal axes: the first direction, the second made orthogonal to it, their
+     * cross product turned to the third where there is one. */
+    double t = vec3_dot(u[1], u[0]), w3[3];
+    for (int w = 0; w < 3; w++) u[1][w] -= t * u[0][w];
+    if (vec3_normalize(u[1])) return FT_NONE;
+    vec3_cross(u[0], u[1], w3);
+    if (nd == 3 && vec3_dot(w3, u[2]) < 0)
+        for (int w = 0; w < 3; w++) w3[w] = -w3[w];
+    memcpy(u[2], w3, sizeof w3);
+    double lo[3], hi[3];
+    uint32_t face[6];
+    uint8_t fneg[6], fit[6] = { 0 };
+    for (int k = 0; k < 6; k++) face[k] = FT_NONE, fneg[k] = 0;
+    for (int k = 0; k < m; k++) {
+        int a = axis[k];
+        double c = vec3_dot(n[k], u[a]);
+        int f = side[k] ? 2 * a : 2 * a + 1;
+        if (side[k]) hi[a] = d[k] / c;
+        else lo[a] = -d[k] / -c;
+        face[f] = F->v[pt[k].node].leaf;
+        fneg[f] = pt[k].neg;
+        fit[f] = 1;
+    }
+    for (int a = 0; a < 3; a++) {
+        double c = vec3_dot(r->obb.c, u[a]), e = 0;
+        for (int k = 0; k < 3; k++) e += fabs(vec3_dot(r->obb.ax[k], u[a])) * r->obb.h[k];
+        e = COVER_FREE_GROWTH * e + ck->gtol;
+        if (!fit[2 * a + 1]) lo[a] = fmin(c - e, fit[2 * a] ? hi[a] - e : c - e);
+        if (!fit[2 * a]) hi[a] = fmax(c + e, fit[2 * a + 1] ? lo[a] + e : c + e);
+        if (!(hi[a] > lo[a])) return FT_NONE;
+    }
+    uint32_t b = ft_box_node(F, u, lo, hi, face, fneg);
+    if (b == FT_NONE) return FT_NONE;
+    ft_node *v = &F->v[b];
+    for (int a = 0; a < 3; a++) {
+        memcpy(v->fpl[2 * a], u[a], 3 * sizeof(double));
+        v->fpl[2 * a][3] = hi[a];
+        for (int w = 0; w < 3; w++) v->fpl[2 * a + 1][w] = -u[a][w];
+        v->fpl[2 * a + 1][3] = -lo[a];
+    }
+    return b;
+}
+
+/* Whether every leaf under node i is a plane (boxes count as planes). */
+static int ft_planar(const ft *F, uint32_t i)
+{
+    const ft_node *v = &F->v[i];
+    switch (v->kind) {
+    case FT_LEAF: return v->leaf < F->nprims && F->q[v->leaf].type == PRIM_PLANE;
+    case FT_BOX: return 1;
+    case FT_CAPPED: return 0;
+    case FT_AND:
+    case FT_OR:
+        for (uint32_t k = 0; k < v->n; k++)
+            if (!ft_planar(F, v->t[k].node)) return 0;
+        return 1;
+    }
+    return 0;
+}
+
+/* Every operand of intersection i that is a pocket, as its box cut away, when i holds
+ * a curved solid (a sphere, a cylinder): a part of planes alone is the cover's, which
+ * reads its cuts with the part's own faces, and whose limits leave half-spaces. */
+static void ft_pockets(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r, int bounded)
+{
+    if (ft_planar(F, i)) return;
+    for (uint32_t k = 0; k < F->v[i].n && !F->failed && !ft_cancelled(ck); k++) {
+        double n[6][3], d[6];
+        ft_term pt[6], o = F->v[i].t[k];
+        int m = pocket_faces(F, o, n, d, pt);
+        if (!m) continue;
+        uint32_t b = pocket_box(F, m, n, d, pt, ck, r);
+        if (b == FT_NONE) continue;
+        F->v[i].t[k].node = b;
+        F->v[i].t[k].neg = 1;
+        if (!ft_keeps(F, ck) || (bounded && !ft_bounded(F, ck->root, r))) F->v[i].t[k] = o;
+    }
+}
+
+/* Boxes cut from intersection i dropped where the model explains the cloud at least as
+ * well without them (mean distance) and differs from the tree before the rewrites at no
+ * more than COVER_SLIVER of the inside grid points: a cut of the faces of the solid
+ * below that trims a box's buried face, placed too deep, where a corner of that face
+ * shows (six_cuboids' top cube). */
+static void ft_drop_cuts(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r, int bounded)
+{
+    size_t nin = 0;
+    for (size_t g = 0; g < ck->ng; g++) nin += ck->ref[g] > ck->gtol;
+    size_t most = (size_t)(COVER_SLIVER * (double)nin);
+    for (uint32_t k = 0; k < F->v[i].n && !F->failed && !ft_cancelled(ck);) {
+        ft_term t = F->v[i].t[k];
+        if (!t.neg || F->v[t.node].kind != FT_BOX || F->v[i].n < 2) {
+            k++;
+            continue;
+        }
+        double mean = ft_mean(F, ck->root, ck->cloud, ck->stride);
+        ft_node *v = &F->v[i];
+        memmove(&v->t[k], &v->t[k + 1], (v->n - k - 1) * sizeof *v->t);
+        v->n--;
+        if (ft_grid_diffs(F, ck, most) <= most && ft_mean(F, ck->root, ck->cloud, ck->stride) <= mean &&
+            (!bounded || ft_bounded(F, ck->root, r)))
+            continue;
+        v = &F->v[i];
+        memmove(&v->t[k + 1], &v->t[k], (v->n - k) * sizeof *v->t);
+        v->t[k] = t;
+        v->n++;
+        k++;
+    }
+}
+
+static void apply_pockets(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r, int bounded)
+{
+    ft_node *v = &F->v[i];
+    if (v->kind != FT_AND && v->kind != FT_OR) return;
+    uint32_t n = v->n;
+    for (uint32_t k = 0; k < n; k++) apply_pockets(F, F->v[i].t[k].node, ck, r, bounded);
+    if (F->v[i].kind == FT_AND) {
+        ft_pockets(F, i, ck, r, bounded);
+        ft_drop_cuts(F, i, ck, r, bounded);
+    }
+}
+
 int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const canon_prim *c,
                      size_t nprims, const frep_cloud *cloud, int exact, int hyperfun,
                      const char *base_call, const volatile sig_atomic_t *cancel)
@@ -2382,6 +2587,7 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
     }
     if (!exact) apply_solids(&F, root, &ck);
     if (!F.failed && ck.cloud && apply_cover(&F, root, &ck, r)) F.failed = 1;
+    if (!F.failed && ck.cloud) apply_pockets(&F, root, &ck, r, ft_bounded(&F, root, r));
     if (F.failed) goto done;
     uses = frep_calloc(nprims + 1, sizeof *uses);
     order = frep_calloc(F.n, sizeof *order);

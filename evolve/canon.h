@@ -122,6 +122,10 @@ void canon_write_comment(FILE *f, const canon_prim *c);
 /* Cloud points the cover labels (moved in and out along their normals): at most this
  * many, evenly spread over the cloud (canon_spread), the same on every run. */
 #define COVER_CLOUD_POINTS 2048
+/* A union of planes X & (h1 | h2 | h3) written as the box it cuts away, X \ box: at
+ * least this many planes (the box of one plane is no fewer solids than its
+ * half-space). */
+#define POCKET_MIN_FACES 2
 
 /* The k-th (k < m = min(n, most)) of m indices evenly spread over 0..n-1: floor(k n / m),
  * so that a cloud of n points gives exactly m of them, the first one 0. */

@@ -1,0 +1,87 @@
+#!/bin/sh
+# evolve_pocket.sh - a slot across the top of a disc and a pocket in a ball: the GA
+# writes each cut as the union of the planes around it, `disc & (x1 | z | x2)`, whose
+# box has faces no point shows (the slot's ends, the pocket's far side beyond the
+# ball).  The writer reads that union as the box it cuts away, those faces free
+# (canon.c, ft_pockets): `disc \ box_cut`, 2 solids as the program, where it wrote the
+# planes as 3 and 4 half-spaces.
+# Prints TAP. Needs FREP.
+
+: "${FREP:?FREP must name the frep binary}"
+
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/frep-evpocket.XXXXXX") || exit 1
+trap 'rm -rf "$tmp"' EXIT INT TERM
+
+. "$(dirname "$0")/tap.sh"
+show() { sed 's/^/# /' "$1"; }
+vol() { "$FREP" mesh "$1" -o "$tmp/v.off" -g 128 --check 2>/dev/null | sed -n 's/.*volume \([0-9.e+-]*\).*/\1/p'; }
+
+# A disc of radius 3 and height 2, a slot 1 wide and 0.8 deep across its top (its ends
+# beyond the disc); a ball of radius 3 less a 2 x 4 x 5 pocket open at y = 3 and z = -3
+# (its faces y = 4.5 and z = -4 lie beyond the ball, z = 1 and y = 0.5 inside it).
+cat >"$tmp/slot.hf" <<'EOF2'
+-- @setops minmax
+-- @box -3.5 -3.5 -0.5 3.5 3.5 2.5
+my_model(x[3], a[1])
+{
+    array c[3], lo[3];
+    c = [0, 0, 0];
+    disc = hfCylinderZ(x, c, 3) & (2 - x[3]) & x[3];
+    lo = [-0.5, -4, 1.2];
+    slot = hfBlock(x, lo, 1, 8, 2);
+    my_model = disc \ slot;
+}
+EOF2
+cat >"$tmp/pocket.hf" <<'EOF2'
+-- @setops minmax
+-- @box -3.5 -3.5 -3.5 3.5 3.5 3.5
+my_model(x[3], a[1])
+{
+    array c[3], lo[3];
+    c = [0, 0, 0];
+    ball = hfSphere(x, c, 3);
+    lo = [-1, 0.5, -4];
+    pocket = hfBlock(x, lo, 2, 4, 5);
+    my_model = ball \ pocket;
+}
+EOF2
+
+for m in slot pocket; do
+    "$FREP" sample "$tmp/$m.hf" -n 6000 --seed 1 -o "$tmp/$m.xyz" -q &&
+        nice "$FREP" evolve "$tmp/$m.xyz" -o "$tmp/m_$m.hf" --seed 1 -q 2>"$tmp/err"
+    st=$?
+    report $st "$m: sample and evolve"
+    [ $st = 0 ] || { show "$tmp/err"; continue; }
+    grep -q '^    -- 2 solids: 1 box, .* 0 half-spaces$' "$tmp/m_$m.hf" &&
+        grep -q '^    tree = [a-z_0-9]* \\ box_cut_1;$' "$tmp/m_$m.hf"
+    st=$?
+    report $st "$m: written as the program, the body less one box ($(grep -o -- '-- [0-9]* solids.*' "$tmp/m_$m.hf"))"
+    [ $st = 0 ] || show "$tmp/m_$m.hf"
+    grep -q '^-- 100.00% of 6000 points within epsilon' "$tmp/m_$m.hf"
+    report $? "$m: the model explains the points ($(grep -o '[0-9.]*% of 6000' "$tmp/m_$m.hf"))"
+    vt=$(vol "$tmp/$m.hf")
+    vm=$(vol "$tmp/m_$m.hf")
+    awk -v a="$vm" -v t="$vt" 'BEGIN { e = (a - t) / t; if (e < 0) e = -e; exit !(a != "" && e < 0.001) }'
+    report $? "$m: mesh volume $vm within 0.1% of the truth's $vt"
+done
+
+# The slot's box: 1 wide across x (its fitted faces x = +-0.5), its depth from the top
+# z = 1.2 up to a free face beyond the disc; deepening it by 0.2 (its centre down and
+# its half height up by 0.1) removes the strip's area (5.972, |x| < 0.5 in the circle)
+# x 0.2 more.
+box=$(grep '^    box_cut_1 = frBox(x' "$tmp/m_slot.hf")
+echo "$box" | grep -q 'faces plane_x_[a-z]*, plane_x_[a-z]*, .*free' &&
+    echo "$box" | grep -q ' -- box 1 x '
+report $? "slot: box 1 wide between the fitted sides, free faces beyond the disc"
+echo "$box" | awk -F'[(),]' '{ cz = $5 + 0; hz = $8 + 0; bot = cz - hz; e = bot - 1.2
+                                 exit !(e < 0.01 && e > -0.01) }'
+report $? "slot: the box's bottom at the slot's floor z = 1.2"
+awk '/^    box_cut_1 = frBox\(x/ { n = split($0, p, ", "); p[4] = p[4] - 0.1; p[7] = p[7] + 0.1
+                                      s = p[1]; for (k = 2; k <= n; k++) s = s ", " p[k]; print s; next }
+     { print }' "$tmp/m_slot.hf" >"$tmp/deeper.hf"
+v0=$(vol "$tmp/m_slot.hf")
+v1=$(vol "$tmp/deeper.hf")
+awk -v a="$v0" -v b="$v1" 'BEGIN { d = a - b; exit !(a != "" && b != "" && d > 1.16 && d < 1.22) }'
+report $? "slot: 0.2 deeper removes $(awk -v a="$v0" -v b="$v1" 'BEGIN { print a - b }') (the strip x 0.2: 1.19)"
+
+tap_done
