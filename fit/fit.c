@@ -317,36 +317,10 @@ static int sa_local(void *user, double *x, double *fx)
     return st == FIT_FAILED || st == FIT_NOMEM || !isfinite(*fx) ? -1 : 0;
 }
 
-/* The k-th smallest of v[0..n) (from 0), v reordered: Hoare's selection, O(n) on
- * average where sorting for a median was 4% of a fit's CPU time. A NaN stops both scans,
- * so they end; where the values hold NaNs the result is one of them or a number, as a
- * sort's was. */
-static double select_kth(double *v, size_t n, size_t k)
-{
-    long lo = 0, hi = (long)n - 1;
-    while (lo < hi) {
-        double pivot = v[lo + (hi - lo) / 2];
-        long i = lo, j = hi;
-        while (i <= j) {
-            while (v[i] < pivot) i++;
-            while (v[j] > pivot) j--;
-            if (i <= j) {
-                double t = v[i];
-                v[i++] = v[j];
-                v[j--] = t;
-            }
-        }
-        if ((long)k <= j) hi = j;
-        else if ((long)k >= i) lo = i;
-        else break;
-    }
-    return v[k];
-}
-
 /* The median of v[0..n), n > 0 (v reordered). */
 static double median(double *v, size_t n)
 {
-    double upper = select_kth(v, n, n / 2);
+    double upper = fit_select_kth(v, n, n / 2);
     if (n % 2) return upper;
     double lower = v[0];            /* the largest of v[0..n/2), all <= upper */
     for (size_t i = 1; i < n / 2; i++) lower = fmax(lower, v[i]);

@@ -271,10 +271,27 @@ int fit_distances(const fit_model *m, const double *params, const fit_points *pt
     return failed ? -1 : 0;
 }
 
-static int cmp_double(const void *a, const void *b)
+/* Hoare's selection (measure.h). */
+double fit_select_kth(double *v, size_t n, size_t k)
 {
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
+    long lo = 0, hi = (long)n - 1;
+    while (lo < hi) {
+        double pivot = v[lo + (hi - lo) / 2];
+        long i = lo, j = hi;
+        while (i <= j) {
+            while (v[i] < pivot) i++;
+            while (v[j] > pivot) j--;
+            if (i <= j) {
+                double t = v[i];
+                v[i++] = v[j];
+                v[j--] = t;
+            }
+        }
+        if ((long)k <= j) hi = j;
+        else if ((long)k >= i) lo = i;
+        else break;
+    }
+    return v[k];
 }
 
 /* Solve for the diagonal of the inverse of the SPD matrix A (n x n, overwritten by its
@@ -315,8 +332,7 @@ int fit_uncertainty(const fit_model *m, const double *params, const fit_points *
             gn[i0 + i] = sqrt(g[i] * g[i] + g[k + i] * g[k + i] + g[2 * k + i] * g[2 * k + i]);
     }
     memcpy(med, gn, n * sizeof *med);
-    qsort(med, n, sizeof *med, cmp_double);
-    double floor = FIT_SENS_GRAD_FLOOR * med[n / 2];
+    double floor = FIT_SENS_GRAD_FLOOR * fit_select_kth(med, n, n / 2);
     size_t used = 0;
     /* Pass 2: J^T J and the residuals, in point order. */
     for (size_t i0 = 0; i0 < n; i0 += FIT_BLOCK) {
