@@ -231,7 +231,7 @@ static int stage_segment(segment_cmd *s)
     cli_sigint_restore();
     if (ps.shown) fputs("\r\033[K", stderr);
     if (!s->g) {
-        fprintf(stderr, "%s: error: %s\n", s->in, s->error[0] ? s->error : "segmentation failed");
+        fprintf(stderr, "frep segment: %s: %s\n", s->in, s->error[0] ? s->error : "segmentation failed");
         return CLI_FAIL;
     }
     frep_segmentation_get_info(s->g, &s->r);

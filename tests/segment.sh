@@ -252,6 +252,14 @@ st=$?
 [ $st = 1 ] && grep -q "below the noise" "$tmp/err" && grep -q -- "try --epsilon" "$tmp/err" &&
     [ ! -e "$tmp/none.fit" ]
 report $? "epsilon below the noise: exit $st, explained ($(head -c 160 "$tmp/err"))"
+# Errors of the segmentation itself read as every data error does: the command, the
+# file, the message; here a cloud of 5 points (at least 8 are needed).
+printf '0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 1\n' > "$tmp/five.xyz"
+"$FREP" segment "$tmp/five.xyz" --seed 1 -q -o "$tmp/five.fit" 2> "$tmp/err"
+st=$?
+[ $st = 1 ] && grep -q "^frep segment: $tmp/five.xyz: too few points: 5" "$tmp/err" &&
+    [ ! -e "$tmp/five.fit" ]
+report $? "5 points: exit $st, 'frep segment: FILE: message' ($(head -c 160 "$tmp/err"))"
 
 # Normals estimated by frep (PCA and propagation) instead of the sampler's: the clean
 # box and cylinder without their normal columns.
