@@ -278,13 +278,16 @@ typedef struct fit_scratch {
  * robust plane into sm[3 (n + i)..] (the point without its noise across the surface)
  * and the RMS distance of the neighbours from that plane, weighted in distance only,
  * into res[i] (a neighbourhood across an edge leaves more than the noise); the first
- * ko neighbours into nb[i ko ..] (padded with i). */
+ * ko neighbours into nb[i ko ..] (padded with i), and all of them into kept[i k ..]
+ * when kept is not NULL (for shift_point). */
 static void fit_point(frep_cloud *c, const kd_tree *t, size_t i, size_t k, size_t ko,
-                      double scale, double *sm, double *res, uint32_t *nb, fit_scratch *f)
+                      double scale, double *sm, double *res, uint32_t *nb, uint32_t *kept,
+                      fit_scratch *f)
 {
     double q[3] = {c->x[i], c->y[i], c->z[i]};
     size_t m = kd_knn(t, q, k, f->idx, f->d2);
     for (size_t j = 0; j < ko; j++) nb[(size_t)i * ko + j] = j < m ? f->idx[j] : (uint32_t)i;
+    if (kept) memcpy(kept + i * k, f->idx, m * sizeof *kept);
     double h2 = m ? f->d2[m - 1] : 0;
     for (size_t j = 0; j < m; j++) f->ws[j] = h2 > 0 ? exp(-f->d2[j] / h2) : 1.0;
     double nrm[3] = {0, 0, 1}, mean[3] = {q[0], q[1], q[2]};
@@ -326,7 +329,7 @@ static void fit_point(frep_cloud *c, const kd_tree *t, size_t i, size_t k, size_
 /* Every point's normals (parallel: each point is independent).  Returns 1 when
  * interrupted. */
 static int fit_all(frep_cloud *c, const kd_tree *t, size_t k, size_t ko, double scale,
-                   double *sm, double *res, uint32_t *nb, const normals_config *cfg)
+                   double *sm, double *res, uint32_t *nb, uint32_t *kept, const normals_config *cfg)
 {
     long ln = (long)c->n;
     int stopped = 0;
@@ -343,7 +346,7 @@ static int fit_all(frep_cloud *c, const kd_tree *t, size_t k, size_t ko, double 
                 stopped = 1;
                 continue;
             }
-            fit_point(c, t, (size_t)li, k, ko, scale, sm, res, nb, &f);
+            fit_point(c, t, (size_t)li, k, ko, scale, sm, res, nb, kept, &f);
         }
     }
     return stopped;
@@ -367,16 +370,21 @@ static int fit_all(frep_cloud *c, const kd_tree *t, size_t k, size_t ko, double 
  * normal: near a crevice's tip the point's own smooth normal lies between two faces
  * whose normals are 150 degrees apart), in parallel: each point is independent. */
 #define NORMALS_SHIFT_GAIN 0.7
+/* The k neighbours of every point are kept from the fit for the shift (half the
+ * neighbour searches, which are most of the time) up to this many bytes of indices:
+ * 256 MiB, 1.3 million points at the automatic k of a 0.5%-noise scan (48-128). */
+#define NORMALS_KEEP_MAX_BYTES ((size_t)256 << 20)
 #define NORMALS_SHIFT_AMBIGUOUS_DEG 20.0
 static void shift_point(const frep_cloud *c, const kd_tree *t, size_t i, size_t k, double tol,
-                        const double *feet, const double *res, double *out, uint32_t *from,
-                        fit_scratch *f)
+                        const double *feet, const double *res, const uint32_t *kept,
+                        double *out, uint32_t *from, fit_scratch *f)
 {
     double q[3] = {c->x[i], c->y[i], c->z[i]};
-    size_t m = kd_knn(t, q, k, f->idx, f->d2), best = i;
+    const uint32_t *idx = kept ? kept + i * k : f->idx;
+    size_t m = kept ? (k < c->n ? k : c->n) : kd_knn(t, q, k, f->idx, f->d2), best = i;
     double least = NORMALS_SHIFT_GAIN * res[i];
     for (size_t j = 0; j < m; j++) {
-        size_t p = f->idx[j];
+        size_t p = idx[j];
         f->w[j] = 0;
         if (!(res[p] < NORMALS_SHIFT_GAIN * res[i])) continue;
         const double *fp = feet + 3 * p;
@@ -392,7 +400,7 @@ static void shift_point(const frep_cloud *c, const kd_tree *t, size_t i, size_t 
      * point keeps its own plane. */
     double cosa = cos(NORMALS_SHIFT_AMBIGUOUS_DEG * 3.14159265358979323846 / 180.0);
     for (size_t j = 0; j < m && best != i; j++) {
-        size_t p = f->idx[j];
+        size_t p = idx[j];
         if (f->w[j] > 0 && fabs(c->nx[p] * c->nx[best] + c->ny[p] * c->ny[best] +
                                 c->nz[p] * c->nz[best]) < cosa)
             best = i;
@@ -410,10 +418,11 @@ static void shift_point(const frep_cloud *c, const kd_tree *t, size_t i, size_t 
     }
 }
 
-/* Every point's shifted plane (shift_point). Returns 1 when interrupted, -1 when out
- * of memory. */
+/* Every point's shifted plane (shift_point), on the neighbours fit_all kept (NULL:
+ * searched again). Returns 1 when interrupted, -1 when out of memory. */
 static int shift_all(frep_cloud *c, const kd_tree *t, size_t k, double tol, double *feet,
-                     const double *res, uint32_t *from, const normals_config *cfg)
+                     const double *res, const uint32_t *kept, uint32_t *from,
+                     const normals_config *cfg)
 {
     size_t n = c->n;
     double *out = frep_malloc(6 * n * sizeof *out);
@@ -433,7 +442,7 @@ static int shift_all(frep_cloud *c, const kd_tree *t, size_t k, double tol, doub
                 stopped = 1;
                 continue;
             }
-            shift_point(c, t, (size_t)li, k, tol, feet, res, out, from, &f);
+            shift_point(c, t, (size_t)li, k, tol, feet, res, kept, out, from, &f);
         }
     }
     if (!stopped)
@@ -1124,15 +1133,19 @@ int normals_run(frep_cloud *c, const normals_config *cfg, normals_info *info)
     uint32_t *nb = frep_malloc(n * ko * sizeof *nb);
     double *sm = frep_malloc(6 * n * sizeof *sm), *res = frep_malloc(n * sizeof *res);
     uint32_t *from = frep_malloc(n * sizeof *from);
+    /* Clean: the robust normals are oriented (reflection rule); else the smooth.
+     * Clean edges are crisp within the reweighting's scale and the residuals
+     * measure the sampling, not the edges: the planes are shifted under noise only,
+     * on the neighbours the fit found when they fit in NORMALS_KEEP_MAX_BYTES (and the
+     * memory is there: else they are searched again, with the same result). */
+    int reflect = info->noise < NORMALS_REFLECT_MAX_NOISE * info->spacing;
+    uint32_t *kept = !reflect && n <= NORMALS_KEEP_MAX_BYTES / sizeof *kept / k
+                         ? frep_malloc(n * k * sizeof *kept) : NULL;
     int rc = -1;
     if (nb && sm && res && from) {
-        rc = fit_all(c, t, k, ko, scale, sm, res, nb, cfg);
-        /* Clean: the robust normals are oriented (reflection rule); else the smooth.
-         * Clean edges are crisp within the reweighting's scale and the residuals
-         * measure the sampling, not the edges: the planes are shifted under noise only. */
-        int reflect = info->noise < NORMALS_REFLECT_MAX_NOISE * info->spacing;
+        rc = fit_all(c, t, k, ko, scale, sm, res, nb, kept, cfg);
         for (size_t i = 0; i < n; i++) from[i] = (uint32_t)i;
-        if (rc == 0 && !reflect) rc = shift_all(c, t, k, scale, sm + 3 * n, res, from, cfg);
+        if (rc == 0 && !reflect) rc = shift_all(c, t, k, scale, sm + 3 * n, res, kept, from, cfg);
         if (rc == 0 && reflect)
             for (size_t i = 0; i < n; i++) {
                 sm[3 * i] = c->nx[i];
@@ -1157,6 +1170,7 @@ int normals_run(frep_cloud *c, const normals_config *cfg, normals_info *info)
     frep_free(sm);
     frep_free(res);
     frep_free(from);
+    frep_free(kept);
     return rc;
 }
 

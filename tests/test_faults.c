@@ -624,6 +624,34 @@ static int case_normals(const fixture *fx, fault_out *o)
     return rc;
 }
 
+/* The same cloud with noise of about a third of its spacing: normals_run keeps the
+ * neighbours of the fit for the shift of noisy clouds (NORMALS_KEEP_MAX_BYTES); when
+ * that allocation fails they are searched again, and the normals must be the same. */
+static int case_normals_noisy(const fixture *fx, fault_out *o)
+{
+    frep_cloud *c = cloud_copy(fx->cloud, 1);
+    if (!c) return -1;
+    uint64_t h = 88172645463325252ull;
+    double *v[3] = {c->x, c->y, c->z};
+    for (size_t i = 0; i < c->n; i++)
+        for (int d = 0; d < 3; d++) {
+            h ^= h << 13, h ^= h >> 7, h ^= h << 17;
+            v[d][i] += 0.12 * ((double)(h >> 11) / 9007199254740992.0 - 0.5);
+        }
+    normals_config cfg;
+    normals_config_init(&cfg);
+    cfg.nthreads = 1;
+    normals_info info;
+    int rc = normals_run(c, &cfg, &info);
+    if (!rc) {
+        digest_doubles(o, c->nx, c->n);
+        /* noisy enough for the shift (NORMALS_REFLECT_MAX_NOISE is 0.1) */
+        digest_size(o, info.noise >= 0.1 * info.spacing ? 1 : 0);
+    }
+    cloud_free(c);
+    return rc;
+}
+
 /* The public entry point (api/api_normals.c): every failure reported as "out of
  * memory" through the callback. */
 static int case_api_normals(const fixture *fx, fault_out *o)
@@ -1114,6 +1142,7 @@ static const fault_case cases[] = {
     { "sample_model", case_sample_model, MSG_GIVEN, NULL },
     { "sample_mesh", case_sample_mesh, MSG_GIVEN, NULL },
     { "normals", case_normals, MSG_NONE, NULL },
+    { "normals_noisy", case_normals_noisy, MSG_NONE, NULL },
     { "api_normals", case_api_normals, MSG_GIVEN, NULL },
     { "kdtree", case_kdtree, MSG_NONE, NULL },
     { "segment", case_segment, MSG_GIVEN, NULL },
