@@ -273,6 +273,46 @@ typedef struct fit_scratch {
     double d2[KD_MAX_K], ws[KD_MAX_K], w[KD_MAX_K];
 } fit_scratch;
 
+/* What the per-point passes (fit_point, shift_point) read and write; each says which
+ * fields it uses. */
+typedef struct point_pass {
+    frep_cloud *c;
+    const kd_tree *t;
+    size_t k, ko;            /* neighbours fitted; kept for the orientation */
+    double scale;            /* the reweighting's scale, the shift's tolerance */
+    double *sm, *res;        /* 3 n smooth normals then 3 n feet; residuals */
+    uint32_t *nb, *kept;     /* n ko neighbours; n k neighbours (NULL: not kept) */
+    double *out;             /* the shift's 6 n results */
+    uint32_t *from;          /* the point whose plane each took */
+} point_pass;
+
+typedef void (*point_fn)(const point_pass *p, size_t i, fit_scratch *f);
+
+/* fn on every point, in parallel (each point is independent).  Returns 1 when
+ * interrupted. */
+static int each_point(const point_pass *p, point_fn fn, const normals_config *cfg)
+{
+    long ln = (long)p->c->n;
+    int stopped = 0;
+#ifdef _OPENMP
+#pragma omp parallel num_threads(frep_threads(cfg->nthreads)) reduction(| : stopped)
+#endif
+    {
+        fit_scratch f;
+#ifdef _OPENMP
+#pragma omp for schedule(static, 256)
+#endif
+        for (long li = 0; li < ln; li++) {
+            if (frep_cancelled(cfg->interrupt)) {
+                stopped = 1;
+                continue;
+            }
+            fn(p, (size_t)li, &f);
+        }
+    }
+    return stopped;
+}
+
 /* The normals of point i: smooth (the Gaussian-weighted fit of its k neighbours) into
  * sm[3i..], robust (reweighted by residuals) into c's normal, with the foot of i on the
  * robust plane into sm[3 (n + i)..] (the point without its noise across the surface)
@@ -280,12 +320,14 @@ typedef struct fit_scratch {
  * into res[i] (a neighbourhood across an edge leaves more than the noise); the first
  * ko neighbours into nb[i ko ..] (padded with i), and all of them into kept[i k ..]
  * when kept is not NULL (for shift_point). */
-static void fit_point(frep_cloud *c, const kd_tree *t, size_t i, size_t k, size_t ko,
-                      double scale, double *sm, double *res, uint32_t *nb, uint32_t *kept,
-                      fit_scratch *f)
+static void fit_point(const point_pass *p, size_t i, fit_scratch *f)
 {
+    frep_cloud *c = p->c;
+    size_t k = p->k, ko = p->ko;
+    double scale = p->scale, *sm = p->sm, *res = p->res;
+    uint32_t *nb = p->nb, *kept = p->kept;
     double q[3] = {c->x[i], c->y[i], c->z[i]};
-    size_t m = kd_knn(t, q, k, f->idx, f->d2);
+    size_t m = kd_knn(p->t, q, k, f->idx, f->d2);
     for (size_t j = 0; j < ko; j++) nb[(size_t)i * ko + j] = j < m ? f->idx[j] : (uint32_t)i;
     if (kept) memcpy(kept + i * k, f->idx, m * sizeof *kept);
     double h2 = m ? f->d2[m - 1] : 0;
@@ -326,32 +368,6 @@ static void fit_point(frep_cloud *c, const kd_tree *t, size_t i, size_t k, size_
     c->nz[i] = nrm[2];
 }
 
-/* Every point's normals (parallel: each point is independent).  Returns 1 when
- * interrupted. */
-static int fit_all(frep_cloud *c, const kd_tree *t, size_t k, size_t ko, double scale,
-                   double *sm, double *res, uint32_t *nb, uint32_t *kept, const normals_config *cfg)
-{
-    long ln = (long)c->n;
-    int stopped = 0;
-#ifdef _OPENMP
-#pragma omp parallel num_threads(frep_threads(cfg->nthreads)) reduction(| : stopped)
-#endif
-    {
-        fit_scratch f;
-#ifdef _OPENMP
-#pragma omp for schedule(static, 256)
-#endif
-        for (long li = 0; li < ln; li++) {
-            if (frep_cancelled(cfg->interrupt)) {
-                stopped = 1;
-                continue;
-            }
-            fit_point(c, t, (size_t)li, k, ko, scale, sm, res, nb, kept, &f);
-        }
-    }
-    return stopped;
-}
-
 /* Shifted neighbourhoods (noisy clouds). A point within a neighbourhood's radius of a
  * sharp edge fits a plane across both faces, and the reweighting keeps a tilt when the
  * edge cuts the neighbourhood near its middle: a face one or two radii wide (the end of
@@ -375,13 +391,17 @@ static int fit_all(frep_cloud *c, const kd_tree *t, size_t k, size_t ko, double 
  * 256 MiB, 1.3 million points at the automatic k of a 0.5%-noise scan (48-128). */
 #define NORMALS_KEEP_MAX_BYTES ((size_t)256 << 20)
 #define NORMALS_SHIFT_AMBIGUOUS_DEG 20.0
-static void shift_point(const frep_cloud *c, const kd_tree *t, size_t i, size_t k, double tol,
-                        const double *feet, const double *res, const uint32_t *kept,
-                        double *out, uint32_t *from, fit_scratch *f)
+static void shift_point(const point_pass *ps, size_t i, fit_scratch *f)
 {
+    const frep_cloud *c = ps->c;
+    size_t k = ps->k;
+    double tol = ps->scale, *out = ps->out;
+    const double *feet = ps->sm + 3 * c->n, *res = ps->res;
+    const uint32_t *kept = ps->kept;
+    uint32_t *from = ps->from;
     double q[3] = {c->x[i], c->y[i], c->z[i]};
     const uint32_t *idx = kept ? kept + i * k : f->idx;
-    size_t m = kept ? (k < c->n ? k : c->n) : kd_knn(t, q, k, f->idx, f->d2), best = i;
+    size_t m = kept ? (k < c->n ? k : c->n) : kd_knn(ps->t, q, k, f->idx, f->d2), best = i;
     double least = NORMALS_SHIFT_GAIN * res[i];
     for (size_t j = 0; j < m; j++) {
         size_t p = idx[j];
@@ -418,33 +438,17 @@ static void shift_point(const frep_cloud *c, const kd_tree *t, size_t i, size_t 
     }
 }
 
-/* Every point's shifted plane (shift_point), on the neighbours fit_all kept (NULL:
- * searched again). Returns 1 when interrupted, -1 when out of memory. */
-static int shift_all(frep_cloud *c, const kd_tree *t, size_t k, double tol, double *feet,
-                     const double *res, const uint32_t *kept, uint32_t *from,
-                     const normals_config *cfg)
+/* Every point's shifted plane (shift_point), on the neighbours the fit kept (NULL:
+ * searched again); the normals and feet replaced. Returns 1 when interrupted, -1 when
+ * out of memory. */
+static int shift_all(point_pass *p, const normals_config *cfg)
 {
+    frep_cloud *c = p->c;
     size_t n = c->n;
-    double *out = frep_malloc(6 * n * sizeof *out);
+    double *out = frep_malloc(6 * n * sizeof *out), *feet = p->sm + 3 * n;
     if (!out) return -1;
-    long ln = (long)n;
-    int stopped = 0;
-#ifdef _OPENMP
-#pragma omp parallel num_threads(frep_threads(cfg->nthreads)) reduction(| : stopped)
-#endif
-    {
-        fit_scratch f;
-#ifdef _OPENMP
-#pragma omp for schedule(static, 256)
-#endif
-        for (long li = 0; li < ln; li++) {
-            if (frep_cancelled(cfg->interrupt)) {
-                stopped = 1;
-                continue;
-            }
-            shift_point(c, t, (size_t)li, k, tol, feet, res, kept, out, from, &f);
-        }
-    }
+    p->out = out;
+    int stopped = each_point(p, shift_point, cfg);
     if (!stopped)
         for (size_t i = 0; i < n; i++) {
             const double *o = out + 6 * i;
@@ -454,6 +458,7 @@ static int shift_all(frep_cloud *c, const kd_tree *t, size_t k, double tol, doub
             memcpy(feet + 3 * i, o + 3, 3 * sizeof *o);
         }
     frep_free(out);
+    p->out = NULL;
     return stopped;
 }
 
@@ -1143,9 +1148,10 @@ int normals_run(frep_cloud *c, const normals_config *cfg, normals_info *info)
                          ? frep_malloc(n * k * sizeof *kept) : NULL;
     int rc = -1;
     if (nb && sm && res && from) {
-        rc = fit_all(c, t, k, ko, scale, sm, res, nb, kept, cfg);
+        point_pass p = {c, t, k, ko, scale, sm, res, nb, kept, NULL, from};
+        rc = each_point(&p, fit_point, cfg);
         for (size_t i = 0; i < n; i++) from[i] = (uint32_t)i;
-        if (rc == 0 && !reflect) rc = shift_all(c, t, k, scale, sm + 3 * n, res, kept, from, cfg);
+        if (rc == 0 && !reflect) rc = shift_all(&p, cfg);
         if (rc == 0 && reflect)
             for (size_t i = 0; i < n; i++) {
                 sm[3 * i] = c->nx[i];
