@@ -386,11 +386,12 @@ static void fit_point(const point_pass *p, size_t i, fit_scratch *f)
  * normal: near a crevice's tip the point's own smooth normal lies between two faces
  * whose normals are 150 degrees apart), in parallel: each point is independent. */
 #define NORMALS_SHIFT_GAIN 0.7
+#define NORMALS_SHIFT_AMBIGUOUS_DEG 20.0
 /* The k neighbours of every point are kept from the fit for the shift (half the
  * neighbour searches, which are most of the time) up to this many bytes of indices:
- * 256 MiB, 1.3 million points at the automatic k of a 0.5%-noise scan (48-128). */
+ * 256 MiB, half a million points at k = 128 (the automatic k of a 0.5%-noise scan is
+ * 48-128), 1.4 million at 48. */
 #define NORMALS_KEEP_MAX_BYTES ((size_t)256 << 20)
-#define NORMALS_SHIFT_AMBIGUOUS_DEG 20.0
 static void shift_point(const point_pass *ps, size_t i, fit_scratch *f)
 {
     const frep_cloud *c = ps->c;
