@@ -273,8 +273,8 @@ typedef struct fit_scratch {
     double d2[KD_MAX_K], ws[KD_MAX_K], w[KD_MAX_K];
 } fit_scratch;
 
-/* What the per-point passes (fit_point, shift_point) read and write; each says which
- * fields it uses. */
+/* What the per-point passes (fit_point, shift_point) read and write; each unpacks the
+ * fields it uses at its top. */
 typedef struct point_pass {
     frep_cloud *c;
     const kd_tree *t;
