@@ -1737,10 +1737,34 @@ static int cv_frames(cover *C, const evolve_result *r)
     return C->nf > 0;
 }
 
+/* The value of the model (root) at x with node i's solid replaced by all of space (full) or by
+ * nothing: an empty intersection is +inf, an empty union -inf (ft_eval). */
+static double ft_eval_as(ft *F, uint32_t root, uint32_t i, int full, const double *x)
+{
+    ft_node saved = F->v[i];
+    F->v[i].kind = full ? FT_AND : FT_OR;
+    F->v[i].n = 0;
+    double v = ft_eval(F, root, x);
+    F->v[i] = saved;
+    return v;
+}
+
+/* Point x labelled by the subtree's sign there (1 inside, 2 outside) and kept, or 0 and
+ * skipped: on the subtree's surface, or where the subtree does not matter, the model's
+ * sign being the same whether the subtree is everything or nothing (inside a solid it
+ * is joined to, outside one it is intersected with: a cube's bottom buried in the cube
+ * below).  The cover then needs not reproduce the subtree where nothing shows it;
+ * cv_run checks the model as a whole. */
 static int cv_push(cover *C, size_t *cap, const double *x)
 {
-    double v = ft_eval(C->F, C->node, x);
-    if (fabs(v) <= C->ck->gtol) return 0;
+    double v = ft_eval(C->F, C->node, x), gtol = C->ck->gtol;
+    if (fabs(v) <= gtol) return 0;
+    uint32_t root = C->ck->root;
+    if (C->node != root) {
+        double full = ft_eval_as(C->F, root, C->node, 1, x);
+        double none = ft_eval_as(C->F, root, C->node, 0, x);
+        if ((full > gtol && none > gtol) || (full < -gtol && none < -gtol)) return 0;
+    }
     if (C->np == *cap) {
         size_t nc = *cap ? 2 * *cap : 4096;
         double *nx = frep_realloc(C->x, 3 * nc * sizeof *nx);
@@ -1898,8 +1922,11 @@ static size_t cv_list(const cover *C, int free, cv_box *out)
 }
 
 /* The chosen terms: a greedy weighted cover of the inside points (most new points per
- * box first), then terms whose points the others cover dropped.  Returns the number of
- * terms (0: the inside points are not all covered, -1: out of memory). */
+ * box first), then terms whose points the others cover dropped.  The second pass
+ * (C->sliver > 0) lets that sliver of the inside points go uncovered, as it lets each
+ * box keep a sliver of outside points: the GA's thin slabs of extra material that no
+ * box of fitted faces holds; cv_run's check of the whole model decides.  Returns the
+ * number of terms (0: the inside points are not covered, -1: out of memory). */
 static int cv_choose(cover *C, cv_term *t, size_t nt, const cv_neg *neg, cv_term *chosen)
 {
     uint64_t *cov = frep_calloc(C->nw, sizeof *cov);
@@ -1907,6 +1934,7 @@ static int cv_choose(cover *C, cv_term *t, size_t nt, const cv_neg *neg, cv_term
     int n = 0, rc = -1;
     if (!cov || !own) goto done;
     size_t total = cv_count(C, C->in, C->in), got = 0;
+    size_t need = total - (size_t)(C->sliver * (double)total);
     while (got < total && n < COVER_MAX_TERMS) {
         double best = 0;
         size_t bi = 0;
@@ -1941,14 +1969,14 @@ static int cv_choose(cover *C, cv_term *t, size_t nt, const cv_neg *neg, cv_term
         chosen[n++] = t[bi];
     }
     rc = 0;
-    if (got < total) goto done;
+    if (got < need) goto done;
     /* Drop, last first, a term whose points the others cover. */
     for (int i = n - 1; i >= 0; i--) {
         memset(cov, 0, C->nw * sizeof *cov);
         for (int j = 0; j < n; j++)
             if (j != i)
                 for (size_t w = 0; w < C->nw; w++) cov[w] |= own[(size_t)j * C->nw + w];
-        if (cv_count(C, cov, C->in) < total) continue;
+        if (cv_count(C, cov, C->in) < got) continue;
         memmove(&chosen[i], &chosen[i + 1], (size_t)(n - i - 1) * sizeof *chosen);
         memmove(&own[(size_t)i * C->nw], &own[(size_t)(i + 1) * C->nw],
                 (size_t)(n - i - 1) * C->nw * sizeof *own);

@@ -53,4 +53,46 @@ vm=$(vol "$tmp/m.hf")
 awk -v a="$vm" -v t="$vt" 'BEGIN { e = (a - t) / t; if (e < 0) e = -e; exit !(a != "" && e < 0.001) }'
 report $? "mesh volume $vm within 0.1% of the truth's $vt"
 
+cat >"$tmp/nine.hf" <<'EOF2'
+-- @setops minmax
+-- @box -6 -6 -4 7 6 7
+my_model(x[3], a[1])
+{
+    top = frBox(x, 2.76477, 2.877911, 2.85701, 0.967344, 0.967346, 1.049136, 0.063000839, 0.33811053, 0.452361111);
+    middle = frBox(x, 2.822946, 2.940207, 1.683533, 1.2898, 1.289793, 1.289787, 0.220138061, 0.168527601, 0.35291716);
+    base = frBox(x, 2.998915, 3.224473, -0.85122, 1.612226, 1.612226, 1.612234, 3.37e-07, 0.174532532, 0.087267674);
+    slab = frBox(x, -3.60728, 1.977391, -1.573127, 0.322443, 2.579578, 2.418356, 0.087267989, 0.174540754, 0.261807938);
+    cube = frBox(x, -1.903965, 2.738022, -0.904703, 1.289784, 1.289786, 1.289785, -0.174535967, -0.174530887, -0.174532685);
+    corner = frBox(x, 5.834095, 6.537493, 0.283692, 5.949455, 3.902991, 4.722539, 0.42954132, -0.7184037, -0.25085012);
+    inner = frBox(x, -1.806777, -2.68067, -0.913139, 0.967337, 0.96734, 0.967339, 0.34906672, 0.523598782, 0.698131497);
+    cup = frBox(x, -1.993725, -2.693572, -1.175543, 1.61223, 1.61223, 1.612232, 0.349066372, 0.523598707, 0.698132734);
+    hollow = frBox(x, 0.638396, -2.511937, 2.519048, 1.289784, 1.289787, 5.829726, 0.349066372, 0.523598707, 0.698132734);
+    my_model = top | middle | base | slab | (cube \ corner) | inner | (cup \ hollow);
+}
+EOF2
+"$FREP" sample "$tmp/nine.hf" -n 10000 --seed 1 -o "$tmp/nine.xyz" -q
+report $? "sample the nine cubes"
+"$FREP" segment "$tmp/nine.xyz" --seed 1 -o "$tmp/nine.seg" >"$tmp/seg.out" 2>&1
+eps=$(sed -n 's/^-- seed 1, epsilon \([0-9.e+-]*\),.*/\1/p' "$tmp/nine.seg")
+diag=$(awk 'NR == 1 { for (k = 1; k <= 3; k++) lo[k] = hi[k] = $k }
+            { for (k = 1; k <= 3; k++) { if ($k < lo[k]) lo[k] = $k; if ($k > hi[k]) hi[k] = $k } }
+            END { print sqrt((hi[1]-lo[1])^2 + (hi[2]-lo[2])^2 + (hi[3]-lo[3])^2) }' "$tmp/nine.xyz")
+awk -v e="$eps" -v d="$diag" 'BEGIN { exit !(e != "" && e <= 0.0021 * d) }'
+report $? "clean sample, edges in most neighbourhoods: epsilon $eps, the floor of 0.2% of the diagonal $diag"
+[ -n "$eps" ] || show "$tmp/seg.out"
+
+vt=$(vol "$tmp/nine.hf")
+for s in 1 2; do
+    nice "$FREP" evolve "$tmp/nine.xyz" -o "$tmp/n$s.hf" --seed $s -q 2>"$tmp/err"
+    report $? "evolve the nine cubes, seed $s"
+    sol=$(sed -n 's/^    -- \([0-9]*\) solids: \([0-9]*\) boxes, .* \([0-9]*\) half-spaces$/\1 \2 \3/p' "$tmp/n$s.hf")
+    echo "$sol" | awk '{ exit !($1 <= 10 && $1 == $2 && $3 == 0) }'
+    st=$?
+    report $st "seed $s: at most 10 solids, all boxes ($(grep -o -- '-- [0-9]* solids.*' "$tmp/n$s.hf"))"
+    [ $st = 0 ] || show "$tmp/n$s.hf"
+    vm=$(vol "$tmp/n$s.hf")
+    awk -v a="$vm" -v t="$vt" 'BEGIN { e = (a - t) / t; if (e < 0) e = -e; exit !(a != "" && e < 0.025) }'
+    report $? "seed $s: mesh volume $vm within 2.5% of the truth's $vt"
+done
+
 tap_done
