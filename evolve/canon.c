@@ -2297,17 +2297,21 @@ static int cover_group(ft *F, uint32_t i, const uint8_t *sel, const ft_check *ck
 
 /* Intersection i = X & (U1 | ... | Un), X its other operands, written again as
  * (X & U1) | ... | (X & Un) (min and max distribute exactly), X then dropped from each
- * term where the model keeps its solid (ft_keeps): an operand the GA put at the root
- * for one part (a face of one cube of a stack, a no-op elsewhere) goes to that part,
- * where the cover can read it.  The union taken is the first whose rewrite keeps X in
- * exactly one term (X written once; where X is needed by no term, it is kept as it
- * is).  Returns 1 when node i was rewritten, 0 when not. */
+ * term where the model keeps its solid (ft_keeps), or else the whole term dropped
+ * where the model keeps its solid without it: an operand the GA put at the root for
+ * one part (a face of one cube of a stack, a no-op elsewhere) goes to that part, where
+ * the cover can read it, and a term that only repeats another part of the model (a
+ * box's faces joined to a sphere the model already holds) goes.  The union taken is
+ * the first whose rewrite keeps X in exactly one term (X written once), or in none
+ * once a term is dropped; where X is needed by no term and no term goes, it is kept
+ * as it is.  Returns 1 when node i was rewritten, 0 when not. */
 static int ft_distribute(ft *F, uint32_t i, const ft_check *ck)
 {
     if (F->v[i].kind != FT_AND || F->v[i].n < 2) return 0;
     for (uint32_t o = 0; o < F->v[i].n && !F->failed && !ft_cancelled(ck); o++) {
         ft_term ot = F->v[i].t[o];
         if (ot.neg || F->v[ot.node].kind != FT_OR || F->v[ot.node].n < 2) continue;
+        uint32_t none = ft_new(F, FT_OR);   /* no operands: nothing (ft_eval) */
         uint32_t u = ft_new(F, FT_OR), nu = F->v[ot.node].n;
         for (uint32_t k = 0; k < nu && u != FT_NONE; k++) {
             uint32_t a = ft_new(F, FT_AND);
@@ -2321,16 +2325,26 @@ static int ft_distribute(ft *F, uint32_t i, const ft_check *ck)
         ft_node saved = F->v[i];
         F->v[i] = F->v[u];
         F->v[u] = saved;   /* the intersection, unreachable until put back */
-        uint32_t kept = 0;
+        uint32_t kept = 0, dropped = 0, w = 0;
         for (uint32_t k = 0; k < nu && kept <= 1; k++) {
             ft_term a = F->v[i].t[k];
             F->v[i].t[k] = F->v[ot.node].t[k];
-            if (!ft_keeps(F, ck)) {
+            if (ft_keeps(F, ck)) continue;
+            F->v[i].t[k].node = none;
+            F->v[i].t[k].neg = 0;
+            if (ft_keeps(F, ck)) {
+                dropped++;
+            } else {
                 F->v[i].t[k] = a;
                 kept++;
             }
         }
-        if (kept == 1) return 1;
+        if (kept == 1 || (kept == 0 && dropped)) {
+            for (uint32_t k = 0; k < F->v[i].n; k++)
+                if (F->v[i].t[k].node != none) F->v[i].t[w++] = F->v[i].t[k];
+            F->v[i].n = w;
+            return 1;
+        }
         saved = F->v[i];
         F->v[i] = F->v[u];
         F->v[u] = saved;

@@ -1862,6 +1862,25 @@ static void test_box_cover(void)
         sliver.d[9 + j] = sd[j] * r3;
     }
     test_box_cover_case(&sliver);
+    /* A box B = X & P joined to the cube A = [0, 2]^3, X its four faces across z and y,
+     * P its two across x (B = [1.5, 3] x [0.5, 1.5]^2, half inside A), written as the GA
+     * did on a sphere and a box: A | (X & (bore | P)), the bore a solid cylinder along z
+     * inside A.  Distributed, X & bore lies inside A, and the bore alone is not the
+     * solid: the term is dropped whole (ft_distribute), and X & P is a box. */
+    static cover_case joined = { "joined term", "12&3&4&5&6&78&9&a&dbc&|&|", "2 solids: 2 boxes",
+                                 13, { { 0 } }, { 0 }, 13, "12&3&4&5&6&78&9&a&b&c&|", 0 };
+    for (int j = 0; j < 6; j++) {
+        joined.n[j][j / 2] = j % 2 ? 1 : -1;
+        joined.d[j] = j % 2 ? 2 : 0;
+    }
+    /* z >= 0.5, z <= 1.5, y >= 0.5, y <= 1.5, x >= 1.5, x <= 3 */
+    int jax[6] = { 2, 2, 1, 1, 0, 0 };
+    double jsg[6] = { -1, 1, -1, 1, -1, 1 }, jd[6] = { -0.5, 1.5, -0.5, 1.5, -1.5, 3 };
+    for (int j = 0; j < 6; j++) {
+        joined.n[6 + j][jax[j]] = jsg[j];
+        joined.d[6 + j] = jd[j];
+    }
+    test_box_cover_case(&joined);
     /* A cube stacked on the cube [0, 2]^3, turned by (5, 10, 15) degrees about x, y, z,
      * its bottom face hidden inside the lower one (no point on it), written as the GA
      * does: (lower | the upper's five seen faces) & the lower's sides and bottom.  Its
