@@ -37,6 +37,17 @@ WATCHDOG_S=120
 
 . "$(dirname "$0")/tap.sh"
 now() { date +%s.%N; }
+# explain STATUS DESCRIPTION: report, and when the case failed, the state of the last
+# signalled command and the end of its output (a rare failure on a loaded machine
+# then says which of its conditions did not hold).
+explain() {
+    report "$@"
+    [ "$1" = 0 ] && return
+    echo "#   running when signalled: $alive, exit $st, limits $MAX_LATENCY s and $MAX_CPU s," \
+        "temporaries: $(ls "$tmp"/*.tmp* 2>/dev/null | tr '\n' ' ')"
+    echo "#   the end of its output:"
+    tail -c 600 "$tmp/err" 2>/dev/null | tr '\r' '\n' | grep . | tail -n 5 | sed 's/^/#     /'
+}
 
 # start CMD...: run in the background (pid in $pid; stdout in $tmp/out, stderr in
 # $tmp/err) under a watchdog that kills it after WATCHDOG_S seconds.
@@ -220,7 +231,7 @@ wait_cpu 1.5
 stop INT
 [ $alive = 1 ] && [ $st = 130 ] && fast && [ -f "$tmp/seg.fit" ] && no_tmp &&
     grep -q 'frep segment: interrupted (Ctrl-C): wrote the primitives found so far' "$tmp/err"
-report $? "segment: Ctrl-C during RANSAC: exit $st after $lat, the primitives so far written"
+explain $? "segment: Ctrl-C during RANSAC: exit $st after $lat, the primitives so far written"
 
 # the merge of redundant primitives that follows the detection (its progress stage
 # "merge"): it polls per pair of primitives tried
@@ -229,7 +240,7 @@ if start_tty "$FREP" segment "$tmp/big.ply" --seed 1 -o "$tmp/segm.fit"; then
     stop INT
     [ $alive = 1 ] && [ $st = 130 ] && fast && [ -s "$tmp/segm.fit" ] && no_tmp &&
         grep -q 'frep segment: interrupted (Ctrl-C): wrote the primitives found so far' "$tmp/err"
-    report $? "segment: Ctrl-C during the merge of redundant primitives: exit $st after $lat, the primitives written"
+    explain $? "segment: Ctrl-C during the merge of redundant primitives: exit $st after $lat, the primitives written"
 else
     skip_tty "segment: Ctrl-C during the merge"
 fi
@@ -242,13 +253,13 @@ wait_for 'points, seed' && wait_cpu 1.5
 stop INT
 [ $alive = 1 ] && [ $st = 130 ] && fast &&
     grep -q 'frep evolve: interrupted (Ctrl-C)' "$tmp/err" && no_tmp
-report $? "evolve: Ctrl-C during its segmentation: exit $st after $lat"
+explain $? "evolve: Ctrl-C during its segmentation: exit $st after $lat"
 if [ -f "$tmp/ev1.hf" ]; then
     "$FREP" check "$tmp/ev1.hf" 2>/dev/null
-    report $? "... the model written from the primitives found so far compiles"
+    explain $? "... the model written from the primitives found so far compiles"
 else
     grep -q 'nothing written' "$tmp/err"
-    report $? "... no primitive yet: nothing written, and it says so"
+    explain $? "... no primitive yet: nothing written, and it says so"
 fi
 
 # the clique GAs of a partitioned run: they would never stop by themselves
@@ -258,9 +269,9 @@ wait_cpu 2
 stop INT
 [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev2.hf" 2>/dev/null &&
     grep -q ', partitioned (' "$tmp/ev2.hf" && grep -q 'wrote the best tree so far' "$tmp/err"
-report $? "evolve: Ctrl-C during the clique GAs: exit $st after $lat, the union of the clique trees written"
+explain $? "evolve: Ctrl-C during the clique GAs: exit $st after $lat, the union of the clique trees written"
 [ -s "$tmp/ev2.trace" ] && no_tmp
-report $? "... with its --trace, no temporary left"
+explain $? "... with its --trace, no temporary left"
 
 # one GA over all primitives
 start "$FREP" evolve "$tmp/small.xyz" -p "$tmp/small.fit" --seed 1 --no-partition \
@@ -268,7 +279,7 @@ start "$FREP" evolve "$tmp/small.xyz" -p "$tmp/small.fit" --seed 1 --no-partitio
 wait_cpu 2
 stop INT
 [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev3.hf" 2>/dev/null
-report $? "evolve: Ctrl-C during the GA: exit $st after $lat, the best tree written (no refit)"
+explain $? "evolve: Ctrl-C during the GA: exit $st after $lat, the best tree written (no refit)"
 
 # the simplification of the final tree: a GA of 5 generations over the gear's 50-odd
 # primitives (segmented from 5,000 points), every point of 20,000 scored (--sample 0),
@@ -284,7 +295,7 @@ stop INT
 [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev5.hf" 2>/dev/null &&
     "$FREP" eval "$tmp/ev5.hf" "$tmp/g20.xyz" >/dev/null 2>&1 &&
     grep -q 'wrote the best tree so far' "$tmp/err" && no_tmp
-report $? "evolve: Ctrl-C during the simplification: exit $st after $lat, the tree so far written and evaluated"
+explain $? "evolve: Ctrl-C during the simplification: exit $st after $lat, the tree so far written and evaluated"
 
 # the merge of the clique trees of a partitioned run, and the refit of the primitives
 # after the search (each seen by its progress line)
@@ -294,7 +305,7 @@ if start_tty "$FREP" evolve "$tmp/g20.xyz" -p "$tmp/g5.fit" --seed 1 --generatio
     stop INT
     [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev6.hf" 2>/dev/null &&
         grep -q 'wrote the best tree so far' "$tmp/err" && no_tmp
-    report $? "evolve: Ctrl-C during the merge of the clique trees: exit $st after $lat, the tree so far written"
+    explain $? "evolve: Ctrl-C during the merge of the clique trees: exit $st after $lat, the tree so far written"
 else
     skip_tty "evolve: Ctrl-C during the merge of the clique trees"
 fi
@@ -307,7 +318,7 @@ if start_tty "$FREP" evolve "$tmp/g20.xyz" -p "$tmp/g5.fit" --seed 1 --generatio
     stop INT
     [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev7.hf" 2>/dev/null &&
         grep -q 'wrote the best tree so far' "$tmp/err" && no_tmp
-    report $? "evolve: Ctrl-C during the refit: exit $st after $lat, the tree written"
+    explain $? "evolve: Ctrl-C during the refit: exit $st after $lat, the tree written"
 else
     skip_tty "evolve: Ctrl-C during the refit"
 fi
@@ -334,7 +345,9 @@ if [ $have_tty = 1 ]; then
     else
         [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/ev8.hf" 2>/dev/null &&
             grep -q 'wrote the best tree so far' "$tmp/err" && no_tmp
-        report $? "evolve: Ctrl-C while writing the model: exit $st after $lat, the model written (attempt $try)"
+        r=$?
+        explain $r "evolve: Ctrl-C while writing the model: exit $st after $lat, the model written (attempt $try)"
+        [ $r = 0 ] || "$FREP" check "$tmp/ev8.hf" 2>&1 | sed 's/^/#   frep check: /'
     fi
 else
     skip_tty "evolve: Ctrl-C while writing the model"
@@ -351,7 +364,7 @@ while :; do
     [ $late = 1 ] && [ $try -lt 5 ] || break
 done
 [ $alive = 1 ] && [ $st = 130 ] && fast && [ "$(cat "$tmp/ev4.hf")" = kept ] && no_tmp
-report $? "evolve: a second Ctrl-C aborts at once: exit $st after $lat, output untouched (attempt $try)"
+explain $? "evolve: a second Ctrl-C aborts at once: exit $st after $lat, output untouched (attempt $try)"
 
 # ---- normals ------------------------------------------------------------------------------
 # frep normals of the 200,000 gear points (their normals are replaced; about 2 s): a
@@ -362,7 +375,7 @@ wait_cpu 0.7
 stop INT
 [ $alive = 1 ] && [ $st = 130 ] && fast && [ "$(cat "$tmp/n.xyz")" = kept ] && no_tmp &&
     grep -q 'frep normals: interrupted (Ctrl-C): nothing written' "$tmp/err"
-report $? "normals: Ctrl-C while estimating: exit $st after $lat, the old file kept"
+explain $? "normals: Ctrl-C while estimating: exit $st after $lat, the old file kept"
 
 # ---- mesh, sample ------------------------------------------------------------------------
 echo 'kept' >"$tmp/m.stl"
@@ -371,14 +384,14 @@ wait_cpu 1
 stop INT
 [ $alive = 1 ] && [ $st = 130 ] && fast && [ "$(cat "$tmp/m.stl")" = kept ] && no_tmp &&
     grep -q 'frep mesh: interrupted (Ctrl-C): stopped while meshing, nothing written' "$tmp/err"
-report $? "mesh: Ctrl-C while meshing: exit $st after $lat, the old file kept"
+explain $? "mesh: Ctrl-C while meshing: exit $st after $lat, the old file kept"
 
 start "$FREP" sample "$EX/gear.hf" -n 1000000 -g 768 --seed 1 -o "$tmp/s.xyz"
 wait_cpu 1
 stop TERM
 [ $alive = 1 ] && [ $st = 143 ] && fast && [ ! -e "$tmp/s.xyz" ] && no_tmp &&
     grep -q 'frep sample: interrupted (SIGTERM)' "$tmp/err"
-report $? "sample: SIGTERM while sampling: exit $st after $lat, nothing written"
+explain $? "sample: SIGTERM while sampling: exit $st after $lat, nothing written"
 
 # frep render: the drawing (the distances of 200,000 points to the surface) polls
 # nothing, so a signal ends it at once; the meshing before it polls
@@ -387,7 +400,7 @@ start "$FREP" render "$EX/gear.hf" -g 64 --points "$tmp/big.ply" --size 4000x300
 wait_cpu 1.5
 stop INT
 [ $alive = 1 ] && [ $st = 130 ] && fast && [ "$(cat "$tmp/r.png")" = kept ] && no_tmp
-report $? "render: Ctrl-C while drawing: exit $st after $lat, the old picture kept"
+explain $? "render: Ctrl-C while drawing: exit $st after $lat, the old picture kept"
 
 # frep fit: the annealing, then the quasi-Newton phase (their progress lines), on the
 # test part of doc/fit.md; the best parameters so far are written
@@ -400,7 +413,7 @@ for ph in annealing quasi-Newton; do
         stop INT
         [ $alive = 1 ] && [ $st = 130 ] && fast && "$FREP" check "$tmp/fit_$ph.hf" 2>/dev/null &&
             grep -q 'interrupted: best so far' "$tmp/err" && no_tmp
-        report $? "fit: Ctrl-C during the $ph: exit $st after $lat, the best parameters written"
+        explain $? "fit: Ctrl-C during the $ph: exit $st after $lat, the best parameters written"
     else
         skip_tty "fit: Ctrl-C during the $ph"
     fi
@@ -412,7 +425,7 @@ start "$FREP" sample "$EX/sphere.hf" -n 3000000 --seed 1 -o "$tmp/w1.xyz"
 wait_file "$tmp/w1.xyz.tmp*"
 stop HUP
 [ $alive = 1 ] && [ $st = 129 ] && no_tmp && [ "$(wc -l <"$tmp/w1.xyz")" = 3000000 ]
-report $? "sample: SIGHUP during the write: the file is complete, exit $st"
+explain $? "sample: SIGHUP during the write: the file is complete, exit $st"
 
 try=0
 while :; do
@@ -423,14 +436,14 @@ while :; do
     [ $late = 1 ] && [ $try -lt 5 ] && rm -f "$tmp/w2.xyz" || break
 done
 [ $alive = 1 ] && [ $st = 143 ] && fast && no_tmp && [ ! -e "$tmp/w2.xyz" ]
-report $? "sample: two SIGTERMs during the write: temporary removed, exit $st after $lat (attempt $try)"
+explain $? "sample: two SIGTERMs during the write: temporary removed, exit $st after $lat (attempt $try)"
 
 # a command that does not poll (eval) stops at once, with the signal's status
 start "$FREP" eval "$EX/gear.hf" --grid 2000
 wait_cpu 0.5
 stop HUP
 [ $alive = 1 ] && [ $st = 129 ] && fast && grep -q 'frep: interrupted' "$tmp/err"
-report $? "eval --grid: SIGHUP stops it at once: exit $st after $lat: $(head -c 300 "$tmp/err")"
+explain $? "eval --grid: SIGHUP stops it at once: exit $st after $lat: $(head -c 300 "$tmp/err")"
 
 # ---- write errors ---------------------------------------------------------------------
 full() { # full DESCRIPTION CMD...: stdout to /dev/full must fail with the reason
@@ -439,7 +452,7 @@ full() { # full DESCRIPTION CMD...: stdout to /dev/full must fail with the reaso
     "$@" >/dev/full 2>"$tmp/ferr"
     fs=$?
     [ $fs != 0 ] && grep -q 'No space left on device' "$tmp/ferr"
-    report $? "$d to a full disk: exit $fs, '$(head -n 1 "$tmp/ferr")'"
+    explain $? "$d to a full disk: exit $fs, '$(head -n 1 "$tmp/ferr")'"
 }
 if [ -w /dev/full ]; then
     full "frep print" "$FREP" print "$EX/gear.hf"
@@ -462,7 +475,7 @@ dev_full() { # dev_full SUB ARGS...: frep SUB ARGS... -o /dev/full
     "$FREP" "$@" -o /dev/full 2>"$tmp/ferr"
     fs=$?
     [ $fs != 0 ] && grep -q 'No space left on device' "$tmp/ferr" && [ -c /dev/full ]
-    report $? "frep $1 -o /dev/full: exit $fs, the reason, /dev/full still a device"
+    explain $? "frep $1 -o /dev/full: exit $fs, the reason, /dev/full still a device"
 }
 if [ -c /dev/full ] && [ -w /dev/full ]; then
     dev_full sample "$EX/sphere.hf" -n 100 -q
@@ -481,7 +494,7 @@ if mkfifo "$tmp/pipe" 2>/dev/null; then
     wait $rd
     "$FREP" sample "$EX/sphere.hf" -n 100 --seed 1 -q -o "$tmp/direct.xyz" &&
         [ $fs = 0 ] && [ -p "$tmp/pipe" ] && cmp -s "$tmp/piped" "$tmp/direct.xyz"
-    report $? "frep sample -o FIFO: the points through the pipe, the FIFO kept"
+    explain $? "frep sample -o FIFO: the points through the pipe, the FIFO kept"
     rm -f "$tmp/pipe"
 else
     echo "ok $((n = n + 1)) # SKIP sample -o FIFO: no mkfifo"
@@ -494,14 +507,14 @@ echo 'kept' >"$tmp/big.stl"
 fs=$?
 [ $fs = 1 ] && grep -q "cannot write $tmp/big.stl: File too large" "$tmp/ferr" &&
     [ "$(cat "$tmp/big.stl")" = kept ] && no_tmp
-report $? "a file over the size limit: exit $fs, the reason, the old file kept, no temporary"
+explain $? "a file over the size limit: exit $fs, the reason, the old file kept, no temporary"
 mkdir "$tmp/small_fs"
 if mount -t tmpfs -o size=64k tmpfs "$tmp/small_fs" 2>/dev/null; then
     "$FREP" mesh "$EX/gear.hf" -o "$tmp/small_fs/g.stl" -q 2>"$tmp/ferr"
     fs=$?
     [ $fs = 1 ] && grep -q 'No space left on device' "$tmp/ferr" &&
         [ -z "$(ls "$tmp/small_fs")" ]
-    report $? "a full file system (64 KiB tmpfs): exit $fs, 'No space left on device', nothing left"
+    explain $? "a full file system (64 KiB tmpfs): exit $fs, 'No space left on device', nothing left"
     umount "$tmp/small_fs"
 else
     echo "ok $((n = n + 1)) # SKIP full tmpfs: cannot mount one (not root)"
@@ -514,7 +527,7 @@ wait "$pid"
 st=$?
 wait "$dog" 2>/dev/null
 [ $st = 0 ]
-report $? "segment --cluster 1e-12 ends (RANSAC_MAX_DRAWS bounds the rejected extractions): exit $st"
+explain $? "segment --cluster 1e-12 ends (RANSAC_MAX_DRAWS bounds the rejected extractions): exit $st"
 for d in 64 1024; do
     start "$FREP" evolve "$tmp/small.xyz" -p "$tmp/small.fit" --seed 1 --max-depth $d \
         --generations 5 --population 20 -o "$tmp/deep.hf" -q
@@ -522,7 +535,7 @@ for d in 64 1024; do
     st=$?
     wait "$dog" 2>/dev/null
     [ $st = 0 ] && ! grep -q 'out of memory' "$tmp/err" && "$FREP" check "$tmp/deep.hf" 2>/dev/null
-    report $? "evolve --max-depth $d (the ends of the range): exit $st, a model"
+    explain $? "evolve --max-depth $d (the ends of the range): exit $st, a model"
 done
 
 # ---- the work budget of evaluation (--max-work) ---------------------------------------------
@@ -547,28 +560,28 @@ budget() { # budget SUB CMD...: exit 1 with the budget's message (and but for fi
 }
 echo '0 0 0' >"$tmp/p0.txt"
 budget eval "$FREP" eval "$tmp/loop.hf" "$tmp/p0.txt" --max-work 100000 && [ ! -s "$tmp/out" ]
-report $? "eval POINTS --max-work 1e5 on a 10^6-iteration loop: exit $fs, no value printed"
+explain $? "eval POINTS --max-work 1e5 on a 10^6-iteration loop: exit $fs, no value printed"
 budget eval "$FREP" eval "$tmp/loop.hf" --grid 8 --max-work 100000 && ! grep -q '^inside' "$tmp/out"
-report $? "eval --grid --max-work 1e5: exit $fs, no summary"
+explain $? "eval --grid --max-work 1e5: exit $fs, no summary"
 echo 'kept' >"$tmp/budget.stl"
 t0=$(now)
 budget mesh "$FREP" mesh "$tmp/loop.hf" -a 1 -o "$tmp/budget.stl" && [ "$(cat "$tmp/budget.stl")" = kept ]
-report $? "mesh at the default grid and budget: exit $fs after $(awk -v a="$t0" -v b="$(now)" 'BEGIN { printf "%.1f", b - a }') s, the old file kept: $(tail -n 1 "$tmp/err")"
+explain $? "mesh at the default grid and budget: exit $fs after $(awk -v a="$t0" -v b="$(now)" 'BEGIN { printf "%.1f", b - a }') s, the old file kept: $(tail -n 1 "$tmp/err")"
 budget sample "$FREP" sample "$tmp/loop.hf" -a 1 -n 100 --seed 1 -o "$tmp/budget.xyz" --max-work 1000000 &&
     [ ! -e "$tmp/budget.xyz" ]
-report $? "sample --max-work 1e6: exit $fs, nothing written"
+explain $? "sample --max-work 1e6: exit $fs, nothing written"
 "$FREP" sample "$EX/sphere.hf" -n 300 --seed 1 -o "$tmp/sph.xyz" -q
 budget fit "$FREP" fit "$tmp/loop.hf" "$tmp/sph.xyz" -a 0.5 -o "$tmp/budget_fit.hf" --max-work 1000000 -q &&
     [ ! -e "$tmp/budget_fit.hf" ]
-report $? "fit --max-work 1e6: exit $fs, nothing written"
+explain $? "fit --max-work 1e6: exit $fs, nothing written"
 "$FREP" eval "$tmp/loop.hf" "$tmp/p0.txt" -a 1 --max-work 1000000 >"$tmp/out" 2>"$tmp/err"
 fs=$?
 [ $fs = 0 ] && [ "$(cat "$tmp/out")" = 1 ]
-report $? "eval within --max-work 1e6 (10^6 iterations): exit $fs, the value $(cat "$tmp/out")"
+explain $? "eval within --max-work 1e6 (10^6 iterations): exit $fs, the value $(cat "$tmp/out")"
 "$FREP" eval "$tmp/loop.hf" "$tmp/p0.txt" --max-work 0 >/dev/null 2>"$tmp/err"
 fs=$?
 [ $fs = 2 ] && grep -q 'max-work' "$tmp/err"
-report $? "--max-work 0 is refused as a usage error (exit $fs)"
+explain $? "--max-work 0 is refused as a usage error (exit $fs)"
 
 # Ctrl-C inside the model's loops: a block of 256 points of this loop (its bound a
 # parameter, so it is never unrolled) is seconds of work; the loop itself sees the flag
@@ -583,19 +596,19 @@ wait_cpu 1
 stop INT
 [ $alive = 1 ] && [ $st = 130 ] && fast && [ "$(cat "$tmp/loopc.stl")" = kept ] && no_tmp &&
     grep -q 'stopped while meshing, nothing written' "$tmp/err" && ! grep -q 'loop' "$tmp/err"
-report $? "mesh: Ctrl-C inside a model's loop: exit $st after $lat, the old file kept, no loop error reported"
+explain $? "mesh: Ctrl-C inside a model's loop: exit $st after $lat, the old file kept, no loop error reported"
 
 # ---- scale -------------------------------------------------------------------------------
 awk 'BEGIN { for (i = 0; i < 2000; i++) printf "%.17g %.17g %.17g 0 0 1\n", (i % 45) * 1e300, int(i / 45) * 1e300, 0 }' >"$tmp/huge.xyz"
 "$FREP" segment "$tmp/huge.xyz" --seed 1 -q 2>"$tmp/ferr"
 fs=$?
 [ $fs = 1 ] && grep -q 'coordinates reach .*: rescale the cloud' "$tmp/ferr"
-report $? "segment of a cloud at 1e300: refused clearly (exit $fs): $(cat "$tmp/ferr")"
+explain $? "segment of a cloud at 1e300: refused clearly (exit $fs): $(cat "$tmp/ferr")"
 awk 'BEGIN { for (i = 0; i < 2000; i++) printf "%.17g %.17g %.17g 0 0 1\n", (i % 45) * 1e-300, int(i / 45) * 1e-300, 0 }' >"$tmp/tiny.xyz"
 "$FREP" segment "$tmp/tiny.xyz" --seed 1 -q 2>"$tmp/ferr"
 fs=$?
 [ $fs = 1 ] && grep -q 'spans .*: rescale the cloud' "$tmp/ferr" && ! grep -q 'same point' "$tmp/ferr"
-report $? "segment of 2,000 distinct points at 1e-300: not 'the same point' (exit $fs): $(cat "$tmp/ferr")"
+explain $? "segment of 2,000 distinct points at 1e-300: not 'the same point' (exit $fs): $(cat "$tmp/ferr")"
 cat >"$tmp/huge.off" <<'EOF'
 OFF
 4 4 0
@@ -611,18 +624,18 @@ EOF
 "$FREP" sample "$tmp/huge.off" -n 1000 --seed 1 -o "$tmp/huge_s.xyz" -q
 fs=$?
 [ $fs = 0 ] && ! grep -qi 'nan\|inf' "$tmp/huge_s.xyz" && [ "$(wc -l <"$tmp/huge_s.xyz")" = 1000 ]
-report $? "sample of a mesh at 1e300: finite points and normals (exit $fs)"
+explain $? "sample of a mesh at 1e300: finite points and normals (exit $fs)"
 "$FREP" sample "$EX/sphere.hf" -n 100 --noise 1e308 --seed 1 -o "$tmp/noise.xyz" -q 2>"$tmp/ferr"
 fs=$?
 [ $fs = 1 ] && [ ! -e "$tmp/noise.xyz" ] && grep -q 'would not be finite' "$tmp/ferr"
-report $? "sample --noise 1e308: refused, nothing written (exit $fs)"
+explain $? "sample --noise 1e308: refused, nothing written (exit $fs)"
 
 # ---- primitive lists -------------------------------------------------------------------
 bad_list() { # bad_list FILE EXPECTED DESCRIPTION
     "$FREP" evolve "$tmp/small.xyz" -p "$1" --seed 1 -o "$tmp/bad.hf" -q 2>"$tmp/ferr"
     fs=$?
     [ $fs = 1 ] && [ ! -e "$tmp/bad.hf" ] && grep -q "$2" "$tmp/ferr"
-    report $? "$3: exit $fs, '$(head -n 1 "$tmp/ferr")'"
+    explain $? "$3: exit $fs, '$(head -n 1 "$tmp/ferr")'"
 }
 printf 'plane 0 0 1 0\nsphere 0 0 0 -1\n' >"$tmp/neg.fit"
 bad_list "$tmp/neg.fit" 'neg.fit:2: degenerate sphere: the radius must be > 0' "a negative radius in a .fit list"
