@@ -2352,6 +2352,168 @@ static int ft_distribute(ft *F, uint32_t i, const ft_check *ck)
     return 0;
 }
 
+/* ---- factoring: a common operand of union terms taken out ------------------------------ */
+
+/* Whether terms a and b write the same expression: a leaf by its primitive, a box or
+ * capped cylinder by its numbers and faces, an operation operand by operand in order. */
+static int ft_same(const ft *F, ft_term a, ft_term b)
+{
+    if (a.neg != b.neg) return 0;
+    if (a.node == b.node) return 1;
+    const ft_node *x = &F->v[a.node], *y = &F->v[b.node];
+    if (x->kind != y->kind) return 0;
+    if (x->kind == FT_LEAF) return x->leaf == y->leaf;
+    if (x->kind == FT_BOX || x->kind == FT_CAPPED)
+        return !memcmp(x->c, y->c, sizeof x->c) && !memcmp(x->h, y->h, sizeof x->h) &&
+               !memcmp(x->rot, y->rot, sizeof x->rot) && !memcmp(x->face, y->face, sizeof x->face) &&
+               !memcmp(x->fneg, y->fneg, sizeof x->fneg);
+    if ((x->kind != FT_AND && x->kind != FT_OR) || x->n != y->n) return 0;
+    for (uint32_t k = 0; k < x->n; k++)
+        if (!ft_same(F, x->t[k], y->t[k])) return 0;
+    return 1;
+}
+
+/* The operand of node `and` (an intersection or a union) the same as x (-1: none). */
+static int ft_find(const ft *F, uint32_t and, ft_term x)
+{
+    for (uint32_t m = 0; m < F->v[and].n; m++)
+        if (ft_same(F, F->v[and].t[m], x)) return (int)m;
+    return -1;
+}
+
+/* Whether node u is a union of two or more leaves. */
+static int ft_leaves(const ft *F, uint32_t u)
+{
+    if (F->v[u].kind != FT_OR || F->v[u].n < 2) return 0;
+    for (uint32_t k = 0; k < F->v[u].n; k++)
+        if (F->v[F->v[u].t[k].node].kind != FT_LEAF) return 0;
+    return 1;
+}
+
+/* Where term t is X & P, P a primitive or a union of primitives, and X the same as
+ * x: the index of X in t (-1: no such term). */
+static int ft_factor_term(const ft *F, ft_term t, ft_term x)
+{
+    if (t.neg || F->v[t.node].kind != FT_AND || F->v[t.node].n != 2) return -1;
+    for (int m = 0; m < 2; m++) {
+        ft_term p = F->v[t.node].t[1 - m];
+        if (ft_same(F, F->v[t.node].t[m], x) &&
+            (F->v[p.node].kind == FT_LEAF || (!p.neg && ft_leaves(F, p.node))))
+            return m;
+    }
+    return -1;
+}
+
+/* Union i = (X & P) | (X & Q) | R written X & (P | Q) | R (exact for min and max), P
+ * and Q primitives or unions of primitives: the operand X common to the most such
+ * terms, taken out once.  The GA builds a part cut by a pocket as one term per face
+ * group, (S \ A) | (S \ B); factored, the faces meet in one union, S & ~(A & B), that
+ * apply_pockets writes as one box.  X is a solid other than a plane (a box, a capped
+ * cylinder), or a union of leaves: a plane taken out of the terms would leave a box of
+ * the cover without its face (the cover reads a subtree alone).  Larger terms are
+ * left alone (InverseCSG's 133: a cylinder taken out of two subtrees of planes left
+ * its pocket in no intersection with a curved solid, three half-spaces instead of a
+ * box).  Returns 1 when node i was rewritten. */
+static int ft_factor(ft *F, uint32_t i)
+{
+    if (F->v[i].kind != FT_OR || F->v[i].n < 2) return 0;
+    uint32_t best = 0, bk = 0, bm = 0;
+    for (uint32_t k = 0; k < F->v[i].n; k++) {
+        ft_term tk = F->v[i].t[k];
+        if (tk.neg || F->v[tk.node].kind != FT_AND || F->v[tk.node].n != 2) continue;
+        for (uint32_t m = 0; m < 2; m++) {
+            ft_term x = F->v[tk.node].t[m];
+            double pn[3], pd;
+            ft_kind xk = F->v[x.node].kind;
+            if (ft_plane(F, x, pn, &pd) || ((xk == FT_AND || xk == FT_OR) && !ft_leaves(F, x.node)) ||
+                ft_factor_term(F, tk, x) < 0)
+                continue;
+            uint32_t c = 0;
+            for (uint32_t j = k + 1; j < F->v[i].n; j++) c += ft_factor_term(F, F->v[i].t[j], x) >= 0;
+            if (c > best) best = c, bk = k, bm = m;
+        }
+    }
+    if (!best) return 0;
+    ft_term x = F->v[F->v[i].t[bk].node].t[bm];
+    uint32_t a = ft_new(F, FT_AND), u = ft_new(F, FT_OR);
+    if (F->failed) return 0;
+    ft_add(F, a, x.node, x.neg);
+    ft_add(F, a, u, 0);
+    uint32_t w = 0, n = F->v[i].n;
+    for (uint32_t k = 0; k < n && !F->failed; k++) {
+        ft_term tk = F->v[i].t[k];
+        int m = k < bk ? -1 : ft_factor_term(F, tk, x);
+        if (m < 0) {
+            F->v[i].t[w++] = tk;
+            continue;
+        }
+        ft_term o = F->v[tk.node].t[1 - m];
+        if (F->v[o.node].kind == FT_OR && !o.neg) {
+            for (uint32_t q = 0; q < F->v[o.node].n; q++)
+                ft_add(F, u, F->v[o.node].t[q].node, F->v[o.node].t[q].neg);
+        } else {
+            ft_add(F, u, o.node, o.neg);
+        }
+        if (k == bk) F->v[i].t[w++] = (ft_term){ a, 0 };
+    }
+    if (F->failed) return 0;
+    F->v[i].n = w;
+    return 1;
+}
+
+/* A half-space h of one union term X & h that is an operand of a union U of another
+ * term, Y & U (U a union of leaves), is replaced by a copy of U where the model keeps its solid (ft_keeps):
+ * X & h grows by X & (U \ h), held by the model already (the notch of two joined
+ * spheres, which the GA cuts from one sphere by the notch's face alone).  Then
+ * ft_factor takes U out of both terms, and the notch is cut once.  Returns 1 when
+ * node i was rewritten. */
+static int ft_widen(ft *F, uint32_t i, const ft_check *ck)
+{
+    if (F->v[i].kind != FT_OR || !ck->cloud) return 0;
+    for (uint32_t k = 0; k < F->v[i].n; k++) {
+        ft_term tk = F->v[i].t[k];
+        if (tk.neg || F->v[tk.node].kind != FT_AND) continue;
+        for (uint32_t m = 0; m < F->v[tk.node].n; m++) {
+            ft_term h = F->v[tk.node].t[m];
+            if (F->v[h.node].kind != FT_LEAF) continue;
+            for (uint32_t j = 0; j < F->v[i].n; j++) {
+                ft_term tj = F->v[i].t[j];
+                if (j == k || tj.neg || F->v[tj.node].kind != FT_AND) continue;
+                for (uint32_t l = 0; l < F->v[tj.node].n; l++) {
+                    ft_term ut = F->v[tj.node].t[l];
+                    if (ut.neg || !ft_leaves(F, ut.node) || ft_find(F, ut.node, h) < 0 ||
+                        ft_cancelled(ck))
+                        continue;
+                    F->v[tk.node].t[m] = ut;   /* shared until kept: then copied */
+                    if (ft_keeps(F, ck)) {
+                        uint32_t c = ft_new(F, FT_OR);
+                        for (uint32_t q = 0; q < F->v[ut.node].n && c != FT_NONE; q++) {
+                            uint32_t lf = ft_new(F, FT_LEAF);
+                            if (lf == FT_NONE) break;
+                            F->v[lf].leaf = F->v[F->v[ut.node].t[q].node].leaf;
+                            ft_add(F, c, lf, F->v[ut.node].t[q].neg);
+                        }
+                        if (!F->failed) {
+                            F->v[tk.node].t[m] = (ft_term){ c, 0 };
+                            return 1;
+                        }
+                    }
+                    F->v[tk.node].t[m] = h;
+                }
+            }
+        }
+    }
+    return 0;
+}
+
+static void apply_factor(ft *F, uint32_t i, const ft_check *ck)
+{
+    if (F->v[i].kind != FT_AND && F->v[i].kind != FT_OR) return;
+    for (uint32_t k = 0; k < F->v[i].n; k++) apply_factor(F, F->v[i].t[k].node, ck);
+    while (!F->failed && ft_factor(F, i)) {}
+    while (!F->failed && ft_widen(F, i, ck) && ft_factor(F, i)) {}
+}
+
 /* The cover of every subtree of planes, largest first; in an operation of planes and
  * other solids (a box stack minus a bore), of its operands of planes grouped; in an
  * operation of planes alone that no cover writes whole (one of its solids has a face
@@ -2582,7 +2744,7 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
     const char **names = frep_calloc(nprims + 1, sizeof *names);
     unsigned *uses = NULL;
     uint32_t *order = NULL;
-    uint8_t *seen = NULL, *pol = NULL;
+    uint8_t *seen = NULL, *pol = NULL, *dup = NULL;
     double *grid = NULL, *ref = NULL;
     fw w;
     memset(&w, 0, sizeof w);
@@ -2628,6 +2790,7 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
         ck.gtol = CANON_GRID_TOL * r->diag;
     }
     if (!exact) apply_solids(&F, root, &ck);
+    if (!F.failed && !exact) apply_factor(&F, root, &ck);
     if (!F.failed && ck.cloud && apply_cover(&F, root, &ck, r)) F.failed = 1;
     if (!F.failed && ck.cloud) apply_pockets(&F, root, &ck, r, ft_bounded(&F, root, r));
     if (F.failed) goto done;
@@ -2639,10 +2802,19 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
     if (!uses || !order || !seen || !pol || !w.stmt) goto done;
     uint32_t no = 0;
     fw_walk(&F, root, 0, uses, order, &no, seen, pol);
-    /* Names and the count of solids. */
+    /* Names and the count of solids; a solid the tree holds twice (one capped cylinder
+     * in two terms that are not factored) is named, counted and written once. */
     unsigned nbox = 0, ncap = 0, kinds[PRIM__COUNT + 1] = { 0 };
+    dup = frep_calloc(no + 1, 1);
+    if (!dup) goto done;
     for (uint32_t k = 0; k < no; k++) {
         ft_node *v = &F.v[order[k]];
+        for (uint32_t e = 0; e < k && !dup[k]; e++)
+            if (ft_same(&F, (ft_term){ order[e], 0 }, (ft_term){ order[k], 0 })) {
+                memcpy(v->name, F.v[order[e]].name, sizeof v->name);
+                dup[k] = 1;
+            }
+        if (dup[k]) continue;
         if (v->kind == FT_BOX) {
             snprintf(v->name, sizeof v->name, pol[order[k]] == 2 ? "box_cut_%u" : "box_%u", ++nbox);
         } else {
@@ -2685,7 +2857,8 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
     if (no)
         fprintf(f, "    -- solids of the fitted faces (numbers rounded as their faces'; a face "
                    "moves with the box's centre and half size)\n");
-    for (uint32_t k = 0; k < no; k++) write_feature(f, &F, &F.v[order[k]], names, hyperfun);
+    for (uint32_t k = 0; k < no; k++)
+        if (!dup[k]) write_feature(f, &F, &F.v[order[k]], names, hyperfun);
     fprintf(f, "    -- the construction tree: | union, & intersection, \\ subtraction, ~ complement\n");
     w.f = f;
     w.F = &F;
@@ -2701,6 +2874,7 @@ done:
     frep_free(order);
     frep_free(seen);
     frep_free(pol);
+    frep_free(dup);
     frep_free(w.stmt);
     frep_free(grid);
     frep_free(ref);

@@ -1642,6 +1642,7 @@ typedef struct cover_case {
     int cyl;                  /* > 0: primitive cyl - 1 is the bore x^2 + y^2 <= 0.3^2 about (1, 1) */
     const char *truth;        /* the solid the cloud samples and the model must be (NULL: tree) */
     int cancelled;            /* the writer's cancel flag raised before it starts */
+    double r[COVER_CASE_PRIMS];   /* > 0: primitive j is the ball of radius r[j] about n[j] */
 } cover_case;
 
 static double cover_tree_value(const cover_case *cc, const gp_tree *t, const double *x)
@@ -1652,6 +1653,10 @@ static double cover_tree_value(const cover_case *cc, const gp_tree *t, const dou
         const frep_insn *in = &t->code[pc];
         if (in->op == FREP_OP_PRIM && (int)in->arg == cc->cyl - 1) {
             st[sp++] = 0.3 - hypot(x[0] - 1, x[1] - 1);
+        } else if (in->op == FREP_OP_PRIM && cc->r[in->arg] > 0) {
+            const double *c = cc->n[in->arg];
+            st[sp++] = cc->r[in->arg] - sqrt((x[0] - c[0]) * (x[0] - c[0]) +
+                                             (x[1] - c[1]) * (x[1] - c[1]) + (x[2] - c[2]) * (x[2] - c[2]));
         } else if (in->op == FREP_OP_PRIM) {
             const double *n = cc->n[in->arg];
             st[sp++] = cc->d[in->arg] - (n[0] * x[0] + n[1] * x[1] + n[2] * x[2]);
@@ -1673,6 +1678,10 @@ static void test_box_cover_case(cover_case *cc)
         prims[j].type = PRIM_PLANE;
         memcpy(prims[j].p, cc->n[j], sizeof prims[j].p);
         prims[j].r = cc->d[j];
+        if (cc->r[j] > 0) {
+            prims[j].type = PRIM_SPHERE;
+            prims[j].r = cc->r[j];
+        }
         if (j == cc->cyl - 1) {
             double axis[3] = { 0, 0, 1 }, at[3] = { 1, 1, 0 };
             prims[j].type = PRIM_CYLINDER;
@@ -1766,6 +1775,17 @@ static void test_box_cover_case(cover_case *cc)
     if (f) fclose(f);
     ok(rc == 0 && text && strstr(text, cc->want) != NULL, "%s: written as '%s'", cc->name, cc->want);
     if (rc || !text || !strstr(text, cc->want)) diag("%s", text ? text : "(no text)");
+    /* Each name is defined once: "    NAME = " starts no two lines. */
+    int twice = 0;
+    for (const char *l = text; l && !twice && (l = strstr(l, "\n    ")) != NULL; l++) {
+        const char *e = strstr(l + 5, " = ");
+        if (!e || memchr(l + 5, ' ', (size_t)(e - l - 5)) || memchr(l + 5, '\n', (size_t)(e - l - 5)))
+            continue;
+        char def[80];
+        snprintf(def, sizeof def, "%.*s", (int)(e - l + 3), l);
+        twice = strstr(l + 1, def) != NULL;
+    }
+    ok(text && !twice, "%s: each name defined once", cc->name);
 
     frep_compile_options opt;
     frep_compile_options_init(&opt);
@@ -1796,7 +1816,7 @@ static void test_box_cover_case(cover_case *cc)
 
 static void test_box_cover(void)
 {
-    static cover_case stair = { "stair", "12&3&4&5&6&78|&9a|&", "3 solids: 3 boxes", 10, { { 0 } }, { 0 }, 0, NULL, 0 };
+    static cover_case stair = { "stair", "12&3&4&5&6&78|&9a|&", "3 solids: 3 boxes", 10, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
     /* Turned 30 degrees about z: x' = (c, s, 0), y' = (-s, c, 0). */
     double c = cos(FREP_PI / 6), s = sin(FREP_PI / 6);
     double X[3] = { c, s, 0 }, Y[3] = { -s, c, 0 }, Z[3] = { 0, 0, 1 };
@@ -1818,7 +1838,7 @@ static void test_box_cover(void)
 
     /* The cube [0, 2]^3 less the corner beyond three faces of a cube turned by
      * (10, 20, 30) degrees about x, y, z whose corner sits at (1.4, 1.4, 1.4). */
-    static cover_case corner = { "corner", "12&3&4&5&6&78|9|&", "2 solids: 2 boxes", 9, { { 0 } }, { 0 }, 0, NULL, 0 };
+    static cover_case corner = { "corner", "12&3&4&5&6&78|9|&", "2 solids: 2 boxes", 9, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
     for (int j = 0; j < 6; j++) {
         corner.n[j][j / 2] = j % 2 ? 1 : -1;
         corner.d[j] = j % 2 ? 2 : 0;
@@ -1868,7 +1888,7 @@ static void test_box_cover(void)
      * inside A.  Distributed, X & bore lies inside A, and the bore alone is not the
      * solid: the term is dropped whole (ft_distribute), and X & P is a box. */
     static cover_case joined = { "joined term", "12&3&4&5&6&78&9&a&dbc&|&|", "2 solids: 2 boxes",
-                                 13, { { 0 } }, { 0 }, 13, "12&3&4&5&6&78&9&a&b&c&|", 0 };
+                                 13, { { 0 } }, { 0 }, 13, "12&3&4&5&6&78&9&a&b&c&|", 0, { 0 } };
     for (int j = 0; j < 6; j++) {
         joined.n[j][j / 2] = j % 2 ? 1 : -1;
         joined.d[j] = j % 2 ? 2 : 0;
@@ -1881,12 +1901,40 @@ static void test_box_cover(void)
         joined.d[6 + j] = jd[j];
     }
     test_box_cover_case(&joined);
+    /* A capped cylinder, the bore x^2 + y^2 <= 0.3^2 about (1, 1) between z = 0 and 2,
+     * less the notch x, y, z >= 1 (a quarter of its top half), written as the GA does:
+     * one term per group of the notch's faces, (C & (x <= 1 | z <= 1)) | (C & y <= 1).
+     * Factored (ft_factor), C & (x <= 1 | z <= 1 | y <= 1) is the cylinder less a box. */
+    static cover_case factor = { "factored", "12&3&45|&12&3&6&|", "2 solids: 1 box, 1 cylinder (1 capped)",
+                                 6, { { 0 } }, { 0 }, 1, NULL, 0, { 0 } };
+    double fn[6][3] = { { 0 }, { 0, 0, -1 }, { 0, 0, 1 }, { 1, 0, 0 }, { 0, 0, 1 }, { 0, 1, 0 } };
+    double fd[6] = { 0, 0, 2, 1, 1, 1 };
+    for (int j = 0; j < 6; j++) {
+        memcpy(factor.n[j], fn[j], sizeof fn[j]);
+        factor.d[j] = fd[j];
+    }
+    test_box_cover_case(&factor);
+    /* Two joined balls, A about (1, 1, 1) and B about (1, 2, 1), radius 1, less the notch
+     * x, z >= 1, y <= 1.2, written as the GA did on two spheres and a cuboid: B cut by the
+     * notch's face y >= 1.2 alone (B's part below it lies in A), A by the notch's faces,
+     * (B & y >= 1.2) | (A & (x <= 1 | z <= 1 | y >= 1.2)).  The face widened to the
+     * notch's union (ft_widen) and taken out of both terms, (A | B) \ notch. */
+    static cover_case widen = { "widened", "12&345|2|&|", "3 solids: 1 box, 0 cylinders (0 capped), 2 spheres",
+                                5, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
+    double wn[5][3] = { { 1, 2, 1 }, { 0, -1, 0 }, { 1, 1, 1 }, { 1, 0, 0 }, { 0, 0, 1 } };
+    double wd[5] = { 0, -1.2, 0, 1, 1 };
+    for (int j = 0; j < 5; j++) {
+        memcpy(widen.n[j], wn[j], sizeof wn[j]);
+        widen.d[j] = wd[j];
+    }
+    widen.r[0] = widen.r[2] = 1;
+    test_box_cover_case(&widen);
     /* A cube stacked on the cube [0, 2]^3, turned by (5, 10, 15) degrees about x, y, z,
      * its bottom face hidden inside the lower one (no point on it), written as the GA
      * does: (lower | the upper's five seen faces) & the lower's sides and bottom.  Its
      * box takes a buried face where its side faces' points stop. */
     static cover_case stack = { "stacked", "12&3&4&5&6&78&9&a&b&|1&2&3&4&5&", "2 solids: 2 boxes",
-                                12, { { 0 } }, { 0 }, 0, "12&3&4&5&6&78&9&a&b&c&|", 0 };
+                                12, { { 0 } }, { 0 }, 0, "12&3&4&5&6&78&9&a&b&c&|", 0, { 0 } };
     for (int j = 0; j < 6; j++) {
         stack.n[j][j / 2] = j % 2 ? 1 : -1;
         stack.d[j] = j % 2 ? 2 : 0;
