@@ -2687,16 +2687,54 @@ static void ft_pockets(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
     }
 }
 
+/* The check points (every ck->stride-th of the cloud) within eps of the model's
+ * surface, marked in in[] when in is not NULL; returns their number. */
+static size_t ft_explained(const ft *F, const ft_check *ck, double eps, uint8_t *in)
+{
+    size_t k = 0;
+    for (size_t i = 0, m = 0; i < ck->cloud->n; i += ck->stride, m++) {
+        double x[3] = { ck->cloud->x[i], ck->cloud->y[i], ck->cloud->z[i] };
+        int e = fabs(ft_eval(F, ck->root, x)) <= eps;
+        if (in) in[m] = (uint8_t)e;
+        k += (size_t)e;
+    }
+    return k;
+}
+
+/* Whether the model explains at least CANON_DROP_GAIN of the check points more than
+ * those marked in was[] (nwas of them), and every one of those still. */
+static int ft_explains_more(const ft *F, const ft_check *ck, double eps, const uint8_t *was,
+                            size_t nwas)
+{
+    size_t m = 0, now = 0, total = (ck->cloud->n + ck->stride - 1) / ck->stride;
+    for (size_t i = 0; i < ck->cloud->n; i += ck->stride, m++) {
+        double x[3] = { ck->cloud->x[i], ck->cloud->y[i], ck->cloud->z[i] };
+        int e = fabs(ft_eval(F, ck->root, x)) <= eps;
+        if (was[m] && !e) return 0;
+        now += (size_t)e;
+    }
+    return (double)(now - nwas) >= CANON_DROP_GAIN * (double)total && now > nwas;
+}
+
 /* Boxes cut from intersection i dropped where the model explains the cloud at least as
  * well without them (mean distance) and differs from the tree before the rewrites at no
  * more than COVER_SLIVER of the inside grid points: a cut of the faces of the solid
  * below that trims a box's buried face, placed too deep, where a corner of that face
- * shows (six_cuboids' top cube). */
+ * shows (six_cuboids' top cube).  Also, whatever the grid says, where without them
+ * the model explains (within eps_d) every check point it did and CANON_DROP_GAIN of
+ * them more: the GA's tree cut away scanned material (three_cuboids_one_cylinder at
+ * seed 5: a cut on a face of the other box's frame took a corner of the lower box
+ * whose faces hold 2% of the points). */
 static void ft_drop_cuts(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r, int bounded)
 {
     size_t nin = 0;
     for (size_t g = 0; g < ck->ng; g++) nin += ck->ref[g] > ck->gtol;
     size_t most = (size_t)(COVER_SLIVER * (double)nin);
+    uint8_t *was = frep_malloc(ck->cloud->n / ck->stride + 1);
+    if (!was) {
+        F->failed = 1;
+        return;
+    }
     for (uint32_t k = 0; k < F->v[i].n && !F->failed && !ft_cancelled(ck);) {
         ft_term t = F->v[i].t[k];
         if (!t.neg || F->v[t.node].kind != FT_BOX || F->v[i].n < 2) {
@@ -2704,10 +2742,12 @@ static void ft_drop_cuts(ft *F, uint32_t i, const ft_check *ck, const evolve_res
             continue;
         }
         double mean = ft_mean(F, ck->root, ck->cloud, ck->stride);
+        size_t nwas = ft_explained(F, ck, r->eps_d, was);
         ft_node *v = &F->v[i];
         memmove(&v->t[k], &v->t[k + 1], (v->n - k - 1) * sizeof *v->t);
         v->n--;
-        if (ft_grid_diffs(F, ck, most) <= most && ft_mean(F, ck->root, ck->cloud, ck->stride) <= mean &&
+        if (ft_mean(F, ck->root, ck->cloud, ck->stride) <= mean &&
+            (ft_grid_diffs(F, ck, most) <= most || ft_explains_more(F, ck, r->eps_d, was, nwas)) &&
             (!bounded || ft_bounded(F, ck->root, r)))
             continue;
         v = &F->v[i];
@@ -2716,6 +2756,7 @@ static void ft_drop_cuts(ft *F, uint32_t i, const ft_check *ck, const evolve_res
         v->n++;
         k++;
     }
+    frep_free(was);
 }
 
 static void apply_pockets(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r, int bounded)

@@ -39,6 +39,9 @@ typedef struct canon_prim {
  * this fraction of the diagonal over the exact one. */
 #define CANON_MAX_CHANGE 2e-4
 #define CANON_CHECK_POINTS 4096
+/* A box cut away is dropped, whatever the grid says, when without it the model explains
+ * (within eps_d) every check point it did and this share of them more (ft_drop_cuts). */
+#define CANON_DROP_GAIN 0.005
 
 /* The canonical form of every primitive the tree uses (others: name empty).  out has
  * nprims entries.  With the cloud (may be NULL), each primitive takes the boldest form
