@@ -2462,27 +2462,28 @@ static int ft_factor(ft *F, uint32_t i)
 }
 
 /* A half-space h of one union term X & h that is an operand of a union U of another
- * term, Y & U (U a union of leaves), is replaced by a copy of U where the model keeps its solid (ft_keeps):
- * X & h grows by X & (U \ h), held by the model already (the notch of two joined
- * spheres, which the GA cuts from one sphere by the notch's face alone).  Then
- * ft_factor takes U out of both terms, and the notch is cut once.  Returns 1 when
- * node i was rewritten. */
+ * term, Y & U (X, Y primitives, U a union of primitives), is replaced by a copy of U
+ * where the model keeps its solid (ft_keeps): X & h grows by X & (U \ h), held by the
+ * model already (the notch of two joined spheres, which the GA cuts from one sphere
+ * by the notch's face alone).  Then ft_factor takes U out of both terms (both are of
+ * its form), and the notch is cut once.  Returns 1 when node i was rewritten. */
 static int ft_widen(ft *F, uint32_t i, const ft_check *ck)
 {
     if (F->v[i].kind != FT_OR || !ck->cloud) return 0;
     for (uint32_t k = 0; k < F->v[i].n; k++) {
         ft_term tk = F->v[i].t[k];
-        if (tk.neg || F->v[tk.node].kind != FT_AND) continue;
-        for (uint32_t m = 0; m < F->v[tk.node].n; m++) {
+        if (tk.neg || F->v[tk.node].kind != FT_AND || F->v[tk.node].n != 2) continue;
+        for (uint32_t m = 0; m < 2; m++) {
             ft_term h = F->v[tk.node].t[m];
-            if (F->v[h.node].kind != FT_LEAF) continue;
+            if (F->v[h.node].kind != FT_LEAF || F->v[F->v[tk.node].t[1 - m].node].kind != FT_LEAF)
+                continue;
             for (uint32_t j = 0; j < F->v[i].n; j++) {
                 ft_term tj = F->v[i].t[j];
-                if (j == k || tj.neg || F->v[tj.node].kind != FT_AND) continue;
-                for (uint32_t l = 0; l < F->v[tj.node].n; l++) {
+                if (j == k || tj.neg || F->v[tj.node].kind != FT_AND || F->v[tj.node].n != 2) continue;
+                for (uint32_t l = 0; l < 2; l++) {
                     ft_term ut = F->v[tj.node].t[l];
                     if (ut.neg || !ft_leaves(F, ut.node) || ft_find(F, ut.node, h) < 0 ||
-                        ft_cancelled(ck))
+                        F->v[F->v[tj.node].t[1 - l].node].kind != FT_LEAF || ft_cancelled(ck))
                         continue;
                     F->v[tk.node].t[m] = ut;   /* shared until kept: then copied */
                     if (ft_keeps(F, ck)) {
