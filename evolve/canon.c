@@ -571,6 +571,7 @@ typedef struct ft {
     const canon_prim *c;  /* per primitive: its canonical form */
     prim *q;              /* per primitive: what the written call evaluates */
     size_t nprims;
+    int spreading;        /* 1: apply_cover is inside ft_spread's trial (no spread there) */
 } ft;
 
 #define FT_NONE UINT32_MAX
@@ -2295,6 +2296,29 @@ static int cover_group(ft *F, uint32_t i, const uint8_t *sel, const ft_check *ck
     return rc;
 }
 
+/* Intersection i = X & U, U = U1 | ... | Un its operand o, written in place as the union
+ * (X & U1) | ... | (X & Un) (min and max distribute exactly).  Returns the node that
+ * now holds the intersection (unreachable until put back), FT_NONE when out of
+ * memory. */
+static uint32_t ft_spread_terms(ft *F, uint32_t i, uint32_t o)
+{
+    ft_term ot = F->v[i].t[o];
+    uint32_t u = ft_new(F, FT_OR), nu = F->v[ot.node].n;
+    for (uint32_t k = 0; k < nu && u != FT_NONE; k++) {
+        uint32_t a = ft_new(F, FT_AND);
+        for (uint32_t m = 0; m < F->v[i].n && a != FT_NONE; m++)
+            if (m != o) ft_add(F, a, F->v[i].t[m].node, F->v[i].t[m].neg);
+        ft_term uk = F->v[ot.node].t[k];
+        ft_add(F, a, uk.node, uk.neg);
+        ft_add(F, u, a, 0);
+    }
+    if (F->failed) return FT_NONE;
+    ft_node saved = F->v[i];
+    F->v[i] = F->v[u];
+    F->v[u] = saved;
+    return u;
+}
+
 /* Intersection i = X & (U1 | ... | Un), X its other operands, written again as
  * (X & U1) | ... | (X & Un) (min and max distribute exactly), X then dropped from each
  * term where the model keeps its solid (ft_keeps), or else the whole term dropped
@@ -2312,19 +2336,8 @@ static int ft_distribute(ft *F, uint32_t i, const ft_check *ck)
         ft_term ot = F->v[i].t[o];
         if (ot.neg || F->v[ot.node].kind != FT_OR || F->v[ot.node].n < 2) continue;
         uint32_t none = ft_new(F, FT_OR);   /* no operands: nothing (ft_eval) */
-        uint32_t u = ft_new(F, FT_OR), nu = F->v[ot.node].n;
-        for (uint32_t k = 0; k < nu && u != FT_NONE; k++) {
-            uint32_t a = ft_new(F, FT_AND);
-            for (uint32_t m = 0; m < F->v[i].n && a != FT_NONE; m++)
-                if (m != o) ft_add(F, a, F->v[i].t[m].node, F->v[i].t[m].neg);
-            ft_term uk = F->v[ot.node].t[k];
-            ft_add(F, a, uk.node, uk.neg);
-            ft_add(F, u, a, 0);
-        }
-        if (F->failed) return 0;
-        ft_node saved = F->v[i];
-        F->v[i] = F->v[u];
-        F->v[u] = saved;   /* the intersection, unreachable until put back */
+        uint32_t u = ft_spread_terms(F, i, o), nu = F->v[ot.node].n;
+        if (u == FT_NONE) return 0;
         uint32_t kept = 0, dropped = 0, w = 0;
         for (uint32_t k = 0; k < nu && kept <= 1; k++) {
             ft_term a = F->v[i].t[k];
@@ -2345,7 +2358,7 @@ static int ft_distribute(ft *F, uint32_t i, const ft_check *ck)
             F->v[i].n = w;
             return 1;
         }
-        saved = F->v[i];
+        ft_node saved = F->v[i];
         F->v[i] = F->v[u];
         F->v[u] = saved;
     }
@@ -2520,13 +2533,74 @@ static void apply_factor(ft *F, uint32_t i, const ft_check *ck)
  * operation of planes alone that no cover writes whole (one of its solids has a face
  * direction no fitted plane gives, so that no frame holds it), of all its operands but
  * one, each left out in turn (up to COVER_MAX_LEAVE_OUT operands). */
-static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
+/* A copy of the nodes of F (their operand arrays too): a rewrite tried and taken back. */
+typedef struct ft_saved {
+    ft_node *v;
+    uint32_t n;
+} ft_saved;
+
+static int ft_save(const ft *F, ft_saved *s)
 {
-    if (F->v[i].kind != FT_AND && F->v[i].kind != FT_OR) return 0;
-    int rc = cv_run(F, i, ck, r);
-    if (rc) return rc < 0 ? -1 : 0;
-    if (ft_distribute(F, i, ck)) return apply_cover(F, i, ck, r);
-    if (F->failed) return -1;
+    s->n = F->n;
+    s->v = frep_malloc((F->n + 1) * sizeof *s->v);
+    if (!s->v) return -1;
+    memcpy(s->v, F->v, F->n * sizeof *s->v);
+    for (uint32_t k = 0; k < F->n; k++) {
+        s->v[k].t = NULL;
+        s->v[k].cap = 0;
+        if (!F->v[k].n) continue;
+        s->v[k].t = frep_malloc(F->v[k].n * sizeof *s->v[k].t);
+        if (!s->v[k].t) {
+            for (uint32_t m = 0; m < k; m++) frep_free(s->v[m].t);
+            frep_free(s->v);
+            s->v = NULL;
+            return -1;
+        }
+        memcpy(s->v[k].t, F->v[k].t, F->v[k].n * sizeof *s->v[k].t);
+        s->v[k].cap = F->v[k].n;
+    }
+    return 0;
+}
+
+static void ft_saved_free(ft_saved *s)
+{
+    if (!s->v) return;
+    for (uint32_t k = 0; k < s->n; k++) frep_free(s->v[k].t);
+    frep_free(s->v);
+    s->v = NULL;
+}
+
+/* F's nodes replaced by the saved ones (s is consumed). */
+static void ft_restore(ft *F, ft_saved *s)
+{
+    for (uint32_t k = 0; k < F->n; k++) frep_free(F->v[k].t);
+    frep_free(F->v);
+    F->v = s->v;
+    F->n = F->cap = s->n;
+    s->v = NULL;
+}
+
+/* The solids the subtree at i writes: its boxes and capped cylinders, and its
+ * primitives (each counted once). */
+static unsigned ft_count(const ft *F, uint32_t i, uint8_t *prim_seen)
+{
+    const ft_node *v = &F->v[i];
+    if (v->kind == FT_LEAF) {
+        unsigned first = !prim_seen[v->leaf];
+        prim_seen[v->leaf] = 1;
+        return first;
+    }
+    if (v->kind == FT_BOX || v->kind == FT_CAPPED) return 1;
+    unsigned c = 0;
+    for (uint32_t k = 0; k < v->n; k++) c += ft_count(F, v->t[k].node, prim_seen);
+    return c;
+}
+
+static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r);
+
+/* The rest of apply_cover: its operands, then its operands of planes grouped. */
+static int cover_operands(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
+{
     uint32_t n = F->v[i].n;
     for (uint32_t k = 0; k < n; k++)
         if (apply_cover(F, F->v[i].t[k].node, ck, r)) return -1;
@@ -2541,7 +2615,7 @@ static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
         sel[k] = (uint8_t)cv_planes(&C, F->v[i].t[k].node);
         ng += sel[k];
     }
-    rc = 0;
+    int rc = 0;
     if (ng >= 2 && ng < n) {
         /* Group the operands that are planes alone. */
         rc = cover_group(F, i, sel, ck, r);
@@ -2554,6 +2628,75 @@ static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
     }
     frep_free(sel);
     return rc < 0 ? -1 : 0;
+}
+
+/* The root intersection i = X & (U1 | ... | Un) spread whole, (X & U1) | ... | (X & Un),
+ * X left in every term that needs it (ft_distribute wants X in one term at most): the
+ * GA puts faces of the parts below at the root of a stack, where no cover of the whole
+ * is found and no Uk is bounded alone; each X & Uk is.  The union taken is the one of
+ * most terms.  Tried against the covers of the tree as it is (cover_operands), and
+ * kept when the whole tree then writes fewer solids.  Only where the root is planes
+ * alone within the cover's limits (COVER_MAX_PLANES distinct planes, COVER_MAX_TERMS
+ * terms): the trial covers the tree twice, and each term holds all of X.  Returns 1
+ * when node i is covered (spread or not), 0 when the spread does not apply, -1 when
+ * out of memory. */
+static int ft_spread(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
+{
+    if (i != ck->root || F->spreading || !ck->cloud || F->v[i].kind != FT_AND || F->v[i].n < 2) return 0;
+    uint32_t o = F->v[i].n, most = 1;
+    for (uint32_t k = 0; k < F->v[i].n; k++) {
+        ft_term t = F->v[i].t[k];
+        if (!t.neg && F->v[t.node].kind == FT_OR && F->v[t.node].n > most) o = k, most = F->v[t.node].n;
+    }
+    cover C;
+    memset(&C, 0, sizeof C);
+    C.F = F;
+    if (o == F->v[i].n || most > COVER_MAX_TERMS || !cv_planes(&C, i)) return 0;
+    uint8_t *seen = frep_calloc(F->nprims + 1, 1);
+    ft_saved plain = { 0 }, before = { 0 };
+    int rc = -1;
+    F->spreading = 1;
+    if (!seen || ft_save(F, &before) || cover_operands(F, i, ck, r) || ft_save(F, &plain)) goto done;
+    unsigned c0 = ft_count(F, ck->root, seen);
+    ft_restore(F, &before);
+    ft_term ot = F->v[i].t[o];
+    uint32_t nu = F->v[ot.node].n;
+    if (ft_spread_terms(F, i, o) == FT_NONE) goto done;
+    /* X dropped from each term where the model keeps its solid without it */
+    uint32_t need = 0;
+    for (uint32_t k = 0; k < nu; k++) {
+        ft_term a = F->v[i].t[k];
+        F->v[i].t[k] = F->v[ot.node].t[k];
+        if (!ft_keeps(F, ck)) F->v[i].t[k] = a, need++;
+    }
+    /* X needed by no term is a no-op at the root: that is no spread */
+    unsigned c1 = c0;
+    if (need) {
+        if (apply_cover(F, i, ck, r)) goto done;
+        memset(seen, 0, F->nprims + 1);
+        c1 = ft_count(F, ck->root, seen);
+    }
+    if (c1 >= c0 || !ft_keeps(F, ck)) ft_restore(F, &plain);
+    rc = 1;
+done:
+    F->spreading = 0;
+    ft_saved_free(&before);
+    ft_saved_free(&plain);
+    frep_free(seen);
+    if (rc < 0) F->failed = 1;
+    return rc;
+}
+
+static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
+{
+    if (F->v[i].kind != FT_AND && F->v[i].kind != FT_OR) return 0;
+    int rc = cv_run(F, i, ck, r);
+    if (rc) return rc < 0 ? -1 : 0;
+    if (ft_distribute(F, i, ck)) return apply_cover(F, i, ck, r);
+    if (F->failed) return -1;
+    rc = ft_spread(F, i, ck, r);
+    if (rc) return rc < 0 ? -1 : 0;
+    return cover_operands(F, i, ck, r);
 }
 
 /* ---- pockets: unions of planes as boxes cut away -------------------------------------- */
