@@ -2831,33 +2831,26 @@ static void ft_pockets(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
     }
 }
 
-/* The check points (every ck->stride-th of the cloud) within eps of the model's
- * surface, marked in in[] when in is not NULL; returns their number. */
-static size_t ft_explained(const ft *F, const ft_check *ck, double eps, uint8_t *in)
+/* Over the check points (every ck->stride-th of the cloud): the mean |f| of the model
+ * (returned, as ft_mean), the number within eps of its surface (*near), marked in in[]
+ * when in is not NULL, and of those marked in was[] (when not NULL) the number no
+ * longer within eps (*lost).  One pass: each point is evaluated once. */
+static double ft_fit(const ft *F, const ft_check *ck, double eps, uint8_t *in, const uint8_t *was,
+                     size_t *near, size_t *lost)
 {
-    size_t k = 0;
-    for (size_t i = 0, m = 0; i < ck->cloud->n; i += ck->stride, m++) {
-        double x[3] = { ck->cloud->x[i], ck->cloud->y[i], ck->cloud->z[i] };
-        int e = fabs(ft_eval(F, ck->root, x)) <= eps;
+    double s = 0;
+    size_t m = 0, k = 0, gone = 0;
+    for (size_t i = 0; i < ck->cloud->n; i += ck->stride, m++) {
+        double x[3] = { ck->cloud->x[i], ck->cloud->y[i], ck->cloud->z[i] }, f = ft_eval(F, ck->root, x);
+        int e = fabs(f) <= eps;
+        s += fabs(f);
         if (in) in[m] = (uint8_t)e;
+        if (was) gone += (size_t)(was[m] && !e);
         k += (size_t)e;
     }
-    return k;
-}
-
-/* Whether the model explains at least CANON_DROP_GAIN of the check points more than
- * those marked in was[] (nwas of them), and every one of those still. */
-static int ft_explains_more(const ft *F, const ft_check *ck, double eps, const uint8_t *was,
-                            size_t nwas)
-{
-    size_t m = 0, now = 0, total = (ck->cloud->n + ck->stride - 1) / ck->stride;
-    for (size_t i = 0; i < ck->cloud->n; i += ck->stride, m++) {
-        double x[3] = { ck->cloud->x[i], ck->cloud->y[i], ck->cloud->z[i] };
-        int e = fabs(ft_eval(F, ck->root, x)) <= eps;
-        if (was[m] && !e) return 0;
-        now += (size_t)e;
-    }
-    return (double)(now - nwas) >= CANON_DROP_GAIN * (double)total && now > nwas;
+    *near = k;
+    if (lost) *lost = gone;
+    return m ? s / (double)m : 0;
 }
 
 /* Boxes cut from intersection i dropped where the model explains the cloud at least as
@@ -2873,8 +2866,8 @@ static void ft_drop_cuts(ft *F, uint32_t i, const ft_check *ck, const evolve_res
 {
     size_t nin = 0;
     for (size_t g = 0; g < ck->ng; g++) nin += ck->ref[g] > ck->gtol;
-    size_t most = (size_t)(COVER_SLIVER * (double)nin);
-    uint8_t *was = frep_malloc(ck->cloud->n / ck->stride + 1);
+    size_t most = (size_t)(COVER_SLIVER * (double)nin), total = (ck->cloud->n + ck->stride - 1) / ck->stride;
+    uint8_t *was = frep_malloc(total + 1);
     if (!was) {
         F->failed = 1;
         return;
@@ -2885,13 +2878,15 @@ static void ft_drop_cuts(ft *F, uint32_t i, const ft_check *ck, const evolve_res
             k++;
             continue;
         }
-        double mean = ft_mean(F, ck->root, ck->cloud, ck->stride);
-        size_t nwas = ft_explained(F, ck, r->eps_d, was);
+        size_t nwas, nnow, lost;
+        double mean = ft_fit(F, ck, r->eps_d, was, NULL, &nwas, NULL);
         ft_node *v = &F->v[i];
         memmove(&v->t[k], &v->t[k + 1], (v->n - k - 1) * sizeof *v->t);
         v->n--;
-        if (ft_mean(F, ck->root, ck->cloud, ck->stride) <= mean &&
-            (ft_grid_diffs(F, ck, most) <= most || ft_explains_more(F, ck, r->eps_d, was, nwas)) &&
+        double now = ft_fit(F, ck, r->eps_d, NULL, was, &nnow, &lost);
+        /* every point explained before still is, and CANON_DROP_GAIN of them more */
+        int more = !lost && nnow > nwas && (double)(nnow - nwas) >= CANON_DROP_GAIN * (double)total;
+        if (now <= mean && (more || ft_grid_diffs(F, ck, most) <= most) &&
             (!bounded || ft_bounded(F, ck->root, r)))
             continue;
         v = &F->v[i];
