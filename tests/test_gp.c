@@ -2006,6 +2006,21 @@ static void test_box_cover(void)
     }
     widen.r[0] = widen.r[2] = 1;
     test_box_cover_case(&widen);
+    /* The same balls A and B less the box x in [1, 1.6], y <= 1.2, z in [1, 1.5], written
+     * as the GA did on two spheres and a cuboid at 20,000 points: the union of the cut
+     * faces without x <= 1.6, and A's part beyond that face added back, (A & x >= 1.6) |
+     * ((B | A) & (z >= 1.5 | y >= 1.2 | z <= 1 | x <= 1)).  The face joins the union
+     * (ft_absorb) and A's term goes: (B | A) \ box, its x face the fitted one. */
+    static cover_case absorb = { "absorbed", "17&21|34|5|6|&|", "3 solids: 1 box, 0 cylinders (0 capped), 2 spheres",
+                                 7, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
+    double an[7][3] = { { 1, 1, 1 }, { 1, 2, 1 }, { 0, 0, -1 }, { 0, -1, 0 }, { 0, 0, 1 }, { 1, 0, 0 }, { -1, 0, 0 } };
+    double ad[7] = { 0, 0, -1.5, -1.2, 1, 1, -1.6 };
+    for (int j = 0; j < 7; j++) {
+        memcpy(absorb.n[j], an[j], sizeof an[j]);
+        absorb.d[j] = ad[j];
+    }
+    absorb.r[0] = absorb.r[1] = 1;
+    test_box_cover_case(&absorb);
     /* A cube stacked on the cube [0, 2]^3, turned by (5, 10, 15) degrees about x, y, z,
      * its bottom face hidden inside the lower one (no point on it), written as the GA
      * does: (lower | the upper's five seen faces) & the lower's sides and bottom.  Its
