@@ -2905,15 +2905,18 @@ static double ft_fit(const ft *F, const ft_check *ck, double eps, uint8_t *in, c
     return m ? s / (double)m : 0;
 }
 
-/* Boxes cut from intersection i dropped where the model explains the cloud at least as
- * well without them (mean distance) and differs from the tree before the rewrites at no
- * more than COVER_SLIVER of the inside grid points: a cut of the faces of the solid
- * below that trims a box's buried face, placed too deep, where a corner of that face
- * shows (six_cuboids' top cube).  Also, whatever the grid says, where without them
- * the model explains (within eps_d) every check point it did and CANON_DROP_GAIN of
- * them more: the GA's tree cut away scanned material (three_cuboids_one_cylinder at
- * seed 5: a cut on a face of the other box's frame took a corner of the lower box
- * whose faces hold 2% of the points). */
+/* Cuts of intersection i (its complemented operands: boxes cut away, and any other
+ * solid) dropped where the model explains the cloud no worse without them (the mean
+ * distance, or every check point within eps_d still is) and differs from the tree
+ * before the rewrites at no more than COVER_SLIVER of the inside grid points: a cut of
+ * the faces of the solid below that trims a box's buried face, placed too deep, where
+ * a corner of that face shows (six_cuboids' top cube); a sliver a spurious primitive
+ * cut from a face (six_cuboids at 20,000 points, seed 3: a torus of radius 16 on a top
+ * face, less that face's plane).  Also, whatever the grid says, where without them the
+ * model explains (within eps_d) every check point it did and CANON_DROP_GAIN of them
+ * more: the GA's tree cut away scanned material (three_cuboids_one_cylinder at seed 5:
+ * a cut on a face of the other box's frame took a corner of the lower box whose faces
+ * hold 2% of the points). */
 static void ft_drop_cuts(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r, int bounded)
 {
     size_t nin = 0;
@@ -2926,7 +2929,7 @@ static void ft_drop_cuts(ft *F, uint32_t i, const ft_check *ck, const evolve_res
     }
     for (uint32_t k = 0; k < F->v[i].n && !F->failed && !ft_cancelled(ck);) {
         ft_term t = F->v[i].t[k];
-        if (!t.neg || F->v[t.node].kind != FT_BOX || F->v[i].n < 2) {
+        if (!t.neg || F->v[i].n < 2) {
             k++;
             continue;
         }
@@ -2938,7 +2941,9 @@ static void ft_drop_cuts(ft *F, uint32_t i, const ft_check *ck, const evolve_res
         double now = ft_fit(F, ck, r->eps_d, NULL, was, &nnow, &lost);
         /* every point explained before still is, and CANON_DROP_GAIN of them more */
         int more = !lost && nnow > nwas && (double)(nnow - nwas) >= CANON_DROP_GAIN * (double)total;
-        if (now <= mean && (more || ft_grid_diffs(F, ck, most) <= most) &&
+        /* no worse: the mean distance, or no check point leaves the surface */
+        int worse = now > mean && lost;
+        if (!worse && (more || ft_grid_diffs(F, ck, most) <= most) &&
             (!bounded || ft_bounded(F, ck->root, r)))
             continue;
         v = &F->v[i];

@@ -2021,6 +2021,19 @@ static void test_box_cover(void)
     }
     absorb.r[0] = absorb.r[1] = 1;
     test_box_cover_case(&absorb);
+    /* The cube [0, 2]^3 less a cap of a ball 0.005 deep in its top face (radius 1.5 about
+     * (1, 1, 3.495)), as the GA cuts a sliver a spurious primitive fits: no check point
+     * leaves the model's surface (within eps_d, 0.01) without it, and it holds no grid
+     * point, so the cut goes although the mean distance grows (ft_drop_cuts). */
+    static cover_case capped = { "a sliver cut", "12&3&4&5&6&7\\", "1 solids: 1 box",
+                                 7, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
+    for (int j = 0; j < 6; j++) {
+        capped.n[j][j / 2] = j % 2 ? 1 : -1;
+        capped.d[j] = j % 2 ? 2 : 0;
+    }
+    capped.n[6][0] = 1, capped.n[6][1] = 1, capped.n[6][2] = 3.495;
+    capped.r[6] = 1.5;
+    test_box_cover_case(&capped);
     /* A cube stacked on the cube [0, 2]^3, turned by (5, 10, 15) degrees about x, y, z,
      * its bottom face hidden inside the lower one (no point on it), written as the GA
      * does: (lower | the upper's five seen faces) & the lower's sides and bottom.  Its
