@@ -1670,6 +1670,16 @@ static double cover_tree_value(const cover_case *cc, const gp_tree *t, const dou
     return st[0];
 }
 
+/* Primitives 0..n-1 of cc: the planes nrm[j] . x <= d[j] (a ball's centre in nrm[j]
+ * where cc->r[j] is set). */
+static void cover_case_planes(cover_case *cc, int n, const double (*nrm)[3], const double *d)
+{
+    for (int j = 0; j < n; j++) {
+        memcpy(cc->n[j], nrm[j], sizeof cc->n[j]);
+        cc->d[j] = d[j];
+    }
+}
+
 static void test_box_cover_case(cover_case *cc)
 {
     prim prims[COVER_CASE_PRIMS];
@@ -1986,10 +1996,7 @@ static void test_box_cover(void)
                                  6, { { 0 } }, { 0 }, 1, NULL, 0, { 0 } };
     double fn[6][3] = { { 0 }, { 0, 0, -1 }, { 0, 0, 1 }, { 1, 0, 0 }, { 0, 0, 1 }, { 0, 1, 0 } };
     double fd[6] = { 0, 0, 2, 1, 1, 1 };
-    for (int j = 0; j < 6; j++) {
-        memcpy(factor.n[j], fn[j], sizeof fn[j]);
-        factor.d[j] = fd[j];
-    }
+    cover_case_planes(&factor, 6, fn, fd);
     test_box_cover_case(&factor);
     /* Two joined balls, A about (1, 1, 1) and B about (1, 2, 1), radius 1, less the notch
      * x, z >= 1, y <= 1.2, written as the GA did on two spheres and a cuboid: B cut by the
@@ -2000,10 +2007,7 @@ static void test_box_cover(void)
                                 5, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
     double wn[5][3] = { { 1, 2, 1 }, { 0, -1, 0 }, { 1, 1, 1 }, { 1, 0, 0 }, { 0, 0, 1 } };
     double wd[5] = { 0, -1.2, 0, 1, 1 };
-    for (int j = 0; j < 5; j++) {
-        memcpy(widen.n[j], wn[j], sizeof wn[j]);
-        widen.d[j] = wd[j];
-    }
+    cover_case_planes(&widen, 5, wn, wd);
     widen.r[0] = widen.r[2] = 1;
     test_box_cover_case(&widen);
     /* The same balls A and B less the box x in [1, 1.6], y <= 1.2, z in [1, 1.5], written
@@ -2015,10 +2019,7 @@ static void test_box_cover(void)
                                  7, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
     double an[7][3] = { { 1, 1, 1 }, { 1, 2, 1 }, { 0, 0, -1 }, { 0, -1, 0 }, { 0, 0, 1 }, { 1, 0, 0 }, { -1, 0, 0 } };
     double ad[7] = { 0, 0, -1.5, -1.2, 1, 1, -1.6 };
-    for (int j = 0; j < 7; j++) {
-        memcpy(absorb.n[j], an[j], sizeof an[j]);
-        absorb.d[j] = ad[j];
-    }
+    cover_case_planes(&absorb, 7, an, ad);
     absorb.r[0] = absorb.r[1] = 1;
     test_box_cover_case(&absorb);
     /* The cube [0, 2]^3 less a cap of a ball 0.005 deep in its top face (radius 1.5 about
