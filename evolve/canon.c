@@ -1388,6 +1388,72 @@ static void ft_push(ft *F, uint32_t and, const ft_check *ck)
     }
 }
 
+/* The solids the subtree at i writes: its boxes and capped cylinders, and its
+ * primitives (each counted once). */
+static unsigned ft_count(const ft *F, uint32_t i, uint8_t *prim_seen)
+{
+    const ft_node *v = &F->v[i];
+    if (v->kind == FT_LEAF) {
+        unsigned first = !prim_seen[v->leaf];
+        prim_seen[v->leaf] = 1;
+        return first;
+    }
+    if (v->kind == FT_BOX || v->kind == FT_CAPPED) return 1;
+    unsigned c = 0;
+    for (uint32_t k = 0; k < v->n; k++) c += ft_count(F, v->t[k].node, prim_seen);
+    return c;
+}
+
+/* Whether every leaf under node i is a plane (boxes count as planes). */
+static int ft_planar(const ft *F, uint32_t i)
+{
+    const ft_node *v = &F->v[i];
+    switch (v->kind) {
+    case FT_LEAF: return v->leaf < F->nprims && F->q[v->leaf].type == PRIM_PLANE;
+    case FT_BOX: return 1;
+    case FT_CAPPED: return 0;
+    case FT_AND:
+    case FT_OR:
+        for (uint32_t k = 0; k < v->n; k++)
+            if (!ft_planar(F, v->t[k].node)) return 0;
+        return 1;
+    }
+    return 0;
+}
+
+/* How ft_spread_terms writes a term X & Uk where Uk is itself an intersection A & B:
+ * nested, X & (A & B), or flat, X & A & B, where ft_solids finds X's caps beside a
+ * cylinder of Uk (always, or where Uk holds a curved solid). */
+enum { SPREAD_NESTED, SPREAD_FLAT_CURVED, SPREAD_FLAT };
+
+/* Intersection i = X & U, U = U1 | ... | Un its operand o, written in place as the union
+ * (X & U1) | ... | (X & Un) (min and max distribute exactly), the terms as `flat` says.
+ * Returns the node that now holds the intersection (unreachable until put back),
+ * FT_NONE when out of memory. */
+static uint32_t ft_spread_terms(ft *F, uint32_t i, uint32_t o, int flat)
+{
+    ft_term ot = F->v[i].t[o];
+    uint32_t u = ft_new(F, FT_OR), nu = F->v[ot.node].n;
+    for (uint32_t k = 0; k < nu && u != FT_NONE; k++) {
+        uint32_t a = ft_new(F, FT_AND);
+        for (uint32_t m = 0; m < F->v[i].n && a != FT_NONE; m++)
+            if (m != o) ft_add(F, a, F->v[i].t[m].node, F->v[i].t[m].neg);
+        ft_term uk = F->v[ot.node].t[k];
+        if (flat != SPREAD_NESTED && !uk.neg && F->v[uk.node].kind == FT_AND &&
+            (flat == SPREAD_FLAT || !ft_planar(F, uk.node)))
+            for (uint32_t m = 0; m < F->v[uk.node].n; m++)
+                ft_add(F, a, F->v[uk.node].t[m].node, F->v[uk.node].t[m].neg);
+        else
+            ft_add(F, a, uk.node, uk.neg);
+        ft_add(F, u, a, 0);
+    }
+    if (F->failed) return FT_NONE;
+    ft_node saved = F->v[i];
+    F->v[i] = F->v[u];
+    F->v[u] = saved;
+    return u;
+}
+
 /* Whether operand `o` of intersection `and` is a union holding a cylinder across a
  * pair of planes of the intersection (planes across its axis). */
 static int ft_caps_union(const ft *F, uint32_t and, uint32_t o)
@@ -1413,46 +1479,62 @@ static int ft_caps_union(const ft *F, uint32_t and, uint32_t o)
     return 0;
 }
 
+/* Whether the model loses its solid without any one operand of union u (never without
+ * a cloud to tell). */
+static int ft_needs_all(ft *F, uint32_t u, const ft_check *ck)
+{
+    uint32_t none = ft_new(F, FT_OR);   /* no operands: nothing (ft_eval) */
+    if (!ck->cloud || none == FT_NONE) return 0;
+    int all = 1;
+    for (uint32_t k = 0; k < F->v[u].n && all; k++) {
+        ft_term a = F->v[u].t[k];
+        F->v[u].t[k] = (ft_term){ .node = none, .neg = 0 };
+        all = !ft_keeps(F, ck);
+        F->v[u].t[k] = a;
+    }
+    return all;
+}
+
 /* Intersection `and` of planes and a union holding a cylinder across two of them
  * (rails between caps, `x1 & x2 & (rail_1 | rail_2 | slab)`), distributed: the union of
  * each operand intersected with the rest, `(rail_1 & x1 & x2) | ...`, kept when every
- * term becomes one solid (a capped cylinder, a box).  An identity, so no check; 1 when
- * the node is now that union. */
+ * term becomes one solid (a capped cylinder, a box), or when the terms write fewer
+ * solids than the intersection did (a cylinder capped, another term left with a cut
+ * of its own) and the model needs every term (a term it does not need is
+ * ft_distribute's to drop).  An identity, so no check of the solid; 1 when the node
+ * is now that union. */
 static int ft_distribute_caps(ft *F, uint32_t and, const ft_check *ck)
 {
-    for (uint32_t o = 0; o < F->v[and].n && !F->failed; o++) {
+    uint8_t *seen = NULL;
+    int rc = 0;
+    for (uint32_t o = 0; o < F->v[and].n && !F->failed && !rc; o++) {
         if (!ft_caps_union(F, and, o)) continue;
-        uint32_t un = F->v[and].t[o].node, nu = F->v[un].n;
-        uint32_t u = ft_new(F, FT_OR);
-        for (uint32_t k = 0; k < nu && u != FT_NONE; k++) {
-            uint32_t a = ft_new(F, FT_AND);
-            if (a == FT_NONE) break;
-            for (uint32_t m = 0; m < F->v[and].n; m++)
-                if (m != o) ft_add(F, a, F->v[and].t[m].node, F->v[and].t[m].neg);
-            ft_term uk = F->v[un].t[k];
-            if (!uk.neg && F->v[uk.node].kind == FT_AND)
-                for (uint32_t m = 0; m < F->v[uk.node].n; m++)
-                    ft_add(F, a, F->v[uk.node].t[m].node, F->v[uk.node].t[m].neg);
-            else
-                ft_add(F, a, uk.node, uk.neg);
-            ft_add(F, u, a, 0);
+        if (!seen && !(seen = frep_calloc(F->nprims + 1, 1))) {
+            F->failed = 1;
+            break;
         }
-        if (F->failed) return 0;
-        ft_node saved = F->v[and];
-        F->v[and] = F->v[u];
-        F->v[u] = saved;   /* the intersection, unreachable unless put back */
+        memset(seen, 0, F->nprims + 1);
+        unsigned before = ft_count(F, and, seen);
+        uint32_t u = ft_spread_terms(F, and, o, SPREAD_FLAT);
+        if (u == FT_NONE) break;
         int whole = 1;
-        for (uint32_t k = 0; k < F->v[and].n && whole && !F->failed; k++) {
+        for (uint32_t k = 0; k < F->v[and].n && !F->failed; k++) {
             uint32_t a = F->v[and].t[k].node;
             ft_solids(F, a, ck);
-            whole = F->v[a].n == 1;
+            whole &= F->v[a].n == 1;
         }
-        if (whole && !F->failed) return 1;
-        saved = F->v[and];
+        memset(seen, 0, F->nprims + 1);
+        if (F->failed) break;
+        if (whole || (ft_count(F, and, seen) < before && ft_needs_all(F, and, ck))) {
+            rc = 1;
+            break;
+        }
+        ft_node saved = F->v[and];
         F->v[and] = F->v[u];
         F->v[u] = saved;
     }
-    return 0;
+    frep_free(seen);
+    return rc;
 }
 
 static void apply_solids(ft *F, uint32_t i, const ft_check *ck)
@@ -1534,6 +1616,7 @@ typedef struct cover {
     uint64_t *bits, *tmp, *pin;          /* scratch sets (pin: tmp's second half) */
     uint32_t planes[COVER_MAX_PLANES];
     int npl;
+    int curved_ok;                       /* cv_planes passes over curved solids */
     double sliver;                       /* outside points a box may keep, per inside */
 } cover;
 
@@ -1567,7 +1650,8 @@ static int cv_within(cv_box a, cv_box b)
 }
 
 /* The distinct plane leaves under node i (box faces included) into C->planes; 0 when
- * a leaf is no plane or there are too many. */
+ * there are too many, or when a leaf is no plane unless C->curved_ok (then curved
+ * solids are passed over). */
 static int cv_planes(cover *C, uint32_t i)
 {
     const ft *F = C->F;
@@ -1576,14 +1660,14 @@ static int cv_planes(cover *C, uint32_t i)
     int ng = 0;
     switch (v->kind) {
     case FT_LEAF:
-        if (v->leaf >= F->nprims || F->q[v->leaf].type != PRIM_PLANE) return 0;
+        if (v->leaf >= F->nprims || F->q[v->leaf].type != PRIM_PLANE) return C->curved_ok;
         got[ng++] = v->leaf;
         break;
     case FT_BOX:
         for (int k = 0; k < 6; k++)
             if (v->face[k] != FT_NONE) got[ng++] = v->face[k];
         break;
-    case FT_CAPPED: return 0;
+    case FT_CAPPED: return C->curved_ok;
     case FT_AND:
     case FT_OR:
         for (uint32_t k = 0; k < v->n; k++)
@@ -2296,29 +2380,6 @@ static int cover_group(ft *F, uint32_t i, const uint8_t *sel, const ft_check *ck
     return rc;
 }
 
-/* Intersection i = X & U, U = U1 | ... | Un its operand o, written in place as the union
- * (X & U1) | ... | (X & Un) (min and max distribute exactly).  Returns the node that
- * now holds the intersection (unreachable until put back), FT_NONE when out of
- * memory. */
-static uint32_t ft_spread_terms(ft *F, uint32_t i, uint32_t o)
-{
-    ft_term ot = F->v[i].t[o];
-    uint32_t u = ft_new(F, FT_OR), nu = F->v[ot.node].n;
-    for (uint32_t k = 0; k < nu && u != FT_NONE; k++) {
-        uint32_t a = ft_new(F, FT_AND);
-        for (uint32_t m = 0; m < F->v[i].n && a != FT_NONE; m++)
-            if (m != o) ft_add(F, a, F->v[i].t[m].node, F->v[i].t[m].neg);
-        ft_term uk = F->v[ot.node].t[k];
-        ft_add(F, a, uk.node, uk.neg);
-        ft_add(F, u, a, 0);
-    }
-    if (F->failed) return FT_NONE;
-    ft_node saved = F->v[i];
-    F->v[i] = F->v[u];
-    F->v[u] = saved;
-    return u;
-}
-
 /* Intersection i = X & (U1 | ... | Un), X its other operands, written again as
  * (X & U1) | ... | (X & Un) (min and max distribute exactly), X then dropped from each
  * term where the model keeps its solid (ft_keeps), or else the whole term dropped
@@ -2336,7 +2397,7 @@ static int ft_distribute(ft *F, uint32_t i, const ft_check *ck)
         ft_term ot = F->v[i].t[o];
         if (ot.neg || F->v[ot.node].kind != FT_OR || F->v[ot.node].n < 2) continue;
         uint32_t none = ft_new(F, FT_OR);   /* no operands: nothing (ft_eval) */
-        uint32_t u = ft_spread_terms(F, i, o), nu = F->v[ot.node].n;
+        uint32_t u = ft_spread_terms(F, i, o, SPREAD_NESTED), nu = F->v[ot.node].n;
         if (u == FT_NONE) return 0;
         uint32_t kept = 0, dropped = 0, w = 0;
         for (uint32_t k = 0; k < nu && kept <= 1; k++) {
@@ -2626,22 +2687,6 @@ static void ft_restore(ft *F, ft_saved *s)
     s->v = NULL;
 }
 
-/* The solids the subtree at i writes: its boxes and capped cylinders, and its
- * primitives (each counted once). */
-static unsigned ft_count(const ft *F, uint32_t i, uint8_t *prim_seen)
-{
-    const ft_node *v = &F->v[i];
-    if (v->kind == FT_LEAF) {
-        unsigned first = !prim_seen[v->leaf];
-        prim_seen[v->leaf] = 1;
-        return first;
-    }
-    if (v->kind == FT_BOX || v->kind == FT_CAPPED) return 1;
-    unsigned c = 0;
-    for (uint32_t k = 0; k < v->n; k++) c += ft_count(F, v->t[k].node, prim_seen);
-    return c;
-}
-
 static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r);
 
 /* The rest of apply_cover: its operands, then its operands of planes grouped. */
@@ -2676,16 +2721,30 @@ static int cover_operands(ft *F, uint32_t i, const ft_check *ck, const evolve_re
     return rc < 0 ? -1 : 0;
 }
 
+/* The operands of union u added to union `to`, those that are unions themselves by
+ * their own operands. */
+static void ft_add_flat(ft *F, uint32_t to, uint32_t u)
+{
+    for (uint32_t k = 0; k < F->v[u].n && !F->failed; k++) {
+        ft_term t = F->v[u].t[k];
+        if (!t.neg && F->v[t.node].kind == FT_OR) ft_add_flat(F, to, t.node);
+        else ft_add(F, to, t.node, t.neg);
+    }
+}
+
 /* The root intersection i = X & (U1 | ... | Un) spread whole, (X & U1) | ... | (X & Un),
  * X left in every term that needs it (ft_distribute wants X in one term at most): the
  * GA puts faces of the parts below at the root of a stack, where no cover of the whole
  * is found and no Uk is bounded alone; each X & Uk is.  The union taken is the one of
- * most terms.  Tried against the covers of the tree as it is (cover_operands), and
- * kept when the whole tree then writes fewer solids.  Only where the root is planes
- * alone within the cover's limits (COVER_MAX_PLANES distinct planes, COVER_MAX_TERMS
- * terms): the trial covers the tree twice, and each term holds all of X.  Returns 1
- * when node i is covered (spread or not), 0 when the spread does not apply, -1 when
- * out of memory. */
+ * most terms, its nested unions flattened into it (the GA nests them pairwise); a
+ * term that is an intersection holding a curved solid is flattened too, and the
+ * solids are read again (apply_solids), so that a cylinder between X's bottom and its
+ * own top face is capped.  Tried against the covers of the tree as it is
+ * (cover_operands), and kept when the whole tree then writes fewer solids.  Only
+ * where X is planes alone and the root's planes are within the cover's limits
+ * (COVER_MAX_PLANES distinct planes, COVER_MAX_TERMS terms): the trial covers the tree
+ * twice, and each term holds all of X.  Returns 1 when node i is covered (spread or
+ * not), 0 when the spread does not apply, -1 when out of memory. */
 static int ft_spread(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
 {
     if (i != ck->root || F->spreading || !ck->cloud || F->v[i].kind != FT_AND || F->v[i].n < 2) return 0;
@@ -2694,10 +2753,14 @@ static int ft_spread(ft *F, uint32_t i, const ft_check *ck, const evolve_result 
         ft_term t = F->v[i].t[k];
         if (!t.neg && F->v[t.node].kind == FT_OR && F->v[t.node].n > most) o = k, most = F->v[t.node].n;
     }
+    if (o == F->v[i].n || most > COVER_MAX_TERMS) return 0;
+    for (uint32_t k = 0; k < F->v[i].n; k++)
+        if (k != o && !ft_planar(F, F->v[i].t[k].node)) return 0;
     cover C;
     memset(&C, 0, sizeof C);
     C.F = F;
-    if (o == F->v[i].n || most > COVER_MAX_TERMS || !cv_planes(&C, i)) return 0;
+    C.curved_ok = 1;
+    if (!cv_planes(&C, i)) return 0;
     uint8_t *seen = frep_calloc(F->nprims + 1, 1);
     ft_saved plain = { 0 }, before = { 0 };
     int rc = -1;
@@ -2705,9 +2768,20 @@ static int ft_spread(ft *F, uint32_t i, const ft_check *ck, const evolve_result 
     if (!seen || ft_save(F, &before) || cover_operands(F, i, ck, r) || ft_save(F, &plain)) goto done;
     unsigned c0 = ft_count(F, ck->root, seen);
     ft_restore(F, &before);
+    uint32_t flat = ft_new(F, FT_OR);
+    if (flat == FT_NONE) goto done;
+    ft_add_flat(F, flat, F->v[i].t[o].node);
+    if (F->failed) goto done;
+    rc = 1;
+    if (F->v[flat].n > COVER_MAX_TERMS) {
+        ft_restore(F, &plain);
+        goto done;
+    }
+    rc = -1;
+    F->v[i].t[o].node = flat;
     ft_term ot = F->v[i].t[o];
     uint32_t nu = F->v[ot.node].n;
-    if (ft_spread_terms(F, i, o) == FT_NONE) goto done;
+    if (ft_spread_terms(F, i, o, SPREAD_FLAT_CURVED) == FT_NONE) goto done;
     /* X dropped from each term where the model keeps its solid without it */
     uint32_t need = 0;
     for (uint32_t k = 0; k < nu; k++) {
@@ -2719,6 +2793,8 @@ static int ft_spread(ft *F, uint32_t i, const ft_check *ck, const evolve_result 
     unsigned c1 = c0;
     if (need) {
         if (apply_cover(F, i, ck, r)) goto done;
+        apply_solids(F, i, ck);
+        if (F->failed) goto done;
         memset(seen, 0, F->nprims + 1);
         c1 = ft_count(F, ck->root, seen);
     }
@@ -2845,23 +2921,6 @@ static uint32_t pocket_box(ft *F, int m, const double n[6][3], const double d[6]
         v->fpl[2 * a + 1][3] = -lo[a];
     }
     return b;
-}
-
-/* Whether every leaf under node i is a plane (boxes count as planes). */
-static int ft_planar(const ft *F, uint32_t i)
-{
-    const ft_node *v = &F->v[i];
-    switch (v->kind) {
-    case FT_LEAF: return v->leaf < F->nprims && F->q[v->leaf].type == PRIM_PLANE;
-    case FT_BOX: return 1;
-    case FT_CAPPED: return 0;
-    case FT_AND:
-    case FT_OR:
-        for (uint32_t k = 0; k < v->n; k++)
-            if (!ft_planar(F, v->t[k].node)) return 0;
-        return 1;
-    }
-    return 0;
 }
 
 /* Every operand of intersection i that is a pocket, as its box cut away, when i holds

@@ -1643,7 +1643,14 @@ typedef struct cover_case {
     const char *truth;        /* the solid the cloud samples and the model must be (NULL: tree) */
     int cancelled;            /* the writer's cancel flag raised before it starts */
     double r[COVER_CASE_PRIMS];   /* > 0: primitive j is the ball of radius r[j] about n[j] */
+    double ax[COVER_CASE_PRIMS][3];   /* unit, with r[j]: the cylinder about n[j] along ax[j] */
 } cover_case;
+
+/* Whether primitive j of cc is a cylinder given by r, n and ax. */
+static int cover_case_rod(const cover_case *cc, uint32_t j)
+{
+    return cc->r[j] > 0 && (cc->ax[j][0] != 0 || cc->ax[j][1] != 0 || cc->ax[j][2] != 0);
+}
 
 static double cover_tree_value(const cover_case *cc, const gp_tree *t, const double *x)
 {
@@ -1653,6 +1660,12 @@ static double cover_tree_value(const cover_case *cc, const gp_tree *t, const dou
         const frep_insn *in = &t->code[pc];
         if (in->op == FREP_OP_PRIM && (int)in->arg == cc->cyl - 1) {
             st[sp++] = 0.3 - hypot(x[0] - 1, x[1] - 1);
+        } else if (in->op == FREP_OP_PRIM && cover_case_rod(cc, in->arg)) {
+            const double *c = cc->n[in->arg], *a = cc->ax[in->arg];
+            double v[3] = { x[0] - c[0], x[1] - c[1], x[2] - c[2] };
+            double along = v[0] * a[0] + v[1] * a[1] + v[2] * a[2];
+            for (int k = 0; k < 3; k++) v[k] -= along * a[k];
+            st[sp++] = cc->r[in->arg] - sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
         } else if (in->op == FREP_OP_PRIM && cc->r[in->arg] > 0) {
             const double *c = cc->n[in->arg];
             st[sp++] = cc->r[in->arg] - sqrt((x[0] - c[0]) * (x[0] - c[0]) +
@@ -1689,7 +1702,8 @@ static void test_box_cover_case(cover_case *cc)
         memcpy(prims[j].p, cc->n[j], sizeof prims[j].p);
         prims[j].r = cc->d[j];
         if (cc->r[j] > 0) {
-            prims[j].type = PRIM_SPHERE;
+            prims[j].type = cover_case_rod(cc, j) ? PRIM_CYLINDER : PRIM_SPHERE;
+            memcpy(prims[j].a, cc->ax[j], sizeof prims[j].a);
             prims[j].r = cc->r[j];
         }
         if (j == cc->cyl - 1) {
@@ -1827,7 +1841,7 @@ static void test_box_cover_case(cover_case *cc)
 
 static void test_box_cover(void)
 {
-    static cover_case stair = { "stair", "12&3&4&5&6&78|&9a|&", "3 solids: 3 boxes", 10, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
+    static cover_case stair = { "stair", "12&3&4&5&6&78|&9a|&", "3 solids: 3 boxes", 10, { { 0 } }, { 0 }, 0, NULL, 0, { 0 }, { { 0 } } };
     /* Turned 30 degrees about z: x' = (c, s, 0), y' = (-s, c, 0). */
     double c = cos(FREP_PI / 6), s = sin(FREP_PI / 6);
     double X[3] = { c, s, 0 }, Y[3] = { -s, c, 0 }, Z[3] = { 0, 0, 1 };
@@ -1849,7 +1863,7 @@ static void test_box_cover(void)
 
     /* The cube [0, 2]^3 less the corner beyond three faces of a cube turned by
      * (10, 20, 30) degrees about x, y, z whose corner sits at (1.4, 1.4, 1.4). */
-    static cover_case corner = { "corner", "12&3&4&5&6&78|9|&", "2 solids: 2 boxes", 9, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
+    static cover_case corner = { "corner", "12&3&4&5&6&78|9|&", "2 solids: 2 boxes", 9, { { 0 } }, { 0 }, 0, NULL, 0, { 0 }, { { 0 } } };
     for (int j = 0; j < 6; j++) {
         corner.n[j][j / 2] = j % 2 ? 1 : -1;
         corner.d[j] = j % 2 ? 2 : 0;
@@ -1888,7 +1902,7 @@ static void test_box_cover(void)
         static cover_case st9 = { "nine stacked boxes",
                                   "123&|4&51&67&|&8&9ab2|c|&|&de&f3\\|gh&i&j&|kl&m&nop&|&qpr&s&|&|&"
                                   "tu&v5d&e&w&xy&z&A&BCD|&BEFG|HI|&fHF|&JK&L&M&|&|&|&|&|&",
-                                  "28 solids: 5 boxes", 48, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
+                                  "28 solids: 5 boxes", 48, { { 0 } }, { 0 }, 0, NULL, 0, { 0 }, { { 0 } } };
         static const double pl[48][4] = {
             { 0.229071812, -0.148330501, 0.962041666, 2.500157889 },
             { -0.848494856, -0.412342898, 0.331707421, -1.878961344 },
@@ -1975,7 +1989,7 @@ static void test_box_cover(void)
      * inside A.  Distributed, X & bore lies inside A, and the bore alone is not the
      * solid: the term is dropped whole (ft_distribute), and X & P is a box. */
     static cover_case joined = { "joined term", "12&3&4&5&6&78&9&a&dbc&|&|", "2 solids: 2 boxes",
-                                 13, { { 0 } }, { 0 }, 13, "12&3&4&5&6&78&9&a&b&c&|", 0, { 0 } };
+                                 13, { { 0 } }, { 0 }, 13, "12&3&4&5&6&78&9&a&b&c&|", 0, { 0 }, { { 0 } } };
     for (int j = 0; j < 6; j++) {
         joined.n[j][j / 2] = j % 2 ? 1 : -1;
         joined.d[j] = j % 2 ? 2 : 0;
@@ -1993,7 +2007,7 @@ static void test_box_cover(void)
      * one term per group of the notch's faces, (C & (x <= 1 | z <= 1)) | (C & y <= 1).
      * Factored (ft_factor), C & (x <= 1 | z <= 1 | y <= 1) is the cylinder less a box. */
     static cover_case factor = { "factored", "12&3&45|&12&3&6&|", "2 solids: 1 box, 1 cylinder (1 capped)",
-                                 6, { { 0 } }, { 0 }, 1, NULL, 0, { 0 } };
+                                 6, { { 0 } }, { 0 }, 1, NULL, 0, { 0 }, { { 0 } } };
     double fn[6][3] = { { 0 }, { 0, 0, -1 }, { 0, 0, 1 }, { 1, 0, 0 }, { 0, 0, 1 }, { 0, 1, 0 } };
     double fd[6] = { 0, 0, 2, 1, 1, 1 };
     cover_case_planes(&factor, 6, fn, fd);
@@ -2004,7 +2018,7 @@ static void test_box_cover(void)
      * (B & y >= 1.2) | (A & (x <= 1 | z <= 1 | y >= 1.2)).  The face widened to the
      * notch's union (ft_widen) and taken out of both terms, (A | B) \ notch. */
     static cover_case widen = { "widened", "12&345|2|&|", "3 solids: 1 box, 0 cylinders (0 capped), 2 spheres",
-                                5, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
+                                5, { { 0 } }, { 0 }, 0, NULL, 0, { 0 }, { { 0 } } };
     double wn[5][3] = { { 1, 2, 1 }, { 0, -1, 0 }, { 1, 1, 1 }, { 1, 0, 0 }, { 0, 0, 1 } };
     double wd[5] = { 0, -1.2, 0, 1, 1 };
     cover_case_planes(&widen, 5, wn, wd);
@@ -2016,7 +2030,7 @@ static void test_box_cover(void)
      * ((B | A) & (z >= 1.5 | y >= 1.2 | z <= 1 | x <= 1)).  The face joins the union
      * (ft_absorb) and A's term goes: (B | A) \ box, its x face the fitted one. */
     static cover_case absorb = { "absorbed", "17&21|34|5|6|&|", "3 solids: 1 box, 0 cylinders (0 capped), 2 spheres",
-                                 7, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
+                                 7, { { 0 } }, { 0 }, 0, NULL, 0, { 0 }, { { 0 } } };
     double an[7][3] = { { 1, 1, 1 }, { 1, 2, 1 }, { 0, 0, -1 }, { 0, -1, 0 }, { 0, 0, 1 }, { 1, 0, 0 }, { -1, 0, 0 } };
     double ad[7] = { 0, 0, -1.5, -1.2, 1, 1, -1.6 };
     cover_case_planes(&absorb, 7, an, ad);
@@ -2027,7 +2041,7 @@ static void test_box_cover(void)
      * leaves the model's surface (within eps_d, 0.01) without it, and it holds no grid
      * point, so the cut goes although the mean distance grows (ft_drop_cuts). */
     static cover_case capped = { "a sliver cut", "12&3&4&5&6&7\\", "1 solids: 1 box",
-                                 7, { { 0 } }, { 0 }, 0, NULL, 0, { 0 } };
+                                 7, { { 0 } }, { 0 }, 0, NULL, 0, { 0 }, { { 0 } } };
     for (int j = 0; j < 6; j++) {
         capped.n[j][j / 2] = j % 2 ? 1 : -1;
         capped.d[j] = j % 2 ? 2 : 0;
@@ -2040,7 +2054,7 @@ static void test_box_cover(void)
      * does: (lower | the upper's five seen faces) & the lower's sides and bottom.  Its
      * box takes a buried face where its side faces' points stop. */
     static cover_case stack = { "stacked", "12&3&4&5&6&78&9&a&b&|1&2&3&4&5&", "2 solids: 2 boxes",
-                                12, { { 0 } }, { 0 }, 0, "12&3&4&5&6&78&9&a&b&c&|", 0, { 0 } };
+                                12, { { 0 } }, { 0 }, 0, "12&3&4&5&6&78&9&a&b&c&|", 0, { 0 }, { { 0 } } };
     for (int j = 0; j < 6; j++) {
         stack.n[j][j / 2] = j % 2 ? 1 : -1;
         stack.d[j] = j % 2 ? 2 : 0;
@@ -2062,6 +2076,34 @@ static void test_box_cover(void)
         stack.d[7 + 2 * j] = -(u + slo[j]);
     }
     test_box_cover_case(&stack);
+    /* Two posts beside a slab, as the GA wrote 144 (rings on a plate): posts along z
+     * about (0.5, 0.5) to z = 3 and about (2.5, 0.5) to z = 2, radius 0.3, and the slab
+     * [0, 3] x [1.5, 3] x [0, 0.5], their common bottom z >= 0 at the root: z >= 0 &
+     * ((post_1 & z <= 3) | (post_2 & z <= 2) | (the slab's other five faces)).  Both
+     * posts need the bottom, so ft_distribute does not apply; spread whole (ft_spread),
+     * each post is capped by the bottom and its top, and the slab is a box. */
+    cover_case post = { "posts beside a slab", "123&45&|67&8&9&a&|&", "3 solids: 1 box, 2 cylinders (2 capped)",
+                        10, { { 0 } }, { 0 }, 0, NULL, 0, { 0 }, { { 0 } } };
+    double pn[10][3] = { { 0, 0, -1 }, { 0.5, 0.5, 0 }, { 0, 0, 1 }, { 2.5, 0.5, 0 }, { 0, 0, 1 },
+                         { -1, 0, 0 }, { 1, 0, 0 }, { 0, -1, 0 }, { 0, 1, 0 }, { 0, 0, 1 } };
+    double pd[10] = { 0, 0, 3, 0, 2, 0, 3, -1.5, 3, 0.5 };
+    cover_case_planes(&post, 10, pn, pd);
+    post.r[1] = post.r[3] = 0.3;
+    post.ax[1][2] = post.ax[3][2] = 1;
+    test_box_cover_case(&post);
+    /* Two rods along x between the caps x >= 0 and x <= 3, the second cut by z <= 0.7,
+     * and a ball beside them, as the GA wrote mount: (caps & (rod_1 | (rod_2 & cut))) |
+     * ball.  Distributed, each rod is capped (ft_distribute_caps); the second term keeps
+     * its cut, so the terms are not each one solid, but they write fewer solids than the
+     * intersection did. */
+    cover_case rods = { "two rods, one cut", "45&123&|&6|", "4 solids: 0 boxes, 2 cylinders (2 capped), 1 sphere",
+                        6, { { 0 } }, { 0 }, 0, NULL, 0, { 0 }, { { 0 } } };
+    double rn[6][3] = { { 0, 0.5, 0.5 }, { 0, 2, 0.5 }, { 0, 0, 1 }, { -1, 0, 0 }, { 1, 0, 0 }, { 1.5, 3.1, 0.5 } };
+    double rd[6] = { 0, 0, 0.7, 0, 3, 0 };
+    cover_case_planes(&rods, 6, rn, rd);
+    rods.r[0] = rods.r[1] = rods.r[5] = 0.4;
+    rods.ax[0][0] = rods.ax[1][0] = 1;
+    test_box_cover_case(&rods);
     /* Axis-aligned stairs of n steps across [0, 3], as the GA factors them: the box &
      * (z <= k | x <= n - k) for k = 1..n-1, an intersection of n operands once the box
      * is formed.  With n + 1 face positions on x up to COVER_MAX_OFFS the cover writes n
