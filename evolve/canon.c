@@ -2389,7 +2389,11 @@ static int cover_group(ft *F, uint32_t i, const uint8_t *sel, const ft_check *ck
  * box's faces joined to a sphere the model already holds) goes.  The union taken is
  * the first whose rewrite keeps X in exactly one term (X written once), or in none
  * once a term is dropped; where X is needed by no term and no term goes, it is kept
- * as it is.  Returns 1 when node i was rewritten, 0 when not. */
+ * as it is.  A term Uk that is an intersection holding a curved solid is written flat
+ * beside X (SPREAD_FLAT_CURVED), so that apply_solids, run by apply_cover on the
+ * rewritten node, caps a cylinder between X's face and its own (a post standing on a
+ * plate whose bottom the GA put at the root).  Returns 1 when node i was rewritten, 0
+ * when not. */
 static int ft_distribute(ft *F, uint32_t i, const ft_check *ck)
 {
     if (F->v[i].kind != FT_AND || F->v[i].n < 2) return 0;
@@ -2397,7 +2401,7 @@ static int ft_distribute(ft *F, uint32_t i, const ft_check *ck)
         ft_term ot = F->v[i].t[o];
         if (ot.neg || F->v[ot.node].kind != FT_OR || F->v[ot.node].n < 2) continue;
         uint32_t none = ft_new(F, FT_OR);   /* no operands: nothing (ft_eval) */
-        uint32_t u = ft_spread_terms(F, i, o, SPREAD_NESTED), nu = F->v[ot.node].n;
+        uint32_t u = ft_spread_terms(F, i, o, SPREAD_FLAT_CURVED), nu = F->v[ot.node].n;
         if (u == FT_NONE) return 0;
         uint32_t kept = 0, dropped = 0, w = 0;
         for (uint32_t k = 0; k < nu && kept <= 1; k++) {
@@ -2820,7 +2824,10 @@ static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
     if (F->v[i].kind != FT_AND && F->v[i].kind != FT_OR) return 0;
     int rc = cv_run(F, i, ck, r);
     if (rc) return rc < 0 ? -1 : 0;
-    if (ft_distribute(F, i, ck)) return apply_cover(F, i, ck, r);
+    if (ft_distribute(F, i, ck)) {
+        apply_solids(F, i, ck);
+        return F->failed ? -1 : apply_cover(F, i, ck, r);
+    }
     if (F->failed) return -1;
     rc = ft_spread(F, i, ck, r);
     if (rc) return rc < 0 ? -1 : 0;

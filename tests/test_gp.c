@@ -2091,6 +2091,17 @@ static void test_box_cover(void)
     post.r[1] = post.r[3] = 0.3;
     post.ax[1][2] = post.ax[3][2] = 1;
     test_box_cover_case(&post);
+    /* A post standing on a slab: the bore along z as a post to z = 2 on the slab [0, 2]^2
+     * x [0, 0.5], their common bottom at the root, z >= 0 & ((post & z <= 2) | (the
+     * slab's other five faces)).  The slab's box has its bottom at the part's, so only
+     * the post needs the root's face (ft_distribute puts it there alone); the post's
+     * term, written flat, is capped by it and its top. */
+    cover_case stand = { "post on a slab", "123&45&6&7&8&|&", "2 solids: 1 box, 1 cylinder (1 capped)",
+                         8, { { 0 } }, { 0 }, 2, NULL, 0, { 0 }, { { 0 } } };
+    double sn8[8][3] = { { 0, 0, -1 }, { 0 }, { 0, 0, 1 }, { -1, 0, 0 }, { 1, 0, 0 }, { 0, -1, 0 }, { 0, 1, 0 }, { 0, 0, 1 } };
+    double sd8[8] = { 0, 0, 2, 0, 2, 0, 2, 0.5 };
+    cover_case_planes(&stand, 8, sn8, sd8);
+    test_box_cover_case(&stand);
     /* Two rods along x between the caps x >= 0 and x <= 3, the second cut by z <= 0.7,
      * and a ball beside them, as the GA wrote mount: (caps & (rod_1 | (rod_2 & cut))) |
      * ball.  Distributed, each rod is capped (ft_distribute_caps); the second term keeps
