@@ -232,20 +232,27 @@ static double tree_at(const frep_insn *code, uint32_t end, const prim *prims, si
     return st[0];
 }
 
+/* Probe k (0 .. 2 CANON_BOUND_DIRS - 1) of the boundedness test: Fibonacci points on
+ * spheres of 2 and 8 diagonals around the cloud, the smaller sphere's first. */
+static void bound_probe(const evolve_result *r, int k, double x[3])
+{
+    double R = (k < CANON_BOUND_DIRS ? 2 : 8) * r->diag;
+    int i = k % CANON_BOUND_DIRS;
+    double z = 1 - (2 * i + 1.0) / CANON_BOUND_DIRS, rho = sqrt(1 - z * z);
+    double phi = i * FREP_PI * (3 - sqrt(5.0));
+    x[0] = r->obb.c[0] + R * rho * cos(phi);
+    x[1] = r->obb.c[1] + R * rho * sin(phi);
+    x[2] = r->obb.c[2] + R * z;
+}
+
 int canon_tree_bounded(const evolve_result *r, const prim *prims, size_t nprims)
 {
     const gp_tree *t = &r->tree;
     if (!t->len) return 0;
-    /* Fibonacci points on spheres of 2 and 8 diagonals around the cloud. */
-    for (int s = 0; s < 2; s++) {
-        double R = (s ? 8 : 2) * r->diag;
-        for (int i = 0; i < CANON_BOUND_DIRS; i++) {
-            double z = 1 - (2 * i + 1.0) / CANON_BOUND_DIRS, rho = sqrt(1 - z * z);
-            double phi = i * FREP_PI * (3 - sqrt(5.0));
-            double x[3] = { r->obb.c[0] + R * rho * cos(phi), r->obb.c[1] + R * rho * sin(phi),
-                            r->obb.c[2] + R * z };
-            if (tree_at(t->code, t->len - 1, prims, nprims, x) >= 0) return 0;
-        }
+    for (int k = 0; k < 2 * CANON_BOUND_DIRS; k++) {
+        double x[3];
+        bound_probe(r, k, x);
+        if (tree_at(t->code, t->len - 1, prims, nprims, x) >= 0) return 0;
     }
     return 1;
 }
@@ -2118,19 +2125,13 @@ static size_t cv_solids(const ft *F, uint32_t i, uint32_t *seen, size_t *ns)
     return 1;
 }
 
-/* Fibonacci points on spheres of 2 and 8 diagonals around the cloud, as
- * canon_tree_bounded samples them: whether node i is outside at all of them. */
+/* Whether node i is outside at every probe of canon_tree_bounded (bound_probe). */
 static int ft_bounded(const ft *F, uint32_t i, const evolve_result *r)
 {
-    for (int s = 0; s < 2; s++) {
-        double R = (s ? 8 : 2) * r->diag;
-        for (int k = 0; k < CANON_BOUND_DIRS; k++) {
-            double z = 1 - (2 * k + 1.0) / CANON_BOUND_DIRS, rho = sqrt(1 - z * z);
-            double phi = k * FREP_PI * (3 - sqrt(5.0));
-            double x[3] = { r->obb.c[0] + R * rho * cos(phi), r->obb.c[1] + R * rho * sin(phi),
-                            r->obb.c[2] + R * z };
-            if (ft_eval(F, i, x) >= 0) return 0;
-        }
+    for (int k = 0; k < 2 * CANON_BOUND_DIRS; k++) {
+        double x[3];
+        bound_probe(r, k, x);
+        if (ft_eval(F, i, x) >= 0) return 0;
     }
     return 1;
 }
