@@ -825,6 +825,18 @@ static uint32_t ft_box_node(ft *F, const double u[3][3], const double lo[3], con
     return b;
 }
 
+/* Box node b's face planes (fpl) from its axes u and extents lo, hi, in face order. */
+static void box_set_planes(ft *F, uint32_t b, const double u[3][3], const double lo[3], const double hi[3])
+{
+    ft_node *v = &F->v[b];
+    for (int a = 0; a < 3; a++) {
+        memcpy(v->fpl[2 * a], u[a], 3 * sizeof(double));
+        v->fpl[2 * a][3] = hi[a];
+        for (int w = 0; w < 3; w++) v->fpl[2 * a + 1][w] = -u[a][w];
+        v->fpl[2 * a + 1][3] = -lo[a];
+    }
+}
+
 /* The box of the pairs p[k] = (plus, minus term index) of intersection node `and`:
  * an orthonormal frame from the pairs' normals, each face's offset along its axis.
  * Returns the node, or FT_NONE. */
@@ -2098,14 +2110,7 @@ static uint32_t cv_node(cover *C, cv_box b)
         fneg[2 * k + 1] = fr->up[k][b.lo[k]];
     }
     uint32_t n = ft_box_node(C->F, fr->u, lo, hi, face, fneg);
-    if (n == FT_NONE) return n;
-    ft_node *v = &C->F->v[n];
-    for (int k = 0; k < 3; k++) {
-        memcpy(v->fpl[2 * k], fr->u[k], 3 * sizeof(double));
-        v->fpl[2 * k][3] = hi[k];
-        for (int w = 0; w < 3; w++) v->fpl[2 * k + 1][w] = -fr->u[k][w];
-        v->fpl[2 * k + 1][3] = -lo[k];
-    }
+    if (n != FT_NONE) box_set_planes(C->F, n, fr->u, lo, hi);
     return n;
 }
 
@@ -2920,14 +2925,7 @@ static uint32_t pocket_box(ft *F, int m, const double n[6][3], const double d[6]
         if (!(hi[a] > lo[a])) return FT_NONE;
     }
     uint32_t b = ft_box_node(F, u, lo, hi, face, fneg);
-    if (b == FT_NONE) return FT_NONE;
-    ft_node *v = &F->v[b];
-    for (int a = 0; a < 3; a++) {
-        memcpy(v->fpl[2 * a], u[a], 3 * sizeof(double));
-        v->fpl[2 * a][3] = hi[a];
-        for (int w = 0; w < 3; w++) v->fpl[2 * a + 1][w] = -u[a][w];
-        v->fpl[2 * a + 1][3] = -lo[a];
-    }
+    if (b != FT_NONE) box_set_planes(F, b, u, lo, hi);
     return b;
 }
 
@@ -3039,6 +3037,137 @@ static void apply_pockets(ft *F, uint32_t i, const ft_check *ck, const evolve_re
     }
 }
 
+/* Free face f of the box cut that is term k of intersection i moved to each plane of
+ * the tree along its direction within the cut's extent; the one where the model
+ * explains most check points within eps_d is kept where it explains no fewer than
+ * before and the mean distance is smaller: a cut the cover ran through a wall (its
+ * face free, beyond the part) stops at the wall's fitted face.  1 when the cut
+ * changed. */
+static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check *ck, const evolve_result *r)
+{
+    uint32_t b = F->v[i].t[k].node;
+    double u[3][3], lo[3], hi[3];
+    for (int a = 0; a < 3; a++) {
+        memcpy(u[a], F->v[b].fpl[2 * a], sizeof u[a]);
+        hi[a] = F->v[b].fpl[2 * a][3];
+        lo[a] = -F->v[b].fpl[2 * a + 1][3];
+    }
+    uint32_t face[6];
+    uint8_t fneg[6];
+    memcpy(face, F->v[b].face, sizeof face);
+    memcpy(fneg, F->v[b].fneg, sizeof fneg);
+    int a = f / 2, up = f % 2 == 0;
+    size_t nwas, best_near = 0;
+    double mean = ft_fit(F, ck, r->eps_d, NULL, NULL, &nwas, NULL), best_mean = mean;
+    uint32_t best = FT_NONE;
+    for (size_t j = 0; j < F->nprims && !F->failed; j++) {
+        /* a plane the tree uses (canonical, named): the model gains no primitive */
+        if (F->q[j].type != PRIM_PLANE || !F->c[j].name[0]) continue;
+        double c = vec3_dot(F->q[j].p, u[a]);
+        if (fabs(c) < cos(ck->tol)) continue;
+        /* the half-space u . x <= at (an upper face) or >= at (a lower one) */
+        double at = F->q[j].r / c;
+        if (!(at > lo[a] + ck->gtol && at < hi[a] - ck->gtol)) continue;
+        double nlo[3], nhi[3];
+        memcpy(nlo, lo, sizeof nlo);
+        memcpy(nhi, hi, sizeof nhi);
+        uint32_t nface[6];
+        uint8_t nneg[6];
+        memcpy(nface, face, sizeof nface);
+        memcpy(nneg, fneg, sizeof nneg);
+        if (up) nhi[a] = at;
+        else nlo[a] = at;
+        nface[f] = (uint32_t)j;
+        nneg[f] = (uint8_t)(up ? c < 0 : c > 0);
+        uint32_t nb = ft_box_node(F, u, nlo, nhi, nface, nneg);
+        if (nb == FT_NONE) continue;
+        box_set_planes(F, nb, u, nlo, nhi);
+        F->v[i].t[k].node = nb;
+        size_t nnow;
+        double now = ft_fit(F, ck, r->eps_d, NULL, NULL, &nnow, NULL);
+        F->v[i].t[k].node = b;
+        if (nnow > best_near || (nnow == best_near && now < best_mean))
+            best = nb, best_near = nnow, best_mean = now;
+    }
+    if (best == FT_NONE || best_near < nwas || !(best_mean < mean)) return 0;
+    F->v[i].t[k].node = best;
+    return 1;
+}
+
+/* Whether the model is the same without term k of union u at every check grid point
+ * away from the surface (at[] the model's values now) and explains the cloud no worse
+ * (no fewer check points within eps_d, the mean distance within CANON_MAX_CHANGE of
+ * the diagonal, the writer's measure of no change): a term that another's rewrite made
+ * redundant. */
+static int ft_redundant(ft *F, uint32_t u, uint32_t k, const ft_check *ck, const evolve_result *r,
+                        const double *at)
+{
+    size_t nwas, nnow;
+    double mean = ft_fit(F, ck, r->eps_d, NULL, NULL, &nwas, NULL);
+    ft_term t = F->v[u].t[k];
+    uint32_t none = ft_new(F, FT_OR);
+    if (none == FT_NONE) return 0;
+    F->v[u].t[k] = (ft_term){ .node = none, .neg = 0 };
+    int same = 1;
+    for (size_t g = 0; g < ck->ng && same; g++)
+        if (fabs(at[g]) > ck->gtol) same = (ft_eval(F, ck->root, &ck->g[3 * g]) > 0) == (at[g] > 0);
+    double now = same ? ft_fit(F, ck, r->eps_d, NULL, NULL, &nnow, NULL) : 0;
+    F->v[u].t[k] = t;
+    return same && nnow >= nwas && now <= mean + CANON_MAX_CHANGE * r->diag;
+}
+
+/* Every box cut of the tree with free faces tightened (ft_tighten_face), then the union
+ * terms the model no longer needs dropped (ft_redundant). */
+static void apply_tighten(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r, int *changed)
+{
+    ft_node *v = &F->v[i];
+    if (v->kind != FT_AND && v->kind != FT_OR) return;
+    uint32_t n = v->n;
+    for (uint32_t k = 0; k < n; k++) apply_tighten(F, F->v[i].t[k].node, ck, r, changed);
+    if (F->v[i].kind != FT_AND) return;
+    for (uint32_t k = 0; k < F->v[i].n && !F->failed; k++) {
+        ft_term t = F->v[i].t[k];
+        if (!t.neg || F->v[t.node].kind != FT_BOX) continue;
+        for (int f = 0; f < 6; f++)
+            if (F->v[F->v[i].t[k].node].face[f] == FT_NONE) *changed |= ft_tighten_face(F, i, k, f, ck, r);
+    }
+}
+
+/* Every union term of the tree that ft_redundant finds redundant dropped (at: scratch
+ * for the model's values at the check grid, ck->ng of them). */
+static void apply_redundant(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r, double *at)
+{
+    ft_node *v = &F->v[i];
+    if (v->kind != FT_AND && v->kind != FT_OR) return;
+    uint32_t n = v->n;
+    for (uint32_t k = 0; k < n; k++) apply_redundant(F, F->v[i].t[k].node, ck, r, at);
+    if (F->v[i].kind != FT_OR) return;
+    for (uint32_t k = 0; k < F->v[i].n && F->v[i].n > 1 && !F->failed;) {
+        for (size_t g = 0; g < ck->ng; g++) at[g] = ft_eval(F, ck->root, &ck->g[3 * g]);
+        if (!ft_redundant(F, i, k, ck, r, at)) {
+            k++;
+            continue;
+        }
+        memmove(&F->v[i].t[k], &F->v[i].t[k + 1], (F->v[i].n - k - 1) * sizeof *F->v[i].t);
+        F->v[i].n--;
+    }
+}
+
+/* The cuts' free faces tightened, then the terms that made redundant dropped. */
+static void apply_cut_faces(ft *F, uint32_t root, const ft_check *ck, const evolve_result *r)
+{
+    int changed = 0;
+    apply_tighten(F, root, ck, r, &changed);
+    if (!changed || F->failed) return;
+    double *at = frep_malloc(ck->ng * sizeof *at);
+    if (!at) {
+        F->failed = 1;
+        return;
+    }
+    apply_redundant(F, root, ck, r, at);
+    frep_free(at);
+}
+
 /* ft_drop_cuts' net drops over the tree, after every other rewrite: they pass over the
  * grid, and run last so that the grid's budget for slivers (COVER_SLIVER, counted
  * against the tree before the rewrites) goes to the other drops first. */
@@ -3115,6 +3244,7 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
     if (!F.failed && ck.cloud && apply_cover(&F, root, &ck, r)) F.failed = 1;
     if (!F.failed && ck.cloud) apply_pockets(&F, root, &ck, r, ft_bounded(&F, root, r));
     if (!F.failed && ck.cloud) apply_net_drops(&F, root, &ck, r, ft_bounded(&F, root, r));
+    if (!F.failed && ck.cloud) apply_cut_faces(&F, root, &ck, r);
     if (F.failed) goto done;
     uses = frep_calloc(nprims + 1, sizeof *uses);
     order = frep_calloc(F.n, sizeof *order);

@@ -2120,6 +2120,20 @@ static void test_box_cover(void)
         cover_case_planes(&turned, 14, tn, td);
         test_box_cover_case(&turned);
     }
+    /* A hollow cube, [0, 2]^3 less the open cavity [0.3, 1.7]^2 x [0.3, oo), as the GA
+     * wrote nine_cuboids' at 20,000 points, seed 3: the cavity's cut runs through the wall
+     * x in [0, 0.3], which two boxes add back, all but a notch (y < 0.9, z > 1.2).
+     * The cut's free face moved to the wall's fitted face (ft_tighten_face) explains the
+     * wall's scanned points; the two boxes are then redundant. */
+    {
+        cover_case hollow = { "hollow cube, its wall cut through", "12&3&4&5&6&89&a&b&~&17~&3&4&5&c&|17~&d&4&5&6&|",
+                              "2 solids: 2 boxes", 13, { { 0 } }, { 0 }, 0, "12&3&4&5&6&78&9&a&b&~&", 0, { 0 }, { { 0 } } };
+        double hn[13][3] = { { -1, 0, 0 }, { 1, 0, 0 }, { 0, -1, 0 }, { 0, 1, 0 }, { 0, 0, -1 }, { 0, 0, 1 },
+                             { -1, 0, 0 }, { 1, 0, 0 }, { 0, -1, 0 }, { 0, 1, 0 }, { 0, 0, -1 }, { 0, 0, 1 }, { 0, -1, 0 } };
+        double hd[13] = { 0, 2, 0, 2, 0, 2, -0.3, 1.7, -0.3, 1.7, -0.3, 1.2, -0.9 };
+        cover_case_planes(&hollow, 13, hn, hd);
+        test_box_cover_case(&hollow);
+    }
     /* Two rods along x between the caps x >= 0 and x <= 3, the second cut by z <= 0.7,
      * and a ball beside them, as the GA wrote mount: (caps & (rod_1 | (rod_2 & cut))) |
      * ball.  Distributed, each rod is capped (ft_distribute_caps); the second term keeps
