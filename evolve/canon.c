@@ -3142,9 +3142,11 @@ static void apply_redundant(ft *F, uint32_t i, const ft_check *ck, const evolve_
     uint32_t n = v->n;
     for (uint32_t k = 0; k < n; k++) apply_redundant(F, F->v[i].t[k].node, ck, r, at);
     if (F->v[i].kind != FT_OR) return;
+    int stale = 1;   /* at[] is the model's only until a term goes */
     for (uint32_t k = 0; k < F->v[i].n && F->v[i].n > 1 && !F->failed;) {
-        for (size_t g = 0; g < ck->ng; g++) at[g] = ft_eval(F, ck->root, &ck->g[3 * g]);
-        if (!ft_redundant(F, i, k, ck, r, at)) {
+        for (size_t g = 0; stale && g < ck->ng; g++) at[g] = ft_eval(F, ck->root, &ck->g[3 * g]);
+        stale = ft_redundant(F, i, k, ck, r, at);
+        if (!stale) {
             k++;
             continue;
         }
