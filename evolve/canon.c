@@ -12,6 +12,7 @@
 
 #include "alloc.h"
 #include "canon.h"
+#include "kdtree.h"
 #include "tree.h"
 #include "vec3.h"
 
@@ -1587,8 +1588,12 @@ size_t canon_spread(size_t k, size_t n, size_t most)
 
 #define COVER_NO (COVER_MAX_OFFS + 2)
 _Static_assert(COVER_MAX_NEG <= 65536, "cv_term.cut indices are uint16_t");
-/* Outside points a box of the second pass may hold, per inside point (cv_run). */
+/* Outside points a box of the second pass may hold, per inside point (cv_run); of the
+ * third: the GA's tree leaves out what few points show (a cube's corner poking out of
+ * the one it sits in), and the box is kept where the model then explains the cloud
+ * no worse. */
 #define COVER_SLIVER 0.01
+#define COVER_SLIVER_WIDE 0.1
 /* Candidate boxes over all frames: at most COVER_MAX_FRAMES frames, each with at most
  * COVER_NO face positions per axis (free ends included), so at most C(COVER_NO, 2)
  * choices of the two faces on each of its three axes.  The other limits bound the
@@ -2318,8 +2323,8 @@ static int cv_run(ft *F, uint32_t i, const ft_check *ck, const evolve_result *r)
     for (size_t g = 0; g < ck->ng; g++) nin += ck->ref[g] > ck->gtol;
     double mean = ft_mean(F, ck->root, ck->cloud, ck->stride);
     int bounded = ft_bounded(F, ck->root, r);
-    for (int pass = 0; pass < 2 && !ft_cancelled(ck); pass++) {
-        C.sliver = pass ? COVER_SLIVER : 0;
+    for (int pass = 0; pass < 3 && !ft_cancelled(ck); pass++) {
+        C.sliver = pass == 2 ? COVER_SLIVER_WIDE : pass ? COVER_SLIVER : 0;
         frep_free(t);
         frep_free(neg);
         t = NULL;
@@ -2840,6 +2845,254 @@ static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
     return cover_operands(F, i, ck, r);
 }
 
+/* ---- parts: a model of parts apart, each covered alone ---------------------------------- */
+
+/* Nearest neighbours each cloud point is linked to, when nearer than the gap (ft_parts). */
+#define PARTS_KNN 12
+/* Clusters of linked points ft_parts merges by their boxes: more, and the cloud is too
+ * sparse for its gap (work bound: the merge compares every pair of boxes). */
+#define PARTS_MAX_PIECES 256
+
+static uint32_t uf_root(uint32_t *up, uint32_t a)
+{
+    while (up[a] != a) a = up[a] = up[up[a]];
+    return a;
+}
+
+/* The parts of the cloud: its points linked to those of their PARTS_KNN nearest within
+ * CANON_PARTS_GAP of the diagonal, and clusters whose boxes meet merged (a hollow
+ * part's inner faces lie in its outer box).  Writes the parts' boxes, grown by the gap
+ * (a face's edge lies up to a point spacing beyond its points), into lo[], hi[] and
+ * returns their number: 0 when fewer than 2
+ * or more than CANON_PARTS_MAX, -1 when out of memory. */
+static int ft_parts(const ft_check *ck, const evolve_result *r, double lo[][3], double hi[][3])
+{
+    const frep_cloud *cl = ck->cloud;
+    size_t n = cl->n;
+    double gap = CANON_PARTS_GAP * r->diag;
+    if (n < 2 || n > UINT32_MAX) return 0;
+    kd_tree *t = kd_build(n, cl->x, cl->y, cl->z);
+    uint32_t *up = frep_malloc(n * sizeof *up);
+    double (*box)[6] = frep_malloc(PARTS_MAX_PIECES * sizeof *box);
+    int np = -1;
+    if (!t || !up || !box) goto done;
+    for (size_t i = 0; i < n; i++) up[i] = (uint32_t)i;
+    for (size_t i = 0; i < n; i++) {
+        uint32_t idx[PARTS_KNN];
+        double d2[PARTS_KNN], q[3] = { cl->x[i], cl->y[i], cl->z[i] };
+        size_t m = kd_knn(t, q, PARTS_KNN, idx, d2);
+        for (size_t j = 0; j < m; j++) {
+            if (d2[j] > gap * gap) break;
+            uint32_t a = uf_root(up, (uint32_t)i), b = uf_root(up, idx[j]);
+            if (a != b) up[a > b ? a : b] = a < b ? a : b;
+        }
+    }
+    /* each point's cluster number, tagged, in up[]: a point's parent comes before it
+     * (a root is linked below the other root) and is numbered already */
+    np = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (up[i] != i) {
+            up[i] = up[up[i]];
+            continue;
+        }
+        if (np == PARTS_MAX_PIECES) {
+            np = 0;
+            goto done;
+        }
+        up[i] = (uint32_t)np++ | 0x80000000u;
+    }
+    for (int p = 0; p < np; p++)
+        for (int k = 0; k < 3; k++) box[p][k] = INFINITY, box[p][3 + k] = -INFINITY;
+    for (size_t i = 0; i < n; i++) {
+        double *b = box[up[i] & 0x7fffffffu], q[3] = { cl->x[i], cl->y[i], cl->z[i] };
+        for (int k = 0; k < 3; k++) b[k] = fmin(b[k], q[k]), b[3 + k] = fmax(b[3 + k], q[k]);
+    }
+    for (int merged = 1; merged;) {
+        merged = 0;
+        for (int a = 0; a < np; a++)
+            for (int b = a + 1; b < np; b++) {
+                int meet = 1;
+                for (int k = 0; k < 3 && meet; k++)
+                    meet = box[a][k] <= box[b][3 + k] && box[b][k] <= box[a][3 + k];
+                if (!meet) continue;
+                for (int k = 0; k < 3; k++)
+                    box[a][k] = fmin(box[a][k], box[b][k]), box[a][3 + k] = fmax(box[a][3 + k], box[b][3 + k]);
+                memcpy(box[b], box[--np], sizeof box[b]);
+                merged = 1;
+                b = a;
+            }
+    }
+    if (np < 2 || np > CANON_PARTS_MAX) np = 0;
+    for (int a = 0; a < np; a++)
+        for (int k = 0; k < 3; k++) lo[a][k] = box[a][k] - gap, hi[a][k] = box[a][3 + k] + gap;
+done:
+    kd_free(t);
+    frep_free(up);
+    frep_free(box);
+    return np;
+}
+
+/* Term t restricted to the box c +- h (world axes): 1 when its solid holds all of the
+ * box, -1 when none of it, else 0 and *out the term with the operands that hold all or
+ * none of the box left out (new operations; leaves and solids shared).  Half-spaces and
+ * boxes are bounded over the box exactly (a plane is linear, a box's value changes no
+ * faster than the distance); other solids are kept. */
+static int ft_restrict(ft *F, ft_term t, const double c[3], const double h[3], ft_term *out)
+{
+    int s = t.neg ? -1 : 1;
+    *out = t;
+    const ft_node *v = &F->v[t.node];
+    double f = 0, e = -1;
+    switch (v->kind) {
+    case FT_LEAF:
+        if (v->leaf < F->nprims && F->q[v->leaf].type == PRIM_PLANE) {
+            double g[3];
+            f = prim_eval(&F->q[v->leaf], c, g);
+            e = fabs(g[0]) * h[0] + fabs(g[1]) * h[1] + fabs(g[2]) * h[2];
+        }
+        break;
+    case FT_BOX: {
+        /* the intersection of its faces' half-spaces h_k -+ R_k . (x - c_box) */
+        double R[3][3];
+        box_frame(v->rot, R);
+        for (int w = 0; w < 3; w++) {   /* apart along a world axis */
+            double reach = 0;
+            for (int k = 0; k < 3; k++) reach += fabs(R[w][k]) * v->h[k];
+            if (fabs(v->c[w] - c[w]) > reach + h[w]) return -s;
+        }
+        int all = 1;
+        for (int k = 0; k < 6; k++) {
+            double g[3], fk = v->h[k / 2], ek = 0;
+            for (int w = 0; w < 3; w++) {
+                g[w] = (k & 1 ? 1 : -1) * R[w][k / 2];
+                fk += g[w] * (c[w] - v->c[w]);
+                ek += fabs(g[w]) * h[w];
+            }
+            if (fk + ek < 0) return -s;
+            all &= fk - ek > 0;
+        }
+        return all ? s : 0;
+    }
+    case FT_CAPPED:
+        for (int k = 1; k < 3; k++) {
+            double g[3], fk = prim_eval(&F->q[v->face[k]], c, g);
+            if (v->fneg[k]) fk = -fk;
+            if (fk + fabs(g[0]) * h[0] + fabs(g[1]) * h[1] + fabs(g[2]) * h[2] < 0) return -s;
+        }
+        return 0;
+    case FT_AND:
+    case FT_OR: {
+        int all = v->kind == FT_AND ? 1 : -1;   /* an operand that changes nothing */
+        uint32_t m = ft_new(F, v->kind);
+        if (m == FT_NONE) return 0;
+        for (uint32_t k = 0; k < F->v[t.node].n; k++) {
+            ft_term o;
+            int w = ft_restrict(F, F->v[t.node].t[k], c, h, &o);
+            if (F->failed) return 0;
+            if (w == -all) return -all * s;
+            if (w == 0) ft_add(F, m, o.node, o.neg);
+        }
+        if (F->failed) return 0;
+        if (F->v[m].n == 0) return all * s;
+        *out = F->v[m].n == 1 ? F->v[m].t[0] : (ft_term){ m, 0 };
+        out->neg ^= t.neg;
+        return 0;
+    }
+    }
+    if (e >= 0 && f - e > 0) return s;
+    if (e >= 0 && f + e < 0) return -s;
+    return 0;
+}
+
+/* The operand `clip` of an intersection under node i left out where the model keeps its
+ * solid (and bounded if it was) without it.  Returns whether it is gone everywhere. */
+static int ft_unclip(ft *F, uint32_t i, uint32_t clip, const ft_check *ck, const evolve_result *r, int bounded)
+{
+    ft_node *v = &F->v[i];
+    if (v->kind != FT_AND && v->kind != FT_OR) return 1;
+    int gone = 1;
+    for (uint32_t k = 0; k < F->v[i].n; k++) {
+        ft_term a = F->v[i].t[k];
+        if (a.node != clip) {
+            gone &= ft_unclip(F, a.node, clip, ck, r, bounded);
+            continue;
+        }
+        if (F->v[i].kind != FT_AND || F->v[i].n < 2) return 0;
+        F->v[i].t[k] = F->v[i].t[--F->v[i].n];
+        if (ft_keeps(F, ck) && (!bounded || ft_bounded(F, ck->root, r))) {
+            k--;
+            continue;
+        }
+        F->v[i].t[F->v[i].n++] = F->v[i].t[k];
+        F->v[i].t[k] = a;
+        gone = 0;
+    }
+    return gone;
+}
+
+/* The root of a model of parts apart (ft_parts: a stack here, a plate there) written
+ * as the union of the root restricted to each part's box (ft_restrict), the box kept
+ * as a clip, and each such term covered alone (apply_cover): a cover of the whole has
+ * more planes and frames than its limits allow, or the GA's tree mixes the parts at
+ * the root.  The clips are then left out where the model keeps its solid without
+ * them.  Kept when no clip stays, the model keeps its solid and the whole tree writes
+ * fewer solids.  Returns -1 when out of memory, else 0. */
+static int apply_parts(ft *F, uint32_t root, const ft_check *ck, const evolve_result *r)
+{
+    if (!ck->cloud || (F->v[root].kind != FT_AND && F->v[root].kind != FT_OR) || ft_cancelled(ck)) return 0;
+    double lo[CANON_PARTS_MAX][3], hi[CANON_PARTS_MAX][3];
+    int np = ft_parts(ck, r, lo, hi);
+    if (np <= 0) return np;
+    uint8_t *seen = frep_calloc(F->nprims + 1, 1);
+    ft_saved before = { 0 };
+    if (!seen || ft_save(F, &before)) {
+        frep_free(seen);
+        return -1;
+    }
+    unsigned c0 = ft_count(F, root, seen);
+    int bounded = ft_bounded(F, root, r), keep = 0;
+    uint32_t u = ft_new(F, FT_OR), clip[CANON_PARTS_MAX];
+    static const double axes[3][3] = { { 1, 0, 0 }, { 0, 1, 0 }, { 0, 0, 1 } };
+    static const uint32_t free6[6] = { FT_NONE, FT_NONE, FT_NONE, FT_NONE, FT_NONE, FT_NONE };
+    static const uint8_t neg6[6] = { 0 };
+    for (int p = 0; p < np && !F->failed; p++) {
+        double c[3], h[3];
+        for (int k = 0; k < 3; k++) c[k] = (lo[p][k] + hi[p][k]) / 2, h[k] = (hi[p][k] - lo[p][k]) / 2;
+        ft_term o;
+        int w = ft_restrict(F, (ft_term){ root, 0 }, c, h, &o);
+        clip[p] = ft_box_node(F, axes, lo[p], hi[p], free6, neg6);
+        if (F->failed || w != 0 || clip[p] == FT_NONE) goto done;
+        box_set_planes(F, clip[p], axes, lo[p], hi[p]);
+        uint32_t a = ft_new(F, FT_AND);
+        if (a == FT_NONE) goto done;
+        if (!o.neg && F->v[o.node].kind == FT_AND)
+            for (uint32_t k = 0; k < F->v[o.node].n; k++) ft_add(F, a, F->v[o.node].t[k].node, F->v[o.node].t[k].neg);
+        else
+            ft_add(F, a, o.node, o.neg);
+        ft_add(F, a, clip[p], 0);
+        ft_add(F, u, a, 0);
+    }
+    if (F->failed) goto done;
+    ft_node saved = F->v[root];
+    F->v[root] = F->v[u];
+    F->v[u] = saved;
+    if (!ft_keeps(F, ck)) goto done;
+    for (int p = 0; p < np && !F->failed; p++) {
+        uint32_t a = F->v[root].t[p].node;
+        apply_solids(F, a, ck);
+        if (F->failed || apply_cover(F, a, ck, r)) goto done;
+    }
+    int gone = 1;
+    for (int p = 0; p < np; p++) gone &= ft_unclip(F, root, clip[p], ck, r, bounded);
+    memset(seen, 0, F->nprims + 1);
+    keep = gone && !F->failed && ft_count(F, root, seen) < c0 && ft_keeps(F, ck);
+done:
+    if (!keep && !F->failed) ft_restore(F, &before);
+    ft_saved_free(&before);
+    frep_free(seen);
+    return F->failed ? -1 : 0;
+}
+
 /* ---- pockets: unions of planes as boxes cut away -------------------------------------- */
 
 /* An operand of an intersection that is a union of planes, X & (h1 | ... | hn), is X less
@@ -3244,6 +3497,7 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
     if (!exact) apply_solids(&F, root, &ck);
     if (!F.failed && !exact) apply_factor(&F, root, &ck);
     if (!F.failed && ck.cloud && apply_cover(&F, root, &ck, r)) F.failed = 1;
+    if (!F.failed && ck.cloud && apply_parts(&F, root, &ck, r)) F.failed = 1;
     if (!F.failed && ck.cloud) apply_pockets(&F, root, &ck, r, ft_bounded(&F, root, r));
     if (!F.failed && ck.cloud) apply_net_drops(&F, root, &ck, r, ft_bounded(&F, root, r));
     if (!F.failed && ck.cloud) apply_cut_faces(&F, root, &ck, r);

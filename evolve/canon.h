@@ -100,6 +100,12 @@ void canon_write_comment(FILE *f, const canon_prim *c);
 #define CANON_GRID 20
 #define CANON_GRID_TOL 1e-3
 
+/* Parts of a model apart (apply_parts): cloud points nearer than CANON_PARTS_GAP of the
+ * diagonal are of one part; at most CANON_PARTS_MAX parts are covered alone (work
+ * bound: a cover per part). */
+#define CANON_PARTS_GAP 0.02
+#define CANON_PARTS_MAX 8
+
 /* Face positions per axis of a frame of the box cover (free ends aside): a planar
  * subtree with more, a stair of more steps, keeps its half-spaces. */
 #define COVER_MAX_OFFS 8

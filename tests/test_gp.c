@@ -1839,6 +1839,16 @@ static void test_box_cover_case(cover_case *cc)
     cloud_free(cloud);
 }
 
+static char prim_char(int j);
+
+/* The plane sg a . x <= d added to cc as its next primitive; returns its name. */
+static char cover_case_add(cover_case *cc, const double a[3], double sg, double d)
+{
+    for (int k = 0; k < 3; k++) cc->n[cc->np][k] = sg * a[k] + 0.0;
+    cc->d[cc->np] = d;
+    return prim_char(cc->np++);
+}
+
 static void test_box_cover(void)
 {
     static cover_case stair = { "stair", "12&3&4&5&6&78|&9a|&", "3 solids: 3 boxes", 10, { { 0 } }, { 0 }, 0, NULL, 0, { 0 }, { { 0 } } };
@@ -1898,11 +1908,12 @@ static void test_box_cover(void)
          * GA put faces of the boxes below at the root: X & (U1 | U2 | U3 | U4) & ..., no
          * cover takes the whole, and each Uk alone is unbounded.  Spread whole
          * (ft_spread), X & Uk are covered term by term: 28 solids where the covers of
-         * the tree as it is write 34 (both golden: a change in either shows here). */
+         * the tree as it is write 34; the parts apart then covered alone (apply_parts):
+         * 26 (all golden: a change in any shows here). */
         static cover_case st9 = { "nine stacked boxes",
                                   "123&|4&51&67&|&8&9ab2|c|&|&de&f3\\|gh&i&j&|kl&m&nop&|&qpr&s&|&|&"
                                   "tu&v5d&e&w&xy&z&A&BCD|&BEFG|HI|&fHF|&JK&L&M&|&|&|&|&|&",
-                                  "28 solids: 5 boxes", 48, { { 0 } }, { 0 }, 0, NULL, 0, { 0 }, { { 0 } } };
+                                  "26 solids: 5 boxes", 48, { { 0 } }, { 0 }, 0, NULL, 0, { 0 }, { { 0 } } };
         static const double pl[48][4] = {
             { 0.229071812, -0.148330501, 0.962041666, 2.500157889 },
             { -0.848494856, -0.412342898, 0.331707421, -1.878961344 },
@@ -2147,6 +2158,39 @@ static void test_box_cover(void)
     rods.r[0] = rods.r[1] = rods.r[5] = 0.4;
     rods.ax[0][0] = rods.ax[1][0] = 1;
     test_box_cover_case(&rods);
+    /* Two stairs apart, as the GA mixes parts at the root (nine_cuboids at 10,000 points,
+     * seed 3): X & (A | B), X the faces both share and the steps of B (all of space
+     * about A), A the 5 steps of [0, 1.2] x [0, 1] x [0, 3] less its x faces, B the x
+     * faces of 4 steps on [2, 3.2].  The whole has 11 face positions on x, the spread
+     * term X & A 9 on z: more than a cover's frame holds (COVER_MAX_OFFS).  Each part's
+     * box prunes the other's steps (apply_parts): 5 boxes and 4. */
+    {
+        cover_case two;
+        memset(&two, 0, sizeof two);
+        static char tree[128];
+        char *t = tree;
+        double xa = 1.2, xb = 3.2;
+        const double X[3] = { 1, 0, 0 }, Y[3] = { 0, 1, 0 }, Z[3] = { 0, 0, 1 };
+        char y0 = cover_case_add(&two, Y, -1, 0), y1 = cover_case_add(&two, Y, 1, 1);
+        char z0 = cover_case_add(&two, Z, -1, 0), z3 = cover_case_add(&two, Z, 1, 3);
+        t += sprintf(t, "%c%c&%c&%c&", y0, y1, z0, z3);
+        for (int k = 1; k < 4; k++) {
+            char a = cover_case_add(&two, Z, 1, 0.75 * k), b = cover_case_add(&two, X, 1, xb - 0.3 * k);
+            t += sprintf(t, "%c%c|&", a, b);
+        }
+        char x0 = cover_case_add(&two, X, -1, 0), x1 = cover_case_add(&two, X, 1, xa);
+        t += sprintf(t, "%c%c&", x0, x1);
+        for (int k = 1; k < 5; k++) {
+            char a = cover_case_add(&two, Z, 1, 0.6 * k), b = cover_case_add(&two, X, 1, xa - 0.24 * k);
+            t += sprintf(t, "%c%c|&", a, b);
+        }
+        char x2 = cover_case_add(&two, X, -1, -2), x3 = cover_case_add(&two, X, 1, xb);
+        t += sprintf(t, "%c%c&|&", x2, x3);
+        two.name = "two stairs apart, mixed at the root";
+        two.tree = tree;
+        two.want = "9 solids: 9 boxes";
+        test_box_cover_case(&two);
+    }
     /* Axis-aligned stairs of n steps across [0, 3], as the GA factors them: the box &
      * (z <= k | x <= n - k) for k = 1..n-1, an intersection of n operands once the box
      * is formed.  With n + 1 face positions on x up to COVER_MAX_OFFS the cover writes n
@@ -2415,9 +2459,11 @@ static void test_cover_cloud_points(void)
  * candidates) is covered whole, "2 solids: 2 boxes".  At it: the same and, in the
  * corner's free cut beyond it, a hollow box (walls of pure boxes, so that thousands of
  * boxes through them are candidate cuts) whose small cavity's cut ranks past the
- * limit: the whole is no cover, each part is covered alone and the far plane stays,
- * "5 solids: 4 boxes ... 1 half-space" (with a limit of 4096 its cut, the 329th, is
- * kept and the whole is covered: 4 boxes).  The same solid every time. */
+ * limit: the whole is no cover, each operand is covered alone and the far plane stays,
+ * "5 solids: 4 boxes ... 1 half-space" (with a limit of 4096 its cut is kept and the
+ * whole is covered: 4 boxes).  The hollow box lies 0.1 from the cube, nearer than the
+ * parts' gap (CANON_PARTS_GAP), so that the two are one part: parts apart would be
+ * covered alone (apply_parts) and the far plane dropped.  The same solid every time. */
 static void test_cover_neg_limit(void)
 {
     static char tree[2][256], want[2][96], name[2][48];
@@ -2434,8 +2480,8 @@ static void test_cover_neg_limit(void)
         char *t = turned_corner(&cc, 6, at, turn, tree[pass] + sprintf(tree[pass], "12&3&4&5&6&"));
         int j = 9;
         if (pass) {
-            /* the hollow box [2.3, 3.4] x [1.5, 3.4]^2, its cavity 0.2 x 0.44 x 0.44 */
-            double lo[3] = { 2.3, 1.5, 1.5 }, hi[3] = { 3.4, 3.4, 3.4 };
+            /* the hollow box [2.1, 3.4] x [1.5, 3.4]^2, its cavity 0.2 x 0.44 x 0.44 */
+            double lo[3] = { 2.1, 1.5, 1.5 }, hi[3] = { 3.4, 3.4, 3.4 };
             double clo[3] = { 2.75, 2.23, 2.23 }, chi[3] = { 2.95, 2.67, 2.67 };
             for (int b = 0; b < 2; b++)
                 for (int k = 0; k < 6; k++, j++) {
