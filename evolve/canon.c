@@ -3036,20 +3036,24 @@ static int ft_unclip(ft *F, uint32_t i, uint32_t clip, const ft_check *ck, const
  * more planes and frames than its limits allow, or the GA's tree mixes the parts at
  * the root.  The clips are then left out where the model keeps its solid without
  * them.  Kept when no clip stays, the model keeps its solid and the whole tree writes
- * fewer solids.  Returns -1 when out of memory, else 0. */
+ * fewer solids; not tried where the tree holds no half-space (the covers write
+ * half-spaces as boxes).  Returns -1 when out of memory, else 0. */
 static int apply_parts(ft *F, uint32_t root, const ft_check *ck, const evolve_result *r)
 {
     if (!ck->cloud || (F->v[root].kind != FT_AND && F->v[root].kind != FT_OR) || ft_cancelled(ck)) return 0;
-    double lo[CANON_PARTS_MAX][3], hi[CANON_PARTS_MAX][3];
-    int np = ft_parts(ck, r, lo, hi);
-    if (np <= 0) return np;
     uint8_t *seen = frep_calloc(F->nprims + 1, 1);
-    ft_saved before = { 0 };
-    if (!seen || ft_save(F, &before)) {
-        frep_free(seen);
-        return -1;
-    }
+    if (!seen) return -1;
     unsigned c0 = ft_count(F, root, seen);
+    /* the covers write half-spaces as boxes: a tree without one gains nothing */
+    int planes = 0;
+    for (size_t j = 0; j < F->nprims && !planes; j++) planes = seen[j] && F->q[j].type == PRIM_PLANE;
+    double lo[CANON_PARTS_MAX][3], hi[CANON_PARTS_MAX][3];
+    int np = planes ? ft_parts(ck, r, lo, hi) : 0;
+    ft_saved before = { 0 };
+    if (np <= 0 || ft_save(F, &before)) {
+        frep_free(seen);
+        return np <= 0 ? np : -1;
+    }
     int bounded = ft_bounded(F, root, r), keep = 0;
     uint32_t u = ft_new(F, FT_OR), clip[CANON_PARTS_MAX];
     static const double axes[3][3] = { { 1, 0, 0 }, { 0, 1, 0 }, { 0, 0, 1 } };
