@@ -122,10 +122,10 @@ def child_cpu():
     return r.ru_utime + r.ru_stime
 
 
-def run_frep(frep, template, cloud, method, seed, out):
+def run_frep(frep, template, cloud, method, seed, out, extra=()):
     t0 = child_cpu()
     res = subprocess.run([frep, "fit", template, cloud, "--method", method, "--seed",
-                          str(seed), "-o", out], capture_output=True, text=True,
+                          str(seed), "-o", out, *extra], capture_output=True, text=True,
                          env=dict(os.environ, OMP_NUM_THREADS="1"))
     cpu = child_cpu() - t0
     vals = {}
@@ -174,6 +174,10 @@ def main():
 
     rows = [run_frep(frep, set2, cloud, "saqn", s, out) for s in seeds]
     summary("frep saqn (1 thread)", rows)
+    # The objective alone, as dual_annealing's: no robust refinement (geometric
+    # distances, Cauchy loss) after the local phase.
+    rows = [run_frep(frep, set2, cloud, "saqn", s, out, ("--no-robust",)) for s in seeds]
+    summary("frep saqn --no-robust (1 thread)", rows)
     rows = [run_frep(frep, set2, cloud, "qn", 1, out)]
     summary("frep qn (1 thread, deterministic)", rows)
 

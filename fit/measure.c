@@ -10,8 +10,8 @@
  * Elsewhere a sphere search brackets the distance: spheres of shrinking radius (by
  * sqrt 2) around the point are sampled in FIT_SPHERE_DIRS directions until none shows a
  * sign change, and the crossings along the directions of the last one that did are found
- * by bisection. Every figure is the distance to a surface point actually found, so an
- * upper bound of the true distance.
+ * by bisection, side by side. Every figure is the distance to a surface point actually
+ * found, so an upper bound of the true distance.
  */
 #include "alloc.h"
 #include "linalg.h"
@@ -114,20 +114,32 @@ static int sphere_crosses(const dist_ctx *C, dist_ws *w, const double *p, double
     return 0;
 }
 
-/* Distance along direction k from p to the first sign change within r (found on the
- * sphere of radius r), by bisection; r when it cannot be narrowed. */
-static double bisect(const dist_ctx *C, dist_ws *w, const double *p, double s0, int k, double r)
+/* Distance from p to the first sign change within r along each of the nk directions
+ * k[] (each with one on the sphere of radius r), by bisection, the least of them; r
+ * when none can be narrowed.  The directions are bisected side by side, a point each
+ * per evaluation (the same values as one by one). */
+static double bisect(const dist_ctx *C, dist_ws *w, const double *p, double s0, const int *k,
+                     int nk, double r)
 {
-    double a = 0, b = r;
+    double a[FIT_BISECT_DIRS], b[FIT_BISECT_DIRS];
+    for (int j = 0; j < nk; j++) a[j] = 0, b[j] = r;
     for (int it = 0; it < FIT_BISECT_STEPS; it++) {
-        double t = 0.5 * (a + b), q[3], fv;
-        for (int c = 0; c < 3; c++) q[c] = p[c] + t * C->dirs[3 * k + c];
-        if (C->m->eval(C->m->user, w->scratch, 1, q, q + 1, q + 2, C->params, &fv, NULL, NULL) != 0)
-            return b;
-        if (fv * s0 <= 0) b = t;
-        else a = t;
+        for (int j = 0; j < nk; j++) {
+            double t = 0.5 * (a[j] + b[j]);
+            w->x[j] = p[0] + t * C->dirs[3 * k[j]];
+            w->y[j] = p[1] + t * C->dirs[3 * k[j] + 1];
+            w->z[j] = p[2] + t * C->dirs[3 * k[j] + 2];
+        }
+        if (eval(C, w, (size_t)nk, w->x, w->y, w->z, NULL) != 0) break;
+        for (int j = 0; j < nk; j++) {
+            double t = 0.5 * (a[j] + b[j]);
+            if (w->f[j] * s0 <= 0) b[j] = t;
+            else a[j] = t;
+        }
     }
-    return b;
+    double d = r;
+    for (int j = 0; j < nk; j++) d = fmin(d, b[j]);
+    return d;
 }
 
 /* The sphere search from p (f(p) = f0 != 0) below the bound `upper` (a surface point is
@@ -153,13 +165,10 @@ static double sphere_search(const dist_ctx *C, dist_ws *w, const double *p, doub
         memcpy(vals, w->f, sizeof vals);
     }
     if (!have) return best;         /* only the Newton point is known at `upper` */
-    double d = best;
-    for (int k = 0, used = 0; k < FIT_SPHERE_DIRS && used < FIT_BISECT_DIRS; k++) {
-        if (vals[k] * s0 > 0) continue;
-        used++;
-        d = fmin(d, bisect(C, w, p, s0, k, best));
-    }
-    return fmin(d, upper);
+    int dirs[FIT_BISECT_DIRS], used = 0;
+    for (int k = 0; k < FIT_SPHERE_DIRS && used < FIT_BISECT_DIRS; k++)
+        if (vals[k] * s0 <= 0) dirs[used++] = k;
+    return fmin(bisect(C, w, p, s0, dirs, used, best), upper);
 }
 
 /* Distances of the points [i0, i0 + n) into out. Returns 0, or -1 when the model

@@ -643,8 +643,10 @@ void vm_broadcast_params(const frep_program *p, vm_scratch *s, const vm_inputs *
     uint32_t j;
     size_t i;
     int same = n <= s->param_lanes && p->nparams <= s->param_count;
-    for (j = 0; j < p->nparams && same; j++) {
-        double v = in->params ? in->params[j] : p->params ? p->params[j].value : 0.0;
+    if (same && in->params)   /* one call: a fit evaluates single points (measure.c) */
+        same = memcmp(in->params, s->paramval, p->nparams * sizeof *in->params) == 0;
+    for (j = 0; j < p->nparams && same && !in->params; j++) {
+        double v = p->params ? p->params[j].value : 0.0;
         same = memcmp(&v, &s->paramval[j], sizeof v) == 0;
     }
     if (same) return;
