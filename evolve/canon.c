@@ -14,6 +14,7 @@
 #include "canon.h"
 #include "kdtree.h"
 #include "tree.h"
+#include "util.h"
 #include "vec3.h"
 
 /* ---- canonical parameters ----------------------------------------------------------- */
@@ -2853,12 +2854,6 @@ static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
  * sparse for its gap (work bound: the merge compares every pair of boxes). */
 #define PARTS_MAX_PIECES 256
 
-static uint32_t uf_root(uint32_t *up, uint32_t a)
-{
-    while (up[a] != a) a = up[a] = up[up[a]];
-    return a;
-}
-
 /* The parts of the cloud: its points linked to those of their PARTS_KNN nearest within
  * CANON_PARTS_GAP of the diagonal, and clusters whose boxes meet merged (a hollow
  * part's inner faces lie in its outer box).  Writes the parts' boxes, grown by the gap
@@ -2881,14 +2876,10 @@ static int ft_parts(const ft_check *ck, const evolve_result *r, double lo[][3], 
         uint32_t idx[PARTS_KNN];
         double d2[PARTS_KNN], q[3] = { cl->x[i], cl->y[i], cl->z[i] };
         size_t m = kd_knn(t, q, PARTS_KNN, idx, d2);
-        for (size_t j = 0; j < m; j++) {
-            if (d2[j] > gap * gap) break;
-            uint32_t a = uf_root(up, (uint32_t)i), b = uf_root(up, idx[j]);
-            if (a != b) up[a > b ? a : b] = a < b ? a : b;
-        }
+        for (size_t j = 0; j < m && d2[j] <= gap * gap; j++) frep_uf_join(up, (uint32_t)i, idx[j]);
     }
     /* each point's cluster number, tagged, in up[]: a point's parent comes before it
-     * (a root is linked below the other root) and is numbered already */
+     * (frep_uf_join) and is numbered already */
     np = 0;
     for (size_t i = 0; i < n; i++) {
         if (up[i] != i) {
@@ -2932,6 +2923,14 @@ done:
     return np;
 }
 
+/* The sign over the box c +- h of the linear function of value f at c and gradient g:
+ * 1 where it is positive all over, -1 negative all over, else 0. */
+static int linear_sign(double f, const double g[3], const double h[3])
+{
+    double e = fabs(g[0]) * h[0] + fabs(g[1]) * h[1] + fabs(g[2]) * h[2];
+    return f - e > 0 ? 1 : f + e < 0 ? -1 : 0;
+}
+
 /* Term t restricted to the box c +- h (world axes): 1 when its solid holds all of the
  * box, -1 when none of it, else 0 and *out the term with the operands that hold all or
  * none of the box left out (new operations; leaves and solids shared).  Half-spaces and
@@ -2942,15 +2941,11 @@ static int ft_restrict(ft *F, ft_term t, const double c[3], const double h[3], f
     int s = t.neg ? -1 : 1;
     *out = t;
     const ft_node *v = &F->v[t.node];
-    double f = 0, e = -1;
+    double g[3];
     switch (v->kind) {
     case FT_LEAF:
-        if (v->leaf < F->nprims && F->q[v->leaf].type == PRIM_PLANE) {
-            double g[3];
-            f = prim_eval(&F->q[v->leaf], c, g);
-            e = fabs(g[0]) * h[0] + fabs(g[1]) * h[1] + fabs(g[2]) * h[2];
-        }
-        break;
+        if (v->leaf >= F->nprims || F->q[v->leaf].type != PRIM_PLANE) return 0;
+        return s * linear_sign(prim_eval(&F->q[v->leaf], c, g), g, h);
     case FT_BOX: {
         /* the intersection of its faces' half-spaces h_k -+ R_k . (x - c_box) */
         double R[3][3];
@@ -2962,22 +2957,21 @@ static int ft_restrict(ft *F, ft_term t, const double c[3], const double h[3], f
         }
         int all = 1;
         for (int k = 0; k < 6; k++) {
-            double g[3], fk = v->h[k / 2], ek = 0;
+            double fk = v->h[k / 2];
             for (int w = 0; w < 3; w++) {
                 g[w] = (k & 1 ? 1 : -1) * R[w][k / 2];
                 fk += g[w] * (c[w] - v->c[w]);
-                ek += fabs(g[w]) * h[w];
             }
-            if (fk + ek < 0) return -s;
-            all &= fk - ek > 0;
+            int sg = linear_sign(fk, g, h);
+            if (sg < 0) return -s;
+            all &= sg > 0;
         }
         return all ? s : 0;
     }
     case FT_CAPPED:
         for (int k = 1; k < 3; k++) {
-            double g[3], fk = prim_eval(&F->q[v->face[k]], c, g);
-            if (v->fneg[k]) fk = -fk;
-            if (fk + fabs(g[0]) * h[0] + fabs(g[1]) * h[1] + fabs(g[2]) * h[2] < 0) return -s;
+            double fk = prim_eval(&F->q[v->face[k]], c, g);
+            if (linear_sign(v->fneg[k] ? -fk : fk, g, h) < 0) return -s;
         }
         return 0;
     case FT_AND:
@@ -2999,8 +2993,6 @@ static int ft_restrict(ft *F, ft_term t, const double c[3], const double h[3], f
         return 0;
     }
     }
-    if (e >= 0 && f - e > 0) return s;
-    if (e >= 0 && f + e < 0) return -s;
     return 0;
 }
 

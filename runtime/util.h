@@ -2,12 +2,13 @@
  *
  * A malloc'ed printf for the "file:line: what" messages the readers hand back, the
  * PLY scalar types that both the cloud reader (cloud.c) and the mesh reader
- * (meshio.c) decode, a monotonic clock for timings, and pi.
+ * (meshio.c) decode, a monotonic clock for timings, a union-find forest, and pi.
  */
 #ifndef FREP_UTIL_H
 #define FREP_UTIL_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 /* printf into a new string; returns it (free with frep_free()) or NULL when out of memory
  * or on an encoding error. */
@@ -43,6 +44,26 @@ static inline double frep_grid_coord(double lo, double hi, long i, long n)
 {
     if (i == n) return hi;
     return lo + (hi - lo) * (double)i / (double)n;
+}
+
+/* The root of element i in the union-find forest up[] (up[r] == r at a root), the path
+ * halved on the way. */
+static inline uint32_t frep_uf_root(uint32_t *up, uint32_t i)
+{
+    while (up[i] != i) {
+        up[i] = up[up[i]];
+        i = up[i];
+    }
+    return i;
+}
+
+/* The sets of a and b joined: the larger root goes below the smaller, so that every
+ * element's parent has a smaller index than it (a pass in index order meets a root
+ * before the elements below it). */
+static inline void frep_uf_join(uint32_t *up, uint32_t a, uint32_t b)
+{
+    uint32_t ra = frep_uf_root(up, a), rb = frep_uf_root(up, b);
+    if (ra != rb) up[ra > rb ? ra : rb] = ra < rb ? ra : rb;
 }
 
 /* pi to more digits than a double holds (C11 has no M_PI). */

@@ -404,15 +404,6 @@ static int sort_cellpt(cellpt *a, size_t n)
     return 0;
 }
 
-static uint32_t uf_find(uint32_t *par, uint32_t i)
-{
-    while (par[i] != i) {
-        par[i] = par[par[i]];
-        i = par[i];
-    }
-    return i;
-}
-
 /* The parameter domain of q, flattened: point i of the patch at (uv[2i], uv[2i+1]),
  * lengths along the surface; period[k] > 0 for an axis that wraps around. */
 typedef struct pdomain {
@@ -569,10 +560,7 @@ static void join_neighbours(const pdomain *D, const cellpt *cp, const uint32_t *
                     if (cp[start[m]].cell < nid) a = m + 1;
                     else b = m;
                 }
-                if (a < ncells && cp[start[a]].cell == nid) {
-                    uint32_t ra = uf_find(par, (uint32_t)j), rb = uf_find(par, (uint32_t)a);
-                    if (ra != rb) par[ra > rb ? ra : rb] = ra < rb ? ra : rb;
-                }
+                if (a < ncells && cp[start[a]].cell == nid) frep_uf_join(par, (uint32_t)j, (uint32_t)a);
             }
     }
 }
@@ -581,12 +569,12 @@ static void join_neighbours(const pdomain *D, const cellpt *cp, const uint32_t *
 static void mark_largest(const cellpt *cp, const uint32_t *start, size_t ncells,
                          uint32_t *par, uint32_t *cnt, unsigned char *keep)
 {
-    for (size_t j = 0; j < ncells; j++) cnt[uf_find(par, (uint32_t)j)] += start[j + 1] - start[j];
+    for (size_t j = 0; j < ncells; j++) cnt[frep_uf_root(par, (uint32_t)j)] += start[j + 1] - start[j];
     uint32_t best = 0;
     for (size_t j = 1; j < ncells; j++)
         if (cnt[j] > cnt[best]) best = (uint32_t)j;
     for (size_t j = 0; j < ncells; j++)
-        if (uf_find(par, (uint32_t)j) == best)
+        if (frep_uf_root(par, (uint32_t)j) == best)
             for (uint32_t i = start[j]; i < start[j + 1]; i++) keep[cp[i].pt] = 1;
 }
 
