@@ -2858,8 +2858,8 @@ static int apply_cover(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
  * CANON_PARTS_GAP of the diagonal, and clusters whose boxes meet merged (a hollow
  * part's inner faces lie in its outer box).  Writes the parts' boxes, grown by the gap
  * (a face's edge lies up to a point spacing beyond its points), into lo[], hi[] and
- * returns their number: 0 when fewer than 2
- * or more than CANON_PARTS_MAX, -1 when out of memory. */
+ * returns their number: 0 when fewer than 2 or more than CANON_PARTS_MAX, -1 when out
+ * of memory. */
 static int ft_parts(const ft_check *ck, const evolve_result *r, double lo[][3], double hi[][3])
 {
     const frep_cloud *cl = ck->cloud;
@@ -2933,9 +2933,9 @@ static int linear_sign(double f, const double g[3], const double h[3])
 
 /* Term t restricted to the box c +- h (world axes): 1 when its solid holds all of the
  * box, -1 when none of it, else 0 and *out the term with the operands that hold all or
- * none of the box left out (new operations; leaves and solids shared).  Half-spaces and
- * boxes are bounded over the box exactly (a plane is linear, a box's value changes no
- * faster than the distance); other solids are kept. */
+ * none of the box left out (new operations; leaves and solids shared).  A half-space is
+ * bounded over the box exactly (it is linear), a box by its faces' half-spaces and its
+ * extent along the world axes, a capped cylinder by its caps; other solids are kept. */
 static int ft_restrict(ft *F, ft_term t, const double c[3], const double h[3], ft_term *out)
 {
     int s = t.neg ? -1 : 1;
@@ -3010,9 +3010,9 @@ static int ft_unclip(ft *F, uint32_t i, uint32_t clip, const ft_check *ck, const
             continue;
         }
         if (F->v[i].kind != FT_AND || F->v[i].n < 2) return 0;
-        F->v[i].t[k] = F->v[i].t[--F->v[i].n];
+        F->v[i].t[k] = F->v[i].t[--F->v[i].n];   /* the last operand takes its place */
         if (ft_keeps(F, ck) && (!bounded || ft_bounded(F, ck->root, r))) {
-            k--;
+            k--;   /* look at slot k again (unsigned: wraps to the loop's k++) */
             continue;
         }
         F->v[i].t[F->v[i].n++] = F->v[i].t[k];
