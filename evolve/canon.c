@@ -2908,7 +2908,7 @@ static int ft_parts(const ft_check *ck, const evolve_result *r, double lo[][3], 
                 if (!meet) continue;
                 for (int k = 0; k < 3; k++)
                     box[a][k] = fmin(box[a][k], box[b][k]), box[a][3 + k] = fmax(box[a][3 + k], box[b][3 + k]);
-                memcpy(box[b], box[--np], sizeof box[b]);
+                if (b != --np) memcpy(box[b], box[np], sizeof box[b]);   /* the last takes b's place */
                 merged = 1;
                 b = a;
             }

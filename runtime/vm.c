@@ -643,7 +643,7 @@ void vm_broadcast_params(const frep_program *p, vm_scratch *s, const vm_inputs *
     uint32_t j;
     size_t i;
     int same = n <= s->param_lanes && p->nparams <= s->param_count;
-    if (same && in->params)   /* one call: a fit evaluates single points (measure.c) */
+    if (same && in->params && p->nparams)   /* one call: a fit evaluates single points */
         same = memcmp(in->params, s->paramval, p->nparams * sizeof *in->params) == 0;
     for (j = 0; j < p->nparams && same && !in->params; j++) {
         double v = p->params ? p->params[j].value : 0.0;
