@@ -115,6 +115,12 @@ out:
  * unsupported edges at a fraction of the kd-tree's cost. */
 #define EVOLVE_SUPPORT_MAX_POINTS 20000
 
+/* Most separating planes the support trims may use besides the tree's primitives: each
+ * costs the grid's values and gradients, 36 bytes a node, up to 1.6 MB on the 35^3
+ * nodes of a cubic cloud's grid; a segmentation writes up to 6 for each curved
+ * primitive (45 on nine_cuboids at 0.5% noise). */
+#define EVOLVE_SUPPORT_MAX_PLANES 64
+
 /* One support_run: the grid over the clipping box and what its stages build. */
 typedef struct support_ctx {
     const evolve_options *o;
@@ -242,14 +248,48 @@ static int support_tau(support_ctx *c)
     return 0;
 }
 
-/* The caches of the tree's primitives only (the trims bound its parts by their own
- * faces, and the grid's memory grows with the tree, not with a long primitive list):
- * values at the nodes (no normals to score), and the sample's. */
+/* A separating plane of the list: a trim may bound a part by it. */
+static int support_plane(const prim *q) { return q->separating && q->type == PRIM_PLANE; }
+
+/* The primitives the trims may use, sorted, into c->used and c->nu: the tree's, and the
+ * separating planes of the list (the faces of its curved primitives' inlier boxes)
+ * when there are at most EVOLVE_SUPPORT_MAX_PLANES of them: a curved primitive that runs
+ * on past its points has no face of its own to stop it (nine_cuboids at 0.5% noise,
+ * seed 1: a cone's horn 5 units long). 0 or -1 (allocation). */
+static int support_prims(support_ctx *c)
+{
+    uint32_t n = (uint32_t)c->nprims, nsep = 0, *used = NULL;
+    uint32_t nu = tree_used_prims(&c->res->tree, n, &used);
+    if (!used) return -1;
+    c->used = used;
+    c->nu = nu;
+    /* the sample's cache holds the GA's primitives: the constructed planes after them
+     * only when the union of solids replaced the tree (stage_solids) */
+    uint32_t ns = n < c->sc->nprims ? n : c->sc->nprims;
+    for (uint32_t j = 0; j < ns; j++) nsep += support_plane(&c->prims[j]);
+    if (nsep == 0 || nsep > EVOLVE_SUPPORT_MAX_PLANES) return 0;
+    uint32_t *all = frep_malloc(((size_t)nu + nsep) * sizeof *all);
+    if (!all) return -1;
+    uint32_t m = 0, q = 0;
+    for (uint32_t j = 0; j < n; j++) {
+        int in_tree = q < nu && used[q] == j;
+        q += (uint32_t)in_tree;
+        if (in_tree || (j < ns && support_plane(&c->prims[j]))) all[m++] = j;
+    }
+    frep_free(used);
+    c->used = all;
+    c->nu = m;
+    return 0;
+}
+
+/* The caches of support_prims' primitives (the trims bound the tree's parts by their
+ * own faces or by separating planes, and the grid's memory grows with the tree and
+ * those planes, not with a long list of curved primitives): values at the nodes (no
+ * normals to score), and the sample's. */
 static int support_caches(support_ctx *c)
 {
     size_t ng = c->ng;
-    c->nu = tree_used_prims(&c->res->tree, (uint32_t)c->nprims, &c->used);
-    if (!c->used) return -1;
+    if (support_prims(c)) return -1;
     double *v = frep_malloc((size_t)c->nu * ng * sizeof *v);
     double *gg = frep_malloc(3 * (size_t)c->nu * ng * sizeof *gg);
     if (v && gg) {

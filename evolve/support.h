@@ -9,7 +9,8 @@
  * point. Trims S & L, as simplify.c's (S an operand of a union that adds material, L a
  * primitive or its complement keeping every point S explains), are kept when they lose
  * no point of the scored sample and remove the most unsupported surface. evolve.c
- * passes caches of the tree's own primitives only.
+ * passes caches of the tree's own primitives and the list's separating planes (the
+ * faces of the curved primitives' inlier boxes), which L may be too.
  */
 #ifndef FREP_GP_SUPPORT_H
 #define FREP_GP_SUPPORT_H

@@ -83,6 +83,59 @@ grep '^    tree = ' "$tmp/m1.hf" >"$tmp/t1"
 cmp -s "$tmp/t1" "$tmp/t1n" && ! grep -q "no point supports" "$tmp/m1.hf"
 report $? "no support trim on the cube: the same tree as with --no-support"
 
+# A bar no face of the list stops: a cylinder along x sticks out of a box, its points
+# end at x = 2 without a cap (an open scan), and a second box far off puts the
+# clipping box's face at x = 3.5 + margin. Only the cylinder's separating plane
+# x <= 2.02 (a face of its inliers' box) cuts it where its points end; without the
+# trims it runs on to the clip through (2.8, 0, 0).
+cat >"$tmp/bar.hf" <<'EOF2'
+-- @setops minmax
+-- @box -1.5 -3.5 -1.5 4 1.5 1.5
+my_model(x[3], a[1])
+{
+    boxa = frPlane(x, 1, 0, 0, 1) & frPlane(x, -1, 0, 0, 1) & frPlane(x, 0, 1, 0, 1) &
+           frPlane(x, 0, -1, 0, 1) & frPlane(x, 0, 0, 1, 1) & frPlane(x, 0, 0, -1, 1);
+    boxb = frPlane(x, 1, 0, 0, 3.5) & frPlane(x, -1, 0, 0, -1.5) & frPlane(x, 0, 1, 0, -2) &
+           frPlane(x, 0, -1, 0, 3) & frPlane(x, 0, 0, 1, 1) & frPlane(x, 0, 0, -1, 1);
+    bar = frCylinder(x, 0, 0, 0, 1, 0, 0, 0.3) & frPlane(x, 1, 0, 0, 2);
+    my_model = boxa | boxb | bar;
+}
+EOF2
+cat >"$tmp/bar_prims.hf" <<'EOF2'
+primitives(x[3], a[1])
+{
+  p1 = frPlane(x, 1, 0, 0, 1);  -- plane: 100 points
+  p2 = frPlane(x, -1, 0, 0, 1);  -- plane: 100 points
+  p3 = frPlane(x, 0, 1, 0, 1);  -- plane: 100 points
+  p4 = frPlane(x, 0, -1, 0, 1);  -- plane: 100 points
+  p5 = frPlane(x, 0, 0, 1, 1);  -- plane: 100 points
+  p6 = frPlane(x, 0, 0, -1, 1);  -- plane: 100 points
+  p7 = frPlane(x, 1, 0, 0, 3.5);  -- plane: 100 points
+  p8 = frPlane(x, -1, 0, 0, -1.5);  -- plane: 100 points
+  p9 = frPlane(x, 0, 1, 0, -2);  -- plane: 100 points
+  p10 = frPlane(x, 0, -1, 0, 3);  -- plane: 100 points
+  p11 = frCylinder(x, 0, 0, 0, 1, 0, 0, 0.3);  -- cylinder: 100 points
+  p12 = frPlane(x, 1, 0, 0, 2.02);  -- separating plane
+  p13 = frPlane(x, -1, 0, 0, -0.98);  -- separating plane
+  primitives = p1 | p2;
+}
+EOF2
+"$FREP" sample "$tmp/bar.hf" -n 6000 --seed 1 -o "$tmp/bar_raw.xyz" -q &&
+    awk '!($1 > 1.999 && $2 * $2 + $3 * $3 < 0.09 + 1e-6)' "$tmp/bar_raw.xyz" >"$tmp/bar.xyz"
+report $? "sample the box with a bar, its end cap left out"
+"$FREP" evolve "$tmp/bar.xyz" -p "$tmp/bar_prims.hf" -o "$tmp/bar1.hf" --seed 1 -t 1 -q \
+    2>"$tmp/err" &&
+    "$FREP" evolve "$tmp/bar.xyz" -p "$tmp/bar_prims.hf" -o "$tmp/bar0.hf" --seed 1 -t 1 -q \
+        --no-support 2>>"$tmp/err"
+report $? "evolve the bar with and without the support trims"
+v1=$(echo "2.8 0 0" | "$FREP" eval "$tmp/bar1.hf")
+v0=$(echo "2.8 0 0" | "$FREP" eval "$tmp/bar0.hf")
+awk -v a="$v1" -v b="$v0" 'BEGIN { exit !(a < 0 && b > 0) }' &&
+    grep -q "unsupported grid edges [0-9]* -> 0;" "$tmp/bar1.hf"
+st=$?
+report $st "the bar cut where its points end by its separating plane (f(2.8, 0, 0) $v1, $v0 untrimmed)"
+[ $st = 0 ] || { grep -n "trim\|tree =" "$tmp/bar1.hf" "$tmp/bar0.hf" | sed 's/^/# /'; show "$tmp/err"; }
+
 "$FREP" evolve "$tmp/cube.xyz" -p "$tmp/cube.fit" -o "$tmp/m2.hf" --seed 5 -t 2 -q 2>"$tmp/err"
 grep '^    tree = ' "$tmp/m1.hf" >"$tmp/t1"
 grep '^    tree = ' "$tmp/m2.hf" >"$tmp/t2"
