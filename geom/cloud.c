@@ -219,7 +219,6 @@ static int xyz_numbers(const char *name, size_t line, const char *q, const char 
     }
 }
 
-/* An .xyz cloud: 3 or 6 finite numbers a data line, the same count on every one. */
 /* Room for a point per line of data[from, end) and the one read: the arrays are sized
  * once and their pages faulted in one call each, not grown by doubling (copies, and
  * a fault per page on first write).  0, or -1 when out of memory. */
@@ -234,6 +233,7 @@ static int reserve_lines(frep_cloud *c, const char *from, const char *end)
     return 0;
 }
 
+/* An .xyz cloud: 3 or 6 finite numbers a data line, the same count on every one. */
 static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, frep_error *err)
 {
     frep_cloud *c = NULL;
