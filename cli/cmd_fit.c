@@ -183,7 +183,9 @@ static const cli_opt fit_opts[] = {
     { 0, "sa-stall", "N", CLI_OPT_LONG, OFF(o.sa_stall), .lo = 1, .hi = INFINITY,
       .help = "end an annealing chain after N iterations without progress (15)" },
     { 0, "sa-chains", "N", CLI_OPT_LONG, OFF(o.sa_chains), .lo = 1, .hi = INFINITY,
-      .help = "independent annealing chains, the best kept (2)" },
+      .help = "independent annealing chains, the best kept (2); none\n"
+              "after one that puts 99.9% of the points within 1% of the\n"
+              "diagonal of the surface" },
     { 0, "sa-threshold", "V", CLI_OPT_DOUBLE, OFF(o.sa_threshold), .lo = 0, .hi = INFINITY,
       .help = "leave the annealing once the objective is <= V" },
     { 0, "json", "FILE", CLI_OPT_STRING, OFF(json), .help = "also write the report as JSON" },
