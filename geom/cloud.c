@@ -219,20 +219,6 @@ static int xyz_numbers(const char *name, size_t line, const char *q, const char 
     }
 }
 
-/* Room for a point per line of data[from, end) and the one read: the arrays are sized
- * once and their pages faulted in one call each, not grown by doubling (copies, and
- * a fault per page on first write).  0, or -1 when out of memory. */
-static int reserve_lines(frep_cloud *c, const char *from, const char *end)
-{
-    size_t lines = 2;   /* the line read, and a last one without a newline */
-    for (const char *q = from; q < end && (q = memchr(q, '\n', (size_t)(end - q))); q++) lines++;
-    if (lines > CLOUD_MAX_POINTS) lines = CLOUD_MAX_POINTS;
-    if (cloud_reserve(c, lines)) return -1;
-    double *a[6] = { c->x, c->y, c->z, c->nx, c->ny, c->nz };
-    for (int k = 0; k < (c->has_normals ? 6 : 3); k++) frep_prefault(a[k], lines * sizeof *a[k]);
-    return 0;
-}
-
 /* An .xyz cloud: 3 or 6 finite numbers a data line, the same count on every one. */
 static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, frep_error *err)
 {
@@ -259,10 +245,7 @@ static frep_cloud *parse_xyz(const char *name, const char *data, size_t len, fre
             ncols = nv;
             first_line = line;
             c = cloud_new(nv == 6);
-            if (!c || reserve_lines(c, p, end)) {
-                frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name);
-                goto fail;
-            }
+            if (!c) { frep_error_set(err, FREP_ENOMEM, "%s: out of memory", name); goto fail; }
         } else if (nv != ncols) {
             frep_error_set(err, FREP_EINPUT, "%s:%zu: expected %d numbers as on line %zu, got %d",
                            name, line, ncols, first_line, nv);
