@@ -70,8 +70,8 @@ static ival iv_fix(ival r)
 static ival iv_round(ival r)
 {
     r = iv_fix(r);
-    if (r.lo > -INFINITY) r.lo = nextafter(r.lo, -INFINITY);
-    if (r.hi < INFINITY) r.hi = nextafter(r.hi, INFINITY);
+    if (r.lo > -INFINITY) r.lo = ival_next_down(r.lo);
+    if (r.hi < INFINITY) r.hi = ival_next_up(r.hi);
     return r;
 }
 

@@ -4,6 +4,7 @@
  * domain errors and thread-count independence.  Programs are assembled with
  * prog_emit, so no compiler is needed.
  */
+#include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -1371,9 +1372,41 @@ static void test_trig(void)
     }
 }
 
+/* The interval bounds' outward rounding (ival_next_down/up) is nextafter's, bit for
+ * bit: zeros, subnormals, the largest doubles, infinities on the side they may take,
+ * and a million random bit patterns. */
+static void test_next_ulp(void)
+{
+    const double special[] = { 0.0, -0.0, DBL_TRUE_MIN, -DBL_TRUE_MIN, DBL_MIN, -DBL_MIN,
+                               DBL_MAX, -DBL_MAX, 1.0, -1.0, 0.1, -3.5e-310 };
+    int bad = 0, n = 0;
+    for (size_t i = 0; i < sizeof special / sizeof *special; i++, n++) {
+        double x = special[i];
+        bad += memcmp(&(double){ ival_next_down(x) }, &(double){ nextafter(x, -INFINITY) },
+                      sizeof x) != 0;
+        bad += memcmp(&(double){ ival_next_up(x) }, &(double){ nextafter(x, INFINITY) },
+                      sizeof x) != 0;
+    }
+    bad += ival_next_down(INFINITY) != DBL_MAX || ival_next_up(-INFINITY) != -DBL_MAX;
+    uint64_t u = 0x9e3779b97f4a7c15u;
+    for (int i = 0; i < 1000000; i++) {
+        u ^= u << 13, u ^= u >> 7, u ^= u << 17;
+        double x;
+        memcpy(&x, &u, sizeof x);
+        if (isnan(x) || isinf(x)) continue;
+        double a = ival_next_down(x), b = nextafter(x, -INFINITY);
+        double c = ival_next_up(x), d = nextafter(x, INFINITY);
+        bad += memcmp(&a, &b, sizeof a) != 0 || memcmp(&c, &d, sizeof c) != 0;
+        n++;
+    }
+    ok(bad == 0, "interval rounding: ival_next_down/up equal nextafter on %d doubles "
+                 "(%d differ)", n, bad);
+}
+
 int main(void)
 {
     test_program();
+    test_next_ulp();
     test_trig();
     test_opsem_parity();
     test_tangents();
