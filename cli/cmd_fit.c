@@ -167,7 +167,7 @@ static const cli_opt fit_opts[] = {
       .help = "scale of the robust losses (default 0.01 x cloud diagonal)" },
     { 0, "sa-loss", "L", CLI_OPT_CUSTOM, OFF(o.sa_loss), .parse = parse_loss,
       .expect = "l2, huber, cauchy or geman",
-      .help = "the annealing's loss (l2; geman for outliers), scale 1% of\nthe diagonal in function units" },
+      .help = "the annealing's loss (l2, made geman on a cloud with over\n0.5% isolated points), scale 1% of the diagonal in\nfunction units" },
     { 0, "no-robust", NULL, CLI_OPT_SET, OFF(no_robust),
       .help = "skip the robust refinement (geometric distances, Cauchy loss,\nscale from the residuals) that follows the local phase" },
     { 0, "normals-weight", "W", CLI_OPT_DOUBLE, OFF(o.normals_weight), .lo = 0, .hi = INFINITY,

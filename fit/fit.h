@@ -88,8 +88,9 @@ typedef struct fit_config {
      * re-estimated each round), and the chains are compared on that loss at the
      * smallest of their scales: noise then costs no bias and outliers no basin. */
     int robust;
-    /* With robust: the annealing's loss (l2 by default; geman for clouds with outliers),
-     * its scale from FIT_SA_CAUCHY below. */
+    /* With robust: the annealing's loss (l2 by default, which becomes geman on a cloud
+     * with isolated points, FIT_ISOLATED_OUTLIERS in fit.c), its scale from
+     * FIT_SA_CAUCHY below. */
     fit_loss sa_loss;
 } fit_config;
 

@@ -742,7 +742,9 @@ typedef struct frep_fit_options {
     frep_fit_objective global_objective; /* the annealing's: FREP_FIT_ALGEBRAIC */
     frep_fit_loss loss;              /* FREP_FIT_L2 */
     double loss_scale;               /* <= 0: 1% of the cloud's diagonal */
-    frep_fit_loss sa_loss;           /* the annealing's loss with robust (FREP_FIT_L2) */
+    frep_fit_loss sa_loss;           /* the annealing's loss with robust (FREP_FIT_L2,
+                                        Geman-McClure on a cloud with over 0.5% isolated
+                                        points: doc/fit.md) */
     int robust;                      /* robust refinement after the local phase (1) */
     double normals_weight;           /* normal-agreement term; > 0 needs normals (0) */
     uint64_t seed;                   /* same seed, same result at any thread count (1) */
