@@ -91,6 +91,11 @@ static void fill_info(frep_mesh_info *info, const mesh_options *mo, const mesh_s
     info->cells_split = st->cells_split;
     info->face_vertices = st->face_vertices;
     info->settled = st->settled;
+    info->octree_seconds = st->stage_seconds[MESH_STAGE_OCTREE];
+    info->contour_seconds = st->stage_seconds[MESH_STAGE_CONTOUR];
+    info->quads_seconds = st->stage_seconds[MESH_STAGE_QUADS];
+    info->assembly_seconds = st->stage_seconds[MESH_STAGE_ASSEMBLY];
+    info->settle_seconds = st->stage_seconds[MESH_STAGE_SETTLE];
 }
 
 /* A grid with NaN points: they counted as outside. */

@@ -119,7 +119,8 @@ static const cli_opt mesh_opts[] = {
     { 'v', "verbose", NULL, CLI_OPT_SET, OFF(verbose),
       .help = "also print the work done: octree nodes (interval tests),\n"
               "blocks, points evaluated, gradients evaluated, cells with\n"
-              "several sheets, vertices added on faces a sheet crosses twice" },
+              "several sheets, vertices added on faces a sheet crosses twice,\n"
+              "and the wall time of each step" },
 };
 #undef OFF
 static const cli_opt_spec mesh_spec = { "mesh", mesh_usage, mesh_opts,
@@ -405,6 +406,12 @@ static int stage_report(mesh_cmd *c)
                             "settled\n",
                 c->mi.octree_nodes, c->mi.blocks, c->mi.blocks_total, c->mi.eval_points,
                 c->mi.grad_points, c->mi.cells_split, c->mi.face_vertices, c->mi.settled);
+    if (c->verbose)
+        fprintf(c->summary, "time: octree %.1f ms, contouring %.1f ms, quads %.1f ms, assembly "
+                            "%.1f ms, settling %.1f ms\n",
+                1e3 * c->mi.octree_seconds, 1e3 * c->mi.contour_seconds,
+                1e3 * c->mi.quads_seconds, 1e3 * c->mi.assembly_seconds,
+                1e3 * c->mi.settle_seconds);
     return c->check ? stage_check(c) : CLI_OK;
 }
 

@@ -387,18 +387,34 @@ static int assemble(const mesher *M, size_t nverts, frep_mesh *out, frep_error *
     return 0;
 }
 
+/* The wall time since *t into st's clock of stage k; *t becomes now. */
+static void clock_stage(mesh_stats *st, int k, double *t)
+{
+    double now = frep_now_seconds();
+    st->stage_seconds[k] += now - *t;
+    *t = now;
+}
+
 /* Steps 1 to 6 on an initialized run. */
 static int polygonize(mesher *M, mesh_stats *st, frep_mesh *out, frep_error *e)
 {
-    if (mesh_find_blocks(M, st, e) != 0 || contour_blocks(M, e) != 0) return -1;
+    double t = frep_now_seconds();
+    if (mesh_find_blocks(M, st, e) != 0) return -1;
+    clock_stage(st, MESH_STAGE_OCTREE, &t);
+    if (contour_blocks(M, e) != 0) return -1;
     st->blocks = M->nblocks;
     mesh_resolve_faces(M);
     size_t nverts = number_vertices(M, st);
+    clock_stage(st, MESH_STAGE_CONTOUR, &t);
     if (nverts >= UINT32_MAX)
         return frep_error_set(e, FREP_ELIMIT, "the mesh has more than 2^32 vertices; use a smaller -g");
-    if (make_quads(M, e) != 0 || assemble(M, nverts, out, e) != 0) return -1;
+    if (make_quads(M, e) != 0) return -1;
+    clock_stage(st, MESH_STAGE_QUADS, &t);
+    if (assemble(M, nverts, out, e) != 0) return -1;
+    clock_stage(st, MESH_STAGE_ASSEMBLY, &t);
     if (!M->o->no_projection) {
         int rc = mesh_settle_vertices(M, out, st);
+        clock_stage(st, MESH_STAGE_SETTLE, &t);
         if (rc != 0) {
             mesh_free(out);
             return rc == FREP_ENOMEM ? frep_error_nomem(e)

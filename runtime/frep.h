@@ -458,6 +458,10 @@ typedef struct frep_mesh_info {
     size_t octree_nodes, blocks, blocks_total, eval_points, grad_points, cells_split,
         face_vertices;    /* work done, as frep mesh -v prints it */
     size_t settled;       /* vertices moved onto the surface after the quads (-v) */
+    /* wall time of the steps (frep mesh -v, doc/mesh.md): the octree, the blocks'
+     * contouring, the quads, the assembly of the mesh, the settling of vertices */
+    double octree_seconds, contour_seconds, quads_seconds, assembly_seconds,
+        settle_seconds;
     int interrupted;      /* stopped by frep_mesh_options.cancel_flag */
 } frep_mesh_info;
 

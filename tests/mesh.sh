@@ -263,6 +263,12 @@ w "sample reports it too" "$RE" \
 w "render reports it too" "$RE" \
   "$FREP" render "$M/thin_nan.hf" -b 1.2 -g 20 --size 32x32 -o "$T/n.png" -q
 t "no warning without domain errors" sh -c "'$FREP' mesh '$M/block_minus_ball.hf' -b 1 -g 16 -o '$T/q.stl' -q 2>&1 | grep -c warning | grep -qx 0"
+# -v: the work, then each step's wall time, which add up to at most the summary's
+t "-v prints each step's wall time, within the summary's" sh -c "'$FREP' mesh '$E/gear.hf' -g 64 -o '$T/v.stl' -v > '$T/vt' && awk '
+  / grid 64, / { total = \$NF == \"s\" ? \$(NF - 1) : 0 }
+  /^time: octree [0-9.]* ms, contouring [0-9.]* ms, quads [0-9.]* ms, assembly [0-9.]* ms, settling [0-9.]* ms\$/ {
+    seen = 1; sum = \$3 + \$6 + \$9 + \$12 + \$15 }
+  END { exit !(seen && total > 0 && sum > 0 && sum <= 1000 * total + 1) }' '$T/vt'"
 t "no output left behind by failures" sh -c "! ls '$T'/e.stl '$T'/e.png 2>/dev/null"
 echo "1..$n"
 test $fails -eq 0

@@ -126,6 +126,9 @@ class _MeshInfo(ctypes.Structure):
                [(n, ctypes.c_size_t) for n in ("octree_nodes", "blocks", "blocks_total",
                                                "eval_points", "grad_points", "cells_split",
                                                "face_vertices", "settled")] + \
+               [(n, ctypes.c_double) for n in ("octree_seconds", "contour_seconds",
+                                               "quads_seconds", "assembly_seconds",
+                                               "settle_seconds")] + \
                [("interrupted", ctypes.c_int)]
 
 

@@ -162,6 +162,17 @@ def test_mesh_closed_and_volume():
     assert np.array_equal(m2.vertices, m.vertices) and m2.normals is None
 
 
+def test_mesh_info_matches_the_library():
+    # the ctypes mirror of frep_mesh_info: counts, each step's clock, the flag last
+    m = frep.compile(BALL).mesh(grid=32, box=1.5)
+    i = m.info
+    steps = [i[k] for k in ("octree_seconds", "contour_seconds", "quads_seconds",
+                            "assembly_seconds", "settle_seconds")]
+    assert i["grid"] == 32 and i["blocks"] > 0 and i["blocks"] <= i["blocks_total"]
+    assert all(t >= 0 for t in steps) and 0 < sum(steps) <= i["seconds"]
+    assert i["interrupted"] == 0
+
+
 def test_mesh_views_outlive_mesh():
     v = frep.compile(BALL).mesh(grid=8, box=1.5).vertices
     assert np.isfinite(v).all() and abs(np.linalg.norm(v, axis=1).mean() - 1) < 0.05
