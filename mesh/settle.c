@@ -241,9 +241,8 @@ static int far_vertices(settle_run *r, const frep_mesh *out, const uint8_t *fold
 }
 
 /* Values (grad 0) or values and gradients at the batch's first m points, a run of
- * entries of one block at a time with the field focused on the block's box (the
- * pruned program of the blocks' own evaluations: the whole one costs several times
- * more on CSG parts).  0 or FREP_EINPUT. */
+ * entries of one block at a time, focused on the block's box when the run is long
+ * enough (SETTLE_FOCUS_MIN).  0 or FREP_EINPUT. */
 static int batch_eval(settle_run *r, size_t m, int grad)
 {
     const mesh_field *f = r->M->f;
@@ -255,7 +254,8 @@ static int batch_eval(settle_run *r, size_t m, int grad)
         if (focus) {
             double bb[6];
             mesh_block_box(r->M, B, bb);
-            if (f->focus(f->ctx, r->ts, bb, NULL) != 0) return FREP_EINPUT;
+            if (f->focus(f->ctx, r->ts, j - i >= SETTLE_FOCUS_MIN ? bb : NULL, NULL) != 0)
+                return FREP_EINPUT;
         }
         size_t n = j - i;
         *(grad ? &r->grad_points : &r->eval_points) += n;
@@ -772,8 +772,43 @@ static int move_is_clean(const frep_mesh *m, const fan_index *x, const svert *s,
     return 1;
 }
 
+/* Tangled vertices checked at a time by a thread (a check is 10-20 us: 816 far
+ * vertices of examples/gear.hf at -g 64, most of them tangled, took 15 ms). */
+#define SETTLE_TANGLED_CHUNK 32
+
+typedef struct tangled_job {
+    settle_run *r;
+    const frep_mesh *out;
+    const fan_index *x;
+} tangled_job;
+
+static void tangled_chunk(void *ctx, int t, long k0, long k1)
+{
+    (void)t;
+    tangled_job *J = ctx;
+    for (long k = k0; k < k1; k++) {
+        svert *s = &J->r->sv[k];
+        if (s->tangled && move_is_clean(J->out, J->x, s, (size_t)k, &J->out->v[3 * s->v],
+                                        J->r->turn))
+            s->moved = 1;
+    }
+}
+
+/* The tangled vertices whose fan meets no other triangle where they are stay there,
+ * before any target is sought: most of them do (their targets were half the
+ * settling's time on examples/gear.hf -g 64).  The checks read the mesh only, so
+ * they run on the threads of the fold check. */
+static void leave_clean_tangles(settle_run *r, const frep_mesh *out, const fan_index *x)
+{
+    tangled_job J = { r, out, x };
+    int nt = out->ntris < SETTLE_PAR_MIN_TRIS || r->n < 2 * SETTLE_TANGLED_CHUNK ? 1
+                                                                                   : r->M->nthreads;
+    frep_par_for(nt, (long)r->n, SETTLE_TANGLED_CHUNK, tangled_chunk, &J);
+}
+
 /* Move each vertex not moved yet to its nearest target its fan allows, in vertex
- * order; returns how many moved. */
+ * order (a tangled vertex stays where it is once its fan meets no other triangle, an
+ * earlier move having untangled it); returns how many moved. */
 static size_t apply_moves(settle_run *r, frep_mesh *out, const fan_index *x)
 {
     size_t moved = 0;
@@ -853,8 +888,11 @@ int mesh_settle_vertices(const mesher *M, frep_mesh *out, mesh_stats *st)
         r.bgz = b; b += cap;
         r.sa = b; b += 3 * cap;
         r.sb = b;
-        if ((rc = find_targets(&r, 0)) == 0)
-            rc = build_fans(&r, out, &fx) != 0 ? FREP_ENOMEM : 0;
+        rc = build_fans(&r, out, &fx) != 0 ? FREP_ENOMEM : 0;
+        if (rc == 0) {
+            leave_clean_tangles(&r, out, &fx);
+            rc = find_targets(&r, 0);
+        }
     }
     if (rc == 0) {
         st->settled = apply_moves(&r, out, &fx);

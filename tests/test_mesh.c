@@ -1119,6 +1119,107 @@ static void test_prune_program(int setops)
 
 /* Domain errors raised while meshing reach mesh_field_program_errors with the
  * original program's pc, pruned or not. */
+/* Settling evaluates a block's short runs of points on the whole program
+ * (SETTLE_FOCUS_MIN): pruning the program for the block would cost more than the run.
+ * The field's callbacks, counted: the points evaluated after each focus on a box. */
+#define FOCUS_RUNS 4096
+typedef struct focus_count {
+    mesh_field inner;
+    long boxes;                       /* focus calls with a box */
+    size_t run[FOCUS_RUNS];           /* points evaluated after each, until the next */
+    int focused;
+} focus_count;
+
+static int counting_focus(void *ctx, void *ts, const double box[6], double *sign_tol)
+{
+    focus_count *c = ctx;
+    c->focused = box != NULL;
+    if (box && c->boxes < FOCUS_RUNS) c->run[c->boxes] = 0;
+    if (box) c->boxes++;
+    return c->inner.focus(c->inner.ctx, ts, box, sign_tol);
+}
+static void count_points(focus_count *c, size_t n)
+{
+    if (c->focused && c->boxes <= FOCUS_RUNS) c->run[c->boxes - 1] += n;
+}
+static void *counting_thread_new(void *ctx)
+{
+    focus_count *c = ctx;
+    return c->inner.thread_new(c->inner.ctx);
+}
+static void counting_thread_free(void *ctx, void *ts)
+{
+    focus_count *c = ctx;
+    c->inner.thread_free(c->inner.ctx, ts);
+}
+static int counting_eval(void *ctx, void *ts, size_t n, const double *x, const double *y,
+                         const double *z, double *f)
+{
+    focus_count *c = ctx;
+    count_points(c, n);
+    return c->inner.eval(c->inner.ctx, ts, n, x, y, z, f);
+}
+static int counting_grad(void *ctx, void *ts, size_t n, const double *x, const double *y,
+                         const double *z, double *f, double *gx, double *gy, double *gz)
+{
+    focus_count *c = ctx;
+    count_points(c, n);
+    return c->inner.grad(c->inner.ctx, ts, n, x, y, z, f, gx, gy, gz);
+}
+static int counting_interval(void *ctx, void *ts, const double box[6], double *lo, double *hi)
+{
+    focus_count *c = ctx;
+    return c->inner.interval(c->inner.ctx, ts, box, lo, hi);
+}
+
+static void test_settle_focus(void)
+{
+    frep_program *p = compile_text(prune_src, FREP_SETOPS_MINMAX);
+    if (!p) return;
+    static focus_count c;
+    memset(&c, 0, sizeof c);
+    mesh_field_program(&c.inner, p, NULL);
+    mesh_field f = c.inner;
+    f.ctx = &c;
+    f.thread_new = counting_thread_new;
+    f.thread_free = counting_thread_free;
+    f.eval = counting_eval;
+    f.grad = counting_grad;
+    f.interval = counting_interval;
+    f.focus = counting_focus;
+    mesh_options o;
+    mesh_options_init(&o);
+    for (int k = 0; k < 3; k++) {
+        o.box[k] = -1.6;
+        o.box[k + 3] = 1.6;
+    }
+    o.grid = 61;
+    o.nthreads = 1;     /* the callbacks' counts are not atomic */
+    frep_mesh m;
+    mesh_stats st;
+    frep_error err;
+    /* the focus calls without settling, then with it: settling's come after those */
+    o.no_projection = 1;
+    int rc = polygonize(&f, &o, &m, &st, &err);
+    if (rc == 0) mesh_free(&m);
+    long contour = c.boxes;
+    c.boxes = 0;
+    o.no_projection = 0;
+    rc |= polygonize(&f, &o, &m, &st, &err);
+    ok(rc == 0 && st.settled > 0 && c.boxes <= FOCUS_RUNS,
+       "settling's focus: the gear meshed, %zu vertices settled", st.settled);
+    long shortest = -1;
+    for (long i = contour; i < c.boxes && i < FOCUS_RUNS; i++)
+        if (shortest < 0 || (long)c.run[i] < shortest) shortest = (long)c.run[i];
+    ok(rc == 0 && c.boxes >= contour && (shortest < 0 || shortest >= SETTLE_FOCUS_MIN),
+       "settling's focus: %ld focused runs while contouring; while settling %ld, each of "
+       "at least %d points (shortest %ld)", contour, c.boxes - contour, SETTLE_FOCUS_MIN,
+       shortest);
+    if (rc == 0) mesh_free(&m);
+    mesh_field_program_free(&c.inner);
+    frep_program_free(p);
+}
+
 static void test_mesh_errors(void)
 {
     const char *src = "my_model(x[3], a[1])\n{\n  b = 0.5 - x[1] * x[1] - x[2] * x[2] - x[3] * x[3];\n"
@@ -1277,6 +1378,7 @@ int main(void)
     test_meshio();
     test_prune_program(-1);
     test_prune_program(FREP_SETOPS_MINMAX);
+    test_settle_focus();
     test_mesh_errors();
     return done_testing();
 }
