@@ -383,6 +383,18 @@ static mesh_field make_field(tfield *t, int with_interval)
 }
 
 /* mesh_polygonize with a fresh error (the first error set wins). */
+/* Options for the cube [-half, half]^3 at `grid` cells per axis on `threads` threads. */
+static void cube_options(mesh_options *o, double half, int grid, int threads)
+{
+    mesh_options_init(o);
+    for (int c = 0; c < 3; c++) {
+        o->box[c] = -half;
+        o->box[c + 3] = half;
+    }
+    o->grid = grid;
+    o->nthreads = threads;
+}
+
 static int polygonize(const mesh_field *f, const mesh_options *o, frep_mesh *m, mesh_stats *st,
                       frep_error *err)
 {
@@ -1060,12 +1072,7 @@ static void test_prune_program(int setops)
 
     /* meshing with and without pruning: the same topology, vertices within 1e-3 cell */
     mesh_options o;
-    mesh_options_init(&o);
-    for (int c = 0; c < 3; c++) {
-        o.box[c] = -1.6;
-        o.box[c + 3] = 1.6;
-    }
-    o.grid = 61; /* no plane of the model on the grid: no ties at zero */
+    cube_options(&o, 1.6, 61, 1); /* no plane of the model on the grid: no ties at zero */
     frep_mesh a, b, c3;
     mesh_stats st;
     frep_error err;
@@ -1188,13 +1195,7 @@ static void test_settle_focus(void)
     f.interval = counting_interval;
     f.focus = counting_focus;
     mesh_options o;
-    mesh_options_init(&o);
-    for (int k = 0; k < 3; k++) {
-        o.box[k] = -1.6;
-        o.box[k + 3] = 1.6;
-    }
-    o.grid = 61;
-    o.nthreads = 1;     /* the callbacks' counts are not atomic */
+    cube_options(&o, 1.6, 61, 1);   /* one thread: the callbacks' counts are not atomic */
     frep_mesh m;
     mesh_stats st;
     frep_error err;
@@ -1231,13 +1232,7 @@ static void test_mesh_errors(void)
     for (uint32_t pc = 0; pc < p->ncode; pc++)
         if (p->code[pc].op == FREP_OP_SQRT) sqrt_pc = pc;
     mesh_options o;
-    mesh_options_init(&o);
-    for (int c = 0; c < 3; c++) {
-        o.box[c] = -1;
-        o.box[c + 3] = 1;
-    }
-    o.grid = 20;
-    o.nthreads = 2;
+    cube_options(&o, 1, 20, 2);
     mesh_field f;
     mesh_field_program(&f, p, NULL);
     frep_mesh m;
@@ -1280,13 +1275,7 @@ static void test_mesh_nomem(void)
     t.r = 1;
     mesh_field f = make_field(&t, 1);
     mesh_options o;
-    mesh_options_init(&o);
-    for (int c = 0; c < 3; c++) {
-        o.box[c] = -1.5;
-        o.box[c + 3] = 1.5;
-    }
-    o.grid = 20;
-    o.nthreads = 1;
+    cube_options(&o, 1.5, 20, 1);
     failing_alloc fa = { 0, 0 };
     frep_set_allocator(failing_alloc_fn, &fa);
     frep_mesh m;
