@@ -89,7 +89,6 @@ static inline int mesh_options_cells(const mesh_options *o, int c)
     return o->grid_axes[c] > 0 ? o->grid_axes[c] : o->grid;
 }
 
-/* What happened, for the summary line and the tests. */
 /* The steps of the polygonizer whose wall time mesh_stats keeps (doc/mesh.md): the
  * octree, the blocks' contouring (with the faces' resolution and the vertices'
  * numbering), the quads, the assembly of the blocks' arrays into the mesh, and the
@@ -97,6 +96,7 @@ static inline int mesh_options_cells(const mesh_options *o, int c)
 enum { MESH_STAGE_OCTREE, MESH_STAGE_CONTOUR, MESH_STAGE_QUADS, MESH_STAGE_ASSEMBLY,
        MESH_STAGE_SETTLE, MESH_NSTAGES };
 
+/* What happened, for the summary line and the tests. */
 typedef struct mesh_stats {
     size_t octree_nodes;     /* interval tests made */
     size_t blocks;           /* blocks evaluated (of MESH_BLOCK^3 cells) */
@@ -108,7 +108,7 @@ typedef struct mesh_stats {
     size_t eval_points;      /* points evaluated (values only) */
     size_t grad_points;      /* points evaluated with the gradient */
     double seconds;
-    double stage_seconds[MESH_NSTAGES];  /* wall time of each step (mesh_stage) */
+    double stage_seconds[MESH_NSTAGES];  /* wall time of each step (MESH_STAGE_*) */
     size_t face_vertices;    /* extra vertices on faces crossed twice by one sheet */
     size_t settled;          /* vertices moved onto the surface after the quads */
 } mesh_stats;
