@@ -797,12 +797,14 @@ static void tangled_chunk(void *ctx, int t, long k0, long k1)
 /* The tangled vertices whose fan meets no other triangle where they are stay there,
  * before any target is sought: most of them do (their targets were half the
  * settling's time on examples/gear.hf -g 64).  The checks read the mesh only, so
- * they run on the threads of the fold check. */
+ * they run on the run's threads once there are two chunks of them, whatever the size
+ * of the mesh (that gear's mesh has 57,808 triangles and 800 tangled vertices). */
 static void leave_clean_tangles(settle_run *r, const frep_mesh *out, const fan_index *x)
 {
     tangled_job J = { r, out, x };
-    int nt = out->ntris < SETTLE_PAR_MIN_TRIS || r->n < 2 * SETTLE_TANGLED_CHUNK ? 1
-                                                                                   : r->M->nthreads;
+    size_t tangled = 0;
+    for (size_t k = 0; k < r->n; k++) tangled += r->sv[k].tangled != 0;
+    int nt = tangled < 2 * SETTLE_TANGLED_CHUNK ? 1 : r->M->nthreads;
     frep_par_for(nt, (long)r->n, SETTLE_TANGLED_CHUNK, tangled_chunk, &J);
 }
 
