@@ -68,6 +68,12 @@ void frep_prefault(void *p, size_t n)
     if (page <= 0 || n < FREP_PREFAULT_MIN_BYTES) return;
     uintptr_t lo = ((uintptr_t)p + (uintptr_t)page - 1) & ~((uintptr_t)page - 1);
     uintptr_t hi = ((uintptr_t)p + n) & ~((uintptr_t)page - 1);
+#ifdef MADV_HUGEPAGE
+    uintptr_t huge = (uintptr_t)FREP_HUGE_PAGE_BYTES;
+    uintptr_t hlo = ((uintptr_t)p + huge - 1) & ~(huge - 1);
+    uintptr_t hhi = ((uintptr_t)p + n) & ~(huge - 1);
+    if (hhi > hlo) (void)madvise((void *)hlo, hhi - hlo, MADV_HUGEPAGE);
+#endif
     if (hi > lo) (void)madvise((void *)lo, hi - lo, MADV_POPULATE_WRITE);
 #else
     (void)p;

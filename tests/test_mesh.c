@@ -1302,6 +1302,23 @@ static void test_mesh_nomem(void)
        wrong);
 }
 
+/* frep_prefault on n bytes at an unaligned address of a zeroed buffer, then on the
+ * same bytes written: the contents and the bytes beside them stay as they were. */
+static void prefault_keeps(size_t n)
+{
+    unsigned char *z = frep_calloc(1, n + 8);
+    int kept = z != NULL;
+    if (z) {
+        frep_prefault(z + 3, n);
+        for (size_t k = 0; k < n + 8; k++) kept &= z[k] == 0;
+        for (size_t k = 0; k < n + 8; k++) z[k] = (unsigned char)(k * 31);
+        frep_prefault(z + 3, n);
+        for (size_t k = 0; k < n + 8; k++) kept &= z[k] == (unsigned char)(k * 31);
+    }
+    ok(kept, "frep_prefault keeps the contents of %zu bytes", n);
+    frep_free(z);
+}
+
 /* The blocks' pools: every allocation aligned, none overlapping another across slab
  * boundaries, one larger than a slab in a slab of its own; frep_prefault keeps a
  * buffer's contents, at unaligned ends too. */
@@ -1336,18 +1353,8 @@ static void test_mesh_pools(void)
     mesh_pools_free(&M, MESH_POOL_POS);
     ok(mem.pool[MESH_POOL_POS].slabs == NULL, "pool: freed whole");
 
-    size_t n = 5 * FREP_PREFAULT_MIN_BYTES + 333;
-    unsigned char *z = frep_calloc(1, n + 8);
-    int zero = z != NULL;
-    if (z) {
-        frep_prefault(z + 3, n);
-        for (size_t k = 0; k < n + 8; k++) zero &= z[k] == 0;
-        for (size_t k = 0; k < n + 8; k++) z[k] = (unsigned char)(k * 31);
-        frep_prefault(z + 3, n);
-        for (size_t k = 0; k < n + 8; k++) zero &= z[k] == (unsigned char)(k * 31);
-    }
-    ok(zero, "frep_prefault keeps the contents of %zu bytes", n);
-    frep_free(z);
+    prefault_keeps(5 * FREP_PREFAULT_MIN_BYTES + 333);
+    prefault_keeps(3 * FREP_HUGE_PAGE_BYTES + 333);   /* huge pages offered inside */
 }
 
 int main(void)
