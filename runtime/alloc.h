@@ -25,8 +25,9 @@ char *frep_strndup(const char *s, size_t n);
  * FREP_PREFAULT_MIN_BYTES nothing: a few faults cost less than the call.  The
  * FREP_HUGE_PAGE_BYTES-aligned interior of the range is first offered huge pages
  * (MADV_HUGEPAGE, for kernels whose transparent huge pages are "madvise"): one TLB
- * entry then covers 2 MiB, which more than halved the time the mesher spends copying
- * its blocks' pools into the mesh (the gyroid at -g 128: 30.5 -> 19.3 ms). */
+ * entry then covers 2 MiB, which cut the time the mesher spends copying its blocks'
+ * pools into the mesh by ~40% (the gyroid at -g 128: 37.1 -> 22.8 ms on one thread,
+ * doc/benchmarks.md). */
 #define FREP_PREFAULT_MIN_BYTES ((size_t)1 << 14)
 #define FREP_HUGE_PAGE_BYTES ((size_t)1 << 21)
 void frep_prefault(void *p, size_t n);
