@@ -150,16 +150,25 @@ static double time_eval(const frep_program *p, pts *q, int mode, int runs, int n
  * core cannot evaluate more nodes per second than it can store doubles: one vector
  * store per cycle.  The ceiling is measured, not assumed: a "program" of additions
  * over CEIL_BUFS rotating 256-lane buffers (the VM's operator loops without the
- * dispatch), compiled for AVX2 and the baseline as the VM is (no FMA), timed in CPU
- * time; node-evaluations/s = additions x lanes / s. */
+ * dispatch), compiled for AVX2 and the baseline (no FMA), timed in CPU time;
+ * node-evaluations/s = additions x lanes / s.  (The VM also has an AVX-512 clone; this
+ * kernel keeps AVX2, the ceiling doc/benchmarks.md's history is measured against.)
+ *
+ * The R-functions (HyperFun's | and &) are bound by their square root instead: the
+ * same kernel with a + b - sqrt(a^2 + b^2) in place of the addition, compiled with all
+ * the VM's clones (the square root's width sets its rate), gives the R-functions a
+ * core can evaluate per second, and so the ceiling of a model with k of them a point
+ * (bench_grid.sh divides it by the gear's count). */
 #define CEIL_BUFS 8
 #define CEIL_LANES 256
 #define CEIL_STEPS 400000 /* additions of 256 lanes per run: ~0.01-0.02 s */
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
 #define BENCH_CLONES __attribute__((target_clones("avx2", "default")))
+#define BENCH_VM_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 #else
 #define BENCH_CLONES
+#define BENCH_VM_CLONES
 #endif
 
 static void ceil_add(double *restrict r, const double *restrict a, const double *restrict b)
@@ -169,17 +178,35 @@ static void ceil_add(double *restrict r, const double *restrict a, const double 
     for (int i = 0; i < CEIL_LANES; i++) r[i] = a[i] + b[i];
 }
 
-/* Node-evaluations per second of the store-bound kernel, median of `runs`. */
-static double store_ceiling(int runs)
+static void ceil_rint(double *restrict r, const double *restrict a, const double *restrict b)
+    BENCH_VM_CLONES;
+static void ceil_rint(double *restrict r, const double *restrict a, const double *restrict b)
+{
+    for (int i = 0; i < CEIL_LANES; i++) r[i] = a[i] + b[i] - sqrt(a[i] * a[i] + b[i] * b[i]);
+}
+
+typedef void ceil_kernel(double *restrict r, const double *restrict a, const double *restrict b);
+
+/* Node-evaluations per second of a kernel over the rotating buffers, median of
+ * `runs`.  Chained, each step reads the two results before it (the additions' sums
+ * grow to infinity, at full speed); else each step reads the first two buffers, fixed
+ * operands of the order of 1, and writes one of the others: R-functions of their own
+ * results shrink into subnormals, which would time the subnormal path. */
+static double kernel_ceiling(ceil_kernel *kernel, int chained, int runs)
 {
     static double buf[CEIL_BUFS][CEIL_LANES];
     double t[BENCH_MAX_RUNS];
     for (int k = 0; k < CEIL_BUFS; k++)
-        for (int i = 0; i < CEIL_LANES; i++) buf[k][i] = 1e-9 * (k + i);
+        for (int i = 0; i < CEIL_LANES; i++)
+            buf[k][i] = chained ? 1e-9 * (k + i) : (i % 2 ? -1.0 : 1.0) * (1.0 + 1e-3 * (k + i));
     for (int r = 0; r < runs; r++) {
         double t0 = clock_s(CLOCK_PROCESS_CPUTIME_ID);
-        for (long s = 0; s < CEIL_STEPS; s++)
-            ceil_add(buf[(s + 2) % CEIL_BUFS], buf[s % CEIL_BUFS], buf[(s + 1) % CEIL_BUFS]);
+        for (long s = 0; s < CEIL_STEPS; s++) {
+            if (chained)
+                kernel(buf[(s + 2) % CEIL_BUFS], buf[s % CEIL_BUFS], buf[(s + 1) % CEIL_BUFS]);
+            else
+                kernel(buf[2 + s % (CEIL_BUFS - 2)], buf[0], buf[1]);
+        }
         t[r] = clock_s(CLOCK_PROCESS_CPUTIME_ID) - t0;
     }
     volatile double sink = buf[0][0];
@@ -191,7 +218,8 @@ static double store_ceiling(int runs)
 int main(int argc, char **argv)
 {
     const int sizes[2] = {90, 720}; /* primitives: ~1,000 and ~8,000 nodes */
-    long npoints = argc > 1 ? atol(argv[1]) : BENCH_POINTS;
+    int only_ceilings = argc > 1 && strcmp(argv[1], "--ceilings") == 0;
+    long npoints = argc > 1 && !only_ceilings ? atol(argv[1]) : BENCH_POINTS;
     int runs = argc > 2 ? atoi(argv[2]) : BENCH_RUNS;
     int ncores = 1, m;
     pts q;
@@ -205,8 +233,15 @@ int main(int argc, char **argv)
     }
 #endif
     if (npoints < 1 || runs < 1 || runs > BENCH_MAX_RUNS) {
-        fprintf(stderr, "usage: bench_eval [POINTS [RUNS (1..%d)]]\n", BENCH_MAX_RUNS);
+        fprintf(stderr, "usage: bench_eval [POINTS | --ceilings] [RUNS (1..%d)]\n",
+                BENCH_MAX_RUNS);
         return 2;
+    }
+    double ceiling = kernel_ceiling(ceil_add, 1, runs);
+    double rceiling = kernel_ceiling(ceil_rint, 0, runs);
+    if (only_ceilings) {   /* for bench_grid.sh: one core's node-evals/s, then R-functions/s */
+        printf("%.0f %.0f\n", ceiling, rceiling);
+        return 0;
     }
     q.n = (size_t)npoints;
     q.x = malloc(q.n * sizeof(double));
@@ -236,9 +271,10 @@ int main(int argc, char **argv)
     }
     printf("# 1 core: serial frep_eval*, CPU time; all: frep_eval*_par on %d threads, wall time\n",
            ncores);
-    double ceiling = store_ceiling(runs);
     printf("# store-bound ceiling (one 256-lane double store per node): %.0f Mnode/s per core,"
            " %.0f on %d cores\n", ceiling * 1e-6, ceiling * 1e-6 * ncores, ncores);
+    printf("# R-function ceiling (a + b - sqrt(a^2 + b^2) over 256 lanes): %.0f M R-functions/s"
+           " per core\n", rceiling * 1e-6);
     printf("%-10s %6s %-10s %14s %14s %14s %9s\n", "model", "nodes", "mode", "1 core Mnode/s",
            "all Mnode/s", "1 core Mpts/s", "ceiling");
     for (m = 0; m < 2; m++) {

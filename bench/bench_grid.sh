@@ -6,9 +6,13 @@
 # threads must not cost more than one on it (FREP_PAR_MIN_WORK).  Each line: medians of 5 runs of the whole
 # command's CPU time (user + system, /usr/bin/time) and wall time, and of frep's own
 # evaluation time; points/s from the CPU time, which a shared machine inflates least.
-# Usage: bench_grid.sh FREP [SRCDIR]
+# Last, the R-function gear against the bound its square roots set: bench_eval
+# --ceilings measures the R-functions one core evaluates per second, divided by the
+# gear's count of them a point.
+# Usage: bench_grid.sh FREP [SRCDIR [BENCH_EVAL]]
 FREP=${1:-./frep}
 SRCDIR=${2:-.}
+BENCH_EVAL=${3:-}
 RUNS=5
 N=193
 OUT=${TMPDIR:-/tmp}/frep-bench-grid.$$
@@ -73,3 +77,14 @@ for row in "eval_sphere 180 410" "eval_csg 180 410" "eval_gear_minmax 60 60" "ev
   done
 done
 
+
+# The R-function gear's square roots: whatever the rest costs, one core cannot evaluate
+# it faster than its R-functions alone (a + b -+ sqrt(a^2 + b^2) on 256 lanes).
+if [ -n "$BENCH_EVAL" ] && [ -x "$BENCH_EVAL" ]; then
+  nr=$("$FREP" dis "$SRCDIR/bench/eval_gear.hf" | grep -cE '^ *[0-9]+ +(RUNI|RINT|RSUB|AUNI|AINT) ')
+  rc=$("$BENCH_EVAL" --ceilings 9 | awk '{ print $2 }')
+  r=$(awk '$1 == "eval_gear" && $2 == 193 && $3 == 1 && $4 == "pruned" { print $5 }' "$OUT.rates")
+  [ -n "$r" ] && [ -n "$rc" ] && awk -v n="$nr" -v c="$rc" -v r="$r" 'BEGIN {
+    b = c / n * 1e-6
+    printf "eval_gear          -t 1 pruned    frep %7.1f M points/s   %d R-functions a point, this core %.0f M R-functions/s: at most %.1f M points/s in double (%.0f%% of it; target 30 M)\n", r, n, c * 1e-6, b, 100 * r / b }'
+fi
