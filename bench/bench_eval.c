@@ -19,7 +19,7 @@
 #include "frep.h"
 #include "program.h"
 
-/* Defaults of the command line (bench_eval [POINTS [RUNS]]). */
+/* Defaults of the command line (bench_eval [POINTS | --ceilings] [RUNS]). */
 #define BENCH_POINTS 1000000
 #define BENCH_RUNS 5
 #define BENCH_MAX_RUNS 99 /* medians are taken over a fixed array */

@@ -77,14 +77,15 @@ for row in "eval_sphere 180 410" "eval_csg 180 410" "eval_gear_minmax 60 60" "ev
   done
 done
 
-
 # The R-function gear's square roots: whatever the rest costs, one core cannot evaluate
 # it faster than its R-functions alone (a + b -+ sqrt(a^2 + b^2) on 256 lanes).
 if [ -n "$BENCH_EVAL" ] && [ -x "$BENCH_EVAL" ]; then
   nr=$("$FREP" dis "$SRCDIR/bench/eval_gear.hf" | grep -cE '^ *[0-9]+ +(RUNI|RINT|RSUB|AUNI|AINT) ')
-  rc=$("$BENCH_EVAL" --ceilings 9 | awk '{ print $2 }')
+  rfun=$("$BENCH_EVAL" --ceilings 9 | awk '{ print $2 }')
   r=$(awk '$1 == "eval_gear" && $2 == 193 && $3 == 1 && $4 == "pruned" { print $5 }' "$OUT.rates")
-  [ -n "$r" ] && [ -n "$rc" ] && awk -v n="$nr" -v c="$rc" -v r="$r" 'BEGIN {
-    b = c / n * 1e-6
-    printf "eval_gear          -t 1 pruned    frep %7.1f M points/s   %d R-functions a point, this core %.0f M R-functions/s: at most %.1f M points/s in double (%.0f%% of it; target 30 M)\n", r, n, c * 1e-6, b, 100 * r / b }'
+  if [ -n "$r" ] && [ -n "$rfun" ]; then
+    awk -v n="$nr" -v c="$rfun" -v r="$r" 'BEGIN {
+      b = c / n * 1e-6
+      printf "eval_gear          -t 1 pruned    frep %7.1f M points/s   %d R-functions a point, this core %.0f M R-functions/s: at most %.1f M points/s in double (%.0f%% of it; target 30 M)\n", r, n, c * 1e-6, b, 100 * r / b }'
+  fi
 fi
