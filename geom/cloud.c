@@ -542,6 +542,7 @@ static int read_body(const cloud_ply *h, ply_body *b, frep_cloud *c)
 {
     for (size_t e = 0; e < h->nel; e++) {
         const ply_element *E = &h->el[e];
+        if (E->nprops == 0) continue; /* items without properties hold no data */
         if (E->is_vertex && cloud_reserve(c, E->count))
             return frep_error_set(h->err, FREP_ENOMEM, "%s: out of memory for %zu vertices",
                                   h->name, E->count);

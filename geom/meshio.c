@@ -725,6 +725,7 @@ static int ply_read_element(mesh_ply *h, const pelem *E, prec *rec, mbuild *b)
         return frep_error_set(h->err, FREP_EINPUT, "%s: the vertex element lacks x, y or z",
                               h->name);
     if (isv) h->nverts_decl = E->count;
+    if (E->nprops == 0) return 0; /* records without properties hold no data */
     for (size_t r = 0; r < E->count; r++) {
         if (ply_read_record(h, E, rec)) return -1;
         if ((isv && add_vertex(b, rec->v[ix], rec->v[iy], rec->v[iz])) ||

@@ -186,8 +186,8 @@ static inline double opsem_lt(double a, double b) { return a < b ? 1.0 : 0.0; }
 static inline double opsem_le(double a, double b) { return a <= b ? 1.0 : 0.0; }
 static inline double opsem_gt(double a, double b) { return a > b ? 1.0 : 0.0; }
 static inline double opsem_ge(double a, double b) { return a >= b ? 1.0 : 0.0; }
-static inline double opsem_and(double a, double b) { return (a != 0) & (b != 0) ? 1.0 : 0.0; }
-static inline double opsem_or(double a, double b) { return (a != 0) | (b != 0) ? 1.0 : 0.0; }
+static inline double opsem_and(double a, double b) { return ((a != 0) & (b != 0)) ? 1.0 : 0.0; }
+static inline double opsem_or(double a, double b) { return ((a != 0) | (b != 0)) ? 1.0 : 0.0; }
 /* R0 functions with sqrt(a*a + b*b) as the reference writes them (not hypot: it is
  * several times slower and does not vectorize; overflow above ~1e154 gives inf). */
 static inline double opsem_runi(double a, double b) { return a + b + sqrt(a * a + b * b); }

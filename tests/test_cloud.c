@@ -251,6 +251,28 @@ static void test_ply_ascii(void)
     ok(!c, "absurd vertex count rejected before allocating");
 }
 
+/* An element without properties holds no data, however many items it declares (the
+ * fuzzer found the reader looping over 2^64 empty items). */
+static void test_ply_empty_element(void)
+{
+    static const char *fmt[] = {"ascii", "binary_little_endian"};
+    for (int i = 0; i < 2; i++) {
+        char s[256];
+        size_t n = (size_t)snprintf(s, sizeof s,
+                                    "ply\nformat %s 1.0\nelement vertex 1\nproperty uchar x\n"
+                                    "property uchar y\nproperty uchar z\n"
+                                    "element junk 18446744073709551615\nend_header\n",
+                                    fmt[i]);
+        if (i == 0) n += (size_t)snprintf(s + n, sizeof s - n, "1 2 3\n");
+        else s[n++] = 1, s[n++] = 2, s[n++] = 3;
+        frep_error err;
+        frep_cloud *c = cloud_parse("e.ply", s, n, &err);
+        ok(c && c->n == 1 && c->z[0] == 3, "%s PLY with a property-less element of 2^64 items: %s",
+           fmt[i], c ? "read" : err.msg);
+        cloud_free(c);
+    }
+}
+
 /* Binary PLY built by hand: float x y z, a uchar we skip, double nz (no nx/ny: no
  * normals), in either byte order. */
 static size_t put(unsigned char *b, const void *v, size_t n, int big)
@@ -417,6 +439,7 @@ int main(void)
     test_ply_ascii();
     test_ply_binary(0);
     test_ply_binary(1);
+    test_ply_empty_element();
     test_roundtrip(0);
     test_roundtrip(1);
     test_bbox();

@@ -983,6 +983,19 @@ static void test_meshio(void)
         ok(rd != 0 && err.msg[0] && strncmp(err.msg, bad[i].want, strlen(bad[i].want)) == 0,
            "bad mesh file: '%s'", err.msg[0] ? err.msg : "(no message)");
     }
+    /* an element without properties holds no data, however many records it declares
+     * (up to MESHIO_MAX_ELEMENTS) */
+    static const char empty[] = "ply\nformat binary_little_endian 1.0\nelement vertex 3\n"
+                                "property uchar x\nproperty uchar y\nproperty uchar z\n"
+                                "element junk 268435456\nelement face 1\n"
+                                "property list uchar uchar vertex_indices\nend_header\n"
+                                "\0\0\0\1\0\0\0\1\0\3\0\1\2";
+    frep_mesh r;
+    frep_error err;
+    int rd = meshio_parse("mem", empty, sizeof empty - 1, MESHIO_PLY, &r, &err);
+    ok(rd == 0 && r.ntris == 1, "binary PLY with a property-less element of 2^28 records: %s",
+       rd == 0 ? "read" : err.msg);
+    if (rd == 0) mesh_free(&r);
 }
 
 /* ---- tape pruning (vm_prune) and the program field ---------------------------------- */
