@@ -414,18 +414,53 @@ int segment_add_constructed(prim **prims, size_t *count, double eps)
 
 /* ---- Slabs closed at their faces' extent (segment_close_slabs) ------------------ */
 
-/* The extent [*lo, *hi] along v of the inliers of fitted planes i and j (labels). */
-static void slab_extent(const frep_cloud *c, const int32_t *label, size_t i, size_t j,
+/* The inliers of each fitted primitive (labels 0 .. np-1; -1: none), by a counting
+ * sort: primitive j's points are order[start[j] .. start[j + 1]). */
+typedef struct label_lists {
+    size_t *start;
+    uint32_t *order;
+} label_lists;
+
+static void label_lists_free(label_lists *L)
+{
+    frep_free(L->start);
+    frep_free(L->order);
+}
+
+/* Returns -1 when out of memory (nothing to free then). */
+static int label_lists_build(label_lists *L, const frep_cloud *c, const int32_t *label, size_t np)
+{
+    L->start = frep_calloc(np + 2, sizeof *L->start);
+    L->order = frep_malloc((c->n ? c->n : 1) * sizeof *L->order);
+    size_t *fill = frep_calloc(np + 1, sizeof *fill);
+    if (!L->start || !L->order || !fill) {
+        frep_free(fill);
+        label_lists_free(L);
+        return -1;
+    }
+    for (size_t i = 0; i < c->n; i++)
+        if (label[i] >= 0) L->start[label[i] + 1]++;
+    for (size_t j = 0; j < np; j++) L->start[j + 1] += L->start[j];
+    for (size_t i = 0; i < c->n; i++)
+        if (label[i] >= 0) L->order[L->start[label[i]] + fill[label[i]]++] = (uint32_t)i;
+    frep_free(fill);
+    return 0;
+}
+
+/* The extent [*lo, *hi] along v of the inliers of fitted planes i and j. */
+static void slab_extent(const frep_cloud *c, const label_lists *L, size_t i, size_t j,
                         const double v[3], double *lo, double *hi)
 {
     *lo = HUGE_VAL;
     *hi = -HUGE_VAL;
-    for (size_t k = 0; k < c->n; k++) {
-        if (label[k] != (int32_t)i && label[k] != (int32_t)j) continue;
-        double t = v[0] * c->x[k] + v[1] * c->y[k] + v[2] * c->z[k];
-        *lo = fmin(*lo, t);
-        *hi = fmax(*hi, t);
-    }
+    size_t face[2] = {i, j};
+    for (int f = 0; f < 2; f++)
+        for (size_t e = L->start[face[f]]; e < L->start[face[f] + 1]; e++) {
+            uint32_t k = L->order[e];
+            double t = v[0] * c->x[k] + v[1] * c->y[k] + v[2] * c->z[k];
+            *lo = fmin(*lo, t);
+            *hi = fmax(*hi, t);
+        }
 }
 
 /* Whether fitted planes i and j face away from each other (a slab's two faces). */
@@ -439,7 +474,7 @@ static int slab_faces(const prim *v, size_t i, size_t j)
 /* The plane that closes slab (i, j) across fitted plane q's normal at the end of the
  * faces' inliers opposite q, into *out; 0 when q bounds neither end (or is one of the
  * faces, or not across them). */
-static int slab_close(const frep_cloud *c, const int32_t *label, const prim *v, size_t i,
+static int slab_close(const frep_cloud *c, const label_lists *L, const prim *v, size_t i,
                       size_t j, size_t q, double tol, prim *out)
 {
     const prim *Q = &v[q];
@@ -447,7 +482,7 @@ static int slab_close(const frep_cloud *c, const int32_t *label, const prim *v, 
         fabs(vec3_dot(Q->p, v[i].p)) > sin(SEGMENT_MEET_DEG * FREP_PI / 180.0))
         return 0;
     double lo, hi;
-    slab_extent(c, label, i, j, Q->p, &lo, &hi);
+    slab_extent(c, L, i, j, Q->p, &lo, &hi);
     if (!(lo < hi)) return 0;
     double s;
     if (fabs(Q->r - hi) <= tol) s = -1;       /* Q at the far end: close the near one */
@@ -467,20 +502,25 @@ int segment_close_slabs(prim **prims, size_t *count, const frep_cloud *c, const 
 {
     size_t n = *count, cnt = n, most = 0;
     prim *v = *prims, q;
+    label_lists L;
+    if (label_lists_build(&L, c, label, nfitted)) return -1;
     /* Pass 0 counts the closing planes (room for all, allocated once); pass 1 adds
      * those that no listed plane, fitted or constructed, stands for already. */
     for (int pass = 0; pass < 2; pass++) {
         if (pass == 1) {
-            if (most == 0) return 0;
+            if (most == 0) break;
             v = frep_realloc(*prims, (n + most) * sizeof *v);
-            if (!v) return -1;
+            if (!v) {
+                label_lists_free(&L);
+                return -1;
+            }
             *prims = v;
         }
         for (size_t i = 0; i < nfitted; i++)
             for (size_t j = i + 1; j < nfitted; j++) {
                 if (!slab_faces(v, i, j)) continue;
                 for (size_t k = 0; k < nfitted; k++) {
-                    if (!slab_close(c, label, v, i, j, k, tol, &q)) continue;
+                    if (!slab_close(c, &L, v, i, j, k, tol, &q)) continue;
                     if (pass == 0) {
                         most++;
                         continue;
@@ -492,6 +532,7 @@ int segment_close_slabs(prim **prims, size_t *count, const frep_cloud *c, const 
                 }
             }
     }
+    label_lists_free(&L);
     *prims = v;
     *count = cnt;
     return 0;
@@ -582,28 +623,16 @@ static void detect_config(const segment_config *cfg, const segment_result *res,
     }
 }
 
-/* The oriented box of every fitted primitive from its inliers (by label, a counting
- * sort). Returns -1 when out of memory. */
+/* The oriented box of every fitted primitive from its inliers. Returns -1 when out of
+ * memory. */
 static int fit_boxes(const frep_cloud *c, prim *prims, size_t np, const int32_t *label)
 {
-    size_t *start = frep_calloc(np + 2, sizeof *start);
-    uint32_t *order = frep_malloc(c->n * sizeof *order);
-    size_t *fill = frep_calloc(np + 1, sizeof *fill);
-    int rc = -1;
-    if (start && order && fill) {
-        for (size_t i = 0; i < c->n; i++)
-            if (label[i] >= 0) start[label[i] + 1]++;
-        for (size_t j = 0; j < np; j++) start[j + 1] += start[j];
-        for (size_t i = 0; i < c->n; i++)
-            if (label[i] >= 0) order[start[label[i]] + fill[label[i]]++] = (uint32_t)i;
-        for (size_t j = 0; j < np; j++)
-            segment_fit_obb(&prims[j], c, order + start[j], start[j + 1] - start[j]);
-        rc = 0;
-    }
-    frep_free(fill);
-    frep_free(start);
-    frep_free(order);
-    return rc;
+    label_lists L;
+    if (label_lists_build(&L, c, label, np)) return -1;
+    for (size_t j = 0; j < np; j++)
+        segment_fit_obb(&prims[j], c, L.order + L.start[j], L.start[j + 1] - L.start[j]);
+    label_lists_free(&L);
+    return 0;
 }
 
 /* No shape at all: an error that says why when it can. An epsilon below the noise
