@@ -412,7 +412,7 @@ int segment_add_constructed(prim **prims, size_t *count, double eps)
     return 0;
 }
 
-/* ---- Slabs closed at their faces' extent (segment_close_slabs) ------------------ */
+/* ---- Inliers by label: the points of each fitted primitive ---------------------- */
 
 /* The inliers of each fitted primitive (labels 0 .. np-1; -1: none), by a counting
  * sort: primitive j's points are order[start[j] .. start[j + 1]). */
@@ -446,6 +446,8 @@ static int label_lists_build(label_lists *L, const frep_cloud *c, const int32_t 
     frep_free(fill);
     return 0;
 }
+
+/* ---- Slabs closed at their faces' extent (segment_close_slabs) ------------------ */
 
 /* The extent [*lo, *hi] along v of the inliers of fitted planes i and j. */
 static void slab_extent(const frep_cloud *c, const label_lists *L, size_t i, size_t j,
@@ -500,38 +502,33 @@ static int slab_close(const frep_cloud *c, const label_lists *L, const prim *v, 
 int segment_close_slabs(prim **prims, size_t *count, const frep_cloud *c, const int32_t *label,
                         size_t nfitted, double tol)
 {
-    size_t n = *count, cnt = n, most = 0;
+    size_t n = *count, cnt = n, cap = n;
     prim *v = *prims, q;
     label_lists L;
     if (label_lists_build(&L, c, label, nfitted)) return -1;
-    /* Pass 0 counts the closing planes (room for all, allocated once); pass 1 adds
-     * those that no listed plane, fitted or constructed, stands for already. */
-    for (int pass = 0; pass < 2; pass++) {
-        if (pass == 1) {
-            if (most == 0) break;
-            v = frep_realloc(*prims, (n + most) * sizeof *v);
-            if (!v) {
-                label_lists_free(&L);
-                return -1;
-            }
-            *prims = v;
-        }
-        for (size_t i = 0; i < nfitted; i++)
-            for (size_t j = i + 1; j < nfitted; j++) {
-                if (!slab_faces(v, i, j)) continue;
-                for (size_t k = 0; k < nfitted; k++) {
-                    if (!slab_close(c, &L, v, i, j, k, tol, &q)) continue;
-                    if (pass == 0) {
-                        most++;
-                        continue;
+    /* Each closing plane is added unless a listed plane, fitted or constructed (one
+     * added before it included), stands for it already; the list grows as needed. */
+    for (size_t i = 0; i < nfitted; i++)
+        for (size_t j = i + 1; j < nfitted; j++) {
+            if (!slab_faces(v, i, j)) continue;
+            for (size_t k = 0; k < nfitted; k++) {
+                if (!slab_close(c, &L, v, i, j, k, tol, &q) || fitted_plane_dup(v, n, q.p, q.r, tol) ||
+                    constructed_plane_dup(v, cnt, q.p, q.r, tol))
+                    continue;
+                if (cnt == cap) {
+                    size_t grown = 2 * cap + 4;
+                    prim *w = frep_realloc(v, grown * sizeof *w);
+                    if (!w) {
+                        label_lists_free(&L);
+                        *prims = v;
+                        return -1;
                     }
-                    if (fitted_plane_dup(v, n, q.p, q.r, tol) ||
-                        constructed_plane_dup(v, cnt, q.p, q.r, tol))
-                        continue;
-                    v[cnt++] = q;
+                    v = w;
+                    cap = grown;
                 }
+                v[cnt++] = q;
             }
-    }
+        }
     label_lists_free(&L);
     *prims = v;
     *count = cnt;

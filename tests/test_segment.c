@@ -1,7 +1,8 @@
 /* test_segment.c - tests of evolve/: kd-tree against brute force, PCA normals,
  * efficient RANSAC on clouds sampled here from analytic primitives (clean, noisy, with
  * outliers), separating primitives, the .fit and .hf lists, bad input, and the
- * growth steps of evolve/simplify.c that complete a tree short of faces.
+ * growth steps of evolve/simplify.c that complete a tree short of faces, and the
+ * planes that close slabs.
  */
 #include <math.h>
 #include <stdint.h>
@@ -10,6 +11,7 @@
 
 #include "cloud.h"
 #include "fitfile.h"
+#include "frep.h"
 #include "kdtree.h"
 #include "normals.h"
 #include "prim.h"
@@ -786,8 +788,72 @@ static void test_large(void)
     cloud_free(c);
 }
 
+/* ---- slabs closed at their faces' extent (segment_close_slabs) ---- */
+
+/* An allocator that forwards to the C library until `fail_realloc` is set, then
+ * refuses every resize (segment_close_slabs grows the list with one). */
+static int fail_realloc;
+
+static void *test_alloc(void *user, void *p, size_t n)
+{
+    (void)user;
+    if (n == 0) {
+        free(p);
+        return NULL;
+    }
+    if (p) return fail_realloc ? NULL : realloc(p, n);
+    return malloc(n);
+}
+
+/* A block x in [0, 2], y in [0, 1] whose faces y = 0 and y = 1 (a slab) show their
+ * points, and of the faces across them only x = 0 (the end at x = 2 hidden, as a
+ * block's side inside a disc): the plane x = 2, facing +x, closes the slab. */
+static void test_close_slabs(void)
+{
+    frep_cloud *c = cloud_new(0);
+    trng r = trng_new(41);
+    prim v[3];
+    memset(v, 0, sizeof v);
+    double nrm[3][3] = {{0, -1, 0}, {0, 1, 0}, {-1, 0, 0}}, off[3] = {0, 1, 0};
+    for (int f = 0; f < 3; f++) {
+        v[f].type = PRIM_PLANE;
+        memcpy(v[f].p, nrm[f], sizeof nrm[f]);
+        v[f].r = off[f];
+        v[f].has_obb = 1;
+    }
+    int32_t label[900];
+    for (int i = 0; i < 900; i++) {
+        int f = i / 300;
+        double p[3] = {2 * uni(&r), uni(&r), uni(&r)};
+        if (f == 2) p[0] = 0;
+        else p[1] = f;
+        add(c, p, NULL);
+        label[i] = f;
+    }
+    prim *list = malloc(3 * sizeof *list);
+    memcpy(list, v, sizeof v);
+    size_t n = 3;
+    int rc = c && list ? segment_close_slabs(&list, &n, c, label, 3, 0.01) : -2;
+    ok(rc == 0 && n == 4, "one plane closes the slab (%zu planes)", n);
+    ok(n == 4 && list[3].type == PRIM_PLANE && fabs(list[3].p[0] - 1) < 1e-12 &&
+           fabs(list[3].r - 2) < 0.01 && list[3].separating &&
+           list[3].constructed == PRIM_CONSTRUCTED_EXTENT,
+       "it is x = 2 facing +x at the faces' extent (r %.4f)", n == 4 ? list[3].r : 0);
+    rc = segment_close_slabs(&list, &n, c, label, 3, 0.01);
+    ok(rc == 0 && n == 4, "a second call adds no duplicate (%zu planes)", n);
+    n = 3;
+    fail_realloc = 1;
+    rc = segment_close_slabs(&list, &n, c, label, 3, 0.01);
+    fail_realloc = 0;
+    ok(rc == -1 && n == 3 && list[2].type == PRIM_PLANE && list[2].p[0] == -1,
+       "out of memory: -1, the list and its count kept (%zu planes)", n);
+    free(list);
+    cloud_free(c);
+}
+
 int main(void)
 {
+    frep_set_allocator(test_alloc, NULL);
     test_kdtree();
     test_normals();
     test_files();
@@ -796,5 +862,6 @@ int main(void)
     test_shapes();
     test_grow_inner();
     test_large();
+    test_close_slabs();
     return done_testing();
 }
