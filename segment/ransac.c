@@ -1820,6 +1820,19 @@ static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t 
  * edge, which a sphere through the edge's circle fits within the normal threshold,
  * turn across the strip. */
 #define SMALL_NORMAL_DEG 5.0
+/* ... except on a wide face (a plane whose patch is at least SMALL_FACE_WIDTH epsilon
+ * wide), whose normals may deviate up to SMALL_FACE_NOISE times the median deviation
+ * of the normals on the planes the first phase found: that is the estimate's own error
+ * on this cloud (2.9-4.7 degrees at 0.5-1% noise), and a small face's points lie
+ * nearer its edges, where neighbourhoods reach across (a block's side beside the disc
+ * it stands on, 369 points and 5.4 degrees; the face of a sphere's thin cap, 199 points
+ * and 6.1 degrees, at 0.5% noise).  A plane across a curved surface or along an edge
+ * is not both: within a band its width is that of the sagitta, about 2 sqrt(2 R band),
+ * and its normals turn by a quarter of width / R at the median (14 degrees at the
+ * widest on a cylinder of radius 1.04 at 0.5% noise), while the plane strips that
+ * pass the other tests at 1% noise are at most 2 epsilon wide. */
+#define SMALL_FACE_WIDTH 3.0
+#define SMALL_FACE_NOISE 2.0
 /* The angle between point i's normal and q's gradient there (pi/2 without one). */
 static double normal_angle(const prim *q, const frep_cloud *c, size_t i)
 {
@@ -1874,6 +1887,7 @@ typedef struct run {
     size_t first_small;   /* index in res->prims of the first small shape */
     size_t draws_since;   /* minimal samples drawn since the last extraction */
     double log_fail;      /* log(1 - probability): the acceptance threshold */
+    double normal_dev;    /* median normal deviation on the first phase's planes */
 } run;
 
 /* Free what run_alloc and build_octree allocated (not the result). */
@@ -2036,6 +2050,34 @@ static void rescore_all(run *r)
     score_next(&r->d, r->pool, r->which, r->npool);
 }
 
+/* The median angle between the normals of the points of the planes found so far and
+ * their plane's (0 without such points; a subsample of at most MODE_VOTERS).  Out of
+ * memory: 0, r->d.nomem set. */
+static double planes_normal_dev(run *r)
+{
+    const ransac_result *res = r->res;
+    const det *d = &r->d;
+    size_t n = 0;
+    for (size_t i = 0; i < d->n; i++)
+        n += res->label[i] >= 0 && res->prims[res->label[i]].type == PRIM_PLANE;
+    if (n == 0) return 0;
+    size_t step = n / MODE_VOTERS + 1, k = 0, seen = 0;
+    double *a = frep_malloc((n / step + 1) * sizeof *a);
+    if (!a) {
+        r->d.nomem = 1;
+        return 0;
+    }
+    for (size_t i = 0; i < d->n; i++) {
+        int32_t l = res->label[i];
+        if (l < 0 || res->prims[l].type != PRIM_PLANE) continue;
+        if (seen++ % step == 0) a[k++] = normal_angle(&res->prims[l], d->c, i);
+    }
+    qsort(a, k, sizeof *a, cmp_abs_double);
+    double med = a[k / 2];
+    frep_free(a);
+    return med;
+}
+
 /* Second phase (see SMALL_TIGHT): once no shape of min_points is left, detection goes
  * on down to small_pts. Returns 1 when the phase began (detection goes on), 0 when
  * there is none (detection is over). */
@@ -2046,6 +2088,7 @@ static int next_phase(run *r)
     r->first_small = r->res->nprims;
     r->min_pts = r->small_pts;
     r->draws_since = 0;
+    r->normal_dev = planes_normal_dev(r);
     /* Candidates whose patch was too small were kept scored zero (so as not to be
      * drawn again): a small shape may be among them, so every candidate is rescored. */
     rescore_all(r);
@@ -2210,6 +2253,17 @@ static int sphere_from_normals(prim *q, const frep_cloud *c, const uint32_t *idx
     return !(q->r > 0);
 }
 
+/* The largest median normal deviation of small shape q whose patch is `width` wide:
+ * SMALL_NORMAL_DEG, or for a wide plane SMALL_FACE_NOISE times the deviation measured
+ * on the first phase's planes (run.normal_dev), whichever is larger. */
+static double small_normal_limit(const run *r, const prim *q, double width)
+{
+    double lim = SMALL_NORMAL_DEG * FREP_PI / 180.0;
+    if (q->type == PRIM_PLANE && width >= SMALL_FACE_WIDTH * r->d.cfg->epsilon)
+        lim = fmax(lim, SMALL_FACE_NOISE * r->normal_dev);
+    return lim;
+}
+
 /* Is small shape q (second phase) with its m inliers tight (see SMALL_TIGHT and the
  * limits after it)? Out of memory: no (r->d.nomem set). */
 static int tight_small_shape(run *r, const prim *q, size_t m)
@@ -2217,12 +2271,12 @@ static int tight_small_shape(run *r, const prim *q, size_t m)
     double eps = r->d.cfg->epsilon, med, dev;
     double tight = fmax(SMALL_TIGHT * eps, fmin(SMALL_TIGHT_SIGMAS * r->d.cfg->noise, 0.5 * eps));
     const frep_cloud *c = r->d.c;
+    double width = patch_width(c, r->inl, m);
     return !(q->type == PRIM_CONE || q->type == PRIM_TORUS ||
              (q->type != PRIM_PLANE && !(q->r >= SMALL_RADIUS * eps)) ||
              median_abs(&r->d, q, r->inl, m, &med) || !(med <= tight) ||
              median_over(&r->d, q, r->inl, m, normal_angle, &dev) ||
-             !(dev <= SMALL_NORMAL_DEG * FREP_PI / 180.0) ||
-             !(patch_width(c, r->inl, m) >= SMALL_WIDTH * eps));
+             !(dev <= small_normal_limit(r, q, width)) || !(width >= SMALL_WIDTH * eps));
 }
 
 /* ---- Small spheres take back their points -----------------------------------------

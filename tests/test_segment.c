@@ -851,6 +851,72 @@ static void test_close_slabs(void)
     cloud_free(c);
 }
 
+/* ---- a small face whose normals are as rough as the cloud's (SMALL_FACE_NOISE) ---- */
+
+/* Normal n turned by Gaussian angles of sigma radians about two axes across it. */
+static void jitter_normal(trng *r, double n[3], double sigma)
+{
+    double u[3] = {1, 0, 0};
+    if (fabs(n[0]) > 0.9) u[0] = 0, u[1] = 1;
+    double t1[3], t2[3];
+    vec3_cross(n, u, t1);
+    vec3_normalize(t1);
+    vec3_cross(n, t1, t2);
+    double a = sigma * gauss(r), b = sigma * gauss(r);
+    for (int k = 0; k < 3; k++) n[k] += a * t1[k] + b * t2[k];
+    vec3_normalize(n);
+}
+
+/* The faces of the box [-1, 1]^3 (1,500 points each) with normals turned by a median
+ * of 4 degrees (an estimate's error on a noisy scan), and a face of 60 points at z =
+ * 1.5 over [0.2, 0.6]^2, too few for the first phase, whose normals are turned by a
+ * median of `face_deg`: whether the second phase finds it. */
+static int small_face_found(double face_deg)
+{
+    const double rayleigh_median = sqrt(2 * log(2.0)), deg = M_PI / 180;
+    trng r = trng_new(5);
+    frep_cloud *c = cloud_new(1);
+    for (int f = 0; f < 6; f++)
+        for (int i = 0; i < 1500; i++) {
+            int ax = f / 2;
+            double p[3], n[3] = {0, 0, 0};
+            for (int k = 0; k < 3; k++) p[k] = 2 * uni(&r) - 1;
+            p[ax] = f % 2 ? 1 : -1;
+            n[ax] = f % 2 ? 1 : -1;
+            jitter_normal(&r, n, 4 * deg / rayleigh_median);
+            add(c, p, n);
+        }
+    for (int i = 0; i < 60; i++) {
+        double p[3] = {0.2 + 0.4 * uni(&r), 0.2 + 0.4 * uni(&r), 1.5}, n[3] = {0, 0, 1};
+        jitter_normal(&r, n, face_deg * deg / rayleigh_median);
+        add(c, p, n);
+    }
+    segment_config cfg;
+    segment_config_init(&cfg);
+    cfg.seed = 3;
+    segment_result res;
+    frep_error err;
+    int found = -1;
+    if (segment_run(c, &cfg, &res, &err) == 0) {
+        found = 0;
+        prim face = mk(PRIM_PLANE, 0, 0, 1, 0, 0, 0, 1.5, 0);
+        for (size_t j = 0; j < res.nfitted; j++) found += matches(&res.prims[j], &face, 0.01, 2.0);
+        segment_result_free(&res);
+    }
+    cloud_free(c);
+    return found;
+}
+
+static void test_small_face(void)
+{
+    /* 6.5 degrees: over SMALL_NORMAL_DEG (5), within twice the faces' 4. */
+    int f = small_face_found(6.5);
+    ok(f == 1, "a small face with normals 6.5 degrees off, on a cloud 4 degrees off, is found (%d)", f);
+    /* 10 degrees: over twice the faces' 4 (what a strip across a curved surface shows). */
+    f = small_face_found(10);
+    ok(f == 0, "one 10 degrees off is not (%d)", f);
+}
+
 int main(void)
 {
     frep_set_allocator(test_alloc, NULL);
@@ -863,5 +929,6 @@ int main(void)
     test_grow_inner();
     test_large();
     test_close_slabs();
+    test_small_face();
     return done_testing();
 }
