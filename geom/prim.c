@@ -29,7 +29,9 @@ static void any_perp(const double a[3], double u[3])
     for (int i = 0; i < 3; i++) u[i] /= l;
 }
 
-double prim_eval(const prim *q, const double x[3], double g[3])
+/* prim_eval with a cone's sine and cosine of its angle given (s, c; unused by the
+ * other types). */
+static double eval_sc(const prim *q, const double x[3], double g[3], double s, double c)
 {
     double v[3], f = 0.0;
     switch (q->type) {
@@ -55,14 +57,15 @@ double prim_eval(const prim *q, const double x[3], double g[3])
         double w[3];
         for (int i = 0; i < 3; i++) w[i] = v[i] - h * q->a[i];
         double rho = vec3_len(w);
-        double e[3]; /* unit radial direction */
-        if (rho > PRIM_TINY) for (int i = 0; i < 3; i++) e[i] = w[i] / rho;
-        else any_perp(q->a, e);
+        double e[3] = {0, 0, 0}; /* unit radial direction, for the gradient */
+        if (g) {
+            if (rho > PRIM_TINY) for (int i = 0; i < 3; i++) e[i] = w[i] / rho;
+            else any_perp(q->a, e);
+        }
         if (q->type == PRIM_CYLINDER) {
             f = q->r - rho;
             if (g) for (int i = 0; i < 3; i++) g[i] = -e[i];
         } else if (q->type == PRIM_CONE) {
-            double s = sin(q->r), c = cos(q->r);
             f = h * s - rho * c;
             if (g) for (int i = 0; i < 3; i++) g[i] = s * q->a[i] - c * e[i];
         } else {
@@ -83,6 +86,24 @@ double prim_eval(const prim *q, const double x[3], double g[3])
     }
     if (g) g[0] = g[1] = g[2] = 0.0;
     return NAN;
+}
+
+double prim_eval(const prim *q, const double x[3], double g[3])
+{
+    int cone = q->type == PRIM_CONE;
+    return eval_sc(q, x, g, cone ? sin(q->r) : 0, cone ? cos(q->r) : 0);
+}
+
+void prim_trig(const prim *q, double sc[2])
+{
+    int cone = q->type == PRIM_CONE;
+    sc[0] = cone ? sin(q->r) : 0;
+    sc[1] = cone ? cos(q->r) : 0;
+}
+
+double prim_value(const prim *q, const double sc[2], const double x[3])
+{
+    return eval_sc(q, x, NULL, sc[0], sc[1]);
 }
 
 void prim_eval_many(const prim *q, size_t n, const double *x, const double *y,

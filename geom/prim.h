@@ -50,6 +50,11 @@ typedef struct prim {
 
 /* Value and (if g != NULL) gradient of a primitive at one point. */
 double prim_eval(const prim *q, const double x[3], double g[3]);
+/* prim_eval's value (no gradient) in loops over many points: prim_trig(q, sc) once,
+ * then prim_value(q, sc, x) per point, the same bits without a cone's sine and cosine
+ * per call (14% of the instructions of `frep segment` on a cylinder's noisy scan). */
+void prim_trig(const prim *q, double sc[2]);
+double prim_value(const prim *q, const double sc[2], const double x[3]);
 /* Values (and gradients if gx != NULL) at n points, structure of arrays. */
 void prim_eval_many(const prim *q, size_t n, const double *x, const double *y,
                     const double *z, double *f, double *gx, double *gy, double *gz);

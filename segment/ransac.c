@@ -712,9 +712,10 @@ static int solve_n(double *A, double *b, int m)
 
 static double cost_of(const prim *q, const double *px, size_t n)
 {
-    double s = 0;
+    double s = 0, sc[2];
+    prim_trig(q, sc);
     for (size_t i = 0; i < n; i++) {
-        double f = prim_eval(q, px + 3 * i, NULL);
+        double f = prim_value(q, sc, px + 3 * i);
         s += f * f;
     }
     return s;
@@ -759,7 +760,7 @@ static int refit_plane(prim *q, const frep_cloud *c, const uint32_t *idx, size_t
 static void lm_normal_equations(const prim *q, const double *v, int np, const double *px,
                                 size_t m, double scale, double *JtJ, double *Jtr)
 {
-    double h[8], vt[8];
+    double h[8], vt[8], sc[9][2];
     prim tq[8];
     memset(JtJ, 0, 64 * sizeof *JtJ);
     memset(Jtr, 0, 8 * sizeof *Jtr);
@@ -769,15 +770,20 @@ static void lm_normal_equations(const prim *q, const double *v, int np, const do
         vt[k] += h[k];
         tq[k] = *q;
         unpack(&tq[k], vt);
+        prim_trig(&tq[k], sc[k]);
     }
+    prim_trig(q, sc[8]);
     for (size_t j = 0; j < m; j++) {
-        double f = prim_eval(q, px + 3 * j, NULL), J[8];
-        for (int k = 0; k < np; k++) J[k] = (prim_eval(&tq[k], px + 3 * j, NULL) - f) / h[k];
+        double f = prim_value(q, sc[8], px + 3 * j), J[8];
+        for (int k = 0; k < np; k++) J[k] = (prim_value(&tq[k], sc[k], px + 3 * j) - f) / h[k];
         for (int a = 0; a < np; a++) {
             Jtr[a] += J[a] * f;
-            for (int b = 0; b < np; b++) JtJ[a * np + b] += J[a] * J[b];
+            for (int b = a; b < np; b++) JtJ[a * np + b] += J[a] * J[b];
         }
     }
+    /* The lower triangle: the same products summed in the same order. */
+    for (int a = 1; a < np; a++)
+        for (int b = 0; b < a; b++) JtJ[a * np + b] = JtJ[b * np + a];
 }
 
 /* The Levenberg-Marquardt fit of q's parameters to the m points px (Euclidean
