@@ -88,17 +88,18 @@ static double eval_sc(const prim *q, const double x[3], double g[3], double s, d
     return NAN;
 }
 
-double prim_eval(const prim *q, const double x[3], double g[3])
-{
-    int cone = q->type == PRIM_CONE;
-    return eval_sc(q, x, g, cone ? sin(q->r) : 0, cone ? cos(q->r) : 0);
-}
-
 void prim_trig(const prim *q, double sc[2])
 {
     int cone = q->type == PRIM_CONE;
     sc[0] = cone ? sin(q->r) : 0;
     sc[1] = cone ? cos(q->r) : 0;
+}
+
+double prim_eval(const prim *q, const double x[3], double g[3])
+{
+    double sc[2];
+    prim_trig(q, sc);
+    return eval_sc(q, x, g, sc[0], sc[1]);
 }
 
 double prim_value(const prim *q, const double sc[2], const double x[3])
