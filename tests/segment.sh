@@ -302,16 +302,55 @@ report $? "frame: 2 planes, 4 cylinders, 4 spheres and nothing else ($(awk '{ pr
 # across two faces meeting at an edge, and a cone across a face and its neighbours;
 # before face_modes (segment/ransac.c) weighed such shapes against the faces of their
 # two dominant normals, seeds 1-6 gave 1-5 curved shapes each and no run the 12 planes.
+# scan NAME MODEL N SEED: N points of tests/models/MODEL.hf at 0.5% noise (sampler's
+# seed SEED), normals removed, segmented with seed 1 and no separating primitives into
+# $tmp/NAME.fit.
+scan() {
+    "$FREP" sample "$M/$2.hf" -n "$3" --noise 0.005 --seed "$4" -o "$tmp/$1.xyz" -q &&
+    cut -d' ' -f1-3 "$tmp/$1.xyz" > "$tmp/$1-nonormals.xyz" &&
+    "$FREP" segment "$tmp/$1-nonormals.xyz" --seed 1 --no-separating -q \
+        -o "$tmp/$1.fit" 2> "$tmp/err"
+}
+# kinds_of FIT: how many primitives of each type, on one line.
+kinds_of() { awk '{ print $1 }' "$1" | sort | uniq -c | tr -s ' \n' ' '; }
+
 for s in 1 2 3; do
-    "$FREP" sample "$M/segment_two_boxes.hf" -n 20000 --noise 0.005 --seed $s \
-        -o "$tmp/boxes.xyz" -q &&
-    cut -d' ' -f1-3 "$tmp/boxes.xyz" > "$tmp/boxes-nonormals.xyz" &&
-    "$FREP" segment "$tmp/boxes-nonormals.xyz" --seed 1 --no-separating -q \
-        -o "$tmp/boxes.fit" 2> "$tmp/err"
+    scan boxes segment_two_boxes 20000 $s
     report $? "two boxes, 0.5% noise (seed $s), no normals: frep segment runs"
-    kinds=$(awk '{ print $1 }' "$tmp/boxes.fit" | sort | uniq -c | tr -s ' \n' ' ')
+    kinds=$(kinds_of "$tmp/boxes.fit")
     [ "$kinds" = " 12 plane " ]
     report $? "two boxes, seed $s: the 12 faces as planes and nothing else ($kinds)"
+done
+
+# A tower of three turned cubes (tests/models/segment_tower.hf, the tower of
+# InverseCSG's six_cuboids) at 0.5% noise without normals: planes only.  A cone around
+# a corner lies within the noise band across strips of the corner's three faces, and a
+# cylinder of radius 9 across two nearly parallel faces of a step; their points'
+# normals keep their faces' directions (segment/ransac.c, across_faces).  Before
+# that test, seeds 1-4 each gave one cone or 1-3 cylinders.
+for s in 1 2 3; do
+    scan tower segment_tower 25000 $s
+    report $? "tower, 0.5% noise (seed $s), no normals: frep segment runs"
+    kinds=$(kinds_of "$tmp/tower.fit")
+    nplanes=$(grep -c '^plane' "$tmp/tower.fit")
+    [ "$(awk '$1 != "plane"' "$tmp/tower.fit" | wc -l)" -eq 0 ]
+    report $? "tower, seed $s: nothing curved ($kinds)"
+    # And at least 10 of them are the model's faces: within 3 degrees, offsets within 0.1
+    # (1% of the diagonal).  The others (10-12 of 13-15 match at seeds 1-3) are tilted
+    # by 3-4 degrees between two faces that meet at a shallow angle, where the top of
+    # one cube carries the next: issue 13's recall, not yet met here.
+    good=$(grep -o 'frPlane([^)]*)' "$M/segment_tower.hf" | tr -d 'frPlane(x,)' |
+        awk -v fit="$tmp/tower.fit" '
+            { n++; a[n] = $1; b[n] = $2; c[n] = $3; d[n] = $4 }
+            END { while ((getline l < fit) > 0) { split(l, w, " "); if (w[1] != "plane") continue
+                      ok = 0
+                      for (i = 1; i <= n; i++) { dot = a[i] * w[2] + b[i] * w[3] + c[i] * w[4]
+                          s = dot < 0 ? -1 : 1
+                          if (s * dot > cos(3 * 3.14159265 / 180) && (d[i] - s * w[5])^2 < 0.01) ok = 1 }
+                      good += ok }
+                  print good + 0 }')
+    [ "$good" -ge 10 ]
+    report $? "tower, seed $s: at least 10 planes are the model's faces ($good of $nplanes)"
 done
 
 # Readable .hf output: the clean box written with separating primitives off. The
