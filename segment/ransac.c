@@ -2327,13 +2327,22 @@ static int tight_small_shape(run *r, const prim *q, size_t m)
  * tested. */
 #define CURVED_NORMAL_GROWTH 1.5
 #define CURVED_NORMAL_FLOOR_DEG 5.0
-static int normals_agree(run *r, const prim *q, size_t m)
+/* The largest median deviation a shape's normals may have now (radians); infinite
+ * where there is no test. */
+static double normal_limit(run *r)
 {
-    det *d = &r->d;
-    if (!noisy(d) || r->res->nprims == 0) return 1;
-    double ref = found_normal_dev(r, 0), dev;
-    if (median_over(d, q, r->inl, m, normal_angle, &dev)) return 0;
-    return dev <= fmax(CURVED_NORMAL_FLOOR_DEG * FREP_PI / 180.0, CURVED_NORMAL_GROWTH * ref);
+    if (!noisy(&r->d) || r->res->nprims == 0) return INFINITY;
+    return fmax(CURVED_NORMAL_FLOOR_DEG * FREP_PI / 180.0,
+                CURVED_NORMAL_GROWTH * found_normal_dev(r, 0));
+}
+
+/* Do the normals of q's m inliers (r->inl) agree with it within lim (normal_limit)? */
+static int normals_agree(run *r, const prim *q, size_t m, double lim)
+{
+    double dev;
+    if (isinf(lim)) return 1;
+    if (median_over(&r->d, q, r->inl, m, normal_angle, &dev)) return 0;
+    return dev <= lim;
 }
 
 /* A curved shape whose normals disagree is searched for a face (face_modes, whatever
@@ -2348,13 +2357,13 @@ static int normals_agree(run *r, const prim *q, size_t m)
  * draws before the frame's corner spheres come up.  Returns the support of q, replaced
  * or not (inliers in r->inl), or 0 when it is dropped. */
 #define CURVED_FACES_SHARE 0.5
-static size_t across_faces(run *r, prim *q, size_t m)
+static size_t across_faces(run *r, prim *q, size_t m, double lim)
 {
     det *d = &r->d;
     prim t = *q;
     double band = d->band;
     m = face_modes(d, q, m, r->min_pts, 1, r->flag, r->inl);
-    if (q->type != t.type && !normals_agree(r, q, m)) {
+    if (q->type != t.type && !normals_agree(r, q, m, lim)) {
         *q = t;
         d->band = band;
         m = support_of(d, q, r->flag, r->inl);
@@ -2494,8 +2503,10 @@ static size_t extract(run *r, prim *q)
             }
         }
     }
-    if (r->phase == 0 && m >= r->min_pts && q->type != PRIM_PLANE && !normals_agree(r, q, m))
-        m = across_faces(r, q, m);
+    if (r->phase == 0 && m >= r->min_pts && q->type != PRIM_PLANE) {
+        double lim = normal_limit(r);
+        if (!normals_agree(r, q, m, lim)) m = across_faces(r, q, m, lim);
+    }
     if (r->phase == 1 && m >= r->min_pts && !tight_small_shape(r, q, m)) m = 0;
     return m;
 }
