@@ -57,6 +57,12 @@ int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
  * penalty: a part bounded only by the clipping box where no points are (the fitness
  * does not pay for such faces, so only the exact rules follow). *fitness (may be NULL)
  * receives the final fitness. 0 or -1 (allocation). */
+/* The first step of simplify_grow_pieces alone: while that raises the fitness (at most
+ * 16 times), the best S & p, S \ p or S | p replacing any subtree S, each followed by
+ * simplify_tree (evolve.c runs it once more on a larger sample).  *fitness (may be NULL)
+ * receives the final fitness. 0 or -1 (allocation). */
+int simplify_grow_inner(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
+                        double *fitness, gp_cancel *k);
 int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                          double *fitness, gp_cancel *k);
 
