@@ -353,6 +353,23 @@ for s in 1 2 3; do
     report $? "tower, seed $s: at least 10 planes are the model's faces ($good of $nplanes)"
 done
 
+# Two balls less a notch that leaves a thin cap (tests/models/segment_cap.hf) at 0.5%
+# noise without normals: the notch's face x = 3 is narrow, and its normals are blended
+# with the cap's other side, 10-12 degrees off, which small_normal_limit refuses
+# (segment/ransac.c).  Seeds 1-3 give planes at x = 2.911, none and 2.874.  A known
+# gap of issue 13 (doc/benchmarks.md, "Narrow faces between found ones"): keeping
+# such a plane when it lies off the found shapes and parallel to a found plane finds
+# it on all three seeds, but tilted planes on the tower above.
+for s in 1 2 3; do
+    scan cap segment_cap 50000 $s
+    report $? "cap, 0.5% noise (seed $s), no normals: frep segment runs"
+    x3=$(awk '$1 == "plane" && ($2 > 0.999 || $2 < -0.999) { x = $5 * ($2 > 0 ? 1 : -1)
+                                                               if ((x - 3)^2 < 0.0025) print x }' "$tmp/cap.fit")
+    [ -n "$x3" ]
+    report_todo $? "cap, seed $s: the notch's face x = 3 found within 0.05 (${x3:-none}; $(kinds_of "$tmp/cap.fit"))" \
+        "issue 13: narrow faces with blended normals"
+done
+
 # Readable .hf output: the clean box written with separating primitives off. The
 # fitted values carry round-off (e.g. 1e-13 for 0); the file must show none of it,
 # every number at most 10 significant digits, and still evaluate (frep check).
