@@ -1206,20 +1206,6 @@ out:
     return rc;
 }
 
-/* Inner growth until it no longer raises the fitness *fit (at most SIMPLIFY_MAX_INNER
- * rounds), the tree simplified after each. 0 or -1 (allocation). */
-static int inner_rounds(gp_tree *t, gp_tree *trial, const gp_opset *o, gp_setops s,
-                        const gp_cache *c, gp_eval *e, double *fit, gp_cancel *k)
-{
-    for (int round = 0; round < SIMPLIFY_MAX_INNER && !gp_cancelled(k); round++) {
-        int g = grow_inner(t, trial, o, c, e, fit);
-        if (g < 0) return -1;
-        if (g == 0) break;
-        if (simplify_tree(t, s, c, e, fit, k)) return -1;
-    }
-    return 0;
-}
-
 int simplify_grow_inner(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                         double *fitness, gp_cancel *k)
 {
@@ -1227,9 +1213,17 @@ int simplify_grow_inner(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
     gp_opset o = gp_opset_of(s);
     gp_tree trial = { NULL, 0, 0 };
     double fit;
-    int rc = gp_fitness(c, e, t->code, t->len, &fit) ||
-             inner_rounds(t, &trial, &o, s, c, e, &fit, k) ? -1 : 0;
-    if (rc == 0 && fitness) *fitness = fit;
+    int rc = -1;
+    if (gp_fitness(c, e, t->code, t->len, &fit)) goto out;
+    for (int round = 0; round < SIMPLIFY_MAX_INNER && !gp_cancelled(k); round++) {
+        int g = grow_inner(t, &trial, &o, c, e, &fit);
+        if (g < 0) goto out;
+        if (g == 0) break;
+        if (simplify_tree(t, s, c, e, &fit, k)) goto out;
+    }
+    rc = 0;
+    if (fitness) *fitness = fit;
+out:
     tree_free(&trial);
     return rc;
 }
@@ -1238,12 +1232,11 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                          double *fitness, gp_cancel *k)
 {
     if (!t->len) return 0;
+    double fit;
+    if (simplify_grow_inner(t, s, c, e, &fit, k)) return -1;
     gp_opset o = gp_opset_of(s);
     gp_tree trial = { NULL, 0, 0 };
-    double fit;
-    if (gp_fitness(c, e, t->code, t->len, &fit)) return -1;
     int rc = -1;
-    if (inner_rounds(t, &trial, &o, s, c, e, &fit, k)) goto out;
     for (int round = 0; round < SIMPLIFY_MAX_POCKETS && !gp_cancelled(k); round++) {
         int g = grow_pocket(t, &trial, &o, c, e, &fit);
         if (g < 0) goto out;
