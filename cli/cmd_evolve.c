@@ -191,7 +191,8 @@ static const cli_opt evolve_opts[] = {
     { 0, "lambda-scale", "K", CLI_OPT_DOUBLE, OFF(o.lambda_scale), .lo = 0, .hi = 1e6,
       .help = "size penalty K*ln(N) per node (default 1)" },
     { 0, "sample", "N", CLI_OPT_SIZE, OFF(o.sample), .lo = 0, .hi = 1e12,
-      .help = "points the GA scores (default 4096; 0: all)" },
+      .help = "points the GA scores (default 4096; 0: all); the final growth\n"
+              "scores four times as many" },
     { 0, "no-simplify", NULL, CLI_OPT_CLEAR, OFF(o.simplify), .help = "keep the tree as evolved" },
     { 0, "dot", "FILE", CLI_OPT_STRING, OFF(dot), .help = "also write the tree for Graphviz" },
     { 0, "view", "HTML", CLI_OPT_STRING, OFF(view),

@@ -109,8 +109,13 @@ cp "$T/big.hf" "$T/w.hf"
 "$FREP" view --watch "$T/w.hf" -b 2 -g 64 --points "$T/unit.xyz" --port 0 --timeout 170 -q \
   >"$T/wout" 2>"$T/werr" &
 pid=$!
+# Up to 60 s for the server to mesh the model and print its address: under `make check
+# -j2` beside the evolve tests 10 s was once too short (an empty URL, tests 14-19 failed).
 i=0
-while [ $i -lt 100 ] && ! grep -q serving "$T/wout" 2>/dev/null; do sleep 0.1; i=$((i + 1)); done
+while [ $i -lt 600 ] && kill -0 "$pid" 2>/dev/null && ! grep -q serving "$T/wout" 2>/dev/null; do
+  sleep 0.1
+  i=$((i + 1))
+done
 url=$(sed -n 's|.*\(http://127.0.0.1:[0-9]*/\).*|\1|p' "$T/wout")
 two='my_model = frSphere(x, 0.6, 0, 0, 0.5) | frSphere(x, -0.6, 0, 0, 0.5);'
 bad='my_model = frSphere(x 0, 0, 0, 0.8);'
