@@ -36,6 +36,13 @@ int simplify_tree(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, double
 int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                        double *fitness, gp_cancel *k);
 
+/* The first step of simplify_grow_pieces (below) alone: while that raises the fitness
+ * (at most 16 times), the best S & p, S \ p or S | p replacing any subtree S, each
+ * followed by simplify_tree (evolve.c runs it once more on a larger sample).  *fitness
+ * (may be NULL) receives the final fitness. 0 or -1 (allocation). */
+int simplify_grow_inner(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
+                        double *fitness, gp_cancel *k);
+
 /* After simplify_tree: first, while that raises the fitness (at most 16 times), the
  * best S & p, S \ p or S | p replacing any subtree S, p a primitive explaining points
  * the tree misses (a face missing from one part of a union, which cannot be added at
@@ -57,12 +64,6 @@ int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
  * penalty: a part bounded only by the clipping box where no points are (the fitness
  * does not pay for such faces, so only the exact rules follow). *fitness (may be NULL)
  * receives the final fitness. 0 or -1 (allocation). */
-/* The first step of simplify_grow_pieces alone: while that raises the fitness (at most
- * 16 times), the best S & p, S \ p or S | p replacing any subtree S, each followed by
- * simplify_tree (evolve.c runs it once more on a larger sample).  *fitness (may be NULL)
- * receives the final fitness. 0 or -1 (allocation). */
-int simplify_grow_inner(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
-                        double *fitness, gp_cancel *k);
 int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                          double *fitness, gp_cancel *k);
 
