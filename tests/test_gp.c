@@ -2170,21 +2170,21 @@ static void test_box_cover(void)
         static char tree[128];
         char *t = tree;
         double xa = 1.2, xb = 3.2;
-        const double X[3] = { 1, 0, 0 }, Y[3] = { 0, 1, 0 }, Z[3] = { 0, 0, 1 };
-        char y0 = cover_case_add(&two, Y, -1, 0), y1 = cover_case_add(&two, Y, 1, 1);
-        char z0 = cover_case_add(&two, Z, -1, 0), z3 = cover_case_add(&two, Z, 1, 3);
+        const double ex[3] = { 1, 0, 0 }, ey[3] = { 0, 1, 0 }, ez[3] = { 0, 0, 1 };
+        char y0 = cover_case_add(&two, ey, -1, 0), y1 = cover_case_add(&two, ey, 1, 1);
+        char z0 = cover_case_add(&two, ez, -1, 0), z3 = cover_case_add(&two, ez, 1, 3);
         t += sprintf(t, "%c%c&%c&%c&", y0, y1, z0, z3);
         for (int k = 1; k < 4; k++) {
-            char a = cover_case_add(&two, Z, 1, 0.75 * k), b = cover_case_add(&two, X, 1, xb - 0.3 * k);
+            char a = cover_case_add(&two, ez, 1, 0.75 * k), b = cover_case_add(&two, ex, 1, xb - 0.3 * k);
             t += sprintf(t, "%c%c|&", a, b);
         }
-        char x0 = cover_case_add(&two, X, -1, 0), x1 = cover_case_add(&two, X, 1, xa);
+        char x0 = cover_case_add(&two, ex, -1, 0), x1 = cover_case_add(&two, ex, 1, xa);
         t += sprintf(t, "%c%c&", x0, x1);
         for (int k = 1; k < 5; k++) {
-            char a = cover_case_add(&two, Z, 1, 0.6 * k), b = cover_case_add(&two, X, 1, xa - 0.24 * k);
+            char a = cover_case_add(&two, ez, 1, 0.6 * k), b = cover_case_add(&two, ex, 1, xa - 0.24 * k);
             t += sprintf(t, "%c%c|&", a, b);
         }
-        char x2 = cover_case_add(&two, X, -1, -2), x3 = cover_case_add(&two, X, 1, xb);
+        char x2 = cover_case_add(&two, ex, -1, -2), x3 = cover_case_add(&two, ex, 1, xb);
         t += sprintf(t, "%c%c&|&", x2, x3);
         two.name = "two stairs apart, mixed at the root";
         two.tree = tree;
