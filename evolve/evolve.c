@@ -743,16 +743,24 @@ static int stage_pool(run_ctx *c)
     return 0;
 }
 
+/* A seeded sample of m of the np points pool (seed: the run's seed ^ salt) into out, and
+ * its cache of leaves 0..k-1 with the size term of m points; NULL when out of memory. */
+static gp_cache *sample_cache(run_ctx *c, const size_t *pool, size_t np, size_t m,
+                              uint64_t salt, uint32_t k, size_t *out)
+{
+    const evolve_options *o = c->o;
+    draw_sample(pool, np, m, o->gp.seed ^ salt, out, c->tmp);
+    return build_cache(o, c->prims, c->nprims, c->all, k, c->cloud->x, c->cloud->y,
+                       c->cloud->z, c->nrm, out, m, c->res->eps_d, c->res->alpha,
+                       c->ls * log((double)(m > 1 ? m : 2)), 0);
+}
+
 /* The seeded sample the GA scores, and its cache of every primitive. */
 static int stage_sample_cache(run_ctx *c)
 {
-    const evolve_options *o = c->o;
-    evolve_result *res = c->res;
-    draw_sample(c->pool, c->np, c->m, o->gp.seed ^ 0x5a5a5a5a5a5a5a5au, c->samp, c->tmp);
-    res->nsample = c->m;
-    c->sc = build_cache(o, c->prims, c->nprims, c->all, (uint32_t)c->nprims, c->cloud->x,
-                        c->cloud->y, c->cloud->z, c->nrm, c->samp, c->m, res->eps_d,
-                        res->alpha, c->ls * log((double)(c->m > 1 ? c->m : 2)), 0);
+    c->res->nsample = c->m;
+    c->sc = sample_cache(c, c->pool, c->np, c->m, 0x5a5a5a5a5a5a5a5au, (uint32_t)c->nprims,
+                         c->samp);
     return c->sc ? 0 : run_oom(c);
 }
 
@@ -1366,10 +1374,7 @@ static int stage_grow_final(run_ctx *c)
     if (mf <= c->m) return 0;
     size_t *fs = frep_malloc(mf * sizeof *fs);
     if (!fs) return run_oom(c);
-    draw_sample(c->pool, c->np, mf, o->gp.seed ^ 0x3c3c3c3c3c3c3c3cu, fs, c->tmp);
-    gp_cache *fc = build_cache(o, c->prims, c->nprims, c->all, k, c->cloud->x, c->cloud->y,
-                               c->cloud->z, c->nrm, fs, mf, res->eps_d, res->alpha,
-                               c->ls * log((double)mf), 0);
+    gp_cache *fc = sample_cache(c, c->pool, c->np, mf, 0x3c3c3c3c3c3c3c3cu, k, fs);
     frep_free(fs);
     if (!fc) return run_oom(c);
     int rc = simplify_grow_inner(&res->tree, o->gp.setops, fc, c->ev, NULL, o->gp.cancel);
@@ -1401,11 +1406,8 @@ static int stage_join(run_ctx *c)
     evolve_result *res = c->res;
     if (!c->residual) return 0;
     size_t mj = o->sample && o->sample < c->nv ? o->sample : c->nv;
-    draw_sample(c->valid, c->nv, mj, o->gp.seed ^ 0xa5a5a5a5a5a5a5a5u, c->samp, c->tmp);
-    gp_cache *jc = build_cache(o, c->prims, c->nprims, c->all, (uint32_t)c->nprims + 1,
-                               c->cloud->x, c->cloud->y, c->cloud->z, c->nrm, c->samp, mj,
-                               res->eps_d, res->alpha, c->ls * log((double)(mj > 1 ? mj : 2)),
-                               0);
+    gp_cache *jc = sample_cache(c, c->valid, c->nv, mj, 0xa5a5a5a5a5a5a5a5u,
+                                (uint32_t)c->nprims + 1, c->samp);
     if (!jc) return run_oom(c);
     gp_tree joined = { NULL, 0, 0 };
     int bad = join_base(o, &res->tree, (uint32_t)c->nprims, jc, c->ev, &joined, &res->fitness);
