@@ -3,7 +3,8 @@
 #  1. bench/bench_mesh.hf (~150-instruction CSG part) at -g 128, 256 and 512;
 #  2. the comparison with libfive and HyperFun's polygonizer: bench/bench_gear.hf
 #     (~440 instructions) and bench/bench_gyroid.hf at -g 128 over [-1.6,1.6]^3 with
-#     1 and 2 threads.
+#     1 and 2 threads;
+#  3. the gyroid written as OFF text (formatted on the threads) at 1 and 2 threads.
 # Each line: the median of 5 runs of the mesher's own time (the summary line: octree,
 # evaluation, vertices, triangles), and of the whole command's wall time, CPU time
 # (user + system: compiling, meshing, writing the binary STL) and peak resident
@@ -22,22 +23,22 @@ if [ -x "$(dirname "$FREP")/.libs/frep" ] && head -c 2 "$FREP" | grep -q '#!'; t
 fi
 OUT=${TMPDIR:-/tmp}/frep-bench-mesh.$$.stl
 RUNS=5
-trap 'rm -f "$OUT" "$OUT.t" "$OUT.s"' EXIT
+trap 'rm -f "$OUT" "$OUT.t" "$OUT.s" "${OUT%.stl}.off"' EXIT
 echo "# $(nproc 2>/dev/null || echo '?') cores, load average: $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null)"
 
 # median of the numbers on standard input
 median() { sort -n | awk '{ v[NR] = $1 } END { if (NR % 2) print v[(NR + 1) / 2]; else print (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
 
-# run MODEL GRID THREADS: RUNS runs, prints medians
+# run MODEL GRID THREADS [OUTPUT]: RUNS runs, prints medians
 run() {
-  model=$1; g=$2; t=$3
+  model=$1; g=$2; t=$3; out=${4:-$OUT}
   : > "$OUT.t"
   for i in $(seq $RUNS); do
     if [ -x /usr/bin/time ]; then
-      /usr/bin/time -f "%e %U %S %M" -o "$OUT.t.1" "$FREP" mesh "$model" -b 1.6 -g "$g" -t "$t" -o "$OUT" > "$OUT.s" || return 1
+      /usr/bin/time -f "%e %U %S %M" -o "$OUT.t.1" "$FREP" mesh "$model" -b 1.6 -g "$g" -t "$t" -o "$out" > "$OUT.s" || return 1
       echo "$(cat "$OUT.t.1") $(sed -n 's/.*, \([0-9.]*\) s$/\1/p' "$OUT.s")" >> "$OUT.t"
     else
-      "$FREP" mesh "$model" -b 1.6 -g "$g" -t "$t" -o "$OUT" -q || return 1
+      "$FREP" mesh "$model" -b 1.6 -g "$g" -t "$t" -o "$out" -q || return 1
     fi
   done
   rm -f "$OUT.t.1"
@@ -48,15 +49,15 @@ run() {
     mem=$(awk '{ print $4 }' "$OUT.t" | median)
     mesh=$(awk '{ print $5 }' "$OUT.t" | median)
     ref=
-    case "$(basename "$model") $g $t" in
+    case "$(basename "$model") $g $t${4:+ text}" in
       "bench_gear.hf 128 1") ref=0.08 ;;
       "bench_gyroid.hf 128 1") ref=0.36 ;;
     esac
-    printf '%-18s -g %-4s -t %s  %9s triangles  meshing %6.3f s  wall %6.3f s  cpu %6.3f s  peak %6.1f MB%s\n' \
-      "$(basename "$model")" "$g" "$t" "$tris" "$mesh" "$wall" "$cpu" "$(echo "$mem" | awk '{ print $1 / 1024 }')" \
+    printf '%-22s -g %-4s -t %s  %9s triangles  meshing %6.3f s  wall %6.3f s  cpu %6.3f s  peak %6.1f MB%s\n' \
+      "$(basename "$model")${4:+ ${out##*.}}" "$g" "$t" "$tris" "$mesh" "$wall" "$cpu" "$(echo "$mem" | awk '{ print $1 / 1024 }')" \
       "$(if [ -n "$ref" ]; then echo "$cpu $ref" | awk '{ printf "  cpu / libfive %.2f", $1 / $2 }'; fi)"
   else
-    printf '%-18s -g %-4s -t %s  %9s triangles (no /usr/bin/time)\n' "$(basename "$model")" "$g" "$t" "$tris"
+    printf '%-22s -g %-4s -t %s  %9s triangles (no /usr/bin/time)\n' "$(basename "$model")" "$g" "$t" "$tris"
   fi
 }
 
@@ -66,3 +67,4 @@ for m in "$SRCDIR/bench/bench_gear.hf" "$SRCDIR/bench/bench_gyroid.hf"; do
 done
 "$FREP" dis "$SRCDIR/bench/bench_mesh.hf" 2>/dev/null | sed -n '2s/^; /# bench_mesh.hf: /p'
 for g in 128 256 512; do run "$SRCDIR/bench/bench_mesh.hf" "$g" 2; done
+for t in 1 2; do run "$SRCDIR/bench/bench_gyroid.hf" 128 "$t" "${OUT%.stl}.off"; done

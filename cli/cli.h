@@ -184,6 +184,10 @@ int cli_deadline_passed(void);
 /* --knn K|auto (frep normals, segment, evolve): K in 3..KD_MAX_K into a size_t, 0 for
  * auto (neighbourhood size chosen from the data; cli/cmd_normals.c). */
 int cli_opt_knn(const char *arg, void *dest, char *why, size_t whylen);
+/* -t N (N > 0) also bounds the library's loops that take no thread count (the
+ * primitive caches' tables, the mesh writer's formatting): OpenMP's default becomes N,
+ * so that -t 1 runs on one core. */
+void cli_default_threads(int n);
 #define CLI_OPT_KNN(T, f) \
     { 0, "knn", "K|auto", CLI_OPT_CUSTOM, offsetof(T, f), .parse = cli_opt_knn, \
       .expect = "a neighbour count 3..256 or auto", \

@@ -14,10 +14,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 #include <unistd.h>
 
 static const char evolve_usage[] =
@@ -244,11 +240,7 @@ static int stage_options(evolve_cmd *e, int argc, char **argv)
     if (!cli_opt_given(&evolve_spec, &args, "seed")) o->seed = (uint64_t)time(NULL);
     o->knn = e->knn;
     o->refit = e->refit;
-#ifdef _OPENMP
-    /* -t also bounds the parallel loops that take no thread count (the primitive
-     * caches' tables), so that -t 1 runs on one core. */
-    if (o->nthreads > 0) omp_set_num_threads(o->nthreads);
-#endif
+    cli_default_threads(o->nthreads);
     return CLI_GO_ON;
 }
 

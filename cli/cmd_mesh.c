@@ -286,6 +286,7 @@ static int stage_options(mesh_cmd *c, int argc, char **argv, const char **in)
     free(v);
     if (rc != CLI_GO_ON) return rc;
     if (!c->out) return cli_usage_error("mesh", "-o OUT is required (.stl, .obj, .ply, .off or .wrl)");
+    cli_default_threads(c->mc.nthreads);
     c->fmt = c->hfp_fmt != FREP_MESH_AUTO ? c->hfp_fmt
              : strcmp(c->out, "-") == 0 ? FREP_MESH_STL : frep_mesh_format_for_path(c->out);
     if (c->fmt == FREP_MESH_AUTO && file_names_model(*in, c->out))

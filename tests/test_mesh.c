@@ -16,6 +16,9 @@
 #include "threads.h"
 
 #include <math.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -1370,6 +1373,103 @@ static void test_mesh_pools(void)
     prefault_keeps(3 * FREP_HUGE_PAGE_BYTES + 333);   /* huge pages offered inside */
 }
 
+/* The whole of a meshio_write into memory (malloc'd, *len bytes); NULL on failure. */
+static char *written(const frep_mesh *m, const uint8_t *rgb, meshio_format fmt, int ascii, size_t *len)
+{
+    FILE *f = tmpfile();
+    if (!f) return NULL;
+    char *buf = NULL;
+    if (meshio_write_colored(f, m, rgb, fmt, ascii) == 0) {
+        long n = ftell(f);
+        rewind(f);
+        buf = n >= 0 ? malloc((size_t)n + 1) : NULL;
+        if (buf) *len = fread(buf, 1, (size_t)n, f);
+    }
+    fclose(f);
+    return buf;
+}
+
+/* The text formats are formatted in chunks on several threads (geom/meshio.c,
+ * write_text): the bytes are those of one line at a time, at any thread count.  A
+ * mesh of 70,001 vertices and triangles (over two rounds of chunks on 3 threads) with
+ * values of every magnitude; the reference OFF is printed here line by line. */
+static void test_meshio_text_threads(void)
+{
+    const size_t n = 70001;
+    frep_mesh m;
+    memset(&m, 0, sizeof m);
+    m.nverts = m.ntris = n;
+    m.v = malloc(3 * n * sizeof *m.v);
+    m.n = malloc(3 * n * sizeof *m.n);
+    m.tri = malloc(3 * n * sizeof *m.tri);
+    uint8_t *rgb = malloc(3 * n);
+    char *ref = malloc(160 * n + 64);
+    if (!m.v || !m.n || !m.tri || !rgb || !ref) {
+        ok(0, "text formats on threads: out of memory");
+        return;
+    }
+    uint64_t st = 12345;
+    for (size_t i = 0; i < 3 * n; i++) {
+        st = st * 6364136223846793005ULL + 1442695040888963407ULL;
+        double u = (double)(st >> 11) / 9007199254740992.0;
+        m.v[i] = (u - 0.5) * pow(10, (double)(i % 37) - 18);
+        m.n[i] = u - 0.5;
+        m.tri[i] = (uint32_t)((st >> 20) % n);
+        rgb[i] = (uint8_t)(st >> 40);
+    }
+    m.tri[0] = 0;            /* the smallest and largest indices */
+    m.tri[1] = (uint32_t)n - 1;
+    size_t rl = (size_t)sprintf(ref, "OFF\n%zu %zu 0\n", n, n);
+    for (size_t i = 0; i < n; i++)
+        rl += (size_t)sprintf(ref + rl, "%.10g %.10g %.10g\n", m.v[3 * i], m.v[3 * i + 1], m.v[3 * i + 2]);
+    for (size_t t = 0; t < n; t++)
+        rl += (size_t)sprintf(ref + rl, "3 %u %u %u\n", m.tri[3 * t], m.tri[3 * t + 1], m.tri[3 * t + 2]);
+    size_t len = 0;
+    char *off = written(&m, NULL, MESHIO_OFF, 0, &len);
+    ok(off && len == rl && memcmp(off, ref, rl) == 0, "OFF of %zu vertices: the bytes of one line at a time", n);
+    free(off);
+    rl = (size_t)sprintf(ref, "# written by frep: %zu vertices, %zu triangles\n", n, n);
+    for (size_t i = 0; i < n; i++)
+        rl += (size_t)sprintf(ref + rl, "v %.10g %.10g %.10g\n", m.v[3 * i], m.v[3 * i + 1], m.v[3 * i + 2]);
+    for (size_t i = 0; i < n; i++)
+        rl += (size_t)sprintf(ref + rl, "vn %.6g %.6g %.6g\n", m.n[3 * i], m.n[3 * i + 1], m.n[3 * i + 2]);
+    for (size_t t = 0; t < n; t++) {
+        uint32_t a = m.tri[3 * t] + 1, b = m.tri[3 * t + 1] + 1, c = m.tri[3 * t + 2] + 1;
+        rl += (size_t)sprintf(ref + rl, "f %u//%u %u//%u %u//%u\n", a, a, b, b, c, c);
+    }
+    char *obj = written(&m, NULL, MESHIO_OBJ, 0, &len);
+    ok(obj && len == rl && memcmp(obj, ref, rl) == 0, "OBJ with normals: the bytes of one line at a time");
+    free(obj);
+    static const struct { meshio_format f; int ascii, rgb; const char *name; } fm[] = {
+        { MESHIO_OFF, 0, 0, "OFF" }, { MESHIO_OBJ, 0, 0, "OBJ" }, { MESHIO_STL, 1, 0, "ASCII STL" },
+        { MESHIO_PLY, 1, 1, "ASCII PLY" }, { MESHIO_WRL, 0, 1, "VRML" },
+    };
+    for (size_t k = 0; k < sizeof fm / sizeof fm[0]; k++) {
+        size_t l1 = 0, l3 = 0;
+#ifdef _OPENMP
+        int was = omp_get_max_threads();
+        omp_set_num_threads(1);
+#endif
+        char *a = written(&m, fm[k].rgb ? rgb : NULL, fm[k].f, fm[k].ascii, &l1);
+#ifdef _OPENMP
+        omp_set_num_threads(3);
+#endif
+        char *b = written(&m, fm[k].rgb ? rgb : NULL, fm[k].f, fm[k].ascii, &l3);
+#ifdef _OPENMP
+        omp_set_num_threads(was);
+#endif
+        ok(a && b && l1 == l3 && l1 > 0 && memcmp(a, b, l1) == 0,
+           "%s: the same %zu bytes on 1 and 3 threads", fm[k].name, l1);
+        free(a);
+        free(b);
+    }
+    free(m.v);
+    free(m.n);
+    free(m.tri);
+    free(rgb);
+    free(ref);
+}
+
 int main(void)
 {
     test_interval_ops();
@@ -1385,6 +1485,7 @@ int main(void)
     test_mesh_nomem();
     test_mesh_pools();
     test_meshio();
+    test_meshio_text_threads();
     test_prune_program(-1);
     test_prune_program(FREP_SETOPS_MINMAX);
     test_settle_focus();
