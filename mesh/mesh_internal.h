@@ -152,22 +152,25 @@ typedef struct mesher {
 
 /* The work of a stage, in point evaluations of the field, sizes its thread count
  * (frep_threads_for, with the field's cost): an octree node's interval evaluation
- * counts as MESH_INTERVAL_POINTS points (an interval instruction does about 16 times
- * the work of one lane of a point block), a contoured block as its corners twice
+ * counts as MESH_INTERVAL_POINTS points, a contoured block as its corners twice
  * (values, then gradients and the roots on crossing edges), a block's quads as its
- * cells (no evaluation: table look-ups). */
-#define MESH_INTERVAL_POINTS 16
+ * cells (no evaluation: table look-ups).  An interval instruction does the work of
+ * 100-140 lanes of a point block: measured on the octrees of `make bench-mesh` at -g
+ * 128, 12 us a node for the gears' 447 instructions (R-functions or min/max), 1.3 us
+ * for the gyroid's 37, 3.4 us for bench_mesh.hf's 153, against 0.11 us and 9 ns a
+ * point for the gear and the gyroid in contouring. */
+#define MESH_INTERVAL_POINTS 100
 #define MESH_CONTOUR_POINTS (2.0 * MESH_BLOCK_CORNERS)
 #define MESH_QUADS_POINTS (1.0 * MESH_BLOCK_CELLS)
 
 /* Settling (settle.c) evaluates a batch's run of points in one block on the program
  * focused on the block's box (the pruned program of the block's own evaluations: the
  * whole one costs several times more on CSG parts) when the run has at least this many
- * points.  Pruning costs about MESH_INTERVAL_POINTS evaluations of the whole program,
- * so a shorter run evaluates the whole program: a vertex adds 1-8 points to a batch,
- * and on the gear of make bench-mesh, refocusing the blocks in each of the batches was
- * 60% of the settling (7 of 12 ms). */
-#define SETTLE_FOCUS_MIN (2 * MESH_INTERVAL_POINTS)
+ * points.  Pruning costs some tens of evaluations of the whole program, so a shorter
+ * run evaluates the whole program: a vertex adds 1-8 points to a batch, and on the gear
+ * of make bench-mesh, refocusing the blocks in each of the batches was 60% of the
+ * settling (7 of 12 ms). */
+#define SETTLE_FOCUS_MIN 32
 
 /* The threads for a stage of `units` pieces costing `points` point evaluations in
  * all: frep_threads_for the run's -t, never more than the run's thread states. */
