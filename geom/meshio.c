@@ -153,10 +153,18 @@ static int write_text(FILE *f, size_t n, size_t cap, text_item_fn fn, const void
  * 17 ("-1.234567891e-308"), an index 10. */
 #define TEXT_LINE_MAX 128
 
-static int item_xyz10(char *out, size_t cap, const void *ctx, size_t i)
+/* A line of three numbers of v, printed by fmt (a literal of the writers below with
+ * three double conversions). */
+typedef struct triple {
+    const double *v;
+    const char *fmt;
+} triple;
+
+static int item_triple(char *out, size_t cap, const void *ctx, size_t i)
 {
-    const double *v = (const double *)ctx + 3 * i;
-    return snprintf(out, cap, "%.10g %.10g %.10g\n", v[0], v[1], v[2]);
+    const triple *t = ctx;
+    const double *v = t->v + 3 * i;
+    return snprintf(out, cap, t->fmt, v[0], v[1], v[2]);
 }
 
 /* v in decimal at out, as %u prints it (snprintf's own set-up costs more than the
@@ -261,18 +269,6 @@ static int write_stl(FILE *f, const frep_mesh *m, int ascii)
     return ferror(f) ? -1 : 0;
 }
 
-static int item_obj_v(char *out, size_t cap, const void *ctx, size_t i)
-{
-    const double *v = (const double *)ctx + 3 * i;
-    return snprintf(out, cap, "v %.10g %.10g %.10g\n", v[0], v[1], v[2]);
-}
-
-static int item_obj_vn(char *out, size_t cap, const void *ctx, size_t i)
-{
-    const double *n = (const double *)ctx + 3 * i;
-    return snprintf(out, cap, "vn %.6g %.6g %.6g\n", n[0], n[1], n[2]);
-}
-
 static int item_obj_f(char *out, size_t cap, const void *ctx, size_t i)
 {
     const frep_mesh *m = ctx;
@@ -284,8 +280,9 @@ static int item_obj_f(char *out, size_t cap, const void *ctx, size_t i)
 static int write_obj(FILE *f, const frep_mesh *m)
 {
     fprintf(f, "# written by frep: %zu vertices, %zu triangles\n", m->nverts, m->ntris);
-    if (write_text(f, m->nverts, TEXT_LINE_MAX, item_obj_v, m->v) ||
-        (m->n && write_text(f, m->nverts, TEXT_LINE_MAX, item_obj_vn, m->n)) ||
+    triple v = { m->v, "v %.10g %.10g %.10g\n" }, vn = { m->n, "vn %.6g %.6g %.6g\n" };
+    if (write_text(f, m->nverts, TEXT_LINE_MAX, item_triple, &v) ||
+        (m->n && write_text(f, m->nverts, TEXT_LINE_MAX, item_triple, &vn)) ||
         write_text(f, m->ntris, TEXT_LINE_MAX, item_obj_f, m))
         return -1;
     return ferror(f) ? -1 : 0;
@@ -345,21 +342,6 @@ static int write_ply(FILE *f, const frep_mesh *m, const uint8_t *rgb, int ascii)
     return ferror(f) ? -1 : 0;
 }
 
-/* VRML 2.0: one Shape whose IndexedFaceSet holds the triangles (counter-clockwise
- * seen from outside, as frep's meshes are), the vertex normals when present and the
- * vertex colours (a Color node, colorPerVertex) or a Material's diffuse colour. */
-static int item_wrl_point(char *out, size_t cap, const void *ctx, size_t i)
-{
-    const double *v = (const double *)ctx + 3 * i;
-    return snprintf(out, cap, "        %.9g %.9g %.9g,\n", v[0], v[1], v[2]);
-}
-
-static int item_wrl_vector(char *out, size_t cap, const void *ctx, size_t i)
-{
-    const double *n = (const double *)ctx + 3 * i;
-    return snprintf(out, cap, "        %.6g %.6g %.6g,\n", n[0], n[1], n[2]);
-}
-
 static int item_wrl_color(char *out, size_t cap, const void *ctx, size_t i)
 {
     const uint8_t *c = (const uint8_t *)ctx + 3 * i;
@@ -372,6 +354,9 @@ static int item_wrl_index(char *out, size_t cap, const void *ctx, size_t i)
     return put_tri(out, "      ", (const uint32_t *)ctx + 3 * i, ", ", NULL, ", -1,\n");
 }
 
+/* VRML 2.0: one Shape whose IndexedFaceSet holds the triangles (counter-clockwise
+ * seen from outside, as frep's meshes are), the vertex normals when present and the
+ * vertex colours (a Color node, colorPerVertex) or a Material's diffuse colour. */
 static int write_wrl(FILE *f, const frep_mesh *m, const uint8_t *rgb)
 {
     static const int def[3] = { MESHIO_WRL_DEFAULT_RGB };
@@ -382,11 +367,12 @@ static int write_wrl(FILE *f, const frep_mesh *m, const uint8_t *rgb)
         fprintf(f, " diffuseColor %.6g %.6g %.6g", def[0] / 255.0, def[1] / 255.0, def[2] / 255.0);
     fprintf(f, " }\n  }\n  geometry IndexedFaceSet {\n    solid TRUE\n    ccw TRUE\n"
                "    coord Coordinate {\n      point [\n");
-    if (write_text(f, m->nverts, TEXT_LINE_MAX, item_wrl_point, m->v)) return -1;
+    triple point = { m->v, "        %.9g %.9g %.9g,\n" }, vector = { m->n, "        %.6g %.6g %.6g,\n" };
+    if (write_text(f, m->nverts, TEXT_LINE_MAX, item_triple, &point)) return -1;
     fprintf(f, "      ]\n    }\n");
     if (m->n) {
         fprintf(f, "    normalPerVertex TRUE\n    normal Normal {\n      vector [\n");
-        if (write_text(f, m->nverts, TEXT_LINE_MAX, item_wrl_vector, m->n)) return -1;
+        if (write_text(f, m->nverts, TEXT_LINE_MAX, item_triple, &vector)) return -1;
         fprintf(f, "      ]\n    }\n");
     }
     if (rgb) {
@@ -403,7 +389,8 @@ static int write_wrl(FILE *f, const frep_mesh *m, const uint8_t *rgb)
 static int write_off(FILE *f, const frep_mesh *m)
 {
     fprintf(f, "OFF\n%zu %zu 0\n", m->nverts, m->ntris);
-    if (write_text(f, m->nverts, TEXT_LINE_MAX, item_xyz10, m->v) ||
+    triple v = { m->v, "%.10g %.10g %.10g\n" };
+    if (write_text(f, m->nverts, TEXT_LINE_MAX, item_triple, &v) ||
         write_text(f, m->ntris, TEXT_LINE_MAX, item_tri3, m->tri))
         return -1;
     return ferror(f) ? -1 : 0;
