@@ -123,14 +123,41 @@ static void text_chunks(void *ctx, int thread, long c0, long c1)
     }
 }
 
-/* Write items [0, n) of a section whose items take fewer than cap bytes each. */
+/* The largest item any writer formats (an ASCII STL facet, STL_FACET_MAX). */
+#define TEXT_ITEM_MAX 384
+
+/* Items [0, n) one at a time through a buffer on the stack: what write_text does
+ * when its buffers cannot be had (the same bytes, on one thread). */
+static int write_items(FILE *f, size_t n, size_t cap, text_item_fn fn, const void *ctx)
+{
+    char line[TEXT_ITEM_MAX];
+    for (size_t i = 0; i < n; i++) {
+        int k = fn(line, cap, ctx, i);
+        if (k < 0 || (size_t)k >= cap) {
+            errno = EOVERFLOW;
+            return -1;
+        }
+        if (fwrite(line, 1, (size_t)k, f) != (size_t)k) return -1;
+    }
+    return 0;
+}
+
+/* Write items [0, n) of a section whose items take fewer than cap (at most
+ * TEXT_ITEM_MAX) bytes each. */
 static int write_text(FILE *f, size_t n, size_t cap, text_item_fn fn, const void *ctx)
 {
+    if (n == 0) return 0;
     int nt = n < TEXT_MIN_PAR ? 1 : frep_threads(0);
-    size_t per = (size_t)nt * TEXT_ROUND;
-    text_job j = { fn, ctx, n, 0, cap, malloc(per * TEXT_CHUNK * cap), malloc(per * sizeof(size_t)) };
-    int rc = j.buf && j.len ? 0 : -1;
-    if (rc) errno = ENOMEM;
+    size_t per = (size_t)nt * TEXT_ROUND, need = (n + TEXT_CHUNK - 1) / TEXT_CHUNK;
+    if (per > need) per = need;   /* a small section gets buffers for its own lines */
+    text_job j = { fn, ctx, n, 0, cap, frep_malloc(per * TEXT_CHUNK * cap),
+                   frep_malloc(per * sizeof(size_t)) };
+    int rc = 0;
+    if (!j.buf || !j.len) {
+        frep_free(j.buf);
+        frep_free(j.len);
+        return write_items(f, n, cap, fn, ctx);
+    }
     for (; rc == 0 && j.base < n; j.base += per * TEXT_CHUNK) {
         size_t chunks = (n - j.base + TEXT_CHUNK - 1) / TEXT_CHUNK;
         if (chunks > per) chunks = per;
@@ -144,8 +171,8 @@ static int write_text(FILE *f, size_t n, size_t cap, text_item_fn fn, const void
             }
         }
     }
-    free(j.buf);
-    free(j.len);
+    frep_free(j.buf);
+    frep_free(j.len);
     return rc;
 }
 
