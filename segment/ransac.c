@@ -2298,12 +2298,19 @@ static double small_normal_limit(const run *r, const prim *q, double width)
     return lim;
 }
 
+/* The largest median distance of a small shape's inliers: SMALL_TIGHT epsilon, or
+ * SMALL_TIGHT_SIGMAS times the measured noise, at most half epsilon, if larger. */
+static double small_tight(const det *d)
+{
+    double eps = d->cfg->epsilon;
+    return fmax(SMALL_TIGHT * eps, fmin(SMALL_TIGHT_SIGMAS * d->cfg->noise, 0.5 * eps));
+}
+
 /* Is small shape q (second phase) with its m inliers tight (see SMALL_TIGHT and the
  * limits after it)? Out of memory: no (r->d.nomem set). */
 static int tight_small_shape(run *r, const prim *q, size_t m)
 {
-    double eps = r->d.cfg->epsilon, med, dev;
-    double tight = fmax(SMALL_TIGHT * eps, fmin(SMALL_TIGHT_SIGMAS * r->d.cfg->noise, 0.5 * eps));
+    double eps = r->d.cfg->epsilon, med, dev, tight = small_tight(&r->d);
     const frep_cloud *c = r->d.c;
     double width = patch_width(c, r->inl, m);
     return !(q->type == PRIM_CONE || q->type == PRIM_TORUS ||
@@ -2427,8 +2434,7 @@ static size_t narrow_face(run *r, prim *q, size_t m)
     q->r = off;
     m = support_of(d, q, r->flag, r->inl);
     double eps = d->cfg->epsilon, med, dev;
-    double tight = fmax(SMALL_TIGHT * eps, fmin(SMALL_TIGHT_SIGMAS * d->cfg->noise, 0.5 * eps));
-    if (m < r->min_pts || median_abs(d, q, r->inl, m, &med) || !(med <= tight) ||
+    if (m < r->min_pts || median_abs(d, q, r->inl, m, &med) || !(med <= small_tight(d)) ||
         median_over(d, q, r->inl, m, normal_angle, &dev) ||
         !(dev <= FREE_FACE_NOISE * r->normal_dev) ||
         !(patch_width(d->c, r->inl, m) >= SMALL_WIDTH * eps))
