@@ -1867,6 +1867,23 @@ static void merge_redundant(det *d, ransac_result *res, double *bands, uint32_t 
  * pass the other tests at 1% noise are at most 2 epsilon wide. */
 #define SMALL_FACE_WIDTH 3.0
 #define SMALL_FACE_NOISE 2.0
+/* ... and a small sphere's up to SMALL_SPHERE_NOISE times it: at 1% noise the corner
+ * spheres of a frame (what the rails leave of them) deviate 1.05-1.3 times the planes'
+ * deviation (base: 5.2-6.05 degrees against 4.65), while the spheres that fit the
+ * blended normals along the edges of stacked cuboids deviate 2-3.5 times it (six_cuboids
+ * at 1% noise: 10.9 degrees and more against 7.57). */
+#define SMALL_SPHERE_NOISE 1.35
+/* Where the noise is wider than epsilon (1% noise: epsilon is capped at 1% of the
+ * diagonal, about one deviation), a small curved shape's band is widened to its own
+ * residuals (NOISE_BAND_SIGMAS deviations, refit_with_band) and its inliers are tight
+ * when their median distance is at most SMALL_TIGHT_BAND times that band: a surface's
+ * noisy points have 0.674 deviations, 0.27 of the band, points filling the band evenly
+ * (a strip along an edge) 0.5 of it, while 0.5 epsilon, small_tight's cap, is what
+ * even a true surface's points in an epsilon of one deviation have (base's corner
+ * spheres at 1% noise: 0.066-0.079 against 0.068).  Not for planes: along the edges of
+ * stacked cuboids at 1% noise it kept strips as faces (two_spheres_one_cuboid 2 -> 7
+ * spurious). */
+#define SMALL_TIGHT_BAND 0.35
 /* The angle between point i's normal and q's gradient there (pi/2 without one). */
 static double normal_angle(const prim *q, const frep_cloud *c, size_t i)
 {
@@ -2289,12 +2306,14 @@ static int sphere_from_normals(prim *q, const frep_cloud *c, const uint32_t *idx
 
 /* The largest median normal deviation of small shape q whose patch is `width` wide:
  * SMALL_NORMAL_DEG, or for a wide plane SMALL_FACE_NOISE times the deviation measured
- * on the first phase's planes (run.normal_dev), whichever is larger. */
+ * on the first phase's planes (run.normal_dev), for a sphere SMALL_SPHERE_NOISE times
+ * it, whichever is larger. */
 static double small_normal_limit(const run *r, const prim *q, double width)
 {
     double lim = SMALL_NORMAL_DEG * FREP_PI / 180.0;
     if (q->type == PRIM_PLANE && width >= SMALL_FACE_WIDTH * r->d.cfg->epsilon)
         lim = fmax(lim, SMALL_FACE_NOISE * r->normal_dev);
+    if (q->type == PRIM_SPHERE) lim = fmax(lim, SMALL_SPHERE_NOISE * r->normal_dev);
     return lim;
 }
 
@@ -2311,6 +2330,8 @@ static double small_tight(const det *d)
 static int tight_small_shape(run *r, const prim *q, size_t m)
 {
     double eps = r->d.cfg->epsilon, med, dev, tight = small_tight(&r->d);
+    if (q->type != PRIM_PLANE && r->d.band > eps)
+        tight = fmax(tight, SMALL_TIGHT_BAND * r->d.band);
     const frep_cloud *c = r->d.c;
     double width = patch_width(c, r->inl, m);
     return !(q->type == PRIM_CONE || q->type == PRIM_TORUS ||
