@@ -98,6 +98,7 @@ typedef struct evolve_job {
     double *base_f, *base_g;
     uint8_t *base_ok, *mask;
     size_t nres;
+    int normals_estimated;     /* ensure_normals estimated the cloud's normals */
 } evolve_job;
 
 /* One line to the trace callback. */
@@ -234,6 +235,7 @@ static int ensure_normals(evolve_job *j, frep_cloud *c)
     else if (rc > 0) api_report(&j->d, FREP_ERROR, "stopped while estimating normals: no model");
     else {
         char msg[200];
+        j->normals_estimated = 1;
         snprintf(msg, sizeof msg, "the cloud has no normals: estimated them (%zu neighbours%s, "
                  "noise %.3g, spacing %.3g)", info.knn, o->knn ? "" : ", auto", info.noise,
                  info.spacing);
@@ -305,6 +307,7 @@ static int segment_prims(evolve_job *j, frep_cloud *c, int residual, frep_evolut
     sc.progress = on_segment_progress;
     sc.user = j;
     sc.knn = o->knn;
+    sc.normals_estimated = j->normals_estimated;
     segment_result r;
     memset(&r, 0, sizeof r);
     frep_error e;

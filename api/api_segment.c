@@ -114,6 +114,7 @@ frep_segmentation *frep_segment(frep_cloud *c, const frep_segment_options *o,
         api_report(&d, FREP_ERROR, "out of memory estimating normals");
         return NULL;
     }
+    cfg.normals_estimated = estimated;
     if (segment_run(c, &cfg, &s->r, &e) != 0) {
         frep_segmentation_free(s);
         api_fail(&d, &e);

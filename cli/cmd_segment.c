@@ -163,7 +163,8 @@ static const cli_opt segment_opts[] = {
               "at least 10)" },
     { 0, "min-points-small", "M", CLI_OPT_SIZE, OFF(min_small), .lo = 0, .hi = 4e9,
       .help = "then tight shapes down to M points (default 0.04% of the\n"
-              "points, at least 10; 0: no second phase)" },
+              "points, 0.02% on a clean cloud with normals, at least 10;\n"
+              "0: no second phase)" },
     { 0, "probability", "P", CLI_OPT_DOUBLE, OFF(o.probability), .lo = 0.01, .hi = 0.999999,
       .help = "confidence of not having missed a better shape (0.99)" },
     CLI_OPT_KNN(segment_cmd, o.knn),

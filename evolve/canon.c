@@ -160,11 +160,21 @@ static void set_name(canon_prim *o, size_t j, size_t n, const char *base)
     }
 }
 
-/* Role names, numbered in the order the tree first uses each primitive. */
-static void names(const gp_tree *t, canon_prim *o, size_t n)
+/* A plane's role name: plane_x_left .. plane_z_top along an axis, else plane_k. */
+static void plane_base(const prim *q, unsigned k, char *base, size_t size)
 {
     static const char *const side[3][2] = { { "left", "right" }, { "front", "back" },
                                             { "bottom", "top" } };
+    int ax = -1;
+    for (int a = 0; a < 3; a++)
+        if (q->p[a] == 1 || q->p[a] == -1) ax = a;
+    if (ax >= 0) snprintf(base, size, "plane_%c_%s", "xyz"[ax], side[ax][q->p[ax] > 0]);
+    else snprintf(base, size, "plane_%u", k);
+}
+
+/* Role names, numbered in the order the tree first uses each primitive. */
+static void names(const gp_tree *t, canon_prim *o, size_t n)
+{
     unsigned count[PRIM__COUNT + 1] = { 0 }, bores = 0, cav = 0;
     for (uint32_t pc = 0; pc < t->len; pc++) {
         if (t->code[pc].op != FREP_OP_PRIM || t->code[pc].arg >= n) continue;
@@ -175,13 +185,9 @@ static void names(const gp_tree *t, canon_prim *o, size_t n)
         int removed = o[j].polarity == 2;
         switch (q->type) {
         case PRIM_PLANE: {
-            int ax = -1;
-            for (int k = 0; k < 3; k++)
-                if (q->p[k] == 1 || q->p[k] == -1) ax = k;
-            if (ax >= 0)
-                snprintf(base, sizeof base, "plane_%c_%s", "xyz"[ax], side[ax][q->p[ax] > 0]);
-            else
-                snprintf(base, sizeof base, "plane_%u", ++count[PRIM_PLANE]);
+            int axis = q->p[0] == 1 || q->p[0] == -1 || q->p[1] == 1 || q->p[1] == -1 ||
+                       q->p[2] == 1 || q->p[2] == -1;
+            plane_base(q, axis ? 0 : ++count[PRIM_PLANE], base, sizeof base);
             break;
         }
         case PRIM_CYLINDER:
@@ -577,7 +583,8 @@ typedef struct ft {
     ft_node *v;
     uint32_t n, cap;
     int failed;
-    const canon_prim *c;  /* per primitive: its canonical form */
+    canon_prim *c;        /* per primitive: its canonical form (a copy: ft_adopt_plane
+                             names a plane the tree did not use) */
     prim *q;              /* per primitive: what the written call evaluates */
     size_t nprims;
     int spreading;        /* 1: apply_cover is inside ft_spread's trial (no spread there) */
@@ -3292,6 +3299,23 @@ static void apply_pockets(ft *F, uint32_t i, const ft_check *ck, const evolve_re
  * before and the mean distance is smaller: a cut the cover ran through a wall (its
  * face free, beyond the part) stops at the wall's fitted face.  1 when the cut
  * changed. */
+/* Plane j, which the tree does not use, as a face of the model: printed to the
+ * quanta of a fitted plane (keep_fitted) and named plane_N after the planes named. */
+static void ft_adopt_plane(ft *F, uint32_t j, const evolve_result *r)
+{
+    canon_prim *c = &F->c[j];
+    keep_fitted(r, &F->q[j], c);
+    c->polarity = 2;
+    char base[32];
+    unsigned u = 1;   /* the first plane_u not taken */
+    for (size_t i = 0; i < F->nprims; i++) {
+        snprintf(base, sizeof base, "plane_%u", u);
+        if (strcmp(F->c[i].name, base) == 0) u++, i = (size_t)-1;
+    }
+    plane_base(&c->q, u, base, sizeof base);
+    set_name(F->c, j, F->nprims, base);
+}
+
 static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check *ck, const evolve_result *r)
 {
     uint32_t b = F->v[i].t[k].node;
@@ -3308,10 +3332,12 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
     int a = f / 2, up = f % 2 == 0;
     size_t nwas, best_near = 0;
     double mean = ft_fit(F, ck, r->eps_d, NULL, NULL, &nwas, NULL), best_mean = mean;
-    uint32_t best = FT_NONE;
+    uint32_t best = FT_NONE, best_j = FT_NONE;
+    double best_lo[3], best_hi[3];
     for (size_t j = 0; j < F->nprims && !F->failed; j++) {
-        /* a plane the tree uses (canonical, named): the model gains no primitive */
-        if (F->q[j].type != PRIM_PLANE || !F->c[j].name[0]) continue;
+        /* a plane of the list: one the tree uses (canonical, named), or a fitted face
+         * it left out (a pocket's smallest faces, 10-30 points) that explains more */
+        if (F->q[j].type != PRIM_PLANE) continue;
         double c = vec3_dot(F->q[j].p, u[a]);
         if (fabs(c) < cos(ck->tol)) continue;
         /* the half-space u . x <= at (an upper face) or >= at (a lower one) */
@@ -3335,10 +3361,22 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
         size_t nnow;
         double now = ft_fit(F, ck, r->eps_d, NULL, NULL, &nnow, NULL);
         F->v[i].t[k].node = b;
-        if (nnow > best_near || (nnow == best_near && now < best_mean))
-            best = nb, best_near = nnow, best_mean = now;
+        if (nnow > best_near || (nnow == best_near && now < best_mean)) {
+            best = nb, best_j = (uint32_t)j, best_near = nnow, best_mean = now;
+            memcpy(best_lo, nlo, sizeof best_lo);
+            memcpy(best_hi, nhi, sizeof best_hi);
+        }
     }
     if (best == FT_NONE || best_near < nwas || !(best_mean < mean)) return 0;
+    if (!F->c[best_j].name[0]) {
+        /* the box again, with the face's quanta */
+        ft_adopt_plane(F, best_j, r);
+        face[f] = best_j;
+        fneg[f] = (uint8_t)(up ? vec3_dot(F->q[best_j].p, u[a]) < 0 : vec3_dot(F->q[best_j].p, u[a]) > 0);
+        best = ft_box_node(F, u, best_lo, best_hi, face, fneg);
+        if (best == FT_NONE) return 0;
+        box_set_planes(F, best, u, best_lo, best_hi);
+    }
     F->v[i].t[k].node = best;
     return 1;
 }
@@ -3439,7 +3477,7 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
     if (!t->len) return 0;
     ft F;
     memset(&F, 0, sizeof F);
-    F.c = c;
+    F.c = frep_malloc((nprims + 1) * sizeof *F.c);
     F.nprims = nprims;
     F.q = frep_calloc(nprims + 1, sizeof *F.q);
     const char **names = frep_calloc(nprims + 1, sizeof *names);
@@ -3450,7 +3488,9 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
     fw w;
     memset(&w, 0, sizeof w);
     int rc = -1;
-    if (!F.q || !names) goto done;
+    if (!F.c || !F.q || !names) goto done;
+    memcpy(F.c, c, nprims * sizeof *F.c);
+    c = F.c;
     for (size_t j = 0; j < nprims; j++) {
         F.q[j] = c[j].name[0] ? evaluated(&c[j]) : prims[j];
         names[j] = c[j].name;
@@ -3572,6 +3612,7 @@ int canon_write_body(FILE *f, const evolve_result *r, const prim *prims, const c
     rc = ferror(f) ? -1 : 0;
 done:
     ft_free(&F);
+    frep_free(F.c);
     frep_free(F.q);
     frep_free(names);
     frep_free(uses);

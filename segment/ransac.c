@@ -1535,10 +1535,12 @@ static size_t densest_slab(const frep_cloud *c, double *tv, size_t nt, const dou
  * 12-sided prisms) are not noisy: their cylinders' facet normals are 7 degrees off in
  * the median, and are what the curved shapes there must explain. */
 #define NOISY_EPSILON_SHARE 0.1
-static int noisy(const det *d)
+int ransac_noisy(double noise, double epsilon)
 {
-    return d->cfg->noise >= NOISY_EPSILON_SHARE * d->cfg->epsilon && d->cfg->noise > 0;
+    return noise >= NOISY_EPSILON_SHARE * epsilon && noise > 0;
 }
+
+static int noisy(const det *d) { return ransac_noisy(d->cfg->noise, d->cfg->epsilon); }
 
 /* Under noise, does a curved shape's normals hold two modes (the first, nc, with
  * best_cnt voters) that together make MODE_FACES of its voters? A cylinder of a

@@ -25,6 +25,11 @@
  * way out of a step without an extraction checks this bound. */
 #define RANSAC_MAX_DRAWS 20000
 
+/* Is a cloud of measured noise `noise` (a standard deviation; 0: unknown) noisy for
+ * inlier distance epsilon?  The tests of small shapes, curved shapes' normals and the
+ * default second-phase support differ on noisy and clean clouds. */
+int ransac_noisy(double noise, double epsilon);
+
 typedef struct ransac_config {
     double epsilon;       /* inlier distance (absolute units) */
     double noise;         /* the cloud's measured noise (standard deviation; 0: unknown) */

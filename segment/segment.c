@@ -576,11 +576,22 @@ static int scaled_defaults(const frep_cloud *c, const segment_config *cfg, doubl
     size_t mp = (size_t)(SEGMENT_DEFAULT_MIN_FRACTION * (double)c->n);
     res->min_points = cfg->min_points ? cfg->min_points
                                       : (mp > SEGMENT_MIN_POINTS_FLOOR ? mp : SEGMENT_MIN_POINTS_FLOOR);
-    size_t ms = (size_t)(SEGMENT_DEFAULT_SMALL_FRACTION * (double)c->n);
+    return 0;
+}
+
+/* The second phase's smallest support, once the normals are known: lower on a clean
+ * cloud (noise measured, none or far below epsilon) with the file's normals.
+ * Estimated normals blend across the edges of even a clean sample, and there shapes
+ * of 10-20 points along them (thin cylinders) pass the small shapes' tests. */
+static void small_support(const frep_cloud *c, const segment_config *cfg, segment_result *res)
+{
+    int clean = cfg->epsilon <= 0 && !ransac_noisy(res->noise, res->epsilon) &&
+                !res->normals_estimated && !cfg->normals_estimated;
+    size_t ms = (size_t)((clean ? SEGMENT_CLEAN_SMALL_FRACTION : SEGMENT_DEFAULT_SMALL_FRACTION) *
+                         (double)c->n);
     if (ms < SEGMENT_MIN_POINTS_FLOOR) ms = SEGMENT_MIN_POINTS_FLOOR;
     if (cfg->min_points_small) ms = cfg->min_points_small;
     res->min_points_small = ms < res->min_points ? ms : res->min_points;
-    return 0;
 }
 
 /* Normals: those of the file, normalized, unless there are none or some are zero;
@@ -668,6 +679,7 @@ int segment_run(frep_cloud *c, const segment_config *cfg, segment_result *res, f
     if (cloud_check_scale(c, NULL, err)) return -1;
     if (scaled_defaults(c, cfg, diag, res, err)) return -1;
     if (ensure_normals(c, cfg, res, err)) return -1;
+    small_support(c, cfg, res);
     ransac_config rc;
     detect_config(cfg, res, &rc);
     ransac_result rr;

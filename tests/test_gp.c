@@ -2145,6 +2145,21 @@ static void test_box_cover(void)
         cover_case_planes(&hollow, 13, hn, hd);
         test_box_cover_case(&hollow);
     }
+    /* A pocket [0.5, 1.5] x [0.5, 1.5] x [1, oo) in the cube [0, 2]^3, its face y <= 1.5
+     * fitted but left out of the GA's tree (as nine_cuboids' turned pocket's faces of 10
+     * and 27 points): the cut runs free through the wall y in [1.5, 2].  Its free face
+     * stops at the fitted plane, which the tree did not use (ft_adopt_plane): written as
+     * the box's face, named after the planes named. */
+    {
+        cover_case pocket = { "pocket, a face left out", "12&3&4&5&6&78&9&a&~&",
+                              "faces plane_x_left_2, plane_x_right_2, plane_y_front_2, plane_y_back_2, plane_z_bottom_2, free",
+                              11, { { 0 } }, { 0 }, 0, "12&3&4&5&6&78&9&a&b&~&", 0, { 0 }, { { 0 } } };
+        double kn[11][3] = { { -1, 0, 0 }, { 1, 0, 0 }, { 0, -1, 0 }, { 0, 1, 0 }, { 0, 0, -1 }, { 0, 0, 1 },
+                             { -1, 0, 0 }, { 1, 0, 0 }, { 0, -1, 0 }, { 0, 0, -1 }, { 0, 1, 0 } };
+        double kd[11] = { 0, 2, 0, 2, 0, 2, -0.5, 1.5, -0.5, -1, 1.5 };
+        cover_case_planes(&pocket, 11, kn, kd);
+        test_box_cover_case(&pocket);
+    }
     /* Two rods along x between the caps x >= 0 and x <= 3, the second cut by z <= 0.7,
      * and a ball beside them, as the GA wrote mount: (caps & (rod_1 | (rod_2 & cut))) |
      * ball.  Distributed, each rod is capped (ft_distribute_caps); the second term keeps
