@@ -160,8 +160,9 @@ static void set_name(canon_prim *o, size_t j, size_t n, const char *base)
     }
 }
 
-/* A plane's role name: plane_x_left .. plane_z_top along an axis, else plane_k. */
-static void plane_base(const prim *q, unsigned k, char *base, size_t size)
+/* A plane's role name: plane_x_left .. plane_z_top along an axis, else plane_k with
+ * k one more than *count (which counts it). */
+static void plane_base(const prim *q, unsigned *count, char *base, size_t size)
 {
     static const char *const side[3][2] = { { "left", "right" }, { "front", "back" },
                                             { "bottom", "top" } };
@@ -169,7 +170,7 @@ static void plane_base(const prim *q, unsigned k, char *base, size_t size)
     for (int a = 0; a < 3; a++)
         if (q->p[a] == 1 || q->p[a] == -1) ax = a;
     if (ax >= 0) snprintf(base, size, "plane_%c_%s", "xyz"[ax], side[ax][q->p[ax] > 0]);
-    else snprintf(base, size, "plane_%u", k);
+    else snprintf(base, size, "plane_%u", ++*count);
 }
 
 /* Role names, numbered in the order the tree first uses each primitive. */
@@ -184,12 +185,7 @@ static void names(const gp_tree *t, canon_prim *o, size_t n)
         char base[32];
         int removed = o[j].polarity == 2;
         switch (q->type) {
-        case PRIM_PLANE: {
-            int axis = q->p[0] == 1 || q->p[0] == -1 || q->p[1] == 1 || q->p[1] == -1 ||
-                       q->p[2] == 1 || q->p[2] == -1;
-            plane_base(q, axis ? 0 : ++count[PRIM_PLANE], base, sizeof base);
-            break;
-        }
+        case PRIM_PLANE: plane_base(q, &count[PRIM_PLANE], base, sizeof base); break;
         case PRIM_CYLINDER:
             if (removed) snprintf(base, sizeof base, "cyl_bore_%u", ++bores);
             else snprintf(base, sizeof base, "cyl_%u", ++count[PRIM_CYLINDER]);
@@ -3293,12 +3289,6 @@ static void apply_pockets(ft *F, uint32_t i, const ft_check *ck, const evolve_re
     }
 }
 
-/* Free face f of the box cut that is term k of intersection i moved to each plane of
- * the tree along its direction within the cut's extent; the one where the model
- * explains most check points within eps_d is kept where it explains no fewer than
- * before and the mean distance is smaller: a cut the cover ran through a wall (its
- * face free, beyond the part) stops at the wall's fitted face.  1 when the cut
- * changed. */
 /* Plane j, which the tree does not use, as a face of the model: printed to the
  * quanta of a fitted plane (keep_fitted) and named plane_N after the planes named. */
 static void ft_adopt_plane(ft *F, uint32_t j, const evolve_result *r)
@@ -3307,15 +3297,21 @@ static void ft_adopt_plane(ft *F, uint32_t j, const evolve_result *r)
     keep_fitted(r, &F->q[j], c);
     c->polarity = 2;
     char base[32];
-    unsigned u = 1;   /* the first plane_u not taken */
+    unsigned taken = 0;   /* plane_1 .. plane_taken are names already */
     for (size_t i = 0; i < F->nprims; i++) {
-        snprintf(base, sizeof base, "plane_%u", u);
-        if (strcmp(F->c[i].name, base) == 0) u++, i = (size_t)-1;
+        snprintf(base, sizeof base, "plane_%u", taken + 1);
+        if (strcmp(F->c[i].name, base) == 0) taken++, i = (size_t)-1;
     }
-    plane_base(&c->q, u, base, sizeof base);
+    plane_base(&c->q, &taken, base, sizeof base);
     set_name(F->c, j, F->nprims, base);
 }
 
+/* Free face f of the box cut that is term k of intersection i moved to each fitted
+ * plane along its direction within the cut's extent, the tree's or one it left out;
+ * the one where the model explains most check points within eps_d is kept where it
+ * explains no fewer than before and the mean distance is smaller: a cut the cover ran
+ * through a wall (its face free, beyond the part) stops at the wall's fitted face, a
+ * pocket's cut at its smallest faces (ft_adopt_plane).  1 when the cut changed. */
 static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check *ck, const evolve_result *r)
 {
     uint32_t b = F->v[i].t[k].node;
@@ -3334,6 +3330,7 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
     double mean = ft_fit(F, ck, r->eps_d, NULL, NULL, &nwas, NULL), best_mean = mean;
     uint32_t best = FT_NONE, best_j = FT_NONE;
     double best_lo[3], best_hi[3];
+    uint8_t best_neg = 0;
     for (size_t j = 0; j < F->nprims && !F->failed; j++) {
         /* a plane of the list: one the tree uses (canonical, named), or a fitted face
          * it left out (a pocket's smallest faces, 10-30 points) that explains more */
@@ -3363,6 +3360,7 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
         F->v[i].t[k].node = b;
         if (nnow > best_near || (nnow == best_near && now < best_mean)) {
             best = nb, best_j = (uint32_t)j, best_near = nnow, best_mean = now;
+            best_neg = nneg[f];
             memcpy(best_lo, nlo, sizeof best_lo);
             memcpy(best_hi, nhi, sizeof best_hi);
         }
@@ -3372,7 +3370,7 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
         /* the box again, with the face's quanta */
         ft_adopt_plane(F, best_j, r);
         face[f] = best_j;
-        fneg[f] = (uint8_t)(up ? vec3_dot(F->q[best_j].p, u[a]) < 0 : vec3_dot(F->q[best_j].p, u[a]) > 0);
+        fneg[f] = best_neg;
         best = ft_box_node(F, u, best_lo, best_hi, face, fneg);
         if (best == FT_NONE) return 0;
         box_set_planes(F, best, u, best_lo, best_hi);
