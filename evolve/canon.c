@@ -570,6 +570,7 @@ typedef struct ft_node {
     double c[3], h[3], rot[3];
     uint32_t face[6];     /* FT_BOX: FT_NONE for a free face (no fitted plane) */
     uint8_t fneg[6];
+    uint8_t ends[6];      /* FT_BOX: a free face placed where the cut's points end (face_scan) */
     double fpl[6][4];     /* FT_BOX of the cover: each face's outward normal and offset */
     double qpos, qdir, sigma;   /* FT_BOX: printing quanta, the faces' standard error */
     char name[48];              /* FT_BOX, FT_CAPPED (a primitive's name + "_capped") */
@@ -1275,14 +1276,19 @@ static void write_feature(FILE *f, const ft *F, const ft_node *v, const char *co
         prim_format_number(c, 2 * v->h[2], v->qpos);
         fprintf(f, ";  -- box %s x %s x %s (centre, half sizes, rotations about x, y, z in radians), "
                    "faces", a, b, c);
-        int nfree = 0;
+        int nfree = 0, nends = 0;
         for (int k = 0; k < 6; k++) {
-            fprintf(f, "%s %s", k ? "," : "", v->face[k] == FT_NONE ? "free" : names[v->face[k]]);
-            nfree += v->face[k] == FT_NONE;
+            int none = v->face[k] == FT_NONE;
+            fprintf(f, "%s %s", k ? "," : "", !none ? names[v->face[k]] : v->ends[k] ? "ends" : "free");
+            nfree += none && !v->ends[k];
+            nends += none && v->ends[k];
         }
         if (nfree)
             fputs(" (free: no point lies on that face; it is placed beyond the part, or inside "
                   "another solid where the face is hidden)", f);
+        if (nends)
+            fputs(" (ends: no plane was fitted to that face; it is placed where the points "
+                  "around the cut fit best)", f);
         if (inl) fprintf(f, ", %zu inliers", inl);
         if (v->sigma > 0) {
             prim_format_number(a, v->sigma, v->sigma / 10);
@@ -3103,31 +3109,81 @@ done:
  * half-spaces become one solid; kept when the model keeps its solid (ft_keeps, and
  * bounded if it was). */
 
+/* Whether every box operand of intersection `and` (one at least) lies in the half-space
+ * n.x <= d, to within tol. */
+static int boxes_within(const ft *F, uint32_t and, const double n[3], double d, double tol)
+{
+    int boxes = 0;
+    for (uint32_t k = 0; k < F->v[and].n; k++) {
+        ft_term t = F->v[and].t[k];
+        /* through operations of one operand (a union the cover left of one box) */
+        while ((F->v[t.node].kind == FT_AND || F->v[t.node].kind == FT_OR) && F->v[t.node].n == 1) {
+            uint8_t neg = t.neg;
+            t = F->v[t.node].t[0];
+            t.neg ^= neg;
+        }
+        const ft_node *b = &F->v[t.node];
+        if (b->kind != FT_BOX || t.neg) continue;
+        double R[3][3], m = vec3_dot(n, b->c);
+        box_frame(b->rot, R);
+        for (int e = 0; e < 3; e++)
+            m += fabs(n[0] * R[0][e] + n[1] * R[1][e] + n[2] * R[2][e]) * b->h[e];
+        if (m > d + tol) return 0;
+        boxes++;
+    }
+    return boxes > 0;
+}
+
+/* Term *t of an operand of intersection `and` read as one plane there: a plane, or an
+ * intersection of planes all but one of which hold the intersection's boxes (the GA's
+ * `h1 | (face & h2)` beside a box of that face is `h1 | h2` inside it).  0 when not. */
+static int ft_context_plane(const ft *F, uint32_t and, double tol, ft_term *t)
+{
+    const ft_node *v = &F->v[t->node];
+    if (v->kind == FT_LEAF) return 1;
+    if (v->kind != FT_AND || t->neg) return 0;
+    ft_term one = { FT_NONE, 0 };
+    for (uint32_t k = 0; k < v->n; k++) {
+        double n[3], d;
+        if (!ft_plane(F, v->t[k], n, &d)) return 0;
+        if (boxes_within(F, and, n, d, tol)) continue;
+        if (one.node != FT_NONE) return 0;
+        one = v->t[k];
+    }
+    if (one.node == FT_NONE) return 0;
+    *t = one;
+    return 1;
+}
+
 /* The half-spaces of the pocket that operand `o` of intersection `and` cuts away into
  * n[], d[] (n.x <= d each) and their terms into pt[] (neg: the face complemented);
  * returns their number, 0 when the operand is no union of planes (or a subtraction of
  * an intersection of planes) of POCKET_MIN_FACES to 6 operands. */
-static int pocket_faces(const ft *F, ft_term o, double n[6][3], double d[6], ft_term pt[6])
+static int pocket_faces(const ft *F, uint32_t and, double tol, ft_term o, double n[6][3], double d[6],
+                        ft_term pt[6])
 {
     const ft_node *v = &F->v[o.node];
     if (!((v->kind == FT_OR && !o.neg) || (v->kind == FT_AND && o.neg))) return 0;
     if (v->n < POCKET_MIN_FACES || v->n > 6) return 0;
     for (uint32_t k = 0; k < v->n; k++) {
         pt[k] = v->t[k];
+        if (and != FT_NONE && !ft_context_plane(F, and, tol, &pt[k])) return 0;
         if (v->kind == FT_OR) pt[k].neg = !pt[k].neg;
         if (!ft_plane(F, pt[k], n[k], &d[k])) return 0;
     }
     return (int)v->n;
 }
 
-/* The box node of the m half-spaces n[], d[] (terms pt[]), free faces beyond the cloud's
- * box grown by COVER_FREE_GROWTH; FT_NONE when they bound no box on one frame. */
+/* The box node of the m half-spaces n[], d[] (terms pt[]), their normals within tol of
+ * one square frame's axes, each fitted face where its plane crosses the axis through
+ * the point `at` (NULL: the origin), free faces beyond the cloud's box grown by
+ * COVER_FREE_GROWTH; FT_NONE when they bound no box on one frame. */
 static uint32_t pocket_box(ft *F, int m, const double n[6][3], const double d[6], const ft_term pt[6],
-                           const ft_check *ck, const evolve_result *r)
+                           double tol, const double *at, const ft_check *ck, const evolve_result *r)
 {
     double u[3][3];
     int nd = 0, axis[6], side[6];
-    double ct = cos(ck->tol), st = sin(ck->tol);
+    double ct = cos(tol), st = sin(tol);
     for (int k = 0; k < m; k++) {
         int a = -1;
         for (int e = 0; e < nd && a < 0; e++)
@@ -3160,10 +3216,17 @@ static uint32_t pocket_box(ft *F, int m, const double n[6][3], const double d[6]
     for (int k = 0; k < 6; k++) face[k] = FT_NONE, fneg[k] = 0;
     for (int k = 0; k < m; k++) {
         int a = axis[k];
-        double c = vec3_dot(n[k], u[a]);
+        double c = vec3_dot(n[k], u[a]), dk = d[k];
         int f = side[k] ? 2 * a : 2 * a + 1;
-        if (side[k]) hi[a] = d[k] / c;
-        else lo[a] = -d[k] / -c;
+        if (at) {
+            /* the plane's place on the axis through `at`, not through the origin: its
+             * normal may be off the square frame's axis by up to tol */
+            double along = vec3_dot(at, u[a]), p[3];
+            for (int w = 0; w < 3; w++) p[w] = at[w] - along * u[a][w];
+            dk -= vec3_dot(n[k], p);
+        }
+        if (side[k]) hi[a] = dk / c;
+        else lo[a] = -dk / -c;
         face[f] = F->v[pt[k].node].leaf;
         fneg[f] = pt[k].neg;
         fit[f] = 1;
@@ -3190,9 +3253,9 @@ static void ft_pockets(ft *F, uint32_t i, const ft_check *ck, const evolve_resul
     for (uint32_t k = 0; k < F->v[i].n && !F->failed && !ft_cancelled(ck); k++) {
         double n[6][3], d[6];
         ft_term pt[6], o = F->v[i].t[k];
-        int m = pocket_faces(F, o, n, d, pt);
+        int m = pocket_faces(F, FT_NONE, 0, o, n, d, pt);
         if (!m) continue;
-        uint32_t b = pocket_box(F, m, n, d, pt, ck, r);
+        uint32_t b = pocket_box(F, m, n, d, pt, ck->tol, NULL, ck, r);
         if (b == FT_NONE) continue;
         F->v[i].t[k].node = b;
         F->v[i].t[k].neg = 1;
@@ -3306,12 +3369,101 @@ static void ft_adopt_plane(ft *F, uint32_t j, const evolve_result *r)
     set_name(F->c, j, F->nprims, base);
 }
 
+/* The sum of min(f^2, eps^2) of the model over the cloud points idx[0..n) with free
+ * face f of the box cut that is term k of intersection i (axes u, extents lo, hi, faces
+ * face, fneg) at `at`; NAN when that is no box.  The trial box's node is given back. */
+static double scan_sum(ft *F, uint32_t i, uint32_t k, int f, double at, const double u[3][3],
+                       const double lo[3], const double hi[3], const uint32_t face[6],
+                       const uint8_t fneg[6], const size_t *idx, size_t n, const ft_check *ck, double e)
+{
+    const frep_cloud *cl = ck->cloud;
+    double nlo[3], nhi[3];
+    memcpy(nlo, lo, sizeof nlo);
+    memcpy(nhi, hi, sizeof nhi);
+    if (f % 2 == 0) nhi[f / 2] = at;
+    else nlo[f / 2] = at;
+    uint32_t b = F->v[i].t[k].node, nb = ft_box_node(F, u, nlo, nhi, face, fneg);
+    if (nb == FT_NONE) return NAN;
+    F->v[i].t[k].node = nb;
+    double sum = 0;
+    for (size_t m = 0; m < n; m++) {
+        double x[3] = { cl->x[idx[m]], cl->y[idx[m]], cl->z[idx[m]] }, v = ft_eval(F, ck->root, x);
+        sum += fmin(v * v, e * e);
+    }
+    F->v[i].t[k].node = b;
+    if (nb == F->n - 1) F->n--;   /* the last node made: nothing refers to it */
+    return sum;
+}
+
+/* The place along u[a] for free face f of the box cut (axes u, extents lo, hi, faces
+ * face, fneg) that is term k of intersection i where the model fits the cloud's points
+ * around the cut best: the least sum of min(f^2, eps_d^2) over the points in the box
+ * grown by 2 eps_d (scan_sum), the face tried every eps_d from the opposite face to the
+ * points' end, then every eps_d / CANON_SCAN_STEPS about the best.  NAN when no place
+ * fits CANON_SCAN_GAIN points' worth (eps_d^2 each) better than the face where it is,
+ * when the best is within 2 eps_d of the points' end (a pocket open to the outside: no
+ * point says where a lid is not), or out of memory. */
+static double face_scan(ft *F, uint32_t i, uint32_t k, int f, const double u[3][3], const double lo[3],
+                        const double hi[3], const uint32_t face[6], const uint8_t fneg[6],
+                        const ft_check *ck, const evolve_result *r)
+{
+    const frep_cloud *cl = ck->cloud;
+    int a = f / 2;
+    double dir = f % 2 == 0 ? 1 : -1;   /* outward along u[a] */
+    double e = r->eps_d, grow = 2 * e, end = -HUGE_VAL;   /* end: the points' reach, times dir */
+    size_t n = 0, cap = 0, *idx = NULL;
+    for (size_t p = 0; p < cl->n; p++) {
+        double x[3] = { cl->x[p], cl->y[p], cl->z[p] };
+        int in = 1;
+        for (int w = 0; w < 3 && in; w++) {
+            double t = vec3_dot(u[w], x);
+            in = t >= lo[w] - grow && t <= hi[w] + grow;
+        }
+        if (!in) continue;
+        if (n == cap) {
+            size_t nc = cap ? 2 * cap : 1024;
+            size_t *ni = frep_realloc(idx, nc * sizeof *ni);
+            if (!ni) {
+                frep_free(idx);
+                return NAN;
+            }
+            idx = ni, cap = nc;
+        }
+        idx[n++] = p;
+        end = fmax(end, dir * vec3_dot(u[a], x));
+    }
+    /* in outward coordinates s = dir * (u[a] . x): from the opposite face to the end */
+    double from = dir > 0 ? lo[a] : -hi[a], to = fmin(dir > 0 ? hi[a] : -lo[a], end + e);
+    double here = 0, best = NAN, best_s;
+    for (size_t m = 0; m < n; m++) {
+        double x[3] = { cl->x[idx[m]], cl->y[idx[m]], cl->z[idx[m]] }, v = ft_eval(F, ck->root, x);
+        here += fmin(v * v, e * e);
+    }
+    best_s = here - CANON_SCAN_GAIN * e * e;
+    for (int pass = 0; pass < 2 && n; pass++) {
+        double step = pass ? e / CANON_SCAN_STEPS : e, s0 = pass ? best - e : from + e;
+        double s1 = pass ? fmin(best + e, to) : to;
+        if (pass && isnan(best)) break;
+        for (double sc = s0; sc < s1 && !F->failed; sc += step) {
+            double sum = scan_sum(F, i, k, f, dir * sc, u, lo, hi, face, fneg, idx, n, ck, e);
+            if (sum < best_s) best_s = sum, best = sc;
+        }
+    }
+    frep_free(idx);
+    /* at the points' end the face is as good as free: beyond the part */
+    if (isnan(best) || best > end - 2 * e) return NAN;
+    return dir * best;
+}
+
 /* Free face f of the box cut that is term k of intersection i moved to each fitted
- * plane along its direction within the cut's extent, the tree's or one it left out;
- * the one where the model explains most check points within eps_d is kept where it
- * explains no fewer than before and the mean distance is smaller: a cut the cover ran
- * through a wall (its face free, beyond the part) stops at the wall's fitted face, a
- * pocket's cut at its smallest faces (ft_adopt_plane).  1 when the cut changed. */
+ * plane along its direction within the cut's extent, the tree's or one it left out,
+ * and to where the points around the cut fit best (face_scan: a face no plane was
+ * fitted to); the place where the model explains most check points within eps_d is
+ * kept where it explains no fewer than before and the mean distance is smaller (and,
+ * for the scan's place, more check points): a cut the cover ran through a wall (its
+ * face free, beyond the part) stops at the wall's fitted face, a pocket's cut at its
+ * smallest faces (ft_adopt_plane) or where the wall's points say.  1 when the cut
+ * changed. */
 static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check *ck, const evolve_result *r)
 {
     uint32_t b = F->v[i].t[k].node;
@@ -3331,14 +3483,26 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
     uint32_t best = FT_NONE, best_j = FT_NONE;
     double best_lo[3], best_hi[3];
     uint8_t best_neg = 0;
-    for (size_t j = 0; j < F->nprims && !F->failed; j++) {
-        /* a plane of the list: one the tree uses (canonical, named), or a fitted face
-         * it left out (a pocket's smallest faces, 10-30 points) that explains more */
-        if (F->q[j].type != PRIM_PLANE) continue;
-        double c = vec3_dot(F->q[j].p, u[a]);
-        if (fabs(c) < cos(ck->tol)) continue;
-        /* the half-space u . x <= at (an upper face) or >= at (a lower one) */
-        double at = F->q[j].r / c;
+    /* the candidates: each plane of the list (j < nprims), then the scan's place */
+    for (size_t j = 0; j <= F->nprims && !F->failed; j++) {
+        double at;
+        uint32_t fj = FT_NONE;
+        uint8_t neg = 0;
+        if (j < F->nprims) {
+            /* a plane of the list: one the tree uses (canonical, named), or a fitted face
+             * it left out (a pocket's smallest faces, 10-30 points) that explains more */
+            if (F->q[j].type != PRIM_PLANE) continue;
+            double c = vec3_dot(F->q[j].p, u[a]);
+            if (fabs(c) < cos(ck->tol)) continue;
+            /* the half-space u . x <= at (an upper face) or >= at (a lower one) */
+            at = F->q[j].r / c;
+            fj = (uint32_t)j;
+            neg = (uint8_t)(up ? c < 0 : c > 0);
+        } else {
+            if (!ck->cloud) continue;
+            at = face_scan(F, i, k, f, u, lo, hi, face, fneg, ck, r);
+            if (isnan(at)) continue;
+        }
         if (!(at > lo[a] + ck->gtol && at < hi[a] - ck->gtol)) continue;
         double nlo[3], nhi[3];
         memcpy(nlo, lo, sizeof nlo);
@@ -3349,8 +3513,8 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
         memcpy(nneg, fneg, sizeof nneg);
         if (up) nhi[a] = at;
         else nlo[a] = at;
-        nface[f] = (uint32_t)j;
-        nneg[f] = (uint8_t)(up ? c < 0 : c > 0);
+        nface[f] = fj;
+        nneg[f] = neg;
         uint32_t nb = ft_box_node(F, u, nlo, nhi, nface, nneg);
         if (nb == FT_NONE) continue;
         box_set_planes(F, nb, u, nlo, nhi);
@@ -3359,14 +3523,16 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
         double now = ft_fit(F, ck, r->eps_d, NULL, NULL, &nnow, NULL);
         F->v[i].t[k].node = b;
         if (nnow > best_near || (nnow == best_near && now < best_mean)) {
-            best = nb, best_j = (uint32_t)j, best_near = nnow, best_mean = now;
-            best_neg = nneg[f];
+            best = nb, best_j = fj, best_near = nnow, best_mean = now;
+            best_neg = neg;
             memcpy(best_lo, nlo, sizeof best_lo);
             memcpy(best_hi, nhi, sizeof best_hi);
         }
     }
     if (best == FT_NONE || best_near < nwas || !(best_mean < mean)) return 0;
-    if (!F->c[best_j].name[0]) {
+    /* a place no plane gives: only where it explains more points */
+    if (best_j == FT_NONE && best_near == nwas) return 0;
+    if (best_j != FT_NONE && !F->c[best_j].name[0]) {
         /* the box again, with the face's quanta */
         ft_adopt_plane(F, best_j, r);
         face[f] = best_j;
@@ -3375,8 +3541,128 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
         if (best == FT_NONE) return 0;
         box_set_planes(F, best, u, best_lo, best_hi);
     }
+    memcpy(F->v[best].ends, F->v[b].ends, sizeof F->v[best].ends);
+    F->v[best].ends[f] = best_j == FT_NONE;
     F->v[i].t[k].node = best;
     return 1;
+}
+
+/* How far along u[a] (the largest u[a].x, or the smallest when !up) the cloud's points
+ * on fitted face g of the box of axes u and extents lo, hi reach: within eps_d of its
+ * plane, their normals (when the cloud has them) within alpha of its, inside the box
+ * across the third axis.  NAN when no point is. */
+static double face_reach(const ft *F, uint32_t g, const double u[3][3], const double lo[3],
+                         const double hi[3], int a, int up, const ft_check *ck, const evolve_result *r)
+{
+    const frep_cloud *cl = ck->cloud;
+    const prim *q = &F->q[g];
+    double ca = cos(r->alpha), best = NAN;
+    for (size_t i = 0; i < cl->n; i++) {
+        double x[3] = { cl->x[i], cl->y[i], cl->z[i] };
+        if (fabs(vec3_dot(q->p, x) - q->r) > r->eps_d) continue;
+        if (cl->has_normals) {
+            double nx[3] = { cl->nx[i], cl->ny[i], cl->nz[i] };
+            if (fabs(vec3_dot(q->p, nx)) < ca) continue;
+        }
+        int in = 1;
+        for (int e = 0; e < 3 && in; e++) {
+            double t = vec3_dot(u[e], x);
+            /* g's own axis: the plane test above; axis a: the box's extent */
+            if (fabs(vec3_dot(u[e], q->p)) <= 0.5) in = t >= lo[e] - ck->gtol && t <= hi[e] + ck->gtol;
+        }
+        if (!in) continue;
+        double t = vec3_dot(u[a], x);
+        if (isnan(best) || (up ? t > best : t < best)) best = t;
+    }
+    return best;
+}
+
+/* Operand k of intersection i, a union of planes its boxes read as a pocket (pocket_faces
+ * with ft_context_plane), written as that pocket's box cut away, each free face first
+ * where the points of the box's fitted faces end (face_reach), then WEDGE_ROUNDS times
+ * in turn where the points around the cut fit best (face_scan, from the fitted face
+ * opposite out to the free place); put back unless the model then explains more check
+ * points, the mean distance no larger: the GA's cut of a pocket whose far faces hold
+ * too few points to be fitted runs on through the part (three_cuboids at 0.5% noise:
+ * 12-23 points a face).  1 when the operand changed. */
+static int ft_wedge(ft *F, uint32_t i, uint32_t k, const ft_check *ck, const evolve_result *r)
+{
+    double n[6][3], d[6];
+    ft_term pt[6], o = F->v[i].t[k];
+    int m = pocket_faces(F, i, ck->gtol, o, n, d, pt);
+    if (!m) return 0;
+    /* the pocket's middle: of its faces' inlier patches */
+    double mid[3] = { 0, 0, 0 };
+    int np = 0;
+    for (int j = 0; j < m; j++) {
+        const prim *q = &F->q[F->v[pt[j].node].leaf];
+        if (!q->has_obb) continue;
+        for (int w = 0; w < 3; w++) mid[w] += q->obb_c[w];
+        np++;
+    }
+    for (int w = 0; w < 3; w++) mid[w] /= np ? np : 1;
+    uint32_t b = pocket_box(F, m, n, d, pt, CANON_WEDGE_DEG * FREP_PI / 180, np ? mid : NULL, ck, r);
+    if (b == FT_NONE) return 0;
+    const ft_node *v = &F->v[b];
+    double u[3][3], lo[3], hi[3], lo0[3], hi0[3];
+    for (int a = 0; a < 3; a++) {
+        memcpy(u[a], v->fpl[2 * a], sizeof u[a]);
+        hi0[a] = hi[a] = v->fpl[2 * a][3];
+        lo0[a] = lo[a] = -v->fpl[2 * a + 1][3];
+    }
+    uint32_t face[6];
+    uint8_t fneg[6], ends[6] = { 0 };
+    memcpy(face, v->face, sizeof face);
+    memcpy(fneg, v->fneg, sizeof fneg);
+    for (int f = 0; f < 6; f++) {
+        if (face[f] != FT_NONE) continue;
+        int a = f / 2, up = f % 2 == 0;
+        for (int g = 0; g < 6; g++) {
+            if (g / 2 == a || face[g] == FT_NONE) continue;
+            double t = face_reach(F, face[g], u, lo0, hi0, a, up, ck, r);
+            if (isnan(t) || !(t > lo0[a] && t < hi0[a])) continue;
+            if (!ends[f] || (up ? t > hi[a] : t < lo[a])) {
+                if (up) hi[a] = t;
+                else lo[a] = t;
+            }
+            ends[f] = 1;
+        }
+    }
+    size_t nwas, nnow = 0;
+    double mean = ft_fit(F, ck, r->eps_d, NULL, NULL, &nwas, NULL), now = mean;
+    int placed = 0;
+    for (int round = 0; round < WEDGE_ROUNDS && !F->failed; round++)
+        for (int f = 0; f < 6 && !F->failed; f++) {
+            if (face[f] != FT_NONE) continue;
+            int a = f / 2, up = f % 2 == 0;
+            /* from the opposite face out to the free place, the others where they are */
+            double slo[3], shi[3];
+            memcpy(slo, lo, sizeof slo);
+            memcpy(shi, hi, sizeof shi);
+            if (up) shi[a] = hi0[a];
+            else slo[a] = lo0[a];
+            uint32_t sb = ft_box_node(F, u, slo, shi, face, fneg);
+            if (sb == FT_NONE) break;
+            box_set_planes(F, sb, u, slo, shi);
+            F->v[i].t[k] = (ft_term){ sb, 1 };
+            double t = face_scan(F, i, k, f, u, slo, shi, face, fneg, ck, r);
+            if (up) hi[a] = isnan(t) ? hi0[a] : t;
+            else lo[a] = isnan(t) ? lo0[a] : t;
+            ends[f] = (uint8_t)!isnan(t);
+            placed |= ends[f];
+        }
+    uint32_t nb = placed ? ft_box_node(F, u, lo, hi, face, fneg) : FT_NONE;
+    if (nb != FT_NONE) {
+        box_set_planes(F, nb, u, lo, hi);
+        memcpy(F->v[nb].ends, ends, sizeof ends);
+        F->v[i].t[k] = (ft_term){ nb, 1 };
+        now = ft_fit(F, ck, r->eps_d, NULL, NULL, &nnow, NULL);
+    }
+    /* The box's frame is square where the faces were not quite: kept where it explains
+     * more check points and the mean distance is no larger. */
+    int keep = nb != FT_NONE && nnow > nwas && now <= mean;
+    if (!keep) F->v[i].t[k] = o;
+    return keep;
 }
 
 /* Whether the model is the same without term k of union u at every check grid point
@@ -3412,7 +3698,10 @@ static void apply_tighten(ft *F, uint32_t i, const ft_check *ck, const evolve_re
     if (F->v[i].kind != FT_AND) return;
     for (uint32_t k = 0; k < F->v[i].n && !F->failed; k++) {
         ft_term t = F->v[i].t[k];
-        if (!t.neg || F->v[t.node].kind != FT_BOX) continue;
+        if (!t.neg || F->v[t.node].kind != FT_BOX) {
+            *changed |= ft_wedge(F, i, k, ck, r);
+            continue;
+        }
         for (int f = 0; f < 6; f++)
             if (F->v[F->v[i].t[k].node].face[f] == FT_NONE) *changed |= ft_tighten_face(F, i, k, f, ck, r);
     }

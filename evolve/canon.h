@@ -135,6 +135,18 @@ void canon_write_comment(FILE *f, const canon_prim *c);
  * least this many planes (the box of one plane is no fewer solids than its
  * half-space). */
 #define POCKET_MIN_FACES 2
+/* A pocket's faces read as one box's by ft_wedge when their normals are this close to
+ * a frame's axes, in degrees: fitted to noisy points, a small face's normal is off by
+ * up to 3.2 degrees (three_cuboids at 0.5% noise); the model must keep its solid. */
+#define CANON_WEDGE_DEG 5.0
+/* face_scan's places for a free face of a cut: this many to each eps_d. */
+#define CANON_SCAN_STEPS 4
+/* ... and moves one only where the points around the cut fit this many points' worth
+ * better (a pocket's wrong cut through a wall loses hundreds). */
+#define CANON_SCAN_GAIN 10
+/* ft_wedge places a pocket's free faces in turn this many times (each place depends on
+ * where the others are). */
+#define WEDGE_ROUNDS 2
 
 /* The k-th (k < m = min(n, most)) of m indices evenly spread over 0..n-1: floor(k n / m),
  * so that a cloud of n points gives exactly m of them, the first one 0. */
