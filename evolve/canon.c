@@ -3395,6 +3395,70 @@ static double scan_sum(ft *F, uint32_t i, uint32_t k, int f, double at, const do
     return sum;
 }
 
+/* The share of the part of free face f at `at` that the model shows (its value within
+ * eps / 2 of 0 at the point) over which a cloud point of idx[0..n) lies near:
+ * the face's rectangle (the box's extents lo, hi across it) sampled on a
+ * CANON_SCAN_GRID square grid.  1 when the model shows none of it. */
+static double face_covered(ft *F, uint32_t i, uint32_t k, int f, double at, const double u[3][3],
+                           const double lo[3], const double hi[3], const uint32_t face[6],
+                           const uint8_t fneg[6], const size_t *idx, size_t n, const ft_check *ck,
+                           double e)
+{
+    const frep_cloud *cl = ck->cloud;
+    int a = f / 2, b1 = (a + 1) % 3, b2 = (a + 2) % 3;
+    double nlo[3], nhi[3];
+    memcpy(nlo, lo, sizeof nlo);
+    memcpy(nhi, hi, sizeof nhi);
+    if (f % 2 == 0) nhi[a] = at;
+    else nlo[a] = at;
+    /* near: within 2 eps, or twice the points' spacing where they are sparser (the
+     * median distance to the nearest of CANON_SCAN_GRID of them, evenly spread) */
+    double nn[CANON_SCAN_GRID], reach = 2 * e;
+    size_t ns = n < CANON_SCAN_GRID ? n : CANON_SCAN_GRID;
+    for (size_t q = 0; q < ns; q++) {
+        size_t p = idx[canon_spread(q, n, CANON_SCAN_GRID)];
+        nn[q] = HUGE_VAL;
+        for (size_t m = 0; m < n; m++) {
+            double d[3] = { cl->x[idx[m]] - cl->x[p], cl->y[idx[m]] - cl->y[p], cl->z[idx[m]] - cl->z[p] };
+            double l = vec3_dot(d, d);
+            if (idx[m] != p && l < nn[q]) nn[q] = l;
+        }
+    }
+    if (ns) {
+        for (size_t q = 1; q < ns; q++)   /* in order (a few: insertion) */
+            for (size_t t = q; t > 0 && nn[t] < nn[t - 1]; t--) {
+                double sw = nn[t];
+                nn[t] = nn[t - 1];
+                nn[t - 1] = sw;
+            }
+        reach = fmax(reach, 2 * sqrt(nn[ns / 2]));
+    }
+    /* and at least half a grid cell's diagonal: each grid point stands for its cell */
+    reach = fmax(reach, 0.5 * hypot(hi[b1] - lo[b1], hi[b2] - lo[b2]) / CANON_SCAN_GRID);
+    uint32_t b = F->v[i].t[k].node, nb = ft_box_node(F, u, nlo, nhi, face, fneg);
+    if (nb == FT_NONE) return 0;
+    F->v[i].t[k].node = nb;
+    size_t shown = 0, near = 0;
+    for (int gi = 0; gi < CANON_SCAN_GRID; gi++)
+        for (int gj = 0; gj < CANON_SCAN_GRID; gj++) {
+            double s1 = lo[b1] + (hi[b1] - lo[b1]) * (gi + 0.5) / CANON_SCAN_GRID;
+            double s2 = lo[b2] + (hi[b2] - lo[b2]) * (gj + 0.5) / CANON_SCAN_GRID, g[3];
+            for (int w = 0; w < 3; w++) g[w] = at * u[a][w] + s1 * u[b1][w] + s2 * u[b2][w];
+            if (!(fabs(ft_eval(F, ck->root, g)) <= e / 2)) continue;
+            shown++;
+            for (size_t m = 0; m < n; m++) {
+                double d[3] = { cl->x[idx[m]] - g[0], cl->y[idx[m]] - g[1], cl->z[idx[m]] - g[2] };
+                if (vec3_dot(d, d) <= reach * reach) {
+                    near++;
+                    break;
+                }
+            }
+        }
+    F->v[i].t[k].node = b;
+    if (nb == F->n - 1) F->n--;
+    return shown ? (double)near / (double)shown : 1;
+}
+
 /* The place along u[a] for free face f of the box cut (axes u, extents lo, hi, faces
  * face, fneg) that is term k of intersection i where the model fits the cloud's points
  * around the cut best: the least sum of min(f^2, eps_d^2) over the points in the box
@@ -3402,7 +3466,9 @@ static double scan_sum(ft *F, uint32_t i, uint32_t k, int f, double at, const do
  * points' end, then every eps_d / CANON_SCAN_STEPS about the best.  NAN when no place
  * fits CANON_SCAN_GAIN points' worth (eps_d^2 each) better than the face where it is,
  * when the best is within 2 eps_d of the points' end (a pocket open to the outside: no
- * point says where a lid is not), or out of memory. */
+ * point says where a lid is not), when fewer than CANON_SCAN_SUPPORT points lie on the
+ * face there (material the cut would leave where no point is: the points count only
+ * where they are, not where they are not), or out of memory. */
 static double face_scan(ft *F, uint32_t i, uint32_t k, int f, const double u[3][3], const double lo[3],
                         const double hi[3], const uint32_t face[6], const uint8_t fneg[6],
                         const ft_check *ck, const evolve_result *r)
@@ -3449,21 +3515,40 @@ static double face_scan(ft *F, uint32_t i, uint32_t k, int f, const double u[3][
             if (sum < best_s) best_s = sum, best = sc;
         }
     }
+    /* the face's own points: on its plane, inside its rectangle, normals within
+     * CANON_SCAN_NORMAL_DEG of it */
+    size_t on = 0;
+    double ca = cos(CANON_SCAN_NORMAL_DEG * FREP_PI / 180);
+    for (size_t m = 0; m < n && !isnan(best); m++) {
+        size_t p = idx[m];
+        double x[3] = { cl->x[p], cl->y[p], cl->z[p] };
+        if (fabs(dir * vec3_dot(u[a], x) - best) > e) continue;
+        int in = 1;
+        for (int w = 0; w < 3 && in; w++) {
+            double t = vec3_dot(u[w], x);
+            in = w == a || (t >= lo[w] && t <= hi[w]);
+        }
+        if (in && cl->has_normals) {
+            double nx[3] = { cl->nx[p], cl->ny[p], cl->nz[p] };
+            in = fabs(vec3_dot(nx, u[a])) >= ca;
+        }
+        on += (size_t)in;
+    }
+
+    double covered = isnan(best) ? 0 : face_covered(F, i, k, f, dir * best, u, lo, hi, face, fneg, idx, n, ck, e);
     frep_free(idx);
     /* at the points' end the face is as good as free: beyond the part */
-    if (isnan(best) || best > end - 2 * e) return NAN;
+    if (isnan(best) || best > end - 2 * e || on < CANON_SCAN_SUPPORT || covered < CANON_SCAN_COVERED)
+        return NAN;
     return dir * best;
 }
 
 /* Free face f of the box cut that is term k of intersection i moved to each fitted
- * plane along its direction within the cut's extent, the tree's or one it left out,
- * and to where the points around the cut fit best (face_scan: a face no plane was
- * fitted to); the place where the model explains most check points within eps_d is
- * kept where it explains no fewer than before and the mean distance is smaller (and,
- * for the scan's place, more check points): a cut the cover ran through a wall (its
- * face free, beyond the part) stops at the wall's fitted face, a pocket's cut at its
- * smallest faces (ft_adopt_plane) or where the wall's points say.  1 when the cut
- * changed. */
+ * plane along its direction within the cut's extent, the tree's or one it left out;
+ * the one where the model explains most check points within eps_d is kept where it
+ * explains no fewer than before and the mean distance is smaller: a cut the cover ran
+ * through a wall (its face free, beyond the part) stops at the wall's fitted face, a
+ * pocket's cut at its smallest faces (ft_adopt_plane).  1 when the cut changed. */
 static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check *ck, const evolve_result *r)
 {
     uint32_t b = F->v[i].t[k].node;
@@ -3483,26 +3568,14 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
     uint32_t best = FT_NONE, best_j = FT_NONE;
     double best_lo[3], best_hi[3];
     uint8_t best_neg = 0;
-    /* the candidates: each plane of the list (j < nprims), then the scan's place */
-    for (size_t j = 0; j <= F->nprims && !F->failed; j++) {
-        double at;
-        uint32_t fj = FT_NONE;
-        uint8_t neg = 0;
-        if (j < F->nprims) {
-            /* a plane of the list: one the tree uses (canonical, named), or a fitted face
-             * it left out (a pocket's smallest faces, 10-30 points) that explains more */
-            if (F->q[j].type != PRIM_PLANE) continue;
-            double c = vec3_dot(F->q[j].p, u[a]);
-            if (fabs(c) < cos(ck->tol)) continue;
-            /* the half-space u . x <= at (an upper face) or >= at (a lower one) */
-            at = F->q[j].r / c;
-            fj = (uint32_t)j;
-            neg = (uint8_t)(up ? c < 0 : c > 0);
-        } else {
-            if (!ck->cloud) continue;
-            at = face_scan(F, i, k, f, u, lo, hi, face, fneg, ck, r);
-            if (isnan(at)) continue;
-        }
+    for (size_t j = 0; j < F->nprims && !F->failed; j++) {
+        /* a plane of the list: one the tree uses (canonical, named), or a fitted face
+         * it left out (a pocket's smallest faces, 10-30 points) that explains more */
+        if (F->q[j].type != PRIM_PLANE) continue;
+        double c = vec3_dot(F->q[j].p, u[a]);
+        if (fabs(c) < cos(ck->tol)) continue;
+        /* the half-space u . x <= at (an upper face) or >= at (a lower one) */
+        double at = F->q[j].r / c;
         if (!(at > lo[a] + ck->gtol && at < hi[a] - ck->gtol)) continue;
         double nlo[3], nhi[3];
         memcpy(nlo, lo, sizeof nlo);
@@ -3513,8 +3586,8 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
         memcpy(nneg, fneg, sizeof nneg);
         if (up) nhi[a] = at;
         else nlo[a] = at;
-        nface[f] = fj;
-        nneg[f] = neg;
+        nface[f] = (uint32_t)j;
+        nneg[f] = (uint8_t)(up ? c < 0 : c > 0);
         uint32_t nb = ft_box_node(F, u, nlo, nhi, nface, nneg);
         if (nb == FT_NONE) continue;
         box_set_planes(F, nb, u, nlo, nhi);
@@ -3523,16 +3596,14 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
         double now = ft_fit(F, ck, r->eps_d, NULL, NULL, &nnow, NULL);
         F->v[i].t[k].node = b;
         if (nnow > best_near || (nnow == best_near && now < best_mean)) {
-            best = nb, best_j = fj, best_near = nnow, best_mean = now;
-            best_neg = neg;
+            best = nb, best_j = (uint32_t)j, best_near = nnow, best_mean = now;
+            best_neg = nneg[f];
             memcpy(best_lo, nlo, sizeof best_lo);
             memcpy(best_hi, nhi, sizeof best_hi);
         }
     }
     if (best == FT_NONE || best_near < nwas || !(best_mean < mean)) return 0;
-    /* a place no plane gives: only where it explains more points */
-    if (best_j == FT_NONE && best_near == nwas) return 0;
-    if (best_j != FT_NONE && !F->c[best_j].name[0]) {
+    if (!F->c[best_j].name[0]) {
         /* the box again, with the face's quanta */
         ft_adopt_plane(F, best_j, r);
         face[f] = best_j;
@@ -3542,7 +3613,7 @@ static int ft_tighten_face(ft *F, uint32_t i, uint32_t k, int f, const ft_check 
         box_set_planes(F, best, u, best_lo, best_hi);
     }
     memcpy(F->v[best].ends, F->v[b].ends, sizeof F->v[best].ends);
-    F->v[best].ends[f] = best_j == FT_NONE;
+    F->v[best].ends[f] = 0;
     F->v[i].t[k].node = best;
     return 1;
 }

@@ -144,6 +144,20 @@ void canon_write_comment(FILE *f, const canon_prim *c);
 /* ... and moves one only where the points around the cut fit this many points' worth
  * better (a pocket's wrong cut through a wall loses hundreds). */
 #define CANON_SCAN_GAIN 10
+/* ... and where at least this many points lie on the face: within eps_d of it, inside
+ * its rectangle, their normals within CANON_SCAN_NORMAL_DEG of it.  A far face of the
+ * pocket three_cuboids' turned cube cuts (12-23 points of its own at 0.5% noise) has
+ * 12-90 so counted. */
+#define CANON_SCAN_SUPPORT 10
+/* ... and where the part of the face the model shows has a point near (2 eps_d) over
+ * this share of it, sampled on a CANON_SCAN_GRID square grid: a face where no point
+ * lies leaves material where there is none (the points count only where they are).
+ * three_cuboids' pocket's far faces at 0.5% noise: 1.0; faces a cut that must go on
+ * beyond the part was stopped at by the noise (tests/evolve_pocket.sh's corner cut at
+ * 1% noise): 0.29-0.41, with 0-22 points on them. */
+#define CANON_SCAN_COVERED 0.6
+#define CANON_SCAN_GRID 24
+#define CANON_SCAN_NORMAL_DEG 25.0
 /* ft_wedge places a pocket's free faces in turn this many times (each place depends on
  * where the others are). */
 #define WEDGE_ROUNDS 2

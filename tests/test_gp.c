@@ -2159,38 +2159,6 @@ static void test_box_cover(void)
         double kd[11] = { 0, 2, 0, 2, 0, 2, -0.5, 1.5, -0.5, -1, 1.5 };
         cover_case_planes(&pocket, 11, kn, kd);
         test_box_cover_case(&pocket);
-        /* The same pocket with its face y <= 1.5 fitted by nobody (np 10: the truth's
-         * plane b is no primitive), as a turned pocket's faces of 12-23 points at 0.5%
-         * noise: the free face is placed where the points around the cut fit best
-         * (face_scan); the old writer runs the cut through the wall, 1,080 of 27,000
-         * grid points on the wrong side. */
-        cover_case unfitted = { "pocket, a face not fitted", "12&3&4&5&6&78&9&a&~&",
-                                "faces plane_x_left_2, plane_x_right_2, plane_y_front_2, ends, plane_z_bottom_2, free",
-                                10, { { 0 } }, { 0 }, 0, "12&3&4&5&6&78&9&a&b&~&", 0, { 0 }, { { 0 } } };
-        cover_case_planes(&unfitted, 11, kn, kd);
-        test_box_cover_case(&unfitted);
-    }
-    /* A cube [0, 2]^3 less a pocket open at the top, u, v in [-0.25, 0.25] about (1.4,
-     * 1.4), z >= 1, u along x turned 30 degrees about z, v along y turned 33 (fitted to
-     * noisy points, three_cuboids' turned pocket's faces are up to 3.2 degrees off
-     * square: no frame of the cover's), as the GA wrote that pocket at 0.5% noise: cube
-     * & (u <= -0.25 | v <= -0.25 | (z <= 2 & z <= 1)), the cube's own face z <= 2 beside
-     * the pocket's bottom, the far faces u, v <= 0.25 fitted by nobody.  Inside the cube
-     * the union is a pocket's (ft_context_plane), written as its box, the far faces
-     * where the points around the cut fit best (ft_wedge), the top free (open: no point
-     * says where a lid is not); the old writer keeps the half-spaces, the cut runs on
-     * through the walls beyond the far faces, 108 of 26,982 grid points on the wrong
-     * side. */
-    {
-        cover_case wedge = { "pocket, far faces not fitted", "12&3&4&5&6&78|69&|&",
-                             "faces plane_1, ends, plane_2, ends, plane_z_top_2, free", 9, { { 0 } }, { 0 }, 0, "12&3&4&5&6&7~8~&9~&a&b&~&", 0, { 0 }, { { 0 } } };
-        double cu = cos(FREP_PI / 6), su = sin(FREP_PI / 6), cv = cos(33 * FREP_PI / 180), sv = sin(33 * FREP_PI / 180);
-        double wn[11][3] = { { -1, 0, 0 }, { 1, 0, 0 }, { 0, -1, 0 }, { 0, 1, 0 }, { 0, 0, -1 }, { 0, 0, 1 },
-                             { cu, su, 0 }, { -sv, cv, 0 }, { 0, 0, 1 }, { cu, su, 0 }, { -sv, cv, 0 } };
-        double ou = 1.4 * (cu + su), ov = 1.4 * (cv - sv);
-        double wd[11] = { 0, 2, 0, 2, 0, 2, ou - 0.25, ov - 0.25, 1, ou + 0.25, ov + 0.25 };
-        cover_case_planes(&wedge, 11, wn, wd);
-        test_box_cover_case(&wedge);
     }
     /* Two rods along x between the caps x >= 0 and x <= 3, the second cut by z <= 0.7,
      * and a ball beside them, as the GA wrote mount: (caps & (rod_1 | (rod_2 & cut))) |
