@@ -3467,8 +3467,9 @@ static double face_covered(ft *F, uint32_t i, uint32_t k, int f, double at, cons
  * fits CANON_SCAN_GAIN points' worth (eps_d^2 each) better than the face where it is,
  * when the best is within 2 eps_d of the points' end (a pocket open to the outside: no
  * point says where a lid is not), when fewer than CANON_SCAN_SUPPORT points lie on the
- * face there (material the cut would leave where no point is: the points count only
- * where they are, not where they are not), or out of memory. */
+ * face there or points are near less than CANON_SCAN_COVERED of the part of it the
+ * model shows (face_covered: material the cut would leave where no point is; the sum
+ * counts the points only where they are, not where they are not), or out of memory. */
 static double face_scan(ft *F, uint32_t i, uint32_t k, int f, const double u[3][3], const double lo[3],
                         const double hi[3], const uint32_t face[6], const uint8_t fneg[6],
                         const ft_check *ck, const evolve_result *r)
