@@ -3369,29 +3369,49 @@ static void ft_adopt_plane(ft *F, uint32_t j, const evolve_result *r)
     set_name(F->c, j, F->nprims, base);
 }
 
-/* The sum of min(f^2, eps^2) of the model over the cloud points idx[0..n) with free
- * face f of the box cut that is term k of intersection i (axes u, extents lo, hi, faces
- * face, fneg) at `at`; NAN when that is no box.  The trial box's node is given back. */
-static double scan_sum(ft *F, uint32_t i, uint32_t k, int f, double at, const double u[3][3],
-                       const double lo[3], const double hi[3], const uint32_t face[6],
-                       const uint8_t fneg[6], const size_t *idx, size_t n, const ft_check *ck, double e)
+/* Term k of intersection i set to the box cut (axes u, extents lo, hi, faces face,
+ * fneg) with free face f at `at`; returns the node it held before (trial_end puts it
+ * back), or FT_NONE when that is no box (the term unchanged). */
+static uint32_t trial_begin(ft *F, uint32_t i, uint32_t k, int f, double at, const double u[3][3],
+                            const double lo[3], const double hi[3], const uint32_t face[6],
+                            const uint8_t fneg[6])
 {
-    const frep_cloud *cl = ck->cloud;
     double nlo[3], nhi[3];
     memcpy(nlo, lo, sizeof nlo);
     memcpy(nhi, hi, sizeof nhi);
     if (f % 2 == 0) nhi[f / 2] = at;
     else nlo[f / 2] = at;
     uint32_t b = F->v[i].t[k].node, nb = ft_box_node(F, u, nlo, nhi, face, fneg);
-    if (nb == FT_NONE) return NAN;
+    if (nb == FT_NONE) return FT_NONE;
     F->v[i].t[k].node = nb;
+    return b;
+}
+
+/* The term back to node b, the trial box's node given back when it was the last made
+ * (nothing refers to it). */
+static void trial_end(ft *F, uint32_t i, uint32_t k, uint32_t b)
+{
+    uint32_t nb = F->v[i].t[k].node;
+    F->v[i].t[k].node = b;
+    if (nb == F->n - 1) F->n--;
+}
+
+/* The sum of min(f^2, eps^2) of the model over the cloud points idx[0..n) with free
+ * face f of the box cut that is term k of intersection i (axes u, extents lo, hi, faces
+ * face, fneg) at `at` (trial_begin); NAN when that is no box. */
+static double scan_sum(ft *F, uint32_t i, uint32_t k, int f, double at, const double u[3][3],
+                       const double lo[3], const double hi[3], const uint32_t face[6],
+                       const uint8_t fneg[6], const size_t *idx, size_t n, const ft_check *ck, double e)
+{
+    const frep_cloud *cl = ck->cloud;
+    uint32_t b = trial_begin(F, i, k, f, at, u, lo, hi, face, fneg);
+    if (b == FT_NONE) return NAN;
     double sum = 0;
     for (size_t m = 0; m < n; m++) {
         double x[3] = { cl->x[idx[m]], cl->y[idx[m]], cl->z[idx[m]] }, v = ft_eval(F, ck->root, x);
         sum += fmin(v * v, e * e);
     }
-    F->v[i].t[k].node = b;
-    if (nb == F->n - 1) F->n--;   /* the last node made: nothing refers to it */
+    trial_end(F, i, k, b);
     return sum;
 }
 
@@ -3406,11 +3426,6 @@ static double face_covered(ft *F, uint32_t i, uint32_t k, int f, double at, cons
 {
     const frep_cloud *cl = ck->cloud;
     int a = f / 2, b1 = (a + 1) % 3, b2 = (a + 2) % 3;
-    double nlo[3], nhi[3];
-    memcpy(nlo, lo, sizeof nlo);
-    memcpy(nhi, hi, sizeof nhi);
-    if (f % 2 == 0) nhi[a] = at;
-    else nlo[a] = at;
     /* near: within 2 eps, or twice the points' spacing where they are sparser (the
      * median distance to the nearest of CANON_SCAN_GRID of them, evenly spread) */
     double nn[CANON_SCAN_GRID], reach = 2 * e;
@@ -3435,9 +3450,8 @@ static double face_covered(ft *F, uint32_t i, uint32_t k, int f, double at, cons
     }
     /* and at least half a grid cell's diagonal: each grid point stands for its cell */
     reach = fmax(reach, 0.5 * hypot(hi[b1] - lo[b1], hi[b2] - lo[b2]) / CANON_SCAN_GRID);
-    uint32_t b = F->v[i].t[k].node, nb = ft_box_node(F, u, nlo, nhi, face, fneg);
-    if (nb == FT_NONE) return 0;
-    F->v[i].t[k].node = nb;
+    uint32_t b = trial_begin(F, i, k, f, at, u, lo, hi, face, fneg);
+    if (b == FT_NONE) return 0;
     size_t shown = 0, near = 0;
     for (int gi = 0; gi < CANON_SCAN_GRID; gi++)
         for (int gj = 0; gj < CANON_SCAN_GRID; gj++) {
@@ -3454,8 +3468,7 @@ static double face_covered(ft *F, uint32_t i, uint32_t k, int f, double at, cons
                 }
             }
         }
-    F->v[i].t[k].node = b;
-    if (nb == F->n - 1) F->n--;
+    trial_end(F, i, k, b);
     return shown ? (double)near / (double)shown : 1;
 }
 
