@@ -162,6 +162,16 @@ void canon_write_comment(FILE *f, const canon_prim *c);
  * where the others are). */
 #define WEDGE_ROUNDS 2
 
+/* A sphere the tree leaves out that closes cylinders of its radius (apply_joints): each
+ * cylinder's radius within JOINT_RADIUS of the sphere's, its axis within JOINT_AXIS
+ * radii of the centre; two cylinders' axes at right angles within JOINT_ORTHO_DEG (a
+ * frame's corner); the corner cut reaches JOINT_REACH radii from the centre (the
+ * crossing rails' square corner lies within one radius of it along each axis). */
+#define JOINT_RADIUS 0.15
+#define JOINT_AXIS 0.25
+#define JOINT_ORTHO_DEG 10.0
+#define JOINT_REACH 1.25
+
 /* The k-th (k < m = min(n, most)) of m indices evenly spread over 0..n-1: floor(k n / m),
  * so that a cloud of n points gives exactly m of them, the first one 0. */
 size_t canon_spread(size_t k, size_t n, size_t most);
