@@ -100,6 +100,7 @@ cdp "file://$T/warn.html" "$READY" shot:"$T/warn.png" 'eval:document.getElementB
   'eval:document.getElementById("diag").textContent.replace(/\n/g, " ")' >"$T/warn.out"
 [ "$(sed -n 1p "$T/warn.out")" = False ] && sed -n 2p "$T/warn.out" | grep -q "^Messages about the model:.*warn.hf:3:[0-9]*: warning: "
 report $? "a compiler warning is shown in the page: $(sed -n 2p "$T/warn.out")"
+[ -s "$T/warn.out" ] || tail -n 5 "$T/cdp.log" | sed 's/^/#   cdp: /'
 png colours "$T/warn.png" $SIDE red >"$T/out"
 [ $? = 1 ]
 report $? "a model without colours has no red surface ($(cat "$T/out"))"

@@ -74,27 +74,55 @@ def evaluate(ws, expr):
     return r.get('result', {}).get('value')
 
 
-def main():
-    chromium, size, url, actions = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4:]
-    w, h = size.split('x')
+# Chromium started and its page's DevTools socket open: a start can fail on a loaded
+# machine (no DevTools line within the wait, a refused first connection); it is tried
+# again this many times, each with a fresh profile.
+LAUNCH_ATTEMPTS = 3
+
+
+def launch(chromium, w, h):
+    """Start chromium: (process, profile directory, page socket), or raise."""
     profile = tempfile.mkdtemp(prefix='frep-cdp-')
     p = subprocess.Popen([chromium, '--headless=new', '--no-sandbox', '--disable-gpu',
                           '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--hide-scrollbars',
                           '--no-first-run', '--user-data-dir=' + profile, '--window-size=%s,%s' % (w, h),
                           '--remote-debugging-port=0', 'about:blank'],
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    ok = True
     try:
         port = None
         t0 = time.time()
         while port is None and time.time() - t0 < 60:
             line = p.stderr.readline()
+            if not line and p.poll() is not None:
+                break
             m = re.search(r'DevTools listening on ws://127.0.0.1:(\d+)/', line)
             if m:
                 port = m.group(1)
+        if port is None:
+            raise RuntimeError('chromium gave no DevTools port')
         targets = json.load(urllib.request.urlopen('http://127.0.0.1:%s/json/list' % port))
         page = [t for t in targets if t.get('type') == 'page'][0]
-        ws = WS(page['webSocketDebuggerUrl'])
+        return p, profile, WS(page['webSocketDebuggerUrl'])
+    except Exception:
+        p.terminate()
+        p.wait()
+        subprocess.run(['rm', '-rf', profile])
+        raise
+
+
+def main():
+    chromium, size, url, actions = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4:]
+    w, h = size.split('x')
+    for attempt in range(LAUNCH_ATTEMPTS):
+        try:
+            p, profile, ws = launch(chromium, w, h)
+            break
+        except Exception as e:
+            print('cdp: chromium start %d failed: %s' % (attempt + 1, e), file=sys.stderr)
+            if attempt + 1 == LAUNCH_ATTEMPTS:
+                raise
+    ok = True
+    try:
         ws.call('Page.enable')
         ws.call('Page.navigate', url=url)
         mark = time.time()
