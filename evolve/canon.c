@@ -3903,8 +3903,6 @@ static int joint_axes(const ft *F, const prim *q, double e[2][3])
     return n;
 }
 
-/* Sphere j cut into the model at the end of the rails it closes (see above) and named;
- * 1 when it was.  The root is an intersection (apply_joints). */
 /* The mean |f| of the model over every cloud point within eps of the box of axes u and
  * extents lo, hi (where a cut of that box can change the model; returned) and the
  * number of them within eps of its surface (*near). */
@@ -3931,6 +3929,8 @@ static double box_fit(const ft *F, const ft_check *ck, const double u[3][3], con
     return m ? s / (double)m : 0;
 }
 
+/* Sphere j cut into the model at the end of the rails it closes (see above) and named;
+ * 1 when it was.  The root is an intersection (apply_joints). */
 static int ft_joint(ft *F, uint32_t root, uint32_t j, const ft_check *ck, const evolve_result *r)
 {
     prim q0 = F->q[j];
