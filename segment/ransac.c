@@ -2527,12 +2527,14 @@ static size_t across_faces(run *r, prim *q, size_t m, double lim)
 }
 
 /* A plane across an arc.  A concave or convex arc of a few tens of degrees lies within
- * a plane's band and normal threshold under noise (mount's groove, a quarter of a
- * cylinder of radius 1.07 at 0.5% noise: two planes of 805 and 303 points, their
- * inliers' normals 11-20 degrees off the plane at the median, where the found shapes'
- * are 2.7-3.5).  A plane whose normals disagree (normal_limit) is tried as the cylinder
- * its inliers' normals describe (cylinder_from_normals); the cylinder replaces it when
- * it holds at least as many points and its own normals agree. */
+ * a plane's band and normal threshold under noise: mount's middle with its groove, an
+ * exact cylinder of radius 1.07 (tests/models/segment_groove.hf), at 0.5% noise gave
+ * one or two planes across the arc on seeds 2-4; on clouds of mount's coarse mesh,
+ * whose groove is three facets 30 degrees apart, a plane of 805 points lay across two
+ * of them, its inliers' normals 12.7 degrees off it at the median where the found
+ * shapes' are 2.7-3.5.  A plane whose normals disagree (normal_limit) is tried as the
+ * cylinder its inliers' normals describe (cylinder_from_normals); the cylinder
+ * replaces it when it holds at least as many points and its own normals agree. */
 static int cylinder_from_normals(prim *q, const frep_cloud *c, const uint32_t *idx, size_t m);
 static size_t plane_on_arc(run *r, prim *q, size_t m, double lim)
 {
@@ -2556,9 +2558,9 @@ static size_t plane_on_arc(run *r, prim *q, size_t m, double lim)
  * centre c and radius r the least-squares solution of p = c + r n over the points and
  * their normals projected across the axis (the normals turned to agree with their
  * mean).  On an arc of a few tens of degrees under noise the positions alone (a circle
- * fit) leave the radius free: mount's groove, 55 degrees of radius 1.07 with its band
- * 0.3 wide, gives 0.32 from positions, 0.88 from this, and the least-squares refit
- * goes on from there.  Returns 0, 1 when degenerate. */
+ * fit) leave the radius free: that plane's points, 55 degrees of an arc of radius about
+ * 1.05 in a band 0.3 wide, give 0.32 from positions, 0.88 from this, and the
+ * least-squares refit goes on from there (1.06).  Returns 0, 1 when degenerate. */
 static int cylinder_from_normals(prim *q, const frep_cloud *c, const uint32_t *idx, size_t m)
 {
     double S[9] = {0}, ev[3], vec[9], mean[3] = {0, 0, 0}, nmean[3] = {0, 0, 0};
