@@ -3472,6 +3472,17 @@ static double face_covered(ft *F, uint32_t i, uint32_t k, int f, double at, cons
     return shown ? (double)near / (double)shown : 1;
 }
 
+/* Is x within grow of the box of axes u (rows) and extents lo, hi along them? */
+static int in_box(const double u[3][3], const double lo[3], const double hi[3], double grow,
+                  const double x[3])
+{
+    for (int w = 0; w < 3; w++) {
+        double t = vec3_dot(u[w], x);
+        if (!(t >= lo[w] - grow && t <= hi[w] + grow)) return 0;
+    }
+    return 1;
+}
+
 /* The place along u[a] for free face f of the box cut (axes u, extents lo, hi, faces
  * face, fneg) that is term k of intersection i where the model fits the cloud's points
  * around the cut best: the least sum of min(f^2, eps_d^2) over the points in the box
@@ -3494,12 +3505,7 @@ static double face_scan(ft *F, uint32_t i, uint32_t k, int f, const double u[3][
     size_t n = 0, cap = 0, *idx = NULL;
     for (size_t p = 0; p < cl->n; p++) {
         double x[3] = { cl->x[p], cl->y[p], cl->z[p] };
-        int in = 1;
-        for (int w = 0; w < 3 && in; w++) {
-            double t = vec3_dot(u[w], x);
-            in = t >= lo[w] - grow && t <= hi[w] + grow;
-        }
-        if (!in) continue;
+        if (!in_box(u, lo, hi, grow, x)) continue;
         if (n == cap) {
             size_t nc = cap ? 2 * cap : 1024;
             size_t *ni = frep_realloc(idx, nc * sizeof *ni);
@@ -3914,12 +3920,7 @@ static double box_fit(const ft *F, const ft_check *ck, const double u[3][3], con
     size_t m = 0, k = 0;
     for (size_t i = 0; i < cl->n; i++) {
         double x[3] = { cl->x[i], cl->y[i], cl->z[i] };
-        int inside = 1;
-        for (int a = 0; a < 3 && inside; a++) {
-            double t = vec3_dot(u[a], x);
-            inside = t >= lo[a] - eps && t <= hi[a] + eps;
-        }
-        if (!inside) continue;
+        if (!in_box(u, lo, hi, eps, x)) continue;
         double f = ft_eval(F, ck->root, x);
         s += fabs(f);
         k += (size_t)(fabs(f) <= eps);
