@@ -1613,6 +1613,62 @@ static double faces_share(const frep_cloud *c, const uint32_t *inl, size_t m, do
     return nv > 0 ? (double)sum / (double)nv : 0;
 }
 
+/* The share of the voters among torus q's m inliers whose normals' angles around the
+ * tube (from the equator's plane, in the section through the axis) lie within
+ * MODE_NORMAL_DEG of their FACE_MODES most common angles (taken one after the other).
+ * A torus across a disc's top and the two coaxial walls below it (mount's bore inside
+ * its disc) holds faces whose normals are one angle each (90, 0 and 180 degrees) but
+ * turn around the axis, so faces_share does not see the two walls as modes; a fillet's
+ * normals spread over its angles. Returns 0 when out of memory. */
+static double tube_share(const prim *q, const frep_cloud *c, const uint32_t *inl, size_t m)
+{
+    size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS, sum = 0;
+    double *v = frep_malloc(nv * sizeof *v);
+    size_t *pre = frep_malloc((nv + 1) * sizeof *pre);
+    unsigned char *used = frep_calloc(nv ? nv : 1, 1);
+    if (!v || !pre || !used || nv == 0) {
+        frep_free(v);
+        frep_free(pre);
+        frep_free(used);
+        return 0;
+    }
+    for (size_t j = 0; j < nv; j++) {
+        size_t i = inl[(size_t)((double)j * (double)m / (double)nv)];
+        double p[3], n[3], g[3], e[3];
+        point(c, i, p);
+        normal(c, i, n);
+        prim_eval(q, p, g);
+        double sg = vec3_dot(n, g) < 0 ? -1 : 1;
+        for (int k = 0; k < 3; k++) n[k] *= sg;
+        vec3_sub(p, q->p, e);
+        double h = vec3_dot(e, q->a);
+        for (int k = 0; k < 3; k++) e[k] -= h * q->a[k];
+        double el = vec3_len(e);
+        v[j] = atan2(vec3_dot(n, q->a), el > 0 ? vec3_dot(n, e) / el : 0);
+    }
+    qsort(v, nv, sizeof *v, cmp_double);
+    double w = 2 * MODE_NORMAL_DEG * FREP_PI / 180.0;
+    for (int k = 0; k < FACE_MODES; k++) {
+        pre[0] = 0;
+        for (size_t j = 0; j < nv; j++) pre[j + 1] = pre[j] + !used[j];
+        size_t lo = 0, blo = 0, bhi = 0, best = 0;
+        for (size_t hi = 0; hi < nv; hi++) {
+            while (v[hi] - v[lo] > w) lo++;
+            if (pre[hi + 1] - pre[lo] > best) {
+                best = pre[hi + 1] - pre[lo];
+                blo = lo;
+                bhi = hi;
+            }
+        }
+        for (size_t j = blo; best > 0 && j <= bhi; j++) used[j] = 1;
+        sum += best;
+    }
+    frep_free(v);
+    frep_free(pre);
+    frep_free(used);
+    return (double)sum / (double)nv;
+}
+
 /* Does a face with ma inliers of median distance meda replace q (median med0)? When it
  * halves the median (MODE_GAIN) and has the phase's minimum support. Under noise both
  * medians are the noise's, and a curved shape that spans a small face and a little of
@@ -2580,10 +2636,10 @@ static size_t across_faces(run *r, prim *q, size_t m, double lim)
         d->band = band;
         m = support_of(d, q, r->flag, r->inl);
     }
-    if (q->type == t.type &&
-        faces_share(d->c, r->inl, m, cos(MODE_NORMAL_DEG * FREP_PI / 180.0)) >= CURVED_FACES_SHARE)
-        return 0;
-    return m;
+    if (q->type != t.type) return m;
+    double share = faces_share(d->c, r->inl, m, cos(MODE_NORMAL_DEG * FREP_PI / 180.0));
+    if (q->type == PRIM_TORUS) share = fmax(share, tube_share(q, d->c, r->inl, m));
+    return share >= CURVED_FACES_SHARE ? 0 : m;
 }
 
 /* A plane across an arc.  A concave or convex arc of a few tens of degrees lies within
