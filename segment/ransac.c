@@ -1619,17 +1619,20 @@ static double faces_share(const frep_cloud *c, const uint32_t *inl, size_t m, do
  * A torus across a disc's top and the two coaxial walls below it (mount's bore inside
  * its disc) holds faces whose normals are one angle each (90, 0 and 180 degrees) but
  * turn around the axis, so faces_share does not see the two walls as modes; a fillet's
- * normals spread over its angles. Returns 0 when out of memory. */
-static double tube_share(const prim *q, const frep_cloud *c, const uint32_t *inl, size_t m)
+ * normals spread over its angles. Out of memory: 0, and d->nomem set. */
+static double tube_share(det *d, const prim *q, const uint32_t *inl, size_t m)
 {
+    const frep_cloud *c = d->c;
     size_t nv = m < MODE_VOTERS ? m : MODE_VOTERS, sum = 0;
+    if (nv == 0) return 0;
     double *v = frep_malloc(nv * sizeof *v);
     size_t *pre = frep_malloc((nv + 1) * sizeof *pre);
-    unsigned char *used = frep_calloc(nv ? nv : 1, 1);
-    if (!v || !pre || !used || nv == 0) {
+    unsigned char *used = frep_calloc(nv, 1);
+    if (!v || !pre || !used) {
         frep_free(v);
         frep_free(pre);
         frep_free(used);
+        d->nomem = 1;
         return 0;
     }
     for (size_t j = 0; j < nv; j++) {
@@ -2642,7 +2645,7 @@ static size_t across_faces(run *r, prim *q, size_t m, double lim)
     }
     if (q->type != t.type) return m;
     double share = faces_share(d->c, r->inl, m, cos(MODE_NORMAL_DEG * FREP_PI / 180.0));
-    if (q->type == PRIM_TORUS) share = fmax(share, tube_share(q, d->c, r->inl, m));
+    if (q->type == PRIM_TORUS) share = fmax(share, tube_share(d, q, r->inl, m));
     return share >= CURVED_FACES_SHARE ? 0 : m;
 }
 
