@@ -578,6 +578,24 @@ static void mark_largest(const cellpt *cp, const uint32_t *start, size_t ncells,
             for (uint32_t i = start[j]; i < start[j + 1]; i++) keep[cp[i].pt] = 1;
 }
 
+/* The bitmap of cells beta over q's parameter domain for the points list[0..n): its
+ * grid into *D (without the coordinates) and the cell of every point, sorted by cell
+ * (then by point), as a new array; NULL when out of memory. */
+static cellpt *patch_cells(const prim *q, const frep_cloud *c, const uint32_t *list, size_t n,
+                           double beta, pdomain *D)
+{
+    D->uv = frep_malloc(2 * n * sizeof *D->uv);
+    cellpt *cp = D->uv ? frep_malloc(n * sizeof *cp) : NULL;
+    if (cp) {
+        domain_coords(q, c, list, n, D);
+        domain_grid(D, n, beta);
+        domain_cells(D, n, cp);
+    }
+    frep_free(D->uv);
+    D->uv = NULL;
+    return cp;
+}
+
 /* Keep only the inliers (idx[0..n)) in the largest 8-connected patch of a bitmap with
  * cells of size beta over the parameter domain of q; their count into *kept. Returns 0,
  * or -1 when out of memory (idx unchanged, *kept = n). */
@@ -587,17 +605,13 @@ static int largest_component(const prim *q, const frep_cloud *c, uint32_t *idx, 
     *kept = n;
     if (n == 0) return 0;
     pdomain D;
-    D.uv = frep_malloc(2 * n * sizeof *D.uv);
-    cellpt *cp = frep_malloc(n * sizeof *cp);
-    uint32_t *start = frep_malloc((n + 1) * sizeof *start);
-    uint32_t *par = frep_malloc(n * sizeof *par);
-    uint32_t *cnt = frep_calloc(n, sizeof *cnt);
-    unsigned char *keep = frep_calloc(n, 1);
+    cellpt *cp = patch_cells(q, c, idx, n, beta, &D);
+    uint32_t *start = cp ? frep_malloc((n + 1) * sizeof *start) : NULL;
+    uint32_t *par = start ? frep_malloc(n * sizeof *par) : NULL;
+    uint32_t *cnt = par ? frep_calloc(n, sizeof *cnt) : NULL;
+    unsigned char *keep = cnt ? frep_calloc(n, 1) : NULL;
     int rc = -1;
-    if (D.uv && cp && start && par && cnt && keep) {
-        domain_coords(q, c, idx, n, &D);
-        domain_grid(&D, n, beta);
-        domain_cells(&D, n, cp);
+    if (keep) {
         size_t ncells = 0;
         for (size_t i = 0; i < n; i++)
             if (i == 0 || cp[i].cell != cp[i - 1].cell) start[ncells++] = (uint32_t)i;
@@ -611,7 +625,6 @@ static int largest_component(const prim *q, const frep_cloud *c, uint32_t *idx, 
         *kept = m;
         rc = 0;
     }
-    frep_free(D.uv);
     frep_free(cp);
     frep_free(start);
     frep_free(par);
@@ -631,26 +644,18 @@ static int patch_overlap(const prim *q, const frep_cloud *c, const uint32_t *lis
     *share = 0;
     if (mp == 0) return 0;
     pdomain D;
-    D.uv = frep_malloc(2 * n * sizeof *D.uv);
-    cellpt *cp = frep_malloc(n * sizeof *cp);
-    int rc = -1;
-    if (D.uv && cp) {
-        domain_coords(q, c, list, n, &D);
-        domain_grid(&D, n, beta);
-        domain_cells(&D, n, cp);
-        size_t over = 0;
-        for (size_t i = 0, j; i < n; i = j) {
-            /* Within a cell the points come in list order: the first one tells. */
-            int first_has = cp[i].pt < mq;
-            for (j = i; j < n && cp[j].cell == cp[i].cell; j++)
-                over += first_has && cp[j].pt >= mq;
-        }
-        *share = (double)over / (double)mp;
-        rc = 0;
+    cellpt *cp = patch_cells(q, c, list, n, beta, &D);
+    if (!cp) return -1;
+    size_t over = 0;
+    for (size_t i = 0, j; i < n; i = j) {
+        /* Within a cell the points come in list order: the first one tells. */
+        int first_has = cp[i].pt < mq;
+        for (j = i; j < n && cp[j].cell == cp[i].cell; j++)
+            over += first_has && cp[j].pt >= mq;
     }
-    frep_free(D.uv);
+    *share = (double)over / (double)mp;
     frep_free(cp);
-    return rc;
+    return 0;
 }
 
 /* ---- least-squares refit ----------------------------------------------------- */
