@@ -475,6 +475,12 @@ static void draw_sample(const size_t *pool, size_t np, size_t m, uint64_t seed, 
  * 20-leaf tree take about 12 MB (36 bytes per point and leaf, 72 per point). */
 #define EVOLVE_STATS_POINTS (64 * GP_FIT_BLOCK)
 
+/* The size term of a fitness on m points: ls ln m per node (ln 2 below two points). */
+static double size_term(double ls, size_t m)
+{
+    return ls * log((double)(m > 1 ? m : 2));
+}
+
 /* 1 when the tree uses leaf j. */
 static int tree_uses(const gp_tree *t, uint32_t j)
 {
@@ -512,7 +518,7 @@ int evolve_stats(const evolve_options *o, const frep_cloud *cloud, const prim *p
     for (uint32_t pc = 0; pc < local.len; pc++)
         if (local.code[pc].op == FREP_OP_PRIM) local.code[pc].arg = map[local.code[pc].arg];
     double ls = o->lambda_scale > 0 ? o->lambda_scale : 1.0;
-    double lambda = ls * log((double)(nv > 1 ? nv : 2));
+    double lambda = size_term(ls, nv);
     /* By parts of EVOLVE_STATS_POINTS points, each its own cache: the numbers of one
      * cache of every point (gp_tree_stats_add), in memory that does not grow with the
      * cloud. */
@@ -752,7 +758,7 @@ static gp_cache *sample_cache(run_ctx *c, const size_t *pool, size_t np, size_t 
     draw_sample(pool, np, m, o->gp.seed ^ salt, out, c->tmp);
     return build_cache(o, c->prims, c->nprims, c->all, k, c->cloud->x, c->cloud->y,
                        c->cloud->z, c->nrm, out, m, c->res->eps_d, c->res->alpha,
-                       c->ls * log((double)(m > 1 ? m : 2)), 0);
+                       size_term(c->ls, m), 0);
 }
 
 /* The seeded sample the GA scores, and its cache of every primitive. */
@@ -1272,7 +1278,7 @@ static gp_cache *every_leaf_cache(run_ctx *c)
 {
     return build_cache(c->o, c->prims, c->nprims, c->all, (uint32_t)c->nprims, c->cloud->x,
                        c->cloud->y, c->cloud->z, c->nrm, c->samp, c->m, c->res->eps_d,
-                       c->res->alpha, c->ls * log((double)(c->m > 1 ? c->m : 2)), 0);
+                       c->res->alpha, size_term(c->ls, c->m), 0);
 }
 
 /* The constructed planes (segment_add_constructed, segment_close_slabs) stay out of
@@ -1287,7 +1293,7 @@ static int stage_solids(run_ctx *c)
     size_t nga = c->nprims;
     c->nprims = c->nfull;
     if (nga == c->nfull || !c->gr.best.len || run_cancelled(c)) return 0;
-    double lambda = c->ls * log((double)(c->m > 1 ? c->m : 2));
+    double lambda = size_term(c->ls, c->m);
     gp_cache *all = every_leaf_cache(c);
     if (!all) return run_oom(c);
     gp_tree u = { NULL, 0, 0 };
@@ -1359,14 +1365,6 @@ static int stage_simplify(run_ctx *c)
 #define EVOLVE_FINAL_SAMPLE_FACTOR 4
 #define EVOLVE_FINAL_CELLS ((size_t)4 << 20)
 
-/* 1 when a leaf of t is primitive j0 or a later one. */
-static int uses_leaf_from(const gp_tree *t, uint32_t j0)
-{
-    for (uint32_t q = 0; q < t->len; q++)
-        if (t->code[q].op == FREP_OP_PRIM && t->code[q].arg >= j0) return 1;
-    return 0;
-}
-
 /* The inner growth again (one primitive joined inside the tree, simplify_grow_inner),
  * on a sample EVOLVE_FINAL_SAMPLE_FACTOR times the GA's.  A face holding 0.5% of the
  * points has some 20 of the GA's 4,096, of which fewer than lambda = ln 4,096 = 8.3 may
@@ -1397,7 +1395,9 @@ static int stage_grow_final(run_ctx *c)
     gp_cache_free(fc);
     if (rc) return run_oom(c);
     /* A constructed plane joined: the GA's sample is scored over every leaf from now. */
-    if (uses_leaf_from(&res->tree, c->sc->nprims)) {
+    int joined = 0;
+    for (uint32_t j = c->sc->nprims; j < k && !joined; j++) joined = tree_uses(&res->tree, j);
+    if (joined) {
         gp_cache *all = every_leaf_cache(c);
         if (!all) return run_oom(c);
         gp_cache_free(c->sc);
