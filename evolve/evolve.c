@@ -1391,7 +1391,14 @@ static int stage_grow_final(run_ctx *c)
     gp_cache *fc = sample_cache(c, c->pool, c->np, mf, 0x3c3c3c3c3c3c3c3cu, k, fs);
     frep_free(fs);
     if (!fc) return run_oom(c);
-    int rc = simplify_grow_inner(&res->tree, o->gp.setops, fc, c->ev, NULL, o->gp.cancel);
+    uint8_t *fitted = frep_malloc(k ? k : 1);
+    for (uint32_t j = 0; fitted && j < k; j++)
+        fitted[j] = !c->prims[j].separating && !c->prims[j].constructed;
+    int rc = !fitted ||
+             simplify_grow_inner(&res->tree, o->gp.setops, fc, c->ev, NULL, o->gp.cancel) ||
+             simplify_swap_leaves(&res->tree, o->gp.setops, fc, c->ev, fitted, NULL,
+                                  o->gp.cancel);
+    frep_free(fitted);
     gp_cache_free(fc);
     if (rc) return run_oom(c);
     /* A constructed plane joined: the GA's sample is scored over every leaf from now. */

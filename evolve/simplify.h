@@ -43,6 +43,13 @@ int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
 int simplify_grow_inner(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                         double *fitness, gp_cancel *k);
 
+/* While that raises the fitness (at most 8 times), the best leaf replaced by another
+ * primitive j with fitted[j] set, explaining at least 2 points the tree misses, each
+ * swap followed by simplify_tree (evolve.c runs it on its final, larger sample).
+ * *fitness (may be NULL) receives the final fitness. 0 or -1 (allocation). */
+int simplify_swap_leaves(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
+                         const uint8_t *fitted, double *fitness, gp_cancel *k);
+
 /* After simplify_tree: first, while that raises the fitness (at most 16 times), the
  * best S & p, S \ p or S | p replacing any subtree S, p a primitive explaining points
  * the tree misses (a face missing from one part of a union, which cannot be added at

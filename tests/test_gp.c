@@ -814,6 +814,68 @@ static size_t sheet_points(const scene *s, const gp_tree *t, size_t i0, double h
  * to the clipping box. Its six end points do not pay for two nodes (2 x 2 < 2 lambda),
  * so no fitness-driven step adds the plane; the trim step of simplify_grow_pieces
  * must, on the bar only, without losing a point. */
+/* A leaf swapped for the fitted face whose few points the tree misses
+ * (simplify_swap_leaves): a cube [0,2]^3 whose bottom face shows 6 points, written
+ * with a bottom plane 1 too low.  A node costs 1 here (lambda), so that the
+ * simplification after the swap keeps the face its 6 points pay for.  Not when the
+ * face is marked as placed by construction. */
+static void test_swap_leaf(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 11);
+    add_plane(&s, 0, 1, 2);     /* p1: x <= 2 */
+    add_plane(&s, 0, -1, 0);    /* p2: x >= 0 */
+    add_plane(&s, 1, 1, 2);     /* p3: y <= 2 */
+    add_plane(&s, 1, -1, 0);    /* p4: y >= 0 */
+    add_plane(&s, 2, 1, 2);     /* p5: z <= 2 */
+    add_plane(&s, 2, -1, 0);    /* p6: z >= 0, the bottom of 6 points */
+    add_plane(&s, 2, -1, 1);    /* p7: z >= -1 */
+    for (int axis = 0; axis < 3; axis++)
+        for (int sg = 0; sg < 2; sg++) {
+            int m = axis == 2 && !sg ? 6 : 300;
+            for (int k = 0; k < m; k++) {
+                double p[3], nn[3] = { 0, 0, 0 };
+                for (int q = 0; q < 3; q++) p[q] = 2 * gp_rng_unif(&r);
+                p[axis] = sg ? 2 : 0;
+                nn[axis] = sg ? 1 : -1;
+                scene_add(&s, p[0], p[1], p[2], nn[0], nn[1], nn[2]);
+            }
+        }
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 10);
+    c->lambda = 1;
+    gp_eval *e = gp_eval_new();
+    gp_opset o = gp_opset_of(GP_SETOPS_MINMAX);
+    const int code[] = { 0, 1, -1, 2, -1, 3, -1, 4, -1, 6, -1 };
+    const double below[3] = { 1, 1, -0.5 };
+    uint8_t fitted[7] = { 1, 1, 1, 1, 1, 1, 1 };
+    for (int pass = 0; pass < 2; pass++) {
+        gp_tree t = { NULL, 0, 0 };
+        for (size_t q = 0; q < sizeof code / sizeof code[0]; q++)
+            tree_push(&t, code[q] >= 0 ? FREP_OP_PRIM : (frep_opcode)o.inter,
+                      code[q] >= 0 ? (uint32_t)code[q] : 0);
+        fitted[5] = (uint8_t)!pass;
+        gp_stats st;
+        is_int(simplify_swap_leaves(&t, GP_SETOPS_MINMAX, c, e, fitted, NULL, NULL), 0,
+               "swaps run (bottom face %s)", pass ? "constructed" : "fitted");
+        gp_tree_stats(c, e, t.code, t.len, &st);
+        if (!pass) {
+            is_int(st.explained, s.n, "every point explained (%zu of %zu): %s", st.explained,
+                   s.n, print_str(&t));
+            ok(tree_value(&s, &t, below) < 0, "the cube ends at its bottom face: %s",
+               print_str(&t));
+        } else {
+            ok(st.explained + 6 <= s.n && tree_value(&s, &t, below) > 0,
+               "a constructed face is not swapped in: %s", print_str(&t));
+        }
+        tree_free(&t);
+    }
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+}
+
 static void test_trim_part(void)
 {
     scene s;
@@ -2540,6 +2602,7 @@ int main(void)
     test_tunnel_pocket();
     test_sheet();
     test_trim_part();
+    test_swap_leaf();
     test_boss();
     test_grow_threads();
     test_simplify_both();
