@@ -830,16 +830,23 @@ out:
     return rc;
 }
 
-int simplify_swap_leaves(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
-                         const uint8_t *fitted, double *fitness, gp_cancel *k)
+/* A growth step for climb: one round of changes to t (trial its scratch), *fit raised
+ * when it changed; 1 (changed), 0 (not), -1 (allocation). */
+typedef int (*growth_step)(gp_tree *t, gp_tree *trial, const gp_cache *c, gp_eval *e,
+                           const void *arg, double *fit);
+
+/* step while it changes t and at most `rounds` times, each change followed by
+ * simplify_tree; *fitness (may be NULL) the final fitness.  0 or -1. */
+static int climb(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e, growth_step step,
+                 const void *arg, int rounds, double *fitness, gp_cancel *k)
 {
     if (!t->len) return 0;
     gp_tree trial = { NULL, 0, 0 };
     double fit;
     int rc = -1;
     if (gp_fitness(c, e, t->code, t->len, &fit)) goto out;
-    for (int round = 0; round < SIMPLIFY_MAX_SWAPS && !gp_cancelled(k); round++) {
-        int g = grow_swap(t, &trial, c, e, fitted, &fit);
+    for (int round = 0; round < rounds && !gp_cancelled(k); round++) {
+        int g = step(t, &trial, c, e, arg, &fit);
         if (g < 0) goto out;
         if (g == 0) break;
         if (simplify_tree(t, s, c, e, &fit, k)) goto out;
@@ -849,6 +856,18 @@ int simplify_swap_leaves(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
 out:
     tree_free(&trial);
     return rc;
+}
+
+static int swap_step(gp_tree *t, gp_tree *trial, const gp_cache *c, gp_eval *e,
+                     const void *fitted, double *fit)
+{
+    return grow_swap(t, trial, c, e, fitted, fit);
+}
+
+int simplify_swap_leaves(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
+                         const uint8_t *fitted, double *fitness, gp_cancel *k)
+{
+    return climb(t, s, c, e, swap_step, fitted, SIMPLIFY_MAX_SWAPS, fitness, k);
 }
 
 /* ---- pockets: up to four primitives joined below the root ---------------------- */
@@ -1287,26 +1306,17 @@ out:
     return rc;
 }
 
+static int inner_step(gp_tree *t, gp_tree *trial, const gp_cache *c, gp_eval *e,
+                      const void *o, double *fit)
+{
+    return grow_inner(t, trial, o, c, e, fit);
+}
+
 int simplify_grow_inner(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                         double *fitness, gp_cancel *k)
 {
-    if (!t->len) return 0;
     gp_opset o = gp_opset_of(s);
-    gp_tree trial = { NULL, 0, 0 };
-    double fit;
-    int rc = -1;
-    if (gp_fitness(c, e, t->code, t->len, &fit)) goto out;
-    for (int round = 0; round < SIMPLIFY_MAX_INNER && !gp_cancelled(k); round++) {
-        int g = grow_inner(t, &trial, &o, c, e, &fit);
-        if (g < 0) goto out;
-        if (g == 0) break;
-        if (simplify_tree(t, s, c, e, &fit, k)) goto out;
-    }
-    rc = 0;
-    if (fitness) *fitness = fit;
-out:
-    tree_free(&trial);
-    return rc;
+    return climb(t, s, c, e, inner_step, &o, SIMPLIFY_MAX_INNER, fitness, k);
 }
 
 int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
