@@ -537,12 +537,25 @@ static int item_error(const cloud_ply *h, const ply_body *b, const ply_element *
                           b->ac.line, what, i);
 }
 
-/* The items of every element in order; the vertices go into c. */
+/* Bytes of the body not read yet; every property of an item takes at least one (a
+ * digit, or a binary value of one byte or more). */
+static size_t body_left(const ply_body *b)
+{
+    return b->fmt == PLY_ASCII ? (size_t)(b->ac.end - b->ac.p) : (size_t)(b->bend - b->bp);
+}
+
+/* The items of every element in order; the vertices go into c, reserved once their
+ * count is known to fit the data left (a header declaring 200 million vertices over
+ * a few bytes asked for 9.6 GB: the fuzzer's find). */
 static int read_body(const cloud_ply *h, ply_body *b, frep_cloud *c)
 {
     for (size_t e = 0; e < h->nel; e++) {
         const ply_element *E = &h->el[e];
         if (E->nprops == 0) continue; /* items without properties hold no data */
+        if (E->is_vertex && E->count > body_left(b) / E->nprops)
+            return frep_error_set(h->err, FREP_EINPUT,
+                                  "%s: %zu vertices declared, more than the %zu bytes of data "
+                                  "left can hold", h->name, E->count, body_left(b));
         if (E->is_vertex && cloud_reserve(c, E->count))
             return frep_error_set(h->err, FREP_ENOMEM, "%s: out of memory for %zu vertices",
                                   h->name, E->count);

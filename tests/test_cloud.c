@@ -249,6 +249,16 @@ static void test_ply_ascii(void)
     const char *h5 = "ply\nformat ascii 1.0\nelement vertex 99999999999\nend_header\n";
     c = cloud_parse("t.ply", h5, strlen(h5), &err);
     ok(!c, "absurd vertex count rejected before allocating");
+    /* A count the data cannot hold (one byte a property at least) is refused before
+     * the vertices are reserved: 200 million floats over 12 bytes. */
+    const char h6[] = "ply\nformat binary_little_endian 1.0\nelement vertex 200000000\n"
+                      "property float x\nproperty float y\nproperty float z\nend_header\n"
+                      "0123456789ab";
+    c = cloud_parse("t.ply", h6, sizeof h6 - 1, &err);
+    ok(!c, "a vertex count the data cannot hold rejected");
+    is_str(err.msg[0] ? err.msg : "",
+           "t.ply: 200000000 vertices declared, more than the 12 bytes of data left can hold",
+           "message");
 }
 
 /* An element without properties holds no data, however many items it declares (the
