@@ -2538,16 +2538,6 @@ static int found_plane_rms(const run *r, double *med)
     return 0;
 }
 
-/* The part's direction nearest plane q's normal, within FREE_FACE_PARALLEL_DEG, into
- * dir: the normal of a found plane as near its own inliers as FREE_FACE_RMS times the
- * found planes' median rms (a plane across two faces that meet at a shallow angle is
- * farther from its points: on the tower of six_cuboids at 0.5% noise, 3.5 degrees off
- * the two faces of a step, 1.5 times the median; the narrow faces' parallels on mount
- * and the cap, 0.96-1.02), or where no such plane is parallel, the cross product of two
- * of them (a CAD part's faces meet at right angles: mount's block shows its two sides,
- * each a U of narrow legs around the groove, and no other plane of their direction).
- * The two planes must be CROSS_MIN_SINE apart (30 degrees).  Returns 1 when there is
- * one, 0 when not. */
 #define CROSS_MIN_SINE 0.5
 static int fits_own_points(const prim *f, double rms)
 {
@@ -2564,6 +2554,16 @@ static int nearer(const double n[3], const prim *q, double *best, double dir[3])
     return 1;
 }
 
+/* The part's direction nearest plane q's normal, within FREE_FACE_PARALLEL_DEG, into
+ * dir: the normal of a found plane as near its own inliers as FREE_FACE_RMS times the
+ * found planes' median rms (a plane across two faces that meet at a shallow angle is
+ * farther from its points: on the tower of six_cuboids at 0.5% noise, 3.5 degrees off
+ * the two faces of a step, 1.5 times the median; the narrow faces' parallels on mount
+ * and the cap, 0.96-1.02), or where no such plane is parallel, the cross product of two
+ * of them (a CAD part's faces meet at right angles: mount's block shows its two sides,
+ * each a U of narrow legs around the groove, and no other plane of their direction).
+ * The two planes must be CROSS_MIN_SINE apart (30 degrees).  Returns 1 when there is
+ * one, 0 when not. */
 static int part_direction(const run *r, const prim *q, double rms, double dir[3])
 {
     const ransac_result *res = r->res;
