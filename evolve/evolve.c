@@ -1396,6 +1396,7 @@ static int stage_grow_final(run_ctx *c)
         fitted[j] = !c->prims[j].separating && !c->prims[j].constructed;
     int rc = !fitted ||
              simplify_grow_inner(&res->tree, o->gp.setops, fc, c->ev, NULL, o->gp.cancel) ||
+             simplify_grow_pockets(&res->tree, o->gp.setops, fc, c->ev, NULL, o->gp.cancel) ||
              simplify_swap_leaves(&res->tree, o->gp.setops, fc, c->ev, fitted, NULL,
                                   o->gp.cancel);
     frep_free(fitted);

@@ -8,6 +8,7 @@
 #include "gp.h"
 #include "simplify.h"
 #include "threads.h"
+#include "util.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -932,16 +933,15 @@ static int planes_bounded(const double (*nn)[3], int m)
 
 /* sub = code[st..end] then the piece over literals lits[0..m): pocket (form 0):
  * S & (L1 | L2 | ...), the material kept near each face being the side its points
- * say; boss (form 1): S | (L1 & L2 & ...). L = p or ~p by the orientation of p's
- * missed points. */
+ * say; boss (form 1): S | (L1 & L2 & ...). L = ~p where lneg[q] is set, else p. */
 static int build_pocket(gp_tree *sub, const frep_insn *code, uint32_t st, uint32_t end,
-                        const uint32_t *lits, const uint8_t *neg, int m, int form,
+                        const uint32_t *lits, const uint8_t *lneg, int m, int form,
                         const gp_opset *o)
 {
     if (tree_set(sub, code + st, end - st + 1)) return -1;
     for (int q = 0; q < m; q++) {
         if (tree_push(sub, FREP_OP_PRIM, lits[q])) return -1;
-        if (neg[lits[q]] && tree_push(sub, (frep_opcode)o->neg, 0)) return -1;
+        if (lneg[q] && tree_push(sub, (frep_opcode)o->neg, 0)) return -1;
         if (q > 0 && tree_push(sub, (frep_opcode)(form == 0 ? o->uni : o->inter), 0))
             return -1;
     }
@@ -964,8 +964,13 @@ typedef struct pocket_state {
     uint8_t fits[2][SIMPLIFY_POCKET_CANDS][SIMPLIFY_POCKET_CANDS];
     double pn[SIMPLIFY_POCKET_CANDS][3];   /* outward normals of the plane candidates */
     uint8_t isplane[SIMPLIFY_POCKET_CANDS];
+    /* The far wall of each plane candidate (box_partners): a plane primitive, and
+     * whether its literal is complemented; UINT32_MAX: none. */
+    uint32_t far[SIMPLIFY_POCKET_CANDS];
+    uint8_t far_neg[SIMPLIFY_POCKET_CANDS];
     double bf;               /* best fitness (the tree's to start with) */
     uint32_t best_end, best_lits[SIMPLIFY_BOSS_MAX];
+    uint8_t best_neg[SIMPLIFY_BOSS_MAX];
     int best_m, best_form;   /* best_m 0: nothing better found */
     gp_tree sub;             /* scratch: a replacement */
 } pocket_state;
@@ -1017,6 +1022,58 @@ static void pocket_fits_of(pocket_state *ps, int a)
         for (int b = 0; b < ps->nc; b++) ps->fits[form][a][b] = 2 * in[form][b] > na;
 }
 
+/* ---- box cuts: a pocket closed by its far walls ---- */
+
+/* A pocket in the shape of a box turned against the part (InverseCSG's cube with a
+ * turned cube cut into its corner, in three_cuboids, six_cuboids and nine_cuboids)
+ * shows three near walls that the points hold well and three far walls of 10-45
+ * points of 50,000 each (a few of the GA's 4,096, so never useful candidates).  The
+ * near walls alone cut a trihedral wedge through the whole part; closed by their far
+ * walls they cut the box.  A plane candidate's far wall is the plane primitive
+ * parallel to it within SIMPLIFY_BOX_PARALLEL_DEG, facing it (its outward normal
+ * opposite), nearest beyond it: the box between them at least SIMPLIFY_BOX_MIN_WIDTH
+ * eps_d thick. */
+#define SIMPLIFY_BOX_PARALLEL_DEG 3.0
+#define SIMPLIFY_BOX_MIN_WIDTH 2.0
+
+/* far[] and far_neg[] of every plane candidate.  Literal values are planar, L(x) =
+ * e - n.x with n the literal's outward normal, so two facing walls (normals n and -n)
+ * sum to -(the width between them) at every point. */
+static void box_partners(pocket_state *ps)
+{
+    const gp_cache *c = ps->c;
+    double cp = cos(SIMPLIFY_BOX_PARALLEL_DEG * FREP_PI / 180.0);
+    for (int a = 0; a < ps->nc; a++) {
+        ps->far[a] = UINT32_MAX;
+        ps->far_neg[a] = 0;
+        if (!ps->isplane[a] || c->n == 0) continue;
+        uint32_t ja = ps->cand[a];
+        double pl = sqrt(ps->pn[a][0] * ps->pn[a][0] + ps->pn[a][1] * ps->pn[a][1] +
+                         ps->pn[a][2] * ps->pn[a][2]);
+        double la = c->v[(size_t)ja * c->n] / pl;
+        if (ps->neg[ja]) la = -la;
+        double best = INFINITY;
+        for (uint32_t j = 0; j < c->nprims; j++) {
+            double g[3];
+            if (j == ja || !cache_plane(c, j, g)) continue;
+            double gl = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+            /* literal p has outward normal -g, ~p has g: the far wall's faces -pn[a] */
+            double cs = (g[0] * ps->pn[a][0] + g[1] * ps->pn[a][1] + g[2] * ps->pn[a][2]) /
+                        (gl * pl);
+            if (!(fabs(cs) >= cp)) continue;
+            int ng = cs < 0;  /* ~p's outward normal g must be -pn[a] */
+            double lj = c->v[(size_t)j * c->n] / gl;
+            if (ng) lj = -lj;
+            double width = -(la + lj);
+            if (width >= SIMPLIFY_BOX_MIN_WIDTH * c->eps_d && width < best) {
+                best = width;
+                ps->far[a] = j;
+                ps->far_neg[a] = (uint8_t)ng;
+            }
+        }
+    }
+}
+
 /* Which candidates can be faces of one pocket or boss (the pairs test prunes most
  * subsets before any tree is scored: a tree of 100 nodes and 154 subsets would
  * otherwise cost 30,000 fitness evaluations per round), and the outward normals of the
@@ -1033,14 +1090,35 @@ static int pocket_faces(pocket_state *ps, const gp_tree *t)
         double sg = ps->neg[ps->cand[a]] ? 1.0 : -1.0;
         for (int d = 0; d < 3; d++) ps->pn[a][d] = sg * g[d];
     }
+    box_partners(ps);
     return 0;
+}
+
+/* The box cut over the near walls idx[0..m) (2 or 3 plane candidates, a pocket's
+ * faces by the pairs test): their literals, then their far walls', into lits and lneg
+ * (2m of them).  0 when a wall has no far wall or two share one. */
+static int box_cut(const pocket_state *ps, const int *idx, int m, uint32_t *lits, uint8_t *lneg)
+{
+    if (m < 2 || 2 * m > SIMPLIFY_BOSS_MAX) return 0;
+    for (int a = 0; a < m; a++) {
+        uint32_t f = ps->far[idx[a]];
+        if (f == UINT32_MAX) return 0;
+        for (int b = 0; b < m; b++)
+            if (f == ps->cand[idx[b]] || (b < a && f == ps->far[idx[b]])) return 0;
+        lits[a] = ps->cand[idx[a]];
+        lneg[a] = ps->neg[lits[a]];
+        lits[m + a] = f;
+        lneg[m + a] = ps->far_neg[idx[a]];
+    }
+    return 1;
 }
 
 /* The literals of the candidates in mask (lits[0..*m)), and in form_ok which forms
  * they may build: 2 to SIMPLIFY_POCKET_MAX faces for a pocket, 4 to SIMPLIFY_BOSS_MAX
- * planes bounding a finite region for a boss, every pair fitting. 0: neither. */
+ * planes bounding a finite region for a boss, every pair fitting; form 2, a box cut
+ * (box_cut: the literals in box[] and box_neg[], *box_m of them). 0: none. */
 static int pocket_subset(const pocket_state *ps, unsigned mask, uint32_t *lits, int *m_out,
-                         int form_ok[2])
+                         int form_ok[3], uint32_t *box, uint8_t *box_neg, int *box_m)
 {
     int idx[SIMPLIFY_BOSS_MAX];
     double bn[SIMPLIFY_BOSS_MAX][3];
@@ -1062,21 +1140,32 @@ static int pocket_subset(const pocket_state *ps, unsigned mask, uint32_t *lits, 
             for (int b = 0; b < m; b++)
                 if (a != b && !ps->fits[form][idx[a]][idx[b]]) form_ok[form] = 0;
     if (form_ok[1] && !planes_bounded((const double (*)[3])bn, m)) form_ok[1] = 0;
-    return form_ok[0] || form_ok[1];
+    form_ok[2] = form_ok[0] && planes && box_cut(ps, idx, m, box, box_neg);
+    *box_m = form_ok[2] ? 2 * m : 0;
+    return form_ok[0] || form_ok[1] || form_ok[2];
 }
 
-/* The pieces over lits in the allowed forms below every subtree of t (taped), the
- * fittest kept. */
-static int pocket_try(pocket_state *ps, const gp_tree *t, const uint32_t *lits, int m,
-                      const int form_ok[2])
+/* The literals of one subset in each form: [form][0..m[form]), and which forms it
+ * may build. */
+typedef struct pocket_forms {
+    uint32_t lits[3][SIMPLIFY_BOSS_MAX];
+    uint8_t neg[3][SIMPLIFY_BOSS_MAX];
+    int m[3], ok[3];
+} pocket_forms;
+
+/* The pieces of the allowed forms below every subtree of t (taped), the fittest kept.
+ * A box cut (form 2) is built as a pocket over its six walls. */
+static int pocket_try(pocket_state *ps, const gp_tree *t, const pocket_forms *pf)
 {
     for (uint32_t end = 0; end < t->len; end++) {
         uint32_t st = tree_subtree_start(t->code, end);
         frep_insn lf = gp_tape_leaf(ps->c, end);
-        for (int form = 0; form < 2; form++) {
-            if (!form_ok[form]) continue;
+        for (int form = 0; form < 3; form++) {
+            if (!pf->ok[form]) continue;
             double f;
-            if (build_pocket(&ps->sub, &lf, 0, 0, lits, ps->neg, m, form, ps->o) ||
+            int m = pf->m[form];
+            if (build_pocket(&ps->sub, &lf, 0, 0, pf->lits[form], pf->neg[form], m, form == 1,
+                             ps->o) ||
                 gp_fitness_replaced(ps->c, ps->e, st, end, ps->sub.code, ps->sub.len, ps->bf,
                                     &f))
                 return -1;
@@ -1084,8 +1173,9 @@ static int pocket_try(pocket_state *ps, const gp_tree *t, const uint32_t *lits, 
                 ps->bf = f;
                 ps->best_end = end;
                 ps->best_m = m;
-                ps->best_form = form;
-                memcpy(ps->best_lits, lits, (size_t)m * sizeof *lits);
+                ps->best_form = form == 1;
+                memcpy(ps->best_lits, pf->lits[form], (size_t)m * sizeof *pf->lits[form]);
+                memcpy(ps->best_neg, pf->neg[form], (size_t)m);
             }
         }
     }
@@ -1102,10 +1192,14 @@ static int pocket_search(pocket_state *ps, gp_tree *t)
     pocket_candidates(ps);
     if (pocket_faces(ps, t) || record(t, ps->c, ps->e, NULL)) return -1;
     for (unsigned mask = 0; mask < (1u << ps->nc); mask++) {
-        uint32_t lits[SIMPLIFY_BOSS_MAX];
-        int m, form_ok[2];
-        if (pocket_subset(ps, mask, lits, &m, form_ok) && pocket_try(ps, t, lits, m, form_ok))
-            return -1;
+        pocket_forms pf;
+        if (!pocket_subset(ps, mask, pf.lits[0], &pf.m[0], pf.ok, pf.lits[2], pf.neg[2],
+                           &pf.m[2]))
+            continue;
+        pf.m[1] = pf.m[0];
+        memcpy(pf.lits[1], pf.lits[0], sizeof pf.lits[0]);
+        for (int q = 0; q < pf.m[0]; q++) pf.neg[0][q] = pf.neg[1][q] = ps->neg[pf.lits[0][q]];
+        if (pocket_try(ps, t, &pf)) return -1;
     }
     return ps->best_m != 0;
 }
@@ -1134,7 +1228,7 @@ static int grow_pocket(gp_tree *t, gp_tree *trial, const gp_opset *o, const gp_c
     int rc = !ps.use || !ps.neg || !ps.cnt ? -1 : pocket_search(&ps, t);
     if (rc > 0) {
         uint32_t st = tree_subtree_start(t->code, ps.best_end);
-        rc = build_pocket(&ps.sub, t->code, st, ps.best_end, ps.best_lits, ps.neg, ps.best_m,
+        rc = build_pocket(&ps.sub, t->code, st, ps.best_end, ps.best_lits, ps.best_neg, ps.best_m,
                           ps.best_form, o)
                  ? -1
                  : commit_splice(t, trial, ps.best_end, &ps.sub);
@@ -1312,6 +1406,19 @@ static int inner_step(gp_tree *t, gp_tree *trial, const gp_cache *c, gp_eval *e,
     return grow_inner(t, trial, o, c, e, fit);
 }
 
+static int pocket_step(gp_tree *t, gp_tree *trial, const gp_cache *c, gp_eval *e,
+                       const void *o, double *fit)
+{
+    return grow_pocket(t, trial, o, c, e, fit);
+}
+
+int simplify_grow_pockets(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
+                          double *fitness, gp_cancel *k)
+{
+    gp_opset o = gp_opset_of(s);
+    return climb(t, s, c, e, pocket_step, &o, SIMPLIFY_MAX_POCKETS, fitness, k);
+}
+
 int simplify_grow_inner(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                         double *fitness, gp_cancel *k)
 {
@@ -1324,16 +1431,11 @@ int simplify_grow_pieces(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
 {
     if (!t->len) return 0;
     double fit;
-    if (simplify_grow_inner(t, s, c, e, &fit, k)) return -1;
+    if (simplify_grow_inner(t, s, c, e, &fit, k) || simplify_grow_pockets(t, s, c, e, &fit, k))
+        return -1;
     gp_opset o = gp_opset_of(s);
     gp_tree trial = { NULL, 0, 0 };
     int rc = -1;
-    for (int round = 0; round < SIMPLIFY_MAX_POCKETS && !gp_cancelled(k); round++) {
-        int g = grow_pocket(t, &trial, &o, c, e, &fit);
-        if (g < 0) goto out;
-        if (g == 0) break;
-        if (simplify_tree(t, s, c, e, &fit, k)) goto out;
-    }
     for (int round = 0; round < SIMPLIFY_MAX_PIECES && !gp_cancelled(k); round++) {
         int g = grow_piece(t, &trial, &o, c, e, &fit, k);
         if (g < 0) goto out;

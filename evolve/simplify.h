@@ -43,6 +43,13 @@ int simplify_tree_both(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
 int simplify_grow_inner(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
                         double *fitness, gp_cancel *k);
 
+/* The second step of simplify_grow_pieces (below) alone: while that raises the fitness
+ * (at most 3 times), the best pocket or box cut replacing any subtree S, each followed
+ * by simplify_tree (evolve.c runs it once more on a larger sample).  *fitness (may be
+ * NULL) receives the final fitness. 0 or -1 (allocation). */
+int simplify_grow_pockets(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
+                          double *fitness, gp_cancel *k);
+
 /* While that raises the fitness (at most 8 times), the best leaf replaced by another
  * primitive j with fitted[j] set, explaining at least 2 points the tree misses, each
  * swap followed by simplify_tree (evolve.c runs it on its final, larger sample).
@@ -58,8 +65,10 @@ int simplify_swap_leaves(gp_tree *t, gp_setops s, const gp_cache *c, gp_eval *e,
  * 2 <= m <= 4, Li a primitive or its complement as its missed points say, the faces
  * chosen among the 8 primitives explaining the most missed points and such that each
  * face's missed points lie on the pocket's boundary (a box cut from one part of a
- * union, which no part of it improves alone). Then join at the root, while that raises
- * the fitness (at most 3 times), the best piece of two or three primitives, t | P,
+ * union, which no part of it improves alone), or a box cut: 2 or 3 such plane faces
+ * each closed by the plane primitive facing it (a pocket whose far walls hold too few
+ * points to be chosen, or a blind pocket of five walls). Then join at the root, while
+ * that raises the fitness (at most 3 times), the best piece of two or three primitives, t | P,
  * t \ P or t & P with P = a & b, a \ b, a | b, (a & b) & c, (a & b) \ c, (a | b) | c,
  * ... (a pocket such as a groove, three planes intersected then subtracted, or a notch
  * t & (a | b | c) cut by faces that point into it, which no single primitive

@@ -767,6 +767,77 @@ static void test_tunnel_pocket(void)
     scene_free(&s);
 }
 
+/* A cube [0,4]^3 with a blind pocket [1,2] x [1,2] x [3,4] milled into its top: four
+ * walls and a floor, one face more than a pocket of simplify_grow_pieces may have
+ * (SIMPLIFY_POCKET_MAX), and no wall improves the tree alone.  The pocket step must cut
+ * it as a box (three near walls closed by the faces opposite them: the floor's is the
+ * cube's top, complemented), from the cube's top down to the floor and no deeper. */
+static void test_blind_pocket(void)
+{
+    scene s;
+    memset(&s, 0, sizeof s);
+    gp_rng r;
+    gp_rng_seed(&r, 7);
+    add_plane(&s, 0, 1, 4);     /* p1: x <= 4 */
+    add_plane(&s, 0, -1, 0);    /* p2: x >= 0 */
+    add_plane(&s, 1, 1, 4);     /* p3: y <= 4 */
+    add_plane(&s, 1, -1, 0);    /* p4: y >= 0 */
+    add_plane(&s, 2, 1, 4);     /* p5: z <= 4 */
+    add_plane(&s, 2, -1, 0);    /* p6: z >= 0 */
+    add_plane(&s, 0, 1, 1);     /* p7: x <= 1, a wall */
+    add_plane(&s, 0, -1, -2);   /* p8: x >= 2, the wall opposite */
+    add_plane(&s, 1, 1, 1);     /* p9: y <= 1 */
+    add_plane(&s, 1, -1, -2);   /* p10: y >= 2 */
+    add_plane(&s, 2, 1, 3);     /* p11: z <= 3, the floor */
+    for (int axis = 0; axis < 3; axis++)
+        for (int sg = 0; sg < 2; sg++)
+            for (int k = 0; k < 400; k++) {
+                double p[3], nn[3] = { 0, 0, 0 };
+                for (int q = 0; q < 3; q++) p[q] = 4 * gp_rng_unif(&r);
+                p[axis] = sg ? 4 : 0;
+                nn[axis] = sg ? 1 : -1;
+                if (axis == 2 && sg && p[0] > 1 && p[0] < 2 && p[1] > 1 && p[1] < 2)
+                    continue;  /* the pocket's opening */
+                scene_add(&s, p[0], p[1], p[2], nn[0], nn[1], nn[2]);
+            }
+    for (int k = 0; k < 100; k++) {  /* walls and floor, normals into the pocket */
+        double u = 1 + gp_rng_unif(&r), z = 3 + gp_rng_unif(&r), w = 1 + gp_rng_unif(&r);
+        scene_add(&s, 1, u, z, 1, 0, 0);
+        scene_add(&s, 2, u, z, -1, 0, 0);
+        scene_add(&s, u, 1, z, 0, 1, 0);
+        scene_add(&s, u, 2, z, 0, -1, 0);
+        scene_add(&s, u, w, 3, 0, 0, 1);
+    }
+    gp_cache *c = scene_cache(&s, GP_SETOPS_MINMAX, 10);
+    gp_eval *e = gp_eval_new();
+    gp_opset o = gp_opset_of(GP_SETOPS_MINMAX);
+    gp_tree t = { NULL, 0, 0 };
+    /* the cube: p1 & p2 & ... & p6, 0-based leaves */
+    tree_push(&t, FREP_OP_PRIM, 0);
+    for (uint32_t j = 1; j < 6; j++) {
+        tree_push(&t, FREP_OP_PRIM, j);
+        tree_push(&t, (frep_opcode)o.inter, 0);
+    }
+    double f0 = 0, f1 = 0;
+    gp_fitness(c, e, t.code, t.len, &f0);
+    is_int(simplify_grow_pieces(&t, GP_SETOPS_MINMAX, c, e, &f1, NULL), 0, "pocket search runs");
+    gp_stats st;
+    gp_tree_stats(c, e, t.code, t.len, &st);
+    ok(f1 > f0, "fitness rises with the pocket: %.1f -> %.1f", f0, f1);
+    is_int(st.explained, s.n, "every point explained (%zu of %zu): %s", st.explained, s.n,
+           print_str(&t));
+    const double in[3] = { 1.5, 1.5, 3.5 }, below[3] = { 1.5, 1.5, 2.5 },
+                 beside[3] = { 0.5, 1.5, 3.5 }, across[3] = { 1.5, 3, 3.5 };
+    ok(tree_value(&s, &t, in) < 0, "the pocket is empty");
+    ok(tree_value(&s, &t, below) > 0, "the floor holds: solid below it");
+    ok(tree_value(&s, &t, beside) > 0 && tree_value(&s, &t, across) > 0,
+       "solid beside the pocket's walls");
+    tree_free(&t);
+    gp_eval_free(e);
+    gp_cache_free(c);
+    scene_free(&s);
+}
+
 /* Independent evaluation of a min/max tree at a point (for checks that must not trust
  * fitness.c): the value of the postfix code over the scene's primitives. */
 static double tree_value(const struct scene *s, const gp_tree *t, const double x[3])
@@ -2600,6 +2671,7 @@ int main(void)
     test_block_minus_cylinder();
     test_groove_pieces();
     test_tunnel_pocket();
+    test_blind_pocket();
     test_sheet();
     test_trim_part();
     test_swap_leaf();
