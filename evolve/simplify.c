@@ -1113,13 +1113,22 @@ static int box_cut(const pocket_state *ps, const int *idx, int m, uint32_t *lits
     return 1;
 }
 
-/* The literals of the candidates in mask (lits[0..*m)), and in form_ok which forms
- * they may build: 2 to SIMPLIFY_POCKET_MAX faces for a pocket, 4 to SIMPLIFY_BOSS_MAX
- * planes bounding a finite region for a boss, every pair fitting; form 2, a box cut
- * (box_cut: the literals in box[] and box_neg[], *box_m of them). 0: none. */
-static int pocket_subset(const pocket_state *ps, unsigned mask, uint32_t *lits, int *m_out,
-                         int form_ok[3], uint32_t *box, uint8_t *box_neg, int *box_m)
+/* One subset of the candidates: its literals (a pocket or a boss over them), its box
+ * cut's (box_cut), and which of the three forms it may build. */
+typedef struct pocket_forms {
+    uint32_t lits[SIMPLIFY_BOSS_MAX], box[SIMPLIFY_BOSS_MAX];
+    uint8_t neg[SIMPLIFY_BOSS_MAX], box_neg[SIMPLIFY_BOSS_MAX];
+    int m, box_m, ok[3];
+} pocket_forms;
+
+/* The literals of the candidates in mask (pf->lits, pf->neg, pf->m), and in pf->ok
+ * which forms they may build: 2 to SIMPLIFY_POCKET_MAX faces for a pocket, 4 to
+ * SIMPLIFY_BOSS_MAX planes bounding a finite region for a boss, every pair fitting;
+ * a box cut (box_cut, into pf->box). 0: none. */
+static int pocket_subset(const pocket_state *ps, unsigned mask, pocket_forms *pf)
 {
+    uint32_t *lits = pf->lits;
+    int *form_ok = pf->ok;
     int idx[SIMPLIFY_BOSS_MAX];
     double bn[SIMPLIFY_BOSS_MAX][3];
     int m = 0, planes = 1;
@@ -1129,9 +1138,10 @@ static int pocket_subset(const pocket_state *ps, unsigned mask, uint32_t *lits, 
             idx[m] = q;
             planes &= ps->isplane[q];
             memcpy(bn[m], ps->pn[q], sizeof bn[m]);
+            pf->neg[m] = ps->neg[ps->cand[q]];
             lits[m++] = ps->cand[q];
         }
-    *m_out = m;
+    pf->m = m;
     if (m < 2 || m > SIMPLIFY_BOSS_MAX) return 0;
     form_ok[0] = m <= SIMPLIFY_POCKET_MAX;
     form_ok[1] = planes && m >= 4;
@@ -1140,21 +1150,13 @@ static int pocket_subset(const pocket_state *ps, unsigned mask, uint32_t *lits, 
             for (int b = 0; b < m; b++)
                 if (a != b && !ps->fits[form][idx[a]][idx[b]]) form_ok[form] = 0;
     if (form_ok[1] && !planes_bounded((const double (*)[3])bn, m)) form_ok[1] = 0;
-    form_ok[2] = form_ok[0] && planes && box_cut(ps, idx, m, box, box_neg);
-    *box_m = form_ok[2] ? 2 * m : 0;
+    form_ok[2] = form_ok[0] && planes && box_cut(ps, idx, m, pf->box, pf->box_neg);
+    pf->box_m = form_ok[2] ? 2 * m : 0;
     return form_ok[0] || form_ok[1] || form_ok[2];
 }
 
-/* The literals of one subset in each form: [form][0..m[form]), and which forms it
- * may build. */
-typedef struct pocket_forms {
-    uint32_t lits[3][SIMPLIFY_BOSS_MAX];
-    uint8_t neg[3][SIMPLIFY_BOSS_MAX];
-    int m[3], ok[3];
-} pocket_forms;
-
 /* The pieces of the allowed forms below every subtree of t (taped), the fittest kept.
- * A box cut (form 2) is built as a pocket over its six walls. */
+ * A box cut (form 2) is built as a pocket over its walls. */
 static int pocket_try(pocket_state *ps, const gp_tree *t, const pocket_forms *pf)
 {
     for (uint32_t end = 0; end < t->len; end++) {
@@ -1162,10 +1164,11 @@ static int pocket_try(pocket_state *ps, const gp_tree *t, const pocket_forms *pf
         frep_insn lf = gp_tape_leaf(ps->c, end);
         for (int form = 0; form < 3; form++) {
             if (!pf->ok[form]) continue;
+            const uint32_t *lits = form == 2 ? pf->box : pf->lits;
+            const uint8_t *neg = form == 2 ? pf->box_neg : pf->neg;
+            int m = form == 2 ? pf->box_m : pf->m;
             double f;
-            int m = pf->m[form];
-            if (build_pocket(&ps->sub, &lf, 0, 0, pf->lits[form], pf->neg[form], m, form == 1,
-                             ps->o) ||
+            if (build_pocket(&ps->sub, &lf, 0, 0, lits, neg, m, form == 1, ps->o) ||
                 gp_fitness_replaced(ps->c, ps->e, st, end, ps->sub.code, ps->sub.len, ps->bf,
                                     &f))
                 return -1;
@@ -1174,8 +1177,8 @@ static int pocket_try(pocket_state *ps, const gp_tree *t, const pocket_forms *pf
                 ps->best_end = end;
                 ps->best_m = m;
                 ps->best_form = form == 1;
-                memcpy(ps->best_lits, pf->lits[form], (size_t)m * sizeof *pf->lits[form]);
-                memcpy(ps->best_neg, pf->neg[form], (size_t)m);
+                memcpy(ps->best_lits, lits, (size_t)m * sizeof *lits);
+                memcpy(ps->best_neg, neg, (size_t)m);
             }
         }
     }
@@ -1193,12 +1196,7 @@ static int pocket_search(pocket_state *ps, gp_tree *t)
     if (pocket_faces(ps, t) || record(t, ps->c, ps->e, NULL)) return -1;
     for (unsigned mask = 0; mask < (1u << ps->nc); mask++) {
         pocket_forms pf;
-        if (!pocket_subset(ps, mask, pf.lits[0], &pf.m[0], pf.ok, pf.lits[2], pf.neg[2],
-                           &pf.m[2]))
-            continue;
-        pf.m[1] = pf.m[0];
-        memcpy(pf.lits[1], pf.lits[0], sizeof pf.lits[0]);
-        for (int q = 0; q < pf.m[0]; q++) pf.neg[0][q] = pf.neg[1][q] = ps->neg[pf.lits[0][q]];
+        if (!pocket_subset(ps, mask, &pf)) continue;
         if (pocket_try(ps, t, &pf)) return -1;
     }
     return ps->best_m != 0;
